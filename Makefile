@@ -1,0 +1,142 @@
+# marie: top-level build. Every folder adds its programs, tests and benchmarks in a
+# module.mk fragment; all output goes under $(B) (build/, or build/san with SAN=1).
+
+SAN ?= 0
+ifeq ($(SAN),1)
+B ?= build/san
+else
+B ?= build
+endif
+PREFIX ?= /usr/local
+
+CC  ?= gcc
+CXX ?= g++
+PKGS := lcm glib-2.0 libfyaml libsodium libsystemd
+PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
+
+WARN     := -Wall -Wextra -Wno-unused-parameter
+CPPFLAGS := -I. -I$(B)/gen/c -I$(B)/gen/cpp $(PKG_CFLAGS) -D_GNU_SOURCE
+CFLAGS   := -O2 -g -std=gnu11 $(WARN) -MMD -MP
+CXXFLAGS := -O2 -g -std=gnu++17 $(WARN) -MMD -MP
+LDFLAGS  :=
+LDLIBS   := $(PKG_LIBS) -lm -lpthread
+ifeq ($(SAN),1)
+SANFLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+CFLAGS   += $(SANFLAGS) -O1
+CXXFLAGS += $(SANFLAGS) -O1
+LDFLAGS  += $(SANFLAGS)
+endif
+
+PROGRAMS :=
+TESTS    :=
+ITESTS   :=
+BENCHES  :=
+FUZZERS  :=
+LIBMARIE := $(B)/lib/libmarie.a
+
+# $(call marie_objs,SOURCES): object files for C and C++ sources.
+marie_objs = $(patsubst %.c,$(B)/obj/%.o,$(patsubst %.cpp,$(B)/obj/%.o,$(1)))
+
+# $(call marie_lib,NAME,SOURCES): static library $(B)/lib/libNAME.a.
+define marie_lib
+$(B)/lib/lib$(1).a: $(call marie_objs,$(2))
+	@mkdir -p $$(@D)
+	$$(AR) rcs $$@ $$^
+endef
+
+# $(call marie_link,OUTPUT,SOURCES,LIBS): LIBS may hold .a paths (also prerequisites) and -l flags.
+define marie_link
+$(1): $(call marie_objs,$(2)) $(filter %.a,$(3)) $(LIBMARIE)
+	@mkdir -p $$(@D)
+	$$(CXX) $$(LDFLAGS) -o $$@ $$(filter %.o,$$^) $(3) $$(LIBMARIE) $$(LDLIBS)
+endef
+
+# $(call marie_program,NAME,SOURCES,LIBS): $(B)/bin/NAME, installed by make install.
+define marie_program
+$(call marie_link,$(B)/bin/$(1),$(2),$(3))
+PROGRAMS += $(B)/bin/$(1)
+endef
+
+# $(call marie_test,NAME,SOURCES,LIBS): cmocka test $(B)/tests/NAME, run by make test.
+define marie_test
+$(call marie_link,$(B)/tests/$(1),$(2),$(3) -lcmocka)
+TESTS += $(B)/tests/$(1)
+endef
+
+# $(call marie_bench,NAME,SOURCES,LIBS): $(B)/bench/NAME, run by make bench; it prints
+# TSV rows "bench metric value unit baseline ratio" on stdout.
+define marie_bench
+$(call marie_link,$(B)/bench/$(1),$(2),$(3))
+BENCHES += $(B)/bench/$(1)
+endef
+
+# $(call marie_fuzz,NAME,SOURCES,LIBS): SOURCES define LLVMFuzzerTestOneInput; the seed corpus
+# is tests/data/fuzz/NAME/. make test runs the replay build over the corpus plus seeded
+# mutations; make fuzz runs libFuzzer on it.
+define marie_fuzz
+$(call marie_link,$(B)/tests/fuzz_$(1),tests/fuzz_main.c $(2),$(3))
+TESTS += $(B)/tests/fuzz_$(1)
+FUZZ_$(1)_SOURCES := $(2)
+FUZZ_$(1)_LIBS := $(3)
+FUZZERS += $(1)
+endef
+
+.PHONY: all deps test test-vm bench demo install fuzz clean
+all:
+
+include lcmtypes/module.mk
+include core/module.mk
+include $(sort $(filter-out core/module.mk lcmtypes/module.mk,$(wildcard */module.mk */*/module.mk)))
+
+all: $(LIBMARIE) $(PROGRAMS) $(TESTS) $(BENCHES) $(EXTRA_TARGETS)
+
+$(B)/obj/%.o: %.c | $(GEN_HEADERS)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) $(CFLAGS) -c -o $@ $<
+$(B)/obj/%.o: %.cpp | $(GEN_HEADERS)
+	@mkdir -p $(@D)
+	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c -o $@ $<
+
+deps:
+	@scripts/install-deps.sh base
+
+# Tests run one by one, each in its own network namespace; the last line is the summary.
+test: deps
+	@$(MAKE) --no-print-directory all
+	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(TESTS) $(ITESTS)
+
+test-vm: deps
+	@scripts/install-deps.sh vm
+	@$(MAKE) --no-print-directory all
+	@B=$(B) scripts/run-tests.sh $(VMTESTS)
+
+bench: deps
+	@$(MAKE) --no-print-directory all
+	@B=$(B) scripts/run-bench.sh $(BENCHES)
+
+demo: deps
+	@$(MAKE) --no-print-directory all
+	@B=$(B) scripts/demo.sh
+
+fuzz: deps
+	@scripts/install-deps.sh san
+	@$(foreach f,$(FUZZERS),mkdir -p $(B)/fuzz && clang -g -O1 -fsanitize=fuzzer,address,undefined $(CPPFLAGS) \
+	    -o $(B)/fuzz/$(f) $(FUZZ_$(f)_SOURCES) $(filter-out %.a,$(FUZZ_$(f)_LIBS)) $(LDLIBS) && \
+	    $(B)/fuzz/$(f) -max_total_time=$(or $(FUZZ_SECONDS),30) tests/data/fuzz/$(f) &&) true
+
+install: all
+	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \
+	    $(DESTDIR)$(PREFIX)/include/marie/core $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
+	install -m 755 $(PROGRAMS) $(DESTDIR)$(PREFIX)/bin/
+	install -m 644 $(LIBMARIE) $(DESTDIR)$(PREFIX)/lib/
+	install -m 644 core/*.h $(DESTDIR)$(PREFIX)/include/marie/core/
+	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@REQUIRES@|$(PKGS)|' core/marie.pc.in \
+	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/marie.pc
+	$(INSTALL_EXTRA)
+
+clean:
+	rm -rf build
+
+-include $(shell find $(B)/obj -name '*.d' 2>/dev/null)

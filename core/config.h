@@ -1,0 +1,125 @@
+/* config: YAML documents as a tree with file:line:col on every node, and the system file model. */
+#ifndef MARIE_CONFIG_H
+#define MARIE_CONFIG_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "core/loop.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- error list: every message is "file:line:col: text" ---- */
+typedef struct marie_errors {
+    char **msgs;
+    size_t n;
+} marie_errors_t;
+
+void marie_errors_add(marie_errors_t *e, const char *file, int line, int col, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+void marie_errors_print(const marie_errors_t *e, FILE *out);
+void marie_errors_clear(marie_errors_t *e);     /* frees the messages, keeps e usable */
+
+/* ---- YAML tree ---- */
+typedef enum { MARIE_NODE_SCALAR, MARIE_NODE_SEQ, MARIE_NODE_MAP } marie_node_kind_t;
+
+typedef struct marie_node marie_node_t;
+struct marie_node {
+    marie_node_kind_t kind;
+    const char *file;
+    int line, col;              /* 1-based, of the node's value */
+    char *key;                  /* the key when this node is a map value, else NULL */
+    int key_line, key_col;
+    char *value;                /* scalars only */
+    bool quoted;                /* a quoted scalar is always a string */
+    marie_node_t **items;       /* seq items or map values, in document order */
+    size_t n;
+};
+
+typedef struct marie_doc marie_doc_t;
+
+/* Parse a YAML file (or a string; `name` is used in messages). NULL on failure, with the
+ * reasons in errs. The doc owns every node; marie_doc_destroy(NULL) is a no-op. */
+marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs);
+marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs);
+void marie_doc_destroy(marie_doc_t *doc);
+const marie_node_t *marie_doc_root(const marie_doc_t *doc);
+
+const marie_node_t *marie_node_get(const marie_node_t *map, const char *key);   /* NULL if absent */
+/* Typed reads of a scalar; on a wrong type they add "file:line:col: KEY: expected T, got 'v'" and return -1. */
+int marie_node_int(const marie_node_t *n, int64_t *out, marie_errors_t *errs);
+int marie_node_double(const marie_node_t *n, double *out, marie_errors_t *errs);
+int marie_node_bool(const marie_node_t *n, bool *out, marie_errors_t *errs);
+int marie_node_str(const marie_node_t *n, const char **out, marie_errors_t *errs);
+/* Every key of `map` must be one of `allowed` (NULL-terminated); each other key is an error. */
+int marie_node_check_keys(const marie_node_t *map, const char *const *allowed, const char *what, marie_errors_t *errs);
+/* Canonical text of a node (keys sorted), used for the configuration hash. Caller frees. */
+char *marie_node_canonical(const marie_node_t *n);
+
+/* ---- system file ---- */
+typedef enum { MARIE_RESTART_ON_FAILURE = 0, MARIE_RESTART_ALWAYS, MARIE_RESTART_NEVER } marie_restart_kind_t;
+
+typedef struct {
+    marie_restart_kind_t policy;
+    double backoff_min_s, backoff_max_s;   /* delay doubles from min to max */
+    double stable_s;                       /* a run this long resets the backoff */
+    int max_failures;                      /* give up after this many failures ... */
+    double window_s;                       /* ... within this window */
+} marie_restart_cfg_t;
+
+typedef struct {
+    char *name;                 /* the component's port name */
+    char *channel;
+    char *url;                  /* NULL: the system's URL */
+    int line, col;
+} marie_port_binding_t;
+
+typedef struct {
+    char *name;
+    char *exec;
+    char **args; size_t nargs;
+    char **env; size_t nenv;    /* "KEY=value" */
+    bool shell;                 /* run exec through /bin/sh -c (only when the file asks) */
+    char *host;
+    char *group;
+    marie_port_binding_t *ports; size_t nports;
+    const marie_node_t *params; /* a map node, or NULL */
+    marie_restart_cfg_t restart;
+    double stop_timeout_s;      /* stop signal, then SIGKILL after this */
+    double heartbeat_timeout_s; /* not responding after this long without a heartbeat */
+    char **depends; size_t ndepends;
+    char hash[65];              /* sha256 hex of the effective configuration */
+    const char *file; int line, col;
+} marie_component_cfg_t;
+
+typedef struct marie_system {
+    char *file;
+    char *name;
+    char *profile;              /* NULL: none applied */
+    char *lcm_url;
+    marie_clock_kind_t clock;
+    char *key_file;             /* order authentication key, or NULL */
+    char **hosts; size_t nhosts;
+    marie_component_cfg_t *components; size_t ncomponents;
+    marie_doc_t *doc;
+} marie_system_t;
+
+/* Load and validate a system file, applying `profile` (NULL: none): a profile's components
+ * replace or add whole components by name. On any error returns NULL with every problem
+ * in errs; nothing is half-applied. */
+marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs);
+void marie_system_destroy(marie_system_t *sys);
+const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
+
+/* The default bus URL: LCM_DEFAULT_URL if set, else marie's (ttl=0, 8 MB receive buffer). */
+const char *marie_default_url(void);
+#define MARIE_DEFAULT_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,44 @@
+/* log: leveled logging to stderr with file:line, filtered by MARIE_LOG at run time. */
+#ifndef MARIE_LOG_H
+#define MARIE_LOG_H
+
+#include <stdarg.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    MARIE_LOG_DEBUG = 0,
+    MARIE_LOG_INFO,
+    MARIE_LOG_WARN,
+    MARIE_LOG_ERROR,
+    MARIE_LOG_OFF,
+} marie_log_level_t;
+
+/* Threshold from MARIE_LOG (debug|info|warn|error|off), read once; default info. */
+marie_log_level_t marie_log_threshold(void);
+void marie_log_set_threshold(marie_log_level_t level);
+/* Name shown on every line (the component name); NULL shows the program name. */
+void marie_log_set_name(const char *name);
+void marie_log_write(marie_log_level_t level, const char *file, int line, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+
+#define MARIE_LOG_AT(lvl, ...) \
+    do { if ((lvl) >= marie_log_threshold()) marie_log_write((lvl), __FILE__, __LINE__, __VA_ARGS__); } while (0)
+#define marie_debug(...) MARIE_LOG_AT(MARIE_LOG_DEBUG, __VA_ARGS__)
+#define marie_info(...)  MARIE_LOG_AT(MARIE_LOG_INFO, __VA_ARGS__)
+#define marie_warn(...)  MARIE_LOG_AT(MARIE_LOG_WARN, __VA_ARGS__)
+#define marie_error(...) MARIE_LOG_AT(MARIE_LOG_ERROR, __VA_ARGS__)
+
+/* Log at most once per `every_s` seconds per call site (bad-input storms). */
+#define marie_warn_ratelimited(every_s, ...) do { \
+        static long long marie_rl_last_; \
+        if (marie_log_ratelimit_pass(&marie_rl_last_, (every_s))) marie_warn(__VA_ARGS__); \
+    } while (0)
+int marie_log_ratelimit_pass(long long *last_s, int every_s);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

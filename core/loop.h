@@ -1,0 +1,63 @@
+/* loop: one poll() event loop per process over fds and fixed-rate timers, on a wall or simulated clock. */
+#ifndef MARIE_LOOP_H
+#define MARIE_LOOP_H
+
+#include <stdint.h>
+#include <poll.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct marie_loop marie_loop_t;
+typedef struct marie_timer marie_timer_t;
+
+typedef void (*marie_fd_cb_t)(marie_loop_t *loop, int fd, short revents, void *user);
+/* `overruns` is how many whole periods were missed before this call (0 when on time). */
+typedef void (*marie_timer_cb_t)(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
+
+typedef enum {
+    MARIE_CLOCK_WALL = 0,   /* timers on CLOCK_MONOTONIC, now() on CLOCK_REALTIME */
+    MARIE_CLOCK_SIM,        /* now() and timers follow marie_loop_set_sim_time() */
+} marie_clock_kind_t;
+
+marie_loop_t *marie_loop_create(void);
+void marie_loop_destroy(marie_loop_t *loop);            /* NULL is a no-op */
+
+int marie_loop_add_fd(marie_loop_t *loop, int fd, short events, marie_fd_cb_t cb, void *user);
+int marie_loop_remove_fd(marie_loop_t *loop, int fd);
+
+/* A fixed-rate timer: fires every period_us on the loop's clock, first after period_us.
+ * Late firings are not queued: the next deadline skips the missed periods, which are
+ * counted as overruns. Returns NULL with errno set on failure; the loop owns the timer. */
+marie_timer_t *marie_loop_add_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user);
+/* A one-shot timer after delay_us. It is freed after it fires. */
+marie_timer_t *marie_loop_add_oneshot(marie_loop_t *loop, int64_t delay_us, marie_timer_cb_t cb, void *user);
+void marie_loop_remove_timer(marie_loop_t *loop, marie_timer_t *t);    /* NULL is a no-op */
+int64_t marie_timer_overruns(const marie_timer_t *t);                  /* total so far */
+int64_t marie_timer_period(const marie_timer_t *t);
+
+/* Clock. In MARIE_CLOCK_SIM, now() is the last simulated time given (0 before the first)
+ * and timers fire as simulated time passes their deadlines. */
+void marie_loop_set_clock(marie_loop_t *loop, marie_clock_kind_t kind);
+marie_clock_kind_t marie_loop_clock(const marie_loop_t *loop);
+void marie_loop_set_sim_time(marie_loop_t *loop, int64_t utime);
+int64_t marie_loop_now(const marie_loop_t *loop);       /* microseconds on the loop's clock */
+
+/* Run one poll round, waiting at most timeout_ms (-1: until an fd or timer is due).
+ * Returns the number of callbacks run, or -errno. EINTR is retried. */
+int marie_loop_run_once(marie_loop_t *loop, int timeout_ms);
+/* Run until marie_loop_quit(). Returns 0, or -errno on a poll failure. */
+int marie_loop_run(marie_loop_t *loop);
+void marie_loop_quit(marie_loop_t *loop);
+int marie_loop_quitting(const marie_loop_t *loop);
+
+/* Process-wide SIGTERM/SIGINT: the handler only sets a flag and wakes the loop through a
+ * pipe; on_signal then runs from the loop. Pass NULL to restore default handling. */
+typedef void (*marie_signal_cb_t)(marie_loop_t *loop, int signo, void *user);
+int marie_loop_catch_signals(marie_loop_t *loop, marie_signal_cb_t on_signal, void *user);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

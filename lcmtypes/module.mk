@@ -1,0 +1,28 @@
+# lcmtypes: generate C, C++ and Java from the .lcm files, plus marie's C type registry.
+LCM_FILES := $(sort $(wildcard lcmtypes/*.lcm))
+LCM_NAMES := $(basename $(notdir $(LCM_FILES)))
+GEN_HEADERS := $(B)/gen/c/lcmtypes/marie_types.h
+LCM_C_SRCS := $(patsubst %,$(B)/gen/c/lcmtypes/marie_%.c,$(LCM_NAMES)) $(B)/gen/c/lcmtypes/marie_types.c
+LCM_JAR := $(B)/java/marie_types.jar
+
+$(B)/gen/c/lcmtypes/marie_types.h: $(LCM_FILES) scripts/gen-type-registry.sh
+	@mkdir -p $(B)/gen/c/lcmtypes $(B)/gen/cpp
+	lcm-gen -c --c-cpath $(B)/gen/c/lcmtypes --c-hpath $(B)/gen/c/lcmtypes --cinclude lcmtypes $(LCM_FILES)
+	lcm-gen -x --cpp-std c++11 --cpp-hpath $(B)/gen/cpp $(LCM_FILES)
+	scripts/gen-type-registry.sh $(B)/gen/c/lcmtypes $(LCM_NAMES)
+
+$(filter-out %/marie_types.c,$(LCM_C_SRCS)) $(B)/gen/c/lcmtypes/marie_types.c: $(B)/gen/c/lcmtypes/marie_types.h ;
+
+$(B)/obj/gen/%.o: $(B)/gen/c/lcmtypes/%.c $(GEN_HEADERS)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) $(CFLAGS) -Wno-unused-function -c -o $@ $<
+
+LCM_OBJS := $(patsubst $(B)/gen/c/lcmtypes/%.c,$(B)/obj/gen/%.o,$(LCM_C_SRCS))
+
+# The Java jar is what lcm-spy loads to decode marie's types.
+$(LCM_JAR): $(LCM_FILES)
+	@rm -rf $(B)/java && mkdir -p $(B)/java/src $(B)/java/classes
+	lcm-gen -j --jpath $(B)/java/src $(LCM_FILES)
+	javac -nowarn -cp /usr/share/java/lcm.jar -d $(B)/java/classes $(B)/java/src/marie/*.java
+	jar cf $@ -C $(B)/java/classes .
+EXTRA_TARGETS += $(LCM_JAR)

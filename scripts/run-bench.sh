@@ -1,0 +1,21 @@
+#!/bin/sh
+# Runs every benchmark in its own network namespace, gathers their TSV rows into
+# $B/bench/results.tsv (bench metric value unit baseline ratio) and prints them as a table.
+set -u
+B=${B:-build}
+out=$B/bench/results.tsv
+mkdir -p "$B/bench/logs"
+printf 'bench\tmetric\tvalue\tunit\tbaseline\tratio\n' > "$out"
+status=0
+for b in "$@"; do
+    name=$(basename "$b")
+    echo "bench: running $name" >&2
+    if ! B=$B timeout -k 5 "${BENCH_TIMEOUT:-600}" scripts/netns-run "$b" > "$B/bench/logs/$name.tsv" 2> "$B/bench/logs/$name.log"; then
+        echo "bench: $name failed (see $B/bench/logs/$name.log)" >&2
+        status=1
+    fi
+    grep -P '^[^\t#]+\t[^\t]+\t' "$B/bench/logs/$name.tsv" >> "$out"
+done
+column -t -s "$(printf '\t')" "$out"
+echo "results: $out"
+exit $status

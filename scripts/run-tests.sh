@@ -1,0 +1,40 @@
+#!/bin/sh
+# Runs marie's tests, each in its own network namespace with a time limit, and prints one
+# summary line "N passed, N failed". Cases are counted from cmocka's "[       OK ]" and
+# "[  FAILED  ]" lines (tests/lib.sh prints the same for shell tests); a test program that
+# fails without naming a case counts as one failure. Logs go to $B/test-logs/.
+#   scripts/run-tests.sh TEST...     (env: B, TEST_TIMEOUT seconds per program, default 300)
+set -u
+B=${B:-build}
+logs=$B/test-logs
+mkdir -p "$logs"
+passed=0; failed=0; failed_names=""
+for t in "$@"; do
+    name=$(basename "$t")
+    log=$logs/$name.log
+    start=$(date +%s)
+    case "$t" in
+    *.sh) cmd="sh $t" ;;
+    *.py) cmd="python3 $t" ;;
+    *) cmd="$t" ;;
+    esac
+    # Own process group and network namespace; a hung test is killed whole.
+    B=$B timeout -k 5 "${TEST_TIMEOUT:-300}" scripts/netns-run $cmd > "$log" 2>&1 < /dev/null
+    rc=$?
+    ok=$(grep -c '^\[       OK \]' "$log")
+    bad=$(grep -c '^\[  FAILED  \] [^0-9]' "$log")
+    if [ "$rc" -ne 0 ] && [ "$bad" -eq 0 ]; then bad=1; fi
+    passed=$((passed + ok)); failed=$((failed + bad))
+    secs=$(( $(date +%s) - start ))
+    if [ "$bad" -eq 0 ]; then
+        printf 'PASS %-40s %4d cases %4ds\n' "$name" "$ok" "$secs"
+    else
+        printf 'FAIL %-40s %4d ok %3d failed %4ds (exit %d; log %s)\n' "$name" "$ok" "$bad" "$secs" "$rc" "$log"
+        grep -E '^\[  FAILED  \] [^0-9]|^\[  ERROR   \]|ERROR|Assert|error:' "$log" | head -20 | sed 's/^/    /'
+        [ "$rc" -eq 124 ] && echo "    (timed out after ${TEST_TIMEOUT:-300}s)"
+        failed_names="$failed_names $name"
+    fi
+done
+[ -n "$failed_names" ] && echo "failed:$failed_names"
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
