@@ -31,8 +31,11 @@ int marie_loop_remove_fd(marie_loop_t *loop, int fd);
  * Late firings are not queued: the next deadline skips the missed periods, which are
  * counted as overruns. Returns NULL with errno set on failure; the loop owns the timer. */
 marie_timer_t *marie_loop_add_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user);
-/* A one-shot timer after delay_us. It is freed after it fires. */
+/* A one-shot timer after delay_us. It is freed after it fires: do not remove it then. */
 marie_timer_t *marie_loop_add_oneshot(marie_loop_t *loop, int64_t delay_us, marie_timer_cb_t cb, void *user);
+/* The same on CLOCK_MONOTONIC even when the loop follows simulated time (heartbeats, timeouts). */
+marie_timer_t *marie_loop_add_wall_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user);
+marie_timer_t *marie_loop_add_wall_oneshot(marie_loop_t *loop, int64_t delay_us, marie_timer_cb_t cb, void *user);
 void marie_loop_remove_timer(marie_loop_t *loop, marie_timer_t *t);    /* NULL is a no-op */
 int64_t marie_timer_overruns(const marie_timer_t *t);                  /* total so far */
 int64_t marie_timer_period(const marie_timer_t *t);

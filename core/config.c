@@ -1,0 +1,901 @@
+/* config: YAML (libfyaml events) into a node tree with positions; the system file model on top. */
+#include "core/config.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include <libfyaml.h>
+#include <sodium.h>
+
+#include "core/log.h"
+
+/* ---- errors ---- */
+
+void marie_errors_add(marie_errors_t *e, const char *file, int line, int col, const char *fmt, ...)
+{
+    if (!e)
+        return;
+    char msg[768], full[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    snprintf(full, sizeof full, "%s:%d:%d: %s", file ? file : "<config>", line, col, msg);
+    char **n = realloc(e->msgs, (e->n + 1) * sizeof *n);
+    char *copy = strdup(full);
+    if (!n || !copy) {
+        free(copy);
+        if (n)
+            e->msgs = n;
+        return;
+    }
+    e->msgs = n;
+    e->msgs[e->n++] = copy;
+}
+
+void marie_errors_print(const marie_errors_t *e, FILE *out)
+{
+    for (size_t i = 0; e && i < e->n; i++)
+        fprintf(out, "%s\n", e->msgs[i]);
+}
+
+void marie_errors_clear(marie_errors_t *e)
+{
+    if (!e)
+        return;
+    for (size_t i = 0; i < e->n; i++)
+        free(e->msgs[i]);
+    free(e->msgs);
+    e->msgs = NULL;
+    e->n = 0;
+}
+
+static void node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+static void node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...)
+{
+    char msg[768];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    marie_errors_add(e, n->file, n->line, n->col, "%s", msg);
+}
+
+/* ---- YAML tree ---- */
+
+struct marie_doc {
+    char *file;
+    marie_node_t *root;
+};
+
+#define MAX_DEPTH 64
+
+static void node_free(marie_node_t *n)
+{
+    if (!n)
+        return;
+    for (size_t i = 0; i < n->n; i++)
+        node_free(n->items[i]);
+    free(n->items);
+    free(n->key);
+    free(n->value);
+    free(n);
+}
+
+static int node_append(marie_node_t *parent, marie_node_t *child)
+{
+    marie_node_t **items = realloc(parent->items, (parent->n + 1) * sizeof *items);
+    if (!items)
+        return -ENOMEM;
+    parent->items = items;
+    parent->items[parent->n++] = child;
+    return 0;
+}
+
+typedef struct {
+    struct fy_parser *fyp;
+    const char *file;
+    marie_errors_t *errs;
+    int failed;
+} builder_t;
+
+static void mark_of(struct fy_event *ev, int *line, int *col)
+{
+    const struct fy_mark *m = fy_event_start_mark(ev);
+    *line = m ? m->line + 1 : 0;
+    *col = m ? m->column + 1 : 0;
+}
+
+/* Builds the node starting with event `ev` (owned by the caller); NULL on error. */
+static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
+{
+    marie_node_t *n = calloc(1, sizeof *n);
+    if (!n)
+        return NULL;
+    n->file = b->file;
+    mark_of(ev, &n->line, &n->col);
+    if (depth > MAX_DEPTH) {
+        node_error(b->errs, n, "nesting deeper than %d levels", MAX_DEPTH);
+        goto err;
+    }
+    switch (ev->type) {
+    case FYET_SCALAR: {
+        size_t len;
+        const char *text = fy_token_get_text(ev->scalar.value, &len);
+        n->kind = MARIE_NODE_SCALAR;
+        n->value = strndup(text ? text : "", text ? len : 0);
+        enum fy_scalar_style st = fy_token_scalar_style(ev->scalar.value);
+        n->quoted = st == FYSS_SINGLE_QUOTED || st == FYSS_DOUBLE_QUOTED;
+        if (!n->value)
+            goto err;
+        return n;
+    }
+    case FYET_ALIAS:
+        node_error(b->errs, n, "YAML aliases are not supported in marie files");
+        goto err;
+    case FYET_SEQUENCE_START:
+    case FYET_MAPPING_START: {
+        int is_map = ev->type == FYET_MAPPING_START;
+        enum fy_event_type end = is_map ? FYET_MAPPING_END : FYET_SEQUENCE_END;
+        n->kind = is_map ? MARIE_NODE_MAP : MARIE_NODE_SEQ;
+        for (;;) {
+            struct fy_event *kev = fy_parser_parse(b->fyp);
+            if (!kev)
+                goto err;
+            if (kev->type == end) {
+                fy_parser_event_free(b->fyp, kev);
+                return n;
+            }
+            char *key = NULL;
+            int kline = 0, kcol = 0;
+            struct fy_event *vev = kev;
+            if (is_map) {
+                mark_of(kev, &kline, &kcol);
+                if (kev->type != FYET_SCALAR) {
+                    marie_errors_add(b->errs, b->file, kline, kcol, "mapping keys must be plain scalars");
+                    fy_parser_event_free(b->fyp, kev);
+                    goto err;
+                }
+                size_t len;
+                const char *text = fy_token_get_text(kev->scalar.value, &len);
+                key = strndup(text ? text : "", text ? len : 0);
+                fy_parser_event_free(b->fyp, kev);
+                for (size_t i = 0; key && i < n->n; i++) {
+                    if (strcmp(n->items[i]->key, key) == 0) {
+                        marie_errors_add(b->errs, b->file, kline, kcol, "duplicate key '%s' (first at line %d)",
+                                         key, n->items[i]->key_line);
+                        free(key);
+                        goto err;
+                    }
+                }
+                vev = fy_parser_parse(b->fyp);
+                if (!vev || !key) {
+                    free(key);
+                    if (vev)
+                        fy_parser_event_free(b->fyp, vev);
+                    goto err;
+                }
+            }
+            marie_node_t *child = build_node(b, vev, depth + 1);
+            fy_parser_event_free(b->fyp, vev);
+            if (!child) {
+                free(key);
+                goto err;
+            }
+            child->key = key;
+            child->key_line = kline;
+            child->key_col = kcol;
+            if (node_append(n, child) < 0) {
+                node_free(child);
+                goto err;
+            }
+        }
+    }
+    default:
+        node_error(b->errs, n, "unexpected YAML event %d", (int)ev->type);
+        goto err;
+    }
+err:
+    node_free(n);
+    return NULL;
+}
+
+static void collect_diag(builder_t *b, struct fy_diag *diag)
+{
+    void *it = NULL;
+    struct fy_diag_error *de;
+    int any = 0;
+    while (diag && (de = fy_diag_errors_iterate(diag, &it)) != NULL) {
+        /* libfyaml's positions are 0-based. */
+        marie_errors_add(b->errs, b->file, de->line + 1, de->column + 1, "YAML: %s", de->msg);
+        any = 1;
+    }
+    if (!any)
+        marie_errors_add(b->errs, b->file, 1, 1, "YAML: cannot parse");
+}
+
+static marie_doc_t *doc_build(const char *name, const char *path, const char *text, size_t len,
+                              marie_errors_t *errs)
+{
+    marie_doc_t *doc = calloc(1, sizeof *doc);
+    if (!doc)
+        return NULL;
+    doc->file = strdup(name);
+    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_COLLECT_DIAG};
+    struct fy_parser *fyp = fy_parser_create(&cfg);
+    builder_t b = {fyp, doc->file, errs, 0};
+    if (!fyp || !doc->file)
+        goto err;
+    if ((path ? fy_parser_set_input_file(fyp, path) : fy_parser_set_string(fyp, text, len)) != 0) {
+        marie_errors_add(errs, name, 0, 0, "cannot read: %s", strerror(errno ? errno : EIO));
+        goto err;
+    }
+    struct fy_event *ev;
+    size_t ndocs = 0;
+    while ((ev = fy_parser_parse(fyp)) != NULL) {
+        enum fy_event_type t = ev->type;
+        if (t == FYET_SEQUENCE_START || t == FYET_MAPPING_START || t == FYET_SCALAR || t == FYET_ALIAS) {
+            marie_node_t *root = build_node(&b, ev, 0);
+            fy_parser_event_free(fyp, ev);
+            if (!root)
+                goto fail;
+            if (ndocs++ > 0) {
+                marie_errors_add(errs, name, root->line, root->col, "only one YAML document is allowed");
+                node_free(root);
+                goto err;
+            }
+            doc->root = root;
+            continue;
+        }
+        fy_parser_event_free(fyp, ev);
+    }
+    if (fy_parser_get_stream_error(fyp))
+        goto fail;
+    if (!doc->root) {
+        marie_errors_add(errs, name, 1, 1, "the file is empty");
+        goto err;
+    }
+    fy_parser_destroy(fyp);
+    return doc;
+fail:
+    collect_diag(&b, fy_parser_get_diag(fyp));
+err:
+    if (fyp)
+        fy_parser_destroy(fyp);
+    marie_doc_destroy(doc);
+    return NULL;
+}
+
+marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        marie_errors_add(errs, path, 0, 0, "cannot open: %s", strerror(errno));
+        return NULL;
+    }
+    fclose(f);
+    return doc_build(path, path, NULL, 0, errs);
+}
+
+marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs)
+{
+    return doc_build(name, NULL, text, len, errs);
+}
+
+void marie_doc_destroy(marie_doc_t *doc)
+{
+    if (!doc)
+        return;
+    node_free(doc->root);
+    free(doc->file);
+    free(doc);
+}
+
+const marie_node_t *marie_doc_root(const marie_doc_t *doc) { return doc ? doc->root : NULL; }
+
+const marie_node_t *marie_node_get(const marie_node_t *map, const char *key)
+{
+    if (!map || map->kind != MARIE_NODE_MAP)
+        return NULL;
+    for (size_t i = 0; i < map->n; i++)
+        if (strcmp(map->items[i]->key, key) == 0)
+            return map->items[i];
+    return NULL;
+}
+
+static const char *node_label(const marie_node_t *n)
+{
+    return n->key ? n->key : "value";
+}
+
+static int expect_scalar(const marie_node_t *n, const char *what, marie_errors_t *errs)
+{
+    if (n->kind == MARIE_NODE_SCALAR)
+        return 0;
+    node_error(errs, n, "%s: expected %s, got a %s", node_label(n), what,
+               n->kind == MARIE_NODE_MAP ? "mapping" : "sequence");
+    return -1;
+}
+
+int marie_node_int(const marie_node_t *n, int64_t *out, marie_errors_t *errs)
+{
+    if (expect_scalar(n, "an integer", errs) < 0)
+        return -1;
+    char *end;
+    errno = 0;
+    long long v = strtoll(n->value, &end, 0);
+    if (n->quoted || !n->value[0] || *end || errno) {
+        node_error(errs, n, "%s: expected an integer, got '%s'", node_label(n), n->value);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+int marie_node_double(const marie_node_t *n, double *out, marie_errors_t *errs)
+{
+    if (expect_scalar(n, "a number", errs) < 0)
+        return -1;
+    char *end;
+    errno = 0;
+    double v = strtod(n->value, &end);
+    if (n->quoted || !n->value[0] || *end || errno) {
+        node_error(errs, n, "%s: expected a number, got '%s'", node_label(n), n->value);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+int marie_node_bool(const marie_node_t *n, bool *out, marie_errors_t *errs)
+{
+    if (expect_scalar(n, "true or false", errs) < 0)
+        return -1;
+    static const char *const yes[] = {"true", "yes", "on"}, *const no[] = {"false", "no", "off"};
+    for (int i = 0; !n->quoted && i < 3; i++) {
+        if (strcasecmp(n->value, yes[i]) == 0) { *out = true; return 0; }
+        if (strcasecmp(n->value, no[i]) == 0) { *out = false; return 0; }
+    }
+    node_error(errs, n, "%s: expected true or false, got '%s'", node_label(n), n->value);
+    return -1;
+}
+
+int marie_node_str(const marie_node_t *n, const char **out, marie_errors_t *errs)
+{
+    if (expect_scalar(n, "a string", errs) < 0)
+        return -1;
+    *out = n->value;
+    return 0;
+}
+
+int marie_node_check_keys(const marie_node_t *map, const char *const *allowed, const char *what,
+                          marie_errors_t *errs)
+{
+    if (map->kind != MARIE_NODE_MAP) {
+        node_error(errs, map, "%s: expected a mapping", what);
+        return -1;
+    }
+    int rc = 0;
+    for (size_t i = 0; i < map->n; i++) {
+        const marie_node_t *c = map->items[i];
+        int ok = 0;
+        for (const char *const *a = allowed; *a && !ok; a++)
+            ok = strcmp(*a, c->key) == 0;
+        if (!ok) {
+            char list[512] = "";
+            for (const char *const *a = allowed; *a; a++)
+                snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", a == allowed ? "" : ", ", *a);
+            marie_errors_add(errs, c->file, c->key_line, c->key_col, "unknown key '%s' in %s (known: %s)",
+                             c->key, what, list);
+            rc = -1;
+        }
+    }
+    return rc;
+}
+
+/* ---- canonical text (sorted keys) for hashing ---- */
+
+typedef struct { char *buf; size_t len, cap; int oom; } sbuf_t;
+
+static void sb_put(sbuf_t *s, const char *text, size_t n)
+{
+    if (s->oom)
+        return;
+    if (s->len + n + 1 > s->cap) {
+        size_t cap = (s->cap ? s->cap : 256);
+        while (cap < s->len + n + 1)
+            cap *= 2;
+        char *nb = realloc(s->buf, cap);
+        if (!nb) { s->oom = 1; return; }
+        s->buf = nb;
+        s->cap = cap;
+    }
+    memcpy(s->buf + s->len, text, n);
+    s->len += n;
+    s->buf[s->len] = 0;
+}
+
+static void sb_str(sbuf_t *s, const char *text)
+{
+    char len[24];
+    snprintf(len, sizeof len, "%zu:", strlen(text));
+    sb_put(s, len, strlen(len));
+    sb_put(s, text, strlen(text));
+}
+
+static int cmp_key(const void *a, const void *b)
+{
+    return strcmp((*(marie_node_t *const *)a)->key, (*(marie_node_t *const *)b)->key);
+}
+
+static void canonical(sbuf_t *s, const marie_node_t *n)
+{
+    if (!n) {
+        sb_put(s, "~", 1);
+        return;
+    }
+    if (n->kind == MARIE_NODE_SCALAR) {
+        sb_str(s, n->value);
+        return;
+    }
+    marie_node_t **items = malloc((n->n ? n->n : 1) * sizeof *items);
+    if (!items) { s->oom = 1; return; }
+    memcpy(items, n->items, n->n * sizeof *items);
+    if (n->kind == MARIE_NODE_MAP)
+        qsort(items, n->n, sizeof *items, cmp_key);
+    sb_put(s, n->kind == MARIE_NODE_MAP ? "{" : "[", 1);
+    for (size_t i = 0; i < n->n; i++) {
+        if (n->kind == MARIE_NODE_MAP) {
+            sb_str(s, items[i]->key);
+            sb_put(s, "=", 1);
+        }
+        canonical(s, items[i]);
+        sb_put(s, ",", 1);
+    }
+    sb_put(s, n->kind == MARIE_NODE_MAP ? "}" : "]", 1);
+    free(items);
+}
+
+char *marie_node_canonical(const marie_node_t *n)
+{
+    sbuf_t s = {0};
+    canonical(&s, n);
+    if (s.oom) {
+        free(s.buf);
+        return NULL;
+    }
+    return s.buf ? s.buf : strdup("");
+}
+
+/* ---- system file ---- */
+
+const char *marie_default_url(void)
+{
+    const char *env = getenv("LCM_DEFAULT_URL");
+    return env && *env ? env : MARIE_DEFAULT_URL;
+}
+
+static char *dup_or_null(const char *s) { return s ? strdup(s) : NULL; }
+
+static void free_strv(char **v, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        free(v[i]);
+    free(v);
+}
+
+static void component_cfg_free(marie_component_cfg_t *c)
+{
+    free(c->name);
+    free(c->exec);
+    free_strv(c->args, c->nargs);
+    free_strv(c->env, c->nenv);
+    free(c->host);
+    free(c->group);
+    for (size_t i = 0; i < c->nports; i++) {
+        free(c->ports[i].name);
+        free(c->ports[i].channel);
+        free(c->ports[i].url);
+    }
+    free(c->ports);
+    free_strv(c->depends, c->ndepends);
+}
+
+void marie_system_destroy(marie_system_t *sys)
+{
+    if (!sys)
+        return;
+    for (size_t i = 0; i < sys->ncomponents; i++)
+        component_cfg_free(&sys->components[i]);
+    free(sys->components);
+    free_strv(sys->hosts, sys->nhosts);
+    free(sys->file);
+    free(sys->name);
+    free(sys->profile);
+    free(sys->lcm_url);
+    free(sys->key_file);
+    marie_doc_destroy(sys->doc);
+    free(sys);
+}
+
+const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name)
+{
+    for (size_t i = 0; sys && name && i < sys->ncomponents; i++)
+        if (strcmp(sys->components[i].name, name) == 0)
+            return &sys->components[i];
+    return NULL;
+}
+
+/* A sequence of scalars (or one scalar) as a string vector. */
+static int read_strv(const marie_node_t *n, char ***out, size_t *count, marie_errors_t *errs)
+{
+    *out = NULL;
+    *count = 0;
+    if (!n)
+        return 0;
+    if (n->kind == MARIE_NODE_SCALAR) {
+        *out = calloc(1, sizeof **out);
+        if (!*out || !((*out)[0] = strdup(n->value)))
+            return -1;
+        *count = 1;
+        return 0;
+    }
+    if (n->kind != MARIE_NODE_SEQ) {
+        node_error(errs, n, "%s: expected a list", node_label(n));
+        return -1;
+    }
+    *out = calloc(n->n ? n->n : 1, sizeof **out);
+    if (!*out)
+        return -1;
+    int rc = 0;
+    for (size_t i = 0; i < n->n; i++) {
+        const char *s;
+        if (marie_node_str(n->items[i], &s, errs) < 0) {
+            rc = -1;
+            continue;
+        }
+        (*out)[(*count)++] = strdup(s);
+    }
+    return rc;
+}
+
+static int read_seconds(const marie_node_t *map, const char *key, double *out, marie_errors_t *errs)
+{
+    const marie_node_t *n = marie_node_get(map, key);
+    if (!n)
+        return 0;
+    if (marie_node_double(n, out, errs) < 0)
+        return -1;
+    if (*out < 0) {
+        node_error(errs, n, "%s: must not be negative", key);
+        return -1;
+    }
+    return 0;
+}
+
+static int read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_errors_t *errs)
+{
+    if (!n)
+        return 0;
+    const char *policy = NULL;
+    const marie_node_t *pn = n;
+    if (n->kind == MARIE_NODE_MAP) {
+        static const char *const keys[] = {"policy", "backoff_min", "backoff_max", "stable_after",
+                                           "max_failures", "window", NULL};
+        int rc = marie_node_check_keys(n, keys, "restart", errs);
+        pn = marie_node_get(n, "policy");
+        rc |= read_seconds(n, "backoff_min", &r->backoff_min_s, errs);
+        rc |= read_seconds(n, "backoff_max", &r->backoff_max_s, errs);
+        rc |= read_seconds(n, "stable_after", &r->stable_s, errs);
+        rc |= read_seconds(n, "window", &r->window_s, errs);
+        const marie_node_t *mf = marie_node_get(n, "max_failures");
+        int64_t v = 0;
+        if (mf) {
+            if (marie_node_int(mf, &v, errs) < 0 || v < 0) {
+                if (v < 0)
+                    node_error(errs, mf, "max_failures: must not be negative");
+                rc = -1;
+            } else {
+                r->max_failures = (int)v;
+            }
+        }
+        if (rc)
+            return -1;
+        if (!pn)
+            return 0;
+    }
+    if (marie_node_str(pn, &policy, errs) < 0)
+        return -1;
+    if (strcmp(policy, "always") == 0)
+        r->policy = MARIE_RESTART_ALWAYS;
+    else if (strcmp(policy, "on-failure") == 0)
+        r->policy = MARIE_RESTART_ON_FAILURE;
+    else if (strcmp(policy, "never") == 0)
+        r->policy = MARIE_RESTART_NEVER;
+    else {
+        node_error(errs, pn, "restart policy: expected always, on-failure or never, got '%s'", policy);
+        return -1;
+    }
+    return 0;
+}
+
+static int read_ports(const marie_node_t *n, marie_component_cfg_t *c, marie_errors_t *errs)
+{
+    if (!n)
+        return 0;
+    if (n->kind != MARIE_NODE_MAP) {
+        node_error(errs, n, "ports: expected a mapping of port: channel");
+        return -1;
+    }
+    c->ports = calloc(n->n ? n->n : 1, sizeof *c->ports);
+    if (!c->ports)
+        return -1;
+    int rc = 0;
+    for (size_t i = 0; i < n->n; i++) {
+        const marie_node_t *p = n->items[i];
+        const char *channel = NULL, *url = NULL;
+        if (p->kind == MARIE_NODE_MAP) {
+            static const char *const keys[] = {"channel", "url", NULL};
+            if (marie_node_check_keys(p, keys, "port", errs) < 0) {
+                rc = -1;
+                continue;
+            }
+            const marie_node_t *ch = marie_node_get(p, "channel"), *u = marie_node_get(p, "url");
+            if (!ch) {
+                node_error(errs, p, "port '%s': missing 'channel'", p->key);
+                rc = -1;
+                continue;
+            }
+            if (marie_node_str(ch, &channel, errs) < 0 || (u && marie_node_str(u, &url, errs) < 0)) {
+                rc = -1;
+                continue;
+            }
+        } else if (marie_node_str(p, &channel, errs) < 0) {
+            rc = -1;
+            continue;
+        }
+        if (!channel[0]) {
+            node_error(errs, p, "port '%s': empty channel name", p->key);
+            rc = -1;
+            continue;
+        }
+        marie_port_binding_t *b = &c->ports[c->nports++];
+        b->name = strdup(p->key);
+        b->channel = strdup(channel);
+        b->url = dup_or_null(url);
+        b->line = p->line;
+        b->col = p->col;
+    }
+    return rc;
+}
+
+static int read_env(const marie_node_t *n, marie_component_cfg_t *c, marie_errors_t *errs)
+{
+    if (!n)
+        return 0;
+    if (n->kind != MARIE_NODE_MAP) {
+        node_error(errs, n, "env: expected a mapping of NAME: value");
+        return -1;
+    }
+    c->env = calloc(n->n ? n->n : 1, sizeof *c->env);
+    if (!c->env)
+        return -1;
+    int rc = 0;
+    for (size_t i = 0; i < n->n; i++) {
+        const char *v;
+        if (marie_node_str(n->items[i], &v, errs) < 0) {
+            rc = -1;
+            continue;
+        }
+        char *kv;
+        if (asprintf(&kv, "%s=%s", n->items[i]->key, v) < 0)
+            return -1;
+        c->env[c->nenv++] = kv;
+    }
+    return rc;
+}
+
+static const char *const component_keys[] = {
+    "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart",
+    "stop_timeout", "heartbeat_timeout", "depends", NULL,
+};
+
+static void hash_component(marie_component_cfg_t *c, const marie_node_t *n, const char *url)
+{
+    /* The effective configuration: the component's node plus the bus it runs on. */
+    char *text = marie_node_canonical(n);
+    unsigned char h[crypto_hash_sha256_BYTES];
+    crypto_hash_sha256_state st;
+    crypto_hash_sha256_init(&st);
+    crypto_hash_sha256_update(&st, (const unsigned char *)url, strlen(url));
+    if (text)
+        crypto_hash_sha256_update(&st, (const unsigned char *)text, strlen(text));
+    crypto_hash_sha256_final(&st, h);
+    free(text);
+    for (size_t i = 0; i < sizeof h; i++)
+        snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
+}
+
+static int read_component(const marie_node_t *n, const marie_system_t *sys, const marie_restart_cfg_t *defaults,
+                          marie_component_cfg_t *c, marie_errors_t *errs)
+{
+    memset(c, 0, sizeof *c);
+    c->name = strdup(n->key);
+    c->file = n->file;
+    c->line = n->key_line;
+    c->col = n->key_col;
+    c->restart = *defaults;
+    c->stop_timeout_s = 3.0;
+    c->heartbeat_timeout_s = 5.0;
+    if (n->kind != MARIE_NODE_MAP) {
+        node_error(errs, n, "component '%s': expected a mapping", n->key);
+        return -1;
+    }
+    int rc = marie_node_check_keys(n, component_keys, "component", errs);
+    const marie_node_t *v;
+    const char *s;
+    if (!(v = marie_node_get(n, "exec"))) {
+        marie_errors_add(errs, n->file, n->key_line, n->key_col, "component '%s': missing 'exec'", n->key);
+        rc = -1;
+    } else if (marie_node_str(v, &s, errs) == 0) {
+        c->exec = strdup(s);
+    } else {
+        rc = -1;
+    }
+    if ((v = marie_node_get(n, "host")) && marie_node_str(v, &s, errs) == 0) {
+        int known = sys->nhosts == 0;
+        for (size_t i = 0; i < sys->nhosts; i++)
+            known |= strcmp(sys->hosts[i], s) == 0;
+        if (!known) {
+            node_error(errs, v, "component '%s': host '%s' is not in hosts", n->key, s);
+            rc = -1;
+        }
+        c->host = strdup(s);
+    } else if (v) {
+        rc = -1;
+    }
+    if ((v = marie_node_get(n, "group")) && marie_node_str(v, &s, errs) == 0)
+        c->group = strdup(s);
+    else if (v)
+        rc = -1;
+    if ((v = marie_node_get(n, "shell")) && marie_node_bool(v, &c->shell, errs) < 0)
+        rc = -1;
+    if ((v = marie_node_get(n, "params")) && v->kind != MARIE_NODE_MAP) {
+        node_error(errs, v, "params: expected a mapping");
+        rc = -1;
+    }
+    c->params = v;
+    rc |= read_strv(marie_node_get(n, "args"), &c->args, &c->nargs, errs);
+    rc |= read_strv(marie_node_get(n, "depends"), &c->depends, &c->ndepends, errs);
+    rc |= read_env(marie_node_get(n, "env"), c, errs);
+    rc |= read_ports(marie_node_get(n, "ports"), c, errs);
+    rc |= read_restart(marie_node_get(n, "restart"), &c->restart, errs);
+    rc |= read_seconds(n, "stop_timeout", &c->stop_timeout_s, errs);
+    rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
+    hash_component(c, n, sys->lcm_url);
+    return rc ? -1 : 0;
+}
+
+static const marie_node_t *find_profile(const marie_node_t *root, const char *profile, marie_errors_t *errs,
+                                        const char *file)
+{
+    const marie_node_t *profiles = marie_node_get(root, "profiles");
+    const marie_node_t *p = marie_node_get(profiles, profile);
+    if (!p) {
+        marie_errors_add(errs, file, profiles ? profiles->line : 1, profiles ? profiles->col : 1,
+                         "no profile '%s' in this file", profile);
+        return NULL;
+    }
+    static const char *const keys[] = {"components", "remove", NULL};
+    if (marie_node_check_keys(p, keys, "profile", errs) < 0)
+        return NULL;
+    return p;
+}
+
+marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
+{
+    marie_system_t *sys = calloc(1, sizeof *sys);
+    if (!sys)
+        return NULL;
+    size_t errs_before = errs ? errs->n : 0;
+    sys->file = strdup(path);
+    sys->profile = dup_or_null(profile);
+    if (!(sys->doc = marie_doc_load(path, errs)))
+        goto err;
+    const marie_node_t *root = marie_doc_root(sys->doc), *v;
+    static const char *const top_keys[] = {"system", "lcm_url", "clock", "auth", "hosts", "defaults",
+                                           "components", "profiles", "manager", NULL};
+    if (marie_node_check_keys(root, top_keys, "the system file", errs) < 0)
+        goto err;
+    const char *s;
+    sys->name = strdup((v = marie_node_get(root, "system")) && marie_node_str(v, &s, errs) == 0 ? s : "marie");
+    sys->lcm_url = strdup((v = marie_node_get(root, "lcm_url")) && marie_node_str(v, &s, errs) == 0
+                              ? s : marie_default_url());
+    if ((v = marie_node_get(root, "clock")) && marie_node_str(v, &s, errs) == 0) {
+        if (strcmp(s, "sim") == 0)
+            sys->clock = MARIE_CLOCK_SIM;
+        else if (strcmp(s, "wall") != 0)
+            node_error(errs, v, "clock: expected wall or sim, got '%s'", s);
+    }
+    if ((v = marie_node_get(root, "auth"))) {
+        static const char *const keys[] = {"key_file", NULL};
+        const marie_node_t *k = marie_node_get(v, "key_file");
+        if (marie_node_check_keys(v, keys, "auth", errs) == 0 && k && marie_node_str(k, &s, errs) == 0)
+            sys->key_file = strdup(s);
+    }
+    if ((v = marie_node_get(root, "hosts"))) {
+        if (v->kind == MARIE_NODE_MAP) {
+            sys->hosts = calloc(v->n ? v->n : 1, sizeof *sys->hosts);
+            for (size_t i = 0; sys->hosts && i < v->n; i++)
+                sys->hosts[sys->nhosts++] = strdup(v->items[i]->key);
+        } else if (read_strv(v, &sys->hosts, &sys->nhosts, errs) < 0) {
+            goto err;
+        }
+    }
+    marie_restart_cfg_t defaults = {MARIE_RESTART_ON_FAILURE, 0.1, 5.0, 10.0, 5, 60.0};
+    if ((v = marie_node_get(root, "defaults"))) {
+        static const char *const keys[] = {"restart", NULL};
+        if (marie_node_check_keys(v, keys, "defaults", errs) < 0 ||
+            read_restart(marie_node_get(v, "restart"), &defaults, errs) < 0)
+            goto err;
+    }
+    const marie_node_t *comps = marie_node_get(root, "components");
+    const marie_node_t *prof = profile ? find_profile(root, profile, errs, path) : NULL;
+    if (profile && !prof)
+        goto err;
+    if (comps && comps->kind != MARIE_NODE_MAP) {
+        node_error(errs, comps, "components: expected a mapping of name: component");
+        goto err;
+    }
+    const marie_node_t *pcomps = marie_node_get(prof, "components");
+    if (pcomps && pcomps->kind != MARIE_NODE_MAP) {
+        node_error(errs, pcomps, "components: expected a mapping of name: component");
+        goto err;
+    }
+    char **removed = NULL;
+    size_t nremoved = 0;
+    if (read_strv(marie_node_get(prof, "remove"), &removed, &nremoved, errs) < 0)
+        goto err;
+    size_t max = (comps ? comps->n : 0) + (pcomps ? pcomps->n : 0);
+    sys->components = calloc(max ? max : 1, sizeof *sys->components);
+    if (!sys->components) {
+        free_strv(removed, nremoved);
+        goto err;
+    }
+    int rc = 0;
+    /* Base components, each replaced whole by the profile's entry of the same name. */
+    for (size_t i = 0; comps && i < comps->n; i++) {
+        const marie_node_t *n = comps->items[i];
+        int skip = marie_node_get(pcomps, n->key) != NULL;
+        for (size_t k = 0; k < nremoved; k++)
+            skip |= strcmp(removed[k], n->key) == 0;
+        if (!skip)
+            rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
+    }
+    for (size_t i = 0; pcomps && i < pcomps->n; i++)
+        rc |= read_component(pcomps->items[i], sys, &defaults, &sys->components[sys->ncomponents++], errs);
+    free_strv(removed, nremoved);
+    /* Dependencies must name components of the system. */
+    for (size_t i = 0; i < sys->ncomponents; i++) {
+        const marie_component_cfg_t *c = &sys->components[i];
+        for (size_t k = 0; k < c->ndepends; k++) {
+            if (!marie_system_component(sys, c->depends[k])) {
+                marie_errors_add(errs, c->file, c->line, c->col, "component '%s' depends on unknown component '%s'",
+                                 c->name, c->depends[k]);
+                rc = -1;
+            }
+        }
+    }
+    if (rc || (errs && errs->n > errs_before))
+        goto err;
+    return sys;
+err:
+    if (errs && errs->n == errs_before)
+        marie_errors_add(errs, path, 0, 0, "cannot load the system file");
+    marie_system_destroy(sys);
+    return NULL;
+}

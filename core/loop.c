@@ -1,0 +1,376 @@
+/* loop: one poll() loop over fds and fixed-rate timers, on the monotonic or a simulated clock. */
+#include "core/loop.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "core/log.h"
+#include "core/time.h"
+
+struct marie_timer {
+    marie_timer_t *next;
+    int64_t period;         /* 0: one-shot */
+    int64_t deadline;       /* on the loop's timer clock */
+    int64_t overruns;
+    int wall;               /* always on CLOCK_MONOTONIC, whatever the loop's clock */
+    marie_timer_cb_t cb;
+    void *user;
+    int removed;
+};
+
+typedef struct {
+    int fd;
+    short events;
+    marie_fd_cb_t cb;
+    void *user;
+} fd_watch_t;
+
+struct marie_loop {
+    fd_watch_t *fds;
+    size_t nfds, capfds;
+    int fds_changed;
+    struct pollfd *pfds;
+    size_t cappfds;
+    marie_timer_t *timers;
+    int in_timers;          /* nesting depth of run_timers (a callback may run the loop) */
+    marie_clock_kind_t clock;
+    int64_t sim_now;
+    int quit;
+    int sigpipe[2];
+    marie_signal_cb_t on_signal;
+    void *signal_user;
+};
+
+static volatile sig_atomic_t pending_signal;
+static int signal_wake_fd = -1;
+
+marie_loop_t *marie_loop_create(void)
+{
+    marie_loop_t *loop = calloc(1, sizeof *loop);
+    if (!loop)
+        return NULL;
+    loop->sigpipe[0] = loop->sigpipe[1] = -1;
+    return loop;
+}
+
+void marie_loop_destroy(marie_loop_t *loop)
+{
+    if (!loop)
+        return;
+    if (loop->sigpipe[0] >= 0)
+        marie_loop_catch_signals(loop, NULL, NULL);
+    marie_timer_t *t = loop->timers;
+    while (t) {
+        marie_timer_t *next = t->next;
+        free(t);
+        t = next;
+    }
+    free(loop->fds);
+    free(loop->pfds);
+    free(loop);
+}
+
+int marie_loop_add_fd(marie_loop_t *loop, int fd, short events, marie_fd_cb_t cb, void *user)
+{
+    if (fd < 0 || !cb)
+        return -EINVAL;
+    for (size_t i = 0; i < loop->nfds; i++)
+        if (loop->fds[i].fd == fd)
+            return -EEXIST;
+    if (loop->nfds == loop->capfds) {
+        size_t cap = loop->capfds ? loop->capfds * 2 : 8;
+        fd_watch_t *n = realloc(loop->fds, cap * sizeof *n);
+        if (!n)
+            return -ENOMEM;
+        loop->fds = n;
+        loop->capfds = cap;
+    }
+    loop->fds[loop->nfds++] = (fd_watch_t){fd, events, cb, user};
+    loop->fds_changed = 1;
+    return 0;
+}
+
+int marie_loop_remove_fd(marie_loop_t *loop, int fd)
+{
+    for (size_t i = 0; i < loop->nfds; i++) {
+        if (loop->fds[i].fd == fd) {
+            memmove(&loop->fds[i], &loop->fds[i + 1], (loop->nfds - i - 1) * sizeof loop->fds[0]);
+            loop->nfds--;
+            loop->fds_changed = 1;
+            return 0;
+        }
+    }
+    return -ENOENT;
+}
+
+/* Timers run on CLOCK_MONOTONIC for the wall clock kind, on simulated time otherwise. */
+static int64_t clock_now(const marie_loop_t *loop, int wall)
+{
+    return loop->clock == MARIE_CLOCK_SIM && !wall ? loop->sim_now : marie_mono_us();
+}
+
+static marie_timer_t *add_timer(marie_loop_t *loop, int64_t period, int64_t delay,
+                                marie_timer_cb_t cb, void *user, int wall)
+{
+    if (delay < 0 || !cb) {
+        errno = EINVAL;
+        return NULL;
+    }
+    marie_timer_t *t = calloc(1, sizeof *t);
+    if (!t)
+        return NULL;
+    t->period = period;
+    t->wall = wall;
+    t->deadline = clock_now(loop, wall) + delay;
+    t->cb = cb;
+    t->user = user;
+    t->next = loop->timers;
+    loop->timers = t;
+    return t;
+}
+
+marie_timer_t *marie_loop_add_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user)
+{
+    if (period_us <= 0) {
+        errno = EINVAL;
+        return NULL;
+    }
+    return add_timer(loop, period_us, period_us, cb, user, 0);
+}
+
+marie_timer_t *marie_loop_add_wall_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user)
+{
+    if (period_us < 0) {
+        errno = EINVAL;
+        return NULL;
+    }
+    return add_timer(loop, period_us, period_us, cb, user, 1);
+}
+
+marie_timer_t *marie_loop_add_oneshot(marie_loop_t *loop, int64_t delay_us, marie_timer_cb_t cb, void *user)
+{
+    return add_timer(loop, 0, delay_us, cb, user, 0);
+}
+
+marie_timer_t *marie_loop_add_wall_oneshot(marie_loop_t *loop, int64_t delay_us, marie_timer_cb_t cb, void *user)
+{
+    return add_timer(loop, 0, delay_us, cb, user, 1);
+}
+
+static void reap_timers(marie_loop_t *loop)
+{
+    marie_timer_t **pp = &loop->timers;
+    while (*pp) {
+        if ((*pp)->removed) {
+            marie_timer_t *dead = *pp;
+            *pp = dead->next;
+            free(dead);
+        } else {
+            pp = &(*pp)->next;
+        }
+    }
+}
+
+void marie_loop_remove_timer(marie_loop_t *loop, marie_timer_t *t)
+{
+    if (!t)
+        return;
+    t->removed = 1;
+    if (!loop->in_timers)
+        reap_timers(loop);
+}
+
+int64_t marie_timer_overruns(const marie_timer_t *t) { return t->overruns; }
+int64_t marie_timer_period(const marie_timer_t *t) { return t->period; }
+
+void marie_loop_set_clock(marie_loop_t *loop, marie_clock_kind_t kind)
+{
+    if (loop->clock == kind)
+        return;
+    int64_t before = clock_now(loop, 0);
+    loop->clock = kind;
+    int64_t after = clock_now(loop, 0);
+    /* Keep every timer's remaining delay across the change of time base. */
+    for (marie_timer_t *t = loop->timers; t; t = t->next)
+        if (!t->wall)
+            t->deadline += after - before;
+}
+
+marie_clock_kind_t marie_loop_clock(const marie_loop_t *loop) { return loop->clock; }
+
+void marie_loop_set_sim_time(marie_loop_t *loop, int64_t utime)
+{
+    if (utime > loop->sim_now)
+        loop->sim_now = utime;
+}
+
+int64_t marie_loop_now(const marie_loop_t *loop)
+{
+    return loop->clock == MARIE_CLOCK_SIM ? loop->sim_now : marie_wall_us();
+}
+
+/* Runs due timers once each; returns how many ran. */
+static int run_timers(marie_loop_t *loop)
+{
+    int ran = 0;
+    int64_t sim_now = clock_now(loop, 0), mono_now = marie_mono_us();
+    loop->in_timers++;
+    for (marie_timer_t *t = loop->timers; t && !loop->quit; t = t->next) {
+        int64_t now = t->wall || loop->clock != MARIE_CLOCK_SIM ? mono_now : sim_now;
+        if (t->removed || t->deadline > now)
+            continue;
+        int64_t missed = 0;
+        if (t->period > 0) {
+            /* Skip whole periods that already passed rather than firing a burst. */
+            missed = (now - t->deadline) / t->period;
+            t->deadline += (missed + 1) * t->period;
+            t->overruns += missed;
+        } else {
+            t->removed = 1;
+        }
+        t->cb(loop, t, missed, t->user);
+        ran++;
+    }
+    if (--loop->in_timers == 0)
+        reap_timers(loop);
+    return ran;
+}
+
+static int next_timeout_ms(const marie_loop_t *loop, int timeout_ms)
+{
+    /* Simulated deadlines are reached through set_sim_time, not by waiting. */
+    int sim = loop->clock == MARIE_CLOCK_SIM;
+    int64_t now = marie_mono_us(), best = -1;
+    for (const marie_timer_t *t = loop->timers; t; t = t->next) {
+        if (t->removed || (sim && !t->wall))
+            continue;
+        int64_t wait = t->deadline > now ? t->deadline - now : 0;
+        if (best < 0 || wait < best)
+            best = wait;
+    }
+    if (best < 0)
+        return timeout_ms;
+    int ms = (int)((best + 999) / 1000);
+    return (timeout_ms < 0 || ms < timeout_ms) ? ms : timeout_ms;
+}
+
+int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
+{
+    int ran = run_timers(loop);
+    if (loop->quit)
+        return ran;
+    if (ran)
+        timeout_ms = 0;
+    if (loop->cappfds < loop->nfds) {
+        struct pollfd *n = realloc(loop->pfds, loop->nfds * sizeof *n);
+        if (!n)
+            return -ENOMEM;
+        loop->pfds = n;
+        loop->cappfds = loop->nfds;
+    }
+    size_t n = loop->nfds;
+    for (size_t i = 0; i < n; i++)
+        loop->pfds[i] = (struct pollfd){loop->fds[i].fd, loop->fds[i].events, 0};
+    int rc;
+    do {
+        rc = poll(loop->pfds, n, next_timeout_ms(loop, timeout_ms));
+    } while (rc < 0 && errno == EINTR && !pending_signal);
+    if (rc < 0 && errno != EINTR) {
+        int err = errno;
+        marie_error("poll: %s", strerror(err));
+        return -err;
+    }
+    loop->fds_changed = 0;
+    for (size_t i = 0; rc > 0 && i < n && !loop->quit; i++) {
+        if (!loop->pfds[i].revents)
+            continue;
+        /* A callback may add or remove fds: look the watch up again by fd. */
+        int fd = loop->pfds[i].fd;
+        short revents = loop->pfds[i].revents;
+        for (size_t k = 0; k < loop->nfds; k++) {
+            if (loop->fds[k].fd == fd) {
+                fd_watch_t w = loop->fds[k];
+                w.cb(loop, fd, revents, w.user);
+                ran++;
+                break;
+            }
+        }
+    }
+    if (!loop->quit)
+        ran += run_timers(loop);
+    return ran;
+}
+
+int marie_loop_run(marie_loop_t *loop)
+{
+    while (!loop->quit) {
+        int rc = marie_loop_run_once(loop, -1);
+        if (rc < 0)
+            return rc;
+    }
+    return 0;
+}
+
+void marie_loop_quit(marie_loop_t *loop) { loop->quit = 1; }
+int marie_loop_quitting(const marie_loop_t *loop) { return loop->quit; }
+
+static void on_signal(int signo)
+{
+    pending_signal = signo;
+    if (signal_wake_fd >= 0) {
+        char c = 1;
+        ssize_t r = write(signal_wake_fd, &c, 1);
+        (void)r;
+    }
+}
+
+static void on_sigpipe_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    char buf[64];
+    while (read(fd, buf, sizeof buf) > 0)
+        ;
+    int signo = pending_signal;
+    pending_signal = 0;
+    if (signo && loop->on_signal)
+        loop->on_signal(loop, signo, loop->signal_user);
+}
+
+int marie_loop_catch_signals(marie_loop_t *loop, marie_signal_cb_t cb, void *user)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sigemptyset(&sa.sa_mask);
+    if (!cb) {
+        sa.sa_handler = SIG_DFL;
+        sigaction(SIGTERM, &sa, NULL);
+        sigaction(SIGINT, &sa, NULL);
+        if (loop->sigpipe[0] >= 0) {
+            marie_loop_remove_fd(loop, loop->sigpipe[0]);
+            signal_wake_fd = -1;
+            close(loop->sigpipe[0]);
+            close(loop->sigpipe[1]);
+            loop->sigpipe[0] = loop->sigpipe[1] = -1;
+        }
+        loop->on_signal = NULL;
+        return 0;
+    }
+    if (loop->sigpipe[0] < 0) {
+        if (pipe2(loop->sigpipe, O_NONBLOCK | O_CLOEXEC) < 0)
+            return -errno;
+        int rc = marie_loop_add_fd(loop, loop->sigpipe[0], POLLIN, on_sigpipe_readable, NULL);
+        if (rc < 0)
+            return rc;
+    }
+    loop->on_signal = cb;
+    loop->signal_user = user;
+    signal_wake_fd = loop->sigpipe[1];
+    sa.sa_handler = on_signal;
+    sigaction(SIGTERM, &sa, NULL);
+    sigaction(SIGINT, &sa, NULL);
+    signal(SIGPIPE, SIG_IGN);
+    return 0;
+}
