@@ -563,6 +563,10 @@ int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
         p->sub = lcm_subscribe(p->lcm, p->channel, on_port_message, p);
         if (!p->sub)
             return -EIO;
+        /* LCM drops silently past a subscription's queue capacity (30 by default):
+         * events must not be lost there, so give their ports room for bursts. */
+        if (p->spec->mech == MARIE_EVENT)
+            lcm_subscription_set_queue_capacity(p->sub, EVENT_QUEUE_MAX * 4);
     }
     return 0;
 }

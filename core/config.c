@@ -23,7 +23,10 @@ void marie_errors_add(marie_errors_t *e, const char *file, int line, int col, co
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    snprintf(full, sizeof full, "%s:%d:%d: %s", file ? file : "<config>", line, col, msg);
+    if (line > 0)
+        snprintf(full, sizeof full, "%s:%d:%d: %s", file ? file : "<config>", line, col, msg);
+    else
+        snprintf(full, sizeof full, "%s: %s", file ? file : "<config>", msg);
     char **n = realloc(e->msgs, (e->n + 1) * sizeof *n);
     char *copy = strdup(full);
     if (!n || !copy) {
@@ -100,7 +103,9 @@ typedef struct {
     struct fy_parser *fyp;
     const char *file;
     marie_errors_t *errs;
-    int failed;
+    size_t errs_before;
+    char diag[1024];            /* libfyaml's first error message */
+    size_t diag_len;
 } builder_t;
 
 static void mark_of(struct fy_event *ev, int *line, int *col)
@@ -204,18 +209,48 @@ err:
     return NULL;
 }
 
-static void collect_diag(builder_t *b, struct fy_diag *diag)
+/* libfyaml prints "file:line:col: error: text" and then the source line; keep the text. */
+static void on_diag_output(struct fy_diag *diag, void *user, const char *buf, size_t len)
 {
-    void *it = NULL;
-    struct fy_diag_error *de;
-    int any = 0;
-    while (diag && (de = fy_diag_errors_iterate(diag, &it)) != NULL) {
-        /* libfyaml's positions are 0-based. */
-        marie_errors_add(b->errs, b->file, de->line + 1, de->column + 1, "YAML: %s", de->msg);
-        any = 1;
+    builder_t *b = user;
+    size_t room = sizeof b->diag - 1 - b->diag_len;
+    if (len > room)
+        len = room;
+    memcpy(b->diag + b->diag_len, buf, len);
+    b->diag_len += len;
+    b->diag[b->diag_len] = 0;
+}
+
+static void report_diag(builder_t *b)
+{
+    if (b->errs && b->errs->n > b->errs_before)
+        return;  /* already reported by the tree builder */
+    int line = 1, col = 1;
+    const char *text = "cannot parse";
+    char *at = strstr(b->diag, ": error: ");
+    if (at) {
+        /* Walk back over ":line:col" just before ": error: ". */
+        char *colon2 = NULL, *colon1 = NULL;
+        for (char *q = at - 1; q > b->diag; q--) {
+            if (*q == ':') {
+                if (!colon2)
+                    colon2 = q;
+                else {
+                    colon1 = q;
+                    break;
+                }
+            }
+        }
+        if (colon1 && colon2) {
+            line = atoi(colon1 + 1);
+            col = atoi(colon2 + 1);
+        }
+        text = at + strlen(": error: ");
+        char *nl = strchr(text, '\n');
+        if (nl)
+            *nl = 0;
     }
-    if (!any)
-        marie_errors_add(b->errs, b->file, 1, 1, "YAML: cannot parse");
+    marie_errors_add(b->errs, b->file, line, col, "YAML: %s", text);
 }
 
 static marie_doc_t *doc_build(const char *name, const char *path, const char *text, size_t len,
@@ -225,9 +260,17 @@ static marie_doc_t *doc_build(const char *name, const char *path, const char *te
     if (!doc)
         return NULL;
     doc->file = strdup(name);
-    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_COLLECT_DIAG};
-    struct fy_parser *fyp = fy_parser_create(&cfg);
-    builder_t b = {fyp, doc->file, errs, 0};
+    builder_t b = {.file = doc->file, .errs = errs, .errs_before = errs ? errs->n : 0};
+    struct fy_diag_cfg dcfg;
+    fy_diag_cfg_default(&dcfg);
+    dcfg.fp = NULL;
+    dcfg.output_fn = on_diag_output;
+    dcfg.user = &b;
+    dcfg.colorize = false;
+    struct fy_diag *diag = fy_diag_create(&dcfg);
+    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET, .diag = diag};
+    struct fy_parser *fyp = diag ? fy_parser_create(&cfg) : NULL;
+    b.fyp = fyp;
     if (!fyp || !doc->file)
         goto err;
     if ((path ? fy_parser_set_input_file(fyp, path) : fy_parser_set_string(fyp, text, len)) != 0) {
@@ -260,12 +303,15 @@ static marie_doc_t *doc_build(const char *name, const char *path, const char *te
         goto err;
     }
     fy_parser_destroy(fyp);
+    fy_diag_destroy(diag);
     return doc;
 fail:
-    collect_diag(&b, fy_parser_get_diag(fyp));
+    report_diag(&b);
 err:
     if (fyp)
         fy_parser_destroy(fyp);
+    if (diag)
+        fy_diag_destroy(diag);
     marie_doc_destroy(doc);
     return NULL;
 }

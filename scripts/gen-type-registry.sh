@@ -39,7 +39,7 @@ H
         cat <<C
 const marie_type_t marie_type_$t = {
     "marie.$t", sizeof(marie_$t),
-    marie_${t}_get_hash,
+    __marie_${t}_get_hash,
     (int (*)(void *, int, int, const void *))marie_${t}_encode,
     (int (*)(const void *, int, int, void *))marie_${t}_decode,
     (int (*)(void *))marie_${t}_decode_cleanup,

@@ -22,7 +22,7 @@ for t in "$@"; do
     B=$B timeout -k 5 "${TEST_TIMEOUT:-300}" scripts/netns-run $cmd > "$log" 2>&1 < /dev/null
     rc=$?
     ok=$(grep -c '^\[       OK \]' "$log")
-    bad=$(grep -c '^\[  FAILED  \] [^0-9]' "$log")
+    bad=$(grep '^\[  FAILED  \] [^0-9]' "$log" | sort -u | wc -l)
     if [ "$rc" -ne 0 ] && [ "$bad" -eq 0 ]; then bad=1; fi
     passed=$((passed + ok)); failed=$((failed + bad))
     secs=$(( $(date +%s) - start ))
@@ -30,7 +30,7 @@ for t in "$@"; do
         printf 'PASS %-40s %4d cases %4ds\n' "$name" "$ok" "$secs"
     else
         printf 'FAIL %-40s %4d ok %3d failed %4ds (exit %d; log %s)\n' "$name" "$ok" "$bad" "$secs" "$rc" "$log"
-        grep -E '^\[  FAILED  \] [^0-9]|^\[  ERROR   \]|ERROR|Assert|error:' "$log" | head -20 | sed 's/^/    /'
+        grep -E '^\[  ERROR   \]|^\[   LINE   \]|Assert|ERROR: ' "$log" | head -20 | sed 's/^/    /'
         [ "$rc" -eq 124 ] && echo "    (timed out after ${TEST_TIMEOUT:-300}s)"
         failed_names="$failed_names $name"
     fi

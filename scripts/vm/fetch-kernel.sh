@@ -1,0 +1,42 @@
+#!/bin/sh
+# Fetches and unpacks Debian's linux-image-amd64 kernel (vmlinuz + modules) for the VM test,
+# once; later runs only print the directory. Nothing is installed on the host.
+#   scripts/vm/fetch-kernel.sh            prints the unpacked root, e.g. /var/cache/marie-vm/6.1.0-56-amd64
+# env: MARIE_VM_CACHE  cache directory (default /var/cache/marie-vm when writable, else build/vm)
+set -eu
+cache=${MARIE_VM_CACHE:-}
+if [ -z "$cache" ]; then
+    if mkdir -p /var/cache/marie-vm 2>/dev/null && [ -w /var/cache/marie-vm ]; then
+        cache=/var/cache/marie-vm
+    else
+        cache=$(pwd)/${B:-build}/vm
+    fi
+fi
+mkdir -p "$cache"
+# A kernel already unpacked is used as is (no network needed).
+for d in "$cache"/*-amd64; do
+    if [ -f "$d/vmlinuz" ] && [ -d "$d/modules" ]; then echo "$d"; exit 0; fi
+done
+pkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
+if [ -z "$pkg" ]; then
+    if [ "$(id -u)" = 0 ]; then apt-get update -q >/dev/null 2>&1 || true; fi
+    pkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
+fi
+[ -n "$pkg" ] || { echo "fetch-kernel: cannot resolve linux-image-amd64 (apt-get update?)" >&2; exit 1; }
+ver=${pkg#linux-image-}
+dl=$cache/deb
+mkdir -p "$dl"
+if ! ls "$dl"/"$pkg"_*.deb >/dev/null 2>&1; then
+    echo "fetch-kernel: downloading $pkg" >&2
+    (cd "$dl" && apt-get download "$pkg" >&2) || {
+        echo "fetch-kernel: apt-get download $pkg failed" >&2; exit 1; }
+fi
+tmp=$cache/.unpack.$$
+rm -rf "$tmp"; mkdir -p "$tmp"
+dpkg-deb -x "$dl"/"$pkg"_*.deb "$tmp"
+out=$cache/$ver
+rm -rf "$out"; mkdir -p "$out"
+cp "$tmp"/boot/vmlinuz-"$ver" "$out"/vmlinuz
+mv "$tmp"/lib/modules/"$ver" "$out"/modules 2>/dev/null || mv "$tmp"/usr/lib/modules/"$ver" "$out"/modules
+rm -rf "$tmp" "$dl"
+echo "$out"

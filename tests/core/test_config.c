@@ -1,0 +1,203 @@
+/* test_config: system files load with profiles and hashes, and every error names file:line:col. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "core/component.h"
+
+#define DATA "tests/data/core/"
+
+static int has_error(const marie_errors_t *e, const char *needle)
+{
+    for (size_t i = 0; i < e->n; i++)
+        if (strstr(e->msgs[i], needle))
+            return 1;
+    marie_errors_print(e, stderr);
+    return 0;
+}
+
+static void loads_components_ports_and_params(void **state)
+{
+    marie_errors_t e = {0};
+    marie_system_t *sys = marie_system_load(DATA "system_ok.yaml", NULL, &e);
+    assert_non_null(sys);
+    assert_int_equal(e.n, 0);
+    assert_string_equal(sys->name, "example");
+    assert_int_equal(sys->nhosts, 2);
+    assert_int_equal(sys->ncomponents, 2);
+    const marie_component_cfg_t *p = marie_system_component(sys, "producer");
+    const marie_component_cfg_t *c = marie_system_component(sys, "consumer");
+    assert_non_null(p);
+    assert_non_null(c);
+    assert_string_equal(p->host, "onboard1");
+    assert_string_equal(p->ports[0].channel, "EXAMPLE_A");
+    assert_int_equal(p->restart.policy, MARIE_RESTART_ON_FAILURE);
+    assert_true(p->restart.backoff_min_s > 0.19 && p->restart.backoff_min_s < 0.21);
+    assert_int_equal(c->restart.policy, MARIE_RESTART_ALWAYS);
+    assert_int_equal(c->ndepends, 1);
+    assert_string_equal(c->depends[0], "producer");
+    assert_string_equal(marie_node_get(p->params, "label")->value, "robot");
+    marie_system_destroy(sys);
+}
+
+static void profile_replaces_only_what_differs(void **state)
+{
+    marie_errors_t e = {0};
+    marie_system_t *robot = marie_system_load(DATA "system_ok.yaml", NULL, &e);
+    marie_system_t *sim = marie_system_load(DATA "system_ok.yaml", "sim", &e);
+    assert_non_null(robot);
+    assert_non_null(sim);
+    const marie_component_cfg_t *rp = marie_system_component(robot, "producer");
+    const marie_component_cfg_t *sp = marie_system_component(sim, "producer");
+    assert_string_equal(marie_node_get(sp->params, "label")->value, "sim");
+    /* The shared component keeps an identical configuration hash; the replaced one does not. */
+    assert_string_equal(marie_system_component(robot, "consumer")->hash, marie_system_component(sim, "consumer")->hash);
+    assert_string_not_equal(rp->hash, sp->hash);
+    assert_int_equal(strlen(rp->hash), 64);
+    marie_system_destroy(robot);
+    marie_system_destroy(sim);
+    marie_system_t *none = marie_system_load(DATA "system_ok.yaml", "moon", &e);
+    assert_null(none);
+    assert_true(has_error(&e, "no profile 'moon'"));
+    marie_errors_clear(&e);
+}
+
+static void missing_file_is_reported(void **state)
+{
+    marie_errors_t e = {0};
+    assert_null(marie_system_load(DATA "nope.yaml", NULL, &e));
+    assert_true(has_error(&e, DATA "nope.yaml: cannot open: No such file"));
+    marie_errors_clear(&e);
+}
+
+static void bad_yaml_has_line_and_column(void **state)
+{
+    marie_errors_t e = {0};
+    assert_null(marie_system_load(DATA "bad_yaml.yaml", NULL, &e));
+    assert_true(e.n >= 1);
+    /* The flow sequence opened on line 4 is never closed. */
+    assert_non_null(strstr(e.msgs[0], DATA "bad_yaml.yaml:"));
+    int line = 0, col = 0;
+    assert_int_equal(sscanf(e.msgs[0] + strlen(DATA "bad_yaml.yaml:"), "%d:%d:", &line, &col), 2);
+    assert_true(line >= 4);
+    assert_true(col >= 1);
+    marie_errors_clear(&e);
+}
+
+static void unknown_key_and_bad_values_point_at_them(void **state)
+{
+    marie_errors_t e = {0};
+    assert_null(marie_system_load(DATA "unknown_key.yaml", NULL, &e));
+    assert_true(has_error(&e, DATA "unknown_key.yaml:4:5: unknown key 'colour' in component"));
+    marie_errors_clear(&e);
+    assert_null(marie_system_load(DATA "bad_dep.yaml", NULL, &e));
+    assert_true(has_error(&e, DATA "bad_dep.yaml:5:11: component 'x': host 'b' is not in hosts"));
+    assert_true(has_error(&e, "depends on unknown component 'nobody'"));
+    assert_true(has_error(&e, DATA "bad_dep.yaml:7:14: restart policy: expected always, on-failure or never"));
+    marie_errors_clear(&e);
+}
+
+/* A component definition to check parameter and port binding. */
+static const marie_port_spec_t probe_ports[] = {
+    {"out", &marie_type_counter_t, MARIE_OUT, MARIE_PUSH, "EXAMPLE"},
+    {"needs", &marie_type_counter_t, MARIE_IN, MARIE_PUSH, NULL},
+    {0},
+};
+static const marie_param_spec_t probe_params[] = {
+    {"rate_hz", MARIE_PARAM_DOUBLE, "10", ""},
+    {"label", MARIE_PARAM_STRING, "x", ""},
+    {0},
+};
+static const marie_component_def_t probe = {.kind = "probe", .ports = probe_ports, .params = probe_params};
+
+static marie_component_t *create(marie_errors_t *e, const char *file, const char *name, const char *extra)
+{
+    char *argv[8] = {"probe", "--system", (char *)file, "--name", (char *)name};
+    int argc = 5;
+    if (extra)
+        argv[argc++] = (char *)extra;
+    return marie_component_create(&probe, argc, argv, NULL, e);
+}
+
+static void wrong_type_and_unknown_param(void **state)
+{
+    marie_errors_t e = {0};
+    assert_null(create(&e, DATA "wrong_type.yaml", "producer", "--port=needs=X"));
+    assert_true(has_error(&e, DATA "wrong_type.yaml:5:16: rate_hz: expected a number, got 'fast'"));
+    marie_errors_clear(&e);
+    assert_null(create(&e, DATA "unknown_param.yaml", "producer", "--port=needs=X"));
+    assert_true(has_error(&e, DATA "unknown_param.yaml:6:7: unknown parameter 'speed' for probe 'producer'"));
+    marie_errors_clear(&e);
+}
+
+static void unbound_port_is_an_error(void **state)
+{
+    marie_errors_t e = {0};
+    assert_null(create(&e, DATA "unbound.yaml", "probe", NULL));
+    assert_true(has_error(&e, DATA "unbound.yaml:2:3: probe 'probe': port 'needs' is not bound to a channel"));
+    marie_errors_clear(&e);
+    /* Bound from the command line it is fine, and the default channel applies to the other port. */
+    marie_component_t *c = create(&e, DATA "unbound.yaml", "probe", "--port=needs=WANTED");
+    assert_non_null(c);
+    assert_string_equal(marie_port_channel(marie_port(c, "needs")), "WANTED");
+    assert_string_equal(marie_port_channel(marie_port(c, "out")), "EXAMPLE");
+    assert_true(marie_param_double(c, "rate_hz") == 10.0);
+    marie_component_destroy(c);
+}
+
+static void command_line_params_override_the_file(void **state)
+{
+    marie_errors_t e = {0};
+    char *argv[] = {"probe", "--system", DATA "system_ok.yaml", "--name", "producer", "--port", "needs=N",
+                    "--param", "label=overridden"};
+    static const marie_port_spec_t ports[] = {
+        {"out", &marie_type_counter_t, MARIE_OUT, MARIE_PUSH, NULL}, {"needs", NULL, MARIE_IN, MARIE_PUSH, NULL}, {0}};
+    marie_component_def_t def = probe;
+    def.ports = ports;
+    marie_component_t *c = marie_component_create(&def, 9, argv, NULL, &e);
+    assert_non_null(c);
+    assert_string_equal(marie_param_str(c, "label"), "overridden");
+    assert_true(marie_param_double(c, "rate_hz") == 20.0);
+    assert_string_equal(marie_port_channel(marie_port(c, "out")), "EXAMPLE_A");
+    marie_component_destroy(c);
+    char *bad[] = {"probe", "--param", "rate_hz=[1, 2]", "--port", "needs=N"};
+    assert_null(marie_component_create(&probe, 5, bad, NULL, &e));
+    assert_true(has_error(&e, "rate_hz: expected a number, got a sequence"));
+    marie_errors_clear(&e);
+}
+
+static void duplicate_keys_and_aliases_are_refused(void **state)
+{
+    marie_errors_t e = {0};
+    const char *dup = "a: 1\nb: 2\na: 3\n";
+    assert_null(marie_doc_parse("dup.yaml", dup, strlen(dup), &e));
+    assert_true(has_error(&e, "dup.yaml:3:1: duplicate key 'a' (first at line 1)"));
+    marie_errors_clear(&e);
+    const char *alias = "a: &x 1\nb: *x\n";
+    assert_null(marie_doc_parse("alias.yaml", alias, strlen(alias), &e));
+    assert_true(has_error(&e, "alias.yaml:2:"));
+    assert_true(has_error(&e, "YAML aliases are not supported"));
+    assert_int_equal(e.n, 1);
+    marie_errors_clear(&e);
+}
+
+int main(void)
+{
+    marie_log_set_threshold(MARIE_LOG_OFF);
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(loads_components_ports_and_params),
+        cmocka_unit_test(profile_replaces_only_what_differs),
+        cmocka_unit_test(missing_file_is_reported),
+        cmocka_unit_test(bad_yaml_has_line_and_column),
+        cmocka_unit_test(unknown_key_and_bad_values_point_at_them),
+        cmocka_unit_test(wrong_type_and_unknown_param),
+        cmocka_unit_test(unbound_port_is_an_error),
+        cmocka_unit_test(command_line_params_override_the_file),
+        cmocka_unit_test(duplicate_keys_and_aliases_are_refused),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

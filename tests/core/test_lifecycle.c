@@ -1,0 +1,315 @@
+/* test_lifecycle: the example components driven through all eight management functions over
+ * LCM, as separate processes: replies, refusals, heartbeats, malformed orders and SIGTERM. */
+#include <errno.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+#include <lcm/lcm.h>
+
+#include "core/component.h"
+
+typedef struct {
+    lcm_t *lcm;
+    /* latest heartbeat of the component under test */
+    marie_heartbeat_t hb;
+    int have_hb;
+    int64_t hb_count;
+    /* latest reply */
+    marie_lifecycle_reply_t reply;
+    int have_reply;
+    int64_t example_msgs;
+    int64_t last_example_value;
+    const char *who;
+} bus_t;
+
+static void on_hb(const lcm_recv_buf_t *rb, const char *ch, const marie_heartbeat_t *m, void *user)
+{
+    bus_t *b = user;
+    if (strcmp(m->component, b->who) != 0)
+        return;
+    if (b->have_hb)
+        marie_heartbeat_t_decode_cleanup(&b->hb);
+    marie_heartbeat_t_decode(rb->data, 0, (int)rb->data_size, &b->hb);
+    b->have_hb = 1;
+    b->hb_count++;
+}
+
+static void on_reply(const lcm_recv_buf_t *rb, const char *ch, const marie_lifecycle_reply_t *m, void *user)
+{
+    bus_t *b = user;
+    if (strcmp(m->component, b->who) != 0)
+        return;
+    if (b->have_reply)
+        marie_lifecycle_reply_t_decode_cleanup(&b->reply);
+    marie_lifecycle_reply_t_decode(rb->data, 0, (int)rb->data_size, &b->reply);
+    b->have_reply = 1;
+}
+
+static void on_example(const lcm_recv_buf_t *rb, const char *ch, const marie_counter_t *m, void *user)
+{
+    bus_t *b = user;
+    b->example_msgs++;
+    b->last_example_value = m->value;
+}
+
+static void pump(bus_t *b, int ms)
+{
+    int64_t end = marie_mono_us() + ms * 1000LL;
+    while (marie_mono_us() < end)
+        lcm_handle_timeout(b->lcm, 10);
+}
+
+/* Waits until the component's heartbeat shows `state` (5 s at most). */
+static int wait_state(bus_t *b, int state)
+{
+    int64_t end = marie_mono_us() + 5000000;
+    while (marie_mono_us() < end) {
+        if (b->have_hb && b->hb.state == state)
+            return 1;
+        lcm_handle_timeout(b->lcm, 20);
+    }
+    return 0;
+}
+
+static int64_t next_id = 100;
+
+/* Sends a command and waits for the reply to it. Returns 1 if accepted, 0 if refused, -1 on no reply. */
+static int order(bus_t *b, const char *target, int cmd)
+{
+    marie_lifecycle_command_t m = {
+        .utime = marie_wall_us(), .request_id = ++next_id, .sender = "test", .target = (char *)target,
+        .command = (int8_t)cmd,
+    };
+    b->have_reply = 0;
+    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, &m);
+    int64_t end = marie_mono_us() + 5000000;
+    while (marie_mono_us() < end) {
+        lcm_handle_timeout(b->lcm, 20);
+        if (b->have_reply && b->reply.request_id == m.request_id)
+            return b->reply.ok ? 1 : 0;
+    }
+    return -1;
+}
+
+/* Runs $B/bin/PROG with the given arguments (NULL-terminated). */
+static pid_t spawn_argv(const char *prog, char *const *args)
+{
+    pid_t pid = fork();
+    if (pid == 0) {
+        char path[256];
+        snprintf(path, sizeof path, "%s/bin/%s", getenv("B") ? getenv("B") : "build", prog);
+        execv(path, args);
+        _exit(127);
+    }
+    return pid;
+}
+
+static pid_t spawn(const char *prog, const char *name, const char *extra)
+{
+    char *args[] = {(char *)prog, "--name", (char *)name, "--hold", (char *)extra, NULL};
+    return spawn_argv(prog, args);
+}
+
+static void bus_open(bus_t *b, const char *who)
+{
+    memset(b, 0, sizeof *b);
+    b->who = who;
+    b->lcm = lcm_create(NULL);
+    assert_non_null(b->lcm);
+    marie_heartbeat_t_subscribe(b->lcm, MARIE_CH_HEARTBEAT, on_hb, b);
+    marie_lifecycle_reply_t_subscribe(b->lcm, MARIE_CH_LIFECYCLE_REPLY, on_reply, b);
+    marie_counter_t_subscribe(b->lcm, "EXAMPLE", on_example, b);
+}
+
+static void bus_close(bus_t *b)
+{
+    if (b->have_hb)
+        marie_heartbeat_t_decode_cleanup(&b->hb);
+    if (b->have_reply)
+        marie_lifecycle_reply_t_decode_cleanup(&b->reply);
+    lcm_destroy(b->lcm);
+}
+
+static void eight_management_functions_over_lcm(void **state)
+{
+    bus_t b;
+    bus_open(&b, "prod");
+    pid_t pid = spawn("marie-example-producer", "prod", "--param=rate_hz=50");
+    assert_true(wait_state(&b, MARIE_STATE_CREATED));
+    assert_int_equal(b.hb.pid, pid);
+    assert_string_equal(b.hb.component, "prod");
+
+    /* start before init is refused, with a reason, and the state does not change */
+    assert_int_equal(order(&b, "prod", MARIE_CMD_START), 0);
+    assert_non_null(strstr(b.reply.reason, "start refused in state created"));
+    assert_int_equal(b.reply.state, MARIE_STATE_CREATED);
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_INIT), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_READY);
+    pump(&b, 200);
+    assert_int_equal(b.example_msgs, 0);  /* ready is not running: nothing published */
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_START), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_RUNNING);
+    pump(&b, 300);
+    assert_true(b.example_msgs > 0);
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_PAUSE), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_PAUSED);
+    pump(&b, 50);
+    int64_t during_pause = b.example_msgs;
+    pump(&b, 300);
+    assert_int_equal(b.example_msgs, during_pause);
+    assert_int_equal(order(&b, "prod", MARIE_CMD_PAUSE), 0);  /* already paused */
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_RESUME), 1);
+    pump(&b, 300);
+    assert_true(b.example_msgs > during_pause);
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_STOP), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_READY);
+    assert_int_equal(order(&b, "prod", MARIE_CMD_RESTART), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_RUNNING);
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_ABORT), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_FAILED);
+    assert_true(wait_state(&b, MARIE_STATE_FAILED));
+    assert_string_equal(b.hb.reason, "abort");
+    assert_int_equal(order(&b, "prod", MARIE_CMD_RESUME), 0);  /* failed cannot resume */
+    /* restart from failed initialises again */
+    assert_int_equal(order(&b, "prod", MARIE_CMD_RESTART), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_RUNNING);
+
+    /* the heartbeat carries the counters */
+    pump(&b, 1200);
+    assert_true(b.hb.msgs_out > 0);
+    assert_true(b.hb.uptime_us > 0);
+    assert_true(b.hb.seq > 1);
+
+    assert_int_equal(order(&b, "prod", MARIE_CMD_QUIT), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_EXITED);
+    int status;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    assert_true(WIFEXITED(status));
+    assert_int_equal(WEXITSTATUS(status), 0);
+    assert_true(wait_state(&b, MARIE_STATE_EXITED));
+    bus_close(&b);
+}
+
+static void malformed_orders_are_answered_counted_and_survived(void **state)
+{
+    bus_t b;
+    bus_open(&b, "prod2");
+    pid_t pid = spawn("marie-example-producer", "prod2", "--param=rate_hz=50");
+    assert_true(wait_state(&b, MARIE_STATE_CREATED));
+    /* Garbage on the lifecycle channel: a reply saying so, and a bad_input count. */
+    static const unsigned char junk[] = {0xde, 0xad, 0xbe, 0xef, 1, 2, 3};
+    b.have_reply = 0;
+    lcm_publish(b.lcm, MARIE_CH_LIFECYCLE, junk, sizeof junk);
+    int64_t end = marie_mono_us() + 5000000;
+    while (!b.have_reply && marie_mono_us() < end)
+        lcm_handle_timeout(b.lcm, 20);
+    assert_true(b.have_reply);
+    assert_false(b.reply.ok);
+    assert_string_equal(b.reply.reason, "malformed lifecycle command");
+    /* An unknown command number is refused. */
+    assert_int_equal(order(&b, "prod2", 42), 0);
+    assert_string_equal(b.reply.reason, "unknown command");
+    /* Orders for another component are ignored by this one. */
+    assert_int_equal(order(&b, "someone-else", MARIE_CMD_INIT), -1);
+    /* Still alive and counting. */
+    assert_int_equal(order(&b, "prod2", MARIE_CMD_INIT), 1);
+    pump(&b, 1100);
+    assert_true(b.hb.bad_input >= 2);
+    int found = 0;
+    for (int i = 0; i < b.hb.ncounters; i++)
+        if (strcmp(b.hb.counters[i].name, "bad_lifecycle") == 0 && b.hb.counters[i].value >= 2)
+            found = 1;
+    assert_true(found);
+    /* SIGTERM is quit: exit status 0 and a last heartbeat saying exited. */
+    kill(pid, SIGTERM);
+    int status;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    assert_true(WIFEXITED(status));
+    assert_int_equal(WEXITSTATUS(status), 0);
+    assert_true(wait_state(&b, MARIE_STATE_EXITED));
+    bus_close(&b);
+}
+
+static void event_port_holds_notes_until_running_and_counts_losses(void **state)
+{
+    bus_t b;
+    bus_open(&b, "cons");
+    pid_t pid = spawn("marie-example-consumer", "cons", NULL);
+    assert_true(wait_state(&b, MARIE_STATE_CREATED));
+    assert_int_equal(order(&b, "cons", MARIE_CMD_INIT), 1);
+    /* 300 notes while ready: the event queue holds 256 and counts the rest as lost. */
+    for (int i = 0; i < 300; i++) {
+        marie_event_t ev = {.utime = marie_wall_us(), .source = "test", .seq = i + 1, .kind = "note", .text = ""};
+        marie_event_t_publish(b.lcm, "EXAMPLE_NOTES", &ev);
+        if (i % 50 == 49)
+            pump(&b, 20);
+    }
+    pump(&b, 200);
+    assert_int_equal(order(&b, "cons", MARIE_CMD_START), 1);
+    pump(&b, 1200);
+    int64_t notes = -1, lost = -1;
+    for (int i = 0; i < b.hb.ncounters; i++) {
+        if (strcmp(b.hb.counters[i].name, "notes") == 0)
+            notes = b.hb.counters[i].value;
+        if (strcmp(b.hb.counters[i].name, "events_lost") == 0)
+            lost = b.hb.counters[i].value;
+    }
+    assert_int_equal(notes, 256);
+    assert_int_equal(lost, 44);
+    assert_int_equal(b.hb.drops, 44);
+    /* Push messages that arrive while not running are not queued. */
+    assert_int_equal(order(&b, "cons", MARIE_CMD_QUIT), 1);
+    int status;
+    waitpid(pid, &status, 0);
+    bus_close(&b);
+}
+
+static void group_orders_reach_every_member(void **state)
+{
+    /* Two producers in one group of a system file; one order to the group moves both. */
+    bus_t a, c;
+    bus_open(&a, "producer");
+    bus_open(&c, "consumer");
+    char *sys = "--system=tests/data/core/system_ok.yaml";
+    char *pargs[] = {"p", sys, "--name", "producer", "--hold", NULL};
+    char *cargs[] = {"c", sys, "--name", "consumer", "--hold", NULL};
+    pid_t p1 = spawn_argv("marie-example-producer", pargs);
+    pid_t p2 = spawn_argv("marie-example-consumer", cargs);
+    assert_true(wait_state(&a, MARIE_STATE_CREATED));
+    assert_true(wait_state(&c, MARIE_STATE_CREATED));
+    assert_true(order(&a, "demo", MARIE_CMD_INIT) >= 0);
+    assert_true(wait_state(&a, MARIE_STATE_READY));
+    assert_true(wait_state(&c, MARIE_STATE_READY));
+    order(&a, "*", MARIE_CMD_QUIT);
+    int status;
+    waitpid(p1, &status, 0);
+    assert_int_equal(WEXITSTATUS(status), 0);
+    waitpid(p2, &status, 0);
+    assert_int_equal(WEXITSTATUS(status), 0);
+    bus_close(&a);
+    bus_close(&c);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(eight_management_functions_over_lcm),
+        cmocka_unit_test(malformed_orders_are_answered_counted_and_survived),
+        cmocka_unit_test(event_port_holds_notes_until_running_and_counts_losses),
+        cmocka_unit_test(group_orders_reach_every_member),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

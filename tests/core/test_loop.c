@@ -1,0 +1,181 @@
+/* test_loop: fd callbacks, fixed-rate timers with overrun accounting, sim clock, signals. */
+#include <errno.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "core/loop.h"
+#include "core/time.h"
+
+typedef struct {
+    int fired;
+    int64_t overruns;
+    int64_t last_now;
+} tick_state_t;
+
+static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    tick_state_t *s = user;
+    s->fired++;
+    s->overruns += overruns;
+    s->last_now = marie_loop_now(loop);
+}
+
+static void sim_timers_follow_simulated_time(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    marie_loop_set_clock(loop, MARIE_CLOCK_SIM);
+    tick_state_t s = {0};
+    marie_timer_t *t = marie_loop_add_timer(loop, 100000, on_tick, &s);  /* 10 Hz */
+    assert_non_null(t);
+    /* Wall time passing does nothing while the simulated clock stands still. */
+    marie_loop_run_once(loop, 30);
+    assert_int_equal(s.fired, 0);
+    /* One simulated second in 10 ms steps: exactly ten ticks, none late. */
+    for (int64_t us = 10000; us <= 1000000; us += 10000) {
+        marie_loop_set_sim_time(loop, us);
+        marie_loop_run_once(loop, 0);
+    }
+    assert_int_equal(s.fired, 10);
+    assert_int_equal(s.overruns, 0);
+    assert_int_equal(marie_loop_now(loop), 1000000);
+    /* Deadlines 1.1, 1.2 and 1.3 s all pass in one jump: one late call reporting the two
+     * periods it skipped, not a burst of three. */
+    marie_loop_set_sim_time(loop, 1350000);
+    marie_loop_run_once(loop, 0);
+    assert_int_equal(s.fired, 11);
+    assert_int_equal(s.overruns, 2);
+    assert_int_equal(marie_timer_overruns(t), 2);
+    /* The next deadline keeps the original phase. */
+    marie_loop_set_sim_time(loop, 1399999);
+    marie_loop_run_once(loop, 0);
+    assert_int_equal(s.fired, 11);
+    marie_loop_set_sim_time(loop, 1400000);
+    marie_loop_run_once(loop, 0);
+    assert_int_equal(s.fired, 12);
+    /* Time never runs backwards. */
+    marie_loop_set_sim_time(loop, 5);
+    assert_int_equal(marie_loop_now(loop), 1400000);
+    marie_loop_destroy(loop);
+}
+
+static void wall_timer_ticks_and_counts_a_slow_callback(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    tick_state_t s = {0};
+    marie_timer_t *t = marie_loop_add_timer(loop, 5000, on_tick, &s);
+    int64_t start = marie_mono_us();
+    while (s.fired < 3 && marie_mono_us() - start < 5000000)
+        marie_loop_run_once(loop, -1);
+    assert_int_equal(s.fired, 3);
+    /* Block for more than four periods: the next call reports them as overruns. */
+    usleep(25000);
+    int before = s.fired;
+    marie_loop_run_once(loop, -1);
+    assert_int_equal(s.fired, before + 1);
+    assert_true(s.overruns >= 4);
+    marie_loop_remove_timer(loop, t);
+    marie_loop_destroy(loop);
+}
+
+typedef struct {
+    int reads;
+    marie_loop_t *loop;
+} fd_state_t;
+
+static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    fd_state_t *s = user;
+    char buf[16];
+    assert_true(revents & POLLIN);
+    assert_true(read(fd, buf, sizeof buf) > 0);
+    s->reads++;
+    /* Removing ourselves from inside the callback is allowed. */
+    marie_loop_remove_fd(loop, fd);
+}
+
+static void fd_callbacks_and_removal_inside_them(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int p[2];
+    assert_int_equal(pipe(p), 0);
+    fd_state_t s = {0, loop};
+    assert_int_equal(marie_loop_add_fd(loop, p[0], POLLIN, on_readable, &s), 0);
+    assert_int_equal(marie_loop_add_fd(loop, p[0], POLLIN, on_readable, &s), -EEXIST);
+    assert_int_equal(write(p[1], "x", 1), 1);
+    marie_loop_run_once(loop, 1000);
+    assert_int_equal(s.reads, 1);
+    assert_int_equal(write(p[1], "y", 1), 1);
+    assert_int_equal(marie_loop_run_once(loop, 20), 0);
+    assert_int_equal(s.reads, 1);
+    assert_int_equal(marie_loop_remove_fd(loop, p[0]), -ENOENT);
+    close(p[0]);
+    close(p[1]);
+    marie_loop_destroy(loop);
+}
+
+static void on_oneshot(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    (*(int *)user)++;
+    marie_loop_quit(loop);
+}
+
+static void oneshot_fires_once_and_quit_stops_run(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int n = 0;
+    assert_non_null(marie_loop_add_oneshot(loop, 2000, on_oneshot, &n));
+    assert_int_equal(marie_loop_run(loop), 0);
+    assert_int_equal(n, 1);
+    assert_true(marie_loop_quitting(loop));
+    marie_loop_destroy(loop);
+}
+
+static void wall_timers_run_while_sim_time_stands(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    marie_loop_set_clock(loop, MARIE_CLOCK_SIM);
+    tick_state_t s = {0};
+    assert_non_null(marie_loop_add_wall_timer(loop, 2000, on_tick, &s));
+    int64_t start = marie_mono_us();
+    while (s.fired < 2 && marie_mono_us() - start < 5000000)
+        marie_loop_run_once(loop, -1);
+    assert_int_equal(s.fired, 2);
+    marie_loop_destroy(loop);
+}
+
+static void on_sig(marie_loop_t *loop, int signo, void *user)
+{
+    *(int *)user = signo;
+    marie_loop_quit(loop);
+}
+
+static void sigterm_reaches_the_loop_as_a_callback(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int got = 0;
+    assert_int_equal(marie_loop_catch_signals(loop, on_sig, &got), 0);
+    kill(getpid(), SIGTERM);
+    assert_int_equal(marie_loop_run(loop), 0);
+    assert_int_equal(got, SIGTERM);
+    marie_loop_catch_signals(loop, NULL, NULL);
+    marie_loop_destroy(loop);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(sim_timers_follow_simulated_time),
+        cmocka_unit_test(wall_timer_ticks_and_counts_a_slow_callback),
+        cmocka_unit_test(fd_callbacks_and_removal_inside_them),
+        cmocka_unit_test(oneshot_fires_once_and_quit_stops_run),
+        cmocka_unit_test(wall_timers_run_while_sim_time_stands),
+        cmocka_unit_test(sigterm_reaches_the_loop_as_a_callback),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
