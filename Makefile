@@ -119,11 +119,23 @@ demo: deps
 	@$(MAKE) --no-print-directory all
 	@B=$(B) scripts/demo.sh
 
-fuzz: deps
+# libFuzzer builds compile the target's SOURCES and libmarie's with clang's instrumentation.
+fuzz: deps all
 	@scripts/install-deps.sh san
-	@$(foreach f,$(FUZZERS),mkdir -p $(B)/fuzz && clang -g -O1 -fsanitize=fuzzer,address,undefined $(CPPFLAGS) \
-	    -o $(B)/fuzz/$(f) $(FUZZ_$(f)_SOURCES) $(filter-out %.a,$(FUZZ_$(f)_LIBS)) $(LDLIBS) && \
-	    $(B)/fuzz/$(f) -max_total_time=$(or $(FUZZ_SECONDS),30) tests/data/fuzz/$(f) &&) true
+	@mkdir -p $(B)/fuzz
+	@set -e; for f in $(FUZZERS); do \
+	    echo "fuzz: $$f for $(or $(FUZZ_SECONDS),30) s"; \
+	    $(MAKE) --no-print-directory -s $(B)/fuzz/$$f; \
+	    mkdir -p $(B)/fuzz/corpus-$$f; \
+	    LSAN_OPTIONS=suppressions=tests/lsan.supp $(B)/fuzz/$$f -max_total_time=$(or $(FUZZ_SECONDS),30) \
+	        -artifact_prefix=$(B)/fuzz/ -print_final_stats=1 \
+	        $(B)/fuzz/corpus-$$f tests/data/fuzz/$$f 2>&1 | tail -3; \
+	done
+
+$(B)/fuzz/%: $(LIBMARIE)
+	@mkdir -p $(@D)
+	clang -g -O1 -fsanitize=fuzzer,address,undefined $(CPPFLAGS) -o $@ $(FUZZ_$*_SOURCES) $(CORE_SRCS) \
+	    $(LCM_C_SRCS) $(FUZZ_$*_LIBS) $(LDLIBS) -lstdc++
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \

@@ -253,9 +253,32 @@ static void report_diag(builder_t *b)
     marie_errors_add(b->errs, b->file, line, col, "YAML: %s", text);
 }
 
-static marie_doc_t *doc_build(const char *name, const char *path, const char *text, size_t len,
-                              marie_errors_t *errs)
+/* libfyaml 0.7.12 can spin forever on a directive line holding a NUL byte, so text that
+ * is not plain YAML for marie (NUL bytes, directives) is refused before it gets there. */
+static int prescan(const char *name, const char *text, size_t len, marie_errors_t *errs)
 {
+    int line = 1, col = 1;
+    for (size_t i = 0; i < len; i++, col++) {
+        if (text[i] == 0) {
+            marie_errors_add(errs, name, line, col, "NUL byte: this is not a text file");
+            return -1;
+        }
+        if (text[i] == '%' && col == 1) {
+            marie_errors_add(errs, name, line, col, "YAML directives are not supported in marie files");
+            return -1;
+        }
+        if (text[i] == '\n') {
+            line++;
+            col = 0;
+        }
+    }
+    return 0;
+}
+
+static marie_doc_t *doc_build(const char *name, const char *text, size_t len, marie_errors_t *errs)
+{
+    if (prescan(name, text, len, errs) < 0)
+        return NULL;
     marie_doc_t *doc = calloc(1, sizeof *doc);
     if (!doc)
         return NULL;
@@ -271,12 +294,8 @@ static marie_doc_t *doc_build(const char *name, const char *path, const char *te
     struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET, .diag = diag};
     struct fy_parser *fyp = diag ? fy_parser_create(&cfg) : NULL;
     b.fyp = fyp;
-    if (!fyp || !doc->file)
+    if (!fyp || !doc->file || fy_parser_set_string(fyp, text, len) != 0)
         goto err;
-    if ((path ? fy_parser_set_input_file(fyp, path) : fy_parser_set_string(fyp, text, len)) != 0) {
-        marie_errors_add(errs, name, 0, 0, "cannot read: %s", strerror(errno ? errno : EIO));
-        goto err;
-    }
     struct fy_event *ev;
     size_t ndocs = 0;
     while ((ev = fy_parser_parse(fyp)) != NULL) {
@@ -316,20 +335,33 @@ err:
     return NULL;
 }
 
+#define MAX_FILE_SIZE (16 << 20)
+
 marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs)
 {
-    FILE *f = fopen(path, "r");
+    FILE *f = fopen(path, "rb");
     if (!f) {
         marie_errors_add(errs, path, 0, 0, "cannot open: %s", strerror(errno));
         return NULL;
     }
+    char *text = malloc(MAX_FILE_SIZE + 1);
+    size_t len = text ? fread(text, 1, MAX_FILE_SIZE + 1, f) : 0;
+    int failed = !text || ferror(f);
     fclose(f);
-    return doc_build(path, path, NULL, 0, errs);
+    marie_doc_t *doc = NULL;
+    if (failed)
+        marie_errors_add(errs, path, 0, 0, "cannot read: %s", strerror(errno ? errno : EIO));
+    else if (len > MAX_FILE_SIZE)
+        marie_errors_add(errs, path, 0, 0, "larger than %d MB", MAX_FILE_SIZE >> 20);
+    else
+        doc = doc_build(path, text, len, errs);
+    free(text);
+    return doc;
 }
 
 marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs)
 {
-    return doc_build(name, NULL, text, len, errs);
+    return doc_build(name, text, len, errs);
 }
 
 void marie_doc_destroy(marie_doc_t *doc)

@@ -7,6 +7,10 @@
 set -u
 B=${B:-build}
 logs=$B/test-logs
+# Sanitizer builds: fail on the first report; known third-party leaks are suppressed.
+export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$(pwd)/tests/lsan.supp}
 mkdir -p "$logs"
 passed=0; failed=0; failed_names=""
 for t in "$@"; do

@@ -183,6 +183,15 @@ static void duplicate_keys_and_aliases_are_refused(void **state)
     assert_true(has_error(&e, "YAML aliases are not supported"));
     assert_int_equal(e.n, 1);
     marie_errors_clear(&e);
+    /* Directives and NUL bytes never reach the YAML library (a directive with a NUL made it spin). */
+    const char directive[] = "a: 1\n%YAML 1.2\n";
+    assert_null(marie_doc_parse("d.yaml", directive, strlen(directive), &e));
+    assert_true(has_error(&e, "d.yaml:2:1: YAML directives are not supported"));
+    marie_errors_clear(&e);
+    const char nul[] = "a: 1\nb: x\0y\n";
+    assert_null(marie_doc_parse("n.yaml", nul, sizeof nul - 1, &e));
+    assert_true(has_error(&e, "n.yaml:2:5: NUL byte"));
+    marie_errors_clear(&e);
 }
 
 int main(void)

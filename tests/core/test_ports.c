@@ -1,0 +1,205 @@
+/* test_ports: push ports carry typed messages, mistyped payloads are counted and dropped,
+ * pull ports get the newest value from a server speaking the Mailbox protocol, or time out. */
+#include <errno.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "core/component.h"
+
+static const marie_port_spec_t tx_ports[] = {
+    {"pose", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "T_POSE"},
+    {"raw", NULL, MARIE_OUT, MARIE_PUSH, "T_POSE"},
+    {0},
+};
+static const marie_component_def_t tx_def = {.kind = "tx", .ports = tx_ports};
+
+typedef struct {
+    int got;
+    marie_pose2d_t last;
+    char frame[16];
+} rx_state_t;
+
+static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    rx_state_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    s->got++;
+    s->last = m->pose;
+    snprintf(s->frame, sizeof s->frame, "%s", m->frame);
+    assert_string_equal(info->channel, "T_POSE");
+}
+
+static int rx_init(marie_component_t *c)
+{
+    return marie_port_on_message(marie_port(c, "pose"), on_pose);
+}
+
+static const marie_port_spec_t rx_ports[] = {
+    {"pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "T_POSE"},
+    {"latest", &marie_type_pose_cov_t, MARIE_IN, MARIE_PULL, "T_LATEST"},
+    {0},
+};
+static const marie_component_def_t rx_def = {.kind = "rx", .ports = rx_ports, .on_init = rx_init};
+
+static marie_component_t *make(const marie_component_def_t *def, const char *name, void *user)
+{
+    char *argv[] = {(char *)def->kind, "--name", (char *)name};
+    marie_errors_t e = {0};
+    marie_component_t *c = marie_component_create(def, 3, argv, user, &e);
+    marie_errors_print(&e, stderr);
+    assert_non_null(c);
+    const char *why;
+    assert_int_equal(marie_component_command(c, MARIE_CMD_INIT, &why), 0);
+    assert_int_equal(marie_component_command(c, MARIE_CMD_START, &why), 0);
+    return c;
+}
+
+static void spin(marie_component_t **cs, int n, int ms)
+{
+    int64_t end = marie_mono_us() + ms * 1000LL;
+    while (marie_mono_us() < end)
+        for (int i = 0; i < n; i++)
+            marie_loop_run_once(marie_component_loop(cs[i]), 5);
+}
+
+static void push_delivers_typed_messages_and_drops_mistyped_ones(void **state)
+{
+    rx_state_t s = {0};
+    marie_component_t *cs[2] = {make(&tx_def, "tx", NULL), make(&rx_def, "rx", &s)};
+    marie_pose_cov_t m = {.utime = 1, .frame = "map", .pose = {1.5, -2.0, 0.25}};
+    for (int i = 0; i < 3; i++) {
+        m.pose.x = i;
+        assert_int_equal(marie_port_publish(marie_port(cs[0], "pose"), &m), 0);
+    }
+    spin(cs, 2, 300);
+    assert_int_equal(s.got, 3);
+    assert_true(s.last.x == 2.0 && s.last.y == -2.0 && s.last.theta == 0.25);
+    assert_string_equal(s.frame, "map");
+    /* A payload of another type on the same channel: counted, never delivered. */
+    marie_counter_t other = {.name = "x", .value = 1};
+    uint8_t buf[64];
+    int len = marie_counter_t_encode(buf, 0, sizeof buf, &other);
+    assert_int_equal(marie_port_publish_raw(marie_port(cs[0], "raw"), buf, (size_t)len), 0);
+    /* The right fingerprint over a truncated body: counted as undecodable. */
+    uint8_t full[256];
+    marie_pose_cov_t_encode(full, 0, sizeof full, &m);
+    assert_int_equal(marie_port_publish_raw(marie_port(cs[0], "raw"), full, 20), 0);
+    spin(cs, 2, 300);
+    assert_int_equal(s.got, 3);
+    assert_int_equal(marie_component_counter(cs[1], "bad_fingerprint"), 1);
+    assert_int_equal(marie_component_counter(cs[1], "bad_payload"), 1);
+    marie_component_destroy(cs[0]);
+    marie_component_destroy(cs[1]);
+}
+
+/* A minimal server of the pull protocol on T_LATEST.PULL (what a Mailbox does). */
+typedef struct {
+    lcm_t *lcm;
+    int requests;
+    int answer;     /* 0: keep silent, 1: answer with a pose, 2: answer empty */
+} server_t;
+
+static void on_request(const lcm_recv_buf_t *rb, const char *ch, const marie_pull_request_t *req, void *user)
+{
+    server_t *sv = user;
+    sv->requests++;
+    if (!sv->answer)
+        return;
+    marie_pose_cov_t pose = {.utime = 5, .frame = "map", .pose = {3.0, 4.0, 0.5}};
+    uint8_t buf[256];
+    int len = marie_pose_cov_t_encode(buf, 0, sizeof buf, &pose);
+    marie_pull_reply_t r = {
+        .utime = marie_wall_us(), .request_id = req->request_id, .channel = req->channel,
+        .status = sv->answer == 1 ? MARIE_PULL_REPLY_T_STATUS_OK : MARIE_PULL_REPLY_T_STATUS_EMPTY,
+        .age_us = 1234, .fingerprint = marie_type_pose_cov_t.hash(), .size = sv->answer == 1 ? len : 0, .data = buf,
+    };
+    marie_pull_reply_t_publish(sv->lcm, req->reply_channel, &r);
+}
+
+static void on_server_fd(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    lcm_handle_timeout(((server_t *)user)->lcm, 0);
+}
+
+static void pull_gets_the_newest_value_or_times_out(void **state)
+{
+    rx_state_t s = {0};
+    marie_component_t *c = make(&rx_def, "puller", &s);
+    server_t sv = {lcm_create(NULL), 0, 1};
+    marie_pull_request_t_subscribe(sv.lcm, "T_LATEST.PULL", on_request, &sv);
+    /* The server shares the component's loop so a blocking pull lets it answer. */
+    marie_loop_add_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm), POLLIN, on_server_fd, &sv);
+    marie_pose_cov_t got;
+    int64_t age = 0;
+    assert_int_equal(marie_port_pull(marie_port(c, "latest"), &got, 2000, &age), 0);
+    assert_true(got.pose.x == 3.0 && got.pose.y == 4.0);
+    assert_string_equal(got.frame, "map");
+    assert_int_equal(age, 1234);
+    marie_pose_cov_t_decode_cleanup(&got);
+    sv.answer = 2;
+    assert_int_equal(marie_port_pull(marie_port(c, "latest"), &got, 2000, &age), -ENODATA);
+    sv.answer = 0;
+    int64_t t0 = marie_mono_us();
+    assert_int_equal(marie_port_pull(marie_port(c, "latest"), &got, 100, &age), -ETIMEDOUT);
+    assert_true(marie_mono_us() - t0 >= 100000);
+    assert_int_equal(sv.requests, 3);
+    assert_int_equal(marie_component_counter(c, "pull_timeouts"), 1);
+    /* Pulling a push port is a usage error. */
+    assert_int_equal(marie_port_pull(marie_port(c, "pose"), &got, 10, &age), -EINVAL);
+    marie_loop_remove_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm));
+    lcm_destroy(sv.lcm);
+    marie_component_destroy(c);
+}
+
+typedef struct {
+    int calls, status;
+    double x;
+} async_t;
+
+static void on_pulled(marie_component_t *c, marie_port_t *p, int status, const void *msg, int64_t age, void *user)
+{
+    async_t *a = user;
+    a->calls++;
+    a->status = status;
+    if (msg)
+        a->x = ((const marie_pose_cov_t *)msg)->pose.x;
+}
+
+static void async_pull_calls_back_exactly_once(void **state)
+{
+    rx_state_t s = {0};
+    marie_component_t *c = make(&rx_def, "puller2", &s);
+    server_t sv = {lcm_create(NULL), 0, 1};
+    marie_pull_request_t_subscribe(sv.lcm, "T_LATEST.PULL", on_request, &sv);
+    marie_loop_add_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm), POLLIN, on_server_fd, &sv);
+    async_t a = {0}, t = {0};
+    assert_int_equal(marie_port_pull_async(marie_port(c, "latest"), 2000, on_pulled, &a), 0);
+    marie_component_t *cs[1] = {c};
+    spin(cs, 1, 300);
+    assert_int_equal(a.calls, 1);
+    assert_int_equal(a.status, 0);
+    assert_true(a.x == 3.0);
+    sv.answer = 0;
+    assert_int_equal(marie_port_pull_async(marie_port(c, "latest"), 50, on_pulled, &t), 0);
+    spin(cs, 1, 300);
+    assert_int_equal(t.calls, 1);
+    assert_int_equal(t.status, -ETIMEDOUT);
+    marie_loop_remove_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm));
+    lcm_destroy(sv.lcm);
+    marie_component_destroy(c);
+}
+
+int main(void)
+{
+    marie_log_set_threshold(MARIE_LOG_ERROR);
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(push_delivers_typed_messages_and_drops_mistyped_ones),
+        cmocka_unit_test(pull_gets_the_newest_value_or_times_out),
+        cmocka_unit_test(async_pull_calls_back_exactly_once),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
