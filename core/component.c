@@ -473,8 +473,10 @@ static void flush_event_queues(marie_component_t *c)
             deliver(p, p->queue[done].data, p->queue[done].len, p->queue[done].recv_utime);
             free(p->queue[done].data);
         }
-        memmove(p->queue, p->queue + done, (p->nqueue - done) * sizeof *p->queue);
-        p->nqueue -= done;
+        if (done) {
+            memmove(p->queue, p->queue + done, (p->nqueue - done) * sizeof *p->queue);
+            p->nqueue -= done;
+        }
     }
 }
 
@@ -1044,11 +1046,9 @@ static int bind_ports(marie_component_t *c, const options_t *o, marie_errors_t *
 
 static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
-    lcm_t *lcm = user;
-    /* Drain what is there without blocking; bounded so timers are not starved. */
-    for (int i = 0; i < 256 && !marie_loop_quitting(loop); i++)
-        if (lcm_handle_timeout(lcm, 0) <= 0)
-            break;
+    /* The fd is readable, so this does not block; one message per poll round keeps
+     * timers and other fds served between messages. */
+    lcm_handle(user);
 }
 
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv, void *user,
