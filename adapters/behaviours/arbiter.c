@@ -1,0 +1,226 @@
+/* arbiter: behaviours as pure functions of one cycle's inputs, and their priority arbitration. */
+#include "adapters/behaviours/arbiter.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "follow_path", "idle" };
+
+const char *arb_name(int b)
+{
+    return b >= 0 && b < ARB_COUNT ? names[b] : "?";
+}
+
+void arb_params_default(arb_params_t *p)
+{
+    memset(p, 0, sizeof(*p));
+    p->priority[ARB_ESTOP] = 100;
+    p->priority[ARB_AVOID] = 80;
+    p->priority[ARB_TELEOP] = 60;
+    p->priority[ARB_FOLLOW] = 40;
+    p->priority[ARB_IDLE] = 0;
+    p->lookahead = 0.6;
+    p->v_max = 0.5;
+    p->omega_max = 1.2;
+    p->goal_tolerance = 0.15;
+    p->turn_in_place = 1.0;
+    p->stale_pose_s = 1.0;
+    p->stale_path_s = 0;            /* a path stays valid until replaced */
+    p->half_width = 0.3;
+    p->stop_distance = 0.3;
+    p->slow_distance = 0.6;
+    p->avoid_omega = 0.6;
+    p->stale_scan_s = 1.0;
+    p->estop_required = false;
+    p->stale_estop_s = 2.0;
+    p->teleop_timeout_s = 0.5;
+}
+
+void arb_state_reset(arb_state_t *s)
+{
+    memset(s, 0, sizeof(*s));
+    s->path_goal = -1;
+}
+
+static double clamp(double x, double lo, double hi)
+{
+    return x < lo ? lo : x > hi ? hi : x;
+}
+
+static void vote(arb_vote_t *o, bool active, double v, double w, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static void vote(arb_vote_t *o, bool active, double v, double w, const char *fmt, ...)
+{
+    o->active = active;
+    o->v = v;
+    o->omega = w;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(o->reason, sizeof(o->reason), fmt, ap);
+    va_end(ap);
+}
+
+static bool fresh(double age, double limit)
+{
+    return age >= 0 && (limit <= 0 || age <= limit);
+}
+
+void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+{
+    if (in->estop_age >= 0 && in->estop_pressed)
+        vote(o, true, 0, 0, "pressed");
+    else if (p->estop_required && !fresh(in->estop_age, p->stale_estop_s))
+        vote(o, true, 0, 0, in->estop_age < 0 ? "no e-stop state" : "e-stop state stale");
+    else
+        vote(o, false, 0, 0, "released");
+}
+
+void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+{
+    if (fresh(in->teleop_age, p->teleop_timeout_s) && isfinite(in->teleop_v) && isfinite(in->teleop_omega))
+        vote(o, true, clamp(in->teleop_v, -p->v_max, p->v_max), clamp(in->teleop_omega, -p->omega_max, p->omega_max),
+             "operator");
+    else
+        vote(o, false, 0, 0, in->teleop_age < 0 ? "no operator" : "operator idle");
+}
+
+void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+{
+    if (!in->ranges || in->nranges <= 0 || !fresh(in->scan_age, p->stale_scan_s)) {
+        vote(o, false, 0, 0, "no fresh scan");
+        return;
+    }
+    /* Nearest return inside the corridor the robot sweeps when driving straight on, and
+     * which side is more open (sum of clear distance left vs right). */
+    double ahead = INFINITY, open_l = 0, open_r = 0;
+    for (int k = 0; k < in->nranges; k++) {
+        double r = in->ranges[k];
+        if (!isfinite(r) || r <= in->range_min)
+            continue;
+        double a = in->angle_min + k * in->angle_increment;
+        double rr = r > in->range_max ? in->range_max : r;
+        if (a > 0)
+            open_l += fmin(rr, 2.0);
+        else
+            open_r += fmin(rr, 2.0);
+        if (r >= in->range_max)
+            continue;
+        double x = r * cos(a), y = r * sin(a);
+        if (x > 0 && fabs(y) < p->half_width && x < ahead)
+            ahead = x;
+    }
+    if (ahead >= p->slow_distance) {
+        vote(o, false, 0, 0, "clear %.2f m", isfinite(ahead) ? ahead : -1.0);
+        return;
+    }
+    double turn = open_l >= open_r ? p->avoid_omega : -p->avoid_omega;
+    if (ahead <= p->stop_distance) {
+        vote(o, true, 0, turn, "blocked at %.2f m", ahead);
+        return;
+    }
+    double f = (ahead - p->stop_distance) / (p->slow_distance - p->stop_distance);
+    vote(o, true, 0.5 * p->v_max * f, turn * (1 - f), "obstacle at %.2f m", ahead);
+}
+
+void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
+{
+    if (!in->path || in->npath <= 0 || !fresh(in->path_age, p->stale_path_s)) {
+        vote(o, false, 0, 0, "no path");
+        return;
+    }
+    if (in->path_status != 0) {
+        vote(o, false, 0, 0, "path status %d", in->path_status);
+        return;
+    }
+    if (!fresh(in->pose_age, p->stale_pose_s)) {
+        vote(o, false, 0, 0, in->pose_age < 0 ? "no pose" : "pose stale %.1f s", in->pose_age);
+        return;
+    }
+    const double *P = in->path;
+    int n = in->npath;
+    double ex = P[3 * (n - 1)], ey = P[3 * (n - 1) + 1];
+    if (s->path_goal != in->path_goal || s->npath != n || s->path_end[0] != ex || s->path_end[1] != ey) {
+        s->path_goal = in->path_goal;
+        s->npath = n;
+        s->path_end[0] = ex;
+        s->path_end[1] = ey;
+        s->progress = 0;
+        s->done = false;
+    }
+    double x = in->pose[0], y = in->pose[1], th = in->pose[2];
+    double to_end = hypot(ex - x, ey - y);
+    if (s->done || to_end < p->goal_tolerance) {
+        s->done = true;
+        vote(o, false, 0, 0, "path done");
+        return;
+    }
+    /* Closest point on the segments from the progress index on (never back along the path). */
+    int best = s->progress;
+    double bd = INFINITY, bt = 0;
+    for (int i = s->progress; i < n - 1; i++) {
+        double ax = P[3 * i], ay = P[3 * i + 1], bx = P[3 * i + 3], by = P[3 * i + 4];
+        double dx = bx - ax, dy = by - ay, l2 = dx * dx + dy * dy;
+        double t = l2 > 0 ? clamp(((x - ax) * dx + (y - ay) * dy) / l2, 0, 1) : 0;
+        double d = hypot(ax + t * dx - x, ay + t * dy - y);
+        if (d < bd) { bd = d; best = i; bt = t; }
+    }
+    s->progress = best;
+    /* Walk the lookahead distance along the path from the closest point. */
+    double gx = ex, gy = ey;
+    if (n > 1) {
+        double need = p->lookahead;
+        double cx = P[3 * best] + bt * (P[3 * best + 3] - P[3 * best]);
+        double cy = P[3 * best + 1] + bt * (P[3 * best + 4] - P[3 * best + 1]);
+        need = sqrt(fmax(0, need * need - bd * bd));  /* the look-ahead circle meets the path here */
+        for (int i = best; i < n - 1; i++) {
+            double nx = P[3 * i + 3], ny = P[3 * i + 4];
+            double seg = hypot(nx - cx, ny - cy);
+            if (seg >= need) {
+                gx = cx + (nx - cx) * (seg > 0 ? need / seg : 0);
+                gy = cy + (ny - cy) * (seg > 0 ? need / seg : 0);
+                break;
+            }
+            need -= seg;
+            cx = nx;
+            cy = ny;
+        }
+    }
+    double dx = gx - x, dy = gy - y;
+    double lx = cos(th) * dx + sin(th) * dy, ly = -sin(th) * dx + cos(th) * dy;
+    double herr = atan2(ly, lx);
+    if (fabs(herr) > p->turn_in_place) {
+        vote(o, true, 0, herr > 0 ? p->omega_max * 0.7 : -p->omega_max * 0.7, "turning to path (%.0f deg)",
+             herr * 180 / M_PI);
+        return;
+    }
+    double L2 = lx * lx + ly * ly;
+    double k = L2 > 1e-9 ? 2 * ly / L2 : 0;      /* pure pursuit curvature */
+    double v = p->v_max / (1 + 1.5 * fabs(k));
+    v = fmin(v, fmax(0.1, 0.8 * to_end));       /* ease into the goal */
+    double w = k * v;
+    if (fabs(w) > p->omega_max) {
+        v *= p->omega_max / fabs(w);
+        w = w > 0 ? p->omega_max : -p->omega_max;
+    }
+    vote(o, true, v, w, "pursuit %d/%d, %.1f m to go", best + 1, n, to_end);
+}
+
+int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t votes[ARB_COUNT])
+{
+    for (int b = 0; b < ARB_COUNT; b++) {
+        votes[b].name = names[b];
+        votes[b].priority = p->priority[b];
+    }
+    arb_estop(p, in, &votes[ARB_ESTOP]);
+    arb_avoid(p, in, &votes[ARB_AVOID]);
+    arb_teleop(p, in, &votes[ARB_TELEOP]);
+    arb_follow(p, s, in, &votes[ARB_FOLLOW]);
+    vote(&votes[ARB_IDLE], true, 0, 0, "nothing to do");
+    int win = ARB_IDLE;
+    for (int b = 0; b < ARB_COUNT; b++)
+        if (votes[b].active && (!votes[win].active || votes[b].priority > votes[win].priority))
+            win = b;
+    return win;
+}

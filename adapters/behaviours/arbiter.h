@@ -1,0 +1,79 @@
+/* arbiter: the robot's behaviours (e-stop, avoid, teleop, follow path, idle) and their
+ * priority arbitration, as pure functions of the inputs of one cycle. */
+#ifndef ADAPTERS_ARBITER_H
+#define ADAPTERS_ARBITER_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { ARB_ESTOP = 0, ARB_AVOID, ARB_TELEOP, ARB_FOLLOW, ARB_IDLE, ARB_COUNT };
+
+typedef struct {
+    int priority[ARB_COUNT];    /* higher wins among active behaviours */
+    /* follow path (pure pursuit) */
+    double lookahead;           /* m */
+    double v_max, omega_max;    /* m/s, rad/s */
+    double goal_tolerance;      /* m: closer than this to the last pose ends the path */
+    double turn_in_place;       /* rad: heading error above which the robot turns on the spot */
+    double stale_pose_s, stale_path_s;
+    /* avoid obstacles */
+    double half_width;          /* m: half the robot's width plus a margin (swept corridor) */
+    double stop_distance, slow_distance;  /* m, measured from the laser ahead */
+    double avoid_omega;         /* rad/s turning away while blocked */
+    double stale_scan_s;
+    /* e-stop and teleop */
+    bool estop_required;        /* no fresh e-stop state = pressed */
+    double stale_estop_s;
+    double teleop_timeout_s;
+} arb_params_t;
+
+void arb_params_default(arb_params_t *p);
+
+/* Inputs of one cycle. Ages in seconds at decision time; negative: never received. */
+typedef struct {
+    double pose[3]; double pose_age;
+    const double *path; int npath; int path_status; int32_t path_goal; double path_age;  /* path: x,y,theta triples */
+    const float *ranges; int nranges; double angle_min, angle_increment, range_min, range_max; double scan_age;
+    bool estop_pressed; double estop_age;
+    double teleop_v, teleop_omega; double teleop_age;
+} arb_inputs_t;
+
+typedef struct {
+    const char *name;
+    int priority;
+    bool active;
+    double v, omega;
+    char reason[64];
+} arb_vote_t;
+
+/* State carried across cycles: progress along the current path. */
+typedef struct {
+    int32_t path_goal;
+    int npath;
+    double path_end[2];
+    int progress;               /* index of the path pose the robot has reached */
+    bool done;                  /* current path finished */
+} arb_state_t;
+
+void arb_state_reset(arb_state_t *s);
+
+/* Every behaviour votes; the active vote of highest priority wins (ties: lower index).
+ * Returns the winner's index; votes[] gets every vote. */
+int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t votes[ARB_COUNT]);
+
+const char *arb_name(int behaviour);
+
+/* The behaviours one by one (arb_decide calls these). */
+void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
+void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
+void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
+void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

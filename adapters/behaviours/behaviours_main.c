@@ -1,0 +1,388 @@
+/* marie-behaviours: follow path, avoid obstacles, e-stop and teleop behaviours arbitrated by
+ * priority at a fixed rate; each cycle pulls its inputs from Mailboxes (or uses subscribed
+ * copies) and publishes the motor command and the decision record. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/behaviours/arbiter.h"
+#include "core/component.h"
+
+enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_COUNT };
+static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop" };
+
+typedef struct beh beh_t;
+
+typedef struct {
+    beh_t *b;
+    int which;
+    int64_t stamp;              /* component clock time the value describes; INT64_MIN: none */
+    lcm_subscription_t *sub;    /* subscribe mode */
+} input_t;
+
+struct beh {
+    marie_component_t *c;
+    arb_params_t p;
+    arb_state_t st;
+    bool pull;
+    int pull_timeout_ms;
+    input_t in[IN_COUNT];
+    int outstanding;            /* pulls of this cycle still unanswered */
+    int64_t cycle;
+    bool timer_made;
+    /* latest values */
+    double pose[3];
+    double *path; int npath, path_cap, path_status; int32_t path_goal;
+    float *ranges; int nranges, ranges_cap; double angle_min, angle_inc, range_min, range_max;
+    bool estop_pressed;
+    double teleop_v, teleop_w;
+};
+
+/* When a message was true, on the component's clock: its own stamp when plausible, else the
+ * moment it was received (stamps from another clock would make ages meaningless). */
+static int64_t stamp_of(beh_t *b, int64_t utime, int64_t recv_age_us)
+{
+    int64_t now = marie_component_now(b->c);
+    if (utime > 0 && utime <= now + 1000000 && now - utime < 3600LL * 1000000)
+        return utime;
+    return now - (recv_age_us > 0 ? recv_age_us : 0);
+}
+
+static void store(beh_t *b, int which, const void *msg, int64_t recv_age_us)
+{
+    marie_component_t *c = b->c;
+    int64_t utime = 0;
+    switch (which) {
+    case IN_POSE: {
+        const marie_pose_cov_t *m = msg;
+        if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+            marie_component_bad_input(c, "bad_pose", "pose is not finite");
+            return;
+        }
+        b->pose[0] = m->pose.x; b->pose[1] = m->pose.y; b->pose[2] = m->pose.theta;
+        utime = m->utime;
+        break;
+    }
+    case IN_PATH: {
+        const marie_path_t *m = msg;
+        if (m->nposes < 0 || m->nposes > 100000) {
+            marie_component_bad_input(c, "bad_path", "path with %d poses", m->nposes);
+            return;
+        }
+        if (m->nposes > b->path_cap) {
+            double *n = realloc(b->path, sizeof(double) * 3 * m->nposes);
+            if (!n)
+                return;
+            b->path = n;
+            b->path_cap = m->nposes;
+        }
+        for (int i = 0; i < m->nposes; i++) {
+            b->path[3 * i] = m->poses[i].x;
+            b->path[3 * i + 1] = m->poses[i].y;
+            b->path[3 * i + 2] = m->poses[i].theta;
+        }
+        b->npath = m->nposes;
+        b->path_status = m->status;
+        b->path_goal = m->goal_id;
+        utime = m->utime;
+        break;
+    }
+    case IN_SCAN: {
+        const marie_laser_scan_t *m = msg;
+        if (m->nranges < 0 || m->nranges > 10000 || !isfinite(m->angle_min) || !isfinite(m->angle_increment)) {
+            marie_component_bad_input(c, "bad_scan", "scan with %d beams", m->nranges);
+            return;
+        }
+        if (m->nranges > b->ranges_cap) {
+            float *n = realloc(b->ranges, sizeof(float) * m->nranges);
+            if (!n)
+                return;
+            b->ranges = n;
+            b->ranges_cap = m->nranges;
+        }
+        memcpy(b->ranges, m->ranges, sizeof(float) * m->nranges);
+        b->nranges = m->nranges;
+        b->angle_min = m->angle_min;
+        b->angle_inc = m->angle_increment;
+        b->range_min = m->range_min;
+        b->range_max = m->range_max;
+        utime = m->utime;
+        break;
+    }
+    case IN_ESTOP: {
+        const marie_estop_t *m = msg;
+        b->estop_pressed = m->pressed;
+        utime = m->utime;
+        break;
+    }
+    case IN_TELEOP: {
+        const marie_motor_command_t *m = msg;
+        b->teleop_v = m->v;
+        b->teleop_w = m->omega;
+        utime = 0;              /* an operator's clock is not ours: age from receipt */
+        break;
+    }
+    }
+    b->in[which].stamp = stamp_of(b, utime, recv_age_us);
+}
+
+static double age_s(const beh_t *b, int which, int64_t now)
+{
+    int64_t s = b->in[which].stamp;
+    if (s == INT64_MIN)
+        return -1;
+    return s > now ? 0 : (double)(now - s) / 1e6;
+}
+
+static void publish_safe(marie_component_t *c, const char *why)
+{
+    marie_motor_command_t cmd = { .utime = marie_component_now(c), .v = 0, .omega = 0, .source = (char *)why };
+    marie_port_publish(marie_port(c, "cmd"), &cmd);
+}
+
+static void decide(beh_t *b)
+{
+    marie_component_t *c = b->c;
+    int64_t now = marie_component_now(c);
+    arb_inputs_t in = {
+        .pose = { b->pose[0], b->pose[1], b->pose[2] }, .pose_age = age_s(b, IN_POSE, now),
+        .path = b->path, .npath = b->npath, .path_status = b->path_status, .path_goal = b->path_goal,
+        .path_age = age_s(b, IN_PATH, now),
+        .ranges = b->ranges, .nranges = b->nranges, .angle_min = b->angle_min, .angle_increment = b->angle_inc,
+        .range_min = b->range_min, .range_max = b->range_max, .scan_age = age_s(b, IN_SCAN, now),
+        .estop_pressed = b->estop_pressed, .estop_age = age_s(b, IN_ESTOP, now),
+        .teleop_v = b->teleop_v, .teleop_omega = b->teleop_w, .teleop_age = age_s(b, IN_TELEOP, now),
+    };
+    arb_vote_t votes[ARB_COUNT];
+    int win = arb_decide(&b->p, &b->st, &in, votes);
+    marie_motor_command_t cmd = { .utime = now, .v = votes[win].v, .omega = votes[win].omega,
+                                  .source = (char *)votes[win].name };
+    marie_port_publish(marie_port(c, "cmd"), &cmd);
+
+    marie_behaviour_vote_t mv[ARB_COUNT];
+    for (int i = 0; i < ARB_COUNT; i++)
+        mv[i] = (marie_behaviour_vote_t){ .name = (char *)votes[i].name, .priority = votes[i].priority,
+                                          .active = votes[i].active, .v = votes[i].v, .omega = votes[i].omega,
+                                          .reason = votes[i].reason };
+    marie_input_age_t ages[IN_COUNT];
+    for (int i = 0; i < IN_COUNT; i++)
+        ages[i] = (marie_input_age_t){ .name = (char *)in_ports[i], .age = age_s(b, i, now) };
+    marie_arbitration_t rec = { .utime = now, .cycle = b->cycle, .nvotes = ARB_COUNT, .votes = mv,
+                                .winner = (char *)votes[win].name, .v = cmd.v, .omega = cmd.omega,
+                                .ninputs = IN_COUNT, .inputs = ages };
+    marie_port_publish(marie_port(c, "arbitration"), &rec);
+    marie_component_count(c, votes[win].name, 1);
+}
+
+static void on_pulled(marie_component_t *c, marie_port_t *p, int status, const void *msg, int64_t age_us, void *user)
+{
+    input_t *in = user;
+    beh_t *b = in->b;
+    if (status == 0 && msg)
+        store(b, in->which, msg, age_us);
+    else if (status == -ETIMEDOUT)
+        marie_component_count(c, "pull_timeouts", 1);
+    else if (status == -ENODATA)
+        marie_component_count(c, "pull_empty", 1);
+    else
+        marie_component_count(c, "pull_errors", 1);
+    if (b->outstanding > 0 && --b->outstanding == 0)
+        decide(b);
+}
+
+static void tick(marie_component_t *c, int64_t overruns)
+{
+    beh_t *b = marie_component_user(c);
+    if (b->outstanding > 0) {
+        /* The last cycle's answers are overdue: decide with what is known and move on. */
+        marie_component_count(c, "cycles_incomplete", 1);
+        b->outstanding = 0;
+        decide(b);
+    }
+    b->cycle++;
+    if (!b->pull) {
+        decide(b);
+        return;
+    }
+    b->outstanding = IN_PULLED + 1;   /* +1 holds the decision until every pull is sent */
+    for (int i = 0; i < IN_PULLED; i++) {
+        if (marie_port_pull_async(marie_port(c, in_ports[i]), b->pull_timeout_ms, on_pulled, &b->in[i]) != 0) {
+            marie_component_count(c, "pull_errors", 1);
+            b->outstanding--;
+        }
+    }
+    if (--b->outstanding == 0)
+        decide(b);
+}
+
+static void on_teleop(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    store(marie_component_user(c), IN_TELEOP, msg, 0);
+}
+
+/* Subscribe mode: the pull ports' channels are subscribed directly (no Mailbox needed). */
+static void on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    input_t *in = user;
+    beh_t *b = in->b;
+    const marie_type_t *t = in->which == IN_POSE ? &marie_type_pose_cov_t : in->which == IN_PATH ? &marie_type_path_t
+                          : in->which == IN_SCAN ? &marie_type_laser_scan_t : &marie_type_estop_t;
+    union {
+        marie_pose_cov_t pose;
+        marie_path_t path;
+        marie_laser_scan_t scan;
+        marie_estop_t estop;
+    } m;
+    memset(&m, 0, sizeof(m));
+    if (t->decode(rb->data, 0, (int)rb->data_size, &m) < 0) {
+        marie_component_bad_input(b->c, "bad_payload", "%s: cannot decode %s", channel, t->name);
+        return;
+    }
+    store(b, in->which, &m, 0);
+    t->decode_cleanup(&m);
+}
+
+static int stop_hook(marie_component_t *c)
+{
+    beh_t *b = marie_component_user(c);
+    b->outstanding = 0;
+    publish_safe(c, "stopped");
+    return 0;
+}
+
+static void abort_hook(marie_component_t *c)
+{
+    publish_safe(c, "aborted");
+}
+
+static void quit(marie_component_t *c)
+{
+    beh_t *b = marie_component_user(c);
+    for (int i = 0; i < IN_COUNT; i++)
+        if (b->in[i].sub) {
+            lcm_unsubscribe(marie_component_lcm(c), b->in[i].sub);
+            b->in[i].sub = NULL;
+        }
+    free(b->path);
+    free(b->ranges);
+    b->path = NULL;
+    b->ranges = NULL;
+    b->path_cap = b->ranges_cap = b->npath = b->nranges = 0;
+}
+
+static int init(marie_component_t *c)
+{
+    beh_t *b = marie_component_user(c);
+    b->c = c;
+    arb_params_default(&b->p);
+    arb_state_reset(&b->st);
+    const char *mode = marie_param_str(c, "input_mode");
+    if (strcmp(mode, "pull") != 0 && strcmp(mode, "subscribe") != 0) {
+        marie_component_fail_reason(c, "input_mode: expected pull or subscribe, got '%s'", mode);
+        return -1;
+    }
+    b->pull = strcmp(mode, "pull") == 0;
+    b->pull_timeout_ms = (int)marie_param_int(c, "pull_timeout_ms");
+    double hz = marie_param_double(c, "rate_hz");
+    if (!(hz > 0 && hz <= 1000) || b->pull_timeout_ms < 1) {
+        marie_component_fail_reason(c, "rate_hz must be in (0, 1000], pull_timeout_ms >= 1");
+        return -1;
+    }
+    if (b->pull_timeout_ms > 0.8e3 / hz)
+        b->pull_timeout_ms = (int)(0.8e3 / hz);   /* answers must come back within the cycle */
+    b->p.priority[ARB_ESTOP] = (int)marie_param_int(c, "priority_estop");
+    b->p.priority[ARB_AVOID] = (int)marie_param_int(c, "priority_avoid");
+    b->p.priority[ARB_TELEOP] = (int)marie_param_int(c, "priority_teleop");
+    b->p.priority[ARB_FOLLOW] = (int)marie_param_int(c, "priority_follow");
+    b->p.lookahead = marie_param_double(c, "lookahead");
+    b->p.v_max = marie_param_double(c, "v_max");
+    b->p.omega_max = marie_param_double(c, "omega_max");
+    b->p.goal_tolerance = marie_param_double(c, "goal_tolerance");
+    b->p.stale_pose_s = marie_param_double(c, "stale_pose_s");
+    b->p.half_width = marie_param_double(c, "half_width");
+    b->p.stop_distance = marie_param_double(c, "stop_distance");
+    b->p.slow_distance = marie_param_double(c, "slow_distance");
+    b->p.stale_scan_s = marie_param_double(c, "stale_scan_s");
+    b->p.estop_required = marie_param_bool(c, "estop_required");
+    b->p.stale_estop_s = marie_param_double(c, "stale_estop_s");
+    b->p.teleop_timeout_s = marie_param_double(c, "teleop_timeout_s");
+    if (b->p.slow_distance <= b->p.stop_distance) {
+        marie_component_fail_reason(c, "slow_distance must be greater than stop_distance");
+        return -1;
+    }
+    for (int i = 0; i < IN_COUNT; i++) {
+        b->in[i].b = b;
+        b->in[i].which = i;
+        b->in[i].stamp = INT64_MIN;
+    }
+    if (!b->pull) {
+        for (int i = 0; i < IN_PULLED; i++) {
+            if (b->in[i].sub)
+                continue;
+            b->in[i].sub = lcm_subscribe(marie_component_lcm(c), marie_port_channel(marie_port(c, in_ports[i])),
+                                         on_raw, &b->in[i]);
+            if (!b->in[i].sub) {
+                marie_component_fail_reason(c, "cannot subscribe to %s", marie_port_channel(marie_port(c, in_ports[i])));
+                return -1;
+            }
+        }
+    }
+    if (marie_port_on_message(marie_port(c, "teleop"), on_teleop)) {
+        marie_component_fail_reason(c, "cannot subscribe to teleop");
+        return -1;
+    }
+    if (!b->timer_made) {
+        if (!marie_component_every(c, hz, tick)) {
+            marie_component_fail_reason(c, "cannot create the %g Hz timer", hz);
+            return -1;
+        }
+        b->timer_made = true;
+    }
+    return 0;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PULL, "POSE" },
+    { "path", &marie_type_path_t, MARIE_IN, MARIE_PULL, "PATH" },
+    { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PULL, "LASER" },
+    { "estop", &marie_type_estop_t, MARIE_IN, MARIE_PULL, "ESTOP" },
+    { "teleop", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "TELEOP" },
+    { "cmd", &marie_type_motor_command_t, MARIE_OUT, MARIE_PUSH, "MOTOR_COMMAND" },
+    { "arbitration", &marie_type_arbitration_t, MARIE_OUT, MARIE_PUSH, "ARBITRATION" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    { "input_mode", MARIE_PARAM_STRING, "pull", "pull (ask the inputs' Mailboxes each cycle) or subscribe" },
+    { "rate_hz", MARIE_PARAM_DOUBLE, "5", "arbitration rate" },
+    { "pull_timeout_ms", MARIE_PARAM_INT, "60", "how long a cycle waits for a Mailbox" },
+    { "priority_estop", MARIE_PARAM_INT, "100", "" },
+    { "priority_avoid", MARIE_PARAM_INT, "80", "" },
+    { "priority_teleop", MARIE_PARAM_INT, "60", "" },
+    { "priority_follow", MARIE_PARAM_INT, "40", "" },
+    { "lookahead", MARIE_PARAM_DOUBLE, "0.6", "m, pure pursuit" },
+    { "v_max", MARIE_PARAM_DOUBLE, "0.5", "m/s" },
+    { "omega_max", MARIE_PARAM_DOUBLE, "1.2", "rad/s" },
+    { "goal_tolerance", MARIE_PARAM_DOUBLE, "0.15", "m: the path is done this close to its end" },
+    { "stale_pose_s", MARIE_PARAM_DOUBLE, "1.0", "s: older poses are not followed" },
+    { "half_width", MARIE_PARAM_DOUBLE, "0.3", "m: half the swept corridor checked by avoid" },
+    { "stop_distance", MARIE_PARAM_DOUBLE, "0.3", "m ahead: stop and turn away" },
+    { "slow_distance", MARIE_PARAM_DOUBLE, "0.6", "m ahead: slow down and turn away" },
+    { "stale_scan_s", MARIE_PARAM_DOUBLE, "1.0", "s" },
+    { "estop_required", MARIE_PARAM_BOOL, "false", "no fresh e-stop state counts as pressed" },
+    { "stale_estop_s", MARIE_PARAM_DOUBLE, "2.0", "s" },
+    { "teleop_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: teleop is active while its commands are this recent" },
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "behaviours", .ports = ports, .params = params, .on_init = init, .on_stop = stop_hook,
+    .on_pause = stop_hook, .on_abort = abort_hook, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    beh_t b = { 0 };
+    return marie_main(&def, argc, argv, &b);
+}

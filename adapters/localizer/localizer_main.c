@@ -1,0 +1,331 @@
+/* marie-localizer: Monte Carlo localization of the robot on a map from odometry and laser. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/common/occmap.h"
+#include "adapters/localizer/mcl.h"
+#include "core/component.h"
+
+#define ODOM_RING 64
+
+typedef struct {
+    int64_t utime;
+    double pose[3];
+} odom_sample_t;
+
+typedef struct {
+    mcl_t *f;
+    odom_sample_t ring[ODOM_RING];
+    int nring, head;            /* head: next slot to write */
+    marie_laser_scan_t pending; /* a scan newer than the newest odometry */
+    float *pending_ranges;
+    int pending_cap;
+    bool have_pending;
+    int64_t last_cloud;
+    double cloud_period_us;
+    float *cloud_buf;
+    int cloud_max;
+} loc_t;
+
+static double wrap(double a)
+{
+    return atan2(sin(a), cos(a));
+}
+
+/* Odometry pose at time t, interpolated between the samples around it (clamped at the ends). */
+static bool odom_at(const loc_t *s, int64_t t, double out[3])
+{
+    if (s->nring == 0)
+        return false;
+    const odom_sample_t *prev = NULL;
+    for (int k = 0; k < s->nring; k++) {
+        const odom_sample_t *o = &s->ring[(s->head - s->nring + k + ODOM_RING) % ODOM_RING];
+        if (o->utime >= t) {
+            if (!prev || o->utime == prev->utime) {
+                memcpy(out, o->pose, sizeof(double) * 3);
+            } else {
+                double a = (double)(t - prev->utime) / (double)(o->utime - prev->utime);
+                out[0] = prev->pose[0] + a * (o->pose[0] - prev->pose[0]);
+                out[1] = prev->pose[1] + a * (o->pose[1] - prev->pose[1]);
+                out[2] = wrap(prev->pose[2] + a * wrap(o->pose[2] - prev->pose[2]));
+            }
+            return true;
+        }
+        prev = o;
+    }
+    memcpy(out, prev->pose, sizeof(double) * 3);
+    return true;
+}
+
+static int64_t newest_odom(const loc_t *s)
+{
+    return s->nring ? s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING].utime : INT64_MIN;
+}
+
+static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
+{
+    int n = mcl_particles(s->f, s->cloud_buf, s->cloud_max);
+    float *x = malloc(sizeof(float) * 4 * (size_t)(n ? n : 1));
+    if (!x)
+        return;
+    float *y = x + n, *th = y + n, *w = th + n;
+    for (int i = 0; i < n; i++) {
+        x[i] = s->cloud_buf[4 * i];
+        y[i] = s->cloud_buf[4 * i + 1];
+        th[i] = s->cloud_buf[4 * i + 2];
+        w[i] = s->cloud_buf[4 * i + 3];
+    }
+    marie_particle_cloud_t m = { .utime = utime, .frame = "map", .n = n, .x = x, .y = y, .theta = th, .weight = w };
+    marie_port_publish(marie_port(c, "particles"), &m);
+    free(x);
+}
+
+static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *scan)
+{
+    double odom[3];
+    if (!odom_at(s, scan->utime, odom))
+        return;
+    mcl_scan_t ms = { scan->ranges, scan->nranges, scan->angle_min, scan->angle_increment,
+                      scan->range_min, scan->range_max };
+    if (mcl_step(s->f, odom, &ms, false))
+        marie_component_count(c, "filter_updates", 1);
+    marie_pose_cov_t out = { .utime = scan->utime, .frame = "map" };
+    double pose[3];
+    mcl_pose_at(s->f, odom, pose, out.cov);
+    out.pose.x = pose[0];
+    out.pose.y = pose[1];
+    out.pose.theta = pose[2];
+    marie_port_publish(marie_port(c, "pose"), &out);
+    if (s->cloud_period_us > 0 && scan->utime - s->last_cloud >= s->cloud_period_us) {
+        s->last_cloud = scan->utime;
+        publish_cloud(c, s, scan->utime);
+    }
+}
+
+static bool scan_ok(marie_component_t *c, const marie_laser_scan_t *m)
+{
+    if (m->nranges <= 0 || m->nranges > 10000 || !isfinite(m->angle_min) || !isfinite(m->angle_increment) ||
+        m->angle_increment == 0 || !(m->range_max > 0) || !isfinite(m->range_max) || !isfinite(m->range_min)) {
+        marie_component_bad_input(c, "bad_scan", "laser scan with %d beams, increment %g, range_max %g",
+                                  m->nranges, m->angle_increment, m->range_max);
+        return false;
+    }
+    return true;
+}
+
+static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    loc_t *s = marie_component_user(c);
+    const marie_laser_scan_t *m = msg;
+    if (!scan_ok(c, m))
+        return;
+    if (s->nring == 0) {
+        marie_component_count(c, "scans_without_odometry", 1);
+        return;
+    }
+    if (newest_odom(s) >= m->utime) {
+        process(c, s, m);
+        return;
+    }
+    /* Wait for the odometry that brackets this scan (it is at most one period behind). */
+    if (s->have_pending) {
+        marie_component_count(c, "scans_late_odometry", 1);
+        process(c, s, &s->pending);
+    }
+    if (m->nranges > s->pending_cap) {
+        float *n = realloc(s->pending_ranges, sizeof(float) * m->nranges);
+        if (!n)
+            return;
+        s->pending_ranges = n;
+        s->pending_cap = m->nranges;
+    }
+    s->pending = *m;
+    memcpy(s->pending_ranges, m->ranges, sizeof(float) * m->nranges);
+    s->pending.ranges = s->pending_ranges;
+    s->pending.nintensities = 0;
+    s->pending.intensities = NULL;
+    s->have_pending = true;
+}
+
+static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    loc_t *s = marie_component_user(c);
+    const marie_odometry_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+        marie_component_bad_input(c, "bad_odometry", "odometry pose is not finite");
+        return;
+    }
+    if (s->nring && m->utime < newest_odom(s)) {
+        /* Time went backwards (a restarted source or a replayed log): start over. */
+        marie_component_count(c, "odometry_restarts", 1);
+        s->nring = 0;
+        s->have_pending = false;
+    }
+    odom_sample_t *o = &s->ring[s->head];
+    o->utime = m->utime;
+    o->pose[0] = m->pose.x;
+    o->pose[1] = m->pose.y;
+    o->pose[2] = m->pose.theta;
+    s->head = (s->head + 1) % ODOM_RING;
+    if (s->nring < ODOM_RING)
+        s->nring++;
+    if (s->have_pending && m->utime >= s->pending.utime) {
+        s->have_pending = false;
+        process(c, s, &s->pending);
+    }
+}
+
+static void on_initialpose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    loc_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    double pose[3] = { m->pose.x, m->pose.y, m->pose.theta };
+    double sig[3] = { sqrt(fmax(m->cov[0], 0.0025)), sqrt(fmax(m->cov[4], 0.0025)), sqrt(fmax(m->cov[8], 0.0025)) };
+    if (!isfinite(pose[0]) || !isfinite(pose[1]) || !isfinite(pose[2]) || !isfinite(sig[0]) || !isfinite(sig[1]) ||
+        !isfinite(sig[2])) {
+        marie_component_bad_input(c, "bad_initialpose", "initial pose is not finite");
+        return;
+    }
+    mcl_init_pose(s->f, pose, sig);
+    marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "localizer_reset", "particles reset around (%.2f, %.2f, %.2f)",
+                          pose[0], pose[1], pose[2]);
+}
+
+static void quit(marie_component_t *c)
+{
+    loc_t *s = marie_component_user(c);
+    mcl_destroy(s->f);
+    s->f = NULL;
+    free(s->pending_ranges);
+    s->pending_ranges = NULL;
+    s->pending_cap = 0;
+    free(s->cloud_buf);
+    s->cloud_buf = NULL;
+}
+
+static int init(marie_component_t *c)
+{
+    loc_t *s = marie_component_user(c);
+    quit(c);    /* init again after a failure starts from scratch */
+    s->nring = s->head = 0;
+    s->have_pending = false;
+    marie_errors_t errs = { 0 };
+    occmap_t *map = occmap_load(marie_param_str(c, "map"), &errs);
+    if (!map) {
+        marie_component_fail_reason(c, "map: %s", errs.n ? errs.msgs[0] : "cannot load");
+        marie_errors_clear(&errs);
+        return -1;
+    }
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.min_particles = (int)marie_param_int(c, "particles_min");
+    p.max_particles = (int)marie_param_int(c, "particles_max");
+    p.max_beams = (int)marie_param_int(c, "max_beams");
+    p.sigma_hit = marie_param_double(c, "sigma_hit");
+    p.z_hit = marie_param_double(c, "z_hit");
+    p.z_rand = marie_param_double(c, "z_rand");
+    p.max_dist = marie_param_double(c, "max_dist");
+    p.alpha[0] = marie_param_double(c, "alpha1");
+    p.alpha[1] = marie_param_double(c, "alpha2");
+    p.alpha[2] = marie_param_double(c, "alpha3");
+    p.alpha[3] = marie_param_double(c, "alpha4");
+    p.laser_x = marie_param_double(c, "laser_x");
+    p.laser_y = marie_param_double(c, "laser_y");
+    p.laser_theta = marie_param_double(c, "laser_theta");
+    p.update_min_d = marie_param_double(c, "update_min_d");
+    p.update_min_a = marie_param_double(c, "update_min_a");
+    p.resample_ess = marie_param_double(c, "resample_ess");
+    p.lost_likelihood = marie_param_double(c, "lost_likelihood");
+    if (!marie_param_bool(c, "recovery")) {
+        p.alpha_slow = p.alpha_fast = 0;
+        p.lost_likelihood = 0;
+    }
+    s->f = mcl_create(map, &p, (uint64_t)marie_param_int(c, "seed"));
+    occmap_destroy(map);
+    if (!s->f) {
+        marie_component_fail_reason(c, "bad filter parameters (particles_min <= particles_max, sigma_hit > 0, max_beams >= 1)");
+        return -1;
+    }
+    const char *mode = marie_param_str(c, "init_mode");
+    if (strcmp(mode, "global") == 0) {
+        mcl_init_global(s->f);
+    } else if (strcmp(mode, "pose") == 0) {
+        double pose[3] = { marie_param_double(c, "init_x"), marie_param_double(c, "init_y"),
+                           marie_param_double(c, "init_theta") };
+        double sig[3] = { marie_param_double(c, "init_sigma_xy"), marie_param_double(c, "init_sigma_xy"),
+                          marie_param_double(c, "init_sigma_theta") };
+        mcl_init_pose(s->f, pose, sig);
+    } else {
+        marie_component_fail_reason(c, "init_mode: expected pose or global, got '%s'", mode);
+        return -1;
+    }
+    double hz = marie_param_double(c, "cloud_hz");
+    s->cloud_period_us = hz > 0 ? 1e6 / hz : 0;
+    s->cloud_max = (int)marie_param_int(c, "cloud_max");
+    if (s->cloud_max < 1)
+        s->cloud_max = 1;
+    s->cloud_buf = malloc(sizeof(float) * 4 * (size_t)s->cloud_max);
+    s->last_cloud = INT64_MIN / 2;
+    if (!s->cloud_buf)
+        return -1;
+    if (marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "scan"), on_scan) ||
+        marie_port_on_message(marie_port(c, "initialpose"), on_initialpose)) {
+        marie_component_fail_reason(c, "cannot subscribe to inputs");
+        return -1;
+    }
+    return 0;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
+    { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
+    { "initialpose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "INITIALPOSE" },
+    { "pose", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "POSE" },
+    { "particles", &marie_type_particle_cloud_t, MARIE_OUT, MARIE_PUSH, "PARTICLES" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    { "map", MARIE_PARAM_STRING, NULL, "map_server map.yaml" },
+    { "init_mode", MARIE_PARAM_STRING, "pose", "pose (around init_x/y/theta) or global (uniform over free space)" },
+    { "init_x", MARIE_PARAM_DOUBLE, "0", "m" },
+    { "init_y", MARIE_PARAM_DOUBLE, "0", "m" },
+    { "init_theta", MARIE_PARAM_DOUBLE, "0", "rad" },
+    { "init_sigma_xy", MARIE_PARAM_DOUBLE, "0.2", "m, spread of the initial particles" },
+    { "init_sigma_theta", MARIE_PARAM_DOUBLE, "0.1", "rad" },
+    { "particles_min", MARIE_PARAM_INT, "200", "KLD lower bound" },
+    { "particles_max", MARIE_PARAM_INT, "3000", "KLD upper bound and initial count" },
+    { "max_beams", MARIE_PARAM_INT, "60", "beams used per scan" },
+    { "sigma_hit", MARIE_PARAM_DOUBLE, "0.1", "m, likelihood field spread" },
+    { "z_hit", MARIE_PARAM_DOUBLE, "0.9", "weight of the hit model" },
+    { "z_rand", MARIE_PARAM_DOUBLE, "0.1", "weight of random readings" },
+    { "max_dist", MARIE_PARAM_DOUBLE, "1.0", "m, likelihood field saturation" },
+    { "alpha1", MARIE_PARAM_DOUBLE, "0.05", "rotation noise from rotation" },
+    { "alpha2", MARIE_PARAM_DOUBLE, "0.02", "rotation noise from translation" },
+    { "alpha3", MARIE_PARAM_DOUBLE, "0.05", "translation noise from translation" },
+    { "alpha4", MARIE_PARAM_DOUBLE, "0.02", "translation noise from rotation" },
+    { "laser_x", MARIE_PARAM_DOUBLE, "0", "m, laser position on the robot" },
+    { "laser_y", MARIE_PARAM_DOUBLE, "0", "m" },
+    { "laser_theta", MARIE_PARAM_DOUBLE, "0", "rad" },
+    { "update_min_d", MARIE_PARAM_DOUBLE, "0.05", "m travelled between filter updates" },
+    { "update_min_a", MARIE_PARAM_DOUBLE, "0.05", "rad turned between filter updates" },
+    { "resample_ess", MARIE_PARAM_DOUBLE, "0.5", "resample below this effective sample fraction" },
+    { "recovery", MARIE_PARAM_BOOL, "true", "inject random particles when the likelihood drops" },
+    { "lost_likelihood", MARIE_PARAM_DOUBLE, "0.25", "mean per-beam likelihood below which the robot is lost" },
+    { "seed", MARIE_PARAM_INT, "1", "random seed (same seed and log: same output)" },
+    { "cloud_hz", MARIE_PARAM_DOUBLE, "1", "particle cloud rate (0: never)" },
+    { "cloud_max", MARIE_PARAM_INT, "2000", "particles per cloud message at most" },
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "localizer", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    loc_t s = { 0 };
+    return marie_main(&def, argc, argv, &s);
+}

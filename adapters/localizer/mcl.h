@@ -1,0 +1,73 @@
+/* mcl: Monte Carlo localization on an occupancy map (likelihood field, KLD resampling). */
+#ifndef ADAPTERS_MCL_H
+#define ADAPTERS_MCL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "adapters/common/occmap.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct mcl mcl_t;
+
+typedef struct {
+    int min_particles, max_particles;   /* KLD bounds on the particle count */
+    double kld_err, kld_z;              /* KLD error bound and upper normal quantile */
+    double bin_xy, bin_theta;           /* KLD histogram bins: m, rad */
+    double alpha[4];                    /* odometry noise: rot<-rot, rot<-trans, trans<-trans, trans<-rot */
+    double sigma_hit;                   /* m: spread of the likelihood field */
+    double z_hit, z_rand;               /* mixture weights of hit and random measurement */
+    double max_dist;                    /* m: the field saturates beyond this distance */
+    int max_beams;                      /* beams used per scan (evenly subsampled) */
+    double laser_x, laser_y, laser_theta; /* laser pose in the robot frame */
+    double update_min_d, update_min_a;  /* move this much (m, rad) between sensor updates */
+    double resample_ess;                /* resample when ESS < this fraction of the count */
+    double alpha_slow, alpha_fast;      /* random-particle recovery (0, 0 disables) */
+    double lost_likelihood;             /* mean per-beam likelihood below which the filter
+                                           counts as lost and injects random particles (0: off) */
+} mcl_params_t;
+
+void mcl_params_default(mcl_params_t *p);
+
+/* One laser scan in the sensor frame. */
+typedef struct {
+    const float *ranges;
+    int n;
+    double angle_min, angle_increment, range_min, range_max;
+} mcl_scan_t;
+
+/* The filter keeps its own likelihood field and free-cell list; the map may be freed after.
+ * NULL on failure (errno). mcl_destroy(NULL) is a no-op. */
+mcl_t *mcl_create(const occmap_t *map, const mcl_params_t *p, uint64_t seed);
+void mcl_destroy(mcl_t *f);
+
+/* Start around a pose (Gaussian, sigma x, y, theta) with max_particles particles, or
+ * uniformly over the free space. */
+void mcl_init_pose(mcl_t *f, const double pose[3], const double sigma[3]);
+void mcl_init_global(mcl_t *f);
+
+/* Feed the odometry pose at the scan's time and the scan. Motion since the last update is
+ * applied and the scan weighs the particles when the robot moved enough (or force).
+ * Returns 1 when the filter was updated, 0 when the step was skipped. */
+int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, bool force);
+
+/* Pose estimate (the mean of the best cluster) with its covariance (row-major x, y, theta). */
+void mcl_estimate(const mcl_t *f, double pose[3], double cov[9]);
+/* The estimate carried forward to odometry pose `odom` by the motion since the last update,
+ * so a pose can be published at every scan even when the filter skipped it. */
+void mcl_pose_at(const mcl_t *f, const double odom[3], double pose[3], double cov[9]);
+int mcl_count(const mcl_t *f);
+/* Copy up to max particles as x, y, theta, weight quadruples; returns how many. */
+int mcl_particles(const mcl_t *f, float *xytw, int max);
+/* Counters: sensor updates, resamplings, recovery particles injected. */
+int64_t mcl_updates(const mcl_t *f);
+int64_t mcl_resamples(const mcl_t *f);
+double mcl_likelihood(const mcl_t *f);  /* smoothed mean per-beam likelihood of the last update */
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,236 @@
+/* marie-mission: runs a list of goals with priorities and deadlines, publishes the current goal,
+ * reports progress as events, and keeps its progress in the SharedMap so a restart continues. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/mission/mission.h"
+#include "ca/sharedmap_client.h"
+#include "core/component.h"
+
+typedef struct {
+    marie_component_t *c;
+    mission_t m;
+    bool have_pose;
+    double pose[3];
+    int64_t pose_stamp;
+    sharedmap_client_t *sm;
+    char key[160];
+    int sm_timeout_ms;
+    int restore_tries;
+    bool restored, dirty, timer_made;
+    int64_t last_goal_pub;
+    double republish_s, stale_pose_s;
+} mis_t;
+
+static void on_event(void *user, const char *kind, const mission_goal_t *g, const char *text)
+{
+    mis_t *s = user;
+    marie_component_event(s->c, MARIE_EVENT_T_SEV_INFO, kind, "%s", text);
+    marie_info("%s", text);
+    s->dirty = true;
+}
+
+static void fill_state(mis_t *s, marie_mission_state_t *st, int32_t *ids, int8_t *states)
+{
+    for (int i = 0; i < s->m.n; i++) {
+        ids[i] = s->m.goals[i].id;
+        states[i] = (int8_t)s->m.state[i];
+    }
+    *st = (marie_mission_state_t){ .utime = marie_component_now(s->c), .mission = (char *)marie_component_name(s->c),
+                                   .start_utime = s->m.start_utime, .current = s->m.current, .ngoals = s->m.n,
+                                   .goal_ids = ids, .goal_states = states };
+}
+
+static void save(mis_t *s)
+{
+    if (!s->sm)
+        return;
+    int32_t ids[MISSION_MAX_GOALS];
+    int8_t states[MISSION_MAX_GOALS];
+    marie_mission_state_t st;
+    fill_state(s, &st, ids, states);
+    int rc = sharedmap_client_set(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms);
+    if (rc < 0) {
+        marie_component_count(s->c, "state_save_failures", 1);
+        marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(-rc));
+    }
+}
+
+/* Returns true once restoring is settled (restored, nothing stored, or given up). */
+static bool restore(mis_t *s)
+{
+    if (!s->sm || s->restored)
+        return true;
+    marie_mission_state_t st;
+    memset(&st, 0, sizeof(st));
+    int64_t age = 0;
+    int rc = sharedmap_client_get(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms, &age);
+    if (rc == -ETIMEDOUT && ++s->restore_tries < 3)
+        return false;           /* the SharedMap may be starting too: ask again next tick */
+    s->restored = true;
+    if (rc == -ENOENT) {
+        marie_info("no saved progress under %s: starting the mission", s->key);
+        return true;
+    }
+    if (rc < 0) {
+        marie_component_count(s->c, "state_restore_failures", 1);
+        marie_warn("cannot read saved progress %s: %s; starting the mission", s->key, strerror(-rc));
+        return true;
+    }
+    int64_t now = marie_component_now(s->c);
+    if (st.utime > now || st.start_utime > now) {
+        marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
+                              "saved progress is from the future (another run?): starting afresh");
+    } else if (mission_restore(&s->m, st.start_utime, st.current, st.goal_ids, st.goal_states, st.ngoals) == 0) {
+        marie_component_event(s->c, MARIE_EVENT_T_SEV_INFO, "mission_resumed",
+                              "resumed: %lld reached, %lld missed of %d, current goal index %d",
+                              (long long)s->m.reached, (long long)s->m.missed, s->m.n, s->m.current);
+        s->dirty = true;
+    } else {
+        marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
+                              "saved progress under %s belongs to another goal list", s->key);
+    }
+    marie_type_mission_state_t.decode_cleanup(&st);
+    return true;
+}
+
+static void publish_goal(mis_t *s)
+{
+    if (s->m.current < 0)
+        return;
+    const mission_goal_t *g = &s->m.goals[s->m.current];
+    marie_goal_t msg = { .utime = marie_component_now(s->c), .id = g->id, .name = (char *)g->name,
+                         .pose = { g->x, g->y, g->theta }, .tolerance = g->tolerance, .priority = g->priority,
+                         .deadline_utime = mission_deadline(&s->m, s->m.current) };
+    marie_port_publish(marie_port(s->c, "goal"), &msg);
+    s->last_goal_pub = msg.utime;
+}
+
+static void tick(marie_component_t *c, int64_t overruns)
+{
+    mis_t *s = marie_component_user(c);
+    if (!restore(s))
+        return;
+    int64_t now = marie_component_now(c);
+    bool fresh = s->have_pose && (s->stale_pose_s <= 0 || (now - s->pose_stamp) / 1e6 <= s->stale_pose_s);
+    bool was_done = s->m.done;
+    mission_update(&s->m, now, fresh ? s->pose : NULL, on_event, s);
+    if (s->dirty) {
+        s->dirty = false;
+        save(s);
+        publish_goal(s);
+    } else if (s->republish_s > 0 && (now - s->last_goal_pub) / 1e6 >= s->republish_s) {
+        publish_goal(s);
+    }
+    if (!was_done || s->dirty) {
+        int32_t ids[MISSION_MAX_GOALS];
+        int8_t states[MISSION_MAX_GOALS];
+        marie_mission_state_t st;
+        fill_state(s, &st, ids, states);
+        marie_port_publish(marie_port(c, "state"), &st);
+    }
+}
+
+static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mis_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y)) {
+        marie_component_bad_input(c, "bad_pose", "pose is not finite");
+        return;
+    }
+    s->pose[0] = m->pose.x;
+    s->pose[1] = m->pose.y;
+    s->pose[2] = m->pose.theta;
+    s->pose_stamp = marie_component_now(c);
+    s->have_pose = true;
+}
+
+static void quit(marie_component_t *c)
+{
+    mis_t *s = marie_component_user(c);
+    sharedmap_client_destroy(s->sm);
+    s->sm = NULL;
+}
+
+static int init(marie_component_t *c)
+{
+    mis_t *s = marie_component_user(c);
+    quit(c);
+    s->c = c;
+    mission_init(&s->m);
+    s->restored = s->dirty = false;
+    s->restore_tries = 0;
+    s->have_pose = false;
+    marie_errors_t errs = { 0 };
+    if (mission_parse(&s->m, marie_param_node(c, "goals"), marie_param_double(c, "tolerance"), &errs) <= 0) {
+        marie_component_fail_reason(c, "goals: %s", errs.n ? errs.msgs[0] : "no goals");
+        marie_errors_clear(&errs);
+        return -1;
+    }
+    s->republish_s = marie_param_double(c, "republish_s");
+    s->stale_pose_s = marie_param_double(c, "stale_pose_s");
+    s->sm_timeout_ms = (int)marie_param_int(c, "sharedmap_timeout_ms");
+    const char *key = marie_param_str(c, "state_key");
+    if (key[0])
+        snprintf(s->key, sizeof(s->key), "%s", key);
+    else
+        snprintf(s->key, sizeof(s->key), "mission/%s", marie_component_name(c));
+    if (marie_param_bool(c, "sharedmap")) {
+        s->sm = sharedmap_client_create(marie_component_lcm(c), marie_param_str(c, "sharedmap_channel"),
+                                        marie_component_name(c));
+        if (!s->sm) {
+            marie_component_fail_reason(c, "cannot create the SharedMap client: %s", strerror(errno));
+            return -1;
+        }
+    }
+    if (marie_port_on_message(marie_port(c, "pose"), on_pose)) {
+        marie_component_fail_reason(c, "cannot subscribe to the pose");
+        return -1;
+    }
+    double hz = marie_param_double(c, "rate_hz");
+    if (!(hz > 0 && hz <= 100)) {
+        marie_component_fail_reason(c, "rate_hz must be in (0, 100]");
+        return -1;
+    }
+    if (!s->timer_made) {
+        if (!marie_component_every(c, hz, tick))
+            return -1;
+        s->timer_made = true;
+    }
+    return 0;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
+    { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL" },
+    { "state", &marie_type_mission_state_t, MARIE_OUT, MARIE_PUSH, "MISSION_STATE" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    { "goals", MARIE_PARAM_NODE, NULL, "list of {name, x, y, theta, priority, deadline (s after start), tolerance, id}" },
+    { "tolerance", MARIE_PARAM_DOUBLE, "0.3", "m: default distance at which a goal counts as reached" },
+    { "rate_hz", MARIE_PARAM_DOUBLE, "5", "how often progress is checked" },
+    { "republish_s", MARIE_PARAM_DOUBLE, "1.0", "s between repeats of the current goal" },
+    { "stale_pose_s", MARIE_PARAM_DOUBLE, "2.0", "s: an older pose reaches nothing (0: no limit)" },
+    { "sharedmap", MARIE_PARAM_BOOL, "true", "keep progress in the SharedMap" },
+    { "sharedmap_channel", MARIE_PARAM_STRING, "SHAREDMAP", "the SharedMap's request channel" },
+    { "state_key", MARIE_PARAM_STRING, "\"\"", "SharedMap key (default mission/<component name>)" },
+    { "sharedmap_timeout_ms", MARIE_PARAM_INT, "300", "how long to wait for the SharedMap" },
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "mission", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    mis_t s;
+    memset(&s, 0, sizeof(s));
+    return marie_main(&def, argc, argv, &s);
+}

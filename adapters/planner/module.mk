@@ -1,0 +1,5 @@
+# adapters/planner: marie-planner (OMPL on the inflated map; OpenCV distance transform).
+include adapters/common/adapters.mk
+$(B)/obj/adapters/planner/%.o: CPPFLAGS += $(ADAPT_OMPL_CFLAGS)
+$(eval $(call marie_program,marie-planner,adapters/planner/planner_main.c adapters/planner/planner.cpp,$(ADAPT_COMMON) $(ADAPT_OMPL_LIBS)))
+$(eval $(call marie_test,test_planner,tests/adapters/test_planner.c adapters/planner/planner.cpp,$(ADAPT_COMMON) $(ADAPT_OMPL_LIBS)))

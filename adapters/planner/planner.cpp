@@ -1,0 +1,326 @@
+// planner: OMPL geometric planning in R2 over an inflated occupancy grid. The inflation comes
+// from an OpenCV distance transform; laser obstacles are stamped as robot-radius disks.
+#include "adapters/planner/planner.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <new>
+#include <unordered_map>
+#include <vector>
+
+#include <ompl/base/spaces/RealVectorStateSpace.h>
+#include <ompl/geometric/PathSimplifier.h>
+#include <ompl/geometric/SimpleSetup.h>
+#include <ompl/geometric/planners/prm/PRM.h>
+#include <ompl/geometric/planners/rrt/RRTConnect.h>
+#include <ompl/util/Console.h>
+#include <ompl/util/RandomNumbers.h>
+#include <opencv2/imgproc.hpp>
+
+namespace ob = ompl::base;
+namespace og = ompl::geometric;
+
+struct planner {
+    planner_params_t p_{};
+    int w_ = 0, h_ = 0;
+    double res_ = 0, ox_ = 0, oy_ = 0;
+    std::vector<uint8_t> static_free_;  // the robot fits here according to the map
+    std::vector<float> dist_;           // m to the nearest map obstacle
+    std::vector<uint16_t> dyn_;         // how many laser obstacle disks cover each cell
+    std::unordered_map<int, double> obstacles_;  // cell -> last time seen
+    std::vector<std::pair<int, int>> disk_;      // cell offsets within the robot radius
+    std::unique_ptr<og::SimpleSetup> ss_;
+    bool layer_changed_ = false;
+
+    bool cell_free(int cx, int cy) const
+    {
+        if (cx < 0 || cy < 0 || cx >= w_ || cy >= h_)
+            return false;
+        size_t i = (size_t)cy * w_ + cx;
+        return static_free_[i] && dyn_[i] == 0;
+    }
+    bool free_xy(double x, double y) const
+    {
+        double fx = (x - ox_) / res_, fy = (y - oy_) / res_;
+        if (fx < 0 || fy < 0)
+            return false;
+        return cell_free((int)fx, (int)fy);
+    }
+    void stamp(int cell, int delta)
+    {
+        int cx = cell % w_, cy = cell / w_;
+        for (auto &d : disk_) {
+            int x = cx + d.first, y = cy + d.second;
+            if (x >= 0 && y >= 0 && x < w_ && y < h_)
+                dyn_[(size_t)y * w_ + x] = (uint16_t)(dyn_[(size_t)y * w_ + x] + delta);
+        }
+    }
+    // Nearest free point within max_d of (x, y), searching outwards ring by ring.
+    bool snap(double &x, double &y, double max_d) const
+    {
+        if (free_xy(x, y))
+            return true;
+        int cx = (int)std::floor((x - ox_) / res_), cy = (int)std::floor((y - oy_) / res_);
+        int rmax = (int)std::ceil(max_d / res_);
+        double best = INFINITY;
+        int bx = 0, by = 0;
+        for (int r = 1; r <= rmax && !std::isfinite(best); r++)
+            for (int dy = -r; dy <= r; dy++)
+                for (int dx = -r; dx <= r; dx++) {
+                    if (std::max(std::abs(dx), std::abs(dy)) != r || !cell_free(cx + dx, cy + dy))
+                        continue;
+                    double d = std::hypot(dx, dy);
+                    if (d < best && d * res_ <= max_d) { best = d; bx = cx + dx; by = cy + dy; }
+                }
+        if (!std::isfinite(best))
+            return false;
+        x = ox_ + (bx + 0.5) * res_;
+        y = oy_ + (by + 0.5) * res_;
+        return true;
+    }
+};
+
+extern "C" void planner_params_default(planner_params_t *p)
+{
+    *p = planner_params_t{};
+    p->robot_radius = 0.3;
+    p->time_limit = 1.0;
+    p->simplify_time = 0.05;
+    p->range = 0;
+    p->algorithm = PLANNER_RRTCONNECT;
+    p->unknown_is_free = false;
+    p->obstacle_ttl = 10.0;
+    p->obstacle_margin = 0.25;
+}
+
+extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t *p, uint64_t seed)
+{
+    if (!map || !p || !(p->robot_radius >= 0) || !(p->time_limit > 0)) {
+        errno = EINVAL;
+        return nullptr;
+    }
+    static bool seeded = false;
+    if (!seeded) {
+        // OMPL's seed is process-wide and may only be set before its first generator exists.
+        if (seed)
+            ompl::RNG::setSeed(seed);
+        ompl::msg::setLogLevel(ompl::msg::LOG_WARN);
+        seeded = true;
+    }
+    planner_t *pl = new (std::nothrow) planner;
+    if (!pl) {
+        errno = ENOMEM;
+        return nullptr;
+    }
+    try {
+        pl->p_ = *p;
+        pl->w_ = map->width;
+        pl->h_ = map->height;
+        pl->res_ = map->resolution;
+        pl->ox_ = map->origin_x;
+        pl->oy_ = map->origin_y;
+        size_t ncell = (size_t)map->width * map->height;
+        cv::Mat img(map->height, map->width, CV_8U);
+        for (int r = 0; r < map->height; r++)
+            for (int c = 0; c < map->width; c++) {
+                int8_t v = map->cells[(size_t)r * map->width + c];
+                bool blocked = v == OCCMAP_OCCUPIED || (v == OCCMAP_UNKNOWN && !p->unknown_is_free);
+                img.at<uint8_t>(r, c) = blocked ? 0 : 255;
+            }
+        cv::Mat dist;
+        cv::distanceTransform(img, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+        pl->static_free_.resize(ncell);
+        pl->dist_.resize(ncell);
+        pl->dyn_.assign(ncell, 0);
+        for (int r = 0; r < map->height; r++)
+            for (int c = 0; c < map->width; c++) {
+                // Distance from this cell's centre to the nearest blocked cell's edge.
+                float d = (dist.at<float>(r, c) - 0.5f) * (float)map->resolution;
+                pl->dist_[(size_t)r * map->width + c] = d;
+                pl->static_free_[(size_t)r * map->width + c] = d > p->robot_radius;
+            }
+        int rr = (int)std::ceil(p->robot_radius / map->resolution);
+        for (int dy = -rr; dy <= rr; dy++)
+            for (int dx = -rr; dx <= rr; dx++)
+                if (std::hypot(dx, dy) * map->resolution <= p->robot_radius + map->resolution * 0.5)
+                    pl->disk_.emplace_back(dx, dy);
+
+        auto space = std::make_shared<ob::RealVectorStateSpace>(2);
+        ob::RealVectorBounds b(2);
+        b.setLow(0, map->origin_x);
+        b.setHigh(0, map->origin_x + map->width * map->resolution);
+        b.setLow(1, map->origin_y);
+        b.setHigh(1, map->origin_y + map->height * map->resolution);
+        space->setBounds(b);
+        pl->ss_.reset(new og::SimpleSetup(space));
+        pl->ss_->setStateValidityChecker([pl](const ob::State *s) {
+            const auto *v = s->as<ob::RealVectorStateSpace::StateType>();
+            return pl->free_xy(v->values[0], v->values[1]);
+        });
+        // Check motions at half a cell so no wall corner is skipped.
+        pl->ss_->getSpaceInformation()->setStateValidityCheckingResolution(
+            0.5 * map->resolution / space->getMaximumExtent());
+        ob::PlannerPtr planner;
+        if (p->algorithm == PLANNER_PRM) {
+            planner = std::make_shared<og::PRM>(pl->ss_->getSpaceInformation());
+        } else {
+            auto rrt = std::make_shared<og::RRTConnect>(pl->ss_->getSpaceInformation());
+            if (p->range > 0)
+                rrt->setRange(p->range);
+            planner = rrt;
+        }
+        pl->ss_->setPlanner(planner);
+        pl->ss_->setup();
+    } catch (...) {
+        delete pl;
+        errno = ENOMEM;
+        return nullptr;
+    }
+    return pl;
+}
+
+extern "C" void planner_destroy(planner_t *pl)
+{
+    delete pl;
+}
+
+extern "C" bool planner_free(const planner_t *pl, double x, double y)
+{
+    return pl->free_xy(x, y);
+}
+
+extern "C" int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n)
+{
+    *poses = nullptr;
+    *n = 0;
+    double sx = start[0], sy = start[1], gx = goal[0], gy = goal[1];
+    if (!pl->snap(sx, sy, pl->p_.robot_radius) || !pl->snap(gx, gy, pl->p_.robot_radius))
+        return -EINVAL;
+    try {
+        og::SimpleSetup &ss = *pl->ss_;
+        if (pl->p_.algorithm == PLANNER_PRM && !pl->layer_changed_)
+            ss.getPlanner()->clearQuery();    // keep the roadmap between queries
+        else
+            ss.clear();
+        pl->layer_changed_ = false;
+        ob::ScopedState<ob::RealVectorStateSpace> s(ss.getStateSpace()), g(ss.getStateSpace());
+        s[0] = sx; s[1] = sy;
+        g[0] = gx; g[1] = gy;
+        ss.setStartAndGoalStates(s, g);
+        ob::PlannerStatus st = ss.solve(pl->p_.time_limit);
+        if (st != ob::PlannerStatus::EXACT_SOLUTION)
+            return -ENOENT;
+        og::PathGeometric path = ss.getSolutionPath();
+        if (pl->p_.simplify_time > 0) {
+            og::PathSimplifier simp(ss.getSpaceInformation());
+            simp.shortcutPath(path, 0, 0, 0.33, 0.005);
+            simp.reduceVertices(path);
+        }
+        // Keep the exact start and goal asked for when snapping moved them.
+        std::vector<std::pair<double, double>> pts;
+        if (sx != start[0] || sy != start[1])
+            pts.emplace_back(start[0], start[1]);
+        for (size_t i = 0; i < path.getStateCount(); i++) {
+            const auto *v = path.getState(i)->as<ob::RealVectorStateSpace::StateType>();
+            pts.emplace_back(v->values[0], v->values[1]);
+        }
+        if (gx != goal[0] || gy != goal[1])
+            pts.emplace_back(goal[0], goal[1]);
+        if (pts.size() < 2)
+            pts.emplace_back(goal[0], goal[1]);
+        double *out = (double *)std::malloc(pts.size() * 3 * sizeof(double));
+        if (!out)
+            return -ENOMEM;
+        for (size_t i = 0; i < pts.size(); i++) {
+            out[3 * i] = pts[i].first;
+            out[3 * i + 1] = pts[i].second;
+            if (i + 1 < pts.size())
+                out[3 * i + 2] = std::atan2(pts[i + 1].second - pts[i].second, pts[i + 1].first - pts[i].first);
+            else
+                out[3 * i + 2] = goal[2];
+        }
+        *poses = out;
+        *n = (int)pts.size();
+        return 0;
+    } catch (...) {
+        return -ENOMEM;
+    }
+}
+
+extern "C" int planner_add_obstacles(planner_t *pl, const double *xy, int npoints, double now_s)
+{
+    int added = 0;
+    for (auto it = pl->obstacles_.begin(); it != pl->obstacles_.end();) {
+        if (now_s - it->second > pl->p_.obstacle_ttl) {
+            pl->stamp(it->first, -1);
+            it = pl->obstacles_.erase(it);
+            pl->layer_changed_ = true;
+        } else {
+            ++it;
+        }
+    }
+    for (int i = 0; i < npoints; i++) {
+        double fx = (xy[2 * i] - pl->ox_) / pl->res_, fy = (xy[2 * i + 1] - pl->oy_) / pl->res_;
+        if (!std::isfinite(fx) || !std::isfinite(fy) || fx < 0 || fy < 0 || fx >= pl->w_ || fy >= pl->h_)
+            continue;
+        int cell = (int)fy * pl->w_ + (int)fx;
+        if (pl->dist_[(size_t)cell] < pl->p_.obstacle_margin)
+            continue;                       // the map already explains this return
+        auto r = pl->obstacles_.emplace(cell, now_s);
+        if (r.second) {
+            pl->stamp(cell, +1);
+            added++;
+            pl->layer_changed_ = true;
+        } else {
+            r.first->second = now_s;
+        }
+    }
+    return added;
+}
+
+extern "C" void planner_clear_obstacles(planner_t *pl)
+{
+    std::fill(pl->dyn_.begin(), pl->dyn_.end(), 0);
+    pl->obstacles_.clear();
+    pl->layer_changed_ = true;
+}
+
+extern "C" int planner_obstacle_count(const planner_t *pl)
+{
+    return (int)pl->obstacles_.size();
+}
+
+extern "C" int planner_path_blocked(const planner_t *pl, const double *poses, int n, double x, double y, double horizon)
+{
+    if (n < 2)
+        return -1;
+    // Start from the segment nearest the robot, then walk ahead up to the horizon.
+    int from = 0;
+    double bd = INFINITY;
+    for (int i = 0; i < n - 1; i++) {
+        double ax = poses[3 * i], ay = poses[3 * i + 1], dx = poses[3 * i + 3] - ax, dy = poses[3 * i + 4] - ay;
+        double l2 = dx * dx + dy * dy;
+        double t = l2 > 0 ? std::clamp(((x - ax) * dx + (y - ay) * dy) / l2, 0.0, 1.0) : 0.0;
+        double d = std::hypot(ax + t * dx - x, ay + t * dy - y);
+        if (d < bd) { bd = d; from = i; }
+    }
+    double walked = 0, step = pl->res_ * 0.5;
+    for (int i = from; i < n - 1 && walked < horizon; i++) {
+        double ax = poses[3 * i], ay = poses[3 * i + 1], bx = poses[3 * i + 3], by = poses[3 * i + 4];
+        double len = std::hypot(bx - ax, by - ay);
+        int k = std::max(1, (int)std::ceil(len / step));
+        // Skip the first stretch near the robot: a robot hugging a wall is not a blocked path.
+        for (int j = 0; j <= k && walked + len * j / k < horizon; j++) {
+            double px = ax + (bx - ax) * j / k, py = ay + (by - ay) * j / k;
+            if (std::hypot(px - x, py - y) < pl->p_.robot_radius)
+                continue;
+            if (!pl->free_xy(px, py))
+                return i;
+        }
+        walked += len;
+    }
+    return -1;
+}

@@ -1,0 +1,58 @@
+/* planner: OMPL path planning on an occupancy map inflated by the robot radius, with a layer
+ * of obstacles seen by the laser that are not in the map. */
+#ifndef ADAPTERS_PLANNER_H
+#define ADAPTERS_PLANNER_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "adapters/common/occmap.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct planner planner_t;
+
+typedef enum { PLANNER_RRTCONNECT = 0, PLANNER_PRM } planner_algo_t;
+
+typedef struct {
+    double robot_radius;        /* m: the map is inflated by this much */
+    double time_limit;          /* s for the planner itself */
+    double simplify_time;       /* s for shortcutting the solution */
+    double range;               /* m: RRTConnect step (0: OMPL's default) */
+    planner_algo_t algorithm;
+    bool unknown_is_free;       /* plan through unknown cells */
+    double obstacle_ttl;        /* s a laser obstacle stays in the layer */
+    double obstacle_margin;     /* m: laser points this close to a map obstacle are the map's */
+} planner_params_t;
+
+void planner_params_default(planner_params_t *p);
+
+/* NULL on failure (errno). planner_destroy(NULL) is a no-op. The map is copied. */
+planner_t *planner_create(const occmap_t *map, const planner_params_t *p, uint64_t seed);
+void planner_destroy(planner_t *pl);
+
+/* Whether the robot fits at a map-frame point (inflated map plus the obstacle layer). */
+bool planner_free(const planner_t *pl, double x, double y);
+
+/* Plan from start to goal (x, y, theta). On success returns 0 and *poses (x,y,theta triples,
+ * malloc'ed, the caller frees) with *n >= 2; the last pose is the goal. -EINVAL when the
+ * start or goal is not free (a start inside the inflation is first moved to the nearest free
+ * cell within a robot radius), -ENOENT when no path was found in time. */
+int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n);
+
+/* Add laser returns (map-frame points at time now_s) that are not explained by the map to the
+ * obstacle layer; points older than obstacle_ttl are forgotten. Returns how many were new. */
+int planner_add_obstacles(planner_t *pl, const double *xy, int npoints, double now_s);
+void planner_clear_obstacles(planner_t *pl);
+int planner_obstacle_count(const planner_t *pl);
+
+/* First index i >= from such that the segment poses[i]..poses[i+1] is not free, checked
+ * along at most horizon m from the point nearest to (x, y); -1 when the path is clear. */
+int planner_path_blocked(const planner_t *pl, const double *poses, int n, double x, double y, double horizon);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,270 @@
+/* marie-planner: plans a path to the mission's goal with OMPL on the inflated map, and plans
+ * again when the goal changes or the laser shows the path blocked. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/common/occmap.h"
+#include "adapters/planner/planner.h"
+#include "core/component.h"
+
+typedef struct {
+    planner_t *pl;
+    bool have_pose, have_goal, want_plan;
+    double pose[3];
+    marie_goal_t goal;          /* strings not kept */
+    char goal_name[64];
+    double *path;
+    int npath;
+    int8_t status;
+    int64_t last_plan, last_check, last_publish;
+    double laser_x, laser_y, laser_theta, horizon, replan_min_s, check_period_s, republish_s;
+    bool use_scan;
+    double *pts;
+    int pts_cap;
+    bool timer_made;
+} pln_t;
+
+static double secs(int64_t us)
+{
+    return (double)us / 1e6;
+}
+
+static void publish_path(marie_component_t *c, pln_t *s)
+{
+    marie_pose2d_t *poses = calloc(s->npath ? s->npath : 1, sizeof(*poses));
+    if (!poses)
+        return;
+    for (int i = 0; i < s->npath; i++)
+        poses[i] = (marie_pose2d_t){ s->path[3 * i], s->path[3 * i + 1], s->path[3 * i + 2] };
+    marie_path_t m = { .utime = marie_component_now(c), .goal_id = s->goal.id, .status = s->status,
+                       .nposes = s->npath, .poses = poses };
+    marie_port_publish(marie_port(c, "path"), &m);
+    s->last_publish = marie_component_now(c);
+    free(poses);
+}
+
+static void plan(marie_component_t *c, pln_t *s, const char *why)
+{
+    s->want_plan = false;
+    s->last_plan = marie_component_now(c);
+    double goal[3] = { s->goal.pose.x, s->goal.pose.y, s->goal.pose.theta };
+    double *poses = NULL;
+    int n = 0;
+    int64_t t0 = marie_mono_us();
+    int rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
+    int64_t dt = marie_mono_us() - t0;
+    free(s->path);
+    s->path = poses;
+    s->npath = rc == 0 ? n : 0;
+    s->status = rc == 0 ? MARIE_PATH_T_STATUS_OK : rc == -EINVAL ? MARIE_PATH_T_STATUS_INVALID_GOAL
+                                                                 : MARIE_PATH_T_STATUS_NO_PATH;
+    marie_component_count(c, rc == 0 ? "plans" : "plan_failures", 1);
+    if (rc == 0)
+        marie_debug("goal %d: %d poses in %.1f ms (%s)", s->goal.id, n, dt / 1e3, why);
+    else
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "no_path", "goal %d '%s' (%.2f, %.2f): %s after %.0f ms (%s)",
+                              s->goal.id, s->goal_name, goal[0], goal[1],
+                              rc == -EINVAL ? "start or goal blocked" : "no path found", dt / 1e3, why);
+    publish_path(c, s);
+}
+
+static void on_goal(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_goal_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+        marie_component_bad_input(c, "bad_goal", "goal %d is not finite", m->id);
+        return;
+    }
+    bool same = s->have_goal && m->id == s->goal.id && m->pose.x == s->goal.pose.x && m->pose.y == s->goal.pose.y;
+    if (same)
+        return;                 /* the mission repeats its goal; nothing changed */
+    s->goal = *m;
+    s->goal.name = NULL;
+    snprintf(s->goal_name, sizeof(s->goal_name), "%s", m->name ? m->name : "");
+    s->have_goal = true;
+    s->want_plan = true;
+    if (s->have_pose)
+        plan(c, s, "new goal");
+}
+
+static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+        marie_component_bad_input(c, "bad_pose", "pose is not finite");
+        return;
+    }
+    s->pose[0] = m->pose.x;
+    s->pose[1] = m->pose.y;
+    s->pose[2] = m->pose.theta;
+    s->have_pose = true;
+}
+
+static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_laser_scan_t *m = msg;
+    if (!s->have_pose || !s->use_scan)
+        return;
+    if (m->nranges < 0 || m->nranges > 10000 || !isfinite(m->angle_min) || !isfinite(m->angle_increment)) {
+        marie_component_bad_input(c, "bad_scan", "scan with %d beams", m->nranges);
+        return;
+    }
+    if (m->nranges > s->pts_cap) {
+        double *n = realloc(s->pts, sizeof(double) * 2 * m->nranges);
+        if (!n)
+            return;
+        s->pts = n;
+        s->pts_cap = m->nranges;
+    }
+    double c0 = cos(s->pose[2]), s0 = sin(s->pose[2]);
+    double lx = s->pose[0] + c0 * s->laser_x - s0 * s->laser_y, ly = s->pose[1] + s0 * s->laser_x + c0 * s->laser_y;
+    int n = 0;
+    for (int k = 0; k < m->nranges; k++) {
+        double r = m->ranges[k];
+        /* Only near returns matter for blocking, and they are the most precise. */
+        if (!isfinite(r) || r <= m->range_min || r >= m->range_max || r > s->horizon)
+            continue;
+        double a = s->pose[2] + s->laser_theta + m->angle_min + k * m->angle_increment;
+        s->pts[2 * n] = lx + r * cos(a);
+        s->pts[2 * n + 1] = ly + r * sin(a);
+        n++;
+    }
+    int64_t now = marie_component_now(c);
+    int added = planner_add_obstacles(s->pl, s->pts, n, secs(now));
+    if (added)
+        marie_component_count(c, "obstacle_cells", added);
+    if (s->npath < 2 || secs(now - s->last_check) < s->check_period_s)
+        return;
+    s->last_check = now;
+    int at = planner_path_blocked(s->pl, s->path, s->npath, s->pose[0], s->pose[1], s->horizon);
+    if (at >= 0 && secs(now - s->last_plan) >= s->replan_min_s) {
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "path_blocked", "goal %d: segment %d blocked, replanning",
+                              s->goal.id, at);
+        plan(c, s, "path blocked");
+    }
+}
+
+static void tick(marie_component_t *c, int64_t overruns)
+{
+    pln_t *s = marie_component_user(c);
+    int64_t now = marie_component_now(c);
+    if (!s->have_goal || !s->have_pose)
+        return;
+    /* A failed plan is retried (the obstacle may have gone); a good one is republished so a
+     * late reader sees it. */
+    if (s->want_plan || (s->status != MARIE_PATH_T_STATUS_OK && secs(now - s->last_plan) >= s->replan_min_s * 2))
+        plan(c, s, s->want_plan ? "new goal" : "retry");
+    else if (s->republish_s > 0 && secs(now - s->last_publish) >= s->republish_s)
+        publish_path(c, s);
+}
+
+static void quit(marie_component_t *c)
+{
+    pln_t *s = marie_component_user(c);
+    planner_destroy(s->pl);
+    s->pl = NULL;
+    free(s->path);
+    s->path = NULL;
+    s->npath = 0;
+    free(s->pts);
+    s->pts = NULL;
+    s->pts_cap = 0;
+}
+
+static int init(marie_component_t *c)
+{
+    pln_t *s = marie_component_user(c);
+    quit(c);
+    s->have_goal = s->have_pose = s->want_plan = false;
+    marie_errors_t errs = { 0 };
+    occmap_t *map = occmap_load(marie_param_str(c, "map"), &errs);
+    if (!map) {
+        marie_component_fail_reason(c, "map: %s", errs.n ? errs.msgs[0] : "cannot load");
+        marie_errors_clear(&errs);
+        return -1;
+    }
+    planner_params_t p;
+    planner_params_default(&p);
+    p.robot_radius = marie_param_double(c, "robot_radius");
+    p.time_limit = marie_param_double(c, "time_limit");
+    p.range = marie_param_double(c, "range");
+    p.obstacle_ttl = marie_param_double(c, "obstacle_ttl");
+    p.unknown_is_free = marie_param_bool(c, "unknown_is_free");
+    const char *algo = marie_param_str(c, "algorithm");
+    if (strcmp(algo, "prm") == 0)
+        p.algorithm = PLANNER_PRM;
+    else if (strcmp(algo, "rrtconnect") != 0) {
+        occmap_destroy(map);
+        marie_component_fail_reason(c, "algorithm: expected rrtconnect or prm, got '%s'", algo);
+        return -1;
+    }
+    s->pl = planner_create(map, &p, (uint64_t)marie_param_int(c, "seed"));
+    occmap_destroy(map);
+    if (!s->pl) {
+        marie_component_fail_reason(c, "bad planner parameters (robot_radius >= 0, time_limit > 0)");
+        return -1;
+    }
+    s->laser_x = marie_param_double(c, "laser_x");
+    s->laser_y = marie_param_double(c, "laser_y");
+    s->laser_theta = marie_param_double(c, "laser_theta");
+    s->horizon = marie_param_double(c, "horizon");
+    s->replan_min_s = marie_param_double(c, "replan_min_s");
+    s->check_period_s = 1.0 / fmax(marie_param_double(c, "check_hz"), 0.01);
+    s->republish_s = marie_param_double(c, "republish_s");
+    s->use_scan = marie_param_bool(c, "use_scan");
+    s->last_plan = s->last_check = s->last_publish = INT64_MIN / 2;
+    if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
+        marie_port_on_message(marie_port(c, "scan"), on_scan)) {
+        marie_component_fail_reason(c, "cannot subscribe to inputs");
+        return -1;
+    }
+    if (!s->timer_made) {
+        if (!marie_component_every(c, 2.0, tick))
+            return -1;
+        s->timer_made = true;
+    }
+    return 0;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "goal", &marie_type_goal_t, MARIE_IN, MARIE_PUSH, "GOAL" },
+    { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
+    { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
+    { "path", &marie_type_path_t, MARIE_OUT, MARIE_PUSH, "PATH" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    { "map", MARIE_PARAM_STRING, NULL, "map_server map.yaml" },
+    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: the map is inflated by this much" },
+    { "algorithm", MARIE_PARAM_STRING, "rrtconnect", "rrtconnect or prm" },
+    { "time_limit", MARIE_PARAM_DOUBLE, "1.0", "s per planning attempt" },
+    { "range", MARIE_PARAM_DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)" },
+    { "unknown_is_free", MARIE_PARAM_BOOL, "false", "plan through unknown cells" },
+    { "use_scan", MARIE_PARAM_BOOL, "true", "add laser obstacles and replan when the path is blocked" },
+    { "obstacle_ttl", MARIE_PARAM_DOUBLE, "10", "s a laser obstacle is remembered" },
+    { "horizon", MARIE_PARAM_DOUBLE, "3.0", "m of path ahead checked for blocking" },
+    { "check_hz", MARIE_PARAM_DOUBLE, "2", "blocking checks per second" },
+    { "replan_min_s", MARIE_PARAM_DOUBLE, "1.0", "s between two plans for the same goal" },
+    { "republish_s", MARIE_PARAM_DOUBLE, "1.0", "s between repeats of the current path (0: never)" },
+    { "laser_x", MARIE_PARAM_DOUBLE, "0", "m, laser position on the robot" },
+    { "laser_y", MARIE_PARAM_DOUBLE, "0", "m" },
+    { "laser_theta", MARIE_PARAM_DOUBLE, "0", "rad" },
+    { "seed", MARIE_PARAM_INT, "1", "OMPL's random seed (0: OMPL picks one)" },
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "planner", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    pln_t s = { 0 };
+    return marie_main(&def, argc, argv, &s);
+}

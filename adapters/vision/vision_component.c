@@ -1,0 +1,359 @@
+/* vision_component: the marie-vision Application Adapter (camera -> AprilTags -> tracks,
+ * detections, messages and goals). */
+#include "adapters/vision/vision_component.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/vision/vision_detect.h"
+#include "adapters/vision/vision_image.h"
+#include "adapters/vision/vision_msgmap.h"
+#include "adapters/vision/vision_source.h"
+#include "adapters/vision/vision_track.h"
+#include "core/time.h"
+
+#define MAX_TAGS 64     /* per frame; more are counted as truncated */
+
+typedef struct {
+    marie_component_t *c;
+    vision_detector_t *det;
+    vision_tracker_t *trk;
+    vision_msgmap_t msgs;
+    vision_source_t *src;       /* NULL for the lcm source or after a failure */
+    bool from_bus, ended, failed;
+    const char *uri;
+    bool loop;
+    int64_t reopen_at_us;
+    vision_frame_t frame;
+    vision_detection_t dets[MAX_TAGS];
+    const vision_track_t *tracks[MAX_TAGS];
+    marie_tag_detection_t out[MAX_TAGS];
+    int64_t frame_no;
+    const char *camera;
+    marie_timer_t *tick;
+    marie_port_t *p_det, *p_goal;
+} vision_t;
+
+static const marie_port_spec_t ports[] = {
+    { "image", &marie_type_image_t, MARIE_IN, MARIE_PUSH, VISION_CH_IMAGE },
+    { "detections", &marie_type_tag_detections_t, MARIE_OUT, MARIE_PUSH, VISION_CH_DETECTIONS },
+    { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_EVENT, VISION_CH_GOAL },
+    { NULL },
+};
+
+static const marie_param_spec_t params[] = {
+    { "source", MARIE_PARAM_STRING, "lcm",
+      "lcm (images on the image port), device:N, /dev/videoN, video:FILE or folder:DIR" },
+    { "rate_hz", MARIE_PARAM_DOUBLE, "10", "frames read per second from a device, file or folder" },
+    { "loop", MARIE_PARAM_BOOL, "false", "start a file or folder over at its end" },
+    { "camera", MARIE_PARAM_STRING, "camera", "camera name in the detections" },
+    { "family", MARIE_PARAM_STRING, "tag36h11", "AprilTag family" },
+    { "decimate", MARIE_PARAM_DOUBLE, "2.0", "quad detection on an image decimated by this factor" },
+    { "sigma", MARIE_PARAM_DOUBLE, "0.0", "Gaussian blur (px) before quad detection; 0.8 helps noisy images" },
+    { "threads", MARIE_PARAM_INT, "1", "detector threads" },
+    { "refine_edges", MARIE_PARAM_BOOL, "true", "snap quad edges to image gradients" },
+    { "sharpening", MARIE_PARAM_DOUBLE, "0.25", "decode sharpening" },
+    { "max_hamming", MARIE_PARAM_INT, "2", "bit errors the decoder may correct (0..2)" },
+    { "min_margin", MARIE_PARAM_DOUBLE, "0", "drop detections with a lower decision margin" },
+    { "tag_size", MARIE_PARAM_DOUBLE, "0.16", "edge of a tag's black border, m" },
+    { "fx", MARIE_PARAM_DOUBLE, "0", "focal length x, px (0: no poses)" },
+    { "fy", MARIE_PARAM_DOUBLE, "0", "focal length y, px" },
+    { "cx", MARIE_PARAM_DOUBLE, "0", "principal point x, px (pixel centres at integers)" },
+    { "cy", MARIE_PARAM_DOUBLE, "0", "principal point y, px" },
+    { "width", MARIE_PARAM_INT, "0", "image width the intrinsics were calibrated for" },
+    { "height", MARIE_PARAM_INT, "0", "image height the intrinsics were calibrated for" },
+    { "smoothing", MARIE_PARAM_DOUBLE, "0.3", "weight of a new pose in a track's smoothed pose (0..1]" },
+    { "lost_after_s", MARIE_PARAM_DOUBLE, "0.5", "a tag unseen this long ends its track" },
+    { "min_hits", MARIE_PARAM_INT, "2", "frames before a track counts (and its message is read)" },
+    { "messages", MARIE_PARAM_NODE, "[]", "list of {id, message, kind, severity, goal: {x, y, theta, ...}}" },
+    { NULL },
+};
+
+static void release(vision_t *v)
+{
+    vision_detector_destroy(v->det);
+    vision_tracker_destroy(v->trk);
+    vision_msgmap_clear(&v->msgs);
+    vision_source_close(v->src);
+    vision_frame_free(&v->frame);
+    /* The frame timer belongs to this configuration (its rate is a parameter). */
+    if (v->tick)
+        marie_loop_remove_timer(marie_component_loop(v->c), v->tick);
+    v->tick = NULL;
+    v->det = NULL;
+    v->trk = NULL;
+    v->src = NULL;
+}
+
+static void on_track(void *user, const vision_track_t *t, vision_track_event_t ev)
+{
+    vision_t *v = user;
+    if (ev == VISION_TRACK_LOST) {
+        marie_debug("tag %d (track %d) lost after %d frames", t->tag_id, t->track_id, t->hits);
+        return;
+    }
+    if (ev != VISION_TRACK_CONFIRMED)
+        return;
+    const vision_msg_t *m = vision_msgmap_find(&v->msgs, t->tag_id);
+    if (!m)
+        return;
+    /* Read once per appearance: a tag that stays in view does not repeat itself. */
+    if (m->text) {
+        marie_info("tag %d reads: %s", t->tag_id, m->text);
+        marie_component_event(v->c, m->severity, m->kind, "%s", m->text);
+        marie_component_count(v->c, "messages_read", 1);
+    }
+    if (m->has_goal) {
+        marie_goal_t g = {
+            .utime = marie_component_now(v->c), .id = m->goal_id, .name = m->goal_name,
+            .pose = { m->x, m->y, m->theta }, .tolerance = m->tolerance, .priority = m->priority,
+        };
+        if (marie_port_publish(v->p_goal, &g) == 0)
+            marie_component_count(v->c, "goals_sent", 1);
+    }
+}
+
+static void fill(marie_tag_detection_t *o, const vision_detection_t *d, const vision_track_t *t, const char *family)
+{
+    memset(o, 0, sizeof *o);
+    o->family = (char *)family;
+    o->id = d->id;
+    o->hamming = d->hamming;
+    o->decision_margin = d->margin;
+    memcpy(o->corners, d->corners, sizeof o->corners);
+    memcpy(o->center, d->center, sizeof o->center);
+    o->pose_valid = d->pose_valid;
+    o->orientation[0] = 1;
+    o->smoothed_orientation[0] = 1;
+    if (d->pose_valid) {
+        memcpy(o->position, d->pose.t, sizeof o->position);
+        vision_rot_to_quat(d->pose.R, o->orientation);
+        o->pose_error = d->pose_err;
+    }
+    if (t) {
+        o->track_id = t->track_id;
+        o->first_seen_utime = t->first_seen_us;
+        o->hits = t->hits;
+        if (t->pose_valid) {
+            memcpy(o->smoothed_position, t->pose.t, sizeof o->smoothed_position);
+            vision_rot_to_quat(t->pose.R, o->smoothed_orientation);
+        }
+    }
+}
+
+static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
+{
+    marie_component_t *c = v->c;
+    int64_t t0 = marie_mono_us();
+    bool skipped = false;
+    int n = vision_detector_detect(v->det, f->data, f->width, f->height, f->stride, v->dets, MAX_TAGS, &skipped);
+    float ms = (float)(marie_mono_us() - t0) / 1000.0f;
+    if (n < 0) {
+        marie_component_bad_input(c, "bad_frame", "frame %dx%d cannot be processed: %s", f->width, f->height,
+                                  strerror(-n));
+        return;
+    }
+    if (n > MAX_TAGS) {
+        marie_component_count(c, "tags_truncated", n - MAX_TAGS);
+        n = MAX_TAGS;
+    }
+    if (skipped)
+        marie_component_bad_input(c, "intrinsics_mismatch",
+                                  "frame is %dx%d but the intrinsics are for %lldx%lld: poses skipped", f->width,
+                                  f->height, (long long)marie_param_int(c, "width"),
+                                  (long long)marie_param_int(c, "height"));
+    marie_component_count(c, "frames", 1);
+    marie_component_count(c, "detections", n);
+    if (vision_tracker_update(v->trk, utime, v->dets, n, v->tracks, on_track, v) < 0)
+        memset(v->tracks, 0, sizeof v->tracks);
+    const char *family = vision_detector_family(v->det);
+    for (int i = 0; i < n; i++)
+        fill(&v->out[i], &v->dets[i], v->tracks[i], family);
+    marie_tag_detections_t msg = {
+        .utime = utime, .camera = (char *)v->camera, .frame = v->frame_no++,
+        .width = f->width, .height = f->height, .detect_ms = ms, .count = n, .tags = v->out,
+    };
+    marie_port_publish(v->p_det, &msg);
+}
+
+static void on_image(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    vision_t *v = marie_component_user(c);
+    const marie_image_t *img = msg;
+    const char *why = "";
+    int rc = vision_image_decode(img, &v->frame, &why);
+    if (rc == -EBADMSG) {
+        marie_component_bad_input(c, "bad_image", "image on %s: %s", info->channel, why);
+        return;
+    }
+    if (rc < 0) {
+        marie_component_drop(c, 1);
+        return;
+    }
+    process(v, &v->frame, img->utime > 0 ? img->utime : marie_component_now(c));
+}
+
+static int open_source(vision_t *v)
+{
+    char err[256];
+    v->src = vision_source_open(v->uri, v->loop, err, sizeof err);
+    if (!v->src) {
+        marie_component_fail_reason(v->c, "%s", err);
+        return -1;
+    }
+    marie_info("reading %s", vision_source_describe(v->src));
+    v->failed = v->ended = false;
+    return 0;
+}
+
+static void on_tick(marie_component_t *c, int64_t overruns)
+{
+    vision_t *v = marie_component_user(c);
+    if (v->from_bus || v->ended)
+        return;
+    if (!v->src) {
+        /* A camera that failed is reopened once a second. */
+        if (marie_mono_us() < v->reopen_at_us)
+            return;
+        v->reopen_at_us = marie_mono_us() + 1000000;
+        char err[256];
+        v->src = vision_source_open(v->uri, v->loop, err, sizeof err);
+        if (!v->src)
+            return;
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "camera_reopened", "%s", vision_source_describe(v->src));
+    }
+    const char *why = "";
+    int rc = vision_source_read(v->src, &v->frame, &why);
+    if (rc == 0) {
+        process(v, &v->frame, marie_component_now(c));
+    } else if (rc == -EBADMSG) {
+        marie_component_bad_input(c, "unreadable_image", "%s", why);
+    } else if (rc == -ENODATA) {
+        v->ended = true;
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "source_ended", "%s: %s", vision_source_describe(v->src), why);
+    } else {
+        marie_component_count(c, "camera_errors", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "camera_failed", "%s: %s", vision_source_describe(v->src), why);
+        vision_source_close(v->src);
+        v->src = NULL;
+        v->reopen_at_us = marie_mono_us() + 1000000;
+    }
+}
+
+static int on_init(marie_component_t *c)
+{
+    vision_t *v = marie_component_user(c);
+    if (!v) {
+        v = calloc(1, sizeof *v);
+        if (!v) {
+            marie_component_fail_reason(c, "out of memory");
+            return -1;
+        }
+        v->c = c;
+        marie_component_set_user(c, v);
+    }
+    release(v);
+    v->p_det = marie_port(c, "detections");
+    v->p_goal = marie_port(c, "goal");
+    v->camera = marie_param_str(c, "camera");
+    v->uri = marie_param_str(c, "source");
+    v->loop = marie_param_bool(c, "loop");
+    v->from_bus = strcmp(v->uri, "lcm") == 0;
+    v->ended = v->failed = false;
+
+    vision_detector_opts_t o;
+    vision_detector_opts_default(&o);
+    o.family = marie_param_str(c, "family");
+    o.decimate = marie_param_double(c, "decimate");
+    o.sigma = marie_param_double(c, "sigma");
+    o.threads = (int)marie_param_int(c, "threads");
+    o.refine_edges = marie_param_bool(c, "refine_edges");
+    o.sharpening = marie_param_double(c, "sharpening");
+    o.max_hamming = (int)marie_param_int(c, "max_hamming");
+    o.min_margin = marie_param_double(c, "min_margin");
+    char err[256];
+    v->det = vision_detector_create(&o, err, sizeof err);
+    if (!v->det) {
+        marie_component_fail_reason(c, "detector: %s", err);
+        goto err;
+    }
+    vision_camera_t cam = {
+        (int)marie_param_int(c, "width"), (int)marie_param_int(c, "height"),
+        marie_param_double(c, "fx"), marie_param_double(c, "fy"), marie_param_double(c, "cx"), marie_param_double(c, "cy"),
+    };
+    if (cam.fx != 0 || cam.fy != 0 || cam.cx != 0 || cam.cy != 0 || cam.width != 0 || cam.height != 0) {
+        const char *why;
+        if (vision_detector_set_camera(v->det, &cam, marie_param_double(c, "tag_size"), &why) < 0) {
+            marie_component_fail_reason(c, "intrinsics fx=%g fy=%g cx=%g cy=%g for %dx%d, tag_size %g: %s", cam.fx,
+                                        cam.fy, cam.cx, cam.cy, cam.width, cam.height,
+                                        marie_param_double(c, "tag_size"), why);
+            goto err;
+        }
+    }
+    vision_tracker_opts_t to = {
+        marie_param_double(c, "smoothing"), (int64_t)(marie_param_double(c, "lost_after_s") * 1e6),
+        (int)marie_param_int(c, "min_hits"),
+    };
+    if (!(to.alpha > 0 && to.alpha <= 1) || to.lost_after_us <= 0 || to.min_hits < 1) {
+        marie_component_fail_reason(c, "smoothing must be in (0, 1], lost_after_s > 0 and min_hits >= 1");
+        goto err;
+    }
+    v->trk = vision_tracker_create(&to);
+    if (!v->trk) {
+        marie_component_fail_reason(c, "out of memory");
+        goto err;
+    }
+    marie_errors_t errs = { 0 };
+    if (vision_msgmap_parse(marie_param_node(c, "messages"), &v->msgs, &errs) < 0) {
+        marie_errors_print(&errs, stderr);
+        marie_component_fail_reason(c, "messages: %s", errs.n ? errs.msgs[0] : "invalid");
+        marie_errors_clear(&errs);
+        goto err;
+    }
+    if (v->from_bus) {
+        if (marie_port_on_message(marie_port(c, "image"), on_image) < 0) {
+            marie_component_fail_reason(c, "cannot subscribe to %s", marie_port_channel(marie_port(c, "image")));
+            goto err;
+        }
+    } else {
+        double hz = marie_param_double(c, "rate_hz");
+        if (!(hz > 0 && hz <= 1000)) {
+            marie_component_fail_reason(c, "rate_hz must be within (0, 1000]");
+            goto err;
+        }
+        if (open_source(v) < 0)
+            goto err;
+        v->tick = marie_component_every(c, hz, on_tick);
+        if (!v->tick) {
+            marie_component_fail_reason(c, "cannot create the frame timer");
+            goto err;
+        }
+    }
+    return 0;
+err:
+    /* A refused init leaves nothing behind: on_quit only runs after a successful one. */
+    release(v);
+    free(v);
+    marie_component_set_user(c, NULL);
+    return -1;
+}
+
+static void on_quit(marie_component_t *c)
+{
+    vision_t *v = marie_component_user(c);
+    if (!v)
+        return;
+    release(v);
+    free(v);
+    marie_component_set_user(c, NULL);
+}
+
+const marie_component_def_t vision_component_def = {
+    .kind = "marie-vision",
+    .ports = ports,
+    .params = params,
+    .on_init = on_init,
+    .on_quit = on_quit,
+};

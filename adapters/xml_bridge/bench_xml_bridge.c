@@ -1,0 +1,372 @@
+/* bench_xml_bridge: XML bridge throughput and latency each way for pose-sized messages
+ * (marie.pose_cov_t), against direct LCM measured in the same run, and memory per client. */
+#include <arpa/inet.h>
+#include <errno.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <lcm/lcm.h>
+
+#include "adapters/xml_bridge/xb_server.h"
+#include "core/loop.h"
+#include "core/time.h"
+#include "lcmtypes/marie_pose_cov_t.h"
+
+#define WINDOW 256              /* messages in flight: sustained rate without UDP losses */
+#define N_RATE 40000
+#define N_LAT 2000
+
+static marie_loop_t *bloop;
+static xb_server_t *srv;
+static lcm_t *blcm, *peer;
+static atomic_int stop_bridge, stop_peer;
+static atomic_long heard;               /* bus messages heard by the peer */
+static int64_t *lat;                    /* one-way latencies, us */
+static atomic_long nlat;
+static atomic_int record_latency;
+
+static void *bridge_thread(void *arg)
+{
+    while (!atomic_load(&stop_bridge))
+        marie_loop_run_once(bloop, 20);
+    return NULL;
+}
+
+static void on_peer(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    if (atomic_load(&record_latency)) {
+        marie_pose_cov_t m;
+        if (marie_pose_cov_t_decode(rb->data, 0, (int)rb->data_size, &m) >= 0 && m.utime > 0) {
+            long i = atomic_fetch_add(&nlat, 1);
+            if (i < N_LAT)
+                lat[i] = marie_mono_us() - m.utime;
+            marie_pose_cov_t_decode_cleanup(&m);
+        }
+    }
+    atomic_fetch_add(&heard, 1);
+}
+
+static void *peer_thread(void *arg)
+{
+    while (!atomic_load(&stop_peer))
+        lcm_handle_timeout(peer, 20);
+    return NULL;
+}
+
+/* Waits until fewer than WINDOW of the `sent` messages are unheard. A window that stops moving
+ * for 20 ms means messages were lost: they are written off so the run goes on (and reported). */
+static long lost;
+static void window_wait(long sent)
+{
+    long last = atomic_load(&heard);
+    int64_t since = marie_mono_us();
+    while (sent - atomic_load(&heard) - lost >= WINDOW) {
+        long h = atomic_load(&heard);
+        if (h != last) {
+            last = h;
+            since = marie_mono_us();
+        } else if (marie_mono_us() - since > 20000) {
+            lost = sent - h;
+            break;
+        }
+        usleep(20);
+    }
+}
+
+static void drain_wait(long total)
+{
+    long last = -1;
+    int64_t since = marie_mono_us();
+    while (atomic_load(&heard) < total - lost) {
+        long h = atomic_load(&heard);
+        if (h != last) {
+            last = h;
+            since = marie_mono_us();
+        } else if (marie_mono_us() - since > 50000) {
+            break;
+        }
+        usleep(20);
+    }
+    lost = total - atomic_load(&heard);
+}
+
+static int cmp64(const void *a, const void *b)
+{
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void row(const char *metric, double value, const char *unit, double baseline)
+{
+    if (baseline > 0)
+        printf("xml_bridge\t%s\t%.1f\t%s\t%.1f\t%.3f\n", metric, value, unit, baseline, value / baseline);
+    else
+        printf("xml_bridge\t%s\t%.1f\t%s\t-\t-\n", metric, value, unit);
+    fflush(stdout);
+}
+
+static int encode_pose(uint8_t *buf, size_t size, int64_t utime)
+{
+    marie_pose_cov_t m = { 0 };
+    m.utime = utime;
+    m.frame = (char *)"map";
+    m.pose.x = 12.345678;
+    m.pose.y = -3.25;
+    m.pose.theta = 1.5707963267948966;
+    for (int i = 0; i < 9; i++)
+        m.cov[i] = i % 4 == 0 ? 0.0125 : 0.000125 * i;
+    return marie_pose_cov_t_encode(buf, 0, (int)size, &m);
+}
+
+static size_t pose_xml(char *buf, size_t size, int64_t utime, const char *ack)
+{
+    return (size_t)snprintf(buf, size,
+        "<publish channel=\"BENCH_IN\" type=\"marie.pose_cov_t\" ack=\"%s\"><utime>%lld</utime>"
+        "<frame>map</frame><pose><x>12.345678</x><y>-3.25</y><theta>1.5707963267948966</theta></pose>"
+        "<cov>0.0125 0.000125 0.00025 0.000375 0.0125 0.000625 0.00075 0.000875 0.0125</cov></publish>\n",
+        ack, (long long)utime);
+}
+
+static int connect_bridge(void)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in sa = { .sin_family = AF_INET, .sin_port = htons((uint16_t)xb_server_port(srv)) };
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (fd < 0 || connect(fd, (struct sockaddr *)&sa, sizeof sa) < 0)
+        return -1;
+    int one = 1;
+    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    return fd;
+}
+
+/* Reads lines from fd until `want` have arrived after `have`; returns the line count and
+ * optionally records the latency of each <utime> against the monotonic clock. */
+typedef struct {
+    int fd;
+    char buf[1 << 16];
+    size_t len;
+    long lines;
+} reader_t;
+
+static int read_lines(reader_t *r, long want, int latency)
+{
+    int64_t deadline = marie_mono_us() + 20000000;
+    while (r->lines < want && marie_mono_us() < deadline) {
+        ssize_t n = read(r->fd, r->buf + r->len, sizeof r->buf - r->len);
+        if (n <= 0)
+            return -1;
+        r->len += (size_t)n;
+        char *start = r->buf, *nl;
+        while ((nl = memchr(start, '\n', (size_t)(r->buf + r->len - start)))) {
+            if (latency) {
+                char *u = strstr(start, "<utime>");
+                if (u && u < nl && atoll(u + 7) > 0) {
+                    long i = atomic_fetch_add(&nlat, 1);
+                    if (i < N_LAT)
+                        lat[i] = marie_mono_us() - atoll(u + 7);
+                }
+            }
+            r->lines++;
+            start = nl + 1;
+        }
+        r->len = (size_t)(r->buf + r->len - start);
+        memmove(r->buf, start, r->len);
+    }
+    return r->lines >= want ? 0 : -1;
+}
+
+static void latency_rows(const char *what, double base_p50)
+{
+    long n = atomic_load(&nlat);
+    if (n > N_LAT)
+        n = N_LAT;
+    if (n == 0)
+        return;
+    qsort(lat, (size_t)n, sizeof *lat, cmp64);
+    char m[96];
+    snprintf(m, sizeof m, "%s_latency_p50", what);
+    row(m, (double)lat[n / 2], "us", base_p50);
+    snprintf(m, sizeof m, "%s_latency_p99", what);
+    row(m, (double)lat[n * 99 / 100], "us", 0);
+}
+
+static long rss_kb(void)
+{
+    FILE *f = fopen("/proc/self/statm", "r");
+    long pages = 0, res = 0;
+    if (f) {
+        if (fscanf(f, "%ld %ld", &pages, &res) != 2)
+            res = 0;
+        fclose(f);
+    }
+    return res * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+int main(void)
+{
+    lat = calloc(N_LAT, sizeof *lat);
+    blcm = lcm_create(NULL);
+    peer = lcm_create(NULL);
+    bloop = marie_loop_create();
+    xb_server_cfg_t cfg;
+    xb_server_cfg_defaults(&cfg);
+    cfg.port = 0;
+    cfg.handle_lcm = 1;
+    cfg.max_clients = 1024;
+    if (!lat || !blcm || !peer || !bloop || !(srv = xb_server_create(&cfg, blcm, bloop, NULL))) {
+        fprintf(stderr, "bench_xml_bridge: setup failed\n");
+        return 1;
+    }
+    lcm_subscription_set_queue_capacity(lcm_subscribe(peer, "BENCH_IN", on_peer, NULL), 4096);
+    lcm_subscription_set_queue_capacity(lcm_subscribe(peer, "BENCH_DIRECT", on_peer, NULL), 4096);
+    pthread_t bt, pt;
+    pthread_create(&bt, NULL, bridge_thread, NULL);
+    pthread_create(&pt, NULL, peer_thread, NULL);
+    uint8_t buf[512];
+    char xml[1024];
+
+    /* 1. Direct LCM baseline: bridge-side instance publishes, the peer hears. */
+    int64_t t0 = marie_mono_us();
+    lost = 0;
+    for (long i = 0; i < N_RATE; i++) {
+        window_wait(i);
+        int n = encode_pose(buf, sizeof buf, 0);
+        lcm_publish(blcm, "BENCH_DIRECT", buf, (unsigned)n);
+    }
+    drain_wait(N_RATE);
+    long direct_lost = lost;
+    double direct_rate = (double)atomic_load(&heard) / ((double)(marie_mono_us() - t0) / 1e6);
+    atomic_store(&record_latency, 1);
+    atomic_store(&nlat, 0);
+    for (long i = 0; i < N_LAT; i++) {
+        long before = atomic_load(&heard);
+        int n = encode_pose(buf, sizeof buf, marie_mono_us());
+        lcm_publish(blcm, "BENCH_DIRECT", buf, (unsigned)n);
+        int64_t until = marie_mono_us() + 100000;
+        while (atomic_load(&heard) == before && marie_mono_us() < until)
+            ;
+    }
+    atomic_store(&record_latency, 0);
+    long n_direct_lat = atomic_load(&nlat) < N_LAT ? atomic_load(&nlat) : N_LAT;
+    qsort(lat, (size_t)n_direct_lat, sizeof *lat, cmp64);
+    double direct_p50 = n_direct_lat ? (double)lat[n_direct_lat / 2] : 0;
+    row("direct_lcm_msgs_per_s", direct_rate, "msg/s", 0);
+    row("direct_lcm_lost", (double)direct_lost, "msgs", 0);
+    row("direct_lcm_latency_p50", direct_p50, "us", 0);
+
+    /* 2. XML -> bus: a client publishes through the bridge, the peer hears. */
+    int fd = connect_bridge();
+    if (fd < 0)
+        return 1;
+    reader_t *rd = calloc(1, sizeof *rd);
+    rd->fd = fd;
+    read_lines(rd, 1, 0);               /* hello */
+    atomic_store(&heard, 0);
+    t0 = marie_mono_us();
+    lost = 0;
+    for (long i = 0; i < N_RATE; i++) {
+        window_wait(i);
+        size_t n = pose_xml(xml, sizeof xml, 0, "false");
+        if (write(fd, xml, n) != (ssize_t)n)
+            return 1;
+    }
+    drain_wait(N_RATE);
+    double in_rate = (double)atomic_load(&heard) / ((double)(marie_mono_us() - t0) / 1e6);
+    row("xml_to_bus_msgs_per_s", in_rate, "msg/s", direct_rate);
+    row("xml_to_bus_lost", (double)lost, "msgs", (double)direct_lost);
+    atomic_store(&record_latency, 1);
+    atomic_store(&nlat, 0);
+    for (long i = 0; i < N_LAT; i++) {
+        long before = atomic_load(&heard);
+        size_t n = pose_xml(xml, sizeof xml, marie_mono_us(), "false");
+        if (write(fd, xml, n) != (ssize_t)n)
+            return 1;
+        int64_t until = marie_mono_us() + 100000;
+        while (atomic_load(&heard) == before && marie_mono_us() < until)
+            ;
+    }
+    atomic_store(&record_latency, 0);
+    latency_rows("xml_to_bus", direct_p50);
+
+    /* 3. bus -> XML: the peer publishes, a subscribed client reads the documents. */
+    const char *sub = "<subscribe channel=\"BENCH_OUT\" type=\"marie.pose_cov_t\"/>\n";
+    if (write(fd, sub, strlen(sub)) < 0)
+        return 1;
+    rd->lines = 0;
+    read_lines(rd, 1, 0);               /* ok */
+    rd->lines = 0;
+    t0 = marie_mono_us();
+    long sent = 0;
+    while (sent < N_RATE) {
+        long burst = sent + WINDOW / 2 <= N_RATE ? WINDOW / 2 : N_RATE - sent;
+        for (long k = 0; k < burst; k++) {
+            int n = encode_pose(buf, sizeof buf, 0);
+            lcm_publish(peer, "BENCH_OUT", buf, (unsigned)n);
+        }
+        sent += burst;
+        if (read_lines(rd, sent - WINDOW / 2 > 0 ? sent - WINDOW / 2 : 0, 0) < 0)
+            break;
+    }
+    read_lines(rd, N_RATE, 0);
+    double out_rate = (double)rd->lines / ((double)(marie_mono_us() - t0) / 1e6);
+    row("bus_to_xml_msgs_per_s", out_rate, "msg/s", direct_rate);
+    atomic_store(&nlat, 0);
+    rd->lines = 0;
+    for (long i = 0; i < N_LAT; i++) {
+        int n = encode_pose(buf, sizeof buf, marie_mono_us());
+        lcm_publish(peer, "BENCH_OUT", buf, (unsigned)n);
+        if (read_lines(rd, i + 1, 1) < 0)
+            break;
+    }
+    latency_rows("bus_to_xml", direct_p50);
+    close(fd);
+    usleep(100000);
+
+    /* 4. Memory per connected client (each has said hello and been answered once). */
+    enum { NCLI = 500 };
+    static int fds[NCLI];
+    long rss0 = rss_kb();
+    int connected = 0;
+    for (int i = 0; i < NCLI; i++) {
+        fds[i] = connect_bridge();
+        if (fds[i] < 0)
+            break;
+        connected++;
+        const char *ping = "<ping/>";
+        if (write(fds[i], ping, strlen(ping)) < 0)
+            break;
+    }
+    usleep(500000);
+    for (int i = 0; i < connected; i++) {
+        char tmp[512];
+        if (read(fds[i], tmp, sizeof tmp) < 0)
+            break;
+    }
+    long rss1 = rss_kb();
+    xb_server_stats_t st;
+    xb_server_stats(srv, &st);
+    if (connected > 0)
+        row("memory_per_client", (double)(rss1 - rss0) / connected, "KiB", 0);
+    row("clients_connected", (double)st.clients, "clients", 0);
+    for (int i = 0; i < connected; i++)
+        close(fds[i]);
+
+    atomic_store(&stop_bridge, 1);
+    atomic_store(&stop_peer, 1);
+    pthread_join(bt, NULL);
+    pthread_join(pt, NULL);
+    xb_server_destroy(srv);
+    marie_loop_destroy(bloop);
+    lcm_destroy(blcm);
+    lcm_destroy(peer);
+    free(rd);
+    free(lat);
+    return 0;
+}

@@ -1,0 +1,131 @@
+/* marie-xml-bridge: lets programs that cannot link LCM join the bus with XML documents over TCP. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/xml_bridge/xb_server.h"
+#include "core/component.h"
+
+typedef struct {
+    xb_server_t *server;
+    xb_server_stats_t last;
+} bridge_t;
+
+static const marie_param_spec_t params[] = {
+    { "bind", MARIE_PARAM_STRING, "127.0.0.1", "address to listen on (loopback unless configured)" },
+    { "port", MARIE_PARAM_INT, "7670", "TCP port (0: any free port)" },
+    { "max_document", MARIE_PARAM_INT, "1048576", "largest incoming document in bytes" },
+    { "max_depth", MARIE_PARAM_INT, "32", "deepest element nesting of an incoming document" },
+    { "queue", MARIE_PARAM_INT, "1024", "outgoing documents kept per client before the oldest is dropped" },
+    { "queue_bytes", MARIE_PARAM_INT, "8388608", "outgoing bytes kept per client before the oldest is dropped" },
+    { "max_clients", MARIE_PARAM_INT, "512", "clients served at once; more are refused with busy" },
+    { "stall_ms", MARIE_PARAM_INT, "10000", "an unfinished document older than this closes its client" },
+    { "max_message", MARIE_PARAM_INT, "4194304", "largest LCM payload bridged, in bytes" },
+    { "sndbuf", MARIE_PARAM_INT, "0", "per-client socket send buffer in bytes (0: kernel autotuning)" },
+    { NULL, 0, NULL, NULL },
+};
+
+static const marie_port_spec_t ports[] = {
+    { NULL, NULL, 0, 0, NULL },
+};
+
+static void hook_bad_input(void *user, const char *counter, const char *reason)
+{
+    marie_component_bad_input(user, counter, "%s", reason);
+}
+
+static void hook_drop(void *user, int64_t n)
+{
+    marie_component_drop(user, n);
+}
+
+/* Mirrors the server's totals into the heartbeat counters. */
+static void on_tick(marie_component_t *c, int64_t overruns)
+{
+    bridge_t *b = marie_component_user(c);
+    if (!b->server)
+        return;
+    xb_server_stats_t st;
+    xb_server_stats(b->server, &st);
+    marie_component_count(c, "clients", (int64_t)st.clients - (int64_t)b->last.clients);
+    marie_component_count(c, "published", (int64_t)(st.published - b->last.published));
+    marie_component_count(c, "delivered", (int64_t)(st.delivered - b->last.delivered));
+    marie_component_count(c, "error_replies", (int64_t)(st.errors - b->last.errors));
+    b->last = st;
+}
+
+static int on_init(marie_component_t *c)
+{
+    if (!marie_component_every(c, 1.0, on_tick)) {
+        marie_component_fail_reason(c, "cannot add the statistics timer");
+        return -1;
+    }
+    return 0;
+}
+
+static int on_start(marie_component_t *c)
+{
+    bridge_t *b = marie_component_user(c);
+    xb_server_cfg_t cfg;
+    xb_server_cfg_defaults(&cfg);
+    cfg.bind = marie_param_str(c, "bind");
+    cfg.port = (int)marie_param_int(c, "port");
+    cfg.max_doc_bytes = (size_t)marie_param_int(c, "max_document");
+    cfg.max_depth = (int)marie_param_int(c, "max_depth");
+    cfg.queue_docs = (int)marie_param_int(c, "queue");
+    cfg.queue_bytes = (size_t)marie_param_int(c, "queue_bytes");
+    cfg.max_clients = (int)marie_param_int(c, "max_clients");
+    cfg.stall_ms = (int)marie_param_int(c, "stall_ms");
+    cfg.max_message = (size_t)marie_param_int(c, "max_message");
+    cfg.sndbuf = (int)marie_param_int(c, "sndbuf");
+    if (cfg.port < 0 || cfg.port > 65535 || cfg.max_depth < 1 || cfg.queue_docs < 2 ||
+        cfg.max_clients < 1 || cfg.stall_ms < 1 || (int64_t)cfg.max_doc_bytes < 64) {
+        marie_component_fail_reason(c, "xml bridge parameters out of range");
+        return -1;
+    }
+    xb_server_hooks_t hooks = { hook_bad_input, hook_drop, NULL, c };
+    b->server = xb_server_create(&cfg, marie_component_lcm(c), marie_component_loop(c), &hooks);
+    if (!b->server) {
+        marie_component_fail_reason(c, "cannot listen on %s:%d", cfg.bind, cfg.port);
+        return -1;
+    }
+    memset(&b->last, 0, sizeof b->last);
+    marie_info("xml bridge listening on %s:%d", cfg.bind, xb_server_port(b->server));
+    return 0;
+}
+
+static void shut(marie_component_t *c)
+{
+    bridge_t *b = marie_component_user(c);
+    on_tick(c, 0);
+    xb_server_destroy(b->server);
+    b->server = NULL;
+}
+
+static int on_stop(marie_component_t *c)
+{
+    shut(c);
+    return 0;
+}
+
+static void on_abort(marie_component_t *c)
+{
+    shut(c);
+}
+
+static const marie_component_def_t def = {
+    .kind = "xml_bridge",
+    .ports = ports,
+    .params = params,
+    .on_init = on_init,
+    .on_start = on_start,
+    .on_stop = on_stop,
+    .on_abort = on_abort,
+    .on_quit = on_abort,
+};
+
+int main(int argc, char **argv)
+{
+    bridge_t b = { 0 };
+    return marie_main(&def, argc, argv, &b);
+}

@@ -1,0 +1,27 @@
+# adapters/xml_bridge: the typed XML <-> LCM bridge for peers that cannot link LCM.
+# Type descriptors are generated from lcmtypes/*.lcm at build time (xb_gen.py), never by hand.
+XB_GEN_DIR := $(B)/gen/xml_bridge
+XB_TYPETAB := $(XB_GEN_DIR)/xb_typetab.c
+XB_STRUCTDUMP := $(XB_GEN_DIR)/xb_structdump.c
+
+$(XB_TYPETAB): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
+	@mkdir -p $(@D)
+	python3 adapters/xml_bridge/xb_gen.py table $@ $(LCM_FILES)
+$(XB_STRUCTDUMP): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
+	@mkdir -p $(@D)
+	python3 adapters/xml_bridge/xb_gen.py dump $@ $(LCM_FILES)
+
+# Pure codec and document parser (no libmarie): also what the fuzzer links.
+XB_CODEC_SRCS := adapters/xml_bridge/xb_doc.c adapters/xml_bridge/xb_codec.c $(XB_TYPETAB)
+XB_SRCS := $(XB_CODEC_SRCS) adapters/xml_bridge/xb_server.c
+$(eval $(call marie_lib,xml_bridge,$(XB_SRCS)))
+XB_LIB := $(B)/lib/libxml_bridge.a
+
+$(eval $(call marie_program,marie-xml-bridge,adapters/xml_bridge/main.c,$(XB_LIB) -lexpat))
+
+XB_TEST_SRCS := tests/xml_bridge/xb_canon.c $(XB_STRUCTDUMP)
+$(eval $(call marie_test,test_xb_codec,tests/xml_bridge/test_xb_codec.c $(XB_TEST_SRCS),$(XB_LIB) -lexpat))
+$(eval $(call marie_test,test_xb_server,tests/xml_bridge/test_xb_server.c $(XB_TEST_SRCS),$(XB_LIB) -lexpat))
+$(eval $(call marie_fuzz,xml_bridge_doc,tests/xml_bridge/fuzz_xml_bridge_doc.c $(XB_CODEC_SRCS),-lexpat))
+ITESTS += tests/xml_bridge/test_xml_peer.py
+$(eval $(call marie_bench,bench_xml_bridge,adapters/xml_bridge/bench_xml_bridge.c,$(XB_LIB) -lexpat))

@@ -1,0 +1,980 @@
+/* xb_codec: XML element tree <-> LCM wire format (big-endian, fingerprint first), generic over
+ * the generated descriptors. */
+#include "adapters/xml_bridge/xb_codec.h"
+
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define XB_MAX_STRUCT_DEPTH 64
+#define XB_MAX_ELEMENTS (1L << 26)
+
+/* ---- buffers ---- */
+
+void xb_buf_init(xb_buf_t *b, size_t max)
+{
+    memset(b, 0, sizeof *b);
+    b->max = max ? max : (size_t)1 << 30;
+}
+
+void xb_buf_free(xb_buf_t *b)
+{
+    free(b->data);
+    memset(b, 0, sizeof *b);
+}
+
+static int buf_reserve(xb_buf_t *b, size_t extra)
+{
+    if (extra > b->max || b->len > b->max - extra) {
+        b->full = 1;
+        return -1;
+    }
+    if (b->len + extra <= b->cap)
+        return 0;
+    size_t cap = b->cap ? b->cap : 256;
+    while (cap < b->len + extra)
+        cap *= 2;
+    if (cap > b->max)
+        cap = b->max;
+    char *d = realloc(b->data, cap);
+    if (!d) {
+        b->full = 1;
+        return -1;
+    }
+    b->data = d;
+    b->cap = cap;
+    return 0;
+}
+
+int xb_buf_put(xb_buf_t *b, const void *data, size_t len)
+{
+    if (buf_reserve(b, len) < 0)
+        return -1;
+    if (len)
+        memcpy(b->data + b->len, data, len);
+    b->len += len;
+    return 0;
+}
+
+int xb_buf_puts(xb_buf_t *b, const char *s)
+{
+    return xb_buf_put(b, s, strlen(s));
+}
+
+int xb_buf_printf(xb_buf_t *b, const char *fmt, ...)
+{
+    char tmp[256];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(tmp, sizeof tmp, fmt, ap);
+    va_end(ap);
+    if (n < 0)
+        return -1;
+    if ((size_t)n < sizeof tmp)
+        return xb_buf_put(b, tmp, (size_t)n);
+    if (buf_reserve(b, (size_t)n + 1) < 0)
+        return -1;
+    va_start(ap, fmt);
+    vsnprintf(b->data + b->len, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    b->len += (size_t)n;
+    return 0;
+}
+
+int xb_buf_escape(xb_buf_t *b, const char *s, size_t len)
+{
+    size_t start = 0;
+    for (size_t i = 0; i < len; i++) {
+        const char *rep;
+        switch (s[i]) {
+        case '&': rep = "&amp;"; break;
+        case '<': rep = "&lt;"; break;
+        case '>': rep = "&gt;"; break;
+        case '"': rep = "&quot;"; break;
+        case '\t': rep = "&#9;"; break;
+        case '\n': rep = "&#10;"; break;
+        case '\r': rep = "&#13;"; break;
+        default: continue;
+        }
+        if (xb_buf_put(b, s + start, i - start) < 0 || xb_buf_puts(b, rep) < 0)
+            return -1;
+        start = i + 1;
+    }
+    return xb_buf_put(b, s + start, len - start);
+}
+
+/* ---- base64 ---- */
+
+static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+int xb_base64_encode(xb_buf_t *b, const uint8_t *d, size_t len)
+{
+    if (buf_reserve(b, (len + 2) / 3 * 4) < 0)
+        return -1;
+    char *o = b->data + b->len;
+    size_t i = 0;
+    for (; i + 2 < len; i += 3) {
+        uint32_t v = (uint32_t)d[i] << 16 | (uint32_t)d[i + 1] << 8 | d[i + 2];
+        *o++ = b64[v >> 18];
+        *o++ = b64[(v >> 12) & 63];
+        *o++ = b64[(v >> 6) & 63];
+        *o++ = b64[v & 63];
+    }
+    if (i < len) {
+        uint32_t v = (uint32_t)d[i] << 16 | (i + 1 < len ? (uint32_t)d[i + 1] << 8 : 0);
+        *o++ = b64[v >> 18];
+        *o++ = b64[(v >> 12) & 63];
+        *o++ = i + 1 < len ? b64[(v >> 6) & 63] : '=';
+        *o++ = '=';
+    }
+    b->len = (size_t)(o - b->data);
+    return 0;
+}
+
+static int b64_value(char c)
+{
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    return -1;
+}
+
+static int is_ws(char c)
+{
+    return c == ' ' || c == '\t' || c == '\n' || c == '\r';
+}
+
+size_t xb_base64_decoded_max(size_t len)
+{
+    return len / 4 * 3 + 3;
+}
+
+/* Exact decoded length of a (whitespace-tolerant) base64 text, or -1 if malformed. */
+static long base64_length(const char *s, size_t len)
+{
+    size_t n = 0, pad = 0;
+    for (size_t i = 0; i < len; i++) {
+        if (is_ws(s[i]))
+            continue;
+        if (s[i] == '=')
+            pad++;
+        else if (pad || b64_value(s[i]) < 0)
+            return -1;
+        n++;
+    }
+    if (n % 4 || pad > 2)
+        return -1;
+    return (long)(n / 4 * 3 - pad);
+}
+
+long xb_base64_decode(const char *s, size_t len, uint8_t *out, size_t outcap)
+{
+    long total = base64_length(s, len);
+    if (total < 0 || (size_t)total > outcap)
+        return -1;
+    uint32_t acc = 0;
+    int bits = 0;
+    long n = 0;
+    for (size_t i = 0; i < len; i++) {
+        int v = b64_value(s[i]);
+        if (v < 0)
+            continue;
+        acc = acc << 6 | (uint32_t)v;
+        bits += 6;
+        if (bits >= 8) {
+            bits -= 8;
+            if (n < total)
+                out[n++] = (uint8_t)(acc >> bits);
+        }
+    }
+    return n;
+}
+
+/* ---- scalar syntax ---- */
+
+static void trim(const char **s, size_t *len)
+{
+    while (*len && is_ws(**s)) {
+        (*s)++;
+        (*len)--;
+    }
+    while (*len && is_ws((*s)[*len - 1]))
+        (*len)--;
+}
+
+int xb_parse_int(xb_prim_t prim, const char *s, size_t len, int64_t *v)
+{
+    char tmp[64];
+    trim(&s, &len);
+    if (len == 0 || len >= sizeof tmp)
+        return -1;
+    memcpy(tmp, s, len);
+    tmp[len] = '\0';
+    if (prim == XB_BOOL) {
+        if (!strcmp(tmp, "true") || !strcmp(tmp, "1"))
+            *v = 1;
+        else if (!strcmp(tmp, "false") || !strcmp(tmp, "0"))
+            *v = 0;
+        else
+            return -1;
+        return 0;
+    }
+    char *end;
+    errno = 0;
+    long long x = strtoll(tmp, &end, 10);
+    if (errno || *end || end == tmp)
+        return -1;
+    switch (prim) {
+    case XB_INT8: if (x < INT8_MIN || x > INT8_MAX) return -1; break;
+    case XB_INT16: if (x < INT16_MIN || x > INT16_MAX) return -1; break;
+    case XB_INT32: if (x < INT32_MIN || x > INT32_MAX) return -1; break;
+    case XB_BYTE: if (x < 0 || x > 255) return -1; break;
+    case XB_INT64: break;
+    default: return -1;
+    }
+    *v = x;
+    return 0;
+}
+
+int xb_parse_real(xb_prim_t prim, const char *s, size_t len, double *v)
+{
+    char tmp[128];
+    trim(&s, &len);
+    if (len == 0 || len >= sizeof tmp)
+        return -1;
+    memcpy(tmp, s, len);
+    tmp[len] = '\0';
+    char *end;
+    errno = 0;
+    double x = strtod(tmp, &end);
+    if (*end || end == tmp || (errno == ERANGE && isinf(x)))
+        return -1;
+    if (prim == XB_FLOAT && isfinite(x) && fabs(x) > FLT_MAX)
+        return -1;
+    *v = x;
+    return 0;
+}
+
+void xb_format_real(xb_prim_t prim, double v, char *buf, size_t size)
+{
+    if (isnan(v)) {
+        snprintf(buf, size, "NaN");
+        return;
+    }
+    if (isinf(v)) {
+        snprintf(buf, size, v < 0 ? "-INF" : "INF");
+        return;
+    }
+    if (prim == XB_FLOAT) {
+        float f = (float)v;
+        for (int prec = 6; prec <= 9; prec++) {
+            snprintf(buf, size, "%.*g", prec, (double)f);
+            if (strtof(buf, NULL) == f)
+                return;
+        }
+        return;
+    }
+    for (int prec = 15; prec <= 17; prec++) {
+        snprintf(buf, size, "%.*g", prec, v);
+        if (strtod(buf, NULL) == v)
+            return;
+    }
+}
+
+/* ---- XML safety of strings ---- */
+
+int xb_xml_safe(const char *str, size_t len)
+{
+    const uint8_t *s = (const uint8_t *)str;
+    size_t i = 0;
+    while (i < len) {
+        uint32_t c = s[i];
+        size_t n;
+        if (c < 0x80) {
+            if (c < 0x20 && c != 0x9 && c != 0xA && c != 0xD)
+                return 0;
+            i++;
+            continue;
+        } else if ((c & 0xE0) == 0xC0) {
+            n = 1; c &= 0x1F;
+        } else if ((c & 0xF0) == 0xE0) {
+            n = 2; c &= 0x0F;
+        } else if ((c & 0xF8) == 0xF0) {
+            n = 3; c &= 0x07;
+        } else {
+            return 0;
+        }
+        if (i + n >= len)
+            return 0;
+        for (size_t k = 1; k <= n; k++) {
+            if ((s[i + k] & 0xC0) != 0x80)
+                return 0;
+            c = c << 6 | (s[i + k] & 0x3F);
+        }
+        if ((n == 1 && c < 0x80) || (n == 2 && c < 0x800) || (n == 3 && c < 0x10000) ||
+            c > 0x10FFFF || (c >= 0xD800 && c <= 0xDFFF) || c == 0xFFFE || c == 0xFFFF)
+            return 0;
+        i += n + 1;
+    }
+    return 1;
+}
+
+/* ---- encoding ---- */
+
+typedef struct {
+    xb_buf_t *out;
+    xb_error_t *err;
+} enc_t;
+
+static int is_int_prim(xb_prim_t p)
+{
+    return p == XB_INT8 || p == XB_INT16 || p == XB_INT32 || p == XB_INT64 || p == XB_BYTE;
+}
+
+/* "pose.x" style location of a field for error reasons, from the element chain. */
+static void where(const xb_node_t *n, const char *field, char *buf, size_t size)
+{
+    const char *names[16];
+    int k = 0;
+    for (const xb_node_t *p = n; p && p->parent && k < 16; p = p->parent)
+        names[k++] = p->name;
+    size_t len = 0;
+    buf[0] = '\0';
+    for (int i = k - 1; i >= 0 && len < size; i--)
+        len += (size_t)snprintf(buf + len, size - len, "%s%s", len ? "." : "", names[i]);
+    if (field && len < size)
+        snprintf(buf + len, size - len, "%s%s", len ? "." : "", field);
+}
+
+static int enc_fail(enc_t *e, const char *code, const xb_node_t *at, const char *field,
+                    const char *what)
+{
+    char path[160];
+    where(at, field, path, sizeof path);
+    xb_error_set(e->err, code, "%s: %s", path[0] ? path : "message", what);
+    return -1;
+}
+
+static int put_be(enc_t *e, uint64_t v, int nbytes)
+{
+    uint8_t b[8];
+    for (int i = 0; i < nbytes; i++)
+        b[i] = (uint8_t)(v >> (8 * (nbytes - 1 - i)));
+    return xb_buf_put(e->out, b, (size_t)nbytes);
+}
+
+static int put_int(enc_t *e, xb_prim_t prim, int64_t v)
+{
+    switch (prim) {
+    case XB_INT8: case XB_BYTE: case XB_BOOL: return put_be(e, (uint64_t)v, 1);
+    case XB_INT16: return put_be(e, (uint64_t)v, 2);
+    case XB_INT32: return put_be(e, (uint64_t)v, 4);
+    default: return put_be(e, (uint64_t)v, 8);
+    }
+}
+
+static int put_real(enc_t *e, xb_prim_t prim, double v)
+{
+    if (prim == XB_FLOAT) {
+        float f = (float)v;
+        uint32_t u;
+        memcpy(&u, &f, 4);
+        return put_be(e, u, 4);
+    }
+    uint64_t u;
+    memcpy(&u, &v, 8);
+    return put_be(e, u, 8);
+}
+
+static int too_large(enc_t *e)
+{
+    xb_error_set(e->err, "too-large", "encoded message larger than %zu bytes", e->out->max);
+    return -1;
+}
+
+static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int depth);
+
+/* A leaf element must hold text only. */
+static int leaf_only(enc_t *e, const xb_node_t *n)
+{
+    if (n && n->first)
+        return enc_fail(e, "unknown-field", n->first, NULL, "unexpected element in a value");
+    return 0;
+}
+
+static int encode_value(enc_t *e, const xb_field_t *f, const xb_node_t *n, int depth)
+{
+    int64_t iv = 0;
+    double dv = 0;
+    switch (f->prim) {
+    case XB_INT8: case XB_INT16: case XB_INT32: case XB_INT64: case XB_BYTE: case XB_BOOL:
+        if (leaf_only(e, n) < 0)
+            return -1;
+        if (n && xb_parse_int(f->prim, n->text, n->text_len, &iv) < 0)
+            return enc_fail(e, "bad-value", n, NULL, f->prim == XB_BOOL ? "not a boolean"
+                            : "not an integer in range");
+        return put_int(e, f->prim, iv) < 0 ? too_large(e) : 0;
+    case XB_FLOAT: case XB_DOUBLE:
+        if (leaf_only(e, n) < 0)
+            return -1;
+        if (n && xb_parse_real(f->prim, n->text, n->text_len, &dv) < 0)
+            return enc_fail(e, "bad-value", n, NULL, "not a real number in range");
+        return put_real(e, f->prim, dv) < 0 ? too_large(e) : 0;
+    case XB_STRING: {
+        if (leaf_only(e, n) < 0)
+            return -1;
+        const char *s = n ? n->text : "";
+        size_t len = n ? n->text_len : 0;
+        const char *enc = n ? xb_node_attr(n, "encoding") : NULL;
+        if (enc && strcmp(enc, "base64") != 0)
+            return enc_fail(e, "bad-value", n, NULL, "unknown encoding (only base64)");
+        if (enc) {
+            long m = base64_length(s, len);
+            if (m < 0)
+                return enc_fail(e, "bad-value", n, NULL, "bad base64");
+            if (m >= INT32_MAX || put_be(e, (uint64_t)(m + 1), 4) < 0 ||
+                buf_reserve(e->out, (size_t)m + 1) < 0)
+                return too_large(e);
+            uint8_t *o = (uint8_t *)e->out->data + e->out->len;
+            xb_base64_decode(s, len, o, (size_t)m);
+            if (memchr(o, 0, (size_t)m))
+                return enc_fail(e, "bad-value", n, NULL, "string contains NUL");
+            o[m] = 0;
+            e->out->len += (size_t)m + 1;
+            return 0;
+        }
+        if (memchr(s, 0, len))
+            return enc_fail(e, "bad-value", n, NULL, "string contains NUL");
+        if (len >= INT32_MAX || put_be(e, (uint64_t)len + 1, 4) < 0 ||
+            xb_buf_put(e->out, s, len) < 0 || xb_buf_put(e->out, "", 1) < 0)
+            return too_large(e);
+        return 0;
+    }
+    case XB_STRUCT:
+        return encode_struct(e, f->sub, n, depth + 1);
+    }
+    return -1;
+}
+
+/* Elements of an array field as written: whitespace-separated values for numbers and
+ * booleans, base64 for bytes, <item> children for strings and structs. -1 on bad syntax. */
+static long array_count(enc_t *e, const xb_field_t *f, const xb_node_t *n)
+{
+    if (!n)
+        return 0;
+    if (f->prim == XB_STRING || f->prim == XB_STRUCT) {
+        if (!xb_text_blank(n->text, n->text_len))
+            return enc_fail(e, "bad-value", n, NULL, "text in an array: use <item> elements");
+        for (const xb_node_t *c = n->first; c; c = c->next)
+            if (strcmp(c->name, "item") != 0)
+                return enc_fail(e, "unknown-field", c, NULL, "array elements must be <item>");
+        return n->nchildren;
+    }
+    if (leaf_only(e, n) < 0)
+        return -1;
+    if (f->prim == XB_BYTE) {
+        const char *enc = xb_node_attr(n, "encoding");
+        if (enc && strcmp(enc, "base64") != 0)
+            return enc_fail(e, "bad-value", n, NULL, "unknown encoding (only base64)");
+        long m = base64_length(n->text, n->text_len);
+        if (m < 0)
+            return enc_fail(e, "bad-value", n, NULL, "bad base64");
+        return m;
+    }
+    long count = 0;
+    const char *s = n->text, *end = n->text + n->text_len;
+    while (s < end) {
+        while (s < end && is_ws(*s))
+            s++;
+        if (s == end)
+            break;
+        count++;
+        while (s < end && !is_ws(*s))
+            s++;
+    }
+    return count;
+}
+
+static int encode_array(enc_t *e, const xb_field_t *f, const xb_node_t *n, long count, int depth)
+{
+    if (f->prim == XB_BYTE) {
+        if (buf_reserve(e->out, (size_t)count) < 0)
+            return too_large(e);
+        uint8_t *o = (uint8_t *)e->out->data + e->out->len;
+        if (n)
+            xb_base64_decode(n->text, n->text_len, o, (size_t)count);
+        else
+            memset(o, 0, (size_t)count);
+        e->out->len += (size_t)count;
+        return 0;
+    }
+    if (f->prim == XB_STRING || f->prim == XB_STRUCT) {
+        const xb_node_t *c = n ? n->first : NULL;
+        for (long i = 0; i < count; i++) {
+            if (encode_value(e, f, c, depth) < 0)
+                return -1;
+            if (c)
+                c = c->next;
+        }
+        return 0;
+    }
+    const char *s = n ? n->text : NULL, *end = n ? n->text + n->text_len : NULL;
+    for (long i = 0; i < count; i++) {
+        int64_t iv = 0;
+        double dv = 0;
+        if (s) {
+            while (s < end && is_ws(*s))
+                s++;
+            const char *tok = s;
+            while (s < end && !is_ws(*s))
+                s++;
+            int bad = (f->prim == XB_FLOAT || f->prim == XB_DOUBLE)
+                          ? xb_parse_real(f->prim, tok, (size_t)(s - tok), &dv)
+                          : xb_parse_int(f->prim, tok, (size_t)(s - tok), &iv);
+            if (bad < 0) {
+                char what[96];
+                snprintf(what, sizeof what, "element %ld is not a %s in range", i, xb_prim_name(f->prim));
+                return enc_fail(e, "bad-value", n, NULL, what);
+            }
+        }
+        int r = (f->prim == XB_FLOAT || f->prim == XB_DOUBLE) ? put_real(e, f->prim, dv)
+                                                               : put_int(e, f->prim, iv);
+        if (r < 0)
+            return too_large(e);
+    }
+    return 0;
+}
+
+static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int depth)
+{
+    if (depth > XB_MAX_STRUCT_DEPTH)
+        return enc_fail(e, "too-deep", n, NULL, "structs nested too deeply");
+    int nf = t->nfields, rc = -1;
+    const xb_node_t *slot_s[32];
+    int64_t len_s[32];
+    char known_s[32];
+    const xb_node_t **slot = slot_s;
+    int64_t *lenval = len_s;
+    char *known = known_s;
+    if (nf > 32) {
+        slot = calloc((size_t)nf, sizeof *slot);
+        lenval = calloc((size_t)nf, sizeof *lenval);
+        known = calloc((size_t)nf, 1);
+        if (!slot || !lenval || !known) {
+            xb_error_set(e->err, "no-memory", "out of memory");
+            goto out;
+        }
+    } else {
+        memset(slot_s, 0, sizeof slot_s);
+        memset(len_s, 0, sizeof len_s);
+        memset(known_s, 0, sizeof known_s);
+    }
+
+    if (n) {
+        if (!xb_text_blank(n->text, n->text_len)) {
+            enc_fail(e, "bad-value", n, NULL, "text where fields are expected");
+            goto out;
+        }
+        for (const xb_node_t *c = n->first; c; c = c->next) {
+            int i = 0;
+            while (i < nf && strcmp(t->fields[i].name, c->name) != 0)
+                i++;
+            if (i == nf) {
+                char what[128];
+                snprintf(what, sizeof what, "no such field in %s", t->name);
+                enc_fail(e, "unknown-field", c, NULL, what);
+                goto out;
+            }
+            if (slot[i]) {
+                enc_fail(e, "bad-value", c, NULL, "field given twice");
+                goto out;
+            }
+            slot[i] = c;
+        }
+    }
+    /* Length fields given explicitly must agree with their arrays; absent ones are counted. */
+    for (int i = 0; i < nf; i++) {
+        const xb_field_t *f = &t->fields[i];
+        if (f->ndims == 0 && is_int_prim(f->prim) && slot[i]) {
+            if (leaf_only(e, slot[i]) < 0)
+                goto out;
+            if (xb_parse_int(f->prim, slot[i]->text, slot[i]->text_len, &lenval[i]) < 0) {
+                enc_fail(e, "bad-value", slot[i], NULL, "not an integer in range");
+                goto out;
+            }
+            known[i] = 1;
+        }
+    }
+    for (int i = 0; i < nf; i++) {
+        const xb_field_t *f = &t->fields[i];
+        if (f->ndims == 0)
+            continue;
+        long count = array_count(e, f, slot[i]);
+        if (count < 0)
+            goto out;
+        long prod = 1;
+        int unknown = -1, nunknown = 0;
+        for (int d = 0; d < f->ndims; d++) {
+            int lf = f->dims[d].len_field;
+            long size = lf < 0 ? f->dims[d].size : (known[lf] ? (long)lenval[lf] : -1);
+            if (size < 0 && lf >= 0 && known[lf]) {
+                enc_fail(e, "bad-length", slot[lf], NULL, "negative length");
+                goto out;
+            }
+            if (size < 0) {
+                if (unknown != lf)
+                    nunknown++;
+                unknown = lf;
+                continue;
+            }
+            if (size > 0 && prod > XB_MAX_ELEMENTS / size) {
+                enc_fail(e, "bad-length", slot[i], f->name, "array too large");
+                goto out;
+            }
+            prod *= size;
+        }
+        if (f->ndims > 0 && !slot[i] && nunknown == 0 && f->dims[0].len_field < 0) {
+            /* An absent fixed-size array is all zeros. */
+            int allfixed = 1;
+            for (int d = 0; d < f->ndims; d++)
+                allfixed &= f->dims[d].len_field < 0;
+            if (allfixed)
+                continue;
+        }
+        if (nunknown == 0) {
+            if (count != prod) {
+                char what[128];
+                snprintf(what, sizeof what, "%ld elements where the sizes say %ld", count, prod);
+                enc_fail(e, "bad-length", slot[i], slot[i] ? NULL : f->name, what);
+                goto out;
+            }
+        } else if (nunknown == 1 && prod > 0 && count % prod == 0) {
+            int uses = 0;
+            for (int d = 0; d < f->ndims; d++)
+                uses += f->dims[d].len_field == unknown;
+            if (uses != 1 && count != 0) {
+                enc_fail(e, "bad-length", slot[i], slot[i] ? NULL : f->name,
+                         "give the length field explicitly");
+                goto out;
+            }
+            lenval[unknown] = count / prod;
+            known[unknown] = 1;
+        } else if (count == 0) {
+            for (int d = 0; d < f->ndims; d++)
+                if (f->dims[d].len_field >= 0 && !known[f->dims[d].len_field]) {
+                    lenval[f->dims[d].len_field] = 0;
+                    known[f->dims[d].len_field] = 1;
+                }
+        } else {
+            enc_fail(e, "bad-length", slot[i], slot[i] ? NULL : f->name,
+                     "cannot infer the sizes: give the length fields");
+            goto out;
+        }
+    }
+    for (int i = 0; i < nf; i++) {
+        const xb_field_t *f = &t->fields[i];
+        if (f->ndims == 0) {
+            if (is_int_prim(f->prim) && known[i]) {
+                int64_t v = lenval[i], chk;
+                char tmp[32];
+                snprintf(tmp, sizeof tmp, "%lld", (long long)v);
+                if (xb_parse_int(f->prim, tmp, strlen(tmp), &chk) < 0) {
+                    enc_fail(e, "bad-length", n, f->name, "length does not fit its field");
+                    goto out;
+                }
+                if (put_int(e, f->prim, v) < 0) {
+                    too_large(e);
+                    goto out;
+                }
+            } else if (encode_value(e, f, slot[i], depth) < 0) {
+                goto out;
+            }
+            continue;
+        }
+        long count = 1;
+        for (int d = 0; d < f->ndims; d++) {
+            int lf = f->dims[d].len_field;
+            long size = lf < 0 ? f->dims[d].size : (long)lenval[lf];
+            if (size < 0) {
+                enc_fail(e, "bad-length", n, f->name, "negative length");
+                goto out;
+            }
+            count *= size;
+        }
+        if (encode_array(e, f, slot[i], count, depth) < 0)
+            goto out;
+    }
+    rc = 0;
+out:
+    if (slot != slot_s) {
+        free(slot);
+        free(lenval);
+        free(known);
+    }
+    return rc;
+}
+
+int xb_encode(const xb_struct_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err)
+{
+    enc_t e = { out, err };
+    size_t start = out->len;
+    if (put_be(&e, (uint64_t)t->fingerprint, 8) < 0 || encode_struct(&e, t, msg, 0) < 0) {
+        if (out->full && err && strcmp(err->code, "too-large") != 0)
+            too_large(&e);
+        out->len = start;
+        out->full = 0;
+        return -1;
+    }
+    return 0;
+}
+
+/* ---- decoding ---- */
+
+typedef struct {
+    const uint8_t *p;
+    size_t len, pos;
+    xb_buf_t *out;
+    xb_error_t *err;
+    const char *type;
+} dec_t;
+
+static int dec_fail(dec_t *d, const char *what)
+{
+    xb_error_set(d->err, "bad-message", "%s: %s at byte %zu", d->type, what, d->pos);
+    return -1;
+}
+
+static int get_be(dec_t *d, int nbytes, uint64_t *v)
+{
+    if (d->len - d->pos < (size_t)nbytes)
+        return dec_fail(d, "truncated");
+    uint64_t x = 0;
+    for (int i = 0; i < nbytes; i++)
+        x = x << 8 | d->p[d->pos + (size_t)i];
+    d->pos += (size_t)nbytes;
+    *v = x;
+    return 0;
+}
+
+static int get_int(dec_t *d, xb_prim_t prim, int64_t *v)
+{
+    uint64_t u;
+    switch (prim) {
+    case XB_INT8: case XB_BOOL:
+        if (get_be(d, 1, &u) < 0) return -1;
+        *v = (int8_t)u;
+        return 0;
+    case XB_BYTE:
+        if (get_be(d, 1, &u) < 0) return -1;
+        *v = (uint8_t)u;
+        return 0;
+    case XB_INT16:
+        if (get_be(d, 2, &u) < 0) return -1;
+        *v = (int16_t)u;
+        return 0;
+    case XB_INT32:
+        if (get_be(d, 4, &u) < 0) return -1;
+        *v = (int32_t)u;
+        return 0;
+    default:
+        if (get_be(d, 8, &u) < 0) return -1;
+        *v = (int64_t)u;
+        return 0;
+    }
+}
+
+static int get_real(dec_t *d, xb_prim_t prim, double *v)
+{
+    uint64_t u;
+    if (prim == XB_FLOAT) {
+        if (get_be(d, 4, &u) < 0)
+            return -1;
+        uint32_t w = (uint32_t)u;
+        float f;
+        memcpy(&f, &w, 4);
+        *v = f;
+        return 0;
+    }
+    if (get_be(d, 8, &u) < 0)
+        return -1;
+    memcpy(v, &u, 8);
+    return 0;
+}
+
+static int put_scalar_text(dec_t *d, xb_prim_t prim, int64_t *intval)
+{
+    char tmp[40];
+    if (prim == XB_FLOAT || prim == XB_DOUBLE) {
+        double v;
+        if (get_real(d, prim, &v) < 0)
+            return -1;
+        xb_format_real(prim, v, tmp, sizeof tmp);
+    } else {
+        int64_t v;
+        if (get_int(d, prim, &v) < 0)
+            return -1;
+        if (intval)
+            *intval = v;
+        if (prim == XB_BOOL)
+            snprintf(tmp, sizeof tmp, "%s", v ? "true" : "false");
+        else
+            snprintf(tmp, sizeof tmp, "%lld", (long long)v);
+    }
+    return xb_buf_puts(d->out, tmp);
+}
+
+static int decode_struct(dec_t *d, const xb_struct_t *t, int depth);
+
+/* <tag>value</tag>, with the string form choosing base64 when XML cannot carry it. */
+static int decode_value(dec_t *d, const char *tag, const xb_field_t *f, int64_t *intval, int depth)
+{
+    xb_buf_t *o = d->out;
+    if (f->prim == XB_STRING) {
+        uint64_t u;
+        if (get_be(d, 4, &u) < 0)
+            return -1;
+        int32_t n = (int32_t)u;
+        if (n < 1 || (size_t)n > d->len - d->pos)
+            return dec_fail(d, "bad string length");
+        const char *s = (const char *)d->p + d->pos;
+        if (s[n - 1] != '\0')
+            return dec_fail(d, "string not NUL-terminated");
+        d->pos += (size_t)n;
+        if (xb_xml_safe(s, (size_t)n - 1))
+            return xb_buf_printf(o, "<%s>", tag) < 0 || xb_buf_escape(o, s, (size_t)n - 1) < 0 ||
+                   xb_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
+        return xb_buf_printf(o, "<%s encoding=\"base64\">", tag) < 0 ||
+               xb_base64_encode(o, (const uint8_t *)s, (size_t)n - 1) < 0 ||
+               xb_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
+    }
+    if (xb_buf_printf(o, "<%s>", tag) < 0)
+        return -1;
+    if (f->prim == XB_STRUCT) {
+        if (decode_struct(d, f->sub, depth + 1) < 0)
+            return -1;
+    } else if (put_scalar_text(d, f->prim, intval) < 0) {
+        return -1;
+    }
+    return xb_buf_printf(o, "</%s>", tag);
+}
+
+static int decode_struct(dec_t *d, const xb_struct_t *t, int depth)
+{
+    if (depth > XB_MAX_STRUCT_DEPTH)
+        return dec_fail(d, "structs nested too deeply");
+    int nf = t->nfields, rc = -1;
+    int64_t len_s[32];
+    int64_t *lenval = nf > 32 ? calloc((size_t)nf, sizeof *lenval) : len_s;
+    if (!lenval)
+        return dec_fail(d, "out of memory");
+    for (int i = 0; i < nf; i++) {
+        const xb_field_t *f = &t->fields[i];
+        lenval[i] = 0;
+        if (f->ndims == 0) {
+            if (decode_value(d, f->name, f, &lenval[i], depth) < 0)
+                goto out;
+            continue;
+        }
+        long count = 1;
+        for (int k = 0; k < f->ndims; k++) {
+            int lf = f->dims[k].len_field;
+            int64_t size = lf < 0 ? f->dims[k].size : lenval[lf];
+            if (size < 0) {
+                dec_fail(d, "negative array length");
+                goto out;
+            }
+            if (size > 0 && count > XB_MAX_ELEMENTS / size) {
+                dec_fail(d, "array too large");
+                goto out;
+            }
+            count *= (long)size;
+        }
+        static const int minsize[] = { 1, 2, 4, 8, 1, 4, 8, 5, 1, 0 };
+        if (minsize[f->prim] && (size_t)count > (d->len - d->pos) / (size_t)minsize[f->prim]) {
+            dec_fail(d, "array longer than the message");
+            goto out;
+        }
+        xb_buf_t *o = d->out;
+        if (xb_buf_printf(o, "<%s>", f->name) < 0)
+            goto out;
+        if (f->prim == XB_BYTE) {
+            if (xb_base64_encode(o, d->p + d->pos, (size_t)count) < 0)
+                goto out;
+            d->pos += (size_t)count;
+        } else if (f->prim == XB_STRING || f->prim == XB_STRUCT) {
+            for (long k = 0; k < count; k++)
+                if (decode_value(d, "item", f, NULL, depth) < 0)
+                    goto out;
+        } else {
+            for (long k = 0; k < count; k++)
+                if ((k && xb_buf_put(o, " ", 1) < 0) || put_scalar_text(d, f->prim, NULL) < 0)
+                    goto out;
+        }
+        if (xb_buf_printf(o, "</%s>", f->name) < 0)
+            goto out;
+    }
+    rc = 0;
+out:
+    if (lenval != len_s)
+        free(lenval);
+    return rc;
+}
+
+int xb_decode(const xb_struct_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err)
+{
+    dec_t d = { data, len, 0, out, err, t->name };
+    size_t start = out->len;
+    uint64_t fp;
+    if (get_be(&d, 8, &fp) < 0)
+        goto fail;
+    if ((int64_t)fp != t->fingerprint) {
+        xb_error_set(err, "bad-fingerprint", "payload is not a %s (fingerprint %016llx)", t->name,
+                     (unsigned long long)fp);
+        goto fail;
+    }
+    if (decode_struct(&d, t, 0) < 0)
+        goto fail;
+    if (d.pos != d.len) {
+        /* LCM ignores trailing bytes too; they are tolerated but not carried. */
+    }
+    return 0;
+fail:
+    if (out->full)
+        xb_error_set(err, "too-large", "decoded %s larger than %zu bytes", t->name, out->max);
+    out->len = start;
+    out->full = 0;
+    return -1;
+}
+
+/* ---- type lookup ---- */
+
+const xb_struct_t *xb_struct_find(const char *name)
+{
+    for (size_t i = 0; i < xb_structs_count; i++) {
+        const xb_struct_t *t = xb_structs[i];
+        if (strcmp(t->name, name) == 0 || strcmp(t->short_name, name) == 0)
+            return t;
+    }
+    return NULL;
+}
+
+const xb_struct_t *xb_struct_by_fingerprint(int64_t fp)
+{
+    for (size_t i = 0; i < xb_structs_count; i++)
+        if (xb_structs[i]->fingerprint == fp)
+            return xb_structs[i];
+    return NULL;
+}
+
+const char *xb_prim_name(xb_prim_t p)
+{
+    static const char *const names[] = { "int8_t", "int16_t", "int32_t", "int64_t", "byte",
+                                         "float", "double", "string", "boolean", "struct" };
+    return (unsigned)p < sizeof names / sizeof names[0] ? names[p] : "?";
+}

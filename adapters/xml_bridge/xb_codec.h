@@ -1,0 +1,60 @@
+/* xb_codec: one XML element tree <-> the LCM wire format of a message, driven by the type
+ * descriptors (xb_types.h), so every type in lcmtypes/ is bridged by the same code. */
+#ifndef XB_CODEC_H
+#define XB_CODEC_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "adapters/xml_bridge/xb_doc.h"
+#include "adapters/xml_bridge/xb_types.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A growable byte buffer with a hard maximum; appends past it fail and set `full`. */
+typedef struct {
+    char *data;
+    size_t len, cap, max;
+    int full;
+} xb_buf_t;
+
+void xb_buf_init(xb_buf_t *b, size_t max);
+void xb_buf_free(xb_buf_t *b);
+int xb_buf_put(xb_buf_t *b, const void *data, size_t len);     /* 0 or -1 */
+int xb_buf_puts(xb_buf_t *b, const char *s);
+int xb_buf_printf(xb_buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Appends s escaped for XML text or attribute values (", <, &, >, and \t \n \r as character
+ * references, so a document stays on one line). */
+int xb_buf_escape(xb_buf_t *b, const char *s, size_t len);
+
+/* Encodes `msg` (an element whose children are the fields; NULL for an all-zero message) as a
+ * complete LCM payload of type t: fingerprint then fields. Returns 0, or -1 with err set
+ * (codes: unknown-field, bad-value, bad-length, too-large). */
+int xb_encode(const xb_struct_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err);
+
+/* Appends the fields of the LCM payload `data` (fingerprint first) as XML child elements.
+ * Returns 0, or -1 with err set (bad-fingerprint, bad-message, too-large). On failure the
+ * buffer is left at its length on entry. */
+int xb_decode(const xb_struct_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err);
+
+/* The value syntax of one scalar: integers in decimal, booleans true/false/1/0, reals as
+ * C/XSD decimals including NaN, INF, -INF. Returns 0 or -1 (not a value of that type). */
+int xb_parse_int(xb_prim_t prim, const char *s, size_t len, int64_t *v);
+int xb_parse_real(xb_prim_t prim, const char *s, size_t len, double *v);
+/* Shortest text that reads back to the same float/double. buf >= 32 bytes. */
+void xb_format_real(xb_prim_t prim, double v, char *buf, size_t size);
+
+/* RFC 4648 base64. decode returns the byte count or -1. */
+int xb_base64_encode(xb_buf_t *b, const uint8_t *data, size_t len);
+long xb_base64_decode(const char *s, size_t len, uint8_t *out, size_t outcap);
+size_t xb_base64_decoded_max(size_t len);
+
+/* Nonzero when the bytes are valid UTF-8 made only of characters XML 1.0 allows. */
+int xb_xml_safe(const char *s, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,303 @@
+#!/usr/bin/env python3
+"""xb_gen: reads lcmtypes/*.lcm and writes the XML bridge's type descriptor table (C).
+
+The bridge encodes and decodes the LCM wire format itself, driven by these descriptors, so a
+new .lcm file is bridged without any hand-written code. The fingerprint of every struct is
+computed here with lcm-gen's algorithm; tests compare it with the generated code's hash().
+
+usage: xb_gen.py table OUT.c FILE.lcm...     descriptor table (linked into the bridge)
+       xb_gen.py dump  OUT.c FILE.lcm...     test helper: prints lcm-gen's C structs field by field
+"""
+import re
+import sys
+
+PRIMS = {
+    "int8_t": "XB_INT8", "int16_t": "XB_INT16", "int32_t": "XB_INT32", "int64_t": "XB_INT64",
+    "byte": "XB_BYTE", "float": "XB_FLOAT", "double": "XB_DOUBLE", "string": "XB_STRING",
+    "boolean": "XB_BOOL",
+}
+INT_PRIMS = ("int8_t", "int16_t", "int32_t", "int64_t", "byte")
+
+
+class LcmError(Exception):
+    pass
+
+
+def strip_comments(text):
+    text = re.sub(r"/\*.*?\*/", lambda m: "\n" * m.group(0).count("\n"), text, flags=re.S)
+    return re.sub(r"//[^\n]*", "", text)
+
+
+def tokenize(text):
+    return re.findall(r"[A-Za-z_][A-Za-z0-9_.]*|-?[0-9][0-9A-Za-z_.+\-]*|\S", text)
+
+
+class Struct:
+    def __init__(self, package, name):
+        self.package = package
+        self.name = name
+        self.members = []   # (type, name, [(mode, size_str)])
+        self.consts = []    # (type, name, value_str)
+
+    @property
+    def full(self):
+        return "%s.%s" % (self.package, self.name) if self.package else self.name
+
+    @property
+    def cname(self):
+        return self.full.replace(".", "_")
+
+
+def parse_file(path):
+    toks = tokenize(strip_comments(open(path, encoding="utf-8").read()))
+    pos = 0
+    package = ""
+    structs = []
+
+    def expect(t):
+        nonlocal pos
+        if pos >= len(toks) or toks[pos] != t:
+            raise LcmError("%s: expected '%s' near token %d (%s)" %
+                           (path, t, pos, toks[pos] if pos < len(toks) else "EOF"))
+        pos += 1
+
+    def take():
+        nonlocal pos
+        if pos >= len(toks):
+            raise LcmError("%s: unexpected end of file" % path)
+        pos += 1
+        return toks[pos - 1]
+
+    while pos < len(toks):
+        t = take()
+        if t == "package":
+            package = take()
+            expect(";")
+        elif t == "struct":
+            s = Struct(package, take())
+            expect("{")
+            while toks[pos] != "}":
+                if toks[pos] == "const":
+                    pos += 1
+                    ctype = take()
+                    while True:
+                        cname = take()
+                        expect("=")
+                        value = take()
+                        s.consts.append((ctype, cname, value))
+                        if toks[pos] == ",":
+                            pos += 1
+                            continue
+                        expect(";")
+                        break
+                    continue
+                mtype = take()
+                while True:
+                    mname = take()
+                    dims = []
+                    while toks[pos] == "[":
+                        pos += 1
+                        size = take()
+                        expect("]")
+                        dims.append((0 if re.match(r"^[0-9]+$", size) else 1, size))
+                    s.members.append((mtype, mname, dims))
+                    if toks[pos] == ",":
+                        pos += 1
+                        continue
+                    expect(";")
+                    break
+            expect("}")
+            structs.append(s)
+        else:
+            raise LcmError("%s: unexpected token '%s'" % (path, t))
+    return structs
+
+
+def s64(v):
+    v &= (1 << 64) - 1
+    return v - (1 << 64) if v >> 63 else v
+
+
+def hash_update(v, c):
+    c = s64(c)
+    c = ((c + 128) & 0xFF) - 128          # lcm-gen passes a (signed) char
+    return s64(((s64(v << 8)) ^ (v >> 55)) + c)
+
+
+def hash_string_update(v, s):
+    v = hash_update(v, len(s))
+    for ch in s.encode():
+        v = hash_update(v, ch)
+    return v
+
+
+def base_hash(st):
+    v = 0x12345678
+    for mtype, mname, dims in st.members:
+        v = hash_string_update(v, mname)
+        if mtype in PRIMS:
+            v = hash_string_update(v, mtype)
+        v = hash_update(v, len(dims))
+        for mode, size in dims:
+            v = hash_update(v, mode)
+            v = hash_string_update(v, size)
+    return v
+
+
+def resolve(st, mtype, by_name):
+    if mtype in PRIMS:
+        return None
+    full = mtype if "." in mtype else ("%s.%s" % (st.package, mtype) if st.package else mtype)
+    if full not in by_name:
+        raise LcmError("%s: unknown type '%s'" % (st.full, mtype))
+    return by_name[full]
+
+
+def fingerprint(st, by_name, parents=()):
+    if st.full in parents:
+        return 0
+    h = base_hash(st) & ((1 << 64) - 1)
+    for mtype, _, _ in st.members:
+        sub = resolve(st, mtype, by_name)
+        if sub is not None:
+            h = (h + fingerprint(sub, by_name, parents + (st.full,))) & ((1 << 64) - 1)
+    return s64(((h << 1) & ((1 << 64) - 1)) + ((h >> 63) & 1))
+
+
+def cstr(s):
+    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def check(st, by_name):
+    names = [m[1] for m in st.members]
+    for i, (mtype, mname, dims) in enumerate(st.members):
+        resolve(st, mtype, by_name)
+        for mode, size in dims:
+            if mode == 1:
+                if size not in names[:i]:
+                    raise LcmError("%s.%s: length field '%s' must come earlier" % (st.full, mname, size))
+                ltype = st.members[names.index(size)][0]
+                if ltype not in INT_PRIMS or st.members[names.index(size)][2]:
+                    raise LcmError("%s.%s: length field '%s' is not an integer" % (st.full, mname, size))
+
+
+def emit_table(structs, by_name, out):
+    w = out.write
+    w("/* Generated by adapters/xml_bridge/xb_gen.py from the .lcm files of lcmtypes/; do not edit. */\n")
+    w('#include "adapters/xml_bridge/xb_types.h"\n\n')
+    for st in structs:
+        w("extern const xb_struct_t xb_struct_%s;\n" % st.cname)
+    w("\n")
+    for st in structs:
+        names = [m[1] for m in st.members]
+        for i, (mtype, mname, dims) in enumerate(st.members):
+            if dims:
+                w("static const xb_dim_t xb_dims_%s_%d[] = {" % (st.cname, i))
+                for mode, size in dims:
+                    if mode == 0:
+                        w(" { %s, -1 }," % size)
+                    else:
+                        w(" { 0, %d }," % names.index(size))
+                w(" };\n")
+        w("static const xb_field_t xb_fields_%s[] = {\n" % st.cname)
+        for i, (mtype, mname, dims) in enumerate(st.members):
+            sub = resolve(st, mtype, by_name)
+            prim = PRIMS.get(mtype, "XB_STRUCT")
+            subref = "&xb_struct_%s" % sub.cname if sub else "NULL"
+            dimref = "xb_dims_%s_%d" % (st.cname, i) if dims else "NULL"
+            w("    { %s, %s, %s, %d, %s },\n" % (cstr(mname), prim, subref, len(dims), dimref))
+        w("};\n")
+        if st.consts:
+            w("static const xb_const_t xb_consts_%s[] = {\n" % st.cname)
+            for ctype, cname, value in st.consts:
+                w("    { %s, %s, %s },\n" % (cstr(cname), PRIMS[ctype], cstr(value)))
+            w("};\n")
+        w("const xb_struct_t xb_struct_%s = {\n" % st.cname)
+        w("    %s, %s, (int64_t)0x%016xULL,\n" % (cstr(st.full), cstr(st.name),
+                                                  fingerprint(st, by_name) & ((1 << 64) - 1)))
+        w("    %d, xb_fields_%s, %d, %s,\n" % (len(st.members), st.cname, len(st.consts),
+                                              "xb_consts_%s" % st.cname if st.consts else "NULL"))
+        w("};\n\n")
+    w("const xb_struct_t *const xb_structs[] = {\n")
+    for st in structs:
+        w("    &xb_struct_%s,\n" % st.cname)
+    w("    NULL\n};\n")
+    w("const size_t xb_structs_count = %d;\n" % len(structs))
+
+
+def emit_dump(structs, by_name, out):
+    """C code that prints lcm-gen's C structs in the canonical 'path=value' form the tests use."""
+    w = out.write
+    w("/* Generated by adapters/xml_bridge/xb_gen.py (test helper); do not edit. */\n")
+    w('#include <stdio.h>\n#include "lcmtypes/marie_types.h"\n#include "tests/xml_bridge/xb_canon.h"\n\n')
+    for st in structs:
+        w("static void xb_sdump_%s(xb_canon_t *d, const char *pre, const %s *p);\n" % (st.cname, st.cname))
+    for st in structs:
+        w("\nstatic void xb_sdump_%s(xb_canon_t *d, const char *pre, const %s *p)\n{\n" % (st.cname, st.cname))
+        w("    char path[512];\n    (void)path;\n")
+        for mtype, mname, dims in st.members:
+            sub = resolve(st, mtype, by_name)
+            idx = ""
+            fmt_path = '"%s%s'
+            args = ["pre", cstr(mname)]
+            for k, (mode, size) in enumerate(dims):
+                bound = size if mode == 0 else "p->%s" % size
+                w("    " * (k + 1) + "for (long i%d = 0; i%d < (long)(%s); i%d++) {\n" % (k, k, bound, k))
+                idx += "[i%d]" % k
+                fmt_path += "[%ld]"
+                args.append("i%d" % k)
+            ind = "    " * (len(dims) + 1)
+            fmt_path += '"'
+            w('%ssnprintf(path, sizeof path, %s, %s);\n' % (ind, fmt_path, ", ".join(args)))
+            val = "p->%s%s" % (mname, idx)
+            if sub is not None:
+                w("%s{ char sp[520]; snprintf(sp, sizeof sp, \"%%s.\", path); xb_sdump_%s(d, sp, &%s); }\n"
+                  % (ind, sub.cname, val))
+            elif mtype == "string":
+                w("%sxb_canon_str(d, path, %s);\n" % (ind, val))
+            elif mtype == "float":
+                w("%sxb_canon_float(d, path, %s);\n" % (ind, val))
+            elif mtype == "double":
+                w("%sxb_canon_double(d, path, %s);\n" % (ind, val))
+            elif mtype == "boolean":
+                w("%sxb_canon_int(d, path, %s != 0);\n" % (ind, val))
+            else:
+                w("%sxb_canon_int(d, path, (long long)%s);\n" % (ind, val))
+            for k in range(len(dims), 0, -1):
+                w("    " * k + "}\n")
+        w("}\n")
+    w("\nint xb_struct_dump(xb_canon_t *d, const char *type, const void *msg)\n{\n")
+    for st in structs:
+        w("    if (strcmp(type, %s) == 0) { xb_sdump_%s(d, \"\", msg); return 0; }\n" % (cstr(st.full), st.cname))
+    w("    return -1;\n}\n")
+
+
+def main(argv):
+    if len(argv) < 3 or argv[0] not in ("table", "dump"):
+        sys.stderr.write(__doc__)
+        return 2
+    structs = []
+    try:
+        for path in argv[2:]:
+            structs.extend(parse_file(path))
+        by_name = {s.full: s for s in structs}
+        for st in structs:
+            check(st, by_name)
+    except LcmError as e:
+        sys.stderr.write("xb_gen: %s\n" % e)
+        return 1
+    structs.sort(key=lambda s: s.full)
+    tmp = argv[1] + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as out:
+        if argv[0] == "table":
+            emit_table(structs, by_name, out)
+        else:
+            out.write("#include <string.h>\n")
+            emit_dump(structs, by_name, out)
+    import os
+    os.replace(tmp, argv[1])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

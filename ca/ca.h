@@ -1,0 +1,102 @@
+/* ca: what the Communication Adapters share: type lookup, fingerprint checks, counters, channel names. */
+#ifndef MARIE_CA_H
+#define MARIE_CA_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <lcm/lcm.h>
+
+#include "lcmtypes/marie_types.h"
+#include "lcmtypes/marie_pull_reply_t.h"
+#include "lcmtypes/marie_pull_request_t.h"
+#include "lcmtypes/marie_sharedmap_reply_t.h"
+#include "lcmtypes/marie_sharedmap_request_t.h"
+#include "lcmtypes/marie_switch_select_t.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* What a CA reports to whoever hosts it (the marie-ca process forwards these to the
+ * component's heartbeat counters and events; a test may just count them). */
+typedef enum {
+    CA_NOTE_BAD_INPUT = 0,  /* malformed or mistyped input, dropped */
+    CA_NOTE_DROP,           /* a good message lost (overflow, send failure) */
+    CA_NOTE_COUNT,          /* an ordinary counter */
+    CA_NOTE_EVENT,          /* a notable occurrence (refusal, restore) */
+} ca_note_kind_t;
+
+/* `counter` names the counter or event kind; `n` the increment (events: a severity,
+ * marie_event_t SEV_*); `text` a human description (may be NULL for plain counts). */
+typedef void (*ca_note_fn)(void *user, ca_note_kind_t kind, const char *counter, int64_t n,
+                           const char *text);
+/* Publishes `len` bytes on `channel`; returns 0 or a negative value. */
+typedef int (*ca_publish_fn)(void *user, const char *channel, const void *buf, size_t len);
+
+/* Where a CA's output goes: `publish` if set, else straight onto `lcm` (set by the
+ * *_attach() calls). */
+typedef struct {
+    ca_note_fn note;
+    ca_publish_fn publish;
+    void *user;
+    lcm_t *lcm;
+} ca_sink_t;
+
+void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64_t n,
+             const char *fmt, ...) __attribute__((format(printf, 5, 6)));
+int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t len);
+
+/* The registered marie type called `name` ("marie.pose2d_t"; "pose2d_t" is accepted too),
+ * or NULL. */
+const marie_type_t *ca_type_lookup(const char *name);
+/* The registered type whose fingerprint is `fp`, or NULL. */
+const marie_type_t *ca_type_by_fingerprint(int64_t fp);
+
+/* The big-endian fingerprint that starts every LCM payload; -EBADMSG when len < 8. */
+int ca_fingerprint(const void *raw, size_t len, int64_t *fp);
+/* 0 when `raw` carries `type` (NULL type: any payload of at least 8 bytes), else -EBADMSG. */
+int ca_check_type(const marie_type_t *type, const void *raw, size_t len);
+
+/* Checks an encoded LCM message before it is handed to lcm-gen's decoder, which trusts
+ * string and array lengths (a negative or oversized length makes it copy out of bounds,
+ * a string without its NUL is read past its end). `schema` lists the fields after the
+ * fingerprint: 'l' int64, 'i' int32, 'b' int8, 'd' double, 's' string, 'B' bytes counted
+ * by the last 'i', 'S' strings counted by the last 'i'. 0 when the fingerprint is
+ * `type`'s and every field fits in len bytes exactly, else -EBADMSG. */
+int ca_lcm_check(const marie_type_t *type, const char *schema, const void *buf, size_t len);
+#define CA_SCHEMA_PULL_REQUEST      "llsssi"
+#define CA_SCHEMA_SHAREDMAP_REQUEST "llssbssiB"
+#define CA_SCHEMA_SHAREDMAP_REPLY   "llsbbslsliBiS"
+#define CA_SCHEMA_SWITCH_SELECT     "llss"
+#define CA_SCHEMA_PULL_REPLY        "llsblliB"
+
+/* Zero-copy decoders of the CA protocol messages: strings and data point into buf (valid
+ * while it is), nothing to clean up except ca_view_sharedmap_reply's keys array
+ * (free(out->keys)). They check like ca_lcm_check() and also avoid lcm-gen's decoder
+ * copying zero-length arrays from NULL. 0 or -EBADMSG. */
+int ca_view_pull_request(const void *buf, size_t len, marie_pull_request_t *out);
+int ca_view_pull_reply(const void *buf, size_t len, marie_pull_reply_t *out);
+int ca_view_sharedmap_request(const void *buf, size_t len, marie_sharedmap_request_t *out);
+int ca_view_sharedmap_reply(const void *buf, size_t len, marie_sharedmap_reply_t *out);
+int ca_view_switch_select(const void *buf, size_t len, marie_switch_select_t *out);
+
+/* `channel` as an LCM subscription pattern that matches only itself (lcm_subscribe takes a
+ * regular expression). Caller frees. */
+char *ca_channel_pattern(const char *channel);
+
+/* CRC-32 (IEEE 802.3), for the SharedMap's log records. */
+uint32_t ca_crc32(uint32_t crc, const void *buf, size_t len);
+
+/* fsync the directory holding `path`, so a create or rename in it is durable. 0 or -errno. */
+int ca_fsync_dir(const char *path);
+
+/* Writes `len` bytes to `path` durably and atomically: a temporary file in the same
+ * directory, fsync, rename over `path`, fsync of the directory. 0 or -errno. */
+int ca_write_file_atomic(const char *path, const void *buf, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,717 @@
+/* sharedmap: sorted in-memory map, append-only log with fdatasync per change, compaction by
+ * atomic rename, and the request protocol. */
+#include "ca/sharedmap.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "core/time.h"
+#include "lcmtypes/marie_sharedmap_reply_t.h"
+#include "lcmtypes/marie_sharedmap_snapshot_t.h"
+
+/* Log layout (all integers big-endian):
+ *   file   := "MARIESM1" record*
+ *   record := u32 body_len, u32 crc32(body), body
+ *   body   := u8 op (1 set, 2 delete), i64 version, i64 set_utime,
+ *             u16 key_len, key, u16 type_len, type, u32 data_len, data */
+static const char LOG_MAGIC[8] = { 'M', 'A', 'R', 'I', 'E', 'S', 'M', '1' };
+#define REC_SET 1
+#define REC_DEL 2
+#define REC_HEAD 8
+#define REC_MAX_BODY (1 + 8 + 8 + 2 + SHAREDMAP_MAX_KEY + 2 + SHAREDMAP_MAX_TYPE + 4 + SHAREDMAP_MAX_VALUE)
+
+typedef struct {
+    char *key;
+    char *type;
+    uint8_t *data;
+    size_t len;
+    int64_t version, set_utime;
+} entry_t;
+
+struct sharedmap {
+    char *path;
+    int fd;                     /* O_APPEND log, -1 when memory only */
+    int lock_fd;                /* flock()ed PATH.lock: one SharedMap per log */
+    off_t log_size;
+    int64_t nrecords;           /* records in the log file */
+    int64_t compact_min;
+    entry_t *entries;           /* sorted by key */
+    size_t n, cap;
+    int64_t version;
+    ca_sink_t sink;
+    uint8_t *buf;               /* encode buffer (records, replies, snapshots) */
+    size_t buf_cap;
+    char *snap_channel, *snap_source;
+    int64_t snap_min_interval, snap_last;
+    int snap_due;
+    lcm_t *lcm;
+    lcm_subscription_t *sub;
+    sharedmap_stats_t stats;
+};
+
+static int grow(sharedmap_t *sm, size_t need)
+{
+    if (need <= sm->buf_cap)
+        return 0;
+    size_t cap = sm->buf_cap ? sm->buf_cap : 4096;
+    while (cap < need)
+        cap *= 2;
+    uint8_t *nb = realloc(sm->buf, cap);
+    if (!nb)
+        return -ENOMEM;
+    sm->buf = nb;
+    sm->buf_cap = cap;
+    return 0;
+}
+
+static void put_u16(uint8_t *p, uint16_t v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
+static void put_u32(uint8_t *p, uint32_t v) { for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (24 - 8 * i)); }
+static void put_i64(uint8_t *p, int64_t v) { for (int i = 0; i < 8; i++) p[i] = (uint8_t)((uint64_t)v >> (56 - 8 * i)); }
+static uint16_t get_u16(const uint8_t *p) { return (uint16_t)(p[0] << 8 | p[1]); }
+static uint32_t get_u32(const uint8_t *p) { return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]; }
+static int64_t get_i64(const uint8_t *p) { uint64_t v = 0; for (int i = 0; i < 8; i++) v = v << 8 | p[i]; return (int64_t)v; }
+
+static size_t record_size(size_t klen, size_t tlen, size_t dlen)
+{
+    return REC_HEAD + 1 + 8 + 8 + 2 + klen + 2 + tlen + 4 + dlen;
+}
+
+/* Encode a record at out (record_size() bytes). */
+static size_t record_encode(uint8_t *out, int op, int64_t version, int64_t set_utime,
+                            const char *key, const char *type, const void *data, size_t dlen)
+{
+    size_t klen = strlen(key), tlen = type ? strlen(type) : 0;
+    uint8_t *b = out + REC_HEAD, *p = b;
+    *p++ = (uint8_t)op;
+    put_i64(p, version); p += 8;
+    put_i64(p, set_utime); p += 8;
+    put_u16(p, (uint16_t)klen); p += 2;
+    memcpy(p, key, klen); p += klen;
+    put_u16(p, (uint16_t)tlen); p += 2;
+    if (tlen)
+        memcpy(p, type, tlen);
+    p += tlen;
+    put_u32(p, (uint32_t)dlen); p += 4;
+    if (dlen)
+        memcpy(p, data, dlen);
+    p += dlen;
+    size_t body = (size_t)(p - b);
+    put_u32(out, (uint32_t)body);
+    put_u32(out + 4, ca_crc32(0, b, body));
+    return REC_HEAD + body;
+}
+
+static ssize_t find(const sharedmap_t *sm, const char *key, int *found)
+{
+    size_t lo = 0, hi = sm->n;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        int c = strcmp(sm->entries[mid].key, key);
+        if (c == 0) {
+            *found = 1;
+            return (ssize_t)mid;
+        }
+        if (c < 0)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    *found = 0;
+    return (ssize_t)lo;
+}
+
+static void entry_free(entry_t *e)
+{
+    free(e->key);
+    free(e->type);
+    free(e->data);
+}
+
+/* Apply a change to memory only. */
+static int mem_set(sharedmap_t *sm, const char *key, const char *type, const void *data,
+                   size_t len, int64_t version, int64_t set_utime)
+{
+    int found;
+    size_t i = (size_t)find(sm, key, &found);
+    char *t = strdup(type ? type : "");
+    uint8_t *d = malloc(len ? len : 1);
+    if (!t || !d)
+        goto err;
+    memcpy(d, data, len);
+    if (found) {
+        entry_t *e = &sm->entries[i];
+        free(e->type);
+        free(e->data);
+        e->type = t;
+        e->data = d;
+        e->len = len;
+        e->version = version;
+        e->set_utime = set_utime;
+        return 0;
+    }
+    if (sm->n == sm->cap) {
+        size_t cap = sm->cap ? sm->cap * 2 : 16;
+        entry_t *ne = realloc(sm->entries, cap * sizeof *ne);
+        if (!ne)
+            goto err;
+        sm->entries = ne;
+        sm->cap = cap;
+    }
+    char *k = strdup(key);
+    if (!k)
+        goto err;
+    memmove(&sm->entries[i + 1], &sm->entries[i], (sm->n - i) * sizeof *sm->entries);
+    sm->entries[i] = (entry_t){ k, t, d, len, version, set_utime };
+    sm->n++;
+    return 0;
+err:
+    free(t);
+    free(d);
+    return -ENOMEM;
+}
+
+static int mem_delete(sharedmap_t *sm, const char *key)
+{
+    int found;
+    size_t i = (size_t)find(sm, key, &found);
+    if (!found)
+        return -ENOENT;
+    entry_free(&sm->entries[i]);
+    memmove(&sm->entries[i], &sm->entries[i + 1], (sm->n - i - 1) * sizeof *sm->entries);
+    sm->n--;
+    return 0;
+}
+
+/* Replay the log bytes; returns the offset after the last whole, valid record. */
+static size_t replay(sharedmap_t *sm, const uint8_t *buf, size_t len)
+{
+    size_t off = sizeof LOG_MAGIC;
+    while (len - off >= REC_HEAD) {
+        uint32_t blen = get_u32(buf + off), crc = get_u32(buf + off + 4);
+        if (blen < 1 + 8 + 8 + 2 + 2 + 4 || blen > REC_MAX_BODY || blen > len - off - REC_HEAD)
+            break;
+        const uint8_t *b = buf + off + REC_HEAD, *end = b + blen, *p = b;
+        if (ca_crc32(0, b, blen) != crc)
+            break;
+        int op = *p++;
+        int64_t version = get_i64(p); p += 8;
+        int64_t set_utime = get_i64(p); p += 8;
+        size_t klen = get_u16(p); p += 2;
+        if (klen == 0 || klen > SHAREDMAP_MAX_KEY || (size_t)(end - p) < klen + 2)
+            break;
+        char key[SHAREDMAP_MAX_KEY + 1];
+        memcpy(key, p, klen); key[klen] = 0; p += klen;
+        size_t tlen = get_u16(p); p += 2;
+        if (tlen > SHAREDMAP_MAX_TYPE || (size_t)(end - p) < tlen + 4)
+            break;
+        char type[SHAREDMAP_MAX_TYPE + 1];
+        memcpy(type, p, tlen); type[tlen] = 0; p += tlen;
+        size_t dlen = get_u32(p); p += 4;
+        if (dlen != (size_t)(end - p) || strlen(key) != klen)
+            break;
+        if (op == REC_SET) {
+            if (mem_set(sm, key, type, p, dlen, version, set_utime) < 0)
+                break;
+        } else if (op == REC_DEL) {
+            mem_delete(sm, key);
+        } else {
+            break;
+        }
+        if (version > sm->version)
+            sm->version = version;
+        sm->nrecords++;
+        sm->stats.records_loaded++;
+        off += REC_HEAD + blen;
+    }
+    return off;
+}
+
+static int read_all(int fd, uint8_t **out, size_t *len)
+{
+    struct stat st;
+    if (fstat(fd, &st) < 0)
+        return -errno;
+    size_t n = (size_t)st.st_size, got = 0;
+    uint8_t *b = malloc(n ? n : 1);
+    if (!b)
+        return -ENOMEM;
+    while (got < n) {
+        ssize_t r = read(fd, b + got, n - got);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+    }
+    *out = b;
+    *len = got;
+    return 0;
+}
+
+static int lock(sharedmap_t *sm)
+{
+    char lp[4096];
+    if (snprintf(lp, sizeof lp, "%s.lock", sm->path) >= (int)sizeof lp)
+        return -ENAMETOOLONG;
+    sm->lock_fd = open(lp, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (sm->lock_fd < 0)
+        return -errno;
+    /* The kernel drops the lock when the holder dies, even by SIGKILL. */
+    if (flock(sm->lock_fd, LOCK_EX | LOCK_NB) < 0)
+        return errno == EWOULDBLOCK ? -EBUSY : -errno;
+    return 0;
+}
+
+static int load(sharedmap_t *sm)
+{
+    int rc0 = lock(sm);
+    if (rc0 < 0)
+        return rc0;
+    int fd = open(sm->path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0)
+        return -errno;
+    uint8_t *buf = NULL;
+    size_t len = 0;
+    int rc = read_all(fd, &buf, &len);
+    if (rc < 0)
+        goto err_close;
+    size_t good;
+    if (len < sizeof LOG_MAGIC && memcmp(buf, LOG_MAGIC, len) == 0) {
+        /* New file, or one whose creation was cut short: start it. */
+        if (ftruncate(fd, 0) < 0 || pwrite(fd, LOG_MAGIC, sizeof LOG_MAGIC, 0) != sizeof LOG_MAGIC ||
+            fsync(fd) < 0) {
+            rc = -errno;
+            goto err_free;
+        }
+        if ((rc = ca_fsync_dir(sm->path)) < 0)
+            goto err_free;
+        good = sizeof LOG_MAGIC;
+        len = good;
+    } else if (len < sizeof LOG_MAGIC || memcmp(buf, LOG_MAGIC, sizeof LOG_MAGIC) != 0) {
+        rc = -EINVAL;       /* not a SharedMap log: never overwrite it */
+        goto err_free;
+    } else {
+        good = replay(sm, buf, len);
+    }
+    if (good < len) {
+        /* The torn tail of a write that was never acknowledged. */
+        sm->stats.tail_bytes_dropped = (int64_t)(len - good);
+        if (ftruncate(fd, (off_t)good) < 0 || fsync(fd) < 0) {
+            rc = -errno;
+            goto err_free;
+        }
+    }
+    free(buf);
+    close(fd);
+    sm->fd = open(sm->path, O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (sm->fd < 0)
+        return -errno;
+    sm->log_size = (off_t)good;
+    return 0;
+
+err_free:
+    free(buf);
+err_close:
+    close(fd);
+    return rc;
+}
+
+sharedmap_t *sharedmap_open(const char *path, const ca_sink_t *sink)
+{
+    sharedmap_t *sm = calloc(1, sizeof *sm);
+    if (!sm)
+        return NULL;
+    sm->fd = -1;
+    sm->lock_fd = -1;
+    sm->compact_min = SHAREDMAP_COMPACT_MIN;
+    if (sink)
+        sm->sink = *sink;
+    if (path) {
+        sm->path = strdup(path);
+        int rc = sm->path ? load(sm) : -ENOMEM;
+        if (rc < 0) {
+            sharedmap_close(sm);
+            errno = -rc;
+            return NULL;
+        }
+    }
+    return sm;
+}
+
+void sharedmap_close(sharedmap_t *sm)
+{
+    if (!sm)
+        return;
+    sharedmap_detach(sm);
+    if (sm->fd >= 0)
+        close(sm->fd);
+    if (sm->lock_fd >= 0)
+        close(sm->lock_fd);
+    for (size_t i = 0; i < sm->n; i++)
+        entry_free(&sm->entries[i]);
+    free(sm->entries);
+    free(sm->buf);
+    free(sm->path);
+    free(sm->snap_channel);
+    free(sm->snap_source);
+    free(sm);
+}
+
+/* Append one record and make it durable. On failure the log is cut back so it never
+ * holds a record that was not acknowledged... or at least never a partial one. */
+static int log_append(sharedmap_t *sm, const uint8_t *rec, size_t len)
+{
+    if (sm->fd < 0)
+        return 0;
+    size_t off = 0;
+    while (off < len) {
+        ssize_t w = write(sm->fd, rec + off, len - off);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w <= 0)
+            goto err;
+        off += (size_t)w;
+    }
+    if (fdatasync(sm->fd) < 0)
+        goto err;
+    sm->stats.fsyncs++;
+    sm->log_size += (off_t)len;
+    sm->nrecords++;
+    return 0;
+err:;
+    int e = errno ? errno : EIO;
+    sm->stats.io_errors++;
+    if (ftruncate(sm->fd, sm->log_size) == 0)
+        fdatasync(sm->fd);
+    ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", 3, "%s: write failed: %s", sm->path,
+            strerror(e));
+    return -EIO;
+}
+
+static void maybe_compact(sharedmap_t *sm)
+{
+    if (sm->fd >= 0 && sm->nrecords > 2 * (int64_t)sm->n + sm->compact_min)
+        sharedmap_compact(sm);
+}
+
+void sharedmap_set_compaction(sharedmap_t *sm, int64_t min_records)
+{
+    sm->compact_min = min_records < 0 ? 0 : min_records;
+}
+
+int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void *data,
+                  size_t len, int64_t now)
+{
+    size_t klen = key ? strlen(key) : 0, tlen = type ? strlen(type) : 0;
+    if (klen == 0 || klen > SHAREDMAP_MAX_KEY || tlen > SHAREDMAP_MAX_TYPE || len < 8)
+        return -EINVAL;
+    if (len > SHAREDMAP_MAX_VALUE)
+        return -EFBIG;
+    const marie_type_t *t = ca_type_lookup(type);
+    if (t && ca_check_type(t, data, len) < 0)
+        return -EBADMSG;
+    int rc = grow(sm, record_size(klen, tlen, len));
+    if (rc < 0)
+        return rc;
+    int64_t version = sm->version + 1;
+    size_t n = record_encode(sm->buf, REC_SET, version, now, key, type, data, len);
+    if ((rc = log_append(sm, sm->buf, n)) < 0)
+        return rc;
+    if ((rc = mem_set(sm, key, type, data, len, version, now)) < 0)
+        return rc;
+    sm->version = version;
+    sm->snap_due = 1;
+    sm->stats.sets++;
+    maybe_compact(sm);
+    return 0;
+}
+
+int sharedmap_delete(sharedmap_t *sm, const char *key)
+{
+    int found;
+    if (!key || !*key || strlen(key) > SHAREDMAP_MAX_KEY)
+        return -EINVAL;
+    find(sm, key, &found);
+    if (!found)
+        return -ENOENT;
+    int rc = grow(sm, record_size(strlen(key), 0, 0));
+    if (rc < 0)
+        return rc;
+    int64_t version = sm->version + 1;
+    size_t n = record_encode(sm->buf, REC_DEL, version, 0, key, NULL, NULL, 0);
+    if ((rc = log_append(sm, sm->buf, n)) < 0)
+        return rc;
+    mem_delete(sm, key);
+    sm->version = version;
+    sm->snap_due = 1;
+    sm->stats.deletes++;
+    maybe_compact(sm);
+    return 0;
+}
+
+static void fill(const entry_t *e, sharedmap_value_t *out)
+{
+    out->key = e->key;
+    out->type = e->type;
+    out->data = e->data;
+    out->len = e->len;
+    out->version = e->version;
+    out->set_utime = e->set_utime;
+}
+
+int sharedmap_get(const sharedmap_t *sm, const char *key, sharedmap_value_t *out)
+{
+    int found;
+    size_t i = (size_t)find(sm, key, &found);
+    if (!found)
+        return -ENOENT;
+    if (out)
+        fill(&sm->entries[i], out);
+    return 0;
+}
+
+size_t sharedmap_size(const sharedmap_t *sm) { return sm->n; }
+int64_t sharedmap_version(const sharedmap_t *sm) { return sm->version; }
+const sharedmap_stats_t *sharedmap_stats(const sharedmap_t *sm) { return &sm->stats; }
+
+int sharedmap_entry(const sharedmap_t *sm, size_t i, sharedmap_value_t *out)
+{
+    if (i >= sm->n)
+        return -ENOENT;
+    fill(&sm->entries[i], out);
+    return 0;
+}
+
+int sharedmap_compact(sharedmap_t *sm)
+{
+    if (sm->fd < 0)
+        return 0;
+    size_t total = sizeof LOG_MAGIC;
+    for (size_t i = 0; i < sm->n; i++)
+        total += record_size(strlen(sm->entries[i].key), strlen(sm->entries[i].type), sm->entries[i].len);
+    uint8_t *img = malloc(total);
+    if (!img)
+        return -ENOMEM;
+    memcpy(img, LOG_MAGIC, sizeof LOG_MAGIC);
+    size_t off = sizeof LOG_MAGIC;
+    for (size_t i = 0; i < sm->n; i++) {
+        const entry_t *e = &sm->entries[i];
+        off += record_encode(img + off, REC_SET, e->version, e->set_utime, e->key, e->type, e->data, e->len);
+    }
+    /* The old log stays complete until the rename replaces it, so a crash at any point
+     * leaves one whole log or the other. */
+    int rc = ca_write_file_atomic(sm->path, img, off);
+    free(img);
+    if (rc < 0) {
+        sm->stats.io_errors++;
+        ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", 2, "%s: compaction failed: %s",
+                sm->path, strerror(-rc));
+        return rc;
+    }
+    int fd = open(sm->path, O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd < 0)
+        return -errno;
+    close(sm->fd);
+    sm->fd = fd;
+    sm->log_size = (off_t)off;
+    sm->nrecords = (int64_t)sm->n;
+    sm->stats.compactions++;
+    return 0;
+}
+
+/* ---- request protocol ---- */
+
+static int send_reply(sharedmap_t *sm, const char *channel, marie_sharedmap_reply_t *r)
+{
+    int need = marie_sharedmap_reply_t_encoded_size(r);
+    if (need < 0 || grow(sm, (size_t)need) < 0)
+        return -ENOMEM;
+    int n = marie_sharedmap_reply_t_encode(sm->buf, 0, need, r);
+    if (n < 0)
+        return -EINVAL;
+    if (ca_publish(&sm->sink, channel, sm->buf, (size_t)n) < 0) {
+        ca_note(&sm->sink, CA_NOTE_DROP, "reply_failed", 1, "reply to %s failed", channel);
+        return -EIO;
+    }
+    return 0;
+}
+
+static int8_t status_of(int rc)
+{
+    switch (rc) {
+    case 0: return MARIE_SHAREDMAP_REPLY_T_STATUS_OK;
+    case -ENOENT: return MARIE_SHAREDMAP_REPLY_T_STATUS_NOT_FOUND;
+    case -EBADMSG: return MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_TYPE;
+    case -EFBIG: return MARIE_SHAREDMAP_REPLY_T_STATUS_TOO_LARGE;
+    case -EINVAL: return MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_REQUEST;
+    default: return MARIE_SHAREDMAP_REPLY_T_STATUS_IO_ERROR;
+    }
+}
+
+int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *req, int64_t now)
+{
+    sm->stats.requests++;
+    if (!req->reply_channel || !*req->reply_channel) {
+        sm->stats.bad_requests++;
+        ca_note(&sm->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
+                "request %lld from '%s' has no reply channel", (long long)req->request_id,
+                req->client ? req->client : "");
+        return -EINVAL;
+    }
+    marie_sharedmap_reply_t r = {
+        .utime = now, .request_id = req->request_id, .client = req->client ? req->client : "",
+        .op = req->op, .key = req->key ? req->key : "", .type = "",
+        .data = (uint8_t *)"",      /* lcm-gen's encoder memcpy()s even 0 bytes */
+    };
+    char **keys = NULL;
+    int rc;
+    sharedmap_value_t v;
+    switch (req->op) {
+    case MARIE_SHAREDMAP_REQUEST_T_OP_SET:
+        rc = req->size < 0 ? -EINVAL : sharedmap_set(sm, req->key, req->type, req->data, (size_t)req->size, now);
+        if (rc == 0)
+            r.version = sm->version;
+        break;
+    case MARIE_SHAREDMAP_REQUEST_T_OP_GET:
+        sm->stats.gets++;
+        rc = sharedmap_get(sm, r.key, &v);
+        if (rc == 0) {
+            r.version = v.version;
+            r.type = (char *)v.type;
+            r.age_us = now - v.set_utime;
+            r.size = (int32_t)v.len;
+            r.data = (uint8_t *)v.data;
+        }
+        break;
+    case MARIE_SHAREDMAP_REQUEST_T_OP_DELETE:
+        rc = sharedmap_delete(sm, r.key);
+        if (rc == 0)
+            r.version = sm->version;
+        break;
+    case MARIE_SHAREDMAP_REQUEST_T_OP_LIST: {
+        sm->stats.lists++;
+        size_t plen = strlen(r.key);
+        keys = malloc((sm->n ? sm->n : 1) * sizeof *keys);
+        if (!keys) {
+            rc = -ENOMEM;
+            break;
+        }
+        for (size_t i = 0; i < sm->n; i++)
+            if (strncmp(sm->entries[i].key, r.key, plen) == 0)
+                keys[r.nkeys++] = sm->entries[i].key;
+        r.keys = keys;
+        r.version = sm->version;
+        rc = 0;
+        break;
+    }
+    default:
+        rc = -EINVAL;
+        break;
+    }
+    r.status = status_of(rc);
+    if (rc == -EINVAL || rc == -EBADMSG || rc == -EFBIG) {
+        sm->stats.bad_requests++;
+        ca_note(&sm->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
+                "request %lld from '%s' (op %d, key '%.64s') refused: %s", (long long)req->request_id,
+                r.client, req->op, r.key, strerror(-rc));
+    }
+    send_reply(sm, req->reply_channel, &r);
+    free(keys);
+    if (sm->snap_due)
+        sharedmap_tick(sm, now);
+    return rc;
+}
+
+int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, int64_t now)
+{
+    marie_sharedmap_request_t req;
+    if (ca_view_sharedmap_request(buf, len, &req) < 0) {
+        sm->stats.bad_requests++;
+        int64_t fp = 0;
+        ca_fingerprint(buf, len, &fp);
+        ca_note(&sm->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
+                "undecodable SharedMap request (%zu bytes, fingerprint %016llx)", len,
+                (unsigned long long)fp);
+        return -EBADMSG;
+    }
+    return sharedmap_handle_request(sm, &req, now);
+}
+
+void sharedmap_set_snapshot(sharedmap_t *sm, const char *channel, const char *source,
+                            int64_t min_interval_us)
+{
+    free(sm->snap_channel);
+    free(sm->snap_source);
+    sm->snap_channel = channel && *channel ? strdup(channel) : NULL;
+    sm->snap_source = strdup(source ? source : "");
+    sm->snap_min_interval = min_interval_us;
+}
+
+int sharedmap_publish_snapshot(sharedmap_t *sm, int64_t now)
+{
+    if (!sm->snap_channel)
+        return 0;
+    marie_sharedmap_entry_t *es = calloc(sm->n ? sm->n : 1, sizeof *es);
+    if (!es)
+        return -ENOMEM;
+    for (size_t i = 0; i < sm->n; i++) {
+        const entry_t *e = &sm->entries[i];
+        es[i] = (marie_sharedmap_entry_t){ e->key, e->type, e->version, e->set_utime,
+                                           (int32_t)e->len, e->data };
+    }
+    marie_sharedmap_snapshot_t s = { .utime = now, .source = sm->snap_source,
+                                     .version = sm->version, .nentries = (int32_t)sm->n,
+                                     .entries = es };
+    int rc = -ENOMEM;
+    int need = marie_sharedmap_snapshot_t_encoded_size(&s);
+    if (need >= 0 && grow(sm, (size_t)need) == 0) {
+        int n = marie_sharedmap_snapshot_t_encode(sm->buf, 0, need, &s);
+        rc = n < 0 ? -EINVAL : ca_publish(&sm->sink, sm->snap_channel, sm->buf, (size_t)n);
+    }
+    free(es);
+    sm->snap_due = 0;
+    sm->snap_last = now;
+    sm->stats.snapshots++;
+    return rc;
+}
+
+void sharedmap_tick(sharedmap_t *sm, int64_t now)
+{
+    if (sm->snap_due && now - sm->snap_last >= sm->snap_min_interval)
+        sharedmap_publish_snapshot(sm, now);
+}
+
+static void on_request(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    sharedmap_handle_request_raw(user, rbuf->data, rbuf->data_size, marie_wall_us());
+}
+
+int sharedmap_attach(sharedmap_t *sm, lcm_t *lcm, const char *request_channel)
+{
+    if (sm->lcm)
+        return -EALREADY;
+    char *pat = ca_channel_pattern(request_channel);
+    if (!pat)
+        return -ENOMEM;
+    sm->sub = lcm_subscribe(lcm, pat, on_request, sm);
+    free(pat);
+    if (!sm->sub)
+        return -EIO;
+    sm->lcm = lcm;
+    sm->sink.lcm = lcm;
+    return 0;
+}
+
+void sharedmap_detach(sharedmap_t *sm)
+{
+    if (!sm->lcm)
+        return;
+    lcm_unsubscribe(sm->lcm, sm->sub);
+    sm->sub = NULL;
+    sm->lcm = NULL;
+}

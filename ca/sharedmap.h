@@ -1,0 +1,87 @@
+/* sharedmap: a durable key-value store of typed LCM payloads, served over LCM requests. */
+#ifndef MARIE_CA_SHAREDMAP_H
+#define MARIE_CA_SHAREDMAP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ca/ca.h"
+#include "lcmtypes/marie_sharedmap_request_t.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sharedmap sharedmap_t;
+
+/* Limits on what a request may store. */
+#define SHAREDMAP_MAX_KEY   256
+#define SHAREDMAP_MAX_TYPE  128
+#define SHAREDMAP_MAX_VALUE (1 << 20)
+
+typedef struct {
+    const char *key;
+    const char *type;           /* LCM type name given by the writer */
+    const void *data;           /* the payload, fingerprint first */
+    size_t len;
+    int64_t version;            /* map version when the key last changed */
+    int64_t set_utime;
+} sharedmap_value_t;
+
+typedef struct {
+    int64_t requests, bad_requests, sets, gets, deletes, lists;
+    int64_t fsyncs, compactions, io_errors;
+    int64_t records_loaded, tail_bytes_dropped;   /* at open */
+    int64_t snapshots;
+} sharedmap_stats_t;
+
+/* Open the store persisted in the append-only log `path` (NULL: memory only), replaying it.
+ * PATH.lock is held locked while open: a second SharedMap on the same log gets EBUSY.
+ * A torn last record (the write being made when the process died) is cut off; it was never
+ * acknowledged. Replies go to sink->publish/lcm, counters to sink->note. NULL with errno. */
+sharedmap_t *sharedmap_open(const char *path, const ca_sink_t *sink);
+void sharedmap_close(sharedmap_t *sm);          /* NULL is a no-op */
+
+/* Store operations. set/delete return only once the change is on disk (fdatasync).
+ * set: 0, -EINVAL (empty/oversized key, short payload), -EBADMSG (payload is not `type`,
+ * when `type` is a registered marie type), -EFBIG, -EIO. delete: 0, -ENOENT, -EIO. */
+int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void *data,
+                  size_t len, int64_t now);
+int sharedmap_delete(sharedmap_t *sm, const char *key);
+/* The value of `key`; pointers stay valid until the next change. 0 or -ENOENT. */
+int sharedmap_get(const sharedmap_t *sm, const char *key, sharedmap_value_t *out);
+size_t sharedmap_size(const sharedmap_t *sm);
+/* The i-th entry in key order. */
+int sharedmap_entry(const sharedmap_t *sm, size_t i, sharedmap_value_t *out);
+int64_t sharedmap_version(const sharedmap_t *sm);
+
+/* Rewrite the log holding only live entries (temporary file, fsync, rename, fsync of the
+ * directory). Done automatically when the log holds more than 2 x keys + min_records
+ * records (min_records defaults to SHAREDMAP_COMPACT_MIN). */
+int sharedmap_compact(sharedmap_t *sm);
+#define SHAREDMAP_COMPACT_MIN 1024
+void sharedmap_set_compaction(sharedmap_t *sm, int64_t min_records);
+
+/* Request protocol: decode, apply, and answer on the request's reply channel. Undecodable
+ * bytes are counted and dropped (-EBADMSG); invalid requests are answered BAD_REQUEST or
+ * BAD_TYPE. A change marks the snapshot due. */
+int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *req, int64_t now);
+int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, int64_t now);
+
+/* Snapshots: published on `channel` (NULL: none) after a change, at most once every
+ * min_interval_us; sharedmap_tick() sends one that was held back. */
+void sharedmap_set_snapshot(sharedmap_t *sm, const char *channel, const char *source,
+                            int64_t min_interval_us);
+int sharedmap_publish_snapshot(sharedmap_t *sm, int64_t now);
+void sharedmap_tick(sharedmap_t *sm, int64_t now);
+
+const sharedmap_stats_t *sharedmap_stats(const sharedmap_t *sm);
+
+/* Serve requests arriving on `request_channel` over `lcm`. 0 or -errno. */
+int sharedmap_attach(sharedmap_t *sm, lcm_t *lcm, const char *request_channel);
+void sharedmap_detach(sharedmap_t *sm);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,265 @@
+/* sharedmap_client: synchronous request/reply over LCM, matched by request id. */
+#include "ca/sharedmap_client.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "ca/ca.h"
+#include "core/time.h"
+#include "lcmtypes/marie_sharedmap_reply_t.h"
+#include "lcmtypes/marie_sharedmap_request_t.h"
+
+struct sharedmap_client {
+    lcm_t *lcm;
+    char *request_channel;
+    char *reply_channel;
+    char *name;
+    lcm_subscription_t *sub;
+    int64_t next_id;
+    int64_t waiting_id;             /* 0: none */
+    marie_sharedmap_reply_t *reply; /* view of the matching reply (into reply_buf), or NULL */
+    marie_sharedmap_reply_t view;
+    uint8_t *reply_buf;
+    int64_t timeouts, strays, bad;
+};
+
+static void drop_reply(sharedmap_client_t *cl)
+{
+    if (cl->reply)
+        free(cl->view.keys);
+    free(cl->reply_buf);
+    cl->reply_buf = NULL;
+    cl->reply = NULL;
+}
+
+static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    sharedmap_client_t *cl = user;
+    marie_sharedmap_reply_t msg;
+    if (ca_view_sharedmap_reply(rbuf->data, rbuf->data_size, &msg) < 0) {
+        cl->bad++;
+        return;
+    }
+    int64_t id = msg.request_id;
+    free(msg.keys);
+    if (cl->waiting_id == 0 || id != cl->waiting_id || cl->reply) {
+        cl->strays++;
+        return;
+    }
+    /* Keep the bytes; the view points into them. */
+    uint8_t *copy = malloc(rbuf->data_size ? rbuf->data_size : 1);
+    if (!copy)
+        return;
+    memcpy(copy, rbuf->data, rbuf->data_size);
+    if (ca_view_sharedmap_reply(copy, rbuf->data_size, &cl->view) < 0) {
+        free(copy);
+        return;
+    }
+    cl->reply_buf = copy;
+    cl->reply = &cl->view;
+}
+
+sharedmap_client_t *sharedmap_client_create(lcm_t *lcm, const char *request_channel, const char *name)
+{
+    sharedmap_client_t *cl = calloc(1, sizeof *cl);
+    if (!cl)
+        return NULL;
+    static int instance;
+    char rc[256];
+    cl->lcm = lcm;
+    cl->name = strdup(name ? name : "client");
+    cl->request_channel = strdup(request_channel ? request_channel : SHAREDMAP_DEFAULT_CHANNEL);
+    snprintf(rc, sizeof rc, "%s.REPLY.%s.%d.%d", cl->request_channel, cl->name, (int)getpid(), instance++);
+    cl->reply_channel = strdup(rc);
+    char *pat = cl->reply_channel ? ca_channel_pattern(cl->reply_channel) : NULL;
+    if (!cl->name || !cl->request_channel || !pat)
+        goto err;
+    cl->sub = lcm_subscribe(lcm, pat, on_reply, cl);
+    free(pat);
+    if (!cl->sub)
+        goto err;
+    /* Ids unique across restarts of the client, so a late reply to an earlier run never
+     * matches a new request. */
+    cl->next_id = (marie_wall_us() & 0x3fffffffffffll) << 8;
+    return cl;
+err:
+    sharedmap_client_destroy(cl);
+    errno = ENOMEM;
+    return NULL;
+}
+
+void sharedmap_client_destroy(sharedmap_client_t *cl)
+{
+    if (!cl)
+        return;
+    if (cl->sub)
+        lcm_unsubscribe(cl->lcm, cl->sub);
+    drop_reply(cl);
+    free(cl->request_channel);
+    free(cl->reply_channel);
+    free(cl->name);
+    free(cl);
+}
+
+int64_t sharedmap_client_timeouts(const sharedmap_client_t *cl) { return cl->timeouts; }
+int64_t sharedmap_client_stray_replies(const sharedmap_client_t *cl) { return cl->strays + cl->bad; }
+
+static int rc_of(int8_t status)
+{
+    switch (status) {
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_OK: return 0;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_NOT_FOUND: return -ENOENT;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_REQUEST: return -EINVAL;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_TYPE: return -EBADMSG;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_TOO_LARGE: return -EFBIG;
+    default: return -EIO;
+    }
+}
+
+/* Send req, wait for its reply (left in cl->reply) and return its status as -errno. */
+static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int timeout_ms)
+{
+    drop_reply(cl);
+    req->utime = marie_wall_us();
+    req->request_id = ++cl->next_id;
+    req->client = cl->name;
+    req->reply_channel = cl->reply_channel;
+    if (!req->key)
+        req->key = "";
+    if (!req->type)
+        req->type = "";
+    if (!req->data)
+        req->data = (uint8_t *)"";  /* lcm-gen's encoder memcpy()s even 0 bytes */
+    cl->waiting_id = req->request_id;
+    if (marie_sharedmap_request_t_publish(cl->lcm, cl->request_channel, req) < 0) {
+        cl->waiting_id = 0;
+        return -EIO;
+    }
+    int64_t deadline = marie_mono_us() + (int64_t)timeout_ms * 1000;
+    while (!cl->reply) {
+        int64_t left = deadline - marie_mono_us();
+        if (left <= 0)
+            break;
+        int ms = (int)((left + 999) / 1000);
+        if (lcm_handle_timeout(cl->lcm, ms) < 0)
+            break;
+    }
+    cl->waiting_id = 0;
+    if (!cl->reply) {
+        cl->timeouts++;
+        return -ETIMEDOUT;
+    }
+    return rc_of(cl->reply->status);
+}
+
+int sharedmap_client_set_raw(sharedmap_client_t *cl, const char *key, const char *type_name,
+                             const void *data, size_t len, int timeout_ms, int64_t *version)
+{
+    if (len > INT32_MAX)
+        return -EFBIG;
+    marie_sharedmap_request_t req = {
+        .op = MARIE_SHAREDMAP_REQUEST_T_OP_SET, .key = (char *)key, .type = (char *)type_name,
+        .size = (int32_t)len, .data = (uint8_t *)data,
+    };
+    int rc = call(cl, &req, timeout_ms);
+    if (rc == 0 && version)
+        *version = cl->reply->version;
+    return rc;
+}
+
+int sharedmap_client_set(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
+                         const void *msg, int timeout_ms)
+{
+    int n = type->encoded_size(msg);
+    if (n < 0)
+        return -EINVAL;
+    uint8_t *buf = malloc((size_t)n);
+    if (!buf)
+        return -ENOMEM;
+    int rc = -EINVAL;
+    if (type->encode(buf, 0, n, msg) == n)
+        rc = sharedmap_client_set_raw(cl, key, type->name, buf, (size_t)n, timeout_ms, NULL);
+    free(buf);
+    return rc;
+}
+
+int sharedmap_client_get_raw(sharedmap_client_t *cl, const char *key, void **data, size_t *len,
+                             char *type_name, size_t type_cap, int timeout_ms, int64_t *age_us)
+{
+    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_GET, .key = (char *)key };
+    int rc = call(cl, &req, timeout_ms);
+    if (rc < 0)
+        return rc;
+    const marie_sharedmap_reply_t *r = cl->reply;
+    if (r->size < 0)
+        return -EBADMSG;
+    if (data) {
+        *data = malloc(r->size ? (size_t)r->size : 1);
+        if (!*data)
+            return -ENOMEM;
+        memcpy(*data, r->data, (size_t)r->size);
+    }
+    if (len)
+        *len = (size_t)r->size;
+    if (type_name && type_cap)
+        snprintf(type_name, type_cap, "%s", r->type);
+    if (age_us)
+        *age_us = r->age_us;
+    return 0;
+}
+
+int sharedmap_client_get(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
+                         void *msg, int timeout_ms, int64_t *age_us)
+{
+    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_GET, .key = (char *)key };
+    int rc = call(cl, &req, timeout_ms);
+    if (rc < 0)
+        return rc;
+    const marie_sharedmap_reply_t *r = cl->reply;
+    if (ca_check_type(type, r->data, r->size < 0 ? 0 : (size_t)r->size) < 0 ||
+        type->decode(r->data, 0, r->size, msg) < 0)
+        return -EBADMSG;
+    if (age_us)
+        *age_us = r->age_us;
+    return 0;
+}
+
+int sharedmap_client_delete(sharedmap_client_t *cl, const char *key, int timeout_ms)
+{
+    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_DELETE, .key = (char *)key };
+    return call(cl, &req, timeout_ms);
+}
+
+void sharedmap_client_free_keys(char **keys, size_t n)
+{
+    for (size_t i = 0; keys && i < n; i++)
+        free(keys[i]);
+    free(keys);
+}
+
+int sharedmap_client_list(sharedmap_client_t *cl, const char *prefix, char ***keys, size_t *n,
+                          int timeout_ms)
+{
+    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_LIST, .key = (char *)prefix };
+    int rc = call(cl, &req, timeout_ms);
+    if (rc < 0)
+        return rc;
+    const marie_sharedmap_reply_t *r = cl->reply;
+    size_t k = r->nkeys > 0 ? (size_t)r->nkeys : 0;
+    char **out = calloc(k ? k : 1, sizeof *out);
+    if (!out)
+        return -ENOMEM;
+    for (size_t i = 0; i < k; i++) {
+        out[i] = strdup(r->keys[i]);
+        if (!out[i]) {
+            sharedmap_client_free_keys(out, i);
+            return -ENOMEM;
+        }
+    }
+    *keys = out;
+    *n = k;
+    return 0;
+}

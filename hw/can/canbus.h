@@ -1,0 +1,39 @@
+/* canbus: the emulated CAN bus: an AF_UNIX SOCK_SEQPACKET server relaying every frame a
+ * client writes to all other clients, as a real bus (and SocketCAN's loopback) would. */
+#ifndef MARIE_HW_CANBUS_H
+#define MARIE_HW_CANBUS_H
+
+#include <stdint.h>
+#include <linux/can.h>
+#include <linux/can/error.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct can_emubus can_emubus_t;
+
+typedef struct {
+    uint64_t clients;           /* connections accepted so far */
+    uint64_t frames;            /* frames received from clients */
+    uint64_t delivered;         /* frame copies handed to clients */
+    uint64_t overflow;          /* copies dropped: a client's queue was full (like RX overflow) */
+    uint64_t bad;               /* packets that are not a CAN / CAN FD frame */
+} can_emubus_stats_t;
+
+/* Listen on `path` (an existing socket file is replaced). NULL with errno. */
+can_emubus_t *can_emubus_create(const char *path);
+void can_emubus_destroy(can_emubus_t *b);          /* NULL is a no-op; unlinks the path */
+/* One pollable fd (epoll) for the whole bus: when readable, call can_emubus_process(). */
+int can_emubus_fd(const can_emubus_t *b);
+/* Accept, relay and drop clients without blocking. Returns frames relayed or -errno. */
+int can_emubus_process(can_emubus_t *b);
+/* Put a frame on the bus from the bus itself (e.g. an error frame): every client gets it. */
+int can_emubus_inject(can_emubus_t *b, const struct can_frame *f);
+int can_emubus_nclients(const can_emubus_t *b);
+const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

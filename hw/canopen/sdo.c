@@ -1,0 +1,374 @@
+/* sdo: SDO protocol (CiA 301 7.2.4.3): expedited and segmented upload and download. */
+#include "hw/canopen/sdo.h"
+
+#include <errno.h>
+#include <string.h>
+
+#include "hw/canopen/co.h"
+
+/* Command specifiers (top three bits of byte 0). */
+#define CCS_DN_SEG  0   /* client: download segment */
+#define CCS_DN_INIT 1
+#define CCS_UP_INIT 2
+#define CCS_UP_SEG  3
+#define CS_ABORT    4
+#define SCS_UP_SEG  0   /* server: upload segment */
+#define SCS_DN_SEG  1
+#define SCS_UP_INIT 2
+#define SCS_DN_INIT 3
+
+enum { ST_IDLE = 0, ST_DN_INIT, ST_DN_SEG, ST_UP_INIT, ST_UP_SEG };
+
+const char *co_sdo_abort_str(uint32_t code)
+{
+    switch (code) {
+    case 0: return "ok";
+    case CO_SDO_ABORT_TOGGLE: return "toggle bit not alternated";
+    case CO_SDO_ABORT_TIMEOUT: return "SDO protocol timed out";
+    case CO_SDO_ABORT_CMD: return "command specifier not valid or unknown";
+    case CO_SDO_ABORT_NO_MEM: return "out of memory";
+    case CO_SDO_ABORT_WRITE_ONLY: return "attempt to read a write only object";
+    case CO_SDO_ABORT_READ_ONLY: return "attempt to write a read only object";
+    case CO_SDO_ABORT_NO_OBJECT: return "object does not exist in the object dictionary";
+    case CO_SDO_ABORT_TYPE_LEN: return "data type does not match, length does not match";
+    case CO_SDO_ABORT_TOO_LONG: return "data type does not match, length too high";
+    case CO_SDO_ABORT_TOO_SHORT: return "data type does not match, length too low";
+    case CO_SDO_ABORT_NO_SUB: return "sub-index does not exist";
+    case CO_SDO_ABORT_RANGE: return "invalid value for parameter";
+    case CO_SDO_ABORT_GENERAL: return "general error";
+    case CO_SDO_ABORT_STATE: return "not possible in the present device state";
+    }
+    return "unknown abort code";
+}
+
+static void mux(uint8_t *d, uint16_t index, uint8_t sub)
+{
+    co_put_u16(d + 1, index);
+    d[3] = sub;
+}
+
+static void abort_frame(struct can_frame *tx, canid_t id, uint16_t index, uint8_t sub, uint32_t code)
+{
+    uint8_t d[8] = { CS_ABORT << 5 };
+    mux(d, index, sub);
+    co_put_u32(d + 4, code);
+    co_frame_set(tx, id, d, 8);
+}
+
+/* ---- client ---- */
+
+void co_sdo_client_init(co_sdo_client_t *c, uint8_t node, int64_t timeout_us, co_sdo_done_cb_t cb, void *user)
+{
+    memset(c, 0, sizeof *c);
+    c->node = node;
+    c->timeout_us = timeout_us;
+    c->cb = cb;
+    c->user = user;
+}
+
+bool co_sdo_client_busy(const co_sdo_client_t *c) { return c->state != ST_IDLE; }
+
+static canid_t cli_tx_id(const co_sdo_client_t *c) { return CO_COB_SDO_RX + c->node; }
+
+static void cli_finish(co_sdo_client_t *c, uint32_t abort, const uint8_t *data, size_t len)
+{
+    c->state = ST_IDLE;
+    if (c->cb)
+        c->cb(c->user, c, c->index, c->sub, abort, data, len);
+}
+
+int co_sdo_client_upload(co_sdo_client_t *c, uint16_t index, uint8_t sub, int64_t now, struct can_frame *tx)
+{
+    if (c->state != ST_IDLE)
+        return -EBUSY;
+    uint8_t d[8] = { CCS_UP_INIT << 5 };
+    mux(d, index, sub);
+    co_frame_set(tx, cli_tx_id(c), d, 8);
+    c->index = index;
+    c->sub = sub;
+    c->len = c->pos = c->expect = 0;
+    c->state = ST_UP_INIT;
+    c->deadline = now + c->timeout_us;
+    return 0;
+}
+
+int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, const void *data, size_t len,
+                           int64_t now, struct can_frame *tx)
+{
+    if (c->state != ST_IDLE)
+        return -EBUSY;
+    if (len > CO_SDO_MAX || len == 0)
+        return -EMSGSIZE;
+    uint8_t d[8] = { 0 };
+    mux(d, index, sub);
+    if (len <= 4) {
+        /* expedited, size indicated: n = 4 - len unused bytes */
+        d[0] = (uint8_t)(CCS_DN_INIT << 5 | (4 - len) << 2 | 0x03);
+        memcpy(d + 4, data, len);
+    } else {
+        d[0] = CCS_DN_INIT << 5 | 0x01;
+        co_put_u32(d + 4, (uint32_t)len);
+    }
+    co_frame_set(tx, cli_tx_id(c), d, 8);
+    c->index = index;
+    c->sub = sub;
+    memcpy(c->buf, data, len);
+    c->len = len;
+    c->pos = 0;
+    c->toggle = 0;
+    c->state = ST_DN_INIT;
+    c->deadline = now + c->timeout_us;
+    return 0;
+}
+
+static void cli_next_dn_segment(co_sdo_client_t *c, struct can_frame *tx)
+{
+    size_t n = c->len - c->pos;
+    if (n > 7)
+        n = 7;
+    uint8_t d[8] = { 0 };
+    bool last = c->pos + n == c->len;
+    d[0] = (uint8_t)(CCS_DN_SEG << 5 | c->toggle << 4 | (7 - n) << 1 | (last ? 1 : 0));
+    memcpy(d + 1, c->buf + c->pos, n);
+    c->pos += n;
+    co_frame_set(tx, cli_tx_id(c), d, 8);
+}
+
+static int cli_protocol_error(co_sdo_client_t *c, uint32_t code, struct can_frame *tx, bool *tx_ready)
+{
+    abort_frame(tx, cli_tx_id(c), c->index, c->sub, code);
+    *tx_ready = true;
+    cli_finish(c, code, NULL, 0);
+    return -EBADMSG;
+}
+
+int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t now,
+                       struct can_frame *tx, bool *tx_ready)
+{
+    *tx_ready = false;
+    if (rx->can_id != (canid_t)(CO_COB_SDO_TX + c->node) || c->state == ST_IDLE)
+        return 0;
+    if (rx->len != 8)
+        return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
+    const uint8_t *d = rx->data;
+    int scs = d[0] >> 5;
+    if (scs == CS_ABORT) {
+        cli_finish(c, co_get_u32(d + 4), NULL, 0);
+        return 0;
+    }
+    bool mux_ok = co_get_u16(d + 1) == c->index && d[3] == c->sub;
+    /* An initiate response for another object is a late answer to an earlier transfer
+     * (e.g. one cut short by a node reset): ignore it and keep waiting for ours. */
+    if ((scs == SCS_UP_INIT || scs == SCS_DN_INIT) && !mux_ok &&
+        (c->state == ST_UP_INIT || c->state == ST_DN_INIT))
+        return 0;
+    c->deadline = now + c->timeout_us;
+    switch (c->state) {
+    case ST_DN_INIT:
+        if (scs != SCS_DN_INIT || !mux_ok)
+            return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
+        if (c->len <= 4) {
+            cli_finish(c, 0, NULL, 0);
+            return 0;
+        }
+        c->state = ST_DN_SEG;
+        cli_next_dn_segment(c, tx);
+        *tx_ready = true;
+        return 1;
+    case ST_DN_SEG:
+        if (scs != SCS_DN_SEG)
+            return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
+        if (((d[0] >> 4) & 1) != c->toggle)
+            return cli_protocol_error(c, CO_SDO_ABORT_TOGGLE, tx, tx_ready);
+        c->toggle ^= 1;
+        if (c->pos == c->len) {
+            cli_finish(c, 0, NULL, 0);
+            return 0;
+        }
+        cli_next_dn_segment(c, tx);
+        *tx_ready = true;
+        return 1;
+    case ST_UP_INIT: {
+        if (scs != SCS_UP_INIT || !mux_ok)
+            return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
+        bool e = d[0] & 0x02, s = d[0] & 0x01;
+        if (e) {
+            size_t n = s ? 4 - ((d[0] >> 2) & 3) : 4;
+            memcpy(c->buf, d + 4, n);
+            cli_finish(c, 0, c->buf, n);
+            return 0;
+        }
+        c->expect = s ? co_get_u32(d + 4) : CO_SDO_MAX;
+        if (c->expect > CO_SDO_MAX)
+            return cli_protocol_error(c, CO_SDO_ABORT_NO_MEM, tx, tx_ready);
+        c->len = 0;
+        c->toggle = 0;
+        c->state = ST_UP_SEG;
+        uint8_t q[8] = { CCS_UP_SEG << 5 };
+        co_frame_set(tx, cli_tx_id(c), q, 8);
+        *tx_ready = true;
+        return 1;
+    }
+    case ST_UP_SEG: {
+        if (scs != SCS_UP_SEG)
+            return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
+        if (((d[0] >> 4) & 1) != c->toggle)
+            return cli_protocol_error(c, CO_SDO_ABORT_TOGGLE, tx, tx_ready);
+        size_t n = 7 - ((d[0] >> 1) & 7);
+        bool last = d[0] & 1;
+        if (c->len + n > CO_SDO_MAX || c->len + n > c->expect)
+            return cli_protocol_error(c, CO_SDO_ABORT_TOO_LONG, tx, tx_ready);
+        memcpy(c->buf + c->len, d + 1, n);
+        c->len += n;
+        c->toggle ^= 1;
+        if (last) {
+            if (c->expect != CO_SDO_MAX && c->len != c->expect)
+                return cli_protocol_error(c, CO_SDO_ABORT_TOO_SHORT, tx, tx_ready);
+            cli_finish(c, 0, c->buf, c->len);
+            return 0;
+        }
+        uint8_t q[8] = { (uint8_t)(CCS_UP_SEG << 5 | c->toggle << 4) };
+        co_frame_set(tx, cli_tx_id(c), q, 8);
+        *tx_ready = true;
+        return 1;
+    }
+    }
+    return 0;
+}
+
+int co_sdo_client_poll(co_sdo_client_t *c, int64_t now, struct can_frame *tx)
+{
+    if (c->state == ST_IDLE || now < c->deadline)
+        return 0;
+    abort_frame(tx, cli_tx_id(c), c->index, c->sub, CO_SDO_ABORT_TIMEOUT);
+    cli_finish(c, CO_SDO_ABORT_TIMEOUT, NULL, 0);
+    return 1;
+}
+
+/* ---- server ---- */
+
+void co_sdo_server_init(co_sdo_server_t *s, uint8_t node, const co_sdo_server_ops_t *ops, void *user)
+{
+    memset(s, 0, sizeof *s);
+    s->node = node;
+    s->ops = ops;
+    s->user = user;
+}
+
+static int srv_abort(co_sdo_server_t *s, struct can_frame *tx, uint16_t index, uint8_t sub, uint32_t code)
+{
+    abort_frame(tx, CO_COB_SDO_TX + s->node, index, sub, code);
+    s->state = ST_IDLE;
+    return 1;
+}
+
+int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct can_frame *tx)
+{
+    if (rx->can_id != (canid_t)(CO_COB_SDO_RX + s->node))
+        return 0;
+    canid_t txid = CO_COB_SDO_TX + s->node;
+    if (rx->len != 8)
+        return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_CMD);
+    const uint8_t *d = rx->data;
+    int ccs = d[0] >> 5;
+    uint16_t index = co_get_u16(d + 1);
+    uint8_t sub = d[3];
+    uint8_t r[8] = { 0 };
+
+    switch (ccs) {
+    case CS_ABORT:
+        s->state = ST_IDLE;
+        return 0;
+    case CCS_DN_INIT: {
+        s->index = index;
+        s->sub = sub;
+        bool e = d[0] & 0x02, sz = d[0] & 0x01;
+        if (e) {
+            size_t n = sz ? 4 - ((d[0] >> 2) & 3) : 4;
+            uint32_t ab = s->ops->write(s->user, index, sub, d + 4, n);
+            if (ab)
+                return srv_abort(s, tx, index, sub, ab);
+            s->state = ST_IDLE;
+        } else {
+            s->expect = sz ? co_get_u32(d + 4) : CO_SDO_MAX;
+            if (s->expect > CO_SDO_MAX)
+                return srv_abort(s, tx, index, sub, CO_SDO_ABORT_NO_MEM);
+            s->len = 0;
+            s->toggle = 0;
+            s->state = ST_DN_SEG;
+        }
+        r[0] = SCS_DN_INIT << 5;
+        mux(r, index, sub);
+        co_frame_set(tx, txid, r, 8);
+        return 1;
+    }
+    case CCS_DN_SEG: {
+        if (s->state != ST_DN_SEG)
+            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_CMD);
+        uint8_t t = (d[0] >> 4) & 1;
+        if (t != s->toggle)
+            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOGGLE);
+        size_t n = 7 - ((d[0] >> 1) & 7);
+        if (s->len + n > CO_SDO_MAX || s->len + n > s->expect)
+            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOO_LONG);
+        memcpy(s->buf + s->len, d + 1, n);
+        s->len += n;
+        s->toggle ^= 1;
+        if (d[0] & 1) {
+            if (s->expect != CO_SDO_MAX && s->len != s->expect)
+                return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOO_SHORT);
+            uint32_t ab = s->ops->write(s->user, s->index, s->sub, s->buf, s->len);
+            if (ab)
+                return srv_abort(s, tx, s->index, s->sub, ab);
+            s->state = ST_IDLE;
+        }
+        r[0] = (uint8_t)(SCS_DN_SEG << 5 | t << 4);
+        co_frame_set(tx, txid, r, 8);
+        return 1;
+    }
+    case CCS_UP_INIT: {
+        s->index = index;
+        s->sub = sub;
+        size_t len = 0;
+        uint32_t ab = s->ops->read(s->user, index, sub, s->buf, sizeof s->buf, &len);
+        if (ab)
+            return srv_abort(s, tx, index, sub, ab);
+        mux(r, index, sub);
+        if (len <= 4 && len > 0) {
+            r[0] = (uint8_t)(SCS_UP_INIT << 5 | (4 - len) << 2 | 0x03);
+            memcpy(r + 4, s->buf, len);
+            s->state = ST_IDLE;
+        } else {
+            r[0] = SCS_UP_INIT << 5 | 0x01;
+            co_put_u32(r + 4, (uint32_t)len);
+            s->len = len;
+            s->pos = 0;
+            s->toggle = 0;
+            s->state = ST_UP_SEG;
+        }
+        co_frame_set(tx, txid, r, 8);
+        return 1;
+    }
+    case CCS_UP_SEG: {
+        if (s->state != ST_UP_SEG)
+            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_CMD);
+        uint8_t t = (d[0] >> 4) & 1;
+        if (t != s->toggle)
+            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOGGLE);
+        size_t n = s->len - s->pos;
+        if (n > 7)
+            n = 7;
+        bool last = s->pos + n == s->len;
+        r[0] = (uint8_t)(SCS_UP_SEG << 5 | t << 4 | (7 - n) << 1 | (last ? 1 : 0));
+        memcpy(r + 1, s->buf + s->pos, n);
+        s->pos += n;
+        s->toggle ^= 1;
+        if (last)
+            s->state = ST_IDLE;
+        co_frame_set(tx, txid, r, 8);
+        return 1;
+    }
+    default:
+        return srv_abort(s, tx, index, sub, CO_SDO_ABORT_CMD);
+    }
+}

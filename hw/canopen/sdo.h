@@ -1,0 +1,101 @@
+/* sdo: CANopen SDO client and server (expedited and segmented transfers, aborts, timeouts).
+ * Pure state machines: a received frame goes in, the answer comes out in the caller's frame. */
+#ifndef MARIE_HW_CO_SDO_H
+#define MARIE_HW_CO_SDO_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <linux/can.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Abort codes (CiA 301 table 22) used by marie. */
+#define CO_SDO_ABORT_TOGGLE        0x05030000u
+#define CO_SDO_ABORT_TIMEOUT       0x05040000u
+#define CO_SDO_ABORT_CMD           0x05040001u
+#define CO_SDO_ABORT_NO_MEM        0x05040005u
+#define CO_SDO_ABORT_WRITE_ONLY    0x06010001u
+#define CO_SDO_ABORT_READ_ONLY     0x06010002u
+#define CO_SDO_ABORT_NO_OBJECT     0x06020000u
+#define CO_SDO_ABORT_TYPE_LEN      0x06070010u
+#define CO_SDO_ABORT_TOO_LONG      0x06070012u
+#define CO_SDO_ABORT_TOO_SHORT     0x06070013u
+#define CO_SDO_ABORT_NO_SUB        0x06090011u
+#define CO_SDO_ABORT_RANGE         0x06090030u
+#define CO_SDO_ABORT_GENERAL       0x08000000u
+#define CO_SDO_ABORT_STATE         0x08000022u
+
+const char *co_sdo_abort_str(uint32_t code);
+
+/* Largest object a transfer carries (device names, mapping tables). */
+#define CO_SDO_MAX 256
+
+/* ---- client ---- */
+typedef struct co_sdo_client co_sdo_client_t;
+/* A transfer ended: abort == 0 and data/len (the uploaded value; len 0 for a download) on
+ * success, else the abort code (CO_SDO_ABORT_TIMEOUT when the server stayed silent). The
+ * callback must not start another transfer on the same client. */
+typedef void (*co_sdo_done_cb_t)(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub,
+                                 uint32_t abort, const uint8_t *data, size_t len);
+
+struct co_sdo_client {
+    uint8_t node;
+    int64_t timeout_us;
+    co_sdo_done_cb_t cb;
+    void *user;
+    /* private */
+    int state;
+    uint16_t index;
+    uint8_t sub;
+    uint8_t toggle;
+    uint8_t buf[CO_SDO_MAX];
+    size_t len, pos, expect;
+    int64_t deadline;
+};
+
+void co_sdo_client_init(co_sdo_client_t *c, uint8_t node, int64_t timeout_us, co_sdo_done_cb_t cb, void *user);
+bool co_sdo_client_busy(const co_sdo_client_t *c);
+/* Start a transfer; the request is written to *tx. 0, -EBUSY, -EMSGSIZE. */
+int co_sdo_client_upload(co_sdo_client_t *c, uint16_t index, uint8_t sub, int64_t now, struct can_frame *tx);
+int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, const void *data, size_t len,
+                           int64_t now, struct can_frame *tx);
+/* A frame from the bus: 1 with *tx to send, 0 consumed without answer (or not ours),
+ * -EBADMSG when a response from our server made no sense (the transfer is aborted and the
+ * abort frame is in *tx, return still -EBADMSG so the caller counts it; *tx_ready set). */
+int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t now,
+                       struct can_frame *tx, bool *tx_ready);
+/* Timeouts: 1 with the abort frame in *tx when the transfer timed out (the callback ran). */
+int co_sdo_client_poll(co_sdo_client_t *c, int64_t now, struct can_frame *tx);
+
+/* ---- server ---- */
+/* Object access for the server. read: copy the value into buf (cap bytes), set *len; write:
+ * take len bytes. Both return 0 or an abort code. */
+typedef struct {
+    uint32_t (*read)(void *user, uint16_t index, uint8_t sub, uint8_t *buf, size_t cap, size_t *len);
+    uint32_t (*write)(void *user, uint16_t index, uint8_t sub, const uint8_t *data, size_t len);
+} co_sdo_server_ops_t;
+
+typedef struct {
+    uint8_t node;
+    const co_sdo_server_ops_t *ops;
+    void *user;
+    /* private */
+    int state;
+    uint16_t index;
+    uint8_t sub;
+    uint8_t toggle;
+    uint8_t buf[CO_SDO_MAX];
+    size_t len, pos, expect;
+} co_sdo_server_t;
+
+void co_sdo_server_init(co_sdo_server_t *s, uint8_t node, const co_sdo_server_ops_t *ops, void *user);
+/* A frame from the bus: 1 with *tx to send, 0 when it is not an SDO request to this node. */
+int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct can_frame *tx);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

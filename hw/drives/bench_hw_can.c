@@ -1,0 +1,214 @@
+/* bench_hw_can: motor command to CAN frame latency (LCM publish -> RPDO1 on the emulated
+ * bus, p50/p99) and CPU and RSS of marie-drives and marie-gyro at their nominal rates
+ * (50 Hz SYNC, 20 Hz encoders, 50 Hz gyro), against marie-vcan-devices on marie-canbus. */
+#include <fcntl.h>
+#include <lcm/lcm.h>
+#include <math.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/config.h"
+#include "core/time.h"
+#include "hw/can/can.h"
+#include "lcmtypes/marie_motor_command_t.h"
+#include "lcmtypes/marie_wheel_encoders_t.h"
+
+extern char **environ;
+static char bindir[256];
+static int enc_ok;
+
+static pid_t spawn(const char *name, char *const args[])
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", bindir, name);
+    char *argv[16];
+    int n = 0;
+    argv[n++] = path;
+    for (int i = 0; args[i] && n < 15; i++)
+        argv[n++] = args[i];
+    argv[n] = NULL;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    pid_t pid;
+    int r = posix_spawn(&pid, path, &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    return r == 0 ? pid : -1;
+}
+
+static void stop(pid_t pid)
+{
+    if (pid <= 0)
+        return;
+    kill(pid, SIGTERM);
+    for (int i = 0; i < 30; i++) {
+        if (waitpid(pid, NULL, WNOHANG) == pid)
+            return;
+        usleep(100000);
+    }
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+}
+
+static void on_enc(const lcm_recv_buf_t *rb, const char *ch, const marie_wheel_encoders_t *m, void *u)
+{
+    enc_ok = m->status == MARIE_WHEEL_ENCODERS_T_STATUS_OK;
+}
+
+/* utime + stime in clock ticks */
+static long long cpu_ticks(pid_t pid)
+{
+    char path[64], buf[1024];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    char *p = strrchr(buf, ')');
+    if (!p)
+        return -1;
+    unsigned long ut, st;
+    /* after ") ": state ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime stime */
+    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &ut, &st) != 2)
+        return -1;
+    return (long long)(ut + st);
+}
+
+static double rss_mb(pid_t pid, const char *key)
+{
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
+    FILE *f = fopen(path, "r");
+    double kb = -1;
+    while (f && fgets(line, sizeof line, f))
+        if (strncmp(line, key, strlen(key)) == 0 && sscanf(line + strlen(key), " %lf kB", &kb) == 1)
+            break;
+    if (f)
+        fclose(f);
+    return kb / 1024;
+}
+
+static int cmp(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+int main(void)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    snprintf(bindir, sizeof bindir, "%s/bin", b);
+    char sock[96], url[112], param[128];
+    snprintf(sock, sizeof sock, "/tmp/marie-bench-can-%d.sock", getpid());
+    snprintf(url, sizeof url, "emu:%s", sock);
+    snprintf(param, sizeof param, "can=%s", url);
+    setenv("MARIE_LOG", "warn", 1);
+    pid_t bus = spawn("marie-canbus", (char *[]){ sock, NULL });
+    for (int i = 0; i < 50 && access(sock, F_OK) != 0; i++)
+        usleep(100000);
+    pid_t dev = spawn("marie-vcan-devices", (char *[]){ "--can", url, NULL });
+    pid_t drv = spawn("marie-drives", (char *[]){ "--param", param, NULL });
+    pid_t gyr = spawn("marie-gyro", (char *[]){ "--param", param, NULL });
+    lcm_t *lcm = lcm_create(marie_default_url());
+    can_bus_t *spy = can_bus_open(url);
+    int rc = 1;
+    if (!lcm || !spy || bus <= 0 || dev <= 0 || drv <= 0 || gyr <= 0) {
+        fprintf(stderr, "bench_hw_can: setup failed\n");
+        goto out;
+    }
+    struct can_filter flt = { 0x201, 0x7FF };
+    can_bus_set_filters(spy, &flt, 1);
+    marie_wheel_encoders_t_subscription_t *se = marie_wheel_encoders_t_subscribe(lcm, "WHEEL_ENCODERS", on_enc, NULL);
+    int64_t t0 = marie_mono_us();
+    while (!enc_ok && marie_mono_us() - t0 < 20000000)
+        lcm_handle_timeout(lcm, 50);
+    if (!enc_ok) {
+        fprintf(stderr, "bench_hw_can: drives never enabled\n");
+        goto out_sub;
+    }
+
+    /* Latency: each command has a distinct v; its left-wheel target is recognised in RPDO1. */
+    enum { N = 300 };
+    static double lat[N];
+    int got = 0;
+    struct can_frame f;
+    for (int i = 0; i < N; i++) {
+        while (can_bus_read(spy, &f) == 1)
+            ;
+        double v = 0.01 * (1 + i % 50);                 /* 0.01 .. 0.5 m/s */
+        int32_t want = (int32_t)lround(v / 0.1 * 4096 / (2 * M_PI));
+        marie_motor_command_t m = { .utime = marie_wall_us(), .v = v, .omega = 0, .source = "bench" };
+        int64_t sent = marie_mono_us();
+        marie_motor_command_t_publish(lcm, "MOTOR_COMMAND", &m);
+        while (marie_mono_us() - sent < 200000) {
+            struct pollfd p = { .fd = can_bus_fd(spy), .events = POLLIN };
+            if (poll(&p, 1, 20) <= 0)
+                continue;
+            int32_t tgt;
+            int found = 0;
+            while (can_bus_read(spy, &f) == 1) {
+                memcpy(&tgt, f.data + 2, 4);
+                if (f.len == 6 && tgt == want && !found) {
+                    lat[got++] = (marie_mono_us() - sent) / 1000.0;
+                    found = 1;
+                }
+            }
+            if (found)
+                break;
+        }
+        /* keep the rate of a real controller (20 Hz) so the drivers run at nominal load */
+        while (marie_mono_us() - sent < 50000)
+            lcm_handle_timeout(lcm, 10);
+    }
+    if (got > 0) {
+        qsort(lat, (size_t)got, sizeof lat[0], cmp);
+        printf("hw_can\tcmd_to_rpdo_p50\t%.3f\tms\t-\t-\n", lat[got / 2]);
+        printf("hw_can\tcmd_to_rpdo_p99\t%.3f\tms\t-\t-\n", lat[(int)(got * 0.99) < got ? (int)(got * 0.99) : got - 1]);
+    }
+    printf("hw_can\tcmd_to_rpdo_seen\t%d\tof %d\t-\t-\n", got, N);
+
+    /* CPU and RSS over 10 s at nominal rates, commanded at 10 Hz. */
+    long hz = sysconf(_SC_CLK_TCK);
+    long long d0 = cpu_ticks(drv), g0 = cpu_ticks(gyr), v0 = cpu_ticks(dev), b0 = cpu_ticks(bus);
+    int64_t w0 = marie_mono_us(), last = 0;
+    while (marie_mono_us() - w0 < 10000000) {
+        if (marie_mono_us() - last >= 100000) {
+            marie_motor_command_t m = { .utime = marie_wall_us(), .v = 0.3, .omega = 0.2, .source = "bench" };
+            marie_motor_command_t_publish(lcm, "MOTOR_COMMAND", &m);
+            last = marie_mono_us();
+        }
+        lcm_handle_timeout(lcm, 20);
+        while (can_bus_read(spy, &f) == 1)
+            ;
+    }
+    double wall = (marie_mono_us() - w0) / 1e6;
+    printf("hw_can\tmarie-drives_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(drv) - d0) / hz / wall);
+    printf("hw_can\tmarie-drives_rss\t%.2f\tMB\t-\t-\n", rss_mb(drv, "VmRSS:"));
+    printf("hw_can\tmarie-drives_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(drv, "RssAnon:"));
+    printf("hw_can\tmarie-gyro_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(gyr) - g0) / hz / wall);
+    printf("hw_can\tmarie-gyro_rss\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "VmRSS:"));
+    printf("hw_can\tmarie-gyro_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "RssAnon:"));
+    printf("hw_can\tmarie-vcan-devices_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(dev) - v0) / hz / wall);
+    printf("hw_can\tmarie-canbus_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(bus) - b0) / hz / wall);
+    rc = 0;
+out_sub:
+    marie_wheel_encoders_t_unsubscribe(lcm, se);
+out:
+    can_bus_close(spy);
+    stop(gyr);
+    stop(drv);
+    stop(dev);
+    stop(bus);
+    if (lcm)
+        lcm_destroy(lcm);
+    unlink(sock);
+    return rc;
+}

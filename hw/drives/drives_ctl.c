@@ -1,0 +1,512 @@
+/* drives_ctl: CANopen master logic for the two wheel drives. */
+#include "hw/drives/drives_ctl.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hw/canopen/co.h"
+#include "hw/canopen/emcy.h"
+#include "hw/canopen/pdo.h"
+
+#define EMCY_STORM 10       /* per second and axis: beyond this, count without events */
+
+/* Configuration written to each drive, in order (CiA 301 PDO remapping procedure:
+ * invalidate, clear the count, write the entries, set the count, validate). */
+enum { J_UP, J_DN };
+enum { V_CONST, V_NODE, V_INVALID_NODE, V_HB };
+typedef struct {
+    uint8_t op;
+    uint16_t index;
+    uint8_t sub;
+    uint8_t size;
+    uint8_t vkind;
+    uint32_t value;
+} job_t;
+
+static const job_t jobs[] = {
+    { J_UP, 0x1000, 0, 4, V_CONST, 0 },                  /* device type: must be 402 */
+    { J_UP, 0x1008, 0, 0, V_CONST, 0 },                  /* device name (segmented upload) */
+    { J_DN, CIA402_OBJ_MODE, 0, 1, V_CONST, CIA402_MODE_PROFILE_VELOCITY },
+    { J_DN, 0x1017, 0, 2, V_HB, 0 },
+    { J_DN, 0x1400, 1, 4, V_INVALID_NODE, CO_COB_RPDO1 },
+    { J_DN, 0x1600, 0, 1, V_CONST, 0 },
+    { J_DN, 0x1600, 1, 4, V_CONST, 0x60400010 },
+    { J_DN, 0x1600, 2, 4, V_CONST, 0x60FF0020 },
+    { J_DN, 0x1600, 0, 1, V_CONST, 2 },
+    { J_DN, 0x1400, 2, 1, V_CONST, 1 },                  /* synchronous: applied at SYNC */
+    { J_DN, 0x1400, 1, 4, V_NODE, CO_COB_RPDO1 },
+    { J_DN, 0x1800, 1, 4, V_INVALID_NODE, CO_COB_TPDO1 },
+    { J_DN, 0x1A00, 0, 1, V_CONST, 0 },
+    { J_DN, 0x1A00, 1, 4, V_CONST, 0x60410010 },
+    { J_DN, 0x1A00, 2, 4, V_CONST, 0x60640020 },
+    { J_DN, 0x1A00, 0, 1, V_CONST, 2 },
+    { J_DN, 0x1800, 2, 1, V_CONST, 1 },                  /* every SYNC */
+    { J_DN, 0x1800, 1, 4, V_NODE, CO_COB_TPDO1 },
+    { J_DN, 0x1801, 1, 4, V_INVALID_NODE, CO_COB_TPDO2 },
+    { J_DN, 0x1A01, 0, 1, V_CONST, 0 },
+    { J_DN, 0x1A01, 1, 4, V_CONST, 0x606C0020 },
+    { J_DN, 0x1A01, 0, 1, V_CONST, 1 },
+    { J_DN, 0x1801, 2, 1, V_CONST, 1 },
+    { J_DN, 0x1801, 1, 4, V_NODE, CO_COB_TPDO2 },
+};
+#define NJOBS ((int)(sizeof jobs / sizeof jobs[0]))
+
+static const co_pdo_map_t tpdo1_map = { 0, 2, { { 0x6041, 0, 16 }, { 0x6064, 0, 32 } } };
+static const co_pdo_map_t tpdo2_map = { 0, 1, { { 0x606C, 0, 32 } } };
+static const co_pdo_map_t rpdo1_map = { 0, 2, { { 0x6040, 0, 16 }, { 0x60FF, 0, 32 } } };
+
+struct drives_ctl {
+    drives_cfg_t cfg;
+    drives_event_cb_t cb;
+    void *user;
+    drives_axis_t ax[DRIVES_N];
+    co_hb_consumer_t hb;
+    bool enable, estop;
+    double wheel[DRIVES_N];
+    int64_t cmd_us;
+    bool have_cmd;
+    int64_t now;
+    /* frames produced inside callbacks (SDO done, heartbeat events) wait here */
+    struct can_frame pend[8];
+    int npend;
+};
+
+const char *drives_ev_name(drives_ev_t ev)
+{
+    static const char *n[] = { "configured", "config_failed", "fault", "fault_reset", "recovered",
+                               "emcy", "emcy_storm", "hb_timeout", "bootup", "bad_frame", "unexpected" };
+    return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
+}
+
+void drives_cfg_default(drives_cfg_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    cfg->node[DRIVES_LEFT] = 1;
+    cfg->node[DRIVES_RIGHT] = 2;
+    cfg->ticks_per_rev = 4096;
+    cfg->max_wheel_velocity = 20;
+    cfg->cmd_timeout_us = 500000;
+    cfg->sdo_timeout_us = 200000;
+    cfg->heartbeat_ms = 100;
+    cfg->heartbeat_timeout_us = 350000;
+    cfg->boot_retry_us = 2000000;
+    cfg->fault_reset_delay_us = 1000000;
+}
+
+static void ev(drives_ctl_t *d, int axis, drives_ev_t e, uint32_t code)
+{
+    if (d->cb)
+        d->cb(d->user, axis, e, code);
+}
+
+static void pend(drives_ctl_t *d, const struct can_frame *f)
+{
+    if (d->npend < (int)(sizeof d->pend / sizeof d->pend[0]))
+        d->pend[d->npend++] = *f;
+}
+
+static int axis_of_node(const drives_ctl_t *d, uint8_t node)
+{
+    for (int i = 0; i < DRIVES_N; i++)
+        if (d->cfg.node[i] == node)
+            return i;
+    return -1;
+}
+
+static void set_phase(drives_ctl_t *d, int i, drives_ax_phase_t p)
+{
+    d->ax[i].phase = p;
+    d->ax[i].phase_since = d->now;
+}
+
+static void run_job(drives_ctl_t *d, int i)
+{
+    drives_axis_t *a = &d->ax[i];
+    struct can_frame f;
+    if (a->job >= NJOBS) {
+        co_nmt_encode(&f, CO_NMT_CMD_START, d->cfg.node[i]);
+        pend(d, &f);
+        set_phase(d, i, DRIVES_AX_RUN);
+        a->have_tpdo = false;
+        ev(d, i, DRIVES_EV_CONFIGURED, 0);
+        return;
+    }
+    const job_t *j = &jobs[a->job];
+    if (j->op == J_UP) {
+        co_sdo_client_upload(&a->sdo, j->index, j->sub, d->now, &f);
+    } else {
+        uint32_t v = j->value;
+        if (j->vkind == V_NODE) v += d->cfg.node[i];
+        if (j->vkind == V_INVALID_NODE) v = 0x80000000u | (v + d->cfg.node[i]);
+        if (j->vkind == V_HB) v = d->cfg.heartbeat_ms;
+        uint8_t b[4];
+        co_put_u32(b, v);
+        co_sdo_client_download(&a->sdo, j->index, j->sub, b, j->size, d->now, &f);
+    }
+    pend(d, &f);
+}
+
+static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub, uint32_t abort,
+                     const uint8_t *data, size_t len)
+{
+    drives_ctl_t *d = user;
+    int i = c == &d->ax[0].sdo ? 0 : 1;
+    drives_axis_t *a = &d->ax[i];
+    if (a->phase != DRIVES_AX_CONFIG)
+        return;
+    if (!abort && index == 0x1000 && (len != 4 || (co_get_u32(data) & 0xFFFF) != 402))
+        abort = CO_SDO_ABORT_TYPE_LEN;          /* not a CiA 402 device */
+    if (abort) {
+        a->sdo_aborts++;
+        a->config_failures++;
+        ev(d, i, DRIVES_EV_CONFIG_FAILED, abort);
+        set_phase(d, i, DRIVES_AX_BOOT);        /* retried after boot_retry_us */
+        return;
+    }
+    if (index == 0x1008) {
+        size_t n = len < sizeof a->name - 1 ? len : sizeof a->name - 1;
+        memcpy(a->name, data, n);
+        a->name[n] = 0;
+    }
+    a->job++;
+    run_job(d, i);
+}
+
+static void start_config(drives_ctl_t *d, int i)
+{
+    drives_axis_t *a = &d->ax[i];
+    set_phase(d, i, DRIVES_AX_CONFIG);
+    a->job = 0;
+    a->state = CIA402_UNKNOWN;
+    a->have_tpdo = false;
+    co_sdo_client_init(&a->sdo, d->cfg.node[i], d->cfg.sdo_timeout_us, sdo_done, d);
+    run_job(d, i);
+}
+
+static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s)
+{
+    drives_ctl_t *d = user;
+    int i = axis_of_node(d, node);
+    if (i < 0)
+        return;
+    drives_axis_t *a = &d->ax[i];
+    switch (e) {
+    case CO_HB_EV_BOOTUP:
+        a->bootups++;
+        a->nmt = CO_NMT_PREOPERATIONAL;
+        ev(d, i, DRIVES_EV_BOOTUP, 0);
+        start_config(d, i);
+        break;
+    case CO_HB_EV_STATE:
+        a->nmt = s;
+        /* A drive that fell out of operational (NMT from elsewhere, internal reset) while
+         * we think it runs: configure it again from the start. */
+        if (a->phase == DRIVES_AX_RUN && s != CO_NMT_OPERATIONAL &&
+            d->now - a->phase_since > 2 * (int64_t)d->cfg.heartbeat_ms * 1000) {
+            struct can_frame f;
+            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, node);
+            pend(d, &f);
+            set_phase(d, i, DRIVES_AX_BOOT);
+        }
+        break;
+    case CO_HB_EV_TIMEOUT:
+        a->hb_timeouts++;
+        a->nmt = CO_NMT_UNKNOWN;
+        a->state = CIA402_UNKNOWN;
+        set_phase(d, i, DRIVES_AX_OFFLINE);
+        ev(d, i, DRIVES_EV_HB_TIMEOUT, 0);
+        break;
+    case CO_HB_EV_RECOVERED:
+        /* Heard again without a boot-up: it may have kept its configuration, but we cannot
+         * know; reset its communication so it reboots into a known state. */
+        if (s != CO_NMT_BOOTUP) {
+            struct can_frame f;
+            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, node);
+            pend(d, &f);
+            set_phase(d, i, DRIVES_AX_BOOT);
+        }
+        break;
+    }
+}
+
+drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, void *user)
+{
+    if (!cfg || cfg->node[0] == 0 || cfg->node[1] == 0 || cfg->node[0] == cfg->node[1] ||
+        cfg->node[0] > CO_NODE_MAX || cfg->node[1] > CO_NODE_MAX || cfg->ticks_per_rev <= 0) {
+        errno = EINVAL;
+        return NULL;
+    }
+    drives_ctl_t *d = calloc(1, sizeof *d);
+    if (!d)
+        return NULL;
+    d->cfg = *cfg;
+    d->cb = cb;
+    d->user = user;
+    d->enable = true;
+    for (int i = 0; i < DRIVES_N; i++) {
+        d->ax[i].state = CIA402_UNKNOWN;
+        d->ax[i].nmt = CO_NMT_UNKNOWN;
+        co_sdo_client_init(&d->ax[i].sdo, cfg->node[i], cfg->sdo_timeout_us, sdo_done, d);
+    }
+    co_hb_consumer_init(&d->hb, hb_event, d);
+    return d;
+}
+
+void drives_ctl_destroy(drives_ctl_t *d) { free(d); }
+
+static int take_pending(drives_ctl_t *d, struct can_frame *tx, int n, int max)
+{
+    int k = 0;
+    while (k < d->npend && n < max)
+        tx[n++] = d->pend[k++];
+    memmove(d->pend, d->pend + k, (size_t)(d->npend - k) * sizeof d->pend[0]);
+    d->npend -= k;
+    return n;
+}
+
+int drives_ctl_start(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    d->now = now;
+    co_hb_consumer_init(&d->hb, hb_event, d);
+    for (int i = 0; i < DRIVES_N; i++) {
+        co_hb_consumer_add(&d->hb, d->cfg.node[i], d->cfg.heartbeat_timeout_us, now);
+        struct can_frame f;
+        co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, d->cfg.node[i]);
+        pend(d, &f);
+        set_phase(d, i, DRIVES_AX_BOOT);
+    }
+    return take_pending(d, tx, 0, max);
+}
+
+void drives_ctl_enable(drives_ctl_t *d, bool enable) { d->enable = enable; }
+void drives_ctl_set_estop(drives_ctl_t *d, bool pressed) { d->estop = pressed; }
+
+void drives_ctl_set_wheels(drives_ctl_t *d, double left, double right, int64_t now)
+{
+    double m = d->cfg.max_wheel_velocity;
+    if (!isfinite(left)) left = 0;
+    if (!isfinite(right)) right = 0;
+    /* Scale both together so the curvature survives the limit. */
+    double big = fmax(fabs(left), fabs(right));
+    if (m > 0 && big > m) {
+        left *= m / big;
+        right *= m / big;
+    }
+    d->wheel[DRIVES_LEFT] = left;
+    d->wheel[DRIVES_RIGHT] = right;
+    d->cmd_us = now;
+    d->have_cmd = true;
+}
+
+bool drives_ctl_command_stale(const drives_ctl_t *d, int64_t now)
+{
+    return !d->have_cmd || (d->cfg.cmd_timeout_us > 0 && now - d->cmd_us > d->cfg.cmd_timeout_us);
+}
+
+double drives_ctl_counts_to_rad(const drives_ctl_t *d, double counts)
+{
+    return counts * 2 * M_PI / d->cfg.ticks_per_rev;
+}
+
+static void note_state(drives_ctl_t *d, int i, uint16_t sw)
+{
+    drives_axis_t *a = &d->ax[i];
+    cia402_state_t ns = cia402_state_from_sw(sw);
+    a->statusword = sw;
+    if (ns == a->state)
+        return;
+    if (ns == CIA402_FAULT || ns == CIA402_FAULT_REACTION_ACTIVE) {
+        if (a->state != CIA402_FAULT && a->state != CIA402_FAULT_REACTION_ACTIVE) {
+            a->faults++;
+            a->fault_since = d->now;
+            a->recovering = true;
+            ev(d, i, DRIVES_EV_FAULT, a->last_emcy);
+        }
+    } else if (ns == CIA402_OPERATION_ENABLED && a->recovering) {
+        a->recovering = false;
+        ev(d, i, DRIVES_EV_RECOVERED, 0);
+    }
+    a->state = ns;
+}
+
+int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max)
+{
+    d->now = now;
+    uint8_t node;
+    int pdo;
+    co_fc_t fc = co_classify(rx->can_id, &node, &pdo);
+    int i = axis_of_node(d, node);
+    if (rx->can_id & CAN_ERR_FLAG)
+        return 0;
+    if (i < 0 || fc == CO_FC_OTHER || fc == CO_FC_NMT || fc == CO_FC_SYNC) {
+        ev(d, -1, DRIVES_EV_UNEXPECTED, rx->can_id);
+        return 0;
+    }
+    drives_axis_t *a = &d->ax[i];
+    switch (fc) {
+    case CO_FC_HEARTBEAT:
+        if (co_hb_consumer_feed(&d->hb, rx, now) < 0)
+            ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
+        break;
+    case CO_FC_SDO_TX: {
+        struct can_frame f;
+        bool ready;
+        int r = co_sdo_client_feed(&a->sdo, rx, now, &f, &ready);
+        if (r < 0)
+            ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
+        if (ready)
+            pend(d, &f);
+        break;
+    }
+    case CO_FC_EMCY: {
+        co_emcy_t e;
+        if (co_emcy_decode(rx, &e) < 0) {
+            ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
+            break;
+        }
+        a->emcy++;
+        a->last_emcy = e.code;
+        if (now - a->emcy_window_start > 1000000) {
+            a->emcy_window_start = now;
+            a->emcy_in_window = 0;
+        }
+        if (++a->emcy_in_window <= EMCY_STORM)
+            ev(d, i, DRIVES_EV_EMCY, e.code);
+        else if (a->emcy_in_window == EMCY_STORM + 1)
+            ev(d, i, DRIVES_EV_EMCY_STORM, e.code);
+        break;
+    }
+    case CO_FC_TPDO: {
+        uint64_t v[2];
+        if (a->phase != DRIVES_AX_RUN)
+            break;
+        if (pdo == 1) {
+            if (co_pdo_decode(&tpdo1_map, rx, v) < 0) {
+                ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
+                break;
+            }
+            int32_t pos = (int32_t)co_pdo_signed(v[1], 32);
+            a->position = d->cfg.invert[i] ? (int32_t)(0u - (uint32_t)pos) : pos;
+            a->have_tpdo = true;
+            note_state(d, i, (uint16_t)v[0]);
+        } else if (pdo == 2) {
+            if (co_pdo_decode(&tpdo2_map, rx, v) < 0) {
+                ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
+                break;
+            }
+            int32_t vel = (int32_t)co_pdo_signed(v[0], 32);
+            a->velocity = d->cfg.invert[i] ? -vel : vel;
+        } else {
+            ev(d, i, DRIVES_EV_UNEXPECTED, rx->can_id);
+        }
+        break;
+    }
+    default:
+        /* RPDO or SDO request to our node from someone else: a second master on the bus. */
+        ev(d, i, DRIVES_EV_UNEXPECTED, rx->can_id);
+        break;
+    }
+    return take_pending(d, tx, 0, max);
+}
+
+static int rpdo(drives_ctl_t *d, int i, struct can_frame *f)
+{
+    drives_axis_t *a = &d->ax[i];
+    uint64_t v[2] = { a->controlword, (uint32_t)a->target };
+    co_pdo_map_t m = rpdo1_map;
+    m.cob_id = CO_COB_RPDO1 + d->cfg.node[i];
+    return co_pdo_encode(&m, v, f) > 0;
+}
+
+static void compute_target(drives_ctl_t *d, int i, int64_t now)
+{
+    drives_axis_t *a = &d->ax[i];
+    double w = d->wheel[i];
+    if (d->estop || !d->enable || drives_ctl_command_stale(d, now) || a->state != CIA402_OPERATION_ENABLED)
+        w = 0;
+    if (d->cfg.invert[i])
+        w = -w;
+    a->target = (int32_t)lround(w * d->cfg.ticks_per_rev / (2 * M_PI));
+}
+
+int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    int n = 0;
+    for (int i = 0; i < DRIVES_N && n < max; i++) {
+        if (d->ax[i].phase != DRIVES_AX_RUN)
+            continue;
+        compute_target(d, i, now);
+        n += rpdo(d, i, &tx[n]);
+    }
+    return n;
+}
+
+int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    d->now = now;
+    int n = 0;
+    co_hb_consumer_check(&d->hb, now);
+    for (int i = 0; i < DRIVES_N; i++) {
+        drives_axis_t *a = &d->ax[i];
+        struct can_frame f;
+        if (co_sdo_client_poll(&a->sdo, now, &f)) {
+            /* the callback already moved the axis back to BOOT; the abort frame goes out */
+            pend(d, &f);
+        }
+        if ((a->phase == DRIVES_AX_BOOT || a->phase == DRIVES_AX_OFFLINE) &&
+            now - a->phase_since >= d->cfg.boot_retry_us) {
+            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, d->cfg.node[i]);
+            pend(d, &f);
+            a->phase_since = now;
+        }
+    }
+    n = take_pending(d, tx, n, max);
+    bool any_run = false;
+    for (int i = 0; i < DRIVES_N && n < max; i++) {
+        drives_axis_t *a = &d->ax[i];
+        if (a->phase != DRIVES_AX_RUN)
+            continue;
+        any_run = true;
+        cia402_want_t want = !d->enable ? CIA402_WANT_DISABLED
+                           : d->estop ? CIA402_WANT_QUICK_STOP : CIA402_WANT_ENABLED;
+        bool allow = now - a->fault_since >= d->cfg.fault_reset_delay_us;
+        uint16_t cw = a->have_tpdo ? cia402_next_controlword(a->state, want, a->controlword, allow)
+                                   : CIA402_CW_DISABLE_VOLTAGE;
+        if (cw == CIA402_CW_FAULT_RESET && !(a->controlword & CIA402_CW_FAULT_RESET)) {
+            a->fault_resets++;
+            a->fault_since = now;       /* next attempt only after another delay */
+            ev(d, i, DRIVES_EV_FAULT_RESET, a->last_emcy);
+        }
+        a->controlword = cw;
+        compute_target(d, i, now);
+        n += rpdo(d, i, &tx[n]);
+    }
+    if (any_run && n < max) {
+        co_sync_encode(&tx[n], 0);
+        n++;
+    }
+    return n;
+}
+
+const drives_axis_t *drives_ctl_axis(const drives_ctl_t *d, int axis) { return &d->ax[axis]; }
+
+bool drives_ctl_all_enabled(const drives_ctl_t *d)
+{
+    for (int i = 0; i < DRIVES_N; i++)
+        if (d->ax[i].phase != DRIVES_AX_RUN || d->ax[i].state != CIA402_OPERATION_ENABLED)
+            return false;
+    return true;
+}
+
+int drives_ctl_filters(const drives_ctl_t *d, struct can_filter *f, int max)
+{
+    int n = 0;
+    for (int i = 0; i < DRIVES_N && n < max; i++) {
+        f[n].can_id = d->cfg.node[i];
+        f[n].can_mask = 0x7F | CAN_EFF_FLAG | CAN_RTR_FLAG;
+        n++;
+    }
+    return n;
+}

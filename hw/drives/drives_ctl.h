@@ -1,0 +1,113 @@
+/* drives_ctl: the CANopen master for two CiA 402 wheel drives, without I/O: it configures the
+ * drives over SDO, starts them with NMT, walks their state machines to operation enabled,
+ * sends controlword + target velocity in RPDO1 and SYNC every cycle, reads statusword,
+ * position and velocity TPDOs, watches heartbeats and EMCY, and resets faults.
+ * Frames in with drives_ctl_feed(), frames out into the caller's array. */
+#ifndef MARIE_HW_DRIVES_CTL_H
+#define MARIE_HW_DRIVES_CTL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <linux/can.h>
+
+#include "hw/canopen/nmt.h"
+#include "hw/canopen/sdo.h"
+#include "hw/drives/cia402.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { DRIVES_LEFT = 0, DRIVES_RIGHT = 1, DRIVES_N = 2 };
+
+typedef struct {
+    uint8_t node[DRIVES_N];
+    bool invert[DRIVES_N];          /* mirrored mounting: negate velocity and position */
+    int32_t ticks_per_rev;          /* increments per wheel revolution */
+    double max_wheel_velocity;      /* rad/s; targets are clamped */
+    int64_t cmd_timeout_us;         /* no command for this long: target 0 */
+    int64_t sdo_timeout_us;
+    uint16_t heartbeat_ms;          /* written to the drives' 0x1017 */
+    int64_t heartbeat_timeout_us;   /* consumer timeout */
+    int64_t boot_retry_us;          /* resend reset-communication when a node stays silent */
+    int64_t fault_reset_delay_us;   /* wait this long in fault before a fault reset */
+} drives_cfg_t;
+
+void drives_cfg_default(drives_cfg_t *cfg);
+
+typedef enum {
+    DRIVES_AX_BOOT = 0,     /* waiting for the boot-up message */
+    DRIVES_AX_CONFIG,       /* SDO configuration running */
+    DRIVES_AX_RUN,          /* started: PDOs flow */
+    DRIVES_AX_OFFLINE,      /* heartbeat lost */
+} drives_ax_phase_t;
+
+typedef struct {
+    drives_ax_phase_t phase;
+    co_nmt_state_t nmt;
+    cia402_state_t state;
+    uint16_t statusword, controlword;
+    int32_t position;               /* increments, sign-corrected */
+    int32_t velocity;               /* increments/s, sign-corrected */
+    int32_t target;                 /* increments/s sent last, drive frame */
+    uint16_t last_emcy;
+    bool have_tpdo;
+    bool recovering;                /* faulted; RECOVERED is told on reaching operation */
+    char name[32];                  /* the drive's 0x1008 */
+    uint64_t faults, emcy, fault_resets, hb_timeouts, bootups, sdo_aborts, config_failures;
+    /* private */
+    int job;
+    int64_t phase_since, fault_since, emcy_window_start;
+    uint32_t emcy_in_window;
+    co_sdo_client_t sdo;
+} drives_axis_t;
+
+typedef enum {
+    DRIVES_EV_CONFIGURED,       /* axis configured and started */
+    DRIVES_EV_CONFIG_FAILED,    /* SDO abort or wrong device type: code = abort code */
+    DRIVES_EV_FAULT,            /* entered fault (statusword): code = last EMCY code */
+    DRIVES_EV_FAULT_RESET,      /* sent a fault reset */
+    DRIVES_EV_RECOVERED,        /* back in operation enabled after a fault */
+    DRIVES_EV_EMCY,             /* emergency message: code = error code */
+    DRIVES_EV_EMCY_STORM,       /* more than 10 EMCY in a second: further ones only counted */
+    DRIVES_EV_HB_TIMEOUT,
+    DRIVES_EV_BOOTUP,           /* the node (re)booted */
+    DRIVES_EV_BAD_FRAME,        /* malformed frame from a drive (wrong DLC...): code = COB-ID */
+    DRIVES_EV_UNEXPECTED,       /* a frame no drive should send: code = COB-ID */
+} drives_ev_t;
+
+const char *drives_ev_name(drives_ev_t ev);
+typedef void (*drives_event_cb_t)(void *user, int axis, drives_ev_t ev, uint32_t code);
+
+typedef struct drives_ctl drives_ctl_t;
+
+drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, void *user);
+void drives_ctl_destroy(drives_ctl_t *d);           /* NULL is a no-op */
+
+/* Begin: NMT reset-communication to both nodes (they answer with boot-up). */
+int drives_ctl_start(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
+/* enable false brings the drives to switch on disabled (component stopped). */
+void drives_ctl_enable(drives_ctl_t *d, bool enable);
+void drives_ctl_set_estop(drives_ctl_t *d, bool pressed);
+/* Wheel velocities in rad/s (left, right), counted from `now` for the command timeout. */
+void drives_ctl_set_wheels(drives_ctl_t *d, double left, double right, int64_t now);
+/* A frame from the bus; returns frames to send. */
+int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max);
+/* One SYNC cycle: SDO and heartbeat timeouts, controlwords, RPDO1 to each running drive,
+ * then SYNC. Returns frames to send (at most 8 are ever needed). */
+int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
+/* RPDO1 of both running drives now, with the current command (lower latency than waiting
+ * for the cycle; the drives apply them at the next SYNC). */
+int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
+
+const drives_axis_t *drives_ctl_axis(const drives_ctl_t *d, int axis);
+bool drives_ctl_all_enabled(const drives_ctl_t *d);
+bool drives_ctl_command_stale(const drives_ctl_t *d, int64_t now);
+/* CAN filters matching every frame the drives send: fills up to max, returns count. */
+int drives_ctl_filters(const drives_ctl_t *d, struct can_filter *f, int max);
+double drives_ctl_counts_to_rad(const drives_ctl_t *d, double counts);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

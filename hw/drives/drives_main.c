@@ -1,0 +1,329 @@
+/* marie-drives: the two CiA 402 wheel drives on CAN: motor command (v, omega) in through
+ * differential-drive kinematics, wheel encoders out; stops the wheels on command timeout
+ * and e-stop; faults counted in the heartbeat and reset. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/component.h"
+#include "hw/can/can_link.h"
+#include "hw/canopen/emcy.h"
+#include "hw/canopen/sdo.h"
+#include "hw/drives/drives_ctl.h"
+
+typedef struct {
+    marie_component_t *c;
+    drives_ctl_t *ctl;
+    can_link_t *link;
+    marie_port_t *out;
+    marie_timer_t *sync_timer, *pub_timer;
+    double radius, track;
+    bool estop;
+    int64_t last_emcy_event;
+} drives_t;
+
+static const marie_port_spec_t ports[] = {
+    { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
+    { "estop", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "ESTOP" },
+    { "wheel_encoders", &marie_type_wheel_encoders_t, MARIE_OUT, MARIE_PUSH, "WHEEL_ENCODERS" },
+    { NULL },
+};
+
+static const marie_param_spec_t params[] = {
+    { "can", MARIE_PARAM_STRING, "can:can0", "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)" },
+    { "left_node", MARIE_PARAM_INT, "1", "CANopen node id of the left drive" },
+    { "right_node", MARIE_PARAM_INT, "2", "CANopen node id of the right drive" },
+    { "left_invert", MARIE_PARAM_BOOL, "false", "left motor mounted mirrored" },
+    { "right_invert", MARIE_PARAM_BOOL, "false", "right motor mounted mirrored" },
+    { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
+    { "track_width", MARIE_PARAM_DOUBLE, "0.5", "m, distance between the wheels" },
+    { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder increments per wheel revolution" },
+    { "max_wheel_velocity", MARIE_PARAM_DOUBLE, "20", "rad/s; commands are scaled down to it" },
+    { "sync_hz", MARIE_PARAM_DOUBLE, "50", "SYNC / RPDO cycle rate" },
+    { "publish_hz", MARIE_PARAM_DOUBLE, "20", "wheel encoder publish rate" },
+    { "cmd_timeout", MARIE_PARAM_DOUBLE, "0.5", "s without a motor command before the wheels stop" },
+    { "heartbeat_ms", MARIE_PARAM_INT, "100", "drive heartbeat period written to 0x1017" },
+    { "heartbeat_timeout", MARIE_PARAM_DOUBLE, "0.35", "s without a drive heartbeat: offline" },
+    { "fault_reset_delay", MARIE_PARAM_DOUBLE, "1.0", "s in fault before a fault reset" },
+    { "sdo_timeout", MARIE_PARAM_DOUBLE, "0.2", "s" },
+    { NULL },
+};
+
+static void send_frames(drives_t *d, struct can_frame *f, int n)
+{
+    if (n > 0)
+        can_link_send(d->link, f, n);
+}
+
+static void on_frame(void *user, const struct can_frame *f)
+{
+    drives_t *d = user;
+    struct can_frame tx[16];
+    send_frames(d, tx, drives_ctl_feed(d->ctl, f, marie_mono_us(), tx, 16));
+}
+
+static void on_link_event(void *user, const char *kind, const char *text)
+{
+    drives_t *d = user;
+    marie_component_count(d->c, kind, 1);
+    bool bad = strcmp(kind, "connected") != 0 && strcmp(kind, "bus_active") != 0;
+    marie_component_event(d->c, bad ? MARIE_EVENT_T_SEV_WARN : MARIE_EVENT_T_SEV_INFO, kind, "%s", text);
+    if (bad)
+        marie_warn("%s", text);
+    else
+        marie_info("%s", text);
+}
+
+static const char *side(int axis) { return axis == 0 ? "left" : axis == 1 ? "right" : "bus"; }
+
+static void on_drive_event(void *user, int axis, drives_ev_t ev, uint32_t code)
+{
+    drives_t *d = user;
+    marie_component_t *c = d->c;
+    const drives_axis_t *a = axis >= 0 ? drives_ctl_axis(d->ctl, axis) : NULL;
+    switch (ev) {
+    case DRIVES_EV_CONFIGURED:
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_configured", "%s drive '%s' configured, started",
+                              side(axis), a->name);
+        break;
+    case DRIVES_EV_CONFIG_FAILED:
+        marie_component_count(c, "config_failures", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_config_failed", "%s drive: %s (0x%08X)",
+                              side(axis), co_sdo_abort_str(code), code);
+        marie_warn_ratelimited(5, "%s drive configuration failed: %s", side(axis), co_sdo_abort_str(code));
+        break;
+    case DRIVES_EV_FAULT:
+        marie_component_count(c, "faults", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "drive_fault", "%s drive in fault (last EMCY 0x%04X %s)",
+                              side(axis), code, co_emcy_str((uint16_t)code));
+        marie_warn("%s drive fault (0x%04X %s)", side(axis), code, co_emcy_str((uint16_t)code));
+        break;
+    case DRIVES_EV_FAULT_RESET:
+        marie_component_count(c, "fault_resets", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_fault_reset", "%s drive: fault reset", side(axis));
+        break;
+    case DRIVES_EV_RECOVERED:
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_recovered", "%s drive operational again", side(axis));
+        break;
+    case DRIVES_EV_EMCY:
+        marie_component_count(c, "emcy", 1);
+        if (code)
+            marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_emcy", "%s drive EMCY 0x%04X %s",
+                                  side(axis), code, co_emcy_str((uint16_t)code));
+        break;
+    case DRIVES_EV_EMCY_STORM:
+        marie_component_count(c, "emcy", 1);
+        marie_component_bad_input(c, "emcy_storm", "%s drive: EMCY storm (0x%04X), further ones only counted",
+                                  side(axis), code);
+        break;
+    case DRIVES_EV_HB_TIMEOUT:
+        marie_component_count(c, "hb_timeouts", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "drive_offline", "%s drive: heartbeat lost", side(axis));
+        marie_warn("%s drive: heartbeat lost", side(axis));
+        break;
+    case DRIVES_EV_BOOTUP:
+        marie_component_count(c, "bootups", 1);
+        break;
+    case DRIVES_EV_BAD_FRAME:
+        marie_component_bad_input(c, "bad_frame", "%s drive: malformed frame id 0x%03X", side(axis), code);
+        break;
+    case DRIVES_EV_UNEXPECTED:
+        marie_component_bad_input(c, "unexpected_cob", "unexpected frame id 0x%03X", code);
+        break;
+    }
+}
+
+static void on_sync(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    drives_t *d = user;
+    if (marie_component_state(d->c) != MARIE_STATE_RUNNING)
+        return;
+    struct can_frame tx[16];
+    send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
+}
+
+static void publish(marie_component_t *c, int64_t overruns)
+{
+    drives_t *d = marie_component_user(c);
+    const drives_axis_t *l = drives_ctl_axis(d->ctl, DRIVES_LEFT), *r = drives_ctl_axis(d->ctl, DRIVES_RIGHT);
+    marie_wheel_encoders_t m = {
+        .utime = marie_component_now(c),
+        .left_ticks = l->position,
+        .right_ticks = r->position,
+        .ticks_per_rev = (int32_t)marie_param_int(c, "ticks_per_rev"),
+        .left_velocity = drives_ctl_counts_to_rad(d->ctl, l->velocity),
+        .right_velocity = drives_ctl_counts_to_rad(d->ctl, r->velocity),
+    };
+    bool fault = false;
+    for (int i = 0; i < DRIVES_N; i++) {
+        const drives_axis_t *a = drives_ctl_axis(d->ctl, i);
+        if (a->phase == DRIVES_AX_OFFLINE || a->state == CIA402_FAULT || a->state == CIA402_FAULT_REACTION_ACTIVE)
+            fault = true;
+    }
+    if (fault || !can_link_up(d->link))
+        m.status = MARIE_WHEEL_ENCODERS_T_STATUS_FAULT;
+    else if (d->estop)
+        m.status = MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP;
+    else if (!drives_ctl_all_enabled(d->ctl))
+        m.status = MARIE_WHEEL_ENCODERS_T_STATUS_DISABLED;
+    else
+        m.status = MARIE_WHEEL_ENCODERS_T_STATUS_OK;
+    marie_port_publish(d->out, &m);
+}
+
+static void on_command(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    drives_t *d = marie_component_user(c);
+    const marie_motor_command_t *m = msg;
+    if (!isfinite(m->v) || !isfinite(m->omega)) {
+        marie_component_bad_input(c, "bad_command", "motor command with non-finite v/omega from '%s'",
+                                  m->source ? m->source : "?");
+        return;
+    }
+    /* Differential drive: each wheel's rim speed is v -/+ omega * half the track. */
+    double half = d->track / 2;
+    int64_t now = marie_mono_us();
+    drives_ctl_set_wheels(d->ctl, (m->v - m->omega * half) / d->radius, (m->v + m->omega * half) / d->radius, now);
+    /* Out at once (the drives apply RPDOs at the next SYNC) instead of up to a cycle later. */
+    struct can_frame tx[4];
+    send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, now, tx, 4));
+}
+
+static void on_estop(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    drives_t *d = marie_component_user(c);
+    const marie_estop_t *m = msg;
+    if (m->pressed != d->estop) {
+        marie_component_event(c, m->pressed ? MARIE_EVENT_T_SEV_WARN : MARIE_EVENT_T_SEV_INFO, "estop",
+                              "e-stop %s (%s)", m->pressed ? "pressed" : "released", m->source ? m->source : "?");
+        if (m->pressed)
+            marie_component_count(c, "estops", 1);
+    }
+    d->estop = m->pressed;
+    drives_ctl_set_estop(d->ctl, d->estop);
+    if (d->estop) {
+        /* quick stop now, not at the next cycle */
+        struct can_frame tx[16];
+        send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
+    }
+}
+
+static int on_init(marie_component_t *c)
+{
+    drives_t *d = calloc(1, sizeof *d);
+    if (!d) {
+        marie_component_fail_reason(c, "out of memory");
+        return -1;
+    }
+    d->c = c;
+    marie_component_set_user(c, d);
+    drives_cfg_t cfg;
+    drives_cfg_default(&cfg);
+    int64_t ln = marie_param_int(c, "left_node"), rn = marie_param_int(c, "right_node");
+    int64_t tpr = marie_param_int(c, "ticks_per_rev"), hb = marie_param_int(c, "heartbeat_ms");
+    d->radius = marie_param_double(c, "wheel_radius");
+    d->track = marie_param_double(c, "track_width");
+    double sync_hz = marie_param_double(c, "sync_hz"), pub_hz = marie_param_double(c, "publish_hz");
+    if (ln < 1 || ln > 127 || rn < 1 || rn > 127 || ln == rn || tpr <= 0 || hb < 0 || hb > 65535 ||
+        !(d->radius > 0) || !(d->track > 0) || !(sync_hz > 0 && sync_hz <= 1000) || !(pub_hz > 0)) {
+        marie_component_fail_reason(c, "bad parameters: node ids 1..127 and distinct, positive radius, "
+                                       "track, ticks_per_rev and rates");
+        goto err;
+    }
+    cfg.node[0] = (uint8_t)ln;
+    cfg.node[1] = (uint8_t)rn;
+    cfg.invert[0] = marie_param_bool(c, "left_invert");
+    cfg.invert[1] = marie_param_bool(c, "right_invert");
+    cfg.ticks_per_rev = (int32_t)tpr;
+    cfg.max_wheel_velocity = marie_param_double(c, "max_wheel_velocity");
+    cfg.cmd_timeout_us = (int64_t)(marie_param_double(c, "cmd_timeout") * 1e6);
+    cfg.heartbeat_ms = (uint16_t)hb;
+    cfg.heartbeat_timeout_us = (int64_t)(marie_param_double(c, "heartbeat_timeout") * 1e6);
+    cfg.fault_reset_delay_us = (int64_t)(marie_param_double(c, "fault_reset_delay") * 1e6);
+    cfg.sdo_timeout_us = (int64_t)(marie_param_double(c, "sdo_timeout") * 1e6);
+    d->ctl = drives_ctl_create(&cfg, on_drive_event, d);
+    if (!d->ctl) {
+        marie_component_fail_reason(c, "drive controller: %s", strerror(errno));
+        goto err;
+    }
+    struct can_filter flt[4];
+    int nf = drives_ctl_filters(d->ctl, flt, 4);
+    const char *url = marie_param_str(c, "can");
+    d->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, d);
+    if (!d->link) {
+        marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));
+        goto err;
+    }
+    d->out = marie_port(c, "wheel_encoders");
+    marie_port_on_message(marie_port(c, "motor_command"), on_command);
+    marie_port_on_message(marie_port(c, "estop"), on_estop);
+    d->sync_timer = marie_loop_add_wall_timer(marie_component_loop(c), (int64_t)(1e6 / sync_hz), on_sync, d);
+    d->pub_timer = marie_component_every(c, pub_hz, publish);
+    if (!d->sync_timer || !d->pub_timer) {
+        marie_component_fail_reason(c, "timers: %s", strerror(errno));
+        goto err;
+    }
+    return 0;
+err:
+    can_link_close(d->link);
+    drives_ctl_destroy(d->ctl);
+    if (d->sync_timer)
+        marie_loop_remove_timer(marie_component_loop(c), d->sync_timer);
+    free(d);
+    marie_component_set_user(c, NULL);
+    return -1;
+}
+
+static int on_start(marie_component_t *c)
+{
+    drives_t *d = marie_component_user(c);
+    struct can_frame tx[16];
+    drives_ctl_enable(d->ctl, true);
+    send_frames(d, tx, drives_ctl_start(d->ctl, marie_mono_us(), tx, 16));
+    return 0;
+}
+
+/* Power stages off at once: one cycle with "disable voltage" goes out before we go quiet. */
+static void safe_stop(marie_component_t *c)
+{
+    drives_t *d = marie_component_user(c);
+    if (!d)
+        return;
+    struct can_frame tx[16];
+    drives_ctl_enable(d->ctl, false);
+    send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
+}
+
+static int on_stop(marie_component_t *c)
+{
+    safe_stop(c);
+    return 0;
+}
+
+static void on_abort(marie_component_t *c) { safe_stop(c); }
+
+static void on_quit(marie_component_t *c)
+{
+    drives_t *d = marie_component_user(c);
+    if (!d)
+        return;
+    marie_loop_remove_timer(marie_component_loop(c), d->sync_timer);
+    can_link_close(d->link);
+    drives_ctl_destroy(d->ctl);
+    free(d);
+    marie_component_set_user(c, NULL);
+}
+
+static const marie_component_def_t def = {
+    .kind = "marie-drives",
+    .ports = ports,
+    .params = params,
+    .on_init = on_init,
+    .on_start = on_start,
+    .on_stop = on_stop,
+    .on_abort = on_abort,
+    .on_quit = on_quit,
+};
+
+int main(int argc, char **argv) { return marie_main(&def, argc, argv, NULL); }

@@ -1,0 +1,21 @@
+# hw/drives: CiA 402 wheel drives: state machine, master logic, virtual drive, marie-drives.
+DRIVES_LIB := $(B)/lib/libmarie_drives.a
+$(eval $(call marie_lib,marie_drives,hw/drives/cia402.c hw/drives/drives_ctl.c hw/drives/vdrive.c))
+$(eval $(call marie_test,test_cia402,tests/hw/test_cia402.c,$(DRIVES_LIB)))
+$(eval $(call marie_test,test_drives_ctl,tests/hw/test_drives_ctl.c,$(DRIVES_LIB) $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a))
+$(eval $(call marie_program,marie-drives,hw/drives/drives_main.c,$(DRIVES_LIB) $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a))
+VDEVICES_LIB := $(B)/lib/libmarie_vdevices.a
+$(eval $(call marie_lib,marie_vdevices,hw/drives/vdevices.c))
+$(eval $(call marie_program,marie-vcan-devices,hw/drives/vcan_devices_main.c,$(VDEVICES_LIB) $(DRIVES_LIB) $(B)/lib/libmarie_gyro.a $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a))
+# Needs the programs: built first by make all; by hand, build them before this test.
+$(eval $(call marie_test,test_drives_emu,tests/hw/test_drives_emu.c,$(B)/lib/libmarie_can.a))
+$(B)/tests/test_drives_emu: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro
+# The VM test: marie-drives and marie-gyro on real SocketCAN (vcan0) inside qemu.
+$(eval $(call marie_link,$(B)/tests/vm/hw_vm_check,tests/hw/vm_check.c,))
+$(eval $(call marie_link,$(B)/tests/vm/vm_socketcan,tests/hw/vm_socketcan.c,$(B)/lib/libmarie_can.a -lcmocka))
+EXTRA_TARGETS += $(B)/tests/vm/hw_vm_check $(B)/tests/vm/vm_socketcan
+VMTESTS += tests/hw/test_vm_can.sh
+# ~25 s here (boot ~6 s); also part of make test.
+ITESTS += tests/hw/test_vm_can.sh
+$(eval $(call marie_bench,bench_hw_can,hw/drives/bench_hw_can.c,$(B)/lib/libmarie_can.a))
+$(B)/bench/bench_hw_can: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro

@@ -1,0 +1,144 @@
+/* vdevices: virtual drives and gyro sharing one CAN bus connection. */
+#include "hw/drives/vdevices.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hw/can/can.h"
+
+struct vdevices {
+    vdevices_cfg_t cfg;
+    can_bus_t *bus;
+    vdrive_t *drive[2];
+    vgyro_t *gyro;
+    uint64_t in, out;
+};
+
+void vdevices_cfg_default(vdevices_cfg_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    cfg->left = 1;
+    cfg->right = 2;
+    cfg->gyro = 0x20;
+    cfg->ticks_per_rev = 4096;
+    cfg->wheel_radius = 0.1;
+    cfg->track_width = 0.5;
+    cfg->gyro_bias = 0.01;
+    cfg->gyro_noise = 0.002;
+}
+
+/* Answers go on the bus. The devices never talk to each other (only to the master), so
+ * there is no need to loop their frames back locally as a real bus would. */
+static void route(vdevices_t *v, const struct can_frame *f, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (can_bus_write(v->bus, &f[i]) == 0)
+            v->out++;
+}
+
+static void deliver(vdevices_t *v, const struct can_frame *f, int64_t now)
+{
+    struct can_frame tx[16];
+    for (int i = 0; i < 2; i++)
+        if (v->drive[i])
+            route(v, tx, vdrive_feed(v->drive[i], f, now, tx, 16));
+    if (v->gyro)
+        route(v, tx, vgyro_feed(v->gyro, f, now, tx, 16));
+}
+
+vdevices_t *vdevices_create(const vdevices_cfg_t *cfg, int64_t now)
+{
+    vdevices_t *v = calloc(1, sizeof *v);
+    if (!v)
+        return NULL;
+    v->cfg = *cfg;
+    v->bus = can_bus_open(cfg->can_url);
+    if (!v->bus)
+        goto err;
+    uint8_t nodes[2] = { cfg->left, cfg->right };
+    for (int i = 0; i < 2; i++) {
+        if (!nodes[i])
+            continue;
+        vdrive_cfg_t dc;
+        vdrive_cfg_default(&dc, nodes[i]);
+        dc.ticks_per_rev = cfg->ticks_per_rev;
+        dc.rpdo_timeout_us = cfg->rpdo_timeout_us;
+        dc.name = i == 0 ? "marie vdrive left" : "marie vdrive right";
+        if (!(v->drive[i] = vdrive_create(&dc)))
+            goto err;
+    }
+    if (cfg->gyro) {
+        vgyro_cfg_t gc;
+        vgyro_cfg_default(&gc, cfg->gyro);
+        gc.bias = cfg->gyro_bias;
+        gc.noise = cfg->gyro_noise;
+        if (!(v->gyro = vgyro_create(&gc)))
+            goto err;
+    }
+    struct can_frame tx[4];
+    for (int i = 0; i < 2; i++)
+        if (v->drive[i])
+            route(v, tx, vdrive_boot(v->drive[i], now, tx, 4));
+    if (v->gyro)
+        route(v, tx, vgyro_boot(v->gyro, now, tx, 4));
+    return v;
+err:;
+    int e = errno ? errno : ENOMEM;
+    vdevices_destroy(v);
+    errno = e;
+    return NULL;
+}
+
+void vdevices_destroy(vdevices_t *v)
+{
+    if (!v)
+        return;
+    vdrive_destroy(v->drive[0]);
+    vdrive_destroy(v->drive[1]);
+    vgyro_destroy(v->gyro);
+    can_bus_close(v->bus);
+    free(v);
+}
+
+int vdevices_fd(const vdevices_t *v) { return can_bus_fd(v->bus); }
+
+int vdevices_process(vdevices_t *v, int64_t now)
+{
+    int n = 0;
+    struct can_frame f;
+    for (int k = 0; k < 1024; k++) {
+        int r = can_bus_read(v->bus, &f);
+        if (r < 0)
+            return r;
+        if (r == 0)
+            break;
+        v->in++;
+        n++;
+        deliver(v, &f, now);
+    }
+    return n;
+}
+
+int vdevices_tick(vdevices_t *v, double dt, int64_t now)
+{
+    struct can_frame tx[16];
+    for (int i = 0; i < 2; i++)
+        if (v->drive[i]) {
+            vdrive_step(v->drive[i], dt);
+            route(v, tx, vdrive_poll(v->drive[i], now, tx, 16));
+        }
+    if (v->gyro) {
+        if (!v->cfg.external_physics && v->drive[0] && v->drive[1] && v->cfg.track_width > 0)
+            vgyro_set_rate(v->gyro, v->cfg.wheel_radius *
+                                    (vdrive_velocity(v->drive[1]) - vdrive_velocity(v->drive[0])) /
+                                    v->cfg.track_width);
+        route(v, tx, vgyro_poll(v->gyro, now, tx, 16));
+    }
+    return 0;
+}
+
+vdrive_t *vdevices_drive(vdevices_t *v, int i) { return i >= 0 && i < 2 ? v->drive[i] : NULL; }
+vgyro_t *vdevices_gyro(vdevices_t *v) { return v->gyro; }
+uint64_t vdevices_frames_in(const vdevices_t *v) { return v->in; }
+uint64_t vdevices_frames_out(const vdevices_t *v) { return v->out; }

@@ -1,0 +1,50 @@
+/* vdevices: the robot's CAN devices in one object: two virtual CiA 402 drives and a virtual
+ * gyro attached to a CAN bus (emulated or SocketCAN). A simulator polls vdevices_fd(), calls
+ * vdevices_process() when it is readable and vdevices_tick() every physics step; with
+ * `external_physics` it reads vdrive_command() and writes vdrive_set_feedback() and
+ * vgyro_set_rate() itself, otherwise ideal motors turn the wheels and the gyro sees the
+ * yaw rate of the differential drive. */
+#ifndef MARIE_HW_VDEVICES_H
+#define MARIE_HW_VDEVICES_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "hw/drives/vdrive.h"
+#include "hw/gyro/vgyro.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    const char *can_url;        /* can:IF or emu:PATH */
+    uint8_t left, right;        /* drive node ids (0: no such drive) */
+    uint8_t gyro;               /* gyro node id (0: none) */
+    int32_t ticks_per_rev;
+    double wheel_radius, track_width;   /* m, for the ideal yaw rate */
+    double gyro_bias, gyro_noise;       /* rad/s */
+    int64_t rpdo_timeout_us;    /* drives fault when enabled and RPDOs stop (0: off) */
+    bool external_physics;
+} vdevices_cfg_t;
+
+void vdevices_cfg_default(vdevices_cfg_t *cfg);
+
+typedef struct vdevices vdevices_t;
+
+vdevices_t *vdevices_create(const vdevices_cfg_t *cfg, int64_t now);   /* NULL with errno */
+void vdevices_destroy(vdevices_t *v);
+int vdevices_fd(const vdevices_t *v);
+/* Read and answer every waiting frame. Returns frames handled or -errno (-EPIPE: bus gone). */
+int vdevices_process(vdevices_t *v, int64_t now);
+/* Advance physics by dt seconds and send time-driven frames (heartbeats, gyro samples). */
+int vdevices_tick(vdevices_t *v, double dt, int64_t now);
+vdrive_t *vdevices_drive(vdevices_t *v, int i);     /* 0 left, 1 right; NULL if absent */
+vgyro_t *vdevices_gyro(vdevices_t *v);
+uint64_t vdevices_frames_in(const vdevices_t *v);
+uint64_t vdevices_frames_out(const vdevices_t *v);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

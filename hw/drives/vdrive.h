@@ -1,0 +1,65 @@
+/* vdrive: a virtual CiA 402 wheel drive in profile velocity mode, speaking CANopen frames.
+ * The simulator ticks it and reads the commanded wheel velocity; it may write back the
+ * measured wheel position and velocity. Without that feedback, an ideal motor follows the
+ * ramped setpoint. Frames go in with vdrive_feed(); answers come out into the caller's array. */
+#ifndef MARIE_HW_VDRIVE_H
+#define MARIE_HW_VDRIVE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <linux/can.h>
+
+#include "hw/drives/cia402.h"
+#include "hw/canopen/dev.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    uint8_t node;
+    int32_t ticks_per_rev;      /* encoder increments per wheel revolution (default 4096) */
+    double accel;               /* profile acceleration, rad/s^2 at the wheel (default 20) */
+    double quickstop_decel;     /* rad/s^2 (default 40) */
+    double max_velocity;        /* rad/s; larger targets are clamped (default 30) */
+    int64_t rpdo_timeout_us;    /* fault 0x8130 when enabled and RPDOs stop (0: off; default 0) */
+    const char *name;           /* device name, object 0x1008 */
+} vdrive_cfg_t;
+
+void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node);
+
+typedef struct vdrive vdrive_t;
+
+vdrive_t *vdrive_create(const vdrive_cfg_t *cfg);   /* NULL on failure */
+void vdrive_destroy(vdrive_t *v);                   /* NULL is a no-op */
+
+/* Power on: boot-up message. Returns frames written (at most max). */
+int vdrive_boot(vdrive_t *v, int64_t now, struct can_frame *tx, int max);
+/* A frame from the bus. Returns frames to send. */
+int vdrive_feed(vdrive_t *v, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max);
+/* Time-driven output (heartbeat, queued EMCY) and the RPDO watchdog. */
+int vdrive_poll(vdrive_t *v, int64_t now, struct can_frame *tx, int max);
+
+/* Physics. step() ramps the velocity setpoint toward the target (or to zero when stopping)
+ * and, without external feedback, integrates the ideal motor. */
+void vdrive_step(vdrive_t *v, double dt);
+double vdrive_command(const vdrive_t *v);            /* rad/s the motor is told to turn */
+void vdrive_set_feedback(vdrive_t *v, double pos_rad, double vel_rad_s);
+double vdrive_position(const vdrive_t *v);           /* rad */
+double vdrive_velocity(const vdrive_t *v);           /* rad/s */
+
+/* Fault injection: fault reaction, then fault; an EMCY with `code` is queued. */
+void vdrive_inject_fault(vdrive_t *v, uint16_t code);
+/* A statusword fault without an EMCY (a drive that only reports through its statusword). */
+void vdrive_inject_silent_fault(vdrive_t *v, uint16_t code);
+
+cia402_state_t vdrive_state(const vdrive_t *v);
+uint16_t vdrive_statusword(const vdrive_t *v);
+co_nmt_state_t vdrive_nmt(const vdrive_t *v);
+uint8_t vdrive_node(const vdrive_t *v);
+const co_dev_stats_t *vdrive_stats(const vdrive_t *v);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,298 @@
+/* gyro_ctl: CANopen master logic for the gyro. */
+#include "hw/gyro/gyro_ctl.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hw/canopen/co.h"
+#include "hw/canopen/emcy.h"
+#include "hw/canopen/pdo.h"
+#include "hw/gyro/gyro_proto.h"
+
+enum { PH_BOOT, PH_CONFIG, PH_RUN, PH_OFFLINE };
+enum { J_UP, J_DN };
+enum { V_CONST, V_NODE, V_INVALID_NODE, V_HB, V_PERIOD };
+typedef struct { uint8_t op; uint16_t index; uint8_t sub; uint8_t size; uint8_t vkind; uint32_t value; } job_t;
+
+static const job_t jobs[] = {
+    { J_UP, 0x1008, 0, 0, V_CONST, 0 },
+    { J_DN, 0x1017, 0, 2, V_HB, 0 },
+    { J_DN, 0x1800, 1, 4, V_INVALID_NODE, CO_COB_TPDO1 },
+    { J_DN, 0x1A00, 0, 1, V_CONST, 0 },
+    { J_DN, 0x1A00, 1, 4, V_CONST, GYRO_MAP_RATE },
+    { J_DN, 0x1A00, 2, 4, V_CONST, GYRO_MAP_STATUS },
+    { J_DN, 0x1A00, 3, 4, V_CONST, GYRO_MAP_COUNTER },
+    { J_DN, 0x1A00, 0, 1, V_CONST, 3 },
+    { J_DN, 0x1800, 2, 1, V_CONST, 254 },       /* event-driven (manufacturer specific) */
+    { J_DN, 0x1800, 5, 2, V_PERIOD, 0 },        /* event timer, ms */
+    { J_DN, 0x1800, 1, 4, V_NODE, CO_COB_TPDO1 },
+};
+#define NJOBS ((int)(sizeof jobs / sizeof jobs[0]))
+
+static const co_pdo_map_t tpdo_map = { 0, 3, { { GYRO_OBJ_RATE, 0, 32 }, { GYRO_OBJ_STATUS, 0, 8 }, { GYRO_OBJ_COUNTER, 0, 8 } } };
+
+struct gyro_ctl {
+    gyro_cfg_t cfg;
+    gyro_sample_cb_t on_sample;
+    gyro_event_cb_t on_event;
+    void *user;
+    int phase, job;
+    int64_t phase_since, now;
+    co_sdo_client_t sdo;
+    co_hb_consumer_t hb;
+    bool have_counter;
+    uint8_t counter;
+    char name[32];
+    struct can_frame pend[4];
+    int npend;
+};
+
+const char *gyro_ev_name(gyro_ev_t ev)
+{
+    static const char *n[] = { "configured", "config_failed", "emcy", "hb_timeout", "bootup", "bad_frame",
+                               "unexpected", "lost" };
+    return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
+}
+
+void gyro_cfg_default(gyro_cfg_t *cfg)
+{
+    cfg->node = GYRO_NODE_DEFAULT;
+    cfg->period_ms = 10;
+    cfg->heartbeat_ms = 100;
+    cfg->heartbeat_timeout_us = 350000;
+    cfg->sdo_timeout_us = 200000;
+    cfg->boot_retry_us = 2000000;
+}
+
+static void ev(gyro_ctl_t *g, gyro_ev_t e, uint32_t code)
+{
+    if (g->on_event)
+        g->on_event(g->user, e, code);
+}
+
+static void pend(gyro_ctl_t *g, const struct can_frame *f)
+{
+    if (g->npend < 4)
+        g->pend[g->npend++] = *f;
+}
+
+static int take(gyro_ctl_t *g, struct can_frame *tx, int max)
+{
+    int n = 0;
+    while (n < g->npend && n < max) {
+        tx[n] = g->pend[n];
+        n++;
+    }
+    memmove(g->pend, g->pend + n, (size_t)(g->npend - n) * sizeof g->pend[0]);
+    g->npend -= n;
+    return n;
+}
+
+static void set_phase(gyro_ctl_t *g, int p)
+{
+    g->phase = p;
+    g->phase_since = g->now;
+}
+
+static void run_job(gyro_ctl_t *g)
+{
+    struct can_frame f;
+    if (g->job >= NJOBS) {
+        co_nmt_encode(&f, CO_NMT_CMD_START, g->cfg.node);
+        pend(g, &f);
+        set_phase(g, PH_RUN);
+        g->have_counter = false;
+        ev(g, GYRO_EV_CONFIGURED, 0);
+        return;
+    }
+    const job_t *j = &jobs[g->job];
+    if (j->op == J_UP) {
+        co_sdo_client_upload(&g->sdo, j->index, j->sub, g->now, &f);
+    } else {
+        uint32_t v = j->value;
+        if (j->vkind == V_NODE) v += g->cfg.node;
+        if (j->vkind == V_INVALID_NODE) v = 0x80000000u | (v + g->cfg.node);
+        if (j->vkind == V_HB) v = g->cfg.heartbeat_ms;
+        if (j->vkind == V_PERIOD) v = g->cfg.period_ms;
+        uint8_t b[4];
+        co_put_u32(b, v);
+        co_sdo_client_download(&g->sdo, j->index, j->sub, b, j->size, g->now, &f);
+    }
+    pend(g, &f);
+}
+
+static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub, uint32_t abort,
+                     const uint8_t *data, size_t len)
+{
+    gyro_ctl_t *g = user;
+    if (g->phase != PH_CONFIG)
+        return;
+    if (abort) {
+        ev(g, GYRO_EV_CONFIG_FAILED, abort);
+        set_phase(g, PH_BOOT);
+        return;
+    }
+    if (index == 0x1008) {
+        size_t n = len < sizeof g->name - 1 ? len : sizeof g->name - 1;
+        memcpy(g->name, data, n);
+        g->name[n] = 0;
+    }
+    g->job++;
+    run_job(g);
+}
+
+static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s)
+{
+    gyro_ctl_t *g = user;
+    struct can_frame f;
+    switch (e) {
+    case CO_HB_EV_BOOTUP:
+        ev(g, GYRO_EV_BOOTUP, 0);
+        set_phase(g, PH_CONFIG);
+        g->job = 0;
+        co_sdo_client_init(&g->sdo, g->cfg.node, g->cfg.sdo_timeout_us, sdo_done, g);
+        run_job(g);
+        break;
+    case CO_HB_EV_TIMEOUT:
+        ev(g, GYRO_EV_HB_TIMEOUT, 0);
+        set_phase(g, PH_OFFLINE);
+        break;
+    case CO_HB_EV_RECOVERED:
+        if (s != CO_NMT_BOOTUP) {
+            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, g->cfg.node);
+            pend(g, &f);
+            set_phase(g, PH_BOOT);
+        }
+        break;
+    case CO_HB_EV_STATE:
+        if (g->phase == PH_RUN && s != CO_NMT_OPERATIONAL &&
+            g->now - g->phase_since > 2 * (int64_t)g->cfg.heartbeat_ms * 1000) {
+            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, g->cfg.node);
+            pend(g, &f);
+            set_phase(g, PH_BOOT);
+        }
+        break;
+    }
+}
+
+gyro_ctl_t *gyro_ctl_create(const gyro_cfg_t *cfg, gyro_sample_cb_t on_sample, gyro_event_cb_t on_event, void *user)
+{
+    if (!cfg || cfg->node == 0 || cfg->node > CO_NODE_MAX || cfg->period_ms == 0) {
+        errno = EINVAL;
+        return NULL;
+    }
+    gyro_ctl_t *g = calloc(1, sizeof *g);
+    if (!g)
+        return NULL;
+    g->cfg = *cfg;
+    g->on_sample = on_sample;
+    g->on_event = on_event;
+    g->user = user;
+    co_sdo_client_init(&g->sdo, cfg->node, cfg->sdo_timeout_us, sdo_done, g);
+    co_hb_consumer_init(&g->hb, hb_event, g);
+    return g;
+}
+
+void gyro_ctl_destroy(gyro_ctl_t *g) { free(g); }
+
+int gyro_ctl_start(gyro_ctl_t *g, int64_t now, struct can_frame *tx, int max)
+{
+    g->now = now;
+    co_hb_consumer_init(&g->hb, hb_event, g);
+    co_hb_consumer_add(&g->hb, g->cfg.node, g->cfg.heartbeat_timeout_us, now);
+    struct can_frame f;
+    co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, g->cfg.node);
+    pend(g, &f);
+    set_phase(g, PH_BOOT);
+    return take(g, tx, max);
+}
+
+int gyro_ctl_feed(gyro_ctl_t *g, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max)
+{
+    g->now = now;
+    uint8_t node;
+    int pdo;
+    if (rx->can_id & CAN_ERR_FLAG)
+        return 0;
+    co_fc_t fc = co_classify(rx->can_id, &node, &pdo);
+    if (node != g->cfg.node || fc == CO_FC_OTHER || fc == CO_FC_NMT || fc == CO_FC_SYNC) {
+        ev(g, GYRO_EV_UNEXPECTED, rx->can_id);
+        return 0;
+    }
+    switch (fc) {
+    case CO_FC_HEARTBEAT:
+        if (co_hb_consumer_feed(&g->hb, rx, now) < 0)
+            ev(g, GYRO_EV_BAD_FRAME, rx->can_id);
+        break;
+    case CO_FC_SDO_TX: {
+        struct can_frame f;
+        bool ready;
+        if (co_sdo_client_feed(&g->sdo, rx, now, &f, &ready) < 0)
+            ev(g, GYRO_EV_BAD_FRAME, rx->can_id);
+        if (ready)
+            pend(g, &f);
+        break;
+    }
+    case CO_FC_EMCY: {
+        co_emcy_t e;
+        if (co_emcy_decode(rx, &e) < 0)
+            ev(g, GYRO_EV_BAD_FRAME, rx->can_id);
+        else
+            ev(g, GYRO_EV_EMCY, e.code);
+        break;
+    }
+    case CO_FC_TPDO: {
+        uint64_t v[3];
+        if (g->phase != PH_RUN)
+            break;
+        if (pdo != 1) {
+            ev(g, GYRO_EV_UNEXPECTED, rx->can_id);
+            break;
+        }
+        if (co_pdo_decode(&tpdo_map, rx, v) < 0) {
+            ev(g, GYRO_EV_BAD_FRAME, rx->can_id);
+            break;
+        }
+        uint8_t cnt = (uint8_t)v[2];
+        if (g->have_counter && cnt != (uint8_t)(g->counter + 1))
+            ev(g, GYRO_EV_LOST, (uint8_t)(cnt - g->counter - 1));
+        g->counter = cnt;
+        g->have_counter = true;
+        if (g->on_sample)
+            g->on_sample(g->user, (double)co_pdo_signed(v[0], 32) * GYRO_RATE_SCALE, (uint8_t)v[1]);
+        break;
+    }
+    default:
+        ev(g, GYRO_EV_UNEXPECTED, rx->can_id);
+        break;
+    }
+    return take(g, tx, max);
+}
+
+int gyro_ctl_poll(gyro_ctl_t *g, int64_t now, struct can_frame *tx, int max)
+{
+    g->now = now;
+    struct can_frame f;
+    co_hb_consumer_check(&g->hb, now);
+    if (co_sdo_client_poll(&g->sdo, now, &f))
+        pend(g, &f);
+    if ((g->phase == PH_BOOT || g->phase == PH_OFFLINE) && now - g->phase_since >= g->cfg.boot_retry_us) {
+        co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, g->cfg.node);
+        pend(g, &f);
+        g->phase_since = now;
+    }
+    return take(g, tx, max);
+}
+
+bool gyro_ctl_running(const gyro_ctl_t *g) { return g->phase == PH_RUN; }
+const char *gyro_ctl_name(const gyro_ctl_t *g) { return g->name; }
+
+int gyro_ctl_filters(const gyro_ctl_t *g, struct can_filter *f, int max)
+{
+    if (max < 1)
+        return 0;
+    f[0].can_id = g->cfg.node;
+    f[0].can_mask = 0x7F | CAN_EFF_FLAG | CAN_RTR_FLAG;
+    return 1;
+}

@@ -1,0 +1,261 @@
+/* marie-gyro: the CANopen yaw-rate gyro: samples from its TPDO out as marie.gyro_t with the
+ * bias removed, the bias learned while the wheel encoders and motor commands say the robot
+ * stands still. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/component.h"
+#include "hw/can/can_link.h"
+#include "hw/canopen/emcy.h"
+#include "hw/canopen/sdo.h"
+#include "hw/gyro/gyro_bias.h"
+#include "hw/gyro/gyro_ctl.h"
+
+typedef struct {
+    marie_component_t *c;
+    gyro_ctl_t *ctl;
+    can_link_t *link;
+    marie_port_t *out;
+    marie_timer_t *poll_timer;
+    gyro_bias_t bias;
+    double sign, still_wheel, period_s, start_still_s;
+    int64_t started_us;
+    int64_t enc_us, cmd_us;         /* last receipt (mono), 0 never */
+    bool enc_still, cmd_still;
+} gyro_t;
+
+static const marie_port_spec_t ports[] = {
+    { "wheel_encoders", &marie_type_wheel_encoders_t, MARIE_IN, MARIE_PUSH, "WHEEL_ENCODERS" },
+    { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
+    { "gyro", &marie_type_gyro_t, MARIE_OUT, MARIE_PUSH, "GYRO" },
+    { NULL },
+};
+
+static const marie_param_spec_t params[] = {
+    { "can", MARIE_PARAM_STRING, "can:can0", "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)" },
+    { "node", MARIE_PARAM_INT, "32", "CANopen node id of the gyro" },
+    { "rate_hz", MARIE_PARAM_DOUBLE, "50", "sample rate (TPDO event timer)" },
+    { "heartbeat_ms", MARIE_PARAM_INT, "100", "gyro heartbeat period written to 0x1017" },
+    { "heartbeat_timeout", MARIE_PARAM_DOUBLE, "0.35", "s without a heartbeat: offline" },
+    { "invert", MARIE_PARAM_BOOL, "false", "sensor mounted upside down" },
+    { "standstill_window", MARIE_PARAM_DOUBLE, "0.5", "s of standstill before samples feed the bias" },
+    { "still_wheel_velocity", MARIE_PARAM_DOUBLE, "0.02", "rad/s: wheels slower than this are stopped" },
+    { "assume_still_at_start", MARIE_PARAM_DOUBLE, "0", "s after start taken as standstill when no "
+                                                        "encoder or command has arrived (0: never)" },
+    { "bias_tau", MARIE_PARAM_DOUBLE, "30", "s, time constant for following bias drift" },
+    { "bias_min_samples", MARIE_PARAM_INT, "50", "samples before the bias is valid" },
+    { "max_still_rate", MARIE_PARAM_DOUBLE, "0.05", "rad/s: faster at standstill means moved by hand" },
+    { NULL },
+};
+
+#define FRESH_US 500000
+
+static bool standstill(gyro_t *g, int64_t now)
+{
+    bool enc_fresh = g->enc_us && now - g->enc_us < FRESH_US;
+    bool cmd_fresh = g->cmd_us && now - g->cmd_us < FRESH_US;
+    if (enc_fresh)
+        return g->enc_still && (!cmd_fresh || g->cmd_still);
+    if (cmd_fresh)
+        return g->cmd_still;
+    /* Nothing tells us: only the configured start window counts as standstill. */
+    return !g->enc_us && !g->cmd_us && now - g->started_us < (int64_t)(g->start_still_s * 1e6);
+}
+
+static void on_sample(void *user, double rate, uint8_t status)
+{
+    gyro_t *g = user;
+    if (marie_component_state(g->c) != MARIE_STATE_RUNNING)
+        return;
+    int64_t now = marie_mono_us();
+    double raw = g->sign * rate;
+    if (status == 0)
+        gyro_bias_feed(&g->bias, raw, standstill(g, now), now, g->period_s);
+    marie_gyro_t m = {
+        .utime = marie_component_now(g->c),
+        .yaw_rate = g->bias.valid ? raw - g->bias.bias : raw,
+        .bias = g->bias.valid ? g->bias.bias : 0,
+        .bias_valid = g->bias.valid,
+        .status = (int8_t)status,
+    };
+    marie_port_publish(g->out, &m);
+}
+
+static void on_gyro_event(void *user, gyro_ev_t ev, uint32_t code)
+{
+    gyro_t *g = user;
+    marie_component_t *c = g->c;
+    switch (ev) {
+    case GYRO_EV_CONFIGURED:
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "gyro_configured", "gyro '%s' configured, started",
+                              gyro_ctl_name(g->ctl));
+        break;
+    case GYRO_EV_CONFIG_FAILED:
+        marie_component_count(c, "config_failures", 1);
+        marie_warn_ratelimited(5, "gyro configuration failed: %s", co_sdo_abort_str(code));
+        break;
+    case GYRO_EV_EMCY:
+        marie_component_count(c, "emcy", 1);
+        marie_component_event(c, code ? MARIE_EVENT_T_SEV_WARN : MARIE_EVENT_T_SEV_INFO, "gyro_emcy",
+                              "gyro EMCY 0x%04X %s", code, co_emcy_str((uint16_t)code));
+        break;
+    case GYRO_EV_HB_TIMEOUT:
+        marie_component_count(c, "hb_timeouts", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "gyro_offline", "gyro heartbeat lost");
+        marie_warn("gyro heartbeat lost");
+        break;
+    case GYRO_EV_BOOTUP:
+        marie_component_count(c, "bootups", 1);
+        break;
+    case GYRO_EV_BAD_FRAME:
+        marie_component_bad_input(c, "bad_frame", "gyro: malformed frame id 0x%03X", code);
+        break;
+    case GYRO_EV_UNEXPECTED:
+        marie_component_bad_input(c, "unexpected_cob", "unexpected frame id 0x%03X", code);
+        break;
+    case GYRO_EV_LOST:
+        marie_component_count(c, "lost_samples", code);
+        marie_component_drop(c, code);
+        break;
+    }
+}
+
+static void send_frames(gyro_t *g, struct can_frame *f, int n)
+{
+    if (n > 0)
+        can_link_send(g->link, f, n);
+}
+
+static void on_frame(void *user, const struct can_frame *f)
+{
+    gyro_t *g = user;
+    struct can_frame tx[8];
+    send_frames(g, tx, gyro_ctl_feed(g->ctl, f, marie_mono_us(), tx, 8));
+}
+
+static void on_link_event(void *user, const char *kind, const char *text)
+{
+    gyro_t *g = user;
+    marie_component_count(g->c, kind, 1);
+    marie_component_event(g->c, MARIE_EVENT_T_SEV_WARN, kind, "%s", text);
+    marie_info("%s", text);
+}
+
+static void on_poll(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    gyro_t *g = user;
+    if (marie_component_state(g->c) != MARIE_STATE_RUNNING)
+        return;
+    struct can_frame tx[8];
+    send_frames(g, tx, gyro_ctl_poll(g->ctl, marie_mono_us(), tx, 8));
+}
+
+static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    gyro_t *g = marie_component_user(c);
+    const marie_wheel_encoders_t *m = msg;
+    g->enc_us = marie_mono_us();
+    g->enc_still = m->status == MARIE_WHEEL_ENCODERS_T_STATUS_OK || m->status == MARIE_WHEEL_ENCODERS_T_STATUS_DISABLED ||
+                   m->status == MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP
+                   ? fabs(m->left_velocity) < g->still_wheel && fabs(m->right_velocity) < g->still_wheel
+                   : false;
+}
+
+static void on_command(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    gyro_t *g = marie_component_user(c);
+    const marie_motor_command_t *m = msg;
+    g->cmd_us = marie_mono_us();
+    g->cmd_still = m->v == 0 && m->omega == 0;
+}
+
+static int on_init(marie_component_t *c)
+{
+    gyro_t *g = calloc(1, sizeof *g);
+    if (!g) {
+        marie_component_fail_reason(c, "out of memory");
+        return -1;
+    }
+    g->c = c;
+    marie_component_set_user(c, g);
+    gyro_cfg_t cfg;
+    gyro_cfg_default(&cfg);
+    int64_t node = marie_param_int(c, "node"), hb = marie_param_int(c, "heartbeat_ms");
+    double hz = marie_param_double(c, "rate_hz");
+    if (node < 1 || node > 127 || !(hz >= 1 && hz <= 1000) || hb < 0 || hb > 65535) {
+        marie_component_fail_reason(c, "bad parameters: node 1..127, rate_hz 1..1000, heartbeat_ms 0..65535");
+        goto err;
+    }
+    cfg.node = (uint8_t)node;
+    cfg.period_ms = (uint16_t)lround(1000 / hz);
+    cfg.heartbeat_ms = (uint16_t)hb;
+    cfg.heartbeat_timeout_us = (int64_t)(marie_param_double(c, "heartbeat_timeout") * 1e6);
+    g->period_s = cfg.period_ms / 1000.0;
+    g->sign = marie_param_bool(c, "invert") ? -1 : 1;
+    g->still_wheel = marie_param_double(c, "still_wheel_velocity");
+    g->start_still_s = marie_param_double(c, "assume_still_at_start");
+    gyro_bias_init(&g->bias, marie_param_double(c, "standstill_window"), marie_param_double(c, "bias_tau"),
+                   (int)marie_param_int(c, "bias_min_samples"), marie_param_double(c, "max_still_rate"));
+    g->ctl = gyro_ctl_create(&cfg, on_sample, on_gyro_event, g);
+    if (!g->ctl) {
+        marie_component_fail_reason(c, "gyro controller: %s", strerror(errno));
+        goto err;
+    }
+    struct can_filter flt[2];
+    int nf = gyro_ctl_filters(g->ctl, flt, 2);
+    const char *url = marie_param_str(c, "can");
+    g->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, g);
+    if (!g->link) {
+        marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));
+        goto err;
+    }
+    g->out = marie_port(c, "gyro");
+    marie_port_on_message(marie_port(c, "wheel_encoders"), on_encoders);
+    marie_port_on_message(marie_port(c, "motor_command"), on_command);
+    g->poll_timer = marie_loop_add_wall_timer(marie_component_loop(c), 50000, on_poll, g);
+    if (!g->poll_timer) {
+        marie_component_fail_reason(c, "timer: %s", strerror(errno));
+        goto err;
+    }
+    return 0;
+err:
+    can_link_close(g->link);
+    gyro_ctl_destroy(g->ctl);
+    free(g);
+    marie_component_set_user(c, NULL);
+    return -1;
+}
+
+static int on_start(marie_component_t *c)
+{
+    gyro_t *g = marie_component_user(c);
+    struct can_frame tx[8];
+    g->started_us = marie_mono_us();
+    send_frames(g, tx, gyro_ctl_start(g->ctl, g->started_us, tx, 8));
+    return 0;
+}
+
+static void on_quit(marie_component_t *c)
+{
+    gyro_t *g = marie_component_user(c);
+    if (!g)
+        return;
+    marie_loop_remove_timer(marie_component_loop(c), g->poll_timer);
+    can_link_close(g->link);
+    gyro_ctl_destroy(g->ctl);
+    free(g);
+    marie_component_set_user(c, NULL);
+}
+
+static const marie_component_def_t def = {
+    .kind = "marie-gyro",
+    .ports = ports,
+    .params = params,
+    .on_init = on_init,
+    .on_start = on_start,
+    .on_quit = on_quit,
+};
+
+int main(int argc, char **argv) { return marie_main(&def, argc, argv, NULL); }

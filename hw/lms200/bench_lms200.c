@@ -1,0 +1,213 @@
+/* bench_lms200: LMS200 parsing throughput, and CPU/RSS of marie-lms200 streaming from
+ * marie-vlms200 over a pty at the LMS200's nominal rate. TSV rows on stdout. */
+#include <errno.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <lcm/lcm.h>
+
+#include "core/time.h"
+#include "hw/lms200/lms200.h"
+#include "lcmtypes/marie_laser_scan_t.h"
+
+static void row(const char *bench, const char *metric, double value, const char *unit)
+{
+    printf("%s\t%s\t%.6g\t%s\t-\t-\n", bench, metric, value, unit);
+    fflush(stdout);
+}
+
+static long scans;
+static void on_telegram(void *user, const lms200_telegram_t *t)
+{
+    static lms200_scan_t s;
+    if (lms200_decode_scan(t, &s) == 0)
+        scans++;
+}
+
+static void bench_parse(void)
+{
+    uint16_t v[361];
+    for (int i = 0; i < 361; i++)
+        v[i] = (uint16_t)(1000 + 7 * i);
+    enum { COPIES = 64 };
+    static uint8_t stream[COPIES * LMS200_MAX_TELEGRAM];
+    size_t len = 0;
+    for (int k = 0; k < COPIES; k++)
+        len += lms200_encode_scan(stream + len, sizeof stream - len, 0, LMS200_UNIT_MM, v, 361, 0x10);
+    lms200_parser_t *p = lms200_parser_create(on_telegram, NULL, NULL);
+    /* Serial reads deliver a few hundred bytes at a time: feed 256-byte chunks. */
+    int64_t t0 = marie_mono_us(), t;
+    long bytes = 0;
+    do {
+        for (size_t off = 0; off < len; off += 256) {
+            size_t n = len - off < 256 ? len - off : 256;
+            lms200_parser_feed(p, stream + off, n);
+        }
+        bytes += (long)len;
+        t = marie_mono_us();
+    } while (t - t0 < 1000000);
+    double s = (double)(t - t0) / 1e6;
+    row("lms200_parse", "scans_per_s_361", (double)scans / s, "scans/s");
+    row("lms200_parse", "throughput", (double)bytes / s / 1e6, "MB/s");
+    lms200_parser_destroy(p);
+}
+
+static pid_t spawn(char *const argv[])
+{
+    pid_t pid = fork();
+    if (pid == 0) {
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void stop(pid_t pid)
+{
+    kill(pid, SIGTERM);
+    for (int i = 0; i < 50; i++) {
+        if (waitpid(pid, NULL, WNOHANG) == pid)
+            return;
+        usleep(20000);
+    }
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+}
+
+/* utime + stime in clock ticks. */
+static long cpu_ticks(pid_t pid)
+{
+    char path[64], buf[1024];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    char *p = strrchr(buf, ')');
+    if (!p)
+        return -1;
+    long ut = 0, st = 0;
+    /* fields after the command: state(3) ... utime(14) stime(15) */
+    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %ld %ld", &ut, &st) != 2)
+        return -1;
+    return ut + st;
+}
+
+static long status_kb(pid_t pid, const char *key)
+{
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    long v = -1;
+    size_t kl = strlen(key);
+    while (fgets(line, sizeof line, f))
+        if (strncmp(line, key, kl) == 0 && line[kl] == ':')
+            v = atol(line + kl + 1);
+    fclose(f);
+    return v;
+}
+
+/* A key of /proc/PID/smaps_rollup, in kB: Pss shares the libraries' pages among the
+ * processes that map them, which is what one more component really costs. */
+static long rollup_kb(pid_t pid, const char *key)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/smaps_rollup", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    char line[256];
+    long v = -1;
+    size_t kl = strlen(key);
+    while (fgets(line, sizeof line, f))
+        if (strncmp(line, key, kl) == 0 && line[kl] == ':')
+            v = atol(line + kl + 1);
+    fclose(f);
+    return v;
+}
+
+static long bus_scans;
+static void on_scan(const lcm_recv_buf_t *rb, const char *ch, const marie_laser_scan_t *m, void *user)
+{
+    bus_scans++;
+}
+
+static void bench_driver(const char *b, const char *res, const char *rate, const char *label)
+{
+    char dir[] = "/tmp/lms200-bench-XXXXXX";
+    if (!mkdtemp(dir))
+        return;
+    char link[128], emu[256], drv[256], dev[160], resp[64];
+    snprintf(link, sizeof link, "%s/tty", dir);
+    snprintf(emu, sizeof emu, "%s/bin/marie-vlms200", b);
+    snprintf(drv, sizeof drv, "%s/bin/marie-lms200", b);
+    snprintf(dev, sizeof dev, "device=%s", link);
+    snprintf(resp, sizeof resp, "resolution=%s", res);
+    char *eargv[] = { emu, "--link", link, "--rate", (char *)rate, NULL };
+    pid_t pe = spawn(eargv);
+    for (int i = 0; i < 100 && access(link, F_OK) != 0; i++)
+        usleep(20000);
+    char *dargv[] = { drv, "--param", dev, "--param", "baud=500000", "--param", resp, NULL };
+    pid_t pd = spawn(dargv);
+    lcm_t *lcm = lcm_create(NULL);
+    marie_laser_scan_t_subscription_t *sub = marie_laser_scan_t_subscribe(lcm, "LASER", on_scan, NULL);
+    /* Warm up until streaming, then measure over a fixed window. */
+    int64_t end = marie_mono_us() + 5000000;
+    while (bus_scans < 5 && marie_mono_us() < end) {
+        struct pollfd p = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
+        if (poll(&p, 1, 50) > 0)
+            lcm_handle(lcm);
+    }
+    long hz = sysconf(_SC_CLK_TCK);
+    long c0 = cpu_ticks(pd), e0 = cpu_ticks(pe), s0 = bus_scans;
+    int64_t t0 = marie_mono_us();
+    end = t0 + 10000000;   /* CPU time comes in 10 ms ticks: a long window */
+    while (marie_mono_us() < end) {
+        struct pollfd p = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
+        if (poll(&p, 1, 50) > 0)
+            lcm_handle(lcm);
+    }
+    double secs = (double)(marie_mono_us() - t0) / 1e6;
+    long c1 = cpu_ticks(pd), e1 = cpu_ticks(pe);
+    char bench[64];
+    snprintf(bench, sizeof bench, "lms200_driver_%s", label);
+    if (c0 >= 0 && c1 >= 0) {
+        row(bench, "scans_published", (double)(bus_scans - s0) / secs, "scans/s");
+        row(bench, "cpu", 100.0 * (double)(c1 - c0) / (double)hz / secs, "%core");
+        row(bench, "rss", (double)status_kb(pd, "VmRSS") / 1024.0, "MB");
+        row(bench, "rss_anon", (double)status_kb(pd, "RssAnon") / 1024.0, "MB");
+        row(bench, "pss", (double)rollup_kb(pd, "Pss") / 1024.0, "MB");
+        row(bench, "emulator_cpu", 100.0 * (double)(e1 - e0) / (double)hz / secs, "%core");
+    } else {
+        fprintf(stderr, "bench_lms200: marie-lms200 is not running\n");
+    }
+    marie_laser_scan_t_unsubscribe(lcm, sub);
+    lcm_destroy(lcm);
+    stop(pd);
+    stop(pe);
+    char tmp[200];
+    snprintf(tmp, sizeof tmp, "%s.tmp%d", link, (int)pe);
+    unlink(tmp);
+    unlink(link);
+    rmdir(dir);
+    bus_scans = 0;
+}
+
+int main(void)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    bench_parse();
+    /* A real LMS200 turns at 75 Hz: every turn at 1 deg, every second one (interlaced) at 0.5. */
+    bench_driver(b, "0.5", "37.5", "361x37.5hz");
+    bench_driver(b, "1", "75", "181x75hz");
+    return 0;
+}

@@ -1,0 +1,469 @@
+/* driver: LMS200 init sequence and stream supervision over one serial fd (no threads, no sleeps:
+ * the caller's poll loop feeds it readable events and deadlines). */
+#include "hw/lms200/driver.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <poll.h>
+
+#include "hw/lms200/serial.h"
+
+#define MAX_PROBE 6
+
+struct lms200_driver {
+    lms200_driver_cfg_t cfg;
+    char *device;
+    lms200_driver_ops_t ops;
+    void *user;
+    lms200_parser_t *parser;
+    lms200_parser_stats_t seen;     /* parser counters already reported */
+    int fd;
+    int baud;                       /* the line's current rate */
+    lms200_drv_state_t state;
+    int64_t deadline;
+    int64_t now;                    /* time of the event being handled */
+    int tries;                      /* sends of the current command */
+    int probe[MAX_PROBE], nprobe, probe_idx;
+    bool lost;                      /* streaming was lost: the next stream is a reconnect */
+    bool open_failed_reported;
+    bool nak_seen;
+    lms200_driver_stats_t st;
+};
+
+static const char *state_names[] = { "closed", "probe", "variant", "baud", "start", "stream" };
+
+const char *lms200_driver_state_name(lms200_drv_state_t s)
+{
+    return (unsigned)s < sizeof state_names / sizeof state_names[0] ? state_names[s] : "?";
+}
+
+static void emit(lms200_driver_t *d, int sev, const char *kind, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static void emit(lms200_driver_t *d, int sev, const char *kind, const char *fmt, ...)
+{
+    if (!d->ops.on_event)
+        return;
+    char text[256];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    d->ops.on_event(d->user, sev, kind, text);
+}
+
+static void count(lms200_driver_t *d, const char *name, int64_t *field, int64_t delta, bool bad)
+{
+    *field += delta;
+    if (d->ops.on_count && delta)
+        d->ops.on_count(d->user, name, delta, bad);
+}
+
+static void set_fd(lms200_driver_t *d, int fd)
+{
+    int old = d->fd;
+    d->fd = fd;
+    if (old != fd && d->ops.on_fd)
+        d->ops.on_fd(d->user, old, fd);
+}
+
+static void enter(lms200_driver_t *d, lms200_drv_state_t s);
+
+static void close_line(lms200_driver_t *d)
+{
+    int fd = d->fd;
+    if (fd < 0)
+        return;
+    set_fd(d, -1);
+    close(fd);
+    lms200_parser_reset(d->parser);
+}
+
+static void hangup(lms200_driver_t *d, const char *why)
+{
+    count(d, "disconnects", &d->st.disconnects, 1, false);
+    emit(d, 2, "laser_disconnected", "%s: %s (state %s); reopening every %d ms",
+         d->device, why, lms200_driver_state_name(d->state), d->cfg.reopen_ms);
+    d->lost = true;
+    close_line(d);
+    d->state = LMS200_DRV_CLOSED;
+    d->deadline = d->now + (int64_t)d->cfg.reopen_ms * 1000;
+}
+
+/* Candidate rates, the likeliest first, without duplicates. */
+static void build_probe(lms200_driver_t *d, int first)
+{
+    const int cand[] = { first, 9600, d->cfg.baud, 38400, 19200, 500000 };
+    d->nprobe = 0;
+    for (size_t i = 0; i < sizeof cand / sizeof cand[0]; i++) {
+        bool dup = false;
+        for (int k = 0; k < d->nprobe; k++)
+            dup |= d->probe[k] == cand[i];
+        if (!dup && lms200_serial_speed(cand[i]))
+            d->probe[d->nprobe++] = cand[i];
+    }
+    d->probe_idx = 0;
+}
+
+static int set_line_baud(lms200_driver_t *d, int baud)
+{
+    int r = lms200_serial_set_baud(d->fd, baud);
+    if (r == 0)
+        d->baud = baud;
+    lms200_parser_reset(d->parser);
+    return r;
+}
+
+static void send_current(lms200_driver_t *d)
+{
+    uint8_t out[32];
+    size_t n = 0;
+    switch (d->state) {
+    case LMS200_DRV_PROBE:
+        n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_STOP, NULL);
+        break;
+    case LMS200_DRV_VARIANT:
+        n = lms200_encode_variant(out, sizeof out, d->cfg.addr, 180, (uint16_t)d->cfg.res_cdeg);
+        break;
+    case LMS200_DRV_BAUD:
+        n = lms200_encode_mode(out, sizeof out, d->cfg.addr, (uint8_t)lms200_baud_mode(d->cfg.baud), NULL);
+        break;
+    case LMS200_DRV_START:
+        n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_CONTINUOUS, NULL);
+        break;
+    default:
+        return;
+    }
+    d->tries++;
+    int wait_ms = d->state == LMS200_DRV_PROBE ? d->cfg.reply_timeout_ms : d->cfg.config_timeout_ms;
+    d->deadline = d->now + (int64_t)wait_ms * 1000;
+    int r = lms200_serial_write(d->fd, out, n, d->cfg.reply_timeout_ms);
+    if (r < 0 && r != -ETIMEDOUT) {
+        char why[96];
+        snprintf(why, sizeof why, "write failed: %s", strerror(-r));
+        hangup(d, why);
+    }
+}
+
+static void enter(lms200_driver_t *d, lms200_drv_state_t s)
+{
+    d->state = s;
+    d->tries = 0;
+    if (s == LMS200_DRV_STREAM) {
+        d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+        return;
+    }
+    send_current(d);
+}
+
+/* Start over from "stop continuous output" at the rate the line has now. */
+static void reinit(lms200_driver_t *d)
+{
+    build_probe(d, d->baud);
+    lms200_parser_reset(d->parser);
+    enter(d, LMS200_DRV_PROBE);
+}
+
+static void try_open(lms200_driver_t *d)
+{
+    int fd = lms200_serial_open(d->device);
+    if (fd < 0) {
+        if (!d->open_failed_reported)
+            emit(d, 2, "laser_open_failed", "cannot open %s: %s; retrying every %d ms",
+                 d->device, strerror(-fd), d->cfg.reopen_ms);
+        d->open_failed_reported = true;
+        d->deadline = d->now + (int64_t)d->cfg.reopen_ms * 1000;
+        return;
+    }
+    d->open_failed_reported = false;
+    d->baud = 9600;
+    lms200_parser_reset(d->parser);
+    set_fd(d, fd);
+    build_probe(d, 9600);
+    enter(d, LMS200_DRV_PROBE);
+}
+
+static void streaming_started(lms200_driver_t *d)
+{
+    d->st.inits++;
+    if (d->lost) {
+        count(d, "reconnects", &d->st.reconnects, 1, false);
+        emit(d, 1, "laser_reconnected", "%s streaming again at %d baud, %s deg resolution",
+             d->device, d->baud, d->cfg.res_cdeg == 50 ? "0.5" : "1");
+    } else {
+        emit(d, 1, "laser_streaming", "%s streaming at %d baud, %s deg resolution",
+             d->device, d->baud, d->cfg.res_cdeg == 50 ? "0.5" : "1");
+    }
+    d->lost = false;
+    enter(d, LMS200_DRV_STREAM);
+}
+
+static void on_mode_reply(lms200_driver_t *d, uint8_t result)
+{
+    if (d->state != LMS200_DRV_PROBE && d->state != LMS200_DRV_BAUD && d->state != LMS200_DRV_START)
+        return;
+    if (result != LMS200_MODE_OK) {
+        emit(d, 2, "laser_mode_refused", "%s refused the %s step (result %u); retrying",
+             d->device, lms200_driver_state_name(d->state), result);
+        return;     /* the reply timeout resends */
+    }
+    switch (d->state) {
+    case LMS200_DRV_PROBE:
+        enter(d, LMS200_DRV_VARIANT);
+        break;
+    case LMS200_DRV_BAUD: {
+        /* The device answered at the old rate and now listens at the new one. */
+        int r = set_line_baud(d, d->cfg.baud);
+        if (r < 0) {
+            emit(d, 3, "laser_baud_failed", "cannot set %s to %d baud: %s", d->device, d->cfg.baud, strerror(-r));
+            reinit(d);
+            break;
+        }
+        enter(d, LMS200_DRV_START);
+        break;
+    }
+    case LMS200_DRV_START:
+        streaming_started(d);
+        break;
+    default:
+        break;
+    }
+}
+
+static void on_variant_reply(lms200_driver_t *d, const lms200_variant_t *v)
+{
+    if (d->state != LMS200_DRV_VARIANT)
+        return;
+    if (!v->ok || v->angle_deg != 180 || v->res_cdeg != d->cfg.res_cdeg) {
+        emit(d, 3, "laser_variant_refused", "%s refused variant 180 deg / %d cdeg (answered ok=%d %u/%u)",
+             d->device, d->cfg.res_cdeg, v->ok, v->angle_deg, v->res_cdeg);
+        return;
+    }
+    if (d->baud == d->cfg.baud)
+        enter(d, LMS200_DRV_START);
+    else
+        enter(d, LMS200_DRV_BAUD);
+}
+
+static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
+{
+    if (d->state != LMS200_DRV_STREAM)
+        return;     /* the tail of an earlier stream while re-initialising */
+    static lms200_scan_t scan;  /* 1.6 KB: kept off the stack of the poll loop */
+    int want = d->cfg.res_cdeg == 50 ? 361 : 181;
+    if (lms200_decode_scan(t, &scan) < 0 || scan.n != want || scan.partial) {
+        count(d, "bad_scans", &d->st.bad_scans, 1, true);
+        return;
+    }
+    d->st.scans++;
+    d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+    if (d->ops.on_scan)
+        d->ops.on_scan(d->user, &scan, d->cfg.res_cdeg, d->now);
+}
+
+static void on_telegram(void *user, const lms200_telegram_t *t)
+{
+    lms200_driver_t *d = user;
+    if (!(t->addr & LMS200_REPLY_BIT) || (t->addr & 0x7f) != d->cfg.addr)
+        return;     /* our own echo, or another device on a shared RS-422 line */
+    switch (t->cmd) {
+    case LMS200_REPLY_MODE: {
+        uint8_t res;
+        if (lms200_decode_mode_reply(t, &res) == 0)
+            on_mode_reply(d, res);
+        break;
+    }
+    case LMS200_REPLY_VARIANT: {
+        lms200_variant_t v;
+        if (lms200_decode_variant_reply(t, &v) == 0)
+            on_variant_reply(d, &v);
+        break;
+    }
+    case LMS200_REPLY_SCAN:
+        on_scan(d, t);
+        break;
+    default:
+        break;
+    }
+}
+
+static void on_ack(void *user, uint8_t b)
+{
+    lms200_driver_t *d = user;
+    if (b == LMS200_NAK && d->state != LMS200_DRV_STREAM && d->state != LMS200_DRV_CLOSED) {
+        count(d, "naks", &d->st.naks, 1, false);
+        d->nak_seen = true;
+    }
+}
+
+static void report_parser(lms200_driver_t *d)
+{
+    const lms200_parser_stats_t *s = lms200_parser_stats(d->parser);
+    count(d, "crc_errors", &d->st.crc_errors, (int64_t)(s->crc_errors - d->seen.crc_errors), true);
+    count(d, "truncated", &d->st.truncated, (int64_t)(s->truncated - d->seen.truncated), true);
+    count(d, "oversized", &d->st.oversized, (int64_t)(s->oversized - d->seen.oversized), true);
+    count(d, "garbage_bytes", &d->st.garbage_bytes, (int64_t)(s->garbage_bytes - d->seen.garbage_bytes), true);
+    d->seen = *s;
+}
+
+lms200_driver_t *lms200_driver_create(const lms200_driver_cfg_t *cfg, const lms200_driver_ops_t *ops, void *user)
+{
+    if (!cfg->device || lms200_baud_mode(cfg->baud) < 0 || !lms200_serial_speed(cfg->baud) ||
+        (cfg->res_cdeg != 100 && cfg->res_cdeg != 50) || cfg->addr > 0x7f) {
+        errno = EINVAL;
+        return NULL;
+    }
+    lms200_driver_t *d = calloc(1, sizeof *d);
+    if (!d)
+        return NULL;
+    d->cfg = *cfg;
+    if (d->cfg.reply_timeout_ms <= 0) d->cfg.reply_timeout_ms = 300;
+    if (d->cfg.config_timeout_ms <= 0) d->cfg.config_timeout_ms = 3000;
+    if (d->cfg.retries <= 0) d->cfg.retries = 2;
+    if (d->cfg.data_timeout_ms <= 0) d->cfg.data_timeout_ms = 1000;
+    if (d->cfg.reopen_ms <= 0) d->cfg.reopen_ms = 500;
+    if (ops)
+        d->ops = *ops;
+    d->user = user;
+    d->fd = -1;
+    d->baud = 9600;
+    d->deadline = INT64_MAX;
+    d->device = strdup(cfg->device);
+    d->parser = lms200_parser_create(on_telegram, on_ack, d);
+    if (!d->device || !d->parser)
+        goto err;
+    d->cfg.device = d->device;
+    return d;
+err:
+    lms200_parser_destroy(d->parser);
+    free(d->device);
+    free(d);
+    errno = ENOMEM;
+    return NULL;
+}
+
+void lms200_driver_destroy(lms200_driver_t *d)
+{
+    if (!d)
+        return;
+    if (d->fd >= 0)
+        close(d->fd);
+    lms200_parser_destroy(d->parser);
+    free(d->device);
+    free(d);
+}
+
+void lms200_driver_start(lms200_driver_t *d, int64_t now_us)
+{
+    d->now = now_us;
+    if (d->fd >= 0)
+        return;
+    d->state = LMS200_DRV_CLOSED;
+    try_open(d);
+}
+
+void lms200_driver_stop(lms200_driver_t *d)
+{
+    if (d->fd >= 0) {
+        uint8_t out[16];
+        size_t n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_STOP, NULL);
+        (void)lms200_serial_write(d->fd, out, n, 50);
+        close_line(d);
+    }
+    d->state = LMS200_DRV_CLOSED;
+    d->deadline = INT64_MAX;
+}
+
+int lms200_driver_fd(const lms200_driver_t *d) { return d->fd; }
+int64_t lms200_driver_deadline(const lms200_driver_t *d) { return d->deadline; }
+lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d) { return d->state; }
+int lms200_driver_baud(const lms200_driver_t *d) { return d->baud; }
+const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d) { return &d->st; }
+
+void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
+{
+    d->now = now_us;
+    if (d->fd < 0)
+        return;
+    if (revents & POLLIN) {
+        uint8_t buf[4096];
+        for (int round = 0; round < 16 && d->fd >= 0; round++) {
+            ssize_t n = read(d->fd, buf, sizeof buf);
+            if (n > 0) {
+                lms200_parser_feed(d->parser, buf, (size_t)n);
+                report_parser(d);
+                if (d->nak_seen && d->fd >= 0) {
+                    d->nak_seen = false;
+                    send_current(d);    /* the device saw our command damaged: send again */
+                }
+                if ((size_t)n < sizeof buf)
+                    return;
+                continue;
+            }
+            if (n < 0 && errno == EINTR)
+                continue;
+            if (n < 0 && errno == EAGAIN)
+                return;
+            /* 0 or EIO: the line is gone (a pty whose other end closed, a USB adapter pulled). */
+            hangup(d, n == 0 ? "end of file" : strerror(errno));
+            return;
+        }
+        return;
+    }
+    if (revents & (POLLHUP | POLLERR | POLLNVAL))
+        hangup(d, revents & POLLHUP ? "hang-up" : "poll error");
+}
+
+void lms200_driver_tick(lms200_driver_t *d, int64_t now_us)
+{
+    d->now = now_us;
+    if (now_us < d->deadline)
+        return;
+    switch (d->state) {
+    case LMS200_DRV_CLOSED:
+        if (d->deadline != INT64_MAX)
+            try_open(d);
+        break;
+    case LMS200_DRV_PROBE:
+        if (d->tries < d->cfg.retries) {
+            send_current(d);
+            break;
+        }
+        for (;;) {
+            if (++d->probe_idx >= d->nprobe) {
+                count(d, "timeouts", &d->st.timeouts, 1, false);
+                emit(d, 2, "laser_not_found", "no LMS200 answer on %s at any rate; reopening", d->device);
+                d->lost = true;
+                close_line(d);
+                d->state = LMS200_DRV_CLOSED;
+                d->deadline = d->now + (int64_t)d->cfg.reopen_ms * 1000;
+                return;
+            }
+            if (set_line_baud(d, d->probe[d->probe_idx]) == 0)
+                break;
+        }
+        enter(d, LMS200_DRV_PROBE);
+        break;
+    case LMS200_DRV_VARIANT:
+    case LMS200_DRV_BAUD:
+    case LMS200_DRV_START:
+        if (d->tries < d->cfg.retries) {
+            send_current(d);
+            break;
+        }
+        count(d, "timeouts", &d->st.timeouts, 1, false);
+        emit(d, 2, "laser_init_timeout", "%s: no reply in step %s; starting over",
+             d->device, lms200_driver_state_name(d->state));
+        reinit(d);
+        break;
+    case LMS200_DRV_STREAM:
+        count(d, "timeouts", &d->st.timeouts, 1, false);
+        emit(d, 2, "laser_silent", "%s: no scan for %d ms; re-initialising", d->device, d->cfg.data_timeout_ms);
+        d->lost = true;
+        reinit(d);
+        break;
+    }
+}

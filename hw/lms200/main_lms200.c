@@ -1,0 +1,205 @@
+/* marie-lms200: the SICK LMS200 driver as a component: publishes laser_scan_t on `scan`. */
+#include <errno.h>
+#include <math.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/component.h"
+#include "hw/lms200/driver.h"
+#include "lcmtypes/marie_laser_scan_t.h"
+
+typedef struct {
+    marie_component_t *c;
+    lms200_driver_t *drv;
+    marie_timer_t *tick;
+    marie_port_t *scan_port;
+    float ranges[LMS200_MAX_VALUES];
+    int baud;
+} lms_t;
+
+static const marie_port_spec_t ports[] = {
+    { "scan", &marie_type_laser_scan_t, MARIE_OUT, MARIE_PUSH, "LASER" },
+    { NULL },
+};
+
+static const marie_param_spec_t params[] = {
+    { "device", MARIE_PARAM_STRING, "/dev/ttyUSB0", "serial device of the LMS200" },
+    { "baud", MARIE_PARAM_INT, "500000", "line rate while streaming: 9600, 19200, 38400 (RS-232) or 500000 (RS-422)" },
+    { "resolution", MARIE_PARAM_DOUBLE, "0.5", "degrees between beams: 1 (181 beams) or 0.5 (361)" },
+    { "address", MARIE_PARAM_INT, "0", "device address on the line" },
+    { "reply_timeout_ms", MARIE_PARAM_INT, "300", "wait for the answer to a probe at one rate" },
+    { "config_timeout_ms", MARIE_PARAM_INT, "3000", "wait for the variant, baud and start replies" },
+    { "retries", MARIE_PARAM_INT, "2", "sends of one command before the next step of recovery" },
+    { "data_timeout_ms", MARIE_PARAM_INT, "1000", "no scan this long while streaming: re-initialise" },
+    { "reopen_ms", MARIE_PARAM_INT, "500", "between attempts to open a missing device" },
+    { NULL },
+};
+
+static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t mono_us)
+{
+    lms_t *l = user;
+    marie_component_t *c = l->c;
+    if (marie_component_state(c) != MARIE_STATE_RUNNING)
+        return;     /* paused: the device keeps streaming, nothing is published */
+    double range_max = lms200_value_m(LMS200_VALUE_ERROR_MIN - 1, s->unit);
+    for (int i = 0; i < s->n; i++) {
+        double m = lms200_value_m(s->values[i], s->unit);
+        l->ranges[i] = (float)(isinf(m) ? range_max : m);
+    }
+    /* Stamp the scan when its telegram began to arrive, not when its last byte did. */
+    int64_t wire_us = (int64_t)(10 + 2 * s->n) * 10 * 1000000 / (l->baud > 0 ? l->baud : 9600);
+    marie_laser_scan_t msg = {
+        .utime = marie_component_now(c) - (marie_mono_us() - mono_us) - wire_us,
+        .angle_min = (float)(-M_PI / 2),
+        .angle_increment = (float)(res_cdeg / 100.0 * M_PI / 180.0),
+        .range_min = 0.0f,
+        .range_max = (float)range_max,
+        .nranges = s->n,
+        .ranges = l->ranges,
+        .nintensities = 0,
+        .intensities = NULL,
+    };
+    marie_port_publish(l->scan_port, &msg);
+    marie_component_count(c, "scans", 1);
+}
+
+static void on_event(void *user, int severity, const char *kind, const char *text)
+{
+    lms_t *l = user;
+    marie_component_event(l->c, severity, kind, "%s", text);
+}
+
+static void on_count(void *user, const char *counter, int64_t delta, bool bad_input)
+{
+    lms_t *l = user;
+    if (!bad_input) {
+        marie_component_count(l->c, counter, delta);
+        return;
+    }
+    if (strcmp(counter, "garbage_bytes") == 0) {
+        marie_component_count(l->c, counter, delta);
+        marie_component_bad_input(l->c, "garbage", "%lld bytes between telegrams skipped", (long long)delta);
+        return;
+    }
+    for (int64_t i = 0; i < delta; i++)
+        marie_component_bad_input(l->c, counter, "LMS200 telegram dropped (%s)", counter);
+}
+
+static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    lms_t *l = user;
+    lms200_driver_io(l->drv, revents, marie_mono_us());
+}
+
+static void on_fd(void *user, int old_fd, int new_fd)
+{
+    lms_t *l = user;
+    marie_loop_t *loop = marie_component_loop(l->c);
+    if (old_fd >= 0)
+        marie_loop_remove_fd(loop, old_fd);
+    if (new_fd >= 0 && marie_loop_add_fd(loop, new_fd, POLLIN, on_readable, l) < 0)
+        marie_error("cannot watch the laser fd: %s", strerror(errno));
+}
+
+/* Device timing is wall time even when the component follows the simulator's clock. */
+static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    lms_t *l = user;
+    lms200_driver_tick(l->drv, marie_mono_us());
+}
+
+static const lms200_driver_ops_t driver_ops = {
+    .on_scan = on_scan, .on_event = on_event, .on_count = on_count, .on_fd = on_fd,
+};
+
+static int on_init(marie_component_t *c)
+{
+    lms_t *l = calloc(1, sizeof *l);
+    if (!l) {
+        marie_component_fail_reason(c, "out of memory");
+        return -1;
+    }
+    l->c = c;
+    double res = marie_param_double(c, "resolution");
+    lms200_driver_cfg_t cfg = {
+        .device = marie_param_str(c, "device"),
+        .baud = (int)marie_param_int(c, "baud"),
+        .res_cdeg = fabs(res - 0.5) < 1e-6 ? 50 : fabs(res - 1.0) < 1e-6 ? 100 : -1,
+        .addr = (uint8_t)marie_param_int(c, "address"),
+        .reply_timeout_ms = (int)marie_param_int(c, "reply_timeout_ms"),
+        .config_timeout_ms = (int)marie_param_int(c, "config_timeout_ms"),
+        .retries = (int)marie_param_int(c, "retries"),
+        .data_timeout_ms = (int)marie_param_int(c, "data_timeout_ms"),
+        .reopen_ms = (int)marie_param_int(c, "reopen_ms"),
+    };
+    l->baud = cfg.baud;
+    if (cfg.res_cdeg < 0 || lms200_baud_mode(cfg.baud) < 0 || marie_param_int(c, "address") < 0 ||
+        marie_param_int(c, "address") > 127) {
+        marie_component_fail_reason(c, "resolution must be 0.5 or 1, baud 9600/19200/38400/500000, address 0..127 "
+                                    "(got %g, %d, %lld)", res, cfg.baud, (long long)marie_param_int(c, "address"));
+        free(l);
+        return -1;
+    }
+    l->drv = lms200_driver_create(&cfg, &driver_ops, l);
+    l->tick = marie_loop_add_wall_timer(marie_component_loop(c), 20000, on_tick, l);
+    l->scan_port = marie_port(c, "scan");
+    if (!l->drv || !l->tick) {
+        marie_component_fail_reason(c, "cannot create the driver: %s", strerror(errno));
+        marie_loop_remove_timer(marie_component_loop(c), l->tick);
+        lms200_driver_destroy(l->drv);
+        free(l);
+        return -1;
+    }
+    marie_component_set_user(c, l);
+    return 0;
+}
+
+static int on_start(marie_component_t *c)
+{
+    lms_t *l = marie_component_user(c);
+    lms200_driver_start(l->drv, marie_mono_us());
+    return 0;
+}
+
+static int on_stop(marie_component_t *c)
+{
+    lms_t *l = marie_component_user(c);
+    lms200_driver_stop(l->drv);
+    return 0;
+}
+
+static void on_abort(marie_component_t *c)
+{
+    lms_t *l = marie_component_user(c);
+    if (l)
+        lms200_driver_stop(l->drv);
+}
+
+static void on_quit(marie_component_t *c)
+{
+    lms_t *l = marie_component_user(c);
+    if (!l)
+        return;
+    lms200_driver_stop(l->drv);
+    marie_loop_remove_timer(marie_component_loop(c), l->tick);
+    lms200_driver_destroy(l->drv);
+    free(l);
+    marie_component_set_user(c, NULL);
+}
+
+static const marie_component_def_t def = {
+    .kind = "lms200",
+    .ports = ports,
+    .params = params,
+    .on_init = on_init,
+    .on_start = on_start,
+    .on_stop = on_stop,
+    .on_abort = on_abort,
+    .on_quit = on_quit,
+};
+
+int main(int argc, char **argv)
+{
+    return marie_main(&def, argc, argv, NULL);
+}

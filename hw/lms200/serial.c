@@ -1,0 +1,120 @@
+/* serial: termios for the LMS200 line. Only the fd is touched, so tests hand it a pty. */
+#include "hw/lms200/serial.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <unistd.h>
+
+static const struct { int baud; speed_t speed; } rates[] = {
+    { 9600, B9600 }, { 19200, B19200 }, { 38400, B38400 },
+    { 57600, B57600 }, { 115200, B115200 },
+#ifdef B500000
+    { 500000, B500000 },
+#endif
+};
+
+speed_t lms200_serial_speed(int baud)
+{
+    for (size_t i = 0; i < sizeof rates / sizeof rates[0]; i++)
+        if (rates[i].baud == baud)
+            return rates[i].speed;
+    return 0;
+}
+
+int lms200_serial_baud(speed_t speed)
+{
+    for (size_t i = 0; i < sizeof rates / sizeof rates[0]; i++)
+        if (rates[i].speed == speed)
+            return rates[i].baud;
+    return -1;
+}
+
+int lms200_serial_setup(int fd, int baud)
+{
+    speed_t sp = lms200_serial_speed(baud);
+    if (!sp)
+        return -EINVAL;
+    struct termios t;
+    if (tcgetattr(fd, &t) < 0)
+        return -errno;
+    cfmakeraw(&t);
+    t.c_cflag &= ~(CSTOPB | PARENB | CRTSCTS);
+    t.c_cflag |= CLOCAL | CREAD | CS8;
+    t.c_iflag &= ~(IXON | IXOFF | IXANY);
+    t.c_cc[VMIN] = 0;
+    t.c_cc[VTIME] = 0;
+    cfsetispeed(&t, sp);
+    cfsetospeed(&t, sp);
+    if (tcsetattr(fd, TCSANOW, &t) < 0)
+        return -errno;
+    tcflush(fd, TCIFLUSH);
+    return 0;
+}
+
+int lms200_serial_open(const char *path)
+{
+    int fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return -errno;
+    int r = lms200_serial_setup(fd, 9600);
+    if (r < 0) {
+        close(fd);
+        return r;
+    }
+    return fd;
+}
+
+int lms200_serial_set_baud(int fd, int baud)
+{
+    speed_t sp = lms200_serial_speed(baud);
+    if (!sp)
+        return -EINVAL;
+    struct termios t;
+    if (tcgetattr(fd, &t) < 0)
+        return -errno;
+    cfsetispeed(&t, sp);
+    cfsetospeed(&t, sp);
+    /* TCSANOW: the driver changes the rate only after the device answered at the old one
+     * (or stayed silent), so nothing of ours is still in flight; waiting for a drain could
+     * block on a line whose far end stopped reading. */
+    if (tcsetattr(fd, TCSANOW, &t) < 0)
+        return -errno;
+    tcflush(fd, TCIFLUSH);
+    return 0;
+}
+
+int lms200_serial_get_baud(int fd)
+{
+    struct termios t;
+    if (tcgetattr(fd, &t) < 0)
+        return -errno;
+    int b = lms200_serial_baud(cfgetospeed(&t));
+    return b < 0 ? -EINVAL : b;
+}
+
+int lms200_serial_write(int fd, const void *buf, size_t len, int timeout_ms)
+{
+    const unsigned char *p = buf;
+    while (len > 0) {
+        ssize_t n = write(fd, p, len);
+        if (n > 0) {
+            p += n;
+            len -= (size_t)n;
+            continue;
+        }
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n < 0 && errno != EAGAIN)
+            return -errno;
+        struct pollfd pfd = { .fd = fd, .events = POLLOUT };
+        int r = poll(&pfd, 1, timeout_ms);
+        if (r == 0)
+            return -ETIMEDOUT;
+        if (r < 0 && errno != EINTR)
+            return -errno;
+        if (r > 0 && (pfd.revents & (POLLERR | POLLHUP | POLLNVAL)))
+            return -EIO;
+    }
+    return 0;
+}

@@ -1,0 +1,68 @@
+/* am_proto: channels, order names and defaults shared by marie-am and the marie command line. */
+#ifndef MARIE_AM_PROTO_H
+#define MARIE_AM_PROTO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "lcmtypes/marie_am_order_t.h"
+#include "lcmtypes/marie_am_reply_t.h"
+#include "lcmtypes/marie_am_status_t.h"
+#include "lcmtypes/marie_log_line_t.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define MARIE_CH_AM_ORDER  "MARIE_AM_ORDER"
+#define MARIE_CH_AM_REPLY  "MARIE_AM_REPLY"
+#define MARIE_CH_AM_STATUS "MARIE_AM_STATUS"
+#define MARIE_CH_LOG       "MARIE_LOG"
+
+/* Exit codes of the marie command line (documented in docs/managers.md). */
+enum {
+    MARIE_EXIT_OK = 0,
+    MARIE_EXIT_FAIL = 1,        /* refused order, failed component, doctor found a problem */
+    MARIE_EXIT_USAGE = 2,       /* bad command line or system file */
+    MARIE_EXIT_TIMEOUT = 3,     /* a manager did not answer, a host is lost, a wait timed out */
+    MARIE_EXIT_AUTH = 4,        /* no usable key file, or an order refused as unauthenticated */
+};
+
+const char *marie_am_op_name(int op);
+int marie_am_op_parse(const char *name);        /* -1 if unknown */
+
+/* Key file: MARIE_KEY, else /etc/marie/key. */
+const char *marie_am_key_path(const char *override);
+/* "user@host" for order senders. */
+void marie_am_sender(char *buf, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
+
+#include "core/config.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Manager settings of a system file (its `manager:` section). */
+typedef struct {
+    double status_hz;           /* status messages per second (default 2) */
+    double log_rate;            /* captured lines per second per component (default 200; burst 2x) */
+    int64_t log_max_bytes;      /* rotate a component's log past this size (default 1 MiB) */
+    int log_keep;               /* rotated files kept (default 3) */
+} marie_am_settings_t;
+
+/* What the managers check beyond marie_system_load: dependency cycles (they would never
+ * start) and the `manager:` section. Fills settings (defaults for absent keys). 0 or -1
+ * with file:line:col messages in errs. */
+int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *settings, marie_errors_t *errs);
+
+/* The host a component runs on: its `host`, else the first of `hosts`, else `fallback`. */
+const char *marie_am_component_host(const marie_system_t *sys, const marie_component_cfg_t *c, const char *fallback);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

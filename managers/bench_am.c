@@ -1,0 +1,340 @@
+/* bench_am: marie-am supervision costs: crash-to-respawn latency, heartbeat-loss detection,
+ * bring-up of 45 components over 4 managers, and the idle CPU and RSS of a manager. */
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <lcm/lcm.h>
+
+#include "core/component.h"
+#include "core/time.h"
+#include "lcmtypes/marie_event_t.h"
+#include "lcmtypes/marie_heartbeat_t.h"
+#include "managers/am_proto.h"
+#include "managers/procstat.h"
+
+static char dir[64];
+static const char *bin = "build";
+
+static void row(const char *metric, double value, const char *unit)
+{
+    printf("bench_am\t%s\t%.3f\t%s\t-\t-\n", metric, value, unit);
+    fflush(stdout);
+}
+
+static pid_t spawn_am(const char *host, const char *state)
+{
+    char exe[256], log[160];
+    snprintf(exe, sizeof exe, "%s/bin/marie-am", bin);
+    snprintf(log, sizeof log, "%s/%s.log", dir, host);
+    pid_t pid = fork();
+    if (pid == 0) {
+        FILE *f = freopen(log, "a", stderr);
+        (void)f;
+        execl(exe, exe, "--host", host, "--state-dir", state, (char *)NULL);
+        _exit(127);
+    }
+    return pid;
+}
+
+static int run_marie(const char *args)
+{
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "%s/bin/marie %s >> %s/marie.log 2>&1", bin, args, dir);
+    int st = system(cmd);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static void stop_am(pid_t pid)
+{
+    kill(pid, SIGTERM);
+    for (int i = 0; i < 100; i++) {
+        if (waitpid(pid, NULL, WNOHANG) == pid)
+            return;
+        usleep(50000);
+    }
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double pct(double *v, int n, double p)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    int i = (int)(p * (n - 1) + 0.5);
+    return v[i];
+}
+
+/* The newest "exec" or "running" trace line of a component: time and pid. */
+static int last_trace(const char *trace, const char *name, const char *what, int64_t *t, int *pid)
+{
+    FILE *f = fopen(trace, "r");
+    if (!f)
+        return -1;
+    char line[256], n[64], w[32];
+    long long tt;
+    int p, found = -1;
+    while (fgets(line, sizeof line, f))
+        if (sscanf(line, "%lld %63s %31s %d", &tt, n, w, &p) == 4 && strcmp(n, name) == 0 && strcmp(w, what) == 0) {
+            *t = tt;
+            *pid = p;
+            found = 0;
+        }
+    fclose(f);
+    return found;
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    if (f) {
+        fputs(text, f);
+        fclose(f);
+    }
+}
+
+/* ---- heartbeat-loss detection ---- */
+static int64_t last_hb_us, detect_us;
+static int victim_pid;
+
+static void on_hb(const lcm_recv_buf_t *rb, const char *ch, const marie_heartbeat_t *hb, void *u)
+{
+    if (strcmp(hb->component, "victim") == 0 && hb->pid == victim_pid)
+        last_hb_us = marie_mono_us();
+}
+
+static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event_t *ev, void *u)
+{
+    if (strcmp(ev->kind, "not_responding") == 0 && !detect_us)
+        detect_us = marie_mono_us();
+}
+
+static void bench_respawn_and_hang(void)
+{
+    char sys[128], state[128], trace[128], text[2048];
+    snprintf(sys, sizeof sys, "%s/one.yaml", dir);
+    snprintf(state, sizeof state, "%s/one", dir);
+    snprintf(trace, sizeof trace, "%s/trace", dir);
+    snprintf(text, sizeof text,
+             "system: one\nhosts: [b1]\ncomponents:\n  victim:\n    exec: %s/tests/bin/marie-test-comp\n"
+             "    host: b1\n    heartbeat_timeout: 1.5\n    stop_timeout: 0.2\n"
+             "    restart: {policy: always, backoff_min: 0, backoff_max: 0, stable_after: 0, max_failures: 0}\n",
+             bin);
+    write_text(sys, text);
+    setenv("MARIE_TEST_TRACE", trace, 1);
+    pid_t am = spawn_am("b1", state);
+    usleep(300000);
+    char args[256];
+    snprintf(args, sizeof args, "up %s", sys);
+    if (run_marie(args) != 0) {
+        fprintf(stderr, "bench_am: up failed (see %s/marie.log)\n", dir);
+        stop_am(am);
+        return;
+    }
+    enum { N = 40 };
+    double lat[N];
+    int n = 0;
+    for (int i = 0; i < N; i++) {
+        int64_t t_run, t_exec;
+        int pid, pid2;
+        /* wait for the current process to be running */
+        int64_t end = marie_mono_us() + 5000000;
+        int64_t t_e;
+        int pe;
+        while (marie_mono_us() < end) {
+            if (last_trace(trace, "victim", "running", &t_run, &pid) == 0 &&
+                last_trace(trace, "victim", "exec", &t_e, &pe) == 0 && pe == pid)
+                break;
+            usleep(10000);
+        }
+        usleep(50000);
+        int64_t t_kill = marie_mono_us();
+        kill(pid, SIGKILL);
+        end = marie_mono_us() + 5000000;
+        while (marie_mono_us() < end) {
+            if (last_trace(trace, "victim", "exec", &t_exec, &pid2) == 0 && pid2 != pid)
+                break;
+            usleep(2000);
+        }
+        if (pid2 != pid && t_exec > t_kill)
+            lat[n++] = (double)(t_exec - t_kill) / 1000.0;
+    }
+    if (n > 0) {
+        double copy[N];
+        memcpy(copy, lat, sizeof lat);
+        row("crash_to_respawn_p50", pct(copy, n, 0.5), "ms");
+        row("crash_to_respawn_p99", pct(lat, n, 0.99), "ms");
+        row("crash_to_respawn_samples", n, "count");
+    }
+
+    /* hang: SIGUSR1 stops the victim's loop; detection = manager's not_responding event */
+    lcm_t *lcm = lcm_create(marie_default_url());
+    marie_heartbeat_t_subscribe(lcm, MARIE_CH_HEARTBEAT, on_hb, NULL);
+    marie_event_t_subscribe(lcm, MARIE_CH_EVENT, on_event, NULL);
+    double det[3], over[3];
+    int nd = 0;
+    for (int i = 0; i < 3; i++) {
+        int64_t t_run;
+        int pid;
+        int64_t end = marie_mono_us() + 5000000;
+        while (marie_mono_us() < end && last_trace(trace, "victim", "running", &t_run, &pid) != 0)
+            usleep(10000);
+        victim_pid = pid;
+        last_hb_us = 0;
+        /* see one heartbeat, then hang right after it */
+        end = marie_mono_us() + 3000000;
+        while (!last_hb_us && marie_mono_us() < end)
+            lcm_handle_timeout(lcm, 50);
+        kill(pid, SIGUSR1);
+        detect_us = 0;
+        end = marie_mono_us() + 6000000;
+        while (!detect_us && marie_mono_us() < end)
+            lcm_handle_timeout(lcm, 50);
+        if (detect_us && last_hb_us) {
+            det[nd] = (double)(detect_us - last_hb_us) / 1000.0;
+            over[nd] = det[nd] - 1500.0;
+            nd++;
+        }
+        /* let the respawn settle */
+        int64_t t2;
+        int p2 = pid;
+        end = marie_mono_us() + 5000000;
+        while (marie_mono_us() < end && (last_trace(trace, "victim", "running", &t2, &p2) != 0 || p2 == pid))
+            usleep(20000);
+    }
+    if (nd > 0) {
+        row("heartbeat_loss_detection", pct(det, nd, 0.5), "ms");
+        row("heartbeat_loss_detection_past_timeout", pct(over, nd, 0.5), "ms");
+    }
+    lcm_destroy(lcm);
+    run_marie("down");
+    stop_am(am);
+    unsetenv("MARIE_TEST_TRACE");
+}
+
+/* 45 components: a base on each host, the rest depending on their host's base. */
+static void write_45(const char *path, int nhosts)
+{
+    FILE *f = fopen(path, "w");
+    if (!f)
+        return;
+    fprintf(f, "system: bench45\nhosts: [");
+    for (int h = 0; h < nhosts; h++)
+        fprintf(f, "%sh%d", h ? ", " : "", h + 1);
+    fprintf(f, "]\ncomponents:\n");
+    for (int i = 0; i < 45; i++) {
+        int h = i % nhosts;
+        fprintf(f, "  c%02d:\n    exec: %s/tests/bin/marie-test-comp\n    host: h%d\n    stop_timeout: 1\n", i, bin,
+                h + 1);
+        if (i >= nhosts)
+            fprintf(f, "    depends: [c%02d]\n", h);
+    }
+    fclose(f);
+}
+
+static void bench_bringup_and_idle(void)
+{
+    char sys[128], state[128], args[256];
+    snprintf(sys, sizeof sys, "%s/four.yaml", dir);
+    write_45(sys, 4);
+    pid_t am[4];
+    for (int h = 0; h < 4; h++) {
+        char host[16];
+        snprintf(host, sizeof host, "h%d", h + 1);
+        snprintf(state, sizeof state, "%s/%s", dir, host);
+        am[h] = spawn_am(host, state);
+    }
+    usleep(500000);
+    double t[3];
+    int n = 0;
+    for (int r = 0; r < 3; r++) {
+        snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
+        int64_t t0 = marie_mono_us();
+        int rc = run_marie(args);
+        int64_t t1 = marie_mono_us();
+        if (rc == 0)
+            t[n++] = (double)(t1 - t0) / 1000.0;
+        run_marie("down");
+    }
+    if (n > 0)
+        row("bringup_45_components_4_hosts", pct(t, n, 0.5), "ms");
+    for (int h = 0; h < 4; h++)
+        stop_am(am[h]);
+
+    /* idle: one manager with all 45 components running */
+    snprintf(sys, sizeof sys, "%s/one45.yaml", dir);
+    write_45(sys, 1);
+    snprintf(state, sizeof state, "%s/idle", dir);
+    pid_t a = spawn_am("h1", state);
+    usleep(300000);
+    snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
+    if (run_marie(args) == 0) {
+        sleep(2);
+        int64_t c0, r0, c1, r1;
+        int64_t t0 = marie_mono_us();
+        marie_proc_usage(a, &c0, &r0);
+        sleep(10);
+        marie_proc_usage(a, &c1, &r1);
+        int64_t t1 = marie_mono_us();
+        row("am_idle_cpu_45_components", 100.0 * (double)(c1 - c0) / (double)(t1 - t0), "%core");
+        row("am_idle_rss_45_components", (double)r1 / (1 << 20), "MiB");
+        char path[64], line[256];
+        snprintf(path, sizeof path, "/proc/%d/status", (int)a);
+        FILE *f = fopen(path, "r");
+        while (f && fgets(line, sizeof line, f)) {
+            long long kb;
+            if (sscanf(line, "RssAnon: %lld kB", &kb) == 1)
+                row("am_idle_rss_anon_45_components", kb / 1024.0, "MiB");
+        }
+        if (f)
+            fclose(f);
+        /* shared library pages divided among the processes that map them */
+        snprintf(path, sizeof path, "/proc/%d/smaps_rollup", (int)a);
+        f = fopen(path, "r");
+        while (f && fgets(line, sizeof line, f)) {
+            long long kb;
+            if (sscanf(line, "Pss: %lld kB", &kb) == 1)
+                row("am_idle_pss_45_components", kb / 1024.0, "MiB");
+        }
+        if (f)
+            fclose(f);
+    } else {
+        fprintf(stderr, "bench_am: 45-component up failed\n");
+    }
+    run_marie("down");
+    stop_am(a);
+}
+
+int main(void)
+{
+    if (getenv("B"))
+        bin = getenv("B");
+    snprintf(dir, sizeof dir, "/tmp/marie-bench-am-XXXXXX");
+    if (!mkdtemp(dir))
+        return 1;
+    char key[128], seq[128];
+    snprintf(key, sizeof key, "%s/key", dir);
+    snprintf(seq, sizeof seq, "%s/seq", dir);
+    setenv("MARIE_KEY", key, 1);
+    setenv("MARIE_SEQ_FILE", seq, 1);
+    char args[256];
+    snprintf(args, sizeof args, "keygen %s", key);
+    if (run_marie(args) != 0)
+        return 1;
+    bench_respawn_and_hang();
+    bench_bringup_and_idle();
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    return system(cmd) == 0 ? 0 : 1;
+}

@@ -1,0 +1,27 @@
+/* procstat: CPU time and resident memory of a process, and the host load, from /proc. */
+#ifndef MARIE_PROCSTAT_H
+#define MARIE_PROCSTAT_H
+
+#include <stdint.h>
+#include <sys/types.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* CPU time (user + system) in microseconds and RSS in bytes of pid. 0 or -errno. */
+int marie_proc_usage(pid_t pid, int64_t *cpu_us, int64_t *rss_bytes);
+/* Parse the text of /proc/PID/stat (the command may hold spaces and parentheses). */
+int marie_proc_parse_stat(const char *text, int64_t *utime_ticks, int64_t *stime_ticks);
+int marie_host_load(float load[3]);
+
+/* Percent of one core between two samples. */
+typedef struct {
+    int64_t cpu_us, at_us;
+} marie_cpu_sample_t;
+float marie_cpu_percent(marie_cpu_sample_t *prev, int64_t cpu_us, int64_t now_us);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

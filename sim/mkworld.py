@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""mkworld: writes marie's simulator worlds (map_server map.yaml + P5 PGM) into sim/worlds/.
+
+The committed worlds are this script's output: `python3 sim/mkworld.py sim/worlds`.
+Geometry is given in metres in the map frame (x right, y up, origin at the lower-left corner).
+"""
+import os
+import sys
+
+FREE, WALL = 254, 0
+
+
+class Grid:
+    def __init__(self, width_m, height_m, res):
+        self.res = res
+        self.w = int(round(width_m / res))
+        self.h = int(round(height_m / res))
+        self.px = [bytearray([FREE]) * self.w for _ in range(self.h)]  # row 0 = bottom
+
+    def rect(self, x0, y0, x1, y1, val=WALL):
+        """Fill cells whose centres lie inside [x0,x1] x [y0,y1]."""
+        i0 = max(0, int(round(x0 / self.res)))
+        i1 = min(self.w, int(round(x1 / self.res)))
+        j0 = max(0, int(round(y0 / self.res)))
+        j1 = min(self.h, int(round(y1 / self.res)))
+        for j in range(j0, j1):
+            self.px[j][i0:i1] = bytearray([val]) * (i1 - i0)
+
+    def border(self, t):
+        W, H = self.w * self.res, self.h * self.res
+        self.rect(0, 0, W, t)
+        self.rect(0, H - t, W, H)
+        self.rect(0, 0, t, H)
+        self.rect(W - t, 0, W, H)
+
+    def write(self, directory, name, comment):
+        with open(os.path.join(directory, name + ".pgm"), "wb") as f:
+            f.write(b"P5\n# marie sim world %s, %g m/cell\n%d %d\n255\n" %
+                    (name.encode(), self.res, self.w, self.h))
+            for j in reversed(range(self.h)):  # the image's top row is the map's last row
+                f.write(bytes(self.px[j]))
+        with open(os.path.join(directory, name + ".yaml"), "w") as f:
+            f.write("# %s\n" % comment)
+            f.write("image: %s.pgm\nresolution: %g\norigin: [0.0, 0.0, 0.0]\n" % (name, self.res))
+            f.write("negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+
+
+def test_world(d):
+    # 10 x 8 m box; walls 0.1 m thick, so the free space is x 0.1..9.9, y 0.1..7.9.
+    g = Grid(10.0, 8.0, 0.05)
+    g.border(0.1)
+    g.rect(7.0, 0.1, 7.2, 5.0)   # wall A: x 7.0..7.2, y 0.1..5.0 (a gap above it)
+    g.rect(1.0, 5.0, 2.0, 6.0)   # pillar B: x 1.0..2.0, y 5.0..6.0
+    g.write(d, "test", "marie test world: 10x8 m box, wall A x 7.0-7.2 y 0.1-5.0, "
+            "pillar B x 1.0-2.0 y 5.0-6.0, outer walls 0.1 m thick")
+
+
+def office_world(d):
+    W, H, t, wt = 40.0, 30.0, 0.2, 0.15   # size, outer and inner wall thickness
+    g = Grid(W, H, 0.05)
+    g.border(t)
+    cy0, cy1 = 13.5, 16.5                 # main corridor along x
+    cx0, cx1 = 18.5, 21.5                 # cross corridor along y
+    door = 1.2
+    # Corridor walls, with one door per room.
+    room_x = [t, 8.0, 14.0, cx0, cx1, 26.0, 33.0, W - t]
+    for (ya, yb) in ((cy0 - wt, cy0), (cy1, cy1 + wt)):
+        g.rect(0, ya, cx0, yb)
+        g.rect(cx1, ya, W, yb)
+    for (xa, xb) in ((cx0 - wt, cx0), (cx1, cx1 + wt)):
+        g.rect(xa, 0, xb, cy0)
+        g.rect(xa, cy1, xb, H)
+    # Room partitions perpendicular to the corridor, and the doors into the corridor.
+    for k in range(len(room_x) - 1):
+        a, b = room_x[k], room_x[k + 1]
+        if a == cx0:
+            continue                      # that span is the cross corridor
+        if k > 0 and a != cx1:
+            g.rect(a - wt / 2, 0, a + wt / 2, cy0)
+            g.rect(a - wt / 2, cy1, a + wt / 2, H)
+        mid = (a + b) / 2
+        g.rect(mid - door / 2, cy0 - wt - 0.05, mid + door / 2, cy0 + 0.05, FREE)
+        g.rect(mid - door / 2, cy1 - 0.05, mid + door / 2, cy1 + wt + 0.05, FREE)
+    # Doors from the cross corridor into the rooms beside it.
+    for (ya, yb) in ((5.0, 5.0 + door), (24.0, 24.0 + door)):
+        g.rect(cx0 - wt - 0.05, ya, cx0 + 0.05, yb, FREE)
+        g.rect(cx1 - 0.05, ya, cx1 + wt + 0.05, yb, FREE)
+    # A door between two neighbouring rooms on each side.
+    g.rect(8.0 - wt, 6.0, 8.0 + wt, 6.0 + door, FREE)
+    g.rect(33.0 - wt, 22.0, 33.0 + wt, 22.0 + door, FREE)
+    # Furniture: tables and cabinets, so rooms differ for localisation.
+    for (x0, y0, x1, y1) in ((3.0, 4.0, 5.0, 5.0), (10.0, 20.0, 11.0, 23.0), (28.0, 5.0, 30.5, 6.0),
+                             (36.0, 25.0, 37.0, 26.0), (1.0, 26.0, 2.5, 29.5), (15.0, 2.0, 17.5, 2.6),
+                             (23.0, 27.5, 25.0, 29.0), (34.5, 9.0, 35.5, 11.0)):
+        g.rect(x0, y0, x1, y1)
+    g.rect(5.0, 14.6, 5.4, 15.0)          # a pillar in the corridor
+    g.write(d, "office", "marie office world: 40x30 m, corridors y 13.5-16.5 and x 18.5-21.5, "
+            "14 rooms with 1.2 m doors")
+
+
+if __name__ == "__main__":
+    out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "worlds")
+    os.makedirs(out, exist_ok=True)
+    test_world(out)
+    office_world(out)

@@ -1,0 +1,469 @@
+/* marie-sim: steps the ODE world on its own pacing and publishes the drivers' channels, the
+ * clock and ground truth; obeys the motor command channel (channel mode). */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "core/component.h"
+#include "sim/map.h"
+#include "sim/world.h"
+
+typedef struct {
+    sim_world_t *world;
+    marie_port_t *p_enc, *p_gyro, *p_laser, *p_estop, *p_truth, *p_clock;
+    double speed;               /* sim seconds per wall second; 0 = as fast as possible */
+    double lockstep;            /* s of sim time allowed past the last motor command; 0 = off */
+    double lockstep_timeout;    /* wall s to wait for a command before going on */
+    double cmd_timeout;         /* sim s without a command before the drives stop */
+    int64_t start_utime;
+    /* publication periods, in physics steps */
+    int64_t n_clock, n_odom, n_laser, n_truth, n_estop;
+    float *scan;
+    int beams;
+    marie_timer_t *timer;
+    /* pacing: sim time follows anchor_sim + (mono - anchor_mono) * speed */
+    int64_t anchor_mono, anchor_sim;
+    /* motor commands and lockstep */
+    bool have_cmd, cmd_live;
+    int64_t last_cmd_sim;       /* sim us when the last command arrived */
+    int64_t wait_since;         /* mono us when the lockstep wait began, 0 if not waiting */
+    bool estop, estop_dirty;
+} sim_t;
+
+static const marie_port_spec_t ports[] = {
+    { "encoders", &marie_type_wheel_encoders_t, MARIE_OUT, MARIE_PUSH, "WHEEL_ENCODERS" },
+    { "gyro", &marie_type_gyro_t, MARIE_OUT, MARIE_PUSH, "GYRO" },
+    { "laser", &marie_type_laser_scan_t, MARIE_OUT, MARIE_PUSH, "LASER" },
+    { "estop", &marie_type_estop_t, MARIE_OUT, MARIE_PUSH, "ESTOP" },
+    { "truth", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "SIM_TRUTH" },
+    { "clock", &marie_type_sim_clock_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_CLOCK },
+    { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
+    { "estop_set", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "SIM_ESTOP" },
+    { NULL },
+};
+
+static const marie_param_spec_t params[] = {
+    { "world", MARIE_PARAM_STRING, "office", "map.yaml path, or a world name in sim/worlds" },
+    { "mode", MARIE_PARAM_STRING, "channel", "channel: publish the drivers' channels" },
+    { "speed", MARIE_PARAM_DOUBLE, "1.0", "sim seconds per wall second; 0 = as fast as possible" },
+    { "lockstep", MARIE_PARAM_DOUBLE, "0", "run at most this many sim s past the last motor command (0: off)" },
+    { "lockstep_timeout", MARIE_PARAM_DOUBLE, "1.0", "wall s to wait for a motor command in lockstep" },
+    { "seed", MARIE_PARAM_INT, "1", "noise seed: same seed and inputs, same run" },
+    { "step", MARIE_PARAM_DOUBLE, "0.005", "physics step, s" },
+    { "start_utime", MARIE_PARAM_INT, "0", "sim time at start, us" },
+    { "start_x", MARIE_PARAM_DOUBLE, "2.0", "start pose in the map frame, m" },
+    { "start_y", MARIE_PARAM_DOUBLE, "15.0", "m" },
+    { "start_theta", MARIE_PARAM_DOUBLE, "0.0", "rad" },
+    { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
+    { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
+    { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder ticks per wheel turn" },
+    { "accel", MARIE_PARAM_DOUBLE, "1.5", "drive ramp, m/s^2 at the rim" },
+    { "max_wheel_speed", MARIE_PARAM_DOUBLE, "15.0", "rad/s" },
+    { "cmd_timeout", MARIE_PARAM_DOUBLE, "0.5", "sim s without a motor command before the drives stop" },
+    { "laser_beams", MARIE_PARAM_INT, "181", "181 or 361 over 180 degrees" },
+    { "laser_max", MARIE_PARAM_DOUBLE, "8.0", "m" },
+    { "laser_noise", MARIE_PARAM_DOUBLE, "0.01", "m, range noise std" },
+    { "laser_x", MARIE_PARAM_DOUBLE, "0.0", "m, laser forward of the wheel axis" },
+    { "laser_hz", MARIE_PARAM_DOUBLE, "10", "scan rate, sim Hz" },
+    { "gyro_noise", MARIE_PARAM_DOUBLE, "0.002", "rad/s std" },
+    { "gyro_bias", MARIE_PARAM_DOUBLE, "0.0005", "rad/s left in the published rate" },
+    { "odom_hz", MARIE_PARAM_DOUBLE, "50", "encoders and gyro, sim Hz" },
+    { "truth_hz", MARIE_PARAM_DOUBLE, "50", "ground truth, sim Hz" },
+    { "clock_hz", MARIE_PARAM_DOUBLE, "100", "clock messages, sim Hz" },
+    { "estop", MARIE_PARAM_BOOL, "false", "e-stop pressed at start" },
+    { NULL },
+};
+
+static int resolve_world(const char *name, char *out, size_t len)
+{
+    if (strchr(name, '/') || strstr(name, ".yaml")) {
+        snprintf(out, len, "%s", name);
+        return 0;
+    }
+    const char *dirs[] = { getenv("MARIE_SIM_WORLDS"), "sim/worlds", "/usr/local/share/marie/worlds" };
+    for (size_t i = 0; i < sizeof(dirs) / sizeof(dirs[0]); i++) {
+        if (!dirs[i])
+            continue;
+        snprintf(out, len, "%s/%s.yaml", dirs[i], name);
+        if (access(out, R_OK) == 0)
+            return 0;
+    }
+    snprintf(out, len, "sim/worlds/%s.yaml", name);
+    return 0;
+}
+
+static int64_t period_steps(marie_component_t *c, const char *param, double step)
+{
+    double hz = marie_param_double(c, param);
+    if (!(hz > 0) || !isfinite(hz)) {
+        marie_component_fail_reason(c, "%s: expected a positive rate", param);
+        return -1;
+    }
+    int64_t n = llround(1.0 / (hz * step));
+    return n < 1 ? 1 : n;
+}
+
+static int64_t sim_now(const sim_t *s)
+{
+    return s->start_utime + sim_world_time_us(s->world);
+}
+
+static void on_motor_command(marie_component_t *c, marie_port_t *p, const void *msg,
+                             const marie_msg_info_t *info)
+{
+    sim_t *s = marie_component_user(c);
+    const marie_motor_command_t *m = msg;
+    if (!isfinite(m->v) || !isfinite(m->omega)) {
+        marie_component_bad_input(c, "bad_motor_command", "motor command with a non-finite v or omega");
+        return;
+    }
+    if (!s->world)
+        return;
+    sim_world_set_velocity(s->world, m->v, m->omega);
+    s->have_cmd = s->cmd_live = true;
+    /* A controller on the sim clock stamps its command with the sim time it decided at;
+     * lockstep counts from there (the receipt time would include the bus latency, during
+     * which an unpaced simulator runs on). Other stamps fall back to the receipt time. */
+    int64_t now = sim_now(s);
+    s->last_cmd_sim = m->utime <= now && m->utime >= now - 10000000 ? m->utime : now;
+    marie_debug("motor command v %.3f omega %.3f stamped %.3f s at %.3f s", m->v, m->omega, m->utime / 1e6,
+                now / 1e6);
+    if (s->wait_since) {
+        /* The command we waited for: pick up pacing from here, no catch-up burst. */
+        s->wait_since = 0;
+        s->anchor_mono = marie_mono_us();
+        s->anchor_sim = sim_now(s);
+    }
+}
+
+static void on_estop_set(marie_component_t *c, marie_port_t *p, const void *msg,
+                         const marie_msg_info_t *info)
+{
+    sim_t *s = marie_component_user(c);
+    const marie_estop_t *m = msg;
+    if (s->estop != (bool)m->pressed) {
+        s->estop = m->pressed;
+        s->estop_dirty = true;
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "estop", "e-stop %s by %s",
+                              m->pressed ? "pressed" : "released", m->source ? m->source : "?");
+    }
+}
+
+static void publish(marie_component_t *c, sim_t *s)
+{
+    int64_t k = sim_world_steps(s->world), now = sim_now(s);
+    if (k % s->n_odom == 0) {
+        int32_t l, r;
+        double la, ra, ls, rs;
+        sim_world_encoders(s->world, &l, &r);
+        sim_world_wheels(s->world, &la, &ra, &ls, &rs);
+        marie_wheel_encoders_t e = {
+            .utime = now, .left_ticks = l, .right_ticks = r,
+            .ticks_per_rev = sim_world_params(s->world)->ticks_per_rev,
+            .left_velocity = ls, .right_velocity = rs,
+            .status = s->estop ? MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP : MARIE_WHEEL_ENCODERS_T_STATUS_OK,
+        };
+        marie_port_publish(s->p_enc, &e);
+        marie_gyro_t g = { .utime = now, .yaw_rate = sim_world_gyro(s->world), .bias = 0.0,
+                           .bias_valid = 1, .status = 0 };
+        marie_port_publish(s->p_gyro, &g);
+    }
+    if (k % s->n_truth == 0) {
+        marie_pose_cov_t t = { .utime = now, .frame = "map" };
+        sim_world_pose(s->world, &t.pose.x, &t.pose.y, &t.pose.theta);
+        marie_port_publish(s->p_truth, &t);
+    }
+    if (k % s->n_laser == 0) {
+        const sim_params_t *p = sim_world_params(s->world);
+        sim_world_laser(s->world, s->scan, s->beams);
+        marie_laser_scan_t l = {
+            .utime = now, .angle_min = (float)(-p->laser_fov / 2),
+            .angle_increment = (float)(p->laser_fov / (s->beams - 1)),
+            .range_min = (float)p->laser_min, .range_max = (float)p->laser_max,
+            .nranges = s->beams, .ranges = s->scan, .nintensities = 0, .intensities = NULL,
+        };
+        marie_port_publish(s->p_laser, &l);
+    }
+    if (k % s->n_estop == 0 || s->estop_dirty) {
+        marie_estop_t e = { .utime = now, .pressed = s->estop, .source = "sim" };
+        marie_port_publish(s->p_estop, &e);
+        s->estop_dirty = false;
+    }
+    /* The clock goes last, so a component woken by it already has this instant's data. */
+    if (k % s->n_clock == 0) {
+        marie_sim_clock_t ck = { .utime = now, .speed = s->speed };
+        marie_port_publish(s->p_clock, &ck);
+    }
+}
+
+/* One physics step with its inputs and outputs; false when lockstep says wait. */
+static bool step_once(marie_component_t *c, sim_t *s)
+{
+    int64_t now = sim_now(s);
+    if (s->lockstep > 0 && s->have_cmd && now - s->last_cmd_sim > (int64_t)(s->lockstep * 1e6)) {
+        int64_t mono = marie_mono_us();
+        if (!s->wait_since) {
+            s->wait_since = mono;
+            marie_component_count(c, "lockstep_waits", 1);
+            marie_debug("lockstep: waiting at %.3f s for a command after %.3f s", now / 1e6,
+                        s->last_cmd_sim / 1e6);
+        }
+        if (mono - s->wait_since < (int64_t)(s->lockstep_timeout * 1e6))
+            return false;
+        /* The controller is gone or slow: go on, and wait again one lockstep later. */
+        marie_component_count(c, "lockstep_timeouts", 1);
+        s->wait_since = 0;
+        s->last_cmd_sim = now;
+        s->anchor_mono = mono;
+        s->anchor_sim = now;
+    }
+    if (s->cmd_live && now - s->last_cmd_sim > (int64_t)(s->cmd_timeout * 1e6)) {
+        /* The drives' own watchdog: no command, no motion. */
+        sim_world_set_velocity(s->world, 0, 0);
+        s->cmd_live = false;
+        marie_component_count(c, "cmd_timeouts", 1);
+    }
+    sim_world_set_estop(s->world, s->estop);
+    sim_world_step(s->world);
+    publish(c, s);
+    return true;
+}
+
+static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    marie_component_t *c = user;
+    sim_t *s = marie_component_user(c);
+    if (marie_component_state(c) != MARIE_STATE_RUNNING || !s->world)
+        return;
+    int64_t steps0 = sim_world_steps(s->world);
+    if (s->speed <= 0) {
+        /* As fast as possible, but back to the loop every clock period so commands and
+         * lifecycle orders are read between bursts. */
+        for (int64_t i = 0; i < s->n_clock; i++)
+            if (!step_once(c, s))
+                break;
+    } else {
+        int64_t mono = marie_mono_us();
+        int64_t target = s->anchor_sim + (int64_t)((mono - s->anchor_mono) * s->speed);
+        if (target - sim_now(s) > 250000) {
+            /* Too far behind (a slow machine or a stall): drop the debt rather than burst. */
+            marie_component_count(c, "behind", 1);
+            s->anchor_mono = mono;
+            s->anchor_sim = sim_now(s);
+            target = s->anchor_sim + (int64_t)(1000 * s->speed);
+        }
+        while (sim_now(s) < target)
+            if (!step_once(c, s))
+                break;
+    }
+    marie_component_count(c, "steps", sim_world_steps(s->world) - steps0);
+}
+
+static int on_init(marie_component_t *c)
+{
+    sim_t *s = marie_component_user(c);
+    const char *mode = marie_param_str(c, "mode");
+    if (strcmp(mode, "channel") != 0) {
+        marie_component_fail_reason(c, "mode '%s' is not available (channel)", mode);
+        return -1;
+    }
+    char path[4096];
+    resolve_world(marie_param_str(c, "world"), path, sizeof(path));
+    marie_errors_t errs = { 0 };
+    sim_map_t *map = sim_map_load(path, &errs);
+    if (!map) {
+        marie_errors_print(&errs, stderr);
+        marie_component_fail_reason(c, "world %s: %s", path, errs.n ? errs.msgs[0] : "cannot load");
+        marie_errors_clear(&errs);
+        return -1;
+    }
+    sim_params_t p;
+    sim_params_default(&p);
+    p.step = marie_param_double(c, "step");
+    p.seed = (uint64_t)marie_param_int(c, "seed");
+    p.start_x = marie_param_double(c, "start_x");
+    p.start_y = marie_param_double(c, "start_y");
+    p.start_theta = marie_param_double(c, "start_theta");
+    p.wheel_radius = marie_param_double(c, "wheel_radius");
+    p.track = marie_param_double(c, "track");
+    p.ticks_per_rev = (int32_t)marie_param_int(c, "ticks_per_rev");
+    p.accel = marie_param_double(c, "accel");
+    p.max_wheel_speed = marie_param_double(c, "max_wheel_speed");
+    p.laser_beams = (int)marie_param_int(c, "laser_beams");
+    p.laser_max = marie_param_double(c, "laser_max");
+    p.laser_noise = marie_param_double(c, "laser_noise");
+    p.laser_x = marie_param_double(c, "laser_x");
+    p.gyro_noise = marie_param_double(c, "gyro_noise");
+    p.gyro_bias = marie_param_double(c, "gyro_bias");
+    if (p.laser_beams != 181 && p.laser_beams != 361) {
+        marie_component_fail_reason(c, "laser_beams: expected 181 or 361, got %d", p.laser_beams);
+        goto fail;
+    }
+    if (!(p.step > 0 && p.step <= 0.02)) {
+        marie_component_fail_reason(c, "step: expected 0 < step <= 0.02 s");
+        goto fail;
+    }
+    s->speed = marie_param_double(c, "speed");
+    s->lockstep = marie_param_double(c, "lockstep");
+    s->lockstep_timeout = marie_param_double(c, "lockstep_timeout");
+    s->cmd_timeout = marie_param_double(c, "cmd_timeout");
+    s->start_utime = marie_param_int(c, "start_utime");
+    s->estop = marie_param_bool(c, "estop");
+    if (!(s->speed >= 0) || !isfinite(s->speed)) {
+        marie_component_fail_reason(c, "speed: expected 0 (as fast as possible) or a positive factor");
+        goto fail;
+    }
+    if ((s->n_clock = period_steps(c, "clock_hz", p.step)) < 0 ||
+        (s->n_odom = period_steps(c, "odom_hz", p.step)) < 0 ||
+        (s->n_laser = period_steps(c, "laser_hz", p.step)) < 0 ||
+        (s->n_truth = period_steps(c, "truth_hz", p.step)) < 0)
+        goto fail;
+    s->n_estop = s->n_laser;
+    s->beams = p.laser_beams;
+    s->scan = calloc((size_t)s->beams, sizeof(float));
+    s->world = s->scan ? sim_world_create(map, &p) : NULL;
+    if (!s->world) {
+        marie_component_fail_reason(c, "cannot build the world: %s", strerror(errno));
+        goto fail;
+    }
+    sim_map_destroy(map);
+    s->p_enc = marie_port(c, "encoders");
+    s->p_gyro = marie_port(c, "gyro");
+    s->p_laser = marie_port(c, "laser");
+    s->p_estop = marie_port(c, "estop");
+    s->p_truth = marie_port(c, "truth");
+    s->p_clock = marie_port(c, "clock");
+    marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
+    marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
+    marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
+               sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->speed,
+               s->lockstep > 0 ? ", lockstep" : "");
+    return 0;
+fail:
+    sim_map_destroy(map);
+    free(s->scan);
+    s->scan = NULL;
+    return -1;
+}
+
+static int arm(marie_component_t *c)
+{
+    sim_t *s = marie_component_user(c);
+    s->anchor_mono = marie_mono_us();
+    s->anchor_sim = sim_now(s);
+    s->wait_since = 0;
+    if (s->lockstep > 0 && !s->have_cmd) {
+        /* Lockstep holds from the start: the controller gets its first clock ticks and then
+         * the simulator waits for it, instead of racing ahead while it starts up. */
+        s->have_cmd = true;
+        s->last_cmd_sim = sim_now(s);
+    }
+    /* Speed 0 polls with a zero timeout between bursts; otherwise 1 ms wall pacing. */
+    s->timer = marie_loop_add_wall_timer(marie_component_loop(c), s->speed > 0 ? 1000 : 1, on_timer, c);
+    if (!s->timer) {
+        marie_component_fail_reason(c, "cannot add the step timer: %s", strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
+static void disarm(marie_component_t *c)
+{
+    sim_t *s = marie_component_user(c);
+    marie_loop_remove_timer(marie_component_loop(c), s->timer);
+    s->timer = NULL;
+}
+
+static int on_start(marie_component_t *c)
+{
+    return arm(c);
+}
+
+static int on_stop(marie_component_t *c)
+{
+    sim_t *s = marie_component_user(c);
+    disarm(c);
+    if (s->world)
+        sim_world_set_velocity(s->world, 0, 0);
+    return 0;
+}
+
+static int on_pause(marie_component_t *c)
+{
+    disarm(c);          /* simulated time stands still */
+    return 0;
+}
+
+static int on_resume(marie_component_t *c)
+{
+    return arm(c);
+}
+
+static void on_abort(marie_component_t *c)
+{
+    disarm(c);
+}
+
+static void on_quit(marie_component_t *c)
+{
+    sim_t *s = marie_component_user(c);
+    disarm(c);
+    sim_world_destroy(s->world);
+    s->world = NULL;
+    free(s->scan);
+    s->scan = NULL;
+}
+
+static const marie_component_def_t def = {
+    .kind = "sim",
+    .ports = ports,
+    .params = params,
+    .on_init = on_init,
+    .on_start = on_start,
+    .on_stop = on_stop,
+    .on_pause = on_pause,
+    .on_resume = on_resume,
+    .on_abort = on_abort,
+    .on_quit = on_quit,
+};
+
+/* Shorthands: --speed N, --world W, --seed S, --lockstep T, --mode M become --param KEY=VALUE. */
+int main(int argc, char **argv)
+{
+    static const char *const shorthands[] = { "speed", "world", "seed", "lockstep", "mode", NULL };
+    char **args = calloc(2 * (size_t)argc + 1, sizeof(char *));   /* each shorthand at most doubles */
+    if (!args)
+        return 1;
+    int n = 0;
+    args[n++] = argv[0];
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        int matched = 0;
+        for (int k = 0; shorthands[k] && !matched; k++) {
+            size_t l = strlen(shorthands[k]);
+            if (strncmp(a, "--", 2) || strncmp(a + 2, shorthands[k], l))
+                continue;
+            const char *val = NULL;
+            if (a[2 + l] == '=')
+                val = a + 3 + l;
+            else if (a[2 + l] == 0 && i + 1 < argc)
+                val = argv[++i];
+            else
+                continue;
+            char *p;
+            if (asprintf(&p, "%s=%s", shorthands[k], val) < 0)
+                return 1;
+            args[n++] = "--param";
+            args[n++] = p;
+            matched = 1;
+        }
+        if (!matched)
+            args[n++] = argv[i];
+    }
+    args[n] = NULL;
+    sim_t s = { 0 };
+    return marie_main(&def, n, args, &s);
+}

@@ -1,0 +1,146 @@
+/* adapt_probe: watches a running robot application on the bus and judges it: localization
+ * error of POSE against SIM_TRUTH, mission events, motor commands. Used by the adapters'
+ * integration tests. Exit 0 when the criteria given hold. */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <lcm/lcm.h>
+
+#include "core/time.h"
+#include "lcmtypes/marie_types.h"
+
+#define RING 4096
+
+typedef struct {
+    int64_t t[RING];
+    double x[RING], y[RING];
+    int n, head;
+    double sum2, max;
+    int64_t npose;
+    int reached, missed, done;
+    int64_t cmds, arbs;
+    int64_t win_follow, win_avoid, win_idle, win_estop, win_teleop;
+    double sum_v;
+    double settle_s;
+    int64_t first_truth;
+    int verbose;
+} probe_t;
+
+static void on_truth(const lcm_recv_buf_t *rb, const char *ch, const marie_pose_cov_t *m, void *u)
+{
+    probe_t *p = u;
+    if (!p->first_truth)
+        p->first_truth = m->utime;
+    p->t[p->head] = m->utime;
+    p->x[p->head] = m->pose.x;
+    p->y[p->head] = m->pose.y;
+    p->head = (p->head + 1) % RING;
+    if (p->n < RING)
+        p->n++;
+}
+
+static void on_pose(const lcm_recv_buf_t *rb, const char *ch, const marie_pose_cov_t *m, void *u)
+{
+    probe_t *p = u;
+    /* Truth sample nearest in time to the estimate. */
+    int best = -1;
+    int64_t bd = INT64_MAX;
+    for (int k = 0; k < p->n; k++) {
+        int64_t d = llabs(p->t[k] - m->utime);
+        if (d < bd) { bd = d; best = k; }
+    }
+    if (best < 0 || bd > 50000 || m->utime - p->first_truth < (int64_t)(p->settle_s * 1e6))
+        return;
+    double e = hypot(m->pose.x - p->x[best], m->pose.y - p->y[best]);
+    p->sum2 += e * e;
+    if (e > p->max)
+        p->max = e;
+    p->npose++;
+    if (p->verbose && p->npose % 50 == 0)
+        fprintf(stderr, "probe: t=%.1f est (%.2f, %.2f) truth (%.2f, %.2f) err %.3f\n", (m->utime - p->first_truth) / 1e6,
+                m->pose.x, m->pose.y, p->x[best], p->y[best], e);
+}
+
+static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event_t *m, void *u)
+{
+    probe_t *p = u;
+    if (strcmp(m->kind, "goal_reached") == 0)
+        p->reached++;
+    else if (strcmp(m->kind, "goal_missed") == 0)
+        p->missed++;
+    else if (strcmp(m->kind, "mission_done") == 0)
+        p->done = 1;
+    if (p->verbose && m->severity >= MARIE_EVENT_T_SEV_INFO)
+        fprintf(stderr, "probe: event %s %s: %s\n", m->source, m->kind, m->text);
+}
+
+static void on_cmd(const lcm_recv_buf_t *rb, const char *ch, const marie_motor_command_t *m, void *u)
+{
+    ((probe_t *)u)->cmds++;
+}
+
+static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitration_t *m, void *u)
+{
+    probe_t *p = u;
+    p->arbs++;
+    p->sum_v += m->v;
+    if (strcmp(m->winner, "follow_path") == 0) p->win_follow++;
+    else if (strcmp(m->winner, "avoid") == 0) p->win_avoid++;
+    else if (strcmp(m->winner, "idle") == 0) p->win_idle++;
+    else if (strcmp(m->winner, "estop") == 0) p->win_estop++;
+    else if (strcmp(m->winner, "teleop") == 0) p->win_teleop++;
+    if (p->verbose > 1)
+        for (int i = 0; i < m->nvotes; i++)
+            if (m->votes[i].active || strcmp(m->votes[i].name, "follow_path") == 0)
+                fprintf(stderr, "probe: cycle %lld %s%s v %.2f w %.2f: %s\n", (long long)m->cycle, m->votes[i].name,
+                        strcmp(m->votes[i].name, m->winner) == 0 ? "*" : "", m->votes[i].v, m->votes[i].omega,
+                        m->votes[i].reason);
+}
+
+int main(int argc, char **argv)
+{
+    probe_t p = { 0 };
+    double timeout = 60, max_rms = 0.15, max_err = 0.5;
+    int want_goals = 0, want_done = 0;
+    static struct option opts[] = { { "timeout", 1, 0, 't' }, { "goals", 1, 0, 'g' }, { "done", 0, 0, 'd' },
+                                    { "max-rms", 1, 0, 'r' }, { "max-err", 1, 0, 'm' }, { "settle", 1, 0, 's' },
+                                    { "verbose", 0, 0, 'v' }, { 0 } };
+    int o;
+    while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+        switch (o) {
+        case 't': timeout = atof(optarg); break;
+        case 'g': want_goals = atoi(optarg); break;
+        case 'd': want_done = 1; break;
+        case 'r': max_rms = atof(optarg); break;
+        case 'm': max_err = atof(optarg); break;
+        case 's': p.settle_s = atof(optarg); break;
+        case 'v': p.verbose++; break;
+        default: return 2;
+        }
+    }
+    lcm_t *lcm = lcm_create(NULL);
+    if (!lcm)
+        return 2;
+    marie_pose_cov_t_subscribe(lcm, "SIM_TRUTH", on_truth, &p);
+    marie_pose_cov_t_subscribe(lcm, "POSE", on_pose, &p);
+    marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, &p);
+    marie_motor_command_t_subscribe(lcm, "MOTOR_COMMAND", on_cmd, &p);
+    marie_arbitration_t_subscribe(lcm, "ARBITRATION", on_arb, &p);
+    int64_t end = marie_mono_us() + (int64_t)(timeout * 1e6);
+    while (marie_mono_us() < end && !(want_done && p.done))
+        lcm_handle_timeout(lcm, 50);
+    double rms = p.npose ? sqrt(p.sum2 / p.npose) : INFINITY;
+    printf("probe: goals reached %d missed %d done %d; localization rms %.3f m max %.3f m over %lld poses; "
+           "%lld commands, %lld decisions\n", p.reached, p.missed, p.done, rms, p.max, (long long)p.npose,
+           (long long)p.cmds, (long long)p.arbs);
+    if (p.arbs)
+        printf("probe: winners follow %lld avoid %lld idle %lld estop %lld teleop %lld; mean v %.2f m/s\n",
+               (long long)p.win_follow, (long long)p.win_avoid, (long long)p.win_idle, (long long)p.win_estop,
+               (long long)p.win_teleop, p.sum_v / p.arbs);
+    lcm_destroy(lcm);
+    int ok = p.npose > 0 && rms < max_rms && p.max < max_err && p.reached >= want_goals && (!want_done || p.done);
+    return ok ? 0 : 1;
+}

@@ -1,0 +1,222 @@
+/* test_arbiter: each behaviour's vote and the priority arbitration between them. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <string.h>
+#include <math.h>
+#include <cmocka.h>
+
+#include "adapters/behaviours/arbiter.h"
+
+static float open_scan[181];
+
+static arb_inputs_t base_inputs(void)
+{
+    for (int k = 0; k < 181; k++)
+        open_scan[k] = 10.0f;
+    arb_inputs_t in;
+    memset(&in, 0, sizeof(in));
+    in.pose_age = in.path_age = in.estop_age = in.teleop_age = in.scan_age = -1;
+    in.ranges = open_scan;
+    in.nranges = 181;
+    in.angle_min = -M_PI / 2;
+    in.angle_increment = M_PI / 180;
+    in.range_min = 0.02;
+    in.range_max = 30;
+    in.scan_age = 0.05;
+    return in;
+}
+
+static const double straight[] = { 0, 0, 0, 2, 0, 0, 4, 0, 0 };
+
+static void test_idle_without_inputs(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    arb_vote_t v[ARB_COUNT];
+    int w = arb_decide(&p, &s, &in, v);
+    assert_int_equal(w, ARB_IDLE);
+    assert_true(v[w].v == 0 && v[w].omega == 0);
+    assert_false(v[ARB_FOLLOW].active);
+    assert_string_equal(v[ARB_FOLLOW].reason, "no path");
+}
+
+static void test_follow_drives_along_path(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    arb_vote_t v[ARB_COUNT];
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+    assert_true(v[ARB_FOLLOW].v > 0.3);
+    assert_true(fabs(v[ARB_FOLLOW].omega) < 1e-9);
+    /* Left of the path: steer right (clockwise, negative omega). */
+    in.pose[1] = 0.3;
+    arb_decide(&p, &s, &in, v);
+    assert_true(v[ARB_FOLLOW].omega < -0.1);
+    /* Facing away: turn in place. */
+    in.pose[1] = 0; in.pose[2] = M_PI;
+    arb_decide(&p, &s, &in, v);
+    assert_true(v[ARB_FOLLOW].v == 0 && fabs(v[ARB_FOLLOW].omega) > 0.5);
+}
+
+static void test_follow_stops_at_end_and_on_stale_pose(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 2.0;
+    arb_vote_t v[ARB_COUNT];
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
+    assert_non_null(strstr(v[ARB_FOLLOW].reason, "stale"));
+    in.pose_age = 0.1;
+    in.pose[0] = 3.95;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
+    assert_string_equal(v[ARB_FOLLOW].reason, "path done");
+    /* A failed plan is not followed. */
+    arb_state_reset(&s);
+    in.pose[0] = 0; in.path_status = 1;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
+}
+
+static void test_estop_beats_everything(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    in.teleop_age = 0.1; in.teleop_v = 0.4;
+    in.estop_age = 0.1; in.estop_pressed = true;
+    arb_vote_t v[ARB_COUNT];
+    int w = arb_decide(&p, &s, &in, v);
+    assert_int_equal(w, ARB_ESTOP);
+    assert_true(v[w].v == 0 && v[w].omega == 0);
+    assert_true(v[ARB_TELEOP].active && v[ARB_FOLLOW].active);
+    in.estop_pressed = false;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_TELEOP);
+    /* With e-stop required, silence from the e-stop input stops the robot. */
+    p.estop_required = true;
+    in.estop_age = 5.0;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_ESTOP);
+    in.estop_age = -1;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_ESTOP);
+}
+
+static void test_teleop_only_while_recent(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    in.teleop_age = 0.2; in.teleop_v = 9.0; in.teleop_omega = -0.3;
+    arb_vote_t v[ARB_COUNT];
+    int w = arb_decide(&p, &s, &in, v);
+    assert_int_equal(w, ARB_TELEOP);
+    assert_true(v[w].v == p.v_max);      /* clamped */
+    assert_true(v[w].omega == -0.3);
+    in.teleop_age = 0.8;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+}
+
+static void test_avoid_blocks_and_turns_to_open_side(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    /* A box 0.25 m ahead; the right side is walled at 0.5 m, the left open. */
+    for (int k = 80; k <= 100; k++)
+        open_scan[k] = 0.25f;
+    for (int k = 0; k < 60; k++)
+        open_scan[k] = 0.5f;
+    arb_vote_t v[ARB_COUNT];
+    int w = arb_decide(&p, &s, &in, v);
+    assert_int_equal(w, ARB_AVOID);
+    assert_true(v[w].v == 0);
+    assert_true(v[w].omega > 0);
+    /* Farther away: slows down instead of stopping. */
+    for (int k = 80; k <= 100; k++)
+        open_scan[k] = 0.5f;
+    w = arb_decide(&p, &s, &in, v);
+    assert_int_equal(w, ARB_AVOID);
+    assert_true(v[w].v > 0 && v[w].v < p.v_max * 0.5);
+    /* A wall beside the robot (outside its swept width) does not trigger. */
+    in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    for (int k = 0; k < 30; k++)
+        open_scan[k] = 0.4f;    /* -90..-60 deg at 0.4 m: y <= -0.35 */
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+    /* A stale scan cannot vouch for anything. */
+    in.scan_age = 3;
+    arb_decide(&p, &s, &in, v);
+    assert_false(v[ARB_AVOID].active);
+}
+
+static void test_closed_loop_follows_l_path(void **state)
+{
+    /* Unicycle driven at 5 Hz by the arbitration along an L: reaches the end, stays near the path. */
+    const double L[] = { 0, 0, 0, 3, 0, 0, 3, 3, 0, 1, 3, 0 };
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = L; in.npath = 4; in.path_age = 0.1; in.pose_age = 0.05;
+    in.pose[2] = 0.5;
+    double maxdev = 0;
+    int cycles = 0;
+    arb_vote_t v[ARB_COUNT];
+    for (; cycles < 300; cycles++) {
+        int w = arb_decide(&p, &s, &in, v);
+        if (w == ARB_IDLE)
+            break;
+        assert_int_equal(w, ARB_FOLLOW);
+        for (int k = 0; k < 10; k++) {     /* 0.2 s in 20 ms steps */
+            in.pose[0] += v[w].v * 0.02 * cos(in.pose[2]);
+            in.pose[1] += v[w].v * 0.02 * sin(in.pose[2]);
+            in.pose[2] += v[w].omega * 0.02;
+        }
+        double x = in.pose[0], y = in.pose[1];
+        double d = fmin(fmin(fabs(y) + (x > 3 ? x - 3 : x < 0 ? -x : 0), fabs(x - 3) + (y < 0 ? -y : y > 3 ? y - 3 : 0)),
+                        fabs(y - 3) + (x > 3 ? x - 3 : x < 1 ? 1 - x : 0));
+        if (d > maxdev)
+            maxdev = d;
+    }
+    printf("L path: %d cycles, max deviation %.2f m, end (%.2f, %.2f)\n", cycles, maxdev, in.pose[0], in.pose[1]);
+    assert_true(cycles < 300);
+    assert_true(hypot(in.pose[0] - 1, in.pose[1] - 3) < p.goal_tolerance);
+    assert_true(maxdev < 0.35);
+}
+
+static void test_new_path_restarts_progress(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    in.pose[0] = 3.0;
+    arb_vote_t v[ARB_COUNT];
+    arb_decide(&p, &s, &in, v);
+    assert_int_equal(s.progress, 1);
+    const double back[] = { 3, 0, 0, 0, 0, 0 };
+    in.path = back; in.npath = 2; in.path_goal = 2;
+    arb_decide(&p, &s, &in, v);
+    assert_int_equal(s.progress, 0);
+    assert_true(v[ARB_FOLLOW].active && v[ARB_FOLLOW].v == 0);   /* turns around first */
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_idle_without_inputs),
+        cmocka_unit_test(test_follow_drives_along_path),
+        cmocka_unit_test(test_follow_stops_at_end_and_on_stale_pose),
+        cmocka_unit_test(test_estop_beats_everything),
+        cmocka_unit_test(test_teleop_only_while_recent),
+        cmocka_unit_test(test_avoid_blocks_and_turns_to_open_side),
+        cmocka_unit_test(test_closed_loop_follows_l_path),
+        cmocka_unit_test(test_new_path_restarts_progress),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,183 @@
+/* test_mcl: the particle filter tracks and finds a simulated robot in an office map. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <cmocka.h>
+
+#include "adapters/localizer/mcl.h"
+#include "tests/adapters/simworld.h"
+
+#define NB 181
+#define RANGE_MAX 8.0
+
+typedef struct {
+    double rms, max, final;
+    int steps;
+} run_result_t;
+
+/* Drive along the corridor, weaving, turning around at both ends; localize at 10 Hz. */
+static run_result_t run(occmap_t *m, mcl_t *f, simrobot_t *r, double seconds, double settle_s)
+{
+    float ranges[NB];
+    double H = m->height * m->resolution, W = m->width * m->resolution;
+    double dir = 1, sum2 = 0, maxe = 0, e = 0;
+    int n = 0;
+    const double dt = 0.1;
+    for (int step = 0; step < (int)(seconds / dt); step++) {
+        double t = step * dt;
+        double v = 0.6, w;
+        double want = dir > 0 ? 0.0 : M_PI;
+        double yerr = (H / 2 + 0.4 * sin(t * 0.5)) - r->truth[1];
+        double herr = atan2(sin(want + dir * 0.8 * yerr - r->truth[2]), cos(want + dir * 0.8 * yerr - r->truth[2]));
+        w = 1.5 * herr;
+        if (fabs(herr) > 0.6)
+            v = 0.05;
+        if ((dir > 0 && r->truth[0] > W - 2.0) || (dir < 0 && r->truth[0] < 2.0))
+            dir = -dir;
+        sim_move(r, m, v, w, dt);
+        sim_scan(r, m, ranges, NB, RANGE_MAX, 0.02, 0.03);
+        mcl_scan_t scan = { ranges, NB, -M_PI / 2, M_PI / 180, 0.05, RANGE_MAX };
+        mcl_step(f, r->odom, &scan, false);
+        double est[3], cov[9];
+        mcl_estimate(f, est, cov);
+        e = hypot(est[0] - r->truth[0], est[1] - r->truth[1]);
+        if (t >= settle_s) {
+            sum2 += e * e;
+            if (e > maxe)
+                maxe = e;
+            n++;
+        }
+    }
+    run_result_t res = { n ? sqrt(sum2 / n) : 0, maxe, e, n };
+    return res;
+}
+
+static simrobot_t robot_at(double x, double y, double th, uint64_t seed)
+{
+    simrobot_t r = { { x, y, th }, { 0, 0, 0 }, 1.03, 0.01, 0.02, 0.02, { seed } };
+    /* Odometry starts at its own origin, unrelated to the map frame. */
+    return r;
+}
+
+static void test_tracking_from_known_pose(void **state)
+{
+    occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
+    assert_non_null(m);
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.max_particles = 1500;
+    mcl_t *f = mcl_create(m, &p, 42);
+    assert_non_null(f);
+    simrobot_t r = robot_at(2.0, 6.0, 0.1, 99);
+    double start[3] = { 2.2, 5.9, 0.0 }, sig[3] = { 0.2, 0.2, 0.1 };  /* 20 cm, 0.1 rad off */
+    mcl_init_pose(f, start, sig);
+    run_result_t res = run(m, f, &r, 90, 2.0);
+    printf("tracking: rms %.3f m, max %.3f m over %d steps, %d particles\n", res.rms, res.max, res.steps, mcl_count(f));
+    assert_true(res.rms < 0.10);
+    assert_true(res.max < 0.30);
+    /* KLD shrinks the set once the pose is known. */
+    assert_true(mcl_count(f) < 1500);
+    double est[3], cov[9];
+    mcl_estimate(f, est, cov);
+    assert_true(cov[0] > 0 && cov[4] > 0 && cov[8] > 0);
+    assert_true(cov[0] < 0.05 && cov[4] < 0.05);
+    mcl_destroy(f);
+    occmap_destroy(m);
+}
+
+static void test_global_localization(void **state)
+{
+    occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.max_particles = 6000;
+    p.min_particles = 300;
+    mcl_t *f = mcl_create(m, &p, 4242);
+    assert_non_null(f);
+    mcl_init_global(f);
+    simrobot_t r = robot_at(3.0, 6.2, 0.0, 1234);
+    run_result_t res = run(m, f, &r, 90, 45.0);
+    printf("global: rms %.3f m after 45 s, max %.3f m, final %.3f m, %d particles\n", res.rms, res.max, res.final, mcl_count(f));
+    assert_true(res.rms < 0.15);
+    assert_true(res.final < 0.2);
+    mcl_destroy(f);
+    occmap_destroy(m);
+}
+
+static void test_recovers_from_wrong_start(void **state)
+{
+    /* Told the wrong place (2 m off): random particles let it find the truth again. */
+    occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.max_particles = 4000;
+    mcl_t *f = mcl_create(m, &p, 77);
+    simrobot_t r = robot_at(4.0, 6.0, 0.0, 555);
+    double start[3] = { 8.0, 6.0, 0.0 }, sig[3] = { 0.1, 0.1, 0.05 };
+    mcl_init_pose(f, start, sig);
+    run_result_t res = run(m, f, &r, 120, 80.0);
+    printf("recovery: rms %.3f m over the last 40 s, final %.3f m\n", res.rms, res.final);
+    assert_true(res.rms < 0.2);
+    mcl_destroy(f);
+    occmap_destroy(m);
+}
+
+static void test_rejects_bad_params(void **state)
+{
+    occmap_t *m = occmap_create(10, 10, 0.1, 0, 0);
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.min_particles = 5000;
+    p.max_particles = 100;
+    assert_null(mcl_create(m, &p, 1));
+    mcl_params_default(&p);
+    p.sigma_hit = 0;
+    assert_null(mcl_create(m, &p, 1));
+    assert_null(mcl_create(NULL, &p, 1));
+    mcl_destroy(NULL);
+    occmap_destroy(m);
+}
+
+static void test_skips_update_when_still(void **state)
+{
+    occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.max_particles = 500;
+    mcl_t *f = mcl_create(m, &p, 3);
+    double pose[3] = { 3, 6, 0 }, sig[3] = { 0.1, 0.1, 0.1 }, odom[3] = { 0, 0, 0 };
+    mcl_init_pose(f, pose, sig);
+    float ranges[NB];
+    simrobot_t r = robot_at(3, 6, 0, 9);
+    sim_scan(&r, m, ranges, NB, RANGE_MAX, 0.0, 0.0);
+    mcl_scan_t scan = { ranges, NB, -M_PI / 2, M_PI / 180, 0.05, RANGE_MAX };
+    assert_int_equal(mcl_step(f, odom, &scan, false), 0);   /* first odometry only anchors */
+    assert_int_equal(mcl_step(f, odom, &scan, false), 0);   /* not moved */
+    assert_int_equal(mcl_step(f, odom, &scan, true), 1);    /* forced */
+    odom[0] = 0.2;
+    assert_int_equal(mcl_step(f, odom, &scan, false), 1);
+    assert_int_equal(mcl_updates(f), 2);
+    /* Garbage ranges (NaN, negative, beyond max) are ignored, not trusted. */
+    for (int k = 0; k < NB; k++)
+        ranges[k] = k % 3 == 0 ? NAN : k % 3 == 1 ? -1.0f : 1e9f;
+    odom[0] = 0.4;
+    assert_int_equal(mcl_step(f, odom, &scan, false), 1);
+    double est[3], cov[9];
+    mcl_estimate(f, est, cov);
+    assert_true(isfinite(est[0]) && isfinite(est[1]) && isfinite(est[2]));
+    mcl_destroy(f);
+    occmap_destroy(m);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_rejects_bad_params),
+        cmocka_unit_test(test_skips_update_when_still),
+        cmocka_unit_test(test_tracking_from_known_pose),
+        cmocka_unit_test(test_global_localization),
+        cmocka_unit_test(test_recovers_from_wrong_start),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,270 @@
+/* test_mailbox: the Mailbox's buffer and pull protocol without a bus (ordering, overflow,
+ * waiting and timing out, mistyped payloads, malformed requests). */
+#include <errno.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ca/mailbox.h"
+#include "lcmtypes/marie_pose2d_t.h"
+#include "lcmtypes/marie_gyro_t.h"
+#include "lcmtypes/marie_pull_reply_t.h"
+
+#define MAXR 64
+typedef struct {
+    marie_pull_reply_t replies[MAXR];
+    void *raw[MAXR];
+    char channels[MAXR][64];
+    int nreplies;
+    int bad_input, drops;
+} capture_t;
+
+static int cap_publish(void *user, const char *channel, const void *buf, size_t len)
+{
+    capture_t *c = user;
+    assert_true(c->nreplies < MAXR);
+    c->raw[c->nreplies] = malloc(len);
+    memcpy(c->raw[c->nreplies], buf, len);
+    assert_int_equal(ca_view_pull_reply(c->raw[c->nreplies], len, &c->replies[c->nreplies]), 0);
+    snprintf(c->channels[c->nreplies], 64, "%s", channel);
+    c->nreplies++;
+    return 0;
+}
+
+static void cap_note(void *user, ca_note_kind_t kind, const char *counter, int64_t n, const char *text)
+{
+    capture_t *c = user;
+    if (kind == CA_NOTE_BAD_INPUT)
+        c->bad_input += (int)n;
+    if (kind == CA_NOTE_DROP)
+        c->drops += (int)n;
+}
+
+static void cap_free(capture_t *c)
+{
+    for (int i = 0; i < c->nreplies; i++)
+        free(c->raw[i]);
+    memset(c, 0, sizeof *c);
+}
+
+static size_t pose(uint8_t *buf, size_t cap, double x)
+{
+    marie_pose2d_t p = { .x = x, .y = 1 };
+    int n = marie_pose2d_t_encode(buf, 0, (int)cap, &p);
+    assert_true(n > 0);
+    return (size_t)n;
+}
+
+static double reply_x(const marie_pull_reply_t *r)
+{
+    marie_pose2d_t p;
+    assert_true(marie_pose2d_t_decode(r->data, 0, r->size, &p) >= 0);
+    return p.x;
+}
+
+static mailbox_t *make(capture_t *c, int depth)
+{
+    ca_sink_t sink = { .note = cap_note, .publish = cap_publish, .user = c };
+    mailbox_t *mb = mailbox_create("POSE", &marie_type_pose2d_t, depth, &sink);
+    assert_non_null(mb);
+    return mb;
+}
+
+static marie_pull_request_t req(int64_t id, int timeout_ms)
+{
+    marie_pull_request_t r = { .utime = 0, .request_id = id, .requester = "t", .channel = "POSE",
+                               .reply_channel = "REPLY", .timeout_ms = timeout_ms };
+    return r;
+}
+
+static void test_keeps_newest_in_order(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 3);
+    uint8_t buf[256];
+    for (int i = 1; i <= 5; i++)
+        assert_int_equal(mailbox_push(mb, buf, pose(buf, sizeof buf, i), 1000 * i), 0);
+    assert_int_equal(mailbox_count(mb), 3);
+    /* newest first: 5, 4, 3; 1 and 2 were dropped as overflow */
+    for (size_t i = 0; i < 3; i++) {
+        const void *raw; size_t len; int64_t t;
+        assert_int_equal(mailbox_peek(mb, i, &raw, &len, &t), 0);
+        marie_pose2d_t p;
+        assert_true(marie_pose2d_t_decode(raw, 0, (int)len, &p) >= 0);
+        assert_true(p.x == 5.0 - (double)i);
+        assert_int_equal(t, 1000 * (5 - (int)i));
+    }
+    assert_int_equal(mailbox_peek(mb, 3, NULL, NULL, NULL), -ENODATA);
+    assert_int_equal(mailbox_stats(mb)->overflow, 2);
+    assert_int_equal(c.drops, 2);
+    marie_pose2d_t p;
+    int64_t age;
+    assert_int_equal(mailbox_latest(mb, &p, 9000, &age), 0);
+    assert_true(p.x == 5.0);
+    assert_int_equal(age, 4000);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_pull_answers_newest_with_age(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 4);
+    uint8_t buf[256];
+    mailbox_push(mb, buf, pose(buf, sizeof buf, 1), 100);
+    mailbox_push(mb, buf, pose(buf, sizeof buf, 2), 200);
+    marie_pull_request_t r = req(42, 100);
+    assert_int_equal(mailbox_handle_request(mb, &r, 1200), 0);
+    assert_int_equal(c.nreplies, 1);
+    assert_string_equal(c.channels[0], "REPLY");
+    assert_int_equal(c.replies[0].status, MARIE_PULL_REPLY_T_STATUS_OK);
+    assert_int_equal(c.replies[0].request_id, 42);
+    assert_int_equal(c.replies[0].age_us, 1000);
+    assert_int_equal(c.replies[0].fingerprint, marie_type_pose2d_t.hash());
+    assert_string_equal(c.replies[0].channel, "POSE");
+    assert_true(reply_x(&c.replies[0]) == 2.0);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_empty_pull_waits_for_data(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 2);
+    marie_pull_request_t r = req(7, 500);
+    assert_int_equal(mailbox_handle_request(mb, &r, 0), 1);
+    assert_int_equal(c.nreplies, 0);
+    assert_int_equal(mailbox_tick(mb, 100000), 0);     /* 100 ms: still waiting */
+    uint8_t buf[256];
+    mailbox_push(mb, buf, pose(buf, sizeof buf, 3), 150000);
+    assert_int_equal(c.nreplies, 1);
+    assert_int_equal(c.replies[0].status, MARIE_PULL_REPLY_T_STATUS_OK);
+    assert_int_equal(c.replies[0].request_id, 7);
+    assert_true(reply_x(&c.replies[0]) == 3.0);
+    assert_int_equal(mailbox_next_deadline(mb), INT64_MAX);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_empty_pull_times_out_before_requester(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 2);
+    marie_pull_request_t r = req(8, 500);
+    assert_int_equal(mailbox_handle_request(mb, &r, 0), 1);
+    int64_t d = mailbox_next_deadline(mb);
+    assert_int_equal(d, 400000);
+    assert_int_equal(mailbox_tick(mb, d - 1), 0);
+    assert_int_equal(mailbox_tick(mb, d), 1);
+    assert_int_equal(c.nreplies, 1);
+    assert_int_equal(c.replies[0].status, MARIE_PULL_REPLY_T_STATUS_EMPTY);
+    assert_int_equal(c.replies[0].size, 0);
+    /* zero timeout: answered EMPTY at once */
+    r = req(9, 0);
+    assert_int_equal(mailbox_handle_request(mb, &r, d), 0);
+    assert_int_equal(c.replies[1].status, MARIE_PULL_REPLY_T_STATUS_EMPTY);
+    assert_int_equal(c.replies[1].request_id, 9);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_mistyped_payload_is_counted_not_stored(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 2);
+    uint8_t buf[256];
+    marie_gyro_t g = {0};
+    int n = marie_gyro_t_encode(buf, 0, sizeof buf, &g);
+    assert_int_equal(mailbox_push(mb, buf, (size_t)n, 1), -EBADMSG);
+    assert_int_equal(mailbox_push(mb, buf, 5, 1), -EBADMSG);    /* shorter than a fingerprint */
+    assert_int_equal(mailbox_count(mb), 0);
+    assert_int_equal(c.bad_input, 2);
+    assert_int_equal(mailbox_stats(mb)->bad_input, 2);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_untyped_mailbox_takes_any_payload(void **state)
+{
+    capture_t c = {0};
+    ca_sink_t sink = { .note = cap_note, .publish = cap_publish, .user = &c };
+    mailbox_t *mb = mailbox_create("ANY", NULL, 1, &sink);
+    uint8_t buf[256];
+    marie_gyro_t g = {0};
+    int n = marie_gyro_t_encode(buf, 0, sizeof buf, &g);
+    assert_int_equal(mailbox_push(mb, buf, (size_t)n, 1), 0);
+    assert_int_equal(mailbox_push(mb, buf, 3, 1), -EBADMSG);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_bad_requests_counted(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 2);
+    uint8_t buf[512];
+    /* truncated and wrong-type requests are dropped */
+    marie_pull_request_t r = req(1, 10);
+    int n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
+    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n - 3, 0), -EBADMSG);
+    size_t pl = pose(buf, sizeof buf, 1);
+    assert_int_equal(mailbox_handle_request_raw(mb, buf, pl, 0), -EBADMSG);
+    /* a huge string length */
+    n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
+    buf[24] = 0x7f;
+    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), -EBADMSG);
+    /* a negative string length, and a string without its NUL */
+    n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
+    buf[24] = 0xff;
+    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), -EBADMSG);
+    n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
+    buf[28 + 1] = 'x';      /* requester "t" loses its terminator */
+    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), -EBADMSG);
+    /* no reply channel */
+    r.reply_channel = "";
+    assert_int_equal(mailbox_handle_request(mb, &r, 0), -EINVAL);
+    assert_int_equal(mailbox_stats(mb)->bad_requests, 6);
+    assert_int_equal(c.bad_input, 6);
+    assert_int_equal(c.nreplies, 0);
+    /* another channel: answered UNKNOWN_CHANNEL */
+    r = req(2, 10);
+    r.channel = "OTHER";
+    assert_int_equal(mailbox_handle_request(mb, &r, 0), 0);
+    assert_int_equal(c.replies[0].status, MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+static void test_waiting_requests_are_bounded(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 2);
+    for (int i = 0; i < MAILBOX_MAX_WAITING + 3; i++) {
+        marie_pull_request_t r = req(i, 1000);
+        mailbox_handle_request(mb, &r, 0);
+    }
+    assert_int_equal(c.nreplies, 3);
+    assert_int_equal(c.replies[0].request_id, 0);
+    assert_int_equal(c.replies[0].status, MARIE_PULL_REPLY_T_STATUS_EMPTY);
+    cap_free(&c);
+    mailbox_destroy(mb);    /* frees the waiting requests */
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_keeps_newest_in_order),
+        cmocka_unit_test(test_pull_answers_newest_with_age),
+        cmocka_unit_test(test_empty_pull_waits_for_data),
+        cmocka_unit_test(test_empty_pull_times_out_before_requester),
+        cmocka_unit_test(test_mistyped_payload_is_counted_not_stored),
+        cmocka_unit_test(test_untyped_mailbox_takes_any_payload),
+        cmocka_unit_test(test_bad_requests_counted),
+        cmocka_unit_test(test_waiting_requests_are_bounded),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

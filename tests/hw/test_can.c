@@ -1,0 +1,214 @@
+/* test_can: CAN frame I/O over socketpair and through the emulated bus; filters, error frames. */
+#include <errno.h>
+#include <poll.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "hw/can/can.h"
+#include "hw/can/canbus.h"
+
+static struct can_frame frame(canid_t id, int len, uint8_t fill)
+{
+    struct can_frame f;
+    memset(&f, 0, sizeof f);
+    f.can_id = id;
+    f.len = (uint8_t)len;
+    memset(f.data, fill, (size_t)len);
+    return f;
+}
+
+static void filter_semantics(void **state)
+{
+    struct can_filter f[2] = { { 0x181, 0x7FF }, { 0x700, 0x780 } };
+    assert_true(can_filter_match(f, 2, 0x181));
+    assert_false(can_filter_match(f, 2, 0x182));
+    assert_true(can_filter_match(f, 2, 0x705));
+    assert_true(can_filter_match(NULL, 0, 0x123));
+    struct can_filter inv = { 0x080 | CAN_INV_FILTER, 0x7FF };
+    assert_false(can_filter_match(&inv, 1, 0x080));
+    assert_true(can_filter_match(&inv, 1, 0x081));
+}
+
+static void error_frames_decode_and_change_health(void **state)
+{
+    struct can_frame f = frame(CAN_ERR_FLAG | CAN_ERR_CRTL, CAN_ERR_DLC, 0);
+    f.data[1] = CAN_ERR_CRTL_TX_PASSIVE;
+    can_err_info_t info;
+    assert_int_equal(can_err_decode(&f, &info), 0);
+    assert_true(info.passive);
+    assert_int_equal(can_health_next(CAN_BUS_ACTIVE, &info), CAN_BUS_PASSIVE);
+    f = frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, CAN_ERR_DLC, 0);
+    can_err_decode(&f, &info);
+    assert_int_equal(can_health_next(CAN_BUS_PASSIVE, &info), CAN_BUS_BUS_OFF);
+    f = frame(CAN_ERR_FLAG | CAN_ERR_RESTARTED, CAN_ERR_DLC, 0);
+    can_err_decode(&f, &info);
+    assert_int_equal(can_health_next(CAN_BUS_BUS_OFF, &info), CAN_BUS_ACTIVE);
+    assert_int_equal(can_health_next(CAN_BUS_BUS_OFF, NULL), CAN_BUS_ACTIVE);
+    f = frame(0x123, 2, 0);
+    assert_int_equal(can_err_decode(&f, &info), -EINVAL);
+    char buf[32];
+    f = frame(0x601, 2, 0xAB);
+    assert_string_equal(can_frame_str(&f, buf, sizeof buf), "601#ABAB");
+}
+
+static void socketpair_roundtrip_counts_bad_packets(void **state)
+{
+    int sv[2];
+    assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+    can_bus_t *a = can_bus_from_fd(sv[0]);
+    can_bus_t *b = can_bus_from_fd(sv[1]);
+    assert_non_null(a);
+    assert_non_null(b);
+    struct can_frame in, out = frame(0x201, 6, 0x5A);
+    assert_int_equal(can_bus_read(b, &in), 0);      /* nothing yet, non-blocking */
+    assert_int_equal(can_bus_write(a, &out), 0);
+    assert_int_equal(can_bus_read(b, &in), 1);
+    assert_memory_equal(&in, &out, sizeof in);
+    /* a packet that is not a frame, then one with DLC 9: both counted and skipped */
+    uint8_t junk[5] = { 1, 2, 3, 4, 5 };
+    assert_int_equal(send(sv[0], junk, sizeof junk, 0), 5);
+    struct can_frame bad = frame(0x181, 8, 0);
+    bad.len = 9;
+    assert_int_equal(send(sv[0], &bad, sizeof bad, 0), (ssize_t)sizeof bad);
+    assert_int_equal(can_bus_write(a, &out), 0);
+    assert_int_equal(can_bus_read(b, &in), 1);
+    assert_int_equal(can_bus_stats(b)->rx_bad, 2);
+    /* software filters on the emulated backend */
+    struct can_filter flt = { 0x181, 0x7FF };
+    assert_int_equal(can_bus_set_filters(b, &flt, 1), 0);
+    assert_int_equal(can_bus_write(a, &out), 0);
+    struct can_frame t = frame(0x181, 2, 1);
+    assert_int_equal(can_bus_write(a, &t), 0);
+    assert_int_equal(can_bus_read(b, &in), 1);
+    assert_int_equal(in.can_id, 0x181);
+    assert_int_equal(can_bus_stats(b)->rx_filtered, 1);
+    /* writing an oversize DLC is refused before it reaches the wire */
+    assert_int_equal(can_bus_write(a, &bad), -EINVAL);
+    /* the peer goes away: reads say so */
+    can_bus_close(a);
+    assert_int_equal(can_bus_read(b, &in), -EPIPE);
+    can_bus_close(b);
+}
+
+static void pump(can_emubus_t *bus)
+{
+    for (int i = 0; i < 20; i++) {
+        struct pollfd p = { .fd = can_emubus_fd(bus), .events = POLLIN };
+        if (poll(&p, 1, 20) <= 0)
+            break;
+        can_emubus_process(bus);
+    }
+}
+
+static void emulated_bus_relays_to_others(void **state)
+{
+    char path[64], url[80];
+    snprintf(path, sizeof path, "/tmp/marie-test-canbus-%d.sock", getpid());
+    snprintf(url, sizeof url, "emu:%s", path);
+    can_emubus_t *bus = can_emubus_create(path);
+    assert_non_null(bus);
+    can_bus_t *c[3];
+    for (int i = 0; i < 3; i++) {
+        c[i] = can_bus_open(url);
+        assert_non_null(c[i]);
+    }
+    pump(bus);
+    assert_int_equal(can_emubus_nclients(bus), 3);
+    struct can_frame in, out = frame(0x080, 0, 0);
+    assert_int_equal(can_bus_write(c[0], &out), 0);
+    pump(bus);
+    assert_int_equal(can_bus_read(c[1], &in), 1);
+    assert_int_equal(can_bus_read(c[2], &in), 1);
+    assert_int_equal(in.can_id, 0x080);
+    assert_int_equal(can_bus_read(c[0], &in), 0);    /* no echo to the sender */
+    /* error frames reach only clients that asked for them, and set bus-off */
+    assert_int_equal(can_bus_set_err_mask(c[1], CAN_ERR_MASK), 0);
+    struct can_frame e = frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, CAN_ERR_DLC, 0);
+    can_emubus_inject(bus, &e);
+    assert_int_equal(can_bus_read(c[1], &in), 1);
+    assert_true(in.can_id & CAN_ERR_FLAG);
+    assert_int_equal(can_bus_health(c[1]), CAN_BUS_BUS_OFF);
+    assert_int_equal(can_bus_stats(c[1])->bus_off, 1);
+    assert_int_equal(can_bus_read(c[2], &in), 0);
+    assert_int_equal(can_bus_health(c[2]), CAN_BUS_ACTIVE);
+    /* recovery: a data frame gets through again */
+    assert_int_equal(can_bus_write(c[0], &out), 0);
+    pump(bus);
+    assert_int_equal(can_bus_read(c[1], &in), 1);
+    assert_int_equal(can_bus_health(c[1]), CAN_BUS_ACTIVE);
+    assert_int_equal(can_bus_restart(c[1]), 0);
+    /* garbage to the daemon is counted there and not relayed */
+    uint8_t junk[3] = { 0 };
+    assert_int_equal(send(can_bus_fd(c[0]), junk, 3, 0), 3);
+    pump(bus);
+    assert_int_equal(can_emubus_stats(bus)->bad, 1);
+    assert_int_equal(can_bus_read(c[2], &in), 1);    /* the earlier frame */
+    assert_int_equal(can_bus_read(c[2], &in), 0);
+    /* a client that leaves is dropped */
+    can_bus_close(c[2]);
+    pump(bus);
+    assert_int_equal(can_emubus_nclients(bus), 2);
+    can_bus_close(c[0]);
+    can_bus_close(c[1]);
+    can_emubus_destroy(bus);
+    assert_int_equal(access(path, F_OK), -1);
+}
+
+static void can_fd_frames_when_enabled(void **state)
+{
+    int sv[2];
+    assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+    can_bus_t *a = can_bus_from_fd(sv[0]), *b = can_bus_from_fd(sv[1]);
+    struct canfd_frame fd = { .can_id = 0x123, .len = 64, .flags = CANFD_BRS }, in;
+    for (int i = 0; i < 64; i++)
+        fd.data[i] = (uint8_t)i;
+    assert_int_equal(can_bus_write_fd(a, &fd), -EPROTONOSUPPORT);
+    assert_int_equal(can_bus_enable_fd(a, true), 0);
+    assert_int_equal(can_bus_write_fd(a, &fd), 0);
+    /* b has FD off: the frame is not delivered */
+    struct can_frame cf;
+    assert_int_equal(can_bus_read(b, &cf), 0);
+    assert_int_equal(can_bus_stats(b)->rx_filtered, 1);
+    assert_int_equal(can_bus_enable_fd(b, true), 0);
+    assert_int_equal(can_bus_write_fd(a, &fd), 0);
+    struct can_frame classic = { .can_id = 0x80, .len = 0 };
+    assert_int_equal(can_bus_write(a, &classic), 0);
+    bool is_fd;
+    assert_int_equal(can_bus_read_fd(b, &in, &is_fd), 1);
+    assert_true(is_fd);
+    assert_int_equal(in.len, 64);
+    assert_memory_equal(in.data, fd.data, 64);
+    assert_int_equal(can_bus_read_fd(b, &in, &is_fd), 1);
+    assert_false(is_fd);
+    assert_int_equal(in.can_id, 0x80);
+    can_bus_close(a);
+    can_bus_close(b);
+}
+
+static void urls_are_checked(void **state)
+{
+    assert_null(can_bus_open("serial:/dev/ttyS0"));
+    assert_int_equal(errno, EINVAL);
+    assert_null(can_bus_open("emu:/nonexistent/dir/bus.sock"));
+    /* This kernel may lack PF_CAN; either way a missing interface fails cleanly. */
+    assert_null(can_bus_open("can:nosuchcan0"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(filter_semantics),
+        cmocka_unit_test(error_frames_decode_and_change_health),
+        cmocka_unit_test(socketpair_roundtrip_counts_bad_packets),
+        cmocka_unit_test(emulated_bus_relays_to_others),
+        cmocka_unit_test(can_fd_frames_when_enabled),
+        cmocka_unit_test(urls_are_checked),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

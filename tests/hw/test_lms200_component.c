@@ -1,0 +1,183 @@
+/* test_lms200_component: marie-lms200 and marie-vlms200 as separate processes over a pty, seen
+ * from the bus: scans on LASER, counters in the heartbeat, events on reconnect. */
+#include <errno.h>
+#include <math.h>
+#include <poll.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdbool.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+#include <lcm/lcm.h>
+
+#include "lcmtypes/marie_event_t.h"
+#include "lcmtypes/marie_heartbeat_t.h"
+#include "lcmtypes/marie_laser_scan_t.h"
+
+static int64_t mono_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
+typedef struct {
+    int scans, bad_scans, scans_after_reconnect;
+    bool reconnected;
+    int64_t crc_errors, reconnects, truncated, garbage;
+    int64_t hb_bad_input;
+    char kinds[512];
+} seen_t;
+
+static void on_scan(const lcm_recv_buf_t *rb, const char *ch, const marie_laser_scan_t *m, void *user)
+{
+    seen_t *s = user;
+    s->scans++;
+    if (s->reconnected)
+        s->scans_after_reconnect++;
+    bool ok = m->nranges == 181 && fabsf(m->angle_min + (float)M_PI / 2) < 1e-6f &&
+              fabsf(m->angle_increment - (float)(M_PI / 180)) < 1e-6f && m->range_max > 8.0f;
+    /* The emulator's default pattern: 1 m at the right, +1 cm per degree. */
+    for (int i = 0; ok && i < m->nranges; i++)
+        ok = fabsf(m->ranges[i] - (1.0f + 0.01f * (float)i)) < 1e-4f;
+    if (!ok)
+        s->bad_scans++;
+}
+
+static void on_hb(const lcm_recv_buf_t *rb, const char *ch, const marie_heartbeat_t *m, void *user)
+{
+    seen_t *s = user;
+    if (strcmp(m->component, "lms200") != 0)
+        return;
+    s->hb_bad_input = m->bad_input;
+    for (int i = 0; i < m->ncounters; i++) {
+        const char *n = m->counters[i].name;
+        int64_t v = m->counters[i].value;
+        if (!strcmp(n, "crc_errors")) s->crc_errors = v;
+        else if (!strcmp(n, "reconnects")) s->reconnects = v;
+        else if (!strcmp(n, "truncated")) s->truncated = v;
+        else if (!strcmp(n, "garbage_bytes")) s->garbage = v;
+    }
+}
+
+static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event_t *m, void *user)
+{
+    seen_t *s = user;
+    if (strcmp(m->source, "lms200") != 0)
+        return;
+    if (strlen(s->kinds) + strlen(m->kind) + 2 < sizeof s->kinds) {
+        strcat(s->kinds, m->kind);
+        strcat(s->kinds, " ");
+    }
+    if (!strcmp(m->kind, "laser_reconnected"))
+        s->reconnected = true;
+}
+
+static pid_t spawn(char *const argv[])
+{
+    pid_t pid = fork();
+    if (pid == 0) {
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void stop(pid_t pid)
+{
+    if (pid <= 0)
+        return;
+    kill(pid, SIGTERM);
+    for (int i = 0; i < 50; i++) {
+        if (waitpid(pid, NULL, WNOHANG) == pid)
+            return;
+        usleep(20000);
+    }
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+}
+
+static void pump(lcm_t *lcm, int ms)
+{
+    struct pollfd p = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
+    if (poll(&p, 1, ms) > 0)
+        lcm_handle(lcm);
+}
+
+static void test_scans_counters_and_reconnect_over_the_bus(void **state)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    char dir[] = "/tmp/lms200-proc-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char link[128], emu[256], drv[256], dev[160];
+    snprintf(link, sizeof link, "%s/ttyLMS", dir);
+    snprintf(emu, sizeof emu, "%s/bin/marie-vlms200", b);
+    snprintf(drv, sizeof drv, "%s/bin/marie-lms200", b);
+    snprintf(dev, sizeof dev, "device=%s", link);
+
+    lcm_t *lcm = lcm_create(NULL);
+    assert_non_null(lcm);
+    seen_t s = { 0 };
+    marie_laser_scan_t_subscription_t *s1 = marie_laser_scan_t_subscribe(lcm, "LASER", on_scan, &s);
+    marie_heartbeat_t_subscription_t *s2 = marie_heartbeat_t_subscribe(lcm, "MARIE_HEARTBEAT", on_hb, &s);
+    marie_event_t_subscription_t *s3 = marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, &s);
+
+    /* A device with a bad CRC every 5th scan that is unplugged after 3 s for 0.5 s. */
+    char *eargv[] = { emu, "--link", link, "--rate", "20", "--corrupt-every", "5",
+                      "--unplug-at", "3000", "--unplug-ms", "500", NULL };
+    pid_t pe = spawn(eargv);
+    int64_t end = mono_ms() + 3000;
+    while (access(link, F_OK) != 0 && mono_ms() < end)
+        usleep(20000);
+    assert_int_equal(access(link, F_OK), 0);
+    char *dargv[] = { drv, "--param", dev, "--param", "baud=38400", "--param", "resolution=1",
+                      "--param", "reply_timeout_ms=150", "--param", "config_timeout_ms=500",
+                      "--param", "data_timeout_ms=1000",
+                      "--param", "reopen_ms=100", NULL };
+    pid_t pd = spawn(dargv);
+
+    end = mono_ms() + 20000;
+    while (mono_ms() < end && !(s.scans_after_reconnect >= 5 && s.reconnects >= 1 && s.crc_errors >= 1))
+        pump(lcm, 50);
+    stop(pd);
+    stop(pe);
+    marie_laser_scan_t_unsubscribe(lcm, s1);
+    marie_heartbeat_t_unsubscribe(lcm, s2);
+    marie_event_t_unsubscribe(lcm, s3);
+    lcm_destroy(lcm);
+    char tmp[200];
+    snprintf(tmp, sizeof tmp, "%s.tmp%d", link, (int)pe);
+    unlink(tmp);
+    unlink(link);
+    rmdir(dir);
+
+    print_message("scans %d (bad %d, after reconnect %d) crc %lld reconnects %lld bad_input %lld events: %s\n",
+                  s.scans, s.bad_scans, s.scans_after_reconnect, (long long)s.crc_errors,
+                  (long long)s.reconnects, (long long)s.hb_bad_input, s.kinds);
+    assert_true(s.scans >= 10);
+    assert_int_equal(s.bad_scans, 0);
+    assert_true(s.crc_errors >= 1);
+    assert_true(s.hb_bad_input >= s.crc_errors);
+    assert_true(s.reconnects >= 1);
+    assert_true(s.scans_after_reconnect >= 5);
+    assert_non_null(strstr(s.kinds, "laser_streaming"));
+    assert_non_null(strstr(s.kinds, "laser_disconnected"));
+    assert_non_null(strstr(s.kinds, "laser_reconnected"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_scans_counters_and_reconnect_over_the_bus),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

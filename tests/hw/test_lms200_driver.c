@@ -1,0 +1,390 @@
+/* test_lms200_driver: the LMS200 driver against the virtual LMS200 over a real pty, in one
+ * poll loop: init sequence, both resolutions, CRC errors, garbage, truncation, silence and
+ * an unplugged device that comes back. */
+#include <errno.h>
+#include <math.h>
+#include <poll.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "hw/lms200/driver.h"
+#include "hw/lms200/vlms200.h"
+
+static int64_t mono_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+}
+
+typedef struct {
+    vlms200_t *emu;
+    lms200_driver_t *drv;
+    char dir[64], link[96];
+    int64_t scans, bad_ranges, events;
+    int last_n;
+    char last_event[64];
+    int reconnect_events;
+    int open_failed_events;
+    bool moving;                /* ranges change every scan: check their shape only */
+    double last_wall;
+    int moving_bad;
+} rig_t;
+
+static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t t)
+{
+    rig_t *r = user;
+    r->scans++;
+    r->last_n = s->n;
+    if (r->moving) {
+        /* Every beam sees the same wall, a little further than in the scan before. */
+        double w = lms200_value_m(s->values[0], s->unit);
+        for (int i = 1; i < s->n; i++)
+            if (fabs(lms200_value_m(s->values[i], s->unit) - w) > 1e-9)
+                r->moving_bad++;
+        if (w <= r->last_wall)
+            r->moving_bad++;
+        r->last_wall = w;
+        return;
+    }
+    for (int i = 0; i < s->n; i++) {
+        double want = vlms200_expected_range(r->emu, i, res_cdeg);
+        double got = lms200_value_m(s->values[i], s->unit);
+        if (!(fabs(want - got) < 1e-6) && !(isinf(want) && isinf(got)))
+            r->bad_ranges++;
+    }
+}
+
+static void on_event(void *user, int sev, const char *kind, const char *text)
+{
+    rig_t *r = user;
+    r->events++;
+    snprintf(r->last_event, sizeof r->last_event, "%s", kind);
+    if (strcmp(kind, "laser_reconnected") == 0)
+        r->reconnect_events++;
+    if (strcmp(kind, "laser_open_failed") == 0)
+        r->open_failed_events++;
+}
+
+static const lms200_driver_ops_t ops = { .on_scan = on_scan, .on_event = on_event };
+
+static void rig_open(rig_t *r, const vlms200_cfg_t *ecfg, int baud, int res)
+{
+    memset(r, 0, sizeof *r);
+    snprintf(r->dir, sizeof r->dir, "/tmp/lms200-test-XXXXXX");
+    assert_non_null(mkdtemp(r->dir));
+    snprintf(r->link, sizeof r->link, "%s/ttyLMS", r->dir);
+    r->emu = vlms200_create(ecfg);
+    assert_non_null(r->emu);
+    assert_int_equal(vlms200_open(r->emu, r->link), 0);
+    lms200_driver_cfg_t cfg = {
+        .device = r->link, .baud = baud, .res_cdeg = res,
+        .reply_timeout_ms = 150, .config_timeout_ms = 500, .retries = 2, .data_timeout_ms = 800, .reopen_ms = 100,
+    };
+    r->drv = lms200_driver_create(&cfg, &ops, r);
+    assert_non_null(r->drv);
+}
+
+static void rig_close(rig_t *r)
+{
+    if (r->drv) {
+        const lms200_driver_stats_t *st = lms200_driver_stats(r->drv);
+        const vlms200_stats_t *es = vlms200_stats(r->emu);
+        print_message("driver: scans %lld crc %lld trunc %lld oversized %lld garbage %lld timeouts %lld "
+                      "disconnects %lld reconnects %lld inits %lld naks %lld | device: sent %lld "
+                      "mismatch %lld baud %d\n",
+                      (long long)st->scans, (long long)st->crc_errors, (long long)st->truncated,
+                      (long long)st->oversized, (long long)st->garbage_bytes, (long long)st->timeouts,
+                      (long long)st->disconnects, (long long)st->reconnects, (long long)st->inits,
+                      (long long)st->naks, (long long)es->scans_sent, (long long)es->baud_mismatch_bytes,
+                      vlms200_baud(r->emu));
+    }
+    lms200_driver_destroy(r->drv);
+    vlms200_destroy(r->emu);
+    rmdir(r->dir);
+}
+
+/* One poll round over both ends. */
+static void step(rig_t *r)
+{
+    struct pollfd p[2];
+    int n = 0, ie = -1, id = -1;
+    if (vlms200_fd(r->emu) >= 0) {
+        ie = n;
+        p[n++] = (struct pollfd){ .fd = vlms200_fd(r->emu), .events = vlms200_events(r->emu) };
+    }
+    if (r->drv && lms200_driver_fd(r->drv) >= 0) {
+        id = n;
+        p[n++] = (struct pollfd){ .fd = lms200_driver_fd(r->drv), .events = POLLIN };
+    }
+    int64_t now = mono_us();
+    int64_t dl = vlms200_deadline(r->emu);
+    if (r->drv && lms200_driver_deadline(r->drv) < dl)
+        dl = lms200_driver_deadline(r->drv);
+    int timeout = 20;
+    if (dl != INT64_MAX && (dl - now) / 1000 < timeout)
+        timeout = dl <= now ? 0 : (int)((dl - now) / 1000) + 1;
+    poll(p, (nfds_t)n, timeout);
+    now = mono_us();
+    int efd = vlms200_fd(r->emu), dfd = r->drv ? lms200_driver_fd(r->drv) : -1;
+    if (ie >= 0 && p[ie].revents && p[ie].fd == efd)
+        vlms200_io(r->emu, p[ie].revents, now);
+    if (id >= 0 && p[id].revents && p[id].fd == dfd)
+        lms200_driver_io(r->drv, p[id].revents, now);
+    vlms200_tick(r->emu, now);
+    if (r->drv)
+        lms200_driver_tick(r->drv, now);
+}
+
+/* Run until cond holds or max_ms passes (bounded: the machine may be slow, never hung). */
+#define RUN_UNTIL(r, max_ms, cond) ({ int64_t end_ = mono_us() + (int64_t)(max_ms) * 1000; \
+        while (!(cond) && mono_us() < end_) step(r); (cond); })
+
+static void run_for(rig_t *r, int ms)
+{
+    int64_t end = mono_us() + (int64_t)ms * 1000;
+    while (mono_us() < end)
+        step(r);
+}
+
+static void test_init_sequence_reaches_stream_at_500000_half_degree(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 500000, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 5));
+    assert_int_equal(lms200_driver_state(r.drv), LMS200_DRV_STREAM);
+    /* Both ends agree on the rate the driver was configured for. */
+    assert_int_equal(vlms200_baud(r.emu), 500000);
+    assert_int_equal(lms200_driver_baud(r.drv), 500000);
+    assert_int_equal(vlms200_res_cdeg(r.emu), 50);
+    assert_true(vlms200_streaming(r.emu));
+    assert_int_equal(r.last_n, 361);
+    assert_int_equal(r.bad_ranges, 0);
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    assert_true(st->inits >= 1);
+    assert_int_equal(st->crc_errors, 0);
+    assert_int_equal(st->truncated, 0);
+    rig_close(&r);
+}
+
+static void test_one_degree_in_centimetres_at_38400(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_CM };
+    rig_open(&r, &e, 38400, 100);
+    /* Feed a pattern like the simulator does: a wall with a gap that sees nothing. */
+    float m[19];
+    for (int i = 0; i < 19; i++)
+        m[i] = (i == 9) ? INFINITY : 3.0f + 0.1f * (float)i;
+    vlms200_set_ranges(r.emu, m, 19);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 5));
+    assert_int_equal(r.last_n, 181);
+    assert_int_equal(r.bad_ranges, 0);
+    assert_int_equal(vlms200_baud(r.emu), 38400);
+    assert_true(isinf(vlms200_expected_range(r.emu, 90, 100)));
+    rig_close(&r);
+}
+
+/* A simulator sets each scan's ranges from the scan callback: a wall that moves away. */
+static void moving_wall(void *user, vlms200_t *v, int64_t now)
+{
+    int *k = user;
+    float m[2] = { 2.0f + 0.01f * (float)*k, 2.0f + 0.01f * (float)*k };
+    vlms200_set_ranges(v, m, 2);
+    (*k)++;
+}
+
+static void test_scan_callback_feeds_each_scan(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 500000, 100);
+    int k = 0;
+    r.moving = true;
+    vlms200_on_scan(r.emu, moving_wall, &k);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 5));
+    assert_int_equal(r.moving_bad, 0);
+    assert_true(r.last_wall > 2.0);
+    assert_true(k >= 5);
+    assert_true(vlms200_expected_range(r.emu, 0, 100) > 2.0);
+    rig_close(&r);
+}
+
+static void test_stays_at_9600_when_configured(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 9600, 100);
+    lms200_driver_start(r.drv, mono_us());
+    /* 181 values at 9600 baud take 0.38 s each: the device is slower, not broken. */
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 2));
+    assert_int_equal(vlms200_stats(r.emu)->baud_changes, 0);
+    assert_int_equal(lms200_driver_stats(r.drv)->timeouts, 0);
+    assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+static void test_crc_errors_counted_and_skipped(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .corrupt_every = 3 };
+    rig_open(&r, &e, 500000, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 20));
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    assert_true(st->crc_errors >= 5);
+    assert_int_equal(r.bad_ranges, 0);              /* no corrupt scan got through */
+    assert_int_equal(st->reconnects, 0);            /* and none stopped the stream */
+    rig_close(&r);
+}
+
+static void test_garbage_between_scans_resyncs(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .garbage_every = 2 };
+    rig_open(&r, &e, 500000, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 20));
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    assert_true(st->garbage_bytes + st->truncated + st->crc_errors + st->oversized > 0);
+    assert_int_equal(r.bad_ranges, 0);
+    /* Garbage costs at most the odd scan whose start it swallowed. */
+    assert_true(r.scans * 10 >= vlms200_stats(r.emu)->scans_sent * 6);
+    rig_close(&r);
+}
+
+static void test_truncated_telegrams_counted(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .truncate_every = 4 };
+    rig_open(&r, &e, 500000, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 20));
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    assert_true(st->truncated >= 3);
+    assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+static void test_silent_device_reinitialised(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 38400, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    vlms200_silence(r.emu, mono_us() + 2000 * 1000);
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    assert_true(RUN_UNTIL(&r, 15000, st->reconnects >= 1));
+    int64_t before = r.scans;
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= before + 3));
+    assert_true(st->timeouts >= 1);
+    assert_true(r.reconnect_events >= 1);
+    assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+static void test_unplugged_mid_scan_and_back(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 500000, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    /* Pull the cable with a scan half written, then plug in a power-cycled device. */
+    run_for(&r, 5);
+    vlms200_unplug(r.emu, mono_us(), 500 * 1000);
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    assert_true(RUN_UNTIL(&r, 3000, st->disconnects >= 1));
+    assert_int_equal(lms200_driver_fd(r.drv), -1);
+    assert_true(RUN_UNTIL(&r, 10000, st->reconnects >= 1));
+    int64_t before = r.scans;
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= before + 3));
+    /* The new device started at 9600: the driver switched it to 500000 again. */
+    assert_int_equal(vlms200_baud(r.emu), 500000);
+    assert_true(st->inits >= 2);
+    assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+static void test_restarted_driver_finds_streaming_device(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 38400, 50);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    /* The driver process dies without stopping the device: it keeps streaming at 38400. */
+    lms200_driver_destroy(r.drv);
+    r.drv = NULL;
+    run_for(&r, 100);
+    assert_true(vlms200_streaming(r.emu));
+    lms200_driver_cfg_t cfg = {
+        .device = r.link, .baud = 38400, .res_cdeg = 50,
+        .reply_timeout_ms = 150, .config_timeout_ms = 500, .retries = 2, .data_timeout_ms = 800, .reopen_ms = 100,
+    };
+    r.drv = lms200_driver_create(&cfg, &ops, &r);
+    int64_t before = r.scans;
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= before + 3));
+    /* It asked at 9600 first (garbled for a device at 38400), then found it. */
+    assert_true(vlms200_stats(r.emu)->baud_mismatch_bytes > 0);
+    assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+static void test_missing_device_retried_until_it_appears(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 38400, 100);
+    vlms200_unplug(r.emu, mono_us(), 600 * 1000);
+    lms200_driver_start(r.drv, mono_us());
+    assert_int_equal(lms200_driver_fd(r.drv), -1);
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 3));
+    assert_int_equal(r.open_failed_events, 1);     /* reported once, not once per attempt */
+    assert_string_equal(r.last_event, "laser_streaming");
+    rig_close(&r);
+}
+
+static void test_bad_config_refused(void **state)
+{
+    lms200_driver_cfg_t cfg = { .device = "/dev/null", .baud = 115200, .res_cdeg = 50 };
+    assert_null(lms200_driver_create(&cfg, &ops, NULL));
+    assert_int_equal(errno, EINVAL);
+    cfg.baud = 38400;
+    cfg.res_cdeg = 25;
+    assert_null(lms200_driver_create(&cfg, &ops, NULL));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_init_sequence_reaches_stream_at_500000_half_degree),
+        cmocka_unit_test(test_one_degree_in_centimetres_at_38400),
+        cmocka_unit_test(test_scan_callback_feeds_each_scan),
+        cmocka_unit_test(test_stays_at_9600_when_configured),
+        cmocka_unit_test(test_crc_errors_counted_and_skipped),
+        cmocka_unit_test(test_garbage_between_scans_resyncs),
+        cmocka_unit_test(test_truncated_telegrams_counted),
+        cmocka_unit_test(test_silent_device_reinitialised),
+        cmocka_unit_test(test_unplugged_mid_scan_and_back),
+        cmocka_unit_test(test_restarted_driver_finds_streaming_device),
+        cmocka_unit_test(test_missing_device_retried_until_it_appears),
+        cmocka_unit_test(test_bad_config_refused),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,72 @@
+#!/bin/sh
+# Runs inside the VM (see tests/hw/test_vm_can.sh): marie-drives and marie-gyro against the
+# virtual devices on a real SocketCAN vcan0, with candump as the independent witness.
+B=${B:-build}
+. tests/lib.sh
+BIN=$B/bin
+out=${VM_OUT:-/tmp}
+ip link set lo up
+ip link set lo multicast on
+ip route add 224.0.0.0/4 dev lo
+echo 8388608 > /proc/sys/net/core/rmem_max     # LCM asks for an 8 MB receive buffer
+ip link add dev vcan0 type vcan
+ip link set vcan0 mtu 72        # CAN FD capable
+ip link set up vcan0
+# The CAN layer itself on PF_CAN (cmocka cases, counted by the runner).
+$B/tests/vm/vm_socketcan
+export MARIE_LOG=${MARIE_LOG:-warn}
+
+candump -L vcan0 > /tmp/candump.log 2>&1 &
+dump=$!
+$BIN/marie-vcan-devices --can can:vcan0 --gyro-noise 0.0005 > $out/vcan-devices.log 2>&1 &
+devs=$!
+$BIN/marie-drives --param can=can:vcan0 > $out/drives.log 2>&1 &
+drv=$!
+$BIN/marie-gyro --param can=can:vcan0 > $out/gyro.log 2>&1 &
+gyr=$!
+
+$B/tests/vm/hw_vm_check 3 > /tmp/check.txt 2>&1
+check_rc=$?
+# A drive fault on the wire: EMCY from the left drive, then the driver's fault reset.
+kill -USR1 $devs
+i=0
+while [ $i -lt 80 ] && ! grep -q " vcan0 201#8000" /tmp/candump.log; do sleep 0.1; i=$((i + 1)); done
+sleep 0.5
+kill $dump
+kill $drv $gyr
+sleep 0.3
+kill $devs
+wait 2>/dev/null
+cat /tmp/check.txt
+cp /tmp/candump.log $out/candump.log 2>/dev/null
+val() { sed -n "s/^$1=//p" /tmp/check.txt; }
+# little-endian hex bytes (8 hex digits) to a signed 32-bit number
+le32() { b=$1; v=$(printf '%d' "0x$(echo "$b" | sed 's/\(..\)\(..\)\(..\)\(..\)/\4\3\2\1/')"); [ "$v" -ge 2147483648 ] && v=$((v - 4294967296)); echo "$v"; }
+last() { grep " vcan0 $1#" /tmp/candump.log | tail -${2:-1} | head -1 | sed 's/.*#//'; }
+count() { grep -c " vcan0 $1#" /tmp/candump.log; }
+
+check "drivers report the commanded wheel velocities over LCM" [ "$check_rc" -eq 0 ]
+check "candump sees SYNC from marie-drives" [ "$(count 080)" -gt 20 ]
+check "candump sees RPDO1 to both drives" [ "$(count 201)" -gt 20 -a "$(count 202)" -gt 20 ]
+check "candump sees TPDO1/TPDO2 of both drives" [ "$(count 181)" -gt 20 -a "$(count 282)" -gt 20 ]
+check "candump sees the gyro TPDO" [ "$(count 1A0)" -gt 50 ]
+check "candump sees the SDO configuration and NMT start" [ "$(count 601)" -gt 10 -a "$(count 000)" -ge 2 ]
+# RPDO1: controlword 0x000F (enable operation) and target 4 rad/s = 2608 increments/s
+r=$(last 201)
+echo "last RPDO1 left: $r"
+check "RPDO1 carries enable-operation and the kinematic target" [ "$r" = "0F00300A0000" ]
+# the left drive's TPDO2 (actual velocity) a little before the end, against the driver's report
+t=$(last 281 10)
+cnt=$(le32 "$t")
+echo "TPDO2 left velocity: $cnt increments/s; driver reported $(val left_velocity) rad/s"
+check "driver's wheel velocity matches the drive's TPDO on the wire" \
+    awk -v c="$cnt" -v r="$(val left_velocity)" 'BEGIN { d = c * 6.283185307 / 4096 - r; exit !(d < 0.01 && d > -0.01) }'
+check "candump sees the left drive's EMCY 0x2310 (over-current)" grep -q " vcan0 081#1023" /tmp/candump.log
+check "the driver answers the fault with a fault reset (controlword 0x0080)" grep -q " vcan0 201#8000" /tmp/candump.log
+check "and enables operation again after it" sh -c 'sed -n "/ vcan0 201#8000/,\$p" /tmp/candump.log | grep -q " vcan0 201#0F00"'
+g=$(grep " vcan0 1A0#" /tmp/candump.log | grep -B10 -m1 "" | tail -1 | sed 's/.*#//')
+graw=$(le32 "$(echo "$g" | cut -c1-8)")
+echo "gyro TPDO raw $graw urad/s; driver yaw_rate $(val yaw_rate) + bias $(val bias)"
+check "gyro driver's rate plus bias matches the raw TPDO" \
+    awk -v g="$graw" -v y="$(val yaw_rate)" -v b="$(val bias)" 'BEGIN { d = g * 1e-6 - (y + b); exit !(d < 0.02 && d > -0.02) }'
+finish

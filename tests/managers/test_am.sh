@@ -1,0 +1,144 @@
+#!/bin/sh
+# test_am: one marie-am supervising test components: dependency order, respawn after kill -9,
+# restart of a hung component, give-up, stop/start by group, logs, refused orders, bad
+# system files, and a restarted manager bringing its components back.
+. tests/lib.sh
+T=$(mktemp -d /tmp/marie-test-am.XXXXXX)
+export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
+M="$BIN/marie"
+AM_PID=
+cleanup() { [ -n "$AM_PID" ] && kill "$AM_PID" 2>/dev/null; sleep 0.3; rm -rf "$T"; }
+trap cleanup EXIT
+
+start_am() { "$BIN/marie-am" --host alpha --state-dir "$T/am" >> "$T/am.log" 2>&1 & AM_PID=$!; }
+# field NAME KEY: a component's field from marie --json ps
+field() {
+    "$M" --json ps --window 0.7 2>/dev/null | python3 -c '
+import json, sys
+d = json.load(sys.stdin)
+for h in d["hosts"]:
+    for c in h["components"]:
+        if c["name"] == sys.argv[1]:
+            print(c[sys.argv[2]])' "$1" "$2"
+}
+is_state() { [ "$(field "$1" state)" = "$2" ]; }
+pid_changed() { p=$(field "$1" pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$2" ] && is_state "$1" running; }
+trace_line() { grep -n " $1 $2 " "$T/trace" | head -1 | cut -d: -f1; }
+
+"$M" keygen "$T/key"
+start_am
+sleep 0.3
+
+# -- bad system files are refused before anything starts
+bad_refused() {
+    out=$("$M" up tests/data/managers/bad.yaml 2>&1); rc=$?
+    echo "$out"
+    [ $rc -eq 2 ] && echo "$out" | grep -q 'bad.yaml:7:[0-9]*: .*sometimes' &&
+        echo "$out" | grep -q 'bad.yaml:10:[0-9]*: .*nowhere' && [ ! -s "$T/trace" ]
+}
+check "bad system file refused with file:line:col" bad_refused
+cycle_refused() {
+    out=$("$M" up tests/data/managers/cycle.yaml 2>&1); rc=$?
+    echo "$out"; [ $rc -eq 2 ] && echo "$out" | grep -q 'cycle.yaml:[0-9]*:[0-9]*: .*dependency cycle'
+}
+check "dependency cycle refused" cycle_refused
+am_bad_refused() {
+    "$BIN/marie-am" --host alpha --state-dir "$T/am2" --system tests/data/managers/bad.yaml > "$T/am2.log" 2>&1
+    rc=$?; cat "$T/am2.log"; [ $rc -eq 2 ] && grep -q 'bad.yaml:7:' "$T/am2.log" && [ ! -s "$T/trace" ]
+}
+check "marie-am refuses a bad --system file" am_bad_refused
+
+# -- up: dependency order a -> b -> c
+check "up returns when everything runs" "$M" up tests/data/managers/single.yaml
+dep_order() {
+    cat "$T/trace"
+    ar=$(trace_line a running); be=$(trace_line b exec); br=$(trace_line b running); ce=$(trace_line c exec)
+    [ -n "$ar" ] && [ -n "$be" ] && [ -n "$br" ] && [ -n "$ce" ] && [ "$ar" -lt "$be" ] && [ "$br" -lt "$ce" ]
+}
+check "components start in dependency order" dep_order
+check "ps shows all running" sh -c "$M ps | grep -c ' running ' | grep -qx 3"
+check "policy never: failed component stays failed" wait_for 5 is_state once failed
+
+# -- kill -9 gets a component restarted
+B_PID=$(field b pid)
+kill -9 "$B_PID"
+check "kill -9 restarts the component" wait_for 10 pid_changed b "$B_PID"
+restart_counted() { [ "$(field b restarts)" -ge 1 ]; }
+check "restart counted" restart_counted
+
+# -- a hung component (alive, no heartbeat) is restarted
+C_PID=$(field c pid)
+kill -USR1 "$C_PID"
+check "hung component restarted" wait_for 15 pid_changed c "$C_PID"
+check "old hung process is gone" sh -c "! kill -0 $C_PID 2>/dev/null"
+
+# -- output capture
+check "logs: last lines of stdout" sh -c "$M logs -n 5 c | grep -q 'out line [0-9]* from c'"
+check "logs: stderr captured separately" sh -c "grep -q ' err warning [0-9]* from c' $T/am/logs/c.log"
+follow() {
+    timeout 2 "$M" logs -f -n 0 c > "$T/follow.out" 2>&1
+    grep -q 'out line [0-9]* from c' "$T/follow.out"
+}
+check "logs -f follows live output" follow
+
+# -- stop/start by group
+check "stop a group" "$M" stop base --wait
+group_stopped() { [ "$(field a pid)" = 0 ] && [ "$(field b pid)" = 0 ] && [ "$(field c state)" = running ]; }
+check "group members stopped, others run on" group_stopped
+check "start a group" "$M" start base --wait
+check "pause" "$M" pause c
+check "paused" wait_for 5 is_state c paused
+check "resume" "$M" resume c
+check "running again" wait_for 5 is_state c running
+check "unknown name refused (exit 1)" sh -c "$M start nosuch; [ \$? -eq 1 ]"
+
+# -- orders that are not authentic never start anything
+"$M" stop c --wait > /dev/null
+OT="$B/tests/bin/marie-test-order"
+check "unsigned order refused" sh -c "$OT -m unsigned start c | grep -q 'refused: unsigned'"
+check "forged order refused" sh -c "$OT -m forged start c | grep -q 'refused: forged'"
+c_stopped() { [ "$(field c pid)" = 0 ]; }
+sleep 0.5
+check "refused orders started nothing" c_stopped
+replay() {
+    # the same signed order twice: obeyed once, then refused
+    "$OT" -k "$T/key" -S replayer@test -s 1000 -r 2 stop c > "$T/replay.out"
+    cat "$T/replay.out"
+    [ "$(sed -n 1p "$T/replay.out")" = ok ] && grep -q 'refused: replayed' "$T/replay.out" &&
+        "$OT" -k "$T/key" -S replayer@test -s 999 start c | grep -q 'refused: replayed'
+}
+check "replayed order refused" replay
+sleep 0.3
+check "replay started nothing" c_stopped
+check "refusals counted in status" sh -c "$M --json ps | grep -q '\"orders_refused\":[1-9]'"
+insecure_key() {
+    cp "$T/key" "$T/key644"; chmod 644 "$T/key644"
+    "$M" --key "$T/key644" start c; [ $? -eq 4 ]
+}
+check "group-readable key refused (exit 4)" insecure_key
+check "start again" "$M" start c --wait
+
+# -- a manager killed with -9 takes its components down; restarted, it brings them back
+A_PID=$(field a pid)
+kill -9 "$AM_PID"; wait "$AM_PID" 2>/dev/null
+check "components go with their manager" wait_for 5 sh -c "! kill -0 $A_PID 2>/dev/null"
+start_am
+back() { [ "$(field a state)" = running ] && [ "$(field c state)" = running ] && [ "$(field a pid)" != "$A_PID" ]; }
+check "restarted manager brings them back" wait_for 15 back
+
+# -- down, then a crashing component is given up after max_failures
+check "down stops everything" "$M" down
+none_left() { for p in $(cut -d" " -f4 "$T/trace" | sort -u); do kill -0 "$p" 2>/dev/null && return 1; done; return 0; }
+check "nothing left running" wait_for 5 none_left
+"$M" up --no-wait tests/data/managers/crash.yaml > /dev/null
+check "gives up after max_failures" wait_for 10 is_state crasher failed
+two_restarts() { [ "$(field crasher restarts)" = 2 ]; }
+check "restarts before giving up" two_restarts
+check "shell component runs through sh" wait_for 5 sh -c "grep -q 'from the shell: hello sh' $T/am/logs/sh.log"
+check "down again" "$M" down
+check "ps --json exit code with everything stopped" "$M" --json ps
+kill "$AM_PID"; wait "$AM_PID"
+check "SIGTERM: manager exits cleanly" [ $? -eq 0 ]
+AM_PID=
+tail -30 "$T/am.log"
+finish

@@ -1,0 +1,96 @@
+/* marie-test-comp: a component for the manager tests that can be told to hang (SIGUSR1),
+ * crash (SIGUSR2), print, or exit, and that records when it started. */
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "core/component.h"
+
+static volatile sig_atomic_t hang_now;
+
+static void on_usr1(int s) { hang_now = 1; }
+
+/* A hang: the loop stops turning (no heartbeats) while the process stays alive. */
+static void on_usr2(int s) { abort(); }
+
+static void trace(const char *what)
+{
+    const char *path = getenv("MARIE_TEST_TRACE");
+    if (!path || !*path)
+        return;
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    FILE *f = fopen(path, "a");
+    if (!f)
+        return;
+    const char *name = getenv("MARIE_NAME");
+    fprintf(f, "%lld %s %s %d\n", (long long)ts.tv_sec * 1000000 + ts.tv_nsec / 1000, name ? name : "?", what,
+            (int)getpid());
+    fclose(f);
+}
+
+static void tick(marie_component_t *c, int64_t overruns)
+{
+    if (hang_now) {
+        for (;;)
+            pause();
+    }
+    double hz = marie_param_double(c, "print_hz");
+    if (hz > 0) {
+        static int64_t n;
+        printf("line %lld from %s\n", (long long)++n, marie_component_name(c));
+        if (n % 5 == 0)
+            fprintf(stderr, "warning %lld from %s\n", (long long)n, marie_component_name(c));
+        fflush(stdout);
+    }
+    double exit_after = marie_param_double(c, "exit_after_s");
+    static int64_t started;
+    int64_t now = marie_mono_us();
+    if (!started)
+        started = now;
+    if (exit_after > 0 && now - started > (int64_t)(exit_after * 1e6))
+        exit((int)marie_param_int(c, "exit_code"));
+}
+
+static int on_init(marie_component_t *c)
+{
+    int64_t ms = marie_param_int(c, "init_delay_ms");
+    if (ms > 0)
+        usleep((useconds_t)(ms * 1000));
+    double hz = marie_param_double(c, "print_hz");
+    marie_component_every(c, hz > 10 ? hz : 10, tick);
+    return 0;
+}
+
+static int on_start(marie_component_t *c)
+{
+    trace("running");
+    return 0;
+}
+
+static const marie_param_spec_t params[] = {
+    {"init_delay_ms", MARIE_PARAM_INT, "0", "sleep this long in init (slow start)"},
+    {"print_hz", MARIE_PARAM_DOUBLE, "0", "print a line on stdout this often"},
+    {"exit_after_s", MARIE_PARAM_DOUBLE, "0", "exit after this long (0: never)"},
+    {"exit_code", MARIE_PARAM_INT, "1", "status for exit_after_s"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const marie_port_spec_t ports[] = {{NULL, NULL, 0, 0, NULL}};
+
+static const marie_component_def_t def = {
+    .kind = "test_comp", .ports = ports, .params = params, .on_init = on_init, .on_start = on_start,
+};
+
+int main(int argc, char **argv)
+{
+    trace("exec");
+    struct sigaction sa = {.sa_handler = on_usr1};
+    sigaction(SIGUSR1, &sa, NULL);
+    sa.sa_handler = on_usr2;
+    sigaction(SIGUSR2, &sa, NULL);
+    return marie_main(&def, argc, argv, NULL);
+}

@@ -1,0 +1,104 @@
+#!/bin/sh
+# test_multihost: four network namespaces (onboard1-3, laptop) on one bridge, LCM with ttl=1,
+# a marie-am in each and marie on the laptop: cross-host dependency order, respawn after
+# kill -9, a lost host shown by marie ps, and its components back when its manager returns.
+. tests/lib.sh
+T=$(mktemp -d /tmp/marie-test-multi.XXXXXX)
+export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
+export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=1'
+HOSTS="onboard1 onboard2 onboard3 laptop"
+HOLDERS=
+cleanup() {
+    for h in $HOSTS; do p=$(cat "$T/$h.am" 2>/dev/null) && kill "$p" 2>/dev/null; done
+    sleep 1
+    for p in $HOLDERS; do kill "$p" 2>/dev/null; done
+    rm -rf "$T"
+}
+trap cleanup EXIT
+
+# -- the network: one bridge in this namespace, one namespace per host
+ip link add br0 type bridge
+ip link set br0 type bridge mcast_snooping 0 2>/dev/null
+ip link set br0 up
+i=1
+for h in $HOSTS; do
+    unshare -n sleep 600 &
+    pid=$!
+    HOLDERS="$HOLDERS $pid"
+    echo "$pid" > "$T/$h.ns"
+    sleep 0.05
+    ip link add "v$i" type veth peer name "p$i"
+    ip link set "p$i" netns "$pid"
+    ip link set "v$i" master br0
+    ip link set "v$i" up
+    nsenter -t "$pid" -n --preserve-credentials sh -c "
+        ip link set lo up; ip link set p$i name eth0; ip addr add 10.77.0.$i/24 dev eth0
+        ip link set eth0 up; ip route add 224.0.0.0/4 dev eth0"
+    i=$((i + 1))
+done
+on() { h=$1; shift; nsenter -t "$(cat "$T/$h.ns")" -n --preserve-credentials "$@"; }
+start_am() {
+    # nsenter execs marie-am, so $! is the manager itself
+    nsenter -t "$(cat "$T/$1.ns")" -n --preserve-credentials \
+        "$BIN/marie-am" --host "$1" --state-dir "$T/state-$1" >> "$T/$1.log" 2>&1 &
+    echo $! > "$T/$1.am"
+}
+M() { on laptop "$BIN/marie" "$@"; }
+field() {   # field HOST NAME KEY
+    M --json ps --window 0.7 2>/dev/null | python3 -c '
+import json, sys
+d = json.load(sys.stdin)
+for h in d["hosts"]:
+    if h["host"] == sys.argv[1]:
+        for c in h["components"]:
+            if c["name"] == sys.argv[2]:
+                print(c[sys.argv[3]])' "$1" "$2" "$3"
+}
+trace_line() { grep -n " $1 $2 " "$T/trace" | head -1 | cut -d: -f1; }
+
+"$BIN/marie" keygen "$T/key"
+for h in $HOSTS; do start_am "$h"; done
+sleep 0.5
+
+bus_crosses_hosts() {
+    # every manager's status reaches the laptop over the bridge
+    out=$(M ps 2>&1); echo "$out"
+    for h in onboard1 onboard2 onboard3; do echo "$out" | grep -q "^$h " || return 1; done
+}
+check "laptop hears the onboard managers over the bridge" wait_for 10 bus_crosses_hosts
+check "marie up from the laptop" M up tests/data/managers/multi.yaml
+order() {
+    cat "$T/trace"
+    for pair in "drive odom" "gyro odom" "odom loc" "loc planner" "planner viewer"; do
+        set -- $pair
+        r=$(trace_line "$1" running); e=$(trace_line "$2" exec)
+        [ -n "$r" ] && [ -n "$e" ] && [ "$r" -lt "$e" ] || { echo "bad order: $pair"; return 1; }
+    done
+}
+check "cross-host dependency order" order
+all_running() { [ "$(M ps | grep -c ' running ')" -eq 6 ]; }
+check "ps: six components running on four hosts" all_running
+M ps
+
+ODOM=$(field onboard2 odom pid)
+kill -9 "$ODOM"
+odom_back() { p=$(field onboard2 odom pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$ODOM" ] && [ "$(field onboard2 odom state)" = running ]; }
+check "kill -9 on onboard2: restarted there" wait_for 10 odom_back
+
+LOC=$(field onboard3 loc pid)
+kill -9 "$(cat "$T/onboard3.am")"
+lost() { out=$(M ps); rc=$?; echo "$out"; [ $rc -eq 3 ] && echo "$out" | grep -q '^onboard3 .* lost'; }
+# the first ps after the kill (it listens 1.2 s) already shows the host lost
+check "killed manager: host lost in the next marie ps" lost
+check "its components went down with it" wait_for 5 sh -c "! kill -0 $LOC 2>/dev/null"
+start_am onboard3
+loc_back() { p=$(field onboard3 loc pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$LOC" ] && [ "$(field onboard3 planner state)" = running ]; }
+check "restarted manager: components back" wait_for 15 loc_back
+check "ps exit 0 with every host heard" M ps
+
+check "move gyro to onboard2" M move gyro onboard2
+gyro_moved() { [ "$(field onboard2 gyro state)" = running ] && [ -z "$(field onboard1 gyro state)" ]; }
+check "gyro runs on onboard2 now" wait_for 10 gyro_moved
+check "doctor from the laptop" M doctor
+check "down across hosts" M down
+finish

@@ -1,0 +1,428 @@
+/* test_sim_channels: marie-sim in channel mode on a real LCM bus (this test's namespace):
+ * channels, types and rates; motor commands and the drives' watchdog; the e-stop; lockstep;
+ * a component's timers following the sim clock at speed 10; a bad world refused clearly. */
+#include <errno.h>
+#include <math.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include <lcm/lcm.h>
+
+#include "core/component.h"
+
+#define MAX_CH 16
+#define WALL_LIMIT_US 30000000      /* a bound on every wait, not a timing assertion */
+
+typedef struct {
+    char name[64];
+    int64_t hash;
+    long count;
+    int64_t first_utime, last_utime;
+    int64_t gaps[2048];         /* utime steps between consecutive messages */
+    int ngaps;
+} chan_t;
+
+static struct {
+    chan_t ch[MAX_CH];
+    int n;
+    int64_t clock;              /* last MARIE_CLOCK utime */
+    marie_pose_cov_t truth;
+    marie_wheel_encoders_t enc;
+    marie_estop_t estop;
+    int laser_beams;
+    int have_heartbeat, failed;
+    char reason[512];
+    long clocks;
+} rx;
+
+static pid_t sim_pid;
+
+static void start_sim(const char *const *extra)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    static char bin[256];
+    snprintf(bin, sizeof(bin), "%s/bin/marie-sim", b);
+    const char *argv[40] = { bin, "--world", "test", "--param", "start_x=3.0", "--param", "start_y=2.0" };
+    int n = 7;
+    for (int i = 0; extra && extra[i] && n < 38; i++)
+        argv[n++] = extra[i];
+    argv[n] = NULL;
+    sim_pid = fork();
+    assert_true(sim_pid >= 0);
+    if (sim_pid == 0) {
+        execv(bin, (char *const *)argv);
+        _exit(127);
+    }
+}
+
+static void stop_sim(void)
+{
+    if (sim_pid > 0) {
+        kill(sim_pid, SIGTERM);
+        int st;
+        waitpid(sim_pid, &st, 0);
+        sim_pid = 0;
+    }
+}
+
+static int64_t be64(const uint8_t *p)
+{
+    uint64_t v = 0;
+    for (int i = 0; i < 8; i++)
+        v = v << 8 | p[i];
+    return (int64_t)v;
+}
+
+static void on_any(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    if (rb->data_size < 16)
+        return;
+    const uint8_t *d = rb->data;
+    int64_t utime = be64(d + 8);
+    chan_t *c = NULL;
+    for (int i = 0; i < rx.n; i++)
+        if (strcmp(rx.ch[i].name, channel) == 0)
+            c = &rx.ch[i];
+    if (!c && rx.n < MAX_CH) {
+        c = &rx.ch[rx.n++];
+        snprintf(c->name, sizeof(c->name), "%s", channel);
+        c->hash = be64(d);
+        c->first_utime = utime;
+    }
+    if (c) {
+        if (c->count && c->ngaps < 2048)
+            c->gaps[c->ngaps++] = utime - c->last_utime;
+        c->count++;
+        c->last_utime = utime;
+    }
+    int n = (int)rb->data_size;
+    if (strcmp(channel, "MARIE_CLOCK") == 0) {
+        marie_sim_clock_t m;
+        if (marie_sim_clock_t_decode(d, 0, n, &m) > 0) {
+            rx.clock = m.utime;
+            rx.clocks++;
+            marie_sim_clock_t_decode_cleanup(&m);
+        }
+    } else if (strcmp(channel, "SIM_TRUTH") == 0) {
+        marie_pose_cov_t m;
+        if (marie_pose_cov_t_decode(d, 0, n, &m) > 0) {
+            rx.truth.pose = m.pose;
+            rx.truth.utime = m.utime;
+            marie_pose_cov_t_decode_cleanup(&m);
+        }
+    } else if (strcmp(channel, "WHEEL_ENCODERS") == 0) {
+        marie_wheel_encoders_t_decode(d, 0, n, &rx.enc);
+    } else if (strcmp(channel, "ESTOP") == 0) {
+        marie_estop_t m;
+        if (marie_estop_t_decode(d, 0, n, &m) > 0) {
+            rx.estop.pressed = m.pressed;
+            rx.estop.utime = m.utime;
+            marie_estop_t_decode_cleanup(&m);
+        }
+    } else if (strcmp(channel, "LASER") == 0) {
+        marie_laser_scan_t m;
+        if (marie_laser_scan_t_decode(d, 0, n, &m) > 0) {
+            rx.laser_beams = m.nranges;
+            marie_laser_scan_t_decode_cleanup(&m);
+        }
+    } else if (strcmp(channel, "MARIE_HEARTBEAT") == 0) {
+        marie_heartbeat_t m;
+        if (marie_heartbeat_t_decode(d, 0, n, &m) > 0) {
+            rx.have_heartbeat = 1;
+            if (m.state == MARIE_STATE_FAILED) {
+                rx.failed = 1;
+                snprintf(rx.reason, sizeof(rx.reason), "%s", m.reason);
+            }
+            marie_heartbeat_t_decode_cleanup(&m);
+        }
+    }
+}
+
+static lcm_t *bus(void)
+{
+    memset(&rx, 0, sizeof(rx));
+    rx.clock = -1;
+    lcm_t *l = lcm_create(marie_default_url());   /* 8 MB receive buffer: speed 0 sends bursts */
+    assert_non_null(l);
+    lcm_subscribe(l, ".*", on_any, NULL);
+    return l;
+}
+
+/* Handle messages until the sim clock reaches t_us (bounded in wall time). */
+static void until_clock(lcm_t *l, int64_t t_us)
+{
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (rx.clock < t_us && marie_mono_us() < end)
+        lcm_handle_timeout(l, 100);
+    if (rx.clock < t_us)
+        fprintf(stderr, "waited for sim time %.3f s, clock at %.3f s\n", t_us / 1e6, rx.clock / 1e6);
+    assert_true(rx.clock >= t_us);
+}
+
+static chan_t *chan(const char *name)
+{
+    for (int i = 0; i < rx.n; i++)
+        if (strcmp(rx.ch[i].name, name) == 0)
+            return &rx.ch[i];
+    fprintf(stderr, "no messages on %s\n", name);
+    fail();
+    return NULL;
+}
+
+/* Rate in messages per simulated second, from the median spacing of the messages' sim
+ * timestamps (a datagram lost on a loaded machine does not change it). */
+static int cmp64(const void *a, const void *b)
+{
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double rate(chan_t *c)
+{
+    if (c->ngaps < 1)
+        return 0;
+    qsort(c->gaps, (size_t)c->ngaps, sizeof(c->gaps[0]), cmp64);
+    return 1e6 / (double)c->gaps[c->ngaps / 2];
+}
+
+static void send_cmd(lcm_t *l, double v, double omega)
+{
+    marie_motor_command_t m = { .utime = rx.clock, .v = v, .omega = omega, .source = "test" };
+    marie_motor_command_t_publish(l, "MOTOR_COMMAND", &m);
+}
+
+static void test_channels_types_rates(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--speed", "10", NULL };
+    start_sim(extra);
+    until_clock(l, 5000000);
+    stop_sim();
+    struct { const char *ch; int64_t hash; double hz; } want[] = {
+        { "WHEEL_ENCODERS", __marie_wheel_encoders_t_get_hash(), 50 },
+        { "GYRO", __marie_gyro_t_get_hash(), 50 },
+        { "LASER", __marie_laser_scan_t_get_hash(), 10 },
+        { "ESTOP", __marie_estop_t_get_hash(), 10 },
+        { "SIM_TRUTH", __marie_pose_cov_t_get_hash(), 50 },
+        { "MARIE_CLOCK", __marie_sim_clock_t_get_hash(), 100 },
+    };
+    for (size_t i = 0; i < sizeof(want) / sizeof(want[0]); i++) {
+        chan_t *c = chan(want[i].ch);
+        double hz = rate(c), span = (c->last_utime - c->first_utime) / 1e6;
+        fprintf(stderr, "%-16s %5ld msgs over %.2f s, %.2f Hz of sim time\n", c->name, c->count, span, hz);
+        assert_true(c->hash == want[i].hash);
+        assert_true(fabs(hz - want[i].hz) < 0.01 * want[i].hz);
+        assert_true(c->count >= 0.9 * span * want[i].hz);
+    }
+    assert_int_equal(rx.laser_beams, 181);
+    assert_true(rx.have_heartbeat);
+    /* Nothing else on the bus besides the heartbeat and events. */
+    for (int i = 0; i < rx.n; i++) {
+        int known = strncmp(rx.ch[i].name, "MARIE_", 6) == 0 || strncmp(rx.ch[i].name, "LCM_", 4) == 0;
+        for (size_t k = 0; k < sizeof(want) / sizeof(want[0]); k++)
+            known |= strcmp(rx.ch[i].name, want[k].ch) == 0;
+        if (!known)
+            fprintf(stderr, "unexpected channel %s\n", rx.ch[i].name);
+        assert_true(known);
+    }
+    lcm_destroy(l);
+}
+
+static void test_motor_command_and_watchdog(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--speed", "10", NULL };
+    start_sim(extra);
+    until_clock(l, 500000);
+    double x0 = rx.truth.pose.x;
+    int32_t t0 = rx.enc.left_ticks;
+    /* 0.4 m/s for 3 s of sim time, a command every 100 ms of sim time */
+    int64_t from = rx.clock;
+    for (int64_t t = from; t < from + 3000000; t += 100000) {
+        send_cmd(l, 0.4, 0.0);
+        until_clock(l, t + 100000);
+    }
+    double moved = rx.truth.pose.x - x0;
+    fprintf(stderr, "moved %.3f m in 3 s at 0.4 m/s, %d ticks\n", moved, rx.enc.left_ticks - t0);
+    assert_true(moved > 0.4 * 3 * 0.85 && moved < 0.4 * 3 * 1.1);
+    assert_true(rx.enc.left_ticks - t0 > 0.85 * moved / (2 * M_PI * 0.1) * 4096);
+    /* No more commands: the drives stop after cmd_timeout (0.5 s) and the ramp. */
+    until_clock(l, rx.clock + 1500000);
+    double x1 = rx.truth.pose.x;
+    until_clock(l, rx.clock + 1000000);
+    fprintf(stderr, "after the watchdog: %.4f m more\n", rx.truth.pose.x - x1);
+    assert_true(fabs(rx.truth.pose.x - x1) < 0.005);
+    assert_true(rx.truth.pose.x < 7.0 - 0.25);
+    stop_sim();
+    lcm_destroy(l);
+}
+
+static void test_estop(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--speed", "10", NULL };
+    start_sim(extra);
+    until_clock(l, 300000);
+    assert_false(rx.estop.pressed);
+    marie_estop_t e = { .utime = 0, .pressed = 1, .source = "test" };
+    marie_estop_t_publish(l, "SIM_ESTOP", &e);
+    int64_t from = rx.clock;
+    for (int64_t t = from; t < from + 1000000; t += 100000) {
+        send_cmd(l, 0.5, 0.0);              /* ignored while pressed */
+        until_clock(l, t + 100000);
+    }
+    assert_true(rx.estop.pressed);
+    assert_int_equal(rx.enc.status, MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP);
+    double x0 = rx.truth.pose.x;
+    send_cmd(l, 0.5, 0.0);
+    until_clock(l, rx.clock + 400000);
+    assert_true(fabs(rx.truth.pose.x - x0) < 0.002);
+    e.pressed = 0;
+    marie_estop_t_publish(l, "SIM_ESTOP", &e);
+    from = rx.clock;
+    for (int64_t t = from; t < from + 1000000; t += 100000) {
+        send_cmd(l, 0.5, 0.0);
+        until_clock(l, t + 100000);
+    }
+    assert_false(rx.estop.pressed);
+    assert_int_equal(rx.enc.status, MARIE_WHEEL_ENCODERS_T_STATUS_OK);
+    assert_true(rx.truth.pose.x - x0 > 0.2);
+    stop_sim();
+    lcm_destroy(l);
+}
+
+/* Lockstep: the simulator never runs more than `lockstep` of sim time past the last
+ * motor command, and goes on as soon as the next command arrives. */
+static void test_lockstep(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--speed", "0", "--lockstep", "0.25", "--param", "lockstep_timeout=60", NULL };
+    start_sim(extra);
+    until_clock(l, 10000);
+    /* A 5 Hz controller on the sim clock: answer each 200 ms boundary. */
+    int64_t next = rx.clock + 200000, last_cmd = 0;
+    send_cmd(l, 0.1, 0.0);
+    for (int i = 0; i < 25; i++) {
+        until_clock(l, next);
+        last_cmd = rx.clock;
+        send_cmd(l, 0.1, 0.0);
+        next += 200000;
+    }
+    /* Now silence: the clock must stop within lockstep (plus one clock period) of the last
+     * command, however long we wait. */
+    int64_t end = marie_mono_us() + 500000;
+    while (marie_mono_us() < end)
+        lcm_handle_timeout(l, 50);
+    fprintf(stderr, "last command at %.3f s, clock held at %.3f s\n", last_cmd / 1e6, rx.clock / 1e6);
+    assert_true(rx.clock <= last_cmd + 250000 + 20000);
+    assert_true(rx.clock >= last_cmd + 200000);
+    int64_t held = rx.clock;
+    send_cmd(l, 0.1, 0.0);
+    until_clock(l, held + 100000);
+    stop_sim();
+    lcm_destroy(l);
+}
+
+/* ---- the clock test: a component with a 10 Hz timer on --clock sim ---- */
+static struct {
+    long ticks;
+    int64_t first, last;
+    int64_t max_gap, min_gap;
+} ck;
+
+static void on_tick(marie_component_t *c, int64_t overruns)
+{
+    int64_t now = marie_component_now(c);
+    if (ck.ticks) {
+        int64_t gap = now - ck.last;
+        if (gap > ck.max_gap) ck.max_gap = gap;
+        if (gap < ck.min_gap) ck.min_gap = gap;
+    } else {
+        ck.first = now;
+    }
+    ck.last = now;
+    ck.ticks++;
+}
+
+static int clock_init(marie_component_t *c)
+{
+    return marie_component_every(c, 10.0, on_tick) ? 0 : -1;
+}
+
+static void test_timers_follow_sim_clock(void **state)
+{
+    memset(&ck, 0, sizeof(ck));
+    ck.min_gap = INT64_MAX;
+    static const marie_port_spec_t no_ports[] = { { NULL } };
+    static const marie_param_spec_t no_params[] = { { NULL } };
+    static const marie_component_def_t def = { .kind = "clocktest", .ports = no_ports,
+                                               .params = no_params, .on_init = clock_init };
+    char *argv[] = { "clocktest", "--clock", "sim", "--name", "clocktest", NULL };
+    marie_errors_t errs = { 0 };
+    marie_component_t *c = marie_component_create(&def, 5, argv, NULL, &errs);
+    marie_errors_print(&errs, stderr);
+    assert_non_null(c);
+    const char *why;
+    assert_int_equal(marie_component_command(c, MARIE_CMD_INIT, &why), 0);
+    assert_int_equal(marie_component_command(c, MARIE_CMD_START, &why), 0);
+    const char *extra[] = { "--speed", "10", NULL };
+    start_sim(extra);
+    int64_t w0 = marie_mono_us(), end = w0 + WALL_LIMIT_US;
+    while (marie_component_now(c) < 6000000 && marie_mono_us() < end)
+        marie_loop_run_once(marie_component_loop(c), 100);
+    double wall = (marie_mono_us() - w0) / 1e6;
+    stop_sim();
+    double sim = (ck.last - ck.first) / 1e6;
+    fprintf(stderr, "%ld ticks over %.2f s of sim time (%.2f s of wall time); gaps %.3f..%.3f s\n",
+            ck.ticks, sim, wall, ck.min_gap / 1e6, ck.max_gap / 1e6);
+    assert_true(marie_component_now(c) >= 6000000);
+    /* 10 Hz of simulated time: one tick per 100 ms of sim time, to the clock's 10 ms step. */
+    assert_true(ck.ticks >= 55);
+    assert_true(labs(lround(sim * 10) + 1 - ck.ticks) <= 1);
+    /* (Single gaps vary: a burst of clock messages read in one go on a loaded machine makes
+     * one tick late and the next early; the count is what must hold.) */
+    marie_component_destroy(c);
+}
+
+static void test_bad_world_refused(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--world", "tests/data/sim/zero_resolution.yaml", NULL };
+    start_sim(extra);
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (!rx.failed && marie_mono_us() < end)
+        lcm_handle_timeout(l, 100);
+    stop_sim();
+    fprintf(stderr, "refused: %s\n", rx.reason);
+    assert_true(rx.failed);
+    assert_non_null(strstr(rx.reason, "zero_resolution.yaml:2:"));
+    assert_non_null(strstr(rx.reason, "resolution"));
+    lcm_destroy(l);
+}
+
+static int teardown(void **state)
+{
+    stop_sim();
+    return 0;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_teardown(test_channels_types_rates, teardown),
+        cmocka_unit_test_teardown(test_motor_command_and_watchdog, teardown),
+        cmocka_unit_test_teardown(test_estop, teardown),
+        cmocka_unit_test_teardown(test_lockstep, teardown),
+        cmocka_unit_test_teardown(test_timers_follow_sim_clock, teardown),
+        cmocka_unit_test_teardown(test_bad_world_refused, teardown),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
