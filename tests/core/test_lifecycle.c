@@ -25,6 +25,9 @@ typedef struct {
     marie_lifecycle_reply_t reply;
     int have_reply;
     int64_t example_msgs;
+    marie_heartbeat_t_subscription_t *hb_sub;
+    marie_lifecycle_reply_t_subscription_t *reply_sub;
+    marie_counter_t_subscription_t *example_sub;
     int64_t last_example_value;
     const char *who;
 } bus_t;
@@ -123,9 +126,9 @@ static void bus_open(bus_t *b, const char *who)
     b->who = who;
     b->lcm = lcm_create(NULL);
     assert_non_null(b->lcm);
-    marie_heartbeat_t_subscribe(b->lcm, MARIE_CH_HEARTBEAT, on_hb, b);
-    marie_lifecycle_reply_t_subscribe(b->lcm, MARIE_CH_LIFECYCLE_REPLY, on_reply, b);
-    marie_counter_t_subscribe(b->lcm, "EXAMPLE", on_example, b);
+    b->hb_sub = marie_heartbeat_t_subscribe(b->lcm, MARIE_CH_HEARTBEAT, on_hb, b);
+    b->reply_sub = marie_lifecycle_reply_t_subscribe(b->lcm, MARIE_CH_LIFECYCLE_REPLY, on_reply, b);
+    b->example_sub = marie_counter_t_subscribe(b->lcm, "EXAMPLE", on_example, b);
 }
 
 static void bus_close(bus_t *b)
@@ -134,6 +137,9 @@ static void bus_close(bus_t *b)
         marie_heartbeat_t_decode_cleanup(&b->hb);
     if (b->have_reply)
         marie_lifecycle_reply_t_decode_cleanup(&b->reply);
+    marie_heartbeat_t_unsubscribe(b->lcm, b->hb_sub);
+    marie_lifecycle_reply_t_unsubscribe(b->lcm, b->reply_sub);
+    marie_counter_t_unsubscribe(b->lcm, b->example_sub);
     lcm_destroy(b->lcm);
 }
 

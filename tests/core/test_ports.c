@@ -130,7 +130,7 @@ static void pull_gets_the_newest_value_or_times_out(void **state)
     rx_state_t s = {0};
     marie_component_t *c = make(&rx_def, "puller", &s);
     server_t sv = {lcm_create(NULL), 0, 1};
-    marie_pull_request_t_subscribe(sv.lcm, "T_LATEST.PULL", on_request, &sv);
+    marie_pull_request_t_subscription_t *sub = marie_pull_request_t_subscribe(sv.lcm, "T_LATEST.PULL", on_request, &sv);
     /* The server shares the component's loop so a blocking pull lets it answer. */
     marie_loop_add_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm), POLLIN, on_server_fd, &sv);
     marie_pose_cov_t got;
@@ -151,6 +151,7 @@ static void pull_gets_the_newest_value_or_times_out(void **state)
     /* Pulling a push port is a usage error. */
     assert_int_equal(marie_port_pull(marie_port(c, "pose"), &got, 10, &age), -EINVAL);
     marie_loop_remove_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm));
+    marie_pull_request_t_unsubscribe(sv.lcm, sub);
     lcm_destroy(sv.lcm);
     marie_component_destroy(c);
 }
@@ -174,7 +175,7 @@ static void async_pull_calls_back_exactly_once(void **state)
     rx_state_t s = {0};
     marie_component_t *c = make(&rx_def, "puller2", &s);
     server_t sv = {lcm_create(NULL), 0, 1};
-    marie_pull_request_t_subscribe(sv.lcm, "T_LATEST.PULL", on_request, &sv);
+    marie_pull_request_t_subscription_t *sub = marie_pull_request_t_subscribe(sv.lcm, "T_LATEST.PULL", on_request, &sv);
     marie_loop_add_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm), POLLIN, on_server_fd, &sv);
     async_t a = {0}, t = {0};
     assert_int_equal(marie_port_pull_async(marie_port(c, "latest"), 2000, on_pulled, &a), 0);
@@ -189,6 +190,7 @@ static void async_pull_calls_back_exactly_once(void **state)
     assert_int_equal(t.calls, 1);
     assert_int_equal(t.status, -ETIMEDOUT);
     marie_loop_remove_fd(marie_component_loop(c), lcm_get_fileno(sv.lcm));
+    marie_pull_request_t_unsubscribe(sv.lcm, sub);
     lcm_destroy(sv.lcm);
     marie_component_destroy(c);
 }
