@@ -868,7 +868,7 @@ static const marie_node_t *find_profile(const marie_node_t *root, const char *pr
                          "no profile '%s' in this file", profile);
         return NULL;
     }
-    static const char *const keys[] = {"components", "remove", NULL};
+    static const char *const keys[] = {"components", "remove", "clock", NULL};
     if (marie_node_check_keys(p, keys, "profile", errs) < 0)
         return NULL;
     return p;
@@ -893,12 +893,6 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
     sys->name = strdup((v = marie_node_get(root, "system")) && marie_node_str(v, &s, errs) == 0 ? s : "marie");
     sys->lcm_url = strdup((v = marie_node_get(root, "lcm_url")) && marie_node_str(v, &s, errs) == 0
                               ? s : marie_default_url());
-    if ((v = marie_node_get(root, "clock")) && marie_node_str(v, &s, errs) == 0) {
-        if (strcmp(s, "sim") == 0)
-            sys->clock = MARIE_CLOCK_SIM;
-        else if (strcmp(s, "wall") != 0)
-            node_error(errs, v, "clock: expected wall or sim, got '%s'", s);
-    }
     if ((v = marie_node_get(root, "auth"))) {
         static const char *const keys[] = {"key_file", NULL};
         const marie_node_t *k = marie_node_get(v, "key_file");
@@ -928,6 +922,14 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
     if (comps && comps->kind != MARIE_NODE_MAP) {
         node_error(errs, comps, "components: expected a mapping of name: component");
         goto err;
+    }
+    /* A profile may run on another clock (the simulator's). */
+    const marie_node_t *clk = marie_node_get(prof, "clock");
+    if ((v = clk ? clk : marie_node_get(root, "clock")) && marie_node_str(v, &s, errs) == 0) {
+        if (strcmp(s, "sim") == 0)
+            sys->clock = MARIE_CLOCK_SIM;
+        else if (strcmp(s, "wall") != 0)
+            node_error(errs, v, "clock: expected wall or sim, got '%s'", s);
     }
     const marie_node_t *pcomps = marie_node_get(prof, "components");
     if (pcomps && pcomps->kind != MARIE_NODE_MAP) {

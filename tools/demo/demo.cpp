@@ -1,0 +1,527 @@
+// marie-demo: runs the robot application in simulation under the managers, shows progress and
+// ends with a summary, an LCM log and a PNG of the map with true and estimated trajectories.
+#include <algorithm>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <fcntl.h>
+#include <getopt.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <lcm/lcm.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+extern "C" {
+#include "core/config.h"
+#include "core/time.h"
+#include "lcmtypes/marie_types.h"
+}
+
+extern char **environ;
+
+namespace {
+
+struct Sample {
+    int64_t t;
+    double x, y;
+};
+
+struct Options {
+    std::string system = "config/spartacus.yaml";
+    std::string profile = "sim";
+    std::string out = "build/demo";
+    double timeout_s = 170;
+    double chaos_s = 0;           // kill a random non-simulator component this often
+    int estop_after_goal = 0;     // press the e-stop once this many goals are reached
+    int hosts = 4;
+    bool quiet = false;
+};
+
+volatile sig_atomic_t interrupted = 0;
+void on_signal(int) { interrupted = 1; }
+
+class Demo {
+public:
+    explicit Demo(const Options &o) : opt_(o) {}
+    ~Demo() { shutdown(); }
+
+    int run();
+
+private:
+    // processes
+    pid_t spawn(const std::vector<std::string> &args, const std::string &log);
+    int run_cmd(const std::vector<std::string> &args, const std::string &log);
+    void shutdown();
+    // bus
+    static void on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user);
+    void handle(const char *channel, const void *data, size_t len);
+    void progress(bool final);
+    void chaos_tick();
+    void estop_tick();
+    bool load_map();
+    void write_png(const std::string &path);
+    void summary(double wall_s);
+    double loc_error_at(int64_t t, double x, double y, bool *ok) const;
+
+    Options opt_;
+    std::string bin_;
+    std::vector<pid_t> ams_;
+    pid_t logger_ = 0;
+    lcm_t *lcm_ = nullptr;
+    bool up_ = false;
+    // what we saw
+    std::vector<Sample> truth_, estimate_;
+    std::vector<double> errors_;
+    std::map<int, marie_pose2d_t> goals_;
+    std::vector<int> goal_order_;
+    std::string current_goal_;
+    int ngoals_ = 0, reached_ = 0, missed_ = 0;
+    bool mission_done_ = false;
+    int64_t sim_now_ = 0;
+    std::map<std::string, marie_am_status_t *> hosts_;
+    int64_t collisions_ = 0;
+    int kills_ = 0;
+    std::vector<std::string> killed_;
+    // e-stop check
+    int64_t estop_pressed_at_ = 0, estop_stopped_at_ = 0, estop_released_at_ = 0;
+    double estop_stop_s_ = -1;
+    // map
+    cv::Mat map_;
+    double res_ = 0.05, ox_ = 0, oy_ = 0;
+    std::mt19937 rng_{7};
+    int64_t start_mono_ = 0, last_progress_ = 0, last_chaos_ = 0;
+};
+
+pid_t Demo::spawn(const std::vector<std::string> &args, const std::string &log)
+{
+    std::vector<char *> argv;
+    for (const auto &a : args)
+        argv.push_back(const_cast<char *>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    pid_t pid = 0;
+    int rc = posix_spawnp(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) {
+        fprintf(stderr, "demo: cannot start %s: %s\n", argv[0], strerror(rc));
+        return 0;
+    }
+    return pid;
+}
+
+int Demo::run_cmd(const std::vector<std::string> &args, const std::string &log)
+{
+    pid_t pid = spawn(args, log);
+    int status = 0;
+    if (!pid || waitpid(pid, &status, 0) < 0)
+        return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+void Demo::shutdown()
+{
+    if (up_) {
+        run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "10", "down"}, opt_.out + "/marie.log");
+        up_ = false;
+    }
+    for (pid_t p : ams_)
+        kill(p, SIGTERM);
+    for (pid_t p : ams_)
+        waitpid(p, nullptr, 0);
+    ams_.clear();
+    if (logger_) {
+        kill(logger_, SIGINT);
+        waitpid(logger_, nullptr, 0);
+        logger_ = 0;
+    }
+    for (auto &h : hosts_)
+        marie_am_status_t_destroy(h.second);
+    hosts_.clear();
+    if (lcm_)
+        lcm_destroy(lcm_);
+    lcm_ = nullptr;
+}
+
+void Demo::on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    static_cast<Demo *>(user)->handle(channel, rb->data, rb->data_size);
+}
+
+double Demo::loc_error_at(int64_t t, double x, double y, bool *ok) const
+{
+    // Ground truth is published at 50 Hz of sim time: interpolate at the estimate's time.
+    *ok = false;
+    if (truth_.size() < 2 || t < truth_.front().t || t > truth_.back().t)
+        return 0;
+    auto it = std::lower_bound(truth_.begin(), truth_.end(), t, [](const Sample &s, int64_t v) { return s.t < v; });
+    if (it == truth_.begin())
+        ++it;
+    const Sample &b = *it, &a = *(it - 1);
+    double f = b.t > a.t ? double(t - a.t) / double(b.t - a.t) : 0;
+    *ok = true;
+    return std::hypot(a.x + f * (b.x - a.x) - x, a.y + f * (b.y - a.y) - y);
+}
+
+void Demo::handle(const char *channel, const void *data, size_t len)
+{
+    int n = int(len);
+    if (!strcmp(channel, "SIM_TRUTH")) {
+        marie_pose_cov_t m;
+        if (marie_pose_cov_t_decode(data, 0, n, &m) < 0)
+            return;
+        truth_.push_back({m.utime, m.pose.x, m.pose.y});
+        sim_now_ = std::max(sim_now_, m.utime);
+        marie_pose_cov_t_decode_cleanup(&m);
+    } else if (!strcmp(channel, "POSE")) {
+        marie_pose_cov_t m;
+        if (marie_pose_cov_t_decode(data, 0, n, &m) < 0)
+            return;
+        estimate_.push_back({m.utime, m.pose.x, m.pose.y});
+        bool ok;
+        double e = loc_error_at(m.utime, m.pose.x, m.pose.y, &ok);
+        if (ok)
+            errors_.push_back(e);
+        marie_pose_cov_t_decode_cleanup(&m);
+    } else if (!strcmp(channel, "GOAL")) {
+        marie_goal_t g;
+        if (marie_goal_t_decode(data, 0, n, &g) < 0)
+            return;
+        if (!goals_.count(g.id))
+            goal_order_.push_back(g.id);
+        goals_[g.id] = g.pose;
+        current_goal_ = g.name;
+        marie_goal_t_decode_cleanup(&g);
+    } else if (!strcmp(channel, "MISSION_STATE")) {
+        marie_mission_state_t s;
+        if (marie_mission_state_t_decode(data, 0, n, &s) < 0)
+            return;
+        ngoals_ = s.ngoals;
+        reached_ = missed_ = 0;
+        for (int i = 0; i < s.ngoals; i++) {
+            reached_ += s.goal_states[i] == MARIE_MISSION_STATE_T_STATE_REACHED;
+            missed_ += s.goal_states[i] == MARIE_MISSION_STATE_T_STATE_MISSED;
+        }
+        marie_mission_state_t_decode_cleanup(&s);
+    } else if (!strcmp(channel, "MARIE_EVENT")) {
+        marie_event_t e;
+        if (marie_event_t_decode(data, 0, n, &e) < 0)
+            return;
+        std::string kind = e.kind;
+        if (kind == "mission_done")
+            mission_done_ = true;
+        if (!opt_.quiet && (kind.rfind("goal_", 0) == 0 || kind == "mission_done" || kind == "gave_up" ||
+                            e.severity >= MARIE_EVENT_T_SEV_ERROR))
+            printf("demo: [%s] %s\n", e.source, e.text);
+        marie_event_t_decode_cleanup(&e);
+    } else if (!strcmp(channel, "MARIE_AM_STATUS")) {
+        marie_am_status_t *s = static_cast<marie_am_status_t *>(calloc(1, sizeof *s));
+        if (marie_am_status_t_decode(data, 0, n, s) < 0) {
+            free(s);
+            return;
+        }
+        auto it = hosts_.find(s->host);
+        if (it != hosts_.end())
+            marie_am_status_t_destroy(it->second);
+        hosts_[s->host] = s;
+    } else if (!strcmp(channel, "MARIE_HEARTBEAT")) {
+        marie_heartbeat_t hb;
+        if (marie_heartbeat_t_decode(data, 0, n, &hb) < 0)
+            return;
+        for (int i = 0; i < hb.ncounters; i++)
+            if (!strcmp(hb.counters[i].name, "collisions"))
+                collisions_ = std::max(collisions_, hb.counters[i].value);
+        marie_heartbeat_t_decode_cleanup(&hb);
+    }
+}
+
+void Demo::progress(bool final)
+{
+    int running = 0, total = 0, restarts = 0;
+    for (auto &h : hosts_)
+        for (int i = 0; i < h.second->ncomponents; i++) {
+            total++;
+            running += !strcmp(h.second->components[i].state, "running");
+            restarts += h.second->components[i].restarts;
+        }
+    double err = errors_.empty() ? NAN : errors_.back();
+    double wall = (marie_mono_us() - start_mono_) / 1e6;
+    if (!opt_.quiet || final)
+        printf("demo: %5.1f s (sim %6.1f s) | goal %d of %d%s%s | reached %d | loc error %.2f m | "
+               "components %d/%d running | restarts %d\n",
+               wall, sim_now_ / 1e6, std::min(reached_ + missed_ + 1, std::max(ngoals_, 1)), ngoals_,
+               current_goal_.empty() ? "" : " ", current_goal_.c_str(), reached_, err, running, total, restarts);
+    fflush(stdout);
+}
+
+void Demo::chaos_tick()
+{
+    // SIGKILL a random running component other than the simulator (and the Mailbox, the
+    // SharedMap and the drivers are fair game: the managers must bring them back).
+    std::vector<std::pair<std::string, int>> victims;
+    for (auto &h : hosts_)
+        for (int i = 0; i < h.second->ncomponents; i++) {
+            const marie_am_component_status_t &c = h.second->components[i];
+            if (c.pid > 0 && !strcmp(c.state, "running") && strcmp(c.name, "sim") != 0)
+                victims.push_back({c.name, c.pid});
+        }
+    if (victims.empty())
+        return;
+    auto v = victims[std::uniform_int_distribution<size_t>(0, victims.size() - 1)(rng_)];
+    if (kill(v.second, SIGKILL) == 0) {
+        kills_++;
+        killed_.push_back(v.first);
+        printf("demo: chaos: SIGKILL %s (pid %d)\n", v.first.c_str(), v.second);
+    }
+}
+
+void Demo::estop_tick()
+{
+    auto press = [this](bool on) {
+        marie_estop_t e = {sim_now_, on, const_cast<char *>("demo")};
+        marie_estop_t_publish(lcm_, "SIM_ESTOP", &e);
+    };
+    if (!estop_pressed_at_ && reached_ >= opt_.estop_after_goal && truth_.size() > 10) {
+        // Only once the robot is moving again towards the next goal.
+        const Sample &a = truth_[truth_.size() - 6], &b = truth_.back();
+        double v = std::hypot(b.x - a.x, b.y - a.y) / ((b.t - a.t) / 1e6 + 1e-9);
+        if (v > 0.2) {
+            press(true);
+            estop_pressed_at_ = sim_now_;
+            printf("demo: e-stop pressed at sim %.2f s (robot at %.2f m/s)\n", sim_now_ / 1e6, v);
+        }
+    } else if (estop_pressed_at_ && !estop_stopped_at_ && truth_.size() > 3) {
+        const Sample &a = truth_[truth_.size() - 2], &b = truth_.back();
+        double v = std::hypot(b.x - a.x, b.y - a.y) / ((b.t - a.t) / 1e6 + 1e-9);
+        if (b.t > estop_pressed_at_ && v < 0.02) {
+            estop_stopped_at_ = b.t;
+            estop_stop_s_ = (estop_stopped_at_ - estop_pressed_at_) / 1e6;
+            printf("demo: robot stopped %.2f s (sim) after the e-stop\n", estop_stop_s_);
+        }
+    } else if (estop_stopped_at_ && !estop_released_at_ && sim_now_ - estop_stopped_at_ > 2000000) {
+        press(false);
+        estop_released_at_ = sim_now_;
+        printf("demo: e-stop released\n");
+    }
+}
+
+bool Demo::load_map()
+{
+    // The world named in the simulator's parameters of the loaded system file.
+    marie_errors_t e = {};
+    marie_system_t *sys = marie_system_load(opt_.system.c_str(), opt_.profile.c_str(), &e);
+    if (!sys) {
+        marie_errors_print(&e, stderr);
+        marie_errors_clear(&e);
+        return false;
+    }
+    std::string yaml = "sim/worlds/office.yaml";
+    const marie_component_cfg_t *loc = marie_system_component(sys, "localizer");
+    const marie_node_t *m = loc ? marie_node_get(loc->params, "map") : nullptr;
+    if (m && m->value)
+        yaml = m->value;
+    marie_system_destroy(sys);
+    marie_doc_t *doc = marie_doc_load(yaml.c_str(), &e);
+    if (!doc) {
+        marie_errors_print(&e, stderr);
+        marie_errors_clear(&e);
+        return false;
+    }
+    const marie_node_t *root = marie_doc_root(doc), *img = marie_node_get(root, "image");
+    const marie_node_t *res = marie_node_get(root, "resolution"), *org = marie_node_get(root, "origin");
+    std::string dir = yaml.substr(0, yaml.find_last_of('/') + 1);
+    if (img && img->value)
+        map_ = cv::imread(dir + img->value, cv::IMREAD_GRAYSCALE);
+    if (res)
+        marie_node_double(res, &res_, &e);
+    if (org && org->n >= 2) {
+        marie_node_double(org->items[0], &ox_, &e);
+        marie_node_double(org->items[1], &oy_, &e);
+    }
+    marie_doc_destroy(doc);
+    marie_errors_clear(&e);
+    return !map_.empty();
+}
+
+void Demo::write_png(const std::string &path)
+{
+    if (map_.empty() && !load_map())
+        return;
+    const int scale = 2;
+    cv::Mat img;
+    cv::cvtColor(map_, img, cv::COLOR_GRAY2BGR);
+    cv::resize(img, img, cv::Size(), scale, scale, cv::INTER_NEAREST);
+    auto px = [&](double x, double y) {
+        return cv::Point(int((x - ox_) / res_ * scale), int(map_.rows * scale - (y - oy_) / res_ * scale));
+    };
+    auto draw = [&](const std::vector<Sample> &s, cv::Scalar colour, int width) {
+        for (size_t i = 1; i < s.size(); i++)
+            cv::line(img, px(s[i - 1].x, s[i - 1].y), px(s[i].x, s[i].y), colour, width, cv::LINE_AA);
+    };
+    draw(truth_, cv::Scalar(60, 170, 60), 4);
+    draw(estimate_, cv::Scalar(40, 40, 220), 2);
+    int k = 1;
+    for (int id : goal_order_) {
+        cv::Point p = px(goals_[id].x, goals_[id].y);
+        cv::circle(img, p, 14, cv::Scalar(200, 90, 20), 3, cv::LINE_AA);
+        cv::putText(img, std::to_string(k++), p + cv::Point(16, -10), cv::FONT_HERSHEY_SIMPLEX, 0.8,
+                    cv::Scalar(200, 90, 20), 2, cv::LINE_AA);
+    }
+    if (!truth_.empty())
+        cv::drawMarker(img, px(truth_.front().x, truth_.front().y), cv::Scalar(0, 0, 0), cv::MARKER_STAR, 24, 2);
+    cv::putText(img, "green: ground truth   red: localizer estimate   blue: goals", cv::Point(20, 36),
+                cv::FONT_HERSHEY_SIMPLEX, 0.9, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);
+    cv::imwrite(path, img);
+}
+
+void Demo::summary(double wall_s)
+{
+    double sum = 0, mx = 0;
+    for (double e : errors_) {
+        sum += e * e;
+        mx = std::max(mx, e);
+    }
+    double rms = errors_.empty() ? NAN : std::sqrt(sum / errors_.size());
+    int restarts = 0;
+    for (auto &h : hosts_)
+        for (int i = 0; i < h.second->ncomponents; i++)
+            restarts += h.second->components[i].restarts;
+    FILE *f = fopen((opt_.out + "/summary.json").c_str(), "w");
+    if (f) {
+        fprintf(f,
+                "{\"goals\": %d, \"reached\": %d, \"missed\": %d, \"mission_done\": %s, \"rms\": %.4f, "
+                "\"max\": %.4f, \"pose_samples\": %zu, \"restarts\": %d, \"kills\": %d, \"collisions\": %lld, "
+                "\"estop_stop_s\": %.3f, \"wall_s\": %.1f, \"sim_s\": %.1f}\n",
+                ngoals_, reached_, missed_, mission_done_ ? "true" : "false", std::isnan(rms) ? -1.0 : rms, mx,
+                errors_.size(), restarts, kills_, (long long)collisions_, estop_stop_s_, wall_s, sim_now_ / 1e6);
+        fclose(f);
+    }
+    printf("demo: %d/%d goals reached, localization RMS %.2f m (max %.2f m), restarts %d, %.0f s\n", reached_,
+           ngoals_, rms, mx, restarts, wall_s);
+}
+
+int Demo::run()
+{
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0)
+        return 1;
+    self[n] = 0;
+    bin_ = std::string(self).substr(0, std::string(self).find_last_of('/'));
+    std::string path = bin_ + ":" + (getenv("PATH") ? getenv("PATH") : "/usr/bin:/bin");
+    setenv("PATH", path.c_str(), 1);
+    mkdir(opt_.out.c_str(), 0755);
+    if (!load_map())
+        return 2;
+    std::string state = opt_.out + "/state";
+    mkdir(state.c_str(), 0755);
+    unlink((opt_.out + "/key").c_str());
+    if (run_cmd({bin_ + "/marie", "keygen", opt_.out + "/key"}, opt_.out + "/marie.log") != 0) {
+        fprintf(stderr, "demo: cannot make the order key (see %s/marie.log)\n", opt_.out.c_str());
+        return 1;
+    }
+    start_mono_ = marie_mono_us();
+    lcm_ = lcm_create(nullptr);
+    if (!lcm_)
+        return 1;
+    for (const char *ch : {"SIM_TRUTH", "POSE", "GOAL", "MISSION_STATE", "MARIE_EVENT", "MARIE_AM_STATUS",
+                           "MARIE_HEARTBEAT"})
+        lcm_subscribe(lcm_, ch, on_raw, this);
+    unlink((opt_.out + "/demo.lcm").c_str());
+    // Record everything but the particle clouds, which are large and only for the viewer.
+    logger_ = spawn({"lcm-logger", "-q", "--channel=^(?!PARTICLES$).*", opt_.out + "/demo.lcm"}, opt_.out + "/logger.log");
+    static const char *const host_names[] = {"onboard1", "onboard2", "onboard3", "laptop"};
+    for (int i = 0; i < opt_.hosts && i < 4; i++) {
+        std::string dir = state + "/" + host_names[i];
+        mkdir(dir.c_str(), 0755);
+        ams_.push_back(spawn({bin_ + "/marie-am", "--host", host_names[i], "--state-dir", dir, "--key", opt_.out + "/key"},
+                             opt_.out + "/am-" + host_names[i] + ".log"));
+    }
+    printf("demo: %d managers started (onboard1-3, laptop); bringing up %s, profile %s\n", int(ams_.size()),
+           opt_.system.c_str(), opt_.profile.c_str());
+    int rc = run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "30", "up", opt_.system, "--profile",
+                      opt_.profile},
+                     opt_.out + "/marie.log");
+    up_ = true;
+    if (rc != 0) {
+        fprintf(stderr, "demo: marie up failed (exit %d); see %s/marie.log and %s/am-*.log\n", rc, opt_.out.c_str(),
+                opt_.out.c_str());
+        return 1;
+    }
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    last_chaos_ = marie_mono_us();
+    while (!interrupted && !mission_done_ && marie_mono_us() - start_mono_ < int64_t(opt_.timeout_s * 1e6)) {
+        lcm_handle_timeout(lcm_, 50);
+        int64_t now = marie_mono_us();
+        if (now - last_progress_ > 2000000) {
+            progress(false);
+            last_progress_ = now;
+        }
+        if (opt_.chaos_s > 0 && now - last_chaos_ > int64_t(opt_.chaos_s * 1e6)) {
+            chaos_tick();
+            last_chaos_ = now;
+        }
+        if (opt_.estop_after_goal > 0)
+            estop_tick();
+    }
+    // Let the last statuses arrive, then stop everything.
+    for (int i = 0; i < 10; i++)
+        lcm_handle_timeout(lcm_, 50);
+    progress(true);
+    double wall = (marie_mono_us() - start_mono_) / 1e6;
+    write_png(opt_.out + "/trajectories.png");
+    summary(wall);
+    printf("demo: log %s/demo.lcm, map %s/trajectories.png, summary %s/summary.json\n", opt_.out.c_str(),
+           opt_.out.c_str(), opt_.out.c_str());
+    shutdown();
+    return mission_done_ ? 0 : 1;
+}
+
+void usage(FILE *out)
+{
+    fprintf(out, "usage: marie-demo [--system FILE] [--profile P] [--out DIR] [--timeout S] [--chaos S]\n"
+                 "                  [--estop-after-goal K] [--quiet]\n");
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    Options o;
+    static const struct option opts[] = {
+        {"system", required_argument, nullptr, 's'}, {"profile", required_argument, nullptr, 'p'},
+        {"out", required_argument, nullptr, 'o'}, {"timeout", required_argument, nullptr, 't'},
+        {"chaos", required_argument, nullptr, 'c'}, {"estop-after-goal", required_argument, nullptr, 'e'},
+        {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
+    };
+    int c;
+    while ((c = getopt_long(argc, argv, "", opts, nullptr)) != -1) {
+        switch (c) {
+        case 's': o.system = optarg; break;
+        case 'p': o.profile = optarg; break;
+        case 'o': o.out = optarg; break;
+        case 't': o.timeout_s = atof(optarg); break;
+        case 'c': o.chaos_s = atof(optarg); break;
+        case 'e': o.estop_after_goal = atoi(optarg); break;
+        case 'q': o.quiet = true; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    Demo d(o);
+    return d.run();
+}
