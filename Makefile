@@ -82,7 +82,7 @@ FUZZ_$(1)_LIBS := $(3)
 FUZZERS += $(1)
 endef
 
-.PHONY: all deps test test-vm bench demo install fuzz clean
+.PHONY: all deps test-deps test test-vm bench demo install fuzz clean
 all:
 
 include lcmtypes/module.mk
@@ -101,8 +101,12 @@ $(B)/obj/%.o: %.cpp | $(GEN_HEADERS)
 deps:
 	@scripts/install-deps.sh base
 
+# Tests also need qemu (real SocketCAN in a VM) and Chromium (the log viewer's page).
+test-deps: deps
+	@scripts/install-deps.sh vm browser
+
 # Tests run one by one, each in its own network namespace; the last line is the summary.
-test: deps
+test: test-deps
 	@$(MAKE) --no-print-directory all
 	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(TESTS) $(ITESTS)
 

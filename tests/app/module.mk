@@ -1,0 +1,4 @@
+# tests/app: the robot application's integration tests (they run marie-demo).
+$(eval $(call marie_link,$(B)/tests/replay_check,tests/app/replay_check.c,))
+EXTRA_TARGETS += $(B)/tests/replay_check
+ITESTS += tests/app/test_robot_app.sh
