@@ -116,12 +116,12 @@ static void proc_free(ca_proc_t *p)
 
 static void on_tick(marie_component_t *c, int64_t overruns);
 
-static int common_init(marie_component_t *c, ca_proc_t **out)
+static int common_init(marie_component_t *c, ca_proc_t **out, bool typed)
 {
     ca_proc_t *p = marie_component_user(c);
     proc_free(p);
     p->c = c;
-    if (param_type(p, marie_param_str(c, "type"), &p->type) < 0)
+    if (typed && param_type(p, marie_param_str(c, "type"), &p->type) < 0)
         return -1;
     if (!p->tick && !(p->tick = marie_component_every(c, 100, on_tick))) {
         marie_component_fail_reason(c, "cannot create the timer: %s", strerror(errno));
@@ -160,7 +160,7 @@ static int add_mailbox(ca_proc_t *p, const char *channel, const marie_type_t *ty
 static int mailbox_init(marie_component_t *c)
 {
     ca_proc_t *p;
-    if (common_init(c, &p) < 0)
+    if (common_init(c, &p, true) < 0)
         return -1;
     int64_t depth = marie_param_int(c, "depth");
     const char *channel = marie_param_str(c, "channel");
@@ -212,7 +212,7 @@ static int mailbox_init(marie_component_t *c)
 static int splitter_init(marie_component_t *c)
 {
     ca_proc_t *p;
-    if (common_init(c, &p) < 0)
+    if (common_init(c, &p, true) < 0)
         return -1;
     ca_sink_t s = sink_of(p);
     const char *input = marie_param_str(c, "input");
@@ -254,8 +254,12 @@ static int splitter_init(marie_component_t *c)
 static int sharedmap_init(marie_component_t *c)
 {
     ca_proc_t *p;
-    if (common_init(c, &p) < 0)
+    if (common_init(c, &p, false) < 0)
         return -1;
+    if (!*marie_param_str(c, "channel")) {
+        marie_component_fail_reason(c, "channel: must not be empty");
+        return -1;
+    }
     char *path = state_path(p, marie_param_str(c, "state_file"), "sharedmap");
     ca_sink_t s = sink_of(p);
     p->sm = path ? sharedmap_open(path, &s) : NULL;
@@ -286,7 +290,7 @@ static int sharedmap_init(marie_component_t *c)
 static int switch_init(marie_component_t *c)
 {
     ca_proc_t *p;
-    if (common_init(c, &p) < 0)
+    if (common_init(c, &p, true) < 0)
         return -1;
     const char *output = marie_param_str(c, "output");
     char *path = state_path(p, marie_param_str(c, "state_file"), "switch");
@@ -438,7 +442,6 @@ static const marie_param_spec_t splitter_params[] = {
     { 0 },
 };
 static const marie_param_spec_t sharedmap_params[] = {
-    { "type", MARIE_PARAM_STRING, "''", "unused (values name their own type)" },
     { "channel", MARIE_PARAM_STRING, "SHAREDMAP", "request channel" },
     { "snapshot_channel", MARIE_PARAM_STRING, "''", "snapshot channel; '' = CHANNEL.SNAPSHOT, 'none' = none" },
     { "snapshot_min_interval_ms", MARIE_PARAM_INT, "20", "snapshots at most this often" },

@@ -231,6 +231,13 @@ static size_t replay(sharedmap_t *sm, const uint8_t *buf, size_t len)
     return off;
 }
 
+ssize_t sharedmap_replay(sharedmap_t *sm, const void *image, size_t len)
+{
+    if (len < sizeof LOG_MAGIC || memcmp(image, LOG_MAGIC, sizeof LOG_MAGIC) != 0)
+        return -EINVAL;
+    return (ssize_t)replay(sm, image, len);
+}
+
 static int read_all(int fd, uint8_t **out, size_t *len)
 {
     struct stat st;
@@ -362,8 +369,8 @@ void sharedmap_close(sharedmap_t *sm)
     free(sm);
 }
 
-/* Append one record and make it durable. On failure the log is cut back so it never
- * holds a record that was not acknowledged... or at least never a partial one. */
+/* Append one record and make it durable. On failure the log is cut back to its last
+ * acknowledged record, so a failed write cannot reappear at the next start. */
 static int log_append(sharedmap_t *sm, const uint8_t *rec, size_t len)
 {
     if (sm->fd < 0)

@@ -4,6 +4,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <sys/types.h>
 
 #include "ca/ca.h"
 #include "lcmtypes/marie_sharedmap_request_t.h"
@@ -41,6 +42,12 @@ typedef struct {
  * acknowledged. Replies go to sink->publish/lcm, counters to sink->note. NULL with errno. */
 sharedmap_t *sharedmap_open(const char *path, const ca_sink_t *sink);
 void sharedmap_close(sharedmap_t *sm);          /* NULL is a no-op */
+
+/* Replay a log image (the bytes of a state file) into the map, as sharedmap_open() does.
+ * Returns how many leading bytes form a valid log (magic and whole records); anything after
+ * is what a crash cut short, or damage. -EINVAL when the magic is missing. Used by open and
+ * by the fuzz target; a map opened from a path keeps logging to its own file. */
+ssize_t sharedmap_replay(sharedmap_t *sm, const void *image, size_t len);
 
 /* Store operations. set/delete return only once the change is on disk (fdatasync).
  * set: 0, -EINVAL (empty/oversized key, short payload), -EBADMSG (payload is not `type`,

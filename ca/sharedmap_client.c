@@ -1,4 +1,4 @@
-/* sharedmap_client: synchronous request/reply over LCM, matched by request id. */
+/* sharedmap_client: request/reply over LCM matched by request id, waited for or called back. */
 #include "ca/sharedmap_client.h"
 
 #include <errno.h>
@@ -12,6 +12,13 @@
 #include "lcmtypes/marie_sharedmap_reply_t.h"
 #include "lcmtypes/marie_sharedmap_request_t.h"
 
+typedef struct {
+    int64_t id;
+    int64_t deadline;               /* monotonic us */
+    sharedmap_client_cb_t cb;
+    void *user;
+} pending_t;
+
 struct sharedmap_client {
     lcm_t *lcm;
     char *request_channel;
@@ -24,6 +31,8 @@ struct sharedmap_client {
     marie_sharedmap_reply_t view;
     uint8_t *reply_buf;
     int64_t timeouts, strays, bad;
+    pending_t *pending;             /* asynchronous requests in flight */
+    size_t npending, cap_pending;
 };
 
 static void drop_reply(sharedmap_client_t *cl)
@@ -35,6 +44,27 @@ static void drop_reply(sharedmap_client_t *cl)
     cl->reply = NULL;
 }
 
+static int rc_of(int8_t status);
+
+/* Hand a reply to the asynchronous request it answers; false when none does. */
+static bool deliver_async(sharedmap_client_t *cl, const marie_sharedmap_reply_t *r)
+{
+    for (size_t i = 0; i < cl->npending; i++) {
+        if (cl->pending[i].id != r->request_id)
+            continue;
+        pending_t p = cl->pending[i];
+        cl->pending[i] = cl->pending[--cl->npending];   /* before the callback: it may send more */
+        sharedmap_result_t res = {
+            .status = rc_of(r->status), .request_id = r->request_id, .version = r->version,
+            .type = r->type, .data = r->data, .len = r->size > 0 ? (size_t)r->size : 0,
+            .age_us = r->age_us, .keys = r->keys, .nkeys = r->nkeys > 0 ? (size_t)r->nkeys : 0,
+        };
+        p.cb(cl, &res, p.user);
+        return true;
+    }
+    return false;
+}
+
 static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     sharedmap_client_t *cl = user;
@@ -44,7 +74,10 @@ static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user
         return;
     }
     int64_t id = msg.request_id;
+    bool taken = id != cl->waiting_id && deliver_async(cl, &msg);
     free(msg.keys);
+    if (taken)
+        return;
     if (cl->waiting_id == 0 || id != cl->waiting_id || cl->reply) {
         cl->strays++;
         return;
@@ -98,6 +131,7 @@ void sharedmap_client_destroy(sharedmap_client_t *cl)
     if (cl->sub)
         lcm_unsubscribe(cl->lcm, cl->sub);
     drop_reply(cl);
+    free(cl->pending);
     free(cl->request_channel);
     free(cl->reply_channel);
     free(cl->name);
@@ -119,10 +153,9 @@ static int rc_of(int8_t status)
     }
 }
 
-/* Send req, wait for its reply (left in cl->reply) and return its status as -errno. */
-static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int timeout_ms)
+/* Fill in the common fields and publish. 0 or -EIO. */
+static int send_request(sharedmap_client_t *cl, marie_sharedmap_request_t *req)
 {
-    drop_reply(cl);
     req->utime = marie_wall_us();
     req->request_id = ++cl->next_id;
     req->client = cl->name;
@@ -133,11 +166,16 @@ static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int time
         req->type = "";
     if (!req->data)
         req->data = (uint8_t *)"";  /* lcm-gen's encoder memcpy()s even 0 bytes */
-    cl->waiting_id = req->request_id;
-    if (marie_sharedmap_request_t_publish(cl->lcm, cl->request_channel, req) < 0) {
-        cl->waiting_id = 0;
+    return marie_sharedmap_request_t_publish(cl->lcm, cl->request_channel, req) < 0 ? -EIO : 0;
+}
+
+/* Send req, wait for its reply (left in cl->reply) and return its status as -errno. */
+static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int timeout_ms)
+{
+    drop_reply(cl);
+    if (send_request(cl, req) < 0)
         return -EIO;
-    }
+    cl->waiting_id = req->request_id;
     int64_t deadline = marie_mono_us() + (int64_t)timeout_ms * 1000;
     while (!cl->reply) {
         int64_t left = deadline - marie_mono_us();
@@ -262,4 +300,87 @@ int sharedmap_client_list(sharedmap_client_t *cl, const char *prefix, char ***ke
     *keys = out;
     *n = k;
     return 0;
+}
+
+/* ---- asynchronous forms ---- */
+
+static int call_async(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int timeout_ms,
+                      sharedmap_client_cb_t cb, void *user)
+{
+    if (!cb || timeout_ms < 0)
+        return -EINVAL;
+    if (cl->npending == cl->cap_pending) {
+        size_t cap = cl->cap_pending ? cl->cap_pending * 2 : 8;
+        pending_t *np = realloc(cl->pending, cap * sizeof *np);
+        if (!np)
+            return -ENOMEM;
+        cl->pending = np;
+        cl->cap_pending = cap;
+    }
+    if (send_request(cl, req) < 0)
+        return -EIO;
+    cl->pending[cl->npending++] = (pending_t){ req->request_id,
+                                               marie_mono_us() + (int64_t)timeout_ms * 1000, cb, user };
+    return 0;
+}
+
+int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, const char *type_name,
+                                   const void *data, size_t len, int timeout_ms,
+                                   sharedmap_client_cb_t cb, void *user)
+{
+    if (len > INT32_MAX)
+        return -EFBIG;
+    marie_sharedmap_request_t req = {
+        .op = MARIE_SHAREDMAP_REQUEST_T_OP_SET, .key = (char *)key, .type = (char *)type_name,
+        .size = (int32_t)len, .data = (uint8_t *)data,
+    };
+    return call_async(cl, &req, timeout_ms, cb, user);
+}
+
+int sharedmap_client_set_async(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
+                               const void *msg, int timeout_ms, sharedmap_client_cb_t cb, void *user)
+{
+    int n = type->encoded_size(msg);
+    if (n < 0)
+        return -EINVAL;
+    uint8_t *buf = malloc((size_t)n);
+    if (!buf)
+        return -ENOMEM;
+    int rc = -EINVAL;
+    if (type->encode(buf, 0, n, msg) == n)
+        rc = sharedmap_client_set_raw_async(cl, key, type->name, buf, (size_t)n, timeout_ms, cb, user);
+    free(buf);
+    return rc;
+}
+
+int sharedmap_client_get_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
+                               sharedmap_client_cb_t cb, void *user)
+{
+    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_GET, .key = (char *)key };
+    return call_async(cl, &req, timeout_ms, cb, user);
+}
+
+int sharedmap_client_delete_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
+                                  sharedmap_client_cb_t cb, void *user)
+{
+    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_DELETE, .key = (char *)key };
+    return call_async(cl, &req, timeout_ms, cb, user);
+}
+
+int sharedmap_client_tick(sharedmap_client_t *cl)
+{
+    int64_t now = marie_mono_us();
+    for (size_t i = 0; i < cl->npending;) {
+        if (cl->pending[i].deadline > now) {
+            i++;
+            continue;
+        }
+        pending_t p = cl->pending[i];
+        cl->pending[i] = cl->pending[--cl->npending];
+        cl->timeouts++;
+        sharedmap_result_t res = { .status = -ETIMEDOUT, .request_id = p.id, .type = "" };
+        p.cb(cl, &res, p.user);
+        i = 0;      /* the callback may have changed the list */
+    }
+    return (int)cl->npending;
 }

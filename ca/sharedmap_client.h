@@ -2,6 +2,7 @@
 #ifndef MARIE_CA_SHAREDMAP_CLIENT_H
 #define MARIE_CA_SHAREDMAP_CLIENT_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -50,6 +51,36 @@ int sharedmap_client_delete(sharedmap_client_t *cl, const char *key, int timeout
 int sharedmap_client_list(sharedmap_client_t *cl, const char *prefix, char ***keys, size_t *n,
                           int timeout_ms);
 void sharedmap_client_free_keys(char **keys, size_t n);
+
+/* Asynchronous forms, safe to call from LCM handlers: they only publish. cb runs exactly
+ * once, from the handling of `lcm` when the reply arrives, or from sharedmap_client_tick()
+ * with status -ETIMEDOUT once timeout_ms has passed. Call sharedmap_client_tick() from a
+ * timer (10-100 Hz). The result's pointers are valid during the callback only. Return 0 or
+ * -errno (then cb is never called). */
+typedef struct {
+    int status;                 /* 0 or -errno, as for the synchronous calls */
+    int64_t request_id;
+    int64_t version;
+    const char *type;           /* GET */
+    const void *data;           /* GET */
+    size_t len;
+    int64_t age_us;             /* GET */
+    char **keys;                /* LIST */
+    size_t nkeys;
+} sharedmap_result_t;
+typedef void (*sharedmap_client_cb_t)(sharedmap_client_t *cl, const sharedmap_result_t *r, void *user);
+
+int sharedmap_client_set_async(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
+                               const void *msg, int timeout_ms, sharedmap_client_cb_t cb, void *user);
+int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, const char *type_name,
+                                   const void *data, size_t len, int timeout_ms,
+                                   sharedmap_client_cb_t cb, void *user);
+int sharedmap_client_get_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
+                               sharedmap_client_cb_t cb, void *user);
+int sharedmap_client_delete_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
+                                  sharedmap_client_cb_t cb, void *user);
+/* Time out asynchronous requests whose deadline passed; returns how many are still pending. */
+int sharedmap_client_tick(sharedmap_client_t *cl);
 
 /* Requests whose reply did not come in time; replies that matched no request or were malformed. */
 int64_t sharedmap_client_timeouts(const sharedmap_client_t *cl);

@@ -240,7 +240,10 @@ int ca_switch_handle_select(ca_switch_t *sw, const marie_switch_select_t *req, i
         ca_note(&sw->sink, CA_NOTE_EVENT, "switch_unknown_input", MARIE_EVENT_T_SEV_WARN,
                 "selection of unknown input '%.128s' by '%.64s' refused; '%s' stays selected",
                 name, who, ca_switch_selected(sw));
-    } else if (rc == 0) {
+    } else if (rc < 0) {
+        status = MARIE_SWITCH_STATE_T_STATUS_IO_ERROR;
+        sw->stats.refused++;
+    } else {
         sw->stats.selections++;
         ca_note(&sw->sink, CA_NOTE_EVENT, "switch_selected", MARIE_EVENT_T_SEV_INFO,
                 "'%s' selected by '%.64s'", ca_switch_selected(sw), who);

@@ -31,6 +31,7 @@
 #include "lcmtypes/marie_lifecycle_command_t.h"
 #include "managers/am_proto.h"
 #include "managers/auth.h"
+#include "managers/lcmcheck.h"
 #include "managers/logcap.h"
 #include "managers/procstat.h"
 
@@ -125,7 +126,7 @@ struct am {
     int log_keep;
     /* state */
     int64_t start_mono;
-    int64_t status_seq, event_seq, orders_refused, lc_seq;
+    int64_t status_seq, event_seq, orders_refused, lc_seq, bad_input;
     marie_cpu_sample_t self_cpu;
     bool status_pending;
     bool quitting;
@@ -302,7 +303,34 @@ static bool env_dropped(const char *kv)
     return false;
 }
 
-static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, char **argv, char **envp)
+/* The program to exec: a name without '/' is looked up in marie-am's own directory, then
+ * in PATH (execvpe would search the manager's PATH only). NULL: let execvpe report it. */
+static char *resolve_exec(am_t *am, const char *name)
+{
+    if (strchr(name, '/'))
+        return NULL;
+    const char *path = getenv("PATH");
+    size_t n = strlen(am->self_dir) + (path ? strlen(path) : 0) + 2;
+    char *dirs = malloc(n);
+    if (!dirs)
+        return NULL;
+    snprintf(dirs, n, "%s:%s", am->self_dir, path ? path : "/usr/local/bin:/usr/bin:/bin");
+    char *found = NULL, *save = NULL;
+    for (char *d = strtok_r(dirs, ":", &save); d && !found; d = strtok_r(NULL, ":", &save)) {
+        char *cand;
+        if (!*d || asprintf(&cand, "%s/%s", d, name) < 0)
+            continue;
+        struct stat st;
+        if (stat(cand, &st) == 0 && S_ISREG(st.st_mode) && access(cand, X_OK) == 0)
+            found = cand;
+        else
+            free(cand);
+    }
+    free(dirs);
+    return found;
+}
+
+static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, const char *prog, char **argv, char **envp)
 {
     /* Own session and process group: stop signals go to the whole group. */
     setsid();
@@ -325,7 +353,10 @@ static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, char **arg
     dup2(outfd, 1);
     dup2(errfd, 2);
     /* pipes and every other descriptor of the manager are close-on-exec */
-    execvpe(argv[0], argv, envp);
+    if (prog)
+        execve(prog, argv, envp);
+    else
+        execvpe(argv[0], argv, envp);
     dprintf(2, "marie-am: exec %s: %s\n", argv[0], strerror(errno));
     _exit(127);
 }
@@ -382,14 +413,17 @@ static void comp_spawn(comp_t *c)
         envp[ne++] = strdup(cfg->env[i]);
     envp[ne] = NULL;
 
+    char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
     pid_t parent = getpid();
     pid_t pid = fork();
     if (pid < 0) {
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: fork: %s", cfg->name, strerror(errno));
+        free(prog);
         goto fail;
     }
     if (pid == 0)
-        child_exec(c, po[1], pe[1], parent, argv, envp);
+        child_exec(c, po[1], pe[1], parent, prog, argv, envp);
+    free(prog);
     close(po[1]);
     close(pe[1]);
     int rd[2] = {po[0], pe[0]};
@@ -1100,9 +1134,29 @@ static void comp_open_log(comp_t *c)
         marie_warn("%s: cannot open log file %s: %s", c->cfg->name, path, strerror(errno));
 }
 
+/* The effective configuration of every component this host runs, for comparing runs
+ * (sim against robot): logged, and kept in the state directory. */
+static void record_hashes(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/config-hashes", am->state_dir);
+    FILE *f = fopen(path, "w");
+    for (size_t i = 0; i < am->ncomps; i++) {
+        const comp_t *c = &am->comps[i];
+        if (!c->local)
+            continue;
+        marie_info("%s: configuration %s", c->cfg->name, c->cfg->hash);
+        if (f)
+            fprintf(f, "%s %s %s\n", c->cfg->name, c->cfg->hash, am->profile ? am->profile : "-");
+    }
+    if (f)
+        fclose(f);
+}
+
 static void am_up(am_t *am)
 {
     am->up = true;
+    record_hashes(am);
     for (size_t i = 0; i < am->ncomps; i++) {
         comp_t *c = &am->comps[i];
         if (c->local) {
@@ -1402,6 +1456,51 @@ static void on_order(const lcm_recv_buf_t *rbuf, const char *channel, const mari
 
 /* ---------------------------------------------------------------- main */
 
+/* Raw subscriptions: a malformed message is counted and logged at most once a second,
+ * never printed per message as the generated handlers would. */
+static void bad_message(am_t *am, const char *channel, const lcm_recv_buf_t *rbuf)
+{
+    am->bad_input++;
+    marie_warn_ratelimited(1, "undecodable message on %s (%u bytes); %lld bad so far", channel,
+                           rbuf->data_size, (long long)am->bad_input);
+}
+
+static void on_raw_order(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_am_order_t o;
+    if (marie_lcm_check(rbuf->data, rbuf->data_size, MARIE_LAYOUT_AM_ORDER) < 0 ||
+        marie_am_order_t_decode(rbuf->data, 0, (int)rbuf->data_size, &o) < 0) {
+        bad_message(user, channel, rbuf);
+        return;
+    }
+    on_order(rbuf, channel, &o, user);
+    marie_am_order_t_decode_cleanup(&o);
+}
+
+static void on_raw_heartbeat(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_heartbeat_t hb;
+    if (marie_lcm_check(rbuf->data, rbuf->data_size, MARIE_LAYOUT_HEARTBEAT) < 0 ||
+        marie_heartbeat_t_decode(rbuf->data, 0, (int)rbuf->data_size, &hb) < 0) {
+        bad_message(user, channel, rbuf);
+        return;
+    }
+    on_heartbeat(rbuf, channel, &hb, user);
+    marie_heartbeat_t_decode_cleanup(&hb);
+}
+
+static void on_raw_status(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_am_status_t st;
+    if (marie_lcm_check(rbuf->data, rbuf->data_size, MARIE_LAYOUT_AM_STATUS) < 0 ||
+        marie_am_status_t_decode(rbuf->data, 0, (int)rbuf->data_size, &st) < 0) {
+        bad_message(user, channel, rbuf);
+        return;
+    }
+    on_peer_status(rbuf, channel, &st, user);
+    marie_am_status_t_decode_cleanup(&st);
+}
+
 static void on_lcm(marie_loop_t *loop, int fd, short revents, void *user)
 {
     am_t *am = user;
@@ -1552,9 +1651,9 @@ int main(int argc, char **argv)
         marie_error("lcm_create(%s) failed", am->url);
         goto out_loop;
     }
-    marie_heartbeat_t_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_heartbeat, am);
-    marie_am_order_t_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_order, am);
-    marie_am_status_t_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_peer_status, am);
+    lcm_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
+    lcm_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
+    lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
     marie_loop_add_fd(am->loop, lcm_get_fileno(am->lcm), POLLIN, on_lcm, am);
 
     sigset_t mask;

@@ -21,6 +21,7 @@
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
 #include "managers/auth.h"
+#include "managers/lcmcheck.h"
 
 #define MAX_HOSTS 64
 
@@ -79,6 +80,8 @@ static void usage(FILE *out)
             "  logs [-f] [-n N] NAME               last lines of a component's output (-f: follow)\n"
             "  move NAME HOST                      run a component on another host\n"
             "  doctor                              check the bus: route, TTL, buffers, clock skew\n"
+            "  hash FILE [--profile A [--profile B]]  configuration hashes; with two profiles,\n"
+            "                                      which shared components are configured the same\n"
             "  keygen FILE                         write a new order key (mode 0600)\n"
             "  X ...                               runs marie-X (next to marie, or on PATH)\n"
             "exit status: 0 ok, 1 failure, 2 usage or system file error, 3 timeout or host\n"
@@ -238,6 +241,21 @@ static bool pump(cli_t *cli, double seconds, bool (*done)(cli_t *))
     }
 }
 
+/* Checked decoding: liblcm's decoders trust lengths from the wire. */
+#define RAW_HANDLER(fn, type, layout, typed)                                                   \
+    static void fn(const lcm_recv_buf_t *rbuf, const char *channel, void *user)                 \
+    {                                                                                           \
+        type m;                                                                                 \
+        if (marie_lcm_check(rbuf->data, rbuf->data_size, layout) < 0 ||                         \
+            type##_decode(rbuf->data, 0, (int)rbuf->data_size, &m) < 0)                         \
+            return;                                                                             \
+        typed(rbuf, channel, &m, user);                                                         \
+        type##_decode_cleanup(&m);                                                              \
+    }
+RAW_HANDLER(on_raw_status, marie_am_status_t, MARIE_LAYOUT_AM_STATUS, on_status)
+RAW_HANDLER(on_raw_reply, marie_am_reply_t, MARIE_LAYOUT_AM_REPLY, on_reply)
+RAW_HANDLER(on_raw_log, marie_log_line_t, MARIE_LAYOUT_LOG_LINE, on_log)
+
 static int cli_open(cli_t *cli)
 {
     cli->lcm = lcm_create(cli->url);
@@ -245,9 +263,9 @@ static int cli_open(cli_t *cli)
         fprintf(stderr, "marie: cannot open the bus %s\n", cli->url);
         return -1;
     }
-    marie_am_status_t_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_status, cli);
-    marie_am_reply_t_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_reply, cli);
-    marie_log_line_t_subscribe(cli->lcm, MARIE_CH_LOG, on_log, cli);
+    lcm_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_raw_status, cli);
+    lcm_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_raw_reply, cli);
+    lcm_subscribe(cli->lcm, MARIE_CH_LOG, on_raw_log, cli);
     return 0;
 }
 
@@ -877,6 +895,82 @@ static int cmd_doctor(cli_t *cli, int argc, char **argv)
     return d.problems ? MARIE_EXIT_FAIL : MARIE_EXIT_OK;
 }
 
+/* ---------------------------------------------------------------- hash */
+
+/* Effective-configuration hashes of a system under one or two profiles: a component shared
+ * by sim and robot shows "same" when both runs get an identical configuration. */
+static int cmd_hash(cli_t *cli, int argc, char **argv)
+{
+    const char *profiles[2] = {NULL, NULL};
+    int np = 0, opt;
+    static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {0, 0, 0, 0}};
+    optind = 1;
+    while ((opt = getopt_long(argc, argv, "p:", opts, NULL)) != -1) {
+        if (opt == 'p' && np < 2) profiles[np++] = optarg;
+        else return MARIE_EXIT_USAGE;
+    }
+    if (optind != argc - 1) {
+        fprintf(stderr, "usage: marie hash FILE [--profile A [--profile B]]\n");
+        return MARIE_EXIT_USAGE;
+    }
+    marie_system_t *sys[2] = {NULL, NULL};
+    int n = np == 2 ? 2 : 1;
+    for (int i = 0; i < n; i++) {
+        marie_errors_t errs = {0};
+        sys[i] = marie_system_load(argv[optind], profiles[i], &errs);
+        if (!sys[i]) {
+            marie_errors_print(&errs, stderr);
+            marie_errors_clear(&errs);
+            marie_system_destroy(sys[0]);
+            return MARIE_EXIT_USAGE;
+        }
+    }
+    int differ = 0;
+    if (cli->json)
+        printf("{\"components\":[");
+    else if (n == 2)
+        printf("%-20s %-8s %-16s %-16s\n", "COMPONENT", "", profiles[0], profiles[1]);
+    bool first = true;
+    for (size_t i = 0; i < sys[0]->ncomponents; i++) {
+        const marie_component_cfg_t *a = &sys[0]->components[i];
+        const marie_component_cfg_t *b = n == 2 ? marie_system_component(sys[1], a->name) : NULL;
+        const char *verdict = n == 1 ? "" : !b ? "only-in-a" : strcmp(a->hash, b->hash) == 0 ? "same" : "differs";
+        if (b && strcmp(a->hash, b->hash) != 0)
+            differ++;
+        if (cli->json) {
+            printf("%s{\"name\":", first ? "" : ",");
+            json_str(stdout, a->name);
+            printf(",\"hash\":\"%s\"", a->hash);
+            if (n == 2)
+                printf(",\"hash_b\":\"%s\",\"verdict\":\"%s\"", b ? b->hash : "", verdict);
+            printf("}");
+        } else if (n == 2) {
+            printf("%-20s %-8s %.16s %.16s\n", a->name, verdict, a->hash, b ? b->hash : "-");
+        } else {
+            printf("%-20s %s\n", a->name, a->hash);
+        }
+        first = false;
+    }
+    for (size_t i = 0; n == 2 && i < sys[1]->ncomponents; i++) {
+        const marie_component_cfg_t *b = &sys[1]->components[i];
+        if (marie_system_component(sys[0], b->name))
+            continue;
+        if (cli->json) {
+            printf("%s{\"name\":", first ? "" : ",");
+            json_str(stdout, b->name);
+            printf(",\"hash\":\"\",\"hash_b\":\"%s\",\"verdict\":\"only-in-b\"}", b->hash);
+        } else {
+            printf("%-20s %-8s %-16s %.16s\n", b->name, "only-in-b", "-", b->hash);
+        }
+        first = false;
+    }
+    if (cli->json)
+        printf("],\"differ\":%d}\n", differ);
+    marie_system_destroy(sys[0]);
+    marie_system_destroy(sys[1]);
+    return MARIE_EXIT_OK;
+}
+
 /* ---------------------------------------------------------------- dispatch */
 
 static int run_external(const char *cmd, int argc, char **argv)
@@ -977,6 +1071,8 @@ int main(int argc, char **argv)
         rc = cmd_move(&cli, sargc, sargv);
     } else if (strcmp(cmd, "doctor") == 0) {
         rc = cmd_doctor(&cli, sargc, sargv);
+    } else if (strcmp(cmd, "hash") == 0) {
+        rc = cmd_hash(&cli, sargc, sargv);
     } else if (strcmp(cmd, "keygen") == 0) {
         if (sargc != 2) {
             fprintf(stderr, "usage: marie keygen FILE\n");

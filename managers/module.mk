@@ -1,6 +1,6 @@
 # managers: marie-am (one per host), the marie command line, and the order-signing library.
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/auth.c managers/am_proto.c managers/logcap.c managers/procstat.c))
+$(eval $(call marie_lib,marie_managers,managers/auth.c managers/am_proto.c managers/logcap.c managers/procstat.c managers/lcmcheck.c))
 
 $(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
@@ -11,6 +11,7 @@ EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp
 
 $(eval $(call marie_test,test_auth,tests/managers/test_auth.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB)))
+$(eval $(call marie_test,test_lcmcheck,tests/managers/test_lcmcheck.c,$(MANAGERS_LIB)))
 
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;
 $(eval $(call marie_link,$(B)/tests/bin/marie-test-order,tests/managers/order_tool.c,$(MANAGERS_LIB)))
@@ -18,3 +19,4 @@ EXTRA_TARGETS += $(B)/tests/bin/marie-test-order
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
 $(eval $(call marie_bench,bench_am,managers/bench_am.c,$(MANAGERS_LIB)))
+$(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/auth.c managers/logcap.c managers/lcmcheck.c,))

@@ -7,11 +7,13 @@ base="liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-
       libeigen3-dev libode-dev libompl-dev libboost-serialization-dev
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
-      systemd libcmocka-dev iproute2 python3 util-linux procps"
+      systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev"
 # The VM test boots Debian's kernel under qemu to reach real SocketCAN.
 vm="qemu-system-x86 busybox-static cpio"
 # libFuzzer and clang's sanitizer runtimes.
 san="clang libclang-rt-14-dev"
+# The log viewer's browser tests drive Debian's Chromium headless.
+browser="chromium"
 
 want=""
 for set in ${1:-base}; do
@@ -19,8 +21,9 @@ for set in ${1:-base}; do
     base) want="$want $base" ;;
     vm)   want="$want $vm" ;;
     san)  want="$want $san" ;;
-    all)  want="$want $base $vm $san" ;;
-    *) echo "install-deps: unknown set '$set' (base, vm, san, all)" >&2; exit 2 ;;
+    browser) want="$want $browser" ;;
+    all)  want="$want $base $vm $san $browser" ;;
+    *) echo "install-deps: unknown set '$set' (base, vm, san, browser, all)" >&2; exit 2 ;;
     esac
 done
 

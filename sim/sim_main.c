@@ -8,11 +8,13 @@
 #include <unistd.h>
 
 #include "core/component.h"
+#include "sim/devices.h"
 #include "sim/map.h"
 #include "sim/world.h"
 
 typedef struct {
     sim_world_t *world;
+    sim_devices_t *devices;     /* device mode; NULL in channel mode */
     marie_port_t *p_enc, *p_gyro, *p_laser, *p_estop, *p_truth, *p_clock;
     double speed;               /* sim seconds per wall second; 0 = as fast as possible */
     double lockstep;            /* s of sim time allowed past the last motor command; 0 = off */
@@ -20,7 +22,7 @@ typedef struct {
     double cmd_timeout;         /* sim s without a command before the drives stop */
     int64_t start_utime;
     /* publication periods, in physics steps */
-    int64_t n_clock, n_odom, n_laser, n_truth, n_estop;
+    int64_t n_clock, n_enc, n_gyro, n_laser, n_truth, n_estop;
     float *scan;
     int beams;
     marie_timer_t *timer;
@@ -47,7 +49,7 @@ static const marie_port_spec_t ports[] = {
 
 static const marie_param_spec_t params[] = {
     { "world", MARIE_PARAM_STRING, "office", "map.yaml path, or a world name in sim/worlds" },
-    { "mode", MARIE_PARAM_STRING, "channel", "channel: publish the drivers' channels" },
+    { "mode", MARIE_PARAM_STRING, "channel", "channel: publish the drivers' channels; device: play the devices" },
     { "speed", MARIE_PARAM_DOUBLE, "1.0", "sim seconds per wall second; 0 = as fast as possible" },
     { "lockstep", MARIE_PARAM_DOUBLE, "0", "run at most this many sim s past the last motor command (0: off)" },
     { "lockstep_timeout", MARIE_PARAM_DOUBLE, "1.0", "wall s to wait for a motor command in lockstep" },
@@ -70,10 +72,20 @@ static const marie_param_spec_t params[] = {
     { "laser_hz", MARIE_PARAM_DOUBLE, "10", "scan rate, sim Hz" },
     { "gyro_noise", MARIE_PARAM_DOUBLE, "0.002", "rad/s std" },
     { "gyro_bias", MARIE_PARAM_DOUBLE, "0.0005", "rad/s left in the published rate" },
-    { "odom_hz", MARIE_PARAM_DOUBLE, "50", "encoders and gyro, sim Hz" },
+    { "encoders_hz", MARIE_PARAM_DOUBLE, "20", "wheel encoders, sim Hz (marie-drives' publish_hz)" },
+    { "gyro_hz", MARIE_PARAM_DOUBLE, "50", "gyro, sim Hz (marie-gyro's rate_hz)" },
+    { "estop_hz", MARIE_PARAM_DOUBLE, "2", "e-stop state besides every change (marie-gpio's publish_hz)" },
     { "truth_hz", MARIE_PARAM_DOUBLE, "50", "ground truth, sim Hz" },
     { "clock_hz", MARIE_PARAM_DOUBLE, "100", "clock messages, sim Hz" },
     { "estop", MARIE_PARAM_BOOL, "false", "e-stop pressed at start" },
+    /* device mode */
+    { "can", MARIE_PARAM_STRING, "emu:/tmp/marie-sim-can", "device mode: CAN bus of the virtual drives and gyro" },
+    { "can_serve", MARIE_PARAM_BOOL, "true", "device mode: host the emulated bus (emu:PATH) here" },
+    { "left_node", MARIE_PARAM_INT, "1", "device mode: CANopen node of the left drive" },
+    { "right_node", MARIE_PARAM_INT, "2", "device mode: CANopen node of the right drive" },
+    { "gyro_node", MARIE_PARAM_INT, "32", "device mode: CANopen node of the gyro" },
+    { "vgyro_bias", MARIE_PARAM_DOUBLE, "0.01", "device mode: raw bias of the virtual gyro, rad/s" },
+    { "laser_link", MARIE_PARAM_STRING, "/tmp/marie-sim-lms200", "device mode: symlink to the LMS200 pty" },
     { NULL },
 };
 
@@ -152,10 +164,10 @@ static void on_estop_set(marie_component_t *c, marie_port_t *p, const void *msg,
     }
 }
 
-static void publish(marie_component_t *c, sim_t *s)
+/* The drivers' channels (channel mode only): encoders, gyro, laser. */
+static void publish_sensors(sim_t *s, int64_t k, int64_t now)
 {
-    int64_t k = sim_world_steps(s->world), now = sim_now(s);
-    if (k % s->n_odom == 0) {
+    if (k % s->n_enc == 0) {
         int32_t l, r;
         double la, ra, ls, rs;
         sim_world_encoders(s->world, &l, &r);
@@ -167,14 +179,13 @@ static void publish(marie_component_t *c, sim_t *s)
             .status = s->estop ? MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP : MARIE_WHEEL_ENCODERS_T_STATUS_OK,
         };
         marie_port_publish(s->p_enc, &e);
+    }
+    if (k % s->n_gyro == 0) {
+        /* As marie-gyro publishes after its standstill calibration: what is left of the bias
+         * (gyro_bias) stays in the rate. */
         marie_gyro_t g = { .utime = now, .yaw_rate = sim_world_gyro(s->world), .bias = 0.0,
                            .bias_valid = 1, .status = 0 };
         marie_port_publish(s->p_gyro, &g);
-    }
-    if (k % s->n_truth == 0) {
-        marie_pose_cov_t t = { .utime = now, .frame = "map" };
-        sim_world_pose(s->world, &t.pose.x, &t.pose.y, &t.pose.theta);
-        marie_port_publish(s->p_truth, &t);
     }
     if (k % s->n_laser == 0) {
         const sim_params_t *p = sim_world_params(s->world);
@@ -187,6 +198,19 @@ static void publish(marie_component_t *c, sim_t *s)
         };
         marie_port_publish(s->p_laser, &l);
     }
+}
+
+static void publish(marie_component_t *c, sim_t *s)
+{
+    int64_t k = sim_world_steps(s->world), now = sim_now(s);
+    if (!s->devices)
+        publish_sensors(s, k, now);
+    if (k % s->n_truth == 0) {
+        marie_pose_cov_t t = { .utime = now, .frame = "map" };
+        sim_world_pose(s->world, &t.pose.x, &t.pose.y, &t.pose.theta);
+        marie_port_publish(s->p_truth, &t);
+    }
+    /* Both modes: no GPIO can be emulated here, so the simulator plays marie-gpio. */
     if (k % s->n_estop == 0 || s->estop_dirty) {
         marie_estop_t e = { .utime = now, .pressed = s->estop, .source = "sim" };
         marie_port_publish(s->p_estop, &e);
@@ -220,14 +244,18 @@ static bool step_once(marie_component_t *c, sim_t *s)
         s->anchor_mono = mono;
         s->anchor_sim = now;
     }
-    if (s->cmd_live && now - s->last_cmd_sim > (int64_t)(s->cmd_timeout * 1e6)) {
+    if (!s->devices && s->cmd_live && now - s->last_cmd_sim > (int64_t)(s->cmd_timeout * 1e6)) {
         /* The drives' own watchdog: no command, no motion. */
         sim_world_set_velocity(s->world, 0, 0);
         s->cmd_live = false;
         marie_component_count(c, "cmd_timeouts", 1);
     }
     sim_world_set_estop(s->world, s->estop);
+    if (s->devices)
+        sim_devices_before_step(s->devices);
     sim_world_step(s->world);
+    if (s->devices)
+        sim_devices_after_step(s->devices, sim_world_step_s(s->world), sim_now(s));
     publish(c, s);
     return true;
 }
@@ -265,9 +293,17 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
 static int on_init(marie_component_t *c)
 {
     sim_t *s = marie_component_user(c);
+    /* Init again after a failure: start from nothing. */
+    sim_devices_destroy(s->devices);
+    s->devices = NULL;
+    sim_world_destroy(s->world);
+    s->world = NULL;
+    free(s->scan);
+    s->scan = NULL;
     const char *mode = marie_param_str(c, "mode");
-    if (strcmp(mode, "channel") != 0) {
-        marie_component_fail_reason(c, "mode '%s' is not available (channel)", mode);
+    bool device = strcmp(mode, "device") == 0;
+    if (!device && strcmp(mode, "channel") != 0) {
+        marie_component_fail_reason(c, "mode: expected channel or device, got '%s'", mode);
         return -1;
     }
     char path[4096];
@@ -298,6 +334,12 @@ static int on_init(marie_component_t *c)
     p.laser_x = marie_param_double(c, "laser_x");
     p.gyro_noise = marie_param_double(c, "gyro_noise");
     p.gyro_bias = marie_param_double(c, "gyro_bias");
+    if (device) {
+        /* The virtual LMS200 resamples 361 beams to the resolution its driver asks for, and
+         * the virtual drives ramp the velocity themselves. */
+        p.laser_beams = 361;
+        p.accel = 100.0;
+    }
     if (p.laser_beams != 181 && p.laser_beams != 361) {
         marie_component_fail_reason(c, "laser_beams: expected 181 or 361, got %d", p.laser_beams);
         goto fail;
@@ -317,11 +359,12 @@ static int on_init(marie_component_t *c)
         goto fail;
     }
     if ((s->n_clock = period_steps(c, "clock_hz", p.step)) < 0 ||
-        (s->n_odom = period_steps(c, "odom_hz", p.step)) < 0 ||
+        (s->n_enc = period_steps(c, "encoders_hz", p.step)) < 0 ||
+        (s->n_gyro = period_steps(c, "gyro_hz", p.step)) < 0 ||
+        (s->n_estop = period_steps(c, "estop_hz", p.step)) < 0 ||
         (s->n_laser = period_steps(c, "laser_hz", p.step)) < 0 ||
         (s->n_truth = period_steps(c, "truth_hz", p.step)) < 0)
         goto fail;
-    s->n_estop = s->n_laser;
     s->beams = p.laser_beams;
     s->scan = calloc((size_t)s->beams, sizeof(float));
     s->world = s->scan ? sim_world_create(map, &p) : NULL;
@@ -330,13 +373,34 @@ static int on_init(marie_component_t *c)
         goto fail;
     }
     sim_map_destroy(map);
+    map = NULL;
+    if (device) {
+        sim_devices_cfg_t dc = {
+            .can_url = marie_param_str(c, "can"), .can_serve = marie_param_bool(c, "can_serve"),
+            .left_node = (int)marie_param_int(c, "left_node"),
+            .right_node = (int)marie_param_int(c, "right_node"),
+            .gyro_node = (int)marie_param_int(c, "gyro_node"),
+            .gyro_bias = marie_param_double(c, "vgyro_bias"), .gyro_noise = p.gyro_noise,
+            .laser_link = marie_param_str(c, "laser_link"), .laser_hz = marie_param_double(c, "laser_hz"),
+        };
+        char why[512];
+        s->devices = sim_devices_create(&dc, s->world, marie_component_loop(c), sim_now(s), why, sizeof(why));
+        if (!s->devices) {
+            marie_component_fail_reason(c, "device mode: %s", why);
+            goto fail;
+        }
+        marie_info("device mode: drives %d/%d and gyro %d on %s, LMS200 on %s (%s)", dc.left_node,
+                   dc.right_node, dc.gyro_node, dc.can_url, dc.laser_link,
+                   sim_devices_laser_path(s->devices));
+    }
     s->p_enc = marie_port(c, "encoders");
     s->p_gyro = marie_port(c, "gyro");
     s->p_laser = marie_port(c, "laser");
     s->p_estop = marie_port(c, "estop");
     s->p_truth = marie_port(c, "truth");
     s->p_clock = marie_port(c, "clock");
-    marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
+    if (!device)            /* in device mode marie-drives obeys it, over CAN */
+        marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
                sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->speed,
@@ -344,6 +408,8 @@ static int on_init(marie_component_t *c)
     return 0;
 fail:
     sim_map_destroy(map);
+    sim_world_destroy(s->world);
+    s->world = NULL;
     free(s->scan);
     s->scan = NULL;
     return -1;
@@ -411,6 +477,8 @@ static void on_quit(marie_component_t *c)
 {
     sim_t *s = marie_component_user(c);
     disarm(c);
+    sim_devices_destroy(s->devices);
+    s->devices = NULL;
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);

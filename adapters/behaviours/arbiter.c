@@ -197,9 +197,11 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
     }
     double L2 = lx * lx + ly * ly;
     double k = L2 > 1e-9 ? 2 * ly / L2 : 0;      /* pure pursuit curvature */
-    double v = p->v_max / (1 + 1.5 * fabs(k));
+    /* Slow down while the look-ahead point is off to the side, but keep turning briskly:
+     * the turn rate is the curvature at no less than a walking pace. */
+    double v = p->v_max * clamp(1 - fabs(herr) / p->turn_in_place, 0.15, 1.0);
     v = fmin(v, fmax(0.1, 0.8 * to_end));       /* ease into the goal */
-    double w = k * v;
+    double w = k * fmax(v, 0.3);
     if (fabs(w) > p->omega_max) {
         v *= p->omega_max / fabs(w);
         w = w > 0 ? p->omega_max : -p->omega_max;

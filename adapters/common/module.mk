@@ -6,3 +6,6 @@ $(eval $(call marie_bench,bench_adapters,adapters/common/bench_adapters.c adapte
 # The integration tests' bus probe (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/adapt_probe,tests/adapters/adapt_probe.c,))
 EXTRA_TARGETS += $(B)/tests/helpers/adapt_probe
+ITESTS += tests/adapters/test_nav_sim.sh
+ITESTS += tests/adapters/test_nav_subscribe.sh
+$(eval $(call marie_fuzz,occmap_pgm,tests/adapters/fuzz_occmap_pgm.c adapters/common/occmap.c,))

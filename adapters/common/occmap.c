@@ -101,6 +101,11 @@ occmap_t *occmap_from_pgm(const uint8_t *buf, size_t len, const occmap_meta_t *m
         return NULL;
     }
     int bpp = maxval > 255 ? 2 : 1;
+    if (!binary && (len - pos) / 2 + 1 < (size_t)w * (size_t)h) {
+        /* Every ASCII value takes a digit and a separator: refuse before allocating. */
+        snprintf(err, errlen, "PGM data truncated: %zu bytes for %ldx%ld", len - pos, w, h);
+        return NULL;
+    }
     if (binary) {
         pos++;  /* the single whitespace after maxval */
         if (pos > len || (len - pos) / bpp / w < (size_t)h) {

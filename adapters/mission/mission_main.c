@@ -22,7 +22,7 @@ typedef struct {
     int restore_tries;
     bool restored, dirty, timer_made;
     int64_t last_goal_pub;
-    double republish_s, stale_pose_s;
+    double republish_s, stale_pose_s, resume_max_age_s;
 } mis_t;
 
 static void on_event(void *user, const char *kind, const mission_goal_t *g, const char *text)
@@ -84,6 +84,10 @@ static bool restore(mis_t *s)
     if (st.utime > now || st.start_utime > now) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
                               "saved progress is from the future (another run?): starting afresh");
+    } else if (s->resume_max_age_s > 0 && (now - st.utime) / 1e6 > s->resume_max_age_s) {
+        marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
+                              "saved progress is %.0f s old (resume_max_age_s %.0f): starting afresh",
+                              (now - st.utime) / 1e6, s->resume_max_age_s);
     } else if (mission_restore(&s->m, st.start_utime, st.current, st.goal_ids, st.goal_states, st.ngoals) == 0) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_INFO, "mission_resumed",
                               "resumed: %lld reached, %lld missed of %d, current goal index %d",
@@ -173,6 +177,7 @@ static int init(marie_component_t *c)
     }
     s->republish_s = marie_param_double(c, "republish_s");
     s->stale_pose_s = marie_param_double(c, "stale_pose_s");
+    s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
     s->sm_timeout_ms = (int)marie_param_int(c, "sharedmap_timeout_ms");
     const char *key = marie_param_str(c, "state_key");
     if (key[0])
@@ -221,6 +226,7 @@ static const marie_param_spec_t params[] = {
     { "sharedmap_channel", MARIE_PARAM_STRING, "SHAREDMAP", "the SharedMap's request channel" },
     { "state_key", MARIE_PARAM_STRING, "\"\"", "SharedMap key (default mission/<component name>)" },
     { "sharedmap_timeout_ms", MARIE_PARAM_INT, "300", "how long to wait for the SharedMap" },
+    { "resume_max_age_s", MARIE_PARAM_DOUBLE, "300", "older saved progress starts a new mission (0: any age)" },
     { 0 },
 };
 

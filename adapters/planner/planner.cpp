@@ -88,7 +88,7 @@ extern "C" void planner_params_default(planner_params_t *p)
     *p = planner_params_t{};
     p->robot_radius = 0.3;
     p->time_limit = 1.0;
-    p->simplify_time = 0.05;
+    p->simplify_time = 0.03;
     p->range = 0;
     p->algorithm = PLANNER_RRTCONNECT;
     p->unknown_is_free = false;
@@ -215,9 +215,15 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
             return -ENOENT;
         og::PathGeometric path = ss.getSolutionPath();
         if (pl->p_.simplify_time > 0) {
+            // Shortcutting works on the path's states: give it enough of them (one per
+            // metre), then drop the ones a straight line makes redundant.
             og::PathSimplifier simp(ss.getSpaceInformation());
-            simp.shortcutPath(path, 0, 0, 0.33, 0.005);
-            simp.reduceVertices(path);
+            path.interpolate((unsigned)std::max(2.0, path.length() / 1.0));
+            ompl::time::point t0 = ompl::time::now();
+            while (ompl::time::seconds(ompl::time::now() - t0) < pl->p_.simplify_time &&
+                   simp.shortcutPath(path, 30, 0, 0.33, 0.005))
+                ;
+            simp.reduceVertices(path, 0, 0, 0.33);
         }
         // Keep the exact start and goal asked for when snapping moved them.
         std::vector<std::pair<double, double>> pts;
@@ -295,9 +301,11 @@ extern "C" int planner_obstacle_count(const planner_t *pl)
 
 extern "C" int planner_path_blocked(const planner_t *pl, const double *poses, int n, double x, double y, double horizon)
 {
-    if (n < 2)
+    if (n < 2 || pl->obstacles_.empty())
         return -1;
-    // Start from the segment nearest the robot, then walk ahead up to the horizon.
+    // The path was valid on the map when planned; only the laser's obstacles can block it.
+    // Exact point-to-segment distances (no sampling) so a path planned around an obstacle
+    // never counts as blocked by it.
     int from = 0;
     double bd = INFINITY;
     for (int i = 0; i < n - 1; i++) {
@@ -307,20 +315,24 @@ extern "C" int planner_path_blocked(const planner_t *pl, const double *poses, in
         double d = std::hypot(ax + t * dx - x, ay + t * dy - y);
         if (d < bd) { bd = d; from = i; }
     }
-    double walked = 0, step = pl->res_ * 0.5;
+    const double clear = pl->p_.robot_radius - 0.5 * pl->res_;
+    double walked = 0;
     for (int i = from; i < n - 1 && walked < horizon; i++) {
-        double ax = poses[3 * i], ay = poses[3 * i + 1], bx = poses[3 * i + 3], by = poses[3 * i + 4];
-        double len = std::hypot(bx - ax, by - ay);
-        int k = std::max(1, (int)std::ceil(len / step));
-        // Skip the first stretch near the robot: a robot hugging a wall is not a blocked path.
-        for (int j = 0; j <= k && walked + len * j / k < horizon; j++) {
-            double px = ax + (bx - ax) * j / k, py = ay + (by - ay) * j / k;
-            if (std::hypot(px - x, py - y) < pl->p_.robot_radius)
+        double ax = poses[3 * i], ay = poses[3 * i + 1], dx = poses[3 * i + 3] - ax, dy = poses[3 * i + 4] - ay;
+        double l2 = dx * dx + dy * dy;
+        for (const auto &o : pl->obstacles_) {
+            double ox = pl->ox_ + (o.first % pl->w_ + 0.5) * pl->res_, oy = pl->oy_ + (o.first / pl->w_ + 0.5) * pl->res_;
+            // Right beside the robot is the avoid behaviour's business, not a reason to replan.
+            if (std::hypot(ox - x, oy - y) < pl->p_.robot_radius + 0.1)
                 continue;
-            if (!pl->free_xy(px, py))
+            double t = l2 > 0 ? std::clamp(((ox - ax) * dx + (oy - ay) * dy) / l2, 0.0, 1.0) : 0.0;
+            // Only the part of the path within the horizon counts.
+            if (walked + t * std::sqrt(l2) > horizon)
+                continue;
+            if (std::hypot(ax + t * dx - ox, ay + t * dy - oy) < clear)
                 return i;
         }
-        walked += len;
+        walked += std::sqrt(l2);
     }
     return -1;
 }

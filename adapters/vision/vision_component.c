@@ -33,6 +33,8 @@ typedef struct {
     int64_t frame_no;
     const char *camera;
     marie_timer_t *tick;
+    marie_timer_t *pending;     /* detection of the newest bus frame, once this read round ends */
+    int64_t pending_utime;
     marie_port_t *p_det, *p_goal;
 } vision_t;
 
@@ -81,7 +83,9 @@ static void release(vision_t *v)
     /* The frame timer belongs to this configuration (its rate is a parameter). */
     if (v->tick)
         marie_loop_remove_timer(marie_component_loop(v->c), v->tick);
-    v->tick = NULL;
+    if (v->pending)
+        marie_loop_remove_timer(marie_component_loop(v->c), v->pending);
+    v->tick = v->pending = NULL;
     v->det = NULL;
     v->trk = NULL;
     v->src = NULL;
@@ -178,21 +182,42 @@ static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
     marie_port_publish(v->p_det, &msg);
 }
 
+static void on_pending(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    vision_t *v = user;
+    v->pending = NULL;      /* a one-shot timer is freed after it fires */
+    if (marie_component_state(v->c) == MARIE_STATE_RUNNING)
+        process(v, &v->frame, v->pending_utime);
+}
+
+/* Every frame is decoded on arrival (so each bad one is counted), but detection runs once per
+ * read round on the newest: when detection is slower than the camera, frames that queued up
+ * meanwhile are skipped (counted) instead of adding latency. */
 static void on_image(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     vision_t *v = marie_component_user(c);
     const marie_image_t *img = msg;
     const char *why = "";
+    if (v->pending)
+        marie_component_count(c, "frames_skipped", 1);
     int rc = vision_image_decode(img, &v->frame, &why);
     if (rc == -EBADMSG) {
         marie_component_bad_input(c, "bad_image", "image on %s: %s", info->channel, why);
-        return;
-    }
-    if (rc < 0) {
+    } else if (rc < 0) {
         marie_component_drop(c, 1);
-        return;
+    } else {
+        v->pending_utime = img->utime > 0 ? img->utime : marie_component_now(c);
+        if (!v->pending)
+            v->pending = marie_loop_add_oneshot(marie_component_loop(c), 0, on_pending, v);
+        if (v->pending)
+            return;
+        marie_component_drop(c, 1);
     }
-    process(v, &v->frame, img->utime > 0 ? img->utime : marie_component_now(c));
+    /* The frame buffer now holds no valid frame: a pending detection has nothing to look at. */
+    if (v->pending) {
+        marie_loop_remove_timer(marie_component_loop(c), v->pending);
+        v->pending = NULL;
+    }
 }
 
 static int open_source(vision_t *v)

@@ -184,7 +184,11 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
             return -EINVAL;
         vision_render_tag_cells(r, tg->id, cells, 64);
         tex.setTo(o->white);
-        for (int y = 0; y < T - 2; y++)
+        /* Seen from behind (its z axis, into the tag, points back at the camera) a tag is
+         * blank paper. */
+        const double *R = tg->pose.R, *t = tg->pose.t;
+        bool front = R[2] * t[0] + R[5] * t[1] + R[8] * t[2] > 0;
+        for (int y = 0; front && y < T - 2; y++)
             for (int x = 0; x < T - 2; x++)
                 tex.at<uint8_t>(y + 1, x + 1) = cells[y * 64 + x] ? o->white : o->black;
         cv::Matx33d shift(1, 0, -roi.x, 0, 1, -roi.y, 0, 0, 1);

@@ -85,6 +85,8 @@ vision_source_t *vision_source_open(const char *uri, bool loop, char *err, size_
         }
         if (!ok || !s->cap.isOpened())
             return fail(s, err, errlen, "camera '" + u + "' cannot be opened (no such V4L2 device, or busy)");
+        /* The newest frame, not one queued while the loop was busy detecting. */
+        s->cap.set(cv::CAP_PROP_BUFFERSIZE, 1);
         if (w) {
             s->cap.set(cv::CAP_PROP_FRAME_WIDTH, w);
             s->cap.set(cv::CAP_PROP_FRAME_HEIGHT, h);
@@ -113,11 +115,17 @@ vision_source_t *vision_source_open(const char *uri, bool loop, char *err, size_
         s->path = u.rfind("video:", 0) == 0 ? u.substr(6) : u;
         if (stat(s->path.c_str(), &st) != 0)
             return fail(s, err, errlen, "video file '" + s->path + "': " + strerror(errno));
-        bool ok;
-        try {
-            ok = s->cap.open(s->path);
-        } catch (const cv::Exception &e) {
-            ok = false;
+        /* FFmpeg, then OpenCV's own MJPEG reader; letting OpenCV probe every backend
+         * (GStreamer, depth cameras over USB) is slow and leaks in those libraries. */
+        bool ok = false;
+        for (int api : { (int)cv::CAP_FFMPEG, (int)cv::CAP_OPENCV_MJPEG }) {
+            try {
+                ok = s->cap.open(s->path, api) && s->cap.isOpened();
+            } catch (const cv::Exception &) {
+                ok = false;
+            }
+            if (ok)
+                break;
         }
         if (!ok || !s->cap.isOpened())
             return fail(s, err, errlen, "video file '" + s->path + "' cannot be decoded");
@@ -208,13 +216,16 @@ int vision_video_save(const char *path, const vision_frame_t *frames, int n, dou
         return -EINVAL;
     try {
         cv::Size size(frames[0].width, frames[0].height);
-        cv::VideoWriter w(path, cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, size, false);
+        cv::VideoWriter w(path, cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, size, true);
         if (!w.isOpened())
             return -EIO;
         for (int i = 0; i < n; i++) {
             if (frames[i].width != size.width || frames[i].height != size.height)
                 return -EINVAL;
-            w.write(cv::Mat(size, CV_8UC1, frames[i].data, frames[i].stride));
+            /* Grey MJPEG from OpenCV's encoder is not read back cleanly by FFmpeg: write colour. */
+            cv::Mat bgr;
+            cv::cvtColor(cv::Mat(size, CV_8UC1, frames[i].data, frames[i].stride), bgr, cv::COLOR_GRAY2BGR);
+            w.write(bgr);
         }
     } catch (const cv::Exception &) {
         return -EIO;

@@ -153,7 +153,9 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
     const uint8_t *d = rx->data;
     int scs = d[0] >> 5;
     if (scs == CS_ABORT) {
-        cli_finish(c, co_get_u32(d + 4), NULL, 0);
+        /* An abort always ends the transfer as failed, even one carrying code 0. */
+        uint32_t code = co_get_u32(d + 4);
+        cli_finish(c, code ? code : CO_SDO_ABORT_GENERAL, NULL, 0);
         return 0;
     }
     bool mux_ok = co_get_u16(d + 1) == c->index && d[3] == c->sub;

@@ -165,7 +165,7 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
         set_phase(d, i, DRIVES_AX_BOOT);        /* retried after boot_retry_us */
         return;
     }
-    if (index == 0x1008) {
+    if (index == 0x1008 && data) {
         size_t n = len < sizeof a->name - 1 ? len : sizeof a->name - 1;
         memcpy(a->name, data, n);
         a->name[n] = 0;

@@ -301,6 +301,20 @@ static int on_stop(marie_component_t *c)
     return 0;
 }
 
+/* Paused, no cycle runs: the drives would keep their last target, so power them down too. */
+static int on_pause(marie_component_t *c)
+{
+    safe_stop(c);
+    return 0;
+}
+
+static int on_resume(marie_component_t *c)
+{
+    drives_t *d = marie_component_user(c);
+    drives_ctl_enable(d->ctl, true);
+    return 0;
+}
+
 static void on_abort(marie_component_t *c) { safe_stop(c); }
 
 static void on_quit(marie_component_t *c)
@@ -322,6 +336,8 @@ static const marie_component_def_t def = {
     .on_init = on_init,
     .on_start = on_start,
     .on_stop = on_stop,
+    .on_pause = on_pause,
+    .on_resume = on_resume,
     .on_abort = on_abort,
     .on_quit = on_quit,
 };

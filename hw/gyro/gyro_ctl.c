@@ -133,7 +133,7 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
         set_phase(g, PH_BOOT);
         return;
     }
-    if (index == 0x1008) {
+    if (index == 0x1008 && data) {
         size_t n = len < sizeof g->name - 1 ? len : sizeof g->name - 1;
         memcpy(g->name, data, n);
         g->name[n] = 0;

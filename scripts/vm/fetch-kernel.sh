@@ -2,7 +2,10 @@
 # Fetches and unpacks Debian's linux-image-amd64 kernel (vmlinuz + modules) for the VM test,
 # once; later runs only print the directory. Nothing is installed on the host.
 #   scripts/vm/fetch-kernel.sh            prints the unpacked root, e.g. /var/cache/marie-vm/6.1.0-56-amd64
-# env: MARIE_VM_CACHE  cache directory (default /var/cache/marie-vm when writable, else build/vm)
+# env: MARIE_VM_CACHE   cache directory (default /var/cache/marie-vm when writable, else build/vm)
+#      MARIE_VM_KERNEL  a kernel package to use instead of what linux-image-amd64 depends on,
+#                       e.g. linux-image-6.12.12+bpo-amd64 from bookworm-backports (needs that
+#                       archive in apt's sources); Debian's 6.1 has vcan but no gpio-sim
 set -eu
 cache=${MARIE_VM_CACHE:-}
 if [ -z "$cache" ]; then
@@ -14,11 +17,13 @@ if [ -z "$cache" ]; then
 fi
 mkdir -p "$cache"
 # A kernel already unpacked is used as is (no network needed).
-for d in "$cache"/*-amd64; do
+want=${MARIE_VM_KERNEL:+${MARIE_VM_KERNEL#linux-image-}}
+for d in "$cache"/${want:-*-amd64}; do
     if [ -f "$d/vmlinuz" ] && [ -d "$d/modules" ]; then echo "$d"; exit 0; fi
 done
-pkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
-if [ -z "$pkg" ]; then
+pkg=${MARIE_VM_KERNEL:-}
+[ -n "$pkg" ] || pkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
+if [ -z "$pkg" ] && [ -z "${MARIE_VM_KERNEL:-}" ]; then
     if [ "$(id -u)" = 0 ]; then apt-get update -q >/dev/null 2>&1 || true; fi
     pkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
 fi

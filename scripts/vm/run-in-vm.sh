@@ -28,7 +28,7 @@ while [ $# -gt 0 ]; do
     -w) wdir=$(cd "$2" && pwd); shift 2 ;;
     -t) limit=$2; shift 2 ;;
     --) shift; break ;;
-    -h|--help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,/^[^#]/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) break ;;
     esac
 done

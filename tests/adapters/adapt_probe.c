@@ -20,9 +20,13 @@ typedef struct {
     int n, head;
     double sum2, max;
     int64_t npose;
-    int reached, missed, done;
+    int reached, missed, done, resumed;
+    int64_t estop_utime, estop_cmd_utime;   /* sim time the e-stop was seen pressed, and obeyed */
     int64_t cmds, arbs;
     int64_t win_follow, win_avoid, win_idle, win_estop, win_teleop;
+    int64_t arb_bad;             /* decision records that contradict themselves */
+    int64_t pulls;               /* pull requests seen on *.PULL channels */
+    double last_pose_age;        /* pose input age in the last decision record */
     double sum_v;
     double settle_s;
     int64_t first_truth;
@@ -73,13 +77,30 @@ static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event
         p->missed++;
     else if (strcmp(m->kind, "mission_done") == 0)
         p->done = 1;
+    else if (strcmp(m->kind, "mission_resumed") == 0)
+        p->resumed++;
     if (p->verbose && m->severity >= MARIE_EVENT_T_SEV_INFO)
         fprintf(stderr, "probe: event %s %s: %s\n", m->source, m->kind, m->text);
 }
 
 static void on_cmd(const lcm_recv_buf_t *rb, const char *ch, const marie_motor_command_t *m, void *u)
 {
-    ((probe_t *)u)->cmds++;
+    probe_t *p = u;
+    p->cmds++;
+    if (p->estop_utime && !p->estop_cmd_utime && strcmp(m->source, "estop") == 0 && m->v == 0 && m->omega == 0)
+        p->estop_cmd_utime = m->utime;
+}
+
+static void on_pull(const lcm_recv_buf_t *rb, const char *ch, void *u)
+{
+    ((probe_t *)u)->pulls++;
+}
+
+static void on_estop(const lcm_recv_buf_t *rb, const char *ch, const marie_estop_t *m, void *u)
+{
+    probe_t *p = u;
+    if (m->pressed && !p->estop_utime)
+        p->estop_utime = m->utime;
 }
 
 static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitration_t *m, void *u)
@@ -87,6 +108,20 @@ static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitra
     probe_t *p = u;
     p->arbs++;
     p->sum_v += m->v;
+    /* The record must explain the decision: every behaviour and input present, the winner the
+     * highest-priority active vote, the command the winner's. */
+    int best = -1;
+    for (int i = 0; i < m->nvotes; i++)
+        if (m->votes[i].active && (best < 0 || m->votes[i].priority > m->votes[best].priority))
+            best = i;
+    for (int i = 0; i < m->ninputs; i++)
+        if (strcmp(m->inputs[i].name, "pose") == 0)
+            p->last_pose_age = m->inputs[i].age;
+    if (m->nvotes != 5 || m->ninputs != 5 || best < 0 || strcmp(m->votes[best].name, m->winner) != 0 ||
+        m->votes[best].v != m->v || m->votes[best].omega != m->omega) {
+        if (p->arb_bad++ == 0)
+            fprintf(stderr, "probe: inconsistent decision record in cycle %lld (winner %s)\n", (long long)m->cycle, m->winner);
+    }
     if (strcmp(m->winner, "follow_path") == 0) p->win_follow++;
     else if (strcmp(m->winner, "avoid") == 0) p->win_avoid++;
     else if (strcmp(m->winner, "idle") == 0) p->win_idle++;
@@ -104,10 +139,11 @@ int main(int argc, char **argv)
 {
     probe_t p = { 0 };
     double timeout = 60, max_rms = 0.15, max_err = 0.5;
-    int want_goals = 0, want_done = 0;
+    int want_goals = 0, want_done = 0, want_resumed = 0, estop_after_done = 0;
     static struct option opts[] = { { "timeout", 1, 0, 't' }, { "goals", 1, 0, 'g' }, { "done", 0, 0, 'd' },
                                     { "max-rms", 1, 0, 'r' }, { "max-err", 1, 0, 'm' }, { "settle", 1, 0, 's' },
-                                    { "verbose", 0, 0, 'v' }, { 0 } };
+                                    { "verbose", 0, 0, 'v' }, { "resumed", 0, 0, 'R' },
+                                    { "estop-after-done", 0, 0, 'E' }, { 0 } };
     int o;
     while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
         switch (o) {
@@ -118,20 +154,35 @@ int main(int argc, char **argv)
         case 'm': max_err = atof(optarg); break;
         case 's': p.settle_s = atof(optarg); break;
         case 'v': p.verbose++; break;
+        case 'R': want_resumed = 1; break;
+        case 'E': estop_after_done = 1; break;
         default: return 2;
         }
     }
     lcm_t *lcm = lcm_create(NULL);
     if (!lcm)
         return 2;
-    marie_pose_cov_t_subscribe(lcm, "SIM_TRUTH", on_truth, &p);
-    marie_pose_cov_t_subscribe(lcm, "POSE", on_pose, &p);
-    marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, &p);
-    marie_motor_command_t_subscribe(lcm, "MOTOR_COMMAND", on_cmd, &p);
-    marie_arbitration_t_subscribe(lcm, "ARBITRATION", on_arb, &p);
+    marie_pose_cov_t_subscription_t *s_truth = marie_pose_cov_t_subscribe(lcm, "SIM_TRUTH", on_truth, &p);
+    marie_pose_cov_t_subscription_t *s_pose = marie_pose_cov_t_subscribe(lcm, "POSE", on_pose, &p);
+    marie_event_t_subscription_t *s_event = marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, &p);
+    marie_motor_command_t_subscription_t *s_cmd = marie_motor_command_t_subscribe(lcm, "MOTOR_COMMAND", on_cmd, &p);
+    marie_arbitration_t_subscription_t *s_arb = marie_arbitration_t_subscribe(lcm, "ARBITRATION", on_arb, &p);
+    marie_estop_t_subscription_t *s_estop = marie_estop_t_subscribe(lcm, "ESTOP", on_estop, &p);
+    lcm_subscription_t *s_pull = lcm_subscribe(lcm, ".*\\.PULL", on_pull, &p);
+    p.last_pose_age = -1;
     int64_t end = marie_mono_us() + (int64_t)(timeout * 1e6);
     while (marie_mono_us() < end && !(want_done && p.done))
         lcm_handle_timeout(lcm, 50);
+    if (estop_after_done && p.done) {
+        /* Press the (simulated) e-stop button and wait until the arbitration obeys it. */
+        marie_estop_t e = { .utime = marie_wall_us(), .pressed = 1, .source = "adapt_probe" };
+        marie_estop_t_publish(lcm, "SIM_ESTOP", &e);
+        int64_t e_end = marie_mono_us() + 5000000;
+        while (marie_mono_us() < e_end && !p.estop_cmd_utime)
+            lcm_handle_timeout(lcm, 20);
+        printf("probe: e-stop seen at sim %.3f s, obeyed %.3f s later\n", p.estop_utime / 1e6,
+               p.estop_cmd_utime ? (p.estop_cmd_utime - p.estop_utime) / 1e6 : -1.0);
+    }
     double rms = p.npose ? sqrt(p.sum2 / p.npose) : INFINITY;
     printf("probe: goals reached %d missed %d done %d; localization rms %.3f m max %.3f m over %lld poses; "
            "%lld commands, %lld decisions\n", p.reached, p.missed, p.done, rms, p.max, (long long)p.npose,
@@ -140,7 +191,20 @@ int main(int argc, char **argv)
         printf("probe: winners follow %lld avoid %lld idle %lld estop %lld teleop %lld; mean v %.2f m/s\n",
                (long long)p.win_follow, (long long)p.win_avoid, (long long)p.win_idle, (long long)p.win_estop,
                (long long)p.win_teleop, p.sum_v / p.arbs);
+    fflush(stdout);
+    marie_pose_cov_t_unsubscribe(lcm, s_truth);
+    marie_pose_cov_t_unsubscribe(lcm, s_pose);
+    marie_event_t_unsubscribe(lcm, s_event);
+    marie_motor_command_t_unsubscribe(lcm, s_cmd);
+    marie_arbitration_t_unsubscribe(lcm, s_arb);
+    marie_estop_t_unsubscribe(lcm, s_estop);
+    lcm_unsubscribe(lcm, s_pull);
     lcm_destroy(lcm);
-    int ok = p.npose > 0 && rms < max_rms && p.max < max_err && p.reached >= want_goals && (!want_done || p.done);
+    printf("probe: mission resumed %d time(s)\n", p.resumed);
+    printf("probe: %lld inconsistent decision records\n", (long long)p.arb_bad);
+    printf("probe: %lld pull requests; pose age in the last decision %.3f s\n", (long long)p.pulls, p.last_pose_age);
+    int ok = p.npose > 0 && p.arb_bad == 0 && rms < max_rms && p.max < max_err && p.reached >= want_goals && (!want_done || p.done) &&
+             (!want_resumed || p.resumed > 0) &&
+             (!estop_after_done || (p.estop_cmd_utime && p.estop_cmd_utime - p.estop_utime <= 300000));
     return ok ? 0 : 1;
 }

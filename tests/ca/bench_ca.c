@@ -14,8 +14,8 @@
 #include "lcmtypes/marie_pose2d_t.h"
 #include "tests/ca/ca_test.h"
 
-#define BLOCKS 10
-#define PER_BLOCK 500
+#define BLOCKS 200
+#define PER_BLOCK 20
 
 typedef struct {
     const char *name;
@@ -60,6 +60,19 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
     p->got_at = marie_mono_us();
 }
 
+static void on_sm_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    path_t *p = user;
+    marie_sharedmap_reply_t r;
+    if (ca_view_sharedmap_reply(rbuf->data, rbuf->data_size, &r) < 0)
+        return;
+    free(r.keys);
+    if (r.status != 0)
+        return;
+    p->got_id = r.request_id;
+    p->got_at = marie_mono_us();
+}
+
 static bool arrived(void *user) { path_t *p = user; return p->got_id == p->n + 1; }
 
 static pid_t spawn_relay(const char *in, const char *out)
@@ -75,12 +88,19 @@ static pid_t spawn_relay(const char *in, const char *out)
     return pid;
 }
 
-/* One message through a path: publish on `in` (or a pull request), wait for it back. */
-static int one(cat_bus_t *bus, path_t *p, const char *in, bool pull)
+enum { HOP, PULL, GET };
+
+/* One message through a path: publish on `in` (or a request), wait for it back. */
+static int one(cat_bus_t *bus, path_t *p, const char *in, int how)
 {
     int64_t id = p->n + 1;
     int64_t t0 = marie_mono_us();
-    if (pull) {
+    if (how == GET) {
+        marie_sharedmap_request_t req = { .request_id = id, .client = "bench", .reply_channel = "SM_REPLY",
+                                          .op = MARIE_SHAREDMAP_REQUEST_T_OP_GET, .key = "bench/7", .type = "",
+                                          .data = (uint8_t *)"" };
+        marie_sharedmap_request_t_publish(cat_lcm(bus), "SHAREDMAP", &req);
+    } else if (how == PULL) {
         marie_pull_request_t req = { .utime = 0, .request_id = id, .requester = "bench", .channel = "MB_IN",
                                      .reply_channel = "MB_REPLY", .timeout_ms = 500 };
         marie_pull_request_t_publish(cat_lcm(bus), "MB_IN.PULL", &req);
@@ -127,44 +147,52 @@ int main(void)
               cat_wait_running(bus, "b_mb", 5000) && cat_wait_running(bus, "b_sm", 5000);
     int status = up ? 0 : 1;
 
-    path_t paths[4] = {
+    enum { NP = 5 };
+    path_t paths[NP] = {
         { .name = "relay", .out = "R_OUT" }, { .name = "splitter", .out = "SP_OUT" },
         { .name = "switch", .out = "SW_OUT" }, { .name = "mailbox_pull", .out = "MB_REPLY" },
+        { .name = "sharedmap_get", .out = "SM_REPLY" },
     };
-    const char *ins[4] = { "R_IN", "SP_IN", "SW_IN", NULL };
-    for (int i = 0; i < 4; i++) {
+    const char *ins[NP] = { "R_IN", "SP_IN", "SW_IN", NULL, NULL };
+    const int how[NP] = { HOP, HOP, HOP, PULL, GET };
+    lcm_msg_handler_t handlers[NP] = { on_out, on_out, on_out, on_pull_reply, on_sm_reply };
+    for (int i = 0; i < NP; i++) {
         paths[i].lat = calloc(BLOCKS * PER_BLOCK, sizeof(int64_t));
-        lcm_subscribe(cat_lcm(bus), paths[i].out, i == 3 ? on_pull_reply : on_out, &paths[i]);
+        lcm_subscribe(cat_lcm(bus), paths[i].out, handlers[i], &paths[i]);
     }
     marie_pose2d_t seed = { .x = 1 };
     marie_pose2d_t_publish(cat_lcm(bus), "MB_IN", &seed);
+    sharedmap_client_t *seeder = sharedmap_client_create(cat_lcm(bus), NULL, "bench-seed");
+    if (up && sharedmap_client_set(seeder, "bench/7", &marie_type_pose2d_t, &seed, 2000) != 0)
+        up = false;
+    sharedmap_client_destroy(seeder);
     /* the relay has no heartbeat: wait until it passes messages */
     for (int i = 0; i < 50 && up; i++) {
         paths[0].n = 0;
-        if (one(bus, &paths[0], "R_IN", false) == 0)
+        if (one(bus, &paths[0], "R_IN", HOP) == 0)
             break;
     }
     /* warm up, then interleave blocks so load changes on this machine hit every path alike */
-    for (int i = 0; i < 4; i++) {
+    for (int i = 0; i < NP; i++) {
         for (int k = 0; up && k < 50; k++)
-            one(bus, &paths[i], ins[i], i == 3);
+            one(bus, &paths[i], ins[i], how[i]);
         paths[i].n = 0;
     }
     int lost = 0;
     for (int b = 0; up && b < BLOCKS; b++)
-        for (int i = 0; i < 4; i++)
+        for (int i = 0; i < NP; i++)
             for (int k = 0; k < PER_BLOCK; k++)
-                if (one(bus, &paths[i], ins[i], i == 3) < 0)
+                if (one(bus, &paths[i], ins[i], how[i]) < 0)
                     lost++;
     if (up) {
         double base50 = (double)pct(&paths[0], 0.5), base99 = (double)pct(&paths[0], 0.99);
         row("relay_hop_p50", base50, "us", 0);
         row("relay_hop_p99", base99, "us", 0);
-        for (int i = 1; i < 4; i++) {
+        for (int i = 1; i < NP; i++) {
             char m[64];
-            snprintf(m, sizeof m, "%s_%s_p50", paths[i].name, i == 3 ? "rtt" : "hop");
+            snprintf(m, sizeof m, "%s_%s_p50", paths[i].name, how[i] != HOP ? "rtt" : "hop");
             row(m, (double)pct(&paths[i], 0.5), "us", base50);
-            snprintf(m, sizeof m, "%s_%s_p99", paths[i].name, i == 3 ? "rtt" : "hop");
+            snprintf(m, sizeof m, "%s_%s_p99", paths[i].name, how[i] != HOP ? "rtt" : "hop");
             row(m, (double)pct(&paths[i], 0.99), "us", base99);
         }
         if (lost)
@@ -186,6 +214,7 @@ int main(void)
         }
         double secs = (marie_mono_us() - t0) / 1e6;
         row("sharedmap_acked_writes", n / secs, "writes/s", 0);
+
         if (failed)
             fprintf(stderr, "bench_ca: %d SharedMap writes not acknowledged\n", failed);
         sharedmap_client_destroy(cl);
@@ -196,6 +225,8 @@ int main(void)
     cat_stop(sm, SIGTERM);
     kill(relay, SIGTERM);
     waitpid(relay, NULL, 0);
+    for (int i = 0; i < NP; i++)
+        free(paths[i].lat);
     cat_rmdir(dir);
     cat_bus_destroy(bus);
     return status;

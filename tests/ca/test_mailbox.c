@@ -254,6 +254,46 @@ static void test_waiting_requests_are_bounded(void **state)
     mailbox_destroy(mb);    /* frees the waiting requests */
 }
 
+/* In-process use over a real bus: attach to an lcm_t the component already has. */
+static int replies_seen;
+static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_pull_reply_t r;
+    if (ca_view_pull_reply(rbuf->data, rbuf->data_size, &r) == 0 && r.status == MARIE_PULL_REPLY_T_STATUS_OK &&
+        r.request_id == 77)
+        replies_seen++;
+}
+
+static void test_attached_mailbox_serves_the_bus(void **state)
+{
+    lcm_t *lcm = lcm_create(NULL);
+    assert_non_null(lcm);
+    mailbox_t *mb = mailbox_create("INPROC", &marie_type_pose2d_t, 2, NULL);
+    assert_int_equal(mailbox_attach(mb, lcm), 0);
+    assert_string_equal(mailbox_pull_channel(mb), "INPROC.PULL");
+    lcm_subscription_t *sub = lcm_subscribe(lcm, "INPROC_REPLY", on_reply, NULL);
+    marie_pose2d_t p = { .x = 5 };
+    marie_pose2d_t_publish(lcm, "INPROC", &p);
+    for (int i = 0; i < 100 && mailbox_count(mb) == 0; i++)
+        lcm_handle_timeout(lcm, 20);
+    assert_int_equal(mailbox_count(mb), 1);
+    marie_pull_request_t r = req(77, 100);
+    r.channel = "INPROC";
+    r.reply_channel = "INPROC_REPLY";
+    marie_pull_request_t_publish(lcm, "INPROC.PULL", &r);
+    for (int i = 0; i < 100 && !replies_seen; i++)
+        lcm_handle_timeout(lcm, 20);
+    assert_int_equal(replies_seen, 1);
+    mailbox_detach(mb);
+    marie_pose2d_t_publish(lcm, "INPROC", &p);
+    for (int i = 0; i < 5; i++)
+        lcm_handle_timeout(lcm, 20);
+    assert_int_equal(mailbox_stats(mb)->received, 1);
+    lcm_unsubscribe(lcm, sub);
+    mailbox_destroy(mb);
+    lcm_destroy(lcm);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -265,6 +305,7 @@ int main(void)
         cmocka_unit_test(test_untyped_mailbox_takes_any_payload),
         cmocka_unit_test(test_bad_requests_counted),
         cmocka_unit_test(test_waiting_requests_are_bounded),
+        cmocka_unit_test(test_attached_mailbox_serves_the_bus),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -132,6 +132,55 @@ static void test_malformed_requests_counted(void **state)
     assert_int_equal(sharedmap_client_get(cl, "robot/pose", &marie_type_pose2d_t, &q, 1000, NULL), 0);
 }
 
+typedef struct {
+    int calls, status;
+    double x;
+} async_t;
+
+static void on_done(sharedmap_client_t *c, const sharedmap_result_t *r, void *user)
+{
+    async_t *a = user;
+    a->calls++;
+    a->status = r->status;
+    marie_pose2d_t p;
+    if (r->status == 0 && r->len && marie_pose2d_t_decode(r->data, 0, (int)r->len, &p) >= 0)
+        a->x = p.x;
+}
+
+static bool both_done(void *user) { async_t *a = user; return a[0].calls && a[1].calls; }
+typedef struct {
+    async_t a;
+    sharedmap_client_t *c;
+} ticking_t;
+
+static bool timed_out(void *user)
+{
+    ticking_t *t = user;
+    sharedmap_client_tick(t->c);
+    return t->a.calls > 0;
+}
+
+static void test_async_calls(void **state)
+{
+    async_t a[2] = {{0}};
+    marie_pose2d_t p = { .x = 31 };
+    assert_int_equal(sharedmap_client_set_async(cl, "async", &marie_type_pose2d_t, &p, 1000, on_done, &a[0]), 0);
+    assert_int_equal(sharedmap_client_get_async(cl, "async", 1000, on_done, &a[1]), 0);
+    assert_true(cat_spin(bus, 3000, both_done, a));
+    assert_int_equal(a[0].status, 0);
+    assert_int_equal(a[1].status, 0);       /* requests are served in order */
+    assert_true(a[1].x == 31);
+    assert_int_equal(sharedmap_client_tick(cl), 0);
+    /* nobody listens on this channel: the callback reports the timeout, once */
+    ticking_t t = { {0}, sharedmap_client_create(cat_lcm(bus), "NOBODY", "t2") };
+    assert_int_equal(sharedmap_client_get_async(t.c, "x", 100, on_done, &t.a), 0);
+    assert_true(cat_spin(bus, 3000, timed_out, &t));
+    assert_int_equal(t.a.status, -ETIMEDOUT);
+    cat_spin(bus, 200, timed_out, &t);
+    assert_int_equal(t.a.calls, 1);
+    sharedmap_client_destroy(t.c);
+}
+
 static void test_values_survive_restart(void **state)
 {
     marie_pose2d_t p = { .x = 77 };
@@ -153,6 +202,7 @@ int main(void)
         cmocka_unit_test(test_set_get_delete_list),
         cmocka_unit_test(test_snapshot_published_on_change),
         cmocka_unit_test(test_malformed_requests_counted),
+        cmocka_unit_test(test_async_calls),
         cmocka_unit_test(test_values_survive_restart),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

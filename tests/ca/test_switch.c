@@ -121,11 +121,26 @@ static void test_unknown_selection_refused_with_event(void **state)
     unlink(path);
 }
 
+static void test_unsaved_selection_not_made(void **state)
+{
+    snprintf(path, sizeof path, "/nonexistent-dir/sw.sel");
+    capture_t c = {0};
+    ca_switch_t *sw = make(&c);
+    ca_switch_restore(sw, "auto");
+    marie_switch_select_t sel = { .request_id = 3, .requester = "op", .input = "teleop" };
+    assert_int_equal(ca_switch_handle_select(sw, &sel, 1), -EIO);
+    assert_int_equal(c.last.status, MARIE_SWITCH_STATE_T_STATUS_IO_ERROR);
+    assert_string_equal(ca_switch_selected(sw), "auto");
+    ca_switch_destroy(sw);
+    marie_switch_state_t_decode_cleanup(&c.last);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_forwards_selected_and_persists),
         cmocka_unit_test(test_unknown_selection_refused_with_event),
+        cmocka_unit_test(test_unsaved_selection_not_made),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

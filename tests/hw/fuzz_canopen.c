@@ -1,5 +1,6 @@
 /* fuzz_canopen: arbitrary frames into every CANopen frame handler (SDO client and server,
- * device node, heartbeat consumer, EMCY, PDO, the wheel-drive master and a virtual drive).
+ * device node, heartbeat consumer, EMCY, PDO, the wheel-drive and gyro masters, a virtual
+ * drive and a virtual gyro).
  * Input: records of [id_hi, id_lo, len, 8 data bytes]. */
 #include <stddef.h>
 #include <stdint.h>
@@ -12,6 +13,8 @@
 #include "hw/canopen/sdo.h"
 #include "hw/drives/drives_ctl.h"
 #include "hw/drives/vdrive.h"
+#include "hw/gyro/gyro_ctl.h"
+#include "hw/gyro/vgyro.h"
 
 static uint32_t rd(void *u, uint16_t i, uint8_t s, uint8_t *b, size_t cap, size_t *len)
 {
@@ -24,6 +27,8 @@ static const co_sdo_server_ops_t ops = { rd, wr };
 static void done(void *u, co_sdo_client_t *c, uint16_t i, uint8_t s, uint32_t a, const uint8_t *d, size_t l) {}
 static void hbcb(void *u, uint8_t n, co_hb_event_t e, co_nmt_state_t s) {}
 static void drcb(void *u, int axis, drives_ev_t e, uint32_t code) {}
+static void gscb(void *u, double rate, uint8_t status) {}
+static void gecb(void *u, gyro_ev_t e, uint32_t code) {}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
@@ -41,10 +46,18 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     vdrive_cfg_default(&vc, 1);
     vc.rpdo_timeout_us = 5000;
     vdrive_t *vd = vdrive_create(&vc);
+    gyro_cfg_t gc;
+    gyro_cfg_default(&gc);
+    gyro_ctl_t *gy = gyro_ctl_create(&gc, gscb, gecb, NULL);
+    vgyro_cfg_t vgc;
+    vgyro_cfg_default(&vgc, 0x20);
+    vgyro_t *vg = vgyro_create(&vgc);
     struct can_frame tx[16], t1;
     int64_t now = 0;
     vdrive_boot(vd, now, tx, 16);
     drives_ctl_start(ctl, now, tx, 16);
+    gyro_ctl_start(gy, now, tx, 16);
+    vgyro_boot(vg, now, tx, 16);
     co_nmt_encode(&t1, CO_NMT_CMD_START, 0);
     vdrive_feed(vd, &t1, now, tx, 16);
     for (size_t off = 0; off + 11 <= size; off += 11) {
@@ -59,7 +72,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         co_sdo_server_feed(&srv, &f, &t1);
         if (!co_sdo_client_busy(&cli)) {
             if (data[off + 2] & 0x10)
-                co_sdo_client_download(&cli, 0x2000, 0, data, size < 200 ? size + 1 : 200, now, &t1);
+                co_sdo_client_download(&cli, 0x2000, 0, data, size < 200 ? size : 200, now, &t1);
             else
                 co_sdo_client_upload(&cli, 0x2000, 0, now, &t1);
         }
@@ -84,7 +97,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         vdrive_feed(vd, &f, now, tx, 16);
         vdrive_step(vd, 0.0007);
         vdrive_poll(vd, now, tx, 16);
+        gyro_ctl_feed(gy, &f, now, tx, 16);
+        gyro_ctl_poll(gy, now, tx, 16);
+        vgyro_feed(vg, &f, now, tx, 16);
+        vgyro_poll(vg, now, tx, 16);
     }
+    gyro_ctl_destroy(gy);
+    vgyro_destroy(vg);
     drives_ctl_destroy(ctl);
     vdrive_destroy(vd);
     return 0;

@@ -269,6 +269,12 @@ static void sdo_aborts_and_timeouts(void **state)
     co_sdo_client_upload(&c, 0x1000, 0, 0, &req);
     resp.can_id = 0x585; resp.len = 4;
     assert_int_equal(co_sdo_client_feed(&c, &resp, 0, &req, &ready), -EBADMSG);
+    /* an abort frame with code 0 still fails the transfer */
+    co_sdo_client_upload(&c, 0x1008, 0, 0, &req);
+    struct can_frame ab0 = { .can_id = 0x585, .len = 8, .data = { 0x80, 0x08, 0x10, 0 } };
+    assert_int_equal(co_sdo_client_feed(&c, &ab0, 0, &req, &ready), 0);
+    assert_int_equal(d.abort, CO_SDO_ABORT_GENERAL);
+    assert_false(co_sdo_client_busy(&c));
     /* frames for other nodes are ignored */
     resp.can_id = 0x586;
     assert_int_equal(co_sdo_server_feed(&s, &resp, &req), 0);

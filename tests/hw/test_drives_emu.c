@@ -26,6 +26,7 @@
 #include "lcmtypes/marie_estop_t.h"
 #include "lcmtypes/marie_gyro_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
+#include "lcmtypes/marie_lifecycle_command_t.h"
 #include "lcmtypes/marie_motor_command_t.h"
 #include "lcmtypes/marie_wheel_encoders_t.h"
 
@@ -160,6 +161,12 @@ static int group_setup(void **state)
     snprintf(sock, sizeof sock, "/tmp/marie-test-drives-emu-%d.sock", getpid());
     snprintf(url, sizeof url, "can=emu:%s", sock);
     setenv("MARIE_LOG", "info", 0);
+    const char *names[] = { "marie-canbus", "marie-vcan-devices", "marie-drives", "marie-gyro" };
+    for (int i = 0; i < 4; i++) {
+        char log[512];
+        snprintf(log, sizeof log, "%s/test_drives_emu.%s.log", logdir, names[i]);
+        unlink(log);    /* one run per log; a restarted program appends */
+    }
     bus_pid = spawn("marie-canbus", (char *[]){ sock, NULL });
     for (int i = 0; i < 50 && access(sock, F_OK) != 0; i++)
         usleep(100000);
@@ -279,6 +286,64 @@ static void bus_off_is_detected_and_recovered(void **state)
     assert_true(wait_for(wheels_at_command, 10));
 }
 
+static bool gyro_fault(void) { return ngyro > 0 && gyr.status == 2; }
+static bool gyro_ok(void) { return ngyro > 0 && gyr.status == 0; }
+
+/* A gyro sensor fault: EMCY 0x7300 and status 2 in every sample, until it clears. */
+static void gyro_fault_reported_in_samples(void **state)
+{
+    kill(dev_pid, SIGUSR2);
+    assert_true(wait_for(gyro_fault, 10));
+    kill(dev_pid, SIGUSR2);
+    assert_true(wait_for(gyro_ok, 10));
+}
+
+static int64_t hb_state = -1;
+static void on_hb_state(const lcm_recv_buf_t *rb, const char *ch, const marie_heartbeat_t *m, void *u)
+{
+    if (strcmp(m->component, "marie-drives") == 0)
+        hb_state = m->state;
+}
+static bool drives_paused(void) { return hb_state == MARIE_LIFECYCLE_COMMAND_T_STATE_PAUSED; }
+static bool drives_running(void) { return hb_state == MARIE_LIFECYCLE_COMMAND_T_STATE_RUNNING; }
+
+static void lifecycle(int8_t cmd)
+{
+    static int64_t id = 100;
+    marie_lifecycle_command_t m = { .utime = marie_wall_us(), .request_id = id++, .sender = "test",
+                                    .target = "marie-drives", .command = cmd };
+    marie_lifecycle_command_t_publish(lcm, "MARIE_LIFECYCLE", &m);
+}
+
+/* Paused, the driver runs no cycle: it must power the drives down rather than leave them at
+ * the last target. The encoder publisher is paused too, so the spy watches RPDO1. */
+static void pause_powers_down_and_resume_restores(void **state)
+{
+    marie_heartbeat_t_subscription_t *s = marie_heartbeat_t_subscribe(lcm, "MARIE_HEARTBEAT", on_hb_state, NULL);
+    assert_true(wait_for(wheels_at_command, 10));
+    char u[112];
+    snprintf(u, sizeof u, "emu:%s", sock);
+    spy = can_bus_open(u);
+    assert_non_null(spy);
+    lifecycle(MARIE_LIFECYCLE_COMMAND_T_CMD_PAUSE);
+    bool paused = wait_for(drives_paused, 10);
+    wait_for(NULL, 0.5);
+    uint16_t last_cw = 0xFFFF;
+    struct can_frame f;
+    while (can_bus_read(spy, &f) == 1)
+        if (f.can_id == 0x201 && f.len == 6)
+            last_cw = (uint16_t)(f.data[0] | f.data[1] << 8);
+    can_bus_close(spy);
+    spy = NULL;
+    lifecycle(MARIE_LIFECYCLE_COMMAND_T_CMD_RESUME);
+    bool running = wait_for(drives_running, 10);
+    marie_heartbeat_t_unsubscribe(lcm, s);
+    assert_true(paused);
+    assert_int_equal(last_cw, 0x0000);             /* disable voltage */
+    assert_true(running);
+    assert_true(wait_for(wheels_at_command, 10));
+}
+
 static void bus_daemon_restart_reconnects(void **state)
 {
     stop(&bus_pid);
@@ -304,6 +369,8 @@ int main(void)
         cmocka_unit_test(estop_stops_and_release_resumes),
         cmocka_unit_test(drive_fault_is_counted_and_reset),
         cmocka_unit_test(bus_off_is_detected_and_recovered),
+        cmocka_unit_test(gyro_fault_reported_in_samples),
+        cmocka_unit_test(pause_powers_down_and_resume_restores),
         cmocka_unit_test(bus_daemon_restart_reconnects),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);

@@ -42,7 +42,9 @@ cp /tmp/candump.log $out/candump.log 2>/dev/null
 val() { sed -n "s/^$1=//p" /tmp/check.txt; }
 # little-endian hex bytes (8 hex digits) to a signed 32-bit number
 le32() { b=$1; v=$(printf '%d' "0x$(echo "$b" | sed 's/\(..\)\(..\)\(..\)\(..\)/\4\3\2\1/')"); [ "$v" -ge 2147483648 ] && v=$((v - 4294967296)); echo "$v"; }
-last() { grep " vcan0 $1#" /tmp/candump.log | tail -${2:-1} | head -1 | sed 's/.*#//'; }
+# the frames on the wire before the driver published what it reported (candump buffers its
+# output, so time stamps, not file position, tell what came before)
+last() { m=$(val ${3:-enc}_time); awk -v m="$m" '{ t = substr($1, 2, length($1) - 2) } t + 0 <= m + 0' /tmp/candump.log | grep " vcan0 $1#" | tail -${2:-1} | head -1 | sed 's/.*#//'; }
 count() { grep -c " vcan0 $1#" /tmp/candump.log; }
 
 check "drivers report the commanded wheel velocities over LCM" [ "$check_rc" -eq 0 ]
@@ -56,7 +58,7 @@ r=$(last 201)
 echo "last RPDO1 left: $r"
 check "RPDO1 carries enable-operation and the kinematic target" [ "$r" = "0F00300A0000" ]
 # the left drive's TPDO2 (actual velocity) a little before the end, against the driver's report
-t=$(last 281 10)
+t=$(last 281 2)
 cnt=$(le32 "$t")
 echo "TPDO2 left velocity: $cnt increments/s; driver reported $(val left_velocity) rad/s"
 check "driver's wheel velocity matches the drive's TPDO on the wire" \
@@ -64,7 +66,7 @@ check "driver's wheel velocity matches the drive's TPDO on the wire" \
 check "candump sees the left drive's EMCY 0x2310 (over-current)" grep -q " vcan0 081#1023" /tmp/candump.log
 check "the driver answers the fault with a fault reset (controlword 0x0080)" grep -q " vcan0 201#8000" /tmp/candump.log
 check "and enables operation again after it" sh -c 'sed -n "/ vcan0 201#8000/,\$p" /tmp/candump.log | grep -q " vcan0 201#0F00"'
-g=$(grep " vcan0 1A0#" /tmp/candump.log | grep -B10 -m1 "" | tail -1 | sed 's/.*#//')
+g=$(last 1A0 1 gyro)
 graw=$(le32 "$(echo "$g" | cut -c1-8)")
 echo "gyro TPDO raw $graw urad/s; driver yaw_rate $(val yaw_rate) + bias $(val bias)"
 check "gyro driver's rate plus bias matches the raw TPDO" \

@@ -16,6 +16,7 @@
 static marie_wheel_encoders_t enc;
 static int nenc, ngyro;
 static double yaw, bias;
+static int64_t gyro_utime;
 static int bias_valid;
 
 static void on_enc(const lcm_recv_buf_t *rb, const char *ch, const marie_wheel_encoders_t *m, void *u)
@@ -27,6 +28,7 @@ static void on_enc(const lcm_recv_buf_t *rb, const char *ch, const marie_wheel_e
 static void on_gyro(const lcm_recv_buf_t *rb, const char *ch, const marie_gyro_t *m, void *u)
 {
     yaw = m->yaw_rate;
+    gyro_utime = m->utime;
     bias = m->bias;
     bias_valid = m->bias_valid;
     ngyro++;
@@ -64,6 +66,8 @@ int main(int argc, char **argv)
     printf("left_velocity=%.4f\nright_velocity=%.4f\nleft_ticks=%d\nright_ticks=%d\n", enc.left_velocity,
            enc.right_velocity, enc.left_ticks, enc.right_ticks);
     printf("yaw_rate=%.4f\nbias=%.4f\nbias_valid=%d\n", yaw, bias, bias_valid);
+    /* when the drivers published these (wall clock), to find the frames behind them */
+    printf("enc_time=%.6f\ngyro_time=%.6f\n", enc.utime / 1e6, gyro_utime / 1e6);
     marie_wheel_encoders_t_unsubscribe(lcm, se);
     marie_gyro_t_unsubscribe(lcm, sg);
     lcm_destroy(lcm);

@@ -40,6 +40,33 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: marie-test-order [-k KEY] [-m signed|unsigned|forged] [-s SEQ] [-S SENDER] [-r N] OP [TARGET...]\n");
         return 2;
     }
+    if (strcmp(mode, "garbage") == 0) {
+        /* malformed messages on every channel a manager reads, including a string length
+         * of -1, which liblcm's own decoder would follow into a crash */
+        lcm_t *lcm = lcm_create(marie_default_url());
+        if (!lcm)
+            return 1;
+        static const char *const channels[] = {MARIE_CH_AM_ORDER, "MARIE_HEARTBEAT", MARIE_CH_AM_STATUS};
+        srand(7);
+        for (int i = 0; i < repeat; i++) {
+            uint8_t buf[300];
+            size_t n = (size_t)(rand() % (int)sizeof buf);
+            for (size_t k = 0; k < n; k++)
+                buf[k] = (uint8_t)rand();
+            if (i % 2 == 0 && n > 24) {
+                marie_am_order_t o = {.sender = "x", .host = "*", .arg = "", .system_path = "", .system_text = ""};
+                int len = marie_am_order_t_encode(buf, 0, sizeof buf, &o);
+                if (len > 20) {
+                    n = (size_t)len;
+                    memset(buf + 16, 0xff, 4);
+                }
+            }
+            lcm_publish(lcm, channels[i % 3], buf, (unsigned)n);
+        }
+        lcm_destroy(lcm);
+        printf("sent %d\n", repeat);
+        return 0;
+    }
     int op = marie_am_op_parse(argv[optind]);
     if (op < 0)
         return 2;
@@ -59,7 +86,7 @@ int main(int argc, char **argv)
     lcm_t *lcm = lcm_create(marie_default_url());
     if (!lcm)
         return 1;
-    marie_am_reply_t_subscribe(lcm, MARIE_CH_AM_REPLY, on_reply, (void *)sender);
+    marie_am_reply_t_subscription_t *sub = marie_am_reply_t_subscribe(lcm, MARIE_CH_AM_REPLY, on_reply, (void *)sender);
     marie_am_order_t o = {
         .utime = marie_wall_us(), .sender = (char *)sender, .seq = seq ? seq : marie_wall_us(), .host = "*",
         .op = (int8_t)op, .ntargets = argc - optind - 1, .targets = argv + optind + 1, .arg = "",
@@ -78,6 +105,7 @@ int main(int argc, char **argv)
         printf("%s\n", answer[0] ? answer : "no answer");
         fflush(stdout);
     }
+    marie_am_reply_t_unsubscribe(lcm, sub);
     marie_auth_destroy(auth);
     lcm_destroy(lcm);
     return 0;

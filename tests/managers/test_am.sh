@@ -48,6 +48,14 @@ am_bad_refused() {
 }
 check "marie-am refuses a bad --system file" am_bad_refused
 
+bad_profile() { out=$("$M" up tests/data/managers/single.yaml --profile nosuch 2>&1); [ $? -eq 2 ] && echo "$out" | grep -q "single.yaml:[0-9]*:[0-9]*: no profile 'nosuch'"; }
+check "unknown profile refused with file:line:col" bad_profile
+hashes() {
+    out=$("$M" hash tests/data/managers/single.yaml --profile sim --profile robot); echo "$out"
+    echo "$out" | grep -q '^a  *same' && echo "$out" | grep -q '^c  *differs'
+}
+check "hash: shared components configured the same in sim and robot" hashes
+
 # -- up: dependency order a -> b -> c
 check "up returns when everything runs" "$M" up tests/data/managers/single.yaml
 dep_order() {
@@ -57,6 +65,8 @@ dep_order() {
 }
 check "components start in dependency order" dep_order
 check "ps shows all running" sh -c "$M ps | grep -c ' running ' | grep -qx 3"
+recorded() { h=$("$M" hash tests/data/managers/single.yaml | awk '$1 == "b" {print $2}'); grep -q "^b $h " "$T/am/config-hashes" && [ "$(field b config_hash)" = "$h" ]; }
+check "manager records each component's configuration hash" recorded
 check "policy never: failed component stays failed" wait_for 5 is_state once failed
 
 # -- kill -9 gets a component restarted
@@ -111,6 +121,10 @@ check "replayed order refused" replay
 sleep 0.3
 check "replay started nothing" c_stopped
 check "refusals counted in status" sh -c "$M --json ps | grep -q '\"orders_refused\":[1-9]'"
+garbage() {
+    "$OT" -m garbage -r 600 x && sleep 0.5 && kill -0 "$AM_PID" && "$M" ps > /dev/null
+}
+check "malformed messages do not crash the manager" garbage
 insecure_key() {
     cp "$T/key" "$T/key644"; chmod 644 "$T/key644"
     "$M" --key "$T/key644" start c; [ $? -eq 4 ]

@@ -152,7 +152,8 @@ static lcm_t *bus(void)
     rx.clock = -1;
     lcm_t *l = lcm_create(marie_default_url());   /* 8 MB receive buffer: speed 0 sends bursts */
     assert_non_null(l);
-    lcm_subscribe(l, ".*", on_any, NULL);
+    /* LCM drops past a subscription's queue capacity (30 by default): room for bursts. */
+    lcm_subscription_set_queue_capacity(lcm_subscribe(l, ".*", on_any, NULL), 100000);
     return l;
 }
 
@@ -239,7 +240,7 @@ static void test_channels_types_rates(void **state)
 static void test_motor_command_and_watchdog(void **state)
 {
     lcm_t *l = bus();
-    const char *extra[] = { "--speed", "10", NULL };
+    const char *extra[] = { "--speed", "3", NULL };
     start_sim(extra);
     until_clock(l, 500000);
     double x0 = rx.truth.pose.x;
@@ -336,11 +337,13 @@ static struct {
     long ticks;
     int64_t first, last;
     int64_t max_gap, min_gap;
+    int64_t overruns;
 } ck;
 
 static void on_tick(marie_component_t *c, int64_t overruns)
 {
     int64_t now = marie_component_now(c);
+    ck.overruns += overruns;
     if (ck.ticks) {
         int64_t gap = now - ck.last;
         if (gap > ck.max_gap) ck.max_gap = gap;
@@ -381,12 +384,13 @@ static void test_timers_follow_sim_clock(void **state)
     double wall = (marie_mono_us() - w0) / 1e6;
     stop_sim();
     double sim = (ck.last - ck.first) / 1e6;
-    fprintf(stderr, "%ld ticks over %.2f s of sim time (%.2f s of wall time); gaps %.3f..%.3f s\n",
-            ck.ticks, sim, wall, ck.min_gap / 1e6, ck.max_gap / 1e6);
+    fprintf(stderr, "%ld ticks (%lld overruns) over %.2f s of sim time (%.2f s of wall time); gaps %.3f..%.3f s\n",
+            ck.ticks, (long long)ck.overruns, sim, wall, ck.min_gap / 1e6, ck.max_gap / 1e6);
     assert_true(marie_component_now(c) >= 6000000);
     /* 10 Hz of simulated time: one tick per 100 ms of sim time, to the clock's 10 ms step. */
     assert_true(ck.ticks >= 55);
-    assert_true(labs(lround(sim * 10) + 1 - ck.ticks) <= 1);
+    assert_true(labs(lround(sim * 10) + 1 - (ck.ticks + ck.overruns)) <= 1);
+    assert_true(ck.overruns <= 3);
     /* (Single gaps vary: a burst of clock messages read in one go on a loaded machine makes
      * one tick late and the next early; the count is what must hold.) */
     marie_component_destroy(c);

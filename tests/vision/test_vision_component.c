@@ -73,15 +73,18 @@ static int count_events(const char *kind)
 }
 
 static lcm_t *bus;
+static marie_tag_detections_t_subscription_t *sub_det;
+static marie_event_t_subscription_t *sub_ev;
+static marie_goal_t_subscription_t *sub_goal;
 
 static int setup(void **state)
 {
     memset(&seen, 0, sizeof seen);
     bus = lcm_create(marie_default_url());
     assert_non_null(bus);
-    marie_tag_detections_t_subscribe(bus, VISION_CH_DETECTIONS, on_det, NULL);
-    marie_event_t_subscribe(bus, MARIE_CH_EVENT, on_event, NULL);
-    marie_goal_t_subscribe(bus, VISION_CH_GOAL, on_goal, NULL);
+    sub_det = marie_tag_detections_t_subscribe(bus, VISION_CH_DETECTIONS, on_det, NULL);
+    sub_ev = marie_event_t_subscribe(bus, MARIE_CH_EVENT, on_event, NULL);
+    sub_goal = marie_goal_t_subscribe(bus, VISION_CH_GOAL, on_goal, NULL);
     return 0;
 }
 
@@ -90,6 +93,9 @@ static int teardown(void **state)
     if (seen.last)
         marie_tag_detections_t_destroy(seen.last);
     seen.last = NULL;
+    marie_tag_detections_t_unsubscribe(bus, sub_det);
+    marie_event_t_unsubscribe(bus, sub_ev);
+    marie_goal_t_unsubscribe(bus, sub_goal);
     lcm_destroy(bus);
     return 0;
 }
@@ -307,6 +313,28 @@ static void test_bad_images_counted(void **state)
     marie_component_destroy(c);
 }
 
+static int got_newest(void) { return seen.last && seen.last->utime == 106; }
+
+/* A burst of frames faster than detection: every frame is either detected or counted as
+ * skipped, and the newest one is always detected. */
+static void test_burst_keeps_newest(void **state)
+{
+    const char *why;
+    marie_component_t *c = start(&why, "min_hits=1", NULL);
+    assert_null(why);
+    int ids[1] = { 12 };
+    render(ids, 1, 1, 8);
+    for (int i = 1; i <= 6; i++)
+        send_image(MARIE_IMAGE_T_FORMAT_GRAY8, 100 + i);
+    pump(c, 5000, got_newest);
+    pump(c, 200, NULL);
+    assert_int_equal(seen.last->utime, 106);
+    assert_int_equal(seen.last->count, 1);
+    assert_int_equal(seen.ndet + marie_component_counter(c, "frames_skipped"), 6);
+    assert_int_equal(marie_component_counter(c, "frames"), seen.ndet);
+    marie_component_destroy(c);
+}
+
 static char tmpdir[64];
 
 /* A folder of PNGs (one of them corrupt) is read in name order: tags found in the good
@@ -470,6 +498,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_lcm_images_read_messages, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_images_counted, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_burst_keeps_newest, setup, teardown),
         cmocka_unit_test_setup_teardown(test_folder_source, setup, teardown),
         cmocka_unit_test_setup_teardown(test_video_source, setup, teardown),
         cmocka_unit_test_setup_teardown(test_unreadable_camera, setup, teardown),

@@ -50,6 +50,23 @@ vpid=$!
 check "wrong intrinsics report why" wait_for 10 grep -q "focal lengths" "$tmp/v4.log"
 kill -TERM $vpid; wait $vpid 2>/dev/null
 
+# From a system file: parameters and port bindings as a robot would have them.
+$BIN/marie-vision --system tests/data/vision/vision.yaml --name vision > "$tmp/v5.log" 2>&1 &
+vpid=$!
+sleep 0.5
+read_charger() {
+    $BIN/marie-vision-render --publish CAMERA_IMAGE --count 3 --rate 20 --tag 7:0.16:0:0:1.4 >/dev/null 2>&1
+    grep -q 'tag 7 reads: to the charger' "$tmp/v5.log"
+}
+check "system file configures messages" wait_for 10 read_charger
+kill -TERM $vpid; wait $vpid 2>/dev/null
+$BIN/marie-vision --system tests/data/vision/vision_bad_messages.yaml --name vision > "$tmp/v6.log" 2>&1 &
+vpid=$!
+check "a messages mistake is reported with file:line" \
+    wait_for 10 grep -q "vision_bad_messages.yaml:10:.*mapped twice" "$tmp/v6.log"
+kill -TERM $vpid; wait $vpid 2>/dev/null
+
 # Unknown parameter: a configuration error, exit status 2.
 check "unknown parameter is a config error" sh -c "$BIN/marie-vision --param colour=red >/dev/null 2>&1; [ \$? -eq 2 ]"
+check "no sanitizer reports (make test SAN=1)" sh -c "! grep -l 'Sanitizer\\|runtime error' $tmp/*.log"
 finish

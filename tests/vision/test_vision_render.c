@@ -224,12 +224,10 @@ static void test_world_placement(void **state)
     assert_true(fabs(det[0].pose.t[2] - 3.0) < 0.03);
     double I[9] = { 1, 0, 0, 0, 1, 0, 0, 0, 1 };
     assert_true(vision_rot_angle_between(det[0].pose.R, I) < 3 * M_PI / 180);
-    /* Turned away (printed face towards +y): nothing is seen from behind... */
+    /* Turned away (printed face towards +y): its back is blank paper. */
     vision_pose_tag_on_wall(1.0, 5.0, 0.5, M_PI / 2, &t.pose);
-    vision_render_world(r, &cam, &camw, &t, 1, &o, img, W, 1);
-    /* ...since the back of a tag shows the same cells mirrored, which decode to nothing. */
-    int n = vision_detector_detect(d, img, W, H, W, det, 2, NULL);
-    assert_true(n == 0 || det[0].id != 42);
+    assert_int_equal(vision_render_world(r, &cam, &camw, &t, 1, &o, img, W, 1), 1);
+    assert_int_equal(vision_detector_detect(d, img, W, H, W, det, 2, NULL), 0);
     vision_detector_destroy(d);
     vision_render_destroy(r);
 }

@@ -1,0 +1,232 @@
+/* vision_simcam: a robot-mounted synthetic camera looking at tags fixed in a 2D world. */
+#include "adapters/vision/vision_simcam.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/vision/vision_image.h"
+
+struct vision_simcam {
+    vision_simcam_opts_t o;
+    char family[32];
+    vision_render_t *r;
+    vision_tag_t *tags;
+    size_t n;
+    uint8_t *pix;
+    marie_image_t last;
+    uint32_t frame;
+};
+
+void vision_simcam_opts_default(vision_simcam_opts_t *o)
+{
+    memset(o, 0, sizeof *o);
+    o->family = "tag36h11";
+    o->cam = (vision_camera_t){ 640, 480, 500, 500, 319.5, 239.5 };
+    o->mount_x = 0.2;
+    o->mount_z = 0.5;
+    vision_render_opts_default(&o->render);
+    o->render.noise_sigma = 2;
+    o->render.blur_sigma = 0.5;
+    o->format = MARIE_IMAGE_T_FORMAT_GRAY8;
+    o->jpeg_quality = 90;
+}
+
+static int get_double(const marie_node_t *map, const char *key, double *v, marie_errors_t *errs)
+{
+    const marie_node_t *n = marie_node_get(map, key);
+    return n ? marie_node_double(n, v, errs) : 0;
+}
+
+static int get_int(const marie_node_t *map, const char *key, int *v, marie_errors_t *errs)
+{
+    const marie_node_t *n = marie_node_get(map, key);
+    int64_t i = *v;
+    if (n && marie_node_int(n, &i, errs) < 0)
+        return -1;
+    *v = (int)i;
+    return 0;
+}
+
+int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vision_simcam_opts_t *o,
+                        vision_tag_t **out, size_t *nout, marie_errors_t *errs)
+{
+    static const char *const cam_keys[] = { "width", "height", "fx", "fy", "cx", "cy", "mount_x", "mount_y",
+                                            "mount_z", "mount_yaw", "mount_pitch", "noise", "blur",
+                                            "background", "format", "family", NULL };
+    static const char *const tag_keys[] = { "id", "x", "y", "z", "yaw", "size", NULL };
+    int rc = 0;
+    *out = NULL;
+    *nout = 0;
+    if (camera) {
+        if (camera->kind != MARIE_NODE_MAP) {
+            marie_errors_add(errs, camera->file, camera->line, camera->col, "camera: expected a map");
+            return -EINVAL;
+        }
+        rc |= marie_node_check_keys(camera, cam_keys, "camera", errs);
+        bool cx_set = marie_node_get(camera, "cx"), cy_set = marie_node_get(camera, "cy");
+        rc |= get_int(camera, "width", &o->cam.width, errs);
+        rc |= get_int(camera, "height", &o->cam.height, errs);
+        if (!cx_set)
+            o->cam.cx = (o->cam.width - 1) / 2.0;
+        if (!cy_set)
+            o->cam.cy = (o->cam.height - 1) / 2.0;
+        rc |= get_double(camera, "fx", &o->cam.fx, errs);
+        rc |= get_double(camera, "fy", &o->cam.fy, errs);
+        rc |= get_double(camera, "cx", &o->cam.cx, errs);
+        rc |= get_double(camera, "cy", &o->cam.cy, errs);
+        rc |= get_double(camera, "mount_x", &o->mount_x, errs);
+        rc |= get_double(camera, "mount_y", &o->mount_y, errs);
+        rc |= get_double(camera, "mount_z", &o->mount_z, errs);
+        rc |= get_double(camera, "mount_yaw", &o->mount_yaw, errs);
+        rc |= get_double(camera, "mount_pitch", &o->mount_pitch, errs);
+        rc |= get_double(camera, "noise", &o->render.noise_sigma, errs);
+        rc |= get_double(camera, "blur", &o->render.blur_sigma, errs);
+        const marie_node_t *n;
+        const char *s;
+        if ((n = marie_node_get(camera, "background")) && marie_node_str(n, &s, errs) == 0) {
+            if (strcmp(s, "flat") == 0) o->render.background = VISION_BG_FLAT;
+            else if (strcmp(s, "gradient") == 0) o->render.background = VISION_BG_GRADIENT;
+            else if (strcmp(s, "clutter") == 0) o->render.background = VISION_BG_CLUTTER;
+            else {
+                marie_errors_add(errs, n->file, n->line, n->col, "background: expected flat, gradient or clutter");
+                rc = -1;
+            }
+        }
+        if ((n = marie_node_get(camera, "format")) && marie_node_str(n, &s, errs) == 0) {
+            if (strcmp(s, "gray") == 0) o->format = MARIE_IMAGE_T_FORMAT_GRAY8;
+            else if (strcmp(s, "rgb") == 0) o->format = MARIE_IMAGE_T_FORMAT_RGB8;
+            else if (strcmp(s, "jpeg") == 0) o->format = MARIE_IMAGE_T_FORMAT_JPEG;
+            else {
+                marie_errors_add(errs, n->file, n->line, n->col, "format: expected gray, rgb or jpeg");
+                rc = -1;
+            }
+        }
+        if ((n = marie_node_get(camera, "family")) && marie_node_str(n, &s, errs) == 0)
+            o->family = s;      /* points into the document; create() copies it */
+        const char *why;
+        if (rc == 0 && vision_camera_check(&o->cam, &why) < 0) {
+            marie_errors_add(errs, camera->file, camera->line, camera->col, "camera: %s", why);
+            rc = -1;
+        }
+    }
+    if (tags) {
+        if (tags->kind != MARIE_NODE_SEQ) {
+            marie_errors_add(errs, tags->file, tags->line, tags->col, "tags: expected a list of {id, x, y, z, yaw, size}");
+            return -EINVAL;
+        }
+        *out = calloc(tags->n ? tags->n : 1, sizeof **out);
+        if (!*out)
+            return -ENOMEM;
+        for (size_t i = 0; i < tags->n; i++) {
+            const marie_node_t *t = tags->items[i];
+            if (t->kind != MARIE_NODE_MAP || !marie_node_get(t, "id") || !marie_node_get(t, "x") || !marie_node_get(t, "y")) {
+                marie_errors_add(errs, t->file, t->line, t->col, "tags: each entry needs id, x and y");
+                rc = -1;
+                continue;
+            }
+            rc |= marie_node_check_keys(t, tag_keys, "tag", errs);
+            int id = 0;
+            double x = 0, y = 0, z = 0.5, yaw = 0, size = 0.16;
+            rc |= get_int(t, "id", &id, errs);
+            rc |= get_double(t, "x", &x, errs);
+            rc |= get_double(t, "y", &y, errs);
+            rc |= get_double(t, "z", &z, errs);
+            rc |= get_double(t, "yaw", &yaw, errs);
+            rc |= get_double(t, "size", &size, errs);
+            if (!(size > 0) || id < 0) {
+                marie_errors_add(errs, t->file, t->line, t->col, "tag: id must be >= 0 and size > 0");
+                rc = -1;
+            }
+            vision_tag_t *o2 = &(*out)[(*nout)++];
+            o2->id = id;
+            o2->size = size;
+            vision_pose_tag_on_wall(x, y, z, yaw, &o2->pose);
+        }
+    }
+    if (rc) {
+        free(*out);
+        *out = NULL;
+        *nout = 0;
+        return -EINVAL;
+    }
+    return 0;
+}
+
+vision_simcam_t *vision_simcam_create(const vision_simcam_opts_t *o, const vision_tag_t *tags, size_t n,
+                                      char *err, size_t errlen)
+{
+    const char *why;
+    if (vision_camera_check(&o->cam, &why) < 0) {
+        snprintf(err, errlen, "camera: %s", why);
+        return NULL;
+    }
+    vision_simcam_t *s = calloc(1, sizeof *s);
+    if (!s)
+        goto err_nomem;
+    s->o = *o;
+    snprintf(s->family, sizeof s->family, "%s", o->family ? o->family : "tag36h11");
+    s->o.family = s->family;
+    s->r = vision_render_create(s->family);
+    if (!s->r) {
+        snprintf(err, errlen, "unknown tag family '%s'", s->family);
+        free(s);
+        return NULL;
+    }
+    for (size_t i = 0; i < n; i++)
+        if (tags[i].id < 0 || tags[i].id >= vision_render_ncodes(s->r)) {
+            snprintf(err, errlen, "tag id %d is not in %s (0..%d)", tags[i].id, s->family, vision_render_ncodes(s->r) - 1);
+            vision_render_destroy(s->r);
+            free(s);
+            return NULL;
+        }
+    s->tags = malloc((n ? n : 1) * sizeof *s->tags);
+    s->pix = malloc((size_t)o->cam.width * o->cam.height * 3);
+    if (!s->tags || !s->pix) {
+        vision_simcam_destroy(s);
+        goto err_nomem;
+    }
+    memcpy(s->tags, tags, n * sizeof *tags);
+    s->n = n;
+    return s;
+err_nomem:
+    snprintf(err, errlen, "out of memory");
+    return NULL;
+}
+
+void vision_simcam_destroy(vision_simcam_t *s)
+{
+    if (!s)
+        return;
+    vision_render_destroy(s->r);
+    free(s->tags);
+    free(s->pix);
+    free(s->last.data);
+    free(s);
+}
+
+int vision_simcam_render(vision_simcam_t *s, double x, double y, double theta, int64_t utime, marie_image_t *img)
+{
+    const vision_simcam_opts_t *o = &s->o;
+    /* The mount offset turns with the robot. */
+    double c = cos(theta), si = sin(theta);
+    vision_pose_t cam_in_world;
+    vision_pose_camera_in_world(x + c * o->mount_x - si * o->mount_y, y + si * o->mount_x + c * o->mount_y, o->mount_z,
+                                theta + o->mount_yaw, o->mount_pitch, &cam_in_world);
+    int ch = o->format == MARIE_IMAGE_T_FORMAT_GRAY8 ? 1 : 3;
+    vision_render_opts_t ro = o->render;
+    ro.seed = o->render.seed + ++s->frame;
+    int drawn = vision_render_world(s->r, &o->cam, &cam_in_world, s->tags, s->n, &ro, s->pix, o->cam.width * ch, ch);
+    if (drawn < 0)
+        return drawn;
+    free(s->last.data);
+    memset(&s->last, 0, sizeof s->last);
+    int rc = vision_image_encode(s->pix, o->cam.width, o->cam.height, o->cam.width * ch, ch, o->format,
+                                 o->jpeg_quality, utime, &s->last);
+    if (rc < 0)
+        return rc;
+    *img = s->last;
+    return drawn;
+}

@@ -1,0 +1,204 @@
+/* devices: glue between the ODE world and the hw/ device emulators (vdevices, vlms200). */
+#include "sim/devices.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/log.h"
+#include "hw/can/canbus.h"
+#include "hw/drives/vdevices.h"
+#include "hw/lms200/vlms200.h"
+
+#define SCAN_BEAMS 361
+
+struct sim_devices {
+    sim_world_t *world;
+    marie_loop_t *loop;
+    can_emubus_t *bus;
+    vdevices_t *dev;
+    vlms200_t *laser;
+    int laser_fd;               /* as registered with the loop */
+    short laser_events;
+    int64_t now;                /* simulated us: the devices' clock */
+    float scan[SCAN_BEAMS];
+    sim_devices_stats_t st;
+};
+
+static void on_bus(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    sim_devices_t *d = user;
+    can_emubus_process(d->bus);
+}
+
+static void on_dev(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    sim_devices_t *d = user;
+    int rc = vdevices_process(d->dev, d->now);
+    if (rc == -EPIPE)
+        marie_warn_ratelimited(5, "device mode: the CAN bus went away");
+}
+
+static void laser_sync_fd(sim_devices_t *d);
+
+static void on_laser(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    sim_devices_t *d = user;
+    vlms200_io(d->laser, revents, d->now);
+    laser_sync_fd(d);
+}
+
+/* The pty's fd changes on a re-plug and the events with pending output: re-register. */
+static void laser_sync_fd(sim_devices_t *d)
+{
+    int fd = vlms200_fd(d->laser);
+    short ev = fd >= 0 ? vlms200_events(d->laser) : 0;
+    if (fd == d->laser_fd && ev == d->laser_events)
+        return;
+    if (d->laser_fd >= 0)
+        marie_loop_remove_fd(d->loop, d->laser_fd);
+    d->laser_fd = -1;
+    if (fd >= 0 && marie_loop_add_fd(d->loop, fd, ev, on_laser, d) == 0)
+        d->laser_fd = fd;
+    d->laser_events = ev;
+}
+
+/* The device is about to send a scan: give it this instant's ranges. */
+static void on_scan(void *user, vlms200_t *v, int64_t now_us)
+{
+    sim_devices_t *d = user;
+    const sim_params_t *p = sim_world_params(d->world);
+    int n = sim_world_laser(d->world, d->scan, SCAN_BEAMS);
+    for (int i = 0; i < n; i++)
+        if (d->scan[i] >= p->laser_max)
+            d->scan[i] = NAN;           /* no echo, not a wall at the range limit */
+    vlms200_set_ranges(v, d->scan, (size_t)n);
+    d->st.laser_scans++;
+}
+
+sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *world, marie_loop_t *loop,
+                                  int64_t now, char *err, size_t errlen)
+{
+    sim_devices_t *d = calloc(1, sizeof(*d));
+    if (!d) {
+        snprintf(err, errlen, "out of memory");
+        return NULL;
+    }
+    d->world = world;
+    d->loop = loop;
+    d->laser_fd = -1;
+    d->now = now;
+    if (sim_world_params(world)->laser_beams != SCAN_BEAMS) {
+        snprintf(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
+        goto fail;
+    }
+    if (cfg->can_serve) {
+        if (strncmp(cfg->can_url, "emu:", 4) != 0) {
+            snprintf(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
+            goto fail;
+        }
+        d->bus = can_emubus_create(cfg->can_url + 4);
+        if (!d->bus) {
+            snprintf(err, errlen, "cannot serve the emulated CAN bus at %s: %s", cfg->can_url + 4,
+                     strerror(errno));
+            goto fail;
+        }
+        if (marie_loop_add_fd(loop, can_emubus_fd(d->bus), POLLIN, on_bus, d) < 0) {
+            snprintf(err, errlen, "cannot poll the CAN bus: %s", strerror(errno));
+            goto fail;
+        }
+    }
+    const sim_params_t *p = sim_world_params(world);
+    vdevices_cfg_t vc;
+    vdevices_cfg_default(&vc);
+    vc.can_url = cfg->can_url;
+    vc.left = (uint8_t)cfg->left_node;
+    vc.right = (uint8_t)cfg->right_node;
+    vc.gyro = (uint8_t)cfg->gyro_node;
+    vc.ticks_per_rev = p->ticks_per_rev;
+    vc.wheel_radius = p->wheel_radius;
+    vc.track_width = p->track;
+    vc.gyro_bias = cfg->gyro_bias;
+    vc.gyro_noise = cfg->gyro_noise;
+    vc.external_physics = true;         /* ODE turns the wheels */
+    d->dev = vdevices_create(&vc, now);
+    if (!d->dev) {
+        snprintf(err, errlen, "cannot attach the virtual drives and gyro to %s: %s", cfg->can_url,
+                 strerror(errno));
+        goto fail;
+    }
+    if (marie_loop_add_fd(loop, vdevices_fd(d->dev), POLLIN, on_dev, d) < 0) {
+        snprintf(err, errlen, "cannot poll the devices' bus connection: %s", strerror(errno));
+        goto fail;
+    }
+    vlms200_cfg_t lc = { .rate_hz = cfg->laser_hz, .unit = LMS200_UNIT_MM };
+    d->laser = vlms200_create(&lc);
+    int rc = d->laser ? vlms200_open(d->laser, cfg->laser_link) : -errno;
+    if (rc < 0) {
+        snprintf(err, errlen, "cannot create the virtual LMS200 pty%s%s: %s", cfg->laser_link ? " at " : "",
+                 cfg->laser_link ? cfg->laser_link : "", strerror(-rc));
+        goto fail;
+    }
+    vlms200_on_scan(d->laser, on_scan, d);
+    laser_sync_fd(d);
+    return d;
+fail:
+    sim_devices_destroy(d);
+    return NULL;
+}
+
+void sim_devices_destroy(sim_devices_t *d)
+{
+    if (!d)
+        return;
+    if (d->laser_fd >= 0)
+        marie_loop_remove_fd(d->loop, d->laser_fd);
+    vlms200_destroy(d->laser);
+    if (d->dev) {
+        marie_loop_remove_fd(d->loop, vdevices_fd(d->dev));
+        vdevices_destroy(d->dev);
+    }
+    if (d->bus) {
+        marie_loop_remove_fd(d->loop, can_emubus_fd(d->bus));
+        can_emubus_destroy(d->bus);
+    }
+    free(d);
+}
+
+void sim_devices_before_step(sim_devices_t *d)
+{
+    vdrive_t *l = vdevices_drive(d->dev, 0), *r = vdevices_drive(d->dev, 1);
+    sim_world_set_wheels(d->world, l ? vdrive_command(l) : 0.0, r ? vdrive_command(r) : 0.0);
+}
+
+void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
+{
+    d->now = now;
+    double la, ra, ls, rs, v, om;
+    sim_world_wheels(d->world, &la, &ra, &ls, &rs);
+    vdrive_t *l = vdevices_drive(d->dev, 0), *r = vdevices_drive(d->dev, 1);
+    if (l)
+        vdrive_set_feedback(l, la, ls);
+    if (r)
+        vdrive_set_feedback(r, ra, rs);
+    sim_world_velocity(d->world, &v, &om);
+    if (vdevices_gyro(d->dev))
+        vgyro_set_rate(vdevices_gyro(d->dev), om);
+    vdevices_tick(d->dev, dt, now);
+    vlms200_tick(d->laser, now);
+    laser_sync_fd(d);
+    d->st.can_frames_in = vdevices_frames_in(d->dev);
+    d->st.can_frames_out = vdevices_frames_out(d->dev);
+}
+
+const sim_devices_stats_t *sim_devices_stats(sim_devices_t *d)
+{
+    return &d->st;
+}
+
+const char *sim_devices_laser_path(const sim_devices_t *d)
+{
+    return vlms200_path(d->laser);
+}

@@ -1,0 +1,51 @@
+/* devices: device mode: the simulator's physics drives the virtual CAN drives and gyro and the
+ * virtual LMS200 of hw/, so the real drivers run against it unchanged. */
+#ifndef SIM_DEVICES_H
+#define SIM_DEVICES_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core/loop.h"
+#include "sim/world.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    const char *can_url;        /* "emu:PATH" (emulated bus) or "can:IF" (SocketCAN) */
+    bool can_serve;             /* host the emulated bus at PATH in this process */
+    int left_node, right_node, gyro_node;
+    double gyro_bias, gyro_noise;   /* rad/s, the virtual gyro's own */
+    const char *laser_link;     /* symlink to the virtual LMS200's pty slave */
+    double laser_hz;            /* scans per second while streaming */
+} sim_devices_cfg_t;
+
+typedef struct {
+    uint64_t can_frames_in, can_frames_out;
+    int64_t laser_scans;
+} sim_devices_stats_t;
+
+typedef struct sim_devices sim_devices_t;
+
+/* Open the bus (serving it if asked), boot the devices and create the pty; their fds join
+ * `loop`. `now` is the simulated time in us, which is the devices' clock. NULL on failure
+ * with a reason in err. The world must outlive the devices; its laser should have 361 beams
+ * (both LMS200 resolutions are then exact). */
+sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *world, marie_loop_t *loop,
+                                  int64_t now, char *err, size_t errlen);
+void sim_devices_destroy(sim_devices_t *d);             /* NULL is a no-op; leaves the loop clean */
+
+/* Around each physics step: the drives' motor commands go to the wheels before it; wheel
+ * feedback, the true yaw rate and time-driven frames go out after it. */
+void sim_devices_before_step(sim_devices_t *d);
+void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now);
+const sim_devices_stats_t *sim_devices_stats(sim_devices_t *d);
+const char *sim_devices_laser_path(const sim_devices_t *d);   /* the pty slave */
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,64 @@
+#!/bin/sh
+# test_nav_sim: the adapters drive the simulated robot through a mission in the office world:
+# odometry -> localizer -> planner -> behaviours (pulling from Mailboxes) -> marie-sim, with
+# the mission's progress in a SharedMap. The mission is killed with SIGKILL halfway and
+# restarted; it must resume and finish. Then the e-stop must stop the robot.
+. tests/lib.sh
+B=${B:-build}
+BIN=$B/bin
+OUT=$B/test-logs/nav_sim
+rm -rf "$OUT" && mkdir -p "$OUT"
+MAP=sim/worlds/office.yaml
+pids=""
+cleanup() {
+    for p in $pids; do kill "$p" 2>/dev/null; done
+    wait 2>/dev/null
+}
+trap cleanup EXIT INT TERM
+start() {   # start NAME BINARY ARGS...: run in the background, log to $OUT/NAME.log
+    n=$1; shift
+    "$@" > "$OUT/$n.log" 2>&1 &
+    pids="$pids $!"
+    eval "pid_$n=$!"
+}
+
+cat > "$OUT/system.yaml" <<'Y'
+system: nav-test
+components:
+  mission:
+    exec: marie-mission
+    params:
+      tolerance: 0.35
+      goals:
+        - {name: corridor, x: 8.0, y: 15.0}
+        - {name: room, x: 11.0, y: 9.0, priority: 2}
+        - {name: east, x: 15.0, y: 15.5}
+Y
+
+start sim $BIN/marie-sim --name sim --param world=$MAP --param speed=4 --param lockstep=0.5
+start odometry $BIN/marie-odometry --name odometry --clock sim
+start localizer $BIN/marie-localizer --name localizer --clock sim --param map=$MAP --param init_x=2 --param init_y=15
+start planner $BIN/marie-planner --name planner --clock sim --param map=$MAP
+start mailboxes $BIN/marie-ca mailbox --name mailboxes --param channel=POSE --param 'channels=[PATH, LASER, ESTOP]' --param depth=2
+start sharedmap env MARIE_STATE_DIR=$OUT $BIN/marie-ca sharedmap --name sharedmap --param state_file=$OUT/state.sharedmap
+start behaviours $BIN/marie-behaviours --name behaviours --clock sim --param input_mode=pull
+start mission1 $BIN/marie-mission --name mission --clock sim --system $OUT/system.yaml
+
+# The probe judges the whole run; meanwhile the mission is killed and restarted.
+$B/tests/helpers/adapt_probe --timeout 80 --goals 3 --done --resumed --estop-after-done --settle 1 --verbose \
+    > "$OUT/probe.txt" 2> "$OUT/probe.log" &
+probe=$!
+sleep 8
+kill -KILL "$pid_mission1" 2>/dev/null
+sleep 1
+start mission2 $BIN/marie-mission --name mission --clock sim --system $OUT/system.yaml
+wait $probe
+rc=$?
+cat "$OUT/probe.txt"
+
+check "mission completes after a restart, localized, e-stop obeyed" test "$rc" -eq 0
+check "mission resumed from the SharedMap" grep -q "mission resumed [1-9]" "$OUT/probe.txt"
+check "every goal reached" grep -q "goals reached [3-9]" "$OUT/probe.txt"
+check "a consistent decision record every cycle" grep -q "^probe: 0 inconsistent decision records" "$OUT/probe.txt"
+check "behaviours pulled their inputs from the Mailboxes" grep -Eq "^probe: [1-9][0-9]* pull requests; pose age in the last decision 0\." "$OUT/probe.txt"
+finish

@@ -1,0 +1,46 @@
+#!/bin/sh
+# test_nav_subscribe: the same pipeline without Communication Adapters: marie-behaviours in
+# input_mode=subscribe, the mission without a SharedMap; a two-goal mission in the office world.
+. tests/lib.sh
+B=${B:-build}
+BIN=$B/bin
+OUT=$B/test-logs/nav_subscribe
+rm -rf "$OUT" && mkdir -p "$OUT"
+MAP=sim/worlds/office.yaml
+pids=""
+cleanup() {
+    for p in $pids; do kill "$p" 2>/dev/null; done
+    wait 2>/dev/null
+}
+trap cleanup EXIT INT TERM
+start() {
+    n=$1; shift
+    "$@" > "$OUT/$n.log" 2>&1 &
+    pids="$pids $!"
+}
+
+cat > "$OUT/system.yaml" <<'Y'
+system: nav-subscribe-test
+components:
+  mission:
+    exec: marie-mission
+    params:
+      sharedmap: false
+      goals:
+        - {name: corridor, x: 9.0, y: 14.8}
+        - {name: room, x: 4.0, y: 9.0}
+Y
+
+start sim $BIN/marie-sim --name sim --param world=$MAP --param speed=4 --param lockstep=0.5
+start odometry $BIN/marie-odometry --name odometry --clock sim
+start localizer $BIN/marie-localizer --name localizer --clock sim --param map=$MAP --param init_x=2 --param init_y=15
+start planner $BIN/marie-planner --name planner --clock sim --param map=$MAP --param algorithm=prm
+start behaviours $BIN/marie-behaviours --name behaviours --clock sim --param input_mode=subscribe
+start mission $BIN/marie-mission --name mission --clock sim --system $OUT/system.yaml
+
+$B/tests/helpers/adapt_probe --timeout 60 --goals 2 --done --settle 1 --verbose > "$OUT/probe.txt" 2> "$OUT/probe.log"
+rc=$?
+cat "$OUT/probe.txt"
+check "mission completes with subscribed inputs, localized" test "$rc" -eq 0
+check "no pull requests without Mailboxes" grep -q "^probe: 0 pull requests" "$OUT/probe.txt"
+finish

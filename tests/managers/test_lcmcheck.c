@@ -1,0 +1,110 @@
+/* test_lcmcheck: the layout check accepts every message the managers exchange, as encoded by
+ * liblcm, and refuses truncated ones and lying lengths (which crash liblcm's decoder). */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "lcmtypes/marie_event_t.h"
+#include "lcmtypes/marie_heartbeat_t.h"
+#include "managers/am_proto.h"
+#include "managers/lcmcheck.h"
+
+#define ENCODE(type, msg, buf, n) do {                              \
+        n = type##_encoded_size(msg);                               \
+        buf = malloc((size_t)n);                                    \
+        assert_int_equal(type##_encode(buf, 0, n, msg), n);         \
+    } while (0)
+
+static void expect_all_truncations_refused(const uint8_t *buf, int n, const char *layout)
+{
+    assert_int_equal(marie_lcm_check(buf, (size_t)n, layout), 0);
+    for (int cut = 0; cut < n; cut++)
+        assert_int_not_equal(marie_lcm_check(buf, (size_t)cut, layout), 0);
+}
+
+static void test_order(void **state)
+{
+    char *targets[] = {"a", "group-b", ""};
+    uint8_t mac[32] = {1, 2, 3};
+    marie_am_order_t o = {.utime = 5, .sender = "ops@laptop", .seq = 9, .host = "*", .op = 3, .ntargets = 3,
+                          .targets = targets, .arg = "x", .system_path = "/p", .system_text = "system: t\n",
+                          .mac_len = 32, .mac = mac};
+    uint8_t *buf;
+    int n;
+    ENCODE(marie_am_order_t, &o, buf, n);
+    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_AM_ORDER);
+    /* a negative string length (sender's length field sits after fingerprint and utime) */
+    buf[16] = 0xff;
+    assert_int_not_equal(marie_lcm_check(buf, (size_t)n, MARIE_LAYOUT_AM_ORDER), 0);
+    free(buf);
+}
+
+static void test_status_with_components(void **state)
+{
+    marie_am_component_status_t cs[2] = {
+        {.name = "a", .group = "", .state = "running", .comp_state = 2, .pid = 10, .config_hash = "abc"},
+        {.name = "b", .group = "g", .state = "stopped", .comp_state = -1, .config_hash = ""},
+    };
+    char *hosts[] = {"h1", "h2"};
+    marie_am_status_t st = {.host = "h1", .system = "s", .system_hash = "x", .profile = "", .nhosts = 2,
+                            .hosts = hosts, .ncomponents = 2, .components = cs};
+    uint8_t *buf;
+    int n;
+    ENCODE(marie_am_status_t, &st, buf, n);
+    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_AM_STATUS);
+    free(buf);
+}
+
+static void test_reply_log_event_heartbeat(void **state)
+{
+    char *hosts[] = {"h1"};
+    marie_am_reply_t r = {.host = "h1", .sender = "s", .reason = "ok", .ok = 1, .nhosts = 1, .hosts = hosts};
+    uint8_t *buf;
+    int n;
+    ENCODE(marie_am_reply_t, &r, buf, n);
+    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_AM_REPLY);
+    free(buf);
+    marie_log_line_t l = {.host = "h", .component = "c", .text = "hello"};
+    ENCODE(marie_log_line_t, &l, buf, n);
+    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_LOG_LINE);
+    free(buf);
+    marie_event_t e = {.source = "s", .kind = "k", .text = "t"};
+    ENCODE(marie_event_t, &e, buf, n);
+    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_EVENT);
+    free(buf);
+    marie_counter_t counters[2] = {{.name = "x", .value = 1}, {.name = "yy", .value = 2}};
+    marie_heartbeat_t hb = {.component = "c", .host = "h", .reason = "", .ncounters = 2, .counters = counters};
+    ENCODE(marie_heartbeat_t, &hb, buf, n);
+    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_HEARTBEAT);
+    free(buf);
+}
+
+static void test_huge_count_refused(void **state)
+{
+    marie_am_order_t o = {.sender = "s", .host = "*", .arg = "", .system_path = "", .system_text = ""};
+    uint8_t *buf;
+    int n;
+    ENCODE(marie_am_order_t, &o, buf, n);
+    /* ntargets follows fingerprint(8) utime(8) sender(4+2) seq(8) host(4+2) op(1) */
+    int at = 8 + 8 + 6 + 8 + 6 + 1;
+    buf[at] = 0x7f;
+    assert_int_not_equal(marie_lcm_check(buf, (size_t)n, MARIE_LAYOUT_AM_ORDER), 0);
+    buf[at] = 0x80;
+    assert_int_not_equal(marie_lcm_check(buf, (size_t)n, MARIE_LAYOUT_AM_ORDER), 0);
+    free(buf);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_order),
+        cmocka_unit_test(test_status_with_components),
+        cmocka_unit_test(test_reply_log_event_heartbeat),
+        cmocka_unit_test(test_huge_count_refused),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

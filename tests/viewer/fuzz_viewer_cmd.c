@@ -1,0 +1,31 @@
+/* fuzz_viewer_cmd: the page's commands arrive over a socket: any bytes must parse or be
+ * refused, never crash; string values stay NUL-terminated. */
+#include <assert.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "tools/viewer/vjson.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    vj_cmd_t cmd;
+    if (vj_cmd_parse(&cmd, (const char *)data, size) == 0) {
+        assert(cmd.n >= 0 && cmd.n <= VJ_CMD_MAX);
+        for (int i = 0; i < cmd.n; i++)
+            assert(strlen(cmd.key[i]) < sizeof cmd.key[i] && strlen(cmd.str[i]) < sizeof cmd.str[i]);
+        double x;
+        (void)vj_cmd_str(&cmd, "op");
+        (void)vj_cmd_num(&cmd, "t", &x);
+    }
+    /* and the string escaper on the same bytes */
+    char s[256];
+    size_t n = size < sizeof s - 1 ? size : sizeof s - 1;
+    memcpy(s, data, n);
+    s[n] = 0;
+    vj_buf_t b;
+    vj_init(&b);
+    vj_str(&b, s);
+    assert(b.oom || (b.len >= 2 && b.s[0] == '"' && b.s[b.len - 1] == '"'));
+    vj_free(&b);
+    return 0;
+}

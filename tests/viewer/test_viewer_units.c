@@ -1,0 +1,244 @@
+/* test_viewer_units: the LCM log reader against logs written by LCM itself (whole, in pieces,
+ * corrupt, truncated), the JSON the page receives, and the page's command parser. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <errno.h>
+#include <math.h>
+#include <cmocka.h>
+
+#include <lcm/eventlog.h>
+
+#include "tools/viewer/lcmlog.h"
+#include "tools/viewer/vjson.h"
+
+typedef struct {
+    int events, corrupt;
+    int64_t last_eventnum, last_utime;
+    char channels[64][32];
+    char reasons[8][160];
+    uint64_t corrupt_off[8];
+} seen_t;
+
+static void on_event(void *user, const lcmlog_event_t *ev)
+{
+    seen_t *s = user;
+    if (s->events < 64)
+        snprintf(s->channels[s->events], 32, "%.*s", (int)ev->channel_len, ev->channel);
+    s->events++;
+    s->last_eventnum = ev->eventnum;
+    s->last_utime = ev->utime;
+}
+
+static void on_corrupt(void *user, uint64_t off, const char *reason)
+{
+    seen_t *s = user;
+    if (s->corrupt < 8) {
+        snprintf(s->reasons[s->corrupt], 160, "%s", reason);
+        s->corrupt_off[s->corrupt] = off;
+    }
+    s->corrupt++;
+}
+
+/* Ten records written by lcm_eventlog into a memory buffer. */
+static uint8_t *lcm_written_log(size_t *len)
+{
+    char path[] = "/tmp/test_viewer_XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    close(fd);
+    lcm_eventlog_t *log = lcm_eventlog_create(path, "w");
+    assert_non_null(log);
+    for (int i = 0; i < 10; i++) {
+        char data[100];
+        memset(data, 'a' + i, sizeof data);
+        lcm_eventlog_event_t ev = {.eventnum = i, .timestamp = 1000 + i * 100,
+                                   .channellen = i % 2 ? 5 : 4, .datalen = 10 * i,
+                                   .channel = i % 2 ? "LASER" : "POSE", .data = data};
+        assert_int_equal(lcm_eventlog_write_event(log, &ev), 0);
+    }
+    lcm_eventlog_destroy(log);
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    uint8_t *buf = malloc(1 << 16);
+    *len = fread(buf, 1, 1 << 16, f);
+    fclose(f);
+    unlink(path);
+    return buf;
+}
+
+static seen_t parse(const uint8_t *b, size_t n, size_t step)
+{
+    seen_t s = {0};
+    lcmlog_parser_t *p = lcmlog_parser_create(on_event, on_corrupt, &s);
+    assert_non_null(p);
+    for (size_t off = 0; off < n; off += step)
+        assert_int_equal(lcmlog_parser_feed(p, b + off, n - off < step ? n - off : step), 0);
+    lcmlog_parser_finish(p);
+    lcmlog_parser_destroy(p);
+    return s;
+}
+
+static void reads_every_record_lcm_wrote(void **state)
+{
+    size_t n;
+    uint8_t *b = lcm_written_log(&n);
+    seen_t s = parse(b, n, n);
+    assert_int_equal(s.events, 10);
+    assert_int_equal(s.corrupt, 0);
+    assert_string_equal(s.channels[0], "POSE");
+    assert_string_equal(s.channels[1], "LASER");
+    assert_int_equal(s.last_eventnum, 9);
+    assert_int_equal(s.last_utime, 1900);
+    free(b);
+}
+
+static void pieces_of_any_size_give_the_same_records(void **state)
+{
+    size_t n;
+    uint8_t *b = lcm_written_log(&n);
+    for (size_t step = 1; step < 80; step += 7) {
+        seen_t s = parse(b, n, step);
+        assert_int_equal(s.events, 10);
+        assert_int_equal(s.corrupt, 0);
+        assert_int_equal(s.last_utime, 1900);
+    }
+    free(b);
+}
+
+static void garbage_in_the_middle_loses_only_the_damaged_record(void **state)
+{
+    size_t n;
+    uint8_t *b = lcm_written_log(&n);
+    /* Overwrite the sync word and header of the 5th record (offset: 4 records before it). */
+    size_t off = 0;
+    for (int i = 0; i < 4; i++)
+        off += 28 + (i % 2 ? 5 : 4) + 10 * i;
+    memset(b + off, 0x5a, 20);
+    for (size_t step = 1; step <= n; step = step * 3 + 1) {
+        seen_t s = parse(b, n, step);
+        assert_int_equal(s.events, 9);
+        assert_int_equal(s.corrupt, 1);
+        assert_int_equal(s.corrupt_off[0], off);
+        assert_non_null(strstr(s.reasons[0], "no sync word"));
+        assert_int_equal(s.last_utime, 1900);
+    }
+    free(b);
+}
+
+static void truncated_tail_is_reported_and_the_rest_kept(void **state)
+{
+    size_t n;
+    uint8_t *b = lcm_written_log(&n);
+    seen_t s = parse(b, n - 30, 64);
+    assert_int_equal(s.events, 9);
+    assert_int_equal(s.corrupt, 1);
+    assert_non_null(strstr(s.reasons[0], "cut short"));
+    /* even a cut inside the header */
+    s = parse(b, n - (28 + 5 + 90) + 10, 5);
+    assert_int_equal(s.events, 9);
+    assert_int_equal(s.corrupt, 1);
+    free(b);
+}
+
+static void impossible_lengths_resync_on_the_next_record(void **state)
+{
+    size_t n;
+    uint8_t *b = lcm_written_log(&n);
+    uint8_t *c = malloc(n + 28);
+    /* a header claiming a 4 GB payload in front of a good log */
+    long h = lcmlog_encode(c, 28 + 8, 0, 0, "BAD", NULL, 0);
+    assert_true(h > 0);
+    c[24] = c[25] = c[26] = c[27] = 0xff;
+    memcpy(c + 28, b, n);
+    seen_t s = parse(c, n + 28, n + 28);
+    assert_int_equal(s.events, 10);
+    assert_int_equal(s.corrupt, 1);
+    assert_non_null(strstr(s.reasons[0], "bad record header"));
+    free(b);
+    free(c);
+}
+
+static void empty_and_tiny_inputs_are_harmless(void **state)
+{
+    seen_t s = parse((const uint8_t *)"", 0, 1);
+    assert_int_equal(s.events, 0);
+    assert_int_equal(s.corrupt, 0);
+    s = parse((const uint8_t *)"\xed\xa1", 2, 1);
+    assert_int_equal(s.events, 0);
+    assert_int_equal(s.corrupt, 1);
+}
+
+static void laser_json_has_what_the_page_draws(void **state)
+{
+    float r[3] = {1.0f, NAN, 2.25f};
+    marie_laser_scan_t scan = {.utime = 5, .angle_min = -1.5f, .angle_increment = 0.5f, .range_max = 8,
+                               .nranges = 3, .ranges = r};
+    uint8_t buf[256];
+    int n = marie_type_laser_scan_t.encode(buf, 0, sizeof buf, &scan);
+    assert_true(n > 0);
+    assert_ptr_equal(vj_type_of(buf, (size_t)n), &marie_type_laser_scan_t);
+    assert_null(vj_type_of(buf, 4));
+    vj_buf_t b;
+    vj_init(&b);
+    vj_lit(&b, "{");
+    assert_true(vj_message(&b, &marie_type_laser_scan_t, &scan, VJ_ROLE_OTHER));
+    vj_lit(&b, "}");
+    assert_string_equal(b.s, "{,\"k\":\"laser\",\"amin\":-1.5,\"ainc\":0.5,\"rmax\":8,\"r\":[1,null,2.25]}");
+    vj_free(&b);
+}
+
+static void strings_are_escaped_and_binary_is_base64(void **state)
+{
+    vj_buf_t b;
+    vj_init(&b);
+    vj_str(&b, "a\"b\\c\n\x01\xc3");
+    assert_string_equal(b.s, "\"a\\\"b\\\\c\\u000a\\u0001?\"");
+    vj_reset(&b);
+    vj_base64(&b, "\x00\x64\xff\x9c", 4);
+    assert_string_equal(b.s, "\"AGT/nA==\"");
+    vj_reset(&b);
+    vj_num(&b, -0.0001, 3);
+    vj_lit(&b, " ");
+    vj_num(&b, INFINITY, 3);
+    assert_string_equal(b.s, "0 null");
+    vj_free(&b);
+}
+
+static void page_commands_parse_or_are_refused(void **state)
+{
+    vj_cmd_t c;
+    const char *ok = " {\"op\":\"goal\", \"x\": 1.5, \"y\":-2e1, \"th\":0, \"flag\":true} ";
+    assert_int_equal(vj_cmd_parse(&c, ok, strlen(ok)), 0);
+    assert_string_equal(vj_cmd_str(&c, "op"), "goal");
+    double v;
+    assert_true(vj_cmd_num(&c, "y", &v));
+    assert_true(v == -20);
+    assert_true(vj_cmd_num(&c, "flag", &v) && v == 1);
+    assert_null(vj_cmd_str(&c, "x"));
+    const char *bad[] = {"", "[]", "{\"op\":}", "{\"op\":\"a\"", "{\"op\":\"a\"} x", "{\"a\":{}}",
+                         "{\"op\":nan}", "{\"op\":\"\\u0041\"}", "{\"a\":1,\"b\":2,\"c\":3,\"d\":4,\"e\":5,\"f\":6,\"g\":7,\"h\":8,\"i\":9}"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
+        assert_int_equal(vj_cmd_parse(&c, bad[i], strlen(bad[i])), -EBADMSG);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(reads_every_record_lcm_wrote),
+        cmocka_unit_test(pieces_of_any_size_give_the_same_records),
+        cmocka_unit_test(garbage_in_the_middle_loses_only_the_damaged_record),
+        cmocka_unit_test(truncated_tail_is_reported_and_the_rest_kept),
+        cmocka_unit_test(impossible_lengths_resync_on_the_next_record),
+        cmocka_unit_test(empty_and_tiny_inputs_are_harmless),
+        cmocka_unit_test(laser_json_has_what_the_page_draws),
+        cmocka_unit_test(strings_are_escaped_and_binary_is_base64),
+        cmocka_unit_test(page_commands_parse_or_are_refused),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,600 @@
+// marie viewer page: draws what the server streams over /ws (map, poses, laser, path, goals,
+// decisions, events, components) and sends playback commands and controls back.
+// The page's state is also written to data-* attributes of <body> so tests can read it.
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+const body = document.body;
+const STATES = ['created', 'ready', 'running', 'paused', 'failed', 'exited'];
+const PALETTE = ['#1565c0', '#c62828', '#2e7d32', '#ef6c00', '#6a1b9a', '#00838f', '#8d6e63', '#455a64'];
+
+let ws = null, retry = 0, dirty = false;
+let S = fresh();
+
+function fresh() {
+  return {
+    mode: null, controls: false, channels: {},
+    map: null, mapCanvas: null,
+    est: null, truth: null, laser: null, particles: null, path: null,
+    goals: {}, currentGoal: null,
+    trail: { est: [], truth: [] },
+    summary: null, decisions: [], selected: null, liveDec: [],
+    comps: {}, am: {}, events: [], restarts: {},
+    player: { t: 0, t0: 0, t1: 0, playing: false, speed: 1 },
+    now: 0, rxAge: 0, corruptText: '', view: null, goalMode: false, drag: null,
+    counts: { laser: 0 },
+  };
+}
+
+// ---------------------------------------------------------------- connection
+
+function banner(text, level) {
+  const b = $('banner');
+  if (!text) { b.className = 'banner hidden'; b.textContent = ''; return; }
+  b.className = 'banner ' + (level || 'warn');
+  b.textContent = text;
+}
+
+function notice(text) {
+  $('notice').textContent = new Date().toLocaleTimeString() + '  ' + text;
+}
+
+function connect() {
+  const url = (location.protocol === 'https:' ? 'wss://' : 'ws://') + location.host + '/ws';
+  try { ws = new WebSocket(url); } catch (e) { scheduleRetry(); return; }
+  ws.onopen = () => {
+    retry = 0;
+    body.dataset.connected = '1';
+    S = fresh();
+    banner('');
+    applyUrlOptions();
+  };
+  ws.onmessage = (ev) => {
+    let m;
+    try { m = JSON.parse(ev.data); } catch (e) { notice('bad frame from the server'); return; }
+    try { handle(m); } catch (e) { banner('page error: ' + e.message, 'error'); }
+    redraw();
+  };
+  ws.onclose = () => {
+    body.dataset.connected = '0';
+    banner('connection lost, retrying…', 'error');
+    scheduleRetry();
+  };
+  ws.onerror = () => {};
+}
+
+function scheduleRetry() {
+  retry = Math.min(retry + 1, 5);
+  setTimeout(connect, 500 * retry);
+}
+
+function send(obj) {
+  if (ws && ws.readyState === 1) ws.send(JSON.stringify(obj));
+}
+
+// ?t=SECONDS seeks the log there (from its start); &paused=1 stops playback.
+let urlApplied = false;
+function applyUrlOptions() {
+  urlApplied = false;
+}
+function applyUrlOnce() {
+  if (urlApplied || S.mode !== 'log') return;
+  urlApplied = true;
+  const q = new URLSearchParams(location.search);
+  if (q.get('paused') === '1') send({ op: 'pause' });
+  if (q.get('speed')) send({ op: 'speed', v: Number(q.get('speed')) });
+  if (q.get('t') !== null) send({ op: 'seek', t: S.player.t0 + Number(q.get('t')) * 1e6 });
+}
+
+// ---------------------------------------------------------------- messages
+
+function handle(m) {
+  switch (m.type) {
+  case 'hello':
+    S.mode = m.mode; S.controls = m.controls; S.channels = m.channels;
+    body.dataset.mode = m.mode;
+    body.dataset.state = 'ready';
+    $('mode').textContent = m.mode === 'log' ? 'log' : 'live bus';
+    $('controls').className = '';
+    $('controls-info').textContent = m.controls ? 'controls enabled (signed orders)'
+      : 'controls disabled (start with --key-file)';
+    $('goal-mode').disabled = !m.controls;
+    $('play').disabled = $('speed').disabled = m.mode !== 'log';
+    break;
+  case 'summary': onSummary(m); break;
+  case 'player':
+    S.player = m; S.now = m.t;
+    $('play').textContent = m.playing ? '❚❚' : '▶';
+    $('speed').value = String(m.speed);
+    applyUrlOnce();
+    break;
+  case 'snap':
+    // the state at a new time follows: forget what belongs to another moment
+    S.laser = S.particles = S.path = S.est = S.truth = null;
+    S.decisions = []; S.comps = {};
+    if (S.mode === 'live') { S.goals = {}; S.events = []; }
+    S.now = m.t;
+    break;
+  case 'snapend': S.now = m.t; break;
+  case 'trail':
+    S.trail.est = m.est.map((p) => [p[1], p[2]]);
+    S.trail.truth = m.truth.map((p) => [p[1], p[2]]);
+    break;
+  case 'msg': onMsg(m); break;
+  case 'stats':
+    S.rxAge = m.rx_age;
+    if (S.mode === 'live') {
+      if (m.rx_age < 0) banner('waiting for data from the bus…', 'warn');
+      else if (m.rx_age > 3) banner('no data from the bus for ' + m.rx_age.toFixed(0) + ' s', 'warn');
+      else if ($('banner').textContent.startsWith('no data') || $('banner').textContent.startsWith('waiting')) banner('');
+    }
+    break;
+  case 'notice':
+    notice(m.text);
+    if (m.level === 'error') banner(m.text, 'error');
+    break;
+  case 'pong': break;
+  }
+}
+
+function onSummary(m) {
+  S.summary = m;
+  $('source').textContent = m.file + ' — ' + ((m.t1 - m.t0) / 1e6).toFixed(1) + ' s, ' + m.records + ' records';
+  body.dataset.corrupt = String(m.corrupt);
+  if (m.records === 0) {
+    banner('log has no readable records' + (m.corrupt ? ' (' + m.corrupt + ' corrupt stretches)' : ''), 'error');
+  } else if (m.corrupt > 0) {
+    const c = m.corrupt_list[0];
+    banner('log has ' + m.corrupt + ' corrupt record' + (m.corrupt > 1 ? 's' : '') +
+           ' (skipped; first at byte ' + c.off + ': ' + c.reason + ')', 'warn');
+  } else if (m.bad_payloads > 0) {
+    banner('log has ' + m.bad_payloads + ' undecodable messages (skipped)', 'warn');
+  }
+  body.dataset.decisions = String(m.dec.length);
+  const legend = $('timeline-legend');
+  legend.innerHTML = '';
+  m.names.forEach((n) => {
+    const s = document.createElement('span');
+    s.innerHTML = '<span class="sw" style="background:' + colorOf(n) + '"></span>' + esc(n);
+    legend.appendChild(s);
+  });
+}
+
+function onMsg(m) {
+  if (m.t && m.t > S.now && S.mode === 'live') S.now = m.t;
+  switch (m.k) {
+  case 'map': setMap(m); break;
+  case 'pose':
+    if (m.role === 'truth') { S.truth = m; body.dataset.truth = '1'; } else { S.est = m; body.dataset.pose = '1'; }
+    if (S.mode === 'live') {
+      const tr = S.trail[m.role === 'truth' ? 'truth' : 'est'];
+      const last = tr[tr.length - 1];
+      if (!last || Math.hypot(last[0] - m.x, last[1] - m.y) > 0.05) tr.push([m.x, m.y]);
+      if (tr.length > 5000) tr.splice(0, tr.length - 5000);
+    }
+    break;
+  case 'laser': S.laser = m; S.counts.laser++; body.dataset.laser = String(S.counts.laser); break;
+  case 'particles': S.particles = m; body.dataset.particles = String(m.x.length); break;
+  case 'path': S.path = m; body.dataset.path = String(m.p.length); break;
+  case 'goal':
+    S.goals[m.id] = m; S.currentGoal = m.id;
+    body.dataset.goals = String(Object.keys(S.goals).length);
+    break;
+  case 'arb':
+    S.decisions.push(m);
+    if (S.decisions.length > 200) S.decisions.splice(0, S.decisions.length - 200);
+    if (S.mode === 'live') {
+      S.liveDec.push([m.t, m.winner]);
+      if (S.liveDec.length > 3000) S.liveDec.splice(0, S.liveDec.length - 3000);
+      body.dataset.decisions = String(S.liveDec.length);
+    }
+    break;
+  case 'event':
+    if (S.mode === 'live') {
+      S.events.push([m.t, m.src, m.sev, m.kind, m.text]);
+      if (S.events.length > 500) S.events.shift();
+    }
+    break;
+  case 'hb': {
+    const old = S.comps[m.c];
+    if (S.mode === 'live' && old && old.pid !== m.pid) {
+      S.restarts[m.c] = (S.restarts[m.c] || 0) + 1;
+      S.events.push([m.t, m.c, 2, 'restart', 'restarted: pid ' + old.pid + ' → ' + m.pid]);
+    }
+    S.comps[m.c] = m;
+    break;
+  }
+  case 'am': for (const c of m.comps) S.am[c.n] = c; break;
+  case 'reply': notice((m.ok ? 'order done on ' : 'order refused on ') + m.host + ': ' + m.reason); break;
+  case 'tags': S.tags = m; break;
+  }
+}
+
+function setMap(m) {
+  if (!m.cells || m.w <= 0 || m.h <= 0) return;
+  const raw = atob(m.cells);
+  if (raw.length !== m.w * m.h) return;
+  const c = document.createElement('canvas');
+  c.width = m.w; c.height = m.h;
+  const g = c.getContext('2d');
+  const img = g.createImageData(m.w, m.h);
+  for (let j = 0; j < m.h; j++) {
+    for (let i = 0; i < m.w; i++) {
+      let v = raw.charCodeAt(j * m.w + i);
+      if (v > 127) v -= 256;
+      const k = ((m.h - 1 - j) * m.w + i) * 4;   // row 0 is the bottom of the map
+      const shade = v < 0 ? 205 : 255 - Math.round(Math.min(v, 100) * 2.2);
+      img.data[k] = img.data[k + 1] = img.data[k + 2] = shade;
+      img.data[k + 3] = 255;
+    }
+  }
+  g.putImageData(img, 0, 0);
+  S.map = m; S.mapCanvas = c;
+  if (!S.view) fitView();
+}
+
+// ---------------------------------------------------------------- drawing
+
+function fitView() {
+  const cv = $('map');
+  let x0, y0, x1, y1;
+  if (S.map) {
+    x0 = S.map.ox; y0 = S.map.oy; x1 = x0 + S.map.w * S.map.res; y1 = y0 + S.map.h * S.map.res;
+  } else {
+    const p = S.truth || S.est;
+    if (!p) return;
+    x0 = p.x - 10; x1 = p.x + 10; y0 = p.y - 7; y1 = p.y + 7;
+  }
+  const scale = Math.min(cv.width / (x1 - x0), cv.height / (y1 - y0)) * 0.98;
+  S.view = { scale, cx: (x0 + x1) / 2, cy: (y0 + y1) / 2 };
+}
+
+function toPx(x, y) {
+  const cv = $('map'), v = S.view;
+  return [cv.width / 2 + (x - v.cx) * v.scale, cv.height / 2 - (y - v.cy) * v.scale];
+}
+function toWorld(px, py) {
+  const cv = $('map'), v = S.view;
+  return [v.cx + (px - cv.width / 2) / v.scale, v.cy - (py - cv.height / 2) / v.scale];
+}
+
+function redraw() {
+  if (dirty) return;
+  dirty = true;
+  setTimeout(() => { dirty = false; try { draw(); } catch (e) { banner('page error: ' + e.message, 'error'); } }, 30);
+}
+
+function relMs(t) { return (t - (S.summary ? S.summary.t0 : 0)) / 1000; }
+
+// Items of a summary list up to the current time (lists are sorted by time).
+function upToNow(list) {
+  const now = relMs(S.now);
+  let lo = 0, hi = list.length;
+  while (lo < hi) { const mid = (lo + hi) >> 1; if (list[mid][0] <= now) lo = mid + 1; else hi = mid; }
+  return lo;
+}
+
+function draw() {
+  const cv = $('map'), g = cv.getContext('2d');
+  g.setTransform(1, 0, 0, 1, 0, 0);
+  g.fillStyle = '#e0e0e0';
+  g.fillRect(0, 0, cv.width, cv.height);
+  if (!S.view) fitView();
+  if (S.view) {
+    if (S.mapCanvas) {
+      const m = S.map, [px, py] = toPx(m.ox, m.oy + m.h * m.res);
+      g.imageSmoothingEnabled = false;
+      g.drawImage(S.mapCanvas, px, py, m.w * m.res * S.view.scale, m.h * m.res * S.view.scale);
+      body.dataset.mapDrawn = '1';
+    }
+    drawTrails(g);
+    drawGoals(g);
+    if (S.path) polyline(g, S.path.p, '#ff9800', 2.5);
+    if (S.particles) {
+      g.fillStyle = 'rgba(171,71,188,0.55)';
+      for (let i = 0; i < S.particles.x.length; i++) {
+        const [px, py] = toPx(S.particles.x[i], S.particles.y[i]);
+        g.fillRect(px - 1, py - 1, 2, 2);
+      }
+    }
+    drawLaser(g);
+    if (S.truth) robot(g, S.truth, '#2e7d32', null);
+    if (S.est) robot(g, S.est, '#1565c0', S.est.cov);
+    if (S.drag) {
+      const [a, b] = [toPx(S.drag.x, S.drag.y), toPx(S.drag.x2, S.drag.y2)];
+      g.strokeStyle = '#00838f'; g.lineWidth = 2;
+      g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
+    }
+  } else {
+    g.fillStyle = '#555'; g.font = '16px sans-serif';
+    g.fillText(body.dataset.connected === '1' ? 'no map or pose yet' : 'not connected', 20, 30);
+  }
+  drawPanels();
+  drawTimeline();
+}
+
+function polyline(g, pts, color, width) {
+  if (!pts || pts.length < 2) return;
+  g.strokeStyle = color; g.lineWidth = width;
+  g.beginPath();
+  pts.forEach((p, i) => { const [x, y] = toPx(p[0], p[1]); if (i) g.lineTo(x, y); else g.moveTo(x, y); });
+  g.stroke();
+}
+
+function drawTrails(g) {
+  if (S.mode === 'log' && S.summary) {
+    polyline(g, S.summary.truth.slice(0, upToNow(S.summary.truth)).map((p) => [p[1], p[2]]), 'rgba(46,125,50,0.7)', 1.5);
+    polyline(g, S.summary.est.slice(0, upToNow(S.summary.est)).map((p) => [p[1], p[2]]), 'rgba(21,101,192,0.7)', 1.5);
+  } else {
+    polyline(g, S.trail.truth, 'rgba(46,125,50,0.7)', 1.5);
+    polyline(g, S.trail.est, 'rgba(21,101,192,0.7)', 1.5);
+  }
+}
+
+function goalList() {
+  if (S.mode === 'log' && S.summary) {
+    const seen = {};
+    S.summary.goals.slice(0, upToNow(S.summary.goals)).forEach((gl) => { seen[gl[1]] = { id: gl[1], name: gl[2], x: gl[3], y: gl[4] }; });
+    Object.values(S.goals).forEach((gl) => { seen[gl.id] = gl; });
+    return Object.values(seen);
+  }
+  return Object.values(S.goals);
+}
+
+function drawGoals(g) {
+  const list = goalList();
+  body.dataset.goals = String(list.length);
+  g.font = '11px sans-serif';
+  for (const gl of list) {
+    const [x, y] = toPx(gl.x, gl.y);
+    const cur = gl.id === S.currentGoal;
+    g.strokeStyle = '#00838f'; g.fillStyle = cur ? 'rgba(0,131,143,0.35)' : 'rgba(0,131,143,0.1)';
+    g.lineWidth = cur ? 2.5 : 1.2;
+    g.beginPath(); g.arc(x, y, Math.max(5, (gl.tol || 0.3) * S.view.scale), 0, 2 * Math.PI); g.fill(); g.stroke();
+    g.fillStyle = '#004d55'; g.fillText(gl.name || ('goal ' + gl.id), x + 8, y - 8);
+  }
+}
+
+function drawLaser(g) {
+  const l = S.laser, p = S.truth || S.est;
+  if (!l || !p) return;
+  g.fillStyle = 'rgba(229,57,53,0.85)';
+  for (let i = 0; i < l.r.length; i++) {
+    const r = l.r[i];
+    if (r === null || r >= l.rmax) continue;
+    const a = p.th + l.amin + i * l.ainc;
+    const [x, y] = toPx(p.x + r * Math.cos(a), p.y + r * Math.sin(a));
+    g.fillRect(x - 1.5, y - 1.5, 3, 3);
+  }
+}
+
+function robot(g, p, color, cov) {
+  const [x, y] = toPx(p.x, p.y), r = Math.max(4, 0.25 * S.view.scale);
+  if (cov) {
+    const sx = Math.sqrt(Math.max(cov[0], 0)) * 2 * S.view.scale, sy = Math.sqrt(Math.max(cov[2], 0)) * 2 * S.view.scale;
+    g.strokeStyle = 'rgba(21,101,192,0.6)'; g.lineWidth = 1;
+    g.beginPath(); g.ellipse(x, y, Math.max(sx, 1), Math.max(sy, 1), 0, 0, 2 * Math.PI); g.stroke();
+  }
+  g.strokeStyle = color; g.lineWidth = 2.5;
+  g.beginPath(); g.arc(x, y, r, 0, 2 * Math.PI); g.stroke();
+  g.beginPath(); g.moveTo(x, y); g.lineTo(x + r * 1.6 * Math.cos(p.th), y - r * 1.6 * Math.sin(p.th)); g.stroke();
+}
+
+// ---------------------------------------------------------------- panels
+
+const colors = {};
+function colorOf(name) {
+  if (!(name in colors)) colors[name] = PALETTE[Object.keys(colors).length % PALETTE.length];
+  return colors[name];
+}
+function esc(s) {
+  return String(s).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c]));
+}
+function fmtT(t) {
+  if (S.mode === 'log' && S.summary) return ((t - S.summary.t0) / 1e6).toFixed(1) + ' s';
+  return new Date(t / 1000).toLocaleTimeString();
+}
+
+function drawPanels() {
+  // time
+  if (S.mode === 'log') {
+    const p = S.player;
+    $('time').textContent = ((p.t - p.t0) / 1e6).toFixed(1) + ' s / ' + ((p.t1 - p.t0) / 1e6).toFixed(1) + ' s';
+  } else if (S.mode === 'live') {
+    $('time').textContent = 'live';
+  }
+  $('clock').textContent = S.now ? fmtT(S.now) : '';
+
+  // decisions: newest last in the data, newest first on the page
+  const list = $('decision-list');
+  const decs = S.decisions.filter((d) => S.mode !== 'log' || d.t <= S.now).slice(-30).reverse();
+  list.innerHTML = '';
+  decs.forEach((d, i) => {
+    const li = document.createElement('li');
+    li.dataset.winner = d.winner;
+    li.dataset.cycle = String(d.cycle);
+    const vote = (d.votes || []).find((v) => v.n === d.winner);
+    li.innerHTML = '<span class="winner" style="background:' + colorOf(d.winner) + '">' + esc(d.winner) + '</span> ' +
+      esc(fmtT(d.t)) + ' #' + d.cycle + '  v=' + d.v + ' ω=' + d.w + (vote ? '  — ' + esc(vote.r) : '');
+    if (i === 0) li.className = 'current';
+    if (decs[i + 1] && decs[i + 1].winner !== d.winner) li.className += ' switch';
+    li.onclick = () => { S.selected = d; redraw(); };
+    list.appendChild(li);
+  });
+  $('decision-count').textContent = S.mode === 'log' && S.summary ? '(' + S.summary.dec.length + ' in the log)'
+    : '(' + S.liveDec.length + ' received)';
+  const cur = S.selected && (S.mode !== 'log' || S.selected.t <= S.now) ? S.selected : decs[0];
+  const w = $('current-winner');
+  if (cur) {
+    w.textContent = cur.winner; w.style.background = colorOf(cur.winner);
+    let h = '<table><tr><th>behaviour</th><th>prio</th><th>active</th><th>v</th><th>ω</th><th>why</th></tr>';
+    for (const v of cur.votes) {
+      h += '<tr class="' + (v.n === cur.winner ? 'won' : '') + '"><td>' + esc(v.n) + '</td><td>' + v.p + '</td><td class="' +
+        (v.a ? 'active' : '') + '">' + (v.a ? 'yes' : 'no') + '</td><td>' + v.v + '</td><td>' + v.w + '</td><td>' + esc(v.r) + '</td></tr>';
+    }
+    h += '</table><div>inputs: ' + cur.in.map((i) => esc(i.n) + ' ' + (i.age < 0 ? 'never' : (i.age * 1000).toFixed(0) + ' ms')).join(', ') +
+      ' — cycle ' + cur.cycle + ' at ' + esc(fmtT(cur.t)) + '</div>';
+    $('decision-detail').innerHTML = h;
+  }
+
+  // components
+  const tb = $('components').tBodies[0];
+  const names = Object.keys(S.comps).concat(Object.keys(S.am).filter((n) => !(n in S.comps))).sort();
+  const restartsLog = {};
+  if (S.mode === 'log' && S.summary) S.summary.restarts.slice(0, upToNow(S.summary.restarts)).forEach((r) => { restartsLog[r[1]] = (restartsLog[r[1]] || 0) + 1; });
+  tb.innerHTML = '';
+  for (const n of names) {
+    const c = S.comps[n] || {}, a = S.am[n] || {};
+    const rs = S.mode === 'log' ? (restartsLog[n] || 0) : Math.max(S.restarts[n] || 0, a.rs || 0);
+    const age = c.t ? (S.now - c.t) / 1e6 : null;
+    const state = c.state !== undefined ? (STATES[c.state] || String(c.state)) : (a.s || '?');
+    const tr = document.createElement('tr');
+    tr.dataset.component = n;
+    tr.dataset.restarts = String(rs);
+    tr.className = (age !== null && age > 3 ? 'stale' : '') + (rs ? ' restarted' : '');
+    tr.innerHTML = '<td>' + esc(n) + '</td><td>' + esc(c.host || '') + '</td><td class="state-' + esc(state) + '">' + esc(state) +
+      (age !== null && age > 3 ? ' (silent ' + age.toFixed(0) + ' s)' : '') + '</td><td>' + (c.pid || a.pid || '') + '</td><td>' +
+      (c.up !== undefined ? c.up.toFixed(0) + ' s' : '') + '</td><td class="restarts">' + rs + '</td><td>' +
+      (c.in !== undefined ? c.in + '/' + c.out : '') + '</td><td>' + (c.bad || 0) + '</td><td>' + (a.cpu !== undefined ? a.cpu + '%' : '') +
+      '</td><td></td>';
+    if (S.controls) {
+      const td = tr.lastChild;
+      for (const cmd of ['pause', 'resume']) {
+        const b = document.createElement('button');
+        b.textContent = cmd;
+        b.onclick = () => send({ op: 'order', cmd, target: n });
+        td.appendChild(b);
+      }
+    }
+    tb.appendChild(tr);
+  }
+  body.dataset.components = String(names.length);
+
+  // events
+  const evs = S.mode === 'log' && S.summary ? S.summary.events.slice(0, upToNow(S.summary.events)).map((e) => [S.summary.t0 + e[0] * 1000, e[1], e[2], e[3], e[4]])
+    : S.events;
+  const rst = S.mode === 'log' && S.summary ? S.summary.restarts.slice(0, upToNow(S.summary.restarts))
+    .map((r) => [S.summary.t0 + r[0] * 1000, r[1], 2, 'restart', 'restarted: pid ' + r[2] + ' → ' + r[3]]) : [];
+  const all = evs.concat(rst).sort((a, b) => a[0] - b[0]).slice(-100).reverse();
+  const ul = $('events');
+  ul.innerHTML = '';
+  for (const e of all) {
+    const li = document.createElement('li');
+    li.className = 'sev' + e[2] + ' ' + e[3];
+    li.dataset.kind = e[3];
+    li.textContent = fmtT(e[0]) + '  ' + e[1] + ': ' + e[3] + ' — ' + e[4];
+    ul.appendChild(li);
+  }
+  body.dataset.events = String(all.length);
+}
+
+// ---------------------------------------------------------------- timeline
+
+function timeRange() {
+  if (S.mode === 'log') return [S.player.t0, Math.max(S.player.t1, S.player.t0 + 1)];
+  const end = S.now || Date.now() * 1000;
+  return [end - 120e6, end];
+}
+
+function drawTimeline() {
+  const cv = $('timeline');
+  if (cv.width !== cv.clientWidth && cv.clientWidth > 0) cv.width = cv.clientWidth;
+  const g = cv.getContext('2d'), W = cv.width, H = cv.height;
+  g.clearRect(0, 0, W, H);
+  const [a, b] = timeRange();
+  const X = (t) => (t - a) / (b - a) * W;
+  // decisions: one colour band per winner
+  let decs;
+  if (S.mode === 'log' && S.summary) decs = S.summary.dec.map((d) => [S.summary.t0 + d[0] * 1000, S.summary.names[d[1]]]);
+  else decs = S.liveDec;
+  for (let i = 0; i < decs.length; i++) {
+    const x0 = X(decs[i][0]), x1 = i + 1 < decs.length ? X(decs[i + 1][0]) : x0 + 2;
+    if (x1 < 0 || x0 > W) continue;
+    g.fillStyle = colorOf(decs[i][1]);
+    g.fillRect(x0, 4, Math.max(1, x1 - x0), 22);
+  }
+  g.fillStyle = '#333'; g.font = '10px sans-serif';
+  g.fillText('decisions', 2, 36);
+  // events, goals reached, restarts
+  const marks = [];
+  if (S.mode === 'log' && S.summary) {
+    S.summary.events.forEach((e) => marks.push([S.summary.t0 + e[0] * 1000, e[3] === 'goal_reached' ? '#2e7d32' : e[2] >= 2 ? '#c62828' : '#607d8b']));
+    S.summary.restarts.forEach((r) => marks.push([S.summary.t0 + r[0] * 1000, '#ef6c00']));
+  } else {
+    S.events.forEach((e) => marks.push([e[0], e[3] === 'goal_reached' ? '#2e7d32' : e[2] >= 2 ? '#c62828' : '#607d8b']));
+  }
+  for (const [t, c] of marks) {
+    const x = X(t);
+    g.fillStyle = c;
+    g.beginPath(); g.moveTo(x, 40); g.lineTo(x - 5, 58); g.lineTo(x + 5, 58); g.fill();
+  }
+  // cursor
+  if (S.now) {
+    const x = X(S.now);
+    g.strokeStyle = '#000'; g.lineWidth = 2;
+    g.beginPath(); g.moveTo(x, 0); g.lineTo(x, H); g.stroke();
+  }
+}
+
+// ---------------------------------------------------------------- input
+
+$('play').onclick = () => send({ op: S.player.playing ? 'pause' : 'play' });
+$('speed').onchange = () => send({ op: 'speed', v: Number($('speed').value) });
+
+let scrubbing = false;
+function seekAt(ev) {
+  if (S.mode !== 'log') return;
+  const cv = $('timeline'), r = cv.getBoundingClientRect();
+  const [a, b] = timeRange();
+  send({ op: 'seek', t: Math.round(a + (ev.clientX - r.left) / r.width * (b - a)) });
+}
+$('timeline').onmousedown = (ev) => { scrubbing = true; seekAt(ev); };
+window.addEventListener('mousemove', (ev) => { if (scrubbing) seekAt(ev); });
+window.addEventListener('mouseup', () => { scrubbing = false; });
+
+$('goal-mode').onclick = () => {
+  S.goalMode = !S.goalMode;
+  $('goal-mode').textContent = S.goalMode ? 'Click the goal…' : 'Set goal';
+};
+
+const mapCv = $('map');
+let pan = null;
+function mapPos(ev) {
+  const r = mapCv.getBoundingClientRect();
+  return [(ev.clientX - r.left) * mapCv.width / r.width, (ev.clientY - r.top) * mapCv.height / r.height];
+}
+mapCv.onmousedown = (ev) => {
+  if (!S.view) return;
+  const [px, py] = mapPos(ev);
+  if (S.goalMode) {
+    const [x, y] = toWorld(px, py);
+    S.drag = { x, y, x2: x, y2: y };
+  } else {
+    pan = { px, py, cx: S.view.cx, cy: S.view.cy };
+  }
+};
+mapCv.onmousemove = (ev) => {
+  const [px, py] = mapPos(ev);
+  if (S.drag) { [S.drag.x2, S.drag.y2] = toWorld(px, py); redraw(); }
+  else if (pan) { S.view.cx = pan.cx - (px - pan.px) / S.view.scale; S.view.cy = pan.cy + (py - pan.py) / S.view.scale; redraw(); }
+};
+mapCv.onmouseup = () => {
+  if (S.drag) {
+    const d = S.drag, len = Math.hypot(d.x2 - d.x, d.y2 - d.y);
+    send({ op: 'goal', x: d.x, y: d.y, th: len > 0.2 ? Math.atan2(d.y2 - d.y, d.x2 - d.x) : 0 });
+    S.drag = null; S.goalMode = false; $('goal-mode').textContent = 'Set goal';
+  }
+  pan = null;
+  redraw();
+};
+mapCv.onwheel = (ev) => {
+  if (!S.view) return;
+  ev.preventDefault();
+  S.view.scale *= ev.deltaY < 0 ? 1.15 : 1 / 1.15;
+  redraw();
+};
+mapCv.ondblclick = () => { S.view = null; redraw(); };
+
+window.onerror = (msg) => { banner('page error: ' + msg, 'error'); };
+connect();
+redraw();
