@@ -19,4 +19,4 @@ EXTRA_TARGETS += $(B)/tests/bin/marie-test-order
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
 $(eval $(call marie_bench,bench_am,managers/bench_am.c,$(MANAGERS_LIB)))
-$(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/auth.c managers/logcap.c managers/lcmcheck.c,))
+$(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/auth.c managers/logcap.c managers/lcmcheck.c $(B)/gen/c/lcmtypes/marie_am_order_t.c $(B)/gen/c/lcmtypes/marie_lifecycle_command_t.c,))

@@ -27,6 +27,10 @@ typedef struct {
     double cloud_period_us;
     float *cloud_buf;
     int cloud_max;
+    double last_distance;       /* odometry's distance travelled: it only grows, unless restarted */
+    bool reanchor;              /* the odometry restarted: next step re-references, no motion */
+    double resume_max_age_s;
+    int64_t first_pub_utime;    /* utime of this run's first pose; 0 before */
 } loc_t;
 
 static double wrap(double a)
@@ -89,6 +93,10 @@ static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *sc
         return;
     mcl_scan_t ms = { scan->ranges, scan->nranges, scan->angle_min, scan->angle_increment,
                       scan->range_min, scan->range_max };
+    if (s->reanchor) {
+        mcl_reanchor(s->f, odom);
+        s->reanchor = false;
+    }
     if (mcl_step(s->f, odom, &ms, false))
         marie_component_count(c, "filter_updates", 1);
     marie_pose_cov_t out = { .utime = scan->utime, .frame = "map" };
@@ -98,6 +106,8 @@ static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *sc
     out.pose.y = pose[1];
     out.pose.theta = pose[2];
     marie_port_publish(marie_port(c, "pose"), &out);
+    if (!s->first_pub_utime)
+        s->first_pub_utime = out.utime ? out.utime : 1;
     if (s->cloud_period_us > 0 && scan->utime - s->last_cloud >= s->cloud_period_us) {
         s->last_cloud = scan->utime;
         publish_cloud(c, s, scan->utime);
@@ -157,11 +167,24 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
         marie_component_bad_input(c, "bad_odometry", "odometry pose is not finite");
         return;
     }
-    if (s->nring && m->utime < newest_odom(s)) {
-        /* Time went backwards (a restarted source or a replayed log): start over. */
+    bool restarted = false;
+    if (s->nring) {
+        const odom_sample_t *last = &s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING];
+        double dt = (double)(m->utime - last->utime) / 1e6;
+        double jump = hypot(m->pose.x - last->pose[0], m->pose.y - last->pose[1]);
+        /* Time going backwards (a replayed log), distance shrinking (a restarted odometry
+         * starts again from zero) or a jump no robot makes: the odometry frame changed. */
+        restarted = m->utime < last->utime || m->distance < s->last_distance - 1e-6 ||
+                    jump > 0.5 + 3.0 * fabs(dt);
+    }
+    s->last_distance = m->distance;
+    if (restarted) {
         marie_component_count(c, "odometry_restarts", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
+                              "odometry frame jumped: particles kept, motion re-referenced");
         s->nring = 0;
         s->have_pending = false;
+        s->reanchor = true;
     }
     odom_sample_t *o = &s->ring[s->head];
     o->utime = m->utime;
@@ -193,6 +216,42 @@ static void on_initialpose(marie_component_t *c, marie_port_t *p, const void *ms
                           pose[0], pose[1], pose[2]);
 }
 
+/* A restarted localizer continues from the last pose it published, kept by the POSE Mailbox. */
+static void on_resume(marie_component_t *c, marie_port_t *p, int status, const void *msg, int64_t age_us, void *user)
+{
+    loc_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    if (status != 0 || !m || !s->f) {
+        marie_info("no earlier pose to resume from (%s): starting from the configured one",
+                   status == -ENODATA ? "the Mailbox is empty" : status == -ETIMEDOUT ? "no Mailbox answered" : "bad reply");
+        return;
+    }
+    if (s->first_pub_utime && m->utime >= s->first_pub_utime) {
+        marie_info("the Mailbox holds only this run's poses: nothing to resume");
+        return;
+    }
+    if (age_us / 1e6 > s->resume_max_age_s || !isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta) ||
+        strcmp(m->frame, "map") != 0) {
+        marie_info("earlier pose is %.1f s old or unusable: starting from the configured one", age_us / 1e6);
+        return;
+    }
+    double pose[3] = { m->pose.x, m->pose.y, m->pose.theta };
+    double sig[3] = { 0.3, 0.3, 0.15 };
+    mcl_init_pose(s->f, pose, sig);
+    marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "localizer_resumed",
+                          "resumed at (%.2f, %.2f, %.2f), the last pose published %.1f s ago", pose[0], pose[1],
+                          pose[2], age_us / 1e6);
+}
+
+static int start(marie_component_t *c)
+{
+    loc_t *s = marie_component_user(c);
+    if (s->resume_max_age_s > 0 &&
+        marie_port_pull_async(marie_port(c, "resume"), 300, on_resume, NULL) != 0)
+        marie_component_count(c, "resume_pull_errors", 1);
+    return 0;
+}
+
 static void quit(marie_component_t *c)
 {
     loc_t *s = marie_component_user(c);
@@ -211,6 +270,10 @@ static int init(marie_component_t *c)
     quit(c);    /* init again after a failure starts from scratch */
     s->nring = s->head = 0;
     s->have_pending = false;
+    s->reanchor = false;
+    s->last_distance = 0;
+    s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
+    s->first_pub_utime = 0;
     marie_errors_t errs = { 0 };
     occmap_t *map = occmap_load(marie_param_str(c, "map"), &errs);
     if (!map) {
@@ -284,6 +347,7 @@ static const marie_port_spec_t ports[] = {
     { "initialpose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "INITIALPOSE" },
     { "pose", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "POSE" },
     { "particles", &marie_type_particle_cloud_t, MARIE_OUT, MARIE_PUSH, "PARTICLES" },
+    { "resume", &marie_type_pose_cov_t, MARIE_IN, MARIE_PULL, "POSE" },
     { 0 },
 };
 
@@ -317,11 +381,13 @@ static const marie_param_spec_t params[] = {
     { "seed", MARIE_PARAM_INT, "1", "random seed (same seed and log: same output)" },
     { "cloud_hz", MARIE_PARAM_DOUBLE, "1", "particle cloud rate (0: never)" },
     { "cloud_max", MARIE_PARAM_INT, "2000", "particles per cloud message at most" },
+    { "resume_max_age_s", MARIE_PARAM_DOUBLE, "30", "at start, continue from the pose in the POSE Mailbox "
+      "when it is younger than this (0: never)" },
     { 0 },
 };
 
 static const marie_component_def_t def = {
-    .kind = "localizer", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+    .kind = "localizer", .ports = ports, .params = params, .on_init = init, .on_start = start, .on_quit = quit,
 };
 
 int main(int argc, char **argv)

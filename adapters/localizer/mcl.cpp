@@ -346,6 +346,12 @@ extern "C" int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, 
     return 1;
 }
 
+extern "C" void mcl_reanchor(mcl_t *f, const double odom[3])
+{
+    f->odom_[0] = odom[0]; f->odom_[1] = odom[1]; f->odom_[2] = odom[2];
+    f->have_odom_ = true;
+}
+
 static void weighted_stats(const mcl_t *f, const std::vector<Eigen::Index> *sel, double pose[3], double cov[9])
 {
     double sw = 0, mx = 0, my = 0, sc = 0, ss = 0;

@@ -54,6 +54,10 @@ void mcl_init_global(mcl_t *f);
  * Returns 1 when the filter was updated, 0 when the step was skipped. */
 int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, bool force);
 
+/* The odometry source restarted (its frame jumped): take `odom` as the new reference without
+ * moving the particles. */
+void mcl_reanchor(mcl_t *f, const double odom[3]);
+
 /* Pose estimate (the mean of the best cluster) with its covariance (row-major x, y, theta). */
 void mcl_estimate(const mcl_t *f, double pose[3], double cov[9]);
 /* The estimate carried forward to odometry pose `odom` by the motion since the last update,

@@ -12,6 +12,7 @@
 
 #include "adapters/vision/vision_image.h"
 #include "adapters/vision/vision_render.h"
+#include "adapters/vision/vision_simcam.h"
 #include "core/config.h"
 #include "core/time.h"
 
@@ -19,6 +20,7 @@ static void usage(FILE *f)
 {
     fprintf(f,
             "usage: marie-vision-render [options] --tag ID:SIZE:X:Y:Z[:ROLL:PITCH:YAW]...\n"
+            "       marie-vision-render [options] --world FILE [--robot X:Y:THETA] [--turn RAD_PER_S]\n"
             "  tag poses are in the camera's optical frame (x right, y down, z forward; m, rad);\n"
             "  a tag with zero angles faces the camera.\n"
             "  --family NAME      tag family (tag36h11)\n"
@@ -30,7 +32,69 @@ static void usage(FILE *f)
             "  --out FILE         write one frame (png, jpg, pgm...)\n"
             "  --publish CHANNEL  publish frames as marie.image_t (URL from --url or the default)\n"
             "  --rate HZ --count N --format gray|rgb|jpeg   for --publish (10, 10, gray)\n"
-            "  --url URL\n");
+            "  --url URL\n"
+            "  --world FILE       a YAML file with `camera` and `tags` (see docs/vision.md); the\n"
+            "                     robot stands at --robot and turns at --turn while publishing\n");
+}
+
+/* --world: the simulator's camera (vision_simcam) on a robot standing in a tag world. */
+static int render_world(const char *path, const double robot[3], double turn, const char *out, const char *channel,
+                        const char *url, double rate, int count)
+{
+    marie_errors_t errs = { 0 };
+    marie_doc_t *doc = marie_doc_load(path, &errs);
+    vision_simcam_opts_t o;
+    vision_simcam_opts_default(&o);
+    vision_tag_t *tags = NULL;
+    size_t n = 0;
+    if (!doc || vision_simcam_parse(marie_node_get(marie_doc_root(doc), "camera"),
+                                    marie_node_get(marie_doc_root(doc), "tags"), &o, &tags, &n, &errs) < 0) {
+        marie_errors_print(&errs, stderr);
+        marie_errors_clear(&errs);
+        marie_doc_destroy(doc);
+        return 2;
+    }
+    char err[256];
+    vision_simcam_t *cam = vision_simcam_create(&o, tags, n, err, sizeof err);
+    free(tags);
+    marie_doc_destroy(doc);
+    if (!cam) {
+        fprintf(stderr, "marie-vision-render: %s: %s\n", path, err);
+        return 2;
+    }
+    lcm_t *lcm = channel ? lcm_create(url ? url : marie_default_url()) : NULL;
+    int rc = 0;
+    if (channel && !lcm) {
+        fprintf(stderr, "marie-vision-render: cannot open the LCM bus\n");
+        rc = 1;
+    }
+    int frames = channel ? count : 1;
+    for (int i = 0; rc == 0 && i < frames; i++) {
+        marie_image_t img;
+        double theta = robot[2] + (rate > 0 ? turn * i / rate : 0);
+        if (vision_simcam_render(cam, robot[0], robot[1], theta, marie_wall_us(), &img) < 0) {
+            fprintf(stderr, "marie-vision-render: cannot render\n");
+            rc = 1;
+            break;
+        }
+        if (lcm) {
+            marie_image_t_publish(lcm, channel, &img);
+            if (i + 1 < frames && rate > 0)
+                usleep((useconds_t)(1e6 / rate));
+        }
+        if (out && i == 0) {
+            vision_frame_t f = { 0 };
+            if (vision_image_decode(&img, &f, NULL) < 0 || vision_frame_save(&f, out) < 0) {
+                fprintf(stderr, "marie-vision-render: cannot write '%s'\n", out);
+                rc = 1;
+            }
+            vision_frame_free(&f);
+        }
+    }
+    if (lcm)
+        lcm_destroy(lcm);
+    vision_simcam_destroy(cam);
+    return rc;
 }
 
 int main(int argc, char **argv)
@@ -40,9 +104,11 @@ int main(int argc, char **argv)
         { "cx", 1, 0, 'c' }, { "cy", 1, 0, 'd' }, { "noise", 1, 0, 'n' }, { "blur", 1, 0, 'b' },
         { "background", 1, 0, 'g' }, { "out", 1, 0, 'o' }, { "publish", 1, 0, 'p' }, { "rate", 1, 0, 'r' },
         { "count", 1, 0, 'k' }, { "format", 1, 0, 'f' }, { "url", 1, 0, 'u' }, { "tag", 1, 0, 't' },
+        { "world", 1, 0, 'w' }, { "robot", 1, 0, 'R' }, { "turn", 1, 0, 'T' },
         { "help", 0, 0, 'h' }, { 0, 0, 0, 0 },
     };
-    const char *family = "tag36h11", *out = NULL, *channel = NULL, *url = NULL, *format = "gray";
+    const char *family = "tag36h11", *out = NULL, *channel = NULL, *url = NULL, *format = "gray", *world = NULL;
+    double robot[3] = { 0, 0, 0 }, turn = 0;
     vision_camera_t cam = { 640, 480, 500, 500, -1, -1 };
     vision_render_opts_t ro;
     vision_render_opts_default(&ro);
@@ -93,6 +159,14 @@ int main(int argc, char **argv)
             t->pose.t[2] = v[3];
             break;
         }
+        case 'w': world = optarg; break;
+        case 'R':
+            if (sscanf(optarg, "%lf:%lf:%lf", &robot[0], &robot[1], &robot[2]) != 3) {
+                fprintf(stderr, "marie-vision-render: --robot: expected X:Y:THETA, got '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 'T': turn = atof(optarg); break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -105,6 +179,8 @@ int main(int argc, char **argv)
         usage(stderr);
         return 2;
     }
+    if (world)
+        return render_world(world, robot, turn, out, channel, url, rate, count);
     vision_render_t *r = vision_render_create(family);
     if (!r) {
         fprintf(stderr, "marie-vision-render: unknown tag family '%s'\n", family);
@@ -145,7 +221,8 @@ int main(int argc, char **argv)
             if (i + 1 < count && rate > 0)
                 usleep((useconds_t)(1e6 / rate));
         }
-        lcm_destroy(lcm);
+        if (lcm)
+            lcm_destroy(lcm);
     }
     free(pix);
     vision_render_destroy(r);

@@ -6,6 +6,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
+#include <time.h>
 
 void xb_error_set(xb_error_t *e, const char *code, const char *fmt, ...)
 {
@@ -56,6 +58,7 @@ struct xb_doc_parser {
     long long fed;              /* bytes given to expat since the reset */
     long long doc_end;          /* offset just past the document element's end tag */
     uint64_t documents;
+    unsigned long salt;
     xb_error_t err;
 };
 
@@ -235,6 +238,8 @@ static int setup(xb_doc_parser_t *p)
         return -1;
     if (!p->xp)
         return -1;
+    /* One random hash salt per parser: a reset would otherwise draw a new one every time. */
+    XML_SetHashSalt(p->xp, p->salt);
     XML_SetUserData(p->xp, p);
     XML_SetElementHandler(p->xp, on_start, on_end);
     XML_SetCharacterDataHandler(p->xp, on_text);
@@ -261,6 +266,8 @@ xb_doc_parser_t *xb_doc_parser_create(const xb_doc_limits_t *lim, xb_doc_cb_t cb
     p->lim.max_depth = lim && lim->max_depth > 0 ? lim->max_depth : XB_DOC_DEFAULT_MAX_DEPTH;
     p->cb = cb;
     p->user = user;
+    if (getrandom(&p->salt, sizeof p->salt, 0) != sizeof p->salt)
+        p->salt = (unsigned long)(uintptr_t)p ^ (unsigned long)time(NULL);
     if (setup(p) < 0) {
         xb_doc_parser_destroy(p);
         return NULL;
@@ -311,8 +318,9 @@ int xb_doc_parser_feed(xb_doc_parser_t *p, const void *buf, size_t len)
                 return 0;
             p->started = 1;
         }
-        /* Expat takes an int length; feed large buffers in pieces. */
-        int n = len > (1u << 30) ? (1 << 30) : (int)len;
+        /* Expat copies what follows a suspension (the end of a document) into its own buffer:
+         * small pieces keep that copy small when many documents share one read. */
+        int n = len > 2048 ? 2048 : (int)len;
         enum XML_Status st = XML_Parse(p->xp, s, n, XML_FALSE);
         if (st == XML_STATUS_ERROR || p->limit_hit)
             return fatal(p);

@@ -2,7 +2,9 @@
 # test_nav_sim: the adapters drive the simulated robot through a mission in the office world:
 # odometry -> localizer -> planner -> behaviours (pulling from Mailboxes) -> marie-sim, with
 # the mission's progress in a SharedMap. The mission is killed with SIGKILL halfway and
-# restarted; it must resume and finish. Then the e-stop must stop the robot.
+# restarted; it must resume and finish. The localizer (which resumes from the POSE Mailbox) and
+# the odometry (whose frame restarts at zero) are killed and restarted as well; localization
+# must stay within bounds. Then the e-stop must stop the robot.
 . tests/lib.sh
 B=${B:-build}
 BIN=$B/bin
@@ -48,16 +50,26 @@ start mission1 $BIN/marie-mission --name mission --clock sim --system $OUT/syste
 $B/tests/helpers/adapt_probe --timeout 80 --goals 3 --done --resumed --estop-after-done --settle 1 --verbose \
     > "$OUT/probe.txt" 2> "$OUT/probe.log" &
 probe=$!
-sleep 8
+sleep 6
 kill -KILL "$pid_mission1" 2>/dev/null
 sleep 1
 start mission2 $BIN/marie-mission --name mission --clock sim --system $OUT/system.yaml
+sleep 2
+kill -KILL "$pid_localizer" 2>/dev/null
+sleep 0.5
+start localizer2 $BIN/marie-localizer --name localizer --clock sim --param map=$MAP --param init_x=2 --param init_y=15
+sleep 2
+kill -KILL "$pid_odometry" 2>/dev/null
+sleep 0.5
+start odometry2 $BIN/marie-odometry --name odometry --clock sim
 wait $probe
 rc=$?
 cat "$OUT/probe.txt"
 
 check "mission completes after a restart, localized, e-stop obeyed" test "$rc" -eq 0
 check "mission resumed from the SharedMap" grep -q "mission resumed [1-9]" "$OUT/probe.txt"
+check "localizer resumed from the Mailbox" grep -q "event localizer localizer_resumed" "$OUT/probe.log"
+check "localizer followed the odometry restart" grep -q "event localizer odometry_restart" "$OUT/probe.log"
 check "every goal reached" grep -q "goals reached [3-9]" "$OUT/probe.txt"
 check "a consistent decision record every cycle" grep -q "^probe: 0 inconsistent decision records" "$OUT/probe.txt"
 check "behaviours pulled their inputs from the Mailboxes" grep -Eq "^probe: [1-9][0-9]* pull requests; pose age in the last decision 0\." "$OUT/probe.txt"

@@ -10,7 +10,11 @@ AM_PID=
 cleanup() { [ -n "$AM_PID" ] && kill "$AM_PID" 2>/dev/null; sleep 0.3; rm -rf "$T"; }
 trap cleanup EXIT
 
-start_am() { "$BIN/marie-am" --host alpha --state-dir "$T/am" >> "$T/am.log" 2>&1 & AM_PID=$!; }
+# marie-am runs from its own directory, which also holds the test component: a bare
+# `exec: marie-test-comp` must be found there
+mkdir "$T/bin"
+cp "$BIN/marie-am" "$B/tests/bin/marie-test-comp" "$T/bin/"
+start_am() { "$T/bin/marie-am" --host alpha --state-dir "$T/am" >> "$T/am.log" 2>&1 & AM_PID=$!; }
 # field NAME KEY: a component's field from marie --json ps
 field() {
     "$M" --json ps --window 0.7 2>/dev/null | python3 -c '
@@ -148,9 +152,21 @@ check "nothing left running" wait_for 5 none_left
 check "gives up after max_failures" wait_for 10 is_state crasher failed
 two_restarts() { [ "$(field crasher restarts)" = 2 ]; }
 check "restarts before giving up" two_restarts
+check "bare exec name found next to marie-am" grep -q " crasher exec " "$T/trace"
 check "shell component runs through sh" wait_for 5 sh -c "grep -q 'from the shell: hello sh' $T/am/logs/sh.log"
+drops() { [ "$(field chatty log_drops)" -gt 0 ] && grep -q -- '-- [0-9]* lines dropped (rate limit)' "$T/am/logs/chatty.log"*; }
+check "output beyond log_rate is dropped and counted" wait_for 10 drops
+rotated() { [ -f "$T/am/logs/chatty.log.1" ] && [ ! -f "$T/am/logs/chatty.log.3" ] && [ "$(stat -c %s "$T/am/logs/chatty.log")" -le 8192 ]; }
+check "log files rotate at log_max_bytes, log_keep kept" wait_for 15 rotated
 check "down again" "$M" down
 check "ps --json exit code with everything stopped" "$M" --json ps
+dispatch() {
+    mkdir -p "$T/path"
+    printf '#!/bin/sh\necho "hello $*"\n' > "$T/path/marie-hello"; chmod +x "$T/path/marie-hello"
+    [ "$(PATH="$T/path:$PATH" "$M" hello a b)" = "hello a b" ]
+}
+check "marie X runs marie-X" dispatch
+check "unknown command: exit 2" sh -c "$M nosuchcommand 2>/dev/null; [ \$? -eq 2 ]"
 kill "$AM_PID"; wait "$AM_PID"
 check "SIGTERM: manager exits cleanly" [ $? -eq 0 ]
 AM_PID=

@@ -44,6 +44,7 @@ static struct {
 } rx;
 
 static pid_t sim_pid;
+static pid_t drv_pids[3];
 
 static void start_sim(const char *const *extra)
 {
@@ -61,6 +62,28 @@ static void start_sim(const char *const *extra)
         execv(bin, (char *const *)argv);
         _exit(127);
     }
+}
+
+static pid_t spawn(const char *const *argv)
+{
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        execv(argv[0], (char *const *)argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void stop_drivers(void)
+{
+    for (int i = 0; i < 3; i++)
+        if (drv_pids[i] > 0) {
+            kill(drv_pids[i], SIGTERM);
+            int st;
+            waitpid(drv_pids[i], &st, 0);
+            drv_pids[i] = 0;
+        }
 }
 
 static void stop_sim(void)
@@ -208,10 +231,10 @@ static void test_channels_types_rates(void **state)
     until_clock(l, 5000000);
     stop_sim();
     struct { const char *ch; int64_t hash; double hz; } want[] = {
-        { "WHEEL_ENCODERS", __marie_wheel_encoders_t_get_hash(), 50 },
+        { "WHEEL_ENCODERS", __marie_wheel_encoders_t_get_hash(), 20 },
         { "GYRO", __marie_gyro_t_get_hash(), 50 },
         { "LASER", __marie_laser_scan_t_get_hash(), 10 },
-        { "ESTOP", __marie_estop_t_get_hash(), 10 },
+        { "ESTOP", __marie_estop_t_get_hash(), 2 },
         { "SIM_TRUTH", __marie_pose_cov_t_get_hash(), 50 },
         { "MARIE_CLOCK", __marie_sim_clock_t_get_hash(), 100 },
     };
@@ -412,8 +435,146 @@ static void test_bad_world_refused(void **state)
     lcm_destroy(l);
 }
 
+/* What the rest of the system sees: per non-MARIE channel, its type and rate. */
+typedef struct {
+    int n;
+    char name[MAX_CH][64];
+    int64_t hash[MAX_CH];
+    double hz[MAX_CH];
+} view_t;
+
+static void snapshot(view_t *v)
+{
+    memset(v, 0, sizeof(*v));
+    for (int i = 0; i < rx.n; i++) {
+        if (strncmp(rx.ch[i].name, "MARIE_HEARTBEAT", 15) == 0 || strncmp(rx.ch[i].name, "MARIE_EVENT", 11) == 0 ||
+            strncmp(rx.ch[i].name, "LCM_", 4) == 0 || strncmp(rx.ch[i].name, "MARIE_LIFECYCLE", 15) == 0 ||
+            strcmp(rx.ch[i].name, "MOTOR_COMMAND") == 0)     /* the test's own */
+            continue;
+        snprintf(v->name[v->n], sizeof(v->name[0]), "%s", rx.ch[i].name);
+        v->hash[v->n] = rx.ch[i].hash;
+        v->hz[v->n] = rate(&rx.ch[i]);
+        v->n++;
+    }
+}
+
+/* Forget counts so far (start-up), keep the channel table. */
+static void restart_counts(void)
+{
+    for (int i = 0; i < rx.n; i++) {
+        rx.ch[i].count = 0;
+        rx.ch[i].ngaps = 0;
+    }
+}
+
+static int has(const char *ch)
+{
+    for (int i = 0; i < rx.n; i++)
+        if (strcmp(rx.ch[i].name, ch) == 0 && rx.ch[i].count > 0)
+            return 1;
+    return 0;
+}
+
+/* Channel mode and device mode (marie-sim playing the devices, the real marie-drives,
+ * marie-gyro and marie-lms200 reading them) give the system the same channels, types and
+ * rates; and in device mode a motor command goes through CAN to the simulated wheels. */
+static void test_channel_and_device_mode_agree(void **state)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    char bin[4][256];
+    snprintf(bin[0], sizeof(bin[0]), "%s/bin/marie-drives", b);
+    snprintf(bin[1], sizeof(bin[1]), "%s/bin/marie-gyro", b);
+    snprintf(bin[2], sizeof(bin[2]), "%s/bin/marie-lms200", b);
+    for (int i = 0; i < 3; i++)
+        if (access(bin[i], X_OK) != 0) {
+            fprintf(stderr, "%s is not built: build it first (make %s)\n", bin[i], bin[i]);
+            fail();
+        }
+
+    /* Channel mode. */
+    lcm_t *l = bus();
+    const char *chan_args[] = { "--speed", "4", NULL };
+    start_sim(chan_args);
+    until_clock(l, 1000000);
+    restart_counts();
+    until_clock(l, 6000000);
+    stop_sim();
+    view_t a;
+    snapshot(&a);
+    lcm_destroy(l);
+
+    /* Device mode. */
+    char dir[] = "/tmp/marie-sim-test.XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char can[128], can_url[160], link[128], p_can[200], p_dev[200];
+    snprintf(can, sizeof(can), "%s/can", dir);
+    snprintf(can_url, sizeof(can_url), "emu:%s", can);
+    snprintf(link, sizeof(link), "%s/lms200", dir);
+    snprintf(p_can, sizeof(p_can), "can=%s", can_url);
+    snprintf(p_dev, sizeof(p_dev), "device=%s", link);
+    char p_can_sim[200], p_link_sim[200];
+    snprintf(p_can_sim, sizeof(p_can_sim), "can=%s", can_url);
+    snprintf(p_link_sim, sizeof(p_link_sim), "laser_link=%s", link);
+    l = bus();
+    const char *dev_args[] = { "--mode", "device", "--speed", "1", "--param", p_can_sim, "--param", p_link_sim, NULL };
+    start_sim(dev_args);
+    until_clock(l, 100000);             /* the bus and the pty exist now */
+    const char *drives[] = { bin[0], "--clock", "sim", "--param", p_can, "--param", "track_width=0.4", NULL };
+    const char *gyro[] = { bin[1], "--clock", "sim", "--param", p_can, NULL };
+    const char *lms[] = { bin[2], "--clock", "sim", "--param", p_dev, "--param", "resolution=1", NULL };
+    drv_pids[0] = spawn(drives);
+    drv_pids[1] = spawn(gyro);
+    drv_pids[2] = spawn(lms);
+    /* Wait (bounded) for the drivers to bring their devices up. */
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (!(has("WHEEL_ENCODERS") && has("GYRO") && has("LASER")) && marie_mono_us() < end)
+        lcm_handle_timeout(l, 100);
+    assert_true(has("WHEEL_ENCODERS") && has("GYRO") && has("LASER"));
+    until_clock(l, rx.clock + 500000);
+    restart_counts();
+    int64_t from = rx.clock;
+    double x0 = rx.truth.pose.x;
+    int32_t t0 = rx.enc.left_ticks;
+    int beams = rx.laser_beams;
+    until_clock(l, from + 2000000);
+    /* Drive: MOTOR_COMMAND -> marie-drives -> CAN -> virtual drives -> simulated wheels. */
+    for (int64_t t = rx.clock; t < from + 5000000; t += 100000) {
+        send_cmd(l, 0.3, 0.0);
+        until_clock(l, t + 100000);
+    }
+    view_t d;
+    snapshot(&d);
+    double moved = rx.truth.pose.x - x0;
+    int32_t ticks = rx.enc.left_ticks - t0;
+    stop_drivers();
+    stop_sim();
+    lcm_destroy(l);
+    unlink(link);
+    unlink(can);
+    rmdir(dir);
+
+    fprintf(stderr, "device mode: moved %.3f m, %d ticks, %d beams\n", moved, ticks, beams);
+    fprintf(stderr, "%-16s %-18s %-10s %-18s %s\n", "channel", "type (channel)", "Hz", "type (device)", "Hz");
+    for (int i = 0; i < a.n; i++) {
+        int k = -1;
+        for (int j = 0; j < d.n; j++)
+            if (strcmp(a.name[i], d.name[j]) == 0)
+                k = j;
+        fprintf(stderr, "%-16s %016llx   %-10.2f %016llx   %.2f\n", a.name[i], (unsigned long long)a.hash[i], a.hz[i],
+                k >= 0 ? (unsigned long long)d.hash[k] : 0ULL, k >= 0 ? d.hz[k] : 0.0);
+        assert_true(k >= 0);
+        assert_true(a.hash[i] == d.hash[k]);
+        assert_true(fabs(a.hz[i] - d.hz[k]) < 0.05 * a.hz[i]);
+    }
+    assert_int_equal(a.n, d.n);
+    assert_int_equal(beams, 181);
+    assert_true(moved > 0.3 * 3 * 0.7 && moved < 0.3 * 3 * 1.2);
+    assert_true(ticks > 0.7 * moved / (2 * M_PI * 0.1) * 4096);
+}
+
 static int teardown(void **state)
 {
+    stop_drivers();
     stop_sim();
     return 0;
 }
@@ -427,6 +588,7 @@ int main(void)
         cmocka_unit_test_teardown(test_lockstep, teardown),
         cmocka_unit_test_teardown(test_timers_follow_sim_clock, teardown),
         cmocka_unit_test_teardown(test_bad_world_refused, teardown),
+        cmocka_unit_test_teardown(test_channel_and_device_mode_agree, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

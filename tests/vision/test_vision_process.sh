@@ -23,6 +23,18 @@ wait $vpid
 rc=$?
 check "sigterm quits with status 0" [ "$rc" -eq 0 ]
 
+# The simulator's camera on a robot turning left in a tag world: tag 3 ahead, then tag 7.
+$BIN/marie-vision --param min_hits=2 \
+    --param 'messages=[{id: 3, message: three ahead}, {id: 7, message: seven on the left}]' \
+    > "$tmp/v7.log" 2>&1 &
+vpid=$!
+sleep 0.5
+$BIN/marie-vision-render --world tests/data/vision/world.yaml --robot 0:0:0 --turn 1.5 --rate 10 --count 14 \
+    --publish CAMERA_IMAGE
+check "turning robot reads the tag ahead" wait_for 5 grep -q 'tag 3 reads: three ahead' "$tmp/v7.log"
+check "then the tag on its left" wait_for 5 grep -q 'tag 7 reads: seven on the left' "$tmp/v7.log"
+kill -TERM $vpid; wait $vpid 2>/dev/null
+
 # A folder of rendered images.
 mkdir "$tmp/imgs"
 for i in 0 1 2; do
