@@ -178,6 +178,12 @@ void marie_component_bad_input(marie_component_t *c, const char *counter, const 
 
 void marie_component_drop(marie_component_t *c, int64_t n) { c->drops += n; }
 
+void marie_component_count_io(marie_component_t *c, int64_t in, int64_t out)
+{
+    c->msgs_in += in;
+    c->msgs_out += out;
+}
+
 /* ---- heartbeat and events ---- */
 
 void marie_component_heartbeat(marie_component_t *c)

@@ -170,6 +170,8 @@ int64_t marie_component_counter(const marie_component_t *c, const char *counter)
 void marie_component_bad_input(marie_component_t *c, const char *counter, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 void marie_component_drop(marie_component_t *c, int64_t n);
+/* Traffic a component handles outside its declared ports (adapters on raw channels). */
+void marie_component_count_io(marie_component_t *c, int64_t in, int64_t out);
 
 /* Publish an event_t from this component (per-source sequence numbers). */
 void marie_component_event(marie_component_t *c, int severity, const char *kind, const char *fmt, ...)
