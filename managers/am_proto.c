@@ -1,6 +1,12 @@
 /* am_proto: names and defaults shared by the managers and their clients. */
 #include "managers/am_proto.h"
 
+#include <errno.h>
+#include <lcm/lcm.h>
+
+#include "core/time.h"
+#include "managers/auth.h"
+
 #include <pwd.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -132,5 +138,26 @@ int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *st, ma
             st->log_keep = (int)iv;
         }
     }
+    return rc;
+}
+
+int marie_am_send_order(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, char *sender_buf,
+                        size_t sender_len, const char *seq_file)
+{
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    marie_am_sender(sender_buf, sender_len);
+    o->sender = sender_buf;
+    o->utime = marie_wall_us();
+    o->seq = marie_auth_next_seq(seq_file);
+    if (!o->host) o->host = "*";
+    if (!o->arg) o->arg = "";
+    if (!o->system_path) o->system_path = "";
+    if (!o->system_text) o->system_text = "";
+    int rc = marie_auth_sign_order(auth, o, mac);
+    if (rc < 0)
+        return rc;
+    rc = marie_am_order_t_publish(lcm, MARIE_CH_AM_ORDER, o) < 0 ? -EIO : 0;
+    o->mac = NULL;
+    o->mac_len = 0;
     return rc;
 }

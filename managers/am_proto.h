@@ -59,6 +59,15 @@ typedef struct {
  * with file:line:col messages in errs. */
 int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *settings, marie_errors_t *errs);
 
+/* Send an order as a client (marie, the log viewer): fills utime, sender ("user@host") and
+ * seq (marie_auth_next_seq over seq_file, which may be NULL), signs with auth and publishes
+ * on MARIE_CH_AM_ORDER. Answers come as marie_am_reply_t on MARIE_CH_AM_REPLY carrying the
+ * same sender and seq. 0 or -errno. */
+typedef struct marie_auth marie_auth_t;
+typedef struct _lcm_t lcm_t;
+int marie_am_send_order(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, char *sender_buf,
+                        size_t sender_len, const char *seq_file);
+
 /* The host a component runs on: its `host`, else the first of `hosts`, else `fallback`. */
 const char *marie_am_component_host(const marie_system_t *sys, const marie_component_cfg_t *c, const char *fallback);
 

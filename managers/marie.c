@@ -74,7 +74,7 @@ static void usage(FILE *out)
             "usage: marie [--json] [--url URL] [--key FILE] [--timeout S] COMMAND [ARGS]\n"
             "  up FILE [--profile P] [--no-wait]   load a system on every host and start it\n"
             "  down [--no-wait]                    stop every component (reverse dependency order)\n"
-            "  ps [--window S]                     components of every host\n"
+            "  ps [--window S] [--watch]           components of every host (--watch: every second)\n"
             "  start|stop|restart NAME|GROUP... [--wait]\n"
             "  pause|resume NAME|GROUP...          lifecycle pause/resume\n"
             "  logs [-f] [-n N] NAME               last lines of a component's output (-f: follow)\n"
@@ -308,20 +308,18 @@ static int send_order(cli_t *cli, int op, char **targets, int ntargets, const ch
     if (load_key(cli) < 0)
         return MARIE_EXIT_AUTH;
     for (int attempt = 0; attempt < 2; attempt++) {
-        cli->seq = marie_auth_next_seq(seq_path());
         cli->nreplies = 0;
         cli->replies_done = false;
+        cli->seq = 0;
         marie_am_order_t o = {
-            .utime = marie_wall_us(), .sender = cli->sender, .seq = cli->seq, .host = "*",
-            .op = (int8_t)op, .ntargets = ntargets, .targets = targets, .arg = (char *)(arg ? arg : ""),
-            .system_path = (char *)(path ? path : ""), .system_text = (char *)(text ? text : ""),
+            .op = (int8_t)op, .ntargets = ntargets, .targets = targets, .arg = (char *)arg,
+            .system_path = (char *)path, .system_text = (char *)text,
         };
-        uint8_t mac[MARIE_AUTH_MAC_LEN];
-        if (marie_auth_sign_order(cli->auth, &o, mac) < 0 ||
-            marie_am_order_t_publish(cli->lcm, MARIE_CH_AM_ORDER, &o) < 0) {
+        if (marie_am_send_order(cli->lcm, cli->auth, &o, cli->sender, sizeof cli->sender, seq_path()) < 0) {
             fprintf(stderr, "marie: cannot send the order\n");
             return MARIE_EXIT_FAIL;
         }
+        cli->seq = o.seq;
         pump(cli, cli->timeout_s, all_replied);
         /* a concurrent marie from the same user may have overtaken this seq: once more */
         bool replayed = false;
@@ -596,26 +594,12 @@ static void fmt_bytes(int64_t b, char *buf, size_t len)
         snprintf(buf, len, "%lldM", (long long)(b >> 20));
 }
 
-static int cmd_ps(cli_t *cli, int argc, char **argv)
+/* Print the table; a host not heard from for lost_us (or never) is lost. Returns how many. */
+static int print_ps(cli_t *cli, int64_t lost_us)
 {
-    static const struct option opts[] = {{"window", required_argument, 0, 'w'}, {0, 0, 0, 0}};
-    double window = 1.2;
-    int opt;
-    optind = 1;
-    while ((opt = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-        if (opt == 'w') window = atof(optarg);
-        else return MARIE_EXIT_USAGE;
-    }
-    if (optind != argc) {
-        fprintf(stderr, "usage: marie ps [--window S]\n");
-        return MARIE_EXIT_USAGE;
-    }
-    if (cli_open(cli) < 0)
-        return MARIE_EXIT_FAIL;
-    /* Managers report twice a second: a host silent for the whole window is lost. */
-    pump(cli, window, NULL);
     for (int i = 0; i < cli->nhosts; i++)
         expect_host(cli, cli->hosts[i].name);
+    int64_t now = marie_mono_us();
     int lost = 0;
     if (cli->json)
         printf("{\"hosts\":[");
@@ -624,7 +608,7 @@ static int cmd_ps(cli_t *cli, int argc, char **argv)
                "RST", "CPU%", "RSS");
     for (int i = 0; i < cli->nexpect; i++) {
         host_t *h = host_get(cli, cli->expect[i], false);
-        bool is_lost = !h || !h->st;
+        bool is_lost = !h || !h->st || now - h->recv_mono > lost_us;
         lost += is_lost;
         if (cli->json) {
             printf("%s{\"host\":", i ? "," : "");
@@ -680,6 +664,42 @@ static int cmd_ps(cli_t *cli, int argc, char **argv)
     }
     if (cli->json)
         printf("]}\n");
+    fflush(stdout);
+    return lost;
+}
+
+static int cmd_ps(cli_t *cli, int argc, char **argv)
+{
+    static const struct option opts[] = {{"window", required_argument, 0, 'w'}, {"watch", no_argument, 0, 'W'},
+                                         {0, 0, 0, 0}};
+    double window = 1.2;
+    bool watch = false;
+    int opt;
+    optind = 1;
+    while ((opt = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+        if (opt == 'w') window = atof(optarg);
+        else if (opt == 'W') watch = true;
+        else return MARIE_EXIT_USAGE;
+    }
+    if (optind != argc) {
+        fprintf(stderr, "usage: marie ps [--window S] [--watch]\n");
+        return MARIE_EXIT_USAGE;
+    }
+    if (cli_open(cli) < 0)
+        return MARIE_EXIT_FAIL;
+    /* Managers report twice a second: a host silent for the whole window is lost. */
+    pump(cli, window, NULL);
+    if (watch) {
+        /* every second; a host silent for more than 2 s is lost */
+        while (!interrupted) {
+            if (!cli->json)
+                printf("\033[H\033[J");
+            print_ps(cli, 2000000);
+            pump(cli, 1.0, NULL);
+        }
+        return MARIE_EXIT_OK;
+    }
+    int lost = print_ps(cli, INT64_MAX / 2);
     if (cli->nexpect == 0) {
         fprintf(stderr, "marie: no manager heard within %.1f s\n", window);
         return MARIE_EXIT_TIMEOUT;

@@ -5,18 +5,21 @@ $(eval $(call marie_lib,marie_managers,managers/auth.c managers/am_proto.c manag
 $(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
 
-# A component the manager tests can make hang, crash or print (not installed).
+# The systemd unit, with the install prefix substituted.
+INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;
+
+# Test helpers (not installed): a component that can be made to hang, crash or print, and a
+# sender of hand-made (unsigned, forged, replayed, malformed) orders.
 $(eval $(call marie_link,$(B)/tests/bin/marie-test-comp,tests/managers/test_comp.c,))
-EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp
+$(eval $(call marie_link,$(B)/tests/bin/marie-test-order,tests/managers/order_tool.c,$(MANAGERS_LIB)))
+EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp $(B)/tests/bin/marie-test-order
 
 $(eval $(call marie_test,test_auth,tests/managers/test_auth.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_lcmcheck,tests/managers/test_lcmcheck.c,$(MANAGERS_LIB)))
-
-INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;
-$(eval $(call marie_link,$(B)/tests/bin/marie-test-order,tests/managers/order_tool.c,$(MANAGERS_LIB)))
-EXTRA_TARGETS += $(B)/tests/bin/marie-test-order
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
-$(eval $(call marie_bench,bench_am,managers/bench_am.c,$(MANAGERS_LIB)))
+# make fuzz links only the listed sources: the generated decoders it needs are listed too.
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/auth.c managers/logcap.c managers/lcmcheck.c $(B)/gen/c/lcmtypes/marie_am_order_t.c $(B)/gen/c/lcmtypes/marie_lifecycle_command_t.c,))
+
+$(eval $(call marie_bench,bench_am,managers/bench_am.c,$(MANAGERS_LIB)))

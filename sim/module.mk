@@ -2,7 +2,7 @@
 ODE_LIBS := $(shell pkg-config --libs ode)
 SIM_LIB := $(B)/lib/libmariesim.a
 
-$(eval $(call marie_lib,mariesim,sim/pgm.c sim/map.c sim/world.c))
+$(eval $(call marie_lib,mariesim,sim/pgm.c sim/map.c sim/map_yaml.c sim/world.c))
 
 $(eval $(call marie_test,test_sim_world,tests/sim/test_sim_world.c,$(SIM_LIB) $(ODE_LIBS)))
 
@@ -17,3 +17,5 @@ $(B)/bench/bench_sim: | $(B)/bin/marie-sim
 $(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c,))
 # The device-mode case runs the real drivers against the simulator.
 $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
+
+$(eval $(call marie_fuzz,sim_pgm,tests/sim/fuzz_sim_pgm.c sim/pgm.c sim/map.c,))

@@ -33,6 +33,7 @@ typedef struct {
     int64_t last_cmd_sim;       /* sim us when the last command arrived */
     int64_t wait_since;         /* mono us when the lockstep wait began, 0 if not waiting */
     bool estop, estop_dirty;
+    bool touching;              /* the robot touched a wall in the last step */
 } sim_t;
 
 static const marie_port_spec_t ports[] = {
@@ -256,6 +257,16 @@ static bool step_once(marie_component_t *c, sim_t *s)
     sim_world_step(s->world);
     if (s->devices)
         sim_devices_after_step(s->devices, sim_world_step_s(s->world), sim_now(s));
+    /* Heartbeat counters: "collisions" counts each new contact with a wall. */
+    bool touching = sim_world_wall_contacts(s->world) > 0;
+    if (touching && !s->touching) {
+        marie_component_count(c, "collisions", 1);
+        double x, y, th;
+        sim_world_pose(s->world, &x, &y, &th);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "collision", "robot hit a wall at (%.2f, %.2f) at %.3f s",
+                              x, y, sim_now(s) / 1e6);
+    }
+    s->touching = touching;
     publish(c, s);
     return true;
 }
@@ -503,9 +514,10 @@ int main(int argc, char **argv)
 {
     static const char *const shorthands[] = { "speed", "world", "seed", "lockstep", "mode", NULL };
     char **args = calloc(2 * (size_t)argc + 1, sizeof(char *));   /* each shorthand at most doubles */
-    if (!args)
+    char **owned = calloc((size_t)argc + 1, sizeof(char *));
+    if (!args || !owned)
         return 1;
-    int n = 0;
+    int n = 0, nowned = 0;
     args[n++] = argv[0];
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -525,7 +537,7 @@ int main(int argc, char **argv)
             if (asprintf(&p, "%s=%s", shorthands[k], val) < 0)
                 return 1;
             args[n++] = "--param";
-            args[n++] = p;
+            args[n++] = owned[nowned++] = p;
             matched = 1;
         }
         if (!matched)
@@ -533,5 +545,10 @@ int main(int argc, char **argv)
     }
     args[n] = NULL;
     sim_t s = { 0 };
-    return marie_main(&def, n, args, &s);
+    int rc = marie_main(&def, n, args, &s);
+    for (int i = 0; i < nowned; i++)
+        free(owned[i]);
+    free(owned);
+    free(args);
+    return rc;
 }

@@ -244,7 +244,9 @@ static void flush(client_t *c)
             iov[n].iov_len = e->b->len;
             n++;
         }
-        ssize_t w = writev(c->fd, iov, n);
+        /* sendmsg with MSG_NOSIGNAL: a peer gone away is an error return, not SIGPIPE. */
+        struct msghdr mh = { .msg_iov = iov, .msg_iovlen = (size_t)n };
+        ssize_t w = sendmsg(c->fd, &mh, MSG_NOSIGNAL);
         if (w < 0) {
             if (errno == EINTR)
                 continue;
@@ -842,7 +844,7 @@ static void accept_clients(xb_server_t *s)
             char msg[160];
             int n = snprintf(msg, sizeof msg, "<error code=\"busy\" reason=\"%d clients already connected\"/>\n",
                              s->cfg.max_clients);
-            ssize_t w = write(fd, msg, (size_t)n);
+            ssize_t w = send(fd, msg, (size_t)n, MSG_NOSIGNAL);
             (void)w;
             close(fd);
             s->st.refused++;

@@ -86,11 +86,18 @@ odom_back() { p=$(field onboard2 odom pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$
 check "kill -9 on onboard2: restarted there" wait_for 10 odom_back
 
 LOC=$(field onboard3 loc pid)
+# a watching marie ps on the laptop, one JSON table a second
+nsenter -t "$(cat "$T/laptop.ns")" -n --preserve-credentials "$BIN/marie" --json ps --watch > "$T/watch.json" 2>&1 &
+WATCH=$!
+sleep 1.5
 kill -9 "$(cat "$T/onboard3.am")"
 lost() { out=$(M ps); rc=$?; echo "$out"; [ $rc -eq 3 ] && echo "$out" | grep -q '^onboard3 .* lost'; }
 # the first ps after the kill (it listens 1.2 s) already shows the host lost
 check "killed manager: host lost in the next marie ps" lost
 check "its components went down with it" wait_for 5 sh -c "! kill -0 $LOC 2>/dev/null"
+watch_lost() { tail -1 "$T/watch.json" | grep -q '"host":"onboard3","lost":true'; }
+check "ps --watch shows onboard3 lost" wait_for 10 watch_lost
+kill "$WATCH"
 start_am onboard3
 loc_back() { p=$(field onboard3 loc pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$LOC" ] && [ "$(field onboard3 planner state)" = running ]; }
 check "restarted manager: components back" wait_for 15 loc_back

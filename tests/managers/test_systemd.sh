@@ -17,7 +17,8 @@ else
     echo "systemd-analyze not installed: verify skipped"
 fi
 install_step() {
-    make --no-print-directory -s -f Makefile -pn 2>/dev/null | grep -q 'lib/systemd/system/marie-am.service'
+    make -s --no-print-directory --eval 'marie-show-install: ; $(info $(value INSTALL_EXTRA))@:' marie-show-install |
+        grep -q 'deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service'
 }
 check "make install installs the unit" install_step
 finish

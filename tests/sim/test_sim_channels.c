@@ -39,6 +39,7 @@ static struct {
     marie_estop_t estop;
     int laser_beams;
     int have_heartbeat, failed;
+    int64_t collisions;
     char reason[512];
     long clocks;
 } rx;
@@ -160,6 +161,9 @@ static void on_any(const lcm_recv_buf_t *rb, const char *channel, void *user)
         marie_heartbeat_t m;
         if (marie_heartbeat_t_decode(d, 0, n, &m) > 0) {
             rx.have_heartbeat = 1;
+            for (int i = 0; i < m.ncounters; i++)
+                if (strcmp(m.counters[i].name, "collisions") == 0)
+                    rx.collisions = m.counters[i].value;
             if (m.state == MARIE_STATE_FAILED) {
                 rx.failed = 1;
                 snprintf(rx.reason, sizeof(rx.reason), "%s", m.reason);
@@ -285,6 +289,31 @@ static void test_motor_command_and_watchdog(void **state)
     fprintf(stderr, "after the watchdog: %.4f m more\n", rx.truth.pose.x - x1);
     assert_true(fabs(rx.truth.pose.x - x1) < 0.005);
     assert_true(rx.truth.pose.x < 7.0 - 0.25);
+    stop_sim();
+    lcm_destroy(l);
+}
+
+/* Driving into wall A over the bus: the robot stops at the wall and the simulator counts
+ * the collision in its heartbeat (what the demo reports). */
+static void test_wall_collision_counted(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--speed", "10", NULL };
+    start_sim(extra);
+    until_clock(l, 200000);
+    assert_int_equal(rx.collisions, 0);
+    int64_t from = rx.clock;
+    for (int64_t t = from; t < from + 11000000; t += 100000) {
+        send_cmd(l, 0.5, 0.0);
+        until_clock(l, t + 100000);
+    }
+    double x = rx.truth.pose.x;
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (rx.collisions < 1 && marie_mono_us() < end)
+        lcm_handle_timeout(l, 100);
+    fprintf(stderr, "stopped at x %.3f; collisions %lld\n", x, (long long)rx.collisions);
+    assert_true(x < 7.0 - 0.25 + 0.02 && x > 6.6);
+    assert_true(rx.collisions >= 1);
     stop_sim();
     lcm_destroy(l);
 }
@@ -585,6 +614,7 @@ int main(void)
         cmocka_unit_test_teardown(test_channels_types_rates, teardown),
         cmocka_unit_test_teardown(test_motor_command_and_watchdog, teardown),
         cmocka_unit_test_teardown(test_estop, teardown),
+        cmocka_unit_test_teardown(test_wall_collision_counted, teardown),
         cmocka_unit_test_teardown(test_lockstep, teardown),
         cmocka_unit_test_teardown(test_timers_follow_sim_clock, teardown),
         cmocka_unit_test_teardown(test_bad_world_refused, teardown),
