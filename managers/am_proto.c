@@ -157,7 +157,6 @@ int marie_am_send_order(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *
     if (rc < 0)
         return rc;
     rc = marie_am_order_t_publish(lcm, MARIE_CH_AM_ORDER, o) < 0 ? -EIO : 0;
-    o->mac = NULL;
-    o->mac_len = 0;
+    o->mac_len = 0;          /* the MAC lived on this stack */
     return rc;
 }

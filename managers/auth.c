@@ -154,11 +154,13 @@ int marie_auth_verify(const marie_auth_t *a, const void *data, size_t len, const
     return crypto_auth_hmacsha256_verify(mac, data, len, a->key) == 0 ? 0 : -EBADMSG;
 }
 
-/* Encode a copy of the message with an empty MAC: what the MAC covers. */
+/* Encode a copy of the message with an empty MAC: what the MAC covers. (liblcm copies
+ * even an empty byte array with memcpy, so the pointer must not be NULL.) */
+static uint8_t no_mac[1];
 #define ENCODE_UNSIGNED(type, msg, out_buf, out_len) do {                         \
         type tmp_ = *(msg);                                                       \
         tmp_.mac_len = 0;                                                         \
-        tmp_.mac = NULL;                                                          \
+        tmp_.mac = no_mac;                                                        \
         int n_ = type##_encoded_size(&tmp_);                                      \
         (out_buf) = n_ > 0 ? malloc((size_t)n_) : NULL;                           \
         (out_len) = -ENOMEM;                                                      \

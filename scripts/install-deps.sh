@@ -7,7 +7,8 @@ base="liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-
       libeigen3-dev libode-dev libompl-dev libboost-serialization-dev
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
-      systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev"
+      systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev
+      libjchart2d-java"
 # The VM test boots Debian's kernel under qemu to reach real SocketCAN.
 vm="qemu-system-x86 busybox-static cpio"
 # libFuzzer and clang's sanitizer runtimes.

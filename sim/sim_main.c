@@ -135,7 +135,9 @@ static void on_motor_command(marie_component_t *c, marie_port_t *p, const void *
     }
     if (!s->world)
         return;
-    sim_world_set_velocity(s->world, m->v, m->omega);
+    /* In device mode marie-drives obeys the command over CAN; here it only paces lockstep. */
+    if (!s->devices)
+        sim_world_set_velocity(s->world, m->v, m->omega);
     s->have_cmd = s->cmd_live = true;
     /* A controller on the sim clock stamps its command with the sim time it decided at;
      * lockstep counts from there (the receipt time would include the bus latency, during
@@ -410,8 +412,7 @@ static int on_init(marie_component_t *c)
     s->p_estop = marie_port(c, "estop");
     s->p_truth = marie_port(c, "truth");
     s->p_clock = marie_port(c, "clock");
-    if (!device)            /* in device mode marie-drives obeys it, over CAN */
-        marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
+    marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
                sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->speed,

@@ -28,7 +28,8 @@ typedef struct {
     float *cloud_buf;
     int cloud_max;
     double last_distance;       /* odometry's distance travelled: it only grows, unless restarted */
-    bool reanchor;              /* the odometry restarted: next step re-references, no motion */
+    int force_left;             /* sensor updates still forced after a (re)initialisation */
+    double odom_timeout_s;      /* scans this much newer than the odometry give no pose */
     double resume_max_age_s;
     int64_t first_pub_utime;    /* utime of this run's first pose; 0 before */
 } loc_t;
@@ -93,11 +94,16 @@ static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *sc
         return;
     mcl_scan_t ms = { scan->ranges, scan->nranges, scan->angle_min, scan->angle_increment,
                       scan->range_min, scan->range_max };
-    if (s->reanchor) {
-        mcl_reanchor(s->f, odom);
-        s->reanchor = false;
+    if ((double)(scan->utime - newest_odom(s)) / 1e6 > s->odom_timeout_s) {
+        /* Without odometry the filter cannot follow the robot: publishing its frozen pose
+         * would steer the robot blind. Stay silent so the pose goes stale downstream. */
+        marie_component_count(c, "scans_stale_odometry", 1);
+        return;
     }
-    if (mcl_step(s->f, odom, &ms, false))
+    bool force = s->force_left > 0;
+    if (force)
+        s->force_left--;
+    if (mcl_step(s->f, odom, &ms, force))
         marie_component_count(c, "filter_updates", 1);
     marie_pose_cov_t out = { .utime = scan->utime, .frame = "map" };
     double pose[3];
@@ -179,12 +185,19 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
     }
     s->last_distance = m->distance;
     if (restarted) {
+        /* The robot moved unseen while the odometry was away: spread the particles around the
+         * last estimate by what it could have done meanwhile, and let the laser pull them in. */
+        double gap = s->nring ? fabs((double)(m->utime - s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING].utime)) / 1e6 : 1.0;
+        double pose[3], cov[9];
+        mcl_estimate(s->f, pose, cov);
+        double sig[3] = { fmin(0.2 + 0.5 * gap, 2.0), fmin(0.2 + 0.5 * gap, 2.0), fmin(0.1 + 0.6 * gap, M_PI) };
+        mcl_init_pose(s->f, pose, sig);
+        s->force_left = 10;
         marie_component_count(c, "odometry_restarts", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
-                              "odometry frame jumped: particles kept, motion re-referenced");
+                              "odometry frame jumped after %.1f s: particles spread by %.2f m, %.2f rad", gap, sig[0], sig[2]);
         s->nring = 0;
         s->have_pending = false;
-        s->reanchor = true;
     }
     odom_sample_t *o = &s->ring[s->head];
     o->utime = m->utime;
@@ -212,6 +225,7 @@ static void on_initialpose(marie_component_t *c, marie_port_t *p, const void *ms
         return;
     }
     mcl_init_pose(s->f, pose, sig);
+    s->force_left = 10;
     marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "localizer_reset", "particles reset around (%.2f, %.2f, %.2f)",
                           pose[0], pose[1], pose[2]);
 }
@@ -238,6 +252,7 @@ static void on_resume(marie_component_t *c, marie_port_t *p, int status, const v
     double pose[3] = { m->pose.x, m->pose.y, m->pose.theta };
     double sig[3] = { 0.3, 0.3, 0.15 };
     mcl_init_pose(s->f, pose, sig);
+    s->force_left = 10;
     marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "localizer_resumed",
                           "resumed at (%.2f, %.2f, %.2f), the last pose published %.1f s ago", pose[0], pose[1],
                           pose[2], age_us / 1e6);
@@ -270,8 +285,9 @@ static int init(marie_component_t *c)
     quit(c);    /* init again after a failure starts from scratch */
     s->nring = s->head = 0;
     s->have_pending = false;
-    s->reanchor = false;
+    s->force_left = 0;
     s->last_distance = 0;
+    s->odom_timeout_s = marie_param_double(c, "odom_timeout_s");
     s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
     s->first_pub_utime = 0;
     marie_errors_t errs = { 0 };
@@ -381,6 +397,7 @@ static const marie_param_spec_t params[] = {
     { "seed", MARIE_PARAM_INT, "1", "random seed (same seed and log: same output)" },
     { "cloud_hz", MARIE_PARAM_DOUBLE, "1", "particle cloud rate (0: never)" },
     { "cloud_max", MARIE_PARAM_INT, "2000", "particles per cloud message at most" },
+    { "odom_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: a scan this much newer than the odometry gives no pose" },
     { "resume_max_age_s", MARIE_PARAM_DOUBLE, "30", "at start, continue from the pose in the POSE Mailbox "
       "when it is younger than this (0: never)" },
     { 0 },

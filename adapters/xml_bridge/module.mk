@@ -11,6 +11,14 @@ $(XB_STRUCTDUMP): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
 	@mkdir -p $(@D)
 	python3 adapters/xml_bridge/xb_gen.py dump $@ $(LCM_FILES)
 
+# The XML Schema of every type's fields, for peers (docs/xml-bridge.md).
+XB_TYPES_XSD := $(XB_GEN_DIR)/xml-bridge-types.xsd
+$(XB_TYPES_XSD): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
+	@mkdir -p $(@D)
+	python3 adapters/xml_bridge/xb_gen.py xsd $@ $(LCM_FILES)
+EXTRA_TARGETS += $(XB_TYPES_XSD)
+INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie && install -m 644 docs/xml-bridge.xsd $(XB_TYPES_XSD) $(DESTDIR)$(PREFIX)/share/marie/;
+
 # Pure codec and document parser (no libmarie): also what the fuzzer links.
 XB_CODEC_SRCS := adapters/xml_bridge/xb_doc.c adapters/xml_bridge/xb_codec.c $(XB_TYPETAB)
 XB_SRCS := $(XB_CODEC_SRCS) adapters/xml_bridge/xb_server.c

@@ -50,8 +50,8 @@ struct client {
     int fd;
     xb_doc_parser_t *parser;
     client_t *prev, *next;
-    qent_t *q;                  /* ring of queue_docs + 2 entries */
-    int qhead, qlen;
+    qent_t *q;                  /* ring, grown on demand up to queue_docs + 2 entries */
+    int qhead, qlen, qcap;
     size_t qbytes;              /* bytes in the ring */
     qent_t cur;                 /* the document being written, and how much of it is */
     size_t off;
@@ -158,7 +158,7 @@ static void flush(client_t *c);
 /* Drops the oldest queued document (never the one being written). */
 static void drop_oldest(client_t *c)
 {
-    int cap = c->s->cfg.queue_docs + 2;
+    int cap = c->qcap;
     qent_t e = c->q[c->qhead];
     c->qhead = (c->qhead + 1) % cap;
     c->qlen--;
@@ -177,9 +177,24 @@ static void drop_oldest(client_t *c)
 
 static int push_entry(client_t *c, msgbuf_t *b, int64_t notice)
 {
-    int cap = c->s->cfg.queue_docs + 2;
-    if (c->qlen >= cap)
-        return -1;
+    if (c->qlen >= c->qcap) {
+        /* An idle client holds a small ring; it grows only when documents pile up. */
+        int max = c->s->cfg.queue_docs + 2, ncap = c->qcap ? c->qcap * 2 : 8;
+        if (c->qlen >= max)
+            return -1;
+        if (ncap > max)
+            ncap = max;
+        qent_t *nq = malloc((size_t)ncap * sizeof *nq);
+        if (!nq)
+            return -1;
+        for (int i = 0; i < c->qlen; i++)
+            nq[i] = c->q[(c->qhead + i) % c->qcap];
+        free(c->q);
+        c->q = nq;
+        c->qhead = 0;
+        c->qcap = ncap;
+    }
+    int cap = c->qcap;
     c->q[(c->qhead + c->qlen) % cap] = (qent_t){ b, notice };
     c->qlen++;
     c->qbytes += b->len;
@@ -229,7 +244,6 @@ static void client_close(client_t *c);
 
 static void flush(client_t *c)
 {
-    int cap = c->s->cfg.queue_docs + 2;
     while (c->cur.b || c->qlen > 0) {
         struct iovec iov[64];
         int n = 0;
@@ -239,7 +253,7 @@ static void flush(client_t *c)
             n++;
         }
         for (int i = 0; i < c->qlen && n < 64; i++) {
-            qent_t *e = &c->q[(c->qhead + i) % cap];
+            qent_t *e = &c->q[(c->qhead + i) % c->qcap];
             iov[n].iov_base = e->b->data;
             iov[n].iov_len = e->b->len;
             n++;
@@ -269,7 +283,7 @@ static void flush(client_t *c)
         }
         while (left > 0 && c->qlen > 0) {
             qent_t e = c->q[c->qhead];
-            c->qhead = (c->qhead + 1) % cap;
+            c->qhead = (c->qhead + 1) % c->qcap;
             c->qlen--;
             c->qbytes -= e.b->len;
             if (left < e.b->len) {
@@ -765,9 +779,8 @@ static void client_close(client_t *c)
         epoll_ctl(s->efd, EPOLL_CTL_DEL, c->fd, NULL);
         close(c->fd);
     }
-    int cap = s->cfg.queue_docs + 2;
     for (int i = 0; i < c->qlen; i++)
-        msgbuf_unref(c->q[(c->qhead + i) % cap].b);
+        msgbuf_unref(c->q[(c->qhead + i) % c->qcap].b);
     msgbuf_unref(c->cur.b);
     free(c->q);
     xb_doc_parser_destroy(c->parser);
@@ -857,10 +870,7 @@ static void accept_clients(xb_server_t *s)
             setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &s->cfg.sndbuf, sizeof s->cfg.sndbuf);
         client_t *c = calloc(1, sizeof *c);
         xb_doc_limits_t lim = { s->cfg.max_doc_bytes, s->cfg.max_depth };
-        if (!c || !(c->q = calloc((size_t)s->cfg.queue_docs + 2, sizeof *c->q)) ||
-            !(c->parser = xb_doc_parser_create(&lim, on_document, c))) {
-            if (c)
-                free(c->q);
+        if (!c || !(c->parser = xb_doc_parser_create(&lim, on_document, c))) {
             free(c);
             close(fd);
             continue;

@@ -54,7 +54,9 @@ int main(int argc, char **argv)
             for (size_t k = 0; k < n; k++)
                 buf[k] = (uint8_t)rand();
             if (i % 2 == 0 && n > 24) {
-                marie_am_order_t o = {.sender = "x", .host = "*", .arg = "", .system_path = "", .system_text = ""};
+                static uint8_t none[1];
+                marie_am_order_t o = {.sender = "x", .host = "*", .arg = "", .system_path = "", .system_text = "",
+                                      .mac = none};
                 int len = marie_am_order_t_encode(buf, 0, sizeof buf, &o);
                 if (len > 20) {
                     n = (size_t)len;
@@ -92,7 +94,8 @@ int main(int argc, char **argv)
         .op = (int8_t)op, .ntargets = argc - optind - 1, .targets = argv + optind + 1, .arg = "",
         .system_path = "", .system_text = "",
     };
-    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    uint8_t mac[MARIE_AUTH_MAC_LEN] = {0};
+    o.mac = mac;             /* liblcm memcpy()s even an empty array: never NULL */
     if (auth)
         marie_auth_sign_order(auth, &o, mac);
     want_seq = o.seq;

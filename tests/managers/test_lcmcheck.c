@@ -85,7 +85,8 @@ static void test_reply_log_event_heartbeat(void **state)
 
 static void test_huge_count_refused(void **state)
 {
-    marie_am_order_t o = {.sender = "s", .host = "*", .arg = "", .system_path = "", .system_text = ""};
+    static uint8_t none[1];
+    marie_am_order_t o = {.sender = "s", .host = "*", .arg = "", .system_path = "", .system_text = "", .mac = none};
     uint8_t *buf;
     int n;
     ENCODE(marie_am_order_t, &o, buf, n);

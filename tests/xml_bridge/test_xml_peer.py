@@ -89,7 +89,8 @@ class Peer:
 def start_bridge():
     args = [os.path.join(B, "bin", "marie-xml-bridge"), "--name", "xml_bridge_test",
             "--param", "port=%d" % PORT, "--param", "stall_ms=500", "--param", "max_clients=150",
-            "--param", "max_document=65536", "--param", "max_depth=16"]
+            "--param", "max_document=65536", "--param", "max_depth=16", "--param", "queue=32",
+            "--param", "sndbuf=4096"]
     p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=open(os.path.join(B, "test-logs", "xml_bridge_peer.stderr"), "w"))
     end = time.time() + 10
     while time.time() < end:
@@ -413,6 +414,66 @@ def case_hundreds_of_clients():
         p.close()
 
 
+def case_slow_reader_loses_oldest():
+    slow = Peer(rcvbuf=4096)
+    slow.recv()
+    assert slow.request('<subscribe channel="PY.FLOOD" type="pose2d_t"/>').tag == "ok"
+    fast = Peer()
+    fast.recv()
+    assert fast.request('<subscribe channel="PY.FLOOD" type="pose2d_t"/>').tag == "ok"
+    n = 2000
+    fast_lost = 0
+    for i in range(0, n, 16):       # publish through the bridge; the slow peer reads nothing
+        fast.send("".join('<publish channel="PY.FLOOD" type="pose2d_t" ack="false"><x>%d</x></publish>' % k
+                          for k in range(i, i + 16)))
+        while True:                 # the fast peer keeps up: it hears its own burst
+            m = fast.recv()
+            assert m is not None
+            if m.tag == "dropped":
+                fast_lost += int(m.get("count"))
+            if m.tag == "message" and float(m.find("x").text) == i + 15:
+                break
+    assert fast_lost == 0, fast_lost
+    assert fast.request('<ping id="f"/>').get("id") == "f"
+    got, lost, last = 0, 0, None
+    while True:
+        try:
+            d = slow.recv(timeout=1)
+        except socket.timeout:
+            break                   # all read
+        if d is None:
+            raise AssertionError("slow reader was closed")
+        if d.tag == "dropped":
+            lost += int(d.get("count"))
+        elif d.tag == "message":
+            got += 1
+            last = float(d.find("x").text)
+    print("slow reader: %d delivered, %d dropped" % (got, lost))
+    assert lost > 0 and last == n - 1, (got, lost, last)
+    assert got + lost <= n
+    slow.close()
+    fast.close()
+
+
+def case_heartbeat_counts_bad_input():
+    p = Peer()
+    p.recv()
+    assert p.request('<subscribe channel="MARIE_HEARTBEAT" type="heartbeat_t"/>').tag == "ok"
+    end = time.time() + 5
+    while time.time() < end:
+        m = p.recv_until("message", timeout=3)
+        assert m is not None
+        if m.find("component").text != "xml_bridge_test":
+            continue
+        counters = {c.find("name").text: int(c.find("value").text) for c in m.find("counters").findall("item")}
+        bad = int(m.find("bad_input").text)
+        if bad > 0:
+            print("heartbeat: bad_input=%d drops=%s counters=%s" % (bad, m.find("drops").text, counters))
+            assert int(m.find("drops").text) > 0      # the slow reader's losses
+            return
+    raise AssertionError("no heartbeat with bad input counted")
+
+
 def main():
     os.makedirs(os.path.join(B, "test-logs"), exist_ok=True)
     bridge = start_bridge()
@@ -421,6 +482,8 @@ def main():
         check("pull_gives_the_latest_value", case_pull_latest)
         check("bad_input_gets_an_error_or_a_close", case_bad_input)
         check("hundreds_of_clients_bounded", case_hundreds_of_clients)
+        check("slow_reader_loses_oldest_not_the_others", case_slow_reader_loses_oldest)
+        check("heartbeat_counts_bad_input_and_drops", case_heartbeat_counts_bad_input)
         check("bridge_still_running", lambda: (bridge.poll() is None) or (_ for _ in ()).throw(AssertionError("bridge exited")))
     finally:
         bridge.terminate()
