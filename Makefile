@@ -138,7 +138,7 @@ fuzz: deps all
 
 $(B)/fuzz/%: $(LIBMARIE)
 	@mkdir -p $(@D)
-	clang -g -O1 -fsanitize=fuzzer,address,undefined $(CPPFLAGS) -o $@ $(FUZZ_$*_SOURCES) $(CORE_SRCS) \
+	clang -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize=nonnull-attribute $(CPPFLAGS) -o $@ $(FUZZ_$*_SOURCES) $(CORE_SRCS) \
 	    $(LCM_C_SRCS) $(FUZZ_$*_LIBS) $(LDLIBS) -lstdc++
 
 install: all

@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 
 #define EVENT_QUEUE_MAX 256
@@ -230,6 +231,20 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
     MARIE_LOG_AT(lvl, "event %s: %s", kind, text);
 }
 
+/* ---- checked decoding ----
+ * lcm-gen's decoders trust string and array lengths from the wire (a string without its NUL
+ * is read past its end; a huge count frees garbage on cleanup), so every payload from the bus
+ * is checked against the type's descriptor first. */
+
+static int decode_checked(const marie_type_t *t, const void *data, size_t len, void *out)
+{
+    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(t->hash());
+    if (!ti || marie_typeinfo_check(ti, data, len) < 0 || len > INT32_MAX)
+        return -1;
+    memset(out, 0, t->size);
+    return t->decode(data, 0, (int)len, out) < 0 ? -1 : 0;
+}
+
 /* ---- lifecycle ---- */
 
 static void flush_event_queues(marie_component_t *c);
@@ -381,7 +396,7 @@ static void on_lifecycle(const lcm_recv_buf_t *rbuf, const char *channel, void *
 {
     marie_component_t *c = user;
     marie_lifecycle_command_t cmd;
-    if (marie_lifecycle_command_t_decode(rbuf->data, 0, (int)rbuf->data_size, &cmd) < 0) {
+    if (decode_checked(&marie_type_lifecycle_command_t, rbuf->data, rbuf->data_size, &cmd) < 0) {
         marie_component_bad_input(c, "bad_lifecycle", "undecodable lifecycle command (%u bytes)", rbuf->data_size);
         reply(c, -1, 0, false, "malformed lifecycle command");
         return;
@@ -407,7 +422,7 @@ static void on_clock(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 {
     marie_component_t *c = user;
     marie_sim_clock_t clk;
-    if (marie_sim_clock_t_decode(rbuf->data, 0, (int)rbuf->data_size, &clk) < 0) {
+    if (decode_checked(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk) < 0) {
         marie_component_bad_input(c, "bad_clock", "undecodable clock message");
         return;
     }
@@ -457,8 +472,7 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
                                   p->channel, t->name);
         return -1;
     }
-    memset(p->scratch, 0, t->size);
-    if (t->decode(data, 0, (int)len, p->scratch) < 0) {
+    if (decode_checked(t, data, len, p->scratch) < 0) {
         marie_component_bad_input(c, "bad_payload", "port %s: cannot decode %s (%zu bytes)", p->spec->name,
                                   t->name, len);
         return -1;
@@ -614,7 +628,7 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
 {
     marie_component_t *c = user;
     marie_pull_reply_t r;
-    if (marie_pull_reply_t_decode(rbuf->data, 0, (int)rbuf->data_size, &r) < 0) {
+    if (decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0) {
         marie_component_bad_input(c, "bad_pull_reply", "undecodable pull reply");
         return;
     }
@@ -639,8 +653,7 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
         status = -EBADMSG;
     } else if (t) {
         msg = pl->cb ? pl->port->scratch : pl->msg;
-        memset(msg, 0, t->size);
-        if (t->decode(r.data, 0, r.size, msg) < 0) {
+        if (decode_checked(t, r.data, (size_t)r.size, msg) < 0) {
             marie_component_bad_input(c, "bad_payload", "pull reply on %s: cannot decode %s", r.channel, t->name);
             status = -EBADMSG;
             msg = NULL;

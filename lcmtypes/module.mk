@@ -2,7 +2,8 @@
 LCM_FILES := $(sort $(wildcard lcmtypes/*.lcm))
 LCM_NAMES := $(basename $(notdir $(LCM_FILES)))
 GEN_HEADERS := $(B)/gen/c/lcmtypes/marie_types.h
-LCM_C_SRCS := $(patsubst %,$(B)/gen/c/lcmtypes/marie_%.c,$(LCM_NAMES)) $(B)/gen/c/lcmtypes/marie_types.c
+LCM_C_SRCS := $(patsubst %,$(B)/gen/c/lcmtypes/marie_%.c,$(LCM_NAMES)) $(B)/gen/c/lcmtypes/marie_types.c \
+              $(B)/gen/c/lcmtypes/marie_typeinfo.c
 LCM_JAR := $(B)/java/marie_types.jar
 
 $(B)/gen/c/lcmtypes/marie_types.h: $(LCM_FILES) scripts/gen-type-registry.sh
@@ -11,7 +12,12 @@ $(B)/gen/c/lcmtypes/marie_types.h: $(LCM_FILES) scripts/gen-type-registry.sh
 	lcm-gen -x --cpp-std c++11 --cpp-hpath $(B)/gen/cpp $(LCM_FILES)
 	scripts/gen-type-registry.sh $(B)/gen/c/lcmtypes $(LCM_NAMES)
 
-$(filter-out %/marie_types.c,$(LCM_C_SRCS)) $(B)/gen/c/lcmtypes/marie_types.c: $(B)/gen/c/lcmtypes/marie_types.h ;
+$(filter-out %/marie_types.c %/marie_typeinfo.c,$(LCM_C_SRCS)) $(B)/gen/c/lcmtypes/marie_types.c: $(B)/gen/c/lcmtypes/marie_types.h ;
+
+# Field-level descriptors of every type (core/typeinfo.h): the payload checker and the XML bridge.
+$(B)/gen/c/lcmtypes/marie_typeinfo.c: $(LCM_FILES) lcmtypes/typeinfo_gen.py
+	@mkdir -p $(@D)
+	python3 lcmtypes/typeinfo_gen.py table $@ $(LCM_FILES)
 
 # LCM's inline codec (lcm_coretypes.h) calls memcpy(NULL, ..., 0) for empty arrays, which
 # UBSan reports; that one check is off for generated code only.

@@ -128,6 +128,8 @@ struct am {
     int64_t start_mono;
     int64_t status_seq, event_seq, orders_refused, lc_seq, bad_input;
     marie_cpu_sample_t self_cpu;
+    float self_cpu_pct;
+    int64_t self_rss;
     bool status_pending;
     bool quitting;
     int64_t quit_deadline;
@@ -900,10 +902,12 @@ static void publish_status(am_t *am, bool sample)
     if (sample) {
         int64_t cpu_us, rss;
         if (marie_proc_usage(getpid(), &cpu_us, &rss) == 0) {
-            st.am_cpu = marie_cpu_percent(&am->self_cpu, cpu_us, now);
-            st.am_rss = rss;
+            am->self_cpu_pct = marie_cpu_percent(&am->self_cpu, cpu_us, now);
+            am->self_rss = rss;
         }
     }
+    st.am_cpu = am->self_cpu_pct;      /* between samples: the last one */
+    st.am_rss = am->self_rss;
     float load[3] = {0};
     marie_host_load(load);
     st.utime = marie_wall_us();

@@ -86,5 +86,6 @@ int marie_lcm_check(const void *buf, size_t len, const char *layout)
     walk_t w = {buf, len, 0};
     if (take(&w, 8) < 0)
         return -EBADMSG;
-    return walk(&w, layout, strlen(layout)) == 0 ? 0 : -EBADMSG;
+    /* liblcm publishes exactly the encoded size: trailing bytes mean a malformed message */
+    return walk(&w, layout, strlen(layout)) == 0 && w.left == 0 ? 0 : -EBADMSG;
 }

@@ -13,7 +13,8 @@ extern "C" {
 
 /* Layout after the 8-byte fingerprint: b int8/boolean, h int16, i int32, l int64, f float,
  * d double, s string; "[...]" after an i repeats the bracketed layout that many times.
- * Returns 0 when every length and count fits in len, else -EBADMSG. */
+ * Returns 0 when every length and count fits and the layout ends exactly at len, else
+ * -EBADMSG. */
 int marie_lcm_check(const void *buf, size_t len, const char *layout);
 
 /* Layouts of the messages the managers receive. */

@@ -662,8 +662,23 @@ static int print_ps(cli_t *cli, int64_t lost_us)
                    cpu, rss);
         }
     }
-    if (cli->json)
+    if (cli->json) {
         printf("]}\n");
+    } else if (cli->nexpect > 0) {
+        printf("\n%-12s %-6s %-7s %-7s %-8s %s\n", "HOST", "LOAD", "AM-CPU%", "AM-RSS", "REFUSED", "SYSTEM");
+        for (int i = 0; i < cli->nexpect; i++) {
+            host_t *h = host_get(cli, cli->expect[i], false);
+            if (!h || !h->st || now - h->recv_mono > lost_us) {
+                printf("%-12s %-6s\n", cli->expect[i], "lost");
+                continue;
+            }
+            char rss[32];
+            fmt_bytes(h->st->am_rss, rss, sizeof rss);
+            printf("%-12s %-6.2f %-7.1f %-7s %-8lld %s%s%s%s\n", h->name, h->st->load1, h->st->am_cpu, rss,
+                   (long long)h->st->orders_refused, h->st->system[0] ? h->st->system : "-",
+                   h->st->profile[0] ? " (" : "", h->st->profile, h->st->profile[0] ? ")" : "");
+        }
+    }
     fflush(stdout);
     return lost;
 }

@@ -45,6 +45,7 @@ struct mcl {
     double odom_[3] = {0, 0, 0};        // odometry pose at the last sensor update
     double w_slow_ = 0, w_fast_ = 0, lik_ = 0;
     int64_t updates_ = 0, resamples_ = 0;
+    int quiet_ = 0;                     // updates left before a poor fit counts as lost
 
     double gauss(double sigma)
     {
@@ -77,7 +78,8 @@ struct mcl {
         llf_range_max_ = range_max;
     }
 
-    bool lost() const { return p_.lost_likelihood > 0 && w_fast_ > 0 && w_fast_ < p_.lost_likelihood; }
+    // A freshly spread cloud fits poorly by construction: give it time before calling it lost.
+    bool lost() const { return quiet_ == 0 && p_.lost_likelihood > 0 && w_fast_ > 0 && w_fast_ < p_.lost_likelihood; }
     void motion(const double o0[3], const double o1[3]);
     void weigh(const mcl_scan_t *scan);
     void resample();
@@ -174,6 +176,7 @@ extern "C" void mcl_init_pose(mcl_t *f, const double pose[3], const double sigma
     }
     f->have_odom_ = false;
     f->w_slow_ = f->w_fast_ = 0;
+    f->quiet_ = 20;
 }
 
 extern "C" void mcl_init_global(mcl_t *f)
@@ -189,6 +192,7 @@ extern "C" void mcl_init_global(mcl_t *f)
     }
     f->have_odom_ = false;
     f->w_slow_ = f->w_fast_ = 0;
+    f->quiet_ = 20;
 }
 
 // The odometry motion model (rotate, translate, rotate) with noise growing with each part.
@@ -339,6 +343,8 @@ extern "C" int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, 
     if (scan && scan->n > 0 && scan->ranges)
         f->weigh(scan);
     f->updates_++;
+    if (f->quiet_ > 0)
+        f->quiet_--;
     double ess = 1.0 / f->w_.square().sum();
     if (ess < f->p_.resample_ess * (double)f->w_.size() ||
         (f->w_slow_ > 0 && f->w_fast_ < 0.5 * f->w_slow_ && f->p_.alpha_fast > 0) || f->lost())

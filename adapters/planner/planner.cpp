@@ -87,6 +87,7 @@ extern "C" void planner_params_default(planner_params_t *p)
 {
     *p = planner_params_t{};
     p->robot_radius = 0.3;
+    p->clearance = 0.1;
     p->time_limit = 1.0;
     p->simplify_time = 0.03;
     p->range = 0;
@@ -98,7 +99,7 @@ extern "C" void planner_params_default(planner_params_t *p)
 
 extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t *p, uint64_t seed)
 {
-    if (!map || !p || !(p->robot_radius >= 0) || !(p->time_limit > 0)) {
+    if (!map || !p || !(p->robot_radius >= 0) || !(p->clearance >= 0) || !(p->time_limit > 0)) {
         errno = EINVAL;
         return nullptr;
     }
@@ -117,6 +118,7 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
     }
     try {
         pl->p_ = *p;
+        pl->p_.robot_radius = p->robot_radius + p->clearance;   // everything below inflates by both
         pl->w_ = map->width;
         pl->h_ = map->height;
         pl->res_ = map->resolution;
@@ -140,12 +142,12 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
                 // Distance from this cell's centre to the nearest blocked cell's edge.
                 float d = (dist.at<float>(r, c) - 0.5f) * (float)map->resolution;
                 pl->dist_[(size_t)r * map->width + c] = d;
-                pl->static_free_[(size_t)r * map->width + c] = d > p->robot_radius;
+                pl->static_free_[(size_t)r * map->width + c] = d > pl->p_.robot_radius;
             }
-        int rr = (int)std::ceil(p->robot_radius / map->resolution);
+        int rr = (int)std::ceil(pl->p_.robot_radius / map->resolution);
         for (int dy = -rr; dy <= rr; dy++)
             for (int dx = -rr; dx <= rr; dx++)
-                if (std::hypot(dx, dy) * map->resolution <= p->robot_radius + map->resolution * 0.5)
+                if (std::hypot(dx, dy) * map->resolution <= pl->p_.robot_radius + map->resolution * 0.5)
                     pl->disk_.emplace_back(dx, dy);
 
         auto space = std::make_shared<ob::RealVectorStateSpace>(2);

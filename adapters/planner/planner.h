@@ -17,7 +17,8 @@ typedef struct planner planner_t;
 typedef enum { PLANNER_RRTCONNECT = 0, PLANNER_PRM } planner_algo_t;
 
 typedef struct {
-    double robot_radius;        /* m: the map is inflated by this much */
+    double robot_radius;        /* m: radius of the circle around the robot's footprint */
+    double clearance;           /* m kept free beyond it: the map is inflated by radius + clearance */
     double time_limit;          /* s for the planner itself */
     double simplify_time;       /* s for shortcutting the solution */
     double range;               /* m: RRTConnect step (0: OMPL's default) */

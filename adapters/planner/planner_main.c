@@ -191,6 +191,7 @@ static int init(marie_component_t *c)
     planner_params_t p;
     planner_params_default(&p);
     p.robot_radius = marie_param_double(c, "robot_radius");
+    p.clearance = marie_param_double(c, "clearance");
     p.time_limit = marie_param_double(c, "time_limit");
     p.range = marie_param_double(c, "range");
     p.obstacle_ttl = marie_param_double(c, "obstacle_ttl");
@@ -206,7 +207,7 @@ static int init(marie_component_t *c)
     s->pl = planner_create(map, &p, (uint64_t)marie_param_int(c, "seed"));
     occmap_destroy(map);
     if (!s->pl) {
-        marie_component_fail_reason(c, "bad planner parameters (robot_radius >= 0, time_limit > 0)");
+        marie_component_fail_reason(c, "bad planner parameters (robot_radius, clearance >= 0, time_limit > 0)");
         return -1;
     }
     s->laser_x = marie_param_double(c, "laser_x");
@@ -241,7 +242,8 @@ static const marie_port_spec_t ports[] = {
 
 static const marie_param_spec_t params[] = {
     { "map", MARIE_PARAM_STRING, NULL, "map_server map.yaml" },
-    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: the map is inflated by this much" },
+    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the robot's footprint" },
+    { "clearance", MARIE_PARAM_DOUBLE, "0.1", "m kept free beyond robot_radius (the map is inflated by both)" },
     { "algorithm", MARIE_PARAM_STRING, "rrtconnect", "rrtconnect or prm" },
     { "time_limit", MARIE_PARAM_DOUBLE, "1.0", "s per planning attempt" },
     { "range", MARIE_PARAM_DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)" },

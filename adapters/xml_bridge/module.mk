@@ -1,26 +1,22 @@
 # adapters/xml_bridge: the typed XML <-> LCM bridge for peers that cannot link LCM.
-# Type descriptors are generated from lcmtypes/*.lcm at build time (xb_gen.py), never by hand.
+# Type descriptors are generated from lcmtypes/*.lcm at build time (lcmtypes/typeinfo_gen.py).
+# (The descriptor table itself is in libmarie: core/typeinfo.h.)
 XB_GEN_DIR := $(B)/gen/xml_bridge
-XB_TYPETAB := $(XB_GEN_DIR)/xb_typetab.c
 XB_STRUCTDUMP := $(XB_GEN_DIR)/xb_structdump.c
-
-$(XB_TYPETAB): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
+$(XB_STRUCTDUMP): $(LCM_FILES) lcmtypes/typeinfo_gen.py
 	@mkdir -p $(@D)
-	python3 adapters/xml_bridge/xb_gen.py table $@ $(LCM_FILES)
-$(XB_STRUCTDUMP): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
-	@mkdir -p $(@D)
-	python3 adapters/xml_bridge/xb_gen.py dump $@ $(LCM_FILES)
+	python3 lcmtypes/typeinfo_gen.py dump $@ $(LCM_FILES)
 
 # The XML Schema of every type's fields, for peers (docs/xml-bridge.md).
 XB_TYPES_XSD := $(XB_GEN_DIR)/xml-bridge-types.xsd
-$(XB_TYPES_XSD): $(LCM_FILES) adapters/xml_bridge/xb_gen.py
+$(XB_TYPES_XSD): $(LCM_FILES) lcmtypes/typeinfo_gen.py
 	@mkdir -p $(@D)
-	python3 adapters/xml_bridge/xb_gen.py xsd $@ $(LCM_FILES)
+	python3 lcmtypes/typeinfo_gen.py xsd $@ $(LCM_FILES)
 EXTRA_TARGETS += $(XB_TYPES_XSD)
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie && install -m 644 docs/xml-bridge.xsd $(XB_TYPES_XSD) $(DESTDIR)$(PREFIX)/share/marie/;
 
 # Pure codec and document parser (no libmarie): also what the fuzzer links.
-XB_CODEC_SRCS := adapters/xml_bridge/xb_doc.c adapters/xml_bridge/xb_codec.c $(XB_TYPETAB)
+XB_CODEC_SRCS := adapters/xml_bridge/xb_doc.c adapters/xml_bridge/xb_codec.c
 XB_SRCS := $(XB_CODEC_SRCS) adapters/xml_bridge/xb_server.c
 $(eval $(call marie_lib,xml_bridge,$(XB_SRCS)))
 XB_LIB := $(B)/lib/libxml_bridge.a

@@ -208,7 +208,7 @@ static void trim(const char **s, size_t *len)
         (*len)--;
 }
 
-int xb_parse_int(xb_prim_t prim, const char *s, size_t len, int64_t *v)
+int xb_parse_int(marie_prim_t prim, const char *s, size_t len, int64_t *v)
 {
     char tmp[64];
     trim(&s, &len);
@@ -216,7 +216,7 @@ int xb_parse_int(xb_prim_t prim, const char *s, size_t len, int64_t *v)
         return -1;
     memcpy(tmp, s, len);
     tmp[len] = '\0';
-    if (prim == XB_BOOL) {
+    if (prim == MARIE_PRIM_BOOL) {
         if (!strcmp(tmp, "true") || !strcmp(tmp, "1"))
             *v = 1;
         else if (!strcmp(tmp, "false") || !strcmp(tmp, "0"))
@@ -231,18 +231,18 @@ int xb_parse_int(xb_prim_t prim, const char *s, size_t len, int64_t *v)
     if (errno || *end || end == tmp)
         return -1;
     switch (prim) {
-    case XB_INT8: if (x < INT8_MIN || x > INT8_MAX) return -1; break;
-    case XB_INT16: if (x < INT16_MIN || x > INT16_MAX) return -1; break;
-    case XB_INT32: if (x < INT32_MIN || x > INT32_MAX) return -1; break;
-    case XB_BYTE: if (x < 0 || x > 255) return -1; break;
-    case XB_INT64: break;
+    case MARIE_PRIM_INT8: if (x < INT8_MIN || x > INT8_MAX) return -1; break;
+    case MARIE_PRIM_INT16: if (x < INT16_MIN || x > INT16_MAX) return -1; break;
+    case MARIE_PRIM_INT32: if (x < INT32_MIN || x > INT32_MAX) return -1; break;
+    case MARIE_PRIM_BYTE: if (x < 0 || x > 255) return -1; break;
+    case MARIE_PRIM_INT64: break;
     default: return -1;
     }
     *v = x;
     return 0;
 }
 
-int xb_parse_real(xb_prim_t prim, const char *s, size_t len, double *v)
+int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v)
 {
     char tmp[128];
     trim(&s, &len);
@@ -255,13 +255,13 @@ int xb_parse_real(xb_prim_t prim, const char *s, size_t len, double *v)
     double x = strtod(tmp, &end);
     if (*end || end == tmp || (errno == ERANGE && isinf(x)))
         return -1;
-    if (prim == XB_FLOAT && isfinite(x) && fabs(x) > FLT_MAX)
+    if (prim == MARIE_PRIM_FLOAT && isfinite(x) && fabs(x) > FLT_MAX)
         return -1;
     *v = x;
     return 0;
 }
 
-void xb_format_real(xb_prim_t prim, double v, char *buf, size_t size)
+void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
 {
     if (isnan(v)) {
         snprintf(buf, size, "NaN");
@@ -271,7 +271,7 @@ void xb_format_real(xb_prim_t prim, double v, char *buf, size_t size)
         snprintf(buf, size, v < 0 ? "-INF" : "INF");
         return;
     }
-    if (prim == XB_FLOAT) {
+    if (prim == MARIE_PRIM_FLOAT) {
         float f = (float)v;
         for (int prec = 6; prec <= 9; prec++) {
             snprintf(buf, size, "%.*g", prec, (double)f);
@@ -332,9 +332,9 @@ typedef struct {
     xb_error_t *err;
 } enc_t;
 
-static int is_int_prim(xb_prim_t p)
+static int is_int_prim(marie_prim_t p)
 {
-    return p == XB_INT8 || p == XB_INT16 || p == XB_INT32 || p == XB_INT64 || p == XB_BYTE;
+    return p == MARIE_PRIM_INT8 || p == MARIE_PRIM_INT16 || p == MARIE_PRIM_INT32 || p == MARIE_PRIM_INT64 || p == MARIE_PRIM_BYTE;
 }
 
 /* "pose.x" style location of a field for error reasons, from the element chain. */
@@ -369,19 +369,19 @@ static int put_be(enc_t *e, uint64_t v, int nbytes)
     return xb_buf_put(e->out, b, (size_t)nbytes);
 }
 
-static int put_int(enc_t *e, xb_prim_t prim, int64_t v)
+static int put_int(enc_t *e, marie_prim_t prim, int64_t v)
 {
     switch (prim) {
-    case XB_INT8: case XB_BYTE: case XB_BOOL: return put_be(e, (uint64_t)v, 1);
-    case XB_INT16: return put_be(e, (uint64_t)v, 2);
-    case XB_INT32: return put_be(e, (uint64_t)v, 4);
+    case MARIE_PRIM_INT8: case MARIE_PRIM_BYTE: case MARIE_PRIM_BOOL: return put_be(e, (uint64_t)v, 1);
+    case MARIE_PRIM_INT16: return put_be(e, (uint64_t)v, 2);
+    case MARIE_PRIM_INT32: return put_be(e, (uint64_t)v, 4);
     default: return put_be(e, (uint64_t)v, 8);
     }
 }
 
-static int put_real(enc_t *e, xb_prim_t prim, double v)
+static int put_real(enc_t *e, marie_prim_t prim, double v)
 {
-    if (prim == XB_FLOAT) {
+    if (prim == MARIE_PRIM_FLOAT) {
         float f = (float)v;
         uint32_t u;
         memcpy(&u, &f, 4);
@@ -398,7 +398,7 @@ static int too_large(enc_t *e)
     return -1;
 }
 
-static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int depth);
+static int encode_struct(enc_t *e, const marie_typeinfo_t *t, const xb_node_t *n, int depth);
 
 /* A leaf element must hold text only. */
 static int leaf_only(enc_t *e, const xb_node_t *n)
@@ -408,25 +408,25 @@ static int leaf_only(enc_t *e, const xb_node_t *n)
     return 0;
 }
 
-static int encode_value(enc_t *e, const xb_field_t *f, const xb_node_t *n, int depth)
+static int encode_value(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, int depth)
 {
     int64_t iv = 0;
     double dv = 0;
     switch (f->prim) {
-    case XB_INT8: case XB_INT16: case XB_INT32: case XB_INT64: case XB_BYTE: case XB_BOOL:
+    case MARIE_PRIM_INT8: case MARIE_PRIM_INT16: case MARIE_PRIM_INT32: case MARIE_PRIM_INT64: case MARIE_PRIM_BYTE: case MARIE_PRIM_BOOL:
         if (leaf_only(e, n) < 0)
             return -1;
         if (n && xb_parse_int(f->prim, n->text, n->text_len, &iv) < 0)
-            return enc_fail(e, "bad-value", n, NULL, f->prim == XB_BOOL ? "not a boolean"
+            return enc_fail(e, "bad-value", n, NULL, f->prim == MARIE_PRIM_BOOL ? "not a boolean"
                             : "not an integer in range");
         return put_int(e, f->prim, iv) < 0 ? too_large(e) : 0;
-    case XB_FLOAT: case XB_DOUBLE:
+    case MARIE_PRIM_FLOAT: case MARIE_PRIM_DOUBLE:
         if (leaf_only(e, n) < 0)
             return -1;
         if (n && xb_parse_real(f->prim, n->text, n->text_len, &dv) < 0)
             return enc_fail(e, "bad-value", n, NULL, "not a real number in range");
         return put_real(e, f->prim, dv) < 0 ? too_large(e) : 0;
-    case XB_STRING: {
+    case MARIE_PRIM_STRING: {
         if (leaf_only(e, n) < 0)
             return -1;
         const char *s = n ? n->text : "";
@@ -456,7 +456,7 @@ static int encode_value(enc_t *e, const xb_field_t *f, const xb_node_t *n, int d
             return too_large(e);
         return 0;
     }
-    case XB_STRUCT:
+    case MARIE_PRIM_STRUCT:
         return encode_struct(e, f->sub, n, depth + 1);
     }
     return -1;
@@ -464,11 +464,11 @@ static int encode_value(enc_t *e, const xb_field_t *f, const xb_node_t *n, int d
 
 /* Elements of an array field as written: whitespace-separated values for numbers and
  * booleans, base64 for bytes, <item> children for strings and structs. -1 on bad syntax. */
-static long array_count(enc_t *e, const xb_field_t *f, const xb_node_t *n)
+static long array_count(enc_t *e, const marie_tfield_t *f, const xb_node_t *n)
 {
     if (!n)
         return 0;
-    if (f->prim == XB_STRING || f->prim == XB_STRUCT) {
+    if (f->prim == MARIE_PRIM_STRING || f->prim == MARIE_PRIM_STRUCT) {
         if (!xb_text_blank(n->text, n->text_len))
             return enc_fail(e, "bad-value", n, NULL, "text in an array: use <item> elements");
         for (const xb_node_t *c = n->first; c; c = c->next)
@@ -478,7 +478,7 @@ static long array_count(enc_t *e, const xb_field_t *f, const xb_node_t *n)
     }
     if (leaf_only(e, n) < 0)
         return -1;
-    if (f->prim == XB_BYTE) {
+    if (f->prim == MARIE_PRIM_BYTE) {
         const char *enc = xb_node_attr(n, "encoding");
         if (enc && strcmp(enc, "base64") != 0)
             return enc_fail(e, "bad-value", n, NULL, "unknown encoding (only base64)");
@@ -501,9 +501,9 @@ static long array_count(enc_t *e, const xb_field_t *f, const xb_node_t *n)
     return count;
 }
 
-static int encode_array(enc_t *e, const xb_field_t *f, const xb_node_t *n, long count, int depth)
+static int encode_array(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, long count, int depth)
 {
-    if (f->prim == XB_BYTE) {
+    if (f->prim == MARIE_PRIM_BYTE) {
         if (buf_reserve(e->out, (size_t)count) < 0)
             return too_large(e);
         uint8_t *o = (uint8_t *)e->out->data + e->out->len;
@@ -514,7 +514,7 @@ static int encode_array(enc_t *e, const xb_field_t *f, const xb_node_t *n, long 
         e->out->len += (size_t)count;
         return 0;
     }
-    if (f->prim == XB_STRING || f->prim == XB_STRUCT) {
+    if (f->prim == MARIE_PRIM_STRING || f->prim == MARIE_PRIM_STRUCT) {
         const xb_node_t *c = n ? n->first : NULL;
         for (long i = 0; i < count; i++) {
             if (encode_value(e, f, c, depth) < 0)
@@ -534,16 +534,16 @@ static int encode_array(enc_t *e, const xb_field_t *f, const xb_node_t *n, long 
             const char *tok = s;
             while (s < end && !is_ws(*s))
                 s++;
-            int bad = (f->prim == XB_FLOAT || f->prim == XB_DOUBLE)
+            int bad = (f->prim == MARIE_PRIM_FLOAT || f->prim == MARIE_PRIM_DOUBLE)
                           ? xb_parse_real(f->prim, tok, (size_t)(s - tok), &dv)
                           : xb_parse_int(f->prim, tok, (size_t)(s - tok), &iv);
             if (bad < 0) {
                 char what[96];
-                snprintf(what, sizeof what, "element %ld is not a %s in range", i, xb_prim_name(f->prim));
+                snprintf(what, sizeof what, "element %ld is not a %s in range", i, marie_prim_name(f->prim));
                 return enc_fail(e, "bad-value", n, NULL, what);
             }
         }
-        int r = (f->prim == XB_FLOAT || f->prim == XB_DOUBLE) ? put_real(e, f->prim, dv)
+        int r = (f->prim == MARIE_PRIM_FLOAT || f->prim == MARIE_PRIM_DOUBLE) ? put_real(e, f->prim, dv)
                                                                : put_int(e, f->prim, iv);
         if (r < 0)
             return too_large(e);
@@ -551,7 +551,7 @@ static int encode_array(enc_t *e, const xb_field_t *f, const xb_node_t *n, long 
     return 0;
 }
 
-static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int depth)
+static int encode_struct(enc_t *e, const marie_typeinfo_t *t, const xb_node_t *n, int depth)
 {
     if (depth > XB_MAX_STRUCT_DEPTH)
         return enc_fail(e, "too-deep", n, NULL, "structs nested too deeply");
@@ -600,7 +600,7 @@ static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int
     }
     /* Length fields given explicitly must agree with their arrays; absent ones are counted. */
     for (int i = 0; i < nf; i++) {
-        const xb_field_t *f = &t->fields[i];
+        const marie_tfield_t *f = &t->fields[i];
         if (f->ndims == 0 && is_int_prim(f->prim) && slot[i]) {
             if (leaf_only(e, slot[i]) < 0)
                 goto out;
@@ -612,7 +612,7 @@ static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int
         }
     }
     for (int i = 0; i < nf; i++) {
-        const xb_field_t *f = &t->fields[i];
+        const marie_tfield_t *f = &t->fields[i];
         if (f->ndims == 0)
             continue;
         long count = array_count(e, f, slot[i]);
@@ -678,7 +678,7 @@ static int encode_struct(enc_t *e, const xb_struct_t *t, const xb_node_t *n, int
         }
     }
     for (int i = 0; i < nf; i++) {
-        const xb_field_t *f = &t->fields[i];
+        const marie_tfield_t *f = &t->fields[i];
         if (f->ndims == 0) {
             if (is_int_prim(f->prim) && known[i]) {
                 int64_t v = lenval[i], chk;
@@ -720,7 +720,7 @@ out:
     return rc;
 }
 
-int xb_encode(const xb_struct_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err)
+int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err)
 {
     enc_t e = { out, err };
     size_t start = out->len;
@@ -762,23 +762,23 @@ static int get_be(dec_t *d, int nbytes, uint64_t *v)
     return 0;
 }
 
-static int get_int(dec_t *d, xb_prim_t prim, int64_t *v)
+static int get_int(dec_t *d, marie_prim_t prim, int64_t *v)
 {
     uint64_t u;
     switch (prim) {
-    case XB_INT8: case XB_BOOL:
+    case MARIE_PRIM_INT8: case MARIE_PRIM_BOOL:
         if (get_be(d, 1, &u) < 0) return -1;
         *v = (int8_t)u;
         return 0;
-    case XB_BYTE:
+    case MARIE_PRIM_BYTE:
         if (get_be(d, 1, &u) < 0) return -1;
         *v = (uint8_t)u;
         return 0;
-    case XB_INT16:
+    case MARIE_PRIM_INT16:
         if (get_be(d, 2, &u) < 0) return -1;
         *v = (int16_t)u;
         return 0;
-    case XB_INT32:
+    case MARIE_PRIM_INT32:
         if (get_be(d, 4, &u) < 0) return -1;
         *v = (int32_t)u;
         return 0;
@@ -789,10 +789,10 @@ static int get_int(dec_t *d, xb_prim_t prim, int64_t *v)
     }
 }
 
-static int get_real(dec_t *d, xb_prim_t prim, double *v)
+static int get_real(dec_t *d, marie_prim_t prim, double *v)
 {
     uint64_t u;
-    if (prim == XB_FLOAT) {
+    if (prim == MARIE_PRIM_FLOAT) {
         if (get_be(d, 4, &u) < 0)
             return -1;
         uint32_t w = (uint32_t)u;
@@ -807,10 +807,10 @@ static int get_real(dec_t *d, xb_prim_t prim, double *v)
     return 0;
 }
 
-static int put_scalar_text(dec_t *d, xb_prim_t prim, int64_t *intval)
+static int put_scalar_text(dec_t *d, marie_prim_t prim, int64_t *intval)
 {
     char tmp[40];
-    if (prim == XB_FLOAT || prim == XB_DOUBLE) {
+    if (prim == MARIE_PRIM_FLOAT || prim == MARIE_PRIM_DOUBLE) {
         double v;
         if (get_real(d, prim, &v) < 0)
             return -1;
@@ -821,7 +821,7 @@ static int put_scalar_text(dec_t *d, xb_prim_t prim, int64_t *intval)
             return -1;
         if (intval)
             *intval = v;
-        if (prim == XB_BOOL)
+        if (prim == MARIE_PRIM_BOOL)
             snprintf(tmp, sizeof tmp, "%s", v ? "true" : "false");
         else
             snprintf(tmp, sizeof tmp, "%lld", (long long)v);
@@ -829,13 +829,13 @@ static int put_scalar_text(dec_t *d, xb_prim_t prim, int64_t *intval)
     return xb_buf_puts(d->out, tmp);
 }
 
-static int decode_struct(dec_t *d, const xb_struct_t *t, int depth);
+static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth);
 
 /* <tag>value</tag>, with the string form choosing base64 when XML cannot carry it. */
-static int decode_value(dec_t *d, const char *tag, const xb_field_t *f, int64_t *intval, int depth)
+static int decode_value(dec_t *d, const char *tag, const marie_tfield_t *f, int64_t *intval, int depth)
 {
     xb_buf_t *o = d->out;
-    if (f->prim == XB_STRING) {
+    if (f->prim == MARIE_PRIM_STRING) {
         uint64_t u;
         if (get_be(d, 4, &u) < 0)
             return -1;
@@ -855,7 +855,7 @@ static int decode_value(dec_t *d, const char *tag, const xb_field_t *f, int64_t 
     }
     if (xb_buf_printf(o, "<%s>", tag) < 0)
         return -1;
-    if (f->prim == XB_STRUCT) {
+    if (f->prim == MARIE_PRIM_STRUCT) {
         if (decode_struct(d, f->sub, depth + 1) < 0)
             return -1;
     } else if (put_scalar_text(d, f->prim, intval) < 0) {
@@ -864,7 +864,7 @@ static int decode_value(dec_t *d, const char *tag, const xb_field_t *f, int64_t 
     return xb_buf_printf(o, "</%s>", tag);
 }
 
-static int decode_struct(dec_t *d, const xb_struct_t *t, int depth)
+static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
 {
     if (depth > XB_MAX_STRUCT_DEPTH)
         return dec_fail(d, "structs nested too deeply");
@@ -874,7 +874,7 @@ static int decode_struct(dec_t *d, const xb_struct_t *t, int depth)
     if (!lenval)
         return dec_fail(d, "out of memory");
     for (int i = 0; i < nf; i++) {
-        const xb_field_t *f = &t->fields[i];
+        const marie_tfield_t *f = &t->fields[i];
         lenval[i] = 0;
         if (f->ndims == 0) {
             if (decode_value(d, f->name, f, &lenval[i], depth) < 0)
@@ -903,11 +903,11 @@ static int decode_struct(dec_t *d, const xb_struct_t *t, int depth)
         xb_buf_t *o = d->out;
         if (xb_buf_printf(o, "<%s>", f->name) < 0)
             goto out;
-        if (f->prim == XB_BYTE) {
+        if (f->prim == MARIE_PRIM_BYTE) {
             if (xb_base64_encode(o, d->p + d->pos, (size_t)count) < 0)
                 goto out;
             d->pos += (size_t)count;
-        } else if (f->prim == XB_STRING || f->prim == XB_STRUCT) {
+        } else if (f->prim == MARIE_PRIM_STRING || f->prim == MARIE_PRIM_STRUCT) {
             for (long k = 0; k < count; k++)
                 if (decode_value(d, "item", f, NULL, depth) < 0)
                     goto out;
@@ -926,7 +926,7 @@ out:
     return rc;
 }
 
-int xb_decode(const xb_struct_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err)
+int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err)
 {
     dec_t d = { data, len, 0, out, err, t->name };
     size_t start = out->len;
@@ -952,29 +952,3 @@ fail:
     return -1;
 }
 
-/* ---- type lookup ---- */
-
-const xb_struct_t *xb_struct_find(const char *name)
-{
-    for (size_t i = 0; i < xb_structs_count; i++) {
-        const xb_struct_t *t = xb_structs[i];
-        if (strcmp(t->name, name) == 0 || strcmp(t->short_name, name) == 0)
-            return t;
-    }
-    return NULL;
-}
-
-const xb_struct_t *xb_struct_by_fingerprint(int64_t fp)
-{
-    for (size_t i = 0; i < xb_structs_count; i++)
-        if (xb_structs[i]->fingerprint == fp)
-            return xb_structs[i];
-    return NULL;
-}
-
-const char *xb_prim_name(xb_prim_t p)
-{
-    static const char *const names[] = { "int8_t", "int16_t", "int32_t", "int64_t", "byte",
-                                         "float", "double", "string", "boolean", "struct" };
-    return (unsigned)p < sizeof names / sizeof names[0] ? names[p] : "?";
-}

@@ -7,7 +7,7 @@
 #include <stdint.h>
 
 #include "adapters/xml_bridge/xb_doc.h"
-#include "adapters/xml_bridge/xb_types.h"
+#include "core/typeinfo.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -32,19 +32,19 @@ int xb_buf_escape(xb_buf_t *b, const char *s, size_t len);
 /* Encodes `msg` (an element whose children are the fields; NULL for an all-zero message) as a
  * complete LCM payload of type t: fingerprint then fields. Returns 0, or -1 with err set
  * (codes: unknown-field, bad-value, bad-length, too-large). */
-int xb_encode(const xb_struct_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err);
+int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err);
 
 /* Appends the fields of the LCM payload `data` (fingerprint first) as XML child elements.
  * Returns 0, or -1 with err set (bad-fingerprint, bad-message, too-large). On failure the
  * buffer is left at its length on entry. */
-int xb_decode(const xb_struct_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err);
+int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err);
 
 /* The value syntax of one scalar: integers in decimal, booleans true/false/1/0, reals as
  * C/XSD decimals including NaN, INF, -INF. Returns 0 or -1 (not a value of that type). */
-int xb_parse_int(xb_prim_t prim, const char *s, size_t len, int64_t *v);
-int xb_parse_real(xb_prim_t prim, const char *s, size_t len, double *v);
+int xb_parse_int(marie_prim_t prim, const char *s, size_t len, int64_t *v);
+int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v);
 /* Shortest text that reads back to the same float/double. buf >= 32 bytes. */
-void xb_format_real(xb_prim_t prim, double v, char *buf, size_t size);
+void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size);
 
 /* RFC 4648 base64. decode returns the byte count or -1. */
 int xb_base64_encode(xb_buf_t *b, const uint8_t *data, size_t len);

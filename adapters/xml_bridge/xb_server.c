@@ -18,7 +18,7 @@
 
 #include "adapters/xml_bridge/xb_codec.h"
 #include "adapters/xml_bridge/xb_doc.h"
-#include "adapters/xml_bridge/xb_types.h"
+#include "core/typeinfo.h"
 #include "core/log.h"
 #include "core/time.h"
 
@@ -68,7 +68,7 @@ struct client {
 struct sub {
     xb_server_t *s;
     char *channel;
-    const xb_struct_t *type;
+    const marie_typeinfo_t *type;
     lcm_subscription_t *ls;
     client_t **clients;         /* subscribed clients; csub says whether they stream */
     int *stream;
@@ -415,7 +415,7 @@ static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     msgbuf_unref(mb);
 }
 
-static sub_t *sub_find(xb_server_t *s, const char *channel, const xb_struct_t *t)
+static sub_t *sub_find(xb_server_t *s, const char *channel, const marie_typeinfo_t *t)
 {
     for (sub_t *u = s->subs; u; u = u->next)
         if (u->type == t && strcmp(u->channel, channel) == 0)
@@ -423,7 +423,7 @@ static sub_t *sub_find(xb_server_t *s, const char *channel, const xb_struct_t *t
     return NULL;
 }
 
-static sub_t *sub_get(xb_server_t *s, const char *channel, const xb_struct_t *t)
+static sub_t *sub_get(xb_server_t *s, const char *channel, const marie_typeinfo_t *t)
 {
     sub_t *u = sub_find(s, channel, t);
     if (u)
@@ -515,7 +515,7 @@ static void sub_remove_client(xb_server_t *s, sub_t *u, client_t *c)
     sub_release(s, u);
 }
 
-static csub_t *client_sub(client_t *c, const char *channel, const xb_struct_t *t)
+static csub_t *client_sub(client_t *c, const char *channel, const marie_typeinfo_t *t)
 {
     for (int i = 0; i < c->nsubs; i++)
         if (c->subs[i].sub->type == t && strcmp(c->subs[i].sub->channel, channel) == 0)
@@ -539,14 +539,14 @@ static const char *need_channel(client_t *c, const xb_node_t *req)
     return ch;
 }
 
-static const xb_struct_t *need_type(client_t *c, const xb_node_t *req)
+static const marie_typeinfo_t *need_type(client_t *c, const xb_node_t *req)
 {
     const char *tn = xb_node_attr(req, "type");
     if (!tn) {
         reply_error(c, req, "bad-request", "missing type attribute");
         return NULL;
     }
-    const xb_struct_t *t = xb_struct_find(tn);
+    const marie_typeinfo_t *t = marie_typeinfo_find(tn);
     if (!t) {
         char why[160];
         snprintf(why, sizeof why, "no type named '%.100s' (see <types/>)", tn);
@@ -558,7 +558,7 @@ static const xb_struct_t *need_type(client_t *c, const xb_node_t *req)
 static void do_subscribe(client_t *c, const xb_node_t *req)
 {
     const char *ch = need_channel(c, req);
-    const xb_struct_t *t = ch ? need_type(c, req) : NULL;
+    const marie_typeinfo_t *t = ch ? need_type(c, req) : NULL;
     if (!t)
         return;
     const char *mode = xb_node_attr(req, "mode");
@@ -600,7 +600,7 @@ static void do_unsubscribe(client_t *c, const xb_node_t *req)
     if (!ch)
         return;
     const char *tn = xb_node_attr(req, "type");
-    const xb_struct_t *t = tn ? need_type(c, req) : NULL;
+    const marie_typeinfo_t *t = tn ? need_type(c, req) : NULL;
     if (tn && !t)
         return;
     int removed = 0;
@@ -624,7 +624,7 @@ static void do_publish(client_t *c, const xb_node_t *req)
 {
     xb_server_t *s = c->s;
     const char *ch = need_channel(c, req);
-    const xb_struct_t *t = ch ? need_type(c, req) : NULL;
+    const marie_typeinfo_t *t = ch ? need_type(c, req) : NULL;
     if (!t)
         return;
     xb_error_t err;
@@ -653,7 +653,7 @@ static void do_pull(client_t *c, const xb_node_t *req)
     if (!ch)
         return;
     const char *tn = xb_node_attr(req, "type");
-    const xb_struct_t *t = tn ? need_type(c, req) : NULL;
+    const marie_typeinfo_t *t = tn ? need_type(c, req) : NULL;
     if (tn && !t)
         return;
     /* The bridge is a Mailbox for every channel some client subscribed to. */
@@ -678,7 +678,7 @@ static void do_pull(client_t *c, const xb_node_t *req)
     enqueue_text(c, c->s->out.data, c->s->out.len);
 }
 
-static const char *dims_text(const xb_field_t *f, const xb_struct_t *t, char *buf, size_t size)
+static const char *dims_text(const marie_tfield_t *f, const marie_typeinfo_t *t, char *buf, size_t size)
 {
     size_t n = 0;
     buf[0] = '\0';
@@ -698,16 +698,16 @@ static void do_types(client_t *c, const xb_node_t *req)
     xb_buf_puts(b, "<types");
     put_attr(b, "id", xb_node_attr(req, "id"));
     xb_buf_puts(b, ">");
-    for (size_t i = 0; xb_structs[i]; i++)
-        xb_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", xb_structs[i]->name,
-                      (unsigned long long)xb_structs[i]->fingerprint);
+    for (size_t i = 0; marie_typeinfos[i]; i++)
+        xb_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", marie_typeinfos[i]->name,
+                      (unsigned long long)marie_typeinfos[i]->fingerprint);
     xb_buf_puts(b, "</types>\n");
     enqueue_text(c, b->data, b->len);
 }
 
 static void do_describe(client_t *c, const xb_node_t *req)
 {
-    const xb_struct_t *t = need_type(c, req);
+    const marie_typeinfo_t *t = need_type(c, req);
     if (!t)
         return;
     xb_buf_t *b = &c->s->out;
@@ -717,17 +717,17 @@ static void do_describe(client_t *c, const xb_node_t *req)
     put_attr(b, "id", xb_node_attr(req, "id"));
     xb_buf_puts(b, ">");
     for (int i = 0; i < t->nfields; i++) {
-        const xb_field_t *f = &t->fields[i];
+        const marie_tfield_t *f = &t->fields[i];
         char dims[128];
         xb_buf_printf(b, "<field name=\"%s\" type=\"%s\"", f->name,
-                      f->prim == XB_STRUCT ? f->sub->name : xb_prim_name(f->prim));
+                      f->prim == MARIE_PRIM_STRUCT ? f->sub->name : marie_prim_name(f->prim));
         if (f->ndims)
             xb_buf_printf(b, " dims=\"%s\"", dims_text(f, t, dims, sizeof dims));
         xb_buf_puts(b, "/>");
     }
     for (int i = 0; i < t->nconsts; i++) {
         xb_buf_printf(b, "<const name=\"%s\" type=\"%s\"", t->consts[i].name,
-                      xb_prim_name(t->consts[i].prim));
+                      marie_prim_name(t->consts[i].prim));
         put_attr(b, "value", t->consts[i].value);
         xb_buf_puts(b, "/>");
     }

@@ -20,7 +20,7 @@ typedef struct {
     int n, head;
     double sum2, max;
     int64_t npose;
-    int reached, missed, done, resumed;
+    int reached, missed, done, resumed, collisions;
     int64_t estop_utime, estop_cmd_utime;   /* sim time the e-stop was seen pressed, and obeyed */
     int64_t cmds, arbs;
     int64_t win_follow, win_avoid, win_idle, win_estop, win_teleop;
@@ -79,6 +79,8 @@ static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event
         p->done = 1;
     else if (strcmp(m->kind, "mission_resumed") == 0)
         p->resumed++;
+    else if (strcmp(m->kind, "collision") == 0)
+        p->collisions++;
     if (p->verbose && m->severity >= MARIE_EVENT_T_SEV_INFO)
         fprintf(stderr, "probe: event %s %s: %s\n", m->source, m->kind, m->text);
 }
@@ -93,7 +95,12 @@ static void on_cmd(const lcm_recv_buf_t *rb, const char *ch, const marie_motor_c
 
 static void on_pull(const lcm_recv_buf_t *rb, const char *ch, void *u)
 {
-    ((probe_t *)u)->pulls++;
+    marie_pull_request_t r;
+    if (marie_pull_request_t_decode(rb->data, 0, (int)rb->data_size, &r) < 0)
+        return;
+    if (strstr(r.requester, "behaviours"))
+        ((probe_t *)u)->pulls++;
+    marie_pull_request_t_decode_cleanup(&r);
 }
 
 static void on_estop(const lcm_recv_buf_t *rb, const char *ch, const marie_estop_t *m, void *u)
@@ -202,8 +209,9 @@ int main(int argc, char **argv)
     lcm_destroy(lcm);
     printf("probe: mission resumed %d time(s)\n", p.resumed);
     printf("probe: %lld inconsistent decision records\n", (long long)p.arb_bad);
+    printf("probe: %d collisions\n", p.collisions);
     printf("probe: %lld pull requests; pose age in the last decision %.3f s\n", (long long)p.pulls, p.last_pose_age);
-    int ok = p.npose > 0 && p.arb_bad == 0 && rms < max_rms && p.max < max_err && p.reached >= want_goals && (!want_done || p.done) &&
+    int ok = p.npose > 0 && p.arb_bad == 0 && p.collisions == 0 && rms < max_rms && p.max < max_err && p.reached >= want_goals && (!want_done || p.done) &&
              (!want_resumed || p.resumed > 0) &&
              (!estop_after_done || (p.estop_cmd_utime && p.estop_cmd_utime - p.estop_utime <= 300000));
     return ok ? 0 : 1;

@@ -88,10 +88,14 @@ static void push_delivers_typed_messages_and_drops_mistyped_ones(void **state)
     uint8_t full[256];
     marie_pose_cov_t_encode(full, 0, sizeof full, &m);
     assert_int_equal(marie_port_publish_raw(marie_port(cs[0], "raw"), full, 20), 0);
+    /* A complete payload whose string lost its NUL (lcm-gen would read past it): refused. */
+    int flen = marie_pose_cov_t_encode(full, 0, sizeof full, &m);
+    full[23] = 'x';  /* "map\0" sits at 20..23, after fingerprint, utime and its length */
+    assert_int_equal(marie_port_publish_raw(marie_port(cs[0], "raw"), full, (size_t)flen), 0);
     spin(cs, 2, 300);
     assert_int_equal(s.got, 3);
     assert_int_equal(marie_component_counter(cs[1], "bad_fingerprint"), 1);
-    assert_int_equal(marie_component_counter(cs[1], "bad_payload"), 1);
+    assert_int_equal(marie_component_counter(cs[1], "bad_payload"), 2);
     marie_component_destroy(cs[0]);
     marie_component_destroy(cs[1]);
 }

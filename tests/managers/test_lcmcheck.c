@@ -22,6 +22,12 @@
 static void expect_all_truncations_refused(const uint8_t *buf, int n, const char *layout)
 {
     assert_int_equal(marie_lcm_check(buf, (size_t)n, layout), 0);
+    /* a trailing byte is refused too */
+    uint8_t *longer = malloc((size_t)n + 1);
+    memcpy(longer, buf, (size_t)n);
+    longer[n] = 0;
+    assert_int_not_equal(marie_lcm_check(longer, (size_t)n + 1, layout), 0);
+    free(longer);
     for (int cut = 0; cut < n; cut++)
         assert_int_not_equal(marie_lcm_check(buf, (size_t)cut, layout), 0);
 }

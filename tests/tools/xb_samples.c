@@ -20,7 +20,7 @@ static uint64_t fnv1a(const void *data, size_t len)
 }
 
 typedef struct {
-    const xb_struct_t *t;
+    const marie_typeinfo_t *t;
     xb_buf_t *out;
     int rc;
 } enc_t;
@@ -36,8 +36,8 @@ static void on_doc(void *user, xb_node_t *root)
 
 static int publish(lcm_t *lcm, const char *prefix, int count, FILE *hashes)
 {
-    for (size_t i = 0; xb_structs[i]; i++) {
-        const xb_struct_t *t = xb_structs[i];
+    for (size_t i = 0; marie_typeinfos[i]; i++) {
+        const marie_typeinfo_t *t = marie_typeinfos[i];
         for (int k = 0; k < count; k++) {
             xb_buf_t xml, bytes;
             xb_canon_t canon;

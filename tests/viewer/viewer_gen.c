@@ -81,7 +81,7 @@ static float cast(double x, double y, double a, double rmax)
     return (float)rmax;
 }
 
-static const double goals[][2] = {{4, 4}, {16, 5}, {16, 12}, {6, 11}, {3, 7}};
+static const double goals[][2] = {{4, 4}, {8, 7.2}, {17, 7.2}, {12, 9}, {12, 13}};
 #define NGOALS 5
 
 int main(int argc, char **argv)
@@ -92,7 +92,7 @@ int main(int argc, char **argv)
     }
     int live = strcmp(argv[1], "live") == 0;
     const char *file = NULL;
-    double seconds = 40, speed = 1;
+    double seconds = 45, speed = 1;
     int corrupt = 0;
     for (int i = 2; i < argc; i++) {
         if (strcmp(argv[i], "--seconds") == 0 && i + 1 < argc)

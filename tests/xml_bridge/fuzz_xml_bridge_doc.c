@@ -8,7 +8,7 @@
 #include "adapters/xml_bridge/xb_doc.h"
 
 typedef struct {
-    const xb_struct_t *t;
+    const marie_typeinfo_t *t;
     xb_buf_t *out;
     int rc;
 } again_t;
@@ -24,9 +24,9 @@ static void on_doc(void *user, xb_node_t *root)
 {
     const uint8_t *sel = user;
     const char *tn = xb_node_attr(root, "type");
-    const xb_struct_t *t = tn ? xb_struct_find(tn) : NULL;
+    const marie_typeinfo_t *t = tn ? marie_typeinfo_find(tn) : NULL;
     if (!t)
-        t = xb_structs[*sel % xb_structs_count];
+        t = marie_typeinfos[*sel % marie_typeinfos_count];
     xb_buf_t out, xml, again;
     xb_error_t err;
     xb_buf_init(&out, 1 << 20);
@@ -66,7 +66,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     xb_doc_parser_destroy(p);
 
     /* The same bytes as an LCM payload of some type, with its fingerprint put in front. */
-    const xb_struct_t *t = xb_structs[sel % xb_structs_count];
+    const marie_typeinfo_t *t = marie_typeinfos[sel % marie_typeinfos_count];
     uint8_t *payload = malloc(size + 8);
     if (!payload)
         return 0;

@@ -14,7 +14,7 @@
 
 /* Parses exactly one document and keeps a deep copy-free handle: the callback encodes. */
 typedef struct {
-    const xb_struct_t *type;
+    const marie_typeinfo_t *type;
     xb_buf_t out;
     xb_error_t err;
     int docs, rc;
@@ -30,7 +30,7 @@ static void encode_cb(void *user, xb_node_t *root)
 }
 
 /* XML fields text -> LCM payload through the document parser and the encoder. */
-static int xml_to_lcm(const xb_struct_t *t, const char *fields, xb_buf_t *out, xb_error_t *err)
+static int xml_to_lcm(const marie_typeinfo_t *t, const char *fields, xb_buf_t *out, xb_error_t *err)
 {
     enc_ctx_t c = { .type = t, .rc = -99 };
     xb_buf_init(&c.out, 1 << 24);
@@ -57,16 +57,16 @@ static const marie_type_t *registry(const char *name)
 
 static void test_fingerprints_match_lcm_gen(void **state)
 {
-    assert_true(xb_structs_count >= marie_types_count);
+    assert_true(marie_typeinfos_count >= marie_types_count);
     for (size_t i = 0; marie_types[i]; i++) {
-        const xb_struct_t *t = xb_struct_find(marie_types[i]->name);
+        const marie_typeinfo_t *t = marie_typeinfo_find(marie_types[i]->name);
         assert_non_null(t);
         if (t->fingerprint != marie_types[i]->hash())
             fail_msg("%s: fingerprint %llx, lcm-gen says %llx", t->name,
                      (unsigned long long)t->fingerprint, (unsigned long long)marie_types[i]->hash());
     }
-    assert_ptr_equal(xb_struct_find("pose_cov_t"), xb_struct_find("marie.pose_cov_t"));
-    assert_null(xb_struct_find("marie.no_such_t"));
+    assert_ptr_equal(marie_typeinfo_find("pose_cov_t"), marie_typeinfo_find("marie.pose_cov_t"));
+    assert_null(marie_typeinfo_find("marie.no_such_t"));
 }
 
 /* For every type and many samples: our encoding decodes with lcm-gen's C code to the same
@@ -74,8 +74,8 @@ static void test_fingerprints_match_lcm_gen(void **state)
 static void test_every_type_round_trips_field_by_field(void **state)
 {
     int checked = 0;
-    for (size_t i = 0; xb_structs[i]; i++) {
-        const xb_struct_t *t = xb_structs[i];
+    for (size_t i = 0; marie_typeinfos[i]; i++) {
+        const marie_typeinfo_t *t = marie_typeinfos[i];
         const marie_type_t *mt = registry(t->name);
         assert_non_null(mt);
         for (uint32_t seed = 1; seed <= 40; seed++) {
@@ -144,7 +144,7 @@ static void expect_error(const char *type, const char *fields, const char *code)
 {
     xb_buf_t out;
     xb_error_t err = { "", "" };
-    const xb_struct_t *t = xb_struct_find(type);
+    const marie_typeinfo_t *t = marie_typeinfo_find(type);
     assert_non_null(t);
     if (xml_to_lcm(t, fields, &out, &err) != -1)
         fail_msg("%s accepted: %s", type, fields);
@@ -181,7 +181,7 @@ static void test_wrong_fields_are_refused_with_a_reason(void **state)
 
 static void test_defaults_and_inferred_lengths(void **state)
 {
-    const xb_struct_t *t = xb_struct_find("marie.laser_scan_t");
+    const marie_typeinfo_t *t = marie_typeinfo_find("marie.laser_scan_t");
     xb_buf_t out;
     assert_int_equal(xml_to_lcm(t, "<ranges> 1 2.5\n 3 </ranges><nintensities>0</nintensities>", &out, NULL), 0);
     marie_laser_scan_t m;
@@ -194,7 +194,7 @@ static void test_defaults_and_inferred_lengths(void **state)
     xb_buf_free(&out);
 
     /* An absent fixed array is zeros; an absent message is all defaults. */
-    t = xb_struct_find("marie.pose_cov_t");
+    t = marie_typeinfo_find("marie.pose_cov_t");
     xb_buf_init(&out, 0);
     xb_error_t err;
     assert_int_equal(xb_encode(t, NULL, &out, &err), 0);
@@ -208,8 +208,8 @@ static void test_defaults_and_inferred_lengths(void **state)
 
 static void test_decode_refuses_foreign_and_oversized_payloads(void **state)
 {
-    const xb_struct_t *pose = xb_struct_find("marie.pose2d_t");
-    const xb_struct_t *cov = xb_struct_find("marie.pose_cov_t");
+    const marie_typeinfo_t *pose = marie_typeinfo_find("marie.pose2d_t");
+    const marie_typeinfo_t *cov = marie_typeinfo_find("marie.pose_cov_t");
     xb_buf_t out, x;
     xb_error_t err;
     assert_int_equal(xml_to_lcm(pose, "<x>1</x>", &out, NULL), 0);
@@ -235,7 +235,7 @@ static void test_decode_refuses_foreign_and_oversized_payloads(void **state)
     buf[8 + 8 + 16 + 3] = 0x7f;     /* nranges low byte */
     buf[8 + 8 + 16 + 0] = 0x7f;     /* nranges high byte: huge */
     xb_buf_init(&x, 0);
-    assert_int_equal(xb_decode(xb_struct_find("laser_scan_t"), buf, (size_t)n, &x, &err), -1);
+    assert_int_equal(xb_decode(marie_typeinfo_find("laser_scan_t"), buf, (size_t)n, &x, &err), -1);
     assert_string_equal(err.code, "bad-message");
     xb_buf_free(&x);
 }
@@ -251,12 +251,12 @@ static void test_strings_xml_cannot_carry_use_base64(void **state)
     xb_buf_t x, out;
     xb_error_t err;
     xb_buf_init(&x, 0);
-    assert_int_equal(xb_decode(xb_struct_find("event_t"), buf, (size_t)n, &x, &err), 0);
+    assert_int_equal(xb_decode(marie_typeinfo_find("event_t"), buf, (size_t)n, &x, &err), 0);
     xb_buf_put(&x, "", 1);
     assert_non_null(strstr(x.data, "<source encoding=\"base64\">YQF6</source>"));
     assert_non_null(strstr(x.data, "<text>&lt;&amp;&gt;&quot;&#9;&#10;&#13;</text>"));
     assert_null(strchr(x.data, '\n'));
-    assert_int_equal(xml_to_lcm(xb_struct_find("event_t"), x.data, &out, NULL), 0);
+    assert_int_equal(xml_to_lcm(marie_typeinfo_find("event_t"), x.data, &out, NULL), 0);
     assert_int_equal(out.len, (size_t)n);
     assert_memory_equal(out.data, buf, (size_t)n);
     xb_buf_free(&x);

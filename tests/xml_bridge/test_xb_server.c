@@ -238,7 +238,7 @@ static const marie_type_t *registry(const char *name)
 }
 
 typedef struct {
-    const xb_struct_t *t;
+    const marie_typeinfo_t *t;
     xb_buf_t *out;
     xb_error_t *err;
     int rc;
@@ -257,8 +257,8 @@ static void test_every_type_both_directions(void **state)
     assert_true(cli_wait(&c, 1));
     assert_true(starts(c.docs[0], "hello|protocol=1"));
     int expect = 1;
-    for (size_t i = 0; xb_structs[i]; i++) {
-        const xb_struct_t *t = xb_structs[i];
+    for (size_t i = 0; marie_typeinfos[i]; i++) {
+        const marie_typeinfo_t *t = marie_typeinfos[i];
         const marie_type_t *mt = registry(t->name);
         assert_non_null(mt);
         for (uint32_t seed = 1; seed <= 3; seed++) {

@@ -63,11 +63,11 @@ static uint32_t rnd(uint32_t *s)
     return *s = x ? x : 0x9e3779b9u;
 }
 
-static int64_t sample_int(xb_prim_t prim, uint32_t *s)
+static int64_t sample_int(marie_prim_t prim, uint32_t *s)
 {
     static const int64_t lo[] = { INT8_MIN, INT16_MIN, INT32_MIN, INT64_MIN, 0 };
     static const int64_t hi[] = { INT8_MAX, INT16_MAX, INT32_MAX, INT64_MAX, 255 };
-    if (prim == XB_BOOL)
+    if (prim == MARIE_PRIM_BOOL)
         return rnd(s) & 1;
     uint32_t r = rnd(s) % 8;
     if (r == 0)
@@ -75,18 +75,18 @@ static int64_t sample_int(xb_prim_t prim, uint32_t *s)
     if (r == 1)
         return hi[prim];
     int64_t v = (int64_t)((uint64_t)rnd(s) << 32 | rnd(s));
-    if (prim == XB_BYTE)
+    if (prim == MARIE_PRIM_BYTE)
         return (uint8_t)v;
-    if (prim == XB_INT8)
+    if (prim == MARIE_PRIM_INT8)
         return (int8_t)v;
-    if (prim == XB_INT16)
+    if (prim == MARIE_PRIM_INT16)
         return (int16_t)v;
-    if (prim == XB_INT32)
+    if (prim == MARIE_PRIM_INT32)
         return (int32_t)v;
     return v;
 }
 
-static double sample_real(xb_prim_t prim, uint32_t *s)
+static double sample_real(marie_prim_t prim, uint32_t *s)
 {
     switch (rnd(s) % 10) {
     case 0: return NAN;
@@ -95,7 +95,7 @@ static double sample_real(xb_prim_t prim, uint32_t *s)
     case 3: case 4: return ((double)(rnd(s) % 2001) - 1000.0) / 8.0;
     default: {
         double v = ((double)rnd(s) / 4294967296.0 - 0.5) * pow(10.0, (double)(rnd(s) % 13) - 6);
-        return prim == XB_FLOAT ? (double)(float)v : v;
+        return prim == MARIE_PRIM_FLOAT ? (double)(float)v : v;
     }
     }
 }
@@ -119,11 +119,11 @@ static void sample_string(uint32_t *s, char *out, size_t size)
     }
 }
 
-static void put_value_xml(xb_buf_t *xml, const char *tag, xb_prim_t prim, double dv, int64_t iv,
+static void put_value_xml(xb_buf_t *xml, const char *tag, marie_prim_t prim, double dv, int64_t iv,
                           const char *str)
 {
     char tmp[40];
-    if (prim == XB_STRING) {
+    if (prim == MARIE_PRIM_STRING) {
         if (xb_xml_safe(str, strlen(str))) {
             xb_buf_printf(xml, "<%s>", tag);
             xb_buf_escape(xml, str, strlen(str));
@@ -134,26 +134,26 @@ static void put_value_xml(xb_buf_t *xml, const char *tag, xb_prim_t prim, double
         xb_buf_printf(xml, "</%s>", tag);
         return;
     }
-    if (prim == XB_FLOAT || prim == XB_DOUBLE)
+    if (prim == MARIE_PRIM_FLOAT || prim == MARIE_PRIM_DOUBLE)
         xb_format_real(prim, dv, tmp, sizeof tmp);
-    else if (prim == XB_BOOL)
+    else if (prim == MARIE_PRIM_BOOL)
         snprintf(tmp, sizeof tmp, "%s", iv ? ((iv & 2) ? "1" : "true") : "false");
     else
         snprintf(tmp, sizeof tmp, "%lld", (long long)iv);
     xb_buf_puts(xml, tmp);
 }
 
-static void canon_value(xb_canon_t *c, const char *path, xb_prim_t prim, double dv, int64_t iv,
+static void canon_value(xb_canon_t *c, const char *path, marie_prim_t prim, double dv, int64_t iv,
                         const char *str)
 {
-    if (prim == XB_STRING)
+    if (prim == MARIE_PRIM_STRING)
         xb_canon_str(c, path, str);
-    else if (prim == XB_FLOAT)
+    else if (prim == MARIE_PRIM_FLOAT)
         xb_canon_float(c, path, (float)dv);
-    else if (prim == XB_DOUBLE)
+    else if (prim == MARIE_PRIM_DOUBLE)
         xb_canon_double(c, path, dv);
     else
-        xb_canon_int(c, path, prim == XB_BOOL ? (iv != 0) : iv);
+        xb_canon_int(c, path, prim == MARIE_PRIM_BOOL ? (iv != 0) : iv);
 }
 
 /* LCM's C decoder copies byte arrays with memcpy even when empty (NULL pointer, 0 bytes), which
@@ -164,7 +164,7 @@ static void canon_value(xb_canon_t *c, const char *path, xb_prim_t prim, double 
 #define MIN_BYTES 0
 #endif
 
-static void sample_struct(const xb_struct_t *t, uint32_t *s, xb_buf_t *xml, xb_canon_t *c,
+static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml, xb_canon_t *c,
                           const char *prefix, int depth)
 {
     int64_t lens[64] = { 0 };
@@ -174,21 +174,21 @@ static void sample_struct(const xb_struct_t *t, uint32_t *s, xb_buf_t *xml, xb_c
             int lf = t->fields[i].dims[d].len_field;
             if (lf < 0 || lf >= 64)
                 continue;
-            xb_prim_t pr = t->fields[i].prim;
-            int onebyte = pr == XB_BYTE || pr == XB_INT8 || pr == XB_BOOL;
+            marie_prim_t pr = t->fields[i].prim;
+            int onebyte = pr == MARIE_PRIM_BYTE || pr == MARIE_PRIM_INT8 || pr == MARIE_PRIM_BOOL;
             if (!is_len[lf]) {
                 is_len[lf] = 1;
-                lens[lf] = depth > 2 ? 0 : (int64_t)(rnd(s) % (pr == XB_BYTE ? 40 : 4));
+                lens[lf] = depth > 2 ? 0 : (int64_t)(rnd(s) % (pr == MARIE_PRIM_BYTE ? 40 : 4));
             }
             if (onebyte && lens[lf] < MIN_BYTES)
                 lens[lf] = MIN_BYTES;
         }
     for (int i = 0; i < t->nfields; i++) {
-        const xb_field_t *f = &t->fields[i];
+        const marie_tfield_t *f = &t->fields[i];
         char path[512];
         if (f->ndims == 0) {
             snprintf(path, sizeof path, "%s%s", prefix, f->name);
-            if (f->prim == XB_STRUCT) {
+            if (f->prim == MARIE_PRIM_STRUCT) {
                 char sub[520];
                 snprintf(sub, sizeof sub, "%s.", path);
                 xb_buf_printf(xml, "<%s>", f->name);
@@ -201,16 +201,16 @@ static void sample_struct(const xb_struct_t *t, uint32_t *s, xb_buf_t *xml, xb_c
             int64_t iv = 0;
             if (i < 64 && is_len[i])
                 iv = lens[i];
-            else if (f->prim == XB_STRING)
+            else if (f->prim == MARIE_PRIM_STRING)
                 sample_string(s, str, sizeof str);
-            else if (f->prim == XB_FLOAT || f->prim == XB_DOUBLE)
+            else if (f->prim == MARIE_PRIM_FLOAT || f->prim == MARIE_PRIM_DOUBLE)
                 dv = sample_real(f->prim, s);
             else
                 iv = sample_int(f->prim, s);
             canon_value(c, path, f->prim, dv, iv, str);
             if (i < 64 && is_len[i] && (rnd(s) & 1))
                 continue;           /* the bridge counts the array instead */
-            if (f->prim == XB_STRING) {
+            if (f->prim == MARIE_PRIM_STRING) {
                 put_value_xml(xml, f->name, f->prim, dv, iv, str);
             } else {
                 xb_buf_printf(xml, "<%s>", f->name);
@@ -240,7 +240,7 @@ static void sample_struct(const xb_struct_t *t, uint32_t *s, xb_buf_t *xml, xb_c
             }
             for (int d = 0; d < f->ndims && len < sizeof path; d++)
                 len += (size_t)snprintf(path + len, sizeof path - len, "[%ld]", idx[d]);
-            if (f->prim == XB_STRUCT) {
+            if (f->prim == MARIE_PRIM_STRUCT) {
                 char sub[520];
                 snprintf(sub, sizeof sub, "%s.", path);
                 xb_buf_puts(xml, "<item>");
@@ -253,19 +253,19 @@ static void sample_struct(const xb_struct_t *t, uint32_t *s, xb_buf_t *xml, xb_c
             int64_t iv = 0;
             if (omit)
                 ;
-            else if (f->prim == XB_STRING)
+            else if (f->prim == MARIE_PRIM_STRING)
                 sample_string(s, str, sizeof str);
-            else if (f->prim == XB_FLOAT || f->prim == XB_DOUBLE)
+            else if (f->prim == MARIE_PRIM_FLOAT || f->prim == MARIE_PRIM_DOUBLE)
                 dv = sample_real(f->prim, s);
             else
                 iv = sample_int(f->prim, s);
             canon_value(c, path, f->prim, dv, iv, str);
             if (omit)
                 continue;
-            if (f->prim == XB_BYTE) {
+            if (f->prim == MARIE_PRIM_BYTE) {
                 if (k < (long)sizeof bytes)
                     bytes[k] = (uint8_t)iv;
-            } else if (f->prim == XB_STRING) {
+            } else if (f->prim == MARIE_PRIM_STRING) {
                 put_value_xml(xml, "item", f->prim, dv, iv, str);
             } else {
                 if (k)
@@ -273,14 +273,14 @@ static void sample_struct(const xb_struct_t *t, uint32_t *s, xb_buf_t *xml, xb_c
                 put_value_xml(xml, NULL, f->prim, dv, iv, str);
             }
         }
-        if (f->prim == XB_BYTE && !omit)
+        if (f->prim == MARIE_PRIM_BYTE && !omit)
             xb_base64_encode(xml, bytes, (size_t)(count < (long)sizeof bytes ? count : (long)sizeof bytes));
         if (!omit)
             xb_buf_printf(xml, "</%s>", f->name);
     }
 }
 
-void xb_sample(const xb_struct_t *t, uint32_t seed, xb_buf_t *xml, xb_canon_t *canon)
+void xb_sample(const marie_typeinfo_t *t, uint32_t seed, xb_buf_t *xml, xb_canon_t *canon)
 {
     uint32_t s = seed * 2654435761u + 1;
     sample_struct(t, &s, xml, canon, "", 0);

@@ -17,3 +17,8 @@ $(eval $(call marie_fuzz,viewer_cmd,tests/viewer/fuzz_viewer_cmd.c tools/viewer/
 $(eval $(call marie_link,$(B)/tests/bin/viewer-gen,tests/viewer/viewer_gen.c tools/viewer/lcmlog.c,))
 EXTRA_TARGETS += $(B)/tests/bin/viewer-gen
 ITESTS += tests/viewer/test_viewer.sh
+ITESTS += tests/viewer/test_viewer_controls.sh
+$(B)/tests/test_viewer_units: | $(B)/bin/marie-viewer-server $(B)/bin/marie-view $(B)/tests/bin/viewer-gen
+
+$(eval $(call marie_bench,bench_viewer,tools/viewer/bench_viewer.c,-lcivetweb))
+$(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server

@@ -686,7 +686,7 @@ static void build_summary(viewer_t *v)
     vj_init(&dec); vj_init(&ev); vj_init(&goals); vj_init(&rst); vj_init(&traj[0]); vj_init(&traj[1]); vj_init(&b);
     char **names = NULL;
     int nnames = 0;
-    int64_t ndec = 0, nev = 0, ngoals = 0, nrst = 0, ntraj[2] = {0, 0}, last_traj[2] = {INT64_MIN, INT64_MIN};
+    int64_t ndec = 0, nev = 0, ngoals = 0, nrst = 0, ntraj[2] = {0, 0}, last_traj[2] = {0, 0};
     char *comp[MAXCOMP];
     int pid[MAXCOMP], ncomp = 0;
     for (size_t i = 0; i < v->nrecs; i++) {
@@ -753,7 +753,7 @@ static void build_summary(viewer_t *v)
             free_msg(t, m);
         } else if (pi == P_POSE || pi == P_TRUTH) {
             int k = pi == P_TRUTH;
-            if (r->t - last_traj[k] < 200000 || ntraj[k] >= 100000)
+            if ((ntraj[k] && r->t - last_traj[k] < 200000) || ntraj[k] >= 100000)
                 continue;
             marie_pose_cov_t *m = decode_rec(v, r, t);
             if (!m)

@@ -1,0 +1,124 @@
+/* typeinfo: lookups in the generated type descriptors, and the payload checker. */
+#include "core/typeinfo.h"
+
+#include <errno.h>
+#include <string.h>
+
+const marie_typeinfo_t *marie_typeinfo_find(const char *name)
+{
+    for (size_t i = 0; i < marie_typeinfos_count; i++) {
+        const marie_typeinfo_t *t = marie_typeinfos[i];
+        if (strcmp(t->name, name) == 0 || strcmp(t->short_name, name) == 0)
+            return t;
+    }
+    return NULL;
+}
+
+const marie_typeinfo_t *marie_typeinfo_by_fingerprint(int64_t fp)
+{
+    for (size_t i = 0; i < marie_typeinfos_count; i++)
+        if (marie_typeinfos[i]->fingerprint == fp)
+            return marie_typeinfos[i];
+    return NULL;
+}
+
+const char *marie_prim_name(marie_prim_t p)
+{
+    static const char *const names[] = {"int8_t", "int16_t", "int32_t", "int64_t", "byte",
+                                        "float", "double", "string", "boolean", "struct"};
+    return (unsigned)p < sizeof names / sizeof names[0] ? names[p] : "?";
+}
+
+#define MAX_DEPTH 16
+
+typedef struct {
+    const uint8_t *buf;
+    size_t len, pos;
+} cursor_t;
+
+static int64_t read_be(const uint8_t *p, int n)
+{
+    uint64_t v = 0;
+    for (int i = 0; i < n; i++)
+        v = v << 8 | p[i];
+    /* sign-extend */
+    if (n < 8 && (v >> (8 * n - 1)) & 1)
+        v |= ~0ULL << (8 * n);
+    return (int64_t)v;
+}
+
+static int prim_size(marie_prim_t p)
+{
+    switch (p) {
+    case MARIE_PRIM_INT8: case MARIE_PRIM_BYTE: case MARIE_PRIM_BOOL: return 1;
+    case MARIE_PRIM_INT16: return 2;
+    case MARIE_PRIM_INT32: case MARIE_PRIM_FLOAT: return 4;
+    case MARIE_PRIM_INT64: case MARIE_PRIM_DOUBLE: return 8;
+    default: return 0;
+    }
+}
+
+static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth);
+
+/* One element of field f; an integer scalar's value is stored in *value (array lengths). */
+static int walk_element(const marie_tfield_t *f, cursor_t *c, int depth, int64_t *value)
+{
+    size_t room = c->len - c->pos;
+    if (f->prim == MARIE_PRIM_STRING) {
+        if (room < 4)
+            return -1;
+        int64_t n = read_be(c->buf + c->pos, 4);
+        if (n < 1 || (uint64_t)n > room - 4 || c->buf[c->pos + 4 + (size_t)n - 1] != 0)
+            return -1;
+        c->pos += 4 + (size_t)n;
+        return 0;
+    }
+    if (f->prim == MARIE_PRIM_STRUCT)
+        return walk_struct(f->sub, c, depth + 1);
+    int size = prim_size(f->prim);
+    if (!size || room < (size_t)size)
+        return -1;
+    if (value)
+        *value = read_be(c->buf + c->pos, size);
+    c->pos += (size_t)size;
+    return 0;
+}
+
+static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
+{
+    if (depth > MAX_DEPTH)
+        return -1;
+    int64_t values[256];
+    for (int i = 0; i < t->nfields; i++) {
+        const marie_tfield_t *f = &t->fields[i];
+        int64_t count = 1;
+        for (int d = 0; d < f->ndims; d++) {
+            int64_t n = f->dims[d].len_field >= 0 ? (f->dims[d].len_field < 256 ? values[f->dims[d].len_field] : -1)
+                                                  : f->dims[d].size;
+            /* Every element takes at least one byte: a count past the payload is a lie. */
+            if (n < 0 || n > (int64_t)(c->len - c->pos) || (n && count > (int64_t)(c->len - c->pos) / n))
+                return -1;
+            count *= n;
+        }
+        int size = prim_size(f->prim);
+        if (f->ndims > 0 && size) {
+            /* Arrays of fixed-size primitives: only their extent matters. */
+            if ((uint64_t)count * (uint64_t)size > c->len - c->pos)
+                return -1;
+            c->pos += (size_t)count * (size_t)size;
+            continue;
+        }
+        for (int64_t k = 0; k < count; k++)
+            if (walk_element(f, c, depth, (f->ndims == 0 && i < 256) ? &values[i] : NULL) < 0)
+                return -1;
+    }
+    return 0;
+}
+
+int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
+{
+    if (!t || len < 8 || read_be(buf, 8) != t->fingerprint)
+        return -EBADMSG;
+    cursor_t c = {buf, len, 8};
+    return walk_struct(t, &c, 0) < 0 ? -EBADMSG : 0;
+}

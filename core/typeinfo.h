@@ -1,0 +1,69 @@
+/* typeinfo: descriptors of every marie LCM type (generated from the .lcm files in lcmtypes/ by
+ * lcmtypes/typeinfo_gen.py) and a checker of payloads against them. */
+#ifndef MARIE_TYPEINFO_H
+#define MARIE_TYPEINFO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    MARIE_PRIM_INT8, MARIE_PRIM_INT16, MARIE_PRIM_INT32, MARIE_PRIM_INT64, MARIE_PRIM_BYTE, MARIE_PRIM_FLOAT, MARIE_PRIM_DOUBLE, MARIE_PRIM_STRING, MARIE_PRIM_BOOL,
+    MARIE_PRIM_STRUCT,
+} marie_prim_t;
+
+/* One array dimension: a fixed size, or the index of an earlier integer field holding it. */
+typedef struct {
+    int32_t size;           /* fixed size when len_field < 0 */
+    int16_t len_field;
+} marie_tdim_t;
+
+typedef struct marie_typeinfo marie_typeinfo_t;
+
+typedef struct {
+    const char *name;
+    marie_prim_t prim;
+    const marie_typeinfo_t *sub;     /* MARIE_PRIM_STRUCT only */
+    int ndims;
+    const marie_tdim_t *dims;       /* ndims entries, outermost first */
+} marie_tfield_t;
+
+typedef struct {
+    const char *name;
+    marie_prim_t prim;
+    const char *value;          /* as written in the .lcm file */
+} marie_tconst_t;
+
+struct marie_typeinfo {
+    const char *name;           /* "marie.pose_cov_t" */
+    const char *short_name;     /* "pose_cov_t" */
+    int64_t fingerprint;        /* as lcm-gen computes it, written first on the wire */
+    int nfields;
+    const marie_tfield_t *fields;
+    int nconsts;
+    const marie_tconst_t *consts;
+};
+
+/* Every struct of lcmtypes/, sorted by name, NULL-terminated. */
+extern const marie_typeinfo_t *const marie_typeinfos[];
+extern const size_t marie_typeinfos_count;
+
+/* By full ("marie.pose_cov_t") or short name ("pose_cov_t"); NULL if unknown. */
+const marie_typeinfo_t *marie_typeinfo_find(const char *name);
+/* By wire fingerprint; NULL if unknown. */
+const marie_typeinfo_t *marie_typeinfo_by_fingerprint(int64_t fp);
+const char *marie_prim_name(marie_prim_t p);   /* "int32_t", ..., "struct" */
+
+/* Checks that buf holds a well-formed payload of type t (fingerprint first): every string is
+ * NUL-terminated within its length, every array count is non-negative and fits the payload.
+ * lcm-gen's C decoders trust both, so nothing from the bus is decoded before this passes.
+ * Returns 0 or -EBADMSG. */
+int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,103 @@
+/* test_typeinfo: the payload checker accepts what lcm-gen encodes and refuses what would make
+ * lcm-gen's decoder read or free out of bounds. */
+#include <errno.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "core/typeinfo.h"
+#include "lcmtypes/marie_types.h"
+
+static void every_type_has_a_descriptor_with_the_same_fingerprint(void **state)
+{
+    for (size_t i = 0; marie_types[i]; i++) {
+        const marie_typeinfo_t *ti = marie_typeinfo_find(marie_types[i]->name);
+        assert_non_null(ti);
+        assert_true(ti->fingerprint == marie_types[i]->hash());
+    }
+    assert_int_equal(marie_typeinfos_count, marie_types_count);
+}
+
+static int encode(const marie_type_t *t, const void *msg, uint8_t *buf, int cap)
+{
+    return t->encode(buf, 0, cap, msg);
+}
+
+static void accepts_encoded_messages_and_refuses_truncations(void **state)
+{
+    marie_behaviour_vote_t votes[2] = {{"follow", 40, 1, 0.3, 0.1, "path"}, {"avoid", 80, 0, 0, 0, ""}};
+    marie_input_age_t ages[1] = {{"pose", 0.05}};
+    marie_arbitration_t a = {.utime = 1, .cycle = 2, .nvotes = 2, .votes = votes, .winner = "follow",
+                             .v = 0.3, .omega = 0.1, .ninputs = 1, .inputs = ages};
+    uint8_t buf[1024];
+    int n = encode(&marie_type_arbitration_t, &a, buf, sizeof buf);
+    assert_true(n > 0);
+    const marie_typeinfo_t *ti = marie_typeinfo_find("marie.arbitration_t");
+    assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n), 0);
+    for (int cut = 0; cut < n; cut++)
+        assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)cut), -EBADMSG);
+    /* Another type's checker refuses it by fingerprint. */
+    assert_int_equal(marie_typeinfo_check(marie_typeinfo_find("pose_cov_t"), buf, (size_t)n), -EBADMSG);
+}
+
+static void refuses_strings_without_nul_and_lying_counts(void **state)
+{
+    marie_event_t e = {.utime = 1, .source = "src", .seq = 1, .severity = 1, .kind = "k", .text = "hello"};
+    uint8_t buf[256];
+    int n = encode(&marie_type_event_t, &e, buf, sizeof buf);
+    const marie_typeinfo_t *ti = marie_typeinfo_find("event_t");
+    assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n), 0);
+    /* source is the first string: length at 16, text at 20..23 ("src\0"). */
+    uint8_t bad[256];
+    memcpy(bad, buf, (size_t)n);
+    bad[23] = 'x';
+    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    memcpy(bad, buf, (size_t)n);
+    bad[16] = 0x80;  /* negative length */
+    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    memcpy(bad, buf, (size_t)n);
+    bad[19] = 0;     /* zero length: lcm-gen would hand out an unterminated string */
+    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+
+    marie_behaviour_vote_t votes[1] = {{"follow", 40, 1, 0.3, 0.1, "path"}};
+    marie_arbitration_t a = {.nvotes = 1, .votes = votes, .winner = "w", .ninputs = 0};
+    n = encode(&marie_type_arbitration_t, &a, buf, sizeof buf);
+    ti = marie_typeinfo_find("arbitration_t");
+    /* nvotes sits after fingerprint, utime and cycle: offset 24. A huge count would make
+     * lcm-gen allocate that many votes and free their unset strings on cleanup. */
+    memcpy(bad, buf, (size_t)n);
+    bad[24] = 0x7f;
+    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    memcpy(bad, buf, (size_t)n);
+    bad[24] = 0xff;
+    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+}
+
+static void large_primitive_arrays_are_checked_by_extent(void **state)
+{
+    float ranges[361];
+    for (int i = 0; i < 361; i++)
+        ranges[i] = (float)i;
+    marie_laser_scan_t s = {.nranges = 361, .ranges = ranges};
+    uint8_t buf[4096];
+    int n = encode(&marie_type_laser_scan_t, &s, buf, sizeof buf);
+    const marie_typeinfo_t *ti = marie_typeinfo_find("laser_scan_t");
+    assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n), 0);
+    assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n - 1), -EBADMSG);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(every_type_has_a_descriptor_with_the_same_fingerprint),
+        cmocka_unit_test(accepts_encoded_messages_and_refuses_truncations),
+        cmocka_unit_test(refuses_strings_without_nul_and_lying_counts),
+        cmocka_unit_test(large_primitive_arrays_are_checked_by_extent),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

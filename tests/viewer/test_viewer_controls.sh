@@ -1,0 +1,48 @@
+#!/bin/sh
+# test_viewer_controls: the viewer's controls go through the managers: pause and resume a
+# component with orders signed by the shared key (a real marie-am obeys them), set a goal;
+# without a key the controls are refused; foreign web origins cannot open the WebSocket.
+. tests/lib.sh
+T=$(mktemp -d /tmp/marie-test-viewer.XXXXXX)
+export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
+pids=""
+cleanup() {
+    "$BIN/marie" down --timeout 3 > /dev/null 2>&1
+    for p in $pids; do kill "$p" 2>/dev/null; done
+    for p in $pids; do wait "$p" 2>/dev/null; done
+    rm -rf "$T"
+}
+trap cleanup EXIT INT TERM
+
+"$BIN/marie" keygen "$T/key"
+"$BIN/marie-am" --host alpha --state-dir "$T/am" > "$T/am.log" 2>&1 &
+pids="$pids $!"
+sleep 0.3
+check "system up under marie-am" "$BIN/marie" up tests/data/viewer/controls.yaml
+
+"$BIN/marie-viewer-server" --name viewer --param http_port=8111 --param key_file="$T/key" \
+    --param url_file="$T/url" > "$T/viewer.log" 2>&1 &
+pids="$pids $!"
+check "viewer serves with a key" wait_for 10 test -s "$T/url"
+check "pause, resume and goal from the page" python3 tests/viewer/controls_client.py 8111
+check "marie ps agrees: walker running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
+
+"$BIN/marie-viewer-server" --name viewer2 --param http_port=8112 --param url_file="$T/url2" > "$T/viewer2.log" 2>&1 &
+pids="$pids $!"
+wait_for 10 test -s "$T/url2"
+refused() {
+    python3 - <<'PY'
+import sys
+sys.path.insert(0, "tests/viewer")
+from wsclient import WsClient
+c = WsClient("127.0.0.1", 8112)
+c.until(lambda m: m["type"] == "hello")
+c.send({"op": "order", "cmd": "pause", "target": "walker"})
+m = c.until(lambda m: m["type"] == "notice")
+print(m)
+sys.exit(0 if m and "controls are disabled" in m["text"] else 1)
+PY
+}
+check "without a key the controls are refused" refused
+check "walker still running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
+finish
