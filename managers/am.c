@@ -72,6 +72,7 @@ typedef struct comp {
     cstate_t st;
     pid_t pid;
     int64_t started_us;         /* monotonic */
+    int64_t start_ticks;        /* /proc start time, with pid names the process */
     int restarts;
     int last_exit;
     int64_t fail_times[MAX_FAIL_TIMES];
@@ -283,6 +284,7 @@ static void on_outpipe(marie_loop_t *loop, int fd, short revents, void *user)
 
 static void comp_spawn(comp_t *c);
 static void try_start_waiting(am_t *am);
+static void save_children(am_t *am);
 
 static char *path_with_self(am_t *am)
 {
@@ -441,6 +443,9 @@ static void comp_spawn(comp_t *c)
     }
     c->pid = pid;
     c->started_us = now_us();
+    c->start_ticks = 0;
+    marie_proc_starttime(pid, &c->start_ticks);
+    save_children(am);
     c->hb_mono = 0;
     c->hb_state = -1;
     c->cpu_prev.at_us = 0;
@@ -468,6 +473,50 @@ fail:
     free(argv);
     c->last_exit = 127;
     comp_set_state(c, CS_FAILED);
+}
+
+/* ---------------------------------------------------------------- leftovers */
+
+/* The live children, so that a manager restarted after a crash can end the ones that
+ * outlived it (a component that ignores SIGTERM survives PR_SET_PDEATHSIG). */
+static void save_children(am_t *am)
+{
+    char path[PATH_MAX], tmp[PATH_MAX + 8];
+    snprintf(path, sizeof path, "%s/children", am->state_dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        return;
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        if (c->pid > 0 && c->local)
+            fprintf(f, "%d %lld %s\n", (int)c->pid, (long long)c->start_ticks, c->cfg->name);
+    }
+    if (fclose(f) == 0)
+        rename(tmp, path);
+}
+
+static void kill_leftovers(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/children", am->state_dir);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return;
+    int pid;
+    long long ticks;
+    char name[128];
+    while (fscanf(f, "%d %lld %127s", &pid, &ticks, name) == 3) {
+        int64_t now_ticks;
+        /* the same pid and start time: still that process, not a reused pid */
+        if (pid > 1 && marie_proc_starttime(pid, &now_ticks) == 0 && now_ticks == ticks) {
+            marie_warn("%s (pid %d) outlived the previous marie-am: SIGKILL to its process group", name, pid);
+            kill(-pid, SIGKILL);
+            kill(pid, SIGKILL);
+        }
+    }
+    fclose(f);
+    unlink(path);
 }
 
 /* ---------------------------------------------------------------- stopping */
@@ -613,6 +662,7 @@ static void comp_exited(comp_t *c, int status)
     /* leftovers of the process group (shell children) go with their leader */
     kill(-old, SIGKILL);
     c->pid = 0;
+    save_children(am);
     c->hb_state = -1;
     comp_cancel_timer(c);
     c->last_exit = WIFEXITED(status) ? WEXITSTATUS(status) : WIFSIGNALED(status) ? -WTERMSIG(status) : -1;
@@ -1682,6 +1732,7 @@ int main(int argc, char **argv)
         marie_loop_add_timer(am->loop, (int64_t)(wd / 2), on_watchdog, am);
     }
 
+    kill_leftovers(am);
     if (am->sys) {
         am_up(am);
     } else {

@@ -84,3 +84,30 @@ float marie_cpu_percent(marie_cpu_sample_t *prev, int64_t cpu_us, int64_t now_us
     prev->at_us = now_us;
     return pct;
 }
+
+int marie_proc_starttime(pid_t pid, int64_t *ticks)
+{
+    char path[64], buf[1024];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+    ssize_t n = read_small(path, buf, sizeof buf);
+    if (n < 0)
+        return (int)n;
+    const char *p = strrchr(buf, ')');
+    if (!p)
+        return -EINVAL;
+    /* after ')': field 3 (state) ... field 22 (starttime) is the 20th token */
+    long long v = 0;
+    p++;
+    for (int field = 3; field <= 22; field++) {
+        while (*p == ' ')
+            p++;
+        if (!*p)
+            return -EINVAL;
+        if (field == 22)
+            v = atoll(p);
+        while (*p && *p != ' ')
+            p++;
+    }
+    *ticks = v;
+    return 0;
+}

@@ -14,6 +14,9 @@ int marie_proc_usage(pid_t pid, int64_t *cpu_us, int64_t *rss_bytes);
 /* Parse the text of /proc/PID/stat (the command may hold spaces and parentheses). */
 int marie_proc_parse_stat(const char *text, int64_t *utime_ticks, int64_t *stime_ticks);
 int marie_host_load(float load[3]);
+/* When the process started (clock ticks since boot, /proc/PID/stat field 22): with the pid,
+ * it names one process for good (a pid alone may be reused). 0 or -errno. */
+int marie_proc_starttime(pid_t pid, int64_t *ticks);
 
 /* Percent of one core between two samples. */
 typedef struct {

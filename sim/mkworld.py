@@ -61,7 +61,7 @@ def office_world(d):
     g.border(t)
     cy0, cy1 = 13.5, 16.5                 # main corridor along x
     cx0, cx1 = 18.5, 21.5                 # cross corridor along y
-    door = 1.2
+    door = 1.6                            # wide enough for a 0.3 m robot radius plus margin
     # Corridor walls, with one door per room.
     room_x = [t, 8.0, 14.0, cx0, cx1, 26.0, 33.0, W - t]
     for (ya, yb) in ((cy0 - wt, cy0), (cy1, cy1 + wt)):
@@ -95,7 +95,7 @@ def office_world(d):
         g.rect(x0, y0, x1, y1)
     g.rect(5.0, 14.6, 5.4, 15.0)          # a pillar in the corridor
     g.write(d, "office", "marie office world: 40x30 m, corridors y 13.5-16.5 and x 18.5-21.5, "
-            "14 rooms with 1.2 m doors")
+            "14 rooms with 1.6 m doors")
 
 
 if __name__ == "__main__":

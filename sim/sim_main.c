@@ -33,7 +33,7 @@ typedef struct {
     int64_t last_cmd_sim;       /* sim us when the last command arrived */
     int64_t wait_since;         /* mono us when the lockstep wait began, 0 if not waiting */
     bool estop, estop_dirty;
-    bool touching;              /* the robot touched a wall in the last step */
+    int64_t last_touch;         /* sim us of the last step with a wall contact; -1: never */
 } sim_t;
 
 static const marie_port_spec_t ports[] = {
@@ -64,6 +64,7 @@ static const marie_param_spec_t params[] = {
     { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
     { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder ticks per wheel turn" },
     { "accel", MARIE_PARAM_DOUBLE, "1.5", "drive ramp, m/s^2 at the rim" },
+    { "estop_decel", MARIE_PARAM_DOUBLE, "4.0", "quick stop on the e-stop, m/s^2 at the rim" },
     { "max_wheel_speed", MARIE_PARAM_DOUBLE, "15.0", "rad/s" },
     { "cmd_timeout", MARIE_PARAM_DOUBLE, "0.5", "sim s without a motor command before the drives stop" },
     { "laser_beams", MARIE_PARAM_INT, "181", "181 or 361 over 180 degrees" },
@@ -259,16 +260,18 @@ static bool step_once(marie_component_t *c, sim_t *s)
     sim_world_step(s->world);
     if (s->devices)
         sim_devices_after_step(s->devices, sim_world_step_s(s->world), sim_now(s));
-    /* Heartbeat counters: "collisions" counts each new contact with a wall. */
+    /* Heartbeat counters: "collisions" counts each new contact with a wall (contacts that
+     * flicker while the robot scrapes along one count once). */
     bool touching = sim_world_wall_contacts(s->world) > 0;
-    if (touching && !s->touching) {
+    if (touching && (s->last_touch < 0 || sim_now(s) - s->last_touch > 200000)) {
         marie_component_count(c, "collisions", 1);
         double x, y, th;
         sim_world_pose(s->world, &x, &y, &th);
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "collision", "robot hit a wall at (%.2f, %.2f) at %.3f s",
                               x, y, sim_now(s) / 1e6);
     }
-    s->touching = touching;
+    if (touching)
+        s->last_touch = sim_now(s);
     publish(c, s);
     return true;
 }
@@ -300,7 +303,13 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
             if (!step_once(c, s))
                 break;
     }
-    marie_component_count(c, "steps", sim_world_steps(s->world) - steps0);
+    int64_t stepped = sim_world_steps(s->world) - steps0;
+    if (stepped) {
+        marie_component_count(c, "steps", stepped);
+        /* Simulated time in the heartbeat, so `marie ps` shows how fast the world runs. */
+        int64_t ms = sim_world_time_us(s->world) / 1000;
+        marie_component_count(c, "sim_ms", ms - marie_component_counter(c, "sim_ms"));
+    }
 }
 
 static int on_init(marie_component_t *c)
@@ -313,6 +322,7 @@ static int on_init(marie_component_t *c)
     s->world = NULL;
     free(s->scan);
     s->scan = NULL;
+    s->last_touch = -1;
     const char *mode = marie_param_str(c, "mode");
     bool device = strcmp(mode, "device") == 0;
     if (!device && strcmp(mode, "channel") != 0) {
@@ -340,6 +350,7 @@ static int on_init(marie_component_t *c)
     p.track = marie_param_double(c, "track");
     p.ticks_per_rev = (int32_t)marie_param_int(c, "ticks_per_rev");
     p.accel = marie_param_double(c, "accel");
+    p.estop_decel = marie_param_double(c, "estop_decel");
     p.max_wheel_speed = marie_param_double(c, "max_wheel_speed");
     p.laser_beams = (int)marie_param_int(c, "laser_beams");
     p.laser_max = marie_param_double(c, "laser_max");

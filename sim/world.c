@@ -73,6 +73,7 @@ void sim_params_default(sim_params_t *p)
     p->track = 0.4;
     p->max_wheel_speed = 15.0;
     p->accel = 1.5;
+    p->estop_decel = 4.0;
     p->ticks_per_rev = 4096;
     p->laser_beams = 181;
     p->laser_fov = M_PI;
@@ -274,7 +275,7 @@ void sim_world_step(sim_world_t *w)
 {
     double dt = w->p.step;
     /* The drives' velocity ramp. */
-    double dmax = w->p.accel / w->p.wheel_radius * dt;
+    double dmax = (w->estop ? fmax(w->p.estop_decel, w->p.accel) : w->p.accel) / w->p.wheel_radius * dt;
     for (int k = 0; k < 2; k++) {
         double goal = w->estop ? 0.0 : w->target[k];
         double d = goal - w->setpoint[k];

@@ -21,6 +21,8 @@ typedef struct {
     double track;               /* m between the wheels' contact points (0.4) */
     double max_wheel_speed;     /* rad/s at the wheel (15) */
     double accel;               /* m/s^2 at the rim: the drives' velocity ramp (1.5) */
+    double estop_decel;         /* m/s^2 at the rim: quick stop on the e-stop (4.0, as the
+                                 * virtual drives' 40 rad/s^2 quick stop) */
     int32_t ticks_per_rev;      /* encoder ticks per wheel turn (4096) */
     /* laser, mounted at (laser_x, 0) on the robot, facing forward */
     int laser_beams;            /* 181 or 361 over laser_fov */

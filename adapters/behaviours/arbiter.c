@@ -26,7 +26,7 @@ void arb_params_default(arb_params_t *p)
     p->omega_max = 1.2;
     p->goal_tolerance = 0.15;
     p->turn_in_place = 1.0;
-    p->stale_pose_s = 1.0;
+    p->stale_pose_s = 0.5;
     p->stale_path_s = 0;            /* a path stays valid until replaced */
     p->half_width = 0.35;
     p->stop_distance = 0.35;
@@ -136,6 +136,15 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
     }
     if (!fresh(in->pose_age, p->stale_pose_s)) {
         vote(o, false, 0, 0, in->pose_age < 0 ? "no pose" : "pose stale %.1f s", in->pose_age);
+        return;
+    }
+    for (int i = 0; i < 3 * in->npath; i++)
+        if (!isfinite(in->path[i])) {
+            vote(o, false, 0, 0, "path has non-finite poses");
+            return;
+        }
+    if (!isfinite(in->pose[0]) || !isfinite(in->pose[1]) || !isfinite(in->pose[2])) {
+        vote(o, false, 0, 0, "pose not finite");
         return;
     }
     const double *P = in->path;

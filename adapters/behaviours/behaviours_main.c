@@ -156,6 +156,11 @@ static void decide(beh_t *b)
     };
     arb_vote_t votes[ARB_COUNT];
     int win = arb_decide(&b->p, &b->st, &in, votes);
+    if (!isfinite(votes[win].v) || !isfinite(votes[win].omega)) {
+        /* Never let a non-finite number reach the drives. */
+        marie_component_bad_input(c, "non_finite_command", "%s voted a non-finite command", votes[win].name);
+        votes[win].v = votes[win].omega = 0;
+    }
     marie_motor_command_t cmd = { .utime = now, .v = votes[win].v, .omega = votes[win].omega,
                                   .source = (char *)votes[win].name };
     marie_port_publish(marie_port(c, "cmd"), &cmd);
@@ -365,7 +370,7 @@ static const marie_param_spec_t params[] = {
     { "v_max", MARIE_PARAM_DOUBLE, "0.5", "m/s" },
     { "omega_max", MARIE_PARAM_DOUBLE, "1.2", "rad/s" },
     { "goal_tolerance", MARIE_PARAM_DOUBLE, "0.15", "m: the path is done this close to its end" },
-    { "stale_pose_s", MARIE_PARAM_DOUBLE, "1.0", "s: older poses are not followed" },
+    { "stale_pose_s", MARIE_PARAM_DOUBLE, "0.5", "s: older poses are not followed" },
     { "half_width", MARIE_PARAM_DOUBLE, "0.35", "m: half the swept corridor checked by avoid" },
     { "stop_distance", MARIE_PARAM_DOUBLE, "0.35", "m ahead: stop and turn away" },
     { "slow_distance", MARIE_PARAM_DOUBLE, "0.6", "m ahead: slow down and turn away" },

@@ -28,6 +28,7 @@ typedef struct {
     float *cloud_buf;
     int cloud_max;
     double last_distance;       /* odometry's distance travelled: it only grows, unless restarted */
+    double last_v, last_omega;  /* odometry's last body velocity */
     int force_left;             /* sensor updates still forced after a (re)initialisation */
     double odom_timeout_s;      /* scans this much newer than the odometry give no pose */
     double resume_max_age_s;
@@ -184,13 +185,25 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
                     jump > 0.5 + 3.0 * fabs(dt);
     }
     s->last_distance = m->distance;
+    if (isfinite(m->v) && isfinite(m->omega) && fabs(m->v) < 10 && fabs(m->omega) < 10) {
+        s->last_v = m->v;
+        s->last_omega = m->omega;
+    }
     if (restarted) {
-        /* The robot moved unseen while the odometry was away: spread the particles around the
-         * last estimate by what it could have done meanwhile, and let the laser pull them in. */
+        /* The robot moved unseen while the odometry was away. Downstream stops it once our
+         * pose goes stale (we publish none without odometry), so assume it went on with its
+         * last velocity for at most 1 s, and spread the particles by what that leaves open;
+         * the laser pulls them in. */
         double gap = s->nring ? fabs((double)(m->utime - s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING].utime)) / 1e6 : 1.0;
+        double t = fmin(gap, 1.0);
         double pose[3], cov[9];
         mcl_estimate(s->f, pose, cov);
-        double sig[3] = { fmin(0.2 + 0.5 * gap, 2.0), fmin(0.2 + 0.5 * gap, 2.0), fmin(0.1 + 0.6 * gap, M_PI) };
+        double h = pose[2] + 0.5 * s->last_omega * t;
+        pose[0] += s->last_v * t * cos(h);
+        pose[1] += s->last_v * t * sin(h);
+        pose[2] += s->last_omega * t;
+        double sig[3] = { 0.1 + (0.3 * fabs(s->last_v) + 0.15) * t, 0.1 + (0.3 * fabs(s->last_v) + 0.15) * t,
+                          0.05 + (0.3 * fabs(s->last_omega) + 0.1) * t };
         mcl_init_pose(s->f, pose, sig);
         s->force_left = 10;
         marie_component_count(c, "odometry_restarts", 1);

@@ -174,3 +174,14 @@ int mission_restore(mission_t *m, int64_t start_utime, int current, const int32_
     m->done = false;    /* the next update declares it done if nothing is left */
     return 0;
 }
+
+void mission_give_up(mission_t *m, const char *why, mission_event_fn ev, void *user)
+{
+    if (m->current < 0)
+        return;
+    const mission_goal_t *g = &m->goals[m->current];
+    m->state[m->current] = MISSION_MISSED;
+    m->missed++;
+    emit(ev, user, "goal_missed", g, "goal %d '%s' given up: %s", g->id, g->name, why);
+    m->current = -1;
+}

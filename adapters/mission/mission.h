@@ -49,6 +49,8 @@ void mission_update(mission_t *m, int64_t now, const double *pose, mission_event
 /* Continue a mission from saved progress: the goal ids must match this mission's list.
  * 0, or -1 (then nothing changed). */
 int mission_restore(mission_t *m, int64_t start_utime, int current, const int32_t *ids, const int8_t *states, int n);
+/* The current goal cannot be reached (no path): mark it missed now. */
+void mission_give_up(mission_t *m, const char *why, mission_event_fn ev, void *user);
 /* Deadline of goal i in absolute time (0: none). */
 int64_t mission_deadline(const mission_t *m, int i);
 

@@ -22,7 +22,9 @@ typedef struct {
     int restore_tries;
     bool restored, dirty, timer_made;
     int64_t last_goal_pub;
-    double republish_s, stale_pose_s, resume_max_age_s;
+    double republish_s, stale_pose_s, resume_max_age_s, unreachable_s;
+    int32_t failing_goal;       /* goal the planner reports no path for, -1: none */
+    int64_t failing_since;
 } mis_t;
 
 static void on_event(void *user, const char *kind, const mission_goal_t *g, const char *text)
@@ -121,6 +123,11 @@ static void tick(marie_component_t *c, int64_t overruns)
     int64_t now = marie_component_now(c);
     bool fresh = s->have_pose && (s->stale_pose_s <= 0 || (now - s->pose_stamp) / 1e6 <= s->stale_pose_s);
     bool was_done = s->m.done;
+    if (s->m.current >= 0 && s->unreachable_s > 0 && s->failing_goal == s->m.goals[s->m.current].id &&
+        (now - s->failing_since) / 1e6 > s->unreachable_s) {
+        mission_give_up(&s->m, "the planner finds no path", on_event, s);
+        s->failing_goal = -1;
+    }
     mission_update(&s->m, now, fresh ? s->pose : NULL, on_event, s);
     if (s->dirty) {
         s->dirty = false;
@@ -153,6 +160,20 @@ static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, cons
     s->have_pose = true;
 }
 
+/* The planner's verdict on the current goal: a goal it keeps failing is given up. */
+static void on_path(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mis_t *s = marie_component_user(c);
+    const marie_path_t *m = msg;
+    if (m->status == MARIE_PATH_T_STATUS_OK) {
+        if (m->goal_id == s->failing_goal)
+            s->failing_goal = -1;
+    } else if (m->goal_id != s->failing_goal) {
+        s->failing_goal = m->goal_id;
+        s->failing_since = marie_component_now(c);
+    }
+}
+
 static void quit(marie_component_t *c)
 {
     mis_t *s = marie_component_user(c);
@@ -178,6 +199,8 @@ static int init(marie_component_t *c)
     s->republish_s = marie_param_double(c, "republish_s");
     s->stale_pose_s = marie_param_double(c, "stale_pose_s");
     s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
+    s->unreachable_s = marie_param_double(c, "unreachable_s");
+    s->failing_goal = -1;
     s->sm_timeout_ms = (int)marie_param_int(c, "sharedmap_timeout_ms");
     const char *key = marie_param_str(c, "state_key");
     if (key[0])
@@ -192,8 +215,8 @@ static int init(marie_component_t *c)
             return -1;
         }
     }
-    if (marie_port_on_message(marie_port(c, "pose"), on_pose)) {
-        marie_component_fail_reason(c, "cannot subscribe to the pose");
+    if (marie_port_on_message(marie_port(c, "pose"), on_pose) || marie_port_on_message(marie_port(c, "path"), on_path)) {
+        marie_component_fail_reason(c, "cannot subscribe to the pose and path");
         return -1;
     }
     double hz = marie_param_double(c, "rate_hz");
@@ -211,6 +234,7 @@ static int init(marie_component_t *c)
 
 static const marie_port_spec_t ports[] = {
     { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
+    { "path", &marie_type_path_t, MARIE_IN, MARIE_PUSH, "PATH" },
     { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL" },
     { "state", &marie_type_mission_state_t, MARIE_OUT, MARIE_PUSH, "MISSION_STATE" },
     { 0 },
@@ -226,6 +250,7 @@ static const marie_param_spec_t params[] = {
     { "sharedmap_channel", MARIE_PARAM_STRING, "SHAREDMAP", "the SharedMap's request channel" },
     { "state_key", MARIE_PARAM_STRING, "\"\"", "SharedMap key (default mission/<component name>)" },
     { "sharedmap_timeout_ms", MARIE_PARAM_INT, "300", "how long to wait for the SharedMap" },
+    { "unreachable_s", MARIE_PARAM_DOUBLE, "30", "s of failed plans before the current goal is given up (0: never)" },
     { "resume_max_age_s", MARIE_PARAM_DOUBLE, "300", "older saved progress starts a new mission (0: any age)" },
     { 0 },
 };

@@ -142,15 +142,52 @@ static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitra
                         m->votes[i].reason);
 }
 
+/* Malformed and absurd input on every channel the adapters read: they must count it and go on. */
+static void send_garbage(lcm_t *lcm)
+{
+    static const char *const chans[] = { "WHEEL_ENCODERS", "GYRO", "LASER", "ODOMETRY", "POSE", "PATH", "GOAL",
+                                         "TELEOP", "INITIALPOSE", "POSE.PULL" };
+    uint8_t buf[256];
+    unsigned seed = 7;
+    for (int round = 0; round < 5; round++)
+        for (size_t k = 0; k < sizeof(chans) / sizeof(chans[0]); k++) {
+            size_t n = rand_r(&seed) % sizeof(buf);
+            for (size_t i = 0; i < n; i++)
+                buf[i] = (uint8_t)rand_r(&seed);
+            lcm_publish(lcm, chans[k], buf, (unsigned)n);
+        }
+    float ranges[3] = { NAN, -1, INFINITY };
+    marie_laser_scan_t scan = { .utime = 1, .angle_min = NAN, .angle_increment = 0, .range_max = -1, .nranges = 3,
+                                .ranges = ranges };
+    marie_odometry_t odo = { .utime = 1, .pose = { NAN, 0, 0 } };
+    marie_pose2d_t poses[2] = { { 0, 0, 0 }, { NAN, INFINITY, 0 } };
+    marie_path_t path = { .utime = 1, .goal_id = 99, .nposes = 2, .poses = poses };
+    marie_goal_t goal = { .utime = 1, .id = 99, .name = "bad", .pose = { NAN, 1, 0 } };
+    marie_motor_command_t tele = { .utime = 1, .v = NAN, .omega = INFINITY, .source = "bad" };
+    marie_wheel_encoders_t enc = { .utime = 1, .ticks_per_rev = 0 };
+    marie_gyro_t gyro = { .utime = 1, .yaw_rate = NAN };
+    marie_pose_cov_t ip = { .utime = 1, .frame = "map", .pose = { INFINITY, 0, 0 } };
+    for (int i = 0; i < 3; i++) {
+        marie_laser_scan_t_publish(lcm, "LASER", &scan);
+        marie_odometry_t_publish(lcm, "ODOMETRY", &odo);
+        marie_path_t_publish(lcm, "PATH", &path);
+        marie_goal_t_publish(lcm, "GOAL", &goal);
+        marie_motor_command_t_publish(lcm, "TELEOP", &tele);
+        marie_wheel_encoders_t_publish(lcm, "WHEEL_ENCODERS", &enc);
+        marie_gyro_t_publish(lcm, "GYRO", &gyro);
+        marie_pose_cov_t_publish(lcm, "INITIALPOSE", &ip);
+    }
+}
+
 int main(int argc, char **argv)
 {
     probe_t p = { 0 };
     double timeout = 60, max_rms = 0.15, max_err = 0.5;
-    int want_goals = 0, want_done = 0, want_resumed = 0, estop_after_done = 0;
+    int want_goals = 0, want_done = 0, want_resumed = 0, estop_after_done = 0, garbage = 0;
     static struct option opts[] = { { "timeout", 1, 0, 't' }, { "goals", 1, 0, 'g' }, { "done", 0, 0, 'd' },
                                     { "max-rms", 1, 0, 'r' }, { "max-err", 1, 0, 'm' }, { "settle", 1, 0, 's' },
                                     { "verbose", 0, 0, 'v' }, { "resumed", 0, 0, 'R' },
-                                    { "estop-after-done", 0, 0, 'E' }, { 0 } };
+                                    { "estop-after-done", 0, 0, 'E' }, { "garbage", 0, 0, 'G' }, { 0 } };
     int o;
     while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
         switch (o) {
@@ -163,6 +200,7 @@ int main(int argc, char **argv)
         case 'v': p.verbose++; break;
         case 'R': want_resumed = 1; break;
         case 'E': estop_after_done = 1; break;
+        case 'G': garbage = 1; break;
         default: return 2;
         }
     }
@@ -177,6 +215,8 @@ int main(int argc, char **argv)
     marie_estop_t_subscription_t *s_estop = marie_estop_t_subscribe(lcm, "ESTOP", on_estop, &p);
     lcm_subscription_t *s_pull = lcm_subscribe(lcm, ".*\\.PULL", on_pull, &p);
     p.last_pose_age = -1;
+    if (garbage)
+        send_garbage(lcm);
     int64_t end = marie_mono_us() + (int64_t)(timeout * 1e6);
     while (marie_mono_us() < end && !(want_done && p.done))
         lcm_handle_timeout(lcm, 50);

@@ -76,6 +76,16 @@ static void test_follow_stops_at_end_and_on_stale_pose(void **state)
     in.pose[0] = 3.95;
     assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
     assert_string_equal(v[ARB_FOLLOW].reason, "path done");
+    /* A path or pose with NaN in it is not followed (and never reaches the motors). */
+    double bad[] = { 0, 0, 0, NAN, 1, 0 };
+    arb_state_reset(&s);
+    in.pose[0] = 0;
+    in.path = bad; in.npath = 2;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
+    in.path = straight; in.npath = 3;
+    in.pose[2] = NAN;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
+    in.pose[2] = 0;
     /* A failed plan is not followed. */
     arb_state_reset(&s);
     in.pose[0] = 0; in.path_status = 1;
@@ -147,7 +157,7 @@ static void test_avoid_blocks_and_turns_to_open_side(void **state)
     in = base_inputs();
     in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
     for (int k = 0; k < 30; k++)
-        open_scan[k] = 0.4f;    /* -90..-60 deg at 0.4 m: y <= -0.35 */
+        open_scan[k] = 0.45f;   /* -90..-60 deg at 0.45 m: y <= -0.39 */
     assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
     /* A stale scan cannot vouch for anything. */
     in.scan_age = 3;

@@ -129,6 +129,22 @@ static void test_restore_continues(void **state)
     assert_string_equal(e.log, "mission_done:0 ");
 }
 
+static void test_give_up_unreachable(void **state)
+{
+    mission_t m = parse("- {x: 1, y: 0}\n- {x: 2, y: 0}\n");
+    events_t e = { { 0 } };
+    double far[3] = { 9, 9, 0 };
+    mission_update(&m, 0, far, on_event, &e);
+    mission_give_up(&m, "no path", on_event, &e);
+    mission_update(&m, 1000000, far, on_event, &e);
+    assert_int_equal(m.state[0], MISSION_MISSED);
+    assert_int_equal(m.current, 1);
+    assert_string_equal(e.log, "goal_started:1 goal_missed:1 goal_started:2 ");
+    mission_give_up(&m, "no path", on_event, &e);
+    mission_give_up(&m, "no path", on_event, &e);   /* nothing current: no-op */
+    assert_int_equal(m.missed, 2);
+}
+
 static void test_bad_goal_lists(void **state)
 {
     const char *bad[] = { "x: 1\n", "- {x: 1}\n", "- {x: 1, y: 2, speed: 3}\n", "- {x: a, y: 2}\n",
@@ -155,6 +171,7 @@ int main(void)
         cmocka_unit_test(test_deadlines_skip_goals),
         cmocka_unit_test(test_pending_goal_skipped_while_other_runs),
         cmocka_unit_test(test_restore_continues),
+        cmocka_unit_test(test_give_up_unreachable),
         cmocka_unit_test(test_bad_goal_lists),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

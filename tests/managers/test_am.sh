@@ -71,7 +71,6 @@ check "components start in dependency order" dep_order
 check "ps shows all running" sh -c "$M ps | grep -c ' running ' | grep -qx 3"
 recorded() { h=$("$M" hash tests/data/managers/single.yaml | awk '$1 == "b" {print $2}'); grep -q "^b $h " "$T/am/config-hashes" && [ "$(field b config_hash)" = "$h" ]; }
 check "manager records each component's configuration hash" recorded
-check "policy never: failed component stays failed" wait_for 5 is_state once failed
 
 # -- kill -9 gets a component restarted
 B_PID=$(field b pid)
@@ -138,11 +137,16 @@ check "start again" "$M" start c --wait
 
 # -- a manager killed with -9 takes its components down; restarted, it brings them back
 A_PID=$(field a pid)
+C_PID=$(field c pid)
+kill -USR1 "$C_PID"          # c hangs at its next tick: its SIGTERM is never acted on
+sleep 0.5
 kill -9 "$AM_PID"; wait "$AM_PID" 2>/dev/null
 check "components go with their manager" wait_for 5 sh -c "! kill -0 $A_PID 2>/dev/null"
+check "a hung component outlives its manager" kill -0 "$C_PID"
 start_am
-back() { [ "$(field a state)" = running ] && [ "$(field c state)" = running ] && [ "$(field a pid)" != "$A_PID" ]; }
+back() { [ "$(field a state)" = running ] && [ "$(field c state)" = running ] && [ "$(field a pid)" != "$A_PID" ] && [ "$(field c pid)" != "$C_PID" ]; }
 check "restarted manager brings them back" wait_for 15 back
+check "restarted manager ended the leftover" wait_for 5 sh -c "! kill -0 $C_PID 2>/dev/null"
 
 # -- down, then a crashing component is given up after max_failures
 check "down stops everything" "$M" down
@@ -150,6 +154,7 @@ none_left() { for p in $(cut -d" " -f4 "$T/trace" | sort -u); do kill -0 "$p" 2>
 check "nothing left running" wait_for 5 none_left
 "$M" up --no-wait tests/data/managers/crash.yaml > /dev/null
 check "gives up after max_failures" wait_for 10 is_state crasher failed
+check "policy never: failed component stays failed" wait_for 5 is_state once failed
 two_restarts() { [ "$(field crasher restarts)" = 2 ]; }
 check "restarts before giving up" two_restarts
 check "bare exec name found next to marie-am" grep -q " crasher exec " "$T/trace"

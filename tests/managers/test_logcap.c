@@ -123,6 +123,14 @@ static void test_proc_stat_parse(void **state)
     int64_t cpu, rss;
     assert_int_equal(marie_proc_usage(getpid(), &cpu, &rss), 0);
     assert_true(rss > 0);
+    int64_t t1, t2;
+    assert_int_equal(marie_proc_starttime(getpid(), &t1), 0);
+    assert_int_equal(marie_proc_starttime(getpid(), &t2), 0);
+    assert_true(t1 > 0);
+    assert_int_equal(t1, t2);
+    assert_int_equal(marie_proc_starttime(getppid(), &t2), 0);
+    assert_true(t2 <= t1);      /* the parent started first */
+    assert_int_not_equal(marie_proc_starttime(0x7ffffff0, &t2), 0);
 }
 
 int main(void)

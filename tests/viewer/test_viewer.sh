@@ -8,6 +8,7 @@ SRV=$BIN/marie-viewer-server
 GEN=$B/tests/bin/viewer-gen
 tmp=$(mktemp -d)
 pids=""
+servers=""
 cleanup() {
     for p in $pids; do kill "$p" 2>/dev/null; done
     for p in $pids; do wait "$p" 2>/dev/null; done
@@ -16,14 +17,24 @@ cleanup() {
 trap cleanup EXIT INT TERM
 
 CHROME=$(command -v chromium || command -v chromium-browser || true)
-# Chromium as a user would run it headless, with nothing reaching out to the network.
-chrome() {
-    timeout 60 "$CHROME" --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
+CDP=9222
+# One headless Chromium for the whole test, started as a user would run it, with nothing
+# reaching out to the network; pages are driven over its DevTools port (tests/viewer/cdp.py)
+# so every check waits, in real time, for the state the page reports.
+start_chrome() {
+    "$CHROME" --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
         --disable-background-networking --disable-component-update --disable-sync \
-        --disable-dev-shm-usage --user-data-dir="$(mktemp -d "$tmp/chrome.XXXXXX")" "$@" 2>>"$tmp/chrome.err"
+        --disable-dev-shm-usage --user-data-dir="$tmp/chrome" --remote-debugging-port=$CDP \
+        about:blank > "$tmp/chrome.log" 2>&1 &
+    pids="$pids $!"
+    wait_for 30 python3 -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:$CDP/json/version')"
 }
-dump() {    # dump URL OUT [budget ms]
-    chrome --virtual-time-budget="${3:-4000}" --dump-dom "$1" > "$2"
+# page URL OUT [JS condition] [more cdp.py options]: the DOM once the condition holds
+page() {
+    url=$1; out=$2; shift 2
+    cond=${1:-"document.body.dataset.settled === '1'"}
+    [ $# -gt 0 ] && shift
+    python3 tests/viewer/cdp.py --port $CDP "$url" --dom "$out" --until "$cond" --timeout 20 "$@"
 }
 
 # serve NAME PORT param...: start the server, wait until it serves.
@@ -34,6 +45,7 @@ serve() {
         > "$tmp/$name.log" 2>&1 &
     last_pid=$!
     pids="$pids $last_pid"
+    servers="$servers $name:$last_pid"
     wait_for 15 test -s "$tmp/$name.url"
 }
 has() { grep -q -- "$1" "$2"; }
@@ -45,6 +57,7 @@ if [ -z "$CHROME" ]; then
     check "chromium installed" false
     finish
 fi
+check "headless chromium with a DevTools port" start_chrome
 
 "$GEN" log "$tmp/demo.lcmlog" --seconds 45
 "$GEN" log "$tmp/bad.lcmlog" --seconds 20 --corrupt
@@ -52,7 +65,7 @@ head -c 50000 /dev/urandom > "$tmp/noise.lcmlog"
 
 # ---- a recorded demo log, scrubbed to 30 s and paused
 check "server plays the demo log" serve demo 8101 --param log="$tmp/demo.lcmlog"
-dump "http://127.0.0.1:8101/?t=30&paused=1" "$tmp/demo.html" 5000
+check "page settles at 30 s of the log" page "http://127.0.0.1:8101/?t=30&paused=1" "$tmp/demo.html"
 d=$tmp/demo.html
 check "page connected in log mode" test "$(attr data-mode "$d")" = log -a "$(attr data-connected "$d")" = 1
 check "map drawn" test "$(attr data-map-drawn "$d")" = 1
@@ -68,25 +81,31 @@ check "planner restart counted" has 'data-component="planner" data-restarts="1"'
 check "mission events up to 30 s: 4 goals reached" test "$(grep -o 'data-kind="goal_reached"' "$d" | wc -l)" -eq 4
 check "no error banner" has 'id="banner" class="banner hidden"' "$d"
 check "log time shown" has '30.0 s / 45.0 s' "$d"
+check "tag detections listed" has '<div id="tags">front: ' "$d"
 
 # scrubbing to the e-stop: the current decision is the e-stop's
-dump "http://127.0.0.1:8101/?t=12.5&paused=1" "$tmp/estop.html" 4000
+page "http://127.0.0.1:8101/?t=12.5&paused=1" "$tmp/estop.html"
 check "seek to 12.5 s: e-stop won the current decision" \
     test "$(grep -o '<li data-winner="[a-z_]*"' "$tmp/estop.html" | head -1)" = '<li data-winner="estop"'
 check "seek to 12.5 s: 2 goals reached so far" test "$(grep -o 'data-kind="goal_reached"' "$tmp/estop.html" | wc -l)" -eq 2
 
-chrome --virtual-time-budget=5000 --window-size=1280,900 --screenshot="$B/viewer.png" \
-    "http://127.0.0.1:8101/?t=30&paused=1" > /dev/null
+page "http://127.0.0.1:8101/?t=30&paused=1" "$tmp/shot.html" "" --screenshot "$B/viewer.png" --size 1280x900
 check "screenshot saved ($B/viewer.png)" sh -c "[ \$(stat -c %s $B/viewer.png) -gt 20000 ]"
+
+# ---- the launcher: marie view LOG --port N prints the URL and serves the page
+"$BIN/marie" view "$tmp/demo.lcmlog" --port 8107 --paused > "$tmp/launcher.out" 2>&1 &
+pids="$pids $!"
+check "marie view prints the URL" wait_for 10 grep -q 'playing .*demo.lcmlog at http://127.0.0.1:8107/' "$tmp/launcher.out"
+check "marie view serves the page" python3 -c "import urllib.request; assert b'marie viewer' in urllib.request.urlopen('http://127.0.0.1:8107/').read()"
 
 # ---- corrupt and foreign logs: a message on the page, the rest still shown
 check "server plays a corrupt log" serve bad 8102 --param log="$tmp/bad.lcmlog"
-dump "http://127.0.0.1:8102/?t=5&paused=1" "$tmp/bad.html" 4000
+page "http://127.0.0.1:8102/?t=5&paused=1" "$tmp/bad.html"
 check "corrupt log: banner names the corrupt records" grep -Eq 'log has [0-9]+ corrupt record' "$tmp/bad.html"
 check "corrupt log: map and decisions still shown" \
     sh -c "[ $(attr data-map-drawn "$tmp/bad.html") = 1 ] && [ $(attr data-decisions "$tmp/bad.html") -ge 90 ]"
 check "server reads random bytes as a log" serve noise 8103 --param log="$tmp/noise.lcmlog"
-dump "http://127.0.0.1:8103/" "$tmp/noise.html" 3000
+page "http://127.0.0.1:8103/" "$tmp/noise.html"
 check "random bytes: 'no readable records' banner" has 'log has no readable records' "$tmp/noise.html"
 check "random bytes: the page is laid out, not blank" has 'id="components"' "$tmp/noise.html"
 
@@ -94,18 +113,26 @@ check "random bytes: the page is laid out, not blank" has 'id="components"' "$tm
 python3 -m http.server 8104 --bind 127.0.0.1 --directory tools/viewer/www > /dev/null 2>&1 &
 pids="$pids $!"
 wait_for 10 sh -c "python3 -c \"import urllib.request; urllib.request.urlopen('http://127.0.0.1:8104/')\""
-dump "http://127.0.0.1:8104/" "$tmp/lost.html" 3000
+page "http://127.0.0.1:8104/" "$tmp/lost.html" "document.getElementById('banner').textContent.includes('connection lost')"
 check "no WebSocket server: 'connection lost, retrying' banner" has 'connection lost, retrying' "$tmp/lost.html"
 check "no WebSocket server: page marked disconnected" test "$(attr data-connected "$tmp/lost.html")" = 0
+
+# a server that dies under a connected page
+check "server to be killed" serve doomed 8108 --param log="$tmp/demo.lcmlog"
+doomed=$last_pid
+servers=$(echo "$servers" | sed "s/ doomed:$doomed//")
+check "server killed under the page: 'connection lost' banner" \
+    page "http://127.0.0.1:8108/" "$tmp/killed.html" "" --then "kill -9 $doomed" \
+    --until2 "document.body.dataset.connected === '0' && document.getElementById('banner').textContent.includes('connection lost, retrying')"
+check "killed server: the last picture stays on the page" test "$(attr data-map-drawn "$tmp/killed.html")" = 1
 
 # ---- live: publishers on the bus
 check "server follows the bus" serve live 8105
 "$GEN" live --seconds 12 > /dev/null 2>&1 &
 gen=$!
 pids="$pids $gen"
-sleep 2
-dump "http://127.0.0.1:8105/" "$tmp/live.html" 3000
 l=$tmp/live.html
+page "http://127.0.0.1:8105/" "$l" "document.body.dataset.settled === '1' && +document.body.dataset.laser >= 1 && +document.body.dataset.truth === 1 && +document.body.dataset.decisions >= 5 && +document.body.dataset.components >= 6 && document.body.dataset.mapDrawn === '1'"
 check "live: page in live mode" test "$(attr data-mode "$l")" = live
 check "live: map, poses and laser from the bus" \
     sh -c "[ $(attr data-map-drawn "$l") = 1 ] && [ $(attr data-pose "$l") = 1 ] && [ $(attr data-truth "$l") = 1 ] && [ $(attr data-laser "$l") -ge 1 ]"
@@ -118,12 +145,24 @@ if [ -x "$BIN/marie-sim" ]; then
     "$BIN/marie-sim" --name sim --param speed=1 > "$tmp/sim.log" 2>&1 &
     pids="$pids $!"
     check "server follows the sim" serve sim 8106 --param map=sim/worlds/office.yaml
-    sleep 2
-    dump "http://127.0.0.1:8106/" "$tmp/sim.html" 3000
     s=$tmp/sim.html
+    page "http://127.0.0.1:8106/" "$s" "document.body.dataset.settled === '1' && +document.body.dataset.laser >= 1 && document.body.dataset.truth === '1' && document.querySelector('tr[data-component=sim]') !== null"
     check "sim: office map from the map file" test "$(attr data-map-drawn "$s")" = 1
     check "sim: true pose and laser from marie-sim" \
         sh -c "[ $(attr data-truth "$s") = 1 ] && [ $(attr data-laser "$s") -ge 1 ]"
     check "sim: the simulator in the components table" has 'data-component="sim"' "$s"
 fi
+
+# every server quits cleanly on SIGTERM (under SAN=1: no sanitizer report, no leak)
+clean_exit() {
+    for s in $servers; do
+        n=${s%%:*}; p=${s#*:}
+        kill "$p" 2>/dev/null
+        wait "$p"; rc=$?
+        if [ "$rc" -ne 0 ] || grep -Eq 'Sanitizer|runtime error' "$tmp/$n.log"; then
+            echo "server $n: exit $rc"; tail -30 "$tmp/$n.log"; return 1
+        fi
+    done
+}
+check "servers quit cleanly" clean_exit
 finish

@@ -7,7 +7,7 @@ T=$(mktemp -d /tmp/marie-test-viewer.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
 pids=""
 cleanup() {
-    "$BIN/marie" down --timeout 3 > /dev/null 2>&1
+    "$BIN/marie" down > /dev/null 2>&1
     for p in $pids; do kill "$p" 2>/dev/null; done
     for p in $pids; do wait "$p" 2>/dev/null; done
     rm -rf "$T"
@@ -22,12 +22,14 @@ check "system up under marie-am" "$BIN/marie" up tests/data/viewer/controls.yaml
 
 "$BIN/marie-viewer-server" --name viewer --param http_port=8111 --param key_file="$T/key" \
     --param url_file="$T/url" > "$T/viewer.log" 2>&1 &
+viewer1=$!
 pids="$pids $!"
 check "viewer serves with a key" wait_for 10 test -s "$T/url"
 check "pause, resume and goal from the page" python3 tests/viewer/controls_client.py 8111
 check "marie ps agrees: walker running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
 
 "$BIN/marie-viewer-server" --name viewer2 --param http_port=8112 --param url_file="$T/url2" > "$T/viewer2.log" 2>&1 &
+viewer2=$!
 pids="$pids $!"
 wait_for 10 test -s "$T/url2"
 refused() {
@@ -45,4 +47,7 @@ PY
 }
 check "without a key the controls are refused" refused
 check "walker still running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
+quits() { kill "$1"; wait "$1"; rc=$?; [ $rc -eq 0 ] && ! grep -Eq 'Sanitizer|runtime error' "$2" || { tail -20 "$2"; false; }; }
+quits "$viewer1" "$T/viewer.log" && quits "$viewer2" "$T/viewer2.log"
+check "viewers quit cleanly (exit 0, no sanitizer report)" test $? -eq 0
 finish

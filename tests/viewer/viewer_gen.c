@@ -192,6 +192,13 @@ int main(int argc, char **argv)
                                          .theta = pt, .weight = pw};
             emit(&o, "PARTICLES", &marie_type_particle_cloud_t, &pc);
         }
+        if (k % 25 == 0) {                       /* 2 Hz: fiducial tags (one on the east wall) */
+            marie_tag_detection_t tag = {.family = "tag36h11", .id = 7, .pose_valid = 1,
+                                         .position = {0.2, 0, 19.5 - x}};
+            marie_tag_detections_t td = {.utime = o.utime, .camera = "front", .frame = k / 25,
+                                         .width = 640, .height = 480, .count = x > 13 ? 1 : 0, .tags = &tag};
+            emit(&o, "TAG_DETECTIONS", &marie_type_tag_detections_t, &td);
+        }
         if (k % 50 == 0 && goals_done < NGOALS) { /* 1 Hz: goal and path */
             marie_goal_t g = {.utime = o.utime, .id = goal + 1, .name = (char[16]){0},
                               .pose = {gx, gy, 0}, .tolerance = 0.3, .priority = NGOALS - goal};

@@ -132,6 +132,54 @@ static void publish(lcm_t *l, const char *ch, const marie_type_t *t, const void 
     free(buf);
 }
 
+/* Server CPU while playing a 60 s synthetic mission log at `speed` to one WebSocket client. */
+static double log_cpu(const char *b, const char *log, double speed, double *frames_per_s)
+{
+    char exe[256], logp[300], speedp[64], portp[64];
+    snprintf(exe, sizeof exe, "%s/bin/marie-viewer-server", b);
+    snprintf(logp, sizeof logp, "log=%s", log);
+    snprintf(speedp, sizeof speedp, "speed=%g", speed);
+    snprintf(portp, sizeof portp, "http_port=%d", PORT + 1);
+    pid_t srv = fork();
+    if (srv == 0) {
+        int fd = open("/dev/null", O_WRONLY);
+        if (fd >= 0)
+            dup2(fd, 1);
+        execl(exe, exe, "--name", "viewer-log", "--param", portp, "--param", logp, "--param", speedp,
+              "--param", "autoplay=false", (char *)NULL);
+        _exit(127);
+    }
+    struct mg_connection *ws = NULL;
+    char err[256];
+    for (int i = 0; i < 100 && !ws; i++) {
+        usleep(100000);
+        ws = mg_connect_websocket_client("127.0.0.1", PORT + 1, 0, err, sizeof err, "/ws", NULL, on_ws, NULL, NULL);
+    }
+    double cpu = -1;
+    if (ws) {
+        usleep(500000);
+        const char *play = "{\"op\":\"play\"}";
+        mg_websocket_client_write(ws, MG_WEBSOCKET_OPCODE_TEXT, play, strlen(play));
+        long long t0 = 0, t1 = 0, rss;
+        pthread_mutex_lock(&mu);
+        int64_t f0 = ws_frames;
+        pthread_mutex_unlock(&mu);
+        cpu_ticks(srv, &t0, &rss);
+        int64_t start = marie_mono_us();
+        usleep(5000000);
+        cpu_ticks(srv, &t1, &rss);
+        double wall = (marie_mono_us() - start) / 1e6;
+        pthread_mutex_lock(&mu);
+        *frames_per_s = (ws_frames - f0) / wall;
+        pthread_mutex_unlock(&mu);
+        cpu = (t1 - t0) * 100.0 / sysconf(_SC_CLK_TCK) / wall;
+        mg_close_connection(ws);
+    }
+    kill(srv, SIGTERM);
+    waitpid(srv, NULL, 0);
+    return cpu;
+}
+
 int main(int argc, char **argv)
 {
     const char *b = getenv("B") ? getenv("B") : "build";
@@ -269,5 +317,20 @@ int main(int argc, char **argv)
     lcm_destroy(pub);
     lcm_destroy(sub);
     free(cells);
+
+    /* the same server playing a recorded mission: at recorded speed and 10x */
+    char gen[256], log[64], cmd[400];
+    snprintf(gen, sizeof gen, "%s/tests/bin/viewer-gen", b);
+    snprintf(log, sizeof log, "/tmp/bench_viewer.%d.lcmlog", (int)getpid());
+    snprintf(cmd, sizeof cmd, "%s log %s --seconds 60", gen, log);
+    if (system(cmd) == 0) {
+        double fps = 0, c1 = log_cpu(b, log, 1, &fps);
+        row("server_cpu_log_play_1x", c1, "%core", 0);
+        row("frames_to_browser_log_1x", fps, "frames/s", 0);
+        double c10 = log_cpu(b, log, 10, &fps);
+        row("server_cpu_log_play_10x", c10, "%core", c1);
+        row("frames_to_browser_log_10x", fps, "frames/s", 0);
+    }
+    unlink(log);
     return n_ws > 0 ? 0 : 1;
 }

@@ -161,6 +161,8 @@ static size_t process(lcmlog_parser_t *p, const uint8_t *b, size_t n, uint64_t o
 
 static int keep(lcmlog_parser_t *p, const uint8_t *b, size_t n)
 {
+    if (n == 0)
+        return 0;
     if (p->len + n > p->cap) {
         size_t cap = p->cap ? p->cap : 4096;
         while (cap < p->len + n)

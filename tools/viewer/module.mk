@@ -21,4 +21,4 @@ ITESTS += tests/viewer/test_viewer_controls.sh
 $(B)/tests/test_viewer_units: | $(B)/bin/marie-viewer-server $(B)/bin/marie-view $(B)/tests/bin/viewer-gen
 
 $(eval $(call marie_bench,bench_viewer,tools/viewer/bench_viewer.c,-lcivetweb))
-$(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server
+$(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen

@@ -500,9 +500,15 @@ static void live_remember(viewer_t *v, int pi, const vj_buf_t *b, int64_t utime)
     } else if (pi == P_EVENT) {
         set_str(&v->ev_ring[v->ev_next], b->s, b->len);
         v->ev_next = (v->ev_next + 1) % RING;
-    } else if (pi == P_HB) {
+    } else if (pi == P_HB || pi == P_AM_STATUS) {
+        /* one slot per component, and one per manager (host) */
         char name[128];
-        json_field(b->s, "c", name, sizeof name);
+        if (pi == P_HB)
+            json_field(b->s, "c", name, sizeof name);
+        else {
+            name[0] = '@';
+            json_field(b->s, "host", name + 1, sizeof name - 1);
+        }
         int i;
         for (i = 0; i < v->ncomp; i++)
             if (strcmp(v->comp_name[i], name) == 0)
@@ -911,11 +917,13 @@ static void log_snapshot(viewer_t *v, int id)
                 send_rec(v, id, lc->idx[0], false);
             continue;
         }
-        if (lc->port == P_ARB || lc->port == P_HB) {
-            /* the last 30 decisions; heartbeats of the last 10 s (every component) */
+        if (lc->port == P_ARB || lc->port == P_HB || lc->port == P_AM_STATUS) {
+            /* the last 30 decisions; heartbeats of the last 10 s (every component); the
+             * managers' reports of the last 3 s (every host) */
+            int64_t window = lc->port == P_HB ? 10000000 : 3000000;
             long first = k;
             while (first > 0 && (lc->port == P_ARB ? k - first < 29
-                                 : v->recs[lc->idx[first - 1]].t >= v->play_t - 10000000 && k - first < 400))
+                                 : v->recs[lc->idx[first - 1]].t >= v->play_t - window && k - first < 400))
                 first--;
             for (long j = first; j <= k; j++)
                 send_rec(v, id, lc->idx[j], false);
@@ -1332,7 +1340,10 @@ static int init(marie_component_t *c)
     const char *host = strcmp(marie_param_str(c, "bind"), "0.0.0.0") == 0 ? "127.0.0.1" : marie_param_str(c, "bind");
     char url[256];
     snprintf(url, sizeof url, "http://%s:%d/", host, v->port);
-    printf("marie-view: %s %s at %s\n", v->live ? "following the bus" : "playing", v->live ? "" : log, url);
+    if (v->live)
+        printf("marie-view: following the bus at %s\n", url);
+    else
+        printf("marie-view: playing %s at %s\n", log, url);
     fflush(stdout);
     const char *uf = marie_param_str(c, "url_file");
     if (uf && *uf) {

@@ -58,6 +58,7 @@ function connect() {
   ws.onclose = () => {
     body.dataset.connected = '0';
     banner('connection lost, retrying…', 'error');
+    redraw();
     scheduleRetry();
   };
   ws.onerror = () => {};
@@ -83,7 +84,17 @@ function applyUrlOnce() {
   const q = new URLSearchParams(location.search);
   if (q.get('paused') === '1') send({ op: 'pause' });
   if (q.get('speed')) send({ op: 'speed', v: Number(q.get('speed')) });
-  if (q.get('t') !== null) send({ op: 'seek', t: S.player.t0 + Number(q.get('t')) * 1e6 });
+  if (q.get('t') !== null) {
+    const t = Math.min(Math.max(S.player.t0 + Number(q.get('t')) * 1e6, S.player.t0), S.player.t1);
+    S.settle = { t: Math.round(t), paused: q.get('paused') === '1' };
+    send({ op: 'seek', t: Math.round(t) });
+  }
+}
+
+// The page has "settled" once it shows what its URL asked for (tests wait for this).
+function settledBy(player) {
+  if (!S.settle) return true;
+  return Math.abs(player.t - S.settle.t) < 2000 && (!S.settle.paused || !player.playing);
 }
 
 // ---------------------------------------------------------------- messages
@@ -107,6 +118,7 @@ function handle(m) {
     $('play').textContent = m.playing ? '❚❚' : '▶';
     $('speed').value = String(m.speed);
     applyUrlOnce();
+    if (settledBy(m)) S.settled = true;
     break;
   case 'snap':
     // the state at a new time follows: forget what belongs to another moment
@@ -115,7 +127,10 @@ function handle(m) {
     if (S.mode === 'live') { S.goals = {}; S.events = []; }
     S.now = m.t;
     break;
-  case 'snapend': S.now = m.t; break;
+  case 'snapend':
+    S.now = m.t;
+    if (S.mode === 'live') S.settled = true;
+    break;
   case 'trail':
     S.trail.est = m.est.map((p) => [p[1], p[2]]);
     S.trail.truth = m.truth.map((p) => [p[1], p[2]]);
@@ -311,6 +326,7 @@ function draw() {
   }
   drawPanels();
   drawTimeline();
+  body.dataset.settled = S.settled && body.dataset.connected === '1' ? '1' : '0';
 }
 
 function polyline(g, pts, color, width) {
@@ -455,7 +471,7 @@ function drawPanels() {
     tr.innerHTML = '<td>' + esc(n) + '</td><td>' + esc(c.host || '') + '</td><td class="state-' + esc(state) + '">' + esc(state) +
       (age !== null && age > 3 ? ' (silent ' + age.toFixed(0) + ' s)' : '') + '</td><td>' + (c.pid || a.pid || '') + '</td><td>' +
       (c.up !== undefined ? c.up.toFixed(0) + ' s' : '') + '</td><td class="restarts">' + rs + '</td><td>' +
-      (c.in !== undefined ? c.in + '/' + c.out : '') + '</td><td>' + (c.bad || 0) + '</td><td>' + (a.cpu !== undefined ? a.cpu + '%' : '') +
+      (c.in !== undefined ? c.in + '/' + c.out + '/' + (c.bad || 0) : '') + '</td><td>' + (a.cpu !== undefined ? a.cpu + '%' : '') +
       '</td><td></td>';
     if (S.controls) {
       const td = tr.lastChild;
@@ -469,6 +485,13 @@ function drawPanels() {
     tb.appendChild(tr);
   }
   body.dataset.components = String(names.length);
+
+  // fiducial tags of the last camera frame (camera frame: x right, z forward)
+  if (S.tags) {
+    $('tags-box').className = '';
+    $('tags').textContent = S.tags.camera + ': ' + (S.tags.tags.length ? S.tags.tags.map((t) => '#' + t.id +
+      (t.valid ? ' at ' + t.pz.toFixed(2) + ' m ahead, ' + t.px.toFixed(2) + ' m right' : '')).join('; ') : 'no tag in view');
+  }
 
   // events
   const evs = S.mode === 'log' && S.summary ? S.summary.events.slice(0, upToNow(S.summary.events)).map((e) => [S.summary.t0 + e[0] * 1000, e[1], e[2], e[3], e[4]])
