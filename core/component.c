@@ -1123,9 +1123,15 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         if (marie_loop_add_fd(c->loop, lcm_get_fileno(c->buses[i].lcm), POLLIN, on_lcm_readable, c->buses[i].lcm) < 0)
             goto err_runtime;
     if (!lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
-        (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM && !lcm_subscribe(c->buses[0].lcm, MARIE_CH_CLOCK, on_clock, c)) ||
         !marie_loop_add_wall_timer(c->loop, 1000000, on_heartbeat_timer, c))
         goto err_runtime;
+    if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {
+        /* A fast simulator sends clock bursts; LCM's default queue (30) would drop ticks. */
+        lcm_subscription_t *clk = lcm_subscribe(c->buses[0].lcm, MARIE_CH_CLOCK, on_clock, c);
+        if (!clk)
+            goto err_runtime;
+        lcm_subscription_set_queue_capacity(clk, 1000);
+    }
     free(o.params);
     free(o.ports);
     return c;

@@ -139,6 +139,8 @@ check "live: map, poses and laser from the bus" \
 check "live: decisions arrive" sh -c "[ $(attr data-decisions "$l") -ge 5 ] && grep -q '<li data-winner=' $l"
 check "live: components from heartbeats (and the viewer itself)" sh -c "[ $(attr data-components "$l") -ge 6 ]"
 kill "$gen" 2>/dev/null
+check "live: publishers gone, 'no data from the bus' banner" \
+    page "http://127.0.0.1:8105/" "$tmp/quiet.html" "document.getElementById('banner').textContent.includes('no data from the bus')"
 
 # ---- live: the simulator's ground truth and laser on the office map
 if [ -x "$BIN/marie-sim" ]; then

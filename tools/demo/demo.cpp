@@ -382,6 +382,7 @@ void Demo::write_png(const std::string &path)
     }
     if (!truth_.empty())
         cv::drawMarker(img, px(truth_.front().x, truth_.front().y), cv::Scalar(0, 0, 0), cv::MARKER_STAR, 24, 2);
+    cv::rectangle(img, cv::Point(10, 8), cv::Point(880, 48), cv::Scalar(255, 255, 255), cv::FILLED);
     cv::putText(img, "green: ground truth   red: localizer estimate   blue: goals", cv::Point(20, 36),
                 cv::FONT_HERSHEY_SIMPLEX, 0.9, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);
     cv::imwrite(path, img);
@@ -450,7 +451,16 @@ int Demo::run()
         ams_.push_back(spawn({bin_ + "/marie-am", "--host", host_names[i], "--state-dir", dir, "--key", opt_.out + "/key"},
                              opt_.out + "/am-" + host_names[i] + ".log"));
     }
-    printf("demo: %d managers started (onboard1-3, laptop); bringing up %s, profile %s\n", int(ams_.size()),
+    // Orders go to managers that listen: wait until each has reported its status once.
+    int64_t wait_end = marie_mono_us() + 10000000;
+    while (hosts_.size() < ams_.size() && marie_mono_us() < wait_end)
+        lcm_handle_timeout(lcm_, 50);
+    if (hosts_.size() < ams_.size()) {
+        fprintf(stderr, "demo: only %zu of %zu managers answered; see %s/am-*.log\n", hosts_.size(), ams_.size(),
+                opt_.out.c_str());
+        return 1;
+    }
+    printf("demo: %d managers running (onboard1-3, laptop); bringing up %s, profile %s\n", int(ams_.size()),
            opt_.system.c_str(), opt_.profile.c_str());
     int rc = run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "30", "up", opt_.system, "--profile",
                       opt_.profile},

@@ -407,11 +407,13 @@ static int port_of_channel(viewer_t *v, const char *ch)
  * bad input (counted) or a type the page does not show. */
 static bool encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
 {
+    /* A log's bad payloads were counted when it was indexed: count live ones only. */
     const marie_type_t *t = vj_type_of(data, len);
     if (t != port_type[pi]) {
-        v->bad_payloads++;
-        if (v->live)
+        if (v->live) {
+            v->bad_payloads++;
             marie_component_bad_input(v->c, "bad_fingerprint", "channel %s: not a %s", ch, port_type[pi]->name);
+        }
         return false;
     }
     void *msg = calloc(1, t->size);
@@ -419,9 +421,10 @@ static bool encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t
         return false;
     bool ok = false;
     if (t->decode(data, 0, (int)len, msg) < 0) {
-        v->bad_payloads++;
-        if (v->live)
+        if (v->live) {
+            v->bad_payloads++;
             marie_component_bad_input(v->c, "bad_payload", "channel %s: cannot decode %s (%zu bytes)", ch, t->name, len);
+        }
         free(msg);
         return false;
     }
@@ -567,13 +570,18 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
         return;
     int64_t now = now_mono();
     v->msgs_in++;
-    v->last_rx_mono = now;
     /* The snapshot cache wants every message; the page only the rate-limited ones. */
     bool send = pass_rate(v, pi, now);
-    if (!send && pi != P_POSE && pi != P_TRUTH && pi != P_MAP)
+    if (!send && pi != P_POSE && pi != P_TRUTH && pi != P_MAP) {
+        v->last_rx_mono = now;      /* only data ports are decimated */
         return;
+    }
     if (!encode_msg(v, &v->jb, pi, info->channel, info->recv_utime, info->raw, info->raw_len))
         return;
+    /* Heartbeats and manager reports say the components live, not that data flows: the
+     * page's "no data" banner follows the data ports only. */
+    if (pi != P_HB && pi != P_AM_STATUS && pi != P_AM_REPLY)
+        v->last_rx_mono = now;
     live_remember(v, pi, &v->jb, info->recv_utime);
     if (send)
         send_json(v, -1, &v->jb, decimated(pi));
@@ -608,6 +616,10 @@ static void on_log_event(void *user, const lcmlog_event_t *ev)
             return;
         v->recs = nr;
         v->recs_cap = cap;
+    }
+    if (lc->port >= 0 && vj_type_of(ev->data, ev->data_len) != port_type[lc->port]) {
+        v->bad_payloads++;          /* not the port's type: never played */
+        return;
     }
     if (lc->port >= 0) {
         if (lc->n == lc->cap) {
@@ -657,6 +669,7 @@ static void *decode_rec(viewer_t *v, const rec_t *r, const marie_type_t *want)
         return NULL;
     void *msg = calloc(1, want->size);
     if (msg && want->decode(data, 0, (int)r->len, msg) < 0) {
+        v->bad_payloads++;
         free(msg);
         return NULL;
     }

@@ -140,7 +140,7 @@ function handle(m) {
     S.rxAge = m.rx_age;
     if (S.mode === 'live') {
       if (m.rx_age < 0) banner('waiting for data from the bus…', 'warn');
-      else if (m.rx_age > 3) banner('no data from the bus for ' + m.rx_age.toFixed(0) + ' s', 'warn');
+      else if (m.rx_age > 3) banner('no data from the bus for ' + m.rx_age.toFixed(0) + ' s (heartbeats in the table)', 'warn');
       else if ($('banner').textContent.startsWith('no data') || $('banner').textContent.startsWith('waiting')) banner('');
     }
     break;
