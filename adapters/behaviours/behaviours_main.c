@@ -30,7 +30,7 @@ struct beh {
     input_t in[IN_COUNT];
     int outstanding;            /* pulls of this cycle still unanswered */
     int64_t cycle;
-    bool timer_made;
+    bool timer_made, estop_subscribed;
     /* latest values */
     double pose[3];
     double *path; int npath, path_cap, path_status; int32_t path_goal;
@@ -226,6 +226,20 @@ static void on_teleop(marie_component_t *c, marie_port_t *p, const void *msg, co
     store(marie_component_user(c), IN_TELEOP, msg, 0);
 }
 
+/* The e-stop does not wait for the next cycle: a press seen on the bus stops the robot now
+ * (an extra decision between cycles); the cycle keeps pulling the e-stop state as well. */
+static void on_estop_now(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    beh_t *b = marie_component_user(c);
+    const marie_estop_t *m = msg;
+    bool was = b->estop_pressed && b->in[IN_ESTOP].stamp != INT64_MIN;
+    store(b, IN_ESTOP, msg, 0);
+    if (m->pressed && !was) {
+        marie_component_count(c, "estop_immediate", 1);
+        decide(b);
+    }
+}
+
 /* Subscribe mode: the pull ports' channels are subscribed directly (no Mailbox needed). */
 static void on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user)
 {
@@ -337,6 +351,13 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot subscribe to teleop");
         return -1;
     }
+    if (marie_param_bool(c, "estop_immediate") && !b->estop_subscribed) {
+        if (marie_port_on_message(marie_port(c, "estop_now"), on_estop_now)) {
+            marie_component_fail_reason(c, "cannot subscribe to the e-stop");
+            return -1;
+        }
+        b->estop_subscribed = true;
+    }
     if (!b->timer_made) {
         if (!marie_component_every(c, hz, tick)) {
             marie_component_fail_reason(c, "cannot create the %g Hz timer", hz);
@@ -353,6 +374,7 @@ static const marie_port_spec_t ports[] = {
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PULL, "LASER" },
     { "estop", &marie_type_estop_t, MARIE_IN, MARIE_PULL, "ESTOP" },
     { "teleop", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "TELEOP" },
+    { "estop_now", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "ESTOP" },
     { "cmd", &marie_type_motor_command_t, MARIE_OUT, MARIE_PUSH, "MOTOR_COMMAND" },
     { "arbitration", &marie_type_arbitration_t, MARIE_OUT, MARIE_PUSH, "ARBITRATION" },
     { 0 },
@@ -376,6 +398,7 @@ static const marie_param_spec_t params[] = {
     { "slow_distance", MARIE_PARAM_DOUBLE, "0.6", "m ahead: slow down and turn away" },
     { "stale_scan_s", MARIE_PARAM_DOUBLE, "1.0", "s" },
     { "estop_required", MARIE_PARAM_BOOL, "false", "no fresh e-stop state counts as pressed" },
+    { "estop_immediate", MARIE_PARAM_BOOL, "true", "a press on estop_now stops the robot at once, between cycles" },
     { "stale_estop_s", MARIE_PARAM_DOUBLE, "2.0", "s" },
     { "teleop_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: teleop is active while its commands are this recent" },
     { 0 },

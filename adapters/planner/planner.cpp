@@ -25,6 +25,7 @@ namespace og = ompl::geometric;
 
 struct planner {
     planner_params_t p_{};
+    double footprint_ = 0;              // the robot's own radius, without the clearance
     int w_ = 0, h_ = 0;
     double res_ = 0, ox_ = 0, oy_ = 0;
     std::vector<uint8_t> static_free_;  // the robot fits here according to the map
@@ -119,6 +120,7 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
     try {
         pl->p_ = *p;
         pl->p_.robot_radius = p->robot_radius + p->clearance;   // everything below inflates by both
+        pl->footprint_ = p->robot_radius;
         pl->w_ = map->width;
         pl->h_ = map->height;
         pl->res_ = map->resolution;
@@ -335,6 +337,23 @@ extern "C" int planner_path_blocked(const planner_t *pl, const double *poses, in
                 return i;
         }
         walked += std::sqrt(l2);
+    }
+    return -1;
+}
+
+extern "C" int planner_path_collides(const planner_t *pl, const double *poses, int n)
+{
+    double step = pl->res_ * 0.5;
+    for (int i = 0; i + 1 < n; i++) {
+        double ax = poses[3 * i], ay = poses[3 * i + 1], bx = poses[3 * i + 3], by = poses[3 * i + 4];
+        int k = std::max(1, (int)std::ceil(std::hypot(bx - ax, by - ay) / step));
+        for (int j = 0; j <= k; j++) {
+            double fx = (ax + (bx - ax) * j / k - pl->ox_) / pl->res_, fy = (ay + (by - ay) * j / k - pl->oy_) / pl->res_;
+            if (!(fx >= 0 && fy >= 0 && fx < pl->w_ && fy < pl->h_))
+                return i;
+            if (pl->dist_[(size_t)(int)fy * pl->w_ + (int)fx] < pl->footprint_)
+                return i;
+        }
     }
     return -1;
 }

@@ -53,6 +53,11 @@ int planner_obstacle_count(const planner_t *pl);
  * along at most horizon m from the point nearest to (x, y); -1 when the path is clear. */
 int planner_path_blocked(const planner_t *pl, const double *poses, int n, double x, double y, double horizon);
 
+/* First segment of the path along which the robot's footprint circle (robot_radius, without
+ * the clearance) would touch an obstacle of this planner's map, checked every half cell; -1
+ * when it is clear. Used when the map changes under a planned path. */
+int planner_path_collides(const planner_t *pl, const double *poses, int n);
+
 #ifdef __cplusplus
 }
 #endif

@@ -24,6 +24,8 @@ typedef struct {
     double *pts;
     int pts_cap;
     bool timer_made;
+    planner_params_t params;
+    uint64_t seed;
 } pln_t;
 
 static double secs(int64_t us)
@@ -47,6 +49,10 @@ static void publish_path(marie_component_t *c, pln_t *s)
 
 static void plan(marie_component_t *c, pln_t *s, const char *why)
 {
+    if (!s->pl) {
+        marie_component_count(c, "plans_without_map", 1);
+        return;
+    }
     s->want_plan = false;
     s->last_plan = marie_component_now(c);
     double goal[3] = { s->goal.pose.x, s->goal.pose.y, s->goal.pose.theta };
@@ -108,7 +114,7 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
 {
     pln_t *s = marie_component_user(c);
     const marie_laser_scan_t *m = msg;
-    if (!s->have_pose || !s->use_scan)
+    if (!s->have_pose || !s->use_scan || !s->pl)
         return;
     if (m->nranges < 0 || m->nranges > 10000 || !isfinite(m->angle_min) || !isfinite(m->angle_increment)) {
         marie_component_bad_input(c, "bad_scan", "scan with %d beams", m->nranges);
@@ -153,7 +159,7 @@ static void tick(marie_component_t *c, int64_t overruns)
 {
     pln_t *s = marie_component_user(c);
     int64_t now = marie_component_now(c);
-    if (!s->have_goal || !s->have_pose)
+    if (!s->have_goal || !s->have_pose || !s->pl)
         return;
     /* A failed plan is retried (the obstacle may have gone); a good one is republished so a
      * late reader sees it. */
@@ -161,6 +167,45 @@ static void tick(marie_component_t *c, int64_t overruns)
         plan(c, s, s->want_plan ? "new goal" : "retry");
     else if (s->republish_s > 0 && secs(now - s->last_publish) >= s->republish_s)
         publish_path(c, s);
+}
+
+/* A new map (marie.occupancy_grid_t, 0..100 occupancy, -1 unknown) replaces the planner's; a
+ * current path the robot would no longer fit along is planned again. */
+static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_occupancy_grid_t *m = msg;
+    if (m->width <= 0 || m->height <= 0 || (int64_t)m->width * m->height != m->ncells || !(m->resolution > 0) ||
+        !isfinite(m->origin.x) || !isfinite(m->origin.y) || (int64_t)m->width * m->height > (1 << 26)) {
+        marie_component_bad_input(c, "bad_map", "map %dx%d with %d cells, resolution %g", m->width, m->height,
+                                  m->ncells, m->resolution);
+        return;
+    }
+    if (m->origin.theta != 0)
+        marie_warn_ratelimited(60, "map origin rotated by %g rad: rotation ignored", m->origin.theta);
+    occmap_t *om = occmap_create(m->width, m->height, m->resolution, m->origin.x, m->origin.y);
+    if (!om)
+        return;
+    for (int32_t i = 0; i < m->ncells; i++) {
+        int8_t v = m->cells[i];
+        om->cells[i] = v < 0 ? OCCMAP_UNKNOWN : v >= 65 ? OCCMAP_OCCUPIED : v < 20 ? OCCMAP_FREE : OCCMAP_UNKNOWN;
+    }
+    planner_t *pl = planner_create(om, &s->params, s->seed);
+    occmap_destroy(om);
+    if (!pl) {
+        marie_component_bad_input(c, "bad_map", "cannot build a planner on the %dx%d map", m->width, m->height);
+        return;
+    }
+    planner_destroy(s->pl);
+    s->pl = pl;
+    marie_component_count(c, "maps", 1);
+    if (s->npath >= 2 && planner_path_collides(s->pl, s->path, s->npath) >= 0) {
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "path_blocked", "goal %d: the new map blocks the path, replanning",
+                              s->goal.id);
+        plan(c, s, "map changed");
+    } else if (s->have_goal && s->have_pose && s->status != MARIE_PATH_T_STATUS_OK) {
+        plan(c, s, "new map");
+    }
 }
 
 static void quit(marie_component_t *c)
@@ -181,13 +226,6 @@ static int init(marie_component_t *c)
     pln_t *s = marie_component_user(c);
     quit(c);
     s->have_goal = s->have_pose = s->want_plan = false;
-    marie_errors_t errs = { 0 };
-    occmap_t *map = occmap_load(marie_param_str(c, "map"), &errs);
-    if (!map) {
-        marie_component_fail_reason(c, "map: %s", errs.n ? errs.msgs[0] : "cannot load");
-        marie_errors_clear(&errs);
-        return -1;
-    }
     planner_params_t p;
     planner_params_default(&p);
     p.robot_radius = marie_param_double(c, "robot_radius");
@@ -197,18 +235,35 @@ static int init(marie_component_t *c)
     p.obstacle_ttl = marie_param_double(c, "obstacle_ttl");
     p.unknown_is_free = marie_param_bool(c, "unknown_is_free");
     const char *algo = marie_param_str(c, "algorithm");
-    if (strcmp(algo, "prm") == 0)
+    if (strcmp(algo, "prm") == 0) {
         p.algorithm = PLANNER_PRM;
-    else if (strcmp(algo, "rrtconnect") != 0) {
-        occmap_destroy(map);
+    } else if (strcmp(algo, "rrtconnect") != 0) {
         marie_component_fail_reason(c, "algorithm: expected rrtconnect or prm, got '%s'", algo);
         return -1;
     }
-    s->pl = planner_create(map, &p, (uint64_t)marie_param_int(c, "seed"));
-    occmap_destroy(map);
-    if (!s->pl) {
+    if (!(p.robot_radius >= 0) || !(p.clearance >= 0) || !(p.time_limit > 0)) {
         marie_component_fail_reason(c, "bad planner parameters (robot_radius, clearance >= 0, time_limit > 0)");
         return -1;
+    }
+    s->params = p;
+    s->seed = (uint64_t)marie_param_int(c, "seed");
+    const char *path = marie_param_str(c, "map");
+    if (path[0]) {
+        marie_errors_t errs = { 0 };
+        occmap_t *map = occmap_load(path, &errs);
+        if (!map) {
+            marie_component_fail_reason(c, "map: %s", errs.n ? errs.msgs[0] : "cannot load");
+            marie_errors_clear(&errs);
+            return -1;
+        }
+        s->pl = planner_create(map, &p, s->seed);
+        occmap_destroy(map);
+        if (!s->pl) {
+            marie_component_fail_reason(c, "cannot build the planner on %s", path);
+            return -1;
+        }
+    } else {
+        marie_info("no map file: waiting for a map on %s", marie_port_channel(marie_port(c, "map")));
     }
     s->laser_x = marie_param_double(c, "laser_x");
     s->laser_y = marie_param_double(c, "laser_y");
@@ -220,7 +275,7 @@ static int init(marie_component_t *c)
     s->use_scan = marie_param_bool(c, "use_scan");
     s->last_plan = s->last_check = s->last_publish = INT64_MIN / 2;
     if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
-        marie_port_on_message(marie_port(c, "scan"), on_scan)) {
+        marie_port_on_message(marie_port(c, "scan"), on_scan) || marie_port_on_message(marie_port(c, "map"), on_map)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
     }
@@ -236,12 +291,13 @@ static const marie_port_spec_t ports[] = {
     { "goal", &marie_type_goal_t, MARIE_IN, MARIE_PUSH, "GOAL" },
     { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
+    { "map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "MAP" },
     { "path", &marie_type_path_t, MARIE_OUT, MARIE_PUSH, "PATH" },
     { 0 },
 };
 
 static const marie_param_spec_t params[] = {
-    { "map", MARIE_PARAM_STRING, NULL, "map_server map.yaml" },
+    { "map", MARIE_PARAM_STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)" },
     { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the robot's footprint" },
     { "clearance", MARIE_PARAM_DOUBLE, "0.1", "m kept free beyond robot_radius (the map is inflated by both)" },
     { "algorithm", MARIE_PARAM_STRING, "rrtconnect", "rrtconnect or prm" },

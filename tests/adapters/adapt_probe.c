@@ -25,6 +25,7 @@ typedef struct {
     int64_t cmds, arbs;
     int64_t win_follow, win_avoid, win_idle, win_estop, win_teleop;
     int64_t arb_bad;             /* decision records that contradict themselves */
+    int64_t teleop_cmds;         /* motor commands decided by teleop */
     int64_t pulls;               /* pull requests seen on *.PULL channels */
     double last_pose_age;        /* pose input age in the last decision record */
     double sum_v;
@@ -89,6 +90,8 @@ static void on_cmd(const lcm_recv_buf_t *rb, const char *ch, const marie_motor_c
 {
     probe_t *p = u;
     p->cmds++;
+    if (strcmp(m->source, "teleop") == 0 && fabs(m->v - 0.2) < 1e-9 && fabs(m->omega - 0.1) < 1e-9)
+        p->teleop_cmds++;
     if (p->estop_utime && !p->estop_cmd_utime && strcmp(m->source, "estop") == 0 && m->v == 0 && m->omega == 0)
         p->estop_cmd_utime = m->utime;
 }
@@ -146,7 +149,7 @@ static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitra
 static void send_garbage(lcm_t *lcm)
 {
     static const char *const chans[] = { "WHEEL_ENCODERS", "GYRO", "LASER", "ODOMETRY", "POSE", "PATH", "GOAL",
-                                         "TELEOP", "INITIALPOSE", "POSE.PULL" };
+                                         "TELEOP", "INITIALPOSE", "POSE.PULL", "MAP", "ESTOP" };
     uint8_t buf[256];
     unsigned seed = 7;
     for (int round = 0; round < 5; round++)
@@ -167,6 +170,9 @@ static void send_garbage(lcm_t *lcm)
     marie_wheel_encoders_t enc = { .utime = 1, .ticks_per_rev = 0 };
     marie_gyro_t gyro = { .utime = 1, .yaw_rate = NAN };
     marie_pose_cov_t ip = { .utime = 1, .frame = "map", .pose = { INFINITY, 0, 0 } };
+    int8_t cells[4] = { 0, 100, -1, 50 };
+    marie_occupancy_grid_t map = { .utime = 1, .resolution = 0.05f, .width = 1000, .height = 1000, .ncells = 4,
+                                   .cells = cells };
     for (int i = 0; i < 3; i++) {
         marie_laser_scan_t_publish(lcm, "LASER", &scan);
         marie_odometry_t_publish(lcm, "ODOMETRY", &odo);
@@ -176,6 +182,7 @@ static void send_garbage(lcm_t *lcm)
         marie_wheel_encoders_t_publish(lcm, "WHEEL_ENCODERS", &enc);
         marie_gyro_t_publish(lcm, "GYRO", &gyro);
         marie_pose_cov_t_publish(lcm, "INITIALPOSE", &ip);
+        marie_occupancy_grid_t_publish(lcm, "MAP", &map);
     }
 }
 
@@ -183,11 +190,12 @@ int main(int argc, char **argv)
 {
     probe_t p = { 0 };
     double timeout = 60, max_rms = 0.15, max_err = 0.5;
-    int want_goals = 0, want_done = 0, want_resumed = 0, estop_after_done = 0, garbage = 0;
+    int want_goals = 0, want_done = 0, want_resumed = 0, estop_after_done = 0, garbage = 0, teleop = 0;
     static struct option opts[] = { { "timeout", 1, 0, 't' }, { "goals", 1, 0, 'g' }, { "done", 0, 0, 'd' },
                                     { "max-rms", 1, 0, 'r' }, { "max-err", 1, 0, 'm' }, { "settle", 1, 0, 's' },
                                     { "verbose", 0, 0, 'v' }, { "resumed", 0, 0, 'R' },
-                                    { "estop-after-done", 0, 0, 'E' }, { "garbage", 0, 0, 'G' }, { 0 } };
+                                    { "estop-after-done", 0, 0, 'E' }, { "garbage", 0, 0, 'G' },
+                                    { "teleop-after-done", 0, 0, 'T' }, { 0 } };
     int o;
     while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
         switch (o) {
@@ -201,6 +209,7 @@ int main(int argc, char **argv)
         case 'R': want_resumed = 1; break;
         case 'E': estop_after_done = 1; break;
         case 'G': garbage = 1; break;
+        case 'T': teleop = 1; break;
         default: return 2;
         }
     }
@@ -220,6 +229,17 @@ int main(int argc, char **argv)
     int64_t end = marie_mono_us() + (int64_t)(timeout * 1e6);
     while (marie_mono_us() < end && !(want_done && p.done))
         lcm_handle_timeout(lcm, 50);
+    if (teleop && p.done) {
+        /* An operator drives for a second: teleop must win while its commands keep coming. */
+        for (int i = 0; i < 10; i++) {
+            marie_motor_command_t t = { .utime = marie_wall_us(), .v = 0.2, .omega = 0.1, .source = "joystick" };
+            marie_motor_command_t_publish(lcm, "TELEOP", &t);
+            int64_t until = marie_mono_us() + 100000;
+            while (marie_mono_us() < until)
+                lcm_handle_timeout(lcm, 20);
+        }
+        printf("probe: %lld commands from teleop\n", (long long)p.teleop_cmds);
+    }
     if (estop_after_done && p.done) {
         /* Press the (simulated) e-stop button and wait until the arbitration obeys it. */
         marie_estop_t e = { .utime = marie_wall_us(), .pressed = 1, .source = "adapt_probe" };
@@ -252,7 +272,7 @@ int main(int argc, char **argv)
     printf("probe: %d collisions\n", p.collisions);
     printf("probe: %lld pull requests; pose age in the last decision %.3f s\n", (long long)p.pulls, p.last_pose_age);
     int ok = p.npose > 0 && p.arb_bad == 0 && p.collisions == 0 && rms < max_rms && p.max < max_err && p.reached >= want_goals && (!want_done || p.done) &&
-             (!want_resumed || p.resumed > 0) &&
+             (!want_resumed || p.resumed > 0) && (!teleop || p.teleop_cmds > 0) &&
              (!estop_after_done || (p.estop_cmd_utime && p.estop_cmd_utime - p.estop_utime <= 300000));
     return ok ? 0 : 1;
 }

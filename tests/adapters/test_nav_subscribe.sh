@@ -1,7 +1,8 @@
 #!/bin/sh
 # test_nav_subscribe: the same pipeline without Communication Adapters: marie-behaviours in
 # input_mode=subscribe, the mission without a SharedMap; a two-goal mission in the office world,
-# after malformed and absurd messages (random bytes, NaN poses, empty scans) on every input.
+# after malformed and absurd messages (random bytes, NaN poses, empty scans) on every input;
+# then an operator's teleop commands take over.
 . tests/lib.sh
 B=${B:-build}
 BIN=$B/bin
@@ -41,7 +42,7 @@ start behaviours $BIN/marie-behaviours --name behaviours --clock sim --param inp
 start mission $BIN/marie-mission --name mission --clock sim --system $OUT/system.yaml
 
 sleep 1
-$B/tests/helpers/adapt_probe --timeout 60 --goals 2 --done --settle 1 --verbose --garbage > "$OUT/probe.txt" 2> "$OUT/probe.log"
+$B/tests/helpers/adapt_probe --timeout 60 --goals 2 --done --settle 1 --verbose --garbage --teleop-after-done > "$OUT/probe.txt" 2> "$OUT/probe.log"
 rc=$?
 alive=0
 for p in $pids; do kill -0 "$p" 2>/dev/null && alive=$((alive + 1)); done
@@ -49,4 +50,5 @@ cat "$OUT/probe.txt"
 check "mission completes with subscribed inputs, localized" test "$rc" -eq 0
 check "no pull requests without Mailboxes" grep -q "^probe: 0 pull requests" "$OUT/probe.txt"
 check "every component survived the bad input" test "$alive" -eq 6
+check "teleop wins while its commands come" grep -Eq "^probe: [1-9][0-9]* commands from teleop" "$OUT/probe.txt"
 finish

@@ -127,6 +127,32 @@ static void test_laser_obstacle_blocks_and_replans(void **state)
     occmap_destroy(m);
 }
 
+static void test_map_change_invalidates_path(void **state)
+{
+    occmap_t *m = occmap_create(200, 100, 0.05, 0, 0);     /* 10 x 5 m open hall */
+    planner_params_t p;
+    planner_params_default(&p);
+    planner_t *pl = planner_create(m, &p, 1);
+    double s[3] = { 1, 2.5, 0 }, g[3] = { 9, 2.5, 0 };
+    double *P = NULL;
+    int n = 0;
+    assert_int_equal(planner_plan(pl, s, g, &P, &n), 0);
+    assert_int_equal(planner_path_collides(pl, P, n), -1);
+    /* The map now has a wall across the hall with a gap at the top: the old path collides,
+     * a new plan goes through the gap. */
+    occmap_fill_rect(m, 5.0, 0, 5.2, 3.8, OCCMAP_OCCUPIED);
+    planner_t *pl2 = planner_create(m, &p, 1);
+    assert_true(planner_path_collides(pl2, P, n) >= 0);
+    free(P);
+    assert_int_equal(planner_plan(pl2, s, g, &P, &n), 0);
+    assert_int_equal(planner_path_collides(pl2, P, n), -1);
+    assert_path_clear(pl2, m, P, n, p.robot_radius);
+    free(P);
+    planner_destroy(pl2);
+    planner_destroy(pl);
+    occmap_destroy(m);
+}
+
 static void test_prm_reuses_roadmap(void **state)
 {
     occmap_t *m = occmap_make_office(20, 15, 0.05, 3);
@@ -153,6 +179,7 @@ int main(void)
         cmocka_unit_test(test_plans_between_rooms),
         cmocka_unit_test(test_refuses_goal_in_wall_and_unreachable),
         cmocka_unit_test(test_laser_obstacle_blocks_and_replans),
+        cmocka_unit_test(test_map_change_invalidates_path),
         cmocka_unit_test(test_prm_reuses_roadmap),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

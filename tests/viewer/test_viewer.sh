@@ -92,6 +92,41 @@ check "seek to 12.5 s: 2 goals reached so far" test "$(grep -o 'data-kind="goal_
 page "http://127.0.0.1:8101/?t=30&paused=1" "$tmp/shot.html" "" --screenshot "$B/viewer.png" --size 1280x900
 check "screenshot saved ($B/viewer.png)" sh -c "[ \$(stat -c %s $B/viewer.png) -gt 20000 ]"
 
+# play, speed and pause as the page's buttons send them
+playback() {
+    python3 - <<'PY'
+import sys
+sys.path.insert(0, "tests/viewer")
+from wsclient import WsClient
+c = WsClient("127.0.0.1", 8101)
+p = c.until(lambda m: m["type"] == "player")
+c.send({"op": "seek", "t": p["t0"]})
+c.send({"op": "speed", "v": 20})
+c.send({"op": "play"})
+a = c.until(lambda m: m["type"] == "player" and m["playing"] and m["speed"] == 20)
+b = c.until(lambda m: m["type"] == "player" and m["playing"] and m["t"] > a["t"] + 2e6, 10)
+arb = c.until(lambda m: m.get("k") == "arb", 5)
+c.send({"op": "pause"})
+z = c.until(lambda m: m["type"] == "player" and not m["playing"])
+print(a and a["t"], b and b["t"], z and z["t"], arb and arb["winner"])
+sys.exit(0 if a and b and z and arb and z["t"] >= b["t"] else 1)
+PY
+}
+check "play at 20x streams decisions, pause stops" playback
+
+# the demo's own log (make demo), when there is one: the office map from its file
+demo_log=${VIEWER_DEMO_LOG:-$B/demo.lcm}
+if [ -s "$demo_log" ]; then
+    check "server plays the demo's log ($demo_log)" serve real 8110 --param log="$demo_log" --param map=sim/worlds/office.yaml
+    page "http://127.0.0.1:8110/?t=20&paused=1" "$tmp/real.html"
+    r=$tmp/real.html
+    check "demo log: map, poses and laser drawn" \
+        sh -c "[ $(attr data-map-drawn "$r") = 1 ] && [ $(attr data-pose "$r") = 1 ] && [ $(attr data-laser "$r") -ge 1 ]"
+    check "demo log: decisions on the timeline and in the list" \
+        sh -c "[ $(attr data-decisions "$r") -ge 10 ] && grep -q '<li data-winner=' $r"
+    check "demo log: components from heartbeats" sh -c "[ $(attr data-components "$r") -ge 3 ]"
+fi
+
 # ---- the launcher: marie view LOG --port N prints the URL and serves the page
 "$BIN/marie" view "$tmp/demo.lcmlog" --port 8107 --paused > "$tmp/launcher.out" 2>&1 &
 pids="$pids $!"
@@ -108,6 +143,13 @@ check "server reads random bytes as a log" serve noise 8103 --param log="$tmp/no
 page "http://127.0.0.1:8103/" "$tmp/noise.html"
 check "random bytes: 'no readable records' banner" has 'log has no readable records' "$tmp/noise.html"
 check "random bytes: the page is laid out, not blank" has 'id="components"' "$tmp/noise.html"
+
+missing() {
+    "$SRV" --name viewer-missing --param log=/nonexistent.lcmlog --param http_port=8109 > "$tmp/missing.log" 2>&1
+    rc=$?; cat "$tmp/missing.log"
+    [ $rc -eq 1 ] && grep -q 'log /nonexistent.lcmlog: No such file' "$tmp/missing.log" && ! grep -Eq 'Sanitizer|runtime error' "$tmp/missing.log"
+}
+check "missing log: the server exits 1 with the reason" missing
 
 # ---- a lost server: the page says so and keeps retrying
 python3 -m http.server 8104 --bind 127.0.0.1 --directory tools/viewer/www > /dev/null 2>&1 &

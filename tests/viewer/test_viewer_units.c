@@ -164,6 +164,24 @@ static void impossible_lengths_resync_on_the_next_record(void **state)
     free(c);
 }
 
+static void a_plausible_but_wrong_length_loses_one_record(void **state)
+{
+    size_t n;
+    uint8_t *b = lcm_written_log(&n);
+    /* the 3rd record (offset after two) claims 1 MB: the reader waits for it, and at the end
+     * of the stream skips it and finds every record after it */
+    size_t off = (28 + 4 + 0) + (28 + 5 + 10);
+    b[off + 24] = 0; b[off + 25] = 0x10; b[off + 26] = 0; b[off + 27] = 0;
+    for (size_t step = 7; step <= n; step = step * 5) {
+        seen_t s = parse(b, n, step);
+        assert_int_equal(s.events, 9);
+        assert_int_equal(s.corrupt, 1);
+        assert_int_equal(s.corrupt_off[0], off);
+        assert_int_equal(s.last_utime, 1900);
+    }
+    free(b);
+}
+
 static void empty_and_tiny_inputs_are_harmless(void **state)
 {
     seen_t s = parse((const uint8_t *)"", 0, 1);
@@ -235,6 +253,7 @@ int main(void)
         cmocka_unit_test(garbage_in_the_middle_loses_only_the_damaged_record),
         cmocka_unit_test(truncated_tail_is_reported_and_the_rest_kept),
         cmocka_unit_test(impossible_lengths_resync_on_the_next_record),
+        cmocka_unit_test(a_plausible_but_wrong_length_loses_one_record),
         cmocka_unit_test(empty_and_tiny_inputs_are_harmless),
         cmocka_unit_test(laser_json_has_what_the_page_draws),
         cmocka_unit_test(strings_are_escaped_and_binary_is_base64),

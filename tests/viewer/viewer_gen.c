@@ -262,6 +262,19 @@ int main(int argc, char **argv)
             if (pwrite(fd, junk, sizeof junk, st.st_size / 2) != (ssize_t)sizeof junk ||
                 ftruncate(fd, st.st_size - 37) < 0)
                 return 1;
+            /* and the 4th record claims a 50 MB payload: plausible, but longer than the log */
+            off_t off = 0;
+            for (int i = 0; i < 3; i++) {
+                unsigned char h[28];
+                if (pread(fd, h, sizeof h, off) != (ssize_t)sizeof h)
+                    return 1;
+                uint32_t cl = (uint32_t)h[20] << 24 | h[21] << 16 | h[22] << 8 | h[23];
+                uint32_t dl = (uint32_t)h[24] << 24 | h[25] << 16 | h[26] << 8 | h[27];
+                off += 28 + cl + dl;
+            }
+            unsigned char big[4] = {0x03, 0x20, 0x00, 0x00};
+            if (pwrite(fd, big, 4, off + 24) != 4)
+                return 1;
             close(fd);
         }
     } else {

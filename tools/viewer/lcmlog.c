@@ -135,7 +135,7 @@ static size_t process(lcmlog_parser_t *p, const uint8_t *b, size_t n, uint64_t o
         if (left < total) {
             if (!final)
                 break;
-            garbage_begin(p, off + i, "record cut short");
+            garbage_begin(p, off + i, "record cut short (or its length is wrong)");
             i++;
             continue;
         }

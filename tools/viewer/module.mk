@@ -14,11 +14,10 @@ $(eval $(call marie_fuzz,lcmlog,tests/viewer/fuzz_lcmlog.c tools/viewer/lcmlog.c
 $(eval $(call marie_fuzz,viewer_cmd,tests/viewer/fuzz_viewer_cmd.c tools/viewer/vjson.c))
 
 # Writes the synthetic demo log, or publishes the same stream live (not installed).
-$(eval $(call marie_link,$(B)/tests/bin/viewer-gen,tests/viewer/viewer_gen.c tools/viewer/lcmlog.c,))
+$(eval $(call marie_link,$(B)/tests/bin/viewer-gen,tests/viewer/viewer_gen.c,))
 EXTRA_TARGETS += $(B)/tests/bin/viewer-gen
 ITESTS += tests/viewer/test_viewer.sh
 ITESTS += tests/viewer/test_viewer_controls.sh
-$(B)/tests/test_viewer_units: | $(B)/bin/marie-viewer-server $(B)/bin/marie-view $(B)/tests/bin/viewer-gen
 
 $(eval $(call marie_bench,bench_viewer,tools/viewer/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen

@@ -70,7 +70,7 @@ static const marie_param_spec_t params[] = {
     {"laser_hz", MARIE_PARAM_DOUBLE, "10", "most laser scans per second sent to the page"},
     {"pose_hz", MARIE_PARAM_DOUBLE, "20", "most poses per second (each of estimate and truth)"},
     {"particles_hz", MARIE_PARAM_DOUBLE, "2", "most particle clouds per second"},
-    {"map_period_s", MARIE_PARAM_DOUBLE, "5", "least time between two maps sent"},
+    {"map_period_s", MARIE_PARAM_DOUBLE, "30", "an unchanged map is sent again after this long"},
     {"url_file", MARIE_PARAM_STRING, "\"\"", "write the page's URL to this file once serving"},
     {0},
 };
@@ -146,6 +146,7 @@ typedef struct viewer {
 
     chan_state_t chans[P_NIN];
     int64_t min_gap_us[P_NIN];
+    uint64_t map_hash;          /* of the last map sent */
     /* live snapshots */
     char *arb_ring[RING];
     int arb_next;
@@ -192,6 +193,7 @@ typedef struct viewer {
     int goals_sent;
 
     vj_buf_t jb;                /* scratch */
+    bool init_failed;
 } viewer_t;
 
 static int64_t now_mono(void)
@@ -387,6 +389,31 @@ static void ws_close(const struct mg_connection *conn, void *ud)
     free(cl);
 }
 
+/* The page is three known files: nothing else under www is served (no directory listing,
+ * CGI or SSI, whatever the folder holds). */
+static int http_page(struct mg_connection *conn, void *ud)
+{
+    viewer_t *v = ud;
+    static const struct {
+        const char *uri, *file, *mime;
+    } files[] = {
+        {"/", "index.html", "text/html; charset=utf-8"},
+        {"/index.html", "index.html", "text/html; charset=utf-8"},
+        {"/viewer.js", "viewer.js", "text/javascript; charset=utf-8"},
+        {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
+    };
+    const char *uri = mg_get_request_info(conn)->local_uri;
+    for (size_t i = 0; uri && i < sizeof files / sizeof files[0]; i++)
+        if (strcmp(uri, files[i].uri) == 0) {
+            char path[PATH_MAX + 32];
+            snprintf(path, sizeof path, "%s/%s", v->www, files[i].file);
+            mg_send_mime_file(conn, path, files[i].mime);
+            return 200;
+        }
+    mg_send_http_error(conn, 404, "%s", "not found");
+    return 404;
+}
+
 static int log_message(const struct mg_connection *conn, const char *msg)
 {
     marie_warn_ratelimited(10, "viewer: http: %s", msg);
@@ -446,12 +473,23 @@ static bool decimated(int pi)
 }
 
 /* Rate limit per input on the wall clock: whatever the log speed, the page gets at most
- * laser_hz scans a second. */
-static bool pass_rate(viewer_t *v, int pi, int64_t now)
+ * laser_hz scans a second. A map (hundreds of KB) goes again only when its cells or
+ * geometry changed, or after map_period_s as a refresh. */
+static bool pass_rate(viewer_t *v, int pi, int64_t now, const void *raw, size_t len)
 {
     if (!decimated(pi))
         return true;
     chan_state_t *cs = &v->chans[pi];
+    if (pi == P_MAP) {
+        uint64_t h = 1469598103934665603ULL;        /* FNV-1a, past fingerprint and utime */
+        for (size_t i = 16; i < len; i++)
+            h = (h ^ ((const uint8_t *)raw)[i]) * 1099511628211ULL;
+        if (cs->last_sent_mono && h == v->map_hash && now - cs->last_sent_mono < v->min_gap_us[pi])
+            return false;
+        v->map_hash = h;
+        cs->last_sent_mono = now;
+        return true;
+    }
     if (cs->last_sent_mono && now - cs->last_sent_mono < v->min_gap_us[pi])
         return false;
     cs->last_sent_mono = now;
@@ -571,8 +609,8 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
     int64_t now = now_mono();
     v->msgs_in++;
     /* The snapshot cache wants every message; the page only the rate-limited ones. */
-    bool send = pass_rate(v, pi, now);
-    if (!send && pi != P_POSE && pi != P_TRUTH && pi != P_MAP) {
+    bool send = pass_rate(v, pi, now, info->raw, info->raw_len);
+    if (!send && (pi != P_POSE && pi != P_TRUTH)) {
         v->last_rx_mono = now;      /* only data ports are decimated */
         return;
     }
@@ -644,7 +682,9 @@ static void on_log_event(void *user, const lcmlog_event_t *ev)
     r->t = t;
     r->chan = (uint32_t)ci;
     r->len = (uint32_t)ev->data_len;
-    r->off = (uint64_t)(ev->data - v->file);
+    /* From the stream offset, not ev->data: records found at the end of the stream come
+     * from the parser's own copy of the tail, not from the mapped file. */
+    r->off = ev->offset + LCMLOG_HEADER_LEN + ev->channel_len;
 }
 
 static void on_log_corrupt(void *user, uint64_t offset, const char *reason)
@@ -940,9 +980,8 @@ static void log_snapshot(viewer_t *v, int id)
                 first--;
             for (long j = first; j <= k; j++)
                 send_rec(v, id, lc->idx[j], false);
-        } else if (lc->port != P_EVENT && lc->port != P_GOAL) {
-            send_rec(v, id, lc->idx[k], false);
-        } else if (lc->port == P_GOAL) {
+        } else if (lc->port != P_EVENT) {
+            /* events come with the summary; everything else: the newest one */
             send_rec(v, id, lc->idx[k], false);
         }
     }
@@ -982,8 +1021,11 @@ static void player_tick(marie_loop_t *loop, marie_timer_t *tm, int64_t overruns,
         if (now - v->last_player_msg >= 1000000) {
             v->last_player_msg = now;
             char s[200];
-            int n = snprintf(s, sizeof s, "{\"type\":\"stats\",\"msgs\":%lld,\"rx_age\":%.1f,\"bad\":%lld}",
-                             (long long)v->msgs_in, v->last_rx_mono ? (now - v->last_rx_mono) / 1e6 : -1.0,
+            pthread_mutex_lock(&v->mu);
+            long long frames = (long long)v->frames_out;
+            pthread_mutex_unlock(&v->mu);
+            int n = snprintf(s, sizeof s, "{\"type\":\"stats\",\"msgs\":%lld,\"frames\":%lld,\"rx_age\":%.1f,\"bad\":%lld}",
+                             (long long)v->msgs_in, frames, v->last_rx_mono ? (now - v->last_rx_mono) / 1e6 : -1.0,
                              (long long)v->bad_payloads);
             send_to(v, -1, s, (size_t)n, false);
         }
@@ -997,7 +1039,7 @@ static void player_tick(marie_loop_t *loop, marie_timer_t *tm, int64_t overruns,
     while (v->cursor < v->nrecs && v->recs[v->cursor].t <= target) {
         const rec_t *r = &v->recs[v->cursor];
         int pi = v->lchans[r->chan].port;
-        if (pi >= 0 && pi != P_AM_REPLY && pass_rate(v, pi, now))
+        if (pi >= 0 && pi != P_AM_REPLY && pass_rate(v, pi, now, v->file + r->off, r->len))
             send_rec(v, -1, v->cursor, decimated(pi));
         v->cursor++;
     }
@@ -1249,6 +1291,11 @@ static int find_www(viewer_t *v)
     const char *p = marie_param_str(v->c, "www");
     char exe[PATH_MAX], cand[PATH_MAX + 64];
     if (p && *p) {
+        snprintf(cand, sizeof cand, "%s/index.html", p);
+        if (access(cand, R_OK) != 0) {
+            marie_component_fail_reason(v->c, "www %s: no index.html there", p);
+            return -1;
+        }
         snprintf(v->www, sizeof v->www, "%s", p);
         return 0;
     }
@@ -1273,7 +1320,7 @@ static int find_www(viewer_t *v)
     return -1;
 }
 
-static int init(marie_component_t *c)
+static int init_viewer(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
     if (v->http)
@@ -1335,8 +1382,7 @@ static int init(marie_component_t *c)
     snprintf(port, sizeof port, "%lld", (long long)marie_param_int(c, "http_port"));
     snprintf(listen, sizeof listen, "%s:%s", marie_param_str(c, "bind"), port);
     const char *opts[] = {
-        "listening_ports", listen, "document_root", v->www, "num_threads", "16",
-        "enable_directory_listing", "no", "websocket_timeout_ms", "3600000", NULL,
+        "listening_ports", listen, "num_threads", "16", "websocket_timeout_ms", "3600000", NULL,
     };
     struct mg_callbacks cb = {0};
     cb.log_message = log_message;
@@ -1347,6 +1393,7 @@ static int init(marie_component_t *c)
         return -1;
     }
     mg_set_websocket_handler(v->http, "/ws", ws_connect, ws_ready, ws_data, ws_close, v);
+    mg_set_request_handler(v->http, "/", http_page, v);
     struct mg_server_port sp[4];
     int np = mg_get_server_ports(v->http, 4, sp);
     v->port = np > 0 ? sp[0].port : (int)marie_param_int(c, "http_port");
@@ -1367,6 +1414,19 @@ static int init(marie_component_t *c)
         }
     }
     return 0;
+}
+
+/* Under a manager a failed init waits for orders; run by hand (`marie view`), the user wants
+ * the reason and an exit status at once. */
+static int init(marie_component_t *c)
+{
+    viewer_t *v = marie_component_user(c);
+    int rc = init_viewer(c);
+    if (rc < 0 && !marie_component_cfg(c)) {
+        v->init_failed = true;
+        marie_loop_quit(marie_component_loop(c));
+    }
+    return rc;
 }
 
 static void quit(marie_component_t *c)
@@ -1422,5 +1482,6 @@ int main(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
     pthread_mutex_init(&v.mu, NULL);
     v.wake[0] = v.wake[1] = -1;
-    return marie_main(&def, argc, argv, &v);
+    int rc = marie_main(&def, argc, argv, &v);
+    return rc == 0 && v.init_failed ? 1 : rc;
 }

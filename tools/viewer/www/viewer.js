@@ -506,6 +506,10 @@ function drawPanels() {
     li.className = 'sev' + e[2] + ' ' + e[3];
     li.dataset.kind = e[3];
     li.textContent = fmtT(e[0]) + '  ' + e[1] + ': ' + e[3] + ' — ' + e[4];
+    if (S.mode === 'log') {
+      li.title = 'go there';
+      li.onclick = () => send({ op: 'seek', t: e[0] });
+    }
     ul.appendChild(li);
   }
   body.dataset.events = String(all.length);
@@ -526,15 +530,17 @@ function drawTimeline() {
   g.clearRect(0, 0, W, H);
   const [a, b] = timeRange();
   const X = (t) => (t - a) / (b - a) * W;
-  // decisions: one colour band per winner
-  let decs;
-  if (S.mode === 'log' && S.summary) decs = S.summary.dec.map((d) => [S.summary.t0 + d[0] * 1000, S.summary.names[d[1]]]);
-  else decs = S.liveDec;
-  for (let i = 0; i < decs.length; i++) {
-    const x0 = X(decs[i][0]), x1 = i + 1 < decs.length ? X(decs[i + 1][0]) : x0 + 2;
-    if (x1 < 0 || x0 > W) continue;
-    g.fillStyle = colorOf(decs[i][1]);
-    g.fillRect(x0, 4, Math.max(1, x1 - x0), 22);
+  // decisions: one colour band per winner (a log's whole band is drawn once, then reused)
+  if (S.mode === 'log' && S.summary) {
+    if (!S.band || S.band.width !== W || S.bandOf !== S.summary) {
+      S.band = document.createElement('canvas');
+      S.band.width = W; S.band.height = H;
+      S.bandOf = S.summary;
+      drawBand(S.band.getContext('2d'), S.summary.dec.map((d) => [S.summary.t0 + d[0] * 1000, S.summary.names[d[1]]]), X, W);
+    }
+    g.drawImage(S.band, 0, 0);
+  } else {
+    drawBand(g, S.liveDec, X, W);
   }
   g.fillStyle = '#333'; g.font = '10px sans-serif';
   g.fillText('decisions', 2, 36);
@@ -559,9 +565,26 @@ function drawTimeline() {
   }
 }
 
+function drawBand(g, decs, X, W) {
+  for (let i = 0; i < decs.length; i++) {
+    const x0 = X(decs[i][0]), x1 = i + 1 < decs.length ? X(decs[i + 1][0]) : x0 + 2;
+    if (x1 < 0 || x0 > W) continue;
+    g.fillStyle = colorOf(decs[i][1]);
+    g.fillRect(x0, 4, Math.max(1, x1 - x0), 22);
+  }
+}
+
 // ---------------------------------------------------------------- input
 
 $('play').onclick = () => send({ op: S.player.playing ? 'pause' : 'play' });
+// space: play/pause; arrows: one second back or forward (logs)
+window.addEventListener('keydown', (ev) => {
+  if (S.mode !== 'log' || ev.target.tagName === 'SELECT') return;
+  if (ev.key === ' ') { ev.preventDefault(); $('play').onclick(); }
+  else if (ev.key === 'ArrowLeft' || ev.key === 'ArrowRight') {
+    send({ op: 'seek', t: S.player.t + (ev.key === 'ArrowLeft' ? -1e6 : 1e6) });
+  }
+});
 $('speed').onchange = () => send({ op: 'speed', v: Number($('speed').value) });
 
 let scrubbing = false;
