@@ -300,7 +300,8 @@ static bool env_dropped(const char *kv)
 {
     static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
                                        "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
-                                       "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=", NULL};
+                                       "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
+                                       "MARIE_STATE_DIR=", NULL};
     for (int i = 0; drop[i]; i++)
         if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
             return true;
@@ -409,7 +410,9 @@ static void comp_spawn(comp_t *c)
     envp[ne++] = path_with_self(am);
     if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am->sys_path) < 0 ||
         asprintf(&envp[ne++], "MARIE_NAME=%s", cfg->name) < 0 ||
-        asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0)
+        asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
+        /* Components keep their state (SharedMap, Switch) beside the manager's. */
+        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0)
         goto fail;
     if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
         goto fail;
