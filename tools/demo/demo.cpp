@@ -427,7 +427,9 @@ int Demo::run()
     mkdir(opt_.out.c_str(), 0755);
     if (!load_map())
         return 2;
+    // Each demo starts a fresh mission: no SharedMap or manager state from an earlier run.
     std::string state = opt_.out + "/state";
+    run_cmd({"rm", "-rf", state}, "/dev/null");
     mkdir(state.c_str(), 0755);
     unlink((opt_.out + "/key").c_str());
     if (run_cmd({bin_ + "/marie", "keygen", opt_.out + "/key"}, opt_.out + "/marie.log") != 0) {
