@@ -33,7 +33,7 @@
 #include "managers/auth.h"
 #include "managers/lcmcheck.h"
 #include "managers/logcap.h"
-#include "managers/procstat.h"
+#include "core/procstat.h"
 
 /* The manager's view of a component. */
 typedef enum {

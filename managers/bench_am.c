@@ -17,7 +17,7 @@
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "managers/am_proto.h"
-#include "managers/procstat.h"
+#include "core/procstat.h"
 
 static char dir[64];
 static const char *bin = "build";

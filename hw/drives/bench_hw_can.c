@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "core/config.h"
+#include "core/procstat.h"
 #include "core/time.h"
 #include "hw/can/can.h"
 #include "lcmtypes/marie_motor_command_t.h"
@@ -61,39 +62,19 @@ static void on_enc(const lcm_recv_buf_t *rb, const char *ch, const marie_wheel_e
     enc_ok = m->status == MARIE_WHEEL_ENCODERS_T_STATUS_OK;
 }
 
-/* utime + stime in clock ticks */
-static long long cpu_ticks(pid_t pid)
+
+
+/* CPU seconds used so far, and a /proc/PID/status memory field in MB. */
+static double cpu_s(pid_t pid)
 {
-    char path[64], buf[1024];
-    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
-    FILE *f = fopen(path, "r");
-    if (!f)
-        return -1;
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    char *p = strrchr(buf, ')');
-    if (!p)
-        return -1;
-    unsigned long ut, st;
-    /* after ") ": state ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime stime */
-    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &ut, &st) != 2)
-        return -1;
-    return (long long)(ut + st);
+    int64_t us = 0, rss;
+    marie_proc_usage(pid, &us, &rss);
+    return us / 1e6;
 }
 
 static double rss_mb(pid_t pid, const char *key)
 {
-    char path[64], line[256];
-    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
-    FILE *f = fopen(path, "r");
-    double kb = -1;
-    while (f && fgets(line, sizeof line, f))
-        if (strncmp(line, key, strlen(key)) == 0 && sscanf(line + strlen(key), " %lf kB", &kb) == 1)
-            break;
-    if (f)
-        fclose(f);
-    return kb / 1024;
+    return marie_proc_field_bytes(pid, "status", key) / 1048576.0;
 }
 
 static int cmp(const void *a, const void *b)
@@ -176,8 +157,7 @@ int main(void)
     printf("hw_can\tcmd_to_rpdo_seen\t%d\tof %d\t-\t-\n", got, N);
 
     /* CPU and RSS over 10 s at nominal rates, commanded at 10 Hz. */
-    long hz = sysconf(_SC_CLK_TCK);
-    long long d0 = cpu_ticks(drv), g0 = cpu_ticks(gyr), v0 = cpu_ticks(dev), b0 = cpu_ticks(bus);
+    double d0 = cpu_s(drv), g0 = cpu_s(gyr), v0 = cpu_s(dev), b0 = cpu_s(bus);
     int64_t w0 = marie_mono_us(), last = 0;
     while (marie_mono_us() - w0 < 10000000) {
         if (marie_mono_us() - last >= 100000) {
@@ -190,14 +170,14 @@ int main(void)
             ;
     }
     double wall = (marie_mono_us() - w0) / 1e6;
-    printf("hw_can\tmarie-drives_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(drv) - d0) / hz / wall);
-    printf("hw_can\tmarie-drives_rss\t%.2f\tMB\t-\t-\n", rss_mb(drv, "VmRSS:"));
-    printf("hw_can\tmarie-drives_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(drv, "RssAnon:"));
-    printf("hw_can\tmarie-gyro_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(gyr) - g0) / hz / wall);
-    printf("hw_can\tmarie-gyro_rss\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "VmRSS:"));
-    printf("hw_can\tmarie-gyro_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "RssAnon:"));
-    printf("hw_can\tmarie-vcan-devices_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(dev) - v0) / hz / wall);
-    printf("hw_can\tmarie-canbus_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_ticks(bus) - b0) / hz / wall);
+    printf("hw_can\tmarie-drives_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(drv) - d0) / wall);
+    printf("hw_can\tmarie-drives_rss\t%.2f\tMB\t-\t-\n", rss_mb(drv, "VmRSS"));
+    printf("hw_can\tmarie-drives_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(drv, "RssAnon"));
+    printf("hw_can\tmarie-gyro_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(gyr) - g0) / wall);
+    printf("hw_can\tmarie-gyro_rss\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "VmRSS"));
+    printf("hw_can\tmarie-gyro_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "RssAnon"));
+    printf("hw_can\tmarie-vcan-devices_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(dev) - v0) / wall);
+    printf("hw_can\tmarie-canbus_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(bus) - b0) / wall);
     rc = 0;
 out_sub:
     marie_wheel_encoders_t_unsubscribe(lcm, se);

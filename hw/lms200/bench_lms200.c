@@ -11,6 +11,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/procstat.h"
 #include "core/time.h"
 #include "hw/lms200/lms200.h"
 #include "lcmtypes/marie_laser_scan_t.h"
@@ -79,61 +80,8 @@ static void stop(pid_t pid)
     waitpid(pid, NULL, 0);
 }
 
-/* utime + stime in clock ticks. */
-static long cpu_ticks(pid_t pid)
-{
-    char path[64], buf[1024];
-    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
-    FILE *f = fopen(path, "r");
-    if (!f)
-        return -1;
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    char *p = strrchr(buf, ')');
-    if (!p)
-        return -1;
-    long ut = 0, st = 0;
-    /* fields after the command: state(3) ... utime(14) stime(15) */
-    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %ld %ld", &ut, &st) != 2)
-        return -1;
-    return ut + st;
-}
 
-static long status_kb(pid_t pid, const char *key)
-{
-    char path[64], line[256];
-    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
-    FILE *f = fopen(path, "r");
-    if (!f)
-        return -1;
-    long v = -1;
-    size_t kl = strlen(key);
-    while (fgets(line, sizeof line, f))
-        if (strncmp(line, key, kl) == 0 && line[kl] == ':')
-            v = atol(line + kl + 1);
-    fclose(f);
-    return v;
-}
 
-/* A key of /proc/PID/smaps_rollup, in kB: Pss shares the libraries' pages among the
- * processes that map them, which is what one more component really costs. */
-static long rollup_kb(pid_t pid, const char *key)
-{
-    char path[64];
-    snprintf(path, sizeof path, "/proc/%d/smaps_rollup", (int)pid);
-    FILE *f = fopen(path, "r");
-    if (!f)
-        return -1;
-    char line[256];
-    long v = -1;
-    size_t kl = strlen(key);
-    while (fgets(line, sizeof line, f))
-        if (strncmp(line, key, kl) == 0 && line[kl] == ':')
-            v = atol(line + kl + 1);
-    fclose(f);
-    return v;
-}
 
 static long bus_scans;
 static void on_scan(const lcm_recv_buf_t *rb, const char *ch, const marie_laser_scan_t *m, void *user)
@@ -167,8 +115,10 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
         if (poll(&p, 1, 50) > 0)
             lcm_handle(lcm);
     }
-    long hz = sysconf(_SC_CLK_TCK);
-    long c0 = cpu_ticks(pd), e0 = cpu_ticks(pe), s0 = bus_scans;
+    int64_t c0 = -1, e0 = -1, c1 = -1, e1 = -1, rss;
+    marie_proc_usage(pd, &c0, &rss);
+    marie_proc_usage(pe, &e0, &rss);
+    long s0 = bus_scans;
     int64_t t0 = marie_mono_us();
     end = t0 + 10000000;   /* CPU time comes in 10 ms ticks: a long window */
     while (marie_mono_us() < end) {
@@ -177,16 +127,17 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
             lcm_handle(lcm);
     }
     double secs = (double)(marie_mono_us() - t0) / 1e6;
-    long c1 = cpu_ticks(pd), e1 = cpu_ticks(pe);
+    marie_proc_usage(pd, &c1, &rss);
+    marie_proc_usage(pe, &e1, &rss);
     char bench[64];
     snprintf(bench, sizeof bench, "lms200_driver_%s", label);
     if (c0 >= 0 && c1 >= 0) {
         row(bench, "scans_published", (double)(bus_scans - s0) / secs, "scans/s");
-        row(bench, "cpu", 100.0 * (double)(c1 - c0) / (double)hz / secs, "%core");
-        row(bench, "rss", (double)status_kb(pd, "VmRSS") / 1024.0, "MB");
-        row(bench, "rss_anon", (double)status_kb(pd, "RssAnon") / 1024.0, "MB");
-        row(bench, "pss", (double)rollup_kb(pd, "Pss") / 1024.0, "MB");
-        row(bench, "emulator_cpu", 100.0 * (double)(e1 - e0) / (double)hz / secs, "%core");
+        row(bench, "cpu", 100.0 * (double)(c1 - c0) / 1e6 / secs, "%core");
+        row(bench, "rss", (double)marie_proc_field_bytes(pd, "status", "VmRSS") / 1048576.0, "MB");
+        row(bench, "rss_anon", (double)marie_proc_field_bytes(pd, "status", "RssAnon") / 1048576.0, "MB");
+        row(bench, "pss", (double)marie_proc_field_bytes(pd, "smaps_rollup", "Pss") / 1048576.0, "MB");
+        row(bench, "emulator_cpu", 100.0 * (double)(e1 - e0) / 1e6 / secs, "%core");
     } else {
         fprintf(stderr, "bench_lms200: marie-lms200 is not running\n");
     }

@@ -12,7 +12,7 @@
 #include <unistd.h>
 
 #include "managers/logcap.h"
-#include "managers/procstat.h"
+#include "core/procstat.h"
 
 typedef struct {
     char lines[32][MARIE_LINE_MAX + 1];

@@ -14,6 +14,7 @@
 #include <civetweb.h>
 #include <lcm/lcm.h>
 
+#include "core/procstat.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
 
@@ -99,29 +100,6 @@ static double pct(int64_t *v, int n, double p)
     return v[i] / 1000.0;
 }
 
-static int cpu_ticks(pid_t pid, long long *ticks, long long *rss_pages)
-{
-    char path[64], buf[1024];
-    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
-    FILE *f = fopen(path, "r");
-    if (!f)
-        return -1;
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = 0;
-    char *p = strrchr(buf, ')');
-    if (!p)
-        return -1;
-    unsigned long long ut = 0, st = 0;
-    long long rss = 0;
-    /* fields after the command: state(3) ... utime(14) stime(15) ... rss(24) */
-    if (sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %llu %llu %*d %*d %*d %*d %*d %*d %*u %*u %lld",
-               &ut, &st, &rss) != 3)
-        return -1;
-    *ticks = (long long)(ut + st);
-    *rss_pages = rss;
-    return 0;
-}
 
 static void publish(lcm_t *l, const char *ch, const marie_type_t *t, const void *msg)
 {
@@ -160,19 +138,19 @@ static double log_cpu(const char *b, const char *log, double speed, double *fram
         usleep(500000);
         const char *play = "{\"op\":\"play\"}";
         mg_websocket_client_write(ws, MG_WEBSOCKET_OPCODE_TEXT, play, strlen(play));
-        long long t0 = 0, t1 = 0, rss;
+        int64_t t0 = 0, t1 = 0, rss;
         pthread_mutex_lock(&mu);
         int64_t f0 = ws_frames;
         pthread_mutex_unlock(&mu);
-        cpu_ticks(srv, &t0, &rss);
+        marie_proc_usage(srv, &t0, &rss);
         int64_t start = marie_mono_us();
         usleep(5000000);
-        cpu_ticks(srv, &t1, &rss);
+        marie_proc_usage(srv, &t1, &rss);
         double wall = (marie_mono_us() - start) / 1e6;
         pthread_mutex_lock(&mu);
         *frames_per_s = (ws_frames - f0) / wall;
         pthread_mutex_unlock(&mu);
-        cpu = (t1 - t0) * 100.0 / sysconf(_SC_CLK_TCK) / wall;
+        cpu = (t1 - t0) / 1e4 / wall;
         mg_close_connection(ws);
     }
     kill(srv, SIGTERM);
@@ -238,8 +216,8 @@ int main(int argc, char **argv)
         path_pts[i] = (marie_pose2d_t){i * 0.5, 3, 0};
     const char *comps[8] = {"sim", "odometry", "localizer", "planner", "behaviours", "mission", "mailbox", "sharedmap"};
 
-    long long t0_ticks = 0, t1_ticks = 0, rss = 0;
-    cpu_ticks(srv, &t0_ticks, &rss);
+    int64_t t0_us = 0, t1_us = 0, rss = 0;
+    marie_proc_usage(srv, &t0_us, &rss);
     int64_t start = marie_mono_us();
     int seq = 0;
     for (int k = 0; k < SECONDS * 50; k++) {    /* 50 Hz master tick */
@@ -293,7 +271,7 @@ int main(int argc, char **argv)
         }
     }
     double wall_s = (marie_mono_us() - start) / 1e6;
-    cpu_ticks(srv, &t1_ticks, &rss);
+    marie_proc_usage(srv, &t1_us, &rss);
     usleep(300000);                             /* the last frames in flight */
 
     stop_listener = 1;
@@ -302,11 +280,10 @@ int main(int argc, char **argv)
     kill(srv, SIGTERM);
     waitpid(srv, NULL, 0);
 
-    long hz = sysconf(_SC_CLK_TCK);
     pthread_mutex_lock(&mu);
-    double cpu = (t1_ticks - t0_ticks) * 100.0 / hz / wall_s;
+    double cpu = (t1_us - t0_us) / 1e4 / wall_s;
     row("server_cpu_live_full_rate", cpu, "%core", 0);
-    row("server_rss", rss * (double)sysconf(_SC_PAGESIZE) / 1048576.0, "MiB", 0);
+    row("server_rss", rss / 1048576.0, "MiB", 0);
     row("frames_to_browser", ws_frames / wall_s, "frames/s", 0);
     row("bytes_to_browser", ws_bytes / wall_s / 1024.0, "KiB/s", 0);
     double bus50 = pct(bus_lat, n_bus, 0.5), bus99 = pct(bus_lat, n_bus, 0.99);

@@ -1,5 +1,5 @@
 /* procstat: /proc readers for the manager's per-component CPU and RSS. */
-#include "managers/procstat.h"
+#include "core/procstat.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -110,4 +110,20 @@ int marie_proc_starttime(pid_t pid, int64_t *ticks)
     }
     *ticks = v;
     return 0;
+}
+
+int64_t marie_proc_field_bytes(pid_t pid, const char *file, const char *key)
+{
+    char path[96], line[256];
+    snprintf(path, sizeof path, "/proc/%d/%s", (int)pid, file);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    size_t klen = strlen(key);
+    long long kb = -1;
+    while (fgets(line, sizeof line, f))
+        if (strncmp(line, key, klen) == 0 && line[klen] == ':' && sscanf(line + klen + 1, " %lld kB", &kb) == 1)
+            break;
+    fclose(f);
+    return kb < 0 ? -1 : (int64_t)kb * 1024;
 }
