@@ -8,6 +8,7 @@ else
 B ?= build
 endif
 PREFIX ?= /usr/local
+NPROC := $(shell nproc 2>/dev/null || echo 2)
 
 CC  ?= gcc
 CXX ?= g++
@@ -107,20 +108,20 @@ test-deps: deps
 
 # Tests run one by one, each in its own network namespace; the last line is the summary.
 test: test-deps
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(TESTS) $(ITESTS)
 
 test-vm: deps
 	@scripts/install-deps.sh vm
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-tests.sh $(VMTESTS)
 
 bench: deps
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-bench.sh $(BENCHES)
 
 demo: deps
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/demo.sh
 
 # libFuzzer builds compile the target's SOURCES and libmarie's with clang's instrumentation.
