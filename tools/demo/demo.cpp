@@ -101,6 +101,9 @@ private:
     double res_ = 0.05, ox_ = 0, oy_ = 0;
     std::mt19937 rng_{7};
     int64_t start_mono_ = 0, last_progress_ = 0, last_chaos_ = 0;
+    // whole system, from the managers' status: CPU summed over components, RSS summed
+    double cpu_sum_ = 0, rss_peak_mb_ = 0;
+    int cpu_samples_ = 0;
 };
 
 pid_t Demo::spawn(const std::vector<std::string> &args, const std::string &log)
@@ -257,6 +260,20 @@ void Demo::progress(bool final)
             running += !strcmp(h.second->components[i].state, "running");
             restarts += h.second->components[i].restarts;
         }
+    double cpu = 0, rss = 0;
+    for (auto &h : hosts_) {
+        cpu += h.second->am_cpu;
+        rss += h.second->am_rss / 1048576.0;
+        for (int i = 0; i < h.second->ncomponents; i++) {
+            cpu += h.second->components[i].cpu;
+            rss += h.second->components[i].rss / 1048576.0;
+        }
+    }
+    if (running == total && total > 0) {
+        cpu_sum_ += cpu;
+        cpu_samples_++;
+        rss_peak_mb_ = std::max(rss_peak_mb_, rss);
+    }
     double err = errors_.empty() ? NAN : errors_.back();
     double wall = (marie_mono_us() - start_mono_) / 1e6;
     if (!opt_.quiet || final)
@@ -405,11 +422,15 @@ void Demo::summary(double wall_s)
         fprintf(f,
                 "{\"goals\": %d, \"reached\": %d, \"missed\": %d, \"mission_done\": %s, \"rms\": %.4f, "
                 "\"max\": %.4f, \"pose_samples\": %zu, \"restarts\": %d, \"kills\": %d, \"collisions\": %lld, "
-                "\"estop_stop_s\": %.3f, \"wall_s\": %.1f, \"sim_s\": %.1f}\n",
+                "\"estop_stop_s\": %.3f, \"wall_s\": %.1f, \"sim_s\": %.1f, \"system_cpu_percent\": %.1f, "
+                "\"system_rss_mb\": %.1f}\n",
                 ngoals_, reached_, missed_, mission_done_ ? "true" : "false", std::isnan(rms) ? -1.0 : rms, mx,
-                errors_.size(), restarts, kills_, (long long)collisions_, estop_stop_s_, wall_s, sim_now_ / 1e6);
+                errors_.size(), restarts, kills_, (long long)collisions_, estop_stop_s_, wall_s, sim_now_ / 1e6,
+                cpu_samples_ ? cpu_sum_ / cpu_samples_ : -1.0, rss_peak_mb_);
         fclose(f);
     }
+    printf("demo: whole system (components and managers): CPU %.0f%% of a core on average, RSS %.0f MB at most\n",
+           cpu_samples_ ? cpu_sum_ / cpu_samples_ : -1.0, rss_peak_mb_);
     printf("demo: %d/%d goals reached, localization RMS %.2f m (max %.2f m), restarts %d, %.0f s\n", reached_,
            ngoals_, rms, mx, restarts, wall_s);
 }

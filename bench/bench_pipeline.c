@@ -1,0 +1,140 @@
+/* bench_pipeline: laser-to-motor-command latency through the Mailbox and the 5 Hz behaviours,
+ * excluding the wait for the tick. The tick starts when marie-behaviours sends its pull
+ * request for LASER, which this bench sees on LASER.PULL; from there the chain is the pull
+ * round trip, the decision and the motor command. Add the laser's hop into the Mailbox (one
+ * LCM hop, measured here on the same bus) for the whole path. */
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <lcm/lcm.h>
+
+#include "core/time.h"
+#include "lcmtypes/marie_types.h"
+
+#define MAXS 4096
+
+typedef struct {
+    int64_t v[MAXS];
+    int n;
+} series_t;
+
+static series_t tick_to_cmd, hop;
+static int64_t last_pull_rx = 0;
+
+static void add(series_t *s, int64_t v)
+{
+    if (s->n < MAXS)
+        s->v[s->n++] = v;
+}
+
+static void on_pull(const lcm_recv_buf_t *rb, const char *ch, void *user)
+{
+    last_pull_rx = marie_mono_us();
+}
+
+static void on_cmd(const lcm_recv_buf_t *rb, const char *ch, void *user)
+{
+    if (last_pull_rx) {
+        add(&tick_to_cmd, marie_mono_us() - last_pull_rx);
+        last_pull_rx = 0;
+    }
+}
+
+static void on_scan_copy(const lcm_recv_buf_t *rb, const char *ch, const marie_laser_scan_t *m, void *user)
+{
+    add(&hop, marie_wall_us() - m->utime);
+}
+
+static int cmp(const void *a, const void *b)
+{
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double pct(series_t *s, double p)
+{
+    if (!s->n)
+        return NAN;
+    qsort(s->v, (size_t)s->n, sizeof s->v[0], cmp);
+    return (double)s->v[(int)(p * (s->n - 1) + 0.5)];
+}
+
+static pid_t spawn(char *const argv[])
+{
+    pid_t pid = fork();
+    if (pid == 0) {
+        freopen("/dev/null", "w", stderr);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+int main(void)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    char mbx[256], beh[256];
+    snprintf(mbx, sizeof mbx, "%s/bin/marie-ca", b);
+    snprintf(beh, sizeof beh, "%s/bin/marie-behaviours", b);
+    char *mbx_argv[] = {mbx, "mailbox", "--name", "mailbox", "--param",
+                        "channels=[{channel: POSE, type: marie.pose_cov_t}, {channel: PATH, type: marie.path_t}, "
+                        "{channel: LASER, type: marie.laser_scan_t}, {channel: ESTOP, type: marie.estop_t}]",
+                        NULL};
+    char *beh_argv[] = {beh, "--name", "behaviours", "--param", "input_mode=pull", NULL};
+    pid_t pm = spawn(mbx_argv);
+    usleep(300000);
+    pid_t pb = spawn(beh_argv);
+    lcm_t *tx = lcm_create(NULL), *rx = lcm_create(NULL);
+    lcm_subscribe(rx, "LASER.PULL", on_pull, NULL);
+    lcm_subscribe(rx, "MOTOR_COMMAND", on_cmd, NULL);
+    marie_laser_scan_t_subscribe(rx, "LASER", on_scan_copy, NULL);
+
+    float ranges[181];
+    marie_pose2d_t path[20];
+    for (int i = 0; i < 20; i++)
+        path[i] = (marie_pose2d_t){0.5 * i, 0, 0};
+    int64_t start = marie_mono_us(), next = start;
+    int k = 0;
+    while (marie_mono_us() - start < 12000000) {
+        if (marie_mono_us() >= next) {
+            int64_t now = marie_wall_us();
+            /* Every other second an obstacle ahead, so the winning behaviour changes. */
+            float ahead = (k / 50) % 2 ? 0.25f : 6.0f;
+            for (int i = 0; i < 181; i++)
+                ranges[i] = (i > 80 && i < 100) ? ahead : 6.0f;
+            marie_laser_scan_t scan = {now, (float)-M_PI / 2, (float)M_PI / 180, 0.05f, 8.0f, 181, ranges, 0, NULL};
+            marie_laser_scan_t_publish(tx, "LASER", &scan);
+            marie_pose_cov_t pose = {.utime = now, .frame = "map", .pose = {0, 0, 0}};
+            marie_pose_cov_t_publish(tx, "POSE", &pose);
+            marie_path_t p = {.utime = now, .goal_id = 1, .nposes = 20, .poses = path};
+            marie_path_t_publish(tx, "PATH", &p);
+            marie_estop_t e = {now, 0, "bench"};
+            marie_estop_t_publish(tx, "ESTOP", &e);
+            k++;
+            next += 20000;  /* 50 Hz inputs */
+        }
+        lcm_handle_timeout(rx, 2);
+    }
+    kill(pb, SIGTERM);
+    kill(pm, SIGTERM);
+    waitpid(pb, NULL, 0);
+    waitpid(pm, NULL, 0);
+    double t50 = pct(&tick_to_cmd, 0.5), t99 = pct(&tick_to_cmd, 0.99);
+    double h50 = pct(&hop, 0.5), h99 = pct(&hop, 0.99);
+    printf("pipeline\tcycles_measured\t%d\tcycles\t-\t-\n", tick_to_cmd.n);
+    printf("pipeline\tlaser_hop_p50\t%.0f\tus\t-\t-\n", h50);
+    printf("pipeline\tlaser_hop_p99\t%.0f\tus\t-\t-\n", h99);
+    printf("pipeline\ttick_to_motor_command_p50\t%.0f\tus\t-\t-\n", t50);
+    printf("pipeline\ttick_to_motor_command_p99\t%.0f\tus\t-\t-\n", t99);
+    /* Target: p99 < 1 ms; the sum of the two p99s bounds the path's p99 from above. */
+    printf("pipeline\tlaser_to_motor_command_p50\t%.0f\tus\t1000\t%.3f\n", h50 + t50, (h50 + t50) / 1000);
+    printf("pipeline\tlaser_to_motor_command_p99_bound\t%.0f\tus\t1000\t%.3f\n", h99 + t99, (h99 + t99) / 1000);
+    lcm_destroy(tx);
+    lcm_destroy(rx);
+    return tick_to_cmd.n > 10 ? 0 : 1;
+}

@@ -1,0 +1,3 @@
+# bench: benchmarks that span several components.
+$(eval $(call marie_bench,bench_pipeline,bench/bench_pipeline.c))
+BENCHES += bench/bench_demo.sh
