@@ -948,7 +948,9 @@ static int bind_params(marie_component_t *c, const options_t *o, marie_errors_t 
         if (!pa->node && pa->spec->def) {
             char label[128];
             snprintf(label, sizeof label, "default of %s.%s", c->def->kind, name);
-            marie_doc_t *d = keep_doc(c, marie_doc_parse(label, pa->spec->def, strlen(pa->spec->def), errs));
+            /* An empty default is the empty string, not an empty document. */
+            const char *def = pa->spec->def[0] ? pa->spec->def : "''";
+            marie_doc_t *d = keep_doc(c, marie_doc_parse(label, def, strlen(def), errs));
             pa->node = d ? marie_doc_root(d) : NULL;
         }
         if (!pa->node) {
