@@ -91,6 +91,7 @@ for m in virtio_pci 9pnet_virtio 9p $mods; do
 done
 
 # The command, quoted for sh, runs from the current directory inside the chroot.
+cwd=$(pwd)
 {
     printf 'cd %s || exit 125\n' "'$(pwd)'"
     printf 'exec'
@@ -110,7 +111,11 @@ mount -t 9p -o trans=virtio,version=9p2000.L,ro host /host || { echo "MARIE-VM-E
 mount -t proc proc /host/proc
 mount -t sysfs sys /host/sys
 mount -t devtmpfs dev /host/dev
+# The VM gets its own /tmp; a checkout under the host's /tmp (a CI clone) stays reachable.
+mkdir -p /hosttmp
+mount -o bind /host/tmp /hosttmp
 mount -t tmpfs tmp /host/tmp
+case "$cwd" in /tmp/*) mkdir -p "/host$cwd" && mount -o bind "/hosttmp${cwd#/tmp}" "/host$cwd" ;; esac
 [ -n "$wdir" ] && mount -t 9p -o trans=virtio,version=9p2000.L out /host$wdir
 cp /cmd.sh /host/tmp/.marie-vm-cmd.sh
 chroot /host /bin/sh /tmp/.marie-vm-cmd.sh
