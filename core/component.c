@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/auth.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 
@@ -106,6 +107,8 @@ struct marie_component {
     int64_t next_request_id;
     char reply_channel[128];
     bool reply_subscribed;
+    marie_auth_t *auth;         /* set: only signed, fresh lifecycle orders are obeyed */
+    marie_replay_t *replay;
 };
 
 /* ---- names ---- */
@@ -404,7 +407,15 @@ static void on_lifecycle(const lcm_recv_buf_t *rbuf, const char *channel, void *
     if (targets_me(c, cmd.target)) {
         const char *why = "ok";
         int rc = -1;
-        if (cmd.command < MARIE_CMD_INIT || cmd.command > MARIE_CMD_QUIT) {
+        marie_auth_result_t auth = c->auth ? marie_auth_check_command(c->auth, c->replay, &cmd) : MARIE_AUTH_OK;
+        char refused[64];
+        if (auth != MARIE_AUTH_OK) {
+            /* Anyone on the robot's LAN can send multicast: with a key, only signed orders count. */
+            snprintf(refused, sizeof refused, "order refused: %s", marie_auth_result_name(auth));
+            marie_component_bad_input(c, "refused_orders", "%s %s from %s", refused, marie_cmd_name(cmd.command),
+                                      cmd.sender);
+            why = refused;
+        } else if (cmd.command < MARIE_CMD_INIT || cmd.command > MARIE_CMD_QUIT) {
             marie_component_bad_input(c, "bad_lifecycle", "unknown lifecycle command %d", cmd.command);
             why = "unknown command";
         } else {
@@ -1102,6 +1113,14 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
     }
     c->name = strdup(o.name ? o.name : def->kind);
     marie_log_set_name(c->name);
+    const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
+    if (key) {
+        char why[512] = "cannot keep a replay table";
+        if (!(c->auth = marie_auth_load(key, why, sizeof why)) || !(c->replay = marie_replay_create(NULL))) {
+            marie_errors_add(errs, key, 0, 0, "order key: %s", why);
+            goto err;
+        }
+    }
     const char *host = getenv("MARIE_HOST");
     if (host)
         snprintf(c->host, sizeof c->host, "%s", host);
@@ -1202,6 +1221,8 @@ void marie_component_destroy(marie_component_t *c)
     free(c->docs);
     free(c->params);
     marie_system_destroy(c->sys);
+    marie_auth_destroy(c->auth);
+    marie_replay_destroy(c->replay);
     free(c->name);
     free(c);
 }

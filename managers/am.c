@@ -30,7 +30,7 @@
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "lcmtypes/marie_lifecycle_command_t.h"
 #include "managers/am_proto.h"
-#include "managers/auth.h"
+#include "core/auth.h"
 #include "managers/lcmcheck.h"
 #include "managers/logcap.h"
 #include "core/procstat.h"
@@ -301,7 +301,7 @@ static bool env_dropped(const char *kv)
     static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
                                        "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
                                        "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
-                                       "MARIE_STATE_DIR=", NULL};
+                                       "MARIE_STATE_DIR=", "MARIE_KEY=", NULL};
     for (int i = 0; drop[i]; i++)
         if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
             return true;
@@ -401,7 +401,7 @@ static void comp_spawn(comp_t *c)
     size_t nenv = 0;
     while (environ[nenv])
         nenv++;
-    envp = calloc(nenv + cfg->nenv + 8, sizeof *envp);
+    envp = calloc(nenv + cfg->nenv + 10, sizeof *envp);
     if (!envp)
         goto fail;
     for (size_t i = 0; i < nenv; i++)
@@ -413,6 +413,8 @@ static void comp_spawn(comp_t *c)
         asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
         /* Components keep their state (SharedMap, Switch) beside the manager's. */
         asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0)
+        goto fail;
+    if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
         goto fail;
     if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
         goto fail;
@@ -1691,6 +1693,8 @@ int main(int argc, char **argv)
     const char *key_path = marie_am_key_path(key);
     char err[512];
     am->auth = marie_auth_load(key_path, err, sizeof err);
+    if (am->auth)
+        am->key_path = strdup(key_path);  /* components verify their lifecycle orders with it */
     if (!am->auth) {
         if (errno == EACCES && key) {
             marie_error("%s", err);
@@ -1764,6 +1768,7 @@ out_loop:
     marie_loop_destroy(am->loop);
     marie_system_destroy(am->sys);
     marie_auth_destroy(am->auth);
+    free(am->key_path);
     marie_replay_destroy(am->replay);
     free(am->sys_path);
     free(am->profile);

@@ -5,7 +5,7 @@
 #include <lcm/lcm.h>
 
 #include "core/time.h"
-#include "managers/auth.h"
+#include "core/auth.h"
 
 #include <pwd.h>
 #include <stdio.h>

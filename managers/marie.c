@@ -20,7 +20,7 @@
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
-#include "managers/auth.h"
+#include "core/auth.h"
 #include "managers/lcmcheck.h"
 
 #define MAX_HOSTS 64

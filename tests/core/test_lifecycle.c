@@ -13,6 +13,7 @@
 #include <cmocka.h>
 #include <lcm/lcm.h>
 
+#include "core/auth.h"
 #include "core/component.h"
 
 typedef struct {
@@ -309,6 +310,67 @@ static void group_orders_reach_every_member(void **state)
     bus_close(&c);
 }
 
+/* Sends a command signed with `a` (NULL: unsigned) with the given sequence number. */
+static int signed_order(bus_t *b, marie_auth_t *a, int64_t seq, int cmd)
+{
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    marie_lifecycle_command_t m = {
+        .utime = marie_wall_us(), .request_id = ++next_id, .sender = "test", .target = (char *)b->who,
+        .command = (int8_t)cmd, .seq = seq,
+    };
+    if (a)
+        marie_auth_sign_command(a, &m, mac);
+    b->have_reply = 0;
+    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, &m);
+    int64_t end = marie_mono_us() + 5000000;
+    while (marie_mono_us() < end) {
+        lcm_handle_timeout(b->lcm, 20);
+        if (b->have_reply && b->reply.request_id == m.request_id)
+            return b->reply.ok ? 1 : 0;
+    }
+    return -1;
+}
+
+static void with_a_key_only_signed_fresh_orders_are_obeyed(void **state)
+{
+    char key[] = "/tmp/marie-test-key-XXXXXX", other[] = "/tmp/marie-test-key2-XXXXXX";
+    close(mkstemp(key));
+    close(mkstemp(other));
+    unlink(key);   /* keygen refuses to overwrite a file */
+    unlink(other);
+    assert_int_equal(marie_auth_keygen(key), 0);
+    assert_int_equal(marie_auth_keygen(other), 0);
+    char err[256];
+    marie_auth_t *good = marie_auth_load(key, err, sizeof err), *bad = marie_auth_load(other, err, sizeof err);
+    assert_non_null(good);
+    assert_non_null(bad);
+    bus_t b;
+    bus_open(&b, "guarded");
+    setenv("MARIE_KEY", key, 1);
+    pid_t pid = spawn("marie-example-producer", "guarded", "--param=rate_hz=20");
+    unsetenv("MARIE_KEY");
+    assert_true(wait_state(&b, MARIE_STATE_CREATED));
+    assert_int_equal(signed_order(&b, NULL, 0, MARIE_CMD_INIT), 0);
+    assert_string_equal(b.reply.reason, "order refused: unsigned");
+    assert_int_equal(signed_order(&b, bad, 10, MARIE_CMD_INIT), 0);
+    assert_string_equal(b.reply.reason, "order refused: forged");
+    assert_int_equal(b.reply.state, MARIE_STATE_CREATED);
+    assert_int_equal(signed_order(&b, good, 10, MARIE_CMD_INIT), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_READY);
+    /* The same sequence number again is a replay, even correctly signed. */
+    assert_int_equal(signed_order(&b, good, 10, MARIE_CMD_START), 0);
+    assert_string_equal(b.reply.reason, "order refused: replayed");
+    assert_int_equal(signed_order(&b, good, 11, MARIE_CMD_QUIT), 1);
+    int status;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    assert_int_equal(WEXITSTATUS(status), 0);
+    marie_auth_destroy(good);
+    marie_auth_destroy(bad);
+    unlink(key);
+    unlink(other);
+    bus_close(&b);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -316,6 +378,7 @@ int main(void)
         cmocka_unit_test(malformed_orders_are_answered_counted_and_survived),
         cmocka_unit_test(event_port_holds_notes_until_running_and_counts_losses),
         cmocka_unit_test(group_orders_reach_every_member),
+        cmocka_unit_test(with_a_key_only_signed_fresh_orders_are_obeyed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "managers/auth.h"
+#include "core/auth.h"
 #include "managers/lcmcheck.h"
 #include "managers/logcap.h"
 

@@ -10,7 +10,7 @@
 #include "core/config.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
-#include "managers/auth.h"
+#include "core/auth.h"
 
 static int64_t want_seq;
 static char answer[1100];

@@ -13,7 +13,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "managers/auth.h"
+#include "core/auth.h"
 
 static char dir[64];
 

@@ -16,7 +16,7 @@
 
 #include "core/component.h"
 #include "managers/am_proto.h"
-#include "managers/auth.h"
+#include "core/auth.h"
 #include "tools/viewer/lcmlog.h"
 #include "tools/viewer/vjson.h"
 

@@ -1,5 +1,5 @@
 /* auth: HMAC-SHA256 (libsodium) over encoded orders, key file checks, replay table. */
-#include "managers/auth.h"
+#include "core/auth.h"
 
 #include <errno.h>
 #include <fcntl.h>
