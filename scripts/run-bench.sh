@@ -14,7 +14,8 @@ for b in "$@"; do
         echo "bench: $name failed (see $B/bench/logs/$name.log)" >&2
         status=1
     fi
-    grep -P '^[^\t#]+\t[^\t]+\t' "$B/bench/logs/$name.tsv" >> "$out"
+    # Rows only: a tab-separated line whose first field is not a header or a comment.
+    grep -P '^[^\t#]+\t[^\t]+\t' "$B/bench/logs/$name.tsv" | grep -v -P '^bench\tmetric\t' >> "$out"
 done
 column -t -s "$(printf '\t')" "$out"
 echo "results: $out"
