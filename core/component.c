@@ -234,20 +234,6 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
     MARIE_LOG_AT(lvl, "event %s: %s", kind, text);
 }
 
-/* ---- checked decoding ----
- * lcm-gen's decoders trust string and array lengths from the wire (a string without its NUL
- * is read past its end; a huge count frees garbage on cleanup), so every payload from the bus
- * is checked against the type's descriptor first. */
-
-static int decode_checked(const marie_type_t *t, const void *data, size_t len, void *out)
-{
-    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(t->hash());
-    if (!ti || marie_typeinfo_check(ti, data, len) < 0 || len > INT32_MAX)
-        return -1;
-    memset(out, 0, t->size);
-    return t->decode(data, 0, (int)len, out) < 0 ? -1 : 0;
-}
-
 /* ---- lifecycle ---- */
 
 static void flush_event_queues(marie_component_t *c);
@@ -399,7 +385,7 @@ static void on_lifecycle(const lcm_recv_buf_t *rbuf, const char *channel, void *
 {
     marie_component_t *c = user;
     marie_lifecycle_command_t cmd;
-    if (decode_checked(&marie_type_lifecycle_command_t, rbuf->data, rbuf->data_size, &cmd) < 0) {
+    if (marie_decode_checked(&marie_type_lifecycle_command_t, rbuf->data, rbuf->data_size, &cmd) < 0) {
         marie_component_bad_input(c, "bad_lifecycle", "undecodable lifecycle command (%u bytes)", rbuf->data_size);
         reply(c, -1, 0, false, "malformed lifecycle command");
         return;
@@ -433,7 +419,7 @@ static void on_clock(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 {
     marie_component_t *c = user;
     marie_sim_clock_t clk;
-    if (decode_checked(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk) < 0) {
+    if (marie_decode_checked(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk) < 0) {
         marie_component_bad_input(c, "bad_clock", "undecodable clock message");
         return;
     }
@@ -483,7 +469,7 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
                                   p->channel, t->name);
         return -1;
     }
-    if (decode_checked(t, data, len, p->scratch) < 0) {
+    if (marie_decode_checked(t, data, len, p->scratch) < 0) {
         marie_component_bad_input(c, "bad_payload", "port %s: cannot decode %s (%zu bytes)", p->spec->name,
                                   t->name, len);
         return -1;
@@ -639,7 +625,7 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
 {
     marie_component_t *c = user;
     marie_pull_reply_t r;
-    if (decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0) {
+    if (marie_decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0) {
         marie_component_bad_input(c, "bad_pull_reply", "undecodable pull reply");
         return;
     }
@@ -664,7 +650,7 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
         status = -EBADMSG;
     } else if (t) {
         msg = pl->cb ? pl->port->scratch : pl->msg;
-        if (decode_checked(t, r.data, (size_t)r.size, msg) < 0) {
+        if (marie_decode_checked(t, r.data, (size_t)r.size, msg) < 0) {
             marie_component_bad_input(c, "bad_payload", "pull reply on %s: cannot decode %s", r.channel, t->name);
             status = -EBADMSG;
             msg = NULL;

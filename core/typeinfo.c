@@ -2,6 +2,7 @@
 #include "core/typeinfo.h"
 
 #include <errno.h>
+#include <stdint.h>
 #include <string.h>
 
 const marie_typeinfo_t *marie_typeinfo_find(const char *name)
@@ -120,5 +121,14 @@ int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
     if (!t || len < 8 || read_be(buf, 8) != t->fingerprint)
         return -EBADMSG;
     cursor_t c = {buf, len, 8};
-    return walk_struct(t, &c, 0) < 0 ? -EBADMSG : 0;
+    return walk_struct(t, &c, 0) < 0 || c.pos != len ? -EBADMSG : 0;
+}
+
+int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out)
+{
+    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(t->hash());
+    if (len > INT32_MAX || marie_typeinfo_check(ti, buf, len) < 0)
+        return -EBADMSG;
+    memset(out, 0, t->size);
+    return t->decode(buf, 0, (int)len, out) < 0 ? -EBADMSG : 0;
 }

@@ -6,6 +6,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "lcmtypes/marie_types.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -57,11 +59,15 @@ const marie_typeinfo_t *marie_typeinfo_find(const char *name);
 const marie_typeinfo_t *marie_typeinfo_by_fingerprint(int64_t fp);
 const char *marie_prim_name(marie_prim_t p);   /* "int32_t", ..., "struct" */
 
-/* Checks that buf holds a well-formed payload of type t (fingerprint first): every string is
- * NUL-terminated within its length, every array count is non-negative and fits the payload.
- * lcm-gen's C decoders trust both, so nothing from the bus is decoded before this passes.
- * Returns 0 or -EBADMSG. */
+/* Checks that buf holds exactly one well-formed payload of type t (fingerprint first): every
+ * string is NUL-terminated within its length, every array count is non-negative and fits the
+ * payload, and nothing trails it. lcm-gen's C decoders trust lengths, so nothing from the bus
+ * is decoded before this passes. Returns 0 or -EBADMSG. */
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len);
+
+/* Check a payload of the registered type t, then decode it into out (zeroed first; free with
+ * t->decode_cleanup). 0 or -EBADMSG. Every decoder of bus input calls this. */
+int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out);
 
 #ifdef __cplusplus
 }

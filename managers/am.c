@@ -31,9 +31,9 @@
 #include "lcmtypes/marie_lifecycle_command_t.h"
 #include "managers/am_proto.h"
 #include "core/auth.h"
-#include "managers/lcmcheck.h"
 #include "managers/logcap.h"
 #include "core/procstat.h"
+#include "core/typeinfo.h"
 
 /* The manager's view of a component. */
 typedef enum {
@@ -1527,8 +1527,7 @@ static void bad_message(am_t *am, const char *channel, const lcm_recv_buf_t *rbu
 static void on_raw_order(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     marie_am_order_t o;
-    if (marie_lcm_check(rbuf->data, rbuf->data_size, MARIE_LAYOUT_AM_ORDER) < 0 ||
-        marie_am_order_t_decode(rbuf->data, 0, (int)rbuf->data_size, &o) < 0) {
+    if (marie_decode_checked(&marie_type_am_order_t, rbuf->data, rbuf->data_size, &o) < 0) {
         bad_message(user, channel, rbuf);
         return;
     }
@@ -1539,8 +1538,7 @@ static void on_raw_order(const lcm_recv_buf_t *rbuf, const char *channel, void *
 static void on_raw_heartbeat(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     marie_heartbeat_t hb;
-    if (marie_lcm_check(rbuf->data, rbuf->data_size, MARIE_LAYOUT_HEARTBEAT) < 0 ||
-        marie_heartbeat_t_decode(rbuf->data, 0, (int)rbuf->data_size, &hb) < 0) {
+    if (marie_decode_checked(&marie_type_heartbeat_t, rbuf->data, rbuf->data_size, &hb) < 0) {
         bad_message(user, channel, rbuf);
         return;
     }
@@ -1551,8 +1549,7 @@ static void on_raw_heartbeat(const lcm_recv_buf_t *rbuf, const char *channel, vo
 static void on_raw_status(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     marie_am_status_t st;
-    if (marie_lcm_check(rbuf->data, rbuf->data_size, MARIE_LAYOUT_AM_STATUS) < 0 ||
-        marie_am_status_t_decode(rbuf->data, 0, (int)rbuf->data_size, &st) < 0) {
+    if (marie_decode_checked(&marie_type_am_status_t, rbuf->data, rbuf->data_size, &st) < 0) {
         bad_message(user, channel, rbuf);
         return;
     }

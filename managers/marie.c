@@ -21,7 +21,7 @@
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
 #include "core/auth.h"
-#include "managers/lcmcheck.h"
+#include "core/typeinfo.h"
 
 #define MAX_HOSTS 64
 
@@ -242,19 +242,18 @@ static bool pump(cli_t *cli, double seconds, bool (*done)(cli_t *))
 }
 
 /* Checked decoding: liblcm's decoders trust lengths from the wire. */
-#define RAW_HANDLER(fn, type, layout, typed)                                                   \
+#define RAW_HANDLER(fn, type, typed)                                                           \
     static void fn(const lcm_recv_buf_t *rbuf, const char *channel, void *user)                 \
     {                                                                                           \
-        type m;                                                                                 \
-        if (marie_lcm_check(rbuf->data, rbuf->data_size, layout) < 0 ||                         \
-            type##_decode(rbuf->data, 0, (int)rbuf->data_size, &m) < 0)                         \
+        marie_##type m;                                                                         \
+        if (marie_decode_checked(&marie_type_##type, rbuf->data, rbuf->data_size, &m) < 0)      \
             return;                                                                             \
         typed(rbuf, channel, &m, user);                                                         \
-        type##_decode_cleanup(&m);                                                              \
+        marie_##type##_decode_cleanup(&m);                                                      \
     }
-RAW_HANDLER(on_raw_status, marie_am_status_t, MARIE_LAYOUT_AM_STATUS, on_status)
-RAW_HANDLER(on_raw_reply, marie_am_reply_t, MARIE_LAYOUT_AM_REPLY, on_reply)
-RAW_HANDLER(on_raw_log, marie_log_line_t, MARIE_LAYOUT_LOG_LINE, on_log)
+RAW_HANDLER(on_raw_status, am_status_t, on_status)
+RAW_HANDLER(on_raw_reply, am_reply_t, on_reply)
+RAW_HANDLER(on_raw_log, log_line_t, on_log)
 
 static int cli_open(cli_t *cli)
 {

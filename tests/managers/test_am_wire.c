@@ -1,5 +1,5 @@
-/* test_lcmcheck: the layout check accepts every message the managers exchange, as encoded by
- * liblcm, and refuses truncated ones and lying lengths (which crash liblcm's decoder). */
+/* test_am_wire: the payload check (core/typeinfo) accepts every message the managers exchange,
+ * as encoded by liblcm, and refuses truncated ones and lying lengths (which crash liblcm's decoder). */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -11,7 +11,7 @@
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "managers/am_proto.h"
-#include "managers/lcmcheck.h"
+#include "core/typeinfo.h"
 
 #define ENCODE(type, msg, buf, n) do {                              \
         n = type##_encoded_size(msg);                               \
@@ -19,17 +19,19 @@
         assert_int_equal(type##_encode(buf, 0, n, msg), n);         \
     } while (0)
 
-static void expect_all_truncations_refused(const uint8_t *buf, int n, const char *layout)
+static void expect_all_truncations_refused(const uint8_t *buf, int n, const char *type)
 {
-    assert_int_equal(marie_lcm_check(buf, (size_t)n, layout), 0);
+    const marie_typeinfo_t *layout = marie_typeinfo_find(type);
+    assert_non_null(layout);
+    assert_int_equal(marie_typeinfo_check(layout, buf, (size_t)n), 0);
     /* a trailing byte is refused too */
     uint8_t *longer = malloc((size_t)n + 1);
     memcpy(longer, buf, (size_t)n);
     longer[n] = 0;
-    assert_int_not_equal(marie_lcm_check(longer, (size_t)n + 1, layout), 0);
+    assert_int_not_equal(marie_typeinfo_check(layout, longer, (size_t)n + 1), 0);
     free(longer);
     for (int cut = 0; cut < n; cut++)
-        assert_int_not_equal(marie_lcm_check(buf, (size_t)cut, layout), 0);
+        assert_int_not_equal(marie_typeinfo_check(layout, buf, (size_t)cut), 0);
 }
 
 static void test_order(void **state)
@@ -42,10 +44,10 @@ static void test_order(void **state)
     uint8_t *buf;
     int n;
     ENCODE(marie_am_order_t, &o, buf, n);
-    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_AM_ORDER);
+    expect_all_truncations_refused(buf, n, "am_order_t");
     /* a negative string length (sender's length field sits after fingerprint and utime) */
     buf[16] = 0xff;
-    assert_int_not_equal(marie_lcm_check(buf, (size_t)n, MARIE_LAYOUT_AM_ORDER), 0);
+    assert_int_not_equal(marie_typeinfo_check(marie_typeinfo_find("am_order_t"), buf, (size_t)n), 0);
     free(buf);
 }
 
@@ -61,7 +63,7 @@ static void test_status_with_components(void **state)
     uint8_t *buf;
     int n;
     ENCODE(marie_am_status_t, &st, buf, n);
-    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_AM_STATUS);
+    expect_all_truncations_refused(buf, n, "am_status_t");
     free(buf);
 }
 
@@ -72,20 +74,20 @@ static void test_reply_log_event_heartbeat(void **state)
     uint8_t *buf;
     int n;
     ENCODE(marie_am_reply_t, &r, buf, n);
-    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_AM_REPLY);
+    expect_all_truncations_refused(buf, n, "am_reply_t");
     free(buf);
     marie_log_line_t l = {.host = "h", .component = "c", .text = "hello"};
     ENCODE(marie_log_line_t, &l, buf, n);
-    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_LOG_LINE);
+    expect_all_truncations_refused(buf, n, "log_line_t");
     free(buf);
     marie_event_t e = {.source = "s", .kind = "k", .text = "t"};
     ENCODE(marie_event_t, &e, buf, n);
-    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_EVENT);
+    expect_all_truncations_refused(buf, n, "event_t");
     free(buf);
     marie_counter_t counters[2] = {{.name = "x", .value = 1}, {.name = "yy", .value = 2}};
     marie_heartbeat_t hb = {.component = "c", .host = "h", .reason = "", .ncounters = 2, .counters = counters};
     ENCODE(marie_heartbeat_t, &hb, buf, n);
-    expect_all_truncations_refused(buf, n, MARIE_LAYOUT_HEARTBEAT);
+    expect_all_truncations_refused(buf, n, "heartbeat_t");
     free(buf);
 }
 
@@ -99,9 +101,9 @@ static void test_huge_count_refused(void **state)
     /* ntargets follows fingerprint(8) utime(8) sender(4+2) seq(8) host(4+2) op(1) */
     int at = 8 + 8 + 6 + 8 + 6 + 1;
     buf[at] = 0x7f;
-    assert_int_not_equal(marie_lcm_check(buf, (size_t)n, MARIE_LAYOUT_AM_ORDER), 0);
+    assert_int_not_equal(marie_typeinfo_check(marie_typeinfo_find("am_order_t"), buf, (size_t)n), 0);
     buf[at] = 0x80;
-    assert_int_not_equal(marie_lcm_check(buf, (size_t)n, MARIE_LAYOUT_AM_ORDER), 0);
+    assert_int_not_equal(marie_typeinfo_check(marie_typeinfo_find("am_order_t"), buf, (size_t)n), 0);
     free(buf);
 }
 
