@@ -34,38 +34,11 @@ int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t 
     return 0;
 }
 
-const marie_type_t *ca_type_lookup(const char *name)
-{
-    if (!name || !*name)
-        return NULL;
-    for (size_t i = 0; marie_types[i]; i++) {
-        const char *tn = marie_types[i]->name;
-        if (strcmp(tn, name) == 0)
-            return marie_types[i];
-        /* "marie." prefix optional */
-        if (strncmp(tn, "marie.", 6) == 0 && strcmp(tn + 6, name) == 0)
-            return marie_types[i];
-    }
-    return NULL;
-}
-
-const marie_type_t *ca_type_by_fingerprint(int64_t fp)
-{
-    for (size_t i = 0; marie_types[i]; i++)
-        if (marie_types[i]->hash() == fp)
-            return marie_types[i];
-    return NULL;
-}
-
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp)
 {
     if (!raw || len < 8)
         return -EBADMSG;
-    const uint8_t *p = raw;
-    uint64_t v = 0;
-    for (int i = 0; i < 8; i++)
-        v = (v << 8) | p[i];
-    *fp = (int64_t)v;
+    *fp = marie_payload_fingerprint(raw, len);
     return 0;
 }
 

@@ -8,6 +8,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "lcmtypes/marie_pull_reply_t.h"
 #include "lcmtypes/marie_pull_request_t.h"
@@ -47,12 +48,6 @@ typedef struct {
 void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64_t n,
              const char *fmt, ...) __attribute__((format(printf, 5, 6)));
 int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t len);
-
-/* The registered marie type called `name` ("marie.pose2d_t"; "pose2d_t" is accepted too),
- * or NULL. */
-const marie_type_t *ca_type_lookup(const char *name);
-/* The registered type whose fingerprint is `fp`, or NULL. */
-const marie_type_t *ca_type_by_fingerprint(int64_t fp);
 
 /* The big-endian fingerprint that starts every LCM payload; -EBADMSG when len < 8. */
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp);

@@ -71,7 +71,7 @@ static int param_type(ca_proc_t *p, const char *name, const marie_type_t **out)
     *out = NULL;
     if (!*name)
         return 0;
-    if (!(*out = ca_type_lookup(name))) {
+    if (!(*out = marie_type_find(name))) {
         marie_component_fail_reason(p->c, "type: unknown LCM type '%s'", name);
         return -1;
     }

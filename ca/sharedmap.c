@@ -419,7 +419,7 @@ int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void
         return -EINVAL;
     if (len > SHAREDMAP_MAX_VALUE)
         return -EFBIG;
-    const marie_type_t *t = ca_type_lookup(type);
+    const marie_type_t *t = marie_type_find(type);
     if (t && ca_check_type(t, data, len) < 0)
         return -EBADMSG;
     int rc = grow(sm, record_size(klen, tlen, len));

@@ -442,17 +442,6 @@ static void on_signal(marie_loop_t *loop, int signo, void *user)
 
 /* ---- ports ---- */
 
-static int64_t payload_fingerprint(const void *data, size_t len)
-{
-    const uint8_t *p = data;
-    if (len < 8)
-        return 0;
-    uint64_t v = 0;
-    for (int i = 0; i < 8; i++)
-        v = v << 8 | p[i];
-    return (int64_t)v;
-}
-
 /* Decodes a payload for port p; on success calls the handler. Returns 0 or -1 (counted). */
 static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_utime)
 {
@@ -464,7 +453,7 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
         p->cb(c, p, NULL, &info);
         return 0;
     }
-    if (payload_fingerprint(data, len) != t->hash()) {
+    if (marie_payload_fingerprint(data, len) != t->hash()) {
         marie_component_bad_input(c, "bad_fingerprint", "port %s: payload on %s is not a %s", p->spec->name,
                                   p->channel, t->name);
         return -1;
@@ -645,7 +634,7 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
         status = -ENODATA;
     } else if (r.status != MARIE_PULL_REPLY_T_STATUS_OK) {
         status = r.status == MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL ? -ENOENT : -EBADMSG;
-    } else if (t && payload_fingerprint(r.data, (size_t)r.size) != t->hash()) {
+    } else if (t && marie_payload_fingerprint(r.data, (size_t)r.size) != t->hash()) {
         marie_component_bad_input(c, "bad_fingerprint", "pull reply on %s is not a %s", r.channel, t->name);
         status = -EBADMSG;
     } else if (t) {

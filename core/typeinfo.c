@@ -23,6 +23,24 @@ const marie_typeinfo_t *marie_typeinfo_by_fingerprint(int64_t fp)
     return NULL;
 }
 
+const marie_type_t *marie_type_find(const char *name)
+{
+    for (size_t i = 0; name && *name && marie_types[i]; i++) {
+        const char *tn = marie_types[i]->name;
+        if (strcmp(tn, name) == 0 || (strncmp(tn, "marie.", 6) == 0 && strcmp(tn + 6, name) == 0))
+            return marie_types[i];
+    }
+    return NULL;
+}
+
+const marie_type_t *marie_type_by_fingerprint(int64_t fp)
+{
+    for (size_t i = 0; marie_types[i]; i++)
+        if (marie_types[i]->hash() == fp)
+            return marie_types[i];
+    return NULL;
+}
+
 const char *marie_prim_name(marie_prim_t p)
 {
     static const char *const names[] = {"int8_t", "int16_t", "int32_t", "int64_t", "byte",
@@ -114,6 +132,11 @@ static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
                 return -1;
     }
     return 0;
+}
+
+int64_t marie_payload_fingerprint(const void *buf, size_t len)
+{
+    return len < 8 ? 0 : read_be(buf, 8);
 }
 
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)

@@ -65,6 +65,13 @@ const char *marie_prim_name(marie_prim_t p);   /* "int32_t", ..., "struct" */
  * is decoded before this passes. Returns 0 or -EBADMSG. */
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len);
 
+/* The registered type called `name` ("marie.pose2d_t", or "pose2d_t"), or NULL. */
+const marie_type_t *marie_type_find(const char *name);
+/* The registered type whose fingerprint is `fp`, or NULL. */
+const marie_type_t *marie_type_by_fingerprint(int64_t fp);
+/* The big-endian fingerprint that starts every LCM payload; 0 when len < 8. */
+int64_t marie_payload_fingerprint(const void *buf, size_t len);
+
 /* Check a payload of the registered type t, then decode it into out (zeroed first; free with
  * t->decode_cleanup). 0 or -EBADMSG. Every decoder of bus input calls this. */
 int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out);

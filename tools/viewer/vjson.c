@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/typeinfo.h"
+
 void vj_init(vj_buf_t *b)
 {
     memset(b, 0, sizeof *b);
@@ -157,16 +159,7 @@ void vj_base64(vj_buf_t *b, const void *data, size_t n)
 
 const marie_type_t *vj_type_of(const void *data, size_t len)
 {
-    if (len < 8)
-        return NULL;
-    const uint8_t *p = data;
-    uint64_t v = 0;
-    for (int i = 0; i < 8; i++)
-        v = v << 8 | p[i];
-    for (size_t i = 0; marie_types[i]; i++)
-        if ((uint64_t)marie_types[i]->hash() == v)
-            return marie_types[i];
-    return NULL;
+    return len < 8 ? NULL : marie_type_by_fingerprint(marie_payload_fingerprint(data, len));
 }
 
 /* ---- per-type encoders: each appends `,"k":KIND` and its fields ---- */
