@@ -84,22 +84,50 @@ static int wait_state(bus_t *b, int state)
 
 static int64_t next_id = 100;
 
-/* Sends a command and waits for the reply to it. Returns 1 if accepted, 0 if refused, -1 on no reply. */
-static int order(bus_t *b, const char *target, int cmd)
+/* Waits for the reply to request `id` (-1: any reply). 1 accepted, 0 refused, -1 no reply in 5 s. */
+static int wait_reply(bus_t *b, int64_t id)
 {
-    marie_lifecycle_command_t m = {
-        .utime = marie_wall_us(), .request_id = ++next_id, .sender = "test", .target = (char *)target,
-        .command = (int8_t)cmd,
-    };
-    b->have_reply = 0;
-    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, &m);
     int64_t end = marie_mono_us() + 5000000;
     while (marie_mono_us() < end) {
         lcm_handle_timeout(b->lcm, 20);
-        if (b->have_reply && b->reply.request_id == m.request_id)
+        if (b->have_reply && (id < 0 || b->reply.request_id == id))
             return b->reply.ok ? 1 : 0;
     }
     return -1;
+}
+
+/* Sends a command, signed with `a` unless it is NULL, and waits for the reply to it. */
+static int send_order(bus_t *b, const char *target, marie_auth_t *a, int64_t seq, int cmd)
+{
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    marie_lifecycle_command_t m = {
+        .utime = marie_wall_us(), .request_id = ++next_id, .sender = "test", .target = (char *)target,
+        .command = (int8_t)cmd, .seq = seq,
+    };
+    if (a)
+        marie_auth_sign_command(a, &m, mac);
+    b->have_reply = 0;
+    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, &m);
+    return wait_reply(b, m.request_id);
+}
+
+static int order(bus_t *b, const char *target, int cmd)
+{
+    return send_order(b, target, NULL, 0, cmd);
+}
+
+/* The value of a named counter in the last heartbeat, -1 when absent. */
+static int64_t counter_of(const bus_t *b, const char *name)
+{
+    for (int i = 0; i < b->hb.ncounters; i++)
+        if (strcmp(b->hb.counters[i].name, name) == 0)
+            return b->hb.counters[i].value;
+    return -1;
+}
+
+static void expect_clean_exit(pid_t pid)
+{
+    expect_clean_exit(pid);
 }
 
 /* Runs $B/bin/PROG with the given arguments (NULL-terminated). */
@@ -202,10 +230,7 @@ static void eight_management_functions_over_lcm(void **state)
 
     assert_int_equal(order(&b, "prod", MARIE_CMD_QUIT), 1);
     assert_int_equal(b.reply.state, MARIE_STATE_EXITED);
-    int status;
-    assert_int_equal(waitpid(pid, &status, 0), pid);
-    assert_true(WIFEXITED(status));
-    assert_int_equal(WEXITSTATUS(status), 0);
+    expect_clean_exit(pid);
     assert_true(wait_state(&b, MARIE_STATE_EXITED));
     bus_close(&b);
 }
@@ -220,11 +245,7 @@ static void malformed_orders_are_answered_counted_and_survived(void **state)
     static const unsigned char junk[] = {0xde, 0xad, 0xbe, 0xef, 1, 2, 3};
     b.have_reply = 0;
     lcm_publish(b.lcm, MARIE_CH_LIFECYCLE, junk, sizeof junk);
-    int64_t end = marie_mono_us() + 5000000;
-    while (!b.have_reply && marie_mono_us() < end)
-        lcm_handle_timeout(b.lcm, 20);
-    assert_true(b.have_reply);
-    assert_false(b.reply.ok);
+    assert_int_equal(wait_reply(&b, -1), 0);
     assert_string_equal(b.reply.reason, "malformed lifecycle command");
     /* An unknown command number is refused. */
     assert_int_equal(order(&b, "prod2", 42), 0);
@@ -235,17 +256,10 @@ static void malformed_orders_are_answered_counted_and_survived(void **state)
     assert_int_equal(order(&b, "prod2", MARIE_CMD_INIT), 1);
     pump(&b, 1100);
     assert_true(b.hb.bad_input >= 2);
-    int found = 0;
-    for (int i = 0; i < b.hb.ncounters; i++)
-        if (strcmp(b.hb.counters[i].name, "bad_lifecycle") == 0 && b.hb.counters[i].value >= 2)
-            found = 1;
-    assert_true(found);
+    assert_true(counter_of(&b, "bad_lifecycle") >= 2);
     /* SIGTERM is quit: exit status 0 and a last heartbeat saying exited. */
     kill(pid, SIGTERM);
-    int status;
-    assert_int_equal(waitpid(pid, &status, 0), pid);
-    assert_true(WIFEXITED(status));
-    assert_int_equal(WEXITSTATUS(status), 0);
+    expect_clean_exit(pid);
     assert_true(wait_state(&b, MARIE_STATE_EXITED));
     bus_close(&b);
 }
@@ -267,26 +281,17 @@ static void event_port_holds_notes_until_running_and_counts_losses(void **state)
     pump(&b, 200);
     assert_int_equal(order(&b, "cons", MARIE_CMD_START), 1);
     pump(&b, 1200);
-    int64_t notes = -1, lost = -1;
-    for (int i = 0; i < b.hb.ncounters; i++) {
-        if (strcmp(b.hb.counters[i].name, "notes") == 0)
-            notes = b.hb.counters[i].value;
-        if (strcmp(b.hb.counters[i].name, "events_lost") == 0)
-            lost = b.hb.counters[i].value;
-    }
-    assert_int_equal(notes, 256);
-    assert_int_equal(lost, 44);
+    assert_int_equal(counter_of(&b, "notes"), 256);
+    assert_int_equal(counter_of(&b, "events_lost"), 44);
     assert_int_equal(b.hb.drops, 44);
-    /* Push messages that arrive while not running are not queued. */
     assert_int_equal(order(&b, "cons", MARIE_CMD_QUIT), 1);
-    int status;
-    waitpid(pid, &status, 0);
+    waitpid(pid, NULL, 0);
     bus_close(&b);
 }
 
 static void group_orders_reach_every_member(void **state)
 {
-    /* Two producers in one group of a system file; one order to the group moves both. */
+    /* A producer and a consumer in one group of a system file; one order to the group moves both. */
     bus_t a, c;
     bus_open(&a, "producer");
     bus_open(&c, "consumer");
@@ -301,34 +306,10 @@ static void group_orders_reach_every_member(void **state)
     assert_true(wait_state(&a, MARIE_STATE_READY));
     assert_true(wait_state(&c, MARIE_STATE_READY));
     order(&a, "*", MARIE_CMD_QUIT);
-    int status;
-    waitpid(p1, &status, 0);
-    assert_int_equal(WEXITSTATUS(status), 0);
-    waitpid(p2, &status, 0);
-    assert_int_equal(WEXITSTATUS(status), 0);
+    expect_clean_exit(p1);
+    expect_clean_exit(p2);
     bus_close(&a);
     bus_close(&c);
-}
-
-/* Sends a command signed with `a` (NULL: unsigned) with the given sequence number. */
-static int signed_order(bus_t *b, marie_auth_t *a, int64_t seq, int cmd)
-{
-    uint8_t mac[MARIE_AUTH_MAC_LEN];
-    marie_lifecycle_command_t m = {
-        .utime = marie_wall_us(), .request_id = ++next_id, .sender = "test", .target = (char *)b->who,
-        .command = (int8_t)cmd, .seq = seq,
-    };
-    if (a)
-        marie_auth_sign_command(a, &m, mac);
-    b->have_reply = 0;
-    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, &m);
-    int64_t end = marie_mono_us() + 5000000;
-    while (marie_mono_us() < end) {
-        lcm_handle_timeout(b->lcm, 20);
-        if (b->have_reply && b->reply.request_id == m.request_id)
-            return b->reply.ok ? 1 : 0;
-    }
-    return -1;
 }
 
 static void with_a_key_only_signed_fresh_orders_are_obeyed(void **state)
@@ -350,20 +331,18 @@ static void with_a_key_only_signed_fresh_orders_are_obeyed(void **state)
     pid_t pid = spawn("marie-example-producer", "guarded", "--param=rate_hz=20");
     unsetenv("MARIE_KEY");
     assert_true(wait_state(&b, MARIE_STATE_CREATED));
-    assert_int_equal(signed_order(&b, NULL, 0, MARIE_CMD_INIT), 0);
+    assert_int_equal(send_order(&b, "guarded", NULL, 0, MARIE_CMD_INIT), 0);
     assert_string_equal(b.reply.reason, "order refused: unsigned");
-    assert_int_equal(signed_order(&b, bad, 10, MARIE_CMD_INIT), 0);
+    assert_int_equal(send_order(&b, "guarded", bad, 10, MARIE_CMD_INIT), 0);
     assert_string_equal(b.reply.reason, "order refused: forged");
     assert_int_equal(b.reply.state, MARIE_STATE_CREATED);
-    assert_int_equal(signed_order(&b, good, 10, MARIE_CMD_INIT), 1);
+    assert_int_equal(send_order(&b, "guarded", good, 10, MARIE_CMD_INIT), 1);
     assert_int_equal(b.reply.state, MARIE_STATE_READY);
     /* The same sequence number again is a replay, even correctly signed. */
-    assert_int_equal(signed_order(&b, good, 10, MARIE_CMD_START), 0);
+    assert_int_equal(send_order(&b, "guarded", good, 10, MARIE_CMD_START), 0);
     assert_string_equal(b.reply.reason, "order refused: replayed");
-    assert_int_equal(signed_order(&b, good, 11, MARIE_CMD_QUIT), 1);
-    int status;
-    assert_int_equal(waitpid(pid, &status, 0), pid);
-    assert_int_equal(WEXITSTATUS(status), 0);
+    assert_int_equal(send_order(&b, "guarded", good, 11, MARIE_CMD_QUIT), 1);
+    expect_clean_exit(pid);
     marie_auth_destroy(good);
     marie_auth_destroy(bad);
     unlink(key);
