@@ -127,7 +127,10 @@ static int64_t counter_of(const bus_t *b, const char *name)
 
 static void expect_clean_exit(pid_t pid)
 {
-    expect_clean_exit(pid);
+    int status;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    assert_true(WIFEXITED(status));
+    assert_int_equal(WEXITSTATUS(status), 0);
 }
 
 /* Runs $B/bin/PROG with the given arguments (NULL-terminated). */
