@@ -34,6 +34,14 @@ int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t 
     return 0;
 }
 
+int ca_bad_request(const ca_sink_t *s, const char *where, const char *what, const void *buf, size_t len)
+{
+    ca_note(s, CA_NOTE_BAD_INPUT, "bad_request", 1, "%s%sundecodable %s (%zu bytes, fingerprint %016llx)",
+            where ? where : "", where ? ": " : "", what, len,
+            (unsigned long long)marie_payload_fingerprint(buf, len));
+    return -EBADMSG;
+}
+
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp)
 {
     if (!raw || len < 8)

@@ -48,6 +48,9 @@ typedef struct {
 void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64_t n,
              const char *fmt, ...) __attribute__((format(printf, 5, 6)));
 int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t len);
+/* Counts (counter bad_request) and reports an undecodable request: "[where: ]undecodable
+ * WHAT (N bytes, fingerprint F)". Returns -EBADMSG for the caller to pass on. */
+int ca_bad_request(const ca_sink_t *s, const char *where, const char *what, const void *buf, size_t len);
 
 /* The big-endian fingerprint that starts every LCM payload; -EBADMSG when len < 8. */
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp);

@@ -263,12 +263,7 @@ int mailbox_handle_request_raw(mailbox_t *mb, const void *buf, size_t len, int64
     marie_pull_request_t req;
     if (ca_view_pull_request(buf, len, &req) < 0) {
         mb->stats.bad_requests++;
-        int64_t fp = 0;
-        ca_fingerprint(buf, len, &fp);
-        ca_note(&mb->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
-                "%s: undecodable pull request (%zu bytes, fingerprint %016llx)", mb->pull_channel,
-                len, (unsigned long long)fp);
-        return -EBADMSG;
+        return ca_bad_request(&mb->sink, mb->pull_channel, "pull request", buf, len);
     }
     return mailbox_handle_request(mb, &req, now);
 }

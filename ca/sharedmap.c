@@ -639,12 +639,7 @@ int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, i
     marie_sharedmap_request_t req;
     if (ca_view_sharedmap_request(buf, len, &req) < 0) {
         sm->stats.bad_requests++;
-        int64_t fp = 0;
-        ca_fingerprint(buf, len, &fp);
-        ca_note(&sm->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
-                "undecodable SharedMap request (%zu bytes, fingerprint %016llx)", len,
-                (unsigned long long)fp);
-        return -EBADMSG;
+        return ca_bad_request(&sm->sink, NULL, "SharedMap request", buf, len);
     }
     return sharedmap_handle_request(sm, &req, now);
 }

@@ -257,12 +257,7 @@ int ca_switch_handle_select_raw(ca_switch_t *sw, const void *buf, size_t len, in
     marie_switch_select_t req;
     if (ca_view_switch_select(buf, len, &req) < 0) {
         sw->stats.bad_requests++;
-        int64_t fp = 0;
-        ca_fingerprint(buf, len, &fp);
-        ca_note(&sw->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
-                "undecodable selection request (%zu bytes, fingerprint %016llx)", len,
-                (unsigned long long)fp);
-        return -EBADMSG;
+        return ca_bad_request(&sw->sink, NULL, "selection request", buf, len);
     }
     return ca_switch_handle_select(sw, &req, now);
 }
