@@ -23,6 +23,7 @@
 #include <opencv2/imgproc.hpp>
 
 extern "C" {
+#include "adapters/common/occmap.h"
 #include "core/config.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
@@ -337,7 +338,7 @@ void Demo::estop_tick()
 
 bool Demo::load_map()
 {
-    // The world named in the simulator's parameters of the loaded system file.
+    // The map the localizer is given in the loaded system file.
     marie_errors_t e = {};
     marie_system_t *sys = marie_system_load(opt_.system.c_str(), opt_.profile.c_str(), &e);
     if (!sys) {
@@ -347,29 +348,27 @@ bool Demo::load_map()
     }
     std::string yaml = "sim/worlds/office.yaml";
     const marie_component_cfg_t *loc = marie_system_component(sys, "localizer");
-    const marie_node_t *m = loc ? marie_node_get(loc->params, "map") : nullptr;
-    if (m && m->value)
-        yaml = m->value;
+    const marie_node_t *given = loc ? marie_node_get(loc->params, "map") : nullptr;
+    if (given && given->value)
+        yaml = given->value;
     marie_system_destroy(sys);
-    marie_doc_t *doc = marie_doc_load(yaml.c_str(), &e);
-    if (!doc) {
+    occmap_t *m = occmap_load(yaml.c_str(), &e);
+    if (!m) {
         marie_errors_print(&e, stderr);
         marie_errors_clear(&e);
         return false;
     }
-    const marie_node_t *root = marie_doc_root(doc), *img = marie_node_get(root, "image");
-    const marie_node_t *res = marie_node_get(root, "resolution"), *org = marie_node_get(root, "origin");
-    std::string dir = yaml.substr(0, yaml.find_last_of('/') + 1);
-    if (img && img->value)
-        map_ = cv::imread(dir + img->value, cv::IMREAD_GRAYSCALE);
-    if (res)
-        marie_node_double(res, &res_, &e);
-    if (org && org->n >= 2) {
-        marie_node_double(org->items[0], &ox_, &e);
-        marie_node_double(org->items[1], &oy_, &e);
-    }
-    marie_doc_destroy(doc);
-    marie_errors_clear(&e);
+    // Image row 0 is the map's top row; free white, walls black, unknown grey.
+    map_.create(m->height, m->width, CV_8UC1);
+    for (int cy = 0; cy < m->height; cy++)
+        for (int cx = 0; cx < m->width; cx++) {
+            int8_t v = occmap_get(m, cx, cy);
+            map_.at<uint8_t>(m->height - 1 - cy, cx) = v == OCCMAP_FREE ? 255 : v == OCCMAP_UNKNOWN ? 205 : 0;
+        }
+    res_ = m->resolution;
+    ox_ = m->origin_x;
+    oy_ = m->origin_y;
+    occmap_destroy(m);
     return !map_.empty();
 }
 
