@@ -16,9 +16,11 @@ if command -v systemd-analyze > /dev/null; then
 else
     echo "systemd-analyze not installed: verify skipped"
 fi
+# The real install into a scratch root: the unit lands there, naming the installed binary.
 install_step() {
-    make -s --no-print-directory --eval 'marie-show-install: ; $(info $(value INSTALL_EXTRA))@:' marie-show-install |
-        grep -q 'deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service'
+    make -s --no-print-directory install DESTDIR="$T/root" PREFIX=/usr > "$T/install.log" 2>&1 &&
+        grep -q '^ExecStart=/usr/bin/marie-am ' "$T/root/usr/lib/systemd/system/marie-am.service" &&
+        test -x "$T/root/usr/bin/marie-am"
 }
 check "make install installs the unit" install_step
 finish
