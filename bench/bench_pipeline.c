@@ -4,17 +4,16 @@
  * round trip, the decision and the motor command. Add the laser's hop into the Mailbox (one
  * LCM hop, measured here on the same bus) for the whole path. */
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <lcm/lcm.h>
 
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
+#include "tests/proc.h"
 
 #define MAXS 4096
 
@@ -64,17 +63,6 @@ static double pct(series_t *s, double p)
     return (double)s->v[(int)(p * (s->n - 1) + 0.5)];
 }
 
-static pid_t spawn(char *const argv[])
-{
-    pid_t pid = fork();
-    if (pid == 0) {
-        freopen("/dev/null", "w", stderr);
-        execv(argv[0], argv);
-        _exit(127);
-    }
-    return pid;
-}
-
 int main(void)
 {
     const char *b = getenv("B") ? getenv("B") : "build";
@@ -86,9 +74,9 @@ int main(void)
                         "{channel: LASER, type: marie.laser_scan_t}, {channel: ESTOP, type: marie.estop_t}]",
                         NULL};
     char *beh_argv[] = {beh, "--name", "behaviours", "--param", "input_mode=pull", NULL};
-    pid_t pm = spawn(mbx_argv);
+    pid_t pm = test_spawn(mbx_argv, "/dev/null");
     usleep(300000);
-    pid_t pb = spawn(beh_argv);
+    pid_t pb = test_spawn(beh_argv, "/dev/null");
     lcm_t *tx = lcm_create(NULL), *rx = lcm_create(NULL);
     lcm_subscribe(rx, "LASER.PULL", on_pull, NULL);
     lcm_subscribe(rx, "MOTOR_COMMAND", on_cmd, NULL);
@@ -120,10 +108,8 @@ int main(void)
         }
         lcm_handle_timeout(rx, 2);
     }
-    kill(pb, SIGTERM);
-    kill(pm, SIGTERM);
-    waitpid(pb, NULL, 0);
-    waitpid(pm, NULL, 0);
+    test_stop(pb);
+    test_stop(pm);
     double t50 = pct(&tick_to_cmd, 0.5), t99 = pct(&tick_to_cmd, 0.99);
     double h50 = pct(&hop, 0.5), h99 = pct(&hop, 0.99);
     printf("pipeline\tcycles_measured\t%d\tcycles\t-\t-\n", tick_to_cmd.n);

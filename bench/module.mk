@@ -1,3 +1,3 @@
 # bench: benchmarks that span several components.
-$(eval $(call marie_bench,bench_pipeline,bench/bench_pipeline.c))
+$(eval $(call marie_bench,bench_pipeline,bench/bench_pipeline.c tests/proc.c))
 BENCHES += bench/bench_demo.sh

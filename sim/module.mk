@@ -14,7 +14,7 @@ $(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c,$(SIM_LIB) $(
 $(eval $(call marie_bench,bench_sim,sim/bench_sim.c,$(SIM_LIB) $(ODE_LIBS)))
 $(B)/bench/bench_sim: | $(B)/bin/marie-sim
 
-$(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c,))
+$(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c tests/proc.c,))
 # The device-mode case runs the real drivers against the simulator.
 $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
 

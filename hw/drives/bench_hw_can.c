@@ -6,7 +6,6 @@
 #include <math.h>
 #include <poll.h>
 #include <signal.h>
-#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,8 +18,8 @@
 #include "hw/can/can.h"
 #include "lcmtypes/marie_motor_command_t.h"
 #include "lcmtypes/marie_wheel_encoders_t.h"
+#include "tests/proc.h"
 
-extern char **environ;
 static char bindir[256];
 static int enc_ok;
 
@@ -34,27 +33,7 @@ static pid_t spawn(const char *name, char *const args[])
     for (int i = 0; args[i] && n < 15; i++)
         argv[n++] = args[i];
     argv[n] = NULL;
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-    pid_t pid;
-    int r = posix_spawn(&pid, path, &fa, NULL, argv, environ);
-    posix_spawn_file_actions_destroy(&fa);
-    return r == 0 ? pid : -1;
-}
-
-static void stop(pid_t pid)
-{
-    if (pid <= 0)
-        return;
-    kill(pid, SIGTERM);
-    for (int i = 0; i < 30; i++) {
-        if (waitpid(pid, NULL, WNOHANG) == pid)
-            return;
-        usleep(100000);
-    }
-    kill(pid, SIGKILL);
-    waitpid(pid, NULL, 0);
+    return test_spawn(argv, "/dev/null");
 }
 
 static void on_enc(const lcm_recv_buf_t *rb, const char *ch, const marie_wheel_encoders_t *m, void *u)
@@ -183,10 +162,10 @@ out_sub:
     marie_wheel_encoders_t_unsubscribe(lcm, se);
 out:
     can_bus_close(spy);
-    stop(gyr);
-    stop(drv);
-    stop(dev);
-    stop(bus);
+    test_stop(gyr);
+    test_stop(drv);
+    test_stop(dev);
+    test_stop(bus);
     if (lcm)
         lcm_destroy(lcm);
     unlink(sock);

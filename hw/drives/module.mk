@@ -8,7 +8,7 @@ VDEVICES_LIB := $(B)/lib/libmarie_vdevices.a
 $(eval $(call marie_lib,marie_vdevices,hw/drives/vdevices.c))
 $(eval $(call marie_program,marie-vcan-devices,hw/drives/vcan_devices_main.c,$(VDEVICES_LIB) $(DRIVES_LIB) $(B)/lib/libmarie_gyro.a $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a))
 # Needs the programs: built first by make all; by hand, build them before this test.
-$(eval $(call marie_test,test_drives_emu,tests/hw/test_drives_emu.c,$(B)/lib/libmarie_can.a))
+$(eval $(call marie_test,test_drives_emu,tests/hw/test_drives_emu.c tests/proc.c,$(B)/lib/libmarie_can.a))
 $(B)/tests/test_drives_emu: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro
 # The VM test: marie-drives and marie-gyro on real SocketCAN (vcan0) inside qemu.
 $(eval $(call marie_link,$(B)/tests/vm/hw_vm_check,tests/hw/vm_check.c,))
@@ -17,7 +17,7 @@ EXTRA_TARGETS += $(B)/tests/vm/hw_vm_check $(B)/tests/vm/vm_socketcan
 VMTESTS += tests/hw/test_vm_can.sh
 # ~25 s here (boot ~6 s); also part of make test.
 ITESTS += tests/hw/test_vm_can.sh
-$(eval $(call marie_bench,bench_hw_can,hw/drives/bench_hw_can.c,$(B)/lib/libmarie_can.a))
+$(eval $(call marie_bench,bench_hw_can,hw/drives/bench_hw_can.c tests/proc.c,$(B)/lib/libmarie_can.a))
 $(B)/bench/bench_hw_can: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro
 # For programs hosting the virtual devices (the simulator's device mode): link these.
 HW_VDEVICES_LIBS := $(VDEVICES_LIB) $(DRIVES_LIB) $(B)/lib/libmarie_gyro.a $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a

@@ -2,11 +2,9 @@
  * marie-vlms200 over a pty at the LMS200's nominal rate. TSV rows on stdout. */
 #include <errno.h>
 #include <poll.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <lcm/lcm.h>
@@ -15,6 +13,7 @@
 #include "core/time.h"
 #include "hw/lms200/lms200.h"
 #include "lcmtypes/marie_laser_scan_t.h"
+#include "tests/proc.h"
 
 static void row(const char *bench, const char *metric, double value, const char *unit)
 {
@@ -58,31 +57,6 @@ static void bench_parse(void)
     lms200_parser_destroy(p);
 }
 
-static pid_t spawn(char *const argv[])
-{
-    pid_t pid = fork();
-    if (pid == 0) {
-        execv(argv[0], argv);
-        _exit(127);
-    }
-    return pid;
-}
-
-static void stop(pid_t pid)
-{
-    kill(pid, SIGTERM);
-    for (int i = 0; i < 50; i++) {
-        if (waitpid(pid, NULL, WNOHANG) == pid)
-            return;
-        usleep(20000);
-    }
-    kill(pid, SIGKILL);
-    waitpid(pid, NULL, 0);
-}
-
-
-
-
 static long bus_scans;
 static void on_scan(const lcm_recv_buf_t *rb, const char *ch, const marie_laser_scan_t *m, void *user)
 {
@@ -101,11 +75,11 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
     snprintf(dev, sizeof dev, "device=%s", link);
     snprintf(resp, sizeof resp, "resolution=%s", res);
     char *eargv[] = { emu, "--link", link, "--rate", (char *)rate, NULL };
-    pid_t pe = spawn(eargv);
+    pid_t pe = test_spawn(eargv, NULL);
     for (int i = 0; i < 100 && access(link, F_OK) != 0; i++)
         usleep(20000);
     char *dargv[] = { drv, "--param", dev, "--param", "baud=500000", "--param", resp, NULL };
-    pid_t pd = spawn(dargv);
+    pid_t pd = test_spawn(dargv, NULL);
     lcm_t *lcm = lcm_create(NULL);
     marie_laser_scan_t_subscription_t *sub = marie_laser_scan_t_subscribe(lcm, "LASER", on_scan, NULL);
     /* Warm up until streaming, then measure over a fixed window. */
@@ -143,8 +117,8 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
     }
     marie_laser_scan_t_unsubscribe(lcm, sub);
     lcm_destroy(lcm);
-    stop(pd);
-    stop(pe);
+    test_stop(pd);
+    test_stop(pe);
     char tmp[200];
     snprintf(tmp, sizeof tmp, "%s.tmp%d", link, (int)pe);
     unlink(tmp);

@@ -9,11 +9,11 @@ $(eval $(call marie_test,test_lms200_driver,tests/hw/test_lms200_driver.c,$(LMS2
 $(eval $(call marie_program,marie-lms200,hw/lms200/main_lms200.c,$(LMS200_LIB) -lutil))
 $(eval $(call marie_program,marie-vlms200,hw/lms200/main_vlms200.c,$(LMS200_LIB) -lutil))
 
-$(eval $(call marie_test,test_lms200_component,tests/hw/test_lms200_component.c))
+$(eval $(call marie_test,test_lms200_component,tests/hw/test_lms200_component.c tests/proc.c))
 $(B)/tests/test_lms200_component: $(B)/bin/marie-lms200 $(B)/bin/marie-vlms200
 
 # libFuzzer builds take sources only, so the codec is listed as a source here.
 $(eval $(call marie_fuzz,lms200,tests/hw/fuzz_lms200.c hw/lms200/lms200.c))
 
-$(eval $(call marie_bench,bench_lms200,hw/lms200/bench_lms200.c,$(LMS200_LIB)))
+$(eval $(call marie_bench,bench_lms200,hw/lms200/bench_lms200.c tests/proc.c,$(LMS200_LIB)))
 $(B)/bench/bench_lms200: $(B)/bin/marie-lms200 $(B)/bin/marie-vlms200

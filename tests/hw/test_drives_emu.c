@@ -7,7 +7,6 @@
 #include <math.h>
 #include <setjmp.h>
 #include <signal.h>
-#include <spawn.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -29,8 +28,8 @@
 #include "lcmtypes/marie_lifecycle_command_t.h"
 #include "lcmtypes/marie_motor_command_t.h"
 #include "lcmtypes/marie_wheel_encoders_t.h"
+#include "tests/proc.h"
 
-extern char **environ;
 
 static char sock[96], url[112], bindir[256], logdir[256];
 static pid_t bus_pid, dev_pid, drv_pid, gyr_pid;
@@ -50,36 +49,18 @@ static pid_t spawn(const char *name, char *const args[])
     char path[512], log[512];
     snprintf(path, sizeof path, "%s/%s", bindir, name);
     snprintf(log, sizeof log, "%s/test_drives_emu.%s.log", logdir, name);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, log, O_WRONLY | O_CREAT | O_APPEND, 0644);
-    posix_spawn_file_actions_adddup2(&fa, 1, 2);
     char *argv[24];
     int n = 0;
     argv[n++] = path;
     for (int i = 0; args[i] && n < 23; i++)
         argv[n++] = args[i];
     argv[n] = NULL;
-    pid_t pid;
-    int r = posix_spawn(&pid, path, &fa, NULL, argv, environ);
-    posix_spawn_file_actions_destroy(&fa);
-    return r == 0 ? pid : -1;
+    return test_spawn(argv, log);
 }
 
 static void stop(pid_t *pid)
 {
-    if (*pid <= 0)
-        return;
-    kill(*pid, SIGTERM);
-    for (int i = 0; i < 50; i++) {
-        if (waitpid(*pid, NULL, WNOHANG) == *pid) {
-            *pid = 0;
-            return;
-        }
-        usleep(100000);
-    }
-    kill(*pid, SIGKILL);
-    waitpid(*pid, NULL, 0);
+    test_stop(*pid);
     *pid = 0;
 }
 

@@ -4,7 +4,6 @@
 #include <math.h>
 #include <poll.h>
 #include <setjmp.h>
-#include <signal.h>
 #include <stdbool.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -12,7 +11,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -22,6 +20,7 @@
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "lcmtypes/marie_laser_scan_t.h"
+#include "tests/proc.h"
 
 static int64_t mono_ms(void)
 {
@@ -82,30 +81,6 @@ static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event
         s->reconnected = true;
 }
 
-static pid_t spawn(char *const argv[])
-{
-    pid_t pid = fork();
-    if (pid == 0) {
-        execv(argv[0], argv);
-        _exit(127);
-    }
-    return pid;
-}
-
-static void stop(pid_t pid)
-{
-    if (pid <= 0)
-        return;
-    kill(pid, SIGTERM);
-    for (int i = 0; i < 50; i++) {
-        if (waitpid(pid, NULL, WNOHANG) == pid)
-            return;
-        usleep(20000);
-    }
-    kill(pid, SIGKILL);
-    waitpid(pid, NULL, 0);
-}
-
 static void pump(lcm_t *lcm, int ms)
 {
     struct pollfd p = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
@@ -134,7 +109,7 @@ static void test_scans_counters_and_reconnect_over_the_bus(void **state)
     /* A device with a bad CRC every 5th scan that is unplugged after 3 s for 0.5 s. */
     char *eargv[] = { emu, "--link", link, "--rate", "20", "--corrupt-every", "5",
                       "--unplug-at", "3000", "--unplug-ms", "500", NULL };
-    pid_t pe = spawn(eargv);
+    pid_t pe = test_spawn(eargv, NULL);
     int64_t end = mono_ms() + 3000;
     while (access(link, F_OK) != 0 && mono_ms() < end)
         usleep(20000);
@@ -143,13 +118,13 @@ static void test_scans_counters_and_reconnect_over_the_bus(void **state)
                       "--param", "reply_timeout_ms=150", "--param", "config_timeout_ms=500",
                       "--param", "data_timeout_ms=1000",
                       "--param", "reopen_ms=100", NULL };
-    pid_t pd = spawn(dargv);
+    pid_t pd = test_spawn(dargv, NULL);
 
     end = mono_ms() + 20000;
     while (mono_ms() < end && !(s.scans_after_reconnect >= 5 && s.reconnects >= 1 && s.crc_errors >= 1))
         pump(lcm, 50);
-    stop(pd);
-    stop(pe);
+    test_stop(pd);
+    test_stop(pe);
     marie_laser_scan_t_unsubscribe(lcm, s1);
     marie_heartbeat_t_unsubscribe(lcm, s2);
     marie_event_t_unsubscribe(lcm, s3);

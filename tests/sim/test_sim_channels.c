@@ -17,6 +17,7 @@
 #include <lcm/lcm.h>
 
 #include "core/component.h"
+#include "tests/proc.h"
 
 #define MAX_CH 16
 #define WALL_LIMIT_US 30000000      /* a bound on every wait, not a timing assertion */
@@ -69,12 +70,8 @@ static void start_sim(const char *const *extra)
 
 static pid_t spawn(const char *const *argv)
 {
-    pid_t pid = fork();
+    pid_t pid = test_spawn((char *const *)argv, NULL);
     assert_true(pid >= 0);
-    if (pid == 0) {
-        execv(argv[0], (char *const *)argv);
-        _exit(127);
-    }
     return pid;
 }
 

@@ -1,0 +1,13 @@
+/* proc: start and stop the project's programs from tests and benchmarks. */
+#ifndef MARIE_TEST_PROC_H
+#define MARIE_TEST_PROC_H
+
+#include <sys/types.h>
+
+/* Runs argv[0] with argv (NULL-terminated). stdout and stderr are appended to `log`
+ * ("/dev/null" to drop them), or inherited when log is NULL. The pid, or -1. */
+pid_t test_spawn(char *const argv[], const char *log);
+/* SIGTERM, then SIGKILL if the process is still there after 5 s; reaps it. pid <= 0: no-op. */
+void test_stop(pid_t pid);
+
+#endif
