@@ -18,6 +18,19 @@ wait_for() {
         sleep 0.1
     done
 }
+# start NAME CMD...: run CMD in the background, output to $OUT/NAME.log, its pid in $pid_NAME.
+# stop_started kills everything started so (call it from the test's exit trap).
+pids=""
+start() {
+    _n=$1; shift
+    "$@" > "$OUT/$_n.log" 2>&1 &
+    pids="$pids $!"
+    eval "pid_$_n=$!"
+}
+stop_started() {
+    for _p in $pids; do kill "$_p" 2>/dev/null; done
+    wait 2>/dev/null
+}
 finish() {
     echo "[  PASSED  ] $_ok test(s)."
     [ "$_bad" -eq 0 ] || { echo "[  FAILED  ] $_bad test(s)."; exit 1; }

@@ -11,18 +11,7 @@ BIN=$B/bin
 OUT=$B/test-logs/nav_sim
 rm -rf "$OUT" && mkdir -p "$OUT"
 MAP=sim/worlds/office.yaml
-pids=""
-cleanup() {
-    for p in $pids; do kill "$p" 2>/dev/null; done
-    wait 2>/dev/null
-}
-trap cleanup EXIT INT TERM
-start() {   # start NAME BINARY ARGS...: run in the background, log to $OUT/NAME.log
-    n=$1; shift
-    "$@" > "$OUT/$n.log" 2>&1 &
-    pids="$pids $!"
-    eval "pid_$n=$!"
-}
+trap stop_started EXIT INT TERM
 
 cat > "$OUT/system.yaml" <<'Y'
 system: nav-test
