@@ -156,14 +156,6 @@ static void canon_value(xb_canon_t *c, const char *path, marie_prim_t prim, doub
         xb_canon_int(c, path, prim == MARIE_PRIM_BOOL ? (iv != 0) : iv);
 }
 
-/* LCM's C decoder copies byte arrays with memcpy even when empty (NULL pointer, 0 bytes), which
- * UBSan reports inside LCM's header; sanitized builds keep arrays of 1-byte elements non-empty. */
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_UNDEFINED__)
-#define MIN_BYTES 1
-#else
-#define MIN_BYTES 0
-#endif
-
 static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml, xb_canon_t *c,
                           const char *prefix, int depth)
 {
@@ -175,13 +167,10 @@ static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml,
             if (lf < 0 || lf >= 64)
                 continue;
             marie_prim_t pr = t->fields[i].prim;
-            int onebyte = pr == MARIE_PRIM_BYTE || pr == MARIE_PRIM_INT8 || pr == MARIE_PRIM_BOOL;
             if (!is_len[lf]) {
                 is_len[lf] = 1;
                 lens[lf] = depth > 2 ? 0 : (int64_t)(rnd(s) % (pr == MARIE_PRIM_BYTE ? 40 : 4));
             }
-            if (onebyte && lens[lf] < MIN_BYTES)
-                lens[lf] = MIN_BYTES;
         }
     for (int i = 0; i < t->nfields; i++) {
         const marie_tfield_t *f = &t->fields[i];
