@@ -83,7 +83,10 @@ FUZZ_$(1)_LIBS := $(3)
 FUZZERS += $(1)
 endef
 
-.PHONY: all deps test-deps test test-vm bench demo install fuzz clean
+.PHONY: build all deps test-deps test test-vm test-fresh bench demo install fuzz clean
+# `make` alone installs what is missing first, like the other verbs; `all` only builds.
+build: deps
+	@$(MAKE) -j$(NPROC) --no-print-directory all
 all:
 
 include lcmtypes/module.mk
@@ -115,6 +118,11 @@ test-vm: deps
 	@scripts/install-deps.sh vm
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-tests.sh $(VMTESTS)
+
+# The README's two commands on a brand-new Debian 12 root filesystem (slow: see README).
+test-fresh:
+	@scripts/install-deps.sh fresh
+	@scripts/test-fresh.sh
 
 bench: deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/expand.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 
@@ -56,6 +57,7 @@ typedef struct {
     double d;
     bool b;
     const char *s;
+    char *expanded;             /* s after ${VAR} expansion, when it differed */
 } param_t;
 
 typedef struct {
@@ -877,6 +879,22 @@ static marie_doc_t *keep_doc(marie_component_t *c, marie_doc_t *d)
     return d;
 }
 
+/* String parameters may name the environment (${MARIE_RUN_DIR}/can): one system file, per-run paths. */
+static int expand_param(param_t *pa, const marie_node_t *node, marie_errors_t *errs)
+{
+    if (!strstr(pa->s, "${"))
+        return 0;
+    char why[256] = "";
+    pa->expanded = marie_expand_env(pa->s, why, sizeof why);
+    if (!pa->expanded) {
+        marie_errors_add(errs, node->file, node->line, node->col, "%s: %s", pa->spec->name,
+                         errno == ENOMEM ? strerror(errno) : why);
+        return -1;
+    }
+    pa->s = pa->expanded;
+    return 0;
+}
+
 static int bind_params(marie_component_t *c, const options_t *o, marie_errors_t *errs)
 {
     size_t n = 0;
@@ -956,7 +974,7 @@ static int bind_params(marie_component_t *c, const options_t *o, marie_errors_t 
         case MARIE_PARAM_INT: r = marie_node_int(node, &pa->i, errs); break;
         case MARIE_PARAM_DOUBLE: r = marie_node_double(node, &pa->d, errs); break;
         case MARIE_PARAM_BOOL: r = marie_node_bool(node, &pa->b, errs); break;
-        case MARIE_PARAM_STRING: r = marie_node_str(node, &pa->s, errs); break;
+        case MARIE_PARAM_STRING: r = marie_node_str(node, &pa->s, errs) < 0 ? -1 : expand_param(pa, node, errs); break;
         case MARIE_PARAM_NODE: break;
         }
         node->key = saved_key;
@@ -1194,6 +1212,8 @@ void marie_component_destroy(marie_component_t *c)
     for (size_t i = 0; i < c->ndocs; i++)
         marie_doc_destroy(c->docs[i]);
     free(c->docs);
+    for (size_t i = 0; c->params && i < c->nparams; i++)
+        free(c->params[i].expanded);
     free(c->params);
     marie_system_destroy(c->sys);
     marie_auth_destroy(c->auth);

@@ -411,8 +411,10 @@ static void comp_spawn(comp_t *c)
     if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am->sys_path) < 0 ||
         asprintf(&envp[ne++], "MARIE_NAME=%s", cfg->name) < 0 ||
         asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
-        /* Components keep their state (SharedMap, Switch) beside the manager's. */
-        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0)
+        /* Components keep their state (SharedMap, Switch) beside the manager's, and their
+         * run-time paths (emulated CAN bus sockets, pty links) in its run/ folder. */
+        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0 ||
+        asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
         goto fail;
     if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
         goto fail;
@@ -1165,6 +1167,8 @@ static int am_load_system(am_t *am, const char *path, const char *profile, marie
     am->ncomps = sys->ncomponents;
     char logdir[PATH_MAX];
     snprintf(logdir, sizeof logdir, "%s/logs", am->state_dir);
+    mkdir(logdir, 0755);
+    snprintf(logdir, sizeof logdir, "%s/run", am->state_dir);
     mkdir(logdir, 0755);
     for (size_t i = 0; i < sys->ncomponents; i++) {
         comp_t *c = &am->comps[i];

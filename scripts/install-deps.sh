@@ -1,6 +1,6 @@
 #!/bin/sh
 # Installs the Debian packages marie needs that are missing; quick when nothing is.
-# Usage: scripts/install-deps.sh [base|vm|san|all]   (default: base)
+# Usage: scripts/install-deps.sh [SET...]   SET: base, vm, san, browser, fresh, all (default: base)
 set -eu
 
 base="liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-config
@@ -15,16 +15,20 @@ vm="qemu-system-x86 busybox-static cpio"
 san="clang libclang-rt-14-dev"
 # The log viewer's browser tests drive Debian's Chromium headless.
 browser="chromium"
+# make test-fresh builds a Debian 12 root filesystem to prove the README's two commands.
+fresh="debootstrap"
 
 want=""
-for set in ${1:-base}; do
+[ $# -gt 0 ] || set -- base
+for set in "$@"; do
     case "$set" in
     base) want="$want $base" ;;
     vm)   want="$want $vm" ;;
     san)  want="$want $san" ;;
     browser) want="$want $browser" ;;
-    all)  want="$want $base $vm $san $browser" ;;
-    *) echo "install-deps: unknown set '$set' (base, vm, san, browser, all)" >&2; exit 2 ;;
+    fresh) want="$want $fresh" ;;
+    all)  want="$want $base $vm $san $browser $fresh" ;;
+    *) echo "install-deps: unknown set '$set' (base, vm, san, browser, fresh, all)" >&2; exit 2 ;;
     esac
 done
 
@@ -48,7 +52,7 @@ if [ "$(id -u)" != 0 ]; then
 fi
 echo "install-deps: installing$missing"
 export DEBIAN_FRONTEND=noninteractive
-stamp=/var/lib/apt/periodic/marie-update-stamp
+stamp=${MARIE_APT_STAMP:-/var/lib/apt/periodic/marie-update-stamp}
 if [ ! -e "$stamp" ] || [ -n "$(find "$stamp" -mmin +360 2>/dev/null)" ]; then
     apt-get update -q >/dev/null
     mkdir -p "$(dirname "$stamp")" && touch "$stamp"

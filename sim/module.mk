@@ -1,5 +1,5 @@
 # sim: marie-sim, the ODE simulator (channel mode), with its map loader and worlds.
-ODE_LIBS := $(shell pkg-config --libs ode)
+ODE_LIBS := $(shell pkg-config --libs ode 2>/dev/null)
 SIM_LIB := $(B)/lib/libmariesim.a
 
 $(eval $(call marie_lib,mariesim,sim/pgm.c sim/map.c sim/map_yaml.c sim/world.c))

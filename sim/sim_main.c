@@ -81,13 +81,13 @@ static const marie_param_spec_t params[] = {
     { "clock_hz", MARIE_PARAM_DOUBLE, "100", "clock messages, sim Hz" },
     { "estop", MARIE_PARAM_BOOL, "false", "e-stop pressed at start" },
     /* device mode */
-    { "can", MARIE_PARAM_STRING, "emu:/tmp/marie-sim-can", "device mode: CAN bus of the virtual drives and gyro" },
+    { "can", MARIE_PARAM_STRING, "emu:${MARIE_RUN_DIR:-/tmp}/marie-sim-can", "device mode: CAN bus of the virtual drives and gyro" },
     { "can_serve", MARIE_PARAM_BOOL, "true", "device mode: host the emulated bus (emu:PATH) here" },
     { "left_node", MARIE_PARAM_INT, "1", "device mode: CANopen node of the left drive" },
     { "right_node", MARIE_PARAM_INT, "2", "device mode: CANopen node of the right drive" },
     { "gyro_node", MARIE_PARAM_INT, "32", "device mode: CANopen node of the gyro" },
     { "vgyro_bias", MARIE_PARAM_DOUBLE, "0.01", "device mode: raw bias of the virtual gyro, rad/s" },
-    { "laser_link", MARIE_PARAM_STRING, "/tmp/marie-sim-lms200", "device mode: symlink to the LMS200 pty" },
+    { "laser_link", MARIE_PARAM_STRING, "${MARIE_RUN_DIR:-/tmp}/marie-sim-lms200", "device mode: symlink to the LMS200 pty" },
     { NULL },
 };
 

@@ -1,3 +1,3 @@
 # tools/demo: marie-demo, the driver behind make demo and the robot application's tests.
-$(eval $(call marie_program,marie-demo,tools/demo/demo.cpp,$(ADAPT_COMMON) $(shell pkg-config --libs opencv4)))
-$(B)/obj/tools/demo/demo.o: CXXFLAGS += $(shell pkg-config --cflags opencv4)
+$(eval $(call marie_program,marie-demo,tools/demo/demo.cpp,$(ADAPT_COMMON) $(shell pkg-config --libs opencv4 2>/dev/null)))
+$(B)/obj/tools/demo/demo.o: CXXFLAGS += $(shell pkg-config --cflags opencv4 2>/dev/null)

@@ -1,0 +1,20 @@
+/* expand: ${NAME} and ${NAME:-default} in parameter strings, from the environment. */
+#ifndef MARIE_EXPAND_H
+#define MARIE_EXPAND_H
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Expands every ${NAME} (NAME set and not empty, else an error) and ${NAME:-default} (default
+ * when NAME is unset or empty) in `in`; a '$' not followed by '{' is kept as it is.
+ * Returns a new string the caller frees, or NULL with errno set (EINVAL: an unset variable
+ * or an unclosed "${", explained in why[why_len]; ENOMEM). */
+char *marie_expand_env(const char *in, char *why, size_t why_len);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

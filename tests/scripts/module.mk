@@ -1,0 +1,2 @@
+# tests/scripts: the set-up scripts the README relies on.
+ITESTS += tests/scripts/test_install_deps.sh
