@@ -3,7 +3,7 @@
 # Usage: scripts/install-deps.sh [SET...]   SET: base, vm, san, browser, fresh, all (default: base)
 set -eu
 
-base="liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-config
+base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-config
       libeigen3-dev libode-dev libompl-dev libboost-serialization-dev
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
