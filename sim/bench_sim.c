@@ -15,7 +15,7 @@
 
 #include "core/time.h"
 #include "lcmtypes/marie_sim_clock_t.h"
-#include "sim/map.h"
+#include "map/occmap.h"
 #include "sim/world.h"
 
 static double cpu_s(int who)
@@ -35,7 +35,7 @@ static void row(const char *bench, const char *metric, double v, const char *uni
 static void in_process(const char *world, int beams, double sim_s)
 {
     marie_errors_t errs = { 0 };
-    sim_map_t *m = sim_map_load(world, &errs);
+    occmap_t *m = occmap_load(world, &errs);
     if (!m) {
         marie_errors_print(&errs, stderr);
         exit(1);
@@ -46,7 +46,7 @@ static void in_process(const char *world, int beams, double sim_s)
     p.start_y = 15.0;
     p.laser_beams = beams;
     sim_world_t *w = sim_world_create(m, &p);
-    sim_map_destroy(m);
+    occmap_destroy(m);
     float *scan = calloc((size_t)beams, sizeof(float));
     long steps = lround(sim_s / p.step);
     double c0 = cpu_s(RUSAGE_SELF);

@@ -1,8 +1,8 @@
-# sim: marie-sim, the ODE simulator (channel mode), with its map loader and worlds.
+# sim: marie-sim, the ODE simulator (channel and device modes), and its worlds.
 ODE_LIBS := $(shell pkg-config --libs ode 2>/dev/null)
-SIM_LIB := $(B)/lib/libmariesim.a
+SIM_LIB := $(B)/lib/libmariesim.a $(MAP_LIB)
 
-$(eval $(call marie_lib,mariesim,sim/pgm.c sim/map.c sim/map_yaml.c sim/world.c))
+$(eval $(call marie_lib,mariesim,sim/walls.c sim/world.c))
 
 $(eval $(call marie_test,test_sim_world,tests/sim/test_sim_world.c,$(SIM_LIB) $(ODE_LIBS)))
 
@@ -18,4 +18,3 @@ $(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c tests/p
 # The device-mode case runs the real drivers against the simulator.
 $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
 
-$(eval $(call marie_fuzz,sim_pgm,tests/sim/fuzz_sim_pgm.c sim/pgm.c sim/map.c,))

@@ -9,7 +9,7 @@
 
 #include "core/component.h"
 #include "sim/devices.h"
-#include "sim/map.h"
+#include "map/occmap.h"
 #include "sim/world.h"
 
 typedef struct {
@@ -332,7 +332,7 @@ static int on_init(marie_component_t *c)
     char path[4096];
     resolve_world(marie_param_str(c, "world"), path, sizeof(path));
     marie_errors_t errs = { 0 };
-    sim_map_t *map = sim_map_load(path, &errs);
+    occmap_t *map = occmap_load(path, &errs);
     if (!map) {
         marie_errors_print(&errs, stderr);
         marie_component_fail_reason(c, "world %s: %s", path, errs.n ? errs.msgs[0] : "cannot load");
@@ -396,7 +396,7 @@ static int on_init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot build the world: %s", strerror(errno));
         goto fail;
     }
-    sim_map_destroy(map);
+    occmap_destroy(map);
     map = NULL;
     if (device) {
         sim_devices_cfg_t dc = {
@@ -430,7 +430,7 @@ static int on_init(marie_component_t *c)
                s->lockstep > 0 ? ", lockstep" : "");
     return 0;
 fail:
-    sim_map_destroy(map);
+    occmap_destroy(map);
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);

@@ -94,7 +94,7 @@ static void place(dBodyID b, double x, double y, double z, double ox, double oy,
     dBodySetRotation(b, R);
 }
 
-sim_world_t *sim_world_create(const sim_map_t *map, const sim_params_t *p)
+sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
 {
     pthread_once(&ode_once, ode_init);
     dAllocateODEDataForThread(dAllocateMaskAll);
@@ -119,9 +119,9 @@ sim_world_t *sim_world_create(const sim_map_t *map, const sim_params_t *p)
     w->contacts = dJointGroupCreate(0);
     w->ground = dCreatePlane(0, 0, 0, 1, 0);
 
-    /* Walls: one static box per merged rectangle, rotated with the map origin. */
+    /* Walls: one static box per merged rectangle (the grid is aligned with the map frame). */
     sim_rect_t *rects = NULL;
-    long nr = sim_map_rects(map, &rects);
+    long nr = sim_walls_rects(map, &rects);
     if (nr < 0) {
         sim_world_destroy(w);
         errno = ENOMEM;
@@ -132,17 +132,12 @@ sim_world_t *sim_world_create(const sim_map_t *map, const sim_params_t *p)
         double cx, cy;
         /* centre of the rectangle = centre between its corner cells */
         double x0, y0, x1, y1;
-        sim_map_cell_center(map, rects[k].i, rects[k].j, &x0, &y0);
-        sim_map_cell_center(map, rects[k].i + rects[k].w - 1, rects[k].j + rects[k].h - 1, &x1, &y1);
+        occmap_cell_center(map, rects[k].i, rects[k].j, &x0, &y0);
+        occmap_cell_center(map, rects[k].i + rects[k].w - 1, rects[k].j + rects[k].h - 1, &x1, &y1);
         cx = (x0 + x1) / 2;
         cy = (y0 + y1) / 2;
         dGeomID g = dCreateBox(w->walls, rects[k].w * res, rects[k].h * res, WALL_HEIGHT);
         dGeomSetPosition(g, cx, cy, WALL_HEIGHT / 2);
-        if (map->origin_yaw != 0) {
-            dMatrix3 R;
-            dRFromAxisAndAngle(R, 0, 0, 1, map->origin_yaw);
-            dGeomSetRotation(g, R);
-        }
     }
     w->nwalls = nr;
     free(rects);

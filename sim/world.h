@@ -5,7 +5,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "sim/map.h"
+#include "sim/walls.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -41,7 +41,7 @@ typedef struct sim_world sim_world_t;
 
 /* Build the world: one static box per merged wall rectangle, the robot at the start pose.
  * NULL with errno set on failure. The map may be freed afterwards. */
-sim_world_t *sim_world_create(const sim_map_t *map, const sim_params_t *p);
+sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p);
 void sim_world_destroy(sim_world_t *w);                 /* NULL is a no-op */
 
 /* Commands. Body velocity is turned into wheel speeds (v = r (wr + wl) / 2,

@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "adapters/behaviours/arbiter.h"
-#include "adapters/common/occmap.h"
+#include "map/occmap.h"
 #include "adapters/localizer/mcl.h"
 #include "adapters/planner/planner.h"
 #include "core/time.h"

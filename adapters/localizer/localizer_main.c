@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "adapters/common/occmap.h"
+#include "map/occmap.h"
 #include "adapters/localizer/mcl.h"
 #include "core/component.h"
 

@@ -6,7 +6,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "adapters/common/occmap.h"
+#include "map/occmap.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "adapters/common/occmap.h"
+#include "map/occmap.h"
 #include "adapters/planner/planner.h"
 #include "core/component.h"
 
@@ -176,18 +176,17 @@ static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const
     pln_t *s = marie_component_user(c);
     const marie_occupancy_grid_t *m = msg;
     if (m->width <= 0 || m->height <= 0 || (int64_t)m->width * m->height != m->ncells || !(m->resolution > 0) ||
-        !isfinite(m->origin.x) || !isfinite(m->origin.y) || (int64_t)m->width * m->height > (1 << 26)) {
+        !isfinite(m->origin.x) || !isfinite(m->origin.y) || !isfinite(m->origin.theta) || (int64_t)m->width * m->height > (1 << 26)) {
         marie_component_bad_input(c, "bad_map", "map %dx%d with %d cells, resolution %g", m->width, m->height,
                                   m->ncells, m->resolution);
         return;
     }
-    if (m->origin.theta != 0)
-        marie_warn_ratelimited(60, "map origin rotated by %g rad: rotation ignored", m->origin.theta);
-    occmap_t *om = occmap_create(m->width, m->height, m->resolution, m->origin.x, m->origin.y);
+    occmap_t *om = occmap_from_cells(m->width, m->height, m->resolution, m->origin.x, m->origin.y,
+                                     m->origin.theta, m->cells);
     if (!om)
         return;
-    for (int32_t i = 0; i < m->ncells; i++) {
-        int8_t v = m->cells[i];
+    for (size_t i = 0; i < (size_t)om->width * om->height; i++) {
+        int8_t v = om->cells[i];
         om->cells[i] = v < 0 ? OCCMAP_UNKNOWN : v >= 65 ? OCCMAP_OCCUPIED : v < 20 ? OCCMAP_FREE : OCCMAP_UNKNOWN;
     }
     planner_t *pl = planner_create(om, &s->params, s->seed);

@@ -6,7 +6,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-#include "adapters/common/occmap.h"
+#include "map/occmap.h"
 
 typedef struct {
     uint64_t s;

@@ -3,6 +3,8 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <unistd.h>
 #include <cmocka.h>
 
 #include "adapters/localizer/mcl.h"
@@ -16,8 +18,19 @@ typedef struct {
     int steps;
 } run_result_t;
 
+/* The robot lives in the frame of map m; the filter's map frame is that frame moved by xf
+ * (x, y, yaw): how a map.yaml's origin places its image. */
+static const double no_xf[3] = { 0, 0, 0 };
+
+static void to_filter_frame(const double xf[3], const double p[3], double out[3])
+{
+    out[0] = xf[0] + cos(xf[2]) * p[0] - sin(xf[2]) * p[1];
+    out[1] = xf[1] + sin(xf[2]) * p[0] + cos(xf[2]) * p[1];
+    out[2] = p[2] + xf[2];
+}
+
 /* Drive along the corridor, weaving, turning around at both ends; localize at 10 Hz. */
-static run_result_t run(occmap_t *m, mcl_t *f, simrobot_t *r, double seconds, double settle_s)
+static run_result_t run_in(occmap_t *m, const double xf[3], mcl_t *f, simrobot_t *r, double seconds, double settle_s)
 {
     float ranges[NB];
     double H = m->height * m->resolution, W = m->width * m->resolution;
@@ -41,7 +54,9 @@ static run_result_t run(occmap_t *m, mcl_t *f, simrobot_t *r, double seconds, do
         mcl_step(f, r->odom, &scan, false);
         double est[3], cov[9];
         mcl_estimate(f, est, cov);
-        e = hypot(est[0] - r->truth[0], est[1] - r->truth[1]);
+        double truth[3];
+        to_filter_frame(xf, r->truth, truth);
+        e = hypot(est[0] - truth[0], est[1] - truth[1]);
         if (t >= settle_s) {
             sum2 += e * e;
             if (e > maxe)
@@ -51,6 +66,11 @@ static run_result_t run(occmap_t *m, mcl_t *f, simrobot_t *r, double seconds, do
     }
     run_result_t res = { n ? sqrt(sum2 / n) : 0, maxe, e, n };
     return res;
+}
+
+static run_result_t run(occmap_t *m, mcl_t *f, simrobot_t *r, double seconds, double settle_s)
+{
+    return run_in(m, no_xf, f, r, seconds, settle_s);
 }
 
 static simrobot_t robot_at(double x, double y, double th, uint64_t seed)
@@ -84,6 +104,51 @@ static void test_tracking_from_known_pose(void **state)
     assert_true(cov[0] < 0.05 && cov[4] < 0.05);
     mcl_destroy(f);
     occmap_destroy(m);
+}
+
+/* The office saved as a map_server map whose origin has a yaw, loaded by the map library: the
+ * filter tracks the robot on it as well as on the unrotated map. */
+static void test_tracking_on_rotated_map(void **state)
+{
+    occmap_t *src = occmap_make_office(16, 12, 0.05, 7);
+    char dir[] = "/tmp/marie-test-mcl.XXXXXX", pgm[64], yaml[64];
+    assert_non_null(mkdtemp(dir));
+    snprintf(pgm, sizeof pgm, "%s/office.pgm", dir);
+    snprintf(yaml, sizeof yaml, "%s/office.yaml", dir);
+    FILE *f = fopen(pgm, "wb");
+    fprintf(f, "P5\n%d %d\n255\n", src->width, src->height);
+    for (int j = src->height - 1; j >= 0; j--)
+        for (int i = 0; i < src->width; i++)
+            fputc(occmap_get(src, i, j) == OCCMAP_OCCUPIED ? 0 : 254, f);
+    fclose(f);
+    const double xf[3] = { -3.0, 1.5, 0.3 };
+    f = fopen(yaml, "w");
+    fprintf(f, "image: office.pgm\nresolution: 0.05\norigin: [%g, %g, %g]\n", xf[0], xf[1], xf[2]);
+    fclose(f);
+    marie_errors_t errs = { 0 };
+    occmap_t *m = occmap_load(yaml, &errs);
+    assert_non_null(m);
+    unlink(pgm);
+    unlink(yaml);
+    rmdir(dir);
+
+    mcl_params_t p;
+    mcl_params_default(&p);
+    p.max_particles = 1500;
+    mcl_t *filter = mcl_create(m, &p, 42);
+    assert_non_null(filter);
+    simrobot_t r = robot_at(2.0, 6.0, 0.1, 99);
+    double truth[3], sig[3] = { 0.2, 0.2, 0.1 };
+    to_filter_frame(xf, r.truth, truth);
+    double start[3] = { truth[0] + 0.2, truth[1] - 0.1, truth[2] - 0.1 };
+    mcl_init_pose(filter, start, sig);
+    run_result_t res = run_in(src, xf, filter, &r, 90, 2.0);
+    printf("tracking on a map rotated by %.1f rad: rms %.3f m, max %.3f m\n", xf[2], res.rms, res.max);
+    assert_true(res.rms < 0.10);
+    assert_true(res.max < 0.30);
+    mcl_destroy(filter);
+    occmap_destroy(m);
+    occmap_destroy(src);
 }
 
 static void test_global_localization(void **state)
@@ -176,6 +241,7 @@ int main(void)
         cmocka_unit_test(test_rejects_bad_params),
         cmocka_unit_test(test_skips_update_when_still),
         cmocka_unit_test(test_tracking_from_known_pose),
+        cmocka_unit_test(test_tracking_on_rotated_map),
         cmocka_unit_test(test_global_localization),
         cmocka_unit_test(test_recovers_from_wrong_start),
     };

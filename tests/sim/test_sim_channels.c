@@ -480,7 +480,7 @@ static void test_timers_follow_sim_clock(void **state)
 static void test_bad_world_refused(void **state)
 {
     lcm_t *l = bus();
-    const char *extra[] = { "--world", "tests/data/sim/zero_resolution.yaml", NULL };
+    const char *extra[] = { "--world", "tests/data/map/zero_resolution.yaml", NULL };
     start_sim(extra);
     int64_t end = marie_mono_us() + WALL_LIMIT_US;
     while (!rx.failed && marie_mono_us() < end)

@@ -1,4 +1,4 @@
-/* test_sim_world: map loading (good and bad files), wall merging, and the physics and sensors
+/* test_sim_world: wall merging, and the physics and sensors
  * of the simulated robot against the known geometry of sim/worlds/test. */
 #include <math.h>
 #include <setjmp.h>
@@ -9,139 +9,41 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "sim/map.h"
-#include "sim/pgm.h"
+#include "map/occmap.h"
 #include "sim/world.h"
 
-#define DATA "tests/data/sim/"
-
-static sim_map_t *load(const char *path)
+static occmap_t *load(const char *path)
 {
     marie_errors_t errs = { 0 };
-    sim_map_t *m = sim_map_load(path, &errs);
+    occmap_t *m = occmap_load(path, &errs);
     if (!m)
         marie_errors_print(&errs, stderr);
     marie_errors_clear(&errs);
     return m;
 }
 
-/* Loading `path` fails with an error naming file:line that contains `needle`. */
-static void expect_error(const char *path, int line, const char *needle)
-{
-    marie_errors_t errs = { 0 };
-    sim_map_t *m = sim_map_load(path, &errs);
-    assert_null(m);
-    assert_true(errs.n >= 1);
-    char want[256];
-    snprintf(want, sizeof(want), "%s:%d:", path, line);
-    int found = 0;
-    for (size_t i = 0; i < errs.n; i++) {
-        fprintf(stderr, "  (expected) %s\n", errs.msgs[i]);
-        if ((line == 0 || strstr(errs.msgs[i], want)) && strstr(errs.msgs[i], needle))
-            found = 1;
-    }
-    assert_true(found);
-    marie_errors_clear(&errs);
-}
-
-static void test_pgm_formats(void **state)
-{
-    (void)state;
-    const char p2[] = "P2\n# c\n3 2\n# another\n15\n0 1 2\n13 14 15\n";
-    const uint8_t p5[] = "P5 3 2 255\n\x01\x02\x03\x04\x05\xff";
-    const uint8_t p5_16[] = "P5\n2 1\n1000\n\x03\xe8\x00\x07";
-    sim_pgm_t g;
-    char err[160];
-    assert_int_equal(sim_pgm_parse((const uint8_t *)p2, strlen(p2), &g, err, sizeof(err)), 0);
-    assert_int_equal(g.width, 3);
-    assert_int_equal(g.height, 2);
-    assert_int_equal(g.maxval, 15);
-    assert_int_equal(g.pixels[5], 15);
-    free(g.pixels);
-    assert_int_equal(sim_pgm_parse(p5, sizeof(p5) - 1, &g, err, sizeof(err)), 0);
-    assert_int_equal(g.pixels[0], 1);
-    assert_int_equal(g.pixels[5], 255);
-    free(g.pixels);
-    assert_int_equal(sim_pgm_parse(p5_16, sizeof(p5_16) - 1, &g, err, sizeof(err)), 0);
-    assert_int_equal(g.pixels[0], 1000);
-    assert_int_equal(g.pixels[1], 7);
-    free(g.pixels);
-
-    /* Every malformed header or raster is refused with a reason, never read past. */
-    const char *bad[] = { "", "P6\n1 1\n255\n\x00", "P5\n0 1\n255\n", "P5\n1 1\n0\n\x00",
-                          "P5\n2 2\n255\n\x00", "P2\n2 1\n9\n1", "P2\n2 1\n9\n1 10",
-                          "P5\n99999 1\n255\n", "P5\n1 1\n70000\n\x00\x00", "P5\n1 1\n255",
-                          "P2 1 1 9 x" };
-    for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
-        err[0] = 0;
-        assert_int_not_equal(sim_pgm_parse((const uint8_t *)bad[i], strlen(bad[i]), &g, err, sizeof(err)), 0);
-        assert_true(strlen(err) > 0);
-        assert_null(g.pixels);
-    }
-}
-
-static void test_map_small(void **state)
-{
-    (void)state;
-    const char *files[] = { DATA "small.yaml", DATA "small_ascii.yaml" };
-    for (int f = 0; f < 2; f++) {
-        sim_map_t *m = load(files[f]);
-        assert_non_null(m);
-        assert_int_equal(m->width, 4);
-        assert_int_equal(m->height, 3);
-        assert_true(fabs(m->resolution - 0.1) < 1e-12);
-        assert_true(fabs(m->origin_x + 1.0) < 1e-12 && fabs(m->origin_y - 2.0) < 1e-12);
-        /* The image's bottom row is the map's row 0. */
-        assert_int_equal(sim_map_cell(m, 0, 0), SIM_MAP_OCCUPIED);
-        assert_int_equal(sim_map_cell(m, 1, 0), SIM_MAP_OCCUPIED);
-        assert_int_equal(sim_map_cell(m, 2, 0), SIM_MAP_FREE);
-        assert_int_equal(sim_map_cell(m, 1, 1), SIM_MAP_UNKNOWN);
-        assert_int_equal(sim_map_cell(m, 0, 2), SIM_MAP_OCCUPIED);
-        assert_int_equal(sim_map_cell(m, 3, 2), SIM_MAP_OCCUPIED);
-        double x, y;
-        sim_map_cell_center(m, 0, 0, &x, &y);
-        assert_true(fabs(x + 0.95) < 1e-9 && fabs(y - 2.05) < 1e-9);
-        sim_map_destroy(m);
-    }
-}
-
-static void test_map_bad_files(void **state)
-{
-    (void)state;
-    expect_error(DATA "missing_image.yaml", 1, "missing key 'image'");
-    expect_error(DATA "zero_resolution.yaml", 2, "resolution");
-    expect_error(DATA "negative_resolution.yaml", 2, "resolution");
-    expect_error(DATA "word_resolution.yaml", 2, "resolution");
-    expect_error(DATA "bad_yaml.yaml", 0, "bad_yaml.yaml");
-    expect_error(DATA "no_such_image.yaml", 1, "No such file");
-    expect_error(DATA "corrupt_image.yaml", 1, "truncated");
-    expect_error(DATA "bad_thresh.yaml", 4, "occupied_thresh");
-    expect_error(DATA "short_origin.yaml", 3, "origin");
-    expect_error(DATA "does_not_exist.yaml", 0, "does_not_exist.yaml");
-}
-
 /* Every occupied cell is in exactly one rectangle, and rectangles hold only occupied cells. */
 static void check_rects(const char *path, long max_rects)
 {
-    sim_map_t *m = load(path);
+    occmap_t *m = load(path);
     assert_non_null(m);
     sim_rect_t *r = NULL;
-    long n = sim_map_rects(m, &r);
+    long n = sim_walls_rects(m, &r);
     assert_true(n > 0 && n <= max_rects);
     unsigned char *cover = calloc((size_t)m->width * m->height, 1);
     for (long k = 0; k < n; k++)
         for (int j = r[k].j; j < r[k].j + r[k].h; j++)
             for (int i = r[k].i; i < r[k].i + r[k].w; i++) {
-                assert_int_equal(sim_map_cell(m, i, j), SIM_MAP_OCCUPIED);
+                assert_int_equal(occmap_get(m, i, j), OCCMAP_OCCUPIED);
                 cover[(size_t)j * m->width + i]++;
             }
     for (int j = 0; j < m->height; j++)
         for (int i = 0; i < m->width; i++)
-            assert_int_equal(cover[(size_t)j * m->width + i], sim_map_cell(m, i, j) == SIM_MAP_OCCUPIED);
+            assert_int_equal(cover[(size_t)j * m->width + i], occmap_get(m, i, j) == OCCMAP_OCCUPIED);
     fprintf(stderr, "%s: %dx%d cells, %ld wall boxes\n", path, m->width, m->height, n);
     free(cover);
     free(r);
-    sim_map_destroy(m);
+    occmap_destroy(m);
 }
 
 static void test_map_rects(void **state)
@@ -153,7 +55,7 @@ static void test_map_rects(void **state)
 
 static sim_world_t *test_world(double x, double y, double th, uint64_t seed)
 {
-    sim_map_t *m = load("sim/worlds/test.yaml");
+    occmap_t *m = load("sim/worlds/test.yaml");
     assert_non_null(m);
     sim_params_t p;
     sim_params_default(&p);
@@ -163,7 +65,7 @@ static sim_world_t *test_world(double x, double y, double th, uint64_t seed)
     p.seed = seed;
     sim_world_t *w = sim_world_create(m, &p);
     assert_non_null(w);
-    sim_map_destroy(m);
+    occmap_destroy(m);
     return w;
 }
 
@@ -384,9 +286,6 @@ static void test_determinism(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_pgm_formats),
-        cmocka_unit_test(test_map_small),
-        cmocka_unit_test(test_map_bad_files),
         cmocka_unit_test(test_map_rects),
         cmocka_unit_test(test_straight),
         cmocka_unit_test(test_rotate_and_arc),

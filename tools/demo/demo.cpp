@@ -23,7 +23,7 @@
 #include <opencv2/imgproc.hpp>
 
 extern "C" {
-#include "adapters/common/occmap.h"
+#include "map/occmap.h"
 #include "core/config.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
@@ -363,7 +363,7 @@ bool Demo::load_map()
     for (int cy = 0; cy < m->height; cy++)
         for (int cx = 0; cx < m->width; cx++) {
             int8_t v = occmap_get(m, cx, cy);
-            map_.at<uint8_t>(m->height - 1 - cy, cx) = v == OCCMAP_FREE ? 255 : v == OCCMAP_UNKNOWN ? 205 : 0;
+            map_.at<uint8_t>(m->height - 1 - cy, cx) = v == OCCMAP_FREE ? 255 : v == OCCMAP_OCCUPIED ? 0 : 205;
         }
     res_ = m->resolution;
     ox_ = m->origin_x;

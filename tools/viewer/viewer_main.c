@@ -1252,12 +1252,12 @@ static void on_wake(marie_loop_t *loop, int fd, short revents, void *user)
 /* ---------------------------------------------------------------- map file */
 
 /* A map.yaml given as a parameter, as a map frame, via the same encoder as the map port. */
-#include "sim/map.h"
+#include "map/occmap.h"
 
 static int load_map_file(viewer_t *v, const char *path)
 {
     marie_errors_t errs = {0};
-    sim_map_t *m = sim_map_load(path, &errs);
+    occmap_t *m = occmap_load(path, &errs);
     if (!m) {
         marie_errors_print(&errs, stderr);
         marie_errors_clear(&errs);
@@ -1266,7 +1266,7 @@ static int load_map_file(viewer_t *v, const char *path)
     }
     marie_occupancy_grid_t g = {
         .utime = 0, .resolution = (float)m->resolution, .width = m->width, .height = m->height,
-        .origin = {m->origin_x, m->origin_y, m->origin_yaw}, .ncells = m->width * m->height, .cells = m->cells,
+        .origin = {m->origin_x, m->origin_y, 0}, .ncells = m->width * m->height, .cells = m->cells,
     };
     vj_buf_t b;
     vj_init(&b);
@@ -1275,7 +1275,7 @@ static int load_map_file(viewer_t *v, const char *path)
     vj_lit(&b, ",\"t\":0");
     vj_message(&b, &marie_type_occupancy_grid_t, &g, VJ_ROLE_OTHER);
     vj_lit(&b, "}");
-    sim_map_destroy(m);
+    occmap_destroy(m);
     if (b.oom) {
         vj_free(&b);
         return -1;

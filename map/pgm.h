@@ -1,6 +1,6 @@
 /* pgm: pure parser for binary (P5) and ASCII (P2) portable graymaps, as map_server writes them. */
-#ifndef SIM_PGM_H
-#define SIM_PGM_H
+#ifndef MARIE_MAP_PGM_H
+#define MARIE_MAP_PGM_H
 
 #include <stddef.h>
 #include <stdint.h>
@@ -10,17 +10,17 @@ extern "C" {
 #endif
 
 /* Largest image side accepted; a bigger header is treated as corrupt, not allocated. */
-#define SIM_PGM_MAX_SIDE 20000
+#define PGM_MAX_SIDE 20000
 
 typedef struct {
     int width, height;
     int maxval;                 /* 1..65535 */
     uint16_t *pixels;           /* width*height, row 0 is the top row; caller frees */
-} sim_pgm_t;
+} pgm_t;
 
 /* Parse a whole PGM file held in buf. 0 on success (free out->pixels), or -EINVAL with a
  * one-line reason in err (including the byte offset when it helps). */
-int sim_pgm_parse(const uint8_t *buf, size_t len, sim_pgm_t *out, char *err, size_t errlen);
+int pgm_parse(const uint8_t *buf, size_t len, pgm_t *out, char *err, size_t errlen);
 
 #ifdef __cplusplus
 }

@@ -1,5 +1,5 @@
 /* pgm: P5/P2 graymap parser; every malformed input is an error with a reason, never a crash. */
-#include "sim/pgm.h"
+#include "map/pgm.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -47,7 +47,7 @@ static long read_uint(cursor_t *c)
     return v;
 }
 
-int sim_pgm_parse(const uint8_t *buf, size_t len, sim_pgm_t *out, char *err, size_t errlen)
+int pgm_parse(const uint8_t *buf, size_t len, pgm_t *out, char *err, size_t errlen)
 {
     memset(out, 0, sizeof(*out));
     if (len < 2 || buf[0] != 'P' || (buf[1] != '5' && buf[1] != '2')) {
@@ -57,8 +57,8 @@ int sim_pgm_parse(const uint8_t *buf, size_t len, sim_pgm_t *out, char *err, siz
     int ascii = buf[1] == '2';
     cursor_t c = { buf, len, 2 };
     long w = read_uint(&c), h = read_uint(&c), maxval = read_uint(&c);
-    if (w <= 0 || h <= 0 || w > SIM_PGM_MAX_SIDE || h > SIM_PGM_MAX_SIDE) {
-        snprintf(err, errlen, "bad PGM size (width and height must be 1..%d)", SIM_PGM_MAX_SIDE);
+    if (w <= 0 || h <= 0 || w > PGM_MAX_SIDE || h > PGM_MAX_SIDE) {
+        snprintf(err, errlen, "bad PGM size (width and height must be 1..%d)", PGM_MAX_SIDE);
         return -EINVAL;
     }
     if (maxval <= 0 || maxval > 65535) {

@@ -1,5 +1,5 @@
-/* occmap: occupancy grid storage, PGM decoding, ray casting and generated test worlds. */
-#include "adapters/common/occmap.h"
+/* occmap: occupancy grid storage, ray casting and generated test worlds. */
+#include "map/occmap.h"
 
 #include <errno.h>
 #include <math.h>
@@ -51,94 +51,6 @@ bool occmap_occupied_at(const occmap_t *m, double x, double y)
     if (!occmap_cell(m, x, y, &cx, &cy))
         return true;
     return m->cells[(size_t)cy * m->width + cx] == OCCMAP_OCCUPIED;
-}
-
-/* PGM header token reader: skips whitespace and '#' comments. */
-static int pgm_token(const uint8_t *buf, size_t len, size_t *pos, long *out)
-{
-    size_t i = *pos;
-    for (;;) {
-        while (i < len && (buf[i] == ' ' || buf[i] == '\t' || buf[i] == '\n' || buf[i] == '\r'))
-            i++;
-        if (i < len && buf[i] == '#') {
-            while (i < len && buf[i] != '\n')
-                i++;
-            continue;
-        }
-        break;
-    }
-    if (i >= len || buf[i] < '0' || buf[i] > '9')
-        return -1;
-    long v = 0;
-    while (i < len && buf[i] >= '0' && buf[i] <= '9') {
-        v = v * 10 + (buf[i] - '0');
-        if (v > 100000000)
-            return -1;
-        i++;
-    }
-    *pos = i;
-    *out = v;
-    return 0;
-}
-
-occmap_t *occmap_from_pgm(const uint8_t *buf, size_t len, const occmap_meta_t *meta,
-                          char *err, size_t errlen)
-{
-    long w, h, maxval;
-    size_t pos = 2;
-    if (len < 2 || buf[0] != 'P' || (buf[1] != '5' && buf[1] != '2')) {
-        snprintf(err, errlen, "not a PGM image (P5 or P2)");
-        return NULL;
-    }
-    bool binary = buf[1] == '5';
-    if (pgm_token(buf, len, &pos, &w) || pgm_token(buf, len, &pos, &h) ||
-        pgm_token(buf, len, &pos, &maxval)) {
-        snprintf(err, errlen, "bad PGM header");
-        return NULL;
-    }
-    if (w <= 0 || h <= 0 || w > 20000 || h > 20000 || maxval <= 0 || maxval > 65535) {
-        snprintf(err, errlen, "bad PGM size %ldx%ld maxval %ld", w, h, maxval);
-        return NULL;
-    }
-    int bpp = maxval > 255 ? 2 : 1;
-    if (!binary && (len - pos) / 2 + 1 < (size_t)w * (size_t)h) {
-        /* Every ASCII value takes a digit and a separator: refuse before allocating. */
-        snprintf(err, errlen, "PGM data truncated: %zu bytes for %ldx%ld", len - pos, w, h);
-        return NULL;
-    }
-    if (binary) {
-        pos++;  /* the single whitespace after maxval */
-        if (pos > len || (len - pos) / bpp / w < (size_t)h) {
-            snprintf(err, errlen, "PGM data truncated: %zu bytes for %ldx%ld", len - (pos > len ? len : pos), w, h);
-            return NULL;
-        }
-    }
-    occmap_t *m = occmap_create((int)w, (int)h, meta->resolution, meta->origin_x, meta->origin_y);
-    if (!m) {
-        snprintf(err, errlen, "bad map geometry (resolution %g)", meta->resolution);
-        return NULL;
-    }
-    for (long r = 0; r < h; r++) {
-        for (long c = 0; c < w; c++) {
-            long v;
-            if (binary) {
-                v = bpp == 1 ? buf[pos] : (buf[pos] << 8 | buf[pos + 1]);
-                pos += bpp;
-            } else if (pgm_token(buf, len, &pos, &v)) {
-                snprintf(err, errlen, "PGM data truncated at row %ld col %ld", r, c);
-                occmap_destroy(m);
-                return NULL;
-            }
-            if (v > maxval)
-                v = maxval;
-            /* map_server's trinary rule: occupancy probability from darkness. */
-            double p = meta->negate ? (double)v / maxval : (double)(maxval - v) / maxval;
-            int8_t cell = p > meta->occupied_thresh ? OCCMAP_OCCUPIED
-                        : p < meta->free_thresh ? OCCMAP_FREE : OCCMAP_UNKNOWN;
-            m->cells[(size_t)(h - 1 - r) * w + c] = cell;   /* image top row = map's last row */
-        }
-    }
-    return m;
 }
 
 void occmap_fill_rect(occmap_t *m, double x0, double y0, double x1, double y1, int8_t value)

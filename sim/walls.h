@@ -1,0 +1,23 @@
+/* walls: the occupied cells of a map merged into rectangles, one physics box each. */
+#ifndef SIM_WALLS_H
+#define SIM_WALLS_H
+
+#include "map/occmap.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Occupied cells merged into axis-aligned rectangles of cells (row runs, then identical runs
+ * of consecutive rows stacked), so a straight wall becomes one box. */
+typedef struct {
+    int i, j;                   /* lower-left cell */
+    int w, h;                   /* cells */
+} sim_rect_t;
+/* Returns the number of rectangles and sets *out (caller frees), or -ENOMEM. */
+long sim_walls_rects(const occmap_t *m, sim_rect_t **out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
