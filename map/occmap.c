@@ -53,6 +53,54 @@ bool occmap_occupied_at(const occmap_t *m, double x, double y)
     return m->cells[(size_t)cy * m->width + cx] == OCCMAP_OCCUPIED;
 }
 
+bool occmap_footprint_clear(const occmap_t *m, double x, double y, double th, double lx, double ly)
+{
+    int cx, cy;
+    if (!occmap_cell(m, x, y, &cx, &cy) || occmap_get(m, cx, cy) != OCCMAP_FREE)
+        return false;
+    /* Sample the rectangle at half a cell: every cell it overlaps is visited. */
+    double c = cos(th), s = sin(th), step = m->resolution / 2;
+    for (double u = -lx / 2; u <= lx / 2 + 1e-9; u += step)
+        for (double v = -ly / 2; v <= ly / 2 + 1e-9; v += step)
+            if (occmap_occupied_at(m, x + c * u - s * v, y + s * u + c * v))
+                return false;
+    return true;
+}
+
+/* Every cell within r cells of (cx, cy) is known free. */
+static bool disk_free(const occmap_t *m, int cx, int cy, int r)
+{
+    for (int dy = -r; dy <= r; dy++)
+        for (int dx = -r; dx <= r; dx++)
+            if (dx * dx + dy * dy <= r * r && occmap_get(m, cx + dx, cy + dy) != OCCMAP_FREE)
+                return false;
+    return true;
+}
+
+int occmap_nearest_clear(const occmap_t *m, double x, double y, double radius, double *ox, double *oy)
+{
+    int x0 = (int)floor((x - m->origin_x) / m->resolution), y0 = (int)floor((y - m->origin_y) / m->resolution);
+    int r = (int)ceil(radius / m->resolution), far = m->width + m->height;
+    /* Square rings around the start: a cell of ring k is at least k cells away, so the search
+     * ends at the first ring farther than the best cell found. */
+    double best = INFINITY;
+    for (int ring = 0; ring <= far && ring <= best; ring++)
+        for (int dy = -ring; dy <= ring; dy++)
+            for (int dx = -ring; dx <= ring; dx++) {
+                if (abs(dx) != ring && abs(dy) != ring)
+                    continue;
+                double d = hypot(dx, dy);
+                if (d < best && disk_free(m, x0 + dx, y0 + dy, r)) {
+                    best = d;
+                    occmap_cell_center(m, x0 + dx, y0 + dy, ox, oy);
+                }
+            }
+    if (best < INFINITY)
+        return 0;
+    errno = ENOENT;
+    return -1;
+}
+
 void occmap_fill_rect(occmap_t *m, double x0, double y0, double x1, double y1, int8_t value)
 {
     if (x1 < x0) { double t = x0; x0 = x1; x1 = t; }

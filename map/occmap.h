@@ -86,6 +86,13 @@ static inline int8_t occmap_get(const occmap_t *m, int cx, int cy)
 }
 bool occmap_occupied_at(const occmap_t *m, double x, double y);  /* outside: true */
 
+/* Where a robot may stand. occmap_footprint_clear: no occupied cell under the rectangle of
+ * length lx and width ly centred at (x, y) heading th, and the cell under its centre known free.
+ * occmap_nearest_clear: the centre of the free cell nearest (x, y) around which every cell within
+ * radius is known free; 0, or -1 with errno ENOENT when the map has none. */
+bool occmap_footprint_clear(const occmap_t *m, double x, double y, double th, double lx, double ly);
+int occmap_nearest_clear(const occmap_t *m, double x, double y, double radius, double *ox, double *oy);
+
 /* Set every cell of the map-frame rectangle [x0,x1]x[y0,y1] to value. */
 void occmap_fill_rect(occmap_t *m, double x0, double y0, double x1, double y1, int8_t value);
 /* Distance along a ray to the first occupied cell, or max_range when none is hit (cells

@@ -60,6 +60,8 @@ static const marie_param_spec_t params[] = {
     { "start_x", MARIE_PARAM_DOUBLE, "2.0", "start pose in the map frame, m" },
     { "start_y", MARIE_PARAM_DOUBLE, "15.0", "m" },
     { "start_theta", MARIE_PARAM_DOUBLE, "0.0", "rad" },
+    { "start", MARIE_PARAM_STRING, "given", "given: start_x/start_y exactly, refused if the robot would stand in or on "
+      "a wall or off the map; auto: the free spot nearest start_x/start_y with room for the robot" },
     { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
     { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
     { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder ticks per wheel turn" },
@@ -312,6 +314,42 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
     }
 }
 
+/* The start pose is checked against the map, never left to the physics: a robot placed in a
+ * wall is thrown out of it, one placed off the map drives in nothing. */
+static int place_robot(marie_component_t *c, const occmap_t *map, sim_params_t *p)
+{
+    const char *how = marie_param_str(c, "start");
+    double lx, ly;
+    sim_world_footprint(&lx, &ly);
+    if (strcmp(how, "auto") == 0) {
+        double x, y;
+        if (occmap_nearest_clear(map, p->start_x, p->start_y, hypot(lx, ly) / 2 + 0.05, &x, &y) < 0) {
+            marie_component_fail_reason(c, "start: auto: no free spot in the map has room for the robot");
+            return -1;
+        }
+        if (x != p->start_x || y != p->start_y)
+            marie_info("start: auto: (%.2f, %.2f) moved to (%.2f, %.2f)", p->start_x, p->start_y, x, y);
+        p->start_x = x;
+        p->start_y = y;
+        return 0;
+    }
+    if (strcmp(how, "given") != 0) {
+        marie_component_fail_reason(c, "start: expected given or auto, got '%s'", how);
+        return -1;
+    }
+    if (occmap_footprint_clear(map, p->start_x, p->start_y, p->start_theta, lx, ly))
+        return 0;
+    int cx, cy;
+    const char *where = !occmap_cell(map, p->start_x, p->start_y, &cx, &cy) ? "outside the map"
+                        : occmap_get(map, cx, cy) == OCCMAP_OCCUPIED      ? "in an occupied cell"
+                        : occmap_get(map, cx, cy) != OCCMAP_FREE          ? "in an unknown cell"
+                                                                          : "with a wall under the robot";
+    marie_component_fail_reason(c, "start (%.2f, %.2f) is %s (map %.1f x %.1f m from (%.2f, %.2f)); give a free "
+                                "start or start: auto", p->start_x, p->start_y, where, map->width * map->resolution,
+                                map->height * map->resolution, map->origin_x, map->origin_y);
+    return -1;
+}
+
 static int on_init(marie_component_t *c)
 {
     sim_t *s = marie_component_user(c);
@@ -346,6 +384,8 @@ static int on_init(marie_component_t *c)
     p.start_x = marie_param_double(c, "start_x");
     p.start_y = marie_param_double(c, "start_y");
     p.start_theta = marie_param_double(c, "start_theta");
+    if (place_robot(c, map, &p) < 0)
+        goto fail;
     p.wheel_radius = marie_param_double(c, "wheel_radius");
     p.track = marie_param_double(c, "track");
     p.ticks_per_rev = (int32_t)marie_param_int(c, "ticks_per_rev");

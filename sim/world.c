@@ -94,6 +94,12 @@ static void place(dBodyID b, double x, double y, double z, double ox, double oy,
     dBodySetRotation(b, R);
 }
 
+void sim_world_footprint(double *lx, double *ly)
+{
+    *lx = CHASSIS_LX;
+    *ly = CHASSIS_LY;
+}
+
 sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
 {
     pthread_once(&ode_once, ode_init);

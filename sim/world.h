@@ -41,6 +41,8 @@ typedef struct sim_world sim_world_t;
 
 /* Build the world: one static box per merged wall rectangle, the robot at the start pose.
  * NULL with errno set on failure. The map may be freed afterwards. */
+/* Length and width of the robot's chassis, m: what must fit where it starts. */
+void sim_world_footprint(double *lx, double *ly);
 sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p);
 void sim_world_destroy(sim_world_t *w);                 /* NULL is a no-op */
 

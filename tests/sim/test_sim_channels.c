@@ -493,6 +493,59 @@ static void test_bad_world_refused(void **state)
     lcm_destroy(l);
 }
 
+/* A start the robot cannot take is refused with the reason in the heartbeat. */
+static void expect_start_refused(const char *x, const char *y, const char *why)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--param", x, "--param", y, NULL };
+    start_sim(extra);
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (!rx.failed && marie_mono_us() < end)
+        lcm_handle_timeout(l, 100);
+    stop_sim();
+    fprintf(stderr, "refused: %s\n", rx.reason);
+    assert_true(rx.failed);
+    assert_non_null(strstr(rx.reason, why));
+    assert_non_null(strstr(rx.reason, "start: auto"));
+    lcm_destroy(l);
+}
+
+static void test_start_in_a_wall_refused(void **state)
+{
+    expect_start_refused("start_x=7.1", "start_y=2.0", "in an occupied cell");        /* wall A */
+}
+
+static void test_start_touching_a_wall_refused(void **state)
+{
+    expect_start_refused("start_x=6.9", "start_y=2.0", "with a wall under the robot"); /* chassis over wall A */
+}
+
+static void test_start_off_the_map_refused(void **state)
+{
+    expect_start_refused("start_x=-5", "start_y=2.0", "outside the map");
+}
+
+/* start: auto puts the robot at the nearest spot with room for it, and it stays there. */
+static void test_start_auto_finds_room(void **state)
+{
+    lcm_t *l = bus();
+    const char *extra[] = { "--param", "start_x=7.1", "--param", "start_y=2.0", "--param", "start=auto", NULL };
+    start_sim(extra);
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (rx.truth.utime < 1000000 && !rx.failed && marie_mono_us() < end)
+        lcm_handle_timeout(l, 100);
+    stop_sim();
+    double x = rx.truth.pose.x, y = rx.truth.pose.y;
+    fprintf(stderr, "start auto: (%.3f, %.3f) after %.2f s\n", x, y, rx.truth.utime / 1e6);
+    assert_false(rx.failed);
+    assert_true(rx.truth.utime >= 1000000);
+    /* Wall A spans x 7.0-7.2: the chassis' circle (0.30 m) plus margin fits only beside it,
+     * and nearest means beside it, not far away; the physics did not throw it. */
+    assert_true((x < 7.0 - 0.30 && x > 6.4) || (x > 7.2 + 0.30 && x < 7.9));
+    assert_true(fabs(y - 2.0) < 0.1);
+    lcm_destroy(l);
+}
+
 /* What the rest of the system sees: per non-MARIE channel, its type and rate. */
 typedef struct {
     int n;
@@ -648,6 +701,10 @@ int main(void)
         cmocka_unit_test_teardown(test_lockstep, teardown),
         cmocka_unit_test_teardown(test_timers_follow_sim_clock, teardown),
         cmocka_unit_test_teardown(test_bad_world_refused, teardown),
+        cmocka_unit_test_teardown(test_start_in_a_wall_refused, teardown),
+        cmocka_unit_test_teardown(test_start_touching_a_wall_refused, teardown),
+        cmocka_unit_test_teardown(test_start_off_the_map_refused, teardown),
+        cmocka_unit_test_teardown(test_start_auto_finds_room, teardown),
         cmocka_unit_test_teardown(test_channel_and_device_mode_agree, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
