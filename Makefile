@@ -43,6 +43,7 @@ marie_objs = $(patsubst %.c,$(B)/obj/%.o,$(patsubst %.cpp,$(B)/obj/%.o,$(1)))
 define marie_lib
 $(B)/lib/lib$(1).a: $(call marie_objs,$(2))
 	@mkdir -p $$(@D)
+	@rm -f $$@
 	$$(AR) rcs $$@ $$^
 endef
 

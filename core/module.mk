@@ -3,6 +3,7 @@ CORE_SRCS := $(sort $(wildcard core/*.c))
 
 $(LIBMARIE): $(call marie_objs,$(CORE_SRCS)) $(LCM_OBJS)
 	@mkdir -p $(@D)
+	@rm -f $@
 	$(AR) rcs $@ $^
 
 $(eval $(call marie_test,test_loop,tests/core/test_loop.c))

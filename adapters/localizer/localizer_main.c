@@ -5,20 +5,13 @@
 #include <string.h>
 
 #include "map/occmap.h"
+#include "adapters/common/posebuf.h"
 #include "adapters/localizer/mcl.h"
 #include "core/component.h"
 
-#define ODOM_RING 64
-
-typedef struct {
-    int64_t utime;
-    double pose[3];
-} odom_sample_t;
-
 typedef struct {
     mcl_t *f;
-    odom_sample_t ring[ODOM_RING];
-    int nring, head;            /* head: next slot to write */
+    posebuf_t odom;             /* recent odometry, for the odometry pose at a scan's time */
     marie_laser_scan_t pending; /* a scan newer than the newest odometry */
     float *pending_ranges;
     int pending_cap;
@@ -34,41 +27,6 @@ typedef struct {
     double resume_max_age_s;
     int64_t first_pub_utime;    /* utime of this run's first pose; 0 before */
 } loc_t;
-
-static double wrap(double a)
-{
-    return atan2(sin(a), cos(a));
-}
-
-/* Odometry pose at time t, interpolated between the samples around it (clamped at the ends). */
-static bool odom_at(const loc_t *s, int64_t t, double out[3])
-{
-    if (s->nring == 0)
-        return false;
-    const odom_sample_t *prev = NULL;
-    for (int k = 0; k < s->nring; k++) {
-        const odom_sample_t *o = &s->ring[(s->head - s->nring + k + ODOM_RING) % ODOM_RING];
-        if (o->utime >= t) {
-            if (!prev || o->utime == prev->utime) {
-                memcpy(out, o->pose, sizeof(double) * 3);
-            } else {
-                double a = (double)(t - prev->utime) / (double)(o->utime - prev->utime);
-                out[0] = prev->pose[0] + a * (o->pose[0] - prev->pose[0]);
-                out[1] = prev->pose[1] + a * (o->pose[1] - prev->pose[1]);
-                out[2] = wrap(prev->pose[2] + a * wrap(o->pose[2] - prev->pose[2]));
-            }
-            return true;
-        }
-        prev = o;
-    }
-    memcpy(out, prev->pose, sizeof(double) * 3);
-    return true;
-}
-
-static int64_t newest_odom(const loc_t *s)
-{
-    return s->nring ? s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING].utime : INT64_MIN;
-}
 
 static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
 {
@@ -91,11 +49,11 @@ static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
 static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *scan)
 {
     double odom[3];
-    if (!odom_at(s, scan->utime, odom))
+    if (!posebuf_at(&s->odom, scan->utime, odom))
         return;
     mcl_scan_t ms = { scan->ranges, scan->nranges, scan->angle_min, scan->angle_increment,
                       scan->range_min, scan->range_max };
-    if ((double)(scan->utime - newest_odom(s)) / 1e6 > s->odom_timeout_s) {
+    if ((double)(scan->utime - posebuf_newest(&s->odom)) / 1e6 > s->odom_timeout_s) {
         /* Without odometry the filter cannot follow the robot: publishing its frozen pose
          * would steer the robot blind. Stay silent so the pose goes stale downstream. */
         marie_component_count(c, "scans_stale_odometry", 1);
@@ -138,11 +96,11 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
     const marie_laser_scan_t *m = msg;
     if (!scan_ok(c, m))
         return;
-    if (s->nring == 0) {
+    if (s->odom.n == 0) {
         marie_component_count(c, "scans_without_odometry", 1);
         return;
     }
-    if (newest_odom(s) >= m->utime) {
+    if (posebuf_newest(&s->odom) >= m->utime) {
         process(c, s, m);
         return;
     }
@@ -175,13 +133,14 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
         return;
     }
     bool restarted = false;
-    if (s->nring) {
-        const odom_sample_t *last = &s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING];
-        double dt = (double)(m->utime - last->utime) / 1e6;
-        double jump = hypot(m->pose.x - last->pose[0], m->pose.y - last->pose[1]);
+    double last[3];
+    int64_t last_utime = posebuf_newest(&s->odom);
+    if (posebuf_last(&s->odom, last)) {
+        double dt = (double)(m->utime - last_utime) / 1e6;
+        double jump = hypot(m->pose.x - last[0], m->pose.y - last[1]);
         /* Time going backwards (a replayed log), distance shrinking (a restarted odometry
          * starts again from zero) or a jump no robot makes: the odometry frame changed. */
-        restarted = m->utime < last->utime || m->distance < s->last_distance - 1e-6 ||
+        restarted = m->utime < last_utime || m->distance < s->last_distance - 1e-6 ||
                     jump > 0.5 + 3.0 * fabs(dt);
     }
     s->last_distance = m->distance;
@@ -194,7 +153,7 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
          * pose goes stale (we publish none without odometry), so assume it went on with its
          * last velocity for at most 1 s, and spread the particles by what that leaves open;
          * the laser pulls them in. */
-        double gap = s->nring ? fabs((double)(m->utime - s->ring[(s->head - 1 + ODOM_RING) % ODOM_RING].utime)) / 1e6 : 1.0;
+        double gap = fabs((double)(m->utime - last_utime)) / 1e6;
         double t = fmin(gap, 1.0);
         double pose[3], cov[9];
         mcl_estimate(s->f, pose, cov);
@@ -209,17 +168,10 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
         marie_component_count(c, "odometry_restarts", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
                               "odometry frame jumped after %.1f s: particles spread by %.2f m, %.2f rad", gap, sig[0], sig[2]);
-        s->nring = 0;
+        posebuf_clear(&s->odom);
         s->have_pending = false;
     }
-    odom_sample_t *o = &s->ring[s->head];
-    o->utime = m->utime;
-    o->pose[0] = m->pose.x;
-    o->pose[1] = m->pose.y;
-    o->pose[2] = m->pose.theta;
-    s->head = (s->head + 1) % ODOM_RING;
-    if (s->nring < ODOM_RING)
-        s->nring++;
+    posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });
     if (s->have_pending && m->utime >= s->pending.utime) {
         s->have_pending = false;
         process(c, s, &s->pending);
@@ -296,7 +248,7 @@ static int init(marie_component_t *c)
 {
     loc_t *s = marie_component_user(c);
     quit(c);    /* init again after a failure starts from scratch */
-    s->nring = s->head = 0;
+    posebuf_clear(&s->odom);
     s->have_pending = false;
     s->force_left = 0;
     s->last_distance = 0;

@@ -6,13 +6,18 @@
 #include <string.h>
 
 #include "map/occmap.h"
+#include "adapters/common/posebuf.h"
 #include "adapters/planner/planner.h"
 #include "core/component.h"
 
 typedef struct {
     planner_t *pl;
     bool have_pose, have_goal, want_plan;
-    double pose[3];
+    double pose[3];             /* the newest POSE, and the time it is for */
+    int64_t pose_utime;
+    posebuf_t odom;             /* recent odometry: the pose at a scan's time (see pose_at) */
+    double odom_to_map[3];      /* map pose of the odometry frame, from the newest POSE */
+    bool have_odom_to_map;
     marie_goal_t goal;          /* strings not kept */
     char goal_name[64];
     double *path;
@@ -107,7 +112,46 @@ static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, cons
     s->pose[0] = m->pose.x;
     s->pose[1] = m->pose.y;
     s->pose[2] = m->pose.theta;
+    s->pose_utime = m->utime;
     s->have_pose = true;
+    /* The localizer's pose is for an instant already past; odometry at that same instant gives
+     * where the odometry frame lies in the map, and so the map pose at any later instant. */
+    double o[3], inv[3];
+    s->have_odom_to_map = posebuf_covers(&s->odom, m->utime, 100000) && posebuf_at(&s->odom, m->utime, o);
+    if (s->have_odom_to_map) {
+        pose2d_between(o, (const double[3]){ 0, 0, 0 }, inv);
+        pose2d_compose(s->pose, inv, s->odom_to_map);
+    }
+}
+
+static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_odometry_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+        marie_component_bad_input(c, "bad_odometry", "odometry pose is not finite");
+        return;
+    }
+    if (m->utime < posebuf_newest(&s->odom)) {     /* a restarted odometry or a replayed log */
+        posebuf_clear(&s->odom);
+        s->have_odom_to_map = false;
+    }
+    posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });
+}
+
+/* The robot's map pose at time t: the newest POSE moved on by odometry to t. Without odometry
+ * only a POSE within 50 ms of t will do; false means the scan cannot be placed. */
+static bool pose_at(const pln_t *s, int64_t t, double out[3])
+{
+    double o[3];
+    if (s->have_odom_to_map && posebuf_covers(&s->odom, t, 100000) && posebuf_at(&s->odom, t, o)) {
+        pose2d_compose(s->odom_to_map, o, out);
+        return true;
+    }
+    if (llabs(t - s->pose_utime) > 50000)
+        return false;
+    memcpy(out, s->pose, sizeof s->pose);
+    return true;
 }
 
 static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -127,15 +171,22 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
         s->pts = n;
         s->pts_cap = m->nranges;
     }
-    double c0 = cos(s->pose[2]), s0 = sin(s->pose[2]);
-    double lx = s->pose[0] + c0 * s->laser_x - s0 * s->laser_y, ly = s->pose[1] + s0 * s->laser_x + c0 * s->laser_y;
+    /* Each return is placed from where the robot was when the scan was taken: with the newest
+     * pose instead (older by the localizer's latency), a turning robot sees walls in free space. */
+    double scan_pose[3];
+    if (!pose_at(s, m->utime, scan_pose)) {
+        marie_component_count(c, "scans_without_pose", 1);
+        return;
+    }
+    double c0 = cos(scan_pose[2]), s0 = sin(scan_pose[2]);
+    double lx = scan_pose[0] + c0 * s->laser_x - s0 * s->laser_y, ly = scan_pose[1] + s0 * s->laser_x + c0 * s->laser_y;
     int n = 0;
     for (int k = 0; k < m->nranges; k++) {
         double r = m->ranges[k];
         /* Only near returns matter for blocking, and they are the most precise. */
         if (!isfinite(r) || r <= m->range_min || r >= m->range_max || r > s->horizon)
             continue;
-        double a = s->pose[2] + s->laser_theta + m->angle_min + k * m->angle_increment;
+        double a = scan_pose[2] + s->laser_theta + m->angle_min + k * m->angle_increment;
         s->pts[2 * n] = lx + r * cos(a);
         s->pts[2 * n + 1] = ly + r * sin(a);
         n++;
@@ -224,7 +275,8 @@ static int init(marie_component_t *c)
 {
     pln_t *s = marie_component_user(c);
     quit(c);
-    s->have_goal = s->have_pose = s->want_plan = false;
+    s->have_goal = s->have_pose = s->want_plan = s->have_odom_to_map = false;
+    posebuf_clear(&s->odom);
     planner_params_t p;
     planner_params_default(&p);
     p.robot_radius = marie_param_double(c, "robot_radius");
@@ -274,7 +326,8 @@ static int init(marie_component_t *c)
     s->use_scan = marie_param_bool(c, "use_scan");
     s->last_plan = s->last_check = s->last_publish = INT64_MIN / 2;
     if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
-        marie_port_on_message(marie_port(c, "scan"), on_scan) || marie_port_on_message(marie_port(c, "map"), on_map)) {
+        marie_port_on_message(marie_port(c, "scan"), on_scan) ||
+        marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "map"), on_map)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
     }
@@ -290,6 +343,7 @@ static const marie_port_spec_t ports[] = {
     { "goal", &marie_type_goal_t, MARIE_IN, MARIE_PUSH, "GOAL" },
     { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
+    { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
     { "map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "MAP" },
     { "path", &marie_type_path_t, MARIE_OUT, MARIE_PUSH, "PATH" },
     { 0 },
