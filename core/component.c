@@ -1090,6 +1090,8 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
     marie_log_set_name(c->name);
     const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
     if (key) {
+        /* The replay table may live in memory: its epoch (this start) refuses every order
+         * signed before, and the local manager that signs lifecycle orders shares our clock. */
         char why[512] = "cannot keep a replay table";
         if (!(c->auth = marie_auth_load(key, why, sizeof why)) || !(c->replay = marie_replay_create(NULL))) {
             marie_errors_add(errs, key, 0, 0, "order key: %s", why);
