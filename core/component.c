@@ -409,7 +409,8 @@ static void on_lifecycle(const lcm_recv_buf_t *rbuf, const char *channel, void *
             if (rc < 0)
                 marie_component_count(c, "refused_commands", 1);
         }
-        marie_info("%s: %s from %s: %s", c->name, marie_cmd_name(cmd.command), cmd.sender, rc == 0 ? "ok" : why);
+        if (auth == MARIE_AUTH_OK)      /* refusals: logged above, at most every 5 s (floods) */
+            marie_info("%s: %s from %s: %s", c->name, marie_cmd_name(cmd.command), cmd.sender, rc == 0 ? "ok" : why);
         reply(c, cmd.request_id, cmd.command, rc == 0, rc == 0 ? "ok" : why);
     }
     marie_lifecycle_command_t_decode_cleanup(&cmd);
