@@ -9,12 +9,12 @@
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <sodium.h>
 
 #include "core/log.h"
+#include "core/time.h"
 
 struct marie_auth {
     uint8_t key[MARIE_AUTH_KEY_LEN];
@@ -233,13 +233,6 @@ struct marie_replay {
     int64_t lifetime_us, max_skew_us;
 };
 
-static int64_t wall_us(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_REALTIME, &ts);
-    return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
-}
-
 static replay_entry_t *replay_find(const marie_replay_t *r, const char *sender)
 {
     for (size_t i = 0; i < r->n; i++)
@@ -334,7 +327,7 @@ marie_replay_t *marie_replay_create_window(const char *path, int64_t lifetime_us
     marie_replay_t *r = calloc(1, sizeof *r);
     if (!r)
         return NULL;
-    r->epoch = wall_us();
+    r->epoch = marie_wall_us();
     r->lifetime_us = lifetime_us;
     r->max_skew_us = max_skew_us;
     if (path) {
@@ -382,7 +375,7 @@ static marie_auth_result_t check_fresh(marie_replay_t *r, const char *sender, in
         return MARIE_AUTH_FORGED;
     if (!r)
         return MARIE_AUTH_OK;
-    int64_t now = wall_us();
+    int64_t now = marie_wall_us();
     int64_t oldest = now - r->lifetime_us - r->max_skew_us, newest = now + r->max_skew_us;
     if (utime < oldest || seq < oldest)
         return MARIE_AUTH_STALE;
@@ -432,7 +425,7 @@ marie_auth_result_t marie_auth_check_command(const marie_auth_t *a, marie_replay
 
 int64_t marie_auth_next_seq(const char *path)
 {
-    int64_t now = wall_us();
+    int64_t now = marie_wall_us();
     if (!path)
         return now;
     int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0600);
