@@ -1609,6 +1609,19 @@ static void usage(FILE *out)
             "  --max-skew S       how far the hosts' clocks may differ (default 5)\n");
 }
 
+/* --order-lifetime and --max-skew: seconds, 0 to a day. */
+static int parse_window_s(const char *arg, int64_t *us)
+{
+    char *end;
+    double s = strtod(arg, &end);
+    if (end == arg || *end || !(s >= 0 && s <= 86400)) {
+        fprintf(stderr, "marie-am: '%s' is not a number of seconds between 0 and 86400\n", arg);
+        return -1;
+    }
+    *us = (int64_t)(s * 1e6);
+    return 0;
+}
+
 static char *default_state_dir(void)
 {
     const char *e = getenv("MARIE_STATE_DIR");
@@ -1663,14 +1676,13 @@ int main(int argc, char **argv)
         case 'r': am->log_rate = atof(optarg); am->opt_log_rate = true; break;
         case 'm': am->log_max_bytes = atoll(optarg); am->opt_log_max = true; break;
         case 'K': am->log_keep = atoi(optarg); am->opt_log_keep = true; break;
-        case 'L': am->order_lifetime_us = (int64_t)(atof(optarg) * 1e6); break;
-        case 'S': am->max_skew_us = (int64_t)(atof(optarg) * 1e6); break;
+        case 'L': if (parse_window_s(optarg, &am->order_lifetime_us) < 0) return 2; break;
+        case 'S': if (parse_window_s(optarg, &am->max_skew_us) < 0) return 2; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
-    if (optind != argc || am->status_hz <= 0 || am->order_lifetime_us < 0 || am->max_skew_us < 0 ||
-        am->order_lifetime_us > 86400000000LL || am->max_skew_us > 86400000000LL) {
+    if (optind != argc || am->status_hz <= 0) {
         usage(stderr);
         return 2;
     }

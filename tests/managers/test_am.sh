@@ -63,6 +63,7 @@ bad_key() {   # bad_key FILE WHY [marie-am options]: exit 2 naming the file and 
 printf 'not a key\n' > "$T/badkey"; chmod 600 "$T/badkey"
 check "marie-am --key FILE missing: exit 2" bad_key "$T/nosuchkey" "No such file" --key "$T/nosuchkey"
 check "marie-am --key FILE malformed: exit 2" bad_key "$T/badkey" "expected 64 hex digits" --key "$T/badkey"
+check "marie-am --max-skew not a number: exit 2" sh -c "timeout 10 $BIN/marie-am --max-skew nan --state-dir $T/am3 > $T/skew.log 2>&1; rc=\$?; grep -q 'not a number of seconds' $T/skew.log && [ \$rc -eq 2 ]"
 bad_env_key() { ( export MARIE_KEY="$T/badkey"; bad_key "$T/badkey" "expected 64 hex digits" ); }
 check "marie-am with \$MARIE_KEY malformed: exit 2" bad_env_key
 
