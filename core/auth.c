@@ -2,16 +2,19 @@
 #include "core/auth.h"
 
 #include <errno.h>
+#include <stdbool.h>
 #include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <sodium.h>
+
+#include "core/log.h"
+#include "core/time.h"
 
 struct marie_auth {
     uint8_t key[MARIE_AUTH_KEY_LEN];
@@ -210,6 +213,8 @@ const char *marie_auth_result_name(marie_auth_result_t r)
     case MARIE_AUTH_FORGED: return "forged";
     case MARIE_AUTH_REPLAYED: return "replayed";
     case MARIE_AUTH_NOKEY: return "no key";
+    case MARIE_AUTH_STALE: return "stale";
+    case MARIE_AUTH_FUTURE: return "future";
     }
     return "?";
 }
@@ -224,6 +229,8 @@ struct marie_replay {
     char *path;
     replay_entry_t *e;
     size_t n;
+    int64_t epoch;              /* receiver's wall clock at creation: older orders were never ours */
+    int64_t lifetime_us, max_skew_us;
 };
 
 static replay_entry_t *replay_find(const marie_replay_t *r, const char *sender)
@@ -253,6 +260,25 @@ static int replay_set(marie_replay_t *r, const char *sender, int64_t seq)
     return 0;
 }
 
+/* Drop marks that can no longer matter (every order at or below them is stale now), and
+ * marks no order in the window could have set; returns how many of the latter went. */
+static size_t replay_prune(marie_replay_t *r, int64_t now)
+{
+    size_t bogus = 0, k = 0;
+    for (size_t i = 0; i < r->n; i++) {
+        replay_entry_t *e = &r->e[i];
+        bool future = e->seq > now + r->max_skew_us;
+        if (future || e->seq < now - r->lifetime_us - r->max_skew_us) {
+            bogus += future;
+            free(e->sender);
+            continue;
+        }
+        r->e[k++] = *e;
+    }
+    r->n = k;
+    return bogus;
+}
+
 /* One "seq sender" per line; a sender name has no newline (checked on the way in). */
 static void replay_save(const marie_replay_t *r)
 {
@@ -269,26 +295,54 @@ static void replay_save(const marie_replay_t *r)
         rename(tmp, r->path);
 }
 
-marie_replay_t *marie_replay_create(const char *path)
+static void replay_load(marie_replay_t *r)
 {
+    FILE *f = fopen(r->path, "r");
+    if (!f)
+        return;
+    char line[512];
+    unsigned lineno = 0, bad = 0;
+    while (fgets(line, sizeof line, f)) {
+        long long seq;
+        char sender[400];
+        lineno++;
+        if (sscanf(line, "%lld %399[^\n]", &seq, sender) == 2)
+            replay_set(r, sender, seq);
+        else if (bad++ == 0)
+            marie_warn("%s:%u: not a 'seq sender' line: ignored", r->path, lineno);
+    }
+    fclose(f);
+    size_t bogus = replay_prune(r, r->epoch);
+    if (bogus)
+        marie_warn("%s: %zu sender mark(s) beyond now + %.1f s dropped (an older marie kept any seq)", r->path,
+                   bogus, r->max_skew_us / 1e6);
+}
+
+marie_replay_t *marie_replay_create_window(const char *path, int64_t lifetime_us, int64_t max_skew_us)
+{
+    if (lifetime_us < 0 || max_skew_us < 0 || lifetime_us > INT64_MAX / 8 || max_skew_us > INT64_MAX / 8) {
+        errno = EINVAL;
+        return NULL;
+    }
     marie_replay_t *r = calloc(1, sizeof *r);
     if (!r)
         return NULL;
+    r->epoch = marie_wall_us();
+    r->lifetime_us = lifetime_us;
+    r->max_skew_us = max_skew_us;
     if (path) {
-        r->path = strdup(path);
-        FILE *f = fopen(path, "r");
-        if (f) {
-            char line[512];
-            while (fgets(line, sizeof line, f)) {
-                long long seq;
-                char sender[400];
-                if (sscanf(line, "%lld %399[^\n]", &seq, sender) == 2)
-                    replay_set(r, sender, seq);
-            }
-            fclose(f);
+        if (!(r->path = strdup(path))) {
+            free(r);
+            return NULL;
         }
+        replay_load(r);
     }
     return r;
+}
+
+marie_replay_t *marie_replay_create(const char *path)
+{
+    return marie_replay_create_window(path, MARIE_AUTH_LIFETIME_US, MARIE_AUTH_MAX_SKEW_US);
 }
 
 void marie_replay_destroy(marie_replay_t *r)
@@ -308,16 +362,31 @@ int64_t marie_replay_last(const marie_replay_t *r, const char *sender)
     return e ? e->seq : 0;
 }
 
-static marie_auth_result_t check_fresh(marie_replay_t *r, const char *sender, int64_t seq)
+int64_t marie_replay_epoch(const marie_replay_t *r)
+{
+    return r->epoch;
+}
+
+/* The window bounds both times the order carries: utime is what a reader sees, seq is what
+ * the marks remember; a sender's seq runs ahead of its clock only by orders per microsecond. */
+static marie_auth_result_t check_fresh(marie_replay_t *r, const char *sender, int64_t utime, int64_t seq)
 {
     if (!sender || strchr(sender, '\n') || strlen(sender) > 256)
         return MARIE_AUTH_FORGED;
     if (!r)
         return MARIE_AUTH_OK;
-    if (seq <= marie_replay_last(r, sender))
+    int64_t now = marie_wall_us();
+    int64_t oldest = now - r->lifetime_us - r->max_skew_us, newest = now + r->max_skew_us;
+    if (utime < oldest || seq < oldest)
+        return MARIE_AUTH_STALE;
+    if (utime > newest || seq > newest)
+        return MARIE_AUTH_FUTURE;
+    if (seq <= r->epoch || seq <= marie_replay_last(r, sender))
         return MARIE_AUTH_REPLAYED;
-    if (replay_set(r, sender, seq) == 0)
+    if (replay_set(r, sender, seq) == 0) {
+        replay_prune(r, now);
         replay_save(r);
+    }
     return MARIE_AUTH_OK;
 }
 
@@ -334,7 +403,7 @@ marie_auth_result_t marie_auth_check_order(const marie_auth_t *a, marie_replay_t
     free(buf);
     if (!ok)
         return MARIE_AUTH_FORGED;
-    return check_fresh(r, o->sender, o->seq);
+    return check_fresh(r, o->sender, o->utime, o->seq);
 }
 
 marie_auth_result_t marie_auth_check_command(const marie_auth_t *a, marie_replay_t *r,
@@ -351,14 +420,12 @@ marie_auth_result_t marie_auth_check_command(const marie_auth_t *a, marie_replay
     free(buf);
     if (!ok)
         return MARIE_AUTH_FORGED;
-    return check_fresh(r, c->sender, c->seq);
+    return check_fresh(r, c->sender, c->utime, c->seq);
 }
 
 int64_t marie_auth_next_seq(const char *path)
 {
-    struct timespec ts;
-    clock_gettime(CLOCK_REALTIME, &ts);
-    int64_t now = (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+    int64_t now = marie_wall_us();
     if (!path)
         return now;
     int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0600);
@@ -369,7 +436,7 @@ int64_t marie_auth_next_seq(const char *path)
         char buf[32] = {0};
         ssize_t n = pread(fd, buf, sizeof buf - 1, 0);
         long long last = n > 0 ? atoll(buf) : 0;
-        if (last >= seq)
+        if (last >= seq && last <= now + MARIE_AUTH_MAX_SKEW_US)
             seq = last + 1;
         int len = snprintf(buf, sizeof buf, "%lld\n", (long long)seq);
         if (pwrite(fd, buf, (size_t)len, 0) == len)

@@ -411,7 +411,8 @@ static void on_lifecycle(const lcm_recv_buf_t *rbuf, const char *channel, void *
             if (rc < 0)
                 marie_component_count(c, "refused_commands", 1);
         }
-        marie_info("%s: %s from %s: %s", c->name, marie_cmd_name(cmd.command), cmd.sender, rc == 0 ? "ok" : why);
+        if (auth == MARIE_AUTH_OK)      /* refusals: logged above, at most every 5 s (floods) */
+            marie_info("%s: %s from %s: %s", c->name, marie_cmd_name(cmd.command), cmd.sender, rc == 0 ? "ok" : why);
         reply(c, cmd.request_id, cmd.command, rc == 0, rc == 0 ? "ok" : why);
     }
     marie_lifecycle_command_t_decode_cleanup(&cmd);
@@ -1108,6 +1109,8 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
     marie_log_set_name(c->name);
     const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
     if (key) {
+        /* The replay table may live in memory: its epoch (this start) refuses every order
+         * signed before, and the local manager that signs lifecycle orders shares our clock. */
         char why[512] = "cannot keep a replay table";
         if (!(c->auth = marie_auth_load(key, why, sizeof why)) || !(c->replay = marie_replay_create(NULL))) {
             marie_errors_add(errs, key, 0, 0, "order key: %s", why);

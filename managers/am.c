@@ -112,6 +112,9 @@ struct am {
     int sigfd;
     marie_auth_t *auth;
     marie_replay_t *replay;
+    int64_t order_lifetime_us, max_skew_us;    /* the replay table's window */
+    marie_ratelimit_t refusal_rl;              /* answers and events for refused orders */
+    int64_t refusals_unannounced;
     /* the loaded system */
     marie_system_t *sys;
     char sys_hash[65];
@@ -1392,6 +1395,43 @@ static void order_up(am_t *am, const marie_am_order_t *o)
     reply(am, o, true, n, "ok");
 }
 
+/* A refused order is counted always, but answered and announced within a rate limit, so a
+ * flood of forgeries or replays cannot make the manager flood the bus; the answer says why
+ * and nothing more (no hosts: the sender may not hold the key). */
+static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_t ar)
+{
+    am->orders_refused++;
+    marie_warn_ratelimited(1, "refused %s order from '%s' (seq %lld): %s (%lld refused so far)",
+                           marie_am_op_name(o->op), o->sender, (long long)o->seq, marie_auth_result_name(ar),
+                           (long long)am->orders_refused);
+    if (!marie_ratelimit_take(&am->refusal_rl, now_us())) {
+        am->refusals_unannounced++;
+        return;
+    }
+    char reason[200], text[200], source[160];
+    int64_t now = marie_wall_us();
+    if (ar == MARIE_AUTH_STALE || ar == MARIE_AUTH_FUTURE)
+        snprintf(reason, sizeof reason, "refused: %s (utime %+.1f s, seq %+.1f s from this host's clock; "
+                 "accepted: %+.1f..%+.1f s)", marie_auth_result_name(ar), (double)(o->utime - now) / 1e6,
+                 (double)(o->seq - now) / 1e6, -(double)(am->order_lifetime_us + am->max_skew_us) / 1e6,
+                 (double)am->max_skew_us / 1e6);
+    else
+        snprintf(reason, sizeof reason, "refused: %s", marie_auth_result_name(ar));
+    snprintf(text, sizeof text, "%s (%lld refused, %lld not announced)", marie_auth_result_name(ar),
+             (long long)am->orders_refused, (long long)am->refusals_unannounced);
+    snprintf(source, sizeof source, "marie-am@%s", am->host);
+    marie_event_t ev = {
+        .utime = now, .source = source, .seq = ++am->event_seq,
+        .severity = MARIE_EVENT_T_SEV_WARN, .kind = "order_refused", .text = text,
+    };
+    marie_event_t_publish(am->lcm, MARIE_CH_EVENT, &ev);
+    marie_am_reply_t r = {
+        .utime = now, .host = am->host, .sender = o->sender, .seq = o->seq, .ok = false, .reason = reason,
+    };
+    marie_am_reply_t_publish(am->lcm, MARIE_CH_AM_REPLY, &r);
+    status_changed(am);
+}
+
 static void on_order(const lcm_recv_buf_t *rbuf, const char *channel, const marie_am_order_t *o, void *user)
 {
     am_t *am = user;
@@ -1399,20 +1439,7 @@ static void on_order(const lcm_recv_buf_t *rbuf, const char *channel, const mari
         return;
     marie_auth_result_t ar = marie_auth_check_order(am->auth, am->replay, o);
     if (ar != MARIE_AUTH_OK) {
-        am->orders_refused++;
-        marie_warn_ratelimited(1, "refused %s order from '%s' (seq %lld): %s (%lld refused so far)",
-                               marie_am_op_name(o->op), o->sender, (long long)o->seq,
-                               marie_auth_result_name(ar), (long long)am->orders_refused);
-        char source[160];
-        snprintf(source, sizeof source, "marie-am@%s", am->host);
-        marie_event_t ev = {
-            .utime = marie_wall_us(), .source = source, .seq = ++am->event_seq,
-            .severity = MARIE_EVENT_T_SEV_WARN, .kind = "order_refused",
-            .text = (char *)marie_auth_result_name(ar),
-        };
-        marie_event_t_publish(am->lcm, MARIE_CH_EVENT, &ev);
-        reply(am, o, false, 0, "refused: %s", marie_auth_result_name(ar));
-        status_changed(am);
+        refuse_order(am, o, ar);
         return;
     }
     marie_info("order %s from %s (seq %lld)", marie_am_op_name(o->op), o->sender, (long long)o->seq);
@@ -1581,7 +1608,22 @@ static void usage(FILE *out)
             "  --status-hz HZ     status rate (default 2)\n"
             "  --log-rate N       captured lines per second per component (default 200, burst 2x)\n"
             "  --log-max-bytes N  rotate a component's log file past this size (default 1048576)\n"
-            "  --log-keep N       rotated files kept (default 3)\n");
+            "  --log-keep N       rotated files kept (default 3)\n"
+            "  --order-lifetime S how long an order stays valid (default 10)\n"
+            "  --max-skew S       how far the hosts' clocks may differ (default 5)\n");
+}
+
+/* --order-lifetime and --max-skew: seconds, 0 to a day. */
+static int parse_window_s(const char *arg, int64_t *us)
+{
+    char *end;
+    double s = strtod(arg, &end);
+    if (end == arg || *end || !(s >= 0 && s <= 86400)) {
+        fprintf(stderr, "marie-am: '%s' is not a number of seconds between 0 and 86400\n", arg);
+        return -1;
+    }
+    *us = (int64_t)(s * 1e6);
+    return 0;
 }
 
 static char *default_state_dir(void)
@@ -1613,6 +1655,7 @@ int main(int argc, char **argv)
         {"profile", required_argument, 0, 'p'}, {"url", required_argument, 0, 'u'},
         {"status-hz", required_argument, 0, 'z'}, {"log-rate", required_argument, 0, 'r'},
         {"log-max-bytes", required_argument, 0, 'm'}, {"log-keep", required_argument, 0, 'K'},
+        {"order-lifetime", required_argument, 0, 'L'}, {"max-skew", required_argument, 0, 'S'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0},
     };
     am_t am_storage = {0}, *am = &am_storage;
@@ -1621,6 +1664,8 @@ int main(int argc, char **argv)
     am->log_rate = 200;
     am->log_max_bytes = 1 << 20;
     am->log_keep = 3;
+    am->order_lifetime_us = MARIE_AUTH_LIFETIME_US;
+    am->max_skew_us = MARIE_AUTH_MAX_SKEW_US;
     am->sigfd = -1;
     int opt;
     while ((opt = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -1635,6 +1680,8 @@ int main(int argc, char **argv)
         case 'r': am->log_rate = atof(optarg); am->opt_log_rate = true; break;
         case 'm': am->log_max_bytes = atoll(optarg); am->opt_log_max = true; break;
         case 'K': am->log_keep = atoi(optarg); am->opt_log_keep = true; break;
+        case 'L': if (parse_window_s(optarg, &am->order_lifetime_us) < 0) return 2; break;
+        case 'S': if (parse_window_s(optarg, &am->max_skew_us) < 0) return 2; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -1697,8 +1744,11 @@ int main(int argc, char **argv)
     if (am->auth)
         am->key_path = strdup(key_path);  /* components verify their lifecycle orders with it */
     if (!am->auth) {
-        if (errno == EACCES && key) {
-            marie_error("%s", err);
+        /* A key that was asked for, or one that exists but is unusable, is a configuration
+         * error; only the default file not being there yet (before `marie keygen`) is not. */
+        if (key || errno != ENOENT) {
+            marie_error("%s: refusing to run with a key that cannot be used%s", err,
+                        key ? "" : " (from $MARIE_KEY or the default)");
             rc = 2;
             goto out_loop;
         }
@@ -1706,7 +1756,12 @@ int main(int argc, char **argv)
     }
     char seqpath[PATH_MAX];
     snprintf(seqpath, sizeof seqpath, "%s/order-seq", am->state_dir);
-    am->replay = marie_replay_create(seqpath);
+    am->replay = marie_replay_create_window(seqpath, am->order_lifetime_us, am->max_skew_us);
+    if (!am->replay) {
+        marie_error("replay table %s: %s", seqpath, strerror(errno));
+        goto out_loop;
+    }
+    marie_ratelimit_init(&am->refusal_rl, 5, 10);
 
     am->lcm = lcm_create(am->url);
     if (!am->lcm) {

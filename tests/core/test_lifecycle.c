@@ -1,5 +1,6 @@
 /* test_lifecycle: the example components driven through all eight management functions over
- * LCM, as separate processes: replies, refusals, heartbeats, malformed orders and SIGTERM. */
+ * LCM, as separate processes: replies, refusals, heartbeats, malformed orders, SIGTERM, and
+ * signed orders captured before a restart. */
 #include <errno.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -96,6 +97,14 @@ static int wait_reply(bus_t *b, int64_t id)
     return -1;
 }
 
+/* Publishes a command as it is (an attacker replays captured bytes so) and waits for the reply. */
+static int publish_order(bus_t *b, const marie_lifecycle_command_t *m)
+{
+    b->have_reply = 0;
+    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, m);
+    return wait_reply(b, m->request_id);
+}
+
 /* Sends a command, signed with `a` unless it is NULL, and waits for the reply to it. */
 static int send_order(bus_t *b, const char *target, marie_auth_t *a, int64_t seq, int cmd)
 {
@@ -106,9 +115,7 @@ static int send_order(bus_t *b, const char *target, marie_auth_t *a, int64_t seq
     };
     if (a)
         marie_auth_sign_command(a, &m, mac);
-    b->have_reply = 0;
-    marie_lifecycle_command_t_publish(b->lcm, MARIE_CH_LIFECYCLE, &m);
-    return wait_reply(b, m.request_id);
+    return publish_order(b, &m);
 }
 
 static int order(bus_t *b, const char *target, int cmd)
@@ -336,20 +343,92 @@ static void with_a_key_only_signed_fresh_orders_are_obeyed(void **state)
     assert_true(wait_state(&b, MARIE_STATE_CREATED));
     assert_int_equal(send_order(&b, "guarded", NULL, 0, MARIE_CMD_INIT), 0);
     assert_string_equal(b.reply.reason, "order refused: unsigned");
-    assert_int_equal(send_order(&b, "guarded", bad, 10, MARIE_CMD_INIT), 0);
+    int64_t seq = marie_wall_us();
+    assert_int_equal(send_order(&b, "guarded", bad, seq, MARIE_CMD_INIT), 0);
     assert_string_equal(b.reply.reason, "order refused: forged");
     assert_int_equal(b.reply.state, MARIE_STATE_CREATED);
-    assert_int_equal(send_order(&b, "guarded", good, 10, MARIE_CMD_INIT), 1);
+    assert_int_equal(send_order(&b, "guarded", good, seq, MARIE_CMD_INIT), 1);
     assert_int_equal(b.reply.state, MARIE_STATE_READY);
     /* The same sequence number again is a replay, even correctly signed. */
-    assert_int_equal(send_order(&b, "guarded", good, 10, MARIE_CMD_START), 0);
+    assert_int_equal(send_order(&b, "guarded", good, seq, MARIE_CMD_START), 0);
     assert_string_equal(b.reply.reason, "order refused: replayed");
-    assert_int_equal(send_order(&b, "guarded", good, 11, MARIE_CMD_QUIT), 1);
+    /* An order signed 1000 s ago, or dated 2100, is refused whatever its seq. */
+    assert_int_equal(send_order(&b, "guarded", good, marie_wall_us() - 1000000000LL, MARIE_CMD_START), 0);
+    assert_string_equal(b.reply.reason, "order refused: stale");
+    assert_int_equal(send_order(&b, "guarded", good, INT64_MAX, MARIE_CMD_START), 0);
+    assert_string_equal(b.reply.reason, "order refused: future");
+    assert_int_equal(b.reply.state, MARIE_STATE_READY);
+    assert_int_equal(send_order(&b, "guarded", good, marie_wall_us(), MARIE_CMD_QUIT), 1);
     expect_clean_exit(pid);
     marie_auth_destroy(good);
     marie_auth_destroy(bad);
     unlink(key);
     unlink(other);
+    bus_close(&b);
+}
+
+/* Runs the producer as `name` with the key, and brings it to running with signed orders. */
+static pid_t spawn_guarded_running(bus_t *b, const char *name, const char *key, marie_auth_t *a)
+{
+    setenv("MARIE_KEY", key, 1);
+    pid_t pid = spawn("marie-example-producer", name, "--param=rate_hz=20");
+    unsetenv("MARIE_KEY");
+    if (b->have_hb)
+        marie_heartbeat_t_decode_cleanup(&b->hb);
+    b->have_hb = 0;
+    assert_true(wait_state(b, MARIE_STATE_CREATED));
+    assert_int_equal(b->hb.pid, pid);
+    assert_int_equal(send_order(b, name, a, marie_wall_us(), MARIE_CMD_INIT), 1);
+    assert_int_equal(send_order(b, name, a, marie_wall_us(), MARIE_CMD_START), 1);
+    assert_int_equal(b->reply.state, MARIE_STATE_RUNNING);
+    return pid;
+}
+
+static void captured_order_refused_after_component_restart(void **state)
+{
+    char key[] = "/tmp/marie-test-key3-XXXXXX";
+    close(mkstemp(key));
+    unlink(key);
+    assert_int_equal(marie_auth_keygen(key), 0);
+    marie_auth_t *a = marie_auth_load(key, NULL, 0);
+    assert_non_null(a);
+    bus_t b;
+    bus_open(&b, "restarted");
+    pid_t pid = spawn_guarded_running(&b, "restarted", key, a);
+    /* the manager's signed pause, as anyone on the LAN can capture it */
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    marie_lifecycle_command_t pause = {
+        .utime = marie_wall_us(), .request_id = ++next_id, .sender = "marie-am@test", .target = "restarted",
+        .command = MARIE_CMD_PAUSE, .seq = marie_wall_us(),
+    };
+    marie_auth_sign_command(a, &pause, mac);
+    assert_int_equal(publish_order(&b, &pause), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_PAUSED);
+    assert_int_equal(publish_order(&b, &pause), 0);   /* at once again: a replay */
+    assert_string_equal(b.reply.reason, "order refused: replayed");
+    /* the component restarts (its manager's doing, or a crash) and runs again */
+    kill(pid, SIGTERM);
+    expect_clean_exit(pid);
+    pid = spawn_guarded_running(&b, "restarted", key, a);
+    /* the captured pause, still well within the order lifetime, is not obeyed */
+    assert_int_equal(publish_order(&b, &pause), 0);
+    assert_string_equal(b.reply.reason, "order refused: replayed");
+    assert_int_equal(b.reply.state, MARIE_STATE_RUNNING);
+    int64_t end = marie_mono_us() + 5000000;       /* the next heartbeat counts the refusal */
+    while (counter_of(&b, "refused_orders") < 1 && marie_mono_us() < end)
+        lcm_handle_timeout(b.lcm, 20);
+    assert_true(counter_of(&b, "refused_orders") >= 1);
+    assert_int_equal(b.hb.state, MARIE_STATE_RUNNING);
+    /* while a fresh pause from the same sender is */
+    pause.utime = pause.seq = marie_wall_us();
+    pause.request_id = ++next_id;
+    marie_auth_sign_command(a, &pause, mac);
+    assert_int_equal(publish_order(&b, &pause), 1);
+    assert_int_equal(b.reply.state, MARIE_STATE_PAUSED);
+    assert_int_equal(send_order(&b, "restarted", a, marie_wall_us(), MARIE_CMD_QUIT), 1);
+    expect_clean_exit(pid);
+    marie_auth_destroy(a);
+    unlink(key);
     bus_close(&b);
 }
 
@@ -361,6 +440,7 @@ int main(void)
         cmocka_unit_test(event_port_holds_notes_until_running_and_counts_losses),
         cmocka_unit_test(group_orders_reach_every_member),
         cmocka_unit_test(with_a_key_only_signed_fresh_orders_are_obeyed),
+        cmocka_unit_test(captured_order_refused_after_component_restart),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,7 +1,8 @@
 #!/bin/sh
 # test_am: one marie-am supervising test components: dependency order, respawn after kill -9,
-# restart of a hung component, give-up, stop/start by group, logs, refused orders, bad
-# system files, and a restarted manager bringing its components back.
+# restart of a hung component, give-up, stop/start by group, logs, refused orders (unsigned,
+# forged, replayed, stale, far-future, floods), bad keys and system files, and a restarted
+# manager bringing its components back and refusing orders captured before.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-am.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
@@ -28,6 +29,8 @@ for h in d["hosts"]:
 is_state() { [ "$(field "$1" state)" = "$2" ]; }
 pid_changed() { p=$(field "$1" pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$2" ] && is_state "$1" running; }
 trace_line() { grep -n " $1 $2 " "$T/trace" | head -1 | cut -d: -f1; }
+now_us() { date +%s%6N; }
+refused_count() { "$M" --json ps --window 0.7 | python3 -c 'import json, sys; print(json.load(sys.stdin)["hosts"][0]["orders_refused"])'; }
 
 "$M" keygen "$T/key"
 start_am
@@ -51,6 +54,18 @@ am_bad_refused() {
     rc=$?; cat "$T/am2.log"; [ $rc -eq 2 ] && grep -q 'bad.yaml:7:' "$T/am2.log" && [ ! -s "$T/trace" ]
 }
 check "marie-am refuses a bad --system file" am_bad_refused
+# a key given but unusable: exit 2 at once with the reason, never a manager refusing everything
+bad_key() {   # bad_key FILE WHY [marie-am options]: exit 2 naming the file and the reason
+    f=$1; why=$2; shift 2
+    timeout 10 "$BIN/marie-am" --host alpha --state-dir "$T/am3" "$@" > "$T/am3.log" 2>&1
+    rc=$?; cat "$T/am3.log"; [ $rc -eq 2 ] && grep -q "key file $f.*$why" "$T/am3.log"
+}
+printf 'not a key\n' > "$T/badkey"; chmod 600 "$T/badkey"
+check "marie-am --key FILE missing: exit 2" bad_key "$T/nosuchkey" "No such file" --key "$T/nosuchkey"
+check "marie-am --key FILE malformed: exit 2" bad_key "$T/badkey" "expected 64 hex digits" --key "$T/badkey"
+check "marie-am --max-skew not a number: exit 2" sh -c "timeout 10 $BIN/marie-am --max-skew nan --state-dir $T/am3 > $T/skew.log 2>&1; rc=\$?; grep -q 'not a number of seconds' $T/skew.log && [ \$rc -eq 2 ]"
+bad_env_key() { ( export MARIE_KEY="$T/badkey"; bad_key "$T/badkey" "expected 64 hex digits" ); }
+check "marie-am with \$MARIE_KEY malformed: exit 2" bad_env_key
 
 bad_profile() { out=$("$M" up tests/data/managers/single.yaml --profile nosuch 2>&1); [ $? -eq 2 ] && echo "$out" | grep -q "single.yaml:[0-9]*:[0-9]*: no profile 'nosuch'"; }
 check "unknown profile refused with file:line:col" bad_profile
@@ -108,21 +123,50 @@ check "unknown name refused (exit 1)" sh -c "$M start nosuch; [ \$? -eq 1 ]"
 # -- orders that are not authentic never start anything
 "$M" stop c --wait > /dev/null
 OT="$B/tests/bin/marie-test-order"
-check "unsigned order refused" sh -c "$OT -m unsigned start c | grep -q 'refused: unsigned'"
-check "forged order refused" sh -c "$OT -m forged start c | grep -q 'refused: forged'"
+check "unsigned order refused, answer lists no hosts" sh -c "$OT -m unsigned start c | grep -qx 'refused: unsigned hosts=0'"
+check "forged order refused, answer lists no hosts" sh -c "$OT -m forged start c | grep -qx 'refused: forged hosts=0'"
+check "a signed order's answer lists the hosts" sh -c "$OT -k $T/key ping | grep -qx 'ok hosts=1'"
 c_stopped() { [ "$(field c pid)" = 0 ]; }
 sleep 0.5
 check "refused orders started nothing" c_stopped
 replay() {
     # the same signed order twice: obeyed once, then refused
-    "$OT" -k "$T/key" -S replayer@test -s 1000 -r 2 stop c > "$T/replay.out"
+    s=$(now_us)
+    "$OT" -k "$T/key" -S replayer@test -s "$s" -r 2 stop c > "$T/replay.out"
     cat "$T/replay.out"
-    [ "$(sed -n 1p "$T/replay.out")" = ok ] && grep -q 'refused: replayed' "$T/replay.out" &&
-        "$OT" -k "$T/key" -S replayer@test -s 999 start c | grep -q 'refused: replayed'
+    sed -n 1p "$T/replay.out" | grep -q '^ok' && grep -q 'refused: replayed' "$T/replay.out" &&
+        "$OT" -k "$T/key" -S replayer@test -s $((s - 1)) start c | grep -q 'refused: replayed'
 }
 check "replayed order refused" replay
+# orders signed long ago, dated 1970 or 2100, or with a huge seq: refused, remembered for nothing
+check "order signed 1000 s ago refused" sh -c "$OT -k $T/key -S old@test -A 1000 start c | grep -q 'refused: stale'"
+check "order with utime 0 refused" sh -c "$OT -k $T/key -S old@test -u 0 start c | grep -q 'refused: stale'"
+check "order dated 2100 refused" sh -c "$OT -k $T/key -S old@test -u 4102444800000000 start c | grep -q 'refused: future'"
+check "order with seq INT64_MAX refused" sh -c "$OT -k $T/key -S max@test -s 9223372036854775807 start c | grep -q 'refused: future'"
 sleep 0.3
-check "replay started nothing" c_stopped
+check "refused orders started nothing" c_stopped
+check "seq INT64_MAX locks nobody out" sh -c "$OT -k $T/key -S max@test ping | grep -q '^ok'"
+check "INT64_MAX never written down" sh -c "! grep -q 9223372036854775807 $T/am/order-seq"
+# clocks apart by less than the skew (5 s): accepted either way (behind: once the manager has
+# been up longer than the lag, or it could be an order from before its start)
+check "order from a clock 3 s ahead accepted" sh -c "$OT -k $T/key -S ahead@test -A -3 ping | grep -q '^ok'"
+check "order from a clock 8 s behind accepted" wait_for 15 sh -c "$OT -k $T/key -S behind@test -A 8 ping | grep -q '^ok'"
+check "order from a clock 7 s ahead refused" sh -c "$OT -k $T/key -S ahead@test -A -7 ping | grep -q 'refused: future'"
+# a flood of unsigned orders: every one counted, few answered or announced
+flood() {
+    before=$(refused_count)
+    out=$("$OT" -m unsigned -F 300 start c); echo "$out"
+    set -- $out; replies=$4; events=$6
+    # the manager's budget: a burst of 10, then 5 a second (one more second for slack)
+    most=$(echo "$8" | awk '{ printf "%d", 10 + 5 * ($1 + 1) }')
+    after=$(refused_count); echo "refused $before -> $after, at most $most answers"
+    [ "$replies" -ge 1 ] && [ "$replies" -le "$most" ] && [ "$events" -ge 1 ] && [ "$events" -le "$most" ] &&
+        [ $((after - before)) -ge 100 ] && [ $((after - before)) -gt $((replies * 4)) ]
+}
+check "a flood of unsigned orders is counted, answers and events rate-limited" flood
+sleep 0.3
+check "the flood started nothing" c_stopped
+check "signed orders still obeyed after the flood" sh -c "$OT -k $T/key ping | grep -q '^ok'"
 check "refusals counted in status" sh -c "$M --json ps | grep -q '\"orders_refused\":[1-9]'"
 garbage() {
     "$OT" -m garbage -r 600 x && sleep 0.5 && kill -0 "$AM_PID" && "$M" ps > /dev/null
@@ -136,6 +180,8 @@ check "group-readable key refused (exit 4)" insecure_key
 check "start again" "$M" start c --wait
 
 # -- a manager killed with -9 takes its components down; restarted, it brings them back
+CAP=$(now_us)
+check "an order to capture obeyed" sh -c "$OT -k $T/key -S cap@test -s $CAP ping | grep -q '^ok'"
 A_PID=$(field a pid)
 C_PID=$(field c pid)
 kill -USR1 "$C_PID"          # c hangs at its next tick: its SIGTERM is never acted on
@@ -143,10 +189,14 @@ sleep 0.5
 kill -9 "$AM_PID"; wait "$AM_PID" 2>/dev/null
 check "components go with their manager" wait_for 5 sh -c "! kill -0 $A_PID 2>/dev/null"
 check "a hung component outlives its manager" kill -0 "$C_PID"
+rm -f "$T/am/order-seq"     # the replay file is lost too: orders from before stay refused
 start_am
 back() { [ "$(field a state)" = running ] && [ "$(field c state)" = running ] && [ "$(field a pid)" != "$A_PID" ] && [ "$(field c pid)" != "$C_PID" ]; }
 check "restarted manager brings them back" wait_for 15 back
 check "restarted manager ended the leftover" wait_for 5 sh -c "! kill -0 $C_PID 2>/dev/null"
+captured() { out=$("$OT" -k "$T/key" -S cap@test -s "$CAP" ping); echo "$out"; echo "$out" | grep -q 'refused: replayed\|refused: stale'; }
+check "order captured before the manager restarted refused" captured
+check "after a restart, seq INT64_MAX still locks nobody out" sh -c "$OT -k $T/key -S max@test ping | grep -q '^ok'"
 
 # -- down, then a crashing component is given up after max_failures
 check "down stops everything" "$M" down

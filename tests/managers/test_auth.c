@@ -1,5 +1,5 @@
-/* test_auth: order signing: good orders pass; unsigned, forged, replayed orders and unsafe
- * key files are refused. */
+/* test_auth: order signing: good orders pass; unsigned, forged, replayed, stale and
+ * far-future orders and unsafe key files are refused. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -14,6 +14,9 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/time.h"
+
+#define S 1000000LL      /* one second in microseconds */
 
 static char dir[64];
 
@@ -47,31 +50,43 @@ static marie_auth_t *fresh_key(const char *name)
     return a;
 }
 
+/* An order sent at `seq` microseconds of the sender's clock (utime the same). */
 static marie_am_order_t make_order(int64_t seq)
 {
     static char *targets[] = {"planner"};
     marie_am_order_t o = {
-        .utime = 1, .sender = "ops@laptop", .seq = seq, .host = "*", .op = MARIE_AM_ORDER_T_OP_START,
+        .utime = seq, .sender = "ops@laptop", .seq = seq, .host = "*", .op = MARIE_AM_ORDER_T_OP_START,
         .ntargets = 1, .targets = targets, .arg = "", .system_path = "", .system_text = "",
     };
     return o;
+}
+
+/* A signed order with these times, checked by r. */
+static marie_auth_result_t check_at(marie_auth_t *a, marie_replay_t *r, int64_t utime, int64_t seq)
+{
+    marie_am_order_t o = make_order(seq);
+    o.utime = utime;
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    assert_int_equal(marie_auth_sign_order(a, &o, mac), 0);
+    return marie_auth_check_order(a, r, &o);
 }
 
 static void test_signed_order_accepted_once(void **state)
 {
     marie_auth_t *a = fresh_key("k1");
     marie_replay_t *r = marie_replay_create(NULL);
-    marie_am_order_t o = make_order(100);
+    int64_t t = marie_replay_epoch(r) + S;
+    marie_am_order_t o = make_order(t + 100);
     uint8_t mac[MARIE_AUTH_MAC_LEN];
     assert_int_equal(marie_auth_sign_order(a, &o, mac), 0);
     assert_int_equal(marie_auth_check_order(a, r, &o), MARIE_AUTH_OK);
     /* the very same order again is a replay */
     assert_int_equal(marie_auth_check_order(a, r, &o), MARIE_AUTH_REPLAYED);
     /* an older seq, properly signed, too */
-    marie_am_order_t old = make_order(99);
+    marie_am_order_t old = make_order(t + 99);
     marie_auth_sign_order(a, &old, mac);
     assert_int_equal(marie_auth_check_order(a, r, &old), MARIE_AUTH_REPLAYED);
-    marie_am_order_t next = make_order(101);
+    marie_am_order_t next = make_order(t + 101);
     marie_auth_sign_order(a, &next, mac);
     assert_int_equal(marie_auth_check_order(a, r, &next), MARIE_AUTH_OK);
     marie_replay_destroy(r);
@@ -82,7 +97,7 @@ static void test_unsigned_refused(void **state)
 {
     marie_auth_t *a = fresh_key("k2");
     marie_replay_t *r = marie_replay_create(NULL);
-    marie_am_order_t o = make_order(5);
+    marie_am_order_t o = make_order(marie_wall_us() + S);
     assert_int_equal(marie_auth_check_order(a, r, &o), MARIE_AUTH_UNSIGNED);
     /* and a receiver without a key refuses signed orders too */
     uint8_t mac[MARIE_AUTH_MAC_LEN];
@@ -186,13 +201,14 @@ static void test_replay_table_survives_restart(void **state)
     key_path(p, sizeof p, "seq");
     marie_auth_t *a = fresh_key("k6");
     marie_replay_t *r = marie_replay_create(p);
-    marie_am_order_t o = make_order(500);
+    int64_t t = marie_replay_epoch(r) + S;
+    marie_am_order_t o = make_order(t);
     uint8_t mac[32];
     marie_auth_sign_order(a, &o, mac);
     assert_int_equal(marie_auth_check_order(a, r, &o), MARIE_AUTH_OK);
     marie_replay_destroy(r);
     r = marie_replay_create(p);
-    assert_int_equal(marie_replay_last(r, "ops@laptop"), 500);
+    assert_int_equal(marie_replay_last(r, "ops@laptop"), t);
     assert_int_equal(marie_auth_check_order(a, r, &o), MARIE_AUTH_REPLAYED);
     marie_replay_destroy(r);
     marie_auth_destroy(a);
@@ -224,6 +240,129 @@ static void test_next_seq_strictly_increases(void **state)
     }
 }
 
+/* The testers' cases: a receiver with a fresh state directory refuses a captured order 1000 s
+ * old, orders dated 1970 or 2100, and a seq of INT64_MAX, and none of them moves the sender's
+ * mark: the same sender's next real order is obeyed. */
+static void test_window_refuses_old_and_far_orders(void **state)
+{
+    char p[128];
+    key_path(p, sizeof p, "fresh-state");
+    unlink(p);
+    marie_auth_t *a = fresh_key("k8");
+    marie_replay_t *r = marie_replay_create(p);
+    int64_t now = marie_wall_us();
+    const int64_t y2100 = 4102444800LL * S;
+    assert_int_equal(check_at(a, r, now - 1000 * S, now - 1000 * S), MARIE_AUTH_STALE);
+    assert_int_equal(check_at(a, r, 0, now + S), MARIE_AUTH_STALE);
+    assert_int_equal(check_at(a, r, y2100, now + S), MARIE_AUTH_FUTURE);
+    assert_int_equal(check_at(a, r, now + S, y2100), MARIE_AUTH_FUTURE);
+    assert_int_equal(check_at(a, r, now + S, INT64_MAX), MARIE_AUTH_FUTURE);
+    assert_int_equal(check_at(a, r, now + S, INT64_MIN), MARIE_AUTH_STALE);
+    assert_int_equal(marie_replay_last(r, "ops@laptop"), 0);
+    /* not locked out, and nothing far-future was written down */
+    assert_int_equal(check_at(a, r, now + S, now + S), MARIE_AUTH_OK);
+    marie_replay_destroy(r);
+    r = marie_replay_create(p);
+    assert_int_equal(marie_replay_last(r, "ops@laptop"), now + S);
+    assert_int_equal(check_at(a, r, now + 2 * S, now + 2 * S), MARIE_AUTH_OK);
+    marie_replay_destroy(r);
+    marie_auth_destroy(a);
+}
+
+/* A file written by an older marie may hold a mark of INT64_MAX: it is dropped on load. */
+static void test_far_future_mark_in_old_file_dropped(void **state)
+{
+    char p[128];
+    key_path(p, sizeof p, "old-seq");
+    FILE *f = fopen(p, "w");
+    assert_non_null(f);
+    fprintf(f, "9223372036854775807 ops@laptop\n");
+    fclose(f);
+    marie_auth_t *a = fresh_key("k9");
+    marie_replay_t *r = marie_replay_create(p);
+    assert_int_equal(marie_replay_last(r, "ops@laptop"), 0);
+    int64_t now = marie_wall_us();
+    assert_int_equal(check_at(a, r, now + S, now + S), MARIE_AUTH_OK);
+    marie_replay_destroy(r);
+    marie_auth_destroy(a);
+}
+
+/* A receiver created after an order was signed never obeys it, with or without a file: what a
+ * restarted component or manager sees when a captured order is sent again. */
+static void test_order_signed_before_receiver_started_refused(void **state)
+{
+    char p[128];
+    key_path(p, sizeof p, "restart-seq");
+    unlink(p);
+    marie_auth_t *a = fresh_key("k10");
+    marie_replay_t *before = marie_replay_create(p);
+    marie_am_order_t o = make_order(marie_wall_us() + 1);
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    marie_auth_sign_order(a, &o, mac);
+    assert_int_equal(marie_auth_check_order(a, before, &o), MARIE_AUTH_OK);
+    marie_replay_destroy(before);
+    usleep(2000);
+    marie_replay_t *mem = marie_replay_create(NULL);
+    assert_true(marie_replay_epoch(mem) > o.seq);
+    assert_int_equal(marie_auth_check_order(a, mem, &o), MARIE_AUTH_REPLAYED);
+    unlink(p);
+    marie_replay_t *fresh = marie_replay_create(p);
+    assert_int_equal(marie_auth_check_order(a, fresh, &o), MARIE_AUTH_REPLAYED);
+    /* a lifecycle command the same */
+    marie_lifecycle_command_t c = {.utime = o.seq, .request_id = 2, .sender = "marie-am@onboard1",
+                                   .target = "planner", .command = 4, .seq = o.seq};
+    marie_auth_sign_command(a, &c, mac);
+    assert_int_equal(marie_auth_check_command(a, mem, &c), MARIE_AUTH_REPLAYED);
+    c.utime = c.seq = marie_wall_us() + 1;
+    marie_auth_sign_command(a, &c, mac);
+    assert_int_equal(marie_auth_check_command(a, mem, &c), MARIE_AUTH_OK);
+    marie_replay_destroy(mem);
+    marie_replay_destroy(fresh);
+    marie_auth_destroy(a);
+}
+
+/* Clocks that differ by less than the skew are fine either way once the receiver has run a
+ * while; just beyond the window they are not. Window here: lifetime 1 s, skew 1 s. */
+static void test_bounded_skew_accepted(void **state)
+{
+    marie_auth_t *a = fresh_key("k11");
+    marie_replay_t *r = marie_replay_create_window(NULL, S, S);
+    assert_non_null(r);
+    assert_null(marie_replay_create_window(NULL, -1, S));
+    usleep(2500000);          /* past the epoch: a lagging sender's orders are after it */
+    int64_t now = marie_wall_us();
+    assert_int_equal(check_at(a, r, now - 1500000, now - 1500000), MARIE_AUTH_OK);    /* 1.5 s behind */
+    now = marie_wall_us();
+    assert_int_equal(check_at(a, r, now + 500000, now + 500000), MARIE_AUTH_OK);      /* 0.5 s ahead */
+    now = marie_wall_us();
+    assert_int_equal(check_at(a, r, now - 2600000, now + 600000), MARIE_AUTH_STALE);  /* 2.6 s old */
+    assert_int_equal(check_at(a, r, now + 1600000, now + 600000), MARIE_AUTH_FUTURE); /* 1.6 s ahead */
+    marie_replay_destroy(r);
+    /* the default window: 5 s of skew */
+    r = marie_replay_create(NULL);
+    now = marie_wall_us();
+    assert_int_equal(check_at(a, r, now + 3 * S, now + 3 * S), MARIE_AUTH_OK);
+    assert_int_equal(check_at(a, r, now + 7 * S, now + 7 * S), MARIE_AUTH_FUTURE);
+    assert_int_equal(check_at(a, r, now - 20 * S, now - 20 * S), MARIE_AUTH_STALE);
+    marie_replay_destroy(r);
+    marie_auth_destroy(a);
+}
+
+/* A sender whose seq file holds a number no receiver would accept starts again from its clock. */
+static void test_next_seq_recovers_from_far_future_file(void **state)
+{
+    char p[128];
+    key_path(p, sizeof p, "poisoned-seq");
+    FILE *f = fopen(p, "w");
+    assert_non_null(f);
+    fprintf(f, "9223372036854775806\n");
+    fclose(f);
+    int64_t s = marie_auth_next_seq(p);
+    int64_t now = marie_wall_us();
+    assert_true(s <= now && s > now - 10 * S);
+    assert_true(marie_auth_next_seq(p) > s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -235,6 +374,11 @@ int main(void)
         cmocka_unit_test(test_replay_table_survives_restart),
         cmocka_unit_test(test_lifecycle_commands_signed),
         cmocka_unit_test(test_next_seq_strictly_increases),
+        cmocka_unit_test(test_window_refuses_old_and_far_orders),
+        cmocka_unit_test(test_far_future_mark_in_old_file_dropped),
+        cmocka_unit_test(test_order_signed_before_receiver_started_refused),
+        cmocka_unit_test(test_bounded_skew_accepted),
+        cmocka_unit_test(test_next_seq_recovers_from_far_future_file),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
