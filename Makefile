@@ -16,7 +16,8 @@ PKGS := lcm glib-2.0 libfyaml libsodium libsystemd
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 
-WARN     := -Wall -Wextra -Wno-unused-parameter
+# -Wno-missing-field-initializers: spec tables leave their optional trailing fields unset.
+WARN     := -Wall -Wextra -Wno-unused-parameter -Wno-missing-field-initializers
 CPPFLAGS := -I. -I$(B)/gen/c -I$(B)/gen/cpp $(PKG_CFLAGS) -D_GNU_SOURCE
 CFLAGS   := -O2 -g -std=gnu11 $(WARN) -MMD -MP
 CXXFLAGS := -O2 -g -std=gnu++17 $(WARN) -MMD -MP

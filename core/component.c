@@ -83,6 +83,7 @@ struct marie_component {
     char host[64];
     marie_system_t *sys;
     const marie_component_cfg_t *cfg;
+    void *params_struct;        /* def->params_size bytes, filled from MARIE_PARAM_AT entries */
     marie_doc_t **docs;         /* defaults and --param values */
     size_t ndocs;
     param_t *params;
@@ -746,6 +747,11 @@ marie_timer_t *marie_component_every(marie_component_t *c, double hz, marie_tick
         errno = EINVAL;
         return NULL;
     }
+    for (size_t i = 0; i < c->nticks; i++)
+        if (c->ticks[i]->cb == cb) {
+            marie_timer_set_period(c->ticks[i]->timer, (int64_t)(1e6 / hz + 0.5));
+            return c->ticks[i]->timer;
+        }
     tick_t **n = realloc(c->ticks, (c->nticks + 1) * sizeof *n);
     tick_t *k = calloc(1, sizeof *k);
     if (!n || !k) {
@@ -794,6 +800,33 @@ double marie_param_double(const marie_component_t *c, const char *name) { return
 bool marie_param_bool(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_BOOL)->b; }
 const char *marie_param_str(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_STRING)->s; }
 const marie_node_t *marie_param_node(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_NODE)->node; }
+const void *marie_component_params(const marie_component_t *c) { return c->params_struct; }
+
+/* Copies every bound parameter's value into the component's params struct. */
+static int fill_params_struct(marie_component_t *c)
+{
+    if (!c->def->params_size)
+        return 0;
+    c->params_struct = calloc(1, c->def->params_size);
+    if (!c->params_struct)
+        return -1;
+    char *base = c->params_struct;
+    for (size_t i = 0; i < c->nparams; i++) {
+        const param_t *pa = &c->params[i];
+        if (!pa->spec->bound)
+            continue;
+        assert(pa->spec->offset < c->def->params_size && "MARIE_PARAM_AT outside params_size");
+        void *at = base + pa->spec->offset;
+        switch (pa->spec->type) {
+        case MARIE_PARAM_INT: memcpy(at, &pa->i, sizeof pa->i); break;
+        case MARIE_PARAM_DOUBLE: memcpy(at, &pa->d, sizeof pa->d); break;
+        case MARIE_PARAM_BOOL: memcpy(at, &pa->b, sizeof pa->b); break;
+        case MARIE_PARAM_STRING: memcpy(at, &pa->s, sizeof pa->s); break;
+        case MARIE_PARAM_NODE: memcpy(at, &pa->node, sizeof pa->node); break;
+        }
+    }
+    return 0;
+}
 
 /* ---- creation ---- */
 
@@ -1132,6 +1165,8 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
     if (o.clock ? strcmp(o.clock, "sim") == 0 : (c->sys && c->sys->clock == MARIE_CLOCK_SIM))
         marie_loop_set_clock(c->loop, MARIE_CLOCK_SIM);
     int rc = bind_params(c, &o, errs);
+    if (rc == 0 && fill_params_struct(c) < 0)
+        rc = -1;
     rc |= bind_ports(c, &o, errs);
     if (rc)
         goto err;
@@ -1218,6 +1253,7 @@ void marie_component_destroy(marie_component_t *c)
     for (size_t i = 0; c->params && i < c->nparams; i++)
         free(c->params[i].expanded);
     free(c->params);
+    free(c->params_struct);
     marie_system_destroy(c->sys);
     marie_auth_destroy(c->auth);
     marie_replay_destroy(c->replay);

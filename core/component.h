@@ -73,7 +73,30 @@ typedef struct {
     marie_param_type_t type;
     const char *def;            /* default as YAML text; NULL: required */
     const char *help;
+    size_t offset;              /* with `bound`: where the value goes in the params struct */
+    bool bound;
 } marie_param_spec_t;
+
+/* A parameter declared once: its name is the field's, its value lands in that field of the
+ * component's params struct (def.params_size bytes, read with marie_component_params), and the
+ * same entry gives the default, --help and --describe. The field's C type must match:
+ *   typedef struct { double rate_hz; const char *label; } hello_params_t;
+ *   MARIE_PARAM_AT(hello_params_t, rate_hz, DOUBLE, "10", "rate")
+ * int64_t for INT, double for DOUBLE, bool for BOOL, const char * for STRING,
+ * const marie_node_t * for NODE. */
+#define MARIE_PARAM_CTYPE_INT int64_t
+#define MARIE_PARAM_CTYPE_DOUBLE double
+#define MARIE_PARAM_CTYPE_BOOL bool
+#define MARIE_PARAM_CTYPE_STRING const char *
+#define MARIE_PARAM_CTYPE_NODE const marie_node_t *
+#ifdef __cplusplus
+#define MARIE_PARAM_TYPECHECK_(st, field, T) 0
+#else
+#define MARIE_PARAM_TYPECHECK_(st, field, T) \
+    (sizeof(char[__builtin_types_compatible_p(__typeof__(((st *)0)->field), MARIE_PARAM_CTYPE_##T) ? 1 : -1]) * 0)
+#endif
+#define MARIE_PARAM_AT(st, field, T, def, help) \
+    { #field, MARIE_PARAM_##T, def, help, offsetof(st, field) + MARIE_PARAM_TYPECHECK_(st, field, T), true }
 
 /* What a component is. Hooks return 0, or -1 after marie_component_fail_reason() to refuse
  * the transition (the reply and the heartbeat carry the reason). Any hook may be NULL. */
@@ -81,6 +104,7 @@ typedef struct {
     const char *kind;
     const marie_port_spec_t *ports;     /* terminated by an entry with name NULL */
     const marie_param_spec_t *params;   /* terminated by an entry with name NULL */
+    size_t params_size;                 /* size of the struct that MARIE_PARAM_AT entries fill */
     int  (*on_init)(marie_component_t *c);     /* created/failed -> ready: read params, allocate */
     int  (*on_start)(marie_component_t *c);    /* ready -> running */
     int  (*on_stop)(marie_component_t *c);     /* running/paused -> ready: outputs safe */
@@ -127,6 +151,9 @@ double marie_param_double(const marie_component_t *c, const char *name);
 bool marie_param_bool(const marie_component_t *c, const char *name);
 const char *marie_param_str(const marie_component_t *c, const char *name);
 const marie_node_t *marie_param_node(const marie_component_t *c, const char *name);  /* NULL if unset */
+/* The params struct that MARIE_PARAM_AT entries filled (def.params_size bytes; NULL if 0). It and
+ * its strings live as long as the component. */
+const void *marie_component_params(const marie_component_t *c);
 
 /* Ports. marie_port() on an undeclared name is a programmer error (assert). */
 typedef struct {
@@ -159,7 +186,8 @@ typedef void (*marie_pull_cb_t)(marie_component_t *c, marie_port_t *p, int statu
 int marie_port_pull_async(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, void *user);
 
 /* Fixed-rate work that runs only while the component is running; overruns are counted in
- * the heartbeat. The timer lives as long as the component. */
+ * the heartbeat. The timer lives as long as the component. Asking again for the same callback
+ * (an on_init that runs again after a failure) returns the same timer at the new rate. */
 typedef void (*marie_tick_cb_t)(marie_component_t *c, int64_t overruns);
 marie_timer_t *marie_component_every(marie_component_t *c, double hz, marie_tick_cb_t cb);
 

@@ -187,6 +187,12 @@ void marie_loop_remove_timer(marie_loop_t *loop, marie_timer_t *t)
 int64_t marie_timer_overruns(const marie_timer_t *t) { return t->overruns; }
 int64_t marie_timer_period(const marie_timer_t *t) { return t->period; }
 
+void marie_timer_set_period(marie_timer_t *t, int64_t period_us)
+{
+    if (t->period > 0 && period_us > 0)
+        t->period = period_us;      /* from the next firing on */
+}
+
 void marie_loop_set_clock(marie_loop_t *loop, marie_clock_kind_t kind)
 {
     if (loop->clock == kind)

@@ -39,6 +39,8 @@ marie_timer_t *marie_loop_add_wall_oneshot(marie_loop_t *loop, int64_t delay_us,
 void marie_loop_remove_timer(marie_loop_t *loop, marie_timer_t *t);    /* NULL is a no-op */
 int64_t marie_timer_overruns(const marie_timer_t *t);                  /* total so far */
 int64_t marie_timer_period(const marie_timer_t *t);
+/* A fixed-rate timer's new period, from its next firing on (one-shots are left alone). */
+void marie_timer_set_period(marie_timer_t *t, int64_t period_us);
 
 /* Clock. In MARIE_CLOCK_SIM, now() is the last simulated time given (0 before the first)
  * and timers fire as simulated time passes their deadlines. */

@@ -5,20 +5,28 @@ typedef struct {
     int64_t seq;
 } producer_t;
 
+/* Its parameters: each declared once, in `params` below, and read from this struct. */
+typedef struct {
+    double rate_hz;
+    const char *label;
+} producer_params_t;
+
 static void tick(marie_component_t *c, int64_t overruns)
 {
     producer_t *p = marie_component_user(c);
-    marie_counter_t msg = {.name = (char *)marie_param_str(c, "label"), .value = ++p->seq};
+    const producer_params_t *q = marie_component_params(c);
+    marie_counter_t msg = {.name = (char *)q->label, .value = ++p->seq};
     marie_port_publish(marie_port(c, "out"), &msg);
 }
 
 static int init(marie_component_t *c)
 {
-    if (marie_param_double(c, "rate_hz") <= 0 || marie_param_double(c, "rate_hz") > 10000) {
+    const producer_params_t *q = marie_component_params(c);
+    if (q->rate_hz <= 0 || q->rate_hz > 10000) {
         marie_component_fail_reason(c, "rate_hz must be in (0, 10000]");
         return -1;
     }
-    return marie_component_every(c, marie_param_double(c, "rate_hz"), tick) ? 0 : -1;
+    return marie_component_every(c, q->rate_hz, tick) ? 0 : -1;
 }
 
 static const marie_port_spec_t ports[] = {
@@ -26,12 +34,13 @@ static const marie_port_spec_t ports[] = {
     {0},
 };
 static const marie_param_spec_t params[] = {
-    {"rate_hz", MARIE_PARAM_DOUBLE, "10", "publishing rate"},
-    {"label", MARIE_PARAM_STRING, "example", "name carried in every message"},
+    MARIE_PARAM_AT(producer_params_t, rate_hz, DOUBLE, "10", "publishing rate"),
+    MARIE_PARAM_AT(producer_params_t, label, STRING, "example", "name carried in every message"),
     {0},
 };
 static const marie_component_def_t def = {
-    .kind = "example-producer", .ports = ports, .params = params, .on_init = init,
+    .kind = "example-producer", .ports = ports, .params = params, .params_size = sizeof(producer_params_t),
+    .on_init = init,
 };
 
 int main(int argc, char **argv)

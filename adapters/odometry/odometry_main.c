@@ -7,10 +7,15 @@
 #include "adapters/odometry/odo.h"
 #include "core/component.h"
 
+/* The parameters, each declared once in `params` below. */
+typedef struct {
+    double wheel_radius, track, rate_hz, gyro_timeout_s, k_dist, k_gyro, k_enc_heading;
+    bool use_gyro, invert_left, invert_right;
+} odom_params_t;
+
 typedef struct {
     odo_t o;
     int64_t published_utime;
-    bool timer_made;
     double sign_l, sign_r;
 } odom_t;
 
@@ -56,35 +61,30 @@ static void tick(marie_component_t *c, int64_t overruns)
 static int init(marie_component_t *c)
 {
     odom_t *s = marie_component_user(c);
+    const odom_params_t *q = marie_component_params(c);
     odo_params_t p;
     odo_params_default(&p);
-    p.wheel_radius = marie_param_double(c, "wheel_radius");
-    p.track = marie_param_double(c, "track");
-    p.use_gyro = marie_param_bool(c, "use_gyro");
-    p.gyro_timeout_s = marie_param_double(c, "gyro_timeout_s");
-    p.k_dist = marie_param_double(c, "k_dist");
-    p.k_gyro = marie_param_double(c, "k_gyro");
-    p.k_enc_heading = marie_param_double(c, "k_enc_heading");
-    double hz = marie_param_double(c, "rate_hz");
-    if (!(p.wheel_radius > 0) || !(p.track > 0) || !(hz > 0 && hz <= 1000)) {
+    p.wheel_radius = q->wheel_radius;
+    p.track = q->track;
+    p.use_gyro = q->use_gyro;
+    p.gyro_timeout_s = q->gyro_timeout_s;
+    p.k_dist = q->k_dist;
+    p.k_gyro = q->k_gyro;
+    p.k_enc_heading = q->k_enc_heading;
+    if (!(p.wheel_radius > 0) || !(p.track > 0) || !(q->rate_hz > 0 && q->rate_hz <= 1000)) {
         marie_component_fail_reason(c, "wheel_radius and track must be > 0, rate_hz in (0, 1000]");
         return -1;
     }
     odo_init(&s->o, &p);
     s->published_utime = 0;
-    s->sign_l = marie_param_bool(c, "invert_left") ? -1 : 1;
-    s->sign_r = marie_param_bool(c, "invert_right") ? -1 : 1;
+    s->sign_l = q->invert_left ? -1 : 1;
+    s->sign_r = q->invert_right ? -1 : 1;
     if (marie_port_on_message(marie_port(c, "encoders"), on_encoders) ||
         marie_port_on_message(marie_port(c, "gyro"), on_gyro)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
     }
-    if (!s->timer_made) {
-        if (!marie_component_every(c, hz, tick))
-            return -1;
-        s->timer_made = true;
-    }
-    return 0;
+    return marie_component_every(c, q->rate_hz, tick) ? 0 : -1;
 }
 
 static const marie_port_spec_t ports[] = {
@@ -95,21 +95,21 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
-    { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
-    { "rate_hz", MARIE_PARAM_DOUBLE, "10", "odometry publishing rate" },
-    { "use_gyro", MARIE_PARAM_BOOL, "true", "heading from the gyro (else from the encoders)" },
-    { "gyro_timeout_s", MARIE_PARAM_DOUBLE, "0.3", "s: older gyro data falls back to encoder heading" },
-    { "k_dist", MARIE_PARAM_DOUBLE, "0.001", "m^2 position variance per m" },
-    { "k_gyro", MARIE_PARAM_DOUBLE, "1e-5", "rad^2 heading variance per s on the gyro" },
-    { "k_enc_heading", MARIE_PARAM_DOUBLE, "0.01", "rad^2 heading variance per rad on the encoders" },
-    { "invert_left", MARIE_PARAM_BOOL, "false", "left ticks count backwards when driving forward" },
-    { "invert_right", MARIE_PARAM_BOOL, "false", "right ticks count backwards when driving forward" },
+    MARIE_PARAM_AT(odom_params_t, wheel_radius, DOUBLE, "0.1", "m"),
+    MARIE_PARAM_AT(odom_params_t, track, DOUBLE, "0.4", "m between the wheels"),
+    MARIE_PARAM_AT(odom_params_t, rate_hz, DOUBLE, "10", "odometry publishing rate"),
+    MARIE_PARAM_AT(odom_params_t, use_gyro, BOOL, "true", "heading from the gyro (else from the encoders)"),
+    MARIE_PARAM_AT(odom_params_t, gyro_timeout_s, DOUBLE, "0.3", "s: older gyro data falls back to encoder heading"),
+    MARIE_PARAM_AT(odom_params_t, k_dist, DOUBLE, "0.001", "m^2 position variance per m"),
+    MARIE_PARAM_AT(odom_params_t, k_gyro, DOUBLE, "1e-5", "rad^2 heading variance per s on the gyro"),
+    MARIE_PARAM_AT(odom_params_t, k_enc_heading, DOUBLE, "0.01", "rad^2 heading variance per rad on the encoders"),
+    MARIE_PARAM_AT(odom_params_t, invert_left, BOOL, "false", "left ticks count backwards when driving forward"),
+    MARIE_PARAM_AT(odom_params_t, invert_right, BOOL, "false", "right ticks count backwards when driving forward"),
     { 0 },
 };
 
 static const marie_component_def_t def = {
-    .kind = "odometry", .ports = ports, .params = params, .on_init = init,
+    .kind = "odometry", .ports = ports, .params = params, .params_size = sizeof(odom_params_t), .on_init = init,
 };
 
 int main(int argc, char **argv)

@@ -10,7 +10,17 @@
 #include "adapters/planner/planner.h"
 #include "core/component.h"
 
+/* The parameters, each declared once in `params` below. */
 typedef struct {
+    const char *map, *algorithm;
+    double robot_radius, clearance, time_limit, range, obstacle_ttl, horizon, check_hz, replan_min_s,
+        republish_s, laser_x, laser_y, laser_theta;
+    bool unknown_is_free, use_scan;
+    int64_t seed;
+} pln_params_t;
+
+typedef struct {
+    const pln_params_t *q;
     planner_t *pl;
     bool have_pose, have_goal, want_plan;
     double pose[3];             /* the newest POSE, and the time it is for */
@@ -24,11 +34,9 @@ typedef struct {
     int npath;
     int8_t status;
     int64_t last_plan, last_check, last_publish;
-    double laser_x, laser_y, laser_theta, horizon, replan_min_s, check_period_s, republish_s;
-    bool use_scan;
+    double check_period_s;
     double *pts;
     int pts_cap;
-    bool timer_made;
     planner_params_t params;
     uint64_t seed;
 } pln_t;
@@ -158,7 +166,7 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
 {
     pln_t *s = marie_component_user(c);
     const marie_laser_scan_t *m = msg;
-    if (!s->have_pose || !s->use_scan || !s->pl)
+    if (!s->have_pose || !s->q->use_scan || !s->pl)
         return;
     if (m->nranges < 0 || m->nranges > 10000 || !isfinite(m->angle_min) || !isfinite(m->angle_increment)) {
         marie_component_bad_input(c, "bad_scan", "scan with %d beams", m->nranges);
@@ -179,14 +187,14 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
         return;
     }
     double c0 = cos(scan_pose[2]), s0 = sin(scan_pose[2]);
-    double lx = scan_pose[0] + c0 * s->laser_x - s0 * s->laser_y, ly = scan_pose[1] + s0 * s->laser_x + c0 * s->laser_y;
+    double lx = scan_pose[0] + c0 * s->q->laser_x - s0 * s->q->laser_y, ly = scan_pose[1] + s0 * s->q->laser_x + c0 * s->q->laser_y;
     int n = 0;
     for (int k = 0; k < m->nranges; k++) {
         double r = m->ranges[k];
         /* Only near returns matter for blocking, and they are the most precise. */
-        if (!isfinite(r) || r <= m->range_min || r >= m->range_max || r > s->horizon)
+        if (!isfinite(r) || r <= m->range_min || r >= m->range_max || r > s->q->horizon)
             continue;
-        double a = scan_pose[2] + s->laser_theta + m->angle_min + k * m->angle_increment;
+        double a = scan_pose[2] + s->q->laser_theta + m->angle_min + k * m->angle_increment;
         s->pts[2 * n] = lx + r * cos(a);
         s->pts[2 * n + 1] = ly + r * sin(a);
         n++;
@@ -198,8 +206,8 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
     if (s->npath < 2 || secs(now - s->last_check) < s->check_period_s)
         return;
     s->last_check = now;
-    int at = planner_path_blocked(s->pl, s->path, s->npath, s->pose[0], s->pose[1], s->horizon);
-    if (at >= 0 && secs(now - s->last_plan) >= s->replan_min_s) {
+    int at = planner_path_blocked(s->pl, s->path, s->npath, s->pose[0], s->pose[1], s->q->horizon);
+    if (at >= 0 && secs(now - s->last_plan) >= s->q->replan_min_s) {
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "path_blocked", "goal %d: segment %d blocked, replanning",
                               s->goal.id, at);
         plan(c, s, "path blocked");
@@ -214,9 +222,9 @@ static void tick(marie_component_t *c, int64_t overruns)
         return;
     /* A failed plan is retried (the obstacle may have gone); a good one is republished so a
      * late reader sees it. */
-    if (s->want_plan || (s->status != MARIE_PATH_T_STATUS_OK && secs(now - s->last_plan) >= s->replan_min_s * 2))
+    if (s->want_plan || (s->status != MARIE_PATH_T_STATUS_OK && secs(now - s->last_plan) >= s->q->replan_min_s * 2))
         plan(c, s, s->want_plan ? "new goal" : "retry");
-    else if (s->republish_s > 0 && secs(now - s->last_publish) >= s->republish_s)
+    else if (s->q->republish_s > 0 && secs(now - s->last_publish) >= s->q->republish_s)
         publish_path(c, s);
 }
 
@@ -274,18 +282,19 @@ static void quit(marie_component_t *c)
 static int init(marie_component_t *c)
 {
     pln_t *s = marie_component_user(c);
+    const pln_params_t *q = s->q = marie_component_params(c);
     quit(c);
     s->have_goal = s->have_pose = s->want_plan = s->have_odom_to_map = false;
     posebuf_clear(&s->odom);
     planner_params_t p;
     planner_params_default(&p);
-    p.robot_radius = marie_param_double(c, "robot_radius");
-    p.clearance = marie_param_double(c, "clearance");
-    p.time_limit = marie_param_double(c, "time_limit");
-    p.range = marie_param_double(c, "range");
-    p.obstacle_ttl = marie_param_double(c, "obstacle_ttl");
-    p.unknown_is_free = marie_param_bool(c, "unknown_is_free");
-    const char *algo = marie_param_str(c, "algorithm");
+    p.robot_radius = q->robot_radius;
+    p.clearance = q->clearance;
+    p.time_limit = q->time_limit;
+    p.range = q->range;
+    p.obstacle_ttl = q->obstacle_ttl;
+    p.unknown_is_free = q->unknown_is_free;
+    const char *algo = q->algorithm;
     if (strcmp(algo, "prm") == 0) {
         p.algorithm = PLANNER_PRM;
     } else if (strcmp(algo, "rrtconnect") != 0) {
@@ -297,8 +306,8 @@ static int init(marie_component_t *c)
         return -1;
     }
     s->params = p;
-    s->seed = (uint64_t)marie_param_int(c, "seed");
-    const char *path = marie_param_str(c, "map");
+    s->seed = (uint64_t)q->seed;
+    const char *path = q->map;
     if (path[0]) {
         marie_errors_t errs = { 0 };
         occmap_t *map = occmap_load(path, &errs);
@@ -316,14 +325,7 @@ static int init(marie_component_t *c)
     } else {
         marie_info("no map file: waiting for a map on %s", marie_port_channel(marie_port(c, "map")));
     }
-    s->laser_x = marie_param_double(c, "laser_x");
-    s->laser_y = marie_param_double(c, "laser_y");
-    s->laser_theta = marie_param_double(c, "laser_theta");
-    s->horizon = marie_param_double(c, "horizon");
-    s->replan_min_s = marie_param_double(c, "replan_min_s");
-    s->check_period_s = 1.0 / fmax(marie_param_double(c, "check_hz"), 0.01);
-    s->republish_s = marie_param_double(c, "republish_s");
-    s->use_scan = marie_param_bool(c, "use_scan");
+    s->check_period_s = 1.0 / fmax(q->check_hz, 0.01);
     s->last_plan = s->last_check = s->last_publish = INT64_MIN / 2;
     if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
         marie_port_on_message(marie_port(c, "scan"), on_scan) ||
@@ -331,12 +333,7 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
     }
-    if (!s->timer_made) {
-        if (!marie_component_every(c, 2.0, tick))
-            return -1;
-        s->timer_made = true;
-    }
-    return 0;
+    return marie_component_every(c, 2.0, tick) ? 0 : -1;
 }
 
 static const marie_port_spec_t ports[] = {
@@ -350,28 +347,28 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "map", MARIE_PARAM_STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)" },
-    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the robot's footprint" },
-    { "clearance", MARIE_PARAM_DOUBLE, "0.1", "m kept free beyond robot_radius (the map is inflated by both)" },
-    { "algorithm", MARIE_PARAM_STRING, "rrtconnect", "rrtconnect or prm" },
-    { "time_limit", MARIE_PARAM_DOUBLE, "1.0", "s per planning attempt" },
-    { "range", MARIE_PARAM_DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)" },
-    { "unknown_is_free", MARIE_PARAM_BOOL, "false", "plan through unknown cells" },
-    { "use_scan", MARIE_PARAM_BOOL, "true", "add laser obstacles and replan when the path is blocked" },
-    { "obstacle_ttl", MARIE_PARAM_DOUBLE, "10", "s a laser obstacle is remembered" },
-    { "horizon", MARIE_PARAM_DOUBLE, "3.0", "m of path ahead checked for blocking" },
-    { "check_hz", MARIE_PARAM_DOUBLE, "2", "blocking checks per second" },
-    { "replan_min_s", MARIE_PARAM_DOUBLE, "1.0", "s between two plans for the same goal" },
-    { "republish_s", MARIE_PARAM_DOUBLE, "1.0", "s between repeats of the current path (0: never)" },
-    { "laser_x", MARIE_PARAM_DOUBLE, "0", "m, laser position on the robot" },
-    { "laser_y", MARIE_PARAM_DOUBLE, "0", "m" },
-    { "laser_theta", MARIE_PARAM_DOUBLE, "0", "rad" },
-    { "seed", MARIE_PARAM_INT, "1", "OMPL's random seed (0: OMPL picks one)" },
+    MARIE_PARAM_AT(pln_params_t, map, STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)"),
+    MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint"),
+    MARIE_PARAM_AT(pln_params_t, clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (the map is inflated by both)"),
+    MARIE_PARAM_AT(pln_params_t, algorithm, STRING, "rrtconnect", "rrtconnect or prm"),
+    MARIE_PARAM_AT(pln_params_t, time_limit, DOUBLE, "1.0", "s per planning attempt"),
+    MARIE_PARAM_AT(pln_params_t, range, DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)"),
+    MARIE_PARAM_AT(pln_params_t, unknown_is_free, BOOL, "false", "plan through unknown cells"),
+    MARIE_PARAM_AT(pln_params_t, use_scan, BOOL, "true", "add laser obstacles and replan when the path is blocked"),
+    MARIE_PARAM_AT(pln_params_t, obstacle_ttl, DOUBLE, "10", "s a laser obstacle is remembered"),
+    MARIE_PARAM_AT(pln_params_t, horizon, DOUBLE, "3.0", "m of path ahead checked for blocking"),
+    MARIE_PARAM_AT(pln_params_t, check_hz, DOUBLE, "2", "blocking checks per second"),
+    MARIE_PARAM_AT(pln_params_t, replan_min_s, DOUBLE, "1.0", "s between two plans for the same goal"),
+    MARIE_PARAM_AT(pln_params_t, republish_s, DOUBLE, "1.0", "s between repeats of the current path (0: never)"),
+    MARIE_PARAM_AT(pln_params_t, laser_x, DOUBLE, "0", "m, laser position on the robot"),
+    MARIE_PARAM_AT(pln_params_t, laser_y, DOUBLE, "0", "m"),
+    MARIE_PARAM_AT(pln_params_t, laser_theta, DOUBLE, "0", "rad"),
+    MARIE_PARAM_AT(pln_params_t, seed, INT, "1", "OMPL's random seed (0: OMPL picks one)"),
     { 0 },
 };
 
 static const marie_component_def_t def = {
-    .kind = "planner", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+    .kind = "planner", .ports = ports, .params = params, .params_size = sizeof(pln_params_t), .on_init = init, .on_quit = quit,
 };
 
 int main(int argc, char **argv)

@@ -170,6 +170,67 @@ static void command_line_params_override_the_file(void **state)
     marie_errors_clear(&e);
 }
 
+/* Parameters declared once: each MARIE_PARAM_AT entry's value lands in its field, from the
+ * default, the file or the command line, ${VAR} expanded. */
+typedef struct {
+    int64_t count;
+    double rate_hz;
+    bool on;
+    const char *label;
+    const char *path;
+} bound_params_t;
+static const marie_param_spec_t bound_params[] = {
+    MARIE_PARAM_AT(bound_params_t, count, INT, "3", "how many"),
+    MARIE_PARAM_AT(bound_params_t, rate_hz, DOUBLE, "10", "Hz"),
+    MARIE_PARAM_AT(bound_params_t, on, BOOL, "true", ""),
+    MARIE_PARAM_AT(bound_params_t, label, STRING, "x", ""),
+    MARIE_PARAM_AT(bound_params_t, path, STRING, "${MARIE_TEST_RUN:-/tmp}/can", ""),
+    {0},
+};
+
+static void bound_params_fill_their_fields(void **state)
+{
+    marie_errors_t e = {0};
+    static const marie_port_spec_t no_ports[] = {{0}};
+    marie_component_def_t def = {.kind = "bound", .ports = no_ports, .params = bound_params,
+                                 .params_size = sizeof(bound_params_t)};
+    setenv("MARIE_TEST_RUN", "/run/x", 1);
+    char *argv[] = {"bound", "--param", "rate_hz=2.5", "--param", "on=false", "--param", "label=hi"};
+    marie_component_t *c = marie_component_create(&def, 7, argv, NULL, &e);
+    assert_non_null(c);
+    const bound_params_t *p = marie_component_params(c);
+    assert_non_null(p);
+    assert_int_equal(p->count, 3);
+    assert_true(p->rate_hz == 2.5);
+    assert_false(p->on);
+    assert_string_equal(p->label, "hi");
+    assert_string_equal(p->path, "/run/x/can");
+    /* The by-name reads see the same values. */
+    assert_true(marie_param_double(c, "rate_hz") == 2.5);
+    marie_component_destroy(c);
+    unsetenv("MARIE_TEST_RUN");
+    /* A component without the struct gets none. */
+    c = create(&e, DATA "unbound.yaml", "probe", "--port=needs=WANTED");
+    assert_non_null(c);
+    assert_null(marie_component_params(c));
+    marie_component_destroy(c);
+}
+
+static void tick_nothing(marie_component_t *c, int64_t overruns) {}
+
+/* An on_init that runs again (after a failure) may ask for its timer again: it gets the same one. */
+static void every_twice_is_one_timer(void **state)
+{
+    marie_errors_t e = {0};
+    marie_component_t *c = create(&e, DATA "unbound.yaml", "probe", "--port=needs=WANTED");
+    assert_non_null(c);
+    marie_timer_t *t = marie_component_every(c, 10, tick_nothing);
+    assert_non_null(t);
+    assert_ptr_equal(marie_component_every(c, 20, tick_nothing), t);
+    assert_int_equal(marie_timer_period(t), 50000);
+    marie_component_destroy(c);
+}
+
 static void duplicate_keys_and_aliases_are_refused(void **state)
 {
     marie_errors_t e = {0};
@@ -206,6 +267,8 @@ int main(void)
         cmocka_unit_test(wrong_type_and_unknown_param),
         cmocka_unit_test(unbound_port_is_an_error),
         cmocka_unit_test(command_line_params_override_the_file),
+        cmocka_unit_test(bound_params_fill_their_fields),
+        cmocka_unit_test(every_twice_is_one_timer),
         cmocka_unit_test(duplicate_keys_and_aliases_are_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
