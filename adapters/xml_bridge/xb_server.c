@@ -60,6 +60,7 @@ struct client {
     csub_t *subs;
     int nsubs, capsubs;
     int64_t partial_since;      /* monotonic us when an unfinished document began, or 0 */
+    size_t mem;                 /* parser memory charged to the budget */
     int64_t closing_since;      /* nonzero: close once the queue is written */
     int want_out;
     int dead;                   /* close at the next safe point */
@@ -107,6 +108,7 @@ void xb_server_cfg_defaults(xb_server_cfg_t *cfg)
     cfg->max_clients = 512;
     cfg->stall_ms = 10000;
     cfg->max_message = 4u << 20;
+    cfg->max_memory = 256u << 20;
 }
 
 static void bad_input(xb_server_t *s, const char *counter, const char *fmt, ...)
@@ -767,6 +769,14 @@ static void on_document(void *user, xb_node_t *req)
 
 /* ---- client lifecycle ---- */
 
+/* Charges the client's parser memory to the bridge's document budget. */
+static void charge(client_t *c)
+{
+    size_t now = c->parser ? xb_doc_parser_memory(c->parser) : 0;
+    c->s->st.doc_bytes += now - c->mem;     /* modular: a decrease subtracts */
+    c->mem = now;
+}
+
 static void client_close(client_t *c)
 {
     xb_server_t *s = c->s;
@@ -784,6 +794,8 @@ static void client_close(client_t *c)
     msgbuf_unref(c->cur.b);
     free(c->q);
     xb_doc_parser_destroy(c->parser);
+    c->parser = NULL;
+    charge(c);
     if (c->prev)
         c->prev->next = c->next;
     else
@@ -799,11 +811,37 @@ static void client_fail(client_t *c, const char *code, const char *reason)
 {
     if (c->closing_since)
         return;
+    /* Nothing more will be parsed: what the unfinished document held goes back at once. */
+    xb_doc_parser_destroy(c->parser);
+    c->parser = NULL;
+    charge(c);
     reply_error(c, NULL, code, reason);
     c->closing_since = marie_mono_us();
     c->s->st.closed_bad++;
     c->want_out = -1;           /* force the epoll update */
     set_out(c, 1);
+}
+
+/* Over budget, the clients holding the most for unfinished documents are closed, largest
+ * first, until the rest fits: whoever sends the big document pays, not whoever comes next. */
+static void enforce_budget(xb_server_t *s)
+{
+    while (s->st.doc_bytes > s->cfg.max_memory) {
+        client_t *big = NULL;
+        for (client_t *c = s->clients; c; c = c->next)
+            if (!c->closing_since && c->parser && xb_doc_parser_partial(c->parser) &&
+                (!big || c->mem > big->mem))
+                big = c;
+        if (!big)
+            return;
+        char why[200];
+        snprintf(why, sizeof why, "unfinished document holds %zu bytes, over its share (%zu) of "
+                 "the bridge's %zu-byte document memory", big->mem,
+                 s->cfg.max_memory / (size_t)(s->st.clients ? s->st.clients : 1), s->cfg.max_memory);
+        bad_input(s, "memory_budget", "%s", why);
+        s->st.closed_memory++;
+        client_fail(big, "no-memory", why);
+    }
 }
 
 static void client_read(client_t *c)
@@ -839,6 +877,9 @@ static void client_read(client_t *c)
         } else {
             c->partial_since = 0;
         }
+        charge(c);
+        if (s->st.doc_bytes > s->cfg.max_memory)
+            enforce_budget(s);
         if ((size_t)n < sizeof buf)
             break;
     }
@@ -885,6 +926,7 @@ static void accept_clients(xb_server_t *s)
             close(fd);
             continue;
         }
+        charge(c);
         c->next = s->clients;
         if (s->clients)
             s->clients->prev = c;
@@ -973,6 +1015,8 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
         s->cfg.max_message = 4u << 20;
     if (!s->cfg.queue_bytes)
         s->cfg.queue_bytes = 8u << 20;
+    if (!s->cfg.max_memory)
+        s->cfg.max_memory = 256u << 20;
     if (hooks)
         s->hooks = *hooks;
     s->lcm = lcm;

@@ -86,12 +86,17 @@ class Peer:
         self.s.close()
 
 
-def start_bridge():
+PEER_PARAMS = ["stall_ms=500", "max_clients=150", "max_document=65536", "max_depth=16", "queue=32",
+               "sndbuf=4096"]
+
+
+def start_bridge(params=PEER_PARAMS, log="xml_bridge_peer.stderr"):
+    """Starts marie-xml-bridge on PORT with these --param settings; returns once it accepts."""
     args = [os.path.join(B, "bin", "marie-xml-bridge"), "--name", "xml_bridge_test",
-            "--param", "port=%d" % PORT, "--param", "stall_ms=500", "--param", "max_clients=150",
-            "--param", "max_document=65536", "--param", "max_depth=16", "--param", "queue=32",
-            "--param", "sndbuf=4096"]
-    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=open(os.path.join(B, "test-logs", "xml_bridge_peer.stderr"), "w"))
+            "--param", "port=%d" % PORT]
+    for kv in params:
+        args += ["--param", kv]
+    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=open(os.path.join(B, "test-logs", log), "w"))
     end = time.time() + 10
     while time.time() < end:
         try:
