@@ -34,8 +34,11 @@ typedef struct {
 
 typedef struct {
     msgbuf_t *b;
-    int64_t notice;             /* >0: a <dropped> notice for this many documents */
+    int notice;                 /* a <dropped> notice, written out when it is sent */
+    uint64_t told;              /* the total that notice states */
 } qent_t;
+
+#define NOTICE_MAX 96
 
 typedef struct sub sub_t;
 typedef struct client client_t;
@@ -55,8 +58,9 @@ struct client {
     size_t qbytes;              /* bytes in the ring */
     qent_t cur;                 /* the document being written, and how much of it is */
     size_t off;
-    int64_t dropped_pending;
-    uint64_t dropped_total;
+    uint64_t dropped_total;     /* documents lost to this client */
+    uint64_t dropped_told;      /* the total in the last notice written to it */
+    int notices;                /* notices queued, not yet being written */
     csub_t *subs;
     int nsubs, capsubs;
     int64_t partial_since;      /* monotonic us when an unfinished document began, or 0 */
@@ -157,6 +161,28 @@ static void set_out(client_t *c, int on)
 
 static void flush(client_t *c);
 
+static void count_drop(client_t *c)
+{
+    c->dropped_total++;
+    c->s->st.dropped++;
+    if (c->s->hooks.drop)
+        c->s->hooks.drop(c->s->hooks.user, 1);
+}
+
+/* Writes a queued notice's text for what was lost since the last notice the client got. Done
+ * when it is about to be sent, so later losses join it and a lost notice loses no count. */
+static void render_notice(client_t *c, qent_t *e)
+{
+    uint64_t count = c->dropped_total - c->dropped_told;
+    size_t len = 0;
+    if (count > 0)
+        len = (size_t)snprintf(e->b->data, NOTICE_MAX, "<dropped count=\"%llu\" total=\"%llu\"/>\n",
+                               (unsigned long long)count, (unsigned long long)c->dropped_total);
+    c->qbytes += len - e->b->len;       /* modular: a shorter text subtracts */
+    e->b->len = len;
+    e->told = c->dropped_total;
+}
+
 /* Drops the oldest queued document (never the one being written). */
 static void drop_oldest(client_t *c)
 {
@@ -165,19 +191,14 @@ static void drop_oldest(client_t *c)
     c->qhead = (c->qhead + 1) % cap;
     c->qlen--;
     c->qbytes -= e.b->len;
-    if (e.notice > 0) {
-        c->dropped_pending += e.notice;     /* the notice itself was lost: carry its count */
-    } else {
-        c->dropped_pending++;
-        c->dropped_total++;
-        c->s->st.dropped++;
-        if (c->s->hooks.drop)
-            c->s->hooks.drop(c->s->hooks.user, 1);
-    }
+    if (e.notice)
+        c->notices--;           /* nothing lost: the next notice states the same losses */
+    else
+        count_drop(c);
     msgbuf_unref(e.b);
 }
 
-static int push_entry(client_t *c, msgbuf_t *b, int64_t notice)
+static int push_entry(client_t *c, msgbuf_t *b, int notice)
 {
     if (c->qlen >= c->qcap) {
         /* An idle client holds a small ring; it grows only when documents pile up. */
@@ -197,7 +218,7 @@ static int push_entry(client_t *c, msgbuf_t *b, int64_t notice)
         c->qcap = ncap;
     }
     int cap = c->qcap;
-    c->q[(c->qhead + c->qlen) % cap] = (qent_t){ b, notice };
+    c->q[(c->qhead + c->qlen) % cap] = (qent_t){ b, notice, 0 };
     c->qlen++;
     c->qbytes += b->len;
     b->refs++;
@@ -206,7 +227,8 @@ static int push_entry(client_t *c, msgbuf_t *b, int64_t notice)
 }
 
 /* Queues a document; a full queue loses its oldest documents, and the client is told how many
- * with a <dropped> notice ahead of the new document. */
+ * with a <dropped> notice ahead of the new document (one notice queued at a time: it counts
+ * every loss up to when it is sent). */
 static void enqueue(client_t *c, msgbuf_t *b)
 {
     if (c->dead || c->fd < 0)
@@ -218,17 +240,18 @@ static void enqueue(client_t *c, msgbuf_t *b)
     while (XB_QUEUE_FULL && !c->dead)
         drop_oldest(c);
 #undef XB_QUEUE_FULL
-    if (c->dropped_pending > 0) {
-        char note[96];
-        int n = snprintf(note, sizeof note, "<dropped count=\"%lld\" total=\"%llu\"/>\n",
-                         (long long)c->dropped_pending, (unsigned long long)c->dropped_total);
-        msgbuf_t *nb = msgbuf_new(note, (size_t)n);
-        if (nb && push_entry(c, nb, c->dropped_pending) == 0)
-            c->dropped_pending = 0;
-        msgbuf_unref(nb);
+    if (c->dropped_total > c->dropped_told && c->notices == 0) {
+        msgbuf_t *nb = malloc(sizeof *nb + NOTICE_MAX);
+        if (nb) {
+            nb->refs = 1;
+            nb->len = 0;
+            if (push_entry(c, nb, 1) == 0)
+                c->notices++;
+            msgbuf_unref(nb);
+        }
     }
     if (push_entry(c, b, 0) < 0)
-        c->dropped_pending++;
+        count_drop(c);
 }
 
 static void enqueue_text(client_t *c, const char *data, size_t len)
@@ -256,6 +279,8 @@ static void flush(client_t *c)
         }
         for (int i = 0; i < c->qlen && n < 64; i++) {
             qent_t *e = &c->q[(c->qhead + i) % c->qcap];
+            if (e->notice)
+                render_notice(c, e);
             iov[n].iov_base = e->b->data;
             iov[n].iov_len = e->b->len;
             n++;
@@ -283,11 +308,15 @@ static void flush(client_t *c)
             c->cur.b = NULL;
             c->off = 0;
         }
-        while (left > 0 && c->qlen > 0) {
+        while (c->qlen > 0 && (left > 0 || c->q[c->qhead].b->len == 0)) {
             qent_t e = c->q[c->qhead];
             c->qhead = (c->qhead + 1) % c->qcap;
             c->qlen--;
             c->qbytes -= e.b->len;
+            if (e.notice) {
+                c->notices--;
+                c->dropped_told = e.told;
+            }
             if (left < e.b->len) {
                 c->cur = e;         /* partly written: it can no longer be dropped */
                 c->off = left;

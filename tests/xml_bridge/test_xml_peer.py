@@ -448,7 +448,8 @@ def case_slow_reader_loses_oldest():
             break                   # all read
         if d is None:
             raise AssertionError("slow reader was closed")
-        if d.tag == "dropped":
+        if d.tag == "dropped":      # count: lost since the previous notice; total: so far
+            assert int(d.get("count")) == int(d.get("total")) - lost, ET.tostring(d)
             lost += int(d.get("count"))
         elif d.tag == "message":
             got += 1
