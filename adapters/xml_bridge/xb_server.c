@@ -604,7 +604,7 @@ static void do_subscribe(client_t *c, const xb_node_t *req)
             int cap = c->capsubs ? c->capsubs * 2 : 4;
             csub_t *n = realloc(c->subs, (size_t)cap * sizeof *n);
             if (!n) {
-                reply_error(c, req, "no-memory", "out of memory");
+                reply_error(c, req, "subscribe-failed", "out of memory");
                 return;
             }
             c->subs = n;
@@ -662,6 +662,10 @@ static void do_publish(client_t *c, const xb_node_t *req)
     s->enc.len = 0;
     s->enc.full = 0;
     if (xb_encode(t, req, &s->enc, &err) < 0) {
+        if (strcmp(err.code, "no-memory") == 0) {   /* the bridge's fault, not the document's */
+            reply_error(c, req, "publish-failed", err.reason);
+            return;
+        }
         bad_input(s, "bad_document", "%s: %s", err.code, err.reason);
         reply_error(c, req, err.code, err.reason);
         return;

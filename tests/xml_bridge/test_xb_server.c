@@ -446,6 +446,38 @@ static void test_bad_streams_close_only_their_client(void **state)
     assert_int_equal(st.closed_bad, 6);
 }
 
+static int setup_tiny_message(void **state)
+{
+    xb_server_cfg_t cfg;
+    xb_server_cfg_defaults(&cfg);
+    cfg.max_message = 64;
+    cfg.max_doc_bytes = 4096;
+    return setup_with(&cfg);
+}
+
+/* too-large names two limits: a message over max_message refuses the request only, a document
+ * over max_document closes the stream (the rest of it cannot be told from the next document). */
+static void test_too_large_message_keeps_the_connection(void **state)
+{
+    cli_t c;
+    assert_int_equal(cli_connect(&c, 0), 0);
+    char doc[600];
+    snprintf(doc, sizeof doc, "<publish channel=\"A\" type=\"event_t\" id=\"big\"><text>%0200d</text>"
+             "</publish><ping id=\"after\"/>", 7);
+    cli_send(&c, doc);
+    assert_true(cli_wait(&c, 3));
+    assert_true(starts(c.docs[1], "error|code=too-large"));
+    assert_non_null(strstr(c.docs[1], "|to=publish|id=big"));
+    assert_true(starts(c.docs[2], "ok|to=ping|id=after"));
+    assert_false(c.eof);
+    cli_free(&c);
+    char big[6000];
+    memset(big, 'x', sizeof big);
+    memcpy(big, "<ping><x>", 9);
+    big[sizeof big - 1] = '\0';
+    expect_closed_with(big, "too-large");
+}
+
 static void test_hundreds_of_clients_and_the_rest_refused(void **state)
 {
     enum { N = 240 };
@@ -579,6 +611,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_pull_gives_the_latest_value, setup, teardown),
         cmocka_unit_test_setup_teardown(test_semantic_errors_keep_the_connection, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_streams_close_only_their_client, setup_small, teardown),
+        cmocka_unit_test_setup_teardown(test_too_large_message_keeps_the_connection, setup_tiny_message, teardown),
         cmocka_unit_test_setup_teardown(test_hundreds_of_clients_and_the_rest_refused, setup_small, teardown),
         cmocka_unit_test_setup_teardown(test_slow_client_loses_oldest_and_never_blocks, setup_slow, teardown),
     };
