@@ -16,8 +16,9 @@ EXTRA_TARGETS += $(XB_TYPES_XSD)
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie && install -m 644 docs/xml-bridge.xsd $(XB_TYPES_XSD) $(DESTDIR)$(PREFIX)/share/marie/;
 
 # Pure codec and document parser (no libmarie): also what the fuzzer links.
-XB_CODEC_SRCS := adapters/xml_bridge/xb_doc.c adapters/xml_bridge/xb_codec.c
-XB_SRCS := $(XB_CODEC_SRCS) adapters/xml_bridge/xb_server.c
+XB_CODEC_SRCS := adapters/xml_bridge/xb_doc.c adapters/xml_bridge/xb_text.c adapters/xml_bridge/xb_codec.c
+XB_SRCS := $(XB_CODEC_SRCS) adapters/xml_bridge/xb_server.c adapters/xml_bridge/xb_out.c \
+           adapters/xml_bridge/xb_requests.c
 $(eval $(call marie_lib,xml_bridge,$(XB_SRCS)))
 XB_LIB := $(B)/lib/libxml_bridge.a
 
