@@ -38,6 +38,13 @@ int xb_text_blank(const char *s, size_t len)
     return 1;
 }
 
+/* Reparse deferral came with expat 2.6.0, and with security backports that keep 2.5.0's version
+ * number (Debian 12's 2.5.0-1+deb12u5): whether it exists is known only when linking, so the
+ * bridge asks for it weakly and turns it off wherever it is (deferred, a document split in
+ * small pieces waits for bytes that may never come, and is misparsed after a reset). */
+XMLPARSEAPI(XML_Bool) XML_SetReparseDeferralEnabled(XML_Parser parser, XML_Bool enabled)
+    __attribute__((weak));
+
 /* Bump allocator for one document's tree; reset (not freed) between documents. */
 typedef struct chunk {
     struct chunk *next;
@@ -368,10 +375,9 @@ static int setup(xb_doc_parser_t *p)
     XML_SetElementHandler(p->xp, on_start, on_end);
     XML_SetCharacterDataHandler(p->xp, on_text);
     XML_SetStartDoctypeDeclHandler(p->xp, on_doctype);
-#if XML_MAJOR_VERSION > 2 || (XML_MAJOR_VERSION == 2 && XML_MINOR_VERSION >= 6)
     /* Replies must not wait for the next bytes; the size limit bounds reparsing instead. */
-    XML_SetReparseDeferralEnabled(p->xp, XML_FALSE);
-#endif
+    if (XML_SetReparseDeferralEnabled)
+        XML_SetReparseDeferralEnabled(p->xp, XML_FALSE);
     arena_reset(p);
     p->root = p->cur = NULL;
     p->depth = 0;

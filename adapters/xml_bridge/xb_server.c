@@ -96,11 +96,11 @@ static void client_fail(client_t *c, const char *code, const char *reason)
 {
     if (c->closing_since)
         return;
+    xb_reply_error(c, NULL, code, reason);     /* code and reason may be the parser's */
     /* Nothing more will be parsed: what the unfinished document held goes back at once. */
     xb_doc_parser_destroy(c->parser);
     c->parser = NULL;
     charge(c);
-    xb_reply_error(c, NULL, code, reason);
     c->closing_since = marie_mono_us();
     c->s->st.closed_bad++;
     c->want_out = -1;           /* force the epoll update */
