@@ -72,7 +72,6 @@ struct xb_doc_parser {
     chunk_t *chunks;            /* newest first */
     pnode_t *mapped;            /* nodes whose text is mapped */
     size_t arena_bytes;         /* chunk sizes */
-    size_t map_bytes;           /* mapped texts */
     size_t expat_bytes;         /* what expat allocated for this parser */
     xb_node_t *root, *cur;
     int depth;
@@ -171,7 +170,6 @@ static void arena_reset(xb_doc_parser_t *p)
     for (pnode_t *n = p->mapped; n; n = n->next_map)
         munmap(n->pub.text, n->map_len);
     p->mapped = NULL;
-    p->map_bytes = 0;
     /* Keep the largest chunk up to 64 KiB so the next document of the same size allocates
      * nothing; free the rest. */
     chunk_t *keep = NULL;
@@ -297,7 +295,6 @@ static int text_reserve(xb_doc_parser_t *p, pnode_t *n, size_t need)
         void *m = mremap(x->text, n->map_len, len, MREMAP_MAYMOVE);
         if (m == MAP_FAILED)
             return -1;
-        p->map_bytes += len - n->map_len;
         x->text = m;
         n->map_len = n->cap = len;
         return 0;
@@ -330,7 +327,6 @@ static int text_reserve(xb_doc_parser_t *p, pnode_t *n, size_t need)
         n->map_len = cap;
         n->next_map = p->mapped;
         p->mapped = n;
-        p->map_bytes += cap;
     }
     memcpy(t, x->text, x->text_len + 1);
     x->text = t;
@@ -502,7 +498,11 @@ int xb_doc_parser_partial(const xb_doc_parser_t *p)
 
 size_t xb_doc_parser_memory(const xb_doc_parser_t *p)
 {
-    return sizeof *p + p->arena_bytes + p->map_bytes + p->expat_bytes;
+    /* A mapping's pages count once written: its reserve beyond the text costs nothing. */
+    size_t mapped = 0;
+    for (const pnode_t *n = p->mapped; n; n = n->next_map)
+        mapped += page_round(n->pub.text_len + 1);
+    return sizeof *p + p->arena_bytes + mapped + p->expat_bytes;
 }
 
 uint64_t xb_doc_parser_documents(const xb_doc_parser_t *p)
