@@ -22,6 +22,8 @@ static const marie_param_spec_t params[] = {
     { "stall_ms", MARIE_PARAM_INT, "10000", "an unfinished document older than this closes its client" },
     { "max_message", MARIE_PARAM_INT, "4194304", "largest LCM payload bridged, in bytes" },
     { "sndbuf", MARIE_PARAM_INT, "0", "per-client socket send buffer in bytes (0: kernel autotuning)" },
+    { "max_memory", MARIE_PARAM_INT, "268435456",
+      "bytes held for incoming documents of all clients; over it the largest are closed (no-memory)" },
     { NULL, 0, NULL, NULL },
 };
 
@@ -78,8 +80,10 @@ static int on_start(marie_component_t *c)
     cfg.stall_ms = (int)marie_param_int(c, "stall_ms");
     cfg.max_message = (size_t)marie_param_int(c, "max_message");
     cfg.sndbuf = (int)marie_param_int(c, "sndbuf");
+    cfg.max_memory = (size_t)marie_param_int(c, "max_memory");
     if (cfg.port < 0 || cfg.port > 65535 || cfg.max_depth < 1 || cfg.queue_docs < 2 ||
-        cfg.max_clients < 1 || cfg.stall_ms < 1 || (int64_t)cfg.max_doc_bytes < 64) {
+        cfg.max_clients < 1 || cfg.stall_ms < 1 || (int64_t)cfg.max_doc_bytes < 64 ||
+        (int64_t)cfg.max_memory < (int64_t)cfg.max_doc_bytes) {
         marie_component_fail_reason(c, "xml bridge parameters out of range");
         return -1;
     }

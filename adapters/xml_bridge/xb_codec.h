@@ -1,5 +1,6 @@
 /* xb_codec: one XML element tree <-> the LCM wire format of a message, driven by the type
- * descriptors (xb_types.h), so every type in lcmtypes/ is bridged by the same code. */
+ * descriptors (core/typeinfo.h), so every type in lcmtypes/ is bridged by the same code; and
+ * the text forms of values it uses (xb_text.c). */
 #ifndef XB_CODEC_H
 #define XB_CODEC_H
 
@@ -25,6 +26,8 @@ void xb_buf_free(xb_buf_t *b);
 int xb_buf_put(xb_buf_t *b, const void *data, size_t len);     /* 0 or -1 */
 int xb_buf_puts(xb_buf_t *b, const char *s);
 int xb_buf_printf(xb_buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Makes room for `extra` more bytes: 0, or -1 (and `full`) past the maximum or out of memory. */
+int xb_buf_reserve(xb_buf_t *b, size_t extra);
 /* Appends s escaped for XML text or attribute values (", <, &, >, and \t \n \r as character
  * references, so a document stays on one line). */
 int xb_buf_escape(xb_buf_t *b, const char *s, size_t len);
@@ -50,6 +53,14 @@ void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size);
 int xb_base64_encode(xb_buf_t *b, const uint8_t *data, size_t len);
 long xb_base64_decode(const char *s, size_t len, uint8_t *out, size_t outcap);
 size_t xb_base64_decoded_max(size_t len);
+/* Exact decoded length of a (whitespace-tolerant) base64 text, or -1 if malformed. */
+long xb_base64_length(const char *s, size_t len);
+
+/* XML whitespace. */
+static inline int xb_is_ws(char c)
+{
+    return c == ' ' || c == '\t' || c == '\n' || c == '\r';
+}
 
 /* Nonzero when the bytes are valid UTF-8 made only of characters XML 1.0 allows. */
 int xb_xml_safe(const char *s, size_t len);

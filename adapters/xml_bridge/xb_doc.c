@@ -7,8 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/random.h>
 #include <time.h>
+#include <unistd.h>
 
 void xb_error_set(xb_error_t *e, const char *code, const char *fmt, ...)
 {
@@ -37,6 +39,13 @@ int xb_text_blank(const char *s, size_t len)
     return 1;
 }
 
+/* Reparse deferral came with expat 2.6.0, and with security backports that keep 2.5.0's version
+ * number (Debian 12's 2.5.0-1+deb12u5): whether it exists is known only when linking, so the
+ * bridge asks for it weakly and turns it off wherever it is (deferred, a document split in
+ * small pieces waits for bytes that may never come, and is misparsed after a reset). */
+XMLPARSEAPI(XML_Bool) XML_SetReparseDeferralEnabled(XML_Parser parser, XML_Bool enabled)
+    __attribute__((weak));
+
 /* Bump allocator for one document's tree; reset (not freed) between documents. */
 typedef struct chunk {
     struct chunk *next;
@@ -44,12 +53,27 @@ typedef struct chunk {
     char data[];
 } chunk_t;
 
+/* Texts up to this size grow inside the arena; longer ones move to a mapping of their own that
+ * grows in place (mremap), so a long text costs its length once, whatever its chunking. */
+#define TEXT_ARENA_MAX 16384
+
+/* A node as the parser keeps it: the public part, and where its text may grow. */
+typedef struct pnode {
+    xb_node_t pub;
+    size_t cap;                 /* bytes the text's storage holds, NUL included (0: none) */
+    size_t map_len;             /* nonzero: the text is a private mapping of this length */
+    struct pnode *next_map;     /* nodes with mapped texts, unmapped at reset */
+} pnode_t;
+
 struct xb_doc_parser {
     XML_Parser xp;
     xb_doc_limits_t lim;
     xb_doc_cb_t cb;
     void *user;
     chunk_t *chunks;            /* newest first */
+    pnode_t *mapped;            /* nodes whose text is mapped */
+    size_t arena_bytes;         /* chunk sizes */
+    size_t expat_bytes;         /* what expat allocated for this parser */
     xb_node_t *root, *cur;
     int depth;
     int started;                /* a document's first byte has been fed since the reset */
@@ -62,6 +86,60 @@ struct xb_doc_parser {
     unsigned long salt;
     xb_error_t err;
 };
+
+/* ---- expat's allocations, charged to the parser they serve ----
+ * Expat's allocator hooks take no context; the parser being worked on is set around each call
+ * into expat, and every block remembers whom it was charged to. */
+typedef struct {
+    xb_doc_parser_t *owner;
+    size_t size;
+} mm_head_t;
+#define MM_HEAD 16              /* keeps malloc's alignment for expat's blocks */
+_Static_assert(sizeof(mm_head_t) <= MM_HEAD, "allocation header too large");
+
+static __thread xb_doc_parser_t *mm_owner;
+
+static void *mm_malloc(size_t n)
+{
+    char *b = n < SIZE_MAX - MM_HEAD ? malloc(n + MM_HEAD) : NULL;
+    if (!b)
+        return NULL;
+    mm_head_t *h = (mm_head_t *)b;
+    h->owner = mm_owner;
+    h->size = n;
+    if (h->owner)
+        h->owner->expat_bytes += n;
+    return b + MM_HEAD;
+}
+
+static void mm_free(void *ptr)
+{
+    if (!ptr)
+        return;
+    mm_head_t *h = (mm_head_t *)((char *)ptr - MM_HEAD);
+    if (h->owner)
+        h->owner->expat_bytes -= h->size;
+    free(h);
+}
+
+static void *mm_realloc(void *ptr, size_t n)
+{
+    if (!ptr)
+        return mm_malloc(n);
+    mm_head_t *h = (mm_head_t *)((char *)ptr - MM_HEAD);
+    xb_doc_parser_t *owner = h->owner;
+    size_t old = h->size;
+    char *b = n < SIZE_MAX - MM_HEAD ? realloc(h, n + MM_HEAD) : NULL;
+    if (!b)
+        return NULL;
+    h = (mm_head_t *)b;
+    h->size = n;
+    if (owner)
+        owner->expat_bytes += n - old;      /* modular: a shrink subtracts */
+    return b + MM_HEAD;
+}
+
+static const XML_Memory_Handling_Suite mm_suite = { mm_malloc, mm_realloc, mm_free };
 
 /* Chunks start small (an idle client costs little) and double up to 64 KiB. */
 static void *arena_alloc(xb_doc_parser_t *p, size_t n)
@@ -81,6 +159,7 @@ static void *arena_alloc(xb_doc_parser_t *p, size_t n)
         c->used = 0;
         c->next = p->chunks;
         p->chunks = c;
+        p->arena_bytes += size;
     }
     void *r = c->data + c->used;
     c->used += n;
@@ -89,6 +168,9 @@ static void *arena_alloc(xb_doc_parser_t *p, size_t n)
 
 static void arena_reset(xb_doc_parser_t *p)
 {
+    for (pnode_t *n = p->mapped; n; n = n->next_map)
+        munmap(n->pub.text, n->map_len);
+    p->mapped = NULL;
     /* Keep the largest chunk up to 64 KiB so the next document of the same size allocates
      * nothing; free the rest. */
     chunk_t *keep = NULL;
@@ -101,9 +183,11 @@ static void arena_reset(xb_doc_parser_t *p)
             free(p->chunks);
         p->chunks = n;
     }
+    p->arena_bytes = 0;
     if (keep) {
         keep->next = NULL;
         keep->used = 0;
+        p->arena_bytes = keep->size;
     }
     p->chunks = keep;
 }
@@ -152,13 +236,14 @@ static void XMLCALL on_start(void *ud, const XML_Char *name, const XML_Char **at
     size_t na = 0;
     while (attrs[na])
         na++;
-    xb_node_t *n = arena_alloc(p, sizeof *n);
+    pnode_t *pn = arena_alloc(p, sizeof *pn);
     const char **a = arena_alloc(p, (na + 1) * sizeof *a);
-    if (!n || !a) {
+    if (!pn || !a) {
         fail(p, "no-memory", "%s", "out of memory");
         return;
     }
-    memset(n, 0, sizeof *n);
+    memset(pn, 0, sizeof *pn);
+    xb_node_t *n = &pn->pub;
     n->name = arena_strdup(p, name);
     for (size_t i = 0; i < na; i++)
         a[i] = arena_strdup(p, attrs[i]);
@@ -193,36 +278,77 @@ static void XMLCALL on_end(void *ud, const XML_Char *name)
     }
 }
 
+static size_t page_round(size_t n)
+{
+    size_t pg = (size_t)sysconf(_SC_PAGESIZE);
+    return (n + pg - 1) / pg * pg;
+}
+
+/* Makes room for `need` bytes of text (NUL included) in n's storage, keeping the text; 0 or -1.
+ * Storage grows geometrically, so a text costs O(length) whatever the size of its pieces. */
+static int text_reserve(xb_doc_parser_t *p, pnode_t *n, size_t need)
+{
+    xb_node_t *x = &n->pub;
+    if (need <= n->cap)
+        return 0;
+    if (n->map_len) {
+        size_t len = page_round(need + need / 4);
+        void *m = mremap(x->text, n->map_len, len, MREMAP_MAYMOVE);
+        if (m == MAP_FAILED)
+            return -1;
+        x->text = m;
+        n->map_len = n->cap = len;
+        return 0;
+    }
+    /* Extend in place when the text is the arena's last allocation (the usual case). */
+    chunk_t *c = p->chunks;
+    size_t round = (need + 15) & ~(size_t)15;
+    if (n->cap && c && x->text >= c->data && x->text < c->data + c->used) {
+        size_t off = (size_t)(x->text - c->data);
+        if (off + n->cap == c->used && off + round <= c->size) {
+            c->used = off + round;
+            n->cap = round;
+            return 0;
+        }
+    }
+    char *t;
+    size_t cap;
+    if (need <= TEXT_ARENA_MAX) {
+        cap = n->cap ? 2 * need : round;     /* first piece exact: most texts come whole */
+        if (cap > TEXT_ARENA_MAX)
+            cap = TEXT_ARENA_MAX;
+        cap = (cap + 15) & ~(size_t)15;
+        if (!(t = arena_alloc(p, cap)))
+            return -1;
+    } else {
+        cap = page_round(need + need / 4);
+        t = mmap(NULL, cap, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (t == MAP_FAILED)
+            return -1;
+        n->map_len = cap;
+        n->next_map = p->mapped;
+        p->mapped = n;
+    }
+    memcpy(t, x->text, x->text_len + 1);
+    x->text = t;
+    n->cap = cap;
+    return 0;
+}
+
 static void XMLCALL on_text(void *ud, const XML_Char *s, int len)
 {
     xb_doc_parser_t *p = ud;
     if (p->limit_hit || !p->cur || over_size(p))
         return;
-    xb_node_t *n = p->cur;
-    chunk_t *c = p->chunks;
-    /* Extend in place when the text is the arena's last allocation (the usual case). */
-    if (n->text_len > 0 && c && n->text >= c->data && n->text < c->data + c->used) {
-        size_t off = (size_t)(n->text - c->data);
-        size_t have = (n->text_len + 1 + 15) & ~(size_t)15;
-        size_t need = (n->text_len + (size_t)len + 1 + 15) & ~(size_t)15;
-        if (off + have == c->used && off + need <= c->size) {
-            c->used = off + need;
-            memcpy(n->text + n->text_len, s, (size_t)len);
-            n->text_len += (size_t)len;
-            n->text[n->text_len] = '\0';
-            return;
-        }
-    }
-    char *t = arena_alloc(p, n->text_len + (size_t)len + 1);
-    if (!t) {
+    pnode_t *n = (pnode_t *)p->cur;      /* every node is a pnode_t */
+    xb_node_t *x = &n->pub;
+    if (text_reserve(p, n, x->text_len + (size_t)len + 1) < 0) {
         fail(p, "no-memory", "%s", "out of memory");
         return;
     }
-    memcpy(t, n->text, n->text_len);
-    memcpy(t + n->text_len, s, (size_t)len);
-    n->text_len += (size_t)len;
-    t[n->text_len] = '\0';
-    n->text = t;
+    memcpy(x->text + x->text_len, s, (size_t)len);
+    x->text_len += (size_t)len;
+    x->text[x->text_len] = '\0';
 }
 
 static void XMLCALL on_doctype(void *ud, const XML_Char *name, const XML_Char *sysid,
@@ -251,11 +377,12 @@ static void no_reparse_deferral(XML_Parser xp)
 
 static int setup(xb_doc_parser_t *p)
 {
-    if (!p->xp)
-        p->xp = XML_ParserCreate("UTF-8");
-    else if (!XML_ParserReset(p->xp, "UTF-8"))
-        return -1;
-    if (!p->xp)
+    xb_doc_parser_t *prev = mm_owner;
+    mm_owner = p;
+    int ok = p->xp ? XML_ParserReset(p->xp, "UTF-8")
+                   : (p->xp = XML_ParserCreate_MM("UTF-8", &mm_suite, NULL)) != NULL;
+    mm_owner = prev;
+    if (!ok)
         return -1;
     /* One random hash salt per parser: a reset would otherwise draw a new one every time. */
     XML_SetHashSalt(p->xp, p->salt);
@@ -264,10 +391,9 @@ static int setup(xb_doc_parser_t *p)
     XML_SetElementHandler(p->xp, on_start, on_end);
     XML_SetCharacterDataHandler(p->xp, on_text);
     XML_SetStartDoctypeDeclHandler(p->xp, on_doctype);
-#if XML_MAJOR_VERSION > 2 || (XML_MAJOR_VERSION == 2 && XML_MINOR_VERSION >= 6)
     /* Replies must not wait for the next bytes; the size limit bounds reparsing instead. */
-    XML_SetReparseDeferralEnabled(p->xp, XML_FALSE);
-#endif
+    if (XML_SetReparseDeferralEnabled)
+        XML_SetReparseDeferralEnabled(p->xp, XML_FALSE);
     arena_reset(p);
     p->root = p->cur = NULL;
     p->depth = 0;
@@ -299,8 +425,13 @@ void xb_doc_parser_destroy(xb_doc_parser_t *p)
 {
     if (!p)
         return;
-    if (p->xp)
+    if (p->xp) {
+        xb_doc_parser_t *prev = mm_owner;
+        mm_owner = p;
         XML_ParserFree(p->xp);
+        mm_owner = prev;
+    }
+    arena_reset(p);
     while (p->chunks) {
         chunk_t *n = p->chunks->next;
         free(p->chunks);
@@ -341,7 +472,10 @@ int xb_doc_parser_feed(xb_doc_parser_t *p, const void *buf, size_t len)
         /* Expat copies what follows a suspension (the end of a document) into its own buffer:
          * small pieces keep that copy small when many documents share one read. */
         int n = len > 2048 ? 2048 : (int)len;
+        xb_doc_parser_t *prev = mm_owner;
+        mm_owner = p;
         enum XML_Status st = XML_Parse(p->xp, s, n, XML_FALSE);
+        mm_owner = prev;
         if (st == XML_STATUS_ERROR || p->limit_hit)
             return fatal(p);
         if (st == XML_STATUS_SUSPENDED && p->done) {
@@ -380,6 +514,15 @@ const xb_error_t *xb_doc_parser_error(const xb_doc_parser_t *p)
 int xb_doc_parser_partial(const xb_doc_parser_t *p)
 {
     return p->started && !p->failed;
+}
+
+size_t xb_doc_parser_memory(const xb_doc_parser_t *p)
+{
+    /* A mapping's pages count once written: its reserve beyond the text costs nothing. */
+    size_t mapped = 0;
+    for (const pnode_t *n = p->mapped; n; n = n->next_map)
+        mapped += page_round(n->pub.text_len + 1);
+    return sizeof *p + p->arena_bytes + mapped + p->expat_bytes;
 }
 
 uint64_t xb_doc_parser_documents(const xb_doc_parser_t *p)

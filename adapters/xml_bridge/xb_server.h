@@ -26,6 +26,8 @@ typedef struct {
     size_t max_message;         /* largest LCM payload published or delivered */
     int handle_lcm;             /* nonzero: the server watches the LCM fd itself */
     int sndbuf;                 /* per-client SO_SNDBUF in bytes; 0: the kernel's autotuning */
+    size_t max_memory;          /* bytes held for incoming documents of all clients; over it,
+                                 * the largest holders are closed with "no-memory" */
 } xb_server_cfg_t;
 
 void xb_server_cfg_defaults(xb_server_cfg_t *cfg);
@@ -49,6 +51,8 @@ typedef struct {
     uint64_t dropped;           /* documents lost to full client queues */
     uint64_t closed_bad;        /* clients closed for bad streams or stalls */
     uint64_t subscriptions;     /* distinct (channel, type) subscriptions now */
+    uint64_t doc_bytes;         /* bytes held now for incoming documents (all clients) */
+    uint64_t closed_memory;     /* clients closed for the memory budget */
 } xb_server_stats_t;
 
 typedef struct xb_server xb_server_t;

@@ -304,6 +304,64 @@ static void test_stream_is_cut_into_documents(void **state)
     }
 }
 
+typedef struct {
+    size_t text_len, children;
+    int ok, docs;
+} textdoc_t;
+
+static void text_cb(void *user, xb_node_t *root)
+{
+    textdoc_t *d = user;
+    d->docs++;
+    d->text_len = root->text_len;
+    d->children = (size_t)root->nchildren;
+    d->ok = strlen(root->text) == root->text_len;
+    for (size_t i = 0; d->ok && i < root->text_len; i++)
+        d->ok = root->text[i] == (root->first ? "xy"[i % 2] : "0123456789\n"[i % 11]);
+}
+
+/* A long text, or a text interleaved with elements, costs memory linear in the document, in
+ * whatever pieces it comes, and all of it goes back when the document ends. */
+static void test_long_texts_cost_their_length(void **state)
+{
+    xb_doc_limits_t lim = { 4u << 20, 8 };
+    textdoc_t d = { 0 };
+    xb_doc_parser_t *p = xb_doc_parser_create(&lim, text_cb, &d);
+    size_t idle = xb_doc_parser_memory(p);
+    enum { TEXT = 1000000, PIECE = 100 };
+    char piece[PIECE];
+    assert_int_equal(xb_doc_parser_feed(p, "<a>", 3), 0);
+    for (size_t off = 0; off < TEXT; off += PIECE) {
+        for (size_t i = 0; i < PIECE; i++)
+            piece[i] = "0123456789\n"[(off + i) % 11];
+        assert_int_equal(xb_doc_parser_feed(p, piece, PIECE), 0);
+    }
+    size_t held = xb_doc_parser_memory(p);
+    print_message("1 MB text in %d-byte pieces: parser holds %zu bytes\n", PIECE, held);
+    assert_true(held < TEXT + TEXT / 2 + idle + 65536);
+    assert_int_equal(xb_doc_parser_feed(p, "</a>", 4), 0);
+    assert_int_equal(d.docs, 1);
+    assert_int_equal(d.text_len, TEXT);
+    assert_true(d.ok);
+    assert_true(xb_doc_parser_memory(p) <= idle + 65536);
+
+    /* Mixed content: every piece of text follows a child element. */
+    enum { PAIRS = 50000 };
+    assert_int_equal(xb_doc_parser_feed(p, "<a>", 3), 0);
+    for (int i = 0; i < PAIRS; i++)
+        assert_int_equal(xb_doc_parser_feed(p, "xy<b/>", 6), 0);
+    held = xb_doc_parser_memory(p);
+    print_message("%d text pieces between elements (%d bytes): parser holds %zu bytes\n", PAIRS,
+                  PAIRS * 6, held);
+    assert_true(held < (size_t)PAIRS * 6 * 40);     /* a node per 4-byte element dominates */
+    assert_int_equal(xb_doc_parser_feed(p, "</a>", 4), 0);
+    assert_int_equal(d.docs, 2);
+    assert_int_equal(d.text_len, 2 * PAIRS);
+    assert_int_equal(d.children, PAIRS);
+    assert_true(d.ok);
+    xb_doc_parser_destroy(p);
+}
+
 static void expect_fatal(const char *s, const xb_doc_limits_t *lim, const char *code, int docs_before)
 {
     docs_t d = { 0 };
@@ -341,6 +399,7 @@ int main(void)
         cmocka_unit_test(test_strings_xml_cannot_carry_use_base64),
         cmocka_unit_test(test_stream_is_cut_into_documents),
         cmocka_unit_test(test_bad_streams_fail_once_and_stay_failed),
+        cmocka_unit_test(test_long_texts_cost_their_length),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

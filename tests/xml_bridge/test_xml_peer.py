@@ -86,12 +86,17 @@ class Peer:
         self.s.close()
 
 
-def start_bridge():
+PEER_PARAMS = ["stall_ms=500", "max_clients=150", "max_document=65536", "max_depth=16", "queue=32",
+               "sndbuf=4096"]
+
+
+def start_bridge(params=PEER_PARAMS, log="xml_bridge_peer.stderr"):
+    """Starts marie-xml-bridge on PORT with these --param settings; returns once it accepts."""
     args = [os.path.join(B, "bin", "marie-xml-bridge"), "--name", "xml_bridge_test",
-            "--param", "port=%d" % PORT, "--param", "stall_ms=500", "--param", "max_clients=150",
-            "--param", "max_document=65536", "--param", "max_depth=16", "--param", "queue=32",
-            "--param", "sndbuf=4096"]
-    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=open(os.path.join(B, "test-logs", "xml_bridge_peer.stderr"), "w"))
+            "--param", "port=%d" % PORT]
+    for kv in params:
+        args += ["--param", kv]
+    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=open(os.path.join(B, "test-logs", log), "w"))
     end = time.time() + 10
     while time.time() < end:
         try:
@@ -443,7 +448,8 @@ def case_slow_reader_loses_oldest():
             break                   # all read
         if d is None:
             raise AssertionError("slow reader was closed")
-        if d.tag == "dropped":
+        if d.tag == "dropped":      # count: lost since the previous notice; total: so far
+            assert int(d.get("count")) == int(d.get("total")) - lost, ET.tostring(d)
             lost += int(d.get("count"))
         elif d.tag == "message":
             got += 1
@@ -474,10 +480,38 @@ def case_heartbeat_counts_bad_input():
     raise AssertionError("no heartbeat with bad input counted")
 
 
+def case_error_table_matches_schema_and_code():
+    """docs/xml-bridge.md's error table, the XSD's errorCode and the codes the bridge's source
+    sends are one set, each code in one row."""
+    import re
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+    doc = open(os.path.join(root, "docs", "xml-bridge.md")).read()
+    table = doc[doc.index("## Errors"):]
+    table = table[:table.index("\n\n", table.index("| code |"))]
+    rows = [r for r in table.splitlines() if r.startswith("| `")]
+    in_doc = [c for r in rows for c in re.findall(r"`([a-z-]+)`", r.split("|")[1])]
+    assert len(in_doc) == len(set(in_doc)), "codes in two rows: %s" % sorted(c for c in in_doc if in_doc.count(c) > 1)
+    xsd = open(os.path.join(root, "docs", "xml-bridge.xsd")).read()
+    enum = xsd[xsd.index('<xs:simpleType name="errorCode">'):]
+    enum = enum[:enum.index("</xs:simpleType>")]
+    in_xsd = set(re.findall(r'<xs:enumeration value="([a-z-]+)"/>', enum))
+    sent = set()
+    for name in os.listdir(os.path.join(root, "adapters", "xml_bridge")):
+        if name.endswith(".c"):
+            src = open(os.path.join(root, "adapters", "xml_bridge", name)).read()
+            sent |= set(re.findall(r'(?:reply_error|client_fail)\(\w+,\s*(?:\w+,\s*)?"([a-z-]+)"', src))
+            sent |= set(re.findall(r'\b(?:xb_error_set|fail)\([^,()]+,\s*"([a-z-]+)"', src))
+            sent |= set(re.findall(r'code=\\"([a-z-]+)\\"', src))
+    assert set(in_doc) == in_xsd, ("table only", set(in_doc) - in_xsd, "schema only", in_xsd - set(in_doc))
+    assert sent <= in_xsd, ("sent but not documented", sent - in_xsd)
+    assert len(sent) >= 15, sorted(sent)     # the patterns above still find the bridge's codes
+
+
 def main():
     os.makedirs(os.path.join(B, "test-logs"), exist_ok=True)
     bridge = start_bridge()
     try:
+        check("error_table_matches_schema_and_code", case_error_table_matches_schema_and_code)
         check("every_type_round_trips_through_the_bus", case_every_type_round_trips)
         check("pull_gives_the_latest_value", case_pull_latest)
         check("bad_input_gets_an_error_or_a_close", case_bad_input)

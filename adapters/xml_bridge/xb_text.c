@@ -1,0 +1,317 @@
+/* xb_text: the text forms of the XML bridge's values: bounded buffers with XML escaping,
+ * base64, the syntax of integers and reals, and which strings XML can carry. */
+#include "adapters/xml_bridge/xb_codec.h"
+
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- buffers ---- */
+
+void xb_buf_init(xb_buf_t *b, size_t max)
+{
+    memset(b, 0, sizeof *b);
+    b->max = max ? max : (size_t)1 << 30;
+}
+
+void xb_buf_free(xb_buf_t *b)
+{
+    free(b->data);
+    memset(b, 0, sizeof *b);
+}
+
+int xb_buf_reserve(xb_buf_t *b, size_t extra)
+{
+    if (extra > b->max || b->len > b->max - extra) {
+        b->full = 1;
+        return -1;
+    }
+    if (b->len + extra <= b->cap)
+        return 0;
+    size_t cap = b->cap ? b->cap : 256;
+    while (cap < b->len + extra)
+        cap *= 2;
+    if (cap > b->max)
+        cap = b->max;
+    char *d = realloc(b->data, cap);
+    if (!d) {
+        b->full = 1;
+        return -1;
+    }
+    b->data = d;
+    b->cap = cap;
+    return 0;
+}
+
+int xb_buf_put(xb_buf_t *b, const void *data, size_t len)
+{
+    if (xb_buf_reserve(b, len) < 0)
+        return -1;
+    if (len)
+        memcpy(b->data + b->len, data, len);
+    b->len += len;
+    return 0;
+}
+
+int xb_buf_puts(xb_buf_t *b, const char *s)
+{
+    return xb_buf_put(b, s, strlen(s));
+}
+
+int xb_buf_printf(xb_buf_t *b, const char *fmt, ...)
+{
+    char tmp[256];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(tmp, sizeof tmp, fmt, ap);
+    va_end(ap);
+    if (n < 0)
+        return -1;
+    if ((size_t)n < sizeof tmp)
+        return xb_buf_put(b, tmp, (size_t)n);
+    if (xb_buf_reserve(b, (size_t)n + 1) < 0)
+        return -1;
+    va_start(ap, fmt);
+    vsnprintf(b->data + b->len, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    b->len += (size_t)n;
+    return 0;
+}
+
+int xb_buf_escape(xb_buf_t *b, const char *s, size_t len)
+{
+    size_t start = 0;
+    for (size_t i = 0; i < len; i++) {
+        const char *rep;
+        switch (s[i]) {
+        case '&': rep = "&amp;"; break;
+        case '<': rep = "&lt;"; break;
+        case '>': rep = "&gt;"; break;
+        case '"': rep = "&quot;"; break;
+        case '\t': rep = "&#9;"; break;
+        case '\n': rep = "&#10;"; break;
+        case '\r': rep = "&#13;"; break;
+        default: continue;
+        }
+        if (xb_buf_put(b, s + start, i - start) < 0 || xb_buf_puts(b, rep) < 0)
+            return -1;
+        start = i + 1;
+    }
+    return xb_buf_put(b, s + start, len - start);
+}
+
+/* ---- base64 ---- */
+
+static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+int xb_base64_encode(xb_buf_t *b, const uint8_t *d, size_t len)
+{
+    if (xb_buf_reserve(b, (len + 2) / 3 * 4) < 0)
+        return -1;
+    char *o = b->data + b->len;
+    size_t i = 0;
+    for (; i + 2 < len; i += 3) {
+        uint32_t v = (uint32_t)d[i] << 16 | (uint32_t)d[i + 1] << 8 | d[i + 2];
+        *o++ = b64[v >> 18];
+        *o++ = b64[(v >> 12) & 63];
+        *o++ = b64[(v >> 6) & 63];
+        *o++ = b64[v & 63];
+    }
+    if (i < len) {
+        uint32_t v = (uint32_t)d[i] << 16 | (i + 1 < len ? (uint32_t)d[i + 1] << 8 : 0);
+        *o++ = b64[v >> 18];
+        *o++ = b64[(v >> 12) & 63];
+        *o++ = i + 1 < len ? b64[(v >> 6) & 63] : '=';
+        *o++ = '=';
+    }
+    b->len = (size_t)(o - b->data);
+    return 0;
+}
+
+static int b64_value(char c)
+{
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    return -1;
+}
+
+size_t xb_base64_decoded_max(size_t len)
+{
+    return len / 4 * 3 + 3;
+}
+
+long xb_base64_length(const char *s, size_t len)
+{
+    size_t n = 0, pad = 0;
+    for (size_t i = 0; i < len; i++) {
+        if (xb_is_ws(s[i]))
+            continue;
+        if (s[i] == '=')
+            pad++;
+        else if (pad || b64_value(s[i]) < 0)
+            return -1;
+        n++;
+    }
+    if (n % 4 || pad > 2)
+        return -1;
+    return (long)(n / 4 * 3 - pad);
+}
+
+long xb_base64_decode(const char *s, size_t len, uint8_t *out, size_t outcap)
+{
+    long total = xb_base64_length(s, len);
+    if (total < 0 || (size_t)total > outcap)
+        return -1;
+    uint32_t acc = 0;
+    int bits = 0;
+    long n = 0;
+    for (size_t i = 0; i < len; i++) {
+        int v = b64_value(s[i]);
+        if (v < 0)
+            continue;
+        acc = acc << 6 | (uint32_t)v;
+        bits += 6;
+        if (bits >= 8) {
+            bits -= 8;
+            if (n < total)
+                out[n++] = (uint8_t)(acc >> bits);
+        }
+    }
+    return n;
+}
+
+/* ---- scalar syntax ---- */
+
+static void trim(const char **s, size_t *len)
+{
+    while (*len && xb_is_ws(**s)) {
+        (*s)++;
+        (*len)--;
+    }
+    while (*len && xb_is_ws((*s)[*len - 1]))
+        (*len)--;
+}
+
+int xb_parse_int(marie_prim_t prim, const char *s, size_t len, int64_t *v)
+{
+    char tmp[64];
+    trim(&s, &len);
+    if (len == 0 || len >= sizeof tmp)
+        return -1;
+    memcpy(tmp, s, len);
+    tmp[len] = '\0';
+    if (prim == MARIE_PRIM_BOOL) {
+        if (!strcmp(tmp, "true") || !strcmp(tmp, "1"))
+            *v = 1;
+        else if (!strcmp(tmp, "false") || !strcmp(tmp, "0"))
+            *v = 0;
+        else
+            return -1;
+        return 0;
+    }
+    char *end;
+    errno = 0;
+    long long x = strtoll(tmp, &end, 10);
+    if (errno || *end || end == tmp)
+        return -1;
+    switch (prim) {
+    case MARIE_PRIM_INT8: if (x < INT8_MIN || x > INT8_MAX) return -1; break;
+    case MARIE_PRIM_INT16: if (x < INT16_MIN || x > INT16_MAX) return -1; break;
+    case MARIE_PRIM_INT32: if (x < INT32_MIN || x > INT32_MAX) return -1; break;
+    case MARIE_PRIM_BYTE: if (x < 0 || x > 255) return -1; break;
+    case MARIE_PRIM_INT64: break;
+    default: return -1;
+    }
+    *v = x;
+    return 0;
+}
+
+int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v)
+{
+    char tmp[128];
+    trim(&s, &len);
+    if (len == 0 || len >= sizeof tmp)
+        return -1;
+    memcpy(tmp, s, len);
+    tmp[len] = '\0';
+    char *end;
+    errno = 0;
+    double x = strtod(tmp, &end);
+    if (*end || end == tmp || (errno == ERANGE && isinf(x)))
+        return -1;
+    if (prim == MARIE_PRIM_FLOAT && isfinite(x) && fabs(x) > FLT_MAX)
+        return -1;
+    *v = x;
+    return 0;
+}
+
+void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
+{
+    if (isnan(v)) {
+        snprintf(buf, size, "NaN");
+        return;
+    }
+    if (isinf(v)) {
+        snprintf(buf, size, v < 0 ? "-INF" : "INF");
+        return;
+    }
+    if (prim == MARIE_PRIM_FLOAT) {
+        float f = (float)v;
+        for (int prec = 6; prec <= 9; prec++) {
+            snprintf(buf, size, "%.*g", prec, (double)f);
+            if (strtof(buf, NULL) == f)
+                return;
+        }
+        return;
+    }
+    for (int prec = 15; prec <= 17; prec++) {
+        snprintf(buf, size, "%.*g", prec, v);
+        if (strtod(buf, NULL) == v)
+            return;
+    }
+}
+
+/* ---- XML safety of strings ---- */
+
+int xb_xml_safe(const char *str, size_t len)
+{
+    const uint8_t *s = (const uint8_t *)str;
+    size_t i = 0;
+    while (i < len) {
+        uint32_t c = s[i];
+        size_t n;
+        if (c < 0x80) {
+            if (c < 0x20 && c != 0x9 && c != 0xA && c != 0xD)
+                return 0;
+            i++;
+            continue;
+        } else if ((c & 0xE0) == 0xC0) {
+            n = 1; c &= 0x1F;
+        } else if ((c & 0xF0) == 0xE0) {
+            n = 2; c &= 0x0F;
+        } else if ((c & 0xF8) == 0xF0) {
+            n = 3; c &= 0x07;
+        } else {
+            return 0;
+        }
+        if (i + n >= len)
+            return 0;
+        for (size_t k = 1; k <= n; k++) {
+            if ((s[i + k] & 0xC0) != 0x80)
+                return 0;
+            c = c << 6 | (s[i + k] & 0x3F);
+        }
+        if ((n == 1 && c < 0x80) || (n == 2 && c < 0x800) || (n == 3 && c < 0x10000) ||
+            c > 0x10FFFF || (c >= 0xD800 && c <= 0xDFFF) || c == 0xFFFE || c == 0xFFFF)
+            return 0;
+        i += n + 1;
+    }
+    return 1;
+}
