@@ -1,7 +1,6 @@
 /* xb_doc: cuts a stream into XML documents with expat, resetting the parser after each one. */
 #include "adapters/xml_bridge/xb_doc.h"
 
-#include <dlfcn.h>
 #include <expat.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -357,24 +356,6 @@ static void XMLCALL on_doctype(void *ud, const XML_Char *name, const XML_Char *s
     fail(ud, "malformed", "%s", "document type declarations are not accepted");
 }
 
-/* Expat 2.6 (and Debian 12's security updates of 2.5) defers parsing a token until more bytes
- * arrive, to bound the cost of huge tokens fed in tiny pieces; a document cut off the stream
- * then ends later than its last byte, and a client writing byte by byte sees its documents
- * refused. The bridge bounds token sizes itself (max_document), so deferral is turned off where
- * the library has the switch. Looked up at run time: older expat headers do not declare it. */
-static void no_reparse_deferral(XML_Parser xp)
-{
-    typedef XML_Bool (*set_deferral_fn)(XML_Parser, XML_Bool);
-    static set_deferral_fn set;
-    static int looked;
-    if (!looked) {
-        set = (set_deferral_fn)dlsym(RTLD_DEFAULT, "XML_SetReparseDeferralEnabled");
-        looked = 1;
-    }
-    if (set)
-        set(xp, XML_FALSE);
-}
-
 static int setup(xb_doc_parser_t *p)
 {
     xb_doc_parser_t *prev = mm_owner;
@@ -386,7 +367,6 @@ static int setup(xb_doc_parser_t *p)
         return -1;
     /* One random hash salt per parser: a reset would otherwise draw a new one every time. */
     XML_SetHashSalt(p->xp, p->salt);
-    no_reparse_deferral(p->xp);
     XML_SetUserData(p->xp, p);
     XML_SetElementHandler(p->xp, on_start, on_end);
     XML_SetCharacterDataHandler(p->xp, on_text);
