@@ -595,5 +595,10 @@ int main(int argc, char **argv)
         bad += comps[i].fail[0] != 0;
     }
     lcm_destroy(lcm);
+    for (int i = 0; i < nports; i++) {
+        for (size_t k = 0; k < ports[i].var.n; k++)
+            free(ports[i].var.v[k].data);
+        free(ports[i].var.v);
+    }
     return bad ? 1 : 0;
 }
