@@ -87,13 +87,15 @@ static void scan_finite(cursor_t *c, marie_prim_t prim, int64_t n)
 {
     if (!(c->flags & MARIE_CHECK_FINITE) || (prim != MARIE_PRIM_FLOAT && prim != MARIE_PRIM_DOUBLE))
         return;
-    int size = prim == MARIE_PRIM_FLOAT ? 4 : 8;
-    for (int64_t k = 0; k < n && !c->nonfinite; k++) {
-        uint64_t bits = (uint64_t)read_be(c->buf + c->pos + (size_t)k * (size_t)size, size);
-        /* All exponent bits set is NaN or an infinity in both widths. */
-        if (size == 4 ? (bits & 0x7f800000u) == 0x7f800000u : (bits & 0x7ff0000000000000ull) == 0x7ff0000000000000ull)
+    /* All exponent bits set is NaN or an infinity; big-endian, they are in the first two bytes. */
+    size_t size = prim == MARIE_PRIM_FLOAT ? 4 : 8;
+    uint8_t mask1 = prim == MARIE_PRIM_FLOAT ? 0x80 : 0xf0;
+    const uint8_t *p = c->buf + c->pos, *end = p + (size_t)n * size;
+    for (; p < end; p += size)
+        if ((p[0] & 0x7f) == 0x7f && (p[1] & mask1) == mask1) {
             c->nonfinite = true;
-    }
+            return;
+        }
 }
 
 /* One element of field f; an integer scalar's value is stored in *value (array lengths). */
