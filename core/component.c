@@ -419,8 +419,8 @@ static void on_clock(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 {
     marie_component_t *c = user;
     marie_sim_clock_t clk;
-    if (marie_decode_checked(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk) < 0) {
-        marie_component_bad_input(c, "bad_clock", "undecodable clock message");
+    if (marie_decode_input(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk, NULL) < 0) {
+        marie_component_bad_input(c, "bad_clock", "malformed or non-finite clock message (%u bytes)", rbuf->data_size);
         return;
     }
     marie_loop_set_sim_time(c->loop, clk.utime);

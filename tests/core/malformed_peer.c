@@ -5,7 +5,8 @@
  *   malformed_peer SPEC_FILE SECONDS
  *
  * SPEC_FILE lines (whitespace separated, '#' comments):
- *   in   COMPONENT TYPE CHANNEL push|pull   an input port (pull: answer CHANNEL.PULL requests)
+ *   in   COMPONENT TYPE CHANNEL push|pull   an input port (pull: answer CHANNEL.PULL requests);
+ *        COMPONENT "*": an input of every component (pushed only)
  *   out  COMPONENT TYPE CHANNEL finite|zero|silent
  *        finite: every message well formed and finite; zero: also nothing moves (motor
  *        commands v = omega = 0, wheel velocities below 1e-3 rad/s); silent: nothing at all
@@ -430,7 +431,9 @@ static int load_spec(const char *path)
         port_t *p = &ports[nports];
         int n = sscanf(line, "%15s %63s %63s %127s %15s", kind, name, type, channel, mode);
         bool empty = strcmp(kind, "empty") == 0;
-        if (nports == MAXP || (empty ? n < 3 : n < 5) || !(p->c = comp(name))) {
+        bool all = strcmp(name, "*") == 0;     /* an input every component has */
+        if (nports == MAXP || (empty ? n < 3 : n < 5) || (all ? (empty || strcmp(kind, "in") != 0)
+                                                              : !(p->c = comp(name)))) {
             fprintf(stderr, "malformed_peer: bad spec line: %s", line);
             fclose(f);
             return -1;
@@ -450,8 +453,9 @@ static int load_spec(const char *path)
         snprintf(p->channel, sizeof p->channel, "%s", channel);
         snprintf(p->mode, sizeof p->mode, "%s", mode);
         p->in = strcmp(kind, "in") == 0;
-        p->pull = p->in && strcmp(mode, "pull") == 0;
-        p->c->has_pull = p->c->has_pull || p->pull;
+        p->pull = p->in && !all && strcmp(mode, "pull") == 0;
+        if (p->c)
+            p->c->has_pull = p->c->has_pull || p->pull;
         if (p->in && make_variants(p->t, &p->var) < 0) {
             fprintf(stderr, "malformed_peer: cannot make a sample of %s\n", type);
             fclose(f);
@@ -488,11 +492,13 @@ static void push_all(void)
         for (int k = 0; k < BATCH; k++) {
             for (int i = 0; i < nports; i++) {
                 port_t *p = &ports[i];
-                if (!p->in || p->pull || p->next >= p->var.n || p->c->fail[0] || p->c->dead)
+                if (!p->in || p->pull || p->next >= p->var.n || (p->c && (p->c->fail[0] || p->c->dead)))
                     continue;
                 const blob_t *b = &p->var.v[p->next++];
                 lcm_publish(lcm, p->channel, b->data, (unsigned)b->len);
-                p->c->sent++;
+                for (int j = 0; j < ncomps; j++)
+                    if (!p->c || p->c == &comps[j])
+                        comps[j].sent++;
                 more = more || p->next < p->var.n;
             }
             spin(1);

@@ -84,8 +84,10 @@ for bin in "$BIN"/marie-*; do
     done
 done
 
-# The Communication Adapters declare no ports: their channels are parameters.
+# The Communication Adapters declare no ports: their channels are parameters. Every
+# component also takes lifecycle orders.
 cat >> "$SPEC" <<EOF
+in * marie.lifecycle_command_t MARIE_LIFECYCLE push
 in mailbox marie.laser_scan_t MB_IN push
 in mailbox marie.pull_request_t MB_IN.PULL push
 empty mailbox MB_IN
