@@ -17,7 +17,7 @@ trap 'stop_started' EXIT
 recipe() {
     case $1 in
     marie-behaviours)
-        echo "beh_pull|--param input_mode=pull --param rate_hz=10 --param pull_timeout_ms=80"
+        echo "beh_pull|--param input_mode=pull --param rate_hz=5 --param pull_timeout_ms=150"
         echo "beh_sub|--param input_mode=subscribe --param rate_hz=10|subscribe" ;;
     marie-drives) echo "drives|--param can=emu:$OUT/can" ;;
     marie-gyro) echo "gyro|--param can=emu:$OUT/can" ;;
