@@ -24,6 +24,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/config.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
 
@@ -567,7 +568,7 @@ int main(int argc, char **argv)
     }
     double limit = atof(argv[2]);
     int64_t t0 = marie_mono_us();
-    if (load_spec(argv[1]) < 0 || !(lcm = lcm_create(NULL)))
+    if (load_spec(argv[1]) < 0 || !(lcm = lcm_create(marie_default_url())))
         return 2;
     subscribe_all();
     if (!wait_all(is_running, limit / 3))
