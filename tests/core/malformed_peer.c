@@ -294,7 +294,7 @@ static void on_heartbeat(const lcm_recv_buf_t *rb, const char *ch, void *user)
             if (strcmp(hb.counters[k].name, "late_pull_replies") == 0)
                 c->late = hb.counters[k].value;
         c->hb_count++;
-        snprintf(c->reply_channel, sizeof c->reply_channel, "MARIE_REPLY.%.60s.%d", c->name, hb.pid);
+        snprintf(c->reply_channel, sizeof c->reply_channel, "MARIE_REPLY.%.60s.%d", hb.component, hb.pid);
     }
     marie_heartbeat_t_decode_cleanup(&hb);
 }
