@@ -60,6 +60,36 @@ int ca_check_type(const marie_type_t *type, const void *raw, size_t len)
     return 0;
 }
 
+int ca_payload_check(const marie_type_t *type, const void *raw, size_t len, const char **why)
+{
+    const char *dummy;
+    why = why ? why : &dummy;
+    *why = "bad_fingerprint";
+    int64_t fp;
+    if (ca_check_type(type, raw, len) < 0 || ca_fingerprint(raw, len, &fp) < 0)
+        return -EBADMSG;
+    /* An untyped CA can only check the types it knows; others pass on their fingerprint. */
+    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(fp);
+    if (!ti)
+        return 0;
+    int rc = marie_typeinfo_check_flags(ti, raw, len, MARIE_CHECK_FINITE);
+    *why = rc == -EDOM ? "bad_nonfinite" : "bad_payload";
+    return rc < 0 ? -EBADMSG : 0;
+}
+
+int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *channel, const void *raw, size_t len)
+{
+    const char *why;
+    if (ca_payload_check(type, raw, len, &why) == 0)
+        return 0;
+    int64_t fp = 0;
+    ca_fingerprint(raw, len, &fp);
+    const marie_type_t *t = type ? type : marie_type_by_fingerprint(fp);
+    ca_note(s, CA_NOTE_BAD_INPUT, why, 1, "%s: payload of %zu bytes with fingerprint %016llx is not a well-formed, finite %s",
+            channel, len, (unsigned long long)fp, t ? t->name : "LCM payload");
+    return -EBADMSG;
+}
+
 char *ca_channel_pattern(const char *channel)
 {
     size_t n = strlen(channel);

@@ -57,6 +57,16 @@ int ca_fingerprint(const void *raw, size_t len, int64_t *fp);
 /* 0 when `raw` carries `type` (NULL type: any payload of at least 8 bytes), else -EBADMSG. */
 int ca_check_type(const marie_type_t *type, const void *raw, size_t len);
 
+/* Whether a CA may store or forward `raw`: it carries `type` (NULL: any), and when its
+ * fingerprint is a marie type, it is well formed (marie_typeinfo_check) with every float and
+ * double finite, as a component's input port would demand; a CA never hands on what every
+ * receiver would drop. 0, or -EBADMSG with *why (if why is not NULL) the counter to bump:
+ * "bad_fingerprint", "bad_payload" or "bad_nonfinite". */
+int ca_payload_check(const marie_type_t *type, const void *raw, size_t len, const char **why);
+/* ca_payload_check() that also counts and reports a refusal through the sink (kind
+ * CA_NOTE_BAD_INPUT, the counter named by why), naming `channel`. 0 or -EBADMSG. */
+int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *channel, const void *raw, size_t len);
+
 /* Checks an encoded LCM message before it is handed to lcm-gen's decoder, which trusts
  * string and array lengths (a negative or oversized length makes it copy out of bounds,
  * a string without its NUL is read past its end). `schema` lists the fields after the

@@ -117,7 +117,7 @@ int mailbox_latest(const mailbox_t *mb, void *msg, int64_t now, int64_t *age_us)
     const slot_t *s = newest(mb, 0);
     if (!s)
         return -ENODATA;
-    if (s->len > INT32_MAX || mb->type->decode(s->data, 0, (int)s->len, msg) < 0)
+    if (marie_decode_checked(mb->type, s->data, s->len, msg) < 0)
         return -EBADMSG;
     if (age_us)
         *age_us = now - s->recv_utime;
@@ -171,13 +171,8 @@ static void waiter_remove(mailbox_t *mb, size_t i)
 
 int mailbox_push(mailbox_t *mb, const void *raw, size_t len, int64_t recv_utime)
 {
-    if (ca_check_type(mb->type, raw, len) < 0) {
-        int64_t fp = 0;
-        ca_fingerprint(raw, len, &fp);
+    if (ca_input_check(&mb->sink, mb->type, mb->channel, raw, len) < 0) {
         mb->stats.bad_input++;
-        ca_note(&mb->sink, CA_NOTE_BAD_INPUT, "bad_fingerprint", 1,
-                "%s: payload of %zu bytes with fingerprint %016llx is not %s", mb->channel, len,
-                (unsigned long long)fp, mb->type ? mb->type->name : "an LCM payload");
         return -EBADMSG;
     }
     slot_t *s = &mb->ring[mb->head];

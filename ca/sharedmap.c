@@ -420,7 +420,7 @@ int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void
     if (len > SHAREDMAP_MAX_VALUE)
         return -EFBIG;
     const marie_type_t *t = marie_type_find(type);
-    if (t && ca_check_type(t, data, len) < 0)
+    if (t && ca_payload_check(t, data, len, NULL) < 0)
         return -EBADMSG;
     int rc = grow(sm, record_size(klen, tlen, len));
     if (rc < 0)

@@ -257,8 +257,7 @@ int sharedmap_client_get(sharedmap_client_t *cl, const char *key, const marie_ty
     if (rc < 0)
         return rc;
     const marie_sharedmap_reply_t *r = cl->reply;
-    if (ca_check_type(type, r->data, r->size < 0 ? 0 : (size_t)r->size) < 0 ||
-        type->decode(r->data, 0, r->size, msg) < 0)
+    if (r->size < 0 || marie_decode_checked(type, r->data, (size_t)r->size, msg) < 0)
         return -EBADMSG;
     if (age_us)
         *age_us = r->age_us;

@@ -101,13 +101,8 @@ static int rate_pass(output_t *o, int64_t now)
 
 int splitter_push(splitter_t *sp, const void *raw, size_t len, int64_t now_us)
 {
-    if (ca_check_type(sp->type, raw, len) < 0) {
-        int64_t fp = 0;
-        ca_fingerprint(raw, len, &fp);
+    if (ca_input_check(&sp->sink, sp->type, sp->input, raw, len) < 0) {
         sp->stats.bad_input++;
-        ca_note(&sp->sink, CA_NOTE_BAD_INPUT, "bad_fingerprint", 1,
-                "%s: payload of %zu bytes with fingerprint %016llx is not %s", sp->input, len,
-                (unsigned long long)fp, sp->type ? sp->type->name : "an LCM payload");
         return -EBADMSG;
     }
     sp->stats.received++;

@@ -169,13 +169,8 @@ int ca_switch_push(ca_switch_t *sw, size_t i, const void *raw, size_t len)
 {
     if (i >= sw->n)
         return -EINVAL;
-    if (ca_check_type(sw->type, raw, len) < 0) {
-        int64_t fp = 0;
-        ca_fingerprint(raw, len, &fp);
+    if (ca_input_check(&sw->sink, sw->type, sw->inputs[i].channel, raw, len) < 0) {
         sw->stats.bad_input++;
-        ca_note(&sw->sink, CA_NOTE_BAD_INPUT, "bad_fingerprint", 1,
-                "%s: payload of %zu bytes with fingerprint %016llx is not %s", sw->inputs[i].channel,
-                len, (unsigned long long)fp, sw->type ? sw->type->name : "an LCM payload");
         return -EBADMSG;
     }
     if ((long)i != sw->selected) {

@@ -423,8 +423,8 @@ static void on_clock(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 {
     marie_component_t *c = user;
     marie_sim_clock_t clk;
-    if (marie_decode_checked(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk) < 0) {
-        marie_component_bad_input(c, "bad_clock", "undecodable clock message");
+    if (marie_decode_input(&marie_type_sim_clock_t, rbuf->data, rbuf->data_size, &clk, NULL) < 0) {
+        marie_component_bad_input(c, "bad_clock", "malformed or non-finite clock message (%u bytes)", rbuf->data_size);
         return;
     }
     marie_loop_set_sim_time(c->loop, clk.utime);
@@ -457,14 +457,10 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
         p->cb(c, p, NULL, &info);
         return 0;
     }
-    if (marie_payload_fingerprint(data, len) != t->hash()) {
-        marie_component_bad_input(c, "bad_fingerprint", "port %s: payload on %s is not a %s", p->spec->name,
-                                  p->channel, t->name);
-        return -1;
-    }
-    if (marie_decode_checked(t, data, len, p->scratch) < 0) {
-        marie_component_bad_input(c, "bad_payload", "port %s: cannot decode %s (%zu bytes)", p->spec->name,
-                                  t->name, len);
+    const char *why;
+    if (marie_decode_input(t, data, len, p->scratch, &why) < 0) {
+        marie_component_bad_input(c, why, "port %s: %zu bytes on %s: not a well-formed, finite %s", p->spec->name,
+                                  len, p->channel, t->name);
         return -1;
     }
     c->msgs_in++;
@@ -638,13 +634,12 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
         status = -ENODATA;
     } else if (r.status != MARIE_PULL_REPLY_T_STATUS_OK) {
         status = r.status == MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL ? -ENOENT : -EBADMSG;
-    } else if (t && marie_payload_fingerprint(r.data, (size_t)r.size) != t->hash()) {
-        marie_component_bad_input(c, "bad_fingerprint", "pull reply on %s is not a %s", r.channel, t->name);
-        status = -EBADMSG;
     } else if (t) {
+        const char *why;
         msg = pl->cb ? pl->port->scratch : pl->msg;
-        if (marie_decode_checked(t, r.data, (size_t)r.size, msg) < 0) {
-            marie_component_bad_input(c, "bad_payload", "pull reply on %s: cannot decode %s", r.channel, t->name);
+        if (marie_decode_input(t, r.data, (size_t)r.size, msg, &why) < 0) {
+            marie_component_bad_input(c, why, "pull reply on %s: %d bytes: not a well-formed, finite %s", r.channel,
+                                      r.size, t->name);
             status = -EBADMSG;
             msg = NULL;
         }

@@ -2,6 +2,7 @@
 #include "core/typeinfo.h"
 
 #include <errno.h>
+#include <stdbool.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -53,6 +54,8 @@ const char *marie_prim_name(marie_prim_t p)
 typedef struct {
     const uint8_t *buf;
     size_t len, pos;
+    int flags;          /* MARIE_CHECK_* */
+    bool nonfinite;     /* a float or double was NaN or infinite */
 } cursor_t;
 
 static int64_t read_be(const uint8_t *p, int n)
@@ -79,6 +82,22 @@ static int prim_size(marie_prim_t p)
 
 static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth);
 
+/* Notes a NaN or infinity among n floats or doubles at the cursor (big-endian IEEE 754). */
+static void scan_finite(cursor_t *c, marie_prim_t prim, int64_t n)
+{
+    if (!(c->flags & MARIE_CHECK_FINITE) || (prim != MARIE_PRIM_FLOAT && prim != MARIE_PRIM_DOUBLE))
+        return;
+    /* All exponent bits set is NaN or an infinity; big-endian, they are in the first two bytes. */
+    size_t size = prim == MARIE_PRIM_FLOAT ? 4 : 8;
+    uint8_t mask1 = prim == MARIE_PRIM_FLOAT ? 0x80 : 0xf0;
+    const uint8_t *p = c->buf + c->pos, *end = p + (size_t)n * size;
+    for (; p < end; p += size)
+        if ((p[0] & 0x7f) == 0x7f && (p[1] & mask1) == mask1) {
+            c->nonfinite = true;
+            return;
+        }
+}
+
 /* One element of field f; an integer scalar's value is stored in *value (array lengths). */
 static int walk_element(const marie_tfield_t *f, cursor_t *c, int depth, int64_t *value)
 {
@@ -99,6 +118,7 @@ static int walk_element(const marie_tfield_t *f, cursor_t *c, int depth, int64_t
         return -1;
     if (value)
         *value = read_be(c->buf + c->pos, size);
+    scan_finite(c, f->prim, 1);
     c->pos += (size_t)size;
     return 0;
 }
@@ -124,6 +144,7 @@ static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
             /* Arrays of fixed-size primitives: only their extent matters. */
             if ((uint64_t)count * (uint64_t)size > c->len - c->pos)
                 return -1;
+            scan_finite(c, f->prim, count);
             c->pos += (size_t)count * (size_t)size;
             continue;
         }
@@ -139,19 +160,46 @@ int64_t marie_payload_fingerprint(const void *buf, size_t len)
     return len < 8 ? 0 : read_be(buf, 8);
 }
 
-int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
+int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags)
 {
     if (!t || len < 8 || read_be(buf, 8) != t->fingerprint)
         return -EBADMSG;
-    cursor_t c = {buf, len, 8};
-    return walk_struct(t, &c, 0) < 0 || c.pos != len ? -EBADMSG : 0;
+    cursor_t c = {buf, len, 8, flags, false};
+    if (walk_struct(t, &c, 0) < 0 || c.pos != len)
+        return -EBADMSG;
+    return c.nonfinite ? -EDOM : 0;
+}
+
+int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
+{
+    return marie_typeinfo_check_flags(t, buf, len, 0);
+}
+
+/* The one place in marie where lcm-gen's decoder runs on bytes from outside the process
+ * (tests/core/test_decode_rule.sh keeps it so). */
+static int decode(const marie_type_t *t, const void *buf, size_t len, void *out, int flags, const char **why)
+{
+    const char *dummy;
+    why = why ? why : &dummy;
+    *why = "bad_fingerprint";
+    if (marie_payload_fingerprint(buf, len) != t->hash() || len < 8)
+        return -EBADMSG;
+    *why = "bad_payload";
+    int rc = len > INT32_MAX ? -EBADMSG : marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), buf, len, flags);
+    if (rc == -EDOM)
+        *why = "bad_nonfinite";
+    if (rc < 0)
+        return rc;
+    memset(out, 0, t->size);
+    return t->decode(buf, 0, (int)len, out) < 0 ? -EBADMSG : 0;
 }
 
 int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out)
 {
-    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(t->hash());
-    if (len > INT32_MAX || marie_typeinfo_check(ti, buf, len) < 0)
-        return -EBADMSG;
-    memset(out, 0, t->size);
-    return t->decode(buf, 0, (int)len, out) < 0 ? -EBADMSG : 0;
+    return decode(t, buf, len, out, 0, NULL) < 0 ? -EBADMSG : 0;
+}
+
+int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why)
+{
+    return decode(t, buf, len, out, MARIE_CHECK_FINITE, why);
 }

@@ -65,6 +65,11 @@ const char *marie_prim_name(marie_prim_t p);   /* "int32_t", ..., "struct" */
  * is decoded before this passes. Returns 0 or -EBADMSG. */
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len);
 
+/* marie_typeinfo_check() with options: MARIE_CHECK_FINITE also walks every float and double
+ * (scalars, arrays, nested structs) and returns -EDOM when one is NaN or infinite. */
+#define MARIE_CHECK_FINITE 1
+int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags);
+
 /* The registered type called `name` ("marie.pose2d_t", or "pose2d_t"), or NULL. */
 const marie_type_t *marie_type_find(const char *name);
 /* The registered type whose fingerprint is `fp`, or NULL. */
@@ -75,6 +80,13 @@ int64_t marie_payload_fingerprint(const void *buf, size_t len);
 /* Check a payload of the registered type t, then decode it into out (zeroed first; free with
  * t->decode_cleanup). 0 or -EBADMSG. Every decoder of bus input calls this. */
 int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out);
+
+/* What a component does with an input message (ports, pull replies, raw subscriptions): as
+ * marie_decode_checked(), and a NaN or infinity in any float or double field is refused too
+ * (no marie type gives them a meaning; see docs/core.md). On failure *why (if why is not NULL)
+ * names the bad-input counter: "bad_fingerprint", "bad_payload" or "bad_nonfinite". 0,
+ * -EBADMSG, or -EDOM (non-finite). */
+int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why);
 
 #ifdef __cplusplus
 }

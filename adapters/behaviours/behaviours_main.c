@@ -8,6 +8,7 @@
 
 #include "adapters/behaviours/arbiter.h"
 #include "core/component.h"
+#include "core/typeinfo.h"
 
 enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_COUNT };
 static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop" };
@@ -253,9 +254,10 @@ static void on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user)
         marie_laser_scan_t scan;
         marie_estop_t estop;
     } m;
-    memset(&m, 0, sizeof(m));
-    if (t->decode(rb->data, 0, (int)rb->data_size, &m) < 0) {
-        marie_component_bad_input(b->c, "bad_payload", "%s: cannot decode %s", channel, t->name);
+    const char *why;
+    if (marie_decode_input(t, rb->data, rb->data_size, &m, &why) < 0) {
+        marie_component_bad_input(b->c, why, "%s: %u bytes: not a well-formed, finite %s", channel, rb->data_size,
+                                  t->name);
         return;
     }
     store(b, in->which, &m, 0);

@@ -1,6 +1,7 @@
 /* test_mailbox: the Mailbox's buffer and pull protocol without a bus (ordering, overflow,
- * waiting and timing out, mistyped payloads, malformed requests). */
+ * waiting and timing out, mistyped and malformed payloads, malformed requests). */
 #include <errno.h>
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -12,6 +13,7 @@
 #include "ca/mailbox.h"
 #include "lcmtypes/marie_pose2d_t.h"
 #include "lcmtypes/marie_gyro_t.h"
+#include "lcmtypes/marie_laser_scan_t.h"
 #include "lcmtypes/marie_pull_reply_t.h"
 
 #define MAXR 64
@@ -188,6 +190,61 @@ static void test_mistyped_payload_is_counted_not_stored(void **state)
     cap_free(&c);
 }
 
+/* A payload with the right fingerprint but a body no component accepts (cut short, trailing
+ * bytes, a NaN or an infinity) is refused and counted once, and pulls keep getting the last
+ * good one: stored, it would be served to every pull and counted again by every puller. */
+static void test_malformed_payload_is_counted_not_stored(void **state)
+{
+    capture_t c = {0};
+    mailbox_t *mb = make(&c, 4);
+    uint8_t buf[256], bad[260];
+    size_t n = pose(buf, sizeof buf, 1.0);
+    assert_int_equal(mailbox_push(mb, buf, n, 1), 0);
+    assert_int_equal(mailbox_push(mb, buf, n - 1, 2), -EBADMSG);     /* truncated */
+    memcpy(bad, buf, n);
+    bad[n] = 0;
+    assert_int_equal(mailbox_push(mb, bad, n + 1, 3), -EBADMSG);     /* trailing byte */
+    size_t nan = pose(bad, sizeof bad, NAN), inf = pose(bad + 128, 128, INFINITY);
+    assert_int_equal(mailbox_push(mb, bad, nan, 4), -EBADMSG);
+    assert_int_equal(mailbox_push(mb, bad + 128, inf, 5), -EBADMSG);
+    assert_int_equal(mailbox_count(mb), 1);
+    assert_int_equal(c.bad_input, 4);
+    assert_int_equal(mailbox_stats(mb)->bad_input, 4);
+    marie_pull_request_t r = req(7, 0);
+    for (int i = 0; i < 3; i++)
+        assert_int_equal(mailbox_handle_request(mb, &r, 10), 0);
+    assert_int_equal(c.nreplies, 3);
+    for (int i = 0; i < 3; i++) {
+        assert_int_equal(c.replies[i].status, MARIE_PULL_REPLY_T_STATUS_OK);
+        assert_true(reply_x(&c.replies[i]) == 1.0);
+    }
+    assert_int_equal(c.bad_input, 4);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
+/* An untyped Mailbox checks the body of every marie type it recognises by fingerprint. */
+static void test_untyped_mailbox_checks_known_types(void **state)
+{
+    capture_t c = {0};
+    ca_sink_t sink = { .note = cap_note, .publish = cap_publish, .user = &c };
+    mailbox_t *mb = mailbox_create("ANY", NULL, 2, &sink);
+    uint8_t buf[256];
+    float ranges[2] = {1, 2};
+    marie_laser_scan_t s = { .nranges = 2, .ranges = ranges, .intensities = ranges };
+    int n = marie_laser_scan_t_encode(buf, 0, sizeof buf, &s);
+    assert_true(n > 0);
+    /* nranges (after utime and four floats) claims INT32_MAX beams */
+    buf[8 + 8 + 16] = 0x7f;
+    assert_int_equal(mailbox_push(mb, buf, (size_t)n, 1), -EBADMSG);
+    memset(buf, 0xa5, 16);       /* no marie type: only its length is checked */
+    assert_int_equal(mailbox_push(mb, buf, 16, 2), 0);
+    assert_int_equal(mailbox_count(mb), 1);
+    assert_int_equal(c.bad_input, 1);
+    mailbox_destroy(mb);
+    cap_free(&c);
+}
+
 static void test_untyped_mailbox_takes_any_payload(void **state)
 {
     capture_t c = {0};
@@ -303,6 +360,8 @@ int main(void)
         cmocka_unit_test(test_empty_pull_times_out_before_requester),
         cmocka_unit_test(test_mistyped_payload_is_counted_not_stored),
         cmocka_unit_test(test_untyped_mailbox_takes_any_payload),
+        cmocka_unit_test(test_malformed_payload_is_counted_not_stored),
+        cmocka_unit_test(test_untyped_mailbox_checks_known_types),
         cmocka_unit_test(test_bad_requests_counted),
         cmocka_unit_test(test_waiting_requests_are_bounded),
         cmocka_unit_test(test_attached_mailbox_serves_the_bus),

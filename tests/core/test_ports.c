@@ -1,6 +1,7 @@
 /* test_ports: push ports carry typed messages, mistyped payloads are counted and dropped,
  * pull ports get the newest value from a server speaking the Mailbox protocol, or time out. */
 #include <errno.h>
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -92,10 +93,17 @@ static void push_delivers_typed_messages_and_drops_mistyped_ones(void **state)
     int flen = marie_pose_cov_t_encode(full, 0, sizeof full, &m);
     full[23] = 'x';  /* "map\0" sits at 20..23, after fingerprint, utime and its length */
     assert_int_equal(marie_port_publish_raw(marie_port(cs[0], "raw"), full, (size_t)flen), 0);
+    /* Well formed but not finite (a NaN heading, an infinite covariance): refused. */
+    m.pose.theta = NAN;
+    assert_int_equal(marie_port_publish(marie_port(cs[0], "pose"), &m), 0);
+    m.pose.theta = 0;
+    m.cov[4] = INFINITY;
+    assert_int_equal(marie_port_publish(marie_port(cs[0], "pose"), &m), 0);
     spin(cs, 2, 300);
     assert_int_equal(s.got, 3);
     assert_int_equal(marie_component_counter(cs[1], "bad_fingerprint"), 1);
     assert_int_equal(marie_component_counter(cs[1], "bad_payload"), 2);
+    assert_int_equal(marie_component_counter(cs[1], "bad_nonfinite"), 2);
     marie_component_destroy(cs[0]);
     marie_component_destroy(cs[1]);
 }

@@ -1,6 +1,7 @@
 /* test_typeinfo: the payload checker accepts what lcm-gen encodes and refuses what would make
  * lcm-gen's decoder read or free out of bounds. */
 #include <errno.h>
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -91,6 +92,51 @@ static void large_primitive_arrays_are_checked_by_extent(void **state)
     assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n - 1), -EBADMSG);
 }
 
+/* marie_decode_input: a NaN or an infinity in a scalar, a primitive array or a nested struct
+ * array is refused with its own counter, before anything is decoded; finite values pass. */
+static void component_inputs_refuse_nan_and_inf_anywhere(void **state)
+{
+    uint8_t buf[512];
+    const char *why = NULL;
+    marie_pose_cov_t pc = {.utime = 1, .frame = "map", .pose = {1, 2, 3}};
+    marie_pose_cov_t out;
+    int n = encode(&marie_type_pose_cov_t, &pc, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), 0);
+    marie_pose_cov_t_decode_cleanup(&out);
+    pc.pose.theta = NAN;
+    n = encode(&marie_type_pose_cov_t, &pc, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EDOM);
+    assert_string_equal(why, "bad_nonfinite");
+    /* the plain checked decode leaves meaning to the caller (managers, tools) */
+    assert_int_equal(marie_decode_checked(&marie_type_pose_cov_t, buf, (size_t)n, &out), 0);
+    marie_pose_cov_t_decode_cleanup(&out);
+    pc.pose.theta = 0;
+    pc.cov[8] = -INFINITY;
+    n = encode(&marie_type_pose_cov_t, &pc, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EDOM);
+
+    float r[3] = {1, INFINITY, 2};
+    marie_laser_scan_t ls = {.range_max = 8, .nranges = 3, .ranges = r, .intensities = r};
+    marie_laser_scan_t ols;
+    n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
+    r[1] = 3;
+    n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), 0);
+    marie_laser_scan_t_decode_cleanup(&ols);
+
+    marie_pose2d_t poses[2] = {{0, 0, 0}, {1, NAN, 0}};
+    marie_path_t path = {.nposes = 2, .poses = poses};
+    marie_path_t op;
+    n = encode(&marie_type_path_t, &path, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_path_t, buf, (size_t)n, &op, &why), -EDOM);
+    /* a wrong fingerprint and a lying count keep their own counters */
+    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EBADMSG);
+    assert_string_equal(why, "bad_fingerprint");
+    assert_int_equal(marie_decode_input(&marie_type_path_t, buf, (size_t)n - 1, &op, &why), -EBADMSG);
+    assert_string_equal(why, "bad_payload");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -98,6 +144,7 @@ int main(void)
         cmocka_unit_test(accepts_encoded_messages_and_refuses_truncations),
         cmocka_unit_test(refuses_strings_without_nul_and_lying_counts),
         cmocka_unit_test(large_primitive_arrays_are_checked_by_extent),
+        cmocka_unit_test(component_inputs_refuse_nan_and_inf_anywhere),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

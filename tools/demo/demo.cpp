@@ -26,6 +26,7 @@ extern "C" {
 #include "map/occmap.h"
 #include "core/config.h"
 #include "core/time.h"
+#include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 }
 
@@ -182,17 +183,16 @@ double Demo::loc_error_at(int64_t t, double x, double y, bool *ok) const
 
 void Demo::handle(const char *channel, const void *data, size_t len)
 {
-    int n = int(len);
     if (!strcmp(channel, "SIM_TRUTH")) {
         marie_pose_cov_t m;
-        if (marie_pose_cov_t_decode(data, 0, n, &m) < 0)
+        if (marie_decode_checked(&marie_type_pose_cov_t, data, len, &m) < 0)
             return;
         truth_.push_back({m.utime, m.pose.x, m.pose.y});
         sim_now_ = std::max(sim_now_, m.utime);
         marie_pose_cov_t_decode_cleanup(&m);
     } else if (!strcmp(channel, "POSE")) {
         marie_pose_cov_t m;
-        if (marie_pose_cov_t_decode(data, 0, n, &m) < 0)
+        if (marie_decode_checked(&marie_type_pose_cov_t, data, len, &m) < 0)
             return;
         estimate_.push_back({m.utime, m.pose.x, m.pose.y});
         bool ok;
@@ -202,7 +202,7 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         marie_pose_cov_t_decode_cleanup(&m);
     } else if (!strcmp(channel, "GOAL")) {
         marie_goal_t g;
-        if (marie_goal_t_decode(data, 0, n, &g) < 0)
+        if (marie_decode_checked(&marie_type_goal_t, data, len, &g) < 0)
             return;
         if (!goals_.count(g.id))
             goal_order_.push_back(g.id);
@@ -211,7 +211,7 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         marie_goal_t_decode_cleanup(&g);
     } else if (!strcmp(channel, "MISSION_STATE")) {
         marie_mission_state_t s;
-        if (marie_mission_state_t_decode(data, 0, n, &s) < 0)
+        if (marie_decode_checked(&marie_type_mission_state_t, data, len, &s) < 0)
             return;
         ngoals_ = s.ngoals;
         reached_ = missed_ = 0;
@@ -222,7 +222,7 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         marie_mission_state_t_decode_cleanup(&s);
     } else if (!strcmp(channel, "MARIE_EVENT")) {
         marie_event_t e;
-        if (marie_event_t_decode(data, 0, n, &e) < 0)
+        if (marie_decode_checked(&marie_type_event_t, data, len, &e) < 0)
             return;
         std::string kind = e.kind;
         if (kind == "mission_done")
@@ -233,7 +233,7 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         marie_event_t_decode_cleanup(&e);
     } else if (!strcmp(channel, "MARIE_AM_STATUS")) {
         marie_am_status_t *s = static_cast<marie_am_status_t *>(calloc(1, sizeof *s));
-        if (marie_am_status_t_decode(data, 0, n, s) < 0) {
+        if (marie_decode_checked(&marie_type_am_status_t, data, len, s) < 0) {
             free(s);
             return;
         }
@@ -243,7 +243,7 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         hosts_[s->host] = s;
     } else if (!strcmp(channel, "MARIE_HEARTBEAT")) {
         marie_heartbeat_t hb;
-        if (marie_heartbeat_t_decode(data, 0, n, &hb) < 0)
+        if (marie_decode_checked(&marie_type_heartbeat_t, data, len, &hb) < 0)
             return;
         for (int i = 0; i < hb.ncounters; i++)
             if (!strcmp(hb.counters[i].name, "collisions"))

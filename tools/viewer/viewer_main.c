@@ -15,6 +15,7 @@
 #include <civetweb.h>
 
 #include "core/component.h"
+#include "core/typeinfo.h"
 #include "managers/am_proto.h"
 #include "core/auth.h"
 #include "tools/viewer/lcmlog.h"
@@ -447,10 +448,12 @@ static bool encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t
     if (!msg)
         return false;
     bool ok = false;
-    if (t->decode(data, 0, (int)len, msg) < 0) {
+    const char *why;
+    if (marie_decode_input(t, data, len, msg, &why) < 0) {
         if (v->live) {
             v->bad_payloads++;
-            marie_component_bad_input(v->c, "bad_payload", "channel %s: cannot decode %s (%zu bytes)", ch, t->name, len);
+            marie_component_bad_input(v->c, why, "channel %s: %zu bytes: not a well-formed, finite %s", ch, len,
+                                      t->name);
         }
         free(msg);
         return false;
@@ -608,6 +611,18 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
         return;
     int64_t now = now_mono();
     v->msgs_in++;
+    /* Checked before the rate limit, so every bad message is counted and none can take the
+     * place of a good one in the page's share. */
+    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(port_type[pi]->hash());
+    int rc = marie_typeinfo_check_flags(ti, info->raw, info->raw_len, MARIE_CHECK_FINITE);
+    if (rc < 0) {
+        bool fp = marie_payload_fingerprint(info->raw, info->raw_len) == ti->fingerprint;
+        v->bad_payloads++;
+        marie_component_bad_input(c, !fp ? "bad_fingerprint" : rc == -EDOM ? "bad_nonfinite" : "bad_payload",
+                                  "channel %s: %zu bytes: not a well-formed, finite %s", info->channel,
+                                  info->raw_len, port_type[pi]->name);
+        return;
+    }
     /* The snapshot cache wants every message; the page only the rate-limited ones. */
     bool send = pass_rate(v, pi, now, info->raw, info->raw_len);
     if (!send && (pi != P_POSE && pi != P_TRUTH)) {
@@ -708,7 +723,7 @@ static void *decode_rec(viewer_t *v, const rec_t *r, const marie_type_t *want)
     if (vj_type_of(data, r->len) != want)
         return NULL;
     void *msg = calloc(1, want->size);
-    if (msg && want->decode(data, 0, (int)r->len, msg) < 0) {
+    if (msg && marie_decode_input(want, data, r->len, msg, NULL) < 0) {
         v->bad_payloads++;
         free(msg);
         return NULL;
