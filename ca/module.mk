@@ -1,5 +1,5 @@
 # ca: the Communication Adapters (Mailbox, Splitter, SharedMap, Switch) as libca and marie-ca.
-CA_LIB_SRCS := ca/ca.c ca/mailbox.c ca/sharedmap.c ca/sharedmap_client.c ca/splitter.c ca/switch.c
+CA_LIB_SRCS := ca/ca.c ca/mailbox.c ca/sharedmap.c ca/sharedmap_log.c ca/sharedmap_client.c ca/splitter.c ca/switch.c
 $(eval $(call marie_lib,ca,$(CA_LIB_SRCS)))
 LIBCA := $(B)/lib/libca.a
 
