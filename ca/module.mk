@@ -8,6 +8,7 @@ $(eval $(call marie_program,marie-ca,ca/ca_main.c,$(LIBCA)))
 # Unit tests of the pure logic (no process).
 $(eval $(call marie_test,test_ca_mailbox,tests/ca/test_mailbox.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_sharedmap,tests/ca/test_sharedmap.c,$(LIBCA)))
+$(eval $(call marie_test,test_ca_sharedmap_damage,tests/ca/test_sharedmap_damage.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_splitter,tests/ca/test_splitter.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_switch,tests/ca/test_switch.c,$(LIBCA)))
 

@@ -153,7 +153,7 @@ static int replay_record(void *user, const sharedmap_log_rec_t *r)
     if (r->op == SHAREDMAP_LOG_SET) {
         if (mem_set(sm, r->key, r->type, r->data, r->len, r->version, r->set_utime) < 0)
             return -ENOMEM;
-    } else {
+    } else if (r->op == SHAREDMAP_LOG_DEL) {
         mem_delete(sm, r->key);
     }
     if (r->version > sm->version)
@@ -499,7 +499,7 @@ int sharedmap_compact(sharedmap_t *sm)
 {
     if (sm->fd < 0)
         return 0;
-    size_t total = SHAREDMAP_LOG_MAGIC_LEN;
+    size_t total = SHAREDMAP_LOG_MAGIC_LEN + sharedmap_log_record_size(0, 0, 0);
     for (size_t i = 0; i < sm->n; i++)
         total += sharedmap_log_record_size(strlen(sm->entries[i].key), strlen(sm->entries[i].type), sm->entries[i].len);
     uint8_t *img = malloc(total);
@@ -507,9 +507,14 @@ int sharedmap_compact(sharedmap_t *sm)
         return -ENOMEM;
     memcpy(img, sharedmap_log_magic, SHAREDMAP_LOG_MAGIC_LEN);
     size_t off = SHAREDMAP_LOG_MAGIC_LEN;
+    int64_t seq = 0;
+    /* The version first: the last change may have been a delete, which leaves no entry to
+     * carry it, and a version must never go back. */
+    sharedmap_log_rec_t vr = { SHAREDMAP_LOG_VERSION, ++seq, sm->version, 0, "", NULL, NULL, 0 };
+    off += sharedmap_log_encode(img + off, &vr);
     for (size_t i = 0; i < sm->n; i++) {
         const entry_t *e = &sm->entries[i];
-        sharedmap_log_rec_t r = { SHAREDMAP_LOG_SET, (int64_t)i + 1, e->version, e->set_utime,
+        sharedmap_log_rec_t r = { SHAREDMAP_LOG_SET, ++seq, e->version, e->set_utime,
                                   e->key, e->type, e->data, e->len };
         off += sharedmap_log_encode(img + off, &r);
     }
@@ -529,8 +534,8 @@ int sharedmap_compact(sharedmap_t *sm)
     close(sm->fd);
     sm->fd = fd;
     sm->log_size = (off_t)off;
-    sm->nrecords = (int64_t)sm->n;
-    sm->seq = (int64_t)sm->n;
+    sm->nrecords = seq;
+    sm->seq = seq;
     sm->stats.compactions++;
     return 0;
 }

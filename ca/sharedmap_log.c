@@ -9,7 +9,7 @@
 /* Layout (all integers big-endian):
  *   file   := "MARIESM2" record*
  *   record := u32 marker, u32 body_len, u64 seq, u32 crc32(body), u32 crc32(the 20 bytes before), body
- *   body   := u8 op (1 set, 2 delete), i64 version, i64 set_utime,
+ *   body   := u8 op (1 set, 2 delete, 3 version only, key empty), i64 version, i64 set_utime,
  *             u16 key_len, key, u16 type_len, type, u32 data_len, data
  * The marker lets a reader find the next record after damage, the header checksum makes a
  * false marker in a value (or a damaged length) fail cheaply, and the sequence number counts
@@ -72,7 +72,8 @@ static int decode_body(const uint8_t *b, size_t blen, sharedmap_log_rec_t *r,
     r->version = get_i64(p); p += 8;
     r->set_utime = get_i64(p); p += 8;
     size_t klen = get_u16(p); p += 2;
-    if (klen == 0 || klen > SHAREDMAP_MAX_KEY || (size_t)(end - p) < klen + 2)
+    if ((klen == 0) != (r->op == SHAREDMAP_LOG_VERSION) || klen > SHAREDMAP_MAX_KEY ||
+        (size_t)(end - p) < klen + 2)
         return -EBADMSG;
     memcpy(key, p, klen); key[klen] = 0; p += klen;
     size_t tlen = get_u16(p); p += 2;
@@ -81,7 +82,7 @@ static int decode_body(const uint8_t *b, size_t blen, sharedmap_log_rec_t *r,
     memcpy(type, p, tlen); type[tlen] = 0; p += tlen;
     size_t dlen = get_u32(p); p += 4;
     if (dlen != (size_t)(end - p) || strlen(key) != klen ||
-        (r->op != SHAREDMAP_LOG_SET && r->op != SHAREDMAP_LOG_DEL))
+        r->op < SHAREDMAP_LOG_SET || r->op > SHAREDMAP_LOG_VERSION)
         return -EBADMSG;
     r->key = key;
     r->type = type;

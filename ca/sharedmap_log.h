@@ -18,6 +18,7 @@ extern const char sharedmap_log_magic[SHAREDMAP_LOG_MAGIC_LEN];
 
 #define SHAREDMAP_LOG_SET 1
 #define SHAREDMAP_LOG_DEL 2
+#define SHAREDMAP_LOG_VERSION 3     /* no key: the map's version (a compacted log whose last change was a delete) */
 #define SHAREDMAP_LOG_HEAD 24       /* bytes before a record's body */
 
 /* One record. key and type are NUL-terminated; data is len bytes. */
