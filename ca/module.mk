@@ -15,9 +15,16 @@ $(eval $(call marie_test,test_ca_switch,tests/ca/test_switch.c,$(LIBCA)))
 # Tests of marie-ca processes over real LCM.
 CA_TESTLIB := tests/ca/ca_test.c
 CA_BUS_TESTS := test_ca_mailbox_bus test_ca_sharedmap_bus test_ca_sharedmap_crash test_ca_switch_bus \
-                test_ca_splitter_bus test_ca_config
+                test_ca_splitter_bus test_ca_config test_ca_sharedmap_durability
 $(foreach t,$(CA_BUS_TESTS),$(eval $(call marie_test,$(t),tests/ca/$(patsubst test_ca_%,test_%,$(t)).c $(CA_TESTLIB),$(LIBCA))))
 $(patsubst %,$(B)/tests/%,$(CA_BUS_TESTS)): | $(B)/bin/marie-ca
+
+# Preloaded into marie-ca by test_ca_sharedmap_durability: traces log writes, syncs and
+# sends in order (plain flags: it must not carry the sanitizers into the traced process).
+$(B)/tests/libca_syncshim.so: tests/ca/syncshim.c
+	@mkdir -p $(@D)
+	$(CC) -shared -fPIC -O2 -Wall -Wextra -o $@ $< -ldl
+$(B)/tests/test_ca_sharedmap_durability: | $(B)/tests/libca_syncshim.so
 
 # Request decoders on arbitrary bytes. make fuzz builds with clang from sources only (it
 # leaves .a files out), so list what libca needs.
