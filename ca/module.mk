@@ -8,7 +8,7 @@ $(eval $(call marie_program,marie-ca,ca/ca_main.c,$(LIBCA)))
 # Unit tests of the pure logic (no process).
 $(eval $(call marie_test,test_ca_mailbox,tests/ca/test_mailbox.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_sharedmap,tests/ca/test_sharedmap.c,$(LIBCA)))
-$(eval $(call marie_test,test_ca_sharedmap_damage,tests/ca/test_sharedmap_damage.c,$(LIBCA)))
+$(eval $(call marie_test,test_ca_sharedmap_damage,tests/ca/test_sharedmap_damage.c tests/ca/sharedmap_damage.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_splitter,tests/ca/test_splitter.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_switch,tests/ca/test_switch.c,$(LIBCA)))
 
@@ -37,5 +37,5 @@ $(eval $(call marie_bench,bench_ca,tests/ca/bench_ca.c $(CA_TESTLIB),$(LIBCA)))
 $(B)/bench/bench_ca: $(B)/bench/ca-lcm-relay | $(B)/bin/marie-ca
 
 # SharedMap state files, damaged or hostile.
-$(eval $(call marie_fuzz,ca_sharedmap_log,tests/ca/fuzz_sharedmap_log.c,$(LIBCA)))
-FUZZ_ca_sharedmap_log_SOURCES := tests/ca/fuzz_sharedmap_log.c $(CA_LIB_SRCS) core/time.c $(LCM_C_SRCS)
+$(eval $(call marie_fuzz,ca_sharedmap_log,tests/ca/fuzz_sharedmap_log.c tests/ca/sharedmap_damage.c,$(LIBCA)))
+FUZZ_ca_sharedmap_log_SOURCES := tests/ca/fuzz_sharedmap_log.c tests/ca/sharedmap_damage.c $(CA_LIB_SRCS) core/time.c $(LCM_C_SRCS)

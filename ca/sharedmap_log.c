@@ -110,9 +110,19 @@ static void stretch_close(sharedmap_replay_t *rep, stretch_t *s, size_t end, int
 
 /* A record with sequence number seq starts at off: closes the stretch before it, or notes
  * whole records missing without damaged bytes (a cut on record boundaries). */
+/* Records missing between sequence numbers last and seq; a hostile file's numbers must
+ * neither overflow nor make the count absurd. */
+static int64_t seq_gap(int64_t last, int64_t seq)
+{
+    if (seq <= last)
+        return 0;
+    uint64_t gap = (uint64_t)seq - (uint64_t)last - 1;
+    return gap > UINT32_MAX ? UINT32_MAX : (int64_t)gap;
+}
+
 static void seq_seen(sharedmap_replay_t *rep, stretch_t *s, size_t off, int64_t last, int64_t seq)
 {
-    int64_t gap = seq > last + 1 ? seq - last - 1 : 0;
+    int64_t gap = seq_gap(last, seq);
     if (s->open) {
         stretch_close(rep, s, off, gap);
     } else if (gap > 0) {
@@ -157,7 +167,10 @@ static int scan_v2(const uint8_t *buf, size_t len, sharedmap_log_fn fn, void *us
         }
         size_t blen = get_u32(buf + off + 4);
         int64_t seq = get_i64(buf + off + 8);
-        if (blen > left - SHAREDMAP_LOG_HEAD && blen <= BODY_MAX) {
+        /* Records follow each other in sequence, and skipped bytes held at least one record:
+         * a record-like header elsewhere (inside a value) is no record. */
+        int in_seq = seq > last && (!s.open || seq > last + 1);
+        if (in_seq && blen > left - SHAREDMAP_LOG_HEAD && blen <= BODY_MAX) {
             /* A whole header whose body runs past the end: the write a crash cut short. */
             seq_seen(rep, &s, off, last, seq);
             rep->torn_bytes = (int64_t)left;
@@ -165,11 +178,11 @@ static int scan_v2(const uint8_t *buf, size_t len, sharedmap_log_fn fn, void *us
         }
         sharedmap_log_rec_t r = { .seq = seq };
         const uint8_t *b = buf + off + SHAREDMAP_LOG_HEAD;
-        if (blen > left - SHAREDMAP_LOG_HEAD || ca_crc32(0, b, blen) != get_u32(buf + off + 16) ||
+        if (!in_seq || blen > left - SHAREDMAP_LOG_HEAD || ca_crc32(0, b, blen) != get_u32(buf + off + 16) ||
             decode_body(b, blen, &r, key, type) < 0) {
             stretch_open(&s, off);
             if (seq > s.max_seq)
-                s.max_seq = seq;
+                s.max_seq = seq;        /* a whole header: its record is among the lost */
             off++;
             continue;
         }
@@ -183,7 +196,7 @@ static int scan_v2(const uint8_t *buf, size_t len, sharedmap_log_fn fn, void *us
         rep->end = (int64_t)off;
     }
     if (s.open)     /* damage up to the end: at least one record, more if headers say so */
-        stretch_close(rep, &s, len, s.max_seq > last + 1 ? s.max_seq - last : 1);
+        stretch_close(rep, &s, len, seq_gap(last, s.max_seq) + 1);
     return 0;
 }
 

@@ -18,9 +18,9 @@
 #include "ca/sharedmap.h"
 #include "ca/sharedmap_log.h"
 #include "lcmtypes/marie_pose2d_t.h"
+#include "tests/ca/sharedmap_damage.h"
 
 #define ROUNDS 300
-#define MAXREC 160
 #define NKEYS 24
 
 static char dir[256], path[300];
@@ -49,54 +49,17 @@ static uint32_t rnd(uint32_t n)
     return (uint32_t)(rng % n);
 }
 
-/* ---- a log built record by record, with each record's place in the file ---- */
-
-typedef struct {
-    int op;
-    char key[16];
-    uint8_t data[96];
-    size_t len;
-    int64_t version, utime;
-    size_t off, size;           /* in the undamaged image */
-    long now;                   /* its start in the damaged image, -1 when cut away */
-    int touched;
-} rec_t;
-
-typedef struct {
-    rec_t r[MAXREC];
-    int n;
-    uint8_t img[MAXREC * 200];
-    size_t len;
-} log_t;
-
-static void log_add(log_t *l, int op, const char *key, const uint8_t *data, size_t len)
+static void log_random(smd_log_t *l, int nrec)
 {
-    rec_t *r = &l->r[l->n];
-    *r = (rec_t){ .op = op, .len = len, .version = l->n + 1, .utime = 1000 + l->n };
-    snprintf(r->key, sizeof r->key, "%s", key);
-    memcpy(r->data, data, len);
-    sharedmap_log_rec_t lr = { op, l->n + 1, r->version, r->utime, r->key,
-                               op == SHAREDMAP_LOG_SET ? "marie.raw" : NULL, r->data, len };
-    r->off = l->len;
-    r->size = sharedmap_log_encode(l->img + l->len, &lr);
-    r->now = (long)r->off;
-    l->len += r->size;
-    l->n++;
-}
-
-static void log_random(log_t *l, int nrec)
-{
-    memcpy(l->img, sharedmap_log_magic, SHAREDMAP_LOG_MAGIC_LEN);
-    l->len = SHAREDMAP_LOG_MAGIC_LEN;
-    l->n = 0;
+    smd_init(l);
     for (int i = 0; i < nrec; i++) {
         char key[16];
-        uint8_t data[96];
+        uint8_t data[SMD_MAXDATA];
         snprintf(key, sizeof key, "key%02u", rnd(NKEYS));
         size_t len = 8 + rnd(80);
         for (size_t k = 0; k < len; k++)
             data[k] = (uint8_t)rnd(256);
-        log_add(l, rnd(6) == 0 ? SHAREDMAP_LOG_DEL : SHAREDMAP_LOG_SET, key, data, len);
+        smd_add(l, rnd(6) == 0 ? SHAREDMAP_LOG_DEL : SHAREDMAP_LOG_SET, key, data, len);
     }
 }
 
@@ -118,98 +81,15 @@ static size_t read_file(const char *p, uint8_t *buf, size_t cap)
     return (size_t)n;
 }
 
-/* ---- damage ---- */
+/* A place after the magic, and a stretch of 1..300 bytes. */
+static size_t somewhere(size_t len) { return SHAREDMAP_LOG_MAGIC_LEN + rnd((uint32_t)(len - SHAREDMAP_LOG_MAGIC_LEN)); }
+static size_t some_bytes(void) { return 1 + rnd(300); }
 
-static void flip(uint8_t *img, size_t len)
+static void assert_map_is(const sharedmap_t *sm, const smd_log_t *l)
 {
-    img[SHAREDMAP_LOG_MAGIC_LEN + rnd((uint32_t)(len - SHAREDMAP_LOG_MAGIC_LEN))] ^= (uint8_t)(1 + rnd(255));
-}
-
-static void zero_range(uint8_t *img, size_t len)
-{
-    size_t a = SHAREDMAP_LOG_MAGIC_LEN + rnd((uint32_t)(len - SHAREDMAP_LOG_MAGIC_LEN));
-    size_t n = 1 + rnd(300);
-    memset(img + a, 0, n < len - a ? n : len - a);
-}
-
-/* Removes a stretch: every later record moves back. */
-static size_t cut_out(log_t *l, uint8_t *img, size_t len)
-{
-    size_t a = SHAREDMAP_LOG_MAGIC_LEN + rnd((uint32_t)(len - SHAREDMAP_LOG_MAGIC_LEN));
-    size_t n = 1 + rnd(300);
-    if (n > len - a)
-        n = len - a;
-    memmove(img + a, img + a + n, len - a - n);
-    for (int i = 0; i < l->n; i++) {
-        rec_t *r = &l->r[i];
-        if (r->now < 0)
-            continue;
-        if ((size_t)r->now >= a + n)
-            r->now -= (long)n;
-        else if ((size_t)r->now >= a)
-            r->now = -1;                /* its start is gone */
-    }
-    return len - n;
-}
-
-/* A record is touched when its bytes are not all where they were (shifted by cuts). */
-static int mark_touched(log_t *l, const uint8_t *img, size_t len)
-{
-    int n = 0;
-    for (int i = 0; i < l->n; i++) {
-        rec_t *r = &l->r[i];
-        r->touched = r->now < 0 || (size_t)r->now + r->size > len ||
-                     memcmp(img + r->now, l->img + r->off, r->size) != 0;
-        n += r->touched;
-    }
-    return n;
-}
-
-/* ---- what must survive: the untouched records replayed in order ---- */
-
-typedef struct {
-    char key[16];
-    const rec_t *r;
-} ref_t;
-
-static int reference(const log_t *l, ref_t *out, int64_t *version)
-{
-    int n = 0;
-    *version = 0;
-    for (int i = 0; i < l->n; i++) {
-        const rec_t *r = &l->r[i];
-        if (r->touched)
-            continue;
-        int k = 0;
-        while (k < n && strcmp(out[k].key, r->key) != 0)
-            k++;
-        if (r->op == SHAREDMAP_LOG_SET) {
-            if (k == n)
-                snprintf(out[n++].key, sizeof out[0].key, "%s", r->key);
-            out[k].r = r;
-        } else if (k < n) {
-            out[k] = out[--n];
-        }
-        *version = r->version;
-    }
-    return n;
-}
-
-static void assert_map_is(const sharedmap_t *sm, const log_t *l)
-{
-    ref_t ref[NKEYS];
-    int64_t version;
-    int n = reference(l, ref, &version);
-    assert_int_equal(sharedmap_size(sm), n);
-    for (int k = 0; k < n; k++) {
-        sharedmap_value_t v;
-        assert_int_equal(sharedmap_get(sm, ref[k].key, &v), 0);
-        assert_int_equal(v.len, ref[k].r->len);
-        assert_memory_equal(v.data, ref[k].r->data, v.len);
-        assert_int_equal(v.version, ref[k].r->version);
-        assert_int_equal(v.set_utime, ref[k].r->utime);
-    }
-    assert_int_equal(sharedmap_version(sm), version);
+    char why[200] = "";
+    if (smd_check_map(sm, l, why, sizeof why) < 0)
+        fail_msg("%s", why);
 }
 
 /* The files kept aside in dir (NAME.corrupt-*); the first one's name goes to first. */
@@ -237,7 +117,7 @@ static void clean_dir(void)
 
 /* ---- the cases ---- */
 
-static log_t lg;
+static smd_log_t lg;
 static uint8_t img[sizeof lg.img], back[sizeof lg.img];
 
 static size_t file_size(const char *p)
@@ -316,18 +196,18 @@ static void test_random_damage_keeps_every_untouched_record(void **state)
     int64_t lost = 0;
     for (int round = 0; round < ROUNDS; round++) {
         clean_dir();
-        log_random(&lg, 20 + (int)rnd(MAXREC - 20));
+        log_random(&lg, 20 + (int)rnd(SMD_MAXREC - 20));
         memcpy(img, lg.img, lg.len);
         size_t len = lg.len;
         int kinds = 1 + (int)rnd(3);
         for (int k = 0; k < kinds; k++) {
             switch (rnd(3)) {
-            case 0: flip(img, len); break;
-            case 1: zero_range(img, len); break;
-            default: len = cut_out(&lg, img, len); break;
+            case 0: img[somewhere(len)] ^= (uint8_t)(1 + rnd(255)); break;
+            case 1: smd_zero(img, len, somewhere(len), some_bytes()); break;
+            default: len = smd_cut(&lg, img, len, somewhere(len), some_bytes()); break;
             }
         }
-        int touched = mark_touched(&lg, img, len);
+        int touched = smd_mark_touched(&lg, img, len);
         int last_touched = lg.r[lg.n - 1].touched;
         write_file(path, img, len);
 
