@@ -114,7 +114,7 @@ static void test_damaged_log_is_recovered_and_reported(void **state)
     const char *args[] = { "sharedmap", "--name", "smr", "--param", state_arg, NULL };
     pid_t pid = pids[0] = cat_spawn(args);
     assert_true(cat_wait_running(bus, "smr", 5000));
-    assert_true(cat_spin(bus, 3000, got_event, &ev));
+    assert_true(cat_spin(bus, 5000, got_event, &ev));
     /* a warning that says how much was lost, where, and where the damaged file went */
     assert_int_equal(ev.severity, MARIE_EVENT_T_SEV_WARN);
     char where[64];
@@ -123,7 +123,7 @@ static void test_damaged_log_is_recovered_and_reported(void **state)
     assert_non_null(strstr(ev.text, where));
     assert_non_null(strstr(ev.text, ".corrupt-"));
     int64_t seen = 0;
-    assert_true(cat_wait_counter(bus, "smr", "log_records_skipped", 1, 3000, &seen));
+    assert_true(cat_wait_counter(bus, "smr", "log_records_skipped", 1, 5000, &seen));
     assert_int_equal(seen, 1);
     /* the 19 intact records are served, the damaged one is gone */
     sharedmap_client_t *cl = sharedmap_client_create(cat_lcm(bus), NULL, "t");
