@@ -170,10 +170,10 @@ static void test_strict_log_refuses_to_start(void **state)
  * (a sharedmap.sharedmap.lock once appeared in a source tree this way). */
 static void test_state_never_defaults_to_the_working_directory(void **state)
 {
-    char work[400], sdir[400], here[PATH_MAX], bdir[PATH_MAX];
-    snprintf(work, sizeof work, "%s/work", dir);
+    char cwd[400], sdir[400], here[PATH_MAX], bdir[PATH_MAX];
+    snprintf(cwd, sizeof cwd, "%s/cwd", dir);
     snprintf(sdir, sizeof sdir, "%s/state", dir);
-    assert_int_equal(mkdir(work, 0755), 0);
+    assert_int_equal(mkdir(cwd, 0755), 0);
     const char *b = getenv("B");
     assert_non_null(realpath(b && *b ? b : "build", bdir));
     assert_non_null(getcwd(here, sizeof here));
@@ -181,7 +181,7 @@ static void test_state_never_defaults_to_the_working_directory(void **state)
     setenv("B", bdir, 1);
     unsetenv("MARIE_STATE_DIR");
     setenv("STATE_DIRECTORY", sdir, 1);     /* as systemd's StateDirectory= would */
-    assert_int_equal(chdir(work), 0);
+    assert_int_equal(chdir(cwd), 0);
 
     cat_bus_t *bus = cat_bus_create();
     const char *sm_args[] = { "sharedmap", "--name", "smw", NULL };
@@ -214,7 +214,7 @@ static void test_state_never_defaults_to_the_working_directory(void **state)
         setenv("MARIE_STATE_DIR", saved_sd, 1);
     free(saved_b);
     free(saved_sd);
-    assert_int_equal(count_prefix(work, ""), 0);
+    assert_int_equal(count_prefix(cwd, ""), 0);
     assert_int_equal(count_prefix(sdir, "smw.sharedmap"), 2);    /* the log and its .lock */
     assert_int_equal(count_prefix(sdir, "sww.switch"), 1);
 }
