@@ -19,12 +19,13 @@ CA_BUS_TESTS := test_ca_mailbox_bus test_ca_sharedmap_bus test_ca_sharedmap_cras
 $(foreach t,$(CA_BUS_TESTS),$(eval $(call marie_test,$(t),tests/ca/$(patsubst test_ca_%,test_%,$(t)).c $(CA_TESTLIB),$(LIBCA))))
 $(patsubst %,$(B)/tests/%,$(CA_BUS_TESTS)): | $(B)/bin/marie-ca
 
-# Preloaded into marie-ca by test_ca_sharedmap_durability: traces log writes, syncs and
-# sends in order (plain flags: it must not carry the sanitizers into the traced process).
+# Preloaded into marie-ca by test_ca_sharedmap_durability and _crash: traces log writes,
+# syncs and sends in order, or holds writes until their sync to play a power loss (plain
+# flags: it must not carry the sanitizers into the traced process).
 $(B)/tests/libca_syncshim.so: tests/ca/syncshim.c
 	@mkdir -p $(@D)
 	$(CC) -shared -fPIC -O2 -Wall -Wextra -o $@ $< -ldl
-$(B)/tests/test_ca_sharedmap_durability: | $(B)/tests/libca_syncshim.so
+$(B)/tests/test_ca_sharedmap_durability $(B)/tests/test_ca_sharedmap_crash: | $(B)/tests/libca_syncshim.so
 
 # Request decoders on arbitrary bytes. make fuzz builds with clang from sources only (it
 # leaves .a files out), so list what libca needs.

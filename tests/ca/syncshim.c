@@ -1,7 +1,9 @@
 /* syncshim: an LD_PRELOAD library for tests that traces, in order, a process's writes to files
  * under $SYNCSHIM_DIR, its fsync/fdatasync calls, renames and links there, and its datagrams,
  * into $SYNCSHIM_TRACE; a datagram sent while a write or a rename is not yet synced is
- * marked, since SIGKILL keeps the page cache and only a power loss would show it. */
+ * marked, since SIGKILL keeps the page cache and only a power loss would show it. With
+ * SYNCSHIM_CACHE=1 it plays that power loss: writes to those files are held in the process
+ * until their fsync/fdatasync, so whatever was not synced dies with it. */
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <fcntl.h>
@@ -20,6 +22,10 @@ static unsigned char dirty[MAXFD];
 static int lost_dirty;                  /* closed before it was synced */
 static int dir_dirty;                   /* a rename or link there, directory not synced */
 static int trace_fd = -1;
+static struct {
+    char *buf;
+    size_t len, cap;
+} held[MAXFD];                          /* SYNCSHIM_CACHE: written, not yet synced */
 
 /* Lines go out by system call: the shim's own output must not be traced. */
 static void trace(const char *fmt, ...)
@@ -68,6 +74,7 @@ static int opened(int fd, const char *path)
     if (fd >= 0 && fd < MAXFD) {
         watched[fd] = (unsigned char)classify(path);
         dirty[fd] = 0;
+        held[fd].len = 0;
     }
     return fd;
 }
@@ -111,6 +118,7 @@ int close(int fd)
             trace("C %d unsynced\n", fd);
         }
         watched[fd] = dirty[fd] = 0;
+        held[fd].len = 0;               /* never synced: lost, as in a power cut */
     }
     return real_(fd);
 }
@@ -123,12 +131,49 @@ static void wrote(int fd, ssize_t n)
     }
 }
 
+static int caching(int fd)
+{
+    const char *c = getenv("SYNCSHIM_CACHE");
+    return c && *c == '1' && fd >= 0 && fd < MAXFD && watched[fd] == 1;
+}
+
 ssize_t write(int fd, const void *buf, size_t len)
 {
     REAL(ssize_t, "write", int, const void *, size_t);
+    if (caching(fd)) {
+        if (held[fd].len + len > held[fd].cap) {
+            size_t cap = (held[fd].len + len) * 2;
+            char *nb = realloc(held[fd].buf, cap);
+            if (!nb)
+                return real_(fd, buf, len);
+            held[fd].buf = nb;
+            held[fd].cap = cap;
+        }
+        memcpy(held[fd].buf + held[fd].len, buf, len);
+        held[fd].len += len;
+        wrote(fd, (ssize_t)len);
+        return (ssize_t)len;
+    }
     ssize_t n = real_(fd, buf, len);
     wrote(fd, n);
     return n;
+}
+
+/* What a sync makes durable: the held writes go to the file first. */
+static int flush_held(int fd)
+{
+    REAL(ssize_t, "write", int, const void *, size_t);
+    if (fd < 0 || fd >= MAXFD)
+        return 0;
+    size_t off = 0;
+    while (off < held[fd].len) {
+        ssize_t n = real_(fd, held[fd].buf + off, held[fd].len - off);
+        if (n <= 0)
+            return -1;
+        off += (size_t)n;
+    }
+    held[fd].len = 0;
+    return 0;
 }
 
 ssize_t pwrite(int fd, const void *buf, size_t len, off_t off)
@@ -142,6 +187,8 @@ ssize_t pwrite(int fd, const void *buf, size_t len, off_t off)
 int ftruncate(int fd, off_t len)
 {
     REAL(int, "ftruncate", int, off_t);
+    if (fd >= 0 && fd < MAXFD)
+        held[fd].len = 0;               /* a cut-back drops what was held after it */
     int rc = real_(fd, len);
     wrote(fd, rc == 0 ? 1 : 0);
     return rc;
@@ -163,7 +210,7 @@ static void synced(int fd, int rc)
 int fsync(int fd)
 {
     REAL(int, "fsync", int);
-    int rc = real_(fd);
+    int rc = flush_held(fd) < 0 ? -1 : real_(fd);
     synced(fd, rc);
     return rc;
 }
@@ -171,7 +218,7 @@ int fsync(int fd)
 int fdatasync(int fd)
 {
     REAL(int, "fdatasync", int);
-    int rc = real_(fd);
+    int rc = flush_held(fd) < 0 ? -1 : real_(fd);
     synced(fd, rc);
     return rc;
 }

@@ -26,6 +26,16 @@ typedef struct {
     int writes, syncs, dir_syncs, renames, links, sends, sends_unsynced, closed_unsynced;
 } trace_t;
 
+static pid_t pid;           /* killed by teardown if the case fails before stopping it */
+
+static int teardown(void **state)
+{
+    if (pid > 0 && cat_alive(pid))
+        cat_stop(pid, SIGKILL);
+    pid = 0;
+    return 0;
+}
+
 static void read_trace(const char *path, trace_t *t)
 {
     FILE *f = fopen(path, "r");
@@ -71,7 +81,7 @@ static void test_every_ack_follows_its_sync(void **state)
     const char *args[] = { "sharedmap", "--name", "smd", "--param", state_arg,
                            /* compact often: renames must be synced before the next ack too */
                            "--param", "compact_min_records=16", NULL };
-    pid_t pid = cat_spawn(args);
+    pid = cat_spawn(args);
     unsetenv("LD_PRELOAD");
     unsetenv("SYNCSHIM_DIR");
     unsetenv("SYNCSHIM_TRACE");
@@ -119,7 +129,7 @@ static void test_every_ack_follows_its_sync(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_every_ack_follows_its_sync),
+        cmocka_unit_test_teardown(test_every_ack_follows_its_sync, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
