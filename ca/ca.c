@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64_t n,
@@ -319,4 +320,61 @@ int ca_view_switch_select(const void *buf, size_t len, marie_switch_select_t *ou
         return -EBADMSG;
     *out = (marie_switch_select_t){ f[0].i, f[1].i, S(2), S(3) };
     return 0;
+}
+
+/* mkdir -p: every missing component of dir. */
+static int make_dirs(const char *dir, mode_t mode)
+{
+    char *p = strdup(dir);
+    if (!p)
+        return -ENOMEM;
+    int rc = 0;
+    for (char *s = p + 1; rc == 0; s++) {
+        if (*s != '/' && *s)
+            continue;
+        char c = *s;
+        *s = 0;
+        if (mkdir(p, mode) < 0 && errno != EEXIST)
+            rc = -errno;
+        *s = c;
+        if (!c)
+            break;
+    }
+    free(p);
+    return rc;
+}
+
+char *ca_state_dir(void)
+{
+    char *dir = NULL;
+    const char *e = getenv("MARIE_STATE_DIR");
+    const char *sd = getenv("STATE_DIRECTORY");       /* systemd's StateDirectory=, ':'-separated */
+    const char *xdg = getenv("XDG_STATE_HOME"), *home = getenv("HOME");
+    if (e && *e)
+        dir = strdup(e);
+    else if (sd && *sd)
+        dir = strndup(sd, strcspn(sd, ":"));
+    else if (geteuid() == 0)
+        dir = strdup("/var/lib/marie");
+    else if (xdg && *xdg == '/') {
+        if (asprintf(&dir, "%s/marie", xdg) < 0)
+            dir = NULL;
+    } else if (home && *home == '/') {
+        if (asprintf(&dir, "%s/.local/state/marie", home) < 0)
+            dir = NULL;
+    } else {
+        errno = ENOENT;
+        return NULL;
+    }
+    if (!dir) {
+        errno = ENOMEM;
+        return NULL;
+    }
+    int rc = make_dirs(dir, 0700);
+    if (rc < 0) {
+        free(dir);
+        errno = -rc;
+        return NULL;
+    }
+    return dir;
 }

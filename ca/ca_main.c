@@ -86,15 +86,22 @@ static int fail_errs(ca_proc_t *p, marie_errors_t *errs)
     return -1;
 }
 
-/* Where a CA keeps its state unless told: $MARIE_STATE_DIR (or .)/NAME.SUFFIX. */
+/* Where a CA keeps its state unless told: ca_state_dir()/NAME.SUFFIX, never the working
+ * directory. NULL with the reason given as the component's failure. */
 static char *state_path(ca_proc_t *p, const char *given, const char *suffix)
 {
-    char buf[1024];
     if (given && *given)
         return strdup(given);
-    const char *dir = getenv("MARIE_STATE_DIR");
-    snprintf(buf, sizeof buf, "%s/%s.%s", dir && *dir ? dir : ".", marie_component_name(p->c), suffix);
-    return strdup(buf);
+    char *dir = ca_state_dir(), *path = NULL;
+    if (!dir) {
+        marie_component_fail_reason(p->c, "state directory: %s (set MARIE_STATE_DIR or state_file)",
+                                    errno == ENOENT ? "none known" : strerror(errno));
+        return NULL;
+    }
+    if (asprintf(&path, "%s/%s.%s", dir, marie_component_name(p->c), suffix) < 0)
+        path = NULL;
+    free(dir);
+    return path;
 }
 
 static void proc_free(ca_proc_t *p)
@@ -261,19 +268,24 @@ static int sharedmap_init(marie_component_t *c)
         return -1;
     }
     char *path = state_path(p, marie_param_str(c, "state_file"), "sharedmap");
+    if (!path)
+        return -1;
     ca_sink_t s = sink_of(p);
-    p->sm = path ? sharedmap_open(path, &s) : NULL;
+    p->sm = sharedmap_open_flags(path, marie_param_bool(c, "strict_log") ? SHAREDMAP_STRICT : 0, &s);
     if (!p->sm) {
-        marie_component_fail_reason(c, "state_file %s: %s", path ? path : "?",
-                                    errno == EINVAL ? "not a SharedMap log" : errno == EBUSY ? "in use by another SharedMap" : strerror(errno));
+        marie_component_fail_reason(c, "state_file %s: %s", path,
+                                    errno == EINVAL ? "not a SharedMap log"
+                                    : errno == EBUSY ? "in use by another SharedMap"
+                                    : errno == EBADMSG ? "damaged, left as it is (strict_log)" : strerror(errno));
         free(path);
         return -1;
     }
     const sharedmap_stats_t *st = sharedmap_stats(p->sm);
-    marie_component_event(c, 1, "sharedmap_loaded", "%s: %zu keys, version %lld, %lld records%s",
+    marie_component_event(c, 1, "sharedmap_loaded", "%s: %zu keys, version %lld, %lld records%s%s",
                           path, sharedmap_size(p->sm), (long long)sharedmap_version(p->sm),
                           (long long)st->records_loaded,
-                          st->tail_bytes_dropped ? " (torn unacknowledged tail cut off)" : "");
+                          st->tail_bytes_dropped ? " (torn unacknowledged tail cut off)" : "",
+                          st->records_skipped || sharedmap_kept_aside(p->sm) ? " (damaged log recovered)" : "");
     free(path);
     sharedmap_set_compaction(p->sm, marie_param_int(c, "compact_min_records"));
     p->sm_channel = strdup(marie_param_str(c, "channel"));
@@ -294,8 +306,10 @@ static int switch_init(marie_component_t *c)
         return -1;
     const char *output = marie_param_str(c, "output");
     char *path = state_path(p, marie_param_str(c, "state_file"), "switch");
+    if (!path)
+        return -1;
     ca_sink_t s = sink_of(p);
-    p->sw = path ? ca_switch_create(output, p->type, path, &s) : NULL;
+    p->sw = ca_switch_create(output, p->type, path, &s);
     free(path);
     if (!p->sw) {
         marie_component_fail_reason(c, "output: %s", *output ? strerror(errno) : "missing");
@@ -445,8 +459,9 @@ static const marie_param_spec_t sharedmap_params[] = {
     { "channel", MARIE_PARAM_STRING, "SHAREDMAP", "request channel" },
     { "snapshot_channel", MARIE_PARAM_STRING, "''", "snapshot channel; '' = CHANNEL.SNAPSHOT, 'none' = none" },
     { "snapshot_min_interval_ms", MARIE_PARAM_INT, "20", "snapshots at most this often" },
-    { "state_file", MARIE_PARAM_STRING, "''", "log file; '' = $MARIE_STATE_DIR/NAME.sharedmap" },
+    { "state_file", MARIE_PARAM_STRING, "''", "log file; '' = STATE_DIR/NAME.sharedmap (docs/ca.md)" },
     { "compact_min_records", MARIE_PARAM_INT, "1024", "compact when records > 2 x keys + this" },
+    { "strict_log", MARIE_PARAM_BOOL, "false", "refuse to start on a damaged log instead of recovering" },
     { 0 },
 };
 static const marie_param_spec_t switch_params[] = {
@@ -456,7 +471,7 @@ static const marie_param_spec_t switch_params[] = {
     { "initial", MARIE_PARAM_STRING, "''", "selected when nothing is persisted; '' = first input, 'none' = none" },
     { "select_channel", MARIE_PARAM_STRING, "''", "selection requests; '' = OUTPUT.SELECT" },
     { "state_channel", MARIE_PARAM_STRING, "''", "state replies; '' = OUTPUT.STATE" },
-    { "state_file", MARIE_PARAM_STRING, "''", "selection file; '' = $MARIE_STATE_DIR/NAME.switch" },
+    { "state_file", MARIE_PARAM_STRING, "''", "selection file; '' = STATE_DIR/NAME.switch (docs/ca.md)" },
     { 0 },
 };
 

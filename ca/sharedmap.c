@@ -1,29 +1,22 @@
 /* sharedmap: sorted in-memory map, append-only log with fdatasync per change, compaction by
- * atomic rename, and the request protocol. */
+ * atomic rename, recovery from a damaged log, and the request protocol. */
 #include "ca/sharedmap.h"
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
+#include "ca/sharedmap_log.h"
 #include "core/time.h"
+#include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_sharedmap_reply_t.h"
 #include "lcmtypes/marie_sharedmap_snapshot_t.h"
-
-/* Log layout (all integers big-endian):
- *   file   := "MARIESM1" record*
- *   record := u32 body_len, u32 crc32(body), body
- *   body   := u8 op (1 set, 2 delete), i64 version, i64 set_utime,
- *             u16 key_len, key, u16 type_len, type, u32 data_len, data */
-static const char LOG_MAGIC[8] = { 'M', 'A', 'R', 'I', 'E', 'S', 'M', '1' };
-#define REC_SET 1
-#define REC_DEL 2
-#define REC_HEAD 8
-#define REC_MAX_BODY (1 + 8 + 8 + 2 + SHAREDMAP_MAX_KEY + 2 + SHAREDMAP_MAX_TYPE + 4 + SHAREDMAP_MAX_VALUE)
 
 typedef struct {
     char *key;
@@ -39,6 +32,10 @@ struct sharedmap {
     int lock_fd;                /* flock()ed PATH.lock: one SharedMap per log */
     off_t log_size;
     int64_t nrecords;           /* records in the log file */
+    int64_t seq;                /* sequence number of the last record in the log file */
+    unsigned flags;             /* SHAREDMAP_STRICT */
+    sharedmap_replay_t loaded;  /* what the scan at open found */
+    char *aside;                /* where a damaged log was kept, NULL if none */
     int64_t compact_min;
     entry_t *entries;           /* sorted by key */
     size_t n, cap;
@@ -67,43 +64,6 @@ static int grow(sharedmap_t *sm, size_t need)
     sm->buf = nb;
     sm->buf_cap = cap;
     return 0;
-}
-
-static void put_u16(uint8_t *p, uint16_t v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
-static void put_u32(uint8_t *p, uint32_t v) { for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (24 - 8 * i)); }
-static void put_i64(uint8_t *p, int64_t v) { for (int i = 0; i < 8; i++) p[i] = (uint8_t)((uint64_t)v >> (56 - 8 * i)); }
-static uint16_t get_u16(const uint8_t *p) { return (uint16_t)(p[0] << 8 | p[1]); }
-static uint32_t get_u32(const uint8_t *p) { return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]; }
-static int64_t get_i64(const uint8_t *p) { uint64_t v = 0; for (int i = 0; i < 8; i++) v = v << 8 | p[i]; return (int64_t)v; }
-
-static size_t record_size(size_t klen, size_t tlen, size_t dlen)
-{
-    return REC_HEAD + 1 + 8 + 8 + 2 + klen + 2 + tlen + 4 + dlen;
-}
-
-/* Encode a record at out (record_size() bytes). */
-static size_t record_encode(uint8_t *out, int op, int64_t version, int64_t set_utime,
-                            const char *key, const char *type, const void *data, size_t dlen)
-{
-    size_t klen = strlen(key), tlen = type ? strlen(type) : 0;
-    uint8_t *b = out + REC_HEAD, *p = b;
-    *p++ = (uint8_t)op;
-    put_i64(p, version); p += 8;
-    put_i64(p, set_utime); p += 8;
-    put_u16(p, (uint16_t)klen); p += 2;
-    memcpy(p, key, klen); p += klen;
-    put_u16(p, (uint16_t)tlen); p += 2;
-    if (tlen)
-        memcpy(p, type, tlen);
-    p += tlen;
-    put_u32(p, (uint32_t)dlen); p += 4;
-    if (dlen)
-        memcpy(p, data, dlen);
-    p += dlen;
-    size_t body = (size_t)(p - b);
-    put_u32(out, (uint32_t)body);
-    put_u32(out + 4, ca_crc32(0, b, body));
-    return REC_HEAD + body;
 }
 
 static ssize_t find(const sharedmap_t *sm, const char *key, int *found)
@@ -187,56 +147,31 @@ static int mem_delete(sharedmap_t *sm, const char *key)
     return 0;
 }
 
-/* Replay the log bytes; returns the offset after the last whole, valid record. */
-static size_t replay(sharedmap_t *sm, const uint8_t *buf, size_t len)
+static int replay_record(void *user, const sharedmap_log_rec_t *r)
 {
-    size_t off = sizeof LOG_MAGIC;
-    while (len - off >= REC_HEAD) {
-        uint32_t blen = get_u32(buf + off), crc = get_u32(buf + off + 4);
-        if (blen < 1 + 8 + 8 + 2 + 2 + 4 || blen > REC_MAX_BODY || blen > len - off - REC_HEAD)
-            break;
-        const uint8_t *b = buf + off + REC_HEAD, *end = b + blen, *p = b;
-        if (ca_crc32(0, b, blen) != crc)
-            break;
-        int op = *p++;
-        int64_t version = get_i64(p); p += 8;
-        int64_t set_utime = get_i64(p); p += 8;
-        size_t klen = get_u16(p); p += 2;
-        if (klen == 0 || klen > SHAREDMAP_MAX_KEY || (size_t)(end - p) < klen + 2)
-            break;
-        char key[SHAREDMAP_MAX_KEY + 1];
-        memcpy(key, p, klen); key[klen] = 0; p += klen;
-        size_t tlen = get_u16(p); p += 2;
-        if (tlen > SHAREDMAP_MAX_TYPE || (size_t)(end - p) < tlen + 4)
-            break;
-        char type[SHAREDMAP_MAX_TYPE + 1];
-        memcpy(type, p, tlen); type[tlen] = 0; p += tlen;
-        size_t dlen = get_u32(p); p += 4;
-        if (dlen != (size_t)(end - p) || strlen(key) != klen)
-            break;
-        if (op == REC_SET) {
-            if (mem_set(sm, key, type, p, dlen, version, set_utime) < 0)
-                break;
-        } else if (op == REC_DEL) {
-            mem_delete(sm, key);
-        } else {
-            break;
-        }
-        if (version > sm->version)
-            sm->version = version;
-        sm->nrecords++;
-        sm->stats.records_loaded++;
-        off += REC_HEAD + blen;
+    sharedmap_t *sm = user;
+    if (r->op == SHAREDMAP_LOG_SET) {
+        if (mem_set(sm, r->key, r->type, r->data, r->len, r->version, r->set_utime) < 0)
+            return -ENOMEM;
+    } else if (r->op == SHAREDMAP_LOG_DEL) {
+        mem_delete(sm, r->key);
     }
-    return off;
+    if (r->version > sm->version)
+        sm->version = r->version;
+    sm->nrecords++;
+    sm->seq = r->seq;
+    sm->stats.records_loaded++;
+    return 0;
 }
 
-ssize_t sharedmap_replay(sharedmap_t *sm, const void *image, size_t len)
+int sharedmap_replay(sharedmap_t *sm, const void *image, size_t len, sharedmap_replay_t *rep)
 {
-    if (len < sizeof LOG_MAGIC || memcmp(image, LOG_MAGIC, sizeof LOG_MAGIC) != 0)
-        return -EINVAL;
-    return (ssize_t)replay(sm, image, len);
+    sharedmap_replay_t local;
+    return sharedmap_log_scan(image, len, replay_record, sm, rep ? rep : &local);
 }
+
+const sharedmap_replay_t *sharedmap_load_report(const sharedmap_t *sm) { return &sm->loaded; }
+const char *sharedmap_kept_aside(const sharedmap_t *sm) { return sm->aside; }
 
 static int read_all(int fd, uint8_t **out, size_t *len)
 {
@@ -274,41 +209,92 @@ static int lock(sharedmap_t *sm)
     return 0;
 }
 
+/* Keeps the damaged log as PATH.corrupt-TIMESTAMP, the bytes as found, before it is
+ * rewritten: a hard link, or a copy where the filesystem has none. */
+static int keep_aside(sharedmap_t *sm, const uint8_t *buf, size_t len)
+{
+    char stamp[32], name[4200];
+    time_t t = time(NULL);
+    struct tm tm;
+    strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", gmtime_r(&t, &tm));
+    for (int i = 1; i < 1000; i++) {
+        int n = i == 1 ? snprintf(name, sizeof name, "%s.corrupt-%s", sm->path, stamp)
+                       : snprintf(name, sizeof name, "%s.corrupt-%s-%d", sm->path, stamp, i);
+        if (n >= (int)sizeof name)
+            return -ENAMETOOLONG;
+        int rc;
+        if (link(sm->path, name) == 0)
+            rc = ca_fsync_dir(sm->path);
+        else if (errno == EEXIST)
+            continue;
+        else
+            rc = ca_write_file_atomic(name, buf, len);    /* no hard links here */
+        if (rc == 0 && !(sm->aside = strdup(name)))
+            rc = -ENOMEM;
+        return rc;
+    }
+    return -EEXIST;
+}
+
+/* Damage found at open: refuse (strict), or report it and keep the file aside; the caller
+ * then writes a fresh log from the intact records. */
+static int on_damage(sharedmap_t *sm, const uint8_t *buf, size_t len)
+{
+    const sharedmap_replay_t *rep = &sm->loaded;
+    char what[600];
+    sharedmap_log_describe(rep, what, sizeof what);
+    if (sm->flags & SHAREDMAP_STRICT) {
+        ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_log_damaged", MARIE_EVENT_T_SEV_ERROR,
+                "%s: damaged log (%s lost); left as it is, not started (strict)", sm->path, what);
+        return -EBADMSG;
+    }
+    int rc = keep_aside(sm, buf, len);
+    if (rc < 0) {
+        ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", MARIE_EVENT_T_SEV_ERROR,
+                "%s: damaged log (%s lost) cannot be kept aside: %s", sm->path, what, strerror(-rc));
+        return rc;
+    }
+    sm->stats.records_skipped = rep->records_skipped;
+    sm->stats.bytes_skipped = rep->bytes_skipped;
+    ca_note(&sm->sink, CA_NOTE_COUNT, "log_records_skipped", rep->records_skipped, NULL);
+    ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_log_damaged", MARIE_EVENT_T_SEV_WARN,
+            "%s: damaged log: %s skipped, %lld intact records kept; damaged file kept as %s",
+            sm->path, what, (long long)rep->records, sm->aside);
+    return 0;
+}
+
 static int load(sharedmap_t *sm)
 {
-    int rc0 = lock(sm);
-    if (rc0 < 0)
-        return rc0;
+    int rc = lock(sm);
+    if (rc < 0)
+        return rc;
     int fd = open(sm->path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0)
         return -errno;
     uint8_t *buf = NULL;
     size_t len = 0;
-    int rc = read_all(fd, &buf, &len);
-    if (rc < 0)
+    if ((rc = read_all(fd, &buf, &len)) < 0)
         goto err_close;
-    size_t good;
-    if (len < sizeof LOG_MAGIC && memcmp(buf, LOG_MAGIC, len) == 0) {
+    const size_t ml = SHAREDMAP_LOG_MAGIC_LEN;
+    if (len < ml && memcmp(buf, sharedmap_log_magic, len) == 0) {
         /* New file, or one whose creation was cut short: start it. */
-        if (ftruncate(fd, 0) < 0 || pwrite(fd, LOG_MAGIC, sizeof LOG_MAGIC, 0) != sizeof LOG_MAGIC ||
-            fsync(fd) < 0) {
+        if (ftruncate(fd, 0) < 0 || pwrite(fd, sharedmap_log_magic, ml, 0) != (ssize_t)ml || fsync(fd) < 0) {
             rc = -errno;
             goto err_free;
         }
         if ((rc = ca_fsync_dir(sm->path)) < 0)
             goto err_free;
-        good = sizeof LOG_MAGIC;
-        len = good;
-    } else if (len < sizeof LOG_MAGIC || memcmp(buf, LOG_MAGIC, sizeof LOG_MAGIC) != 0) {
-        rc = -EINVAL;       /* not a SharedMap log: never overwrite it */
-        goto err_free;
-    } else {
-        good = replay(sm, buf, len);
+        sm->loaded = (sharedmap_replay_t){ .format = 2, .end = (int64_t)ml };
+    } else if ((rc = sharedmap_log_scan(buf, len, replay_record, sm, &sm->loaded)) < 0) {
+        goto err_free;      /* -EINVAL: not a SharedMap log, never overwrite it */
     }
-    if (good < len) {
+    const sharedmap_replay_t *rep = &sm->loaded;
+    if (rep->nranges > 0 && (rc = on_damage(sm, buf, len)) < 0)
+        goto err_free;
+    if (rep->torn_bytes > 0 && rep->nranges == 0 && rep->format == 2) {
         /* The torn tail of a write that was never acknowledged. */
-        sm->stats.tail_bytes_dropped = (int64_t)(len - good);
-        if (ftruncate(fd, (off_t)good) < 0 || fsync(fd) < 0) {
+        sm->stats.tail_bytes_dropped = rep->torn_bytes;
+        if (ftruncate(fd, (off_t)rep->end) < 0 || fsync(fd) < 0) {
             rc = -errno;
             goto err_free;
         }
@@ -318,7 +304,12 @@ static int load(sharedmap_t *sm)
     sm->fd = open(sm->path, O_WRONLY | O_APPEND | O_CLOEXEC);
     if (sm->fd < 0)
         return -errno;
-    sm->log_size = (off_t)good;
+    sm->log_size = (off_t)rep->end;
+    /* A damaged log is replaced by its intact records; an old one is rewritten as today's. */
+    if (rep->nranges > 0 || rep->format == 1) {
+        sm->stats.tail_bytes_dropped = rep->torn_bytes;
+        return sharedmap_compact(sm);
+    }
     return 0;
 
 err_free:
@@ -330,9 +321,15 @@ err_close:
 
 sharedmap_t *sharedmap_open(const char *path, const ca_sink_t *sink)
 {
+    return sharedmap_open_flags(path, 0, sink);
+}
+
+sharedmap_t *sharedmap_open_flags(const char *path, unsigned flags, const ca_sink_t *sink)
+{
     sharedmap_t *sm = calloc(1, sizeof *sm);
     if (!sm)
         return NULL;
+    sm->flags = flags;
     sm->fd = -1;
     sm->lock_fd = -1;
     sm->compact_min = SHAREDMAP_COMPACT_MIN;
@@ -364,6 +361,7 @@ void sharedmap_close(sharedmap_t *sm)
     free(sm->entries);
     free(sm->buf);
     free(sm->path);
+    free(sm->aside);
     free(sm->snap_channel);
     free(sm->snap_source);
     free(sm);
@@ -389,6 +387,7 @@ static int log_append(sharedmap_t *sm, const uint8_t *rec, size_t len)
     sm->stats.fsyncs++;
     sm->log_size += (off_t)len;
     sm->nrecords++;
+    sm->seq++;
     return 0;
 err:;
     int e = errno ? errno : EIO;
@@ -422,11 +421,12 @@ int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void
     const marie_type_t *t = marie_type_find(type);
     if (t && ca_payload_check(t, data, len, NULL) < 0)
         return -EBADMSG;
-    int rc = grow(sm, record_size(klen, tlen, len));
+    int rc = grow(sm, sharedmap_log_record_size(klen, tlen, len));
     if (rc < 0)
         return rc;
     int64_t version = sm->version + 1;
-    size_t n = record_encode(sm->buf, REC_SET, version, now, key, type, data, len);
+    sharedmap_log_rec_t r = { SHAREDMAP_LOG_SET, sm->seq + 1, version, now, key, type, data, len };
+    size_t n = sharedmap_log_encode(sm->buf, &r);
     if ((rc = log_append(sm, sm->buf, n)) < 0)
         return rc;
     if ((rc = mem_set(sm, key, type, data, len, version, now)) < 0)
@@ -446,11 +446,12 @@ int sharedmap_delete(sharedmap_t *sm, const char *key)
     find(sm, key, &found);
     if (!found)
         return -ENOENT;
-    int rc = grow(sm, record_size(strlen(key), 0, 0));
+    int rc = grow(sm, sharedmap_log_record_size(strlen(key), 0, 0));
     if (rc < 0)
         return rc;
     int64_t version = sm->version + 1;
-    size_t n = record_encode(sm->buf, REC_DEL, version, 0, key, NULL, NULL, 0);
+    sharedmap_log_rec_t r = { SHAREDMAP_LOG_DEL, sm->seq + 1, version, 0, key, NULL, NULL, 0 };
+    size_t n = sharedmap_log_encode(sm->buf, &r);
     if ((rc = log_append(sm, sm->buf, n)) < 0)
         return rc;
     mem_delete(sm, key);
@@ -498,17 +499,24 @@ int sharedmap_compact(sharedmap_t *sm)
 {
     if (sm->fd < 0)
         return 0;
-    size_t total = sizeof LOG_MAGIC;
+    size_t total = SHAREDMAP_LOG_MAGIC_LEN + sharedmap_log_record_size(0, 0, 0);
     for (size_t i = 0; i < sm->n; i++)
-        total += record_size(strlen(sm->entries[i].key), strlen(sm->entries[i].type), sm->entries[i].len);
+        total += sharedmap_log_record_size(strlen(sm->entries[i].key), strlen(sm->entries[i].type), sm->entries[i].len);
     uint8_t *img = malloc(total);
     if (!img)
         return -ENOMEM;
-    memcpy(img, LOG_MAGIC, sizeof LOG_MAGIC);
-    size_t off = sizeof LOG_MAGIC;
+    memcpy(img, sharedmap_log_magic, SHAREDMAP_LOG_MAGIC_LEN);
+    size_t off = SHAREDMAP_LOG_MAGIC_LEN;
+    int64_t seq = 0;
+    /* The version first: the last change may have been a delete, which leaves no entry to
+     * carry it, and a version must never go back. */
+    sharedmap_log_rec_t vr = { SHAREDMAP_LOG_VERSION, ++seq, sm->version, 0, "", NULL, NULL, 0 };
+    off += sharedmap_log_encode(img + off, &vr);
     for (size_t i = 0; i < sm->n; i++) {
         const entry_t *e = &sm->entries[i];
-        off += record_encode(img + off, REC_SET, e->version, e->set_utime, e->key, e->type, e->data, e->len);
+        sharedmap_log_rec_t r = { SHAREDMAP_LOG_SET, ++seq, e->version, e->set_utime,
+                                  e->key, e->type, e->data, e->len };
+        off += sharedmap_log_encode(img + off, &r);
     }
     /* The old log stays complete until the rename replaces it, so a crash at any point
      * leaves one whole log or the other. */
@@ -526,7 +534,8 @@ int sharedmap_compact(sharedmap_t *sm)
     close(sm->fd);
     sm->fd = fd;
     sm->log_size = (off_t)off;
-    sm->nrecords = (int64_t)sm->n;
+    sm->nrecords = seq;
+    sm->seq = seq;
     sm->stats.compactions++;
     return 0;
 }

@@ -33,21 +33,47 @@ typedef struct {
     int64_t requests, bad_requests, sets, gets, deletes, lists;
     int64_t fsyncs, compactions, io_errors;
     int64_t records_loaded, tail_bytes_dropped;   /* at open */
+    int64_t records_skipped, bytes_skipped;       /* at open: lost to damage */
     int64_t snapshots;
 } sharedmap_stats_t;
 
+/* What replaying a log found. A torn tail (the write being made when the process died,
+ * never acknowledged) is the only damage a crash causes; anything else is corruption. */
+#define SHAREDMAP_MAX_RANGES 16
+typedef struct {
+    int format;                 /* 1 ("MARIESM1", read and rewritten) or 2 */
+    int64_t records;            /* intact records replayed */
+    int64_t records_skipped;    /* records lost to damage: exact between intact records; for
+                                 * damage that runs to the end of the file, a lower bound */
+    int64_t bytes_skipped;      /* in damaged stretches */
+    int64_t torn_bytes;         /* a torn unacknowledged tail, not counted as damage */
+    int64_t end;                /* offset after the last intact record */
+    size_t nranges;             /* damaged stretches; the first SHAREDMAP_MAX_RANGES listed */
+    struct { int64_t off, len, records; } ranges[SHAREDMAP_MAX_RANGES];
+} sharedmap_replay_t;
+
 /* Open the store persisted in the append-only log `path` (NULL: memory only), replaying it.
  * PATH.lock is held locked while open: a second SharedMap on the same log gets EBUSY.
- * A torn last record (the write being made when the process died) is cut off; it was never
- * acknowledged. Replies go to sink->publish/lcm, counters to sink->note. NULL with errno. */
+ * A torn last record is cut off. A damaged log (a record that fails its checksum, anything
+ * but a torn tail) keeps every intact record: the file is kept as PATH.corrupt-TIMESTAMP,
+ * a fresh log of the intact records replaces it, and the damage is reported (sink event
+ * sharedmap_log_damaged, counter log_records_skipped, sharedmap_load_report()). With
+ * SHAREDMAP_STRICT a damaged log is left untouched and open fails with EBADMSG.
+ * Replies go to sink->publish/lcm, counters to sink->note. NULL with errno (EINVAL: not
+ * a SharedMap log, EBUSY, EBADMSG, or the system call's). */
+#define SHAREDMAP_STRICT 1u
 sharedmap_t *sharedmap_open(const char *path, const ca_sink_t *sink);
+sharedmap_t *sharedmap_open_flags(const char *path, unsigned flags, const ca_sink_t *sink);
 void sharedmap_close(sharedmap_t *sm);          /* NULL is a no-op */
+/* What the scan at open found, and where a damaged log was kept (NULL: nowhere). */
+const sharedmap_replay_t *sharedmap_load_report(const sharedmap_t *sm);
+const char *sharedmap_kept_aside(const sharedmap_t *sm);
 
-/* Replay a log image (the bytes of a state file) into the map, as sharedmap_open() does.
- * Returns how many leading bytes form a valid log (magic and whole records); anything after
- * is what a crash cut short, or damage. -EINVAL when the magic is missing. Used by open and
- * by the fuzz target; a map opened from a path keeps logging to its own file. */
-ssize_t sharedmap_replay(sharedmap_t *sm, const void *image, size_t len);
+/* Replay a log image (the bytes of a state file) into the map, as sharedmap_open() does,
+ * describing what it found in *rep (may be NULL). 0, or -EINVAL when the magic is missing.
+ * Used by open and by the fuzz target; a map opened from a path keeps logging to its own
+ * file. */
+int sharedmap_replay(sharedmap_t *sm, const void *image, size_t len, sharedmap_replay_t *rep);
 
 /* Store operations. set/delete return only once the change is on disk (fdatasync).
  * set: 0, -EINVAL (empty/oversized key, short payload), -EBADMSG (payload is not `type`,

@@ -1,0 +1,262 @@
+/* sharedmap_log: SharedMap log records (marker, sequence number, header and body checksums)
+ * and the scan that keeps every intact record after damage. */
+#include "ca/sharedmap_log.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+
+/* Layout (all integers big-endian):
+ *   file   := "MARIESM2" record*
+ *   record := u32 marker, u32 body_len, u64 seq, u32 crc32(body), u32 crc32(the 20 bytes before), body
+ *   body   := u8 op (1 set, 2 delete, 3 version only, key empty), i64 version, i64 set_utime,
+ *             u16 key_len, key, u16 type_len, type, u32 data_len, data
+ * The marker lets a reader find the next record after damage, the header checksum makes a
+ * false marker in a value (or a damaged length) fail cheaply, and the sequence number counts
+ * the records a damaged stretch held.
+ * Version 1 ("MARIESM1"): record := u32 body_len, u32 crc32(body), body; it cannot be
+ * resynchronised, so its scan stops at the first bad record. */
+const char sharedmap_log_magic[SHAREDMAP_LOG_MAGIC_LEN] = { 'M', 'A', 'R', 'I', 'E', 'S', 'M', '2' };
+static const char MAGIC_V1[SHAREDMAP_LOG_MAGIC_LEN] = { 'M', 'A', 'R', 'I', 'E', 'S', 'M', '1' };
+static const uint8_t MARKER[4] = { 0xA7, 'S', 'M', 'R' };
+#define V1_HEAD 8
+#define BODY_MIN (1 + 8 + 8 + 2 + 2 + 4)
+#define BODY_MAX (BODY_MIN + SHAREDMAP_MAX_KEY + SHAREDMAP_MAX_TYPE + SHAREDMAP_MAX_VALUE)
+
+static void put_u16(uint8_t *p, uint16_t v) { p[0] = (uint8_t)(v >> 8); p[1] = (uint8_t)v; }
+static void put_u32(uint8_t *p, uint32_t v) { for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (24 - 8 * i)); }
+static void put_i64(uint8_t *p, int64_t v) { for (int i = 0; i < 8; i++) p[i] = (uint8_t)((uint64_t)v >> (56 - 8 * i)); }
+static uint16_t get_u16(const uint8_t *p) { return (uint16_t)(p[0] << 8 | p[1]); }
+static uint32_t get_u32(const uint8_t *p) { return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]; }
+static int64_t get_i64(const uint8_t *p) { uint64_t v = 0; for (int i = 0; i < 8; i++) v = v << 8 | p[i]; return (int64_t)v; }
+
+size_t sharedmap_log_record_size(size_t klen, size_t tlen, size_t dlen)
+{
+    return SHAREDMAP_LOG_HEAD + BODY_MIN + klen + tlen + dlen;
+}
+
+size_t sharedmap_log_encode(uint8_t *out, const sharedmap_log_rec_t *r)
+{
+    size_t klen = strlen(r->key), tlen = r->type ? strlen(r->type) : 0;
+    uint8_t *b = out + SHAREDMAP_LOG_HEAD, *p = b;
+    *p++ = (uint8_t)r->op;
+    put_i64(p, r->version); p += 8;
+    put_i64(p, r->set_utime); p += 8;
+    put_u16(p, (uint16_t)klen); p += 2;
+    memcpy(p, r->key, klen); p += klen;
+    put_u16(p, (uint16_t)tlen); p += 2;
+    if (tlen)
+        memcpy(p, r->type, tlen);
+    p += tlen;
+    put_u32(p, (uint32_t)r->len); p += 4;
+    if (r->len)
+        memcpy(p, r->data, r->len);
+    p += r->len;
+    size_t body = (size_t)(p - b);
+    memcpy(out, MARKER, 4);
+    put_u32(out + 4, (uint32_t)body);
+    put_i64(out + 8, r->seq);
+    put_u32(out + 16, ca_crc32(0, b, body));
+    put_u32(out + 20, ca_crc32(0, out, 20));
+    return SHAREDMAP_LOG_HEAD + body;
+}
+
+/* Decodes a body whose checksum held; -EBADMSG when its fields do not fit. */
+static int decode_body(const uint8_t *b, size_t blen, sharedmap_log_rec_t *r,
+                       char key[SHAREDMAP_MAX_KEY + 1], char type[SHAREDMAP_MAX_TYPE + 1])
+{
+    const uint8_t *end = b + blen, *p = b;
+    if (blen < BODY_MIN)
+        return -EBADMSG;
+    r->op = *p++;
+    r->version = get_i64(p); p += 8;
+    r->set_utime = get_i64(p); p += 8;
+    size_t klen = get_u16(p); p += 2;
+    if ((klen == 0) != (r->op == SHAREDMAP_LOG_VERSION) || klen > SHAREDMAP_MAX_KEY ||
+        (size_t)(end - p) < klen + 2)
+        return -EBADMSG;
+    memcpy(key, p, klen); key[klen] = 0; p += klen;
+    size_t tlen = get_u16(p); p += 2;
+    if (tlen > SHAREDMAP_MAX_TYPE || (size_t)(end - p) < tlen + 4)
+        return -EBADMSG;
+    memcpy(type, p, tlen); type[tlen] = 0; p += tlen;
+    size_t dlen = get_u32(p); p += 4;
+    if (dlen != (size_t)(end - p) || strlen(key) != klen ||
+        r->op < SHAREDMAP_LOG_SET || r->op > SHAREDMAP_LOG_VERSION)
+        return -EBADMSG;
+    r->key = key;
+    r->type = type;
+    r->data = p;
+    r->len = dlen;
+    return 0;
+}
+
+/* A damaged stretch being skipped. */
+typedef struct {
+    int open;
+    size_t off;
+    int64_t max_seq;            /* highest sequence number of a whole header inside it */
+} stretch_t;
+
+static void stretch_close(sharedmap_replay_t *rep, stretch_t *s, size_t end, int64_t records)
+{
+    if (rep->nranges < SHAREDMAP_MAX_RANGES)
+        rep->ranges[rep->nranges] = (typeof(rep->ranges[0])){ (int64_t)s->off, (int64_t)(end - s->off), records };
+    rep->nranges++;
+    rep->records_skipped += records;
+    rep->bytes_skipped += (int64_t)(end - s->off);
+    s->open = 0;
+}
+
+/* A record with sequence number seq starts at off: closes the stretch before it, or notes
+ * whole records missing without damaged bytes (a cut on record boundaries). */
+/* Records missing between sequence numbers last and seq; a hostile file's numbers must
+ * neither overflow nor make the count absurd. */
+static int64_t seq_gap(int64_t last, int64_t seq)
+{
+    if (seq <= last)
+        return 0;
+    uint64_t gap = (uint64_t)seq - (uint64_t)last - 1;
+    return gap > UINT32_MAX ? UINT32_MAX : (int64_t)gap;
+}
+
+static void seq_seen(sharedmap_replay_t *rep, stretch_t *s, size_t off, int64_t last, int64_t seq)
+{
+    int64_t gap = seq_gap(last, seq);
+    if (s->open) {
+        stretch_close(rep, s, off, gap);
+    } else if (gap > 0) {
+        s->off = off;
+        stretch_close(rep, s, off, gap);
+    }
+}
+
+static void stretch_open(stretch_t *s, size_t off)
+{
+    if (!s->open) {
+        s->open = 1;
+        s->off = off;
+        s->max_seq = 0;
+    }
+}
+
+static int header_ok(const uint8_t *h)
+{
+    return memcmp(h, MARKER, 4) == 0 && ca_crc32(0, h, 20) == get_u32(h + 20);
+}
+
+static int scan_v2(const uint8_t *buf, size_t len, sharedmap_log_fn fn, void *user,
+                   sharedmap_replay_t *rep)
+{
+    char key[SHAREDMAP_MAX_KEY + 1], type[SHAREDMAP_MAX_TYPE + 1];
+    size_t off = SHAREDMAP_LOG_MAGIC_LEN;
+    int64_t last = 0;
+    stretch_t s = { 0 };
+    rep->end = (int64_t)off;
+    while (off < len) {
+        size_t left = len - off;
+        if (left < SHAREDMAP_LOG_HEAD || !header_ok(buf + off)) {
+            if (left < SHAREDMAP_LOG_HEAD && !s.open && memcmp(buf + off, MARKER, left < 4 ? left : 4) == 0) {
+                rep->torn_bytes = (int64_t)left;       /* a header cut short */
+                return 0;
+            }
+            stretch_open(&s, off);
+            const uint8_t *m = memmem(buf + off + 1, left - 1, MARKER, sizeof MARKER);
+            off = m ? (size_t)(m - buf) : len;
+            continue;
+        }
+        size_t blen = get_u32(buf + off + 4);
+        int64_t seq = get_i64(buf + off + 8);
+        /* Records follow each other in sequence, and skipped bytes held at least one record:
+         * a record-like header elsewhere (inside a value) is no record. */
+        int in_seq = seq > last && (!s.open || seq > last + 1);
+        if (in_seq && blen > left - SHAREDMAP_LOG_HEAD && blen <= BODY_MAX) {
+            /* A whole header whose body runs past the end: the write a crash cut short. */
+            seq_seen(rep, &s, off, last, seq);
+            rep->torn_bytes = (int64_t)left;
+            return 0;
+        }
+        sharedmap_log_rec_t r = { .seq = seq };
+        const uint8_t *b = buf + off + SHAREDMAP_LOG_HEAD;
+        if (!in_seq || blen > left - SHAREDMAP_LOG_HEAD || ca_crc32(0, b, blen) != get_u32(buf + off + 16) ||
+            decode_body(b, blen, &r, key, type) < 0) {
+            stretch_open(&s, off);
+            if (seq > s.max_seq)
+                s.max_seq = seq;        /* a whole header: its record is among the lost */
+            off++;
+            continue;
+        }
+        seq_seen(rep, &s, off, last, seq);
+        int rc = fn(user, &r);
+        if (rc < 0)
+            return rc;
+        rep->records++;
+        last = seq;
+        off += SHAREDMAP_LOG_HEAD + blen;
+        rep->end = (int64_t)off;
+    }
+    if (s.open)     /* damage up to the end: at least one record, more if headers say so */
+        stretch_close(rep, &s, len, seq_gap(last, s.max_seq) + 1);
+    return 0;
+}
+
+/* Version 1 has no markers: the scan stops at the first bad record. */
+static int scan_v1(const uint8_t *buf, size_t len, sharedmap_log_fn fn, void *user,
+                   sharedmap_replay_t *rep)
+{
+    char key[SHAREDMAP_MAX_KEY + 1], type[SHAREDMAP_MAX_TYPE + 1];
+    size_t off = SHAREDMAP_LOG_MAGIC_LEN;
+    int64_t seq = 0;
+    while (off < len) {
+        size_t left = len - off;
+        uint32_t blen = left >= V1_HEAD ? get_u32(buf + off) : 0;
+        if (left < V1_HEAD || (blen > left - V1_HEAD && blen <= BODY_MAX)) {
+            rep->torn_bytes = (int64_t)left;
+            break;
+        }
+        sharedmap_log_rec_t r = { .seq = ++seq };
+        const uint8_t *b = buf + off + V1_HEAD;
+        if (blen > left - V1_HEAD || ca_crc32(0, b, blen) != get_u32(buf + off + 4) ||
+            decode_body(b, blen, &r, key, type) < 0) {
+            stretch_t s = { .open = 1, .off = off };
+            stretch_close(rep, &s, len, 1);
+            break;
+        }
+        int rc = fn(user, &r);
+        if (rc < 0)
+            return rc;
+        rep->records++;
+        off += V1_HEAD + blen;
+    }
+    rep->end = (int64_t)off;
+    return 0;
+}
+
+int sharedmap_log_scan(const void *image, size_t len, sharedmap_log_fn fn, void *user,
+                       sharedmap_replay_t *rep)
+{
+    memset(rep, 0, sizeof *rep);
+    if (len < SHAREDMAP_LOG_MAGIC_LEN)
+        return -EINVAL;
+    if (memcmp(image, sharedmap_log_magic, SHAREDMAP_LOG_MAGIC_LEN) == 0) {
+        rep->format = 2;
+        return scan_v2(image, len, fn, user, rep);
+    }
+    if (memcmp(image, MAGIC_V1, SHAREDMAP_LOG_MAGIC_LEN) == 0) {
+        rep->format = 1;
+        return scan_v1(image, len, fn, user, rep);
+    }
+    return -EINVAL;
+}
+
+void sharedmap_log_describe(const sharedmap_replay_t *rep, char *buf, size_t cap)
+{
+    int n = snprintf(buf, cap, "%lld record%s (%lld bytes) at offset%s", (long long)rep->records_skipped,
+                     rep->records_skipped == 1 ? "" : "s", (long long)rep->bytes_skipped,
+                     rep->nranges == 1 ? "" : "s");
+    for (size_t i = 0; i < rep->nranges && i < SHAREDMAP_MAX_RANGES && n > 0 && (size_t)n < cap; i++)
+        n += snprintf(buf + n, cap - (size_t)n, "%s %lld+%lld", i ? "," : "", (long long)rep->ranges[i].off,
+                      (long long)rep->ranges[i].len);
+    if (rep->nranges > SHAREDMAP_MAX_RANGES && n > 0 && (size_t)n < cap)
+        snprintf(buf + n, cap - (size_t)n, " and %zu more stretches", rep->nranges - SHAREDMAP_MAX_RANGES);
+}
