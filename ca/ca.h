@@ -104,13 +104,6 @@ int ca_fsync_dir(const char *path);
  * directory, fsync, rename over `path`, fsync of the directory. 0 or -errno. */
 int ca_write_file_atomic(const char *path, const void *buf, size_t len);
 
-/* Where a CA keeps its state when no file is given: $MARIE_STATE_DIR, else systemd's
- * $STATE_DIRECTORY, else /var/lib/marie for root, else $XDG_STATE_HOME/marie
- * ($HOME/.local/state/marie); never the working directory. The directory is created
- * (mode 0700 for what is made under $HOME) when missing. Caller frees; NULL with errno
- * (ENOENT when nothing names a directory). */
-char *ca_state_dir(void);
-
 #ifdef __cplusplus
 }
 #endif

@@ -9,6 +9,7 @@
 #include "ca/sharedmap.h"
 #include "ca/splitter.h"
 #include "ca/switch.h"
+#include "core/file.h"
 #include "core/component.h"
 
 #define MAX_MAILBOXES 64
@@ -86,13 +87,13 @@ static int fail_errs(ca_proc_t *p, marie_errors_t *errs)
     return -1;
 }
 
-/* Where a CA keeps its state unless told: ca_state_dir()/NAME.SUFFIX, never the working
+/* Where a CA keeps its state unless told: marie_state_dir()/NAME.SUFFIX, never the working
  * directory. NULL with the reason given as the component's failure. */
 static char *state_path(ca_proc_t *p, const char *given, const char *suffix)
 {
     if (given && *given)
         return strdup(given);
-    char *dir = ca_state_dir(), *path = NULL;
+    char *dir = marie_state_dir(), *path = NULL;
     if (!dir) {
         marie_component_fail_reason(p->c, "state directory: %s (set MARIE_STATE_DIR or state_file)",
                                     errno == ENOENT ? "none known" : strerror(errno));

@@ -1,10 +1,13 @@
-/* file: whole-file reads for map images, keys and system files, bounded so a huge or endless
- * file (a device, a FIFO) cannot exhaust memory. */
+/* file: whole-file reads (bounded, so a huge or endless file such as a device or a FIFO cannot
+ * exhaust memory) and where marie keeps state. */
 #include "core/file.h"
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 void *marie_file_read(const char *path, size_t max, size_t *len)
@@ -55,4 +58,61 @@ err_close:
     close(fd);
     errno = e;
     return NULL;
+}
+
+/* mkdir -p: every missing component of dir. */
+static int make_dirs(const char *dir, mode_t mode)
+{
+    char *p = strdup(dir);
+    if (!p)
+        return -ENOMEM;
+    int rc = 0;
+    for (char *s = p + 1; rc == 0; s++) {
+        if (*s != '/' && *s)
+            continue;
+        char c = *s;
+        *s = 0;
+        if (mkdir(p, mode) < 0 && errno != EEXIST)
+            rc = -errno;
+        *s = c;
+        if (!c)
+            break;
+    }
+    free(p);
+    return rc;
+}
+
+char *marie_state_dir(void)
+{
+    char *dir = NULL;
+    const char *e = getenv("MARIE_STATE_DIR");
+    const char *sd = getenv("STATE_DIRECTORY");       /* systemd's StateDirectory=, ':'-separated */
+    const char *xdg = getenv("XDG_STATE_HOME"), *home = getenv("HOME");
+    if (e && *e)
+        dir = strdup(e);
+    else if (sd && *sd)
+        dir = strndup(sd, strcspn(sd, ":"));
+    else if (geteuid() == 0)
+        dir = strdup("/var/lib/marie");
+    else if (xdg && *xdg == '/') {
+        if (asprintf(&dir, "%s/marie", xdg) < 0)
+            dir = NULL;
+    } else if (home && *home == '/') {
+        if (asprintf(&dir, "%s/.local/state/marie", home) < 0)
+            dir = NULL;
+    } else {
+        errno = ENOENT;
+        return NULL;
+    }
+    if (!dir) {
+        errno = ENOMEM;
+        return NULL;
+    }
+    int rc = make_dirs(dir, 0700);
+    if (rc < 0) {
+        free(dir);
+        errno = -rc;
+        return NULL;
+    }
+    return dir;
 }

@@ -23,6 +23,7 @@
 
 #include "core/component.h"
 #include "core/config.h"
+#include "core/file.h"
 #include "core/log.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -1600,7 +1601,8 @@ static void usage(FILE *out)
             "usage: marie-am [OPTIONS]\n"
             "  --host NAME        this host's name in the system file (default: hostname)\n"
             "  --state-dir DIR    logs, received system file, replay table (default: $MARIE_STATE_DIR,\n"
-            "                     $STATE_DIRECTORY, /var/lib/marie as root, else $XDG_RUNTIME_DIR/marie)\n"
+            "                     $STATE_DIRECTORY, /var/lib/marie as root, else $XDG_STATE_HOME/marie or\n"
+            "                     ~/.local/state/marie)\n"
             "  --key FILE         order key (default: $MARIE_KEY, else /etc/marie/key)\n"
             "  --system FILE      bring this system up at start (also: the last system that was up)\n"
             "  --profile P        profile for --system\n"
@@ -1626,26 +1628,6 @@ static int parse_window_s(const char *arg, int64_t *us)
     return 0;
 }
 
-static char *default_state_dir(void)
-{
-    const char *e = getenv("MARIE_STATE_DIR");
-    if (e && *e)
-        return strdup(e);
-    e = getenv("STATE_DIRECTORY");
-    if (e && *e)
-        return strdup(e);
-    if (geteuid() == 0)
-        return strdup("/var/lib/marie");
-    char *s = NULL;
-    e = getenv("XDG_RUNTIME_DIR");
-    if (e && *e) {
-        if (asprintf(&s, "%s/marie", e) < 0)
-            return NULL;
-    } else if (asprintf(&s, "/tmp/marie-%d", (int)getuid()) < 0) {
-        return NULL;
-    }
-    return s;
-}
 
 int main(int argc, char **argv)
 {
@@ -1694,7 +1676,7 @@ int main(int argc, char **argv)
     if (!am->host[0])
         gethostname(am->host, sizeof am->host - 1);
     if (!am->state_dir)
-        am->state_dir = default_state_dir();
+        am->state_dir = marie_state_dir();
     if (!am->url)
         am->url = strdup(marie_default_url());
     char log_name[160];
@@ -1713,6 +1695,10 @@ int main(int argc, char **argv)
     }
     if (sodium_init() < 0) {
         marie_error("libsodium failed to initialise");
+        return 1;
+    }
+    if (!am->state_dir) {
+        marie_error("no state directory (%s): give --state-dir or set MARIE_STATE_DIR", strerror(errno));
         return 1;
     }
     if (mkdir(am->state_dir, 0755) < 0 && errno != EEXIST) {
