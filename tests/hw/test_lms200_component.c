@@ -157,6 +157,8 @@ static void test_scans_counters_and_reconnect_over_the_bus(void **state)
 typedef struct {
     char dir[32], link[128], emu[256], drv[256], dev[160];
     lcm_t *lcm;
+    marie_laser_scan_t_subscription_t *scan_sub;
+    marie_heartbeat_t_subscription_t *hb_sub;
     pid_t pe;
     int scans;
     int8_t hb_state;            /* newest heartbeat state of the driver, -1 none yet */
@@ -197,8 +199,8 @@ static void rig_open(rig_t *r, char **emu_args)
     snprintf(r->dev, sizeof r->dev, "device=%s", r->link);
     r->lcm = lcm_create(NULL);
     assert_non_null(r->lcm);
-    marie_laser_scan_t_subscribe(r->lcm, "LASER", rig_on_scan, r);
-    marie_heartbeat_t_subscribe(r->lcm, "MARIE_HEARTBEAT", rig_on_hb, r);
+    r->scan_sub = marie_laser_scan_t_subscribe(r->lcm, "LASER", rig_on_scan, r);
+    r->hb_sub = marie_heartbeat_t_subscribe(r->lcm, "MARIE_HEARTBEAT", rig_on_hb, r);
     char *argv[24] = { r->emu, "--link", r->link };
     int n = 3;
     for (int i = 0; emu_args[i] && n < 23; i++)
@@ -213,6 +215,8 @@ static void rig_open(rig_t *r, char **emu_args)
 static void rig_close(rig_t *r)
 {
     test_stop(r->pe);
+    marie_laser_scan_t_unsubscribe(r->lcm, r->scan_sub);
+    marie_heartbeat_t_unsubscribe(r->lcm, r->hb_sub);
     lcm_destroy(r->lcm);
     char tmp[200];
     snprintf(tmp, sizeof tmp, "%s.tmp%d", r->link, (int)r->pe);
