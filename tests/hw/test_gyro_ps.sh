@@ -15,21 +15,12 @@ system: gyrops
 hosts: [alpha]
 components:
   gyro:
-    exec: $(pwd)/$BIN/marie-gyro
+    exec: $(cd "$BIN" && pwd)/marie-gyro
     host: alpha
     heartbeat_timeout: 3
     params: {can: "emu:$T/can", node: 32, degraded_after: 0.8}
 EOS
-field() {
-    "$M" --json ps --window 0.7 2>/dev/null | python3 -c '
-import json, sys
-d = json.load(sys.stdin)
-for h in d["hosts"]:
-    for c in h["components"]:
-        if c["name"] == sys.argv[1]:
-            print(c[sys.argv[2]])' "$1" "$2"
-}
-is_state() { [ "$(field gyro state)" = "$1" ]; }
+is_state() { [ "$(ps_field gyro state)" = "$1" ]; }
 log() { cat "$T/am/logs/gyro.log" 2>/dev/null; }
 configured() { log | grep -c 'event gyro_configured'; }
 
@@ -45,7 +36,7 @@ check "marie ps: running while samples flow" wait_for 10 is_state running
 sleep 1
 log
 check "a normal start raises no gyro_offline event" sh -c "! grep -q gyro_offline $T/am/logs/gyro.log"
-pid=$(field gyro pid)
+pid=$(ps_field gyro pid)
 check "the driver has a pid" test "${pid:-0}" -gt 0
 kill -STOP "$pid_dev"
 check "marie ps: degraded while the device is frozen" wait_for 10 is_state degraded
@@ -56,5 +47,5 @@ reconfigured() { [ "$(configured)" -ge 2 ]; }
 check "configured again once the device is back" wait_for 15 reconfigured
 check "marie ps: running again once samples flow" wait_for 15 is_state running
 log
-check "the same process throughout" test "$(field gyro pid)" = "$pid"
+check "the same process throughout" test "$(ps_field gyro pid)" = "$pid"
 finish

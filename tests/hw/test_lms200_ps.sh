@@ -14,21 +14,12 @@ system: lms200ps
 hosts: [alpha]
 components:
   laser:
-    exec: $(pwd)/$BIN/marie-lms200
+    exec: $(cd "$BIN" && pwd)/marie-lms200
     host: alpha
     heartbeat_timeout: 3
     params: {device: $T/ttyLMS, baud: 38400, resolution: 1, degraded_ms: 800}
 EOS
-field() {
-    "$M" --json ps --window 0.7 2>/dev/null | python3 -c '
-import json, sys
-d = json.load(sys.stdin)
-for h in d["hosts"]:
-    for c in h["components"]:
-        if c["name"] == sys.argv[1]:
-            print(c[sys.argv[2]])' "$1" "$2"
-}
-is_state() { [ "$(field laser state)" = "$1" ]; }
+is_state() { [ "$(ps_field laser state)" = "$1" ]; }
 
 "$M" keygen "$T/key"
 start emu "$BIN/marie-vlms200" --link "$T/ttyLMS" --rate 20
@@ -37,15 +28,15 @@ wait_for 5 test -e "$T/ttyLMS"
 sleep 0.3
 check "marie up starts the laser driver" "$M" --timeout 15 up "$T/sys.yaml"
 check "marie ps: running while scans flow" wait_for 10 is_state running
-pid=$(field laser pid)
+pid=$(ps_field laser pid)
 check "the driver has a pid" test "${pid:-0}" -gt 0
 kill -STOP "$pid_emu"
 check "marie ps: degraded while the device is frozen" wait_for 10 is_state degraded
 "$M" ps
 sleep 2
-check "the manager leaves a degraded driver alone" test "$(field laser pid)" = "$pid"
-check "no restart counted" test "$(field laser restarts)" = 0
+check "the manager leaves a degraded driver alone" test "$(ps_field laser pid)" = "$pid"
+check "no restart counted" test "$(ps_field laser restarts)" = 0
 kill -CONT "$pid_emu"
 check "marie ps: running again once scans flow" wait_for 15 is_state running
-check "the same process throughout" test "$(field laser pid)" = "$pid"
+check "the same process throughout" test "$(ps_field laser pid)" = "$pid"
 finish
