@@ -98,6 +98,8 @@ struct marie_component {
     bool hold;
     char reason[400];
     char fail_reason[256];
+    bool degraded;              /* heartbeat says degraded while running */
+    char degraded_reason[256];
     int64_t start_mono;
     int64_t msgs_in, msgs_out, drops, bad_input, overruns;
     counter_t *counters;
@@ -116,7 +118,7 @@ struct marie_component {
 
 /* ---- names ---- */
 
-static const char *const state_names[] = {"created", "ready", "running", "paused", "failed", "exited"};
+static const char *const state_names[] = {"created", "ready", "running", "paused", "failed", "exited", "degraded"};
 static const char *const cmd_names[] = {"?", "init", "start", "stop", "pause", "resume", "restart", "abort", "quit"};
 
 const char *marie_state_name(marie_state_t s)
@@ -203,8 +205,9 @@ void marie_component_heartbeat(marie_component_t *c)
     hb.host = c->host;
     hb.pid = (int32_t)getpid();
     hb.seq = ++c->hb_seq;
-    hb.state = (int8_t)c->state;
-    hb.reason = c->reason;
+    bool degraded = c->degraded && c->state == MARIE_STATE_RUNNING;
+    hb.state = (int8_t)(degraded ? MARIE_STATE_DEGRADED : c->state);
+    hb.reason = degraded ? c->degraded_reason : c->reason;
     hb.uptime_us = marie_mono_us() - c->start_mono;
     hb.msgs_in = c->msgs_in;
     hb.msgs_out = c->msgs_out;
@@ -235,6 +238,20 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
                             : severity >= MARIE_EVENT_T_SEV_WARN ? MARIE_LOG_WARN
                                                                  : MARIE_LOG_INFO;
     MARIE_LOG_AT(lvl, "event %s: %s", kind, text);
+}
+
+void marie_component_set_degraded(marie_component_t *c, bool degraded, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(c->degraded_reason, sizeof c->degraded_reason, fmt, ap);
+    va_end(ap);
+    if (degraded == c->degraded)
+        return;
+    c->degraded = degraded;
+    MARIE_LOG_AT(degraded ? MARIE_LOG_WARN : MARIE_LOG_INFO, "%s: %s (%s)", c->name,
+                 degraded ? "degraded" : "no longer degraded", c->degraded_reason);
+    marie_component_heartbeat(c);
 }
 
 /* ---- lifecycle ---- */

@@ -34,6 +34,9 @@ typedef enum {
     MARIE_STATE_PAUSED = 3,
     MARIE_STATE_FAILED = 4,
     MARIE_STATE_EXITED = 5,
+    /* Heartbeat only: running, but its device or input has yielded no valid data for a
+     * while (marie_component_set_degraded). The lifecycle state stays running. */
+    MARIE_STATE_DEGRADED = 6,
 } marie_state_t;
 
 typedef enum {
@@ -206,6 +209,11 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
     __attribute__((format(printf, 4, 5)));
 /* Publish a heartbeat now (it also goes out at 1 Hz and on every state change). */
 void marie_component_heartbeat(marie_component_t *c);
+/* While set and running, the heartbeat says degraded (with the reason) instead of running;
+ * a change is published at once. For drivers whose device has gone quiet or talks garbage:
+ * the process is alive and obeys orders, but its output cannot be trusted to come. */
+void marie_component_set_degraded(marie_component_t *c, bool degraded, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
 
 #ifdef __cplusplus
 }

@@ -792,7 +792,8 @@ static bool dep_ready(am_t *am, const char *name)
         return d->pid > 0 && (d->st == CS_RUNNING);
     double fresh = d->cfg->heartbeat_timeout_s > 2 ? d->cfg->heartbeat_timeout_s : 2;
     if (d->hb_mono && now - d->hb_mono < (int64_t)(fresh * 1e6) &&
-        (d->hb_state == MARIE_STATE_RUNNING || d->hb_state == MARIE_STATE_PAUSED))
+        (d->hb_state == MARIE_STATE_RUNNING || d->hb_state == MARIE_STATE_PAUSED ||
+         d->hb_state == MARIE_STATE_DEGRADED))
         return true;
     return d->st_running && now - d->st_mono < 2000000;
 }
@@ -853,7 +854,9 @@ static void on_heartbeat(const lcm_recv_buf_t *rbuf, const char *channel, const 
     }
     if (c->pid <= 0)
         return;
-    if (c->st == CS_STARTING && (hb->state == MARIE_STATE_RUNNING || hb->state == MARIE_STATE_PAUSED)) {
+    /* Degraded is running with a quiet device: up, for dependencies and restarts alike. */
+    if (c->st == CS_STARTING && (hb->state == MARIE_STATE_RUNNING || hb->state == MARIE_STATE_PAUSED ||
+                                 hb->state == MARIE_STATE_DEGRADED)) {
         comp_set_state(c, CS_RUNNING);
         try_start_waiting(am);
     } else if (c->st == CS_RUNNING && hb->state == MARIE_STATE_FAILED && prev != MARIE_STATE_FAILED &&
@@ -877,7 +880,8 @@ static void on_peer_status(const lcm_recv_buf_t *rbuf, const char *channel, cons
         comp_t *c = comp_find(am, st->components[i].name);
         if (!c || strcmp(c->host, st->host) != 0)
             continue;
-        bool running = strcmp(st->components[i].state, "running") == 0;
+        bool running = strcmp(st->components[i].state, "running") == 0 ||
+                       strcmp(st->components[i].state, "degraded") == 0;
         changed |= running != c->st_running;
         c->st_running = running;
         c->st_mono = now_us();
@@ -946,6 +950,8 @@ static void publish_status(am_t *am, bool sample)
             name = "paused";
         else if (c->st == CS_RUNNING && c->hb_state == MARIE_STATE_READY)
             name = "ready";
+        else if (c->st == CS_RUNNING && c->hb_state == MARIE_STATE_DEGRADED)
+            name = "degraded";
         s->name = c->cfg->name;
         s->group = c->cfg->group ? c->cfg->group : "";
         s->state = (char *)name;

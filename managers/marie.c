@@ -411,7 +411,8 @@ static bool wait_done(cli_t *cli)
                     w->failed = w->failed_buf;
                     return true;
                 }
-                if (strcmp(c->state, "running") != 0 && strcmp(c->state, "paused") != 0)
+                if (strcmp(c->state, "running") != 0 && strcmp(c->state, "paused") != 0 &&
+                    strcmp(c->state, "degraded") != 0)
                     return false;
             } else if (c->pid != 0) {
                 return false;

@@ -31,6 +31,16 @@ stop_started() {
     for _p in $pids; do kill "$_p" 2>/dev/null; done
     wait 2>/dev/null
 }
+# ps_field NAME KEY: a component's field from `marie --json ps` ($M, else $BIN/marie).
+ps_field() {
+    "${M:-$BIN/marie}" --json ps --window 0.7 2>/dev/null | python3 -c '
+import json, sys
+d = json.load(sys.stdin)
+for h in d["hosts"]:
+    for c in h["components"]:
+        if c["name"] == sys.argv[1]:
+            print(c[sys.argv[2]])' "$1" "$2"
+}
 finish() {
     echo "[  PASSED  ] $_ok test(s)."
     [ "$_bad" -eq 0 ] || { echo "[  FAILED  ] $_bad test(s)."; exit 1; }

@@ -229,9 +229,18 @@ int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, ar
     arb_teleop(p, in, &votes[ARB_TELEOP]);
     arb_follow(p, s, in, &votes[ARB_FOLLOW]);
     vote(&votes[ARB_IDLE], true, 0, 0, "nothing to do");
-    int win = ARB_IDLE;
-    for (int b = 0; b < ARB_COUNT; b++)
+    int win = ARB_IDLE, below = ARB_IDLE;     /* below: the winner if avoid abstained */
+    for (int b = 0; b < ARB_COUNT; b++) {
         if (votes[b].active && (!votes[win].active || votes[b].priority > votes[win].priority))
             win = b;
+        if (b != ARB_AVOID && votes[b].active && (!votes[below].active || votes[b].priority > votes[below].priority))
+            below = b;
+    }
+    /* Avoid keeps the robot from driving into things; turning in place cannot (the base is
+     * round), so avoid does not veto a behaviour that only turns. Otherwise the two fight
+     * for ever beside a wall when a new path starts behind the robot: follow turns towards
+     * it, which brings the wall ahead, avoid turns back to the open side, and so on. */
+    if (win == ARB_AVOID && below != ARB_IDLE && votes[below].v == 0 && votes[below].omega != 0)
+        win = below;
     return win;
 }

@@ -61,8 +61,9 @@ typedef struct {
 
 void arb_state_reset(arb_state_t *s);
 
-/* Every behaviour votes; the active vote of highest priority wins (ties: lower index).
- * Returns the winner's index; votes[] gets every vote. */
+/* Every behaviour votes; the active vote of highest priority wins (ties: lower index),
+ * except that avoid does not override a turn in place. Returns the winner's index; votes[]
+ * gets every vote. */
 int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t votes[ARB_COUNT]);
 
 const char *arb_name(int behaviour);

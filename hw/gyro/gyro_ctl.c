@@ -43,6 +43,8 @@ struct gyro_ctl {
     co_hb_consumer_t hb;
     bool have_counter;
     uint8_t counter;
+    bool booted;                    /* a boot-up heard since the start */
+    bool not_found_reported;
     char name[32];
     struct can_frame pend[4];
     int npend;
@@ -51,7 +53,7 @@ struct gyro_ctl {
 const char *gyro_ev_name(gyro_ev_t ev)
 {
     static const char *n[] = { "configured", "config_failed", "emcy", "hb_timeout", "bootup", "bad_frame",
-                               "unexpected", "lost" };
+                               "unexpected", "lost", "not_found" };
     return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
 }
 
@@ -64,6 +66,8 @@ void gyro_cfg_default(gyro_cfg_t *cfg)
     cfg->sdo_timeout_us = 200000;
     cfg->boot_retry_us = 2000000;
 }
+
+static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s);
 
 static void ev(gyro_ctl_t *g, gyro_ev_t e, uint32_t code)
 {
@@ -93,6 +97,16 @@ static void set_phase(gyro_ctl_t *g, int p)
 {
     g->phase = p;
     g->phase_since = g->now;
+}
+
+/* Heartbeat supervision of the node from now on; timeout 0 only listens (for boot-ups).
+ * A node sends heartbeats only once 0x1017 is written (a reset communication clears it),
+ * so a timeout counted from the start or from the boot-up is a race with the
+ * configuration, not a fault: the timeout is armed when the write is confirmed. */
+static void watch(gyro_ctl_t *g, int64_t timeout_us)
+{
+    co_hb_consumer_init(&g->hb, hb_event, g);
+    co_hb_consumer_add(&g->hb, g->cfg.node, timeout_us, g->now);
 }
 
 static void run_job(gyro_ctl_t *g)
@@ -138,6 +152,8 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
         memcpy(g->name, data, n);
         g->name[n] = 0;
     }
+    if (index == 0x1017 && g->cfg.heartbeat_ms)
+        watch(g, g->cfg.heartbeat_timeout_us);
     g->job++;
     run_job(g);
 }
@@ -149,6 +165,9 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
     switch (e) {
     case CO_HB_EV_BOOTUP:
         ev(g, GYRO_EV_BOOTUP, 0);
+        g->booted = true;
+        g->not_found_reported = false;
+        watch(g, 0);        /* its heartbeat restarts with the configuration */
         set_phase(g, PH_CONFIG);
         g->job = 0;
         co_sdo_client_init(&g->sdo, g->cfg.node, g->cfg.sdo_timeout_us, sdo_done, g);
@@ -199,8 +218,9 @@ void gyro_ctl_destroy(gyro_ctl_t *g) { free(g); }
 int gyro_ctl_start(gyro_ctl_t *g, int64_t now, struct can_frame *tx, int max)
 {
     g->now = now;
-    co_hb_consumer_init(&g->hb, hb_event, g);
-    co_hb_consumer_add(&g->hb, g->cfg.node, g->cfg.heartbeat_timeout_us, now);
+    g->booted = false;
+    g->not_found_reported = false;
+    watch(g, 0);
     struct can_frame f;
     co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, g->cfg.node);
     pend(g, &f);
@@ -278,6 +298,10 @@ int gyro_ctl_poll(gyro_ctl_t *g, int64_t now, struct can_frame *tx, int max)
     if (co_sdo_client_poll(&g->sdo, now, &f))
         pend(g, &f);
     if ((g->phase == PH_BOOT || g->phase == PH_OFFLINE) && now - g->phase_since >= g->cfg.boot_retry_us) {
+        if (!g->booted && !g->not_found_reported) {
+            g->not_found_reported = true;
+            ev(g, GYRO_EV_NOT_FOUND, 0);
+        }
         co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, g->cfg.node);
         pend(g, &f);
         g->phase_since = now;

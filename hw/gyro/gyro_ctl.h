@@ -25,9 +25,12 @@ typedef struct {
 
 void gyro_cfg_default(gyro_cfg_t *cfg);
 
+/* HB_TIMEOUT: heartbeats stopped once the device had been told to send them (0x1017).
+ * NOT_FOUND: no boot-up within boot_retry_us of the start: reported once until one comes. */
 typedef enum {
     GYRO_EV_CONFIGURED, GYRO_EV_CONFIG_FAILED, GYRO_EV_EMCY, GYRO_EV_HB_TIMEOUT, GYRO_EV_BOOTUP,
     GYRO_EV_BAD_FRAME, GYRO_EV_UNEXPECTED, GYRO_EV_LOST,   /* LOST: code = samples missed */
+    GYRO_EV_NOT_FOUND,
 } gyro_ev_t;
 const char *gyro_ev_name(gyro_ev_t ev);
 

@@ -22,6 +22,9 @@ typedef struct {
     gyro_bias_t bias;
     double sign, still_wheel, period_s, start_still_s;
     int64_t started_us;
+    int64_t sample_us;              /* last sample (mono), or the start: for degraded_after */
+    int64_t degraded_us;
+    bool degraded;
     int64_t enc_us, cmd_us;         /* last receipt (mono), 0 never */
     bool enc_still, cmd_still;
 } gyro_t;
@@ -47,6 +50,7 @@ static const marie_param_spec_t params[] = {
     { "bias_tau", MARIE_PARAM_DOUBLE, "30", "s, time constant for following bias drift" },
     { "bias_min_samples", MARIE_PARAM_INT, "50", "samples before the bias is valid" },
     { "max_still_rate", MARIE_PARAM_DOUBLE, "0.05", "rad/s: faster at standstill means moved by hand" },
+    { "degraded_after", MARIE_PARAM_DOUBLE, "1.0", "s without a sample: heartbeat says degraded" },
     { NULL },
 };
 
@@ -70,6 +74,11 @@ static void on_sample(void *user, double rate, uint8_t status)
     if (marie_component_state(g->c) != MARIE_STATE_RUNNING)
         return;
     int64_t now = marie_mono_us();
+    g->sample_us = now;
+    if (g->degraded) {
+        g->degraded = false;
+        marie_component_set_degraded(g->c, false, "gyro samples again");
+    }
     double raw = g->sign * rate;
     if (status == 0)
         gyro_bias_feed(&g->bias, raw, standstill(g, now), now, g->period_s);
@@ -119,6 +128,12 @@ static void on_gyro_event(void *user, gyro_ev_t ev, uint32_t code)
         marie_component_count(c, "lost_samples", code);
         marie_component_drop(c, code);
         break;
+    case GYRO_EV_NOT_FOUND:
+        marie_component_count(c, "not_found", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "gyro_not_found",
+                              "no boot-up from gyro node %lld yet; resetting it every 2 s",
+                              (long long)marie_param_int(c, "node"));
+        break;
     }
 }
 
@@ -149,7 +164,13 @@ static void on_poll(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     if (marie_component_state(g->c) != MARIE_STATE_RUNNING)
         return;
     struct can_frame tx[8];
-    send_frames(g, tx, gyro_ctl_poll(g->ctl, marie_mono_us(), tx, 8));
+    int64_t now = marie_mono_us();
+    send_frames(g, tx, gyro_ctl_poll(g->ctl, now, tx, 8));
+    if (!g->degraded && now - g->sample_us > g->degraded_us) {
+        g->degraded = true;
+        marie_component_set_degraded(g->c, true, "no gyro sample for %.1f s (%s)", (now - g->sample_us) / 1e6,
+                                     gyro_ctl_running(g->ctl) ? "configured" : "not configured");
+    }
 }
 
 static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -196,6 +217,7 @@ static int on_init(marie_component_t *c)
     g->sign = marie_param_bool(c, "invert") ? -1 : 1;
     g->still_wheel = marie_param_double(c, "still_wheel_velocity");
     g->start_still_s = marie_param_double(c, "assume_still_at_start");
+    g->degraded_us = (int64_t)(marie_param_double(c, "degraded_after") * 1e6);
     gyro_bias_init(&g->bias, marie_param_double(c, "standstill_window"), marie_param_double(c, "bias_tau"),
                    (int)marie_param_int(c, "bias_min_samples"), marie_param_double(c, "max_still_rate"));
     g->ctl = gyro_ctl_create(&cfg, on_sample, on_gyro_event, g);
@@ -232,7 +254,11 @@ static int on_start(marie_component_t *c)
 {
     gyro_t *g = marie_component_user(c);
     struct can_frame tx[8];
-    g->started_us = marie_mono_us();
+    g->started_us = g->sample_us = marie_mono_us();
+    if (g->degraded) {
+        g->degraded = false;
+        marie_component_set_degraded(c, false, "started");
+    }
     send_frames(g, tx, gyro_ctl_start(g->ctl, g->started_us, tx, 8));
     return 0;
 }

@@ -13,6 +13,9 @@
 #include "hw/lms200/serial.h"
 
 #define MAX_PROBE 6
+/* Extra probe rounds at a rate where the line talks but the device has not answered yet
+ * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
+#define MAX_STAY 3
 
 struct lms200_driver {
     lms200_driver_cfg_t cfg;
@@ -31,6 +34,14 @@ struct lms200_driver {
     bool lost;                      /* streaming was lost: the next stream is a reconnect */
     bool open_failed_reported;
     bool nak_seen;
+    /* Evidence about the rate being probed: a device left streaming talks all the time, so
+     * a good telegram proves the rate and a flood of garbage disproves it. */
+    bool rate_heard;
+    int64_t rate_bytes, rate_garbage;
+    int stay;
+    bool running;                   /* between start and stop */
+    bool degraded;
+    int64_t last_good;              /* last good scan (or the start), for degraded_ms */
     lms200_driver_stats_t st;
 };
 
@@ -108,13 +119,37 @@ static void build_probe(lms200_driver_t *d, int first)
     d->probe_idx = 0;
 }
 
+/* Forget what was heard at the previous rate (the line's input is flushed with it). */
+static void new_rate(lms200_driver_t *d)
+{
+    d->rate_heard = false;
+    d->rate_bytes = d->rate_garbage = 0;
+    d->stay = 0;
+    d->nak_seen = false;
+}
+
 static int set_line_baud(lms200_driver_t *d, int baud)
 {
     int r = lms200_serial_set_baud(d->fd, baud);
     if (r == 0)
         d->baud = baud;
     lms200_parser_reset(d->parser);
+    new_rate(d);
     return r;
+}
+
+/* Bytes flow at this rate but none of them ever formed a telegram: the device streams at
+ * another rate. (A telegram cut by our switching in is at most one telegram of garbage.) */
+static bool wrong_rate(const lms200_driver_t *d)
+{
+    return !d->rate_heard && d->rate_garbage > LMS200_MAX_TELEGRAM;
+}
+
+/* Worth more probe rounds at this rate: the device was heard, or bytes flow that may still
+ * turn out to be its telegrams. */
+static bool rate_promising(const lms200_driver_t *d)
+{
+    return d->rate_heard || (d->rate_bytes > 0 && !wrong_rate(d));
 }
 
 static void send_current(lms200_driver_t *d)
@@ -164,6 +199,7 @@ static void reinit(lms200_driver_t *d)
 {
     build_probe(d, d->baud);
     lms200_parser_reset(d->parser);
+    new_rate(d);
     enter(d, LMS200_DRV_PROBE);
 }
 
@@ -181,6 +217,7 @@ static void try_open(lms200_driver_t *d)
     d->open_failed_reported = false;
     d->baud = 9600;
     lms200_parser_reset(d->parser);
+    new_rate(d);
     set_fd(d, fd);
     build_probe(d, 9600);
     enter(d, LMS200_DRV_PROBE);
@@ -260,6 +297,15 @@ static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
     }
     d->st.scans++;
     d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+    d->last_good = d->now;
+    if (d->degraded) {
+        d->degraded = false;
+        if (d->ops.on_health) {
+            char why[160];
+            snprintf(why, sizeof why, "%s: scans again at %d baud", d->device, d->baud);
+            d->ops.on_health(d->user, false, why);
+        }
+    }
     if (d->ops.on_scan)
         d->ops.on_scan(d->user, &scan, d->cfg.res_cdeg, d->now);
 }
@@ -269,6 +315,7 @@ static void on_telegram(void *user, const lms200_telegram_t *t)
     lms200_driver_t *d = user;
     if (!(t->addr & LMS200_REPLY_BIT) || (t->addr & 0x7f) != d->cfg.addr)
         return;     /* our own echo, or another device on a shared RS-422 line */
+    d->rate_heard = true;
     switch (t->cmd) {
     case LMS200_REPLY_MODE: {
         uint8_t res;
@@ -306,6 +353,7 @@ static void report_parser(lms200_driver_t *d)
     count(d, "truncated", &d->st.truncated, (int64_t)(s->truncated - d->seen.truncated), true);
     count(d, "oversized", &d->st.oversized, (int64_t)(s->oversized - d->seen.oversized), true);
     count(d, "garbage_bytes", &d->st.garbage_bytes, (int64_t)(s->garbage_bytes - d->seen.garbage_bytes), true);
+    d->rate_garbage += (int64_t)(s->garbage_bytes - d->seen.garbage_bytes);
     d->seen = *s;
 }
 
@@ -325,6 +373,7 @@ lms200_driver_t *lms200_driver_create(const lms200_driver_cfg_t *cfg, const lms2
     if (d->cfg.retries <= 0) d->cfg.retries = 2;
     if (d->cfg.data_timeout_ms <= 0) d->cfg.data_timeout_ms = 1000;
     if (d->cfg.reopen_ms <= 0) d->cfg.reopen_ms = 500;
+    if (d->cfg.degraded_ms <= 0) d->cfg.degraded_ms = 2000;
     if (ops)
         d->ops = *ops;
     d->user = user;
@@ -359,6 +408,8 @@ void lms200_driver_destroy(lms200_driver_t *d)
 void lms200_driver_start(lms200_driver_t *d, int64_t now_us)
 {
     d->now = now_us;
+    d->running = true;
+    d->last_good = now_us;
     if (d->fd >= 0)
         return;
     d->state = LMS200_DRV_CLOSED;
@@ -375,10 +426,23 @@ void lms200_driver_stop(lms200_driver_t *d)
     }
     d->state = LMS200_DRV_CLOSED;
     d->deadline = INT64_MAX;
+    d->running = false;
+    if (d->degraded) {
+        d->degraded = false;
+        if (d->ops.on_health)
+            d->ops.on_health(d->user, false, "stopped");
+    }
 }
 
 int lms200_driver_fd(const lms200_driver_t *d) { return d->fd; }
-int64_t lms200_driver_deadline(const lms200_driver_t *d) { return d->deadline; }
+bool lms200_driver_degraded(const lms200_driver_t *d) { return d->degraded; }
+
+int64_t lms200_driver_deadline(const lms200_driver_t *d)
+{
+    if (d->running && !d->degraded && d->last_good + (int64_t)d->cfg.degraded_ms * 1000 < d->deadline)
+        return d->last_good + (int64_t)d->cfg.degraded_ms * 1000;
+    return d->deadline;
+}
 lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d) { return d->state; }
 int lms200_driver_baud(const lms200_driver_t *d) { return d->baud; }
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d) { return &d->st; }
@@ -393,11 +457,17 @@ void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
         for (int round = 0; round < 16 && d->fd >= 0; round++) {
             ssize_t n = read(d->fd, buf, sizeof buf);
             if (n > 0) {
+                d->rate_bytes += n;
                 lms200_parser_feed(d->parser, buf, (size_t)n);
                 report_parser(d);
+                if (d->state == LMS200_DRV_PROBE && wrong_rate(d))
+                    d->deadline = d->now;   /* no use waiting here: the next tick moves on */
                 if (d->nak_seen && d->fd >= 0) {
+                    /* The device saw our command damaged: send again, but within the
+                     * retries, since at a wrong rate any byte may read as a NAK. */
                     d->nak_seen = false;
-                    send_current(d);    /* the device saw our command damaged: send again */
+                    if (d->tries < d->cfg.retries)
+                        send_current(d);
                 }
                 if ((size_t)n < sizeof buf)
                     return;
@@ -417,9 +487,25 @@ void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
         hangup(d, revents & POLLHUP ? "hang-up" : "poll error");
 }
 
+/* No good scan for degraded_ms while started: say so once, until scans flow again. */
+static void check_health(lms200_driver_t *d)
+{
+    if (!d->running || d->degraded || d->now - d->last_good < (int64_t)d->cfg.degraded_ms * 1000)
+        return;
+    d->degraded = true;
+    count(d, "degraded", &d->st.degraded, 1, false);
+    if (d->ops.on_health) {
+        char why[200];
+        snprintf(why, sizeof why, "no valid scan from %s for %d ms (%s at %d baud)", d->device,
+                 d->cfg.degraded_ms, lms200_driver_state_name(d->state), d->baud);
+        d->ops.on_health(d->user, true, why);
+    }
+}
+
 void lms200_driver_tick(lms200_driver_t *d, int64_t now_us)
 {
     d->now = now_us;
+    check_health(d);
     if (now_us < d->deadline)
         return;
     switch (d->state) {
@@ -428,7 +514,13 @@ void lms200_driver_tick(lms200_driver_t *d, int64_t now_us)
             try_open(d);
         break;
     case LMS200_DRV_PROBE:
-        if (d->tries < d->cfg.retries) {
+        if (d->tries < d->cfg.retries && !wrong_rate(d)) {
+            send_current(d);
+            break;
+        }
+        if (rate_promising(d) && d->stay < MAX_STAY) {
+            d->stay++;
+            d->tries = 0;
             send_current(d);
             break;
         }

@@ -23,6 +23,7 @@ typedef struct {
     int retries;                /* sends of one command before giving up; default 2 */
     int data_timeout_ms;        /* no scan for this long while streaming: re-initialise; default 1000 */
     int reopen_ms;              /* between attempts to open the device; default 500 */
+    int degraded_ms;            /* no good scan for this long after start: degraded; default 2000 */
 } lms200_driver_cfg_t;
 
 typedef enum {
@@ -43,6 +44,7 @@ typedef struct {
     int64_t reconnects;         /* streaming again after a loss */
     int64_t naks;
     int64_t inits;              /* completed init sequences */
+    int64_t degraded;           /* times the device went without a good scan for degraded_ms */
 } lms200_driver_stats_t;
 
 typedef struct {
@@ -54,6 +56,9 @@ typedef struct {
     void (*on_count)(void *user, const char *counter, int64_t delta, bool bad_input);
     /* The device fd changed (opened, closed); -1 for none. */
     void (*on_fd)(void *user, int old_fd, int new_fd);
+    /* No good scan for degraded_ms (degraded true, why says what the driver is doing), or
+     * scans again (false). */
+    void (*on_health)(void *user, bool degraded, const char *why);
 } lms200_driver_ops_t;
 
 typedef struct lms200_driver lms200_driver_t;
@@ -75,6 +80,7 @@ void lms200_driver_tick(lms200_driver_t *d, int64_t now_us);
 int64_t lms200_driver_deadline(const lms200_driver_t *d);   /* monotonic us; INT64_MAX: none */
 
 lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d);
+bool lms200_driver_degraded(const lms200_driver_t *d);
 const char *lms200_driver_state_name(lms200_drv_state_t s);
 int lms200_driver_baud(const lms200_driver_t *d);      /* the line's current rate */
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d);

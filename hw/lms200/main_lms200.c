@@ -33,6 +33,7 @@ static const marie_param_spec_t params[] = {
     { "retries", MARIE_PARAM_INT, "2", "sends of one command before the next step of recovery" },
     { "data_timeout_ms", MARIE_PARAM_INT, "1000", "no scan this long while streaming: re-initialise" },
     { "reopen_ms", MARIE_PARAM_INT, "500", "between attempts to open a missing device" },
+    { "degraded_ms", MARIE_PARAM_INT, "2000", "no valid scan this long: heartbeat says degraded" },
     { NULL },
 };
 
@@ -86,6 +87,16 @@ static void on_count(void *user, const char *counter, int64_t delta, bool bad_in
         marie_component_bad_input(l->c, counter, "LMS200 telegram dropped (%s)", counter);
 }
 
+static void on_health(void *user, bool degraded, const char *why)
+{
+    lms_t *l = user;
+    marie_component_set_degraded(l->c, degraded, "%s", why);
+    if (degraded)
+        marie_component_event(l->c, MARIE_EVENT_T_SEV_WARN, "laser_degraded", "%s", why);
+    else if (strcmp(why, "stopped") != 0)
+        marie_component_event(l->c, MARIE_EVENT_T_SEV_INFO, "laser_recovered", "%s", why);
+}
+
 static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     lms_t *l = user;
@@ -110,7 +121,7 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
 }
 
 static const lms200_driver_ops_t driver_ops = {
-    .on_scan = on_scan, .on_event = on_event, .on_count = on_count, .on_fd = on_fd,
+    .on_scan = on_scan, .on_event = on_event, .on_count = on_count, .on_fd = on_fd, .on_health = on_health,
 };
 
 static int on_init(marie_component_t *c)
@@ -132,6 +143,7 @@ static int on_init(marie_component_t *c)
         .retries = (int)marie_param_int(c, "retries"),
         .data_timeout_ms = (int)marie_param_int(c, "data_timeout_ms"),
         .reopen_ms = (int)marie_param_int(c, "reopen_ms"),
+        .degraded_ms = (int)marie_param_int(c, "degraded_ms"),
     };
     l->baud = cfg.baud;
     if (cfg.res_cdeg < 0 || lms200_baud_mode(cfg.baud) < 0 || marie_param_int(c, "address") < 0 ||

@@ -11,6 +11,7 @@ $(eval $(call marie_program,marie-vlms200,hw/lms200/main_vlms200.c,$(LMS200_LIB)
 
 $(eval $(call marie_test,test_lms200_component,tests/hw/test_lms200_component.c tests/proc.c))
 $(B)/tests/test_lms200_component: $(B)/bin/marie-lms200 $(B)/bin/marie-vlms200
+ITESTS += tests/hw/test_lms200_ps.sh
 
 # libFuzzer builds take sources only, so the codec is listed as a source here.
 $(eval $(call marie_fuzz,lms200,tests/hw/fuzz_lms200.c hw/lms200/lms200.c))

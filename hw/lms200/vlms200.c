@@ -197,8 +197,13 @@ static void flush_out(vlms200_t *v)
         v->st.baud_mismatch_bytes += (int64_t)v->out_len;
     }
     ssize_t n = write(v->master, v->out, v->out_len);
-    if (garble)
+    if (garble || (n < 0 && errno == EAGAIN)) {
+        /* A UART sends at its rate whether or not anyone listens: what the host's full
+         * buffer (a dead or stalled host) does not take is lost, not queued for later. */
+        if (!garble)
+            v->st.lost_bytes += (int64_t)v->out_len;
         n = (ssize_t)v->out_len;
+    }
     if (n > 0) {
         memmove(v->out, v->out + n, v->out_len - (size_t)n);
         v->out_len -= (size_t)n;

@@ -32,6 +32,7 @@ typedef struct {
     int64_t corrupted, garbage_bytes, truncated;   /* injected faults */
     int64_t dropped_scans;      /* not sent because the host was not reading */
     int64_t baud_mismatch_bytes;/* bytes received or sent while the host's rate differed */
+    int64_t lost_bytes;         /* sent while the host's buffer was full (host dead or stalled) */
     int64_t unplugs;
     int64_t baud_changes;
 } vlms200_stats_t;

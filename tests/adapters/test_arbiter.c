@@ -216,6 +216,52 @@ static void test_new_path_restarts_progress(void **state)
     assert_true(v[ARB_FOLLOW].active && v[ARB_FOLLOW].v == 0);   /* turns around first */
 }
 
+/* The laser of a robot at (x, y, th) in a corridor between walls y = lo and y = hi. */
+static void corridor_scan(arb_inputs_t *in, double lo, double hi)
+{
+    for (int k = 0; k < 181; k++) {
+        double phi = in->pose[2] + in->angle_min + k * in->angle_increment, r = 30;
+        if (sin(phi) < -1e-9)
+            r = fmin(r, (lo - in->pose[1]) / sin(phi));
+        if (sin(phi) > 1e-9)
+            r = fmin(r, (hi - in->pose[1]) / sin(phi));
+        open_scan[k] = (float)r;
+    }
+}
+
+static void test_turn_in_a_doorway_is_not_vetoed(void **state)
+{
+    /* Seen in marie-demo --chaos 3: the robot in a doorway (jambs 0.45 m either side) gets
+     * a new path that leaves the way it came. Follow turns round towards it; half way the
+     * jamb is ahead, avoid turns back to the open side, follow turns again: the robot spun
+     * on the spot for a minute. Turning in place is safe: it must come round and drive off. */
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    const double back[] = { 0.5, 0, 0, -6, 0, 0 };
+    in.path = back; in.npath = 2; in.path_age = 0.1; in.pose_age = 0.05;
+    in.pose[0] = 0.5; in.pose[1] = 0; in.pose[2] = 0.2;
+    double lo = -0.45, hi = 0.45, closest = 10;
+    arb_vote_t v[ARB_COUNT];
+    int cycles = 0;
+    double cmd_v = 0, cmd_w = 0;    /* the drives act on the previous cycle's command */
+    for (; cycles < 150 && in.pose[0] > -2; cycles++) {    /* 30 s at 5 Hz */
+        corridor_scan(&in, lo, hi);
+        int w = arb_decide(&p, &s, &in, v);
+        for (int k = 0; k < 10; k++) {
+            in.pose[0] += cmd_v * 0.02 * cos(in.pose[2]);
+            in.pose[1] += cmd_v * 0.02 * sin(in.pose[2]);
+            in.pose[2] += cmd_w * 0.02;
+        }
+        cmd_v = v[w].v;
+        cmd_w = v[w].omega;
+        closest = fmin(closest, fmin(in.pose[1] - lo, hi - in.pose[1]));
+    }
+    printf("doorway: %d cycles to x = %.2f, closest to a jamb %.2f m\n", cycles, in.pose[0], closest);
+    assert_true(in.pose[0] <= -2);
+    assert_true(closest > 0.25);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -227,6 +273,7 @@ int main(void)
         cmocka_unit_test(test_avoid_blocks_and_turns_to_open_side),
         cmocka_unit_test(test_closed_loop_follows_l_path),
         cmocka_unit_test(test_new_path_restarts_progress),
+        cmocka_unit_test(test_turn_in_a_doorway_is_not_vetoed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,8 +1,9 @@
 #!/bin/sh
 # The robot application in simulation under the managers: the mission completes with
 # localization within bounds and no collision, the robot stops within 0.3 s of the e-stop,
-# SIGKILLed components come back and the mission still completes, and replaying the log
-# into a fresh localizer reproduces its poses.
+# SIGKILLed components come back and the mission still completes (every goal with a kill
+# every 5 s, the drivers among the victims), and replaying the log into a fresh localizer
+# reproduces its poses.
 . tests/lib.sh
 out=$B/test-app
 rm -rf "$out"; mkdir -p "$out"
@@ -50,4 +51,14 @@ cat "$out/chaos.txt"
 check "chaos: components were killed" le 2 "$(json $c kills)"
 check "chaos: the mission still completes" test "$(json $c mission_done)" = True
 check "chaos: the summary counts the restarts" le "$(json $c kills)" "$(json $c restarts)"
+
+# 4. Harder chaos: a kill every 5 s. The laser driver dies mid-stream while the virtual
+# LMS200 streams on at 500 kbaud; its successor must find it and publish again.
+$BIN/marie-demo --quiet --out "$out/chaos5" --timeout 300 --chaos 5 > "$out/chaos5.txt" 2>&1
+c=$out/chaos5/summary.json
+cat "$out/chaos5.txt"
+check "chaos 5 s: the laser driver was among the victims" grep -q "SIGKILL laser" "$out/chaos5.txt"
+check "chaos 5 s: the mission completes" test "$(json $c mission_done)" = True
+check "chaos 5 s: every goal reached (5/5)" test "$(json $c reached)" = "$(json $c goals)"
+check "chaos 5 s: at least 5 goals" le 5 "$(json $c goals)"
 finish

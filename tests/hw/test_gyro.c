@@ -19,8 +19,8 @@ typedef struct {
     vgyro_t *dev;
     int64_t now;
     bool cut, drop_odd;
-    int ev[8];
-    uint32_t code[8];
+    int ev[16];
+    uint32_t code[16];
     int samples;
     double sum, last;
     uint8_t last_status;
@@ -171,6 +171,111 @@ static void malformed_frames_are_reported(void **state)
     assert_int_equal(r->ev[GYRO_EV_UNEXPECTED], 2);
 }
 
+/* A loaded host: every frame takes `latency_ms` to reach the other side. The device boots
+ * by itself `boot_ms` after the driver starts (powered up together, it is the slower); 0:
+ * it was up before the driver, its boot-up long gone (the simulator's devices); < 0: never. */
+typedef struct {
+    struct can_frame f;
+    int64_t at;
+    bool to_dev;
+} flight_t;
+
+typedef struct {
+    rig_t r;
+    flight_t q[256];
+    int n;
+    int64_t latency_us;
+} slow_t;
+
+static void send_slow(slow_t *s, const struct can_frame *f, int n, bool to_dev)
+{
+    for (int i = 0; i < n && s->n < 256; i++)
+        s->q[s->n++] = (flight_t){ f[i], s->r.now + s->latency_us, to_dev };
+}
+
+static void deliver_due(slow_t *s)
+{
+    struct can_frame tx[16];
+    for (int i = 0; i < s->n;) {
+        if (s->q[i].at > s->r.now) {
+            i++;
+            continue;
+        }
+        flight_t fl = s->q[i];
+        memmove(&s->q[i], &s->q[i + 1], (size_t)(s->n - i - 1) * sizeof s->q[0]);
+        s->n--;
+        if (fl.to_dev)
+            send_slow(s, tx, vgyro_feed(s->r.dev, &fl.f, s->r.now, tx, 16), false);
+        else
+            send_slow(s, tx, gyro_ctl_feed(s->r.ctl, &fl.f, s->r.now, tx, 16), true);
+    }
+}
+
+static void slow_start(slow_t *s, int latency_ms, int boot_ms, int run_ms)
+{
+    memset(s, 0, sizeof *s);
+    s->latency_us = latency_ms * 1000;
+    gyro_cfg_t cfg;
+    gyro_cfg_default(&cfg);
+    s->r.ctl = gyro_ctl_create(&cfg, on_sample, on_ev, &s->r);
+    vgyro_cfg_t vc;
+    vgyro_cfg_default(&vc, GYRO_NODE_DEFAULT);
+    s->r.dev = vgyro_create(&vc);
+    s->r.now = 1000000;
+    struct can_frame tx[16];
+    if (boot_ms == 0)
+        vgyro_boot(s->r.dev, s->r.now, tx, 16);
+    send_slow(s, tx, gyro_ctl_start(s->r.ctl, s->r.now, tx, 16), true);
+    for (int k = 1; k <= run_ms; k++) {
+        s->r.now += 1000;
+        if (k == boot_ms)
+            send_slow(s, tx, vgyro_boot(s->r.dev, s->r.now, tx, 16), false);
+        send_slow(s, tx, vgyro_poll(s->r.dev, s->r.now, tx, 16), false);
+        if (k % 10 == 0)
+            send_slow(s, tx, gyro_ctl_poll(s->r.ctl, s->r.now, tx, 16), true);
+        deliver_due(s);
+    }
+}
+
+static void slow_end(slow_t *s)
+{
+    gyro_ctl_destroy(s->r.ctl);
+    vgyro_destroy(s->r.dev);
+}
+
+/* The demo's start: driver and device come up together on a busy machine. Nothing failed,
+ * so no fault may be reported; the gyro must still be configured and sampling. */
+static void normal_start_on_a_slow_bus_raises_no_fault(void **state)
+{
+    static const struct { int latency_ms, boot_ms; } cases[] = { { 0, 500 }, { 40, 0 }, { 60, 500 } };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        slow_t s;
+        slow_start(&s, cases[i].latency_ms, cases[i].boot_ms, 6000);
+        print_message("latency %d ms, device boots at %d ms: configured %d, hb_timeout %d, not_found %d, "
+                      "samples %d\n", cases[i].latency_ms, cases[i].boot_ms, s.r.ev[GYRO_EV_CONFIGURED],
+                      s.r.ev[GYRO_EV_HB_TIMEOUT], s.r.ev[GYRO_EV_NOT_FOUND], s.r.samples);
+        assert_int_equal(s.r.ev[GYRO_EV_HB_TIMEOUT], 0);
+        assert_int_equal(s.r.ev[GYRO_EV_NOT_FOUND], 0);
+        assert_int_equal(s.r.ev[GYRO_EV_CONFIG_FAILED], 0);
+        assert_int_equal(s.r.ev[GYRO_EV_CONFIGURED], 1);
+        assert_true(gyro_ctl_running(s.r.ctl));
+        assert_true(s.r.samples > 100);
+        slow_end(&s);
+    }
+}
+
+/* A gyro that never boots is reported, once, as not found; a heartbeat it never had is
+ * not "lost". */
+static void absent_gyro_reported_once_as_not_found(void **state)
+{
+    slow_t s;
+    slow_start(&s, 0, -1, 7000);
+    assert_int_equal(s.r.ev[GYRO_EV_NOT_FOUND], 1);
+    assert_int_equal(s.r.ev[GYRO_EV_HB_TIMEOUT], 0);
+    assert_false(gyro_ctl_running(s.r.ctl));
+    slow_end(&s);
+}
+
 static void bias_learned_at_standstill_only(void **state)
 {
     gyro_bias_t b;
@@ -207,6 +312,8 @@ int main(void)
         T(lost_samples_fault_and_timeout),
         T(saturation_is_flagged),
         T(malformed_frames_are_reported),
+        cmocka_unit_test(normal_start_on_a_slow_bus_raises_no_fault),
+        cmocka_unit_test(absent_gyro_reported_once_as_not_found),
         cmocka_unit_test(bias_learned_at_standstill_only),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

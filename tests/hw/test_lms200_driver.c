@@ -38,6 +38,8 @@ typedef struct {
     bool moving;                /* ranges change every scan: check their shape only */
     double last_wall;
     int moving_bad;
+    int degraded_calls, recovered_calls;
+    bool degraded;
 } rig_t;
 
 static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t t)
@@ -75,7 +77,17 @@ static void on_event(void *user, int sev, const char *kind, const char *text)
         r->open_failed_events++;
 }
 
-static const lms200_driver_ops_t ops = { .on_scan = on_scan, .on_event = on_event };
+static void on_health(void *user, bool degraded, const char *why)
+{
+    rig_t *r = user;
+    r->degraded = degraded;
+    if (degraded)
+        r->degraded_calls++;
+    else
+        r->recovered_calls++;
+}
+
+static const lms200_driver_ops_t ops = { .on_scan = on_scan, .on_event = on_event, .on_health = on_health };
 
 static void rig_open(rig_t *r, const vlms200_cfg_t *ecfg, int baud, int res)
 {
@@ -147,7 +159,7 @@ static void step(rig_t *r)
 
 /* Run until cond holds or max_ms passes (bounded: the machine may be slow, never hung). */
 #define RUN_UNTIL(r, max_ms, cond) ({ int64_t end_ = mono_us() + (int64_t)(max_ms) * 1000; \
-        while (!(cond) && mono_us() < end_) step(r); (cond); })
+        while (!(cond) && mono_us() < end_) { step(r); } (cond); })
 
 static void run_for(rig_t *r, int ms)
 {
@@ -346,6 +358,92 @@ static void test_restarted_driver_finds_streaming_device(void **state)
     rig_close(&r);
 }
 
+/* The driver dies without stopping the device (kill -9: no "stop continuous output"); the
+ * device streams on into the void; a new driver with the production timeouts starts.
+ * Returns the ms from its start to its first scan (-1: none within max_ms). */
+static int64_t restart_driver(rig_t *r, int baud, int res, int max_ms)
+{
+    lms200_driver_destroy(r->drv);
+    r->drv = NULL;
+    run_for(r, 300);
+    assert_true(vlms200_streaming(r->emu));
+    lms200_driver_cfg_t cfg = { .device = r->link, .baud = baud, .res_cdeg = res };
+    r->drv = lms200_driver_create(&cfg, &ops, r);
+    assert_non_null(r->drv);
+    int64_t before = r->scans, t0 = mono_us();
+    lms200_driver_start(r->drv, t0);
+    bool ok = RUN_UNTIL(r, max_ms, r->scans > before);
+    if (!ok)
+        return -1;
+    return (mono_us() - t0) / 1000;
+}
+
+static void test_restart_mid_stream_at_each_rate(void **state)
+{
+    /* As in the simulator: 181 beams, 10 scans per simulated second at 4x speed. */
+    static const int rates[] = { 9600, 38400, 500000 };
+    for (size_t i = 0; i < sizeof rates / sizeof rates[0]; i++) {
+        rig_t r;
+        vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
+        rig_open(&r, &e, rates[i], 100);
+        lms200_driver_start(r.drv, mono_us());
+        assert_true(RUN_UNTIL(&r, 8000, r.scans >= 3));
+        assert_int_equal(vlms200_baud(r.emu), rates[i]);
+        int64_t ms = restart_driver(&r, rates[i], 100, 5000);
+        print_message("device streaming at %d baud: first scan %lld ms after the new driver started\n",
+                      rates[i], (long long)ms);
+        assert_true(ms >= 0);
+        assert_true(ms <= 2000);
+        assert_int_equal(r.bad_ranges, 0);
+        rig_close(&r);
+    }
+}
+
+static void test_restart_finds_device_left_at_another_rate(void **state)
+{
+    /* The last run used 38400 (RS-232); this one is configured for 500000 (RS-422). */
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 38400, 100);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 3));
+    int64_t ms = restart_driver(&r, 500000, 100, 8000);
+    print_message("device left at 38400, driver for 500000: first scan after %lld ms\n", (long long)ms);
+    assert_true(ms >= 0);
+    assert_int_equal(vlms200_baud(r.emu), 500000);
+    assert_int_equal(lms200_driver_baud(r.drv), 500000);
+    assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+static void test_degraded_while_silent_then_running(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
+    rig_open(&r, &e, 500000, 100);
+    lms200_driver_destroy(r.drv);
+    lms200_driver_cfg_t cfg = { .device = r.link, .baud = 500000, .res_cdeg = 100, .reply_timeout_ms = 150,
+                                .data_timeout_ms = 500, .degraded_ms = 1000 };
+    r.drv = lms200_driver_create(&cfg, &ops, &r);
+    lms200_driver_start(r.drv, mono_us());
+    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    assert_false(lms200_driver_degraded(r.drv));
+    assert_int_equal(r.degraded_calls, 0);
+    int64_t t0 = mono_us();
+    vlms200_silence(r.emu, t0 + 3000 * 1000);
+    assert_true(RUN_UNTIL(&r, 5000, r.degraded));
+    int64_t after = (mono_us() - t0) / 1000;
+    print_message("degraded %lld ms after the device went silent\n", (long long)after);
+    assert_true(after >= 900);                      /* not before degraded_ms without a scan */
+    assert_true(lms200_driver_degraded(r.drv));
+    assert_int_equal(r.degraded_calls, 1);          /* said once, not on every probe */
+    assert_true(RUN_UNTIL(&r, 10000, !r.degraded));
+    assert_true(mono_us() >= t0 + 3000 * 1000);
+    assert_int_equal(r.recovered_calls, 1);
+    assert_int_equal(lms200_driver_stats(r.drv)->degraded, 1);
+    rig_close(&r);
+}
+
 static void test_missing_device_retried_until_it_appears(void **state)
 {
     rig_t r;
@@ -383,6 +481,9 @@ int main(void)
         cmocka_unit_test(test_silent_device_reinitialised),
         cmocka_unit_test(test_unplugged_mid_scan_and_back),
         cmocka_unit_test(test_restarted_driver_finds_streaming_device),
+        cmocka_unit_test(test_restart_mid_stream_at_each_rate),
+        cmocka_unit_test(test_restart_finds_device_left_at_another_rate),
+        cmocka_unit_test(test_degraded_while_silent_then_running),
         cmocka_unit_test(test_missing_device_retried_until_it_appears),
         cmocka_unit_test(test_bad_config_refused),
     };

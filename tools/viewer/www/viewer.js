@@ -5,7 +5,7 @@
 
 const $ = (id) => document.getElementById(id);
 const body = document.body;
-const STATES = ['created', 'ready', 'running', 'paused', 'failed', 'exited'];
+const STATES = ['created', 'ready', 'running', 'paused', 'failed', 'exited', 'degraded'];
 const PALETTE = ['#1565c0', '#c62828', '#2e7d32', '#ef6c00', '#6a1b9a', '#00838f', '#8d6e63', '#455a64'];
 
 let ws = null, retry = 0, dirty = false;
