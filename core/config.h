@@ -49,6 +49,8 @@ marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, mar
 void marie_doc_destroy(marie_doc_t *doc);
 const marie_node_t *marie_doc_root(const marie_doc_t *doc);
 
+/* Adds "file:line:col: text" at the node's value. */
+void marie_node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 const marie_node_t *marie_node_get(const marie_node_t *map, const char *key);   /* NULL if absent */
 /* Typed reads of a scalar; on a wrong type they add "file:line:col: KEY: expected T, got 'v'" and return -1. */
 int marie_node_int(const marie_node_t *n, int64_t *out, marie_errors_t *errs);
