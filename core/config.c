@@ -48,6 +48,7 @@ void marie_system_destroy(marie_system_t *sys)
     for (size_t i = 0; i < sys->ncomponents; i++)
         component_cfg_free(&sys->components[i]);
     free(sys->components);
+    free(sys->by_name);
     free_strv(sys->hosts, sys->nhosts);
     free(sys->file);
     free(sys->name);
@@ -58,12 +59,18 @@ void marie_system_destroy(marie_system_t *sys)
     free(sys);
 }
 
+static int cmp_cfg_name(const void *a, const void *b)
+{
+    return strcmp((*(marie_component_cfg_t *const *)a)->name, (*(marie_component_cfg_t *const *)b)->name);
+}
+
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name)
 {
-    for (size_t i = 0; sys && name && i < sys->ncomponents; i++)
-        if (strcmp(sys->components[i].name, name) == 0)
-            return &sys->components[i];
-    return NULL;
+    if (!sys || !name || !sys->by_name)
+        return NULL;
+    marie_component_cfg_t key = {.name = (char *)name}, *kp = &key;
+    marie_component_cfg_t **hit = bsearch(&kp, sys->by_name, sys->ncomponents, sizeof *sys->by_name, cmp_cfg_name);
+    return hit ? *hit : NULL;
 }
 
 /* A sequence of scalars (or one scalar) as a string vector. */
@@ -240,20 +247,131 @@ static const char *const component_keys[] = {
     "stop_timeout", "heartbeat_timeout", "depends", NULL,
 };
 
-static void hash_component(marie_component_cfg_t *c, const marie_node_t *n, const char *url)
+/* ---- effective configuration and its hash ---- */
+
+enum { F_EXEC, F_ARGS, F_ENV, F_SHELL, F_HOST, F_GROUP, F_PORTS, F_PARAMS, F_RESTART, F_STOP_TIMEOUT,
+       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_CLOCK, F_LCM_URL, F_AUTH, NFIELDS };
+static const char *const field_names[NFIELDS] = {
+    "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart", "stop_timeout",
+    "heartbeat_timeout", "depends", "clock", "lcm_url", "auth",
+};
+
+static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* A list as length-prefixed items, optionally sorted (order that does not matter). */
+static void put_list(FILE *f, char **v, size_t n, bool sorted)
 {
-    /* The effective configuration: the component's node plus the bus it runs on. */
-    char *text = marie_node_canonical(n);
+    char **s = malloc((n ? n : 1) * sizeof *s);
+    if (!s)
+        return;
+    memcpy(s, v, n * sizeof *s);
+    if (sorted)
+        qsort(s, n, sizeof *s, cmp_str);
+    for (size_t i = 0; i < n; i++)
+        fprintf(f, "%zu:%s,", strlen(s[i]), s[i]);
+    free(s);
+}
+
+/* Every setting that changes how the component runs, inherited ones (defaults, the system's
+ * clock, bus and key) resolved, one canonical text per field. Texts are malloc'ed (NULL on
+ * OOM). */
+static void effective_fields(const marie_system_t *sys, const marie_component_cfg_t *c, char *text[NFIELDS])
+{
+    for (int i = 0; i < NFIELDS; i++) {
+        size_t len;
+        FILE *f = open_memstream(&text[i], &len);
+        if (!f) {
+            text[i] = NULL;
+            continue;
+        }
+        const marie_restart_cfg_t *r = &c->restart;
+        switch (i) {
+        case F_EXEC: fprintf(f, "%s", c->exec ? c->exec : ""); break;
+        case F_ARGS: put_list(f, c->args, c->nargs, false); break;
+        case F_ENV: put_list(f, c->env, c->nenv, true); break;
+        case F_SHELL: fprintf(f, "%d", c->shell); break;
+        case F_HOST: fprintf(f, "%s", c->host ? c->host : sys->nhosts ? sys->hosts[0] : ""); break;
+        case F_GROUP: fprintf(f, "%s", c->group ? c->group : ""); break;
+        case F_PORTS: {
+            char **v = calloc(c->nports ? c->nports : 1, sizeof *v);
+            size_t n = 0;
+            for (size_t k = 0; v && k < c->nports; k++)
+                if (asprintf(&v[n], "%s=%s@%s", c->ports[k].name, c->ports[k].channel,
+                             c->ports[k].url ? c->ports[k].url : "") >= 0)
+                    n++;
+            if (v)
+                put_list(f, v, n, true);
+            free_strv(v, n);
+            break;
+        }
+        case F_PARAMS: {
+            char *p = c->params ? marie_node_canonical(c->params) : NULL;
+            fprintf(f, "%s", p ? p : "~");
+            free(p);
+            break;
+        }
+        case F_RESTART:
+            fprintf(f, "%d,%.17g,%.17g,%.17g,%d,%.17g", (int)r->policy, r->backoff_min_s, r->backoff_max_s,
+                    r->stable_s, r->max_failures, r->window_s);
+            break;
+        case F_STOP_TIMEOUT: fprintf(f, "%.17g", c->stop_timeout_s); break;
+        case F_HEARTBEAT_TIMEOUT: fprintf(f, "%.17g", c->heartbeat_timeout_s); break;
+        case F_DEPENDS: put_list(f, c->depends, c->ndepends, true); break;
+        case F_CLOCK: fprintf(f, "%s", sys->clock == MARIE_CLOCK_SIM ? "sim" : "wall"); break;
+        case F_LCM_URL: fprintf(f, "%s", sys->lcm_url ? sys->lcm_url : ""); break;
+        case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
+        }
+        if (fclose(f) != 0) {
+            free(text[i]);
+            text[i] = NULL;
+        }
+    }
+}
+
+static void free_fields(char *text[NFIELDS])
+{
+    for (int i = 0; i < NFIELDS; i++)
+        free(text[i]);
+}
+
+static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
+{
+    char *text[NFIELDS];
+    effective_fields(sys, c, text);
     unsigned char h[crypto_hash_sha256_BYTES];
     crypto_hash_sha256_state st;
     crypto_hash_sha256_init(&st);
-    crypto_hash_sha256_update(&st, (const unsigned char *)url, strlen(url));
-    if (text)
-        crypto_hash_sha256_update(&st, (const unsigned char *)text, strlen(text));
+    for (int i = 0; i < NFIELDS; i++) {
+        char head[64];
+        const char *t = text[i] ? text[i] : "";
+        int n = snprintf(head, sizeof head, "%s:%zu:", field_names[i], strlen(t));
+        crypto_hash_sha256_update(&st, (const unsigned char *)head, (unsigned long long)n);
+        crypto_hash_sha256_update(&st, (const unsigned char *)t, strlen(t));
+    }
     crypto_hash_sha256_final(&st, h);
-    free(text);
+    free_fields(text);
     for (size_t i = 0; i < sizeof h; i++)
         snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
+}
+
+char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
+                                  const marie_system_t *sb, const marie_component_cfg_t *b)
+{
+    char *ta[NFIELDS], *tb[NFIELDS], *out = NULL;
+    size_t len = 0;
+    effective_fields(sa, a, ta);
+    effective_fields(sb, b, tb);
+    FILE *f = open_memstream(&out, &len);
+    for (int i = 0; f && i < NFIELDS; i++)
+        if (!ta[i] || !tb[i] || strcmp(ta[i], tb[i]) != 0)
+            fprintf(f, "%s%s", len ? "," : "", field_names[i]), fflush(f);
+    if (f && fclose(f) != 0) {
+        free(out);
+        out = NULL;
+    }
+    free_fields(ta);
+    free_fields(tb);
+    return out;
 }
 
 static int read_component(const marie_node_t *n, const marie_system_t *sys, const marie_restart_cfg_t *defaults,
@@ -261,6 +379,7 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
 {
     memset(c, 0, sizeof *c);
     c->name = strdup(n->key);
+    c->node = n;
     c->file = n->file;
     c->line = n->key_line;
     c->col = n->key_col;
@@ -312,7 +431,13 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     rc |= read_restart(marie_node_get(n, "restart"), &c->restart, errs);
     rc |= read_seconds(n, "stop_timeout", &c->stop_timeout_s, errs);
     rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
-    hash_component(c, n, sys->lcm_url);
+    if (c->restart.backoff_min_s > c->restart.backoff_max_s) {
+        const marie_node_t *r = marie_node_get(n, "restart");
+        marie_errors_add(errs, n->file, r ? r->line : n->key_line, r ? r->col : n->key_col,
+                         "component '%s': restart backoff_min (%g s) is above backoff_max (%g s)", n->key,
+                         c->restart.backoff_min_s, c->restart.backoff_max_s);
+        rc = -1;
+    }
     return rc ? -1 : 0;
 }
 
@@ -330,6 +455,46 @@ static const marie_node_t *find_profile(const marie_node_t *root, const char *pr
     if (marie_node_check_keys(p, keys, "profile", errs) < 0)
         return NULL;
     return p;
+}
+
+/* Iterative depth-first search (a long dependency chain must not overflow the stack): a
+ * dependency on a component still on the path closes a cycle. */
+static int find_cycle(const marie_system_t *sys, marie_errors_t *errs)
+{
+    size_t n = sys->ncomponents;
+    unsigned char *mark = calloc(n ? n : 1, 1);           /* 0 new, 1 on the path, 2 done */
+    size_t *stack = malloc((n ? n : 1) * sizeof *stack), *next = calloc(n ? n : 1, sizeof *next);
+    int rc = mark && stack && next ? 0 : -1;
+    for (size_t root = 0; rc == 0 && root < n; root++) {
+        if (mark[root])
+            continue;
+        size_t top = 0;
+        stack[top++] = root;
+        mark[root] = 1;
+        while (top && rc == 0) {
+            const marie_component_cfg_t *c = &sys->components[stack[top - 1]];
+            if (next[stack[top - 1]] == c->ndepends) {
+                mark[stack[--top]] = 2;
+                continue;
+            }
+            const marie_component_cfg_t *d = marie_system_component(sys, c->depends[next[stack[top - 1]]++]);
+            size_t j = d ? (size_t)(d - sys->components) : 0;
+            if (!d || mark[j] == 2)
+                continue;
+            if (mark[j] == 1) {
+                marie_errors_add(errs, d->file, d->line, d->col, "component '%s' is part of a dependency cycle",
+                                 d->name);
+                rc = -1;
+                break;
+            }
+            mark[j] = 1;
+            stack[top++] = j;
+        }
+    }
+    free(mark);
+    free(stack);
+    free(next);
+    return rc;
 }
 
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
@@ -372,6 +537,13 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         if (marie_node_check_keys(v, keys, "defaults", errs) < 0 ||
             read_restart(marie_node_get(v, "restart"), &defaults, errs) < 0)
             goto err;
+        if (defaults.backoff_min_s > defaults.backoff_max_s) {
+            const marie_node_t *r = marie_node_get(v, "restart");
+            marie_errors_add(errs, path, r ? r->line : v->line, r ? r->col : v->col,
+                             "defaults: restart backoff_min (%g s) is above backoff_max (%g s)",
+                             defaults.backoff_min_s, defaults.backoff_max_s);
+            goto err;
+        }
     }
     const marie_node_t *comps = marie_node_get(root, "components");
     const marie_node_t *prof = profile ? find_profile(root, profile, errs, path) : NULL;
@@ -405,21 +577,25 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         goto err;
     }
     int rc = 0;
+    qsort(removed, nremoved, sizeof *removed, cmp_str);
     /* Base components, each replaced whole by the profile's entry of the same name. */
     for (size_t i = 0; comps && i < comps->n; i++) {
         const marie_node_t *n = comps->items[i];
-        int skip = marie_node_get(pcomps, n->key) != NULL;
-        for (size_t k = 0; k < nremoved; k++)
-            skip |= strcmp(removed[k], n->key) == 0;
-        if (!skip)
+        const char *key = n->key;
+        if (!marie_node_get(pcomps, key) && !bsearch(&key, removed, nremoved, sizeof *removed, cmp_str))
             rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
     }
     for (size_t i = 0; pcomps && i < pcomps->n; i++)
         rc |= read_component(pcomps->items[i], sys, &defaults, &sys->components[sys->ncomponents++], errs);
     free_strv(removed, nremoved);
+    if (!(sys->by_name = malloc((sys->ncomponents ? sys->ncomponents : 1) * sizeof *sys->by_name)))
+        goto err;
+    for (size_t i = 0; i < sys->ncomponents; i++)
+        sys->by_name[i] = &sys->components[i];
+    qsort(sys->by_name, sys->ncomponents, sizeof *sys->by_name, cmp_cfg_name);
     /* Dependencies must name components of the system. */
     for (size_t i = 0; i < sys->ncomponents; i++) {
-        const marie_component_cfg_t *c = &sys->components[i];
+        marie_component_cfg_t *c = &sys->components[i];
         for (size_t k = 0; k < c->ndepends; k++) {
             if (!marie_system_component(sys, c->depends[k])) {
                 marie_errors_add(errs, c->file, c->line, c->col, "component '%s' depends on unknown component '%s'",
@@ -427,7 +603,10 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
                 rc = -1;
             }
         }
+        hash_component(sys, c);
     }
+    if (rc == 0 && find_cycle(sys, errs) < 0)
+        rc = -1;
     if (rc || (errs && errs->n > errs_before))
         goto err;
     return sys;

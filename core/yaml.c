@@ -2,6 +2,7 @@
 #include "core/config.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -81,20 +82,84 @@ static void node_free(marie_node_t *n)
     for (size_t i = 0; i < n->n; i++)
         node_free(n->items[i]);
     free(n->items);
+    free(n->index);
     free(n->key);
     free(n->value);
     free(n);
 }
 
-static int node_append(marie_node_t *parent, marie_node_t *child)
+/* Maps longer than this get a hash index: duplicate checks and lookups stay linear in the
+ * file's size (a linear scan per key made a 10 MB file take minutes). */
+#define INDEX_MIN 8
+
+static size_t key_hash(const char *k)
 {
-    marie_node_t **items = realloc(parent->items, (parent->n + 1) * sizeof *items);
-    if (!items)
+    size_t h = 1469598103934665603ull;
+    for (; *k; k++)
+        h = (h ^ (unsigned char)*k) * 1099511628211ull;
+    return h;
+}
+
+/* Position + 1 of `key` in the map's index slot chain, or the empty slot where it would go. */
+static size_t index_slot(const marie_node_t *m, const char *key)
+{
+    size_t mask = m->index_cap - 1, i = key_hash(key) & mask;
+    while (m->index[i] && strcmp(m->items[m->index[i] - 1]->key, key) != 0)
+        i = (i + 1) & mask;
+    return i;
+}
+
+static int index_grow(marie_node_t *m)
+{
+    size_t cap = m->index_cap ? m->index_cap * 2 : 32;
+    size_t *old = m->index, old_cap = m->index_cap;
+    if (!(m->index = calloc(cap, sizeof *m->index))) {
+        m->index = old;
         return -ENOMEM;
-    parent->items = items;
-    parent->items[parent->n++] = child;
+    }
+    m->index_cap = cap;
+    for (size_t i = 0; i < old_cap; i++)
+        if (old[i])
+            m->index[index_slot(m, m->items[old[i] - 1]->key)] = old[i];
+    free(old);
     return 0;
 }
+
+static const marie_node_t *map_find(const marie_node_t *m, const char *key)
+{
+    if (m->index) {
+        size_t pos = m->index[index_slot(m, key)];
+        return pos ? m->items[pos - 1] : NULL;
+    }
+    for (size_t i = 0; i < m->n; i++)
+        if (strcmp(m->items[i]->key, key) == 0)
+            return m->items[i];
+    return NULL;
+}
+
+static int node_append(marie_node_t *parent, marie_node_t *child)
+{
+    /* Capacity doubles: it is full exactly when n is 0 or a power of two. */
+    size_t n = parent->n;
+    if ((n & (n - 1)) == 0) {
+        marie_node_t **items = realloc(parent->items, (n ? 2 * n : 1) * sizeof *items);
+        if (!items)
+            return -ENOMEM;
+        parent->items = items;
+    }
+    parent->items[parent->n++] = child;
+    if (parent->kind != MARIE_NODE_MAP || parent->n < INDEX_MIN)
+        return 0;
+    if (2 * parent->n > parent->index_cap && index_grow(parent) < 0)
+        return -ENOMEM;     /* index_grow also indexes every item (the new one included) */
+    if (parent->index_cap && !parent->index[index_slot(parent, child->key)])
+        parent->index[index_slot(parent, child->key)] = parent->n;
+    return 0;
+}
+
+static int (*interrupt_check)(void);
+
+void marie_config_set_interrupt(int (*check)(void)) { interrupt_check = check; }
 
 typedef struct {
     struct fy_parser *fyp;
@@ -103,6 +168,7 @@ typedef struct {
     size_t errs_before;
     char diag[1024];            /* libfyaml's first error message */
     size_t diag_len;
+    unsigned events;            /* counts down to the next interrupt check */
 } builder_t;
 
 static void mark_of(struct fy_event *ev, int *line, int *col)
@@ -166,13 +232,18 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
                 const char *text = fy_token_get_text(kev->scalar.value, &len);
                 key = strndup(text ? text : "", text ? len : 0);
                 fy_parser_event_free(b->fyp, kev);
-                for (size_t i = 0; key && i < n->n; i++) {
-                    if (strcmp(n->items[i]->key, key) == 0) {
-                        marie_errors_add(b->errs, b->file, kline, kcol, "duplicate key '%s' (first at line %d)",
-                                         key, n->items[i]->key_line);
-                        free(key);
-                        goto err;
-                    }
+                const marie_node_t *first = key ? map_find(n, key) : NULL;
+                if (first) {
+                    marie_errors_add(b->errs, b->file, kline, kcol, "duplicate key '%s' (first at line %d)",
+                                     key, first->key_line);
+                    free(key);
+                    goto err;
+                }
+                if (interrupt_check && ++b->events % 4096 == 0 && interrupt_check()) {
+                    marie_errors_add(b->errs, b->file, kline, kcol, "interrupted while parsing");
+                    free(key);
+                    errno = EINTR;
+                    goto err;
                 }
                 vev = fy_parser_parse(b->fyp);
                 if (!vev || !key) {
@@ -348,8 +419,17 @@ marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs)
     marie_doc_t *doc = NULL;
     if (failed)
         marie_errors_add(errs, path, 0, 0, "cannot read: %s", strerror(errno ? errno : EIO));
-    else if (len > MAX_FILE_SIZE)
-        marie_errors_add(errs, path, 0, 0, "larger than %d MB", MAX_FILE_SIZE >> 20);
+    else if (len > MAX_FILE_SIZE) {
+        /* Point at the first byte past the limit, so an editor can go there. */
+        int line = 1, col = 1;
+        for (size_t i = 0; i < MAX_FILE_SIZE; i++, col++)
+            if (text[i] == '\n') {
+                line++;
+                col = 0;
+            }
+        marie_errors_add(errs, path, line, col, "the file is larger than %d MB (the limit falls here)",
+                         MAX_FILE_SIZE >> 20);
+    }
     else
         doc = doc_build(path, text, len, errs);
     free(text);
@@ -376,10 +456,7 @@ const marie_node_t *marie_node_get(const marie_node_t *map, const char *key)
 {
     if (!map || map->kind != MARIE_NODE_MAP)
         return NULL;
-    for (size_t i = 0; i < map->n; i++)
-        if (strcmp(map->items[i]->key, key) == 0)
-            return map->items[i];
-    return NULL;
+    return map_find(map, key);
 }
 
 static const char *node_label(const marie_node_t *n)
@@ -418,8 +495,12 @@ int marie_node_double(const marie_node_t *n, double *out, marie_errors_t *errs)
     char *end;
     errno = 0;
     double v = strtod(n->value, &end);
-    if (n->quoted || !n->value[0] || *end || errno) {
-        marie_node_error(errs, n, "%s: expected a number, got '%s'", node_label(n), n->value);
+    /* NaN and infinities (nan, inf, YAML's .nan and .inf) are no setting: a rate, timeout or
+     * distance must be a finite number. */
+    if (n->quoted || !n->value[0] || *end || errno || !isfinite(v)) {
+        marie_node_error(errs, n, "%s: expected a %snumber, got '%s'", node_label(n),
+                         !n->quoted && n->value[0] && (!*end || strcasestr(n->value, "nan") || strcasestr(n->value, "inf"))
+                             ? "finite " : "", n->value);
         return -1;
     }
     *out = v;
