@@ -1,6 +1,6 @@
 # managers: marie-am (one per host), the marie command line, and the order-signing library.
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c))
+$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c))
 
 $(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
