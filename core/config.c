@@ -273,18 +273,20 @@ static void put_list(FILE *f, char **v, size_t n, bool sorted)
 }
 
 /* Every setting that changes how the component runs, inherited ones (defaults, the system's
- * clock, bus and key) resolved, one canonical text per field. Texts are malloc'ed (NULL on
- * OOM). */
-static void effective_fields(const marie_system_t *sys, const marie_component_cfg_t *c, char *text[NFIELDS])
+ * clock, bus and key) resolved, one canonical text per field: field i is the NUL-terminated
+ * text at buf + off[i]. Returns the buffer (caller frees), NULL when out of memory. One
+ * stream per component: opening one per field cost more than the rest of the loading. */
+static char *effective_fields(const marie_system_t *sys, const marie_component_cfg_t *c, size_t off[NFIELDS])
 {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return NULL;
+    const marie_restart_cfg_t *r = &c->restart;
     for (int i = 0; i < NFIELDS; i++) {
-        size_t len;
-        FILE *f = open_memstream(&text[i], &len);
-        if (!f) {
-            text[i] = NULL;
-            continue;
-        }
-        const marie_restart_cfg_t *r = &c->restart;
+        fflush(f);
+        off[i] = len;
         switch (i) {
         case F_EXEC: fprintf(f, "%s", c->exec ? c->exec : ""); break;
         case F_ARGS: put_list(f, c->args, c->nargs, false); break;
@@ -321,35 +323,31 @@ static void effective_fields(const marie_system_t *sys, const marie_component_cf
         case F_LCM_URL: fprintf(f, "%s", sys->lcm_url ? sys->lcm_url : ""); break;
         case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
         }
-        if (fclose(f) != 0) {
-            free(text[i]);
-            text[i] = NULL;
-        }
+        fputc(0, f);
     }
-}
-
-static void free_fields(char *text[NFIELDS])
-{
-    for (int i = 0; i < NFIELDS; i++)
-        free(text[i]);
+    if (fclose(f) != 0) {
+        free(buf);
+        return NULL;
+    }
+    return buf;
 }
 
 static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
 {
-    char *text[NFIELDS];
-    effective_fields(sys, c, text);
+    size_t off[NFIELDS];
+    char *buf = effective_fields(sys, c, off);
     unsigned char h[crypto_hash_sha256_BYTES];
     crypto_hash_sha256_state st;
     crypto_hash_sha256_init(&st);
     for (int i = 0; i < NFIELDS; i++) {
         char head[64];
-        const char *t = text[i] ? text[i] : "";
+        const char *t = buf ? buf + off[i] : "";
         int n = snprintf(head, sizeof head, "%s:%zu:", field_names[i], strlen(t));
         crypto_hash_sha256_update(&st, (const unsigned char *)head, (unsigned long long)n);
         crypto_hash_sha256_update(&st, (const unsigned char *)t, strlen(t));
     }
     crypto_hash_sha256_final(&st, h);
-    free_fields(text);
+    free(buf);
     for (size_t i = 0; i < sizeof h; i++)
         snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
 }
@@ -357,20 +355,17 @@ static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
 char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
                                   const marie_system_t *sb, const marie_component_cfg_t *b)
 {
-    char *ta[NFIELDS], *tb[NFIELDS], *out = NULL;
-    size_t len = 0;
-    effective_fields(sa, a, ta);
-    effective_fields(sb, b, tb);
-    FILE *f = open_memstream(&out, &len);
-    for (int i = 0; f && i < NFIELDS; i++)
-        if (!ta[i] || !tb[i] || strcmp(ta[i], tb[i]) != 0)
-            fprintf(f, "%s%s", len ? "," : "", field_names[i]), fflush(f);
-    if (f && fclose(f) != 0) {
+    size_t oa[NFIELDS], ob[NFIELDS];
+    char *ta = effective_fields(sa, a, oa), *tb = effective_fields(sb, b, ob), *out = calloc(1, 512);
+    for (int i = 0; ta && tb && out && i < NFIELDS; i++)
+        if (strcmp(ta + oa[i], tb + ob[i]) != 0)
+            snprintf(out + strlen(out), 512 - strlen(out), "%s%s", out[0] ? "," : "", field_names[i]);
+    if (!ta || !tb) {
         free(out);
         out = NULL;
     }
-    free_fields(ta);
-    free_fields(tb);
+    free(ta);
+    free(tb);
     return out;
 }
 
