@@ -55,16 +55,18 @@ all_reported() {
 }
 
 "$BIN/marie-am" --host alpha --state-dir "$T/am" > "$T/am.log" 2>&1 & AM_PID=$!
+# the manager answers before the first up (else an up could pass for lack of a listener)
+wait_for 15 "$M" ps --window 0.5 > /dev/null
 up_refused() {
     "$M" up --no-wait "$T/bad.yaml" > "$T/up.out" 2>&1; rc=$?
     cat "$T/up.out"; echo "exit $rc"
     [ $rc -eq 2 ] && all_reported "$T/up.out"
 }
 check "marie up --no-wait: every bad entry refused (exit 2, file:line:col)" up_refused
-sleep 1
-check "nothing was started" sh -c "! started"
+nothing_started() { sleep 1; ! started; }
+check "nothing was started" nothing_started
 am_refused() {
-    "$BIN/marie-am" --host alpha --state-dir "$T/am2" --system "$T/bad.yaml" > "$T/am2.out" 2>&1; rc=$?
+    timeout 20 "$BIN/marie-am" --host alpha --state-dir "$T/am2" --system "$T/bad.yaml" > "$T/am2.out" 2>&1; rc=$?
     cat "$T/am2.out"; echo "exit $rc"
     [ $rc -eq 2 ] && all_reported "$T/am2.out" && ! started
 }
