@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -112,10 +113,12 @@ static int has_marker(const char *path)
     return found;
 }
 
-/* Run PATH ARGS... --describe; its stdout (at most DESCRIBE_MAX) in *out. 0, or -1 with why. */
-static int run_describe(const char *path, char **args, size_t nargs, char **out, size_t *len, char *why,
-                        size_t whylen)
+/* Run PATH ARGS... --describe with the component's env added (it may need it to load at all);
+ * its stdout (at most DESCRIBE_MAX) in *out. 0, or -1 with why. */
+static int run_describe(const char *path, const marie_component_cfg_t *c, size_t nargs, char **out, size_t *len,
+                        char *why, size_t whylen)
 {
+    char **args = c->args;
     int po[2];
     if (pipe2(po, O_CLOEXEC) < 0) {
         snprintf(why, whylen, "pipe: %s", strerror(errno));
@@ -133,16 +136,44 @@ static int run_describe(const char *path, char **args, size_t nargs, char **out,
     for (size_t i = 0; i < nargs; i++)
         argv[na++] = args[i];
     argv[na++] = "--describe";
+    extern char **environ;
+    size_t ne = 0;
+    while (environ[ne])
+        ne++;
+    char **envp = calloc(ne + c->nenv + 1, sizeof *envp);
+    if (!envp) {
+        free(argv);
+        close(po[0]);
+        close(po[1]);
+        snprintf(why, whylen, "out of memory");
+        return -1;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < ne; i++) {
+        bool overridden = false;    /* getenv finds the first entry: drop the ones c->env sets */
+        for (size_t k = 0; k < c->nenv && !overridden; k++) {
+            size_t kl = strcspn(c->env[k], "=");
+            overridden = strncmp(environ[i], c->env[k], kl + 1) == 0;
+        }
+        if (!overridden)
+            envp[n++] = environ[i];
+    }
+    memcpy(envp + n, c->env, c->nenv * sizeof *envp);
     pid_t pid = fork();
     if (pid == 0) {
+        /* marie-am blocks its signals (signalfd): the program must not inherit that */
+        sigset_t none;
+        sigemptyset(&none);
+        sigprocmask(SIG_SETMASK, &none, NULL);
         int nul = open("/dev/null", O_RDWR);
         dup2(nul, 0);
         dup2(po[1], 1);
         dup2(nul, 2);
-        execv(path, argv);
+        execve(path, argv, envp);
         _exit(127);
     }
     free(argv);
+    free(envp);
     close(po[1]);
     if (pid < 0) {
         close(po[0]);
@@ -284,7 +315,7 @@ static int describe(marie_progcheck_t *p, const char *path, const marie_componen
         free(f);
         bool fresh = false;
         if (!text && has_marker(path)) {
-            if (run_describe(path, c->args, kind_args(c), &text, &len, why, whylen) < 0) {
+            if (run_describe(path, c, kind_args(c), &text, &len, why, whylen) < 0) {
                 p->entries = e->next;
                 free(e);
                 return -1;
