@@ -264,7 +264,8 @@ static void put_list(FILE *f, char **v, size_t n, bool sorted)
     char **s = malloc((n ? n : 1) * sizeof *s);
     if (!s)
         return;
-    memcpy(s, v, n * sizeof *s);
+    if (n)
+        memcpy(s, v, n * sizeof *s);
     if (sorted)
         qsort(s, n, sizeof *s, cmp_str);
     for (size_t i = 0; i < n; i++)
@@ -572,12 +573,13 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         goto err;
     }
     int rc = 0;
-    qsort(removed, nremoved, sizeof *removed, cmp_str);
+    if (nremoved)
+        qsort(removed, nremoved, sizeof *removed, cmp_str);
     /* Base components, each replaced whole by the profile's entry of the same name. */
     for (size_t i = 0; comps && i < comps->n; i++) {
         const marie_node_t *n = comps->items[i];
         const char *key = n->key;
-        if (!marie_node_get(pcomps, key) && !bsearch(&key, removed, nremoved, sizeof *removed, cmp_str))
+        if (!marie_node_get(pcomps, key) && !(nremoved && bsearch(&key, removed, nremoved, sizeof *removed, cmp_str)))
             rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
     }
     for (size_t i = 0; pcomps && i < pcomps->n; i++)

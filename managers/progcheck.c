@@ -158,7 +158,8 @@ static int run_describe(const char *path, const marie_component_cfg_t *c, size_t
         if (!overridden)
             envp[n++] = environ[i];
     }
-    memcpy(envp + n, c->env, c->nenv * sizeof *envp);
+    if (c->nenv)
+        memcpy(envp + n, c->env, c->nenv * sizeof *envp);
     pid_t pid = fork();
     if (pid == 0) {
         /* marie-am blocks its signals (signalfd): the program must not inherit that */
