@@ -290,7 +290,21 @@ static void write_cache(const marie_progcheck_t *p, const char *key, const char 
     free(f);
 }
 
-/* The description of c's program (NULL doc: not a marie component). -1 with why on failure. */
+/* A description, or NULL when the text is not one. */
+static marie_doc_t *parse_spec(const char *path, const char *text, size_t len)
+{
+    marie_errors_t ignore = {0};
+    marie_doc_t *d = marie_doc_parse(path, text, len, &ignore);
+    marie_errors_clear(&ignore);
+    if (d && !marie_spec_valid(marie_doc_root(d))) {
+        marie_doc_destroy(d);
+        d = NULL;
+    }
+    return d;
+}
+
+/* The description of c's program (*spec NULL: not a marie component). -1 with why on failure;
+ * failures are not cached, so the next check tries again. */
 static int describe(marie_progcheck_t *p, const char *path, const marie_component_cfg_t *c,
                     const marie_node_t **spec, char *why, size_t whylen)
 {
@@ -306,39 +320,35 @@ static int describe(marie_progcheck_t *p, const char *path, const marie_componen
         if (strcmp(e->key, key) == 0)
             break;
     if (!e) {
-        if (!(e = calloc(1, sizeof *e)))
-            return -1;
-        memcpy(e->key, key, sizeof key);
-        e->next = p->entries;
-        p->entries = e;
         size_t len = 0;
         char *f = cache_file(p, key), *text = f ? read_all(f, &len) : NULL;
+        marie_doc_t *doc = text ? parse_spec(path, text, len) : NULL;
+        if (text && !doc)
+            unlink(f);          /* a damaged cache file is described again */
         free(f);
-        bool fresh = false;
-        if (!text && has_marker(path)) {
-            if (run_describe(path, c, kind_args(c), &text, &len, why, whylen) < 0) {
-                p->entries = e->next;
-                free(e);
+        free(text);
+        text = NULL;
+        if (!doc && has_marker(path)) {
+            if (run_describe(path, c, kind_args(c), &text, &len, why, whylen) < 0)
                 return -1;
-            }
             p->described++;
-            fresh = true;
-        }
-        if (text) {
-            marie_errors_t ignore = {0};
-            e->doc = marie_doc_parse(path, text, len, &ignore);
-            marie_errors_clear(&ignore);
-            if (!e->doc || !marie_spec_valid(marie_doc_root(e->doc))) {
-                snprintf(why, whylen, "its --describe output is not a component description");
-                marie_doc_destroy(e->doc);
-                e->doc = NULL;
+            if (!(doc = parse_spec(path, text, len))) {
+                snprintf(why, whylen, "its output is not a component description");
                 free(text);
                 return -1;
             }
-            if (fresh)
-                write_cache(p, key, text, len);
+            write_cache(p, key, text, len);
             free(text);
         }
+        if (!(e = calloc(1, sizeof *e))) {
+            marie_doc_destroy(doc);
+            snprintf(why, whylen, "out of memory");
+            return -1;
+        }
+        memcpy(e->key, key, sizeof key);
+        e->doc = doc;
+        e->next = p->entries;
+        p->entries = e;
     }
     *spec = e->doc ? marie_doc_root(e->doc) : NULL;
     return 0;

@@ -84,6 +84,12 @@ redescribed() {
     [ "$(describes)" = $((n + 1)) ]
 }
 check "a newer binary is described again" redescribed
+damaged_cache() {
+    for f in "$T"/cache/marie/describe/*.json; do echo '{"describe": "garbage"' > "$f"; done
+    n=$(describes); "$M" up --no-wait "$T/bad.yaml" > "$T/up2.out" 2>&1
+    [ "$(describes)" -gt "$n" ] && all_reported "$T/up2.out"
+}
+check "a damaged cache entry is described again" damaged_cache
 
 cat > "$T/backoff.yaml" <<EOF
 components:
