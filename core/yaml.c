@@ -109,19 +109,20 @@ static size_t index_slot(const marie_node_t *m, const char *key)
     return i;
 }
 
+/* A table at least twice the map's length, holding every item (keys are unique). */
 static int index_grow(marie_node_t *m)
 {
-    size_t cap = m->index_cap ? m->index_cap * 2 : 32;
-    size_t *old = m->index, old_cap = m->index_cap;
-    if (!(m->index = calloc(cap, sizeof *m->index))) {
-        m->index = old;
+    size_t cap = m->index_cap ? m->index_cap : 16;
+    while (cap < 2 * m->n)
+        cap *= 2;
+    size_t *index = calloc(cap, sizeof *index);
+    if (!index)
         return -ENOMEM;
-    }
+    free(m->index);
+    m->index = index;
     m->index_cap = cap;
-    for (size_t i = 0; i < old_cap; i++)
-        if (old[i])
-            m->index[index_slot(m, m->items[old[i] - 1]->key)] = old[i];
-    free(old);
+    for (size_t i = 0; i < m->n; i++)
+        m->index[index_slot(m, m->items[i]->key)] = i + 1;
     return 0;
 }
 
@@ -150,10 +151,9 @@ static int node_append(marie_node_t *parent, marie_node_t *child)
     parent->items[parent->n++] = child;
     if (parent->kind != MARIE_NODE_MAP || parent->n < INDEX_MIN)
         return 0;
-    if (2 * parent->n > parent->index_cap && index_grow(parent) < 0)
-        return -ENOMEM;     /* index_grow also indexes every item (the new one included) */
-    if (parent->index_cap && !parent->index[index_slot(parent, child->key)])
-        parent->index[index_slot(parent, child->key)] = parent->n;
+    if (2 * parent->n > parent->index_cap)
+        return index_grow(parent);     /* indexes every item, the new one included */
+    parent->index[index_slot(parent, child->key)] = parent->n;
     return 0;
 }
 

@@ -172,6 +172,51 @@ static void command_line_params_override_the_file(void **state)
     marie_errors_clear(&e);
 }
 
+static void every_key_of_a_long_map_is_found(void **state)
+{
+    /* Long maps are looked up through an index: every key, at every length, must be found,
+     * and a duplicate of any earlier key refused. */
+    for (int n = 1; n <= 70; n++) {
+        char text[4096] = "";
+        for (int i = 0; i < n; i++)
+            snprintf(text + strlen(text), sizeof text - strlen(text), "k%d: %d\n", i, i);
+        marie_errors_t e = {0};
+        marie_doc_t *d = marie_doc_parse("long.yaml", text, strlen(text), &e);
+        assert_non_null(d);
+        for (int i = 0; i < n; i++) {
+            char key[16];
+            snprintf(key, sizeof key, "k%d", i);
+            const marie_node_t *v = marie_node_get(marie_doc_root(d), key);
+            assert_non_null(v);
+            assert_int_equal(atoi(v->value), i);
+        }
+        assert_null(marie_node_get(marie_doc_root(d), "nosuch"));
+        marie_doc_destroy(d);
+        for (int i = 0; i < n; i += 7) {
+            char dup[4096];
+            snprintf(dup, sizeof dup, "%sk%d: again\n", text, i);
+            assert_null(marie_doc_parse("dup.yaml", dup, strlen(dup), &e));
+            char want[64];
+            snprintf(want, sizeof want, "duplicate key 'k%d' (first at line %d)", i, i + 1);
+            assert_true(has_error(&e, want));
+            marie_errors_clear(&e);
+        }
+    }
+}
+
+static void a_profile_entry_with_many_params_keeps_them(void **state)
+{
+    marie_errors_t e = {0};
+    marie_system_t *sys = marie_system_load("config/spartacus.yaml", "sim", &e);
+    assert_non_null(sys);
+    const marie_component_cfg_t *sim = marie_system_component(sys, "sim");
+    assert_non_null(sim);
+    assert_string_equal(marie_node_get(sim->params, "speed")->value, "4");
+    assert_string_equal(marie_node_get(sim->params, "world")->value, "office");
+    assert_string_equal(marie_node_get(sim->params, "can")->value, "emu:/tmp/marie-demo-can");
+    marie_system_destroy(sys);
+}
+
 static void duplicate_keys_and_aliases_are_refused(void **state)
 {
     marie_errors_t e = {0};
@@ -412,6 +457,8 @@ int main(void)
         cmocka_unit_test(unbound_port_is_an_error),
         cmocka_unit_test(command_line_params_override_the_file),
         cmocka_unit_test(duplicate_keys_and_aliases_are_refused),
+        cmocka_unit_test(every_key_of_a_long_map_is_found),
+        cmocka_unit_test(a_profile_entry_with_many_params_keeps_them),
         cmocka_unit_test(every_setting_enters_the_hash),
         cmocka_unit_test(the_loader_refuses_cycles_and_bad_backoff),
         cmocka_unit_test(non_finite_numbers_are_refused),
