@@ -151,8 +151,15 @@ static int node_append(marie_node_t *parent, marie_node_t *child)
     parent->items[parent->n++] = child;
     if (parent->kind != MARIE_NODE_MAP || parent->n < INDEX_MIN)
         return 0;
-    if (2 * parent->n > parent->index_cap)
-        return index_grow(parent);     /* indexes every item, the new one included */
+    if (2 * parent->n > parent->index_cap) {
+        /* indexes every item, the new one included; without memory, lookups stay linear */
+        if (index_grow(parent) < 0) {
+            free(parent->index);
+            parent->index = NULL;
+            parent->index_cap = 0;
+        }
+        return 0;
+    }
     parent->index[index_slot(parent, child->key)] = parent->n;
     return 0;
 }
