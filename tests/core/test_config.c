@@ -193,7 +193,7 @@ static void every_key_of_a_long_map_is_found(void **state)
         assert_null(marie_node_get(marie_doc_root(d), "nosuch"));
         marie_doc_destroy(d);
         for (int i = 0; i < n; i += 7) {
-            char dup[4096];
+            char dup[4200];
             snprintf(dup, sizeof dup, "%sk%d: again\n", text, i);
             assert_null(marie_doc_parse("dup.yaml", dup, strlen(dup), &e));
             char want[64];
