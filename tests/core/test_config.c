@@ -374,7 +374,7 @@ static void non_finite_numbers_are_refused(void **state)
 
 static void an_oversized_file_gets_a_position(void **state)
 {
-    /* 17 MB of 100-byte lines: the 16 MB limit falls on line 167773, column 73. */
+    /* 17 MB of 100-byte lines: the 16 MB limit falls on line 167773, column 17. */
     size_t len = 17u << 20;
     char *text = malloc(len);
     for (size_t i = 0; i < len; i++)
