@@ -13,6 +13,7 @@
 #include "core/auth.h"
 #include "core/expand.h"
 #include "core/typeinfo.h"
+#include "core/spec.h"
 #include "lcmtypes/marie_types.h"
 
 #define EVENT_QUEUE_MAX 256
@@ -854,7 +855,7 @@ typedef struct {
 static void usage(const marie_component_def_t *def, FILE *out)
 {
     fprintf(out, "usage: %s [--system FILE] [--name NAME] [--profile P] [--url URL] [--clock wall|sim]\n"
-                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold]\n", def->kind);
+                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold] [--describe]\n", def->kind);
     fprintf(out, "ports:\n");
     for (const marie_port_spec_t *p = def->ports; p && p->name; p++)
         fprintf(out, "  %-16s %-4s %-6s %-28s default channel %s\n", p->name, p->dir == MARIE_IN ? "in" : "out",
@@ -872,7 +873,7 @@ static int parse_options(const marie_component_def_t *def, int argc, char **argv
         {"profile", required_argument, 0, 'p'}, {"url", required_argument, 0, 'u'},
         {"clock", required_argument, 0, 'c'}, {"param", required_argument, 0, 'P'},
         {"port", required_argument, 0, 'o'}, {"hold", no_argument, 0, 'H'},
-        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0},
+        {"help", no_argument, 0, 'h'}, {"describe", no_argument, 0, 'D'}, {0, 0, 0, 0},
     };
     memset(o, 0, sizeof *o);
     o->system = getenv("MARIE_SYSTEM");
@@ -896,6 +897,7 @@ static int parse_options(const marie_component_def_t *def, int argc, char **argv
         case 'o': o->ports[o->nports++] = optarg; break;
         case 'H': o->hold = true; break;
         case 'h': usage(def, stdout); exit(0);
+        case 'D': marie_spec_describe(def, stdout); exit(0);   /* for the managers' checks */
         default:
             marie_errors_add(errs, "command line", 0, optind > 1 ? optind - 1 : 0, "unknown option '%s'",
                              argv[optind - 1]);

@@ -1,553 +1,11 @@
-/* config: YAML (libfyaml events) into a node tree with positions; the system file model on top. */
+/* config: the system file model (components, profiles, restart policies, hashes) over the YAML tree. */
 #include "core/config.h"
 
 #include <errno.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-#include <libfyaml.h>
 #include <sodium.h>
-
-#include "core/log.h"
-
-/* ---- errors ---- */
-
-void marie_errors_add(marie_errors_t *e, const char *file, int line, int col, const char *fmt, ...)
-{
-    if (!e)
-        return;
-    char msg[768], full[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    if (line > 0)
-        snprintf(full, sizeof full, "%s:%d:%d: %s", file ? file : "<config>", line, col, msg);
-    else
-        snprintf(full, sizeof full, "%s: %s", file ? file : "<config>", msg);
-    char **n = realloc(e->msgs, (e->n + 1) * sizeof *n);
-    char *copy = strdup(full);
-    if (!n || !copy) {
-        free(copy);
-        if (n)
-            e->msgs = n;
-        return;
-    }
-    e->msgs = n;
-    e->msgs[e->n++] = copy;
-}
-
-void marie_errors_print(const marie_errors_t *e, FILE *out)
-{
-    for (size_t i = 0; e && i < e->n; i++)
-        fprintf(out, "%s\n", e->msgs[i]);
-}
-
-void marie_errors_clear(marie_errors_t *e)
-{
-    if (!e)
-        return;
-    for (size_t i = 0; i < e->n; i++)
-        free(e->msgs[i]);
-    free(e->msgs);
-    e->msgs = NULL;
-    e->n = 0;
-}
-
-static void node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static void node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...)
-{
-    char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    marie_errors_add(e, n->file, n->line, n->col, "%s", msg);
-}
-
-/* ---- YAML tree ---- */
-
-struct marie_doc {
-    char *file;
-    marie_node_t *root;
-};
-
-#define MAX_DEPTH 64
-
-static void node_free(marie_node_t *n)
-{
-    if (!n)
-        return;
-    for (size_t i = 0; i < n->n; i++)
-        node_free(n->items[i]);
-    free(n->items);
-    free(n->key);
-    free(n->value);
-    free(n);
-}
-
-static int node_append(marie_node_t *parent, marie_node_t *child)
-{
-    marie_node_t **items = realloc(parent->items, (parent->n + 1) * sizeof *items);
-    if (!items)
-        return -ENOMEM;
-    parent->items = items;
-    parent->items[parent->n++] = child;
-    return 0;
-}
-
-typedef struct {
-    struct fy_parser *fyp;
-    const char *file;
-    marie_errors_t *errs;
-    size_t errs_before;
-    char diag[1024];            /* libfyaml's first error message */
-    size_t diag_len;
-} builder_t;
-
-static void mark_of(struct fy_event *ev, int *line, int *col)
-{
-    const struct fy_mark *m = fy_event_start_mark(ev);
-    *line = m ? m->line + 1 : 0;
-    *col = m ? m->column + 1 : 0;
-}
-
-/* Builds the node starting with event `ev` (owned by the caller); NULL on error. */
-static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
-{
-    marie_node_t *n = calloc(1, sizeof *n);
-    if (!n)
-        return NULL;
-    n->file = b->file;
-    mark_of(ev, &n->line, &n->col);
-    if (depth > MAX_DEPTH) {
-        node_error(b->errs, n, "nesting deeper than %d levels", MAX_DEPTH);
-        goto err;
-    }
-    switch (ev->type) {
-    case FYET_SCALAR: {
-        size_t len;
-        const char *text = fy_token_get_text(ev->scalar.value, &len);
-        n->kind = MARIE_NODE_SCALAR;
-        n->value = strndup(text ? text : "", text ? len : 0);
-        enum fy_scalar_style st = fy_token_scalar_style(ev->scalar.value);
-        n->quoted = st == FYSS_SINGLE_QUOTED || st == FYSS_DOUBLE_QUOTED;
-        if (!n->value)
-            goto err;
-        return n;
-    }
-    case FYET_ALIAS:
-        node_error(b->errs, n, "YAML aliases are not supported in marie files");
-        goto err;
-    case FYET_SEQUENCE_START:
-    case FYET_MAPPING_START: {
-        int is_map = ev->type == FYET_MAPPING_START;
-        enum fy_event_type end = is_map ? FYET_MAPPING_END : FYET_SEQUENCE_END;
-        n->kind = is_map ? MARIE_NODE_MAP : MARIE_NODE_SEQ;
-        for (;;) {
-            struct fy_event *kev = fy_parser_parse(b->fyp);
-            if (!kev)
-                goto err;
-            if (kev->type == end) {
-                fy_parser_event_free(b->fyp, kev);
-                return n;
-            }
-            char *key = NULL;
-            int kline = 0, kcol = 0;
-            struct fy_event *vev = kev;
-            if (is_map) {
-                mark_of(kev, &kline, &kcol);
-                if (kev->type != FYET_SCALAR) {
-                    marie_errors_add(b->errs, b->file, kline, kcol, "mapping keys must be plain scalars");
-                    fy_parser_event_free(b->fyp, kev);
-                    goto err;
-                }
-                size_t len;
-                const char *text = fy_token_get_text(kev->scalar.value, &len);
-                key = strndup(text ? text : "", text ? len : 0);
-                fy_parser_event_free(b->fyp, kev);
-                for (size_t i = 0; key && i < n->n; i++) {
-                    if (strcmp(n->items[i]->key, key) == 0) {
-                        marie_errors_add(b->errs, b->file, kline, kcol, "duplicate key '%s' (first at line %d)",
-                                         key, n->items[i]->key_line);
-                        free(key);
-                        goto err;
-                    }
-                }
-                vev = fy_parser_parse(b->fyp);
-                if (!vev || !key) {
-                    free(key);
-                    if (vev)
-                        fy_parser_event_free(b->fyp, vev);
-                    goto err;
-                }
-            }
-            marie_node_t *child = build_node(b, vev, depth + 1);
-            fy_parser_event_free(b->fyp, vev);
-            if (!child) {
-                free(key);
-                goto err;
-            }
-            child->key = key;
-            child->key_line = kline;
-            child->key_col = kcol;
-            if (node_append(n, child) < 0) {
-                node_free(child);
-                goto err;
-            }
-        }
-    }
-    default:
-        node_error(b->errs, n, "unexpected YAML event %d", (int)ev->type);
-        goto err;
-    }
-err:
-    node_free(n);
-    return NULL;
-}
-
-/* libfyaml prints "file:line:col: error: text" and then the source line; keep the text. */
-static void on_diag_output(struct fy_diag *diag, void *user, const char *buf, size_t len)
-{
-    builder_t *b = user;
-    size_t room = sizeof b->diag - 1 - b->diag_len;
-    if (len > room)
-        len = room;
-    memcpy(b->diag + b->diag_len, buf, len);
-    b->diag_len += len;
-    b->diag[b->diag_len] = 0;
-}
-
-static void report_diag(builder_t *b)
-{
-    if (b->errs && b->errs->n > b->errs_before)
-        return;  /* already reported by the tree builder */
-    int line = 1, col = 1;
-    const char *text = "cannot parse";
-    char *at = strstr(b->diag, ": error: ");
-    if (at) {
-        /* Walk back over ":line:col" just before ": error: ". */
-        char *colon2 = NULL, *colon1 = NULL;
-        for (char *q = at - 1; q > b->diag; q--) {
-            if (*q == ':') {
-                if (!colon2)
-                    colon2 = q;
-                else {
-                    colon1 = q;
-                    break;
-                }
-            }
-        }
-        if (colon1 && colon2) {
-            line = atoi(colon1 + 1);
-            col = atoi(colon2 + 1);
-        }
-        text = at + strlen(": error: ");
-        char *nl = strchr(text, '\n');
-        if (nl)
-            *nl = 0;
-    }
-    marie_errors_add(b->errs, b->file, line, col, "YAML: %s", text);
-}
-
-/* libfyaml 0.7.12 can spin forever on a directive line holding a NUL byte, so text that
- * is not plain YAML for marie (NUL bytes, directives) is refused before it gets there. */
-static int prescan(const char *name, const char *text, size_t len, marie_errors_t *errs)
-{
-    int line = 1, col = 1;
-    for (size_t i = 0; i < len; i++, col++) {
-        if (text[i] == 0) {
-            marie_errors_add(errs, name, line, col, "NUL byte: this is not a text file");
-            return -1;
-        }
-        if (text[i] == '%' && col == 1) {
-            marie_errors_add(errs, name, line, col, "YAML directives are not supported in marie files");
-            return -1;
-        }
-        if (text[i] == '\n') {
-            line++;
-            col = 0;
-        }
-    }
-    return 0;
-}
-
-static marie_doc_t *doc_build(const char *name, const char *text, size_t len, marie_errors_t *errs)
-{
-    if (prescan(name, text, len, errs) < 0)
-        return NULL;
-    marie_doc_t *doc = calloc(1, sizeof *doc);
-    if (!doc)
-        return NULL;
-    doc->file = strdup(name);
-    builder_t b = {.file = doc->file, .errs = errs, .errs_before = errs ? errs->n : 0};
-    struct fy_diag_cfg dcfg;
-    fy_diag_cfg_default(&dcfg);
-    dcfg.fp = NULL;
-    dcfg.output_fn = on_diag_output;
-    dcfg.user = &b;
-    dcfg.colorize = false;
-    struct fy_diag *diag = fy_diag_create(&dcfg);
-    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET, .diag = diag};
-    struct fy_parser *fyp = diag ? fy_parser_create(&cfg) : NULL;
-    b.fyp = fyp;
-    if (!fyp || !doc->file || fy_parser_set_string(fyp, text, len) != 0)
-        goto err;
-    struct fy_event *ev;
-    size_t ndocs = 0;
-    while ((ev = fy_parser_parse(fyp)) != NULL) {
-        enum fy_event_type t = ev->type;
-        if (t == FYET_SEQUENCE_START || t == FYET_MAPPING_START || t == FYET_SCALAR || t == FYET_ALIAS) {
-            marie_node_t *root = build_node(&b, ev, 0);
-            fy_parser_event_free(fyp, ev);
-            if (!root)
-                goto fail;
-            if (ndocs++ > 0) {
-                marie_errors_add(errs, name, root->line, root->col, "only one YAML document is allowed");
-                node_free(root);
-                goto err;
-            }
-            doc->root = root;
-            continue;
-        }
-        fy_parser_event_free(fyp, ev);
-    }
-    if (fy_parser_get_stream_error(fyp))
-        goto fail;
-    if (!doc->root) {
-        marie_errors_add(errs, name, 1, 1, "the file is empty");
-        goto err;
-    }
-    fy_parser_destroy(fyp);
-    fy_diag_destroy(diag);
-    return doc;
-fail:
-    report_diag(&b);
-err:
-    if (fyp)
-        fy_parser_destroy(fyp);
-    if (diag)
-        fy_diag_destroy(diag);
-    marie_doc_destroy(doc);
-    return NULL;
-}
-
-#define MAX_FILE_SIZE (16 << 20)
-
-marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        marie_errors_add(errs, path, 0, 0, "cannot open: %s", strerror(errno));
-        return NULL;
-    }
-    char *text = malloc(MAX_FILE_SIZE + 1);
-    size_t len = text ? fread(text, 1, MAX_FILE_SIZE + 1, f) : 0;
-    int failed = !text || ferror(f);
-    fclose(f);
-    marie_doc_t *doc = NULL;
-    if (failed)
-        marie_errors_add(errs, path, 0, 0, "cannot read: %s", strerror(errno ? errno : EIO));
-    else if (len > MAX_FILE_SIZE)
-        marie_errors_add(errs, path, 0, 0, "larger than %d MB", MAX_FILE_SIZE >> 20);
-    else
-        doc = doc_build(path, text, len, errs);
-    free(text);
-    return doc;
-}
-
-marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs)
-{
-    return doc_build(name, text, len, errs);
-}
-
-void marie_doc_destroy(marie_doc_t *doc)
-{
-    if (!doc)
-        return;
-    node_free(doc->root);
-    free(doc->file);
-    free(doc);
-}
-
-const marie_node_t *marie_doc_root(const marie_doc_t *doc) { return doc ? doc->root : NULL; }
-
-const marie_node_t *marie_node_get(const marie_node_t *map, const char *key)
-{
-    if (!map || map->kind != MARIE_NODE_MAP)
-        return NULL;
-    for (size_t i = 0; i < map->n; i++)
-        if (strcmp(map->items[i]->key, key) == 0)
-            return map->items[i];
-    return NULL;
-}
-
-static const char *node_label(const marie_node_t *n)
-{
-    return n->key ? n->key : "value";
-}
-
-static int expect_scalar(const marie_node_t *n, const char *what, marie_errors_t *errs)
-{
-    if (n->kind == MARIE_NODE_SCALAR)
-        return 0;
-    node_error(errs, n, "%s: expected %s, got a %s", node_label(n), what,
-               n->kind == MARIE_NODE_MAP ? "mapping" : "sequence");
-    return -1;
-}
-
-int marie_node_int(const marie_node_t *n, int64_t *out, marie_errors_t *errs)
-{
-    if (expect_scalar(n, "an integer", errs) < 0)
-        return -1;
-    char *end;
-    errno = 0;
-    long long v = strtoll(n->value, &end, 0);
-    if (n->quoted || !n->value[0] || *end || errno) {
-        node_error(errs, n, "%s: expected an integer, got '%s'", node_label(n), n->value);
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
-int marie_node_double(const marie_node_t *n, double *out, marie_errors_t *errs)
-{
-    if (expect_scalar(n, "a number", errs) < 0)
-        return -1;
-    char *end;
-    errno = 0;
-    double v = strtod(n->value, &end);
-    if (n->quoted || !n->value[0] || *end || errno) {
-        node_error(errs, n, "%s: expected a number, got '%s'", node_label(n), n->value);
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
-int marie_node_bool(const marie_node_t *n, bool *out, marie_errors_t *errs)
-{
-    if (expect_scalar(n, "true or false", errs) < 0)
-        return -1;
-    static const char *const yes[] = {"true", "yes", "on"}, *const no[] = {"false", "no", "off"};
-    for (int i = 0; !n->quoted && i < 3; i++) {
-        if (strcasecmp(n->value, yes[i]) == 0) { *out = true; return 0; }
-        if (strcasecmp(n->value, no[i]) == 0) { *out = false; return 0; }
-    }
-    node_error(errs, n, "%s: expected true or false, got '%s'", node_label(n), n->value);
-    return -1;
-}
-
-int marie_node_str(const marie_node_t *n, const char **out, marie_errors_t *errs)
-{
-    if (expect_scalar(n, "a string", errs) < 0)
-        return -1;
-    *out = n->value;
-    return 0;
-}
-
-int marie_node_check_keys(const marie_node_t *map, const char *const *allowed, const char *what,
-                          marie_errors_t *errs)
-{
-    if (map->kind != MARIE_NODE_MAP) {
-        node_error(errs, map, "%s: expected a mapping", what);
-        return -1;
-    }
-    int rc = 0;
-    for (size_t i = 0; i < map->n; i++) {
-        const marie_node_t *c = map->items[i];
-        int ok = 0;
-        for (const char *const *a = allowed; *a && !ok; a++)
-            ok = strcmp(*a, c->key) == 0;
-        if (!ok) {
-            char list[512] = "";
-            for (const char *const *a = allowed; *a; a++)
-                snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", a == allowed ? "" : ", ", *a);
-            marie_errors_add(errs, c->file, c->key_line, c->key_col, "unknown key '%s' in %s (known: %s)",
-                             c->key, what, list);
-            rc = -1;
-        }
-    }
-    return rc;
-}
-
-/* ---- canonical text (sorted keys) for hashing ---- */
-
-typedef struct { char *buf; size_t len, cap; int oom; } sbuf_t;
-
-static void sb_put(sbuf_t *s, const char *text, size_t n)
-{
-    if (s->oom)
-        return;
-    if (s->len + n + 1 > s->cap) {
-        size_t cap = (s->cap ? s->cap : 256);
-        while (cap < s->len + n + 1)
-            cap *= 2;
-        char *nb = realloc(s->buf, cap);
-        if (!nb) { s->oom = 1; return; }
-        s->buf = nb;
-        s->cap = cap;
-    }
-    memcpy(s->buf + s->len, text, n);
-    s->len += n;
-    s->buf[s->len] = 0;
-}
-
-static void sb_str(sbuf_t *s, const char *text)
-{
-    char len[24];
-    snprintf(len, sizeof len, "%zu:", strlen(text));
-    sb_put(s, len, strlen(len));
-    sb_put(s, text, strlen(text));
-}
-
-static int cmp_key(const void *a, const void *b)
-{
-    return strcmp((*(marie_node_t *const *)a)->key, (*(marie_node_t *const *)b)->key);
-}
-
-static void canonical(sbuf_t *s, const marie_node_t *n)
-{
-    if (!n) {
-        sb_put(s, "~", 1);
-        return;
-    }
-    if (n->kind == MARIE_NODE_SCALAR) {
-        sb_str(s, n->value);
-        return;
-    }
-    marie_node_t **items = malloc((n->n ? n->n : 1) * sizeof *items);
-    if (!items) { s->oom = 1; return; }
-    memcpy(items, n->items, n->n * sizeof *items);
-    if (n->kind == MARIE_NODE_MAP)
-        qsort(items, n->n, sizeof *items, cmp_key);
-    sb_put(s, n->kind == MARIE_NODE_MAP ? "{" : "[", 1);
-    for (size_t i = 0; i < n->n; i++) {
-        if (n->kind == MARIE_NODE_MAP) {
-            sb_str(s, items[i]->key);
-            sb_put(s, "=", 1);
-        }
-        canonical(s, items[i]);
-        sb_put(s, ",", 1);
-    }
-    sb_put(s, n->kind == MARIE_NODE_MAP ? "}" : "]", 1);
-    free(items);
-}
-
-char *marie_node_canonical(const marie_node_t *n)
-{
-    sbuf_t s = {0};
-    canonical(&s, n);
-    if (s.oom) {
-        free(s.buf);
-        return NULL;
-    }
-    return s.buf ? s.buf : strdup("");
-}
 
 /* ---- system file ---- */
 
@@ -590,6 +48,7 @@ void marie_system_destroy(marie_system_t *sys)
     for (size_t i = 0; i < sys->ncomponents; i++)
         component_cfg_free(&sys->components[i]);
     free(sys->components);
+    free(sys->by_name);
     free_strv(sys->hosts, sys->nhosts);
     free(sys->file);
     free(sys->name);
@@ -600,12 +59,18 @@ void marie_system_destroy(marie_system_t *sys)
     free(sys);
 }
 
+static int cmp_cfg_name(const void *a, const void *b)
+{
+    return strcmp((*(marie_component_cfg_t *const *)a)->name, (*(marie_component_cfg_t *const *)b)->name);
+}
+
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name)
 {
-    for (size_t i = 0; sys && name && i < sys->ncomponents; i++)
-        if (strcmp(sys->components[i].name, name) == 0)
-            return &sys->components[i];
-    return NULL;
+    if (!sys || !name || !sys->by_name)
+        return NULL;
+    marie_component_cfg_t key = {.name = (char *)name}, *kp = &key;
+    marie_component_cfg_t **hit = bsearch(&kp, sys->by_name, sys->ncomponents, sizeof *sys->by_name, cmp_cfg_name);
+    return hit ? *hit : NULL;
 }
 
 /* A sequence of scalars (or one scalar) as a string vector. */
@@ -623,7 +88,7 @@ static int read_strv(const marie_node_t *n, char ***out, size_t *count, marie_er
         return 0;
     }
     if (n->kind != MARIE_NODE_SEQ) {
-        node_error(errs, n, "%s: expected a list", node_label(n));
+        marie_node_error(errs, n, "%s: expected a list", n->key ? n->key : "value");
         return -1;
     }
     *out = calloc(n->n ? n->n : 1, sizeof **out);
@@ -649,7 +114,7 @@ static int read_seconds(const marie_node_t *map, const char *key, double *out, m
     if (marie_node_double(n, out, errs) < 0)
         return -1;
     if (*out < 0) {
-        node_error(errs, n, "%s: must not be negative", key);
+        marie_node_error(errs, n, "%s: must not be negative", key);
         return -1;
     }
     return 0;
@@ -675,7 +140,7 @@ static int read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_err
         if (mf) {
             if (marie_node_int(mf, &v, errs) < 0 || v < 0) {
                 if (v < 0)
-                    node_error(errs, mf, "max_failures: must not be negative");
+                    marie_node_error(errs, mf, "max_failures: must not be negative");
                 rc = -1;
             } else {
                 r->max_failures = (int)v;
@@ -695,7 +160,7 @@ static int read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_err
     else if (strcmp(policy, "never") == 0)
         r->policy = MARIE_RESTART_NEVER;
     else {
-        node_error(errs, pn, "restart policy: expected always, on-failure or never, got '%s'", policy);
+        marie_node_error(errs, pn, "restart policy: expected always, on-failure or never, got '%s'", policy);
         return -1;
     }
     return 0;
@@ -706,7 +171,7 @@ static int read_ports(const marie_node_t *n, marie_component_cfg_t *c, marie_err
     if (!n)
         return 0;
     if (n->kind != MARIE_NODE_MAP) {
-        node_error(errs, n, "ports: expected a mapping of port: channel");
+        marie_node_error(errs, n, "ports: expected a mapping of port: channel");
         return -1;
     }
     c->ports = calloc(n->n ? n->n : 1, sizeof *c->ports);
@@ -724,7 +189,7 @@ static int read_ports(const marie_node_t *n, marie_component_cfg_t *c, marie_err
             }
             const marie_node_t *ch = marie_node_get(p, "channel"), *u = marie_node_get(p, "url");
             if (!ch) {
-                node_error(errs, p, "port '%s': missing 'channel'", p->key);
+                marie_node_error(errs, p, "port '%s': missing 'channel'", p->key);
                 rc = -1;
                 continue;
             }
@@ -737,7 +202,7 @@ static int read_ports(const marie_node_t *n, marie_component_cfg_t *c, marie_err
             continue;
         }
         if (!channel[0]) {
-            node_error(errs, p, "port '%s': empty channel name", p->key);
+            marie_node_error(errs, p, "port '%s': empty channel name", p->key);
             rc = -1;
             continue;
         }
@@ -756,7 +221,7 @@ static int read_env(const marie_node_t *n, marie_component_cfg_t *c, marie_error
     if (!n)
         return 0;
     if (n->kind != MARIE_NODE_MAP) {
-        node_error(errs, n, "env: expected a mapping of NAME: value");
+        marie_node_error(errs, n, "env: expected a mapping of NAME: value");
         return -1;
     }
     c->env = calloc(n->n ? n->n : 1, sizeof *c->env);
@@ -782,20 +247,127 @@ static const char *const component_keys[] = {
     "stop_timeout", "heartbeat_timeout", "depends", NULL,
 };
 
-static void hash_component(marie_component_cfg_t *c, const marie_node_t *n, const char *url)
+/* ---- effective configuration and its hash ---- */
+
+enum { F_EXEC, F_ARGS, F_ENV, F_SHELL, F_HOST, F_GROUP, F_PORTS, F_PARAMS, F_RESTART, F_STOP_TIMEOUT,
+       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_CLOCK, F_LCM_URL, F_AUTH, NFIELDS };
+static const char *const field_names[NFIELDS] = {
+    "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart", "stop_timeout",
+    "heartbeat_timeout", "depends", "clock", "lcm_url", "auth",
+};
+
+static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* A list as length-prefixed items, optionally sorted (order that does not matter). */
+static void put_list(FILE *f, char **v, size_t n, bool sorted)
 {
-    /* The effective configuration: the component's node plus the bus it runs on. */
-    char *text = marie_node_canonical(n);
+    char **s = malloc((n ? n : 1) * sizeof *s);
+    if (!s)
+        return;
+    if (n)
+        memcpy(s, v, n * sizeof *s);
+    if (sorted)
+        qsort(s, n, sizeof *s, cmp_str);
+    for (size_t i = 0; i < n; i++)
+        fprintf(f, "%zu:%s,", strlen(s[i]), s[i]);
+    free(s);
+}
+
+/* Every setting that changes how the component runs, inherited ones (defaults, the system's
+ * clock, bus and key) resolved, one canonical text per field: field i is the NUL-terminated
+ * text at buf + off[i]. Returns the buffer (caller frees), NULL when out of memory. One
+ * stream per component: opening one per field cost more than the rest of the loading. */
+static char *effective_fields(const marie_system_t *sys, const marie_component_cfg_t *c, size_t off[NFIELDS])
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return NULL;
+    const marie_restart_cfg_t *r = &c->restart;
+    for (int i = 0; i < NFIELDS; i++) {
+        fflush(f);
+        off[i] = len;
+        switch (i) {
+        case F_EXEC: fprintf(f, "%s", c->exec ? c->exec : ""); break;
+        case F_ARGS: put_list(f, c->args, c->nargs, false); break;
+        case F_ENV: put_list(f, c->env, c->nenv, true); break;
+        case F_SHELL: fprintf(f, "%d", c->shell); break;
+        case F_HOST: fprintf(f, "%s", c->host ? c->host : sys->nhosts ? sys->hosts[0] : ""); break;
+        case F_GROUP: fprintf(f, "%s", c->group ? c->group : ""); break;
+        case F_PORTS: {
+            char **v = calloc(c->nports ? c->nports : 1, sizeof *v);
+            size_t n = 0;
+            for (size_t k = 0; v && k < c->nports; k++)
+                if (asprintf(&v[n], "%s=%s@%s", c->ports[k].name, c->ports[k].channel,
+                             c->ports[k].url ? c->ports[k].url : "") >= 0)
+                    n++;
+            if (v)
+                put_list(f, v, n, true);
+            free_strv(v, n);
+            break;
+        }
+        case F_PARAMS: {
+            char *p = c->params ? marie_node_canonical(c->params) : NULL;
+            fprintf(f, "%s", p ? p : "~");
+            free(p);
+            break;
+        }
+        case F_RESTART:
+            fprintf(f, "%d,%.17g,%.17g,%.17g,%d,%.17g", (int)r->policy, r->backoff_min_s, r->backoff_max_s,
+                    r->stable_s, r->max_failures, r->window_s);
+            break;
+        case F_STOP_TIMEOUT: fprintf(f, "%.17g", c->stop_timeout_s); break;
+        case F_HEARTBEAT_TIMEOUT: fprintf(f, "%.17g", c->heartbeat_timeout_s); break;
+        case F_DEPENDS: put_list(f, c->depends, c->ndepends, true); break;
+        case F_CLOCK: fprintf(f, "%s", sys->clock == MARIE_CLOCK_SIM ? "sim" : "wall"); break;
+        case F_LCM_URL: fprintf(f, "%s", sys->lcm_url ? sys->lcm_url : ""); break;
+        case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
+        }
+        fputc(0, f);
+    }
+    if (fclose(f) != 0) {
+        free(buf);
+        return NULL;
+    }
+    return buf;
+}
+
+static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
+{
+    size_t off[NFIELDS];
+    char *buf = effective_fields(sys, c, off);
     unsigned char h[crypto_hash_sha256_BYTES];
     crypto_hash_sha256_state st;
     crypto_hash_sha256_init(&st);
-    crypto_hash_sha256_update(&st, (const unsigned char *)url, strlen(url));
-    if (text)
-        crypto_hash_sha256_update(&st, (const unsigned char *)text, strlen(text));
+    for (int i = 0; i < NFIELDS; i++) {
+        char head[64];
+        const char *t = buf ? buf + off[i] : "";
+        int n = snprintf(head, sizeof head, "%s:%zu:", field_names[i], strlen(t));
+        crypto_hash_sha256_update(&st, (const unsigned char *)head, (unsigned long long)n);
+        crypto_hash_sha256_update(&st, (const unsigned char *)t, strlen(t));
+    }
     crypto_hash_sha256_final(&st, h);
-    free(text);
+    free(buf);
     for (size_t i = 0; i < sizeof h; i++)
         snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
+}
+
+char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
+                                  const marie_system_t *sb, const marie_component_cfg_t *b)
+{
+    size_t oa[NFIELDS], ob[NFIELDS];
+    char *ta = effective_fields(sa, a, oa), *tb = effective_fields(sb, b, ob), *out = calloc(1, 512);
+    for (int i = 0; ta && tb && out && i < NFIELDS; i++)
+        if (strcmp(ta + oa[i], tb + ob[i]) != 0)
+            snprintf(out + strlen(out), 512 - strlen(out), "%s%s", out[0] ? "," : "", field_names[i]);
+    if (!ta || !tb) {
+        free(out);
+        out = NULL;
+    }
+    free(ta);
+    free(tb);
+    return out;
 }
 
 static int read_component(const marie_node_t *n, const marie_system_t *sys, const marie_restart_cfg_t *defaults,
@@ -803,6 +375,7 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
 {
     memset(c, 0, sizeof *c);
     c->name = strdup(n->key);
+    c->node = n;
     c->file = n->file;
     c->line = n->key_line;
     c->col = n->key_col;
@@ -810,7 +383,7 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     c->stop_timeout_s = 3.0;
     c->heartbeat_timeout_s = 5.0;
     if (n->kind != MARIE_NODE_MAP) {
-        node_error(errs, n, "component '%s': expected a mapping", n->key);
+        marie_node_error(errs, n, "component '%s': expected a mapping", n->key);
         return -1;
     }
     int rc = marie_node_check_keys(n, component_keys, "component", errs);
@@ -829,7 +402,7 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
         for (size_t i = 0; i < sys->nhosts; i++)
             known |= strcmp(sys->hosts[i], s) == 0;
         if (!known) {
-            node_error(errs, v, "component '%s': host '%s' is not in hosts", n->key, s);
+            marie_node_error(errs, v, "component '%s': host '%s' is not in hosts", n->key, s);
             rc = -1;
         }
         c->host = strdup(s);
@@ -843,7 +416,7 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     if ((v = marie_node_get(n, "shell")) && marie_node_bool(v, &c->shell, errs) < 0)
         rc = -1;
     if ((v = marie_node_get(n, "params")) && v->kind != MARIE_NODE_MAP) {
-        node_error(errs, v, "params: expected a mapping");
+        marie_node_error(errs, v, "params: expected a mapping");
         rc = -1;
     }
     c->params = v;
@@ -854,7 +427,13 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     rc |= read_restart(marie_node_get(n, "restart"), &c->restart, errs);
     rc |= read_seconds(n, "stop_timeout", &c->stop_timeout_s, errs);
     rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
-    hash_component(c, n, sys->lcm_url);
+    if (c->restart.backoff_min_s > c->restart.backoff_max_s) {
+        const marie_node_t *r = marie_node_get(n, "restart");
+        marie_errors_add(errs, n->file, r ? r->line : n->key_line, r ? r->col : n->key_col,
+                         "component '%s': restart backoff_min (%g s) is above backoff_max (%g s)", n->key,
+                         c->restart.backoff_min_s, c->restart.backoff_max_s);
+        rc = -1;
+    }
     return rc ? -1 : 0;
 }
 
@@ -872,6 +451,46 @@ static const marie_node_t *find_profile(const marie_node_t *root, const char *pr
     if (marie_node_check_keys(p, keys, "profile", errs) < 0)
         return NULL;
     return p;
+}
+
+/* Iterative depth-first search (a long dependency chain must not overflow the stack): a
+ * dependency on a component still on the path closes a cycle. */
+static int find_cycle(const marie_system_t *sys, marie_errors_t *errs)
+{
+    size_t n = sys->ncomponents;
+    unsigned char *mark = calloc(n ? n : 1, 1);           /* 0 new, 1 on the path, 2 done */
+    size_t *stack = malloc((n ? n : 1) * sizeof *stack), *next = calloc(n ? n : 1, sizeof *next);
+    int rc = mark && stack && next ? 0 : -1;
+    for (size_t root = 0; rc == 0 && root < n; root++) {
+        if (mark[root])
+            continue;
+        size_t top = 0;
+        stack[top++] = root;
+        mark[root] = 1;
+        while (top && rc == 0) {
+            const marie_component_cfg_t *c = &sys->components[stack[top - 1]];
+            if (next[stack[top - 1]] == c->ndepends) {
+                mark[stack[--top]] = 2;
+                continue;
+            }
+            const marie_component_cfg_t *d = marie_system_component(sys, c->depends[next[stack[top - 1]]++]);
+            size_t j = d ? (size_t)(d - sys->components) : 0;
+            if (!d || mark[j] == 2)
+                continue;
+            if (mark[j] == 1) {
+                marie_errors_add(errs, d->file, d->line, d->col, "component '%s' is part of a dependency cycle",
+                                 d->name);
+                rc = -1;
+                break;
+            }
+            mark[j] = 1;
+            stack[top++] = j;
+        }
+    }
+    free(mark);
+    free(stack);
+    free(next);
+    return rc;
 }
 
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
@@ -914,13 +533,20 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         if (marie_node_check_keys(v, keys, "defaults", errs) < 0 ||
             read_restart(marie_node_get(v, "restart"), &defaults, errs) < 0)
             goto err;
+        if (defaults.backoff_min_s > defaults.backoff_max_s) {
+            const marie_node_t *r = marie_node_get(v, "restart");
+            marie_errors_add(errs, path, r ? r->line : v->line, r ? r->col : v->col,
+                             "defaults: restart backoff_min (%g s) is above backoff_max (%g s)",
+                             defaults.backoff_min_s, defaults.backoff_max_s);
+            goto err;
+        }
     }
     const marie_node_t *comps = marie_node_get(root, "components");
     const marie_node_t *prof = profile ? find_profile(root, profile, errs, path) : NULL;
     if (profile && !prof)
         goto err;
     if (comps && comps->kind != MARIE_NODE_MAP) {
-        node_error(errs, comps, "components: expected a mapping of name: component");
+        marie_node_error(errs, comps, "components: expected a mapping of name: component");
         goto err;
     }
     /* A profile may run on another clock (the simulator's). */
@@ -929,11 +555,11 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         if (strcmp(s, "sim") == 0)
             sys->clock = MARIE_CLOCK_SIM;
         else if (strcmp(s, "wall") != 0)
-            node_error(errs, v, "clock: expected wall or sim, got '%s'", s);
+            marie_node_error(errs, v, "clock: expected wall or sim, got '%s'", s);
     }
     const marie_node_t *pcomps = marie_node_get(prof, "components");
     if (pcomps && pcomps->kind != MARIE_NODE_MAP) {
-        node_error(errs, pcomps, "components: expected a mapping of name: component");
+        marie_node_error(errs, pcomps, "components: expected a mapping of name: component");
         goto err;
     }
     char **removed = NULL;
@@ -947,21 +573,26 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         goto err;
     }
     int rc = 0;
+    if (nremoved)
+        qsort(removed, nremoved, sizeof *removed, cmp_str);
     /* Base components, each replaced whole by the profile's entry of the same name. */
     for (size_t i = 0; comps && i < comps->n; i++) {
         const marie_node_t *n = comps->items[i];
-        int skip = marie_node_get(pcomps, n->key) != NULL;
-        for (size_t k = 0; k < nremoved; k++)
-            skip |= strcmp(removed[k], n->key) == 0;
-        if (!skip)
+        const char *key = n->key;
+        if (!marie_node_get(pcomps, key) && !(nremoved && bsearch(&key, removed, nremoved, sizeof *removed, cmp_str)))
             rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
     }
     for (size_t i = 0; pcomps && i < pcomps->n; i++)
         rc |= read_component(pcomps->items[i], sys, &defaults, &sys->components[sys->ncomponents++], errs);
     free_strv(removed, nremoved);
+    if (!(sys->by_name = malloc((sys->ncomponents ? sys->ncomponents : 1) * sizeof *sys->by_name)))
+        goto err;
+    for (size_t i = 0; i < sys->ncomponents; i++)
+        sys->by_name[i] = &sys->components[i];
+    qsort(sys->by_name, sys->ncomponents, sizeof *sys->by_name, cmp_cfg_name);
     /* Dependencies must name components of the system. */
     for (size_t i = 0; i < sys->ncomponents; i++) {
-        const marie_component_cfg_t *c = &sys->components[i];
+        marie_component_cfg_t *c = &sys->components[i];
         for (size_t k = 0; k < c->ndepends; k++) {
             if (!marie_system_component(sys, c->depends[k])) {
                 marie_errors_add(errs, c->file, c->line, c->col, "component '%s' depends on unknown component '%s'",
@@ -969,7 +600,10 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
                 rc = -1;
             }
         }
+        hash_component(sys, c);
     }
+    if (rc == 0 && find_cycle(sys, errs) < 0)
+        rc = -1;
     if (rc || (errs && errs->n > errs_before))
         goto err;
     return sys;

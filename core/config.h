@@ -38,6 +38,7 @@ struct marie_node {
     bool quoted;                /* a quoted scalar is always a string */
     marie_node_t **items;       /* seq items or map values, in document order */
     size_t n;
+    size_t *index, index_cap;   /* private: key lookup of long maps (positions + 1) */
 };
 
 typedef struct marie_doc marie_doc_t;
@@ -47,8 +48,13 @@ typedef struct marie_doc marie_doc_t;
 marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs);
 marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs);
 void marie_doc_destroy(marie_doc_t *doc);
+/* A program that wants long parses to end on a signal registers a check (nonzero: stop);
+ * the parser calls it every few thousand keys and fails with "interrupted" and errno EINTR. */
+void marie_config_set_interrupt(int (*check)(void));
 const marie_node_t *marie_doc_root(const marie_doc_t *doc);
 
+/* Adds "file:line:col: text" at the node's value. */
+void marie_node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 const marie_node_t *marie_node_get(const marie_node_t *map, const char *key);   /* NULL if absent */
 /* Typed reads of a scalar; on a wrong type they add "file:line:col: KEY: expected T, got 'v'" and return -1. */
 int marie_node_int(const marie_node_t *n, int64_t *out, marie_errors_t *errs);
@@ -92,7 +98,9 @@ typedef struct {
     double stop_timeout_s;      /* stop signal, then SIGKILL after this */
     double heartbeat_timeout_s; /* not responding after this long without a heartbeat */
     char **depends; size_t ndepends;
-    char hash[65];              /* sha256 hex of the effective configuration */
+    char hash[65];              /* sha256 hex of the effective configuration (every setting that
+                                   changes how it runs, inherited ones resolved) */
+    const marie_node_t *node;   /* its entry in the file */
     const char *file; int line, col;
 } marie_component_cfg_t;
 
@@ -105,15 +113,20 @@ typedef struct marie_system {
     char *key_file;             /* order authentication key, or NULL */
     char **hosts; size_t nhosts;
     marie_component_cfg_t *components; size_t ncomponents;
+    marie_component_cfg_t **by_name;   /* private: sorted by name for lookups */
     marie_doc_t *doc;
 } marie_system_t;
 
 /* Load and validate a system file, applying `profile` (NULL: none): a profile's components
- * replace or add whole components by name. On any error returns NULL with every problem
+ * replace or add whole components by name. Dependency cycles are errors. On any error returns NULL with every problem
  * in errs; nothing is half-applied. */
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs);
 void marie_system_destroy(marie_system_t *sys);
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
+/* Which settings of two components' effective configurations differ, as "clock,params"
+ * ("" when none). Caller frees; NULL when out of memory. */
+char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
+                                  const marie_system_t *sb, const marie_component_cfg_t *b);
 
 /* The default bus URL: LCM_DEFAULT_URL if set, else marie's (ttl=0, 8 MB receive buffer). */
 const char *marie_default_url(void);

@@ -31,6 +31,7 @@
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "lcmtypes/marie_lifecycle_command_t.h"
 #include "managers/am_proto.h"
+#include "managers/progcheck.h"
 #include "core/auth.h"
 #include "managers/logcap.h"
 #include "core/procstat.h"
@@ -316,27 +317,7 @@ static bool env_dropped(const char *kv)
  * in PATH (execvpe would search the manager's PATH only). NULL: let execvpe report it. */
 static char *resolve_exec(am_t *am, const char *name)
 {
-    if (strchr(name, '/'))
-        return NULL;
-    const char *path = getenv("PATH");
-    size_t n = strlen(am->self_dir) + (path ? strlen(path) : 0) + 2;
-    char *dirs = malloc(n);
-    if (!dirs)
-        return NULL;
-    snprintf(dirs, n, "%s:%s", am->self_dir, path ? path : "/usr/local/bin:/usr/bin:/bin");
-    char *found = NULL, *save = NULL;
-    for (char *d = strtok_r(dirs, ":", &save); d && !found; d = strtok_r(NULL, ":", &save)) {
-        char *cand;
-        if (!*d || asprintf(&cand, "%s/%s", d, name) < 0)
-            continue;
-        struct stat st;
-        if (stat(cand, &st) == 0 && S_ISREG(st.st_mode) && access(cand, X_OK) == 0)
-            found = cand;
-        else
-            free(cand);
-    }
-    free(dirs);
-    return found;
+    return marie_am_resolve_exec(am->self_dir, name);
 }
 
 static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, const char *prog, char **argv, char **envp)
@@ -1128,6 +1109,20 @@ static bool host_known(am_t *am, const char *h)
     return false;
 }
 
+/* The programs of this host's components exist and accept their entries (descriptions
+ * cached in STATE_DIR/describe). */
+static int check_programs(am_t *am, const marie_system_t *sys, marie_errors_t *errs)
+{
+    char *cache = NULL;
+    if (asprintf(&cache, "%s/describe", am->state_dir) < 0)
+        cache = NULL;
+    marie_progcheck_t *p = marie_progcheck_create(am->self_dir, cache);
+    free(cache);
+    int rc = p ? marie_progcheck_system(p, sys, am->host, am->host, errs) : -1;
+    marie_progcheck_destroy(p);
+    return rc;
+}
+
 /* Load a system (not yet started). Errors go to errs. */
 static int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs)
 {
@@ -1139,7 +1134,7 @@ static int am_load_system(am_t *am, const char *path, const char *profile, marie
     }
     marie_system_t *sys = marie_system_load(path, profile && *profile ? profile : NULL, errs);
     marie_am_settings_t set;
-    if (sys && marie_am_check_system(sys, &set, errs) < 0) {
+    if (sys && (marie_am_check_system(sys, &set, errs) < 0 || check_programs(am, sys, errs) < 0)) {
         marie_system_destroy(sys);
         sys = NULL;
     }

@@ -61,41 +61,11 @@ const char *marie_am_component_host(const marie_system_t *sys, const marie_compo
     return fallback;
 }
 
-/* Depth-first search for a dependency cycle; marks: 0 new, 1 on the path, 2 done. */
-static int find_cycle(const marie_system_t *sys, size_t i, int *mark, marie_errors_t *errs)
-{
-    if (mark[i] == 2)
-        return 0;
-    const marie_component_cfg_t *c = &sys->components[i];
-    if (mark[i] == 1) {
-        marie_errors_add(errs, c->file, c->line, c->col, "component '%s' is part of a dependency cycle", c->name);
-        return -1;
-    }
-    mark[i] = 1;
-    for (size_t k = 0; k < c->ndepends; k++)
-        for (size_t j = 0; j < sys->ncomponents; j++)
-            if (strcmp(sys->components[j].name, c->depends[k]) == 0 && find_cycle(sys, j, mark, errs) < 0) {
-                mark[i] = 2;
-                return -1;
-            }
-    mark[i] = 2;
-    return 0;
-}
-
 int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *st, marie_errors_t *errs)
 {
     marie_am_settings_t def = {2.0, 200.0, 1 << 20, 3};
     *st = def;
     int rc = 0;
-    int *mark = calloc(sys->ncomponents ? sys->ncomponents : 1, sizeof *mark);
-    if (!mark)
-        return -1;
-    for (size_t i = 0; i < sys->ncomponents; i++)
-        if (find_cycle(sys, i, mark, errs) < 0) {
-            rc = -1;
-            break;
-        }
-    free(mark);
     const marie_node_t *m = marie_node_get(marie_doc_root(sys->doc), "manager");
     if (!m)
         return rc;

@@ -54,8 +54,8 @@ typedef struct {
     int log_keep;               /* rotated files kept (default 3) */
 } marie_am_settings_t;
 
-/* What the managers check beyond marie_system_load: dependency cycles (they would never
- * start) and the `manager:` section. Fills settings (defaults for absent keys). 0 or -1
+/* What the managers check beyond marie_system_load (which refuses cycles): the `manager:`
+ * section. Fills settings (defaults for absent keys). 0 or -1
  * with file:line:col messages in errs. */
 int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *settings, marie_errors_t *errs);
 

@@ -20,6 +20,7 @@
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
+#include "managers/progcheck.h"
 #include "core/auth.h"
 #include "core/typeinfo.h"
 
@@ -65,8 +66,12 @@ typedef struct {
     bool follow;
 } cli_t;
 
-static volatile sig_atomic_t interrupted;
-static void on_sigint(int s) { interrupted = 1; }
+static volatile sig_atomic_t interrupted;      /* the signal that asked marie to stop */
+static void on_sigint(int s) { interrupted = s; }
+static int parse_interrupted(void) { return interrupted != 0; }
+/* Exit status of a command cut short: 130 for SIGINT as a shell reports it, 1 for SIGTERM
+ * (told to stop: the command failed). */
+static int interrupted_status(void) { return interrupted == SIGINT ? 130 : MARIE_EXIT_FAIL; }
 
 static void usage(FILE *out)
 {
@@ -80,8 +85,9 @@ static void usage(FILE *out)
             "  logs [-f] [-n N] NAME               last lines of a component's output (-f: follow)\n"
             "  move NAME HOST                      run a component on another host\n"
             "  doctor                              check the bus: route, TTL, buffers, clock skew\n"
-            "  hash FILE [--profile A [--profile B]]  configuration hashes; with two profiles,\n"
-            "                                      which shared components are configured the same\n"
+            "  hash FILE [--profile A|--base [--profile B|--base]]  configuration hashes; with\n"
+            "                                      two, which components are configured the same\n"
+            "                                      (--base: the file without a profile)\n"
             "  keygen FILE                         write a new order key (mode 0600)\n"
             "  X ...                               runs marie-X (next to marie, or on PATH)\n"
             "exit status: 0 ok, 1 failure, 2 usage or system file error, 3 timeout or host\n"
@@ -460,6 +466,24 @@ static char *slurp(const char *path)
     return buf;
 }
 
+/* Every component's program, on whichever host it runs, is checked here: the programs are
+ * installed alike on every host (deploy/), and a bad entry must stop `up` before any start. */
+static int check_programs(const marie_system_t *sys, marie_errors_t *errs)
+{
+    char self[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    self[n > 0 ? n : 0] = 0;
+    char *slash = strrchr(self, '/');
+    if (slash)
+        *slash = 0;
+    char *cache = marie_progcheck_default_cache();
+    marie_progcheck_t *p = marie_progcheck_create(self[0] ? self : NULL, cache);
+    free(cache);
+    int rc = p ? marie_progcheck_system(p, sys, NULL, NULL, errs) : -1;
+    marie_progcheck_destroy(p);
+    return rc;
+}
+
 static int cmd_up(cli_t *cli, int argc, char **argv)
 {
     static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {"no-wait", no_argument, 0, 'n'},
@@ -484,14 +508,14 @@ static int cmd_up(cli_t *cli, int argc, char **argv)
     marie_errors_t errs = {0};
     marie_system_t *sys = marie_system_load(file, profile, &errs);
     marie_am_settings_t set;
-    if (sys && marie_am_check_system(sys, &set, &errs) < 0) {
+    if (sys && (marie_am_check_system(sys, &set, &errs) < 0 || check_programs(sys, &errs) < 0)) {
         marie_system_destroy(sys);
         sys = NULL;
     }
     if (!sys) {
         marie_errors_print(&errs, stderr);
         marie_errors_clear(&errs);
-        return MARIE_EXIT_USAGE;
+        return interrupted ? interrupted_status() : MARIE_EXIT_USAGE;
     }
     for (size_t i = 0; i < sys->nhosts; i++)
         expect_host(cli, sys->hosts[i]);
@@ -932,20 +956,53 @@ static int cmd_doctor(cli_t *cli, int argc, char **argv)
 
 /* ---------------------------------------------------------------- hash */
 
-/* Effective-configuration hashes of a system under one or two profiles: a component shared
- * by sim and robot shows "same" when both runs get an identical configuration. */
+/* Effective-configuration hashes of a system under one or two profiles (--base is the file
+ * without a profile, the real robot): a component shows "same" when both runs get an identical
+ * configuration, else which settings differ. */
+static void hash_row(cli_t *cli, bool *first, const char *name, const char *verdict, const char *ha,
+                     const char *hb, const char *fields, int n)
+{
+    if (cli->json) {
+        printf("%s{\"name\":", *first ? "" : ",");
+        json_str(stdout, name);
+        printf(",\"hash\":\"%s\"", ha ? ha : "");
+        if (n == 2) {
+            printf(",\"hash_b\":\"%s\",\"verdict\":\"%s\",\"fields\":[", hb ? hb : "", verdict);
+            for (const char *f = fields; f && *f;) {
+                size_t len = strcspn(f, ",");
+                printf("%s\"%.*s\"", f == fields ? "" : ",", (int)len, f);
+                f += len + (f[len] == ',');
+            }
+            printf("]");
+        }
+        printf("}");
+    } else if (n == 2) {
+        printf("%-20s %-9s %-16.16s %-16.16s %s\n", name, verdict, ha ? ha : "-", hb ? hb : "-",
+               fields ? fields : "");
+    } else {
+        printf("%-20s %s\n", name, ha);
+    }
+    *first = false;
+}
+
 static int cmd_hash(cli_t *cli, int argc, char **argv)
 {
     const char *profiles[2] = {NULL, NULL};
+    const char *labels[2] = {"base", "base"};
     int np = 0, opt;
-    static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {0, 0, 0, 0}};
+    static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {"base", no_argument, 0, 'b'},
+                                         {0, 0, 0, 0}};
     optind = 1;
     while ((opt = getopt_long(argc, argv, "p:", opts, NULL)) != -1) {
-        if (opt == 'p' && np < 2) profiles[np++] = optarg;
-        else return MARIE_EXIT_USAGE;
+        if ((opt != 'p' && opt != 'b') || np == 2) {
+            fprintf(stderr, "usage: marie hash FILE [--profile A | --base] [--profile B | --base]\n");
+            return MARIE_EXIT_USAGE;
+        }
+        profiles[np] = opt == 'p' ? optarg : NULL;
+        labels[np++] = opt == 'p' ? optarg : "base";
     }
     if (optind != argc - 1) {
-        fprintf(stderr, "usage: marie hash FILE [--profile A [--profile B]]\n");
+        fprintf(stderr, "usage: marie hash FILE [--profile A | --base] [--profile B | --base]\n");
         return MARIE_EXIT_USAGE;
     }
     marie_system_t *sys[2] = {NULL, NULL};
@@ -955,49 +1012,33 @@ static int cmd_hash(cli_t *cli, int argc, char **argv)
         sys[i] = marie_system_load(argv[optind], profiles[i], &errs);
         if (!sys[i]) {
             marie_errors_print(&errs, stderr);
+            if (profiles[i] && !interrupted)
+                fprintf(stderr, "marie: (the file without a profile, the base, is named with --base)\n");
             marie_errors_clear(&errs);
             marie_system_destroy(sys[0]);
-            return MARIE_EXIT_USAGE;
+            return interrupted ? interrupted_status() : MARIE_EXIT_USAGE;
         }
     }
     int differ = 0;
     if (cli->json)
-        printf("{\"components\":[");
+        printf("{\"a\":\"%s\",\"b\":\"%s\",\"components\":[", labels[0], n == 2 ? labels[1] : "");
     else if (n == 2)
-        printf("%-20s %-8s %-16s %-16s\n", "COMPONENT", "", profiles[0], profiles[1]);
+        printf("%-20s %-9s %-16s %-16s %s\n", "COMPONENT", "", labels[0], labels[1], "DIFFERS IN");
     bool first = true;
     for (size_t i = 0; i < sys[0]->ncomponents; i++) {
         const marie_component_cfg_t *a = &sys[0]->components[i];
         const marie_component_cfg_t *b = n == 2 ? marie_system_component(sys[1], a->name) : NULL;
-        const char *verdict = n == 1 ? "" : !b ? "only-in-a" : strcmp(a->hash, b->hash) == 0 ? "same" : "differs";
-        if (b && strcmp(a->hash, b->hash) != 0)
-            differ++;
-        if (cli->json) {
-            printf("%s{\"name\":", first ? "" : ",");
-            json_str(stdout, a->name);
-            printf(",\"hash\":\"%s\"", a->hash);
-            if (n == 2)
-                printf(",\"hash_b\":\"%s\",\"verdict\":\"%s\"", b ? b->hash : "", verdict);
-            printf("}");
-        } else if (n == 2) {
-            printf("%-20s %-8s %.16s %.16s\n", a->name, verdict, a->hash, b ? b->hash : "-");
-        } else {
-            printf("%-20s %s\n", a->name, a->hash);
-        }
-        first = false;
+        bool same = b && strcmp(a->hash, b->hash) == 0;
+        char *fields = b && !same ? marie_component_differences(sys[0], a, sys[1], b) : NULL;
+        differ += b && !same;
+        hash_row(cli, &first, a->name, n == 1 ? "" : !b ? "only-in-a" : same ? "same" : "differs", a->hash,
+                 b ? b->hash : NULL, fields, n);
+        free(fields);
     }
     for (size_t i = 0; n == 2 && i < sys[1]->ncomponents; i++) {
         const marie_component_cfg_t *b = &sys[1]->components[i];
-        if (marie_system_component(sys[0], b->name))
-            continue;
-        if (cli->json) {
-            printf("%s{\"name\":", first ? "" : ",");
-            json_str(stdout, b->name);
-            printf(",\"hash\":\"\",\"hash_b\":\"%s\",\"verdict\":\"only-in-b\"}", b->hash);
-        } else {
-            printf("%-20s %-8s %-16s %.16s\n", b->name, "only-in-b", "-", b->hash);
-        }
-        first = false;
+        if (!marie_system_component(sys[0], b->name))
+            hash_row(cli, &first, b->name, "only-in-b", NULL, b->hash, NULL, n);
     }
     if (cli->json)
         printf("],\"differ\":%d}\n", differ);
@@ -1087,6 +1128,7 @@ int main(int argc, char **argv)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
+    marie_config_set_interrupt(parse_interrupted);
 
     int rc;
     if (strcmp(cmd, "help") == 0) {

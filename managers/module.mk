@@ -1,6 +1,6 @@
 # managers: marie-am (one per host), the marie command line, and the order-signing library.
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c))
+$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c))
 
 $(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
@@ -18,7 +18,7 @@ $(eval $(call marie_test,test_auth,tests/managers/test_auth.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
-ITESTS += tests/managers/test_am.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
+ITESTS += tests/managers/test_am.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
 # make fuzz links only the listed sources: the generated decoders it needs are listed too.
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/logcap.c,))
 

@@ -4,6 +4,8 @@
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include <cmocka.h>
 
@@ -231,6 +233,51 @@ static void every_twice_is_one_timer(void **state)
     marie_component_destroy(c);
 }
 
+static void every_key_of_a_long_map_is_found(void **state)
+{
+    /* Long maps are looked up through an index: every key, at every length, must be found,
+     * and a duplicate of any earlier key refused. */
+    for (int n = 1; n <= 70; n++) {
+        char text[4096] = "";
+        for (int i = 0; i < n; i++)
+            snprintf(text + strlen(text), sizeof text - strlen(text), "k%d: %d\n", i, i);
+        marie_errors_t e = {0};
+        marie_doc_t *d = marie_doc_parse("long.yaml", text, strlen(text), &e);
+        assert_non_null(d);
+        for (int i = 0; i < n; i++) {
+            char key[16];
+            snprintf(key, sizeof key, "k%d", i);
+            const marie_node_t *v = marie_node_get(marie_doc_root(d), key);
+            assert_non_null(v);
+            assert_int_equal(atoi(v->value), i);
+        }
+        assert_null(marie_node_get(marie_doc_root(d), "nosuch"));
+        marie_doc_destroy(d);
+        for (int i = 0; i < n; i += 7) {
+            char dup[4200];
+            snprintf(dup, sizeof dup, "%sk%d: again\n", text, i);
+            assert_null(marie_doc_parse("dup.yaml", dup, strlen(dup), &e));
+            char want[64];
+            snprintf(want, sizeof want, "duplicate key 'k%d' (first at line %d)", i, i + 1);
+            assert_true(has_error(&e, want));
+            marie_errors_clear(&e);
+        }
+    }
+}
+
+static void a_profile_entry_with_many_params_keeps_them(void **state)
+{
+    marie_errors_t e = {0};
+    marie_system_t *sys = marie_system_load("config/spartacus.yaml", "sim", &e);
+    assert_non_null(sys);
+    const marie_component_cfg_t *sim = marie_system_component(sys, "sim");
+    assert_non_null(sim);
+    assert_string_equal(marie_node_get(sim->params, "speed")->value, "4");
+    assert_string_equal(marie_node_get(sim->params, "world")->value, "office");
+    assert_string_equal(marie_node_get(sim->params, "can")->value, "emu:${MARIE_RUN_DIR}/can");
+    marie_system_destroy(sys);
+}
+
 static void duplicate_keys_and_aliases_are_refused(void **state)
 {
     marie_errors_t e = {0};
@@ -255,6 +302,209 @@ static void duplicate_keys_and_aliases_are_refused(void **state)
     marie_errors_clear(&e);
 }
 
+
+/* ---- the effective configuration, cycles, limits, speed ---- */
+
+static char *write_tmp(const char *text, size_t len)
+{
+    char *path = strdup("/tmp/marie-test-config.XXXXXX");
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    assert_int_equal(write(fd, text, len), (ssize_t)len);
+    close(fd);
+    return path;
+}
+
+static marie_system_t *load_text(const char *text, const char *profile, marie_errors_t *e)
+{
+    char *path = write_tmp(text, strlen(text));
+    marie_system_t *sys = marie_system_load(path, profile, e);
+    unlink(path);
+    free(path);
+    return sys;
+}
+
+#define BASE_SYSTEM                                                                                   \
+    "system: h\nhosts: [h1, h2]\n"                                                                    \
+    "defaults:\n  restart: {policy: on-failure, backoff_min: 0.1, backoff_max: 5}\n"                  \
+    "components:\n"                                                                                   \
+    "  a:\n    exec: marie-example-producer\n    params: {rate_hz: 5}\n"                              \
+    "  b:\n    exec: marie-example-consumer\n    depends: [a]\n    ports: {in: X}\n"                  \
+    "    env: {K: v}\n    args: [--hold]\n"
+
+static void every_setting_enters_the_hash(void **state)
+{
+    /* Each variant changes one setting of b (directly or inherited); the hash must change and
+     * the difference must name that setting. */
+    static const struct { const char *from, *to, *field; } variants[] = {
+        {"policy: on-failure", "policy: always", "restart"},
+        {"backoff_max: 5", "backoff_max: 6", "restart"},
+        {"hosts: [h1, h2]", "hosts: [h2, h1]", "host"},
+        {"depends: [a]", "depends: []", "depends"},
+        {"exec: marie-example-consumer", "exec: ./other", "exec"},
+        {"{K: v}", "{K: w}", "env"},
+        {"args: [--hold]", "args: []", "args"},
+        {"ports: {in: X}", "ports: {in: Y}", "ports"},
+        {"system: h\n", "system: h\nclock: sim\n", "clock"},
+        {"system: h\n", "system: h\nlcm_url: udpm://239.255.76.67:7668?ttl=0\n", "lcm_url"},
+        {"system: h\n", "system: h\nauth: {key_file: /k}\n", "auth"},
+        {"    args: [--hold]\n", "    args: [--hold]\n    stop_timeout: 1\n", "stop_timeout"},
+        {"    args: [--hold]\n", "    args: [--hold]\n    heartbeat_timeout: 0\n", "heartbeat_timeout"},
+        {"    args: [--hold]\n", "    args: [--hold]\n    shell: true\n", "shell"},
+        {"    args: [--hold]\n", "    args: [--hold]\n    params: {x: 1}\n", "params"},
+    };
+    marie_errors_t e = {0};
+    marie_system_t *base = load_text(BASE_SYSTEM, NULL, &e);
+    assert_non_null(base);
+    const marie_component_cfg_t *b0 = marie_system_component(base, "b");
+    for (size_t i = 0; i < sizeof variants / sizeof variants[0]; i++) {
+        const char *text = BASE_SYSTEM, *at = strstr(text, variants[i].from);
+        assert_non_null(at);
+        char buf[2048];
+        snprintf(buf, sizeof buf, "%.*s%s%s", (int)(at - text), text, variants[i].to, at + strlen(variants[i].from));
+        marie_system_t *v = load_text(buf, NULL, &e);
+        if (!v)
+            marie_errors_print(&e, stderr);
+        assert_non_null(v);
+        const marie_component_cfg_t *b1 = marie_system_component(v, "b");
+        if (strcmp(b0->hash, b1->hash) == 0)
+            fprintf(stderr, "variant '%s' kept the hash\n", variants[i].to);
+        assert_string_not_equal(b0->hash, b1->hash);
+        char *diff = marie_component_differences(base, b0, v, b1);
+        assert_non_null(diff);
+        assert_string_equal(diff, variants[i].field);
+        free(diff);
+        marie_system_destroy(v);
+    }
+    /* Reordering what has no order (keys, env, depends) keeps it. */
+    const char *reordered = "system: h\nhosts: [h1, h2]\n"
+                            "defaults:\n  restart: {backoff_max: 5, backoff_min: 0.1, policy: on-failure}\n"
+                            "components:\n"
+                            "  b:\n    args: [--hold]\n    env: {K: v}\n    ports: {in: X}\n    depends: [a]\n"
+                            "    exec: marie-example-consumer\n"
+                            "  a:\n    exec: marie-example-producer\n    params: {rate_hz: 5}\n";
+    marie_system_t *r = load_text(reordered, NULL, &e);
+    assert_non_null(r);
+    assert_string_equal(marie_system_component(r, "b")->hash, b0->hash);
+    marie_system_destroy(r);
+    marie_system_destroy(base);
+}
+
+static void the_loader_refuses_cycles_and_bad_backoff(void **state)
+{
+    marie_errors_t e = {0};
+    const char *cycle = "components:\n  a: {exec: x, depends: [c]}\n  b: {exec: x, depends: [a]}\n"
+                        "  c: {exec: x, depends: [b]}\n  d: {exec: x, depends: [a]}\n";
+    assert_null(load_text(cycle, NULL, &e));
+    assert_true(has_error(&e, "is part of a dependency cycle"));
+    marie_errors_clear(&e);
+    const char *backoff = "components:\n  a:\n    exec: x\n    restart: {backoff_min: 3, backoff_max: 1}\n";
+    assert_null(load_text(backoff, NULL, &e));
+    assert_true(has_error(&e, ":4:14: component 'a': restart backoff_min (3 s) is above backoff_max (1 s)"));
+    marie_errors_clear(&e);
+    const char *defaults = "defaults:\n  restart: {backoff_min: 9}\ncomponents:\n  a: {exec: x}\n";
+    assert_null(load_text(defaults, NULL, &e));
+    assert_true(has_error(&e, ":2:12: defaults: restart backoff_min (9 s) is above backoff_max (5 s)"));
+    marie_errors_clear(&e);
+    /* A chain of 100000 dependencies is no cycle, and checking it must not exhaust the stack. */
+    size_t cap = 100000 * 48, len = 0;
+    char *chain = malloc(cap);
+    len += (size_t)snprintf(chain, cap, "components:\n  c0: {exec: x}\n");
+    for (int i = 1; i < 100000; i++)
+        len += (size_t)snprintf(chain + len, cap - len, "  c%d: {exec: x, depends: [c%d]}\n", i, i - 1);
+    marie_system_t *sys = load_text(chain, NULL, &e);
+    assert_non_null(sys);
+    marie_system_destroy(sys);
+    free(chain);
+}
+
+static void non_finite_numbers_are_refused(void **state)
+{
+    static const char *const bad[] = {".nan", "nan", ".inf", "-.inf", "inf", "NaN"};
+    marie_errors_t e = {0};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char text[256];
+        snprintf(text, sizeof text, "components:\n  a: {exec: x, stop_timeout: %s}\n", bad[i]);
+        assert_null(load_text(text, NULL, &e));
+        char want[128];
+        snprintf(want, sizeof want, ":2:30: stop_timeout: expected a finite number, got '%s'", bad[i]);
+        assert_true(has_error(&e, want));
+        marie_errors_clear(&e);
+    }
+}
+
+static void an_oversized_file_gets_a_position(void **state)
+{
+    /* 17 MB of 100-byte lines: the 16 MB limit falls on line 167773, column 17. */
+    size_t len = 17u << 20;
+    char *text = malloc(len);
+    for (size_t i = 0; i < len; i++)
+        text[i] = i % 100 == 99 ? '\n' : '#';
+    char *path = write_tmp(text, len);
+    free(text);
+    marie_errors_t e = {0};
+    assert_null(marie_system_load(path, NULL, &e));
+    char want[256];
+    snprintf(want, sizeof want, "%s:%d:%d: the file is larger than 16 MB", path, (16 << 20) / 100 + 1,
+             (16 << 20) % 100 + 1);
+    assert_true(has_error(&e, want));
+    marie_errors_clear(&e);
+    unlink(path);
+    free(path);
+}
+
+/* A system of n components, each depending on the one before, `bytes` long at least. */
+static char *big_system(size_t bytes)
+{
+    size_t cap = bytes + 4096, len = 0;
+    char *t = malloc(cap);
+    len += (size_t)snprintf(t, cap, "system: big\nhosts: [h1]\ncomponents:\n");
+    for (int i = 0; len < bytes; i++)
+        len += (size_t)snprintf(t + len, cap - len,
+                                "  c%d:\n    exec: marie-example-producer\n    host: h1\n    depends: [c%d]\n"
+                                "    ports: {out: CH_%d}\n    params: {rate_hz: 10, label: comp%d}\n",
+                                i, i ? i - 1 : 1000000000, i, i);
+    /* the first one depends on nothing */
+    char *dep = strstr(t, "depends: [c1000000000]");
+    memcpy(dep, "depends: []           ", strlen("depends: [c1000000000]"));
+    return t;
+}
+
+static double cpu_seconds_to_load(const char *text)
+{
+    char *path = write_tmp(text, strlen(text));
+    struct timespec a, b;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &a);
+    marie_errors_t e = {0};
+    marie_system_t *sys = marie_system_load(path, NULL, &e);
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &b);
+    if (!sys)
+        marie_errors_print(&e, stderr);
+    assert_non_null(sys);
+    marie_system_destroy(sys);
+    unlink(path);
+    free(path);
+    return (double)(b.tv_sec - a.tv_sec) + (b.tv_nsec - a.tv_nsec) * 1e-9;
+}
+
+static void loading_time_grows_linearly(void **state)
+{
+    /* CPU time (not wall time, which other work on the machine inflates) per megabyte at 0.5 and
+     * 4 MB: linear parsing keeps the ratio near 1; the old quadratic lookups made it about 8. */
+    char *small = big_system(512 << 10), *large = big_system(4 << 20);
+    double ts = 1e9;
+    for (int i = 0; i < 3; i++) {
+        double t = cpu_seconds_to_load(small);
+        ts = t < ts ? t : ts;
+    }
+    double tl = cpu_seconds_to_load(large);
+    double ratio = (tl / strlen(large)) / (ts / strlen(small));
+    fprintf(stderr, "load: %.3f s for 0.5 MB, %.3f s for 4 MB, per-MB ratio %.2f\n", ts, tl, ratio);
+    assert_true(ratio < 3.0);
+    free(small);
+    free(large);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_OFF);
@@ -270,6 +520,13 @@ int main(void)
         cmocka_unit_test(bound_params_fill_their_fields),
         cmocka_unit_test(every_twice_is_one_timer),
         cmocka_unit_test(duplicate_keys_and_aliases_are_refused),
+        cmocka_unit_test(every_key_of_a_long_map_is_found),
+        cmocka_unit_test(a_profile_entry_with_many_params_keeps_them),
+        cmocka_unit_test(every_setting_enters_the_hash),
+        cmocka_unit_test(the_loader_refuses_cycles_and_bad_backoff),
+        cmocka_unit_test(non_finite_numbers_are_refused),
+        cmocka_unit_test(an_oversized_file_gets_a_position),
+        cmocka_unit_test(loading_time_grows_linearly),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -14,7 +14,7 @@ trap cleanup EXIT
 # marie-am runs from its own directory, which also holds the test component: a bare
 # `exec: marie-test-comp` must be found there
 mkdir "$T/bin"
-cp "$BIN/marie-am" "$B/tests/bin/marie-test-comp" "$T/bin/"
+cp "$BIN/marie-am" "$BIN/marie" "$B/tests/bin/marie-test-comp" "$T/bin/"
 start_am() { "$T/bin/marie-am" --host alpha --state-dir "$T/am" >> "$T/am.log" 2>&1 & AM_PID=$!; }
 # field NAME KEY: a component's field from marie --json ps
 field() {
@@ -202,7 +202,8 @@ check "after a restart, seq INT64_MAX still locks nobody out" sh -c "$OT -k $T/k
 check "down stops everything" "$M" down
 none_left() { for p in $(cut -d" " -f4 "$T/trace" | sort -u); do kill -0 "$p" 2>/dev/null && return 1; done; return 0; }
 check "nothing left running" wait_for 5 none_left
-"$M" up --no-wait tests/data/managers/crash.yaml > /dev/null
+# marie checks the programs where it is installed: beside marie-am, as on a robot
+"$T/bin/marie" up --no-wait tests/data/managers/crash.yaml > /dev/null
 check "gives up after max_failures" wait_for 10 is_state crasher failed
 check "policy never: failed component stays failed" wait_for 5 is_state once failed
 two_restarts() { [ "$(field crasher restarts)" = 2 ]; }
