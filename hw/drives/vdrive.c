@@ -202,8 +202,14 @@ vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
         { CIA402_OBJ_ABORT_CONN, 0, 2, CO_OD_RW, &v->abort_opt },
     };
     memcpy(v->od, od, sizeof od);
+    size_t nod = sizeof od / sizeof od[0];
+    if (!v->name[0]) {
+        /* an empty name: a drive without the optional 0x1008 (entry 1) */
+        memmove(&v->od[1], &v->od[2], (nod - 2) * sizeof v->od[0]);
+        nod--;
+    }
     static const co_dev_hooks_t hooks = { on_nmt, on_rpdo, on_sync, on_write, on_comm_error };
-    co_dev_init(&v->dev, cfg->node, v->od, sizeof od / sizeof od[0], &hooks, v);
+    co_dev_init(&v->dev, cfg->node, v->od, nod, &hooks, v);
     co_dev_set_identity(&v->dev, VDRIVE_VENDOR_ID, VDRIVE_PRODUCT_CODE, VDRIVE_REVISION, cfg->node);
     v->abort_opt = 1;
     /* Defaults that marie-drives also writes at configuration (see docs/hw/drives.md). */

@@ -28,7 +28,7 @@ typedef struct {
     double quickstop_decel;     /* rad/s^2 (default 40) */
     double max_velocity;        /* rad/s; larger targets are clamped (default 30) */
     int64_t rpdo_timeout_us;    /* power-on RPDO1 deadline 0x1400:05, rounded up to ms (0: off) */
-    const char *name;           /* device name, object 0x1008 */
+    const char *name;           /* device name, object 0x1008 ("": no 0x1008) */
 } vdrive_cfg_t;
 
 void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node);
