@@ -10,6 +10,9 @@ $(eval $(call marie_program,marie-vcan-devices,hw/drives/vcan_devices_main.c,$(V
 # Needs the programs: built first by make all; by hand, build them before this test.
 $(eval $(call marie_test,test_drives_emu,tests/hw/test_drives_emu.c tests/proc.c,$(B)/lib/libmarie_can.a))
 $(B)/tests/test_drives_emu: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro
+# python-canopen (PyPI, venv by scripts/peer-venv.sh) as an independent master against the
+# virtual drives and gyro on the emulated bus; ~5 s plus the venv's first install.
+ITESTS += tests/hw/test_canopen_peer.sh
 # The VM test: marie-drives and marie-gyro on real SocketCAN (vcan0) inside qemu.
 $(eval $(call marie_link,$(B)/tests/vm/hw_vm_check,tests/hw/vm_check.c,))
 $(eval $(call marie_link,$(B)/tests/vm/vm_socketcan,tests/hw/vm_socketcan.c,$(B)/lib/libmarie_can.a -lcmocka))
