@@ -190,6 +190,10 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
     sim_world_velocity(d->world, &v, &om);
     if (vdevices_gyro(d->dev))
         vgyro_set_rate(vdevices_gyro(d->dev), om);
+    /* Relay what the drivers sent while we stepped, so the devices judge their deadlines
+     * on every frame already sent (we are the bus too when serving it). */
+    if (d->bus)
+        can_emubus_process(d->bus);
     vdevices_tick(d->dev, dt, marie_mono_us());
     vlms200_tick(d->laser, now);
     laser_sync_fd(d);
