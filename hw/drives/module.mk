@@ -20,6 +20,9 @@ EXTRA_TARGETS += $(B)/tests/vm/hw_vm_check $(B)/tests/vm/vm_socketcan
 VMTESTS += tests/hw/test_vm_can.sh
 # ~25 s here (boot ~6 s); also part of make test.
 ITESTS += tests/hw/test_vm_can.sh
+# The same checks on two emulated SJA1000 controllers (kvaser_pci) instead of vcan; ~60 s.
+VMTESTS += tests/hw/test_vm_canctl.sh
+ITESTS += tests/hw/test_vm_canctl.sh
 $(eval $(call marie_bench,bench_hw_can,hw/drives/bench_hw_can.c tests/proc.c,$(B)/lib/libmarie_can.a))
 $(B)/bench/bench_hw_can: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro
 # For programs hosting the virtual devices (the simulator's device mode): link these.

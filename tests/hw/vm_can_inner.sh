@@ -48,7 +48,18 @@ kill -USR1 $devs
 i=0
 while [ $i -lt 80 ] && ! grep -q " $IF 201#8000" /tmp/candump.log; do sleep 0.1; i=$((i + 1)); done
 sleep 0.5
-kill $dump
+if [ "$IF" = can0 ]; then
+    # The drivers' controller goes down and up (a cable pulled, ip link set down): sends fail,
+    # reads end, the link reopens; the drives come back under control.
+    ip link set can0 down
+    sleep 1
+    ip link set can0 up
+    $B/tests/vm/hw_vm_check 3 > /tmp/check2.txt 2>&1
+    check "after can0 down and up the drivers report the commanded velocities again" [ $? -eq 0 ]
+    check "the link loss is counted (tx_error or disconnected)" grep -q "tx_error\|disconnected" $out/drives.log
+    ip -statistics link show can0 | sed -n '3,6p'
+fi
+kill $dump 2>/dev/null    # candump ends by itself when can0 goes down
 kill $drv $gyr
 sleep 0.3
 kill $devs
