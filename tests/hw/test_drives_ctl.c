@@ -95,6 +95,7 @@ static void run(rig_t *r, int ms, double wl, double wr, bool command)
 }
 
 static const char *drive_name = "marie vdrive";
+static uint16_t rig_rpdo_timeout_ms = 100;
 
 static int setup(void **state)
 {
@@ -104,6 +105,7 @@ static int setup(void **state)
     cfg.node[0] = 1;
     cfg.node[1] = 2;
     cfg.invert[1] = false;
+    cfg.rpdo_timeout_ms = rig_rpdo_timeout_ms;
     r->ctl = drives_ctl_create(&cfg, on_ev, r);
     for (int i = 0; i < 2; i++) {
         vdrive_cfg_t vc;
@@ -391,8 +393,18 @@ static void rpdo_deadline_stops_the_drives(void **state)
     assert_int_equal(r->last_code[DRIVES_EV_EMCY], CO_EMCY_RPDO_TIMEOUT);
 }
 
+/* Drives without RPDO deadline monitoring: only the master's own reactions stop them. */
+static int setup_no_deadline(void **state)
+{
+    rig_rpdo_timeout_ms = 0;
+    int rc = setup(state);
+    rig_rpdo_timeout_ms = 100;
+    return rc;
+}
+
 /* A forged boot-up while driving, then a configuration that fails (SDO answers lost): the
- * master takes the drive out of operational first, and it stops. */
+ * master takes the drive out of operational first, and it stops (no RPDO deadline here to
+ * do it for the master). */
 static void forged_bootup_and_failed_config_stop_the_drive(void **state)
 {
     rig_t *r = *state;
@@ -767,7 +779,7 @@ int main(void)
         T(disable_brings_drives_down),
         T(master_death_stops_the_drives),
         T(rpdo_deadline_stops_the_drives),
-        T(forged_bootup_and_failed_config_stop_the_drive),
+        cmocka_unit_test_setup_teardown(forged_bootup_and_failed_config_stop_the_drive, setup_no_deadline, teardown),
         T(shutdown_leaves_drives_disabled_and_stopped),
         cmocka_unit_test_setup_teardown(drive_without_name_comes_up, setup_nameless, teardown),
         cmocka_unit_test(identity_object_in_drive_and_gyro),
