@@ -286,7 +286,14 @@ static int ms_to_standstill_after(int sig)
     snprintf(u, sizeof u, "emu:%s", sock);
     can_bus_t *bus = can_bus_open(u);
     assert_non_null(bus);
-    assert_true(drive_velocity(bus, 1) > 3000);
+    bool at_speed = false;                      /* 5 rad/s = 3260 increments/s */
+    for (int64_t end = marie_mono_us() + 10000000; !at_speed && marie_mono_us() < end;) {
+        at_speed = drive_velocity(bus, 1) > 3000 && drive_velocity(bus, 2) > 3000;
+        wait_for(NULL, 0.05);
+    }
+    if (!at_speed)
+        can_bus_close(bus);
+    assert_true(at_speed);
     int64_t t0 = marie_mono_us();
     kill(drv_pid, sig);
     int ms = -1;
@@ -333,7 +340,7 @@ static void estop_messages_keep_the_sync_period(void **state)
     spy = can_bus_open(u);
     assert_non_null(spy);
     marie_estop_t e = { .utime = marie_wall_us(), .pressed = 1, .source = "test" };
-    int64_t last_sync = 0, min_gap = INT64_MAX;
+    int64_t last_sync = 0, min_gap = INT64_MAX, t0 = marie_mono_us();
     int syncs = 0;
     for (int k = 0; k < 30; k++) {
         marie_estop_t_publish(lcm, "ESTOP", &e);
@@ -352,15 +359,17 @@ static void estop_messages_keep_the_sync_period(void **state)
             }
         }
     }
+    double secs = (marie_mono_us() - t0) / 1e6;
     can_bus_close(spy);
     spy = NULL;
     e.pressed = 0;
     marie_estop_t_publish(lcm, "ESTOP", &e);
-    print_message("%d SYNCs under e-stop messages, shortest interval %.1f ms\n", syncs, min_gap / 1000.0);
+    print_message("%d SYNCs in %.2f s under 30 e-stop messages (50 Hz: %.0f), shortest gap as read %.1f ms\n",
+                  syncs, secs, secs * 50, min_gap / 1000.0);
+    /* Counted, not timed: a loaded host makes the spy read SYNCs in batches, but never adds
+     * any. An extra SYNC per e-stop message would add 30 to about 75. */
     assert_true(syncs > 20);
-    /* the spy reads in batches, so jitter only shortens intervals when the process lags:
-     * an extra SYNC right behind an RPDO burst shows up as < 3 ms */
-    assert_true(min_gap > 5000);
+    assert_true(syncs <= secs * 50 * 1.1 + 3);
     assert_true(wait_for(enc_ok, 10));
 }
 
@@ -384,7 +393,7 @@ static void every_emcy_is_counted(void **state)
     bool ok = false;
     for (int k = 0; k < 40 && !ok; k++) {
         wait_for(NULL, 0.25);
-        ok = hb_drives.emcy - before == 30;
+        ok = hb_drives.emcy - before >= 30;     /* the drives may add their own */
     }
     print_message("emcy counter +%lld for 30 EMCY\n", (long long)(hb_drives.emcy - before));
     assert_true(ok);
