@@ -637,6 +637,48 @@ static void expedited_download_without_size(void **state)
     vdrive_destroy(v);
 }
 
+/* 0x6007 chooses the reaction to a lost master: 2 disable voltage (at once), 3 quick stop
+ * (ramp, hold), 0 none. */
+static void abort_connection_option_code(void **state)
+{
+    int16_t opts[] = { 0, 2, 3 };
+    cia402_state_t want[] = { CIA402_OPERATION_ENABLED, CIA402_SWITCH_ON_DISABLED, CIA402_QUICK_STOP_ACTIVE };
+    for (int k = 0; k < 3; k++) {
+        vdrive_cfg_t vc;
+        vdrive_cfg_default(&vc, 7);
+        vdrive_t *v = vdrive_create(&vc);
+        struct can_frame tx[8], f;
+        vdrive_boot(v, 0, tx, 8);
+        vd_down(v, CIA402_OBJ_ABORT_CONN, 0, (uint16_t)opts[k], 2);
+        vd_down(v, 0x1016, 1, 0x7E0064, 4);             /* node 0x7E, 100 ms */
+        vd_down(v, CIA402_OBJ_MODE, 0, 3, 1);
+        vd_down(v, CIA402_OBJ_TARGET_VEL, 0, 4096, 4);
+        co_nmt_encode(&f, CO_NMT_CMD_START, 7);
+        vdrive_feed(v, &f, 0, tx, 8);
+        for (int i = 0; i < 3; i++)
+            vd_down(v, CIA402_OBJ_CONTROLWORD, 0, (uint16_t[]){ 0x06, 0x07, 0x0F }[i], 2);
+        struct can_frame hb;
+        co_hb_encode(&hb, 0x7E, CO_NMT_OPERATIONAL);
+        int64_t now = 0;
+        for (; now < 1000000; now += 1000) {       /* heard every 20 ms: keeps turning */
+            if (now % 20000 == 0)
+                vdrive_feed(v, &hb, now, tx, 8);
+            vdrive_step(v, 0.001);
+            vdrive_poll(v, now, tx, 8);
+        }
+        assert_true(fabs(vdrive_velocity(v) - 2 * M_PI) < 0.01);
+        for (; now < 1400000; now += 1000) {       /* silent */
+            vdrive_step(v, 0.001);
+            vdrive_poll(v, now, tx, 8);
+        }
+        assert_int_equal(vdrive_state(v), want[k]);
+        assert_int_equal(vdrive_stats(v)->hb_losses, 1);
+        if (opts[k])
+            assert_true(fabs(vdrive_velocity(v)) < 1e-9);
+        vdrive_destroy(v);
+    }
+}
+
 /* The same master and drives talking through real fds: one end of a SOCK_SEQPACKET
  * socketpair each, through the CAN layer's frame I/O. */
 static void master_and_drives_over_socketpair(void **state)
@@ -785,6 +827,7 @@ int main(void)
         cmocka_unit_test(identity_object_in_drive_and_gyro),
         cmocka_unit_test(reset_communication_restores_communication_objects),
         cmocka_unit_test(expedited_download_without_size),
+        cmocka_unit_test(abort_connection_option_code),
         cmocka_unit_test(vdrive_automatic_transitions),
         cmocka_unit_test(master_and_drives_over_socketpair),
     };
