@@ -9,6 +9,8 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
       systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev
       libjchart2d-java"
+# Peers from PyPI (python-canopen) live in a venv under build/ (scripts/peer-venv.sh).
+base="$base python3-venv"
 # The VM test boots Debian's kernel under qemu to reach real SocketCAN.
 vm="qemu-system-x86 busybox-static cpio"
 # libFuzzer and clang's sanitizer runtimes.

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/log.h"
+#include "core/time.h"
 #include "hw/can/canbus.h"
 #include "hw/drives/vdevices.h"
 #include "hw/lms200/vlms200.h"
@@ -22,7 +23,7 @@ struct sim_devices {
     vlms200_t *laser;
     int laser_fd;               /* as registered with the loop */
     short laser_events;
-    int64_t now;                /* simulated us: the devices' clock */
+    int64_t now;                /* simulated us: the laser's clock */
     float scan[SCAN_BEAMS];
     sim_devices_stats_t st;
 };
@@ -36,7 +37,10 @@ static void on_bus(marie_loop_t *loop, int fd, short revents, void *user)
 static void on_dev(marie_loop_t *loop, int fd, short revents, void *user)
 {
     sim_devices_t *d = user;
-    int rc = vdevices_process(d->dev, d->now);
+    /* The CAN devices keep real (monotonic) time, as the drivers on the other end of the bus
+     * do: their heartbeat, RPDO deadlines and event timers must not shrink when the
+     * simulation runs faster than real time. Only their physics follows the simulation. */
+    int rc = vdevices_process(d->dev, marie_mono_us());
     if (rc == -EPIPE)
         marie_warn_ratelimited(5, "device mode: the CAN bus went away");
 }
@@ -123,7 +127,7 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     vc.gyro_bias = cfg->gyro_bias;
     vc.gyro_noise = cfg->gyro_noise;
     vc.external_physics = true;         /* ODE turns the wheels */
-    d->dev = vdevices_create(&vc, now);
+    d->dev = vdevices_create(&vc, marie_mono_us());
     if (!d->dev) {
         snprintf(err, errlen, "cannot attach the virtual drives and gyro to %s: %s", cfg->can_url,
                  strerror(errno));
@@ -186,7 +190,11 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
     sim_world_velocity(d->world, &v, &om);
     if (vdevices_gyro(d->dev))
         vgyro_set_rate(vdevices_gyro(d->dev), om);
-    vdevices_tick(d->dev, dt, now);
+    /* Relay what the drivers sent while we stepped, so the devices judge their deadlines
+     * on every frame already sent (we are the bus too when serving it). */
+    if (d->bus)
+        can_emubus_process(d->bus);
+    vdevices_tick(d->dev, dt, marie_mono_us());
     vlms200_tick(d->laser, now);
     laser_sync_fd(d);
     d->st.can_frames_in = vdevices_frames_in(d->dev);

@@ -85,7 +85,37 @@ void co_dev_init(co_dev_t *d, uint8_t node, const co_od_entry_t *od, size_t nod,
         d->rpdo[i].cob = 0x80000000u | (CO_COB_RPDO1 + 0x100u * (unsigned)i + node);
         d->tpdo[i].type = d->rpdo[i].type = 255;
     }
+    memcpy(d->power_on.tpdo, d->tpdo, sizeof d->tpdo);
+    memcpy(d->power_on.rpdo, d->rpdo, sizeof d->rpdo);
+    d->identity[3] = node;      /* serial: unique on the bus at least */
     co_sdo_server_init(&d->sdo, node, &sdo_ops, d);
+}
+
+void co_dev_set_heartbeat(co_dev_t *d, uint16_t producer_ms, const uint32_t *consumer, int n)
+{
+    d->hb_ms = d->power_on.hb_ms = producer_ms;
+    memset(d->consumer, 0, sizeof d->consumer);
+    for (int i = 0; i < n && i < CO_DEV_NCONSUMER; i++)
+        d->consumer[i] = consumer[i];
+    memcpy(d->power_on.consumer, d->consumer, sizeof d->consumer);
+}
+
+void co_dev_set_identity(co_dev_t *d, uint32_t vendor, uint32_t product, uint32_t revision, uint32_t serial)
+{
+    d->identity[0] = vendor;
+    d->identity[1] = product;
+    d->identity[2] = revision;
+    d->identity[3] = serial;
+}
+
+/* Reset communication (CiA 301): communication objects back to their power-on values;
+ * application objects are the application's business. */
+static void restore_comm(co_dev_t *d)
+{
+    d->hb_ms = d->power_on.hb_ms;
+    memcpy(d->consumer, d->power_on.consumer, sizeof d->consumer);
+    memcpy(d->tpdo, d->power_on.tpdo, sizeof d->tpdo);
+    memcpy(d->rpdo, d->power_on.rpdo, sizeof d->rpdo);
 }
 
 void co_dev_set_pdo(co_dev_t *d, bool tx, int pdo, uint32_t cob, uint8_t type, uint16_t event_ms,
@@ -94,14 +124,17 @@ void co_dev_set_pdo(co_dev_t *d, bool tx, int pdo, uint32_t cob, uint8_t type, u
     if (pdo < 1 || pdo > CO_DEV_NPDO || n > CO_PDO_MAX_ENTRIES)
         return;
     co_dev_pdo_t *p = tx ? &d->tpdo[pdo - 1] : &d->rpdo[pdo - 1];
+    memset(p, 0, sizeof *p);
     p->cob = cob;
     p->type = type;
     p->event_ms = event_ms;
     p->n = n;
     memcpy(p->map, map, n * sizeof *map);
+    /* what the application sets up is the power-on value a reset restores */
+    *(tx ? &d->power_on.tpdo[pdo - 1] : &d->power_on.rpdo[pdo - 1]) = *p;
 }
 
-/* Communication objects: 0x1001, 0x1017, PDO parameters. Returns true if handled. */
+/* Communication objects: 0x1001, 0x1016, 0x1017, 0x1018, PDO parameters. True if handled. */
 static bool comm_object(co_dev_t *d, uint16_t index, uint8_t sub, co_dev_pdo_t **pdo, bool *tx, bool *mapping)
 {
     *pdo = NULL;
@@ -109,7 +142,19 @@ static bool comm_object(co_dev_t *d, uint16_t index, uint8_t sub, co_dev_pdo_t *
     else if (index >= 0x1600 && index < 0x1600 + CO_DEV_NPDO) { *pdo = &d->rpdo[index - 0x1600]; *tx = false; *mapping = true; }
     else if (index >= 0x1800 && index < 0x1800 + CO_DEV_NPDO) { *pdo = &d->tpdo[index - 0x1800]; *tx = true; *mapping = false; }
     else if (index >= 0x1A00 && index < 0x1A00 + CO_DEV_NPDO) { *pdo = &d->tpdo[index - 0x1A00]; *tx = true; *mapping = true; }
-    return *pdo || index == 0x1001 || index == 0x1017;
+    return *pdo || index == 0x1001 || index == 0x1016 || index == 0x1017 || index == 0x1018;
+}
+
+/* The size of a writable communication object (0: none such). */
+static size_t comm_size(uint16_t index, uint8_t sub, bool mapping)
+{
+    if (index == 0x1017)
+        return 2;
+    if (index == 0x1016)
+        return 4;
+    if (mapping)
+        return sub ? 4 : 1;
+    return sub == 1 ? 4 : sub == 2 ? 1 : sub == 5 ? 2 : 0;
 }
 
 static uint32_t put_uint(uint8_t *buf, size_t *len, uint64_t v, size_t size)
@@ -130,6 +175,16 @@ static uint32_t sdo_read(void *user, uint16_t index, uint8_t sub, uint8_t *buf, 
             return sub ? CO_SDO_ABORT_NO_SUB : put_uint(buf, len, d->err_reg, 1);
         if (index == 0x1017)
             return sub ? CO_SDO_ABORT_NO_SUB : put_uint(buf, len, d->hb_ms, 2);
+        if (index == 0x1016) {
+            if (sub > CO_DEV_NCONSUMER)
+                return CO_SDO_ABORT_NO_SUB;
+            return sub ? put_uint(buf, len, d->consumer[sub - 1], 4) : put_uint(buf, len, CO_DEV_NCONSUMER, 1);
+        }
+        if (index == 0x1018) {
+            if (sub > 4)
+                return CO_SDO_ABORT_NO_SUB;
+            return sub ? put_uint(buf, len, d->identity[sub - 1], 4) : put_uint(buf, len, 4, 1);
+        }
         if (mapping) {
             if (sub == 0)
                 return put_uint(buf, len, p->n, 1);
@@ -138,11 +193,10 @@ static uint32_t sdo_read(void *user, uint16_t index, uint8_t sub, uint8_t *buf, 
             return put_uint(buf, len, p->map[sub - 1], 4);
         }
         switch (sub) {
-        case 0: return put_uint(buf, len, tx ? 5 : 2, 1);
+        case 0: return put_uint(buf, len, 5, 1);
         case 1: return put_uint(buf, len, p->cob, 4);
         case 2: return put_uint(buf, len, p->type, 1);
-        case 5: if (tx) return put_uint(buf, len, p->event_ms, 2);
-                /* fall through */
+        case 5: return put_uint(buf, len, p->event_ms, 2);
         default: return CO_SDO_ABORT_NO_SUB;
         }
     }
@@ -171,15 +225,43 @@ static uint64_t get_uint(const uint8_t *data, size_t len)
     return v;
 }
 
+/* 0x1016 sub 1..n: one entry per producer; a second active entry for a node is refused. */
+static uint32_t write_consumer(co_dev_t *d, uint8_t sub, size_t len, uint32_t v)
+{
+    if (sub == 0)
+        return CO_SDO_ABORT_READ_ONLY;
+    if (sub > CO_DEV_NCONSUMER)
+        return CO_SDO_ABORT_NO_SUB;
+    if (len != 4)
+        return CO_SDO_ABORT_TYPE_LEN;
+    uint8_t node = (uint8_t)(v >> 16);
+    if (v >> 24 || node > CO_NODE_MAX)
+        return CO_SDO_ABORT_RANGE;
+    for (int i = 0; i < CO_DEV_NCONSUMER; i++) {
+        uint32_t o = d->consumer[i];
+        if (i != sub - 1 && node && (v & 0xFFFF) && (uint8_t)(o >> 16) == node && (o & 0xFFFF))
+            return CO_SDO_ABORT_PARAM_INCOMPAT;
+    }
+    d->consumer[sub - 1] = v;
+    d->consumer_last[sub - 1] = 0;      /* monitoring starts with the next heartbeat heard */
+    return 0;
+}
+
 static uint32_t sdo_write(void *user, uint16_t index, uint8_t sub, const uint8_t *data, size_t len)
 {
     co_dev_t *d = user;
     co_dev_pdo_t *p;
     bool tx, mapping;
     if (comm_object(d, index, sub, &p, &tx, &mapping)) {
+        if (len == CO_SDO_LEN_UNSIZED) {
+            size_t sz = comm_size(index, sub, mapping);
+            len = sz ? sz : 4;
+        }
         uint64_t v = get_uint(data, len);
-        if (index == 0x1001)
-            return sub ? CO_SDO_ABORT_NO_SUB : CO_SDO_ABORT_READ_ONLY;
+        if (index == 0x1001 || index == 0x1018)
+            return sub > (index == 0x1018 ? 4 : 0) ? CO_SDO_ABORT_NO_SUB : CO_SDO_ABORT_READ_ONLY;
+        if (index == 0x1016)
+            return write_consumer(d, sub, len, (uint32_t)v);
         if (index == 0x1017) {
             if (sub)
                 return CO_SDO_ABORT_NO_SUB;
@@ -230,12 +312,10 @@ static uint32_t sdo_write(void *user, uint16_t index, uint8_t sub, const uint8_t
             p->type = (uint8_t)v;
             return 0;
         case 5:
-            if (!tx)
-                return CO_SDO_ABORT_NO_SUB;
             if (len != 2)
                 return CO_SDO_ABORT_TYPE_LEN;
             p->event_ms = (uint16_t)v;
-            p->next_us = 0;
+            p->next_us = 0;     /* RPDO: the deadline runs from the next reception */
             return 0;
         }
         return CO_SDO_ABORT_NO_SUB;
@@ -245,6 +325,8 @@ static uint32_t sdo_write(void *user, uint16_t index, uint8_t sub, const uint8_t
         return index_exists(d, index) ? CO_SDO_ABORT_NO_SUB : CO_SDO_ABORT_NO_OBJECT;
     if (!(e->access & CO_OD_WO))
         return CO_SDO_ABORT_READ_ONLY;
+    if (len == CO_SDO_LEN_UNSIZED)
+        len = e->size && e->size <= 4 ? e->size : 4;
     if (e->size == 0 || len != e->size)
         return len > e->size ? CO_SDO_ABORT_TOO_LONG : CO_SDO_ABORT_TOO_SHORT;
     uint64_t old = od_get(e);
@@ -266,9 +348,11 @@ int co_dev_boot(co_dev_t *d, int64_t now, struct can_frame *tx)
     d->hb.period_us = 0;
     for (int i = 0; i < CO_DEV_NPDO; i++) {
         d->rpdo[i].latched = false;
+        d->rpdo[i].next_us = 0;
         d->tpdo[i].next_us = 0;
         d->tpdo[i].sync_count = 0;
     }
+    memset(d->consumer_last, 0, sizeof d->consumer_last);
     co_hb_encode(tx, d->node, CO_NMT_BOOTUP);
     d->stats.tx_frames++;
     return 1;
@@ -335,6 +419,33 @@ int co_dev_emcy(co_dev_t *d, uint16_t code, uint8_t reg, const uint8_t vendor[5]
     return 1;
 }
 
+/* Enter NMT state ns; the application hears of it. */
+static void set_nmt(co_dev_t *d, co_nmt_state_t ns)
+{
+    if (ns == d->nmt)
+        return;
+    d->nmt = ns;
+    for (int i = 0; i < CO_DEV_NPDO; i++) {
+        d->tpdo[i].next_us = 0;
+        d->rpdo[i].next_us = 0;     /* deadlines run only while operational */
+        d->rpdo[i].latched = false;
+    }
+    if (d->hooks.on_nmt)
+        d->hooks.on_nmt(d->user, d, ns, false);
+}
+
+/* A heartbeat (or boot-up) from another node: it is alive; its monitoring starts now. */
+static void consume_heartbeat(co_dev_t *d, const struct can_frame *rx, uint8_t node, int64_t now)
+{
+    if (rx->len != 1) {
+        d->stats.bad_frames++;
+        return;
+    }
+    for (int i = 0; i < CO_DEV_NCONSUMER; i++)
+        if ((d->consumer[i] & 0xFFFF) && (uint8_t)(d->consumer[i] >> 16) == node)
+            d->consumer_last[i] = now ? now : 1;
+}
+
 int co_dev_feed(co_dev_t *d, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max)
 {
     int n = 0;
@@ -348,26 +459,31 @@ int co_dev_feed(co_dev_t *d, const struct can_frame *rx, int64_t now, struct can
     case CO_FC_NMT: {
         co_nmt_cmd_t cmd;
         uint8_t target;
-        if (co_nmt_decode(rx, &cmd, &target) < 0 || (target != 0 && target != d->node))
+        if (co_nmt_decode(rx, &cmd, &target) < 0) {
+            d->stats.bad_frames++;
+            return 0;
+        }
+        if (target != 0 && target != d->node)
             return 0;
         d->stats.nmt++;
         bool reset;
         co_nmt_state_t ns = co_nmt_next(d->nmt, cmd, &reset);
         if (reset) {
-            if (d->hooks.on_nmt)
+            /* Reset node also resets the application; reset communication keeps its objects
+             * but still leaves operational, which the application hears as a state change. */
+            if (cmd == CO_NMT_CMD_RESET_COMM)
+                set_nmt(d, CO_NMT_PREOPERATIONAL);
+            else if (d->hooks.on_nmt)
                 d->hooks.on_nmt(d->user, d, CO_NMT_PREOPERATIONAL, true);
+            restore_comm(d);
             return co_dev_boot(d, now, &tx[0]);
         }
-        if (ns != d->nmt) {
-            d->nmt = ns;
-            if (ns == CO_NMT_OPERATIONAL)
-                for (int i = 0; i < CO_DEV_NPDO; i++)
-                    d->tpdo[i].next_us = 0;
-            if (d->hooks.on_nmt)
-                d->hooks.on_nmt(d->user, d, ns, false);
-        }
+        set_nmt(d, ns);
         return 0;
     }
+    case CO_FC_HEARTBEAT:
+        consume_heartbeat(d, rx, node, now);
+        return 0;
     case CO_FC_SDO_RX:
         if (node != d->node || d->nmt == CO_NMT_STOPPED)
             return 0;
@@ -380,6 +496,10 @@ int co_dev_feed(co_dev_t *d, const struct can_frame *rx, int64_t now, struct can
         }
         return 0;
     case CO_FC_SYNC:
+        if (rx->len > 1) {
+            d->stats.bad_frames++;
+            return 0;
+        }
         if (d->nmt != CO_NMT_OPERATIONAL)
             return 0;
         d->stats.syncs++;
@@ -421,6 +541,8 @@ int co_dev_feed(co_dev_t *d, const struct can_frame *rx, int64_t now, struct can
             return co_dev_emcy(d, CO_EMCY_PDO_LENGTH, d->err_reg | 0x10, NULL, &tx[0]);
         }
         p->rx = *rx;
+        if (p->event_ms)
+            p->next_us = now + (int64_t)p->event_ms * 1000;
         if (p->type <= 240)
             p->latched = true;
         else
@@ -428,6 +550,48 @@ int co_dev_feed(co_dev_t *d, const struct can_frame *rx, int64_t now, struct can
         return 0;
     }
     return 0;
+}
+
+/* A communication error: EMCY with the communication bit of the error register, then the
+ * application's reaction. */
+static int comm_error(co_dev_t *d, uint16_t code, struct can_frame *tx, int max)
+{
+    int n = max > 0 ? co_dev_emcy(d, code, d->err_reg | 0x11, NULL, &tx[0]) : 0;
+    if (d->hooks.on_comm_error)
+        d->hooks.on_comm_error(d->user, d, code);
+    return n;
+}
+
+/* 0x1016: a producer heard once and then silent for its time is lost (until heard again). */
+static int check_consumers(co_dev_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    int n = 0;
+    for (int i = 0; i < CO_DEV_NCONSUMER; i++) {
+        int64_t t = (int64_t)(d->consumer[i] & 0xFFFF) * 1000;
+        if (!t || !(d->consumer[i] >> 16) || !d->consumer_last[i] || now - d->consumer_last[i] <= t)
+            continue;
+        d->consumer_last[i] = 0;
+        d->stats.hb_losses++;
+        n += comm_error(d, CO_EMCY_HB_ERROR, &tx[n], max - n);
+        if (d->nmt == CO_NMT_OPERATIONAL)       /* 0x1029 sub 1 = 0: enter pre-operational */
+            set_nmt(d, CO_NMT_PREOPERATIONAL);
+    }
+    return n;
+}
+
+/* 0x1400 sub 5: an RPDO received once must come again within its event time. */
+static int check_rpdo_deadlines(co_dev_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    int n = 0;
+    for (int i = 0; i < CO_DEV_NPDO; i++) {
+        co_dev_pdo_t *p = &d->rpdo[i];
+        if (!p->next_us || !p->event_ms || (p->cob & 0x80000000u) || now <= p->next_us)
+            continue;
+        p->next_us = 0;                 /* monitoring resumes with the next RPDO */
+        d->stats.rpdo_timeouts++;
+        n += comm_error(d, CO_EMCY_RPDO_TIMEOUT, &tx[n], max - n);
+    }
+    return n;
 }
 
 int co_dev_poll(co_dev_t *d, int64_t now, struct can_frame *tx, int max)
@@ -443,8 +607,10 @@ int co_dev_poll(co_dev_t *d, int64_t now, struct can_frame *tx, int max)
         d->stats.tx_frames++;
         n++;
     }
+    n += check_consumers(d, now, &tx[n], max - n);
     if (d->nmt != CO_NMT_OPERATIONAL)
         return n;
+    n += check_rpdo_deadlines(d, now, &tx[n], max - n);
     for (int i = 0; i < CO_DEV_NPDO && n < max; i++) {
         co_dev_pdo_t *p = &d->tpdo[i];
         if ((p->cob & 0x80000000u) || p->type < 254 || p->event_ms == 0)

@@ -42,6 +42,7 @@ const char *co_emcy_str(uint16_t code)
     case CO_EMCY_HB_ERROR: return "heartbeat error";
     case CO_EMCY_BUS_OFF_REC: return "recovered from bus off";
     case CO_EMCY_PDO_LENGTH: return "PDO length error";
+    case CO_EMCY_RPDO_TIMEOUT: return "RPDO timeout";
     case CO_EMCY_FOLLOWING_ERR: return "following error";
     case CO_EMCY_SENSOR: return "sensor fault";
     }

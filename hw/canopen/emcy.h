@@ -27,6 +27,7 @@ extern "C" {
 #define CO_EMCY_HB_ERROR        0x8130  /* life guard or heartbeat error */
 #define CO_EMCY_BUS_OFF_REC     0x8140  /* recovered from bus off */
 #define CO_EMCY_PDO_LENGTH      0x8210  /* PDO not processed due to length error */
+#define CO_EMCY_RPDO_TIMEOUT    0x8250  /* RPDO timeout (event-timer deadline missed) */
 #define CO_EMCY_FOLLOWING_ERR   0x8611  /* following error (CiA 402) */
 #define CO_EMCY_SENSOR          0x7300  /* sensor (encoder / gyro element) */
 #define CO_EMCY_DEVICE_SPECIFIC 0xFF00

@@ -34,6 +34,7 @@ const char *co_sdo_abort_str(uint32_t code)
     case CO_SDO_ABORT_TOO_LONG: return "data type does not match, length too high";
     case CO_SDO_ABORT_TOO_SHORT: return "data type does not match, length too low";
     case CO_SDO_ABORT_NO_SUB: return "sub-index does not exist";
+    case CO_SDO_ABORT_PARAM_INCOMPAT: return "general parameter incompatibility";
     case CO_SDO_ABORT_RANGE: return "invalid value for parameter";
     case CO_SDO_ABORT_GENERAL: return "general error";
     case CO_SDO_ABORT_STATE: return "not possible in the present device state";
@@ -286,7 +287,7 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
         s->sub = sub;
         bool e = d[0] & 0x02, sz = d[0] & 0x01;
         if (e) {
-            size_t n = sz ? 4 - ((d[0] >> 2) & 3) : 4;
+            size_t n = sz ? (size_t)(4 - ((d[0] >> 2) & 3)) : CO_SDO_LEN_UNSIZED;
             uint32_t ab = s->ops->write(s->user, index, sub, d + 4, n);
             if (ab)
                 return srv_abort(s, tx, index, sub, ab);

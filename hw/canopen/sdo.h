@@ -24,6 +24,7 @@ extern "C" {
 #define CO_SDO_ABORT_TOO_LONG      0x06070012u
 #define CO_SDO_ABORT_TOO_SHORT     0x06070013u
 #define CO_SDO_ABORT_NO_SUB        0x06090011u
+#define CO_SDO_ABORT_PARAM_INCOMPAT 0x06040043u
 #define CO_SDO_ABORT_RANGE         0x06090030u
 #define CO_SDO_ABORT_GENERAL       0x08000000u
 #define CO_SDO_ABORT_STATE         0x08000022u
@@ -72,7 +73,10 @@ int co_sdo_client_poll(co_sdo_client_t *c, int64_t now, struct can_frame *tx);
 
 /* ---- server ---- */
 /* Object access for the server. read: copy the value into buf (cap bytes), set *len; write:
- * take len bytes. Both return 0 or an abort code. */
+ * take len bytes. Both return 0 or an abort code. An expedited download without size
+ * indication (CiA 301 allows it: the client need not know the type) comes with
+ * len == CO_SDO_LEN_UNSIZED and 4 bytes of data: the object's own size applies. */
+#define CO_SDO_LEN_UNSIZED ((size_t)-1)
 typedef struct {
     uint32_t (*read)(void *user, uint16_t index, uint8_t sub, uint8_t *buf, size_t cap, size_t *len);
     uint32_t (*write)(void *user, uint16_t index, uint8_t sub, const uint8_t *data, size_t len);

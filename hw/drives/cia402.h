@@ -11,6 +11,7 @@ extern "C" {
 #endif
 
 /* Objects (CiA 402 part 2) used in profile velocity mode. */
+#define CIA402_OBJ_ABORT_CONN   0x6007  /* i16: abort connection option code */
 #define CIA402_OBJ_ERROR_CODE   0x603F  /* u16 */
 #define CIA402_OBJ_CONTROLWORD  0x6040  /* u16 */
 #define CIA402_OBJ_STATUSWORD   0x6041  /* u16 */

@@ -13,9 +13,10 @@
 #define EMCY_STORM 10       /* per second and axis: beyond this, count without events */
 
 /* Configuration written to each drive, in order (CiA 301 PDO remapping procedure:
- * invalidate, clear the count, write the entries, set the count, validate). */
-enum { J_UP, J_DN };
-enum { V_CONST, V_NODE, V_INVALID_NODE, V_HB };
+ * invalidate, clear the count, write the entries, set the count, validate). An optional
+ * object the drive does not have (abort "no object" / "no sub-index") is skipped. */
+enum { J_UP, J_DN, J_UP_OPT, J_DN_OPT };
+enum { V_CONST, V_NODE, V_INVALID_NODE, V_HB, V_CONSUMER, V_RPDO_TMO };
 typedef struct {
     uint8_t op;
     uint16_t index;
@@ -27,15 +28,19 @@ typedef struct {
 
 static const job_t jobs[] = {
     { J_UP, 0x1000, 0, 4, V_CONST, 0 },                  /* device type: must be 402 */
-    { J_UP, 0x1008, 0, 0, V_CONST, 0 },                  /* device name (segmented upload) */
+    { J_UP_OPT, 0x1008, 0, 0, V_CONST, 0 },              /* device name (segmented upload) */
     { J_DN, CIA402_OBJ_MODE, 0, 1, V_CONST, CIA402_MODE_PROFILE_VELOCITY },
     { J_DN, 0x1017, 0, 2, V_HB, 0 },
+    /* the drive watches our heartbeat and reacts per 0x6007 (1: fault reaction) when it stops */
+    { J_DN, 0x1016, 1, 4, V_CONSUMER, 0 },
+    { J_DN_OPT, CIA402_OBJ_ABORT_CONN, 0, 2, V_CONST, 1 },
     { J_DN, 0x1400, 1, 4, V_INVALID_NODE, CO_COB_RPDO1 },
     { J_DN, 0x1600, 0, 1, V_CONST, 0 },
     { J_DN, 0x1600, 1, 4, V_CONST, 0x60400010 },
     { J_DN, 0x1600, 2, 4, V_CONST, 0x60FF0020 },
     { J_DN, 0x1600, 0, 1, V_CONST, 2 },
     { J_DN, 0x1400, 2, 1, V_CONST, 1 },                  /* synchronous: applied at SYNC */
+    { J_DN_OPT, 0x1400, 5, 2, V_RPDO_TMO, 0 },           /* RPDO deadline monitoring */
     { J_DN, 0x1400, 1, 4, V_NODE, CO_COB_RPDO1 },
     { J_DN, 0x1800, 1, 4, V_INVALID_NODE, CO_COB_TPDO1 },
     { J_DN, 0x1A00, 0, 1, V_CONST, 0 },
@@ -71,12 +76,14 @@ struct drives_ctl {
     /* frames produced inside callbacks (SDO done, heartbeat events) wait here */
     struct can_frame pend[8];
     int npend;
+    int64_t hb_sent_us;     /* our own heartbeat */
 };
 
 const char *drives_ev_name(drives_ev_t ev)
 {
     static const char *n[] = { "configured", "config_failed", "fault", "fault_reset", "recovered",
-                               "emcy", "emcy_storm", "hb_timeout", "bootup", "bad_frame", "unexpected" };
+                               "emcy", "emcy_storm", "hb_timeout", "bootup", "bad_frame", "unexpected",
+                               "emcy_quiet", "optional_missing" };
     return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
 }
 
@@ -93,6 +100,10 @@ void drives_cfg_default(drives_cfg_t *cfg)
     cfg->heartbeat_timeout_us = 350000;
     cfg->boot_retry_us = 2000000;
     cfg->fault_reset_delay_us = 1000000;
+    cfg->master_node = 127;
+    cfg->master_heartbeat_ms = 20;
+    cfg->consumer_ms = 100;
+    cfg->rpdo_timeout_ms = 100;
 }
 
 static void ev(drives_ctl_t *d, int axis, drives_ev_t e, uint32_t code)
@@ -121,6 +132,17 @@ static void set_phase(drives_ctl_t *d, int i, drives_ax_phase_t p)
     d->ax[i].phase_since = d->now;
 }
 
+/* We lose control of a drive (it may be operational and turning): NMT takes it out of
+ * operational first, which a CiA 402 drive answers per 0x6007, before anything else goes out.
+ * Pre-operational keeps its SDO server for a configuration that follows at once. */
+static void stop_drive(drives_ctl_t *d, int i, co_nmt_cmd_t cmd)
+{
+    struct can_frame f;
+    co_nmt_encode(&f, cmd, d->cfg.node[i]);
+    pend(d, &f);
+    d->ax[i].stops++;
+}
+
 static void run_job(drives_ctl_t *d, int i)
 {
     drives_axis_t *a = &d->ax[i];
@@ -134,13 +156,16 @@ static void run_job(drives_ctl_t *d, int i)
         return;
     }
     const job_t *j = &jobs[a->job];
-    if (j->op == J_UP) {
+    if (j->op == J_UP || j->op == J_UP_OPT) {
         co_sdo_client_upload(&a->sdo, j->index, j->sub, d->now, &f);
     } else {
         uint32_t v = j->value;
         if (j->vkind == V_NODE) v += d->cfg.node[i];
         if (j->vkind == V_INVALID_NODE) v = 0x80000000u | (v + d->cfg.node[i]);
         if (j->vkind == V_HB) v = d->cfg.heartbeat_ms;
+        if (j->vkind == V_CONSUMER)
+            v = d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | d->cfg.consumer_ms : 0;
+        if (j->vkind == V_RPDO_TMO) v = d->cfg.rpdo_timeout_ms;
         uint8_t b[4];
         co_put_u32(b, v);
         co_sdo_client_download(&a->sdo, j->index, j->sub, b, j->size, d->now, &f);
@@ -158,9 +183,16 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
         return;
     if (!abort && index == 0x1000 && (len != 4 || (co_get_u32(data) & 0xFFFF) != 402))
         abort = CO_SDO_ABORT_TYPE_LEN;          /* not a CiA 402 device */
+    uint8_t op = a->job < NJOBS ? jobs[a->job].op : J_UP;
+    if ((abort == CO_SDO_ABORT_NO_OBJECT || abort == CO_SDO_ABORT_NO_SUB) && (op == J_UP_OPT || op == J_DN_OPT)) {
+        ev(d, i, DRIVES_EV_OPTIONAL_MISSING, (uint32_t)index << 8 | sub);
+        abort = 0;
+        data = NULL;
+    }
     if (abort) {
         a->sdo_aborts++;
         a->config_failures++;
+        stop_drive(d, i, CO_NMT_CMD_STOP);
         ev(d, i, DRIVES_EV_CONFIG_FAILED, abort);
         set_phase(d, i, DRIVES_AX_BOOT);        /* retried after boot_retry_us */
         return;
@@ -195,6 +227,10 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
     switch (e) {
     case CO_HB_EV_BOOTUP:
         a->bootups++;
+        /* A boot-up while we drove it may be forged or a glitch: make sure it is not left
+         * turning during the configuration (a real boot-up finds it pre-operational anyway). */
+        if (a->phase == DRIVES_AX_RUN || a->phase == DRIVES_AX_CONFIG)
+            stop_drive(d, i, CO_NMT_CMD_ENTER_PREOP);
         a->nmt = CO_NMT_PREOPERATIONAL;
         ev(d, i, DRIVES_EV_BOOTUP, 0);
         start_config(d, i);
@@ -213,6 +249,7 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
         break;
     case CO_HB_EV_TIMEOUT:
         a->hb_timeouts++;
+        stop_drive(d, i, CO_NMT_CMD_STOP);      /* deaf to us, maybe not dumb: stop it */
         a->nmt = CO_NMT_UNKNOWN;
         a->state = CIA402_UNKNOWN;
         set_phase(d, i, DRIVES_AX_OFFLINE);
@@ -353,6 +390,11 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
     case CO_FC_SDO_TX: {
         struct can_frame f;
         bool ready;
+        if (!co_sdo_client_busy(&a->sdo)) {
+            /* nobody asked: a late answer, or another client on the bus */
+            ev(d, i, rx->len != 8 ? DRIVES_EV_BAD_FRAME : DRIVES_EV_UNEXPECTED, rx->can_id);
+            break;
+        }
         int r = co_sdo_client_feed(&a->sdo, rx, now, &f, &ready);
         if (r < 0)
             ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
@@ -376,17 +418,19 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
             ev(d, i, DRIVES_EV_EMCY, e.code);
         else if (a->emcy_in_window == EMCY_STORM + 1)
             ev(d, i, DRIVES_EV_EMCY_STORM, e.code);
+        else
+            ev(d, i, DRIVES_EV_EMCY_QUIET, e.code);
         break;
     }
     case CO_FC_TPDO: {
         uint64_t v[2];
-        if (a->phase != DRIVES_AX_RUN)
-            break;
         if (pdo == 1) {
             if (co_pdo_decode(&tpdo1_map, rx, v) < 0) {
                 ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
                 break;
             }
+            if (a->phase != DRIVES_AX_RUN)
+                break;
             int32_t pos = (int32_t)co_pdo_signed(v[1], 32);
             a->position = d->cfg.invert[i] ? (int32_t)(0u - (uint32_t)pos) : pos;
             a->have_tpdo = true;
@@ -396,6 +440,8 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
                 ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
                 break;
             }
+            if (a->phase != DRIVES_AX_RUN)
+                break;
             int32_t vel = (int32_t)co_pdo_signed(v[0], 32);
             a->velocity = d->cfg.invert[i] ? -vel : vel;
         } else {
@@ -431,22 +477,56 @@ static void compute_target(drives_ctl_t *d, int i, int64_t now)
     a->target = (int32_t)lround(w * d->cfg.ticks_per_rev / (2 * M_PI));
 }
 
+static cia402_want_t want(const drives_ctl_t *d)
+{
+    return !d->enable ? CIA402_WANT_DISABLED : d->estop ? CIA402_WANT_QUICK_STOP : CIA402_WANT_ENABLED;
+}
+
 int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
 {
     int n = 0;
     for (int i = 0; i < DRIVES_N && n < max; i++) {
-        if (d->ax[i].phase != DRIVES_AX_RUN)
+        drives_axis_t *a = &d->ax[i];
+        if (a->phase != DRIVES_AX_RUN)
             continue;
+        /* e-stop or disable take effect now (the drive applies them at the next SYNC);
+         * enabling and fault resets are the cycle's business */
+        if (a->have_tpdo && want(d) != CIA402_WANT_ENABLED)
+            a->controlword = cia402_next_controlword(a->state, want(d), a->controlword, false);
         compute_target(d, i, now);
         n += rpdo(d, i, &tx[n]);
     }
     return n;
 }
 
+/* Our heartbeat, on the cycle when due; a cycle a little early still sends it, so timer
+ * jitter does not stretch the period to two cycles. */
+static int heartbeat(drives_ctl_t *d, int64_t now, struct can_frame *f)
+{
+    int64_t period = (int64_t)d->cfg.master_heartbeat_ms * 1000;
+    if (period <= 0 || (d->hb_sent_us && now - d->hb_sent_us < period - period / 4))
+        return 0;
+    d->hb_sent_us = now;
+    co_hb_encode(f, d->cfg.master_node, CO_NMT_OPERATIONAL);
+    return 1;
+}
+
+int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    d->now = now;
+    d->enable = false;
+    int n = drives_ctl_rpdo_now(d, now, tx, max);
+    if (n > 0 && n < max)
+        n += co_sync_encode(&tx[n], 0) >= 0;
+    for (int i = 0; i < DRIVES_N && n < max; i++)
+        n += co_nmt_encode(&tx[n], CO_NMT_CMD_STOP, d->cfg.node[i]) > 0;
+    return n;
+}
+
 int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
 {
     d->now = now;
-    int n = 0;
+    int n = heartbeat(d, now, &tx[0]);
     co_hb_consumer_check(&d->hb, now);
     for (int i = 0; i < DRIVES_N; i++) {
         drives_axis_t *a = &d->ax[i];
@@ -469,10 +549,8 @@ int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
         if (a->phase != DRIVES_AX_RUN)
             continue;
         any_run = true;
-        cia402_want_t want = !d->enable ? CIA402_WANT_DISABLED
-                           : d->estop ? CIA402_WANT_QUICK_STOP : CIA402_WANT_ENABLED;
         bool allow = now - a->fault_since >= d->cfg.fault_reset_delay_us;
-        uint16_t cw = a->have_tpdo ? cia402_next_controlword(a->state, want, a->controlword, allow)
+        uint16_t cw = a->have_tpdo ? cia402_next_controlword(a->state, want(d), a->controlword, allow)
                                    : CIA402_CW_DISABLE_VOLTAGE;
         if (cw == CIA402_CW_FAULT_RESET && !(a->controlword & CIA402_CW_FAULT_RESET)) {
             a->fault_resets++;

@@ -31,6 +31,10 @@ typedef struct {
     int64_t heartbeat_timeout_us;   /* consumer timeout */
     int64_t boot_retry_us;          /* resend reset-communication when a node stays silent */
     int64_t fault_reset_delay_us;   /* wait this long in fault before a fault reset */
+    uint8_t master_node;            /* our node id: heartbeat 0x700 + master_node */
+    uint16_t master_heartbeat_ms;   /* our heartbeat period (0: none, no consumer in the drives) */
+    uint16_t consumer_ms;           /* written to the drives' 0x1016: our heartbeat's deadline */
+    uint16_t rpdo_timeout_ms;       /* written to the drives' 0x1400:05 where supported (0: off) */
 } drives_cfg_t;
 
 void drives_cfg_default(drives_cfg_t *cfg);
@@ -55,6 +59,7 @@ typedef struct {
     bool recovering;                /* faulted; RECOVERED is told on reaching operation */
     char name[32];                  /* the drive's 0x1008 */
     uint64_t faults, emcy, fault_resets, hb_timeouts, bootups, sdo_aborts, config_failures;
+    uint64_t stops;                 /* NMT stop / enter pre-operational sent on losing control */
     /* private */
     int job;
     int64_t phase_since, fault_since, emcy_window_start;
@@ -74,6 +79,8 @@ typedef enum {
     DRIVES_EV_BOOTUP,           /* the node (re)booted */
     DRIVES_EV_BAD_FRAME,        /* malformed frame from a drive (wrong DLC...): code = COB-ID */
     DRIVES_EV_UNEXPECTED,       /* a frame no drive should send: code = COB-ID */
+    DRIVES_EV_EMCY_QUIET,       /* an EMCY past the storm threshold: count it, no event */
+    DRIVES_EV_OPTIONAL_MISSING, /* an optional object is absent: code = index << 8 | sub */
 } drives_ev_t;
 
 const char *drives_ev_name(drives_ev_t ev);
@@ -93,12 +100,17 @@ void drives_ctl_set_estop(drives_ctl_t *d, bool pressed);
 void drives_ctl_set_wheels(drives_ctl_t *d, double left, double right, int64_t now);
 /* A frame from the bus; returns frames to send. */
 int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max);
-/* One SYNC cycle: SDO and heartbeat timeouts, controlwords, RPDO1 to each running drive,
- * then SYNC. Returns frames to send (at most 8 are ever needed). */
+/* One SYNC cycle: our heartbeat when due, SDO and heartbeat timeouts, controlwords, RPDO1 to
+ * each running drive, then SYNC. Call it every 1/sync_hz for as long as the drives are ours
+ * (also while disabled), or they see the heartbeat and RPDOs stop. Returns frames to send
+ * (at most 9 are ever needed). */
 int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
 /* RPDO1 of both running drives now, with the current command (lower latency than waiting
  * for the cycle; the drives apply them at the next SYNC). */
 int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
+
+/* Leaving for good: disable voltage in RPDO1 with one last SYNC, then NMT stop to both. */
+int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
 
 const drives_axis_t *drives_ctl_axis(const drives_ctl_t *d, int axis);
 bool drives_ctl_all_enabled(const drives_ctl_t *d);

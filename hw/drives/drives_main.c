@@ -19,7 +19,7 @@ typedef struct {
     marie_port_t *out;
     marie_timer_t *sync_timer, *pub_timer;
     double radius, track;
-    bool estop;
+    bool estop, started;
     int64_t last_emcy_event;
 } drives_t;
 
@@ -47,6 +47,10 @@ static const marie_param_spec_t params[] = {
     { "heartbeat_timeout", MARIE_PARAM_DOUBLE, "0.35", "s without a drive heartbeat: offline" },
     { "fault_reset_delay", MARIE_PARAM_DOUBLE, "1.0", "s in fault before a fault reset" },
     { "sdo_timeout", MARIE_PARAM_DOUBLE, "0.2", "s" },
+    { "master_node", MARIE_PARAM_INT, "127", "our CANopen node id (heartbeat 0x700 + id)" },
+    { "master_heartbeat_ms", MARIE_PARAM_INT, "20", "our heartbeat period (0: none, drives not watching)" },
+    { "master_timeout", MARIE_PARAM_DOUBLE, "0.1", "s: the drives' heartbeat consumer time for us (0x1016)" },
+    { "rpdo_timeout", MARIE_PARAM_DOUBLE, "0.1", "s: the drives' RPDO1 deadline (0x1400:05; 0: off)" },
     { NULL },
 };
 
@@ -112,6 +116,14 @@ static void on_drive_event(void *user, int axis, drives_ev_t ev, uint32_t code)
             marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_emcy", "%s drive EMCY 0x%04X %s",
                                   side(axis), code, co_emcy_str((uint16_t)code));
         break;
+    case DRIVES_EV_EMCY_QUIET:
+        marie_component_count(c, "emcy", 1);
+        break;
+    case DRIVES_EV_OPTIONAL_MISSING:
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_optional_missing",
+                              "%s drive has no object 0x%04X:%02X (optional, skipped)", side(axis), code >> 8,
+                              code & 0xFF);
+        break;
     case DRIVES_EV_EMCY_STORM:
         marie_component_count(c, "emcy", 1);
         marie_component_bad_input(c, "emcy_storm", "%s drive: EMCY storm (0x%04X), further ones only counted",
@@ -137,7 +149,9 @@ static void on_drive_event(void *user, int axis, drives_ev_t ev, uint32_t code)
 static void on_sync(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     drives_t *d = user;
-    if (marie_component_state(d->c) != MARIE_STATE_RUNNING)
+    /* Once started the drives are ours until quit: stopped or paused we keep them disabled,
+     * and our heartbeat and RPDOs going, or they would (rightly) take us for dead. */
+    if (!d->started)
         return;
     struct can_frame tx[16];
     send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
@@ -200,12 +214,14 @@ static void on_estop(marie_component_t *c, marie_port_t *p, const void *msg, con
         if (m->pressed)
             marie_component_count(c, "estops", 1);
     }
+    bool edge = m->pressed && !d->estop;
     d->estop = m->pressed;
     drives_ctl_set_estop(d->ctl, d->estop);
-    if (d->estop) {
-        /* quick stop now, not at the next cycle */
-        struct can_frame tx[16];
-        send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
+    if (edge) {
+        /* quick stop in RPDO1 now; the drives apply it at the next SYNC, which keeps its
+         * period (an extra SYNC per e-stop message would not be one) */
+        struct can_frame tx[4];
+        send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, marie_mono_us(), tx, 4));
     }
 }
 
@@ -242,6 +258,18 @@ static int on_init(marie_component_t *c)
     cfg.heartbeat_timeout_us = (int64_t)(marie_param_double(c, "heartbeat_timeout") * 1e6);
     cfg.fault_reset_delay_us = (int64_t)(marie_param_double(c, "fault_reset_delay") * 1e6);
     cfg.sdo_timeout_us = (int64_t)(marie_param_double(c, "sdo_timeout") * 1e6);
+    int64_t mn = marie_param_int(c, "master_node"), mhb = marie_param_int(c, "master_heartbeat_ms");
+    double mto = marie_param_double(c, "master_timeout"), rto = marie_param_double(c, "rpdo_timeout");
+    if (mn < 1 || mn > 127 || mn == ln || mn == rn || mhb < 0 || mhb > 65535 || !(mto >= 0 && mto <= 65.535) ||
+        !(rto >= 0 && rto <= 65.535) || (mhb > 0 && mto * 1000 <= mhb)) {
+        marie_component_fail_reason(c, "bad parameters: master_node 1..127 and not a drive's, "
+                                       "master_timeout (s) longer than master_heartbeat_ms, timeouts up to 65 s");
+        goto err;
+    }
+    cfg.master_node = (uint8_t)mn;
+    cfg.master_heartbeat_ms = (uint16_t)mhb;
+    cfg.consumer_ms = (uint16_t)lround(mto * 1000);
+    cfg.rpdo_timeout_ms = (uint16_t)lround(rto * 1000);
     d->ctl = drives_ctl_create(&cfg, on_drive_event, d);
     if (!d->ctl) {
         marie_component_fail_reason(c, "drive controller: %s", strerror(errno));
@@ -280,19 +308,23 @@ static int on_start(marie_component_t *c)
     drives_t *d = marie_component_user(c);
     struct can_frame tx[16];
     drives_ctl_enable(d->ctl, true);
+    if (d->started)
+        return 0;               /* restarted after a stop: the cycle never ceased */
+    d->started = true;
     send_frames(d, tx, drives_ctl_start(d->ctl, marie_mono_us(), tx, 16));
     return 0;
 }
 
-/* Power stages off at once: one cycle with "disable voltage" goes out before we go quiet. */
+/* Power stages off: "disable voltage" in RPDO1 at once, applied at the next SYNC; the cycle
+ * goes on holding them there. */
 static void safe_stop(marie_component_t *c)
 {
     drives_t *d = marie_component_user(c);
     if (!d)
         return;
-    struct can_frame tx[16];
+    struct can_frame tx[4];
     drives_ctl_enable(d->ctl, false);
-    send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
+    send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, marie_mono_us(), tx, 4));
 }
 
 static int on_stop(marie_component_t *c)
@@ -322,6 +354,11 @@ static void on_quit(marie_component_t *c)
     drives_t *d = marie_component_user(c);
     if (!d)
         return;
+    if (d->started) {
+        /* leave the drives disabled and stopped, not waiting for their heartbeat consumer */
+        struct can_frame tx[8];
+        send_frames(d, tx, drives_ctl_shutdown(d->ctl, marie_mono_us(), tx, 8));
+    }
     marie_loop_remove_timer(marie_component_loop(c), d->sync_timer);
     can_link_close(d->link);
     drives_ctl_destroy(d->ctl);

@@ -123,6 +123,11 @@ int vdevices_process(vdevices_t *v, int64_t now)
 int vdevices_tick(vdevices_t *v, double dt, int64_t now)
 {
     struct can_frame tx[16];
+    /* Frames already on the bus count before any deadline is judged: a host that ran a
+     * batch of physics steps without polling must not take a live master for dead. */
+    int rc = vdevices_process(v, now);
+    if (rc < 0)
+        return rc;
     for (int i = 0; i < 2; i++)
         if (v->drive[i]) {
             vdrive_step(v->drive[i], dt);

@@ -37,7 +37,8 @@ void vdevices_destroy(vdevices_t *v);
 int vdevices_fd(const vdevices_t *v);
 /* Read and answer every waiting frame. Returns frames handled or -errno (-EPIPE: bus gone). */
 int vdevices_process(vdevices_t *v, int64_t now);
-/* Advance physics by dt seconds and send time-driven frames (heartbeats, gyro samples). */
+/* Read what waits on the bus, advance physics by dt seconds and send time-driven frames
+ * (heartbeats, gyro samples, EMCY of lost heartbeats or RPDOs). 0 or -errno as process. */
 int vdevices_tick(vdevices_t *v, double dt, int64_t now);
 vdrive_t *vdevices_drive(vdevices_t *v, int i);     /* 0 left, 1 right; NULL if absent */
 vgyro_t *vdevices_gyro(vdevices_t *v);

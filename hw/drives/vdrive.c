@@ -20,6 +20,7 @@ struct vdrive {
     uint32_t device_type;
     uint16_t error_code, controlword, statusword;
     int8_t mode, mode_display;
+    int16_t abort_opt;          /* 0x6007 abort connection option code */
     int32_t position, velocity, target;
     uint32_t acc, qs_dec;
     /* drive */
@@ -28,7 +29,7 @@ struct vdrive {
     double setpoint;            /* rad/s, ramped */
     double pos_rad, vel_rad;
     bool external;
-    int64_t last_rpdo_us, now_us;
+    int64_t now_us;
     struct can_frame outbox[OUTBOX];
     int nout;
 };
@@ -94,8 +95,6 @@ static void apply_controlword(vdrive_t *v)
         queue_emcy(v, CO_EMCY_NO_ERROR);        /* the fault is gone */
         v->dev.err_reg = 0;
     }
-    if (ns == CIA402_OPERATION_ENABLED)
-        v->last_rpdo_us = v->now_us;
     if (!cia402_state_powered(ns))
         v->setpoint = 0;                        /* power stage off: the wheel coasts */
     v->state = ns;
@@ -105,7 +104,6 @@ static void apply_controlword(vdrive_t *v)
 static void on_rpdo(void *user, co_dev_t *d, int pdo)
 {
     vdrive_t *v = user;
-    v->last_rpdo_us = v->now_us;
     apply_controlword(v);
 }
 
@@ -116,6 +114,8 @@ static uint32_t on_write(void *user, co_dev_t *d, uint16_t index, uint8_t sub)
     vdrive_t *v = user;
     if (index == CIA402_OBJ_MODE && v->mode != CIA402_MODE_PROFILE_VELOCITY && v->mode != 0)
         return CO_SDO_ABORT_RANGE;              /* only profile velocity is implemented */
+    if (index == CIA402_OBJ_ABORT_CONN && (v->abort_opt < 0 || v->abort_opt > 3))
+        return CO_SDO_ABORT_RANGE;              /* no manufacturer-specific reactions */
     if (index == CIA402_OBJ_CONTROLWORD)
         apply_controlword(v);
     update_sw(v);
@@ -129,8 +129,39 @@ static void reset_app(vdrive_t *v)
     v->target = 0;
     v->setpoint = 0;
     v->mode = 0;
+    v->abort_opt = 1;
     update_sw(v);
 }
+
+/* CiA 402: a communication error (heartbeat or RPDO lost, NMT out of operational) while the
+ * power stage drives the motor is answered per 0x6007: 1 fault (fault reaction: quick-stop
+ * ramp, then power off), 2 disable voltage, 3 quick stop; 0 nothing. `emcy`: the node has
+ * not told the master yet. */
+static void comm_abort(vdrive_t *v, uint16_t code, bool emcy)
+{
+    if (!cia402_state_powered(v->state) || v->state == CIA402_FAULT_REACTION_ACTIVE)
+        return;
+    switch (v->abort_opt) {
+    case 1:
+        v->state = CIA402_FAULT_REACTION_ACTIVE;
+        v->error_code = code;
+        if (emcy)
+            queue_emcy(v, code);
+        break;
+    case 2:
+        v->state = CIA402_SWITCH_ON_DISABLED;
+        v->setpoint = 0;
+        break;
+    case 3:
+        v->state = CIA402_QUICK_STOP_ACTIVE;
+        break;
+    default:
+        return;
+    }
+    update_sw(v);
+}
+
+static void on_comm_error(void *user, co_dev_t *d, uint16_t code) { comm_abort(user, code, false); }
 
 static void on_nmt(void *user, co_dev_t *d, co_nmt_state_t s, bool reset)
 {
@@ -139,12 +170,8 @@ static void on_nmt(void *user, co_dev_t *d, co_nmt_state_t s, bool reset)
         reset_app(v);
         return;
     }
-    /* Losing operational while the motor is powered is a communication fault (0x6007 = 2). */
-    if (s != CO_NMT_OPERATIONAL && cia402_state_powered(v->state)) {
-        v->state = CIA402_FAULT_REACTION_ACTIVE;
-        v->error_code = CO_EMCY_HB_ERROR;
-        queue_emcy(v, CO_EMCY_HB_ERROR);
-    }
+    if (s != CO_NMT_OPERATIONAL)
+        comm_abort(v, CO_EMCY_HB_ERROR, true);
 }
 
 vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
@@ -172,15 +199,26 @@ vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
         { CIA402_OBJ_PROFILE_ACC, 0, 4, CO_OD_RW, &v->acc },
         { CIA402_OBJ_QUICKSTOP_DEC, 0, 4, CO_OD_RW, &v->qs_dec },
         { CIA402_OBJ_TARGET_VEL, 0, 4, CO_OD_RW, &v->target },
+        { CIA402_OBJ_ABORT_CONN, 0, 2, CO_OD_RW, &v->abort_opt },
     };
     memcpy(v->od, od, sizeof od);
-    static const co_dev_hooks_t hooks = { on_nmt, on_rpdo, on_sync, on_write };
-    co_dev_init(&v->dev, cfg->node, v->od, sizeof od / sizeof od[0], &hooks, v);
+    size_t nod = sizeof od / sizeof od[0];
+    if (!v->name[0]) {
+        /* an empty name: a drive without the optional 0x1008 (entry 1) */
+        memmove(&v->od[1], &v->od[2], (nod - 2) * sizeof v->od[0]);
+        nod--;
+    }
+    static const co_dev_hooks_t hooks = { on_nmt, on_rpdo, on_sync, on_write, on_comm_error };
+    co_dev_init(&v->dev, cfg->node, v->od, nod, &hooks, v);
+    co_dev_set_identity(&v->dev, VDRIVE_VENDOR_ID, VDRIVE_PRODUCT_CODE, VDRIVE_REVISION, cfg->node);
+    v->abort_opt = 1;
     /* Defaults that marie-drives also writes at configuration (see docs/hw/drives.md). */
     uint32_t rmap[] = { 0x60400010, 0x60FF0020 };
     uint32_t t1map[] = { 0x60410010, 0x60640020 };
     uint32_t t2map[] = { 0x606C0020 };
-    co_dev_set_pdo(&v->dev, false, 1, CO_COB_RPDO1 + cfg->node, 1, 0, rmap, 2);
+    int64_t tmo_ms = cfg->rpdo_timeout_us > 0 ? (cfg->rpdo_timeout_us + 999) / 1000 : 0;
+    co_dev_set_pdo(&v->dev, false, 1, CO_COB_RPDO1 + cfg->node, 1, (uint16_t)(tmo_ms > 65535 ? 65535 : tmo_ms),
+                   rmap, 2);
     co_dev_set_pdo(&v->dev, true, 1, CO_COB_TPDO1 + cfg->node, 1, 0, t1map, 2);
     co_dev_set_pdo(&v->dev, true, 2, CO_COB_TPDO2 + cfg->node, 1, 0, t2map, 1);
     v->state = CIA402_NOT_READY;
@@ -222,13 +260,6 @@ int vdrive_feed(vdrive_t *v, const struct can_frame *rx, int64_t now, struct can
 int vdrive_poll(vdrive_t *v, int64_t now, struct can_frame *tx, int max)
 {
     v->now_us = now;
-    if (v->cfg.rpdo_timeout_us > 0 && v->state == CIA402_OPERATION_ENABLED &&
-        now - v->last_rpdo_us > v->cfg.rpdo_timeout_us) {
-        v->state = CIA402_FAULT_REACTION_ACTIVE;
-        v->error_code = CO_EMCY_HB_ERROR;
-        queue_emcy(v, CO_EMCY_HB_ERROR);
-        update_sw(v);
-    }
     int n = co_dev_poll(&v->dev, now, tx, max);
     return flush(v, tx, n, max);
 }

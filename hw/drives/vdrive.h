@@ -16,14 +16,19 @@
 extern "C" {
 #endif
 
+/* Identity 0x1018 (the serial number is the node id). */
+#define VDRIVE_VENDOR_ID    0x00000000u     /* no CiA vendor id: an emulator */
+#define VDRIVE_PRODUCT_CODE 0x00000402u
+#define VDRIVE_REVISION     0x00010000u
+
 typedef struct {
     uint8_t node;
     int32_t ticks_per_rev;      /* encoder increments per wheel revolution (default 4096) */
     double accel;               /* profile acceleration, rad/s^2 at the wheel (default 20) */
     double quickstop_decel;     /* rad/s^2 (default 40) */
     double max_velocity;        /* rad/s; larger targets are clamped (default 30) */
-    int64_t rpdo_timeout_us;    /* fault 0x8130 when enabled and RPDOs stop (0: off; default 0) */
-    const char *name;           /* device name, object 0x1008 */
+    int64_t rpdo_timeout_us;    /* power-on RPDO1 deadline 0x1400:05, rounded up to ms (0: off) */
+    const char *name;           /* device name, object 0x1008 ("": no 0x1008) */
 } vdrive_cfg_t;
 
 void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node);
@@ -37,7 +42,8 @@ void vdrive_destroy(vdrive_t *v);                   /* NULL is a no-op */
 int vdrive_boot(vdrive_t *v, int64_t now, struct can_frame *tx, int max);
 /* A frame from the bus. Returns frames to send. */
 int vdrive_feed(vdrive_t *v, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max);
-/* Time-driven output (heartbeat, queued EMCY) and the RPDO watchdog. */
+/* Time-driven output (heartbeat, queued EMCY), the heartbeat consumer (0x1016) and the RPDO
+ * deadline (0x1400:05): their loss is answered per 0x6007 (default 1: fault reaction). */
 int vdrive_poll(vdrive_t *v, int64_t now, struct can_frame *tx, int max);
 
 /* Physics. step() ramps the velocity setpoint toward the target (or to zero when stopping)

@@ -9,6 +9,8 @@
 #   -w DIR      make host directory DIR writable inside the VM (same path), e.g. for logs;
 #               everything else of the host is mounted read-only
 #   -t SECONDS  give up after this long (default 120); exit status 124
+#   -q ARGS     more qemu arguments (split at spaces), e.g. emulated devices:
+#               -q "-object can-bus,id=cb -device kvaser_pci,canbus=cb"
 #
 # The VM (qemu-system-x86_64, TCG, 1 CPU, 512 MB, no network card) mounts the host's / with
 # 9p read-only, mounts proc, sys, devtmpfs and a tmpfs /tmp, chroots into it and runs COMMAND
@@ -22,11 +24,13 @@ here=$(cd "$(dirname "$0")" && pwd)
 mods=""
 wdir=""
 limit=120
+qargs=""
 while [ $# -gt 0 ]; do
     case "$1" in
     -m) mods="$mods $2"; shift 2 ;;
     -w) wdir=$(cd "$2" && pwd); shift 2 ;;
     -t) limit=$2; shift 2 ;;
+    -q) qargs="$qargs $2"; shift 2 ;;
     --) shift; break ;;
     -h|--help) sed -n '2,/^[^#]/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) break ;;
@@ -134,7 +138,7 @@ log=$work/console.log
 timeout -k 5 "$limit" "$qemu" -accel tcg -m "${MARIE_VM_MEM:-512M}" -smp 1 -nographic -no-reboot \
     -nic none -kernel "$kdir/vmlinuz" -initrd "$work/initramfs.gz" \
     -append "console=ttyS0 quiet loglevel=3 panic=-1" \
-    -virtfs local,path=/,mount_tag=host,security_model=none,readonly=on,multidevs=remap $share_w \
+    -virtfs local,path=/,mount_tag=host,security_model=none,readonly=on,multidevs=remap $share_w $qargs \
     < /dev/null > "$log" 2>&1 || true
 # Console lines end in CR LF; drop the CRs and the exit marker from what the caller sees.
 # Firmware chatter and terminal escapes are not the command's output.

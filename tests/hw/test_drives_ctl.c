@@ -1,6 +1,8 @@
 /* test_drives_ctl: the wheel-drive master against two virtual CiA 402 drives on an in-memory
  * bus: configuration, enabling, velocity, command timeout, e-stop, faults with EMCY or only
- * in the statusword, fault reset, EMCY storms, malformed frames, heartbeat loss and reboot. */
+ * in the statusword, fault reset, EMCY storms, malformed frames, heartbeat loss and reboot;
+ * the drives stopping when the master dies or loses them; CiA 301 objects of the virtual
+ * drive and gyro (identity, reset communication, SDO without size, optional objects). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -19,6 +21,7 @@
 #include "hw/canopen/sdo.h"
 #include "hw/drives/drives_ctl.h"
 #include "hw/drives/vdrive.h"
+#include "hw/gyro/vgyro.h"
 
 #define QMAX 256
 typedef struct {
@@ -26,6 +29,8 @@ typedef struct {
     vdrive_t *vd[2];
     int64_t now;
     bool cut[2];                /* drive i disconnected */
+    bool mute_sdo[2];           /* drive i's SDO answers are lost */
+    bool master_dead;           /* the master neither cycles nor answers */
     struct { struct can_frame f; int src; } q[QMAX];   /* src: -1 master, 0/1 drive */
     int qh, qt;
     int ev[16];                 /* events seen per kind */
@@ -45,6 +50,8 @@ static void put(rig_t *r, const struct can_frame *f, int n, int src)
     for (int i = 0; i < n; i++) {
         if (src >= 0 && r->cut[src])
             continue;
+        if (src >= 0 && r->mute_sdo[src] && (f[i].can_id & 0x780) == 0x580)
+            continue;
         r->q[r->qt % QMAX].f = f[i];
         r->q[r->qt % QMAX].src = src;
         r->qt++;
@@ -59,7 +66,7 @@ static void deliver(rig_t *r)
         int src = r->q[r->qh % QMAX].src;
         r->qh++;
         r->frames_on_bus++;
-        if (src != -1)
+        if (src != -1 && !r->master_dead)
             put(r, tx, drives_ctl_feed(r->ctl, &f, r->now, tx, 16), -1);
         for (int i = 0; i < 2; i++)
             if (src != i && !r->cut[i])
@@ -78,7 +85,7 @@ static void run(rig_t *r, int ms, double wl, double wr, bool command)
             if (!r->cut[i])
                 put(r, tx, vdrive_poll(r->vd[i], r->now, tx, 16), i);
         }
-        if (r->now % 20000 == 0) {
+        if (r->now % 20000 == 0 && !r->master_dead) {
             if (command)
                 drives_ctl_set_wheels(r->ctl, wl, wr, r->now);
             put(r, tx, drives_ctl_cycle(r->ctl, r->now, tx, 16), -1);
@@ -86,6 +93,9 @@ static void run(rig_t *r, int ms, double wl, double wr, bool command)
         deliver(r);
     }
 }
+
+static const char *drive_name = "marie vdrive";
+static uint16_t rig_rpdo_timeout_ms = 100;
 
 static int setup(void **state)
 {
@@ -95,10 +105,12 @@ static int setup(void **state)
     cfg.node[0] = 1;
     cfg.node[1] = 2;
     cfg.invert[1] = false;
+    cfg.rpdo_timeout_ms = rig_rpdo_timeout_ms;
     r->ctl = drives_ctl_create(&cfg, on_ev, r);
     for (int i = 0; i < 2; i++) {
         vdrive_cfg_t vc;
         vdrive_cfg_default(&vc, (uint8_t)(i + 1));
+        vc.name = drive_name;
         r->vd[i] = vdrive_create(&vc);
     }
     r->now = 1000000;
@@ -244,6 +256,8 @@ static void emcy_storm_is_counted_not_flooded(void **state)
     assert_int_equal(drives_ctl_axis(r->ctl, 0)->emcy, 200);
     assert_int_equal(r->ev[DRIVES_EV_EMCY], 10);
     assert_int_equal(r->ev[DRIVES_EV_EMCY_STORM], 1);
+    /* every one is counted, past the storm threshold too */
+    assert_int_equal(r->ev[DRIVES_EV_EMCY] + r->ev[DRIVES_EV_EMCY_STORM] + r->ev[DRIVES_EV_EMCY_QUIET], 200);
     run(r, 200, 0, 0, true);
     assert_true(drives_ctl_all_enabled(r->ctl));    /* EMCY alone does not stop a healthy drive */
 }
@@ -265,6 +279,13 @@ static void malformed_and_unexpected_frames(void **state)
     drives_ctl_feed(r->ctl, &rpdo, r->now, tx, 16);
     drives_ctl_feed(r->ctl, &stranger, r->now, tx, 16);
     assert_int_equal(r->ev[DRIVES_EV_UNEXPECTED], 2);
+    /* SDO answers nobody asked for: unexpected, or malformed when short */
+    struct can_frame sdo = { .can_id = 0x581, .len = 8, .data = { 0x60, 0x17, 0x10, 0 } };
+    drives_ctl_feed(r->ctl, &sdo, r->now, tx, 16);
+    assert_int_equal(r->ev[DRIVES_EV_UNEXPECTED], 3);
+    sdo.len = 3;
+    drives_ctl_feed(r->ctl, &sdo, r->now, tx, 16);
+    assert_int_equal(r->ev[DRIVES_EV_BAD_FRAME], 4);
     run(r, 100, 0, 0, true);
     assert_true(drives_ctl_all_enabled(r->ctl));
 }
@@ -306,6 +327,125 @@ static void drive_reboot_is_reconfigured(void **state)
     assert_true(fabs(vdrive_velocity(r->vd[0]) - 1.0) < 0.01);
 }
 
+/* ms until both virtual drives stand still (0x606C == 0), running the drives only. */
+static int ms_to_standstill(rig_t *r, int limit)
+{
+    for (int ms = 0; ms <= limit; ms++) {
+        if (fabs(vdrive_velocity(r->vd[0])) < 1e-9 && fabs(vdrive_velocity(r->vd[1])) < 1e-9)
+            return ms;
+        run(r, 1, 0, 0, false);
+    }
+    return -1;
+}
+
+/* The master dies at 0.5 m/s (5 rad/s at the wheels): no heartbeat, no RPDO, no SYNC. The
+ * drives' heartbeat consumer (0x1016, 100 ms) fires, fault reaction on the quick-stop ramp
+ * (40 rad/s^2: 125 ms): standing within 300 ms. */
+static void master_death_stops_the_drives(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 0, 0, true);
+    run(r, 600, 5.0, 5.0, true);
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 5.0) < 0.01);
+    r->master_dead = true;
+    int ms = ms_to_standstill(r, 2000);
+    print_message("standstill %d ms after the master died\n", ms);
+    assert_true(ms >= 0 && ms <= 300);
+    for (int i = 0; i < 2; i++) {
+        assert_int_equal(vdrive_state(r->vd[i]), CIA402_FAULT);
+        assert_int_equal(vdrive_nmt(r->vd[i]), CO_NMT_PREOPERATIONAL);   /* 0x1029 default */
+        assert_int_equal(vdrive_stats(r->vd[i])->hb_losses, 1);
+    }
+    /* it comes back: reconfigures, resets the fault and drives again */
+    r->master_dead = false;
+    run(r, 3000, 2.0, 2.0, true);
+    assert_true(drives_ctl_all_enabled(r->ctl));
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 2.0) < 0.01);
+}
+
+/* Heartbeat still there but the RPDOs stop (a master stuck in its cycle): the RPDO
+ * deadline (0x1400:05, 100 ms) fires, EMCY 0x8250, fault reaction. */
+static void rpdo_deadline_stops_the_drives(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 0, 0, true);
+    run(r, 600, 5.0, 5.0, true);
+    struct can_frame tx[16];
+    int ms;
+    for (ms = 0; ms < 2000; ms++) {
+        if (fabs(vdrive_velocity(r->vd[0])) < 1e-9)
+            break;
+        r->now += 1000;
+        for (int i = 0; i < 2; i++) {
+            vdrive_step(r->vd[i], 0.001);
+            put(r, tx, vdrive_poll(r->vd[i], r->now, tx, 16), i);
+        }
+        if (ms % 20 == 0) {         /* only the master's heartbeat */
+            struct can_frame hb;
+            co_hb_encode(&hb, 127, CO_NMT_OPERATIONAL);
+            put(r, &hb, 1, -1);
+        }
+        deliver(r);
+    }
+    assert_true(ms <= 300);
+    assert_int_equal(vdrive_stats(r->vd[0])->rpdo_timeouts, 1);
+    assert_int_equal(vdrive_stats(r->vd[0])->hb_losses, 0);
+    assert_int_equal(r->last_code[DRIVES_EV_EMCY], CO_EMCY_RPDO_TIMEOUT);
+}
+
+/* Drives without RPDO deadline monitoring: only the master's own reactions stop them. */
+static int setup_no_deadline(void **state)
+{
+    rig_rpdo_timeout_ms = 0;
+    int rc = setup(state);
+    rig_rpdo_timeout_ms = 100;
+    return rc;
+}
+
+/* A forged boot-up while driving, then a configuration that fails (SDO answers lost): the
+ * master takes the drive out of operational first, and it stops (no RPDO deadline here to
+ * do it for the master). */
+static void forged_bootup_and_failed_config_stop_the_drive(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 0, 0, true);
+    run(r, 600, 5.0, 5.0, true);
+    struct can_frame boot;
+    co_hb_encode(&boot, 1, CO_NMT_BOOTUP);
+    r->mute_sdo[0] = true;
+    put(r, &boot, 1, 0);
+    deliver(r);
+    int ms;
+    for (ms = 0; ms < 2000 && fabs(vdrive_velocity(r->vd[0])) > 1e-9; ms++)
+        run(r, 1, 5.0, 5.0, true);
+    assert_true(ms <= 300);
+    run(r, 1500, 5.0, 5.0, true);               /* until the next configuration attempt */
+    assert_true(r->ev[DRIVES_EV_CONFIG_FAILED] >= 1);
+    assert_true(fabs(vdrive_velocity(r->vd[0])) < 1e-9);
+    assert_false(cia402_state_powered(vdrive_state(r->vd[0])));
+    r->mute_sdo[0] = false;
+    run(r, 4000, 5.0, 5.0, true);
+    assert_true(drives_ctl_all_enabled(r->ctl));
+}
+
+/* The master's own leaving: disabled with a last SYNC, then NMT stopped, no fault. */
+static void shutdown_leaves_drives_disabled_and_stopped(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 0, 0, true);
+    run(r, 300, 3.0, 3.0, true);
+    struct can_frame tx[16];
+    put(r, tx, drives_ctl_shutdown(r->ctl, r->now, tx, 16), -1);
+    deliver(r);
+    r->master_dead = true;
+    run(r, 500, 0, 0, false);
+    for (int i = 0; i < 2; i++) {
+        assert_int_equal(vdrive_state(r->vd[i]), CIA402_SWITCH_ON_DISABLED);
+        assert_int_equal(vdrive_nmt(r->vd[i]), CO_NMT_STOPPED);
+        assert_true(fabs(vdrive_velocity(r->vd[i])) < 1e-9);
+    }
+}
+
 static void disable_brings_drives_down(void **state)
 {
     rig_t *r = *state;
@@ -317,6 +457,226 @@ static void disable_brings_drives_down(void **state)
     drives_ctl_enable(r->ctl, true);
     run(r, 200, 1.0, 1.0, true);
     assert_true(drives_ctl_all_enabled(r->ctl));
+}
+
+/* A drive without the optional 0x1008 comes up all the same. */
+static int setup_nameless(void **state)
+{
+    drive_name = "";
+    int rc = setup(state);
+    drive_name = "marie vdrive";
+    return rc;
+}
+
+static void drive_without_name_comes_up(void **state)
+{
+    rig_t *r = *state;
+    run(r, 1000, 0, 0, true);
+    assert_int_equal(r->ev[DRIVES_EV_CONFIGURED], 2);
+    assert_int_equal(r->ev[DRIVES_EV_CONFIG_FAILED], 0);
+    assert_int_equal(r->ev[DRIVES_EV_HB_TIMEOUT], 0);
+    assert_int_equal(r->ev[DRIVES_EV_OPTIONAL_MISSING], 2);
+    assert_int_equal(r->last_code[DRIVES_EV_OPTIONAL_MISSING], 0x100800);
+    assert_string_equal(drives_ctl_axis(r->ctl, 0)->name, "");
+    assert_true(drives_ctl_all_enabled(r->ctl));
+}
+
+/* ---- CiA 301 objects of the virtual devices, through their SDO servers ---- */
+
+struct sdo_res { bool done; uint32_t abort; uint8_t data[CO_SDO_MAX]; size_t len; };
+static void sdo_done_cb(void *user, co_sdo_client_t *c, uint16_t idx, uint8_t sub, uint32_t abort,
+                        const uint8_t *data, size_t len)
+{
+    struct sdo_res *res = user;
+    res->done = true;
+    res->abort = abort;
+    res->len = len < sizeof res->data ? len : sizeof res->data;
+    if (data)
+        memcpy(res->data, data, res->len);
+}
+
+typedef int (*feed_fn)(void *dev, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max);
+static int feed_vd(void *d, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max)
+{
+    return vdrive_feed(d, rx, now, tx, max);
+}
+static int feed_vg(void *d, const struct can_frame *rx, int64_t now, struct can_frame *tx, int max)
+{
+    return vgyro_feed(d, rx, now, tx, max);
+}
+
+/* Feed one request frame; the device's SDO answer (1) or none (0). */
+static int sdo_answer(feed_fn feed, void *dev, const struct can_frame *req, struct can_frame *ans)
+{
+    struct can_frame tx[8];
+    int n = feed(dev, req, 0, tx, 8);
+    for (int j = 0; j < n; j++)
+        if ((tx[j].can_id & 0x780) == 0x580) {
+            *ans = tx[j];
+            return 1;
+        }
+    return 0;
+}
+
+/* One SDO transfer (upload, or download of len bytes of val); the abort code, 0 when done,
+ * the uploaded value in *out. */
+static uint32_t sdo_with(feed_fn feed, void *dev, uint8_t node, bool up, uint16_t idx, uint8_t sub,
+                         uint32_t val, size_t len, uint32_t *out)
+{
+    co_sdo_client_t c;
+    struct sdo_res res = { 0 };
+    co_sdo_client_init(&c, node, 100000, sdo_done_cb, &res);
+    struct can_frame req, ans;
+    uint8_t b[4];
+    co_put_u32(b, val);
+    if (up)
+        co_sdo_client_upload(&c, idx, sub, 0, &req);
+    else
+        co_sdo_client_download(&c, idx, sub, b, len, 0, &req);
+    for (int k = 0; k < 100 && !res.done; k++) {
+        bool ready = false;
+        if (!sdo_answer(feed, dev, &req, &ans))
+            return 0xFFFFFFFFu;
+        co_sdo_client_feed(&c, &ans, 0, &req, &ready);
+    }
+    if (out)
+        *out = res.len >= 4 ? co_get_u32(res.data) : res.len == 2 ? co_get_u16(res.data) : res.len ? res.data[0] : 0;
+    return res.abort;
+}
+
+static uint32_t vd_up(vdrive_t *v, uint16_t idx, uint8_t sub)
+{
+    uint32_t x = 0xDEADBEEF;
+    assert_int_equal(sdo_with(feed_vd, v, vdrive_node(v), true, idx, sub, 0, 0, &x), 0);
+    return x;
+}
+static void vd_down(vdrive_t *v, uint16_t idx, uint8_t sub, uint32_t val, size_t len)
+{
+    assert_int_equal(sdo_with(feed_vd, v, vdrive_node(v), false, idx, sub, val, len, NULL), 0);
+}
+
+static void identity_object_in_drive_and_gyro(void **state)
+{
+    vdrive_cfg_t vc;
+    vdrive_cfg_default(&vc, 7);
+    vdrive_t *v = vdrive_create(&vc);
+    struct can_frame tx[8];
+    vdrive_boot(v, 0, tx, 8);
+    assert_int_equal(vd_up(v, 0x1018, 0), 4);
+    assert_int_equal(vd_up(v, 0x1018, 1), VDRIVE_VENDOR_ID);
+    assert_int_equal(vd_up(v, 0x1018, 2), VDRIVE_PRODUCT_CODE);
+    assert_int_equal(vd_up(v, 0x1018, 3), VDRIVE_REVISION);
+    assert_int_equal(vd_up(v, 0x1018, 4), 7);
+    assert_int_equal(sdo_with(feed_vd, v, 7, false, 0x1018, 1, 1, 4, NULL), CO_SDO_ABORT_READ_ONLY);
+    assert_int_equal(sdo_with(feed_vd, v, 7, true, 0x1018, 5, 0, 0, NULL), CO_SDO_ABORT_NO_SUB);
+    vdrive_destroy(v);
+    vgyro_cfg_t gc;
+    vgyro_cfg_default(&gc, 0x20);
+    vgyro_t *g = vgyro_create(&gc);
+    vgyro_boot(g, 0, tx, 8);
+    uint32_t x = 0;
+    assert_int_equal(sdo_with(feed_vg, g, 0x20, true, 0x1018, 0, 0, 0, &x), 0);
+    assert_int_equal(x, 4);
+    assert_int_equal(sdo_with(feed_vg, g, 0x20, true, 0x1018, 4, 0, 0, &x), 0);
+    assert_int_equal(x, 0x20);
+    vgyro_destroy(g);
+}
+
+/* Reset communication: 0x1000-0x1FFF back to power-on values, application objects kept;
+ * reset node resets both. */
+static void reset_communication_restores_communication_objects(void **state)
+{
+    vdrive_cfg_t vc;
+    vdrive_cfg_default(&vc, 7);
+    vdrive_t *v = vdrive_create(&vc);
+    struct can_frame tx[8], f;
+    vdrive_boot(v, 0, tx, 8);
+    uint32_t tpdo1 = vd_up(v, 0x1800, 1), rtmo = vd_up(v, 0x1400, 5);
+    vd_down(v, 0x1017, 0, 50, 2);
+    vd_down(v, 0x1800, 1, 0x80000000u | tpdo1, 4);
+    vd_down(v, 0x1400, 5, 250, 2);
+    vd_down(v, 0x1016, 1, 0x7F0064, 4);
+    vd_down(v, CIA402_OBJ_MODE, 0, 3, 1);
+    vd_down(v, CIA402_OBJ_ABORT_CONN, 0, 3, 2);
+    /* two active consumer entries for one node: refused */
+    assert_int_equal(sdo_with(feed_vd, v, 7, false, 0x1016, 2, 0x7F0050, 4, NULL), CO_SDO_ABORT_PARAM_INCOMPAT);
+    co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, 7);
+    assert_true(vdrive_feed(v, &f, 0, tx, 8) >= 1);
+    assert_int_equal(tx[0].can_id, 0x707);                   /* boot-up */
+    assert_int_equal(vd_up(v, 0x1017, 0), 0);
+    assert_int_equal(vd_up(v, 0x1800, 1), tpdo1);
+    assert_int_equal(vd_up(v, 0x1400, 5), rtmo);
+    assert_int_equal(vd_up(v, 0x1016, 1), 0);
+    assert_int_equal(vd_up(v, CIA402_OBJ_MODE, 0), 3);       /* application: kept */
+    assert_int_equal(vd_up(v, CIA402_OBJ_ABORT_CONN, 0), 3);
+    co_nmt_encode(&f, CO_NMT_CMD_RESET_NODE, 7);
+    vdrive_feed(v, &f, 0, tx, 8);
+    assert_int_equal(vd_up(v, CIA402_OBJ_MODE, 0), 0);
+    assert_int_equal(vd_up(v, CIA402_OBJ_ABORT_CONN, 0), 1);
+    vdrive_destroy(v);
+}
+
+/* Expedited download without size indication (command 0x22): the object's size applies. */
+static void expedited_download_without_size(void **state)
+{
+    vdrive_cfg_t vc;
+    vdrive_cfg_default(&vc, 7);
+    vdrive_t *v = vdrive_create(&vc);
+    struct can_frame tx[8], ans;
+    vdrive_boot(v, 0, tx, 8);
+    struct { uint16_t idx; uint8_t sub; uint32_t val; } w[] = {
+        { CIA402_OBJ_MODE, 0, 3 }, { 0x1017, 0, 50 }, { CIA402_OBJ_PROFILE_ACC, 0, 12345 }, { 0x1400, 5, 70 },
+    };
+    for (size_t k = 0; k < sizeof w / sizeof w[0]; k++) {
+        struct can_frame req = { .can_id = 0x607, .len = 8, .data = { 0x22, (uint8_t)w[k].idx, (uint8_t)(w[k].idx >> 8), w[k].sub } };
+        co_put_u32(req.data + 4, w[k].val);
+        assert_int_equal(sdo_answer(feed_vd, v, &req, &ans), 1);
+        assert_int_equal(ans.data[0], 0x60);                 /* download response, no abort */
+        assert_int_equal(vd_up(v, w[k].idx, w[k].sub), w[k].val);
+    }
+    vdrive_destroy(v);
+}
+
+/* 0x6007 chooses the reaction to a lost master: 2 disable voltage (at once), 3 quick stop
+ * (ramp, hold), 0 none. */
+static void abort_connection_option_code(void **state)
+{
+    int16_t opts[] = { 0, 2, 3 };
+    cia402_state_t want[] = { CIA402_OPERATION_ENABLED, CIA402_SWITCH_ON_DISABLED, CIA402_QUICK_STOP_ACTIVE };
+    for (int k = 0; k < 3; k++) {
+        vdrive_cfg_t vc;
+        vdrive_cfg_default(&vc, 7);
+        vdrive_t *v = vdrive_create(&vc);
+        struct can_frame tx[8], f;
+        vdrive_boot(v, 0, tx, 8);
+        vd_down(v, CIA402_OBJ_ABORT_CONN, 0, (uint16_t)opts[k], 2);
+        vd_down(v, 0x1016, 1, 0x7E0064, 4);             /* node 0x7E, 100 ms */
+        vd_down(v, CIA402_OBJ_MODE, 0, 3, 1);
+        vd_down(v, CIA402_OBJ_TARGET_VEL, 0, 4096, 4);
+        co_nmt_encode(&f, CO_NMT_CMD_START, 7);
+        vdrive_feed(v, &f, 0, tx, 8);
+        for (int i = 0; i < 3; i++)
+            vd_down(v, CIA402_OBJ_CONTROLWORD, 0, (uint16_t[]){ 0x06, 0x07, 0x0F }[i], 2);
+        struct can_frame hb;
+        co_hb_encode(&hb, 0x7E, CO_NMT_OPERATIONAL);
+        int64_t now = 0;
+        for (; now < 1000000; now += 1000) {       /* heard every 20 ms: keeps turning */
+            if (now % 20000 == 0)
+                vdrive_feed(v, &hb, now, tx, 8);
+            vdrive_step(v, 0.001);
+            vdrive_poll(v, now, tx, 8);
+        }
+        assert_true(fabs(vdrive_velocity(v) - 2 * M_PI) < 0.01);
+        for (; now < 1400000; now += 1000) {       /* silent */
+            vdrive_step(v, 0.001);
+            vdrive_poll(v, now, tx, 8);
+        }
+        assert_int_equal(vdrive_state(v), want[k]);
+        assert_int_equal(vdrive_stats(v)->hb_losses, 1);
+        if (opts[k])
+            assert_true(fabs(vdrive_velocity(v)) < 1e-9);
+        vdrive_destroy(v);
+    }
 }
 
 /* The same master and drives talking through real fds: one end of a SOCK_SEQPACKET
@@ -459,6 +819,15 @@ int main(void)
         T(heartbeat_loss_then_reconnect),
         T(drive_reboot_is_reconfigured),
         T(disable_brings_drives_down),
+        T(master_death_stops_the_drives),
+        T(rpdo_deadline_stops_the_drives),
+        cmocka_unit_test_setup_teardown(forged_bootup_and_failed_config_stop_the_drive, setup_no_deadline, teardown),
+        T(shutdown_leaves_drives_disabled_and_stopped),
+        cmocka_unit_test_setup_teardown(drive_without_name_comes_up, setup_nameless, teardown),
+        cmocka_unit_test(identity_object_in_drive_and_gyro),
+        cmocka_unit_test(reset_communication_restores_communication_objects),
+        cmocka_unit_test(expedited_download_without_size),
+        cmocka_unit_test(abort_connection_option_code),
         cmocka_unit_test(vdrive_automatic_transitions),
         cmocka_unit_test(master_and_drives_over_socketpair),
     };

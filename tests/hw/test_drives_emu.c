@@ -1,10 +1,12 @@
 /* test_drives_emu: marie-drives and marie-gyro as processes against marie-vcan-devices on the
  * emulated bus (marie-canbus), observed over LCM and by an independent client on the bus:
- * enabling, kinematics, command timeout, e-stop, drive fault and reset, gyro bias at
- * standstill, bus-off and the bus daemon going away. */
+ * enabling, kinematics, command timeout, e-stop (and the SYNC period under e-stop messages),
+ * the wheels stopping when marie-drives is killed or frozen, EMCY counting, drive fault and
+ * reset, gyro bias at standstill, bus-off and the bus daemon going away. */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <poll.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -43,6 +45,7 @@ static int nenc;
 static marie_gyro_t gyr;
 static int ngyro;
 static struct { int64_t faults, fault_resets, emcy, bus_off, disconnected, connected, bad_input; int n; } hb_drives;
+static const char *drives_args[] = { "--param", url, "--param", "fault_reset_delay=0.5", NULL };
 
 static pid_t spawn(const char *name, char *const args[])
 {
@@ -154,7 +157,7 @@ static int group_setup(void **state)
     char devurl[112];
     snprintf(devurl, sizeof devurl, "emu:%s", sock);
     dev_pid = spawn("marie-vcan-devices", (char *[]){ "--can", devurl, "--gyro-noise", "0.0005", NULL });
-    drv_pid = spawn("marie-drives", (char *[]){ "--param", url, "--param", "fault_reset_delay=0.5", NULL });
+    drv_pid = spawn("marie-drives", (char **)drives_args);
     gyr_pid = spawn("marie-gyro", (char *[]){ "--param", url, "--param", "standstill_window=0.3", NULL });
     lcm = lcm_create(marie_default_url());
     if (!lcm || bus_pid <= 0 || dev_pid <= 0 || drv_pid <= 0 || gyr_pid <= 0)
@@ -249,6 +252,151 @@ static void estop_stops_and_release_resumes(void **state)
     e.pressed = 0;
     marie_estop_t_publish(lcm, "ESTOP", &e);
     assert_true(wait_for(wheels_at_command, 10));
+}
+
+/* 0x606C of a drive read over SDO by the test, an independent client on the bus; INT32_MIN
+ * when the drive does not answer within 100 ms. */
+static int32_t drive_velocity(can_bus_t *bus, uint8_t node)
+{
+    struct can_frame req = { .can_id = 0x600u + node, .len = 8, .data = { 0x40, 0x6C, 0x60, 0 } }, f;
+    can_bus_write(bus, &req);
+    int64_t end = marie_mono_us() + 100000;
+    for (int64_t now = marie_mono_us(); now < end; now = marie_mono_us()) {
+        struct pollfd p = { .fd = can_bus_fd(bus), .events = POLLIN };
+        if (poll(&p, 1, (int)((end - now) / 1000) + 1) <= 0)
+            continue;
+        while (can_bus_read(bus, &f) == 1)
+            if (f.can_id == 0x580u + node && f.len == 8 && f.data[0] == 0x43 && f.data[1] == 0x6C && f.data[2] == 0x60)
+                return (int32_t)(f.data[4] | f.data[5] << 8 | f.data[6] << 16 | (uint32_t)f.data[7] << 24);
+    }
+    return INT32_MIN;
+}
+
+/* Drive at 0.5 m/s, send marie-drives `sig`, and return the ms until both drives report
+ * 0x606C == 0 (-1: not within 2 s). */
+static int ms_to_standstill_after(int sig)
+{
+    assert_true(drv_pid > 0);                   /* never signal a process group */
+    commanding = true;
+    cmd_v = 0.5;
+    cmd_w = 0;
+    assert_true(wait_for(enc_ok, 15));
+    wait_for(NULL, 1.0);                         /* at speed: 5 rad/s at each wheel */
+    char u[112];
+    snprintf(u, sizeof u, "emu:%s", sock);
+    can_bus_t *bus = can_bus_open(u);
+    assert_non_null(bus);
+    bool at_speed = false;                      /* 5 rad/s = 3260 increments/s */
+    for (int64_t end = marie_mono_us() + 10000000; !at_speed && marie_mono_us() < end;) {
+        at_speed = drive_velocity(bus, 1) > 3000 && drive_velocity(bus, 2) > 3000;
+        wait_for(NULL, 0.05);
+    }
+    if (!at_speed)
+        can_bus_close(bus);
+    assert_true(at_speed);
+    int64_t t0 = marie_mono_us();
+    kill(drv_pid, sig);
+    int ms = -1;
+    while (marie_mono_us() - t0 < 2000000) {
+        int32_t l = drive_velocity(bus, 1), r = drive_velocity(bus, 2);
+        if (l == 0 && r == 0) {
+            ms = (int)((marie_mono_us() - t0) / 1000);
+            break;
+        }
+    }
+    can_bus_close(bus);
+    return ms;
+}
+
+/* The drives watch marie-drives' heartbeat (0x1016): killed at speed, the wheels stop. */
+static void killed_master_stops_the_wheels(void **state)
+{
+    int ms = ms_to_standstill_after(SIGKILL);
+    waitpid(drv_pid, NULL, 0);
+    /* a new marie-drives takes them over: reset communication, fault reset, driving again */
+    drv_pid = spawn("marie-drives", (char **)drives_args);
+    print_message("drives at 0x606C = 0 %d ms after SIGKILL of marie-drives\n", ms);
+    assert_true(ms >= 0 && ms <= 300);
+    cmd_w = 0.4;
+    assert_true(wait_for(wheels_at_command, 20));
+}
+
+/* Frozen (SIGSTOP) is dead to the drives too; thawed, it takes them over again. */
+static void frozen_master_stops_the_wheels(void **state)
+{
+    int ms = ms_to_standstill_after(SIGSTOP);
+    kill(drv_pid, SIGCONT);
+    print_message("drives at 0x606C = 0 %d ms after SIGSTOP of marie-drives\n", ms);
+    assert_true(ms >= 0 && ms <= 300);
+    cmd_w = 0.4;
+    assert_true(wait_for(wheels_at_command, 20));
+}
+
+/* An e-stop source repeating "pressed" at 20 Hz must not add SYNCs: 0x1006 is 20 ms. */
+static void estop_messages_keep_the_sync_period(void **state)
+{
+    char u[112];
+    snprintf(u, sizeof u, "emu:%s", sock);
+    spy = can_bus_open(u);
+    assert_non_null(spy);
+    marie_estop_t e = { .utime = marie_wall_us(), .pressed = 1, .source = "test" };
+    int64_t last_sync = 0, min_gap = INT64_MAX, t0 = marie_mono_us();
+    int syncs = 0;
+    for (int k = 0; k < 30; k++) {
+        marie_estop_t_publish(lcm, "ESTOP", &e);
+        int64_t end = marie_mono_us() + 50000;
+        while (marie_mono_us() < end) {
+            lcm_handle_timeout(lcm, 5);
+            struct can_frame f;
+            while (can_bus_read(spy, &f) == 1) {
+                if (f.can_id != 0x080)
+                    continue;
+                int64_t now = marie_mono_us();
+                if (last_sync && now - last_sync < min_gap)
+                    min_gap = now - last_sync;
+                last_sync = now;
+                syncs++;
+            }
+        }
+    }
+    double secs = (marie_mono_us() - t0) / 1e6;
+    can_bus_close(spy);
+    spy = NULL;
+    e.pressed = 0;
+    marie_estop_t_publish(lcm, "ESTOP", &e);
+    print_message("%d SYNCs in %.2f s under 30 e-stop messages (50 Hz: %.0f), shortest gap as read %.1f ms\n",
+                  syncs, secs, secs * 50, min_gap / 1000.0);
+    /* Counted, not timed: a loaded host makes the spy read SYNCs in batches, but never adds
+     * any. An extra SYNC per e-stop message would add 30 to about 75. */
+    assert_true(syncs > 20);
+    assert_true(syncs <= secs * 50 * 1.1 + 3);
+    assert_true(wait_for(enc_ok, 10));
+}
+
+/* Every EMCY counts in the heartbeat's "emcy", past the storm threshold (10/s) too. */
+static void every_emcy_is_counted(void **state)
+{
+    assert_true(wait_for(enc_ok, 10));
+    int n0 = hb_drives.n;
+    assert_true(wait_for(NULL, 1.5) && hb_drives.n > n0);
+    int64_t before = hb_drives.emcy;
+    char u[112];
+    snprintf(u, sizeof u, "emu:%s", sock);
+    can_bus_t *bus = can_bus_open(u);
+    assert_non_null(bus);
+    struct can_frame f = { .can_id = 0x081, .len = 8, .data = { 0x20, 0x32, 0x05 } };  /* 0x3220 */
+    for (int k = 0; k < 30; k++) {
+        assert_int_equal(can_bus_write(bus, &f), 0);
+        usleep(2000);
+    }
+    can_bus_close(bus);
+    bool ok = false;
+    for (int k = 0; k < 40 && !ok; k++) {
+        wait_for(NULL, 0.25);
+        ok = hb_drives.emcy - before >= 30;     /* the drives may add their own */
+    }
+    print_message("emcy counter +%lld for 30 EMCY\n", (long long)(hb_drives.emcy - before));
+    assert_true(ok);
 }
 
 static void drive_fault_is_counted_and_reset(void **state)
@@ -348,6 +496,10 @@ int main(void)
         cmocka_unit_test(motor_command_turns_wheels_by_kinematics),
         cmocka_unit_test(command_timeout_stops_wheels),
         cmocka_unit_test(estop_stops_and_release_resumes),
+        cmocka_unit_test(estop_messages_keep_the_sync_period),
+        cmocka_unit_test(killed_master_stops_the_wheels),
+        cmocka_unit_test(frozen_master_stops_the_wheels),
+        cmocka_unit_test(every_emcy_is_counted),
         cmocka_unit_test(drive_fault_is_counted_and_reset),
         cmocka_unit_test(bus_off_is_detected_and_recovered),
         cmocka_unit_test(gyro_fault_reported_in_samples),

@@ -1,6 +1,7 @@
 /* test_sim_channels: marie-sim in channel mode on a real LCM bus (this test's namespace):
  * channels, types and rates; motor commands and the drives' watchdog; the e-stop; lockstep;
- * a component's timers following the sim clock at speed 10; a bad world refused clearly. */
+ * a component's timers following the sim clock at speed 10; a bad world refused clearly;
+ * in device mode, the robot coming to rest when marie-drives is killed or frozen. */
 #include <errno.h>
 #include <math.h>
 #include <setjmp.h>
@@ -679,6 +680,103 @@ static void test_channel_and_device_mode_agree(void **state)
     assert_true(ticks > 0.7 * moved / (2 * M_PI * 0.1) * 4096);
 }
 
+/* Sim ms from `t0` (sim us) until the true robot speed, over 50 ms of sim time, is under
+ * 1 cm/s; the robot keeps being commanded (0.5 m/s on a 1 m circle that keeps it clear of the
+ * walls), as a live behaviour layer would. -1 if not within 5 s of wall time. */
+static int sim_ms_to_rest(lcm_t *l, int64_t t0)
+{
+    struct { int64_t t; double x, y; } ring[64];
+    int n = 0;
+    int64_t last = -1, end = marie_mono_us() + 5000000, next_cmd = 0;
+    while (marie_mono_us() < end) {
+        if (marie_mono_us() >= next_cmd) {
+            send_cmd(l, 0.5, 0.5);
+            next_cmd = marie_mono_us() + 100000;
+        }
+        lcm_handle_timeout(l, 10);
+        if (rx.truth.utime == last)
+            continue;
+        last = rx.truth.utime;
+        ring[n % 64].t = last;
+        ring[n % 64].x = rx.truth.pose.x;
+        ring[n % 64].y = rx.truth.pose.y;
+        n++;
+        for (int k = 1; k < 64 && k < n; k++) {
+            int j = (n - 1 - k) % 64;
+            if (last - ring[j].t < 50000)
+                continue;
+            double v = hypot(rx.truth.pose.x - ring[j].x, rx.truth.pose.y - ring[j].y) / ((last - ring[j].t) / 1e6);
+            if (v < 0.01 && ring[j].t >= t0)
+                return (int)((ring[j].t - t0) / 1000);
+            break;
+        }
+    }
+    return -1;
+}
+
+static bool at_speed(void)
+{
+    return rx.enc.status == MARIE_WHEEL_ENCODERS_T_STATUS_OK && (rx.enc.left_velocity + rx.enc.right_velocity) / 2 > 4.5;
+}
+
+/* Drive at 0.5 m/s for 2 s of sim time (the drives enabled first), then send marie-drives `sig`. */
+static int sim_rest_after(lcm_t *l, pid_t drives, int sig)
+{
+    assert_true(drives > 0);                    /* never signal a process group */
+    int64_t end = marie_mono_us() + WALL_LIMIT_US;
+    while (!at_speed() && marie_mono_us() < end) {
+        send_cmd(l, 0.5, 0.5);
+        int64_t t = rx.clock;
+        until_clock(l, t + 100000);
+    }
+    assert_true(at_speed());
+    for (int64_t t = rx.clock, from = rx.clock; t < from + 2000000; t += 100000) {
+        send_cmd(l, 0.5, 0.5);
+        until_clock(l, t + 100000);
+    }
+    int64_t t0 = rx.clock;
+    kill(drives, sig);
+    return sim_ms_to_rest(l, t0);
+}
+
+/* Device mode at real-time speed: the virtual drives watch marie-drives' heartbeat, so the
+ * simulated robot stops when marie-drives is killed, or frozen, at 0.5 m/s. */
+static void test_device_mode_robot_stops_when_drives_die(void **state)
+{
+    const char *b = getenv("B") ? getenv("B") : "build";
+    char bin[256];
+    snprintf(bin, sizeof(bin), "%s/bin/marie-drives", b);
+    char dir[] = "/tmp/marie-sim-test.XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char can[128], p_can[200], p_link[200], link[128];
+    snprintf(can, sizeof(can), "%s/can", dir);
+    snprintf(link, sizeof(link), "%s/lms200", dir);
+    snprintf(p_can, sizeof(p_can), "can=emu:%s", can);
+    snprintf(p_link, sizeof(p_link), "laser_link=%s", link);
+    lcm_t *l = bus();
+    const char *dev_args[] = { "--mode", "device", "--speed", "1", "--param", p_can, "--param", p_link, NULL };
+    start_sim(dev_args);
+    until_clock(l, 100000);
+    const char *drives[] = { bin, "--clock", "sim", "--param", p_can, "--param", "fault_reset_delay=0.3", NULL };
+    drv_pids[0] = spawn(drives);
+    int killed = sim_rest_after(l, drv_pids[0], SIGKILL);
+    waitpid(drv_pids[0], NULL, 0);
+    drv_pids[0] = spawn(drives);                 /* takes the faulted drives over again */
+    int frozen = sim_rest_after(l, drv_pids[0], SIGSTOP);
+    kill(drv_pids[0], SIGCONT);
+    stop_drivers();
+    stop_sim();
+    lcm_destroy(l);
+    unlink(link);
+    unlink(can);
+    rmdir(dir);
+    fprintf(stderr, "device mode: robot at rest %d ms (sim) after SIGKILL, %d ms after SIGSTOP of marie-drives\n",
+            killed, frozen);
+    assert_int_equal(rx.collisions, 0);         /* at rest by itself, not against a wall */
+    assert_true(killed >= 0 && killed <= 300);
+    assert_true(frozen >= 0 && frozen <= 300);
+}
+
 static int teardown(void **state)
 {
     stop_drivers();
@@ -702,6 +800,7 @@ int main(void)
         cmocka_unit_test_teardown(test_start_off_the_map_refused, teardown),
         cmocka_unit_test_teardown(test_start_auto_finds_room, teardown),
         cmocka_unit_test_teardown(test_channel_and_device_mode_agree, teardown),
+        cmocka_unit_test_teardown(test_device_mode_robot_stops_when_drives_die, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
