@@ -112,9 +112,11 @@ deps:
 test-deps: deps
 	@scripts/install-deps.sh vm browser
 
-# Tests run one by one, each in its own network namespace; the last line is the summary.
+# Tests run one by one, each in its own network namespace (so the PyPI witnesses' venv is made
+# before, outside); the last line is the summary.
 test: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(TESTS) $(ITESTS)
 
 test-vm: deps
