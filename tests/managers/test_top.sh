@@ -115,6 +115,16 @@ idle_cpu() {
 }
 check "idle with 10 components: under 2% of a core" idle_cpu
 
+# -- ^Z gives the terminal back; fg brings the screen back
+alt() { [ "$(tm display -p -t top '#{alternate_on}')" = "$1" ]; }
+tm send-keys -t top C-z
+stopped() { alt 0 && [ "$(awk '{print $3}' "/proc/$TOP_PID/stat")" = T ]; }
+check "^Z: stopped, main screen back" seen wait_for 3 stopped
+tm send-keys -t top fg Enter
+back_on() { alt 1 && pane | head -1 | grep -q '^marie top' && all_running_but_hog; }
+all_running_but_hog() { for n in producer consumer quiet1 quiet8; do [ "$(field $n 3)" = running ] || return 1; done; }
+check "fg: the screen is redrawn" seen wait_for 5 back_on
+
 # -- q quits and leaves the terminal as it was
 tm send-keys -t top q
 sleep 0.5
