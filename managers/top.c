@@ -544,12 +544,14 @@ int top_frame(top_t *t, const top_view_t *v, int64_t now_us, top_line_t *lines, 
         nlost += hosts[i].lost;
     const top_row_t *rows;
     size_t nr = top_rows(t, v->sort, now_us, &rows);
+    char bad[48] = "";
+    if (v->malformed)
+        snprintf(bad, sizeof bad, " - %lld malformed", (long long)v->malformed);
     int n = 0;
     if (n < max)
         line_set(&lines[n++], TOP_LINE_TITLE, width,
-                 "marie top - %zu host%s (%zu lost), %zu components - sort: %s - every %gs%s%.0lld%s - keys: c cpu, m mem, n name, h host, q quit",
-                 nh, nh == 1 ? "" : "s", nlost, nr, top_sort_name(v->sort), v->interval_s,
-                 v->malformed ? " - " : "", (long long)v->malformed, v->malformed ? " malformed" : "");
+                 "marie top - %zu host%s (%zu lost), %zu components - sort: %s - every %gs%s - keys: c cpu, m mem, n name, h host, q quit",
+                 nh, nh == 1 ? "" : "s", nlost, nr, top_sort_name(v->sort), v->interval_s, bad);
     for (size_t i = 0; i < nh && n < max; i++)
         host_line(&lines[n++], &hosts[i], width);
     if (n < max)

@@ -267,8 +267,14 @@ static void test_frame_never_taller_than_the_terminal(void **state)
     assert_non_null(strstr(lines[5].text, "c15"));       /* highest CPU first */
     for (int i = 0; i < n; i++)
         assert_true((int)strlen(lines[i].text) <= 80);
+    v.malformed = 3;
+    v.width = 200;
+    top_frame(t, &v, 10 * S, lines, 64);
+    assert_non_null(strstr(lines[0].text, " 3 malformed "));
+    v.malformed = 0;
     /* unlimited height: every row */
     v.height = 0;
+    v.width = 200;
     assert_int_equal(top_frame_lines(t, 10 * S), 3 + 2 + 32);
     assert_int_equal(top_frame(t, &v, 10 * S, lines, 64), 3 + 2 + 32);
     /* lost hosts are marked */

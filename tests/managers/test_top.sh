@@ -60,6 +60,10 @@ check "on the alternate screen while running" sh -c "[ \"\$(tmux -S $SOCK displa
 # The hog's displayed CPU% against a witness: its own /proc ticks over 2 s. On an idle machine
 # it gets a whole core and must show above 50%; on a shared, loaded one it gets less, and the
 # figure shown must still agree with the kernel's and top the list.
+# malformed status and heartbeats (a string length of -1 among them): counted, nothing breaks
+"$B/tests/bin/marie-test-order" -m garbage -r 300 ping > /dev/null
+malformed_counted() { pane | head -1 | grep -q ' - [0-9][0-9]* malformed - ' && all_running; }
+check "malformed messages counted in the title, the table intact" seen wait_for 5 malformed_counted
 hog_first() {
     first=$(rows | head -1); echo "$first"
     hp=$(echo "$first" | awk '$2 == "hog" {print $4}')
