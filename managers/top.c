@@ -550,7 +550,8 @@ int top_frame(top_t *t, const top_view_t *v, int64_t now_us, top_line_t *lines, 
     int n = 0;
     if (n < max)
         line_set(&lines[n++], TOP_LINE_TITLE, width,
-                 "marie top - %zu host%s (%zu lost), %zu components - sort: %s - every %gs%s - keys: c cpu, m mem, n name, h host, q quit",
+                 "marie top - %zu host%s (%zu lost), %zu components - sort: %s - every %gs%s"
+                 " - keys: c cpu, m mem, n name, h host, q quit",
                  nh, nh == 1 ? "" : "s", nlost, nr, top_sort_name(v->sort), v->interval_s, bad);
     for (size_t i = 0; i < nh && n < max; i++)
         host_line(&lines[n++], &hosts[i], width);

@@ -1,4 +1,6 @@
-/* top: the table model of `marie top`: managers' status and components' heartbeats merged into rows, with rates, staleness, sorting and lines cut to a terminal's width. No I/O: times are passed in. */
+/* top: the table model of `marie top`: managers' status and components' heartbeats merged into
+ * rows, with rates, staleness, sorting and lines cut to a terminal's width. No I/O: times are
+ * passed in. */
 #ifndef MARIE_TOP_H
 #define MARIE_TOP_H
 

@@ -1,4 +1,5 @@
-/* marie-top: the live system in a terminal (managers' status and heartbeats), refreshed in place; `marie top`. */
+/* marie-top: the live system in a terminal (managers' status and heartbeats), refreshed in
+ * place; run as `marie top`. */
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>

@@ -1,4 +1,5 @@
-/* test_top: marie top's table: status and heartbeats merged, rates, lost hosts, sorting, and every line fitting the terminal. */
+/* test_top: marie top's table: status and heartbeats merged, rates, lost hosts, sorting, and
+ * every line fitting the terminal. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
