@@ -64,6 +64,13 @@ check "on the alternate screen while running" sh -c "[ \"\$(tmux -S $SOCK displa
 "$B/tests/bin/marie-test-order" -m garbage -r 300 ping > /dev/null
 malformed_counted() { pane | head -1 | grep -q ' - [0-9][0-9]* malformed - ' && all_running; }
 check "malformed messages counted in the title, the table intact" seen wait_for 5 malformed_counted
+ESC=$(printf '\033')
+colored() { tm capture-pane -e -p -t top | grep -q "^${ESC}\[7mHOST "; }
+check "colour: the column header in reverse video" seen wait_for 3 colored
+tm new-session -d -s plain -x 100 -y 20 "$M top --no-color"
+plain() { p=$(tm capture-pane -e -p -t plain); echo "$p" | grep -q '^HOST ' && ! echo "$p" | grep -q "$ESC"; }
+check "--no-color: no colour or attribute anywhere" wait_for 5 plain
+tm kill-session -t plain
 hog_first() {
     first=$(rows | head -1); echo "$first"
     hp=$(echo "$first" | awk '$2 == "hog" {print $4}')
@@ -128,6 +135,13 @@ tm send-keys -t top fg Enter
 back_on() { alt 1 && pane | head -1 | grep -q '^marie top' && all_running_but_hog; }
 all_running_but_hog() { for n in producer consumer quiet1 quiet8; do [ "$(field $n 3)" = running ] || return 1; done; }
 check "fg: the screen is redrawn" seen wait_for 5 back_on
+
+# -- a manager that stops reporting (frozen) is shown lost after 3 s, alive again when it reports
+kill -STOP "$AM_PID"
+lost() { pane | grep -q '^alpha  *manager LOST (silent [3-9]' && [ "$(field producer 3)" = lost ]; }
+check "a silent manager: its host LOST, its rows lost" seen wait_for 8 lost
+kill -CONT "$AM_PID"
+check "the manager reports again: alive" seen wait_for 5 sh -c "tmux -S $SOCK capture-pane -p -t top | grep -q '^alpha  *manager alive'"
 
 # -- q quits and leaves the terminal as it was
 tm send-keys -t top q
