@@ -95,7 +95,7 @@ static void term_size(app_t *a)
     struct winsize ws;
     if (ioctl(STDOUT_FILENO, TIOCGWINSZ, &ws) == 0 && ws.ws_col > 0) {
         a->view.width = ws.ws_col;
-        a->view.height = a->once ? 0 : ws.ws_row;
+        a->view.height = a->once ? 0 : ws.ws_row > 0 ? ws.ws_row : 24;   /* some ptys report no rows */
     } else {
         a->view.width = TOP_LINE_MAX - 1;   /* not a terminal: nothing to cut */
         a->view.height = 0;
