@@ -43,7 +43,7 @@ check "--sort with an unknown key: exit 2" sh -c "\"$M\" top --once --sort rss 2
 check "without a terminal and without --once: exit 2" sh -c "\"$M\" top < /dev/null > /dev/null 2>&1; [ \$? -eq 2 ]"
 
 # -- live, in a 120x30 terminal
-tmux -S "$SOCK" new-session -d -s top -x 120 -y 30 sh
+tmux -S "$SOCK" new -d -s top -x 120 -y 30 sh
 tm() { tmux -S "$SOCK" "$@"; }
 tm send-keys -t top "stty -g > $T/stty.before; echo MARKER-BEFORE-TOP" Enter
 sleep 0.3
@@ -67,10 +67,10 @@ check "malformed messages counted in the title, the table intact" seen wait_for 
 ESC=$(printf '\033')
 colored() { tm capture-pane -e -p -t top | grep -q "^${ESC}\[7mHOST "; }
 check "colour: the column header in reverse video" seen wait_for 3 colored
-tm new-session -d -s plain -x 100 -y 20 "$M top --no-color"
+tm new -d -s plain -x 100 -y 20 "$M top --no-color"
 plain() { p=$(tm capture-pane -e -p -t plain); echo "$p" | grep -q '^HOST ' && ! echo "$p" | grep -q "$ESC"; }
 check "--no-color: no colour or attribute anywhere" wait_for 5 plain
-tm kill-session -t plain
+tm send-keys -t plain q
 hog_first() {
     first=$(rows | head -1); echo "$first"
     hp=$(echo "$first" | awk '$2 == "hog" {print $4}')
