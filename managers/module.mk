@@ -23,3 +23,8 @@ ITESTS += tests/managers/test_am.sh tests/managers/test_up_check.sh tests/manage
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/logcap.c,))
 
 $(eval $(call marie_bench,bench_am,managers/bench_am.c,$(MANAGERS_LIB)))
+
+# marie top: the live system in a terminal; its table model is a pure module, unit-tested.
+$(eval $(call marie_program,marie-top,managers/top_main.c managers/top.c,))
+$(eval $(call marie_test,test_top,tests/managers/test_top.c managers/top.c,))
+ITESTS += tests/managers/test_top.sh
