@@ -8,9 +8,9 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
       systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev
-      libjchart2d-java tmux"
-# Peers from PyPI (python-canopen) live in a venv under build/ (scripts/peer-venv.sh).
-base="$base python3-venv"
+      libjchart2d-java tmux python3-venv"
+# (python3-venv: the PyPI witnesses, python-canopen among them, live in a venv under build/,
+# made by scripts/peer-venv.sh.)
 # The VM test boots Debian's kernel under qemu to reach real SocketCAN.
 vm="qemu-system-x86 busybox-static cpio"
 # libFuzzer and clang's sanitizer runtimes.
