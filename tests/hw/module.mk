@@ -6,3 +6,6 @@ EXTRA_TARGETS += $(B)/tests/vm/vm_gpio_check
 # scripts/install-deps.sh vm before the tests.
 VMTESTS += tests/hw/test_vm_gpio.sh
 ITESTS += tests/hw/test_vm_gpio.sh
+# ~70 s here (boot ~15 s: the two boards take a while to probe).
+VMTESTS += tests/hw/test_vm_can_ctrl.sh
+ITESTS += tests/hw/test_vm_can_ctrl.sh

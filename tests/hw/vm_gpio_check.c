@@ -16,7 +16,7 @@
 static lcm_t *lcm;
 static const char *pull_file, *led_file;
 static int nmsg = 0, pressed = -1, presses = 0, releases = 0;
-static int64_t changed_at;          /* mono us of the last change seen */
+static int64_t changed_at;          /* wall us of the last change, stamped by marie-gpio */
 static int64_t edges = -1;
 
 static void on_estop(const lcm_recv_buf_t *rb, const char *ch, const marie_estop_t *m, void *u)
@@ -26,7 +26,7 @@ static void on_estop(const lcm_recv_buf_t *rb, const char *ch, const marie_estop
         if (pressed >= 0)
             m->pressed ? presses++ : releases++;
         pressed = m->pressed;
-        changed_at = marie_mono_us();
+        changed_at = m->utime;
     }
 }
 
@@ -97,14 +97,16 @@ static void sample_led(const char *name, double s)
 /* The contact chattering for `n` cycles of `ms` each way, ending at `final`. */
 static int64_t bounce(const char *first, const char *other, int n, int ms)
 {
+    int64_t last = 0;
     for (int i = 0; i < n; i++) {
         set_pull(first);
         spin(ms * 1000);
         set_pull(other);
         spin(ms * 1000);
     }
+    last = marie_wall_us();
     set_pull(first);
-    return marie_mono_us();
+    return last;
 }
 
 int main(int argc, char **argv)
@@ -132,7 +134,7 @@ int main(int argc, char **argv)
     sample_led("released", 3);
 
     int before = presses;
-    int64_t t0 = marie_mono_us();
+    int64_t t0 = marie_wall_us();
     bounce("pull-up", "pull-down", 4, 10);
     int r = wait_pressed(1, 5);
     printf("press_seen=%d\npress_latency_ms=%.1f\n", r == 0, (changed_at - t0) / 1e3);
