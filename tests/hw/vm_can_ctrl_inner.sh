@@ -52,7 +52,7 @@ check "candump sees the gyro TPDO" [ "$(count 1A0)" -gt 20 ]
 check "RPDO1 carries enable-operation and the kinematic target" grep -q " can1 201#0F00300A0000" /tmp/candump.log
 
 # --- can0 goes down under the driver while it commands motion, then up again.
-$B/tests/vm/hw_vm_check 40 > /tmp/check2.txt 2>&1 &
+$B/tests/vm/hw_vm_check 600 > /tmp/check2.txt 2>&1 &
 cmd=$!
 vel() { printf '%d' "0x$(echo "$1" | sed 's/\(..\)\(..\)\(..\)\(..\).*/\4\3\2\1/')"; }
 moving_since() {
@@ -65,23 +65,27 @@ tx_before=$(ip -s link show can0 | awk '/TX:/ { getline; print $2; exit }')
 ip link set can0 down
 t_down=$(date +%s.%N)
 sleep 1
-ip link set can0 up
 t_up=$(date +%s.%N)
-check "after can0 is down for 1 s and up again, the drive turns again" wait_for 20 moving_since "$t_up"
+ip link set can0 up
+check "marie-drives reports the link loss with the reason" grep -q "can:can0: Network is down" $out/drives.log
+check "after can0 is down for 1 s and up again, the drive turns again" wait_for 30 moving_since "$t_up"
 t_ok=$(awk -v t0="$t_up" '{ t = substr($1, 2, length($1) - 2) } t + 0 > t0 + 0 && / can1 201#0F00/ { print t; exit }' /tmp/candump.log)
 echo "can0 down at $t_down, up at $t_up, enable-operation RPDO again at ${t_ok:-never}"
-frames_down=$(awk -v a="$t_down" -v b="$t_up" '{ t = substr($1, 2, length($1) - 2) } t + 0 > a + 0.05 && t + 0 < b + 0 && / can1 (080|201|202)#/' /tmp/candump.log | wc -l)
+frames_down=$(awk -v a="$t_down" -v b="$t_up" '{ t = substr($1, 2, length($1) - 2) } t + 0 > a + 0 && t + 0 < b + 0 && / can1 (080|201|202)#/' /tmp/candump.log | wc -l)
 check "no master frame reaches the bus while can0 is down" [ "$frames_down" -eq 0 ]
-sleep 1.5           # one heartbeat with the counters
-grep -i -E "tx|send|down|restart|bus" $out/drives.log | head -5
+f=$(awk -v b="$t_up" '{ t = substr($1, 2, length($1) - 2) } t + 0 < b + 0 && / can1 281#/' /tmp/candump.log | tail -1 | sed 's/.*#//')
+echo "left drive's actual velocity at the end of the outage: $(vel "${f:-00000000}") increments/s"
+grep -c "disconnected: can:can0" $out/drives.log | sed 's/^/disconnected events: /'
 
-# --- a full TX queue: cangen floods can0 beside marie-drives.
-cangen can0 -g 0 -n 3000 -I 7F0 -L 8 > /tmp/cangen.txt 2>&1
+# --- a flood: cangen sends 1000 frames back to back on can0 beside marie-drives. The
+# emulated SJA1000 completes every transmission at once, so no TX queue fills (no ENOBUFS)
+# and no error frame comes; the drivers must come through the load.
+cangen can0 -g 0 -n 1000 -I 7F0 -L 8 > /tmp/cangen.txt 2>&1
 cangen_rc=$?
 cat /tmp/cangen.txt | head -3
 ip -s -details link show can0 | sed -n '/RX:/,$p'
 echo "cangen rc=$cangen_rc"
-check "the drive still turns after the flood" wait_for 20 moving_since "$(date +%s.%N)"
+check "the drive turns again after the flood" wait_for 60 moving_since "$(date +%s.%N)"
 
 kill $cmd $drv $gyr 2>/dev/null
 sleep 0.3
