@@ -131,7 +131,7 @@ int main(int argc, char **argv)
     set_pull("pull-down");
     printf("released_initially=%d\n", wait_pressed(0, 5) == 0);
     spin(300000);
-    sample_led("released", 3);
+    sample_led("released", 4);
 
     int before = presses;
     int64_t t0 = marie_wall_us();
