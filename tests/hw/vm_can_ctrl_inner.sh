@@ -5,6 +5,7 @@
 B=${B:-build}
 . tests/lib.sh
 out=${VM_OUT:-/tmp}
+echo "VM up $(cut -d" " -f1 /proc/uptime) s when the test starts"
 ip link set lo up
 ip link set lo multicast on
 ip route add 224.0.0.0/4 dev lo
