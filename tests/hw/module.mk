@@ -2,10 +2,10 @@
 # real CAN controllers (qemu's kvaser_pci, sja1000 driver), both inside qemu.
 $(eval $(call marie_link,$(B)/tests/vm/vm_gpio_check,tests/hw/vm_gpio_check.c,))
 EXTRA_TARGETS += $(B)/tests/vm/vm_gpio_check
-# ~60 s here (boot ~10 s); the module build (~2 min, once per machine) is done by
+# 100-135 s here on a loaded machine (boot ~10 s); the module build (~2 min, once per machine) is done by
 # scripts/install-deps.sh vm before the tests.
 VMTESTS += tests/hw/test_vm_gpio.sh
 ITESTS += tests/hw/test_vm_gpio.sh
-# ~70 s here (boot ~15 s: the two boards take a while to probe).
+# 140-210 s here on a loaded machine (boot ~15 s: the two boards take a while to probe).
 VMTESTS += tests/hw/test_vm_can_ctrl.sh
 ITESTS += tests/hw/test_vm_can_ctrl.sh

@@ -9,7 +9,7 @@ if ! command -v qemu-system-x86_64 >/dev/null || ! [ -x /bin/busybox ]; then
     exit 0
 fi
 mkdir -p "$B/test-logs/vm-can-ctrl"
-exec scripts/vm/run-in-vm.sh -t ${VM_TIMEOUT:-240} -m kvaser_pci -m can-raw -m can-dev \
+exec scripts/vm/run-in-vm.sh -t ${VM_TIMEOUT:-280} -m kvaser_pci -m can-raw -m can-dev \
     -q -object -q can-bus,id=canbus0 \
     -q -device -q kvaser_pci,canbus=canbus0 -q -device -q kvaser_pci,canbus=canbus0 \
     -w "$B/test-logs/vm-can-ctrl" -- \

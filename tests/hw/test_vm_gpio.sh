@@ -10,5 +10,5 @@ if ! command -v qemu-system-x86_64 >/dev/null || ! [ -x /bin/busybox ]; then
 fi
 ko=$(scripts/vm/build-gpio-sim.sh) || { echo "[  FAILED  ] building gpio-sim for the VM's kernel"; exit 1; }
 mkdir -p "$B/test-logs/vm-gpio"
-exec scripts/vm/run-in-vm.sh -t ${VM_TIMEOUT:-240} -m "$ko" -m vcan -m can-raw -m can-dev \
+exec scripts/vm/run-in-vm.sh -t ${VM_TIMEOUT:-280} -m "$ko" -m vcan -m can-raw -m can-dev \
     -w "$B/test-logs/vm-gpio" -- env B="$B" VM_OUT="$(pwd)/$B/test-logs/vm-gpio" sh tests/hw/vm_gpio_inner.sh
