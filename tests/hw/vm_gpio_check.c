@@ -94,17 +94,17 @@ static void sample_led(const char *name, double s)
     printf("led_%s_hz=%.2f\nled_%s_on_pct=%.0f\n", name, rises / s, name, 100.0 * on_us / (end - t0));
 }
 
-/* The contact chattering for `n` cycles of `ms` each way, ending at `final`. */
+/* The contact chattering for `n` cycles of `ms` each way, then resting at `first`; returns
+ * the wall time of that last change. */
 static int64_t bounce(const char *first, const char *other, int n, int ms)
 {
-    int64_t last = 0;
     for (int i = 0; i < n; i++) {
         set_pull(first);
         spin(ms * 1000);
         set_pull(other);
         spin(ms * 1000);
     }
-    last = marie_wall_us();
+    int64_t last = marie_wall_us();
     set_pull(first);
     return last;
 }
