@@ -5,7 +5,7 @@
 B=${B:-build}
 . tests/lib.sh
 out=${VM_OUT:-/tmp}
-echo "VM up $(cut -d" " -f1 /proc/uptime) s when the test starts"
+boot=$(cut -d" " -f1 /proc/uptime)
 ip link set lo up
 ip link set lo multicast on
 ip route add 224.0.0.0/4 dev lo
@@ -93,4 +93,5 @@ sleep 0.3
 kill $devs $dump 2>/dev/null
 wait 2>/dev/null
 cp /tmp/candump.log $out/candump.log
+echo "VM up $boot s when the test started"
 finish

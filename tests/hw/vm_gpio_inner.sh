@@ -5,7 +5,7 @@
 B=${B:-build}
 . tests/lib.sh
 out=${VM_OUT:-/tmp}
-echo "VM up $(cut -d" " -f1 /proc/uptime) s when the test starts"
+boot=$(cut -d" " -f1 /proc/uptime)
 ip link set lo up
 ip link set lo multicast on
 ip route add 224.0.0.0/4 dev lo
@@ -119,4 +119,5 @@ gpioinfo marie-sim > /tmp/gpioinfo.txt 2>&1
 check "and both lines are free again" sh -c '! grep -q "marie-" /tmp/gpioinfo.txt'
 wait 2>/dev/null
 cp /tmp/candump.log $out/candump.log 2>/dev/null
+echo "VM up $boot s when the test started"
 finish
