@@ -11,8 +11,9 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       libjchart2d-java tmux python3-venv"
 # (python3-venv: the PyPI witnesses, python-canopen among them, live in a venv under build/,
 # made by scripts/peer-venv.sh.)
-# The VM test boots Debian's kernel under qemu to reach real SocketCAN.
-vm="qemu-system-x86 busybox-static cpio"
+# The VM tests boot Debian's kernel under qemu to reach real SocketCAN and GPIO; gpio-sim is
+# built out of tree for that kernel (gcc-12 and the unpacked linux-kbuild tools need these).
+vm="qemu-system-x86 busybox-static cpio gcc-12 make xz-utils libelf1 libssl3"
 # libFuzzer and clang's sanitizer runtimes.
 san="clang libclang-rt-14-dev"
 # The log viewer's browser tests drive Debian's Chromium headless.
@@ -34,7 +35,8 @@ for set in "$@"; do
     esac
 done
 
-# The VM test also needs Debian's kernel, unpacked in a cache (no install on the host).
+# The VM tests also need Debian's kernel, unpacked in a cache (no install on the host), and
+# the gpio-sim module built for it (--extras; cached too).
 case " $* " in *" vm "*|*" all "*) fetch_kernel=1 ;; *) fetch_kernel=0 ;; esac
 
 missing=""
@@ -43,7 +45,7 @@ for p in $want; do
         missing="$missing $p"
 done
 if [ -z "$missing" ]; then
-    [ "$fetch_kernel" = 1 ] && { "$(dirname "$0")/vm/fetch-kernel.sh" >/dev/null || exit 1; }
+    [ "$fetch_kernel" = 1 ] && { "$(dirname "$0")/vm/fetch-kernel.sh" --extras >/dev/null || exit 1; }
     exit 0
 fi
 
@@ -61,5 +63,5 @@ if [ ! -e "$stamp" ] || [ -n "$(find "$stamp" -mmin +360 2>/dev/null)" ]; then
 fi
 # shellcheck disable=SC2086
 apt-get install -y -q --no-install-recommends $missing >/dev/null
-[ "$fetch_kernel" = 1 ] && "$(dirname "$0")/vm/fetch-kernel.sh" >/dev/null
+[ "$fetch_kernel" = 1 ] && "$(dirname "$0")/vm/fetch-kernel.sh" --extras >/dev/null
 exit 0

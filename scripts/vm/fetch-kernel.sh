@@ -2,11 +2,19 @@
 # Fetches and unpacks Debian's linux-image-amd64 kernel (vmlinuz + modules) for the VM test,
 # once; later runs only print the directory. Nothing is installed on the host.
 #   scripts/vm/fetch-kernel.sh            prints the unpacked root, e.g. /var/cache/marie-vm/6.1.0-56-amd64
+#   scripts/vm/fetch-kernel.sh --extras   also builds the out-of-tree modules the VM tests load
+#                                         (scripts/vm/build-gpio-sim.sh, cached likewise)
 # env: MARIE_VM_CACHE   cache directory (default /var/cache/marie-vm when writable, else build/vm)
 #      MARIE_VM_KERNEL  a kernel package to use instead of what linux-image-amd64 depends on,
 #                       e.g. linux-image-6.12.12+bpo-amd64 from bookworm-backports (needs that
 #                       archive in apt's sources); Debian's 6.1 has vcan but no gpio-sim
 set -eu
+if [ "${1:-}" = --extras ]; then
+    d=$("$0")
+    "$(dirname "$0")"/build-gpio-sim.sh >/dev/null
+    echo "$d"
+    exit 0
+fi
 cache=${MARIE_VM_CACHE:-}
 if [ -z "$cache" ]; then
     if mkdir -p /var/cache/marie-vm 2>/dev/null && [ -w /var/cache/marie-vm ]; then

@@ -2,10 +2,13 @@
 # Runs one command inside a throw-away VM booted from Debian's kernel, for what this
 # machine's kernel lacks (SocketCAN, gpio-sim, ...).
 #
-#   scripts/vm/run-in-vm.sh [-m MODULE]... [-w DIR] [-t SECONDS] -- COMMAND [ARGS...]
+#   scripts/vm/run-in-vm.sh [-m MODULE]... [-q QEMU-ARG]... [-w DIR] [-t SECONDS] -- COMMAND [ARGS...]
 #
 #   -m MODULE   load this kernel module (and what it depends on) before the command,
-#               e.g. -m vcan -m can-raw, or -m gpio-sim; repeatable
+#               e.g. -m vcan -m can-raw; a path to a .ko file loads a module built out of
+#               tree (scripts/vm/build-gpio-sim.sh), after what its modinfo depends on;
+#               repeatable
+#               (emulated devices); repeatable
 #   -w DIR      make host directory DIR writable inside the VM (same path), e.g. for logs;
 #               everything else of the host is mounted read-only
 #   -t SECONDS  give up after this long (default 120); exit status 124
@@ -22,15 +25,15 @@
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
 mods=""
+qargs=""
 wdir=""
 limit=120
-qargs=""
 while [ $# -gt 0 ]; do
     case "$1" in
     -m) mods="$mods $2"; shift 2 ;;
+    -q) qargs="$qargs $2"; shift 2 ;;
     -w) wdir=$(cd "$2" && pwd); shift 2 ;;
     -t) limit=$2; shift 2 ;;
-    -q) qargs="$qargs $2"; shift 2 ;;
     --) shift; break ;;
     -h|--help) sed -n '2,/^[^#]/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) break ;;
@@ -62,6 +65,7 @@ modinfo_depends() {
     esac | tr '\0' '\n' | sed -n 's/^depends=//p' | head -1 | tr ',' ' '
 }
 resolve() {
+    case "$1" in */*.ko) resolve_file "$1"; return ;; esac
     want=$(norm "$1")
     case " $loaded " in *" $want "*) return 0 ;; esac
     path=$(awk -v w="$want" '{ n = $0; sub(/.*\//, "", n); sub(/\.ko.*/, "", n); gsub(/-/, "_", n);
@@ -89,6 +93,16 @@ resolve() {
     *.gz) gzip -dc "$file" > "$out" ;;
     *) cp "$file" "$out" ;;
     esac
+}
+# A module built out of tree: what it depends on comes from the kernel's tree.
+resolve_file() {
+    [ -f "$1" ] || { echo "run-in-vm: $1 missing" >&2; exit 2; }
+    for d in $(modinfo_depends "$1"); do
+        resolve "$d"
+    done
+    want=$(basename "$1" .ko | tr '-' '_')
+    loaded="$loaded $want"
+    cp "$1" "$root/lib/modules/$(printf '%02d' "$(echo $loaded | wc -w)")-$want.ko"
 }
 for m in virtio_pci 9pnet_virtio 9p $mods; do
     resolve "$m"
