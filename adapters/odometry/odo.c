@@ -59,6 +59,11 @@ int odo_gyro(odo_t *o, int64_t utime, double yaw_rate, int status)
     return 0;
 }
 
+void odo_encoders_lost(odo_t *o)
+{
+    o->have_enc = false;
+}
+
 int odo_encoders(odo_t *o, int64_t utime, int32_t left, int32_t right, int32_t tpr)
 {
     if (tpr <= 0)

@@ -42,6 +42,9 @@ typedef struct {
 } odo_t;
 
 void odo_init(odo_t *o, const odo_params_t *p);
+/* The encoders' readings stopped meaning anything (a drive fault, its driver restarting): the
+ * next sample is a new reference, not motion since the last one. The pose stays. */
+void odo_encoders_lost(odo_t *o);
 /* Feed a gyro sample (rad/s, bias already removed). status != 0 samples are ignored.
  * 0, or -EINVAL for a non-finite rate or a time going backwards (ignored). */
 int odo_gyro(odo_t *o, int64_t utime, double yaw_rate, int status);

@@ -24,7 +24,10 @@ static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, 
     odom_t *s = marie_component_user(c);
     const marie_wheel_encoders_t *m = msg;
     if (m->status == MARIE_WHEEL_ENCODERS_T_STATUS_FAULT) {
+        /* What a faulted drive reports, and where its wheels went meanwhile, is no motion to
+         * add up: the first sample after the fault starts afresh. */
         marie_component_count(c, "encoder_faults", 1);
+        odo_encoders_lost(&s->o);
         return;
     }
     int32_t l = s->sign_l < 0 ? (int32_t)(0u - (uint32_t)m->left_ticks) : m->left_ticks;

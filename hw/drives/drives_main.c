@@ -161,6 +161,12 @@ static void publish(marie_component_t *c, int64_t overruns)
 {
     drives_t *d = marie_component_user(c);
     const drives_axis_t *l = drives_ctl_axis(d->ctl, DRIVES_LEFT), *r = drives_ctl_axis(d->ctl, DRIVES_RIGHT);
+    /* Positions not yet read from the drives (a new process, a drive just configured) are not
+     * zero: odometry would take the jump to and from 0 for motion. */
+    if (!l->have_tpdo || !r->have_tpdo) {
+        marie_component_count(c, "encoders_unknown", 1);
+        return;
+    }
     marie_wheel_encoders_t m = {
         .utime = marie_component_now(c),
         .left_ticks = l->position,

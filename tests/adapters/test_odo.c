@@ -99,6 +99,25 @@ static void test_wrap_and_glitches(void **state)
     assert_int_equal(o.glitches, 1);
 }
 
+/* A drive that faulted (or whose driver restarted) for 4 s reads far from where it was: that is
+ * no motion. Before, 4 s allowed enough ticks for a 22 m jump. */
+static void test_encoder_outage_is_a_new_reference(void **state)
+{
+    odo_params_t p; odo_params_default(&p);
+    odo_t o; odo_init(&o, &p);
+    odo_encoders(&o, 0, 0, 0, TPR);
+    for (int i = 1; i <= 10; i++)
+        odo_encoders(&o, i * 100000, ticks(0.05 * i), ticks(0.05 * i), TPR);
+    double x = o.pose[0], dist = o.distance;
+    odo_encoders_lost(&o);
+    assert_int_equal(odo_encoders(&o, 5000000, 153175, 153175, TPR), 0);
+    assert_true(fabs(o.pose[0] - x) < 1e-12 && fabs(o.distance - dist) < 1e-12);
+    assert_int_equal(o.utime, 5000000);
+    /* and motion after it counts again */
+    assert_int_equal(odo_encoders(&o, 5100000, 153175 + ticks(0.05), 153175 + ticks(0.05), TPR), 1);
+    assert_true(fabs(o.pose[0] - x - 0.05) < 0.002);
+}
+
 static void test_covariance_grows_with_distance(void **state)
 {
     odo_params_t p; odo_params_default(&p);
@@ -123,6 +142,7 @@ int main(void)
         cmocka_unit_test(test_gyro_heading_beats_slipping_wheel),
         cmocka_unit_test(test_encoder_heading_without_gyro),
         cmocka_unit_test(test_wrap_and_glitches),
+        cmocka_unit_test(test_encoder_outage_is_a_new_reference),
         cmocka_unit_test(test_covariance_grows_with_distance),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
