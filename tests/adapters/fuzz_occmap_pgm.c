@@ -1,6 +1,7 @@
 /* fuzz_occmap_pgm: any bytes given as a map image are decoded or refused, never crash. */
 #include <stdint.h>
 #include <stddef.h>
+#include <stdlib.h>
 
 #include "adapters/common/occmap.h"
 
@@ -10,8 +11,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     char err[160];
     occmap_t *m = occmap_from_pgm(data, size, &meta, err, sizeof(err));
     if (m) {
-        /* A decoded map is usable: cast a ray across it. */
-        occmap_raycast(m, m->width * m->resolution / 2, m->height * m->resolution / 2, 0.7, 10);
+        /* A decoded map is usable: a ray across it ends within its range. */
+        double r = occmap_raycast(m, m->width * m->resolution / 2, m->height * m->resolution / 2, 0.7, 10);
+        if (m->width <= 0 || m->height <= 0 || !(r >= 0 && r <= 10))
+            abort();
         occmap_destroy(m);
     }
     return 0;
