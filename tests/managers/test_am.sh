@@ -28,6 +28,7 @@ for h in d["hosts"]:
 is_state() { [ "$(field "$1" state)" = "$2" ]; }
 pid_changed() { p=$(field "$1" pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$2" ] && is_state "$1" running; }
 trace_line() { grep -n " $1 $2 " "$T/trace" | head -1 | cut -d: -f1; }
+last_line() { grep -n " $1 $2 " "$T/trace" | tail -1 | cut -d: -f1; }
 
 "$M" keygen "$T/key"
 start_am
@@ -150,6 +151,12 @@ check "restarted manager ended the leftover" wait_for 5 sh -c "! kill -0 $C_PID 
 
 # -- down, then a crashing component is given up after max_failures
 check "down stops everything" "$M" down
+# reverse dependency order: c (needs b) ends before b, b (needs a) before a
+down_order() {
+    ax=$(last_line a exit); bx=$(last_line b exit); cx=$(last_line c exit)
+    [ -n "$ax" ] && [ -n "$bx" ] && [ -n "$cx" ] && [ "$cx" -lt "$bx" ] && [ "$bx" -lt "$ax" ]
+}
+check "down stops in reverse dependency order" down_order
 none_left() { for p in $(cut -d" " -f4 "$T/trace" | sort -u); do kill -0 "$p" 2>/dev/null && return 1; done; return 0; }
 check "nothing left running" wait_for 5 none_left
 "$M" up --no-wait tests/data/managers/crash.yaml > /dev/null
@@ -164,7 +171,15 @@ check "output beyond log_rate is dropped and counted" wait_for 10 drops
 rotated() { [ -f "$T/am/logs/chatty.log.1" ] && [ ! -f "$T/am/logs/chatty.log.3" ] && [ "$(stat -c %s "$T/am/logs/chatty.log")" -le 8192 ]; }
 check "log files rotate at log_max_bytes, log_keep kept" wait_for 15 rotated
 check "down again" "$M" down
-check "ps --json exit code with everything stopped" "$M" --json ps
+# everything down: ps --json still lists every component, each stopped (or failed)
+all_stopped() {
+    "$M" --json ps --window 0.7 | python3 -c '
+import json, sys
+cs = [c for h in json.load(sys.stdin)["hosts"] for c in h["components"]]
+print([(c["name"], c["state"]) for c in cs])
+sys.exit(0 if len(cs) >= 3 and all(c["state"] in ("stopped", "failed") for c in cs) else 1)'
+}
+check "ps --json after down: every component listed, none running" all_stopped
 dispatch() {
     mkdir -p "$T/path"
     printf '#!/bin/sh\necho "hello $*"\n' > "$T/path/marie-hello"; chmod +x "$T/path/marie-hello"
