@@ -159,6 +159,14 @@ down_order() {
 check "down stops in reverse dependency order" down_order
 none_left() { for p in $(cut -d" " -f4 "$T/trace" | sort -u); do kill -0 "$p" 2>/dev/null && return 1; done; return 0; }
 check "nothing left running" wait_for 5 none_left
+# up waits for everything to run: a component that fails before it ever runs makes it exit 1
+up_fails() {
+    printf 'system: broken\nhosts: [alpha]\ncomponents:\n  ghost:\n    exec: /nonexistent/marie-ghost\n    host: alpha\n    restart: {policy: never}\n' > "$T/broken.yaml"
+    "$M" up --wait-timeout 20 "$T/broken.yaml"; rc=$?; echo "exit $rc"
+    "$M" down > /dev/null
+    [ $rc -eq 1 ]
+}
+check "up with a component that cannot start: exit 1" up_fails
 "$M" up --no-wait tests/data/managers/crash.yaml > /dev/null
 check "gives up after max_failures" wait_for 10 is_state crasher failed
 check "policy never: failed component stays failed" wait_for 5 is_state once failed
