@@ -8,7 +8,7 @@ base="liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
       systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev
-      libjchart2d-java"
+      libjchart2d-java xvfb x11-apps"
 # The VM test boots Debian's kernel under qemu to reach real SocketCAN.
 vm="qemu-system-x86 busybox-static cpio"
 # libFuzzer and clang's sanitizer runtimes.

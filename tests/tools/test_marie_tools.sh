@@ -159,6 +159,38 @@ spy_finds_every_type() {
     $BIN/marie-spy --print-classpath | grep -q marie_types.jar
 }
 
+# The real lcm-spy, launched by `marie spy` on a virtual X display: a message of no known type
+# and one of every marie type; a screenshot shows the Spy naming the marie types, not the other.
+real_spy() {
+    command -v Xvfb > /dev/null || { echo "Xvfb missing (scripts/install-deps.sh base)"; return 1; }
+    Xvfb -displayfd 3 -screen 0 1280x800x24 -nolisten tcp 3> "$T/display" > "$T/xvfb.log" 2>&1 &
+    xvfb=$!
+    wait_for 30 test -s "$T/display" || { kill $xvfb; return 1; }
+    export DISPLAY=":$(cat "$T/display")"
+    timeout 120 $BIN/marie spy > "$T/spy.log" 2>&1 &
+    spy=$!
+    ok=1
+    if wait_for 60 grep -q 'Found [1-9][0-9]* LCM types' "$T/spy.log"; then
+        # the Spy subscribes once its window is up: send until the first row shows
+        python3 -c "
+import struct
+with open('$T/unknown.lcmlog', 'wb') as f:
+    ch, data = b'AAA.unknown', bytes(range(7, 39))
+    f.write(struct.pack('>IqqII', 0xEDA1DA01, 0, 1, len(ch), len(data)) + ch + data)"
+        spied() {
+            lcm-logplayer "$T/unknown.lcmlog" > /dev/null 2>&1
+            $SAMPLES publish SPY. 1 > /dev/null
+            xwd -root -silent > "$T/spy.xwd" && python3 tests/tools/spy_check.py "$T/spy.xwd"
+        }
+        wait_for 60 spied && ok=0
+    fi
+    cat "$T/spy.log"
+    kill $spy $xvfb 2>/dev/null
+    wait $spy $xvfb 2>/dev/null
+    unset DISPLAY
+    return $ok
+}
+
 check record_with_a_channel_filter record_samples
 check java_jar_decodes_every_type_from_the_log java_decodes
 check filter_left_other_channels_out no_other_channels
@@ -169,4 +201,5 @@ check record_split_by_size_and_play_the_pieces split_by_size
 check record_split_by_time split_by_time
 check record_and_play_on_an_explicit_url record_explicit_url
 check spy_classpath_has_every_type spy_finds_every_type
+check real_lcm_spy_decodes_marie_types real_spy
 finish
