@@ -188,6 +188,55 @@ print([(c["name"], c["state"]) for c in cs])
 sys.exit(0 if len(cs) >= 3 and all(c["state"] in ("stopped", "failed") for c in cs) else 1)'
 }
 check "ps --json after down: every component listed, none running" all_stopped
+
+# CPU% and RSS per component against a known load: one spins with 200 MiB touched, one sleeps;
+# the spinner's CPU% agrees with what the kernel counted for it over the same seconds
+cat > "$T/load.yaml" <<'EOF2'
+system: load
+hosts: [alpha]
+components:
+  spinner:
+    exec: 'exec python3 -c "import itertools; b = bytearray([1]) * (200 << 20); any(itertools.repeat(0))"'
+    shell: true
+    host: alpha
+    heartbeat_timeout: 0
+    stop_timeout: 0.5
+  sleeper:
+    exec: exec sleep 60
+    shell: true
+    host: alpha
+    heartbeat_timeout: 0
+    stop_timeout: 0.5
+EOF2
+usage() {
+    "$M" up "$T/load.yaml" > /dev/null || return 1
+    sp=$(field spinner pid)
+    wait_for 20 sh -c "[ \$(awk '{print \$24}' /proc/$sp/stat) -gt 50000 ]"    # 200 MiB touched (pages)
+    sleep 2
+    t0=$(date +%s%N); c0=$(awk '{print $14 + $15}' /proc/$sp/stat)
+    for i in 1 2 3; do "$M" --json ps --window 1.1 > "$T/ps$i.json"; done
+    t1=$(date +%s%N); c1=$(awk '{print $14 + $15}' /proc/$sp/stat)
+    python3 - "$T" "$t0" "$t1" "$c0" "$c1" "$(getconf CLK_TCK)" <<'PY'
+import json, sys
+T, t0, t1, c0, c1, hz = sys.argv[1], *map(int, sys.argv[2:])
+kernel = 100.0 * (c1 - c0) / hz / ((t1 - t0) / 1e9)
+rows = []
+for i in (1, 2, 3):
+    cs = {c["name"]: c for h in json.load(open("%s/ps%d.json" % (T, i)))["hosts"] for c in h["components"]}
+    rows.append(cs)
+cpu = sum(r["spinner"]["cpu"] for r in rows) / 3
+idle = max(r["sleeper"]["cpu"] for r in rows)
+rss, idle_rss = rows[-1]["spinner"]["rss"] / 2**20, rows[-1]["sleeper"]["rss"] / 2**20
+print("spinner: ps %.1f%% CPU, kernel %.1f%%; RSS %.0f MiB; sleeper %.1f%% CPU, RSS %.1f MiB" % (cpu, kernel, rss, idle, idle_rss))
+ok = (kernel * 0.5 - 5 <= cpu <= kernel * 1.5 + 5 and cpu > idle + 2 and idle < 2
+      and 200 <= rss <= 320 and 0 < idle_rss < 20)
+sys.exit(0 if ok else 1)
+PY
+    rc=$?
+    "$M" down > /dev/null
+    return $rc
+}
+check "ps: CPU% and RSS of a known load (spinner, 200 MiB) and of an idle component" usage
 dispatch() {
     mkdir -p "$T/path"
     printf '#!/bin/sh\necho "hello $*"\n' > "$T/path/marie-hello"; chmod +x "$T/path/marie-hello"
