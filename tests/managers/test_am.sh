@@ -228,7 +228,7 @@ cpu = sum(r["spinner"]["cpu"] for r in rows) / 3
 idle = max(r["sleeper"]["cpu"] for r in rows)
 rss, idle_rss = rows[-1]["spinner"]["rss"] / 2**20, rows[-1]["sleeper"]["rss"] / 2**20
 print("spinner: ps %.1f%% CPU, kernel %.1f%%; RSS %.0f MiB; sleeper %.1f%% CPU, RSS %.1f MiB" % (cpu, kernel, rss, idle, idle_rss))
-ok = (kernel * 0.5 - 5 <= cpu <= kernel * 1.5 + 5 and cpu > idle + 2 and idle < 2
+ok = (kernel * 0.7 - 5 <= cpu <= kernel * 1.3 + 5 and cpu > idle + 2 and idle < 2
       and 200 <= rss <= 320 and 0 < idle_rss < 20)
 sys.exit(0 if ok else 1)
 PY
