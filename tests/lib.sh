@@ -15,6 +15,15 @@ check() {
 skip() {
     echo "[  SKIPPED ] $1: $2"
 }
+# A step the cases need but that proves nothing by itself (start a server, a browser): not a
+# case; when it fails the program stops with one failure naming it.
+setup() {
+    _name=$1; shift
+    "$@" && return 0
+    echo "[  FAILED  ] setup: $_name"
+    _bad=$((_bad + 1))
+    finish
+}
 # Wait up to $1 seconds for a command to succeed.
 wait_for() {
     _t=$1; shift

@@ -57,7 +57,7 @@ if [ -z "$CHROME" ]; then
     check "chromium installed" false
     finish
 fi
-check "headless chromium with a DevTools port" start_chrome
+setup "headless chromium with a DevTools port" start_chrome
 
 "$GEN" log "$tmp/demo.lcmlog" --seconds 45 --truth "$tmp/demo.truth"
 "$GEN" log "$tmp/bad.lcmlog" --seconds 20 --corrupt
@@ -168,7 +168,7 @@ check "no WebSocket server: 'connection lost, retrying' banner" has 'connection 
 check "no WebSocket server: page marked disconnected" test "$(attr data-connected "$tmp/lost.html")" = 0
 
 # a server that dies under a connected page
-check "server to be killed" serve doomed 8108 --param log="$tmp/demo.lcmlog"
+setup "server to be killed" serve doomed 8108 --param log="$tmp/demo.lcmlog"
 doomed=$last_pid
 servers=$(echo "$servers" | sed "s/ doomed:$doomed//")
 check "server killed under the page: 'connection lost' banner" \
