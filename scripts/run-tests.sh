@@ -1,8 +1,10 @@
 #!/bin/sh
 # Runs marie's tests, each in its own network namespace with a time limit, and prints one
-# summary line "N passed, N failed". Cases are counted from cmocka's "[       OK ]" and
-# "[  FAILED  ]" lines (tests/lib.sh prints the same for shell tests); a test program that
-# fails without naming a case counts as one failure. Logs go to $B/test-logs/.
+# summary line "N passed, N failed, N skipped". Cases are counted from cmocka's "[       OK ]",
+# "[  FAILED  ]" and "[  SKIPPED ]" lines (tests/lib.sh prints the same for shell tests: its
+# `skip NAME REASON` prints "[  SKIPPED ] NAME: REASON"). A program that fails without naming
+# a case counts as one failure, and so does one that exits 0 having run no case and skipped
+# none: a test that silently does nothing is a failure, never a pass. Logs go to $B/test-logs/.
 #   scripts/run-tests.sh TEST...     (env: B, TEST_TIMEOUT seconds per program, default 300)
 set -u
 B=${B:-build}
@@ -12,7 +14,7 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$(pwd)/tests/lsan.supp}
 mkdir -p "$logs"
-passed=0; failed=0; failed_names=""
+passed=0; failed=0; skipped=0; failed_names=""
 for t in "$@"; do
     name=$(basename "$t")
     log=$logs/$name.log
@@ -27,18 +29,30 @@ for t in "$@"; do
     rc=$?
     ok=$(grep -c '^\[       OK \]' "$log")
     bad=$(grep '^\[  FAILED  \] [^0-9]' "$log" | sort -u | wc -l)
+    # cmocka lists skipped names twice (as run, and in its summary): count names once
+    skip=$(grep '^\[  SKIPPED \] [^0-9]' "$log" | sort -u | wc -l)
+    nocase=0
     if [ "$rc" -ne 0 ] && [ "$bad" -eq 0 ]; then bad=1; fi
-    passed=$((passed + ok)); failed=$((failed + bad))
+    if [ "$rc" -eq 0 ] && [ "$ok" -eq 0 ] && [ "$bad" -eq 0 ] && [ "$skip" -eq 0 ]; then
+        bad=1; nocase=1
+    fi
+    passed=$((passed + ok)); failed=$((failed + bad)); skipped=$((skipped + skip))
     secs=$(( $(date +%s) - start ))
     if [ "$bad" -eq 0 ]; then
-        printf 'PASS %-40s %4d cases %4ds\n' "$name" "$ok" "$secs"
+        if [ "$skip" -eq 0 ]; then
+            printf 'PASS %-40s %4d cases %4ds\n' "$name" "$ok" "$secs"
+        else
+            printf 'PASS %-40s %4d cases %3d skipped %4ds\n' "$name" "$ok" "$skip" "$secs"
+            grep '^\[  SKIPPED \] [^0-9]' "$log" | sort -u | head -5 | sed 's/^/    /'
+        fi
     else
         printf 'FAIL %-40s %4d ok %3d failed %4ds (exit %d; log %s)\n' "$name" "$ok" "$bad" "$secs" "$rc" "$log"
         grep -E '^\[  ERROR   \]|^\[   LINE   \]|Assert|ERROR: ' "$log" | head -20 | sed 's/^/    /'
         [ "$rc" -eq 124 ] && echo "    (timed out after ${TEST_TIMEOUT:-300}s)"
+        [ "$nocase" -eq 1 ] && echo "    (exited 0 but ran no case and printed no [  SKIPPED ] line)"
         failed_names="$failed_names $name"
     fi
 done
 [ -n "$failed_names" ] && echo "failed:$failed_names"
-echo "$passed passed, $failed failed"
+echo "$passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

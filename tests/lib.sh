@@ -1,5 +1,8 @@
 # tests/lib.sh: helpers for shell tests; results use cmocka's line format so the runner counts them.
 #   . tests/lib.sh; check "name" command args...; ...; finish
+# A case that truly cannot run here says so: `skip "name" "reason"` prints
+# "[  SKIPPED ] name: reason", which scripts/run-tests.sh counts as skipped (a program that
+# runs no case and skips none is a failure there, so never just exit 0).
 B=${B:-build}
 BIN=$B/bin
 _ok=0; _bad=0
@@ -8,6 +11,18 @@ check() {
     echo "[ RUN      ] $_name"
     if "$@"; then echo "[       OK ] $_name"; _ok=$((_ok + 1))
     else echo "[  FAILED  ] $_name"; _bad=$((_bad + 1)); fi
+}
+skip() {
+    echo "[  SKIPPED ] $1: $2"
+}
+# A step the cases need but that proves nothing by itself (start a server, a browser): not a
+# case; when it fails the program stops with one failure naming it.
+setup() {
+    _name=$1; shift
+    "$@" && return 0
+    echo "[  FAILED  ] setup: $_name"
+    _bad=$((_bad + 1))
+    finish
 }
 # Wait up to $1 seconds for a command to succeed.
 wait_for() {

@@ -2,3 +2,5 @@
 $(eval $(call marie_link,$(B)/tests/replay_check,tests/app/replay_check.c,))
 EXTRA_TARGETS += $(B)/tests/replay_check
 ITESTS += tests/app/test_robot_app.sh
+$(eval $(call marie_link,$(B)/tests/estop_check,tests/app/estop_check.c,))
+EXTRA_TARGETS += $(B)/tests/estop_check

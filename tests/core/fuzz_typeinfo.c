@@ -1,6 +1,7 @@
-/* fuzz_typeinfo: whatever bytes pass marie_typeinfo_check must decode and clean up safely with
- * lcm-gen's decoder (ASan watches), for every marie type, and marie_decode_input takes exactly
- * the finite ones among them. The first byte picks the type. */
+/* fuzz_typeinfo: whatever bytes pass marie_typeinfo_check must decode with lcm-gen's decoder
+ * and encode back to the very same bytes (a round trip: the check accepts nothing the codec
+ * would misread), for every marie type, and marie_decode_input takes exactly the finite ones
+ * among them. The first byte picks the type. */
 #include <errno.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -27,8 +28,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int ok = marie_typeinfo_check(ti, buf, len) == 0;
     if (ok) {
         void *msg = calloc(1, t->size);
-        if (t->decode(buf, 0, (int)len, msg) >= 0)
-            t->decode_cleanup(msg);
+        if (t->decode(buf, 0, (int)len, msg) < 0)
+            abort();    /* checked, yet the decoder refuses it */
+        int n = t->encoded_size(msg);
+        uint8_t *again = malloc(len);
+        if (n != (int)len || t->encode(again, 0, (int)len, msg) != n || memcmp(again, buf, len) != 0)
+            abort();    /* checked bytes that do not survive decode + encode */
+        free(again);
+        t->decode_cleanup(msg);
         free(msg);
     }
     /* A component's decode takes a subset of what the walk takes: the finite ones. */

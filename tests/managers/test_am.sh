@@ -31,6 +31,7 @@ pid_changed() { p=$(field "$1" pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "
 trace_line() { grep -n " $1 $2 " "$T/trace" | head -1 | cut -d: -f1; }
 now_us() { date +%s%6N; }
 refused_count() { "$M" --json ps --window 0.7 | python3 -c 'import json, sys; print(json.load(sys.stdin)["hosts"][0]["orders_refused"])'; }
+last_line() { grep -n " $1 $2 " "$T/trace" | tail -1 | cut -d: -f1; }
 
 "$M" keygen "$T/key"
 start_am
@@ -200,8 +201,23 @@ check "after a restart, seq INT64_MAX still locks nobody out" sh -c "$OT -k $T/k
 
 # -- down, then a crashing component is given up after max_failures
 check "down stops everything" "$M" down
+# reverse dependency order: c (needs b) ends before b, b (needs a) before a
+down_order() {
+    ax=$(last_line a exit); bx=$(last_line b exit); cx=$(last_line c exit)
+    [ -n "$ax" ] && [ -n "$bx" ] && [ -n "$cx" ] && [ "$cx" -lt "$bx" ] && [ "$bx" -lt "$ax" ]
+}
+check "down stops in reverse dependency order" down_order
 none_left() { for p in $(cut -d" " -f4 "$T/trace" | sort -u); do kill -0 "$p" 2>/dev/null && return 1; done; return 0; }
 check "nothing left running" wait_for 5 none_left
+# up waits for everything to run: a component that fails before it ever runs makes it exit 1
+# (a program that exists, so that the checks before start let it through, and fails at once)
+up_fails() {
+    printf 'system: broken\nhosts: [alpha]\ncomponents:\n  ghost:\n    exec: /bin/false\n    host: alpha\n    heartbeat_timeout: 0\n    restart: {policy: never}\n' > "$T/broken.yaml"
+    "$T/bin/marie" up --wait-timeout 20 "$T/broken.yaml"; rc=$?; echo "exit $rc"
+    "$M" down > /dev/null
+    [ $rc -eq 1 ]
+}
+check "up with a component that cannot start: exit 1" up_fails
 # marie checks the programs where it is installed: beside marie-am, as on a robot
 "$T/bin/marie" up --no-wait tests/data/managers/crash.yaml > /dev/null
 check "gives up after max_failures" wait_for 10 is_state crasher failed
@@ -215,7 +231,64 @@ check "output beyond log_rate is dropped and counted" wait_for 10 drops
 rotated() { [ -f "$T/am/logs/chatty.log.1" ] && [ ! -f "$T/am/logs/chatty.log.3" ] && [ "$(stat -c %s "$T/am/logs/chatty.log")" -le 8192 ]; }
 check "log files rotate at log_max_bytes, log_keep kept" wait_for 15 rotated
 check "down again" "$M" down
-check "ps --json exit code with everything stopped" "$M" --json ps
+# everything down: ps --json still lists every component, each stopped (or failed)
+all_stopped() {
+    "$M" --json ps --window 0.7 | python3 -c '
+import json, sys
+cs = [c for h in json.load(sys.stdin)["hosts"] for c in h["components"]]
+print([(c["name"], c["state"]) for c in cs])
+sys.exit(0 if len(cs) >= 3 and all(c["state"] in ("stopped", "failed") for c in cs) else 1)'
+}
+check "ps --json after down: every component listed, none running" all_stopped
+
+# CPU% and RSS per component against a known load: one spins with 200 MiB touched, one sleeps;
+# the spinner's CPU% agrees with what the kernel counted for it over the same seconds
+cat > "$T/load.yaml" <<'EOF2'
+system: load
+hosts: [alpha]
+components:
+  spinner:
+    exec: 'exec python3 -c "import itertools; b = bytearray([1]) * (200 << 20); any(itertools.repeat(0))"'
+    shell: true
+    host: alpha
+    heartbeat_timeout: 0
+    stop_timeout: 0.5
+  sleeper:
+    exec: exec sleep 60
+    shell: true
+    host: alpha
+    heartbeat_timeout: 0
+    stop_timeout: 0.5
+EOF2
+usage() {
+    "$M" up "$T/load.yaml" > /dev/null || return 1
+    sp=$(field spinner pid)
+    wait_for 20 sh -c "[ \$(awk '{print \$24}' /proc/$sp/stat) -gt 50000 ]"    # 200 MiB touched (pages)
+    sleep 2
+    t0=$(date +%s%N); c0=$(awk '{print $14 + $15}' /proc/$sp/stat)
+    for i in 1 2 3; do "$M" --json ps --window 1.1 > "$T/ps$i.json"; done
+    t1=$(date +%s%N); c1=$(awk '{print $14 + $15}' /proc/$sp/stat)
+    python3 - "$T" "$t0" "$t1" "$c0" "$c1" "$(getconf CLK_TCK)" <<'PY'
+import json, sys
+T, t0, t1, c0, c1, hz = sys.argv[1], *map(int, sys.argv[2:])
+kernel = 100.0 * (c1 - c0) / hz / ((t1 - t0) / 1e9)
+rows = []
+for i in (1, 2, 3):
+    cs = {c["name"]: c for h in json.load(open("%s/ps%d.json" % (T, i)))["hosts"] for c in h["components"]}
+    rows.append(cs)
+cpu = sum(r["spinner"]["cpu"] for r in rows) / 3
+idle = max(r["sleeper"]["cpu"] for r in rows)
+rss, idle_rss = rows[-1]["spinner"]["rss"] / 2**20, rows[-1]["sleeper"]["rss"] / 2**20
+print("spinner: ps %.1f%% CPU, kernel %.1f%%; RSS %.0f MiB; sleeper %.1f%% CPU, RSS %.1f MiB" % (cpu, kernel, rss, idle, idle_rss))
+ok = (kernel * 0.7 - 5 <= cpu <= kernel * 1.3 + 5 and cpu > idle + 2 and idle < 2
+      and 200 <= rss <= 320 and 0 < idle_rss < 20)
+sys.exit(0 if ok else 1)
+PY
+    rc=$?
+    "$M" down > /dev/null
+    return $rc
+}
+check "ps: CPU% and RSS of a known load (spinner, 200 MiB) and of an idle component" usage
 dispatch() {
     mkdir -p "$T/path"
     printf '#!/bin/sh\necho "hello $*"\n' > "$T/path/marie-hello"; chmod +x "$T/path/marie-hello"

@@ -85,9 +85,13 @@ static const marie_component_def_t def = {
     .kind = "test_comp", .ports = ports, .params = params, .on_init = on_init, .on_start = on_start,
 };
 
+/* the end of a clean quit (SIGTERM, marie down), so a test can see the order of stops */
+static void on_exit_trace(void) { trace("exit"); }
+
 int main(int argc, char **argv)
 {
     trace("exec");
+    atexit(on_exit_trace);
     struct sigaction sa = {.sa_handler = on_usr1};
     sigaction(SIGUSR1, &sa, NULL);
     sa.sa_handler = on_usr2;

@@ -106,6 +106,34 @@ check "ps exit 0 with every host heard" M ps
 check "move gyro to onboard2" M move gyro onboard2
 gyro_moved() { [ "$(field onboard2 gyro state)" = running ] && [ -z "$(field onboard1 gyro state)" ]; }
 check "gyro runs on onboard2 now" wait_for 10 gyro_moved
-check "doctor from the laptop" M doctor
+# the move outlives both managers involved: restarted, onboard2 runs gyro and onboard1 does not
+restart_am() { kill "$(cat "$T/$1.am")"; while kill -0 "$(cat "$T/$1.am")" 2>/dev/null; do sleep 0.1; done; start_am "$1"; }
+restart_am onboard1
+restart_am onboard2
+check "move survives restarting both managers" wait_for 20 gyro_moved
+
+# doctor: healthy, every host heard and every check ok; then a real problem, a stuck manager
+doctor_ok() {
+    out=$(M doctor); rc=$?; echo "$out"
+    [ $rc -eq 0 ] || return 1
+    for h in $HOSTS; do echo "$out" | grep -q "^ok  *host  *$h: clock" || return 1; done
+    ! echo "$out" | grep -q '^FAIL'
+}
+check "doctor: every host heard, no problem" doctor_ok
+AM3=$(cat "$T/onboard3.am")
+kill -STOP "$AM3"
+doctor_lost() {
+    out=$(M doctor); rc=$?; echo "$out"
+    [ $rc -eq 1 ] && echo "$out" | grep -q '^FAIL  *host  *onboard3: not heard from' && echo "$out" | grep -q '^1 problem'
+}
+check "doctor: a stuck manager is reported, exit 1" doctor_lost
+kill -CONT "$AM3"
+
+# up: a system naming a host whose manager never answers exits 3 (host unreachable)
+sed 's/host: onboard3/host: onboard9/; s/hosts: \[onboard1, onboard2, onboard3, laptop\]/hosts: [onboard1, onboard2, onboard3, laptop, onboard9]/' \
+    tests/data/managers/multi.yaml > "$T/unreachable.yaml"
+up_unreachable() { M --timeout 5 up "$T/unreachable.yaml"; rc=$?; echo "exit $rc"; [ $rc -eq 3 ]; }
 check "down across hosts" M down
+check "up with a host nobody manages: exit 3" up_unreachable
+M down > /dev/null 2>&1
 finish

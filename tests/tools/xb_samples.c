@@ -63,7 +63,12 @@ static int publish(lcm_t *lcm, const char *prefix, int count, FILE *hashes)
             xb_buf_free(&xml);
             xb_buf_free(&bytes);
             xb_canon_free(&canon);
-            struct timespec ts = { 0, 2000000 };    /* paced: a recorder must not lose any */
+            /* paced: lcm-logger, like any LCM subscriber, queues at most 30 messages between
+             * its receive thread and its handler; a burst larger than that is lost when the
+             * machine is loaded. XB_SAMPLES_PACE_MS sets the gap (default 2 ms). */
+            const char *pace = getenv("XB_SAMPLES_PACE_MS");
+            long ms = pace ? atol(pace) : 2;
+            struct timespec ts = { ms / 1000, (ms % 1000) * 1000000 };
             nanosleep(&ts, NULL);
         }
     }
@@ -93,7 +98,11 @@ int main(int argc, char **argv)
         if (h)
             fclose(h);
     } else if (argc >= 4 && strcmp(argv[1], "listen") == 0) {
-        lcm_subscribe(lcm, argv[2], on_msg, NULL);
+        /* LCM queues at most 30 messages per subscription between its receive thread and
+         * lcm_handle, and drops the rest: a 20x playback of the whole log is one burst, and
+         * under load this thread is not scheduled in time, so the kernel delivers every
+         * datagram (no RcvbufErrors) and LCM drops them. Keep them all. */
+        lcm_subscription_set_queue_capacity(lcm_subscribe(lcm, argv[2], on_msg, NULL), 100000);
         double secs = atof(argv[3]);
         int want = argc >= 5 ? atoi(argv[4]) : -1;
         struct timespec t0, now;

@@ -2,11 +2,13 @@
 test waits in real time for a page to reach a state instead of guessing a time budget.
   python3 tests/viewer/cdp.py --port 9222 URL [--until JS] [--timeout S] [--dom FILE]
                               [--screenshot FILE] [--size WxH] [--then CMD --until2 JS]
+                              [--eval JS --eval-out FILE]
 Opens URL in a new tab, waits until the JS expression is true (default: the viewer page says
 it has settled), then writes the DOM and/or a PNG. Exit 0 when the condition held, 1 on a
 timeout (the DOM is still written, to show what the page said). With --then, once the first
 condition holds the shell command runs and the page must then reach --until2 (a server
-killed under a connected page, for instance)."""
+killed under a connected page, for instance). --eval writes the JSON value of an expression
+(the layout of an element, say) evaluated when the screenshot is taken."""
 import argparse
 import base64
 import json
@@ -78,6 +80,8 @@ def main():
     ap.add_argument("--size", default="1280x900")
     ap.add_argument("--then")
     ap.add_argument("--until2")
+    ap.add_argument("--eval")
+    ap.add_argument("--eval-out")
     a = ap.parse_args()
     tab = Tab(a.port)
     w, h = (int(x) for x in a.size.split("x"))
@@ -91,6 +95,9 @@ def main():
     if a.dom:
         with open(a.dom, "w") as f:
             f.write(tab.eval("document.documentElement.outerHTML") or "")
+    if a.eval and a.eval_out:
+        with open(a.eval_out, "w") as f:
+            json.dump(tab.eval(a.eval), f)
     if a.screenshot:
         png = tab.call("Page.captureScreenshot", format="png")["data"]
         with open(a.screenshot, "wb") as f:

@@ -87,11 +87,11 @@ static const double goals[][2] = {{4, 4}, {8, 7.2}, {17, 7.2}, {12, 9}, {12, 13}
 int main(int argc, char **argv)
 {
     if (argc < 2 || (strcmp(argv[1], "log") && strcmp(argv[1], "live"))) {
-        fprintf(stderr, "usage: viewer-gen log FILE [--seconds S] [--corrupt] | live [--seconds S] [--speed X]\n");
+        fprintf(stderr, "usage: viewer-gen log FILE [--seconds S] [--corrupt] [--truth TXT] | live [--seconds S] [--speed X]\n");
         return 2;
     }
     int live = strcmp(argv[1], "live") == 0;
-    const char *file = NULL;
+    const char *file = NULL, *truth_file = NULL;
     double seconds = 45, speed = 1;
     int corrupt = 0;
     for (int i = 2; i < argc; i++) {
@@ -99,10 +99,19 @@ int main(int argc, char **argv)
             seconds = atof(argv[++i]);
         else if (strcmp(argv[i], "--speed") == 0 && i + 1 < argc)
             speed = atof(argv[++i]);
+        else if (strcmp(argv[i], "--truth") == 0 && i + 1 < argc)
+            truth_file = argv[++i];
         else if (strcmp(argv[i], "--corrupt") == 0)
             corrupt = 1;
         else if (!file && !live)
             file = argv[i];
+    }
+    /* what the page must draw, written apart from the log so a test can find it on screen:
+     * one line per 10 Hz sample, "ts x y th range0 ... range180" */
+    FILE *truth_out = NULL;
+    if (truth_file && !(truth_out = fopen(truth_file, "w"))) {
+        fprintf(stderr, "viewer-gen: cannot write %s\n", truth_file);
+        return 1;
     }
     out_t o = {0};
     if (live) {
@@ -178,6 +187,12 @@ int main(int argc, char **argv)
                                        .angle_increment = (float)(M_PI / 180), .range_min = 0.05f,
                                        .range_max = 8.0f, .nranges = 181, .ranges = ranges};
             emit(&o, "LASER", &marie_type_laser_scan_t, &scan);
+            if (truth_out) {
+                fprintf(truth_out, "%.2f %.6f %.6f %.6f", ts, x, y, th);
+                for (int b = 0; b < 181; b++)
+                    fprintf(truth_out, " %.4f", ranges[b]);
+                fputc('\n', truth_out);
+            }
         }
         if (k % 25 == 0) {                       /* 2 Hz: particles */
             enum { NP = 300 };
@@ -249,6 +264,8 @@ int main(int argc, char **argv)
             }
         }
     }
+    if (truth_out)
+        fclose(truth_out);
     if (o.log) {
         lcm_eventlog_destroy(o.log);
         if (corrupt) {

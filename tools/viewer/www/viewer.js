@@ -180,7 +180,7 @@ function onMsg(m) {
   switch (m.k) {
   case 'map': setMap(m); break;
   case 'pose':
-    if (m.role === 'truth') { S.truth = m; body.dataset.truth = '1'; } else { S.est = m; body.dataset.pose = '1'; }
+    if (m.role === 'truth') S.truth = m; else S.est = m;
     if (S.mode === 'live') {
       const tr = S.trail[m.role === 'truth' ? 'truth' : 'est'];
       const last = tr[tr.length - 1];
@@ -188,7 +188,7 @@ function onMsg(m) {
       if (tr.length > 5000) tr.splice(0, tr.length - 5000);
     }
     break;
-  case 'laser': S.laser = m; S.counts.laser++; body.dataset.laser = String(S.counts.laser); break;
+  case 'laser': S.laser = m; S.counts.laser++; break;
   case 'particles': S.particles = m; body.dataset.particles = String(m.x.length); break;
   case 'path': S.path = m; body.dataset.path = String(m.p.length); break;
   case 'goal':
@@ -313,8 +313,9 @@ function draw() {
       }
     }
     drawLaser(g);
-    if (S.truth) robot(g, S.truth, '#2e7d32', null);
-    if (S.est) robot(g, S.est, '#1565c0', S.est.cov);
+    // the page reports a pose or a scan once it is on the canvas, not when it arrives
+    if (S.truth) { robot(g, S.truth, '#2e7d32', null); body.dataset.truth = '1'; }
+    if (S.est) { robot(g, S.est, '#1565c0', S.est.cov); body.dataset.pose = '1'; }
     if (S.drag) {
       const [a, b] = [toPx(S.drag.x, S.drag.y), toPx(S.drag.x2, S.drag.y2)];
       g.strokeStyle = '#00838f'; g.lineWidth = 2;
@@ -382,6 +383,7 @@ function drawLaser(g) {
     const [x, y] = toPx(p.x + r * Math.cos(a), p.y + r * Math.sin(a));
     g.fillRect(x - 1.5, y - 1.5, 3, 3);
   }
+  body.dataset.laser = String(S.counts.laser);
 }
 
 function robot(g, p, color, cov) {

@@ -1,0 +1,29 @@
+#!/bin/sh
+# test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
+# no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so.
+. tests/lib.sh
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT INT TERM
+printf '#!/bin/sh\necho "nothing to do here"\nexit 0\n' > "$tmp/silent.sh"
+printf '. tests/lib.sh\nskip "device" "no device here"\nexit 0\n' > "$tmp/skips.sh"
+printf '. tests/lib.sh\ncheck "one" true\ncheck "two" true\nfinish\n' > "$tmp/passes.sh"
+printf '. tests/lib.sh\ncheck "good" true\ncheck "bad" false\nfinish\n' > "$tmp/fails.sh"
+printf '#!/bin/sh\nexit 3\n' > "$tmp/crashes.sh"
+run() { B="$tmp" scripts/run-tests.sh "$@" > "$tmp/out" 2>&1; echo $? > "$tmp/rc"; cat "$tmp/out"; }
+
+run "$tmp/silent.sh"
+check "a program that runs no case fails" grep -q '^FAIL silent.sh' "$tmp/out"
+check "it is counted as one failure, exit status 1" \
+    sh -c "tail -1 $tmp/out | grep -qx '0 passed, 1 failed, 0 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
+check "the failure says no case ran" grep -q 'ran no case' "$tmp/out"
+
+run "$tmp/skips.sh" "$tmp/passes.sh"
+check "an explicit skip passes the program and names its reason" \
+    sh -c "grep -q '^PASS skips.sh .* 1 skipped' $tmp/out && grep -q 'device: no device here' $tmp/out"
+check "summary counts passes and skips, exit status 0" \
+    sh -c "tail -1 $tmp/out | grep -qx '2 passed, 0 failed, 1 skipped' && [ \$(cat $tmp/rc) -eq 0 ]"
+
+run "$tmp/fails.sh" "$tmp/crashes.sh"
+check "failed cases and a failing exit are counted" \
+    sh -c "tail -1 $tmp/out | grep -qx '1 passed, 2 failed, 0 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
+finish
