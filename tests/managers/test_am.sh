@@ -212,7 +212,7 @@ check "nothing left running" wait_for 5 none_left
 # up waits for everything to run: a component that fails before it ever runs makes it exit 1
 # (a program that exists, so that the checks before start let it through, and fails at once)
 up_fails() {
-    printf 'system: broken\nhosts: [alpha]\ncomponents:\n  ghost:\n    exec: /bin/false\n    host: alpha\n    heartbeat_timeout: 0\n    restart: {policy: never}\n' > "$T/broken.yaml"
+    printf 'system: broken\nhosts: [alpha]\ncomponents:\n  ghost:\n    exec: /bin/false\n    host: alpha\n    restart: {policy: never}\n' > "$T/broken.yaml"
     "$T/bin/marie" up --wait-timeout 20 "$T/broken.yaml"; rc=$?; echo "exit $rc"
     "$M" down > /dev/null
     [ $rc -eq 1 ]
