@@ -37,7 +37,14 @@ cleanup() {
 }
 trap cleanup EXIT
 cp -a "$base" "$root"
+# The network's settings are the machine's, not the project's: name resolution, and the TLS
+# trust a proxy on the way to PyPI may need (its CA in the bundle, pip told to use the bundle).
 cp /etc/resolv.conf "$root/etc/resolv.conf"
+if [ -f /etc/ssl/certs/ca-certificates.crt ]; then
+    mkdir -p "$root/etc/ssl/certs"
+    cp /etc/ssl/certs/ca-certificates.crt "$root/etc/ssl/certs/"
+fi
+[ -f /etc/pip.conf ] && cp /etc/pip.conf "$root/etc/pip.conf"
 mkdir -p "$root/src/marie" "$cache/archives/partial" "$root/var/cache/apt/archives"
 git -C "$top" archive HEAD | tar -x -C "$root/src/marie"
 # CI checks a clone with shared/ beside it; so does this.
