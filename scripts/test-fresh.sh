@@ -41,8 +41,10 @@ cp -a "$base" "$root"
 # trust a proxy on the way to PyPI may need (its CA in the bundle, pip told to use the bundle).
 cp /etc/resolv.conf "$root/etc/resolv.conf"
 if [ -f /etc/ssl/certs/ca-certificates.crt ]; then
-    mkdir -p "$root/etc/ssl/certs"
+    mkdir -p "$root/etc/ssl/certs" "$root/usr/local/share/ca-certificates"
     cp /etc/ssl/certs/ca-certificates.crt "$root/etc/ssl/certs/"
+    # Local CAs too, or the bundle loses them when a package install runs update-ca-certificates.
+    cp /usr/local/share/ca-certificates/*.crt "$root/usr/local/share/ca-certificates/" 2>/dev/null || true
 fi
 [ -f /etc/pip.conf ] && cp /etc/pip.conf "$root/etc/pip.conf"
 mkdir -p "$root/src/marie" "$cache/archives/partial" "$root/var/cache/apt/archives"
