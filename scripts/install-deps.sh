@@ -8,10 +8,10 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
       systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev
-      libjchart2d-java tmux python3-venv xvfb x11-apps"
+      libjchart2d-java tmux python3-venv xvfb x11-apps default-jre fonts-dejavu-core fontconfig"
 # (python3-venv: the PyPI witnesses, python-canopen among them, live in a venv under build/,
 # made by scripts/peer-venv.sh; xvfb and x11-apps: the real lcm-spy is started on a virtual
-# screen and photographed.)
+# screen and photographed, which takes a Java with its X11 half (default-jre) and a font.)
 # The VM tests boot Debian's kernel under qemu to reach real SocketCAN and GPIO; gpio-sim is
 # built out of tree for that kernel (gcc-12 and the unpacked linux-kbuild tools need these).
 vm="qemu-system-x86 busybox-static cpio gcc-12 make xz-utils libelf1 libssl3"
