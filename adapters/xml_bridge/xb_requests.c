@@ -301,14 +301,22 @@ static void do_subscribe(client_t *c, const xb_node_t *req)
     reply_ok(c, req, "mode", stream ? "stream" : "latest");
 }
 
+/* A request's channel and, when it names one, its type: 0, or -1 after the error reply. */
+static int channel_and_optional_type(client_t *c, const xb_node_t *req, const char **ch,
+                                     const marie_typeinfo_t **t)
+{
+    *ch = need_channel(c, req);
+    if (!*ch)
+        return -1;
+    *t = xb_node_attr(req, "type") ? need_type(c, req) : NULL;
+    return xb_node_attr(req, "type") && !*t ? -1 : 0;
+}
+
 static void do_unsubscribe(client_t *c, const xb_node_t *req)
 {
-    const char *ch = need_channel(c, req);
-    if (!ch)
-        return;
-    const char *tn = xb_node_attr(req, "type");
-    const marie_typeinfo_t *t = tn ? need_type(c, req) : NULL;
-    if (tn && !t)
+    const char *ch;
+    const marie_typeinfo_t *t;
+    if (channel_and_optional_type(c, req, &ch, &t) < 0)
         return;
     int removed = 0;
     for (int i = 0; i < c->nsubs;) {
@@ -360,12 +368,9 @@ static void do_publish(client_t *c, const xb_node_t *req)
 
 static void do_pull(client_t *c, const xb_node_t *req)
 {
-    const char *ch = need_channel(c, req);
-    if (!ch)
-        return;
-    const char *tn = xb_node_attr(req, "type");
-    const marie_typeinfo_t *t = tn ? need_type(c, req) : NULL;
-    if (tn && !t)
+    const char *ch;
+    const marie_typeinfo_t *t;
+    if (channel_and_optional_type(c, req, &ch, &t) < 0)
         return;
     /* The bridge is a Mailbox for every channel some client subscribed to. */
     sub_t *u = NULL;
