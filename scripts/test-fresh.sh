@@ -32,6 +32,11 @@ fi
 run=$(mktemp -d "$cache/run.XXXXXX")
 root=$run/root
 cleanup() {
+    # The run's test logs outlive it, so a failure in the fresh root can be read afterwards.
+    if [ -d "$root/src/marie/build/test-logs" ]; then
+        rm -rf "$cache/last-test-logs"
+        cp -a "$root/src/marie/build/test-logs" "$cache/last-test-logs" && echo "test-fresh: logs in $cache/last-test-logs"
+    fi
     [ "${MARIE_FRESH_KEEP:-0}" = 1 ] && { echo "test-fresh: kept $root"; return; }
     rm -rf "$run"
 }
