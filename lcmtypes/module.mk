@@ -11,6 +11,8 @@ $(B)/gen/c/lcmtypes/marie_types.h: $(LCM_FILES) scripts/gen-type-registry.sh
 	lcm-gen -c --c-cpath $(B)/gen/c/lcmtypes --c-hpath $(B)/gen/c/lcmtypes --cinclude lcmtypes $(LCM_FILES)
 	lcm-gen -x --cpp-std c++11 --cpp-hpath $(B)/gen/cpp $(LCM_FILES)
 	scripts/gen-type-registry.sh $(B)/gen/c/lcmtypes $(LCM_NAMES)
+	@# the .c files are written before the header: make them newer so that nothing is rebuilt twice
+	@touch $(filter-out %/marie_typeinfo.c,$(LCM_C_SRCS))
 
 $(filter-out %/marie_types.c %/marie_typeinfo.c,$(LCM_C_SRCS)) $(B)/gen/c/lcmtypes/marie_types.c: $(B)/gen/c/lcmtypes/marie_types.h ;
 
