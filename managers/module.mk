@@ -1,6 +1,6 @@
 # managers: marie-am (one per host), the marie command line, and the order-signing library.
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c))
+$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/balance.c))
 
 $(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
@@ -26,5 +26,6 @@ $(eval $(call marie_bench,bench_am,managers/bench_am.c,$(MANAGERS_LIB)))
 
 # marie top: the live system in a terminal; its table model is a pure module, unit-tested.
 $(eval $(call marie_program,marie-top,managers/top_main.c managers/top.c,))
+$(eval $(call marie_test,test_balance,tests/managers/test_balance.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_top,tests/managers/test_top.c managers/top.c,))
 ITESTS += tests/managers/test_top.sh
