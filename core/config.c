@@ -50,16 +50,6 @@ void marie_system_destroy(marie_system_t *sys)
     free(sys->components);
     free(sys->by_name);
     free_strv(sys->hosts, sys->nhosts);
-    marie_balance_cfg_t *b = &sys->balance;
-    free_strv(b->movable, b->nmovable);
-    for (size_t i = 0; i < b->nprefer; i++) {
-        free(b->prefer[i].host);
-        free_strv(b->prefer[i].hosts, b->prefer[i].nhosts);
-    }
-    free(b->prefer);
-    for (size_t i = 0; i < b->ncapacity; i++)
-        free(b->capacity[i].host);
-    free(b->capacity);
     free(sys->file);
     free(sys->name);
     free(sys->profile);
@@ -503,85 +493,6 @@ static int find_cycle(const marie_system_t *sys, marie_errors_t *errs)
     return rc;
 }
 
-static bool host_declared(const marie_system_t *sys, const char *h)
-{
-    for (size_t i = 0; i < sys->nhosts; i++)
-        if (strcmp(sys->hosts[i], h) == 0)
-            return true;
-    return sys->nhosts == 0;
-}
-
-/* `balance:` (docs/managers.md): read after the components, whose names it checks. */
-static int read_balance(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs)
-{
-    marie_balance_cfg_t *b = &sys->balance;
-    *b = (marie_balance_cfg_t){.window_s = 10, .high = 0.85, .low = 0.6, .cooldown_s = 30, .host_lost_s = 2};
-    if (!n)
-        return 0;
-    static const char *const keys[] = {"window", "high", "low", "cooldown", "host_lost", "movable",
-                                       "capacity", "prefer", NULL};
-    if (n->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, n, "balance: expected a mapping");
-        return -1;
-    }
-    b->enabled = true;
-    int rc = marie_node_check_keys(n, keys, "balance", errs);
-    rc |= read_seconds(n, "window", &b->window_s, errs);
-    rc |= read_seconds(n, "cooldown", &b->cooldown_s, errs);
-    rc |= read_seconds(n, "host_lost", &b->host_lost_s, errs);
-    rc |= read_seconds(n, "high", &b->high, errs);
-    rc |= read_seconds(n, "low", &b->low, errs);
-    if (rc == 0 && !(b->low < b->high && b->high <= 1.0 && b->window_s > 0 && b->host_lost_s > 0)) {
-        marie_node_error(errs, n, "balance: needs 0 <= low < high <= 1, window > 0 and host_lost > 0 "
-                         "(low %g, high %g, window %g, host_lost %g)", b->low, b->high, b->window_s, b->host_lost_s);
-        rc = -1;
-    }
-    const marie_node_t *mv = marie_node_get(n, "movable");
-    rc |= read_strv(mv, &b->movable, &b->nmovable, errs);
-    for (size_t i = 0; i < b->nmovable; i++)
-        if (!marie_system_component(sys, b->movable[i])) {
-            marie_node_error(errs, mv, "balance: movable names unknown component '%s'", b->movable[i]);
-            rc = -1;
-        }
-    const marie_node_t *cap = marie_node_get(n, "capacity"), *pref = marie_node_get(n, "prefer");
-    if ((cap && cap->kind != MARIE_NODE_MAP) || (pref && pref->kind != MARIE_NODE_MAP)) {
-        marie_node_error(errs, cap && cap->kind != MARIE_NODE_MAP ? cap : pref,
-                         "balance: capacity and prefer are mappings");
-        return -1;
-    }
-    if (cap && !(b->capacity = calloc(cap->n ? cap->n : 1, sizeof *b->capacity)))
-        return -1;
-    for (size_t i = 0; cap && i < cap->n; i++) {
-        marie_balance_entry_t *e = &b->capacity[b->ncapacity++];
-        e->host = strdup(cap->items[i]->key);
-        if (marie_node_double(cap->items[i], &e->cores, errs) < 0 || e->cores <= 0) {
-            if (e->cores <= 0)
-                marie_node_error(errs, cap->items[i], "balance: capacity of %s must be positive", e->host);
-            rc = -1;
-        } else if (!host_declared(sys, e->host)) {
-            marie_node_error(errs, cap->items[i], "balance: capacity names unknown host '%s'", e->host);
-            rc = -1;
-        }
-    }
-    if (pref && !(b->prefer = calloc(pref->n ? pref->n : 1, sizeof *b->prefer)))
-        return -1;
-    for (size_t i = 0; pref && i < pref->n; i++) {
-        marie_balance_entry_t *e = &b->prefer[b->nprefer++];
-        e->host = strdup(pref->items[i]->key);
-        rc |= read_strv(pref->items[i], &e->hosts, &e->nhosts, errs);
-        if (!marie_system_component(sys, e->host)) {
-            marie_node_error(errs, pref->items[i], "balance: prefer names unknown component '%s'", e->host);
-            rc = -1;
-        }
-        for (size_t k = 0; k < e->nhosts; k++)
-            if (!host_declared(sys, e->hosts[k])) {
-                marie_node_error(errs, pref->items[i], "balance: prefer names unknown host '%s'", e->hosts[k]);
-                rc = -1;
-            }
-    }
-    return rc ? -1 : 0;
-}
-
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
 {
     marie_system_t *sys = calloc(1, sizeof *sys);
@@ -692,8 +603,6 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         hash_component(sys, c);
     }
     if (rc == 0 && find_cycle(sys, errs) < 0)
-        rc = -1;
-    if (rc == 0 && read_balance(marie_node_get(root, "balance"), sys, errs) < 0)
         rc = -1;
     if (rc || (errs && errs->n > errs_before))
         goto err;

@@ -104,24 +104,6 @@ typedef struct {
     const char *file; int line, col;
 } marie_component_cfg_t;
 
-/* The `balance:` section: automatic placement of movable components (docs/managers.md). */
-typedef struct {
-    char *host;
-    char **hosts; size_t nhosts;    /* for `prefer`: the preferred hosts, best first */
-    double cores;                   /* for `capacity`: the host's cores */
-} marie_balance_entry_t;
-
-typedef struct {
-    bool enabled;                   /* the section is present */
-    double window_s;                /* load is averaged over this long before a decision */
-    double high, low;               /* overloaded above high x cores; a target must stay under low */
-    double cooldown_s;              /* no second move this soon, and none of a component moved last */
-    double host_lost_s;             /* a manager unheard this long is lost: failover */
-    char **movable; size_t nmovable;            /* everything else is pinned */
-    marie_balance_entry_t *capacity; size_t ncapacity;  /* host: cores (default: what it reports) */
-    marie_balance_entry_t *prefer; size_t nprefer;      /* component: [hosts] (host = component) */
-} marie_balance_cfg_t;
-
 typedef struct marie_system {
     char *file;
     char *name;
@@ -130,7 +112,6 @@ typedef struct marie_system {
     marie_clock_kind_t clock;
     char *key_file;             /* order authentication key, or NULL */
     char **hosts; size_t nhosts;
-    marie_balance_cfg_t balance;
     marie_component_cfg_t *components; size_t ncomponents;
     marie_component_cfg_t **by_name;   /* private: sorted by name for lookups */
     marie_doc_t *doc;

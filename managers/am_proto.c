@@ -65,7 +65,7 @@ int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *st, ma
 {
     marie_am_settings_t def = {2.0, 200.0, 1 << 20, 3};
     *st = def;
-    int rc = 0;
+    int rc = balance_read_cfg(sys, &st->balance, errs);
     const marie_node_t *m = marie_node_get(marie_doc_root(sys->doc), "manager");
     if (!m)
         return rc;

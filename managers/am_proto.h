@@ -41,6 +41,7 @@ void marie_am_sender(char *buf, size_t len);
 #endif
 
 #include "core/config.h"
+#include "managers/balance.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -52,6 +53,7 @@ typedef struct {
     double log_rate;            /* captured lines per second per component (default 200; burst 2x) */
     int64_t log_max_bytes;      /* rotate a component's log past this size (default 1 MiB) */
     int log_keep;               /* rotated files kept (default 3) */
+    balance_cfg_t balance;      /* the `balance:` section */
 } marie_am_settings_t;
 
 /* What the managers check beyond marie_system_load (which refuses cycles): the `manager:`

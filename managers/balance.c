@@ -31,14 +31,14 @@ typedef struct {
     const marie_component_cfg_t *cfg;
     char placed[128];
     bool movable;
-    const marie_balance_entry_t *prefer;
+    const marie_node_t *prefer;     /* its list of hosts, or NULL */
     int64_t moved_at;       /* 0: never moved */
     window_t cpu;
     int64_t *running_at;    /* per host: last status saying it runs there */
 } bcomp_t;
 
 struct balance {
-    const marie_balance_cfg_t *cfg;
+    const balance_cfg_t *cfg;
     int self;
     bhost_t *hosts;
     size_t nhosts;
@@ -48,6 +48,121 @@ struct balance {
     bool leading, rival;
     int64_t lead_since, last_move;
 };
+
+/* Position of `name` in a list node (a scalar counts as a list of one); -1 if absent. */
+static int seq_has(const marie_node_t *list, const char *name)
+{
+    if (!list)
+        return -1;
+    if (list->kind == MARIE_NODE_SCALAR)
+        return strcmp(list->value, name) == 0 ? 0 : -1;
+    for (size_t i = 0; i < list->n; i++)
+        if (list->items[i]->kind == MARIE_NODE_SCALAR && strcmp(list->items[i]->value, name) == 0)
+            return (int)i;
+    return -1;
+}
+
+static bool host_declared(const marie_system_t *sys, const char *h)
+{
+    for (size_t i = 0; i < sys->nhosts; i++)
+        if (strcmp(sys->hosts[i], h) == 0)
+            return true;
+    for (size_t i = 0; i < sys->ncomponents; i++)
+        if (sys->components[i].host && strcmp(sys->components[i].host, h) == 0)
+            return true;
+    return false;
+}
+
+static int read_number(const marie_node_t *sec, const char *key, double *out, marie_errors_t *errs)
+{
+    const marie_node_t *n = marie_node_get(sec, key);
+    if (!n)
+        return 0;
+    if (marie_node_double(n, out, errs) < 0)
+        return -1;
+    if (*out < 0) {
+        marie_node_error(errs, n, "balance: %s must not be negative", key);
+        return -1;
+    }
+    return 0;
+}
+
+/* Every item of a list (or a scalar) must name a component (hosts = false) or a host. */
+static int check_names(const marie_system_t *sys, const marie_node_t *list, bool hosts, const char *what,
+                       marie_errors_t *errs)
+{
+    if (list->kind == MARIE_NODE_MAP) {
+        marie_node_error(errs, list, "balance: %s: expected a list", what);
+        return -1;
+    }
+    int rc = 0;
+    size_t n = list->kind == MARIE_NODE_SCALAR ? 1 : list->n;
+    for (size_t i = 0; i < n; i++) {
+        const marie_node_t *it = list->kind == MARIE_NODE_SCALAR ? list : list->items[i];
+        const char *v = it->kind == MARIE_NODE_SCALAR ? it->value : NULL;
+        if (!v || (hosts ? !host_declared(sys, v) : !marie_system_component(sys, v))) {
+            marie_node_error(errs, it, "balance: %s names unknown %s '%s'", what, hosts ? "host" : "component",
+                             v ? v : "(not a name)");
+            rc = -1;
+        }
+    }
+    return rc;
+}
+
+int balance_read_cfg(const marie_system_t *sys, balance_cfg_t *cfg, marie_errors_t *errs)
+{
+    *cfg = (balance_cfg_t){.window_s = 10, .high = 0.85, .low = 0.6, .cooldown_s = 30, .host_lost_s = 2};
+    const marie_node_t *n = marie_node_get(marie_doc_root(sys->doc), "balance");
+    if (!n)
+        return 0;
+    static const char *const keys[] = {"window", "high", "low", "cooldown", "host_lost", "movable",
+                                       "capacity", "prefer", NULL};
+    if (n->kind != MARIE_NODE_MAP) {
+        marie_node_error(errs, n, "balance: expected a mapping");
+        return -1;
+    }
+    if (marie_node_check_keys(n, keys, "balance", errs) < 0)
+        return -1;
+    cfg->enabled = true;
+    int rc = read_number(n, "window", &cfg->window_s, errs) | read_number(n, "cooldown", &cfg->cooldown_s, errs) |
+             read_number(n, "host_lost", &cfg->host_lost_s, errs) | read_number(n, "high", &cfg->high, errs) |
+             read_number(n, "low", &cfg->low, errs);
+    if (rc == 0 && !(cfg->low < cfg->high && cfg->high <= 1.0 && cfg->window_s > 0 && cfg->host_lost_s > 0)) {
+        marie_node_error(errs, n, "balance: needs 0 <= low < high <= 1, window > 0 and host_lost > 0 "
+                         "(low %g, high %g, window %g, host_lost %g)", cfg->low, cfg->high, cfg->window_s,
+                         cfg->host_lost_s);
+        rc = -1;
+    }
+    if ((cfg->movable = marie_node_get(n, "movable")))
+        rc |= check_names(sys, cfg->movable, false, "movable", errs);
+    cfg->capacity = marie_node_get(n, "capacity");
+    cfg->prefer = marie_node_get(n, "prefer");
+    if ((cfg->capacity && cfg->capacity->kind != MARIE_NODE_MAP) || (cfg->prefer && cfg->prefer->kind != MARIE_NODE_MAP)) {
+        marie_node_error(errs, n, "balance: capacity and prefer are mappings");
+        return -1;
+    }
+    for (size_t i = 0; cfg->capacity && i < cfg->capacity->n; i++) {
+        const marie_node_t *c = cfg->capacity->items[i];
+        double cores = 0;
+        if (!host_declared(sys, c->key)) {
+            marie_node_error(errs, c, "balance: capacity names unknown host '%s'", c->key);
+            rc = -1;
+        } else if (marie_node_double(c, &cores, errs) < 0 || cores <= 0) {
+            if (cores <= 0)
+                marie_node_error(errs, c, "balance: capacity of %s must be a positive number of cores", c->key);
+            rc = -1;
+        }
+    }
+    for (size_t i = 0; cfg->prefer && i < cfg->prefer->n; i++) {
+        const marie_node_t *p = cfg->prefer->items[i];
+        if (!marie_system_component(sys, p->key)) {
+            marie_node_error(errs, p, "balance: prefer names unknown component '%s'", p->key);
+            rc = -1;
+        }
+        rc |= check_names(sys, p, true, "prefer", errs);
+    }
+    return rc ? -1 : 0;
+}
 
 static void window_reset(window_t *w)
 {
@@ -109,18 +224,18 @@ static int add_host(balance_t *b, const char *name)
         return 0;
     bhost_t *h = &b->hosts[b->nhosts++];
     h->name = name;
-    for (size_t i = 0; i < b->cfg->ncapacity; i++)
-        if (strcmp(b->cfg->capacity[i].host, name) == 0)
-            h->cores_cfg = b->cfg->capacity[i].cores;
+    const marie_node_t *cores = marie_node_get(b->cfg->capacity, name);
+    if (cores)
+        marie_node_double(cores, &h->cores_cfg, NULL);
     return 0;
 }
 
-balance_t *balance_create(const char *self, const marie_system_t *sys)
+balance_t *balance_create(const char *self, const marie_system_t *sys, const balance_cfg_t *cfg)
 {
     balance_t *b = calloc(1, sizeof *b);
     if (!b)
         return NULL;
-    b->cfg = &sys->balance;
+    b->cfg = cfg;
     size_t maxh = sys->nhosts + sys->ncomponents + 1;
     if (!(b->hosts = calloc(maxh, sizeof *b->hosts)) ||
         !(b->comps = calloc(sys->ncomponents ? sys->ncomponents : 1, sizeof *b->comps)))
@@ -135,11 +250,8 @@ balance_t *balance_create(const char *self, const marie_system_t *sys)
         bcomp_t *c = &b->comps[b->ncomps++];
         c->cfg = &sys->components[i];
         snprintf(c->placed, sizeof c->placed, "%s", c->cfg->host);
-        for (size_t k = 0; k < b->cfg->nmovable; k++)
-            c->movable |= strcmp(b->cfg->movable[k], c->cfg->name) == 0;
-        for (size_t k = 0; k < b->cfg->nprefer; k++)
-            if (strcmp(b->cfg->prefer[k].host, c->cfg->name) == 0)
-                c->prefer = &b->cfg->prefer[k];
+        c->movable = seq_has(cfg->movable, c->cfg->name) >= 0;
+        c->prefer = marie_node_get(cfg->prefer, c->cfg->name);
         if (!(c->running_at = calloc(maxh, sizeof *c->running_at)))
             goto err;
     }
@@ -282,15 +394,11 @@ double balance_load(const balance_t *b, const char *host, int64_t now_us)
     return m < 0 ? -1 : m / (100.0 * host_cores(&b->hosts[i]));
 }
 
-static bool preferred(const bcomp_t *c, const char *host, int *rank)
+/* Preferred hosts first, in their order. */
+static int preference(const bcomp_t *c, const char *host)
 {
-    for (size_t k = 0; c->prefer && k < c->prefer->nhosts; k++)
-        if (strcmp(c->prefer->hosts[k], host) == 0) {
-            *rank = (int)k;
-            return true;
-        }
-    *rank = 1 << 20;
-    return false;
+    int k = seq_has(c->prefer, host);
+    return k >= 0 ? k : 1 << 20;
 }
 
 /* The best live host other than `avoid` for a component adding `cpu` %: preferred hosts in
@@ -309,8 +417,7 @@ static int pick_target(balance_t *b, const bcomp_t *c, int avoid, double cpu, do
         double after = (load < 0 ? 0 : load) + cpu / (100.0 * host_cores(&b->hosts[i]));
         if (limit >= 0 && after > limit)
             continue;
-        int rank;
-        preferred(c, b->hosts[i].name, &rank);
+        int rank = preference(c, b->hosts[i].name);
         if (best < 0 || rank < best_rank || (rank == best_rank && after < best_after)) {
             best = (int)i;
             best_rank = rank;

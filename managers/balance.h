@@ -14,6 +14,22 @@ extern "C" {
 
 typedef struct balance balance_t;
 
+/* The system file's `balance:` section (docs/managers.md). Lists stay nodes of the system's
+ * document: the settings live as long as the system. */
+typedef struct {
+    bool enabled;                   /* the section is present */
+    double window_s;                /* load is averaged over this long before a decision */
+    double high, low;               /* overloaded above high x cores; a target must stay under low */
+    double cooldown_s;              /* no second move this soon, and none of a component moved last */
+    double host_lost_s;             /* a manager unheard this long is lost: failover */
+    const marie_node_t *movable;    /* list of component names; every other component is pinned */
+    const marie_node_t *capacity;   /* host: cores (default: what its manager reports) */
+    const marie_node_t *prefer;     /* component: [hosts], best first */
+} balance_cfg_t;
+
+/* Reads and checks the section (defaults when absent): 0, or -1 with file:line:col in errs. */
+int balance_read_cfg(const marie_system_t *sys, balance_cfg_t *cfg, marie_errors_t *errs);
+
 typedef enum {
     BALANCE_OVERLOAD = 1,   /* a host above `high` over the window: a component leaves it */
     BALANCE_FAILOVER,       /* a host lost: its movable components start elsewhere */
@@ -28,9 +44,9 @@ typedef struct {
     char reason[256];       /* one sentence for the event, ps and the viewer */
 } balance_move_t;
 
-/* A balancer for the manager of host `self` over the system's hosts, components and
- * `balance:` section. NULL with errno on failure. The system must outlive it. */
-balance_t *balance_create(const char *self, const marie_system_t *sys);
+/* A balancer for the manager of host `self` over the system's hosts and components. NULL with
+ * errno on failure. The system (and cfg) must outlive it. */
+balance_t *balance_create(const char *self, const marie_system_t *sys, const balance_cfg_t *cfg);
 void balance_destroy(balance_t *b);
 
 /* A manager's status was heard: its term, whether it says it leads, its cores (0: unknown). */

@@ -32,6 +32,8 @@ static const char *SYSTEM =
     "  capacity: {a: 2, b: 2, c: 2}\n"
     "%s";
 
+static balance_cfg_t cfg;
+
 static marie_system_t *load(const char *extra, marie_errors_t *errs)
 {
     char path[] = "/tmp/test_balance_XXXXXX";
@@ -42,6 +44,10 @@ static marie_system_t *load(const char *extra, marie_errors_t *errs)
     fclose(f);
     marie_system_t *sys = marie_system_load(path, NULL, errs);
     unlink(path);
+    if (sys && balance_read_cfg(sys, &cfg, errs) < 0) {
+        marie_system_destroy(sys);
+        return NULL;
+    }
     return sys;
 }
 
@@ -71,16 +77,23 @@ static void test_config_errors_have_positions(void **state)
     int fd = mkstemp(path);
     assert_int_equal(write(fd, bad, strlen(bad)), (int)strlen(bad));
     close(fd);
-    assert_null(marie_system_load(path, NULL, &errs));
+    marie_system_t *sys = marie_system_load(path, NULL, &errs);
+    assert_non_null(sys);
+    assert_int_equal(balance_read_cfg(sys, &cfg, &errs), -1);
+    marie_system_destroy(sys);
     unlink(path);
     assert_non_null(strstr(errs.msgs[0], "low < high"));
     assert_non_null(strstr(errs.msgs[0], ":3:"));
     marie_errors_clear(&errs);
 
-    marie_system_t *sys = load("", &errs);
+    assert_null(load("  prefer: {nobody: [a]}\n", &errs));
+    assert_non_null(strstr(errs.msgs[0], "unknown component 'nobody'"));
+    marie_errors_clear(&errs);
+
+    sys = load("", &errs);
     assert_non_null(sys);
-    assert_true(sys->balance.enabled);
-    assert_int_equal((int)sys->balance.nmovable, 2);
+    assert_true(cfg.enabled);
+    assert_true(cfg.high == 0.8 && cfg.low == 0.6 && cfg.window_s == 10);
     marie_system_destroy(sys);
 }
 
@@ -88,7 +101,7 @@ static void test_smallest_live_name_leads_after_settling(void **state)
 {
     marie_errors_t errs = {0};
     marie_system_t *sys = load("", &errs);
-    balance_t *b = balance_create("b", sys);
+    balance_t *b = balance_create("b", sys, &cfg);
     int64_t t = 100 * S;
     status(b, "a", 3, t, -1, -1, -1, -1);
     assert_string_equal(balance_leader(b, t), "a");
@@ -112,7 +125,7 @@ static void test_overload_moves_the_busiest_movable_component_once(void **state)
     marie_errors_t errs = {0};
     marie_system_t *sys = load("", &errs);
     int64_t t = 100 * S;
-    balance_t *b = balance_create("a", sys);
+    balance_t *b = balance_create("a", sys, &cfg);
     balance_move_t m;
     int moves = 0;
     /* b at (120 + 50 + 5 + 2) / 200 = 0.89 > high; nothing before the window is covered */
@@ -144,7 +157,7 @@ static void test_no_move_when_no_host_stays_under_low(void **state)
     marie_errors_t errs = {0};
     marie_system_t *sys = load("", &errs);
     int64_t t = 100 * S;
-    balance_t *b = balance_create("a", sys);
+    balance_t *b = balance_create("a", sys, &cfg);
     balance_move_t m;
     for (int i = 0; i < 60; i++, t += S / 2) {
         status(b, "b", 0, t, 120, 50, 5, 2);
@@ -166,7 +179,7 @@ static void test_competing_loads_do_not_flap(void **state)
     marie_errors_t errs = {0};
     marie_system_t *sys = load("", &errs);
     int64_t t = 100 * S;
-    balance_t *b = balance_create("a", sys);
+    balance_t *b = balance_create("a", sys, &cfg);
     balance_move_t m;
     int moves = 0;
     for (int i = 0; i < 600; i++, t += S / 2) {
@@ -196,7 +209,7 @@ static void test_failover_moves_movable_components_of_a_lost_host(void **state)
     marie_system_t *sys = load("  prefer: {mission: [a]}\n", &errs);
     assert_non_null(sys);
     int64_t t = 100 * S;
-    balance_t *b = balance_create("a", sys);
+    balance_t *b = balance_create("a", sys, &cfg);
     balance_move_t m;
     for (int i = 0; i < 10; i++, t += S / 2) {
         status(b, "b", 0, t, 10, 10, 10, 1);
@@ -234,7 +247,7 @@ static void test_healed_partition_keeps_one_copy(void **state)
     marie_errors_t errs = {0};
     marie_system_t *sys = load("", &errs);
     int64_t t = 100 * S;
-    balance_t *b = balance_create("a", sys);
+    balance_t *b = balance_create("a", sys, &cfg);
     balance_move_t m;
     for (int i = 0; i < 10; i++, t += S / 2) {
         status(b, "b", 0, t, 10, 10, 10, 1);
@@ -263,7 +276,7 @@ static void test_two_never_act_at_once_after_a_heal(void **state)
 {
     marie_errors_t errs = {0};
     marie_system_t *sys = load("", &errs);
-    balance_t *a = balance_create("a", sys), *c = balance_create("c", sys);
+    balance_t *a = balance_create("a", sys, &cfg), *c = balance_create("c", sys, &cfg);
     int64_t t = 100 * S;
     /* partition: a with b on one side, c alone on the other; both lead their side */
     for (int i = 0; i < 20; i++, t += S / 2) {
