@@ -142,6 +142,12 @@ struct am {
     uint64_t watchdog_us;
     marie_timer_t *status_timer;
     bool opt_status_hz, opt_log_rate, opt_log_max, opt_log_keep;   /* given on the command line */
+    /* automatic placement (the system's balance: section; NULL without one) */
+    balance_cfg_t bal_cfg;
+    balance_t *bal;
+    char bal_sender[160];       /* "balance@HOST": its orders' sender */
+    char bal_last[256];         /* its last decision, in the status */
+    int64_t adopt_until;        /* a returning manager learns the placement before it starts */
 };
 
 static int64_t now_us(void) { return marie_mono_us(); }
@@ -170,6 +176,9 @@ static void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...)
 }
 
 static void status_changed(am_t *am);
+static void apply_move(am_t *am, struct comp *c, const char *host);
+static void save_up_state(am_t *am);
+static void am_up(am_t *am);
 
 /* ---------------------------------------------------------------- lookup */
 
@@ -851,9 +860,53 @@ static void on_heartbeat(const lcm_recv_buf_t *rbuf, const char *channel, const 
     }
 }
 
+/* Every status (our own too) feeds the placement decisions; a returning manager adopts the
+ * placement it hears. */
+static void balance_on_status(am_t *am, const marie_am_status_t *st)
+{
+    int64_t now = now_us();
+    balance_heard(am->bal, st->host, st->balance_term, strcmp(st->balance_leader, st->host) == 0, st->ncpu, now);
+    for (int i = 0; i < st->ncomponents; i++) {
+        const marie_am_component_status_t *cs = &st->components[i];
+        bool running = strcmp(cs->state, "running") == 0 || strcmp(cs->state, "degraded") == 0 ||
+                       strcmp(cs->state, "starting") == 0;
+        balance_sample(am->bal, st->host, cs->name, cs->cpu, running, now);
+        comp_t *c = comp_find(am, cs->name);
+        if (am->adopt_until && running && c && c->local && strcmp(st->host, am->host) != 0) {
+            am_event(am, MARIE_EVENT_T_SEV_INFO, "balance", "%s runs on %s now: not starting it here",
+                     c->cfg->name, st->host);
+            apply_move(am, c, st->host);
+            save_up_state(am);
+        }
+    }
+}
+
+static void balance_decide(am_t *am)
+{
+    balance_move_t m;
+    if (!am->bal || am->adopt_until || !am->up || !balance_step(am->bal, now_us(), &m))
+        return;
+    snprintf(am->bal_last, sizeof am->bal_last, "%s", m.reason);
+    if (!am->auth) {
+        am_event(am, MARIE_EVENT_T_SEV_WARN, "balance", "%s: not done, no key to sign the move", m.reason);
+        return;
+    }
+    am_event(am, m.why == BALANCE_OVERLOAD ? MARIE_EVENT_T_SEV_INFO : MARIE_EVENT_T_SEV_WARN, "balance",
+             "%s (term %lld)", m.reason, (long long)balance_term(am->bal));
+    /* Decided: the next step must not decide it again before the order comes back. */
+    balance_placed(am->bal, m.component, m.to, now_us());
+    char *targets[] = {m.component};
+    marie_am_order_t o = {.host = "*", .op = MARIE_AM_ORDER_T_OP_MOVE, .ntargets = 1, .targets = targets, .arg = m.to};
+    if (marie_am_send_order_as(am->lcm, am->auth, &o, am->bal_sender, NULL) < 0)
+        marie_warn("balance: cannot send the move of %s", m.component);
+    status_changed(am);
+}
+
 static void on_peer_status(const lcm_recv_buf_t *rbuf, const char *channel, const marie_am_status_t *st, void *user)
 {
     am_t *am = user;
+    if (am->bal)
+        balance_on_status(am, st);
     if (strcmp(st->host, am->host) == 0)
         return;
     bool changed = false;
@@ -975,6 +1028,12 @@ static void publish_status(am_t *am, bool sample)
     st.hosts = am->sys ? am->sys->hosts : NULL;
     st.ncomponents = n;
     st.components = cs;
+    st.balance_leader = "";
+    st.balance_last = am->bal_last;
+    if (am->bal) {
+        st.balance_leader = (char *)(balance_leads(am->bal) ? am->host : balance_leader(am->bal, now));
+        st.balance_term = balance_term(am->bal);
+    }
     marie_am_status_t_publish(am->lcm, MARIE_CH_AM_STATUS, &st);
 out:
     free(states);
@@ -991,11 +1050,16 @@ static void on_status_soon(marie_loop_t *loop, marie_timer_t *t, int64_t overrun
 static void on_status_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     publish_status(user, true);
+    balance_decide(user);
 }
 
 static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     am_t *am = user;
+    if (am->adopt_until && now_us() >= am->adopt_until) {
+        am->adopt_until = 0;
+        am_up(am);
+    }
     check_heartbeats(am);
     progress_stops(am);
     try_start_waiting(am);
@@ -1158,8 +1222,13 @@ static int am_load_system(am_t *am, const char *path, const char *profile, marie
     if (!am->opt_log_keep)
         am->log_keep = set.log_keep;
     comps_free(am);
+    balance_destroy(am->bal);
+    am->bal = NULL;
     marie_system_destroy(am->sys);
     am->sys = sys;
+    am->bal_cfg = set.balance;
+    if (set.balance.enabled && !(am->bal = balance_create(am->host, sys, &am->bal_cfg)))
+        marie_error("automatic placement off: %s", strerror(errno));
     sha256_hex(text, len, profile ? profile : "", am->sys_hash);
     free(text);
     free(am->sys_path);
@@ -1238,6 +1307,8 @@ static void am_up(am_t *am)
 
 static void apply_move(am_t *am, comp_t *c, const char *host)
 {
+    if (am->bal)
+        balance_placed(am->bal, c->cfg->name, host, now_us());
     bool was_local = c->local;
     snprintf(c->host, sizeof c->host, "%s", host);
     c->local = strcmp(host, am->host) == 0;
@@ -1290,7 +1361,14 @@ static void restore_up_state(am_t *am)
             apply_move(am, c, moves[i][1]);
     }
     marie_info("restoring system %s (profile %s)", sys, profile[0] ? profile : "none");
-    am_up(am);
+    if (!am->bal) {
+        am_up(am);
+        return;
+    }
+    /* Moves made while this manager was away (a failover) come back through the other
+     * managers' statuses: listen first, then start what is still placed here. */
+    am->adopt_until = now_us() + (int64_t)((am->bal_cfg.host_lost_s + 0.5) * 1e6);
+    marie_info("learning the current placement for %.1f s before starting anything", am->bal_cfg.host_lost_s + 0.5);
 }
 
 /* ---------------------------------------------------------------- orders */
@@ -1676,6 +1754,7 @@ int main(int argc, char **argv)
     am->log_burst = am->log_rate * 2;
     if (!am->host[0])
         gethostname(am->host, sizeof am->host - 1);
+    snprintf(am->bal_sender, sizeof am->bal_sender, "balance@%.128s", am->host);
     if (!am->state_dir)
         am->state_dir = marie_state_dir();
     if (!am->url)
@@ -1809,6 +1888,7 @@ out_lcm:
 out_loop:
     comps_free(am);
     marie_loop_destroy(am->loop);
+    balance_destroy(am->bal);
     marie_system_destroy(am->sys);
     marie_auth_destroy(am->auth);
     free(am->key_path);

@@ -114,9 +114,15 @@ int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *st, ma
 int marie_am_send_order(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, char *sender_buf,
                         size_t sender_len, const char *seq_file)
 {
-    uint8_t mac[MARIE_AUTH_MAC_LEN];
     marie_am_sender(sender_buf, sender_len);
-    o->sender = sender_buf;
+    return marie_am_send_order_as(lcm, auth, o, sender_buf, seq_file);
+}
+
+int marie_am_send_order_as(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, const char *sender,
+                           const char *seq_file)
+{
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    o->sender = (char *)sender;
     o->utime = marie_wall_us();
     o->seq = marie_auth_next_seq(seq_file);
     if (!o->host) o->host = "*";

@@ -69,6 +69,9 @@ typedef struct marie_auth marie_auth_t;
 typedef struct _lcm_t lcm_t;
 int marie_am_send_order(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, char *sender_buf,
                         size_t sender_len, const char *seq_file);
+/* The same under a given sender name (a manager's own orders: "balance@HOST"). */
+int marie_am_send_order_as(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, const char *sender,
+                           const char *seq_file);
 
 /* The host a component runs on: its `host`, else the first of `hosts`, else `fallback`. */
 const char *marie_am_component_host(const marie_system_t *sys, const marie_component_cfg_t *c, const char *fallback);

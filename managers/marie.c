@@ -618,6 +618,23 @@ static void fmt_bytes(int64_t b, char *buf, size_t len)
         snprintf(buf, len, "%lldM", (long long)(b >> 20));
 }
 
+/* Automatic placement: who leads, and each manager's last decision. */
+static void print_placement(cli_t *cli, int64_t lost_us)
+{
+    int64_t now = marie_mono_us();
+    bool head = false;
+    for (int i = 0; i < cli->nexpect; i++) {
+        host_t *h = host_get(cli, cli->expect[i], false);
+        if (!h || !h->st || now - h->recv_mono > lost_us || !h->st->balance_leader[0])
+            continue;
+        if (!head)
+            printf("\nplacement: %s leads (term %lld)\n", h->st->balance_leader, (long long)h->st->balance_term);
+        head = true;
+        if (h->st->balance_last[0])
+            printf("  last decision by %s: %s\n", h->name, h->st->balance_last);
+    }
+}
+
 /* Print the table; a host not heard from for lost_us (or never) is lost. Returns how many. */
 static int print_ps(cli_t *cli, int64_t lost_us)
 {
@@ -647,9 +664,14 @@ static int print_ps(cli_t *cli, int64_t lost_us)
             printf(",\"profile\":");
             json_str(stdout, st->profile);
             printf(",\"load\":[%.2f,%.2f,%.2f],\"ncpu\":%d,\"am_pid\":%d,\"am_cpu\":%.2f,\"am_rss\":%lld,"
-                   "\"orders_refused\":%lld,\"clock_offset_us\":%lld,\"components\":[",
+                   "\"orders_refused\":%lld,\"clock_offset_us\":%lld,",
                    st->load1, st->load5, st->load15, st->ncpu, st->pid, st->am_cpu, (long long)st->am_rss,
                    (long long)st->orders_refused, (long long)(st->utime - h->recv_wall));
+            printf("\"balance_term\":%lld,\"balance_leader\":", (long long)st->balance_term);
+            json_str(stdout, st->balance_leader);
+            printf(",\"balance_last\":");
+            json_str(stdout, st->balance_last);
+            printf(",\"components\":[");
             for (int k = 0; k < st->ncomponents; k++) {
                 marie_am_component_status_t *c = &st->components[k];
                 printf("%s{\"name\":", k ? "," : "");
@@ -702,6 +724,7 @@ static int print_ps(cli_t *cli, int64_t lost_us)
                    (long long)h->st->orders_refused, h->st->system[0] ? h->st->system : "-",
                    h->st->profile[0] ? " (" : "", h->st->profile, h->st->profile[0] ? ")" : "");
         }
+        print_placement(cli, lost_us);
     }
     fflush(stdout);
     return lost;

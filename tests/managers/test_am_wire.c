@@ -59,7 +59,8 @@ static void test_status_with_components(void **state)
     };
     char *hosts[] = {"h1", "h2"};
     marie_am_status_t st = {.host = "h1", .system = "s", .system_hash = "x", .profile = "", .nhosts = 2,
-                            .hosts = hosts, .ncomponents = 2, .components = cs};
+                            .hosts = hosts, .ncomponents = 2, .components = cs, .balance_leader = "h1",
+                            .balance_term = 3, .balance_last = ""};
     uint8_t *buf;
     int n;
     ENCODE(marie_am_status_t, &st, buf, n);

@@ -46,6 +46,13 @@ static void tick(marie_component_t *c, int64_t overruns)
             fprintf(stderr, "warning %lld from %s\n", (long long)n, marie_component_name(c));
         fflush(stdout);
     }
+    /* a CPU load: spin for this fraction of each 100 ms tick */
+    double busy = marie_param_double(c, "busy");
+    if (busy > 0) {
+        int64_t until = marie_mono_us() + (int64_t)(busy * 100000);
+        while (marie_mono_us() < until)
+            ;
+    }
     double exit_after = marie_param_double(c, "exit_after_s");
     static int64_t started;
     int64_t now = marie_mono_us();
@@ -61,7 +68,7 @@ static int on_init(marie_component_t *c)
     if (ms > 0)
         usleep((useconds_t)(ms * 1000));
     double hz = marie_param_double(c, "print_hz");
-    marie_component_every(c, hz > 10 ? hz : 10, tick);
+    marie_component_every(c, hz > 10 ? hz : 10, tick);   /* busy assumes 10 Hz */
     return 0;
 }
 
@@ -76,6 +83,7 @@ static const marie_param_spec_t params[] = {
     {"print_hz", MARIE_PARAM_DOUBLE, "0", "print a line on stdout this often"},
     {"exit_after_s", MARIE_PARAM_DOUBLE, "0", "exit after this long (0: never)"},
     {"exit_code", MARIE_PARAM_INT, "1", "status for exit_after_s"},
+    {"busy", MARIE_PARAM_DOUBLE, "0", "fraction of one core to burn (a CPU-hungry component)"},
     {NULL, 0, NULL, NULL},
 };
 
