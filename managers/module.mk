@@ -5,7 +5,7 @@ $(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c man
 # marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c)
 # around the supervision state machine in the library (supervise.c).
 $(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c,$(MANAGERS_LIB)))
-$(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
+$(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;
