@@ -4,7 +4,6 @@
 
 #include <assert.h>
 #include <errno.h>
-#include <getopt.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -12,7 +11,6 @@
 #include <unistd.h>
 
 #include "core/auth.h"
-#include "core/expand.h"
 #include "core/typeinfo.h"
 #include "core/spec.h"
 #include "lcmtypes/marie_types.h"

@@ -5,15 +5,12 @@
 #include <assert.h>
 #include <errno.h>
 #include <getopt.h>
-#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
-#include "core/auth.h"
 #include "core/expand.h"
-#include "core/typeinfo.h"
 #include "core/spec.h"
 #include "lcmtypes/marie_types.h"
 #include "core/component_priv.h"

@@ -192,7 +192,8 @@ static int parse_window_s(const char *arg, int64_t *us)
 }
 
 
-int main(int argc, char **argv)
+/* The command line into am and the three names main needs; -1 to go on, else the exit status. */
+static int parse_args(am_t *am, int argc, char **argv, const char **system, const char **profile, const char **key)
 {
     static const struct option opts[] = {
         {"host", required_argument, 0, 'H'}, {"state-dir", required_argument, 0, 'd'},
@@ -203,8 +204,6 @@ int main(int argc, char **argv)
         {"order-lifetime", required_argument, 0, 'L'}, {"max-skew", required_argument, 0, 'S'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0},
     };
-    am_t am_storage = {0}, *am = &am_storage;
-    const char *system = NULL, *profile = NULL, *key = NULL;
     am->status_hz = 2;
     am->log_rate = 200;
     am->log_max_bytes = 1 << 20;
@@ -217,9 +216,9 @@ int main(int argc, char **argv)
         switch (opt) {
         case 'H': snprintf(am->host, sizeof am->host, "%s", optarg); break;
         case 'd': am->state_dir = strdup(optarg); break;
-        case 'k': key = optarg; break;
-        case 's': system = optarg; break;
-        case 'p': profile = optarg; break;
+        case 'k': *key = optarg; break;
+        case 's': *system = optarg; break;
+        case 'p': *profile = optarg; break;
         case 'u': am->url = strdup(optarg); break;
         case 'z': am->status_hz = atof(optarg); am->opt_status_hz = true; break;
         case 'r': am->log_rate = atof(optarg); am->opt_log_rate = true; break;
@@ -242,6 +241,16 @@ int main(int argc, char **argv)
         am->state_dir = marie_state_dir();
     if (!am->url)
         am->url = strdup(marie_default_url());
+    return -1;
+}
+
+int main(int argc, char **argv)
+{
+    am_t am_storage = {0}, *am = &am_storage;
+    const char *system = NULL, *profile = NULL, *key = NULL;
+    int done = parse_args(am, argc, argv, &system, &profile, &key);
+    if (done >= 0)
+        return done;
     char log_name[160];
     snprintf(log_name, sizeof log_name, "marie-am@%.128s", am->host);
     marie_log_set_name(log_name);

@@ -1,5 +1,6 @@
 /* marie-am's orders: up, down, start, stop, restart, move, pause, resume, tail and ping, each
  * checked (signature, freshness, targets) and answered once. */
+
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -150,6 +151,71 @@ static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_
     am_status_changed(am);
 }
 
+static void order_down(am_t *am, const marie_am_order_t *o)
+{
+    am->up = false;
+    am_save_up_state(am);
+    int n = 0;
+    for (size_t i = 0; i < am->ncomps; i++)
+        n += am->comps[i].sv.local && am->comps[i].sv.pid > 0;
+    am_stop_all(am);
+    am_progress_stops(am);
+    reply(am, o, true, n, "ok");
+}
+
+static void order_move(am_t *am, const marie_am_order_t *o)
+{
+    if (o->ntargets != 1 || !am_host_known(am, o->arg)) {
+        reply(am, o, false, 0, "move: unknown host '%s'", o->arg);
+        return;
+    }
+    comp_t *c = am_comp_find(am, o->targets[0]);
+    if (!c) {
+        reply(am, o, false, 0, "move: '%s' is not a component", o->targets[0]);
+        return;
+    }
+    bool affected = c->sv.local || strcmp(o->arg, am->host) == 0;
+    am_apply_move(am, c, o->arg);
+    am_save_up_state(am);
+    am_try_start_waiting(am);
+    am_status_changed(am);
+    reply(am, o, true, affected, "ok");
+}
+
+/* One component named by a start/stop/restart/pause/resume/tail order; -1: not such an order. */
+static int order_one(am_t *am, comp_t *c, const marie_am_order_t *o)
+{
+    switch (o->op) {
+    case MARIE_AM_ORDER_T_OP_START:
+        am_comp_open_log(c);
+        am_comp_want(c);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_STOP:
+        am_comp_stop(c);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_RESTART:
+        am_comp_open_log(c);
+        am_comp_restart(c);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_PAUSE:
+        send_lifecycle(am, c, MARIE_CMD_PAUSE, o->seq);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_RESUME:
+        send_lifecycle(am, c, MARIE_CMD_RESUME, o->seq);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_TAIL: {
+        char path[PATH_MAX];
+        snprintf(path, sizeof path, "%s/logs/%s.log", am->state_dir, c->cfg->name);
+        tail_ctx_t tc = {am, c->cfg->name, o->seq};
+        int lines = atoi(o->arg);
+        marie_logfile_tail(path, lines > 0 ? lines : 20, tail_line_cb, &tc);
+        return 0;
+    }
+    default:
+        return -1;
+    }
+}
+
 void am_on_order(am_t *am, const marie_am_order_t *o)
 {
     if (strcmp(o->host, "*") != 0 && strcmp(o->host, am->host) != 0)
@@ -173,14 +239,7 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
         return;
     }
     if (o->op == MARIE_AM_ORDER_T_OP_DOWN) {
-        am->up = false;
-        am_save_up_state(am);
-        int n = 0;
-        for (size_t i = 0; i < am->ncomps; i++)
-            n += am->comps[i].sv.local && am->comps[i].sv.pid > 0;
-        am_stop_all(am);
-        am_progress_stops(am);
-        reply(am, o, true, n, "ok");
+        order_down(am, o);
         return;
     }
     /* every target must name a component or a group of the system */
@@ -194,21 +253,7 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
         }
     }
     if (o->op == MARIE_AM_ORDER_T_OP_MOVE) {
-        if (o->ntargets != 1 || !am_host_known(am, o->arg)) {
-            reply(am, o, false, 0, "move: unknown host '%s'", o->arg);
-            return;
-        }
-        comp_t *c = am_comp_find(am, o->targets[0]);
-        if (!c) {
-            reply(am, o, false, 0, "move: '%s' is not a component", o->targets[0]);
-            return;
-        }
-        bool affected = c->sv.local || strcmp(o->arg, am->host) == 0;
-        am_apply_move(am, c, o->arg);
-        am_save_up_state(am);
-        am_try_start_waiting(am);
-        am_status_changed(am);
-        reply(am, o, true, affected, "ok");
+        order_move(am, o);
         return;
     }
     int n = 0;
@@ -220,33 +265,7 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
         if (!hit || !c->sv.local)
             continue;
         n++;
-        switch (o->op) {
-        case MARIE_AM_ORDER_T_OP_START:
-            am_comp_open_log(c);
-            am_comp_want(c);
-            break;
-        case MARIE_AM_ORDER_T_OP_STOP:
-            am_comp_stop(c);
-            break;
-        case MARIE_AM_ORDER_T_OP_RESTART:
-            am_comp_open_log(c);
-            am_comp_restart(c);
-            break;
-        case MARIE_AM_ORDER_T_OP_PAUSE:
-            send_lifecycle(am, c, MARIE_CMD_PAUSE, o->seq);
-            break;
-        case MARIE_AM_ORDER_T_OP_RESUME:
-            send_lifecycle(am, c, MARIE_CMD_RESUME, o->seq);
-            break;
-        case MARIE_AM_ORDER_T_OP_TAIL: {
-            char path[PATH_MAX];
-            snprintf(path, sizeof path, "%s/logs/%s.log", am->state_dir, c->cfg->name);
-            tail_ctx_t tc = {am, c->cfg->name, o->seq};
-            int lines = atoi(o->arg);
-            marie_logfile_tail(path, lines > 0 ? lines : 20, tail_line_cb, &tc);
-            break;
-        }
-        default:
+        if (order_one(am, c, o) < 0) {
             reply(am, o, false, 0, "unknown order %d", o->op);
             return;
         }

@@ -197,6 +197,51 @@ static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, const char
     _exit(127);
 }
 
+/* The environment of a component: the manager's, minus service plumbing, plus marie's and
+ * the component's. NULL on failure; the caller frees the *ne strings and the array. */
+static char **child_env(comp_t *c, size_t *nep)
+{
+    am_t *am = c->am;
+    const marie_component_cfg_t *cfg = c->cfg;
+    extern char **environ;
+    size_t ne = 0;
+    char **envp;
+    size_t nenv = 0;
+    while (environ[nenv])
+        nenv++;
+    envp = calloc(nenv + cfg->nenv + 10, sizeof *envp);
+    if (!envp)
+        return NULL;
+    for (size_t i = 0; i < nenv; i++)
+        if (!env_dropped(environ[i]))
+            envp[ne++] = strdup(environ[i]);
+    envp[ne++] = path_with_self(am);
+    if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am->sys_path) < 0 ||
+        asprintf(&envp[ne++], "MARIE_NAME=%s", cfg->name) < 0 ||
+        asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
+        /* Components keep their state (SharedMap, Switch) beside the manager's, and their
+         * run-time paths (emulated CAN bus sockets, pty links) in its run/ folder. */
+        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0 ||
+        asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
+        goto fail;
+    if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
+        goto fail;
+    if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
+        goto fail;
+    for (size_t i = 0; i < cfg->nenv; i++)
+        envp[ne++] = strdup(cfg->env[i]);
+    envp[ne] = NULL;
+    *nep = ne;
+    return envp;
+fail:
+    /* every jump follows a failed asprintf, whose pointer is undefined */
+    envp[--ne] = NULL;
+    for (size_t i = 0; i < ne; i++)
+        free(envp[i]);
+    free(envp);
+    return NULL;
+}
+
 static void comp_spawn(comp_t *c)
 {
     am_t *am = c->am;
@@ -204,7 +249,6 @@ static void comp_spawn(comp_t *c)
     int po[2] = {-1, -1}, pe[2] = {-1, -1};
     size_t na = 0, ne = 0;
     char **argv = NULL, **envp = NULL;
-    extern char **environ;
     marie_sv_state_t before = c->sv.st;
 
     am_comp_cancel_timer(c);
@@ -228,32 +272,9 @@ static void comp_spawn(comp_t *c)
     for (size_t i = 0; i < cfg->nargs; i++)
         argv[na++] = cfg->args[i];
     argv[na] = NULL;
-    /* env: the manager's, minus service plumbing, plus marie's and the component's */
-    size_t nenv = 0;
-    while (environ[nenv])
-        nenv++;
-    envp = calloc(nenv + cfg->nenv + 10, sizeof *envp);
+    envp = child_env(c, &ne);
     if (!envp)
         goto fail;
-    for (size_t i = 0; i < nenv; i++)
-        if (!env_dropped(environ[i]))
-            envp[ne++] = strdup(environ[i]);
-    envp[ne++] = path_with_self(am);
-    if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am->sys_path) < 0 ||
-        asprintf(&envp[ne++], "MARIE_NAME=%s", cfg->name) < 0 ||
-        asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
-        /* Components keep their state (SharedMap, Switch) beside the manager's, and their
-         * run-time paths (emulated CAN bus sockets, pty links) in its run/ folder. */
-        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0 ||
-        asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
-        goto fail;
-    if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
-        goto fail;
-    if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
-        goto fail;
-    for (size_t i = 0; i < cfg->nenv; i++)
-        envp[ne++] = strdup(cfg->env[i]);
-    envp[ne] = NULL;
 
     char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
     pid_t parent = getpid();

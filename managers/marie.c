@@ -1,29 +1,18 @@
 /* marie: the command line that drives the application managers (marie-am) of every host. */
 #include <errno.h>
-#include <getopt.h>
 #include <limits.h>
-#include <math.h>
-#include <poll.h>
 #include <signal.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <arpa/inet.h>
-#include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <lcm/lcm.h>
 
 #include "core/config.h"
-#include "core/time.h"
-#include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
-#include "managers/progcheck.h"
 #include "core/auth.h"
-#include "core/typeinfo.h"
 
 volatile sig_atomic_t interrupted;      /* the signal that asked marie to stop */
 static void on_sigint(int s) { interrupted = s; }

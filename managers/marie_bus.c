@@ -1,17 +1,12 @@
 /* marie's side of the bus: statuses, replies and log lines from the managers, orders sent
  * and answered, and waiting until components reach a state. */
 #include <errno.h>
-#include <getopt.h>
 #include <limits.h>
-#include <math.h>
-#include <poll.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <arpa/inet.h>
-#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -19,10 +14,8 @@
 
 #include "core/config.h"
 #include "core/time.h"
-#include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
-#include "managers/progcheck.h"
 #include "core/auth.h"
 #include "core/typeinfo.h"
 
