@@ -125,8 +125,6 @@ void am_save_up_state(am_t *am);
 void am_restore_up_state(am_t *am);
 void am_save_children(am_t *am);
 void am_kill_leftovers(am_t *am);
-/* The whole file, NUL-terminated; the caller frees. NULL with errno on failure. */
-char *am_read_file(const char *path, size_t *len);
 /* Replace path atomically (written beside it, then renamed); failures are silent. */
 void am_write_file(const char *path, const char *text, size_t len, mode_t mode);
 void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65]);

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/component.h"
+#include "core/file.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_lifecycle_command_t.h"
@@ -85,7 +86,7 @@ static void order_up(am_t *am, const marie_am_order_t *o)
      * working); otherwise keep a copy in the state directory. */
     char path[PATH_MAX];
     size_t len = 0;
-    char *local = o->system_path[0] ? am_read_file(o->system_path, &len) : NULL;
+    char *local = o->system_path[0] ? marie_file_read(o->system_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
     if (local && len == strlen(o->system_text) && memcmp(local, o->system_text, len) == 0) {
         snprintf(path, sizeof path, "%s", o->system_path);
     } else {

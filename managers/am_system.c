@@ -11,6 +11,7 @@
 
 #include <sodium.h>
 
+#include "core/file.h"
 #include "core/log.h"
 #include "core/procstat.h"
 #include "managers/am.h"
@@ -84,30 +85,6 @@ void am_write_file(const char *path, const char *text, size_t len, mode_t mode)
         rename(tmp, path);
 }
 
-char *am_read_file(const char *path, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    char *buf = NULL;
-    size_t cap = 0, n = 0;
-    for (;;) {
-        if (n + 4096 > cap) {
-            char *nb = realloc(buf, cap = cap * 2 + 8192);
-            if (!nb) { free(buf); fclose(f); return NULL; }
-            buf = nb;
-        }
-        size_t r = fread(buf + n, 1, cap - n - 1, f);
-        if (r == 0)
-            break;
-        n += r;
-    }
-    fclose(f);
-    buf[n] = 0;
-    *len = n;
-    return buf;
-}
-
 void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65])
 {
     crypto_hash_sha256_state s;
@@ -169,7 +146,7 @@ static int check_programs(am_t *am, const marie_system_t *sys, marie_errors_t *e
 int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs)
 {
     size_t len = 0;
-    char *text = am_read_file(path, &len);
+    char *text = marie_file_read(path, MARIE_AM_SYSTEM_MAX_BYTES, &len);
     if (!text) {
         marie_errors_add(errs, path, 0, 0, "%s", strerror(errno));
         return -1;

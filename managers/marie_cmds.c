@@ -14,30 +14,13 @@
 #include <lcm/lcm.h>
 
 #include "core/config.h"
+#include "core/file.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
 #include "managers/progcheck.h"
 
 /* ---------------------------------------------------------------- commands */
-
-static char *slurp(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    char *buf = NULL;
-    size_t len = 0;
-    FILE *m = open_memstream(&buf, &len);
-    char tmp[8192];
-    size_t n;
-    while (m && (n = fread(tmp, 1, sizeof tmp, f)) > 0)
-        fwrite(tmp, 1, n, m);
-    if (m)
-        fclose(m);
-    fclose(f);
-    return buf;
-}
 
 /* Every component's program, on whichever host it runs, is checked here: the programs are
  * installed alike on every host (deploy/), and a bad entry must stop `up` before any start. */
@@ -92,7 +75,8 @@ int cmd_up(cli_t *cli, int argc, char **argv)
     }
     for (size_t i = 0; i < sys->nhosts; i++)
         expect_host(cli, sys->hosts[i]);
-    char *text = slurp(file);
+    size_t text_len;
+    char *text = marie_file_read(file, MARIE_AM_SYSTEM_MAX_BYTES, &text_len);
     char *abs = realpath(file, NULL);
     int rc = text ? cli_open(cli) : -1;
     if (rc == 0)
