@@ -19,6 +19,9 @@ extern "C" {
 #define MARIE_CH_AM_STATUS "MARIE_AM_STATUS"
 #define MARIE_CH_LOG       "MARIE_LOG"
 
+/* The most of a system file read to send or load (the loader, core/yaml.c, refuses more). */
+#define MARIE_AM_SYSTEM_MAX_BYTES (16 << 20)
+
 /* Exit codes of the marie command line (documented in docs/managers.md). */
 enum {
     MARIE_EXIT_OK = 0,

@@ -1,9 +1,11 @@
 # managers: marie-am (one per host), the marie command line, and the order-signing library.
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/balance.c))
+$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/supervise.c managers/balance.c))
 
-$(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
-$(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
+# marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c)
+# around the supervision state machine in the library (supervise.c).
+$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_balance.c,$(MANAGERS_LIB)))
+$(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;
@@ -16,6 +18,7 @@ EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp $(B)/tests/bin/marie-test-order
 
 $(eval $(call marie_test,test_auth,tests/managers/test_auth.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB)))
+$(eval $(call marie_test,test_supervise,tests/managers/test_supervise.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh

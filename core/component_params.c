@@ -1,0 +1,244 @@
+/* component parameters and command line: options, --help, binding params from the system
+ * file and --param, and filling the MARIE_PARAM_AT struct. */
+#include "core/component.h"
+
+#include <assert.h>
+#include <errno.h>
+#include <getopt.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "core/expand.h"
+#include "core/spec.h"
+#include "lcmtypes/marie_types.h"
+#include "core/component_priv.h"
+
+static const param_t *find_param(const marie_component_t *c, const char *name, marie_param_type_t type)
+{
+    for (size_t i = 0; i < c->nparams; i++) {
+        if (strcmp(c->params[i].spec->name, name) == 0) {
+            assert((c->params[i].spec->type == type || type == MARIE_PARAM_NODE) && "parameter read as another type");
+            return &c->params[i];
+        }
+    }
+    assert(!"no such parameter declared");
+    return NULL;
+}
+
+int64_t marie_param_int(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_INT)->i; }
+double marie_param_double(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_DOUBLE)->d; }
+bool marie_param_bool(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_BOOL)->b; }
+const char *marie_param_str(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_STRING)->s; }
+const marie_node_t *marie_param_node(const marie_component_t *c, const char *name) { return find_param(c, name, MARIE_PARAM_NODE)->node; }
+const void *marie_component_params(const marie_component_t *c) { return c->params_struct; }
+
+/* Copies every bound parameter's value into the component's params struct. */
+int marie_comp_fill_params(marie_component_t *c)
+{
+    if (!c->def->params_size)
+        return 0;
+    c->params_struct = calloc(1, c->def->params_size);
+    if (!c->params_struct)
+        return -1;
+    char *base = c->params_struct;
+    for (size_t i = 0; i < c->nparams; i++) {
+        const param_t *pa = &c->params[i];
+        if (!pa->spec->bound)
+            continue;
+        assert(pa->spec->offset < c->def->params_size && "MARIE_PARAM_AT outside params_size");
+        void *at = base + pa->spec->offset;
+        switch (pa->spec->type) {
+        case MARIE_PARAM_INT: memcpy(at, &pa->i, sizeof pa->i); break;
+        case MARIE_PARAM_DOUBLE: memcpy(at, &pa->d, sizeof pa->d); break;
+        case MARIE_PARAM_BOOL: memcpy(at, &pa->b, sizeof pa->b); break;
+        case MARIE_PARAM_STRING: memcpy(at, &pa->s, sizeof pa->s); break;
+        case MARIE_PARAM_NODE: memcpy(at, &pa->node, sizeof pa->node); break;
+        }
+    }
+    return 0;
+}
+
+
+/* ---- creation ---- */
+
+
+static void usage(const marie_component_def_t *def, FILE *out)
+{
+    fprintf(out, "usage: %s [--system FILE] [--name NAME] [--profile P] [--url URL] [--clock wall|sim]\n"
+                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold] [--describe]\n", def->kind);
+    fprintf(out, "ports:\n");
+    for (const marie_port_spec_t *p = def->ports; p && p->name; p++)
+        fprintf(out, "  %-16s %-4s %-6s %-28s default channel %s\n", p->name, p->dir == MARIE_IN ? "in" : "out",
+                p->mech == MARIE_PUSH ? "push" : p->mech == MARIE_PULL ? "pull" : "event",
+                p->type ? p->type->name : "raw", p->channel ? p->channel : "(must be bound)");
+    fprintf(out, "params:\n");
+    for (const marie_param_spec_t *p = def->params; p && p->name; p++)
+        fprintf(out, "  %-20s default %-12s %s\n", p->name, p->def ? p->def : "(required)", p->help ? p->help : "");
+}
+
+int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **argv, options_t *o, marie_errors_t *errs)
+{
+    static const struct option longopts[] = {
+        {"system", required_argument, 0, 's'}, {"name", required_argument, 0, 'n'},
+        {"profile", required_argument, 0, 'p'}, {"url", required_argument, 0, 'u'},
+        {"clock", required_argument, 0, 'c'}, {"param", required_argument, 0, 'P'},
+        {"port", required_argument, 0, 'o'}, {"hold", no_argument, 0, 'H'},
+        {"help", no_argument, 0, 'h'}, {"describe", no_argument, 0, 'D'}, {0, 0, 0, 0},
+    };
+    memset(o, 0, sizeof *o);
+    o->system = getenv("MARIE_SYSTEM");
+    o->name = getenv("MARIE_NAME");
+    o->profile = getenv("MARIE_PROFILE");
+    o->params = calloc((size_t)argc + 1, sizeof *o->params);
+    o->ports = calloc((size_t)argc + 1, sizeof *o->ports);
+    if (!o->params || !o->ports)
+        return -1;
+    optind = 1;
+    opterr = 0;
+    int ch;
+    while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        switch (ch) {
+        case 's': o->system = optarg; break;
+        case 'n': o->name = optarg; break;
+        case 'p': o->profile = optarg; break;
+        case 'u': o->url = optarg; break;
+        case 'c': o->clock = optarg; break;
+        case 'P': o->params[o->nparams++] = optarg; break;
+        case 'o': o->ports[o->nports++] = optarg; break;
+        case 'H': o->hold = true; break;
+        case 'h': usage(def, stdout); exit(0);
+        case 'D': marie_spec_describe(def, stdout); exit(0);   /* for the managers' checks */
+        default:
+            marie_errors_add(errs, "command line", 0, optind > 1 ? optind - 1 : 0, "unknown option '%s'",
+                             argv[optind - 1]);
+            return -1;
+        }
+    }
+    if (optind < argc) {
+        marie_errors_add(errs, "command line", 0, optind, "unexpected argument '%s'", argv[optind]);
+        return -1;
+    }
+    if (o->clock && strcmp(o->clock, "wall") != 0 && strcmp(o->clock, "sim") != 0) {
+        marie_errors_add(errs, "command line", 0, 0, "--clock: expected wall or sim, got '%s'", o->clock);
+        return -1;
+    }
+    return 0;
+}
+
+static marie_doc_t *keep_doc(marie_component_t *c, marie_doc_t *d)
+{
+    marie_doc_t **n = realloc(c->docs, (c->ndocs + 1) * sizeof *n);
+    if (!n) {
+        marie_doc_destroy(d);
+        return NULL;
+    }
+    c->docs = n;
+    c->docs[c->ndocs++] = d;
+    return d;
+}
+
+/* String parameters may name the environment (${MARIE_RUN_DIR}/can): one system file, per-run paths. */
+static int expand_param(param_t *pa, const marie_node_t *node, marie_errors_t *errs)
+{
+    if (!strstr(pa->s, "${"))
+        return 0;
+    char why[256] = "";
+    pa->expanded = marie_expand_env(pa->s, why, sizeof why);
+    if (!pa->expanded) {
+        marie_errors_add(errs, node->file, node->line, node->col, "%s: %s", pa->spec->name,
+                         errno == ENOMEM ? strerror(errno) : why);
+        return -1;
+    }
+    pa->s = pa->expanded;
+    return 0;
+}
+
+int marie_comp_bind_params(marie_component_t *c, const options_t *o, marie_errors_t *errs)
+{
+    size_t n = 0;
+    for (const marie_param_spec_t *p = c->def->params; p && p->name; p++)
+        n++;
+    c->params = calloc(n ? n : 1, sizeof *c->params);
+    if (!c->params)
+        return -1;
+    c->nparams = n;
+    int rc = 0;
+    const marie_node_t *given = c->cfg ? c->cfg->params : NULL;
+    /* Every configured parameter must be one the component declares. */
+    for (size_t i = 0; given && i < given->n; i++) {
+        const marie_node_t *g = given->items[i];
+        bool known = false;
+        for (size_t k = 0; k < n && !known; k++)
+            known = strcmp(c->def->params[k].name, g->key) == 0;
+        if (!known) {
+            marie_errors_add(errs, g->file, g->key_line, g->key_col, "unknown parameter '%s' for %s '%s'", g->key,
+                             c->def->kind, c->name);
+            rc = -1;
+        }
+    }
+    for (size_t i = 0; i < o->nparams; i++) {
+        const char *eq = strchr(o->params[i], '=');
+        bool known = false;
+        for (size_t k = 0; eq && k < n && !known; k++)
+            known = strlen(c->def->params[k].name) == (size_t)(eq - o->params[i]) &&
+                    strncmp(c->def->params[k].name, o->params[i], (size_t)(eq - o->params[i])) == 0;
+        if (!known) {
+            marie_errors_add(errs, "command line", 0, 0, "--param %s: %s", o->params[i],
+                             eq ? "unknown parameter" : "expected KEY=VALUE");
+            rc = -1;
+        }
+    }
+    for (size_t k = 0; k < n; k++) {
+        param_t *pa = &c->params[k];
+        pa->spec = &c->def->params[k];
+        const char *name = pa->spec->name;
+        size_t nlen = strlen(name);
+        pa->node = marie_node_get(given, name);
+        for (size_t i = 0; i < o->nparams; i++) {
+            if (strncmp(o->params[i], name, nlen) == 0 && o->params[i][nlen] == '=') {
+                char label[128];
+                snprintf(label, sizeof label, "--param %s", name);
+                const char *v = o->params[i] + nlen + 1;
+                marie_doc_t *d = keep_doc(c, marie_doc_parse(label, v, strlen(v), errs));
+                if (!d) {
+                    rc = -1;
+                    continue;
+                }
+                pa->node = marie_doc_root(d);
+            }
+        }
+        if (!pa->node && pa->spec->def) {
+            char label[128];
+            snprintf(label, sizeof label, "default of %s.%s", c->def->kind, name);
+            /* An empty default is the empty string, not an empty document. */
+            const char *def = pa->spec->def[0] ? pa->spec->def : "''";
+            marie_doc_t *d = keep_doc(c, marie_doc_parse(label, def, strlen(def), errs));
+            pa->node = d ? marie_doc_root(d) : NULL;
+        }
+        if (!pa->node) {
+            if (!pa->spec->def)
+                marie_errors_add(errs, c->cfg ? c->cfg->file : "command line", c->cfg ? c->cfg->line : 0,
+                                 c->cfg ? c->cfg->col : 0, "%s '%s': missing required parameter '%s'",
+                                 c->def->kind, c->name, name);
+            rc = pa->spec->type == MARIE_PARAM_NODE && pa->spec->def ? rc : -1;
+            continue;
+        }
+        /* Labels in messages use the parameter's name. */
+        marie_node_t *node = (marie_node_t *)pa->node;
+        char *saved_key = node->key;
+        node->key = (char *)name;
+        int r = 0;
+        switch (pa->spec->type) {
+        case MARIE_PARAM_INT: r = marie_node_int(node, &pa->i, errs); break;
+        case MARIE_PARAM_DOUBLE: r = marie_node_double(node, &pa->d, errs); break;
+        case MARIE_PARAM_BOOL: r = marie_node_bool(node, &pa->b, errs); break;
+        case MARIE_PARAM_STRING: r = marie_node_str(node, &pa->s, errs) < 0 ? -1 : expand_param(pa, node, errs); break;
+        case MARIE_PARAM_NODE: break;
+        }
+        node->key = saved_key;
+        rc |= r;
+    }
+    return rc;
+}

@@ -1,0 +1,422 @@
+/* component ports: publish and subscribe over LCM, event queues, pull requests and ticks. */
+#include "core/component.h"
+
+#include <assert.h>
+#include <errno.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "core/typeinfo.h"
+#include "lcmtypes/marie_types.h"
+#include "core/component_priv.h"
+
+/* ---- ports ---- */
+
+/* Decodes a payload for port p; on success calls the handler. Returns 0 or -1 (counted). */
+static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_utime)
+{
+    marie_component_t *c = p->c;
+    const marie_type_t *t = p->spec->type;
+    marie_msg_info_t info = {p->channel, recv_utime, data, len};
+    if (!t) {
+        c->msgs_in++;
+        p->cb(c, p, NULL, &info);
+        return 0;
+    }
+    const char *why;
+    if (marie_decode_input(t, data, len, p->scratch, &why) < 0) {
+        marie_component_bad_input(c, why, "port %s: %zu bytes on %s: not a well-formed, finite %s", p->spec->name,
+                                  len, p->channel, t->name);
+        return -1;
+    }
+    c->msgs_in++;
+    p->cb(c, p, p->scratch, &info);
+    t->decode_cleanup(p->scratch);
+    return 0;
+}
+
+void marie_comp_flush_events(marie_component_t *c)
+{
+    for (size_t i = 0; i < c->nports; i++) {
+        marie_port_t *p = &c->ports[i];
+        /* A handler may stop the component: keep the rest queued then. */
+        size_t done = 0;
+        for (; done < p->nqueue && c->state == MARIE_STATE_RUNNING; done++) {
+            deliver(p, p->queue[done].data, p->queue[done].len, p->queue[done].recv_utime);
+            free(p->queue[done].data);
+        }
+        if (done) {
+            memmove(p->queue, p->queue + done, (p->nqueue - done) * sizeof *p->queue);
+            p->nqueue -= done;
+        }
+    }
+}
+
+static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_port_t *p = user;
+    marie_component_t *c = p->c;
+    if (!p->cb)
+        return;
+    if (c->state == MARIE_STATE_RUNNING) {
+        deliver(p, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+        return;
+    }
+    if (p->spec->mech != MARIE_EVENT) {
+        marie_component_count(c, "ignored_not_running", 1);
+        return;
+    }
+    /* Events wait for the component to run again; an overflow is a counted loss. */
+    if (p->nqueue == EVENT_QUEUE_MAX) {
+        free(p->queue[0].data);
+        memmove(p->queue, p->queue + 1, (p->nqueue - 1) * sizeof *p->queue);
+        p->nqueue--;
+        c->drops++;
+        marie_component_count(c, "events_lost", 1);
+    }
+    void *copy = malloc(rbuf->data_size ? rbuf->data_size : 1);
+    if (!copy) {
+        c->drops++;
+        marie_component_count(c, "events_lost", 1);
+        return;
+    }
+    memcpy(copy, rbuf->data, rbuf->data_size);
+    p->queue[p->nqueue++] = (queued_t){copy, rbuf->data_size, rbuf->recv_utime};
+}
+
+marie_port_t *marie_port(marie_component_t *c, const char *name)
+{
+    for (size_t i = 0; i < c->nports; i++)
+        if (strcmp(c->ports[i].spec->name, name) == 0)
+            return &c->ports[i];
+    assert(!"marie_port: no such port declared");
+    return NULL;
+}
+
+const char *marie_port_channel(const marie_port_t *p) { return p->channel; }
+const char *marie_port_name(const marie_port_t *p) { return p->spec->name; }
+
+int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
+{
+    if (lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0) {
+        int err = errno ? errno : EIO;
+        p->c->drops++;
+        marie_component_count(p->c, "publish_failed", 1);
+        marie_warn_ratelimited(5, "%s: publish on %s failed: %s", p->c->name, p->channel, strerror(err));
+        return -err;
+    }
+    p->c->msgs_out++;
+    return 0;
+}
+
+int marie_port_publish(marie_port_t *p, const void *msg)
+{
+    const marie_type_t *t = p->spec->type;
+    assert(t && "marie_port_publish on a raw port");
+    int size = t->encoded_size(msg);
+    if (size < 0)
+        return -EINVAL;
+    if ((size_t)size > p->bufcap) {
+        uint8_t *n = realloc(p->buf, (size_t)size);
+        if (!n)
+            return -ENOMEM;
+        p->buf = n;
+        p->bufcap = (size_t)size;
+    }
+    if (t->encode(p->buf, 0, size, msg) != size)
+        return -EINVAL;
+    return marie_port_publish_raw(p, p->buf, (size_t)size);
+}
+
+int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
+{
+    if (p->spec->dir != MARIE_IN || p->spec->mech == MARIE_PULL)
+        return -EINVAL;
+    p->cb = cb;
+    if (!p->sub) {
+        p->sub = lcm_subscribe(p->lcm, p->channel, on_port_message, p);
+        if (!p->sub)
+            return -EIO;
+        /* LCM drops silently past a subscription's queue capacity (30 by default):
+         * events must not be lost there, so give their ports room for bursts. */
+        if (p->spec->mech == MARIE_EVENT)
+            lcm_subscription_set_queue_capacity(p->sub, EVENT_QUEUE_MAX * 4);
+    }
+    return 0;
+}
+
+/* ---- pull ---- */
+
+static void pull_finish(marie_component_t *c, pull_t *pl, int status, const void *msg, int64_t age)
+{
+    for (size_t i = 0; i < c->npulls; i++) {
+        if (c->pulls[i] == pl) {
+            c->pulls[i] = c->pulls[--c->npulls];
+            break;
+        }
+    }
+    if (pl->timeout)
+        marie_loop_remove_timer(c->loop, pl->timeout);
+    pl->timeout = NULL;
+    if (pl->cb) {
+        pl->cb(c, pl->port, status, msg, age, pl->user);
+        free(pl);
+    } else {
+        pl->status = status;
+        pl->age_us = age;
+        pl->done = 1;
+    }
+}
+
+static void on_pull_timeout(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    pull_t *pl = user;
+    pl->timeout = NULL;  /* one-shot: already freed by the loop */
+    marie_component_count(pl->port->c, "pull_timeouts", 1);
+    pull_finish(pl->port->c, pl, -ETIMEDOUT, NULL, 0);
+}
+
+static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_component_t *c = user;
+    marie_pull_reply_t r;
+    if (marie_decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0) {
+        marie_component_bad_input(c, "bad_pull_reply", "undecodable pull reply");
+        return;
+    }
+    pull_t *pl = NULL;
+    for (size_t i = 0; i < c->npulls && !pl; i++)
+        if (c->pulls[i]->request_id == r.request_id)
+            pl = c->pulls[i];
+    if (!pl) {
+        marie_component_count(c, "late_pull_replies", 1);
+        marie_pull_reply_t_decode_cleanup(&r);
+        return;
+    }
+    const marie_type_t *t = pl->port->spec->type;
+    int status = 0;
+    void *msg = NULL;
+    if (r.status == MARIE_PULL_REPLY_T_STATUS_EMPTY || r.status == MARIE_PULL_REPLY_T_STATUS_TIMEOUT) {
+        status = -ENODATA;
+    } else if (r.status != MARIE_PULL_REPLY_T_STATUS_OK) {
+        status = r.status == MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL ? -ENOENT : -EBADMSG;
+    } else if (t) {
+        const char *why;
+        msg = pl->cb ? pl->port->scratch : pl->msg;
+        if (marie_decode_input(t, r.data, (size_t)r.size, msg, &why) < 0) {
+            marie_component_bad_input(c, why, "pull reply on %s: %d bytes: not a well-formed, finite %s", r.channel,
+                                      r.size, t->name);
+            status = -EBADMSG;
+            msg = NULL;
+        }
+    }
+    if (status == 0)
+        c->msgs_in++;
+    bool async = pl->cb != NULL;
+    pull_finish(c, pl, status, msg, r.age_us);
+    if (async && msg && t)
+        t->decode_cleanup(msg);
+    marie_pull_reply_t_decode_cleanup(&r);
+}
+
+static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, void *user, void *msg)
+{
+    marie_component_t *c = p->c;
+    if (p->spec->mech != MARIE_PULL || timeout_ms < 0) {
+        errno = EINVAL;
+        return NULL;
+    }
+    if (!c->reply_subscribed) {
+        if (!lcm_subscribe(p->lcm, c->reply_channel, on_pull_reply, c)) {
+            errno = EIO;
+            return NULL;
+        }
+        c->reply_subscribed = true;
+    }
+    pull_t **n = realloc(c->pulls, (c->npulls + 1) * sizeof *n);
+    pull_t *pl = calloc(1, sizeof *pl);
+    if (!n || !pl) {
+        free(pl);
+        if (n)
+            c->pulls = n;
+        errno = ENOMEM;
+        return NULL;
+    }
+    c->pulls = n;
+    *pl = (pull_t){.request_id = ++c->next_request_id, .port = p, .cb = cb, .user = user, .msg = msg};
+    char req_channel[256];
+    snprintf(req_channel, sizeof req_channel, "%s%s", p->channel, MARIE_PULL_SUFFIX);
+    marie_pull_request_t req = {
+        .utime = marie_wall_us(), .request_id = pl->request_id, .requester = c->name,
+        .channel = p->channel, .reply_channel = c->reply_channel, .timeout_ms = timeout_ms,
+    };
+    if (marie_pull_request_t_publish(p->lcm, req_channel, &req) != 0) {
+        c->drops++;
+        free(pl);
+        errno = EIO;
+        return NULL;
+    }
+    c->msgs_out++;
+    pl->timeout = marie_loop_add_wall_oneshot(c->loop, (int64_t)timeout_ms * 1000, on_pull_timeout, pl);
+    c->pulls[c->npulls++] = pl;
+    return pl;
+}
+
+int marie_port_pull_async(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, void *user)
+{
+    if (!cb)
+        return -EINVAL;
+    return pull_send(p, timeout_ms, cb, user, NULL) ? 0 : -errno;
+}
+
+int marie_port_pull(marie_port_t *p, void *msg, int timeout_ms, int64_t *age_us)
+{
+    pull_t *pl = pull_send(p, timeout_ms, NULL, NULL, msg);
+    if (!pl)
+        return -errno;
+    /* Other messages keep being handled while we wait for this reply. */
+    while (!pl->done && !marie_loop_quitting(p->c->loop)) {
+        int rc = marie_loop_run_once(p->c->loop, 10);
+        if (rc < 0) {
+            pull_finish(p->c, pl, rc, NULL, 0);
+            break;
+        }
+    }
+    if (!pl->done)
+        pull_finish(p->c, pl, -ECANCELED, NULL, 0);
+    int status = pl->status;
+    if (age_us)
+        *age_us = pl->age_us;
+    free(pl);
+    return status;
+}
+
+/* ---- ticks ---- */
+
+static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    tick_t *k = user;
+    if (k->c->state != MARIE_STATE_RUNNING)
+        return;
+    k->c->overruns += overruns;
+    k->cb(k->c, overruns);
+}
+
+marie_timer_t *marie_component_every(marie_component_t *c, double hz, marie_tick_cb_t cb)
+{
+    if (hz <= 0 || !cb) {
+        errno = EINVAL;
+        return NULL;
+    }
+    for (size_t i = 0; i < c->nticks; i++)
+        if (c->ticks[i]->cb == cb) {
+            marie_timer_set_period(c->ticks[i]->timer, (int64_t)(1e6 / hz + 0.5));
+            return c->ticks[i]->timer;
+        }
+    tick_t **n = realloc(c->ticks, (c->nticks + 1) * sizeof *n);
+    tick_t *k = calloc(1, sizeof *k);
+    if (!n || !k) {
+        free(k);
+        if (n)
+            c->ticks = n;
+        errno = ENOMEM;
+        return NULL;
+    }
+    c->ticks = n;
+    *k = (tick_t){c, cb, NULL};
+    k->timer = marie_loop_add_timer(c->loop, (int64_t)(1e6 / hz + 0.5), on_tick, k);
+    if (!k->timer) {
+        free(k);
+        return NULL;
+    }
+    c->ticks[c->nticks++] = k;
+    return k->timer;
+}
+
+lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url)
+{
+    for (size_t i = 0; i < c->nbuses; i++)
+        if (strcmp(c->buses[i].url, url) == 0)
+            return c->buses[i].lcm;
+    bus_t *n = realloc(c->buses, (c->nbuses + 1) * sizeof *n);
+    if (!n)
+        return NULL;
+    c->buses = n;
+    lcm_t *lcm = lcm_create(url);
+    if (!lcm) {
+        marie_error("%s: cannot open the LCM bus '%s'", c->name, url);
+        return NULL;
+    }
+    c->buses[c->nbuses++] = (bus_t){strdup(url), lcm};
+    return lcm;
+}
+
+int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors_t *errs)
+{
+    size_t n = 0;
+    for (const marie_port_spec_t *p = c->def->ports; p && p->name; p++)
+        n++;
+    c->ports = calloc(n ? n : 1, sizeof *c->ports);
+    if (!c->ports)
+        return -1;
+    c->nports = n;
+    int rc = 0;
+    const marie_component_cfg_t *cfg = c->cfg;
+    for (size_t i = 0; cfg && i < cfg->nports; i++) {
+        bool known = false;
+        for (size_t k = 0; k < n && !known; k++)
+            known = strcmp(c->def->ports[k].name, cfg->ports[i].name) == 0;
+        if (!known) {
+            marie_errors_add(errs, cfg->file, cfg->ports[i].line, cfg->ports[i].col, "%s '%s' has no port '%s'",
+                             c->def->kind, c->name, cfg->ports[i].name);
+            rc = -1;
+        }
+    }
+    for (size_t k = 0; k < n; k++) {
+        marie_port_t *p = &c->ports[k];
+        p->c = c;
+        p->spec = &c->def->ports[k];
+        const char *channel = p->spec->channel, *url = c->buses[0].url;
+        for (size_t i = 0; cfg && i < cfg->nports; i++) {
+            if (strcmp(cfg->ports[i].name, p->spec->name) == 0) {
+                channel = cfg->ports[i].channel;
+                if (cfg->ports[i].url)
+                    url = cfg->ports[i].url;
+            }
+        }
+        size_t nlen = strlen(p->spec->name);
+        for (size_t i = 0; i < o->nports; i++)
+            if (strncmp(o->ports[i], p->spec->name, nlen) == 0 && o->ports[i][nlen] == '=')
+                channel = o->ports[i] + nlen + 1;
+        if (!channel || !*channel) {
+            marie_errors_add(errs, cfg ? cfg->file : "command line", cfg ? cfg->line : 0, cfg ? cfg->col : 0,
+                             "%s '%s': port '%s' is not bound to a channel", c->def->kind, c->name, p->spec->name);
+            rc = -1;
+            continue;
+        }
+        p->channel = strdup(channel);
+        p->lcm = marie_comp_bus_for(c, url);
+        if (!p->lcm || !p->channel)
+            return -1;
+        if (p->spec->type && !(p->scratch = calloc(1, p->spec->type->size)))
+            return -1;
+        if (p->spec->mech == MARIE_EVENT && p->spec->dir == MARIE_IN &&
+            !(p->queue = calloc(EVENT_QUEUE_MAX, sizeof *p->queue)))
+            return -1;
+    }
+    for (size_t i = 0; i < o->nports; i++) {
+        const char *eq = strchr(o->ports[i], '=');
+        bool known = false;
+        for (size_t k = 0; eq && k < n && !known; k++)
+            known = strlen(c->def->ports[k].name) == (size_t)(eq - o->ports[i]) &&
+                    strncmp(c->def->ports[k].name, o->ports[i], (size_t)(eq - o->ports[i])) == 0;
+        if (!known) {
+            marie_errors_add(errs, "command line", 0, 0, "--port %s: %s", o->ports[i],
+                             eq ? "no such port" : "expected PORT=CHANNEL");
+            rc = -1;
+        }
+    }
+    return rc;
+}

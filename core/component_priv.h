@@ -1,0 +1,139 @@
+/* The component runtime's own parts, shared by core/component*.c (not for components): the
+ * component and port structures and the functions each file offers the others. */
+#ifndef MARIE_CORE_COMPONENT_PRIV_H
+#define MARIE_CORE_COMPONENT_PRIV_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include <lcm/lcm.h>
+
+#include "core/auth.h"
+#include "core/component.h"
+#include "core/spec.h"
+
+#define EVENT_QUEUE_MAX 256
+
+typedef struct {
+    int64_t request_id;
+    marie_port_t *port;
+    marie_timer_t *timeout;
+    marie_pull_cb_t cb;         /* NULL for a blocking pull */
+    void *user;
+    /* blocking pull result */
+    void *msg;
+    int64_t age_us;
+    int status;
+    int done;
+} pull_t;
+
+typedef struct {
+    void *data;
+    size_t len;
+    int64_t recv_utime;
+} queued_t;
+
+struct marie_port {
+    marie_component_t *c;
+    const marie_port_spec_t *spec;
+    char *channel;
+    lcm_t *lcm;
+    lcm_subscription_t *sub;
+    marie_msg_cb_t cb;
+    void *scratch;              /* decoded message */
+    uint8_t *buf;               /* encode buffer */
+    size_t bufcap;
+    queued_t *queue;            /* event port: held while not running */
+    size_t nqueue;
+};
+
+typedef struct {
+    const marie_param_spec_t *spec;
+    const marie_node_t *node;
+    int64_t i;
+    double d;
+    bool b;
+    const char *s;
+    char *expanded;             /* s after ${VAR} expansion, when it differed */
+} param_t;
+
+typedef struct {
+    char *name;
+    int64_t value;
+} counter_t;
+
+typedef struct {
+    marie_component_t *c;
+    marie_tick_cb_t cb;
+    marie_timer_t *timer;
+} tick_t;
+
+typedef struct {
+    char *url;
+    lcm_t *lcm;
+} bus_t;
+
+struct marie_component {
+    const marie_component_def_t *def;
+    void *user;
+    char *name;
+    char host[64];
+    marie_system_t *sys;
+    const marie_component_cfg_t *cfg;
+    void *params_struct;        /* def->params_size bytes, filled from MARIE_PARAM_AT entries */
+    marie_doc_t **docs;         /* defaults and --param values */
+    size_t ndocs;
+    param_t *params;
+    size_t nparams;
+    marie_port_t *ports;
+    size_t nports;
+    bus_t *buses;               /* buses[0] is the system bus */
+    size_t nbuses;
+    marie_loop_t *loop;
+    marie_state_t state;
+    bool initialised;           /* on_init succeeded and on_quit has not run */
+    bool hold;
+    char reason[400];
+    char fail_reason[256];
+    bool degraded;              /* heartbeat says degraded while running */
+    char degraded_reason[256];
+    int64_t start_mono;
+    int64_t msgs_in, msgs_out, drops, bad_input, overruns;
+    counter_t *counters;
+    size_t ncounters;
+    int64_t hb_seq, event_seq;
+    tick_t **ticks;
+    size_t nticks;
+    pull_t **pulls;
+    size_t npulls;
+    int64_t next_request_id;
+    char reply_channel[128];
+    bool reply_subscribed;
+    marie_auth_t *auth;         /* set: only signed, fresh lifecycle orders are obeyed */
+    marie_replay_t *replay;
+};
+
+/* The command line of a component, as parsed. */
+typedef struct {
+    const char *system, *name, *profile, *url, *clock;
+    char **params;   /* KEY=VALUE */
+    size_t nparams;
+    char **ports;    /* PORT=CHANNEL */
+    size_t nports;
+    bool hold;
+} options_t;
+
+/* component_port.c */
+/* Deliver what event ports held while the component was not running. */
+void marie_comp_flush_events(marie_component_t *c);
+/* The LCM instance for url (NULL: the system bus), created on first use; NULL on failure. */
+lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url);
+int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors_t *errs);
+
+/* component_params.c */
+int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **argv, options_t *o, marie_errors_t *errs);
+int marie_comp_bind_params(marie_component_t *c, const options_t *o, marie_errors_t *errs);
+int marie_comp_fill_params(marie_component_t *c);
+
+#endif

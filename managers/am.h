@@ -1,0 +1,148 @@
+/* marie-am's own parts, shared between its files (not a library interface): the manager, its
+ * components, and the functions each file offers the others. */
+#ifndef MARIE_MANAGERS_AM_H
+#define MARIE_MANAGERS_AM_H
+
+#include <limits.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <sys/types.h>
+
+#include <lcm/lcm.h>
+
+#include "core/auth.h"
+#include "core/config.h"
+#include "core/loop.h"
+#include "core/procstat.h"
+#include "core/time.h"
+#include "managers/am_proto.h"
+#include "managers/logcap.h"
+#include "managers/supervise.h"
+
+typedef struct am am_t;
+typedef struct comp comp_t;
+
+typedef struct {
+    am_t *am;
+    comp_t *c;
+    int fd;
+    int stream;
+    marie_linebuf_t lb;
+} outpipe_t;
+
+/* A component: the supervision state (pure) and what the I/O around it holds. */
+struct comp {
+    am_t *am;
+    const marie_component_cfg_t *cfg;
+    marie_sv_t sv;
+    char host[128];             /* effective host (a move changes it) */
+    marie_timer_t *timer;       /* backoff or kill timer, as the state machine asks */
+    int64_t start_ticks;        /* /proc start time, with pid names the process */
+    /* usage */
+    marie_cpu_sample_t cpu_prev;
+    float cpu;
+    int64_t rss;
+    /* output */
+    outpipe_t out[2];
+    marie_ratelimit_t rl;
+    int64_t drops_pending, drops_total, log_seq;
+    marie_logfile_t *logf;
+};
+
+struct am {
+    char host[128];
+    char *state_dir;
+    char *key_path;
+    char *url;
+    char self_dir[PATH_MAX];
+    marie_loop_t *loop;
+    lcm_t *lcm;
+    int sigfd;
+    marie_auth_t *auth;
+    marie_replay_t *replay;
+    int64_t order_lifetime_us, max_skew_us;    /* the replay table's window */
+    marie_ratelimit_t refusal_rl;              /* answers and events for refused orders */
+    int64_t refusals_unannounced;
+    /* the loaded system */
+    marie_system_t *sys;
+    char sys_hash[65];
+    char *sys_path;             /* path given to components as MARIE_SYSTEM */
+    char *profile;
+    bool up;
+    comp_t *comps;
+    size_t ncomps;
+    /* settings */
+    double status_hz;
+    double log_rate, log_burst;
+    int64_t log_max_bytes;
+    int log_keep;
+    /* state */
+    int64_t start_mono;
+    int64_t status_seq, event_seq, orders_refused, lc_seq, bad_input;
+    marie_cpu_sample_t self_cpu;
+    float self_cpu_pct;
+    int64_t self_rss;
+    bool status_pending;
+    bool quitting;
+    int64_t quit_deadline;
+    uint64_t watchdog_us;
+    marie_timer_t *status_timer;
+    bool opt_status_hz, opt_log_rate, opt_log_max, opt_log_keep;   /* given on the command line */
+    /* automatic placement (the system's balance: section; NULL without one) */
+    balance_cfg_t bal_cfg;
+    balance_t *bal;
+    char bal_sender[160];       /* "balance@HOST": its orders' sender */
+    char bal_last[256];         /* its last decision, in the status */
+    int64_t adopt_until;        /* a returning manager learns the placement before it starts */
+};
+
+static inline int64_t am_now_us(void) { return marie_mono_us(); }
+
+/* am_status.c: events and the status message */
+void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+void am_status_changed(am_t *am);
+void am_publish_status(am_t *am, bool sample);
+void am_on_status_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
+
+/* am_run.c: the state machine's actions carried out */
+comp_t *am_comp_find(am_t *am, const char *name);
+bool am_comp_matches(const comp_t *c, const char *target);
+/* Do what the state machine asked after an event that found the component in `before`. */
+void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *act);
+void am_comp_want(comp_t *c);
+void am_comp_stop(comp_t *c);
+void am_comp_restart(comp_t *c);
+void am_comp_cancel_timer(comp_t *c);
+void am_comp_close_output(comp_t *c);
+void am_try_start_waiting(am_t *am);
+void am_stop_all(am_t *am);
+void am_progress_stops(am_t *am);
+void am_check_heartbeats(am_t *am);
+void am_reap_children(am_t *am);
+
+/* am_system.c: the loaded system and what survives a restart of the manager */
+int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs);
+void am_comps_free(am_t *am);
+void am_up(am_t *am);
+void am_apply_move(am_t *am, comp_t *c, const char *host);
+bool am_host_known(am_t *am, const char *h);
+void am_comp_open_log(comp_t *c);
+void am_save_up_state(am_t *am);
+void am_restore_up_state(am_t *am);
+void am_save_children(am_t *am);
+void am_kill_leftovers(am_t *am);
+/* Replace path atomically (written beside it, then renamed); failures are silent. */
+void am_write_file(const char *path, const char *text, size_t len, mode_t mode);
+void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65]);
+
+/* am_balance.c: automatic placement (the decisions are balance.c's) */
+void am_balance_on_status(am_t *am, const marie_am_status_t *st);
+void am_balance_decide(am_t *am);
+/* After restoring a system: start now, or first learn the placement (balance: only). */
+void am_balance_up_when_placed(am_t *am);
+void am_balance_tick(am_t *am);
+
+/* am_orders.c */
+void am_on_order(am_t *am, const marie_am_order_t *o);
+
+#endif

@@ -1,0 +1,276 @@
+/* marie-am's orders: up, down, start, stop, restart, move, pause, resume, tail and ping, each
+ * checked (signature, freshness, targets) and answered once. */
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/component.h"
+#include "core/file.h"
+#include "core/log.h"
+#include "lcmtypes/marie_event_t.h"
+#include "lcmtypes/marie_lifecycle_command_t.h"
+#include "managers/am.h"
+
+typedef struct {
+    am_t *am;
+    const char *component;
+    int64_t req;
+} tail_ctx_t;
+
+static void tail_line_cb(const char *line, size_t len, void *user)
+{
+    tail_ctx_t *t = user;
+    char text[MARIE_LINE_MAX + 128];
+    snprintf(text, sizeof text, "%.*s", (int)len, line);
+    marie_log_line_t m = {
+        .utime = marie_wall_us(), .host = t->am->host, .component = (char *)t->component,
+        .stream = MARIE_LOG_LINE_T_STDOUT, .request_seq = t->req, .text = text,
+    };
+    marie_log_line_t_publish(t->am->lcm, MARIE_CH_LOG, &m);
+}
+
+static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, const char *fmt, ...)
+{
+    char reason[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(reason, sizeof reason, fmt, ap);
+    va_end(ap);
+    marie_am_reply_t r = {
+        .utime = marie_wall_us(), .host = am->host, .sender = o->sender, .seq = o->seq, .ok = ok,
+        .reason = reason, .affected = affected,
+        .nhosts = am->sys ? (int32_t)am->sys->nhosts : 0, .hosts = am->sys ? am->sys->hosts : NULL,
+    };
+    marie_am_reply_t_publish(am->lcm, MARIE_CH_AM_REPLY, &r);
+}
+
+static void send_lifecycle(am_t *am, comp_t *c, int cmd, int64_t req)
+{
+    char sender[160];
+    snprintf(sender, sizeof sender, "marie-am@%s", am->host);
+    int64_t seq = marie_wall_us();
+    if (seq <= am->lc_seq)
+        seq = am->lc_seq + 1;
+    am->lc_seq = seq;
+    marie_lifecycle_command_t m = {
+        .utime = marie_wall_us(), .request_id = req, .sender = sender, .target = c->cfg->name,
+        .command = (int8_t)cmd, .seq = seq,
+    };
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    if (am->auth)
+        marie_auth_sign_command(am->auth, &m, mac);
+    marie_lifecycle_command_t_publish(am->lcm, MARIE_CH_LIFECYCLE, &m);
+}
+
+static void order_up(am_t *am, const marie_am_order_t *o)
+{
+    char hash[65];
+    const char *profile = o->arg;
+    am_sha256_hex(o->system_text, strlen(o->system_text), profile, hash);
+    if (am->sys && strcmp(hash, am->sys_hash) == 0) {
+        am_up(am);
+        reply(am, o, true, 0, "ok");
+        return;
+    }
+    for (size_t i = 0; i < am->ncomps; i++)
+        if (am->comps[i].sv.pid > 0) {
+            reply(am, o, false, 0, "another system (%s) is running here: marie down first",
+                  am->sys && am->sys->name ? am->sys->name : "?");
+            return;
+        }
+    /* Use the sender's file where this host sees the same text (relative paths in it keep
+     * working); otherwise keep a copy in the state directory. */
+    char path[PATH_MAX];
+    size_t len = 0;
+    char *local = o->system_path[0] ? marie_file_read(o->system_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
+    if (local && len == strlen(o->system_text) && memcmp(local, o->system_text, len) == 0) {
+        snprintf(path, sizeof path, "%s", o->system_path);
+    } else {
+        snprintf(path, sizeof path, "%s/system.yaml", am->state_dir);
+        am_write_file(path, o->system_text, strlen(o->system_text), 0644);
+    }
+    free(local);
+    marie_errors_t errs = {0};
+    if (am_load_system(am, path, profile, &errs) < 0) {
+        char *msg = NULL;
+        size_t ml = 0;
+        FILE *m = open_memstream(&msg, &ml);
+        if (m) {
+            marie_errors_print(&errs, m);
+            fclose(m);
+        }
+        reply(am, o, false, 0, "system file refused:\n%s", msg ? msg : "");
+        free(msg);
+        marie_errors_clear(&errs);
+        return;
+    }
+    am_up(am);
+    int n = 0;
+    for (size_t i = 0; i < am->ncomps; i++)
+        n += am->comps[i].sv.local;
+    reply(am, o, true, n, "ok");
+}
+
+/* A refused order is counted always, but answered and announced within a rate limit, so a
+ * flood of forgeries or replays cannot make the manager flood the bus; the answer says why
+ * and nothing more (no hosts: the sender may not hold the key). */
+static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_t ar)
+{
+    am->orders_refused++;
+    marie_warn_ratelimited(1, "refused %s order from '%s' (seq %lld): %s (%lld refused so far)",
+                           marie_am_op_name(o->op), o->sender, (long long)o->seq, marie_auth_result_name(ar),
+                           (long long)am->orders_refused);
+    if (!marie_ratelimit_take(&am->refusal_rl, am_now_us())) {
+        am->refusals_unannounced++;
+        return;
+    }
+    char reason[200], text[200], source[160];
+    int64_t now = marie_wall_us();
+    if (ar == MARIE_AUTH_STALE || ar == MARIE_AUTH_FUTURE)
+        snprintf(reason, sizeof reason, "refused: %s (utime %+.1f s, seq %+.1f s from this host's clock; "
+                 "accepted: %+.1f..%+.1f s)", marie_auth_result_name(ar), (double)(o->utime - now) / 1e6,
+                 (double)(o->seq - now) / 1e6, -(double)(am->order_lifetime_us + am->max_skew_us) / 1e6,
+                 (double)am->max_skew_us / 1e6);
+    else
+        snprintf(reason, sizeof reason, "refused: %s", marie_auth_result_name(ar));
+    snprintf(text, sizeof text, "%s (%lld refused, %lld not announced)", marie_auth_result_name(ar),
+             (long long)am->orders_refused, (long long)am->refusals_unannounced);
+    snprintf(source, sizeof source, "marie-am@%s", am->host);
+    marie_event_t ev = {
+        .utime = now, .source = source, .seq = ++am->event_seq,
+        .severity = MARIE_EVENT_T_SEV_WARN, .kind = "order_refused", .text = text,
+    };
+    marie_event_t_publish(am->lcm, MARIE_CH_EVENT, &ev);
+    marie_am_reply_t r = {
+        .utime = now, .host = am->host, .sender = o->sender, .seq = o->seq, .ok = false, .reason = reason,
+    };
+    marie_am_reply_t_publish(am->lcm, MARIE_CH_AM_REPLY, &r);
+    am_status_changed(am);
+}
+
+static void order_down(am_t *am, const marie_am_order_t *o)
+{
+    am->up = false;
+    am_save_up_state(am);
+    int n = 0;
+    for (size_t i = 0; i < am->ncomps; i++)
+        n += am->comps[i].sv.local && am->comps[i].sv.pid > 0;
+    am_stop_all(am);
+    am_progress_stops(am);
+    reply(am, o, true, n, "ok");
+}
+
+static void order_move(am_t *am, const marie_am_order_t *o)
+{
+    if (o->ntargets != 1 || !am_host_known(am, o->arg)) {
+        reply(am, o, false, 0, "move: unknown host '%s'", o->arg);
+        return;
+    }
+    comp_t *c = am_comp_find(am, o->targets[0]);
+    if (!c) {
+        reply(am, o, false, 0, "move: '%s' is not a component", o->targets[0]);
+        return;
+    }
+    bool affected = c->sv.local || strcmp(o->arg, am->host) == 0;
+    am_apply_move(am, c, o->arg);
+    am_save_up_state(am);
+    am_try_start_waiting(am);
+    am_status_changed(am);
+    reply(am, o, true, affected, "ok");
+}
+
+/* One component named by a start/stop/restart/pause/resume/tail order; -1: not such an order. */
+static int order_one(am_t *am, comp_t *c, const marie_am_order_t *o)
+{
+    switch (o->op) {
+    case MARIE_AM_ORDER_T_OP_START:
+        am_comp_open_log(c);
+        am_comp_want(c);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_STOP:
+        am_comp_stop(c);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_RESTART:
+        am_comp_open_log(c);
+        am_comp_restart(c);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_PAUSE:
+        send_lifecycle(am, c, MARIE_CMD_PAUSE, o->seq);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_RESUME:
+        send_lifecycle(am, c, MARIE_CMD_RESUME, o->seq);
+        return 0;
+    case MARIE_AM_ORDER_T_OP_TAIL: {
+        char path[PATH_MAX];
+        snprintf(path, sizeof path, "%s/logs/%s.log", am->state_dir, c->cfg->name);
+        tail_ctx_t tc = {am, c->cfg->name, o->seq};
+        int lines = atoi(o->arg);
+        marie_logfile_tail(path, lines > 0 ? lines : 20, tail_line_cb, &tc);
+        return 0;
+    }
+    default:
+        return -1;
+    }
+}
+
+void am_on_order(am_t *am, const marie_am_order_t *o)
+{
+    if (strcmp(o->host, "*") != 0 && strcmp(o->host, am->host) != 0)
+        return;
+    marie_auth_result_t ar = marie_auth_check_order(am->auth, am->replay, o);
+    if (ar != MARIE_AUTH_OK) {
+        refuse_order(am, o, ar);
+        return;
+    }
+    marie_info("order %s from %s (seq %lld)", marie_am_op_name(o->op), o->sender, (long long)o->seq);
+    if (o->op == MARIE_AM_ORDER_T_OP_PING) {
+        reply(am, o, true, 0, "ok");
+        return;
+    }
+    if (o->op == MARIE_AM_ORDER_T_OP_UP) {
+        order_up(am, o);
+        return;
+    }
+    if (!am->sys) {
+        reply(am, o, false, 0, "no system loaded: marie up FILE first");
+        return;
+    }
+    if (o->op == MARIE_AM_ORDER_T_OP_DOWN) {
+        order_down(am, o);
+        return;
+    }
+    /* every target must name a component or a group of the system */
+    for (int t = 0; t < o->ntargets; t++) {
+        bool known = false;
+        for (size_t i = 0; i < am->ncomps && !known; i++)
+            known = am_comp_matches(&am->comps[i], o->targets[t]);
+        if (!known) {
+            reply(am, o, false, 0, "no component or group named '%s'", o->targets[t]);
+            return;
+        }
+    }
+    if (o->op == MARIE_AM_ORDER_T_OP_MOVE) {
+        order_move(am, o);
+        return;
+    }
+    int n = 0;
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        bool hit = false;
+        for (int t = 0; t < o->ntargets; t++)
+            hit |= am_comp_matches(c, o->targets[t]);
+        if (!hit || !c->sv.local)
+            continue;
+        n++;
+        if (order_one(am, c, o) < 0) {
+            reply(am, o, false, 0, "unknown order %d", o->op);
+            return;
+        }
+    }
+    am_try_start_waiting(am);
+    reply(am, o, true, n, "ok");
+}

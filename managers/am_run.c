@@ -1,0 +1,514 @@
+/* marie-am's hands: spawns components with their output captured, and carries out what the
+ * supervision state machine (supervise.c) decides: signals, timers, respawns. */
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "core/component.h"
+#include "core/log.h"
+#include "lcmtypes/marie_event_t.h"
+#include "managers/am.h"
+#include "managers/progcheck.h"
+
+comp_t *am_comp_find(am_t *am, const char *name)
+{
+    for (size_t i = 0; i < am->ncomps; i++)
+        if (strcmp(am->comps[i].cfg->name, name) == 0)
+            return &am->comps[i];
+    return NULL;
+}
+
+bool am_comp_matches(const comp_t *c, const char *target)
+{
+    return strcmp(target, "*") == 0 || strcmp(c->cfg->name, target) == 0 ||
+           (c->cfg->group && strcmp(c->cfg->group, target) == 0);
+}
+
+/* After any event: a changed state is shown soon. */
+static void note_state(comp_t *c, marie_sv_state_t before)
+{
+    if (c->sv.st != before) {
+        marie_debug("%s: %s -> %s", c->cfg->name, marie_sv_state_name(before), marie_sv_state_name(c->sv.st));
+        am_status_changed(c->am);
+    }
+}
+
+void am_comp_cancel_timer(comp_t *c)
+{
+    if (c->timer) {
+        marie_loop_remove_timer(c->am->loop, c->timer);
+        c->timer = NULL;
+    }
+}
+
+/* ---------------------------------------------------------------- output capture */
+
+static void log_line_cb(const char *line, size_t len, void *user)
+{
+    outpipe_t *op = user;
+    comp_t *c = op->c;
+    am_t *am = op->am;
+    int64_t wall = marie_wall_us();
+    if (!marie_ratelimit_take(&c->rl, am_now_us())) {
+        c->drops_pending++;
+        c->drops_total++;
+        return;
+    }
+    char text[MARIE_LINE_MAX + 1];
+    memcpy(text, line, len);
+    text[len] = 0;
+    marie_log_line_t m = {
+        .utime = wall, .host = am->host, .component = c->cfg->name, .pid = c->sv.pid,
+        .stream = (int8_t)op->stream, .seq = ++c->log_seq, .dropped = c->drops_pending,
+        .request_seq = 0, .text = text,
+    };
+    marie_log_line_t_publish(am->lcm, MARIE_CH_LOG, &m);
+    if (c->logf) {
+        char hdr[96];
+        time_t secs = (time_t)(wall / 1000000);
+        struct tm tm;
+        gmtime_r(&secs, &tm);
+        int hl = 0;
+        if (c->drops_pending) {
+            char note[96];
+            int nl = snprintf(note, sizeof note, "-- %lld lines dropped (rate limit)\n", (long long)c->drops_pending);
+            marie_logfile_write(c->logf, note, (size_t)nl);
+        }
+        hl = snprintf(hdr, sizeof hdr, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ %s ", tm.tm_year + 1900,
+                      tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec,
+                      (int)(wall / 1000 % 1000), op->stream == MARIE_LOG_LINE_T_STDERR ? "err" : "out");
+        char buf[sizeof hdr + MARIE_LINE_MAX + 2];
+        memcpy(buf, hdr, (size_t)hl);
+        memcpy(buf + hl, line, len);
+        buf[hl + len] = '\n';
+        marie_logfile_write(c->logf, buf, (size_t)hl + len + 1);
+    }
+    c->drops_pending = 0;
+}
+
+static void outpipe_close(outpipe_t *op)
+{
+    if (op->fd < 0)
+        return;
+    marie_linebuf_flush(&op->lb, log_line_cb, op);
+    marie_loop_remove_fd(op->am->loop, op->fd);
+    close(op->fd);
+    op->fd = -1;
+}
+
+/* Read what is there; returns 0 at end of file. */
+static int outpipe_drain(outpipe_t *op)
+{
+    char buf[4096];
+    for (int rounds = 0; rounds < 16; rounds++) {
+        ssize_t n = read(op->fd, buf, sizeof buf);
+        if (n > 0) {
+            marie_linebuf_feed(&op->lb, buf, (size_t)n, log_line_cb, op);
+            continue;
+        }
+        if (n == 0)
+            return 0;
+        if (errno == EINTR)
+            continue;
+        return errno == EAGAIN ? 1 : 0;
+    }
+    return 1;
+}
+
+static void on_outpipe(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    outpipe_t *op = user;
+    if (outpipe_drain(op) == 0)
+        outpipe_close(op);
+}
+
+void am_comp_close_output(comp_t *c)
+{
+    for (int i = 0; i < 2; i++)
+        outpipe_close(&c->out[i]);
+}
+
+/* ---------------------------------------------------------------- spawning */
+
+static char *path_with_self(am_t *am)
+{
+    const char *p = getenv("PATH");
+    size_t n = strlen(am->self_dir) + (p ? strlen(p) : 0) + 8;
+    char *s = malloc(n);
+    if (s)
+        snprintf(s, n, "PATH=%s%s%s", am->self_dir, p ? ":" : "", p ? p : "");
+    return s;
+}
+
+static bool env_dropped(const char *kv)
+{
+    static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
+                                       "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
+                                       "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
+                                       "MARIE_STATE_DIR=", "MARIE_KEY=", NULL};
+    for (int i = 0; drop[i]; i++)
+        if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
+            return true;
+    return false;
+}
+
+/* The program to exec: a name without '/' is looked up in marie-am's own directory, then
+ * in PATH (execvpe would search the manager's PATH only). NULL: let execvpe report it. */
+static char *resolve_exec(am_t *am, const char *name)
+{
+    return marie_am_resolve_exec(am->self_dir, name);
+}
+
+static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, const char *prog, char **argv, char **envp)
+{
+    /* Own session and process group: stop signals go to the whole group. */
+    setsid();
+    /* If the manager dies, its components quit (SIGTERM = quit); a restarted manager
+     * starts them again instead of finding orphans. */
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent)
+        _exit(127);
+    sigset_t none;
+    sigemptyset(&none);
+    sigprocmask(SIG_SETMASK, &none, NULL);
+    for (int s = 1; s < NSIG; s++)
+        if (s != SIGKILL && s != SIGSTOP)
+            signal(s, SIG_DFL);
+    int nul = open("/dev/null", O_RDONLY);
+    if (nul >= 0 && nul != 0) {
+        dup2(nul, 0);
+        close(nul);
+    }
+    dup2(outfd, 1);
+    dup2(errfd, 2);
+    /* pipes and every other descriptor of the manager are close-on-exec */
+    if (prog)
+        execve(prog, argv, envp);
+    else
+        execvpe(argv[0], argv, envp);
+    dprintf(2, "marie-am: exec %s: %s\n", argv[0], strerror(errno));
+    _exit(127);
+}
+
+/* The environment of a component: the manager's, minus service plumbing, plus marie's and
+ * the component's. NULL on failure; the caller frees the *ne strings and the array. */
+static char **child_env(comp_t *c, size_t *nep)
+{
+    am_t *am = c->am;
+    const marie_component_cfg_t *cfg = c->cfg;
+    extern char **environ;
+    size_t ne = 0;
+    char **envp;
+    size_t nenv = 0;
+    while (environ[nenv])
+        nenv++;
+    envp = calloc(nenv + cfg->nenv + 10, sizeof *envp);
+    if (!envp)
+        return NULL;
+    for (size_t i = 0; i < nenv; i++)
+        if (!env_dropped(environ[i]))
+            envp[ne++] = strdup(environ[i]);
+    envp[ne++] = path_with_self(am);
+    if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am->sys_path) < 0 ||
+        asprintf(&envp[ne++], "MARIE_NAME=%s", cfg->name) < 0 ||
+        asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
+        /* Components keep their state (SharedMap, Switch) beside the manager's, and their
+         * run-time paths (emulated CAN bus sockets, pty links) in its run/ folder. */
+        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0 ||
+        asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
+        goto fail;
+    if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
+        goto fail;
+    if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
+        goto fail;
+    for (size_t i = 0; i < cfg->nenv; i++)
+        envp[ne++] = strdup(cfg->env[i]);
+    envp[ne] = NULL;
+    *nep = ne;
+    return envp;
+fail:
+    /* every jump follows a failed asprintf, whose pointer is undefined */
+    envp[--ne] = NULL;
+    for (size_t i = 0; i < ne; i++)
+        free(envp[i]);
+    free(envp);
+    return NULL;
+}
+
+static void comp_spawn(comp_t *c)
+{
+    am_t *am = c->am;
+    const marie_component_cfg_t *cfg = c->cfg;
+    int po[2] = {-1, -1}, pe[2] = {-1, -1};
+    size_t na = 0, ne = 0;
+    char **argv = NULL, **envp = NULL;
+    marie_sv_state_t before = c->sv.st;
+
+    am_comp_cancel_timer(c);
+    am_comp_close_output(c);
+    if (pipe2(po, O_CLOEXEC) < 0 || pipe2(pe, O_CLOEXEC) < 0) {
+        am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: pipe: %s", cfg->name, strerror(errno));
+        goto fail;
+    }
+    /* argv */
+    argv = calloc(cfg->nargs + 6, sizeof *argv);
+    if (!argv)
+        goto fail;
+    if (cfg->shell) {
+        argv[na++] = "/bin/sh";
+        argv[na++] = "-c";
+        argv[na++] = cfg->exec;
+        argv[na++] = cfg->name;          /* $0 */
+    } else {
+        argv[na++] = cfg->exec;
+    }
+    for (size_t i = 0; i < cfg->nargs; i++)
+        argv[na++] = cfg->args[i];
+    argv[na] = NULL;
+    envp = child_env(c, &ne);
+    if (!envp)
+        goto fail;
+
+    char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
+    pid_t parent = getpid();
+    pid_t pid = fork();
+    if (pid < 0) {
+        am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: fork: %s", cfg->name, strerror(errno));
+        free(prog);
+        goto fail;
+    }
+    if (pid == 0)
+        child_exec(c, po[1], pe[1], parent, prog, argv, envp);
+    free(prog);
+    close(po[1]);
+    close(pe[1]);
+    int rd[2] = {po[0], pe[0]};
+    for (int i = 0; i < 2; i++) {
+        outpipe_t *op = &c->out[i];
+        op->am = am;
+        op->c = c;
+        op->fd = rd[i];
+        op->stream = i == 0 ? MARIE_LOG_LINE_T_STDOUT : MARIE_LOG_LINE_T_STDERR;
+        op->lb.len = 0;
+        fcntl(op->fd, F_SETFL, fcntl(op->fd, F_GETFL) | O_NONBLOCK);
+        marie_loop_add_fd(am->loop, op->fd, POLLIN, on_outpipe, op);
+    }
+    marie_sv_spawned(&c->sv, pid, am_now_us());
+    c->start_ticks = 0;
+    marie_proc_starttime(pid, &c->start_ticks);
+    am_save_children(am);
+    c->cpu_prev.at_us = 0;
+    c->cpu = 0;
+    c->rss = 0;
+    note_state(c, before);
+    marie_debug("%s: spawned pid %d", cfg->name, (int)pid);
+    for (size_t i = 0; i < ne; i++)
+        free(envp[i]);
+    free(envp);
+    free(argv);
+    return;
+fail:
+    for (int i = 0; i < 2; i++) {
+        if (po[i] >= 0) close(po[i]);
+        if (pe[i] >= 0) close(pe[i]);
+    }
+    if (envp)
+        for (size_t i = 0; i < ne; i++)
+            free(envp[i]);
+    free(envp);
+    free(argv);
+    marie_sv_spawned(&c->sv, -1, am_now_us());
+    note_state(c, before);
+}
+
+/* ---------------------------------------------------------------- the state machine's actions */
+
+static void on_sv_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    comp_t *c = user;
+    c->timer = NULL;
+    marie_sv_state_t before = c->sv.st;
+    marie_sv_action_t act;
+    marie_sv_timer(&c->sv, &act);
+    am_comp_apply(c, before, &act);
+}
+
+void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *act)
+{
+    am_t *am = c->am;
+    pid_t pid = c->sv.pid;
+    if (act->event_kind && act->log_only) {
+        if (act->event_sev >= MARIE_EVENT_T_SEV_WARN)
+            marie_warn("%s", act->event_text);
+        else
+            marie_info("%s", act->event_text);
+    } else if (act->event_kind) {
+        am_event(am, act->event_sev, act->event_kind, "%s", act->event_text);
+    }
+    if (act->cancel_timer || act->timer_s > 0)
+        am_comp_cancel_timer(c);
+    if ((act->what & MARIE_SV_TERM) && pid > 0) {
+        kill(-pid, SIGTERM);
+        kill(-pid, SIGCONT);
+    }
+    if ((act->what & MARIE_SV_KILL) && pid > 0) {
+        kill(-pid, SIGKILL);
+        kill(pid, SIGKILL);
+    }
+    if (act->timer_s > 0)
+        c->timer = marie_loop_add_oneshot(am->loop, (int64_t)(act->timer_s * 1e6), on_sv_timer, c);
+    note_state(c, before);
+    if (act->what & MARIE_SV_STATUS)
+        am_status_changed(am);
+    if (act->what & MARIE_SV_SPAWN)
+        comp_spawn(c);
+    if (act->what & MARIE_SV_PROGRESS_STOPS)
+        am_progress_stops(am);
+    if (act->what & MARIE_SV_START_WAITING)
+        am_try_start_waiting(am);
+}
+
+void am_comp_want(comp_t *c)
+{
+    marie_sv_state_t before = c->sv.st;
+    marie_sv_want(&c->sv);
+    note_state(c, before);
+}
+
+void am_comp_stop(comp_t *c)
+{
+    marie_sv_state_t before = c->sv.st;
+    marie_sv_action_t act;
+    marie_sv_stop(&c->sv, &act);
+    am_comp_apply(c, before, &act);
+}
+
+void am_comp_restart(comp_t *c)
+{
+    marie_sv_state_t before = c->sv.st;
+    marie_sv_action_t act;
+    marie_sv_restart(&c->sv, &act);
+    am_comp_apply(c, before, &act);
+}
+
+/* ---------------------------------------------------------------- stopping */
+
+/* Is a component that depends on c still alive (so c must wait before stopping)? */
+static bool dependents_alive(am_t *am, const comp_t *c)
+{
+    int64_t now = am_now_us();
+    for (size_t i = 0; i < am->ncomps; i++) {
+        const comp_t *d = &am->comps[i];
+        for (size_t k = 0; k < d->cfg->ndepends; k++)
+            if (strcmp(d->cfg->depends[k], c->cfg->name) == 0 && marie_sv_alive(&d->sv, now))
+                return true;
+    }
+    return false;
+}
+
+/* Stop everything local in reverse dependency order (waiting at most a few seconds for
+ * dependents on other hosts). */
+void am_stop_all(am_t *am)
+{
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        if (!c->sv.local)
+            continue;
+        marie_sv_state_t before = c->sv.st;
+        marie_sv_action_t act;
+        marie_sv_stop_later(&c->sv, am_now_us(), &act);
+        am_comp_apply(c, before, &act);
+    }
+}
+
+void am_progress_stops(am_t *am)
+{
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        if (!c->sv.stop_pending)
+            continue;
+        marie_sv_state_t before = c->sv.st;
+        marie_sv_action_t act;
+        marie_sv_progress_stop(&c->sv, dependents_alive(am, c), am_now_us(), &act);
+        am_comp_apply(c, before, &act);
+    }
+}
+
+/* ---------------------------------------------------------------- exits, dependencies, hangs */
+
+static void comp_exited(comp_t *c, int status)
+{
+    pid_t old = c->sv.pid;
+    /* output still in the pipes belongs to this run */
+    for (int i = 0; i < 2; i++)
+        if (c->out[i].fd >= 0 && outpipe_drain(&c->out[i]) == 0)
+            outpipe_close(&c->out[i]);
+    /* leftovers of the process group (shell children) go with their leader */
+    kill(-old, SIGKILL);
+    marie_sv_state_t before = c->sv.st;
+    marie_sv_action_t act;
+    marie_sv_exited(&c->sv, status, am_now_us(), &act);
+    am_save_children(c->am);
+    am_comp_apply(c, before, &act);
+}
+
+void am_reap_children(am_t *am)
+{
+    for (;;) {
+        int status;
+        pid_t pid = waitpid(-1, &status, WNOHANG);
+        if (pid <= 0)
+            break;
+        for (size_t i = 0; i < am->ncomps; i++)
+            if (am->comps[i].sv.pid == pid) {
+                comp_exited(&am->comps[i], status);
+                break;
+            }
+    }
+    am_try_start_waiting(am);
+}
+
+static bool dep_ready(am_t *am, const char *name)
+{
+    comp_t *d = am_comp_find(am, name);
+    return !d || marie_sv_up(&d->sv, am_now_us());
+}
+
+void am_try_start_waiting(am_t *am)
+{
+    if (am->quitting)
+        return;
+    /* one pass per newly running component is enough: spawns make nothing ready at once */
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        if (!c->sv.local || !c->sv.wanted || c->sv.st != MARIE_SV_WAITING)
+            continue;
+        bool ready = true;
+        for (size_t k = 0; k < c->cfg->ndepends && ready; k++)
+            ready = dep_ready(am, c->cfg->depends[k]);
+        if (!ready)
+            continue;
+        marie_sv_action_t act;
+        marie_sv_ready(&c->sv, &act);
+        am_comp_apply(c, c->sv.st, &act);
+    }
+}
+
+/* Hung components: alive, but no heartbeat for heartbeat_timeout. */
+void am_check_heartbeats(am_t *am)
+{
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        marie_sv_state_t before = c->sv.st;
+        marie_sv_action_t act;
+        marie_sv_check_heartbeat(&c->sv, am_now_us(), &act);
+        am_comp_apply(c, before, &act);
+    }
+}

@@ -1,0 +1,311 @@
+/* marie-am's system: loading and checking the system file, and what survives a restart of
+ * the manager (the system that is up, moves, the children to end). */
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <sodium.h>
+
+#include "core/file.h"
+#include "core/log.h"
+#include "core/procstat.h"
+#include "managers/am.h"
+#include "managers/progcheck.h"
+
+/* The live children, so that a manager restarted after a crash can end the ones that
+ * outlived it (a component that ignores SIGTERM survives PR_SET_PDEATHSIG). */
+void am_save_children(am_t *am)
+{
+    char path[PATH_MAX], tmp[PATH_MAX + 8];
+    snprintf(path, sizeof path, "%s/children", am->state_dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        return;
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        if (c->sv.pid > 0 && c->sv.local)
+            fprintf(f, "%d %lld %s\n", (int)c->sv.pid, (long long)c->start_ticks, c->cfg->name);
+    }
+    if (fclose(f) == 0)
+        rename(tmp, path);
+}
+
+void am_kill_leftovers(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/children", am->state_dir);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return;
+    int pid;
+    long long ticks;
+    char name[128];
+    while (fscanf(f, "%d %lld %127s", &pid, &ticks, name) == 3) {
+        int64_t now_ticks;
+        /* the same pid and start time: still that process, not a reused pid */
+        if (pid > 1 && marie_proc_starttime(pid, &now_ticks) == 0 && now_ticks == ticks) {
+            marie_warn("%s (pid %d) outlived the previous marie-am: SIGKILL to its process group", name, pid);
+            kill(-pid, SIGKILL);
+            kill(pid, SIGKILL);
+        }
+    }
+    fclose(f);
+    unlink(path);
+}
+
+void am_comps_free(am_t *am)
+{
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        am_comp_cancel_timer(c);
+        am_comp_close_output(c);
+        marie_logfile_close(c->logf);
+    }
+    free(am->comps);
+    am->comps = NULL;
+    am->ncomps = 0;
+}
+
+void am_write_file(const char *path, const char *text, size_t len, mode_t mode)
+{
+    char tmp[PATH_MAX];
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, mode);
+    if (fd < 0)
+        return;
+    ssize_t w = write(fd, text, len);
+    close(fd);
+    if (w == (ssize_t)len)
+        rename(tmp, path);
+}
+
+void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65])
+{
+    crypto_hash_sha256_state s;
+    uint8_t h[32];
+    crypto_hash_sha256_init(&s);
+    crypto_hash_sha256_update(&s, data, len);
+    if (extra)
+        crypto_hash_sha256_update(&s, (const uint8_t *)extra, strlen(extra) + 1);
+    crypto_hash_sha256_final(&s, h);
+    sodium_bin2hex(out, 65, h, sizeof h);
+}
+
+/* Remembered across restarts of the manager: which system is up, and the moves. */
+void am_save_up_state(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/up", am->state_dir);
+    if (!am->up || !am->sys) {
+        unlink(path);
+        return;
+    }
+    char *text = NULL;
+    size_t len = 0;
+    FILE *m = open_memstream(&text, &len);
+    if (!m)
+        return;
+    fprintf(m, "system %s\nprofile %s\n", am->sys_path, am->profile ? am->profile : "");
+    for (size_t i = 0; i < am->ncomps; i++)
+        if (strcmp(am->comps[i].host, marie_am_component_host(am->sys, am->comps[i].cfg, am->host)) != 0)
+            fprintf(m, "move %s %s\n", am->comps[i].cfg->name, am->comps[i].host);
+    fclose(m);
+    am_write_file(path, text, len, 0644);
+    free(text);
+}
+
+bool am_host_known(am_t *am, const char *h)
+{
+    for (size_t i = 0; i < am->sys->nhosts; i++)
+        if (strcmp(am->sys->hosts[i], h) == 0)
+            return true;
+    return false;
+}
+
+/* The programs of this host's components exist and accept their entries (descriptions
+ * cached in STATE_DIR/describe). */
+static int check_programs(am_t *am, const marie_system_t *sys, marie_errors_t *errs)
+{
+    char *cache = NULL;
+    if (asprintf(&cache, "%s/describe", am->state_dir) < 0)
+        cache = NULL;
+    marie_progcheck_t *p = marie_progcheck_create(am->self_dir, cache);
+    free(cache);
+    int rc = p ? marie_progcheck_system(p, sys, am->host, am->host, errs) : -1;
+    marie_progcheck_destroy(p);
+    return rc;
+}
+
+/* Load a system (not yet started). Errors go to errs. */
+int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs)
+{
+    size_t len = 0;
+    char *text = marie_file_read(path, MARIE_AM_SYSTEM_MAX_BYTES, &len);
+    if (!text) {
+        marie_errors_add(errs, path, 0, 0, "%s", strerror(errno));
+        return -1;
+    }
+    marie_system_t *sys = marie_system_load(path, profile && *profile ? profile : NULL, errs);
+    marie_am_settings_t set;
+    if (sys && (marie_am_check_system(sys, &set, errs) < 0 || check_programs(am, sys, errs) < 0)) {
+        marie_system_destroy(sys);
+        sys = NULL;
+    }
+    if (!sys) {
+        free(text);
+        return -1;
+    }
+    if (!am->opt_status_hz && set.status_hz != am->status_hz) {
+        am->status_hz = set.status_hz;
+        if (am->status_timer) {
+            marie_loop_remove_timer(am->loop, am->status_timer);
+            am->status_timer = marie_loop_add_timer(am->loop, (int64_t)(1e6 / am->status_hz), am_on_status_timer, am);
+        }
+    }
+    if (!am->opt_log_rate) {
+        am->log_rate = set.log_rate;
+        am->log_burst = set.log_rate * 2;
+    }
+    if (!am->opt_log_max)
+        am->log_max_bytes = set.log_max_bytes;
+    if (!am->opt_log_keep)
+        am->log_keep = set.log_keep;
+    am_comps_free(am);
+    balance_destroy(am->bal);
+    am->bal = NULL;
+    marie_system_destroy(am->sys);
+    am->sys = sys;
+    am->bal_cfg = set.balance;
+    if (set.balance.enabled && !(am->bal = balance_create(am->host, sys, &am->bal_cfg)))
+        marie_error("automatic placement off: %s", strerror(errno));
+    am_sha256_hex(text, len, profile ? profile : "", am->sys_hash);
+    free(text);
+    free(am->sys_path);
+    am->sys_path = realpath(path, NULL);
+    if (!am->sys_path)
+        am->sys_path = strdup(path);
+    free(am->profile);
+    am->profile = profile && *profile ? strdup(profile) : NULL;
+    am->comps = calloc(sys->ncomponents ? sys->ncomponents : 1, sizeof *am->comps);
+    am->ncomps = sys->ncomponents;
+    char logdir[PATH_MAX];
+    snprintf(logdir, sizeof logdir, "%s/logs", am->state_dir);
+    mkdir(logdir, 0755);
+    snprintf(logdir, sizeof logdir, "%s/run", am->state_dir);
+    mkdir(logdir, 0755);
+    for (size_t i = 0; i < sys->ncomponents; i++) {
+        comp_t *c = &am->comps[i];
+        c->am = am;
+        c->cfg = &sys->components[i];
+        snprintf(c->host, sizeof c->host, "%s", marie_am_component_host(sys, c->cfg, am->host));
+        marie_sv_init(&c->sv, c->cfg, strcmp(c->host, am->host) == 0);
+        for (int k = 0; k < 2; k++)
+            c->out[k].fd = -1;
+        marie_ratelimit_init(&c->rl, am->log_rate, am->log_burst);
+    }
+    am_status_changed(am);
+    return 0;
+}
+
+void am_comp_open_log(comp_t *c)
+{
+    if (c->logf || !c->sv.local)
+        return;
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/logs/%s.log", c->am->state_dir, c->cfg->name);
+    c->logf = marie_logfile_open(path, c->am->log_max_bytes, c->am->log_keep);
+    if (!c->logf)
+        marie_warn("%s: cannot open log file %s: %s", c->cfg->name, path, strerror(errno));
+}
+
+/* The effective configuration of every component this host runs, for comparing runs
+ * (sim against robot): logged, and kept in the state directory. */
+static void record_hashes(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/config-hashes", am->state_dir);
+    FILE *f = fopen(path, "w");
+    for (size_t i = 0; i < am->ncomps; i++) {
+        const comp_t *c = &am->comps[i];
+        if (!c->sv.local)
+            continue;
+        marie_info("%s: configuration %s", c->cfg->name, c->cfg->hash);
+        if (f)
+            fprintf(f, "%s %s %s\n", c->cfg->name, c->cfg->hash, am->profile ? am->profile : "-");
+    }
+    if (f)
+        fclose(f);
+}
+
+void am_up(am_t *am)
+{
+    am->up = true;
+    record_hashes(am);
+    for (size_t i = 0; i < am->ncomps; i++) {
+        comp_t *c = &am->comps[i];
+        if (c->sv.local) {
+            am_comp_open_log(c);
+            am_comp_want(c);
+        }
+    }
+    am_save_up_state(am);
+    am_try_start_waiting(am);
+}
+
+void am_apply_move(am_t *am, comp_t *c, const char *host)
+{
+    if (am->bal)
+        balance_placed(am->bal, c->cfg->name, host, am_now_us());
+    bool was_local = c->sv.local;
+    marie_sv_state_t before = c->sv.st;
+    marie_sv_action_t act;
+    snprintf(c->host, sizeof c->host, "%s", host);
+    marie_sv_set_local(&c->sv, strcmp(host, am->host) == 0, am->up, &act);
+    if (!was_local && c->sv.local)
+        am_comp_open_log(c);
+    am_comp_apply(c, before, &act);
+}
+
+void am_restore_up_state(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/up", am->state_dir);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return;
+    char line[PATH_MAX + 64], sys[PATH_MAX] = "", profile[128] = "";
+    char moves[64][2][128];
+    int nmoves = 0;
+    while (fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\n")] = 0;
+        if (strncmp(line, "system ", 7) == 0)
+            snprintf(sys, sizeof sys, "%.*s", (int)sizeof sys - 1, line + 7);
+        else if (strncmp(line, "profile ", 8) == 0)
+            snprintf(profile, sizeof profile, "%.*s", (int)sizeof profile - 1, line + 8);
+        else if (nmoves < 64 && sscanf(line, "move %127s %127s", moves[nmoves][0], moves[nmoves][1]) == 2)
+            nmoves++;
+    }
+    fclose(f);
+    if (!sys[0])
+        return;
+    marie_errors_t errs = {0};
+    if (am_load_system(am, sys, profile, &errs) < 0) {
+        marie_error("cannot restore the system that was up (%s):", sys);
+        marie_errors_print(&errs, stderr);
+        marie_errors_clear(&errs);
+        return;
+    }
+    for (int i = 0; i < nmoves; i++) {
+        comp_t *c = am_comp_find(am, moves[i][0]);
+        if (c && am_host_known(am, moves[i][1]))
+            am_apply_move(am, c, moves[i][1]);
+    }
+    marie_info("restoring system %s (profile %s)", sys, profile[0] ? profile : "none");
+    am_balance_up_when_placed(am);
+}
