@@ -9,6 +9,7 @@
 #include "adapters/mission/mission.h"
 #include "ca/sharedmap_client.h"
 #include "core/component.h"
+#include "core/typeinfo.h"
 
 typedef struct {
     marie_component_t *c;
@@ -20,7 +21,9 @@ typedef struct {
     char key[160];
     int sm_timeout_ms;
     int restore_tries;
-    bool restored, dirty, timer_made;
+    bool restored, dirty;
+    bool restoring;             /* a read of the saved progress is on its way */
+    bool saving, save_again;    /* a write is on its way; another is due after it */
     int64_t last_goal_pub;
     double republish_s, stale_pose_s, resume_max_age_s, unreachable_s;
     int32_t failing_goal;       /* goal the planner reports no path for, -1: none */
@@ -46,51 +49,56 @@ static void fill_state(mis_t *s, marie_mission_state_t *st, int32_t *ids, int8_t
                                    .goal_ids = ids, .goal_states = states };
 }
 
+static void save(mis_t *s);
+
+static void on_saved(sharedmap_client_t *cl, const sharedmap_result_t *r, void *user)
+{
+    mis_t *s = user;
+    s->saving = false;
+    if (r->status < 0) {
+        marie_component_count(s->c, "state_save_failures", 1);
+        marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(-r->status));
+    }
+    if (s->save_again) {
+        s->save_again = false;
+        save(s);
+    }
+}
+
+/* The SharedMap is asked without waiting (the loop keeps turning); one write at a time, the
+ * newest state last. */
 static void save(mis_t *s)
 {
     if (!s->sm)
         return;
+    if (s->saving) {
+        s->save_again = true;
+        return;
+    }
     int32_t ids[MISSION_MAX_GOALS];
     int8_t states[MISSION_MAX_GOALS];
     marie_mission_state_t st;
     fill_state(s, &st, ids, states);
-    int rc = sharedmap_client_set(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms);
+    int rc = sharedmap_client_set_async(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms, on_saved, s);
     if (rc < 0) {
         marie_component_count(s->c, "state_save_failures", 1);
         marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(-rc));
+        return;
     }
+    s->saving = true;
 }
 
-/* Returns true once restoring is settled (restored, nothing stored, or given up). */
-static bool restore(mis_t *s)
+static void resume(mis_t *s, const marie_mission_state_t *st)
 {
-    if (!s->sm || s->restored)
-        return true;
-    marie_mission_state_t st;
-    memset(&st, 0, sizeof(st));
-    int64_t age = 0;
-    int rc = sharedmap_client_get(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms, &age);
-    if (rc == -ETIMEDOUT && ++s->restore_tries < 3)
-        return false;           /* the SharedMap may be starting too: ask again next tick */
-    s->restored = true;
-    if (rc == -ENOENT) {
-        marie_info("no saved progress under %s: starting the mission", s->key);
-        return true;
-    }
-    if (rc < 0) {
-        marie_component_count(s->c, "state_restore_failures", 1);
-        marie_warn("cannot read saved progress %s: %s; starting the mission", s->key, strerror(-rc));
-        return true;
-    }
     int64_t now = marie_component_now(s->c);
-    if (st.utime > now || st.start_utime > now) {
+    if (st->utime > now || st->start_utime > now) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
                               "saved progress is from the future (another run?): starting afresh");
-    } else if (s->resume_max_age_s > 0 && (now - st.utime) / 1e6 > s->resume_max_age_s) {
+    } else if (s->resume_max_age_s > 0 && (now - st->utime) / 1e6 > s->resume_max_age_s) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
                               "saved progress is %.0f s old (resume_max_age_s %.0f): starting afresh",
-                              (now - st.utime) / 1e6, s->resume_max_age_s);
-    } else if (mission_restore(&s->m, st.start_utime, st.current, st.goal_ids, st.goal_states, st.ngoals) == 0) {
+                              (now - st->utime) / 1e6, s->resume_max_age_s);
+    } else if (mission_restore(&s->m, st->start_utime, st->current, st->goal_ids, st->goal_states, st->ngoals) == 0) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_INFO, "mission_resumed",
                               "resumed: %lld reached, %lld missed of %d, current goal index %d",
                               (long long)s->m.reached, (long long)s->m.missed, s->m.n, s->m.current);
@@ -99,8 +107,48 @@ static bool restore(mis_t *s)
         marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
                               "saved progress under %s belongs to another goal list", s->key);
     }
+}
+
+static void on_restored(sharedmap_client_t *cl, const sharedmap_result_t *r, void *user)
+{
+    mis_t *s = user;
+    s->restoring = false;
+    int rc = r->status;
+    if (rc == -ETIMEDOUT && ++s->restore_tries < 3)
+        return;                 /* the SharedMap may be starting too: ask again next tick */
+    s->restored = true;
+    if (rc == -ENOENT) {
+        marie_info("no saved progress under %s: starting the mission", s->key);
+        return;
+    }
+    marie_mission_state_t st;
+    memset(&st, 0, sizeof(st));
+    if (rc == 0 && marie_decode_checked(&marie_type_mission_state_t, r->data, r->len, &st) < 0)
+        rc = -EBADMSG;
+    if (rc < 0) {
+        marie_component_count(s->c, "state_restore_failures", 1);
+        marie_warn("cannot read saved progress %s: %s; starting the mission", s->key, strerror(-rc));
+        return;
+    }
+    resume(s, &st);
     marie_type_mission_state_t.decode_cleanup(&st);
-    return true;
+}
+
+/* Returns true once restoring is settled (restored, nothing stored, or given up); until
+ * then it asks the SharedMap, without waiting for the answer. */
+static bool restore(mis_t *s)
+{
+    if (!s->sm || s->restored)
+        return true;
+    if (!s->restoring) {
+        int rc = sharedmap_client_get_async(s->sm, s->key, s->sm_timeout_ms, on_restored, s);
+        s->restoring = rc == 0;
+        if (rc < 0) {
+            marie_warn("cannot ask for saved progress %s: %s; starting the mission", s->key, strerror(-rc));
+            s->restored = true;
+        }
+    }
+    return s->restored;
 }
 
 static void publish_goal(mis_t *s)
@@ -118,6 +166,8 @@ static void publish_goal(mis_t *s)
 static void tick(marie_component_t *c, int64_t overruns)
 {
     mis_t *s = marie_component_user(c);
+    if (s->sm)
+        sharedmap_client_tick(s->sm);
     if (!restore(s))
         return;
     int64_t now = marie_component_now(c);
@@ -187,7 +237,7 @@ static int init(marie_component_t *c)
     quit(c);
     s->c = c;
     mission_init(&s->m);
-    s->restored = s->dirty = false;
+    s->restored = s->dirty = s->restoring = s->saving = s->save_again = false;
     s->restore_tries = 0;
     s->have_pose = false;
     marie_errors_t errs = { 0 };
@@ -224,11 +274,8 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "rate_hz must be in (0, 100]");
         return -1;
     }
-    if (!s->timer_made) {
-        if (!marie_component_every(c, hz, tick))
-            return -1;
-        s->timer_made = true;
-    }
+    if (!marie_component_every(c, hz, tick))
+        return -1;
     return 0;
 }
 
