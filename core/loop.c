@@ -107,6 +107,17 @@ int marie_loop_remove_fd(marie_loop_t *loop, int fd)
     return -ENOENT;
 }
 
+int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
+{
+    for (size_t i = 0; i < loop->nfds; i++) {
+        if (loop->fds[i].fd == fd) {
+            loop->fds[i].events = events;
+            return 0;
+        }
+    }
+    return -ENOENT;
+}
+
 /* Timers run on CLOCK_MONOTONIC for the wall clock kind, on simulated time otherwise. */
 static int64_t clock_now(const marie_loop_t *loop, int wall)
 {

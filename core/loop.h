@@ -26,6 +26,8 @@ void marie_loop_destroy(marie_loop_t *loop);            /* NULL is a no-op */
 
 int marie_loop_add_fd(marie_loop_t *loop, int fd, short events, marie_fd_cb_t cb, void *user);
 int marie_loop_remove_fd(marie_loop_t *loop, int fd);
+/* Change what a watched fd waits for (POLLIN, POLLOUT...), from the next poll round on. */
+int marie_loop_set_events(marie_loop_t *loop, int fd, short events);
 
 /* A fixed-rate timer: fires every period_us on the loop's clock, first after period_us.
  * Late firings are not queued: the next deadline skips the missed periods, which are

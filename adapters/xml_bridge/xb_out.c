@@ -4,7 +4,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/epoll.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
 
@@ -33,9 +32,8 @@ void xb_client_set_out(client_t *c, int on)
 {
     if (c->want_out == on || c->fd < 0)
         return;
-    struct epoll_event ev = { .events = (c->closing_since ? 0 : EPOLLIN) | (on ? EPOLLOUT : 0),
-                              .data.ptr = c };
-    if (epoll_ctl(c->s->efd, EPOLL_CTL_MOD, c->fd, &ev) == 0)
+    short events = (short)((c->closing_since ? 0 : POLLIN) | (on ? POLLOUT : 0));
+    if (marie_loop_set_events(c->s->loop, c->fd, events) == 0)
         c->want_out = on;
 }
 

@@ -1,5 +1,5 @@
-/* xb_server: TCP clients speaking XML documents, bridged to LCM. Clients live in one epoll set
- * watched by the marie loop, so hundreds of them cost one fd in the loop and O(1) per event. */
+/* xb_server: TCP clients speaking XML documents, bridged to LCM; the listening socket and every
+ * client are fds of the process's marie loop. */
 #include "adapters/xml_bridge/xb_server.h"
 
 #include <arpa/inet.h>
@@ -12,7 +12,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/epoll.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
 #include <unistd.h>
@@ -71,7 +70,7 @@ static void client_close(client_t *c)
     }
     free(c->subs);
     if (c->fd >= 0) {
-        epoll_ctl(s->efd, EPOLL_CTL_DEL, c->fd, NULL);
+        marie_loop_remove_fd(s->loop, c->fd);
         close(c->fd);
     }
     for (int i = 0; i < c->qlen; i++)
@@ -103,7 +102,7 @@ static void client_fail(client_t *c, const char *code, const char *reason)
     charge(c);
     c->closing_since = marie_mono_us();
     c->s->st.closed_bad++;
-    c->want_out = -1;           /* force the epoll update */
+    c->want_out = -1;           /* force the loop's update */
     xb_client_set_out(c, 1);
 }
 
@@ -170,6 +169,20 @@ static void client_read(client_t *c)
     }
 }
 
+/* The loop finds a client's watch by fd each round, so closing here is safe. */
+static void on_client(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    client_t *c = user;
+    if (c->closing_since && (revents & (POLLHUP | POLLERR)))
+        c->dead = 1;
+    else if (revents & (POLLIN | POLLHUP | POLLERR))
+        client_read(c);
+    if (!c->dead && (revents & POLLOUT))
+        xb_client_flush(c);
+    if (c->dead)
+        client_close(c);
+}
+
 static void accept_clients(xb_server_t *s)
 {
     for (int i = 0; i < 64; i++) {
@@ -203,8 +216,7 @@ static void accept_clients(xb_server_t *s)
         }
         c->s = s;
         c->fd = fd;
-        struct epoll_event ev = { .events = EPOLLIN, .data.ptr = c };
-        if (epoll_ctl(s->efd, EPOLL_CTL_ADD, fd, &ev) < 0) {
+        if (marie_loop_add_fd(s->loop, fd, POLLIN, on_client, c) < 0) {
             xb_doc_parser_destroy(c->parser);
             free(c->q);
             free(c);
@@ -226,32 +238,9 @@ static void accept_clients(xb_server_t *s)
     }
 }
 
-static void on_epoll(marie_loop_t *loop, int fd, short revents, void *user)
+static void on_listen(marie_loop_t *loop, int fd, short revents, void *user)
 {
-    xb_server_t *s = user;
-    struct epoll_event evs[128];
-    int n = epoll_wait(s->efd, evs, 128, 0);
-    for (int i = 0; i < n; i++) {
-        if (evs[i].data.ptr == NULL) {
-            accept_clients(s);
-            continue;
-        }
-        client_t *c = evs[i].data.ptr;
-        if (c->dead)
-            continue;
-        if (c->closing_since && (evs[i].events & (EPOLLHUP | EPOLLERR)))
-            c->dead = 1;
-        else if (evs[i].events & (EPOLLIN | EPOLLHUP | EPOLLERR))
-            client_read(c);
-        if (!c->dead && (evs[i].events & EPOLLOUT))
-            xb_client_flush(c);
-    }
-    /* Closing is deferred to here so no event of this batch refers to a freed client. */
-    for (client_t *c = s->clients, *next; c; c = next) {
-        next = c->next;
-        if (c->dead)
-            client_close(c);
-    }
+    accept_clients(user);
 }
 
 static void on_sweep(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
@@ -306,7 +295,7 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
         s->hooks = *hooks;
     s->lcm = lcm;
     s->loop = loop;
-    s->lfd = s->efd = -1;
+    s->lfd = -1;
     /* The largest outgoing document: a max-size payload as base64 XML plus the envelope. */
     xb_buf_init(&s->out, s->cfg.max_message * 4 + 4096);
     xb_buf_init(&s->enc, s->cfg.max_message);
@@ -339,30 +328,24 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     s->port = ntohs(sa.ss_family == AF_INET6 ? ((struct sockaddr_in6 *)&sa)->sin6_port
                                              : ((struct sockaddr_in *)&sa)->sin_port);
 
-    s->efd = epoll_create1(EPOLL_CLOEXEC);
-    struct epoll_event ev = { .events = EPOLLIN, .data.ptr = NULL };
-    if (s->efd < 0 || epoll_ctl(s->efd, EPOLL_CTL_ADD, s->lfd, &ev) < 0)
-        goto err;
-    if ((rc = marie_loop_add_fd(loop, s->efd, POLLIN, on_epoll, s)) < 0) {
+    if ((rc = marie_loop_add_fd(loop, s->lfd, POLLIN, on_listen, s)) < 0) {
         errno = -rc;
         goto err;
     }
     if (s->cfg.handle_lcm && (rc = marie_loop_add_fd(loop, lcm_get_fileno(lcm), POLLIN, on_lcm_fd, s)) < 0) {
-        marie_loop_remove_fd(loop, s->efd);
+        marie_loop_remove_fd(loop, s->lfd);
         errno = -rc;
         goto err;
     }
     s->sweep = marie_loop_add_wall_timer(loop, 100000, on_sweep, s);
     if (!s->sweep) {
-        marie_loop_remove_fd(loop, s->efd);
+        marie_loop_remove_fd(loop, s->lfd);
         if (s->cfg.handle_lcm)
             marie_loop_remove_fd(loop, lcm_get_fileno(lcm));
         goto err;
     }
     return s;
 err:
-    if (s->efd >= 0)
-        close(s->efd);
     if (s->lfd >= 0)
         close(s->lfd);
     xb_buf_free(&s->out);
@@ -383,10 +366,9 @@ void xb_server_destroy(xb_server_t *s)
         xb_sub_release(s, u);
     }
     marie_loop_remove_timer(s->loop, s->sweep);
-    marie_loop_remove_fd(s->loop, s->efd);
+    marie_loop_remove_fd(s->loop, s->lfd);
     if (s->cfg.handle_lcm)
         marie_loop_remove_fd(s->loop, lcm_get_fileno(s->lcm));
-    close(s->efd);
     close(s->lfd);
     xb_buf_free(&s->out);
     xb_buf_free(&s->enc);

@@ -80,7 +80,7 @@ struct xb_server {
     lcm_t *lcm;
     marie_loop_t *loop;
     xb_server_hooks_t hooks;
-    int lfd, efd, port;
+    int lfd, port;
     marie_timer_t *sweep;
     client_t *clients;
     sub_t *subs;

@@ -119,6 +119,33 @@ static void fd_callbacks_and_removal_inside_them(void **state)
     marie_loop_destroy(loop);
 }
 
+static void on_ready(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    *(short *)user = revents;
+}
+
+/* A writer that waits for room: POLLOUT only while asked for, POLLIN meanwhile untouched. */
+static void events_change_between_rounds(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int p[2];
+    assert_int_equal(pipe(p), 0);
+    short got = 0;
+    assert_int_equal(marie_loop_add_fd(loop, p[1], 0, on_ready, &got), 0);
+    assert_int_equal(marie_loop_run_once(loop, 20), 0);
+    assert_int_equal(marie_loop_set_events(loop, p[1], POLLOUT), 0);
+    assert_int_equal(marie_loop_run_once(loop, 1000), 1);
+    assert_true(got & POLLOUT);
+    got = 0;
+    assert_int_equal(marie_loop_set_events(loop, p[1], 0), 0);
+    assert_int_equal(marie_loop_run_once(loop, 20), 0);
+    assert_int_equal(got, 0);
+    assert_int_equal(marie_loop_set_events(loop, p[0], POLLIN), -ENOENT);
+    close(p[0]);
+    close(p[1]);
+    marie_loop_destroy(loop);
+}
+
 static void on_oneshot(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     (*(int *)user)++;
@@ -173,6 +200,7 @@ int main(void)
         cmocka_unit_test(sim_timers_follow_simulated_time),
         cmocka_unit_test(wall_timer_ticks_and_counts_a_slow_callback),
         cmocka_unit_test(fd_callbacks_and_removal_inside_them),
+        cmocka_unit_test(events_change_between_rounds),
         cmocka_unit_test(oneshot_fires_once_and_quit_stops_run),
         cmocka_unit_test(wall_timers_run_while_sim_time_stands),
         cmocka_unit_test(sigterm_reaches_the_loop_as_a_callback),
