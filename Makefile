@@ -160,7 +160,7 @@ install: all
 	    $(DESTDIR)$(PREFIX)/include/marie/core $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
 	install -m 755 $(PROGRAMS) $(DESTDIR)$(PREFIX)/bin/
 	install -m 644 $(LIBMARIE) $(DESTDIR)$(PREFIX)/lib/
-	install -m 644 core/*.h $(DESTDIR)$(PREFIX)/include/marie/core/
+	install -m 644 $(filter-out %_priv.h,$(wildcard core/*.h)) $(DESTDIR)$(PREFIX)/include/marie/core/
 	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/
 	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@REQUIRES@|$(PKGS)|' core/marie.pc.in \
 	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/marie.pc
