@@ -371,13 +371,6 @@ lcm_t *marie_component_lcm(marie_component_t *c) { return c->buses[0].lcm; }
 int64_t marie_component_now(const marie_component_t *c) { return marie_loop_now(c->loop); }
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c) { return c->cfg; }
 
-static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    /* The fd is readable, so this does not block; one message per poll round keeps
-     * timers and other fds served between messages. */
-    lcm_handle(user);
-}
-
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv, void *user,
                                           marie_errors_t *errs)
 {
@@ -440,7 +433,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         goto err;
     snprintf(c->reply_channel, sizeof c->reply_channel, "MARIE_REPLY.%s.%d", c->name, (int)getpid());
     for (size_t i = 0; i < c->nbuses; i++)
-        if (marie_loop_add_fd(c->loop, lcm_get_fileno(c->buses[i].lcm), POLLIN, on_lcm_readable, c->buses[i].lcm) < 0)
+        if (marie_loop_add_lcm(c->loop, c->buses[i].lcm, 1) < 0)
             goto err_runtime;
     if (!lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
         !marie_loop_add_wall_timer(c->loop, 1000000, on_heartbeat_timer, c))

@@ -8,6 +8,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include <lcm/lcm.h>
+
 #include "core/log.h"
 #include "core/time.h"
 
@@ -29,6 +31,12 @@ typedef struct {
     void *user;
 } fd_watch_t;
 
+typedef struct lcm_watch {
+    lcm_t *lcm;
+    int burst;
+    struct lcm_watch *next;
+} lcm_watch_t;
+
 struct marie_loop {
     fd_watch_t *fds;
     size_t nfds, capfds;
@@ -43,6 +51,7 @@ struct marie_loop {
     int sigpipe[2];
     marie_signal_cb_t on_signal;
     void *signal_user;
+    struct lcm_watch *lcms;
 };
 
 static volatile sig_atomic_t pending_signal;
@@ -68,6 +77,11 @@ void marie_loop_destroy(marie_loop_t *loop)
         marie_timer_t *next = t->next;
         free(t);
         t = next;
+    }
+    while (loop->lcms) {
+        struct lcm_watch *next = loop->lcms->next;
+        free(loop->lcms);
+        loop->lcms = next;
     }
     free(loop->fds);
     free(loop->pfds);
@@ -113,6 +127,45 @@ int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
         if (loop->fds[i].fd == fd) {
             loop->fds[i].events = events;
             return 0;
+        }
+    }
+    return -ENOENT;
+}
+
+static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    lcm_watch_t *w = user;
+    lcm_handle(w->lcm);         /* readable: this does not block */
+    for (int i = 1; i < w->burst && lcm_handle_timeout(w->lcm, 0) > 0; i++)
+        ;
+}
+
+int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
+{
+    int fd = lcm ? lcm_get_fileno(lcm) : -1;
+    if (fd < 0)
+        return -EINVAL;
+    lcm_watch_t *w = calloc(1, sizeof *w);
+    if (!w)
+        return -ENOMEM;
+    *w = (lcm_watch_t){lcm, burst > 0 ? burst : 1, loop->lcms};
+    int rc = marie_loop_add_fd(loop, fd, POLLIN, on_lcm_readable, w);
+    if (rc < 0) {
+        free(w);
+        return rc;
+    }
+    loop->lcms = w;
+    return 0;
+}
+
+int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm)
+{
+    for (lcm_watch_t **p = &loop->lcms; *p; p = &(*p)->next) {
+        if ((*p)->lcm == lcm) {
+            lcm_watch_t *w = *p;
+            *p = w->next;
+            free(w);
+            return marie_loop_remove_fd(loop, lcm_get_fileno(lcm));
         }
     }
     return -ENOENT;

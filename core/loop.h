@@ -29,6 +29,13 @@ int marie_loop_remove_fd(marie_loop_t *loop, int fd);
 /* Change what a watched fd waits for (POLLIN, POLLOUT...), from the next poll round on. */
 int marie_loop_set_events(marie_loop_t *loop, int fd, short events);
 
+/* An LCM instance as one more fd: its handlers run from the loop, at most `burst` messages per
+ * round (1 keeps timers and other fds served between messages; a bridge that forwards floods
+ * may take more). 0 or -errno. */
+typedef struct _lcm_t lcm_t;
+int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst);
+int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm);
+
 /* A fixed-rate timer: fires every period_us on the loop's clock, first after period_us.
  * Late firings are not queued: the next deadline skips the missed periods, which are
  * counted as overruns. Returns NULL with errno set on failure; the loop owns the timer. */

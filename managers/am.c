@@ -155,12 +155,6 @@ static void on_raw_status(const lcm_recv_buf_t *rbuf, const char *channel, void 
     marie_am_status_t_decode_cleanup(&st);
 }
 
-static void on_lcm(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    am_t *am = user;
-    lcm_handle_timeout(am->lcm, 0);
-}
-
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -333,7 +327,7 @@ int main(int argc, char **argv)
     lcm_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
     lcm_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
     lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
-    marie_loop_add_fd(am->loop, lcm_get_fileno(am->lcm), POLLIN, on_lcm, am);
+    marie_loop_add_lcm(am->loop, am->lcm, 1);
 
     sigset_t mask;
     sigemptyset(&mask);

@@ -160,6 +160,7 @@ int main(int argc, char **argv)
         if (cli.hosts[k].st)
             marie_am_status_t_destroy(cli.hosts[k].st);
     marie_auth_destroy(cli.auth);
+    marie_loop_destroy(cli.loop);
     if (cli.lcm)
         lcm_destroy(cli.lcm);
     return rc;

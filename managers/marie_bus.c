@@ -168,7 +168,7 @@ bool pump(cli_t *cli, double seconds, bool (*done)(cli_t *))
         int ms = (int)(left / 1000) + 1;
         if (ms > 100)
             ms = 100;
-        lcm_handle_timeout(cli->lcm, ms);
+        marie_loop_run_once(cli->loop, ms);
     }
 }
 
@@ -196,6 +196,10 @@ int cli_open(cli_t *cli)
     lcm_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_raw_status, cli);
     lcm_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_raw_reply, cli);
     lcm_subscribe(cli->lcm, MARIE_CH_LOG, on_raw_log, cli);
+    if (!(cli->loop = marie_loop_create()) || marie_loop_add_lcm(cli->loop, cli->lcm, 64) < 0) {
+        fprintf(stderr, "marie: out of memory\n");
+        return -1;
+    }
     return 0;
 }
 

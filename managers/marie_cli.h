@@ -11,6 +11,7 @@
 #include <lcm/lcm.h>
 
 #include "core/auth.h"
+#include "core/loop.h"
 #include "managers/am_proto.h"
 
 #define MAX_HOSTS 64
@@ -32,6 +33,7 @@ typedef struct {
 
 typedef struct {
     lcm_t *lcm;
+    marie_loop_t *loop;         /* waits: the bus is one of its fds */
     const char *url;
     bool json;
     double timeout_s;

@@ -364,7 +364,7 @@ int cmd_logs(cli_t *cli, int argc, char **argv)
     }
     if (cli->follow && rc == MARIE_EXIT_OK) {
         while (!interrupted)
-            lcm_handle_timeout(cli->lcm, 200);
+            marie_loop_run_once(cli->loop, 200);
     }
     return rc;
 }

@@ -194,13 +194,6 @@ static void on_heartbeat(const lcm_recv_buf_t *rbuf, const char *channel, void *
     marie_heartbeat_t_decode_cleanup(&m);
 }
 
-static void on_lcm(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    app_t *a = user;
-    (void)loop, (void)fd, (void)revents;
-    lcm_handle_timeout(a->lcm, 0);
-}
-
 static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     app_t *a = user;
@@ -363,7 +356,7 @@ int main(int argc, char **argv)
     lcm_subscribe(a.lcm, MARIE_CH_HEARTBEAT, on_heartbeat, &a);
     int64_t period = (int64_t)llround(a.view.interval_s * 1e6);
     if ((sigfd = watch_signals(&a)) < 0 ||
-        marie_loop_add_fd(a.loop, lcm_get_fileno(a.lcm), POLLIN, on_lcm, &a) < 0 ||
+        marie_loop_add_lcm(a.loop, a.lcm, 1) < 0 ||
         !marie_loop_add_wall_timer(a.loop, period, on_tick, &a)) {
         fprintf(stderr, "marie top: %s\n", strerror(errno));
         goto out;

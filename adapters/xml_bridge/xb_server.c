@@ -261,14 +261,6 @@ static void on_sweep(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
     }
 }
 
-static void on_lcm_fd(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    xb_server_t *s = user;
-    for (int i = 0; i < 256; i++)
-        if (lcm_handle_timeout(s->lcm, 0) <= 0)
-            break;
-}
-
 xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop_t *loop,
                               const xb_server_hooks_t *hooks)
 {
@@ -332,7 +324,8 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
         errno = -rc;
         goto err;
     }
-    if (s->cfg.handle_lcm && (rc = marie_loop_add_fd(loop, lcm_get_fileno(lcm), POLLIN, on_lcm_fd, s)) < 0) {
+    /* A bridge forwards floods: up to 256 messages per wake-up. */
+    if (s->cfg.handle_lcm && (rc = marie_loop_add_lcm(loop, lcm, 256)) < 0) {
         marie_loop_remove_fd(loop, s->lfd);
         errno = -rc;
         goto err;
@@ -341,7 +334,7 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     if (!s->sweep) {
         marie_loop_remove_fd(loop, s->lfd);
         if (s->cfg.handle_lcm)
-            marie_loop_remove_fd(loop, lcm_get_fileno(lcm));
+            marie_loop_remove_lcm(loop, lcm);
         goto err;
     }
     return s;
@@ -368,7 +361,7 @@ void xb_server_destroy(xb_server_t *s)
     marie_loop_remove_timer(s->loop, s->sweep);
     marie_loop_remove_fd(s->loop, s->lfd);
     if (s->cfg.handle_lcm)
-        marie_loop_remove_fd(s->loop, lcm_get_fileno(s->lcm));
+        marie_loop_remove_lcm(s->loop, s->lcm);
     close(s->lfd);
     xb_buf_free(&s->out);
     xb_buf_free(&s->enc);
