@@ -100,6 +100,7 @@ void marie_component_heartbeat(marie_component_t *c)
     marie_heartbeat_t hb;
     memset(&hb, 0, sizeof hb);
     marie_counter_t counters[64];
+    marie_port_status_t ports[64];
     hb.utime = marie_wall_us();
     hb.component = c->name;
     hb.host = c->host;
@@ -118,6 +119,15 @@ void marie_component_heartbeat(marie_component_t *c)
     for (int i = 0; i < hb.ncounters; i++)
         counters[i] = (marie_counter_t){c->counters[i].name, c->counters[i].value};
     hb.counters = counters;
+    hb.nports = (int32_t)(c->nports < 64 ? c->nports : 64);
+    for (int i = 0; i < hb.nports; i++) {
+        const marie_port_t *p = &c->ports[i];
+        ports[i] = (marie_port_status_t){(char *)p->spec->name, p->channel ? p->channel : "",
+                                         (char *)(p->spec->type ? p->spec->type->name : ""),
+                                         p->spec->dir == MARIE_OUT ? MARIE_PORT_STATUS_T_OUT : MARIE_PORT_STATUS_T_IN,
+                                         p->msgs};
+    }
+    hb.ports = ports;
     marie_heartbeat_t_publish(c->buses[0].lcm, MARIE_CH_HEARTBEAT, &hb);
 }
 

@@ -22,6 +22,7 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
     marie_msg_info_t info = {p->channel, recv_utime, data, len};
     if (!t) {
         c->msgs_in++;
+        p->msgs++;
         p->cb(c, p, NULL, &info);
         return 0;
     }
@@ -32,6 +33,7 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
         return -1;
     }
     c->msgs_in++;
+    p->msgs++;
     p->cb(c, p, p->scratch, &info);
     t->decode_cleanup(p->scratch);
     return 0;
@@ -108,6 +110,7 @@ int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
         return -err;
     }
     p->c->msgs_out++;
+    p->msgs++;
     return 0;
 }
 
@@ -212,8 +215,10 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
             msg = NULL;
         }
     }
-    if (status == 0)
+    if (status == 0) {
         c->msgs_in++;
+        pl->port->msgs++;
+    }
     bool async = pl->cb != NULL;
     pull_finish(c, pl, status, msg, r.age_us);
     if (async && msg && t)

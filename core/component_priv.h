@@ -46,6 +46,7 @@ struct marie_port {
     size_t bufcap;
     queued_t *queue;            /* event port: held while not running */
     size_t nqueue;
+    int64_t msgs;               /* delivered (in) or published (out), for the heartbeat */
 };
 
 typedef struct {

@@ -310,6 +310,19 @@ static void enc_heartbeat(vj_buf_t *b, const marie_heartbeat_t *m)
     key(b, "drops"); vj_int(b, m->drops);
     key(b, "bad"); vj_int(b, m->bad_input);
     key(b, "ovr"); vj_int(b, m->overruns);
+    key(b, "ports");
+    vj_raw(b, "[", 1);
+    for (int i = 0; i < m->nports; i++) {
+        const marie_port_status_t *p = &m->ports[i];
+        vj_raw(b, i ? ",{\"n\":" : "{\"n\":", i ? 6 : 5);
+        vj_str(b, p->name);
+        key(b, "ch"); vj_str(b, p->channel);
+        key(b, "t"); vj_str(b, p->type);
+        key(b, "out"); vj_lit(b, p->direction == MARIE_PORT_STATUS_T_OUT ? "1" : "0");
+        key(b, "m"); vj_int(b, p->msgs);
+        vj_raw(b, "}", 1);
+    }
+    vj_raw(b, "]", 1);
 }
 
 static void enc_am_status(vj_buf_t *b, const marie_am_status_t *m)
@@ -331,6 +344,9 @@ static void enc_am_status(vj_buf_t *b, const marie_am_status_t *m)
         vj_raw(b, "}", 1);
     }
     vj_raw(b, "]", 1);
+    key(b, "leader"); vj_str(b, m->balance_leader);
+    key(b, "term"); vj_int(b, m->balance_term);
+    key(b, "last"); vj_str(b, m->balance_last);
 }
 
 static void enc_am_reply(vj_buf_t *b, const marie_am_reply_t *m)
