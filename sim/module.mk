@@ -9,7 +9,7 @@ $(eval $(call marie_test,test_sim_world,tests/sim/test_sim_world.c,$(SIM_LIB) $(
 # Device mode drives the hw/ emulators: virtual CiA 402 drives and gyro, virtual LMS200.
 SIM_DEVICE_LIBS := $(B)/lib/libmarie_vdevices.a $(B)/lib/libmarie_drives.a $(B)/lib/libmarie_gyro.a \
     $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a $(B)/lib/libmarie_lms200.a -lutil
-$(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c,$(SIM_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS)))
+$(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c sim/camera.c,$(SIM_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS) $(CAMERA_LIBS)))
 
 $(eval $(call marie_bench,bench_sim,sim/bench_sim.c,$(SIM_LIB) $(ODE_LIBS)))
 $(B)/bench/bench_sim: | $(B)/bin/marie-sim

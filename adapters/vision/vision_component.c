@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "adapters/vision/vision_detect.h"
-#include "adapters/vision/vision_image.h"
+#include "camera/vision_image.h"
 #include "adapters/vision/vision_msgmap.h"
 #include "adapters/vision/vision_source.h"
 #include "adapters/vision/vision_track.h"

@@ -1,5 +1,5 @@
 /* vision_render: a synthetic pinhole camera that draws AprilTags at known 3D poses. */
-#include "adapters/vision/vision_render.h"
+#include "camera/vision_render.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -10,7 +10,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "adapters/vision/vision_family.h"
+#include "camera/vision_family.h"
 
 struct vision_render {
     apriltag_family_t *fam = nullptr;
@@ -104,6 +104,10 @@ static cv::Matx33d tag_homography(const vision_render_t *r, const vision_camera_
 
 static void draw_background(cv::Mat &bg, const vision_render_opts_t *o, cv::RNG &rng)
 {
+    if (o->background == VISION_BG_IMAGE && o->bg_image) {
+        cv::Mat(bg.rows, bg.cols, CV_8U, const_cast<uint8_t *>(o->bg_image)).copyTo(bg);
+        return;
+    }
     bg.setTo(o->bg_level);
     if (o->background == VISION_BG_GRADIENT) {
         for (int x = 0; x < bg.cols; x++) {
@@ -203,14 +207,18 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
     cv::Mat bg(H, W, CV_8U);
     draw_background(bg, o, rng);
     cv::Mat inkf, coverf, bgf, img;
-    ink.convertTo(inkf, CV_32F);
-    cover.convertTo(coverf, CV_32F, 1.0 / 255);
-    /* Premultiplied ink averages correctly over a pixel's subsamples. */
-    inkf = inkf.mul(coverf);
-    cv::resize(inkf, inkf, cv::Size(W, H), 0, 0, cv::INTER_AREA);
-    cv::resize(coverf, coverf, cv::Size(W, H), 0, 0, cv::INTER_AREA);
     bg.convertTo(bgf, CV_32F);
-    img = inkf + bgf.mul(1.0 - coverf);
+    if (drawn) {
+        ink.convertTo(inkf, CV_32F);
+        cover.convertTo(coverf, CV_32F, 1.0 / 255);
+        /* Premultiplied ink averages correctly over a pixel's subsamples. */
+        inkf = inkf.mul(coverf);
+        cv::resize(inkf, inkf, cv::Size(W, H), 0, 0, cv::INTER_AREA);
+        cv::resize(coverf, coverf, cv::Size(W, H), 0, 0, cv::INTER_AREA);
+        img = inkf + bgf.mul(1.0 - coverf);
+    } else {
+        img = bgf;      /* no tag in view (most frames in a building): the scene alone */
+    }
     if (o->blur_sigma > 0)
         cv::GaussianBlur(img, img, cv::Size(0, 0), o->blur_sigma);
     if (o->noise_sigma > 0) {
