@@ -39,6 +39,8 @@ typedef struct {
     double noise_sigma;     /* additive Gaussian noise, grey levels (0: none) */
     uint32_t seed;          /* noise and clutter are a function of the seed */
     int supersample;        /* anti-aliasing factor per axis, default 3 */
+    int noise_table;        /* nonzero: noise is a seed-placed window of one stored field
+                             * (fast, for the simulator) instead of drawn afresh */
     const uint8_t *bg_image;/* VISION_BG_IMAGE: width x height grey bytes, rows width apart
                              * (the caller's; read during the call only) */
 } vision_render_opts_t;

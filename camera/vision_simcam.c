@@ -20,6 +20,7 @@ struct vision_simcam {
     uint32_t frame;
     occmap_t *walls;
     uint8_t *scene;             /* the walls' image, width x height */
+    float *cols;                /* per column: wall top, wall bottom, shade */
     vision_tag_t *shown;        /* the tags not hidden, this frame */
 };
 
@@ -33,6 +34,7 @@ void vision_simcam_opts_default(vision_simcam_opts_t *o)
     vision_render_opts_default(&o->render);
     o->render.noise_sigma = 2;
     o->render.blur_sigma = 0.5;
+    o->render.noise_table = 1;
     o->format = MARIE_IMAGE_T_FORMAT_GRAY8;
     o->jpeg_quality = 90;
     o->wall_height = 2.5;
@@ -214,6 +216,7 @@ void vision_simcam_destroy(vision_simcam_t *s)
     free(s->shown);
     free(s->pix);
     free(s->scene);
+    free(s->cols);
     occmap_destroy(s->walls);
     free(s->last.data);
     free(s);
@@ -223,13 +226,17 @@ int vision_simcam_set_walls(vision_simcam_t *s, const occmap_t *map)
 {
     occmap_t *m = occmap_clone(map);
     uint8_t *scene = malloc((size_t)s->o.cam.width * s->o.cam.height);
-    if (!m || !scene) {
+    float *cols = malloc((size_t)s->o.cam.width * 3 * sizeof *cols);
+    if (!m || !scene || !cols) {
         occmap_destroy(m);
         free(scene);
+        free(cols);
         return -ENOMEM;
     }
     occmap_destroy(s->walls);
     free(s->scene);
+    free(s->cols);
+    s->cols = cols;
     s->walls = m;
     s->scene = scene;
     return 0;
@@ -258,30 +265,28 @@ static void draw_walls(vision_simcam_t *s, double x, double y, double heading)
     const vision_camera_t *k = &s->o.cam;
     int W = k->width, H = k->height;
     double horizon = k->cy - k->fy * tan(s->o.mount_pitch), cz = s->o.mount_z;
+    /* Columns first (one ray each), then rows, so the image is written in memory order. */
+    float *top = s->cols, *bottom = s->cols + W;
+    uint8_t *shade = (uint8_t *)(s->cols + 2 * W);
     for (int u = 0; u < W; u++) {
         double off = atan((u - k->cx) / k->fx);             /* image right = turning right */
         double a = heading - off;
         double d = wall_distance(s, x, y, a);
         double depth = d * cos(off);
         bool hit = d < s->o.max_range;
-        double top = hit ? horizon - k->fy * (s->o.wall_height - cz) / depth : horizon;
-        double bottom = hit ? horizon + k->fy * cz / depth : horizon;
-        double hx = x + d * cos(a), hy = y + d * sin(a);
-        double along = fabs(fmod(hx + hy + 1000.0, 1.0));
-        int shade = 190 - (int)(6.0 * d);
+        top[u] = (float)(hit ? horizon - k->fy * (s->o.wall_height - cz) / depth : horizon);
+        bottom[u] = (float)(hit ? horizon + k->fy * cz / depth : horizon);
+        double along = fabs(fmod(x + d * cos(a) + y + d * sin(a) + 1000.0, 1.0));
+        int g = 190 - (int)(6.0 * d);
         if (along < 0.04 || along > 0.96)
-            shade -= 60;
-        shade = shade < 40 ? 40 : shade;
-        for (int v = 0; v < H; v++) {
-            int g;
-            if (v < top)
-                g = 215;
-            else if (v <= bottom)
-                g = shade;
-            else
-                g = 70 + (int)(60.0 * (v - horizon) / (H - horizon + 1));
-            s->scene[(size_t)v * W + u] = (uint8_t)g;
-        }
+            g -= 60;
+        shade[u] = (uint8_t)(g < 40 ? 40 : g);
+    }
+    for (int v = 0; v < H; v++) {
+        uint8_t *row = s->scene + (size_t)v * W;
+        uint8_t floor = (uint8_t)(70 + (int)(60.0 * (v - horizon) / (H - horizon + 1)));
+        for (int u = 0; u < W; u++)
+            row[u] = v < top[u] ? 215 : v <= bottom[u] ? shade[u] : floor;
     }
 }
 

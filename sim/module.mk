@@ -18,3 +18,7 @@ $(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c tests/p
 # The device-mode case runs the real drivers against the simulator.
 $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
 
+
+# The camera's cost (docs/vision.md): render time and real-time factor with and without it.
+$(eval $(call marie_bench,bench_sim_camera,sim/bench_sim_camera.c sim/camera.c,$(SIM_LIB) $(ODE_LIBS) $(CAMERA_LIBS)))
+$(B)/bench/bench_sim_camera: | $(B)/bin/marie-sim
