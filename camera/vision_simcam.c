@@ -309,13 +309,25 @@ bool vision_simcam_tag_visible(const vision_simcam_t *s, size_t i, double x, dou
     return true;
 }
 
+void vision_simcam_camera_pose(const vision_simcam_t *s, double x, double y, double theta, vision_pose_t *out)
+{
+    double cx, cy, heading;
+    camera_place(s, x, y, theta, &cx, &cy, &heading);
+    vision_pose_camera_in_world(cx, cy, s->o.mount_z, heading, s->o.mount_pitch, out);
+}
+
+const vision_simcam_opts_t *vision_simcam_opts(const vision_simcam_t *s)
+{
+    return &s->o;
+}
+
 int vision_simcam_render(vision_simcam_t *s, double x, double y, double theta, int64_t utime, marie_image_t *img)
 {
     const vision_simcam_opts_t *o = &s->o;
     double cx, cy, heading;
     camera_place(s, x, y, theta, &cx, &cy, &heading);
     vision_pose_t cam_in_world;
-    vision_pose_camera_in_world(cx, cy, o->mount_z, heading, o->mount_pitch, &cam_in_world);
+    vision_simcam_camera_pose(s, x, y, theta, &cam_in_world);
     int ch = o->format == MARIE_IMAGE_T_FORMAT_GRAY8 ? 1 : 3;
     vision_render_opts_t ro = o->render;
     ro.seed = o->render.seed + ++s->frame;

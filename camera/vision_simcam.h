@@ -56,6 +56,10 @@ int vision_simcam_set_walls(vision_simcam_t *s, const occmap_t *map);
  * compare detections with. */
 bool vision_simcam_tag_visible(const vision_simcam_t *s, size_t i, double x, double y, double theta);
 
+/* The camera's optical frame in the world with the robot at (x, y, theta). */
+void vision_simcam_camera_pose(const vision_simcam_t *s, double x, double y, double theta, vision_pose_t *out);
+const vision_simcam_opts_t *vision_simcam_opts(const vision_simcam_t *s);
+
 /* Renders what the camera sees with the robot at (x, y, theta) into *img, stamped utime.
  * img->data belongs to the simcam and stays valid until the next call. Returns the number of
  * tags drawn, or a negative errno. */

@@ -22,3 +22,5 @@ $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bi
 # The camera's cost (docs/vision.md): render time and real-time factor with and without it.
 $(eval $(call marie_bench,bench_sim_camera,sim/bench_sim_camera.c sim/camera.c,$(SIM_LIB) $(ODE_LIBS) $(CAMERA_LIBS)))
 $(B)/bench/bench_sim_camera: | $(B)/bin/marie-sim
+$(eval $(call marie_test,test_sim_camera,tests/sim/test_sim_camera.c sim/camera.c,$(SIM_LIB) $(VISION_LIBS)))
+$(B)/obj/tests/sim/test_sim_camera.o: CPPFLAGS += $(CAMERA_CV_CFLAGS)
