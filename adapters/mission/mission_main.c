@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "adapters/mission/mission.h"
+#include "adapters/mission/mission_signs.h"
 #include "ca/sharedmap_client.h"
 #include "core/component.h"
 
@@ -25,6 +26,7 @@ typedef struct {
     double republish_s, stale_pose_s, resume_max_age_s, unreachable_s;
     int32_t failing_goal;       /* goal the planner reports no path for, -1: none */
     int64_t failing_since;
+    mission_signs_t signs;      /* goals found by reading signs */
 } mis_t;
 
 static void on_event(void *user, const char *kind, const mission_goal_t *g, const char *text)
@@ -128,6 +130,8 @@ static void tick(marie_component_t *c, int64_t overruns)
         mission_give_up(&s->m, "the planner finds no path", on_event, s);
         s->failing_goal = -1;
     }
+    if (mission_signs_steer(&s->signs, &s->m, fresh ? s->pose : NULL, on_event, s))
+        s->dirty = true;
     mission_update(&s->m, now, fresh ? s->pose : NULL, on_event, s);
     if (s->dirty) {
         s->dirty = false;
@@ -158,6 +162,19 @@ static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, cons
     s->pose[2] = m->pose.theta;
     s->pose_stamp = marie_component_now(c);
     s->have_pose = true;
+}
+
+/* Signs the vision adapter read: goals waiting for one move in front of it. */
+static void on_landmarks(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mis_t *s = marie_component_user(c);
+    const marie_landmarks_t *m = msg;
+    for (int i = 0; i < m->count; i++) {
+        const marie_landmark_t *l = &m->landmarks[i];
+        if (l->message[0] && isfinite(l->x) && isfinite(l->y) && isfinite(l->yaw) &&
+            mission_signs_read(&s->signs, &s->m, l->message, l->x, l->y, l->yaw, l->range, on_event, s))
+            s->dirty = true;
+    }
 }
 
 /* The planner's verdict on the current goal: a goal it keeps failing is given up. */
@@ -191,7 +208,10 @@ static int init(marie_component_t *c)
     s->restore_tries = 0;
     s->have_pose = false;
     marie_errors_t errs = { 0 };
-    if (mission_parse(&s->m, marie_param_node(c, "goals"), marie_param_double(c, "tolerance"), &errs) <= 0) {
+    int ngoals = mission_parse(&s->m, marie_param_node(c, "goals"), marie_param_double(c, "tolerance"), &errs);
+    int nsigns = ngoals < 0 ? -1 : mission_signs_parse(&s->signs, &s->m, marie_param_node(c, "signs"),
+                                                       marie_param_double(c, "tolerance"), &errs);
+    if (ngoals < 0 || nsigns < 0 || ngoals + nsigns == 0) {
         marie_component_fail_reason(c, "goals: %s", errs.n ? errs.msgs[0] : "no goals");
         marie_errors_clear(&errs);
         return -1;
@@ -215,7 +235,8 @@ static int init(marie_component_t *c)
             return -1;
         }
     }
-    if (marie_port_on_message(marie_port(c, "pose"), on_pose) || marie_port_on_message(marie_port(c, "path"), on_path)) {
+    if (marie_port_on_message(marie_port(c, "pose"), on_pose) || marie_port_on_message(marie_port(c, "path"), on_path) ||
+        marie_port_on_message(marie_port(c, "landmarks"), on_landmarks)) {
         marie_component_fail_reason(c, "cannot subscribe to the pose and path");
         return -1;
     }
@@ -237,11 +258,14 @@ static const marie_port_spec_t ports[] = {
     { "path", &marie_type_path_t, MARIE_IN, MARIE_PUSH, "PATH" },
     { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL" },
     { "state", &marie_type_mission_state_t, MARIE_OUT, MARIE_PUSH, "MISSION_STATE" },
+    { "landmarks", &marie_type_landmarks_t, MARIE_IN, MARIE_PUSH, "LANDMARKS" },
     { 0 },
 };
 
 static const marie_param_spec_t params[] = {
     { "goals", MARIE_PARAM_NODE, NULL, "list of {name, x, y, theta, priority, deadline (s after start), tolerance, id}" },
+    { "signs", MARIE_PARAM_NODE, "[]", "goals found by reading signs: list of {message, search: [[x, y], ...], approach, "
+      "name, priority, deadline, tolerance, id} (docs/vision.md)" },
     { "tolerance", MARIE_PARAM_DOUBLE, "0.3", "m: default distance at which a goal counts as reached" },
     { "rate_hz", MARIE_PARAM_DOUBLE, "5", "how often progress is checked" },
     { "republish_s", MARIE_PARAM_DOUBLE, "1.0", "s between repeats of the current goal" },

@@ -26,3 +26,4 @@ $(eval $(call marie_bench,bench_vision,adapters/vision/bench_vision.c,$(VISION_L
 # The vision adapter on the simulator's camera (processes on this test's bus).
 $(eval $(call marie_test,test_vision_sim,tests/vision/test_vision_sim.c tests/proc.c,))
 $(B)/tests/test_vision_sim: | $(B)/bin/marie-sim $(B)/bin/marie-vision
+ITESTS += tests/vision/test_sign_mission.sh
