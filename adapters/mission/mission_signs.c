@@ -5,12 +5,13 @@
 #include <stdio.h>
 #include <string.h>
 
-static int parse_search(mission_sign_t *s, const marie_node_t *n, marie_errors_t *errs)
+/* n: the search list, or NULL when the goal (at `goal`) has none. */
+static int parse_search(mission_sign_t *s, const marie_node_t *goal, const marie_node_t *n, marie_errors_t *errs)
 {
     if (!n || n->kind != MARIE_NODE_SEQ || n->n == 0 || n->n > MISSION_SIGN_SEARCH_MAX) {
-        const marie_node_t *at = n;
-        marie_errors_add(errs, at ? at->file : "(params)", at ? at->line : 0, at ? at->col : 0,
-                         "search: expected a list of 1 to %d points [x, y]", MISSION_SIGN_SEARCH_MAX);
+        const marie_node_t *at = n ? n : goal;
+        marie_errors_add(errs, at->file, at->line, at->col, "search: expected a list of 1 to %d points [x, y]",
+                         MISSION_SIGN_SEARCH_MAX);
         return -1;
     }
     for (size_t i = 0; i < n->n; i++) {
@@ -57,7 +58,7 @@ int mission_signs_parse(mission_signs_t *ss, mission_t *m, const marie_node_t *s
         const char *str;
         if (marie_node_str(marie_node_get(g, "message"), &str, errs) == 0)
             snprintf(s->message, sizeof s->message, "%s", str);
-        if (parse_search(s, marie_node_get(g, "search"), errs) < 0)
+        if (parse_search(s, g, marie_node_get(g, "search"), errs) < 0)
             continue;
         if ((n = marie_node_get(g, "approach")) && marie_node_double(n, &s->approach, errs) == 0 &&
             !(s->approach > 0 && s->approach < 10))
