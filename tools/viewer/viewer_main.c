@@ -3,7 +3,6 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
-#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,14 +11,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <civetweb.h>
-
 #include "core/component.h"
 #include "core/typeinfo.h"
 #include "managers/am_proto.h"
 #include "core/auth.h"
 #include "tools/viewer/lcmlog.h"
-#include "tools/viewer/vjson.h"
+#include "tools/webcommon/vjson.h"
+#include "tools/webcommon/webserve.h"
 
 /* ---------------------------------------------------------------- ports */
 
@@ -78,34 +76,6 @@ static const marie_param_spec_t params[] = {
 
 /* ---------------------------------------------------------------- clients */
 
-typedef struct frame {
-    struct frame *next;
-    size_t len;
-    char data[];
-} frame_t;
-
-typedef struct client {
-    struct client *next;
-    int id;
-    struct mg_connection *conn;
-    pthread_t writer;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    frame_t *head, *tail;
-    size_t queued;
-    bool closing, dead;
-    int64_t dropped;
-} client_t;
-
-/* A command from a page, handed from civetweb's threads to the loop. */
-typedef struct cmd {
-    struct cmd *next;
-    int client;                 /* -1: none */
-    bool hello;                 /* a new client: send it the state */
-    size_t len;
-    char text[];
-} cmd_t;
-
 /* Per-channel decimation and the latest message kept for live snapshots. */
 typedef struct {
     int64_t last_sent_mono;
@@ -133,17 +103,9 @@ typedef struct {
 
 typedef struct viewer {
     marie_component_t *c;
-    struct mg_context *http;
+    webserve_t *web;
     bool live;
     char www[PATH_MAX];
-    int port;
-
-    /* civetweb threads <-> loop */
-    pthread_mutex_t mu;         /* clients list and cmd queue */
-    client_t *clients;
-    int next_client_id;
-    cmd_t *cmd_head, *cmd_tail;
-    int wake[2];
 
     chan_state_t chans[P_NIN];
     int64_t min_gap_us[P_NIN];
@@ -185,7 +147,7 @@ typedef struct viewer {
     char *map_json;
 
     /* stats */
-    int64_t msgs_in, frames_out, last_rx_mono;
+    int64_t msgs_in, last_rx_mono;
 
     /* controls */
     marie_auth_t *auth;
@@ -197,228 +159,24 @@ typedef struct viewer {
     bool init_failed;
 } viewer_t;
 
-static int64_t now_mono(void)
-{
-    return marie_mono_us();
-}
-
-static void *writer_main(void *arg)
-{
-    client_t *cl = arg;
-    pthread_mutex_lock(&cl->mu);
-    for (;;) {
-        while (!cl->head && !cl->closing)
-            pthread_cond_wait(&cl->cv, &cl->mu);
-        if (!cl->head)
-            break;
-        frame_t *f = cl->head;
-        cl->head = f->next;
-        if (!cl->head)
-            cl->tail = NULL;
-        cl->queued -= f->len;
-        bool dead = cl->dead;
-        pthread_mutex_unlock(&cl->mu);
-        if (!dead && mg_websocket_write(cl->conn, MG_WEBSOCKET_OPCODE_TEXT, f->data, f->len) <= 0)
-            dead = true;
-        free(f);
-        pthread_mutex_lock(&cl->mu);
-        cl->dead |= dead;
-    }
-    pthread_mutex_unlock(&cl->mu);
-    return NULL;
-}
-
-/* Queue a frame for one client. Droppable frames (high-rate state) are dropped while the
- * client is more than 2 MB behind, so a slow browser never stalls the bus. */
-static void client_send(client_t *cl, const char *data, size_t len, bool droppable)
-{
-    pthread_mutex_lock(&cl->mu);
-    if (cl->dead || cl->closing || (droppable && cl->queued > (2u << 20))) {
-        cl->dropped++;
-        pthread_mutex_unlock(&cl->mu);
-        return;
-    }
-    frame_t *f = malloc(sizeof *f + len);
-    if (f) {
-        f->next = NULL;
-        f->len = len;
-        memcpy(f->data, data, len);
-        if (cl->tail)
-            cl->tail->next = f;
-        else
-            cl->head = f;
-        cl->tail = f;
-        cl->queued += len;
-        pthread_cond_signal(&cl->cv);
-    } else {
-        cl->dropped++;
-    }
-    pthread_mutex_unlock(&cl->mu);
-}
-
-/* Send to one client (id >= 0) or to all (id < 0). */
 static void send_to(viewer_t *v, int id, const char *data, size_t len, bool droppable)
 {
-    pthread_mutex_lock(&v->mu);
-    for (client_t *cl = v->clients; cl; cl = cl->next)
-        if (id < 0 || cl->id == id) {
-            client_send(cl, data, len, droppable);
-            v->frames_out++;
-        }
-    pthread_mutex_unlock(&v->mu);
+    webserve_send(v->web, id, data, len, droppable);
 }
 
 static void send_json(viewer_t *v, int id, vj_buf_t *b, bool droppable)
 {
-    if (!b->oom && b->len)
-        send_to(v, id, b->s, b->len, droppable);
+    webserve_send_json(v->web, id, b, droppable);
 }
 
 static void notice(viewer_t *v, int id, const char *level, const char *text)
 {
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"notice\",\"level\":");
-    vj_str(&b, level);
-    vj_lit(&b, ",\"text\":");
-    vj_str(&b, text);
-    vj_lit(&b, "}");
-    send_json(v, id, &b, false);
-    vj_free(&b);
+    webserve_notice(v->web, id, level, text);
 }
 
-static void push_cmd(viewer_t *v, int client, bool hello, const char *text, size_t len)
+static int64_t now_mono(void)
 {
-    cmd_t *c = malloc(sizeof *c + len + 1);
-    if (!c)
-        return;
-    c->next = NULL;
-    c->client = client;
-    c->hello = hello;
-    c->len = len;
-    memcpy(c->text, text, len);
-    c->text[len] = 0;
-    pthread_mutex_lock(&v->mu);
-    if (v->cmd_tail)
-        v->cmd_tail->next = c;
-    else
-        v->cmd_head = c;
-    v->cmd_tail = c;
-    pthread_mutex_unlock(&v->mu);
-    char one = 1;
-    if (write(v->wake[1], &one, 1) < 0 && errno != EAGAIN)
-        marie_warn("viewer: wake-up pipe: %s", strerror(errno));
-}
-
-/* ---------------------------------------------------------------- civetweb handlers */
-
-/* Only pages served by this server may open the WebSocket: another site open in the same
- * browser must not be able to send orders to the robot. */
-static int ws_connect(const struct mg_connection *conn, void *ud)
-{
-    const char *origin = mg_get_header(conn, "Origin");
-    const char *host = mg_get_header(conn, "Host");
-    if (!origin)
-        return 0;                               /* not a browser */
-    if (!host || strncmp(origin, "http://", 7) != 0 || strcmp(origin + 7, host) != 0) {
-        marie_warn_ratelimited(10, "viewer: WebSocket from origin %s refused (host %s)", origin,
-                               host ? host : "?");
-        return 1;
-    }
-    return 0;
-}
-
-static void ws_ready(struct mg_connection *conn, void *ud)
-{
-    viewer_t *v = ud;
-    client_t *cl = calloc(1, sizeof *cl);
-    if (!cl)
-        return;
-    cl->conn = conn;
-    pthread_mutex_init(&cl->mu, NULL);
-    pthread_cond_init(&cl->cv, NULL);
-    if (pthread_create(&cl->writer, NULL, writer_main, cl) != 0) {
-        free(cl);
-        return;
-    }
-    pthread_mutex_lock(&v->mu);
-    cl->id = v->next_client_id++;
-    cl->next = v->clients;
-    v->clients = cl;
-    pthread_mutex_unlock(&v->mu);
-    mg_set_user_connection_data(conn, cl);
-    push_cmd(v, cl->id, true, "", 0);
-}
-
-static int ws_data(struct mg_connection *conn, int bits, char *data, size_t len, void *ud)
-{
-    viewer_t *v = ud;
-    client_t *cl = mg_get_user_connection_data(conn);
-    int op = bits & 0xf;
-    if (op == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE)
-        return 0;
-    if (op == MG_WEBSOCKET_OPCODE_TEXT && cl && len <= 4096)
-        push_cmd(v, cl->id, false, data, len);
-    return 1;
-}
-
-static void ws_close(const struct mg_connection *conn, void *ud)
-{
-    viewer_t *v = ud;
-    client_t *cl = mg_get_user_connection_data(conn);
-    if (!cl)
-        return;
-    pthread_mutex_lock(&v->mu);
-    for (client_t **pp = &v->clients; *pp; pp = &(*pp)->next)
-        if (*pp == cl) {
-            *pp = cl->next;
-            break;
-        }
-    pthread_mutex_unlock(&v->mu);
-    pthread_mutex_lock(&cl->mu);
-    cl->closing = true;
-    cl->dead = true;
-    pthread_cond_signal(&cl->cv);
-    pthread_mutex_unlock(&cl->mu);
-    pthread_join(cl->writer, NULL);
-    for (frame_t *f = cl->head, *n; f; f = n) {
-        n = f->next;
-        free(f);
-    }
-    pthread_mutex_destroy(&cl->mu);
-    pthread_cond_destroy(&cl->cv);
-    free(cl);
-}
-
-/* The page is three known files: nothing else under www is served (no directory listing,
- * CGI or SSI, whatever the folder holds). */
-static int http_page(struct mg_connection *conn, void *ud)
-{
-    viewer_t *v = ud;
-    static const struct {
-        const char *uri, *file, *mime;
-    } files[] = {
-        {"/", "index.html", "text/html; charset=utf-8"},
-        {"/index.html", "index.html", "text/html; charset=utf-8"},
-        {"/viewer.js", "viewer.js", "text/javascript; charset=utf-8"},
-        {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
-    };
-    const char *uri = mg_get_request_info(conn)->local_uri;
-    for (size_t i = 0; uri && i < sizeof files / sizeof files[0]; i++)
-        if (strcmp(uri, files[i].uri) == 0) {
-            char path[PATH_MAX + 32];
-            snprintf(path, sizeof path, "%s/%s", v->www, files[i].file);
-            mg_send_mime_file(conn, path, files[i].mime);
-            return 200;
-        }
-    mg_send_http_error(conn, 404, "%s", "not found");
-    return 404;
-}
-
-static int log_message(const struct mg_connection *conn, const char *msg)
-{
-    marie_warn_ratelimited(10, "viewer: http: %s", msg);
-    return 1;
+    return marie_mono_us();
 }
 
 /* ---------------------------------------------------------------- messages */
@@ -1036,9 +794,7 @@ static void player_tick(marie_loop_t *loop, marie_timer_t *tm, int64_t overruns,
         if (now - v->last_player_msg >= 1000000) {
             v->last_player_msg = now;
             char s[200];
-            pthread_mutex_lock(&v->mu);
-            long long frames = (long long)v->frames_out;
-            pthread_mutex_unlock(&v->mu);
+            long long frames = (long long)webserve_frames_out(v->web);
             int n = snprintf(s, sizeof s, "{\"type\":\"stats\",\"msgs\":%lld,\"frames\":%lld,\"rx_age\":%.1f,\"bad\":%lld}",
                              (long long)v->msgs_in, frames, v->last_rx_mono ? (now - v->last_rx_mono) / 1e6 : -1.0,
                              (long long)v->bad_payloads);
@@ -1185,16 +941,17 @@ static void do_goal(viewer_t *v, int id, double x, double y, double th)
     notice(v, -1, "info", msg);
 }
 
-static void handle_cmd(viewer_t *v, cmd_t *c)
+static void handle_cmd(void *user, int client, bool hello, const char *text, size_t len)
 {
-    if (c->hello) {
-        send_hello(v, c->client);
+    viewer_t *v = user;
+    if (hello) {
+        send_hello(v, client);
         return;
     }
     vj_cmd_t cmd;
-    if (vj_cmd_parse(&cmd, c->text, c->len) < 0 || !vj_cmd_str(&cmd, "op")) {
-        marie_component_bad_input(v->c, "bad_command", "page command not understood (%zu bytes)", c->len);
-        notice(v, c->client, "error", "command not understood");
+    if (vj_cmd_parse(&cmd, text, len) < 0 || !vj_cmd_str(&cmd, "op")) {
+        marie_component_bad_input(v->c, "bad_command", "page command not understood (%zu bytes)", len);
+        notice(v, client, "error", "command not understood");
         return;
     }
     const char *op = vj_cmd_str(&cmd, "op");
@@ -1204,23 +961,23 @@ static void handle_cmd(viewer_t *v, cmd_t *c)
         double t = 0;
         vj_cmd_num(&cmd, "t", &t);
         int n = snprintf(s, sizeof s, "{\"type\":\"pong\",\"t\":%.17g}", t);
-        send_to(v, c->client, s, (size_t)n, false);
+        send_to(v, client, s, (size_t)n, false);
     } else if (strcmp(op, "goal") == 0 || strcmp(op, "order") == 0) {
         if (!v->auth) {
-            notice(v, c->client, "error", "controls are disabled: start the viewer with --key-file");
+            notice(v, client, "error", "controls are disabled: start the viewer with --key-file");
         } else if (strcmp(op, "goal") == 0) {
             if (!vj_cmd_num(&cmd, "x", &x) || !vj_cmd_num(&cmd, "y", &y))
-                notice(v, c->client, "error", "goal needs x and y");
+                notice(v, client, "error", "goal needs x and y");
             else {
                 vj_cmd_num(&cmd, "th", &th);
-                do_goal(v, c->client, x, y, th);
+                do_goal(v, client, x, y, th);
             }
         } else {
-            do_order(v, c->client, vj_cmd_str(&cmd, "cmd") ? vj_cmd_str(&cmd, "cmd") : "",
+            do_order(v, client, vj_cmd_str(&cmd, "cmd") ? vj_cmd_str(&cmd, "cmd") : "",
                      vj_cmd_str(&cmd, "target"));
         }
     } else if (v->live) {
-        notice(v, c->client, "error", "playback commands need a log");
+        notice(v, client, "error", "playback commands need a log");
     } else if (strcmp(op, "play") == 0) {
         if (v->play_t >= v->t1)
             player_seek(v, v->t0);
@@ -1238,29 +995,7 @@ static void handle_cmd(viewer_t *v, cmd_t *c)
         v->speed = x;
         send_player(v, -1);
     } else {
-        notice(v, c->client, "error", "unknown command");
-    }
-}
-
-static void on_wake(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    viewer_t *v = user;
-    char buf[256];
-    while (read(fd, buf, sizeof buf) > 0)
-        ;
-    for (;;) {
-        pthread_mutex_lock(&v->mu);
-        cmd_t *c = v->cmd_head;
-        if (c) {
-            v->cmd_head = c->next;
-            if (!v->cmd_head)
-                v->cmd_tail = NULL;
-        }
-        pthread_mutex_unlock(&v->mu);
-        if (!c)
-            break;
-        handle_cmd(v, c);
-        free(c);
+        notice(v, client, "error", "unknown command");
     }
 }
 
@@ -1338,7 +1073,7 @@ static int find_www(viewer_t *v)
 static int init_viewer(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
-    if (v->http)
+    if (v->web)
         return 0;                       /* re-init after a stop: already serving */
     v->c = c;
     v->speed = marie_param_double(c, "speed");
@@ -1387,34 +1122,28 @@ static int init_viewer(marie_component_t *c)
     }
     if (v->live == false && marie_port_on_message(marie_port(c, "am_reply"), on_live) < 0)
         return -1;
-    if (pipe2(v->wake, O_NONBLOCK | O_CLOEXEC) < 0 ||
-        marie_loop_add_fd(marie_component_loop(c), v->wake[0], POLLIN, on_wake, v) < 0 ||
-        !marie_loop_add_wall_timer(marie_component_loop(c), 20000, player_tick, v)) {
+    if (!marie_loop_add_wall_timer(marie_component_loop(c), 20000, player_tick, v)) {
         marie_component_fail_reason(c, "cannot set up the loop: %s", strerror(errno));
         return -1;
     }
-    char listen[128], port[16];
-    snprintf(port, sizeof port, "%lld", (long long)marie_param_int(c, "http_port"));
-    snprintf(listen, sizeof listen, "%s:%s", marie_param_str(c, "bind"), port);
-    const char *opts[] = {
-        "listening_ports", listen, "num_threads", "16", "websocket_timeout_ms", "3600000", NULL,
+    static const webserve_file_t files[] = {
+        {"/", "index.html", "text/html; charset=utf-8"},
+        {"/index.html", "index.html", "text/html; charset=utf-8"},
+        {"/viewer.js", "viewer.js", "text/javascript; charset=utf-8"},
+        {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
     };
-    struct mg_callbacks cb = {0};
-    cb.log_message = log_message;
-    mg_init_library(0);
-    v->http = mg_start(&cb, v, opts);
-    if (!v->http) {
-        marie_component_fail_reason(c, "cannot serve HTTP on %s (port in use?)", listen);
+    webserve_cfg_t wc = {
+        .bind = marie_param_str(c, "bind"), .port = (int)marie_param_int(c, "http_port"), .www = v->www,
+        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v,
+    };
+    char why[256];
+    if (!(v->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
+        marie_component_fail_reason(c, "%s", why);
         return -1;
     }
-    mg_set_websocket_handler(v->http, "/ws", ws_connect, ws_ready, ws_data, ws_close, v);
-    mg_set_request_handler(v->http, "/", http_page, v);
-    struct mg_server_port sp[4];
-    int np = mg_get_server_ports(v->http, 4, sp);
-    v->port = np > 0 ? sp[0].port : (int)marie_param_int(c, "http_port");
     const char *host = strcmp(marie_param_str(c, "bind"), "0.0.0.0") == 0 ? "127.0.0.1" : marie_param_str(c, "bind");
     char url[256];
-    snprintf(url, sizeof url, "http://%s:%d/", host, v->port);
+    snprintf(url, sizeof url, "http://%s:%d/", host, webserve_port(v->web));
     if (v->live)
         printf("marie-view: following the bus at %s\n", url);
     else
@@ -1447,19 +1176,8 @@ static int init(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
-    if (v->http)
-        mg_stop(v->http);               /* closes every WebSocket: their writers are joined */
-    v->http = NULL;
-    for (cmd_t *x = v->cmd_head, *n; x; x = n) {
-        n = x->next;
-        free(x);
-    }
-    v->cmd_head = v->cmd_tail = NULL;
-    if (v->wake[0] > 0) {
-        marie_loop_remove_fd(marie_component_loop(c), v->wake[0]);
-        close(v->wake[0]);
-        close(v->wake[1]);
-    }
+    webserve_stop(v->web);
+    v->web = NULL;
     for (int i = 0; i < P_NIN; i++)
         free(v->chans[i].latest);
     for (int i = 0; i < RING; i++) {
@@ -1495,8 +1213,6 @@ int main(int argc, char **argv)
 {
     static viewer_t v;
     signal(SIGPIPE, SIG_IGN);
-    pthread_mutex_init(&v.mu, NULL);
-    v.wake[0] = v.wake[1] = -1;
     int rc = marie_main(&def, argc, argv, &v);
     return rc == 0 && v.init_failed ? 1 : rc;
 }

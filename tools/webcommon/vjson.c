@@ -1,6 +1,6 @@
 /* vjson: the viewer's JSON. Hand-written per type so the page gets only what it draws, with
  * coordinates rounded to millimetres: a laser scan is ~1 KB instead of ~4 KB. */
-#include "tools/viewer/vjson.h"
+#include "tools/webcommon/vjson.h"
 
 #include <errno.h>
 #include <math.h>
