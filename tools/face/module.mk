@@ -2,3 +2,6 @@
 # the viewer's server code (tools/webcommon); its test.
 $(eval $(call marie_program,marie-face-server,tools/face/face_main.c tools/webcommon/webserve.c tools/webcommon/vjson.c,$(B)/lib/libmarie_managers.a -lcivetweb))
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie/face && install -m 644 tools/face/www/* $(DESTDIR)$(PREFIX)/share/marie/face/;
+$(eval $(call marie_link,$(B)/tests/helpers/face_probe,tests/face/face_probe.c,))
+EXTRA_TARGETS += $(B)/tests/helpers/face_probe
+ITESTS += tests/face/test_face.sh

@@ -73,11 +73,19 @@ function onMessage(m) {
 
 function connect() {
   ws = new WebSocket("ws://" + location.host + "/ws");
-  ws.onopen = () => { document.body.dataset.conn = "1"; notice(""); };
+  ws.onopen = () => {
+    document.body.dataset.conn = "1";
+    notice("");
+    $("what").textContent = "Ready";
+    $("why").textContent = "no decision from the robot yet";
+  };
   ws.onmessage = (e) => { try { onMessage(JSON.parse(e.data)); } catch (err) { /* one bad frame */ } };
   ws.onclose = () => {
-    document.body.dataset.conn = "0";
+    const b = document.body;
+    if (b.dataset.conn === "1") b.dataset.drops = (+(b.dataset.drops || 0)) + 1;
+    b.dataset.conn = "0";
     $("what").textContent = "No connection to the robot";
+    if (b.dataset.drops) b.dataset.saidGone = "1";
     $("why").textContent = "trying again…";
     setTimeout(connect, 1000);
   };
