@@ -9,7 +9,10 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "adapters/mission/mission_request.h"
 #include "adapters/mission/mission_signs.h"
+#include "core/auth.h"
+#include "core/time.h"
 
 static int nevents;
 static char last_kind[32], last_text[256];
@@ -106,12 +109,71 @@ static void test_mistakes_are_located(void **state)
     }
 }
 
+/* A person's request goes ahead of the list; the interrupted goal waits, then resumes. */
+static void test_request_goes_first(void **state)
+{
+    mission_t m;
+    mission_init(&m);
+    m.goals[0] = (mission_goal_t){ .id = 1, .name = "a", .x = 10, .y = 0, .tolerance = 0.3, .priority = 5 };
+    m.n = 1;
+    double pose[3] = { 0, 0, 0 };
+    mission_update(&m, 0, pose, NULL, NULL);
+    assert_int_equal(m.current, 0);
+    mission_goal_t r = { .id = 800001, .name = "lab", .x = 3, .y = 4, .tolerance = 0.3 };
+    assert_int_equal(mission_request_insert(&m, &r), 0);
+    mission_update(&m, 1000000, pose, NULL, NULL);
+    assert_int_equal(m.current, 1);
+    assert_true(m.goals[1].priority > 5);
+    pose[0] = 3;
+    pose[1] = 4;
+    mission_update(&m, 2000000, pose, NULL, NULL);
+    assert_int_equal(m.state[1], MISSION_REACHED);
+    assert_int_equal(m.current, 0);            /* back to the list */
+    /* After the mission is done a request starts it again. */
+    pose[0] = 10;
+    pose[1] = 0;
+    mission_update(&m, 3000000, pose, NULL, NULL);
+    mission_update(&m, 3100000, pose, NULL, NULL);
+    assert_true(m.done);
+    r.id = 800002;
+    assert_int_equal(mission_request_insert(&m, &r), 0);
+    mission_update(&m, 4000000, pose, NULL, NULL);
+    assert_false(m.done);
+    assert_int_equal(m.current, 2);
+}
+
+/* Goal requests are signed and checked as orders are: altered, unsigned, replayed refused. */
+static void test_goal_request_signature(void **state)
+{
+    uint8_t key[MARIE_AUTH_KEY_LEN] = { 7 }, other[MARIE_AUTH_KEY_LEN] = { 8 };
+    marie_auth_t *a = marie_auth_from_key(key), *b = marie_auth_from_key(other);
+    marie_replay_t *rp = marie_replay_create(NULL);
+    marie_goal_request_t r = { .utime = marie_wall_us(), .sender = "me@host/face", .seq = marie_wall_us() + 1,
+                               .goal = { .id = 5, .name = "lab", .pose = { 1, 2, 0 } } };
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    assert_int_equal(marie_auth_sign_goal_request(a, &r, mac), 0);
+    assert_int_equal(marie_auth_check_goal_request(b, NULL, &r), MARIE_AUTH_FORGED);
+    r.goal.pose.x = 9;
+    assert_int_equal(marie_auth_check_goal_request(a, NULL, &r), MARIE_AUTH_FORGED);
+    r.goal.pose.x = 1;
+    assert_int_equal(marie_auth_check_goal_request(a, rp, &r), MARIE_AUTH_OK);
+    assert_int_equal(marie_auth_check_goal_request(a, rp, &r), MARIE_AUTH_REPLAYED);
+    assert_int_equal(marie_auth_check_goal_request(NULL, rp, &r), MARIE_AUTH_NOKEY);
+    r.mac_len = 0;
+    assert_int_equal(marie_auth_check_goal_request(a, rp, &r), MARIE_AUTH_UNSIGNED);
+    marie_replay_destroy(rp);
+    marie_auth_destroy(a);
+    marie_auth_destroy(b);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_search_then_read_then_reached),
         cmocka_unit_test(test_search_ends_without_the_sign),
         cmocka_unit_test(test_mistakes_are_located),
+        cmocka_unit_test(test_request_goes_first),
+        cmocka_unit_test(test_goal_request_signature),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -41,7 +41,7 @@ static const marie_port_spec_t ports[] = {
     [P_AM_STATUS] = {"am_status", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_STATUS},
     [P_AM_REPLY] = {"am_reply", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_REPLY},
     [P_TAGS] = {"tags", NULL, MARIE_IN, MARIE_PUSH, "TAG_DETECTIONS"},
-    [P_NIN] = {"goal_out", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL"},
+    [P_NIN] = {"request", &marie_type_goal_request_t, MARIE_OUT, MARIE_PUSH, "GOAL_REQUEST"},
     {"order", &marie_type_am_order_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_AM_ORDER},
     {0},
 };
@@ -924,19 +924,24 @@ static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
     notice(v, -1, "info", msg);
 }
 
+/* A goal from the page: a request signed with the key, which the mission obeys only if authentic. */
 static void do_goal(viewer_t *v, int id, double x, double y, double th)
 {
-    marie_goal_t g = {
-        .utime = marie_wall_us(), .id = 900000 + ++v->goals_sent, .name = "viewer",
-        .pose = {x, y, th}, .tolerance = marie_param_double(v->c, "goal_tolerance"), .priority = 0,
+    int64_t seq = marie_auth_next_seq(NULL);
+    v->last_seq = seq > v->last_seq ? seq : v->last_seq + 1;
+    marie_goal_request_t r = {
+        .utime = marie_wall_us(), .sender = v->sender, .seq = v->last_seq,
+        .goal = {.utime = marie_wall_us(), .id = 900000 + ++v->goals_sent, .name = "viewer", .pose = {x, y, th},
+                 .tolerance = marie_param_double(v->c, "goal_tolerance"), .priority = 0},
     };
-    if (marie_port_publish(marie_port(v->c, "goal_out"), &g) < 0) {
-        notice(v, id, "error", "cannot publish the goal");
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    if (marie_auth_sign_goal_request(v->auth, &r, mac) < 0 || marie_port_publish(marie_port(v->c, "request"), &r) < 0) {
+        notice(v, id, "error", "cannot send the goal request");
         return;
     }
     char msg[200];
-    snprintf(msg, sizeof msg, "goal %d sent on %s: (%.2f, %.2f, %.2f)", g.id,
-             marie_port_channel(marie_port(v->c, "goal_out")), x, y, th);
+    snprintf(msg, sizeof msg, "goal %d requested on %s: (%.2f, %.2f, %.2f)", r.goal.id,
+             marie_port_channel(marie_port(v->c, "request")), x, y, th);
     marie_info("viewer: %s", msg);
     notice(v, -1, "info", msg);
 }
