@@ -28,6 +28,7 @@ recipe() {
     marie-planner) echo "planner|--param map=sim/worlds/office.yaml" ;;
     marie-sim) echo "sim|--param world=office" ;;
     marie-viewer-server) echo "viewer|--param http_port=0" ;;
+    marie-face) echo "face|--param http_port=0" ;;
     marie-vision) echo "vision|" ;;
     *) return 1 ;;
     esac
@@ -38,7 +39,7 @@ recipe() {
 out_mode() {
     case $1:$2 in
     *:marie.motor_command_t|drives:*|sim:encoders) echo zero ;;
-    planner:path|vision:*|viewer:*) echo silent ;;
+    planner:path|vision:*|viewer:*|face:*) echo silent ;;
     *) echo finite ;;
     esac
 }

@@ -41,7 +41,7 @@ pids="$pids $!"
 PLACES='places=[{name: kitchen, x: 3.0, y: 4.0}, {name: lab, x: 10.0, y: 2.0, theta: 1.57}]'
 face() {
     rm -f "$T/url"
-    "$BIN/marie-face-server" --name face --param http_port=8121 --param key_file="$T/key" --param pin=2468 \
+    "$BIN/marie-face" --name face --param http_port=8121 --param key_file="$T/key" --param pin=2468 \
         --param "$PLACES" --param stop_target=walker --param url_file="$T/url" >> "$T/face.log" 2>&1 &
     face_pid=$!
     pids="$pids $face_pid"
@@ -93,7 +93,7 @@ check "GO ON resumes it" cdp --size 800x480 --until "$(tap 2468 '#resume')" --un
 check "walker running again" wait_for 10 sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
 
 # Same tab throughout: the server is killed, the page must say so, then it comes back.
-restart="kill $face_pid; sleep 2; $BIN/marie-face-server --name face --param http_port=8121 --param key_file=$T/key \
+restart="kill $face_pid; sleep 2; $BIN/marie-face --name face --param http_port=8121 --param key_file=$T/key \
  --param pin=2468 --param '$PLACES' --param stop_target=walker >> $T/face.log 2>&1 & echo \$! > $T/face2.pid"
 check "server gone: the page says so, then reconnects by itself when it is back" \
     cdp --size 800x480 --until "$ready" --then "$restart" \

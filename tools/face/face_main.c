@@ -1,4 +1,4 @@
-/* marie-face-server: the page for people near the robot (a touch screen): what it is doing
+/* marie-face: the page for people near the robot (a touch screen): what it is doing
  * and why, the places it can go, a stop request, a light per host. Requests from the page
  * become orders and goal requests signed here, with the key this server holds. */
 #include <errno.h>
