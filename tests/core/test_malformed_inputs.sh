@@ -51,7 +51,8 @@ raw_type() {
     particles) echo marie.particle_cloud_t ;; laser) echo marie.laser_scan_t ;;
     path) echo marie.path_t ;; goal) echo marie.goal_t ;; arbitration) echo marie.arbitration_t ;;
     event) echo marie.event_t ;; heartbeat) echo marie.heartbeat_t ;; am_status) echo marie.am_status_t ;;
-    am_reply) echo marie.am_reply_t ;; tags) echo marie.tag_detections_t ;; *) return 1 ;;
+    am_reply) echo marie.am_reply_t ;; tags) echo marie.tag_detections_t ;;
+    landmarks) echo marie.landmarks_t ;; *) return 1 ;;
     esac
 }
 

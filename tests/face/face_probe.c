@@ -1,7 +1,9 @@
-/* face_probe: the touch page's test peer on the bus. --watch S --key FILE prints every goal
- * request (with whether its signature holds under the key) and every GOAL for S seconds;
- * --unsigned NAME publishes a goal request without a signature and one with a forged one. */
+/* face_probe: the pages' test peer on the bus. --watch S --key FILE prints every goal request
+ * (with whether its signature holds under the key) and every GOAL for S seconds; --unsigned
+ * NAME publishes a goal request without a signature and one with a forged one; --landmark
+ * ID:X:Y:YAW:TEXT publishes a landmark (as marie-vision does) every 0.2 s while watching. */
 #include <getopt.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,12 +37,18 @@ int main(int argc, char **argv)
 {
     double watch = 0;
     const char *key = NULL, *unsigned_name = NULL;
-    static struct option opts[] = { { "watch", 1, 0, 'w' }, { "key", 1, 0, 'k' }, { "unsigned", 1, 0, 'u' }, { 0 } };
+    marie_landmark_t lm = { .family = "tag36h11" };
+    char lm_text[64] = "";
+    bool landmark = false;
+    static struct option opts[] = { { "watch", 1, 0, 'w' }, { "key", 1, 0, 'k' }, { "unsigned", 1, 0, 'u' },
+                                    { "landmark", 1, 0, 'l' }, { 0 } };
     int o;
     while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
         if (o == 'w') watch = atof(optarg);
         else if (o == 'k') key = optarg;
         else if (o == 'u') unsigned_name = optarg;
+        else if (o == 'l' && sscanf(optarg, "%d:%lf:%lf:%lf:%63[^\n]", &lm.id, &lm.x, &lm.y, &lm.yaw, lm_text) == 5)
+            landmark = true;
         else return 2;
     }
     lcm_t *lcm = lcm_create(NULL);
@@ -66,9 +74,16 @@ int main(int argc, char **argv)
     }
     marie_goal_request_t_subscribe(lcm, "GOAL_REQUEST", on_request, NULL);
     marie_goal_t_subscribe(lcm, "GOAL", on_goal, NULL);
-    int64_t end = marie_mono_us() + (int64_t)(watch * 1e6);
-    while (marie_mono_us() < end)
+    int64_t end = marie_mono_us() + (int64_t)(watch * 1e6), next = 0;
+    lm.message = lm_text;
+    while (marie_mono_us() < end) {
+        if (landmark && marie_mono_us() >= next) {
+            marie_landmarks_t m = { .utime = marie_wall_us(), .frame = "map", .count = 1, .landmarks = &lm };
+            marie_landmarks_t_publish(lcm, "LANDMARKS", &m);
+            next = marie_mono_us() + 200000;
+        }
         lcm_handle_timeout(lcm, 50);
+    }
     marie_auth_destroy(auth);
     lcm_destroy(lcm);
     return 0;

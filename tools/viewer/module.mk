@@ -21,3 +21,4 @@ ITESTS += tests/viewer/test_viewer_controls.sh
 
 $(eval $(call marie_bench,bench_viewer,tools/viewer/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen
+ITESTS += tests/viewer/test_viewer_landmarks.sh

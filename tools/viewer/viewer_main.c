@@ -24,7 +24,7 @@
 /* Inputs: one per thing the page shows; the channel is the port's binding. */
 enum {
     P_MAP, P_POSE, P_TRUTH, P_PARTICLES, P_LASER, P_PATH, P_GOAL, P_ARB, P_EVENT, P_HB,
-    P_AM_STATUS, P_AM_REPLY, P_TAGS, P_NIN,
+    P_AM_STATUS, P_AM_REPLY, P_TAGS, P_LANDMARKS, P_NIN,
 };
 
 static const marie_port_spec_t ports[] = {
@@ -41,6 +41,7 @@ static const marie_port_spec_t ports[] = {
     [P_AM_STATUS] = {"am_status", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_STATUS},
     [P_AM_REPLY] = {"am_reply", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_REPLY},
     [P_TAGS] = {"tags", NULL, MARIE_IN, MARIE_PUSH, "TAG_DETECTIONS"},
+    [P_LANDMARKS] = {"landmarks", NULL, MARIE_IN, MARIE_PUSH, "LANDMARKS"},
     [P_NIN] = {"request", &marie_type_goal_request_t, MARIE_OUT, MARIE_PUSH, "GOAL_REQUEST"},
     {"order", &marie_type_am_order_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_AM_ORDER},
     {0},
@@ -53,7 +54,7 @@ static const marie_type_t *const port_type[P_NIN] = {
     [P_LASER] = &marie_type_laser_scan_t, [P_PATH] = &marie_type_path_t, [P_GOAL] = &marie_type_goal_t,
     [P_ARB] = &marie_type_arbitration_t, [P_EVENT] = &marie_type_event_t, [P_HB] = &marie_type_heartbeat_t,
     [P_AM_STATUS] = &marie_type_am_status_t, [P_AM_REPLY] = &marie_type_am_reply_t,
-    [P_TAGS] = &marie_type_tag_detections_t,
+    [P_TAGS] = &marie_type_tag_detections_t, [P_LANDMARKS] = &marie_type_landmarks_t,
 };
 
 static const marie_param_spec_t params[] = {
