@@ -1,5 +1,6 @@
 #!/bin/sh
-# test_face: the touch page in a headless Chromium at 800x480 and 1024x600: a tap on a place
+# test_face: the touch page in a headless Chromium at 800x480 and 1024x600, touch screen
+# emulated and tapped with touch events: a tap on a place
 # becomes a goal request signed by the server, which the mission obeys (it publishes the
 # place as its goal); a wrong PIN is refused by the server, unsigned and forged requests on
 # the bus by the mission; STOP pauses the configured component through marie-am; the page
@@ -56,8 +57,15 @@ URL=http://127.0.0.1:8121/
 cdp() { python3 tests/viewer/cdp.py --port $CDP "$URL" --timeout 15 "$@"; }
 ready="document.body.dataset.conn === '1' && document.querySelectorAll('[data-place]').length === 2 && document.querySelector('.host .light') !== null"
 green="document.querySelector('.host[data-host=alpha] .light.green') !== null"
-tap() {  # tap PIN SELECTOR: type the PIN and press the button, once the page is ready
-    echo "(($ready) && (document.getElementById('pin').value = '$1', document.querySelector('$2').click(), true))"
+pin() {  # the PIN typed in, once the page is ready
+    echo "(($ready) && (document.getElementById('pin').value = '$1', true))"
+}
+# tap PIN SELECTOR NOTICE [cdp options]: a finger's tap (touch events, touch screen emulated) on
+# the element with the PIN typed, then the page must show NOTICE.
+tap() {
+    p=$1; sel=$2; want=$3; shift 3
+    cdp --touch --until "$(pin "$p")" --tap "$sel" --then true \
+        --until2 "document.getElementById('notice').textContent === '$want'" "$@"
 }
 for size in 800x480 1024x600; do
     check "page at $size: places, host light; screenshot" \
@@ -69,14 +77,12 @@ for size in 800x480 1024x600; do
 done
 
 check "a tap on 'lab' with the PIN: the page says it is going" \
-    cdp --size 800x480 --until "$(tap 2468 '[data-place="1"]')" --until2 "document.getElementById('notice').textContent === 'going to lab'" \
-        --then true --screenshot "$SHOTS/face-tapped.png"
+    tap 2468 '[data-place="1"]' 'going to lab' --size 800x480 --screenshot "$SHOTS/face-tapped.png"
 check "the goal request on the bus is signed with the key" wait_for 10 grep -q "request lab (10.00, 2.00) from .*/face: signed" "$T/probe.txt"
 check "the mission obeys it: the place is its goal" wait_for 10 grep -q "^goal lab (10.00, 2.00)" "$T/probe.txt"
 check "the mission says who asked" wait_for 5 grep -q "request_accepted.*lab" "$T/mission.log"
 
-check "a wrong PIN is refused by the server" \
-    cdp --size 1024x600 --until "$(tap 1111 '[data-place="0"]')" --until2 "document.getElementById('notice').textContent === 'wrong PIN'" --then true
+check "a wrong PIN is refused by the server" tap 1111 '[data-place="0"]' 'wrong PIN' --size 1024x600
 sleep 0.5
 check "no request for kitchen reached the bus" sh -c "! grep -q 'request kitchen' '$T/probe.txt'"
 
@@ -85,11 +91,10 @@ check "an unsigned request is refused by the mission" wait_for 5 grep -q "goal r
 check "a forged one too" wait_for 5 grep -q "goal request 'intruder' from stranger refused: forged" "$T/mission.log"
 check "and the mission still goes to lab" sh -c "! grep -q '^goal intruder' '$T/probe.txt'"
 
-check "STOP with the PIN: the page confirms" \
-    cdp --size 800x480 --until "$(tap 2468 '#stop')" --until2 "document.getElementById('notice').textContent === 'stop asked'" --then true
+check "STOP with the PIN: the page confirms" tap 2468 '#stop' 'stop asked' --size 800x480
 check "marie-am obeyed the signed order: walker paused" wait_for 10 sh -c "\"$BIN/marie\" ps | grep walker | grep -q paused"
 check "the host light turns amber" cdp --size 800x480 --until "document.querySelector('.host[data-host=alpha] .light.amber') !== null" --screenshot "$SHOTS/face-stopped.png"
-check "GO ON resumes it" cdp --size 800x480 --until "$(tap 2468 '#resume')" --until2 "document.getElementById('notice').textContent === 'moving on'" --then true
+check "GO ON resumes it" tap 2468 '#resume' 'moving on' --size 800x480
 check "walker running again" wait_for 10 sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
 
 # Same tab throughout: the server is killed, the page must say so, then it comes back.
