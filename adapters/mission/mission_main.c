@@ -207,6 +207,7 @@ static void on_request(marie_component_t *c, marie_port_t *p, const void *msg, c
     marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "request_accepted", "goal '%s' (%.2f, %.2f) asked by %s", mg.name,
                           mg.x, mg.y, r->sender);
     s->dirty = true;
+    tick(c, 0);         /* a person waits: the goal goes out now, not at the next tick */
 }
 
 /* The planner's verdict on the current goal: a goal it keeps failing is given up. */

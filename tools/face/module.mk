@@ -5,3 +5,5 @@ INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie/face && install -m 6
 $(eval $(call marie_link,$(B)/tests/helpers/face_probe,tests/face/face_probe.c,))
 EXTRA_TARGETS += $(B)/tests/helpers/face_probe
 ITESTS += tests/face/test_face.sh
+$(eval $(call marie_bench,bench_face,tools/face/bench_face.c,-lcivetweb))
+$(B)/bench/bench_face: | $(B)/bin/marie-face $(B)/bin/marie-mission

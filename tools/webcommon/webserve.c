@@ -307,7 +307,7 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
     snprintf(port, sizeof port, "%d", cfg->port);
     snprintf(listen, sizeof listen, "%s:%s", cfg->bind, port);
     const char *opts[] = {
-        "listening_ports", listen, "num_threads", "16", "websocket_timeout_ms", "3600000", NULL,
+        "listening_ports", listen, "num_threads", "16", "websocket_timeout_ms", "3600000", "tcp_nodelay", "1", NULL,
     };
     struct mg_callbacks cb = {0};
     cb.log_message = log_message;
