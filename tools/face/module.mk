@@ -7,3 +7,4 @@ EXTRA_TARGETS += $(B)/tests/helpers/face_probe
 ITESTS += tests/face/test_face.sh
 $(eval $(call marie_bench,bench_face,tools/face/bench_face.c,-lcivetweb))
 $(B)/bench/bench_face: | $(B)/bin/marie-face $(B)/bin/marie-mission
+ITESTS += tests/face/test_face_sim.sh
