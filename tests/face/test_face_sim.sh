@@ -39,7 +39,8 @@ ready="document.body.dataset.conn === '1' && document.querySelectorAll('[data-pl
 check "a person taps 'door B' with the PIN" \
     python3 tests/viewer/cdp.py --port $CDP http://127.0.0.1:8151/ --size 800x480 --touch --timeout 15 \
         --until "($ready) && (document.getElementById('pin').value = '1357', true)" --tap '[data-place="0"]' \
-        --then true --until2 "document.getElementById('notice').textContent === 'going to door B'"
+        --then true --until2 "document.getElementById('notice').textContent === 'going to door B' && document.getElementById('what').textContent === 'On my way'" \
+        --screenshot "$OUT/face-driving.png"
 wait $probe
 rc=$?
 cat "$OUT/probe.txt"

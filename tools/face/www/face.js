@@ -62,6 +62,7 @@ function onMessage(m) {
     drawPlaces();
   } else if (m.type === "mission") {
     document.body.dataset.mission = m.done + "/" + m.goals;
+    $("progress").textContent = "mission: " + m.done + " of " + m.goals + " goals done";
   } else if (m.type === "host") {
     host(m);
   } else if (m.type === "event") {
