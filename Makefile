@@ -94,7 +94,8 @@ all:
 include lcmtypes/module.mk
 include core/module.mk
 include map/module.mk
-include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk,$(wildcard */module.mk */*/module.mk)))
+include camera/module.mk
+include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk camera/module.mk,$(wildcard */module.mk */*/module.mk)))
 
 all: $(LIBMARIE) $(PROGRAMS) $(TESTS) $(BENCHES) $(EXTRA_TARGETS)
 

@@ -446,3 +446,36 @@ int64_t marie_auth_next_seq(const char *path)
     close(fd);
     return seq;
 }
+
+int marie_auth_sign_goal_request(const marie_auth_t *a, marie_goal_request_t *g, uint8_t store[MARIE_AUTH_MAC_LEN])
+{
+    uint8_t *buf;
+    int n;
+    ENCODE_UNSIGNED(marie_goal_request_t, g, buf, n);
+    if (n < 0) {
+        free(buf);
+        return n;
+    }
+    marie_auth_mac(a, buf, (size_t)n, store);
+    free(buf);
+    g->mac = store;
+    g->mac_len = MARIE_AUTH_MAC_LEN;
+    return 0;
+}
+
+marie_auth_result_t marie_auth_check_goal_request(const marie_auth_t *a, marie_replay_t *r,
+                                                  const marie_goal_request_t *g)
+{
+    if (g->mac_len <= 0)
+        return MARIE_AUTH_UNSIGNED;
+    if (!a)
+        return MARIE_AUTH_NOKEY;
+    uint8_t *buf;
+    int n;
+    ENCODE_UNSIGNED(marie_goal_request_t, g, buf, n);
+    int ok = n >= 0 && marie_auth_verify(a, buf, (size_t)n, g->mac, (size_t)g->mac_len) == 0;
+    free(buf);
+    if (!ok)
+        return MARIE_AUTH_FORGED;
+    return check_fresh(r, g->sender, g->utime, g->seq);
+}

@@ -7,6 +7,7 @@
 #include <stdint.h>
 
 #include "lcmtypes/marie_am_order_t.h"
+#include "lcmtypes/marie_goal_request_t.h"
 #include "lcmtypes/marie_lifecycle_command_t.h"
 
 #ifdef __cplusplus
@@ -74,6 +75,10 @@ int64_t marie_replay_epoch(const marie_replay_t *r);
 marie_auth_result_t marie_auth_check_order(const marie_auth_t *a, marie_replay_t *r, const marie_am_order_t *o);
 marie_auth_result_t marie_auth_check_command(const marie_auth_t *a, marie_replay_t *r,
                                              const marie_lifecycle_command_t *c);
+/* Goals asked for by people (the touch page): signed and checked as orders are. */
+int marie_auth_sign_goal_request(const marie_auth_t *a, marie_goal_request_t *g, uint8_t store[MARIE_AUTH_MAC_LEN]);
+marie_auth_result_t marie_auth_check_goal_request(const marie_auth_t *a, marie_replay_t *r,
+                                                  const marie_goal_request_t *g);
 
 /* Next sequence number for a sender: max(wall clock in us, last + 1), kept in path (locked,
  * so concurrent commands never reuse a number). path NULL: the wall clock alone. A last

@@ -33,7 +33,7 @@ class Grid:
         self.rect(0, 0, t, H)
         self.rect(W - t, 0, W, H)
 
-    def write(self, directory, name, comment):
+    def write(self, directory, name, comment, extra=""):
         with open(os.path.join(directory, name + ".pgm"), "wb") as f:
             f.write(b"P5\n# marie sim world %s, %g m/cell\n%d %d\n255\n" %
                     (name.encode(), self.res, self.w, self.h))
@@ -43,6 +43,7 @@ class Grid:
             f.write("# %s\n" % comment)
             f.write("image: %s.pgm\nresolution: %g\norigin: [0.0, 0.0, 0.0]\n" % (name, self.res))
             f.write("negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+            f.write(extra)
 
 
 def test_world(d):
@@ -95,7 +96,27 @@ def office_world(d):
         g.rect(x0, y0, x1, y1)
     g.rect(5.0, 14.6, 5.4, 15.0)          # a pillar in the corridor
     g.write(d, "office", "marie office world: 40x30 m, corridors y 13.5-16.5 and x 18.5-21.5, "
-            "14 rooms with 1.6 m doors")
+            "14 rooms with 1.6 m doors", office_signs(room_x, cx0, cy0, cy1, door))
+
+
+def office_signs(room_x, cx0, cy0, cy1, door):
+    """Door signs for the simulator's camera (docs/vision.md): a tag36h11 tag on the corridor
+    wall beside each room's door, at the camera's height, facing the corridor. Rooms are
+    lettered A, B, ... west to east, south side first; the tag id is the letter's rank + 1."""
+    lines = ["# door signs: tag id k+1 is room chr(ord('A')+k); x, y on the wall face, yaw: where it faces",
+             "camera: {width: 640, height: 480, fx: 500, fy: 500, mount_x: 0.2, mount_z: 0.5, noise: 2, blur: 0.5}",
+             "tags:"]
+    k = 0
+    for (wall_y, yaw, side) in ((cy0 + 0.01, 1.5708, "south"), (cy1 - 0.01, -1.5708, "north")):
+        for i in range(len(room_x) - 1):
+            a, b = room_x[i], room_x[i + 1]
+            if a == cx0:
+                continue
+            x = (a + b) / 2 + door / 2 + 0.45
+            lines.append("  - {id: %d, x: %.2f, y: %.2f, z: 0.5, yaw: %.4f, size: 0.2}   # room %s, %s side"
+                         % (k + 1, x, wall_y, yaw, chr(ord('A') + k), side))
+            k += 1
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

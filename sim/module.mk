@@ -9,7 +9,7 @@ $(eval $(call marie_test,test_sim_world,tests/sim/test_sim_world.c,$(SIM_LIB) $(
 # Device mode drives the hw/ emulators: virtual CiA 402 drives and gyro, virtual LMS200.
 SIM_DEVICE_LIBS := $(B)/lib/libmarie_vdevices.a $(B)/lib/libmarie_drives.a $(B)/lib/libmarie_gyro.a \
     $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a $(B)/lib/libmarie_lms200.a -lutil
-$(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c,$(SIM_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS)))
+$(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c sim/camera.c,$(SIM_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS) $(CAMERA_LIBS)))
 
 $(eval $(call marie_bench,bench_sim,sim/bench_sim.c,$(SIM_LIB) $(ODE_LIBS)))
 $(B)/bench/bench_sim: | $(B)/bin/marie-sim
@@ -18,3 +18,9 @@ $(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c tests/p
 # The device-mode case runs the real drivers against the simulator.
 $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
 
+
+# The camera's cost (docs/vision.md): render time and real-time factor with and without it.
+$(eval $(call marie_bench,bench_sim_camera,sim/bench_sim_camera.c sim/camera.c,$(SIM_LIB) $(ODE_LIBS) $(CAMERA_LIBS)))
+$(B)/bench/bench_sim_camera: | $(B)/bin/marie-sim
+$(eval $(call marie_test,test_sim_camera,tests/sim/test_sim_camera.c sim/camera.c,$(SIM_LIB) $(VISION_LIBS)))
+$(B)/obj/tests/sim/test_sim_camera.o: CPPFLAGS += $(CAMERA_CV_CFLAGS)

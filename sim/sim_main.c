@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "core/component.h"
+#include "sim/camera.h"
 #include "sim/devices.h"
 #include "map/occmap.h"
 #include "sim/world.h"
@@ -15,6 +16,8 @@
 typedef struct {
     sim_world_t *world;
     sim_devices_t *devices;     /* device mode; NULL in channel mode */
+    sim_camera_t *camera;       /* NULL when the camera is off */
+    marie_port_t *p_camera;
     marie_port_t *p_enc, *p_gyro, *p_laser, *p_estop, *p_truth, *p_clock;
     double speed;               /* sim seconds per wall second; 0 = as fast as possible */
     double lockstep;            /* s of sim time allowed past the last motor command; 0 = off */
@@ -43,6 +46,7 @@ static const marie_port_spec_t ports[] = {
     { "estop", &marie_type_estop_t, MARIE_OUT, MARIE_PUSH, "ESTOP" },
     { "truth", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "SIM_TRUTH" },
     { "clock", &marie_type_sim_clock_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_CLOCK },
+    { "camera", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "CAMERA_IMAGE" },
     { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
     { "estop_set", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "SIM_ESTOP" },
     { NULL },
@@ -82,6 +86,9 @@ static const marie_param_spec_t params[] = {
     { "truth_hz", MARIE_PARAM_DOUBLE, "50", "ground truth, sim Hz" },
     { "clock_hz", MARIE_PARAM_DOUBLE, "100", "clock messages, sim Hz" },
     { "estop", MARIE_PARAM_BOOL, "false", "e-stop pressed at start" },
+    { "camera", MARIE_PARAM_BOOL, "false", "render the camera (the world file's camera: and tags:, docs/vision.md)" },
+    { "camera_hz", MARIE_PARAM_DOUBLE, "10", "camera frames, sim Hz" },
+    { "camera_size", MARIE_PARAM_STRING, "", "WIDTHxHEIGHT overriding the world file's (intrinsics scale)" },
     /* device mode */
     { "can", MARIE_PARAM_STRING, "emu:${MARIE_RUN_DIR:-/tmp}/marie-sim-can", "device mode: CAN bus of the virtual drives and gyro" },
     { "can_serve", MARIE_PARAM_BOOL, "true", "device mode: host the emulated bus (emu:PATH) here" },
@@ -211,6 +218,11 @@ static void publish(marie_component_t *c, sim_t *s)
     int64_t k = sim_world_steps(s->world), now = sim_now(s);
     if (!s->devices)
         publish_sensors(s, k, now);
+    if (s->camera) {
+        double x, y, th;
+        sim_world_pose(s->world, &x, &y, &th);
+        sim_camera_publish(s->camera, c, s->p_camera, k, x, y, th, now);
+    }
     if (k % s->n_truth == 0) {
         marie_pose_cov_t t = { .utime = now, .frame = "map" };
         sim_world_pose(s->world, &t.pose.x, &t.pose.y, &t.pose.theta);
@@ -354,6 +366,8 @@ static int on_init(marie_component_t *c)
 {
     sim_t *s = marie_component_user(c);
     /* Init again after a failure: start from nothing. */
+    sim_camera_destroy(s->camera);
+    s->camera = NULL;
     sim_devices_destroy(s->devices);
     s->devices = NULL;
     sim_world_destroy(s->world);
@@ -436,6 +450,8 @@ static int on_init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot build the world: %s", strerror(errno));
         goto fail;
     }
+    if (sim_camera_init(c, path, map, p.step, &s->camera) < 0)
+        goto fail;
     occmap_destroy(map);
     map = NULL;
     if (device) {
@@ -463,6 +479,7 @@ static int on_init(marie_component_t *c)
     s->p_estop = marie_port(c, "estop");
     s->p_truth = marie_port(c, "truth");
     s->p_clock = marie_port(c, "clock");
+    s->p_camera = marie_port(c, "camera");
     marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
@@ -470,6 +487,8 @@ static int on_init(marie_component_t *c)
                s->lockstep > 0 ? ", lockstep" : "");
     return 0;
 fail:
+    sim_camera_destroy(s->camera);
+    s->camera = NULL;
     occmap_destroy(map);
     sim_world_destroy(s->world);
     s->world = NULL;
@@ -542,6 +561,8 @@ static void on_quit(marie_component_t *c)
     disarm(c);
     sim_devices_destroy(s->devices);
     s->devices = NULL;
+    sim_camera_destroy(s->camera);
+    s->camera = NULL;
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);

@@ -7,7 +7,10 @@
 #include <string.h>
 
 #include "adapters/mission/mission.h"
+#include "adapters/mission/mission_request.h"
+#include "adapters/mission/mission_signs.h"
 #include "ca/sharedmap_client.h"
+#include "core/auth.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
 
@@ -28,6 +31,9 @@ typedef struct {
     double republish_s, stale_pose_s, resume_max_age_s, unreachable_s;
     int32_t failing_goal;       /* goal the planner reports no path for, -1: none */
     int64_t failing_since;
+    mission_signs_t signs;      /* goals found by reading signs */
+    marie_auth_t *auth;         /* checks goals people ask for (NULL: all refused) */
+    marie_replay_t *replay;
 } mis_t;
 
 static void on_event(void *user, const char *kind, const mission_goal_t *g, const char *text)
@@ -178,6 +184,8 @@ static void tick(marie_component_t *c, int64_t overruns)
         mission_give_up(&s->m, "the planner finds no path", on_event, s);
         s->failing_goal = -1;
     }
+    if (mission_signs_steer(&s->signs, &s->m, fresh ? s->pose : NULL, on_event, s))
+        s->dirty = true;
     mission_update(&s->m, now, fresh ? s->pose : NULL, on_event, s);
     if (s->dirty) {
         s->dirty = false;
@@ -210,6 +218,48 @@ static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, cons
     s->have_pose = true;
 }
 
+/* Signs the vision adapter read: goals waiting for one move in front of it. */
+static void on_landmarks(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mis_t *s = marie_component_user(c);
+    const marie_landmarks_t *m = msg;
+    for (int i = 0; i < m->count; i++) {
+        const marie_landmark_t *l = &m->landmarks[i];
+        if (l->message[0] && isfinite(l->x) && isfinite(l->y) && isfinite(l->yaw) &&
+            mission_signs_read(&s->signs, &s->m, l->message, l->x, l->y, l->yaw, l->range, on_event, s))
+            s->dirty = true;
+    }
+}
+
+/* A goal a person asked for (the touch page): obeyed only when signed with the key, fresh. */
+static void on_request(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mis_t *s = marie_component_user(c);
+    const marie_goal_request_t *r = msg;
+    marie_auth_result_t ok = marie_auth_check_goal_request(s->auth, s->replay, r);
+    if (ok != MARIE_AUTH_OK) {
+        marie_component_count(c, "requests_refused", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "request_refused", "goal request '%s' from %s refused: %s",
+                              r->goal.name ? r->goal.name : "", r->sender ? r->sender : "?",
+                              marie_auth_result_name(ok));
+        return;
+    }
+    const marie_goal_t *g = &r->goal;
+    mission_goal_t mg = { .id = g->id, .x = g->pose.x, .y = g->pose.y, .theta = g->pose.theta,
+                          .tolerance = g->tolerance > 0 ? g->tolerance : marie_param_double(c, "tolerance"),
+                          .priority = g->priority };
+    snprintf(mg.name, sizeof mg.name, "%s", g->name ? g->name : "request");
+    if (!isfinite(mg.x) || !isfinite(mg.y) || !isfinite(mg.theta) || mission_request_insert(&s->m, &mg) < 0) {
+        marie_component_bad_input(c, "bad_request", "goal request '%s' not finite or no room for it", mg.name);
+        return;
+    }
+    marie_component_count(c, "requests", 1);
+    marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "request_accepted", "goal '%s' (%.2f, %.2f) asked by %s", mg.name,
+                          mg.x, mg.y, r->sender);
+    s->dirty = true;
+    tick(c, 0);         /* a person waits: the goal goes out now, not at the next tick */
+}
+
 /* The planner's verdict on the current goal: a goal it keeps failing is given up. */
 static void on_path(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
@@ -229,6 +279,10 @@ static void quit(marie_component_t *c)
     mis_t *s = marie_component_user(c);
     sharedmap_client_destroy(s->sm);
     s->sm = NULL;
+    marie_auth_destroy(s->auth);
+    s->auth = NULL;
+    marie_replay_destroy(s->replay);
+    s->replay = NULL;
 }
 
 static int init(marie_component_t *c)
@@ -241,10 +295,23 @@ static int init(marie_component_t *c)
     s->restore_tries = 0;
     s->have_pose = false;
     marie_errors_t errs = { 0 };
-    if (mission_parse(&s->m, marie_param_node(c, "goals"), marie_param_double(c, "tolerance"), &errs) <= 0) {
+    int ngoals = mission_parse(&s->m, marie_param_node(c, "goals"), marie_param_double(c, "tolerance"), &errs);
+    int nsigns = ngoals < 0 ? -1 : mission_signs_parse(&s->signs, &s->m, marie_param_node(c, "signs"),
+                                                       marie_param_double(c, "tolerance"), &errs);
+    if (ngoals < 0 || nsigns < 0 || ngoals + nsigns == 0) {
         marie_component_fail_reason(c, "goals: %s", errs.n ? errs.msgs[0] : "no goals");
         marie_errors_clear(&errs);
         return -1;
+    }
+    const char *key = marie_param_str(c, "key_file");
+    if (key[0]) {
+        char err[256];
+        s->auth = marie_auth_load(key, err, sizeof err);
+        s->replay = s->auth ? marie_replay_create(NULL) : NULL;
+        if (!s->replay) {
+            marie_component_fail_reason(c, "key_file: %s", s->auth ? "out of memory" : err);
+            return -1;
+        }
     }
     s->republish_s = marie_param_double(c, "republish_s");
     s->stale_pose_s = marie_param_double(c, "stale_pose_s");
@@ -252,9 +319,9 @@ static int init(marie_component_t *c)
     s->unreachable_s = marie_param_double(c, "unreachable_s");
     s->failing_goal = -1;
     s->sm_timeout_ms = (int)marie_param_int(c, "sharedmap_timeout_ms");
-    const char *key = marie_param_str(c, "state_key");
-    if (key[0])
-        snprintf(s->key, sizeof(s->key), "%s", key);
+    const char *skey = marie_param_str(c, "state_key");
+    if (skey[0])
+        snprintf(s->key, sizeof(s->key), "%s", skey);
     else
         snprintf(s->key, sizeof(s->key), "mission/%s", marie_component_name(c));
     if (marie_param_bool(c, "sharedmap")) {
@@ -265,7 +332,9 @@ static int init(marie_component_t *c)
             return -1;
         }
     }
-    if (marie_port_on_message(marie_port(c, "pose"), on_pose) || marie_port_on_message(marie_port(c, "path"), on_path)) {
+    if (marie_port_on_message(marie_port(c, "pose"), on_pose) || marie_port_on_message(marie_port(c, "path"), on_path) ||
+        marie_port_on_message(marie_port(c, "landmarks"), on_landmarks) ||
+        marie_port_on_message(marie_port(c, "request"), on_request)) {
         marie_component_fail_reason(c, "cannot subscribe to the pose and path");
         return -1;
     }
@@ -284,11 +353,16 @@ static const marie_port_spec_t ports[] = {
     { "path", &marie_type_path_t, MARIE_IN, MARIE_PUSH, "PATH" },
     { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL" },
     { "state", &marie_type_mission_state_t, MARIE_OUT, MARIE_PUSH, "MISSION_STATE" },
+    { "landmarks", &marie_type_landmarks_t, MARIE_IN, MARIE_PUSH, "LANDMARKS" },
+    { "request", &marie_type_goal_request_t, MARIE_IN, MARIE_PUSH, "GOAL_REQUEST" },
     { 0 },
 };
 
 static const marie_param_spec_t params[] = {
     { "goals", MARIE_PARAM_NODE, NULL, "list of {name, x, y, theta, priority, deadline (s after start), tolerance, id}" },
+    { "signs", MARIE_PARAM_NODE, "[]", "goals found by reading signs: list of {message, search: [[x, y], ...], approach, "
+      "name, priority, deadline, tolerance, id} (docs/vision.md)" },
+    { "key_file", MARIE_PARAM_STRING, "\"\"", "order key checking goal requests from people (empty: all refused)" },
     { "tolerance", MARIE_PARAM_DOUBLE, "0.3", "m: default distance at which a goal counts as reached" },
     { "rate_hz", MARIE_PARAM_DOUBLE, "5", "how often progress is checked" },
     { "republish_s", MARIE_PARAM_DOUBLE, "1.0", "s between repeats of the current goal" },

@@ -20,8 +20,8 @@
 
 #include "adapters/vision/vision_component.h"
 #include "adapters/vision/vision_detect.h"
-#include "adapters/vision/vision_image.h"
-#include "adapters/vision/vision_render.h"
+#include "camera/vision_image.h"
+#include "camera/vision_render.h"
 #include "core/time.h"
 
 #define W 640

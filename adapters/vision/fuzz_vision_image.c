@@ -3,7 +3,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "adapters/vision/vision_image.h"
+#include "camera/vision_image.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

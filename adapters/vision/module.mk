@@ -1,16 +1,12 @@
-# adapters/vision: AprilTag detection, tracking and message reading (marie-vision), the
-# synthetic camera (libvision's vision_render.h / vision_simcam.h, also for the simulator),
-# their tests and benchmark. Other folders link $(VISION_LIBS); the headers need no OpenCV.
+# adapters/vision: AprilTag detection, tracking and message reading (marie-vision), its tests
+# and benchmark; the synthetic camera is in camera/ (libmarie_camera, also for the simulator).
 VISION_CV_CFLAGS := $(shell pkg-config --cflags opencv4 2>/dev/null)
-# Debian's libapriltag exports only the detector; image_u8 helpers live in libapriltag-utils.
-VISION_LIBS := $(B)/lib/libvision.a -lopencv_imgcodecs -lopencv_videoio -lopencv_imgproc -lopencv_core \
-    -lapriltag -lapriltag-utils -ljpeg
+include adapters/common/adapters.mk
+VISION_LIBS := $(B)/lib/libvision.a $(ADAPT_COMMON) $(CAMERA_LIBS) -lopencv_videoio
 $(B)/obj/adapters/vision/%.o $(B)/obj/tests/vision/%.o: CPPFLAGS += $(VISION_CV_CFLAGS)
 
-VISION_LIB_SRCS := adapters/vision/vision_geom.c adapters/vision/vision_family.c \
-    adapters/vision/vision_render.cpp adapters/vision/vision_detect.c adapters/vision/vision_track.c \
-    adapters/vision/vision_msgmap.c adapters/vision/vision_image.c adapters/vision/vision_image_encode.cpp \
-    adapters/vision/vision_source.cpp adapters/vision/vision_component.c adapters/vision/vision_simcam.c
+VISION_LIB_SRCS := adapters/vision/vision_detect.c adapters/vision/vision_track.c adapters/vision/vision_msgmap.c \
+    adapters/vision/vision_source.cpp adapters/vision/vision_component.c adapters/vision/vision_landmark.c
 $(eval $(call marie_lib,vision,$(VISION_LIB_SRCS)))
 
 $(eval $(call marie_program,marie-vision,adapters/vision/vision_main.c,$(VISION_LIBS)))
@@ -23,7 +19,11 @@ $(eval $(call marie_test,test_vision_image,tests/vision/test_vision_image.c,$(VI
 $(eval $(call marie_test,test_vision_simcam,tests/vision/test_vision_simcam.c,$(VISION_LIBS)))
 $(eval $(call marie_test,test_vision_transport,tests/vision/test_vision_transport.c,$(VISION_LIBS)))
 $(eval $(call marie_test,test_vision_component,tests/vision/test_vision_component.c,$(VISION_LIBS)))
-$(eval $(call marie_fuzz,vision_image,adapters/vision/fuzz_vision_image.c adapters/vision/vision_image.c,-ljpeg))
+$(eval $(call marie_fuzz,vision_image,adapters/vision/fuzz_vision_image.c camera/vision_image.c,-ljpeg))
 ITESTS += tests/vision/test_vision_process.sh
 
 $(eval $(call marie_bench,bench_vision,adapters/vision/bench_vision.c,$(VISION_LIBS)))
+# The vision adapter on the simulator's camera (processes on this test's bus).
+$(eval $(call marie_test,test_vision_sim,tests/vision/test_vision_sim.c tests/proc.c,))
+$(B)/tests/test_vision_sim: | $(B)/bin/marie-sim $(B)/bin/marie-vision
+ITESTS += tests/vision/test_sign_mission.sh

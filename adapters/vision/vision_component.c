@@ -7,8 +7,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "adapters/common/posebuf.h"
 #include "adapters/vision/vision_detect.h"
-#include "adapters/vision/vision_image.h"
+#include "adapters/vision/vision_landmark.h"
+#include "camera/vision_image.h"
 #include "adapters/vision/vision_msgmap.h"
 #include "adapters/vision/vision_source.h"
 #include "adapters/vision/vision_track.h"
@@ -35,13 +37,19 @@ typedef struct {
     marie_timer_t *tick;
     marie_timer_t *pending;     /* detection of the newest bus frame, once this read round ends */
     int64_t pending_utime;
-    marie_port_t *p_det, *p_goal;
+    marie_port_t *p_det, *p_goal, *p_lm;
+    posebuf_t poses;            /* the robot's pose, for landmarks at the image time */
+    vision_mount_t mount;
+    int64_t pose_slack_us;
+    marie_landmark_t lms[MAX_TAGS];
 } vision_t;
 
 static const marie_port_spec_t ports[] = {
     { "image", &marie_type_image_t, MARIE_IN, MARIE_PUSH, VISION_CH_IMAGE },
     { "detections", &marie_type_tag_detections_t, MARIE_OUT, MARIE_PUSH, VISION_CH_DETECTIONS },
     { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_EVENT, VISION_CH_GOAL },
+    { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, VISION_CH_POSE },
+    { "landmarks", &marie_type_landmarks_t, MARIE_OUT, MARIE_PUSH, VISION_CH_LANDMARKS },
     { NULL },
 };
 
@@ -69,6 +77,12 @@ static const marie_param_spec_t params[] = {
     { "smoothing", MARIE_PARAM_DOUBLE, "0.3", "weight of a new pose in a track's smoothed pose (0..1]" },
     { "lost_after_s", MARIE_PARAM_DOUBLE, "0.5", "a tag unseen this long ends its track" },
     { "min_hits", MARIE_PARAM_INT, "2", "frames before a track counts (and its message is read)" },
+    { "mount_x", MARIE_PARAM_DOUBLE, "0.2", "camera forward of the robot's origin, m (landmarks)" },
+    { "mount_y", MARIE_PARAM_DOUBLE, "0", "camera left of the robot's origin, m" },
+    { "mount_z", MARIE_PARAM_DOUBLE, "0.5", "camera above the floor, m" },
+    { "mount_yaw", MARIE_PARAM_DOUBLE, "0", "camera turned left, rad" },
+    { "mount_pitch", MARIE_PARAM_DOUBLE, "0", "camera tilted down, rad" },
+    { "pose_slack_s", MARIE_PARAM_DOUBLE, "0.3", "a frame newer than the newest pose by more is not placed" },
     { "messages", MARIE_PARAM_NODE, "[]", "list of {id, message, kind, severity, goal: {x, y, theta, ...}}" },
     { NULL },
 };
@@ -147,6 +161,36 @@ static void fill(marie_tag_detection_t *o, const vision_detection_t *d, const vi
     }
 }
 
+/* Detections with poses, placed in the map with the robot's pose at the frame's time. */
+static void publish_landmarks(vision_t *v, int n, int64_t utime)
+{
+    double robot[3];
+    if (!posebuf_covers(&v->poses, utime, v->pose_slack_us) || !posebuf_at(&v->poses, utime, robot)) {
+        if (posebuf_newest(&v->poses) != INT64_MIN)
+            marie_component_count(v->c, "landmarks_no_pose", 1);
+        return;
+    }
+    int k = 0;
+    for (int i = 0; i < n; i++) {
+        const vision_detection_t *d = &v->dets[i];
+        if (!d->pose_valid)
+            continue;
+        vision_landmark_t l;
+        vision_landmark_place(&v->mount, robot, &d->pose, &l);
+        const vision_msg_t *m = vision_msgmap_find(&v->msgs, d->id);
+        v->lms[k++] = (marie_landmark_t){
+            .family = v->out[i].family, .id = d->id, .track_id = v->out[i].track_id, .x = l.x, .y = l.y, .z = l.z,
+            .yaw = l.yaw, .range = l.range, .bearing = l.bearing, .message = m && m->text ? m->text : "",
+        };
+    }
+    if (!k)
+        return;
+    marie_landmarks_t msg = { .utime = utime, .frame = "map", .robot = { robot[0], robot[1], robot[2] },
+                              .count = k, .landmarks = v->lms };
+    marie_port_publish(v->p_lm, &msg);
+    marie_component_count(v->c, "landmarks", k);
+}
+
 static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
 {
     marie_component_t *c = v->c;
@@ -180,6 +224,21 @@ static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
         .width = f->width, .height = f->height, .detect_ms = ms, .count = n, .tags = v->out,
     };
     marie_port_publish(v->p_det, &msg);
+    publish_landmarks(v, n, utime);
+}
+
+static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    vision_t *v = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+        marie_component_bad_input(c, "bad_pose", "pose with a non-finite field");
+        return;
+    }
+    /* A pose older than the newest (a restart, a replay) starts the buffer over. */
+    if (m->utime < posebuf_newest(&v->poses))
+        posebuf_clear(&v->poses);
+    posebuf_add(&v->poses, m->utime, (double[3]){ m->pose.x, m->pose.y, m->pose.theta });
 }
 
 static void on_pending(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
@@ -282,6 +341,16 @@ static int on_init(marie_component_t *c)
     release(v);
     v->p_det = marie_port(c, "detections");
     v->p_goal = marie_port(c, "goal");
+    v->p_lm = marie_port(c, "landmarks");
+    posebuf_clear(&v->poses);
+    v->mount = (vision_mount_t){ marie_param_double(c, "mount_x"), marie_param_double(c, "mount_y"),
+                                 marie_param_double(c, "mount_z"), marie_param_double(c, "mount_yaw"),
+                                 marie_param_double(c, "mount_pitch") };
+    v->pose_slack_us = (int64_t)(marie_param_double(c, "pose_slack_s") * 1e6);
+    if (marie_port_on_message(marie_port(c, "pose"), on_pose) < 0) {
+        marie_component_fail_reason(c, "cannot subscribe to %s", marie_port_channel(marie_port(c, "pose")));
+        goto err;
+    }
     v->camera = marie_param_str(c, "camera");
     v->uri = marie_param_str(c, "source");
     v->loop = marie_param_bool(c, "loop");

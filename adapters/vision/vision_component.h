@@ -13,6 +13,8 @@ extern "C" {
 #define VISION_CH_IMAGE      "CAMERA_IMAGE"
 #define VISION_CH_DETECTIONS "TAG_DETECTIONS"
 #define VISION_CH_GOAL       "GOAL"
+#define VISION_CH_POSE       "POSE"
+#define VISION_CH_LANDMARKS  "LANDMARKS"
 
 extern const marie_component_def_t vision_component_def;
 

@@ -10,7 +10,7 @@
 #include <apriltag/apriltag.h>
 #include <apriltag/apriltag_pose.h>
 
-#include "adapters/vision/vision_family.h"
+#include "camera/vision_family.h"
 
 struct vision_detector {
     apriltag_detector_t *td;

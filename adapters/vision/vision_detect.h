@@ -6,7 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "adapters/vision/vision_geom.h"
+#include "camera/vision_geom.h"
 
 #ifdef __cplusplus
 extern "C" {

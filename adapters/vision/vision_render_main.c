@@ -10,9 +10,9 @@
 
 #include <lcm/lcm.h>
 
-#include "adapters/vision/vision_image.h"
-#include "adapters/vision/vision_render.h"
-#include "adapters/vision/vision_simcam.h"
+#include "camera/vision_image.h"
+#include "camera/vision_render.h"
+#include "camera/vision_simcam.h"
 #include "core/config.h"
 #include "core/time.h"
 
@@ -56,11 +56,24 @@ static int render_world(const char *path, const double robot[3], double turn, co
     }
     char err[256];
     vision_simcam_t *cam = vision_simcam_create(&o, tags, n, err, sizeof err);
+    /* A simulator world (a map.yaml with an image): its walls stand around the tags. */
+    bool is_map = marie_node_get(marie_doc_root(doc), "image") != NULL;
     free(tags);
     marie_doc_destroy(doc);
     if (!cam) {
         fprintf(stderr, "marie-vision-render: %s: %s\n", path, err);
         return 2;
+    }
+    if (is_map) {
+        occmap_t *map = occmap_load(path, &errs);
+        if (!map || vision_simcam_set_walls(cam, map) < 0) {
+            marie_errors_print(&errs, stderr);
+            marie_errors_clear(&errs);
+            occmap_destroy(map);
+            vision_simcam_destroy(cam);
+            return 2;
+        }
+        occmap_destroy(map);
     }
     lcm_t *lcm = channel ? lcm_create(url ? url : marie_default_url()) : NULL;
     int rc = 0;

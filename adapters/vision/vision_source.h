@@ -5,7 +5,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-#include "adapters/vision/vision_image.h"
+#include "camera/vision_image.h"
 
 #ifdef __cplusplus
 extern "C" {

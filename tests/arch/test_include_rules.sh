@@ -8,18 +8,19 @@ allowed() {
     case "$1" in
     core/*)     echo "core/ lcmtypes/" ;;
     map/*)      echo "map/ core/ lcmtypes/" ;;
+    camera/*)   echo "camera/ map/ core/ lcmtypes/" ;;
     ca/*)       echo "ca/ core/ lcmtypes/" ;;
     hw/*)       echo "hw/ core/ lcmtypes/" ;;
     managers/*) echo "managers/ core/ lcmtypes/" ;;
-    adapters/*) d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ adapters/common/ map/ ca/ core/ lcmtypes/" ;;
-    sim/*)      echo "sim/ hw/ map/ core/ lcmtypes/" ;;
-    tools/*)    d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ managers/am_proto.h map/ ca/ core/ lcmtypes/" ;;
+    adapters/*) d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ adapters/common/ camera/ map/ ca/ core/ lcmtypes/" ;;
+    sim/*)      echo "sim/ hw/ camera/ map/ core/ lcmtypes/" ;;
+    tools/*)    d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ tools/webcommon/ managers/am_proto.h map/ ca/ core/ lcmtypes/" ;;
     *)          echo "" ;;
     esac
 }
 
 production_files() {
-    find core map ca hw managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
+    find core map camera ca hw managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
         grep -v '/bench_' | sort
 }
 

@@ -28,6 +28,7 @@ recipe() {
     marie-planner) echo "planner|--param map=sim/worlds/office.yaml" ;;
     marie-sim) echo "sim|--param world=office" ;;
     marie-viewer-server) echo "viewer|--param http_port=0" ;;
+    marie-face) echo "face|--param http_port=0" ;;
     marie-vision) echo "vision|" ;;
     *) return 1 ;;
     esac
@@ -38,7 +39,7 @@ recipe() {
 out_mode() {
     case $1:$2 in
     *:marie.motor_command_t|drives:*|sim:encoders) echo zero ;;
-    planner:path|vision:*|viewer:*) echo silent ;;
+    planner:path|vision:*|viewer:*|face:*) echo silent ;;
     *) echo finite ;;
     esac
 }
@@ -50,7 +51,8 @@ raw_type() {
     particles) echo marie.particle_cloud_t ;; laser) echo marie.laser_scan_t ;;
     path) echo marie.path_t ;; goal) echo marie.goal_t ;; arbitration) echo marie.arbitration_t ;;
     event) echo marie.event_t ;; heartbeat) echo marie.heartbeat_t ;; am_status) echo marie.am_status_t ;;
-    am_reply) echo marie.am_reply_t ;; tags) echo marie.tag_detections_t ;; *) return 1 ;;
+    am_reply) echo marie.am_reply_t ;; tags) echo marie.tag_detections_t ;;
+    landmarks) echo marie.landmarks_t ;; *) return 1 ;;
     esac
 }
 

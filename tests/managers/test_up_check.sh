@@ -141,13 +141,14 @@ sim_vs_base() {
     "$M" hash config/spartacus.yaml --profile sim --base > "$T/h1" 2>&1; rc=$?; cat "$T/h1"
     [ $rc -eq 0 ] || return 1
     # read from the file: the sim profile replaces drives, gyro and laser (other CAN bus and
-    # serial link, started after sim), adds sim, removes estop, and runs everything on the sim clock
+    # serial link, started after sim), adds sim and vision (the simulator's camera), removes estop,
+    # and runs everything on the sim clock
     for c in drives gyro laser; do [ "$(verdict "$T/h1" $c)" = "differs params,depends,clock" ] || return 1; done
     for c in odometry localizer planner mailbox behaviours sharedmap mission; do
         [ "$(verdict "$T/h1" $c)" = "differs clock" ] || return 1
     done
     [ "$(verdict "$T/h1" sim)" = "only-in-a " ] && [ "$(verdict "$T/h1" estop)" = "only-in-b " ] &&
-        [ "$(wc -l < "$T/h1")" = 13 ]
+        [ "$(verdict "$T/h1" vision)" = "only-in-a " ] && [ "$(wc -l < "$T/h1")" = 14 ]
 }
 check "hash: sim against the real robot (--base) on the shipped system" sim_vs_base
 sim_vs_channel() {
@@ -158,8 +159,8 @@ d = {c["name"]: c for c in json.load(open(sys.argv[1]))["components"]}
 same = {"odometry", "localizer", "planner", "mailbox", "behaviours", "sharedmap", "mission"}
 assert all(d[n]["verdict"] == "same" for n in same), d
 assert d["sim"]["verdict"] == "differs" and d["sim"]["fields"] == ["params"], d["sim"]
-assert all(d[n]["verdict"] == "only-in-a" for n in ("drives", "gyro", "laser"))
-assert len(d) == 11
+assert all(d[n]["verdict"] == "only-in-a" for n in ("drives", "gyro", "laser", "vision"))
+assert len(d) == 12
 EOF
 }
 check "hash: sim against sim-channel, as JSON" sim_vs_channel

@@ -2,13 +2,15 @@
 test waits in real time for a page to reach a state instead of guessing a time budget.
   python3 tests/viewer/cdp.py --port 9222 URL [--until JS] [--timeout S] [--dom FILE]
                               [--screenshot FILE] [--size WxH] [--then CMD --until2 JS]
-                              [--eval JS --eval-out FILE]
+                              [--eval JS --eval-out FILE] [--touch] [--tap SELECTOR]
 Opens URL in a new tab, waits until the JS expression is true (default: the viewer page says
 it has settled), then writes the DOM and/or a PNG. Exit 0 when the condition held, 1 on a
 timeout (the DOM is still written, to show what the page said). With --then, once the first
 condition holds the shell command runs and the page must then reach --until2 (a server
 killed under a connected page, for instance). --eval writes the JSON value of an expression
-(the layout of an element, say) evaluated when the screenshot is taken."""
+(the layout of an element, say) evaluated when the screenshot is taken. --touch emulates a
+touch screen; --tap SELECTOR, once the first condition holds, touches the element's centre
+with a touch start and end (Input.dispatchTouchEvent), as a finger would."""
 import argparse
 import base64
 import json
@@ -82,12 +84,23 @@ def main():
     ap.add_argument("--until2")
     ap.add_argument("--eval")
     ap.add_argument("--eval-out")
+    ap.add_argument("--touch", action="store_true")
+    ap.add_argument("--tap")
     a = ap.parse_args()
     tab = Tab(a.port)
     w, h = (int(x) for x in a.size.split("x"))
     tab.call("Emulation.setDeviceMetricsOverride", width=w, height=h, deviceScaleFactor=1, mobile=False)
+    if a.touch or a.tap:
+        tab.call("Emulation.setTouchEmulationEnabled", enabled=True, maxTouchPoints=1)
+        tab.call("Emulation.setEmitTouchEventsForMouse", enabled=True, configuration="mobile")
     tab.call("Page.navigate", url=a.url)
     ok = wait(tab, a.until, a.timeout)
+    if ok and a.tap:
+        box = tab.eval("(function(){var r=document.querySelector(%s).getBoundingClientRect();"
+                       "return [r.left + r.width / 2, r.top + r.height / 2]})()" % json.dumps(a.tap))
+        pt = [{"x": box[0], "y": box[1]}]
+        tab.call("Input.dispatchTouchEvent", type="touchStart", touchPoints=pt)
+        tab.call("Input.dispatchTouchEvent", type="touchEnd", touchPoints=[])
     if ok and a.then:
         subprocess.run(a.then, shell=True)
         ok = wait(tab, a.until2 or "true", a.timeout)

@@ -4,7 +4,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "tools/viewer/vjson.h"
+#include "tools/webcommon/vjson.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {

@@ -20,12 +20,17 @@ pids="$pids $!"
 sleep 0.3
 check "system up under marie-am" "$BIN/marie" up tests/data/viewer/controls.yaml
 
+# The mission obeys the page's goal requests (signed with the key); its goal comes back to the page.
+"$BIN/marie-mission" --name mission --param sharedmap=false --param key_file="$T/key" \
+    --param 'goals=[{name: waiting, x: 50, y: 50}]' > "$T/mission.log" 2>&1 &
+pids="$pids $!"
 "$BIN/marie-viewer-server" --name viewer --param http_port=8111 --param key_file="$T/key" \
     --param url_file="$T/url" > "$T/viewer.log" 2>&1 &
 viewer1=$!
 pids="$pids $!"
 check "viewer serves with a key" wait_for 10 test -s "$T/url"
 check "pause, resume and goal from the page" python3 tests/viewer/controls_client.py 8111
+check "the mission accepted the viewer's signed goal request" grep -q "request_accepted.*viewer" "$T/mission.log"
 check "marie ps agrees: walker running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
 
 "$BIN/marie-viewer-server" --name viewer2 --param http_port=8112 --param url_file="$T/url2" > "$T/viewer2.log" 2>&1 &

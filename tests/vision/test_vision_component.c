@@ -16,8 +16,8 @@
 #include <lcm/lcm.h>
 
 #include "adapters/vision/vision_component.h"
-#include "adapters/vision/vision_image.h"
-#include "adapters/vision/vision_render.h"
+#include "camera/vision_image.h"
+#include "camera/vision_render.h"
 #include "adapters/vision/vision_source.h"
 #include "core/time.h"
 

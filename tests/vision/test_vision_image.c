@@ -10,8 +10,8 @@
 #include <cmocka.h>
 
 #include "adapters/vision/vision_detect.h"
-#include "adapters/vision/vision_image.h"
-#include "adapters/vision/vision_render.h"
+#include "camera/vision_image.h"
+#include "camera/vision_render.h"
 
 #define W 320
 #define H 240

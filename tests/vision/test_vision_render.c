@@ -13,8 +13,8 @@
 #include <apriltag/apriltag.h>
 
 #include "adapters/vision/vision_detect.h"
-#include "adapters/vision/vision_family.h"
-#include "adapters/vision/vision_render.h"
+#include "camera/vision_family.h"
+#include "camera/vision_render.h"
 
 #define W 640
 #define H 480

@@ -10,8 +10,8 @@
 #include <cmocka.h>
 
 #include "adapters/vision/vision_detect.h"
-#include "adapters/vision/vision_image.h"
-#include "adapters/vision/vision_simcam.h"
+#include "camera/vision_image.h"
+#include "camera/vision_simcam.h"
 
 static const char *yaml =
     "camera: {width: 640, height: 480, fx: 500, fy: 500, mount_x: 0, mount_z: 0.5, noise: 3, blur: 0.6,\n"

@@ -3,7 +3,6 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
-#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,24 +11,16 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <civetweb.h>
-
 #include "core/component.h"
 #include "core/typeinfo.h"
 #include "managers/am_proto.h"
 #include "core/auth.h"
 #include "tools/viewer/lcmlog.h"
-#include "tools/viewer/vjson.h"
+#include "tools/webcommon/vjson.h"
+#include "tools/webcommon/webserve.h"
+#include "tools/viewer/viewer.h"
 
-/* ---------------------------------------------------------------- ports */
-
-/* Inputs: one per thing the page shows; the channel is the port's binding. */
-enum {
-    P_MAP, P_POSE, P_TRUTH, P_PARTICLES, P_LASER, P_PATH, P_GOAL, P_ARB, P_EVENT, P_HB,
-    P_AM_STATUS, P_AM_REPLY, P_TAGS, P_NIN,
-};
-
-static const marie_port_spec_t ports[] = {
+const marie_port_spec_t viewer_ports[] = {
     [P_MAP] = {"map", NULL, MARIE_IN, MARIE_PUSH, "MAP"},
     [P_POSE] = {"pose", NULL, MARIE_IN, MARIE_PUSH, "POSE"},
     [P_TRUTH] = {"truth", NULL, MARIE_IN, MARIE_PUSH, "SIM_TRUTH"},
@@ -43,19 +34,19 @@ static const marie_port_spec_t ports[] = {
     [P_AM_STATUS] = {"am_status", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_STATUS},
     [P_AM_REPLY] = {"am_reply", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_REPLY},
     [P_TAGS] = {"tags", NULL, MARIE_IN, MARIE_PUSH, "TAG_DETECTIONS"},
-    [P_NIN] = {"goal_out", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL"},
+    [P_LANDMARKS] = {"landmarks", NULL, MARIE_IN, MARIE_PUSH, "LANDMARKS"},
+    [P_NIN] = {"request", &marie_type_goal_request_t, MARIE_OUT, MARIE_PUSH, "GOAL_REQUEST"},
     {"order", &marie_type_am_order_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_AM_ORDER},
     {0},
 };
 
-/* The type each input must carry; anything else on its channel is bad input. */
-static const marie_type_t *const port_type[P_NIN] = {
+const marie_type_t *const viewer_port_type[P_NIN] = {
     [P_MAP] = &marie_type_occupancy_grid_t, [P_POSE] = &marie_type_pose_cov_t,
     [P_TRUTH] = &marie_type_pose_cov_t, [P_PARTICLES] = &marie_type_particle_cloud_t,
     [P_LASER] = &marie_type_laser_scan_t, [P_PATH] = &marie_type_path_t, [P_GOAL] = &marie_type_goal_t,
     [P_ARB] = &marie_type_arbitration_t, [P_EVENT] = &marie_type_event_t, [P_HB] = &marie_type_heartbeat_t,
     [P_AM_STATUS] = &marie_type_am_status_t, [P_AM_REPLY] = &marie_type_am_reply_t,
-    [P_TAGS] = &marie_type_tag_detections_t,
+    [P_TAGS] = &marie_type_tag_detections_t, [P_LANDMARKS] = &marie_type_landmarks_t,
 };
 
 static const marie_param_spec_t params[] = {
@@ -76,371 +67,41 @@ static const marie_param_spec_t params[] = {
     {0},
 };
 
-/* ---------------------------------------------------------------- clients */
-
-typedef struct frame {
-    struct frame *next;
-    size_t len;
-    char data[];
-} frame_t;
-
-typedef struct client {
-    struct client *next;
-    int id;
-    struct mg_connection *conn;
-    pthread_t writer;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    frame_t *head, *tail;
-    size_t queued;
-    bool closing, dead;
-    int64_t dropped;
-} client_t;
-
-/* A command from a page, handed from civetweb's threads to the loop. */
-typedef struct cmd {
-    struct cmd *next;
-    int client;                 /* -1: none */
-    bool hello;                 /* a new client: send it the state */
-    size_t len;
-    char text[];
-} cmd_t;
-
-/* Per-channel decimation and the latest message kept for live snapshots. */
-typedef struct {
-    int64_t last_sent_mono;
-    char *latest;               /* JSON of the newest message (live mode) */
-} chan_state_t;
-
-#define RING 32
-#define MAXCOMP 64
-
-typedef struct {
-    int64_t t;
-    uint32_t chan;              /* index in log_chans */
-    uint32_t len;
-    uint64_t off;               /* payload offset in the file */
-} rec_t;
-
-typedef struct {
-    char *name;
-    int port;                   /* P_* or -1 */
-    const marie_type_t *type;   /* of the first payload */
-    int64_t count;
-    uint32_t *idx;              /* indices into recs, ascending */
-    size_t n, cap;
-} log_chan_t;
-
-typedef struct viewer {
-    marie_component_t *c;
-    struct mg_context *http;
-    bool live;
-    char www[PATH_MAX];
-    int port;
-
-    /* civetweb threads <-> loop */
-    pthread_mutex_t mu;         /* clients list and cmd queue */
-    client_t *clients;
-    int next_client_id;
-    cmd_t *cmd_head, *cmd_tail;
-    int wake[2];
-
-    chan_state_t chans[P_NIN];
-    int64_t min_gap_us[P_NIN];
-    uint64_t map_hash;          /* of the last map sent */
-    /* live snapshots */
-    char *arb_ring[RING];
-    int arb_next;
-    char *ev_ring[RING];
-    int ev_next;
-    char *comp_name[MAXCOMP], *comp_json[MAXCOMP];
-    int ncomp;
-    char *goal_json[MAXCOMP];
-    int goal_id[MAXCOMP], ngoal;
-    float traj[2][2048][3];     /* est/truth trail: t (s), x, y */
-    int traj_n[2], traj_next[2];
-    int64_t traj_last[2], live_t0;
-
-    /* log mode */
-    uint8_t *file;
-    size_t file_len;
-    rec_t *recs;
-    size_t nrecs, recs_cap;
-    log_chan_t *lchans;
-    size_t nlchans;
-    int64_t t0, t1, last_t;
-    int64_t corrupt, bad_payloads;
-    vj_buf_t corrupt_list;
-    int ncorrupt_listed;
-    char *summary;
-    size_t summary_len;
-    bool playing;
-    double speed;
-    size_t cursor;              /* next record to play */
-    int64_t play_t;             /* log time at anchor_mono */
-    int64_t anchor_mono;
-    int64_t last_player_msg;
-
-    /* map from a file (map param) */
-    char *map_json;
-
-    /* stats */
-    int64_t msgs_in, frames_out, last_rx_mono;
-
-    /* controls */
-    marie_auth_t *auth;
-    char sender[300];
-    int64_t last_seq;
-    int goals_sent;
-
-    vj_buf_t jb;                /* scratch */
-    bool init_failed;
-} viewer_t;
-
-static int64_t now_mono(void)
+void viewer_send(viewer_t *v, int id, const char *data, size_t len, bool droppable)
 {
-    return marie_mono_us();
+    webserve_send(v->web, id, data, len, droppable);
 }
 
-static void *writer_main(void *arg)
+void viewer_send_json(viewer_t *v, int id, vj_buf_t *b, bool droppable)
 {
-    client_t *cl = arg;
-    pthread_mutex_lock(&cl->mu);
-    for (;;) {
-        while (!cl->head && !cl->closing)
-            pthread_cond_wait(&cl->cv, &cl->mu);
-        if (!cl->head)
-            break;
-        frame_t *f = cl->head;
-        cl->head = f->next;
-        if (!cl->head)
-            cl->tail = NULL;
-        cl->queued -= f->len;
-        bool dead = cl->dead;
-        pthread_mutex_unlock(&cl->mu);
-        if (!dead && mg_websocket_write(cl->conn, MG_WEBSOCKET_OPCODE_TEXT, f->data, f->len) <= 0)
-            dead = true;
-        free(f);
-        pthread_mutex_lock(&cl->mu);
-        cl->dead |= dead;
-    }
-    pthread_mutex_unlock(&cl->mu);
-    return NULL;
+    webserve_send_json(v->web, id, b, droppable);
 }
 
-/* Queue a frame for one client. Droppable frames (high-rate state) are dropped while the
- * client is more than 2 MB behind, so a slow browser never stalls the bus. */
-static void client_send(client_t *cl, const char *data, size_t len, bool droppable)
+void viewer_notice(viewer_t *v, int id, const char *level, const char *text)
 {
-    pthread_mutex_lock(&cl->mu);
-    if (cl->dead || cl->closing || (droppable && cl->queued > (2u << 20))) {
-        cl->dropped++;
-        pthread_mutex_unlock(&cl->mu);
-        return;
-    }
-    frame_t *f = malloc(sizeof *f + len);
-    if (f) {
-        f->next = NULL;
-        f->len = len;
-        memcpy(f->data, data, len);
-        if (cl->tail)
-            cl->tail->next = f;
-        else
-            cl->head = f;
-        cl->tail = f;
-        cl->queued += len;
-        pthread_cond_signal(&cl->cv);
-    } else {
-        cl->dropped++;
-    }
-    pthread_mutex_unlock(&cl->mu);
-}
-
-/* Send to one client (id >= 0) or to all (id < 0). */
-static void send_to(viewer_t *v, int id, const char *data, size_t len, bool droppable)
-{
-    pthread_mutex_lock(&v->mu);
-    for (client_t *cl = v->clients; cl; cl = cl->next)
-        if (id < 0 || cl->id == id) {
-            client_send(cl, data, len, droppable);
-            v->frames_out++;
-        }
-    pthread_mutex_unlock(&v->mu);
-}
-
-static void send_json(viewer_t *v, int id, vj_buf_t *b, bool droppable)
-{
-    if (!b->oom && b->len)
-        send_to(v, id, b->s, b->len, droppable);
-}
-
-static void notice(viewer_t *v, int id, const char *level, const char *text)
-{
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"notice\",\"level\":");
-    vj_str(&b, level);
-    vj_lit(&b, ",\"text\":");
-    vj_str(&b, text);
-    vj_lit(&b, "}");
-    send_json(v, id, &b, false);
-    vj_free(&b);
-}
-
-static void push_cmd(viewer_t *v, int client, bool hello, const char *text, size_t len)
-{
-    cmd_t *c = malloc(sizeof *c + len + 1);
-    if (!c)
-        return;
-    c->next = NULL;
-    c->client = client;
-    c->hello = hello;
-    c->len = len;
-    memcpy(c->text, text, len);
-    c->text[len] = 0;
-    pthread_mutex_lock(&v->mu);
-    if (v->cmd_tail)
-        v->cmd_tail->next = c;
-    else
-        v->cmd_head = c;
-    v->cmd_tail = c;
-    pthread_mutex_unlock(&v->mu);
-    char one = 1;
-    if (write(v->wake[1], &one, 1) < 0 && errno != EAGAIN)
-        marie_warn("viewer: wake-up pipe: %s", strerror(errno));
-}
-
-/* ---------------------------------------------------------------- civetweb handlers */
-
-/* Only pages served by this server may open the WebSocket: another site open in the same
- * browser must not be able to send orders to the robot. */
-static int ws_connect(const struct mg_connection *conn, void *ud)
-{
-    const char *origin = mg_get_header(conn, "Origin");
-    const char *host = mg_get_header(conn, "Host");
-    if (!origin)
-        return 0;                               /* not a browser */
-    if (!host || strncmp(origin, "http://", 7) != 0 || strcmp(origin + 7, host) != 0) {
-        marie_warn_ratelimited(10, "viewer: WebSocket from origin %s refused (host %s)", origin,
-                               host ? host : "?");
-        return 1;
-    }
-    return 0;
-}
-
-static void ws_ready(struct mg_connection *conn, void *ud)
-{
-    viewer_t *v = ud;
-    client_t *cl = calloc(1, sizeof *cl);
-    if (!cl)
-        return;
-    cl->conn = conn;
-    pthread_mutex_init(&cl->mu, NULL);
-    pthread_cond_init(&cl->cv, NULL);
-    if (pthread_create(&cl->writer, NULL, writer_main, cl) != 0) {
-        free(cl);
-        return;
-    }
-    pthread_mutex_lock(&v->mu);
-    cl->id = v->next_client_id++;
-    cl->next = v->clients;
-    v->clients = cl;
-    pthread_mutex_unlock(&v->mu);
-    mg_set_user_connection_data(conn, cl);
-    push_cmd(v, cl->id, true, "", 0);
-}
-
-static int ws_data(struct mg_connection *conn, int bits, char *data, size_t len, void *ud)
-{
-    viewer_t *v = ud;
-    client_t *cl = mg_get_user_connection_data(conn);
-    int op = bits & 0xf;
-    if (op == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE)
-        return 0;
-    if (op == MG_WEBSOCKET_OPCODE_TEXT && cl && len <= 4096)
-        push_cmd(v, cl->id, false, data, len);
-    return 1;
-}
-
-static void ws_close(const struct mg_connection *conn, void *ud)
-{
-    viewer_t *v = ud;
-    client_t *cl = mg_get_user_connection_data(conn);
-    if (!cl)
-        return;
-    pthread_mutex_lock(&v->mu);
-    for (client_t **pp = &v->clients; *pp; pp = &(*pp)->next)
-        if (*pp == cl) {
-            *pp = cl->next;
-            break;
-        }
-    pthread_mutex_unlock(&v->mu);
-    pthread_mutex_lock(&cl->mu);
-    cl->closing = true;
-    cl->dead = true;
-    pthread_cond_signal(&cl->cv);
-    pthread_mutex_unlock(&cl->mu);
-    pthread_join(cl->writer, NULL);
-    for (frame_t *f = cl->head, *n; f; f = n) {
-        n = f->next;
-        free(f);
-    }
-    pthread_mutex_destroy(&cl->mu);
-    pthread_cond_destroy(&cl->cv);
-    free(cl);
-}
-
-/* The page is three known files: nothing else under www is served (no directory listing,
- * CGI or SSI, whatever the folder holds). */
-static int http_page(struct mg_connection *conn, void *ud)
-{
-    viewer_t *v = ud;
-    static const struct {
-        const char *uri, *file, *mime;
-    } files[] = {
-        {"/", "index.html", "text/html; charset=utf-8"},
-        {"/index.html", "index.html", "text/html; charset=utf-8"},
-        {"/viewer.js", "viewer.js", "text/javascript; charset=utf-8"},
-        {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
-    };
-    const char *uri = mg_get_request_info(conn)->local_uri;
-    for (size_t i = 0; uri && i < sizeof files / sizeof files[0]; i++)
-        if (strcmp(uri, files[i].uri) == 0) {
-            char path[PATH_MAX + 32];
-            snprintf(path, sizeof path, "%s/%s", v->www, files[i].file);
-            mg_send_mime_file(conn, path, files[i].mime);
-            return 200;
-        }
-    mg_send_http_error(conn, 404, "%s", "not found");
-    return 404;
-}
-
-static int log_message(const struct mg_connection *conn, const char *msg)
-{
-    marie_warn_ratelimited(10, "viewer: http: %s", msg);
-    return 1;
+    webserve_notice(v->web, id, level, text);
 }
 
 /* ---------------------------------------------------------------- messages */
 
-static int port_of_channel(viewer_t *v, const char *ch)
+int viewer_port_of_channel(viewer_t *v, const char *ch)
 {
     for (int i = 0; i < P_NIN; i++)
-        if (strcmp(marie_port_channel(marie_port(v->c, ports[i].name)), ch) == 0)
+        if (strcmp(marie_port_channel(marie_port(v->c, viewer_ports[i].name)), ch) == 0)
             return i;
     return -1;
 }
 
 /* Decode a payload of input port `pi` and write its message frame into b. Returns false on
  * bad input (counted) or a type the page does not show. */
-static bool encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
+bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
 {
     /* A log's bad payloads were counted when it was indexed: count live ones only. */
     const marie_type_t *t = vj_type_of(data, len);
-    if (t != port_type[pi]) {
+    if (t != viewer_port_type[pi]) {
         if (v->live) {
             v->bad_payloads++;
-            marie_component_bad_input(v->c, "bad_fingerprint", "channel %s: not a %s", ch, port_type[pi]->name);
+            marie_component_bad_input(v->c, "bad_fingerprint", "channel %s: not a %s", ch, viewer_port_type[pi]->name);
         }
         return false;
     }
@@ -470,7 +131,7 @@ static bool encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t
     return ok && !b->oom;
 }
 
-static bool decimated(int pi)
+bool viewer_decimated(int pi)
 {
     return pi == P_LASER || pi == P_POSE || pi == P_TRUTH || pi == P_PARTICLES || pi == P_MAP;
 }
@@ -478,9 +139,9 @@ static bool decimated(int pi)
 /* Rate limit per input on the wall clock: whatever the log speed, the page gets at most
  * laser_hz scans a second. A map (hundreds of KB) goes again only when its cells or
  * geometry changed, or after map_period_s as a refresh. */
-static bool pass_rate(viewer_t *v, int pi, int64_t now, const void *raw, size_t len)
+bool viewer_pass_rate(viewer_t *v, int pi, int64_t now, const void *raw, size_t len)
 {
-    if (!decimated(pi))
+    if (!viewer_decimated(pi))
         return true;
     chan_state_t *cs = &v->chans[pi];
     if (pi == P_MAP) {
@@ -605,31 +266,31 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
     viewer_t *v = marie_component_user(c);
     int pi = -1;
     for (int i = 0; i < P_NIN; i++)
-        if (strcmp(marie_port_name(p), ports[i].name) == 0)
+        if (strcmp(marie_port_name(p), viewer_ports[i].name) == 0)
             pi = i;
     if (pi < 0)
         return;
-    int64_t now = now_mono();
+    int64_t now = marie_mono_us();
     v->msgs_in++;
     /* Checked before the rate limit, so every bad message is counted and none can take the
      * place of a good one in the page's share. */
-    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(port_type[pi]->hash());
+    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(viewer_port_type[pi]->hash());
     int rc = marie_typeinfo_check_flags(ti, info->raw, info->raw_len, MARIE_CHECK_FINITE);
     if (rc < 0) {
         bool fp = marie_payload_fingerprint(info->raw, info->raw_len) == ti->fingerprint;
         v->bad_payloads++;
         marie_component_bad_input(c, !fp ? "bad_fingerprint" : rc == -EDOM ? "bad_nonfinite" : "bad_payload",
                                   "channel %s: %zu bytes: not a well-formed, finite %s", info->channel,
-                                  info->raw_len, port_type[pi]->name);
+                                  info->raw_len, viewer_port_type[pi]->name);
         return;
     }
     /* The snapshot cache wants every message; the page only the rate-limited ones. */
-    bool send = pass_rate(v, pi, now, info->raw, info->raw_len);
+    bool send = viewer_pass_rate(v, pi, now, info->raw, info->raw_len);
     if (!send && (pi != P_POSE && pi != P_TRUTH)) {
-        v->last_rx_mono = now;      /* only data ports are decimated */
+        v->last_rx_mono = now;      /* only data ports are viewer_decimated */
         return;
     }
-    if (!encode_msg(v, &v->jb, pi, info->channel, info->recv_utime, info->raw, info->raw_len))
+    if (!viewer_encode_msg(v, &v->jb, pi, info->channel, info->recv_utime, info->raw, info->raw_len))
         return;
     /* Heartbeats and manager reports say the components live, not that data flows: the
      * page's "no data" banner follows the data ports only. */
@@ -637,438 +298,7 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
         v->last_rx_mono = now;
     live_remember(v, pi, &v->jb, info->recv_utime);
     if (send)
-        send_json(v, -1, &v->jb, decimated(pi));
-}
-
-/* ---------------------------------------------------------------- log mode */
-
-static void on_log_event(void *user, const lcmlog_event_t *ev)
-{
-    viewer_t *v = user;
-    size_t ci;
-    for (ci = 0; ci < v->nlchans; ci++)
-        if (strlen(v->lchans[ci].name) == ev->channel_len && memcmp(v->lchans[ci].name, ev->channel, ev->channel_len) == 0)
-            break;
-    if (ci == v->nlchans) {
-        log_chan_t *nc = realloc(v->lchans, (v->nlchans + 1) * sizeof *nc);
-        if (!nc)
-            return;
-        v->lchans = nc;
-        log_chan_t *lc = &nc[v->nlchans++];
-        memset(lc, 0, sizeof *lc);
-        lc->name = strndup(ev->channel, ev->channel_len);
-        lc->port = lc->name ? port_of_channel(v, lc->name) : -1;
-        lc->type = vj_type_of(ev->data, ev->data_len);
-    }
-    log_chan_t *lc = &v->lchans[ci];
-    lc->count++;
-    if (v->nrecs == v->recs_cap) {
-        size_t cap = v->recs_cap ? v->recs_cap * 2 : 4096;
-        rec_t *nr = realloc(v->recs, cap * sizeof *nr);
-        if (!nr)
-            return;
-        v->recs = nr;
-        v->recs_cap = cap;
-    }
-    if (lc->port >= 0 && vj_type_of(ev->data, ev->data_len) != port_type[lc->port]) {
-        v->bad_payloads++;          /* not the port's type: never played */
-        return;
-    }
-    if (lc->port >= 0) {
-        if (lc->n == lc->cap) {
-            size_t cap = lc->cap ? lc->cap * 2 : 256;
-            uint32_t *ni = realloc(lc->idx, cap * sizeof *ni);
-            if (!ni)
-                return;
-            lc->idx = ni;
-            lc->cap = cap;
-        }
-        lc->idx[lc->n++] = (uint32_t)v->nrecs;
-    }
-    /* Play time never runs backwards, and a timestamp more than an hour off its neighbours
-     * is a corrupt one: the record plays at its predecessor's time. */
-    int64_t t = ev->utime;
-    if (v->nrecs == 0)
-        v->t0 = t;
-    else if (t < v->last_t || t - v->last_t > 3600LL * 1000000)
-        t = v->last_t;
-    v->last_t = t;
-    rec_t *r = &v->recs[v->nrecs++];
-    r->t = t;
-    r->chan = (uint32_t)ci;
-    r->len = (uint32_t)ev->data_len;
-    /* From the stream offset, not ev->data: records found at the end of the stream come
-     * from the parser's own copy of the tail, not from the mapped file. */
-    r->off = ev->offset + LCMLOG_HEADER_LEN + ev->channel_len;
-}
-
-static void on_log_corrupt(void *user, uint64_t offset, const char *reason)
-{
-    viewer_t *v = user;
-    v->corrupt++;
-    marie_warn_ratelimited(5, "viewer: %s: corrupt record at byte %llu: %s", marie_param_str(v->c, "log"),
-                           (unsigned long long)offset, reason);
-    if (v->ncorrupt_listed < 20) {
-        vj_printf(&v->corrupt_list, "%s{\"off\":%llu,\"reason\":", v->ncorrupt_listed ? "," : "",
-                  (unsigned long long)offset);
-        vj_str(&v->corrupt_list, reason);
-        vj_lit(&v->corrupt_list, "}");
-        v->ncorrupt_listed++;
-    }
-}
-
-static void *decode_rec(viewer_t *v, const rec_t *r, const marie_type_t *want)
-{
-    const uint8_t *data = v->file + r->off;
-    if (vj_type_of(data, r->len) != want)
-        return NULL;
-    void *msg = calloc(1, want->size);
-    if (msg && marie_decode_input(want, data, r->len, msg, NULL) < 0) {
-        v->bad_payloads++;
-        free(msg);
-        return NULL;
-    }
-    return msg;
-}
-
-static void free_msg(const marie_type_t *t, void *msg)
-{
-    if (msg) {
-        t->decode_cleanup(msg);
-        free(msg);
-    }
-}
-
-static int intern(char ***names, int *n, const char *s)
-{
-    for (int i = 0; i < *n; i++)
-        if (strcmp((*names)[i], s) == 0)
-            return i;
-    char **nn = realloc(*names, (*n + 1) * sizeof *nn);
-    if (!nn)
-        return 0;
-    *names = nn;
-    nn[*n] = strdup(s ? s : "");
-    return (*n)++;
-}
-
-/* The whole log at a glance for the page's timeline: every decision's winner, events,
- * goals, restarts (pid changes in heartbeats) and both trajectories at 5 Hz. */
-static void build_summary(viewer_t *v)
-{
-    vj_buf_t dec, ev, goals, rst, traj[2], b;
-    vj_init(&dec); vj_init(&ev); vj_init(&goals); vj_init(&rst); vj_init(&traj[0]); vj_init(&traj[1]); vj_init(&b);
-    char **names = NULL;
-    int nnames = 0;
-    int64_t ndec = 0, nev = 0, ngoals = 0, nrst = 0, ntraj[2] = {0, 0}, last_traj[2] = {0, 0};
-    char *comp[MAXCOMP];
-    int pid[MAXCOMP], ncomp = 0;
-    for (size_t i = 0; i < v->nrecs; i++) {
-        const rec_t *r = &v->recs[i];
-        int pi = v->lchans[r->chan].port;
-        if (pi < 0)
-            continue;
-        const marie_type_t *t = port_type[pi];
-        int64_t ms = (r->t - v->t0) / 1000;
-        if (pi == P_ARB) {
-            marie_arbitration_t *m = decode_rec(v, r, t);
-            if (!m)
-                continue;
-            if (ndec < 200000)
-                vj_printf(&dec, "%s[%lld,%d]", ndec++ ? "," : "", (long long)ms, intern(&names, &nnames, m->winner));
-            free_msg(t, m);
-        } else if (pi == P_EVENT) {
-            marie_event_t *m = decode_rec(v, r, t);
-            if (!m)
-                continue;
-            if (nev < 20000) {
-                vj_printf(&ev, "%s[%lld,", nev++ ? "," : "", (long long)ms);
-                vj_str(&ev, m->source);
-                vj_printf(&ev, ",%d,", m->severity);
-                vj_str(&ev, m->kind);
-                vj_lit(&ev, ",");
-                vj_str(&ev, m->text);
-                vj_lit(&ev, "]");
-            }
-            free_msg(t, m);
-        } else if (pi == P_GOAL) {
-            marie_goal_t *m = decode_rec(v, r, t);
-            if (!m)
-                continue;
-            if (ngoals < 20000) {
-                vj_printf(&goals, "%s[%lld,%d,", ngoals++ ? "," : "", (long long)ms, m->id);
-                vj_str(&goals, m->name);
-                vj_lit(&goals, ",");
-                vj_num(&goals, m->pose.x, 3);
-                vj_lit(&goals, ",");
-                vj_num(&goals, m->pose.y, 3);
-                vj_lit(&goals, "]");
-            }
-            free_msg(t, m);
-        } else if (pi == P_HB) {
-            marie_heartbeat_t *m = decode_rec(v, r, t);
-            if (!m)
-                continue;
-            int k;
-            for (k = 0; k < ncomp; k++)
-                if (strcmp(comp[k], m->component) == 0)
-                    break;
-            if (k == ncomp && ncomp < MAXCOMP) {
-                comp[ncomp] = strdup(m->component);
-                pid[ncomp++] = m->pid;
-            } else if (k < ncomp && pid[k] != m->pid) {
-                if (nrst < 20000) {
-                    vj_printf(&rst, "%s[%lld,", nrst++ ? "," : "", (long long)ms);
-                    vj_str(&rst, m->component);
-                    vj_printf(&rst, ",%d,%d]", pid[k], m->pid);
-                }
-                pid[k] = m->pid;
-            }
-            free_msg(t, m);
-        } else if (pi == P_POSE || pi == P_TRUTH) {
-            int k = pi == P_TRUTH;
-            if ((ntraj[k] && r->t - last_traj[k] < 200000) || ntraj[k] >= 100000)
-                continue;
-            marie_pose_cov_t *m = decode_rec(v, r, t);
-            if (!m)
-                continue;
-            last_traj[k] = r->t;
-            vj_printf(&traj[k], "%s[%lld,", ntraj[k]++ ? "," : "", (long long)ms);
-            vj_num(&traj[k], m->pose.x, 3);
-            vj_lit(&traj[k], ",");
-            vj_num(&traj[k], m->pose.y, 3);
-            vj_lit(&traj[k], "]");
-            free_msg(t, m);
-        }
-    }
-    vj_lit(&b, "{\"type\":\"summary\",\"file\":");
-    vj_str(&b, marie_param_str(v->c, "log"));
-    vj_printf(&b, ",\"t0\":%lld,\"t1\":%lld,\"records\":%zu,\"bytes\":%zu,\"corrupt\":%lld,\"bad_payloads\":%lld",
-              (long long)v->t0, (long long)v->t1, v->nrecs, v->file_len, (long long)v->corrupt,
-              (long long)v->bad_payloads);
-    vj_lit(&b, ",\"corrupt_list\":[");
-    if (v->corrupt_list.s)
-        vj_lit(&b, v->corrupt_list.s);
-    vj_lit(&b, "],\"channels\":[");
-    for (size_t i = 0; i < v->nlchans; i++) {
-        vj_lit(&b, i ? ",[" : "[");
-        vj_str(&b, v->lchans[i].name);
-        vj_lit(&b, ",");
-        vj_str(&b, v->lchans[i].type ? v->lchans[i].type->name : "?");
-        vj_printf(&b, ",%lld,", (long long)v->lchans[i].count);
-        vj_str(&b, v->lchans[i].port >= 0 ? ports[v->lchans[i].port].name : "");
-        vj_lit(&b, "]");
-    }
-    vj_lit(&b, "],\"names\":[");
-    for (int i = 0; i < nnames; i++) {
-        if (i)
-            vj_lit(&b, ",");
-        vj_str(&b, names[i]);
-        free(names[i]);
-    }
-    free(names);
-    for (int i = 0; i < ncomp; i++)
-        free(comp[i]);
-    vj_lit(&b, "],\"dec\":[");
-    if (dec.s) vj_lit(&b, dec.s);
-    vj_lit(&b, "],\"events\":[");
-    if (ev.s) vj_lit(&b, ev.s);
-    vj_lit(&b, "],\"goals\":[");
-    if (goals.s) vj_lit(&b, goals.s);
-    vj_lit(&b, "],\"restarts\":[");
-    if (rst.s) vj_lit(&b, rst.s);
-    vj_lit(&b, "],\"est\":[");
-    if (traj[0].s) vj_lit(&b, traj[0].s);
-    vj_lit(&b, "],\"truth\":[");
-    if (traj[1].s) vj_lit(&b, traj[1].s);
-    vj_lit(&b, "]}");
-    if (!b.oom) {
-        v->summary = b.s;
-        v->summary_len = b.len;
-    } else {
-        vj_free(&b);
-    }
-    vj_free(&dec); vj_free(&ev); vj_free(&goals); vj_free(&rst); vj_free(&traj[0]); vj_free(&traj[1]);
-}
-
-static int load_log(viewer_t *v, const char *path)
-{
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        marie_component_fail_reason(v->c, "log %s: %s", path, strerror(errno));
-        return -1;
-    }
-    struct stat st;
-    if (fstat(fd, &st) < 0 || !S_ISREG(st.st_mode)) {
-        marie_component_fail_reason(v->c, "log %s: not a regular file", path);
-        close(fd);
-        return -1;
-    }
-    v->file_len = (size_t)st.st_size;
-    if (v->file_len) {
-        v->file = mmap(NULL, v->file_len, PROT_READ, MAP_PRIVATE, fd, 0);
-        if (v->file == MAP_FAILED) {
-            v->file = NULL;
-            marie_component_fail_reason(v->c, "log %s: mmap: %s", path, strerror(errno));
-            close(fd);
-            return -1;
-        }
-    }
-    close(fd);
-    lcmlog_parser_t *p = lcmlog_parser_create(on_log_event, on_log_corrupt, v);
-    if (!p) {
-        marie_component_fail_reason(v->c, "out of memory");
-        return -1;
-    }
-    if (v->file_len)
-        lcmlog_parser_feed(p, v->file, v->file_len);
-    lcmlog_parser_finish(p);
-    lcmlog_parser_destroy(p);
-    v->t1 = v->nrecs ? v->recs[v->nrecs - 1].t : 0;
-    build_summary(v);
-    marie_info("viewer: %s: %zu records over %.1f s, %lld corrupt stretches, %zu channels", path, v->nrecs,
-               (v->t1 - v->t0) / 1e6, (long long)v->corrupt, v->nlchans);
-    return 0;
-}
-
-static void send_rec(viewer_t *v, int id, size_t i, bool droppable)
-{
-    const rec_t *r = &v->recs[i];
-    int pi = v->lchans[r->chan].port;
-    if (pi < 0)
-        return;
-    if (encode_msg(v, &v->jb, pi, v->lchans[r->chan].name, r->t, v->file + r->off, r->len))
-        send_json(v, id, &v->jb, droppable);
-}
-
-/* Index in lc->idx of the last record before `cursor`, or -1. */
-static long last_before(const log_chan_t *lc, size_t cursor)
-{
-    long lo = 0, hi = (long)lc->n - 1, best = -1;
-    while (lo <= hi) {
-        long mid = (lo + hi) / 2;
-        if (lc->idx[mid] < cursor) {
-            best = mid;
-            lo = mid + 1;
-        } else {
-            hi = mid - 1;
-        }
-    }
-    return best;
-}
-
-static void send_player(viewer_t *v, int id)
-{
-    vj_buf_t b;
-    vj_init(&b);
-    vj_printf(&b, "{\"type\":\"player\",\"playing\":%s,\"speed\":", v->playing ? "true" : "false");
-    vj_num(&b, v->speed, 3);
-    vj_printf(&b, ",\"t\":%lld,\"t0\":%lld,\"t1\":%lld}", (long long)v->play_t, (long long)v->t0, (long long)v->t1);
-    send_json(v, id, &b, false);
-    vj_free(&b);
-}
-
-/* The state of the world at the play time: the newest message of each input, the last
- * decisions and every component's last heartbeat. */
-static void log_snapshot(viewer_t *v, int id)
-{
-    char head[96];
-    int n = snprintf(head, sizeof head, "{\"type\":\"snap\",\"t\":%lld}", (long long)v->play_t);
-    send_to(v, id, head, (size_t)n, false);
-    for (size_t ci = 0; ci < v->nlchans; ci++) {
-        log_chan_t *lc = &v->lchans[ci];
-        if (lc->port < 0 || lc->port == P_AM_REPLY || !lc->n)
-            continue;
-        long k = last_before(lc, v->cursor);
-        if (k < 0) {
-            if (lc->port == P_MAP)      /* a map describes the whole run */
-                send_rec(v, id, lc->idx[0], false);
-            continue;
-        }
-        if (lc->port == P_ARB || lc->port == P_HB || lc->port == P_AM_STATUS) {
-            /* the last 30 decisions; heartbeats of the last 10 s (every component); the
-             * managers' reports of the last 3 s (every host) */
-            int64_t window = lc->port == P_HB ? 10000000 : 3000000;
-            long first = k;
-            while (first > 0 && (lc->port == P_ARB ? k - first < 29
-                                 : v->recs[lc->idx[first - 1]].t >= v->play_t - window && k - first < 400))
-                first--;
-            for (long j = first; j <= k; j++)
-                send_rec(v, id, lc->idx[j], false);
-        } else if (lc->port != P_EVENT) {
-            /* events come with the summary; everything else: the newest one */
-            send_rec(v, id, lc->idx[k], false);
-        }
-    }
-    n = snprintf(head, sizeof head, "{\"type\":\"snapend\",\"t\":%lld}", (long long)v->play_t);
-    send_to(v, id, head, (size_t)n, false);
-}
-
-static void player_seek(viewer_t *v, int64_t t)
-{
-    if (t < v->t0)
-        t = v->t0;
-    if (t > v->t1)
-        t = v->t1;
-    size_t lo = 0, hi = v->nrecs;
-    while (lo < hi) {                   /* first record after t */
-        size_t mid = (lo + hi) / 2;
-        if (v->recs[mid].t <= t)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    v->cursor = lo;
-    v->play_t = t;
-    v->anchor_mono = now_mono();
-    for (int i = 0; i < P_NIN; i++)
-        v->chans[i].last_sent_mono = 0;
-    log_snapshot(v, -1);
-    send_player(v, -1);
-}
-
-static void player_tick(marie_loop_t *loop, marie_timer_t *tm, int64_t overruns, void *user)
-{
-    viewer_t *v = user;
-    int64_t now = now_mono();
-    if (v->live) {
-        /* stats for the page's "no data" banner */
-        if (now - v->last_player_msg >= 1000000) {
-            v->last_player_msg = now;
-            char s[200];
-            pthread_mutex_lock(&v->mu);
-            long long frames = (long long)v->frames_out;
-            pthread_mutex_unlock(&v->mu);
-            int n = snprintf(s, sizeof s, "{\"type\":\"stats\",\"msgs\":%lld,\"frames\":%lld,\"rx_age\":%.1f,\"bad\":%lld}",
-                             (long long)v->msgs_in, frames, v->last_rx_mono ? (now - v->last_rx_mono) / 1e6 : -1.0,
-                             (long long)v->bad_payloads);
-            send_to(v, -1, s, (size_t)n, false);
-        }
-        return;
-    }
-    if (!v->playing)
-        return;
-    int64_t target = v->play_t + (int64_t)((now - v->anchor_mono) * v->speed);
-    v->play_t = target;
-    v->anchor_mono = now;
-    while (v->cursor < v->nrecs && v->recs[v->cursor].t <= target) {
-        const rec_t *r = &v->recs[v->cursor];
-        int pi = v->lchans[r->chan].port;
-        if (pi >= 0 && pi != P_AM_REPLY && pass_rate(v, pi, now, v->file + r->off, r->len))
-            send_rec(v, -1, v->cursor, decimated(pi));
-        v->cursor++;
-    }
-    if (v->cursor >= v->nrecs && target >= v->t1) {
-        v->playing = false;
-        v->play_t = v->t1;
-        send_player(v, -1);
-        notice(v, -1, "info", "end of log");
-        return;
-    }
-    if (now - v->last_player_msg >= 250000) {
-        v->last_player_msg = now;
-        send_player(v, -1);
-    }
+        viewer_send_json(v, -1, &v->jb, viewer_decimated(pi));
 }
 
 /* ---------------------------------------------------------------- commands */
@@ -1083,26 +313,26 @@ static void send_hello(viewer_t *v, int id)
     vj_lit(&b, ",\"channels\":{");
     for (int i = 0; i < P_NIN; i++) {
         vj_lit(&b, i ? "," : "");
-        vj_str(&b, ports[i].name);
+        vj_str(&b, viewer_ports[i].name);
         vj_lit(&b, ":");
-        vj_str(&b, marie_port_channel(marie_port(v->c, ports[i].name)));
+        vj_str(&b, marie_port_channel(marie_port(v->c, viewer_ports[i].name)));
     }
     vj_lit(&b, "}}");
-    send_json(v, id, &b, false);
+    viewer_send_json(v, id, &b, false);
     vj_free(&b);
     if (v->map_json)
-        send_to(v, id, v->map_json, strlen(v->map_json), false);
+        viewer_send(v, id, v->map_json, strlen(v->map_json), false);
     if (!v->live) {
         if (v->summary)
-            send_to(v, id, v->summary, v->summary_len, false);
-        log_snapshot(v, id);
-        send_player(v, id);
+            viewer_send(v, id, v->summary, v->summary_len, false);
+        viewer_log_snapshot(v, id);
+        viewer_log_send_player(v, id);
         return;
     }
     /* live: the present, from the caches */
     char head[96];
     int n = snprintf(head, sizeof head, "{\"type\":\"snap\",\"t\":%lld}", (long long)marie_wall_us());
-    send_to(v, id, head, (size_t)n, false);
+    viewer_send(v, id, head, (size_t)n, false);
     vj_reset(&b);
     for (int k = 0; k < 2; k++) {
         vj_printf(&b, "%s\"%s\":[", k ? "," : "{\"type\":\"trail\",", k ? "truth" : "est");
@@ -1114,29 +344,29 @@ static void send_hello(viewer_t *v, int id)
         vj_lit(&b, "]");
     }
     vj_lit(&b, "}");
-    send_json(v, id, &b, false);
+    viewer_send_json(v, id, &b, false);
     vj_free(&b);
     for (int i = 0; i < P_NIN; i++)
         if (v->chans[i].latest)
-            send_to(v, id, v->chans[i].latest, strlen(v->chans[i].latest), false);
+            viewer_send(v, id, v->chans[i].latest, strlen(v->chans[i].latest), false);
     for (int i = 0; i < v->ncomp; i++)
         if (v->comp_json[i])
-            send_to(v, id, v->comp_json[i], strlen(v->comp_json[i]), false);
+            viewer_send(v, id, v->comp_json[i], strlen(v->comp_json[i]), false);
     for (int i = 0; i < v->ngoal; i++)
         if (v->goal_json[i])
-            send_to(v, id, v->goal_json[i], strlen(v->goal_json[i]), false);
+            viewer_send(v, id, v->goal_json[i], strlen(v->goal_json[i]), false);
     for (int i = 0; i < RING; i++) {
         char *e = v->ev_ring[(v->ev_next + i) % RING];
         if (e)
-            send_to(v, id, e, strlen(e), false);
+            viewer_send(v, id, e, strlen(e), false);
     }
     for (int i = 0; i < RING; i++) {
         char *a = v->arb_ring[(v->arb_next + i) % RING];
         if (a)
-            send_to(v, id, a, strlen(a), false);
+            viewer_send(v, id, a, strlen(a), false);
     }
     n = snprintf(head, sizeof head, "{\"type\":\"snapend\",\"t\":%lld}", (long long)marie_wall_us());
-    send_to(v, id, head, (size_t)n, false);
+    viewer_send(v, id, head, (size_t)n, false);
 }
 
 static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
@@ -1145,7 +375,7 @@ static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
            : strcmp(cmd, "resume") == 0 ? MARIE_AM_ORDER_T_OP_RESUME
            : strcmp(cmd, "restart") == 0 ? MARIE_AM_ORDER_T_OP_RESTART : -1;
     if (op < 0 || !target || !*target) {
-        notice(v, id, "error", "unknown order");
+        viewer_notice(v, id, "error", "unknown order");
         return;
     }
     int64_t seq = marie_auth_next_seq(NULL);
@@ -1160,41 +390,47 @@ static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
     uint8_t mac[MARIE_AUTH_MAC_LEN];
     char msg[300];
     if (marie_auth_sign_order(v->auth, &o, mac) < 0 || marie_port_publish(marie_port(v->c, "order"), &o) < 0) {
-        notice(v, id, "error", "cannot send the order");
+        viewer_notice(v, id, "error", "cannot send the order");
         return;
     }
     snprintf(msg, sizeof msg, "order sent: %s %s (seq %lld)", cmd, target, (long long)seq);
     marie_info("viewer: %s", msg);
-    notice(v, -1, "info", msg);
+    viewer_notice(v, -1, "info", msg);
 }
 
+/* A goal from the page: a request signed with the key, which the mission obeys only if authentic. */
 static void do_goal(viewer_t *v, int id, double x, double y, double th)
 {
-    marie_goal_t g = {
-        .utime = marie_wall_us(), .id = 900000 + ++v->goals_sent, .name = "viewer",
-        .pose = {x, y, th}, .tolerance = marie_param_double(v->c, "goal_tolerance"), .priority = 0,
+    int64_t seq = marie_auth_next_seq(NULL);
+    v->last_seq = seq > v->last_seq ? seq : v->last_seq + 1;
+    marie_goal_request_t r = {
+        .utime = marie_wall_us(), .sender = v->sender, .seq = v->last_seq,
+        .goal = {.utime = marie_wall_us(), .id = 900000 + ++v->goals_sent, .name = "viewer", .pose = {x, y, th},
+                 .tolerance = marie_param_double(v->c, "goal_tolerance"), .priority = 0},
     };
-    if (marie_port_publish(marie_port(v->c, "goal_out"), &g) < 0) {
-        notice(v, id, "error", "cannot publish the goal");
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    if (marie_auth_sign_goal_request(v->auth, &r, mac) < 0 || marie_port_publish(marie_port(v->c, "request"), &r) < 0) {
+        viewer_notice(v, id, "error", "cannot send the goal request");
         return;
     }
     char msg[200];
-    snprintf(msg, sizeof msg, "goal %d sent on %s: (%.2f, %.2f, %.2f)", g.id,
-             marie_port_channel(marie_port(v->c, "goal_out")), x, y, th);
+    snprintf(msg, sizeof msg, "goal %d requested on %s: (%.2f, %.2f, %.2f)", r.goal.id,
+             marie_port_channel(marie_port(v->c, "request")), x, y, th);
     marie_info("viewer: %s", msg);
-    notice(v, -1, "info", msg);
+    viewer_notice(v, -1, "info", msg);
 }
 
-static void handle_cmd(viewer_t *v, cmd_t *c)
+static void handle_cmd(void *user, int client, bool hello, const char *text, size_t len)
 {
-    if (c->hello) {
-        send_hello(v, c->client);
+    viewer_t *v = user;
+    if (hello) {
+        send_hello(v, client);
         return;
     }
     vj_cmd_t cmd;
-    if (vj_cmd_parse(&cmd, c->text, c->len) < 0 || !vj_cmd_str(&cmd, "op")) {
-        marie_component_bad_input(v->c, "bad_command", "page command not understood (%zu bytes)", c->len);
-        notice(v, c->client, "error", "command not understood");
+    if (vj_cmd_parse(&cmd, text, len) < 0 || !vj_cmd_str(&cmd, "op")) {
+        marie_component_bad_input(v->c, "bad_command", "page command not understood (%zu bytes)", len);
+        viewer_notice(v, client, "error", "command not understood");
         return;
     }
     const char *op = vj_cmd_str(&cmd, "op");
@@ -1204,63 +440,41 @@ static void handle_cmd(viewer_t *v, cmd_t *c)
         double t = 0;
         vj_cmd_num(&cmd, "t", &t);
         int n = snprintf(s, sizeof s, "{\"type\":\"pong\",\"t\":%.17g}", t);
-        send_to(v, c->client, s, (size_t)n, false);
+        viewer_send(v, client, s, (size_t)n, false);
     } else if (strcmp(op, "goal") == 0 || strcmp(op, "order") == 0) {
         if (!v->auth) {
-            notice(v, c->client, "error", "controls are disabled: start the viewer with --key-file");
+            viewer_notice(v, client, "error", "controls are disabled: start the viewer with --key-file");
         } else if (strcmp(op, "goal") == 0) {
             if (!vj_cmd_num(&cmd, "x", &x) || !vj_cmd_num(&cmd, "y", &y))
-                notice(v, c->client, "error", "goal needs x and y");
+                viewer_notice(v, client, "error", "goal needs x and y");
             else {
                 vj_cmd_num(&cmd, "th", &th);
-                do_goal(v, c->client, x, y, th);
+                do_goal(v, client, x, y, th);
             }
         } else {
-            do_order(v, c->client, vj_cmd_str(&cmd, "cmd") ? vj_cmd_str(&cmd, "cmd") : "",
+            do_order(v, client, vj_cmd_str(&cmd, "cmd") ? vj_cmd_str(&cmd, "cmd") : "",
                      vj_cmd_str(&cmd, "target"));
         }
     } else if (v->live) {
-        notice(v, c->client, "error", "playback commands need a log");
+        viewer_notice(v, client, "error", "playback commands need a log");
     } else if (strcmp(op, "play") == 0) {
         if (v->play_t >= v->t1)
-            player_seek(v, v->t0);
+            viewer_log_seek(v, v->t0);
         v->playing = true;
-        v->anchor_mono = now_mono();
-        send_player(v, -1);
+        v->anchor_mono = marie_mono_us();
+        viewer_log_send_player(v, -1);
     } else if (strcmp(op, "pause") == 0) {
         v->playing = false;
         /* decimation may have skipped the newest scan: show the exact state at the pause */
-        log_snapshot(v, -1);
-        send_player(v, -1);
+        viewer_log_snapshot(v, -1);
+        viewer_log_send_player(v, -1);
     } else if (strcmp(op, "seek") == 0 && vj_cmd_num(&cmd, "t", &x)) {
-        player_seek(v, (int64_t)x);
+        viewer_log_seek(v, (int64_t)x);
     } else if (strcmp(op, "speed") == 0 && vj_cmd_num(&cmd, "v", &x) && x > 0 && x <= 1000) {
         v->speed = x;
-        send_player(v, -1);
+        viewer_log_send_player(v, -1);
     } else {
-        notice(v, c->client, "error", "unknown command");
-    }
-}
-
-static void on_wake(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    viewer_t *v = user;
-    char buf[256];
-    while (read(fd, buf, sizeof buf) > 0)
-        ;
-    for (;;) {
-        pthread_mutex_lock(&v->mu);
-        cmd_t *c = v->cmd_head;
-        if (c) {
-            v->cmd_head = c->next;
-            if (!v->cmd_head)
-                v->cmd_tail = NULL;
-        }
-        pthread_mutex_unlock(&v->mu);
-        if (!c)
-            break;
-        handle_cmd(v, c);
-        free(c);
+        viewer_notice(v, client, "error", "unknown command");
     }
 }
 
@@ -1338,7 +552,7 @@ static int find_www(viewer_t *v)
 static int init_viewer(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
-    if (v->http)
+    if (v->web)
         return 0;                       /* re-init after a stop: already serving */
     v->c = c;
     v->speed = marie_param_double(c, "speed");
@@ -1373,48 +587,42 @@ static int init_viewer(marie_component_t *c)
     const char *log = marie_param_str(c, "log");
     v->live = !(log && *log);
     if (!v->live) {
-        if (load_log(v, log) < 0)
+        if (viewer_log_load(v, log) < 0)
             return -1;
         v->play_t = v->t0;
         v->playing = marie_param_bool(c, "autoplay") && v->nrecs > 0;
-        v->anchor_mono = now_mono();
+        v->anchor_mono = marie_mono_us();
     } else {
         for (int i = 0; i < P_NIN; i++)
-            if (marie_port_on_message(marie_port(c, ports[i].name), on_live) < 0) {
-                marie_component_fail_reason(c, "cannot subscribe to %s", ports[i].name);
+            if (marie_port_on_message(marie_port(c, viewer_ports[i].name), on_live) < 0) {
+                marie_component_fail_reason(c, "cannot subscribe to %s", viewer_ports[i].name);
                 return -1;
             }
     }
     if (v->live == false && marie_port_on_message(marie_port(c, "am_reply"), on_live) < 0)
         return -1;
-    if (pipe2(v->wake, O_NONBLOCK | O_CLOEXEC) < 0 ||
-        marie_loop_add_fd(marie_component_loop(c), v->wake[0], POLLIN, on_wake, v) < 0 ||
-        !marie_loop_add_wall_timer(marie_component_loop(c), 20000, player_tick, v)) {
+    if (!marie_loop_add_wall_timer(marie_component_loop(c), 20000, viewer_log_tick, v)) {
         marie_component_fail_reason(c, "cannot set up the loop: %s", strerror(errno));
         return -1;
     }
-    char listen[128], port[16];
-    snprintf(port, sizeof port, "%lld", (long long)marie_param_int(c, "http_port"));
-    snprintf(listen, sizeof listen, "%s:%s", marie_param_str(c, "bind"), port);
-    const char *opts[] = {
-        "listening_ports", listen, "num_threads", "16", "websocket_timeout_ms", "3600000", NULL,
+    static const webserve_file_t files[] = {
+        {"/", "index.html", "text/html; charset=utf-8"},
+        {"/index.html", "index.html", "text/html; charset=utf-8"},
+        {"/viewer.js", "viewer.js", "text/javascript; charset=utf-8"},
+        {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
     };
-    struct mg_callbacks cb = {0};
-    cb.log_message = log_message;
-    mg_init_library(0);
-    v->http = mg_start(&cb, v, opts);
-    if (!v->http) {
-        marie_component_fail_reason(c, "cannot serve HTTP on %s (port in use?)", listen);
+    webserve_cfg_t wc = {
+        .bind = marie_param_str(c, "bind"), .port = (int)marie_param_int(c, "http_port"), .www = v->www,
+        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v,
+    };
+    char why[256];
+    if (!(v->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
+        marie_component_fail_reason(c, "%s", why);
         return -1;
     }
-    mg_set_websocket_handler(v->http, "/ws", ws_connect, ws_ready, ws_data, ws_close, v);
-    mg_set_request_handler(v->http, "/", http_page, v);
-    struct mg_server_port sp[4];
-    int np = mg_get_server_ports(v->http, 4, sp);
-    v->port = np > 0 ? sp[0].port : (int)marie_param_int(c, "http_port");
     const char *host = strcmp(marie_param_str(c, "bind"), "0.0.0.0") == 0 ? "127.0.0.1" : marie_param_str(c, "bind");
     char url[256];
-    snprintf(url, sizeof url, "http://%s:%d/", host, v->port);
+    snprintf(url, sizeof url, "http://%s:%d/", host, webserve_port(v->web));
     if (v->live)
         printf("marie-view: following the bus at %s\n", url);
     else
@@ -1447,19 +655,8 @@ static int init(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
-    if (v->http)
-        mg_stop(v->http);               /* closes every WebSocket: their writers are joined */
-    v->http = NULL;
-    for (cmd_t *x = v->cmd_head, *n; x; x = n) {
-        n = x->next;
-        free(x);
-    }
-    v->cmd_head = v->cmd_tail = NULL;
-    if (v->wake[0] > 0) {
-        marie_loop_remove_fd(marie_component_loop(c), v->wake[0]);
-        close(v->wake[0]);
-        close(v->wake[1]);
-    }
+    webserve_stop(v->web);
+    v->web = NULL;
     for (int i = 0; i < P_NIN; i++)
         free(v->chans[i].latest);
     for (int i = 0; i < RING; i++) {
@@ -1488,15 +685,13 @@ static void quit(marie_component_t *c)
 }
 
 static const marie_component_def_t def = {
-    .kind = "viewer", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+    .kind = "viewer", .ports = viewer_ports, .params = params, .on_init = init, .on_quit = quit,
 };
 
 int main(int argc, char **argv)
 {
     static viewer_t v;
     signal(SIGPIPE, SIG_IGN);
-    pthread_mutex_init(&v.mu, NULL);
-    v.wake[0] = v.wake[1] = -1;
     int rc = marie_main(&def, argc, argv, &v);
     return rc == 0 && v.init_failed ? 1 : rc;
 }

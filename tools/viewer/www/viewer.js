@@ -222,6 +222,11 @@ function onMsg(m) {
   case 'am': for (const c of m.comps) S.am[c.n] = c; break;
   case 'reply': notice((m.ok ? 'order done on ' : 'order refused on ') + m.host + ': ' + m.reason); break;
   case 'tags': S.tags = m; break;
+  case 'landmarks':
+    S.landmarks = S.landmarks || {};
+    for (const l of m.lm) S.landmarks[l.id] = l;
+    body.dataset.landmarks = String(Object.keys(S.landmarks).length);
+    break;
   }
 }
 
@@ -304,6 +309,7 @@ function draw() {
     }
     drawTrails(g);
     drawGoals(g);
+    drawLandmarks(g);
     if (S.path) polyline(g, S.path.p, '#ff9800', 2.5);
     if (S.particles) {
       g.fillStyle = 'rgba(171,71,188,0.55)';
@@ -369,6 +375,20 @@ function drawGoals(g) {
     g.lineWidth = cur ? 2.5 : 1.2;
     g.beginPath(); g.arc(x, y, Math.max(5, (gl.tol || 0.3) * S.view.scale), 0, 2 * Math.PI); g.fill(); g.stroke();
     g.fillStyle = '#004d55'; g.fillText(gl.name || ('goal ' + gl.id), x + 8, y - 8);
+  }
+}
+
+// Tags the robot placed in the map (marie-vision's landmarks): a square on the wall, a tick
+// towards where the sign faces, and what it says.
+function drawLandmarks(g) {
+  if (!S.landmarks) return;
+  g.font = '11px sans-serif';
+  for (const l of Object.values(S.landmarks)) {
+    const [x, y] = toPx(l.x, l.y), [fx, fy] = toPx(l.x + 0.4 * Math.cos(l.yaw), l.y + 0.4 * Math.sin(l.yaw));
+    g.fillStyle = '#6a1b9a'; g.fillRect(x - 4, y - 4, 8, 8);
+    g.strokeStyle = '#6a1b9a'; g.lineWidth = 1.5;
+    g.beginPath(); g.moveTo(x, y); g.lineTo(fx, fy); g.stroke();
+    g.fillText(l.msg || ('tag ' + l.id), x + 6, y + 12);
   }
 }
 

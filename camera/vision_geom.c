@@ -1,5 +1,5 @@
 /* vision_geom: rigid poses, quaternions and pinhole projection shared by the vision modules. */
-#include "adapters/vision/vision_geom.h"
+#include "camera/vision_geom.h"
 
 #include <errno.h>
 #include <math.h>

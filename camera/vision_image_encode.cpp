@@ -1,5 +1,5 @@
 /* vision_image_encode: grey or RGB pixels to marie.image_t (raw, or JPEG through OpenCV). */
-#include "adapters/vision/vision_image.h"
+#include "camera/vision_image.h"
 
 #include <cerrno>
 #include <cstdio>

@@ -1,6 +1,6 @@
 /* vjson: the viewer's JSON. Hand-written per type so the page gets only what it draws, with
  * coordinates rounded to millimetres: a laser scan is ~1 KB instead of ~4 KB. */
-#include "tools/viewer/vjson.h"
+#include "tools/webcommon/vjson.h"
 
 #include <errno.h>
 #include <math.h>
@@ -391,6 +391,23 @@ static void enc_tags(vj_buf_t *b, const marie_tag_detections_t *m)
     vj_raw(b, "]", 1);
 }
 
+static void enc_landmarks(vj_buf_t *b, const marie_landmarks_t *m)
+{
+    key(b, "lm");
+    vj_raw(b, "[", 1);
+    for (int i = 0; i < m->count; i++) {
+        const marie_landmark_t *l = &m->landmarks[i];
+        vj_raw(b, i ? ",{\"id\":" : "{\"id\":", i ? 7 : 6);
+        vj_int(b, l->id);
+        key(b, "x"); vj_num(b, l->x, 3);
+        key(b, "y"); vj_num(b, l->y, 3);
+        key(b, "yaw"); vj_num(b, l->yaw, 3);
+        key(b, "msg"); vj_str(b, l->message);
+        vj_raw(b, "}", 1);
+    }
+    vj_raw(b, "]", 1);
+}
+
 static const struct {
     const marie_type_t *type;
     const char *kind;
@@ -407,6 +424,7 @@ static const struct {
     {&marie_type_am_reply_t, "reply"},
     {&marie_type_occupancy_grid_t, "map"},
     {&marie_type_tag_detections_t, "tags"},
+    {&marie_type_landmarks_t, "landmarks"},
 };
 
 const char *vj_kind(const marie_type_t *t)
@@ -436,6 +454,7 @@ bool vj_message(vj_buf_t *b, const marie_type_t *t, const void *msg, vj_role_t r
     else if (t == &marie_type_am_reply_t) enc_am_reply(b, msg);
     else if (t == &marie_type_occupancy_grid_t) enc_grid(b, msg);
     else if (t == &marie_type_tag_detections_t) enc_tags(b, msg);
+    else if (t == &marie_type_landmarks_t) enc_landmarks(b, msg);
     return true;
 }
 

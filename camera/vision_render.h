@@ -6,7 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "adapters/vision/vision_geom.h"
+#include "camera/vision_geom.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -28,6 +28,7 @@ typedef enum {
     VISION_BG_FLAT = 0,     /* uniform bg_level */
     VISION_BG_GRADIENT,     /* left-to-right ramp around bg_level */
     VISION_BG_CLUTTER,      /* random boxes and discs, some with strong edges */
+    VISION_BG_IMAGE,        /* bg_image: a scene drawn by the caller (the simulator's walls) */
 } vision_bg_t;
 
 typedef struct {
@@ -38,6 +39,10 @@ typedef struct {
     double noise_sigma;     /* additive Gaussian noise, grey levels (0: none) */
     uint32_t seed;          /* noise and clutter are a function of the seed */
     int supersample;        /* anti-aliasing factor per axis, default 3 */
+    int noise_table;        /* nonzero: noise is a seed-placed window of one stored field
+                             * (fast, for the simulator) instead of drawn afresh */
+    const uint8_t *bg_image;/* VISION_BG_IMAGE: width x height grey bytes, rows width apart
+                             * (the caller's; read during the call only) */
 } vision_render_opts_t;
 
 void vision_render_opts_default(vision_render_opts_t *o);

@@ -1,5 +1,5 @@
 /* vision_simcam: a robot-mounted synthetic camera looking at tags fixed in a 2D world. */
-#include "adapters/vision/vision_simcam.h"
+#include "camera/vision_simcam.h"
 
 #include <errno.h>
 #include <math.h>
@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "adapters/vision/vision_image.h"
+#include "camera/vision_image.h"
 
 struct vision_simcam {
     vision_simcam_opts_t o;
@@ -18,6 +18,10 @@ struct vision_simcam {
     uint8_t *pix;
     marie_image_t last;
     uint32_t frame;
+    occmap_t *walls;
+    uint8_t *scene;             /* the walls' image, width x height */
+    float *cols;                /* per column: wall top, wall bottom, shade */
+    vision_tag_t *shown;        /* the tags not hidden, this frame */
 };
 
 void vision_simcam_opts_default(vision_simcam_opts_t *o)
@@ -30,8 +34,11 @@ void vision_simcam_opts_default(vision_simcam_opts_t *o)
     vision_render_opts_default(&o->render);
     o->render.noise_sigma = 2;
     o->render.blur_sigma = 0.5;
+    o->render.noise_table = 1;
     o->format = MARIE_IMAGE_T_FORMAT_GRAY8;
     o->jpeg_quality = 90;
+    o->wall_height = 2.5;
+    o->max_range = 20.0;
 }
 
 static int get_double(const marie_node_t *map, const char *key, double *v, marie_errors_t *errs)
@@ -55,7 +62,8 @@ int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vi
 {
     static const char *const cam_keys[] = { "width", "height", "fx", "fy", "cx", "cy", "mount_x", "mount_y",
                                             "mount_z", "mount_yaw", "mount_pitch", "noise", "blur",
-                                            "background", "format", "family", NULL };
+                                            "background", "format", "family", "wall_height", "max_range",
+                                            NULL };
     static const char *const tag_keys[] = { "id", "x", "y", "z", "yaw", "size", NULL };
     int rc = 0;
     *out = NULL;
@@ -84,6 +92,8 @@ int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vi
         rc |= get_double(camera, "mount_pitch", &o->mount_pitch, errs);
         rc |= get_double(camera, "noise", &o->render.noise_sigma, errs);
         rc |= get_double(camera, "blur", &o->render.blur_sigma, errs);
+        rc |= get_double(camera, "wall_height", &o->wall_height, errs);
+        rc |= get_double(camera, "max_range", &o->max_range, errs);
         const marie_node_t *n;
         const char *s;
         if ((n = marie_node_get(camera, "background")) && marie_node_str(n, &s, errs) == 0) {
@@ -183,8 +193,9 @@ vision_simcam_t *vision_simcam_create(const vision_simcam_opts_t *o, const visio
             return NULL;
         }
     s->tags = malloc((n ? n : 1) * sizeof *s->tags);
+    s->shown = malloc((n ? n : 1) * sizeof *s->shown);
     s->pix = malloc((size_t)o->cam.width * o->cam.height * 3);
-    if (!s->tags || !s->pix) {
+    if (!s->tags || !s->shown || !s->pix) {
         vision_simcam_destroy(s);
         goto err_nomem;
     }
@@ -202,23 +213,137 @@ void vision_simcam_destroy(vision_simcam_t *s)
         return;
     vision_render_destroy(s->r);
     free(s->tags);
+    free(s->shown);
     free(s->pix);
+    free(s->scene);
+    free(s->cols);
+    occmap_destroy(s->walls);
     free(s->last.data);
     free(s);
+}
+
+int vision_simcam_set_walls(vision_simcam_t *s, const occmap_t *map)
+{
+    occmap_t *m = occmap_clone(map);
+    uint8_t *scene = malloc((size_t)s->o.cam.width * s->o.cam.height);
+    float *cols = malloc((size_t)s->o.cam.width * 3 * sizeof *cols);
+    if (!m || !scene || !cols) {
+        occmap_destroy(m);
+        free(scene);
+        free(cols);
+        return -ENOMEM;
+    }
+    occmap_destroy(s->walls);
+    free(s->scene);
+    free(s->cols);
+    s->cols = cols;
+    s->walls = m;
+    s->scene = scene;
+    return 0;
+}
+
+/* The optical centre in the world and the heading the camera looks along. */
+static void camera_place(const vision_simcam_t *s, double x, double y, double theta, double *cx, double *cy,
+                         double *heading)
+{
+    double c = cos(theta), si = sin(theta);
+    *cx = x + c * s->o.mount_x - si * s->o.mount_y;
+    *cy = y + si * s->o.mount_x + c * s->o.mount_y;
+    *heading = theta + s->o.mount_yaw;
+}
+
+/* Distance to the first wall along heading a, or max_range. */
+static double wall_distance(const vision_simcam_t *s, double x, double y, double a)
+{
+    return occmap_raycast(s->walls, x, y, a, s->o.max_range);
+}
+
+/* One image column per ray: ceiling, wall (darker with distance, a seam every metre along
+ * it), floor (lighter towards the camera). Cheap enough for the simulator's rates. */
+static void draw_walls(vision_simcam_t *s, double x, double y, double heading)
+{
+    const vision_camera_t *k = &s->o.cam;
+    int W = k->width, H = k->height;
+    double horizon = k->cy - k->fy * tan(s->o.mount_pitch), cz = s->o.mount_z;
+    /* Columns first (one ray each), then rows, so the image is written in memory order. */
+    float *top = s->cols, *bottom = s->cols + W;
+    uint8_t *shade = (uint8_t *)(s->cols + 2 * W);
+    for (int u = 0; u < W; u++) {
+        double off = atan((u - k->cx) / k->fx);             /* image right = turning right */
+        double a = heading - off;
+        double d = wall_distance(s, x, y, a);
+        double depth = d * cos(off);
+        bool hit = d < s->o.max_range;
+        top[u] = (float)(hit ? horizon - k->fy * (s->o.wall_height - cz) / depth : horizon);
+        bottom[u] = (float)(hit ? horizon + k->fy * cz / depth : horizon);
+        double along = fabs(fmod(x + d * cos(a) + y + d * sin(a) + 1000.0, 1.0));
+        int g = 190 - (int)(6.0 * d);
+        if (along < 0.04 || along > 0.96)
+            g -= 60;
+        shade[u] = (uint8_t)(g < 40 ? 40 : g);
+    }
+    for (int v = 0; v < H; v++) {
+        uint8_t *row = s->scene + (size_t)v * W;
+        uint8_t floor = (uint8_t)(70 + (int)(60.0 * (v - horizon) / (H - horizon + 1)));
+        for (int u = 0; u < W; u++)
+            row[u] = v < top[u] ? 215 : v <= bottom[u] ? shade[u] : floor;
+    }
+}
+
+bool vision_simcam_tag_visible(const vision_simcam_t *s, size_t i, double x, double y, double theta)
+{
+    if (i >= s->n)
+        return false;
+    double cx, cy, heading;
+    camera_place(s, x, y, theta, &cx, &cy, &heading);
+    const double *t = s->tags[i].pose.t;
+    double dx = t[0] - cx, dy = t[1] - cy, dist = hypot(dx, dy);
+    double off = remainder(heading - atan2(dy, dx), 2 * M_PI);
+    const vision_camera_t *k = &s->o.cam;
+    double u = k->cx + k->fx * tan(off);
+    if (fabs(off) >= M_PI / 2 || u < 0 || u > k->width - 1)
+        return false;
+    /* Tags hang on walls: the wall under the tag is within a cell or two of its centre. */
+    if (s->walls && wall_distance(s, cx, cy, atan2(dy, dx)) < dist - 2.5 * s->walls->resolution - 0.02)
+        return false;
+    return true;
+}
+
+void vision_simcam_camera_pose(const vision_simcam_t *s, double x, double y, double theta, vision_pose_t *out)
+{
+    double cx, cy, heading;
+    camera_place(s, x, y, theta, &cx, &cy, &heading);
+    vision_pose_camera_in_world(cx, cy, s->o.mount_z, heading, s->o.mount_pitch, out);
+}
+
+const vision_simcam_opts_t *vision_simcam_opts(const vision_simcam_t *s)
+{
+    return &s->o;
 }
 
 int vision_simcam_render(vision_simcam_t *s, double x, double y, double theta, int64_t utime, marie_image_t *img)
 {
     const vision_simcam_opts_t *o = &s->o;
-    /* The mount offset turns with the robot. */
-    double c = cos(theta), si = sin(theta);
+    double cx, cy, heading;
+    camera_place(s, x, y, theta, &cx, &cy, &heading);
     vision_pose_t cam_in_world;
-    vision_pose_camera_in_world(x + c * o->mount_x - si * o->mount_y, y + si * o->mount_x + c * o->mount_y, o->mount_z,
-                                theta + o->mount_yaw, o->mount_pitch, &cam_in_world);
+    vision_simcam_camera_pose(s, x, y, theta, &cam_in_world);
     int ch = o->format == MARIE_IMAGE_T_FORMAT_GRAY8 ? 1 : 3;
     vision_render_opts_t ro = o->render;
     ro.seed = o->render.seed + ++s->frame;
-    int drawn = vision_render_world(s->r, &o->cam, &cam_in_world, s->tags, s->n, &ro, s->pix, o->cam.width * ch, ch);
+    const vision_tag_t *tags = s->tags;
+    size_t n = s->n;
+    if (s->walls) {
+        draw_walls(s, cx, cy, heading);
+        ro.background = VISION_BG_IMAGE;
+        ro.bg_image = s->scene;
+        n = 0;
+        for (size_t i = 0; i < s->n; i++)
+            if (vision_simcam_tag_visible(s, i, x, y, theta))
+                s->shown[n++] = s->tags[i];
+        tags = s->shown;
+    }
+    int drawn = vision_render_world(s->r, &o->cam, &cam_in_world, tags, n, &ro, s->pix, o->cam.width * ch, ch);
     if (drawn < 0)
         return drawn;
     free(s->last.data);

@@ -1,5 +1,5 @@
 /* vision_family: the AprilTag families libapriltag ships, looked up by name. */
-#include "adapters/vision/vision_family.h"
+#include "camera/vision_family.h"
 
 #include <errno.h>
 #include <string.h>

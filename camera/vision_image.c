@@ -1,6 +1,6 @@
 /* vision_image: marie.image_t (raw or JPEG) to grey frames, checking every field. Plain C on
  * libjpeg so that the fuzz target needs nothing else. */
-#include "adapters/vision/vision_image.h"
+#include "camera/vision_image.h"
 
 #include <errno.h>
 #include <setjmp.h>

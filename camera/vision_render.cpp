@@ -1,5 +1,5 @@
 /* vision_render: a synthetic pinhole camera that draws AprilTags at known 3D poses. */
-#include "adapters/vision/vision_render.h"
+#include "camera/vision_render.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -10,12 +10,13 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "adapters/vision/vision_family.h"
+#include "camera/vision_family.h"
 
 struct vision_render {
     apriltag_family_t *fam = nullptr;
     int total = 0;          /* cells per side of the family's tag image */
     int border = 0;         /* cells per side of the black border (the tag size) */
+    cv::Mat noise_table;    /* unit Gaussian noise for opts.noise_table, drawn once per size */
 };
 
 void vision_render_opts_default(vision_render_opts_t *o)
@@ -104,6 +105,10 @@ static cv::Matx33d tag_homography(const vision_render_t *r, const vision_camera_
 
 static void draw_background(cv::Mat &bg, const vision_render_opts_t *o, cv::RNG &rng)
 {
+    if (o->background == VISION_BG_IMAGE && o->bg_image) {
+        cv::Mat(bg.rows, bg.cols, CV_8U, const_cast<uint8_t *>(o->bg_image)).copyTo(bg);
+        return;
+    }
     bg.setTo(o->bg_level);
     if (o->background == VISION_BG_GRADIENT) {
         for (int x = 0; x < bg.cols; x++) {
@@ -150,7 +155,8 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
 
     int T = r->total + 2;
     cv::Mat tex(T, T, CV_8U), ones(T, T, CV_8U, cv::Scalar(255));
-    cv::Mat ink(H * ss, W * ss, CV_8U, cv::Scalar(0)), cover(H * ss, W * ss, CV_8U, cv::Scalar(0));
+    cv::Mat ink, cover;        /* supersampled, made for the first tag in view */
+    cv::Rect used;             /* union of the drawn tags' regions, supersampled */
     cv::Rect frame(0, 0, W * ss, H * ss);
     int drawn = 0;
     for (size_t k : order) {
@@ -182,6 +188,10 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
         uint8_t cells[64 * 64];
         if (T - 2 > 64)
             return -EINVAL;
+        if (ink.empty()) {
+            ink = cv::Mat(H * ss, W * ss, CV_8U, cv::Scalar(0));
+            cover = cv::Mat(H * ss, W * ss, CV_8U, cv::Scalar(0));
+        }
         vision_render_tag_cells(r, tg->id, cells, 64);
         tex.setTo(o->white);
         /* Seen from behind (its z axis, into the tag, points back at the camera) a tag is
@@ -196,6 +206,7 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
         cv::Mat inkroi = ink(roi), coverroi = cover(roi);
         cv::warpPerspective(tex, inkroi, Hroi, roi.size(), cv::INTER_NEAREST, cv::BORDER_TRANSPARENT);
         cv::warpPerspective(ones, coverroi, Hroi, roi.size(), cv::INTER_NEAREST, cv::BORDER_TRANSPARENT);
+        used = drawn ? (used | roi) : roi;
         drawn++;
     }
 
@@ -203,17 +214,36 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
     cv::Mat bg(H, W, CV_8U);
     draw_background(bg, o, rng);
     cv::Mat inkf, coverf, bgf, img;
-    ink.convertTo(inkf, CV_32F);
-    cover.convertTo(coverf, CV_32F, 1.0 / 255);
-    /* Premultiplied ink averages correctly over a pixel's subsamples. */
-    inkf = inkf.mul(coverf);
-    cv::resize(inkf, inkf, cv::Size(W, H), 0, 0, cv::INTER_AREA);
-    cv::resize(coverf, coverf, cv::Size(W, H), 0, 0, cv::INTER_AREA);
     bg.convertTo(bgf, CV_32F);
-    img = inkf + bgf.mul(1.0 - coverf);
+    img = bgf;
+    if (drawn) {
+        /* Only the output pixels the tags touch are composited (whole pixels of ss x ss). */
+        int px0 = used.x / ss, py0 = used.y / ss;
+        int px1 = std::min(W, (used.x + used.width + ss - 1) / ss), py1 = std::min(H, (used.y + used.height + ss - 1) / ss);
+        cv::Rect out_r(px0, py0, px1 - px0, py1 - py0), in_r(px0 * ss, py0 * ss, out_r.width * ss, out_r.height * ss);
+        ink(in_r).convertTo(inkf, CV_32F);
+        cover(in_r).convertTo(coverf, CV_32F, 1.0 / 255);
+        /* Premultiplied ink averages correctly over a pixel's subsamples. */
+        inkf = inkf.mul(coverf);
+        cv::resize(inkf, inkf, out_r.size(), 0, 0, cv::INTER_AREA);
+        cv::resize(coverf, coverf, out_r.size(), 0, 0, cv::INTER_AREA);
+        cv::Mat part = img(out_r);
+        cv::Mat mixed = inkf + part.mul(1.0 - coverf);
+        mixed.copyTo(part);
+    }
     if (o->blur_sigma > 0)
         cv::GaussianBlur(img, img, cv::Size(0, 0), o->blur_sigma);
-    if (o->noise_sigma > 0) {
+    if (o->noise_sigma > 0 && o->noise_table) {
+        /* A window of a larger field, placed by the seed: a tenth of the cost of drawing. */
+        cv::Mat &tab = r->noise_table;
+        if (tab.rows != 2 * H || tab.cols != 2 * W) {
+            tab.create(2 * H, 2 * W, CV_32F);
+            cv::RNG trng(0x5eed);
+            trng.fill(tab, cv::RNG::NORMAL, 0, 1);
+        }
+        cv::Mat win = tab(cv::Rect((int)rng.uniform(0, W), (int)rng.uniform(0, H), W, H));
+        cv::scaleAdd(win, o->noise_sigma, img, img);
+    } else if (o->noise_sigma > 0) {
         cv::Mat noise(H, W, CV_32F);
         rng.fill(noise, cv::RNG::NORMAL, 0, o->noise_sigma);
         img += noise;

@@ -1,0 +1,10 @@
+# tools/face: marie-face, the touch page for people near the robot (docs/face.md), on
+# the viewer's server code (tools/webcommon); its test.
+$(eval $(call marie_program,marie-face,tools/face/face_main.c tools/webcommon/webserve.c tools/webcommon/vjson.c,$(B)/lib/libmarie_managers.a -lcivetweb))
+INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie/face && install -m 644 tools/face/www/* $(DESTDIR)$(PREFIX)/share/marie/face/;
+$(eval $(call marie_link,$(B)/tests/helpers/face_probe,tests/face/face_probe.c,))
+EXTRA_TARGETS += $(B)/tests/helpers/face_probe
+ITESTS += tests/face/test_face.sh
+$(eval $(call marie_bench,bench_face,tools/face/bench_face.c,-lcivetweb))
+$(B)/bench/bench_face: | $(B)/bin/marie-face $(B)/bin/marie-mission
+ITESTS += tests/face/test_face_sim.sh

@@ -1,0 +1,57 @@
+/* webserve: the web pages' server (civetweb): a few known files, one WebSocket per page with a
+ * writer thread each, and the pages' commands handed to the process's loop. Shared by the
+ * engineers' viewer and the touch page. */
+#ifndef TOOLS_WEBSERVE_H
+#define TOOLS_WEBSERVE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core/loop.h"
+#include "tools/webcommon/vjson.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct webserve webserve_t;
+
+/* A file of the page: served at uri from the www folder; nothing else is. */
+typedef struct {
+    const char *uri, *file, *mime;
+} webserve_file_t;
+
+/* A command from a page (text, a JSON object), or hello = true when a page connected (send it
+ * the present state). Runs in the loop's thread. */
+typedef void (*webserve_cmd_fn)(void *user, int client, bool hello, const char *text, size_t len);
+
+typedef struct {
+    const char *bind;               /* address, e.g. 127.0.0.1 */
+    int port;                       /* 0: any free port */
+    const char *www;                /* folder of the files */
+    const webserve_file_t *files;   /* the page's files (copied by reference: static tables) */
+    size_t nfiles;
+    const char *name;               /* in log messages */
+    webserve_cmd_fn on_cmd;
+    void *user;
+} webserve_cfg_t;
+
+/* Serves on cfg->bind:port, with the WebSocket at /ws (same-origin pages only). NULL with a
+ * reason in why. */
+webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *why, size_t len);
+/* Closes every page and joins their writers; NULL is a no-op. */
+void webserve_stop(webserve_t *w);
+int webserve_port(const webserve_t *w);
+/* Sends text to page `id`, or to every page when id < 0. Droppable frames (high-rate state)
+ * are dropped while a page is more than 2 MB behind, so a slow browser never stalls the bus. */
+void webserve_send(webserve_t *w, int id, const char *data, size_t len, bool droppable);
+void webserve_send_json(webserve_t *w, int id, const vj_buf_t *b, bool droppable);
+/* {"type":"notice","level":...,"text":...} */
+void webserve_notice(webserve_t *w, int id, const char *level, const char *text);
+int64_t webserve_frames_out(webserve_t *w);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
