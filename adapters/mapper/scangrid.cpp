@@ -212,8 +212,15 @@ double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &wi
                         sum += like_[idx[i] + off];
                 double raw = sum / n;
                 // A mild pull towards the prediction breaks ties along featureless corridors.
-                double d = (double)(dx * dx + dy * dy) / (nc * nc + 1e-9) + (nt ? (double)t * t / (nt * nt) : 0);
-                double sc = raw * (1 - 0.05 * d);
+                double sc = raw;
+                if (win.prior_xy > 0 && win.prior_th > 0) {
+                    double d2 = (double)(dx * dx + dy * dy) * step * step * r * r / (win.prior_xy * win.prior_xy);
+                    double a = t * win.step_th / win.prior_th;
+                    sc *= std::exp(-0.5 * (d2 + a * a));
+                } else {
+                    /* a mild pull towards the prediction still breaks exact ties */
+                    sc *= 1 - 0.01 * (double)(dx * dx + dy * dy + t * t) / (nc * nc + nt * nt + 1);
+                }
                 if (sc > best) {
                     best = sc;
                     best_raw = raw;
@@ -224,10 +231,19 @@ double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &wi
     return best_raw;
 }
 
-double Grid::refine(const Scan &s, Pose *pose) const
+// Gauss-Newton on the mean squared misfit (1 - likelihood) per hit, plus the prediction's prior.
+double Grid::refine(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *pose) const
 {
     Pose p = *pose;
-    double best = score(s, p);
+    const double n = (double)s.hx.size();
+    const double wxy = win.prior_xy > 0 ? 1 / (win.prior_xy * win.prior_xy) : 0;
+    const double wth = win.prior_th > 0 ? 1 / (win.prior_th * win.prior_th) : 0;
+    // The objective: mean misfit plus the prior, in the same units as the search's weighting.
+    auto objective = [&](const Pose &q) {
+        double dx = q.x - guess.x, dy = q.y - guess.y, dt = wrap(q.th - guess.th);
+        return (1 - score(s, q)) + 0.5 * 0.2 * (wxy * (dx * dx + dy * dy) + wth * dt * dt);
+    };
+    double best = objective(p);
     for (int it = 0; it < 10; it++) {
         Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
         Eigen::Vector3d b = Eigen::Vector3d::Zero();
@@ -236,26 +252,29 @@ double Grid::refine(const Scan &s, Pose *pose) const
             double gx, gy, hx = s.hx[i], hy = s.hy[i];
             double m = sample(p.x + c * hx - sn * hy, p.y + sn * hx + c * hy, &gx, &gy);
             Eigen::Vector3d J(gx, gy, gx * (-sn * hx - c * hy) + gy * (c * hx - sn * hy));
-            H += J * J.transpose();
-            b += J * (1 - m);
+            H += J * J.transpose() / n;
+            b += J * (1 - m) / n;
         }
-        H.diagonal() += Eigen::Vector3d(1e-3, 1e-3, 1e-3) + 0.1 * H.diagonal();
+        Eigen::Vector3d w(0.2 * wxy, 0.2 * wxy, 0.2 * wth);
+        H.diagonal() += w;
+        b += Eigen::Vector3d(w[0] * (guess.x - p.x), w[1] * (guess.y - p.y), w[2] * wrap(guess.th - p.th));
+        H.diagonal() += Eigen::Vector3d(1e-6, 1e-6, 1e-6) + 0.1 * H.diagonal();
         Eigen::Vector3d d = H.ldlt().solve(b);
         if (!d.allFinite())
             break;
         double lim = 2 * p_.resolution;
         Pose q = { p.x + std::clamp(d[0], -lim, lim), p.y + std::clamp(d[1], -lim, lim),
                    wrap(p.th + std::clamp(d[2], -0.05, 0.05)) };
-        double sq = score(s, q);
-        if (sq <= best)
+        double oq = objective(q);
+        if (oq >= best)
             break;
-        best = sq;
+        best = oq;
         p = q;
         if (std::fabs(d[0]) + std::fabs(d[1]) < 1e-4 && std::fabs(d[2]) < 1e-4)
             break;
     }
     *pose = p;
-    return best;
+    return score(s, p);
 }
 
 double Grid::match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out) const
@@ -267,7 +286,7 @@ double Grid::match(const Scan &s, const Pose &guess, const MatchWindow &win, Pos
     correlative(s, guess, win, &c);
     double sc = score(s, c);
     if (win.refine)
-        sc = refine(s, &c);
+        sc = refine(s, guess, win, &c);
     *out = c;
     return sc;
 }

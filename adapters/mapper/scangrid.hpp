@@ -3,6 +3,7 @@
 #ifndef ADAPTERS_MAPPER_SCANGRID_HPP
 #define ADAPTERS_MAPPER_SCANGRID_HPP
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -33,6 +34,10 @@ struct MatchWindow {
     double xy = 0.2, th = 0.1, step_th = 0.008;
     int step_cells = 1;                        // translation step of the correlative search
     bool refine = true;
+    // How far the prediction may be trusted (m, rad; 0: not at all). Along a corridor or into a
+    // room whose far wall is out of range the scan cannot tell how far the robot went, and
+    // without a prior the match slides towards the part of the map already seen.
+    double prior_xy = 0.15, prior_th = 0.1;
 };
 
 class Grid {
@@ -61,7 +66,7 @@ private:
     void hit(int cx, int cy);
     void miss(int cx, int cy);
     double correlative(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out) const;
-    double refine(const Scan &s, Pose *pose) const;
+    double refine(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *pose) const;
     double sample(double x, double y, double *gx, double *gy) const;
 
     int w_, h_;

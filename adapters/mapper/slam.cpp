@@ -36,6 +36,7 @@ struct slam {
     std::vector<Edge> edges;
     bool have_odom = false;
     Pose last_odom, last_pose;
+    double odom_since_kf = 0;                  // m the odometry went since the last keyframe
     int last_loop_try = 0;
     slam_stats_t st{};
 };
@@ -49,7 +50,7 @@ extern "C" void slam_params_default(slam_params_t *p)
     p->l_hit = 0.9;
     p->l_miss = -0.7;
     p->l_min = -2.0;
-    p->l_max = 3.5;
+    p->l_max = 2.0;
     p->sigma = 0.05;
     p->search_xy = 0.2;
     p->search_th = 0.1;
@@ -198,10 +199,10 @@ static void try_loop(slam_t *s)
             local.integrate(s->kfs[j].pose, s->kfs[j].scan);
             used++;
         }
-    MatchWindow coarse{ p.loop_search_xy, p.loop_search_th, 0.01, 2, false };
+    MatchWindow coarse{ p.loop_search_xy, p.loop_search_th, 0.01, 2, false, 0, 0 };
     Pose m1, m2;
     local.match(cur.scan, cur.pose, coarse, &m1);
-    MatchWindow fine{ 0.1, 0.02, 0.004, 1, true };
+    MatchWindow fine{ 0.1, 0.02, 0.004, 1, true, 0, 0 };
     double sc = local.match(cur.scan, m1, fine, &m2);
     if (sc < p.loop_min_score || cur.scan.hx.size() < 40)
         return;
@@ -214,7 +215,11 @@ static void try_loop(slam_t *s)
     e.loop = true;
     s->edges.push_back(e);
     s->st.loop_closures++;
-    optimize_graph(s);
+    /* A closure that agrees with the graph is kept for later; re-rendering the map costs a pass
+     * over every keyframe, so it waits for a closure that moves something. */
+    Pose d = between(cur.pose, compose(c, e.z));
+    if (std::hypot(d.x, d.y) > p.resolution || std::fabs(d.th) > 0.01)
+        optimize_graph(s);
 }
 
 extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t *scan, double pose[3])
@@ -236,6 +241,8 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
         if (!s->have_odom) {        /* after an odometry restart the robot may have moved unseen */
             win.xy *= 3;
             win.th *= 3;
+            win.prior_xy *= 3;
+            win.prior_th *= 3;
         }
         Pose m;
         double score = s->grid->match(sc, guess, win, &m);
@@ -248,12 +255,19 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
             s->last_pose = guess;
         }
     }
+    if (s->have_odom) {
+        Pose d = between(s->last_odom, o);
+        s->odom_since_kf += std::hypot(d.x, d.y);
+    }
     s->last_odom = o;
     s->have_odom = true;
     bool new_kf = s->kfs.empty();
     if (!new_kf) {
         Pose d = between(s->kfs.back().pose, s->last_pose);
-        new_kf = std::hypot(d.x, d.y) >= s->p.kf_dist || std::fabs(d.th) >= s->p.kf_angle;
+        /* The odometry's own travel counts too: a match that cannot see the robot advance
+         * (a long room, its far wall out of range) must not keep the map from growing. */
+        new_kf = std::hypot(d.x, d.y) >= s->p.kf_dist || std::fabs(d.th) >= s->p.kf_angle ||
+                 s->odom_since_kf >= 2 * s->p.kf_dist;
     }
     if (new_kf) {
         if ((int)s->kfs.size() < s->p.max_keyframes) {
@@ -267,6 +281,7 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
                 s->edges.push_back(e);
             }
             s->kfs.push_back({ s->last_pose, sc });
+            s->odom_since_kf = 0;
             s->st.keyframes = (int64_t)s->kfs.size();
             s->grid->integrate(s->last_pose, sc);
             try_loop(s);

@@ -1,0 +1,8 @@
+# adapters/mapper: marie-mapper (scan matching, pose graph with Ceres, occupancy grid on the bus).
+include adapters/common/adapters.mk
+MAPPER_LIBS := $(B)/lib/libmapper.a $(ADAPT_COMMON) -lceres -lglog
+$(B)/obj/adapters/mapper/%.o: CPPFLAGS += $(ADAPT_EIGEN_CFLAGS)
+$(eval $(call marie_lib,mapper,adapters/mapper/slam.cpp adapters/mapper/scangrid.cpp adapters/mapper/posegraph.cpp))
+$(eval $(call marie_program,marie-mapper,adapters/mapper/mapper_main.c,$(MAPPER_LIBS)))
+$(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
+#BENCH
