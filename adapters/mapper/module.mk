@@ -5,4 +5,4 @@ $(B)/obj/adapters/mapper/%.o: CPPFLAGS += $(ADAPT_EIGEN_CFLAGS)
 $(eval $(call marie_lib,mapper,adapters/mapper/slam.cpp adapters/mapper/scangrid.cpp adapters/mapper/posegraph.cpp))
 $(eval $(call marie_program,marie-mapper,adapters/mapper/mapper_main.c,$(MAPPER_LIBS)))
 $(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
-#BENCH
+$(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER_LIBS)))
