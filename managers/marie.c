@@ -20,7 +20,6 @@
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am_proto.h"
-#include "managers/mapsave.h"
 #include "managers/progcheck.h"
 #include "core/auth.h"
 #include "core/typeinfo.h"
@@ -90,7 +89,6 @@ static void usage(FILE *out)
             "                                      two, which components are configured the same\n"
             "                                      (--base: the file without a profile)\n"
             "  keygen FILE                         write a new order key (mode 0600)\n"
-            "  map save NAME [--channel MAP]       write the map on the bus as NAME.yaml + NAME.pgm\n"
             "  X ...                               runs marie-X (next to marie, or on PATH)\n"
             "exit status: 0 ok, 1 failure, 2 usage or system file error, 3 timeout or host\n"
             "unreachable, 4 key problem or order refused as unauthenticated\n");
@@ -1150,8 +1148,6 @@ int main(int argc, char **argv)
         rc = cmd_move(&cli, sargc, sargv);
     } else if (strcmp(cmd, "doctor") == 0) {
         rc = cmd_doctor(&cli, sargc, sargv);
-    } else if (strcmp(cmd, "map") == 0) {
-        rc = mapsave_cmd(cli.url, cli.timeout_s, sargc, sargv);
     } else if (strcmp(cmd, "hash") == 0) {
         rc = cmd_hash(&cli, sargc, sargv);
     } else if (strcmp(cmd, "keygen") == 0) {

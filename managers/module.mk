@@ -3,7 +3,7 @@ MANAGERS_LIB := $(B)/lib/libmarie_managers.a
 $(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c))
 
 $(eval $(call marie_program,marie-am,managers/am.c,$(MANAGERS_LIB)))
-$(eval $(call marie_program,marie,managers/marie.c managers/mapsave.c,$(MANAGERS_LIB) $(MAP_LIB)))
+$(eval $(call marie_program,marie,managers/marie.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;

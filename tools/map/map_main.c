@@ -1,7 +1,5 @@
-/* mapsave: `marie map save NAME`: waits for the next map on the bus (marie.occupancy_grid_t) and
- * writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load. */
-#include "managers/mapsave.h"
-
+/* marie-map (`marie map save NAME`): waits for the next map on the bus (marie.occupancy_grid_t)
+ * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load. */
 #include <errno.h>
 #include <poll.h>
 #include <stdio.h>
@@ -10,6 +8,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/config.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_occupancy_grid_t.h"
@@ -59,7 +58,7 @@ static char *url_with_buffer(const char *url)
 
 static int usage(void)
 {
-    fprintf(stderr, "usage: marie map save NAME [--channel MAP] [--wait S]\n"
+    fprintf(stderr, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
                     "  writes NAME.yaml and NAME.pgm from the next map on the channel\n");
     return MARIE_EXIT_USAGE;
 }
@@ -99,15 +98,18 @@ out:
     return rc;
 }
 
-int mapsave_cmd(const char *url, double timeout_s, int argc, char **argv)
+int main(int argc, char **argv)
 {
     const char *channel = "MAP", *name = NULL;
-    double wait_s = timeout_s > 6 ? timeout_s : 6;  /* the mapper sends its map again every 5 s */
+    const char *url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
+    double wait_s = 6;          /* the mapper sends its map again every 5 s */
     if (argc < 3 || strcmp(argv[1], "save") != 0)
         return usage();
     for (int i = 2; i < argc; i++) {
         if (strcmp(argv[i], "--channel") == 0 && i + 1 < argc)
             channel = argv[++i];
+        else if (strcmp(argv[i], "--url") == 0 && i + 1 < argc)
+            url = argv[++i];
         else if (strcmp(argv[i], "--wait") == 0 && i + 1 < argc)
             wait_s = atof(argv[++i]);
         else if (argv[i][0] != '-' && !name)
