@@ -277,9 +277,32 @@ double Grid::refine(const Scan &s, const Pose &guess, const MatchWindow &win, Po
     return score(s, p);
 }
 
-double Grid::match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out) const
+// Only the hits that land on cells the map has seen (at the prediction) are matched: a hit on a
+// wall's part never seen scores nothing wherever it lands, except by sliding the robot back until
+// it falls on the part already mapped, and that pulled every match towards the known map by a
+// little, always against the motion.
+Scan Grid::seen_hits(const Scan &s, const Pose &guess) const
+{
+    Scan k;
+    k.ox = s.ox;
+    k.oy = s.oy;
+    double c = std::cos(guess.th), sn = std::sin(guess.th), r = p_.resolution;
+    for (size_t i = 0; i < s.hx.size(); i++) {
+        int cx = (int)std::floor((guess.x + c * s.hx[i] - sn * s.hy[i] - ox_) / r);
+        int cy = (int)std::floor((guess.y + sn * s.hx[i] + c * s.hy[i] - oy_) / r);
+        if (cx >= 0 && cy >= 0 && cx < w_ && cy < h_ && seen_[(size_t)cy * w_ + cx]) {
+            k.hx.push_back(s.hx[i]);
+            k.hy.push_back(s.hy[i]);
+        }
+    }
+    return k;
+}
+
+double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, Pose *out) const
 {
     *out = guess;
+    Scan seen = seen_hits(all, guess);
+    const Scan &s = seen.hx.size() >= 20 ? seen : all;
     if (s.hx.size() < 10)
         return 0;
     Pose c;

@@ -62,6 +62,7 @@ public:
     size_t memory_bytes() const;
 
 private:
+    Scan seen_hits(const Scan &s, const Pose &guess) const;
     void stamp(int cx, int cy);
     void hit(int cx, int cy);
     void miss(int cx, int cy);

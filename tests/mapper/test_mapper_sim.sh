@@ -32,11 +32,11 @@ pids=""
 check "the route is driven to its end" test "$drc" -eq 0
 check "marie map save writes the map from the bus" test "$src" -eq 0 -a -s "$OUT/built.yaml" -a -s "$OUT/built.pgm"
 ate=$(awk '/^ate_rms/ {print $2}' "$OUT/driver.txt")
-check "the mapper's pose follows the truth (ATE RMS < 0.15 m)" awk -v a="${ate:-9}" 'BEGIN { exit !(a >= 0 && a < 0.15) }'
+check "the mapper's pose follows the truth (ATE RMS < 0.10 m)" awk -v a="${ate:-9}" 'BEGIN { exit !(a >= 0 && a < 0.10) }'
 read_fig() { awk -v k="$1" '{ for (i = 1; i < NF; i++) if ($i == k) print $(i + 1) }' "$OUT/compare.txt"; }
-check "occupied cells are walls of the world (precision >= 0.75)" awk -v a="$(read_fig precision)" 'BEGIN { exit !(a >= 0.75) }'
+check "occupied cells are walls of the world (precision >= 0.85)" awk -v a="$(read_fig precision)" 'BEGIN { exit !(a >= 0.85) }'
 check "the walls seen are in the map (recall >= 0.70)" awk -v a="$(read_fig recall)" 'BEGIN { exit !(a >= 0.70) }'
-check "free space along the route is mapped (coverage >= 0.5)" awk -v a="$(read_fig coverage)" 'BEGIN { exit !(a >= 0.5) }'
+check "free space along the route is mapped (coverage >= 0.45)" awk -v a="$(read_fig coverage)" 'BEGIN { exit !(a >= 0.45) }'
 
 # A component that cannot load its map fails its init and exits; one still running after 3 s
 # has loaded it (timeout's status 124).
