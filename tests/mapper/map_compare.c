@@ -21,6 +21,15 @@ int main(int argc, char **argv)
     mapeval_compare(world, built, atof(argv[3]), atof(argv[4]), &e);
     printf("precision %.3f recall %.3f coverage %.3f (built occupied %ld, visible walls %ld, reachable free %ld)\n",
            e.precision, e.recall, e.coverage, e.map_occupied, e.truth_walls, e.truth_free);
+    /* Aligned: the best rigid transform within 0.5 m and 0.03 rad, as the measure asks. */
+    double dx, dy, th;
+    occmap_t *al = mapeval_align(world, built, 0.5, 0.03, &dx, &dy, &th);
+    if (al) {
+        mapeval_compare(world, al, atof(argv[3]), atof(argv[4]), &e);
+        printf("aligned by (%.2f m, %.2f m, %.3f rad): aprecision %.3f arecall %.3f acoverage %.3f\n", dx, dy, th,
+               e.precision, e.recall, e.coverage);
+        occmap_destroy(al);
+    }
     occmap_destroy(built);
     occmap_destroy(world);
     return 0;

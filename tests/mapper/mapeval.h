@@ -3,6 +3,7 @@
 #ifndef TESTS_MAPPER_MAPEVAL_H
 #define TESTS_MAPPER_MAPEVAL_H
 
+#include <math.h>
 #include <stdlib.h>
 
 #include "map/occmap.h"
@@ -103,6 +104,61 @@ static inline void mapeval_compare(const occmap_t *truth, const occmap_t *map, d
     e->precision = nocc ? (double)tp / nocc : 0;
     e->recall = walls ? (double)found / walls : 0;
     e->coverage = nfree ? (double)covered / nfree : 0;
+}
+
+
+/* The rigid transform (rotation th about the map frame's origin, then dx, dy) within +-max_xy m
+ * and +-max_th rad that puts the most built occupied cells within one cell of a true wall: the
+ * "aligned" of the comparison. Returns the aligned copy of map (free it), NULL on failure. */
+static inline occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
+                                      double *odx, double *ody, double *oth)
+{
+    int W = truth->width, H = truth->height;
+    unsigned char *near = calloc((size_t)W * H, 1);
+    double *px = malloc(sizeof(double) * 2 * (size_t)map->width * map->height);
+    if (!near || !px) {
+        free(near);
+        free(px);
+        return NULL;
+    }
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            if (truth->cells[(size_t)y * W + x] == OCCMAP_OCCUPIED)
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++)
+                        if (x + dx >= 0 && y + dy >= 0 && x + dx < W && y + dy < H)
+                            near[(size_t)(y + dy) * W + x + dx] = 1;
+    long n = 0;
+    for (int y = 0; y < map->height; y++)
+        for (int x = 0; x < map->width; x++)
+            if (mapeval_class(map->cells[(size_t)y * map->width + x]) == 1) {
+                occmap_cell_center(map, x, y, &px[2 * n], &px[2 * n + 1]);
+                n++;
+            }
+    long best = -1;
+    double r = truth->resolution;
+    *odx = *ody = *oth = 0;
+    for (double th = -max_th; th <= max_th + 1e-9; th += 0.0025) {
+        double c = cos(th), sn = sin(th);
+        for (double dy = -max_xy; dy <= max_xy + 1e-9; dy += r)
+            for (double dx = -max_xy; dx <= max_xy + 1e-9; dx += r) {
+                long hits = 0;
+                for (long i = 0; i < n; i++) {
+                    double x = c * px[2 * i] - sn * px[2 * i + 1] + dx, y = sn * px[2 * i] + c * px[2 * i + 1] + dy;
+                    int cx = (int)floor((x - truth->origin_x) / r), cy = (int)floor((y - truth->origin_y) / r);
+                    hits += cx >= 0 && cy >= 0 && cx < W && cy < H && near[(size_t)cy * W + cx];
+                }
+                if (hits > best) {
+                    best = hits;
+                    *odx = dx, *ody = dy, *oth = th;
+                }
+            }
+    }
+    free(near);
+    free(px);
+    double c = cos(*oth), sn = sin(*oth);
+    return occmap_from_cells(map->width, map->height, map->resolution, c * map->origin_x - sn * map->origin_y + *odx,
+                             sn * map->origin_x + c * map->origin_y + *ody, *oth, map->cells);
 }
 
 #endif
