@@ -61,7 +61,7 @@ extern "C" void slam_params_default(slam_params_t *p)
     p->loop_closure = true;
     p->loop_radius = 4.0;
     p->loop_min_gap = 40;
-    p->loop_every = 5;
+    p->loop_every = 10;
     p->loop_search_xy = 1.5;
     p->loop_search_th = 0.3;
     p->loop_min_score = 0.55;
@@ -218,7 +218,7 @@ static void try_loop(slam_t *s)
     /* A closure that agrees with the graph is kept for later; re-rendering the map costs a pass
      * over every keyframe, so it waits for a closure that moves something. */
     Pose d = between(cur.pose, compose(c, e.z));
-    if (std::hypot(d.x, d.y) > p.resolution || std::fabs(d.th) > 0.01)
+    if (std::hypot(d.x, d.y) > 2 * p.resolution || std::fabs(d.th) > 0.02)
         optimize_graph(s);
 }
 
