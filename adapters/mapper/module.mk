@@ -11,3 +11,4 @@ $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driv
 $(eval $(call marie_link,$(B)/tests/helpers/map_compare,tests/mapper/map_compare.c,$(MAP_LIB)))
 EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/map_compare
 ITESTS += tests/mapper/test_mapper_sim.sh
+ITESTS += tests/mapper/test_explore_sim.sh
