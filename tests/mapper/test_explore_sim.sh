@@ -12,7 +12,7 @@ WORLD=sim/worlds/office.yaml
 export LCM_DEFAULT_URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
 trap stop_started EXIT INT TERM
 
-start sim $BIN/marie-sim --name sim --param world=$WORLD --param speed=5 --param lockstep=0.5 --param start_y=15.7
+start sim $BIN/marie-sim --name sim --param world=$WORLD --param speed=${SIM_SPEED:-5} --param lockstep=0.5 --param start_y=15.7
 start odometry $BIN/marie-odometry --name odometry --clock sim
 start mapper $BIN/marie-mapper --name mapper --clock sim --param init_x=2 --param init_y=15.7 ${MAPPER_ARGS:-}
 start planner $BIN/marie-planner --name planner --clock sim --param unknown_is_free=true
