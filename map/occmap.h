@@ -98,6 +98,12 @@ void occmap_fill_rect(occmap_t *m, double x0, double y0, double x1, double y1, i
 /* Distance along a ray to the first occupied cell, or max_range when none is hit (cells
  * outside the map stop the ray as well). */
 double occmap_raycast(const occmap_t *m, double x, double y, double angle, double max_range);
+/* Write m as a map_server pair: yaml_path (ending in .yaml) and the PGM beside it with the same
+ * stem, in map_saver's trinary form (occupied 0, free 254..255, unknown 205; thresholds 0.65 and
+ * 0.196), each written to a temporary file and renamed. 0, or -1 with errno (EINVAL, I/O). */
+int occmap_save(const occmap_t *m, const char *yaml_path);
+/* The PGM value occmap_save() writes for a cell (0..100 as occupancy, anything else unknown). */
+uint8_t occmap_save_pixel(int8_t v);
 /* An office-like test world: outer walls, a corridor, rooms with doors, some furniture. */
 occmap_t *occmap_make_office(double width_m, double height_m, double resolution, uint32_t seed);
 

@@ -23,6 +23,8 @@ recipe() {
     marie-gyro) echo "gyro|--param can=emu:$OUT/can" ;;
     marie-example-consumer) echo "consumer|" ;;
     marie-localizer) echo "localizer|--param map=sim/worlds/office.yaml --param init_x=2 --param init_y=15" ;;
+    marie-mapper) echo "mapper|" ;;
+    marie-explore) echo "explore|" ;;
     marie-mission) echo "mission|--param sharedmap=false --param 'goals=[{name: a, x: 2, y: 15}]'" ;;
     marie-odometry) echo "odometry|" ;;
     marie-planner) echo "planner|--param map=sim/worlds/office.yaml" ;;

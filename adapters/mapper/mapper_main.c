@@ -1,0 +1,284 @@
+/* marie-mapper: builds the occupancy grid from laser and odometry (scan matching, pose graph
+ * with loop closures) and publishes it with the robot's pose in it. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/common/posebuf.h"
+#include "adapters/mapper/slam.h"
+#include "core/component.h"
+#include "map/occmap.h"
+
+/* The parameters, each declared once in `params` below. */
+typedef struct {
+    double resolution, size_m, init_x, init_y, init_theta, laser_x, laser_y, laser_theta, free_range;
+    double search_xy, search_th, kf_dist, kf_angle, min_score, loop_radius, loop_min_score, map_hz, republish_s;
+    double odom_timeout_s;
+    bool loop_closure;
+    int64_t loop_min_gap, max_keyframes;
+} mapper_params_t;
+
+typedef struct {
+    slam_t *slam;
+    posebuf_t odom;
+    marie_laser_scan_t pending;     /* a scan newer than the newest odometry */
+    float *pending_ranges;
+    int pending_cap;
+    bool have_pending;
+    int64_t last_scan_utime;
+    double last_distance;
+    bool changed;                   /* keyframes added since the last map message */
+    int64_t last_map_pub;
+    slam_stats_t seen;              /* counters already reported */
+} mapper_t;
+
+static void report(marie_component_t *c, mapper_t *s)
+{
+    slam_stats_t st;
+    slam_get_stats(s->slam, &st);
+    marie_component_count(c, "keyframes", st.keyframes - s->seen.keyframes);
+    marie_component_count(c, "match_failures", st.match_failures - s->seen.match_failures);
+    marie_component_count(c, "loop_candidates", st.loop_candidates - s->seen.loop_candidates);
+    if (st.loop_closures > s->seen.loop_closures) {
+        marie_component_count(c, "loop_closures", st.loop_closures - s->seen.loop_closures);
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "loop_closed", "loop closed: %lld keyframes optimized in %.1f ms",
+                              (long long)st.keyframes, st.last_opt_ms);
+    }
+    s->seen = st;
+}
+
+static void process(marie_component_t *c, mapper_t *s, const marie_laser_scan_t *scan)
+{
+    const mapper_params_t *q = marie_component_params(c);
+    double odom[3], pose[3];
+    if (!posebuf_at(&s->odom, scan->utime, odom))
+        return;
+    if ((double)(scan->utime - posebuf_newest(&s->odom)) / 1e6 > q->odom_timeout_s) {
+        marie_component_count(c, "scans_stale_odometry", 1);
+        return;
+    }
+    slam_scan_t ss = { scan->ranges, scan->nranges, scan->angle_min, scan->angle_increment, scan->range_min,
+                       scan->range_max };
+    int r = slam_add_scan(s->slam, odom, &ss, pose);
+    if (r < 0) {
+        marie_component_bad_input(c, "bad_scan", "scan at %lld refused", (long long)scan->utime);
+        return;
+    }
+    s->last_scan_utime = scan->utime;
+    marie_component_count(c, "scans", 1);
+    if (r > 0)
+        s->changed = true;
+    report(c, s);
+    marie_pose_cov_t out = { .utime = scan->utime, .frame = "map", .pose = { pose[0], pose[1], pose[2] } };
+    /* Scan matching pins the pose to a few cells; the covariance says so to the planner and viewer. */
+    out.cov[0] = out.cov[4] = 0.05 * 0.05;
+    out.cov[8] = 0.02 * 0.02;
+    marie_port_publish(marie_port(c, "pose"), &out);
+}
+
+static bool scan_ok(marie_component_t *c, mapper_t *s, const marie_laser_scan_t *m)
+{
+    if (m->nranges <= 0 || m->nranges > 10000 || !isfinite(m->angle_min) || !isfinite(m->angle_increment) ||
+        m->angle_increment == 0 || !(m->range_max > 0) || !isfinite(m->range_max) || !isfinite(m->range_min)) {
+        marie_component_bad_input(c, "bad_scan", "laser scan with %d beams, increment %g, range_max %g", m->nranges,
+                                  m->angle_increment, m->range_max);
+        return false;
+    }
+    if (m->utime <= s->last_scan_utime) {
+        /* An old scan would be matched from where the robot is now: it would smear the map. */
+        marie_component_count(c, "scans_out_of_order", 1);
+        return false;
+    }
+    return true;
+}
+
+static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mapper_t *s = marie_component_user(c);
+    const marie_laser_scan_t *m = msg;
+    if (!scan_ok(c, s, m))
+        return;
+    if (s->odom.n == 0) {
+        marie_component_count(c, "scans_without_odometry", 1);
+        return;
+    }
+    if (posebuf_newest(&s->odom) >= m->utime) {
+        process(c, s, m);
+        return;
+    }
+    /* Wait for the odometry that brackets this scan (it is at most one period behind). */
+    if (s->have_pending) {
+        marie_component_count(c, "scans_late_odometry", 1);
+        s->have_pending = false;
+        process(c, s, &s->pending);
+    }
+    if (m->nranges > s->pending_cap) {
+        float *n = realloc(s->pending_ranges, sizeof(float) * m->nranges);
+        if (!n)
+            return;
+        s->pending_ranges = n;
+        s->pending_cap = m->nranges;
+    }
+    s->pending = *m;
+    memcpy(s->pending_ranges, m->ranges, sizeof(float) * m->nranges);
+    s->pending.ranges = s->pending_ranges;
+    s->pending.nintensities = 0;
+    s->pending.intensities = NULL;
+    s->have_pending = true;
+}
+
+static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    mapper_t *s = marie_component_user(c);
+    const marie_odometry_t *m = msg;
+    if (!isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta)) {
+        marie_component_bad_input(c, "bad_odometry", "odometry pose is not finite");
+        return;
+    }
+    double last[3];
+    int64_t last_utime = posebuf_newest(&s->odom);
+    if (posebuf_last(&s->odom, last)) {
+        double dt = (double)(m->utime - last_utime) / 1e6;
+        double jump = hypot(m->pose.x - last[0], m->pose.y - last[1]);
+        /* Time going back, distance shrinking (a restarted odometry) or a jump no robot makes:
+         * the odometry frame changed, and the next scan is matched from the last map pose. */
+        if (m->utime < last_utime || m->distance < s->last_distance - 1e-6 || jump > 0.5 + 3.0 * fabs(dt)) {
+            marie_component_count(c, "odometry_restarts", 1);
+            marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
+                                  "odometry frame jumped by %.2f m: matching from the last map pose", jump);
+            posebuf_clear(&s->odom);
+            slam_odometry_reset(s->slam);
+            s->have_pending = false;
+        }
+    }
+    s->last_distance = m->distance;
+    posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });
+    if (s->have_pending && m->utime >= s->pending.utime) {
+        s->have_pending = false;
+        process(c, s, &s->pending);
+    }
+}
+
+static void publish_map(marie_component_t *c, int64_t overruns)
+{
+    mapper_t *s = marie_component_user(c);
+    const mapper_params_t *q = marie_component_params(c);
+    int64_t now = marie_component_now(c);
+    bool stale = q->republish_s > 0 && (double)(now - s->last_map_pub) / 1e6 >= q->republish_s;
+    if (!s->changed && !stale)
+        return;
+    occmap_t *m = slam_render(s->slam);
+    if (!m)
+        return;
+    marie_occupancy_grid_t g = { .utime = now, .resolution = (float)m->resolution, .width = m->width,
+                                 .height = m->height, .origin = { m->origin_x, m->origin_y, 0 },
+                                 .ncells = m->width * m->height, .cells = m->cells };
+    if (marie_port_publish(marie_port(c, "map"), &g) == 0)
+        marie_component_count(c, "maps", 1);
+    occmap_destroy(m);
+    s->changed = false;
+    s->last_map_pub = now;
+}
+
+static void quit(marie_component_t *c)
+{
+    mapper_t *s = marie_component_user(c);
+    slam_destroy(s->slam);
+    s->slam = NULL;
+    free(s->pending_ranges);
+    s->pending_ranges = NULL;
+    s->pending_cap = 0;
+}
+
+static int init(marie_component_t *c)
+{
+    mapper_t *s = marie_component_user(c);
+    const mapper_params_t *q = marie_component_params(c);
+    quit(c);    /* init again after a failure starts from scratch */
+    posebuf_clear(&s->odom);
+    s->have_pending = false;
+    s->last_scan_utime = INT64_MIN;
+    s->last_distance = 0;
+    s->changed = false;
+    s->last_map_pub = 0;
+    memset(&s->seen, 0, sizeof(s->seen));
+    slam_params_t p;
+    slam_params_default(&p);
+    p.resolution = q->resolution;
+    p.size_m = q->size_m;
+    p.laser_x = q->laser_x;
+    p.laser_y = q->laser_y;
+    p.laser_theta = q->laser_theta;
+    p.free_range = q->free_range;
+    p.search_xy = q->search_xy;
+    p.search_th = q->search_th;
+    p.kf_dist = q->kf_dist;
+    p.kf_angle = q->kf_angle;
+    p.min_score = q->min_score;
+    p.loop_closure = q->loop_closure;
+    p.loop_radius = q->loop_radius;
+    p.loop_min_score = q->loop_min_score;
+    p.loop_min_gap = (int)q->loop_min_gap;
+    p.max_keyframes = (int)q->max_keyframes;
+    s->slam = slam_create(&p, (const double[3]){ q->init_x, q->init_y, q->init_theta });
+    if (!s->slam) {
+        marie_component_fail_reason(c, "bad mapper parameters (resolution >= 0.01, size_m / resolution <= 8000, "
+                                       "kf_dist and kf_angle > 0)");
+        return -1;
+    }
+    if (!(q->map_hz > 0 && q->map_hz <= 100)) {
+        marie_component_fail_reason(c, "map_hz must be in (0, 100]");
+        return -1;
+    }
+    if (marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "scan"), on_scan)) {
+        marie_component_fail_reason(c, "cannot subscribe to inputs");
+        return -1;
+    }
+    return marie_component_every(c, q->map_hz, publish_map) ? 0 : -1;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
+    { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
+    { "map", &marie_type_occupancy_grid_t, MARIE_OUT, MARIE_PUSH, "MAP" },
+    { "pose", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "POSE" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    MARIE_PARAM_AT(mapper_params_t, resolution, DOUBLE, "0.05", "m per cell"),
+    MARIE_PARAM_AT(mapper_params_t, size_m, DOUBLE, "100", "m: side of the square the map may cover, centred on the start"),
+    MARIE_PARAM_AT(mapper_params_t, init_x, DOUBLE, "0", "m: the robot's pose in the map frame at the first scan"),
+    MARIE_PARAM_AT(mapper_params_t, init_y, DOUBLE, "0", "m"),
+    MARIE_PARAM_AT(mapper_params_t, init_theta, DOUBLE, "0", "rad"),
+    MARIE_PARAM_AT(mapper_params_t, laser_x, DOUBLE, "0", "m, laser position on the robot"),
+    MARIE_PARAM_AT(mapper_params_t, laser_y, DOUBLE, "0", "m"),
+    MARIE_PARAM_AT(mapper_params_t, laser_theta, DOUBLE, "0", "rad"),
+    MARIE_PARAM_AT(mapper_params_t, free_range, DOUBLE, "6", "m cleared along a beam that saw nothing"),
+    MARIE_PARAM_AT(mapper_params_t, search_xy, DOUBLE, "0.2", "m: scan matcher's window around the odometry's guess"),
+    MARIE_PARAM_AT(mapper_params_t, search_th, DOUBLE, "0.1", "rad"),
+    MARIE_PARAM_AT(mapper_params_t, min_score, DOUBLE, "0.3", "mean likelihood per beam below which odometry is kept"),
+    MARIE_PARAM_AT(mapper_params_t, kf_dist, DOUBLE, "0.2", "m between keyframes (map updates)"),
+    MARIE_PARAM_AT(mapper_params_t, kf_angle, DOUBLE, "0.15", "rad between keyframes"),
+    MARIE_PARAM_AT(mapper_params_t, loop_closure, BOOL, "true", "close loops and optimize the pose graph"),
+    MARIE_PARAM_AT(mapper_params_t, loop_radius, DOUBLE, "4", "m: older keyframes this near are loop candidates"),
+    MARIE_PARAM_AT(mapper_params_t, loop_min_gap, INT, "40", "keyframes between a loop candidate and the newest"),
+    MARIE_PARAM_AT(mapper_params_t, loop_min_score, DOUBLE, "0.55", "mean likelihood per beam a closure needs"),
+    MARIE_PARAM_AT(mapper_params_t, max_keyframes, INT, "20000", "memory bound of the pose graph"),
+    MARIE_PARAM_AT(mapper_params_t, map_hz, DOUBLE, "1", "map messages per second (when it changed)"),
+    MARIE_PARAM_AT(mapper_params_t, republish_s, DOUBLE, "5", "s: send the map again even unchanged (0: never)"),
+    MARIE_PARAM_AT(mapper_params_t, odom_timeout_s, DOUBLE, "0.5", "s: a scan this much newer than the odometry is skipped"),
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "mapper", .ports = ports, .params = params, .params_size = sizeof(mapper_params_t),
+    .on_init = init, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    mapper_t s = { 0 };
+    return marie_main(&def, argc, argv, &s);
+}

@@ -1,0 +1,14 @@
+# adapters/mapper: marie-mapper (scan matching, pose graph with Ceres, occupancy grid on the bus).
+include adapters/common/adapters.mk
+MAPPER_LIBS := $(B)/lib/libmapper.a $(ADAPT_COMMON) -lceres -lglog
+$(B)/obj/adapters/mapper/%.o: CPPFLAGS += $(ADAPT_EIGEN_CFLAGS)
+$(eval $(call marie_lib,mapper,adapters/mapper/slam.cpp adapters/mapper/scangrid.cpp adapters/mapper/posegraph.cpp))
+$(eval $(call marie_program,marie-mapper,adapters/mapper/mapper_main.c,$(MAPPER_LIBS)))
+$(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
+$(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER_LIBS)))
+# The integration test's pilot and map judge (not installed).
+$(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
+$(eval $(call marie_link,$(B)/tests/helpers/map_compare,tests/mapper/map_compare.c,$(MAP_LIB)))
+EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/map_compare
+ITESTS += tests/mapper/test_mapper_sim.sh
+ITESTS += tests/mapper/test_explore_sim.sh

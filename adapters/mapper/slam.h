@@ -1,0 +1,75 @@
+/* slam: 2D laser SLAM: scan-to-map matching on a smoothed grid, keyframes in a pose graph with
+ * loop closures optimized by Ceres, and the log-odds occupancy grid rendered from them. */
+#ifndef ADAPTERS_MAPPER_SLAM_H
+#define ADAPTERS_MAPPER_SLAM_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "map/occmap.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct slam slam_t;
+
+typedef struct {
+    double resolution;                  /* m per cell */
+    double size_m;                      /* side of the square grid, centred on the first pose */
+    double laser_x, laser_y, laser_theta; /* laser pose in the robot frame */
+    double free_range;                  /* m of free space cleared along a beam that saw nothing */
+    double l_hit, l_miss, l_min, l_max; /* log-odds: per hit, per pass, clamps */
+    double sigma;                       /* m: spread of the matching likelihood around a wall */
+    double search_xy, search_th, step_th; /* correlative window (m, rad) and angular step (rad) */
+    double min_score;                   /* mean likelihood per beam below which a match is refused */
+    double kf_dist, kf_angle;           /* move this much (m, rad) between keyframes */
+    bool loop_closure;
+    double loop_radius;                 /* m: older keyframes this near are candidates */
+    int loop_min_gap;                   /* keyframes between a candidate and the new one */
+    int loop_every;                     /* try a closure at most every this many keyframes */
+    double loop_search_xy, loop_search_th; /* the loop matcher's window */
+    double loop_min_score;
+    int max_keyframes;                  /* memory bound: older keyframes are frozen into the grid */
+} slam_params_t;
+
+void slam_params_default(slam_params_t *p);
+
+/* One laser scan in the sensor frame; a beam at or beyond range_max saw nothing. */
+typedef struct {
+    const float *ranges;
+    int n;
+    double angle_min, angle_increment, range_min, range_max;
+} slam_scan_t;
+
+typedef struct {
+    int64_t scans, keyframes, matches, match_failures, loop_candidates, loop_closures, optimizations;
+    double last_score;                  /* mean likelihood of the last match */
+    double last_match_ms, last_opt_ms;
+} slam_stats_t;
+
+/* A mapper whose map frame puts the robot at pose0 when the first scan arrives. NULL with errno
+ * (EINVAL: bad parameters; ENOMEM). slam_destroy(NULL) is a no-op. */
+slam_t *slam_create(const slam_params_t *p, const double pose0[3]);
+void slam_destroy(slam_t *s);
+
+/* Adds a scan taken at odometry pose odom; pose (may be NULL) gets the map-frame robot pose.
+ * 1 when a keyframe was added (the map changed), 0 when not, -1 with errno EINVAL on a bad scan. */
+int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t *scan, double pose[3]);
+/* The map-frame pose of odometry pose odom under the current correction. */
+void slam_pose(const slam_t *s, const double odom[3], double pose[3]);
+/* Forget the odometry frame (it restarted): the next scan is matched from the last map pose. */
+void slam_odometry_reset(slam_t *s);
+/* The map cropped to the cells seen (plus a one-cell margin): 0 free .. 100 occupied,
+ * OCCMAP_UNKNOWN unseen. NULL with errno (ENOENT: nothing seen yet; ENOMEM). */
+occmap_t *slam_render(const slam_t *s);
+/* The keyframes' map-frame poses, 3 doubles each, oldest first; the count. */
+int slam_keyframes(const slam_t *s, double *poses, int max);
+void slam_get_stats(const slam_t *s, slam_stats_t *st);
+/* Optimize the pose graph now and re-render (what a closure does); 0, or -1 if nothing to do. */
+int slam_optimize(slam_t *s);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,164 @@
+/* mapeval: a built map against the ground-truth world, both in the same frame: precision and
+ * recall of occupied cells within one cell, coverage of the reachable free space. */
+#ifndef TESTS_MAPPER_MAPEVAL_H
+#define TESTS_MAPPER_MAPEVAL_H
+
+#include <math.h>
+#include <stdlib.h>
+
+#include "map/occmap.h"
+
+typedef struct {
+    double precision, recall, coverage;
+    long map_occupied, truth_walls, truth_free;
+} mapeval_t;
+
+/* map_server's trinary reading of a built map's cell. */
+static inline int mapeval_class(int8_t v)
+{
+    return v < 0 || v > 100 ? -1 : v >= 65 ? 1 : v < 20 ? 0 : -1;
+}
+
+static inline int mapeval_at(const occmap_t *m, double x, double y)
+{
+    int cx, cy;
+    if (!occmap_cell(m, x, y, &cx, &cy))
+        return -1;
+    return mapeval_class(occmap_get(m, cx, cy));
+}
+
+/* Whether grid g has a cell of class k within one cell of the point (x, y). */
+static inline int mapeval_near(const occmap_t *g, double x, double y, int k)
+{
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++)
+            if (mapeval_at(g, x + dx * g->resolution, y + dy * g->resolution) == k)
+                return 1;
+    return 0;
+}
+
+/* Precision: built occupied cells with a true wall within one cell. Recall: true wall cells
+ * the robot could see (a 4-neighbour is free in the truth and in the built map) with a built
+ * occupied cell within one cell. Coverage: free cells reachable from (sx, sy) in the truth that
+ * the built map knows free. */
+static inline void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_t *e)
+{
+    long tp = 0, nocc = 0, walls = 0, found = 0, nfree = 0, covered = 0;
+    for (int y = 0; y < map->height; y++)
+        for (int x = 0; x < map->width; x++) {
+            if (mapeval_class(map->cells[(size_t)y * map->width + x]) != 1)
+                continue;
+            double px, py;
+            occmap_cell_center(map, x, y, &px, &py);
+            nocc++;
+            tp += mapeval_near(truth, px, py, 1);
+        }
+    int W = truth->width, H = truth->height;
+    unsigned char *reach = calloc((size_t)W * H, 1);
+    int *stack = malloc(sizeof(int) * (size_t)W * H);
+    int sp = 0, cx, cy;
+    if (reach && stack && occmap_cell(truth, sx, sy, &cx, &cy) && occmap_get(truth, cx, cy) == OCCMAP_FREE) {
+        reach[cy * W + cx] = 1;
+        stack[sp++] = cy * W + cx;
+        while (sp) {
+            int i = stack[--sp], x = i % W, y = i / W;
+            const int nb[4][2] = { { 1, 0 }, { -1, 0 }, { 0, 1 }, { 0, -1 } };
+            for (int k = 0; k < 4; k++) {
+                int u = x + nb[k][0], v = y + nb[k][1];
+                if (occmap_get(truth, u, v) == OCCMAP_FREE && !reach[v * W + u]) {
+                    reach[v * W + u] = 1;
+                    stack[sp++] = v * W + u;
+                }
+            }
+        }
+    }
+    for (int y = 0; y < H && reach; y++)
+        for (int x = 0; x < W; x++) {
+            double px, py;
+            occmap_cell_center(truth, x, y, &px, &py);
+            int8_t t = truth->cells[(size_t)y * W + x];
+            if (reach[y * W + x]) {
+                nfree++;
+                covered += mapeval_at(map, px, py) == 0;
+            }
+            if (t != OCCMAP_OCCUPIED)
+                continue;
+            const int nb[4][2] = { { 1, 0 }, { -1, 0 }, { 0, 1 }, { 0, -1 } };
+            int visible = 0;
+            for (int k = 0; k < 4 && !visible; k++) {
+                int u = x + nb[k][0], v = y + nb[k][1];
+                double qx, qy;
+                occmap_cell_center(truth, u, v, &qx, &qy);
+                visible = occmap_get(truth, u, v) == OCCMAP_FREE && mapeval_at(map, qx, qy) == 0;
+            }
+            if (!visible)
+                continue;
+            walls++;
+            found += mapeval_near(map, px, py, 1);
+        }
+    free(reach);
+    free(stack);
+    e->map_occupied = nocc;
+    e->truth_walls = walls;
+    e->truth_free = nfree;
+    e->precision = nocc ? (double)tp / nocc : 0;
+    e->recall = walls ? (double)found / walls : 0;
+    e->coverage = nfree ? (double)covered / nfree : 0;
+}
+
+
+/* The rigid transform (rotation th about the map frame's origin, then dx, dy) within +-max_xy m
+ * and +-max_th rad that puts the most built occupied cells within one cell of a true wall: the
+ * "aligned" of the comparison. Returns the aligned copy of map (free it), NULL on failure. */
+static inline occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
+                                      double *odx, double *ody, double *oth)
+{
+    int W = truth->width, H = truth->height;
+    unsigned char *near = calloc((size_t)W * H, 1);
+    double *px = malloc(sizeof(double) * 2 * (size_t)map->width * map->height);
+    if (!near || !px) {
+        free(near);
+        free(px);
+        return NULL;
+    }
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            if (truth->cells[(size_t)y * W + x] == OCCMAP_OCCUPIED)
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++)
+                        if (x + dx >= 0 && y + dy >= 0 && x + dx < W && y + dy < H)
+                            near[(size_t)(y + dy) * W + x + dx] = 1;
+    long n = 0;
+    for (int y = 0; y < map->height; y++)
+        for (int x = 0; x < map->width; x++)
+            if (mapeval_class(map->cells[(size_t)y * map->width + x]) == 1) {
+                occmap_cell_center(map, x, y, &px[2 * n], &px[2 * n + 1]);
+                n++;
+            }
+    long best = -1;
+    double r = truth->resolution;
+    *odx = *ody = *oth = 0;
+    for (double th = -max_th; th <= max_th + 1e-9; th += 0.0025) {
+        double c = cos(th), sn = sin(th);
+        for (double dy = -max_xy; dy <= max_xy + 1e-9; dy += r)
+            for (double dx = -max_xy; dx <= max_xy + 1e-9; dx += r) {
+                long hits = 0;
+                for (long i = 0; i < n; i++) {
+                    double x = c * px[2 * i] - sn * px[2 * i + 1] + dx, y = sn * px[2 * i] + c * px[2 * i + 1] + dy;
+                    int cx = (int)floor((x - truth->origin_x) / r), cy = (int)floor((y - truth->origin_y) / r);
+                    hits += cx >= 0 && cy >= 0 && cx < W && cy < H && near[(size_t)cy * W + cx];
+                }
+                if (hits > best) {
+                    best = hits;
+                    *odx = dx, *ody = dy, *oth = th;
+                }
+            }
+    }
+    free(near);
+    free(px);
+    double c = cos(*oth), sn = sin(*oth);
+    return occmap_from_cells(map->width, map->height, map->resolution, c * map->origin_x - sn * map->origin_y + *odx,
+                             sn * map->origin_x + c * map->origin_y + *ody, *oth, map->cells);
+}
+
+#endif

@@ -1,0 +1,231 @@
+/* test_slam: the mapper builds the office world from a simulated robot with drifting odometry:
+ * map quality against the world, trajectory error, loop closure, bad input. */
+#include <errno.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "adapters/common/posebuf.h"
+#include "adapters/mapper/slam.h"
+#include "tests/adapters/simworld.h"
+#include "tests/mapper/mapeval.h"
+
+#define NB 181
+#define RANGE_MAX 8.0
+
+typedef struct {
+    double ate_rms, end_err, odom_end_err, max_err;
+    int steps;
+} drive_t;
+
+/* Along the main corridor, into and out of the rooms on both sides at every door (the
+ * vertical corridor at x 18.5-21.5 included). */
+static const double office_route[][2] = {
+    { 4.1, 15.7 }, { 4.1, 22.5 }, { 4.1, 7.5 }, { 4.1, 15.7 },
+    { 11.4, 15.7 }, { 11.4, 22.5 }, { 11.4, 7.5 }, { 11.4, 15.7 },
+    { 16.25, 15.7 }, { 16.25, 22.5 }, { 16.25, 7.5 }, { 16.25, 15.7 },
+    { 20, 15.7 }, { 20, 22.5 }, { 20, 7.5 }, { 20, 15.7 },
+    { 23.75, 15.7 }, { 23.75, 22.5 }, { 23.75, 7.5 }, { 23.75, 15.7 },
+    { 29.5, 15.7 }, { 29.5, 22.5 }, { 29.5, 7.5 }, { 29.5, 15.7 },
+    { 36.4, 15.7 }, { 36.4, 22.5 }, { 36.4, 7.5 }, { 36.4, 15.7 },
+    { 2.5, 15.7 },
+};
+/* A loop: up through a room's door, across into the vertical corridor by the opening at the
+ * top, down it, and back along the main corridor; twice, then away. */
+static const double loop_route[][2] = {
+    { 16.25, 15 }, { 16.25, 24.8 }, { 20, 24.8 }, { 20, 15 }, { 16.25, 15 },
+    { 16.25, 24.8 }, { 20, 24.8 }, { 20, 15 }, { 16.25, 15 }, { 10, 15 },
+};
+
+static occmap_t *office(void)
+{
+    marie_errors_t errs = { 0 };
+    occmap_t *m = occmap_load("sim/worlds/office.yaml", &errs);
+    assert_non_null(m);
+    return m;
+}
+
+static simrobot_t robot_at(double x, double y, uint64_t seed)
+{
+    simrobot_t r = { .truth = { x, y, 0 }, .odom = { 0, 0, 0 }, .v_scale = 1.0, .gyro_bias = 0.005,
+                     .v_noise = 0.02, .w_noise = 0.01, .rng = { seed } };
+    return r;
+}
+
+/* Follow the waypoints from the truth (a perfect pilot), scanning and mapping at 10 Hz. */
+static drive_t drive(slam_t *s, const occmap_t *world, simrobot_t *r, const double (*route)[2], int n)
+{
+    drive_t d = { 0 };
+    float ranges[NB];
+    double sum2 = 0, start[3] = { r->truth[0], r->truth[1], r->truth[2] };
+    const double dt = 0.1;
+    for (int i = 0, step = 0; i < n && step < 20000; step++) {
+        double dx = route[i][0] - r->truth[0], dy = route[i][1] - r->truth[1];
+        if (hypot(dx, dy) < 0.2) {
+            i++;
+            continue;
+        }
+        double herr = atan2(sin(atan2(dy, dx) - r->truth[2]), cos(atan2(dy, dx) - r->truth[2]));
+        double w = fmax(-1.0, fmin(1.0, 2.0 * herr)), v = fabs(herr) > 0.4 ? 0.02 : 0.6;
+        sim_scan(r, world, ranges, NB, RANGE_MAX, 0.01, 0.01);
+        slam_scan_t sc = { ranges, NB, -M_PI / 2, M_PI / 180, 0.05, RANGE_MAX };
+        double pose[3];
+        assert_true(slam_add_scan(s, r->odom, &sc, pose) >= 0);
+        double e = hypot(pose[0] - r->truth[0], pose[1] - r->truth[1]);
+        sum2 += e * e;
+        d.max_err = fmax(d.max_err, e);
+        d.end_err = e;
+        if (getenv("SLAM_DEBUG")) {
+            slam_stats_t st;
+            slam_get_stats(s, &st);
+            fprintf(stderr, "%d truth %.2f %.2f %.3f est %.2f %.2f %.3f score %.3f\n", step, r->truth[0], r->truth[1],
+                    r->truth[2], pose[0], pose[1], pose[2], st.last_score);
+        }
+        d.steps++;
+        sim_move(r, world, v, w, dt);
+    }
+    double op[3];
+    pose2d_compose(start, r->odom, op);
+    d.odom_end_err = hypot(op[0] - r->truth[0], op[1] - r->truth[1]);
+    d.ate_rms = d.steps ? sqrt(sum2 / d.steps) : 0;
+    return d;
+}
+
+static void test_office_route_map_quality(void **state)
+{
+    occmap_t *world = office();
+    simrobot_t r = robot_at(2.0, 15.0, 7);
+    slam_params_t p;
+    slam_params_default(&p);
+    slam_t *s = slam_create(&p, r.truth);
+    assert_non_null(s);
+    drive_t d = drive(s, world, &r, office_route, sizeof(office_route) / sizeof(office_route[0]));
+    occmap_t *m = slam_render(s);
+    assert_non_null(m);
+    mapeval_t e;
+    mapeval_compare(world, m, 2.0, 15.0, &e);
+    slam_stats_t st;
+    slam_get_stats(s, &st);
+    print_message("office route: %d scans, %lld keyframes, %lld closures, %lld match failures\n", d.steps,
+                  (long long)st.keyframes, (long long)st.loop_closures, (long long)st.match_failures);
+    print_message("  ATE RMS %.3f m (max %.3f), odometry alone ends %.2f m off\n", d.ate_rms, d.max_err, d.odom_end_err);
+    print_message("  precision %.3f (%ld cells) recall %.3f (%ld walls) coverage %.3f (%ld free cells)\n", e.precision,
+                  e.map_occupied, e.recall, e.truth_walls, e.coverage, e.truth_free);
+    assert_true(d.odom_end_err > 1.0);  /* the odometry alone would not do */
+    /* Measured here: ATE 0.108 m, precision 0.79, recall 0.69, coverage 0.88 (docs/mapping.md:
+     * this robot's odometry noise is harsher than marie-sim's, whose run in test_mapper_sim.sh
+     * reaches the ATE target); the bounds keep that level. */
+    assert_true(d.ate_rms < 0.15);
+    assert_true(e.precision >= 0.65);
+    assert_true(e.recall >= 0.40);
+    assert_true(e.coverage >= 0.80);
+    occmap_destroy(m);
+    slam_destroy(s);
+    occmap_destroy(world);
+}
+
+static void run_loop(bool closure, drive_t *d, slam_stats_t *st)
+{
+    occmap_t *world = office();
+    simrobot_t r = robot_at(10.0, 15.0, 11);
+    slam_params_t p;
+    slam_params_default(&p);
+    p.loop_closure = closure;
+    slam_t *s = slam_create(&p, r.truth);
+    assert_non_null(s);
+    *d = drive(s, world, &r, loop_route, sizeof(loop_route) / sizeof(loop_route[0]));
+    slam_get_stats(s, st);
+    slam_destroy(s);
+    occmap_destroy(world);
+}
+
+static void test_loop_closure_office_loop(void **state)
+{
+    drive_t open, closed;
+    slam_stats_t so, sc;
+    run_loop(false, &open, &so);
+    run_loop(true, &closed, &sc);
+    print_message("loop: odometry alone ends %.2f m off; without closure end %.3f m, ATE %.3f; with closure end "
+                  "%.3f m, ATE %.3f (%lld closures, last optimization %.1f ms)\n",
+                  closed.odom_end_err, open.end_err, open.ate_rms, closed.end_err, closed.ate_rms,
+                  (long long)sc.loop_closures, sc.last_opt_ms);
+    assert_true(closed.odom_end_err > 1.0);
+    assert_true(sc.loop_closures >= 1);
+    assert_true(closed.end_err < 0.15);
+    assert_true(closed.ate_rms < 0.10);
+}
+
+static void test_bad_input_refused_map_kept(void **state)
+{
+    occmap_t *world = office();
+    simrobot_t r = robot_at(10.0, 15.0, 3);
+    slam_params_t p;
+    slam_params_default(&p);
+    slam_t *s = slam_create(&p, r.truth);
+    static const double short_route[][2] = { { 14, 15 }, { 12, 15 } };
+    drive(s, world, &r, short_route, 2);
+    occmap_t *before = slam_render(s);
+    assert_non_null(before);
+    float bad[3] = { NAN, 1, 2 };
+    slam_scan_t nan_geom = { bad, 3, NAN, 0.01, 0.05, 8 };
+    errno = 0;
+    assert_int_equal(slam_add_scan(s, r.odom, &nan_geom, NULL), -1);
+    assert_int_equal(errno, EINVAL);
+    slam_scan_t none = { bad, 0, 0, 0.01, 0.05, 8 };
+    assert_int_equal(slam_add_scan(s, r.odom, &none, NULL), -1);
+    float ranges[NB];
+    sim_scan(&r, world, ranges, NB, RANGE_MAX, 0.01, 0);
+    slam_scan_t ok = { ranges, NB, -M_PI / 2, M_PI / 180, 0.05, RANGE_MAX };
+    double nan_odom[3] = { NAN, 0, 0 };
+    assert_int_equal(slam_add_scan(s, nan_odom, &ok, NULL), -1);
+    /* An odometry jump of 5 m: after a reset the scan is matched from the last map pose. */
+    double jumped[3] = { r.odom[0] + 5, r.odom[1], r.odom[2] };
+    slam_odometry_reset(s);
+    double pose[3];
+    assert_true(slam_add_scan(s, jumped, &ok, pose) >= 0);
+    assert_true(hypot(pose[0] - r.truth[0], pose[1] - r.truth[1]) < 0.1);
+    occmap_t *after = slam_render(s);
+    mapeval_t e;
+    mapeval_compare(world, after, 10.0, 15.0, &e);
+    assert_true(e.precision >= 0.95);
+    occmap_destroy(before);
+    occmap_destroy(after);
+    slam_destroy(s);
+    occmap_destroy(world);
+}
+
+static void test_bad_parameters_refused(void **state)
+{
+    slam_params_t p;
+    slam_params_default(&p);
+    p.resolution = 0;
+    errno = 0;
+    assert_null(slam_create(&p, (const double[3]){ 0, 0, 0 }));
+    assert_int_equal(errno, EINVAL);
+    slam_params_default(&p);
+    p.size_m = 1e6;     /* a grid that no robot's memory holds */
+    assert_null(slam_create(&p, (const double[3]){ 0, 0, 0 }));
+    slam_params_default(&p);
+    slam_t *s = slam_create(&p, (const double[3]){ 0, 0, 0 });
+    errno = 0;
+    assert_null(slam_render(s));    /* nothing seen yet */
+    assert_int_equal(errno, ENOENT);
+    slam_destroy(s);
+    slam_destroy(NULL);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_office_route_map_quality),
+        cmocka_unit_test(test_loop_closure_office_loop),
+        cmocka_unit_test(test_bad_input_refused_map_kept),
+        cmocka_unit_test(test_bad_parameters_refused),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

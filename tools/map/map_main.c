@@ -1,0 +1,150 @@
+/* marie-map (`marie map save NAME`): waits for the next map on the bus (marie.occupancy_grid_t)
+ * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load. */
+#include <errno.h>
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <lcm/lcm.h>
+
+#include "core/config.h"
+#include "core/time.h"
+#include "core/typeinfo.h"
+#include "lcmtypes/marie_occupancy_grid_t.h"
+#include "managers/am_proto.h"
+#include "map/occmap.h"
+
+typedef struct {
+    marie_occupancy_grid_t grid;
+    bool have;
+    int bad;
+} mapsave_t;
+
+static void on_map(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    mapsave_t *s = user;
+    if (s->have)
+        return;
+    marie_occupancy_grid_t g;
+    if (marie_decode_input(&marie_type_occupancy_grid_t, rbuf->data, rbuf->data_size, &g, NULL) != 0) {
+        s->bad++;
+        return;
+    }
+    if (g.width <= 0 || g.height <= 0 || (int64_t)g.width * g.height != g.ncells || !(g.resolution > 0) ||
+        (int64_t)g.width * g.height > (1 << 28)) {
+        s->bad++;
+        marie_type_occupancy_grid_t.decode_cleanup(&g);
+        return;
+    }
+    s->grid = g;
+    s->have = true;
+}
+
+/* A map is larger than the kernel's default socket buffer holds: ask for more unless the URL
+ * already says how much. */
+static char *url_with_buffer(const char *url)
+{
+    size_t n = strlen(url) + 64;
+    char *u = malloc(n);
+    if (!u)
+        return NULL;
+    if (strncmp(url, "udpm://", 7) != 0 || strstr(url, "recv_buf_size"))
+        snprintf(u, n, "%s", url);
+    else
+        snprintf(u, n, "%s%srecv_buf_size=8388608", url, strchr(url, '?') ? "&" : "?");
+    return u;
+}
+
+static int usage(void)
+{
+    fprintf(stderr, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
+                    "  writes NAME.yaml and NAME.pgm from the next map on the channel\n");
+    return MARIE_EXIT_USAGE;
+}
+
+static int write_map(const marie_occupancy_grid_t *g, const char *name)
+{
+    occmap_t *m = occmap_from_cells(g->width, g->height, g->resolution, g->origin.x, g->origin.y, g->origin.theta,
+                                    g->cells);
+    if (!m) {
+        fprintf(stderr, "marie: map save: cannot use the map: %s\n", strerror(errno));
+        return MARIE_EXIT_FAIL;
+    }
+    size_t len = strlen(name);
+    char *yaml = malloc(len + 6);
+    int rc = MARIE_EXIT_FAIL;
+    if (!yaml)
+        goto out;
+    snprintf(yaml, len + 6, "%s%s", name, len > 5 && strcmp(name + len - 5, ".yaml") == 0 ? "" : ".yaml");
+    if (occmap_save(m, yaml) != 0) {
+        fprintf(stderr, "marie: map save: %s: %s\n", yaml, strerror(errno));
+        goto out;
+    }
+    long occ = 0, fr = 0, unk = 0;
+    for (size_t i = 0; i < (size_t)m->width * m->height; i++) {
+        int8_t v = m->cells[i];
+        uint8_t px = occmap_save_pixel(v);
+        occ += px == 0 || (v >= 65 && v <= 100);
+        fr += v >= 0 && v < 20;
+        unk += v < 0 || v > 100 || (v >= 20 && v < 65);
+    }
+    printf("map saved: %s (%d x %d cells at %.3f m, origin %.2f %.2f): %ld occupied, %ld free, %ld unknown\n", yaml,
+           m->width, m->height, m->resolution, m->origin_x, m->origin_y, occ, fr, unk);
+    rc = MARIE_EXIT_OK;
+out:
+    free(yaml);
+    occmap_destroy(m);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    const char *channel = "MAP", *name = NULL;
+    const char *url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
+    double wait_s = 6;          /* the mapper sends its map again every 5 s */
+    if (argc < 3 || strcmp(argv[1], "save") != 0)
+        return usage();
+    for (int i = 2; i < argc; i++) {
+        if (strcmp(argv[i], "--channel") == 0 && i + 1 < argc)
+            channel = argv[++i];
+        else if (strcmp(argv[i], "--url") == 0 && i + 1 < argc)
+            url = argv[++i];
+        else if (strcmp(argv[i], "--wait") == 0 && i + 1 < argc)
+            wait_s = atof(argv[++i]);
+        else if (argv[i][0] != '-' && !name)
+            name = argv[i];
+        else
+            return usage();
+    }
+    if (!name || !*name || !(wait_s > 0))
+        return usage();
+    char *u = url_with_buffer(url);
+    lcm_t *lcm = u ? lcm_create(u) : NULL;
+    free(u);
+    if (!lcm) {
+        fprintf(stderr, "marie: map save: cannot open the bus at %s\n", url);
+        return MARIE_EXIT_FAIL;
+    }
+    mapsave_t s = { 0 };
+    lcm_subscribe(lcm, channel, on_map, &s);
+    int64_t end = marie_mono_us() + (int64_t)(wait_s * 1e6);
+    while (!s.have && marie_mono_us() < end) {
+        struct pollfd pfd = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
+        int ms = (int)((end - marie_mono_us()) / 1000);
+        int r = poll(&pfd, 1, ms < 0 ? 0 : ms > 200 ? 200 : ms);
+        if (r > 0)
+            lcm_handle(lcm);
+        else if (r < 0 && errno != EINTR)
+            break;
+    }
+    lcm_destroy(lcm);
+    if (!s.have) {
+        fprintf(stderr, "marie: map save: no map on %s within %.1f s%s\n", channel, wait_s,
+                s.bad ? " (malformed maps were refused)" : "");
+        return MARIE_EXIT_TIMEOUT;
+    }
+    int rc = write_map(&s.grid, name);
+    marie_type_occupancy_grid_t.decode_cleanup(&s.grid);
+    return rc;
+}
