@@ -5,7 +5,7 @@ SIM_LIB := $(B)/lib/libmariesim.a $(MAP_LIB)
 $(eval $(call marie_lib,mariesim,sim/walls.c sim/world.c))
 # The microphone array (sim/audio.c) and its phrases, spoken once by Festival at build time.
 SIM_AUDIO_LIB := $(B)/lib/libmariesim_audio.a $(B)/lib/libmarie_audio.a
-$(eval $(call marie_lib,mariesim_audio,sim/audio.c))
+$(eval $(call marie_lib,mariesim_audio,sim/audio.c sim/audio_port.c))
 
 $(eval $(call marie_test,test_sim_world,tests/sim/test_sim_world.c,$(SIM_LIB) $(ODE_LIBS)))
 
