@@ -10,7 +10,7 @@
 
 void ssl_sep_cfg_default(ssl_sep_cfg_t *c)
 {
-    *c = (ssl_sep_cfg_t){ .loading = 0.05, .nulls = true, .postfilter = true, .floor_gain = 0.1 };
+    *c = (ssl_sep_cfg_t){ .loading = 0.05, .nulls = true, .postfilter = true, .floor_gain = 0.3 };
 }
 
 /* Solves G z = b in place (G n x n, complex, Gaussian elimination with partial pivoting). */
@@ -112,8 +112,9 @@ void ssl_postfilter_free(ssl_postfilter_t *p)
     p->noise = p->prev_snr = NULL;
 }
 
-/* Noise power follows the signal down at once and up slowly (a minimum tracker), so speech
- * does not raise it; the gain is decision-directed Wiener. */
+/* The noise level per bin is a running mean of the power that leaves out bursts over 3 times
+ * it (speech), as in ssl_srp.c; the gain is decision-directed Wiener with a floor, so the
+ * recognizer downstream gets speech with its noise lowered rather than carved out. */
 void ssl_postfilter_apply(ssl_postfilter_t *p, const ssl_sep_cfg_t *cfg, float complex *Y)
 {
     p->frames++;
@@ -122,12 +123,12 @@ void ssl_postfilter_apply(ssl_postfilter_t *p, const ssl_sep_cfg_t *cfg, float c
         float *nz = &p->noise[b];
         if (p->frames <= 10)
             *nz = p->frames == 1 ? pw : *nz + (pw - *nz) / (float)p->frames;
-        else if (pw < *nz)
-            *nz = 0.7f * *nz + 0.3f * pw;
+        else if (pw < 3 * *nz)
+            *nz += 0.05f * (pw - *nz);
         else
-            *nz *= 1.004f;
+            *nz *= 1.01f;
         float post = *nz > 0 ? pw / *nz : 1000;
-        float prio = 0.95f * p->prev_snr[b] + 0.05f * fmaxf(post - 1, 0);
+        float prio = 0.9f * p->prev_snr[b] + 0.1f * fmaxf(post - 1, 0);
         float g = prio / (1 + prio);
         if (g < cfg->floor_gain)
             g = (float)cfg->floor_gain;

@@ -20,6 +20,8 @@ struct ssl_srp {
     float *corr;                /* npairs * ncorr */
     fftwf_plan plan;
     int kmin, kmax;
+    float complex *phat;        /* npairs * nbins: each pair's unit cross-spectrum this frame */
+    double (*mics)[3];
     float *noise;               /* per bin: noise floor of the mean microphone power */
     float *weight;              /* per bin: how much of it is above that floor, 0..1 */
     long frames;
@@ -29,7 +31,7 @@ void ssl_srp_cfg_default(ssl_srp_cfg_t *c)
 {
     *c = (ssl_srp_cfg_t){ .rate = 16000, .nfft = 512, .upsample = 4, .az_step = 2 * M_PI / 180,
                           .el_min = -10 * M_PI / 180, .el_max = 60 * M_PI / 180, .el_step = 10 * M_PI / 180,
-                          .f_min = 150, .f_max = 7000, .min_separation = 25 * M_PI / 180 };
+                          .f_min = 150, .f_max = 7000, .oversub = 2, .min_separation = 25 * M_PI / 180 };
 }
 
 static int make_grid(ssl_srp_t *s)
@@ -92,12 +94,16 @@ ssl_srp_t *ssl_srp_create(const ssl_srp_cfg_t *cfg, const micarray_t *mics)
             s->pair[p][1] = j;
         }
     s->noise = calloc((size_t)s->nbins, sizeof(float));
+    s->phat = malloc(sizeof(float complex) * (size_t)s->npairs * (size_t)s->nbins);
+    s->mics = malloc(sizeof(double) * 3 * (size_t)mics->n);
+    if (s->mics)
+        memcpy(s->mics, mics->pos, sizeof(double) * 3 * (size_t)mics->n);
     s->weight = calloc((size_t)s->nbins, sizeof(float));
     s->map = malloc(sizeof(float) * (size_t)s->ndirs);
     s->lag = malloc(sizeof(int) * (size_t)s->ndirs * (size_t)s->npairs);
     s->cross = fftwf_alloc_complex((size_t)s->ncorr / 2 + 1);
     s->corr = fftwf_alloc_real((size_t)s->ncorr * (size_t)s->npairs);
-    if (!s->map || !s->lag || !s->cross || !s->corr || !s->noise || !s->weight)
+    if (!s->map || !s->lag || !s->cross || !s->corr || !s->noise || !s->weight || !s->phat || !s->mics)
         goto fail;
     s->plan = fftwf_plan_dft_c2r_1d(s->ncorr, s->cross, s->corr, FFTW_ESTIMATE);
     if (!s->plan)
@@ -124,12 +130,17 @@ void ssl_srp_destroy(ssl_srp_t *s)
     free(s->lag);
     free(s->noise);
     free(s->weight);
+    free(s->phat);
+    free(s->mics);
     free(s);
 }
 
-/* Bins where the array hears little more than its noise floor carry no direction, yet PHAT
- * would weigh them as much as the loudest: each bin's weight is its Wiener gain against a
- * floor that follows the power down at once and up slowly (a minimum tracker). */
+/* Bins where the array hears little more than its steady noise carry no direction, yet PHAT
+ * would weigh them as much as the loudest: each bin is weighed by how far its power stands
+ * over the steady level (spectral subtraction with an over-subtraction, cfg.oversub), so diffuse noise
+ * and stationary sources such as fans fade out of the map and speech stands out. The level is
+ * a running mean of the power that leaves out bursts over 3 times it (speech), and creeps up
+ * under a lasting rise (a fan turned on). */
 static void update_weights(ssl_srp_t *s, const float complex *const *X)
 {
     s->frames++;
@@ -141,37 +152,43 @@ static void update_weights(ssl_srp_t *s, const float complex *const *X)
         float *n = &s->noise[k];
         if (s->frames <= 8)
             *n = s->frames == 1 ? p : *n + (p - *n) / (float)s->frames;
-        else if (p < *n)
-            *n = 0.8f * *n + 0.2f * p;
+        else if (p < 3 * *n)
+            *n += 0.05f * (p - *n);
         else
-            *n *= 1.003f;
-        float snr = *n > 0 ? p / *n - 1 : 0;
-        s->weight[k] = snr > 0 ? snr / (1 + snr) : 0;
+            *n *= 1.01f;
+        float w = p > 0 ? 1 - (float)s->cfg.oversub * *n / p : 0;
+        s->weight[k] = w > 0 ? w : 0;
     }
 }
 
-/* GCC-PHAT of every pair into s->corr, scaled so that a perfectly coherent pair in bins far
- * above the noise peaks at 1. */
-static void correlate(ssl_srp_t *s, const float complex *const *X)
+/* Each pair's unit cross-spectrum (PHAT) of this frame, kept for the later potentials. */
+static void cross_spectra(ssl_srp_t *s, const float complex *const *X)
 {
-    int nb = s->ncorr / 2 + 1, used = s->kmax - s->kmin + 1;
-    float scale = 1.0f / (float)used;
     update_weights(s, X);
     for (int p = 0; p < s->npairs; p++) {
         const float complex *xi = X[s->pair[p][0]], *xj = X[s->pair[p][1]];
-        memset(s->cross, 0, sizeof(float complex) * (size_t)nb);
+        float complex *ph = s->phat + (size_t)p * s->nbins;
         for (int k = s->kmin; k <= s->kmax; k++) {
             float complex c = xi[k] * conjf(xj[k]);
             float mag = cabsf(c);
-            s->cross[k] = mag > 1e-20f ? c / mag * (s->weight[k] * scale * 0.5f) : 0;
+            ph[k] = mag > 1e-20f ? c / mag : 0;
         }
-        fftwf_execute_dft_c2r(s->plan, s->cross, s->corr + (size_t)p * s->ncorr);
     }
 }
 
-int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potential_t *out, int max)
+/* GCC-PHAT of every pair with the current bin weights into s->corr, then the map: a
+ * perfectly coherent pair in bins far above the noise peaks at 1. */
+static void srp_map(ssl_srp_t *s)
 {
-    correlate(s, spectra);
+    int nb = s->ncorr / 2 + 1, used = s->kmax - s->kmin + 1;
+    float scale = 0.5f / (float)used;
+    for (int p = 0; p < s->npairs; p++) {
+        const float complex *ph = s->phat + (size_t)p * s->nbins;
+        memset(s->cross, 0, sizeof(float complex) * (size_t)nb);
+        for (int k = s->kmin; k <= s->kmax; k++)
+            s->cross[k] = ph[k] * (s->weight[k] * scale);
+        fftwf_execute_dft_c2r(s->plan, s->cross, s->corr + (size_t)p * s->ncorr);
+    }
     for (int d = 0; d < s->ndirs; d++) {
         const int *lag = s->lag + (size_t)d * s->npairs;
         float e = 0;
@@ -179,18 +196,54 @@ int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potenti
             e += s->corr[(size_t)p * s->ncorr + lag[p]];
         s->map[d] = e / s->npairs;
     }
+}
+
+/* Bins that the found direction explains (their pairs' phases agree with it) are taken out
+ * before the next search: what remains is another source, not this one's sidelobes. */
+static void mask_explained(ssl_srp_t *s, const double *u)
+{
+    double tau[MICARRAY_MAX * (MICARRAY_MAX - 1) / 2];
+    for (int p = 0; p < s->npairs; p++) {
+        const double *mi = s->mics[s->pair[p][0]], *mj = s->mics[s->pair[p][1]];
+        tau[p] = -((mi[0] - mj[0]) * u[0] + (mi[1] - mj[1]) * u[1] + (mi[2] - mj[2]) * u[2]) / SPEED_OF_SOUND;
+    }
+    for (int k = s->kmin; k <= s->kmax; k++) {
+        if (s->weight[k] <= 0)
+            continue;
+        double w = 2 * M_PI * k * s->cfg.rate / s->cfg.nfft, coh = 0;
+        for (int p = 0; p < s->npairs; p++) {
+            float complex ph = s->phat[(size_t)p * s->nbins + k];
+            coh += crealf(ph) * cos(w * tau[p]) - cimagf(ph) * sin(w * tau[p]);     /* Re(ph e^{jw tau}) */
+        }
+        if (coh / s->npairs > 0.3)
+            s->weight[k] = 0;
+    }
+}
+
+static int best_direction(const ssl_srp_t *s, const ssl_potential_t *found, int n)
+{
+    int best = -1;
+    for (int d = 0; d < s->ndirs; d++) {
+        if (best >= 0 && s->map[d] <= s->map[best])
+            continue;
+        int near = 0;
+        for (int k = 0; k < n && !near; k++)
+            near = fabs(remainder(atan2(s->dirs[d][1], s->dirs[d][0]) - found[k].azimuth, 2 * M_PI)) < s->cfg.min_separation;
+        if (!near)
+            best = d;
+    }
+    return best;
+}
+
+int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potential_t *out, int max)
+{
+    cross_spectra(s, spectra);
+    float saved[s->kmax + 1];
+    memcpy(saved, s->weight, sizeof(float) * (size_t)(s->kmax + 1));
     int n = 0;
     while (n < max) {
-        int best = -1;
-        for (int d = 0; d < s->ndirs; d++) {
-            if (best >= 0 && s->map[d] <= s->map[best])
-                continue;
-            int near = 0;
-            for (int k = 0; k < n && !near; k++)
-                near = fabs(remainder(atan2(s->dirs[d][1], s->dirs[d][0]) - out[k].azimuth, 2 * M_PI)) < s->cfg.min_separation;
-            if (!near)
-                best = d;
-        }
+        srp_map(s);
+        int best = best_direction(s, out, n);
         if (best < 0)
             break;
         ssl_potential_t *o = &out[n++];
@@ -198,7 +251,11 @@ int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potenti
         o->azimuth = atan2(o->dir[1], o->dir[0]);
         o->elevation = asin(fmax(-1, fmin(1, o->dir[2])));
         o->energy = s->map[best];
+        if (n < max)
+            mask_explained(s, o->dir);
     }
+    /* The map of the first search is what ssl_srp_map() shows; the weights stay this frame's. */
+    memcpy(s->weight, saved, sizeof(float) * (size_t)(s->kmax + 1));
     return n;
 }
 

@@ -23,6 +23,8 @@ typedef struct {
     double az_step;             /* rad */
     double el_min, el_max, el_step;
     double f_min, f_max;        /* Hz band used */
+    double oversub;             /* a bin weighs 1 - oversub * steady level / power (at least 0):
+                                   2 keeps a fan just trackable and diffuse noise out */
     double min_separation;      /* rad of azimuth between two potential sources of one frame */
 } ssl_srp_cfg_t;
 
