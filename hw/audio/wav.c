@@ -51,7 +51,9 @@ int wav_parse(const uint8_t *buf, size_t len, wav_info_t *out, const char **why)
         } else if (!memcmp(buf + pos, "data", 4)) {
             if (!have_fmt)
                 return refuse(why, "data before fmt");
-            size_t n = size < avail ? size : avail;
+            /* A stream written to a pipe (text2wave -o -) cannot go back to fill in its sizes:
+             * 0 or 0xffffffff there means "up to the end". */
+            size_t n = size == 0 || size == 0xffffffffu || size > avail ? avail : size;
             out->pcm = body;
             out->frames = n / (2u * (size_t)out->channels);
             return 0;

@@ -16,8 +16,8 @@ typedef struct {
 } wav_info_t;
 
 /* Reads the header of a WAVE file held in buf (len bytes). 0, or -1 with errno EINVAL
- * (not a 16-bit PCM WAVE file, or truncated: a data chunk longer than the file is cut to
- * what is there). `why` (may be NULL) gets a short reason. */
+ * (not a 16-bit PCM WAVE file). A data chunk longer than the file, or of size 0 or
+ * 0xffffffff (written to a pipe), holds what is there. `why` (may be NULL) gets a reason. */
 int wav_parse(const uint8_t *buf, size_t len, wav_info_t *out, const char **why);
 
 /* Channel ch of the file as floats in [-1, 1); dst holds info->frames values. */

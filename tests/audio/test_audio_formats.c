@@ -39,6 +39,10 @@ static void test_wav_round_trip(void **state)
     /* Truncated: the data chunk is cut to what is there, never read past the buffer. */
     assert_int_equal(wav_parse(buf, 44 + 40, &w, NULL), 0);
     assert_int_equal(w.frames, 10);
+    /* Written to a pipe: sizes 0, the data runs to the end. */
+    memset(buf + 40, 0, 4);
+    assert_int_equal(wav_parse(buf, len, &w, NULL), 0);
+    assert_int_equal(w.frames, 100);
     /* Not 16-bit PCM: refused with a reason. */
     buf[34] = 8;
     const char *why = NULL;
