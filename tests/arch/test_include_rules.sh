@@ -11,7 +11,7 @@ allowed() {
     ca/*)       echo "ca/ core/ lcmtypes/" ;;
     hw/*)       echo "hw/ core/ lcmtypes/" ;;
     managers/*) echo "managers/ core/ lcmtypes/" ;;
-    adapters/*) d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ adapters/common/ map/ ca/ core/ lcmtypes/" ;;
+    adapters/*) d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ adapters/common/ hw/ map/ ca/ core/ lcmtypes/" ;;
     sim/*)      echo "sim/ hw/ map/ core/ lcmtypes/" ;;
     tools/*)    d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ managers/am_proto.h map/ ca/ core/ lcmtypes/" ;;
     *)          echo "" ;;
