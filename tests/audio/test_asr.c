@@ -143,10 +143,10 @@ static void test_commands_raw_vs_separated(void **state)
     }
     printf("# accuracy over %d commands at 5 dB SNR (fan): raw microphone %d/%d, tracked and separated %d/%d, "
            "steered beam %d/%d\n", n, ok_raw, n, ok_sep, n, ok_steer, n);
-    /* Measured here: raw 2/20, tracked 16/20 (short phrases lose their start while the track
+    /* Measured here: raw 2/20, tracked 18/20 (a short phrase can lose its start while its track
      * is being confirmed), steered 20/20. */
     assert_true(ok_steer >= 18);
-    assert_true(ok_sep >= 14);
+    assert_true(ok_sep >= 16);
     assert_true(ok_sep >= ok_raw + 8);
     asr_destroy(raw);
     asr_destroy(sep);

@@ -142,6 +142,7 @@ static void test_sim_array_and_ssl_on_the_bus(void **state)
            (rx.first_audio_utime == 0 || rx.last_audio_utime - rx.first_audio_utime < 6000000))
         lcm_handle_timeout(l, 100);
     long lost = rx.lost, bad_shape = rx.bad_shape;
+    double audio_s = (rx.last_audio_utime - rx.first_audio_utime) / 1e6;
     /* A block of the wrong shape: refused by marie-ssl with a reason, which keeps running. */
     int16_t junk[10] = { 0 };
     marie_audio_frame_t bad = { .utime = 1, .seq = 0, .device = "junk", .sample_rate = 16000, .nchannels = 5,
@@ -155,7 +156,7 @@ static void test_sim_array_and_ssl_on_the_bus(void **state)
     test_stop(ssl);
     printf("# %ld audio blocks (%.1f s), %ld lost; %ld source messages, %d with the speaker (mean %.1f deg, "
            "truth %.0f); %ld separated blocks, %ld for the speaker\n",
-           rx.blocks, (rx.last_audio_utime - rx.first_audio_utime) / 1e6, lost, rx.sources_msgs, rx.near_speech,
+           rx.blocks, audio_s, lost, rx.sources_msgs, rx.near_speech,
            rx.near_speech ? rx.speech_az_sum / rx.near_speech / DEG : NAN, speech_bearing / DEG, rx.separated,
            rx.separated_for_speech);
     assert_true(rx.blocks >= 6 * 62);
