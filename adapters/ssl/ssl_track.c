@@ -6,7 +6,8 @@
 
 void ssl_track_cfg_default(ssl_track_cfg_t *c)
 {
-    *c = (ssl_track_cfg_t){ .dt = 0.016, .min_energy = 0.02, .birth_ratio = 0, .birth_energy = 0.03, .update_ratio = 0, .gate = 15 * M_PI / 180, .birth_hits = 3,
+    *c = (ssl_track_cfg_t){ .dt = 0.016, .min_energy = 0.02, .birth_ratio = 0, .birth_energy = 0.03,
+                            .update_ratio = 0, .gate = 15 * M_PI / 180, .birth_hits = 3,
                             .birth_window = 8, .death_s = 1.5, .meas_std = 3 * M_PI / 180,
                             .accel_std = 1.0 };
 }
