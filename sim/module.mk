@@ -3,13 +3,16 @@ ODE_LIBS := $(shell pkg-config --libs ode 2>/dev/null)
 SIM_LIB := $(B)/lib/libmariesim.a $(MAP_LIB)
 
 $(eval $(call marie_lib,mariesim,sim/walls.c sim/world.c))
+# The microphone array (sim/audio.c) and its phrases, spoken once by Festival at build time.
+SIM_AUDIO_LIB := $(B)/lib/libmariesim_audio.a $(B)/lib/libmarie_audio.a
+$(eval $(call marie_lib,mariesim_audio,sim/audio.c sim/audio_port.c))
 
 $(eval $(call marie_test,test_sim_world,tests/sim/test_sim_world.c,$(SIM_LIB) $(ODE_LIBS)))
 
 # Device mode drives the hw/ emulators: virtual CiA 402 drives and gyro, virtual LMS200.
 SIM_DEVICE_LIBS := $(B)/lib/libmarie_vdevices.a $(B)/lib/libmarie_drives.a $(B)/lib/libmarie_gyro.a \
     $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a $(B)/lib/libmarie_lms200.a -lutil
-$(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c sim/camera.c,$(SIM_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS) $(CAMERA_LIBS)))
+$(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c sim/camera.c,$(SIM_LIB) $(SIM_AUDIO_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS) $(CAMERA_LIBS)))
 
 $(eval $(call marie_bench,bench_sim,sim/bench_sim.c,$(SIM_LIB) $(ODE_LIBS)))
 $(B)/bench/bench_sim: | $(B)/bin/marie-sim
@@ -24,3 +27,12 @@ $(eval $(call marie_bench,bench_sim_camera,sim/bench_sim_camera.c sim/camera.c,$
 $(B)/bench/bench_sim_camera: | $(B)/bin/marie-sim
 $(eval $(call marie_test,test_sim_camera,tests/sim/test_sim_camera.c sim/camera.c,$(SIM_LIB) $(VISION_LIBS)))
 $(B)/obj/tests/sim/test_sim_camera.o: CPPFLAGS += $(CAMERA_CV_CFLAGS)
+# phrase_NN.wav: line NN of sim/sounds/phrases.txt in Festival's US English voice at 16 kHz.
+SIM_PHRASES := $(shell seq -f '$(B)/share/sounds/phrase_%02g.wav' 1 $$(wc -l < sim/sounds/phrases.txt))
+$(B)/share/sounds/phrase_%.wav: sim/sounds/phrases.txt
+	@mkdir -p $(@D)
+	sed -n "$$(echo $* | sed 's/^0//')p" $< > $@.txt && text2wave -F 16000 -o $@ $@.txt && rm -f $@.txt
+EXTRA_TARGETS += $(SIM_PHRASES)
+$(eval $(call marie_fuzz,audio_scene,tests/audio/fuzz_audio_scene.c sim/audio.c hw/audio/wav.c hw/audio/micarray.c map/occmap.c map/pgm.c map/occmap_load.c,))
+$(B)/share/sounds/phrases.stamp: $(SIM_PHRASES)
+	@touch $@

@@ -9,6 +9,7 @@
 
 #include "core/component.h"
 #include "sim/camera.h"
+#include "sim/audio_port.h"
 #include "sim/devices.h"
 #include "map/occmap.h"
 #include "sim/world.h"
@@ -18,6 +19,7 @@ typedef struct {
     sim_devices_t *devices;     /* device mode; NULL in channel mode */
     sim_camera_t *camera;       /* NULL when the camera is off */
     marie_port_t *p_camera;
+    sim_audio_port_t *audio;    /* the microphone array; NULL without an audio scene */
     marie_port_t *p_enc, *p_gyro, *p_laser, *p_estop, *p_truth, *p_clock;
     double speed;               /* sim seconds per wall second; 0 = as fast as possible */
     double lockstep;            /* s of sim time allowed past the last motor command; 0 = off */
@@ -49,6 +51,7 @@ static const marie_port_spec_t ports[] = {
     { "camera", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "CAMERA_IMAGE" },
     { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
     { "estop_set", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "SIM_ESTOP" },
+    { "audio", &marie_type_audio_frame_t, MARIE_OUT, MARIE_PUSH, "AUDIO" },
     { NULL },
 };
 
@@ -96,6 +99,10 @@ static const marie_param_spec_t params[] = {
     { "right_node", MARIE_PARAM_INT, "2", "device mode: CANopen node of the right drive" },
     { "gyro_node", MARIE_PARAM_INT, "32", "device mode: CANopen node of the gyro" },
     { "vgyro_bias", MARIE_PARAM_DOUBLE, "0.01", "device mode: raw bias of the virtual gyro, rad/s" },
+    { "audio", MARIE_PARAM_STRING, "", "sound sources of the microphone array (docs/audio.md); empty: no array" },
+    { "mics", MARIE_PARAM_STRING, MICARRAY_DEFAULT, "microphone positions x,y,z;... in the robot frame, m" },
+    { "audio_rate", MARIE_PARAM_INT, "16000", "microphone sample rate, Hz" },
+    { "audio_block", MARIE_PARAM_INT, "256", "samples per channel in one audio message" },
     { "laser_link", MARIE_PARAM_STRING, "${MARIE_RUN_DIR:-/tmp}/marie-sim-lms200", "device mode: symlink to the LMS200 pty" },
     { NULL },
 };
@@ -222,6 +229,11 @@ static void publish(marie_component_t *c, sim_t *s)
         double x, y, th;
         sim_world_pose(s->world, &x, &y, &th);
         sim_camera_publish(s->camera, c, s->p_camera, k, x, y, th, now);
+    }
+    if (s->audio) {
+        double pose[3];
+        sim_world_pose(s->world, &pose[0], &pose[1], &pose[2]);
+        sim_audio_port_step(s->audio, now, pose);
     }
     if (k % s->n_truth == 0) {
         marie_pose_cov_t t = { .utime = now, .frame = "map" };
@@ -370,6 +382,8 @@ static int on_init(marie_component_t *c)
     s->camera = NULL;
     sim_devices_destroy(s->devices);
     s->devices = NULL;
+    sim_audio_port_destroy(s->audio);
+    s->audio = NULL;
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);
@@ -452,6 +466,9 @@ static int on_init(marie_component_t *c)
     }
     if (sim_camera_init(c, path, map, p.step, &s->camera) < 0)
         goto fail;
+    if (sim_audio_port_create(c, map, (double[3]){ p.start_x, p.start_y, p.start_theta }, p.seed,
+                              s->start_utime, &s->audio))
+        goto fail;
     occmap_destroy(map);
     map = NULL;
     if (device) {
@@ -490,6 +507,8 @@ fail:
     sim_camera_destroy(s->camera);
     s->camera = NULL;
     occmap_destroy(map);
+    sim_audio_port_destroy(s->audio);
+    s->audio = NULL;
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);
@@ -563,6 +582,8 @@ static void on_quit(marie_component_t *c)
     s->devices = NULL;
     sim_camera_destroy(s->camera);
     s->camera = NULL;
+    sim_audio_port_destroy(s->audio);
+    s->audio = NULL;
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);

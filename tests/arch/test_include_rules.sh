@@ -12,7 +12,7 @@ allowed() {
     ca/*)       echo "ca/ core/ lcmtypes/" ;;
     hw/*)       echo "hw/ core/ lcmtypes/" ;;
     managers/*) echo "managers/ core/ lcmtypes/" ;;
-    adapters/*) d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ adapters/common/ camera/ map/ ca/ core/ lcmtypes/" ;;
+    adapters/*) d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ adapters/common/ camera/ hw/ map/ ca/ core/ lcmtypes/" ;;
     sim/*)      echo "sim/ hw/ camera/ map/ core/ lcmtypes/" ;;
     tools/*)    d=$(echo "$1" | cut -d/ -f1-2); echo "$d/ tools/webcommon/ managers/am_proto.h map/ ca/ core/ lcmtypes/" ;;
     *)          echo "" ;;

@@ -1,0 +1,64 @@
+/* asr: command recognition on mono streams: per-stream voice activity detection picks the
+ * utterance, PocketSphinx decodes it against a grammar made of the command phrases. */
+#ifndef MARIE_ASR_H
+#define MARIE_ASR_H
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "adapters/asr/asr_vad.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define ASR_MAX_STREAMS 8
+
+typedef struct {
+    const char *hmm;            /* acoustic model folder */
+    const char *dict;           /* pronunciation dictionary */
+    const char *const *commands;/* phrases of the grammar, lower case */
+    int ncommands;
+    int rate;                   /* Hz of the streams (the model's: 16000) */
+    int block;                  /* samples per fed block */
+    double preroll_s;           /* kept before the detected start */
+    asr_vad_cfg_t vad;
+} asr_cfg_t;
+
+/* The default model of Debian's pocketsphinx-en-us, and a 16 kHz rate. */
+void asr_cfg_default(asr_cfg_t *c, const char *const *commands, int ncommands, int block);
+
+typedef struct {
+    int source_id;
+    const char *text;           /* "" when nothing of the grammar was heard */
+    double confidence;          /* 0..1 */
+    int64_t start_utime, end_utime;
+} asr_result_t;
+
+typedef void (*asr_result_cb_t)(const asr_result_t *r, void *user);
+
+typedef struct asr asr_t;
+
+/* NULL with errno and a reason in why (a phrase's word missing from the dictionary, no model). */
+asr_t *asr_create(const asr_cfg_t *cfg, asr_result_cb_t cb, void *user, char *why, size_t whylen);
+void asr_destroy(asr_t *a);
+
+/* One block of a stream (cfg.block samples). One utterance is decoded at a time: the stream
+ * that starts speaking first holds the decoder until it ends. */
+int asr_feed(asr_t *a, int source_id, const int16_t *pcm, int n, int64_t utime);
+
+/* The stream ended (its track died, the input stopped): an utterance in progress on it is
+ * decoded now. */
+void asr_flush(asr_t *a, int64_t utime);
+
+/* While muted (the robot speaks) nothing is heard, and an utterance in progress is dropped. */
+void asr_mute(asr_t *a, bool muted);
+
+/* The default command phrases. */
+extern const char *const asr_default_commands[];
+extern const int asr_default_ncommands;
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,199 @@
+/* marie-asr: recognizes spoken commands on the separated streams of marie-ssl (or on one
+ * microphone of the array) and publishes what was said; deaf while the robot speaks. */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/asr/asr.h"
+#include "core/component.h"
+#include "core/file.h"
+
+typedef struct {
+    const char *input, *commands, *hmm, *dict;
+    int64_t channel, block;
+    double deaf_after_s;
+} asr_params_t;
+
+typedef struct {
+    asr_t *asr;
+    marie_port_t *p_speech;
+    const char **phrases;
+    char *phrase_text;
+    int nphrases, block, channel;
+    int16_t *mono;
+    bool speaking;
+    int64_t deaf_until, deaf_after_us;
+    marie_component_t *c;
+} asr_state_t;
+
+static void on_heard(const asr_result_t *r, void *user)
+{
+    asr_state_t *s = user;
+    marie_component_count(s->c, r->text[0] ? "utterances" : "unrecognized", 1);
+    if (!r->text[0])
+        return;
+    marie_speech_t m = { .utime = r->end_utime, .start_utime = r->start_utime, .source_id = r->source_id,
+                         .text = (char *)r->text, .confidence = (float)r->confidence };
+    marie_info("heard \"%s\" from source %d (confidence %.2f)", r->text, r->source_id, r->confidence);
+    marie_port_publish(s->p_speech, &m);
+}
+
+static bool deaf(asr_state_t *s, int64_t utime)
+{
+    bool d = s->speaking || utime < s->deaf_until;
+    asr_mute(s->asr, d);
+    return d;
+}
+
+static void on_separated(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    asr_state_t *s = marie_component_user(c);
+    const marie_separated_audio_t *m = msg;
+    if (m->sample_rate != 16000 || m->nsamples != s->block) {
+        marie_component_bad_input(c, "bad_audio", "separated block of %d samples at %d Hz refused (want %d at 16000)",
+                                  m->nsamples, m->sample_rate, s->block);
+        return;
+    }
+    if (!deaf(s, m->utime))
+        asr_feed(s->asr, m->source_id, m->data, m->nsamples, m->utime);
+}
+
+static void on_array(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    asr_state_t *s = marie_component_user(c);
+    const marie_audio_frame_t *f = msg;
+    if (f->sample_rate != 16000 || f->nsamples != s->block || s->channel >= f->nchannels ||
+        (int64_t)f->nchannels * f->nsamples != f->nvalues) {
+        marie_component_bad_input(c, "bad_audio", "array block of %d x %d samples at %d Hz refused (want channel %d, "
+                                  "%d samples at 16000)", f->nchannels, f->nsamples, f->sample_rate, s->channel, s->block);
+        return;
+    }
+    for (int i = 0; i < f->nsamples; i++)
+        s->mono[i] = f->data[i * f->nchannels + s->channel];
+    if (!deaf(s, f->utime))
+        asr_feed(s->asr, -1, s->mono, f->nsamples, f->utime);
+}
+
+/* The robot's own voice: deaf from its start until a moment after its end. */
+static void on_robot_speech(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    asr_state_t *s = marie_component_user(c);
+    const marie_robot_speech_t *m = msg;
+    if (m->state == MARIE_ROBOT_SPEECH_T_STATE_SPEAKING) {
+        s->speaking = true;
+    } else if (m->state == MARIE_ROBOT_SPEECH_T_STATE_DONE || m->state == MARIE_ROBOT_SPEECH_T_STATE_FAILED) {
+        s->speaking = false;
+        s->deaf_until = m->utime + s->deaf_after_us;
+    }
+}
+
+/* One phrase per line; blank lines and # comments skipped. */
+static int load_commands(asr_state_t *s, const char *path)
+{
+    size_t len;
+    s->phrase_text = marie_file_read(path, 1 << 20, &len);
+    if (!s->phrase_text)
+        return -1;
+    int cap = 16;
+    s->phrases = malloc(sizeof(char *) * (size_t)cap);
+    for (char *save = NULL, *line = strtok_r(s->phrase_text, "\n", &save); line && s->phrases;
+         line = strtok_r(NULL, "\n", &save)) {
+        while (*line == ' ')
+            line++;
+        if (!*line || *line == '#')
+            continue;
+        if (s->nphrases == cap)
+            s->phrases = realloc(s->phrases, sizeof(char *) * (size_t)(cap *= 2));
+        if (s->phrases)
+            s->phrases[s->nphrases++] = line;
+    }
+    return s->phrases && s->nphrases ? 0 : (errno = EINVAL, -1);
+}
+
+static int init(marie_component_t *c)
+{
+    asr_state_t *s = marie_component_user(c);
+    const asr_params_t *q = marie_component_params(c);
+    s->c = c;
+    s->block = (int)q->block;
+    s->channel = (int)q->channel;
+    s->deaf_after_us = (int64_t)(q->deaf_after_s * 1e6);
+    const char *const *phrases = asr_default_commands;
+    int n = asr_default_ncommands;
+    if (q->commands && *q->commands) {
+        if (load_commands(s, q->commands)) {
+            marie_component_fail_reason(c, "commands %s: %s", q->commands, strerror(errno));
+            return -1;
+        }
+        phrases = s->phrases;
+        n = s->nphrases;
+    }
+    asr_cfg_t cfg;
+    asr_cfg_default(&cfg, phrases, n, s->block);
+    if (*q->hmm)
+        cfg.hmm = q->hmm;
+    if (*q->dict)
+        cfg.dict = q->dict;
+    char why[256] = "";
+    if (s->block < 16 || s->block > 16000 || !(s->mono = malloc(sizeof(int16_t) * (size_t)s->block)) ||
+        !(s->asr = asr_create(&cfg, on_heard, s, why, sizeof(why)))) {
+        marie_component_fail_reason(c, "recognizer: %s", why[0] ? why : "block out of range");
+        return -1;
+    }
+    s->p_speech = marie_port(c, "speech");
+    bool array = !strcmp(q->input, "array");
+    if (!array && strcmp(q->input, "separated")) {
+        marie_component_fail_reason(c, "input: separated or array, not '%s'", q->input);
+        return -1;
+    }
+    if (marie_port_on_message(marie_port(c, array ? "array" : "separated"), array ? on_array : on_separated) ||
+        marie_port_on_message(marie_port(c, "robot_speech"), on_robot_speech)) {
+        marie_component_fail_reason(c, "cannot subscribe to the audio");
+        return -1;
+    }
+    marie_info("%d command phrases, listening to the %s", n, array ? "array's first microphone" : "separated streams");
+    return 0;
+}
+
+static void quit(marie_component_t *c)
+{
+    asr_state_t *s = marie_component_user(c);
+    asr_destroy(s->asr);
+    s->asr = NULL;
+    free(s->mono);
+    free(s->phrases);
+    free(s->phrase_text);
+    s->mono = NULL;
+    s->phrases = NULL;
+    s->phrase_text = NULL;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "separated", &marie_type_separated_audio_t, MARIE_IN, MARIE_PUSH, "SEPARATED_AUDIO" },
+    { "array", &marie_type_audio_frame_t, MARIE_IN, MARIE_PUSH, "AUDIO" },
+    { "robot_speech", &marie_type_robot_speech_t, MARIE_IN, MARIE_PUSH, "ROBOT_SPEECH" },
+    { "speech", &marie_type_speech_t, MARIE_OUT, MARIE_PUSH, "SPEECH" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    MARIE_PARAM_AT(asr_params_t, input, STRING, "separated", "separated: marie-ssl's streams; array: one microphone"),
+    MARIE_PARAM_AT(asr_params_t, channel, INT, "0", "microphone used with input=array"),
+    MARIE_PARAM_AT(asr_params_t, block, INT, "256", "samples per audio block"),
+    MARIE_PARAM_AT(asr_params_t, commands, STRING, "", "file of command phrases, one a line (empty: the built-in 20)"),
+    MARIE_PARAM_AT(asr_params_t, hmm, STRING, "", "acoustic model folder (empty: Debian's pocketsphinx-en-us)"),
+    MARIE_PARAM_AT(asr_params_t, dict, STRING, "", "pronunciation dictionary (empty: the model's cmudict)"),
+    MARIE_PARAM_AT(asr_params_t, deaf_after_s, DOUBLE, "0.3", "s still deaf after the robot stops speaking (echo)"),
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "asr", .ports = ports, .params = params, .params_size = sizeof(asr_params_t),
+    .on_init = init, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    asr_state_t s = { 0 };
+    return marie_main(&def, argc, argv, &s);
+}

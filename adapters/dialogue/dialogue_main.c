@@ -1,0 +1,135 @@
+/* marie-dialogue: turns recognized commands into navigation goals, stops and turns toward the
+ * speaker, and answers through marie-tts; every decision is an event on the dialogue channel. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "adapters/dialogue/dialogue.h"
+#include "core/component.h"
+
+typedef struct {
+    const char *places, *robot_name;
+    double min_confidence, tolerance;
+} dlg_params_t;
+
+typedef struct {
+    dialogue_t d;
+    marie_sound_source_t sources[16];
+    int nsources;
+    int32_t say_id, goal_id;
+    int64_t event_seq;
+    marie_port_t *p_say, *p_goal, *p_event;
+    double tolerance;
+    double min_confidence;
+} dlg_t;
+
+static void event(marie_component_t *c, dlg_t *s, const char *kind, const char *text)
+{
+    marie_event_t e = { .utime = marie_component_now(c), .source = (char *)marie_component_name(c),
+                        .seq = s->event_seq++, .severity = MARIE_EVENT_T_SEV_INFO, .kind = (char *)kind,
+                        .text = (char *)text };
+    marie_port_publish(s->p_event, &e);
+}
+
+static void on_sources(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    dlg_t *s = marie_component_user(c);
+    const marie_sound_sources_t *m = msg;
+    s->nsources = m->count < 16 ? m->count : 16;
+    memcpy(s->sources, m->sources, sizeof(marie_sound_source_t) * (size_t)s->nsources);
+}
+
+static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    dlg_t *s = marie_component_user(c);
+    const marie_speech_t *m = msg;
+    char buf[320];
+    if (m->confidence < s->min_confidence) {
+        marie_component_count(c, "unsure", 1);
+        snprintf(buf, sizeof(buf), "\"%.200s\" ignored (confidence %.2f)", m->text, m->confidence);
+        event(c, s, "unsure", buf);
+        return;
+    }
+    bool has_az = false;
+    double az = 0;
+    for (int i = 0; i < s->nsources; i++)
+        if (s->sources[i].id == m->source_id) {
+            has_az = true;
+            az = s->sources[i].azimuth;
+        }
+    dialogue_reply_t r;
+    dialogue_hear(&s->d, m->text, m->source_id, has_az, az, &r);
+    snprintf(buf, sizeof(buf), "heard \"%.200s\" from source %d", m->text, m->source_id);
+    event(c, s, "heard", buf);
+    if (r.actions & DIALOGUE_FACE) {
+        snprintf(buf, sizeof(buf), "speaker %d at azimuth %.3f rad", m->source_id, r.azimuth);
+        event(c, s, "face", buf);
+    }
+    if (r.actions & DIALOGUE_STOP)
+        event(c, s, "stop", "asked to stop");
+    if (r.actions & DIALOGUE_GOAL) {
+        marie_goal_t g = { .utime = marie_component_now(c), .id = ++s->goal_id, .name = r.place.name,
+                           .pose = { r.place.x, r.place.y, r.place.theta }, .tolerance = s->tolerance,
+                           .priority = 10 };
+        marie_port_publish(s->p_goal, &g);
+        snprintf(buf, sizeof(buf), "goal %d: %s (%.2f, %.2f)", g.id, r.place.name, r.place.x, r.place.y);
+        event(c, s, "goal", buf);
+    }
+    if (r.say[0]) {
+        marie_robot_speech_t say = { .utime = marie_component_now(c), .id = ++s->say_id, .text = r.say,
+                                     .state = MARIE_ROBOT_SPEECH_T_STATE_REQUEST };
+        marie_port_publish(s->p_say, &say);
+    }
+}
+
+static int init(marie_component_t *c)
+{
+    dlg_t *s = marie_component_user(c);
+    const dlg_params_t *q = marie_component_params(c);
+    dialogue_place_t places[DIALOGUE_MAX_PLACES];
+    int n = 0;
+    char why[256];
+    if (dialogue_places_parse(q->places, places, DIALOGUE_MAX_PLACES, &n, why, sizeof(why))) {
+        marie_component_fail_reason(c, "places: %s", why);
+        return -1;
+    }
+    dialogue_init(&s->d, places, n, q->robot_name);
+    s->tolerance = q->tolerance;
+    s->min_confidence = q->min_confidence;
+    s->p_say = marie_port(c, "say");
+    s->p_goal = marie_port(c, "goal");
+    s->p_event = marie_port(c, "events");
+    if (marie_port_on_message(marie_port(c, "speech"), on_speech) ||
+        marie_port_on_message(marie_port(c, "sources"), on_sources)) {
+        marie_component_fail_reason(c, "cannot subscribe");
+        return -1;
+    }
+    return 0;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "speech", &marie_type_speech_t, MARIE_IN, MARIE_PUSH, "SPEECH" },
+    { "sources", &marie_type_sound_sources_t, MARIE_IN, MARIE_PUSH, "SOUND_SOURCES" },
+    { "say", &marie_type_robot_speech_t, MARIE_OUT, MARIE_PUSH, "SAY" },
+    { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "SPOKEN_GOAL" },
+    { "events", &marie_type_event_t, MARIE_OUT, MARIE_PUSH, "DIALOGUE" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    MARIE_PARAM_AT(dlg_params_t, places, STRING, "", "name=x,y,theta;... the places a command may name (map frame)"),
+    MARIE_PARAM_AT(dlg_params_t, robot_name, STRING, "Spartacus", "what the robot answers to its name"),
+    MARIE_PARAM_AT(dlg_params_t, min_confidence, DOUBLE, "0.3", "recognitions below this are ignored"),
+    MARIE_PARAM_AT(dlg_params_t, tolerance, DOUBLE, "0.3", "m: goal tolerance"),
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "dialogue", .ports = ports, .params = params, .params_size = sizeof(dlg_params_t), .on_init = init,
+};
+
+int main(int argc, char **argv)
+{
+    dlg_t s = { 0 };
+    return marie_main(&def, argc, argv, &s);
+}

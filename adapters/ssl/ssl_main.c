@@ -1,0 +1,175 @@
+/* marie-ssl: sound source localization, tracking and separation on a microphone array's
+ * audio blocks; publishes the tracked sources and each one's separated stream. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/ssl/ssl.h"
+#include "core/component.h"
+
+typedef struct {
+    const char *mics;
+    int64_t rate, nfft, potentials;
+    double min_energy, birth_energy, gate_deg, death_s, sources_hz;
+    bool separate, nulls, postfilter;
+} ssl_params_t;
+
+typedef struct {
+    marie_component_t *c;
+    ssl_t *ssl;
+    int nmics, rate;
+    int64_t next_seq;           /* expected seq of the next input block; -1 before the first */
+    int64_t sources_every, frames;
+    marie_port_t *p_sources, *p_sep;
+    int16_t *pcm;
+    int hop;
+} ssl_state_t;
+
+static void publish_sources(ssl_state_t *s, const ssl_result_t *r)
+{
+    marie_sound_source_t src[SSL_TRACK_MAX];
+    int n = 0;
+    for (int i = 0; i < r->tracker->n; i++) {
+        const ssl_track_t *t = &r->tracker->t[i];
+        if (!t->confirmed)
+            continue;
+        src[n] = (marie_sound_source_t){
+            .id = t->id, .azimuth = (float)t->azimuth, .elevation = (float)t->elevation,
+            .direction = { (float)(cos(t->elevation) * cos(t->azimuth)), (float)(cos(t->elevation) * sin(t->azimuth)),
+                           (float)sin(t->elevation) },
+            .energy = (float)t->energy, .activity = (float)t->activity, .first_utime = t->first_utime };
+        n++;
+    }
+    marie_sound_sources_t m = { .utime = r->utime, .count = n, .sources = src };
+    marie_port_publish(s->p_sources, &m);
+}
+
+static void on_result(const ssl_result_t *r, void *user)
+{
+    ssl_state_t *s = user;
+    if (s->frames++ % s->sources_every == 0)
+        publish_sources(s, r);
+    for (int i = 0; i < r->nstreams; i++) {
+        const ssl_stream_t *st = &r->streams[i];
+        for (int j = 0; j < s->hop; j++)
+            s->pcm[j] = (int16_t)lrintf(fmaxf(-32768.0f, fminf(32767.0f, st->samples[j] * 32768.0f)));
+        marie_separated_audio_t m = { .utime = r->stream_utime, .seq = st->seq, .source_id = st->id,
+                                      .azimuth = (float)st->azimuth, .elevation = (float)st->elevation,
+                                      .sample_rate = s->rate, .nsamples = s->hop, .data = s->pcm };
+        marie_port_publish(s->p_sep, &m);
+    }
+}
+
+static void on_audio(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    ssl_state_t *s = marie_component_user(c);
+    const marie_audio_frame_t *f = msg;
+    if (f->nchannels != s->nmics || f->sample_rate != s->rate || f->nsamples < 0 ||
+        (int64_t)f->nchannels * f->nsamples != f->nvalues) {
+        marie_component_bad_input(c, "bad_audio", "audio block of %d channels x %d samples at %d Hz refused "
+                                  "(the array has %d channels at %d Hz)", f->nchannels, f->nsamples,
+                                  f->sample_rate, s->nmics, s->rate);
+        return;
+    }
+    if (s->next_seq >= 0 && f->seq != s->next_seq)
+        marie_component_count(c, "lost_blocks", f->seq > s->next_seq ? f->seq - s->next_seq : 1);
+    s->next_seq = f->seq + 1;
+    marie_component_count(c, "blocks", 1);
+    ssl_feed_int16(s->ssl, f->data, f->nchannels, f->nsamples, f->utime);
+}
+
+static int init(marie_component_t *c)
+{
+    ssl_state_t *s = marie_component_user(c);
+    const ssl_params_t *q = marie_component_params(c);
+    ssl_destroy(s->ssl);
+    s->ssl = NULL;
+    ssl_cfg_t cfg;
+    ssl_cfg_default(&cfg);
+    const char *why = NULL;
+    if (micarray_parse(q->mics, &cfg.mics, &why)) {
+        marie_component_fail_reason(c, "mics: %s", why);
+        return -1;
+    }
+    cfg.srp.rate = (int)q->rate;
+    cfg.srp.nfft = (int)q->nfft;
+    cfg.hop = cfg.srp.nfft / 2;
+    cfg.potentials = (int)q->potentials;
+    cfg.track.min_energy = q->min_energy;
+    cfg.track.birth_energy = q->birth_energy;
+    cfg.track.gate = q->gate_deg * M_PI / 180;
+    cfg.track.death_s = q->death_s;
+    cfg.separate = q->separate;
+    cfg.sep.nulls = q->nulls;
+    cfg.sep.postfilter = q->postfilter;
+    if (!(q->sources_hz > 0)) {
+        marie_component_fail_reason(c, "sources_hz must be > 0");
+        return -1;
+    }
+    free(s->pcm);
+    s->c = c;
+    s->nmics = cfg.mics.n;
+    s->rate = cfg.srp.rate;
+    s->hop = cfg.hop;
+    s->next_seq = -1;
+    s->frames = 0;
+    double frame_hz = (double)cfg.srp.rate / cfg.hop;
+    s->sources_every = q->sources_hz >= frame_hz ? 1 : (int64_t)lround(frame_hz / q->sources_hz);
+    s->pcm = malloc(sizeof(int16_t) * (size_t)(cfg.hop > 0 ? cfg.hop : 1));
+    if (!s->pcm || !(s->ssl = ssl_create(&cfg, on_result, s))) {
+        marie_component_fail_reason(c, "cannot set up the pipeline (rate %d, nfft %d, potentials %d): %s",
+                                    cfg.srp.rate, cfg.srp.nfft, cfg.potentials, strerror(errno));
+        return -1;
+    }
+    s->p_sources = marie_port(c, "sources");
+    s->p_sep = marie_port(c, "separated");
+    if (marie_port_on_message(marie_port(c, "audio"), on_audio)) {
+        marie_component_fail_reason(c, "cannot subscribe to the audio");
+        return -1;
+    }
+    return 0;
+}
+
+static void quit(marie_component_t *c)
+{
+    ssl_state_t *s = marie_component_user(c);
+    ssl_destroy(s->ssl);
+    s->ssl = NULL;
+    free(s->pcm);
+    s->pcm = NULL;
+}
+
+static const marie_port_spec_t ports[] = {
+    { "audio", &marie_type_audio_frame_t, MARIE_IN, MARIE_PUSH, "AUDIO" },
+    { "sources", &marie_type_sound_sources_t, MARIE_OUT, MARIE_PUSH, "SOUND_SOURCES" },
+    { "separated", &marie_type_separated_audio_t, MARIE_OUT, MARIE_PUSH, "SEPARATED_AUDIO" },
+    { 0 },
+};
+
+static const marie_param_spec_t params[] = {
+    MARIE_PARAM_AT(ssl_params_t, mics, STRING, MICARRAY_DEFAULT, "microphone positions x,y,z;... in the robot frame, m"),
+    MARIE_PARAM_AT(ssl_params_t, rate, INT, "16000", "sample rate of the array, Hz"),
+    MARIE_PARAM_AT(ssl_params_t, nfft, INT, "512", "analysis frame, samples (power of two); the hop is half"),
+    MARIE_PARAM_AT(ssl_params_t, potentials, INT, "3", "directions taken from each frame's SRP-PHAT map (1..4)"),
+    MARIE_PARAM_AT(ssl_params_t, min_energy, DOUBLE, "0.02", "SRP-PHAT coherence under which a peak is noise"),
+    MARIE_PARAM_AT(ssl_params_t, birth_energy, DOUBLE, "0.03", "coherence a new track needs to grow"),
+    MARIE_PARAM_AT(ssl_params_t, gate_deg, DOUBLE, "15", "deg: how far a peak may be from a track to update it"),
+    MARIE_PARAM_AT(ssl_params_t, death_s, DOUBLE, "1.5", "s: a track unheard this long ends"),
+    MARIE_PARAM_AT(ssl_params_t, sources_hz, DOUBLE, "10", "tracked sources publishing rate (at most one per frame)"),
+    MARIE_PARAM_AT(ssl_params_t, separate, BOOL, "true", "publish each tracked source's separated stream"),
+    MARIE_PARAM_AT(ssl_params_t, nulls, BOOL, "true", "geometric beams with nulls toward the other sources (else delay-and-sum)"),
+    MARIE_PARAM_AT(ssl_params_t, postfilter, BOOL, "true", "Wiener post-filter against stationary noise"),
+    { 0 },
+};
+
+static const marie_component_def_t def = {
+    .kind = "ssl", .ports = ports, .params = params, .params_size = sizeof(ssl_params_t),
+    .on_init = init, .on_quit = quit,
+};
+
+int main(int argc, char **argv)
+{
+    ssl_state_t s = { 0 };
+    return marie_main(&def, argc, argv, &s);
+}

@@ -1,0 +1,48 @@
+/* ssl_srp: SRP-PHAT localization: GCC-PHAT of every microphone pair (FFTW, interpolated by
+ * zero padding) summed over a grid of directions; the best directions are the potential
+ * sources of a frame. */
+#ifndef MARIE_SSL_SRP_H
+#define MARIE_SSL_SRP_H
+#include <complex.h>
+
+#include "hw/audio/micarray.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    double azimuth, elevation;  /* rad, robot frame */
+    double dir[3];
+    double energy;              /* mean PHAT coherence over pairs, about 0 (noise) to 1 */
+} ssl_potential_t;
+
+typedef struct {
+    int rate, nfft;             /* the spectra handed to ssl_srp_frame have nfft/2 + 1 bins */
+    int upsample;               /* cross-correlation resolution: 1/upsample sample */
+    double az_step;             /* rad */
+    double el_min, el_max, el_step;
+    double f_min, f_max;        /* Hz band used */
+    double oversub;             /* a bin weighs 1 - oversub * steady level / power (at least 0):
+                                   2 keeps a fan just trackable and diffuse noise out */
+    double min_separation;      /* rad of azimuth between two potential sources of one frame */
+} ssl_srp_cfg_t;
+
+void ssl_srp_cfg_default(ssl_srp_cfg_t *c);
+
+typedef struct ssl_srp ssl_srp_t;
+
+ssl_srp_t *ssl_srp_create(const ssl_srp_cfg_t *cfg, const micarray_t *mics);   /* NULL + errno */
+void ssl_srp_destroy(ssl_srp_t *s);
+
+/* spectra[m][k]: microphone m, bin k (nfft/2 + 1 bins). Writes up to max potentials, best
+ * first, and returns how many. */
+int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potential_t *out, int max);
+
+int ssl_srp_directions(const ssl_srp_t *s);
+const float *ssl_srp_map(const ssl_srp_t *s);       /* energy per direction of the last frame */
+
+#ifdef __cplusplus
+}
+#endif
+#endif

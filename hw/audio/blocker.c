@@ -1,0 +1,48 @@
+/* blocker: fixed blocks out of a stream of frames read in pieces of any size (see blocker.h). */
+#include "hw/audio/blocker.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+int audio_blocker_init(audio_blocker_t *b, int nchannels, int block, int rate, audio_block_cb_t cb, void *user)
+{
+    memset(b, 0, sizeof(*b));
+    if (nchannels < 1 || nchannels > 64 || block < 1 || block > 65536 || rate < 1) {
+        errno = EINVAL;
+        return -1;
+    }
+    b->buf = malloc(sizeof(int16_t) * (size_t)nchannels * (size_t)block);
+    if (!b->buf)
+        return -1;
+    b->nchannels = nchannels;
+    b->block = block;
+    b->rate = rate;
+    b->cb = cb;
+    b->user = user;
+    return 0;
+}
+
+void audio_blocker_free(audio_blocker_t *b)
+{
+    free(b->buf);
+    b->buf = NULL;
+}
+
+void audio_blocker_feed(audio_blocker_t *b, const int16_t *frames, int n, int64_t utime)
+{
+    int done = 0;
+    while (done < n) {
+        if (b->fill == 0)
+            b->first_utime = utime + (int64_t)done * 1000000 / b->rate;
+        int take = b->block - b->fill < n - done ? b->block - b->fill : n - done;
+        memcpy(b->buf + (size_t)b->fill * b->nchannels, frames + (size_t)done * b->nchannels,
+               sizeof(int16_t) * (size_t)take * (size_t)b->nchannels);
+        b->fill += take;
+        done += take;
+        if (b->fill == b->block) {
+            b->cb(b->buf, b->nchannels, b->block, b->seq++, b->first_utime, b->user);
+            b->fill = 0;
+        }
+    }
+}
