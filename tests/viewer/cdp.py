@@ -2,12 +2,14 @@
 test waits in real time for a page to reach a state instead of guessing a time budget.
   python3 tests/viewer/cdp.py --port 9222 URL [--until JS] [--timeout S] [--dom FILE]
                               [--screenshot FILE] [--size WxH] [--then CMD --until2 JS]
+                              [--do JS --until2 JS]
                               [--eval JS --eval-out FILE] [--touch] [--tap SELECTOR]
 Opens URL in a new tab, waits until the JS expression is true (default: the viewer page says
 it has settled), then writes the DOM and/or a PNG. Exit 0 when the condition held, 1 on a
 timeout (the DOM is still written, to show what the page said). With --then, once the first
 condition holds the shell command runs and the page must then reach --until2 (a server
-killed under a connected page, for instance). --eval writes the JSON value of an expression
+killed under a connected page, for instance); --do runs a script in the page instead (a
+click).  --eval writes the JSON value of an expression
 (the layout of an element, say) evaluated when the screenshot is taken. --touch emulates a
 touch screen; --tap SELECTOR, once the first condition holds, touches the element's centre
 with a touch start and end (Input.dispatchTouchEvent), as a finger would."""
@@ -80,6 +82,7 @@ def main():
     ap.add_argument("--dom")
     ap.add_argument("--screenshot")
     ap.add_argument("--size", default="1280x900")
+    ap.add_argument("--do")
     ap.add_argument("--then")
     ap.add_argument("--until2")
     ap.add_argument("--eval")
@@ -101,6 +104,9 @@ def main():
         pt = [{"x": box[0], "y": box[1]}]
         tab.call("Input.dispatchTouchEvent", type="touchStart", touchPoints=pt)
         tab.call("Input.dispatchTouchEvent", type="touchEnd", touchPoints=[])
+    if ok and a.do:
+        tab.eval(a.do)
+        ok = wait(tab, a.until2 or "true", a.timeout)
     if ok and a.then:
         subprocess.run(a.then, shell=True)
         ok = wait(tab, a.until2 or "true", a.timeout)

@@ -18,6 +18,7 @@ $(eval $(call marie_link,$(B)/tests/bin/viewer-gen,tests/viewer/viewer_gen.c,))
 EXTRA_TARGETS += $(B)/tests/bin/viewer-gen
 ITESTS += tests/viewer/test_viewer.sh
 ITESTS += tests/viewer/test_viewer_controls.sh
+ITESTS += tests/viewer/test_viewer_graph.sh
 
 $(eval $(call marie_bench,bench_viewer,tools/viewer/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen

@@ -369,13 +369,19 @@ static void send_hello(viewer_t *v, int id)
     viewer_send(v, id, head, (size_t)n, false);
 }
 
-static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
+/* The page's controls (the viewer's table and the system graph): signed manager orders. */
+static void do_order(viewer_t *v, int id, const char *cmd, const char *target, const char *host)
 {
-    int op = strcmp(cmd, "pause") == 0 ? MARIE_AM_ORDER_T_OP_PAUSE
-           : strcmp(cmd, "resume") == 0 ? MARIE_AM_ORDER_T_OP_RESUME
-           : strcmp(cmd, "restart") == 0 ? MARIE_AM_ORDER_T_OP_RESTART : -1;
-    if (op < 0 || !target || !*target) {
+    int op = marie_am_op_parse(cmd);
+    bool allowed = op == MARIE_AM_ORDER_T_OP_PAUSE || op == MARIE_AM_ORDER_T_OP_RESUME ||
+                   op == MARIE_AM_ORDER_T_OP_RESTART || op == MARIE_AM_ORDER_T_OP_STOP ||
+                   op == MARIE_AM_ORDER_T_OP_START || op == MARIE_AM_ORDER_T_OP_MOVE;
+    if (!allowed || !target || !*target) {
         viewer_notice(v, id, "error", "unknown order");
+        return;
+    }
+    if (op == MARIE_AM_ORDER_T_OP_MOVE && (!host || !*host)) {
+        viewer_notice(v, id, "error", "move needs a host");
         return;
     }
     int64_t seq = marie_auth_next_seq(NULL);
@@ -385,7 +391,8 @@ static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
     char *targets[1] = {(char *)target};
     marie_am_order_t o = {
         .utime = marie_wall_us(), .sender = v->sender, .seq = seq, .host = "*", .op = (int8_t)op,
-        .ntargets = 1, .targets = targets, .arg = "", .system_path = "", .system_text = "",
+        .ntargets = 1, .targets = targets, .arg = (char *)(op == MARIE_AM_ORDER_T_OP_MOVE ? host : ""),
+        .system_path = "", .system_text = "",
     };
     uint8_t mac[MARIE_AUTH_MAC_LEN];
     char msg[300];
@@ -393,7 +400,8 @@ static void do_order(viewer_t *v, int id, const char *cmd, const char *target)
         viewer_notice(v, id, "error", "cannot send the order");
         return;
     }
-    snprintf(msg, sizeof msg, "order sent: %s %s (seq %lld)", cmd, target, (long long)seq);
+    snprintf(msg, sizeof msg, "order sent: %s %s%s%s (seq %lld)", cmd, target, op == MARIE_AM_ORDER_T_OP_MOVE ? " to " : "",
+             op == MARIE_AM_ORDER_T_OP_MOVE ? host : "", (long long)seq);
     marie_info("viewer: %s", msg);
     viewer_notice(v, -1, "info", msg);
 }
@@ -453,7 +461,7 @@ static void handle_cmd(void *user, int client, bool hello, const char *text, siz
             }
         } else {
             do_order(v, client, vj_cmd_str(&cmd, "cmd") ? vj_cmd_str(&cmd, "cmd") : "",
-                     vj_cmd_str(&cmd, "target"));
+                     vj_cmd_str(&cmd, "target"), vj_cmd_str(&cmd, "host"));
         }
     } else if (v->live) {
         viewer_notice(v, client, "error", "playback commands need a log");
@@ -610,6 +618,8 @@ static int init_viewer(marie_component_t *c)
         {"/index.html", "index.html", "text/html; charset=utf-8"},
         {"/viewer.js", "viewer.js", "text/javascript; charset=utf-8"},
         {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
+        {"/graph.html", "graph.html", "text/html; charset=utf-8"},
+        {"/graph.js", "graph.js", "text/javascript; charset=utf-8"},
     };
     webserve_cfg_t wc = {
         .bind = marie_param_str(c, "bind"), .port = (int)marie_param_int(c, "http_port"), .www = v->www,
