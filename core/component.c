@@ -381,6 +381,15 @@ lcm_t *marie_component_lcm(marie_component_t *c) { return c->buses[0].lcm; }
 int64_t marie_component_now(const marie_component_t *c) { return marie_loop_now(c->loop); }
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c) { return c->cfg; }
 
+/* 1 Hz, or four beats within the manager's heartbeat_timeout when that is shorter than 4 s, so
+ * a quick detection (down to a few hundred ms) never sees a silence that is only the period. */
+static int64_t heartbeat_period_us(const marie_component_t *c)
+{
+    double t = c->cfg ? c->cfg->heartbeat_timeout_s : 0;
+    int64_t p = t > 0 && t < 4 ? (int64_t)(t / 4 * 1e6) : 1000000;
+    return p < 20000 ? 20000 : p;
+}
+
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv, void *user,
                                           marie_errors_t *errs)
 {
@@ -446,7 +455,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         if (marie_loop_add_lcm(c->loop, c->buses[i].lcm, 1) < 0)
             goto err_runtime;
     if (!lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
-        !marie_loop_add_wall_timer(c->loop, 1000000, on_heartbeat_timer, c))
+        !marie_loop_add_wall_timer(c->loop, heartbeat_period_us(c), on_heartbeat_timer, c))
         goto err_runtime;
     if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {
         /* A fast simulator sends clock bursts; LCM's default queue (30) would drop ticks. */
