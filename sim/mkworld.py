@@ -61,7 +61,7 @@ def office_world(d):
     g.border(t)
     cy0, cy1 = 13.5, 16.5                 # main corridor along x
     cx0, cx1 = 18.5, 21.5                 # cross corridor along y
-    door = 1.6                            # wide enough for a 0.3 m robot radius plus margin
+    door = 1.1                            # a real office door; the 0.3 m robot plus 0.1 m clearance leaves 0.3 m
     # Corridor walls, with one door per room.
     room_x = [t, 8.0, 14.0, cx0, cx1, 26.0, 33.0, W - t]
     for (ya, yb) in ((cy0 - wt, cy0), (cy1, cy1 + wt)):
@@ -95,7 +95,28 @@ def office_world(d):
         g.rect(x0, y0, x1, y1)
     g.rect(5.0, 14.6, 5.4, 15.0)          # a pillar in the corridor
     g.write(d, "office", "marie office world: 40x30 m, corridors y 13.5-16.5 and x 18.5-21.5, "
-            "14 rooms with 1.6 m doors")
+            "14 rooms with 1.1 m doors")
+
+
+def small_world(d):
+    # 10 x 6 m for a robot of 0.18 m radius: three rooms joined by a 0.6 m door and a 0.7 m
+    # corridor, and a 0.5 m slot into a closet. None of it is passable at the default 0.3 m.
+    g = Grid(10.0, 6.0, 0.05)
+    g.border(0.1)
+    g.rect(4.0, 0.1, 4.2, 2.7)            # west wall, door y 2.7..3.3 (0.6 m)
+    g.rect(4.0, 3.3, 4.2, 5.9)
+    g.rect(7.0, 0.1, 7.2, 2.0)            # east block: a corridor y 2.0..2.7 (0.7 m) from x 7.0
+    g.rect(7.2, 1.8, 9.0, 2.0)            # to x 9.0, then south into the south-east room
+    g.rect(7.0, 2.7, 9.9, 2.9)
+    g.rect(7.0, 2.9, 7.2, 3.5)            # north-east room, door y 3.5..4.1 (0.6 m)
+    g.rect(7.0, 4.1, 7.2, 5.9)
+    g.rect(7.2, 4.2, 8.6, 4.4)            # closet wall, slot x 8.6..9.1 (0.5 m)
+    g.rect(9.1, 4.2, 9.9, 4.4)
+    for (x0, y0, x1, y1) in ((1.0, 1.0, 1.6, 1.4), (2.5, 4.5, 3.0, 5.2), (5.2, 0.8, 5.6, 1.6),
+                             (5.5, 4.6, 6.3, 5.0), (8.0, 0.6, 8.6, 1.0)):
+        g.rect(x0, y0, x1, y1)            # furniture, so places differ for localisation
+    g.write(d, "small", "marie small-robot world: 10x6 m, a 0.6 m door at x 4.0-4.2 y 2.7-3.3, "
+            "a 0.7 m corridor y 2.0-2.7 x 7.0-9.0, a 0.6 m door x 7.0-7.2 y 3.5-4.1, a 0.5 m slot x 8.6-9.1 y 4.2-4.4")
 
 
 if __name__ == "__main__":
@@ -103,3 +124,4 @@ if __name__ == "__main__":
     os.makedirs(out, exist_ok=True)
     test_world(out)
     office_world(out)
+    small_world(out)

@@ -62,6 +62,7 @@ static const marie_param_spec_t params[] = {
     { "start_theta", MARIE_PARAM_DOUBLE, "0.0", "rad" },
     { "start", MARIE_PARAM_STRING, "given", "given: start_x/start_y exactly, refused if the robot would stand in or on "
       "a wall or off the map; auto: the free spot nearest start_x/start_y with room for the robot" },
+    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the chassis (the system file's robot.radius)" },
     { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
     { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
     { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder ticks per wheel turn" },
@@ -320,7 +321,8 @@ static int place_robot(marie_component_t *c, const occmap_t *map, sim_params_t *
 {
     const char *how = marie_param_str(c, "start");
     double lx, ly;
-    sim_world_footprint(&lx, &ly);
+    sim_world_footprint(p, &lx, &ly);
+    marie_info("robot: chassis %.2f x %.2f m (robot_radius %.2f)", lx, ly, p->robot_radius);
     if (strcmp(how, "auto") == 0) {
         double x, y;
         if (occmap_nearest_clear(map, p->start_x, p->start_y, hypot(lx, ly) / 2 + 0.05, &x, &y) < 0) {
@@ -384,6 +386,7 @@ static int on_init(marie_component_t *c)
     p.start_x = marie_param_double(c, "start_x");
     p.start_y = marie_param_double(c, "start_y");
     p.start_theta = marie_param_double(c, "start_theta");
+    p.robot_radius = marie_param_double(c, "robot_radius");
     if (place_robot(c, map, &p) < 0)
         goto fail;
     p.wheel_radius = marie_param_double(c, "wheel_radius");

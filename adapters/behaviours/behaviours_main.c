@@ -321,9 +321,18 @@ static int init(marie_component_t *c)
     b->p.omega_max = marie_param_double(c, "omega_max");
     b->p.goal_tolerance = marie_param_double(c, "goal_tolerance");
     b->p.stale_pose_s = marie_param_double(c, "stale_pose_s");
+    /* The avoid corridor follows the robot's size unless set on its own: the footprint and half
+     * its clearance to the side, and the same ahead of the laser before stopping. */
+    double radius = marie_param_double(c, "robot_radius"), margin = marie_param_double(c, "robot_clearance") / 2;
     b->p.half_width = marie_param_double(c, "half_width");
     b->p.stop_distance = marie_param_double(c, "stop_distance");
     b->p.slow_distance = marie_param_double(c, "slow_distance");
+    if (b->p.half_width <= 0)
+        b->p.half_width = radius + margin;
+    if (b->p.stop_distance <= 0)
+        b->p.stop_distance = radius + margin;
+    if (b->p.slow_distance <= 0)
+        b->p.slow_distance = b->p.stop_distance + 0.25;
     b->p.stale_scan_s = marie_param_double(c, "stale_scan_s");
     b->p.estop_required = marie_param_bool(c, "estop_required");
     b->p.stale_estop_s = marie_param_double(c, "stale_estop_s");
@@ -395,9 +404,11 @@ static const marie_param_spec_t params[] = {
     { "omega_max", MARIE_PARAM_DOUBLE, "1.2", "rad/s" },
     { "goal_tolerance", MARIE_PARAM_DOUBLE, "0.15", "m: the path is done this close to its end" },
     { "stale_pose_s", MARIE_PARAM_DOUBLE, "0.5", "s: older poses are not followed" },
-    { "half_width", MARIE_PARAM_DOUBLE, "0.35", "m: half the swept corridor checked by avoid" },
-    { "stop_distance", MARIE_PARAM_DOUBLE, "0.35", "m ahead: stop and turn away" },
-    { "slow_distance", MARIE_PARAM_DOUBLE, "0.6", "m ahead: slow down and turn away" },
+    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the footprint (the system file's robot.radius)" },
+    { "robot_clearance", MARIE_PARAM_DOUBLE, "0.1", "m: margin kept beyond it (robot.clearance)" },
+    { "half_width", MARIE_PARAM_DOUBLE, "0", "m: half the swept corridor checked by avoid (0: robot_radius + robot_clearance/2)" },
+    { "stop_distance", MARIE_PARAM_DOUBLE, "0", "m ahead: stop and turn away (0: robot_radius + robot_clearance/2)" },
+    { "slow_distance", MARIE_PARAM_DOUBLE, "0", "m ahead: slow down and turn away (0: stop_distance + 0.25)" },
     { "stale_scan_s", MARIE_PARAM_DOUBLE, "1.0", "s" },
     { "estop_required", MARIE_PARAM_BOOL, "false", "no fresh e-stop state counts as pressed" },
     { "estop_immediate", MARIE_PARAM_BOOL, "true", "a press on estop_now stops the robot at once, between cycles" },

@@ -13,7 +13,7 @@
 /* The parameters, each declared once in `params` below. */
 typedef struct {
     const char *map, *algorithm;
-    double robot_radius, clearance, time_limit, range, obstacle_ttl, horizon, check_hz, replan_min_s,
+    double robot_radius, robot_clearance, time_limit, range, obstacle_ttl, horizon, check_hz, replan_min_s,
         republish_s, laser_x, laser_y, laser_theta;
     bool unknown_is_free, use_scan;
     int64_t seed;
@@ -289,7 +289,7 @@ static int init(marie_component_t *c)
     planner_params_t p;
     planner_params_default(&p);
     p.robot_radius = q->robot_radius;
-    p.clearance = q->clearance;
+    p.clearance = q->robot_clearance;
     p.time_limit = q->time_limit;
     p.range = q->range;
     p.obstacle_ttl = q->obstacle_ttl;
@@ -302,7 +302,7 @@ static int init(marie_component_t *c)
         return -1;
     }
     if (!(p.robot_radius >= 0) || !(p.clearance >= 0) || !(p.time_limit > 0)) {
-        marie_component_fail_reason(c, "bad planner parameters (robot_radius, clearance >= 0, time_limit > 0)");
+        marie_component_fail_reason(c, "bad planner parameters (robot_radius, robot_clearance >= 0, time_limit > 0)");
         return -1;
     }
     s->params = p;
@@ -348,8 +348,8 @@ static const marie_port_spec_t ports[] = {
 
 static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(pln_params_t, map, STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)"),
-    MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint"),
-    MARIE_PARAM_AT(pln_params_t, clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (the map is inflated by both)"),
+    MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint (the system file's robot.radius)"),
+    MARIE_PARAM_AT(pln_params_t, robot_clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (robot.clearance; the map is inflated by both)"),
     MARIE_PARAM_AT(pln_params_t, algorithm, STRING, "rrtconnect", "rrtconnect or prm"),
     MARIE_PARAM_AT(pln_params_t, time_limit, DOUBLE, "1.0", "s per planning attempt"),
     MARIE_PARAM_AT(pln_params_t, range, DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)"),
