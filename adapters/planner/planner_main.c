@@ -109,6 +109,21 @@ static void on_goal(marie_component_t *c, marie_port_t *p, const void *msg, cons
         plan(c, s, "new goal");
 }
 
+/* The behaviours saw no progress along the path: forget the laser obstacles (a phantom may
+ * be what closes the way) and plan afresh. */
+static void on_replan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_goal_t *m = msg;
+    if (!s->have_goal || m->id != s->goal.id || !s->pl)
+        return;
+    marie_component_count(c, "replans_asked", 1);
+    marie_info("goal %d: the robot makes no progress: laser obstacles forgotten, planning again", m->id);
+    planner_clear_obstacles(s->pl);
+    if (s->have_pose)
+        plan(c, s, "no progress");
+}
+
 static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     pln_t *s = marie_component_user(c);
@@ -329,7 +344,8 @@ static int init(marie_component_t *c)
     s->last_plan = s->last_check = s->last_publish = INT64_MIN / 2;
     if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
         marie_port_on_message(marie_port(c, "scan"), on_scan) ||
-        marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "map"), on_map)) {
+        marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "map"), on_map) ||
+        marie_port_on_message(marie_port(c, "replan"), on_replan)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
     }
@@ -342,6 +358,7 @@ static const marie_port_spec_t ports[] = {
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
     { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
     { "map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "MAP" },
+    { "replan", &marie_type_goal_t, MARIE_IN, MARIE_PUSH, "REPLAN" },
     { "path", &marie_type_path_t, MARIE_OUT, MARIE_PUSH, "PATH" },
     { 0 },
 };
