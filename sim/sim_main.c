@@ -45,6 +45,7 @@ static const marie_port_spec_t ports[] = {
     { "clock", &marie_type_sim_clock_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_CLOCK },
     { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
     { "estop_set", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "SIM_ESTOP" },
+    { "teleport", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "SIM_TELEPORT" },
     { NULL },
 };
 
@@ -169,6 +170,20 @@ static void on_estop_set(marie_component_t *c, marie_port_t *p, const void *msg,
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "estop", "e-stop %s by %s",
                               m->pressed ? "pressed" : "released", m->source ? m->source : "?");
     }
+}
+
+/* The kidnapped robot: carried to another pose with no wheel turning (tests, evaluation). */
+static void on_teleport(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    sim_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    if (!s->world || sim_world_teleport(s->world, m->pose.x, m->pose.y, m->pose.theta) < 0) {
+        marie_component_bad_input(c, "bad_teleport", "cannot carry the robot to (%g, %g, %g): not a free spot",
+                                  m->pose.x, m->pose.y, m->pose.theta);
+        return;
+    }
+    marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "teleport", "robot carried to (%.2f, %.2f, %.2f)", m->pose.x,
+                          m->pose.y, m->pose.theta);
 }
 
 /* The drivers' channels (channel mode only): encoders, gyro, laser. */
@@ -468,6 +483,7 @@ static int on_init(marie_component_t *c)
     s->p_clock = marie_port(c, "clock");
     marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
+    marie_port_on_message(marie_port(c, "teleport"), on_teleport);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
                sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->speed,
                s->lockstep > 0 ? ", lockstep" : "");

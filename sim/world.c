@@ -37,6 +37,7 @@ struct sim_world {
     dGeomID chassis_geom, wheel_geom[2], caster_geom[2];
     dJointID hinge[2];
     dGeomID ray;
+    occmap_t *map;              /* where the robot may be carried to */
     long nwalls;
     int64_t steps;
     int wall_contacts;
@@ -107,6 +108,29 @@ void sim_world_footprint(const sim_params_t *p, double *lx, double *ly)
     *ly = CHASSIS_LY * body_scale(p);
 }
 
+int sim_world_teleport(sim_world_t *w, double x, double y, double theta)
+{
+    double lx, ly;
+    sim_world_footprint(&w->p, &lx, &ly);
+    if (!isfinite(x) || !isfinite(y) || !isfinite(theta) || !occmap_footprint_clear(w->map, x, y, theta, lx, ly)) {
+        errno = EINVAL;
+        return -1;
+    }
+    place(w->chassis, 0, 0, CHASSIS_Z, x, y, theta);
+    for (int k = 0; k < 2; k++)
+        place(w->wheel[k], 0, (k == 0 ? 1 : -1) * w->p.track / 2, w->p.wheel_radius, x, y, theta);
+    dBodySetLinearVel(w->chassis, 0, 0, 0);
+    dBodySetAngularVel(w->chassis, 0, 0, 0);
+    for (int k = 0; k < 2; k++) {
+        dBodySetLinearVel(w->wheel[k], 0, 0, 0);
+        dBodySetAngularVel(w->wheel[k], 0, 0, 0);
+        const dReal *hp = dBodyGetPosition(w->wheel[k]);
+        dJointSetHingeAnchor(w->hinge[k], hp[0], hp[1], hp[2]);
+        dJointSetHingeAxis(w->hinge[k], -sin(theta), cos(theta), 0);
+    }
+    return 0;
+}
+
 sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
 {
     pthread_once(&ode_once, ode_init);
@@ -120,6 +144,11 @@ sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
     if (!w)
         return NULL;
     w->p = *p;
+    w->map = occmap_from_cells(map->width, map->height, map->resolution, map->origin_x, map->origin_y, 0, map->cells);
+    if (!w->map) {
+        free(w);
+        return NULL;
+    }
     sim_rng_seed(&w->rng, p->seed);
     /* ODE's own generator is process-wide; reseed it so runs repeat (dWorldStep is exact and
      * does not use it, but contact generation may). */
@@ -216,6 +245,7 @@ void sim_world_destroy(sim_world_t *w)
         dJointGroupDestroy(w->contacts);
     if (w->world)
         dWorldDestroy(w->world);
+    occmap_destroy(w->map);
     free(w);
 }
 

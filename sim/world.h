@@ -55,6 +55,10 @@ void sim_world_set_wheels(sim_world_t *w, double left, double right);   /* rad/s
 void sim_world_set_estop(sim_world_t *w, bool pressed);
 bool sim_world_estop(const sim_world_t *w);
 
+/* Carry the robot to a pose (the kidnapped robot): it lands at rest, its wheels did not turn,
+ * so odometry sees nothing. -1 (EINVAL) when the chassis would not stand free there. */
+int sim_world_teleport(sim_world_t *w, double x, double y, double theta);
+
 /* Advance one fixed step. */
 void sim_world_step(sim_world_t *w);
 int64_t sim_world_time_us(const sim_world_t *w);
