@@ -46,6 +46,34 @@ static double open_side(const arb_inputs_t *in)
     return l >= r ? 1 : -1;
 }
 
+/* What is left to drive: from the nearest point of the path to its end, along it. A winding path
+ * (a maze) takes the robot away from its goal for a while, which is still progress. */
+static double remaining(const arb_inputs_t *in)
+{
+    const double *P = in->path;
+    int n = in->npath, best = 0;
+    double bd = INFINITY, bt = 0;
+    for (int i = 0; i + 1 < n; i++) {
+        double ax = P[3 * i], ay = P[3 * i + 1], dx = P[3 * i + 3] - ax, dy = P[3 * i + 4] - ay;
+        double l2 = dx * dx + dy * dy, t = l2 > 0 ? ((in->pose[0] - ax) * dx + (in->pose[1] - ay) * dy) / l2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        double d = hypot(ax + t * dx - in->pose[0], ay + t * dy - in->pose[1]);
+        if (d < bd) {
+            bd = d;
+            best = i;
+            bt = t;
+        }
+    }
+    if (n < 2)
+        return hypot(P[0] - in->pose[0], P[1] - in->pose[1]);
+    double left = bd;
+    for (int i = best; i + 1 < n; i++) {
+        double seg = hypot(P[3 * i + 3] - P[3 * i], P[3 * i + 4] - P[3 * i + 1]);
+        left += i == best ? (1 - bt) * seg : seg;
+    }
+    return left;
+}
+
 int rec_step(const rec_params_t *p, rec_state_t *s, double now_s, const arb_params_t *ap, const arb_inputs_t *in,
              int win, const arb_vote_t votes[ARB_COUNT], double *v, double *omega, bool *replan)
 {
@@ -57,7 +85,7 @@ int rec_step(const rec_params_t *p, rec_state_t *s, double now_s, const arb_para
         return REC_NONE;
     }
     double ex = in->path[3 * (in->npath - 1)], ey = in->path[3 * (in->npath - 1) + 1];
-    double d = hypot(ex - in->pose[0], ey - in->pose[1]);
+    double d = remaining(in), d_end = hypot(ex - in->pose[0], ey - in->pose[1]);
     if (in->path_goal != s->goal || fabs(ex - s->end[0]) > 0.5 || fabs(ey - s->end[1]) > 0.5) {
         /* A new goal starts with a clean slate; a replanned path for the same goal keeps the level. */
         if (in->path_goal != s->goal)
@@ -96,11 +124,11 @@ int rec_step(const rec_params_t *p, rec_state_t *s, double now_s, const arb_para
         case REC_BACKOFF: {
             /* Head for a point past the trouble: towards the goal, and off to whichever side of
              * that line the scan finds more open, the further the more recoveries it took. */
-            double ux = (ex - in->pose[0]) / fmax(d, 1e-6), uy = (ey - in->pose[1]) / fmax(d, 1e-6);
+            double ux = (ex - in->pose[0]) / fmax(d_end, 1e-6), uy = (ey - in->pose[1]) / fmax(d_end, 1e-6);
             double side = open_side(in), h = in->pose[2];
             double lx = -sin(h) * side, ly = cos(h) * side;          /* the open side, in the map */
             double sgn = (-uy * lx + ux * ly) >= 0 ? 1 : -1;          /* ... left or right of the line */
-            double ahead = fmin(p->detour_ahead, d), off = p->detour_side * s->level;
+            double ahead = fmin(p->detour_ahead, d_end), off = p->detour_side * s->level;
             s->target[0] = in->pose[0] + ux * ahead - uy * sgn * off;
             s->target[1] = in->pose[1] + uy * ahead + ux * sgn * off;
             s->stage = REC_ROTATE;

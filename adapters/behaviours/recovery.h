@@ -13,7 +13,7 @@ extern "C" {
 #endif
 
 typedef struct {
-    double stuck_s;             /* s without min_progress towards the path's end (0: off) */
+    double stuck_s;             /* s without min_progress along the path (0: off) */
     double min_progress;        /* m */
     double backoff_s, backoff_v;/* s, m/s (the laser sees only ahead: short and slow) */
     double rotate_s;            /* s at most turning to face the detour's target */
@@ -29,7 +29,7 @@ enum { REC_NONE = 0, REC_REPLAN, REC_BACKOFF, REC_ROTATE, REC_DETOUR };
 typedef struct {
     int32_t goal;               /* path goal being watched */
     double end[2];
-    double best;                /* nearest the robot came to the path's end */
+    double best;                /* least path left to drive so far */
     double best_t;              /* when it did */
     int stage;
     double stage_end;
