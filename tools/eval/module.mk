@@ -9,4 +9,3 @@ EXTRA_TARGETS += $(EVAL_WORLDS)
 $(eval $(call marie_bench,bench_eval,tools/eval/bench_eval.c,))
 $(B)/bench/bench_eval: | $(B)/bin/marie-eval $(EVAL_WORLDS) $(B)/bin/marie-sim $(B)/bin/marie-odometry \
     $(B)/bin/marie-localizer $(B)/bin/marie-planner $(B)/bin/marie-behaviours
-ITESTS += tests/nav/test_eval.sh
