@@ -196,6 +196,9 @@ int marie_comp_bind_params(marie_component_t *c, const options_t *o, marie_error
         const char *name = pa->spec->name;
         size_t nlen = strlen(name);
         pa->node = marie_node_get(given, name);
+        /* robot_radius and the like: the system file's one robot description. */
+        if (!pa->node && c->sys && c->sys->robot && strncmp(name, "robot_", 6) == 0)
+            pa->node = marie_node_get(c->sys->robot, name + 6);
         for (size_t i = 0; i < o->nparams; i++) {
             if (strncmp(o->params[i], name, nlen) == 0 && o->params[i][nlen] == '=') {
                 char label[128];

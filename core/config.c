@@ -311,6 +311,11 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
             char *p = c->params ? marie_node_canonical(c->params) : NULL;
             fprintf(f, "%s", p ? p : "~");
             free(p);
+            /* The robot's shape reaches components' parameters, so it is part of how they run. */
+            char *rb = sys->robot ? marie_node_canonical(sys->robot) : NULL;
+            if (rb)
+                fprintf(f, " robot=%s", rb);
+            free(rb);
             break;
         }
         case F_RESTART:
@@ -447,7 +452,7 @@ static const marie_node_t *find_profile(const marie_node_t *root, const char *pr
                          "no profile '%s' in this file", profile);
         return NULL;
     }
-    static const char *const keys[] = {"components", "remove", "clock", NULL};
+    static const char *const keys[] = {"components", "remove", "clock", "robot", NULL};
     if (marie_node_check_keys(p, keys, "profile", errs) < 0)
         return NULL;
     return p;
@@ -505,7 +510,7 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         goto err;
     const marie_node_t *root = marie_doc_root(sys->doc), *v;
     static const char *const top_keys[] = {"system", "lcm_url", "clock", "auth", "hosts", "defaults",
-                                           "components", "profiles", "manager", "balance", NULL};
+                                           "components", "profiles", "manager", "balance", "robot", NULL};
     if (marie_node_check_keys(root, top_keys, "the system file", errs) < 0)
         goto err;
     const char *s;
@@ -556,6 +561,28 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
             sys->clock = MARIE_CLOCK_SIM;
         else if (strcmp(s, "wall") != 0)
             marie_node_error(errs, v, "clock: expected wall or sim, got '%s'", s);
+    }
+    /* One description of the robot's shape, for every component that needs it (a profile's
+     * robot replaces the base one whole). */
+    const marie_node_t *rb = marie_node_get(prof, "robot");
+    if ((v = rb ? rb : marie_node_get(root, "robot"))) {
+        static const char *const keys[] = {"radius", "clearance", NULL};
+        double d;
+        if (v->kind != MARIE_NODE_MAP) {
+            marie_node_error(errs, v, "robot: expected a mapping such as {radius: 0.3}");
+            goto err;
+        }
+        if (marie_node_check_keys(v, keys, "robot", errs) < 0)
+            goto err;
+        for (size_t i = 0; i < v->n; i++) {
+            if (marie_node_double(v->items[i], &d, errs) < 0)
+                goto err;
+            if (!(d >= 0)) {
+                marie_node_error(errs, v->items[i], "robot.%s: must not be negative", v->items[i]->key);
+                goto err;
+            }
+        }
+        sys->robot = v;
     }
     const marie_node_t *pcomps = marie_node_get(prof, "components");
     if (pcomps && pcomps->kind != MARIE_NODE_MAP) {

@@ -112,6 +112,8 @@ typedef struct marie_system {
     marie_clock_kind_t clock;
     char *key_file;             /* order authentication key, or NULL */
     char **hosts; size_t nhosts;
+    const marie_node_t *robot;  /* `robot:` (the profile's when it has one): a component parameter
+                                   robot_KEY not set in its entry takes robot.KEY; NULL: none */
     marie_component_cfg_t *components; size_t ncomponents;
     marie_component_cfg_t **by_name;   /* private: sorted by name for lookups */
     marie_doc_t *doc;

@@ -52,6 +52,7 @@ static const marie_port_spec_t ports[] = {
     { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
     { "estop_set", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "SIM_ESTOP" },
     { "audio", &marie_type_audio_frame_t, MARIE_OUT, MARIE_PUSH, "AUDIO" },
+    { "teleport", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "SIM_TELEPORT" },
     { NULL },
 };
 
@@ -69,6 +70,7 @@ static const marie_param_spec_t params[] = {
     { "start_theta", MARIE_PARAM_DOUBLE, "0.0", "rad" },
     { "start", MARIE_PARAM_STRING, "given", "given: start_x/start_y exactly, refused if the robot would stand in or on "
       "a wall or off the map; auto: the free spot nearest start_x/start_y with room for the robot" },
+    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the chassis (the system file's robot.radius)" },
     { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
     { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
     { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder ticks per wheel turn" },
@@ -182,6 +184,20 @@ static void on_estop_set(marie_component_t *c, marie_port_t *p, const void *msg,
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "estop", "e-stop %s by %s",
                               m->pressed ? "pressed" : "released", m->source ? m->source : "?");
     }
+}
+
+/* The kidnapped robot: carried to another pose with no wheel turning (tests, evaluation). */
+static void on_teleport(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    sim_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    if (!s->world || sim_world_teleport(s->world, m->pose.x, m->pose.y, m->pose.theta) < 0) {
+        marie_component_bad_input(c, "bad_teleport", "cannot carry the robot to (%g, %g, %g): not a free spot",
+                                  m->pose.x, m->pose.y, m->pose.theta);
+        return;
+    }
+    marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "teleport", "robot carried to (%.2f, %.2f, %.2f)", m->pose.x,
+                          m->pose.y, m->pose.theta);
 }
 
 /* The drivers' channels (channel mode only): encoders, gyro, laser. */
@@ -344,7 +360,8 @@ static int place_robot(marie_component_t *c, const occmap_t *map, sim_params_t *
 {
     const char *how = marie_param_str(c, "start");
     double lx, ly;
-    sim_world_footprint(&lx, &ly);
+    sim_world_footprint(p, &lx, &ly);
+    marie_info("robot: chassis %.2f x %.2f m (robot_radius %.2f)", lx, ly, p->robot_radius);
     if (strcmp(how, "auto") == 0) {
         double x, y;
         if (occmap_nearest_clear(map, p->start_x, p->start_y, hypot(lx, ly) / 2 + 0.05, &x, &y) < 0) {
@@ -412,6 +429,7 @@ static int on_init(marie_component_t *c)
     p.start_x = marie_param_double(c, "start_x");
     p.start_y = marie_param_double(c, "start_y");
     p.start_theta = marie_param_double(c, "start_theta");
+    p.robot_radius = marie_param_double(c, "robot_radius");
     if (place_robot(c, map, &p) < 0)
         goto fail;
     p.wheel_radius = marie_param_double(c, "wheel_radius");
@@ -499,6 +517,7 @@ static int on_init(marie_component_t *c)
     s->p_camera = marie_port(c, "camera");
     marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
+    marie_port_on_message(marie_port(c, "teleport"), on_teleport);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
                sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->speed,
                s->lockstep > 0 ? ", lockstep" : "");

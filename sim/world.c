@@ -37,6 +37,7 @@ struct sim_world {
     dGeomID chassis_geom, wheel_geom[2], caster_geom[2];
     dJointID hinge[2];
     dGeomID ray;
+    occmap_t *map;              /* where the robot may be carried to */
     long nwalls;
     int64_t steps;
     int wall_contacts;
@@ -94,10 +95,40 @@ static void place(dBodyID b, double x, double y, double z, double ox, double oy,
     dBodySetRotation(b, R);
 }
 
-void sim_world_footprint(double *lx, double *ly)
+/* The chassis keeps its proportions; robot_radius (the system file's robot.radius, shared with
+ * the planner and behaviours) is the circle around it. */
+static double body_scale(const sim_params_t *p)
 {
-    *lx = CHASSIS_LX;
-    *ly = CHASSIS_LY;
+    return p->robot_radius > 0 ? p->robot_radius / hypot(CHASSIS_LX / 2, CHASSIS_LY / 2) : 1.0;
+}
+
+void sim_world_footprint(const sim_params_t *p, double *lx, double *ly)
+{
+    *lx = CHASSIS_LX * body_scale(p);
+    *ly = CHASSIS_LY * body_scale(p);
+}
+
+int sim_world_teleport(sim_world_t *w, double x, double y, double theta)
+{
+    double lx, ly;
+    sim_world_footprint(&w->p, &lx, &ly);
+    if (!isfinite(x) || !isfinite(y) || !isfinite(theta) || !occmap_footprint_clear(w->map, x, y, theta, lx, ly)) {
+        errno = EINVAL;
+        return -1;
+    }
+    place(w->chassis, 0, 0, CHASSIS_Z, x, y, theta);
+    for (int k = 0; k < 2; k++)
+        place(w->wheel[k], 0, (k == 0 ? 1 : -1) * w->p.track / 2, w->p.wheel_radius, x, y, theta);
+    dBodySetLinearVel(w->chassis, 0, 0, 0);
+    dBodySetAngularVel(w->chassis, 0, 0, 0);
+    for (int k = 0; k < 2; k++) {
+        dBodySetLinearVel(w->wheel[k], 0, 0, 0);
+        dBodySetAngularVel(w->wheel[k], 0, 0, 0);
+        const dReal *hp = dBodyGetPosition(w->wheel[k]);
+        dJointSetHingeAnchor(w->hinge[k], hp[0], hp[1], hp[2]);
+        dJointSetHingeAxis(w->hinge[k], -sin(theta), cos(theta), 0);
+    }
+    return 0;
 }
 
 sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
@@ -113,6 +144,11 @@ sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
     if (!w)
         return NULL;
     w->p = *p;
+    w->map = occmap_from_cells(map->width, map->height, map->resolution, map->origin_x, map->origin_y, 0, map->cells);
+    if (!w->map) {
+        free(w);
+        return NULL;
+    }
     sim_rng_seed(&w->rng, p->seed);
     /* ODE's own generator is process-wide; reseed it so runs repeat (dWorldStep is exact and
      * does not use it, but contact generation may). */
@@ -150,18 +186,20 @@ sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
 
     /* Robot. */
     double ox = p->start_x, oy = p->start_y, th = p->start_theta, r = p->wheel_radius;
+    double lx, ly, caster_x = CASTER_X * body_scale(p);
+    sim_world_footprint(p, &lx, &ly);
     dMass m;
     w->chassis = dBodyCreate(w->world);
-    dMassSetBoxTotal(&m, CHASSIS_MASS, CHASSIS_LX, CHASSIS_LY, CHASSIS_LZ);
+    dMassSetBoxTotal(&m, CHASSIS_MASS, lx, ly, CHASSIS_LZ);
     dBodySetMass(w->chassis, &m);
     place(w->chassis, 0, 0, CHASSIS_Z, ox, oy, th);
-    w->chassis_geom = dCreateBox(0, CHASSIS_LX, CHASSIS_LY, CHASSIS_LZ);
+    w->chassis_geom = dCreateBox(0, lx, ly, CHASSIS_LZ);
     dGeomSetBody(w->chassis_geom, w->chassis);
     for (int k = 0; k < 2; k++) {
         /* casters: frictionless spheres fixed under the chassis, front and back */
         w->caster_geom[k] = dCreateSphere(0, CASTER_R);
         dGeomSetBody(w->caster_geom[k], w->chassis);
-        dGeomSetOffsetPosition(w->caster_geom[k], k ? -CASTER_X : CASTER_X, 0, CASTER_R - CHASSIS_Z);
+        dGeomSetOffsetPosition(w->caster_geom[k], k ? -caster_x : caster_x, 0, CASTER_R - CHASSIS_Z);
     }
     for (int k = 0; k < 2; k++) {
         double y = (k == 0 ? 1 : -1) * p->track / 2;   /* 0 = left (+y), 1 = right */
@@ -207,6 +245,7 @@ void sim_world_destroy(sim_world_t *w)
         dJointGroupDestroy(w->contacts);
     if (w->world)
         dWorldDestroy(w->world);
+    occmap_destroy(w->map);
     free(w);
 }
 

@@ -16,6 +16,7 @@ typedef struct {
     double step;                /* s, fixed physics step (0.005) */
     uint64_t seed;              /* sensor noise; same seed and inputs -> same trajectory */
     double start_x, start_y, start_theta;  /* m, m, rad in the map frame */
+    double robot_radius;        /* m: the chassis is scaled to fit this circle (0: 0.50 x 0.34 m) */
     /* drive */
     double wheel_radius;        /* m (0.1) */
     double track;               /* m between the wheels' contact points (0.4) */
@@ -42,7 +43,7 @@ typedef struct sim_world sim_world_t;
 /* Build the world: one static box per merged wall rectangle, the robot at the start pose.
  * NULL with errno set on failure. The map may be freed afterwards. */
 /* Length and width of the robot's chassis, m: what must fit where it starts. */
-void sim_world_footprint(double *lx, double *ly);
+void sim_world_footprint(const sim_params_t *p, double *lx, double *ly);
 sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p);
 void sim_world_destroy(sim_world_t *w);                 /* NULL is a no-op */
 
@@ -53,6 +54,10 @@ void sim_world_set_wheels(sim_world_t *w, double left, double right);   /* rad/s
 /* Pressed e-stop: the drives brake to zero and ignore commands until released. */
 void sim_world_set_estop(sim_world_t *w, bool pressed);
 bool sim_world_estop(const sim_world_t *w);
+
+/* Carry the robot to a pose (the kidnapped robot): it lands at rest, its wheels did not turn,
+ * so odometry sees nothing. -1 (EINVAL) when the chassis would not stand free there. */
+int sim_world_teleport(sim_world_t *w, double x, double y, double theta);
 
 /* Advance one fixed step. */
 void sim_world_step(sim_world_t *w);

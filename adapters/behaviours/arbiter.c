@@ -242,5 +242,11 @@ int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, ar
      * it, which brings the wall ahead, avoid turns back to the open side, and so on. */
     if (win == ARB_AVOID && below != ARB_IDLE && votes[below].v == 0 && votes[below].omega != 0)
         win = below;
+    /* Avoid knows what is near, the path (planned on the inflated map) which way is open: at a
+     * corridor's corner the more open side of the scan is often the wrong one. Avoid keeps its
+     * speed; it turns the way the path goes when the path clearly turns. */
+    if (win == ARB_AVOID && votes[ARB_FOLLOW].active && fabs(votes[ARB_FOLLOW].omega) > 0.2 &&
+        votes[ARB_AVOID].omega * votes[ARB_FOLLOW].omega < 0)
+        votes[ARB_AVOID].omega = -votes[ARB_AVOID].omega;
     return win;
 }

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "adapters/behaviours/arbiter.h"
+#include "adapters/behaviours/recovery.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
 
@@ -26,6 +27,8 @@ struct beh {
     marie_component_t *c;
     arb_params_t p;
     arb_state_t st;
+    rec_params_t rp;
+    rec_state_t rs;
     bool pull;
     int pull_timeout_ms;
     input_t in[IN_COUNT];
@@ -162,8 +165,23 @@ static void decide(beh_t *b)
         marie_component_bad_input(c, "non_finite_command", "%s voted a non-finite command", votes[win].name);
         votes[win].v = votes[win].omega = 0;
     }
-    marie_motor_command_t cmd = { .utime = now, .v = votes[win].v, .omega = votes[win].omega,
-                                  .source = (char *)votes[win].name };
+    double v = votes[win].v, w = votes[win].omega;
+    const char *winner = votes[win].name;
+    bool replan = false;
+    int stage = rec_step(&b->rp, &b->rs, (double)now / 1e6, &b->p, &in, win, votes, &v, &w, &replan);
+    if (replan) {
+        marie_component_count(c, "recoveries", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "no_progress",
+                              "goal %d: no progress for %.0f s (%s winning), recovery %d: replan, back off, rotate, detour",
+                              (int)in.path_goal, b->rp.stuck_s, votes[win].name, b->rs.level);
+        marie_goal_t g = { .utime = now, .id = in.path_goal, .name = "" };
+        marie_port_publish(marie_port(c, "replan"), &g);
+    }
+    if (stage != REC_NONE) {
+        winner = "recovery";
+        marie_component_count(c, rec_stage_name(stage), 1);
+    }
+    marie_motor_command_t cmd = { .utime = now, .v = v, .omega = w, .source = (char *)winner };
     marie_port_publish(marie_port(c, "cmd"), &cmd);
 
     marie_behaviour_vote_t mv[ARB_COUNT];
@@ -175,10 +193,10 @@ static void decide(beh_t *b)
     for (int i = 0; i < IN_COUNT; i++)
         ages[i] = (marie_input_age_t){ .name = (char *)in_ports[i], .age = age_s(b, i, now) };
     marie_arbitration_t rec = { .utime = now, .cycle = b->cycle, .nvotes = ARB_COUNT, .votes = mv,
-                                .winner = (char *)votes[win].name, .v = cmd.v, .omega = cmd.omega,
+                                .winner = (char *)winner, .v = cmd.v, .omega = cmd.omega,
                                 .ninputs = IN_COUNT, .inputs = ages };
     marie_port_publish(marie_port(c, "arbitration"), &rec);
-    marie_component_count(c, votes[win].name, 1);
+    marie_component_count(c, winner, 1);
 }
 
 static void on_pulled(marie_component_t *c, marie_port_t *p, int status, const void *msg, int64_t age_us, void *user)
@@ -280,6 +298,13 @@ static void abort_hook(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     beh_t *b = marie_component_user(c);
+    /* Who drove, in one line: a livelock shows as avoid winning most cycles. */
+    if (b->cycle > 0)
+        marie_info("cycles %lld: estop %lld, avoid %lld, teleop %lld, follow_path %lld, idle %lld, recovery %lld "
+                   "(recoveries %lld)", (long long)b->cycle, (long long)marie_component_counter(c, "estop"),
+                   (long long)marie_component_counter(c, "avoid"), (long long)marie_component_counter(c, "teleop"),
+                   (long long)marie_component_counter(c, "follow_path"), (long long)marie_component_counter(c, "idle"),
+                   (long long)marie_component_counter(c, "recovery"), (long long)b->rs.recoveries);
     for (int i = 0; i < IN_COUNT; i++)
         if (b->in[i].sub) {
             lcm_unsubscribe(marie_component_lcm(c), b->in[i].sub);
@@ -321,13 +346,26 @@ static int init(marie_component_t *c)
     b->p.omega_max = marie_param_double(c, "omega_max");
     b->p.goal_tolerance = marie_param_double(c, "goal_tolerance");
     b->p.stale_pose_s = marie_param_double(c, "stale_pose_s");
+    /* The avoid corridor follows the robot's size unless set on its own: the footprint and half
+     * its clearance to the side, and the same ahead of the laser before stopping. */
+    double radius = marie_param_double(c, "robot_radius"), margin = marie_param_double(c, "robot_clearance") / 2;
     b->p.half_width = marie_param_double(c, "half_width");
     b->p.stop_distance = marie_param_double(c, "stop_distance");
     b->p.slow_distance = marie_param_double(c, "slow_distance");
+    if (b->p.half_width <= 0)
+        b->p.half_width = radius + margin;
+    if (b->p.stop_distance <= 0)
+        b->p.stop_distance = radius + margin;
+    if (b->p.slow_distance <= 0)
+        b->p.slow_distance = b->p.stop_distance + 0.25;
     b->p.stale_scan_s = marie_param_double(c, "stale_scan_s");
     b->p.estop_required = marie_param_bool(c, "estop_required");
     b->p.stale_estop_s = marie_param_double(c, "stale_estop_s");
     b->p.teleop_timeout_s = marie_param_double(c, "teleop_timeout_s");
+    rec_params_default(&b->rp);
+    b->rp.stuck_s = marie_param_double(c, "stuck_s");
+    b->rp.detour_s = marie_param_double(c, "detour_s");
+    rec_state_reset(&b->rs);
     if (b->p.slow_distance <= b->p.stop_distance) {
         marie_component_fail_reason(c, "slow_distance must be greater than stop_distance");
         return -1;
@@ -379,6 +417,7 @@ static const marie_port_spec_t ports[] = {
     { "estop_now", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "ESTOP" },
     { "cmd", &marie_type_motor_command_t, MARIE_OUT, MARIE_PUSH, "MOTOR_COMMAND" },
     { "arbitration", &marie_type_arbitration_t, MARIE_OUT, MARIE_PUSH, "ARBITRATION" },
+    { "replan", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "REPLAN" },
     { 0 },
 };
 
@@ -395,13 +434,17 @@ static const marie_param_spec_t params[] = {
     { "omega_max", MARIE_PARAM_DOUBLE, "1.2", "rad/s" },
     { "goal_tolerance", MARIE_PARAM_DOUBLE, "0.15", "m: the path is done this close to its end" },
     { "stale_pose_s", MARIE_PARAM_DOUBLE, "0.5", "s: older poses are not followed" },
-    { "half_width", MARIE_PARAM_DOUBLE, "0.35", "m: half the swept corridor checked by avoid" },
-    { "stop_distance", MARIE_PARAM_DOUBLE, "0.35", "m ahead: stop and turn away" },
-    { "slow_distance", MARIE_PARAM_DOUBLE, "0.6", "m ahead: slow down and turn away" },
+    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the footprint (the system file's robot.radius)" },
+    { "robot_clearance", MARIE_PARAM_DOUBLE, "0.1", "m: margin kept beyond it (robot.clearance)" },
+    { "half_width", MARIE_PARAM_DOUBLE, "0", "m: half the swept corridor checked by avoid (0: robot_radius + robot_clearance/2)" },
+    { "stop_distance", MARIE_PARAM_DOUBLE, "0", "m ahead: stop and turn away (0: robot_radius + robot_clearance/2)" },
+    { "slow_distance", MARIE_PARAM_DOUBLE, "0", "m ahead: slow down and turn away (0: stop_distance + 0.25)" },
     { "stale_scan_s", MARIE_PARAM_DOUBLE, "1.0", "s" },
     { "estop_required", MARIE_PARAM_BOOL, "false", "no fresh e-stop state counts as pressed" },
     { "estop_immediate", MARIE_PARAM_BOOL, "true", "a press on estop_now stops the robot at once, between cycles" },
     { "stale_estop_s", MARIE_PARAM_DOUBLE, "2.0", "s" },
+    { "stuck_s", MARIE_PARAM_DOUBLE, "10", "s without 0.3 m of progress towards the path's end before a recovery (0: never)" },
+    { "detour_s", MARIE_PARAM_DOUBLE, "4", "s of the recovery's detour, times its escalation level (up to 4)" },
     { "teleop_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: teleop is active while its commands are this recent" },
     { 0 },
 };

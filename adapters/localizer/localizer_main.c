@@ -26,6 +26,12 @@ typedef struct {
     double odom_timeout_s;      /* scans this much newer than the odometry give no pose */
     double resume_max_age_s;
     int64_t first_pub_utime;    /* utime of this run's first pose; 0 before */
+    /* Kidnapping: a fit this poor for this many updates means the robot is not where the
+     * filter thinks; it then starts again over the whole map and says so in its heartbeat. */
+    double kidnap_likelihood, relocalized_likelihood, relocalized_sigma;
+    int kidnap_updates, poor, good;
+    bool relocalizing;
+    int64_t lost_since;         /* scan time the loss was declared */
 } loc_t;
 
 static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
@@ -46,6 +52,43 @@ static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
     free(x);
 }
 
+/* After each filter update: true while the robot is lost and no pose should be published
+ * (a wrong pose would steer it; a stale one stops it). */
+static bool watch_kidnap(marie_component_t *c, loc_t *s, int64_t utime)
+{
+    if (s->kidnap_likelihood <= 0)
+        return false;
+    double lik = mcl_likelihood(s->f);
+    if (!s->relocalizing) {
+        s->poor = lik < s->kidnap_likelihood ? s->poor + 1 : 0;
+        if (s->poor < s->kidnap_updates)
+            return false;
+        s->relocalizing = true;
+        s->lost_since = utime;
+        s->good = 0;
+        mcl_init_global(s->f);
+        marie_component_count(c, "kidnaps_detected", 1);
+        marie_component_set_degraded(c, true, "lost: relocalizing over the whole map");
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "lost", "scan fit %.2f below %.2f for %d updates: "
+                              "the robot is not where it was thought; global relocalization", lik,
+                              s->kidnap_likelihood, s->poor);
+        return true;
+    }
+    double pose[3], cov[9];
+    mcl_estimate(s->f, pose, cov);
+    bool tight = sqrt(fmax(cov[0], 0) + fmax(cov[4], 0)) < s->relocalized_sigma;
+    s->good = lik >= s->relocalized_likelihood && tight ? s->good + 1 : 0;
+    if (s->good < s->kidnap_updates)
+        return true;
+    s->relocalizing = false;
+    s->poor = 0;
+    marie_component_count(c, "relocalizations", 1);
+    marie_component_set_degraded(c, false, "%s", "localized");
+    marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "relocalized", "relocalized at (%.2f, %.2f, %.2f) after %.1f s, "
+                          "scan fit %.2f", pose[0], pose[1], pose[2], (double)(utime - s->lost_since) / 1e6, lik);
+    return false;
+}
+
 static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *scan)
 {
     double odom[3];
@@ -59,11 +102,14 @@ static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *sc
         marie_component_count(c, "scans_stale_odometry", 1);
         return;
     }
-    bool force = s->force_left > 0;
-    if (force)
+    bool force = s->force_left > 0 || s->relocalizing;
+    if (s->force_left > 0)
         s->force_left--;
-    if (mcl_step(s->f, odom, &ms, force))
+    if (mcl_step(s->f, odom, &ms, force)) {
         marie_component_count(c, "filter_updates", 1);
+        if (watch_kidnap(c, s, scan->utime))
+            return;
+    }
     marie_pose_cov_t out = { .utime = scan->utime, .frame = "map" };
     double pose[3];
     mcl_pose_at(s->f, odom, pose, out.cov);
@@ -255,6 +301,13 @@ static int init(marie_component_t *c)
     s->odom_timeout_s = marie_param_double(c, "odom_timeout_s");
     s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
     s->first_pub_utime = 0;
+    s->kidnap_likelihood = marie_param_double(c, "kidnap_likelihood");
+    s->relocalized_likelihood = marie_param_double(c, "relocalized_likelihood");
+    s->relocalized_sigma = marie_param_double(c, "relocalized_sigma");
+    s->kidnap_updates = (int)marie_param_int(c, "kidnap_updates");
+    s->poor = s->good = 0;
+    s->relocalizing = false;
+    marie_component_set_degraded(c, false, "%s", "localized");
     marie_errors_t errs = { 0 };
     occmap_t *map = occmap_load(marie_param_str(c, "map"), &errs);
     if (!map) {
@@ -359,6 +412,11 @@ static const marie_param_spec_t params[] = {
     { "resample_ess", MARIE_PARAM_DOUBLE, "0.5", "resample below this effective sample fraction" },
     { "recovery", MARIE_PARAM_BOOL, "true", "inject random particles when the likelihood drops" },
     { "lost_likelihood", MARIE_PARAM_DOUBLE, "0.25", "mean per-beam likelihood below which the robot is lost" },
+    { "kidnap_likelihood", MARIE_PARAM_DOUBLE, "0.15", "scan fit below which, kidnap_updates times running, the "
+      "robot is lost: relocalize over the whole map (0: never)" },
+    { "kidnap_updates", MARIE_PARAM_INT, "8", "filter updates of poor (or, relocalizing, good) fit before deciding" },
+    { "relocalized_likelihood", MARIE_PARAM_DOUBLE, "0.4", "scan fit that ends a relocalization ..." },
+    { "relocalized_sigma", MARIE_PARAM_DOUBLE, "0.3", "m: ... with the estimate's position spread below this" },
     { "seed", MARIE_PARAM_INT, "1", "random seed (same seed and log: same output)" },
     { "cloud_hz", MARIE_PARAM_DOUBLE, "1", "particle cloud rate (0: never)" },
     { "cloud_max", MARIE_PARAM_INT, "2000", "particles per cloud message at most" },

@@ -1,6 +1,7 @@
 // planner: OMPL geometric planning in R2 over an inflated occupancy grid. The inflation comes
 // from an OpenCV distance transform; laser obstacles are stamped as robot-radius disks.
 #include "adapters/planner/planner.h"
+#include "map/gridpath.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -196,6 +197,45 @@ extern "C" bool planner_free(const planner_t *pl, double x, double y)
     return pl->free_xy(x, y);
 }
 
+// Sampling rarely finds a passage barely wider than the robot; the grid search always does.
+static int grid_plan(planner_t *pl, const double start[3], const double goal[3], double sx, double sy, double gx,
+                     double gy, double **poses, int *n)
+{
+    size_t nc = (size_t)pl->w_ * pl->h_;
+    std::vector<uint8_t> pass(nc);
+    for (size_t i = 0; i < nc; i++)
+        pass[i] = pl->static_free_[i] && pl->dyn_[i] == 0;
+    auto cell = [pl](double x, double y) {
+        return (int)std::floor((y - pl->oy_) / pl->res_) * pl->w_ + (int)std::floor((x - pl->ox_) / pl->res_);
+    };
+    int *cells = nullptr, nn = 0;
+    if (gridpath_find(pl->w_, pl->h_, pass.data(), cell(sx, sy), cell(gx, gy), &cells, &nn) < 0)
+        return errno == ENOMEM ? -ENOMEM : -ENOENT;
+    nn = gridpath_shortcut(pl->w_, pl->h_, pass.data(), cells, nn);
+    std::vector<std::pair<double, double>> pts;
+    pts.emplace_back(start[0], start[1]);
+    for (int i = 1; i + 1 < nn; i++)
+        pts.emplace_back(pl->ox_ + (cells[i] % pl->w_ + 0.5) * pl->res_, pl->oy_ + (cells[i] / pl->w_ + 0.5) * pl->res_);
+    std::free(cells);
+    if (sx != start[0] || sy != start[1])
+        pts.insert(pts.begin() + 1, {sx, sy});
+    if (gx != goal[0] || gy != goal[1])
+        pts.emplace_back(gx, gy);
+    pts.emplace_back(goal[0], goal[1]);
+    double *out = (double *)std::malloc(pts.size() * 3 * sizeof(double));
+    if (!out)
+        return -ENOMEM;
+    for (size_t i = 0; i < pts.size(); i++) {
+        out[3 * i] = pts[i].first;
+        out[3 * i + 1] = pts[i].second;
+        out[3 * i + 2] = i + 1 < pts.size() ? std::atan2(pts[i + 1].second - pts[i].second, pts[i + 1].first - pts[i].first)
+                                             : goal[2];
+    }
+    *poses = out;
+    *n = (int)pts.size();
+    return 0;
+}
+
 extern "C" int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n)
 {
     *poses = nullptr;
@@ -216,7 +256,7 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
         ss.setStartAndGoalStates(s, g);
         ob::PlannerStatus st = ss.solve(pl->p_.time_limit);
         if (st != ob::PlannerStatus::EXACT_SOLUTION)
-            return -ENOENT;
+            return grid_plan(pl, start, goal, sx, sy, gx, gy, poses, n);
         og::PathGeometric path = ss.getSolutionPath();
         if (pl->p_.simplify_time > 0) {
             // Shortcutting works on the path's states: give it enough of them (one per

@@ -13,7 +13,7 @@
 /* The parameters, each declared once in `params` below. */
 typedef struct {
     const char *map, *algorithm;
-    double robot_radius, clearance, time_limit, range, obstacle_ttl, horizon, check_hz, replan_min_s,
+    double robot_radius, robot_clearance, time_limit, range, obstacle_ttl, horizon, check_hz, replan_min_s,
         republish_s, laser_x, laser_y, laser_theta;
     bool unknown_is_free, use_scan;
     int64_t seed;
@@ -107,6 +107,21 @@ static void on_goal(marie_component_t *c, marie_port_t *p, const void *msg, cons
     s->want_plan = true;
     if (s->have_pose)
         plan(c, s, "new goal");
+}
+
+/* The behaviours saw no progress along the path: forget the laser obstacles (a phantom may
+ * be what closes the way) and plan afresh. */
+static void on_replan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    const marie_goal_t *m = msg;
+    if (!s->have_goal || m->id != s->goal.id || !s->pl)
+        return;
+    marie_component_count(c, "replans_asked", 1);
+    marie_info("goal %d: the robot makes no progress: laser obstacles forgotten, planning again", m->id);
+    planner_clear_obstacles(s->pl);
+    if (s->have_pose)
+        plan(c, s, "no progress");
 }
 
 static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -289,7 +304,7 @@ static int init(marie_component_t *c)
     planner_params_t p;
     planner_params_default(&p);
     p.robot_radius = q->robot_radius;
-    p.clearance = q->clearance;
+    p.clearance = q->robot_clearance;
     p.time_limit = q->time_limit;
     p.range = q->range;
     p.obstacle_ttl = q->obstacle_ttl;
@@ -302,7 +317,7 @@ static int init(marie_component_t *c)
         return -1;
     }
     if (!(p.robot_radius >= 0) || !(p.clearance >= 0) || !(p.time_limit > 0)) {
-        marie_component_fail_reason(c, "bad planner parameters (robot_radius, clearance >= 0, time_limit > 0)");
+        marie_component_fail_reason(c, "bad planner parameters (robot_radius, robot_clearance >= 0, time_limit > 0)");
         return -1;
     }
     s->params = p;
@@ -329,7 +344,8 @@ static int init(marie_component_t *c)
     s->last_plan = s->last_check = s->last_publish = INT64_MIN / 2;
     if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
         marie_port_on_message(marie_port(c, "scan"), on_scan) ||
-        marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "map"), on_map)) {
+        marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "map"), on_map) ||
+        marie_port_on_message(marie_port(c, "replan"), on_replan)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
     }
@@ -342,14 +358,15 @@ static const marie_port_spec_t ports[] = {
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
     { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
     { "map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "MAP" },
+    { "replan", &marie_type_goal_t, MARIE_IN, MARIE_PUSH, "REPLAN" },
     { "path", &marie_type_path_t, MARIE_OUT, MARIE_PUSH, "PATH" },
     { 0 },
 };
 
 static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(pln_params_t, map, STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)"),
-    MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint"),
-    MARIE_PARAM_AT(pln_params_t, clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (the map is inflated by both)"),
+    MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint (the system file's robot.radius)"),
+    MARIE_PARAM_AT(pln_params_t, robot_clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (robot.clearance; the map is inflated by both)"),
     MARIE_PARAM_AT(pln_params_t, algorithm, STRING, "rrtconnect", "rrtconnect or prm"),
     MARIE_PARAM_AT(pln_params_t, time_limit, DOUBLE, "1.0", "s per planning attempt"),
     MARIE_PARAM_AT(pln_params_t, range, DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)"),

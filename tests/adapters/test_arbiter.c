@@ -8,6 +8,7 @@
 #include <cmocka.h>
 
 #include "adapters/behaviours/arbiter.h"
+#include "adapters/behaviours/recovery.h"
 
 static float open_scan[181];
 
@@ -262,10 +263,70 @@ static void test_turn_in_a_doorway_is_not_vetoed(void **state)
     assert_true(closest > 0.25);
 }
 
+/* The progress watch: a robot held in place on a path for stuck_s gets a recovery (replan
+ * asked once, then back off, face the detour point, drive), which ends at the detour point; a
+ * robot making way never does, nor one under e-stop. */
+static void test_recovery_when_no_progress(void **state)
+{
+    arb_params_t ap;
+    arb_params_default(&ap);
+    rec_params_t rp;
+    rec_params_default(&rp);
+    rec_state_t rs;
+    rec_state_reset(&rs);
+    double path[6] = { 0, 0, 0, 10, 0, 0 };
+    arb_inputs_t in = base_inputs();
+    in.path = path;
+    in.npath = 2;
+    in.path_age = 0.1;
+    in.pose_age = 0.05;
+    in.path_goal = 3;
+    arb_vote_t votes[ARB_COUNT];
+    arb_state_t st;
+    arb_state_reset(&st);
+    double v, w;
+    bool replan;
+    int replans = 0, stage = REC_NONE;
+    /* Making way: 0.1 m/s for 30 s. */
+    for (int k = 0; k < 150; k++) {
+        in.pose[0] = 0.02 * k;
+        int win = arb_decide(&ap, &st, &in, votes);
+        stage = rec_step(&rp, &rs, k * 0.2, &ap, &in, win, votes, &v, &w, &replan);
+        assert_int_equal(stage, REC_NONE);
+    }
+    /* Held at x = 3 (something ahead): a recovery after stuck_s. */
+    int first = -1, seen[REC_DETOUR + 1] = { 0 };
+    for (int k = 150; k < 300; k++) {
+        in.pose[0] = 3.0;
+        int win = arb_decide(&ap, &st, &in, votes);
+        stage = rec_step(&rp, &rs, k * 0.2, &ap, &in, win, votes, &v, &w, &replan);
+        replans += replan;
+        seen[stage]++;
+        if (stage != REC_NONE && first < 0)
+            first = k;
+        if (stage == REC_BACKOFF)
+            assert_true(v < 0 && w == 0);
+        if (stage == REC_ROTATE)
+            assert_true(v == 0 && w != 0);
+    }
+    /* stuck_s after the last 0.3 m of progress, which came at most 3 s before the hold. */
+    assert_true(first >= 150 + (int)(rp.stuck_s / 0.2) - 16 && first <= 150 + (int)(rp.stuck_s / 0.2) + 1);
+    assert_true(replans >= 1);
+    assert_true(seen[REC_REPLAN] && seen[REC_BACKOFF] && seen[REC_ROTATE] && seen[REC_DETOUR]);
+    assert_true(rs.recoveries >= 1);
+    /* The e-stop wins over a recovery. */
+    in.estop_pressed = true;
+    in.estop_age = 0.05;
+    int win = arb_decide(&ap, &st, &in, votes);
+    assert_int_equal(win, ARB_ESTOP);
+    assert_int_equal(rec_step(&rp, &rs, 61, &ap, &in, win, votes, &v, &w, &replan), REC_NONE);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_idle_without_inputs),
+        cmocka_unit_test(test_recovery_when_no_progress),
         cmocka_unit_test(test_follow_drives_along_path),
         cmocka_unit_test(test_follow_stops_at_end_and_on_stale_pose),
         cmocka_unit_test(test_estop_beats_everything),

@@ -173,6 +173,38 @@ static void test_prm_reuses_roadmap(void **state)
     occmap_destroy(m);
 }
 
+/* The small-robot world's 0.6 m door: closed to Spartacus' footprint (0.3 m + 0.1 m), open to
+ * the small profile's (0.18 m + 0.06 m), and the path found (the grid search behind OMPL when
+ * sampling misses the narrow passage) keeps the small footprint off the walls. */
+static void test_small_footprint_passes_the_06m_door(void **state)
+{
+    marie_errors_t e = { 0 };
+    occmap_t *m = occmap_load("sim/worlds/small.yaml", &e);
+    assert_non_null(m);
+    planner_params_t p;
+    planner_params_default(&p);
+    p.time_limit = 0.2;
+    double s[3] = { 1.5, 3.0, 0 }, g[3] = { 5.5, 3.0, 0 };
+    planner_t *big = planner_create(m, &p, 1);
+    assert_non_null(big);
+    double *P = NULL;
+    int n = 0;
+    assert_int_not_equal(planner_plan(big, s, g, &P, &n), 0);
+    planner_destroy(big);
+    p.robot_radius = 0.18;
+    p.clearance = 0.06;
+    planner_t *small = planner_create(m, &p, 1);
+    assert_non_null(small);
+    assert_int_equal(planner_plan(small, s, g, &P, &n), 0);
+    assert_path_clear(small, m, P, n, p.robot_radius);
+    double len = path_length(P, n);
+    printf("small world path through the 0.6 m door: %d poses, %.2f m\n", n, len);
+    assert_true(len < 1.2 * hypot(g[0] - s[0], g[1] - s[1]));
+    free(P);
+    planner_destroy(small);
+    occmap_destroy(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -181,6 +213,7 @@ int main(void)
         cmocka_unit_test(test_laser_obstacle_blocks_and_replans),
         cmocka_unit_test(test_map_change_invalidates_path),
         cmocka_unit_test(test_prm_reuses_roadmap),
+        cmocka_unit_test(test_small_footprint_passes_the_06m_door),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -505,6 +505,63 @@ static void loading_time_grows_linearly(void **state)
     free(large);
 }
 
+/* The robot's shape is declared once, at the top of the system file: a component's robot_radius
+ * comes from it unless its own entry sets one; a profile's robot replaces it and changes the
+ * hash of the components that read it; bad values are refused with their position. */
+typedef struct {
+    double robot_radius, robot_clearance, other;
+} robot_params_t;
+static const marie_param_spec_t robot_params[] = {
+    MARIE_PARAM_AT(robot_params_t, robot_radius, DOUBLE, "0.3", "m"),
+    MARIE_PARAM_AT(robot_params_t, robot_clearance, DOUBLE, "0.1", "m"),
+    MARIE_PARAM_AT(robot_params_t, other, DOUBLE, "1", ""),
+    {0},
+};
+
+static void the_robot_section_feeds_robot_params(void **state)
+{
+    marie_errors_t e = {0};
+    const char *text = "system: r\nrobot: {radius: 0.18, clearance: 0.05}\n"
+                       "components:\n  a: {exec: a}\n  b: {exec: b, params: {robot_radius: 0.5}}\n"
+                       "profiles:\n  big:\n    robot: {radius: 0.4}\n";
+    char *path = write_tmp(text, strlen(text));
+    static const marie_port_spec_t no_ports[] = {{0}};
+    marie_component_def_t def = {.kind = "shaped", .ports = no_ports, .params = robot_params,
+                                 .params_size = sizeof(robot_params_t)};
+    char *argv_a[] = {"shaped", "--system", path, "--name", "a"};
+    marie_component_t *c = marie_component_create(&def, 5, argv_a, NULL, &e);
+    assert_non_null(c);
+    const robot_params_t *p = marie_component_params(c);
+    assert_true(p->robot_radius == 0.18 && p->robot_clearance == 0.05 && p->other == 1);
+    marie_component_destroy(c);
+    char *argv_b[] = {"shaped", "--system", path, "--name", "b"};
+    c = marie_component_create(&def, 5, argv_b, NULL, &e);
+    assert_non_null(c);
+    assert_true(((const robot_params_t *)marie_component_params(c))->robot_radius == 0.5);
+    marie_component_destroy(c);
+    char *argv_big[] = {"shaped", "--system", path, "--name", "a", "--profile", "big"};
+    c = marie_component_create(&def, 7, argv_big, NULL, &e);
+    assert_non_null(c);
+    p = marie_component_params(c);
+    assert_true(p->robot_radius == 0.4 && p->robot_clearance == 0.1);   /* replaced whole */
+    marie_component_destroy(c);
+    marie_system_t *s1 = marie_system_load(path, NULL, &e), *s2 = marie_system_load(path, "big", &e);
+    assert_non_null(s1);
+    assert_non_null(s2);
+    assert_string_not_equal(marie_system_component(s1, "a")->hash, marie_system_component(s2, "a")->hash);
+    marie_system_destroy(s1);
+    marie_system_destroy(s2);
+    unlink(path);
+    free(path);
+    assert_int_equal(e.n, 0);
+    assert_null(load_text("system: r\nrobot: {radius: -1}\ncomponents: {}\n", NULL, &e));
+    assert_true(has_error(&e, ":2:17: robot.radius: must not be negative"));
+    marie_errors_clear(&e);
+    assert_null(load_text("system: r\nrobot: {radius: 0.2, wheels: 3}\ncomponents: {}\n", NULL, &e));
+    assert_true(has_error(&e, "wheels"));
+    marie_errors_clear(&e);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_OFF);
@@ -527,6 +584,7 @@ int main(void)
         cmocka_unit_test(non_finite_numbers_are_refused),
         cmocka_unit_test(an_oversized_file_gets_a_position),
         cmocka_unit_test(loading_time_grows_linearly),
+        cmocka_unit_test(the_robot_section_feeds_robot_params),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -11,6 +11,8 @@
 #include <cmocka.h>
 
 #include "map/occmap.h"
+#include "map/gridpath.h"
+#include <errno.h>
 
 #define DATA "tests/data/map/"
 
@@ -267,6 +269,42 @@ static void test_office_world_loads(void **state)
     occmap_destroy(m);
 }
 
+/* gridpath: the shortest 8-connected path around a wall, never through a blocked corner, none
+ * when the goal is walled off, and the straightened path keeps only the turning cells. */
+static void test_gridpath(void **state)
+{
+    enum { W = 20, H = 10 };
+    uint8_t pass[W * H];
+    memset(pass, 1, sizeof pass);
+    for (int y = 0; y < 8; y++)
+        pass[y * W + 10] = 0;                       /* a wall at x = 10, open at y 8..9 */
+    int *cells = NULL, n = 0;
+    double len = gridpath_find(W, H, pass, 0 * W + 2, 0 * W + 18, &cells, &n);
+    assert_true(fabs(len - (14 * M_SQRT2 + 4)) < 1e-9);   /* diagonals, but straight past the wall's corners */
+    assert_int_equal(cells[0], 2);
+    assert_int_equal(cells[n - 1], 18);
+    for (int i = 0; i < n; i++)
+        assert_true(pass[cells[i]]);
+    for (int i = 0; i + 1 < n; i++) {               /* 8-connected steps, no corner cut */
+        int ax = cells[i] % W, ay = cells[i] / W, bx = cells[i + 1] % W, by = cells[i + 1] / W;
+        assert_true(abs(ax - bx) <= 1 && abs(ay - by) <= 1);
+        if (ax != bx && ay != by)
+            assert_true(pass[ay * W + bx] && pass[by * W + ax]);
+    }
+    int m = gridpath_shortcut(W, H, pass, cells, n);
+    assert_true(m >= 3 && m < n);
+    assert_int_equal(cells[0], 2);
+    assert_int_equal(cells[m - 1], 18);
+    free(cells);
+    for (int y = 8; y < H; y++)
+        pass[y * W + 10] = 0;                       /* now closed */
+    assert_true(gridpath_find(W, H, pass, 2, 18, &cells, &n) < 0);
+    assert_int_equal(errno, ENOENT);
+    assert_null(cells);
+    assert_true(gridpath_find(W, H, pass, 10, 18, NULL, NULL) < 0);   /* start in the wall */
+    assert_int_equal(errno, EINVAL);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -278,6 +316,7 @@ int main(void)
         cmocka_unit_test(test_small_files_load),
         cmocka_unit_test(test_bad_files),
         cmocka_unit_test(test_office_world_loads),
+        cmocka_unit_test(test_gridpath),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -510,6 +510,10 @@ int Demo::run()
         if (opt_.estop_after_goal > 0)
             estop_tick();
     }
+    // The mission_done event can overtake the mission's last state: wait for the state to agree.
+    int64_t settle = marie_mono_us() + 2000000;
+    while (mission_done_ && reached_ + missed_ < ngoals_ && marie_mono_us() < settle)
+        lcm_handle_timeout(lcm_, 50);
     // Let the last statuses arrive, then stop everything.
     for (int i = 0; i < 10; i++)
         lcm_handle_timeout(lcm_, 50);

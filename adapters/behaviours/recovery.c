@@ -1,0 +1,193 @@
+/* recovery: progress watch and the escalation ladder, as a pure function of each cycle. */
+#include "adapters/behaviours/recovery.h"
+
+#include <math.h>
+#include <string.h>
+
+void rec_params_default(rec_params_t *p)
+{
+    p->stuck_s = 10;
+    p->min_progress = 0.3;
+    p->backoff_s = 2;
+    p->backoff_v = 0.1;
+    p->rotate_s = 4;
+    p->detour_s = 4;
+    p->detour_ahead = 1.5;
+    p->detour_side = 0.8;
+    p->max_level = 4;
+}
+
+void rec_state_reset(rec_state_t *s)
+{
+    memset(s, 0, sizeof *s);
+    s->goal = -1;
+}
+
+const char *rec_stage_name(int stage)
+{
+    static const char *const n[] = { "none", "replan", "back_off", "rotate", "detour" };
+    return stage >= 0 && stage <= REC_DETOUR ? n[stage] : "?";
+}
+
+/* Which side is more open, from the scan: +1 left, -1 right. */
+static double open_side(const arb_inputs_t *in)
+{
+    double l = 0, r = 0;
+    for (int k = 0; in->ranges && k < in->nranges; k++) {
+        double x = in->ranges[k];
+        if (!isfinite(x) || x <= in->range_min)
+            continue;
+        x = fmin(fmin(x, in->range_max), 3.0);
+        if (in->angle_min + k * in->angle_increment > 0)
+            l += x;
+        else
+            r += x;
+    }
+    return l >= r ? 1 : -1;
+}
+
+/* What is left to drive: from the nearest point of the path to its end, along it. A winding path
+ * (a maze) takes the robot away from its goal for a while, which is still progress. */
+static double remaining(const arb_inputs_t *in)
+{
+    const double *P = in->path;
+    int n = in->npath, best = 0;
+    double bd = INFINITY, bt = 0;
+    for (int i = 0; i + 1 < n; i++) {
+        double ax = P[3 * i], ay = P[3 * i + 1], dx = P[3 * i + 3] - ax, dy = P[3 * i + 4] - ay;
+        double l2 = dx * dx + dy * dy, t = l2 > 0 ? ((in->pose[0] - ax) * dx + (in->pose[1] - ay) * dy) / l2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        double d = hypot(ax + t * dx - in->pose[0], ay + t * dy - in->pose[1]);
+        if (d < bd) {
+            bd = d;
+            best = i;
+            bt = t;
+        }
+    }
+    if (n < 2)
+        return hypot(P[0] - in->pose[0], P[1] - in->pose[1]);
+    double left = bd;
+    for (int i = best; i + 1 < n; i++) {
+        double seg = hypot(P[3 * i + 3] - P[3 * i], P[3 * i + 4] - P[3 * i + 1]);
+        left += i == best ? (1 - bt) * seg : seg;
+    }
+    return left;
+}
+
+int rec_step(const rec_params_t *p, rec_state_t *s, double now_s, const arb_params_t *ap, const arb_inputs_t *in,
+             int win, const arb_vote_t votes[ARB_COUNT], double *v, double *omega, bool *replan)
+{
+    *replan = false;
+    bool following = in->path && in->npath > 0 && in->path_status == 0 && votes[ARB_FOLLOW].active;
+    if (p->stuck_s <= 0 || win == ARB_ESTOP || win == ARB_TELEOP || !in->path || in->npath <= 0 || in->pose_age < 0) {
+        s->stage = REC_NONE;
+        s->best_t = now_s;
+        return REC_NONE;
+    }
+    double ex = in->path[3 * (in->npath - 1)], ey = in->path[3 * (in->npath - 1) + 1];
+    double d = remaining(in), d_end = hypot(ex - in->pose[0], ey - in->pose[1]);
+    if (in->path_goal != s->goal || fabs(ex - s->end[0]) > 0.5 || fabs(ey - s->end[1]) > 0.5) {
+        /* A new goal starts with a clean slate; a replanned path for the same goal keeps the level. */
+        if (in->path_goal != s->goal)
+            s->level = 0;
+        s->goal = in->path_goal;
+        s->end[0] = ex;
+        s->end[1] = ey;
+        s->best = d;
+        s->best_t = now_s;
+    }
+    if (s->stage == REC_NONE) {
+        if (!following && win != ARB_AVOID) {
+            s->best_t = now_s;          /* idle or done: nothing to watch */
+            return REC_NONE;
+        }
+        if (d < s->best - p->min_progress) {
+            s->best = d;
+            s->best_t = now_s;
+        }
+        if (now_s - s->best_t < p->stuck_s)
+            return REC_NONE;
+        s->recoveries++;
+        if (s->level < p->max_level)
+            s->level++;
+        s->stage = REC_REPLAN;
+        s->stage_end = now_s + 1.0;
+        *replan = true;
+    }
+    /* Advance through the ladder. */
+    while (s->stage != REC_NONE && now_s >= s->stage_end) {
+        switch (s->stage) {
+        case REC_REPLAN:
+            s->stage = REC_BACKOFF;
+            s->stage_end = now_s + p->backoff_s;
+            break;
+        case REC_BACKOFF: {
+            /* Head for a point past the trouble: towards the goal, and off to whichever side of
+             * that line the scan finds more open, the further the more recoveries it took. */
+            double ux = (ex - in->pose[0]) / fmax(d_end, 1e-6), uy = (ey - in->pose[1]) / fmax(d_end, 1e-6);
+            double side = open_side(in), h = in->pose[2];
+            double lx = -sin(h) * side, ly = cos(h) * side;          /* the open side, in the map */
+            double sgn = (-uy * lx + ux * ly) >= 0 ? 1 : -1;          /* ... left or right of the line */
+            double ahead = fmin(p->detour_ahead, d_end), off = p->detour_side * s->level;
+            s->target[0] = in->pose[0] + ux * ahead - uy * sgn * off;
+            s->target[1] = in->pose[1] + uy * ahead + ux * sgn * off;
+            s->stage = REC_ROTATE;
+            s->stage_end = now_s + p->rotate_s;
+            break;
+        }
+        case REC_ROTATE:
+            s->stage = REC_DETOUR;
+            s->stage_end = now_s + p->detour_s * s->level;
+            break;
+        default:
+            s->stage = REC_NONE;
+            s->best = d;                /* judge progress afresh from here */
+            s->best_t = now_s;
+            return REC_NONE;
+        }
+    }
+    double herr = 0, tdist = 0;
+    if (s->stage == REC_ROTATE || s->stage == REC_DETOUR) {
+        double tx = s->target[0] - in->pose[0], ty = s->target[1] - in->pose[1];
+        herr = remainder(atan2(ty, tx) - in->pose[2], 2 * M_PI);
+        tdist = hypot(tx, ty);
+        if (s->stage == REC_ROTATE && fabs(herr) < 0.2) {
+            s->stage = REC_DETOUR;      /* facing it: go */
+            s->stage_end = now_s + p->detour_s * s->level;
+        }
+        if (s->stage == REC_DETOUR && tdist < 0.3) {
+            s->stage = REC_NONE;
+            s->best = d;
+            s->best_t = now_s;
+            return REC_NONE;
+        }
+    }
+    switch (s->stage) {
+    case REC_REPLAN:
+        *v = 0;
+        *omega = 0;
+        break;
+    case REC_BACKOFF:
+        *v = -p->backoff_v;
+        *omega = 0;
+        break;
+    case REC_ROTATE:
+        *v = 0;
+        *omega = (herr > 0 ? 1 : -1) * fmin(ap->omega_max * 0.7, fmax(0.3, fabs(herr)));
+        break;
+    default:
+        /* Drive to the target; avoid steers round what is ahead and stops short of it. */
+        if (votes[ARB_AVOID].active) {
+            *v = votes[ARB_AVOID].v;
+            *omega = votes[ARB_AVOID].omega;
+        } else if (fabs(herr) > 1.0) {
+            *v = 0;
+            *omega = (herr > 0 ? 0.7 : -0.7) * ap->omega_max;
+        } else {
+            *v = 0.6 * ap->v_max * (1 - fabs(herr) / 1.5);
+            *omega = fmax(-ap->omega_max, fmin(ap->omega_max, 1.5 * herr));
+        }
+        break;
+    }
+    return s->stage;
+}
