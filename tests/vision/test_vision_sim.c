@@ -35,8 +35,8 @@ static void on_landmarks(const lcm_recv_buf_t *rb, const char *ch, const marie_l
             rx.other++;
             continue;
         }
-        /* Sign B per sim/worlds/office.yaml: (12.25, 13.51, 0.5), facing +y. */
-        double e = sqrt(pow(l->x - 12.25, 2) + pow(l->y - 13.51, 2) + pow(l->z - 0.5, 2));
+        /* Sign B per sim/worlds/office.yaml: (12.00, 13.51, 0.5), facing +y. */
+        double e = sqrt(pow(l->x - 12.00, 2) + pow(l->y - 13.51, 2) + pow(l->z - 0.5, 2));
         rx.sign_b++;
         rx.sum += e;
         rx.worst = fmax(rx.worst, e);
@@ -78,7 +78,7 @@ static void run(const char *start_y, const char *pose_channel, int want_landmark
     char pose_port[64];
     snprintf(pose_port, sizeof pose_port, "pose=%s", pose_channel);
     const char *sim[] = { bin("marie-sim"), "--world", "office", "--speed", "2", "--param", "camera=true",
-                          "--param", "camera_size=320x240", "--param", "start_x=12.25", "--param", start_y,
+                          "--param", "camera_size=320x240", "--param", "start_x=12.00", "--param", start_y,
                           "--param", "start_theta=-1.5708", NULL };
     const char *vis[] = { bin("marie-vision"), "--port", pose_port, "--param", "width=320", "--param", "height=240",
                           "--param", "fx=250", "--param", "fy=250", "--param", "cx=159.5", "--param", "cy=119.5",
