@@ -18,3 +18,7 @@ $(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c tests/p
 # The device-mode case runs the real drivers against the simulator.
 $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
 
+
+# Device mode as fast as the computer allows, with the real drivers on the sim clock.
+$(eval $(call marie_test,test_sim_fast_devices,tests/sim/test_sim_fast_devices.c tests/proc.c,))
+$(B)/tests/test_sim_fast_devices: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
