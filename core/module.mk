@@ -14,6 +14,7 @@ $(eval $(call marie_test,test_ports,tests/core/test_ports.c))
 $(eval $(call marie_fuzz,config,tests/core/fuzz_config.c))
 $(eval $(call marie_test,test_typeinfo,tests/core/test_typeinfo.c))
 $(eval $(call marie_test,test_expand,tests/core/test_expand.c))
+$(eval $(call marie_test,test_shm,tests/core/test_shm.c))
 $(eval $(call marie_fuzz,typeinfo,tests/core/fuzz_typeinfo.c))
 $(eval $(call marie_bench,bench_ports,bench/bench_ports.c))
 ITESTS += tests/core/test_decode_rule.sh
