@@ -242,6 +242,46 @@ static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name, int *
     return m;
 }
 
+/* The slot of ref, when it still holds that message (s1 = its sequence number). */
+static slot_hdr_t *slot_of(marie_shm_reader_t *r, const marie_shm_ref_t *ref, uint64_t *s1, int *err)
+{
+    if (ref->seq <= 0) {
+        *err = -EBADMSG;
+        return NULL;
+    }
+    const reader_map_t *m = map_of(r, ref->segment, err);
+    if (!m)
+        return NULL;
+    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
+    slot_hdr_t *s = slot_at(m->base, h, (uint64_t)ref->seq % h->nslots);
+    uint64_t want = 2 * (uint64_t)ref->seq;
+    *s1 = atomic_load_explicit(&s->seq, memory_order_acquire);
+    if (*s1 != want) {
+        *err = *s1 > want ? -ESTALE : -EBADMSG;
+        return NULL;
+    }
+    if (s->size > h->slot_size || s->size != ref->size) {
+        *err = -EAGAIN;         /* a size being rewritten: the slot moved on */
+        return NULL;
+    }
+    return s;
+}
+
+const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref, int *err)
+{
+    uint64_t s1;
+    slot_hdr_t *s = slot_of(r, ref, &s1, err);
+    return s ? (const uint8_t *)s + DATA_OFF : NULL;
+}
+
+bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref)
+{
+    atomic_thread_fence(memory_order_acquire);      /* every use of the bytes before this look */
+    uint64_t s1;
+    int err;
+    return slot_of(r, ref, &s1, &err) != NULL;
+}
+
 int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *buf, size_t cap)
 {
     if (ref->seq <= 0)

@@ -2,6 +2,7 @@
 #ifndef MARIE_SHM_H
 #define MARIE_SHM_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -43,6 +44,13 @@ void marie_shm_reader_destroy(marie_shm_reader_t *r);      /* NULL is a no-op */
  * -EAGAIN (overwritten while copying), -EMSGSIZE (cap too small), -EBADMSG (a ref or segment
  * that makes no sense). Opens and maps the segment the first time it is named. */
 int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *buf, size_t cap);
+
+/* In place, without the copy: the message's bytes inside the mapping (valid until the reader
+ * is destroyed), or NULL with *err as marie_shm_read() says. They may be overwritten at any
+ * moment: use them (decode them) first, then ask marie_shm_still_valid(), and drop whatever
+ * was made of them when it says no. */
+const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref, int *err);
+bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 
 /* Remove /dev/shm/marie-shm.* segments whose writer process is gone. Returns how many. */
 int marie_shm_sweep(void);
