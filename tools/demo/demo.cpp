@@ -510,7 +510,12 @@ int Demo::run()
         if (opt_.estop_after_goal > 0)
             estop_tick();
     }
-    // Let the last statuses arrive, then stop everything.
+    // Let the last statuses arrive, then stop everything. The mission's final state can come
+    // after its mission_done event (it saves to the SharedMap first, 0.3 s when that is down),
+    // and on a busy bus ten handled messages are a few ms: wait on the clock, bounded.
+    for (int64_t end = marie_mono_us() + 1500000;
+         marie_mono_us() < end && (!mission_done_ || reached_ + missed_ < ngoals_);)
+        lcm_handle_timeout(lcm_, 50);
     for (int i = 0; i < 10; i++)
         lcm_handle_timeout(lcm_, 50);
     progress(true);
