@@ -234,10 +234,11 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
     d->st.can_frames_out = vdevices_frames_out(d->dev);
 }
 
-/* Frames in come only from masters (the devices never talk to each other). */
+/* The master's periodic frames (SYNC, heartbeat): not any frame, or another master's SDO
+ * traffic would keep the drives' master for alive. */
 static void note_drivers(sim_devices_t *d)
 {
-    uint64_t in = vdevices_frames_in(d->dev);
+    uint64_t in = vdevices_master_frames_in(d->dev);
     if (in != d->rx_seen) {
         d->rx_seen = in;
         d->last_rx = d->now;

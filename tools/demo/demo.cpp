@@ -457,12 +457,14 @@ int Demo::run()
         return 1;
     }
     start_mono_ = marie_mono_us();
-    lcm_ = lcm_create(nullptr);
+    // marie's URL (an 8 MB receive buffer) and deep queues: a simulation as fast as the computer
+    // allows sends truth and poses in bursts, and a lost one bends the trajectory drawn.
+    lcm_ = lcm_create(marie_default_url());
     if (!lcm_)
         return 1;
     for (const char *ch : {"SIM_TRUTH", "POSE", "GOAL", "MISSION_STATE", "MARIE_EVENT", "MARIE_AM_STATUS",
                            "MARIE_HEARTBEAT"})
-        lcm_subscribe(lcm_, ch, on_raw, this);
+        lcm_subscription_set_queue_capacity(lcm_subscribe(lcm_, ch, on_raw, this), 10000);
     unlink((opt_.out + "/demo.lcm").c_str());
     // Record everything but the particle clouds, which are large and only for the viewer.
     logger_ = spawn({"lcm-logger", "-q", "--channel=^(?!PARTICLES$).*", opt_.out + "/demo.lcm"}, opt_.out + "/logger.log");
