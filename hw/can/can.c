@@ -351,8 +351,9 @@ int can_bus_enable_fd(can_bus_t *bus, bool on)
 
 /* The emulated bus's server takes only 10 packets per client (net.unix.max_dgram_qlen) until it
  * runs again; a real controller's queue drains on the wire by itself. So a full queue there
- * waits a little for the server (a process on this host) instead of losing the frame. */
-#define EMU_TX_WAIT_MS 20
+ * waits for the server (a process on this host) instead of losing the frame: a server that does
+ * not run (a loaded machine, a simulator descheduled) does not advance simulated time either. */
+#define EMU_TX_WAIT_MS 200
 
 static int send_packet(can_bus_t *bus, const void *p, size_t len)
 {
