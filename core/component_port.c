@@ -264,7 +264,11 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
         return NULL;
     }
     c->msgs_out++;
-    pl->timeout = marie_loop_add_wall_oneshot(c->loop, (int64_t)timeout_ms * 1000, on_pull_timeout, pl);
+    /* An asynchronous pull waits on the component's clock (simulated time under --clock sim,
+     * where a paused or lockstepped simulator must not time it out); a blocking one on the
+     * wall clock, so that it always returns. */
+    pl->timeout = (cb ? marie_loop_add_oneshot : marie_loop_add_wall_oneshot)(c->loop, (int64_t)timeout_ms * 1000,
+                                                                             on_pull_timeout, pl);
     c->pulls[c->npulls++] = pl;
     return pl;
 }

@@ -47,6 +47,7 @@ struct marie_loop {
     int in_timers;          /* nesting depth of run_timers (a callback may run the loop) */
     marie_clock_kind_t clock;
     int64_t sim_now;
+    int sim_known;          /* a simulated time has been given */
     int quit;
     int sigpipe[2];
     marie_signal_cb_t on_signal;
@@ -274,6 +275,7 @@ marie_clock_kind_t marie_loop_clock(const marie_loop_t *loop) { return loop->clo
 
 void marie_loop_set_sim_time(marie_loop_t *loop, int64_t utime)
 {
+    loop->sim_known = 1;
     if (utime > loop->sim_now)
         loop->sim_now = utime;
 }
@@ -282,6 +284,9 @@ int64_t marie_loop_now(const marie_loop_t *loop)
 {
     return loop->clock == MARIE_CLOCK_SIM ? loop->sim_now : marie_wall_us();
 }
+
+int64_t marie_loop_mono(const marie_loop_t *loop) { return clock_now(loop, 0); }
+int marie_loop_clock_known(const marie_loop_t *loop) { return loop->clock != MARIE_CLOCK_SIM || loop->sim_known; }
 
 /* Runs due timers once each; returns how many ran. */
 static int run_timers(marie_loop_t *loop)

@@ -57,6 +57,13 @@ void marie_loop_set_clock(marie_loop_t *loop, marie_clock_kind_t kind);
 marie_clock_kind_t marie_loop_clock(const marie_loop_t *loop);
 void marie_loop_set_sim_time(marie_loop_t *loop, int64_t utime);
 int64_t marie_loop_now(const marie_loop_t *loop);       /* microseconds on the loop's clock */
+/* Microseconds on the clock the loop's (non-wall) timers run on: CLOCK_MONOTONIC on the wall
+ * clock, simulated time on the sim clock. Deadlines code keeps itself (a driver's protocol
+ * timeouts) use it, so they follow `--clock sim` as the timers do and never jump with NTP. */
+int64_t marie_loop_mono(const marie_loop_t *loop);
+/* 0 on the sim clock until a simulated time has been given (deadlines taken before would count
+ * from 0 and expire at the first clock message), 1 after it and always on the wall clock. */
+int marie_loop_clock_known(const marie_loop_t *loop);
 
 /* Run one poll round, waiting at most timeout_ms (-1: until an fd or timer is due).
  * Returns the number of callbacks run, or -errno. EINTR is retried. */

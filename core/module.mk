@@ -14,9 +14,12 @@ $(eval $(call marie_test,test_ports,tests/core/test_ports.c))
 $(eval $(call marie_fuzz,config,tests/core/fuzz_config.c))
 $(eval $(call marie_test,test_typeinfo,tests/core/test_typeinfo.c))
 $(eval $(call marie_test,test_expand,tests/core/test_expand.c))
+$(eval $(call marie_test,test_shm,tests/core/test_shm.c))
+$(eval $(call marie_test,test_shm_bus,tests/core/test_shm_bus.c))
 $(eval $(call marie_fuzz,typeinfo,tests/core/fuzz_typeinfo.c))
 $(eval $(call marie_bench,bench_ports,bench/bench_ports.c))
 ITESTS += tests/core/test_decode_rule.sh
 $(eval $(call marie_link,$(B)/tests/malformed_peer,tests/core/malformed_peer.c,))
 EXTRA_TARGETS += $(B)/tests/malformed_peer
 ITESTS += tests/core/test_malformed_inputs.sh
+$(eval $(call marie_fuzz,shm,tests/core/fuzz_shm.c))

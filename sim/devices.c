@@ -15,6 +15,31 @@
 
 #define SCAN_BEAMS 361
 
+/* A reader that leaves data unread: since when (sim us; -1: it is up to date), and since when
+ * (mono us; 0: not) it counts as gone: it kept us waiting too long, so the world runs on for a
+ * while without waiting for it, until it has caught up or that while is over. */
+typedef struct {
+    int64_t since;
+    int64_t gone_at;
+} lag_t;
+
+static void lag_note(lag_t *l, bool unread, int64_t now, int64_t mono, int64_t hold)
+{
+    if (l->gone_at && mono - l->gone_at >= hold)
+        l->gone_at = 0;         /* look at it again: frozen, or only slow? */
+    if (!unread) {
+        l->since = -1;
+        l->gone_at = 0;
+    } else if (l->since < 0) {
+        l->since = now;
+    }
+}
+
+static bool lag_over(const lag_t *l, int64_t now, int64_t max)
+{
+    return !l->gone_at && l->since >= 0 && now - l->since > max;
+}
+
 struct sim_devices {
     sim_world_t *world;
     marie_loop_t *loop;
@@ -23,7 +48,13 @@ struct sim_devices {
     vlms200_t *laser;
     int laser_fd;               /* as registered with the loop */
     short laser_events;
-    int64_t now;                /* simulated us: the laser's clock */
+    int64_t now;                /* simulated us: every device's clock */
+    /* driver lockstep: the devices never run more than driver_lag ahead of their drivers */
+    int64_t driver_lag, driver_wait;    /* sim us; wall us before a lagging driver counts as gone */
+    uint64_t rx_seen;           /* frames from the CAN master counted at the last look */
+    int64_t last_rx;            /* sim us of the newest frame from the master; -1: none, or gone */
+    lag_t laser_lag, can_lag;   /* the laser's host, and the CAN clients, leaving data unread */
+    int64_t wait_since;         /* mono us when the wait began, 0 if not waiting */
     float scan[SCAN_BEAMS];
     sim_devices_stats_t st;
 };
@@ -37,10 +68,9 @@ static void on_bus(marie_loop_t *loop, int fd, short revents, void *user)
 static void on_dev(marie_loop_t *loop, int fd, short revents, void *user)
 {
     sim_devices_t *d = user;
-    /* The CAN devices keep real (monotonic) time, as the drivers on the other end of the bus
-     * do: their heartbeat, RPDO deadlines and event timers must not shrink when the
-     * simulation runs faster than real time. Only their physics follows the simulation. */
-    int rc = vdevices_process(d->dev, marie_mono_us());
+    /* The devices run on simulated time, as the drivers on the other end of the bus do under
+     * `--clock sim`; the master lockstep keeps the two within master_lag of each other. */
+    int rc = vdevices_process(d->dev, d->now);
     if (rc == -EPIPE)
         marie_warn_ratelimited(5, "device mode: the CAN bus went away");
 }
@@ -94,6 +124,9 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     d->loop = loop;
     d->laser_fd = -1;
     d->now = now;
+    d->driver_lag = (int64_t)(cfg->driver_lag * 1e6);
+    d->driver_wait = (int64_t)(cfg->driver_wait * 1e6);
+    d->last_rx = d->laser_lag.since = d->can_lag.since = -1;
     if (sim_world_params(world)->laser_beams != SCAN_BEAMS) {
         snprintf(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
         goto fail;
@@ -127,7 +160,7 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     vc.gyro_bias = cfg->gyro_bias;
     vc.gyro_noise = cfg->gyro_noise;
     vc.external_physics = true;         /* ODE turns the wheels */
-    d->dev = vdevices_create(&vc, marie_mono_us());
+    d->dev = vdevices_create(&vc, now);
     if (!d->dev) {
         snprintf(err, errlen, "cannot attach the virtual drives and gyro to %s: %s", cfg->can_url,
                  strerror(errno));
@@ -194,11 +227,59 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
      * on every frame already sent (we are the bus too when serving it). */
     if (d->bus)
         can_emubus_process(d->bus);
-    vdevices_tick(d->dev, dt, marie_mono_us());
+    vdevices_tick(d->dev, dt, now);
     vlms200_tick(d->laser, now);
     laser_sync_fd(d);
     d->st.can_frames_in = vdevices_frames_in(d->dev);
     d->st.can_frames_out = vdevices_frames_out(d->dev);
+}
+
+/* The master's periodic frames (SYNC, heartbeat): not any frame, or another master's SDO
+ * traffic would keep the drives' master for alive. */
+static void note_drivers(sim_devices_t *d)
+{
+    uint64_t in = vdevices_master_frames_in(d->dev);
+    if (in != d->rx_seen) {
+        d->rx_seen = in;
+        d->last_rx = d->now;
+    }
+    int64_t mono = marie_mono_us();
+    lag_note(&d->laser_lag, vlms200_unread(d->laser) > 0, d->now, mono, d->driver_wait);
+    if (d->bus)
+        lag_note(&d->can_lag, can_emubus_unread(d->bus) > 0, d->now, mono, d->driver_wait);
+}
+
+bool sim_devices_may_step(sim_devices_t *d)
+{
+    note_drivers(d);
+    bool master = d->last_rx >= 0 && d->now - d->last_rx > d->driver_lag;
+    bool laser = lag_over(&d->laser_lag, d->now, d->driver_lag), can = lag_over(&d->can_lag, d->now, d->driver_lag);
+    if (d->driver_lag <= 0 || (!master && !laser && !can)) {
+        d->wait_since = 0;
+        return true;
+    }
+    int64_t mono = marie_mono_us();
+    if (!d->wait_since) {
+        d->wait_since = mono;
+        d->st.driver_waits++;
+    }
+    if (mono - d->wait_since < d->driver_wait)
+        return false;
+    /* The driver is gone or frozen: run on, and let the deadlines on both sides (on simulated
+     * time) find it dead, as they would on a real bus. Its next frame or read re-arms the wait. */
+    d->st.driver_timeouts++;
+    d->wait_since = 0;
+    if (master)
+        d->last_rx = -1;
+    if (laser) {
+        d->laser_lag.gone_at = mono;
+        d->laser_lag.since = d->now;
+    }
+    if (can) {
+        d->can_lag.gone_at = mono;
+        d->can_lag.since = d->now;
+    }
+    return true;
 }
 
 const sim_devices_stats_t *sim_devices_stats(sim_devices_t *d)

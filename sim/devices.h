@@ -21,11 +21,14 @@ typedef struct {
     double gyro_bias, gyro_noise;   /* rad/s, the virtual gyro's own */
     const char *laser_link;     /* symlink to the virtual LMS200's pty slave */
     double laser_hz;            /* scans per second while streaming */
+    double driver_lag;          /* sim s the devices may run ahead of their drivers (0: off) */
+    double driver_wait;         /* wall s to wait for a lagging driver before running on */
 } sim_devices_cfg_t;
 
 typedef struct {
     uint64_t can_frames_in, can_frames_out;
     int64_t laser_scans;
+    int64_t driver_waits, driver_timeouts;
 } sim_devices_stats_t;
 
 typedef struct sim_devices sim_devices_t;
@@ -42,6 +45,13 @@ void sim_devices_destroy(sim_devices_t *d);             /* NULL is a no-op; leav
  * feedback, the true yaw rate and time-driven frames go out after it. */
 void sim_devices_before_step(sim_devices_t *d);
 void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now);
+/* Driver lockstep, asked before each step: false while the devices are more than driver_lag of
+ * simulated time ahead of a driver: past the CAN master's last frame (marie-drives sends SYNC
+ * and heartbeat every 20 ms), or since the laser's host has left bytes unread. So a driver that
+ * lags in wall time (a loaded machine, a fast simulation) is never taken for dead on simulated
+ * time, and its data never pile up. A driver lagging for driver_wait of wall time counts as gone
+ * (killed, frozen) until its next frame or read, and the world runs on. */
+bool sim_devices_may_step(sim_devices_t *d);
 const sim_devices_stats_t *sim_devices_stats(sim_devices_t *d);
 const char *sim_devices_laser_path(const sim_devices_t *d);   /* the pty slave */
 

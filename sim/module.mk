@@ -36,3 +36,6 @@ EXTRA_TARGETS += $(SIM_PHRASES)
 $(eval $(call marie_fuzz,audio_scene,tests/audio/fuzz_audio_scene.c sim/audio.c hw/audio/wav.c hw/audio/micarray.c map/occmap.c map/pgm.c map/occmap_load.c,))
 $(B)/share/sounds/phrases.stamp: $(SIM_PHRASES)
 	@touch $@
+# Device mode as fast as the computer allows, with the real drivers on the sim clock.
+$(eval $(call marie_test,test_sim_fast_devices,tests/sim/test_sim_fast_devices.c tests/proc.c,))
+$(B)/tests/test_sim_fast_devices: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200

@@ -37,6 +37,9 @@ typedef struct {
     bool have_cmd, cmd_live;
     int64_t last_cmd_sim;       /* sim us when the last command arrived */
     int64_t wait_since;         /* mono us when the lockstep wait began, 0 if not waiting */
+    double lockstep_pose;       /* s of sim time allowed past the newest pose estimate; 0 = off */
+    bool have_pose;
+    int64_t last_pose_sim;      /* sim us of the newest pose estimate */
     bool estop, estop_dirty;
     int64_t last_touch;         /* sim us of the last step with a wall contact; -1: never */
 } sim_t;
@@ -50,6 +53,7 @@ static const marie_port_spec_t ports[] = {
     { "clock", &marie_type_sim_clock_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_CLOCK },
     { "camera", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "CAMERA_IMAGE" },
     { "motor_command", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "MOTOR_COMMAND" },
+    { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
     { "estop_set", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "SIM_ESTOP" },
     { "audio", &marie_type_audio_frame_t, MARIE_OUT, MARIE_PUSH, "AUDIO" },
     { "teleport", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "SIM_TELEPORT" },
@@ -62,6 +66,9 @@ static const marie_param_spec_t params[] = {
     { "speed", MARIE_PARAM_DOUBLE, "1.0", "sim seconds per wall second; 0 = as fast as possible" },
     { "lockstep", MARIE_PARAM_DOUBLE, "0", "run at most this many sim s past the last motor command (0: off)" },
     { "lockstep_timeout", MARIE_PARAM_DOUBLE, "1.0", "wall s to wait for a motor command in lockstep" },
+    { "lockstep_pose", MARIE_PARAM_DOUBLE, "0", "run at most this many sim s past the newest pose estimate (POSE; 0: off)" },
+    { "driver_lag", MARIE_PARAM_DOUBLE, "0.05", "device mode: sim s the devices may run ahead of their drivers (0: off)" },
+    { "driver_wait", MARIE_PARAM_DOUBLE, "1.0", "device mode: wall s to wait for a lagging driver before running on" },
     { "seed", MARIE_PARAM_INT, "1", "noise seed: same seed and inputs, same run" },
     { "step", MARIE_PARAM_DOUBLE, "0.005", "physics step, s" },
     { "start_utime", MARIE_PARAM_INT, "0", "sim time at start, us" },
@@ -143,6 +150,17 @@ static int64_t sim_now(const sim_t *s)
     return s->start_utime + sim_world_time_us(s->world);
 }
 
+static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
+
+/* What lockstep waited for has come: step at once rather than at the next poll. */
+static void resume(marie_component_t *c, sim_t *s)
+{
+    s->wait_since = 0;
+    s->anchor_mono = marie_mono_us();
+    s->anchor_sim = sim_now(s);
+    marie_loop_add_wall_oneshot(marie_component_loop(c), 0, on_timer, c);
+}
+
 static void on_motor_command(marie_component_t *c, marie_port_t *p, const void *msg,
                              const marie_msg_info_t *info)
 {
@@ -165,12 +183,21 @@ static void on_motor_command(marie_component_t *c, marie_port_t *p, const void *
     s->last_cmd_sim = m->utime <= now && m->utime >= now - 10000000 ? m->utime : now;
     marie_debug("motor command v %.3f omega %.3f stamped %.3f s at %.3f s", m->v, m->omega, m->utime / 1e6,
                 now / 1e6);
-    if (s->wait_since) {
-        /* The command we waited for: pick up pacing from here, no catch-up burst. */
-        s->wait_since = 0;
-        s->anchor_mono = marie_mono_us();
-        s->anchor_sim = sim_now(s);
-    }
+    if (s->wait_since)
+        resume(c, s);       /* the command we waited for: pacing from here, no catch-up burst */
+}
+
+static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    sim_t *s = marie_component_user(c);
+    const marie_pose_cov_t *m = msg;
+    int64_t now = s->world ? sim_now(s) : 0;
+    if (s->lockstep_pose <= 0 || m->utime > now || m->utime < s->last_pose_sim)
+        return;
+    s->last_pose_sim = m->utime;
+    s->have_pose = true;
+    if (s->wait_since)
+        resume(c, s);
 }
 
 static void on_estop_set(marie_component_t *c, marie_port_t *p, const void *msg,
@@ -269,33 +296,43 @@ static void publish(marie_component_t *c, sim_t *s)
     }
 }
 
+/* Lockstep on one input last seen at *last (sim us): true while the simulator waits for it. */
+static bool lockstep_holds(marie_component_t *c, sim_t *s, int64_t *last, double horizon, int64_t now)
+{
+    if (now - *last <= (int64_t)(horizon * 1e6))
+        return false;
+    int64_t mono = marie_mono_us();
+    if (!s->wait_since) {
+        s->wait_since = mono;
+        marie_component_count(c, "lockstep_waits", 1);
+        marie_debug("lockstep: waiting at %.3f s for an input of %.3f s", now / 1e6, *last / 1e6);
+    }
+    if (mono - s->wait_since < (int64_t)(s->lockstep_timeout * 1e6))
+        return true;
+    /* The controller is gone or slow: go on, and wait again one lockstep later. */
+    marie_component_count(c, "lockstep_timeouts", 1);
+    s->wait_since = 0;
+    *last = now;
+    s->anchor_mono = mono;
+    s->anchor_sim = now;
+    return false;
+}
+
 /* One physics step with its inputs and outputs; false when lockstep says wait. */
 static bool step_once(marie_component_t *c, sim_t *s)
 {
     int64_t now = sim_now(s);
-    if (s->lockstep > 0 && s->have_cmd && now - s->last_cmd_sim > (int64_t)(s->lockstep * 1e6)) {
-        int64_t mono = marie_mono_us();
-        if (!s->wait_since) {
-            s->wait_since = mono;
-            marie_component_count(c, "lockstep_waits", 1);
-            marie_debug("lockstep: waiting at %.3f s for a command after %.3f s", now / 1e6,
-                        s->last_cmd_sim / 1e6);
-        }
-        if (mono - s->wait_since < (int64_t)(s->lockstep_timeout * 1e6))
-            return false;
-        /* The controller is gone or slow: go on, and wait again one lockstep later. */
-        marie_component_count(c, "lockstep_timeouts", 1);
-        s->wait_since = 0;
-        s->last_cmd_sim = now;
-        s->anchor_mono = mono;
-        s->anchor_sim = now;
-    }
+    if ((s->lockstep > 0 && s->have_cmd && lockstep_holds(c, s, &s->last_cmd_sim, s->lockstep, now)) ||
+        (s->have_pose && lockstep_holds(c, s, &s->last_pose_sim, s->lockstep_pose, now)))
+        return false;
     if (!s->devices && s->cmd_live && now - s->last_cmd_sim > (int64_t)(s->cmd_timeout * 1e6)) {
         /* The drives' own watchdog: no command, no motion. */
         sim_world_set_velocity(s->world, 0, 0);
         s->cmd_live = false;
         marie_component_count(c, "cmd_timeouts", 1);
     }
+    if (s->devices && !sim_devices_may_step(s->devices))
+        return false;       /* the drivers lag behind: their devices must not judge them dead */
     sim_world_set_estop(s->world, s->estop);
     if (s->devices)
         sim_devices_before_step(s->devices);
@@ -327,10 +364,13 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
     int64_t steps0 = sim_world_steps(s->world);
     if (s->speed <= 0) {
         /* As fast as possible, but back to the loop every clock period so commands and
-         * lifecycle orders are read between bursts. */
-        for (int64_t i = 0; i < s->n_clock; i++)
-            if (!step_once(c, s))
-                break;
+         * lifecycle orders are read between bursts. While waiting, look again every 1 ms
+         * instead of spinning (an awaited input steps at once through resume()). */
+        bool held = false;
+        for (int64_t i = 0; i < s->n_clock && !held; i++)
+            held = !step_once(c, s);
+        if (s->timer)
+            marie_timer_set_period(s->timer, held ? 1000 : 1);
     } else {
         int64_t mono = marie_mono_us();
         int64_t target = s->anchor_sim + (int64_t)((mono - s->anchor_mono) * s->speed);
@@ -351,6 +391,12 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
         /* Simulated time in the heartbeat, so `marie ps` shows how fast the world runs. */
         int64_t ms = sim_world_time_us(s->world) / 1000;
         marie_component_count(c, "sim_ms", ms - marie_component_counter(c, "sim_ms"));
+    }
+    if (s->devices) {
+        const sim_devices_stats_t *ds = sim_devices_stats(s->devices);
+        marie_component_count(c, "driver_waits", ds->driver_waits - marie_component_counter(c, "driver_waits"));
+        marie_component_count(c, "driver_timeouts",
+                              ds->driver_timeouts - marie_component_counter(c, "driver_timeouts"));
     }
 }
 
@@ -461,6 +507,7 @@ static int on_init(marie_component_t *c)
     s->speed = marie_param_double(c, "speed");
     s->lockstep = marie_param_double(c, "lockstep");
     s->lockstep_timeout = marie_param_double(c, "lockstep_timeout");
+    s->lockstep_pose = marie_param_double(c, "lockstep_pose");
     s->cmd_timeout = marie_param_double(c, "cmd_timeout");
     s->start_utime = marie_param_int(c, "start_utime");
     s->estop = marie_param_bool(c, "estop");
@@ -497,6 +544,7 @@ static int on_init(marie_component_t *c)
             .gyro_node = (int)marie_param_int(c, "gyro_node"),
             .gyro_bias = marie_param_double(c, "vgyro_bias"), .gyro_noise = p.gyro_noise,
             .laser_link = marie_param_str(c, "laser_link"), .laser_hz = marie_param_double(c, "laser_hz"),
+            .driver_lag = marie_param_double(c, "driver_lag"), .driver_wait = marie_param_double(c, "driver_wait"),
         };
         char why[512];
         s->devices = sim_devices_create(&dc, s->world, marie_component_loop(c), sim_now(s), why, sizeof(why));
@@ -516,6 +564,7 @@ static int on_init(marie_component_t *c)
     s->p_clock = marie_port(c, "clock");
     s->p_camera = marie_port(c, "camera");
     marie_port_on_message(marie_port(c, "motor_command"), on_motor_command);
+    marie_port_on_message(marie_port(c, "pose"), on_pose);
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
     marie_port_on_message(marie_port(c, "teleport"), on_teleport);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,

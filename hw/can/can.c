@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <net/if.h>
+#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -348,8 +349,15 @@ int can_bus_enable_fd(can_bus_t *bus, bool on)
     return 0;
 }
 
+/* The emulated bus's server takes only 10 packets per client (net.unix.max_dgram_qlen) until it
+ * runs again; a real controller's queue drains on the wire by itself. So a full queue there
+ * waits for the server (a process on this host) instead of losing the frame: a server that does
+ * not run (a loaded machine, a simulator descheduled) does not advance simulated time either. */
+#define EMU_TX_WAIT_MS 200
+
 static int send_packet(can_bus_t *bus, const void *p, size_t len)
 {
+    bool waited = bus->socketcan;
     for (;;) {
         ssize_t n = send(bus->fd, p, len, MSG_NOSIGNAL);
         if (n == (ssize_t)len) {
@@ -358,6 +366,13 @@ static int send_packet(can_bus_t *bus, const void *p, size_t len)
         }
         if (n < 0 && errno == EINTR)
             continue;
+        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK) && !waited) {
+            struct pollfd pfd = { .fd = bus->fd, .events = POLLOUT };
+            waited = true;
+            if (poll(&pfd, 1, EMU_TX_WAIT_MS) > 0)
+                continue;
+            errno = EAGAIN;
+        }
         bus->stats.tx_errors++;
         return n < 0 ? -errno : -EIO;
     }

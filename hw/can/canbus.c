@@ -2,19 +2,39 @@
 #include "hw/can/canbus.h"
 
 #include <errno.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
+#include <linux/sockios.h>
 #include <sys/epoll.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
 
 #define EMUBUS_MAX_CLIENTS 64
+/* Frames held for a client whose socket is full. An AF_UNIX socket takes only
+ * net.unix.max_dgram_qlen (10) packets, where a SocketCAN socket's receive buffer holds
+ * hundreds of frames: without this a reader late by a few ms would lose frames that a real
+ * controller keeps. */
+#define EMUBUS_QUEUE 512
+
+typedef struct {
+    uint8_t len;
+    uint8_t data[CANFD_MTU];
+} pkt_t;
+
+typedef struct {
+    int fd;
+    pkt_t *q;                   /* ring of EMUBUS_QUEUE, allocated when first needed */
+    int head, count;
+    bool want_out;              /* EPOLLOUT armed */
+} client_t;
 
 struct can_emubus {
     int lfd, epfd;
     char path[108];
-    int clients[EMUBUS_MAX_CLIENTS];
+    client_t clients[EMUBUS_MAX_CLIENTS];
     int nclients;
     can_emubus_stats_t stats;
 };
@@ -69,8 +89,10 @@ void can_emubus_destroy(can_emubus_t *b)
 {
     if (!b)
         return;
-    for (int i = 0; i < b->nclients; i++)
-        close(b->clients[i]);
+    for (int i = 0; i < b->nclients; i++) {
+        close(b->clients[i].fd);
+        free(b->clients[i].q);
+    }
     close(b->epfd);
     close(b->lfd);
     unlink(b->path);
@@ -83,21 +105,84 @@ const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b) { return &b->s
 
 static void drop_client(can_emubus_t *b, int i)
 {
-    epoll_ctl(b->epfd, EPOLL_CTL_DEL, b->clients[i], NULL);
-    close(b->clients[i]);
+    epoll_ctl(b->epfd, EPOLL_CTL_DEL, b->clients[i].fd, NULL);
+    close(b->clients[i].fd);
+    free(b->clients[i].q);
     b->clients[i] = b->clients[--b->nclients];
+}
+
+static void want_out(can_emubus_t *b, client_t *c, bool on)
+{
+    if (c->want_out == on)
+        return;
+    struct epoll_event ev = { .events = EPOLLIN | (on ? EPOLLOUT : 0), .data.fd = c->fd };
+    if (epoll_ctl(b->epfd, EPOLL_CTL_MOD, c->fd, &ev) == 0)
+        c->want_out = on;
+}
+
+/* Hand the held frames over, oldest first, as far as the client's socket takes them. */
+static void flush(can_emubus_t *b, client_t *c)
+{
+    while (c->count > 0) {
+        pkt_t *p = &c->q[c->head];
+        ssize_t r = send(c->fd, p->data, p->len, MSG_DONTWAIT | MSG_NOSIGNAL);
+        if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+            break;
+        if (r == (ssize_t)p->len)
+            b->stats.delivered++;
+        else
+            b->stats.overflow++;    /* a dead peer is noticed by its own EPOLLHUP */
+        c->head = (c->head + 1) % EMUBUS_QUEUE;
+        c->count--;
+    }
+    want_out(b, c, c->count > 0);
+}
+
+static void deliver(can_emubus_t *b, client_t *c, const void *pkt, size_t len)
+{
+    if (c->count == 0) {
+        ssize_t r = send(c->fd, pkt, len, MSG_DONTWAIT | MSG_NOSIGNAL);
+        if (r == (ssize_t)len) {
+            b->stats.delivered++;
+            return;
+        }
+        if (r >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK)) {
+            b->stats.overflow++;
+            return;
+        }
+    }
+    if (!c->q && !(c->q = malloc(EMUBUS_QUEUE * sizeof *c->q))) {
+        b->stats.overflow++;
+        return;
+    }
+    if (c->count == EMUBUS_QUEUE) {
+        b->stats.overflow++;        /* its receive queue is full: a real controller drops too */
+        return;
+    }
+    pkt_t *p = &c->q[(c->head + c->count) % EMUBUS_QUEUE];
+    p->len = (uint8_t)len;
+    memcpy(p->data, pkt, len);
+    c->count++;
+    want_out(b, c, true);
 }
 
 static void relay(can_emubus_t *b, int from, const void *pkt, size_t len)
 {
+    for (int i = 0; i < b->nclients; i++)
+        if (b->clients[i].fd != from)
+            deliver(b, &b->clients[i], pkt, len);
+}
+
+int can_emubus_unread(const can_emubus_t *b)
+{
+    int n = 0;
     for (int i = 0; i < b->nclients; i++) {
-        if (b->clients[i] == from)
-            continue;
-        if (send(b->clients[i], pkt, len, MSG_DONTWAIT | MSG_NOSIGNAL) == (ssize_t)len)
-            b->stats.delivered++;
-        else
-            b->stats.overflow++;    /* a dead peer is noticed by its own EPOLLHUP */
+        int q = 0;
+        /* SIOCOUTQ on our end: what we sent that the client has not read yet. */
+        if (b->clients[i].count > 0 || (ioctl(b->clients[i].fd, SIOCOUTQ, &q) == 0 && q > 0))
+            n++;
     }
+    return n;
 }
 
 int can_emubus_inject(can_emubus_t *b, const struct can_frame *f)
@@ -117,7 +202,7 @@ static void accept_all(can_emubus_t *b)
             close(fd);
             continue;
         }
-        b->clients[b->nclients++] = fd;
+        b->clients[b->nclients++] = (client_t){ .fd = fd };
         b->stats.clients++;
     }
 }
@@ -158,10 +243,14 @@ int can_emubus_process(can_emubus_t *b)
             accept_all(b);
             continue;
         }
-        int r = drain(b, fd);
+        if (evs[i].events & EPOLLOUT)
+            for (int j = 0; j < b->nclients; j++)
+                if (b->clients[j].fd == fd)
+                    flush(b, &b->clients[j]);
+        int r = (evs[i].events & (EPOLLIN | EPOLLHUP | EPOLLERR)) ? drain(b, fd) : 0;
         if (r < 0 || (evs[i].events & (EPOLLHUP | EPOLLERR) && r == 0)) {
             for (int j = 0; j < b->nclients; j++)
-                if (b->clients[j] == fd) {
+                if (b->clients[j].fd == fd) {
                     drop_client(b, j);
                     break;
                 }

@@ -17,7 +17,7 @@ typedef struct {
     uint64_t clients;           /* connections accepted so far */
     uint64_t frames;            /* frames received from clients */
     uint64_t delivered;         /* frame copies handed to clients */
-    uint64_t overflow;          /* copies dropped: a client's queue was full (like RX overflow) */
+    uint64_t overflow;          /* copies dropped: a client's queue (socket and 512 held frames) was full */
     uint64_t bad;               /* packets that are not a CAN / CAN FD frame */
 } can_emubus_stats_t;
 
@@ -31,6 +31,8 @@ int can_emubus_process(can_emubus_t *b);
 /* Put a frame on the bus from the bus itself (e.g. an error frame): every client gets it. */
 int can_emubus_inject(can_emubus_t *b, const struct can_frame *f);
 int can_emubus_nclients(const can_emubus_t *b);
+/* Clients that have frames they have not read yet (held here or in their socket). */
+int can_emubus_unread(const can_emubus_t *b);
 const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b);
 
 #ifdef __cplusplus

@@ -20,6 +20,7 @@ typedef struct {
     marie_timer_t *sync_timer, *pub_timer;
     double radius, track;
     bool estop, started;
+    bool start_pending;         /* started before the simulated clock was known */
     int64_t last_emcy_event;
 } drives_t;
 
@@ -54,6 +55,10 @@ static const marie_param_spec_t params[] = {
     { NULL },
 };
 
+/* The protocol's clock: monotonic on the robot, simulated time under `--clock sim`, where the
+ * virtual drives judge our heartbeat and RPDO deadlines on simulated time too. */
+static int64_t now_us(const drives_t *d) { return marie_loop_mono(marie_component_loop(d->c)); }
+
 static void send_frames(drives_t *d, struct can_frame *f, int n)
 {
     if (n > 0)
@@ -64,7 +69,7 @@ static void on_frame(void *user, const struct can_frame *f)
 {
     drives_t *d = user;
     struct can_frame tx[16];
-    send_frames(d, tx, drives_ctl_feed(d->ctl, f, marie_mono_us(), tx, 16));
+    send_frames(d, tx, drives_ctl_feed(d->ctl, f, now_us(d), tx, 16));
 }
 
 static void on_link_event(void *user, const char *kind, const char *text)
@@ -146,15 +151,25 @@ static void on_drive_event(void *user, int axis, drives_ev_t ev, uint32_t code)
     }
 }
 
+static void begin(drives_t *d)
+{
+    struct can_frame tx[16];
+    d->started = true;
+    d->start_pending = false;
+    send_frames(d, tx, drives_ctl_start(d->ctl, now_us(d), tx, 16));
+}
+
 static void on_sync(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     drives_t *d = user;
+    if (d->start_pending && marie_loop_clock_known(loop))
+        begin(d);
     /* Once started the drives are ours until quit: stopped or paused we keep them disabled,
      * and our heartbeat and RPDOs going, or they would (rightly) take us for dead. */
     if (!d->started)
         return;
     struct can_frame tx[16];
-    send_frames(d, tx, drives_ctl_cycle(d->ctl, marie_mono_us(), tx, 16));
+    send_frames(d, tx, drives_ctl_cycle(d->ctl, now_us(d), tx, 16));
 }
 
 static void publish(marie_component_t *c, int64_t overruns)
@@ -203,7 +218,7 @@ static void on_command(marie_component_t *c, marie_port_t *p, const void *msg, c
     }
     /* Differential drive: each wheel's rim speed is v -/+ omega * half the track. */
     double half = d->track / 2;
-    int64_t now = marie_mono_us();
+    int64_t now = now_us(d);
     drives_ctl_set_wheels(d->ctl, (m->v - m->omega * half) / d->radius, (m->v + m->omega * half) / d->radius, now);
     /* Out at once (the drives apply RPDOs at the next SYNC) instead of up to a cycle later. */
     struct can_frame tx[4];
@@ -227,7 +242,7 @@ static void on_estop(marie_component_t *c, marie_port_t *p, const void *msg, con
         /* quick stop in RPDO1 now; the drives apply it at the next SYNC, which keeps its
          * period (an extra SYNC per e-stop message would not be one) */
         struct can_frame tx[4];
-        send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, marie_mono_us(), tx, 4));
+        send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, now_us(d), tx, 4));
     }
 }
 
@@ -292,7 +307,7 @@ static int on_init(marie_component_t *c)
     d->out = marie_port(c, "wheel_encoders");
     marie_port_on_message(marie_port(c, "motor_command"), on_command);
     marie_port_on_message(marie_port(c, "estop"), on_estop);
-    d->sync_timer = marie_loop_add_wall_timer(marie_component_loop(c), (int64_t)(1e6 / sync_hz), on_sync, d);
+    d->sync_timer = marie_loop_add_timer(marie_component_loop(c), (int64_t)(1e6 / sync_hz), on_sync, d);
     d->pub_timer = marie_component_every(c, pub_hz, publish);
     if (!d->sync_timer || !d->pub_timer) {
         marie_component_fail_reason(c, "timers: %s", strerror(errno));
@@ -312,12 +327,14 @@ err:
 static int on_start(marie_component_t *c)
 {
     drives_t *d = marie_component_user(c);
-    struct can_frame tx[16];
     drives_ctl_enable(d->ctl, true);
-    if (d->started)
+    if (d->started || d->start_pending)
         return 0;               /* restarted after a stop: the cycle never ceased */
-    d->started = true;
-    send_frames(d, tx, drives_ctl_start(d->ctl, marie_mono_us(), tx, 16));
+    /* On the sim clock, SDO deadlines taken before the first clock message would expire at it. */
+    if (!marie_loop_clock_known(marie_component_loop(c)))
+        d->start_pending = true;
+    else
+        begin(d);
     return 0;
 }
 
@@ -330,7 +347,7 @@ static void safe_stop(marie_component_t *c)
         return;
     struct can_frame tx[4];
     drives_ctl_enable(d->ctl, false);
-    send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, marie_mono_us(), tx, 4));
+    send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, now_us(d), tx, 4));
 }
 
 static int on_stop(marie_component_t *c)
@@ -363,7 +380,7 @@ static void on_quit(marie_component_t *c)
     if (d->started) {
         /* leave the drives disabled and stopped, not waiting for their heartbeat consumer */
         struct can_frame tx[8];
-        send_frames(d, tx, drives_ctl_shutdown(d->ctl, marie_mono_us(), tx, 8));
+        send_frames(d, tx, drives_ctl_shutdown(d->ctl, now_us(d), tx, 8));
     }
     marie_loop_remove_timer(marie_component_loop(c), d->sync_timer);
     can_link_close(d->link);

@@ -13,6 +13,7 @@ struct vdevices {
     vdrive_t *drive[2];
     vgyro_t *gyro;
     uint64_t in, out;
+    uint64_t master_in;         /* SYNC and heartbeats: what a live master sends periodically */
 };
 
 void vdevices_cfg_default(vdevices_cfg_t *cfg)
@@ -114,6 +115,9 @@ int vdevices_process(vdevices_t *v, int64_t now)
         if (r == 0)
             break;
         v->in++;
+        canid_t id = f.can_id & CAN_SFF_MASK;
+        if (!(f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) && (id == 0x080 || (id & 0x780) == 0x700))
+            v->master_in++;
         n++;
         deliver(v, &f, now);
     }
@@ -147,3 +151,4 @@ vdrive_t *vdevices_drive(vdevices_t *v, int i) { return i >= 0 && i < 2 ? v->dri
 vgyro_t *vdevices_gyro(vdevices_t *v) { return v->gyro; }
 uint64_t vdevices_frames_in(const vdevices_t *v) { return v->in; }
 uint64_t vdevices_frames_out(const vdevices_t *v) { return v->out; }
+uint64_t vdevices_master_frames_in(const vdevices_t *v) { return v->master_in; }

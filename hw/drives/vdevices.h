@@ -44,6 +44,9 @@ vdrive_t *vdevices_drive(vdevices_t *v, int i);     /* 0 left, 1 right; NULL if 
 vgyro_t *vdevices_gyro(vdevices_t *v);
 uint64_t vdevices_frames_in(const vdevices_t *v);
 uint64_t vdevices_frames_out(const vdevices_t *v);
+/* SYNC and heartbeat frames received: the master's periodic traffic (not its SDOs, nor another
+ * master's requests), which a simulator paces itself on. */
+uint64_t vdevices_master_frames_in(const vdevices_t *v);
 
 #ifdef __cplusplus
 }

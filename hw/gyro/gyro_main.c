@@ -25,9 +25,13 @@ typedef struct {
     int64_t sample_us;              /* last sample (mono), or the start: for degraded_after */
     int64_t degraded_us;
     bool degraded;
+    bool start_pending;         /* started before the simulated clock was known */
     int64_t enc_us, cmd_us;         /* last receipt (mono), 0 never */
     bool enc_still, cmd_still;
 } gyro_t;
+
+/* The device's clock: monotonic on the robot, simulated time under `--clock sim`. */
+static int64_t now_us(const gyro_t *g) { return marie_loop_mono(marie_component_loop(g->c)); }
 
 static const marie_port_spec_t ports[] = {
     { "wheel_encoders", &marie_type_wheel_encoders_t, MARIE_IN, MARIE_PUSH, "WHEEL_ENCODERS" },
@@ -73,7 +77,7 @@ static void on_sample(void *user, double rate, uint8_t status)
     gyro_t *g = user;
     if (marie_component_state(g->c) != MARIE_STATE_RUNNING)
         return;
-    int64_t now = marie_mono_us();
+    int64_t now = now_us(g);
     g->sample_us = now;
     if (g->degraded) {
         g->degraded = false;
@@ -147,7 +151,7 @@ static void on_frame(void *user, const struct can_frame *f)
 {
     gyro_t *g = user;
     struct can_frame tx[8];
-    send_frames(g, tx, gyro_ctl_feed(g->ctl, f, marie_mono_us(), tx, 8));
+    send_frames(g, tx, gyro_ctl_feed(g->ctl, f, now_us(g), tx, 8));
 }
 
 static void on_link_event(void *user, const char *kind, const char *text)
@@ -158,13 +162,23 @@ static void on_link_event(void *user, const char *kind, const char *text)
     marie_info("%s", text);
 }
 
+static void begin(gyro_t *g)
+{
+    struct can_frame tx[8];
+    g->start_pending = false;
+    g->started_us = g->sample_us = now_us(g);
+    send_frames(g, tx, gyro_ctl_start(g->ctl, g->started_us, tx, 8));
+}
+
 static void on_poll(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     gyro_t *g = user;
     if (marie_component_state(g->c) != MARIE_STATE_RUNNING)
         return;
+    if (g->start_pending)
+        begin(g);
     struct can_frame tx[8];
-    int64_t now = marie_mono_us();
+    int64_t now = now_us(g);
     send_frames(g, tx, gyro_ctl_poll(g->ctl, now, tx, 8));
     if (!g->degraded && now - g->sample_us > g->degraded_us) {
         g->degraded = true;
@@ -177,7 +191,7 @@ static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, 
 {
     gyro_t *g = marie_component_user(c);
     const marie_wheel_encoders_t *m = msg;
-    g->enc_us = marie_mono_us();
+    g->enc_us = now_us(g);
     g->enc_still = m->status == MARIE_WHEEL_ENCODERS_T_STATUS_OK || m->status == MARIE_WHEEL_ENCODERS_T_STATUS_DISABLED ||
                    m->status == MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP
                    ? fabs(m->left_velocity) < g->still_wheel && fabs(m->right_velocity) < g->still_wheel
@@ -188,7 +202,7 @@ static void on_command(marie_component_t *c, marie_port_t *p, const void *msg, c
 {
     gyro_t *g = marie_component_user(c);
     const marie_motor_command_t *m = msg;
-    g->cmd_us = marie_mono_us();
+    g->cmd_us = now_us(g);
     g->cmd_still = m->v == 0 && m->omega == 0;
 }
 
@@ -236,7 +250,7 @@ static int on_init(marie_component_t *c)
     g->out = marie_port(c, "gyro");
     marie_port_on_message(marie_port(c, "wheel_encoders"), on_encoders);
     marie_port_on_message(marie_port(c, "motor_command"), on_command);
-    g->poll_timer = marie_loop_add_wall_timer(marie_component_loop(c), 50000, on_poll, g);
+    g->poll_timer = marie_loop_add_timer(marie_component_loop(c), 50000, on_poll, g);
     if (!g->poll_timer) {
         marie_component_fail_reason(c, "timer: %s", strerror(errno));
         goto err;
@@ -253,13 +267,16 @@ err:
 static int on_start(marie_component_t *c)
 {
     gyro_t *g = marie_component_user(c);
-    struct can_frame tx[8];
-    g->started_us = g->sample_us = marie_mono_us();
     if (g->degraded) {
         g->degraded = false;
         marie_component_set_degraded(c, false, "started");
     }
-    send_frames(g, tx, gyro_ctl_start(g->ctl, g->started_us, tx, 8));
+    /* On the sim clock, SDO deadlines taken before the first clock message would expire at it:
+     * the first poll after it starts the gyro. */
+    if (!marie_loop_clock_known(marie_component_loop(c)))
+        g->start_pending = true;
+    else
+        begin(g);
     return 0;
 }
 

@@ -16,7 +16,11 @@ typedef struct {
     marie_port_t *scan_port;
     float ranges[LMS200_MAX_VALUES];
     int baud;
+    bool start_pending;         /* started before the simulated clock was known */
 } lms_t;
+
+/* The device's clock: monotonic on the robot, simulated time under `--clock sim`. */
+static int64_t now_us(const lms_t *l) { return marie_loop_mono(marie_component_loop(l->c)); }
 
 static const marie_port_spec_t ports[] = {
     { "scan", &marie_type_laser_scan_t, MARIE_OUT, MARIE_PUSH, "LASER" },
@@ -51,7 +55,7 @@ static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t mo
     /* Stamp the scan when its telegram began to arrive, not when its last byte did. */
     int64_t wire_us = (int64_t)(10 + 2 * s->n) * 10 * 1000000 / (l->baud > 0 ? l->baud : 9600);
     marie_laser_scan_t msg = {
-        .utime = marie_component_now(c) - (marie_mono_us() - mono_us) - wire_us,
+        .utime = marie_component_now(c) - (now_us(l) - mono_us) - wire_us,
         .angle_min = (float)(-M_PI / 2),
         .angle_increment = (float)(res_cdeg / 100.0 * M_PI / 180.0),
         .range_min = 0.0f,
@@ -100,7 +104,7 @@ static void on_health(void *user, bool degraded, const char *why)
 static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     lms_t *l = user;
-    lms200_driver_io(l->drv, revents, marie_mono_us());
+    lms200_driver_io(l->drv, revents, now_us(l));
 }
 
 static void on_fd(void *user, int old_fd, int new_fd)
@@ -113,11 +117,16 @@ static void on_fd(void *user, int old_fd, int new_fd)
         marie_error("cannot watch the laser fd: %s", strerror(errno));
 }
 
-/* Device timing is wall time even when the component follows the simulator's clock. */
+/* Device timeouts follow the component's clock: monotonic on the robot, simulated time under
+ * `--clock sim`, where the virtual LMS200 streams on simulated time. */
 static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     lms_t *l = user;
-    lms200_driver_tick(l->drv, marie_mono_us());
+    if (l->start_pending) {
+        l->start_pending = false;
+        lms200_driver_start(l->drv, now_us(l));
+    }
+    lms200_driver_tick(l->drv, now_us(l));
 }
 
 static const lms200_driver_ops_t driver_ops = {
@@ -154,7 +163,7 @@ static int on_init(marie_component_t *c)
         return -1;
     }
     l->drv = lms200_driver_create(&cfg, &driver_ops, l);
-    l->tick = marie_loop_add_wall_timer(marie_component_loop(c), 20000, on_tick, l);
+    l->tick = marie_loop_add_timer(marie_component_loop(c), 20000, on_tick, l);
     l->scan_port = marie_port(c, "scan");
     if (!l->drv || !l->tick) {
         marie_component_fail_reason(c, "cannot create the driver: %s", strerror(errno));
@@ -170,13 +179,19 @@ static int on_init(marie_component_t *c)
 static int on_start(marie_component_t *c)
 {
     lms_t *l = marie_component_user(c);
-    lms200_driver_start(l->drv, marie_mono_us());
+    /* On the sim clock, reply deadlines taken before the first clock message would expire at
+     * it: the first tick after it starts the driver. */
+    if (!marie_loop_clock_known(marie_component_loop(c)))
+        l->start_pending = true;
+    else
+        lms200_driver_start(l->drv, now_us(l));
     return 0;
 }
 
 static int on_stop(marie_component_t *c)
 {
     lms_t *l = marie_component_user(c);
+    l->start_pending = false;
     lms200_driver_stop(l->drv);
     return 0;
 }

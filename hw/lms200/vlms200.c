@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include "hw/lms200/serial.h"
@@ -156,6 +157,14 @@ int vlms200_baud(const vlms200_t *v) { return v->baud; }
 bool vlms200_streaming(const vlms200_t *v) { return v->streaming; }
 int vlms200_res_cdeg(const vlms200_t *v) { return v->res_cdeg; }
 const vlms200_stats_t *vlms200_stats(const vlms200_t *v) { return &v->st; }
+
+int vlms200_unread(const vlms200_t *v)
+{
+    int n = 0;
+    if (v->slave < 0 || ioctl(v->slave, FIONREAD, &n) < 0)
+        return 0;
+    return n;
+}
 
 short vlms200_events(const vlms200_t *v)
 {

@@ -77,6 +77,9 @@ int vlms200_baud(const vlms200_t *v);
 bool vlms200_streaming(const vlms200_t *v);
 int vlms200_res_cdeg(const vlms200_t *v);
 const vlms200_stats_t *vlms200_stats(const vlms200_t *v);
+/* Bytes sent that the host has not read yet (0 when unplugged or unknown): a simulator uses it
+ * to keep simulated time from running far ahead of a driver that lags in wall time. */
+int vlms200_unread(const vlms200_t *v);
 
 #ifdef __cplusplus
 }

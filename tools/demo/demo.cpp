@@ -457,12 +457,14 @@ int Demo::run()
         return 1;
     }
     start_mono_ = marie_mono_us();
-    lcm_ = lcm_create(nullptr);
+    // marie's URL (an 8 MB receive buffer) and deep queues: a simulation as fast as the computer
+    // allows sends truth and poses in bursts, and a lost one bends the trajectory drawn.
+    lcm_ = lcm_create(marie_default_url());
     if (!lcm_)
         return 1;
     for (const char *ch : {"SIM_TRUTH", "POSE", "GOAL", "MISSION_STATE", "MARIE_EVENT", "MARIE_AM_STATUS",
                            "MARIE_HEARTBEAT"})
-        lcm_subscribe(lcm_, ch, on_raw, this);
+        lcm_subscription_set_queue_capacity(lcm_subscribe(lcm_, ch, on_raw, this), 10000);
     unlink((opt_.out + "/demo.lcm").c_str());
     // Record everything but the particle clouds, which are large and only for the viewer.
     logger_ = spawn({"lcm-logger", "-q", "--channel=^(?!PARTICLES$).*", opt_.out + "/demo.lcm"}, opt_.out + "/logger.log");
@@ -510,11 +512,12 @@ int Demo::run()
         if (opt_.estop_after_goal > 0)
             estop_tick();
     }
-    // The mission_done event can overtake the mission's last state: wait for the state to agree.
-    int64_t settle = marie_mono_us() + 2000000;
-    while (mission_done_ && reached_ + missed_ < ngoals_ && marie_mono_us() < settle)
+    // Let the last statuses arrive, then stop everything. The mission's final state can come
+    // after its mission_done event (it saves to the SharedMap first, 0.3 s when that is down),
+    // and on a busy bus ten handled messages are a few ms: wait on the clock, bounded.
+    for (int64_t end = marie_mono_us() + 1500000;
+         marie_mono_us() < end && (!mission_done_ || reached_ + missed_ < ngoals_);)
         lcm_handle_timeout(lcm_, 50);
-    // Let the last statuses arrive, then stop everything.
     for (int i = 0; i < 10; i++)
         lcm_handle_timeout(lcm_, 50);
     progress(true);

@@ -1,0 +1,61 @@
+/* shm: same-host shared-memory rings for large messages; a small notice on LCM names each one. */
+#ifndef MARIE_SHM_H
+#define MARIE_SHM_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* One writer per channel owns a segment /dev/shm/marie-shm.<channel>.<pid>: a ring of
+ * `nslots` slots of `slot_size` bytes, each guarded by a sequence number (a seqlock). Readers
+ * map it read-only, so a reader that crashes or stalls can neither block nor corrupt the writer
+ * or the other readers: a slot overwritten while a reader copies it is detected and counted,
+ * never delivered torn. The memory is fixed at creation; the writer unlinks its segment when it
+ * is destroyed, and a writer's creation removes segments left by dead processes. See
+ * docs/transport.md. */
+
+#define MARIE_SHM_NAME_MAX 128
+
+typedef struct marie_shm_writer marie_shm_writer_t;
+typedef struct marie_shm_reader marie_shm_reader_t;
+
+/* Where one message is: what the notice on LCM carries. */
+typedef struct {
+    char segment[MARIE_SHM_NAME_MAX];   /* file name under /dev/shm */
+    int64_t seq;                        /* 1, 2, ... per segment */
+    uint32_t size;                      /* bytes */
+} marie_shm_ref_t;
+
+/* NULL with errno (EINVAL: bad sizes or channel; what shm_open/ftruncate/mmap say). */
+marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_size, int nslots);
+void marie_shm_writer_destroy(marie_shm_writer_t *w);      /* NULL is a no-op; unlinks */
+/* Copy one message into the next slot. 0, or -EMSGSIZE when it does not fit a slot. */
+int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_shm_ref_t *ref);
+const char *marie_shm_writer_segment(const marie_shm_writer_t *w);
+
+marie_shm_reader_t *marie_shm_reader_create(void);
+void marie_shm_reader_destroy(marie_shm_reader_t *r);      /* NULL is a no-op */
+/* Copy the message `ref` names into buf (cap bytes). Its size, or -ENOENT (no such segment:
+ * another host's writer, or gone), -ESTALE (already overwritten: the reader was too slow),
+ * -EAGAIN (overwritten while copying), -EMSGSIZE (cap too small), -EBADMSG (a ref or segment
+ * that makes no sense). Opens and maps the segment the first time it is named. */
+int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *buf, size_t cap);
+
+/* In place, without the copy: the message's bytes inside the mapping (valid until the reader
+ * is destroyed), or NULL with *err as marie_shm_read() says. They may be overwritten at any
+ * moment: use them (decode them) first, then ask marie_shm_still_valid(), and drop whatever
+ * was made of them when it says no. */
+const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref, int *err);
+bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
+
+/* Remove /dev/shm/marie-shm.* segments whose writer process is gone. Returns how many. */
+int marie_shm_sweep(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

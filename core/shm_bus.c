@@ -1,0 +1,284 @@
+/* shm_bus: shared-memory publishers and subscribers: notices on CHANNEL.SHM, LCM copies on request. */
+#include "core/shm_bus.h"
+
+#include <errno.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "core/shm.h"
+#include "core/time.h"
+#include "core/typeinfo.h"
+#include "lcmtypes/marie_shm_notice_t.h"
+#include "lcmtypes/marie_shm_want_t.h"
+
+#define WANT_HOLD_US 2000000        /* a request keeps the LCM copies flowing this long */
+#define WANT_EVERY_US 1000000       /* a remote subscriber repeats its request this often */
+#define CH_MAX 256
+
+/* The machine: only there can a segment be mapped. MARIE_SHM_HOST overrides the host name
+ * (machines that share one, such as containers; tests playing another host). */
+static void host_name(char *out, size_t cap)
+{
+    const char *env = getenv("MARIE_SHM_HOST");
+    if (env && *env) {
+        snprintf(out, cap, "%s", env);
+        return;
+    }
+    if (gethostname(out, cap) < 0 || !out[0])
+        snprintf(out, cap, "localhost");
+    out[cap - 1] = '\0';
+}
+
+static int64_t fingerprint(const void *data)
+{
+    const uint8_t *p = data;
+    uint64_t v = 0;
+    for (int i = 0; i < 8; i++)
+        v = v << 8 | p[i];
+    return (int64_t)v;
+}
+
+/* ---- publisher ---- */
+
+struct marie_shm_pub {
+    lcm_t *lcm;
+    char channel[CH_MAX], notice_ch[CH_MAX + 8], want_ch[CH_MAX + 12];
+    char host[64];
+    marie_shm_writer_t *w;
+    lcm_subscription_t *want_sub;
+    int64_t wanted_until;       /* mono us */
+    marie_shm_pub_stats_t st;
+};
+
+static void on_want(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    marie_shm_pub_t *p = user;
+    marie_shm_want_t m;
+    if (marie_decode_checked(&marie_type_shm_want_t, rb->data, rb->data_size, &m) < 0)
+        return;
+    marie_shm_want_t_decode_cleanup(&m);
+    p->st.wants++;
+    p->wanted_until = marie_mono_us() + WANT_HOLD_US;
+}
+
+marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t max_size, int nslots)
+{
+    if (!lcm || !channel || strlen(channel) >= CH_MAX) {
+        errno = EINVAL;
+        return NULL;
+    }
+    marie_shm_pub_t *p = calloc(1, sizeof *p);
+    if (!p)
+        return NULL;
+    p->lcm = lcm;
+    snprintf(p->channel, sizeof p->channel, "%s", channel);
+    snprintf(p->notice_ch, sizeof p->notice_ch, "%s.SHM", channel);
+    snprintf(p->want_ch, sizeof p->want_ch, "%s.SHMWANT", channel);
+    host_name(p->host, sizeof p->host);
+    p->w = marie_shm_writer_create(channel, max_size, nslots);
+    if (!p->w)
+        goto err;
+    p->want_sub = lcm_subscribe(lcm, p->want_ch, on_want, p);
+    if (!p->want_sub) {
+        errno = EIO;
+        goto err;
+    }
+    return p;
+err:;
+    int e = errno;
+    marie_shm_writer_destroy(p->w);
+    free(p);
+    errno = e;
+    return NULL;
+}
+
+void marie_shm_pub_destroy(marie_shm_pub_t *p)
+{
+    if (!p)
+        return;
+    lcm_unsubscribe(p->lcm, p->want_sub);
+    marie_shm_writer_destroy(p->w);
+    free(p);
+}
+
+int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len)
+{
+    if (len < 8)
+        return -EINVAL;
+    marie_shm_ref_t ref;
+    int rc = marie_shm_write(p->w, data, len, &ref);
+    if (rc < 0) {
+        p->st.too_big++;
+        return rc;
+    }
+    marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
+                             .size = (int32_t)ref.size, .fingerprint = fingerprint(data) };
+    if (marie_shm_notice_t_publish(p->lcm, p->notice_ch, &n) != 0)
+        return -EIO;
+    p->st.published++;
+    if (p->wanted_until && marie_mono_us() < p->wanted_until) {
+        if (lcm_publish(p->lcm, p->channel, data, (unsigned)len) != 0)
+            return -EIO;
+        p->st.lcm_copies++;
+    }
+    return 0;
+}
+
+const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p) { return &p->st; }
+
+/* ---- subscriber ---- */
+
+struct marie_shm_sub {
+    lcm_t *lcm;
+    char channel[CH_MAX], want_ch[CH_MAX + 12];
+    char host[64];
+    marie_shm_reader_t *r;
+    uint8_t *buf;
+    size_t cap;
+    marie_shm_msg_cb_t cb;
+    marie_shm_verdict_cb_t verdict;     /* in place: NULL means copy first */
+    void *user;
+    lcm_subscription_t *notice_sub, *copy_sub;
+    int64_t last_want;          /* mono us */
+    marie_shm_sub_stats_t st;
+};
+
+static void on_copy(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    marie_shm_sub_t *s = user;
+    s->st.remote++;
+    s->cb(rb->data, rb->data_size, s->user);
+}
+
+/* The writer is not on this host: ask for the messages on LCM (repeated while they come). */
+static void want_remote(marie_shm_sub_t *s)
+{
+    int64_t now = marie_mono_us();
+    if (!s->copy_sub)
+        s->copy_sub = lcm_subscribe(s->lcm, s->channel, on_copy, s);
+    if (now - s->last_want < WANT_EVERY_US)
+        return;
+    s->last_want = now;
+    marie_shm_want_t w = { .utime = marie_wall_us(), .host = s->host, .requester = s->host };
+    marie_shm_want_t_publish(s->lcm, s->want_ch, &w);
+}
+
+static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int64_t fp)
+{
+    int err = 0;
+    const void *p = marie_shm_peek(s->r, ref, &err);
+    if (!p) {
+        if (err == -ENOENT)
+            want_remote(s);
+        else if (err == -ESTALE || err == -EAGAIN)
+            s->st.lost++;
+        else
+            s->st.bad++;
+        return;
+    }
+    if (fingerprint(p) != fp) {
+        s->st.bad++;
+        return;
+    }
+    s->cb(p, ref->size, s->user);
+    bool ok = marie_shm_still_valid(s->r, ref);
+    if (ok)
+        s->st.received++;
+    else
+        s->st.lost++;
+    s->verdict(ok, s->user);
+}
+
+static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    marie_shm_sub_t *s = user;
+    marie_shm_notice_t n;
+    if (marie_decode_checked(&marie_type_shm_notice_t, rb->data, rb->data_size, &n) < 0) {
+        s->st.bad++;
+        return;
+    }
+    if (strcmp(n.host, s->host) != 0) {
+        want_remote(s);
+    } else if (n.size < 8 || (size_t)n.size > s->cap || strlen(n.segment) >= MARIE_SHM_NAME_MAX) {
+        s->st.bad++;
+    } else {
+        marie_shm_ref_t ref = { .seq = n.seq, .size = (uint32_t)n.size };
+        snprintf(ref.segment, sizeof ref.segment, "%s", n.segment);
+        if (s->verdict) {
+            deliver_in_place(s, &ref, n.fingerprint);
+            marie_shm_notice_t_decode_cleanup(&n);
+            return;
+        }
+        int64_t got = marie_shm_read(s->r, &ref, s->buf, s->cap);
+        if (got == n.size && fingerprint(s->buf) == n.fingerprint) {
+            s->st.received++;
+            s->cb(s->buf, (size_t)got, s->user);
+        } else if (got == -ENOENT) {
+            want_remote(s);         /* same name, another machine (containers), or gone */
+        } else if (got == -ESTALE || got == -EAGAIN) {
+            s->st.lost++;
+        } else {
+            s->st.bad++;
+        }
+    }
+    marie_shm_notice_t_decode_cleanup(&n);
+}
+
+marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t max_size, marie_shm_msg_cb_t cb,
+                                      void *user)
+{
+    if (!lcm || !channel || strlen(channel) >= CH_MAX || !cb || max_size < 8) {
+        errno = EINVAL;
+        return NULL;
+    }
+    marie_shm_sub_t *s = calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->lcm = lcm;
+    s->cb = cb;
+    s->user = user;
+    s->cap = max_size;
+    snprintf(s->channel, sizeof s->channel, "%s", channel);
+    snprintf(s->want_ch, sizeof s->want_ch, "%s.SHMWANT", channel);
+    host_name(s->host, sizeof s->host);
+    char notice_ch[CH_MAX + 8];
+    snprintf(notice_ch, sizeof notice_ch, "%s.SHM", channel);
+    s->r = marie_shm_reader_create();
+    s->buf = malloc(max_size);
+    if (!s->r || !s->buf)
+        goto err;
+    s->notice_sub = lcm_subscribe(lcm, notice_ch, on_notice, s);
+    if (!s->notice_sub) {
+        errno = EIO;
+        goto err;
+    }
+    /* Notices come in bursts at high rates; each is small. */
+    lcm_subscription_set_queue_capacity(s->notice_sub, 1024);
+    return s;
+err:;
+    int e = errno ? errno : ENOMEM;
+    marie_shm_reader_destroy(s->r);
+    free(s->buf);
+    free(s);
+    errno = e;
+    return NULL;
+}
+
+void marie_shm_sub_destroy(marie_shm_sub_t *s)
+{
+    if (!s)
+        return;
+    lcm_unsubscribe(s->lcm, s->notice_sub);
+    if (s->copy_sub)
+        lcm_unsubscribe(s->lcm, s->copy_sub);
+    marie_shm_reader_destroy(s->r);
+    free(s->buf);
+    free(s);
+}
+
+const marie_shm_sub_stats_t *marie_shm_sub_stats(const marie_shm_sub_t *s) { return &s->st; }
+
+void marie_shm_sub_in_place(marie_shm_sub_t *s, marie_shm_verdict_cb_t verdict) { s->verdict = verdict; }
