@@ -272,7 +272,7 @@ static void a_profile_entry_with_many_params_keeps_them(void **state)
     assert_non_null(sys);
     const marie_component_cfg_t *sim = marie_system_component(sys, "sim");
     assert_non_null(sim);
-    assert_string_equal(marie_node_get(sim->params, "speed")->value, "4");
+    assert_string_equal(marie_node_get(sim->params, "speed")->value, "0");
     assert_string_equal(marie_node_get(sim->params, "world")->value, "office");
     assert_string_equal(marie_node_get(sim->params, "can")->value, "emu:${MARIE_RUN_DIR}/can");
     marie_system_destroy(sys);

@@ -190,9 +190,13 @@ static void test_bad_input_refused_map_kept(void **state)
     assert_true(slam_add_scan(s, jumped, &ok, pose) >= 0);
     assert_true(hypot(pose[0] - r.truth[0], pose[1] - r.truth[1]) < 0.1);
     occmap_t *after = slam_render(s);
-    mapeval_t e;
+    /* The bad input leaves the map as good as it was (the world's doors and corridor walls
+     * seen from the short route). */
+    mapeval_t e, e0;
+    mapeval_compare(world, before, 10.0, 15.0, &e0);
     mapeval_compare(world, after, 10.0, 15.0, &e);
-    assert_true(e.precision >= 0.95);
+    printf("precision before the bad input %.3f, after %.3f\n", e0.precision, e.precision);
+    assert_true(e.precision >= e0.precision - 0.05);
     occmap_destroy(before);
     occmap_destroy(after);
     slam_destroy(s);
