@@ -85,7 +85,7 @@ FUZZ_$(1)_LIBS := $(3)
 FUZZERS += $(1)
 endef
 
-.PHONY: build all deps test-deps test test-vm test-fresh bench demo install fuzz clean
+.PHONY: build all deps test-deps test test-slow test-vm test-fresh bench demo install fuzz clean
 # `make` alone installs what is missing first, like the other verbs; `all` only builds.
 build: deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
@@ -119,6 +119,11 @@ test: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(TESTS) $(ITESTS)
+
+# Long end-to-end runs kept out of make test's 20 minutes (each says why in its module.mk).
+test-slow: test-deps
+	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(SLOW_TESTS)
 
 test-vm: deps
 	@scripts/install-deps.sh vm

@@ -264,11 +264,10 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
         return NULL;
     }
     c->msgs_out++;
-    /* An asynchronous pull waits on the component's clock (simulated time under --clock sim,
-     * where a paused or lockstepped simulator must not time it out); a blocking one on the
-     * wall clock, so that it always returns. */
-    pl->timeout = (cb ? marie_loop_add_oneshot : marie_loop_add_wall_oneshot)(c->loop, (int64_t)timeout_ms * 1000,
-                                                                             on_pull_timeout, pl);
+    /* On the wall clock: a Mailbox answers in wall time, and under --clock sim a component that
+     * has not heard the clock yet (a restart resuming from a Mailbox) would see a sim-time
+     * deadline pass at the first clock message, before any answer could come. */
+    pl->timeout = marie_loop_add_wall_oneshot(c->loop, (int64_t)timeout_ms * 1000, on_pull_timeout, pl);
     c->pulls[c->npulls++] = pl;
     return pl;
 }

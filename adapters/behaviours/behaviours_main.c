@@ -184,15 +184,21 @@ static void decide(beh_t *b)
     marie_motor_command_t cmd = { .utime = now, .v = v, .omega = w, .source = (char *)winner };
     marie_port_publish(marie_port(c, "cmd"), &cmd);
 
-    marie_behaviour_vote_t mv[ARB_COUNT];
+    /* The recovery overrides the arbitration's winner: in the record it is one more vote, just
+     * above the vote it overrides, so the record still explains the command. */
+    marie_behaviour_vote_t mv[ARB_COUNT + 1];
     for (int i = 0; i < ARB_COUNT; i++)
         mv[i] = (marie_behaviour_vote_t){ .name = (char *)votes[i].name, .priority = votes[i].priority,
                                           .active = votes[i].active, .v = votes[i].v, .omega = votes[i].omega,
                                           .reason = votes[i].reason };
+    bool recovering = stage != REC_NONE;
+    mv[ARB_COUNT] = (marie_behaviour_vote_t){ .name = "recovery", .priority = recovering ? votes[win].priority + 1 : 0,
+                                              .active = recovering, .v = recovering ? v : 0, .omega = recovering ? w : 0,
+                                              .reason = (char *)(recovering ? rec_stage_name(stage) : "making progress") };
     marie_input_age_t ages[IN_COUNT];
     for (int i = 0; i < IN_COUNT; i++)
         ages[i] = (marie_input_age_t){ .name = (char *)in_ports[i], .age = age_s(b, i, now) };
-    marie_arbitration_t rec = { .utime = now, .cycle = b->cycle, .nvotes = ARB_COUNT, .votes = mv,
+    marie_arbitration_t rec = { .utime = now, .cycle = b->cycle, .nvotes = ARB_COUNT + 1, .votes = mv,
                                 .winner = (char *)winner, .v = cmd.v, .omega = cmd.omega,
                                 .ninputs = IN_COUNT, .inputs = ages };
     marie_port_publish(marie_port(c, "arbitration"), &rec);

@@ -10,5 +10,7 @@ $(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
 $(eval $(call marie_link,$(B)/tests/helpers/map_compare,tests/mapper/map_compare.c,$(MAP_LIB)))
 EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/map_compare
-ITESTS += tests/mapper/test_mapper_sim.sh
-ITESTS += tests/mapper/test_explore_sim.sh
+SLOW_TESTS += tests/mapper/test_mapper_sim.sh
+# The simulated robot mapping the office along a route (~2 min) and by itself (3-4 min):
+# make test-slow runs them (make test stays within its 20 minutes; docs/mapping.md).
+SLOW_TESTS += tests/mapper/test_explore_sim.sh

@@ -12,8 +12,9 @@ SPEC=$OUT/spec
 : > "$SPEC"
 trap 'stop_started' EXIT
 
-# recipe BINARY: "INSTANCE|ARGS[|subscribe]" lines, one per run of that binary; no line: no
-# inputs to test. "subscribe": the instance subscribes to its pull ports' channels instead.
+# recipe BINARY: "INSTANCE|ARGS[|subscribe][|UNUSED...]" lines, one per run of that binary; no
+# line: no inputs to test. "subscribe": the instance subscribes to its pull ports' channels
+# instead. UNUSED: input ports this instance's mode does not listen to (another line's does).
 recipe() {
     case $1 in
     marie-behaviours)
@@ -32,6 +33,13 @@ recipe() {
     marie-viewer-server) echo "viewer|--param http_port=0" ;;
     marie-face) echo "face|--param http_port=0" ;;
     marie-vision) echo "vision|" ;;
+    marie-ssl) echo "ssl|" ;;
+    marie-asr)
+        echo "asr|--param input=separated||array"
+        echo "asr_array|--param input=array||separated" ;;
+    marie-tts) echo "tts|" ;;
+    marie-dialogue) echo "dialogue|" ;;
+    marie-audio) echo "audio|--param device=null --param playback=null" ;;
     *) return 1 ;;
     esac
 }
@@ -71,12 +79,14 @@ for bin in "$BIN"/marie-*; do
         missing="$missing $prog"
         continue
     fi
-    recipe "$prog" | while IFS='|' read -r inst args how; do
+    recipe "$prog" | while IFS='|' read -r inst args how unused; do
         remap=""
         echo "$ports" | while read -r port dir mech type; do
             ch="$(echo "${inst}_$port" | tr a-z A-Z)"
             [ "$type" = raw ] && type=$(raw_type "$port")
-            if [ "$dir" = in ]; then
+            if [ "$dir" = in ] && echo " $unused " | grep -q " $port "; then
+                :
+            elif [ "$dir" = in ]; then
                 mode=push; [ "$mech" = pull ] && [ "$how" != subscribe ] && mode=pull
                 echo "in $inst $type $ch $mode" >> "$SPEC"
             else
