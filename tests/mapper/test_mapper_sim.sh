@@ -14,7 +14,7 @@ WORLD=sim/worlds/office.yaml
 export LCM_DEFAULT_URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
 trap stop_started EXIT INT TERM
 
-ROUTE="4.1,15.7;4.1,22.5;4.1,7.5;4.1,15.7;11.0,15.7;11.0,22.5;11.0,7.5;11.0,15.7;16.25,15.7;16.25,22.5;16.25,7.5;16.25,15.7;20,15.7;20,22.5;20,7.5;20,15.7;10,15.7"
+ROUTE="4.1,15.7;4.1,22.5;4.1,7.5;4.1,15.7;11.0,15.7;11.0,19.0;11.0,7.5;11.0,15.7;16.25,15.7;16.25,22.5;16.25,7.5;16.25,15.7;20,15.7;20,22.5;20,7.5;20,15.7;10,15.7"
 start sim $BIN/marie-sim --name sim --param world=$WORLD --param speed=4 --param lockstep=0.5 --param start_y=15.7
 start odometry $BIN/marie-odometry --name odometry --clock sim
 start mapper $BIN/marie-mapper --name mapper --clock sim --param init_x=2 --param init_y=15.7
