@@ -113,12 +113,13 @@ deps:
 test-deps: deps
 	@scripts/install-deps.sh vm browser
 
-# Tests run one by one, each in its own network namespace (so the PyPI witnesses' venv is made
-# before, outside); the last line is the summary.
+# Each test runs in its own network namespace (so the PyPI witnesses' venv is made before,
+# outside): the test programs NPROC at a time, the shell tests (whole systems, VMs, browsers,
+# timings) one by one; the last line is the summary.
 test: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/peer-venv.sh >/dev/null
-	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(TESTS) $(ITESTS)
+	@B=$(B) SAN=$(SAN) scripts/run-tests.sh --jobs $(NPROC) $(TESTS) -- $(ITESTS)
 
 # Long end-to-end runs kept out of make test's 20 minutes (each says why in its module.mk).
 test-slow: test-deps

@@ -5,7 +5,9 @@
 # `skip NAME REASON` prints "[  SKIPPED ] NAME: REASON"). A program that fails without naming
 # a case counts as one failure, and so does one that exits 0 having run no case and skipped
 # none: a test that silently does nothing is a failure, never a pass. Logs go to $B/test-logs/.
-#   scripts/run-tests.sh TEST...     (env: B, TEST_TIMEOUT seconds per program, default 300)
+#   scripts/run-tests.sh [--jobs N] TEST... [-- TEST...]   (env: B, TEST_TIMEOUT seconds per
+#   program, default 300): with --jobs, the tests before `--` run N at a time (each in its own
+#   namespace; their lines print when all are done, in order), those after it one at a time.
 set -u
 B=${B:-build}
 logs=$B/test-logs
@@ -14,8 +16,9 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$(pwd)/tests/lsan.supp}
 mkdir -p "$logs"
-passed=0; failed=0; skipped=0; failed_names=""
-for t in "$@"; do
+# run_one TEST RESULT: runs it; its counts go to RESULT.counts, its report to stdout.
+run_one() {
+    t=$1
     name=$(basename "$t")
     log=$logs/$name.log
     start=$(date +%s)
@@ -36,8 +39,8 @@ for t in "$@"; do
     if [ "$rc" -eq 0 ] && [ "$ok" -eq 0 ] && [ "$bad" -eq 0 ] && [ "$skip" -eq 0 ]; then
         bad=1; nocase=1
     fi
-    passed=$((passed + ok)); failed=$((failed + bad)); skipped=$((skipped + skip))
     secs=$(( $(date +%s) - start ))
+    echo "$ok $bad $skip $name" > "$2.counts"
     if [ "$bad" -eq 0 ]; then
         if [ "$skip" -eq 0 ]; then
             printf 'PASS %-40s %4d cases %4ds\n' "$name" "$ok" "$secs"
@@ -50,9 +53,51 @@ for t in "$@"; do
         grep -E '^\[  ERROR   \]|^\[   LINE   \]|Assert|ERROR: ' "$log" | head -20 | sed 's/^/    /'
         [ "$rc" -eq 124 ] && echo "    (timed out after ${TEST_TIMEOUT:-300}s)"
         [ "$nocase" -eq 1 ] && echo "    (exited 0 but ran no case and printed no [  SKIPPED ] line)"
-        failed_names="$failed_names $name"
     fi
+}
+
+passed=0; failed=0; skipped=0; failed_names=""
+# tally RESULT: adds a finished test's counts and prints its report.
+tally() {
+    read -r ok bad skip name < "$1.counts"
+    passed=$((passed + ok)); failed=$((failed + bad)); skipped=$((skipped + skip))
+    [ "$bad" -eq 0 ] || failed_names="$failed_names $name"
+    cat "$1"
+    rm -f "$1" "$1.counts"
+}
+jobs=1
+if [ "${1:-}" = --jobs ]; then jobs=$2; shift 2; fi
+res=$(mktemp -d "${TMPDIR:-/tmp}/marie-tests.XXXXXX")
+# The tests before `--` may run side by side (all of them when there is no `--`).
+n=0
+for t in "$@"; do
+    [ "$t" = -- ] && break
+    n=$((n + 1))
 done
+if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
+    q=0
+    while [ "$q" -lt "$jobs" ]; do
+        (i=0
+         for t in "$@"; do
+             [ "$t" = -- ] && break
+             [ $((i % jobs)) -eq "$q" ] && run_one "$t" "$res/$i" > "$res/$i"
+             i=$((i + 1))
+         done) &
+        q=$((q + 1))
+    done
+    wait
+    i=0
+    while [ "$i" -lt "$n" ]; do tally "$res/$i"; i=$((i + 1)); done
+    shift "$n"
+fi
+i=0
+for t in "$@"; do
+    [ "$t" = -- ] && continue
+    run_one "$t" "$res/s$i" > "$res/s$i"
+    tally "$res/s$i"
+    i=$((i + 1))
+done
+rmdir "$res" 2>/dev/null
 [ -n "$failed_names" ] && echo "failed:$failed_names"
 echo "$passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

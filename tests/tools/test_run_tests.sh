@@ -1,6 +1,7 @@
 #!/bin/sh
 # test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
-# no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so.
+# no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so; with
+# --jobs the programs before `--` run side by side and are reported in order, counted once.
 . tests/lib.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT INT TERM
@@ -26,4 +27,13 @@ check "summary counts passes and skips, exit status 0" \
 run "$tmp/fails.sh" "$tmp/crashes.sh"
 check "failed cases and a failing exit are counted" \
     sh -c "tail -1 $tmp/out | grep -qx '1 passed, 2 failed, 0 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
+
+printf '. tests/lib.sh\nsleep 2\ncheck "slow" true\nfinish\n' > "$tmp/slow.sh"
+start=$(date +%s)
+run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" "$tmp/fails.sh" -- "$tmp/skips.sh" "$tmp/passes.sh"
+took=$(( $(date +%s) - start ))
+check "--jobs: every program reported once, in order, the summary counts them all" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh fails.sh skips.sh passes.sh ' &&
+           tail -1 $tmp/out | grep -qx '5 passed, 1 failed, 1 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
+check "--jobs 2: two 2-second programs side by side take less than the 4 s of one after the other ($took s)" [ "$took" -lt 4 ]
 finish
