@@ -39,7 +39,7 @@ recipe() {
         echo "asr_array|--param input=array||separated" ;;
     marie-tts) echo "tts|" ;;
     marie-dialogue) echo "dialogue|" ;;
-    marie-audio) echo "audio|--param device= --param playback=null" ;;   # no capture: the null PCM has no clock
+    marie-audio) echo "audio|--param 'device=\"\"' --param playback=null" ;;   # no capture: the null PCM has no clock
     *) return 1 ;;
     esac
 }
