@@ -6,6 +6,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "lcmtypes/marie_laser_scan_t.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -35,6 +37,11 @@ bool posebuf_last(const posebuf_t *b, double out[3]);
 void pose2d_compose(const double a[3], const double b[3], double out[3]);
 /* out = a^-1 (+) b: pose b seen from pose a. */
 void pose2d_between(const double a[3], const double b[3], double out[3]);
+
+/* A scan newer than the newest odometry, kept until the odometry that brackets it arrives:
+ * *keep becomes a copy of m (ranges in *ranges, grown to *cap as needed; intensities dropped).
+ * 0, or -1 (ENOMEM) with *keep untouched. The caller frees *ranges. */
+int posebuf_keep_scan(marie_laser_scan_t *keep, float **ranges, int *cap, const marie_laser_scan_t *m);
 
 #ifdef __cplusplus
 }

@@ -155,19 +155,8 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
         marie_component_count(c, "scans_late_odometry", 1);
         process(c, s, &s->pending);
     }
-    if (m->nranges > s->pending_cap) {
-        float *n = realloc(s->pending_ranges, sizeof(float) * m->nranges);
-        if (!n)
-            return;
-        s->pending_ranges = n;
-        s->pending_cap = m->nranges;
-    }
-    s->pending = *m;
-    memcpy(s->pending_ranges, m->ranges, sizeof(float) * m->nranges);
-    s->pending.ranges = s->pending_ranges;
-    s->pending.nintensities = 0;
-    s->pending.intensities = NULL;
-    s->have_pending = true;
+    if (posebuf_keep_scan(&s->pending, &s->pending_ranges, &s->pending_cap, m) == 0)
+        s->have_pending = true;
 }
 
 static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)

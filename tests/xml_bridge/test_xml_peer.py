@@ -417,6 +417,16 @@ def case_hundreds_of_clients():
         assert m is not None and float(m.find("x").text) == 42.0
     for p in peers:
         p.close()
+    end = time.time() + 5           # the bridge frees the slots once it sees the closes
+    while True:
+        p = Peer()
+        d = p.recv()
+        p.close()
+        if d is not None and d.tag == "hello":
+            break
+        assert d is not None and d.get("code") == "busy" and time.time() < end, \
+            ET.tostring(d) if d is not None else "closed"
+        time.sleep(0.05)
 
 
 def case_slow_reader_loses_oldest():

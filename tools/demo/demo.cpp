@@ -45,6 +45,7 @@ struct Options {
     std::string out = "build/demo";
     double timeout_s = 170;
     double chaos_s = 0;           // kill a random non-simulator component this often
+    std::string chaos_first;      // ...and this one first, when it runs
     int estop_after_goal = 0;     // press the e-stop once this many goals are reached
     int hosts = 4;
     bool quiet = false;
@@ -299,6 +300,9 @@ void Demo::chaos_tick()
     if (victims.empty())
         return;
     auto v = victims[std::uniform_int_distribution<size_t>(0, victims.size() - 1)(rng_)];
+    for (auto &c : victims)
+        if (kills_ == 0 && c.first == opt_.chaos_first)
+            v = c;
     if (kill(v.second, SIGKILL) == 0) {
         kills_++;
         killed_.push_back(v.first);
@@ -533,7 +537,7 @@ int Demo::run()
 void usage(FILE *out)
 {
     fprintf(out, "usage: marie-demo [--system FILE] [--profile P] [--out DIR] [--timeout S] [--chaos S]\n"
-                 "                  [--estop-after-goal K] [--quiet]\n");
+                 "                  [--chaos-first NAME] [--estop-after-goal K] [--quiet]\n");
 }
 
 }  // namespace
@@ -545,6 +549,7 @@ int main(int argc, char **argv)
         {"system", required_argument, nullptr, 's'}, {"profile", required_argument, nullptr, 'p'},
         {"out", required_argument, nullptr, 'o'}, {"timeout", required_argument, nullptr, 't'},
         {"chaos", required_argument, nullptr, 'c'}, {"estop-after-goal", required_argument, nullptr, 'e'},
+        {"chaos-first", required_argument, nullptr, 'f'},
         {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
     };
     int c;
@@ -555,6 +560,7 @@ int main(int argc, char **argv)
         case 'o': o.out = optarg; break;
         case 't': o.timeout_s = atof(optarg); break;
         case 'c': o.chaos_s = atof(optarg); break;
+        case 'f': o.chaos_first = optarg; break;
         case 'e': o.estop_after_goal = atoi(optarg); break;
         case 'q': o.quiet = true; break;
         case 'h': usage(stdout); return 0;
