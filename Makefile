@@ -124,7 +124,7 @@ test: test-deps
 # Long end-to-end runs kept out of make test's 20 minutes (each says why in its module.mk).
 test-slow: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
-	@B=$(B) SAN=$(SAN) scripts/run-tests.sh $(SLOW_TESTS)
+	@B=$(B) SAN=$(SAN) TEST_TIMEOUT=$${TEST_TIMEOUT:-600} scripts/run-tests.sh $(SLOW_TESTS)
 
 test-vm: deps
 	@scripts/install-deps.sh vm

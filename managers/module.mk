@@ -33,3 +33,5 @@ $(eval $(call marie_program,marie-top,managers/top_main.c managers/top.c,))
 $(eval $(call marie_test,test_balance,tests/managers/test_balance.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_top,tests/managers/test_top.c managers/top.c,))
 ITESTS += tests/managers/test_top.sh
+# Two competing loads for five minutes: no flapping (lasts five minutes by design).
+SLOW_TESTS += tests/managers/test_balance_loads.sh
