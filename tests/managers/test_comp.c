@@ -32,6 +32,13 @@ static void trace(const char *what)
     fclose(f);
 }
 
+static int64_t cpu_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+}
+
 static void tick(marie_component_t *c, int64_t overruns)
 {
     if (hang_now) {
@@ -46,11 +53,12 @@ static void tick(marie_component_t *c, int64_t overruns)
             fprintf(stderr, "warning %lld from %s\n", (long long)n, marie_component_name(c));
         fflush(stdout);
     }
-    /* a CPU load: spin for this fraction of each 100 ms tick */
+    /* a CPU load: this fraction of each 100 ms tick, counted in CPU time so that a machine
+     * busy with other work stretches the spin instead of shrinking the load */
     double busy = marie_param_double(c, "busy");
     if (busy > 0) {
-        int64_t until = marie_mono_us() + (int64_t)(busy * 100000);
-        while (marie_mono_us() < until)
+        int64_t until = cpu_us() + (int64_t)(busy * 100000);
+        while (cpu_us() < until)
             ;
     }
     double exit_after = marie_param_double(c, "exit_after_s");
