@@ -136,7 +136,7 @@ static void step(rig_t *r)
     }
     if (r->drv && lms200_driver_fd(r->drv) >= 0) {
         id = n;
-        p[n++] = (struct pollfd){ .fd = lms200_driver_fd(r->drv), .events = POLLIN };
+        p[n++] = (struct pollfd){ .fd = lms200_driver_fd(r->drv), .events = lms200_driver_events(r->drv) };
     }
     int64_t now = mono_us();
     int64_t dl = vlms200_deadline(r->emu);
