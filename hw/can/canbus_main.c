@@ -54,9 +54,13 @@ int main(int argc, char **argv)
         marie_error("cannot listen on %s: %s", argv[1], strerror(errno));
         return 1;
     }
-    marie_loop_add_fd(loop, sfd, POLLIN, on_usr, b);
-    marie_info("emulated CAN bus on %s", argv[1]);
-    int rc = marie_loop_run(loop);
+    int rc = marie_loop_add_fd(loop, sfd, POLLIN, on_usr, b);
+    if (rc < 0)
+        marie_error("cannot watch SIGUSR1/SIGUSR2: %s", strerror(-rc));
+    else
+        marie_info("emulated CAN bus on %s", argv[1]);
+    if (rc == 0)
+        rc = marie_loop_run(loop);
     const can_emubus_stats_t *s = can_emubus_stats(b);
     marie_info("bus closed: %llu clients, %llu frames, %llu delivered, %llu overflow, %llu bad",
                (unsigned long long)s->clients, (unsigned long long)s->frames,

@@ -128,10 +128,13 @@ int main(int argc, char **argv)
         return 1;
     }
     marie_info("virtual drives %u/%u and gyro %u on %s", cfg.left, cfg.right, cfg.gyro, cfg.can_url);
-    if (marie_loop_add_fd(loop, vdevices_fd(d.v), POLLIN, on_frames, &d) < 0 ||
-        marie_loop_add_fd(loop, sfd, POLLIN, on_usr, &d) < 0 ||
-        !marie_loop_add_timer(loop, TICK_US, on_tick, &d)) {
-        marie_error("cannot set up the loop: %s", strerror(errno));
+    int r = marie_loop_add_fd(loop, vdevices_fd(d.v), POLLIN, on_frames, &d);
+    if (r == 0)
+        r = marie_loop_add_fd(loop, sfd, POLLIN, on_usr, &d);
+    if (r == 0 && !marie_loop_add_timer(loop, TICK_US, on_tick, &d))
+        r = -errno;
+    if (r < 0) {
+        marie_error("cannot set up the loop: %s", strerror(-r));
         d.rc = 1;
     } else if (marie_loop_run(loop) < 0) {
         d.rc = 1;
