@@ -59,12 +59,6 @@ struct sim_devices {
     sim_devices_stats_t st;
 };
 
-static void on_bus(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    sim_devices_t *d = user;
-    can_emubus_process(d->bus);
-}
-
 static void on_dev(marie_loop_t *loop, int fd, short revents, void *user)
 {
     sim_devices_t *d = user;
@@ -136,14 +130,10 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
             snprintf(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
             goto fail;
         }
-        d->bus = can_emubus_create(cfg->can_url + 4);
+        d->bus = can_emubus_create(loop, cfg->can_url + 4);
         if (!d->bus) {
             snprintf(err, errlen, "cannot serve the emulated CAN bus at %s: %s", cfg->can_url + 4,
                      strerror(errno));
-            goto fail;
-        }
-        if (marie_loop_add_fd(loop, can_emubus_fd(d->bus), POLLIN, on_bus, d) < 0) {
-            snprintf(err, errlen, "cannot poll the CAN bus: %s", strerror(errno));
             goto fail;
         }
     }
@@ -197,10 +187,7 @@ void sim_devices_destroy(sim_devices_t *d)
         marie_loop_remove_fd(d->loop, vdevices_fd(d->dev));
         vdevices_destroy(d->dev);
     }
-    if (d->bus) {
-        marie_loop_remove_fd(d->loop, can_emubus_fd(d->bus));
-        can_emubus_destroy(d->bus);
-    }
+    can_emubus_destroy(d->bus);
     free(d);
 }
 

@@ -19,6 +19,16 @@
 #include <linux/rtnetlink.h>
 
 #define CAN_MAX_FILTERS 64
+/* Frames held for the emulated bus's server, whose socket takes only 10 packets per client
+ * (net.unix.max_dgram_qlen) until it runs again; a real controller's queue drains on the wire
+ * by itself. A server that does not run (a loaded machine, a simulator descheduled) does not
+ * advance simulated time either, so holding the frame, not losing it, is what a bus would do. */
+#define EMU_TX_QUEUE 64
+
+typedef struct {
+    uint8_t len;
+    uint8_t data[CANFD_MTU];
+} tx_pkt_t;
 
 struct can_bus {
     int fd;
@@ -31,6 +41,8 @@ struct can_bus {
     bool fd_on;
     can_bus_health_t state;
     can_stats_t stats;
+    tx_pkt_t *txq;              /* ring of EMU_TX_QUEUE, allocated when first needed */
+    int tx_head, tx_count;
 };
 
 /* ---- pure helpers ---- */
@@ -233,6 +245,7 @@ void can_bus_close(can_bus_t *bus)
     if (!bus)
         return;
     close(bus->fd);
+    free(bus->txq);
     free(bus);
 }
 
@@ -349,33 +362,66 @@ int can_bus_enable_fd(can_bus_t *bus, bool on)
     return 0;
 }
 
-/* The emulated bus's server takes only 10 packets per client (net.unix.max_dgram_qlen) until it
- * runs again; a real controller's queue drains on the wire by itself. So a full queue there
- * waits for the server (a process on this host) instead of losing the frame: a server that does
- * not run (a loaded machine, a simulator descheduled) does not advance simulated time either. */
-#define EMU_TX_WAIT_MS 200
-
-static int send_packet(can_bus_t *bus, const void *p, size_t len)
+/* 1 sent, 0 when the socket is full, -errno. */
+static int send_now(can_bus_t *bus, const void *p, size_t len)
 {
-    bool waited = bus->socketcan;
     for (;;) {
-        ssize_t n = send(bus->fd, p, len, MSG_NOSIGNAL);
+        ssize_t n = send(bus->fd, p, len, MSG_DONTWAIT | MSG_NOSIGNAL);
         if (n == (ssize_t)len) {
             bus->stats.tx++;
-            return 0;
+            return 1;
         }
         if (n < 0 && errno == EINTR)
             continue;
-        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK) && !waited) {
-            struct pollfd pfd = { .fd = bus->fd, .events = POLLOUT };
-            waited = true;
-            if (poll(&pfd, 1, EMU_TX_WAIT_MS) > 0)
-                continue;
-            errno = EAGAIN;
-        }
-        bus->stats.tx_errors++;
+        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+            return 0;
         return n < 0 ? -errno : -EIO;
     }
+}
+
+int can_bus_flush(can_bus_t *bus)
+{
+    while (bus->tx_count > 0) {
+        tx_pkt_t *p = &bus->txq[bus->tx_head];
+        int r = send_now(bus, p->data, p->len);
+        if (r == 0)
+            break;
+        if (r < 0)
+            return r;
+        bus->tx_head = (bus->tx_head + 1) % EMU_TX_QUEUE;
+        bus->tx_count--;
+    }
+    return bus->tx_count;
+}
+
+short can_bus_events(const can_bus_t *bus) { return POLLIN | (bus->tx_count > 0 ? POLLOUT : 0); }
+
+static int send_packet(can_bus_t *bus, const void *p, size_t len)
+{
+    int r = 0;
+    /* Held frames go first: the bus keeps a sender's order. */
+    if (bus->tx_count == 0 || (r = can_bus_flush(bus)) == 0) {
+        r = send_now(bus, p, len);
+        if (r == 1)
+            return 0;
+    }
+    if (r < 0 || bus->socketcan) {
+        bus->stats.tx_errors++;
+        return r < 0 ? r : -EAGAIN;     /* SocketCAN: the controller's queue is full */
+    }
+    if (!bus->txq && !(bus->txq = malloc(EMU_TX_QUEUE * sizeof *bus->txq))) {
+        bus->stats.tx_errors++;
+        return -ENOMEM;
+    }
+    if (bus->tx_count == EMU_TX_QUEUE) {
+        bus->stats.tx_errors++;
+        return -EAGAIN;
+    }
+    tx_pkt_t *q = &bus->txq[(bus->tx_head + bus->tx_count) % EMU_TX_QUEUE];
+    q->len = (uint8_t)len;
+    memcpy(q->data, p, len);
+    bus->tx_count++;
+    return 0;
 }
 
 int can_bus_write_fd(can_bus_t *bus, const struct canfd_frame *f)

@@ -64,7 +64,7 @@ can_bus_t *can_bus_open(const char *url);
 can_bus_t *can_bus_from_fd(int fd);
 void can_bus_close(can_bus_t *bus);         /* NULL is a no-op */
 
-int can_bus_fd(const can_bus_t *bus);       /* poll it for POLLIN */
+int can_bus_fd(const can_bus_t *bus);       /* poll it for can_bus_events() */
 bool can_bus_is_socketcan(const can_bus_t *bus);
 const char *can_bus_url(const can_bus_t *bus);
 
@@ -77,9 +77,15 @@ int can_bus_set_err_mask(can_bus_t *bus, can_err_mask_t mask);
  * when the emulated bus went away). Packets that are not frames are counted and skipped.
  * Error frames update the bus state (can_bus_state) before they are returned. */
 int can_bus_read(can_bus_t *bus, struct can_frame *f);
-/* Write one frame. 0, or -errno (-EAGAIN: transmit queue full; -ENETDOWN: bus-off or link down);
- * failures are counted in tx_errors. */
+/* Write one frame without blocking. 0, or -errno (-EAGAIN: transmit queue full; -ENETDOWN:
+ * bus-off or link down); failures are counted in tx_errors. On the emulated bus a frame its
+ * server has no room for yet is held (up to 64, in order) and 0 returned: the caller's loop
+ * watches can_bus_events() and calls can_bus_flush() when the fd is writable. */
 int can_bus_write(can_bus_t *bus, const struct can_frame *f);
+/* Send held frames as far as the server takes them: how many are still held, or -errno. */
+int can_bus_flush(can_bus_t *bus);
+/* What to poll the fd for: POLLIN, and POLLOUT while frames are held. */
+short can_bus_events(const can_bus_t *bus);
 
 /* CAN FD: accept and send struct canfd_frame (72-byte packets; CAN_RAW_FD_FRAMES on
  * SocketCAN). Off by default; then FD frames are never delivered. */

@@ -59,10 +59,25 @@ static void disconnect(can_link_t *l, const char *why)
     event(l, "disconnected", "%s: %s", l->url, why);
 }
 
+/* POLLOUT only while the emulated bus holds frames its server had no room for. */
+static void sync_events(can_link_t *l)
+{
+    if (l->bus)
+        marie_loop_set_events(l->loop, can_bus_fd(l->bus), can_bus_events(l->bus));
+}
+
 static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     can_link_t *l = user;
     struct can_frame f;
+    if (revents & POLLOUT) {
+        int r = can_bus_flush(l->bus);
+        if (r < 0) {
+            disconnect(l, strerror(-r));
+            return;
+        }
+        sync_events(l);
+    }
     /* Bounded: the loop gets back control even under a frame storm. */
     for (int i = 0; i < 512 && l->bus; i++) {
         int r = can_bus_read(l->bus, &f);
@@ -201,6 +216,7 @@ int can_link_send(can_link_t *l, const struct can_frame *f, int n)
                   (unsigned long long)l->tx_fail_logged);
         }
     }
+    sync_events(l);
     return sent;
 }
 

@@ -6,7 +6,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <linux/sockios.h>
-#include <sys/epoll.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/un.h>
@@ -28,18 +27,21 @@ typedef struct {
     int fd;
     pkt_t *q;                   /* ring of EMUBUS_QUEUE, allocated when first needed */
     int head, count;
-    bool want_out;              /* EPOLLOUT armed */
+    bool want_out;              /* POLLOUT asked of the loop */
 } client_t;
 
 struct can_emubus {
-    int lfd, epfd;
+    marie_loop_t *loop;
+    int lfd;
     char path[108];
     client_t clients[EMUBUS_MAX_CLIENTS];
     int nclients;
     can_emubus_stats_t stats;
 };
 
-can_emubus_t *can_emubus_create(const char *path)
+static void on_listen(marie_loop_t *loop, int fd, short revents, void *user);
+
+can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
 {
     struct sockaddr_un sa;
     memset(&sa, 0, sizeof sa);
@@ -53,25 +55,21 @@ can_emubus_t *can_emubus_create(const char *path)
     if (!b)
         return NULL;
     strcpy(b->path, path);
+    b->loop = loop;
     b->lfd = socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (b->lfd < 0)
         goto err_free;
     unlink(path);
     if (bind(b->lfd, (struct sockaddr *)&sa, sizeof sa) < 0 || listen(b->lfd, 16) < 0)
         goto err_close;
-    b->epfd = epoll_create1(EPOLL_CLOEXEC);
-    if (b->epfd < 0)
+    int r = marie_loop_add_fd(loop, b->lfd, POLLIN, on_listen, b);
+    if (r < 0) {
+        errno = -r;
         goto err_unlink;
-    struct epoll_event ev = { .events = EPOLLIN, .data.fd = b->lfd };
-    if (epoll_ctl(b->epfd, EPOLL_CTL_ADD, b->lfd, &ev) < 0)
-        goto err_ep;
+    }
     return b;
-err_ep:;
+err_unlink:;
     int e = errno;
-    close(b->epfd);
-    errno = e;
-err_unlink:
-    e = errno;
     unlink(path);
     errno = e;
 err_close:
@@ -90,22 +88,22 @@ void can_emubus_destroy(can_emubus_t *b)
     if (!b)
         return;
     for (int i = 0; i < b->nclients; i++) {
+        marie_loop_remove_fd(b->loop, b->clients[i].fd);
         close(b->clients[i].fd);
         free(b->clients[i].q);
     }
-    close(b->epfd);
+    marie_loop_remove_fd(b->loop, b->lfd);
     close(b->lfd);
     unlink(b->path);
     free(b);
 }
 
-int can_emubus_fd(const can_emubus_t *b) { return b->epfd; }
 int can_emubus_nclients(const can_emubus_t *b) { return b->nclients; }
 const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b) { return &b->stats; }
 
 static void drop_client(can_emubus_t *b, int i)
 {
-    epoll_ctl(b->epfd, EPOLL_CTL_DEL, b->clients[i].fd, NULL);
+    marie_loop_remove_fd(b->loop, b->clients[i].fd);
     close(b->clients[i].fd);
     free(b->clients[i].q);
     b->clients[i] = b->clients[--b->nclients];
@@ -115,8 +113,7 @@ static void want_out(can_emubus_t *b, client_t *c, bool on)
 {
     if (c->want_out == on)
         return;
-    struct epoll_event ev = { .events = EPOLLIN | (on ? EPOLLOUT : 0), .data.fd = c->fd };
-    if (epoll_ctl(b->epfd, EPOLL_CTL_MOD, c->fd, &ev) == 0)
+    if (marie_loop_set_events(b->loop, c->fd, POLLIN | (on ? POLLOUT : 0)) == 0)
         c->want_out = on;
 }
 
@@ -131,7 +128,7 @@ static void flush(can_emubus_t *b, client_t *c)
         if (r == (ssize_t)p->len)
             b->stats.delivered++;
         else
-            b->stats.overflow++;    /* a dead peer is noticed by its own EPOLLHUP */
+            b->stats.overflow++;    /* a dead peer is noticed by its own POLLHUP */
         c->head = (c->head + 1) % EMUBUS_QUEUE;
         c->count--;
     }
@@ -191,14 +188,15 @@ int can_emubus_inject(can_emubus_t *b, const struct can_frame *f)
     return 0;
 }
 
+static void on_client(marie_loop_t *loop, int fd, short revents, void *user);
+
 static void accept_all(can_emubus_t *b)
 {
     for (;;) {
         int fd = accept4(b->lfd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0)
             return;
-        struct epoll_event ev = { .events = EPOLLIN, .data.fd = fd };
-        if (b->nclients >= EMUBUS_MAX_CLIENTS || epoll_ctl(b->epfd, EPOLL_CTL_ADD, fd, &ev) < 0) {
+        if (b->nclients >= EMUBUS_MAX_CLIENTS || marie_loop_add_fd(b->loop, fd, POLLIN, on_client, b) < 0) {
             close(fd);
             continue;
         }
@@ -230,33 +228,47 @@ static int drain(can_emubus_t *b, int fd)
     return n;
 }
 
+static void on_listen(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    accept_all(user);
+}
+
+static int find(const can_emubus_t *b, int fd)
+{
+    for (int i = 0; i < b->nclients; i++)
+        if (b->clients[i].fd == fd)
+            return i;
+    return -1;
+}
+
+static void on_client(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    can_emubus_t *b = user;
+    int i = find(b, fd);
+    if (i < 0)
+        return;
+    if (revents & POLLOUT)
+        flush(b, &b->clients[i]);
+    int r = (revents & (POLLIN | POLLHUP | POLLERR)) ? drain(b, fd) : 0;
+    /* drain relays to the others, which may drop none: i still names this client */
+    if (r < 0 || (revents & (POLLHUP | POLLERR) && r == 0))
+        drop_client(b, i);
+}
+
 int can_emubus_process(can_emubus_t *b)
 {
-    struct epoll_event evs[32];
     int total = 0;
-    int n = epoll_wait(b->epfd, evs, 32, 0);
-    if (n < 0)
-        return errno == EINTR ? 0 : -errno;
-    for (int i = 0; i < n; i++) {
-        int fd = evs[i].data.fd;
-        if (fd == b->lfd) {
-            accept_all(b);
+    accept_all(b);
+    for (int i = 0; i < b->nclients;) {
+        if (b->clients[i].count > 0)
+            flush(b, &b->clients[i]);
+        int r = drain(b, b->clients[i].fd);
+        if (r < 0) {
+            drop_client(b, i);      /* the last one moved here: look at slot i again */
             continue;
         }
-        if (evs[i].events & EPOLLOUT)
-            for (int j = 0; j < b->nclients; j++)
-                if (b->clients[j].fd == fd)
-                    flush(b, &b->clients[j]);
-        int r = (evs[i].events & (EPOLLIN | EPOLLHUP | EPOLLERR)) ? drain(b, fd) : 0;
-        if (r < 0 || (evs[i].events & (EPOLLHUP | EPOLLERR) && r == 0)) {
-            for (int j = 0; j < b->nclients; j++)
-                if (b->clients[j].fd == fd) {
-                    drop_client(b, j);
-                    break;
-                }
-        } else {
-            total += r;
-        }
+        total += r;
+        i++;
     }
     return total;
 }

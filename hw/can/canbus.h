@@ -1,11 +1,14 @@
 /* canbus: the emulated CAN bus: an AF_UNIX SOCK_SEQPACKET server relaying every frame a
- * client writes to all other clients, as a real bus (and SocketCAN's loopback) would. */
+ * client writes to all other clients, as a real bus (and SocketCAN's loopback) would. Its
+ * listening socket and its clients are fds of the caller's marie_loop. */
 #ifndef MARIE_HW_CANBUS_H
 #define MARIE_HW_CANBUS_H
 
 #include <stdint.h>
 #include <linux/can.h>
 #include <linux/can/error.h>
+
+#include "core/loop.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -21,12 +24,13 @@ typedef struct {
     uint64_t bad;               /* packets that are not a CAN / CAN FD frame */
 } can_emubus_stats_t;
 
-/* Listen on `path` (an existing socket file is replaced). NULL with errno. */
-can_emubus_t *can_emubus_create(const char *path);
-void can_emubus_destroy(can_emubus_t *b);          /* NULL is a no-op; unlinks the path */
-/* One pollable fd (epoll) for the whole bus: when readable, call can_emubus_process(). */
-int can_emubus_fd(const can_emubus_t *b);
-/* Accept, relay and drop clients without blocking. Returns frames relayed or -errno. */
+/* Listen on `path` (an existing socket file is replaced); the bus accepts, relays and drops
+ * clients from `loop` as it runs. NULL with errno. */
+can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path);
+/* NULL is a no-op; takes its fds off the loop and unlinks the path. */
+void can_emubus_destroy(can_emubus_t *b);
+/* Accept, relay and drop clients now, without waiting for the loop (a simulator that must see
+ * the frames sent during its step before it judges deadlines). Returns frames relayed. */
 int can_emubus_process(can_emubus_t *b);
 /* Put a frame on the bus from the bus itself (e.g. an error frame): every client gets it. */
 int can_emubus_inject(can_emubus_t *b, const struct can_frame *f);

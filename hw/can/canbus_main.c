@@ -3,24 +3,33 @@
  * SIGUSR1 puts a bus-off error frame on the bus and SIGUSR2 a "restarted" one, to exercise
  * the drivers' recovery. */
 #include <errno.h>
-#include <poll.h>
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/signalfd.h>
+#include <unistd.h>
 
 #include "core/log.h"
+#include "core/loop.h"
 #include "hw/can/canbus.h"
 
-static volatile sig_atomic_t quit, inject_busoff, inject_restart;
-
-static void on_signal(int s)
+static void on_quit(marie_loop_t *loop, int signo, void *user)
 {
-    if (s == SIGUSR1)
-        inject_busoff = 1;
-    else if (s == SIGUSR2)
-        inject_restart = 1;
-    else
-        quit = 1;
+    marie_loop_quit(loop);
+}
+
+/* SIGUSR1 / SIGUSR2 arrive through a signalfd: the error frame goes out from the loop. */
+static void on_usr(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    can_emubus_t *b = user;
+    struct signalfd_siginfo si;
+    while (read(fd, &si, sizeof si) == (ssize_t)sizeof si) {
+        struct can_frame f;
+        memset(&f, 0, sizeof f);
+        f.can_id = CAN_ERR_FLAG | (si.ssi_signo == SIGUSR1 ? CAN_ERR_BUSOFF : CAN_ERR_RESTARTED);
+        f.len = CAN_ERR_DLC;
+        can_emubus_inject(b, &f);
+    }
 }
 
 int main(int argc, char **argv)
@@ -29,42 +38,37 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: marie-canbus PATH   (clients use emu:PATH)\n");
         return 2;
     }
-    can_emubus_t *b = can_emubus_create(argv[1]);
+    sigset_t usr;
+    sigemptyset(&usr);
+    sigaddset(&usr, SIGUSR1);
+    sigaddset(&usr, SIGUSR2);
+    sigprocmask(SIG_BLOCK, &usr, NULL);
+    int sfd = signalfd(-1, &usr, SFD_NONBLOCK | SFD_CLOEXEC);
+    marie_loop_t *loop = marie_loop_create();
+    if (sfd < 0 || !loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
+        marie_error("cannot set up the loop: %s", strerror(errno));
+        return 1;
+    }
+    can_emubus_t *b = can_emubus_create(loop, argv[1]);
     if (!b) {
         marie_error("cannot listen on %s: %s", argv[1], strerror(errno));
         return 1;
     }
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGUSR1, &sa, NULL);
-    sigaction(SIGUSR2, &sa, NULL);
-    marie_info("emulated CAN bus on %s", argv[1]);
-    while (!quit) {
-        struct pollfd p = { .fd = can_emubus_fd(b), .events = POLLIN };
-        int r = poll(&p, 1, 1000);
-        if (r < 0 && errno != EINTR) {
-            marie_error("poll: %s", strerror(errno));
-            break;
-        }
-        if (inject_busoff || inject_restart) {
-            struct can_frame f;
-            memset(&f, 0, sizeof f);
-            f.can_id = CAN_ERR_FLAG | (inject_busoff ? CAN_ERR_BUSOFF : CAN_ERR_RESTARTED);
-            f.len = CAN_ERR_DLC;
-            can_emubus_inject(b, &f);
-            inject_busoff = inject_restart = 0;
-        }
-        if (r > 0)
-            can_emubus_process(b);
-    }
+    int rc = marie_loop_add_fd(loop, sfd, POLLIN, on_usr, b);
+    if (rc < 0)
+        marie_error("cannot watch SIGUSR1/SIGUSR2: %s", strerror(-rc));
+    else
+        marie_info("emulated CAN bus on %s", argv[1]);
+    if (rc == 0)
+        rc = marie_loop_run(loop);
     const can_emubus_stats_t *s = can_emubus_stats(b);
     marie_info("bus closed: %llu clients, %llu frames, %llu delivered, %llu overflow, %llu bad",
                (unsigned long long)s->clients, (unsigned long long)s->frames,
                (unsigned long long)s->delivered, (unsigned long long)s->overflow,
                (unsigned long long)s->bad);
     can_emubus_destroy(b);
-    return 0;
+    marie_loop_remove_fd(loop, sfd);
+    close(sfd);
+    marie_loop_destroy(loop);
+    return rc < 0 ? 1 : 0;
 }

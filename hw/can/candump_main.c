@@ -2,17 +2,47 @@
  * bus (which can-utils cannot reach) as well as SocketCAN.
  *   marie-candump URL [-n COUNT]       e.g. marie-candump emu:/tmp/marie-can.sock */
 #include <errno.h>
-#include <poll.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/time.h>
 
+#include "core/loop.h"
 #include "hw/can/can.h"
 
-static volatile sig_atomic_t quit;
-static void on_signal(int s) { quit = 1; }
+typedef struct {
+    can_bus_t *bus;
+    const char *name;
+    long count;                 /* frames still to print; -1: no limit */
+    int rc;
+} dump_t;
+
+static void on_quit(marie_loop_t *loop, int signo, void *user)
+{
+    marie_loop_quit(loop);
+}
+
+static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    dump_t *d = user;
+    struct can_frame f;
+    int r = 0;
+    while (d->count != 0 && (r = can_bus_read(d->bus, &f)) == 1) {
+        struct timeval tv;
+        gettimeofday(&tv, NULL);
+        char buf[64];
+        printf("(%ld.%06ld) %s %s\n", (long)tv.tv_sec, (long)tv.tv_usec, d->name, can_frame_str(&f, buf, sizeof buf));
+        if (d->count > 0)
+            d->count--;
+    }
+    fflush(stdout);
+    if (r < 0) {
+        fprintf(stderr, "marie-candump: %s\n", strerror(-r));
+        d->rc = 1;
+    }
+    if (r < 0 || d->count == 0)
+        marie_loop_quit(loop);
+}
 
 int main(int argc, char **argv)
 {
@@ -20,43 +50,25 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: marie-candump URL [-n COUNT]   (URL: can:IFNAME or emu:PATH)\n");
         return 2;
     }
-    long count = argc >= 4 && strcmp(argv[2], "-n") == 0 ? atol(argv[3]) : -1;
-    can_bus_t *bus = can_bus_open(argv[1]);
-    if (!bus) {
+    dump_t d = { .count = argc >= 4 && strcmp(argv[2], "-n") == 0 ? atol(argv[3]) : -1 };
+    d.bus = can_bus_open(argv[1]);
+    if (!d.bus) {
         fprintf(stderr, "marie-candump: %s: %s\n", argv[1], strerror(errno));
         return 1;
     }
-    can_bus_set_err_mask(bus, CAN_ERR_MASK);
-    const char *name = strchr(argv[1], ':') + 1;
-    if (strncmp(argv[1], "emu:", 4) == 0)
-        name = "emu";
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    int rc = 0;
-    while (!quit && count != 0) {
-        struct pollfd p = { .fd = can_bus_fd(bus), .events = POLLIN };
-        if (poll(&p, 1, 500) < 0 && errno != EINTR)
-            break;
-        struct can_frame f;
-        int r = 0;
-        while (count != 0 && (r = can_bus_read(bus, &f)) == 1) {
-            struct timeval tv;
-            gettimeofday(&tv, NULL);
-            char buf[64];
-            printf("(%ld.%06ld) %s %s\n", (long)tv.tv_sec, (long)tv.tv_usec, name, can_frame_str(&f, buf, sizeof buf));
-            if (count > 0)
-                count--;
-        }
-        fflush(stdout);
-        if (r < 0) {
-            fprintf(stderr, "marie-candump: %s\n", strerror(-r));
-            rc = 1;
-            break;
-        }
+    can_bus_set_err_mask(d.bus, CAN_ERR_MASK);
+    d.name = strncmp(argv[1], "emu:", 4) == 0 ? "emu" : strchr(argv[1], ':') + 1;
+    marie_loop_t *loop = marie_loop_create();
+    int r = loop ? marie_loop_catch_signals(loop, on_quit, NULL) : -ENOMEM;
+    if (r == 0)
+        r = marie_loop_add_fd(loop, can_bus_fd(d.bus), POLLIN, on_readable, &d);
+    if (r < 0) {
+        fprintf(stderr, "marie-candump: cannot set up the loop: %s\n", strerror(-r));
+        d.rc = 1;
+    } else if (d.count != 0 && marie_loop_run(loop) < 0) {
+        d.rc = 1;
     }
-    can_bus_close(bus);
-    return rc;
+    marie_loop_destroy(loop);
+    can_bus_close(d.bus);
+    return d.rc;
 }

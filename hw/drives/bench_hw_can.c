@@ -4,7 +4,6 @@
 #include <fcntl.h>
 #include <lcm/lcm.h>
 #include <math.h>
-#include <poll.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +12,7 @@
 #include <unistd.h>
 
 #include "core/config.h"
+#include "core/loop.h"
 #include "core/procstat.h"
 #include "core/time.h"
 #include "hw/can/can.h"
@@ -41,7 +41,27 @@ static void on_enc(const lcm_recv_buf_t *rb, const char *ch, const marie_wheel_e
     enc_ok = m->status == MARIE_WHEEL_ENCODERS_T_STATUS_OK;
 }
 
+/* The command being timed: its left-wheel target, recognised in RPDO1 on the spy's bus. */
+typedef struct {
+    can_bus_t *spy;
+    int32_t want;
+    bool armed;
+    int64_t sent, seen;         /* mono us; seen 0 until the RPDO came */
+} probe_t;
 
+static void on_spy(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    probe_t *p = user;
+    struct can_frame f;
+    while (can_bus_read(p->spy, &f) == 1) {
+        int32_t tgt;
+        memcpy(&tgt, f.data + 2, 4);
+        if (p->armed && f.len == 6 && tgt == p->want) {
+            p->seen = marie_mono_us();
+            p->armed = false;
+        }
+    }
+}
 
 /* CPU seconds used so far, and a /proc/PID/status memory field in MB. */
 static double cpu_s(pid_t pid)
@@ -79,17 +99,21 @@ int main(void)
     pid_t gyr = spawn("marie-gyro", (char *[]){ "--param", param, NULL });
     lcm_t *lcm = lcm_create(marie_default_url());
     can_bus_t *spy = can_bus_open(url);
+    marie_loop_t *loop = marie_loop_create();
     int rc = 1;
-    if (!lcm || !spy || bus <= 0 || dev <= 0 || drv <= 0 || gyr <= 0) {
+    if (!lcm || !spy || !loop || bus <= 0 || dev <= 0 || drv <= 0 || gyr <= 0) {
         fprintf(stderr, "bench_hw_can: setup failed\n");
         goto out;
     }
     struct can_filter flt = { 0x201, 0x7FF };
     can_bus_set_filters(spy, &flt, 1);
     marie_wheel_encoders_t_subscription_t *se = marie_wheel_encoders_t_subscribe(lcm, "WHEEL_ENCODERS", on_enc, NULL);
+    probe_t pr = { .spy = spy };
+    marie_loop_add_lcm(loop, lcm, 1);
+    marie_loop_add_fd(loop, can_bus_fd(spy), POLLIN, on_spy, &pr);
     int64_t t0 = marie_mono_us();
     while (!enc_ok && marie_mono_us() - t0 < 20000000)
-        lcm_handle_timeout(lcm, 50);
+        marie_loop_run_once(loop, 50);
     if (!enc_ok) {
         fprintf(stderr, "bench_hw_can: drives never enabled\n");
         goto out_sub;
@@ -104,29 +128,20 @@ int main(void)
         while (can_bus_read(spy, &f) == 1)
             ;
         double v = 0.01 * (1 + i % 50);                 /* 0.01 .. 0.5 m/s */
-        int32_t want = (int32_t)lround(v / 0.1 * 4096 / (2 * M_PI));
+        pr.want = (int32_t)lround(v / 0.1 * 4096 / (2 * M_PI));
+        pr.seen = 0;
+        pr.armed = true;
         marie_motor_command_t m = { .utime = marie_wall_us(), .v = v, .omega = 0, .source = "bench" };
-        int64_t sent = marie_mono_us();
+        pr.sent = marie_mono_us();
         marie_motor_command_t_publish(lcm, "MOTOR_COMMAND", &m);
-        while (marie_mono_us() - sent < 200000) {
-            struct pollfd p = { .fd = can_bus_fd(spy), .events = POLLIN };
-            if (poll(&p, 1, 20) <= 0)
-                continue;
-            int32_t tgt;
-            int found = 0;
-            while (can_bus_read(spy, &f) == 1) {
-                memcpy(&tgt, f.data + 2, 4);
-                if (f.len == 6 && tgt == want && !found) {
-                    lat[got++] = (marie_mono_us() - sent) / 1000.0;
-                    found = 1;
-                }
-            }
-            if (found)
-                break;
-        }
+        while (!pr.seen && marie_mono_us() - pr.sent < 200000)
+            marie_loop_run_once(loop, 20);
+        pr.armed = false;
+        if (pr.seen)
+            lat[got++] = (pr.seen - pr.sent) / 1000.0;
         /* keep the rate of a real controller (20 Hz) so the drivers run at nominal load */
-        while (marie_mono_us() - sent < 50000)
-            lcm_handle_timeout(lcm, 10);
+        while (marie_mono_us() - pr.sent < 50000)
+            marie_loop_run_once(loop, 10);
     }
     if (got > 0) {
         qsort(lat, (size_t)got, sizeof lat[0], cmp);
@@ -144,9 +159,7 @@ int main(void)
             marie_motor_command_t_publish(lcm, "MOTOR_COMMAND", &m);
             last = marie_mono_us();
         }
-        lcm_handle_timeout(lcm, 20);
-        while (can_bus_read(spy, &f) == 1)
-            ;
+        marie_loop_run_once(loop, 20);     /* the spy's frames are read and dropped */
     }
     double wall = (marie_mono_us() - w0) / 1e6;
     printf("hw_can\tmarie-drives_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(drv) - d0) / wall);
@@ -161,6 +174,7 @@ int main(void)
 out_sub:
     marie_wheel_encoders_t_unsubscribe(lcm, se);
 out:
+    marie_loop_destroy(loop);
     can_bus_close(spy);
     test_stop(gyr);
     test_stop(drv);

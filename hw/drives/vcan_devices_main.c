@@ -6,27 +6,68 @@
  * sensor fault. SIGTERM/SIGINT quit and print frame counts. */
 #include <errno.h>
 #include <getopt.h>
-#include <poll.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/signalfd.h>
+#include <unistd.h>
 
 #include "core/log.h"
+#include "core/loop.h"
 #include "core/time.h"
 #include "hw/canopen/emcy.h"
 #include "hw/drives/vdevices.h"
 
-static volatile sig_atomic_t quit, drive_fault, gyro_fault;
+/* Physics and the devices' timers (heartbeats, the gyro's event timer, RPDO deadlines) step at
+ * 1 kHz; frames are answered as they arrive. */
+#define TICK_US 1000
 
-static void on_signal(int s)
+typedef struct {
+    vdevices_t *v;
+    const char *url;
+    int64_t last;               /* mono us of the last physics step */
+    bool gyro_fault;
+    int rc;
+} vcan_t;
+
+static void on_quit(marie_loop_t *loop, int signo, void *user)
 {
-    if (s == SIGUSR1)
-        drive_fault = 1;
-    else if (s == SIGUSR2)
-        gyro_fault = 1;
-    else
-        quit = 1;
+    marie_loop_quit(loop);
+}
+
+static void on_frames(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    vcan_t *d = user;
+    if (vdevices_process(d->v, marie_mono_us()) < 0) {
+        marie_error("CAN bus %s went away", d->url);
+        d->rc = 1;
+        marie_loop_quit(loop);
+    }
+}
+
+static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    vcan_t *d = user;
+    int64_t now = marie_mono_us();
+    vdevices_tick(d->v, (now - d->last) / 1e6, now);
+    d->last = now;
+}
+
+/* SIGUSR1 / SIGUSR2 arrive through a signalfd: the faults are injected from the loop. */
+static void on_usr(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    vcan_t *d = user;
+    struct signalfd_siginfo si;
+    while (read(fd, &si, sizeof si) == (ssize_t)sizeof si) {
+        if (si.ssi_signo == SIGUSR1 && vdevices_drive(d->v, 0)) {
+            vdrive_inject_fault(vdevices_drive(d->v, 0), CO_EMCY_OVERCURRENT);
+            marie_info("left drive: injected over-current fault");
+        } else if (si.ssi_signo == SIGUSR2 && vdevices_gyro(d->v)) {
+            d->gyro_fault = !d->gyro_fault;
+            vgyro_set_fault(vdevices_gyro(d->v), d->gyro_fault);
+        }
+    }
 }
 
 static void usage(FILE *out)
@@ -69,55 +110,39 @@ int main(int argc, char **argv)
         usage(stderr);
         return 2;
     }
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGUSR1, &sa, NULL);
-    sigaction(SIGUSR2, &sa, NULL);
-
-    int64_t t0 = marie_mono_us();
-    vdevices_t *v = vdevices_create(&cfg, t0);
-    if (!v) {
+    sigset_t usr;
+    sigemptyset(&usr);
+    sigaddset(&usr, SIGUSR1);
+    sigaddset(&usr, SIGUSR2);
+    sigprocmask(SIG_BLOCK, &usr, NULL);
+    int sfd = signalfd(-1, &usr, SFD_NONBLOCK | SFD_CLOEXEC);
+    marie_loop_t *loop = marie_loop_create();
+    if (sfd < 0 || !loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
+        marie_error("cannot set up the loop: %s", strerror(errno));
+        return 1;
+    }
+    vcan_t d = { .url = cfg.can_url, .last = marie_mono_us() };
+    d.v = vdevices_create(&cfg, d.last);
+    if (!d.v) {
         marie_error("cannot attach to %s: %s", cfg.can_url, strerror(errno));
         return 1;
     }
     marie_info("virtual drives %u/%u and gyro %u on %s", cfg.left, cfg.right, cfg.gyro, cfg.can_url);
-    int64_t last = t0;
-    bool gfault = false;
-    int rc = 0;
-    while (!quit) {
-        struct pollfd p = { .fd = vdevices_fd(v), .events = POLLIN };
-        int r = poll(&p, 1, 1);                 /* physics and timers at about 1 kHz */
-        int64_t now = marie_mono_us();
-        if (r < 0 && errno != EINTR) {
-            marie_error("poll: %s", strerror(errno));
-            rc = 1;
-            break;
-        }
-        if (r > 0 && vdevices_process(v, now) < 0) {
-            marie_error("CAN bus %s went away", cfg.can_url);
-            rc = 1;
-            break;
-        }
-        if (drive_fault && vdevices_drive(v, 0)) {
-            drive_fault = 0;
-            vdrive_inject_fault(vdevices_drive(v, 0), CO_EMCY_OVERCURRENT);
-            marie_info("left drive: injected over-current fault");
-        }
-        if (gyro_fault && vdevices_gyro(v)) {
-            gyro_fault = 0;
-            gfault = !gfault;
-            vgyro_set_fault(vdevices_gyro(v), gfault);
-        }
-        if (now - last >= 1000) {
-            vdevices_tick(v, (now - last) / 1e6, now);
-            last = now;
-        }
+    int r = marie_loop_add_fd(loop, vdevices_fd(d.v), POLLIN, on_frames, &d);
+    if (r == 0)
+        r = marie_loop_add_fd(loop, sfd, POLLIN, on_usr, &d);
+    if (r == 0 && !marie_loop_add_timer(loop, TICK_US, on_tick, &d))
+        r = -errno;
+    if (r < 0) {
+        marie_error("cannot set up the loop: %s", strerror(-r));
+        d.rc = 1;
+    } else if (marie_loop_run(loop) < 0) {
+        d.rc = 1;
     }
-    marie_info("frames in %llu, out %llu", (unsigned long long)vdevices_frames_in(v),
-               (unsigned long long)vdevices_frames_out(v));
-    vdevices_destroy(v);
-    return rc;
+    marie_info("frames in %llu, out %llu", (unsigned long long)vdevices_frames_in(d.v),
+               (unsigned long long)vdevices_frames_out(d.v));
+    vdevices_destroy(d.v);
+    marie_loop_destroy(loop);
+    close(sfd);
+    return d.rc;
 }

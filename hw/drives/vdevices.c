@@ -106,7 +106,10 @@ int vdevices_fd(const vdevices_t *v) { return can_bus_fd(v->bus); }
 
 int vdevices_process(vdevices_t *v, int64_t now)
 {
-    int n = 0;
+    int n = can_bus_flush(v->bus);      /* answers the bus server had no room for yet */
+    if (n < 0)
+        return n;
+    n = 0;
     struct can_frame f;
     for (int k = 0; k < 1024; k++) {
         int r = can_bus_read(v->bus, &f);

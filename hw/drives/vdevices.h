@@ -35,7 +35,8 @@ typedef struct vdevices vdevices_t;
 vdevices_t *vdevices_create(const vdevices_cfg_t *cfg, int64_t now);   /* NULL with errno */
 void vdevices_destroy(vdevices_t *v);
 int vdevices_fd(const vdevices_t *v);
-/* Read and answer every waiting frame. Returns frames handled or -errno (-EPIPE: bus gone). */
+/* Read and answer every waiting frame, after the answers the emulated bus's server had no room
+ * for before. Returns frames handled or -errno (-EPIPE: bus gone). */
 int vdevices_process(vdevices_t *v, int64_t now);
 /* Read what waits on the bus, advance physics by dt seconds and send time-driven frames
  * (heartbeats, gyro samples, EMCY of lost heartbeats or RPDOs). 0 or -errno as process. */

@@ -1,7 +1,6 @@
 /* bench_lms200: LMS200 parsing throughput, and CPU/RSS of marie-lms200 streaming from
  * marie-vlms200 over a pty at the LMS200's nominal rate. TSV rows on stdout. */
 #include <errno.h>
-#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,6 +8,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/loop.h"
 #include "core/procstat.h"
 #include "core/time.h"
 #include "hw/lms200/lms200.h"
@@ -82,24 +82,20 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
     pid_t pd = test_spawn(dargv, NULL);
     lcm_t *lcm = lcm_create(NULL);
     marie_laser_scan_t_subscription_t *sub = marie_laser_scan_t_subscribe(lcm, "LASER", on_scan, NULL);
+    marie_loop_t *loop = marie_loop_create();
+    marie_loop_add_lcm(loop, lcm, 1);
     /* Warm up until streaming, then measure over a fixed window. */
     int64_t end = marie_mono_us() + 5000000;
-    while (bus_scans < 5 && marie_mono_us() < end) {
-        struct pollfd p = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
-        if (poll(&p, 1, 50) > 0)
-            lcm_handle(lcm);
-    }
+    while (bus_scans < 5 && marie_mono_us() < end)
+        marie_loop_run_once(loop, 50);
     int64_t c0 = -1, e0 = -1, c1 = -1, e1 = -1, rss;
     marie_proc_usage(pd, &c0, &rss);
     marie_proc_usage(pe, &e0, &rss);
     long s0 = bus_scans;
     int64_t t0 = marie_mono_us();
     end = t0 + 10000000;   /* CPU time comes in 10 ms ticks: a long window */
-    while (marie_mono_us() < end) {
-        struct pollfd p = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
-        if (poll(&p, 1, 50) > 0)
-            lcm_handle(lcm);
-    }
+    while (marie_mono_us() < end)
+        marie_loop_run_once(loop, 50);
     double secs = (double)(marie_mono_us() - t0) / 1e6;
     marie_proc_usage(pd, &c1, &rss);
     marie_proc_usage(pe, &e1, &rss);
@@ -116,6 +112,7 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
         fprintf(stderr, "bench_lms200: marie-lms200 is not running\n");
     }
     marie_laser_scan_t_unsubscribe(lcm, sub);
+    marie_loop_destroy(loop);
     lcm_destroy(lcm);
     test_stop(pd);
     test_stop(pe);

@@ -1,5 +1,5 @@
-/* driver: LMS200 init sequence and stream supervision over one serial fd (no threads, no sleeps:
- * the caller's poll loop feeds it readable events and deadlines). */
+/* driver: LMS200 init sequence and stream supervision over one serial fd (no threads, no sleeps,
+ * no blocking writes: the caller's loop feeds it fd events and deadlines). */
 #include "hw/lms200/driver.h"
 
 #include <errno.h>
@@ -25,6 +25,8 @@ struct lms200_driver {
     lms200_parser_t *parser;
     lms200_parser_stats_t seen;     /* parser counters already reported */
     int fd;
+    uint8_t out[64];                /* command bytes the line had no room for yet */
+    size_t nout;
     int baud;                       /* the line's current rate */
     lms200_drv_state_t state;
     int64_t deadline;
@@ -90,6 +92,7 @@ static void close_line(lms200_driver_t *d)
         return;
     set_fd(d, -1);
     close(fd);
+    d->nout = 0;
     lms200_parser_reset(d->parser);
 }
 
@@ -133,6 +136,7 @@ static int set_line_baud(lms200_driver_t *d, int baud)
     int r = lms200_serial_set_baud(d->fd, baud);
     if (r == 0)
         d->baud = baud;
+    d->nout = 0;                    /* a command meant for the old rate */
     lms200_parser_reset(d->parser);
     new_rate(d);
     return r;
@@ -150,6 +154,46 @@ static bool wrong_rate(const lms200_driver_t *d)
 static bool rate_promising(const lms200_driver_t *d)
 {
     return d->rate_heard || (d->rate_bytes > 0 && !wrong_rate(d));
+}
+
+static void write_failed(lms200_driver_t *d, ssize_t r)
+{
+    char why[96];
+    snprintf(why, sizeof why, "write failed: %s", strerror((int)-r));
+    hangup(d, why);
+}
+
+/* Send what is held, as far as the line takes it now. */
+static void flush_out(lms200_driver_t *d)
+{
+    if (d->nout == 0)
+        return;
+    ssize_t r = lms200_serial_write(d->fd, d->out, d->nout);
+    if (r < 0) {
+        write_failed(d, r);
+        return;
+    }
+    memmove(d->out, d->out + r, d->nout - (size_t)r);
+    d->nout -= (size_t)r;
+}
+
+/* A command goes out behind what is held; the rest waits for POLLOUT (lms200_driver_events).
+ * A command with no room left is dropped: its reply timeout sends it again. */
+static void write_out(lms200_driver_t *d, const uint8_t *buf, size_t n)
+{
+    flush_out(d);
+    if (d->fd < 0)
+        return;
+    ssize_t r = 0;
+    if (d->nout == 0 && (r = lms200_serial_write(d->fd, buf, n)) < 0) {
+        write_failed(d, r);
+        return;
+    }
+    size_t rest = n - (size_t)r;
+    if (rest > 0 && d->nout + rest <= sizeof d->out) {
+        memcpy(d->out + d->nout, buf + r, rest);
+        d->nout += rest;
+    }
 }
 
 static void send_current(lms200_driver_t *d)
@@ -175,12 +219,7 @@ static void send_current(lms200_driver_t *d)
     d->tries++;
     int wait_ms = d->state == LMS200_DRV_PROBE ? d->cfg.reply_timeout_ms : d->cfg.config_timeout_ms;
     d->deadline = d->now + (int64_t)wait_ms * 1000;
-    int r = lms200_serial_write(d->fd, out, n, d->cfg.reply_timeout_ms);
-    if (r < 0 && r != -ETIMEDOUT) {
-        char why[96];
-        snprintf(why, sizeof why, "write failed: %s", strerror(-r));
-        hangup(d, why);
-    }
+    write_out(d, out, n);
 }
 
 static void enter(lms200_driver_t *d, lms200_drv_state_t s)
@@ -419,9 +458,13 @@ void lms200_driver_start(lms200_driver_t *d, int64_t now_us)
 void lms200_driver_stop(lms200_driver_t *d)
 {
     if (d->fd >= 0) {
+        /* Best effort, as the line is closed right after: what it has no room for is lost,
+         * and the next start stops the stream first anyway. */
         uint8_t out[16];
         size_t n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_STOP, NULL);
-        (void)lms200_serial_write(d->fd, out, n, 50);
+        flush_out(d);
+        if (d->fd >= 0 && d->nout == 0)
+            (void)lms200_serial_write(d->fd, out, n);
         close_line(d);
     }
     d->state = LMS200_DRV_CLOSED;
@@ -435,6 +478,7 @@ void lms200_driver_stop(lms200_driver_t *d)
 }
 
 int lms200_driver_fd(const lms200_driver_t *d) { return d->fd; }
+short lms200_driver_events(const lms200_driver_t *d) { return POLLIN | (d->nout > 0 ? POLLOUT : 0); }
 bool lms200_driver_degraded(const lms200_driver_t *d) { return d->degraded; }
 
 int64_t lms200_driver_deadline(const lms200_driver_t *d)
@@ -452,7 +496,9 @@ void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
     d->now = now_us;
     if (d->fd < 0)
         return;
-    if (revents & POLLIN) {
+    if (revents & POLLOUT)
+        flush_out(d);
+    if (d->fd >= 0 && (revents & POLLIN)) {
         uint8_t buf[4096];
         for (int round = 0; round < 16 && d->fd >= 0; round++) {
             ssize_t n = read(d->fd, buf, sizeof buf);
@@ -483,7 +529,7 @@ void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
         }
         return;
     }
-    if (revents & (POLLHUP | POLLERR | POLLNVAL))
+    if (d->fd >= 0 && (revents & (POLLHUP | POLLERR | POLLNVAL)))
         hangup(d, revents & POLLHUP ? "hang-up" : "poll error");
 }
 

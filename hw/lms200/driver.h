@@ -73,7 +73,10 @@ void lms200_driver_start(lms200_driver_t *d, int64_t now_us);
 void lms200_driver_stop(lms200_driver_t *d);
 
 int lms200_driver_fd(const lms200_driver_t *d);        /* -1 when closed */
-/* Call when poll() reports events on the fd. */
+/* What to poll the fd for: POLLIN, and POLLOUT while a command waits for room on the line
+ * (it may change after any call below). */
+short lms200_driver_events(const lms200_driver_t *d);
+/* Call when the loop reports events on the fd. */
 void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us);
 /* Call at or after the deadline; harmless earlier. */
 void lms200_driver_tick(lms200_driver_t *d, int64_t now_us);

@@ -101,10 +101,19 @@ static void on_health(void *user, bool degraded, const char *why)
         marie_component_event(l->c, MARIE_EVENT_T_SEV_INFO, "laser_recovered", "%s", why);
 }
 
+/* POLLOUT only while a command waits for room on the line. */
+static void watch_events(lms_t *l)
+{
+    int fd = lms200_driver_fd(l->drv);
+    if (fd >= 0)
+        marie_loop_set_events(marie_component_loop(l->c), fd, lms200_driver_events(l->drv));
+}
+
 static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     lms_t *l = user;
     lms200_driver_io(l->drv, revents, now_us(l));
+    watch_events(l);
 }
 
 static void on_fd(void *user, int old_fd, int new_fd)
@@ -127,6 +136,7 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
         lms200_driver_start(l->drv, now_us(l));
     }
     lms200_driver_tick(l->drv, now_us(l));
+    watch_events(l);
 }
 
 static const lms200_driver_ops_t driver_ops = {
@@ -185,6 +195,7 @@ static int on_start(marie_component_t *c)
         l->start_pending = true;
     else
         lms200_driver_start(l->drv, now_us(l));
+    watch_events(l);
     return 0;
 }
 

@@ -2,19 +2,26 @@
  * the laser. The slave path goes to --path-file and/or the --link symlink. */
 #include <errno.h>
 #include <getopt.h>
-#include <poll.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "core/log.h"
+#include "core/loop.h"
 #include "core/time.h"
 #include "hw/lms200/vlms200.h"
 
-static volatile sig_atomic_t quit;
-static void on_signal(int signo) { quit = 1; }
+typedef struct {
+    marie_loop_t *loop;
+    vlms200_t *v;
+    const char *path_file;
+    char last_path[128];
+    int fd;                     /* as watched by the loop, -1: none */
+    short events;
+    marie_timer_t *wake;        /* one-shot at the device's next deadline, NULL: none */
+    long silent_ms, unplug_ms;
+} emu_t;
 
 static void usage(FILE *out)
 {
@@ -45,6 +52,75 @@ static int write_path(const char *file, const char *path)
     if (fclose(f) != 0 || rename(tmp, file) < 0)
         return -errno;
     return 0;
+}
+
+static void on_quit(marie_loop_t *loop, int signo, void *user)
+{
+    marie_loop_quit(loop);
+}
+
+static void on_io(marie_loop_t *loop, int fd, short revents, void *user);
+static void on_wake(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
+
+/* After anything the device did: the pty (new after a re-plug) and what to wait for on it,
+ * its path for the driver, and a wake-up at its next deadline. */
+static void sync_device(emu_t *e)
+{
+    int fd = vlms200_fd(e->v);
+    short ev = fd >= 0 ? vlms200_events(e->v) : 0;
+    if (fd != e->fd) {
+        if (e->fd >= 0)
+            marie_loop_remove_fd(e->loop, e->fd);
+        e->fd = fd >= 0 && marie_loop_add_fd(e->loop, fd, ev, on_io, e) == 0 ? fd : -1;
+    } else if (fd >= 0 && ev != e->events) {
+        marie_loop_set_events(e->loop, fd, ev);
+    }
+    e->events = ev;
+    if (fd >= 0 && strcmp(e->last_path, vlms200_path(e->v)) != 0) {
+        snprintf(e->last_path, sizeof e->last_path, "%s", vlms200_path(e->v));
+        marie_info("plugged in again on %s", e->last_path);
+        int rc = write_path(e->path_file, e->last_path);
+        if (rc < 0)
+            marie_warn("cannot write %s: %s", e->path_file, strerror(-rc));
+    }
+    marie_loop_remove_timer(e->loop, e->wake);
+    e->wake = NULL;
+    int64_t dl = vlms200_deadline(e->v), now = marie_mono_us();
+    if (dl != INT64_MAX)
+        e->wake = marie_loop_add_oneshot(e->loop, dl > now ? dl - now : 0, on_wake, e);
+}
+
+static void on_io(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    emu_t *e = user;
+    int64_t now = marie_mono_us();
+    vlms200_io(e->v, revents, now);
+    vlms200_tick(e->v, now);
+    sync_device(e);
+}
+
+static void on_wake(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    emu_t *e = user;
+    e->wake = NULL;             /* a one-shot is freed once it fired */
+    vlms200_tick(e->v, marie_mono_us());
+    sync_device(e);
+}
+
+static void on_silent(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    emu_t *e = user;
+    marie_info("fault: silent for %ld ms", e->silent_ms);
+    vlms200_silence(e->v, marie_mono_us() + e->silent_ms * 1000);
+    sync_device(e);
+}
+
+static void on_unplug(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    emu_t *e = user;
+    marie_info("fault: unplugged for %ld ms", e->unplug_ms);
+    vlms200_unplug(e->v, marie_mono_us(), e->unplug_ms * 1000);
+    sync_device(e);
 }
 
 int main(int argc, char **argv)
@@ -112,45 +188,21 @@ int main(int argc, char **argv)
         marie_warn("cannot write %s: %s", path_file, strerror(-rc));
     marie_info("virtual LMS200 on %s%s%s", last_path, link ? " via " : "", link ? link : "");
 
-    struct sigaction sa = { .sa_handler = on_signal };
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    signal(SIGPIPE, SIG_IGN);
-
-    int64_t t0 = marie_mono_us();
-    bool silenced = false, unplugged = false;
-    while (!quit) {
-        int64_t now = marie_mono_us();
-        if (!silenced && silent_at >= 0 && now - t0 >= silent_at * 1000) {
-            silenced = true;
-            marie_info("fault: silent for %ld ms", silent_ms);
-            vlms200_silence(v, now + silent_ms * 1000);
-        }
-        if (!unplugged && unplug_at >= 0 && now - t0 >= unplug_at * 1000) {
-            unplugged = true;
-            marie_info("fault: unplugged for %ld ms", unplug_ms);
-            vlms200_unplug(v, now, unplug_ms * 1000);
-        }
-        int64_t dl = vlms200_deadline(v);
-        int timeout = 50;
-        if (dl != INT64_MAX && dl - now < 50000)
-            timeout = dl <= now ? 0 : (int)((dl - now) / 1000) + 1;
-        struct pollfd p = { .fd = vlms200_fd(v), .events = vlms200_events(v) };
-        if (poll(&p, p.fd >= 0 ? 1 : 0, timeout) < 0 && errno != EINTR) {
-            marie_error("poll: %s", strerror(errno));
-            break;
-        }
-        now = marie_mono_us();
-        if (p.fd >= 0 && p.revents)
-            vlms200_io(v, p.revents, now);
-        vlms200_tick(v, now);
-        if (vlms200_fd(v) >= 0 && strcmp(last_path, vlms200_path(v)) != 0) {
-            snprintf(last_path, sizeof last_path, "%s", vlms200_path(v));
-            marie_info("plugged in again on %s", last_path);
-            if ((rc = write_path(path_file, last_path)) < 0)
-                marie_warn("cannot write %s: %s", path_file, strerror(-rc));
-        }
+    emu_t e = { .loop = marie_loop_create(), .v = v, .path_file = path_file, .fd = -1,
+                .silent_ms = silent_ms, .unplug_ms = unplug_ms };
+    snprintf(e.last_path, sizeof e.last_path, "%s", last_path);
+    if (!e.loop || marie_loop_catch_signals(e.loop, on_quit, NULL) < 0 ||
+        (silent_at >= 0 && !marie_loop_add_oneshot(e.loop, silent_at * 1000, on_silent, &e)) ||
+        (unplug_at >= 0 && !marie_loop_add_oneshot(e.loop, unplug_at * 1000, on_unplug, &e))) {
+        marie_error("cannot set up the loop: %s", strerror(errno));
+        vlms200_destroy(v);
+        marie_loop_destroy(e.loop);
+        return 1;
     }
+    vlms200_tick(v, marie_mono_us());
+    sync_device(&e);
+    marie_loop_run(e.loop);
+    marie_loop_destroy(e.loop);
     const vlms200_stats_t *st = vlms200_stats(v);
     marie_info("commands %lld scans %lld corrupted %lld garbage %lld truncated %lld dropped %lld",
                (long long)st->commands, (long long)st->scans_sent, (long long)st->corrupted,

@@ -3,7 +3,6 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <poll.h>
 #include <unistd.h>
 
 static const struct { int baud; speed_t speed; } rates[] = {
@@ -93,28 +92,20 @@ int lms200_serial_get_baud(int fd)
     return b < 0 ? -EINVAL : b;
 }
 
-int lms200_serial_write(int fd, const void *buf, size_t len, int timeout_ms)
+ssize_t lms200_serial_write(int fd, const void *buf, size_t len)
 {
-    const unsigned char *p = buf;
-    while (len > 0) {
-        ssize_t n = write(fd, p, len);
+    size_t done = 0;
+    while (done < len) {
+        ssize_t n = write(fd, (const unsigned char *)buf + done, len - done);
         if (n > 0) {
-            p += n;
-            len -= (size_t)n;
+            done += (size_t)n;
             continue;
         }
         if (n < 0 && errno == EINTR)
             continue;
         if (n < 0 && errno != EAGAIN)
             return -errno;
-        struct pollfd pfd = { .fd = fd, .events = POLLOUT };
-        int r = poll(&pfd, 1, timeout_ms);
-        if (r == 0)
-            return -ETIMEDOUT;
-        if (r < 0 && errno != EINTR)
-            return -errno;
-        if (r > 0 && (pfd.revents & (POLLERR | POLLHUP | POLLNVAL)))
-            return -EIO;
+        break;
     }
-    return 0;
+    return (ssize_t)done;
 }

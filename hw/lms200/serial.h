@@ -3,6 +3,7 @@
 #define MARIE_HW_LMS200_SERIAL_H
 
 #include <stddef.h>
+#include <sys/types.h>
 #include <termios.h>
 
 #ifdef __cplusplus
@@ -22,8 +23,9 @@ int lms200_serial_get_baud(int fd);
 /* Bxxx constant <-> baud; 0 / -1 when unknown. */
 speed_t lms200_serial_speed(int baud);
 int lms200_serial_baud(speed_t speed);
-/* Write all of buf, waiting at most timeout_ms for room. 0 or -errno. */
-int lms200_serial_write(int fd, const void *buf, size_t len, int timeout_ms);
+/* Write as much of buf as the line takes now, without waiting: bytes written (0 when its
+ * buffer is full; the caller keeps the rest and polls for POLLOUT), or -errno. */
+ssize_t lms200_serial_write(int fd, const void *buf, size_t len);
 
 #ifdef __cplusplus
 }

@@ -96,14 +96,12 @@ static void socketpair_roundtrip_counts_bad_packets(void **state)
     can_bus_close(b);
 }
 
-static void pump(can_emubus_t *bus)
+/* Run the bus's loop until it has been idle for 20 ms. */
+static void pump(marie_loop_t *loop)
 {
-    for (int i = 0; i < 20; i++) {
-        struct pollfd p = { .fd = can_emubus_fd(bus), .events = POLLIN };
-        if (poll(&p, 1, 20) <= 0)
+    for (int i = 0; i < 20; i++)
+        if (marie_loop_run_once(loop, 20) <= 0)
             break;
-        can_emubus_process(bus);
-    }
 }
 
 static void emulated_bus_relays_to_others(void **state)
@@ -111,18 +109,19 @@ static void emulated_bus_relays_to_others(void **state)
     char path[64], url[80];
     snprintf(path, sizeof path, "/tmp/marie-test-canbus-%d.sock", getpid());
     snprintf(url, sizeof url, "emu:%s", path);
-    can_emubus_t *bus = can_emubus_create(path);
+    marie_loop_t *loop = marie_loop_create();
+    can_emubus_t *bus = can_emubus_create(loop, path);
     assert_non_null(bus);
     can_bus_t *c[3];
     for (int i = 0; i < 3; i++) {
         c[i] = can_bus_open(url);
         assert_non_null(c[i]);
     }
-    pump(bus);
+    pump(loop);
     assert_int_equal(can_emubus_nclients(bus), 3);
     struct can_frame in, out = frame(0x080, 0, 0);
     assert_int_equal(can_bus_write(c[0], &out), 0);
-    pump(bus);
+    pump(loop);
     assert_int_equal(can_bus_read(c[1], &in), 1);
     assert_int_equal(can_bus_read(c[2], &in), 1);
     assert_int_equal(in.can_id, 0x080);
@@ -139,25 +138,76 @@ static void emulated_bus_relays_to_others(void **state)
     assert_int_equal(can_bus_health(c[2]), CAN_BUS_ACTIVE);
     /* recovery: a data frame gets through again */
     assert_int_equal(can_bus_write(c[0], &out), 0);
-    pump(bus);
+    pump(loop);
     assert_int_equal(can_bus_read(c[1], &in), 1);
     assert_int_equal(can_bus_health(c[1]), CAN_BUS_ACTIVE);
     assert_int_equal(can_bus_restart(c[1]), 0);
     /* garbage to the daemon is counted there and not relayed */
     uint8_t junk[3] = { 0 };
     assert_int_equal(send(can_bus_fd(c[0]), junk, 3, 0), 3);
-    pump(bus);
+    pump(loop);
     assert_int_equal(can_emubus_stats(bus)->bad, 1);
     assert_int_equal(can_bus_read(c[2], &in), 1);    /* the earlier frame */
     assert_int_equal(can_bus_read(c[2], &in), 0);
     /* a client that leaves is dropped */
     can_bus_close(c[2]);
-    pump(bus);
+    pump(loop);
     assert_int_equal(can_emubus_nclients(bus), 2);
     can_bus_close(c[0]);
     can_bus_close(c[1]);
     can_emubus_destroy(bus);
+    marie_loop_destroy(loop);
     assert_int_equal(access(path, F_OK), -1);
+}
+
+/* A sender faster than the bus server (its socket takes 10 packets) loses nothing and is never
+ * blocked: the rest is held and goes out, in order, once the server has run. */
+static void emulated_bus_holds_frames_the_server_has_no_room_for(void **state)
+{
+    char path[64], url[80];
+    snprintf(path, sizeof path, "/tmp/marie-test-canbus-q-%d.sock", getpid());
+    snprintf(url, sizeof url, "emu:%s", path);
+    marie_loop_t *loop = marie_loop_create();
+    can_emubus_t *bus = can_emubus_create(loop, path);
+    assert_non_null(bus);
+    can_bus_t *tx = can_bus_open(url), *rx = can_bus_open(url);
+    assert_non_null(tx);
+    assert_non_null(rx);
+    pump(loop);
+    /* fill the server's socket behind the API's back: K frames */
+    int k = 0;
+    for (;; k++) {
+        struct can_frame f = frame(0x100 + (canid_t)k, 1, (uint8_t)k);
+        if (send(can_bus_fd(tx), &f, CAN_MTU, MSG_DONTWAIT) != CAN_MTU)
+            break;
+    }
+    assert_true(errno == EAGAIN || errno == EWOULDBLOCK);
+    enum { N = 40 };
+    for (int i = 0; i < N; i++) {
+        struct can_frame f = frame(0x100 + (canid_t)(k + i), 1, (uint8_t)(k + i));
+        assert_int_equal(can_bus_write(tx, &f), 0);
+    }
+    assert_int_equal(can_bus_stats(tx)->tx, 0);
+    assert_true(can_bus_events(tx) & POLLOUT);
+    int got = 0;
+    struct can_frame in;
+    for (int round = 0; round < 200 && got < k + N; round++) {
+        can_bus_flush(tx);
+        marie_loop_run_once(loop, 10);
+        while (can_bus_read(rx, &in) == 1) {
+            assert_int_equal(in.can_id, 0x100 + (canid_t)got);
+            assert_int_equal(in.data[0], (uint8_t)got);
+            got++;
+        }
+    }
+    assert_int_equal(got, k + N);
+    assert_int_equal(can_bus_stats(tx)->tx, N);
+    assert_int_equal(can_bus_stats(tx)->tx_errors, 0);
+    assert_int_equal(can_bus_events(tx), POLLIN);
+    can_bus_close(tx);
+    can_bus_close(rx);
+    can_emubus_destroy(bus);
+    marie_loop_destroy(loop);
 }
 
 static void can_fd_frames_when_enabled(void **state)
@@ -207,6 +257,7 @@ int main(void)
         cmocka_unit_test(error_frames_decode_and_change_health),
         cmocka_unit_test(socketpair_roundtrip_counts_bad_packets),
         cmocka_unit_test(emulated_bus_relays_to_others),
+        cmocka_unit_test(emulated_bus_holds_frames_the_server_has_no_room_for),
         cmocka_unit_test(can_fd_frames_when_enabled),
         cmocka_unit_test(urls_are_checked),
     };

@@ -2,8 +2,10 @@
  * poll loop: init sequence, both resolutions, CRC errors, garbage, truncation, silence and
  * an unplugged device that comes back. */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <poll.h>
+#include <pty.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -11,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -136,7 +139,7 @@ static void step(rig_t *r)
     }
     if (r->drv && lms200_driver_fd(r->drv) >= 0) {
         id = n;
-        p[n++] = (struct pollfd){ .fd = lms200_driver_fd(r->drv), .events = POLLIN };
+        p[n++] = (struct pollfd){ .fd = lms200_driver_fd(r->drv), .events = lms200_driver_events(r->drv) };
     }
     int64_t now = mono_us();
     int64_t dl = vlms200_deadline(r->emu);
@@ -458,6 +461,54 @@ static void test_missing_device_retried_until_it_appears(void **state)
     rig_close(&r);
 }
 
+/* A line that takes no byte (its far end stopped reading) never blocks the driver: the probe is
+ * held and goes out, whole, once the line drains. */
+static void test_full_line_never_blocks_and_command_goes_out_later(void **state)
+{
+    int master, slave;
+    char path[64];
+    assert_int_equal(openpty(&master, &slave, path, NULL, NULL), 0);
+    struct termios t;
+    tcgetattr(slave, &t);
+    cfmakeraw(&t);
+    tcsetattr(slave, TCSANOW, &t);
+    fcntl(slave, F_SETFL, fcntl(slave, F_GETFL) | O_NONBLOCK);
+    static uint8_t fill[4096];
+    size_t filled = 0;
+    for (ssize_t n; (n = write(slave, fill, sizeof fill)) > 0;)
+        filled += (size_t)n;
+    assert_true(errno == EAGAIN);
+    lms200_driver_cfg_t cfg = { .device = path, .baud = 9600, .res_cdeg = 100, .reply_timeout_ms = 300 };
+    lms200_driver_t *d = lms200_driver_create(&cfg, NULL, NULL);
+    assert_non_null(d);
+    int64_t t0 = mono_us();
+    lms200_driver_start(d, t0);
+    assert_true(mono_us() - t0 < 100000);
+    assert_true(lms200_driver_fd(d) >= 0);
+    assert_true(lms200_driver_events(d) & POLLOUT);
+    /* the far end reads again: the fill, then the whole probe ("stop continuous output") */
+    static uint8_t in[8192];
+    size_t got = 0, want = filled + 8;
+    for (int round = 0; round < 100 && got < want; round++) {
+        struct pollfd p = { .fd = master, .events = POLLIN };
+        if (poll(&p, 1, 20) > 0) {
+            ssize_t n = read(master, in, sizeof in);
+            for (ssize_t i = 0; i < n; i++, got++)
+                if (got == filled)
+                    assert_int_equal(in[i], LMS200_STX);
+        }
+        struct pollfd q = { .fd = lms200_driver_fd(d), .events = lms200_driver_events(d) };
+        if (poll(&q, 1, 0) > 0)
+            lms200_driver_io(d, q.revents, mono_us());
+    }
+    assert_true(got >= want);
+    assert_int_equal(lms200_driver_events(d), POLLIN);
+    assert_int_equal(lms200_driver_stats(d)->disconnects, 0);
+    lms200_driver_destroy(d);
+    close(slave);
+    close(master);
+}
+
 static void test_bad_config_refused(void **state)
 {
     lms200_driver_cfg_t cfg = { .device = "/dev/null", .baud = 115200, .res_cdeg = 50 };
@@ -485,6 +536,7 @@ int main(void)
         cmocka_unit_test(test_restart_finds_device_left_at_another_rate),
         cmocka_unit_test(test_degraded_while_silent_then_running),
         cmocka_unit_test(test_missing_device_retried_until_it_appears),
+        cmocka_unit_test(test_full_line_never_blocks_and_command_goes_out_later),
         cmocka_unit_test(test_bad_config_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
