@@ -79,7 +79,7 @@ check "the page shows what the robot heard and what it said" cdp --size 800x480 
 layout="(function(){var s=document.getElementById('stop').getBoundingClientRect(), t=document.getElementById('talk').getBoundingClientRect(), l=document.querySelectorAll('#talk .line'); \
 return [document.documentElement.scrollHeight <= innerHeight && document.documentElement.scrollWidth <= innerWidth, s.height >= 80, \
 document.querySelector('.place').getBoundingClientRect().height >= 60, t.top >= 0 && t.bottom <= innerHeight && t.right <= innerWidth, t.width >= 200, \
-parseFloat(getComputedStyle(l[0]).fontSize) >= 18, [].every.call(l, function(e){var r=e.getBoundingClientRect(); return r.bottom <= t.bottom && e.scrollHeight <= e.clientHeight + 1})]})()"
+parseFloat(getComputedStyle(l[0]).fontSize) >= 18, [].every.call(l, function(e){var w=e.querySelector('.words'); return e.getBoundingClientRect().bottom <= t.bottom && w.scrollHeight <= w.clientHeight + 1})]})()"
 for size in 800x480 1024x600; do
     check "page at $size: places, host light, the conversation; screenshot" \
         cdp --size $size --until "$ready && $green && $talked" --screenshot "$SHOTS/face-$size.png" \

@@ -55,7 +55,10 @@ function talk(m) {
   const d = document.createElement("div");
   d.className = "line " + m.who;
   d.dataset.who = m.who;
-  d.textContent = m.text;
+  const w = document.createElement("span");
+  w.className = "words";
+  w.textContent = m.text;
+  d.appendChild(w);
   const t = $("talk");
   t.appendChild(d);
   t.hidden = false;
