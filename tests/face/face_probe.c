@@ -1,7 +1,9 @@
 /* face_probe: the pages' test peer on the bus. --watch S --key FILE prints every goal request
  * (with whether its signature holds under the key) and every GOAL for S seconds; --unsigned
  * NAME publishes a goal request without a signature and one with a forged one; --landmark
- * ID:X:Y:YAW:TEXT publishes a landmark (as marie-vision does) every 0.2 s while watching. */
+ * ID:X:Y:YAW:TEXT publishes a landmark (as marie-vision does) every 0.2 s while watching;
+ * --heard TEXT publishes an utterance as marie-asr does, --said TEXT a request to speak as
+ * marie-dialogue does. */
 #include <getopt.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -36,17 +38,20 @@ static void on_goal(const lcm_recv_buf_t *rb, const char *ch, const marie_goal_t
 int main(int argc, char **argv)
 {
     double watch = 0;
-    const char *key = NULL, *unsigned_name = NULL;
+    const char *key = NULL, *unsigned_name = NULL, *heard = NULL, *said = NULL;
     marie_landmark_t lm = { .family = "tag36h11" };
     char lm_text[64] = "";
     bool landmark = false;
     static struct option opts[] = { { "watch", 1, 0, 'w' }, { "key", 1, 0, 'k' }, { "unsigned", 1, 0, 'u' },
-                                    { "landmark", 1, 0, 'l' }, { 0 } };
+                                    { "landmark", 1, 0, 'l' }, { "heard", 1, 0, 'h' }, { "said", 1, 0, 's' },
+                                    { 0 } };
     int o;
     while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
         if (o == 'w') watch = atof(optarg);
         else if (o == 'k') key = optarg;
         else if (o == 'u') unsigned_name = optarg;
+        else if (o == 'h') heard = optarg;
+        else if (o == 's') said = optarg;
         else if (o == 'l' && sscanf(optarg, "%d:%lf:%lf:%lf:%63[^\n]", &lm.id, &lm.x, &lm.y, &lm.yaw, lm_text) == 5)
             landmark = true;
         else return 2;
@@ -71,6 +76,16 @@ int main(int argc, char **argv)
         r.mac = forged;
         r.mac_len = MARIE_AUTH_MAC_LEN;
         marie_goal_request_t_publish(lcm, "GOAL_REQUEST", &r);
+    }
+    if (heard) {
+        marie_speech_t m = { .utime = marie_wall_us(), .start_utime = marie_wall_us() - 1000000, .source_id = 1,
+                             .text = (char *)heard, .confidence = 0.9f };
+        marie_speech_t_publish(lcm, "SPEECH", &m);
+    }
+    if (said) {
+        marie_robot_speech_t m = { .utime = marie_wall_us(), .id = 1, .text = (char *)said,
+                                   .state = MARIE_ROBOT_SPEECH_T_STATE_REQUEST };
+        marie_robot_speech_t_publish(lcm, "SAY", &m);
     }
     marie_goal_request_t_subscribe(lcm, "GOAL_REQUEST", on_request, NULL);
     marie_goal_t_subscribe(lcm, "GOAL", on_goal, NULL);

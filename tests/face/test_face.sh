@@ -1,6 +1,7 @@
 #!/bin/sh
 # test_face: the touch page in a headless Chromium at 800x480 and 1024x600, touch screen
-# emulated and tapped with touch events: a tap on a place
+# emulated and tapped with touch events: what the robot heard and said shows once the dialogue
+# speaks, and fits; a tap on a place
 # becomes a goal request signed by the server, which the mission obeys (it publishes the
 # place as its goal); a wrong PIN is refused by the server, unsigned and forged requests on
 # the bus by the mission; STOP pauses the configured component through marie-am; the page
@@ -67,13 +68,24 @@ tap() {
     cdp --touch --until "$(pin "$p")" --tap "$sel" --then true \
         --until2 "document.getElementById('notice').textContent === '$want'" "$@"
 }
+check "nothing heard or said yet: the conversation panel stays hidden" \
+    cdp --size 800x480 --until "$ready && document.getElementById('talk').hidden && document.getElementById('talk').offsetHeight === 0"
+HEARD="go to the lab please" SAID="I am going to the lab"
+"$B/tests/helpers/face_probe" --heard "$HEARD" --said "$SAID" --watch 0.2 > /dev/null 2>&1
+talked="document.querySelector('#talk .line.heard') !== null && document.querySelector('#talk .line.heard').textContent === '$HEARD' && document.querySelector('#talk .line.said').textContent === '$SAID'"
+check "the page shows what the robot heard and what it said" cdp --size 800x480 --until "$ready && $talked"
+# layout: [nothing scrolls, STOP >= 80 px, a place >= 60 px, the conversation inside the
+# screen, 200 px wide or more, its words 18 px or more, both lines whole]
+layout="(function(){var s=document.getElementById('stop').getBoundingClientRect(), t=document.getElementById('talk').getBoundingClientRect(), l=document.querySelectorAll('#talk .line'); \
+return [document.documentElement.scrollHeight <= innerHeight && document.documentElement.scrollWidth <= innerWidth, s.height >= 80, \
+document.querySelector('.place').getBoundingClientRect().height >= 60, t.top >= 0 && t.bottom <= innerHeight && t.right <= innerWidth, t.width >= 200, \
+parseFloat(getComputedStyle(l[0]).fontSize) >= 18, [].every.call(l, function(e){var w=e.querySelector('.words'); return e.getBoundingClientRect().bottom <= t.bottom && w.scrollHeight <= w.clientHeight + 1})]})()"
 for size in 800x480 1024x600; do
-    check "page at $size: places, host light; screenshot" \
-        cdp --size $size --until "$ready && $green" --screenshot "$SHOTS/face-$size.png" \
-            --eval "(function(){var b=document.body.getBoundingClientRect(), s=document.getElementById('stop').getBoundingClientRect(); return [document.documentElement.scrollHeight <= innerHeight, s.height >= 80, document.querySelector('.place').getBoundingClientRect().height >= 60]})()" \
-            --eval-out "$T/layout-$size.json"
-    check "at $size everything fits without scrolling, STOP and places are finger-sized" \
-        grep -q '\[true, true, true\]' "$T/layout-$size.json"
+    check "page at $size: places, host light, the conversation; screenshot" \
+        cdp --size $size --until "$ready && $green && $talked" --screenshot "$SHOTS/face-$size.png" \
+            --eval "$layout" --eval-out "$T/layout-$size.json"
+    check "at $size everything fits without scrolling, STOP and places are finger-sized, the conversation readable" \
+        grep -q '\[true, true, true, true, true, true, true\]' "$T/layout-$size.json"
 done
 
 check "a tap on 'lab' with the PIN: the page says it is going" \

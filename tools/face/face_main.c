@@ -1,5 +1,6 @@
 /* marie-face: the page for people near the robot (a touch screen): what it is doing
- * and why, the places it can go, a stop request, a light per host. Requests from the page
+ * and why, the places it can go, what it heard and said, a stop request, a light per host.
+ * Requests from the page
  * become orders and goal requests signed here, with the key this server holds. */
 #include <errno.h>
 #include <math.h>
@@ -17,6 +18,7 @@
 
 #define MAX_PLACES 24
 #define MAX_HOSTS 16
+#define MAX_TALK 4
 
 typedef struct {
     char name[48];
@@ -33,9 +35,9 @@ typedef struct {
     place_t places[MAX_PLACES];
     int nplaces;
     /* the present, for pages that connect later */
-    char *arb, *goal, *mission, *hosts[MAX_HOSTS], *events[8];
+    char *arb, *goal, *mission, *hosts[MAX_HOSTS], *events[8], *talk[MAX_TALK];
     char host_name[MAX_HOSTS][64];
-    int nhosts, next_event;
+    int nhosts, next_event, next_talk;
     int requests;
 } face_t;
 
@@ -45,6 +47,8 @@ static const marie_port_spec_t ports[] = {
     { "mission_state", &marie_type_mission_state_t, MARIE_IN, MARIE_PUSH, "MISSION_STATE" },
     { "event", &marie_type_event_t, MARIE_IN, MARIE_PUSH, MARIE_CH_EVENT },
     { "am_status", &marie_type_am_status_t, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_STATUS },
+    { "heard", &marie_type_speech_t, MARIE_IN, MARIE_PUSH, "SPEECH" },
+    { "said", &marie_type_robot_speech_t, MARIE_IN, MARIE_PUSH, "SAY" },
     { "request", &marie_type_goal_request_t, MARIE_OUT, MARIE_PUSH, "GOAL_REQUEST" },
     { "order", &marie_type_am_order_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_AM_ORDER },
     { NULL },
@@ -150,6 +154,28 @@ static void on_event(marie_component_t *c, marie_port_t *p, const void *msg, con
     share(f, &f->events[f->next_event++ % 8], &b);
 }
 
+/* The conversation: what marie-asr recognized and what marie-dialogue asked marie-tts to say. */
+static void talk(face_t *f, const char *who, const char *text)
+{
+    vj_buf_t b;
+    vj_init(&b);
+    vj_printf(&b, "{\"type\":\"talk\",\"who\":\"%s\",\"text\":", who);
+    vj_str(&b, text);
+    vj_lit(&b, "}");
+    share(f, &f->talk[f->next_talk++ % MAX_TALK], &b);
+}
+
+static void on_heard(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    talk(marie_component_user(c), "heard", ((const marie_speech_t *)msg)->text);
+}
+
+/* The requests on SAY, not marie-tts's progress on ROBOT_SPEECH, which repeats the words. */
+static void on_said(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    talk(marie_component_user(c), "said", ((const marie_robot_speech_t *)msg)->text);
+}
+
 /* A light per host: green when every component it runs is running, else amber/red. */
 static void on_am(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
@@ -198,6 +224,11 @@ static void send_hello(face_t *f, int id)
         char *e = f->events[(f->next_event + i) % 8];
         if (e)
             webserve_send(f->web, id, e, strlen(e), false);
+    }
+    for (int i = 0; i < MAX_TALK; i++) {
+        char *t = f->talk[(f->next_talk + i) % MAX_TALK];
+        if (t)
+            webserve_send(f->web, id, t, strlen(t), false);
     }
 }
 
@@ -381,6 +412,8 @@ static int init(marie_component_t *c)
     marie_port_on_message(marie_port(c, "mission_state"), on_mission);
     marie_port_on_message(marie_port(c, "event"), on_event);
     marie_port_on_message(marie_port(c, "am_status"), on_am);
+    marie_port_on_message(marie_port(c, "heard"), on_heard);
+    marie_port_on_message(marie_port(c, "said"), on_said);
     char url[256];
     snprintf(url, sizeof url, "http://%s:%d/", strcmp(wc.bind, "0.0.0.0") == 0 ? "127.0.0.1" : wc.bind,
              webserve_port(f->web));
@@ -409,6 +442,8 @@ static void quit(marie_component_t *c)
         free(f->hosts[i]);
     for (int i = 0; i < 8; i++)
         free(f->events[i]);
+    for (int i = 0; i < MAX_TALK; i++)
+        free(f->talk[i]);
 }
 
 static const marie_component_def_t def = {

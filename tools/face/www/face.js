@@ -1,4 +1,4 @@
-// marie face: shows what the robot does and why, and sends people's requests (with the PIN)
+// marie face: shows what the robot does and why, what it heard and said, and sends people's requests (with the PIN)
 // to the server, which signs them. Reconnects when the server comes back.
 "use strict";
 const $ = (id) => document.getElementById(id);
@@ -49,8 +49,27 @@ function event(m) {
   while (f.children.length > 3) f.removeChild(f.lastChild);
 }
 
+// The conversation, newest last: the panel shows once the robot has heard or said something;
+// the oldest lines go when the panel is full (at most 4).
+function talk(m) {
+  const d = document.createElement("div");
+  d.className = "line " + m.who;
+  d.dataset.who = m.who;
+  const w = document.createElement("span");
+  w.className = "words";
+  w.textContent = m.text;
+  d.appendChild(w);
+  const t = $("talk");
+  t.appendChild(d);
+  t.hidden = false;
+  while (t.children.length > 4 || (t.children.length > 1 && t.scrollHeight > t.clientHeight)) t.removeChild(t.firstChild);
+}
+
 function onMessage(m) {
-  if (m.type === "hello") {
+  if (m.type === "hello") {  // the server replays the present after it
+    $("events").textContent = "";
+    $("talk").textContent = "";
+    $("talk").hidden = true;
     places = m.places;
     drawPlaces();
     if (!m.controls) notice("requests are disabled on this robot", true);
@@ -67,6 +86,8 @@ function onMessage(m) {
     host(m);
   } else if (m.type === "event") {
     event(m);
+  } else if (m.type === "talk") {
+    talk(m);
   } else if (m.type === "notice") {
     notice(m.text, m.level === "error");
   }
