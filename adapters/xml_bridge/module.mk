@@ -22,7 +22,7 @@ XB_SRCS := $(XB_CODEC_SRCS) adapters/xml_bridge/xb_server.c adapters/xml_bridge/
 $(eval $(call marie_lib,xml_bridge,$(XB_SRCS)))
 XB_LIB := $(B)/lib/libxml_bridge.a
 
-$(eval $(call marie_program,marie-xml-bridge,adapters/xml_bridge/main.c,$(XB_LIB) -lexpat))
+$(eval $(call marie_program,marie-xml-bridge,adapters/xml_bridge/xml_bridge_main.c,$(XB_LIB) -lexpat))
 
 XB_TEST_SRCS := tests/xml_bridge/xb_canon.c $(XB_STRUCTDUMP)
 $(eval $(call marie_test,test_xb_codec,tests/xml_bridge/test_xb_codec.c $(XB_TEST_SRCS),$(XB_LIB) -lexpat))

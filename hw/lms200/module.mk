@@ -6,8 +6,8 @@ $(eval $(call marie_lib,marie_lms200,$(LMS200_SRCS)))
 $(eval $(call marie_test,test_lms200,tests/hw/test_lms200.c,$(LMS200_LIB)))
 $(eval $(call marie_test,test_lms200_driver,tests/hw/test_lms200_driver.c,$(LMS200_LIB) -lutil))
 
-$(eval $(call marie_program,marie-lms200,hw/lms200/main_lms200.c,$(LMS200_LIB) -lutil))
-$(eval $(call marie_program,marie-vlms200,hw/lms200/main_vlms200.c,$(LMS200_LIB) -lutil))
+$(eval $(call marie_program,marie-lms200,hw/lms200/lms200_main.c,$(LMS200_LIB) -lutil))
+$(eval $(call marie_program,marie-vlms200,hw/lms200/vlms200_main.c,$(LMS200_LIB) -lutil))
 
 $(eval $(call marie_test,test_lms200_component,tests/hw/test_lms200_component.c tests/proc.c))
 $(B)/tests/test_lms200_component: $(B)/bin/marie-lms200 $(B)/bin/marie-vlms200
