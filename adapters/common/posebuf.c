@@ -98,3 +98,15 @@ int posebuf_keep_scan(marie_laser_scan_t *keep, float **ranges, int *cap, const 
     keep->intensities = NULL;
     return 0;
 }
+
+bool posebuf_frame_changed(const posebuf_t *b, const marie_odometry_t *m, double last_distance, double *jump)
+{
+    double last[3];
+    *jump = 0;
+    if (!posebuf_last(b, last))
+        return false;
+    int64_t last_utime = posebuf_newest(b);
+    double dt = (double)(m->utime - last_utime) / 1e6;
+    *jump = hypot(m->pose.x - last[0], m->pose.y - last[1]);
+    return m->utime < last_utime || m->distance < last_distance - 1e-6 || *jump > 0.5 + 3.0 * fabs(dt);
+}

@@ -7,6 +7,7 @@
 #include <stdint.h>
 
 #include "lcmtypes/marie_laser_scan_t.h"
+#include "lcmtypes/marie_odometry_t.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -37,6 +38,11 @@ bool posebuf_last(const posebuf_t *b, double out[3]);
 void pose2d_compose(const double a[3], const double b[3], double out[3]);
 /* out = a^-1 (+) b: pose b seen from pose a. */
 void pose2d_between(const double a[3], const double b[3], double out[3]);
+
+/* Whether odometry message m starts a new frame after the buffer's newest sample: time going
+ * back (a replayed log), its distance shrinking below last_distance (a restarted odometry counts
+ * from zero again) or a jump no robot makes. *jump gets the distance jumped (0 when empty). */
+bool posebuf_frame_changed(const posebuf_t *b, const marie_odometry_t *m, double last_distance, double *jump);
 
 /* A scan newer than the newest odometry, kept until the odometry that brackets it arrives:
  * *keep becomes a copy of m (ranges in *ranges, grown to *cap as needed; intensities dropped).

@@ -153,6 +153,7 @@ static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, cons
     /* Wait for the odometry that brackets this scan (it is at most one period behind). */
     if (s->have_pending) {
         marie_component_count(c, "scans_late_odometry", 1);
+        s->have_pending = false;
         process(c, s, &s->pending);
     }
     if (posebuf_keep_scan(&s->pending, &s->pending_ranges, &s->pending_cap, m) == 0)
@@ -167,17 +168,9 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
         marie_component_bad_input(c, "bad_odometry", "odometry pose is not finite");
         return;
     }
-    bool restarted = false;
-    double last[3];
+    double jump;
     int64_t last_utime = posebuf_newest(&s->odom);
-    if (posebuf_last(&s->odom, last)) {
-        double dt = (double)(m->utime - last_utime) / 1e6;
-        double jump = hypot(m->pose.x - last[0], m->pose.y - last[1]);
-        /* Time going backwards (a replayed log), distance shrinking (a restarted odometry
-         * starts again from zero) or a jump no robot makes: the odometry frame changed. */
-        restarted = m->utime < last_utime || m->distance < s->last_distance - 1e-6 ||
-                    jump > 0.5 + 3.0 * fabs(dt);
-    }
+    bool restarted = posebuf_frame_changed(&s->odom, m, s->last_distance, &jump);
     s->last_distance = m->distance;
     if (isfinite(m->v) && isfinite(m->omega) && fabs(m->v) < 10 && fabs(m->omega) < 10) {
         s->last_v = m->v;

@@ -125,21 +125,15 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
         marie_component_bad_input(c, "bad_odometry", "odometry pose is not finite");
         return;
     }
-    double last[3];
-    int64_t last_utime = posebuf_newest(&s->odom);
-    if (posebuf_last(&s->odom, last)) {
-        double dt = (double)(m->utime - last_utime) / 1e6;
-        double jump = hypot(m->pose.x - last[0], m->pose.y - last[1]);
-        /* Time going back, distance shrinking (a restarted odometry) or a jump no robot makes:
-         * the odometry frame changed, and the next scan is matched from the last map pose. */
-        if (m->utime < last_utime || m->distance < s->last_distance - 1e-6 || jump > 0.5 + 3.0 * fabs(dt)) {
-            marie_component_count(c, "odometry_restarts", 1);
-            marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
-                                  "odometry frame jumped by %.2f m: matching from the last map pose", jump);
-            posebuf_clear(&s->odom);
-            slam_odometry_reset(s->slam);
-            s->have_pending = false;
-        }
+    double jump;
+    if (posebuf_frame_changed(&s->odom, m, s->last_distance, &jump)) {
+        /* The next scan is matched from the last map pose. */
+        marie_component_count(c, "odometry_restarts", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
+                              "odometry frame jumped by %.2f m: matching from the last map pose", jump);
+        posebuf_clear(&s->odom);
+        slam_odometry_reset(s->slam);
+        s->have_pending = false;
     }
     s->last_distance = m->distance;
     posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });

@@ -63,12 +63,35 @@ static void compose_and_between_are_inverse(void **state)
     NEAR(w[1], 4);
 }
 
+/* A restarted odometry (distance from zero again), a replayed log (time back) or a jump no
+ * robot makes is a new frame; driving on at 1 m/s is not. */
+static void tells_a_new_odometry_frame(void **state)
+{
+    posebuf_t b;
+    posebuf_clear(&b);
+    marie_odometry_t m = { .utime = 2000000, .pose = { 2.0, 0, 0 }, .distance = 2.0 };
+    double jump;
+    assert_false(posebuf_frame_changed(&b, &m, 0, &jump));           /* nothing before */
+    posebuf_add(&b, 2000000, (const double[3]){ 2.0, 0, 0 });
+    m = (marie_odometry_t){ .utime = 2100000, .pose = { 2.1, 0, 0 }, .distance = 2.1 };
+    assert_false(posebuf_frame_changed(&b, &m, 2.0, &jump));
+    NEAR(jump, 0.1);
+    m = (marie_odometry_t){ .utime = 2100000, .pose = { 0, 0, 0 }, .distance = 0 };
+    assert_true(posebuf_frame_changed(&b, &m, 2.0, &jump));          /* restarted */
+    m = (marie_odometry_t){ .utime = 1900000, .pose = { 2.0, 0, 0 }, .distance = 2.0 };
+    assert_true(posebuf_frame_changed(&b, &m, 2.0, &jump));          /* time went back */
+    m = (marie_odometry_t){ .utime = 2100000, .pose = { 3.5, 0, 0 }, .distance = 3.5 };
+    assert_true(posebuf_frame_changed(&b, &m, 2.0, &jump));          /* 1.5 m in 0.1 s */
+    NEAR(jump, 1.5);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(interpolates_between_samples),
         cmocka_unit_test(keeps_the_newest_when_full),
         cmocka_unit_test(compose_and_between_are_inverse),
+        cmocka_unit_test(tells_a_new_odometry_frame),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
