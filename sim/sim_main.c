@@ -437,20 +437,26 @@ static int place_robot(marie_component_t *c, const occmap_t *map, sim_params_t *
     return -1;
 }
 
-static int on_init(marie_component_t *c)
+/* Everything init builds, let go (devices first: they step the world). */
+static void release(sim_t *s)
 {
-    sim_t *s = marie_component_user(c);
-    /* Init again after a failure: start from nothing. */
-    sim_camera_destroy(s->camera);
-    s->camera = NULL;
     sim_devices_destroy(s->devices);
     s->devices = NULL;
+    sim_camera_destroy(s->camera);
+    s->camera = NULL;
     sim_audio_port_destroy(s->audio);
     s->audio = NULL;
     sim_world_destroy(s->world);
     s->world = NULL;
     free(s->scan);
     s->scan = NULL;
+}
+
+static int on_init(marie_component_t *c)
+{
+    sim_t *s = marie_component_user(c);
+    /* Init again after a failure: start from nothing. */
+    release(s);
     s->last_touch = -1;
     const char *mode = marie_param_str(c, "mode");
     bool device = strcmp(mode, "device") == 0;
@@ -646,16 +652,7 @@ static void on_quit(marie_component_t *c)
 {
     sim_t *s = marie_component_user(c);
     disarm(c);
-    sim_devices_destroy(s->devices);
-    s->devices = NULL;
-    sim_camera_destroy(s->camera);
-    s->camera = NULL;
-    sim_audio_port_destroy(s->audio);
-    s->audio = NULL;
-    sim_world_destroy(s->world);
-    s->world = NULL;
-    free(s->scan);
-    s->scan = NULL;
+    release(s);
 }
 
 static const marie_component_def_t def = {
