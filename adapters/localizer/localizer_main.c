@@ -9,7 +9,47 @@
 #include "adapters/localizer/mcl.h"
 #include "core/component.h"
 
+/* The parameters, declared once in the table at the end. */
 typedef struct {
+    const char *map;
+    const char *init_mode;
+    double init_x;
+    double init_y;
+    double init_theta;
+    double init_sigma_xy;
+    double init_sigma_theta;
+    int64_t particles_min;
+    int64_t particles_max;
+    int64_t max_beams;
+    double sigma_hit;
+    double z_hit;
+    double z_rand;
+    double max_dist;
+    double alpha1;
+    double alpha2;
+    double alpha3;
+    double alpha4;
+    double laser_x;
+    double laser_y;
+    double laser_theta;
+    double update_min_d;
+    double update_min_a;
+    double resample_ess;
+    bool recovery;
+    double lost_likelihood;
+    double kidnap_likelihood;
+    int64_t kidnap_updates;
+    double relocalized_likelihood;
+    double relocalized_sigma;
+    int64_t seed;
+    double cloud_hz;
+    int64_t cloud_max;
+    double odom_timeout_s;
+    double resume_max_age_s;
+} loc_params_t;
+
+typedef struct {
+    const loc_params_t *q;
     mcl_t *f;
     posebuf_t odom;             /* recent odometry, for the odometry pose at a scan's time */
     marie_laser_scan_t pending; /* a scan newer than the newest odometry */
@@ -23,13 +63,10 @@ typedef struct {
     double last_distance;       /* odometry's distance travelled: it only grows, unless restarted */
     double last_v, last_omega;  /* odometry's last body velocity */
     int force_left;             /* sensor updates still forced after a (re)initialisation */
-    double odom_timeout_s;      /* scans this much newer than the odometry give no pose */
-    double resume_max_age_s;
     int64_t first_pub_utime;    /* utime of this run's first pose; 0 before */
     /* Kidnapping: a fit this poor for this many updates means the robot is not where the
      * filter thinks; it then starts again over the whole map and says so in its heartbeat. */
-    double kidnap_likelihood, relocalized_likelihood, relocalized_sigma;
-    int kidnap_updates, poor, good;
+    int poor, good;
     bool relocalizing;
     int64_t lost_since;         /* scan time the loss was declared */
 } loc_t;
@@ -56,12 +93,12 @@ static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
  * (a wrong pose would steer it; a stale one stops it). */
 static bool watch_kidnap(marie_component_t *c, loc_t *s, int64_t utime)
 {
-    if (s->kidnap_likelihood <= 0)
+    if (s->q->kidnap_likelihood <= 0)
         return false;
     double lik = mcl_likelihood(s->f);
     if (!s->relocalizing) {
-        s->poor = lik < s->kidnap_likelihood ? s->poor + 1 : 0;
-        if (s->poor < s->kidnap_updates)
+        s->poor = lik < s->q->kidnap_likelihood ? s->poor + 1 : 0;
+        if (s->poor < s->q->kidnap_updates)
             return false;
         s->relocalizing = true;
         s->lost_since = utime;
@@ -71,14 +108,14 @@ static bool watch_kidnap(marie_component_t *c, loc_t *s, int64_t utime)
         marie_component_set_degraded(c, true, "lost: relocalizing over the whole map");
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "lost", "scan fit %.2f below %.2f for %d updates: "
                               "the robot is not where it was thought; global relocalization", lik,
-                              s->kidnap_likelihood, s->poor);
+                              s->q->kidnap_likelihood, s->poor);
         return true;
     }
     double pose[3], cov[9];
     mcl_estimate(s->f, pose, cov);
-    bool tight = sqrt(fmax(cov[0], 0) + fmax(cov[4], 0)) < s->relocalized_sigma;
-    s->good = lik >= s->relocalized_likelihood && tight ? s->good + 1 : 0;
-    if (s->good < s->kidnap_updates)
+    bool tight = sqrt(fmax(cov[0], 0) + fmax(cov[4], 0)) < s->q->relocalized_sigma;
+    s->good = lik >= s->q->relocalized_likelihood && tight ? s->good + 1 : 0;
+    if (s->good < s->q->kidnap_updates)
         return true;
     s->relocalizing = false;
     s->poor = 0;
@@ -96,7 +133,7 @@ static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *sc
         return;
     mcl_scan_t ms = { scan->ranges, scan->nranges, scan->angle_min, scan->angle_increment,
                       scan->range_min, scan->range_max };
-    if ((double)(scan->utime - posebuf_newest(&s->odom)) / 1e6 > s->odom_timeout_s) {
+    if ((double)(scan->utime - posebuf_newest(&s->odom)) / 1e6 > s->q->odom_timeout_s) {
         /* Without odometry the filter cannot follow the robot: publishing its frozen pose
          * would steer the robot blind. Stay silent so the pose goes stale downstream. */
         marie_component_count(c, "scans_stale_odometry", 1);
@@ -237,7 +274,7 @@ static void on_resume(marie_component_t *c, marie_port_t *p, int status, const v
         marie_info("the Mailbox holds only this run's poses: nothing to resume");
         return;
     }
-    if (age_us / 1e6 > s->resume_max_age_s || !isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta) ||
+    if (age_us / 1e6 > s->q->resume_max_age_s || !isfinite(m->pose.x) || !isfinite(m->pose.y) || !isfinite(m->pose.theta) ||
         strcmp(m->frame, "map") != 0) {
         marie_info("earlier pose is %.1f s old or unusable: starting from the configured one", age_us / 1e6);
         return;
@@ -254,7 +291,7 @@ static void on_resume(marie_component_t *c, marie_port_t *p, int status, const v
 static int start(marie_component_t *c)
 {
     loc_t *s = marie_component_user(c);
-    if (s->resume_max_age_s > 0 &&
+    if (s->q->resume_max_age_s > 0 &&
         marie_port_pull_async(marie_port(c, "resume"), 300, on_resume, NULL) != 0)
         marie_component_count(c, "resume_pull_errors", 1);
     return 0;
@@ -280,18 +317,13 @@ static int init(marie_component_t *c)
     s->have_pending = false;
     s->force_left = 0;
     s->last_distance = 0;
-    s->odom_timeout_s = marie_param_double(c, "odom_timeout_s");
-    s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
+    const loc_params_t *q = s->q = marie_component_params(c);
     s->first_pub_utime = 0;
-    s->kidnap_likelihood = marie_param_double(c, "kidnap_likelihood");
-    s->relocalized_likelihood = marie_param_double(c, "relocalized_likelihood");
-    s->relocalized_sigma = marie_param_double(c, "relocalized_sigma");
-    s->kidnap_updates = (int)marie_param_int(c, "kidnap_updates");
     s->poor = s->good = 0;
     s->relocalizing = false;
     marie_component_set_degraded(c, false, "%s", "localized");
     marie_errors_t errs = { 0 };
-    occmap_t *map = occmap_load(marie_param_str(c, "map"), &errs);
+    occmap_t *map = occmap_load(q->map, &errs);
     if (!map) {
         marie_component_fail_reason(c, "map: %s", errs.n ? errs.msgs[0] : "cannot load");
         marie_errors_clear(&errs);
@@ -299,50 +331,46 @@ static int init(marie_component_t *c)
     }
     mcl_params_t p;
     mcl_params_default(&p);
-    p.min_particles = (int)marie_param_int(c, "particles_min");
-    p.max_particles = (int)marie_param_int(c, "particles_max");
-    p.max_beams = (int)marie_param_int(c, "max_beams");
-    p.sigma_hit = marie_param_double(c, "sigma_hit");
-    p.z_hit = marie_param_double(c, "z_hit");
-    p.z_rand = marie_param_double(c, "z_rand");
-    p.max_dist = marie_param_double(c, "max_dist");
-    p.alpha[0] = marie_param_double(c, "alpha1");
-    p.alpha[1] = marie_param_double(c, "alpha2");
-    p.alpha[2] = marie_param_double(c, "alpha3");
-    p.alpha[3] = marie_param_double(c, "alpha4");
-    p.laser_x = marie_param_double(c, "laser_x");
-    p.laser_y = marie_param_double(c, "laser_y");
-    p.laser_theta = marie_param_double(c, "laser_theta");
-    p.update_min_d = marie_param_double(c, "update_min_d");
-    p.update_min_a = marie_param_double(c, "update_min_a");
-    p.resample_ess = marie_param_double(c, "resample_ess");
-    p.lost_likelihood = marie_param_double(c, "lost_likelihood");
-    if (!marie_param_bool(c, "recovery")) {
+    p.min_particles = (int)q->particles_min;
+    p.max_particles = (int)q->particles_max;
+    p.max_beams = (int)q->max_beams;
+    p.sigma_hit = q->sigma_hit;
+    p.z_hit = q->z_hit;
+    p.z_rand = q->z_rand;
+    p.max_dist = q->max_dist;
+    p.alpha[0] = q->alpha1;
+    p.alpha[1] = q->alpha2;
+    p.alpha[2] = q->alpha3;
+    p.alpha[3] = q->alpha4;
+    p.laser_x = q->laser_x;
+    p.laser_y = q->laser_y;
+    p.laser_theta = q->laser_theta;
+    p.update_min_d = q->update_min_d;
+    p.update_min_a = q->update_min_a;
+    p.resample_ess = q->resample_ess;
+    p.lost_likelihood = q->lost_likelihood;
+    if (!q->recovery) {
         p.alpha_slow = p.alpha_fast = 0;
         p.lost_likelihood = 0;
     }
-    s->f = mcl_create(map, &p, (uint64_t)marie_param_int(c, "seed"));
+    s->f = mcl_create(map, &p, (uint64_t)q->seed);
     occmap_destroy(map);
     if (!s->f) {
         marie_component_fail_reason(c, "bad filter parameters (particles_min <= particles_max, sigma_hit > 0, max_beams >= 1)");
         return -1;
     }
-    const char *mode = marie_param_str(c, "init_mode");
-    if (strcmp(mode, "global") == 0) {
+    if (strcmp(q->init_mode, "global") == 0) {
         mcl_init_global(s->f);
-    } else if (strcmp(mode, "pose") == 0) {
-        double pose[3] = { marie_param_double(c, "init_x"), marie_param_double(c, "init_y"),
-                           marie_param_double(c, "init_theta") };
-        double sig[3] = { marie_param_double(c, "init_sigma_xy"), marie_param_double(c, "init_sigma_xy"),
-                          marie_param_double(c, "init_sigma_theta") };
+    } else if (strcmp(q->init_mode, "pose") == 0) {
+        double pose[3] = { q->init_x, q->init_y, q->init_theta };
+        double sig[3] = { q->init_sigma_xy, q->init_sigma_xy, q->init_sigma_theta };
         mcl_init_pose(s->f, pose, sig);
     } else {
-        marie_component_fail_reason(c, "init_mode: expected pose or global, got '%s'", mode);
+        marie_component_fail_reason(c, "init_mode: expected pose or global, got '%s'", q->init_mode);
         return -1;
     }
-    double hz = marie_param_double(c, "cloud_hz");
-    s->cloud_period_us = hz > 0 ? 1e6 / hz : 0;
-    s->cloud_max = (int)marie_param_int(c, "cloud_max");
+    s->cloud_period_us = q->cloud_hz > 0 ? 1e6 / q->cloud_hz : 0;
+    s->cloud_max = (int)q->cloud_max;
     if (s->cloud_max < 1)
         s->cloud_max = 1;
     s->cloud_buf = malloc(sizeof(float) * 4 * (size_t)s->cloud_max);
@@ -368,48 +396,47 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "map", MARIE_PARAM_STRING, NULL, "map_server map.yaml" },
-    { "init_mode", MARIE_PARAM_STRING, "pose", "pose (around init_x/y/theta) or global (uniform over free space)" },
-    { "init_x", MARIE_PARAM_DOUBLE, "0", "m" },
-    { "init_y", MARIE_PARAM_DOUBLE, "0", "m" },
-    { "init_theta", MARIE_PARAM_DOUBLE, "0", "rad" },
-    { "init_sigma_xy", MARIE_PARAM_DOUBLE, "0.2", "m, spread of the initial particles" },
-    { "init_sigma_theta", MARIE_PARAM_DOUBLE, "0.1", "rad" },
-    { "particles_min", MARIE_PARAM_INT, "200", "KLD lower bound" },
-    { "particles_max", MARIE_PARAM_INT, "3000", "KLD upper bound and initial count" },
-    { "max_beams", MARIE_PARAM_INT, "60", "beams used per scan" },
-    { "sigma_hit", MARIE_PARAM_DOUBLE, "0.1", "m, likelihood field spread" },
-    { "z_hit", MARIE_PARAM_DOUBLE, "0.9", "weight of the hit model" },
-    { "z_rand", MARIE_PARAM_DOUBLE, "0.1", "weight of random readings" },
-    { "max_dist", MARIE_PARAM_DOUBLE, "1.0", "m, likelihood field saturation" },
-    { "alpha1", MARIE_PARAM_DOUBLE, "0.05", "rotation noise from rotation" },
-    { "alpha2", MARIE_PARAM_DOUBLE, "0.02", "rotation noise from translation" },
-    { "alpha3", MARIE_PARAM_DOUBLE, "0.05", "translation noise from translation" },
-    { "alpha4", MARIE_PARAM_DOUBLE, "0.02", "translation noise from rotation" },
-    { "laser_x", MARIE_PARAM_DOUBLE, "0", "m, laser position on the robot" },
-    { "laser_y", MARIE_PARAM_DOUBLE, "0", "m" },
-    { "laser_theta", MARIE_PARAM_DOUBLE, "0", "rad" },
-    { "update_min_d", MARIE_PARAM_DOUBLE, "0.05", "m travelled between filter updates" },
-    { "update_min_a", MARIE_PARAM_DOUBLE, "0.05", "rad turned between filter updates" },
-    { "resample_ess", MARIE_PARAM_DOUBLE, "0.5", "resample below this effective sample fraction" },
-    { "recovery", MARIE_PARAM_BOOL, "true", "inject random particles when the likelihood drops" },
-    { "lost_likelihood", MARIE_PARAM_DOUBLE, "0.25", "mean per-beam likelihood below which the robot is lost" },
-    { "kidnap_likelihood", MARIE_PARAM_DOUBLE, "0.15", "scan fit below which, kidnap_updates times running, the "
-      "robot is lost: relocalize over the whole map (0: never)" },
-    { "kidnap_updates", MARIE_PARAM_INT, "8", "filter updates of poor (or, relocalizing, good) fit before deciding" },
-    { "relocalized_likelihood", MARIE_PARAM_DOUBLE, "0.4", "scan fit that ends a relocalization ..." },
-    { "relocalized_sigma", MARIE_PARAM_DOUBLE, "0.3", "m: ... with the estimate's position spread below this" },
-    { "seed", MARIE_PARAM_INT, "1", "random seed (same seed and log: same output)" },
-    { "cloud_hz", MARIE_PARAM_DOUBLE, "1", "particle cloud rate (0: never)" },
-    { "cloud_max", MARIE_PARAM_INT, "2000", "particles per cloud message at most" },
-    { "odom_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: a scan this much newer than the odometry gives no pose" },
-    { "resume_max_age_s", MARIE_PARAM_DOUBLE, "30", "at start, continue from the pose in the POSE Mailbox "
-      "when it is younger than this (0: never)" },
+    MARIE_PARAM_AT(loc_params_t, map, STRING, NULL, "map_server map.yaml"),
+    MARIE_PARAM_AT(loc_params_t, init_mode, STRING, "pose", "pose (around init_x/y/theta) or global (uniform over free space)"),
+    MARIE_PARAM_AT(loc_params_t, init_x, DOUBLE, "0", "m"),
+    MARIE_PARAM_AT(loc_params_t, init_y, DOUBLE, "0", "m"),
+    MARIE_PARAM_AT(loc_params_t, init_theta, DOUBLE, "0", "rad"),
+    MARIE_PARAM_AT(loc_params_t, init_sigma_xy, DOUBLE, "0.2", "m, spread of the initial particles"),
+    MARIE_PARAM_AT(loc_params_t, init_sigma_theta, DOUBLE, "0.1", "rad"),
+    MARIE_PARAM_AT(loc_params_t, particles_min, INT, "200", "KLD lower bound"),
+    MARIE_PARAM_AT(loc_params_t, particles_max, INT, "3000", "KLD upper bound and initial count"),
+    MARIE_PARAM_AT(loc_params_t, max_beams, INT, "60", "beams used per scan"),
+    MARIE_PARAM_AT(loc_params_t, sigma_hit, DOUBLE, "0.1", "m, likelihood field spread"),
+    MARIE_PARAM_AT(loc_params_t, z_hit, DOUBLE, "0.9", "weight of the hit model"),
+    MARIE_PARAM_AT(loc_params_t, z_rand, DOUBLE, "0.1", "weight of random readings"),
+    MARIE_PARAM_AT(loc_params_t, max_dist, DOUBLE, "1.0", "m, likelihood field saturation"),
+    MARIE_PARAM_AT(loc_params_t, alpha1, DOUBLE, "0.05", "rotation noise from rotation"),
+    MARIE_PARAM_AT(loc_params_t, alpha2, DOUBLE, "0.02", "rotation noise from translation"),
+    MARIE_PARAM_AT(loc_params_t, alpha3, DOUBLE, "0.05", "translation noise from translation"),
+    MARIE_PARAM_AT(loc_params_t, alpha4, DOUBLE, "0.02", "translation noise from rotation"),
+    MARIE_PARAM_AT(loc_params_t, laser_x, DOUBLE, "0", "m, laser position on the robot"),
+    MARIE_PARAM_AT(loc_params_t, laser_y, DOUBLE, "0", "m"),
+    MARIE_PARAM_AT(loc_params_t, laser_theta, DOUBLE, "0", "rad"),
+    MARIE_PARAM_AT(loc_params_t, update_min_d, DOUBLE, "0.05", "m travelled between filter updates"),
+    MARIE_PARAM_AT(loc_params_t, update_min_a, DOUBLE, "0.05", "rad turned between filter updates"),
+    MARIE_PARAM_AT(loc_params_t, resample_ess, DOUBLE, "0.5", "resample below this effective sample fraction"),
+    MARIE_PARAM_AT(loc_params_t, recovery, BOOL, "true", "inject random particles when the likelihood drops"),
+    MARIE_PARAM_AT(loc_params_t, lost_likelihood, DOUBLE, "0.25", "mean per-beam likelihood below which the robot is lost"),
+    MARIE_PARAM_AT(loc_params_t, kidnap_likelihood, DOUBLE, "0.15", "scan fit below which, kidnap_updates times running, the " "robot is lost: relocalize over the whole map (0: never)"),
+    MARIE_PARAM_AT(loc_params_t, kidnap_updates, INT, "8", "filter updates of poor (or, relocalizing, good) fit before deciding"),
+    MARIE_PARAM_AT(loc_params_t, relocalized_likelihood, DOUBLE, "0.4", "scan fit that ends a relocalization ..."),
+    MARIE_PARAM_AT(loc_params_t, relocalized_sigma, DOUBLE, "0.3", "m: ... with the estimate's position spread below this"),
+    MARIE_PARAM_AT(loc_params_t, seed, INT, "1", "random seed (same seed and log: same output)"),
+    MARIE_PARAM_AT(loc_params_t, cloud_hz, DOUBLE, "1", "particle cloud rate (0: never)"),
+    MARIE_PARAM_AT(loc_params_t, cloud_max, INT, "2000", "particles per cloud message at most"),
+    MARIE_PARAM_AT(loc_params_t, odom_timeout_s, DOUBLE, "0.5", "s: a scan this much newer than the odometry gives no pose"),
+    MARIE_PARAM_AT(loc_params_t, resume_max_age_s, DOUBLE, "30", "at start, continue from the pose in the POSE Mailbox " "when it is younger than this (0: never)"),
     { 0 },
 };
 
 static const marie_component_def_t def = {
-    .kind = "localizer", .ports = ports, .params = params, .on_init = init, .on_start = start, .on_quit = quit,
+    .kind = "localizer", .ports = ports, .params = params, .params_size = sizeof(loc_params_t),
+    .on_init = init, .on_start = start, .on_quit = quit,
 };
 
 int main(int argc, char **argv)
