@@ -283,6 +283,19 @@ static void a_type_the_page_never_heard_of_is_encoded_from_its_descriptor(void *
                               "\"position\":[0.5,0,2],"));
 }
 
+static void numbers_keep_the_digits_their_type_holds(void **state)
+{
+    /* doubles: 10 significant digits; floats: 7; "%g" forms for the tiny and the huge */
+    marie_gyro_t g = {.utime = -42, .yaw_rate = -123456.789012345, .bias = 1e-5, .bias_valid = 0, .status = -3};
+    assert_string_equal(frame_of(&marie_type_gyro_t, &g, VJ_ROLE_OTHER),
+                        ",\"k\":\"marie.gyro_t\",\"msg\":{\"utime\":-42,\"yaw_rate\":-123456.789,\"bias\":1e-05,"
+                        "\"bias_valid\":false,\"status\":-3}");
+    float r[6] = {0.1f, 9.99999999f, -0.0f, 1234567.8f, 3e20f, 0.000123456789f};
+    marie_laser_scan_t scan = {.nranges = 6, .ranges = r};
+    assert_non_null(strstr(frame_of(&marie_type_laser_scan_t, &scan, VJ_ROLE_OTHER),
+                           "\"ranges\":[0.1,10,0,1234568,3e+20,0.0001234568]"));
+}
+
 static void a_malformed_payload_appends_nothing(void **state)
 {
     marie_event_t e = {.source = "a", .kind = "k", .text = "t"};
@@ -349,6 +362,7 @@ int main(void)
         cmocka_unit_test(pose_frame_nests_the_pose_and_says_its_role),
         cmocka_unit_test(map_cells_go_as_base64),
         cmocka_unit_test(a_type_the_page_never_heard_of_is_encoded_from_its_descriptor),
+        cmocka_unit_test(numbers_keep_the_digits_their_type_holds),
         cmocka_unit_test(a_malformed_payload_appends_nothing),
         cmocka_unit_test(strings_are_escaped_and_binary_is_base64),
         cmocka_unit_test(page_commands_parse_or_are_refused),
