@@ -359,23 +359,20 @@ static void walk_array(walk_t *w, const marie_tfield_t *f, const int64_t *vals, 
         w->stride_field[w->nstrides] = f->name;
         w->stride[w->nstrides++] = step;
     }
+    const uint8_t *start = w->p;
     vj_raw(w->b, "[", 1);
-    const uint8_t *end = w->p + (size_t)n * (size_t)size;
-    for (int64_t i = 0; i < n; i++) {
+    for (int64_t i = 0; i < n; i += step) {
         if (i)
             vj_raw(w->b, ",", 1);
-        if (!last)
+        if (step > 1)
+            w->p = start + (size_t)i * (size_t)size;
+        if (last)
+            walk_value(w, f, depth, NULL);
+        else
             walk_array(w, f, vals, d + 1, depth);
-        else if (step == 1)
-            walk_value(w, f, depth, NULL);
-        else {
-            w->p = end - (size_t)(n - i) * (size_t)size;
-            walk_value(w, f, depth, NULL);
-            i += step - 1;
-        }
     }
     if (step > 1)
-        w->p = end;
+        w->p = start + (size_t)n * (size_t)size;
     vj_raw(w->b, "]", 1);
 }
 
