@@ -15,7 +15,7 @@ function fresh() {
   return {
     mode: null, controls: false, channels: {},
     map: null, mapCanvas: null,
-    est: null, truth: null, laser: null, particles: null, path: null,
+    est: null, truth: null, laser: null, laserStride: 1, particles: null, path: null,
     goals: {}, currentGoal: null,
     trail: { est: [], truth: [] },
     summary: null, decisions: [], selected: null, liveDec: [],
