@@ -1,7 +1,10 @@
 /* fuzz_viewer_cmd: the page's commands arrive over a socket: any bytes must parse or be
- * refused, never crash; string values stay NUL-terminated. */
+ * refused, never crash; string values stay NUL-terminated. The same bytes, as the payload of
+ * a marie type picked by the first byte, must be written as JSON or refused untouched. */
 #include <assert.h>
 #include <stdint.h>
+#include <errno.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "tools/webcommon/vjson.h"
@@ -27,5 +30,24 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     vj_str(&b, s);
     assert(b.oom || (b.len >= 2 && b.s[0] == '"' && b.s[b.len - 1] == '"'));
     vj_free(&b);
+
+    if (size < 1)
+        return 0;
+    const marie_typeinfo_t *t = marie_typeinfos[data[0] % marie_typeinfos_count];
+    uint8_t *payload = malloc(size + 7);
+    assert(payload);
+    for (int i = 0; i < 8; i++)
+        payload[i] = (uint8_t)((uint64_t)t->fingerprint >> (56 - 8 * i));
+    memcpy(payload + 8, data + 1, size - 1);
+    vj_init(&b);
+    vj_lit(&b, "{");
+    int rc = vj_message(&b, payload, size + 7, VJ_ROLE_POSE);
+    vj_lit(&b, "}");
+    if (rc == 0)
+        assert(b.oom || (strncmp(b.s, "{,\"k\":", 6) == 0 && strstr(b.s, ",\"msg\":{")));
+    else
+        assert(rc == -EBADMSG && strcmp(b.s, "{}") == 0);
+    vj_free(&b);
+    free(payload);
     return 0;
 }

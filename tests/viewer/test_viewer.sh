@@ -112,7 +112,7 @@ b = c.until(lambda m: m["type"] == "player" and m["playing"] and m["t"] > a["t"]
 arb = c.until(lambda m: m.get("k") == "arb", 5)
 c.send({"op": "pause"})
 z = c.until(lambda m: m["type"] == "player" and not m["playing"])
-print(a and a["t"], b and b["t"], z and z["t"], arb and arb["winner"])
+print(a and a["t"], b and b["t"], z and z["t"], arb and arb["msg"]["winner"])
 sys.exit(0 if a and b and z and arb and z["t"] >= b["t"] else 1)
 PY
 }

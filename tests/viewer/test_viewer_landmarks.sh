@@ -27,7 +27,7 @@ pids="$pids $!"
 check "the landmark is drawn on the map with its text" \
     python3 tests/viewer/cdp.py --port $CDP http://127.0.0.1:8131/ --timeout 15 \
         --until "document.body.dataset.landmarks === '1' && document.body.dataset.mapDrawn === '1'" \
-        --eval "S.landmarks[2].msg + '@' + S.landmarks[2].x + ',' + S.landmarks[2].y" --eval-out "$T/lm.json" \
+        --eval "S.landmarks[2].message + '@' + S.landmarks[2].x + ',' + S.landmarks[2].y" --eval-out "$T/lm.json" \
         --screenshot "$B/test-logs/viewer-landmarks.png"
 check "at the published place" grep -q '"room B@12.25,13.51"' "$T/lm.json"
 finish

@@ -1,5 +1,6 @@
 /* test_viewer_units: the LCM log reader against logs written by LCM itself (whole, in pieces,
- * corrupt, truncated), the JSON the page receives, and the page's command parser. */
+ * corrupt, truncated), the JSON the page receives (any type, from its descriptor), and the
+ * page's command parser. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -192,7 +193,19 @@ static void empty_and_tiny_inputs_are_harmless(void **state)
     assert_int_equal(s.corrupt, 1);
 }
 
-static void laser_json_has_what_the_page_draws(void **state)
+/* The frame members vj_message writes for a message, as a string (static, overwritten). */
+static const char *frame_of(const marie_type_t *t, const void *msg, vj_role_t role)
+{
+    static vj_buf_t b;
+    static uint8_t buf[1 << 16];
+    int n = t->encode(buf, 0, sizeof buf, msg);
+    assert_true(n > 0);
+    vj_free(&b);
+    assert_int_equal(vj_message(&b, buf, (size_t)n, role), 0);
+    return b.s;
+}
+
+static void laser_json_is_the_scan_with_its_lcm_field_names(void **state)
 {
     float r[3] = {1.0f, NAN, 2.25f};
     marie_laser_scan_t scan = {.utime = 5, .angle_min = -1.5f, .angle_increment = 0.5f, .range_max = 8,
@@ -202,12 +215,101 @@ static void laser_json_has_what_the_page_draws(void **state)
     assert_true(n > 0);
     assert_ptr_equal(vj_type_of(buf, (size_t)n), &marie_type_laser_scan_t);
     assert_null(vj_type_of(buf, 4));
+    assert_string_equal(frame_of(&marie_type_laser_scan_t, &scan, VJ_ROLE_OTHER),
+                        ",\"k\":\"laser\",\"msg\":{\"utime\":5,\"angle_min\":-1.5,\"angle_increment\":0.5,"
+                        "\"range_min\":0,\"range_max\":8,\"nranges\":3,\"ranges\":[1,null,2.25],"
+                        "\"nintensities\":0,\"intensities\":[]}");
+}
+
+static void a_long_scan_reaches_the_page_thinned_with_its_stride(void **state)
+{
+    static float r[1441];
+    for (int i = 0; i < 1441; i++)
+        r[i] = (float)i;
+    marie_laser_scan_t scan = {.angle_increment = 0.25f, .range_max = 2000, .nranges = 1441, .ranges = r};
+    const char *s = frame_of(&marie_type_laser_scan_t, &scan, VJ_ROLE_OTHER);
+    /* 1441 beams over a 720 cap: every 3rd, 481 of them, the last being beam 1440 */
+    assert_non_null(strstr(s, "\"nranges\":1441,\"ranges\":[0,3,6,"));
+    assert_non_null(strstr(s, ",1437,1440],\"nintensities\":0"));
+    assert_non_null(strstr(s, "},\"stride\":{\"ranges\":3}"));
+    int commas = 0;
+    for (const char *p = strstr(s, "\"ranges\":["); *p != ']'; p++)
+        commas += *p == ',';
+    assert_int_equal(commas + 1, 481);
+    /* the cap is the page's, for lasers: a path of as many poses is sent whole */
+    static marie_pose2d_t poses[1441];
+    marie_path_t path = {.nposes = 1441, .poses = poses};
+    assert_null(strstr(frame_of(&marie_type_path_t, &path, VJ_ROLE_OTHER), "stride"));
+}
+
+static void pose_frame_nests_the_pose_and_says_its_role(void **state)
+{
+    marie_pose_cov_t p = {.utime = 7, .frame = "map", .pose = {1.25, -2.5, 0.125},
+                          .cov = {0.01, 0, 0, 0, 0.04, 0, 0, 0, INFINITY}};
+    assert_string_equal(frame_of(&marie_type_pose_cov_t, &p, VJ_ROLE_TRUTH),
+                        ",\"k\":\"pose\",\"role\":\"truth\",\"msg\":{\"utime\":7,\"frame\":\"map\","
+                        "\"pose\":{\"x\":1.25,\"y\":-2.5,\"theta\":0.125},"
+                        "\"cov\":[0.01,0,0,0,0.04,0,0,0,null]}");
+}
+
+static void map_cells_go_as_base64(void **state)
+{
+    int8_t cells[6] = {0, 100, -1, -100, 0, 50};
+    marie_occupancy_grid_t g = {.resolution = 0.05f, .width = 3, .height = 2, .origin = {-1, 2, 0},
+                                .ncells = 6, .cells = cells};
+    assert_string_equal(frame_of(&marie_type_occupancy_grid_t, &g, VJ_ROLE_OTHER),
+                        ",\"k\":\"map\",\"msg\":{\"utime\":0,\"resolution\":0.05,\"width\":3,\"height\":2,"
+                        "\"origin\":{\"x\":-1,\"y\":2,\"theta\":0},\"ncells\":6,\"cells\":\"AGT/nAAy\"}");
+}
+
+/* A type the page has no kind for is written from its descriptor all the same: nothing of the
+ * viewer names its fields. */
+static void a_type_the_page_never_heard_of_is_encoded_from_its_descriptor(void **state)
+{
+    uint8_t px[5] = {1, 2, 3, 250, 0};
+    marie_image_t im = {.utime = 1700000000123456789LL, .width = 5, .height = 1, .row_stride = 5,
+                        .format = MARIE_IMAGE_T_FORMAT_GRAY8, .size = 5, .data = px};
+    assert_null(vj_kind(marie_typeinfo_find("marie.image_t")));
+    assert_string_equal(frame_of(&marie_type_image_t, &im, VJ_ROLE_OTHER),
+                        ",\"k\":\"marie.image_t\",\"msg\":{\"utime\":1700000000123456789,\"width\":5,"
+                        "\"height\":1,\"row_stride\":5,\"format\":0,\"size\":5,\"data\":\"AQID+gA=\"}");
+    /* nested arrays of structs, fixed 2-D arrays, booleans, escaped strings */
+    marie_tag_detection_t t = {.family = "tag\"36", .id = 4, .pose_valid = 1,
+                               .corners = {{1, 2}, {3, 4}, {5, 6}, {7, 8}}, .position = {0.5, 0, 2}};
+    marie_tag_detections_t d = {.camera = "front", .count = 1, .tags = &t};
+    const char *s = frame_of(&marie_type_tag_detections_t, &d, VJ_ROLE_OTHER);
+    assert_non_null(strstr(s, "\"tags\":[{\"family\":\"tag\\\"36\",\"id\":4,"));
+    assert_non_null(strstr(s, "\"corners\":[[1,2],[3,4],[5,6],[7,8]],\"center\":[0,0],\"pose_valid\":true,"
+                              "\"position\":[0.5,0,2],"));
+}
+
+static void numbers_keep_the_digits_their_type_holds(void **state)
+{
+    /* doubles: 10 significant digits; floats: 7; "%g" forms for the tiny and the huge */
+    marie_gyro_t g = {.utime = -42, .yaw_rate = -123456.789012345, .bias = 1e-5, .bias_valid = 0, .status = -3};
+    assert_string_equal(frame_of(&marie_type_gyro_t, &g, VJ_ROLE_OTHER),
+                        ",\"k\":\"marie.gyro_t\",\"msg\":{\"utime\":-42,\"yaw_rate\":-123456.789,\"bias\":1e-05,"
+                        "\"bias_valid\":false,\"status\":-3}");
+    float r[6] = {0.1f, 9.99999999f, -0.0f, 1234567.8f, 3e20f, 0.000123456789f};
+    marie_laser_scan_t scan = {.nranges = 6, .ranges = r};
+    assert_non_null(strstr(frame_of(&marie_type_laser_scan_t, &scan, VJ_ROLE_OTHER),
+                           "\"ranges\":[0.1,10,0,1234568,3e+20,0.0001234568]"));
+}
+
+static void a_malformed_payload_appends_nothing(void **state)
+{
+    marie_event_t e = {.source = "a", .kind = "k", .text = "t"};
+    uint8_t buf[256];
+    int n = marie_type_event_t.encode(buf, 0, sizeof buf, &e);
+    assert_true(n > 0);
     vj_buf_t b;
     vj_init(&b);
     vj_lit(&b, "{");
-    assert_true(vj_message(&b, &marie_type_laser_scan_t, &scan, VJ_ROLE_OTHER));
-    vj_lit(&b, "}");
-    assert_string_equal(b.s, "{,\"k\":\"laser\",\"amin\":-1.5,\"ainc\":0.5,\"rmax\":8,\"r\":[1,null,2.25]}");
+    assert_int_equal(vj_message(&b, buf, (size_t)n - 1, VJ_ROLE_OTHER), -EBADMSG);   /* cut short */
+    buf[n - 1] = 'x';                                                               /* unterminated string */
+    assert_int_equal(vj_message(&b, buf, (size_t)n, VJ_ROLE_OTHER), -EBADMSG);
+    assert_int_equal(vj_message(&b, "\x01\x02\x03\x04\x05\x06\x07\x08", 8, VJ_ROLE_OTHER), -EBADMSG);
+    assert_string_equal(b.s, "{");
     vj_free(&b);
 }
 
@@ -255,7 +357,13 @@ int main(void)
         cmocka_unit_test(impossible_lengths_resync_on_the_next_record),
         cmocka_unit_test(a_plausible_but_wrong_length_loses_one_record),
         cmocka_unit_test(empty_and_tiny_inputs_are_harmless),
-        cmocka_unit_test(laser_json_has_what_the_page_draws),
+        cmocka_unit_test(laser_json_is_the_scan_with_its_lcm_field_names),
+        cmocka_unit_test(a_long_scan_reaches_the_page_thinned_with_its_stride),
+        cmocka_unit_test(pose_frame_nests_the_pose_and_says_its_role),
+        cmocka_unit_test(map_cells_go_as_base64),
+        cmocka_unit_test(a_type_the_page_never_heard_of_is_encoded_from_its_descriptor),
+        cmocka_unit_test(numbers_keep_the_digits_their_type_holds),
+        cmocka_unit_test(a_malformed_payload_appends_nothing),
         cmocka_unit_test(strings_are_escaped_and_binary_is_base64),
         cmocka_unit_test(page_commands_parse_or_are_refused),
     };

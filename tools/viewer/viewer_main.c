@@ -92,8 +92,8 @@ int viewer_port_of_channel(viewer_t *v, const char *ch)
     return -1;
 }
 
-/* Decode a payload of input port `pi` and write its message frame into b. Returns false on
- * bad input (counted) or a type the page does not show. */
+/* Check a payload of input port `pi` and write its message frame into b. Returns false on
+ * bad input (counted). */
 bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
 {
     /* A log's bad payloads were counted when it was indexed: count live ones only. */
@@ -105,18 +105,13 @@ bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t
         }
         return false;
     }
-    void *msg = calloc(1, t->size);
-    if (!msg)
-        return false;
-    bool ok = false;
-    const char *why;
-    if (marie_decode_input(t, data, len, msg, &why) < 0) {
+    int rc = marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), data, len, MARIE_CHECK_FINITE);
+    if (rc < 0) {
         if (v->live) {
             v->bad_payloads++;
-            marie_component_bad_input(v->c, why, "channel %s: %zu bytes: not a well-formed, finite %s", ch, len,
-                                      t->name);
+            marie_component_bad_input(v->c, rc == -EDOM ? "bad_nonfinite" : "bad_payload",
+                                      "channel %s: %zu bytes: not a well-formed, finite %s", ch, len, t->name);
         }
-        free(msg);
         return false;
     }
     vj_reset(b);
@@ -124,10 +119,8 @@ bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t
     vj_str(b, ch);
     vj_lit(b, ",\"t\":");
     vj_int(b, utime);
-    ok = vj_message(b, t, msg, pi == P_TRUTH ? VJ_ROLE_TRUTH : VJ_ROLE_POSE);
+    bool ok = vj_message(b, data, len, pi == P_TRUTH ? VJ_ROLE_TRUTH : pi == P_POSE ? VJ_ROLE_POSE : VJ_ROLE_OTHER) == 0;
     vj_lit(b, "}");
-    t->decode_cleanup(msg);
-    free(msg);
     return ok && !b->oom;
 }
 
@@ -171,7 +164,9 @@ static void set_str(char **slot, const char *s, size_t n)
     *slot = d;
 }
 
-/* The heartbeat's component name, found in the JSON just written. */
+/* A member of the JSON just written, the first of that name: the message's own field when no
+ * earlier field or envelope member has it ("component" of a heartbeat, "host" of a manager's
+ * status, "id" of a goal, "x" and "y" of a pose). */
 static void json_field(const char *json, const char *k, char *out, size_t cap)
 {
     char pat[32];
@@ -209,7 +204,7 @@ static void live_remember(viewer_t *v, int pi, const vj_buf_t *b, int64_t utime)
         /* one slot per component, and one per manager (host) */
         char name[128];
         if (pi == P_HB)
-            json_field(b->s, "c", name, sizeof name);
+            json_field(b->s, "component", name, sizeof name);
         else {
             name[0] = '@';
             json_field(b->s, "host", name + 1, sizeof name - 1);
@@ -505,16 +500,21 @@ static int load_map_file(viewer_t *v, const char *path)
         .utime = 0, .resolution = (float)m->resolution, .width = m->width, .height = m->height,
         .origin = {m->origin_x, m->origin_y, 0}, .ncells = m->width * m->height, .cells = m->cells,
     };
+    int len = marie_type_occupancy_grid_t.encoded_size(&g);
+    uint8_t *raw = len > 0 ? malloc((size_t)len) : NULL;
+    int n = raw ? marie_type_occupancy_grid_t.encode(raw, 0, len, &g) : -1;
+    occmap_destroy(m);
     vj_buf_t b;
     vj_init(&b);
     vj_lit(&b, "{\"type\":\"msg\",\"ch\":");
     vj_str(&b, path);
     vj_lit(&b, ",\"t\":0");
-    vj_message(&b, &marie_type_occupancy_grid_t, &g, VJ_ROLE_OTHER);
+    int rc = n > 0 ? vj_message(&b, raw, (size_t)n, VJ_ROLE_OTHER) : -ENOMEM;
     vj_lit(&b, "}");
-    occmap_destroy(m);
-    if (b.oom) {
+    free(raw);
+    if (rc < 0 || b.oom) {
         vj_free(&b);
+        marie_component_fail_reason(v->c, "cannot encode map %s", path);
         return -1;
     }
     v->map_json = b.s;

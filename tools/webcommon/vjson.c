@@ -1,9 +1,10 @@
-/* vjson: the viewer's JSON. Hand-written per type so the page gets only what it draws, with
- * coordinates rounded to millimetres: a laser scan is ~1 KB instead of ~4 KB. */
+/* vjson: the viewer's JSON: any marie message written from its type descriptor (the payload
+ * walked as the XML bridge walks it), with a small table of what the page calls each type. */
 #include "tools/webcommon/vjson.h"
 
 #include <errno.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -127,9 +128,23 @@ void vj_num(vj_buf_t *b, double v, int prec)
         vj_raw(b, tmp, (size_t)n);
 }
 
+/* Decimal digits of v, backwards from end; returns the first. */
+static char *digits_of(char *end, uint64_t v)
+{
+    do {
+        *--end = (char)('0' + v % 10);
+        v /= 10;
+    } while (v);
+    return end;
+}
+
 void vj_int(vj_buf_t *b, int64_t v)
 {
-    vj_printf(b, "%lld", (long long)v);
+    char tmp[24], *end = tmp + sizeof tmp;
+    char *o = digits_of(end, v < 0 ? 0 - (uint64_t)v : (uint64_t)v);
+    if (v < 0)
+        *--o = '-';
+    vj_raw(b, o, (size_t)(end - o));
 }
 
 void vj_base64(vj_buf_t *b, const void *data, size_t n)
@@ -162,300 +177,245 @@ const marie_type_t *vj_type_of(const void *data, size_t len)
     return len < 8 ? NULL : marie_type_by_fingerprint(marie_payload_fingerprint(data, len));
 }
 
-/* ---- per-type encoders: each appends `,"k":KIND` and its fields ---- */
+/* ---- messages: one walker over the type descriptors ---- */
 
-static void key(vj_buf_t *b, const char *k)
-{
-    vj_raw(b, ",\"", 2);
-    vj_lit(b, k);
-    vj_raw(b, "\":", 2);
-}
-
-static void pose_fields(vj_buf_t *b, const marie_pose2d_t *p)
-{
-    key(b, "x"); vj_num(b, p->x, 3);
-    key(b, "y"); vj_num(b, p->y, 3);
-    key(b, "th"); vj_num(b, p->theta, 3);
-}
-
-static void enc_laser(vj_buf_t *b, const marie_laser_scan_t *m)
-{
-    /* At most 720 beams reach the page: enough to draw, whatever the sensor. */
-    int step = m->nranges > 720 ? (m->nranges + 719) / 720 : 1;
-    key(b, "amin"); vj_num(b, m->angle_min, 5);
-    key(b, "ainc"); vj_num(b, (double)m->angle_increment * step, 6);
-    key(b, "rmax"); vj_num(b, m->range_max, 2);
-    key(b, "r");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->nranges; i += step) {
-        if (i)
-            vj_raw(b, ",", 1);
-        vj_num(b, m->ranges[i], 2);
-    }
-    vj_raw(b, "]", 1);
-}
-
-static void enc_pose(vj_buf_t *b, const marie_pose_cov_t *m, vj_role_t role)
-{
-    key(b, "role"); vj_lit(b, role == VJ_ROLE_TRUTH ? "\"truth\"" : "\"est\"");
-    key(b, "frame"); vj_str(b, m->frame);
-    pose_fields(b, &m->pose);
-    key(b, "cov");
-    vj_raw(b, "[", 1);
-    vj_num(b, m->cov[0], 5); vj_raw(b, ",", 1);
-    vj_num(b, m->cov[1], 5); vj_raw(b, ",", 1);
-    vj_num(b, m->cov[4], 5); vj_raw(b, ",", 1);
-    vj_num(b, m->cov[8], 5);
-    vj_raw(b, "]", 1);
-}
-
-static void enc_particles(vj_buf_t *b, const marie_particle_cloud_t *m)
-{
-    int step = m->n > 1500 ? (m->n + 1499) / 1500 : 1;
-    key(b, "n"); vj_int(b, m->n);
-    key(b, "x");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->n; i += step) {
-        if (i)
-            vj_raw(b, ",", 1);
-        vj_num(b, m->x[i], 2);
-    }
-    vj_raw(b, "]", 1);
-    key(b, "y");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->n; i += step) {
-        if (i)
-            vj_raw(b, ",", 1);
-        vj_num(b, m->y[i], 2);
-    }
-    vj_raw(b, "]", 1);
-}
-
-static void enc_path(vj_buf_t *b, const marie_path_t *m)
-{
-    key(b, "goal"); vj_int(b, m->goal_id);
-    key(b, "status"); vj_int(b, m->status);
-    key(b, "p");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->nposes; i++) {
-        vj_raw(b, i ? ",[" : "[", i ? 2 : 1);
-        vj_num(b, m->poses[i].x, 2);
-        vj_raw(b, ",", 1);
-        vj_num(b, m->poses[i].y, 2);
-        vj_raw(b, "]", 1);
-    }
-    vj_raw(b, "]", 1);
-}
-
-static void enc_goal(vj_buf_t *b, const marie_goal_t *m)
-{
-    key(b, "id"); vj_int(b, m->id);
-    key(b, "name"); vj_str(b, m->name);
-    pose_fields(b, &m->pose);
-    key(b, "tol"); vj_num(b, m->tolerance, 3);
-    key(b, "prio"); vj_int(b, m->priority);
-    key(b, "deadline"); vj_int(b, m->deadline_utime);
-}
-
-static void enc_arbitration(vj_buf_t *b, const marie_arbitration_t *m)
-{
-    key(b, "cycle"); vj_int(b, m->cycle);
-    key(b, "winner"); vj_str(b, m->winner);
-    key(b, "v"); vj_num(b, m->v, 3);
-    key(b, "w"); vj_num(b, m->omega, 3);
-    key(b, "votes");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->nvotes; i++) {
-        const marie_behaviour_vote_t *v = &m->votes[i];
-        vj_raw(b, i ? ",{\"n\":" : "{\"n\":", i ? 6 : 5);
-        vj_str(b, v->name);
-        key(b, "p"); vj_int(b, v->priority);
-        key(b, "a"); vj_lit(b, v->active ? "1" : "0");
-        key(b, "v"); vj_num(b, v->v, 3);
-        key(b, "w"); vj_num(b, v->omega, 3);
-        key(b, "r"); vj_str(b, v->reason);
-        vj_raw(b, "}", 1);
-    }
-    vj_raw(b, "]", 1);
-    key(b, "in");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->ninputs; i++) {
-        vj_raw(b, i ? ",{\"n\":" : "{\"n\":", i ? 6 : 5);
-        vj_str(b, m->inputs[i].name);
-        key(b, "age"); vj_num(b, m->inputs[i].age, 3);
-        vj_raw(b, "}", 1);
-    }
-    vj_raw(b, "]", 1);
-}
-
-static void enc_event(vj_buf_t *b, const marie_event_t *m)
-{
-    key(b, "src"); vj_str(b, m->source);
-    key(b, "seq"); vj_int(b, m->seq);
-    key(b, "sev"); vj_int(b, m->severity);
-    key(b, "kind"); vj_str(b, m->kind);
-    key(b, "text"); vj_str(b, m->text);
-}
-
-static void enc_heartbeat(vj_buf_t *b, const marie_heartbeat_t *m)
-{
-    key(b, "c"); vj_str(b, m->component);
-    key(b, "host"); vj_str(b, m->host);
-    key(b, "pid"); vj_int(b, m->pid);
-    key(b, "state"); vj_int(b, m->state);
-    key(b, "reason"); vj_str(b, m->reason);
-    key(b, "up"); vj_num(b, m->uptime_us / 1e6, 1);
-    key(b, "in"); vj_int(b, m->msgs_in);
-    key(b, "out"); vj_int(b, m->msgs_out);
-    key(b, "drops"); vj_int(b, m->drops);
-    key(b, "bad"); vj_int(b, m->bad_input);
-    key(b, "ovr"); vj_int(b, m->overruns);
-    key(b, "ports");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->nports; i++) {
-        const marie_port_status_t *p = &m->ports[i];
-        vj_raw(b, i ? ",{\"n\":" : "{\"n\":", i ? 6 : 5);
-        vj_str(b, p->name);
-        key(b, "ch"); vj_str(b, p->channel);
-        key(b, "t"); vj_str(b, p->type);
-        key(b, "out"); vj_lit(b, p->direction == MARIE_PORT_STATUS_T_OUT ? "1" : "0");
-        key(b, "m"); vj_int(b, p->msgs);
-        vj_raw(b, "}", 1);
-    }
-    vj_raw(b, "]", 1);
-}
-
-static void enc_am_status(vj_buf_t *b, const marie_am_status_t *m)
-{
-    key(b, "host"); vj_str(b, m->host);
-    key(b, "comps");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->ncomponents; i++) {
-        const marie_am_component_status_t *c = &m->components[i];
-        vj_raw(b, i ? ",{\"n\":" : "{\"n\":", i ? 6 : 5);
-        vj_str(b, c->name);
-        key(b, "g"); vj_str(b, c->group);
-        key(b, "s"); vj_str(b, c->state);
-        key(b, "pid"); vj_int(b, c->pid);
-        key(b, "up"); vj_num(b, c->uptime_us / 1e6, 1);
-        key(b, "rs"); vj_int(b, c->restarts);
-        key(b, "cpu"); vj_num(b, c->cpu, 1);
-        key(b, "rss"); vj_int(b, c->rss);
-        vj_raw(b, "}", 1);
-    }
-    vj_raw(b, "]", 1);
-    key(b, "leader"); vj_str(b, m->balance_leader);
-    key(b, "term"); vj_int(b, m->balance_term);
-    key(b, "last"); vj_str(b, m->balance_last);
-}
-
-static void enc_am_reply(vj_buf_t *b, const marie_am_reply_t *m)
-{
-    key(b, "host"); vj_str(b, m->host);
-    key(b, "seq"); vj_int(b, m->seq);
-    key(b, "ok"); vj_lit(b, m->ok ? "1" : "0");
-    key(b, "reason"); vj_str(b, m->reason);
-}
-
-static void enc_grid(vj_buf_t *b, const marie_occupancy_grid_t *m)
-{
-    key(b, "res"); vj_num(b, m->resolution, 4);
-    key(b, "w"); vj_int(b, m->width);
-    key(b, "h"); vj_int(b, m->height);
-    key(b, "ox"); vj_num(b, m->origin.x, 3);
-    key(b, "oy"); vj_num(b, m->origin.y, 3);
-    key(b, "oth"); vj_num(b, m->origin.theta, 4);
-    /* Cells as base64 of the int8 values: 1.33 bytes a cell instead of up to 5 as numbers. */
-    int64_t need = (int64_t)m->width * m->height;
-    key(b, "cells");
-    if (m->width <= 0 || m->height <= 0 || need != m->ncells)
-        vj_lit(b, "\"\"");
-    else
-        vj_base64(b, m->cells, (size_t)m->ncells);
-}
-
-static void enc_tags(vj_buf_t *b, const marie_tag_detections_t *m)
-{
-    key(b, "camera"); vj_str(b, m->camera);
-    key(b, "tags");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->count; i++) {
-        const marie_tag_detection_t *t = &m->tags[i];
-        vj_raw(b, i ? ",{\"id\":" : "{\"id\":", i ? 7 : 6);
-        vj_int(b, t->id);
-        key(b, "valid"); vj_lit(b, t->pose_valid ? "1" : "0");
-        key(b, "px"); vj_num(b, t->position[0], 3);
-        key(b, "pz"); vj_num(b, t->position[2], 3);
-        vj_raw(b, "}", 1);
-    }
-    vj_raw(b, "]", 1);
-}
-
-static void enc_landmarks(vj_buf_t *b, const marie_landmarks_t *m)
-{
-    key(b, "lm");
-    vj_raw(b, "[", 1);
-    for (int i = 0; i < m->count; i++) {
-        const marie_landmark_t *l = &m->landmarks[i];
-        vj_raw(b, i ? ",{\"id\":" : "{\"id\":", i ? 7 : 6);
-        vj_int(b, l->id);
-        key(b, "x"); vj_num(b, l->x, 3);
-        key(b, "y"); vj_num(b, l->y, 3);
-        key(b, "yaw"); vj_num(b, l->yaw, 3);
-        key(b, "msg"); vj_str(b, l->message);
-        vj_raw(b, "}", 1);
-    }
-    vj_raw(b, "]", 1);
-}
-
+/* What the page knows of a type: its kind, and the most elements of any top-level
+ * variable-length array of numbers it is sent (0: all). A type missing here is still sent,
+ * its kind being its LCM name. */
 static const struct {
-    const marie_type_t *type;
+    const char *type;
     const char *kind;
+    int max_elems;
 } kinds[] = {
-    {&marie_type_laser_scan_t, "laser"},
-    {&marie_type_pose_cov_t, "pose"},
-    {&marie_type_particle_cloud_t, "particles"},
-    {&marie_type_path_t, "path"},
-    {&marie_type_goal_t, "goal"},
-    {&marie_type_arbitration_t, "arb"},
-    {&marie_type_event_t, "event"},
-    {&marie_type_heartbeat_t, "hb"},
-    {&marie_type_am_status_t, "am"},
-    {&marie_type_am_reply_t, "reply"},
-    {&marie_type_occupancy_grid_t, "map"},
-    {&marie_type_tag_detections_t, "tags"},
-    {&marie_type_landmarks_t, "landmarks"},
+    /* 720 beams are enough to draw a scan, whatever the sensor; 1500 particles a cloud. */
+    {"marie.laser_scan_t", "laser", 720},
+    {"marie.particle_cloud_t", "particles", 1500},
+    {"marie.pose_cov_t", "pose", 0},
+    {"marie.path_t", "path", 0},
+    {"marie.goal_t", "goal", 0},
+    {"marie.arbitration_t", "arb", 0},
+    {"marie.event_t", "event", 0},
+    {"marie.heartbeat_t", "hb", 0},
+    {"marie.am_status_t", "am", 0},
+    {"marie.am_reply_t", "reply", 0},
+    {"marie.occupancy_grid_t", "map", 0},
+    {"marie.tag_detections_t", "tags", 0},
+    {"marie.landmarks_t", "landmarks", 0},
 };
 
-const char *vj_kind(const marie_type_t *t)
+static int kind_index(const marie_typeinfo_t *t)
 {
-    for (size_t i = 0; i < sizeof kinds / sizeof kinds[0]; i++)
-        if (kinds[i].type == t)
-            return kinds[i].kind;
-    return NULL;
+    for (size_t i = 0; t && i < sizeof kinds / sizeof kinds[0]; i++)
+        if (strcmp(kinds[i].type, t->name) == 0)
+            return (int)i;
+    return -1;
 }
 
-bool vj_message(vj_buf_t *b, const marie_type_t *t, const void *msg, vj_role_t role)
+const char *vj_kind(const marie_typeinfo_t *t)
 {
-    const char *kind = vj_kind(t);
-    if (!kind)
-        return false;
-    key(b, "k");
-    vj_str(b, kind);
-    if (t == &marie_type_laser_scan_t) enc_laser(b, msg);
-    else if (t == &marie_type_pose_cov_t) enc_pose(b, msg, role);
-    else if (t == &marie_type_particle_cloud_t) enc_particles(b, msg);
-    else if (t == &marie_type_path_t) enc_path(b, msg);
-    else if (t == &marie_type_goal_t) enc_goal(b, msg);
-    else if (t == &marie_type_arbitration_t) enc_arbitration(b, msg);
-    else if (t == &marie_type_event_t) enc_event(b, msg);
-    else if (t == &marie_type_heartbeat_t) enc_heartbeat(b, msg);
-    else if (t == &marie_type_am_status_t) enc_am_status(b, msg);
-    else if (t == &marie_type_am_reply_t) enc_am_reply(b, msg);
-    else if (t == &marie_type_occupancy_grid_t) enc_grid(b, msg);
-    else if (t == &marie_type_tag_detections_t) enc_tags(b, msg);
-    else if (t == &marie_type_landmarks_t) enc_landmarks(b, msg);
-    return true;
+    int i = kind_index(t);
+    return i < 0 ? NULL : kinds[i].kind;
+}
+
+#define VJ_MAX_STRIDES 8
+
+typedef struct {
+    vj_buf_t *b;
+    const uint8_t *p;           /* cursor in a checked payload */
+    int max_elems;
+    int nstrides;
+    const char *stride_field[VJ_MAX_STRIDES];
+    int64_t stride[VJ_MAX_STRIDES];
+} walk_t;
+
+static int64_t read_be(const uint8_t *p, int n)
+{
+    uint64_t v = 0;
+    for (int i = 0; i < n; i++)
+        v = v << 8 | p[i];
+    if (n < 8 && (v >> (8 * n - 1)) & 1)
+        v |= ~0ULL << (8 * n);
+    return (int64_t)v;
+}
+
+static int prim_size(marie_prim_t p)
+{
+    switch (p) {
+    case MARIE_PRIM_INT8: case MARIE_PRIM_BYTE: case MARIE_PRIM_BOOL: return 1;
+    case MARIE_PRIM_INT16: return 2;
+    case MARIE_PRIM_INT32: case MARIE_PRIM_FLOAT: return 4;
+    case MARIE_PRIM_INT64: case MARIE_PRIM_DOUBLE: return 8;
+    default: return 0;
+    }
+}
+
+/* A real with `digits` significant digits (about what a float or a double holds), no trailing
+ * zeros, NaN and infinities as null: the text of "%.*g", but through an integer scaled by a
+ * power of ten in the usual range, as "%g" is ten times slower and a particle cloud is
+ * thousands of numbers. */
+static void real(vj_buf_t *b, double v, int digits)
+{
+    static const double p10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12,
+                                 1e13, 1e14, 1e15, 1e16, 1e17};
+    if (!isfinite(v)) {
+        vj_raw(b, "null", 4);
+        return;
+    }
+    double a = fabs(v);
+    int dec = a >= 1e-4 ? digits - 1 - (int)floor(log10(a)) : -1;
+    if (a == 0 || dec < 0 || dec >= (int)(sizeof p10 / sizeof p10[0])) {
+        char tmp[40];
+        int n = snprintf(tmp, sizeof tmp, "%.*g", digits, a == 0 ? 0.0 : v);
+        vj_raw(b, tmp, (size_t)n);
+        return;
+    }
+    uint64_t scaled = (uint64_t)nearbyint(a * p10[dec]), unit = (uint64_t)p10[dec];
+    uint64_t ip = scaled / unit, fp = scaled % unit;
+    char tmp[48], *end = tmp + sizeof tmp, *o = end;
+    if (fp) {
+        int nd = dec;
+        while (fp % 10 == 0) {
+            fp /= 10;
+            nd--;
+        }
+        char *f = digits_of(o, fp);
+        while (end - f < nd)
+            *--f = '0';
+        o = f;
+        *--o = '.';
+    }
+    o = digits_of(o, ip);
+    if (v < 0 && scaled)
+        *--o = '-';
+    vj_raw(b, o, (size_t)(end - o));
+}
+
+static void walk_struct(walk_t *w, const marie_typeinfo_t *t, int depth);
+
+/* One value of a field at the cursor; an integer's value goes to *ival (array lengths). */
+static void walk_value(walk_t *w, const marie_tfield_t *f, int depth, int64_t *ival)
+{
+    const uint8_t *p = w->p;
+    int64_t iv = 0;
+    switch (f->prim) {
+    case MARIE_PRIM_STRING: {
+        int64_t n = read_be(p, 4);
+        vj_str(w->b, (const char *)p + 4);      /* NUL-terminated: checked */
+        w->p += 4 + (size_t)n;
+        return;
+    }
+    case MARIE_PRIM_STRUCT:
+        walk_struct(w, f->sub, depth + 1);
+        return;
+    case MARIE_PRIM_FLOAT: {
+        uint32_t u = (uint32_t)read_be(p, 4);
+        float x;
+        memcpy(&x, &u, 4);
+        real(w->b, x, 7);
+        break;
+    }
+    case MARIE_PRIM_DOUBLE: {
+        uint64_t u = (uint64_t)read_be(p, 8);
+        double x;
+        memcpy(&x, &u, 8);
+        real(w->b, x, 10);
+        break;
+    }
+    case MARIE_PRIM_BOOL:
+        vj_lit(w->b, *p ? "true" : "false");
+        break;
+    case MARIE_PRIM_BYTE:
+        iv = *p;
+        vj_int(w->b, iv);
+        break;
+    default:
+        iv = read_be(p, prim_size(f->prim));
+        vj_int(w->b, iv);
+        break;
+    }
+    if (ival)
+        *ival = iv;
+    w->p += prim_size(f->prim);
+}
+
+/* Dimension d of an array field: nested JSON arrays, bytes (byte or int8) as one base64
+ * string. A top-level variable-length array of numbers longer than max_elems is sent as
+ * every stride-th element; the stride is noted for the frame. */
+static void walk_array(walk_t *w, const marie_tfield_t *f, const int64_t *vals, int d, int depth)
+{
+    const marie_tdim_t *dim = &f->dims[d];
+    int64_t n = dim->len_field >= 0 ? vals[dim->len_field] : dim->size;
+    int size = prim_size(f->prim);
+    bool last = d == f->ndims - 1;
+    if (last && (f->prim == MARIE_PRIM_BYTE || f->prim == MARIE_PRIM_INT8)) {
+        vj_base64(w->b, w->p, (size_t)n);
+        w->p += (size_t)n;
+        return;
+    }
+    int64_t step = 1;
+    if (last && depth == 0 && f->ndims == 1 && dim->len_field >= 0 && size && w->max_elems > 0 &&
+        n > w->max_elems && w->nstrides < VJ_MAX_STRIDES) {
+        step = (n + w->max_elems - 1) / w->max_elems;
+        w->stride_field[w->nstrides] = f->name;
+        w->stride[w->nstrides++] = step;
+    }
+    const uint8_t *start = w->p;
+    vj_raw(w->b, "[", 1);
+    for (int64_t i = 0; i < n; i += step) {
+        if (i)
+            vj_raw(w->b, ",", 1);
+        if (step > 1)
+            w->p = start + (size_t)i * (size_t)size;
+        if (last)
+            walk_value(w, f, depth, NULL);
+        else
+            walk_array(w, f, vals, d + 1, depth);
+    }
+    if (step > 1)
+        w->p = start + (size_t)n * (size_t)size;
+    vj_raw(w->b, "]", 1);
+}
+
+static void walk_struct(walk_t *w, const marie_typeinfo_t *t, int depth)
+{
+    int64_t vals[256];      /* integer fields, for the lengths of later arrays (checked: < 256) */
+    vj_raw(w->b, "{", 1);
+    for (int i = 0; i < t->nfields; i++) {
+        const marie_tfield_t *f = &t->fields[i];
+        vj_raw(w->b, i ? ",\"" : "\"", i ? 2 : 1);
+        vj_lit(w->b, f->name);
+        vj_raw(w->b, "\":", 2);
+        if (f->ndims == 0)
+            walk_value(w, f, depth, i < 256 ? &vals[i] : NULL);
+        else
+            walk_array(w, f, vals, 0, depth);
+    }
+    vj_raw(w->b, "}", 1);
+}
+
+int vj_message(vj_buf_t *b, const void *data, size_t len, vj_role_t role)
+{
+    const marie_typeinfo_t *t = len < 8 ? NULL : marie_typeinfo_by_fingerprint(marie_payload_fingerprint(data, len));
+    if (!t || marie_typeinfo_check(t, data, len) < 0)
+        return -EBADMSG;
+    int k = kind_index(t);
+    vj_lit(b, ",\"k\":");
+    vj_str(b, k >= 0 ? kinds[k].kind : t->name);
+    if (role != VJ_ROLE_OTHER)
+        vj_lit(b, role == VJ_ROLE_TRUTH ? ",\"role\":\"truth\"" : ",\"role\":\"est\"");
+    vj_lit(b, ",\"msg\":");
+    walk_t w = {.b = b, .p = (const uint8_t *)data + 8, .max_elems = k >= 0 ? kinds[k].max_elems : 0};
+    walk_struct(&w, t, 0);
+    if (w.nstrides) {
+        vj_lit(b, ",\"stride\":{");
+        for (int i = 0; i < w.nstrides; i++) {
+            vj_lit(b, i ? ",\"" : "\"");
+            vj_lit(b, w.stride_field[i]);
+            vj_printf(b, "\":%lld", (long long)w.stride[i]);
+        }
+        vj_lit(b, "}");
+    }
+    return 0;
 }
 
 /* ---- commands from the page ---- */

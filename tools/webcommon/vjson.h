@@ -7,7 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "lcmtypes/marie_types.h"
+#include "core/typeinfo.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -33,16 +33,26 @@ void vj_base64(vj_buf_t *b, const void *data, size_t n);   /* quoted */
 /* The type of an LCM payload by its fingerprint, or NULL. */
 const marie_type_t *vj_type_of(const void *data, size_t len);
 
-/* What a channel carries for the page. */
+/* What a channel carries for the page: a pose frame says whether it is the estimate or the
+ * ground truth. */
 typedef enum {
     VJ_ROLE_OTHER = 0, VJ_ROLE_POSE, VJ_ROLE_TRUTH,
 } vj_role_t;
 
-/* Append the fields of a decoded message as `,"k":"laser",...` (no braces), for the page's
- * kinds; returns false (nothing appended) for types the page does not show. */
-bool vj_message(vj_buf_t *b, const marie_type_t *t, const void *msg, vj_role_t role);
-/* The page's short name of a type's kind ("laser", "pose", ...), or NULL. */
-const char *vj_kind(const marie_type_t *t);
+/* Append the message in an LCM payload (fingerprint first) as members of the page's frame:
+ * `,"k":KIND,"role":"est"|"truth","msg":{...},"stride":{"FIELD":N,...}`, role only unless
+ * VJ_ROLE_OTHER, stride only when an array was thinned. The body is written from the type's
+ * descriptor (core/typeinfo.h), field names as in the .lcm file: structs as objects, arrays as
+ * arrays, byte and int8 arrays as base64 strings, booleans as true/false, integers (int64
+ * too) as numbers, floats with 7 and doubles with 10 significant digits, NaN and infinities
+ * as null. KIND is the page's name of the type ("laser", "pose", ...), or the LCM type name
+ * ("marie.gyro_t") for a type the page does not know. A kind may cap its top-level
+ * variable-length arrays of numbers (laser 720 beams, particles 1500): a longer one is sent
+ * as every N-th element. Returns 0, or -EBADMSG (nothing appended) for an unknown type or a
+ * payload that does not check (marie_typeinfo_check). */
+int vj_message(vj_buf_t *b, const void *data, size_t len, vj_role_t role);
+/* The page's name of a type's kind ("laser", "pose", ...), or NULL. */
+const char *vj_kind(const marie_typeinfo_t *t);
 
 /* A command from the page: a flat object of string and number members. */
 #define VJ_CMD_MAX 8

@@ -57,23 +57,25 @@ function rate(key, msgs, t) {
   S.rates[key] = { m: msgs, t: t, hz: r ? r.hz : 0 };
 }
 
-function onMsg(m) {
-  switch (m.k) {
+// A message frame: f.k says what it is, f.msg is the message with its .lcm field names.
+function onMsg(f) {
+  const m = f.msg;
+  switch (f.k) {
   case 'am': {
     const h = S.hosts[m.host] || (S.hosts[m.host] = {});
-    h.comps = m.comps; h.seen = Date.now(); h.leader = m.leader; h.term = m.term;
-    if (m.last && m.last !== h.last) S.decisions.unshift(m.host + ': ' + m.last);
-    h.last = m.last;
+    h.comps = m.components; h.seen = Date.now(); h.leader = m.balance_leader; h.term = m.balance_term;
+    if (m.balance_last && m.balance_last !== h.last) S.decisions.unshift(m.host + ': ' + m.balance_last);
+    h.last = m.balance_last;
     S.decisions.length = Math.min(S.decisions.length, 20);
     break;
   }
   case 'hb':
-    S.hb[m.c] = m;
-    for (const p of m.ports || []) rate(m.c + '/' + p.n, p.m, m.t);
+    S.hb[m.component] = m;
+    for (const p of m.ports) rate(m.component + '/' + p.name, p.msgs, f.t);
     break;
   case 'event':
     if (m.kind === 'balance') {
-      S.decisions.unshift(m.src + ': ' + m.text);
+      S.decisions.unshift(m.source + ': ' + m.text);
       S.decisions.length = Math.min(S.decisions.length, 20);
     }
     break;
@@ -102,27 +104,29 @@ function draw() {
   let y = 10, ncomp = 0;
   for (const h of hosts) {
     const H = S.hosts[h], lost = now - H.seen > 3000;
-    const comps = (H.comps || []).slice().sort((a, b) => a.n.localeCompare(b.n));
+    const comps = (H.comps || []).slice().sort((a, b) => a.name.localeCompare(b.name));
     const height = 26 + comps.length * 34;
     el('rect', { class: 'host', x: 10, y: y, width: 420, height: height, rx: 6 }, svg);
     el('text', { class: 'host-title', x: 20, y: y + 17 }, svg,
        h + (lost ? '  (lost)' : '') + (H.leader === h ? '  ★ decides placement (term ' + H.term + ')' : ''));
     let cy = y + 26;
     for (const c of comps) {
-      const hb = S.hb[c.n] || {};
-      const g = el('g', { 'data-comp': c.n }, svg);
-      el('rect', { class: 'comp' + (S.selected === c.n ? ' sel' : ''), x: 20, y: cy, width: 400, height: 28, rx: 4,
-                   fill: lost ? '#e0e0e0' : (STATE_COLOR[c.s] || '#e0e0e0') }, g);
-      el('text', { x: 28, y: cy + 12 }, g, c.n + '  ' + c.s);
+      // c: an am_component_status_t; hb: the component's heartbeat_t
+      const hb = S.hb[c.name] || {};
+      const g = el('g', { 'data-comp': c.name }, svg);
+      el('rect', { class: 'comp' + (S.selected === c.name ? ' sel' : ''), x: 20, y: cy, width: 400, height: 28, rx: 4,
+                   fill: lost ? '#e0e0e0' : (STATE_COLOR[c.state] || '#e0e0e0') }, g);
+      el('text', { x: 28, y: cy + 12 }, g, c.name + '  ' + c.state);
       el('text', { x: 28, y: cy + 24 }, g, 'cpu ' + (c.cpu || 0).toFixed(1) + '%  rss ' + ((c.rss || 0) / 1048576).toFixed(1) +
-         'M  restarts ' + c.rs + '  bad input ' + (hb.bad || 0));
-      g.addEventListener('click', () => select(c.n, h));
-      compPos[c.n] = { x: 420, y: cy + 14 };
+         'M  restarts ' + c.restarts + '  bad input ' + (hb.bad_input || 0));
+      g.addEventListener('click', () => select(c.name, h));
+      compPos[c.name] = { x: 420, y: cy + 14 };
       for (const p of hb.ports || []) {
-        if (!p.ch) continue;
-        const ch = chans[p.ch] || (chans[p.ch] = { type: p.t, pub: [], sub: [], hz: 0 });
-        (p.out ? ch.pub : ch.sub).push(c.n);
-        if (p.out) ch.hz += (S.rates[c.n + '/' + p.n] || {}).hz || 0;
+        if (!p.channel) continue;
+        const out = p.direction === 1;      // port_status_t.OUT
+        const ch = chans[p.channel] || (chans[p.channel] = { type: p.type, pub: [], sub: [], hz: 0 });
+        (out ? ch.pub : ch.sub).push(c.name);
+        if (out) ch.hz += (S.rates[c.name + '/' + p.name] || {}).hz || 0;
       }
       cy += 34;
       ncomp++;
@@ -180,10 +184,10 @@ function showSelected() {
   tb.innerHTML = '';
   if (!n) return;
   const hb = S.hb[n] || {};
-  const rows = [['host', hb.host || ''], ['messages in / out', (hb.in || 0) + ' / ' + (hb.out || 0)],
-                ['drops / bad input / overruns', (hb.drops || 0) + ' / ' + (hb.bad || 0) + ' / ' + (hb.ovr || 0)]];
+  const rows = [['host', hb.host || ''], ['messages in / out', (hb.msgs_in || 0) + ' / ' + (hb.msgs_out || 0)],
+                ['drops / bad input / overruns', (hb.drops || 0) + ' / ' + (hb.bad_input || 0) + ' / ' + (hb.overruns || 0)]];
   for (const p of hb.ports || [])
-    rows.push([(p.out ? 'out ' : 'in ') + p.n, p.ch + ' (' + ((S.rates[n + '/' + p.n] || {}).hz || 0).toFixed(1) + ' msg/s)']);
+    rows.push([(p.direction === 1 ? 'out ' : 'in ') + p.name, p.channel + ' (' + ((S.rates[n + '/' + p.name] || {}).hz || 0).toFixed(1) + ' msg/s)']);
   for (const r of rows) {
     const tr = tb.insertRow();
     tr.insertCell().textContent = r[0];

@@ -15,7 +15,7 @@ function fresh() {
   return {
     mode: null, controls: false, channels: {},
     map: null, mapCanvas: null,
-    est: null, truth: null, laser: null, particles: null, path: null,
+    est: null, truth: null, laser: null, laserStride: 1, particles: null, path: null,
     goals: {}, currentGoal: null,
     trail: { est: [], truth: [] },
     summary: null, decisions: [], selected: null, liveDec: [],
@@ -175,74 +175,81 @@ function onSummary(m) {
   });
 }
 
-function onMsg(m) {
-  if (m.t && m.t > S.now && S.mode === 'live') S.now = m.t;
-  switch (m.k) {
+// A message frame: f.k says what it is, f.msg is the message with the field names of its .lcm
+// file (lcmtypes/), f.stride how much an array was thinned (docs/viewer.md, "Messages").
+function onMsg(f) {
+  const m = f.msg;
+  if (f.t && f.t > S.now && S.mode === 'live') S.now = f.t;
+  switch (f.k) {
   case 'map': setMap(m); break;
   case 'pose':
-    if (m.role === 'truth') S.truth = m; else S.est = m;
+    if (f.role === 'truth') S.truth = m; else S.est = m;
     if (S.mode === 'live') {
-      const tr = S.trail[m.role === 'truth' ? 'truth' : 'est'];
+      const tr = S.trail[f.role === 'truth' ? 'truth' : 'est'];
       const last = tr[tr.length - 1];
-      if (!last || Math.hypot(last[0] - m.x, last[1] - m.y) > 0.05) tr.push([m.x, m.y]);
+      if (!last || Math.hypot(last[0] - m.pose.x, last[1] - m.pose.y) > 0.05) tr.push([m.pose.x, m.pose.y]);
       if (tr.length > 5000) tr.splice(0, tr.length - 5000);
     }
     break;
-  case 'laser': S.laser = m; S.counts.laser++; break;
+  case 'laser':
+    S.laser = m; S.laserStride = (f.stride && f.stride.ranges) || 1; S.counts.laser++;
+    break;
   case 'particles': S.particles = m; body.dataset.particles = String(m.x.length); break;
-  case 'path': S.path = m; body.dataset.path = String(m.p.length); break;
+  case 'path': S.path = m; body.dataset.path = String(m.poses.length); break;
   case 'goal':
     S.goals[m.id] = m; S.currentGoal = m.id;
     body.dataset.goals = String(Object.keys(S.goals).length);
     break;
   case 'arb':
-    S.decisions.push(m);
+    S.decisions.push(f);
     if (S.decisions.length > 200) S.decisions.splice(0, S.decisions.length - 200);
     if (S.mode === 'live') {
-      S.liveDec.push([m.t, m.winner]);
+      S.liveDec.push([f.t, m.winner]);
       if (S.liveDec.length > 3000) S.liveDec.splice(0, S.liveDec.length - 3000);
       body.dataset.decisions = String(S.liveDec.length);
     }
     break;
   case 'event':
     if (S.mode === 'live') {
-      S.events.push([m.t, m.src, m.sev, m.kind, m.text]);
+      S.events.push([f.t, m.source, m.severity, m.kind, m.text]);
       if (S.events.length > 500) S.events.shift();
     }
     break;
   case 'hb': {
-    const old = S.comps[m.c];
-    if (S.mode === 'live' && old && old.pid !== m.pid) {
-      S.restarts[m.c] = (S.restarts[m.c] || 0) + 1;
-      S.events.push([m.t, m.c, 2, 'restart', 'restarted: pid ' + old.pid + ' → ' + m.pid]);
+    const old = S.comps[m.component];
+    if (S.mode === 'live' && old && old.msg.pid !== m.pid) {
+      S.restarts[m.component] = (S.restarts[m.component] || 0) + 1;
+      S.events.push([f.t, m.component, 2, 'restart', 'restarted: pid ' + old.msg.pid + ' → ' + m.pid]);
     }
-    S.comps[m.c] = m;
+    S.comps[m.component] = f;
     break;
   }
-  case 'am': for (const c of m.comps) S.am[c.n] = c; break;
+  case 'am': for (const c of m.components) S.am[c.name] = c; break;
   case 'reply': notice((m.ok ? 'order done on ' : 'order refused on ') + m.host + ': ' + m.reason); break;
   case 'tags': S.tags = m; break;
   case 'landmarks':
     S.landmarks = S.landmarks || {};
-    for (const l of m.lm) S.landmarks[l.id] = l;
+    for (const l of m.landmarks) S.landmarks[l.id] = l;
     body.dataset.landmarks = String(Object.keys(S.landmarks).length);
     break;
   }
 }
 
+// An occupancy_grid_t: cells are base64 of int8 values, row 0 at the origin.
 function setMap(m) {
-  if (!m.cells || m.w <= 0 || m.h <= 0) return;
+  const w = m.width, h = m.height;
+  if (!m.cells || w <= 0 || h <= 0) return;
   const raw = atob(m.cells);
-  if (raw.length !== m.w * m.h) return;
+  if (raw.length !== w * h) return;
   const c = document.createElement('canvas');
-  c.width = m.w; c.height = m.h;
+  c.width = w; c.height = h;
   const g = c.getContext('2d');
-  const img = g.createImageData(m.w, m.h);
-  for (let j = 0; j < m.h; j++) {
-    for (let i = 0; i < m.w; i++) {
-      let v = raw.charCodeAt(j * m.w + i);
+  const img = g.createImageData(w, h);
+  for (let j = 0; j < h; j++) {
+    for (let i = 0; i < w; i++) {
+      let v = raw.charCodeAt(j * w + i);
       if (v > 127) v -= 256;
-      const k = ((m.h - 1 - j) * m.w + i) * 4;   // row 0 is the bottom of the map
+      const k = ((h - 1 - j) * w + i) * 4;   // row 0 is the bottom of the map
       const shade = v < 0 ? 205 : 255 - Math.round(Math.min(v, 100) * 2.2);
       img.data[k] = img.data[k + 1] = img.data[k + 2] = shade;
       img.data[k + 3] = 255;
@@ -259,9 +266,10 @@ function fitView() {
   const cv = $('map');
   let x0, y0, x1, y1;
   if (S.map) {
-    x0 = S.map.ox; y0 = S.map.oy; x1 = x0 + S.map.w * S.map.res; y1 = y0 + S.map.h * S.map.res;
+    const m = S.map;
+    x0 = m.origin.x; y0 = m.origin.y; x1 = x0 + m.width * m.resolution; y1 = y0 + m.height * m.resolution;
   } else {
-    const p = S.truth || S.est;
+    const p = (S.truth || S.est || {}).pose;
     if (!p) return;
     x0 = p.x - 10; x1 = p.x + 10; y0 = p.y - 7; y1 = p.y + 7;
   }
@@ -302,15 +310,15 @@ function draw() {
   if (!S.view) fitView();
   if (S.view) {
     if (S.mapCanvas) {
-      const m = S.map, [px, py] = toPx(m.ox, m.oy + m.h * m.res);
+      const m = S.map, [px, py] = toPx(m.origin.x, m.origin.y + m.height * m.resolution);
       g.imageSmoothingEnabled = false;
-      g.drawImage(S.mapCanvas, px, py, m.w * m.res * S.view.scale, m.h * m.res * S.view.scale);
+      g.drawImage(S.mapCanvas, px, py, m.width * m.resolution * S.view.scale, m.height * m.resolution * S.view.scale);
       body.dataset.mapDrawn = '1';
     }
     drawTrails(g);
     drawGoals(g);
     drawLandmarks(g);
-    if (S.path) polyline(g, S.path.p, '#ff9800', 2.5);
+    if (S.path) polyline(g, S.path.poses.map((p) => [p.x, p.y]), '#ff9800', 2.5);
     if (S.particles) {
       g.fillStyle = 'rgba(171,71,188,0.55)';
       for (let i = 0; i < S.particles.x.length; i++) {
@@ -320,8 +328,8 @@ function draw() {
     }
     drawLaser(g);
     // the page reports a pose or a scan once it is on the canvas, not when it arrives
-    if (S.truth) { robot(g, S.truth, '#2e7d32', null); body.dataset.truth = '1'; }
-    if (S.est) { robot(g, S.est, '#1565c0', S.est.cov); body.dataset.pose = '1'; }
+    if (S.truth) { robot(g, S.truth.pose, '#2e7d32', null); body.dataset.truth = '1'; }
+    if (S.est) { robot(g, S.est.pose, '#1565c0', S.est.cov); body.dataset.pose = '1'; }
     if (S.drag) {
       const [a, b] = [toPx(S.drag.x, S.drag.y), toPx(S.drag.x2, S.drag.y2)];
       g.strokeStyle = '#00838f'; g.lineWidth = 2;
@@ -357,7 +365,7 @@ function drawTrails(g) {
 function goalList() {
   if (S.mode === 'log' && S.summary) {
     const seen = {};
-    S.summary.goals.slice(0, upToNow(S.summary.goals)).forEach((gl) => { seen[gl[1]] = { id: gl[1], name: gl[2], x: gl[3], y: gl[4] }; });
+    S.summary.goals.slice(0, upToNow(S.summary.goals)).forEach((gl) => { seen[gl[1]] = { id: gl[1], name: gl[2], pose: { x: gl[3], y: gl[4] } }; });
     Object.values(S.goals).forEach((gl) => { seen[gl.id] = gl; });
     return Object.values(seen);
   }
@@ -369,11 +377,11 @@ function drawGoals(g) {
   body.dataset.goals = String(list.length);
   g.font = '11px sans-serif';
   for (const gl of list) {
-    const [x, y] = toPx(gl.x, gl.y);
+    const [x, y] = toPx(gl.pose.x, gl.pose.y);
     const cur = gl.id === S.currentGoal;
     g.strokeStyle = '#00838f'; g.fillStyle = cur ? 'rgba(0,131,143,0.35)' : 'rgba(0,131,143,0.1)';
     g.lineWidth = cur ? 2.5 : 1.2;
-    g.beginPath(); g.arc(x, y, Math.max(5, (gl.tol || 0.3) * S.view.scale), 0, 2 * Math.PI); g.fill(); g.stroke();
+    g.beginPath(); g.arc(x, y, Math.max(5, (gl.tolerance || 0.3) * S.view.scale), 0, 2 * Math.PI); g.fill(); g.stroke();
     g.fillStyle = '#004d55'; g.fillText(gl.name || ('goal ' + gl.id), x + 8, y - 8);
   }
 }
@@ -388,34 +396,36 @@ function drawLandmarks(g) {
     g.fillStyle = '#6a1b9a'; g.fillRect(x - 4, y - 4, 8, 8);
     g.strokeStyle = '#6a1b9a'; g.lineWidth = 1.5;
     g.beginPath(); g.moveTo(x, y); g.lineTo(fx, fy); g.stroke();
-    g.fillText(l.msg || ('tag ' + l.id), x + 6, y + 12);
+    g.fillText(l.message || ('tag ' + l.id), x + 6, y + 12);
   }
 }
 
 function drawLaser(g) {
-  const l = S.laser, p = S.truth || S.est;
+  const l = S.laser, p = (S.truth || S.est || {}).pose;
   if (!l || !p) return;
   g.fillStyle = 'rgba(229,57,53,0.85)';
-  for (let i = 0; i < l.r.length; i++) {
-    const r = l.r[i];
-    if (r === null || r >= l.rmax) continue;
-    const a = p.th + l.amin + i * l.ainc;
+  const inc = l.angle_increment * S.laserStride;   // ranges[i] is beam i * stride
+  for (let i = 0; i < l.ranges.length; i++) {
+    const r = l.ranges[i];
+    if (r === null || r >= l.range_max) continue;
+    const a = p.theta + l.angle_min + i * inc;
     const [x, y] = toPx(p.x + r * Math.cos(a), p.y + r * Math.sin(a));
     g.fillRect(x - 1.5, y - 1.5, 3, 3);
   }
   body.dataset.laser = String(S.counts.laser);
 }
 
+// p: a pose2d_t; cov: its 3x3 covariance, row-major over x, y, theta
 function robot(g, p, color, cov) {
   const [x, y] = toPx(p.x, p.y), r = Math.max(4, 0.25 * S.view.scale);
   if (cov) {
-    const sx = Math.sqrt(Math.max(cov[0], 0)) * 2 * S.view.scale, sy = Math.sqrt(Math.max(cov[2], 0)) * 2 * S.view.scale;
+    const sx = Math.sqrt(Math.max(cov[0], 0)) * 2 * S.view.scale, sy = Math.sqrt(Math.max(cov[4], 0)) * 2 * S.view.scale;
     g.strokeStyle = 'rgba(21,101,192,0.6)'; g.lineWidth = 1;
     g.beginPath(); g.ellipse(x, y, Math.max(sx, 1), Math.max(sy, 1), 0, 0, 2 * Math.PI); g.stroke();
   }
   g.strokeStyle = color; g.lineWidth = 2.5;
   g.beginPath(); g.arc(x, y, r, 0, 2 * Math.PI); g.stroke();
-  g.beginPath(); g.moveTo(x, y); g.lineTo(x + r * 1.6 * Math.cos(p.th), y - r * 1.6 * Math.sin(p.th)); g.stroke();
+  g.beginPath(); g.moveTo(x, y); g.lineTo(x + r * 1.6 * Math.cos(p.theta), y - r * 1.6 * Math.sin(p.theta)); g.stroke();
 }
 
 // ---------------------------------------------------------------- panels
@@ -425,6 +435,8 @@ function colorOf(name) {
   if (!(name in colors)) colors[name] = PALETTE[Object.keys(colors).length % PALETTE.length];
   return colors[name];
 }
+// A speed or a rate as the panels show it: millimetres, and no trailing zeros.
+function num(v) { return v === null ? '?' : +v.toFixed(3); }
 function esc(s) {
   return String(s).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c]));
 }
@@ -445,17 +457,18 @@ function drawPanels() {
 
   // decisions: newest last in the data, newest first on the page
   const list = $('decision-list');
+  // decisions are arbitration_t frames: their time t, the message msg
   const decs = S.decisions.filter((d) => S.mode !== 'log' || d.t <= S.now).slice(-30).reverse();
   list.innerHTML = '';
   decs.forEach((d, i) => {
-    const li = document.createElement('li');
-    li.dataset.winner = d.winner;
-    li.dataset.cycle = String(d.cycle);
-    const vote = (d.votes || []).find((v) => v.n === d.winner);
-    li.innerHTML = '<span class="winner" style="background:' + colorOf(d.winner) + '">' + esc(d.winner) + '</span> ' +
-      esc(fmtT(d.t)) + ' #' + d.cycle + '  v=' + d.v + ' ω=' + d.w + (vote ? '  — ' + esc(vote.r) : '');
+    const a = d.msg, li = document.createElement('li');
+    li.dataset.winner = a.winner;
+    li.dataset.cycle = String(a.cycle);
+    const vote = a.votes.find((v) => v.name === a.winner);
+    li.innerHTML = '<span class="winner" style="background:' + colorOf(a.winner) + '">' + esc(a.winner) + '</span> ' +
+      esc(fmtT(d.t)) + ' #' + a.cycle + '  v=' + num(a.v) + ' ω=' + num(a.omega) + (vote ? '  — ' + esc(vote.reason) : '');
     if (i === 0) li.className = 'current';
-    if (decs[i + 1] && decs[i + 1].winner !== d.winner) li.className += ' switch';
+    if (decs[i + 1] && decs[i + 1].msg.winner !== a.winner) li.className += ' switch';
     li.onclick = () => { S.selected = d; redraw(); };
     list.appendChild(li);
   });
@@ -464,14 +477,16 @@ function drawPanels() {
   const cur = S.selected && (S.mode !== 'log' || S.selected.t <= S.now) ? S.selected : decs[0];
   const w = $('current-winner');
   if (cur) {
-    w.textContent = cur.winner; w.style.background = colorOf(cur.winner);
+    const a = cur.msg;
+    w.textContent = a.winner; w.style.background = colorOf(a.winner);
     let h = '<table><tr><th>behaviour</th><th>prio</th><th>active</th><th>v</th><th>ω</th><th>why</th></tr>';
-    for (const v of cur.votes) {
-      h += '<tr class="' + (v.n === cur.winner ? 'won' : '') + '"><td>' + esc(v.n) + '</td><td>' + v.p + '</td><td class="' +
-        (v.a ? 'active' : '') + '">' + (v.a ? 'yes' : 'no') + '</td><td>' + v.v + '</td><td>' + v.w + '</td><td>' + esc(v.r) + '</td></tr>';
+    for (const v of a.votes) {
+      h += '<tr class="' + (v.name === a.winner ? 'won' : '') + '"><td>' + esc(v.name) + '</td><td>' + v.priority + '</td><td class="' +
+        (v.active ? 'active' : '') + '">' + (v.active ? 'yes' : 'no') + '</td><td>' + num(v.v) + '</td><td>' + num(v.omega) + '</td><td>' +
+        esc(v.reason) + '</td></tr>';
     }
-    h += '</table><div>inputs: ' + cur.in.map((i) => esc(i.n) + ' ' + (i.age < 0 ? 'never' : (i.age * 1000).toFixed(0) + ' ms')).join(', ') +
-      ' — cycle ' + cur.cycle + ' at ' + esc(fmtT(cur.t)) + '</div>';
+    h += '</table><div>inputs: ' + a.inputs.map((i) => esc(i.name) + ' ' + (i.age < 0 ? 'never' : (i.age * 1000).toFixed(0) + ' ms')).join(', ') +
+      ' — cycle ' + a.cycle + ' at ' + esc(fmtT(cur.t)) + '</div>';
     $('decision-detail').innerHTML = h;
   }
 
@@ -482,18 +497,20 @@ function drawPanels() {
   if (S.mode === 'log' && S.summary) S.summary.restarts.slice(0, upToNow(S.summary.restarts)).forEach((r) => { restartsLog[r[1]] = (restartsLog[r[1]] || 0) + 1; });
   tb.innerHTML = '';
   for (const n of names) {
-    const c = S.comps[n] || {}, a = S.am[n] || {};
-    const rs = S.mode === 'log' ? (restartsLog[n] || 0) : Math.max(S.restarts[n] || 0, a.rs || 0);
-    const age = c.t ? (S.now - c.t) / 1e6 : null;
-    const state = c.state !== undefined ? (STATES[c.state] || String(c.state)) : (a.s || '?');
+    // c: the component's last heartbeat_t, seen at time t; a: its manager's am_component_status_t
+    const f = S.comps[n], c = f ? f.msg : {}, a = S.am[n] || {};
+    const rs = S.mode === 'log' ? (restartsLog[n] || 0) : Math.max(S.restarts[n] || 0, a.restarts || 0);
+    const age = f && f.t ? (S.now - f.t) / 1e6 : null;
+    const state = c.state !== undefined ? (STATES[c.state] || String(c.state)) : (a.state || '?');
     const tr = document.createElement('tr');
     tr.dataset.component = n;
     tr.dataset.restarts = String(rs);
     tr.className = (age !== null && age > 3 ? 'stale' : '') + (rs ? ' restarted' : '');
     tr.innerHTML = '<td>' + esc(n) + '</td><td>' + esc(c.host || '') + '</td><td class="state-' + esc(state) + '">' + esc(state) +
       (age !== null && age > 3 ? ' (silent ' + age.toFixed(0) + ' s)' : '') + '</td><td>' + (c.pid || a.pid || '') + '</td><td>' +
-      (c.up !== undefined ? c.up.toFixed(0) + ' s' : '') + '</td><td class="restarts">' + rs + '</td><td>' +
-      (c.in !== undefined ? c.in + '/' + c.out + '/' + (c.bad || 0) : '') + '</td><td>' + (a.cpu !== undefined ? a.cpu + '%' : '') +
+      (c.uptime_us !== undefined ? (c.uptime_us / 1e6).toFixed(0) + ' s' : '') + '</td><td class="restarts">' + rs + '</td><td>' +
+      (c.msgs_in !== undefined ? c.msgs_in + '/' + c.msgs_out + '/' + c.bad_input : '') + '</td><td>' +
+      (a.cpu !== undefined ? a.cpu.toFixed(1) + '%' : '') +
       '</td><td></td>';
     if (S.controls) {
       const td = tr.lastChild;
@@ -512,7 +529,7 @@ function drawPanels() {
   if (S.tags) {
     $('tags-box').className = '';
     $('tags').textContent = S.tags.camera + ': ' + (S.tags.tags.length ? S.tags.tags.map((t) => '#' + t.id +
-      (t.valid ? ' at ' + t.pz.toFixed(2) + ' m ahead, ' + t.px.toFixed(2) + ' m right' : '')).join('; ') : 'no tag in view');
+      (t.pose_valid ? ' at ' + t.position[2].toFixed(2) + ' m ahead, ' + t.position[0].toFixed(2) + ' m right' : '')).join('; ') : 'no tag in view');
   }
 
   // events
