@@ -18,6 +18,41 @@
 
 #define MAX_TAGS 64     /* per frame; more are counted as truncated */
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *source;
+    double rate_hz;
+    bool loop;
+    const char *camera;
+    const char *family;
+    double decimate;
+    double sigma;
+    int64_t threads;
+    bool refine_edges;
+    double sharpening;
+    int64_t max_hamming;
+    double min_margin;
+    double tag_size;
+    double fx;
+    double fy;
+    double cx;
+    double cy;
+    int64_t width;
+    int64_t height;
+    double smoothing;
+    double lost_after_s;
+    int64_t min_hits;
+    double mount_x;
+    double mount_y;
+    double mount_z;
+    double mount_yaw;
+    double mount_pitch;
+    double pose_slack_s;
+    const marie_node_t *messages;
+} vision_params_t;
+
+static const vision_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     vision_detector_t *det;
@@ -54,37 +89,40 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "source", MARIE_PARAM_STRING, "lcm",
-      "lcm (images on the image port), device:N, /dev/videoN, video:FILE or folder:DIR" },
-    { "rate_hz", MARIE_PARAM_DOUBLE, "10", "frames read per second from a device, file or folder" },
-    { "loop", MARIE_PARAM_BOOL, "false", "start a file or folder over at its end" },
-    { "camera", MARIE_PARAM_STRING, "camera", "camera name in the detections" },
-    { "family", MARIE_PARAM_STRING, "tag36h11", "AprilTag family" },
-    { "decimate", MARIE_PARAM_DOUBLE, "2.0", "quad detection on an image decimated by this factor" },
-    { "sigma", MARIE_PARAM_DOUBLE, "0.0", "Gaussian blur (px) before quad detection; 0.8 helps noisy images" },
-    { "threads", MARIE_PARAM_INT, "1", "detector threads" },
-    { "refine_edges", MARIE_PARAM_BOOL, "true", "snap quad edges to image gradients" },
-    { "sharpening", MARIE_PARAM_DOUBLE, "0.25", "decode sharpening" },
-    { "max_hamming", MARIE_PARAM_INT, "2", "bit errors the decoder may correct (0..2)" },
-    { "min_margin", MARIE_PARAM_DOUBLE, "0", "drop detections with a lower decision margin" },
-    { "tag_size", MARIE_PARAM_DOUBLE, "0.16", "edge of a tag's black border, m" },
-    { "fx", MARIE_PARAM_DOUBLE, "0", "focal length x, px (0: no poses)" },
-    { "fy", MARIE_PARAM_DOUBLE, "0", "focal length y, px" },
-    { "cx", MARIE_PARAM_DOUBLE, "0", "principal point x, px (pixel centres at integers)" },
-    { "cy", MARIE_PARAM_DOUBLE, "0", "principal point y, px" },
-    { "width", MARIE_PARAM_INT, "0", "image width the intrinsics were calibrated for" },
-    { "height", MARIE_PARAM_INT, "0", "image height the intrinsics were calibrated for" },
-    { "smoothing", MARIE_PARAM_DOUBLE, "0.3", "weight of a new pose in a track's smoothed pose (0..1]" },
-    { "lost_after_s", MARIE_PARAM_DOUBLE, "0.5", "a tag unseen this long ends its track" },
-    { "min_hits", MARIE_PARAM_INT, "2", "frames before a track counts (and its message is read)" },
-    { "mount_x", MARIE_PARAM_DOUBLE, "0.2", "camera forward of the robot's origin, m (landmarks)" },
-    { "mount_y", MARIE_PARAM_DOUBLE, "0", "camera left of the robot's origin, m" },
-    { "mount_z", MARIE_PARAM_DOUBLE, "0.5", "camera above the floor, m" },
-    { "mount_yaw", MARIE_PARAM_DOUBLE, "0", "camera turned left, rad" },
-    { "mount_pitch", MARIE_PARAM_DOUBLE, "0", "camera tilted down, rad" },
-    { "pose_slack_s", MARIE_PARAM_DOUBLE, "0.3", "a frame newer than the newest pose by more is not placed" },
-    { "messages", MARIE_PARAM_NODE, "[]", "list of {id, message, kind, severity, goal: {x, y, theta, ...}}" },
-    { NULL },
+    MARIE_PARAM_AT(vision_params_t, source, STRING, "lcm",
+                   "lcm (images on the image port), device:N, /dev/videoN, video:FILE or folder:DIR"),
+    MARIE_PARAM_AT(vision_params_t, rate_hz, DOUBLE, "10", "frames read per second from a device, file or folder"),
+    MARIE_PARAM_AT(vision_params_t, loop, BOOL, "false", "start a file or folder over at its end"),
+    MARIE_PARAM_AT(vision_params_t, camera, STRING, "camera", "camera name in the detections"),
+    MARIE_PARAM_AT(vision_params_t, family, STRING, "tag36h11", "AprilTag family"),
+    MARIE_PARAM_AT(vision_params_t, decimate, DOUBLE, "2.0", "quad detection on an image decimated by this factor"),
+    MARIE_PARAM_AT(vision_params_t, sigma, DOUBLE, "0.0",
+                   "Gaussian blur (px) before quad detection; 0.8 helps noisy images"),
+    MARIE_PARAM_AT(vision_params_t, threads, INT, "1", "detector threads"),
+    MARIE_PARAM_AT(vision_params_t, refine_edges, BOOL, "true", "snap quad edges to image gradients"),
+    MARIE_PARAM_AT(vision_params_t, sharpening, DOUBLE, "0.25", "decode sharpening"),
+    MARIE_PARAM_AT(vision_params_t, max_hamming, INT, "2", "bit errors the decoder may correct (0..2)"),
+    MARIE_PARAM_AT(vision_params_t, min_margin, DOUBLE, "0", "drop detections with a lower decision margin"),
+    MARIE_PARAM_AT(vision_params_t, tag_size, DOUBLE, "0.16", "edge of a tag's black border, m"),
+    MARIE_PARAM_AT(vision_params_t, fx, DOUBLE, "0", "focal length x, px (0: no poses)"),
+    MARIE_PARAM_AT(vision_params_t, fy, DOUBLE, "0", "focal length y, px"),
+    MARIE_PARAM_AT(vision_params_t, cx, DOUBLE, "0", "principal point x, px (pixel centres at integers)"),
+    MARIE_PARAM_AT(vision_params_t, cy, DOUBLE, "0", "principal point y, px"),
+    MARIE_PARAM_AT(vision_params_t, width, INT, "0", "image width the intrinsics were calibrated for"),
+    MARIE_PARAM_AT(vision_params_t, height, INT, "0", "image height the intrinsics were calibrated for"),
+    MARIE_PARAM_AT(vision_params_t, smoothing, DOUBLE, "0.3", "weight of a new pose in a track's smoothed pose (0..1]"),
+    MARIE_PARAM_AT(vision_params_t, lost_after_s, DOUBLE, "0.5", "a tag unseen this long ends its track"),
+    MARIE_PARAM_AT(vision_params_t, min_hits, INT, "2", "frames before a track counts (and its message is read)"),
+    MARIE_PARAM_AT(vision_params_t, mount_x, DOUBLE, "0.2", "camera forward of the robot's origin, m (landmarks)"),
+    MARIE_PARAM_AT(vision_params_t, mount_y, DOUBLE, "0", "camera left of the robot's origin, m"),
+    MARIE_PARAM_AT(vision_params_t, mount_z, DOUBLE, "0.5", "camera above the floor, m"),
+    MARIE_PARAM_AT(vision_params_t, mount_yaw, DOUBLE, "0", "camera turned left, rad"),
+    MARIE_PARAM_AT(vision_params_t, mount_pitch, DOUBLE, "0", "camera tilted down, rad"),
+    MARIE_PARAM_AT(vision_params_t, pose_slack_s, DOUBLE, "0.3",
+                   "a frame newer than the newest pose by more is not placed"),
+    MARIE_PARAM_AT(vision_params_t, messages, NODE, "[]",
+                   "list of {id, message, kind, severity, goal: {x, y, theta, ...}}"),
+    { 0 },
 };
 
 static void release(vision_t *v)
@@ -210,8 +248,8 @@ static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
     if (skipped)
         marie_component_bad_input(c, "intrinsics_mismatch",
                                   "frame is %dx%d but the intrinsics are for %lldx%lld: poses skipped", f->width,
-                                  f->height, (long long)marie_param_int(c, "width"),
-                                  (long long)marie_param_int(c, "height"));
+                                  f->height, (long long)params_of(c)->width,
+                                  (long long)params_of(c)->height);
     marie_component_count(c, "frames", 1);
     marie_component_count(c, "detections", n);
     if (vision_tracker_update(v->trk, utime, v->dets, n, v->tracks, on_track, v) < 0)
@@ -343,30 +381,30 @@ static int on_init(marie_component_t *c)
     v->p_goal = marie_port(c, "goal");
     v->p_lm = marie_port(c, "landmarks");
     posebuf_clear(&v->poses);
-    v->mount = (vision_mount_t){ marie_param_double(c, "mount_x"), marie_param_double(c, "mount_y"),
-                                 marie_param_double(c, "mount_z"), marie_param_double(c, "mount_yaw"),
-                                 marie_param_double(c, "mount_pitch") };
-    v->pose_slack_us = (int64_t)(marie_param_double(c, "pose_slack_s") * 1e6);
+    v->mount = (vision_mount_t){ params_of(c)->mount_x, params_of(c)->mount_y,
+                                 params_of(c)->mount_z, params_of(c)->mount_yaw,
+                                 params_of(c)->mount_pitch };
+    v->pose_slack_us = (int64_t)(params_of(c)->pose_slack_s * 1e6);
     if (marie_port_on_message(marie_port(c, "pose"), on_pose) < 0) {
         marie_component_fail_reason(c, "cannot subscribe to %s", marie_port_channel(marie_port(c, "pose")));
         goto err;
     }
-    v->camera = marie_param_str(c, "camera");
-    v->uri = marie_param_str(c, "source");
-    v->loop = marie_param_bool(c, "loop");
+    v->camera = params_of(c)->camera;
+    v->uri = params_of(c)->source;
+    v->loop = params_of(c)->loop;
     v->from_bus = strcmp(v->uri, "lcm") == 0;
     v->ended = v->failed = false;
 
     vision_detector_opts_t o;
     vision_detector_opts_default(&o);
-    o.family = marie_param_str(c, "family");
-    o.decimate = marie_param_double(c, "decimate");
-    o.sigma = marie_param_double(c, "sigma");
-    o.threads = (int)marie_param_int(c, "threads");
-    o.refine_edges = marie_param_bool(c, "refine_edges");
-    o.sharpening = marie_param_double(c, "sharpening");
-    o.max_hamming = (int)marie_param_int(c, "max_hamming");
-    o.min_margin = marie_param_double(c, "min_margin");
+    o.family = params_of(c)->family;
+    o.decimate = params_of(c)->decimate;
+    o.sigma = params_of(c)->sigma;
+    o.threads = (int)params_of(c)->threads;
+    o.refine_edges = params_of(c)->refine_edges;
+    o.sharpening = params_of(c)->sharpening;
+    o.max_hamming = (int)params_of(c)->max_hamming;
+    o.min_margin = params_of(c)->min_margin;
     char err[256];
     v->det = vision_detector_create(&o, err, sizeof err);
     if (!v->det) {
@@ -374,21 +412,21 @@ static int on_init(marie_component_t *c)
         goto err;
     }
     vision_camera_t cam = {
-        (int)marie_param_int(c, "width"), (int)marie_param_int(c, "height"),
-        marie_param_double(c, "fx"), marie_param_double(c, "fy"), marie_param_double(c, "cx"), marie_param_double(c, "cy"),
+        (int)params_of(c)->width, (int)params_of(c)->height,
+        params_of(c)->fx, params_of(c)->fy, params_of(c)->cx, params_of(c)->cy,
     };
     if (cam.fx != 0 || cam.fy != 0 || cam.cx != 0 || cam.cy != 0 || cam.width != 0 || cam.height != 0) {
         const char *why;
-        if (vision_detector_set_camera(v->det, &cam, marie_param_double(c, "tag_size"), &why) < 0) {
+        if (vision_detector_set_camera(v->det, &cam, params_of(c)->tag_size, &why) < 0) {
             marie_component_fail_reason(c, "intrinsics fx=%g fy=%g cx=%g cy=%g for %dx%d, tag_size %g: %s", cam.fx,
                                         cam.fy, cam.cx, cam.cy, cam.width, cam.height,
-                                        marie_param_double(c, "tag_size"), why);
+                                        params_of(c)->tag_size, why);
             goto err;
         }
     }
     vision_tracker_opts_t to = {
-        marie_param_double(c, "smoothing"), (int64_t)(marie_param_double(c, "lost_after_s") * 1e6),
-        (int)marie_param_int(c, "min_hits"),
+        params_of(c)->smoothing, (int64_t)(params_of(c)->lost_after_s * 1e6),
+        (int)params_of(c)->min_hits,
     };
     if (!(to.alpha > 0 && to.alpha <= 1) || to.lost_after_us <= 0 || to.min_hits < 1) {
         marie_component_fail_reason(c, "smoothing must be in (0, 1], lost_after_s > 0 and min_hits >= 1");
@@ -400,7 +438,7 @@ static int on_init(marie_component_t *c)
         goto err;
     }
     marie_errors_t errs = { 0 };
-    if (vision_msgmap_parse(marie_param_node(c, "messages"), &v->msgs, &errs) < 0) {
+    if (vision_msgmap_parse(params_of(c)->messages, &v->msgs, &errs) < 0) {
         marie_errors_print(&errs, stderr);
         marie_component_fail_reason(c, "messages: %s", errs.n ? errs.msgs[0] : "invalid");
         marie_errors_clear(&errs);
@@ -412,7 +450,7 @@ static int on_init(marie_component_t *c)
             goto err;
         }
     } else {
-        double hz = marie_param_double(c, "rate_hz");
+        double hz = params_of(c)->rate_hz;
         if (!(hz > 0 && hz <= 1000)) {
             marie_component_fail_reason(c, "rate_hz must be within (0, 1000]");
             goto err;
@@ -447,7 +485,7 @@ static void on_quit(marie_component_t *c)
 const marie_component_def_t vision_component_def = {
     .kind = "marie-vision",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(vision_params_t),
     .on_init = on_init,
     .on_quit = on_quit,
 };

@@ -6,25 +6,43 @@
 #include "adapters/xml_bridge/xb_server.h"
 #include "core/component.h"
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *bind;
+    int64_t port;
+    int64_t max_document;
+    int64_t max_depth;
+    int64_t queue;
+    int64_t queue_bytes;
+    int64_t max_clients;
+    int64_t stall_ms;
+    int64_t max_message;
+    int64_t sndbuf;
+    int64_t max_memory;
+} xb_params_t;
+
+static const xb_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     xb_server_t *server;
     xb_server_stats_t last;
 } bridge_t;
 
 static const marie_param_spec_t params[] = {
-    { "bind", MARIE_PARAM_STRING, "127.0.0.1", "address to listen on (loopback unless configured)" },
-    { "port", MARIE_PARAM_INT, "7670", "TCP port (0: any free port)" },
-    { "max_document", MARIE_PARAM_INT, "1048576", "largest incoming document in bytes" },
-    { "max_depth", MARIE_PARAM_INT, "32", "deepest element nesting of an incoming document" },
-    { "queue", MARIE_PARAM_INT, "1024", "outgoing documents kept per client before the oldest is dropped" },
-    { "queue_bytes", MARIE_PARAM_INT, "8388608", "outgoing bytes kept per client before the oldest is dropped" },
-    { "max_clients", MARIE_PARAM_INT, "512", "clients served at once; more are refused with busy" },
-    { "stall_ms", MARIE_PARAM_INT, "10000", "an unfinished document older than this closes its client" },
-    { "max_message", MARIE_PARAM_INT, "4194304", "largest LCM payload bridged, in bytes" },
-    { "sndbuf", MARIE_PARAM_INT, "0", "per-client socket send buffer in bytes (0: kernel autotuning)" },
-    { "max_memory", MARIE_PARAM_INT, "268435456",
-      "bytes held for incoming documents of all clients; over it the largest are closed (no-memory)" },
-    { NULL, 0, NULL, NULL },
+    MARIE_PARAM_AT(xb_params_t, bind, STRING, "127.0.0.1", "address to listen on (loopback unless configured)"),
+    MARIE_PARAM_AT(xb_params_t, port, INT, "7670", "TCP port (0: any free port)"),
+    MARIE_PARAM_AT(xb_params_t, max_document, INT, "1048576", "largest incoming document in bytes"),
+    MARIE_PARAM_AT(xb_params_t, max_depth, INT, "32", "deepest element nesting of an incoming document"),
+    MARIE_PARAM_AT(xb_params_t, queue, INT, "1024", "outgoing documents kept per client before the oldest is dropped"),
+    MARIE_PARAM_AT(xb_params_t, queue_bytes, INT, "8388608",
+                   "outgoing bytes kept per client before the oldest is dropped"),
+    MARIE_PARAM_AT(xb_params_t, max_clients, INT, "512", "clients served at once; more are refused with busy"),
+    MARIE_PARAM_AT(xb_params_t, stall_ms, INT, "10000", "an unfinished document older than this closes its client"),
+    MARIE_PARAM_AT(xb_params_t, max_message, INT, "4194304", "largest LCM payload bridged, in bytes"),
+    MARIE_PARAM_AT(xb_params_t, sndbuf, INT, "0", "per-client socket send buffer in bytes (0: kernel autotuning)"),
+    MARIE_PARAM_AT(xb_params_t, max_memory, INT, "268435456",
+                   "bytes held for incoming documents of all clients; over it the largest are closed (no-memory)"),
+    { 0 },
 };
 
 static const marie_port_spec_t ports[] = {
@@ -70,17 +88,17 @@ static int on_start(marie_component_t *c)
     bridge_t *b = marie_component_user(c);
     xb_server_cfg_t cfg;
     xb_server_cfg_defaults(&cfg);
-    cfg.bind = marie_param_str(c, "bind");
-    cfg.port = (int)marie_param_int(c, "port");
-    cfg.max_doc_bytes = (size_t)marie_param_int(c, "max_document");
-    cfg.max_depth = (int)marie_param_int(c, "max_depth");
-    cfg.queue_docs = (int)marie_param_int(c, "queue");
-    cfg.queue_bytes = (size_t)marie_param_int(c, "queue_bytes");
-    cfg.max_clients = (int)marie_param_int(c, "max_clients");
-    cfg.stall_ms = (int)marie_param_int(c, "stall_ms");
-    cfg.max_message = (size_t)marie_param_int(c, "max_message");
-    cfg.sndbuf = (int)marie_param_int(c, "sndbuf");
-    cfg.max_memory = (size_t)marie_param_int(c, "max_memory");
+    cfg.bind = params_of(c)->bind;
+    cfg.port = (int)params_of(c)->port;
+    cfg.max_doc_bytes = (size_t)params_of(c)->max_document;
+    cfg.max_depth = (int)params_of(c)->max_depth;
+    cfg.queue_docs = (int)params_of(c)->queue;
+    cfg.queue_bytes = (size_t)params_of(c)->queue_bytes;
+    cfg.max_clients = (int)params_of(c)->max_clients;
+    cfg.stall_ms = (int)params_of(c)->stall_ms;
+    cfg.max_message = (size_t)params_of(c)->max_message;
+    cfg.sndbuf = (int)params_of(c)->sndbuf;
+    cfg.max_memory = (size_t)params_of(c)->max_memory;
     if (cfg.port < 0 || cfg.port > 65535 || cfg.max_depth < 1 || cfg.queue_docs < 2 ||
         cfg.max_clients < 1 || cfg.stall_ms < 1 || (int64_t)cfg.max_doc_bytes < 64 ||
         (int64_t)cfg.max_memory < (int64_t)cfg.max_doc_bytes) {
@@ -120,7 +138,7 @@ static void on_abort(marie_component_t *c)
 static const marie_component_def_t def = {
     .kind = "xml_bridge",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(xb_params_t),
     .on_init = on_init,
     .on_start = on_start,
     .on_stop = on_stop,

@@ -12,6 +12,32 @@
 #include "hw/canopen/sdo.h"
 #include "hw/drives/drives_ctl.h"
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *can;
+    int64_t left_node;
+    int64_t right_node;
+    bool left_invert;
+    bool right_invert;
+    double wheel_radius;
+    double track_width;
+    int64_t ticks_per_rev;
+    double max_wheel_velocity;
+    double sync_hz;
+    double publish_hz;
+    double cmd_timeout;
+    int64_t heartbeat_ms;
+    double heartbeat_timeout;
+    double fault_reset_delay;
+    double sdo_timeout;
+    int64_t master_node;
+    int64_t master_heartbeat_ms;
+    double master_timeout;
+    double rpdo_timeout;
+} drives_params_t;
+
+static const drives_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     drives_ctl_t *ctl;
@@ -32,27 +58,30 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "can", MARIE_PARAM_STRING, "can:can0", "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)" },
-    { "left_node", MARIE_PARAM_INT, "1", "CANopen node id of the left drive" },
-    { "right_node", MARIE_PARAM_INT, "2", "CANopen node id of the right drive" },
-    { "left_invert", MARIE_PARAM_BOOL, "false", "left motor mounted mirrored" },
-    { "right_invert", MARIE_PARAM_BOOL, "false", "right motor mounted mirrored" },
-    { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
-    { "track_width", MARIE_PARAM_DOUBLE, "0.5", "m, distance between the wheels" },
-    { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder increments per wheel revolution" },
-    { "max_wheel_velocity", MARIE_PARAM_DOUBLE, "20", "rad/s; commands are scaled down to it" },
-    { "sync_hz", MARIE_PARAM_DOUBLE, "50", "SYNC / RPDO cycle rate" },
-    { "publish_hz", MARIE_PARAM_DOUBLE, "20", "wheel encoder publish rate" },
-    { "cmd_timeout", MARIE_PARAM_DOUBLE, "0.5", "s without a motor command before the wheels stop" },
-    { "heartbeat_ms", MARIE_PARAM_INT, "100", "drive heartbeat period written to 0x1017" },
-    { "heartbeat_timeout", MARIE_PARAM_DOUBLE, "0.35", "s without a drive heartbeat: offline" },
-    { "fault_reset_delay", MARIE_PARAM_DOUBLE, "1.0", "s in fault before a fault reset" },
-    { "sdo_timeout", MARIE_PARAM_DOUBLE, "0.2", "s" },
-    { "master_node", MARIE_PARAM_INT, "127", "our CANopen node id (heartbeat 0x700 + id)" },
-    { "master_heartbeat_ms", MARIE_PARAM_INT, "20", "our heartbeat period (0: none, drives not watching)" },
-    { "master_timeout", MARIE_PARAM_DOUBLE, "0.1", "s: the drives' heartbeat consumer time for us (0x1016)" },
-    { "rpdo_timeout", MARIE_PARAM_DOUBLE, "0.1", "s: the drives' RPDO1 deadline (0x1400:05; 0: off)" },
-    { NULL },
+    MARIE_PARAM_AT(drives_params_t, can, STRING, "can:can0",
+                   "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)"),
+    MARIE_PARAM_AT(drives_params_t, left_node, INT, "1", "CANopen node id of the left drive"),
+    MARIE_PARAM_AT(drives_params_t, right_node, INT, "2", "CANopen node id of the right drive"),
+    MARIE_PARAM_AT(drives_params_t, left_invert, BOOL, "false", "left motor mounted mirrored"),
+    MARIE_PARAM_AT(drives_params_t, right_invert, BOOL, "false", "right motor mounted mirrored"),
+    MARIE_PARAM_AT(drives_params_t, wheel_radius, DOUBLE, "0.1", "m"),
+    MARIE_PARAM_AT(drives_params_t, track_width, DOUBLE, "0.5", "m, distance between the wheels"),
+    MARIE_PARAM_AT(drives_params_t, ticks_per_rev, INT, "4096", "encoder increments per wheel revolution"),
+    MARIE_PARAM_AT(drives_params_t, max_wheel_velocity, DOUBLE, "20", "rad/s; commands are scaled down to it"),
+    MARIE_PARAM_AT(drives_params_t, sync_hz, DOUBLE, "50", "SYNC / RPDO cycle rate"),
+    MARIE_PARAM_AT(drives_params_t, publish_hz, DOUBLE, "20", "wheel encoder publish rate"),
+    MARIE_PARAM_AT(drives_params_t, cmd_timeout, DOUBLE, "0.5", "s without a motor command before the wheels stop"),
+    MARIE_PARAM_AT(drives_params_t, heartbeat_ms, INT, "100", "drive heartbeat period written to 0x1017"),
+    MARIE_PARAM_AT(drives_params_t, heartbeat_timeout, DOUBLE, "0.35", "s without a drive heartbeat: offline"),
+    MARIE_PARAM_AT(drives_params_t, fault_reset_delay, DOUBLE, "1.0", "s in fault before a fault reset"),
+    MARIE_PARAM_AT(drives_params_t, sdo_timeout, DOUBLE, "0.2", "s"),
+    MARIE_PARAM_AT(drives_params_t, master_node, INT, "127", "our CANopen node id (heartbeat 0x700 + id)"),
+    MARIE_PARAM_AT(drives_params_t, master_heartbeat_ms, INT, "20",
+                   "our heartbeat period (0: none, drives not watching)"),
+    MARIE_PARAM_AT(drives_params_t, master_timeout, DOUBLE, "0.1",
+                   "s: the drives' heartbeat consumer time for us (0x1016)"),
+    MARIE_PARAM_AT(drives_params_t, rpdo_timeout, DOUBLE, "0.1", "s: the drives' RPDO1 deadline (0x1400:05; 0: off)"),
+    { 0 },
 };
 
 /* The protocol's clock: monotonic on the robot, simulated time under `--clock sim`, where the
@@ -186,7 +215,7 @@ static void publish(marie_component_t *c, int64_t overruns)
         .utime = marie_component_now(c),
         .left_ticks = l->position,
         .right_ticks = r->position,
-        .ticks_per_rev = (int32_t)marie_param_int(c, "ticks_per_rev"),
+        .ticks_per_rev = (int32_t)params_of(c)->ticks_per_rev,
         .left_velocity = drives_ctl_counts_to_rad(d->ctl, l->velocity),
         .right_velocity = drives_ctl_counts_to_rad(d->ctl, r->velocity),
     };
@@ -257,11 +286,11 @@ static int on_init(marie_component_t *c)
     marie_component_set_user(c, d);
     drives_cfg_t cfg;
     drives_cfg_default(&cfg);
-    int64_t ln = marie_param_int(c, "left_node"), rn = marie_param_int(c, "right_node");
-    int64_t tpr = marie_param_int(c, "ticks_per_rev"), hb = marie_param_int(c, "heartbeat_ms");
-    d->radius = marie_param_double(c, "wheel_radius");
-    d->track = marie_param_double(c, "track_width");
-    double sync_hz = marie_param_double(c, "sync_hz"), pub_hz = marie_param_double(c, "publish_hz");
+    int64_t ln = params_of(c)->left_node, rn = params_of(c)->right_node;
+    int64_t tpr = params_of(c)->ticks_per_rev, hb = params_of(c)->heartbeat_ms;
+    d->radius = params_of(c)->wheel_radius;
+    d->track = params_of(c)->track_width;
+    double sync_hz = params_of(c)->sync_hz, pub_hz = params_of(c)->publish_hz;
     if (ln < 1 || ln > 127 || rn < 1 || rn > 127 || ln == rn || tpr <= 0 || hb < 0 || hb > 65535 ||
         !(d->radius > 0) || !(d->track > 0) || !(sync_hz > 0 && sync_hz <= 1000) || !(pub_hz > 0)) {
         marie_component_fail_reason(c, "bad parameters: node ids 1..127 and distinct, positive radius, "
@@ -270,17 +299,17 @@ static int on_init(marie_component_t *c)
     }
     cfg.node[0] = (uint8_t)ln;
     cfg.node[1] = (uint8_t)rn;
-    cfg.invert[0] = marie_param_bool(c, "left_invert");
-    cfg.invert[1] = marie_param_bool(c, "right_invert");
+    cfg.invert[0] = params_of(c)->left_invert;
+    cfg.invert[1] = params_of(c)->right_invert;
     cfg.ticks_per_rev = (int32_t)tpr;
-    cfg.max_wheel_velocity = marie_param_double(c, "max_wheel_velocity");
-    cfg.cmd_timeout_us = (int64_t)(marie_param_double(c, "cmd_timeout") * 1e6);
+    cfg.max_wheel_velocity = params_of(c)->max_wheel_velocity;
+    cfg.cmd_timeout_us = (int64_t)(params_of(c)->cmd_timeout * 1e6);
     cfg.heartbeat_ms = (uint16_t)hb;
-    cfg.heartbeat_timeout_us = (int64_t)(marie_param_double(c, "heartbeat_timeout") * 1e6);
-    cfg.fault_reset_delay_us = (int64_t)(marie_param_double(c, "fault_reset_delay") * 1e6);
-    cfg.sdo_timeout_us = (int64_t)(marie_param_double(c, "sdo_timeout") * 1e6);
-    int64_t mn = marie_param_int(c, "master_node"), mhb = marie_param_int(c, "master_heartbeat_ms");
-    double mto = marie_param_double(c, "master_timeout"), rto = marie_param_double(c, "rpdo_timeout");
+    cfg.heartbeat_timeout_us = (int64_t)(params_of(c)->heartbeat_timeout * 1e6);
+    cfg.fault_reset_delay_us = (int64_t)(params_of(c)->fault_reset_delay * 1e6);
+    cfg.sdo_timeout_us = (int64_t)(params_of(c)->sdo_timeout * 1e6);
+    int64_t mn = params_of(c)->master_node, mhb = params_of(c)->master_heartbeat_ms;
+    double mto = params_of(c)->master_timeout, rto = params_of(c)->rpdo_timeout;
     if (mn < 1 || mn > 127 || mn == ln || mn == rn || mhb < 0 || mhb > 65535 || !(mto >= 0 && mto <= 65.535) ||
         !(rto >= 0 && rto <= 65.535) || (mhb > 0 && mto * 1000 <= mhb)) {
         marie_component_fail_reason(c, "bad parameters: master_node 1..127 and not a drive's, "
@@ -298,7 +327,7 @@ static int on_init(marie_component_t *c)
     }
     struct can_filter flt[4];
     int nf = drives_ctl_filters(d->ctl, flt, 4);
-    const char *url = marie_param_str(c, "can");
+    const char *url = params_of(c)->can;
     d->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, d);
     if (!d->link) {
         marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));
@@ -392,7 +421,7 @@ static void on_quit(marie_component_t *c)
 static const marie_component_def_t def = {
     .kind = "marie-drives",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(drives_params_t),
     .on_init = on_init,
     .on_start = on_start,
     .on_stop = on_stop,

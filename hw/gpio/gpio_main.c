@@ -10,6 +10,21 @@
 #include "hw/gpio/gpio.h"
 #include "lcmtypes/marie_estop_t.h"
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *chip;
+    int64_t estop_line;
+    bool estop_active_low;
+    const char *estop_bias;
+    int64_t press_ms;
+    int64_t release_ms;
+    double publish_hz;
+    int64_t led_line;
+    bool led_active_low;
+} gpio_params_t;
+
+static const gpio_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     gpio_in_t *in;
@@ -26,16 +41,16 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "chip", MARIE_PARAM_STRING, "gpiochip0", "GPIO chip: name, path, label or number" },
-    { "estop_line", MARIE_PARAM_INT, "0", "offset of the e-stop input on the chip" },
-    { "estop_active_low", MARIE_PARAM_BOOL, "false", "pressed reads low" },
-    { "estop_bias", MARIE_PARAM_STRING, "pull-up", "as-is, disable, pull-up or pull-down" },
-    { "press_ms", MARIE_PARAM_INT, "2", "a press counts once the input held this long" },
-    { "release_ms", MARIE_PARAM_INT, "50", "a release counts once the input held this long" },
-    { "publish_hz", MARIE_PARAM_DOUBLE, "2", "periodic estop_t besides every change" },
-    { "led_line", MARIE_PARAM_INT, "-1", "offset of the status LED output; -1: none" },
-    { "led_active_low", MARIE_PARAM_BOOL, "false", "the LED lights when the line is low" },
-    { NULL },
+    MARIE_PARAM_AT(gpio_params_t, chip, STRING, "gpiochip0", "GPIO chip: name, path, label or number"),
+    MARIE_PARAM_AT(gpio_params_t, estop_line, INT, "0", "offset of the e-stop input on the chip"),
+    MARIE_PARAM_AT(gpio_params_t, estop_active_low, BOOL, "false", "pressed reads low"),
+    MARIE_PARAM_AT(gpio_params_t, estop_bias, STRING, "pull-up", "as-is, disable, pull-up or pull-down"),
+    MARIE_PARAM_AT(gpio_params_t, press_ms, INT, "2", "a press counts once the input held this long"),
+    MARIE_PARAM_AT(gpio_params_t, release_ms, INT, "50", "a release counts once the input held this long"),
+    MARIE_PARAM_AT(gpio_params_t, publish_hz, DOUBLE, "2", "periodic estop_t besides every change"),
+    MARIE_PARAM_AT(gpio_params_t, led_line, INT, "-1", "offset of the status LED output; -1: none"),
+    MARIE_PARAM_AT(gpio_params_t, led_active_low, BOOL, "false", "the LED lights when the line is low"),
+    { 0 },
 };
 
 static void publish(gp_t *g)
@@ -149,17 +164,17 @@ static int on_init(marie_component_t *c)
     }
     g->c = c;
     g->port = marie_port(c, "estop");
-    const char *chip = marie_param_str(c, "chip");
-    int64_t line = marie_param_int(c, "estop_line"), led = marie_param_int(c, "led_line");
-    int bias = gpio_bias_parse(marie_param_str(c, "estop_bias"));
-    double hz = marie_param_double(c, "publish_hz");
+    const char *chip = params_of(c)->chip;
+    int64_t line = params_of(c)->estop_line, led = params_of(c)->led_line;
+    int bias = gpio_bias_parse(params_of(c)->estop_bias);
+    double hz = params_of(c)->publish_hz;
     if (bias < 0 || line < 0 || hz <= 0) {
         marie_component_fail_reason(c, "estop_bias must be as-is/disable/pull-up/pull-down, estop_line >= 0, "
                                     "publish_hz > 0");
         free(g);
         return -1;
     }
-    g->in = gpio_in_open(chip, (unsigned)line, marie_param_bool(c, "estop_active_low"), (gpio_bias_t)bias, "marie-estop");
+    g->in = gpio_in_open(chip, (unsigned)line, params_of(c)->estop_active_low, (gpio_bias_t)bias, "marie-estop");
     if (!g->in) {
         marie_component_fail_reason(c, "cannot request e-stop line %lld on %s: %s", (long long)line, chip, strerror(errno));
         free(g);
@@ -172,10 +187,10 @@ static int on_init(marie_component_t *c)
         free(g);
         return -1;
     }
-    gpio_debounce_init(&g->deb, v == 1, marie_param_int(c, "press_ms") * 1000,
-                       marie_param_int(c, "release_ms") * 1000, marie_mono_us());
+    gpio_debounce_init(&g->deb, v == 1, params_of(c)->press_ms * 1000,
+                       params_of(c)->release_ms * 1000, marie_mono_us());
     if (led >= 0) {
-        g->led = gpio_out_open(chip, (unsigned)led, marie_param_bool(c, "led_active_low"), false, "marie-status");
+        g->led = gpio_out_open(chip, (unsigned)led, params_of(c)->led_active_low, false, "marie-status");
         if (!g->led) {
             marie_component_fail_reason(c, "cannot request LED line %lld on %s: %s", (long long)led, chip, strerror(errno));
             gpio_in_close(g->in);
@@ -222,7 +237,7 @@ static void on_quit(marie_component_t *c)
 static const marie_component_def_t def = {
     .kind = "gpio",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(gpio_params_t),
     .on_init = on_init,
     .on_start = on_start,
     .on_quit = on_quit,

@@ -13,6 +13,25 @@
 #include "hw/gyro/gyro_bias.h"
 #include "hw/gyro/gyro_ctl.h"
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *can;
+    int64_t node;
+    double rate_hz;
+    int64_t heartbeat_ms;
+    double heartbeat_timeout;
+    bool invert;
+    double standstill_window;
+    double still_wheel_velocity;
+    double assume_still_at_start;
+    double bias_tau;
+    int64_t bias_min_samples;
+    double max_still_rate;
+    double degraded_after;
+} gyro_params_t;
+
+static const gyro_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     gyro_ctl_t *ctl;
@@ -41,21 +60,22 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "can", MARIE_PARAM_STRING, "can:can0", "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)" },
-    { "node", MARIE_PARAM_INT, "32", "CANopen node id of the gyro" },
-    { "rate_hz", MARIE_PARAM_DOUBLE, "50", "sample rate (TPDO event timer)" },
-    { "heartbeat_ms", MARIE_PARAM_INT, "100", "gyro heartbeat period written to 0x1017" },
-    { "heartbeat_timeout", MARIE_PARAM_DOUBLE, "0.35", "s without a heartbeat: offline" },
-    { "invert", MARIE_PARAM_BOOL, "false", "sensor mounted upside down" },
-    { "standstill_window", MARIE_PARAM_DOUBLE, "0.5", "s of standstill before samples feed the bias" },
-    { "still_wheel_velocity", MARIE_PARAM_DOUBLE, "0.02", "rad/s: wheels slower than this are stopped" },
-    { "assume_still_at_start", MARIE_PARAM_DOUBLE, "0", "s after start taken as standstill when no "
-                                                        "encoder or command has arrived (0: never)" },
-    { "bias_tau", MARIE_PARAM_DOUBLE, "30", "s, time constant for following bias drift" },
-    { "bias_min_samples", MARIE_PARAM_INT, "50", "samples before the bias is valid" },
-    { "max_still_rate", MARIE_PARAM_DOUBLE, "0.05", "rad/s: faster at standstill means moved by hand" },
-    { "degraded_after", MARIE_PARAM_DOUBLE, "1.0", "s without a sample: heartbeat says degraded" },
-    { NULL },
+    MARIE_PARAM_AT(gyro_params_t, can, STRING, "can:can0",
+                   "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)"),
+    MARIE_PARAM_AT(gyro_params_t, node, INT, "32", "CANopen node id of the gyro"),
+    MARIE_PARAM_AT(gyro_params_t, rate_hz, DOUBLE, "50", "sample rate (TPDO event timer)"),
+    MARIE_PARAM_AT(gyro_params_t, heartbeat_ms, INT, "100", "gyro heartbeat period written to 0x1017"),
+    MARIE_PARAM_AT(gyro_params_t, heartbeat_timeout, DOUBLE, "0.35", "s without a heartbeat: offline"),
+    MARIE_PARAM_AT(gyro_params_t, invert, BOOL, "false", "sensor mounted upside down"),
+    MARIE_PARAM_AT(gyro_params_t, standstill_window, DOUBLE, "0.5", "s of standstill before samples feed the bias"),
+    MARIE_PARAM_AT(gyro_params_t, still_wheel_velocity, DOUBLE, "0.02", "rad/s: wheels slower than this are stopped"),
+    MARIE_PARAM_AT(gyro_params_t, assume_still_at_start, DOUBLE, "0",
+                   "s after start taken as standstill when no encoder or command has arrived (0: never)"),
+    MARIE_PARAM_AT(gyro_params_t, bias_tau, DOUBLE, "30", "s, time constant for following bias drift"),
+    MARIE_PARAM_AT(gyro_params_t, bias_min_samples, INT, "50", "samples before the bias is valid"),
+    MARIE_PARAM_AT(gyro_params_t, max_still_rate, DOUBLE, "0.05", "rad/s: faster at standstill means moved by hand"),
+    MARIE_PARAM_AT(gyro_params_t, degraded_after, DOUBLE, "1.0", "s without a sample: heartbeat says degraded"),
+    { 0 },
 };
 
 #define FRESH_US 500000
@@ -136,7 +156,7 @@ static void on_gyro_event(void *user, gyro_ev_t ev, uint32_t code)
         marie_component_count(c, "not_found", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "gyro_not_found",
                               "no boot-up from gyro node %lld yet; resetting it every 2 s",
-                              (long long)marie_param_int(c, "node"));
+                              (long long)params_of(c)->node);
         break;
     }
 }
@@ -217,8 +237,8 @@ static int on_init(marie_component_t *c)
     marie_component_set_user(c, g);
     gyro_cfg_t cfg;
     gyro_cfg_default(&cfg);
-    int64_t node = marie_param_int(c, "node"), hb = marie_param_int(c, "heartbeat_ms");
-    double hz = marie_param_double(c, "rate_hz");
+    int64_t node = params_of(c)->node, hb = params_of(c)->heartbeat_ms;
+    double hz = params_of(c)->rate_hz;
     if (node < 1 || node > 127 || !(hz >= 1 && hz <= 1000) || hb < 0 || hb > 65535) {
         marie_component_fail_reason(c, "bad parameters: node 1..127, rate_hz 1..1000, heartbeat_ms 0..65535");
         goto err;
@@ -226,14 +246,14 @@ static int on_init(marie_component_t *c)
     cfg.node = (uint8_t)node;
     cfg.period_ms = (uint16_t)lround(1000 / hz);
     cfg.heartbeat_ms = (uint16_t)hb;
-    cfg.heartbeat_timeout_us = (int64_t)(marie_param_double(c, "heartbeat_timeout") * 1e6);
+    cfg.heartbeat_timeout_us = (int64_t)(params_of(c)->heartbeat_timeout * 1e6);
     g->period_s = cfg.period_ms / 1000.0;
-    g->sign = marie_param_bool(c, "invert") ? -1 : 1;
-    g->still_wheel = marie_param_double(c, "still_wheel_velocity");
-    g->start_still_s = marie_param_double(c, "assume_still_at_start");
-    g->degraded_us = (int64_t)(marie_param_double(c, "degraded_after") * 1e6);
-    gyro_bias_init(&g->bias, marie_param_double(c, "standstill_window"), marie_param_double(c, "bias_tau"),
-                   (int)marie_param_int(c, "bias_min_samples"), marie_param_double(c, "max_still_rate"));
+    g->sign = params_of(c)->invert ? -1 : 1;
+    g->still_wheel = params_of(c)->still_wheel_velocity;
+    g->start_still_s = params_of(c)->assume_still_at_start;
+    g->degraded_us = (int64_t)(params_of(c)->degraded_after * 1e6);
+    gyro_bias_init(&g->bias, params_of(c)->standstill_window, params_of(c)->bias_tau,
+                   (int)params_of(c)->bias_min_samples, params_of(c)->max_still_rate);
     g->ctl = gyro_ctl_create(&cfg, on_sample, on_gyro_event, g);
     if (!g->ctl) {
         marie_component_fail_reason(c, "gyro controller: %s", strerror(errno));
@@ -241,7 +261,7 @@ static int on_init(marie_component_t *c)
     }
     struct can_filter flt[2];
     int nf = gyro_ctl_filters(g->ctl, flt, 2);
-    const char *url = marie_param_str(c, "can");
+    const char *url = params_of(c)->can;
     g->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, g);
     if (!g->link) {
         marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));
@@ -295,7 +315,7 @@ static void on_quit(marie_component_t *c)
 static const marie_component_def_t def = {
     .kind = "marie-gyro",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(gyro_params_t),
     .on_init = on_init,
     .on_start = on_start,
     .on_quit = on_quit,

@@ -9,6 +9,22 @@
 #include "hw/lms200/driver.h"
 #include "lcmtypes/marie_laser_scan_t.h"
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *device;
+    int64_t baud;
+    double resolution;
+    int64_t address;
+    int64_t reply_timeout_ms;
+    int64_t config_timeout_ms;
+    int64_t retries;
+    int64_t data_timeout_ms;
+    int64_t reopen_ms;
+    int64_t degraded_ms;
+} lms200_params_t;
+
+static const lms200_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     lms200_driver_t *drv;
@@ -28,17 +44,18 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "device", MARIE_PARAM_STRING, "/dev/ttyUSB0", "serial device of the LMS200" },
-    { "baud", MARIE_PARAM_INT, "500000", "line rate while streaming: 9600, 19200, 38400 (RS-232) or 500000 (RS-422)" },
-    { "resolution", MARIE_PARAM_DOUBLE, "0.5", "degrees between beams: 1 (181 beams) or 0.5 (361)" },
-    { "address", MARIE_PARAM_INT, "0", "device address on the line" },
-    { "reply_timeout_ms", MARIE_PARAM_INT, "300", "wait for the answer to a probe at one rate" },
-    { "config_timeout_ms", MARIE_PARAM_INT, "3000", "wait for the variant, baud and start replies" },
-    { "retries", MARIE_PARAM_INT, "2", "sends of one command before the next step of recovery" },
-    { "data_timeout_ms", MARIE_PARAM_INT, "1000", "no scan this long while streaming: re-initialise" },
-    { "reopen_ms", MARIE_PARAM_INT, "500", "between attempts to open a missing device" },
-    { "degraded_ms", MARIE_PARAM_INT, "2000", "no valid scan this long: heartbeat says degraded" },
-    { NULL },
+    MARIE_PARAM_AT(lms200_params_t, device, STRING, "/dev/ttyUSB0", "serial device of the LMS200"),
+    MARIE_PARAM_AT(lms200_params_t, baud, INT, "500000",
+                   "line rate while streaming: 9600, 19200, 38400 (RS-232) or 500000 (RS-422)"),
+    MARIE_PARAM_AT(lms200_params_t, resolution, DOUBLE, "0.5", "degrees between beams: 1 (181 beams) or 0.5 (361)"),
+    MARIE_PARAM_AT(lms200_params_t, address, INT, "0", "device address on the line"),
+    MARIE_PARAM_AT(lms200_params_t, reply_timeout_ms, INT, "300", "wait for the answer to a probe at one rate"),
+    MARIE_PARAM_AT(lms200_params_t, config_timeout_ms, INT, "3000", "wait for the variant, baud and start replies"),
+    MARIE_PARAM_AT(lms200_params_t, retries, INT, "2", "sends of one command before the next step of recovery"),
+    MARIE_PARAM_AT(lms200_params_t, data_timeout_ms, INT, "1000", "no scan this long while streaming: re-initialise"),
+    MARIE_PARAM_AT(lms200_params_t, reopen_ms, INT, "500", "between attempts to open a missing device"),
+    MARIE_PARAM_AT(lms200_params_t, degraded_ms, INT, "2000", "no valid scan this long: heartbeat says degraded"),
+    { 0 },
 };
 
 static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t mono_us)
@@ -151,24 +168,24 @@ static int on_init(marie_component_t *c)
         return -1;
     }
     l->c = c;
-    double res = marie_param_double(c, "resolution");
+    double res = params_of(c)->resolution;
     lms200_driver_cfg_t cfg = {
-        .device = marie_param_str(c, "device"),
-        .baud = (int)marie_param_int(c, "baud"),
+        .device = params_of(c)->device,
+        .baud = (int)params_of(c)->baud,
         .res_cdeg = fabs(res - 0.5) < 1e-6 ? 50 : fabs(res - 1.0) < 1e-6 ? 100 : -1,
-        .addr = (uint8_t)marie_param_int(c, "address"),
-        .reply_timeout_ms = (int)marie_param_int(c, "reply_timeout_ms"),
-        .config_timeout_ms = (int)marie_param_int(c, "config_timeout_ms"),
-        .retries = (int)marie_param_int(c, "retries"),
-        .data_timeout_ms = (int)marie_param_int(c, "data_timeout_ms"),
-        .reopen_ms = (int)marie_param_int(c, "reopen_ms"),
-        .degraded_ms = (int)marie_param_int(c, "degraded_ms"),
+        .addr = (uint8_t)params_of(c)->address,
+        .reply_timeout_ms = (int)params_of(c)->reply_timeout_ms,
+        .config_timeout_ms = (int)params_of(c)->config_timeout_ms,
+        .retries = (int)params_of(c)->retries,
+        .data_timeout_ms = (int)params_of(c)->data_timeout_ms,
+        .reopen_ms = (int)params_of(c)->reopen_ms,
+        .degraded_ms = (int)params_of(c)->degraded_ms,
     };
     l->baud = cfg.baud;
-    if (cfg.res_cdeg < 0 || lms200_baud_mode(cfg.baud) < 0 || marie_param_int(c, "address") < 0 ||
-        marie_param_int(c, "address") > 127) {
+    if (cfg.res_cdeg < 0 || lms200_baud_mode(cfg.baud) < 0 || params_of(c)->address < 0 ||
+        params_of(c)->address > 127) {
         marie_component_fail_reason(c, "resolution must be 0.5 or 1, baud 9600/19200/38400/500000, address 0..127 "
-                                    "(got %g, %d, %lld)", res, cfg.baud, (long long)marie_param_int(c, "address"));
+                                    "(got %g, %d, %lld)", res, cfg.baud, (long long)params_of(c)->address);
         free(l);
         return -1;
     }
@@ -229,7 +246,7 @@ static void on_quit(marie_component_t *c)
 static const marie_component_def_t def = {
     .kind = "lms200",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(lms200_params_t),
     .on_init = on_init,
     .on_start = on_start,
     .on_stop = on_stop,

@@ -20,6 +20,20 @@
 #define MAX_HOSTS 16
 #define MAX_TALK 4
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    int64_t http_port;
+    const char *bind;
+    const char *www;
+    const char *key_file;
+    const char *pin;
+    const marie_node_t *places;
+    const char *stop_target;
+    const char *url_file;
+} face_params_t;
+
+static const face_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     char name[48];
     double x, y, theta;
@@ -55,15 +69,17 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "http_port", MARIE_PARAM_INT, "8090", "HTTP and WebSocket port (0: any free port)" },
-    { "bind", MARIE_PARAM_STRING, "127.0.0.1", "address to listen on (0.0.0.0 for a screen on another host)" },
-    { "www", MARIE_PARAM_STRING, "\"\"", "folder of the page; empty: the installed or source copy" },
-    { "key_file", MARIE_PARAM_STRING, "\"\"", "order key; empty: the page shows, requests are refused" },
-    { "pin", MARIE_PARAM_STRING, "\"\"", "PIN the page must give with each request; empty: a random one, printed" },
-    { "places", MARIE_PARAM_NODE, "[]", "the buttons: list of {name, x, y, theta}" },
-    { "stop_target", MARIE_PARAM_STRING, "behaviours", "component or group paused by the stop request" },
-    { "url_file", MARIE_PARAM_STRING, "\"\"", "write the page's URL to this file once serving" },
-    { NULL },
+    MARIE_PARAM_AT(face_params_t, http_port, INT, "8090", "HTTP and WebSocket port (0: any free port)"),
+    MARIE_PARAM_AT(face_params_t, bind, STRING, "127.0.0.1",
+                   "address to listen on (0.0.0.0 for a screen on another host)"),
+    MARIE_PARAM_AT(face_params_t, www, STRING, "\"\"", "folder of the page; empty: the installed or source copy"),
+    MARIE_PARAM_AT(face_params_t, key_file, STRING, "\"\"", "order key; empty: the page shows, requests are refused"),
+    MARIE_PARAM_AT(face_params_t, pin, STRING, "\"\"",
+                   "PIN the page must give with each request; empty: a random one, printed"),
+    MARIE_PARAM_AT(face_params_t, places, NODE, "[]", "the buttons: list of {name, x, y, theta}"),
+    MARIE_PARAM_AT(face_params_t, stop_target, STRING, "behaviours", "component or group paused by the stop request"),
+    MARIE_PARAM_AT(face_params_t, url_file, STRING, "\"\"", "write the page's URL to this file once serving"),
+    { 0 },
 };
 
 static void keep(char **slot, const vj_buf_t *b)
@@ -254,7 +270,7 @@ static int send_place(face_t *f, const place_t *pl)
 
 static int send_order(face_t *f, int op)
 {
-    char *targets[1] = { (char *)marie_param_str(f->c, "stop_target") };
+    char *targets[1] = { (char *)params_of(f->c)->stop_target };
     marie_am_order_t o = {
         .utime = marie_wall_us(), .sender = f->sender, .seq = next_seq(f), .host = "*", .op = (int8_t)op,
         .ntargets = 1, .targets = targets, .arg = "", .system_path = "", .system_text = "",
@@ -308,7 +324,7 @@ static void on_cmd(void *user, int client, bool hello, const char *text, size_t 
 
 static int parse_places(face_t *f)
 {
-    const marie_node_t *seq = marie_param_node(f->c, "places");
+    const marie_node_t *seq = params_of(f->c)->places;
     marie_errors_t errs = { 0 };
     static const char *const keys[] = { "name", "x", "y", "theta", NULL };
     f->nplaces = 0;
@@ -343,7 +359,7 @@ static int parse_places(face_t *f)
 
 static int find_www(face_t *f, char *out, size_t len)
 {
-    const char *p = marie_param_str(f->c, "www");
+    const char *p = params_of(f->c)->www;
     char exe[4096] = "";
     if (p && *p) {
         snprintf(out, len, "%s", p);
@@ -374,7 +390,7 @@ static int init(marie_component_t *c)
     f->c = c;
     if (parse_places(f) < 0)
         return -1;
-    const char *key = marie_param_str(c, "key_file");
+    const char *key = params_of(c)->key_file;
     if (key[0]) {
         char err[256], who[256];
         if (!(f->auth = marie_auth_load(key, err, sizeof err))) {
@@ -384,7 +400,7 @@ static int init(marie_component_t *c)
         marie_am_sender(who, sizeof who);
         snprintf(f->sender, sizeof f->sender, "%s/face", who);
     }
-    const char *pin = marie_param_str(c, "pin");
+    const char *pin = params_of(c)->pin;
     if (pin[0])
         snprintf(f->pin, sizeof f->pin, "%s", pin);
     else
@@ -400,7 +416,7 @@ static int init(marie_component_t *c)
         { "/face.js", "face.js", "text/javascript; charset=utf-8" },
         { "/face.css", "face.css", "text/css; charset=utf-8" },
     };
-    webserve_cfg_t wc = { .bind = marie_param_str(c, "bind"), .port = (int)marie_param_int(c, "http_port"),
+    webserve_cfg_t wc = { .bind = params_of(c)->bind, .port = (int)params_of(c)->http_port,
                           .www = www, .files = files, .nfiles = 4, .name = "face", .on_cmd = on_cmd, .user = f };
     char why[256];
     if (!(f->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
@@ -419,7 +435,7 @@ static int init(marie_component_t *c)
              webserve_port(f->web));
     printf("marie-face: %s, PIN %s%s\n", url, f->pin, f->auth ? "" : " (no key: requests refused)");
     fflush(stdout);
-    const char *uf = marie_param_str(c, "url_file");
+    const char *uf = params_of(c)->url_file;
     FILE *fp = uf[0] ? fopen(uf, "w") : NULL;
     if (fp) {
         fprintf(fp, "%s\n", url);
@@ -447,7 +463,8 @@ static void quit(marie_component_t *c)
 }
 
 static const marie_component_def_t def = {
-    .kind = "face", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+    .kind = "face", .ports = ports, .params = params, .params_size = sizeof(face_params_t),
+    .on_init = init, .on_quit = quit,
 };
 
 int main(int argc, char **argv)

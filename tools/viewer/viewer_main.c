@@ -49,22 +49,43 @@ const marie_type_t *const viewer_port_type[P_NIN] = {
     [P_TAGS] = &marie_type_tag_detections_t, [P_LANDMARKS] = &marie_type_landmarks_t,
 };
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *log;
+    int64_t http_port;
+    const char *bind;
+    const char *www;
+    const char *map;
+    double speed;
+    bool autoplay;
+    const char *key_file;
+    double goal_tolerance;
+    double laser_hz;
+    double pose_hz;
+    double particles_hz;
+    double map_period_s;
+    const char *url_file;
+} viewer_params_t;
+
+static const viewer_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 static const marie_param_spec_t params[] = {
-    {"log", MARIE_PARAM_STRING, "\"\"", "LCM log to play; empty: follow the live bus"},
-    {"http_port", MARIE_PARAM_INT, "8080", "HTTP and WebSocket port"},
-    {"bind", MARIE_PARAM_STRING, "127.0.0.1", "address to listen on (0.0.0.0 exposes the controls to the network)"},
-    {"www", MARIE_PARAM_STRING, "\"\"", "folder of the page; empty: the installed or source copy"},
-    {"map", MARIE_PARAM_STRING, "\"\"", "map.yaml shown when no map arrives on the map port"},
-    {"speed", MARIE_PARAM_DOUBLE, "1", "log playback speed"},
-    {"autoplay", MARIE_PARAM_BOOL, "true", "start playing a log at once"},
-    {"key_file", MARIE_PARAM_STRING, "\"\"", "order key; empty: controls disabled"},
-    {"goal_tolerance", MARIE_PARAM_DOUBLE, "0.3", "m, of goals set from the page"},
-    {"laser_hz", MARIE_PARAM_DOUBLE, "10", "most laser scans per second sent to the page"},
-    {"pose_hz", MARIE_PARAM_DOUBLE, "20", "most poses per second (each of estimate and truth)"},
-    {"particles_hz", MARIE_PARAM_DOUBLE, "2", "most particle clouds per second"},
-    {"map_period_s", MARIE_PARAM_DOUBLE, "30", "an unchanged map is sent again after this long"},
-    {"url_file", MARIE_PARAM_STRING, "\"\"", "write the page's URL to this file once serving"},
-    {0},
+    MARIE_PARAM_AT(viewer_params_t, log, STRING, "\"\"", "LCM log to play; empty: follow the live bus"),
+    MARIE_PARAM_AT(viewer_params_t, http_port, INT, "8080", "HTTP and WebSocket port"),
+    MARIE_PARAM_AT(viewer_params_t, bind, STRING, "127.0.0.1",
+                   "address to listen on (0.0.0.0 exposes the controls to the network)"),
+    MARIE_PARAM_AT(viewer_params_t, www, STRING, "\"\"", "folder of the page; empty: the installed or source copy"),
+    MARIE_PARAM_AT(viewer_params_t, map, STRING, "\"\"", "map.yaml shown when no map arrives on the map port"),
+    MARIE_PARAM_AT(viewer_params_t, speed, DOUBLE, "1", "log playback speed"),
+    MARIE_PARAM_AT(viewer_params_t, autoplay, BOOL, "true", "start playing a log at once"),
+    MARIE_PARAM_AT(viewer_params_t, key_file, STRING, "\"\"", "order key; empty: controls disabled"),
+    MARIE_PARAM_AT(viewer_params_t, goal_tolerance, DOUBLE, "0.3", "m, of goals set from the page"),
+    MARIE_PARAM_AT(viewer_params_t, laser_hz, DOUBLE, "10", "most laser scans per second sent to the page"),
+    MARIE_PARAM_AT(viewer_params_t, pose_hz, DOUBLE, "20", "most poses per second (each of estimate and truth)"),
+    MARIE_PARAM_AT(viewer_params_t, particles_hz, DOUBLE, "2", "most particle clouds per second"),
+    MARIE_PARAM_AT(viewer_params_t, map_period_s, DOUBLE, "30", "an unchanged map is sent again after this long"),
+    MARIE_PARAM_AT(viewer_params_t, url_file, STRING, "\"\"", "write the page's URL to this file once serving"),
+    { 0 },
 };
 
 void viewer_send(viewer_t *v, int id, const char *data, size_t len, bool droppable)
@@ -409,7 +430,7 @@ static void do_goal(viewer_t *v, int id, double x, double y, double th)
     marie_goal_request_t r = {
         .utime = marie_wall_us(), .sender = v->sender, .seq = v->last_seq,
         .goal = {.utime = marie_wall_us(), .id = 900000 + ++v->goals_sent, .name = "viewer", .pose = {x, y, th},
-                 .tolerance = marie_param_double(v->c, "goal_tolerance"), .priority = 0},
+                 .tolerance = params_of(v->c)->goal_tolerance, .priority = 0},
     };
     uint8_t mac[MARIE_AUTH_MAC_LEN];
     if (marie_auth_sign_goal_request(v->auth, &r, mac) < 0 || marie_port_publish(marie_port(v->c, "request"), &r) < 0) {
@@ -525,7 +546,7 @@ static int load_map_file(viewer_t *v, const char *path)
 
 static int find_www(viewer_t *v)
 {
-    const char *p = marie_param_str(v->c, "www");
+    const char *p = params_of(v->c)->www;
     char exe[PATH_MAX], cand[PATH_MAX + 64];
     if (p && *p) {
         snprintf(cand, sizeof cand, "%s/index.html", p);
@@ -563,22 +584,22 @@ static int init_viewer(marie_component_t *c)
     if (v->web)
         return 0;                       /* re-init after a stop: already serving */
     v->c = c;
-    v->speed = marie_param_double(c, "speed");
+    v->speed = params_of(c)->speed;
     if (!(v->speed > 0 && v->speed <= 1000)) {
         marie_component_fail_reason(c, "speed must be in (0, 1000]");
         return -1;
     }
     double hz[P_NIN] = {0};
-    hz[P_LASER] = marie_param_double(c, "laser_hz");
-    hz[P_POSE] = hz[P_TRUTH] = marie_param_double(c, "pose_hz");
-    hz[P_PARTICLES] = marie_param_double(c, "particles_hz");
-    double map_s = marie_param_double(c, "map_period_s");
+    hz[P_LASER] = params_of(c)->laser_hz;
+    hz[P_POSE] = hz[P_TRUTH] = params_of(c)->pose_hz;
+    hz[P_PARTICLES] = params_of(c)->particles_hz;
+    double map_s = params_of(c)->map_period_s;
     for (int i = 0; i < P_NIN; i++)
         v->min_gap_us[i] = hz[i] > 0 ? (int64_t)(1e6 / hz[i]) : 0;
     v->min_gap_us[P_MAP] = map_s > 0 ? (int64_t)(map_s * 1e6) : 0;
     if (find_www(v) < 0)
         return -1;
-    const char *key = marie_param_str(c, "key_file");
+    const char *key = params_of(c)->key_file;
     if (key && *key) {
         char err[256];
         if (!(v->auth = marie_auth_load(key, err, sizeof err))) {
@@ -589,16 +610,16 @@ static int init_viewer(marie_component_t *c)
         marie_am_sender(who, sizeof who);
         snprintf(v->sender, sizeof v->sender, "%s/viewer", who);
     }
-    const char *map = marie_param_str(c, "map");
+    const char *map = params_of(c)->map;
     if (map && *map && load_map_file(v, map) < 0)
         return -1;
-    const char *log = marie_param_str(c, "log");
+    const char *log = params_of(c)->log;
     v->live = !(log && *log);
     if (!v->live) {
         if (viewer_log_load(v, log) < 0)
             return -1;
         v->play_t = v->t0;
-        v->playing = marie_param_bool(c, "autoplay") && v->nrecs > 0;
+        v->playing = params_of(c)->autoplay && v->nrecs > 0;
         v->anchor_mono = marie_mono_us();
     } else {
         for (int i = 0; i < P_NIN; i++)
@@ -622,7 +643,7 @@ static int init_viewer(marie_component_t *c)
         {"/graph.js", "graph.js", "text/javascript; charset=utf-8"},
     };
     webserve_cfg_t wc = {
-        .bind = marie_param_str(c, "bind"), .port = (int)marie_param_int(c, "http_port"), .www = v->www,
+        .bind = params_of(c)->bind, .port = (int)params_of(c)->http_port, .www = v->www,
         .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v,
     };
     char why[256];
@@ -630,7 +651,7 @@ static int init_viewer(marie_component_t *c)
         marie_component_fail_reason(c, "%s", why);
         return -1;
     }
-    const char *host = strcmp(marie_param_str(c, "bind"), "0.0.0.0") == 0 ? "127.0.0.1" : marie_param_str(c, "bind");
+    const char *host = strcmp(params_of(c)->bind, "0.0.0.0") == 0 ? "127.0.0.1" : params_of(c)->bind;
     char url[256];
     snprintf(url, sizeof url, "http://%s:%d/", host, webserve_port(v->web));
     if (v->live)
@@ -638,7 +659,7 @@ static int init_viewer(marie_component_t *c)
     else
         printf("marie-view: playing %s at %s\n", log, url);
     fflush(stdout);
-    const char *uf = marie_param_str(c, "url_file");
+    const char *uf = params_of(c)->url_file;
     if (uf && *uf) {
         FILE *f = fopen(uf, "w");
         if (f) {
@@ -695,7 +716,8 @@ static void quit(marie_component_t *c)
 }
 
 static const marie_component_def_t def = {
-    .kind = "viewer", .ports = viewer_ports, .params = params, .on_init = init, .on_quit = quit,
+    .kind = "viewer", .ports = viewer_ports, .params = params, .params_size = sizeof(viewer_params_t),
+    .on_init = init, .on_quit = quit,
 };
 
 int main(int argc, char **argv)
