@@ -14,6 +14,29 @@
 
 #define MAX_MAILBOXES 64
 
+/* The parameters of the four kinds, declared once in their tables below (a kind binds the
+ * fields it has); read with params_of(). */
+typedef struct {
+    const char *channel;
+    const marie_node_t *channels;
+    int64_t compact_min_records;
+    int64_t depth;
+    const char *initial;
+    const char *input;
+    const marie_node_t *inputs;
+    const char *output;
+    const marie_node_t *outputs;
+    const char *select_channel;
+    const char *snapshot_channel;
+    int64_t snapshot_min_interval_ms;
+    const char *state_channel;
+    const char *state_file;
+    bool strict_log;
+    const char *type;
+} ca_params_t;
+
+static const ca_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     const marie_type_t *type;
@@ -129,7 +152,7 @@ static int common_init(marie_component_t *c, ca_proc_t **out, bool typed)
     ca_proc_t *p = marie_component_user(c);
     proc_free(p);
     p->c = c;
-    if (typed && param_type(p, marie_param_str(c, "type"), &p->type) < 0)
+    if (typed && param_type(p, params_of(c)->type, &p->type) < 0)
         return -1;
     if (!p->tick && !(p->tick = marie_component_every(c, 100, on_tick))) {
         marie_component_fail_reason(c, "cannot create the timer: %s", strerror(errno));
@@ -170,11 +193,11 @@ static int mailbox_init(marie_component_t *c)
     ca_proc_t *p;
     if (common_init(c, &p, true) < 0)
         return -1;
-    int64_t depth = marie_param_int(c, "depth");
-    const char *channel = marie_param_str(c, "channel");
+    int64_t depth = params_of(c)->depth;
+    const char *channel = params_of(c)->channel;
     if (*channel && add_mailbox(p, channel, p->type, depth) < 0)
         return -1;
-    const marie_node_t *list = marie_param_node(c, "channels");
+    const marie_node_t *list = params_of(c)->channels;
     marie_errors_t errs = {0};
     for (size_t i = 0; list && list->kind == MARIE_NODE_SEQ && i < list->n; i++) {
         const marie_node_t *it = list->items[i];
@@ -223,12 +246,12 @@ static int splitter_init(marie_component_t *c)
     if (common_init(c, &p, true) < 0)
         return -1;
     ca_sink_t s = sink_of(p);
-    const char *input = marie_param_str(c, "input");
+    const char *input = params_of(c)->input;
     if (!(p->sp = splitter_create(input, p->type, &s))) {
         marie_component_fail_reason(c, "input: %s", *input ? strerror(errno) : "missing");
         return -1;
     }
-    const marie_node_t *list = marie_param_node(c, "outputs");
+    const marie_node_t *list = params_of(c)->outputs;
     marie_errors_t errs = {0};
     if (!list || list->kind != MARIE_NODE_SEQ || list->n == 0) {
         marie_component_fail_reason(c, "outputs: expected a list of channels");
@@ -264,15 +287,15 @@ static int sharedmap_init(marie_component_t *c)
     ca_proc_t *p;
     if (common_init(c, &p, false) < 0)
         return -1;
-    if (!*marie_param_str(c, "channel")) {
+    if (!*params_of(c)->channel) {
         marie_component_fail_reason(c, "channel: must not be empty");
         return -1;
     }
-    char *path = state_path(p, marie_param_str(c, "state_file"), "sharedmap");
+    char *path = state_path(p, params_of(c)->state_file, "sharedmap");
     if (!path)
         return -1;
     ca_sink_t s = sink_of(p);
-    p->sm = sharedmap_open_flags(path, marie_param_bool(c, "strict_log") ? SHAREDMAP_STRICT : 0, &s);
+    p->sm = sharedmap_open_flags(path, params_of(c)->strict_log ? SHAREDMAP_STRICT : 0, &s);
     if (!p->sm) {
         marie_component_fail_reason(c, "state_file %s: %s", path,
                                     errno == EINVAL ? "not a SharedMap log"
@@ -288,13 +311,13 @@ static int sharedmap_init(marie_component_t *c)
                           st->tail_bytes_dropped ? " (torn unacknowledged tail cut off)" : "",
                           st->records_skipped || sharedmap_kept_aside(p->sm) ? " (damaged log recovered)" : "");
     free(path);
-    sharedmap_set_compaction(p->sm, marie_param_int(c, "compact_min_records"));
-    p->sm_channel = strdup(marie_param_str(c, "channel"));
-    const char *snap = marie_param_str(c, "snapshot_channel");
+    sharedmap_set_compaction(p->sm, params_of(c)->compact_min_records);
+    p->sm_channel = strdup(params_of(c)->channel);
+    const char *snap = params_of(c)->snapshot_channel;
     char def[512];
     snprintf(def, sizeof def, "%s.SNAPSHOT", p->sm_channel ? p->sm_channel : "");
     sharedmap_set_snapshot(p->sm, strcmp(snap, "none") == 0 ? NULL : *snap ? snap : def,
-                           marie_component_name(c), marie_param_int(c, "snapshot_min_interval_ms") * 1000);
+                           marie_component_name(c), params_of(c)->snapshot_min_interval_ms * 1000);
     return p->sm_channel ? 0 : -1;
 }
 
@@ -305,8 +328,8 @@ static int switch_init(marie_component_t *c)
     ca_proc_t *p;
     if (common_init(c, &p, true) < 0)
         return -1;
-    const char *output = marie_param_str(c, "output");
-    char *path = state_path(p, marie_param_str(c, "state_file"), "switch");
+    const char *output = params_of(c)->output;
+    char *path = state_path(p, params_of(c)->state_file, "switch");
     if (!path)
         return -1;
     ca_sink_t s = sink_of(p);
@@ -316,7 +339,7 @@ static int switch_init(marie_component_t *c)
         marie_component_fail_reason(c, "output: %s", *output ? strerror(errno) : "missing");
         return -1;
     }
-    const marie_node_t *in = marie_param_node(c, "inputs");
+    const marie_node_t *in = params_of(c)->inputs;
     marie_errors_t errs = {0};
     if (!in || in->kind != MARIE_NODE_MAP || in->n == 0) {
         marie_component_fail_reason(c, "inputs: expected a map of input names to channels");
@@ -333,7 +356,7 @@ static int switch_init(marie_component_t *c)
             return fail_errs(p, &errs);
         }
     }
-    const char *initial = marie_param_str(c, "initial");
+    const char *initial = params_of(c)->initial;
     if (*initial && strcmp(initial, "none") != 0) {
         int known = 0;
         for (size_t i = 0; i < ca_switch_ninputs(p->sw); i++)
@@ -345,10 +368,10 @@ static int switch_init(marie_component_t *c)
     }
     ca_switch_restore(p->sw, *initial ? initial : ca_switch_input_name(p->sw, 0));
     char buf[512];
-    const char *sel = marie_param_str(c, "select_channel");
+    const char *sel = params_of(c)->select_channel;
     snprintf(buf, sizeof buf, "%s.SELECT", output);
     p->sw_select = strdup(*sel ? sel : buf);
-    const char *st = marie_param_str(c, "state_channel");
+    const char *st = params_of(c)->state_channel;
     snprintf(buf, sizeof buf, "%s.STATE", output);
     ca_switch_set_state_channel(p->sw, *st ? st : buf, marie_component_name(c));
     return p->sw_select ? 0 : -1;
@@ -444,41 +467,43 @@ static void on_tick(marie_component_t *c, int64_t overruns)
 static const marie_port_spec_t no_ports[] = { { 0 } };
 
 static const marie_param_spec_t mailbox_params[] = {
-    { "type", MARIE_PARAM_STRING, "''", "LCM type carried (marie.laser_scan_t); '' takes any payload" },
-    { "channel", MARIE_PARAM_STRING, "''", "the buffered channel" },
-    { "channels", MARIE_PARAM_NODE, "[]", "more channels: names or {channel, type, depth}" },
-    { "depth", MARIE_PARAM_INT, "10", "messages kept per channel" },
+    MARIE_PARAM_AT(ca_params_t, type, STRING, "''", "LCM type carried (marie.laser_scan_t); '' takes any payload"),
+    MARIE_PARAM_AT(ca_params_t, channel, STRING, "''", "the buffered channel"),
+    MARIE_PARAM_AT(ca_params_t, channels, NODE, "[]", "more channels: names or {channel, type, depth}"),
+    MARIE_PARAM_AT(ca_params_t, depth, INT, "10", "messages kept per channel"),
     { 0 },
 };
 static const marie_param_spec_t splitter_params[] = {
-    { "type", MARIE_PARAM_STRING, "''", "LCM type carried; '' takes any payload" },
-    { "input", MARIE_PARAM_STRING, NULL, "input channel" },
-    { "outputs", MARIE_PARAM_NODE, NULL, "list of channels or {channel, max_hz}" },
+    MARIE_PARAM_AT(ca_params_t, type, STRING, "''", "LCM type carried; '' takes any payload"),
+    MARIE_PARAM_AT(ca_params_t, input, STRING, NULL, "input channel"),
+    MARIE_PARAM_AT(ca_params_t, outputs, NODE, NULL, "list of channels or {channel, max_hz}"),
     { 0 },
 };
 static const marie_param_spec_t sharedmap_params[] = {
-    { "channel", MARIE_PARAM_STRING, "SHAREDMAP", "request channel" },
-    { "snapshot_channel", MARIE_PARAM_STRING, "''", "snapshot channel; '' = CHANNEL.SNAPSHOT, 'none' = none" },
-    { "snapshot_min_interval_ms", MARIE_PARAM_INT, "20", "snapshots at most this often" },
-    { "state_file", MARIE_PARAM_STRING, "''", "log file; '' = STATE_DIR/NAME.sharedmap (docs/ca.md)" },
-    { "compact_min_records", MARIE_PARAM_INT, "1024", "compact when records > 2 x keys + this" },
-    { "strict_log", MARIE_PARAM_BOOL, "false", "refuse to start on a damaged log instead of recovering" },
+    MARIE_PARAM_AT(ca_params_t, channel, STRING, "SHAREDMAP", "request channel"),
+    MARIE_PARAM_AT(ca_params_t, snapshot_channel, STRING, "''",
+                   "snapshot channel; '' = CHANNEL.SNAPSHOT, 'none' = none"),
+    MARIE_PARAM_AT(ca_params_t, snapshot_min_interval_ms, INT, "20", "snapshots at most this often"),
+    MARIE_PARAM_AT(ca_params_t, state_file, STRING, "''", "log file; '' = STATE_DIR/NAME.sharedmap (docs/ca.md)"),
+    MARIE_PARAM_AT(ca_params_t, compact_min_records, INT, "1024", "compact when records > 2 x keys + this"),
+    MARIE_PARAM_AT(ca_params_t, strict_log, BOOL, "false", "refuse to start on a damaged log instead of recovering"),
     { 0 },
 };
 static const marie_param_spec_t switch_params[] = {
-    { "type", MARIE_PARAM_STRING, "''", "LCM type carried; '' takes any payload" },
-    { "output", MARIE_PARAM_STRING, NULL, "output channel" },
-    { "inputs", MARIE_PARAM_NODE, NULL, "map of input name to channel" },
-    { "initial", MARIE_PARAM_STRING, "''", "selected when nothing is persisted; '' = first input, 'none' = none" },
-    { "select_channel", MARIE_PARAM_STRING, "''", "selection requests; '' = OUTPUT.SELECT" },
-    { "state_channel", MARIE_PARAM_STRING, "''", "state replies; '' = OUTPUT.STATE" },
-    { "state_file", MARIE_PARAM_STRING, "''", "selection file; '' = STATE_DIR/NAME.switch (docs/ca.md)" },
+    MARIE_PARAM_AT(ca_params_t, type, STRING, "''", "LCM type carried; '' takes any payload"),
+    MARIE_PARAM_AT(ca_params_t, output, STRING, NULL, "output channel"),
+    MARIE_PARAM_AT(ca_params_t, inputs, NODE, NULL, "map of input name to channel"),
+    MARIE_PARAM_AT(ca_params_t, initial, STRING, "''",
+                   "selected when nothing is persisted; '' = first input, 'none' = none"),
+    MARIE_PARAM_AT(ca_params_t, select_channel, STRING, "''", "selection requests; '' = OUTPUT.SELECT"),
+    MARIE_PARAM_AT(ca_params_t, state_channel, STRING, "''", "state replies; '' = OUTPUT.STATE"),
+    MARIE_PARAM_AT(ca_params_t, state_file, STRING, "''", "selection file; '' = STATE_DIR/NAME.switch (docs/ca.md)"),
     { 0 },
 };
 
 #define CA_DEF(KIND, PARAMS, INIT) { \
-    .kind = KIND, .ports = no_ports, .params = PARAMS, .on_init = INIT, .on_start = attach, \
-    .on_stop = detach, .on_pause = detach, .on_resume = attach, .on_abort = on_abort, .on_quit = on_quit }
+    .kind = KIND, .ports = no_ports, .params = PARAMS, .params_size = sizeof(ca_params_t), .on_init = INIT, \
+    .on_start = attach, .on_stop = detach, .on_pause = detach, .on_resume = attach, .on_abort = on_abort, .on_quit = on_quit }
 
 static const marie_component_def_t defs[] = {
     CA_DEF("mailbox", mailbox_params, mailbox_init),
