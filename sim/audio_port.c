@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "sim/audio.h"
+#include "sim/sim_opts.h"
 
 struct sim_audio_port {
     marie_component_t *c;
@@ -21,20 +22,20 @@ int sim_audio_port_create(marie_component_t *c, const occmap_t *map, const doubl
                           uint64_t seed, int64_t start_utime, sim_audio_port_t **out)
 {
     *out = NULL;
-    const char *scene_text = marie_param_str(c, "audio");
+    const char *scene_text = sim_opts(c)->audio;
     if (!scene_text || !*scene_text)
         return 0;
     char why[256] = "";
     const char *mwhy = NULL;
     sim_audio_scene_t scene;
-    sim_audio_cfg_t cfg = { .rate = (int)marie_param_int(c, "audio_rate"),
-                            .block = (int)marie_param_int(c, "audio_block"), .seed = seed };
+    sim_audio_cfg_t cfg = { .rate = (int)sim_opts(c)->audio_rate,
+                            .block = (int)sim_opts(c)->audio_block, .seed = seed };
     memcpy(cfg.start_pose, start_pose, sizeof(cfg.start_pose));
     if (sim_audio_scene_parse(scene_text, &scene, why, sizeof(why))) {
         marie_component_fail_reason(c, "audio: %s", why);
         return -1;
     }
-    if (micarray_parse(marie_param_str(c, "mics"), &cfg.mics, &mwhy)) {
+    if (micarray_parse(sim_opts(c)->mics, &cfg.mics, &mwhy)) {
         marie_component_fail_reason(c, "mics: %s", mwhy);
         return -1;
     }

@@ -9,6 +9,7 @@
 
 #include "camera/vision_simcam.h"
 #include "core/config.h"
+#include "sim/sim_opts.h"
 
 struct sim_camera {
     vision_simcam_t *cam;
@@ -109,11 +110,11 @@ size_t sim_camera_tags(const sim_camera_t *c)
 int sim_camera_init(marie_component_t *c, const char *yaml, const occmap_t *map, double step, sim_camera_t **out)
 {
     *out = NULL;
-    if (!marie_param_bool(c, "camera"))
+    if (!sim_opts(c)->camera)
         return 0;
-    sim_camera_cfg_t cfg = { .hz = marie_param_double(c, "camera_hz"), .step = step,
-                             .seed = (uint32_t)marie_param_int(c, "seed") };
-    const char *size = marie_param_str(c, "camera_size");
+    sim_camera_cfg_t cfg = { .hz = sim_opts(c)->camera_hz, .step = step,
+                             .seed = (uint32_t)sim_opts(c)->seed };
+    const char *size = sim_opts(c)->camera_size;
     char tail;
     if (size[0] && sscanf(size, "%dx%d%c", &cfg.width, &cfg.height, &tail) != 2) {
         marie_component_fail_reason(c, "camera_size: expected WIDTHxHEIGHT (e.g. 320x240), got '%s'", size);

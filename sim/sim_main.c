@@ -11,6 +11,7 @@
 #include "sim/camera.h"
 #include "sim/audio_port.h"
 #include "sim/devices.h"
+#include "sim/sim_opts.h"
 #include "map/occmap.h"
 #include "sim/world.h"
 
@@ -61,59 +62,71 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "world", MARIE_PARAM_STRING, "office", "map.yaml path, or a world name in sim/worlds" },
-    { "mode", MARIE_PARAM_STRING, "channel", "channel: publish the drivers' channels; device: play the devices" },
-    { "speed", MARIE_PARAM_DOUBLE, "1.0", "sim seconds per wall second; 0 = as fast as possible" },
-    { "lockstep", MARIE_PARAM_DOUBLE, "0", "run at most this many sim s past the last motor command (0: off)" },
-    { "lockstep_timeout", MARIE_PARAM_DOUBLE, "1.0", "wall s to wait for a motor command in lockstep" },
-    { "lockstep_pose", MARIE_PARAM_DOUBLE, "0", "run at most this many sim s past the newest pose estimate (POSE; 0: off)" },
-    { "driver_lag", MARIE_PARAM_DOUBLE, "0.05", "device mode: sim s the devices may run ahead of their drivers (0: off)" },
-    { "driver_wait", MARIE_PARAM_DOUBLE, "1.0", "device mode: wall s to wait for a lagging driver before running on" },
-    { "seed", MARIE_PARAM_INT, "1", "noise seed: same seed and inputs, same run" },
-    { "step", MARIE_PARAM_DOUBLE, "0.005", "physics step, s" },
-    { "start_utime", MARIE_PARAM_INT, "0", "sim time at start, us" },
-    { "start_x", MARIE_PARAM_DOUBLE, "2.0", "start pose in the map frame, m" },
-    { "start_y", MARIE_PARAM_DOUBLE, "15.0", "m" },
-    { "start_theta", MARIE_PARAM_DOUBLE, "0.0", "rad" },
-    { "start", MARIE_PARAM_STRING, "given", "given: start_x/start_y exactly, refused if the robot would stand in or on "
-      "a wall or off the map; auto: the free spot nearest start_x/start_y with room for the robot" },
-    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the chassis (the system file's robot.radius)" },
-    { "wheel_radius", MARIE_PARAM_DOUBLE, "0.1", "m" },
-    { "track", MARIE_PARAM_DOUBLE, "0.4", "m between the wheels" },
-    { "ticks_per_rev", MARIE_PARAM_INT, "4096", "encoder ticks per wheel turn" },
-    { "accel", MARIE_PARAM_DOUBLE, "1.5", "drive ramp, m/s^2 at the rim" },
-    { "estop_decel", MARIE_PARAM_DOUBLE, "4.0", "quick stop on the e-stop, m/s^2 at the rim" },
-    { "max_wheel_speed", MARIE_PARAM_DOUBLE, "15.0", "rad/s" },
-    { "cmd_timeout", MARIE_PARAM_DOUBLE, "0.5", "sim s without a motor command before the drives stop" },
-    { "laser_beams", MARIE_PARAM_INT, "181", "181 or 361 over 180 degrees" },
-    { "laser_max", MARIE_PARAM_DOUBLE, "8.0", "m" },
-    { "laser_noise", MARIE_PARAM_DOUBLE, "0.01", "m, range noise std" },
-    { "laser_x", MARIE_PARAM_DOUBLE, "0.0", "m, laser forward of the wheel axis" },
-    { "laser_hz", MARIE_PARAM_DOUBLE, "10", "scan rate, sim Hz" },
-    { "gyro_noise", MARIE_PARAM_DOUBLE, "0.002", "rad/s std" },
-    { "gyro_bias", MARIE_PARAM_DOUBLE, "0.0005", "rad/s left in the published rate" },
-    { "encoders_hz", MARIE_PARAM_DOUBLE, "20", "wheel encoders, sim Hz (marie-drives' publish_hz)" },
-    { "gyro_hz", MARIE_PARAM_DOUBLE, "50", "gyro, sim Hz (marie-gyro's rate_hz)" },
-    { "estop_hz", MARIE_PARAM_DOUBLE, "2", "e-stop state besides every change (marie-gpio's publish_hz)" },
-    { "truth_hz", MARIE_PARAM_DOUBLE, "50", "ground truth, sim Hz" },
-    { "clock_hz", MARIE_PARAM_DOUBLE, "100", "clock messages, sim Hz" },
-    { "estop", MARIE_PARAM_BOOL, "false", "e-stop pressed at start" },
-    { "camera", MARIE_PARAM_BOOL, "false", "render the camera (the world file's camera: and tags:, docs/vision.md)" },
-    { "camera_hz", MARIE_PARAM_DOUBLE, "10", "camera frames, sim Hz" },
-    { "camera_size", MARIE_PARAM_STRING, "", "WIDTHxHEIGHT overriding the world file's (intrinsics scale)" },
+    MARIE_PARAM_AT(sim_opts_t, world, STRING, "office", "map.yaml path, or a world name in sim/worlds"),
+    MARIE_PARAM_AT(sim_opts_t, mode, STRING, "channel",
+                   "channel: publish the drivers' channels; device: play the devices"),
+    MARIE_PARAM_AT(sim_opts_t, speed, DOUBLE, "1.0", "sim seconds per wall second; 0 = as fast as possible"),
+    MARIE_PARAM_AT(sim_opts_t, lockstep, DOUBLE, "0",
+                   "run at most this many sim s past the last motor command (0: off)"),
+    MARIE_PARAM_AT(sim_opts_t, lockstep_timeout, DOUBLE, "1.0", "wall s to wait for a motor command in lockstep"),
+    MARIE_PARAM_AT(sim_opts_t, lockstep_pose, DOUBLE, "0",
+                   "run at most this many sim s past the newest pose estimate (POSE; 0: off)"),
+    MARIE_PARAM_AT(sim_opts_t, driver_lag, DOUBLE, "0.05",
+                   "device mode: sim s the devices may run ahead of their drivers (0: off)"),
+    MARIE_PARAM_AT(sim_opts_t, driver_wait, DOUBLE, "1.0",
+                   "device mode: wall s to wait for a lagging driver before running on"),
+    MARIE_PARAM_AT(sim_opts_t, seed, INT, "1", "noise seed: same seed and inputs, same run"),
+    MARIE_PARAM_AT(sim_opts_t, step, DOUBLE, "0.005", "physics step, s"),
+    MARIE_PARAM_AT(sim_opts_t, start_utime, INT, "0", "sim time at start, us"),
+    MARIE_PARAM_AT(sim_opts_t, start_x, DOUBLE, "2.0", "start pose in the map frame, m"),
+    MARIE_PARAM_AT(sim_opts_t, start_y, DOUBLE, "15.0", "m"),
+    MARIE_PARAM_AT(sim_opts_t, start_theta, DOUBLE, "0.0", "rad"),
+    MARIE_PARAM_AT(sim_opts_t, start, STRING, "given",
+                   "given: start_x/start_y exactly, refused if the robot would stand in or on " "a wall or off the map; auto: the free spot nearest start_x/start_y with room for the robot"),
+    MARIE_PARAM_AT(sim_opts_t, robot_radius, DOUBLE, "0.3",
+                   "m: circle around the chassis (the system file's robot.radius)"),
+    MARIE_PARAM_AT(sim_opts_t, wheel_radius, DOUBLE, "0.1", "m"),
+    MARIE_PARAM_AT(sim_opts_t, track, DOUBLE, "0.4", "m between the wheels"),
+    MARIE_PARAM_AT(sim_opts_t, ticks_per_rev, INT, "4096", "encoder ticks per wheel turn"),
+    MARIE_PARAM_AT(sim_opts_t, accel, DOUBLE, "1.5", "drive ramp, m/s^2 at the rim"),
+    MARIE_PARAM_AT(sim_opts_t, estop_decel, DOUBLE, "4.0", "quick stop on the e-stop, m/s^2 at the rim"),
+    MARIE_PARAM_AT(sim_opts_t, max_wheel_speed, DOUBLE, "15.0", "rad/s"),
+    MARIE_PARAM_AT(sim_opts_t, cmd_timeout, DOUBLE, "0.5", "sim s without a motor command before the drives stop"),
+    MARIE_PARAM_AT(sim_opts_t, laser_beams, INT, "181", "181 or 361 over 180 degrees"),
+    MARIE_PARAM_AT(sim_opts_t, laser_max, DOUBLE, "8.0", "m"),
+    MARIE_PARAM_AT(sim_opts_t, laser_noise, DOUBLE, "0.01", "m, range noise std"),
+    MARIE_PARAM_AT(sim_opts_t, laser_x, DOUBLE, "0.0", "m, laser forward of the wheel axis"),
+    MARIE_PARAM_AT(sim_opts_t, laser_hz, DOUBLE, "10", "scan rate, sim Hz"),
+    MARIE_PARAM_AT(sim_opts_t, gyro_noise, DOUBLE, "0.002", "rad/s std"),
+    MARIE_PARAM_AT(sim_opts_t, gyro_bias, DOUBLE, "0.0005", "rad/s left in the published rate"),
+    MARIE_PARAM_AT(sim_opts_t, encoders_hz, DOUBLE, "20", "wheel encoders, sim Hz (marie-drives' publish_hz)"),
+    MARIE_PARAM_AT(sim_opts_t, gyro_hz, DOUBLE, "50", "gyro, sim Hz (marie-gyro's rate_hz)"),
+    MARIE_PARAM_AT(sim_opts_t, estop_hz, DOUBLE, "2", "e-stop state besides every change (marie-gpio's publish_hz)"),
+    MARIE_PARAM_AT(sim_opts_t, truth_hz, DOUBLE, "50", "ground truth, sim Hz"),
+    MARIE_PARAM_AT(sim_opts_t, clock_hz, DOUBLE, "100", "clock messages, sim Hz"),
+    MARIE_PARAM_AT(sim_opts_t, estop, BOOL, "false", "e-stop pressed at start"),
+    MARIE_PARAM_AT(sim_opts_t, camera, BOOL, "false",
+                   "render the camera (the world file's camera: and tags:, docs/vision.md)"),
+    MARIE_PARAM_AT(sim_opts_t, camera_hz, DOUBLE, "10", "camera frames, sim Hz"),
+    MARIE_PARAM_AT(sim_opts_t, camera_size, STRING, "",
+                   "WIDTHxHEIGHT overriding the world file's (intrinsics scale)"),
     /* device mode */
-    { "can", MARIE_PARAM_STRING, "emu:${MARIE_RUN_DIR:-/tmp}/marie-sim-can", "device mode: CAN bus of the virtual drives and gyro" },
-    { "can_serve", MARIE_PARAM_BOOL, "true", "device mode: host the emulated bus (emu:PATH) here" },
-    { "left_node", MARIE_PARAM_INT, "1", "device mode: CANopen node of the left drive" },
-    { "right_node", MARIE_PARAM_INT, "2", "device mode: CANopen node of the right drive" },
-    { "gyro_node", MARIE_PARAM_INT, "32", "device mode: CANopen node of the gyro" },
-    { "vgyro_bias", MARIE_PARAM_DOUBLE, "0.01", "device mode: raw bias of the virtual gyro, rad/s" },
-    { "audio", MARIE_PARAM_STRING, "", "sound sources of the microphone array (docs/audio.md); empty: no array" },
-    { "mics", MARIE_PARAM_STRING, MICARRAY_DEFAULT, "microphone positions x,y,z;... in the robot frame, m" },
-    { "audio_rate", MARIE_PARAM_INT, "16000", "microphone sample rate, Hz" },
-    { "audio_block", MARIE_PARAM_INT, "256", "samples per channel in one audio message" },
-    { "laser_link", MARIE_PARAM_STRING, "${MARIE_RUN_DIR:-/tmp}/marie-sim-lms200", "device mode: symlink to the LMS200 pty" },
-    { NULL },
+    MARIE_PARAM_AT(sim_opts_t, can, STRING, "emu:${MARIE_RUN_DIR:-/tmp}/marie-sim-can",
+                   "device mode: CAN bus of the virtual drives and gyro"),
+    MARIE_PARAM_AT(sim_opts_t, can_serve, BOOL, "true", "device mode: host the emulated bus (emu:PATH) here"),
+    MARIE_PARAM_AT(sim_opts_t, left_node, INT, "1", "device mode: CANopen node of the left drive"),
+    MARIE_PARAM_AT(sim_opts_t, right_node, INT, "2", "device mode: CANopen node of the right drive"),
+    MARIE_PARAM_AT(sim_opts_t, gyro_node, INT, "32", "device mode: CANopen node of the gyro"),
+    MARIE_PARAM_AT(sim_opts_t, vgyro_bias, DOUBLE, "0.01", "device mode: raw bias of the virtual gyro, rad/s"),
+    MARIE_PARAM_AT(sim_opts_t, audio, STRING, "",
+                   "sound sources of the microphone array (docs/audio.md); empty: no array"),
+    MARIE_PARAM_AT(sim_opts_t, mics, STRING, MICARRAY_DEFAULT,
+                   "microphone positions x,y,z;... in the robot frame, m"),
+    MARIE_PARAM_AT(sim_opts_t, audio_rate, INT, "16000", "microphone sample rate, Hz"),
+    MARIE_PARAM_AT(sim_opts_t, audio_block, INT, "256", "samples per channel in one audio message"),
+    MARIE_PARAM_AT(sim_opts_t, laser_link, STRING, "${MARIE_RUN_DIR:-/tmp}/marie-sim-lms200",
+                   "device mode: symlink to the LMS200 pty"),
+    { 0 },
 };
 
 static int resolve_world(const char *name, char *out, size_t len)
@@ -404,7 +417,7 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
  * wall is thrown out of it, one placed off the map drives in nothing. */
 static int place_robot(marie_component_t *c, const occmap_t *map, sim_params_t *p)
 {
-    const char *how = marie_param_str(c, "start");
+    const char *how = sim_opts(c)->start;
     double lx, ly;
     sim_world_footprint(p, &lx, &ly);
     marie_info("robot: chassis %.2f x %.2f m (robot_radius %.2f)", lx, ly, p->robot_radius);
@@ -458,14 +471,14 @@ static int on_init(marie_component_t *c)
     /* Init again after a failure: start from nothing. */
     release(s);
     s->last_touch = -1;
-    const char *mode = marie_param_str(c, "mode");
-    bool device = strcmp(mode, "device") == 0;
-    if (!device && strcmp(mode, "channel") != 0) {
-        marie_component_fail_reason(c, "mode: expected channel or device, got '%s'", mode);
+    const sim_opts_t *o = sim_opts(c);
+    bool device = strcmp(o->mode, "device") == 0;
+    if (!device && strcmp(o->mode, "channel") != 0) {
+        marie_component_fail_reason(c, "mode: expected channel or device, got '%s'", o->mode);
         return -1;
     }
     char path[4096];
-    resolve_world(marie_param_str(c, "world"), path, sizeof(path));
+    resolve_world(o->world, path, sizeof(path));
     marie_errors_t errs = { 0 };
     occmap_t *map = occmap_load(path, &errs);
     if (!map) {
@@ -476,26 +489,26 @@ static int on_init(marie_component_t *c)
     }
     sim_params_t p;
     sim_params_default(&p);
-    p.step = marie_param_double(c, "step");
-    p.seed = (uint64_t)marie_param_int(c, "seed");
-    p.start_x = marie_param_double(c, "start_x");
-    p.start_y = marie_param_double(c, "start_y");
-    p.start_theta = marie_param_double(c, "start_theta");
-    p.robot_radius = marie_param_double(c, "robot_radius");
+    p.step = o->step;
+    p.seed = (uint64_t)o->seed;
+    p.start_x = o->start_x;
+    p.start_y = o->start_y;
+    p.start_theta = o->start_theta;
+    p.robot_radius = o->robot_radius;
     if (place_robot(c, map, &p) < 0)
         goto fail;
-    p.wheel_radius = marie_param_double(c, "wheel_radius");
-    p.track = marie_param_double(c, "track");
-    p.ticks_per_rev = (int32_t)marie_param_int(c, "ticks_per_rev");
-    p.accel = marie_param_double(c, "accel");
-    p.estop_decel = marie_param_double(c, "estop_decel");
-    p.max_wheel_speed = marie_param_double(c, "max_wheel_speed");
-    p.laser_beams = (int)marie_param_int(c, "laser_beams");
-    p.laser_max = marie_param_double(c, "laser_max");
-    p.laser_noise = marie_param_double(c, "laser_noise");
-    p.laser_x = marie_param_double(c, "laser_x");
-    p.gyro_noise = marie_param_double(c, "gyro_noise");
-    p.gyro_bias = marie_param_double(c, "gyro_bias");
+    p.wheel_radius = o->wheel_radius;
+    p.track = o->track;
+    p.ticks_per_rev = (int32_t)o->ticks_per_rev;
+    p.accel = o->accel;
+    p.estop_decel = o->estop_decel;
+    p.max_wheel_speed = o->max_wheel_speed;
+    p.laser_beams = (int)o->laser_beams;
+    p.laser_max = o->laser_max;
+    p.laser_noise = o->laser_noise;
+    p.laser_x = o->laser_x;
+    p.gyro_noise = o->gyro_noise;
+    p.gyro_bias = o->gyro_bias;
     if (device) {
         /* The virtual LMS200 resamples 361 beams to the resolution its driver asks for, and
          * the virtual drives ramp the velocity themselves. */
@@ -510,13 +523,13 @@ static int on_init(marie_component_t *c)
         marie_component_fail_reason(c, "step: expected 0 < step <= 0.02 s");
         goto fail;
     }
-    s->speed = marie_param_double(c, "speed");
-    s->lockstep = marie_param_double(c, "lockstep");
-    s->lockstep_timeout = marie_param_double(c, "lockstep_timeout");
-    s->lockstep_pose = marie_param_double(c, "lockstep_pose");
-    s->cmd_timeout = marie_param_double(c, "cmd_timeout");
-    s->start_utime = marie_param_int(c, "start_utime");
-    s->estop = marie_param_bool(c, "estop");
+    s->speed = o->speed;
+    s->lockstep = o->lockstep;
+    s->lockstep_timeout = o->lockstep_timeout;
+    s->lockstep_pose = o->lockstep_pose;
+    s->cmd_timeout = o->cmd_timeout;
+    s->start_utime = o->start_utime;
+    s->estop = o->estop;
     if (!(s->speed >= 0) || !isfinite(s->speed)) {
         marie_component_fail_reason(c, "speed: expected 0 (as fast as possible) or a positive factor");
         goto fail;
@@ -544,13 +557,13 @@ static int on_init(marie_component_t *c)
     map = NULL;
     if (device) {
         sim_devices_cfg_t dc = {
-            .can_url = marie_param_str(c, "can"), .can_serve = marie_param_bool(c, "can_serve"),
-            .left_node = (int)marie_param_int(c, "left_node"),
-            .right_node = (int)marie_param_int(c, "right_node"),
-            .gyro_node = (int)marie_param_int(c, "gyro_node"),
-            .gyro_bias = marie_param_double(c, "vgyro_bias"), .gyro_noise = p.gyro_noise,
-            .laser_link = marie_param_str(c, "laser_link"), .laser_hz = marie_param_double(c, "laser_hz"),
-            .driver_lag = marie_param_double(c, "driver_lag"), .driver_wait = marie_param_double(c, "driver_wait"),
+            .can_url = o->can, .can_serve = o->can_serve,
+            .left_node = (int)o->left_node,
+            .right_node = (int)o->right_node,
+            .gyro_node = (int)o->gyro_node,
+            .gyro_bias = o->vgyro_bias, .gyro_noise = p.gyro_noise,
+            .laser_link = o->laser_link, .laser_hz = o->laser_hz,
+            .driver_lag = o->driver_lag, .driver_wait = o->driver_wait,
         };
         char why[512];
         s->devices = sim_devices_create(&dc, s->world, marie_component_loop(c), sim_now(s), why, sizeof(why));
@@ -658,7 +671,7 @@ static void on_quit(marie_component_t *c)
 static const marie_component_def_t def = {
     .kind = "sim",
     .ports = ports,
-    .params = params,
+    .params = params, .params_size = sizeof(sim_opts_t),
     .on_init = on_init,
     .on_start = on_start,
     .on_stop = on_stop,
