@@ -79,7 +79,7 @@ static void on_log_corrupt(void *user, uint64_t offset, const char *reason)
 {
     viewer_t *v = user;
     v->corrupt++;
-    marie_warn_ratelimited(5, "viewer: %s: corrupt record at byte %llu: %s", marie_param_str(v->c, "log"),
+    marie_warn_ratelimited(5, "viewer: %s: corrupt record at byte %llu: %s", viewer_params(v->c)->log,
                            (unsigned long long)offset, reason);
     if (v->ncorrupt_listed < 20) {
         vj_printf(&v->corrupt_list, "%s{\"off\":%llu,\"reason\":", v->ncorrupt_listed ? "," : "",
@@ -215,7 +215,7 @@ static void build_summary(viewer_t *v)
         }
     }
     vj_lit(&b, "{\"type\":\"summary\",\"file\":");
-    vj_str(&b, marie_param_str(v->c, "log"));
+    vj_str(&b, viewer_params(v->c)->log);
     vj_printf(&b, ",\"t0\":%lld,\"t1\":%lld,\"records\":%zu,\"bytes\":%zu,\"corrupt\":%lld,\"bad_payloads\":%lld",
               (long long)v->t0, (long long)v->t1, v->nrecs, v->file_len, (long long)v->corrupt,
               (long long)v->bad_payloads);

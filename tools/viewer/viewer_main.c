@@ -49,26 +49,6 @@ const marie_type_t *const viewer_port_type[P_NIN] = {
     [P_TAGS] = &marie_type_tag_detections_t, [P_LANDMARKS] = &marie_type_landmarks_t,
 };
 
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *log;
-    int64_t http_port;
-    const char *bind;
-    const char *www;
-    const char *map;
-    double speed;
-    bool autoplay;
-    const char *key_file;
-    double goal_tolerance;
-    double laser_hz;
-    double pose_hz;
-    double particles_hz;
-    double map_period_s;
-    const char *url_file;
-} viewer_params_t;
-
-static const viewer_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
-
 static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(viewer_params_t, log, STRING, "\"\"", "LCM log to play; empty: follow the live bus"),
     MARIE_PARAM_AT(viewer_params_t, http_port, INT, "8080", "HTTP and WebSocket port"),
@@ -430,7 +410,7 @@ static void do_goal(viewer_t *v, int id, double x, double y, double th)
     marie_goal_request_t r = {
         .utime = marie_wall_us(), .sender = v->sender, .seq = v->last_seq,
         .goal = {.utime = marie_wall_us(), .id = 900000 + ++v->goals_sent, .name = "viewer", .pose = {x, y, th},
-                 .tolerance = params_of(v->c)->goal_tolerance, .priority = 0},
+                 .tolerance = viewer_params(v->c)->goal_tolerance, .priority = 0},
     };
     uint8_t mac[MARIE_AUTH_MAC_LEN];
     if (marie_auth_sign_goal_request(v->auth, &r, mac) < 0 || marie_port_publish(marie_port(v->c, "request"), &r) < 0) {
@@ -546,7 +526,7 @@ static int load_map_file(viewer_t *v, const char *path)
 
 static int find_www(viewer_t *v)
 {
-    const char *p = params_of(v->c)->www;
+    const char *p = viewer_params(v->c)->www;
     char exe[PATH_MAX], cand[PATH_MAX + 64];
     if (p && *p) {
         snprintf(cand, sizeof cand, "%s/index.html", p);
@@ -584,22 +564,22 @@ static int init_viewer(marie_component_t *c)
     if (v->web)
         return 0;                       /* re-init after a stop: already serving */
     v->c = c;
-    v->speed = params_of(c)->speed;
+    v->speed = viewer_params(c)->speed;
     if (!(v->speed > 0 && v->speed <= 1000)) {
         marie_component_fail_reason(c, "speed must be in (0, 1000]");
         return -1;
     }
     double hz[P_NIN] = {0};
-    hz[P_LASER] = params_of(c)->laser_hz;
-    hz[P_POSE] = hz[P_TRUTH] = params_of(c)->pose_hz;
-    hz[P_PARTICLES] = params_of(c)->particles_hz;
-    double map_s = params_of(c)->map_period_s;
+    hz[P_LASER] = viewer_params(c)->laser_hz;
+    hz[P_POSE] = hz[P_TRUTH] = viewer_params(c)->pose_hz;
+    hz[P_PARTICLES] = viewer_params(c)->particles_hz;
+    double map_s = viewer_params(c)->map_period_s;
     for (int i = 0; i < P_NIN; i++)
         v->min_gap_us[i] = hz[i] > 0 ? (int64_t)(1e6 / hz[i]) : 0;
     v->min_gap_us[P_MAP] = map_s > 0 ? (int64_t)(map_s * 1e6) : 0;
     if (find_www(v) < 0)
         return -1;
-    const char *key = params_of(c)->key_file;
+    const char *key = viewer_params(c)->key_file;
     if (key && *key) {
         char err[256];
         if (!(v->auth = marie_auth_load(key, err, sizeof err))) {
@@ -610,16 +590,16 @@ static int init_viewer(marie_component_t *c)
         marie_am_sender(who, sizeof who);
         snprintf(v->sender, sizeof v->sender, "%s/viewer", who);
     }
-    const char *map = params_of(c)->map;
+    const char *map = viewer_params(c)->map;
     if (map && *map && load_map_file(v, map) < 0)
         return -1;
-    const char *log = params_of(c)->log;
+    const char *log = viewer_params(c)->log;
     v->live = !(log && *log);
     if (!v->live) {
         if (viewer_log_load(v, log) < 0)
             return -1;
         v->play_t = v->t0;
-        v->playing = params_of(c)->autoplay && v->nrecs > 0;
+        v->playing = viewer_params(c)->autoplay && v->nrecs > 0;
         v->anchor_mono = marie_mono_us();
     } else {
         for (int i = 0; i < P_NIN; i++)
@@ -643,7 +623,7 @@ static int init_viewer(marie_component_t *c)
         {"/graph.js", "graph.js", "text/javascript; charset=utf-8"},
     };
     webserve_cfg_t wc = {
-        .bind = params_of(c)->bind, .port = (int)params_of(c)->http_port, .www = v->www,
+        .bind = viewer_params(c)->bind, .port = (int)viewer_params(c)->http_port, .www = v->www,
         .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v,
     };
     char why[256];
@@ -651,7 +631,7 @@ static int init_viewer(marie_component_t *c)
         marie_component_fail_reason(c, "%s", why);
         return -1;
     }
-    const char *host = strcmp(params_of(c)->bind, "0.0.0.0") == 0 ? "127.0.0.1" : params_of(c)->bind;
+    const char *host = strcmp(viewer_params(c)->bind, "0.0.0.0") == 0 ? "127.0.0.1" : viewer_params(c)->bind;
     char url[256];
     snprintf(url, sizeof url, "http://%s:%d/", host, webserve_port(v->web));
     if (v->live)
@@ -659,7 +639,7 @@ static int init_viewer(marie_component_t *c)
     else
         printf("marie-view: playing %s at %s\n", log, url);
     fflush(stdout);
-    const char *uf = params_of(c)->url_file;
+    const char *uf = viewer_params(c)->url_file;
     if (uf && *uf) {
         FILE *f = fopen(uf, "w");
         if (f) {
