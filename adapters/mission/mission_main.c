@@ -14,6 +14,25 @@
 #include "core/component.h"
 #include "core/typeinfo.h"
 
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const marie_node_t *goals;
+    const marie_node_t *signs;
+    const char *key_file;
+    double tolerance;
+    double rate_hz;
+    double republish_s;
+    double stale_pose_s;
+    bool sharedmap;
+    const char *sharedmap_channel;
+    const char *state_key;
+    int64_t sharedmap_timeout_ms;
+    double unreachable_s;
+    double resume_max_age_s;
+} mission_params_t;
+
+static const mission_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 typedef struct {
     marie_component_t *c;
     mission_t m;
@@ -246,7 +265,7 @@ static void on_request(marie_component_t *c, marie_port_t *p, const void *msg, c
     }
     const marie_goal_t *g = &r->goal;
     mission_goal_t mg = { .id = g->id, .x = g->pose.x, .y = g->pose.y, .theta = g->pose.theta,
-                          .tolerance = g->tolerance > 0 ? g->tolerance : marie_param_double(c, "tolerance"),
+                          .tolerance = g->tolerance > 0 ? g->tolerance : params_of(c)->tolerance,
                           .priority = g->priority };
     snprintf(mg.name, sizeof mg.name, "%s", g->name ? g->name : "request");
     if (!isfinite(mg.x) || !isfinite(mg.y) || !isfinite(mg.theta) || mission_request_insert(&s->m, &mg) < 0) {
@@ -295,15 +314,15 @@ static int init(marie_component_t *c)
     s->restore_tries = 0;
     s->have_pose = false;
     marie_errors_t errs = { 0 };
-    int ngoals = mission_parse(&s->m, marie_param_node(c, "goals"), marie_param_double(c, "tolerance"), &errs);
-    int nsigns = ngoals < 0 ? -1 : mission_signs_parse(&s->signs, &s->m, marie_param_node(c, "signs"),
-                                                       marie_param_double(c, "tolerance"), &errs);
+    int ngoals = mission_parse(&s->m, params_of(c)->goals, params_of(c)->tolerance, &errs);
+    int nsigns = ngoals < 0 ? -1 : mission_signs_parse(&s->signs, &s->m, params_of(c)->signs,
+                                                       params_of(c)->tolerance, &errs);
     if (ngoals < 0 || nsigns < 0 || ngoals + nsigns == 0) {
         marie_component_fail_reason(c, "goals: %s", errs.n ? errs.msgs[0] : "no goals");
         marie_errors_clear(&errs);
         return -1;
     }
-    const char *key = marie_param_str(c, "key_file");
+    const char *key = params_of(c)->key_file;
     if (key[0]) {
         char err[256];
         s->auth = marie_auth_load(key, err, sizeof err);
@@ -313,19 +332,19 @@ static int init(marie_component_t *c)
             return -1;
         }
     }
-    s->republish_s = marie_param_double(c, "republish_s");
-    s->stale_pose_s = marie_param_double(c, "stale_pose_s");
-    s->resume_max_age_s = marie_param_double(c, "resume_max_age_s");
-    s->unreachable_s = marie_param_double(c, "unreachable_s");
+    s->republish_s = params_of(c)->republish_s;
+    s->stale_pose_s = params_of(c)->stale_pose_s;
+    s->resume_max_age_s = params_of(c)->resume_max_age_s;
+    s->unreachable_s = params_of(c)->unreachable_s;
     s->failing_goal = -1;
-    s->sm_timeout_ms = (int)marie_param_int(c, "sharedmap_timeout_ms");
-    const char *skey = marie_param_str(c, "state_key");
+    s->sm_timeout_ms = (int)params_of(c)->sharedmap_timeout_ms;
+    const char *skey = params_of(c)->state_key;
     if (skey[0])
         snprintf(s->key, sizeof(s->key), "%s", skey);
     else
         snprintf(s->key, sizeof(s->key), "mission/%s", marie_component_name(c));
-    if (marie_param_bool(c, "sharedmap")) {
-        s->sm = sharedmap_client_create(marie_component_lcm(c), marie_param_str(c, "sharedmap_channel"),
+    if (params_of(c)->sharedmap) {
+        s->sm = sharedmap_client_create(marie_component_lcm(c), params_of(c)->sharedmap_channel,
                                         marie_component_name(c));
         if (!s->sm) {
             marie_component_fail_reason(c, "cannot create the SharedMap client: %s", strerror(errno));
@@ -338,7 +357,7 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot subscribe to the pose and path");
         return -1;
     }
-    double hz = marie_param_double(c, "rate_hz");
+    double hz = params_of(c)->rate_hz;
     if (!(hz > 0 && hz <= 100)) {
         marie_component_fail_reason(c, "rate_hz must be in (0, 100]");
         return -1;
@@ -359,25 +378,29 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "goals", MARIE_PARAM_NODE, NULL, "list of {name, x, y, theta, priority, deadline (s after start), tolerance, id}" },
-    { "signs", MARIE_PARAM_NODE, "[]", "goals found by reading signs: list of {message, search: [[x, y], ...], approach, "
-      "name, priority, deadline, tolerance, id} (docs/vision.md)" },
-    { "key_file", MARIE_PARAM_STRING, "\"\"", "order key checking goal requests from people (empty: all refused)" },
-    { "tolerance", MARIE_PARAM_DOUBLE, "0.3", "m: default distance at which a goal counts as reached" },
-    { "rate_hz", MARIE_PARAM_DOUBLE, "5", "how often progress is checked" },
-    { "republish_s", MARIE_PARAM_DOUBLE, "1.0", "s between repeats of the current goal" },
-    { "stale_pose_s", MARIE_PARAM_DOUBLE, "2.0", "s: an older pose reaches nothing (0: no limit)" },
-    { "sharedmap", MARIE_PARAM_BOOL, "true", "keep progress in the SharedMap" },
-    { "sharedmap_channel", MARIE_PARAM_STRING, "SHAREDMAP", "the SharedMap's request channel" },
-    { "state_key", MARIE_PARAM_STRING, "\"\"", "SharedMap key (default mission/<component name>)" },
-    { "sharedmap_timeout_ms", MARIE_PARAM_INT, "300", "how long to wait for the SharedMap" },
-    { "unreachable_s", MARIE_PARAM_DOUBLE, "30", "s of failed plans before the current goal is given up (0: never)" },
-    { "resume_max_age_s", MARIE_PARAM_DOUBLE, "300", "older saved progress starts a new mission (0: any age)" },
+    MARIE_PARAM_AT(mission_params_t, goals, NODE, NULL,
+                   "list of {name, x, y, theta, priority, deadline (s after start), tolerance, id}"),
+    MARIE_PARAM_AT(mission_params_t, signs, NODE, "[]",
+                   "goals found by reading signs: list of {message, search: [[x, y], ...], approach, " "name, priority, deadline, tolerance, id} (docs/vision.md)"),
+    MARIE_PARAM_AT(mission_params_t, key_file, STRING, "\"\"",
+                   "order key checking goal requests from people (empty: all refused)"),
+    MARIE_PARAM_AT(mission_params_t, tolerance, DOUBLE, "0.3", "m: default distance at which a goal counts as reached"),
+    MARIE_PARAM_AT(mission_params_t, rate_hz, DOUBLE, "5", "how often progress is checked"),
+    MARIE_PARAM_AT(mission_params_t, republish_s, DOUBLE, "1.0", "s between repeats of the current goal"),
+    MARIE_PARAM_AT(mission_params_t, stale_pose_s, DOUBLE, "2.0", "s: an older pose reaches nothing (0: no limit)"),
+    MARIE_PARAM_AT(mission_params_t, sharedmap, BOOL, "true", "keep progress in the SharedMap"),
+    MARIE_PARAM_AT(mission_params_t, sharedmap_channel, STRING, "SHAREDMAP", "the SharedMap's request channel"),
+    MARIE_PARAM_AT(mission_params_t, state_key, STRING, "\"\"", "SharedMap key (default mission/<component name>)"),
+    MARIE_PARAM_AT(mission_params_t, sharedmap_timeout_ms, INT, "300", "how long to wait for the SharedMap"),
+    MARIE_PARAM_AT(mission_params_t, unreachable_s, DOUBLE, "30",
+                   "s of failed plans before the current goal is given up (0: never)"),
+    MARIE_PARAM_AT(mission_params_t, resume_max_age_s, DOUBLE, "300",
+                   "older saved progress starts a new mission (0: any age)"),
     { 0 },
 };
 
 static const marie_component_def_t def = {
-    .kind = "mission", .ports = ports, .params = params, .on_init = init, .on_quit = quit,
+    .kind = "mission", .ports = ports, .params = params, .params_size = sizeof(mission_params_t), .on_init = init, .on_quit = quit,
 };
 
 int main(int argc, char **argv)
