@@ -10,6 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/base64.h"
+
 #define XB_MAX_STRUCT_DEPTH 64
 #define XB_MAX_ELEMENTS (1L << 26)
 
@@ -123,14 +125,14 @@ static int encode_value(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, i
         if (enc && strcmp(enc, "base64") != 0)
             return enc_fail(e, "bad-value", n, NULL, "unknown encoding (only base64)");
         if (enc) {
-            long m = xb_base64_length(s, len);
+            long m = marie_base64_decoded_len(s, len);
             if (m < 0)
                 return enc_fail(e, "bad-value", n, NULL, "bad base64");
             if (m >= INT32_MAX || put_be(e, (uint64_t)(m + 1), 4) < 0 ||
                 xb_buf_reserve(e->out, (size_t)m + 1) < 0)
                 return too_large(e);
             uint8_t *o = (uint8_t *)e->out->data + e->out->len;
-            xb_base64_decode(s, len, o, (size_t)m);
+            marie_base64_decode(s, len, o, (size_t)m);
             if (memchr(o, 0, (size_t)m))
                 return enc_fail(e, "bad-value", n, NULL, "string contains NUL");
             o[m] = 0;
@@ -170,7 +172,7 @@ static long array_count(enc_t *e, const marie_tfield_t *f, const xb_node_t *n)
         const char *enc = xb_node_attr(n, "encoding");
         if (enc && strcmp(enc, "base64") != 0)
             return enc_fail(e, "bad-value", n, NULL, "unknown encoding (only base64)");
-        long m = xb_base64_length(n->text, n->text_len);
+        long m = marie_base64_decoded_len(n->text, n->text_len);
         if (m < 0)
             return enc_fail(e, "bad-value", n, NULL, "bad base64");
         return m;
@@ -196,7 +198,7 @@ static int encode_array(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, l
             return too_large(e);
         uint8_t *o = (uint8_t *)e->out->data + e->out->len;
         if (n)
-            xb_base64_decode(n->text, n->text_len, o, (size_t)count);
+            marie_base64_decode(n->text, n->text_len, o, (size_t)count);
         else
             memset(o, 0, (size_t)count);
         e->out->len += (size_t)count;

@@ -49,12 +49,8 @@ int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v);
 /* Shortest text that reads back to the same float/double. buf >= 32 bytes. */
 void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size);
 
-/* RFC 4648 base64. decode returns the byte count or -1. */
+/* The base64 text of bytes (core/base64.h) appended to b. 0 or -1. */
 int xb_base64_encode(xb_buf_t *b, const uint8_t *data, size_t len);
-long xb_base64_decode(const char *s, size_t len, uint8_t *out, size_t outcap);
-size_t xb_base64_decoded_max(size_t len);
-/* Exact decoded length of a (whitespace-tolerant) base64 text, or -1 if malformed. */
-long xb_base64_length(const char *s, size_t len);
 
 /* XML whitespace. */
 static inline int xb_is_ws(char c)

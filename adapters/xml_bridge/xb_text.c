@@ -10,6 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/base64.h"
+
 /* ---- buffers ---- */
 
 void xb_buf_init(xb_buf_t *b, size_t max)
@@ -106,85 +108,13 @@ int xb_buf_escape(xb_buf_t *b, const char *s, size_t len)
 
 /* ---- base64 ---- */
 
-static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-
 int xb_base64_encode(xb_buf_t *b, const uint8_t *d, size_t len)
 {
-    if (xb_buf_reserve(b, (len + 2) / 3 * 4) < 0)
+    if (xb_buf_reserve(b, marie_base64_len(len)) < 0)
         return -1;
-    char *o = b->data + b->len;
-    size_t i = 0;
-    for (; i + 2 < len; i += 3) {
-        uint32_t v = (uint32_t)d[i] << 16 | (uint32_t)d[i + 1] << 8 | d[i + 2];
-        *o++ = b64[v >> 18];
-        *o++ = b64[(v >> 12) & 63];
-        *o++ = b64[(v >> 6) & 63];
-        *o++ = b64[v & 63];
-    }
-    if (i < len) {
-        uint32_t v = (uint32_t)d[i] << 16 | (i + 1 < len ? (uint32_t)d[i + 1] << 8 : 0);
-        *o++ = b64[v >> 18];
-        *o++ = b64[(v >> 12) & 63];
-        *o++ = i + 1 < len ? b64[(v >> 6) & 63] : '=';
-        *o++ = '=';
-    }
-    b->len = (size_t)(o - b->data);
+    marie_base64_encode(b->data + b->len, d, len);
+    b->len += marie_base64_len(len);
     return 0;
-}
-
-static int b64_value(char c)
-{
-    if (c >= 'A' && c <= 'Z') return c - 'A';
-    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-    if (c >= '0' && c <= '9') return c - '0' + 52;
-    if (c == '+') return 62;
-    if (c == '/') return 63;
-    return -1;
-}
-
-size_t xb_base64_decoded_max(size_t len)
-{
-    return len / 4 * 3 + 3;
-}
-
-long xb_base64_length(const char *s, size_t len)
-{
-    size_t n = 0, pad = 0;
-    for (size_t i = 0; i < len; i++) {
-        if (xb_is_ws(s[i]))
-            continue;
-        if (s[i] == '=')
-            pad++;
-        else if (pad || b64_value(s[i]) < 0)
-            return -1;
-        n++;
-    }
-    if (n % 4 || pad > 2)
-        return -1;
-    return (long)(n / 4 * 3 - pad);
-}
-
-long xb_base64_decode(const char *s, size_t len, uint8_t *out, size_t outcap)
-{
-    long total = xb_base64_length(s, len);
-    if (total < 0 || (size_t)total > outcap)
-        return -1;
-    uint32_t acc = 0;
-    int bits = 0;
-    long n = 0;
-    for (size_t i = 0; i < len; i++) {
-        int v = b64_value(s[i]);
-        if (v < 0)
-            continue;
-        acc = acc << 6 | (uint32_t)v;
-        bits += 6;
-        if (bits >= 8) {
-            bits -= 8;
-            if (n < total)
-                out[n++] = (uint8_t)(acc >> bits);
-        }
-    }
-    return n;
 }
 
 /* ---- scalar syntax ---- */

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/base64.h"
 #include "core/typeinfo.h"
 
 void vj_init(vj_buf_t *b)
@@ -149,27 +150,14 @@ void vj_int(vj_buf_t *b, int64_t v)
 
 void vj_base64(vj_buf_t *b, const void *data, size_t n)
 {
-    static const char tab[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    const uint8_t *p = data;
-    if (!grow(b, (n + 2) / 3 * 4 + 2))
+    size_t m = marie_base64_len(n);
+    if (!grow(b, m + 2))
         return;
-    char *o = b->s + b->len;
-    *o++ = '"';
-    size_t i = 0;
-    for (; i + 3 <= n; i += 3) {
-        uint32_t v = (uint32_t)p[i] << 16 | (uint32_t)p[i + 1] << 8 | p[i + 2];
-        *o++ = tab[v >> 18]; *o++ = tab[(v >> 12) & 63]; *o++ = tab[(v >> 6) & 63]; *o++ = tab[v & 63];
-    }
-    if (i < n) {
-        uint32_t v = (uint32_t)p[i] << 16 | (i + 1 < n ? (uint32_t)p[i + 1] << 8 : 0);
-        *o++ = tab[v >> 18];
-        *o++ = tab[(v >> 12) & 63];
-        *o++ = i + 1 < n ? tab[(v >> 6) & 63] : '=';
-        *o++ = '=';
-    }
-    *o++ = '"';
-    *o = 0;
-    b->len = (size_t)(o - b->s);
+    b->s[b->len] = '"';
+    marie_base64_encode(b->s + b->len + 1, data, n);
+    b->len += m + 2;
+    b->s[b->len - 1] = '"';
+    b->s[b->len] = 0;
 }
 
 const marie_type_t *vj_type_of(const void *data, size_t len)
