@@ -4,3 +4,6 @@ EXTRA_TARGETS += $(B)/tests/replay_check
 ITESTS += tests/app/test_robot_app.sh
 $(eval $(call marie_link,$(B)/tests/estop_check,tests/app/estop_check.c,))
 EXTRA_TARGETS += $(B)/tests/estop_check
+$(eval $(call marie_link,$(B)/tests/spoken_probe,tests/app/spoken_probe.c,))
+EXTRA_TARGETS += $(B)/tests/spoken_probe
+ITESTS += tests/app/test_spoken_mission.sh
