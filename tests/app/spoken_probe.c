@@ -91,10 +91,11 @@ static void on_raw(const lcm_recv_buf_t *rb, const char *ch, void *user)
             p->faced_event = sscanf(m.event.text, "speaker %*d at azimuth %lf", &p->face_az) == 1;
         if (!strcmp(m.event.kind, "request_refused"))
             p->refused++;
+        /* Events are stamped on the wall clock: the simulated time they came at is the truth's. */
         if (!strcmp(m.event.kind, "goal_started") && strstr(m.event.text, p->goal) && !p->started_utime)
-            p->started_utime = m.event.utime;
+            p->started_utime = p->truth_utime;
         if (!strcmp(m.event.kind, "goal_reached") && strstr(m.event.text, p->goal) && !p->reached_utime)
-            p->reached_utime = m.event.utime;
+            p->reached_utime = p->truth_utime;
     } else if (t == &marie_type_robot_speech_t) {
         if (!strcmp(ch, "SAY") && p->heard_utime && !p->say_utime)
             p->say_utime = m.rs.utime;
@@ -158,6 +159,7 @@ int main(int argc, char **argv)
     printf("said=%s\n", p.said[0] ? p.said : "-");
     printf("tts_blocks=%ld\n", p.tts_blocks);
     printf("answer_after_words_s=%.3f\n", p.speaking_utime && p.heard_utime ? p.speaking_utime / 1e6 - words_end : -1);
+    printf("answer_after_recognition_s=%.3f\n", p.speaking_utime && p.heard_utime ? (p.speaking_utime - p.heard_utime) / 1e6 : -1);
     printf("answer_requested_after_words_s=%.3f\n", p.say_utime && p.heard_utime ? p.say_utime / 1e6 - words_end : -1);
     printf("goal_started=%d\n", p.started_utime > 0);
     printf("reached_after_words_s=%.1f\n", p.reached_utime && p.heard_utime ? p.reached_utime / 1e6 - words_end : -1);
