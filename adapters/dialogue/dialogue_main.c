@@ -99,7 +99,9 @@ static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, co
     if (r.actions & DIALOGUE_STOP)
         event(c, s, "stop", "asked to stop");
     if (r.actions & DIALOGUE_GOAL) {
-        marie_goal_t g = { .utime = marie_component_now(c), .id = ++s->goal_id, .name = r.place.name,
+        /* Ids of their own (the mission's list counts from 1, the touch page from 800000, the
+         * viewer from 900000): a request with the id of a listed goal would replace it. */
+        marie_goal_t g = { .utime = marie_component_now(c), .id = 700000 + ++s->goal_id, .name = r.place.name,
                            .pose = { r.place.x, r.place.y, r.place.theta }, .tolerance = s->tolerance,
                            .priority = 10 };
         marie_port_publish(s->p_goal, &g);
