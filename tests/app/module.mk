@@ -1,4 +1,4 @@
-# tests/app: the robot application's integration tests (they run marie-demo).
+# tests/app: the robot application's integration tests (marie-demo; the spoken mission under the managers).
 $(eval $(call marie_link,$(B)/tests/replay_check,tests/app/replay_check.c,))
 EXTRA_TARGETS += $(B)/tests/replay_check
 ITESTS += tests/app/test_robot_app.sh
