@@ -6,7 +6,7 @@
 #include <stdio.h>
 #include <string.h>
 
-static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "follow_path", "idle" };
+static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "face_speaker", "follow_path", "idle" };
 
 const char *arb_name(int b)
 {
@@ -19,6 +19,7 @@ void arb_params_default(arb_params_t *p)
     p->priority[ARB_ESTOP] = 100;
     p->priority[ARB_AVOID] = 80;
     p->priority[ARB_TELEOP] = 60;
+    p->priority[ARB_FACE] = 50;
     p->priority[ARB_FOLLOW] = 40;
     p->priority[ARB_IDLE] = 0;
     p->lookahead = 0.5;
@@ -36,12 +37,15 @@ void arb_params_default(arb_params_t *p)
     p->estop_required = false;
     p->stale_estop_s = 2.0;
     p->teleop_timeout_s = 0.5;
+    p->face_timeout_s = 6.0;
+    p->face_tolerance = 0.15;
 }
 
 void arb_state_reset(arb_state_t *s)
 {
     memset(s, 0, sizeof(*s));
     s->path_goal = -1;
+    s->face_done = -1;
 }
 
 static double clamp(double x, double lo, double hi)
@@ -122,6 +126,35 @@ void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
     }
     double f = (ahead - p->stop_distance) / (p->slow_distance - p->stop_distance);
     vote(o, true, 0.5 * p->v_max * f, turn * (1 - f), "obstacle at %.2f m", ahead);
+}
+
+/* Turns on the spot toward the last speaker once: when faced (or too late) the request is
+ * over, so the path that the speaker's command brings can turn the robot away again. */
+void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
+{
+    if (in->face_id <= 0 || !isfinite(in->face_heading)) {
+        vote(o, false, 0, 0, "no speaker");
+        return;
+    }
+    if (in->face_id == s->face_done || !fresh(in->face_age, p->face_timeout_s)) {
+        vote(o, false, 0, 0, in->face_id == s->face_done ? "speaker faced" : "speaker heard too long ago");
+        return;
+    }
+    if (!fresh(in->pose_age, p->stale_pose_s) || !isfinite(in->pose[2])) {
+        vote(o, false, 0, 0, "no pose");
+        return;
+    }
+    double err = remainder(in->face_heading - in->pose[2], 2 * M_PI);
+    if (fabs(err) < p->face_tolerance) {
+        s->face_done = in->face_id;
+        vote(o, false, 0, 0, "speaker faced");
+        return;
+    }
+    /* Brisk while far off, no slower than 0.3 rad/s near the end so it does not creep. */
+    double w = clamp(1.5 * err, -p->omega_max, p->omega_max);
+    if (fabs(w) < 0.3)
+        w = err > 0 ? 0.3 : -0.3;
+    vote(o, true, 0, w, "turning to speaker (%.0f deg)", err * 180 / M_PI);
 }
 
 void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
@@ -227,6 +260,7 @@ int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, ar
     arb_estop(p, in, &votes[ARB_ESTOP]);
     arb_avoid(p, in, &votes[ARB_AVOID]);
     arb_teleop(p, in, &votes[ARB_TELEOP]);
+    arb_face(p, s, in, &votes[ARB_FACE]);
     arb_follow(p, s, in, &votes[ARB_FOLLOW]);
     vote(&votes[ARB_IDLE], true, 0, 0, "nothing to do");
     int win = ARB_IDLE, below = ARB_IDLE;     /* below: the winner if avoid abstained */

@@ -1,4 +1,4 @@
-/* arbiter: the robot's behaviours (e-stop, avoid, teleop, follow path, idle) and their
+/* arbiter: the robot's behaviours (e-stop, avoid, teleop, face the speaker, follow path, idle) and their
  * priority arbitration, as pure functions of the inputs of one cycle. */
 #ifndef ADAPTERS_ARBITER_H
 #define ADAPTERS_ARBITER_H
@@ -10,7 +10,7 @@
 extern "C" {
 #endif
 
-enum { ARB_ESTOP = 0, ARB_AVOID, ARB_TELEOP, ARB_FOLLOW, ARB_IDLE, ARB_COUNT };
+enum { ARB_ESTOP = 0, ARB_AVOID, ARB_TELEOP, ARB_FACE, ARB_FOLLOW, ARB_IDLE, ARB_COUNT };
 
 typedef struct {
     int priority[ARB_COUNT];    /* higher wins among active behaviours */
@@ -29,6 +29,9 @@ typedef struct {
     bool estop_required;        /* no fresh e-stop state = pressed */
     double stale_estop_s;
     double teleop_timeout_s;
+    /* face the speaker */
+    double face_timeout_s;      /* s: a speaker's direction older than this is not turned to */
+    double face_tolerance;      /* rad: facing within this ends the turn */
 } arb_params_t;
 
 void arb_params_default(arb_params_t *p);
@@ -40,6 +43,7 @@ typedef struct {
     const float *ranges; int nranges; double angle_min, angle_increment, range_min, range_max; double scan_age;
     bool estop_pressed; double estop_age;
     double teleop_v, teleop_omega; double teleop_age;
+    double face_heading; int32_t face_id; double face_age;   /* map-frame heading toward the last speaker; id 0: none */
 } arb_inputs_t;
 
 typedef struct {
@@ -57,6 +61,7 @@ typedef struct {
     double path_end[2];
     int progress;               /* index of the path pose the robot has reached */
     bool done;                  /* current path finished */
+    int32_t face_done;          /* face_id of the last speaker turned to */
 } arb_state_t;
 
 void arb_state_reset(arb_state_t *s);
@@ -72,6 +77,7 @@ const char *arb_name(int behaviour);
 void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
 void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
 void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
+void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
 void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
 
 #ifdef __cplusplus

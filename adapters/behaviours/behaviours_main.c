@@ -1,4 +1,4 @@
-/* marie-behaviours: follow path, avoid obstacles, e-stop and teleop behaviours arbitrated by
+/* marie-behaviours: follow path, avoid obstacles, e-stop, teleop and face the speaker behaviours arbitrated by
  * priority at a fixed rate; each cycle pulls its inputs from Mailboxes (or uses subscribed
  * copies) and publishes the motor command and the decision record. */
 #include <errno.h>
@@ -11,8 +11,8 @@
 #include "core/component.h"
 #include "core/typeinfo.h"
 
-enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_COUNT };
-static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop" };
+enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_FACE, IN_COUNT };
+static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop", "face" };
 
 typedef struct beh beh_t;
 
@@ -41,6 +41,7 @@ struct beh {
     float *ranges; int nranges, ranges_cap; double angle_min, angle_inc, range_min, range_max;
     bool estop_pressed;
     double teleop_v, teleop_w;
+    double face_heading; int32_t face_id;
 };
 
 /* When a message was true, on the component's clock: its own stamp when plausible, else the
@@ -127,6 +128,19 @@ static void store(beh_t *b, int which, const void *msg, int64_t recv_age_us)
         utime = 0;              /* an operator's clock is not ours: age from receipt */
         break;
     }
+    case IN_FACE: {
+        /* The speaker's azimuth is in the robot frame of when it was heard: held as a map
+         * heading from the pose known now (the robot stands still while it listens). */
+        const marie_sound_sources_t *m = msg;
+        if (m->count < 1 || !isfinite(m->sources[0].azimuth) || b->in[IN_POSE].stamp == INT64_MIN) {
+            marie_component_count(c, "face_ignored", 1);
+            return;
+        }
+        b->face_heading = b->pose[2] + m->sources[0].azimuth;
+        b->face_id++;
+        utime = m->utime;
+        break;
+    }
     }
     b->in[which].stamp = stamp_of(b, utime, recv_age_us);
 }
@@ -157,6 +171,7 @@ static void decide(beh_t *b)
         .range_min = b->range_min, .range_max = b->range_max, .scan_age = age_s(b, IN_SCAN, now),
         .estop_pressed = b->estop_pressed, .estop_age = age_s(b, IN_ESTOP, now),
         .teleop_v = b->teleop_v, .teleop_omega = b->teleop_w, .teleop_age = age_s(b, IN_TELEOP, now),
+        .face_heading = b->face_heading, .face_id = b->face_id, .face_age = age_s(b, IN_FACE, now),
     };
     arb_vote_t votes[ARB_COUNT];
     int win = arb_decide(&b->p, &b->st, &in, votes);
@@ -251,6 +266,11 @@ static void on_teleop(marie_component_t *c, marie_port_t *p, const void *msg, co
     store(marie_component_user(c), IN_TELEOP, msg, 0);
 }
 
+static void on_face(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    store(marie_component_user(c), IN_FACE, msg, 0);
+}
+
 /* The e-stop does not wait for the next cycle: a press seen on the bus stops the robot now
  * (an extra decision between cycles); the cycle keeps pulling the e-stop state as well. */
 static void on_estop_now(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -306,9 +326,10 @@ static void quit(marie_component_t *c)
     beh_t *b = marie_component_user(c);
     /* Who drove, in one line: a livelock shows as avoid winning most cycles. */
     if (b->cycle > 0)
-        marie_info("cycles %lld: estop %lld, avoid %lld, teleop %lld, follow_path %lld, idle %lld, recovery %lld "
-                   "(recoveries %lld)", (long long)b->cycle, (long long)marie_component_counter(c, "estop"),
+        marie_info("cycles %lld: estop %lld, avoid %lld, teleop %lld, face_speaker %lld, follow_path %lld, idle %lld, "
+                   "recovery %lld (recoveries %lld)", (long long)b->cycle, (long long)marie_component_counter(c, "estop"),
                    (long long)marie_component_counter(c, "avoid"), (long long)marie_component_counter(c, "teleop"),
+                   (long long)marie_component_counter(c, "face_speaker"),
                    (long long)marie_component_counter(c, "follow_path"), (long long)marie_component_counter(c, "idle"),
                    (long long)marie_component_counter(c, "recovery"), (long long)b->rs.recoveries);
     for (int i = 0; i < IN_COUNT; i++)
@@ -346,6 +367,7 @@ static int init(marie_component_t *c)
     b->p.priority[ARB_ESTOP] = (int)marie_param_int(c, "priority_estop");
     b->p.priority[ARB_AVOID] = (int)marie_param_int(c, "priority_avoid");
     b->p.priority[ARB_TELEOP] = (int)marie_param_int(c, "priority_teleop");
+    b->p.priority[ARB_FACE] = (int)marie_param_int(c, "priority_face");
     b->p.priority[ARB_FOLLOW] = (int)marie_param_int(c, "priority_follow");
     b->p.lookahead = marie_param_double(c, "lookahead");
     b->p.v_max = marie_param_double(c, "v_max");
@@ -368,6 +390,8 @@ static int init(marie_component_t *c)
     b->p.estop_required = marie_param_bool(c, "estop_required");
     b->p.stale_estop_s = marie_param_double(c, "stale_estop_s");
     b->p.teleop_timeout_s = marie_param_double(c, "teleop_timeout_s");
+    b->p.face_timeout_s = marie_param_double(c, "face_timeout_s");
+    b->p.face_tolerance = marie_param_double(c, "face_tolerance");
     rec_params_default(&b->rp);
     b->rp.stuck_s = marie_param_double(c, "stuck_s");
     b->rp.detour_s = marie_param_double(c, "detour_s");
@@ -393,8 +417,8 @@ static int init(marie_component_t *c)
             }
         }
     }
-    if (marie_port_on_message(marie_port(c, "teleop"), on_teleop)) {
-        marie_component_fail_reason(c, "cannot subscribe to teleop");
+    if (marie_port_on_message(marie_port(c, "teleop"), on_teleop) || marie_port_on_message(marie_port(c, "face"), on_face)) {
+        marie_component_fail_reason(c, "cannot subscribe to teleop or face");
         return -1;
     }
     if (marie_param_bool(c, "estop_immediate") && !b->estop_subscribed) {
@@ -421,6 +445,7 @@ static const marie_port_spec_t ports[] = {
     { "estop", &marie_type_estop_t, MARIE_IN, MARIE_PULL, "ESTOP" },
     { "teleop", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "TELEOP" },
     { "estop_now", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "ESTOP" },
+    { "face", &marie_type_sound_sources_t, MARIE_IN, MARIE_PUSH, "SPEAKER" },
     { "cmd", &marie_type_motor_command_t, MARIE_OUT, MARIE_PUSH, "MOTOR_COMMAND" },
     { "arbitration", &marie_type_arbitration_t, MARIE_OUT, MARIE_PUSH, "ARBITRATION" },
     { "replan", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "REPLAN" },
@@ -434,6 +459,7 @@ static const marie_param_spec_t params[] = {
     { "priority_estop", MARIE_PARAM_INT, "100", "" },
     { "priority_avoid", MARIE_PARAM_INT, "80", "" },
     { "priority_teleop", MARIE_PARAM_INT, "60", "" },
+    { "priority_face", MARIE_PARAM_INT, "50", "turn toward who spoke (the face port, marie-dialogue)" },
     { "priority_follow", MARIE_PARAM_INT, "40", "" },
     { "lookahead", MARIE_PARAM_DOUBLE, "0.5", "m, pure pursuit" },
     { "v_max", MARIE_PARAM_DOUBLE, "0.5", "m/s" },
@@ -452,6 +478,8 @@ static const marie_param_spec_t params[] = {
     { "stuck_s", MARIE_PARAM_DOUBLE, "10", "s without 0.3 m of progress towards the path's end before a recovery (0: never)" },
     { "detour_s", MARIE_PARAM_DOUBLE, "4", "s of the recovery's detour, times its escalation level (up to 4)" },
     { "teleop_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: teleop is active while its commands are this recent" },
+    { "face_timeout_s", MARIE_PARAM_DOUBLE, "6", "s: a speaker heard longer ago is not turned to" },
+    { "face_tolerance", MARIE_PARAM_DOUBLE, "0.15", "rad: facing the speaker this closely ends the turn" },
     { 0 },
 };
 

@@ -3,12 +3,15 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "adapters/dialogue/dialogue.h"
+#include "core/auth.h"
 #include "core/component.h"
+#include "core/time.h"
 
 typedef struct {
-    const char *places, *robot_name;
+    const char *places, *robot_name, *key_file;
     double min_confidence, tolerance;
 } dlg_params_t;
 
@@ -17,8 +20,10 @@ typedef struct {
     marie_sound_source_t sources[16];
     int nsources;
     int32_t say_id, goal_id;
-    int64_t event_seq;
-    marie_port_t *p_say, *p_goal, *p_event;
+    int64_t event_seq, last_seq;
+    marie_port_t *p_say, *p_goal, *p_event, *p_face, *p_request;
+    marie_auth_t *auth;         /* NULL: goals only on SPOKEN_GOAL, no request to the mission */
+    char sender[96];
     double tolerance;
     double min_confidence;
 } dlg_t;
@@ -29,6 +34,31 @@ static void event(marie_component_t *c, dlg_t *s, const char *kind, const char *
                         .seq = s->event_seq++, .severity = MARIE_EVENT_T_SEV_INFO, .kind = (char *)kind,
                         .text = (char *)text };
     marie_port_publish(s->p_event, &e);
+}
+
+/* The spoken goal as the mission takes a person's goal: signed with the system's key, as
+ * marie-face signs a tap on its page. */
+static void request_goal(marie_component_t *c, dlg_t *s, const marie_goal_t *g)
+{
+    int64_t seq = marie_auth_next_seq(NULL);
+    s->last_seq = seq > s->last_seq ? seq : s->last_seq + 1;
+    marie_goal_request_t r = { .utime = marie_wall_us(), .sender = s->sender, .seq = s->last_seq, .goal = *g };
+    r.goal.utime = r.utime;
+    uint8_t mac[MARIE_AUTH_MAC_LEN];
+    if (marie_auth_sign_goal_request(s->auth, &r, mac) < 0 || marie_port_publish(s->p_request, &r) < 0)
+        marie_component_count(c, "request_errors", 1);
+}
+
+static void face(dlg_t *s, int64_t now, int source_id, double azimuth)
+{
+    marie_sound_source_t src = { 0 };
+    for (int i = 0; i < s->nsources; i++)
+        if (s->sources[i].id == source_id)
+            src = s->sources[i];
+    src.id = source_id;
+    src.azimuth = (float)azimuth;
+    marie_sound_sources_t m = { .utime = now, .count = 1, .sources = &src };
+    marie_port_publish(s->p_face, &m);
 }
 
 static void on_sources(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -64,14 +94,19 @@ static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, co
     if (r.actions & DIALOGUE_FACE) {
         snprintf(buf, sizeof(buf), "speaker %d at azimuth %.3f rad", m->source_id, r.azimuth);
         event(c, s, "face", buf);
+        face(s, marie_component_now(c), m->source_id, r.azimuth);
     }
     if (r.actions & DIALOGUE_STOP)
         event(c, s, "stop", "asked to stop");
     if (r.actions & DIALOGUE_GOAL) {
-        marie_goal_t g = { .utime = marie_component_now(c), .id = ++s->goal_id, .name = r.place.name,
+        /* Ids of their own (the mission's list counts from 1, the touch page from 800000, the
+         * viewer from 900000): a request with the id of a listed goal would replace it. */
+        marie_goal_t g = { .utime = marie_component_now(c), .id = 700000 + ++s->goal_id, .name = r.place.name,
                            .pose = { r.place.x, r.place.y, r.place.theta }, .tolerance = s->tolerance,
                            .priority = 10 };
         marie_port_publish(s->p_goal, &g);
+        if (s->auth)
+            request_goal(c, s, &g);
         snprintf(buf, sizeof(buf), "goal %d: %s (%.2f, %.2f)", g.id, r.place.name, r.place.x, r.place.y);
         event(c, s, "goal", buf);
     }
@@ -99,6 +134,19 @@ static int init(marie_component_t *c)
     s->p_say = marie_port(c, "say");
     s->p_goal = marie_port(c, "goal");
     s->p_event = marie_port(c, "events");
+    s->p_face = marie_port(c, "face");
+    s->p_request = marie_port(c, "request");
+    marie_auth_destroy(s->auth);
+    s->auth = NULL;
+    if (q->key_file[0]) {
+        char err[256], host[64] = "";
+        if (!(s->auth = marie_auth_load(q->key_file, err, sizeof err))) {
+            marie_component_fail_reason(c, "key file: %s", err);
+            return -1;
+        }
+        gethostname(host, sizeof host - 1);
+        snprintf(s->sender, sizeof s->sender, "%s@%s/dialogue", marie_component_name(c), host);
+    }
     if (marie_port_on_message(marie_port(c, "speech"), on_speech) ||
         marie_port_on_message(marie_port(c, "sources"), on_sources)) {
         marie_component_fail_reason(c, "cannot subscribe");
@@ -113,6 +161,8 @@ static const marie_port_spec_t ports[] = {
     { "say", &marie_type_robot_speech_t, MARIE_OUT, MARIE_PUSH, "SAY" },
     { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "SPOKEN_GOAL" },
     { "events", &marie_type_event_t, MARIE_OUT, MARIE_PUSH, "DIALOGUE" },
+    { "face", &marie_type_sound_sources_t, MARIE_OUT, MARIE_PUSH, "SPEAKER" },
+    { "request", &marie_type_goal_request_t, MARIE_OUT, MARIE_PUSH, "GOAL_REQUEST" },
     { 0 },
 };
 
@@ -121,11 +171,20 @@ static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(dlg_params_t, robot_name, STRING, "Spartacus", "what the robot answers to its name"),
     MARIE_PARAM_AT(dlg_params_t, min_confidence, DOUBLE, "0.3", "recognitions below this are ignored"),
     MARIE_PARAM_AT(dlg_params_t, tolerance, DOUBLE, "0.3", "m: goal tolerance"),
+    MARIE_PARAM_AT(dlg_params_t, key_file, STRING, "\"\"", "order key: spoken goals also go to the mission as signed requests (empty: not)"),
     { 0 },
 };
 
+static void quit(marie_component_t *c)
+{
+    dlg_t *s = marie_component_user(c);
+    marie_auth_destroy(s->auth);
+    s->auth = NULL;
+}
+
 static const marie_component_def_t def = {
     .kind = "dialogue", .ports = ports, .params = params, .params_size = sizeof(dlg_params_t), .on_init = init,
+    .on_quit = quit,
 };
 
 int main(int argc, char **argv)

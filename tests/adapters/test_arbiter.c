@@ -93,6 +93,46 @@ static void test_follow_stops_at_end_and_on_stale_pose(void **state)
     assert_int_equal(arb_decide(&p, &s, &in, v), ARB_IDLE);
 }
 
+/* A speaker behind and to the left: the robot turns left on the spot until it faces them,
+ * once; then the path it was given drives it, even when that turns it away again. */
+static void test_face_speaker_turns_once_then_follow(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    in.face_id = 1; in.face_heading = 2.0; in.face_age = 0.1;
+    arb_vote_t v[ARB_COUNT];
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FACE);
+    assert_true(v[ARB_FACE].v == 0 && v[ARB_FACE].omega > 0.5);
+    assert_true(v[ARB_FACE].omega <= p.omega_max);
+    /* Closed loop at 5 Hz: faced within the tolerance in a few seconds, then never again. */
+    int cycles = 0;
+    while (arb_decide(&p, &s, &in, v) == ARB_FACE && cycles < 50) {
+        in.pose[2] += v[ARB_FACE].omega * 0.2;
+        cycles++;
+    }
+    assert_true(cycles > 3 && cycles < 25);
+    assert_true(fabs(remainder(in.pose[2] - 2.0, 2 * M_PI)) < p.face_tolerance + 0.3 * 0.2);
+    assert_string_equal(v[ARB_FACE].reason, "speaker faced");
+    in.pose[2] = 0;     /* the path turned it back: follow keeps winning */
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+    /* A new utterance is a new request: faced again; the shorter way round (right). */
+    in.face_id = 2; in.face_heading = -1.5;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FACE);
+    assert_true(v[ARB_FACE].omega < 0);
+    /* Too old, or no pose: nothing to turn to. */
+    in.face_id = 3; in.face_age = 10;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+    in.face_age = 0.1; in.pose_age = -1;
+    assert_false(arb_decide(&p, &s, &in, v) == ARB_FACE);
+    /* Below teleop and e-stop. */
+    in.pose_age = 0.05; in.teleop_age = 0.1; in.teleop_v = 0.2;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_TELEOP);
+    in.estop_age = 0.1; in.estop_pressed = true;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_ESTOP);
+}
+
 static void test_estop_beats_everything(void **state)
 {
     arb_params_t p; arb_params_default(&p);
@@ -329,6 +369,7 @@ int main(void)
         cmocka_unit_test(test_recovery_when_no_progress),
         cmocka_unit_test(test_follow_drives_along_path),
         cmocka_unit_test(test_follow_stops_at_end_and_on_stale_pose),
+        cmocka_unit_test(test_face_speaker_turns_once_then_follow),
         cmocka_unit_test(test_estop_beats_everything),
         cmocka_unit_test(test_teleop_only_while_recent),
         cmocka_unit_test(test_avoid_blocks_and_turns_to_open_side),

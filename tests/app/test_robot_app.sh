@@ -31,7 +31,7 @@ check "robot stops within 0.3 s of the e-stop" le "$(json $s estop_stop_s)" 0.3
 check "e-stop chain: zero command from the e-stop behaviour and drives in e-stop, each within 0.3 s" \
     $B/tests/estop_check "$out/nominal/demo.lcm" 0.3
 check "summary line printed" grep -q "^demo: [0-9]*/[0-9]* goals reached, localization RMS .* m (max .* m), restarts [0-9]*, [0-9]* s$" "$out/nominal.txt"
-goals=$(sed -n 's/.*{name: [^,]*, x: \([-0-9.]*\), y: \([-0-9.]*\),.*/\1,\2/p' config/spartacus.yaml)
+goals=$(sed -n '/^profiles:/q; s/.*{name: [^,]*, x: \([-0-9.]*\), y: \([-0-9.]*\),.*/\1,\2/p' config/spartacus.yaml)
 check "trajectory PNG: the office map with every goal and the true path through each" \
     python3 tests/app/traj_png_check.py "$out/nominal/trajectories.png" sim/worlds/office.pgm 0.05 $goals
 

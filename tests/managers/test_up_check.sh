@@ -120,7 +120,7 @@ EOF
 check "a good file still comes up" "$M" up "$T/good.yaml"
 check "down" "$M" down
 shipped() {
-    for p in "" "--profile sim" "--profile sim-channel"; do
+    for p in "" "--profile sim" "--profile sim-channel" "--profile sim-voice"; do
         # no manager serves these hosts: anything but 2 means the file passed every check
         "$M" --timeout 0.3 up config/spartacus.yaml $p; rc=$?
         [ $rc -ne 2 ] || return 1
