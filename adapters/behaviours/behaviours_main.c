@@ -12,6 +12,39 @@
 #include "core/typeinfo.h"
 
 enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_FACE, IN_COUNT };
+/* The parameters, declared once in the table below; read with params_of(). */
+typedef struct {
+    const char *input_mode;
+    double rate_hz;
+    int64_t pull_timeout_ms;
+    int64_t priority_estop;
+    int64_t priority_avoid;
+    int64_t priority_teleop;
+    int64_t priority_face;
+    int64_t priority_follow;
+    double lookahead;
+    double v_max;
+    double omega_max;
+    double goal_tolerance;
+    double stale_pose_s;
+    double robot_radius;
+    double robot_clearance;
+    double half_width;
+    double stop_distance;
+    double slow_distance;
+    double stale_scan_s;
+    bool estop_required;
+    bool estop_immediate;
+    double stale_estop_s;
+    double stuck_s;
+    double detour_s;
+    double teleop_timeout_s;
+    double face_timeout_s;
+    double face_tolerance;
+} bhv_params_t;
+
+static const bhv_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
+
 static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop", "face" };
 
 typedef struct beh beh_t;
@@ -350,51 +383,52 @@ static int init(marie_component_t *c)
     b->c = c;
     arb_params_default(&b->p);
     arb_state_reset(&b->st);
-    const char *mode = marie_param_str(c, "input_mode");
+    const bhv_params_t *q = params_of(c);
+    const char *mode = q->input_mode;
     if (strcmp(mode, "pull") != 0 && strcmp(mode, "subscribe") != 0) {
         marie_component_fail_reason(c, "input_mode: expected pull or subscribe, got '%s'", mode);
         return -1;
     }
     b->pull = strcmp(mode, "pull") == 0;
-    b->pull_timeout_ms = (int)marie_param_int(c, "pull_timeout_ms");
-    double hz = marie_param_double(c, "rate_hz");
+    b->pull_timeout_ms = (int)q->pull_timeout_ms;
+    double hz = q->rate_hz;
     if (!(hz > 0 && hz <= 1000) || b->pull_timeout_ms < 1) {
         marie_component_fail_reason(c, "rate_hz must be in (0, 1000], pull_timeout_ms >= 1");
         return -1;
     }
     if (b->pull_timeout_ms > 0.8e3 / hz)
         b->pull_timeout_ms = (int)(0.8e3 / hz);   /* answers must come back within the cycle */
-    b->p.priority[ARB_ESTOP] = (int)marie_param_int(c, "priority_estop");
-    b->p.priority[ARB_AVOID] = (int)marie_param_int(c, "priority_avoid");
-    b->p.priority[ARB_TELEOP] = (int)marie_param_int(c, "priority_teleop");
-    b->p.priority[ARB_FACE] = (int)marie_param_int(c, "priority_face");
-    b->p.priority[ARB_FOLLOW] = (int)marie_param_int(c, "priority_follow");
-    b->p.lookahead = marie_param_double(c, "lookahead");
-    b->p.v_max = marie_param_double(c, "v_max");
-    b->p.omega_max = marie_param_double(c, "omega_max");
-    b->p.goal_tolerance = marie_param_double(c, "goal_tolerance");
-    b->p.stale_pose_s = marie_param_double(c, "stale_pose_s");
+    b->p.priority[ARB_ESTOP] = (int)q->priority_estop;
+    b->p.priority[ARB_AVOID] = (int)q->priority_avoid;
+    b->p.priority[ARB_TELEOP] = (int)q->priority_teleop;
+    b->p.priority[ARB_FACE] = (int)q->priority_face;
+    b->p.priority[ARB_FOLLOW] = (int)q->priority_follow;
+    b->p.lookahead = q->lookahead;
+    b->p.v_max = q->v_max;
+    b->p.omega_max = q->omega_max;
+    b->p.goal_tolerance = q->goal_tolerance;
+    b->p.stale_pose_s = q->stale_pose_s;
     /* The avoid corridor follows the robot's size unless set on its own: the footprint and half
      * its clearance to the side, and the same ahead of the laser before stopping. */
-    double radius = marie_param_double(c, "robot_radius"), margin = marie_param_double(c, "robot_clearance") / 2;
-    b->p.half_width = marie_param_double(c, "half_width");
-    b->p.stop_distance = marie_param_double(c, "stop_distance");
-    b->p.slow_distance = marie_param_double(c, "slow_distance");
+    double radius = q->robot_radius, margin = q->robot_clearance / 2;
+    b->p.half_width = q->half_width;
+    b->p.stop_distance = q->stop_distance;
+    b->p.slow_distance = q->slow_distance;
     if (b->p.half_width <= 0)
         b->p.half_width = radius + margin;
     if (b->p.stop_distance <= 0)
         b->p.stop_distance = radius + margin;
     if (b->p.slow_distance <= 0)
         b->p.slow_distance = b->p.stop_distance + 0.25;
-    b->p.stale_scan_s = marie_param_double(c, "stale_scan_s");
-    b->p.estop_required = marie_param_bool(c, "estop_required");
-    b->p.stale_estop_s = marie_param_double(c, "stale_estop_s");
-    b->p.teleop_timeout_s = marie_param_double(c, "teleop_timeout_s");
-    b->p.face_timeout_s = marie_param_double(c, "face_timeout_s");
-    b->p.face_tolerance = marie_param_double(c, "face_tolerance");
+    b->p.stale_scan_s = q->stale_scan_s;
+    b->p.estop_required = q->estop_required;
+    b->p.stale_estop_s = q->stale_estop_s;
+    b->p.teleop_timeout_s = q->teleop_timeout_s;
+    b->p.face_timeout_s = q->face_timeout_s;
+    b->p.face_tolerance = q->face_tolerance;
     rec_params_default(&b->rp);
-    b->rp.stuck_s = marie_param_double(c, "stuck_s");
-    b->rp.detour_s = marie_param_double(c, "detour_s");
+    b->rp.stuck_s = q->stuck_s;
+    b->rp.detour_s = q->detour_s;
     rec_state_reset(&b->rs);
     if (b->p.slow_distance <= b->p.stop_distance) {
         marie_component_fail_reason(c, "slow_distance must be greater than stop_distance");
@@ -421,7 +455,7 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot subscribe to teleop or face");
         return -1;
     }
-    if (marie_param_bool(c, "estop_immediate") && !b->estop_subscribed) {
+    if (q->estop_immediate && !b->estop_subscribed) {
         if (marie_port_on_message(marie_port(c, "estop_now"), on_estop_now)) {
             marie_component_fail_reason(c, "cannot subscribe to the e-stop");
             return -1;
@@ -453,38 +487,47 @@ static const marie_port_spec_t ports[] = {
 };
 
 static const marie_param_spec_t params[] = {
-    { "input_mode", MARIE_PARAM_STRING, "pull", "pull (ask the inputs' Mailboxes each cycle) or subscribe" },
-    { "rate_hz", MARIE_PARAM_DOUBLE, "5", "arbitration rate" },
-    { "pull_timeout_ms", MARIE_PARAM_INT, "60", "how long a cycle waits for a Mailbox" },
-    { "priority_estop", MARIE_PARAM_INT, "100", "" },
-    { "priority_avoid", MARIE_PARAM_INT, "80", "" },
-    { "priority_teleop", MARIE_PARAM_INT, "60", "" },
-    { "priority_face", MARIE_PARAM_INT, "50", "turn toward who spoke (the face port, marie-dialogue)" },
-    { "priority_follow", MARIE_PARAM_INT, "40", "" },
-    { "lookahead", MARIE_PARAM_DOUBLE, "0.5", "m, pure pursuit" },
-    { "v_max", MARIE_PARAM_DOUBLE, "0.5", "m/s" },
-    { "omega_max", MARIE_PARAM_DOUBLE, "1.2", "rad/s" },
-    { "goal_tolerance", MARIE_PARAM_DOUBLE, "0.15", "m: the path is done this close to its end" },
-    { "stale_pose_s", MARIE_PARAM_DOUBLE, "0.5", "s: older poses are not followed" },
-    { "robot_radius", MARIE_PARAM_DOUBLE, "0.3", "m: circle around the footprint (the system file's robot.radius)" },
-    { "robot_clearance", MARIE_PARAM_DOUBLE, "0.1", "m: margin kept beyond it (robot.clearance)" },
-    { "half_width", MARIE_PARAM_DOUBLE, "0", "m: half the swept corridor checked by avoid (0: robot_radius + robot_clearance/2)" },
-    { "stop_distance", MARIE_PARAM_DOUBLE, "0", "m ahead: stop and turn away (0: robot_radius + robot_clearance/2)" },
-    { "slow_distance", MARIE_PARAM_DOUBLE, "0", "m ahead: slow down and turn away (0: stop_distance + 0.25)" },
-    { "stale_scan_s", MARIE_PARAM_DOUBLE, "1.0", "s" },
-    { "estop_required", MARIE_PARAM_BOOL, "false", "no fresh e-stop state counts as pressed" },
-    { "estop_immediate", MARIE_PARAM_BOOL, "true", "a press on estop_now stops the robot at once, between cycles" },
-    { "stale_estop_s", MARIE_PARAM_DOUBLE, "2.0", "s" },
-    { "stuck_s", MARIE_PARAM_DOUBLE, "10", "s without 0.3 m of progress towards the path's end before a recovery (0: never)" },
-    { "detour_s", MARIE_PARAM_DOUBLE, "4", "s of the recovery's detour, times its escalation level (up to 4)" },
-    { "teleop_timeout_s", MARIE_PARAM_DOUBLE, "0.5", "s: teleop is active while its commands are this recent" },
-    { "face_timeout_s", MARIE_PARAM_DOUBLE, "6", "s: a speaker heard longer ago is not turned to" },
-    { "face_tolerance", MARIE_PARAM_DOUBLE, "0.15", "rad: facing the speaker this closely ends the turn" },
+    MARIE_PARAM_AT(bhv_params_t, input_mode, STRING, "pull",
+                   "pull (ask the inputs' Mailboxes each cycle) or subscribe"),
+    MARIE_PARAM_AT(bhv_params_t, rate_hz, DOUBLE, "5", "arbitration rate"),
+    MARIE_PARAM_AT(bhv_params_t, pull_timeout_ms, INT, "60", "how long a cycle waits for a Mailbox"),
+    MARIE_PARAM_AT(bhv_params_t, priority_estop, INT, "100", ""),
+    MARIE_PARAM_AT(bhv_params_t, priority_avoid, INT, "80", ""),
+    MARIE_PARAM_AT(bhv_params_t, priority_teleop, INT, "60", ""),
+    MARIE_PARAM_AT(bhv_params_t, priority_face, INT, "50", "turn toward who spoke (the face port, marie-dialogue)"),
+    MARIE_PARAM_AT(bhv_params_t, priority_follow, INT, "40", ""),
+    MARIE_PARAM_AT(bhv_params_t, lookahead, DOUBLE, "0.5", "m, pure pursuit"),
+    MARIE_PARAM_AT(bhv_params_t, v_max, DOUBLE, "0.5", "m/s"),
+    MARIE_PARAM_AT(bhv_params_t, omega_max, DOUBLE, "1.2", "rad/s"),
+    MARIE_PARAM_AT(bhv_params_t, goal_tolerance, DOUBLE, "0.15", "m: the path is done this close to its end"),
+    MARIE_PARAM_AT(bhv_params_t, stale_pose_s, DOUBLE, "0.5", "s: older poses are not followed"),
+    MARIE_PARAM_AT(bhv_params_t, robot_radius, DOUBLE, "0.3",
+                   "m: circle around the footprint (the system file's robot.radius)"),
+    MARIE_PARAM_AT(bhv_params_t, robot_clearance, DOUBLE, "0.1", "m: margin kept beyond it (robot.clearance)"),
+    MARIE_PARAM_AT(bhv_params_t, half_width, DOUBLE, "0",
+                   "m: half the swept corridor checked by avoid (0: robot_radius + robot_clearance/2)"),
+    MARIE_PARAM_AT(bhv_params_t, stop_distance, DOUBLE, "0",
+                   "m ahead: stop and turn away (0: robot_radius + robot_clearance/2)"),
+    MARIE_PARAM_AT(bhv_params_t, slow_distance, DOUBLE, "0",
+                   "m ahead: slow down and turn away (0: stop_distance + 0.25)"),
+    MARIE_PARAM_AT(bhv_params_t, stale_scan_s, DOUBLE, "1.0", "s"),
+    MARIE_PARAM_AT(bhv_params_t, estop_required, BOOL, "false", "no fresh e-stop state counts as pressed"),
+    MARIE_PARAM_AT(bhv_params_t, estop_immediate, BOOL, "true",
+                   "a press on estop_now stops the robot at once, between cycles"),
+    MARIE_PARAM_AT(bhv_params_t, stale_estop_s, DOUBLE, "2.0", "s"),
+    MARIE_PARAM_AT(bhv_params_t, stuck_s, DOUBLE, "10",
+                   "s without 0.3 m of progress towards the path's end before a recovery (0: never)"),
+    MARIE_PARAM_AT(bhv_params_t, detour_s, DOUBLE, "4",
+                   "s of the recovery's detour, times its escalation level (up to 4)"),
+    MARIE_PARAM_AT(bhv_params_t, teleop_timeout_s, DOUBLE, "0.5",
+                   "s: teleop is active while its commands are this recent"),
+    MARIE_PARAM_AT(bhv_params_t, face_timeout_s, DOUBLE, "6", "s: a speaker heard longer ago is not turned to"),
+    MARIE_PARAM_AT(bhv_params_t, face_tolerance, DOUBLE, "0.15", "rad: facing the speaker this closely ends the turn"),
     { 0 },
 };
 
 static const marie_component_def_t def = {
-    .kind = "behaviours", .ports = ports, .params = params, .on_init = init, .on_stop = stop_hook,
+    .kind = "behaviours", .ports = ports, .params = params, .params_size = sizeof(bhv_params_t), .on_init = init, .on_stop = stop_hook,
     .on_pause = stop_hook, .on_abort = abort_hook, .on_quit = quit,
 };
 
