@@ -1,8 +1,9 @@
 #!/bin/sh
 # test_up_check: marie up and marie-am --system refuse, before anything starts, entries their
 # programs would reject (the programs describe themselves with --describe, cached per binary),
-# missing programs, programs silent on or failing --describe, bad backoff and cycles (also for a component run alone); marie hash covers
-# every setting and names the base; a long parse ends on SIGTERM or SIGINT.
+# missing programs, programs silent on or failing --describe, bad backoff and cycles (also for a
+# component run alone); marie hash covers every setting and names the base; a long parse ends on
+# SIGTERM or SIGINT.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-upcheck.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace XDG_CACHE_HOME=$T/cache
