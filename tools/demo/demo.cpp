@@ -85,7 +85,7 @@ private:
     lcm_t *lcm_ = nullptr;
     marie_loop_t *loop_ = nullptr;
     bool up_ = false;
-    bool running_ = false;      // the mission runs: e-stop check on each truth, progress, chaos
+    bool running_ = false;      // the mission runs: the e-stop check follows each truth
     bool interrupted_ = false;
     // what we saw
     std::vector<Sample> truth_, estimate_;
