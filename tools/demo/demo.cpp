@@ -161,9 +161,7 @@ void Demo::shutdown()
     for (auto &h : hosts_)
         marie_am_status_t_destroy(h.second);
     hosts_.clear();
-    if (loop_)
-        marie_loop_catch_signals(loop_, nullptr, nullptr);
-    marie_loop_destroy(loop_);
+    marie_loop_destroy(loop_);         // default SIGINT/SIGTERM handling again
     loop_ = nullptr;
     if (lcm_)
         lcm_destroy(lcm_);
