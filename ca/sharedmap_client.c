@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "ca/ca.h"
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_sharedmap_reply_t.h"
 #include "lcmtypes/marie_sharedmap_request_t.h"
@@ -33,6 +34,7 @@ struct sharedmap_client {
     int64_t timeouts, strays, bad;
     pending_t *pending;             /* asynchronous requests in flight */
     size_t npending, cap_pending;
+    marie_loop_t *wait_loop;        /* the synchronous calls wait on it (made at the first) */
 };
 
 static void drop_reply(sharedmap_client_t *cl)
@@ -131,6 +133,7 @@ void sharedmap_client_destroy(sharedmap_client_t *cl)
     if (cl->sub)
         lcm_unsubscribe(cl->lcm, cl->sub);
     drop_reply(cl);
+    marie_loop_destroy(cl->wait_loop);
     free(cl->pending);
     free(cl->request_channel);
     free(cl->reply_channel);
@@ -169,22 +172,24 @@ static int send_request(sharedmap_client_t *cl, marie_sharedmap_request_t *req)
     return marie_sharedmap_request_t_publish(cl->lcm, cl->request_channel, req) < 0 ? -EIO : 0;
 }
 
+static int have_reply(void *user) { return ((sharedmap_client_t *)user)->reply != NULL; }
+
 /* Send req, wait for its reply (left in cl->reply) and return its status as -errno. */
 static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int timeout_ms)
 {
     drop_reply(cl);
+    if (!cl->wait_loop) {
+        cl->wait_loop = marie_loop_create();
+        if (!cl->wait_loop || marie_loop_add_lcm(cl->wait_loop, cl->lcm, 1) < 0) {
+            marie_loop_destroy(cl->wait_loop);
+            cl->wait_loop = NULL;
+            return -ENOMEM;
+        }
+    }
     if (send_request(cl, req) < 0)
         return -EIO;
     cl->waiting_id = req->request_id;
-    int64_t deadline = marie_mono_us() + (int64_t)timeout_ms * 1000;
-    while (!cl->reply) {
-        int64_t left = deadline - marie_mono_us();
-        if (left <= 0)
-            break;
-        int ms = (int)((left + 999) / 1000);
-        if (lcm_handle_timeout(cl->lcm, ms) < 0)
-            break;
-    }
+    marie_loop_run_until(cl->wait_loop, timeout_ms < 0 ? 0 : timeout_ms, have_reply, cl);
     cl->waiting_id = 0;
     if (!cl->reply) {
         cl->timeouts++;

@@ -25,9 +25,11 @@ typedef struct sharedmap_client sharedmap_client_t;
 sharedmap_client_t *sharedmap_client_create(lcm_t *lcm, const char *request_channel, const char *name);
 void sharedmap_client_destroy(sharedmap_client_t *cl);     /* NULL is a no-op */
 
-/* The calls below send one request and handle `lcm` (so the caller's other subscriptions
- * keep running) until the reply arrives or timeout_ms passes. Do not call them from inside
- * an LCM handler of the same lcm_t (lcm_handle is not re-entrant).
+/* The calls below send one request and run a marie loop of the client's own over `lcm` (so
+ * the caller's other subscriptions keep running) until the reply arrives or timeout_ms passes.
+ * They are for programs that wait for the answer (a command line, a test); a program on a
+ * marie loop uses the asynchronous forms further down. Do not call them from inside an LCM
+ * handler of the same lcm_t (lcm_handle is not re-entrant).
  * Returns 0, -ETIMEDOUT (no reply: the write may or may not have happened), -ENOENT (no
  * such key), -EINVAL (refused as malformed), -EBADMSG (payload is not of the named type),
  * -EFBIG (too large), -EIO (the SharedMap could not make it durable). */

@@ -390,6 +390,22 @@ int marie_loop_run(marie_loop_t *loop)
     return 0;
 }
 
+int marie_loop_run_until(marie_loop_t *loop, int timeout_ms, marie_loop_cond_t done, void *user)
+{
+    int64_t end = marie_mono_us() + (int64_t)(timeout_ms > 0 ? timeout_ms : 0) * 1000;
+    do {
+        if (done && done(user))
+            return 1;
+        if (loop->quit)
+            return 0;
+        int64_t left = end - marie_mono_us();
+        int rc = marie_loop_run_once(loop, timeout_ms < 0 ? -1 : left > 0 ? (int)((left + 999) / 1000) : 0);
+        if (rc < 0)
+            return rc;
+    } while (timeout_ms < 0 || marie_mono_us() < end);
+    return done && done(user) ? 1 : 0;
+}
+
 void marie_loop_quit(marie_loop_t *loop) { loop->quit = 1; }
 int marie_loop_quitting(const marie_loop_t *loop) { return loop->quit; }
 

@@ -73,6 +73,14 @@ int marie_loop_run(marie_loop_t *loop);
 void marie_loop_quit(marie_loop_t *loop);
 int marie_loop_quitting(const marie_loop_t *loop);
 
+/* How a program that genuinely waits (a command line for its reply, a benchmark for its
+ * messages) waits: run rounds until done(user) returns non-zero (checked before each round and
+ * after the last; NULL: never), marie_loop_quit() is called, or timeout_ms of monotonic time
+ * pass (-1: no deadline; 0: one round of what is ready). Not from a callback of the same loop.
+ * Returns 1 when done held, 0 at the deadline or on quit, or -errno on a poll failure. */
+typedef int (*marie_loop_cond_t)(void *user);
+int marie_loop_run_until(marie_loop_t *loop, int timeout_ms, marie_loop_cond_t done, void *user);
+
 /* Process-wide SIGTERM/SIGINT: the handler only sets a flag and wakes the loop through a
  * pipe; on_signal then runs from the loop. Pass NULL to restore default handling. */
 typedef void (*marie_signal_cb_t)(marie_loop_t *loop, int signo, void *user);

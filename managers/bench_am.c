@@ -13,6 +13,7 @@
 #include <lcm/lcm.h>
 
 #include "core/component.h"
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
@@ -114,6 +115,9 @@ static void on_hb(const lcm_recv_buf_t *rb, const char *ch, const marie_heartbea
         last_hb_us = marie_mono_us();
 }
 
+/* The time stamps above are 0 until taken. */
+static int stamped(void *user) { return *(int64_t *)user != 0; }
+
 static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event_t *ev, void *u)
 {
     if (strcmp(ev->kind, "not_responding") == 0 && !detect_us)
@@ -180,6 +184,11 @@ static void bench_respawn_and_hang(void)
 
     /* hang: SIGUSR1 stops the victim's loop; detection = manager's not_responding event */
     lcm_t *lcm = lcm_create(marie_default_url());
+    marie_loop_t *loop = marie_loop_create();
+    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+        fprintf(stderr, "bench_am: no LCM\n");
+        exit(1);
+    }
     marie_heartbeat_t_subscribe(lcm, MARIE_CH_HEARTBEAT, on_hb, NULL);
     marie_event_t_subscribe(lcm, MARIE_CH_EVENT, on_event, NULL);
     double det[3], over[3];
@@ -193,14 +202,10 @@ static void bench_respawn_and_hang(void)
         victim_pid = pid;
         last_hb_us = 0;
         /* see one heartbeat, then hang right after it */
-        end = marie_mono_us() + 3000000;
-        while (!last_hb_us && marie_mono_us() < end)
-            lcm_handle_timeout(lcm, 50);
+        marie_loop_run_until(loop, 3000, stamped, &last_hb_us);
         kill(pid, SIGUSR1);
         detect_us = 0;
-        end = marie_mono_us() + 6000000;
-        while (!detect_us && marie_mono_us() < end)
-            lcm_handle_timeout(lcm, 50);
+        marie_loop_run_until(loop, 6000, stamped, &detect_us);
         if (detect_us && last_hb_us) {
             det[nd] = (double)(detect_us - last_hb_us) / 1000.0;
             over[nd] = det[nd] - 1500.0;
@@ -217,6 +222,7 @@ static void bench_respawn_and_hang(void)
         row("heartbeat_loss_detection", pct(det, nd, 0.5), "ms");
         row("heartbeat_loss_detection_past_timeout", pct(over, nd, 0.5), "ms");
     }
+    marie_loop_destroy(loop);
     lcm_destroy(lcm);
     run_marie("down");
     stop_am(am);

@@ -4,7 +4,6 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <poll.h>
 #include <signal.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -18,8 +17,8 @@
 
 #include <sodium.h>
 
+#include "core/loop.h"
 #include "core/spec.h"
-#include "core/time.h"
 
 #define DESCRIBE_TIMEOUT_MS 5000
 #define DESCRIBE_MAX (1 << 20)
@@ -113,6 +112,31 @@ static int has_marker(const char *path)
     return found;
 }
 
+/* The child's stdout, read from a loop of its own. */
+typedef struct {
+    FILE *m;
+    size_t got;
+    int done;                   /* end of file, or a read error */
+} describe_out_t;
+
+static void on_describe_out(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    describe_out_t *o = user;
+    char buf[8192];
+    ssize_t n = read(fd, buf, sizeof buf);
+    if (n < 0 && (errno == EINTR || errno == EAGAIN))
+        return;
+    if (n <= 0) {
+        o->done = 1;
+        return;
+    }
+    if (o->m && o->got + (size_t)n <= DESCRIBE_MAX)
+        fwrite(buf, 1, (size_t)n, o->m);
+    o->got += (size_t)n;
+}
+
+static int describe_out_done(void *user) { return ((describe_out_t *)user)->done; }
+
 /* Run PATH ARGS... --describe with the component's env added (it may need it to load at all);
  * its stdout (at most DESCRIBE_MAX) in *out. 0, or -1 with why. */
 static int run_describe(const char *path, const marie_component_cfg_t *c, size_t nargs, char **out, size_t *len,
@@ -181,32 +205,20 @@ static int run_describe(const char *path, const marie_component_cfg_t *c, size_t
         snprintf(why, whylen, "fork: %s", strerror(errno));
         return -1;
     }
-    FILE *m = open_memstream(out, len);
-    int64_t end = marie_mono_us() + DESCRIBE_TIMEOUT_MS * 1000LL;
-    int rc = m ? 0 : -1;
-    char buf[8192];
-    for (;;) {
-        int left = (int)((end - marie_mono_us()) / 1000);
-        struct pollfd pfd = {po[0], POLLIN, 0};
-        int r = left > 0 ? poll(&pfd, 1, left) : 0;
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0) {
-            snprintf(why, whylen, "no answer within %d s", DESCRIBE_TIMEOUT_MS / 1000);
-            rc = -1;
-            break;
-        }
-        ssize_t n = read(po[0], buf, sizeof buf);
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n <= 0)
-            break;
-        if (m && *len + (size_t)n <= DESCRIBE_MAX)
-            fwrite(buf, 1, (size_t)n, m);
+    describe_out_t o = { .m = open_memstream(out, len) };
+    int rc = 0;
+    marie_loop_t *loop = o.m ? marie_loop_create() : NULL;
+    if (!loop || marie_loop_add_fd(loop, po[0], POLLIN, on_describe_out, &o) < 0) {
+        snprintf(why, whylen, "out of memory");
+        rc = -1;
+    } else if (marie_loop_run_until(loop, DESCRIBE_TIMEOUT_MS, describe_out_done, &o) != 1) {
+        snprintf(why, whylen, "no answer within %d s", DESCRIBE_TIMEOUT_MS / 1000);
+        rc = -1;
     }
+    marie_loop_destroy(loop);
     close(po[0]);
-    if (m)
-        fclose(m);
+    if (o.m)
+        fclose(o.m);
     if (rc < 0)
         kill(pid, SIGKILL);
     int status = 0;

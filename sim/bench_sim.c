@@ -13,6 +13,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_sim_clock_t.h"
 #include "map/occmap.h"
@@ -82,6 +83,8 @@ static void on_clock(const lcm_recv_buf_t *rb, const char *ch, const marie_sim_c
     last_clock = msg->utime;
 }
 
+static int have_clock(void *user) { return last_clock >= 0; }
+
 static long vm_hwm_kb(pid_t pid)
 {
     char path[64], line[256];
@@ -119,7 +122,8 @@ static double proc_cpu_s(pid_t pid)
 static void program(const char *bin, const char *speed, double wall_s)
 {
     lcm_t *lcm = lcm_create(NULL);
-    if (!lcm) {
+    marie_loop_t *loop = marie_loop_create();
+    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
         fprintf(stderr, "bench_sim: no LCM\n");
         exit(1);
     }
@@ -132,17 +136,14 @@ static void program(const char *bin, const char *speed, double wall_s)
         _exit(127);
     }
     /* Time from the first clock message, so process start and world loading are excluded. */
-    int64_t t0 = 0, c0 = -1, end = marie_mono_us() + 20000000;
+    int64_t t0 = marie_mono_us(), c0 = -1;
     long rss = -1;
     double cpu0 = 0;
-    while (marie_mono_us() < end) {
-        lcm_handle_timeout(lcm, 50);
-        if (last_clock >= 0 && c0 < 0) {
-            c0 = last_clock;
-            t0 = marie_mono_us();
-            cpu0 = proc_cpu_s(pid);
-            end = t0 + (int64_t)(wall_s * 1e6);
-        }
+    if (marie_loop_run_until(loop, 20000, have_clock, NULL) == 1) {
+        c0 = last_clock;
+        t0 = marie_mono_us();
+        cpu0 = proc_cpu_s(pid);
+        marie_loop_run_until(loop, (int)(wall_s * 1000), NULL, NULL);
     }
     double wall = (marie_mono_us() - t0) / 1e6;
     rss = vm_hwm_kb(pid);
@@ -159,6 +160,7 @@ static void program(const char *bin, const char *speed, double wall_s)
     row(name, "rtf_laser_10hz", (last_clock - c0) / 1e6 / wall, "x");
     row(name, "cpu", 100.0 * cpu / wall, "% of a core");
     row(name, "rss", rss / 1024.0, "MB");
+    marie_loop_destroy(loop);
     lcm_destroy(lcm);
 }
 

@@ -10,6 +10,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_sim_clock_t.h"
 #include "map/occmap.h"
@@ -81,11 +82,14 @@ static void on_clock(const lcm_recv_buf_t *rb, const char *ch, const marie_sim_c
     last_clock = msg->utime;
 }
 
+static int have_clock(void *user) { return last_clock >= 0; }
+
 /* marie-sim as fast as it goes (--speed 0) for wall_s: the sim seconds per wall second. */
 static double program(const char *bin, const char *camera, double wall_s)
 {
     lcm_t *lcm = lcm_create(NULL);
-    if (!lcm)
+    marie_loop_t *loop = marie_loop_create();
+    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0)
         exit(1);
     marie_sim_clock_t_subscribe(lcm, "MARIE_CLOCK", on_clock, NULL);
     last_clock = -1;
@@ -95,18 +99,16 @@ static double program(const char *bin, const char *camera, double wall_s)
               "--param", camera, "--param", "camera_size=320x240", (char *)NULL);
         _exit(127);
     }
-    int64_t t0 = 0, c0 = -1, end = marie_mono_us() + 20000000;
-    while (marie_mono_us() < end) {
-        lcm_handle_timeout(lcm, 50);
-        if (last_clock >= 0 && c0 < 0) {
-            c0 = last_clock;
-            t0 = marie_mono_us();
-            end = t0 + (int64_t)(wall_s * 1e6);
-        }
+    int64_t t0 = marie_mono_us(), c0 = -1;
+    if (marie_loop_run_until(loop, 20000, have_clock, NULL) == 1) {
+        c0 = last_clock;
+        t0 = marie_mono_us();
+        marie_loop_run_until(loop, (int)(wall_s * 1000), NULL, NULL);
     }
     double wall = (marie_mono_us() - t0) / 1e6;
     kill(pid, SIGTERM);
     waitpid(pid, NULL, 0);
+    marie_loop_destroy(loop);
     lcm_destroy(lcm);
     if (c0 < 0) {
         fprintf(stderr, "bench_sim_camera: no clock from %s\n", bin);

@@ -22,6 +22,7 @@
 #include "adapters/vision/vision_detect.h"
 #include "camera/vision_image.h"
 #include "camera/vision_render.h"
+#include "core/loop.h"
 #include "core/time.h"
 
 #define W 640
@@ -98,17 +99,16 @@ typedef struct {
     marie_image_t img[NFRAMES];
 } adapter_t;
 
+static int answered(void *want) { return got >= *(int *)want; }
+
+/* The bench's bus is one more fd of the component's loop: one loop serves both sides. */
 static int adapter_frame(adapter_t *a, int f)
 {
     int want = got + 1, before = got_tags;
     marie_image_t_publish(a->bus, VISION_CH_IMAGE, &a->img[f]);
-    int64_t end = marie_mono_us() + 2000000;
-    while (got < want && marie_mono_us() < end) {
-        marie_loop_run_once(marie_component_loop(a->c), 1);
-        while (lcm_handle_timeout(a->bus, 0) > 0)
-            ;
-    }
-    return got < want ? -1 : got_tags - before;
+    if (marie_loop_run_until(marie_component_loop(a->c), 2000, answered, &want) != 1)
+        return -1;
+    return got_tags - before;
 }
 
 static void bench_detection(double seconds)
@@ -135,6 +135,10 @@ static void bench_detection(double seconds)
         exit(1);
     }
     a.bus = lcm_create(marie_default_url());
+    if (!a.bus || marie_loop_add_lcm(marie_component_loop(a.c), a.bus, 16) < 0) {
+        fprintf(stderr, "bench_vision: no LCM\n");
+        exit(1);
+    }
     marie_tag_detections_t_subscribe(a.bus, VISION_CH_DETECTIONS, on_det, NULL);
     for (int f = 0; f < NFRAMES; f++)
         vision_image_encode(frames[f], W, H, W, 1, MARIE_IMAGE_T_FORMAT_GRAY8, 0, 1 + f, &a.img[f]);
@@ -171,6 +175,7 @@ static void bench_detection(double seconds)
     row("detect_640x480_adapter_frames_unanswered", (double)lost, "frames", 0, false);
     for (int f = 0; f < NFRAMES; f++)
         free(a.img[f].data);
+    marie_loop_remove_lcm(marie_component_loop(a.c), a.bus);
     lcm_destroy(a.bus);
     marie_component_destroy(a.c);
     apriltag_detector_destroy(td);
@@ -239,8 +244,12 @@ static void transport(const char *label, const char *url, int format, int count,
 {
     nlat = 0;
     lcm_t *rx = lcm_create(url);
-    if (!rx) {
+    marie_loop_t *loop = marie_loop_create();
+    if (!rx || !loop || marie_loop_add_lcm(loop, rx, 64) < 0) {
         fprintf(stderr, "bench_vision: cannot open %s\n", url);
+        marie_loop_destroy(loop);
+        if (rx)
+            lcm_destroy(rx);
         return;
     }
     marie_image_t_subscription_t *sub = marie_image_t_subscribe(rx, "BENCH_IMAGE", on_img, NULL);
@@ -270,13 +279,12 @@ static void transport(const char *label, const char *url, int format, int count,
     }
     if (burst)
         usleep(700000);
-    int64_t end = marie_mono_us() + (int64_t)(count / 30.0 * 1e6) + 1500000;
-    while (marie_mono_us() < end)
-        lcm_handle_timeout(rx, 50);
+    marie_loop_run_until(loop, (int)(count / 30.0 * 1000) + 1500, NULL, NULL);
     waitpid(pid, NULL, 0);
-    while (lcm_handle_timeout(rx, 100) > 0)
+    while (marie_loop_run_once(loop, 100) > 0)     /* until 100 ms pass without a frame */
         ;
     marie_image_t_unsubscribe(rx, sub);
+    marie_loop_destroy(loop);
     lcm_destroy(rx);
     char m[128];
     snprintf(m, sizeof m, "transport_%s_lost", label);

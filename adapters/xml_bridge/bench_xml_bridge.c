@@ -4,7 +4,6 @@
 #include <errno.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
-#include <poll.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -24,7 +23,7 @@
 #define N_RATE 40000
 #define N_LAT 2000
 
-static marie_loop_t *bloop;
+static marie_loop_t *bloop, *ploop;    /* the bridge's, the peer's (each run by its thread) */
 static xb_server_t *srv;
 static lcm_t *blcm, *peer;
 static atomic_int stop_bridge, stop_peer;
@@ -57,7 +56,7 @@ static void on_peer(const lcm_recv_buf_t *rb, const char *channel, void *user)
 static void *peer_thread(void *arg)
 {
     while (!atomic_load(&stop_peer))
-        lcm_handle_timeout(peer, 20);
+        marie_loop_run_once(ploop, 20);
     return NULL;
 }
 
@@ -147,44 +146,59 @@ static int connect_bridge(void)
     return fd;
 }
 
-/* Reads lines from fd until `want` have arrived after `have`; returns the line count and
- * optionally records the latency of each <utime> against the monotonic clock. */
+/* A client's lines, read on a loop of its own; read_lines() runs it until `want` have arrived
+ * since lines was last reset, optionally recording the latency of each <utime> against the
+ * monotonic clock. */
 typedef struct {
     int fd;
+    marie_loop_t *loop;
     char buf[1 << 16];
     size_t len;
-    long lines;
+    long lines, want;
+    int latency, failed;
 } reader_t;
+
+static void on_client_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    reader_t *r = user;
+    ssize_t n = read(r->fd, r->buf + r->len, sizeof r->buf - r->len);
+    if (n < 0 && (errno == EINTR || errno == EAGAIN))
+        return;
+    if (n <= 0) {
+        r->failed = 1;
+        marie_loop_remove_fd(loop, fd);
+        return;
+    }
+    r->len += (size_t)n;
+    char *start = r->buf, *nl;
+    while ((nl = memchr(start, '\n', (size_t)(r->buf + r->len - start)))) {
+        if (r->latency) {
+            char *u = strstr(start, "<utime>");
+            if (u && u < nl && atoll(u + 7) > 0) {
+                long i = atomic_fetch_add(&nlat, 1);
+                if (i < N_LAT)
+                    lat[i] = marie_mono_us() - atoll(u + 7);
+            }
+        }
+        r->lines++;
+        start = nl + 1;
+    }
+    r->len = (size_t)(r->buf + r->len - start);
+    memmove(r->buf, start, r->len);
+}
+
+static int lines_in(void *user)
+{
+    reader_t *r = user;
+    return r->lines >= r->want || r->failed;
+}
 
 static int read_lines(reader_t *r, long want, int latency)
 {
-    int64_t deadline = marie_mono_us() + 20000000;
-    while (r->lines < want && marie_mono_us() < deadline) {
-        /* Bus messages can be lost on a loaded machine: never block past the deadline. */
-        struct pollfd pfd = { .fd = r->fd, .events = POLLIN };
-        if (poll(&pfd, 1, 100) == 0)
-            continue;
-        ssize_t n = read(r->fd, r->buf + r->len, sizeof r->buf - r->len);
-        if (n <= 0)
-            return -1;
-        r->len += (size_t)n;
-        char *start = r->buf, *nl;
-        while ((nl = memchr(start, '\n', (size_t)(r->buf + r->len - start)))) {
-            if (latency) {
-                char *u = strstr(start, "<utime>");
-                if (u && u < nl && atoll(u + 7) > 0) {
-                    long i = atomic_fetch_add(&nlat, 1);
-                    if (i < N_LAT)
-                        lat[i] = marie_mono_us() - atoll(u + 7);
-                }
-            }
-            r->lines++;
-            start = nl + 1;
-        }
-        r->len = (size_t)(r->buf + r->len - start);
-        memmove(r->buf, start, r->len);
-    }
-    return r->lines >= want ? 0 : -1;
+    r->want = want;
+    r->latency = latency;
+    /* Bus messages can be lost on a loaded machine: never wait past the deadline. */
+    return marie_loop_run_until(r->loop, 20000, lines_in, r) == 1 && !r->failed ? 0 : -1;
 }
 
 static void latency_rows(const char *what, double base_p50)
@@ -220,12 +234,14 @@ int main(void)
     blcm = lcm_create(NULL);
     peer = lcm_create(NULL);
     bloop = marie_loop_create();
+    ploop = marie_loop_create();
     xb_server_cfg_t cfg;
     xb_server_cfg_defaults(&cfg);
     cfg.port = 0;
     cfg.handle_lcm = 1;
     cfg.max_clients = 1024;
-    if (!lat || !blcm || !peer || !bloop || !(srv = xb_server_create(&cfg, blcm, bloop, NULL))) {
+    if (!lat || !blcm || !peer || !bloop || !ploop || marie_loop_add_lcm(ploop, peer, 1) < 0 ||
+        !(srv = xb_server_create(&cfg, blcm, bloop, NULL))) {
         fprintf(stderr, "bench_xml_bridge: setup failed\n");
         return 1;
     }
@@ -271,6 +287,9 @@ int main(void)
     if (fd < 0)
         return 1;
     reader_t *rd = calloc(1, sizeof *rd);
+    if (!rd || !(rd->loop = marie_loop_create()) ||
+        marie_loop_add_fd(rd->loop, fd, POLLIN, on_client_readable, rd) < 0)
+        return 1;
     rd->fd = fd;
     read_lines(rd, 1, 0);               /* hello */
     atomic_store(&heard, 0);
@@ -335,6 +354,7 @@ int main(void)
             break;
     }
     latency_rows("bus_to_xml", direct_p50);
+    marie_loop_destroy(rd->loop);
     close(fd);
     usleep(100000);
 
@@ -373,6 +393,7 @@ int main(void)
     pthread_join(pt, NULL);
     xb_server_destroy(srv);
     marie_loop_destroy(bloop);
+    marie_loop_destroy(ploop);
     lcm_destroy(blcm);
     lcm_destroy(peer);
     free(rd);

@@ -194,6 +194,71 @@ static void sigterm_reaches_the_loop_as_a_callback(void **state)
     marie_loop_destroy(loop);
 }
 
+static void on_set_flag(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    *(int *)user = 1;
+}
+
+static int flag_set(void *user) { return *(int *)user; }
+
+static void run_until_returns_when_the_condition_holds(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int flag = 0;
+    assert_non_null(marie_loop_add_oneshot(loop, 20000, on_set_flag, &flag));
+    int64_t start = marie_mono_us();
+    assert_int_equal(marie_loop_run_until(loop, 5000, flag_set, &flag), 1);
+    int64_t took = marie_mono_us() - start;
+    assert_true(took >= 20000);
+    assert_true(took < 4000000);    /* not at the deadline */
+    /* Already true: no round is run, even with no deadline. */
+    assert_int_equal(marie_loop_run_until(loop, -1, flag_set, &flag), 1);
+    marie_loop_destroy(loop);
+}
+
+static void on_pipe_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    char c;
+    if (read(fd, &c, 1) == 1)
+        (*(int *)user)++;
+}
+
+static void run_until_stops_at_the_deadline_and_serves_fds_meanwhile(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int p[2], got = 0, never = 0;
+    assert_int_equal(pipe(p), 0);
+    assert_int_equal(marie_loop_add_fd(loop, p[0], POLLIN, on_pipe_readable, &got), 0);
+    assert_int_equal(write(p[1], "x", 1), 1);
+    int64_t start = marie_mono_us();
+    assert_int_equal(marie_loop_run_until(loop, 100, flag_set, &never), 0);
+    int64_t took = marie_mono_us() - start;
+    assert_true(took >= 100000);
+    assert_true(took < 3000000);
+    assert_int_equal(got, 1);
+    /* 0 ms: one round of what is ready, no waiting. */
+    assert_int_equal(write(p[1], "y", 1), 1);
+    start = marie_mono_us();
+    assert_int_equal(marie_loop_run_until(loop, 0, NULL, NULL), 0);
+    assert_true(marie_mono_us() - start < 50000);
+    assert_int_equal(got, 2);
+    marie_loop_destroy(loop);
+    close(p[0]);
+    close(p[1]);
+}
+
+static void run_until_returns_on_quit(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    int n = 0, never = 0;
+    assert_non_null(marie_loop_add_oneshot(loop, 2000, on_oneshot, &n));    /* quits */
+    int64_t start = marie_mono_us();
+    assert_int_equal(marie_loop_run_until(loop, -1, flag_set, &never), 0);
+    assert_true(marie_mono_us() - start < 3000000);
+    assert_int_equal(n, 1);
+    marie_loop_destroy(loop);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -204,6 +269,9 @@ int main(void)
         cmocka_unit_test(oneshot_fires_once_and_quit_stops_run),
         cmocka_unit_test(wall_timers_run_while_sim_time_stands),
         cmocka_unit_test(sigterm_reaches_the_loop_as_a_callback),
+        cmocka_unit_test(run_until_returns_when_the_condition_holds),
+        cmocka_unit_test(run_until_stops_at_the_deadline_and_serves_fds_meanwhile),
+        cmocka_unit_test(run_until_returns_on_quit),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

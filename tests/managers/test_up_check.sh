@@ -1,8 +1,9 @@
 #!/bin/sh
 # test_up_check: marie up and marie-am --system refuse, before anything starts, entries their
 # programs would reject (the programs describe themselves with --describe, cached per binary),
-# missing programs, bad backoff and cycles (also for a component run alone); marie hash covers
-# every setting and names the base; a long parse ends on SIGTERM or SIGINT.
+# missing programs, programs silent on or failing --describe, bad backoff and cycles (also for a
+# component run alone); marie hash covers every setting and names the base; a long parse ends on
+# SIGTERM or SIGINT.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-upcheck.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace XDG_CACHE_HOME=$T/cache
@@ -90,6 +91,28 @@ damaged_cache() {
     [ "$(describes)" -gt "$n" ] && all_reported "$T/up2.out"
 }
 check "a damaged cache entry is described again" damaged_cache
+
+# -- a program that looks built on libmarie but never answers --describe, or fails it
+printf '#!/bin/sh\n# marie-component-describe/1\nwhile :; do sleep 1; done\n' > "$T/bin/mute"
+printf '#!/bin/sh\n# marie-component-describe/1\nexit 3\n' > "$T/bin/fails"
+chmod +x "$T/bin/mute" "$T/bin/fails"
+cat > "$T/mute.yaml" <<EOF
+components:
+  mute:
+    exec: $T/bin/mute
+  fails:
+    exec: $T/bin/fails
+EOF
+mute_refused() {
+    start=$(date +%s)
+    out=$(timeout 30 "$M" up --no-wait "$T/mute.yaml" 2>&1); rc=$?; echo "$out"
+    took=$(($(date +%s) - start)); echo "exit $rc after $took s"
+    [ $rc -eq 2 ] && [ $took -ge 5 ] && [ $took -lt 20 ] &&
+        echo "$out" | grep -q "mute.yaml:3:[0-9]*: component 'mute': '.*/mute --describe' failed: no answer within 5 s" &&
+        echo "$out" | grep -q "mute.yaml:5:[0-9]*: component 'fails': '.*/fails --describe' failed: exit status 3" &&
+        ! pgrep -f "$T/bin/mute" > /dev/null
+}
+check "a program silent on --describe is refused after 5 s (and killed), one that fails with its status" mute_refused
 
 cat > "$T/backoff.yaml" <<EOF
 components:

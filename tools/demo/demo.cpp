@@ -25,6 +25,7 @@
 extern "C" {
 #include "map/occmap.h"
 #include "core/config.h"
+#include "core/loop.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
@@ -51,9 +52,6 @@ struct Options {
     bool quiet = false;
 };
 
-volatile sig_atomic_t interrupted = 0;
-void on_signal(int) { interrupted = 1; }
-
 class Demo {
 public:
     explicit Demo(const Options &o) : opt_(o) {}
@@ -72,6 +70,9 @@ private:
     void progress(bool final);
     void chaos_tick();
     void estop_tick();
+    static void on_progress_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
+    static void on_chaos_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
+    static void on_signal(marie_loop_t *, int, void *user);
     bool load_map();
     void write_png(const std::string &path);
     void summary(double wall_s);
@@ -82,7 +83,10 @@ private:
     std::vector<pid_t> ams_;
     pid_t logger_ = 0;
     lcm_t *lcm_ = nullptr;
+    marie_loop_t *loop_ = nullptr;
     bool up_ = false;
+    bool running_ = false;      // the mission runs: the e-stop check follows each truth
+    bool interrupted_ = false;
     // what we saw
     std::vector<Sample> truth_, estimate_;
     std::vector<double> errors_;
@@ -103,7 +107,7 @@ private:
     cv::Mat map_;
     double res_ = 0.05, ox_ = 0, oy_ = 0;
     std::mt19937 rng_{7};
-    int64_t start_mono_ = 0, last_progress_ = 0, last_chaos_ = 0;
+    int64_t start_mono_ = 0;
     // whole system, from the managers' status: CPU summed over components, RSS summed
     double cpu_sum_ = 0, rss_peak_mb_ = 0;
     int cpu_samples_ = 0;
@@ -157,6 +161,8 @@ void Demo::shutdown()
     for (auto &h : hosts_)
         marie_am_status_t_destroy(h.second);
     hosts_.clear();
+    marie_loop_destroy(loop_);         // default SIGINT/SIGTERM handling again
+    loop_ = nullptr;
     if (lcm_)
         lcm_destroy(lcm_);
     lcm_ = nullptr;
@@ -191,6 +197,8 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         truth_.push_back({m.utime, m.pose.x, m.pose.y});
         sim_now_ = std::max(sim_now_, m.utime);
         marie_pose_cov_t_decode_cleanup(&m);
+        if (running_ && opt_.estop_after_goal > 0)
+            estop_tick();
     } else if (!strcmp(channel, "POSE")) {
         marie_pose_cov_t m;
         if (marie_decode_checked(&marie_type_pose_cov_t, data, len, &m) < 0)
@@ -284,6 +292,21 @@ void Demo::progress(bool final)
                wall, sim_now_ / 1e6, std::min(reached_ + missed_ + 1, std::max(ngoals_, 1)), ngoals_,
                current_goal_.empty() ? "" : " ", current_goal_.c_str(), reached_, err, running, total, restarts);
     fflush(stdout);
+}
+
+void Demo::on_progress_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user)
+{
+    static_cast<Demo *>(user)->progress(false);
+}
+
+void Demo::on_chaos_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user)
+{
+    static_cast<Demo *>(user)->chaos_tick();
+}
+
+void Demo::on_signal(marie_loop_t *, int, void *user)
+{
+    static_cast<Demo *>(user)->interrupted_ = true;
 }
 
 void Demo::chaos_tick()
@@ -464,7 +487,8 @@ int Demo::run()
     // marie's URL (an 8 MB receive buffer) and deep queues: a simulation as fast as the computer
     // allows sends truth and poses in bursts, and a lost one bends the trajectory drawn.
     lcm_ = lcm_create(marie_default_url());
-    if (!lcm_)
+    loop_ = marie_loop_create();
+    if (!lcm_ || !loop_ || marie_loop_add_lcm(loop_, lcm_, 64) < 0)
         return 1;
     for (const char *ch : {"SIM_TRUTH", "POSE", "GOAL", "MISSION_STATE", "MARIE_EVENT", "MARIE_AM_STATUS",
                            "MARIE_HEARTBEAT"})
@@ -480,9 +504,10 @@ int Demo::run()
                              opt_.out + "/am-" + host_names[i] + ".log"));
     }
     // Orders go to managers that listen: wait until each has reported its status once.
-    int64_t wait_end = marie_mono_us() + 10000000;
-    while (hosts_.size() < ams_.size() && marie_mono_us() < wait_end)
-        lcm_handle_timeout(lcm_, 50);
+    marie_loop_run_until(loop_, 10000, [](void *u) -> int {
+        auto *d = static_cast<Demo *>(u);
+        return d->hosts_.size() >= d->ams_.size();
+    }, this);
     if (hosts_.size() < ams_.size()) {
         fprintf(stderr, "demo: only %zu of %zu managers answered; see %s/am-*.log\n", hosts_.size(), ams_.size(),
                 opt_.out.c_str());
@@ -499,31 +524,30 @@ int Demo::run()
                 opt_.out.c_str());
         return 1;
     }
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
-    last_chaos_ = marie_mono_us();
-    while (!interrupted && !mission_done_ && marie_mono_us() - start_mono_ < int64_t(opt_.timeout_s * 1e6)) {
-        lcm_handle_timeout(lcm_, 50);
-        int64_t now = marie_mono_us();
-        if (now - last_progress_ > 2000000) {
-            progress(false);
-            last_progress_ = now;
-        }
-        if (opt_.chaos_s > 0 && now - last_chaos_ > int64_t(opt_.chaos_s * 1e6)) {
-            chaos_tick();
-            last_chaos_ = now;
-        }
-        if (opt_.estop_after_goal > 0)
-            estop_tick();
-    }
+    marie_loop_catch_signals(loop_, on_signal, this);
+    marie_timer_t *progress_timer = marie_loop_add_wall_timer(loop_, 2000000, on_progress_timer, this);
+    marie_timer_t *chaos_timer = opt_.chaos_s > 0 ? marie_loop_add_wall_timer(loop_, int64_t(opt_.chaos_s * 1e6),
+                                                                              on_chaos_timer, this)
+                                                  : nullptr;
+    running_ = true;
+    progress(false);
+    double left_s = opt_.timeout_s - (marie_mono_us() - start_mono_) / 1e6;
+    if (left_s > 0)
+        marie_loop_run_until(loop_, left_s > 86400 ? 86400000 : int(left_s * 1000), [](void *u) -> int {
+            auto *d = static_cast<Demo *>(u);
+            return d->interrupted_ || d->mission_done_;
+        }, this);
+    running_ = false;
+    marie_loop_remove_timer(loop_, progress_timer);
+    marie_loop_remove_timer(loop_, chaos_timer);
     // Let the last statuses arrive, then stop everything. The mission's final state can come
-    // after its mission_done event (it saves to the SharedMap first, 0.3 s when that is down),
-    // and on a busy bus ten handled messages are a few ms: wait on the clock, bounded.
-    for (int64_t end = marie_mono_us() + 1500000;
-         marie_mono_us() < end && (!mission_done_ || reached_ + missed_ < ngoals_);)
-        lcm_handle_timeout(lcm_, 50);
-    for (int i = 0; i < 10; i++)
-        lcm_handle_timeout(lcm_, 50);
+    // after its mission_done event (it saves to the SharedMap first, 0.3 s when that is down):
+    // wait on the clock, bounded, then a little more for the managers' last statuses.
+    marie_loop_run_until(loop_, 1500, [](void *u) -> int {
+        auto *d = static_cast<Demo *>(u);
+        return d->mission_done_ && d->reached_ + d->missed_ >= d->ngoals_;
+    }, this);
+    marie_loop_run_until(loop_, 100, nullptr, nullptr);
     progress(true);
     double wall = (marie_mono_us() - start_mono_) / 1e6;
     write_png(opt_.out + "/trajectories.png");

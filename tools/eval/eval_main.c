@@ -16,6 +16,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/loop.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
@@ -53,6 +54,12 @@ typedef struct {
     double err_sq;
     int64_t nerr;
     int64_t collisions, recoveries, kidnaps;
+    /* the goal being driven to: the path is summed and the arrival seen per truth message */
+    marie_goal_t goal;
+    bool driving, reached;
+    int64_t t0, limit_us;       /* sim time */
+    double travelled;
+    lcm_t *lcm;
 } live_t;
 
 typedef struct {
@@ -82,6 +89,11 @@ static void on_msg(const lcm_recv_buf_t *rb, const char *ch, void *user)
         marie_pose_cov_t m;
         if (marie_decode_checked(&marie_type_pose_cov_t, rb->data, rb->data_size, &m) < 0)
             return;
+        if (L->driving) {
+            L->travelled += hypot(m.pose.x - L->truth[0], m.pose.y - L->truth[1]);
+            L->reached = hypot(m.pose.x - L->goal.pose.x, m.pose.y - L->goal.pose.y) < L->goal.tolerance;
+            L->driving = !L->reached;
+        }
         L->truth[0] = m.pose.x, L->truth[1] = m.pose.y, L->truth[2] = m.pose.theta;
         L->truth_us = L->sim_us = m.utime;
         L->have_truth = true;
@@ -115,6 +127,24 @@ static void on_msg(const lcm_recv_buf_t *rb, const char *ch, void *user)
         marie_heartbeat_t_decode_cleanup(&hb);
     }
 }
+
+static int live_ready(void *user) { return ((live_t *)user)->have_pose && ((live_t *)user)->have_truth; }
+
+/* Reached, or out of simulated time. */
+static int goal_over(void *user)
+{
+    live_t *L = user;
+    return L->reached || L->sim_us - L->t0 >= L->limit_us;
+}
+
+/* Repeated, as the mission does. */
+static void publish_goal(live_t *L)
+{
+    L->goal.utime = L->sim_us;
+    marie_goal_t_publish(L->lcm, "GOAL", &L->goal);
+}
+
+static void on_goal_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user) { publish_goal(user); }
 
 /* ---- processes ---- */
 static pid_t spawn(const opts_t *o, const char *log, char *const argv[])
@@ -297,19 +327,18 @@ static int run_world(const opts_t *o, const world_t *wd, result_t *res)
     char *const *argvs[5] = { sim_a, odo_a, loc_a, pln_a, beh_a };
 
     lcm_t *l = lcm_create(NULL);
-    live_t L = { 0 };
+    marie_loop_t *loop = marie_loop_create();
+    live_t L = { .lcm = l };
     pid_t pids[5];
     for (int i = 0; i < 5; i++)
         pids[i] = spawn(o, logs[i], argvs[i]);
     int rc = -1;
-    if (!l)
+    if (!l || !loop || marie_loop_add_lcm(loop, l, 64) < 0)
         goto out;
     lcm_subscribe(l, "SIM_TRUTH", on_msg, &L);
     lcm_subscribe(l, "POSE", on_msg, &L);
     lcm_subscribe(l, "MARIE_HEARTBEAT", on_msg, &L);
-    int64_t wall_end = marie_mono_us() + 30000000;
-    while (!(L.have_pose && L.have_truth) && marie_mono_us() < wall_end)
-        lcm_handle_timeout(l, 50);
+    marie_loop_run_until(loop, 30000, live_ready, &L);
     if (!L.have_pose) {
         fprintf(stderr, "eval: %s: no pose within 30 s (see %s)\n", wd->name, dir);
         goto out;
@@ -343,27 +372,21 @@ static int run_world(const opts_t *o, const world_t *wd, result_t *res)
         double gx, gy;
         occmap_cell_center(m, gc % m->width, gc / m->width, &gx, &gy);
         res->tried++;
-        int64_t t0 = L.sim_us, limit_us = (int64_t)((60 + 4 * shortest / 0.5) * 1e6), next_pub = 0;
-        int64_t wall_limit = marie_mono_us() + (int64_t)((60 + 4 * shortest / 0.5) / o->speed * 3e6) + 20000000;
-        double px = L.truth[0], py = L.truth[1], travelled = 0;
-        bool reached = false;
-        while (L.sim_us - t0 < limit_us && marie_mono_us() < wall_limit) {
-            if (marie_mono_us() >= next_pub) {      /* repeated, as the mission does */
-                marie_goal_t g = { .utime = L.sim_us, .id = k, .name = "eval", .pose = { gx, gy, 0 },
-                                   .tolerance = o->tolerance, .priority = 1 };
-                marie_goal_t_publish(l, "GOAL", &g);
-                next_pub = marie_mono_us() + 1000000;
-            }
-            lcm_handle_timeout(l, 20);
-            travelled += hypot(L.truth[0] - px, L.truth[1] - py);
-            px = L.truth[0];
-            py = L.truth[1];
-            if (hypot(L.truth[0] - gx, L.truth[1] - gy) < o->tolerance) {
-                reached = true;
-                break;
-            }
-        }
-        double dt = (L.sim_us - t0) / 1e6;
+        L.goal = (marie_goal_t){ .id = k, .name = "eval", .pose = { gx, gy, 0 }, .tolerance = o->tolerance,
+                                 .priority = 1 };
+        L.t0 = L.sim_us;
+        L.limit_us = (int64_t)((60 + 4 * shortest / 0.5) * 1e6);
+        L.travelled = 0;
+        L.reached = false;
+        L.driving = true;
+        publish_goal(&L);
+        marie_timer_t *repeat = marie_loop_add_wall_timer(loop, 1000000, on_goal_timer, &L);
+        double wall_limit_s = (60 + 4 * shortest / 0.5) / o->speed * 3 + 20;
+        marie_loop_run_until(loop, wall_limit_s > 86400 ? 86400000 : (int)(wall_limit_s * 1000), goal_over, &L);
+        marie_loop_remove_timer(loop, repeat);
+        L.driving = false;
+        bool reached = L.reached;
+        double travelled = L.travelled, dt = (L.sim_us - L.t0) / 1e6;
         if (reached) {
             res->time_s[res->nres] = dt;
             res->ratio[res->nres] = travelled / fmax(shortest - o->tolerance, 0.1);
@@ -377,9 +400,7 @@ static int run_world(const opts_t *o, const world_t *wd, result_t *res)
         fflush(stdout);
     }
     /* Last counters: a heartbeat or two more. */
-    wall_end = marie_mono_us() + 1500000;
-    while (marie_mono_us() < wall_end)
-        lcm_handle_timeout(l, 50);
+    marie_loop_run_until(loop, 1500, NULL, NULL);
     rc = 0;
 out:
     stop_all(pids, 5);
@@ -387,6 +408,7 @@ out:
     res->collisions = L.collisions;
     res->recoveries = L.recoveries;
     res->kidnaps = L.kidnaps;
+    marie_loop_destroy(loop);
     if (l)
         lcm_destroy(l);
     occmap_destroy(m);

@@ -1,7 +1,6 @@
 /* marie-map (`marie map save NAME`): waits for the next map on the bus (marie.occupancy_grid_t)
  * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load. */
 #include <errno.h>
-#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,7 +8,7 @@
 #include <lcm/lcm.h>
 
 #include "core/config.h"
-#include "core/time.h"
+#include "core/loop.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_occupancy_grid_t.h"
 #include "managers/am_proto.h"
@@ -98,6 +97,8 @@ out:
     return rc;
 }
 
+static int have_map(void *user) { return ((mapsave_t *)user)->have; }
+
 int main(int argc, char **argv)
 {
     const char *channel = "MAP", *name = NULL;
@@ -128,16 +129,15 @@ int main(int argc, char **argv)
     }
     mapsave_t s = { 0 };
     lcm_subscribe(lcm, channel, on_map, &s);
-    int64_t end = marie_mono_us() + (int64_t)(wait_s * 1e6);
-    while (!s.have && marie_mono_us() < end) {
-        struct pollfd pfd = { .fd = lcm_get_fileno(lcm), .events = POLLIN };
-        int ms = (int)((end - marie_mono_us()) / 1000);
-        int r = poll(&pfd, 1, ms < 0 ? 0 : ms > 200 ? 200 : ms);
-        if (r > 0)
-            lcm_handle(lcm);
-        else if (r < 0 && errno != EINTR)
-            break;
+    marie_loop_t *loop = marie_loop_create();
+    if (!loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+        fprintf(stderr, "marie: map save: out of memory\n");
+        marie_loop_destroy(loop);
+        lcm_destroy(lcm);
+        return MARIE_EXIT_FAIL;
     }
+    marie_loop_run_until(loop, wait_s > 86400 ? 86400000 : (int)(wait_s * 1000), have_map, &s);
+    marie_loop_destroy(loop);
     lcm_destroy(lcm);
     if (!s.have) {
         fprintf(stderr, "marie: map save: no map on %s within %.1f s%s\n", channel, wait_s,

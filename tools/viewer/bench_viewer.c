@@ -14,6 +14,7 @@
 #include <civetweb.h>
 #include <lcm/lcm.h>
 
+#include "core/loop.h"
 #include "core/procstat.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
@@ -77,11 +78,12 @@ static void on_bus_event(const lcm_recv_buf_t *rb, const char *ch, const marie_e
 
 static volatile int stop_listener;
 
+/* The bus alone, heard on a loop of the listener thread's own. */
 static void *listener(void *arg)
 {
-    lcm_t *l = arg;
+    marie_loop_t *loop = arg;
     while (!stop_listener)
-        lcm_handle_timeout(l, 100);
+        marie_loop_run_once(loop, 100);
     return NULL;
 }
 
@@ -188,11 +190,12 @@ int main(int argc, char **argv)
         usleep(100000);
 
     lcm_t *pub = lcm_create(NULL), *sub = lcm_create(NULL);
-    if (!pub || !sub)
+    marie_loop_t *sub_loop = marie_loop_create();
+    if (!pub || !sub || !sub_loop || marie_loop_add_lcm(sub_loop, sub, 1) < 0)
         return 1;
     marie_event_t_subscribe(sub, "MARIE_EVENT", on_bus_event, NULL);
     pthread_t th;
-    pthread_create(&th, NULL, listener, sub);
+    pthread_create(&th, NULL, listener, sub_loop);
 
     /* the demo's data: office map 800x600, 181-beam laser, 2000 particles */
     enum { MW = 800, MH = 600, NP = 2000 };
@@ -291,6 +294,7 @@ int main(int argc, char **argv)
     row("bus_to_browser_latency_p99", pct(ws_lat, n_ws, 0.99), "ms", bus99);
     row("probes_received", n_ws, "of", seq);
     pthread_mutex_unlock(&mu);
+    marie_loop_destroy(sub_loop);
     lcm_destroy(pub);
     lcm_destroy(sub);
     free(cells);
