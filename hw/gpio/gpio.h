@@ -21,7 +21,7 @@ typedef struct gpio_out gpio_out_t;
  * NULL with errno on failure. */
 gpio_in_t *gpio_in_open(const char *chip, unsigned line, bool active_low, gpio_bias_t bias, const char *consumer);
 void gpio_in_close(gpio_in_t *in);                       /* NULL is a no-op */
-int gpio_in_fd(const gpio_in_t *in);                     /* poll() for POLLIN: edge events */
+int gpio_in_fd(const gpio_in_t *in);                     /* watch it for POLLIN: edge events */
 int gpio_in_value(gpio_in_t *in);                        /* 1 active, 0 inactive, -errno */
 /* Read the pending edge events; cb gets each one's active level and time on
  * CLOCK_MONOTONIC (us). Returns the number of events, or -errno. */

@@ -49,7 +49,7 @@ void vlms200_destroy(vlms200_t *v);                     /* NULL is a no-op */
 int vlms200_open(vlms200_t *v, const char *link);
 const char *vlms200_path(const vlms200_t *v);          /* the slave's path, "" when unplugged */
 int vlms200_fd(const vlms200_t *v);                     /* master fd, -1 when unplugged */
-short vlms200_events(const vlms200_t *v);               /* what to poll() the fd for */
+short vlms200_events(const vlms200_t *v);               /* what to watch the fd for */
 void vlms200_io(vlms200_t *v, short revents, int64_t now_us);
 void vlms200_tick(vlms200_t *v, int64_t now_us);
 int64_t vlms200_deadline(const vlms200_t *v);           /* monotonic us; INT64_MAX: none */

@@ -53,6 +53,27 @@ a_violation_is_caught() {
     [ "$(echo "$v" | grep -c .)" -eq 2 ]
 }
 
+# One loop idiom (docs/architecture.md): outside core/, where marie_loop is, no production file
+# waits by itself (poll, epoll_wait, select, lcm_handle[_timeout]). Benchmarks are not production
+# code: their raw-LCM baselines wait the way a plain LCM program does, on purpose.
+own_waits() {
+    production_files | grep -v '^core/' | xargs grep -nE \
+        '(^|[^_a-zA-Z0-9])(poll|epoll_wait|select|lcm_handle|lcm_handle_timeout)[[:space:]]*\('
+}
+no_program_waits_outside_the_loop() {
+    v=$(own_waits)
+    [ -z "$v" ] || { echo "$v"; return 1; }
+}
+a_private_wait_is_caught() {
+    f=adapters/planner/zz_loop_probe.c
+    printf 'static void f(lcm_t *l) { lcm_handle_timeout(l, 50); }\nstatic int g(struct pollfd *p) { return poll(p, 1, 0) + co_sdo_client_poll(0, 0, 0); }\n' > "$f"
+    v=$(own_waits | grep zz_loop_probe)
+    rm -f "$f"
+    [ "$(echo "$v" | grep -c .)" -eq 2 ]
+}
+
 check every_include_follows_the_layers every_include_follows_the_layers
 check a_violation_is_caught a_violation_is_caught
+check "one loop: no program waits outside marie_loop" no_program_waits_outside_the_loop
+check "one loop: a private wait is caught" a_private_wait_is_caught
 finish
