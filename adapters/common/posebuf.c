@@ -2,7 +2,6 @@
 #include "adapters/common/posebuf.h"
 
 #include <math.h>
-#include <stdlib.h>
 #include <string.h>
 
 static double wrap(double a)
@@ -80,23 +79,6 @@ void pose2d_between(const double a[3], const double b[3], double out[3])
     out[0] = c * dx + s * dy;
     out[1] = -s * dx + c * dy;
     out[2] = wrap(b[2] - a[2]);
-}
-
-int posebuf_keep_scan(marie_laser_scan_t *keep, float **ranges, int *cap, const marie_laser_scan_t *m)
-{
-    if (m->nranges > *cap) {
-        float *n = realloc(*ranges, sizeof(float) * (size_t)m->nranges);
-        if (!n)
-            return -1;
-        *ranges = n;
-        *cap = m->nranges;
-    }
-    *keep = *m;
-    memcpy(*ranges, m->ranges, sizeof(float) * (size_t)m->nranges);
-    keep->ranges = *ranges;
-    keep->nintensities = 0;
-    keep->intensities = NULL;
-    return 0;
 }
 
 bool posebuf_frame_changed(const posebuf_t *b, const marie_odometry_t *m, double last_distance, double *jump)

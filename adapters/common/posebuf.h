@@ -6,7 +6,6 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "lcmtypes/marie_laser_scan_t.h"
 #include "lcmtypes/marie_odometry_t.h"
 
 #ifdef __cplusplus
@@ -43,11 +42,6 @@ void pose2d_between(const double a[3], const double b[3], double out[3]);
  * back (a replayed log), its distance shrinking below last_distance (a restarted odometry counts
  * from zero again) or a jump no robot makes. *jump gets the distance jumped (0 when empty). */
 bool posebuf_frame_changed(const posebuf_t *b, const marie_odometry_t *m, double last_distance, double *jump);
-
-/* A scan newer than the newest odometry, kept until the odometry that brackets it arrives:
- * *keep becomes a copy of m (ranges in *ranges, grown to *cap as needed; intensities dropped).
- * 0, or -1 (ENOMEM) with *keep untouched. The caller frees *ranges. */
-int posebuf_keep_scan(marie_laser_scan_t *keep, float **ranges, int *cap, const marie_laser_scan_t *m);
 
 #ifdef __cplusplus
 }

@@ -6,6 +6,7 @@
 
 #include "map/occmap.h"
 #include "adapters/common/posebuf.h"
+#include "adapters/common/scanwait.h"
 #include "adapters/localizer/mcl.h"
 #include "core/component.h"
 
@@ -52,10 +53,7 @@ typedef struct {
     const loc_params_t *q;
     mcl_t *f;
     posebuf_t odom;             /* recent odometry, for the odometry pose at a scan's time */
-    marie_laser_scan_t pending; /* a scan newer than the newest odometry */
-    float *pending_ranges;
-    int pending_cap;
-    bool have_pending;
+    scanwait_t wait;            /* a scan newer than the newest odometry */
     int64_t last_cloud;
     double cloud_period_us;
     float *cloud_buf;
@@ -173,28 +171,18 @@ static bool scan_ok(marie_component_t *c, const marie_laser_scan_t *m)
     return true;
 }
 
+static void on_scan_at_odometry(marie_component_t *c, const marie_laser_scan_t *m)
+{
+    process(c, marie_component_user(c), m);
+}
+
 static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     loc_t *s = marie_component_user(c);
     const marie_laser_scan_t *m = msg;
     if (!scan_ok(c, m))
         return;
-    if (s->odom.n == 0) {
-        marie_component_count(c, "scans_without_odometry", 1);
-        return;
-    }
-    if (posebuf_newest(&s->odom) >= m->utime) {
-        process(c, s, m);
-        return;
-    }
-    /* Wait for the odometry that brackets this scan (it is at most one period behind). */
-    if (s->have_pending) {
-        marie_component_count(c, "scans_late_odometry", 1);
-        s->have_pending = false;
-        process(c, s, &s->pending);
-    }
-    if (posebuf_keep_scan(&s->pending, &s->pending_ranges, &s->pending_cap, m) == 0)
-        s->have_pending = true;
+    scanwait_scan(&s->wait, c, &s->odom, m, on_scan_at_odometry);
 }
 
 static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -234,13 +222,10 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "odometry_restart",
                               "odometry frame jumped after %.1f s: particles spread by %.2f m, %.2f rad", gap, sig[0], sig[2]);
         posebuf_clear(&s->odom);
-        s->have_pending = false;
+        scanwait_drop(&s->wait);
     }
     posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });
-    if (s->have_pending && m->utime >= s->pending.utime) {
-        s->have_pending = false;
-        process(c, s, &s->pending);
-    }
+    scanwait_odometry(&s->wait, c, m->utime, on_scan_at_odometry);
 }
 
 static void on_initialpose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -302,9 +287,7 @@ static void quit(marie_component_t *c)
     loc_t *s = marie_component_user(c);
     mcl_destroy(s->f);
     s->f = NULL;
-    free(s->pending_ranges);
-    s->pending_ranges = NULL;
-    s->pending_cap = 0;
+    scanwait_free(&s->wait);
     free(s->cloud_buf);
     s->cloud_buf = NULL;
 }
@@ -314,7 +297,7 @@ static int init(marie_component_t *c)
     loc_t *s = marie_component_user(c);
     quit(c);    /* init again after a failure starts from scratch */
     posebuf_clear(&s->odom);
-    s->have_pending = false;
+    scanwait_drop(&s->wait);
     s->force_left = 0;
     s->last_distance = 0;
     const loc_params_t *q = s->q = marie_component_params(c);

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "adapters/common/posebuf.h"
+#include "adapters/common/scanwait.h"
 #include "adapters/mapper/slam.h"
 #include "core/component.h"
 #include "map/occmap.h"
@@ -22,10 +23,7 @@ typedef struct {
 typedef struct {
     slam_t *slam;
     posebuf_t odom;
-    marie_laser_scan_t pending;     /* a scan newer than the newest odometry */
-    float *pending_ranges;
-    int pending_cap;
-    bool have_pending;
+    scanwait_t wait;            /* a scan newer than the newest odometry */
     int64_t last_scan_utime;
     double last_distance;
     bool changed;                   /* keyframes added since the last map message */
@@ -93,28 +91,18 @@ static bool scan_ok(marie_component_t *c, mapper_t *s, const marie_laser_scan_t 
     return true;
 }
 
+static void on_scan_at_odometry(marie_component_t *c, const marie_laser_scan_t *m)
+{
+    process(c, marie_component_user(c), m);
+}
+
 static void on_scan(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     mapper_t *s = marie_component_user(c);
     const marie_laser_scan_t *m = msg;
     if (!scan_ok(c, s, m))
         return;
-    if (s->odom.n == 0) {
-        marie_component_count(c, "scans_without_odometry", 1);
-        return;
-    }
-    if (posebuf_newest(&s->odom) >= m->utime) {
-        process(c, s, m);
-        return;
-    }
-    /* Wait for the odometry that brackets this scan (it is at most one period behind). */
-    if (s->have_pending) {
-        marie_component_count(c, "scans_late_odometry", 1);
-        s->have_pending = false;
-        process(c, s, &s->pending);
-    }
-    if (posebuf_keep_scan(&s->pending, &s->pending_ranges, &s->pending_cap, m) == 0)
-        s->have_pending = true;
+    scanwait_scan(&s->wait, c, &s->odom, m, on_scan_at_odometry);
 }
 
 static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -133,14 +121,11 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
                               "odometry frame jumped by %.2f m: matching from the last map pose", jump);
         posebuf_clear(&s->odom);
         slam_odometry_reset(s->slam);
-        s->have_pending = false;
+        scanwait_drop(&s->wait);
     }
     s->last_distance = m->distance;
     posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });
-    if (s->have_pending && m->utime >= s->pending.utime) {
-        s->have_pending = false;
-        process(c, s, &s->pending);
-    }
+    scanwait_odometry(&s->wait, c, m->utime, on_scan_at_odometry);
 }
 
 static void publish_map(marie_component_t *c, int64_t overruns)
@@ -169,9 +154,7 @@ static void quit(marie_component_t *c)
     mapper_t *s = marie_component_user(c);
     slam_destroy(s->slam);
     s->slam = NULL;
-    free(s->pending_ranges);
-    s->pending_ranges = NULL;
-    s->pending_cap = 0;
+    scanwait_free(&s->wait);
 }
 
 static int init(marie_component_t *c)
@@ -180,7 +163,7 @@ static int init(marie_component_t *c)
     const mapper_params_t *q = marie_component_params(c);
     quit(c);    /* init again after a failure starts from scratch */
     posebuf_clear(&s->odom);
-    s->have_pending = false;
+    scanwait_drop(&s->wait);
     s->last_scan_utime = INT64_MIN;
     s->last_distance = 0;
     s->changed = false;
