@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/signalfd.h>
 #include <unistd.h>
 
 #include <lcm/lcm.h>
@@ -52,6 +53,9 @@ struct marie_loop {
     int sigpipe[2];
     marie_signal_cb_t on_signal;
     void *signal_user;
+    int sigfd;              /* marie_loop_watch_signals' signalfd, or -1 */
+    marie_signal_cb_t on_watched;
+    void *watched_user;
     struct lcm_watch *lcms;
 };
 
@@ -64,6 +68,7 @@ marie_loop_t *marie_loop_create(void)
     if (!loop)
         return NULL;
     loop->sigpipe[0] = loop->sigpipe[1] = -1;
+    loop->sigfd = -1;
     return loop;
 }
 
@@ -73,6 +78,8 @@ void marie_loop_destroy(marie_loop_t *loop)
         return;
     if (loop->sigpipe[0] >= 0)
         marie_loop_catch_signals(loop, NULL, NULL);
+    if (loop->sigfd >= 0)
+        close(loop->sigfd);
     marie_timer_t *t = loop->timers;
     while (t) {
         marie_timer_t *next = t->next;
@@ -463,5 +470,37 @@ int marie_loop_catch_signals(marie_loop_t *loop, marie_signal_cb_t cb, void *use
     sigaction(SIGTERM, &sa, NULL);
     sigaction(SIGINT, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
+    return 0;
+}
+
+static void on_sigfd_readable(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    struct signalfd_siginfo si;
+    while (read(fd, &si, sizeof si) == (ssize_t)sizeof si)
+        loop->on_watched(loop, (int)si.ssi_signo, loop->watched_user);
+}
+
+int marie_loop_watch_signals(marie_loop_t *loop, const int *signos, int n, marie_signal_cb_t cb, void *user)
+{
+    if (loop->sigfd >= 0 || !cb || n <= 0)
+        return -EINVAL;
+    sigset_t set;
+    sigemptyset(&set);
+    for (int i = 0; i < n; i++)
+        if (sigaddset(&set, signos[i]) < 0)
+            return -errno;
+    if (sigprocmask(SIG_BLOCK, &set, NULL) < 0)
+        return -errno;
+    int fd = signalfd(-1, &set, SFD_NONBLOCK | SFD_CLOEXEC);
+    if (fd < 0)
+        return -errno;
+    int rc = marie_loop_add_fd(loop, fd, POLLIN, on_sigfd_readable, NULL);
+    if (rc < 0) {
+        close(fd);
+        return rc;
+    }
+    loop->sigfd = fd;
+    loop->on_watched = cb;
+    loop->watched_user = user;
     return 0;
 }

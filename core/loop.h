@@ -85,6 +85,11 @@ int marie_loop_run_until(marie_loop_t *loop, int timeout_ms, marie_loop_cond_t d
  * pipe; on_signal then runs from the loop. Pass NULL to restore default handling. */
 typedef void (*marie_signal_cb_t)(marie_loop_t *loop, int signo, void *user);
 int marie_loop_catch_signals(marie_loop_t *loop, marie_signal_cb_t on_signal, void *user);
+/* Other signals as loop events (SIGUSR1 to inject a fault, SIGHUP to reload...): they are
+ * blocked in this thread and read from a signalfd; on_signal runs from the loop once per signal
+ * received, with its number. Once per loop; 0 or -errno. Children inherit the block: unblock in
+ * them before exec if they need these signals. */
+int marie_loop_watch_signals(marie_loop_t *loop, const int *signos, int n, marie_signal_cb_t on_signal, void *user);
 
 #ifdef __cplusplus
 }

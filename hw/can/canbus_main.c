@@ -6,7 +6,6 @@
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/signalfd.h>
 #include <unistd.h>
 
 #include "core/log.h"
@@ -18,18 +17,14 @@ static void on_quit(marie_loop_t *loop, int signo, void *user)
     marie_loop_quit(loop);
 }
 
-/* SIGUSR1 / SIGUSR2 arrive through a signalfd: the error frame goes out from the loop. */
-static void on_usr(marie_loop_t *loop, int fd, short revents, void *user)
+/* SIGUSR1 / SIGUSR2, from the loop: the error frame goes out. */
+static void on_usr(marie_loop_t *loop, int signo, void *user)
 {
-    can_emubus_t *b = user;
-    struct signalfd_siginfo si;
-    while (read(fd, &si, sizeof si) == (ssize_t)sizeof si) {
-        struct can_frame f;
-        memset(&f, 0, sizeof f);
-        f.can_id = CAN_ERR_FLAG | (si.ssi_signo == SIGUSR1 ? CAN_ERR_BUSOFF : CAN_ERR_RESTARTED);
-        f.len = CAN_ERR_DLC;
-        can_emubus_inject(b, &f);
-    }
+    struct can_frame f;
+    memset(&f, 0, sizeof f);
+    f.can_id = CAN_ERR_FLAG | (signo == SIGUSR1 ? CAN_ERR_BUSOFF : CAN_ERR_RESTARTED);
+    f.len = CAN_ERR_DLC;
+    can_emubus_inject(user, &f);
 }
 
 int main(int argc, char **argv)
@@ -38,14 +33,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: marie-canbus PATH   (clients use emu:PATH)\n");
         return 2;
     }
-    sigset_t usr;
-    sigemptyset(&usr);
-    sigaddset(&usr, SIGUSR1);
-    sigaddset(&usr, SIGUSR2);
-    sigprocmask(SIG_BLOCK, &usr, NULL);
-    int sfd = signalfd(-1, &usr, SFD_NONBLOCK | SFD_CLOEXEC);
     marie_loop_t *loop = marie_loop_create();
-    if (sfd < 0 || !loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
+    if (!loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
         marie_error("cannot set up the loop: %s", strerror(errno));
         return 1;
     }
@@ -54,7 +43,7 @@ int main(int argc, char **argv)
         marie_error("cannot listen on %s: %s", argv[1], strerror(errno));
         return 1;
     }
-    int rc = marie_loop_add_fd(loop, sfd, POLLIN, on_usr, b);
+    int rc = marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, b);
     if (rc < 0)
         marie_error("cannot watch SIGUSR1/SIGUSR2: %s", strerror(-rc));
     else
@@ -67,8 +56,6 @@ int main(int argc, char **argv)
                (unsigned long long)s->delivered, (unsigned long long)s->overflow,
                (unsigned long long)s->bad);
     can_emubus_destroy(b);
-    marie_loop_remove_fd(loop, sfd);
-    close(sfd);
     marie_loop_destroy(loop);
     return rc < 0 ? 1 : 0;
 }

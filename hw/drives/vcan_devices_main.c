@@ -10,7 +10,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/signalfd.h>
 #include <unistd.h>
 
 #include "core/log.h"
@@ -54,19 +53,16 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     d->last = now;
 }
 
-/* SIGUSR1 / SIGUSR2 arrive through a signalfd: the faults are injected from the loop. */
-static void on_usr(marie_loop_t *loop, int fd, short revents, void *user)
+/* SIGUSR1 / SIGUSR2, from the loop: the faults are injected. */
+static void on_usr(marie_loop_t *loop, int signo, void *user)
 {
     vcan_t *d = user;
-    struct signalfd_siginfo si;
-    while (read(fd, &si, sizeof si) == (ssize_t)sizeof si) {
-        if (si.ssi_signo == SIGUSR1 && vdevices_drive(d->v, 0)) {
-            vdrive_inject_fault(vdevices_drive(d->v, 0), CO_EMCY_OVERCURRENT);
-            marie_info("left drive: injected over-current fault");
-        } else if (si.ssi_signo == SIGUSR2 && vdevices_gyro(d->v)) {
-            d->gyro_fault = !d->gyro_fault;
-            vgyro_set_fault(vdevices_gyro(d->v), d->gyro_fault);
-        }
+    if (signo == SIGUSR1 && vdevices_drive(d->v, 0)) {
+        vdrive_inject_fault(vdevices_drive(d->v, 0), CO_EMCY_OVERCURRENT);
+        marie_info("left drive: injected over-current fault");
+    } else if (signo == SIGUSR2 && vdevices_gyro(d->v)) {
+        d->gyro_fault = !d->gyro_fault;
+        vgyro_set_fault(vdevices_gyro(d->v), d->gyro_fault);
     }
 }
 
@@ -110,14 +106,8 @@ int main(int argc, char **argv)
         usage(stderr);
         return 2;
     }
-    sigset_t usr;
-    sigemptyset(&usr);
-    sigaddset(&usr, SIGUSR1);
-    sigaddset(&usr, SIGUSR2);
-    sigprocmask(SIG_BLOCK, &usr, NULL);
-    int sfd = signalfd(-1, &usr, SFD_NONBLOCK | SFD_CLOEXEC);
     marie_loop_t *loop = marie_loop_create();
-    if (sfd < 0 || !loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
+    if (!loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
         marie_error("cannot set up the loop: %s", strerror(errno));
         return 1;
     }
@@ -130,7 +120,7 @@ int main(int argc, char **argv)
     marie_info("virtual drives %u/%u and gyro %u on %s", cfg.left, cfg.right, cfg.gyro, cfg.can_url);
     int r = marie_loop_add_fd(loop, vdevices_fd(d.v), POLLIN, on_frames, &d);
     if (r == 0)
-        r = marie_loop_add_fd(loop, sfd, POLLIN, on_usr, &d);
+        r = marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, &d);
     if (r == 0 && !marie_loop_add_timer(loop, TICK_US, on_tick, &d))
         r = -errno;
     if (r < 0) {
@@ -143,6 +133,5 @@ int main(int argc, char **argv)
                (unsigned long long)vdevices_frames_out(d.v));
     vdevices_destroy(d.v);
     marie_loop_destroy(loop);
-    close(sfd);
     return d.rc;
 }

@@ -259,6 +259,28 @@ static void run_until_returns_on_quit(void **state)
     marie_loop_destroy(loop);
 }
 
+static int usr_seen[3];
+static void on_usr(marie_loop_t *loop, int signo, void *user)
+{
+    usr_seen[signo == SIGUSR1 ? 1 : signo == SIGUSR2 ? 2 : 0]++;
+}
+
+/* SIGUSR1/SIGUSR2 watched: each arrives as a callback from the loop, none kills the process. */
+static void watched_signals_arrive_from_the_loop(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    assert_int_equal(marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, NULL), 0);
+    assert_int_equal(marie_loop_watch_signals(loop, (const int[]){ SIGHUP }, 1, on_usr, NULL), -EINVAL);
+    kill(getpid(), SIGUSR1);
+    kill(getpid(), SIGUSR2);
+    for (int i = 0; i < 10 && usr_seen[1] + usr_seen[2] < 2; i++)
+        marie_loop_run_once(loop, 100);
+    assert_int_equal(usr_seen[1], 1);
+    assert_int_equal(usr_seen[2], 1);
+    assert_int_equal(usr_seen[0], 0);
+    marie_loop_destroy(loop);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -272,6 +294,7 @@ int main(void)
         cmocka_unit_test(run_until_returns_when_the_condition_holds),
         cmocka_unit_test(run_until_stops_at_the_deadline_and_serves_fds_meanwhile),
         cmocka_unit_test(run_until_returns_on_quit),
+        cmocka_unit_test(watched_signals_arrive_from_the_loop),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
