@@ -58,7 +58,7 @@ typedef struct {
     bool nonfinite;     /* a float or double was NaN or infinite */
 } cursor_t;
 
-static int64_t read_be(const uint8_t *p, int n)
+int64_t marie_wire_int(const uint8_t *p, int n)
 {
     uint64_t v = 0;
     for (int i = 0; i < n; i++)
@@ -69,7 +69,7 @@ static int64_t read_be(const uint8_t *p, int n)
     return (int64_t)v;
 }
 
-static int prim_size(marie_prim_t p)
+int marie_prim_size(marie_prim_t p)
 {
     switch (p) {
     case MARIE_PRIM_INT8: case MARIE_PRIM_BYTE: case MARIE_PRIM_BOOL: return 1;
@@ -105,7 +105,7 @@ static int walk_element(const marie_tfield_t *f, cursor_t *c, int depth, int64_t
     if (f->prim == MARIE_PRIM_STRING) {
         if (room < 4)
             return -1;
-        int64_t n = read_be(c->buf + c->pos, 4);
+        int64_t n = marie_wire_int(c->buf + c->pos, 4);
         if (n < 1 || (uint64_t)n > room - 4 || c->buf[c->pos + 4 + (size_t)n - 1] != 0)
             return -1;
         c->pos += 4 + (size_t)n;
@@ -113,11 +113,11 @@ static int walk_element(const marie_tfield_t *f, cursor_t *c, int depth, int64_t
     }
     if (f->prim == MARIE_PRIM_STRUCT)
         return walk_struct(f->sub, c, depth + 1);
-    int size = prim_size(f->prim);
+    int size = marie_prim_size(f->prim);
     if (!size || room < (size_t)size)
         return -1;
     if (value)
-        *value = read_be(c->buf + c->pos, size);
+        *value = marie_wire_int(c->buf + c->pos, size);
     scan_finite(c, f->prim, 1);
     c->pos += (size_t)size;
     return 0;
@@ -139,7 +139,7 @@ static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
                 return -1;
             count *= n;
         }
-        int size = prim_size(f->prim);
+        int size = marie_prim_size(f->prim);
         if (f->ndims > 0 && size) {
             /* Arrays of fixed-size primitives: only their extent matters. */
             if ((uint64_t)count * (uint64_t)size > c->len - c->pos)
@@ -157,12 +157,12 @@ static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
 
 int64_t marie_payload_fingerprint(const void *buf, size_t len)
 {
-    return len < 8 ? 0 : read_be(buf, 8);
+    return len < 8 ? 0 : marie_wire_int(buf, 8);
 }
 
 int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags)
 {
-    if (!t || len < 8 || read_be(buf, 8) != t->fingerprint)
+    if (!t || len < 8 || marie_wire_int(buf, 8) != t->fingerprint)
         return -EBADMSG;
     cursor_t c = {buf, len, 8, flags, false};
     if (walk_struct(t, &c, 0) < 0 || c.pos != len)

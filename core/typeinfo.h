@@ -58,6 +58,10 @@ const marie_typeinfo_t *marie_typeinfo_find(const char *name);
 /* By wire fingerprint; NULL if unknown. */
 const marie_typeinfo_t *marie_typeinfo_by_fingerprint(int64_t fp);
 const char *marie_prim_name(marie_prim_t p);   /* "int32_t", ..., "struct" */
+/* Bytes a primitive takes on the wire (0 for strings and structs). */
+int marie_prim_size(marie_prim_t p);
+/* A big-endian signed integer of n (1..8) bytes, as LCM writes them. */
+int64_t marie_wire_int(const uint8_t *p, int n);
 
 /* Checks that buf holds exactly one well-formed payload of type t (fingerprint first): every
  * string is NUL-terminated within its length, every array count is non-negative and fits the

@@ -216,27 +216,6 @@ typedef struct {
     int64_t stride[VJ_MAX_STRIDES];
 } walk_t;
 
-static int64_t read_be(const uint8_t *p, int n)
-{
-    uint64_t v = 0;
-    for (int i = 0; i < n; i++)
-        v = v << 8 | p[i];
-    if (n < 8 && (v >> (8 * n - 1)) & 1)
-        v |= ~0ULL << (8 * n);
-    return (int64_t)v;
-}
-
-static int prim_size(marie_prim_t p)
-{
-    switch (p) {
-    case MARIE_PRIM_INT8: case MARIE_PRIM_BYTE: case MARIE_PRIM_BOOL: return 1;
-    case MARIE_PRIM_INT16: return 2;
-    case MARIE_PRIM_INT32: case MARIE_PRIM_FLOAT: return 4;
-    case MARIE_PRIM_INT64: case MARIE_PRIM_DOUBLE: return 8;
-    default: return 0;
-    }
-}
-
 /* A real with `digits` significant digits (about what a float or a double holds), no trailing
  * zeros, NaN and infinities as null: the text of "%.*g", but through an integer scaled by a
  * power of ten in the usual range, as "%g" is ten times slower and a particle cloud is
@@ -287,7 +266,7 @@ static void walk_value(walk_t *w, const marie_tfield_t *f, int depth, int64_t *i
     int64_t iv = 0;
     switch (f->prim) {
     case MARIE_PRIM_STRING: {
-        int64_t n = read_be(p, 4);
+        int64_t n = marie_wire_int(p, 4);
         vj_str(w->b, (const char *)p + 4);      /* NUL-terminated: checked */
         w->p += 4 + (size_t)n;
         return;
@@ -296,14 +275,14 @@ static void walk_value(walk_t *w, const marie_tfield_t *f, int depth, int64_t *i
         walk_struct(w, f->sub, depth + 1);
         return;
     case MARIE_PRIM_FLOAT: {
-        uint32_t u = (uint32_t)read_be(p, 4);
+        uint32_t u = (uint32_t)marie_wire_int(p, 4);
         float x;
         memcpy(&x, &u, 4);
         real(w->b, x, 7);
         break;
     }
     case MARIE_PRIM_DOUBLE: {
-        uint64_t u = (uint64_t)read_be(p, 8);
+        uint64_t u = (uint64_t)marie_wire_int(p, 8);
         double x;
         memcpy(&x, &u, 8);
         real(w->b, x, 10);
@@ -317,13 +296,13 @@ static void walk_value(walk_t *w, const marie_tfield_t *f, int depth, int64_t *i
         vj_int(w->b, iv);
         break;
     default:
-        iv = read_be(p, prim_size(f->prim));
+        iv = marie_wire_int(p, marie_prim_size(f->prim));
         vj_int(w->b, iv);
         break;
     }
     if (ival)
         *ival = iv;
-    w->p += prim_size(f->prim);
+    w->p += marie_prim_size(f->prim);
 }
 
 /* Dimension d of an array field: nested JSON arrays, bytes (byte or int8) as one base64
@@ -333,7 +312,7 @@ static void walk_array(walk_t *w, const marie_tfield_t *f, const int64_t *vals, 
 {
     const marie_tdim_t *dim = &f->dims[d];
     int64_t n = dim->len_field >= 0 ? vals[dim->len_field] : dim->size;
-    int size = prim_size(f->prim);
+    int size = marie_prim_size(f->prim);
     bool last = d == f->ndims - 1;
     if (last && (f->prim == MARIE_PRIM_BYTE || f->prim == MARIE_PRIM_INT8)) {
         vj_base64(w->b, w->p, (size_t)n);
