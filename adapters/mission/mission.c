@@ -12,6 +12,23 @@ void mission_init(mission_t *m)
     m->current = -1;
 }
 
+void mission_goal_options(const marie_node_t *g, mission_goal_t *o, marie_errors_t *errs)
+{
+    const marie_node_t *n;
+    int64_t iv;
+    const char *s;
+    if ((n = marie_node_get(g, "id")) && marie_node_int(n, &iv, errs) == 0)
+        o->id = (int32_t)iv;
+    if ((n = marie_node_get(g, "priority")) && marie_node_int(n, &iv, errs) == 0)
+        o->priority = (int32_t)iv;
+    if ((n = marie_node_get(g, "deadline")) && marie_node_double(n, &o->deadline_s, errs) == 0 && o->deadline_s < 0)
+        marie_errors_add(errs, n->file, n->line, n->col, "deadline: must be >= 0 (s after the mission starts)");
+    if ((n = marie_node_get(g, "tolerance")) && marie_node_double(n, &o->tolerance, errs) == 0 && !(o->tolerance > 0))
+        marie_errors_add(errs, n->file, n->line, n->col, "tolerance: must be > 0");
+    if ((n = marie_node_get(g, "name")) && marie_node_str(n, &s, errs) == 0)
+        snprintf(o->name, sizeof o->name, "%s", s);
+}
+
 int mission_parse(mission_t *m, const marie_node_t *seq, double default_tol, marie_errors_t *errs)
 {
     static const char *const keys[] = { "id", "name", "x", "y", "theta", "priority", "deadline", "tolerance", NULL };
@@ -40,8 +57,6 @@ int mission_parse(mission_t *m, const marie_node_t *seq, double default_tol, mar
         o->tolerance = default_tol;
         snprintf(o->name, sizeof(o->name), "goal%zu", i + 1);
         const marie_node_t *n;
-        int64_t iv;
-        const char *s;
         if (!(n = marie_node_get(g, "x")))
             marie_errors_add(errs, g->file, g->line, g->col, "goal %zu: missing x", i + 1);
         else
@@ -52,16 +67,7 @@ int mission_parse(mission_t *m, const marie_node_t *seq, double default_tol, mar
             marie_node_double(n, &o->y, errs);
         if ((n = marie_node_get(g, "theta")))
             marie_node_double(n, &o->theta, errs);
-        if ((n = marie_node_get(g, "id")) && marie_node_int(n, &iv, errs) == 0)
-            o->id = (int32_t)iv;
-        if ((n = marie_node_get(g, "priority")) && marie_node_int(n, &iv, errs) == 0)
-            o->priority = (int32_t)iv;
-        if ((n = marie_node_get(g, "deadline")) && marie_node_double(n, &o->deadline_s, errs) == 0 && o->deadline_s < 0)
-            marie_errors_add(errs, n->file, n->line, n->col, "deadline: must be >= 0 (s after the mission starts)");
-        if ((n = marie_node_get(g, "tolerance")) && marie_node_double(n, &o->tolerance, errs) == 0 && !(o->tolerance > 0))
-            marie_errors_add(errs, n->file, n->line, n->col, "tolerance: must be > 0");
-        if ((n = marie_node_get(g, "name")) && marie_node_str(n, &s, errs) == 0)
-            snprintf(o->name, sizeof(o->name), "%s", s);
+        mission_goal_options(g, o, errs);
         if (!isfinite(o->x) || !isfinite(o->y) || !isfinite(o->theta))
             marie_errors_add(errs, g->file, g->line, g->col, "goal %zu: coordinates must be finite", i + 1);
         for (int k = 0; k < m->n; k++)

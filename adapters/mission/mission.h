@@ -43,6 +43,9 @@ void mission_init(mission_t *m);
  * deadline (s after start), tolerance, id. Adds "file:line:col: ..." to errs on bad input.
  * Returns the number of goals, or -1. */
 int mission_parse(mission_t *m, const marie_node_t *seq, double default_tolerance, marie_errors_t *errs);
+/* The options a goal entry may give (id, priority, deadline, tolerance, name) into o; errors
+ * with file:line go to errs. */
+void mission_goal_options(const marie_node_t *g, mission_goal_t *o, marie_errors_t *errs);
 /* Advance the mission at time now, given the robot's pose (NULL when unknown): start, declare
  * the current goal reached or missed, skip goals whose deadline has passed, pick the next. */
 void mission_update(mission_t *m, int64_t now, const double *pose, mission_event_fn ev, void *user);

@@ -70,17 +70,7 @@ int mission_signs_parse(mission_signs_t *ss, mission_t *m, const marie_node_t *s
         o->x = s->search[0][0];
         o->y = s->search[0][1];
         snprintf(o->name, sizeof o->name, "sign:%s", s->message);
-        int64_t iv;
-        if ((n = marie_node_get(g, "id")) && marie_node_int(n, &iv, errs) == 0)
-            o->id = (int32_t)iv;
-        if ((n = marie_node_get(g, "priority")) && marie_node_int(n, &iv, errs) == 0)
-            o->priority = (int32_t)iv;
-        if ((n = marie_node_get(g, "deadline")) && marie_node_double(n, &o->deadline_s, errs) == 0 && o->deadline_s < 0)
-            marie_errors_add(errs, n->file, n->line, n->col, "deadline: must be >= 0 (s after the mission starts)");
-        if ((n = marie_node_get(g, "tolerance")) && marie_node_double(n, &o->tolerance, errs) == 0 && !(o->tolerance > 0))
-            marie_errors_add(errs, n->file, n->line, n->col, "tolerance: must be > 0");
-        if ((n = marie_node_get(g, "name")) && marie_node_str(n, &str, errs) == 0)
-            snprintf(o->name, sizeof o->name, "%s", str);
+        mission_goal_options(g, o, errs);
         for (int k = 0; k < m->n; k++)
             if (m->goals[k].id == o->id)
                 marie_errors_add(errs, g->file, g->line, g->col, "sign goal %zu: id %d used twice", i + 1, o->id);
