@@ -65,3 +65,15 @@ int marie_log_ratelimit_pass(long long *last_s, int every_s)
     *last_s = now ? now : 1;
     return 1;
 }
+
+int marie_fail_why(char *why, size_t len, const char *fmt, ...)
+{
+    if (why && len) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(why, len, fmt, ap);
+        va_end(ap);
+    }
+    errno = EINVAL;
+    return -1;
+}

@@ -3,6 +3,7 @@
 #define MARIE_LOG_H
 
 #include <stdarg.h>
+#include <stddef.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -37,6 +38,10 @@ void marie_log_write(marie_log_level_t level, const char *file, int line, const 
         if (marie_log_ratelimit_pass(&marie_rl_last_, (every_s))) marie_warn(__VA_ARGS__); \
     } while (0)
 int marie_log_ratelimit_pass(long long *last_s, int every_s);
+
+/* The error rule's reason (docs/core.md): the printf-style reason goes to why[0..len) when why is
+ * given, errno becomes EINVAL, and -1 is returned: `return marie_fail_why(why, len, "...", ...);` */
+int marie_fail_why(char *why, size_t len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 #ifdef __cplusplus
 }

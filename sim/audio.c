@@ -3,12 +3,12 @@
 
 #include <errno.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/log.h"
 #include "hw/audio/wav.h"
 #include "sim/rng.h"
 
@@ -43,18 +43,6 @@ struct sim_audio {
 };
 
 /* ---- scene text ------------------------------------------------------------------------ */
-
-static int scene_fail(char *why, size_t whylen, const char *fmt, ...)
-{
-    if (why && whylen) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(why, whylen, fmt, ap);
-        va_end(ap);
-    }
-    errno = EINVAL;
-    return -1;
-}
 
 static int set_number(double *dst, const char *val, double lo, double hi)
 {
@@ -99,23 +87,23 @@ static int scene_item(sim_audio_scene_t *sc, char *item, char *why, size_t whyle
              : !strcmp(word, "fan") ? SIM_SOUND_FAN : !strcmp(word, "diffuse") ? 10
              : !strcmp(word, "walls") ? 11 : -1;
     if (kind < 0)
-        return scene_fail(why, whylen, "unknown item '%.40s' (speech, noise, fan, diffuse, walls)", word);
+        return marie_fail_why(why, whylen, "unknown item '%.40s' (speech, noise, fan, diffuse, walls)", word);
     if (kind < 10 && sc->n == SIM_AUDIO_MAX_SOURCES)
-        return scene_fail(why, whylen, "more than %d sources", SIM_AUDIO_MAX_SOURCES);
+        return marie_fail_why(why, whylen, "more than %d sources", SIM_AUDIO_MAX_SOURCES);
     s.kind = (sim_sound_kind_t)(kind < 10 ? kind : 0);
     while ((word = strtok_r(NULL, " \t\n", &save))) {
         char *eq = strchr(word, '=');
         if (!eq)
-            return scene_fail(why, whylen, "expected key=value, got '%.40s'", word);
+            return marie_fail_why(why, whylen, "expected key=value, got '%.40s'", word);
         *eq = 0;
         int bad = kind == 10 ? (strcmp(word, "snr") || set_number(&sc->snr_db, eq + 1, -40, 1000))
                 : kind == 11 ? (strcmp(word, "reflect") || set_number(&sc->reflect, eq + 1, 0, 0.99))
                 : source_key(&s, word, eq + 1);
         if (bad)
-            return scene_fail(why, whylen, "bad key or value '%.40s=%.40s'", word, eq + 1);
+            return marie_fail_why(why, whylen, "bad key or value '%.40s=%.40s'", word, eq + 1);
     }
     if (kind == SIM_SOUND_SPEECH && !s.file[0])
-        return scene_fail(why, whylen, "speech needs file=");
+        return marie_fail_why(why, whylen, "speech needs file=");
     if (kind < 10)
         sc->src[sc->n++] = s;
     return 0;
@@ -129,7 +117,7 @@ int sim_audio_scene_parse(const char *text, sim_audio_scene_t *out, char *why, s
         return 0;
     size_t len = strlen(text);
     if (len > 8192)
-        return scene_fail(why, whylen, "scene longer than 8192 characters");
+        return marie_fail_why(why, whylen, "scene longer than 8192 characters");
     char *copy = strdup(text);
     if (!copy)
         return -1;
@@ -190,11 +178,11 @@ static int load_source(sim_audio_t *a, source_t *s, sim_rng_t *r, char *why, siz
         int frate = 0;
         s->sig = wav_load_mono(s->s.file, &s->len, &frate);
         if (!s->sig)
-            return scene_fail(why, whylen, "%s: %s", s->s.file, strerror(errno));
+            return marie_fail_why(why, whylen, "%s: %s", s->s.file, strerror(errno));
         if (frate != rate) {
             free(s->sig);
             s->sig = NULL;
-            return scene_fail(why, whylen, "%s: %d Hz, the array runs at %d Hz", s->s.file, frate, rate);
+            return marie_fail_why(why, whylen, "%s: %d Hz, the array runs at %d Hz", s->s.file, frate, rate);
         }
         normalize_active(s->sig, s->len, s->s.level);
         s->period = s->s.every > 0 ? lround(s->s.every * rate) : 0;
@@ -461,7 +449,7 @@ sim_audio_t *sim_audio_create(const sim_audio_cfg_t *cfg, const sim_audio_scene_
                               const occmap_t *map, char *why, size_t whylen)
 {
     if (cfg->rate < 4000 || cfg->rate > 96000 || cfg->block < 16 || cfg->block > 8192 || cfg->mics.n < 1) {
-        scene_fail(why, whylen, "rate, block or microphones out of range");
+        marie_fail_why(why, whylen, "rate, block or microphones out of range");
         return NULL;
     }
     sim_audio_t *a = calloc(1, sizeof(*a));

@@ -3,12 +3,13 @@
 
 #include <ctype.h>
 #include <errno.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include <pocketsphinx.h>
+
+#include "core/log.h"
 
 const char *const asr_default_commands[] = {
     "go to room a", "go to room b", "go to room c", "go to the kitchen", "stop", "come here", "follow me",
@@ -51,16 +52,6 @@ void asr_cfg_default(asr_cfg_t *c, const char *const *commands, int ncommands, i
     asr_vad_cfg_default(&c->vad, (double)block / c->rate);
 }
 
-static void fail(char *why, size_t whylen, const char *fmt, ...)
-{
-    if (!why || !whylen)
-        return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, whylen, fmt, ap);
-    va_end(ap);
-}
-
 /* "public <command> = (go to room a) | (stop) ...;" with only letters, digits, spaces and
  * apostrophes let through, so a phrase cannot break the grammar. */
 static char *make_jsgf(const asr_cfg_t *cfg)
@@ -85,7 +76,7 @@ static char *make_jsgf(const asr_cfg_t *cfg)
 asr_t *asr_create(const asr_cfg_t *cfg, asr_result_cb_t cb, void *user, char *why, size_t whylen)
 {
     if (cfg->ncommands < 1 || cfg->block < 1 || cfg->rate != 16000) {
-        fail(why, whylen, "need commands, a block size and 16000 Hz (the model's rate)");
+        marie_fail_why(why, whylen, "need commands, a block size and 16000 Hz (the model's rate)");
         errno = EINVAL;
         return NULL;
     }
@@ -100,11 +91,11 @@ asr_t *asr_create(const asr_cfg_t *cfg, asr_result_cb_t cb, void *user, char *wh
     a->config = cmd_ln_init(NULL, ps_args(), TRUE, "-hmm", cfg->hmm, "-dict", cfg->dict, "-logfn", "/dev/null",
                             "-samprate", "16000", NULL);
     if (!a->config || !(a->ps = ps_init(a->config))) {
-        fail(why, whylen, "PocketSphinx cannot load the model %s with %s", cfg->hmm, cfg->dict);
+        marie_fail_why(why, whylen, "PocketSphinx cannot load the model %s with %s", cfg->hmm, cfg->dict);
         goto fail;
     }
     if (ps_set_jsgf_string(a->ps, "commands", jsgf) || ps_set_search(a->ps, "commands")) {
-        fail(why, whylen, "the command grammar is refused (a word missing from %s?)", cfg->dict);
+        marie_fail_why(why, whylen, "the command grammar is refused (a word missing from %s?)", cfg->dict);
         goto fail;
     }
     int preroll = (int)(cfg->preroll_s * cfg->rate) + cfg->block;

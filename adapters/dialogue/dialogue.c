@@ -4,22 +4,11 @@
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-static int fail(char *why, size_t whylen, const char *fmt, ...)
-{
-    if (why && whylen) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(why, whylen, fmt, ap);
-        va_end(ap);
-    }
-    errno = EINVAL;
-    return -1;
-}
+#include "core/log.h"
 
 static char *trim(char *s)
 {
@@ -35,14 +24,14 @@ static int parse_place(char *item, dialogue_place_t *p, char *why, size_t whylen
 {
     char *eq = strchr(item, '=');
     if (!eq)
-        return fail(why, whylen, "place '%.40s': expected name=x,y,theta", item);
+        return marie_fail_why(why, whylen, "place '%.40s': expected name=x,y,theta", item);
     *eq = 0;
     char *name = trim(item);
     if (!*name || strlen(name) >= sizeof(p->name))
-        return fail(why, whylen, "place name empty or longer than %zu", sizeof(p->name) - 1);
+        return marie_fail_why(why, whylen, "place name empty or longer than %zu", sizeof(p->name) - 1);
     for (char *c = name; *c; c++)
         if (!(islower((unsigned char)*c) || isdigit((unsigned char)*c) || *c == ' '))
-            return fail(why, whylen, "place name '%.40s': lower case letters, digits and spaces only", name);
+            return marie_fail_why(why, whylen, "place name '%.40s': lower case letters, digits and spaces only", name);
     double v[3];
     char *s = eq + 1;
     for (int k = 0; k < 3; k++) {
@@ -50,15 +39,15 @@ static int parse_place(char *item, dialogue_place_t *p, char *why, size_t whylen
         errno = 0;
         v[k] = strtod(s, &end);
         if (end == s || errno || !isfinite(v[k]) || fabs(v[k]) > 1e5)
-            return fail(why, whylen, "place '%.40s': expected x,y,theta numbers", name);
+            return marie_fail_why(why, whylen, "place '%.40s': expected x,y,theta numbers", name);
         s = end;
         while (*s == ' ')
             s++;
         if (k < 2 && *s++ != ',')
-            return fail(why, whylen, "place '%.40s': expected x,y,theta", name);
+            return marie_fail_why(why, whylen, "place '%.40s': expected x,y,theta", name);
     }
     if (*s)
-        return fail(why, whylen, "place '%.40s': text after theta", name);
+        return marie_fail_why(why, whylen, "place '%.40s': text after theta", name);
     snprintf(p->name, sizeof(p->name), "%s", name);
     p->x = v[0];
     p->y = v[1];
@@ -72,7 +61,7 @@ int dialogue_places_parse(const char *text, dialogue_place_t *out, int max, int 
     if (!text)
         return 0;
     if (strlen(text) > 8192)
-        return fail(why, whylen, "places longer than 8192 characters");
+        return marie_fail_why(why, whylen, "places longer than 8192 characters");
     char *copy = strdup(text);
     if (!copy)
         return -1;
@@ -82,7 +71,7 @@ int dialogue_places_parse(const char *text, dialogue_place_t *out, int max, int 
         if (!*trim(item))
             continue;
         if (*n == max)
-            rc = fail(why, whylen, "more than %d places", max);
+            rc = marie_fail_why(why, whylen, "more than %d places", max);
         else if (!(rc = parse_place(item, &out[*n], why, whylen)))
             (*n)++;
     }

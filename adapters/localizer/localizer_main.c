@@ -94,6 +94,12 @@ static bool watch_kidnap(marie_component_t *c, loc_t *s, int64_t utime)
     if (s->q->kidnap_likelihood <= 0)
         return false;
     double lik = mcl_likelihood(s->f);
+    if (!s->relocalizing && s->force_left > 0) {
+        /* Particles just spread (a restart, a new initial pose) fit poorly until the forced
+         * updates pull them in: that is not a kidnapping. */
+        s->poor = 0;
+        return false;
+    }
     if (!s->relocalizing) {
         s->poor = lik < s->q->kidnap_likelihood ? s->poor + 1 : 0;
         if (s->poor < s->q->kidnap_updates)
