@@ -7,6 +7,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench/bench.h"
 #include "core/config.h"
 
 /* Components that each depend on the one before, with ports and parameters: every lookup the
@@ -70,7 +71,7 @@ int main(void)
     double base = load_rate(1, 5), big = load_rate(10, 3);
     if (base <= 0 || big <= 0)
         return 1;
-    printf("bench_config\tload_1MB\t%.2f\tMB/s-cpu\t-\t-\n", base);
-    printf("bench_config\tload_10MB\t%.2f\tMB/s-cpu\t%.2f\t%.2f\n", big, base, big / base);
+    bench_row("bench_config", "load_1MB", base, "MB/s-cpu", NAN);
+    bench_row("bench_config", "load_10MB", big, "MB/s-cpu", base);
     return 0;
 }

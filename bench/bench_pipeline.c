@@ -11,6 +11,7 @@
 
 #include <lcm/lcm.h>
 
+#include "bench/bench.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
 #include "tests/proc.h"
@@ -112,14 +113,14 @@ int main(void)
     test_stop(pm);
     double t50 = pct(&tick_to_cmd, 0.5), t99 = pct(&tick_to_cmd, 0.99);
     double h50 = pct(&hop, 0.5), h99 = pct(&hop, 0.99);
-    printf("pipeline\tcycles_measured\t%d\tcycles\t-\t-\n", tick_to_cmd.n);
-    printf("pipeline\tlaser_hop_p50\t%.0f\tus\t-\t-\n", h50);
-    printf("pipeline\tlaser_hop_p99\t%.0f\tus\t-\t-\n", h99);
-    printf("pipeline\ttick_to_motor_command_p50\t%.0f\tus\t-\t-\n", t50);
-    printf("pipeline\ttick_to_motor_command_p99\t%.0f\tus\t-\t-\n", t99);
+    bench_row("pipeline", "cycles_measured", tick_to_cmd.n, "cycles", NAN);
+    bench_row("pipeline", "laser_hop_p50", h50, "us", NAN);
+    bench_row("pipeline", "laser_hop_p99", h99, "us", NAN);
+    bench_row("pipeline", "tick_to_motor_command_p50", t50, "us", NAN);
+    bench_row("pipeline", "tick_to_motor_command_p99", t99, "us", NAN);
     /* Target: p99 < 1 ms; the sum of the two p99s bounds the path's p99 from above. */
-    printf("pipeline\tlaser_to_motor_command_p50\t%.0f\tus\t1000\t%.3f\n", h50 + t50, (h50 + t50) / 1000);
-    printf("pipeline\tlaser_to_motor_command_p99_bound\t%.0f\tus\t1000\t%.3f\n", h99 + t99, (h99 + t99) / 1000);
+    bench_row("pipeline", "laser_to_motor_command_p50", h50 + t50, "us", 1000);
+    bench_row("pipeline", "laser_to_motor_command_p99_bound", h99 + t99, "us", 1000);
     lcm_destroy(tx);
     lcm_destroy(rx);
     return tick_to_cmd.n > 10 ? 0 : 1;

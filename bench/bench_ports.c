@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench/bench.h"
 #include "core/component.h"
 
 typedef struct {
@@ -142,11 +143,7 @@ static double pct(sink_t *s, double p)
 
 static void row(const char *metric, double v, const char *unit, double base)
 {
-    if (isnan(base))
-        printf("ports\t%s\t%.1f\t%s\t-\t-\n", metric, v, unit);
-    else
-        printf("ports\t%s\t%.1f\t%s\t%.1f\t%.3f\n", metric, v, unit, base, base > 0 ? v / base : NAN);
-    fflush(stdout);
+    bench_row("ports", metric, v, unit, base);
 }
 
 static void run_size(bench_t *b, const char *label, size_t size, int n)

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench/bench.h"
 #include "core/config.h"
 #include "core/shm_bus.h"
 #include "core/time.h"
@@ -62,7 +63,7 @@ static double pct(sink_t *s, double p)
 
 static void row(const char *metric, double v, const char *unit, double base)
 {
-    printf("shm\t%s\t%.1f\t%s\t%.1f\t%.3f\n", metric, v, unit, base, base > 0 ? v / base : NAN);
+    bench_row("shm", metric, v, unit, base);
 }
 
 typedef struct {

@@ -12,6 +12,7 @@
 
 #include <lcm/lcm.h>
 
+#include "bench/bench.h"
 #include "core/component.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -25,8 +26,7 @@ static const char *bin = "build";
 
 static void row(const char *metric, double value, const char *unit)
 {
-    printf("bench_am\t%s\t%.3f\t%s\t-\t-\n", metric, value, unit);
-    fflush(stdout);
+    bench_row("bench_am", metric, value, unit, NAN);
 }
 
 static pid_t spawn_am(const char *host, const char *state)

@@ -13,6 +13,7 @@
 
 #include <lcm/lcm.h>
 
+#include "bench/bench.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_sim_clock_t.h"
@@ -28,8 +29,7 @@ static double cpu_s(int who)
 
 static void row(const char *bench, const char *metric, double v, const char *unit)
 {
-    printf("%s\t%s\t%.3f\t%s\t-\t-\n", bench, metric, v, unit);
-    fflush(stdout);
+    bench_row(bench, metric, v, unit, NAN);
 }
 
 /* Physics, laser at 10 Hz and odometry at 50 Hz for sim_s, in the office corridor. */

@@ -9,6 +9,7 @@
 #include "map/occmap.h"
 #include "adapters/localizer/mcl.h"
 #include "adapters/planner/planner.h"
+#include "bench/bench.h"
 #include "core/time.h"
 #include "tests/adapters/simworld.h"
 
@@ -27,7 +28,7 @@ static double pct(double *v, int n, double q)
 
 static void row(const char *metric, double value, const char *unit)
 {
-    printf("adapters\t%s\t%.3f\t%s\t-\t-\n", metric, value, unit);
+    bench_row("adapters", metric, value, unit, NAN);
 }
 
 static occmap_t *office(const char **which)

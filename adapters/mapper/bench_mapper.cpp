@@ -10,6 +10,7 @@
 #include "adapters/mapper/posegraph.hpp"
 #include "adapters/mapper/scangrid.hpp"
 #include "adapters/mapper/slam.h"
+#include "bench/bench.h"
 #include "tests/adapters/simworld.h"
 
 using clk = std::chrono::steady_clock;
@@ -28,7 +29,7 @@ static double pct(std::vector<double> v, double q)
 
 static void row(const char *metric, double value, const char *unit)
 {
-    printf("mapper\t%s\t%.3f\t%s\t-\t-\n", metric, value, unit);
+    bench_row("mapper", metric, value, unit, NAN);
 }
 
 int main()

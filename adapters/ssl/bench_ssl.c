@@ -8,6 +8,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench/bench.h"
 #include "tests/audio/audio_scene_util.h"
 
 #define DUR 10.0
@@ -68,7 +69,7 @@ int main(void)
     size_t n = nv / (size_t)M;
     printf("bench\tmetric\tvalue\tunit\tbaseline\tratio\n");
     printf("# baselines: real time (one core for 1 s of audio), or the frame period (16 ms)\n");
-    printf("bench_ssl\tsim_array_render_cpu\t%.1f\t%% of one core\t100\t%.3f\n", 100 * render / DUR, render / DUR);
+    bench_row("bench_ssl", "sim_array_render_cpu", 100 * render / DUR, "% of one core", 100);
 
     /* SRP-PHAT alone: repeated calls on fixed spectra. */
     ssl_srp_cfg_t scfg;
@@ -86,15 +87,15 @@ int main(void)
     for (int i = 0; i < reps; i++)
         ssl_srp_frame(srp, (const float complex *const *)spec, pot, 3);
     double srp_us = (cpu_s() - t) / reps * 1e6;
-    printf("bench_ssl\tsrp_phat_per_frame\t%.0f\tus (28 pairs, %d directions)\t16000\t%.4f\n", srp_us,
-           ssl_srp_directions(srp), srp_us / 16000);
+    char unit[64];
+    snprintf(unit, sizeof unit, "us (28 pairs, %d directions)", ssl_srp_directions(srp));
+    bench_row("bench_ssl", "srp_phat_per_frame", srp_us, unit, 16000);
 
     double loc = run_pipeline(x, n, M, false);
     double full = run_pipeline(x, n, M, true);
-    printf("bench_ssl\tlocalize_track_cpu\t%.1f\t%% of one core at 16 kHz x 8\t100\t%.4f\n", 100 * loc / DUR, loc / DUR);
-    printf("bench_ssl\tlocalize_track_separate_cpu\t%.1f\t%% of one core at 16 kHz x 8\t100\t%.4f\n", 100 * full / DUR,
-           full / DUR);
-    printf("bench_ssl\tpipeline_per_frame\t%.0f\tus\t16000\t%.4f\n", full / frames * 1e6, full / frames * 1e6 / 16000);
+    bench_row("bench_ssl", "localize_track_cpu", 100 * loc / DUR, "% of one core at 16 kHz x 8", 100);
+    bench_row("bench_ssl", "localize_track_separate_cpu", 100 * full / DUR, "% of one core at 16 kHz x 8", 100);
+    bench_row("bench_ssl", "pipeline_per_frame", full / frames * 1e6, "us", 16000);
     for (int m = 0; m < M; m++)
         free(spec[m]);
     ssl_srp_destroy(srp);

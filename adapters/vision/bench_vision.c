@@ -20,6 +20,7 @@
 
 #include "adapters/vision/vision_component.h"
 #include "adapters/vision/vision_detect.h"
+#include "bench/bench.h"
 #include "camera/vision_image.h"
 #include "camera/vision_render.h"
 #include "core/loop.h"
@@ -58,11 +59,7 @@ static void make_frames(void)
 
 static void row(const char *metric, double v, const char *unit, double base, bool has_base)
 {
-    if (has_base)
-        printf("vision\t%s\t%.4g\t%s\t%.4g\t%.3f\n", metric, v, unit, base, base > 0 ? v / base : 0.0);
-    else
-        printf("vision\t%s\t%.4g\t%s\t-\t-\n", metric, v, unit);
-    fflush(stdout);
+    bench_row("vision", metric, v, unit, has_base ? base : NAN);
 }
 
 /* ---- libapriltag directly: detect and estimate each tag's pose ---- */

@@ -15,6 +15,7 @@
 #include <lcm/lcm.h>
 
 #include "adapters/xml_bridge/xb_server.h"
+#include "bench/bench.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_pose_cov_t.h"
@@ -105,11 +106,7 @@ static int cmp64(const void *a, const void *b)
 
 static void row(const char *metric, double value, const char *unit, double baseline)
 {
-    if (baseline > 0)
-        printf("xml_bridge\t%s\t%.1f\t%s\t%.1f\t%.3f\n", metric, value, unit, baseline, value / baseline);
-    else
-        printf("xml_bridge\t%s\t%.1f\t%s\t-\t-\n", metric, value, unit);
-    fflush(stdout);
+    bench_row("xml_bridge", metric, value, unit, baseline);
 }
 
 static int encode_pose(uint8_t *buf, size_t size, int64_t utime)

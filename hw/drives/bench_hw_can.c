@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "bench/bench.h"
 #include "core/config.h"
 #include "core/loop.h"
 #include "core/procstat.h"
@@ -145,10 +146,12 @@ int main(void)
     }
     if (got > 0) {
         qsort(lat, (size_t)got, sizeof lat[0], cmp);
-        printf("hw_can\tcmd_to_rpdo_p50\t%.3f\tms\t-\t-\n", lat[got / 2]);
-        printf("hw_can\tcmd_to_rpdo_p99\t%.3f\tms\t-\t-\n", lat[(int)(got * 0.99) < got ? (int)(got * 0.99) : got - 1]);
+        bench_row("hw_can", "cmd_to_rpdo_p50", lat[got / 2], "ms", NAN);
+        bench_row("hw_can", "cmd_to_rpdo_p99", lat[(int)(got * 0.99) < got ? (int)(got * 0.99) : got - 1], "ms", NAN);
     }
-    printf("hw_can\tcmd_to_rpdo_seen\t%d\tof %d\t-\t-\n", got, N);
+    char of[32];
+    snprintf(of, sizeof of, "of %d", N);
+    bench_row("hw_can", "cmd_to_rpdo_seen", got, of, NAN);
 
     /* CPU and RSS over 10 s at nominal rates, commanded at 10 Hz. */
     double d0 = cpu_s(drv), g0 = cpu_s(gyr), v0 = cpu_s(dev), b0 = cpu_s(bus);
@@ -162,14 +165,14 @@ int main(void)
         marie_loop_run_once(loop, 20);     /* the spy's frames are read and dropped */
     }
     double wall = (marie_mono_us() - w0) / 1e6;
-    printf("hw_can\tmarie-drives_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(drv) - d0) / wall);
-    printf("hw_can\tmarie-drives_rss\t%.2f\tMB\t-\t-\n", rss_mb(drv, "VmRSS"));
-    printf("hw_can\tmarie-drives_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(drv, "RssAnon"));
-    printf("hw_can\tmarie-gyro_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(gyr) - g0) / wall);
-    printf("hw_can\tmarie-gyro_rss\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "VmRSS"));
-    printf("hw_can\tmarie-gyro_rss_anon\t%.2f\tMB\t-\t-\n", rss_mb(gyr, "RssAnon"));
-    printf("hw_can\tmarie-vcan-devices_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(dev) - v0) / wall);
-    printf("hw_can\tmarie-canbus_cpu\t%.3f\t%% of a core\t-\t-\n", 100.0 * (cpu_s(bus) - b0) / wall);
+    bench_row("hw_can", "marie-drives_cpu", 100.0 * (cpu_s(drv) - d0) / wall, "% of a core", NAN);
+    bench_row("hw_can", "marie-drives_rss", rss_mb(drv, "VmRSS"), "MB", NAN);
+    bench_row("hw_can", "marie-drives_rss_anon", rss_mb(drv, "RssAnon"), "MB", NAN);
+    bench_row("hw_can", "marie-gyro_cpu", 100.0 * (cpu_s(gyr) - g0) / wall, "% of a core", NAN);
+    bench_row("hw_can", "marie-gyro_rss", rss_mb(gyr, "VmRSS"), "MB", NAN);
+    bench_row("hw_can", "marie-gyro_rss_anon", rss_mb(gyr, "RssAnon"), "MB", NAN);
+    bench_row("hw_can", "marie-vcan-devices_cpu", 100.0 * (cpu_s(dev) - v0) / wall, "% of a core", NAN);
+    bench_row("hw_can", "marie-canbus_cpu", 100.0 * (cpu_s(bus) - b0) / wall, "% of a core", NAN);
     rc = 0;
 out_sub:
     marie_wheel_encoders_t_unsubscribe(lcm, se);

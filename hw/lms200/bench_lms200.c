@@ -8,6 +8,7 @@
 
 #include <lcm/lcm.h>
 
+#include "bench/bench.h"
 #include "core/loop.h"
 #include "core/procstat.h"
 #include "core/time.h"
@@ -17,8 +18,7 @@
 
 static void row(const char *bench, const char *metric, double value, const char *unit)
 {
-    printf("%s\t%s\t%.6g\t%s\t-\t-\n", bench, metric, value, unit);
-    fflush(stdout);
+    bench_row(bench, metric, value, unit, NAN);
 }
 
 static long scans;

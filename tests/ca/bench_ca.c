@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "bench/bench.h"
 #include "ca/ca.h"
 #include "ca/sharedmap_client.h"
 #include "core/time.h"
@@ -116,10 +117,7 @@ static int one(cat_bus_t *bus, path_t *p, const char *in, int how)
 
 static void row(const char *metric, double v, const char *unit, double base)
 {
-    if (base > 0)
-        printf("bench_ca\t%s\t%.1f\t%s\t%.1f\t%.2f\n", metric, v, unit, base, v / base);
-    else
-        printf("bench_ca\t%s\t%.1f\t%s\t-\t-\n", metric, v, unit);
+    bench_row("bench_ca", metric, v, unit, base);
 }
 
 int main(void)

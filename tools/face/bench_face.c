@@ -18,6 +18,7 @@
 #include <civetweb.h>
 #include <lcm/lcm.h>
 
+#include "bench/bench.h"
 #include "core/auth.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -51,8 +52,7 @@ static int ncycles;
 
 static void row(const char *metric, double value, const char *unit)
 {
-    printf("face\t%s\t%.2f\t%s\t-\t-\n", metric, value, unit);
-    fflush(stdout);
+    bench_row("face", metric, value, unit, NAN);
 }
 
 static void on_req(const lcm_recv_buf_t *rb, const char *ch, const marie_goal_request_t *m, void *u)

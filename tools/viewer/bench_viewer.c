@@ -14,6 +14,7 @@
 #include <civetweb.h>
 #include <lcm/lcm.h>
 
+#include "bench/bench.h"
 #include "core/loop.h"
 #include "core/procstat.h"
 #include "core/time.h"
@@ -32,11 +33,7 @@ static volatile int connected;
 
 static void row(const char *metric, double value, const char *unit, double baseline)
 {
-    if (baseline > 0)
-        printf("bench_viewer\t%s\t%.3f\t%s\t%.3f\t%.2f\n", metric, value, unit, baseline, value / baseline);
-    else
-        printf("bench_viewer\t%s\t%.3f\t%s\t-\t-\n", metric, value, unit);
-    fflush(stdout);
+    bench_row("bench_viewer", metric, value, unit, baseline);
 }
 
 /* The bench's events carry their sequence number in the text: "bench N". */
