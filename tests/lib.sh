@@ -44,7 +44,7 @@ start() {
 }
 stop_started() {
     for _p in $pids; do kill "$_p" 2>/dev/null; done
-    wait 2>/dev/null
+    for _p in $pids; do wait "$_p" 2>/dev/null; done
 }
 # ps_field NAME KEY: a component's field from `marie --json ps` ($M, else $BIN/marie).
 ps_field() {

@@ -11,12 +11,11 @@ T=$(mktemp -d /tmp/marie-test-face.XXXXXX)
 SHOTS=$B/test-logs/face
 rm -rf "$SHOTS" && mkdir -p "$SHOTS"
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
-pids=""
+OUT=$T
 cleanup() {
     "$BIN/marie" down > /dev/null 2>&1
     [ -s "$T/face2.pid" ] && pids="$pids $(cat "$T/face2.pid")"
-    for p in $pids; do kill "$p" 2>/dev/null; done
-    for p in $pids; do wait "$p" 2>/dev/null; done
+    stop_started
     rm -rf "$T"
 }
 trap cleanup EXIT INT TERM
@@ -33,8 +32,7 @@ pids="$pids $!"
 setup "headless chromium" wait_for 30 python3 -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:$CDP/json/version')"
 
 "$BIN/marie" keygen "$T/key"
-"$BIN/marie-am" --host alpha --state-dir "$T/am" > "$T/am.log" 2>&1 &
-pids="$pids $!"
+start am "$BIN/marie-am" --host alpha --state-dir "$T/am"
 sleep 0.3
 check "system up under marie-am" "$BIN/marie" up tests/data/viewer/controls.yaml
 "$BIN/marie-mission" --name mission --param sharedmap=false --param key_file="$T/key" \

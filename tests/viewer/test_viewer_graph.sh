@@ -5,11 +5,10 @@
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-graph.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
-pids=""
+OUT=$T
 cleanup() {
     "$BIN/marie" down > /dev/null 2>&1
-    for p in $pids; do kill "$p" 2>/dev/null; done
-    for p in $pids; do wait "$p" 2>/dev/null; done
+    stop_started
     rm -rf "$T"
 }
 trap cleanup EXIT INT TERM
@@ -17,8 +16,7 @@ CHROME=$(command -v chromium || command -v chromium-browser || true)
 [ -n "$CHROME" ] || { echo "chromium missing (scripts/install-deps.sh browser)"; exit 1; }
 
 "$BIN/marie" keygen "$T/key"
-"$BIN/marie-am" --host alpha --state-dir "$T/am" > "$T/am.log" 2>&1 &
-pids="$pids $!"
+start am "$BIN/marie-am" --host alpha --state-dir "$T/am"
 sleep 0.3
 setup "system up under marie-am" "$BIN/marie" up tests/data/viewer/graph.yaml
 "$BIN/marie-viewer-server" --name viewer --param http_port=8121 --param key_file="$T/key" \

@@ -431,16 +431,9 @@ static int init(marie_component_t *c)
     marie_port_on_message(marie_port(c, "heard"), on_heard);
     marie_port_on_message(marie_port(c, "said"), on_said);
     char url[256];
-    snprintf(url, sizeof url, "http://%s:%d/", strcmp(wc.bind, "0.0.0.0") == 0 ? "127.0.0.1" : wc.bind,
-             webserve_port(f->web));
+    webserve_url(f->web, params_of(c)->url_file, url, sizeof url);
     printf("marie-face: %s, PIN %s%s\n", url, f->pin, f->auth ? "" : " (no key: requests refused)");
     fflush(stdout);
-    const char *uf = params_of(c)->url_file;
-    FILE *fp = uf[0] ? fopen(uf, "w") : NULL;
-    if (fp) {
-        fprintf(fp, "%s\n", url);
-        fclose(fp);
-    }
     return 0;
 }
 

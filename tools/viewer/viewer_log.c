@@ -310,7 +310,9 @@ static void send_rec(viewer_t *v, int id, size_t i, bool droppable)
     int pi = v->lchans[r->chan].port;
     if (pi < 0)
         return;
-    if (viewer_encode_msg(v, &v->jb, pi, v->lchans[r->chan].name, r->t, v->file + r->off, r->len))
+    const char *ch = v->lchans[r->chan].name;
+    const void *data = v->file + r->off;
+    if (viewer_payload_ok(v, pi, ch, data, r->len) && viewer_encode_msg(v, &v->jb, pi, ch, r->t, data, r->len))
         viewer_send_json(v, id, &v->jb, droppable);
 }
 

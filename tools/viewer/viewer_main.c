@@ -95,26 +95,25 @@ int viewer_port_of_channel(viewer_t *v, const char *ch)
 
 /* Check a payload of input port `pi` and write its message frame into b. Returns false on
  * bad input (counted). */
+bool viewer_payload_ok(viewer_t *v, int pi, const char *ch, const void *data, size_t len)
+{
+    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(viewer_port_type[pi]->hash());
+    int rc = marie_typeinfo_check_flags(ti, data, len, MARIE_CHECK_FINITE);
+    if (rc == 0)
+        return true;
+    /* A log's wrong types were counted when it was indexed: count live payloads only. */
+    if (v->live) {
+        bool fp = marie_payload_fingerprint(data, len) == ti->fingerprint;
+        v->bad_payloads++;
+        marie_component_bad_input(v->c, !fp ? "bad_fingerprint" : rc == -EDOM ? "bad_nonfinite" : "bad_payload",
+                                  "channel %s: %zu bytes: not a well-formed, finite %s", ch, len,
+                                  viewer_port_type[pi]->name);
+    }
+    return false;
+}
+
 bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
 {
-    /* A log's bad payloads were counted when it was indexed: count live ones only. */
-    const marie_type_t *t = vj_type_of(data, len);
-    if (t != viewer_port_type[pi]) {
-        if (v->live) {
-            v->bad_payloads++;
-            marie_component_bad_input(v->c, "bad_fingerprint", "channel %s: not a %s", ch, viewer_port_type[pi]->name);
-        }
-        return false;
-    }
-    int rc = marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), data, len, MARIE_CHECK_FINITE);
-    if (rc < 0) {
-        if (v->live) {
-            v->bad_payloads++;
-            marie_component_bad_input(v->c, rc == -EDOM ? "bad_nonfinite" : "bad_payload",
-                                      "channel %s: %zu bytes: not a well-formed, finite %s", ch, len, t->name);
-        }
-        return false;
-    }
     vj_reset(b);
     vj_lit(b, "{\"type\":\"msg\",\"ch\":");
     vj_str(b, ch);
@@ -270,16 +269,8 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
     v->msgs_in++;
     /* Checked before the rate limit, so every bad message is counted and none can take the
      * place of a good one in the page's share. */
-    const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(viewer_port_type[pi]->hash());
-    int rc = marie_typeinfo_check_flags(ti, info->raw, info->raw_len, MARIE_CHECK_FINITE);
-    if (rc < 0) {
-        bool fp = marie_payload_fingerprint(info->raw, info->raw_len) == ti->fingerprint;
-        v->bad_payloads++;
-        marie_component_bad_input(c, !fp ? "bad_fingerprint" : rc == -EDOM ? "bad_nonfinite" : "bad_payload",
-                                  "channel %s: %zu bytes: not a well-formed, finite %s", info->channel,
-                                  info->raw_len, viewer_port_type[pi]->name);
+    if (!viewer_payload_ok(v, pi, info->channel, info->raw, info->raw_len))
         return;
-    }
     /* The snapshot cache wants every message; the page only the rate-limited ones. */
     bool send = viewer_pass_rate(v, pi, now, info->raw, info->raw_len);
     if (!send && (pi != P_POSE && pi != P_TRUTH)) {
@@ -631,22 +622,13 @@ static int init_viewer(marie_component_t *c)
         marie_component_fail_reason(c, "%s", why);
         return -1;
     }
-    const char *host = strcmp(viewer_params(c)->bind, "0.0.0.0") == 0 ? "127.0.0.1" : viewer_params(c)->bind;
     char url[256];
-    snprintf(url, sizeof url, "http://%s:%d/", host, webserve_port(v->web));
+    webserve_url(v->web, viewer_params(c)->url_file, url, sizeof url);
     if (v->live)
         printf("marie-view: following the bus at %s\n", url);
     else
         printf("marie-view: playing %s at %s\n", log, url);
     fflush(stdout);
-    const char *uf = viewer_params(c)->url_file;
-    if (uf && *uf) {
-        FILE *f = fopen(uf, "w");
-        if (f) {
-            fprintf(f, "%s\n", url);
-            fclose(f);
-        }
-    }
     return 0;
 }
 

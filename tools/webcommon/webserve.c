@@ -345,9 +345,14 @@ void webserve_stop(webserve_t *v)
     free(v);
 }
 
-int webserve_port(const webserve_t *v)
+void webserve_url(const webserve_t *w, const char *url_file, char *buf, size_t len)
 {
-    return v->port;
+    snprintf(buf, len, "http://%s:%d/", strcmp(w->cfg.bind, "0.0.0.0") == 0 ? "127.0.0.1" : w->cfg.bind, w->port);
+    FILE *f = url_file && *url_file ? fopen(url_file, "w") : NULL;
+    if (f) {
+        fprintf(f, "%s\n", buf);
+        fclose(f);
+    }
 }
 
 int64_t webserve_frames_out(webserve_t *v)

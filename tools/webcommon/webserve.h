@@ -42,7 +42,9 @@ typedef struct {
 webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *why, size_t len);
 /* Closes every page and joins their writers; NULL is a no-op. */
 void webserve_stop(webserve_t *w);
-int webserve_port(const webserve_t *w);
+/* The page's address, http://HOST:PORT/ (127.0.0.1 when serving on every address), into
+ * buf; also written to url_file, a line, when that is a path (scripts and tests read it). */
+void webserve_url(const webserve_t *w, const char *url_file, char *buf, size_t len);
 /* Sends text to page `id`, or to every page when id < 0. Droppable frames (high-rate state)
  * are dropped while a page is more than 2 MB behind, so a slow browser never stalls the bus. */
 void webserve_send(webserve_t *w, int id, const char *data, size_t len, bool droppable);
