@@ -6,7 +6,8 @@
 # a case counts as one failure, and so does one that exits 0 having run no case and skipped
 # none: a test that silently does nothing is a failure, never a pass. Logs go to $B/test-logs/.
 #   scripts/run-tests.sh [--jobs N] TEST... [-- TEST...]   (env: B, TEST_TIMEOUT seconds per
-#   program, default 300): with --jobs, the tests before `--` run N at a time (each in its own
+#   program, default 300; a test whose first lines say "# test-timeout: N" gets N when that is
+#   more, for a run that is long by design): with --jobs, the tests before `--` run N at a time (each in its own
 #   namespace; their lines print when all are done, in order), those after it one at a time.
 set -u
 B=${B:-build}
@@ -27,8 +28,11 @@ run_one() {
     *.py) cmd="python3 $t" ;;
     *) cmd="$t" ;;
     esac
+    limit=${TEST_TIMEOUT:-300}
+    own=$(head -20 "$t" 2>/dev/null | sed -n 's/^# test-timeout: \([0-9][0-9]*\)$/\1/p' | head -1)
+    [ -n "$own" ] && [ "$own" -gt "$limit" ] && limit=$own
     # Own process group and network namespace; a hung test is killed whole.
-    B=$B timeout -k 5 "${TEST_TIMEOUT:-300}" scripts/netns-run $cmd > "$log" 2>&1 < /dev/null
+    B=$B timeout -k 5 "$limit" scripts/netns-run $cmd > "$log" 2>&1 < /dev/null
     rc=$?
     ok=$(grep -c '^\[       OK \]' "$log")
     bad=$(grep '^\[  FAILED  \] [^0-9]' "$log" | sort -u | wc -l)
@@ -50,8 +54,8 @@ run_one() {
         fi
     else
         printf 'FAIL %-40s %4d ok %3d failed %4ds (exit %d; log %s)\n' "$name" "$ok" "$bad" "$secs" "$rc" "$log"
-        grep -E '^\[  ERROR   \]|^\[   LINE   \]|Assert|ERROR: ' "$log" | head -20 | sed 's/^/    /'
-        [ "$rc" -eq 124 ] && echo "    (timed out after ${TEST_TIMEOUT:-300}s)"
+        grep -E '^\[  FAILED  \] [^0-9]|^\[  ERROR   \]|^\[   LINE   \]|Assert|ERROR: ' "$log" | head -20 | sed 's/^/    /'
+        [ "$rc" -eq 124 ] && echo "    (timed out after ${limit}s)"
         [ "$nocase" -eq 1 ] && echo "    (exited 0 but ran no case and printed no [  SKIPPED ] line)"
     fi
 }

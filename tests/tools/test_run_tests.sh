@@ -1,7 +1,8 @@
 #!/bin/sh
 # test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
 # no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so; with
-# --jobs the programs before `--` run side by side and are reported in order, counted once.
+# --jobs the programs before `--` run side by side and are reported in order, counted once; a
+# program is killed at TEST_TIMEOUT unless its head declares a longer "# test-timeout: N".
 . tests/lib.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT INT TERM
@@ -27,8 +28,13 @@ check "summary counts passes and skips, exit status 0" \
 run "$tmp/fails.sh" "$tmp/crashes.sh"
 check "failed cases and a failing exit are counted" \
     sh -c "tail -1 $tmp/out | grep -qx '1 passed, 2 failed, 0 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
+check "the report names the failed case" grep -qx '    \[  FAILED  \] bad' "$tmp/out"
 
 printf '. tests/lib.sh\nsleep 2\ncheck "slow" true\nfinish\n' > "$tmp/slow.sh"
+printf '# test-timeout: 10\n. tests/lib.sh\nsleep 2\ncheck "long by design" true\nfinish\n' > "$tmp/long.sh"
+TEST_TIMEOUT=1 run "$tmp/slow.sh" "$tmp/long.sh"
+check "a program over TEST_TIMEOUT is killed; one that declares a longer test-timeout is not" \
+    sh -c "grep -q '^FAIL slow.sh' $tmp/out && grep -q 'timed out after 1s' $tmp/out && grep -q '^PASS long.sh' $tmp/out"
 start=$(date +%s)
 run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" "$tmp/fails.sh" -- "$tmp/skips.sh" "$tmp/passes.sh"
 took=$(( $(date +%s) - start ))

@@ -68,6 +68,7 @@ private:
     static void on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user);
     void handle(const char *channel, const void *data, size_t len);
     void progress(bool final);
+    int restarts() const;
     void chaos_tick();
     void estop_tick();
     static void on_progress_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
@@ -261,14 +262,23 @@ void Demo::handle(const char *channel, const void *data, size_t len)
     }
 }
 
+// restarts: every host's component restarts, as its manager last reported them.
+int Demo::restarts() const
+{
+    int n = 0;
+    for (auto &h : hosts_)
+        for (int i = 0; i < h.second->ncomponents; i++)
+            n += h.second->components[i].restarts;
+    return n;
+}
+
 void Demo::progress(bool final)
 {
-    int running = 0, total = 0, restarts = 0;
+    int running = 0, total = 0;
     for (auto &h : hosts_)
         for (int i = 0; i < h.second->ncomponents; i++) {
             total++;
             running += !strcmp(h.second->components[i].state, "running");
-            restarts += h.second->components[i].restarts;
         }
     double cpu = 0, rss = 0;
     for (auto &h : hosts_) {
@@ -290,7 +300,7 @@ void Demo::progress(bool final)
         printf("demo: %5.1f s (sim %6.1f s) | goal %d of %d%s%s | reached %d | loc error %.2f m | "
                "components %d/%d running | restarts %d\n",
                wall, sim_now_ / 1e6, std::min(reached_ + missed_ + 1, std::max(ngoals_, 1)), ngoals_,
-               current_goal_.empty() ? "" : " ", current_goal_.c_str(), reached_, err, running, total, restarts);
+               current_goal_.empty() ? "" : " ", current_goal_.c_str(), reached_, err, running, total, restarts());
     fflush(stdout);
 }
 
@@ -439,10 +449,7 @@ void Demo::summary(double wall_s)
         mx = std::max(mx, e);
     }
     double rms = errors_.empty() ? NAN : std::sqrt(sum / errors_.size());
-    int restarts = 0;
-    for (auto &h : hosts_)
-        for (int i = 0; i < h.second->ncomponents; i++)
-            restarts += h.second->components[i].restarts;
+    int restarts = this->restarts();
     FILE *f = fopen((opt_.out + "/summary.json").c_str(), "w");
     if (f) {
         fprintf(f,
@@ -546,6 +553,12 @@ int Demo::run()
     marie_loop_run_until(loop_, 1500, [](void *u) -> int {
         auto *d = static_cast<Demo *>(u);
         return d->mission_done_ && d->reached_ + d->missed_ >= d->ngoals_;
+    }, this);
+    // A component killed just before the end is restarted after it: wait (bounded) until the
+    // managers report a restart for every kill.
+    marie_loop_run_until(loop_, 10000, [](void *u) -> int {
+        auto *d = static_cast<Demo *>(u);
+        return d->restarts() >= d->kills_;
     }, this);
     marie_loop_run_until(loop_, 100, nullptr, nullptr);
     progress(true);
