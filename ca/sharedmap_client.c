@@ -213,17 +213,29 @@ int sharedmap_client_set_raw(sharedmap_client_t *cl, const char *key, const char
     return rc;
 }
 
+/* encode_new: msg encoded into *buf (malloc'd; the caller frees it) of *n bytes: 0, -EINVAL or -ENOMEM. */
+static int encode_new(const marie_type_t *type, const void *msg, uint8_t **buf, int *n)
+{
+    *buf = NULL;
+    *n = type->encoded_size(msg);
+    if (*n < 0)
+        return -EINVAL;
+    if (!(*buf = malloc((size_t)*n)))
+        return -ENOMEM;
+    if (type->encode(*buf, 0, *n, msg) != *n) {
+        free(*buf);
+        *buf = NULL;
+        return -EINVAL;
+    }
+    return 0;
+}
+
 int sharedmap_client_set(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
                          const void *msg, int timeout_ms)
 {
-    int n = type->encoded_size(msg);
-    if (n < 0)
-        return -EINVAL;
-    uint8_t *buf = malloc((size_t)n);
-    if (!buf)
-        return -ENOMEM;
-    int rc = -EINVAL;
-    if (type->encode(buf, 0, n, msg) == n)
+    uint8_t *buf;
+    int n, rc = encode_new(type, msg, &buf, &n);
+    if (rc == 0)
         rc = sharedmap_client_set_raw(cl, key, type->name, buf, (size_t)n, timeout_ms, NULL);
     free(buf);
     return rc;
@@ -344,14 +356,9 @@ int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, cons
 int sharedmap_client_set_async(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
                                const void *msg, int timeout_ms, sharedmap_client_cb_t cb, void *user)
 {
-    int n = type->encoded_size(msg);
-    if (n < 0)
-        return -EINVAL;
-    uint8_t *buf = malloc((size_t)n);
-    if (!buf)
-        return -ENOMEM;
-    int rc = -EINVAL;
-    if (type->encode(buf, 0, n, msg) == n)
+    uint8_t *buf;
+    int n, rc = encode_new(type, msg, &buf, &n);
+    if (rc == 0)
         rc = sharedmap_client_set_raw_async(cl, key, type->name, buf, (size_t)n, timeout_ms, cb, user);
     free(buf);
     return rc;

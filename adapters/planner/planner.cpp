@@ -197,6 +197,24 @@ extern "C" bool planner_free(const planner_t *pl, double x, double y)
     return pl->free_xy(x, y);
 }
 
+// to_poses: the path's points as (x, y, heading) triples, each heading toward the next point,
+// the last one the goal's: *poses malloc'd, *n of them. 0 or -ENOMEM.
+static int to_poses(const std::vector<std::pair<double, double>> &pts, double goal_heading, double **poses, int *n)
+{
+    double *out = (double *)std::malloc(pts.size() * 3 * sizeof(double));
+    if (!out)
+        return -ENOMEM;
+    for (size_t i = 0; i < pts.size(); i++) {
+        out[3 * i] = pts[i].first;
+        out[3 * i + 1] = pts[i].second;
+        out[3 * i + 2] = i + 1 < pts.size() ? std::atan2(pts[i + 1].second - pts[i].second, pts[i + 1].first - pts[i].first)
+                                             : goal_heading;
+    }
+    *poses = out;
+    *n = (int)pts.size();
+    return 0;
+}
+
 // Sampling rarely finds a passage barely wider than the robot; the grid search always does.
 static int grid_plan(planner_t *pl, const double start[3], const double goal[3], double sx, double sy, double gx,
                      double gy, double **poses, int *n)
@@ -222,18 +240,7 @@ static int grid_plan(planner_t *pl, const double start[3], const double goal[3],
     if (gx != goal[0] || gy != goal[1])
         pts.emplace_back(gx, gy);
     pts.emplace_back(goal[0], goal[1]);
-    double *out = (double *)std::malloc(pts.size() * 3 * sizeof(double));
-    if (!out)
-        return -ENOMEM;
-    for (size_t i = 0; i < pts.size(); i++) {
-        out[3 * i] = pts[i].first;
-        out[3 * i + 1] = pts[i].second;
-        out[3 * i + 2] = i + 1 < pts.size() ? std::atan2(pts[i + 1].second - pts[i].second, pts[i + 1].first - pts[i].first)
-                                             : goal[2];
-    }
-    *poses = out;
-    *n = (int)pts.size();
-    return 0;
+    return to_poses(pts, goal[2], poses, n);
 }
 
 extern "C" int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n)
@@ -281,20 +288,7 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
             pts.emplace_back(goal[0], goal[1]);
         if (pts.size() < 2)
             pts.emplace_back(goal[0], goal[1]);
-        double *out = (double *)std::malloc(pts.size() * 3 * sizeof(double));
-        if (!out)
-            return -ENOMEM;
-        for (size_t i = 0; i < pts.size(); i++) {
-            out[3 * i] = pts[i].first;
-            out[3 * i + 1] = pts[i].second;
-            if (i + 1 < pts.size())
-                out[3 * i + 2] = std::atan2(pts[i + 1].second - pts[i].second, pts[i + 1].first - pts[i].first);
-            else
-                out[3 * i + 2] = goal[2];
-        }
-        *poses = out;
-        *n = (int)pts.size();
-        return 0;
+        return to_poses(pts, goal[2], poses, n);
     } catch (...) {
         return -ENOMEM;
     }

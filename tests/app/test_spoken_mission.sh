@@ -21,7 +21,7 @@ le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.arg
 speaker=1.2,16.1        # the sim-voice scene's speech source; the robot starts at (2, 15) facing +x
 
 setup "order key" marie keygen "$MARIE_KEY"
-start logger lcm-logger -q "--channel=^(?!PARTICLES|AUDIO|SEPARATED_AUDIO$).*" "$OUT/spoken.lcm"
+start logger lcm-logger -q --lcm-url="${LCM_DEFAULT_URL:-udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608}" "--channel=^(?!PARTICLES|AUDIO|SEPARATED_AUDIO$).*" "$OUT/spoken.lcm"
 for h in onboard1 onboard2 onboard3 laptop; do
     mkdir -p "$OUT/state/$h"
     start "am-$h" marie-am --host $h --state-dir "$OUT/state/$h" --key "$MARIE_KEY"

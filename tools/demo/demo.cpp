@@ -102,7 +102,9 @@ private:
     int kills_ = 0;
     std::vector<std::string> killed_;
     // e-stop check
-    int64_t estop_pressed_at_ = 0, estop_stopped_at_ = 0, estop_released_at_ = 0;
+    // pressed_at_: when the demo asked, on its view of the clock; applied_at_: when the
+    // simulator's button went down (its ESTOP message), from which the stop is timed.
+    int64_t estop_pressed_at_ = 0, estop_applied_at_ = 0, estop_stopped_at_ = 0, estop_released_at_ = 0;
     double estop_stop_s_ = -1;
     // map
     cv::Mat map_;
@@ -210,6 +212,15 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         if (ok)
             errors_.push_back(e);
         marie_pose_cov_t_decode_cleanup(&m);
+    } else if (!strcmp(channel, "ESTOP")) {
+        marie_estop_t m;
+        if (marie_decode_checked(&marie_type_estop_t, data, len, &m) < 0)
+            return;
+        if (estop_pressed_at_ && !estop_applied_at_ && m.pressed && !strcmp(m.source, "sim")) {
+            estop_applied_at_ = m.utime;
+            printf("demo: the simulator's e-stop went down at sim %.2f s\n", m.utime / 1e6);
+        }
+        marie_estop_t_decode_cleanup(&m);
     } else if (!strcmp(channel, "GOAL")) {
         marie_goal_t g;
         if (marie_decode_checked(&marie_type_goal_t, data, len, &g) < 0)
@@ -358,12 +369,14 @@ void Demo::estop_tick()
             estop_pressed_at_ = sim_now_;
             printf("demo: e-stop pressed at sim %.2f s (robot at %.2f m/s)\n", sim_now_ / 1e6, v);
         }
-    } else if (estop_pressed_at_ && !estop_stopped_at_ && truth_.size() > 3) {
+    } else if (estop_applied_at_ && !estop_stopped_at_ && truth_.size() > 3) {
+        // Timed from the button in the simulated world, not from the demo's request: at ~10x
+        // real time a 20 ms delivery delay of the request would be 0.2 s of simulated time.
         const Sample &a = truth_[truth_.size() - 2], &b = truth_.back();
         double v = std::hypot(b.x - a.x, b.y - a.y) / ((b.t - a.t) / 1e6 + 1e-9);
-        if (b.t > estop_pressed_at_ && v < 0.02) {
+        if (b.t > estop_applied_at_ && v < 0.02) {
             estop_stopped_at_ = b.t;
-            estop_stop_s_ = (estop_stopped_at_ - estop_pressed_at_) / 1e6;
+            estop_stop_s_ = (estop_stopped_at_ - estop_applied_at_) / 1e6;
             printf("demo: robot stopped %.2f s (sim) after the e-stop\n", estop_stop_s_);
         }
     } else if (estop_stopped_at_ && !estop_released_at_ && sim_now_ - estop_stopped_at_ > 2000000) {
@@ -498,11 +511,15 @@ int Demo::run()
     if (!lcm_ || !loop_ || marie_loop_add_lcm(loop_, lcm_, 64) < 0)
         return 1;
     for (const char *ch : {"SIM_TRUTH", "POSE", "GOAL", "MISSION_STATE", "MARIE_EVENT", "MARIE_AM_STATUS",
-                           "MARIE_HEARTBEAT"})
+                           "MARIE_HEARTBEAT", "ESTOP"})
         lcm_subscription_set_queue_capacity(lcm_subscribe(lcm_, ch, on_raw, this), 10000);
     unlink((opt_.out + "/demo.lcm").c_str());
     // Record everything but the particle clouds, which are large and only for the viewer.
-    logger_ = spawn({"lcm-logger", "-q", "--channel=^(?!PARTICLES$).*", opt_.out + "/demo.lcm"}, opt_.out + "/logger.log");
+    // On marie's URL, with its large receive buffer: on LCM's default one a loaded machine made
+    // the logger drop messages (the e-stop request among them).
+    logger_ = spawn({"lcm-logger", "-q", std::string("--lcm-url=") + marie_default_url(), "--channel=^(?!PARTICLES$).*",
+                     opt_.out + "/demo.lcm"},
+                    opt_.out + "/logger.log");
     static const char *const host_names[] = {"onboard1", "onboard2", "onboard3", "laptop"};
     for (int i = 0; i < opt_.hosts && i < 4; i++) {
         std::string dir = state + "/" + host_names[i];
