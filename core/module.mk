@@ -8,6 +8,7 @@ $(LIBMARIE): $(call marie_objs,$(CORE_SRCS)) $(LCM_OBJS)
 
 $(eval $(call marie_test,test_loop,tests/core/test_loop.c))
 $(eval $(call marie_test,test_base64,tests/core/test_base64.c))
+$(eval $(call marie_test,test_buf,tests/core/test_buf.c))
 $(eval $(call marie_test,test_config,tests/core/test_config.c))
 $(eval $(call marie_test,test_spec,tests/core/test_spec.c))
 $(eval $(call marie_test,test_lifecycle,tests/core/test_lifecycle.c))

@@ -10,6 +10,7 @@
 
 #include <libfyaml.h>
 
+#include "core/buf.h"
 #include "core/log.h"
 
 /* ---- errors ---- */
@@ -562,32 +563,10 @@ int marie_node_check_keys(const marie_node_t *map, const char *const *allowed, c
 
 /* ---- canonical text (sorted keys) for hashing ---- */
 
-typedef struct { char *buf; size_t len, cap; int oom; } sbuf_t;
-
-static void sb_put(sbuf_t *s, const char *text, size_t n)
+static void sb_str(marie_buf_t *s, const char *text)
 {
-    if (s->oom)
-        return;
-    if (s->len + n + 1 > s->cap) {
-        size_t cap = (s->cap ? s->cap : 256);
-        while (cap < s->len + n + 1)
-            cap *= 2;
-        char *nb = realloc(s->buf, cap);
-        if (!nb) { s->oom = 1; return; }
-        s->buf = nb;
-        s->cap = cap;
-    }
-    memcpy(s->buf + s->len, text, n);
-    s->len += n;
-    s->buf[s->len] = 0;
-}
-
-static void sb_str(sbuf_t *s, const char *text)
-{
-    char len[24];
-    snprintf(len, sizeof len, "%zu:", strlen(text));
-    sb_put(s, len, strlen(len));
-    sb_put(s, text, strlen(text));
+    marie_buf_printf(s, "%zu:", strlen(text));
+    marie_buf_puts(s, text);
 }
 
 static int cmp_key(const void *a, const void *b)
@@ -595,10 +574,10 @@ static int cmp_key(const void *a, const void *b)
     return strcmp((*(marie_node_t *const *)a)->key, (*(marie_node_t *const *)b)->key);
 }
 
-static void canonical(sbuf_t *s, const marie_node_t *n)
+static void canonical(marie_buf_t *s, const marie_node_t *n)
 {
     if (!n) {
-        sb_put(s, "~", 1);
+        marie_buf_put(s, "~", 1);
         return;
     }
     if (n->kind == MARIE_NODE_SCALAR) {
@@ -606,30 +585,31 @@ static void canonical(sbuf_t *s, const marie_node_t *n)
         return;
     }
     marie_node_t **items = malloc((n->n ? n->n : 1) * sizeof *items);
-    if (!items) { s->oom = 1; return; }
+    if (!items) { s->failed = true; return; }
     memcpy(items, n->items, n->n * sizeof *items);
     if (n->kind == MARIE_NODE_MAP)
         qsort(items, n->n, sizeof *items, cmp_key);
-    sb_put(s, n->kind == MARIE_NODE_MAP ? "{" : "[", 1);
+    marie_buf_put(s, n->kind == MARIE_NODE_MAP ? "{" : "[", 1);
     for (size_t i = 0; i < n->n; i++) {
         if (n->kind == MARIE_NODE_MAP) {
             sb_str(s, items[i]->key);
-            sb_put(s, "=", 1);
+            marie_buf_put(s, "=", 1);
         }
         canonical(s, items[i]);
-        sb_put(s, ",", 1);
+        marie_buf_put(s, ",", 1);
     }
-    sb_put(s, n->kind == MARIE_NODE_MAP ? "}" : "]", 1);
+    marie_buf_put(s, n->kind == MARIE_NODE_MAP ? "}" : "]", 1);
     free(items);
 }
 
 char *marie_node_canonical(const marie_node_t *n)
 {
-    sbuf_t s = {0};
+    marie_buf_t s;
+    marie_buf_init(&s, 0);
     canonical(&s, n);
-    if (s.oom) {
-        free(s.buf);
+    if (s.failed) {
+        marie_buf_free(&s);
         return NULL;
     }
-    return s.buf ? s.buf : strdup("");
+    return s.data ? s.data : strdup("");
 }

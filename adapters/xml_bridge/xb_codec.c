@@ -18,7 +18,7 @@
 /* ---- encoding ---- */
 
 typedef struct {
-    xb_buf_t *out;
+    marie_buf_t *out;
     xb_error_t *err;
 } enc_t;
 
@@ -56,7 +56,7 @@ static int put_be(enc_t *e, uint64_t v, int nbytes)
     uint8_t b[8];
     for (int i = 0; i < nbytes; i++)
         b[i] = (uint8_t)(v >> (8 * (nbytes - 1 - i)));
-    return xb_buf_put(e->out, b, (size_t)nbytes);
+    return marie_buf_put(e->out, b, (size_t)nbytes);
 }
 
 static int put_int(enc_t *e, marie_prim_t prim, int64_t v)
@@ -129,7 +129,7 @@ static int encode_value(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, i
             if (m < 0)
                 return enc_fail(e, "bad-value", n, NULL, "bad base64");
             if (m >= INT32_MAX || put_be(e, (uint64_t)(m + 1), 4) < 0 ||
-                xb_buf_reserve(e->out, (size_t)m + 1) < 0)
+                marie_buf_reserve(e->out, (size_t)m + 1) < 0)
                 return too_large(e);
             uint8_t *o = (uint8_t *)e->out->data + e->out->len;
             marie_base64_decode(s, len, o, (size_t)m);
@@ -142,7 +142,7 @@ static int encode_value(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, i
         if (memchr(s, 0, len))
             return enc_fail(e, "bad-value", n, NULL, "string contains NUL");
         if (len >= INT32_MAX || put_be(e, (uint64_t)len + 1, 4) < 0 ||
-            xb_buf_put(e->out, s, len) < 0 || xb_buf_put(e->out, "", 1) < 0)
+            marie_buf_put(e->out, s, len) < 0 || marie_buf_put(e->out, "", 1) < 0)
             return too_large(e);
         return 0;
     }
@@ -194,7 +194,7 @@ static long array_count(enc_t *e, const marie_tfield_t *f, const xb_node_t *n)
 static int encode_array(enc_t *e, const marie_tfield_t *f, const xb_node_t *n, long count, int depth)
 {
     if (f->prim == MARIE_PRIM_BYTE) {
-        if (xb_buf_reserve(e->out, (size_t)count) < 0)
+        if (marie_buf_reserve(e->out, (size_t)count) < 0)
             return too_large(e);
         uint8_t *o = (uint8_t *)e->out->data + e->out->len;
         if (n)
@@ -410,15 +410,15 @@ out:
     return rc;
 }
 
-int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err)
+int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, marie_buf_t *out, xb_error_t *err)
 {
     enc_t e = { out, err };
     size_t start = out->len;
     if (put_be(&e, (uint64_t)t->fingerprint, 8) < 0 || encode_struct(&e, t, msg, 0) < 0) {
-        if (out->full && err && strcmp(err->code, "too-large") != 0)
+        if (out->failed && err && strcmp(err->code, "too-large") != 0)
             too_large(&e);
         out->len = start;
-        out->full = 0;
+        out->failed = false;
         return -1;
     }
     return 0;
@@ -429,7 +429,7 @@ int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, xb_buf_t *out, xb
 typedef struct {
     const uint8_t *p;
     size_t len, pos;
-    xb_buf_t *out;
+    marie_buf_t *out;
     xb_error_t *err;
     const char *type;
 } dec_t;
@@ -516,7 +516,7 @@ static int put_scalar_text(dec_t *d, marie_prim_t prim, int64_t *intval)
         else
             snprintf(tmp, sizeof tmp, "%lld", (long long)v);
     }
-    return xb_buf_puts(d->out, tmp);
+    return marie_buf_puts(d->out, tmp);
 }
 
 static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth);
@@ -524,7 +524,7 @@ static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth);
 /* <tag>value</tag>, with the string form choosing base64 when XML cannot carry it. */
 static int decode_value(dec_t *d, const char *tag, const marie_tfield_t *f, int64_t *intval, int depth)
 {
-    xb_buf_t *o = d->out;
+    marie_buf_t *o = d->out;
     if (f->prim == MARIE_PRIM_STRING) {
         uint64_t u;
         if (get_be(d, 4, &u) < 0)
@@ -537,13 +537,13 @@ static int decode_value(dec_t *d, const char *tag, const marie_tfield_t *f, int6
             return dec_fail(d, "string not NUL-terminated");
         d->pos += (size_t)n;
         if (xb_xml_safe(s, (size_t)n - 1))
-            return xb_buf_printf(o, "<%s>", tag) < 0 || xb_buf_escape(o, s, (size_t)n - 1) < 0 ||
-                   xb_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
-        return xb_buf_printf(o, "<%s encoding=\"base64\">", tag) < 0 ||
+            return marie_buf_printf(o, "<%s>", tag) < 0 || xb_escape(o, s, (size_t)n - 1) < 0 ||
+                   marie_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
+        return marie_buf_printf(o, "<%s encoding=\"base64\">", tag) < 0 ||
                xb_base64_encode(o, (const uint8_t *)s, (size_t)n - 1) < 0 ||
-               xb_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
+               marie_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
     }
-    if (xb_buf_printf(o, "<%s>", tag) < 0)
+    if (marie_buf_printf(o, "<%s>", tag) < 0)
         return -1;
     if (f->prim == MARIE_PRIM_STRUCT) {
         if (decode_struct(d, f->sub, depth + 1) < 0)
@@ -551,7 +551,7 @@ static int decode_value(dec_t *d, const char *tag, const marie_tfield_t *f, int6
     } else if (put_scalar_text(d, f->prim, intval) < 0) {
         return -1;
     }
-    return xb_buf_printf(o, "</%s>", tag);
+    return marie_buf_printf(o, "</%s>", tag);
 }
 
 static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
@@ -590,8 +590,8 @@ static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
             dec_fail(d, "array longer than the message");
             goto out;
         }
-        xb_buf_t *o = d->out;
-        if (xb_buf_printf(o, "<%s>", f->name) < 0)
+        marie_buf_t *o = d->out;
+        if (marie_buf_printf(o, "<%s>", f->name) < 0)
             goto out;
         if (f->prim == MARIE_PRIM_BYTE) {
             if (xb_base64_encode(o, d->p + d->pos, (size_t)count) < 0)
@@ -603,10 +603,10 @@ static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
                     goto out;
         } else {
             for (long k = 0; k < count; k++)
-                if ((k && xb_buf_put(o, " ", 1) < 0) || put_scalar_text(d, f->prim, NULL) < 0)
+                if ((k && marie_buf_put(o, " ", 1) < 0) || put_scalar_text(d, f->prim, NULL) < 0)
                     goto out;
         }
-        if (xb_buf_printf(o, "</%s>", f->name) < 0)
+        if (marie_buf_printf(o, "</%s>", f->name) < 0)
             goto out;
     }
     rc = 0;
@@ -616,7 +616,7 @@ out:
     return rc;
 }
 
-int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err)
+int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, marie_buf_t *out, xb_error_t *err)
 {
     dec_t d = { data, len, 0, out, err, t->name };
     size_t start = out->len;
@@ -635,10 +635,10 @@ int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, xb_buf_t 
     }
     return 0;
 fail:
-    if (out->full)
+    if (out->failed)
         xb_error_set(err, "too-large", "decoded %s larger than %zu bytes", t->name, out->max);
     out->len = start;
-    out->full = 0;
+    out->failed = false;
     return -1;
 }
 

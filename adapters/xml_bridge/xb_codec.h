@@ -8,39 +8,26 @@
 #include <stdint.h>
 
 #include "adapters/xml_bridge/xb_doc.h"
+#include "core/buf.h"
 #include "core/typeinfo.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* A growable byte buffer with a hard maximum; appends past it fail and set `full`. */
-typedef struct {
-    char *data;
-    size_t len, cap, max;
-    int full;
-} xb_buf_t;
-
-void xb_buf_init(xb_buf_t *b, size_t max);
-void xb_buf_free(xb_buf_t *b);
-int xb_buf_put(xb_buf_t *b, const void *data, size_t len);     /* 0 or -1 */
-int xb_buf_puts(xb_buf_t *b, const char *s);
-int xb_buf_printf(xb_buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-/* Makes room for `extra` more bytes: 0, or -1 (and `full`) past the maximum or out of memory. */
-int xb_buf_reserve(xb_buf_t *b, size_t extra);
 /* Appends s escaped for XML text or attribute values (", <, &, >, and \t \n \r as character
  * references, so a document stays on one line). */
-int xb_buf_escape(xb_buf_t *b, const char *s, size_t len);
+int xb_escape(marie_buf_t *b, const char *s, size_t len);
 
 /* Encodes `msg` (an element whose children are the fields; NULL for an all-zero message) as a
  * complete LCM payload of type t: fingerprint then fields. Returns 0, or -1 with err set
  * (codes: unknown-field, bad-value, bad-length, too-large). */
-int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, xb_buf_t *out, xb_error_t *err);
+int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, marie_buf_t *out, xb_error_t *err);
 
 /* Appends the fields of the LCM payload `data` (fingerprint first) as XML child elements.
  * Returns 0, or -1 with err set (bad-fingerprint, bad-message, too-large). On failure the
  * buffer is left at its length on entry. */
-int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, xb_buf_t *out, xb_error_t *err);
+int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, marie_buf_t *out, xb_error_t *err);
 
 /* The value syntax of one scalar: integers in decimal, booleans true/false/1/0, reals as
  * C/XSD decimals including NaN, INF, -INF. Returns 0 or -1 (not a value of that type). */
@@ -50,7 +37,7 @@ int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v);
 void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size);
 
 /* The base64 text of bytes (core/base64.h) appended to b. 0 or -1. */
-int xb_base64_encode(xb_buf_t *b, const uint8_t *data, size_t len);
+int xb_base64_encode(marie_buf_t *b, const uint8_t *data, size_t len);
 
 /* XML whitespace. */
 static inline int xb_is_ws(char c)

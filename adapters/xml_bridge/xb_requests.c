@@ -9,21 +9,21 @@
 
 /* ---- replies ---- */
 
-static void put_attr(xb_buf_t *b, const char *name, const char *value)
+static void put_attr(marie_buf_t *b, const char *name, const char *value)
 {
     if (!value)
         return;
-    xb_buf_printf(b, " %s=\"", name);
-    xb_buf_escape(b, value, strlen(value));
-    xb_buf_put(b, "\"", 1);
+    marie_buf_printf(b, " %s=\"", name);
+    xb_escape(b, value, strlen(value));
+    marie_buf_put(b, "\"", 1);
 }
 
 void xb_reply_error(client_t *c, const xb_node_t *req, const char *code, const char *reason)
 {
     xb_server_t *s = c->s;
-    xb_buf_t *b = &s->out;
+    marie_buf_t *b = &s->out;
     b->len = 0;
-    xb_buf_puts(b, "<error");
+    marie_buf_puts(b, "<error");
     put_attr(b, "code", code);
     put_attr(b, "reason", reason);
     if (req) {
@@ -31,22 +31,22 @@ void xb_reply_error(client_t *c, const xb_node_t *req, const char *code, const c
         put_attr(b, "id", xb_node_attr(req, "id"));
         put_attr(b, "channel", xb_node_attr(req, "channel"));
     }
-    xb_buf_puts(b, "/>\n");
+    marie_buf_puts(b, "/>\n");
     s->st.errors++;
     xb_client_enqueue_text(c, b->data, b->len);
 }
 
 static void reply_ok(client_t *c, const xb_node_t *req, const char *extra_name, const char *extra)
 {
-    xb_buf_t *b = &c->s->out;
+    marie_buf_t *b = &c->s->out;
     b->len = 0;
-    xb_buf_puts(b, "<ok");
+    marie_buf_puts(b, "<ok");
     put_attr(b, "to", req->name);
     put_attr(b, "id", xb_node_attr(req, "id"));
     put_attr(b, "channel", xb_node_attr(req, "channel"));
     put_attr(b, "type", xb_node_attr(req, "type"));
     put_attr(b, extra_name, extra);
-    xb_buf_puts(b, "/>\n");
+    marie_buf_puts(b, "/>\n");
     xb_client_enqueue_text(c, b->data, b->len);
 }
 
@@ -54,22 +54,22 @@ static void reply_ok(client_t *c, const xb_node_t *req, const char *extra_name, 
 static int format_message(xb_server_t *s, const sub_t *sub, const char *channel, const void *data,
                           size_t len, int64_t recv_utime, const xb_node_t *req, xb_error_t *err)
 {
-    xb_buf_t *b = &s->out;
+    marie_buf_t *b = &s->out;
     b->len = 0;
-    b->full = 0;
-    xb_buf_puts(b, "<message");
+    b->failed = false;
+    marie_buf_puts(b, "<message");
     put_attr(b, "channel", channel);
     put_attr(b, "type", sub->type->name);
-    xb_buf_printf(b, " recv_utime=\"%lld\"", (long long)recv_utime);
+    marie_buf_printf(b, " recv_utime=\"%lld\"", (long long)recv_utime);
     if (req) {
         put_attr(b, "to", req->name);
         put_attr(b, "id", xb_node_attr(req, "id"));
-        xb_buf_printf(b, " age_us=\"%lld\"", (long long)(marie_wall_us() - recv_utime));
+        marie_buf_printf(b, " age_us=\"%lld\"", (long long)(marie_wall_us() - recv_utime));
     }
-    xb_buf_puts(b, ">");
+    marie_buf_puts(b, ">");
     if (xb_decode(sub->type, data, len, b, err) < 0)
         return -1;
-    if (xb_buf_puts(b, "</message>\n") < 0) {
+    if (marie_buf_puts(b, "</message>\n") < 0) {
         xb_error_set(err, "too-large", "message document over %zu bytes", b->max);
         return -1;
     }
@@ -103,13 +103,13 @@ static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     if (format_message(s, sub, channel, rbuf->data, rbuf->data_size, rbuf->recv_utime, NULL, &err) < 0) {
         xb_bad_input(s, "bad_lcm_message", "%s: %s", channel, err.reason);
         sub->has_latest = 0;
-        xb_buf_t *b = &s->out;
+        marie_buf_t *b = &s->out;
         b->len = 0;
-        xb_buf_puts(b, "<error");
+        marie_buf_puts(b, "<error");
         put_attr(b, "code", err.code);
         put_attr(b, "reason", err.reason);
         put_attr(b, "channel", channel);
-        xb_buf_puts(b, "/>\n");
+        marie_buf_puts(b, "/>\n");
     }
     msgbuf_t *mb = xb_msgbuf_new(s->out.data, s->out.len);
     if (!mb)
@@ -344,7 +344,7 @@ static void do_publish(client_t *c, const xb_node_t *req)
         return;
     xb_error_t err;
     s->enc.len = 0;
-    s->enc.full = 0;
+    s->enc.failed = false;
     if (xb_encode(t, req, &s->enc, &err) < 0) {
         if (strcmp(err.code, "no-memory") == 0) {   /* the bridge's fault, not the document's */
             xb_reply_error(c, req, "publish-failed", err.reason);
@@ -409,15 +409,15 @@ static const char *dims_text(const marie_tfield_t *f, const marie_typeinfo_t *t,
 
 static void do_types(client_t *c, const xb_node_t *req)
 {
-    xb_buf_t *b = &c->s->out;
+    marie_buf_t *b = &c->s->out;
     b->len = 0;
-    xb_buf_puts(b, "<types");
+    marie_buf_puts(b, "<types");
     put_attr(b, "id", xb_node_attr(req, "id"));
-    xb_buf_puts(b, ">");
+    marie_buf_puts(b, ">");
     for (size_t i = 0; marie_typeinfos[i]; i++)
-        xb_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", marie_typeinfos[i]->name,
+        marie_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", marie_typeinfos[i]->name,
                       (unsigned long long)marie_typeinfos[i]->fingerprint);
-    xb_buf_puts(b, "</types>\n");
+    marie_buf_puts(b, "</types>\n");
     xb_client_enqueue_text(c, b->data, b->len);
 }
 
@@ -426,28 +426,28 @@ static void do_describe(client_t *c, const xb_node_t *req)
     const marie_typeinfo_t *t = need_type(c, req);
     if (!t)
         return;
-    xb_buf_t *b = &c->s->out;
+    marie_buf_t *b = &c->s->out;
     b->len = 0;
-    xb_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"", t->name,
+    marie_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"", t->name,
                   (unsigned long long)t->fingerprint);
     put_attr(b, "id", xb_node_attr(req, "id"));
-    xb_buf_puts(b, ">");
+    marie_buf_puts(b, ">");
     for (int i = 0; i < t->nfields; i++) {
         const marie_tfield_t *f = &t->fields[i];
         char dims[128];
-        xb_buf_printf(b, "<field name=\"%s\" type=\"%s\"", f->name,
+        marie_buf_printf(b, "<field name=\"%s\" type=\"%s\"", f->name,
                       f->prim == MARIE_PRIM_STRUCT ? f->sub->name : marie_prim_name(f->prim));
         if (f->ndims)
-            xb_buf_printf(b, " dims=\"%s\"", dims_text(f, t, dims, sizeof dims));
-        xb_buf_puts(b, "/>");
+            marie_buf_printf(b, " dims=\"%s\"", dims_text(f, t, dims, sizeof dims));
+        marie_buf_puts(b, "/>");
     }
     for (int i = 0; i < t->nconsts; i++) {
-        xb_buf_printf(b, "<const name=\"%s\" type=\"%s\"", t->consts[i].name,
+        marie_buf_printf(b, "<const name=\"%s\" type=\"%s\"", t->consts[i].name,
                       marie_prim_name(t->consts[i].prim));
         put_attr(b, "value", t->consts[i].value);
-        xb_buf_puts(b, "/>");
+        marie_buf_puts(b, "/>");
     }
-    xb_buf_puts(b, "</type>\n");
+    marie_buf_puts(b, "</type>\n");
     xb_client_enqueue_text(c, b->data, b->len);
 }
 

@@ -289,8 +289,8 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     s->loop = loop;
     s->lfd = -1;
     /* The largest outgoing document: a max-size payload as base64 XML plus the envelope. */
-    xb_buf_init(&s->out, s->cfg.max_message * 4 + 4096);
-    xb_buf_init(&s->enc, s->cfg.max_message);
+    marie_buf_init(&s->out, s->cfg.max_message * 4 + 4096);
+    marie_buf_init(&s->enc, s->cfg.max_message);
 
     struct addrinfo hints = { .ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM,
                               .ai_flags = AI_PASSIVE | AI_NUMERICSERV };
@@ -341,8 +341,8 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
 err:
     if (s->lfd >= 0)
         close(s->lfd);
-    xb_buf_free(&s->out);
-    xb_buf_free(&s->enc);
+    marie_buf_free(&s->out);
+    marie_buf_free(&s->enc);
     free(s);
     return NULL;
 }
@@ -363,8 +363,8 @@ void xb_server_destroy(xb_server_t *s)
     if (s->cfg.handle_lcm)
         marie_loop_remove_lcm(s->loop, s->lcm);
     close(s->lfd);
-    xb_buf_free(&s->out);
-    xb_buf_free(&s->enc);
+    marie_buf_free(&s->out);
+    marie_buf_free(&s->enc);
     free(s);
 }
 

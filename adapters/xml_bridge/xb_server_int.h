@@ -85,8 +85,8 @@ struct xb_server {
     client_t *clients;
     sub_t *subs;
     xb_server_stats_t st;
-    xb_buf_t out;               /* scratch for one outgoing document */
-    xb_buf_t enc;               /* scratch for one encoded LCM payload */
+    marie_buf_t out;               /* scratch for one outgoing document */
+    marie_buf_t enc;               /* scratch for one encoded LCM payload */
 };
 
 /* xb_server.c: bad input goes to the component's counters (or the log). */

@@ -1,4 +1,4 @@
-/* xb_text: the text forms of the XML bridge's values: bounded buffers with XML escaping,
+/* xb_text: the text forms of the XML bridge's values: XML escaping (into core/buf.h buffers),
  * base64, the syntax of integers and reals, and which strings XML can carry. */
 #include "adapters/xml_bridge/xb_codec.h"
 
@@ -12,79 +12,9 @@
 
 #include "core/base64.h"
 
-/* ---- buffers ---- */
+/* ---- escaping ---- */
 
-void xb_buf_init(xb_buf_t *b, size_t max)
-{
-    memset(b, 0, sizeof *b);
-    b->max = max ? max : (size_t)1 << 30;
-}
-
-void xb_buf_free(xb_buf_t *b)
-{
-    free(b->data);
-    memset(b, 0, sizeof *b);
-}
-
-int xb_buf_reserve(xb_buf_t *b, size_t extra)
-{
-    if (extra > b->max || b->len > b->max - extra) {
-        b->full = 1;
-        return -1;
-    }
-    if (b->len + extra <= b->cap)
-        return 0;
-    size_t cap = b->cap ? b->cap : 256;
-    while (cap < b->len + extra)
-        cap *= 2;
-    if (cap > b->max)
-        cap = b->max;
-    char *d = realloc(b->data, cap);
-    if (!d) {
-        b->full = 1;
-        return -1;
-    }
-    b->data = d;
-    b->cap = cap;
-    return 0;
-}
-
-int xb_buf_put(xb_buf_t *b, const void *data, size_t len)
-{
-    if (xb_buf_reserve(b, len) < 0)
-        return -1;
-    if (len)
-        memcpy(b->data + b->len, data, len);
-    b->len += len;
-    return 0;
-}
-
-int xb_buf_puts(xb_buf_t *b, const char *s)
-{
-    return xb_buf_put(b, s, strlen(s));
-}
-
-int xb_buf_printf(xb_buf_t *b, const char *fmt, ...)
-{
-    char tmp[256];
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(tmp, sizeof tmp, fmt, ap);
-    va_end(ap);
-    if (n < 0)
-        return -1;
-    if ((size_t)n < sizeof tmp)
-        return xb_buf_put(b, tmp, (size_t)n);
-    if (xb_buf_reserve(b, (size_t)n + 1) < 0)
-        return -1;
-    va_start(ap, fmt);
-    vsnprintf(b->data + b->len, (size_t)n + 1, fmt, ap);
-    va_end(ap);
-    b->len += (size_t)n;
-    return 0;
-}
-
-int xb_buf_escape(xb_buf_t *b, const char *s, size_t len)
+int xb_escape(marie_buf_t *b, const char *s, size_t len)
 {
     size_t start = 0;
     for (size_t i = 0; i < len; i++) {
@@ -99,18 +29,18 @@ int xb_buf_escape(xb_buf_t *b, const char *s, size_t len)
         case '\r': rep = "&#13;"; break;
         default: continue;
         }
-        if (xb_buf_put(b, s + start, i - start) < 0 || xb_buf_puts(b, rep) < 0)
+        if (marie_buf_put(b, s + start, i - start) < 0 || marie_buf_puts(b, rep) < 0)
             return -1;
         start = i + 1;
     }
-    return xb_buf_put(b, s + start, len - start);
+    return marie_buf_put(b, s + start, len - start);
 }
 
 /* ---- base64 ---- */
 
-int xb_base64_encode(xb_buf_t *b, const uint8_t *d, size_t len)
+int xb_base64_encode(marie_buf_t *b, const uint8_t *d, size_t len)
 {
-    if (xb_buf_reserve(b, marie_base64_len(len)) < 0)
+    if (marie_buf_reserve(b, marie_base64_len(len)) < 0)
         return -1;
     marie_base64_encode(b->data + b->len, d, len);
     b->len += marie_base64_len(len);

@@ -21,7 +21,7 @@ static uint64_t fnv1a(const void *data, size_t len)
 
 typedef struct {
     const marie_typeinfo_t *t;
-    xb_buf_t *out;
+    marie_buf_t *out;
     int rc;
 } enc_t;
 
@@ -39,14 +39,14 @@ static int publish(lcm_t *lcm, const char *prefix, int count, FILE *hashes)
     for (size_t i = 0; marie_typeinfos[i]; i++) {
         const marie_typeinfo_t *t = marie_typeinfos[i];
         for (int k = 0; k < count; k++) {
-            xb_buf_t xml, bytes;
+            marie_buf_t xml, bytes;
             xb_canon_t canon;
-            xb_buf_init(&xml, 0);
-            xb_buf_init(&bytes, 0);
+            marie_buf_init(&xml, 0);
+            marie_buf_init(&bytes, 0);
             xb_canon_init(&canon);
-            xb_buf_puts(&xml, "<m>");
+            marie_buf_puts(&xml, "<m>");
             xb_sample(t, (uint32_t)(k * 1000 + (int)i + 1), &xml, &canon);
-            xb_buf_puts(&xml, "</m>");
+            marie_buf_puts(&xml, "</m>");
             enc_t e = { t, &bytes, -1 };
             xb_doc_parser_t *p = xb_doc_parser_create(NULL, on_doc, &e);
             if (!p || xb_doc_parser_feed(p, xml.data, xml.len) < 0 || e.rc != 0)
@@ -60,8 +60,8 @@ static int publish(lcm_t *lcm, const char *prefix, int count, FILE *hashes)
             if (hashes)
                 fprintf(hashes, "%s %zu %016llx\n", ch, bytes.len,
                         (unsigned long long)fnv1a(bytes.data, bytes.len));
-            xb_buf_free(&xml);
-            xb_buf_free(&bytes);
+            marie_buf_free(&xml);
+            marie_buf_free(&bytes);
             xb_canon_free(&canon);
             /* paced: lcm-logger, like any LCM subscriber, queues at most 30 messages between
              * its receive thread and its handler; a burst larger than that is lost when the

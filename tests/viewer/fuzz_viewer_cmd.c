@@ -25,11 +25,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     size_t n = size < sizeof s - 1 ? size : sizeof s - 1;
     memcpy(s, data, n);
     s[n] = 0;
-    vj_buf_t b;
-    vj_init(&b);
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
     vj_str(&b, s);
-    assert(b.oom || (b.len >= 2 && b.s[0] == '"' && b.s[b.len - 1] == '"'));
-    vj_free(&b);
+    assert(b.failed || (b.len >= 2 && b.data[0] == '"' && b.data[b.len - 1] == '"'));
+    marie_buf_free(&b);
 
     if (size < 1)
         return 0;
@@ -39,15 +39,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (int i = 0; i < 8; i++)
         payload[i] = (uint8_t)((uint64_t)t->fingerprint >> (56 - 8 * i));
     memcpy(payload + 8, data + 1, size - 1);
-    vj_init(&b);
-    vj_lit(&b, "{");
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{");
     int rc = vj_message(&b, payload, size + 7, VJ_ROLE_POSE);
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     if (rc == 0)
-        assert(b.oom || (strncmp(b.s, "{,\"k\":", 6) == 0 && strstr(b.s, ",\"msg\":{")));
+        assert(b.failed || (strncmp(b.data, "{,\"k\":", 6) == 0 && strstr(b.data, ",\"msg\":{")));
     else
-        assert(rc == -EBADMSG && strcmp(b.s, "{}") == 0);
-    vj_free(&b);
+        assert(rc == -EBADMSG && strcmp(b.data, "{}") == 0);
+    marie_buf_free(&b);
     free(payload);
     return 0;
 }

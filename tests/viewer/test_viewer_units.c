@@ -196,13 +196,13 @@ static void empty_and_tiny_inputs_are_harmless(void **state)
 /* The frame members vj_message writes for a message, as a string (static, overwritten). */
 static const char *frame_of(const marie_type_t *t, const void *msg, vj_role_t role)
 {
-    static vj_buf_t b;
+    static marie_buf_t b;
     static uint8_t buf[1 << 16];
     int n = t->encode(buf, 0, sizeof buf, msg);
     assert_true(n > 0);
-    vj_free(&b);
+    marie_buf_free(&b);
     assert_int_equal(vj_message(&b, buf, (size_t)n, role), 0);
-    return b.s;
+    return b.data;
 }
 
 static void laser_json_is_the_scan_with_its_lcm_field_names(void **state)
@@ -302,32 +302,32 @@ static void a_malformed_payload_appends_nothing(void **state)
     uint8_t buf[256];
     int n = marie_type_event_t.encode(buf, 0, sizeof buf, &e);
     assert_true(n > 0);
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{");
     assert_int_equal(vj_message(&b, buf, (size_t)n - 1, VJ_ROLE_OTHER), -EBADMSG);   /* cut short */
     buf[n - 1] = 'x';                                                               /* unterminated string */
     assert_int_equal(vj_message(&b, buf, (size_t)n, VJ_ROLE_OTHER), -EBADMSG);
     assert_int_equal(vj_message(&b, "\x01\x02\x03\x04\x05\x06\x07\x08", 8, VJ_ROLE_OTHER), -EBADMSG);
-    assert_string_equal(b.s, "{");
-    vj_free(&b);
+    assert_string_equal(b.data, "{");
+    marie_buf_free(&b);
 }
 
 static void strings_are_escaped_and_binary_is_base64(void **state)
 {
-    vj_buf_t b;
-    vj_init(&b);
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
     vj_str(&b, "a\"b\\c\n\x01\xc3");
-    assert_string_equal(b.s, "\"a\\\"b\\\\c\\u000a\\u0001?\"");
-    vj_reset(&b);
+    assert_string_equal(b.data, "\"a\\\"b\\\\c\\u000a\\u0001?\"");
+    marie_buf_reset(&b);
     vj_base64(&b, "\x00\x64\xff\x9c", 4);
-    assert_string_equal(b.s, "\"AGT/nA==\"");
-    vj_reset(&b);
+    assert_string_equal(b.data, "\"AGT/nA==\"");
+    marie_buf_reset(&b);
     vj_num(&b, -0.0001, 3);
-    vj_lit(&b, " ");
+    marie_buf_puts(&b, " ");
     vj_num(&b, INFINITY, 3);
-    assert_string_equal(b.s, "0 null");
-    vj_free(&b);
+    assert_string_equal(b.data, "0 null");
+    marie_buf_free(&b);
 }
 
 static void page_commands_parse_or_are_refused(void **state)

@@ -9,7 +9,7 @@
 
 typedef struct {
     const marie_typeinfo_t *t;
-    xb_buf_t *out;
+    marie_buf_t *out;
     int rc;
 } again_t;
 
@@ -27,15 +27,15 @@ static void on_doc(void *user, xb_node_t *root)
     const marie_typeinfo_t *t = tn ? marie_typeinfo_find(tn) : NULL;
     if (!t)
         t = marie_typeinfos[*sel % marie_typeinfos_count];
-    xb_buf_t out, xml, again;
+    marie_buf_t out, xml, again;
     xb_error_t err;
-    xb_buf_init(&out, 1 << 20);
-    xb_buf_init(&xml, 1 << 22);
-    xb_buf_init(&again, 1 << 20);
+    marie_buf_init(&out, 1 << 20);
+    marie_buf_init(&xml, 1 << 22);
+    marie_buf_init(&again, 1 << 20);
     if (xb_encode(t, root, &out, &err) == 0) {
         /* Whatever encodes must decode, and the XML of it must encode to the same bytes. */
-        if (xb_buf_puts(&xml, "<m>") < 0 || xb_decode(t, out.data, out.len, &xml, &err) != 0 ||
-            xb_buf_puts(&xml, "</m>") < 0)
+        if (marie_buf_puts(&xml, "<m>") < 0 || xb_decode(t, out.data, out.len, &xml, &err) != 0 ||
+            marie_buf_puts(&xml, "</m>") < 0)
             abort();
         again_t a = { t, &again, -1 };
         xb_doc_parser_t *p = xb_doc_parser_create(NULL, on_again, &a);
@@ -44,9 +44,9 @@ static void on_doc(void *user, xb_node_t *root)
             abort();
         xb_doc_parser_destroy(p);
     }
-    xb_buf_free(&out);
-    xb_buf_free(&xml);
-    xb_buf_free(&again);
+    marie_buf_free(&out);
+    marie_buf_free(&xml);
+    marie_buf_free(&again);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -73,11 +73,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (int i = 0; i < 8; i++)
         payload[i] = (uint8_t)((uint64_t)t->fingerprint >> (56 - 8 * i));
     memcpy(payload + 8, data, size);
-    xb_buf_t xml;
+    marie_buf_t xml;
     xb_error_t err;
-    xb_buf_init(&xml, 1 << 22);
+    marie_buf_init(&xml, 1 << 22);
     xb_decode(t, payload, size + 8, &xml, &err);
-    xb_buf_free(&xml);
+    marie_buf_free(&xml);
     free(payload);
     return 0;
 }

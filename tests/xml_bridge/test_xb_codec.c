@@ -15,7 +15,7 @@
 /* Parses exactly one document and keeps a deep copy-free handle: the callback encodes. */
 typedef struct {
     const marie_typeinfo_t *type;
-    xb_buf_t out;
+    marie_buf_t out;
     xb_error_t err;
     int docs, rc;
     char root[64];
@@ -30,10 +30,10 @@ static void encode_cb(void *user, xb_node_t *root)
 }
 
 /* XML fields text -> LCM payload through the document parser and the encoder. */
-static int xml_to_lcm(const marie_typeinfo_t *t, const char *fields, xb_buf_t *out, xb_error_t *err)
+static int xml_to_lcm(const marie_typeinfo_t *t, const char *fields, marie_buf_t *out, xb_error_t *err)
 {
     enc_ctx_t c = { .type = t, .rc = -99 };
-    xb_buf_init(&c.out, 1 << 24);
+    marie_buf_init(&c.out, 1 << 24);
     xb_doc_parser_t *p = xb_doc_parser_create(NULL, encode_cb, &c);
     assert_non_null(p);
     assert_int_equal(xb_doc_parser_feed(p, "<message>", 9), 0);
@@ -79,15 +79,15 @@ static void test_every_type_round_trips_field_by_field(void **state)
         const marie_type_t *mt = registry(t->name);
         assert_non_null(mt);
         for (uint32_t seed = 1; seed <= 40; seed++) {
-            xb_buf_t xml;
+            marie_buf_t xml;
             xb_canon_t want, got;
-            xb_buf_init(&xml, 0);
+            marie_buf_init(&xml, 0);
             xb_canon_init(&want);
             xb_canon_init(&got);
             xb_sample(t, seed * 7919u + (uint32_t)i, &xml, &want);
-            xb_buf_put(&xml, "", 1);
+            marie_buf_put(&xml, "", 1);
 
-            xb_buf_t b1;
+            marie_buf_t b1;
             xb_error_t err = { "", "" };
             if (xml_to_lcm(t, xml.data, &b1, &err) != 0)
                 fail_msg("%s seed %u: %s %s\n%s", t->name, seed, err.code, err.reason, xml.data);
@@ -106,11 +106,11 @@ static void test_every_type_round_trips_field_by_field(void **state)
             assert_memory_equal(b2, b1.data, (size_t)n);
 
             /* lcm-gen's bytes -> our XML -> our bytes again */
-            xb_buf_t x2, b3;
-            xb_buf_init(&x2, 0);
+            marie_buf_t x2, b3;
+            marie_buf_init(&x2, 0);
             if (xb_decode(t, b2, (size_t)n, &x2, &err) != 0)
                 fail_msg("%s: decode: %s", t->name, err.reason);
-            xb_buf_put(&x2, "", 1);
+            marie_buf_put(&x2, "", 1);
             assert_int_equal(xml_to_lcm(t, x2.data, &b3, &err), 0);
             assert_int_equal(b3.len, (size_t)n);
             assert_memory_equal(b3.data, b2, (size_t)n);
@@ -118,20 +118,20 @@ static void test_every_type_round_trips_field_by_field(void **state)
             /* Every truncation of a valid payload is refused cleanly. */
             if (seed <= 2)
                 for (int cut = 0; cut < n; cut++) {
-                    xb_buf_t x3;
-                    xb_buf_init(&x3, 0);
+                    marie_buf_t x3;
+                    marie_buf_init(&x3, 0);
                     assert_int_equal(xb_decode(t, b2, (size_t)cut, &x3, &err), -1);
                     assert_int_equal(x3.len, 0);
-                    xb_buf_free(&x3);
+                    marie_buf_free(&x3);
                 }
 
             mt->decode_cleanup(msg);
             free(msg);
             free(b2);
-            xb_buf_free(&x2);
-            xb_buf_free(&b3);
-            xb_buf_free(&b1);
-            xb_buf_free(&xml);
+            marie_buf_free(&x2);
+            marie_buf_free(&b3);
+            marie_buf_free(&b1);
+            marie_buf_free(&xml);
             xb_canon_free(&want);
             xb_canon_free(&got);
             checked++;
@@ -142,7 +142,7 @@ static void test_every_type_round_trips_field_by_field(void **state)
 
 static void expect_error(const char *type, const char *fields, const char *code)
 {
-    xb_buf_t out;
+    marie_buf_t out;
     xb_error_t err = { "", "" };
     const marie_typeinfo_t *t = marie_typeinfo_find(type);
     assert_non_null(t);
@@ -151,7 +151,7 @@ static void expect_error(const char *type, const char *fields, const char *code)
     if (strcmp(err.code, code) != 0)
         fail_msg("%s: got %s (%s), want %s", fields, err.code, err.reason, code);
     assert_int_equal(out.len, 0);
-    xb_buf_free(&out);
+    marie_buf_free(&out);
 }
 
 static void test_wrong_fields_are_refused_with_a_reason(void **state)
@@ -182,7 +182,7 @@ static void test_wrong_fields_are_refused_with_a_reason(void **state)
 static void test_defaults_and_inferred_lengths(void **state)
 {
     const marie_typeinfo_t *t = marie_typeinfo_find("marie.laser_scan_t");
-    xb_buf_t out;
+    marie_buf_t out;
     assert_int_equal(xml_to_lcm(t, "<ranges> 1 2.5\n 3 </ranges><nintensities>0</nintensities>", &out, NULL), 0);
     marie_laser_scan_t m;
     assert_int_equal(marie_laser_scan_t_decode(out.data, 0, (int)out.len, &m), (int)out.len);
@@ -191,11 +191,11 @@ static void test_defaults_and_inferred_lengths(void **state)
     assert_int_equal(m.nintensities, 0);
     assert_int_equal(m.utime, 0);
     marie_laser_scan_t_decode_cleanup(&m);
-    xb_buf_free(&out);
+    marie_buf_free(&out);
 
     /* An absent fixed array is zeros; an absent message is all defaults. */
     t = marie_typeinfo_find("marie.pose_cov_t");
-    xb_buf_init(&out, 0);
+    marie_buf_init(&out, 0);
     xb_error_t err;
     assert_int_equal(xb_encode(t, NULL, &out, &err), 0);
     marie_pose_cov_t pc;
@@ -203,26 +203,26 @@ static void test_defaults_and_inferred_lengths(void **state)
     assert_string_equal(pc.frame, "");
     assert_true(pc.cov[8] == 0.0);
     marie_pose_cov_t_decode_cleanup(&pc);
-    xb_buf_free(&out);
+    marie_buf_free(&out);
 }
 
 static void test_decode_refuses_foreign_and_oversized_payloads(void **state)
 {
     const marie_typeinfo_t *pose = marie_typeinfo_find("marie.pose2d_t");
     const marie_typeinfo_t *cov = marie_typeinfo_find("marie.pose_cov_t");
-    xb_buf_t out, x;
+    marie_buf_t out, x;
     xb_error_t err;
     assert_int_equal(xml_to_lcm(pose, "<x>1</x>", &out, NULL), 0);
-    xb_buf_init(&x, 0);
+    marie_buf_init(&x, 0);
     assert_int_equal(xb_decode(cov, out.data, out.len, &x, &err), -1);
     assert_string_equal(err.code, "bad-fingerprint");
-    xb_buf_free(&x);
-    xb_buf_init(&x, 10);
+    marie_buf_free(&x);
+    marie_buf_init(&x, 10);
     assert_int_equal(xb_decode(pose, out.data, out.len, &x, &err), -1);
     assert_string_equal(err.code, "too-large");
     assert_int_equal(x.len, 0);
-    xb_buf_free(&x);
-    xb_buf_free(&out);
+    marie_buf_free(&x);
+    marie_buf_free(&out);
 
     /* A length field claiming more elements than the payload holds. */
     marie_laser_scan_t m = { 0 };
@@ -234,10 +234,10 @@ static void test_decode_refuses_foreign_and_oversized_payloads(void **state)
     assert_true(n > 0);
     buf[8 + 8 + 16 + 3] = 0x7f;     /* nranges low byte */
     buf[8 + 8 + 16 + 0] = 0x7f;     /* nranges high byte: huge */
-    xb_buf_init(&x, 0);
+    marie_buf_init(&x, 0);
     assert_int_equal(xb_decode(marie_typeinfo_find("laser_scan_t"), buf, (size_t)n, &x, &err), -1);
     assert_string_equal(err.code, "bad-message");
-    xb_buf_free(&x);
+    marie_buf_free(&x);
 }
 
 static void test_strings_xml_cannot_carry_use_base64(void **state)
@@ -248,19 +248,19 @@ static void test_strings_xml_cannot_carry_use_base64(void **state)
     e.text = (char *)"<&>\"\t\n\r";
     uint8_t buf[256];
     int n = marie_event_t_encode(buf, 0, sizeof buf, &e);
-    xb_buf_t x, out;
+    marie_buf_t x, out;
     xb_error_t err;
-    xb_buf_init(&x, 0);
+    marie_buf_init(&x, 0);
     assert_int_equal(xb_decode(marie_typeinfo_find("event_t"), buf, (size_t)n, &x, &err), 0);
-    xb_buf_put(&x, "", 1);
+    marie_buf_put(&x, "", 1);
     assert_non_null(strstr(x.data, "<source encoding=\"base64\">YQF6</source>"));
     assert_non_null(strstr(x.data, "<text>&lt;&amp;&gt;&quot;&#9;&#10;&#13;</text>"));
     assert_null(strchr(x.data, '\n'));
     assert_int_equal(xml_to_lcm(marie_typeinfo_find("event_t"), x.data, &out, NULL), 0);
     assert_int_equal(out.len, (size_t)n);
     assert_memory_equal(out.data, buf, (size_t)n);
-    xb_buf_free(&x);
-    xb_buf_free(&out);
+    marie_buf_free(&x);
+    marie_buf_free(&out);
 }
 
 /* ---- document stream ---- */

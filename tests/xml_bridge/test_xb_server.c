@@ -38,7 +38,7 @@ typedef struct {
     int eof;
     xb_doc_parser_t *p;
     char *docs[MAX_DOCS];       /* each document re-serialised as "name|attr=v|...|text" */
-    xb_buf_t raw[MAX_DOCS];     /* and re-encodable: the document itself as received */
+    marie_buf_t raw[MAX_DOCS];     /* and re-encodable: the document itself as received */
     int ndocs;
 } cli_t;
 
@@ -49,16 +49,16 @@ static void collect(void *user, xb_node_t *root)
     cli_t *c = user;
     if (c->ndocs >= MAX_DOCS)
         return;
-    xb_buf_t b;
-    xb_buf_init(&b, 0);
-    xb_buf_puts(&b, root->name);
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, root->name);
     for (const char **a = root->attrs; a && a[0]; a += 2)
-        xb_buf_printf(&b, "|%s=%s", a[0], a[1]);
-    xb_buf_put(&b, "", 1);
+        marie_buf_printf(&b, "|%s=%s", a[0], a[1]);
+    marie_buf_put(&b, "", 1);
     c->docs[c->ndocs] = b.data;
     /* Keep the fields re-serialised so the test can encode them again. */
-    xb_buf_t *r = &c->raw[c->ndocs];
-    xb_buf_init(r, 0);
+    marie_buf_t *r = &c->raw[c->ndocs];
+    marie_buf_init(r, 0);
     for (const xb_node_t *n = root->first; n; n = n->next) {
         /* Minimal serialiser: enough for codec output (text leaves, item lists, base64). */
         struct { const xb_node_t *n; int state; } st[64];
@@ -68,11 +68,11 @@ static void collect(void *user, xb_node_t *root)
         while (sp > 0) {
             const xb_node_t *x = st[sp - 1].n;
             if (st[sp - 1].state == 0) {
-                xb_buf_printf(r, "<%s", x->name);
+                marie_buf_printf(r, "<%s", x->name);
                 for (const char **a = x->attrs; a && a[0]; a += 2)
-                    xb_buf_printf(r, " %s=\"%s\"", a[0], a[1]);
-                xb_buf_puts(r, ">");
-                xb_buf_escape(r, x->text, x->text_len);
+                    marie_buf_printf(r, " %s=\"%s\"", a[0], a[1]);
+                marie_buf_puts(r, ">");
+                xb_escape(r, x->text, x->text_len);
                 st[sp - 1].state = 1;
                 if (x->first && sp < 64) {
                     st[sp].n = x->first;
@@ -80,7 +80,7 @@ static void collect(void *user, xb_node_t *root)
                 }
                 continue;
             }
-            xb_buf_printf(r, "</%s>", x->name);
+            marie_buf_printf(r, "</%s>", x->name);
             sp--;
             if (sp > 0 && x->next) {
                 st[sp].n = x->next;
@@ -88,7 +88,7 @@ static void collect(void *user, xb_node_t *root)
             }
         }
     }
-    xb_buf_put(r, "", 1);
+    marie_buf_put(r, "", 1);
     c->ndocs++;
 }
 
@@ -114,7 +114,7 @@ static void cli_free(cli_t *c)
         close(c->fd);
     for (int i = 0; i < c->ndocs; i++) {
         free(c->docs[i]);
-        xb_buf_free(&c->raw[i]);
+        marie_buf_free(&c->raw[i]);
     }
     xb_doc_parser_destroy(c->p);
     c->fd = -1;
@@ -239,7 +239,7 @@ static const marie_type_t *registry(const char *name)
 
 typedef struct {
     const marie_typeinfo_t *t;
-    xb_buf_t *out;
+    marie_buf_t *out;
     xb_error_t *err;
     int rc;
 } reenc_t;
@@ -267,15 +267,15 @@ static void test_every_type_both_directions(void **state)
             snprintf(ch, sizeof ch, "TO_BUS.%s", t->short_name);
             capture_t cap = { 0 };
             lcm_subscription_t *ls = lcm_subscribe(env.lcm, ch, on_capture, &cap);
-            xb_buf_t xml;
+            marie_buf_t xml;
             xb_canon_t want, got;
-            xb_buf_init(&xml, 0);
+            marie_buf_init(&xml, 0);
             xb_canon_init(&want);
             xb_canon_init(&got);
-            xb_buf_printf(&xml, "<publish channel=\"%s\" type=\"%s\" id=\"p%u\">", ch, t->name, seed);
+            marie_buf_printf(&xml, "<publish channel=\"%s\" type=\"%s\" id=\"p%u\">", ch, t->name, seed);
             xb_sample(t, seed * 31u + (uint32_t)i, &xml, &want);
-            xb_buf_puts(&xml, "</publish>\n");
-            xb_buf_put(&xml, "", 1);
+            marie_buf_puts(&xml, "</publish>\n");
+            marie_buf_put(&xml, "", 1);
             cli_send(&c, xml.data);
             assert_true(cli_wait(&c, ++expect));
             if (!starts(c.docs[expect - 1], "ok|to=publish"))
@@ -304,13 +304,13 @@ static void test_every_type_both_directions(void **state)
             snprintf(head, sizeof head, "message|channel=%s|type=%s", ch, t->name);
             if (!starts(c.docs[expect - 1], head))
                 fail_msg("%s: %s", t->name, c.docs[expect - 1]);
-            xb_buf_t back;
+            marie_buf_t back;
             xb_error_t err;
-            xb_buf_init(&back, 0);
+            marie_buf_init(&back, 0);
             /* Encode the received fields again and compare with the bus bytes. */
-            xb_buf_t doc;
-            xb_buf_init(&doc, 0);
-            xb_buf_printf(&doc, "<m>%s</m>", c.raw[expect - 1].data);
+            marie_buf_t doc;
+            marie_buf_init(&doc, 0);
+            marie_buf_printf(&doc, "<m>%s</m>", c.raw[expect - 1].data);
             reenc_t ctx = { t, &back, &err, -1 };
             xb_doc_parser_t *dp = xb_doc_parser_create(NULL, reencode, &ctx);
             assert_int_equal(xb_doc_parser_feed(dp, doc.data, doc.len), 0);
@@ -327,9 +327,9 @@ static void test_every_type_both_directions(void **state)
             mt->decode_cleanup(msg);
             free(msg);
             free(cap.data);
-            xb_buf_free(&doc);
-            xb_buf_free(&back);
-            xb_buf_free(&xml);
+            marie_buf_free(&doc);
+            marie_buf_free(&back);
+            marie_buf_free(&xml);
             xb_canon_free(&want);
             xb_canon_free(&got);
         }

@@ -7,25 +7,25 @@
 
 void xb_canon_init(xb_canon_t *d)
 {
-    xb_buf_init(&d->buf, 0);
+    marie_buf_init(&d->buf, 0);
 }
 
 void xb_canon_free(xb_canon_t *d)
 {
-    xb_buf_free(&d->buf);
+    marie_buf_free(&d->buf);
 }
 
 void xb_canon_int(xb_canon_t *d, const char *path, long long v)
 {
-    xb_buf_printf(&d->buf, "%s=%lld\n", path, v);
+    marie_buf_printf(&d->buf, "%s=%lld\n", path, v);
 }
 
 void xb_canon_double(xb_canon_t *d, const char *path, double v)
 {
     if (isnan(v))
-        xb_buf_printf(&d->buf, "%s=nan\n", path);
+        marie_buf_printf(&d->buf, "%s=nan\n", path);
     else
-        xb_buf_printf(&d->buf, "%s=%.17g\n", path, v);
+        marie_buf_printf(&d->buf, "%s=%.17g\n", path, v);
 }
 
 void xb_canon_float(xb_canon_t *d, const char *path, float v)
@@ -35,19 +35,19 @@ void xb_canon_float(xb_canon_t *d, const char *path, float v)
 
 void xb_canon_str(xb_canon_t *d, const char *path, const char *s)
 {
-    xb_buf_printf(&d->buf, "%s=", path);
+    marie_buf_printf(&d->buf, "%s=", path);
     for (const unsigned char *p = (const unsigned char *)(s ? s : ""); *p; p++) {
         if (*p < 0x20 || *p == 0x7f || *p == '\\')
-            xb_buf_printf(&d->buf, "\\x%02x", *p);
+            marie_buf_printf(&d->buf, "\\x%02x", *p);
         else
-            xb_buf_put(&d->buf, p, 1);
+            marie_buf_put(&d->buf, p, 1);
     }
-    xb_buf_put(&d->buf, "\n", 1);
+    marie_buf_put(&d->buf, "\n", 1);
 }
 
 const char *xb_canon_text(xb_canon_t *d)
 {
-    xb_buf_put(&d->buf, "", 1);
+    marie_buf_put(&d->buf, "", 1);
     d->buf.len--;
     return d->buf.data;
 }
@@ -119,19 +119,19 @@ static void sample_string(uint32_t *s, char *out, size_t size)
     }
 }
 
-static void put_value_xml(xb_buf_t *xml, const char *tag, marie_prim_t prim, double dv, int64_t iv,
+static void put_value_xml(marie_buf_t *xml, const char *tag, marie_prim_t prim, double dv, int64_t iv,
                           const char *str)
 {
     char tmp[40];
     if (prim == MARIE_PRIM_STRING) {
         if (xb_xml_safe(str, strlen(str))) {
-            xb_buf_printf(xml, "<%s>", tag);
-            xb_buf_escape(xml, str, strlen(str));
+            marie_buf_printf(xml, "<%s>", tag);
+            xb_escape(xml, str, strlen(str));
         } else {
-            xb_buf_printf(xml, "<%s encoding=\"base64\">", tag);
+            marie_buf_printf(xml, "<%s encoding=\"base64\">", tag);
             xb_base64_encode(xml, (const uint8_t *)str, strlen(str));
         }
-        xb_buf_printf(xml, "</%s>", tag);
+        marie_buf_printf(xml, "</%s>", tag);
         return;
     }
     if (prim == MARIE_PRIM_FLOAT || prim == MARIE_PRIM_DOUBLE)
@@ -140,7 +140,7 @@ static void put_value_xml(xb_buf_t *xml, const char *tag, marie_prim_t prim, dou
         snprintf(tmp, sizeof tmp, "%s", iv ? ((iv & 2) ? "1" : "true") : "false");
     else
         snprintf(tmp, sizeof tmp, "%lld", (long long)iv);
-    xb_buf_puts(xml, tmp);
+    marie_buf_puts(xml, tmp);
 }
 
 static void canon_value(xb_canon_t *c, const char *path, marie_prim_t prim, double dv, int64_t iv,
@@ -156,7 +156,7 @@ static void canon_value(xb_canon_t *c, const char *path, marie_prim_t prim, doub
         xb_canon_int(c, path, prim == MARIE_PRIM_BOOL ? (iv != 0) : iv);
 }
 
-static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml, xb_canon_t *c,
+static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, marie_buf_t *xml, xb_canon_t *c,
                           const char *prefix, int depth)
 {
     int64_t lens[64] = { 0 };
@@ -180,9 +180,9 @@ static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml,
             if (f->prim == MARIE_PRIM_STRUCT) {
                 char sub[520];
                 snprintf(sub, sizeof sub, "%s.", path);
-                xb_buf_printf(xml, "<%s>", f->name);
+                marie_buf_printf(xml, "<%s>", f->name);
                 sample_struct(f->sub, s, xml, c, sub, depth + 1);
-                xb_buf_printf(xml, "</%s>", f->name);
+                marie_buf_printf(xml, "</%s>", f->name);
                 continue;
             }
             char str[128] = "";
@@ -202,9 +202,9 @@ static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml,
             if (f->prim == MARIE_PRIM_STRING) {
                 put_value_xml(xml, f->name, f->prim, dv, iv, str);
             } else {
-                xb_buf_printf(xml, "<%s>", f->name);
+                marie_buf_printf(xml, "<%s>", f->name);
                 put_value_xml(xml, f->name, f->prim, dv, iv, str);
-                xb_buf_printf(xml, "</%s>", f->name);
+                marie_buf_printf(xml, "</%s>", f->name);
             }
             continue;
         }
@@ -218,7 +218,7 @@ static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml,
         }
         int omit = allfixed && rnd(s) % 8 == 0;     /* absent fixed arrays are zeros */
         if (!omit)
-            xb_buf_printf(xml, "<%s>", f->name);
+            marie_buf_printf(xml, "<%s>", f->name);
         uint8_t bytes[4096];
         for (long k = 0; k < count; k++) {
             size_t len = (size_t)snprintf(path, sizeof path, "%s%s", prefix, f->name);
@@ -232,9 +232,9 @@ static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml,
             if (f->prim == MARIE_PRIM_STRUCT) {
                 char sub[520];
                 snprintf(sub, sizeof sub, "%s.", path);
-                xb_buf_puts(xml, "<item>");
+                marie_buf_puts(xml, "<item>");
                 sample_struct(f->sub, s, xml, c, sub, depth + 1);
-                xb_buf_puts(xml, "</item>");
+                marie_buf_puts(xml, "</item>");
                 continue;
             }
             char str[128] = "";
@@ -258,18 +258,18 @@ static void sample_struct(const marie_typeinfo_t *t, uint32_t *s, xb_buf_t *xml,
                 put_value_xml(xml, "item", f->prim, dv, iv, str);
             } else {
                 if (k)
-                    xb_buf_puts(xml, (rnd(s) & 3) ? " " : " \n\t");
+                    marie_buf_puts(xml, (rnd(s) & 3) ? " " : " \n\t");
                 put_value_xml(xml, NULL, f->prim, dv, iv, str);
             }
         }
         if (f->prim == MARIE_PRIM_BYTE && !omit)
             xb_base64_encode(xml, bytes, (size_t)(count < (long)sizeof bytes ? count : (long)sizeof bytes));
         if (!omit)
-            xb_buf_printf(xml, "</%s>", f->name);
+            marie_buf_printf(xml, "</%s>", f->name);
     }
 }
 
-void xb_sample(const marie_typeinfo_t *t, uint32_t seed, xb_buf_t *xml, xb_canon_t *canon)
+void xb_sample(const marie_typeinfo_t *t, uint32_t seed, marie_buf_t *xml, xb_canon_t *canon)
 {
     uint32_t s = seed * 2654435761u + 1;
     sample_struct(t, &s, xml, canon, "", 0);

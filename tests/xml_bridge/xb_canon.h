@@ -8,7 +8,7 @@
 #include "adapters/xml_bridge/xb_codec.h"
 
 typedef struct {
-    xb_buf_t buf;
+    marie_buf_t buf;
 } xb_canon_t;
 
 void xb_canon_init(xb_canon_t *d);
@@ -25,6 +25,6 @@ int xb_struct_dump(xb_canon_t *d, const char *type, const void *msg);
 
 /* A pseudo-random message of type t (seeded): the XML of its fields (children of a <message>
  * element, length fields sometimes left out) and its canonical lines. */
-void xb_sample(const marie_typeinfo_t *t, uint32_t seed, xb_buf_t *xml, xb_canon_t *canon);
+void xb_sample(const marie_typeinfo_t *t, uint32_t seed, marie_buf_t *xml, xb_canon_t *canon);
 
 #endif

@@ -82,18 +82,18 @@ static const marie_param_spec_t params[] = {
     { 0 },
 };
 
-static void keep(char **slot, const vj_buf_t *b)
+static void keep(char **slot, const marie_buf_t *b)
 {
     free(*slot);
-    *slot = b->oom ? NULL : strdup(b->s);
+    *slot = b->failed ? NULL : strdup(b->data);
 }
 
-static void share(face_t *f, char **slot, vj_buf_t *b)
+static void share(face_t *f, char **slot, marie_buf_t *b)
 {
     if (slot)
         keep(slot, b);
     webserve_send_json(f->web, -1, b, false);
-    vj_free(b);
+    marie_buf_free(b);
 }
 
 /* The decision record: who drives and why (the winning behaviour's reason). */
@@ -105,15 +105,15 @@ static void on_arb(marie_component_t *c, marie_port_t *p, const void *msg, const
     for (int i = 0; i < m->nvotes; i++)
         if (strcmp(m->votes[i].name, m->winner) == 0)
             why = m->votes[i].reason;
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"arb\",\"winner\":");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{\"type\":\"arb\",\"winner\":");
     vj_str(&b, m->winner);
-    vj_lit(&b, ",\"why\":");
+    marie_buf_puts(&b, ",\"why\":");
     vj_str(&b, why);
-    vj_lit(&b, ",\"v\":");
+    marie_buf_puts(&b, ",\"v\":");
     vj_num(&b, m->v, 2);
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     share(f, &f->arb, &b);
 }
 
@@ -121,15 +121,15 @@ static void on_goal(marie_component_t *c, marie_port_t *p, const void *msg, cons
 {
     face_t *f = marie_component_user(c);
     const marie_goal_t *m = msg;
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"goal\",\"name\":");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{\"type\":\"goal\",\"name\":");
     vj_str(&b, m->name);
-    vj_printf(&b, ",\"id\":%d,\"x\":", m->id);
+    marie_buf_printf(&b, ",\"id\":%d,\"x\":", m->id);
     vj_num(&b, m->pose.x, 2);
-    vj_lit(&b, ",\"y\":");
+    marie_buf_puts(&b, ",\"y\":");
     vj_num(&b, m->pose.y, 2);
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     share(f, &f->goal, &b);
 }
 
@@ -140,9 +140,9 @@ static void on_mission(marie_component_t *c, marie_port_t *p, const void *msg, c
     int done = 0;
     for (int i = 0; i < m->ngoals; i++)
         done += m->goal_states[i] >= MARIE_MISSION_STATE_T_STATE_REACHED;
-    vj_buf_t b;
-    vj_init(&b);
-    vj_printf(&b, "{\"type\":\"mission\",\"current\":%d,\"goals\":%d,\"done\":%d}", m->current, m->ngoals, done);
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_printf(&b, "{\"type\":\"mission\",\"current\":%d,\"goals\":%d,\"done\":%d}", m->current, m->ngoals, done);
     share(f, &f->mission, &b);
 }
 
@@ -158,26 +158,26 @@ static void on_event(marie_component_t *c, marie_port_t *p, const void *msg, con
         show |= strcmp(m->kind, shown[i]) == 0;
     if (!show)
         return;
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"event\",\"kind\":");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{\"type\":\"event\",\"kind\":");
     vj_str(&b, m->kind);
-    vj_lit(&b, ",\"src\":");
+    marie_buf_puts(&b, ",\"src\":");
     vj_str(&b, m->source);
-    vj_lit(&b, ",\"text\":");
+    marie_buf_puts(&b, ",\"text\":");
     vj_str(&b, m->text);
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     share(f, &f->events[f->next_event++ % 8], &b);
 }
 
 /* The conversation: what marie-asr recognized and what marie-dialogue asked marie-tts to say. */
 static void talk(face_t *f, const char *who, const char *text)
 {
-    vj_buf_t b;
-    vj_init(&b);
-    vj_printf(&b, "{\"type\":\"talk\",\"who\":\"%s\",\"text\":", who);
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_printf(&b, "{\"type\":\"talk\",\"who\":\"%s\",\"text\":", who);
     vj_str(&b, text);
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     share(f, &f->talk[f->next_talk++ % MAX_TALK], &b);
 }
 
@@ -203,11 +203,11 @@ static void on_am(marie_component_t *c, marie_port_t *p, const void *msg, const 
         bad += strcmp(st, "running") != 0 && strcmp(st, "stopped") != 0;
         failed += strcmp(st, "failed") == 0 || strcmp(st, "hung") == 0 || strcmp(st, "backoff") == 0;
     }
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"host\",\"host\":");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{\"type\":\"host\",\"host\":");
     vj_str(&b, m->host);
-    vj_printf(&b, ",\"n\":%d,\"light\":\"%s\",\"t\":%lld}", m->ncomponents, failed ? "red" : bad ? "amber" : "green",
+    marie_buf_printf(&b, ",\"n\":%d,\"light\":\"%s\",\"t\":%lld}", m->ncomponents, failed ? "red" : bad ? "amber" : "green",
               (long long)marie_wall_us());
     int k = 0;
     while (k < f->nhosts && strcmp(f->host_name[k], m->host) != 0)
@@ -219,16 +219,16 @@ static void on_am(marie_component_t *c, marie_port_t *p, const void *msg, const 
 
 static void send_hello(face_t *f, int id)
 {
-    vj_buf_t b;
-    vj_init(&b);
-    vj_printf(&b, "{\"type\":\"hello\",\"controls\":%s,\"places\":[", f->auth ? "true" : "false");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_printf(&b, "{\"type\":\"hello\",\"controls\":%s,\"places\":[", f->auth ? "true" : "false");
     for (int i = 0; i < f->nplaces; i++) {
-        vj_lit(&b, i ? "," : "");
+        marie_buf_puts(&b, i ? "," : "");
         vj_str(&b, f->places[i].name);
     }
-    vj_lit(&b, "]}");
+    marie_buf_puts(&b, "]}");
     webserve_send_json(f->web, id, &b, false);
-    vj_free(&b);
+    marie_buf_free(&b);
     char *all[] = { f->arb, f->goal, f->mission };
     for (int i = 0; i < 3; i++)
         if (all[i])

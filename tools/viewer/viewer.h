@@ -98,7 +98,7 @@ typedef struct viewer {
     size_t nlchans;
     int64_t t0, t1, last_t;
     int64_t corrupt, bad_payloads;
-    vj_buf_t corrupt_list;
+    marie_buf_t corrupt_list;
     int ncorrupt_listed;
     char *summary;
     size_t summary_len;
@@ -121,20 +121,20 @@ typedef struct viewer {
     int64_t last_seq;
     int goals_sent;
 
-    vj_buf_t jb;                /* scratch */
+    marie_buf_t jb;                /* scratch */
     bool init_failed;
 } viewer_t;
 
 /* Sending to page `id` (every page when id < 0). */
 void viewer_send(viewer_t *v, int id, const char *data, size_t len, bool droppable);
-void viewer_send_json(viewer_t *v, int id, vj_buf_t *b, bool droppable);
+void viewer_send_json(viewer_t *v, int id, marie_buf_t *b, bool droppable);
 void viewer_notice(viewer_t *v, int id, const char *level, const char *text);
 /* Messages: which input a channel is, its page frame, the rate limits. */
 int viewer_port_of_channel(viewer_t *v, const char *ch);
 /* A payload of input pi is its port's type, well formed and finite (bad live ones counted). */
 bool viewer_payload_ok(viewer_t *v, int pi, const char *ch, const void *data, size_t len);
 /* The page frame of a checked payload into b; false when it cannot be written. */
-bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len);
+bool viewer_encode_msg(viewer_t *v, marie_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len);
 bool viewer_decimated(int pi);
 bool viewer_pass_rate(viewer_t *v, int pi, int64_t now, const void *raw, size_t len);
 

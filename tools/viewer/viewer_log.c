@@ -82,10 +82,10 @@ static void on_log_corrupt(void *user, uint64_t offset, const char *reason)
     marie_warn_ratelimited(5, "viewer: %s: corrupt record at byte %llu: %s", viewer_params(v->c)->log,
                            (unsigned long long)offset, reason);
     if (v->ncorrupt_listed < 20) {
-        vj_printf(&v->corrupt_list, "%s{\"off\":%llu,\"reason\":", v->ncorrupt_listed ? "," : "",
+        marie_buf_printf(&v->corrupt_list, "%s{\"off\":%llu,\"reason\":", v->ncorrupt_listed ? "," : "",
                   (unsigned long long)offset);
         vj_str(&v->corrupt_list, reason);
-        vj_lit(&v->corrupt_list, "}");
+        marie_buf_puts(&v->corrupt_list, "}");
         v->ncorrupt_listed++;
     }
 }
@@ -129,8 +129,10 @@ static int intern(char ***names, int *n, const char *s)
  * goals, restarts (pid changes in heartbeats) and both trajectories at 5 Hz. */
 static void build_summary(viewer_t *v)
 {
-    vj_buf_t dec, ev, goals, rst, traj[2], b;
-    vj_init(&dec); vj_init(&ev); vj_init(&goals); vj_init(&rst); vj_init(&traj[0]); vj_init(&traj[1]); vj_init(&b);
+    marie_buf_t dec, ev, goals, rst, traj[2], b;
+    marie_buf_t *all[] = {&dec, &ev, &goals, &rst, &traj[0], &traj[1], &b};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+        marie_buf_init(all[i], 0);
     char **names = NULL;
     int nnames = 0;
     int64_t ndec = 0, nev = 0, ngoals = 0, nrst = 0, ntraj[2] = {0, 0}, last_traj[2] = {0, 0};
@@ -148,20 +150,20 @@ static void build_summary(viewer_t *v)
             if (!m)
                 continue;
             if (ndec < 200000)
-                vj_printf(&dec, "%s[%lld,%d]", ndec++ ? "," : "", (long long)ms, intern(&names, &nnames, m->winner));
+                marie_buf_printf(&dec, "%s[%lld,%d]", ndec++ ? "," : "", (long long)ms, intern(&names, &nnames, m->winner));
             free_msg(t, m);
         } else if (pi == P_EVENT) {
             marie_event_t *m = decode_rec(v, r, t);
             if (!m)
                 continue;
             if (nev < 20000) {
-                vj_printf(&ev, "%s[%lld,", nev++ ? "," : "", (long long)ms);
+                marie_buf_printf(&ev, "%s[%lld,", nev++ ? "," : "", (long long)ms);
                 vj_str(&ev, m->source);
-                vj_printf(&ev, ",%d,", m->severity);
+                marie_buf_printf(&ev, ",%d,", m->severity);
                 vj_str(&ev, m->kind);
-                vj_lit(&ev, ",");
+                marie_buf_puts(&ev, ",");
                 vj_str(&ev, m->text);
-                vj_lit(&ev, "]");
+                marie_buf_puts(&ev, "]");
             }
             free_msg(t, m);
         } else if (pi == P_GOAL) {
@@ -169,13 +171,13 @@ static void build_summary(viewer_t *v)
             if (!m)
                 continue;
             if (ngoals < 20000) {
-                vj_printf(&goals, "%s[%lld,%d,", ngoals++ ? "," : "", (long long)ms, m->id);
+                marie_buf_printf(&goals, "%s[%lld,%d,", ngoals++ ? "," : "", (long long)ms, m->id);
                 vj_str(&goals, m->name);
-                vj_lit(&goals, ",");
+                marie_buf_puts(&goals, ",");
                 vj_num(&goals, m->pose.x, 3);
-                vj_lit(&goals, ",");
+                marie_buf_puts(&goals, ",");
                 vj_num(&goals, m->pose.y, 3);
-                vj_lit(&goals, "]");
+                marie_buf_puts(&goals, "]");
             }
             free_msg(t, m);
         } else if (pi == P_HB) {
@@ -191,9 +193,9 @@ static void build_summary(viewer_t *v)
                 pid[ncomp++] = m->pid;
             } else if (k < ncomp && pid[k] != m->pid) {
                 if (nrst < 20000) {
-                    vj_printf(&rst, "%s[%lld,", nrst++ ? "," : "", (long long)ms);
+                    marie_buf_printf(&rst, "%s[%lld,", nrst++ ? "," : "", (long long)ms);
                     vj_str(&rst, m->component);
-                    vj_printf(&rst, ",%d,%d]", pid[k], m->pid);
+                    marie_buf_printf(&rst, ",%d,%d]", pid[k], m->pid);
                 }
                 pid[k] = m->pid;
             }
@@ -206,62 +208,62 @@ static void build_summary(viewer_t *v)
             if (!m)
                 continue;
             last_traj[k] = r->t;
-            vj_printf(&traj[k], "%s[%lld,", ntraj[k]++ ? "," : "", (long long)ms);
+            marie_buf_printf(&traj[k], "%s[%lld,", ntraj[k]++ ? "," : "", (long long)ms);
             vj_num(&traj[k], m->pose.x, 3);
-            vj_lit(&traj[k], ",");
+            marie_buf_puts(&traj[k], ",");
             vj_num(&traj[k], m->pose.y, 3);
-            vj_lit(&traj[k], "]");
+            marie_buf_puts(&traj[k], "]");
             free_msg(t, m);
         }
     }
-    vj_lit(&b, "{\"type\":\"summary\",\"file\":");
+    marie_buf_puts(&b, "{\"type\":\"summary\",\"file\":");
     vj_str(&b, viewer_params(v->c)->log);
-    vj_printf(&b, ",\"t0\":%lld,\"t1\":%lld,\"records\":%zu,\"bytes\":%zu,\"corrupt\":%lld,\"bad_payloads\":%lld",
+    marie_buf_printf(&b, ",\"t0\":%lld,\"t1\":%lld,\"records\":%zu,\"bytes\":%zu,\"corrupt\":%lld,\"bad_payloads\":%lld",
               (long long)v->t0, (long long)v->t1, v->nrecs, v->file_len, (long long)v->corrupt,
               (long long)v->bad_payloads);
-    vj_lit(&b, ",\"corrupt_list\":[");
-    if (v->corrupt_list.s)
-        vj_lit(&b, v->corrupt_list.s);
-    vj_lit(&b, "],\"channels\":[");
+    marie_buf_puts(&b, ",\"corrupt_list\":[");
+    if (v->corrupt_list.data)
+        marie_buf_puts(&b, v->corrupt_list.data);
+    marie_buf_puts(&b, "],\"channels\":[");
     for (size_t i = 0; i < v->nlchans; i++) {
-        vj_lit(&b, i ? ",[" : "[");
+        marie_buf_puts(&b, i ? ",[" : "[");
         vj_str(&b, v->lchans[i].name);
-        vj_lit(&b, ",");
+        marie_buf_puts(&b, ",");
         vj_str(&b, v->lchans[i].type ? v->lchans[i].type->name : "?");
-        vj_printf(&b, ",%lld,", (long long)v->lchans[i].count);
+        marie_buf_printf(&b, ",%lld,", (long long)v->lchans[i].count);
         vj_str(&b, v->lchans[i].port >= 0 ? viewer_ports[v->lchans[i].port].name : "");
-        vj_lit(&b, "]");
+        marie_buf_puts(&b, "]");
     }
-    vj_lit(&b, "],\"names\":[");
+    marie_buf_puts(&b, "],\"names\":[");
     for (int i = 0; i < nnames; i++) {
         if (i)
-            vj_lit(&b, ",");
+            marie_buf_puts(&b, ",");
         vj_str(&b, names[i]);
         free(names[i]);
     }
     free(names);
     for (int i = 0; i < ncomp; i++)
         free(comp[i]);
-    vj_lit(&b, "],\"dec\":[");
-    if (dec.s) vj_lit(&b, dec.s);
-    vj_lit(&b, "],\"events\":[");
-    if (ev.s) vj_lit(&b, ev.s);
-    vj_lit(&b, "],\"goals\":[");
-    if (goals.s) vj_lit(&b, goals.s);
-    vj_lit(&b, "],\"restarts\":[");
-    if (rst.s) vj_lit(&b, rst.s);
-    vj_lit(&b, "],\"est\":[");
-    if (traj[0].s) vj_lit(&b, traj[0].s);
-    vj_lit(&b, "],\"truth\":[");
-    if (traj[1].s) vj_lit(&b, traj[1].s);
-    vj_lit(&b, "]}");
-    if (!b.oom) {
-        v->summary = b.s;
+    marie_buf_puts(&b, "],\"dec\":[");
+    if (dec.data) marie_buf_puts(&b, dec.data);
+    marie_buf_puts(&b, "],\"events\":[");
+    if (ev.data) marie_buf_puts(&b, ev.data);
+    marie_buf_puts(&b, "],\"goals\":[");
+    if (goals.data) marie_buf_puts(&b, goals.data);
+    marie_buf_puts(&b, "],\"restarts\":[");
+    if (rst.data) marie_buf_puts(&b, rst.data);
+    marie_buf_puts(&b, "],\"est\":[");
+    if (traj[0].data) marie_buf_puts(&b, traj[0].data);
+    marie_buf_puts(&b, "],\"truth\":[");
+    if (traj[1].data) marie_buf_puts(&b, traj[1].data);
+    marie_buf_puts(&b, "]}");
+    if (!b.failed) {
+        v->summary = b.data;
         v->summary_len = b.len;
     } else {
-        vj_free(&b);
+        marie_buf_free(&b);
     }
-    vj_free(&dec); vj_free(&ev); vj_free(&goals); vj_free(&rst); vj_free(&traj[0]); vj_free(&traj[1]);
+    marie_buf_free(&dec); marie_buf_free(&ev); marie_buf_free(&goals); marie_buf_free(&rst); marie_buf_free(&traj[0]); marie_buf_free(&traj[1]);
 }
 
 int viewer_log_load(viewer_t *v, const char *path)
@@ -334,13 +336,13 @@ static long last_before(const log_chan_t *lc, size_t cursor)
 
 void viewer_log_send_player(viewer_t *v, int id)
 {
-    vj_buf_t b;
-    vj_init(&b);
-    vj_printf(&b, "{\"type\":\"player\",\"playing\":%s,\"speed\":", v->playing ? "true" : "false");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_printf(&b, "{\"type\":\"player\",\"playing\":%s,\"speed\":", v->playing ? "true" : "false");
     vj_num(&b, v->speed, 3);
-    vj_printf(&b, ",\"t\":%lld,\"t0\":%lld,\"t1\":%lld}", (long long)v->play_t, (long long)v->t0, (long long)v->t1);
+    marie_buf_printf(&b, ",\"t\":%lld,\"t0\":%lld,\"t1\":%lld}", (long long)v->play_t, (long long)v->t0, (long long)v->t1);
     viewer_send_json(v, id, &b, false);
-    vj_free(&b);
+    marie_buf_free(&b);
 }
 
 /* The state of the world at the play time: the newest message of each input, the last

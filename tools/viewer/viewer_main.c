@@ -73,7 +73,7 @@ void viewer_send(viewer_t *v, int id, const char *data, size_t len, bool droppab
     webserve_send(v->web, id, data, len, droppable);
 }
 
-void viewer_send_json(viewer_t *v, int id, vj_buf_t *b, bool droppable)
+void viewer_send_json(viewer_t *v, int id, marie_buf_t *b, bool droppable)
 {
     webserve_send_json(v->web, id, b, droppable);
 }
@@ -112,16 +112,16 @@ bool viewer_payload_ok(viewer_t *v, int pi, const char *ch, const void *data, si
     return false;
 }
 
-bool viewer_encode_msg(viewer_t *v, vj_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
+bool viewer_encode_msg(viewer_t *v, marie_buf_t *b, int pi, const char *ch, int64_t utime, const void *data, size_t len)
 {
-    vj_reset(b);
-    vj_lit(b, "{\"type\":\"msg\",\"ch\":");
+    marie_buf_reset(b);
+    marie_buf_puts(b, "{\"type\":\"msg\",\"ch\":");
     vj_str(b, ch);
-    vj_lit(b, ",\"t\":");
+    marie_buf_puts(b, ",\"t\":");
     vj_int(b, utime);
     bool ok = vj_message(b, data, len, pi == P_TRUTH ? VJ_ROLE_TRUTH : pi == P_POSE ? VJ_ROLE_POSE : VJ_ROLE_OTHER) == 0;
-    vj_lit(b, "}");
-    return ok && !b->oom;
+    marie_buf_puts(b, "}");
+    return ok && !b->failed;
 }
 
 bool viewer_decimated(int pi)
@@ -192,22 +192,22 @@ static void json_field(const char *json, const char *k, char *out, size_t cap)
 }
 
 /* Live mode: remember what a new page needs to draw the present at once. */
-static void live_remember(viewer_t *v, int pi, const vj_buf_t *b, int64_t utime)
+static void live_remember(viewer_t *v, int pi, const marie_buf_t *b, int64_t utime)
 {
     if (pi == P_ARB) {
-        set_str(&v->arb_ring[v->arb_next], b->s, b->len);
+        set_str(&v->arb_ring[v->arb_next], b->data, b->len);
         v->arb_next = (v->arb_next + 1) % RING;
     } else if (pi == P_EVENT) {
-        set_str(&v->ev_ring[v->ev_next], b->s, b->len);
+        set_str(&v->ev_ring[v->ev_next], b->data, b->len);
         v->ev_next = (v->ev_next + 1) % RING;
     } else if (pi == P_HB || pi == P_AM_STATUS) {
         /* one slot per component, and one per manager (host) */
         char name[128];
         if (pi == P_HB)
-            json_field(b->s, "component", name, sizeof name);
+            json_field(b->data, "component", name, sizeof name);
         else {
             name[0] = '@';
-            json_field(b->s, "host", name + 1, sizeof name - 1);
+            json_field(b->data, "host", name + 1, sizeof name - 1);
         }
         int i;
         for (i = 0; i < v->ncomp; i++)
@@ -218,10 +218,10 @@ static void live_remember(viewer_t *v, int pi, const vj_buf_t *b, int64_t utime)
                 return;
             v->comp_name[v->ncomp++] = strdup(name);
         }
-        set_str(&v->comp_json[i], b->s, b->len);
+        set_str(&v->comp_json[i], b->data, b->len);
     } else if (pi == P_GOAL) {
         char id[32];
-        json_field(b->s, "id", id, sizeof id);
+        json_field(b->data, "id", id, sizeof id);
         int gid = atoi(id), i;
         for (i = 0; i < v->ngoal; i++)
             if (v->goal_id[i] == gid)
@@ -231,9 +231,9 @@ static void live_remember(viewer_t *v, int pi, const vj_buf_t *b, int64_t utime)
                 return;
             v->goal_id[v->ngoal++] = gid;
         }
-        set_str(&v->goal_json[i], b->s, b->len);
+        set_str(&v->goal_json[i], b->data, b->len);
     } else if (pi != P_AM_REPLY) {
-        set_str(&v->chans[pi].latest, b->s, b->len);
+        set_str(&v->chans[pi].latest, b->data, b->len);
     }
     if (pi == P_POSE || pi == P_TRUTH) {
         /* Trails at 5 Hz for pages that connect later. */
@@ -242,8 +242,8 @@ static void live_remember(viewer_t *v, int pi, const vj_buf_t *b, int64_t utime)
             v->live_t0 = utime;
         if (utime - v->traj_last[k] >= 200000 || utime < v->traj_last[k]) {
             char x[32], y[32];
-            json_field(b->s, "x", x, sizeof x);
-            json_field(b->s, "y", y, sizeof y);
+            json_field(b->data, "x", x, sizeof x);
+            json_field(b->data, "y", y, sizeof y);
             float *p = v->traj[k][v->traj_next[k]];
             p[0] = (float)((utime - v->live_t0) / 1e6);
             p[1] = (float)atof(x);
@@ -292,21 +292,21 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
 
 static void send_hello(viewer_t *v, int id)
 {
-    vj_buf_t b;
-    vj_init(&b);
-    vj_printf(&b, "{\"type\":\"hello\",\"mode\":\"%s\",\"controls\":%s,\"component\":", v->live ? "live" : "log",
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_printf(&b, "{\"type\":\"hello\",\"mode\":\"%s\",\"controls\":%s,\"component\":", v->live ? "live" : "log",
               v->auth ? "true" : "false");
     vj_str(&b, marie_component_name(v->c));
-    vj_lit(&b, ",\"channels\":{");
+    marie_buf_puts(&b, ",\"channels\":{");
     for (int i = 0; i < P_NIN; i++) {
-        vj_lit(&b, i ? "," : "");
+        marie_buf_puts(&b, i ? "," : "");
         vj_str(&b, viewer_ports[i].name);
-        vj_lit(&b, ":");
+        marie_buf_puts(&b, ":");
         vj_str(&b, marie_port_channel(marie_port(v->c, viewer_ports[i].name)));
     }
-    vj_lit(&b, "}}");
+    marie_buf_puts(&b, "}}");
     viewer_send_json(v, id, &b, false);
-    vj_free(&b);
+    marie_buf_free(&b);
     if (v->map_json)
         viewer_send(v, id, v->map_json, strlen(v->map_json), false);
     if (!v->live) {
@@ -320,19 +320,19 @@ static void send_hello(viewer_t *v, int id)
     char head[96];
     int n = snprintf(head, sizeof head, "{\"type\":\"snap\",\"t\":%lld}", (long long)marie_wall_us());
     viewer_send(v, id, head, (size_t)n, false);
-    vj_reset(&b);
+    marie_buf_reset(&b);
     for (int k = 0; k < 2; k++) {
-        vj_printf(&b, "%s\"%s\":[", k ? "," : "{\"type\":\"trail\",", k ? "truth" : "est");
+        marie_buf_printf(&b, "%s\"%s\":[", k ? "," : "{\"type\":\"trail\",", k ? "truth" : "est");
         for (int j = 0; j < v->traj_n[k]; j++) {
             int idx = (v->traj_next[k] - v->traj_n[k] + j + 2048) % 2048;
-            vj_printf(&b, "%s[%.1f,%.3f,%.3f]", j ? "," : "", v->traj[k][idx][0], v->traj[k][idx][1],
+            marie_buf_printf(&b, "%s[%.1f,%.3f,%.3f]", j ? "," : "", v->traj[k][idx][0], v->traj[k][idx][1],
                       v->traj[k][idx][2]);
         }
-        vj_lit(&b, "]");
+        marie_buf_puts(&b, "]");
     }
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     viewer_send_json(v, id, &b, false);
-    vj_free(&b);
+    marie_buf_free(&b);
     for (int i = 0; i < P_NIN; i++)
         if (v->chans[i].latest)
             viewer_send(v, id, v->chans[i].latest, strlen(v->chans[i].latest), false);
@@ -496,20 +496,20 @@ static int load_map_file(viewer_t *v, const char *path)
     uint8_t *raw = len > 0 ? malloc((size_t)len) : NULL;
     int n = raw ? marie_type_occupancy_grid_t.encode(raw, 0, len, &g) : -1;
     occmap_destroy(m);
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"msg\",\"ch\":");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{\"type\":\"msg\",\"ch\":");
     vj_str(&b, path);
-    vj_lit(&b, ",\"t\":0");
+    marie_buf_puts(&b, ",\"t\":0");
     int rc = n > 0 ? vj_message(&b, raw, (size_t)n, VJ_ROLE_OTHER) : -ENOMEM;
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     free(raw);
-    if (rc < 0 || b.oom) {
-        vj_free(&b);
+    if (rc < 0 || b.failed) {
+        marie_buf_free(&b);
         marie_component_fail_reason(v->c, "cannot encode map %s", path);
         return -1;
     }
-    v->map_json = b.s;
+    v->map_json = b.data;
     return 0;
 }
 
@@ -670,8 +670,8 @@ static void quit(marie_component_t *c)
     free(v->recs);
     free(v->summary);
     free(v->map_json);
-    vj_free(&v->corrupt_list);
-    vj_free(&v->jb);
+    marie_buf_free(&v->corrupt_list);
+    marie_buf_free(&v->jb);
     if (v->file)
         munmap(v->file, v->file_len);
     marie_auth_destroy(v->auth);

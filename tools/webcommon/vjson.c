@@ -5,7 +5,6 @@
 #include <errno.h>
 #include <math.h>
 #include <stdbool.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,104 +12,31 @@
 #include "core/base64.h"
 #include "core/typeinfo.h"
 
-void vj_init(vj_buf_t *b)
-{
-    memset(b, 0, sizeof *b);
-}
-
-void vj_free(vj_buf_t *b)
-{
-    free(b->s);
-    memset(b, 0, sizeof *b);
-}
-
-void vj_reset(vj_buf_t *b)
-{
-    b->len = 0;
-    b->oom = false;
-    if (b->s)
-        b->s[0] = 0;
-}
-
-static bool grow(vj_buf_t *b, size_t n)
-{
-    if (b->oom)
-        return false;
-    if (b->len + n + 1 <= b->cap)
-        return true;
-    size_t cap = b->cap ? b->cap : 256;
-    while (cap < b->len + n + 1)
-        cap *= 2;
-    char *s = realloc(b->s, cap);
-    if (!s) {
-        b->oom = true;
-        return false;
-    }
-    b->s = s;
-    b->cap = cap;
-    return true;
-}
-
-void vj_raw(vj_buf_t *b, const char *s, size_t n)
-{
-    if (!grow(b, n))
-        return;
-    memcpy(b->s + b->len, s, n);
-    b->len += n;
-    b->s[b->len] = 0;
-}
-
-void vj_lit(vj_buf_t *b, const char *s)
-{
-    vj_raw(b, s, strlen(s));
-}
-
-void vj_printf(vj_buf_t *b, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    char tmp[256];
-    int n = vsnprintf(tmp, sizeof tmp, fmt, ap);
-    va_end(ap);
-    if (n < 0)
-        return;
-    if ((size_t)n < sizeof tmp) {
-        vj_raw(b, tmp, (size_t)n);
-        return;
-    }
-    if (!grow(b, (size_t)n))
-        return;
-    va_start(ap, fmt);
-    vsnprintf(b->s + b->len, (size_t)n + 1, fmt, ap);
-    va_end(ap);
-    b->len += (size_t)n;
-}
-
-void vj_str(vj_buf_t *b, const char *s)
+void vj_str(marie_buf_t *b, const char *s)
 {
     static const char hex[] = "0123456789abcdef";
-    vj_raw(b, "\"", 1);
+    marie_buf_put(b, "\"", 1);
     for (const unsigned char *p = (const unsigned char *)(s ? s : ""); *p; p++) {
         if (*p == '"' || *p == '\\') {
             char e[2] = {'\\', (char)*p};
-            vj_raw(b, e, 2);
+            marie_buf_put(b, e, 2);
         } else if (*p < 0x20 || *p == 0x7f) {
             char e[6] = {'\\', 'u', '0', '0', hex[*p >> 4], hex[*p & 15]};
-            vj_raw(b, e, 6);
+            marie_buf_put(b, e, 6);
         } else if (*p >= 0x80) {
             /* Not checked as UTF-8: a stray byte would make the whole frame invalid text. */
-            vj_raw(b, "?", 1);
+            marie_buf_put(b, "?", 1);
         } else {
-            vj_raw(b, (const char *)p, 1);
+            marie_buf_put(b, (const char *)p, 1);
         }
     }
-    vj_raw(b, "\"", 1);
+    marie_buf_put(b, "\"", 1);
 }
 
-void vj_num(vj_buf_t *b, double v, int prec)
+void vj_num(marie_buf_t *b, double v, int prec)
 {
     if (!isfinite(v)) {
-        vj_raw(b, "null", 4);
+        marie_buf_put(b, "null", 4);
         return;
     }
     char tmp[64];
@@ -124,9 +50,9 @@ void vj_num(vj_buf_t *b, double v, int prec)
     }
     tmp[n] = 0;
     if (strcmp(tmp, "-0") == 0)
-        vj_raw(b, "0", 1);
+        marie_buf_put(b, "0", 1);
     else
-        vj_raw(b, tmp, (size_t)n);
+        marie_buf_put(b, tmp, (size_t)n);
 }
 
 /* Decimal digits of v, backwards from end; returns the first. */
@@ -139,25 +65,25 @@ static char *digits_of(char *end, uint64_t v)
     return end;
 }
 
-void vj_int(vj_buf_t *b, int64_t v)
+void vj_int(marie_buf_t *b, int64_t v)
 {
     char tmp[24], *end = tmp + sizeof tmp;
     char *o = digits_of(end, v < 0 ? 0 - (uint64_t)v : (uint64_t)v);
     if (v < 0)
         *--o = '-';
-    vj_raw(b, o, (size_t)(end - o));
+    marie_buf_put(b, o, (size_t)(end - o));
 }
 
-void vj_base64(vj_buf_t *b, const void *data, size_t n)
+void vj_base64(marie_buf_t *b, const void *data, size_t n)
 {
     size_t m = marie_base64_len(n);
-    if (!grow(b, m + 2))
+    if (marie_buf_reserve(b, m + 2) < 0)
         return;
-    b->s[b->len] = '"';
-    marie_base64_encode(b->s + b->len + 1, data, n);
+    b->data[b->len] = '"';
+    marie_base64_encode(b->data + b->len + 1, data, n);
     b->len += m + 2;
-    b->s[b->len - 1] = '"';
-    b->s[b->len] = 0;
+    b->data[b->len - 1] = '"';
+    b->data[b->len] = 0;
 }
 
 const marie_type_t *vj_type_of(const void *data, size_t len)
@@ -208,7 +134,7 @@ const char *vj_kind(const marie_typeinfo_t *t)
 #define VJ_MAX_STRIDES 8
 
 typedef struct {
-    vj_buf_t *b;
+    marie_buf_t *b;
     const uint8_t *p;           /* cursor in a checked payload */
     int max_elems;
     int nstrides;
@@ -220,12 +146,12 @@ typedef struct {
  * zeros, NaN and infinities as null: the text of "%.*g", but through an integer scaled by a
  * power of ten in the usual range, as "%g" is ten times slower and a particle cloud is
  * thousands of numbers. */
-static void real(vj_buf_t *b, double v, int digits)
+static void real(marie_buf_t *b, double v, int digits)
 {
     static const double p10[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12,
                                  1e13, 1e14, 1e15, 1e16, 1e17};
     if (!isfinite(v)) {
-        vj_raw(b, "null", 4);
+        marie_buf_put(b, "null", 4);
         return;
     }
     double a = fabs(v);
@@ -233,7 +159,7 @@ static void real(vj_buf_t *b, double v, int digits)
     if (a == 0 || dec < 0 || dec >= (int)(sizeof p10 / sizeof p10[0])) {
         char tmp[40];
         int n = snprintf(tmp, sizeof tmp, "%.*g", digits, a == 0 ? 0.0 : v);
-        vj_raw(b, tmp, (size_t)n);
+        marie_buf_put(b, tmp, (size_t)n);
         return;
     }
     uint64_t scaled = (uint64_t)nearbyint(a * p10[dec]), unit = (uint64_t)p10[dec];
@@ -254,7 +180,7 @@ static void real(vj_buf_t *b, double v, int digits)
     o = digits_of(o, ip);
     if (v < 0 && scaled)
         *--o = '-';
-    vj_raw(b, o, (size_t)(end - o));
+    marie_buf_put(b, o, (size_t)(end - o));
 }
 
 static void walk_struct(walk_t *w, const marie_typeinfo_t *t, int depth);
@@ -289,7 +215,7 @@ static void walk_value(walk_t *w, const marie_tfield_t *f, int depth, int64_t *i
         break;
     }
     case MARIE_PRIM_BOOL:
-        vj_lit(w->b, *p ? "true" : "false");
+        marie_buf_puts(w->b, *p ? "true" : "false");
         break;
     case MARIE_PRIM_BYTE:
         iv = *p;
@@ -327,10 +253,10 @@ static void walk_array(walk_t *w, const marie_tfield_t *f, const int64_t *vals, 
         w->stride[w->nstrides++] = step;
     }
     const uint8_t *start = w->p;
-    vj_raw(w->b, "[", 1);
+    marie_buf_put(w->b, "[", 1);
     for (int64_t i = 0; i < n; i += step) {
         if (i)
-            vj_raw(w->b, ",", 1);
+            marie_buf_put(w->b, ",", 1);
         if (step > 1)
             w->p = start + (size_t)i * (size_t)size;
         if (last)
@@ -340,47 +266,47 @@ static void walk_array(walk_t *w, const marie_tfield_t *f, const int64_t *vals, 
     }
     if (step > 1)
         w->p = start + (size_t)n * (size_t)size;
-    vj_raw(w->b, "]", 1);
+    marie_buf_put(w->b, "]", 1);
 }
 
 static void walk_struct(walk_t *w, const marie_typeinfo_t *t, int depth)
 {
     int64_t vals[256];      /* integer fields, for the lengths of later arrays (checked: < 256) */
-    vj_raw(w->b, "{", 1);
+    marie_buf_put(w->b, "{", 1);
     for (int i = 0; i < t->nfields; i++) {
         const marie_tfield_t *f = &t->fields[i];
-        vj_raw(w->b, i ? ",\"" : "\"", i ? 2 : 1);
-        vj_lit(w->b, f->name);
-        vj_raw(w->b, "\":", 2);
+        marie_buf_put(w->b, i ? ",\"" : "\"", i ? 2 : 1);
+        marie_buf_puts(w->b, f->name);
+        marie_buf_put(w->b, "\":", 2);
         if (f->ndims == 0)
             walk_value(w, f, depth, i < 256 ? &vals[i] : NULL);
         else
             walk_array(w, f, vals, 0, depth);
     }
-    vj_raw(w->b, "}", 1);
+    marie_buf_put(w->b, "}", 1);
 }
 
-int vj_message(vj_buf_t *b, const void *data, size_t len, vj_role_t role)
+int vj_message(marie_buf_t *b, const void *data, size_t len, vj_role_t role)
 {
     const marie_typeinfo_t *t = len < 8 ? NULL : marie_typeinfo_by_fingerprint(marie_payload_fingerprint(data, len));
     if (!t || marie_typeinfo_check(t, data, len) < 0)
         return -EBADMSG;
     int k = kind_index(t);
-    vj_lit(b, ",\"k\":");
+    marie_buf_puts(b, ",\"k\":");
     vj_str(b, k >= 0 ? kinds[k].kind : t->name);
     if (role != VJ_ROLE_OTHER)
-        vj_lit(b, role == VJ_ROLE_TRUTH ? ",\"role\":\"truth\"" : ",\"role\":\"est\"");
-    vj_lit(b, ",\"msg\":");
+        marie_buf_puts(b, role == VJ_ROLE_TRUTH ? ",\"role\":\"truth\"" : ",\"role\":\"est\"");
+    marie_buf_puts(b, ",\"msg\":");
     walk_t w = {.b = b, .p = (const uint8_t *)data + 8, .max_elems = k >= 0 ? kinds[k].max_elems : 0};
     walk_struct(&w, t, 0);
     if (w.nstrides) {
-        vj_lit(b, ",\"stride\":{");
+        marie_buf_puts(b, ",\"stride\":{");
         for (int i = 0; i < w.nstrides; i++) {
-            vj_lit(b, i ? ",\"" : "\"");
-            vj_lit(b, w.stride_field[i]);
-            vj_printf(b, "\":%lld", (long long)w.stride[i]);
+            marie_buf_puts(b, i ? ",\"" : "\"");
+            marie_buf_puts(b, w.stride_field[i]);
+            marie_buf_printf(b, "\":%lld", (long long)w.stride[i]);
         }
-        vj_lit(b, "}");
+        marie_buf_puts(b, "}");
     }
     return 0;
 }

@@ -1,4 +1,4 @@
-/* vjson: compact JSON for the viewer page: a growable text buffer, marie messages as JSON,
+/* vjson: compact JSON for the viewer page: JSON values, marie messages as JSON,
  * and the parser of the page's commands (flat JSON objects). */
 #ifndef VIEWER_VJSON_H
 #define VIEWER_VJSON_H
@@ -7,28 +7,18 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "core/buf.h"
 #include "core/typeinfo.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    char *s;
-    size_t len, cap;
-    bool oom;                   /* an append failed: the text is incomplete */
-} vj_buf_t;
-
-void vj_init(vj_buf_t *b);
-void vj_free(vj_buf_t *b);
-void vj_reset(vj_buf_t *b);
-void vj_raw(vj_buf_t *b, const char *s, size_t n);
-void vj_lit(vj_buf_t *b, const char *s);
-void vj_printf(vj_buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-void vj_str(vj_buf_t *b, const char *s);        /* quoted and escaped; NULL gives "" */
-void vj_num(vj_buf_t *b, double v, int prec);   /* non-finite values become null */
-void vj_int(vj_buf_t *b, int64_t v);
-void vj_base64(vj_buf_t *b, const void *data, size_t n);   /* quoted */
+/* JSON values appended to a text buffer (core/buf.h). */
+void vj_str(marie_buf_t *b, const char *s);        /* quoted and escaped; NULL gives "" */
+void vj_num(marie_buf_t *b, double v, int prec);   /* non-finite values become null */
+void vj_int(marie_buf_t *b, int64_t v);
+void vj_base64(marie_buf_t *b, const void *data, size_t n);   /* quoted */
 
 /* The type of an LCM payload by its fingerprint, or NULL. */
 const marie_type_t *vj_type_of(const void *data, size_t len);
@@ -50,7 +40,7 @@ typedef enum {
  * variable-length arrays of numbers (laser 720 beams, particles 1500): a longer one is sent
  * as every N-th element. Returns 0, or -EBADMSG (nothing appended) for an unknown type or a
  * payload that does not check (marie_typeinfo_check). */
-int vj_message(vj_buf_t *b, const void *data, size_t len, vj_role_t role);
+int vj_message(marie_buf_t *b, const void *data, size_t len, vj_role_t role);
 /* The page's name of a type's kind ("laser", "pose", ...), or NULL. */
 const char *vj_kind(const marie_typeinfo_t *t);
 

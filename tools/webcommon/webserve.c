@@ -120,23 +120,23 @@ void webserve_send(webserve_t *v, int id, const char *data, size_t len, bool dro
     pthread_mutex_unlock(&v->mu);
 }
 
-void webserve_send_json(webserve_t *v, int id, const vj_buf_t *b, bool droppable)
+void webserve_send_json(webserve_t *v, int id, const marie_buf_t *b, bool droppable)
 {
-    if (!b->oom && b->len)
-        webserve_send(v, id, b->s, b->len, droppable);
+    if (!b->failed && b->len)
+        webserve_send(v, id, b->data, b->len, droppable);
 }
 
 void webserve_notice(webserve_t *v, int id, const char *level, const char *text)
 {
-    vj_buf_t b;
-    vj_init(&b);
-    vj_lit(&b, "{\"type\":\"notice\",\"level\":");
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    marie_buf_puts(&b, "{\"type\":\"notice\",\"level\":");
     vj_str(&b, level);
-    vj_lit(&b, ",\"text\":");
+    marie_buf_puts(&b, ",\"text\":");
     vj_str(&b, text);
-    vj_lit(&b, "}");
+    marie_buf_puts(&b, "}");
     webserve_send_json(v, id, &b, false);
-    vj_free(&b);
+    marie_buf_free(&b);
 }
 
 static void push_cmd(webserve_t *v, int client, bool hello, const char *text, size_t len)

@@ -48,7 +48,7 @@ void webserve_url(const webserve_t *w, const char *url_file, char *buf, size_t l
 /* Sends text to page `id`, or to every page when id < 0. Droppable frames (high-rate state)
  * are dropped while a page is more than 2 MB behind, so a slow browser never stalls the bus. */
 void webserve_send(webserve_t *w, int id, const char *data, size_t len, bool droppable);
-void webserve_send_json(webserve_t *w, int id, const vj_buf_t *b, bool droppable);
+void webserve_send_json(webserve_t *w, int id, const marie_buf_t *b, bool droppable);
 /* {"type":"notice","level":...,"text":...} */
 void webserve_notice(webserve_t *w, int id, const char *level, const char *text);
 int64_t webserve_frames_out(webserve_t *w);

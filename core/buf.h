@@ -1,0 +1,35 @@
+/* buf: the growable text buffer (the viewer's JSON, the XML bridge's documents). Always
+ * NUL-terminated after its len bytes; appends past max (or out of memory) fail, leave the
+ * text as it was, and set `failed`, so a writer may append a whole document and check once. */
+#ifndef MARIE_BUF_H
+#define MARIE_BUF_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    char *data;                 /* NULL until the first append */
+    size_t len, cap, max;
+    bool failed;                /* an append failed: the text is incomplete */
+} marie_buf_t;
+
+/* max: the most bytes of text it may hold; 0: no limit of its own (1 GiB). */
+void marie_buf_init(marie_buf_t *b, size_t max);
+void marie_buf_free(marie_buf_t *b);
+/* Empty again (and not failed); keeps its memory. */
+void marie_buf_reset(marie_buf_t *b);
+/* Room for `extra` more bytes (and the terminator): 0, or -1 and `failed`. */
+int marie_buf_reserve(marie_buf_t *b, size_t extra);
+/* Appends: 0, or -1 and `failed` (nothing of this append is kept). */
+int marie_buf_put(marie_buf_t *b, const void *data, size_t len);
+int marie_buf_puts(marie_buf_t *b, const char *s);
+int marie_buf_printf(marie_buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,68 @@
+/* test_buf: the text buffer grows, stays NUL-terminated, refuses appends past its maximum
+ * without changing what it holds, and says so in `failed` until it is reset. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "core/buf.h"
+
+static void appends_grow_and_stay_terminated(void **state)
+{
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    assert_int_equal(marie_buf_puts(&b, "x="), 0);
+    assert_int_equal(marie_buf_printf(&b, "%d", 42), 0);
+    assert_int_equal(marie_buf_put(&b, ";", 1), 0);
+    assert_string_equal(b.data, "x=42;");
+    assert_int_equal(b.len, 5);
+    /* longer than printf's stack copy, and than the first allocation */
+    char big[1000];
+    memset(big, 'a', sizeof big - 1);
+    big[sizeof big - 1] = 0;
+    assert_int_equal(marie_buf_printf(&b, "[%s]", big), 0);
+    assert_int_equal(b.len, 5 + 2 + 999);
+    assert_int_equal(b.data[b.len], 0);
+    assert_int_equal(b.data[6], 'a');
+    assert_int_equal(b.data[b.len - 1], ']');
+    assert_false(b.failed);
+    marie_buf_reset(&b);
+    assert_int_equal(b.len, 0);
+    assert_string_equal(b.data, "");
+    marie_buf_free(&b);
+    assert_null(b.data);
+}
+
+static void past_the_maximum_nothing_changes_and_failed_is_set(void **state)
+{
+    marie_buf_t b;
+    marie_buf_init(&b, 8);
+    assert_int_equal(marie_buf_puts(&b, "12345"), 0);
+    assert_int_equal(marie_buf_puts(&b, "6789"), -1);
+    assert_true(b.failed);
+    assert_string_equal(b.data, "12345");
+    assert_int_equal(marie_buf_printf(&b, "%s", "abcdefghijklmnopqrstuvwxyz0123456789abcdefghijklmnopqrstuvwxyz0123456789"
+                                              "abcdefghijklmnopqrstuvwxyz0123456789abcdefghijklmnopqrstuvwxyz0123456789"
+                                              "abcdefghijklmnopqrstuvwxyz0123456789abcdefghijklmnopqrstuvwxyz0123456789"
+                                              "abcdefghijklmnopqrstuvwxyz0123456789"), -1);
+    assert_string_equal(b.data, "12345");
+    assert_int_equal(marie_buf_puts(&b, "678"), 0);     /* exactly the maximum */
+    assert_string_equal(b.data, "12345678");
+    assert_true(b.failed);                              /* still: the text is incomplete */
+    marie_buf_reset(&b);
+    assert_false(b.failed);
+    assert_int_equal(marie_buf_reserve(&b, 9), -1);
+    assert_int_equal(marie_buf_reserve(&b, 8), 0);
+    marie_buf_free(&b);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(appends_grow_and_stay_terminated),
+        cmocka_unit_test(past_the_maximum_nothing_changes_and_failed_is_set),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
