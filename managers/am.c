@@ -365,6 +365,7 @@ int main(int argc, char **argv)
         sd_notify(0, "WATCHDOG=1");
 
     rc = marie_loop_run(am->loop) < 0 ? 1 : 0;
+    am_check_cancel(am, "the manager stopped\n");
     /* whatever is still alive after the deadline goes now */
     for (size_t i = 0; i < am->ncomps; i++)
         if (am->comps[i].sv.pid > 0)

@@ -94,6 +94,7 @@ struct am {
     char bal_sender[160];       /* "balance@HOST": its orders' sender */
     char bal_last[256];         /* its last decision, in the status */
     int64_t adopt_until;        /* a returning manager learns the placement before it starts */
+    struct am_check *check;     /* an up order's programs being checked (am_check.c), or NULL */
 };
 
 static inline int64_t am_now_us(void) { return marie_mono_us(); }
@@ -121,6 +122,14 @@ void am_check_heartbeats(am_t *am);
 void am_reap_children(am_t *am);
 
 /* am_system.c: the loaded system and what survives a restart of the manager */
+/* Loading a system: read and check the file (NULL with errs), check this host's programs (they
+ * answer --describe: seconds, so an order does it in a child, am_check.c), then install it
+ * (not yet started; takes the loading). am_load_system does the three at once. */
+typedef struct am_loading am_loading_t;
+am_loading_t *am_loading_open(const char *path, const char *profile, marie_errors_t *errs);
+int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs);
+void am_loading_install(am_t *am, am_loading_t *l);
+void am_loading_free(am_loading_t *l);
 int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs);
 void am_comps_free(am_t *am);
 void am_up(am_t *am);
@@ -141,6 +150,16 @@ void am_balance_decide(am_t *am);
 /* After restoring a system: start now, or first learn the placement (balance: only). */
 void am_balance_up_when_placed(am_t *am);
 void am_balance_tick(am_t *am);
+
+/* am_check.c: an up order's programs checked in a child process, so that the loop goes on
+ * (heartbeats, status, other orders) while the programs answer --describe. done runs on the
+ * loop once, and owns the loading: ok, to install; not ok, with the errors as text, to free.
+ * One check at a time; am_check_start takes l (freed when it fails: -1). */
+typedef void (*am_check_done_t)(am_t *am, am_loading_t *l, bool ok, const char *errors, void *user);
+int am_check_start(am_t *am, am_loading_t *l, am_check_done_t done, void *user);
+bool am_check_busy(const am_t *am);
+/* Ends a check under way: its child is killed and done runs with ok false and `why`. */
+void am_check_cancel(am_t *am, const char *why);
 
 /* am_orders.c */
 void am_on_order(am_t *am, const marie_am_order_t *o);

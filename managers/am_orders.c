@@ -1,6 +1,7 @@
 /* marie-am's orders: up, down, start, stop, restart, move, pause, resume, tail and ping, each
  * checked (signature, freshness, targets) and answered once. */
 
+#include <errno.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -66,6 +67,24 @@ static void send_lifecycle(am_t *am, comp_t *c, int cmd, int64_t req)
     marie_lifecycle_command_t_publish(am->lcm, MARIE_CH_LIFECYCLE, &m);
 }
 
+/* An up order's programs checked (am_check.c): load and start the system, or refuse it. */
+static void up_checked(am_t *am, am_loading_t *l, bool ok, const char *errors, void *user)
+{
+    marie_am_order_t *o = user;
+    if (!ok) {
+        reply(am, o, false, 0, "system file refused:\n%s", errors);
+        am_loading_free(l);
+    } else {
+        am_loading_install(am, l);
+        am_up(am);
+        int n = 0;
+        for (size_t i = 0; i < am->ncomps; i++)
+            n += am->comps[i].sv.local;
+        reply(am, o, true, n, "ok");
+    }
+    marie_am_order_t_destroy(o);
+}
+
 static void order_up(am_t *am, const marie_am_order_t *o)
 {
     char hash[65];
@@ -94,8 +113,13 @@ static void order_up(am_t *am, const marie_am_order_t *o)
         am_write_file(path, o->system_text, strlen(o->system_text), 0644);
     }
     free(local);
+    if (am_check_busy(am)) {
+        reply(am, o, false, 0, "busy: the programs of the last up are being checked");
+        return;
+    }
     marie_errors_t errs = {0};
-    if (am_load_system(am, path, profile, &errs) < 0) {
+    am_loading_t *l = am_loading_open(path, profile, &errs);
+    if (!l) {
         char *msg = NULL;
         size_t ml = 0;
         FILE *m = open_memstream(&msg, &ml);
@@ -108,11 +132,14 @@ static void order_up(am_t *am, const marie_am_order_t *o)
         marie_errors_clear(&errs);
         return;
     }
-    am_up(am);
-    int n = 0;
-    for (size_t i = 0; i < am->ncomps; i++)
-        n += am->comps[i].sv.local;
-    reply(am, o, true, n, "ok");
+    marie_am_order_t *copy = marie_am_order_t_copy(o);
+    if (!copy) {
+        am_loading_free(l);
+        reply(am, o, false, 0, "out of memory");
+    } else if (am_check_start(am, l, up_checked, copy) < 0) {
+        marie_am_order_t_destroy(copy);
+        reply(am, o, false, 0, "cannot check the programs: %s", strerror(errno));
+    }
 }
 
 /* A refused order is counted always, but answered and announced within a rate limit, so a
@@ -154,6 +181,7 @@ static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_
 
 static void order_down(am_t *am, const marie_am_order_t *o)
 {
+    am_check_cancel(am, "cancelled by a down order\n");
     am->up = false;
     am_save_up_state(am);
     int n = 0;

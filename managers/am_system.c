@@ -128,39 +128,77 @@ bool am_host_known(am_t *am, const char *h)
     return false;
 }
 
+/* A system file read and checked, not yet loaded. */
+struct am_loading {
+    char *path, *profile;       /* profile NULL for none */
+    char *text;                 /* the file as read (its hash) */
+    size_t len;
+    marie_system_t *sys;
+    marie_am_settings_t set;
+};
+
+void am_loading_free(am_loading_t *l)
+{
+    if (!l)
+        return;
+    marie_system_destroy(l->sys);
+    free(l->text);
+    free(l->path);
+    free(l->profile);
+    free(l);
+}
+
+am_loading_t *am_loading_open(const char *path, const char *profile, marie_errors_t *errs)
+{
+    am_loading_t *l = calloc(1, sizeof *l);
+    if (!l || !(l->path = strdup(path)) || (profile && *profile && !(l->profile = strdup(profile)))) {
+        marie_errors_add(errs, path, 0, 0, "out of memory");
+        am_loading_free(l);
+        return NULL;
+    }
+    if (!(l->text = marie_file_read(path, MARIE_AM_SYSTEM_MAX_BYTES, &l->len))) {
+        marie_errors_add(errs, path, 0, 0, "%s", strerror(errno));
+        am_loading_free(l);
+        return NULL;
+    }
+    l->sys = marie_system_load(path, l->profile, errs);
+    if (!l->sys || marie_am_check_system(l->sys, &l->set, errs) < 0) {
+        am_loading_free(l);
+        return NULL;
+    }
+    return l;
+}
+
 /* The programs of this host's components exist and accept their entries (descriptions
  * cached in STATE_DIR/describe). */
-static int check_programs(am_t *am, const marie_system_t *sys, marie_errors_t *errs)
+int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs)
 {
     char *cache = NULL;
     if (asprintf(&cache, "%s/describe", am->state_dir) < 0)
         cache = NULL;
     marie_progcheck_t *p = marie_progcheck_create(am->self_dir, cache);
     free(cache);
-    int rc = p ? marie_progcheck_system(p, sys, am->host, am->host, errs) : -1;
+    int rc = p ? marie_progcheck_system(p, l->sys, am->host, am->host, errs) : -1;
     marie_progcheck_destroy(p);
     return rc;
 }
 
-/* Load a system (not yet started). Errors go to errs. */
 int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs)
 {
-    size_t len = 0;
-    char *text = marie_file_read(path, MARIE_AM_SYSTEM_MAX_BYTES, &len);
-    if (!text) {
-        marie_errors_add(errs, path, 0, 0, "%s", strerror(errno));
+    am_loading_t *l = am_loading_open(path, profile, errs);
+    if (!l || am_loading_check_programs(am, l, errs) < 0) {
+        am_loading_free(l);
         return -1;
     }
-    marie_system_t *sys = marie_system_load(path, profile && *profile ? profile : NULL, errs);
-    marie_am_settings_t set;
-    if (sys && (marie_am_check_system(sys, &set, errs) < 0 || check_programs(am, sys, errs) < 0)) {
-        marie_system_destroy(sys);
-        sys = NULL;
-    }
-    if (!sys) {
-        free(text);
-        return -1;
-    }
+    am_loading_install(am, l);
+    return 0;
+}
+
+void am_loading_install(am_t *am, am_loading_t *l)
+{
+    const marie_am_settings_t set = l->set;
+    marie_system_t *sys = l->sys;
+    l->sys = NULL;
     if (!am->opt_status_hz && set.status_hz != am->status_hz) {
         am->status_hz = set.status_hz;
         if (am->status_timer) {
@@ -184,14 +222,15 @@ int am_load_system(am_t *am, const char *path, const char *profile, marie_errors
     am->bal_cfg = set.balance;
     if (set.balance.enabled && !(am->bal = balance_create(am->host, sys, &am->bal_cfg)))
         marie_error("automatic placement off: %s", strerror(errno));
-    am_sha256_hex(text, len, profile ? profile : "", am->sys_hash);
-    free(text);
+    am_sha256_hex(l->text, l->len, l->profile ? l->profile : "", am->sys_hash);
     free(am->sys_path);
-    am->sys_path = realpath(path, NULL);
+    am->sys_path = realpath(l->path, NULL);
     if (!am->sys_path)
-        am->sys_path = strdup(path);
+        am->sys_path = strdup(l->path);
     free(am->profile);
-    am->profile = profile && *profile ? strdup(profile) : NULL;
+    am->profile = l->profile;
+    l->profile = NULL;
+    am_loading_free(l);
     am->comps = calloc(sys->ncomponents ? sys->ncomponents : 1, sizeof *am->comps);
     am->ncomps = sys->ncomponents;
     char logdir[PATH_MAX];
@@ -210,7 +249,6 @@ int am_load_system(am_t *am, const char *path, const char *profile, marie_errors
         marie_ratelimit_init(&c->rl, am->log_rate, am->log_burst);
     }
     am_status_changed(am);
-    return 0;
 }
 
 void am_comp_open_log(comp_t *c)

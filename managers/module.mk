@@ -2,9 +2,10 @@
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
 $(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/supervise.c managers/balance.c))
 
-# marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c)
+# marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
+# am_check.c: an up order's program check in a child)
 # around the supervision state machine in the library (supervise.c).
-$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_balance.c,$(MANAGERS_LIB)))
+$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_balance.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.

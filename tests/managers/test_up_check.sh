@@ -142,6 +142,33 @@ components:
 EOF
 check "a good file still comes up" "$M" up "$T/good.yaml"
 check "down" "$M" down
+
+# -- the manager checks its programs in a child: a program slow to describe itself does not
+# stop the manager's loop (its status goes on, so `marie ps` hears it) while it is checked
+printf '#!/bin/sh\n# marie-component-describe/1\n[ "$1" = --describe ] && echo "$(date +%%s.%%N) $PPID $(cat /proc/$PPID/comm)" > "%s/describing.$$" && sleep 3\nexec %s "$@"\n' \
+    "$T" "$TC" > "$T/bin/slow"
+chmod +x "$T/bin/slow"
+cat > "$T/slow.yaml" <<EOF
+system: slow
+hosts: [alpha]
+components:
+  s:
+    exec: $T/bin/slow
+    host: alpha
+EOF
+slow_check() {
+    "$M" --timeout 10 up "$T/slow.yaml" > "$T/slow.out" 2>&1 & up=$!
+    # the second --describe is the manager's (the first is marie up's own check)
+    wait_for 15 sh -c "[ \$(ls $T/describing.* 2>/dev/null | wc -l) -ge 2 ]" || { echo "no second --describe"; return 1; }
+    t0=$(date +%s%N)
+    "$M" ps --window 1.2 > "$T/slow.ps" 2>&1; rc=$?
+    ms=$(( ($(date +%s%N) - t0) / 1000000 )); cat "$T/slow.ps"
+    echo "marie ps at $t0 while the manager checks: exit $rc after $ms ms"
+    wait $up; urc=$?; cat "$T/slow.out" "$T"/describing.*
+    [ $rc -eq 0 ] && grep -q alpha "$T/slow.ps" && [ $urc -eq 0 ] && "$M" ps | grep -q "^alpha  *s  *running"
+}
+check "the manager is heard while it checks a program slow to describe itself, then starts it" slow_check
+check "down" "$M" down
 shipped() {
     for p in "" "--profile sim" "--profile sim-channel" "--profile sim-voice"; do
         # no manager serves these hosts: anything but 2 means the file passed every check
