@@ -157,7 +157,14 @@ def heartbeat_consumer_stops_the_motor():
             break
     print("  0x606C = 0 %.0f ms after our heartbeat stopped" % (1000 * stopped if stopped is not None else -1))
     assert stopped is not None and stopped <= 0.3
-    sw = struct.unpack("<H", drive.sdo.upload(0x6041, 0))[0]
+    # 0x606C is whole counts/s: it reads 0 a tick or two before the ramp ends the fault
+    # reaction (transition 14, automatic): wait for it, bounded
+    end = time.time() + 0.2
+    while True:
+        sw = struct.unpack("<H", drive.sdo.upload(0x6041, 0))[0]
+        if sw & 0x4F == 0x08 or time.time() > end:
+            break
+        time.sleep(0.01)
     assert sw & 0x4F == 0x08, "fault after the fault reaction, statusword 0x%04X" % sw
 
 
