@@ -1,7 +1,7 @@
-/* marie-am: an up order's programs checked in a child process (am.h, am_check.c). Each
- * program not yet described answers --describe, up to 5 s; done in the manager itself that
- * stopped its heartbeats, status and orders for as long. The child writes '0' (passed) or '1'
- * then the errors as text on a pipe; the loop reads it and calls done at its end. */
+/* marie-am: an up order's programs checked in a child process (declared in am.h). Each
+ * program not yet described answers --describe, up to 5 s; done in the manager itself, that
+ * stopped its heartbeats, status and orders for as long. The child writes '0' (passed) or '1',
+ * then the errors as text, on a pipe; the loop reads it and calls done at its end. */
 #include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
