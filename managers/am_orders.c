@@ -101,6 +101,11 @@ static void order_up(am_t *am, const marie_am_order_t *o)
                   am->sys && am->sys->name ? am->sys->name : "?");
             return;
         }
+    /* before the copy below: the pending check's system may be that very file */
+    if (am_check_busy(am)) {
+        reply(am, o, false, 0, "busy: the programs of the last up are being checked");
+        return;
+    }
     /* Use the sender's file where this host sees the same text (relative paths in it keep
      * working); otherwise keep a copy in the state directory. */
     char path[PATH_MAX];
@@ -113,10 +118,6 @@ static void order_up(am_t *am, const marie_am_order_t *o)
         am_write_file(path, o->system_text, strlen(o->system_text), 0644);
     }
     free(local);
-    if (am_check_busy(am)) {
-        reply(am, o, false, 0, "busy: the programs of the last up are being checked");
-        return;
-    }
     marie_errors_t errs = {0};
     am_loading_t *l = am_loading_open(path, profile, &errs);
     if (!l) {
