@@ -203,25 +203,22 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
     int64_t last_utime = posebuf_newest(&s->odom);
     bool restarted = posebuf_frame_changed(&s->odom, m, s->last_distance, &jump);
     s->last_distance = m->distance;
-    if (isfinite(m->v) && isfinite(m->omega) && fabs(m->v) < 10 && fabs(m->omega) < 10) {
-        s->last_v = m->v;
-        s->last_omega = m->omega;
-    }
     if (restarted) {
         /* The robot moved unseen while the odometry was away. Downstream stops it once our
-         * pose goes stale (we publish none without odometry), so assume it went on with its
-         * last velocity for at most 1 s, and spread the particles by what that leaves open;
-         * the laser pulls them in. */
+         * pose goes stale (we publish none without odometry): it went on with the velocity
+         * the old odometry last reported (not the new one's first, which starts at rest) for
+         * some part of at most 1 s. The particles are centred half way along that and spread
+         * over all of it; the laser pulls them in. */
         double gap = fabs((double)(m->utime - last_utime)) / 1e6;
-        double t = fmin(gap, 1.0);
+        double t = fmin(gap, 1.0), half = t / 2;
         double pose[3], cov[9];
         mcl_estimate(s->f, pose, cov);
-        double h = pose[2] + 0.5 * s->last_omega * t;
-        pose[0] += s->last_v * t * cos(h);
-        pose[1] += s->last_v * t * sin(h);
-        pose[2] += s->last_omega * t;
-        double sig[3] = { 0.1 + (0.3 * fabs(s->last_v) + 0.15) * t, 0.1 + (0.3 * fabs(s->last_v) + 0.15) * t,
-                          0.05 + (0.3 * fabs(s->last_omega) + 0.1) * t };
+        double h = pose[2] + 0.5 * s->last_omega * half;
+        pose[0] += s->last_v * half * cos(h);
+        pose[1] += s->last_v * half * sin(h);
+        pose[2] += s->last_omega * half;
+        double sig[3] = { 0.1 + (0.5 * fabs(s->last_v) + 0.15) * t, 0.1 + (0.5 * fabs(s->last_v) + 0.15) * t,
+                          0.05 + (0.5 * fabs(s->last_omega) + 0.1) * t };
         mcl_init_pose(s->f, pose, sig);
         s->force_left = 10;
         marie_component_count(c, "odometry_restarts", 1);
@@ -229,6 +226,10 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
                               "odometry frame jumped after %.1f s: particles spread by %.2f m, %.2f rad", gap, sig[0], sig[2]);
         posebuf_clear(&s->odom);
         scanwait_drop(&s->wait);
+    }
+    if (isfinite(m->v) && isfinite(m->omega) && fabs(m->v) < 10 && fabs(m->omega) < 10) {
+        s->last_v = m->v;
+        s->last_omega = m->omega;
     }
     posebuf_add(&s->odom, m->utime, (const double[3]){ m->pose.x, m->pose.y, m->pose.theta });
     scanwait_odometry(&s->wait, c, m->utime, on_scan_at_odometry);
