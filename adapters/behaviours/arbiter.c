@@ -27,6 +27,7 @@ void arb_params_default(arb_params_t *p)
     p->omega_max = 1.2;
     p->goal_tolerance = 0.15;
     p->turn_in_place = 1.0;
+    p->corner_angle = 0.5;
     p->stale_pose_s = 0.5;
     p->stale_path_s = 0;            /* a path stays valid until replaced */
     p->half_width = 0.35;
@@ -157,6 +158,9 @@ void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb
     vote(o, true, 0, w, "turning to speaker (%.0f deg)", err * 180 / M_PI);
 }
 
+/* m along the path: this close, a corner counts as reached and the walk goes round it. */
+#define CORNER_REACHED 0.05
+
 void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
 {
     if (!in->path || in->npath <= 0 || !fresh(in->path_age, p->stale_path_s)) {
@@ -209,10 +213,13 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
         if (d < bd) { bd = d; best = i; bt = t; }
     }
     s->progress = best;
-    /* Walk the lookahead distance along the path from the closest point. */
-    double gx = ex, gy = ey;
+    /* Walk the lookahead distance along the path from the closest point. A sharp corner ends
+     * the walk: pure pursuit would cut it, and the path (planned on the inflated map) keeps
+     * the footprint off the wall only at the corner itself. The robot drives to it, slowing,
+     * and when there turns towards the next leg. */
+    double gx = ex, gy = ey, to_corner = INFINITY;
     if (n > 1) {
-        double need = p->lookahead;
+        double need = p->lookahead, walked = 0;
         double cx = P[3 * best] + bt * (P[3 * best + 3] - P[3 * best]);
         double cy = P[3 * best + 1] + bt * (P[3 * best + 4] - P[3 * best + 1]);
         need = sqrt(fmax(0, need * need - bd * bd));  /* the look-ahead circle meets the path here */
@@ -223,6 +230,17 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
                 gx = cx + (nx - cx) * (seg > 0 ? need / seg : 0);
                 gy = cy + (ny - cy) * (seg > 0 ? need / seg : 0);
                 break;
+            }
+            walked += seg;
+            if (p->corner_angle > 0 && i + 2 < n && walked > CORNER_REACHED) {
+                double a0 = atan2(ny - P[3 * i + 1], nx - P[3 * i]);
+                double a1 = atan2(P[3 * i + 7] - ny, P[3 * i + 6] - nx);
+                if (fabs(remainder(a1 - a0, 2 * M_PI)) > p->corner_angle) {
+                    gx = nx;
+                    gy = ny;
+                    to_corner = walked;
+                    break;
+                }
             }
             need -= seg;
             cx = nx;
@@ -243,6 +261,7 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
      * the turn rate is the curvature at no less than a walking pace. */
     double v = p->v_max * clamp(1 - fabs(herr) / p->turn_in_place, 0.15, 1.0);
     v = fmin(v, fmax(0.1, 0.8 * to_end));       /* ease into the goal */
+    v = fmin(v, fmax(0.08, 0.8 * to_corner));   /* ... and into a corner */
     double w = k * fmax(v, 0.3);
     if (fabs(w) > p->omega_max) {
         v *= p->omega_max / fabs(w);

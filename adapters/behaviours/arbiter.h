@@ -19,6 +19,8 @@ typedef struct {
     double v_max, omega_max;    /* m/s, rad/s */
     double goal_tolerance;      /* m: closer than this to the last pose ends the path */
     double turn_in_place;       /* rad: heading error above which the robot turns on the spot */
+    double corner_angle;        /* rad: the path turning more than this at a point is a corner the
+                                 * robot drives to before it turns (0: pure pursuit cuts it) */
     double stale_pose_s, stale_path_s;
     /* avoid obstacles */
     double half_width;          /* m: half the robot's width plus a margin (swept corridor) */

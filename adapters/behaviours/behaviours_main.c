@@ -23,6 +23,7 @@ typedef struct {
     int64_t priority_face;
     int64_t priority_follow;
     double lookahead;
+    double corner_angle;
     double v_max;
     double omega_max;
     double goal_tolerance;
@@ -404,6 +405,7 @@ static int init(marie_component_t *c)
     b->p.priority[ARB_FACE] = (int)q->priority_face;
     b->p.priority[ARB_FOLLOW] = (int)q->priority_follow;
     b->p.lookahead = q->lookahead;
+    b->p.corner_angle = q->corner_angle;
     b->p.v_max = q->v_max;
     b->p.omega_max = q->omega_max;
     b->p.goal_tolerance = q->goal_tolerance;
@@ -497,6 +499,8 @@ static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(bhv_params_t, priority_face, INT, "50", "turn toward who spoke (the face port, marie-dialogue)"),
     MARIE_PARAM_AT(bhv_params_t, priority_follow, INT, "40", ""),
     MARIE_PARAM_AT(bhv_params_t, lookahead, DOUBLE, "0.5", "m, pure pursuit"),
+    MARIE_PARAM_AT(bhv_params_t, corner_angle, DOUBLE, "0.5",
+                   "rad: where the path turns more than this, drive to the corner, then turn (0: cut it)"),
     MARIE_PARAM_AT(bhv_params_t, v_max, DOUBLE, "0.5", "m/s"),
     MARIE_PARAM_AT(bhv_params_t, omega_max, DOUBLE, "1.2", "rad/s"),
     MARIE_PARAM_AT(bhv_params_t, goal_tolerance, DOUBLE, "0.15", "m: the path is done this close to its end"),

@@ -362,12 +362,55 @@ static void test_recovery_when_no_progress(void **state)
     assert_int_equal(rec_step(&rp, &rs, 61, &ap, &in, win, votes, &v, &w, &replan), REC_NONE);
 }
 
+/* Drives a unicycle along an L-shaped path at the behaviours' 5 Hz with follow_path alone;
+ * returns the closest the robot's centre came to the corner's inner wall point, which the path
+ * (planned on the inflated map) passes at 0.24 m. Reaches the end or fails. */
+static double closest_to_inner_corner(double corner_angle)
+{
+    static const double L[] = { 0, 0, 0, 2, 0, M_PI / 2, 2, 2, M_PI / 2 };
+    const double wall[2] = { 2 - 0.24, 0.24 };     /* 0.24 m from both legs */
+    arb_params_t p; arb_params_default(&p);
+    p.corner_angle = corner_angle;
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = L; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    double closest = INFINITY;
+    bool done = false;
+    for (int k = 0; k < 300 && !done; k++) {
+        arb_vote_t v[ARB_COUNT];
+        arb_follow(&p, &s, &in, &v[ARB_FOLLOW]);
+        done = !v[ARB_FOLLOW].active;
+        for (int j = 0; j < 20; j++) {          /* 0.2 s in 10 ms steps */
+            in.pose[0] += v[ARB_FOLLOW].v * cos(in.pose[2]) * 0.01;
+            in.pose[1] += v[ARB_FOLLOW].v * sin(in.pose[2]) * 0.01;
+            in.pose[2] += v[ARB_FOLLOW].omega * 0.01;
+            closest = fmin(closest, hypot(in.pose[0] - wall[0], in.pose[1] - wall[1]));
+        }
+    }
+    assert_true(done);
+    assert_string_equal(s.done ? "path done" : "not done", "path done");
+    return closest;
+}
+
+/* In a 0.8 m maze corridor the path keeps a 0.18 m robot 0.06 m off the wall only at the corner
+ * itself. Pure pursuit (0.5 m ahead) cut it: the wall came inside avoid's corridor (0.21 m: the
+ * radius and half the clearance), avoid blocked the robot at the corner and the two stalled
+ * there. The robot now drives to the corner, then turns. */
+static void test_follow_does_not_cut_a_sharp_corner(void **state)
+{
+    double cut = closest_to_inner_corner(0), kept = closest_to_inner_corner(0.5);
+    print_message("closest to the inner corner: %.3f m cutting, %.3f m driving to the corner\n", cut, kept);
+    assert_true(cut < 0.21);
+    assert_true(kept > 0.22);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_idle_without_inputs),
         cmocka_unit_test(test_recovery_when_no_progress),
         cmocka_unit_test(test_follow_drives_along_path),
+        cmocka_unit_test(test_follow_does_not_cut_a_sharp_corner),
         cmocka_unit_test(test_follow_stops_at_end_and_on_stale_pose),
         cmocka_unit_test(test_face_speaker_turns_once_then_follow),
         cmocka_unit_test(test_estop_beats_everything),
