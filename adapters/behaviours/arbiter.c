@@ -99,7 +99,7 @@ void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
     }
     /* Nearest return inside the corridor the robot sweeps when driving straight on, and
      * which side is more open (sum of clear distance left vs right). */
-    double ahead = INFINITY, open_l = 0, open_r = 0;
+    double ahead = INFINITY, ahead_y = 0, open_l = 0, open_r = 0;
     for (int k = 0; k < in->nranges; k++) {
         double r = in->ranges[k];
         if (!isfinite(r) || r <= in->range_min)
@@ -113,14 +113,23 @@ void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
         if (r >= in->range_max)
             continue;
         double x = r * cos(a), y = r * sin(a);
-        if (x > 0 && fabs(y) < p->half_width && x < ahead)
+        if (x > 0 && fabs(y) < p->half_width && x < ahead) {
             ahead = x;
+            ahead_y = y;
+        }
     }
+    o->aside = false;
     if (ahead >= p->slow_distance) {
         vote(o, false, 0, 0, "clear %.2f m", isfinite(ahead) ? ahead : -1.0);
         return;
     }
+    /* Straight ahead, turn to the more open side; off to one side (a corner's wall beside the
+     * robot), turn away from it: the robot then passes it. */
     double turn = open_l >= open_r ? p->avoid_omega : -p->avoid_omega;
+    if (fabs(ahead_y) > p->half_width / 2) {
+        turn = ahead_y > 0 ? -p->avoid_omega : p->avoid_omega;
+        o->aside = true;
+    }
     if (ahead <= p->stop_distance) {
         vote(o, true, 0, turn, "blocked at %.2f m", ahead);
         return;
@@ -160,6 +169,8 @@ void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb
 
 /* m along the path: this close, a corner counts as reached and the walk goes round it. */
 #define CORNER_REACHED 0.05
+/* rad: at a corner, the heading error left when the robot stops turning on the spot. */
+#define CORNER_FACED 0.3
 
 void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
 {
@@ -218,11 +229,13 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
      * the footprint off the wall only at the corner itself. The robot drives to it, slowing,
      * and when there turns towards the next leg. */
     double gx = ex, gy = ey, to_corner = INFINITY;
+    bool at_corner = false;
     if (n > 1) {
         double need = p->lookahead, walked = 0;
         double cx = P[3 * best] + bt * (P[3 * best + 3] - P[3 * best]);
         double cy = P[3 * best + 1] + bt * (P[3 * best + 4] - P[3 * best + 1]);
         need = sqrt(fmax(0, need * need - bd * bd));  /* the look-ahead circle meets the path here */
+        double heading = atan2(P[3 * best + 4] - P[3 * best + 1], P[3 * best + 3] - P[3 * best]);
         for (int i = best; i < n - 1; i++) {
             double nx = P[3 * i + 3], ny = P[3 * i + 4];
             double seg = hypot(nx - cx, ny - cy);
@@ -232,10 +245,15 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
                 break;
             }
             walked += seg;
-            if (p->corner_angle > 0 && i + 2 < n && walked > CORNER_REACHED) {
-                double a0 = atan2(ny - P[3 * i + 1], nx - P[3 * i]);
+            if (p->corner_angle > 0 && i + 2 < n) {
+                /* A corner may be one vertex (a grid path) or a few close ones (a sampled,
+                 * shortcut path): the turn counts from the heading of the leg being driven. */
                 double a1 = atan2(P[3 * i + 7] - ny, P[3 * i + 6] - nx);
-                if (fabs(remainder(a1 - a0, 2 * M_PI)) > p->corner_angle) {
+                if (walked <= CORNER_REACHED) {
+                    /* At this corner already: the next leg is driven, once faced. */
+                    at_corner = at_corner || fabs(remainder(a1 - heading, 2 * M_PI)) > p->corner_angle;
+                    heading = a1;
+                } else if (fabs(remainder(a1 - heading, 2 * M_PI)) > p->corner_angle) {
                     gx = nx;
                     gy = ny;
                     to_corner = walked;
@@ -250,7 +268,9 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
     double dx = gx - x, dy = gy - y;
     double lx = cos(th) * dx + sin(th) * dy, ly = -sin(th) * dx + cos(th) * dy;
     double herr = atan2(ly, lx);
-    if (fabs(herr) > p->turn_in_place) {
+    /* At a corner the robot turns on the spot until it faces the next leg: steering round
+     * from there would swing it towards the corner's inner wall. */
+    if (fabs(herr) > (at_corner ? CORNER_FACED : p->turn_in_place)) {
         vote(o, true, 0, herr > 0 ? p->omega_max * 0.7 : -p->omega_max * 0.7, "turning to path (%.0f deg)",
              herr * 180 / M_PI);
         return;
@@ -297,9 +317,10 @@ int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, ar
         win = below;
     /* Avoid knows what is near, the path (planned on the inflated map) which way is open: at a
      * corridor's corner the more open side of the scan is often the wrong one. Avoid keeps its
-     * speed; it turns the way the path goes when the path clearly turns. */
-    if (win == ARB_AVOID && votes[ARB_FOLLOW].active && fabs(votes[ARB_FOLLOW].omega) > 0.2 &&
-        votes[ARB_AVOID].omega * votes[ARB_FOLLOW].omega < 0)
+     * speed; it turns the way the path goes when the path clearly turns, unless what is in
+     * the way is off to one side (turning towards the path would turn into it). */
+    if (win == ARB_AVOID && !votes[ARB_AVOID].aside && votes[ARB_FOLLOW].active &&
+        fabs(votes[ARB_FOLLOW].omega) > 0.2 && votes[ARB_AVOID].omega * votes[ARB_FOLLOW].omega < 0)
         votes[ARB_AVOID].omega = -votes[ARB_AVOID].omega;
     return win;
 }

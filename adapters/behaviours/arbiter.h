@@ -53,6 +53,7 @@ typedef struct {
     int priority;
     bool active;
     double v, omega;
+    bool aside;                 /* avoid: what stops the robot is off to one side, and it turns away */
     char reason[64];
 } arb_vote_t;
 

@@ -362,18 +362,42 @@ static void test_recovery_when_no_progress(void **state)
     assert_int_equal(rec_step(&rp, &rs, 61, &ap, &in, win, votes, &v, &w, &replan), REC_NONE);
 }
 
+/* A corner's wall beside the robot, just inside the corridor it sweeps, while the path steers
+ * towards that side: avoid turns away from it (turning with the path turned into it, and the
+ * two took turns in a maze corner until a recovery). Dead ahead, the path's way still wins. */
+static void test_avoid_turns_away_from_a_wall_at_its_side(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    static const double left[] = { 0, 0.3, 0, 3, 0.3, 0 };     /* 0.3 m to the robot's left */
+    in.path = left; in.npath = 2; in.path_age = 0.1; in.pose_age = 0.05;
+    int k = (int)lround((atan2(0.25, 0.2) - in.angle_min) / in.angle_increment);
+    open_scan[k] = (float)hypot(0.2, 0.25);        /* 0.2 m ahead, 0.25 m to the left */
+    arb_vote_t v[ARB_COUNT];
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_AVOID);
+    assert_true(v[ARB_FOLLOW].omega > 0.2);
+    assert_true(v[ARB_AVOID].aside);
+    assert_true(v[ARB_AVOID].omega < 0);
+    /* The same return straight ahead: the path's side. */
+    open_scan[k] = 10.0f;
+    open_scan[90] = 0.2f;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_AVOID);
+    assert_false(v[ARB_AVOID].aside);
+    assert_true(v[ARB_AVOID].omega > 0);
+}
+
 /* Drives a unicycle along an L-shaped path at the behaviours' 5 Hz with follow_path alone;
  * returns the closest the robot's centre came to the corner's inner wall point, which the path
  * (planned on the inflated map) passes at 0.24 m. Reaches the end or fails. */
-static double closest_to_inner_corner(double corner_angle)
+static double closest_to_inner_corner(const double *L, int n, double corner_angle)
 {
-    static const double L[] = { 0, 0, 0, 2, 0, M_PI / 2, 2, 2, M_PI / 2 };
     const double wall[2] = { 2 - 0.24, 0.24 };     /* 0.24 m from both legs */
     arb_params_t p; arb_params_default(&p);
     p.corner_angle = corner_angle;
     arb_state_t s; arb_state_reset(&s);
     arb_inputs_t in = base_inputs();
-    in.path = L; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    in.path = L; in.npath = n; in.path_age = 0.1; in.pose_age = 0.05;
     double closest = INFINITY;
     bool done = false;
     for (int k = 0; k < 300 && !done; k++) {
@@ -398,8 +422,17 @@ static double closest_to_inner_corner(double corner_angle)
  * there. The robot now drives to the corner, then turns. */
 static void test_follow_does_not_cut_a_sharp_corner(void **state)
 {
-    double cut = closest_to_inner_corner(0), kept = closest_to_inner_corner(0.5);
+    static const double L[] = { 0, 0, 0, 2, 0, M_PI / 2, 2, 2, M_PI / 2 };
+    double cut = closest_to_inner_corner(L, 3, 0), kept = closest_to_inner_corner(L, 3, 0.5);
     print_message("closest to the inner corner: %.3f m cutting, %.3f m driving to the corner\n", cut, kept);
+    assert_true(cut < 0.21);
+    assert_true(kept > 0.22);
+    /* A sampled planner's corner: a 5 cm arc of four legs, none turning 0.5 rad. */
+    static const double R[] = { 0, 0, 0, 1.95, 0, 0, 1.9691, 0.0038, 0, 1.9854, 0.0146, 0, 1.9962, 0.0309, 0,
+                                2.0, 0.05, 0, 2.0, 2.0, 0 };
+    cut = closest_to_inner_corner(R, 7, 0);
+    kept = closest_to_inner_corner(R, 7, 0.5);
+    print_message("... a corner of close vertices: %.3f m cutting, %.3f m driving to it\n", cut, kept);
     assert_true(cut < 0.21);
     assert_true(kept > 0.22);
 }
@@ -416,6 +449,7 @@ int main(void)
         cmocka_unit_test(test_estop_beats_everything),
         cmocka_unit_test(test_teleop_only_while_recent),
         cmocka_unit_test(test_avoid_blocks_and_turns_to_open_side),
+        cmocka_unit_test(test_avoid_turns_away_from_a_wall_at_its_side),
         cmocka_unit_test(test_closed_loop_follows_l_path),
         cmocka_unit_test(test_new_path_restarts_progress),
         cmocka_unit_test(test_turn_in_a_doorway_is_not_vetoed),
