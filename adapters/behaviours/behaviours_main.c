@@ -68,7 +68,6 @@ struct beh {
     input_t in[IN_COUNT];
     int outstanding;            /* pulls of this cycle still unanswered */
     int64_t cycle;
-    bool timer_made, estop_subscribed;
     /* latest values */
     double pose[3];
     double *path; int npath, path_cap, path_status; int32_t path_goal;
@@ -457,19 +456,14 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "cannot subscribe to teleop or face");
         return -1;
     }
-    if (q->estop_immediate && !b->estop_subscribed) {
-        if (marie_port_on_message(marie_port(c, "estop_now"), on_estop_now)) {
-            marie_component_fail_reason(c, "cannot subscribe to the e-stop");
-            return -1;
-        }
-        b->estop_subscribed = true;
+    /* Both are idempotent: an init that runs again after a failure asks again. */
+    if (q->estop_immediate && marie_port_on_message(marie_port(c, "estop_now"), on_estop_now)) {
+        marie_component_fail_reason(c, "cannot subscribe to the e-stop");
+        return -1;
     }
-    if (!b->timer_made) {
-        if (!marie_component_every(c, hz, tick)) {
-            marie_component_fail_reason(c, "cannot create the %g Hz timer", hz);
-            return -1;
-        }
-        b->timer_made = true;
+    if (!marie_component_every(c, hz, tick)) {
+        marie_component_fail_reason(c, "cannot create the %g Hz timer", hz);
+        return -1;
     }
     return 0;
 }
