@@ -158,12 +158,20 @@ bool vlms200_streaming(const vlms200_t *v) { return v->streaming; }
 int vlms200_res_cdeg(const vlms200_t *v) { return v->res_cdeg; }
 const vlms200_stats_t *vlms200_stats(const vlms200_t *v) { return &v->st; }
 
+/* Bytes written to the master reach the host's side through the kernel's flip buffer, which a
+ * worker thread pushes later: FIONREAD alone reads 0 until that worker has run, and on a loaded
+ * machine that is long enough for a simulator to run seconds ahead of the driver. Polling the
+ * slave waits for the push, so the count after it includes them. Bytes still held here (the
+ * line was full) are unread too. */
 int vlms200_unread(const vlms200_t *v)
 {
-    int n = 0;
-    if (v->slave < 0 || ioctl(v->slave, FIONREAD, &n) < 0)
+    if (v->slave < 0)
         return 0;
-    return n;
+    struct pollfd p = { .fd = v->slave, .events = POLLIN };
+    int n = 0;
+    if (poll(&p, 1, 0) < 0 || ioctl(v->slave, FIONREAD, &n) < 0)
+        n = 0;
+    return n + (int)v->out_len;
 }
 
 short vlms200_events(const vlms200_t *v)
