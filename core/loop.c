@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/ioctl.h>
 #include <sys/signalfd.h>
 #include <unistd.h>
 
@@ -294,6 +295,15 @@ int64_t marie_loop_now(const marie_loop_t *loop)
 
 int64_t marie_loop_mono(const marie_loop_t *loop) { return clock_now(loop, 0); }
 int marie_loop_clock_known(const marie_loop_t *loop) { return loop->clock != MARIE_CLOCK_SIM || loop->sim_known; }
+
+int marie_fd_unread(int fd)
+{
+    struct pollfd p = { .fd = fd, .events = POLLIN };
+    int n = 0;
+    if (fd < 0 || poll(&p, 1, 0) < 0 || ioctl(fd, FIONREAD, &n) < 0)
+        return 0;
+    return n;
+}
 
 /* Runs due timers once each; returns how many ran. */
 static int run_timers(marie_loop_t *loop)

@@ -36,6 +36,12 @@ typedef struct _lcm_t lcm_t;
 int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst);
 int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm);
 
+/* Bytes waiting to be read on fd now, without waiting for more (0 when the fd cannot say).
+ * For a tty this includes what the kernel still holds in its flip buffer: bytes written to a
+ * pty's master reach the slave through a worker thread, and FIONREAD alone reads 0 until it has
+ * run; a poll of the fd waits for that push. */
+int marie_fd_unread(int fd);
+
 /* A fixed-rate timer: fires every period_us on the loop's clock, first after period_us.
  * Late firings are not queued: the next deadline skips the missed periods, which are
  * counted as overruns. Returns NULL with errno set on failure; the loop owns the timer. */

@@ -10,9 +10,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/ioctl.h>
 #include <unistd.h>
 
+#include "core/loop.h"
 #include "hw/lms200/serial.h"
 
 #define OUT_CAP 65536
@@ -158,20 +158,13 @@ bool vlms200_streaming(const vlms200_t *v) { return v->streaming; }
 int vlms200_res_cdeg(const vlms200_t *v) { return v->res_cdeg; }
 const vlms200_stats_t *vlms200_stats(const vlms200_t *v) { return &v->st; }
 
-/* Bytes written to the master reach the host's side through the kernel's flip buffer, which a
- * worker thread pushes later: FIONREAD alone reads 0 until that worker has run, and on a loaded
- * machine that is long enough for a simulator to run seconds ahead of the driver. Polling the
- * slave waits for the push, so the count after it includes them. Bytes still held here (the
- * line was full) are unread too. */
+/* What the host has not read: the slave's queue (the kernel's too, see marie_fd_unread) and the
+ * bytes still held here because the line was full. */
 int vlms200_unread(const vlms200_t *v)
 {
     if (v->slave < 0)
         return 0;
-    struct pollfd p = { .fd = v->slave, .events = POLLIN };
-    int n = 0;
-    if (poll(&p, 1, 0) < 0 || ioctl(v->slave, FIONREAD, &n) < 0)
-        n = 0;
-    return n + (int)v->out_len;
+    return marie_fd_unread(v->slave) + (int)v->out_len;
 }
 
 short vlms200_events(const vlms200_t *v)

@@ -4,7 +4,9 @@
 #include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
+#include <pty.h>
 #include <string.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -281,6 +283,29 @@ static void watched_signals_arrive_from_the_loop(void **state)
     marie_loop_destroy(loop);
 }
 
+/* Bytes written to a pty's master are counted on the slave at once, though the kernel pushes
+ * them to it from a worker thread (FIONREAD alone read 0 right after most writes). */
+static void fd_unread_counts_a_pty_write_at_once(void **state)
+{
+    int m, s;
+    assert_int_equal(openpty(&m, &s, NULL, NULL, NULL), 0);
+    struct termios t;
+    assert_int_equal(tcgetattr(s, &t), 0);
+    cfmakeraw(&t);
+    assert_int_equal(tcsetattr(s, TCSANOW, &t), 0);
+    char buf[370];
+    memset(buf, 'x', sizeof buf);
+    for (int i = 0; i < 200; i++) {
+        assert_int_equal(write(m, buf, sizeof buf), (ssize_t)sizeof buf);
+        assert_int_equal(marie_fd_unread(s), (int)sizeof buf);
+        assert_int_equal(read(s, buf, sizeof buf), (ssize_t)sizeof buf);
+        assert_int_equal(marie_fd_unread(s), 0);
+    }
+    assert_int_equal(marie_fd_unread(-1), 0);
+    close(m);
+    close(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -295,6 +320,7 @@ int main(void)
         cmocka_unit_test(run_until_stops_at_the_deadline_and_serves_fds_meanwhile),
         cmocka_unit_test(run_until_returns_on_quit),
         cmocka_unit_test(watched_signals_arrive_from_the_loop),
+        cmocka_unit_test(fd_unread_counts_a_pty_write_at_once),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -501,7 +501,9 @@ static void test_missing_device_retried_until_it_appears(void **state)
     assert_int_equal(lms200_driver_fd(r.drv), -1);
     assert_true(RUN_UNTIL(&r, 8000, r.scans >= 3));
     assert_int_equal(r.open_failed_events, 1);     /* reported once, not once per attempt */
-    assert_string_equal(r.last_event, "laser_streaming");
+    /* Streaming now. Not which event said so: a stall of this one process (device and driver
+     * both) on a loaded machine can time a probe out and make it a reconnection. */
+    assert_int_equal(lms200_driver_state(r.drv), LMS200_DRV_STREAM);
     rig_close(&r);
 }
 
