@@ -249,11 +249,12 @@ void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, a
                 /* A corner may be one vertex (a grid path) or a few close ones (a sampled,
                  * shortcut path): the turn counts from the heading of the leg being driven. */
                 double a1 = atan2(P[3 * i + 7] - ny, P[3 * i + 6] - nx);
+                bool turns = fabs(remainder(a1 - heading, 2 * M_PI)) > p->corner_angle;
                 if (walked <= CORNER_REACHED) {
                     /* At this corner already: the next leg is driven, once faced. */
-                    at_corner = at_corner || fabs(remainder(a1 - heading, 2 * M_PI)) > p->corner_angle;
+                    at_corner = at_corner || turns;
                     heading = a1;
-                } else if (fabs(remainder(a1 - heading, 2 * M_PI)) > p->corner_angle) {
+                } else if (turns) {
                     gx = nx;
                     gy = ny;
                     to_corner = walked;

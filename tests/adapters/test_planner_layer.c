@@ -9,10 +9,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/time.h>
 #include <cmocka.h>
 #include <lcm/lcm.h>
 
+#include "core/time.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "map/occmap.h"
@@ -25,13 +25,6 @@ typedef struct {
     int64_t forgotten, beats;
     int paths_ok, paths_failed;
 } seen_t;
-
-static int64_t now_us(void)
-{
-    struct timeval tv;
-    gettimeofday(&tv, NULL);
-    return (int64_t)tv.tv_sec * 1000000 + tv.tv_usec;
-}
 
 static void on_msg(const lcm_recv_buf_t *rb, const char *ch, void *user)
 {
@@ -86,10 +79,10 @@ static void a_return_closing_the_corridor_is_forgotten(void **state)
 
     const double x = 6.8, y = 2.35;
     float ranges[NB];
-    int64_t t0 = now_us(), next_scan = t0;
+    int64_t t0 = marie_wall_us(), next_scan = t0;
     bool goal_sent = false;
-    while (now_us() - t0 < 6000000 && k.paths_ok == 0) {
-        int64_t t = now_us();
+    while (marie_wall_us() - t0 < 6000000 && k.paths_ok == 0) {
+        int64_t t = marie_wall_us();
         if (t >= next_scan) {
             for (int i = 0; i < NB; i++)
                 ranges[i] = (float)occmap_raycast(m, x, y, -M_PI / 2 + i * M_PI / 180, 8.0);
