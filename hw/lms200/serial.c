@@ -2,6 +2,7 @@
 #include "hw/lms200/serial.h"
 
 #include <errno.h>
+#include <stdbool.h>
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -29,7 +30,11 @@ int lms200_serial_baud(speed_t speed)
     return -1;
 }
 
-int lms200_serial_setup(int fd, int baud)
+/* The line at baud; first_setup also makes it raw 8N1 without flow control, reads never
+ * waiting. TCSANOW: the driver changes the rate only after the device answered at the old one
+ * (or stayed silent), so nothing of ours is still in flight; waiting for a drain could block on
+ * a line whose far end stopped reading. */
+static int configure(int fd, int baud, bool first_setup)
 {
     speed_t sp = lms200_serial_speed(baud);
     if (!sp)
@@ -37,18 +42,25 @@ int lms200_serial_setup(int fd, int baud)
     struct termios t;
     if (tcgetattr(fd, &t) < 0)
         return -errno;
-    cfmakeraw(&t);
-    t.c_cflag &= ~(CSTOPB | PARENB | CRTSCTS);
-    t.c_cflag |= CLOCAL | CREAD | CS8;
-    t.c_iflag &= ~(IXON | IXOFF | IXANY);
-    t.c_cc[VMIN] = 0;
-    t.c_cc[VTIME] = 0;
+    if (first_setup) {
+        cfmakeraw(&t);
+        t.c_cflag &= ~(CSTOPB | PARENB | CRTSCTS);
+        t.c_cflag |= CLOCAL | CREAD | CS8;
+        t.c_iflag &= ~(IXON | IXOFF | IXANY);
+        t.c_cc[VMIN] = 0;
+        t.c_cc[VTIME] = 0;
+    }
     cfsetispeed(&t, sp);
     cfsetospeed(&t, sp);
     if (tcsetattr(fd, TCSANOW, &t) < 0)
         return -errno;
     tcflush(fd, TCIFLUSH);
     return 0;
+}
+
+int lms200_serial_setup(int fd, int baud)
+{
+    return configure(fd, baud, true);
 }
 
 int lms200_serial_open(const char *path)
@@ -66,21 +78,7 @@ int lms200_serial_open(const char *path)
 
 int lms200_serial_set_baud(int fd, int baud)
 {
-    speed_t sp = lms200_serial_speed(baud);
-    if (!sp)
-        return -EINVAL;
-    struct termios t;
-    if (tcgetattr(fd, &t) < 0)
-        return -errno;
-    cfsetispeed(&t, sp);
-    cfsetospeed(&t, sp);
-    /* TCSANOW: the driver changes the rate only after the device answered at the old one
-     * (or stayed silent), so nothing of ours is still in flight; waiting for a drain could
-     * block on a line whose far end stopped reading. */
-    if (tcsetattr(fd, TCSANOW, &t) < 0)
-        return -errno;
-    tcflush(fd, TCIFLUSH);
-    return 0;
+    return configure(fd, baud, false);
 }
 
 int lms200_serial_get_baud(int fd)
