@@ -67,28 +67,28 @@ void co_sdo_client_init(co_sdo_client_t *c, uint8_t node, int64_t timeout_us, co
     c->user = user;
 }
 
-bool co_sdo_client_busy(const co_sdo_client_t *c) { return c->state != ST_IDLE; }
+bool co_sdo_client_busy(const co_sdo_client_t *c) { return c->x.state != ST_IDLE; }
 
 static canid_t cli_tx_id(const co_sdo_client_t *c) { return CO_COB_SDO_RX + c->node; }
 
 static void cli_finish(co_sdo_client_t *c, uint32_t abort, const uint8_t *data, size_t len)
 {
-    c->state = ST_IDLE;
+    c->x.state = ST_IDLE;
     if (c->cb)
-        c->cb(c->user, c, c->index, c->sub, abort, data, len);
+        c->cb(c->user, c, c->x.index, c->x.sub, abort, data, len);
 }
 
 int co_sdo_client_upload(co_sdo_client_t *c, uint16_t index, uint8_t sub, int64_t now, struct can_frame *tx)
 {
-    if (c->state != ST_IDLE)
+    if (c->x.state != ST_IDLE)
         return -EBUSY;
     uint8_t d[8] = { CCS_UP_INIT << 5 };
     mux(d, index, sub);
     co_frame_set(tx, cli_tx_id(c), d, 8);
-    c->index = index;
-    c->sub = sub;
-    c->len = c->pos = c->expect = 0;
-    c->state = ST_UP_INIT;
+    c->x.index = index;
+    c->x.sub = sub;
+    c->x.len = c->x.pos = c->x.expect = 0;
+    c->x.state = ST_UP_INIT;
     c->deadline = now + c->timeout_us;
     return 0;
 }
@@ -96,7 +96,7 @@ int co_sdo_client_upload(co_sdo_client_t *c, uint16_t index, uint8_t sub, int64_
 int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, const void *data, size_t len,
                            int64_t now, struct can_frame *tx)
 {
-    if (c->state != ST_IDLE)
+    if (c->x.state != ST_IDLE)
         return -EBUSY;
     if (len > CO_SDO_MAX || len == 0)
         return -EMSGSIZE;
@@ -111,33 +111,33 @@ int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, cons
         co_put_u32(d + 4, (uint32_t)len);
     }
     co_frame_set(tx, cli_tx_id(c), d, 8);
-    c->index = index;
-    c->sub = sub;
-    memcpy(c->buf, data, len);
-    c->len = len;
-    c->pos = 0;
-    c->toggle = 0;
-    c->state = ST_DN_INIT;
+    c->x.index = index;
+    c->x.sub = sub;
+    memcpy(c->x.buf, data, len);
+    c->x.len = len;
+    c->x.pos = 0;
+    c->x.toggle = 0;
+    c->x.state = ST_DN_INIT;
     c->deadline = now + c->timeout_us;
     return 0;
 }
 
 static void cli_next_dn_segment(co_sdo_client_t *c, struct can_frame *tx)
 {
-    size_t n = c->len - c->pos;
+    size_t n = c->x.len - c->x.pos;
     if (n > 7)
         n = 7;
     uint8_t d[8] = { 0 };
-    bool last = c->pos + n == c->len;
-    d[0] = (uint8_t)(CCS_DN_SEG << 5 | c->toggle << 4 | (7 - n) << 1 | (last ? 1 : 0));
-    memcpy(d + 1, c->buf + c->pos, n);
-    c->pos += n;
+    bool last = c->x.pos + n == c->x.len;
+    d[0] = (uint8_t)(CCS_DN_SEG << 5 | c->x.toggle << 4 | (7 - n) << 1 | (last ? 1 : 0));
+    memcpy(d + 1, c->x.buf + c->x.pos, n);
+    c->x.pos += n;
     co_frame_set(tx, cli_tx_id(c), d, 8);
 }
 
 static int cli_protocol_error(co_sdo_client_t *c, uint32_t code, struct can_frame *tx, bool *tx_ready)
 {
-    abort_frame(tx, cli_tx_id(c), c->index, c->sub, code);
+    abort_frame(tx, cli_tx_id(c), c->x.index, c->x.sub, code);
     *tx_ready = true;
     cli_finish(c, code, NULL, 0);
     return -EBADMSG;
@@ -147,7 +147,7 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
                        struct can_frame *tx, bool *tx_ready)
 {
     *tx_ready = false;
-    if (rx->can_id != (canid_t)(CO_COB_SDO_TX + c->node) || c->state == ST_IDLE)
+    if (rx->can_id != (canid_t)(CO_COB_SDO_TX + c->node) || c->x.state == ST_IDLE)
         return 0;
     if (rx->len != 8)
         return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
@@ -159,32 +159,32 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
         cli_finish(c, code ? code : CO_SDO_ABORT_GENERAL, NULL, 0);
         return 0;
     }
-    bool mux_ok = co_get_u16(d + 1) == c->index && d[3] == c->sub;
+    bool mux_ok = co_get_u16(d + 1) == c->x.index && d[3] == c->x.sub;
     /* An initiate response for another object is a late answer to an earlier transfer
      * (e.g. one cut short by a node reset): ignore it and keep waiting for ours. */
     if ((scs == SCS_UP_INIT || scs == SCS_DN_INIT) && !mux_ok &&
-        (c->state == ST_UP_INIT || c->state == ST_DN_INIT))
+        (c->x.state == ST_UP_INIT || c->x.state == ST_DN_INIT))
         return 0;
     c->deadline = now + c->timeout_us;
-    switch (c->state) {
+    switch (c->x.state) {
     case ST_DN_INIT:
         if (scs != SCS_DN_INIT || !mux_ok)
             return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
-        if (c->len <= 4) {
+        if (c->x.len <= 4) {
             cli_finish(c, 0, NULL, 0);
             return 0;
         }
-        c->state = ST_DN_SEG;
+        c->x.state = ST_DN_SEG;
         cli_next_dn_segment(c, tx);
         *tx_ready = true;
         return 1;
     case ST_DN_SEG:
         if (scs != SCS_DN_SEG)
             return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
-        if (((d[0] >> 4) & 1) != c->toggle)
+        if (((d[0] >> 4) & 1) != c->x.toggle)
             return cli_protocol_error(c, CO_SDO_ABORT_TOGGLE, tx, tx_ready);
-        c->toggle ^= 1;
-        if (c->pos == c->len) {
+        c->x.toggle ^= 1;
+        if (c->x.pos == c->x.len) {
             cli_finish(c, 0, NULL, 0);
             return 0;
         }
@@ -197,16 +197,16 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
         bool e = d[0] & 0x02, s = d[0] & 0x01;
         if (e) {
             size_t n = s ? 4 - ((d[0] >> 2) & 3) : 4;
-            memcpy(c->buf, d + 4, n);
-            cli_finish(c, 0, c->buf, n);
+            memcpy(c->x.buf, d + 4, n);
+            cli_finish(c, 0, c->x.buf, n);
             return 0;
         }
-        c->expect = s ? co_get_u32(d + 4) : CO_SDO_MAX;
-        if (c->expect > CO_SDO_MAX)
+        c->x.expect = s ? co_get_u32(d + 4) : CO_SDO_MAX;
+        if (c->x.expect > CO_SDO_MAX)
             return cli_protocol_error(c, CO_SDO_ABORT_NO_MEM, tx, tx_ready);
-        c->len = 0;
-        c->toggle = 0;
-        c->state = ST_UP_SEG;
+        c->x.len = 0;
+        c->x.toggle = 0;
+        c->x.state = ST_UP_SEG;
         uint8_t q[8] = { CCS_UP_SEG << 5 };
         co_frame_set(tx, cli_tx_id(c), q, 8);
         *tx_ready = true;
@@ -215,22 +215,22 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
     case ST_UP_SEG: {
         if (scs != SCS_UP_SEG)
             return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
-        if (((d[0] >> 4) & 1) != c->toggle)
+        if (((d[0] >> 4) & 1) != c->x.toggle)
             return cli_protocol_error(c, CO_SDO_ABORT_TOGGLE, tx, tx_ready);
         size_t n = 7 - ((d[0] >> 1) & 7);
         bool last = d[0] & 1;
-        if (c->len + n > CO_SDO_MAX || c->len + n > c->expect)
+        if (c->x.len + n > CO_SDO_MAX || c->x.len + n > c->x.expect)
             return cli_protocol_error(c, CO_SDO_ABORT_TOO_LONG, tx, tx_ready);
-        memcpy(c->buf + c->len, d + 1, n);
-        c->len += n;
-        c->toggle ^= 1;
+        memcpy(c->x.buf + c->x.len, d + 1, n);
+        c->x.len += n;
+        c->x.toggle ^= 1;
         if (last) {
-            if (c->expect != CO_SDO_MAX && c->len != c->expect)
+            if (c->x.expect != CO_SDO_MAX && c->x.len != c->x.expect)
                 return cli_protocol_error(c, CO_SDO_ABORT_TOO_SHORT, tx, tx_ready);
-            cli_finish(c, 0, c->buf, c->len);
+            cli_finish(c, 0, c->x.buf, c->x.len);
             return 0;
         }
-        uint8_t q[8] = { (uint8_t)(CCS_UP_SEG << 5 | c->toggle << 4) };
+        uint8_t q[8] = { (uint8_t)(CCS_UP_SEG << 5 | c->x.toggle << 4) };
         co_frame_set(tx, cli_tx_id(c), q, 8);
         *tx_ready = true;
         return 1;
@@ -241,9 +241,9 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
 
 int co_sdo_client_poll(co_sdo_client_t *c, int64_t now, struct can_frame *tx)
 {
-    if (c->state == ST_IDLE || now < c->deadline)
+    if (c->x.state == ST_IDLE || now < c->deadline)
         return 0;
-    abort_frame(tx, cli_tx_id(c), c->index, c->sub, CO_SDO_ABORT_TIMEOUT);
+    abort_frame(tx, cli_tx_id(c), c->x.index, c->x.sub, CO_SDO_ABORT_TIMEOUT);
     cli_finish(c, CO_SDO_ABORT_TIMEOUT, NULL, 0);
     return 1;
 }
@@ -261,7 +261,7 @@ void co_sdo_server_init(co_sdo_server_t *s, uint8_t node, const co_sdo_server_op
 static int srv_abort(co_sdo_server_t *s, struct can_frame *tx, uint16_t index, uint8_t sub, uint32_t code)
 {
     abort_frame(tx, CO_COB_SDO_TX + s->node, index, sub, code);
-    s->state = ST_IDLE;
+    s->x.state = ST_IDLE;
     return 1;
 }
 
@@ -271,7 +271,7 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
         return 0;
     canid_t txid = CO_COB_SDO_TX + s->node;
     if (rx->len != 8)
-        return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_CMD);
+        return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_CMD);
     const uint8_t *d = rx->data;
     int ccs = d[0] >> 5;
     uint16_t index = co_get_u16(d + 1);
@@ -280,25 +280,25 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
 
     switch (ccs) {
     case CS_ABORT:
-        s->state = ST_IDLE;
+        s->x.state = ST_IDLE;
         return 0;
     case CCS_DN_INIT: {
-        s->index = index;
-        s->sub = sub;
+        s->x.index = index;
+        s->x.sub = sub;
         bool e = d[0] & 0x02, sz = d[0] & 0x01;
         if (e) {
             size_t n = sz ? (size_t)(4 - ((d[0] >> 2) & 3)) : CO_SDO_LEN_UNSIZED;
             uint32_t ab = s->ops->write(s->user, index, sub, d + 4, n);
             if (ab)
                 return srv_abort(s, tx, index, sub, ab);
-            s->state = ST_IDLE;
+            s->x.state = ST_IDLE;
         } else {
-            s->expect = sz ? co_get_u32(d + 4) : CO_SDO_MAX;
-            if (s->expect > CO_SDO_MAX)
+            s->x.expect = sz ? co_get_u32(d + 4) : CO_SDO_MAX;
+            if (s->x.expect > CO_SDO_MAX)
                 return srv_abort(s, tx, index, sub, CO_SDO_ABORT_NO_MEM);
-            s->len = 0;
-            s->toggle = 0;
-            s->state = ST_DN_SEG;
+            s->x.len = 0;
+            s->x.toggle = 0;
+            s->x.state = ST_DN_SEG;
         }
         r[0] = SCS_DN_INIT << 5;
         mux(r, index, sub);
@@ -306,68 +306,68 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
         return 1;
     }
     case CCS_DN_SEG: {
-        if (s->state != ST_DN_SEG)
-            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_CMD);
+        if (s->x.state != ST_DN_SEG)
+            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_CMD);
         uint8_t t = (d[0] >> 4) & 1;
-        if (t != s->toggle)
-            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOGGLE);
+        if (t != s->x.toggle)
+            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOGGLE);
         size_t n = 7 - ((d[0] >> 1) & 7);
-        if (s->len + n > CO_SDO_MAX || s->len + n > s->expect)
-            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOO_LONG);
-        memcpy(s->buf + s->len, d + 1, n);
-        s->len += n;
-        s->toggle ^= 1;
+        if (s->x.len + n > CO_SDO_MAX || s->x.len + n > s->x.expect)
+            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOO_LONG);
+        memcpy(s->x.buf + s->x.len, d + 1, n);
+        s->x.len += n;
+        s->x.toggle ^= 1;
         if (d[0] & 1) {
-            if (s->expect != CO_SDO_MAX && s->len != s->expect)
-                return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOO_SHORT);
-            uint32_t ab = s->ops->write(s->user, s->index, s->sub, s->buf, s->len);
+            if (s->x.expect != CO_SDO_MAX && s->x.len != s->x.expect)
+                return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOO_SHORT);
+            uint32_t ab = s->ops->write(s->user, s->x.index, s->x.sub, s->x.buf, s->x.len);
             if (ab)
-                return srv_abort(s, tx, s->index, s->sub, ab);
-            s->state = ST_IDLE;
+                return srv_abort(s, tx, s->x.index, s->x.sub, ab);
+            s->x.state = ST_IDLE;
         }
         r[0] = (uint8_t)(SCS_DN_SEG << 5 | t << 4);
         co_frame_set(tx, txid, r, 8);
         return 1;
     }
     case CCS_UP_INIT: {
-        s->index = index;
-        s->sub = sub;
+        s->x.index = index;
+        s->x.sub = sub;
         size_t len = 0;
-        uint32_t ab = s->ops->read(s->user, index, sub, s->buf, sizeof s->buf, &len);
+        uint32_t ab = s->ops->read(s->user, index, sub, s->x.buf, sizeof s->x.buf, &len);
         if (ab)
             return srv_abort(s, tx, index, sub, ab);
         mux(r, index, sub);
         if (len <= 4 && len > 0) {
             r[0] = (uint8_t)(SCS_UP_INIT << 5 | (4 - len) << 2 | 0x03);
-            memcpy(r + 4, s->buf, len);
-            s->state = ST_IDLE;
+            memcpy(r + 4, s->x.buf, len);
+            s->x.state = ST_IDLE;
         } else {
             r[0] = SCS_UP_INIT << 5 | 0x01;
             co_put_u32(r + 4, (uint32_t)len);
-            s->len = len;
-            s->pos = 0;
-            s->toggle = 0;
-            s->state = ST_UP_SEG;
+            s->x.len = len;
+            s->x.pos = 0;
+            s->x.toggle = 0;
+            s->x.state = ST_UP_SEG;
         }
         co_frame_set(tx, txid, r, 8);
         return 1;
     }
     case CCS_UP_SEG: {
-        if (s->state != ST_UP_SEG)
-            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_CMD);
+        if (s->x.state != ST_UP_SEG)
+            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_CMD);
         uint8_t t = (d[0] >> 4) & 1;
-        if (t != s->toggle)
-            return srv_abort(s, tx, s->index, s->sub, CO_SDO_ABORT_TOGGLE);
-        size_t n = s->len - s->pos;
+        if (t != s->x.toggle)
+            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOGGLE);
+        size_t n = s->x.len - s->x.pos;
         if (n > 7)
             n = 7;
-        bool last = s->pos + n == s->len;
+        bool last = s->x.pos + n == s->x.len;
         r[0] = (uint8_t)(SCS_UP_SEG << 5 | t << 4 | (7 - n) << 1 | (last ? 1 : 0));
-        memcpy(r + 1, s->buf + s->pos, n);
-        s->pos += n;
-        s->toggle ^= 1;
+        memcpy(r + 1, s->x.buf + s->x.pos, n);
+        s->x.pos += n;
+        s->x.toggle ^= 1;
         if (last)
-            s->state = ST_IDLE;
+            s->x.state = ST_IDLE;
         co_frame_set(tx, txid, r, 8);
         return 1;
     }

@@ -34,6 +34,16 @@ const char *co_sdo_abort_str(uint32_t code);
 /* Largest object a transfer carries (device names, mapping tables). */
 #define CO_SDO_MAX 256
 
+/* One transfer's progress, the same on both sides (private). */
+typedef struct {
+    int state;
+    uint16_t index;
+    uint8_t sub;
+    uint8_t toggle;
+    uint8_t buf[CO_SDO_MAX];
+    size_t len, pos, expect;
+} co_sdo_xfer_t;
+
 /* ---- client ---- */
 typedef struct co_sdo_client co_sdo_client_t;
 /* A transfer ended: abort == 0 and data/len (the uploaded value; len 0 for a download) on
@@ -48,12 +58,7 @@ struct co_sdo_client {
     co_sdo_done_cb_t cb;
     void *user;
     /* private */
-    int state;
-    uint16_t index;
-    uint8_t sub;
-    uint8_t toggle;
-    uint8_t buf[CO_SDO_MAX];
-    size_t len, pos, expect;
+    co_sdo_xfer_t x;
     int64_t deadline;
 };
 
@@ -87,12 +92,7 @@ typedef struct {
     const co_sdo_server_ops_t *ops;
     void *user;
     /* private */
-    int state;
-    uint16_t index;
-    uint8_t sub;
-    uint8_t toggle;
-    uint8_t buf[CO_SDO_MAX];
-    size_t len, pos, expect;
+    co_sdo_xfer_t x;
 } co_sdo_server_t;
 
 void co_sdo_server_init(co_sdo_server_t *s, uint8_t node, const co_sdo_server_ops_t *ops, void *user);
