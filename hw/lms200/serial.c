@@ -2,8 +2,8 @@
 #include "hw/lms200/serial.h"
 
 #include <errno.h>
-#include <stdbool.h>
 #include <fcntl.h>
+#include <stdbool.h>
 #include <unistd.h>
 
 static const struct { int baud; speed_t speed; } rates[] = {
