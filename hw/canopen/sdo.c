@@ -122,16 +122,44 @@ int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, cons
     return 0;
 }
 
-static void cli_next_dn_segment(co_sdo_client_t *c, struct can_frame *tx)
+/* The sending side of a segmented transfer (a client's download, a server's upload): the next
+ * up to 7 bytes of x's data into d, under command specifier cs and the current toggle. True when
+ * it is the last segment. */
+static bool xfer_put_segment(co_sdo_xfer_t *x, int cs, uint8_t d[8])
 {
-    size_t n = c->x.len - c->x.pos;
+    size_t n = x->len - x->pos;
     if (n > 7)
         n = 7;
+    bool last = x->pos + n == x->len;
+    d[0] = (uint8_t)(cs << 5 | x->toggle << 4 | (7 - n) << 1 | (last ? 1 : 0));
+    memcpy(d + 1, x->buf + x->pos, n);
+    x->pos += n;
+    return last;
+}
+
+/* The receiving side (a client's upload, a server's download): segment d appended to x's data
+ * and the toggle flipped. 0, or the abort code for a wrong toggle, too many bytes, or a last
+ * segment short of the size announced; *last tells whether d was the last segment. */
+static uint32_t xfer_take_segment(co_sdo_xfer_t *x, const uint8_t d[8], bool *last)
+{
+    if (((d[0] >> 4) & 1) != x->toggle)
+        return CO_SDO_ABORT_TOGGLE;
+    size_t n = 7 - ((d[0] >> 1) & 7);
+    if (x->len + n > CO_SDO_MAX || x->len + n > x->expect)
+        return CO_SDO_ABORT_TOO_LONG;
+    memcpy(x->buf + x->len, d + 1, n);
+    x->len += n;
+    x->toggle ^= 1;
+    *last = d[0] & 1;
+    if (*last && x->expect != CO_SDO_MAX && x->len != x->expect)
+        return CO_SDO_ABORT_TOO_SHORT;
+    return 0;
+}
+
+static void cli_next_dn_segment(co_sdo_client_t *c, struct can_frame *tx)
+{
     uint8_t d[8] = { 0 };
-    bool last = c->x.pos + n == c->x.len;
-    d[0] = (uint8_t)(CCS_DN_SEG << 5 | c->x.toggle << 4 | (7 - n) << 1 | (last ? 1 : 0));
-    memcpy(d + 1, c->x.buf + c->x.pos, n);
-    c->x.pos += n;
+    xfer_put_segment(&c->x, CCS_DN_SEG, d);
     co_frame_set(tx, cli_tx_id(c), d, 8);
 }
 
@@ -215,18 +243,11 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
     case ST_UP_SEG: {
         if (scs != SCS_UP_SEG)
             return cli_protocol_error(c, CO_SDO_ABORT_CMD, tx, tx_ready);
-        if (((d[0] >> 4) & 1) != c->x.toggle)
-            return cli_protocol_error(c, CO_SDO_ABORT_TOGGLE, tx, tx_ready);
-        size_t n = 7 - ((d[0] >> 1) & 7);
-        bool last = d[0] & 1;
-        if (c->x.len + n > CO_SDO_MAX || c->x.len + n > c->x.expect)
-            return cli_protocol_error(c, CO_SDO_ABORT_TOO_LONG, tx, tx_ready);
-        memcpy(c->x.buf + c->x.len, d + 1, n);
-        c->x.len += n;
-        c->x.toggle ^= 1;
+        bool last;
+        uint32_t ab = xfer_take_segment(&c->x, d, &last);
+        if (ab)
+            return cli_protocol_error(c, ab, tx, tx_ready);
         if (last) {
-            if (c->x.expect != CO_SDO_MAX && c->x.len != c->x.expect)
-                return cli_protocol_error(c, CO_SDO_ABORT_TOO_SHORT, tx, tx_ready);
             cli_finish(c, 0, c->x.buf, c->x.len);
             return 0;
         }
@@ -308,19 +329,13 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
     case CCS_DN_SEG: {
         if (s->x.state != ST_DN_SEG)
             return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_CMD);
-        uint8_t t = (d[0] >> 4) & 1;
-        if (t != s->x.toggle)
-            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOGGLE);
-        size_t n = 7 - ((d[0] >> 1) & 7);
-        if (s->x.len + n > CO_SDO_MAX || s->x.len + n > s->x.expect)
-            return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOO_LONG);
-        memcpy(s->x.buf + s->x.len, d + 1, n);
-        s->x.len += n;
-        s->x.toggle ^= 1;
-        if (d[0] & 1) {
-            if (s->x.expect != CO_SDO_MAX && s->x.len != s->x.expect)
-                return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOO_SHORT);
-            uint32_t ab = s->ops->write(s->user, s->x.index, s->x.sub, s->x.buf, s->x.len);
+        uint8_t t = (d[0] >> 4) & 1;     /* the answer repeats the segment's toggle */
+        bool last;
+        uint32_t ab = xfer_take_segment(&s->x, d, &last);
+        if (ab)
+            return srv_abort(s, tx, s->x.index, s->x.sub, ab);
+        if (last) {
+            ab = s->ops->write(s->user, s->x.index, s->x.sub, s->x.buf, s->x.len);
             if (ab)
                 return srv_abort(s, tx, s->x.index, s->x.sub, ab);
             s->x.state = ST_IDLE;
@@ -355,16 +370,9 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
     case CCS_UP_SEG: {
         if (s->x.state != ST_UP_SEG)
             return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_CMD);
-        uint8_t t = (d[0] >> 4) & 1;
-        if (t != s->x.toggle)
+        if (((d[0] >> 4) & 1) != s->x.toggle)
             return srv_abort(s, tx, s->x.index, s->x.sub, CO_SDO_ABORT_TOGGLE);
-        size_t n = s->x.len - s->x.pos;
-        if (n > 7)
-            n = 7;
-        bool last = s->x.pos + n == s->x.len;
-        r[0] = (uint8_t)(SCS_UP_SEG << 5 | t << 4 | (7 - n) << 1 | (last ? 1 : 0));
-        memcpy(r + 1, s->x.buf + s->x.pos, n);
-        s->x.pos += n;
+        bool last = xfer_put_segment(&s->x, SCS_UP_SEG, r);
         s->x.toggle ^= 1;
         if (last)
             s->x.state = ST_IDLE;
