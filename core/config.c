@@ -442,20 +442,53 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     return rc ? -1 : 0;
 }
 
-static const marie_node_t *find_profile(const marie_node_t *root, const char *profile, marie_errors_t *errs,
-                                        const char *file)
+static const marie_node_t *find_profile(const marie_node_t *root, const char *profile, const marie_node_t *named_at,
+                                        marie_errors_t *errs, const char *file)
 {
     const marie_node_t *profiles = marie_node_get(root, "profiles");
     const marie_node_t *p = marie_node_get(profiles, profile);
     if (!p) {
-        marie_errors_add(errs, file, profiles ? profiles->line : 1, profiles ? profiles->col : 1,
-                         "no profile '%s' in this file", profile);
+        const marie_node_t *at = named_at ? named_at : profiles;
+        marie_errors_add(errs, file, at ? at->line : 1, at ? at->col : 1, "no profile '%s' in this file", profile);
         return NULL;
     }
-    static const char *const keys[] = {"components", "remove", "clock", "robot", NULL};
+    static const char *const keys[] = {"extends", "components", "remove", "clock", "robot", NULL};
     if (marie_node_check_keys(p, keys, "profile", errs) < 0)
         return NULL;
     return p;
+}
+
+/* A profile and the profiles it extends, nearest first: chain[0] is the one asked for. A profile
+ * applies on top of the one it extends as that one applies on the base. Returns the length, -1
+ * on error (unknown name, a cycle, deeper than MAX_PROFILE_CHAIN). */
+#define MAX_PROFILE_CHAIN 8
+static int profile_chain(const marie_node_t *root, const char *profile, const marie_node_t **chain,
+                         marie_errors_t *errs, const char *file)
+{
+    int n = 0;
+    const marie_node_t *named_at = NULL;
+    const char *name = profile;
+    while (name) {
+        const marie_node_t *p = find_profile(root, name, named_at, errs, file);
+        if (!p)
+            return -1;
+        for (int i = 0; i < n; i++)
+            if (chain[i] == p) {
+                marie_node_error(errs, named_at, "extends: profile '%s' leads back to itself (a cycle from '%s')", name,
+                                 profile);
+                return -1;
+            }
+        if (n == MAX_PROFILE_CHAIN) {
+            marie_node_error(errs, named_at, "extends: profiles extend one another more than %d deep",
+                             MAX_PROFILE_CHAIN);
+            return -1;
+        }
+        chain[n++] = p;
+        name = NULL;
+        if ((named_at = marie_node_get(p, "extends")) && marie_node_str(named_at, &name, errs) < 0)
+            return -1;
+    }
+    return n;
 }
 
 /* Iterative depth-first search (a long dependency chain must not overflow the stack): a
@@ -547,15 +580,20 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         }
     }
     const marie_node_t *comps = marie_node_get(root, "components");
-    const marie_node_t *prof = profile ? find_profile(root, profile, errs, path) : NULL;
-    if (profile && !prof)
+    const marie_node_t *chain[MAX_PROFILE_CHAIN];
+    int nchain = profile ? profile_chain(root, profile, chain, errs, path) : 0;
+    if (nchain < 0)
         goto err;
     if (comps && comps->kind != MARIE_NODE_MAP) {
         marie_node_error(errs, comps, "components: expected a mapping of name: component");
         goto err;
     }
-    /* A profile may run on another clock (the simulator's). */
-    const marie_node_t *clk = marie_node_get(prof, "clock");
+    /* A profile may run on another clock (the simulator's); the nearest profile that says wins. */
+    const marie_node_t *clk = NULL, *rb = NULL;
+    for (int i = nchain - 1; i >= 0; i--) {
+        clk = marie_node_get(chain[i], "clock") ? marie_node_get(chain[i], "clock") : clk;
+        rb = marie_node_get(chain[i], "robot") ? marie_node_get(chain[i], "robot") : rb;
+    }
     if ((v = clk ? clk : marie_node_get(root, "clock")) && marie_node_str(v, &s, errs) == 0) {
         if (strcmp(s, "sim") == 0)
             sys->clock = MARIE_CLOCK_SIM;
@@ -564,7 +602,6 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
     }
     /* One description of the robot's shape, for every component that needs it (a profile's
      * robot replaces the base one whole). */
-    const marie_node_t *rb = marie_node_get(prof, "robot");
     if ((v = rb ? rb : marie_node_get(root, "robot"))) {
         static const char *const keys[] = {"radius", "clearance", NULL};
         double d;
@@ -584,34 +621,40 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         }
         sys->robot = v;
     }
-    const marie_node_t *pcomps = marie_node_get(prof, "components");
-    if (pcomps && pcomps->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, pcomps, "components: expected a mapping of name: component");
-        goto err;
-    }
-    char **removed = NULL;
-    size_t nremoved = 0;
-    if (read_strv(marie_node_get(prof, "remove"), &removed, &nremoved, errs) < 0)
-        goto err;
-    size_t max = (comps ? comps->n : 0) + (pcomps ? pcomps->n : 0);
-    sys->components = calloc(max ? max : 1, sizeof *sys->components);
-    if (!sys->components) {
-        free_strv(removed, nremoved);
-        goto err;
-    }
+    /* Level 0 is the base, level k the profile chain[nchain - k]: an entry of a level is kept
+     * unless a higher level replaces it (components) or drops it (remove). */
+    const marie_node_t *level_comps[MAX_PROFILE_CHAIN + 1] = {comps};
+    char **removed[MAX_PROFILE_CHAIN + 1] = {NULL};
+    size_t nremoved[MAX_PROFILE_CHAIN + 1] = {0}, max = comps ? comps->n : 0;
     int rc = 0;
-    if (nremoved)
-        qsort(removed, nremoved, sizeof *removed, cmp_str);
-    /* Base components, each replaced whole by the profile's entry of the same name. */
-    for (size_t i = 0; comps && i < comps->n; i++) {
-        const marie_node_t *n = comps->items[i];
-        const char *key = n->key;
-        if (!marie_node_get(pcomps, key) && !(nremoved && bsearch(&key, removed, nremoved, sizeof *removed, cmp_str)))
-            rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
+    for (int k = 1; k <= nchain; k++) {
+        const marie_node_t *pc = marie_node_get(chain[nchain - k], "components");
+        if (pc && pc->kind != MARIE_NODE_MAP) {
+            marie_node_error(errs, pc, "components: expected a mapping of name: component");
+            rc = -1;
+        }
+        level_comps[k] = pc && pc->kind == MARIE_NODE_MAP ? pc : NULL;
+        max += level_comps[k] ? level_comps[k]->n : 0;
+        if (read_strv(marie_node_get(chain[nchain - k], "remove"), &removed[k], &nremoved[k], errs) < 0)
+            rc = -1;
     }
-    for (size_t i = 0; pcomps && i < pcomps->n; i++)
-        rc |= read_component(pcomps->items[i], sys, &defaults, &sys->components[sys->ncomponents++], errs);
-    free_strv(removed, nremoved);
+    sys->components = rc ? NULL : calloc(max ? max : 1, sizeof *sys->components);
+    for (int k = 0; sys->components && k <= nchain; k++)
+        for (size_t i = 0; level_comps[k] && i < level_comps[k]->n; i++) {
+            const marie_node_t *n = level_comps[k]->items[i];
+            bool kept = true;
+            for (int m = k + 1; m <= nchain && kept; m++) {
+                kept = !marie_node_get(level_comps[m], n->key);
+                for (size_t r = 0; r < nremoved[m] && kept; r++)
+                    kept = strcmp(removed[m][r], n->key) != 0;
+            }
+            if (kept)
+                rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
+        }
+    for (int k = 0; k <= nchain; k++)
+        free_strv(removed[k], nremoved[k]);
+    if (!sys->components)
+        goto err;
     if (!(sys->by_name = malloc((sys->ncomponents ? sys->ncomponents : 1) * sizeof *sys->by_name)))
         goto err;
     for (size_t i = 0; i < sys->ncomponents; i++)

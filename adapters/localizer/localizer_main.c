@@ -319,6 +319,7 @@ static int init(marie_component_t *c)
         marie_errors_clear(&errs);
         return -1;
     }
+    marie_info("map %s: %d x %d cells at %.3f m", q->map, map->width, map->height, map->resolution);
     mcl_params_t p;
     mcl_params_default(&p);
     p.min_particles = (int)q->particles_min;

@@ -345,6 +345,7 @@ static int init(marie_component_t *c)
             marie_errors_clear(&errs);
             return -1;
         }
+        marie_info("map %s: %d x %d cells at %.3f m", path, map->width, map->height, map->resolution);
         s->pl = planner_create(map, &p, s->seed);
         occmap_destroy(map);
         if (!s->pl) {

@@ -12,7 +12,7 @@
 #include "adapters/mapper/slam.h"
 #include "adapters/mission/explore.h"
 #include "tests/adapters/simworld.h"
-#include "tests/mapper/mapeval.h"
+#include "map/mapeval.h"
 
 /* A 10 x 6 m room seen from inside: walls known, the east part beyond x = 6 unknown. */
 static occmap_t *half_seen_room(double door_w)

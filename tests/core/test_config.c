@@ -562,6 +562,59 @@ static void the_robot_section_feeds_robot_params(void **state)
     marie_errors_clear(&e);
 }
 
+/* A profile that extends another applies on top of it: the parent's clock, replacements and
+ * additions hold unless the child says otherwise; the child may drop what the parent added. */
+static void a_profile_extends_another(void **state)
+{
+    marie_errors_t e = {0};
+    const char *text = BASE_SYSTEM
+        "  c:\n    exec: marie-example-producer\n"
+        "profiles:\n"
+        "  sim:\n    clock: sim\n    remove: [c]\n    components:\n"
+        "      a: {exec: marie-example-producer, params: {rate_hz: 50}}\n"
+        "      s: {exec: marie-example-producer}\n"
+        "      t: {exec: marie-example-producer}\n"
+        "  explore:\n    extends: sim\n    remove: [t, b]\n    components:\n"
+        "      m: {exec: marie-example-producer}\n";
+    marie_system_t *sim = load_text(text, "sim", &e), *ex = load_text(text, "explore", &e);
+    assert_non_null(sim);
+    assert_non_null(ex);
+    assert_int_equal(ex->clock, MARIE_CLOCK_SIM);
+    assert_int_equal(ex->ncomponents, 3);
+    assert_non_null(marie_system_component(ex, "m"));
+    assert_non_null(marie_system_component(ex, "s"));
+    assert_null(marie_system_component(ex, "c"));
+    assert_null(marie_system_component(ex, "t"));
+    assert_null(marie_system_component(ex, "b"));
+    /* a comes from sim, unchanged: the same hash in both profiles. */
+    assert_string_equal(marie_node_get(marie_system_component(ex, "a")->params, "rate_hz")->value, "50");
+    assert_string_equal(marie_system_component(ex, "a")->hash, marie_system_component(sim, "a")->hash);
+    marie_system_destroy(sim);
+    marie_system_destroy(ex);
+    assert_int_equal(e.n, 0);
+}
+
+static void a_profile_chain_is_checked(void **state)
+{
+    marie_errors_t e = {0};
+    assert_null(load_text(BASE_SYSTEM "profiles:\n  x:\n    extends: moon\n", "x", &e));
+    assert_true(has_error(&e, ":17:14: no profile 'moon'"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "profiles:\n  x:\n    extends: y\n  y:\n    extends: x\n", "x", &e));
+    assert_true(has_error(&e, ":19:14: extends: profile 'x' leads back to itself (a cycle from 'x')"));
+    marie_errors_clear(&e);
+    char deep[1024] = BASE_SYSTEM "profiles:\n";
+    for (int i = 0; i < 10; i++)
+        snprintf(deep + strlen(deep), sizeof deep - strlen(deep), "  p%d:\n    extends: p%d\n", i, i + 1);
+    strcat(deep, "  p10: {}\n");
+    assert_null(load_text(deep, "p0", &e));
+    assert_true(has_error(&e, "more than 8 deep"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "profiles:\n  x:\n    extends: [y]\n", "x", &e));
+    assert_int_equal(e.n, 1);
+    marie_errors_clear(&e);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_OFF);
@@ -585,6 +638,8 @@ int main(void)
         cmocka_unit_test(an_oversized_file_gets_a_position),
         cmocka_unit_test(loading_time_grows_linearly),
         cmocka_unit_test(the_robot_section_feeds_robot_params),
+        cmocka_unit_test(a_profile_extends_another),
+        cmocka_unit_test(a_profile_chain_is_checked),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

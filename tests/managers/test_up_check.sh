@@ -170,7 +170,7 @@ slow_check() {
 check "the manager is heard while it checks a program slow to describe itself, then starts it" slow_check
 check "down" "$M" down
 shipped() {
-    for p in "" "--profile sim" "--profile sim-channel" "--profile sim-voice"; do
+    for p in "" "--profile sim" "--profile sim-channel" "--profile sim-voice" "--profile explore"; do
         # no manager serves these hosts: anything but 2 means the file passed every check
         "$M" --timeout 0.3 up config/spartacus.yaml $p; rc=$?
         [ $rc -ne 2 ] || return 1
@@ -214,6 +214,22 @@ assert len(d) == 12
 EOF
 }
 check "hash: sim against sim-channel, as JSON" sim_vs_channel
+explore_vs_sim() {
+    "$M" --json hash config/spartacus.yaml --profile explore --profile sim > "$T/h3" || return 1
+    python3 - "$T/h3" <<'EOF'
+import json, sys
+d = {c["name"]: c for c in json.load(open(sys.argv[1]))["components"]}
+# explore extends sim: sim's world and drivers as they are, the planner without a map, the
+# mapper and the explorer in place of the localizer and the mission
+same = {"sim", "drives", "gyro", "laser", "odometry", "mailbox", "behaviours", "sharedmap"}
+assert all(d[n]["verdict"] == "same" for n in same), d
+assert d["planner"]["verdict"] == "differs" and d["planner"]["fields"] == ["params"], d["planner"]
+assert all(d[n]["verdict"] == "only-in-a" for n in ("mapper", "explore"))
+assert all(d[n]["verdict"] == "only-in-b" for n in ("localizer", "mission", "vision"))
+assert len(d) == 14
+EOF
+}
+check "hash: explore (extends sim) against sim, as JSON" explore_vs_sim
 no_robot() {
     out=$("$M" hash config/spartacus.yaml --profile sim --profile robot 2>&1); rc=$?; echo "$out"
     [ $rc -eq 2 ] && echo "$out" | grep -q -- '--base'

@@ -22,7 +22,7 @@ wait_for ${EXPLORE_WALL_S:-250} grep -q "explore_done" "$OUT/explore.log"
 done_rc=$?
 $BIN/marie map save "$OUT/explored" --wait 12 > "$OUT/save.txt" 2>&1
 cat "$OUT/save.txt"
-$B/tests/helpers/map_compare "$OUT/explored.yaml" $WORLD 2 15.7 > "$OUT/compare.txt" 2>&1
+$BIN/marie map compare "$OUT/explored.yaml" $WORLD --start 2 15.7 > "$OUT/compare.txt" 2>&1
 cat "$OUT/compare.txt"
 grep -c "frontier_goal" "$OUT/explore.log" | sed 's/^/frontier goals: /'
 grep -c "frontier_given_up" "$OUT/explore.log" | sed 's/^/given up: /'

@@ -24,7 +24,7 @@ cat "$OUT/driver.txt"
 $BIN/marie map save "$OUT/built" --wait 12 > "$OUT/save.txt" 2>&1
 src=$?
 cat "$OUT/save.txt"
-$B/tests/helpers/map_compare "$OUT/built.yaml" $WORLD 2 15.7 > "$OUT/compare.txt" 2>&1
+$BIN/marie map compare "$OUT/built.yaml" $WORLD --start 2 15.7 > "$OUT/compare.txt" 2>&1
 cat "$OUT/compare.txt"
 stop_started
 pids=""

@@ -13,7 +13,7 @@
 #include "adapters/common/posebuf.h"
 #include "adapters/mapper/slam.h"
 #include "tests/adapters/simworld.h"
-#include "tests/mapper/mapeval.h"
+#include "map/mapeval.h"
 
 #define NB 181
 #define RANGE_MAX 8.0

@@ -1,5 +1,7 @@
 // marie-demo: runs the robot application in simulation under the managers, shows progress and
 // ends with a summary, an LCM log and a PNG of the map with true and estimated trajectories.
+// --mission explore first maps the world from nothing (the explore profile), saves the map,
+// judges it against the world, and runs the navigation mission on it.
 #include <algorithm>
 #include <cmath>
 #include <csignal>
@@ -23,8 +25,10 @@
 #include <opencv2/imgproc.hpp>
 
 extern "C" {
+#include "map/mapeval.h"
 #include "map/occmap.h"
 #include "core/config.h"
+#include "core/expand.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
@@ -43,8 +47,11 @@ struct Sample {
 struct Options {
     std::string system = "config/spartacus.yaml";
     std::string profile = "sim";
+    std::string mission = "navigate";   // or explore: map first (explore_profile), then navigate on it
+    std::string explore_profile = "explore";
     std::string out = "build/demo";
-    double timeout_s = 170;
+    double timeout_s = 170;             // s of wall time for the navigation mission
+    double explore_timeout_s = 600;     // ...and for the exploration
     double chaos_s = 0;           // kill a random non-simulator component this often
     std::string chaos_first;      // ...and this one first, when it runs
     int estop_after_goal = 0;     // press the e-stop once this many goals are reached
@@ -63,7 +70,14 @@ private:
     // processes
     pid_t spawn(const std::vector<std::string> &args, const std::string &log);
     int run_cmd(const std::vector<std::string> &args, const std::string &log);
+    int start();
+    int up(const std::string &profile);
+    void down();
     void shutdown();
+    // the two missions
+    int explore();
+    int navigate();
+    void new_phase();
     // bus
     static void on_raw(const lcm_recv_buf_t *rb, const char *channel, void *user);
     void handle(const char *channel, const void *data, size_t len);
@@ -74,7 +88,8 @@ private:
     static void on_progress_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
     static void on_chaos_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
     static void on_signal(marie_loop_t *, int, void *user);
-    bool load_map();
+    std::string component_param(const char *profile, const char *component, const char *key, const char *dflt);
+    bool load_map(const std::string &yaml);
     void write_png(const std::string &path);
     void summary(double wall_s);
     double loc_error_at(int64_t t, double x, double y, bool *ok) const;
@@ -97,6 +112,10 @@ private:
     int ngoals_ = 0, reached_ = 0, missed_ = 0;
     bool mission_done_ = false;
     int64_t sim_now_ = 0;
+    // exploration
+    bool exploring_ = false, explore_done_ = false;
+    int frontiers_ = 0, given_up_ = 0;
+    std::string explore_json_;     // its figures, for summary.json
     std::map<std::string, marie_am_status_t *> hosts_;
     int64_t collisions_ = 0;
     int kills_ = 0;
@@ -110,7 +129,7 @@ private:
     cv::Mat map_;
     double res_ = 0.05, ox_ = 0, oy_ = 0;
     std::mt19937 rng_{7};
-    int64_t start_mono_ = 0;
+    int64_t start_mono_ = 0, phase_mono_ = 0;
     // whole system, from the managers' status: CPU summed over components, RSS summed
     double cpu_sum_ = 0, rss_peak_mb_ = 0;
     int cpu_samples_ = 0;
@@ -145,12 +164,29 @@ int Demo::run_cmd(const std::vector<std::string> &args, const std::string &log)
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+int Demo::up(const std::string &profile)
+{
+    printf("demo: bringing up %s, profile %s\n", opt_.system.c_str(), profile.c_str());
+    int rc = run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "30", "up", opt_.system, "--profile",
+                      profile},
+                     opt_.out + "/marie.log");
+    up_ = true;
+    if (rc != 0)
+        fprintf(stderr, "demo: marie up failed (exit %d); see %s/marie.log and %s/am-*.log\n", rc, opt_.out.c_str(),
+                opt_.out.c_str());
+    return rc;
+}
+
+void Demo::down()
+{
+    if (up_)
+        run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "10", "down"}, opt_.out + "/marie.log");
+    up_ = false;
+}
+
 void Demo::shutdown()
 {
-    if (up_) {
-        run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "10", "down"}, opt_.out + "/marie.log");
-        up_ = false;
-    }
+    down();
     for (pid_t p : ams_)
         kill(p, SIGTERM);
     for (pid_t p : ams_)
@@ -248,8 +284,11 @@ void Demo::handle(const char *channel, const void *data, size_t len)
         std::string kind = e.kind;
         if (kind == "mission_done")
             mission_done_ = true;
-        if (!opt_.quiet && (kind.rfind("goal_", 0) == 0 || kind == "mission_done" || kind == "gave_up" ||
-                            e.severity >= MARIE_EVENT_T_SEV_ERROR))
+        explore_done_ |= exploring_ && kind == "explore_done";
+        frontiers_ += exploring_ && kind == "frontier_goal";
+        given_up_ += exploring_ && kind == "frontier_given_up";
+        if (!opt_.quiet && (kind.rfind("goal_", 0) == 0 || kind.rfind("frontier_", 0) == 0 || kind == "explore_done" ||
+                            kind == "mission_done" || kind == "gave_up" || e.severity >= MARIE_EVENT_T_SEV_ERROR))
             printf("demo: [%s] %s\n", e.source, e.text);
         marie_event_t_decode_cleanup(&e);
     } else if (!strcmp(channel, "MARIE_AM_STATUS")) {
@@ -307,7 +346,11 @@ void Demo::progress(bool final)
     }
     double err = errors_.empty() ? NAN : errors_.back();
     double wall = (marie_mono_us() - start_mono_) / 1e6;
-    if (!opt_.quiet || final)
+    if ((!opt_.quiet || final) && exploring_)
+        printf("demo: %5.1f s (sim %6.1f s) | exploring: frontier %d, %d given up | pose error %.2f m | "
+               "components %d/%d running | restarts %d\n",
+               wall, sim_now_ / 1e6, frontiers_, given_up_, err, running, total, restarts());
+    else if (!opt_.quiet || final)
         printf("demo: %5.1f s (sim %6.1f s) | goal %d of %d%s%s | reached %d | loc error %.2f m | "
                "components %d/%d running | restarts %d\n",
                wall, sim_now_ / 1e6, std::min(reached_ + missed_ + 1, std::max(ngoals_, 1)), ngoals_,
@@ -386,22 +429,29 @@ void Demo::estop_tick()
     }
 }
 
-bool Demo::load_map()
+// A parameter of a component of the system file in a profile, as the component reads it: with
+// the environment's ${...} expanded (the localizer's map names MARIE_MAP).
+std::string Demo::component_param(const char *profile, const char *component, const char *key, const char *dflt)
 {
-    // The map the localizer is given in the loaded system file.
     marie_errors_t e = {};
-    marie_system_t *sys = marie_system_load(opt_.system.c_str(), opt_.profile.c_str(), &e);
-    if (!sys) {
-        marie_errors_print(&e, stderr);
-        marie_errors_clear(&e);
-        return false;
-    }
-    std::string yaml = "sim/worlds/office.yaml";
-    const marie_component_cfg_t *loc = marie_system_component(sys, "localizer");
-    const marie_node_t *given = loc ? marie_node_get(loc->params, "map") : nullptr;
-    if (given && given->value)
-        yaml = given->value;
+    std::string value = dflt;
+    marie_system_t *sys = marie_system_load(opt_.system.c_str(), profile, &e);
+    const marie_component_cfg_t *c = sys ? marie_system_component(sys, component) : nullptr;
+    const marie_node_t *given = c ? marie_node_get(c->params, key) : nullptr;
+    char why[256] = "";
+    char *expanded = given && given->value ? marie_expand_env(given->value, why, sizeof why) : nullptr;
+    if (expanded)
+        value = expanded;
+    free(expanded);
+    marie_errors_print(&e, stderr);
+    marie_errors_clear(&e);
     marie_system_destroy(sys);
+    return value;
+}
+
+bool Demo::load_map(const std::string &yaml)
+{
+    marie_errors_t e = {};
     occmap_t *m = occmap_load(yaml.c_str(), &e);
     if (!m) {
         marie_errors_print(&e, stderr);
@@ -424,7 +474,7 @@ bool Demo::load_map()
 
 void Demo::write_png(const std::string &path)
 {
-    if (map_.empty() && !load_map())
+    if (map_.empty())
         return;
     const int scale = 2;
     cv::Mat img;
@@ -449,7 +499,9 @@ void Demo::write_png(const std::string &path)
     if (!truth_.empty())
         cv::drawMarker(img, px(truth_.front().x, truth_.front().y), cv::Scalar(0, 0, 0), cv::MARKER_STAR, 24, 2);
     cv::rectangle(img, cv::Point(10, 8), cv::Point(880, 48), cv::Scalar(255, 255, 255), cv::FILLED);
-    cv::putText(img, "green: ground truth   red: localizer estimate   blue: goals", cv::Point(20, 36),
+    cv::putText(img, exploring_ ? "green: ground truth   red: mapper's estimate   blue: frontiers"
+                                : "green: ground truth   red: localizer estimate   blue: goals",
+                cv::Point(20, 36),
                 cv::FONT_HERSHEY_SIMPLEX, 0.9, cv::Scalar(0, 0, 0), 2, cv::LINE_AA);
     cv::imwrite(path, img);
 }
@@ -469,10 +521,10 @@ void Demo::summary(double wall_s)
                 "{\"goals\": %d, \"reached\": %d, \"missed\": %d, \"mission_done\": %s, \"rms\": %.4f, "
                 "\"max\": %.4f, \"pose_samples\": %zu, \"restarts\": %d, \"kills\": %d, \"collisions\": %lld, "
                 "\"estop_stop_s\": %.3f, \"wall_s\": %.1f, \"sim_s\": %.1f, \"system_cpu_percent\": %.1f, "
-                "\"system_rss_mb\": %.1f}\n",
+                "\"system_rss_mb\": %.1f%s}\n",
                 ngoals_, reached_, missed_, mission_done_ ? "true" : "false", std::isnan(rms) ? -1.0 : rms, mx,
                 errors_.size(), restarts, kills_, (long long)collisions_, estop_stop_s_, wall_s, sim_now_ / 1e6,
-                cpu_samples_ ? cpu_sum_ / cpu_samples_ : -1.0, rss_peak_mb_);
+                cpu_samples_ ? cpu_sum_ / cpu_samples_ : -1.0, rss_peak_mb_, explore_json_.c_str());
         fclose(f);
     }
     printf("demo: whole system (components and managers): CPU %.0f%% of a core on average, RSS %.0f MB at most\n",
@@ -481,7 +533,8 @@ void Demo::summary(double wall_s)
            ngoals_, rms, mx, restarts, wall_s);
 }
 
-int Demo::run()
+// Key, logger and one manager per host: what both missions run under.
+int Demo::start()
 {
     char self[4096];
     ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
@@ -492,8 +545,17 @@ int Demo::run()
     std::string path = bin_ + ":" + (getenv("PATH") ? getenv("PATH") : "/usr/bin:/bin");
     setenv("PATH", path.c_str(), 1);
     mkdir(opt_.out.c_str(), 0755);
-    if (!load_map())
+    if (opt_.mission == "explore") {
+        // The navigation mission runs on the map the robot builds: the system file's localizer
+        // and planner read MARIE_MAP, which the managers pass on to them.
+        char *abs = realpath(opt_.out.c_str(), nullptr);
+        if (!abs)
+            return 1;
+        setenv("MARIE_MAP", (std::string(abs) + "/explored.yaml").c_str(), 1);
+        free(abs);
+    } else if (!load_map(component_param(opt_.profile.c_str(), "localizer", "map", "sim/worlds/office.yaml"))) {
         return 2;
+    }
     // Each demo starts a fresh mission: no SharedMap or manager state from an earlier run.
     std::string state = opt_.out + "/state";
     run_cmd({"rm", "-rf", state}, "/dev/null");
@@ -537,30 +599,121 @@ int Demo::run()
                 opt_.out.c_str());
         return 1;
     }
-    printf("demo: %d managers running (onboard1-3, laptop); bringing up %s, profile %s\n", int(ams_.size()),
-           opt_.system.c_str(), opt_.profile.c_str());
-    int rc = run_cmd({bin_ + "/marie", "--key", opt_.out + "/key", "--timeout", "30", "up", opt_.system, "--profile",
-                      opt_.profile},
-                     opt_.out + "/marie.log");
-    up_ = true;
-    if (rc != 0) {
-        fprintf(stderr, "demo: marie up failed (exit %d); see %s/marie.log and %s/am-*.log\n", rc, opt_.out.c_str(),
-                opt_.out.c_str());
+    printf("demo: %d managers running (onboard1-3, laptop)\n", int(ams_.size()));
+    marie_loop_catch_signals(loop_, on_signal, this);
+    return 0;
+}
+
+// What one mission saw, forgotten before the next: the simulator starts over.
+void Demo::new_phase()
+{
+    truth_.clear();
+    estimate_.clear();
+    errors_.clear();
+    goals_.clear();
+    goal_order_.clear();
+    current_goal_.clear();
+    sim_now_ = 0;
+    phase_mono_ = marie_mono_us();
+}
+
+static int64_t ms_left(int64_t since_us, double limit_s)
+{
+    double left_s = limit_s - (marie_mono_us() - since_us) / 1e6;
+    return left_s <= 0 ? 0 : left_s > 86400 ? 86400000 : int64_t(left_s * 1000);
+}
+
+// The explore profile until no reachable frontier is left; then the map is saved, judged
+// against the simulator's world, drawn, and everything brought down for the next mission.
+int Demo::explore()
+{
+    new_phase();
+    exploring_ = true;
+    if (up(opt_.explore_profile) != 0)
+        return 1;
+    printf("demo: exploring from an empty map\n");
+    marie_timer_t *progress_timer = marie_loop_add_wall_timer(loop_, 2000000, on_progress_timer, this);
+    progress(false);
+    marie_loop_run_until(loop_, int(ms_left(phase_mono_, opt_.explore_timeout_s)), [](void *u) -> int {
+        auto *d = static_cast<Demo *>(u);
+        return d->interrupted_ || d->explore_done_;
+    }, this);
+    marie_loop_remove_timer(loop_, progress_timer);
+    progress(true);
+    double wall_s = (marie_mono_us() - phase_mono_) / 1e6, sim_s = sim_now_ / 1e6;
+    if (!explore_done_)     // the map so far is still saved and judged: it shows what went wrong
+        fprintf(stderr, "demo: exploration %s after %.0f s\n", interrupted_ ? "interrupted" : "did not end", wall_s);
+    std::string yaml = getenv("MARIE_MAP");
+    std::string name = yaml.substr(0, yaml.size() - 5);
+    if (run_cmd({bin_ + "/marie", "map", "save", name, "--wait", "12"}, opt_.out + "/map-save.log") != 0 ||
+        !load_map(yaml)) {
+        fprintf(stderr, "demo: cannot save the map (see %s/map-save.log)\n", opt_.out.c_str());
         return 1;
     }
-    marie_loop_catch_signals(loop_, on_signal, this);
+    // Judged against the world the simulator ran, from the start pose.
+    std::string world = component_param(opt_.explore_profile.c_str(), "sim", "world", "office");
+    if (world.find('/') == std::string::npos && world.find(".yaml") == std::string::npos)
+        world = "sim/worlds/" + world + ".yaml";
+    double sx = atof(component_param(opt_.explore_profile.c_str(), "sim", "start_x", "2").c_str());
+    double sy = atof(component_param(opt_.explore_profile.c_str(), "sim", "start_y", "15").c_str());
+    marie_errors_t e = {};
+    occmap_t *truth = occmap_load(world.c_str(), &e), *built = occmap_load(yaml.c_str(), &e);
+    mapeval_t raw = {}, al = {};
+    double dx = 0, dy = 0, th = 0;
+    if (truth && built) {
+        mapeval_compare(truth, built, sx, sy, &raw);
+        occmap_t *aligned = mapeval_align(truth, built, 0.5, 0.03, &dx, &dy, &th);
+        if (aligned)
+            mapeval_compare(truth, aligned, sx, sy, &al);
+        occmap_destroy(aligned);
+    }
+    marie_errors_print(&e, stderr);
+    marie_errors_clear(&e);
+    occmap_destroy(truth);
+    occmap_destroy(built);
+    double sum = 0;
+    for (double x : errors_)
+        sum += x * x;
+    double ate = errors_.empty() ? -1 : std::sqrt(sum / errors_.size());
+    write_png(opt_.out + "/explored.png");
+    printf("demo: %s in %.0f s (sim %.0f s): %d frontiers, %d given up, pose RMS %.2f m; map %s against %s: "
+           "precision %.2f recall %.2f coverage %.2f (aligned by %.2f m %.2f m %.3f rad: %.2f %.2f %.2f)\n",
+           explore_done_ ? "explored" : "NOT explored", wall_s, sim_s, frontiers_, given_up_, ate, yaml.c_str(), world.c_str(), raw.precision, raw.recall,
+           raw.coverage, dx, dy, th, al.precision, al.recall, al.coverage);
+    char json[512];
+    snprintf(json, sizeof json,
+             ", \"explore\": {\"done\": %s, \"wall_s\": %.1f, \"sim_s\": %.1f, \"frontiers\": %d, \"given_up\": %d, \"rms\": %.4f, "
+             "\"precision\": %.3f, \"recall\": %.3f, \"coverage\": %.3f, \"aprecision\": %.3f, \"arecall\": %.3f, "
+             "\"acoverage\": %.3f}",
+             explore_done_ ? "true" : "false", wall_s, sim_s, frontiers_, given_up_, ate, raw.precision, raw.recall, raw.coverage, al.precision,
+             al.recall, al.coverage);
+    explore_json_ = json;
+    if (!explore_done_)
+        return 1;
+    down();
+    // The demo's queue still holds what the exploration sent while marie down ran: take it now,
+    // not as the next mission's.
+    marie_loop_run_until(loop_, 300, nullptr, nullptr);
+    exploring_ = false;
+    return 0;
+}
+
+// The navigation mission of the profile, to mission_done or the time limit.
+int Demo::navigate()
+{
+    new_phase();
+    if (up(opt_.profile) != 0)
+        return 1;
     marie_timer_t *progress_timer = marie_loop_add_wall_timer(loop_, 2000000, on_progress_timer, this);
     marie_timer_t *chaos_timer = opt_.chaos_s > 0 ? marie_loop_add_wall_timer(loop_, int64_t(opt_.chaos_s * 1e6),
                                                                               on_chaos_timer, this)
                                                   : nullptr;
     running_ = true;
     progress(false);
-    double left_s = opt_.timeout_s - (marie_mono_us() - start_mono_) / 1e6;
-    if (left_s > 0)
-        marie_loop_run_until(loop_, left_s > 86400 ? 86400000 : int(left_s * 1000), [](void *u) -> int {
-            auto *d = static_cast<Demo *>(u);
-            return d->interrupted_ || d->mission_done_;
-        }, this);
+    marie_loop_run_until(loop_, int(ms_left(phase_mono_, opt_.timeout_s)), [](void *u) -> int {
+        auto *d = static_cast<Demo *>(u);
+        return d->interrupted_ || d->mission_done_;
+    }, this);
     running_ = false;
     marie_loop_remove_timer(loop_, progress_timer);
     marie_loop_remove_timer(loop_, chaos_timer);
@@ -584,14 +737,27 @@ int Demo::run()
     summary(wall);
     printf("demo: log %s/demo.lcm, map %s/trajectories.png, summary %s/summary.json\n", opt_.out.c_str(),
            opt_.out.c_str(), opt_.out.c_str());
-    shutdown();
     return mission_done_ ? 0 : 1;
+}
+
+int Demo::run()
+{
+    int rc = start();
+    if (rc == 0 && opt_.mission == "explore" && (rc = explore()) != 0)
+        summary((marie_mono_us() - start_mono_) / 1e6);     // what the exploration reached
+    if (rc == 0)
+        rc = navigate();
+    shutdown();
+    return rc;
 }
 
 void usage(FILE *out)
 {
     fprintf(out, "usage: marie-demo [--system FILE] [--profile P] [--out DIR] [--timeout S] [--chaos S]\n"
-                 "                  [--chaos-first NAME] [--estop-after-goal K] [--quiet]\n");
+                 "                  [--chaos-first NAME] [--estop-after-goal K] [--quiet]\n"
+                 "                  [--mission navigate|explore] [--explore-profile P] [--explore-timeout S]\n"
+                 "  --mission explore: map the world from nothing first (profile explore), save it as\n"
+                 "  OUT/explored.yaml, judge it against the world, then navigate on it (MARIE_MAP)\n");
 }
 
 }  // namespace
@@ -603,7 +769,8 @@ int main(int argc, char **argv)
         {"system", required_argument, nullptr, 's'}, {"profile", required_argument, nullptr, 'p'},
         {"out", required_argument, nullptr, 'o'}, {"timeout", required_argument, nullptr, 't'},
         {"chaos", required_argument, nullptr, 'c'}, {"estop-after-goal", required_argument, nullptr, 'e'},
-        {"chaos-first", required_argument, nullptr, 'f'},
+        {"chaos-first", required_argument, nullptr, 'f'}, {"mission", required_argument, nullptr, 'm'},
+        {"explore-profile", required_argument, nullptr, 'x'}, {"explore-timeout", required_argument, nullptr, 'T'},
         {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
     };
     int c;
@@ -616,10 +783,17 @@ int main(int argc, char **argv)
         case 'c': o.chaos_s = atof(optarg); break;
         case 'f': o.chaos_first = optarg; break;
         case 'e': o.estop_after_goal = atoi(optarg); break;
+        case 'm': o.mission = optarg; break;
+        case 'x': o.explore_profile = optarg; break;
+        case 'T': o.explore_timeout_s = atof(optarg); break;
         case 'q': o.quiet = true; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
+    }
+    if (o.mission != "navigate" && o.mission != "explore") {
+        usage(stderr);
+        return 2;
     }
     Demo d(o);
     return d.run();

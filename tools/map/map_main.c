@@ -1,5 +1,6 @@
-/* marie-map (`marie map save NAME`): waits for the next map on the bus (marie.occupancy_grid_t)
- * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load. */
+/* marie-map: `marie map save NAME` waits for the next map on the bus (marie.occupancy_grid_t)
+ * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load;
+ * `marie map compare BUILT WORLD` judges a built map against the world it was built in. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,6 +13,7 @@
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_occupancy_grid_t.h"
 #include "managers/am_proto.h"
+#include "map/mapeval.h"
 #include "map/occmap.h"
 
 typedef struct {
@@ -58,7 +60,11 @@ static char *url_with_buffer(const char *url)
 static int usage(void)
 {
     fprintf(stderr, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
-                    "  writes NAME.yaml and NAME.pgm from the next map on the channel\n");
+                    "  writes NAME.yaml and NAME.pgm from the next map on the channel\n"
+                    "       marie map compare BUILT.yaml WORLD.yaml [--start X Y]\n"
+                    "  precision and recall of BUILT's occupied cells against WORLD's walls (within one\n"
+                    "  cell), coverage of WORLD's free space reachable from (X, Y) (default 0 0);\n"
+                    "  then the same after the best alignment within 0.5 m and 0.03 rad\n");
     return MARIE_EXIT_USAGE;
 }
 
@@ -99,11 +105,60 @@ out:
 
 static int have_map(void *user) { return ((mapsave_t *)user)->have; }
 
+static int compare(int argc, char **argv)
+{
+    const char *built_path = NULL, *world_path = NULL;
+    double sx = 0, sy = 0;
+    for (int i = 2; i < argc; i++) {
+        if (strcmp(argv[i], "--start") == 0 && i + 2 < argc) {
+            sx = atof(argv[++i]);
+            sy = atof(argv[++i]);
+        } else if (argv[i][0] != '-' && !built_path) {
+            built_path = argv[i];
+        } else if (argv[i][0] != '-' && !world_path) {
+            world_path = argv[i];
+        } else {
+            return usage();
+        }
+    }
+    if (!built_path || !world_path)
+        return usage();
+    marie_errors_t errs = { 0 };
+    occmap_t *built = occmap_load(built_path, &errs), *world = built ? occmap_load(world_path, &errs) : NULL;
+    int rc = MARIE_EXIT_FAIL;
+    if (!built || !world) {
+        marie_errors_print(&errs, stderr);
+        goto out;
+    }
+    mapeval_t e;
+    mapeval_compare(world, built, sx, sy, &e);
+    printf("precision %.3f recall %.3f coverage %.3f (built occupied %ld, visible walls %ld, reachable free %ld)\n",
+           e.precision, e.recall, e.coverage, e.map_occupied, e.truth_walls, e.truth_free);
+    double dx, dy, th;
+    occmap_t *al = mapeval_align(world, built, 0.5, 0.03, &dx, &dy, &th);
+    if (!al) {
+        fprintf(stderr, "marie: map compare: out of memory\n");
+        goto out;
+    }
+    mapeval_compare(world, al, sx, sy, &e);
+    printf("aligned by (%.2f m, %.2f m, %.3f rad): aprecision %.3f arecall %.3f acoverage %.3f\n", dx, dy, th,
+           e.precision, e.recall, e.coverage);
+    occmap_destroy(al);
+    rc = MARIE_EXIT_OK;
+out:
+    marie_errors_clear(&errs);
+    occmap_destroy(built);
+    occmap_destroy(world);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     const char *channel = "MAP", *name = NULL;
     const char *url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
     double wait_s = 6;          /* the mapper sends its map again every 5 s */
+    if (argc >= 2 && strcmp(argv[1], "compare") == 0)
+        return compare(argc, argv);
     if (argc < 3 || strcmp(argv[1], "save") != 0)
         return usage();
     for (int i = 2; i < argc; i++) {

@@ -1,25 +1,16 @@
-/* mapeval: a built map against the ground-truth world, both in the same frame: precision and
- * recall of occupied cells within one cell, coverage of the reachable free space. */
-#ifndef TESTS_MAPPER_MAPEVAL_H
-#define TESTS_MAPPER_MAPEVAL_H
+/* mapeval: a built map against the world it was built in. */
+#include "map/mapeval.h"
 
 #include <math.h>
 #include <stdlib.h>
 
-#include "map/occmap.h"
-
-typedef struct {
-    double precision, recall, coverage;
-    long map_occupied, truth_walls, truth_free;
-} mapeval_t;
-
 /* map_server's trinary reading of a built map's cell. */
-static inline int mapeval_class(int8_t v)
+static int mapeval_class(int8_t v)
 {
     return v < 0 || v > 100 ? -1 : v >= 65 ? 1 : v < 20 ? 0 : -1;
 }
 
-static inline int mapeval_at(const occmap_t *m, double x, double y)
+static int mapeval_at(const occmap_t *m, double x, double y)
 {
     int cx, cy;
     if (!occmap_cell(m, x, y, &cx, &cy))
@@ -28,7 +19,7 @@ static inline int mapeval_at(const occmap_t *m, double x, double y)
 }
 
 /* Whether grid g has a cell of class k within one cell of the point (x, y). */
-static inline int mapeval_near(const occmap_t *g, double x, double y, int k)
+static int mapeval_near(const occmap_t *g, double x, double y, int k)
 {
     for (int dy = -1; dy <= 1; dy++)
         for (int dx = -1; dx <= 1; dx++)
@@ -37,11 +28,7 @@ static inline int mapeval_near(const occmap_t *g, double x, double y, int k)
     return 0;
 }
 
-/* Precision: built occupied cells with a true wall within one cell. Recall: true wall cells
- * the robot could see (a 4-neighbour is free in the truth and in the built map) with a built
- * occupied cell within one cell. Coverage: free cells reachable from (sx, sy) in the truth that
- * the built map knows free. */
-static inline void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_t *e)
+void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_t *e)
 {
     long tp = 0, nocc = 0, walls = 0, found = 0, nfree = 0, covered = 0;
     for (int y = 0; y < map->height; y++)
@@ -107,11 +94,10 @@ static inline void mapeval_compare(const occmap_t *truth, const occmap_t *map, d
 }
 
 
-/* The rigid transform (rotation th about the map frame's origin, then dx, dy) within +-max_xy m
- * and +-max_th rad that puts the most built occupied cells within one cell of a true wall: the
- * "aligned" of the comparison. Returns the aligned copy of map (free it), NULL on failure. */
-static inline occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
-                                      double *odx, double *ody, double *oth)
+/* Alignment: every rotation in 0.0025 rad steps, every shift in cells, counted against the world's
+ * walls dilated by one cell. */
+occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
+                        double *odx, double *ody, double *oth)
 {
     int W = truth->width, H = truth->height;
     unsigned char *near = calloc((size_t)W * H, 1);
@@ -160,5 +146,3 @@ static inline occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map
     return occmap_from_cells(map->width, map->height, map->resolution, c * map->origin_x - sn * map->origin_y + *odx,
                              sn * map->origin_x + c * map->origin_y + *ody, *oth, map->cells);
 }
-
-#endif
