@@ -146,3 +146,15 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
     return occmap_from_cells(map->width, map->height, map->resolution, c * map->origin_x - sn * map->origin_y + *odx,
                              sn * map->origin_x + c * map->origin_y + *ody, *oth, map->cells);
 }
+
+int mapeval_judge(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_judgement_t *j)
+{
+    *j = (mapeval_judgement_t){ 0 };
+    mapeval_compare(truth, map, sx, sy, &j->raw);
+    occmap_t *al = mapeval_align(truth, map, 0.5, 0.03, &j->dx, &j->dy, &j->th);
+    if (!al)
+        return -1;
+    mapeval_compare(truth, al, sx, sy, &j->aligned);
+    occmap_destroy(al);
+    return 0;
+}

@@ -23,4 +23,12 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
 occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th, double *odx,
                         double *ody, double *oth);
 
+/* The whole judgement `marie map compare` prints: as built, and aligned within 0.5 m and
+ * 0.03 rad. -1 when out of memory (the aligned figures are then zero). */
+typedef struct {
+    mapeval_t raw, aligned;
+    double dx, dy, th;          /* the alignment */
+} mapeval_judgement_t;
+int mapeval_judge(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_judgement_t *j);
+
 #endif

@@ -60,6 +60,9 @@ char *occmap_read_meta(const char *yaml_path, occmap_meta_t *meta, marie_errors_
 /* Load a ROS map_server map: map.yaml and the PGM image it names. NULL with the reasons
  * (file:line:col) in errs. Free with occmap_destroy. */
 occmap_t *occmap_load(const char *yaml_path, marie_errors_t *errs);
+/* The map.yaml of a world: NAME (no '/', no .yaml) is looked up in $MARIE_SIM_WORLDS, sim/worlds
+ * and /usr/local/share/marie/worlds (sim/worlds/NAME.yaml when none has it); a path is kept. */
+void occmap_world_path(const char *name, char *out, size_t len);
 
 /* Cell of a map-frame point; false when outside. */
 static inline bool occmap_cell(const occmap_t *m, double x, double y, int *cx, int *cy)

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "core/file.h"
 
@@ -271,4 +272,21 @@ out:
     free(buf);
     free(path);
     return m;
+}
+
+void occmap_world_path(const char *name, char *out, size_t len)
+{
+    if (strchr(name, '/') || strstr(name, ".yaml")) {
+        snprintf(out, len, "%s", name);
+        return;
+    }
+    const char *dirs[] = { getenv("MARIE_SIM_WORLDS"), "sim/worlds", "/usr/local/share/marie/worlds" };
+    for (size_t i = 0; i < sizeof(dirs) / sizeof(dirs[0]); i++) {
+        if (!dirs[i])
+            continue;
+        snprintf(out, len, "%s/%s.yaml", dirs[i], name);
+        if (access(out, R_OK) == 0)
+            return;
+    }
+    snprintf(out, len, "sim/worlds/%s.yaml", name);
 }

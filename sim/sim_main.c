@@ -129,24 +129,6 @@ static const marie_param_spec_t params[] = {
     { 0 },
 };
 
-static int resolve_world(const char *name, char *out, size_t len)
-{
-    if (strchr(name, '/') || strstr(name, ".yaml")) {
-        snprintf(out, len, "%s", name);
-        return 0;
-    }
-    const char *dirs[] = { getenv("MARIE_SIM_WORLDS"), "sim/worlds", "/usr/local/share/marie/worlds" };
-    for (size_t i = 0; i < sizeof(dirs) / sizeof(dirs[0]); i++) {
-        if (!dirs[i])
-            continue;
-        snprintf(out, len, "%s/%s.yaml", dirs[i], name);
-        if (access(out, R_OK) == 0)
-            return 0;
-    }
-    snprintf(out, len, "sim/worlds/%s.yaml", name);
-    return 0;
-}
-
 static int64_t period_steps(marie_component_t *c, const char *param, double step)
 {
     double hz = marie_param_double(c, param);
@@ -478,7 +460,7 @@ static int on_init(marie_component_t *c)
         return -1;
     }
     char path[4096];
-    resolve_world(o->world, path, sizeof(path));
+    occmap_world_path(o->world, path, sizeof(path));
     marie_errors_t errs = { 0 };
     occmap_t *map = occmap_load(path, &errs);
     if (!map) {

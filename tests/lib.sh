@@ -24,6 +24,10 @@ setup() {
     _bad=$((_bad + 1))
     finish
 }
+# json FILE KEY: a top-level value of a JSON file; le A B / lt A B: A <= B / A < B as numbers.
+json() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
+le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.argv[2]) else 1)" "$1" "$2"; }
+lt() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)" "$1" "$2"; }
 # Wait up to $1 seconds for a command to succeed.
 wait_for() {
     _t=$1; shift

@@ -9,8 +9,6 @@
 out=$B/test-explore-app
 rm -rf "$out"; mkdir -p "$out"
 
-json() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
-le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.argv[2]) else 1)" "$1" "$2"; }
 $BIN/marie-demo --quiet --mission explore --out "$out/explore" --timeout 240 --explore-timeout 400 \
     > "$out/explore.txt" 2>&1
 x=$out/explore/summary.json

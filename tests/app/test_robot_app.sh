@@ -12,9 +12,6 @@
 out=$B/test-app
 rm -rf "$out"; mkdir -p "$out"
 
-json() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
-le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.argv[2]) else 1)" "$1" "$2"; }
-lt() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) < float(sys.argv[2]) else 1)" "$1" "$2"; }
 
 # 1. Nominal mission, with the e-stop pressed once two goals are reached.
 $BIN/marie-demo --quiet --out "$out/nominal" --timeout 240 --estop-after-goal 2 > "$out/nominal.txt" 2>&1

@@ -17,7 +17,6 @@ cleanup() {
 }
 trap cleanup EXIT INT TERM
 num() { sed -n "s/^$1=\([-0-9.]*\).*/\1/p" "$OUT/probe.txt"; }
-le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.argv[2]) else 1)" "$1" "$2"; }
 speaker=1.2,16.1        # the sim-voice scene's speech source; the robot starts at (2, 15) facing +x
 
 setup "order key" marie keygen "$MARIE_KEY"

@@ -164,6 +164,14 @@ static void step(rig_t *r)
 #define RUN_UNTIL(r, max_ms, cond) ({ int64_t end_ = mono_us() + (int64_t)(max_ms) * 1000; \
         while (!(cond) && mono_us() < end_) { step(r); } (cond); })
 
+/* Open the rig, start the driver and wait up to within_ms for its first n scans. */
+static bool rig_streaming(rig_t *r, const vlms200_cfg_t *e, int baud, int res_cdeg, int n, int within_ms)
+{
+    rig_open(r, e, baud, res_cdeg);
+    lms200_driver_start(r->drv, mono_us());
+    return RUN_UNTIL(r, within_ms, r->scans >= n);
+}
+
 static void run_for(rig_t *r, int ms)
 {
     int64_t end = mono_us() + (int64_t)ms * 1000;
@@ -175,9 +183,7 @@ static void test_init_sequence_reaches_stream_at_500000_half_degree(void **state
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 500000, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 5));
+    assert_true(rig_streaming(&r, &e, 500000, 50, 5, 5000));
     assert_int_equal(lms200_driver_state(r.drv), LMS200_DRV_STREAM);
     /* Both ends agree on the rate the driver was configured for. */
     assert_int_equal(vlms200_baud(r.emu), 500000);
@@ -242,10 +248,8 @@ static void test_stays_at_9600_when_configured(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 9600, 100);
-    lms200_driver_start(r.drv, mono_us());
     /* 181 values at 9600 baud take 0.38 s each: the device is slower, not broken. */
-    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 2));
+    assert_true(rig_streaming(&r, &e, 9600, 100, 2, 8000));
     assert_int_equal(vlms200_stats(r.emu)->baud_changes, 0);
     assert_int_equal(lms200_driver_stats(r.drv)->timeouts, 0);
     assert_int_equal(r.bad_ranges, 0);
@@ -256,9 +260,7 @@ static void test_crc_errors_counted_and_skipped(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .corrupt_every = 3 };
-    rig_open(&r, &e, 500000, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 20));
+    assert_true(rig_streaming(&r, &e, 500000, 50, 20, 8000));
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(st->crc_errors >= 5);
     assert_int_equal(r.bad_ranges, 0);              /* no corrupt scan got through */
@@ -270,9 +272,7 @@ static void test_garbage_between_scans_resyncs(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .garbage_every = 2 };
-    rig_open(&r, &e, 500000, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 20));
+    assert_true(rig_streaming(&r, &e, 500000, 50, 20, 8000));
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(st->garbage_bytes + st->truncated + st->crc_errors + st->oversized > 0);
     assert_int_equal(r.bad_ranges, 0);
@@ -285,9 +285,7 @@ static void test_truncated_telegrams_counted(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .truncate_every = 4 };
-    rig_open(&r, &e, 500000, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 20));
+    assert_true(rig_streaming(&r, &e, 500000, 50, 20, 8000));
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(st->truncated >= 3);
     assert_int_equal(r.bad_ranges, 0);
@@ -298,9 +296,7 @@ static void test_silent_device_reinitialised(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 38400, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    assert_true(rig_streaming(&r, &e, 38400, 50, 3, 5000));
     vlms200_silence(r.emu, mono_us() + 2000 * 1000);
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(RUN_UNTIL(&r, 15000, st->reconnects >= 1));
@@ -316,9 +312,7 @@ static void test_unplugged_mid_scan_and_back(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 500000, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    assert_true(rig_streaming(&r, &e, 500000, 50, 3, 5000));
     /* Pull the cable with a scan half written, then plug in a power-cycled device. */
     run_for(&r, 5);
     vlms200_unplug(r.emu, mono_us(), 500 * 1000);
@@ -339,9 +333,7 @@ static void test_restarted_driver_finds_streaming_device(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 38400, 50);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
+    assert_true(rig_streaming(&r, &e, 38400, 50, 3, 5000));
     /* The driver process dies without stopping the device: it keeps streaming at 38400. */
     lms200_driver_destroy(r.drv);
     r.drv = NULL;
@@ -388,9 +380,7 @@ static void test_restart_mid_stream_at_each_rate(void **state)
     for (size_t i = 0; i < sizeof rates / sizeof rates[0]; i++) {
         rig_t r;
         vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
-        rig_open(&r, &e, rates[i], 100);
-        lms200_driver_start(r.drv, mono_us());
-        assert_true(RUN_UNTIL(&r, 8000, r.scans >= 3));
+        assert_true(rig_streaming(&r, &e, rates[i], 100, 3, 8000));
         assert_int_equal(vlms200_baud(r.emu), rates[i]);
         int64_t ms = restart_driver(&r, rates[i], 100, 5000);
         print_message("device streaming at %d baud: first scan %lld ms after the new driver started\n",
@@ -407,9 +397,7 @@ static void test_restart_finds_device_left_at_another_rate(void **state)
     /* The last run used 38400 (RS-232); this one is configured for 500000 (RS-422). */
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 38400, 100);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 8000, r.scans >= 3));
+    assert_true(rig_streaming(&r, &e, 38400, 100, 3, 8000));
     int64_t ms = restart_driver(&r, 500000, 100, 8000);
     print_message("device left at 38400, driver for 500000: first scan after %lld ms\n", (long long)ms);
     assert_true(ms >= 0);
@@ -454,9 +442,7 @@ static void test_unread_counts_a_scan_the_moment_it_is_written(void **state)
 {
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
-    rig_open(&r, &e, 500000, 100);
-    lms200_driver_start(r.drv, mono_us());
-    assert_true(RUN_UNTIL(&r, 5000, r.scans >= 2));
+    assert_true(rig_streaming(&r, &e, 500000, 100, 2, 5000));
     int seen_at_once = 0;
     for (int i = 0; i < 30; i++) {
         /* The device's side only (step() leaves a rig without driver alone): nothing reads. */

@@ -12,7 +12,6 @@ rc=$?
 cat "$out/eval.txt"
 row() { awk -v w="$1" '$1 == w' "$out/eval.txt"; }
 field() { row "$1" | awk -v k="$2" '{ print $k }'; }
-le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.argv[2]) else 1)" "$1" "$2"; }
 check "marie-eval ran every world" test $rc = 0
 for w in hall warehouse; do
     check "$w: a row in the table" test -n "$(row $w)"

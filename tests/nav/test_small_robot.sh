@@ -6,8 +6,6 @@
 . tests/lib.sh
 out=$B/test-nav-small
 rm -rf "$out"; mkdir -p "$out"
-json() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
-le() { python3 -c "import sys; sys.exit(0 if float(sys.argv[1]) <= float(sys.argv[2]) else 1)" "$1" "$2"; }
 
 $BIN/marie-demo --quiet --system config/small-robot.yaml --out "$out/run" --timeout 300 > "$out/run.txt" 2>&1
 s=$out/run/summary.json

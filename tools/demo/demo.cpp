@@ -88,8 +88,8 @@ private:
     static void on_progress_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
     static void on_chaos_timer(marie_loop_t *, marie_timer_t *, int64_t, void *user);
     static void on_signal(marie_loop_t *, int, void *user);
-    std::string component_param(const char *profile, const char *component, const char *key, const char *dflt);
-    bool load_map(const std::string &yaml);
+    std::map<std::string, std::string> component_params(const char *profile, const char *component);
+    void draw_map(const occmap_t *m);
     void write_png(const std::string &path);
     void summary(double wall_s);
     double loc_error_at(int64_t t, double x, double y, bool *ok) const;
@@ -429,35 +429,51 @@ void Demo::estop_tick()
     }
 }
 
-// A parameter of a component of the system file in a profile, as the component reads it: with
-// the environment's ${...} expanded (the localizer's map names MARIE_MAP).
-std::string Demo::component_param(const char *profile, const char *component, const char *key, const char *dflt)
+// The parameters of a component of the system file in a profile, as the component reads them:
+// with the environment's ${...} expanded (the localizer's map names MARIE_MAP).
+std::map<std::string, std::string> Demo::component_params(const char *profile, const char *component)
 {
     marie_errors_t e = {};
-    std::string value = dflt;
+    std::map<std::string, std::string> out;
     marie_system_t *sys = marie_system_load(opt_.system.c_str(), profile, &e);
     const marie_component_cfg_t *c = sys ? marie_system_component(sys, component) : nullptr;
-    const marie_node_t *given = c ? marie_node_get(c->params, key) : nullptr;
-    char why[256] = "";
-    char *expanded = given && given->value ? marie_expand_env(given->value, why, sizeof why) : nullptr;
-    if (expanded)
-        value = expanded;
-    free(expanded);
+    for (size_t i = 0; c && c->params && i < c->params->n; i++) {
+        const marie_node_t *p = c->params->items[i];
+        char why[256] = "";
+        char *expanded = p->value ? marie_expand_env(p->value, why, sizeof why) : nullptr;
+        if (expanded)
+            out[p->key] = expanded;
+        free(expanded);
+    }
     marie_errors_print(&e, stderr);
     marie_errors_clear(&e);
     marie_system_destroy(sys);
-    return value;
+    return out;
 }
 
-bool Demo::load_map(const std::string &yaml)
+static occmap_t *load_occmap(const std::string &yaml)
 {
     marie_errors_t e = {};
     occmap_t *m = occmap_load(yaml.c_str(), &e);
-    if (!m) {
-        marie_errors_print(&e, stderr);
-        marie_errors_clear(&e);
-        return false;
+    marie_errors_print(&e, stderr);
+    marie_errors_clear(&e);
+    return m;
+}
+
+static double rms_of(const std::vector<double> &v, double *max)
+{
+    double sum = 0, mx = 0;
+    for (double e : v) {
+        sum += e * e;
+        mx = std::max(mx, e);
     }
+    if (max)
+        *max = mx;
+    return v.empty() ? NAN : std::sqrt(sum / v.size());
+}
+
+void Demo::draw_map(const occmap_t *m)
+{
     // Image row 0 is the map's top row; free white, walls black, unknown grey.
     map_.create(m->height, m->width, CV_8UC1);
     for (int cy = 0; cy < m->height; cy++)
@@ -468,8 +484,6 @@ bool Demo::load_map(const std::string &yaml)
     res_ = m->resolution;
     ox_ = m->origin_x;
     oy_ = m->origin_y;
-    occmap_destroy(m);
-    return !map_.empty();
 }
 
 void Demo::write_png(const std::string &path)
@@ -508,12 +522,8 @@ void Demo::write_png(const std::string &path)
 
 void Demo::summary(double wall_s)
 {
-    double sum = 0, mx = 0;
-    for (double e : errors_) {
-        sum += e * e;
-        mx = std::max(mx, e);
-    }
-    double rms = errors_.empty() ? NAN : std::sqrt(sum / errors_.size());
+    double mx;
+    double rms = rms_of(errors_, &mx);
     int restarts = this->restarts();
     FILE *f = fopen((opt_.out + "/summary.json").c_str(), "w");
     if (f) {
@@ -553,8 +563,13 @@ int Demo::start()
             return 1;
         setenv("MARIE_MAP", (std::string(abs) + "/explored.yaml").c_str(), 1);
         free(abs);
-    } else if (!load_map(component_param(opt_.profile.c_str(), "localizer", "map", "sim/worlds/office.yaml"))) {
-        return 2;
+    } else {
+        auto loc = component_params(opt_.profile.c_str(), "localizer");
+        occmap_t *m = load_occmap(loc.count("map") ? loc["map"] : "sim/worlds/office.yaml");
+        if (!m)
+            return 2;
+        draw_map(m);
+        occmap_destroy(m);
     }
     // Each demo starts a fresh mission: no SharedMap or manager state from an earlier run.
     std::string state = opt_.out + "/state";
@@ -645,41 +660,32 @@ int Demo::explore()
         fprintf(stderr, "demo: exploration %s after %.0f s\n", interrupted_ ? "interrupted" : "did not end", wall_s);
     std::string yaml = getenv("MARIE_MAP");
     std::string name = yaml.substr(0, yaml.size() - 5);
+    occmap_t *built = nullptr;
     if (run_cmd({bin_ + "/marie", "map", "save", name, "--wait", "12"}, opt_.out + "/map-save.log") != 0 ||
-        !load_map(yaml)) {
+        !(built = load_occmap(yaml))) {
         fprintf(stderr, "demo: cannot save the map (see %s/map-save.log)\n", opt_.out.c_str());
         return 1;
     }
-    // Judged against the world the simulator ran, from the start pose.
-    std::string world = component_param(opt_.explore_profile.c_str(), "sim", "world", "office");
-    if (world.find('/') == std::string::npos && world.find(".yaml") == std::string::npos)
-        world = "sim/worlds/" + world + ".yaml";
-    double sx = atof(component_param(opt_.explore_profile.c_str(), "sim", "start_x", "2").c_str());
-    double sy = atof(component_param(opt_.explore_profile.c_str(), "sim", "start_y", "15").c_str());
-    marie_errors_t e = {};
-    occmap_t *truth = occmap_load(world.c_str(), &e), *built = occmap_load(yaml.c_str(), &e);
-    mapeval_t raw = {}, al = {};
-    double dx = 0, dy = 0, th = 0;
-    if (truth && built) {
-        mapeval_compare(truth, built, sx, sy, &raw);
-        occmap_t *aligned = mapeval_align(truth, built, 0.5, 0.03, &dx, &dy, &th);
-        if (aligned)
-            mapeval_compare(truth, aligned, sx, sy, &al);
-        occmap_destroy(aligned);
-    }
-    marie_errors_print(&e, stderr);
-    marie_errors_clear(&e);
+    draw_map(built);
+    // Judged against the world the simulator ran, from its start pose.
+    auto sim = component_params(opt_.explore_profile.c_str(), "sim");
+    char world[4096];
+    occmap_world_path(sim.count("world") ? sim["world"].c_str() : "office", world, sizeof world);
+    double sx = sim.count("start_x") ? atof(sim["start_x"].c_str()) : 2.0;
+    double sy = sim.count("start_y") ? atof(sim["start_y"].c_str()) : 15.0;
+    occmap_t *truth = load_occmap(world);
+    mapeval_judgement_t j = {};
+    if (truth)
+        mapeval_judge(truth, built, sx, sy, &j);
     occmap_destroy(truth);
     occmap_destroy(built);
-    double sum = 0;
-    for (double x : errors_)
-        sum += x * x;
-    double ate = errors_.empty() ? -1 : std::sqrt(sum / errors_.size());
+    double ate = errors_.empty() ? -1 : rms_of(errors_, nullptr);
+    const mapeval_t &raw = j.raw, &al = j.aligned;
     write_png(opt_.out + "/explored.png");
     printf("demo: %s in %.0f s (sim %.0f s): %d frontiers, %d given up, pose RMS %.2f m; map %s against %s: "
            "precision %.2f recall %.2f coverage %.2f (aligned by %.2f m %.2f m %.3f rad: %.2f %.2f %.2f)\n",
-           explore_done_ ? "explored" : "NOT explored", wall_s, sim_s, frontiers_, given_up_, ate, yaml.c_str(), world.c_str(), raw.precision, raw.recall,
-           raw.coverage, dx, dy, th, al.precision, al.recall, al.coverage);
+           explore_done_ ? "explored" : "NOT explored", wall_s, sim_s, frontiers_, given_up_, ate, yaml.c_str(), world,
+           raw.precision, raw.recall, raw.coverage, j.dx, j.dy, j.th, al.precision, al.recall, al.coverage);
     char json[512];
     snprintf(json, sizeof json,
              ", \"explore\": {\"done\": %s, \"wall_s\": %.1f, \"sim_s\": %.1f, \"frontiers\": %d, \"given_up\": %d, \"rms\": %.4f, "

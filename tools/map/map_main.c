@@ -130,20 +130,15 @@ static int compare(int argc, char **argv)
         marie_errors_print(&errs, stderr);
         goto out;
     }
-    mapeval_t e;
-    mapeval_compare(world, built, sx, sy, &e);
-    printf("precision %.3f recall %.3f coverage %.3f (built occupied %ld, visible walls %ld, reachable free %ld)\n",
-           e.precision, e.recall, e.coverage, e.map_occupied, e.truth_walls, e.truth_free);
-    double dx, dy, th;
-    occmap_t *al = mapeval_align(world, built, 0.5, 0.03, &dx, &dy, &th);
-    if (!al) {
+    mapeval_judgement_t j;
+    if (mapeval_judge(world, built, sx, sy, &j) < 0) {
         fprintf(stderr, "marie: map compare: out of memory\n");
         goto out;
     }
-    mapeval_compare(world, al, sx, sy, &e);
-    printf("aligned by (%.2f m, %.2f m, %.3f rad): aprecision %.3f arecall %.3f acoverage %.3f\n", dx, dy, th,
-           e.precision, e.recall, e.coverage);
-    occmap_destroy(al);
+    printf("precision %.3f recall %.3f coverage %.3f (built occupied %ld, visible walls %ld, reachable free %ld)\n",
+           j.raw.precision, j.raw.recall, j.raw.coverage, j.raw.map_occupied, j.raw.truth_walls, j.raw.truth_free);
+    printf("aligned by (%.2f m, %.2f m, %.3f rad): aprecision %.3f arecall %.3f acoverage %.3f\n", j.dx, j.dy, j.th,
+           j.aligned.precision, j.aligned.recall, j.aligned.coverage);
     rc = MARIE_EXIT_OK;
 out:
     marie_errors_clear(&errs);
