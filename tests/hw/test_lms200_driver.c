@@ -498,11 +498,18 @@ static void test_full_line_never_blocks_and_command_goes_out_later(void **state)
     cfmakeraw(&t);
     tcsetattr(slave, TCSANOW, &t);
     fcntl(slave, F_SETFL, fcntl(slave, F_GETFL) | O_NONBLOCK);
+    /* Full until the far end reads: a pty moves written bytes on to the reading side in a kernel
+     * worker, which frees room after the first EAGAIN; write until a write 20 ms after the last
+     * EAGAIN still finds no room. */
     static uint8_t fill[4096];
     size_t filled = 0;
-    for (ssize_t n; (n = write(slave, fill, sizeof fill)) > 0;)
-        filled += (size_t)n;
-    assert_true(errno == EAGAIN);
+    for (int room = 1; room;) {
+        room = 0;
+        for (ssize_t n; (n = write(slave, fill, sizeof fill)) > 0; room = 1)
+            filled += (size_t)n;
+        assert_true(errno == EAGAIN);
+        usleep(20000);
+    }
     lms200_driver_cfg_t cfg = { .device = path, .baud = 9600, .res_cdeg = 100, .reply_timeout_ms = 300 };
     lms200_driver_t *d = lms200_driver_create(&cfg, NULL, NULL);
     assert_non_null(d);
