@@ -43,14 +43,15 @@ static void on_listen(marie_loop_t *loop, int fd, short revents, void *user);
 
 can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
 {
+    /* Bound under a temporary name and renamed once listening: whoever sees PATH can connect. */
     struct sockaddr_un sa;
     memset(&sa, 0, sizeof sa);
     sa.sun_family = AF_UNIX;
-    if (strlen(path) >= sizeof sa.sun_path) {
+    int n = snprintf(sa.sun_path, sizeof sa.sun_path, "%s.new", path);
+    if (n < 0 || (size_t)n >= sizeof sa.sun_path) {
         errno = ENAMETOOLONG;
         return NULL;
     }
-    strcpy(sa.sun_path, path);
     can_emubus_t *b = calloc(1, sizeof *b);
     if (!b)
         return NULL;
@@ -59,9 +60,15 @@ can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
     b->lfd = socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (b->lfd < 0)
         goto err_free;
-    unlink(path);
-    if (bind(b->lfd, (struct sockaddr *)&sa, sizeof sa) < 0 || listen(b->lfd, 16) < 0)
+    unlink(sa.sun_path);
+    if (bind(b->lfd, (struct sockaddr *)&sa, sizeof sa) < 0)
         goto err_close;
+    if (listen(b->lfd, 16) < 0 || rename(sa.sun_path, path) < 0) {
+        int e = errno;
+        unlink(sa.sun_path);
+        errno = e;
+        goto err_close;
+    }
     int r = marie_loop_add_fd(loop, b->lfd, POLLIN, on_listen, b);
     if (r < 0) {
         errno = -r;

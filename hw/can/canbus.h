@@ -24,8 +24,9 @@ typedef struct {
     uint64_t bad;               /* packets that are not a CAN / CAN FD frame */
 } can_emubus_stats_t;
 
-/* Listen on `path` (an existing socket file is replaced); the bus accepts, relays and drops
- * clients from `loop` as it runs. NULL with errno. */
+/* Listen on `path` (an existing socket file is replaced; the path appears only once the bus
+ * listens, so a client that sees it can connect); the bus accepts, relays and drops clients
+ * from `loop` as it runs. NULL with errno. */
 can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path);
 /* NULL is a no-op; takes its fds off the loop and unlinks the path. */
 void can_emubus_destroy(can_emubus_t *b);
