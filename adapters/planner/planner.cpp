@@ -1,5 +1,6 @@
-// planner: OMPL geometric planning in R2 over an inflated occupancy grid. The inflation comes
-// from an OpenCV distance transform; laser obstacles are stamped as robot-radius disks.
+// planner: A* (map/gridpath.h) or OMPL geometric planning in R2 over an inflated occupancy grid.
+// The inflation comes from an OpenCV distance transform; laser obstacles are stamped as
+// robot-radius disks.
 #include "adapters/planner/planner.h"
 #include "map/gridpath.h"
 
@@ -93,7 +94,7 @@ extern "C" void planner_params_default(planner_params_t *p)
     p->time_limit = 1.0;
     p->simplify_time = 0.03;
     p->range = 0;
-    p->algorithm = PLANNER_RRTCONNECT;
+    p->algorithm = PLANNER_GRID;
     p->unknown_is_free = false;
     p->obstacle_ttl = 10.0;
     p->obstacle_margin = 0.25;
@@ -215,7 +216,8 @@ static int to_poses(const std::vector<std::pair<double, double>> &pts, double go
     return 0;
 }
 
-// Sampling rarely finds a passage barely wider than the robot; the grid search always does.
+// The grid search: the default, and the answer when sampling finds nothing (it rarely finds a
+// passage barely wider than the robot; the grid search always does).
 static int grid_plan(planner_t *pl, const double start[3], const double goal[3], double sx, double sy, double gx,
                      double gy, double **poses, int *n)
 {
@@ -250,6 +252,8 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
     double sx = start[0], sy = start[1], gx = goal[0], gy = goal[1];
     if (!pl->snap(sx, sy, pl->p_.robot_radius) || !pl->snap(gx, gy, pl->p_.robot_radius))
         return -EINVAL;
+    if (pl->p_.algorithm == PLANNER_GRID)
+        return grid_plan(pl, start, goal, sx, sy, gx, gy, poses, n);
     try {
         og::SimpleSetup &ss = *pl->ss_;
         if (pl->p_.algorithm == PLANNER_PRM && !pl->layer_changed_)

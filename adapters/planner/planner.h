@@ -1,5 +1,5 @@
-/* planner: OMPL path planning on an occupancy map inflated by the robot radius, with a layer
- * of obstacles seen by the laser that are not in the map. */
+/* planner: path planning (A* on the grid, or OMPL sampling) on an occupancy map inflated by the
+ * robot radius, with a layer of obstacles seen by the laser that are not in the map. */
 #ifndef ADAPTERS_PLANNER_H
 #define ADAPTERS_PLANNER_H
 
@@ -14,7 +14,9 @@ extern "C" {
 
 typedef struct planner planner_t;
 
-typedef enum { PLANNER_RRTCONNECT = 0, PLANNER_PRM } planner_algo_t;
+/* RRTConnect and PRM sample (OMPL); GRID searches the inflated grid with A* and shortcuts the
+ * cells by line of sight (map/gridpath.h): the shortest path on the grid, every time. */
+typedef enum { PLANNER_RRTCONNECT = 0, PLANNER_PRM, PLANNER_GRID } planner_algo_t;
 
 typedef struct {
     double robot_radius;        /* m: radius of the circle around the robot's footprint */

@@ -1,4 +1,4 @@
-/* marie-planner: plans a path to the mission's goal with OMPL on the inflated map, and plans
+/* marie-planner: plans a path to the mission's goal on the inflated map (A* or OMPL), and plans
  * again when the goal changes or the laser shows the path blocked. */
 #include <errno.h>
 #include <math.h>
@@ -324,10 +324,14 @@ static int init(marie_component_t *c)
     p.obstacle_ttl = q->obstacle_ttl;
     p.unknown_is_free = q->unknown_is_free;
     const char *algo = q->algorithm;
-    if (strcmp(algo, "prm") == 0) {
+    if (strcmp(algo, "grid") == 0) {
+        p.algorithm = PLANNER_GRID;
+    } else if (strcmp(algo, "rrtconnect") == 0) {
+        p.algorithm = PLANNER_RRTCONNECT;
+    } else if (strcmp(algo, "prm") == 0) {
         p.algorithm = PLANNER_PRM;
-    } else if (strcmp(algo, "rrtconnect") != 0) {
-        marie_component_fail_reason(c, "algorithm: expected rrtconnect or prm, got '%s'", algo);
+    } else {
+        marie_component_fail_reason(c, "algorithm: expected grid, rrtconnect or prm, got '%s'", algo);
         return -1;
     }
     if (!(p.robot_radius >= 0) || !(p.clearance >= 0) || !(p.time_limit > 0)) {
@@ -382,7 +386,8 @@ static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(pln_params_t, map, STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)"),
     MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint (the system file's robot.radius)"),
     MARIE_PARAM_AT(pln_params_t, robot_clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (robot.clearance; the map is inflated by both)"),
-    MARIE_PARAM_AT(pln_params_t, algorithm, STRING, "rrtconnect", "rrtconnect or prm"),
+    MARIE_PARAM_AT(pln_params_t, algorithm, STRING, "grid",
+                   "grid (A* on the inflated grid, shortest), rrtconnect or prm (OMPL, sampling)"),
     MARIE_PARAM_AT(pln_params_t, time_limit, DOUBLE, "1.0", "s per planning attempt"),
     MARIE_PARAM_AT(pln_params_t, range, DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)"),
     MARIE_PARAM_AT(pln_params_t, unknown_is_free, BOOL, "false", "plan through unknown cells"),

@@ -305,6 +305,86 @@ static void test_gridpath(void **state)
     assert_int_equal(errno, EINVAL);
 }
 
+/* The reference: Bellman-Ford relaxation over the same moves (slow, obviously right). */
+static double shortest_by_relaxation(int w, int h, const uint8_t *pass, int start, int goal)
+{
+    static double d[130 * 70];
+    for (int i = 0; i < w * h; i++)
+        d[i] = INFINITY;
+    d[start] = 0;
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (int c = 0; c < w * h; c++) {
+            if (!pass[c] || !isfinite(d[c]))
+                continue;
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
+                    int x = c % w + dx, y = c / w + dy;
+                    if ((!dx && !dy) || x < 0 || y < 0 || x >= w || y >= h || !pass[y * w + x])
+                        continue;
+                    if (dx && dy && (!pass[(c / w) * w + x] || !pass[y * w + c % w]))
+                        continue;
+                    double nd = d[c] + (dx && dy ? M_SQRT2 : 1.0);
+                    if (nd < d[y * w + x] - 1e-12) {
+                        d[y * w + x] = nd;
+                        changed = true;
+                    }
+                }
+        }
+    }
+    return isfinite(d[goal]) ? d[goal] : -1;
+}
+
+/* On 300 random grids (10-40 % walls, rooms and noise; lines shorter than, equal to and longer
+ * than the search's 64-cell words) the search finds a path exactly when one exists, as short as
+ * the reference's, made of legal steps whose costs add up to the length. */
+static void test_gridpath_is_shortest_on_random_grids(void **state)
+{
+    static const int sizes[][2] = { { 41, 29 }, { 64, 33 }, { 97, 64 }, { 130, 70 }, { 20, 128 } };
+    static uint8_t pass[130 * 70];
+    unsigned seed = 12345;
+    int found = 0;
+    for (int t = 0; t < 300; t++) {
+        const int W = sizes[t % 5][0], H = sizes[t % 5][1];
+        int walls = 10 + t % 29;
+        for (int i = 0; i < W * H; i++)
+            pass[i] = (int)(rand_r(&seed) % 100) >= walls;
+        if (t % 2) {                                /* long walls with gaps: rooms and doors */
+            for (int k = 0; k < 4; k++) {
+                int at = (int)(rand_r(&seed) % W), gap = (int)(rand_r(&seed) % H);
+                for (int y = 0; y < H; y++)
+                    pass[y * W + at] = abs(y - gap) <= 1;
+            }
+        }
+        int start = (int)(rand_r(&seed) % (W * H)), goal = (int)(rand_r(&seed) % (W * H));
+        pass[start] = pass[goal] = 1;
+        double want = shortest_by_relaxation(W, H, pass, start, goal);
+        int *cells = NULL, n = 0;
+        double got = gridpath_find(W, H, pass, start, goal, &cells, &n);
+        if (want < 0) {
+            assert_true(got < 0);
+            assert_int_equal(errno, ENOENT);
+            continue;
+        }
+        found++;
+        assert_true(fabs(got - want) < 1e-9);
+        assert_int_equal(cells[0], start);
+        assert_int_equal(cells[n - 1], goal);
+        double walked = 0;
+        for (int i = 0; i + 1 < n; i++) {
+            int ax = cells[i] % W, ay = cells[i] / W, bx = cells[i + 1] % W, by = cells[i + 1] / W;
+            assert_true(pass[cells[i + 1]]);
+            assert_true(abs(ax - bx) <= 1 && abs(ay - by) <= 1 && cells[i] != cells[i + 1]);
+            if (ax != bx && ay != by)
+                assert_true(pass[ay * W + bx] && pass[by * W + ax]);
+            walked += ax != bx && ay != by ? M_SQRT2 : 1.0;
+        }
+        assert_true(fabs(walked - got) < 1e-9);
+        free(cells);
+    }
+    assert_true(found > 100 && found < 300);        /* both outcomes were exercised */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -317,6 +397,7 @@ int main(void)
         cmocka_unit_test(test_bad_files),
         cmocka_unit_test(test_office_world_loads),
         cmocka_unit_test(test_gridpath),
+        cmocka_unit_test(test_gridpath_is_shortest_on_random_grids),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -15,7 +15,7 @@ trap stop_started EXIT INT TERM
 start sim $BIN/marie-sim --name sim --param world=$WORLD --param speed=${SIM_SPEED:-5} --param lockstep=0.5 --param start_y=15.7
 start odometry $BIN/marie-odometry --name odometry --clock sim
 start mapper $BIN/marie-mapper --name mapper --clock sim --param init_x=2 --param init_y=15.7 ${MAPPER_ARGS:-}
-start planner $BIN/marie-planner --name planner --clock sim --param unknown_is_free=true
+start planner $BIN/marie-planner --name planner --clock sim --param unknown_is_free=true ${PLANNER_ALGO:+--param algorithm=$PLANNER_ALGO}
 start behaviours $BIN/marie-behaviours --name behaviours --clock sim --param input_mode=subscribe
 start explore $BIN/marie-explore --name explore --clock sim
 wait_for ${EXPLORE_WALL_S:-250} grep -q "explore_done" "$OUT/explore.log"
