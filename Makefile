@@ -12,7 +12,7 @@ NPROC := $(shell nproc 2>/dev/null || echo 2)
 
 CC  ?= gcc
 CXX ?= g++
-PKGS := lcm glib-2.0 libfyaml libsodium libsystemd
+PKGS := lcm glib-2.0 libfyaml libsodium
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 
@@ -137,6 +137,7 @@ test-fresh:
 	@scripts/test-fresh.sh
 
 bench: deps
+	@scripts/install-deps.sh bench
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-bench.sh $(BENCHES)
 

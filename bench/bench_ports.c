@@ -126,20 +126,7 @@ static double throughput(bench_t *b, int use_marie, marie_image_t *img, int wind
     return s->received / ((marie_mono_us() - start) / 1e6);
 }
 
-static int cmp64(const void *a, const void *b)
-{
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double pct(sink_t *s, double p)
-{
-    if (!s->n)
-        return NAN;
-    qsort(s->lat, (size_t)s->n, sizeof *s->lat, cmp64);
-    int i = (int)(p * (s->n - 1) + 0.5);
-    return (double)s->lat[i];
-}
+static double pct(sink_t *s, double p) { return bench_percentile(s->lat, s->n, p); }
 
 static void row(const char *metric, double v, const char *unit, double base)
 {

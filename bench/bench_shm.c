@@ -47,19 +47,7 @@ static void on_verdict(bool ok, void *user)
         torn++;
 }
 
-static int cmp64(const void *a, const void *b)
-{
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double pct(sink_t *s, double p)
-{
-    if (!s->n)
-        return NAN;
-    qsort(s->lat, (size_t)s->n, sizeof s->lat[0], cmp64);
-    return (double)s->lat[(int)(p * (s->n - 1))];
-}
+static double pct(sink_t *s, double p) { return bench_percentile(s->lat, s->n, p); }
 
 static void row(const char *metric, double v, const char *unit, double base)
 {

@@ -307,8 +307,8 @@ int mailbox_attach(mailbox_t *mb, lcm_t *lcm)
     int rc = -ENOMEM;
     if (!p1 || !p2)
         goto out;
-    mb->sub_data = lcm_subscribe(lcm, p1, on_data, mb);
-    mb->sub_pull = lcm_subscribe(lcm, p2, on_pull, mb);
+    mb->sub_data = marie_lcm_subscribe(lcm, p1, on_data, mb);
+    mb->sub_pull = marie_lcm_subscribe(lcm, p2, on_pull, mb);
     mb->lcm = lcm;
     mb->sink.lcm = lcm;
     rc = 0;

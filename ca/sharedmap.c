@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "ca/sharedmap_log.h"
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_sharedmap_reply_t.h"
@@ -709,7 +710,7 @@ int sharedmap_attach(sharedmap_t *sm, lcm_t *lcm, const char *request_channel)
     char *pat = ca_channel_pattern(request_channel);
     if (!pat)
         return -ENOMEM;
-    sm->sub = lcm_subscribe(lcm, pat, on_request, sm);
+    sm->sub = marie_lcm_subscribe(lcm, pat, on_request, sm);
     free(pat);
     if (!sm->sub)
         return -EIO;

@@ -112,7 +112,7 @@ sharedmap_client_t *sharedmap_client_create(lcm_t *lcm, const char *request_chan
     char *pat = cl->reply_channel ? ca_channel_pattern(cl->reply_channel) : NULL;
     if (!cl->name || !cl->request_channel || !pat)
         goto err;
-    cl->sub = lcm_subscribe(lcm, pat, on_reply, cl);
+    cl->sub = marie_lcm_subscribe(lcm, pat, on_reply, cl);
     free(pat);
     if (!cl->sub)
         goto err;

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/loop.h"
 #include "core/time.h"
 
 typedef struct {
@@ -135,7 +136,7 @@ int splitter_attach(splitter_t *sp, lcm_t *lcm)
     char *pat = ca_channel_pattern(sp->input);
     if (!pat)
         return -ENOMEM;
-    sp->sub = lcm_subscribe(lcm, pat, on_input, sp);
+    sp->sub = marie_lcm_subscribe(lcm, pat, on_input, sp);
     free(pat);
     if (!sp->sub)
         return -EIO;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_switch_state_t.h"
@@ -271,7 +272,7 @@ static void on_select(const lcm_recv_buf_t *rbuf, const char *channel, void *use
 static lcm_subscription_t *subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t h, void *user)
 {
     char *pat = ca_channel_pattern(channel);
-    lcm_subscription_t *s = pat ? lcm_subscribe(lcm, pat, h, user) : NULL;
+    lcm_subscription_t *s = pat ? marie_lcm_subscribe(lcm, pat, h, user) : NULL;
     free(pat);
     return s;
 }

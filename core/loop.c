@@ -149,6 +149,14 @@ static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *use
         ;
 }
 
+lcm_subscription_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user)
+{
+    lcm_subscription_t *s = lcm_subscribe(lcm, channel, handler, user);
+    if (s)
+        lcm_subscription_set_queue_capacity(s, MARIE_LCM_QUEUE);
+    return s;
+}
+
 int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
 {
     int fd = lcm ? lcm_get_fileno(lcm) : -1;

@@ -13,7 +13,6 @@
 
 #include <lcm/lcm.h>
 #include <sodium.h>
-#include <systemd/sd-daemon.h>
 
 #include "core/component.h"
 #include "core/file.h"
@@ -25,6 +24,7 @@
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "core/typeinfo.h"
 #include "managers/am.h"
+#include "managers/sdnotify.h"
 
 /* ---------------------------------------------------------------- heartbeats */
 
@@ -82,7 +82,7 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
 
 static void on_watchdog(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
-    sd_notify(0, "WATCHDOG=1");
+    marie_sd_notify("WATCHDOG=1");
 }
 
 static void on_signalfd(marie_loop_t *loop, int fd, short revents, void *user)
@@ -98,7 +98,7 @@ static void on_signalfd(marie_loop_t *loop, int fd, short revents, void *user)
             chld = true;
         } else if (!am->quitting) {
             marie_info("signal %d: stopping components, then exiting", (int)si[i].ssi_signo);
-            sd_notify(0, "STOPPING=1");
+            marie_sd_notify("STOPPING=1");
             am->quitting = true;
             double longest = 0;
             for (size_t k = 0; k < am->ncomps; k++)
@@ -324,9 +324,9 @@ int main(int argc, char **argv)
         marie_error("lcm_create(%s) failed", am->url);
         goto out_loop;
     }
-    lcm_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
-    lcm_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
-    lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
+    marie_lcm_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
+    marie_lcm_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
+    marie_lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
     marie_loop_add_lcm(am->loop, am->lcm, 1);
 
     sigset_t mask;
@@ -345,8 +345,8 @@ int main(int argc, char **argv)
     marie_loop_add_fd(am->loop, am->sigfd, POLLIN, on_signalfd, am);
     am->status_timer = marie_loop_add_timer(am->loop, (int64_t)(1e6 / am->status_hz), am_on_status_timer, am);
     marie_loop_add_timer(am->loop, 50000, on_tick, am);
-    uint64_t wd = 0;
-    if (sd_watchdog_enabled(0, &wd) > 0 && wd > 0) {
+    uint64_t wd = marie_sd_watchdog_usec();
+    if (wd > 0) {
         am->watchdog_us = wd;
         marie_loop_add_timer(am->loop, (int64_t)(wd / 2), on_watchdog, am);
     }
@@ -360,9 +360,11 @@ int main(int argc, char **argv)
     marie_info("managing host %s (state %s, bus %s)%s", am->host, am->state_dir, am->url,
                am->auth ? "" : " WITHOUT a key: orders refused");
     am_publish_status(am, true);
-    sd_notifyf(0, "READY=1\nSTATUS=managing host %s", am->host);
+    char ready[sizeof am->host + 40];
+    snprintf(ready, sizeof ready, "READY=1\nSTATUS=managing host %.127s", am->host);
+    marie_sd_notify(ready);
     if (am->watchdog_us)
-        sd_notify(0, "WATCHDOG=1");
+        marie_sd_notify("WATCHDOG=1");
 
     rc = marie_loop_run(am->loop) < 0 ? 1 : 0;
     am_check_cancel(am, "the manager stopped\n");

@@ -47,6 +47,7 @@ static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, co
         .nhosts = am->sys ? (int32_t)am->sys->nhosts : 0, .hosts = am->sys ? am->sys->hosts : NULL,
     };
     marie_am_reply_t_publish(am->lcm, MARIE_CH_AM_REPLY, &r);
+    am_status_changed(am);      /* a status soon after every answer, for marie's waits */
 }
 
 static void send_lifecycle(am_t *am, comp_t *c, int cmd, int64_t req)

@@ -62,6 +62,14 @@ void expect_host(cli_t *cli, const char *name)
         snprintf(cli->expect[cli->nexpect++], sizeof cli->expect[0], "%s", name);
 }
 
+static bool replied(const cli_t *cli, const char *host)
+{
+    for (int k = 0; k < cli->nreplies; k++)
+        if (strcmp(cli->replies[k].host, host) == 0)
+            return true;
+    return false;
+}
+
 static void on_status(const lcm_recv_buf_t *rbuf, const char *channel, const marie_am_status_t *st, void *user)
 {
     cli_t *cli = user;
@@ -73,7 +81,7 @@ static void on_status(const lcm_recv_buf_t *rbuf, const char *channel, const mar
     h->st = marie_am_status_t_copy(st);
     h->recv_wall = marie_wall_us();
     h->recv_mono = marie_mono_us();
-    h->fresh = cli->replies_done;
+    h->fresh = replied(cli, st->host);     /* its manager has handled the order in flight */
     for (int i = 0; i < st->nhosts; i++)
         expect_host(cli, st->hosts[i]);
 }
@@ -82,13 +90,9 @@ bool all_replied(cli_t *cli)
 {
     if (cli->nexpect == 0)
         return false;
-    for (int i = 0; i < cli->nexpect; i++) {
-        bool got = false;
-        for (int k = 0; k < cli->nreplies && !got; k++)
-            got = strcmp(cli->replies[k].host, cli->expect[i]) == 0;
-        if (!got)
+    for (int i = 0; i < cli->nexpect; i++)
+        if (!replied(cli, cli->expect[i]))
             return false;
-    }
     return true;
 }
 
@@ -193,9 +197,9 @@ int cli_open(cli_t *cli)
         fprintf(stderr, "marie: cannot open the bus %s\n", cli->url);
         return -1;
     }
-    lcm_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_raw_status, cli);
-    lcm_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_raw_reply, cli);
-    lcm_subscribe(cli->lcm, MARIE_CH_LOG, on_raw_log, cli);
+    marie_lcm_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_raw_status, cli);
+    marie_lcm_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_raw_reply, cli);
+    marie_lcm_subscribe(cli->lcm, MARIE_CH_LOG, on_raw_log, cli);
     if (!(cli->loop = marie_loop_create()) || marie_loop_add_lcm(cli->loop, cli->lcm, 64) < 0) {
         fprintf(stderr, "marie: out of memory\n");
         return -1;
@@ -243,7 +247,8 @@ int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg
         return MARIE_EXIT_AUTH;
     for (int attempt = 0; attempt < 2; attempt++) {
         cli->nreplies = 0;
-        cli->replies_done = false;
+        for (int i = 0; i < cli->nhosts; i++)
+            cli->hosts[i].fresh = false;
         cli->seq = 0;
         marie_am_order_t o = {
             .op = (int8_t)op, .ntargets = ntargets, .targets = targets, .arg = (char *)arg,
@@ -262,7 +267,6 @@ int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg
         if (!replayed)
             break;
     }
-    cli->replies_done = true;
     int rc = MARIE_EXIT_OK;
     if (cli->nreplies == 0) {
         fprintf(stderr, "marie: no manager answered within %.1f s\n", cli->timeout_s);

@@ -21,7 +21,7 @@ typedef struct {
     marie_am_status_t *st;      /* latest, owned */
     int64_t recv_wall;          /* local wall clock at receipt */
     int64_t recv_mono;
-    bool fresh;                 /* received after the order's replies */
+    bool fresh;                 /* received after this host's reply to the order */
 } host_t;
 
 typedef struct {
@@ -47,7 +47,6 @@ typedef struct {
     int64_t seq;
     reply_rec_t replies[MAX_HOSTS];
     int nreplies;
-    bool replies_done;
     /* status */
     host_t hosts[MAX_HOSTS];
     int nhosts;

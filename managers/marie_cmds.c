@@ -287,6 +287,16 @@ static int print_ps(cli_t *cli, int64_t lost_us)
     return lost;
 }
 
+static bool all_heard(cli_t *cli)
+{
+    for (int i = 0; i < cli->nexpect; i++) {
+        host_t *h = host_get(cli, cli->expect[i], false);
+        if (!h || !h->st)
+            return false;
+    }
+    return cli->nexpect > 0;
+}
+
 int cmd_ps(cli_t *cli, int argc, char **argv)
 {
     static const struct option opts[] = {{"window", required_argument, 0, 'w'}, {"watch", no_argument, 0, 'W'},
@@ -306,8 +316,9 @@ int cmd_ps(cli_t *cli, int argc, char **argv)
     }
     if (cli_open(cli) < 0)
         return MARIE_EXIT_FAIL;
-    /* Managers report twice a second: a host silent for the whole window is lost. */
-    pump(cli, window, NULL);
+    /* Managers report twice a second: a host silent for the whole window is lost. Every host
+     * a status names has reported: the table is complete, no need to wait longer. */
+    pump(cli, window, watch ? NULL : all_heard);
     if (watch) {
         /* every second; a host silent for more than 2 s is lost */
         while (!interrupted) {

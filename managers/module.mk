@@ -3,9 +3,9 @@ MANAGERS_LIB := $(B)/lib/libmarie_managers.a
 $(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/supervise.c managers/balance.c))
 
 # marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
-# am_check.c: an up order's program check in a child)
+# am_check.c: an up order's program check in a child, sdnotify.c: systemd's notify protocol)
 # around the supervision state machine in the library (supervise.c).
-$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_balance.c,$(MANAGERS_LIB)))
+$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_balance.c managers/sdnotify.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.
@@ -22,6 +22,7 @@ $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB
 $(eval $(call marie_test,test_supervise,tests/managers/test_supervise.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
+$(eval $(call marie_test,test_sdnotify,tests/managers/test_sdnotify.c managers/sdnotify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
 ITESTS += tests/managers/test_balance.sh tests/managers/test_fast_detect.sh
 # make fuzz links only the listed sources: the generated decoders it needs are listed too.

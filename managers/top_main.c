@@ -352,8 +352,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "marie top: cannot open the bus %s\n", url ? url : "(LCM_DEFAULT_URL or default)");
         goto out;
     }
-    lcm_subscribe(a.lcm, MARIE_CH_AM_STATUS, on_status, &a);
-    lcm_subscribe(a.lcm, MARIE_CH_HEARTBEAT, on_heartbeat, &a);
+    marie_lcm_subscribe(a.lcm, MARIE_CH_AM_STATUS, on_status, &a);
+    marie_lcm_subscribe(a.lcm, MARIE_CH_HEARTBEAT, on_heartbeat, &a);
     int64_t period = (int64_t)llround(a.view.interval_s * 1e6);
     if ((sigfd = watch_signals(&a)) < 0 ||
         marie_loop_add_lcm(a.loop, a.lcm, 1) < 0 ||

@@ -1,12 +1,12 @@
 #!/bin/sh
 # Installs the Debian packages marie needs that are missing; quick when nothing is.
-# Usage: scripts/install-deps.sh [SET...]   SET: base, vm, san, browser, fresh, all (default: base)
+# Usage: scripts/install-deps.sh [SET...]   SET: base, vm, san, browser, fresh, bench, all (default: base)
 set -eu
 
 base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libglib2.0-dev pkg-config
       libeigen3-dev libode-dev libompl-dev libboost-serialization-dev
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
-      libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev libsystemd-dev
+      libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev
       systemd libcmocka-dev iproute2 python3 util-linux procps libcivetweb-dev libjpeg-dev
       libjchart2d-java tmux python3-venv xvfb x11-apps default-jre fonts-dejavu-core fontconfig
       libfftw3-dev libasound2-dev libpocketsphinx-dev pocketsphinx-en-us festival festvox-kallpc16k espeak-ng
@@ -25,6 +25,8 @@ vm="qemu-system-x86 busybox-static cpio gcc-12 make xz-utils libelf1 libssl3"
 san="clang libclang-rt-14-dev"
 # The log viewer's browser tests drive Debian's Chromium headless.
 browser="chromium"
+# make bench measures round trips against Cyclone DDS's ddsperf (ROS 2's middleware then).
+bench="cyclonedds-tools"
 # make test-fresh builds a Debian 12 root filesystem to prove the README's two commands.
 fresh="debootstrap"
 
@@ -37,8 +39,9 @@ for set in "$@"; do
     san)  want="$want $san" ;;
     browser) want="$want $browser" ;;
     fresh) want="$want $fresh" ;;
-    all)  want="$want $base $vm $san $browser $fresh" ;;
-    *) echo "install-deps: unknown set '$set' (base, vm, san, browser, fresh, all)" >&2; exit 2 ;;
+    bench) want="$want $bench" ;;
+    all)  want="$want $base $vm $san $browser $fresh $bench" ;;
+    *) echo "install-deps: unknown set '$set' (base, vm, san, browser, fresh, bench, all)" >&2; exit 2 ;;
     esac
 done
 

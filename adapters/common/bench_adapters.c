@@ -148,6 +148,7 @@ int main(void)
     bench_localizer(m, 500, 60, "500x60");
     bench_planner(m, PLANNER_RRTCONNECT, "rrtconnect_office");
     bench_planner(m, PLANNER_PRM, "prm_office");
+    bench_planner(m, PLANNER_GRID, "grid_office");
     bench_arbitration();
     occmap_destroy(m);
     return 0;

@@ -1,5 +1,6 @@
 /* test_splitter_bus: a marie-ca splitter process over real LCM: every output gets every
- * message in order, a renamed output is rate limited, mistyped payloads are not forwarded. */
+ * message in order, a renamed output is rate limited, mistyped payloads are not forwarded, a
+ * burst that arrives while the splitter cannot run is forwarded whole. */
 #include <errno.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -12,6 +13,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_gyro_t.h"
 #include "lcmtypes/marie_pose2d_t.h"
@@ -43,8 +45,8 @@ static void on_pose(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 static int setup(void **state)
 {
     bus = cat_bus_create();
-    lcm_subscribe(cat_lcm(bus), "POSE_ALL", on_pose, &full);
-    lcm_subscribe(cat_lcm(bus), "POSE_SLOW", on_pose, &slow);
+    marie_lcm_subscribe(cat_lcm(bus), "POSE_ALL", on_pose, &full);
+    marie_lcm_subscribe(cat_lcm(bus), "POSE_SLOW", on_pose, &slow);
     const char *args[] = { "splitter", "--name", "sp", "--param", "type=marie.pose2d_t",
         "--param", "input=POSE", "--param", "outputs=[POSE_ALL, {channel: POSE_SLOW, max_hz: 10}]", NULL };
     pid = cat_spawn(args);
@@ -94,11 +96,32 @@ static void test_mistyped_payload_not_forwarded(void **state)
     assert_int_equal(full.bad, 0);
 }
 
+static bool all_burst(void *user) { return full.n >= *(int *)user; }
+
+/* 500 messages while the splitter is stopped (SIGSTOP: the kernel holds them), then it runs
+ * again: every one comes out, in order. LCM keeps 30 per subscription unless told otherwise. */
+static void test_burst_while_stopped_forwarded_whole(void **state)
+{
+    int before = full.n, out_of_order = full.out_of_order;
+    kill(pid, SIGSTOP);
+    for (int i = 1; i <= 500; i++) {
+        marie_pose2d_t p = { .x = 1000 + i };
+        marie_pose2d_t_publish(cat_lcm(bus), "POSE", &p);
+    }
+    kill(pid, SIGCONT);
+    int want = before + 500;
+    cat_spin(bus, 5000, all_burst, &want);
+    assert_int_equal(full.n, want);
+    assert_int_equal(full.out_of_order, out_of_order);
+    assert_true(full.last == 1500);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fan_out_in_order_with_rate_limit),
         cmocka_unit_test(test_mistyped_payload_not_forwarded),
+        cmocka_unit_test(test_burst_while_stopped_forwarded_whole),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -335,9 +335,9 @@ static int run_world(const opts_t *o, const world_t *wd, result_t *res)
     int rc = -1;
     if (!l || !loop || marie_loop_add_lcm(loop, l, 64) < 0)
         goto out;
-    lcm_subscribe(l, "SIM_TRUTH", on_msg, &L);
-    lcm_subscribe(l, "POSE", on_msg, &L);
-    lcm_subscribe(l, "MARIE_HEARTBEAT", on_msg, &L);
+    marie_lcm_subscribe(l, "SIM_TRUTH", on_msg, &L);
+    marie_lcm_subscribe(l, "POSE", on_msg, &L);
+    marie_lcm_subscribe(l, "MARIE_HEARTBEAT", on_msg, &L);
     marie_loop_run_until(loop, 30000, live_ready, &L);
     if (!L.have_pose) {
         fprintf(stderr, "eval: %s: no pose within 30 s (see %s)\n", wd->name, dir);

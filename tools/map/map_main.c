@@ -178,7 +178,7 @@ int main(int argc, char **argv)
         return MARIE_EXIT_FAIL;
     }
     mapsave_t s = { 0 };
-    lcm_subscribe(lcm, channel, on_map, &s);
+    marie_lcm_subscribe(lcm, channel, on_map, &s);
     marie_loop_t *loop = marie_loop_create();
     if (!loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
         fprintf(stderr, "marie: map save: out of memory\n");

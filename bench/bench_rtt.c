@@ -1,0 +1,251 @@
+/* bench_rtt: round trip (ping, wait for the echo, ping again) to an echo process, through marie
+ * ports and through the raw LCM C API in the same run, and Cyclone DDS's own ddsperf ping/pong
+ * (ROS 2's middleware of Debian 12's generation) measured the same way right after, for 64 B,
+ * 8 KB and 900 KB. `bench_rtt pong [--url URL]` is the echo process. */
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "bench/bench.h"
+#include "core/component.h"
+#include "tests/proc.h"
+
+/* ---- the echo process: ports in to out, and RTT_RAW_PING to RTT_RAW_PONG on the same lcm_t ---- */
+
+static void echo_port(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    marie_port_publish(marie_port(c, "pong"), msg);
+}
+
+static void echo_raw(const lcm_recv_buf_t *rb, const char *ch, const marie_image_t *m, void *user)
+{
+    marie_image_t_publish(user, "RTT_RAW_PONG", m);
+}
+
+static int pong_init(marie_component_t *c)
+{
+    lcm_t *lcm = marie_component_lcm(c);
+    if (!marie_image_t_subscribe(lcm, "RTT_RAW_PING", echo_raw, lcm))
+        return -1;
+    return marie_port_on_message(marie_port(c, "ping"), echo_port);
+}
+
+static const marie_port_spec_t pong_ports[] = {
+    {"ping", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PING"},
+    {"pong", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PONG"},
+    {0},
+};
+static const marie_component_def_t pong_def = {.kind = "bench-pong", .ports = pong_ports, .on_init = pong_init};
+
+/* ---- the pinging side ---- */
+
+typedef struct {
+    int64_t lat[4000];
+    int n;
+    int32_t want;   /* the sequence number awaited (it rides in row_stride) */
+    int back;       /* it came back */
+} rtt_t;
+
+typedef struct {
+    marie_component_t *c;
+    lcm_t *lcm;
+    rtt_t marie, raw;
+} pinger_t;
+
+static void got(rtt_t *r, const marie_image_t *m)
+{
+    if (m->row_stride != r->want || r->back)
+        return;  /* a late echo of an earlier ping */
+    r->back = 1;
+    if (r->n < (int)(sizeof r->lat / sizeof r->lat[0]))
+        r->lat[r->n++] = marie_mono_us() - m->utime;
+}
+
+static void on_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    got(&((pinger_t *)marie_component_user(c))->marie, msg);
+}
+
+static void on_raw_pong(const lcm_recv_buf_t *rb, const char *ch, const marie_image_t *m, void *user)
+{
+    got(user, m);
+}
+
+static int ping_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "pong"), on_pong); }
+
+static const marie_port_spec_t ping_ports[] = {
+    {"ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PING"},
+    {"pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG"},
+    {0},
+};
+static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
+
+/* One round trip: 0 when the echo came back within timeout_ms. The raw side waits the way a
+ * plain LCM program does (poll the fd, lcm_handle); marie's on its loop. */
+static int round_trip(pinger_t *pg, int use_marie, marie_image_t *img, int32_t seq, int timeout_ms)
+{
+    rtt_t *r = use_marie ? &pg->marie : &pg->raw;
+    r->want = seq;
+    r->back = 0;
+    img->row_stride = seq;
+    img->utime = marie_mono_us();
+    if (use_marie)
+        marie_port_publish(marie_port(pg->c, "ping"), img);
+    else
+        marie_image_t_publish(pg->lcm, "RTT_RAW_PING", img);
+    int64_t end = img->utime + timeout_ms * 1000;
+    while (!r->back && marie_mono_us() < end) {
+        if (use_marie) {
+            marie_loop_run_once(marie_component_loop(pg->c), 5);
+        } else {
+            struct pollfd p = {lcm_get_fileno(pg->lcm), POLLIN, 0};
+            if (poll(&p, 1, 5) > 0)
+                lcm_handle(pg->lcm);
+        }
+    }
+    return r->back ? 0 : -1;
+}
+
+static void row(const char *metric, const char *label, double v, const char *unit, double base)
+{
+    char m[64];
+    snprintf(m, sizeof m, "%s_%s", metric, label);
+    bench_row("rtt", m, v, unit, base);
+}
+
+typedef struct {
+    double p50, p99;
+    long count;
+} dds_t;
+
+/* ddsperf ping at `size` for `seconds` against a ddsperf pong. It prints a line a second; the
+ * first (discovery, warm-up) is dropped and the figures are the medians of the others. */
+static int dds_round_trip(size_t size, int seconds, dds_t *out)
+{
+    char dur[16], cmd[128];
+    snprintf(dur, sizeof dur, "%d", seconds + 3);
+    char *pong[] = {"ddsperf", "-D", dur, "pong", NULL};
+    /* test_spawn takes a path: find ddsperf on PATH the way the shell would. */
+    FILE *w = popen("command -v ddsperf", "r");
+    char path[256] = "";
+    if (!w || !fgets(path, sizeof path, w))
+        path[0] = 0;
+    if (w)
+        pclose(w);
+    path[strcspn(path, "\n")] = 0;
+    if (!path[0])
+        return -1;
+    pong[0] = path;
+    pid_t pid = test_spawn(pong, "/dev/null");
+    snprintf(cmd, sizeof cmd, "%s -D %d ping size %zu 2>&1", path, seconds + 1, size);
+    FILE *f = popen(cmd, "r");
+    int64_t p50[64], p99[64];
+    int n = 0, lines = 0;
+    out->count = 0;
+    char line[512];
+    while (f && fgets(line, sizeof line, f)) {
+        const char *a = strstr(line, " 50% "), *b = strstr(line, " 99% "), *c = strstr(line, " cnt ");
+        if (!a || !b || !c || !strstr(line, " size "))
+            continue;
+        if (lines++ == 0 || n == 64)
+            continue;
+        p50[n] = (int64_t)(strtod(a + 5, NULL) * 1000);  /* ns, to keep the decimals */
+        p99[n] = (int64_t)(strtod(b + 5, NULL) * 1000);
+        out->count += strtol(c + 5, NULL, 10);
+        n++;
+    }
+    if (f)
+        pclose(f);
+    test_stop(pid);
+    out->p50 = bench_percentile(p50, n, 0.5) / 1000;
+    out->p99 = bench_percentile(p99, n, 0.5) / 1000;
+    return n ? 0 : -1;
+}
+
+static void run_size(pinger_t *pg, const char *label, size_t size, int n)
+{
+    marie_image_t img = {.width = 1, .height = (int32_t)size, .size = (int32_t)size,
+                         .format = MARIE_IMAGE_T_FORMAT_GRAY8};
+    img.data = calloc(1, size);
+    int lost_m = 0, lost_r = 0;
+    for (int pass = 0; pass < 2; pass++) {  /* the first pass warms caches and sockets */
+        pg->marie.n = pg->raw.n = 0;
+        lost_m = lost_r = 0;
+        int32_t seq = 1000000 * (pass + 1);
+        for (int blk = 0; blk < 10; blk++) {  /* interleaved: drift hits both alike */
+            for (int i = 0; i < n / 10; i++)
+                lost_m -= round_trip(pg, 1, &img, seq++, 200);
+            for (int i = 0; i < n / 10; i++)
+                lost_r -= round_trip(pg, 0, &img, seq++, 200);
+        }
+    }
+    free(img.data);
+    double m50 = bench_percentile(pg->marie.lat, pg->marie.n, 0.5);
+    double m99 = bench_percentile(pg->marie.lat, pg->marie.n, 0.99);
+    row("p50", label, m50, "us", bench_percentile(pg->raw.lat, pg->raw.n, 0.5));
+    row("p99", label, m99, "us", bench_percentile(pg->raw.lat, pg->raw.n, 0.99));
+    row("lost", label, lost_m, "msgs", lost_r);
+    dds_t d;
+    if (dds_round_trip(size, 3, &d) < 0) {
+        printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
+               "cyclonedds-tools)\n", label);
+        return;
+    }
+    row("p50_vs_dds", label, m50, "us", d.p50);
+    row("p99_vs_dds", label, m99, "us", d.p99);
+    fprintf(stderr, "bench_rtt: ddsperf %s: %ld round trips\n", label, d.count);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc > 1 && !strcmp(argv[1], "pong"))
+        return marie_main(&pong_def, argc - 1, argv + 1, NULL);
+    marie_log_set_threshold(MARIE_LOG_ERROR);
+    /* ddsperf on loopback only, like every LCM socket here (the benchmarks run in a namespace
+     * with nothing but lo). */
+    setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
+           "</Interfaces></General></Domain></CycloneDDS>", 1);
+    const char *url = marie_default_url();
+    char self[512];
+    ssize_t k = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (k <= 0)
+        return 1;
+    self[k] = 0;
+    char *pong_argv[] = {self, "pong", "--url", (char *)url, NULL};
+    pid_t pong = test_spawn(pong_argv, NULL);
+
+    static pinger_t pg;
+    char *av[] = {"bench-ping", "--url", (char *)url};
+    marie_errors_t e = {0};
+    pg.c = marie_component_create(&ping_def, 3, av, &pg, &e);
+    const char *why;
+    if (!pg.c || marie_component_command(pg.c, MARIE_CMD_INIT, &why) < 0 ||
+        marie_component_command(pg.c, MARIE_CMD_START, &why) < 0) {
+        marie_errors_print(&e, stderr);
+        test_stop(pong);
+        return 1;
+    }
+    pg.lcm = marie_component_lcm(pg.c);
+    marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.raw);
+    /* Wait for the echo process: ping until one comes back (5 s at most). */
+    marie_image_t probe = {.width = 1, .height = 1, .size = 1, .format = MARIE_IMAGE_T_FORMAT_GRAY8};
+    uint8_t byte = 0;
+    probe.data = &byte;
+    int up = 0;
+    for (int i = 0; i < 100 && !up; i++)
+        up = round_trip(&pg, 1, &probe, -1 - i, 50) == 0;
+    if (!up) {
+        fprintf(stderr, "bench_rtt: the echo process did not answer\n");
+        test_stop(pong);
+        return 1;
+    }
+    printf("# bench\tmetric\tvalue (marie ports)\tunit\tbaseline (raw LCM, or ddsperf for _vs_dds)\tratio\n");
+    run_size(&pg, "64B", 64, 2000);
+    run_size(&pg, "8KB", 8192, 1000);
+    run_size(&pg, "900KB", 921600, 200);
+    marie_component_destroy(pg.c);
+    test_stop(pong);
+    return 0;
+}
