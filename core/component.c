@@ -101,6 +101,7 @@ void marie_component_heartbeat(marie_component_t *c)
     memset(&hb, 0, sizeof hb);
     marie_counter_t counters[64];
     marie_port_status_t ports[64];
+    marie_comp_count_shm_losses(c);
     hb.utime = marie_wall_us();
     hb.component = c->name;
     hb.host = c->host;
@@ -513,6 +514,7 @@ void marie_component_destroy(marie_component_t *c)
         for (size_t k = 0; k < p->nqueue; k++)
             free(p->queue[k].data);
         free(p->queue);
+        marie_comp_port_close(p);
         free(p->channel);
         free(p->scratch);
         free(p->buf);

@@ -1,4 +1,5 @@
-/* component ports: publish and subscribe over LCM, event queues, pull requests and ticks. */
+/* component ports: publish and subscribe over LCM (or same-host shared memory where the system
+ * file says so), event queues, pull requests and ticks. */
 #include "core/component.h"
 
 #include <assert.h>
@@ -56,14 +57,15 @@ void marie_comp_flush_events(marie_component_t *c)
     }
 }
 
-static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+/* A message for port p from its transport: delivered now, held (an event port not running) or
+ * counted as ignored. */
+static void port_receive(marie_port_t *p, const void *data, size_t len, int64_t recv_utime)
 {
-    marie_port_t *p = user;
     marie_component_t *c = p->c;
     if (!p->cb)
         return;
     if (c->state == MARIE_STATE_RUNNING) {
-        deliver(p, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+        deliver(p, data, len, recv_utime);
         return;
     }
     if (p->spec->mech != MARIE_EVENT) {
@@ -78,14 +80,50 @@ static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, voi
         c->drops++;
         marie_component_count(c, "events_lost", 1);
     }
-    void *copy = malloc(rbuf->data_size ? rbuf->data_size : 1);
+    void *copy = malloc(len ? len : 1);
     if (!copy) {
         c->drops++;
         marie_component_count(c, "events_lost", 1);
         return;
     }
-    memcpy(copy, rbuf->data, rbuf->data_size);
-    p->queue[p->nqueue++] = (queued_t){copy, rbuf->data_size, rbuf->recv_utime};
+    memcpy(copy, data, len);
+    p->queue[p->nqueue++] = (queued_t){copy, len, recv_utime};
+}
+
+static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    port_receive(user, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+}
+
+static void on_shm_message(const void *data, size_t len, void *user)
+{
+    port_receive(user, data, len, marie_wall_us());
+}
+
+void marie_comp_count_shm_losses(marie_component_t *c)
+{
+    for (size_t i = 0; i < c->nports; i++) {
+        marie_port_t *p = &c->ports[i];
+        if (!p->shm_sub)
+            continue;
+        const marie_shm_sub_stats_t *st = marie_shm_sub_stats(p->shm_sub);
+        if (st->lost > p->shm_counted.lost) {
+            c->drops += st->lost - p->shm_counted.lost;
+            marie_component_count(c, "shm_overwritten", st->lost - p->shm_counted.lost);
+        }
+        if (st->bad > p->shm_counted.bad)
+            marie_component_bad_input(c, "bad_shm_notice", "port %s: %lld malformed or mismatched notices on %s.SHM",
+                                      p->spec->name, (long long)(st->bad - p->shm_counted.bad), p->channel);
+        p->shm_counted = *st;
+    }
+}
+
+void marie_comp_port_close(marie_port_t *p)
+{
+    marie_shm_pub_destroy(p->shm_pub);
+    marie_shm_sub_destroy(p->shm_sub);
+    p->shm_pub = NULL;
+    p->shm_sub = NULL;
 }
 
 marie_port_t *marie_port(marie_component_t *c, const char *name)
@@ -102,11 +140,19 @@ const char *marie_port_name(const marie_port_t *p) { return p->spec->name; }
 
 int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
 {
-    if (lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0) {
-        int err = errno ? errno : EIO;
+    int err = 0;
+    if (p->shm_pub)
+        err = -marie_shm_pub_publish(p->shm_pub, data, len);
+    else if (lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0)
+        err = errno ? errno : EIO;
+    if (err) {
         p->c->drops++;
-        marie_component_count(p->c, "publish_failed", 1);
-        marie_warn_ratelimited(5, "%s: publish on %s failed: %s", p->c->name, p->channel, strerror(err));
+        marie_component_count(p->c, err == EMSGSIZE ? "publish_too_big" : "publish_failed", 1);
+        if (err == EMSGSIZE)
+            marie_warn_ratelimited(5, "%s: %zu bytes on %s: larger than its transport's max_size (%zu)", p->c->name,
+                                   len, p->channel, p->shm->max_size);
+        else
+            marie_warn_ratelimited(5, "%s: publish on %s failed: %s", p->c->name, p->channel, strerror(err));
         return -err;
     }
     p->c->msgs_out++;
@@ -138,7 +184,11 @@ int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
     if (p->spec->dir != MARIE_IN || p->spec->mech == MARIE_PULL)
         return -EINVAL;
     p->cb = cb;
-    if (!p->sub) {
+    if (p->shm) {
+        if (!p->shm_sub && !(p->shm_sub = marie_shm_sub_create(p->lcm, p->channel, p->shm->max_size,
+                                                                on_shm_message, p)))
+            return -EIO;
+    } else if (!p->sub) {
         p->sub = lcm_subscribe(p->lcm, p->channel, on_port_message, p);
         if (!p->sub)
             return -EIO;
@@ -408,6 +458,16 @@ int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors
         p->lcm = marie_comp_bus_for(c, url);
         if (!p->lcm || !p->channel)
             return -1;
+        const marie_transport_cfg_t *tr = marie_system_transport(c->sys, channel);
+        if (tr && tr->shm) {
+            p->shm = tr;
+            if (p->spec->dir == MARIE_OUT && !(p->shm_pub = marie_shm_pub_create(p->lcm, channel, tr->max_size,
+                                                                                  tr->slots))) {
+                marie_errors_add(errs, c->sys->file, tr->line, tr->col, "%s '%s': port '%s': no shared memory for %s: %s",
+                                 c->def->kind, c->name, p->spec->name, channel, strerror(errno));
+                rc = -1;
+            }
+        }
         if (p->spec->type && !(p->scratch = calloc(1, p->spec->type->size)))
             return -1;
         if (p->spec->mech == MARIE_EVENT && p->spec->dir == MARIE_IN &&

@@ -11,6 +11,7 @@
 
 #include "core/auth.h"
 #include "core/component.h"
+#include "core/shm_bus.h"
 #include "core/spec.h"
 
 #define EVENT_QUEUE_MAX 256
@@ -47,6 +48,10 @@ struct marie_port {
     queued_t *queue;            /* event port: held while not running */
     size_t nqueue;
     int64_t msgs;               /* delivered (in) or published (out), for the heartbeat */
+    const marie_transport_cfg_t *shm;   /* the system file moves the channel to shared memory */
+    marie_shm_pub_t *shm_pub;
+    marie_shm_sub_t *shm_sub;
+    marie_shm_sub_stats_t shm_counted;  /* the reader's losses already in the counters */
 };
 
 typedef struct {
@@ -131,6 +136,10 @@ void marie_comp_flush_events(marie_component_t *c);
 /* The LCM instance for url (NULL: the system bus), created on first use; NULL on failure. */
 lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url);
 int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors_t *errs);
+/* Add the shared-memory readers' losses since the last call to the counters. */
+void marie_comp_count_shm_losses(marie_component_t *c);
+/* Close what a port opened (its shared memory); the port's strings and buffers stay. */
+void marie_comp_port_close(marie_port_t *p);
 
 /* component_params.c */
 int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **argv, options_t *o, marie_errors_t *errs);

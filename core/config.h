@@ -104,6 +104,15 @@ typedef struct {
     const char *file; int line, col;
 } marie_component_cfg_t;
 
+/* `transports:` in the system file: how a channel's messages travel between ports. */
+typedef struct {
+    char *channel;
+    bool shm;                   /* kind: shm (same-host shared memory, notices on LCM); else lcm */
+    size_t max_size;            /* bytes the largest message may take (shm) */
+    int slots;                  /* messages the ring holds (shm) */
+    int line, col;
+} marie_transport_cfg_t;
+
 typedef struct marie_system {
     char *file;
     char *name;
@@ -114,6 +123,7 @@ typedef struct marie_system {
     char **hosts; size_t nhosts;
     const marie_node_t *robot;  /* `robot:` (the profile's when it has one): a component parameter
                                    robot_KEY not set in its entry takes robot.KEY; NULL: none */
+    marie_transport_cfg_t *transports; size_t ntransports;
     marie_component_cfg_t *components; size_t ncomponents;
     marie_component_cfg_t **by_name;   /* private: sorted by name for lookups */
     marie_doc_t *doc;
@@ -125,6 +135,8 @@ typedef struct marie_system {
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs);
 void marie_system_destroy(marie_system_t *sys);
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
+/* The transport the file sets for `channel`, or NULL (plain LCM). */
+const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, const char *channel);
 /* Which settings of two components' effective configurations differ, as "clock,params"
  * ("" when none). Caller frees; NULL when out of memory. */
 char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,

@@ -348,6 +348,7 @@ static void every_setting_enters_the_hash(void **state)
         {"system: h\n", "system: h\nclock: sim\n", "clock"},
         {"system: h\n", "system: h\nlcm_url: udpm://239.255.76.67:7668?ttl=0\n", "lcm_url"},
         {"system: h\n", "system: h\nauth: {key_file: /k}\n", "auth"},
+        {"system: h\n", "system: h\ntransports: {X: {kind: shm}}\n", "lcm_url"},
         {"    args: [--hold]\n", "    args: [--hold]\n    stop_timeout: 1\n", "stop_timeout"},
         {"    args: [--hold]\n", "    args: [--hold]\n    heartbeat_timeout: 0\n", "heartbeat_timeout"},
         {"    args: [--hold]\n", "    args: [--hold]\n    shell: true\n", "shell"},
@@ -615,6 +616,36 @@ static void a_profile_chain_is_checked(void **state)
     marie_errors_clear(&e);
 }
 
+/* transports: a channel on shared memory with its sizes; every mistake has its position. */
+static void transports_are_read_and_checked(void **state)
+{
+    marie_errors_t e = {0};
+    marie_system_t *sys = load_text(BASE_SYSTEM "transports:\n  CAM: {kind: shm, max_size: 1000000, slots: 4}\n"
+                                                "  LOG: {kind: lcm}\n", NULL, &e);
+    assert_non_null(sys);
+    const marie_transport_cfg_t *t = marie_system_transport(sys, "CAM");
+    assert_non_null(t);
+    assert_true(t->shm);
+    assert_int_equal(t->max_size, 1000000);
+    assert_int_equal(t->slots, 4);
+    assert_int_equal(t->line, 16);
+    assert_false(marie_system_transport(sys, "LOG")->shm);
+    assert_null(marie_system_transport(sys, "X"));
+    marie_system_destroy(sys);
+    assert_null(load_text(BASE_SYSTEM "transports:\n  CAM: {kind: tcp}\n", NULL, &e));
+    assert_true(has_error(&e, ":16:15: transport of 'CAM': kind is shm or lcm, not 'tcp'"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "transports:\n  CAM: {kind: shm, slots: 1}\n", NULL, &e));
+    assert_true(has_error(&e, ":16:8: transport of 'CAM': max_size is 64 B to 1 GiB and slots 2 to 1024"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "transports:\n  CAM: {kind: shm, size: 10}\n", NULL, &e));
+    assert_true(has_error(&e, "size"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "transports: [CAM]\n", NULL, &e));
+    assert_true(has_error(&e, "transports: expected a mapping"));
+    marie_errors_clear(&e);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_OFF);
@@ -640,6 +671,7 @@ int main(void)
         cmocka_unit_test(the_robot_section_feeds_robot_params),
         cmocka_unit_test(a_profile_extends_another),
         cmocka_unit_test(a_profile_chain_is_checked),
+        cmocka_unit_test(transports_are_read_and_checked),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,11 +1,15 @@
 /* test_ports: push ports carry typed messages, mistyped payloads are counted and dropped,
- * pull ports get the newest value from a server speaking the Mailbox protocol, or time out. */
+ * pull ports get the newest value from a server speaking the Mailbox protocol, or time out;
+ * a channel the system file puts on shared memory carries 900 KB messages whole. */
 #include <errno.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <cmocka.h>
 
@@ -46,17 +50,27 @@ static const marie_port_spec_t rx_ports[] = {
 };
 static const marie_component_def_t rx_def = {.kind = "rx", .ports = rx_ports, .on_init = rx_init};
 
-static marie_component_t *make(const marie_component_def_t *def, const char *name, void *user)
+static marie_component_t *started(const marie_component_def_t *def, int argc, char **argv, void *user)
 {
-    char *argv[] = {(char *)def->kind, "--name", (char *)name};
     marie_errors_t e = {0};
-    marie_component_t *c = marie_component_create(def, 3, argv, user, &e);
+    marie_component_t *c = marie_component_create(def, argc, argv, user, &e);
     marie_errors_print(&e, stderr);
     assert_non_null(c);
     const char *why;
     assert_int_equal(marie_component_command(c, MARIE_CMD_INIT, &why), 0);
     assert_int_equal(marie_component_command(c, MARIE_CMD_START, &why), 0);
     return c;
+}
+
+static marie_component_t *make(const marie_component_def_t *def, const char *name, void *user)
+{
+    return started(def, 3, (char *[]){(char *)def->kind, "--name", (char *)name}, user);
+}
+
+/* One of the system file's components. */
+static marie_component_t *make_in(const char *file, const marie_component_def_t *def, const char *name, void *user)
+{
+    return started(def, 5, (char *[]){(char *)def->kind, "--system", (char *)file, "--name", (char *)name}, user);
 }
 
 static void spin(marie_component_t **cs, int n, int ms)
@@ -207,6 +221,126 @@ static void async_pull_calls_back_exactly_once(void **state)
     marie_component_destroy(c);
 }
 
+/* ---- a channel on shared memory (the system file's transports:) ---- */
+
+typedef struct {
+    int got, intact;
+} grid_rx_t;
+
+/* Cell i of message k holds (i * 7 + k) % 101: the receiver can tell a whole grid from a torn one. */
+static void fill_grid(marie_occupancy_grid_t *g, int8_t *cells, int w, int h, int k)
+{
+    *g = (marie_occupancy_grid_t){.utime = k + 1, .resolution = 0.05f, .width = w, .height = h, .ncells = w * h,
+                                  .cells = cells};
+    for (int i = 0; i < w * h; i++)
+        cells[i] = (int8_t)((i * 7 + k) % 101);
+}
+
+static void on_grid(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    grid_rx_t *s = marie_component_user(c);
+    const marie_occupancy_grid_t *g = msg;
+    int k = (int)g->utime - 1, ok = g->ncells == g->width * g->height;
+    for (int i = 0; ok && i < g->ncells; i++)
+        ok = g->cells[i] == (int8_t)((i * 7 + k) % 101);
+    s->got++;
+    s->intact += ok;
+}
+
+static int grid_rx_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "map"), on_grid); }
+
+static const marie_port_spec_t grid_tx_ports[] = {
+    {"map", &marie_type_occupancy_grid_t, MARIE_OUT, MARIE_PUSH, "T_GRID"},
+    {0},
+};
+static const marie_port_spec_t grid_rx_ports[] = {
+    {"map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "T_GRID"},
+    {0},
+};
+static const marie_component_def_t grid_tx_def = {.kind = "gridtx", .ports = grid_tx_ports};
+static const marie_component_def_t grid_rx_def = {.kind = "gridrx", .ports = grid_rx_ports, .on_init = grid_rx_init};
+
+typedef struct {
+    int whole, notices;
+} spy_t;
+
+static void on_spy(const lcm_recv_buf_t *rb, const char *ch, void *user)
+{
+    spy_t *s = user;
+    if (strcmp(ch, "T_GRID") == 0)
+        s->whole++;
+    else
+        s->notices++;
+}
+
+static void spin_spy(marie_component_t **cs, int n, lcm_t *spy, int ms)
+{
+    spin(cs, n, ms);
+    while (lcm_handle_timeout(spy, 10) > 0)
+        ;
+}
+
+/* cs[0] publishes `count` grids of `ncells` (cells 0..k-1 of the pattern), spinning cs[0..n). */
+static void publish_grids(marie_component_t **cs, int n, lcm_t *spy, int8_t *cells, int ncells, int count)
+{
+    marie_occupancy_grid_t g;
+    for (int k = 0; k < count; k++) {
+        fill_grid(&g, cells, ncells, 1, k);
+        assert_int_equal(marie_port_publish(marie_port(cs[0], "map"), &g), 0);
+        spin_spy(cs, n, spy, 50);
+    }
+    spin_spy(cs, n, spy, 200);
+}
+
+static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **state)
+{
+    char file[] = "/tmp/marie-test-shm-XXXXXX.yaml";
+    int fd = mkstemps(file, 5);
+    assert_true(fd >= 0);
+    dprintf(fd, "system: shmports\n"
+                "transports:\n"
+                "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
+                "components:\n"
+                "  tx: {exec: /bin/true}\n"
+                "  rx: {exec: /bin/true}\n"
+                "  far: {exec: /bin/true}\n");
+    close(fd);
+    lcm_t *spy = lcm_create(marie_default_url());   /* the components' bus, with its receive buffer */
+    spy_t sp = {0};
+    lcm_subscribe(spy, "T_GRID(\\.SHM)?", on_spy, &sp);
+    grid_rx_t rx = {0}, far = {0};
+    marie_component_t *cs[3] = {make_in(file, &grid_tx_def, "tx", NULL), make_in(file, &grid_rx_def, "rx", &rx)};
+    enum { W = 960, H = 960 };      /* 921 600 cells: a 640 x 480 RGB image's size */
+    int8_t *cells = malloc((size_t)W * H * 2);
+    marie_occupancy_grid_t g;
+    publish_grids(cs, 2, spy, cells, W * H, 5);
+    /* Every grid arrived whole through the ring; LCM carried only the notices. */
+    assert_int_equal(rx.got, 5);
+    assert_int_equal(rx.intact, 5);
+    assert_int_equal(sp.notices, 5);
+    assert_int_equal(sp.whole, 0);
+    /* A message larger than the transport allows is refused and counted, not cut. */
+    fill_grid(&g, cells, W, 2 * H, 0);
+    assert_int_equal(marie_port_publish(marie_port(cs[0], "map"), &g), -EMSGSIZE);
+    assert_int_equal(marie_component_counter(cs[0], "publish_too_big"), 1);
+    /* A subscriber on another host cannot map the ring: it asks, and the grids come on LCM too. */
+    setenv("MARIE_SHM_HOST", "another-host", 1);
+    cs[2] = make_in(file, &grid_rx_def, "far", &far);
+    unsetenv("MARIE_SHM_HOST");
+    publish_grids(cs, 3, spy, cells, W * H, 6);
+    assert_int_equal(rx.got, 11);
+    assert_int_equal(rx.intact, 11);
+    assert_true(far.got >= 4);      /* from the one after its first request on */
+    assert_int_equal(far.intact, far.got);
+    assert_int_equal(sp.whole, far.got);
+    assert_int_equal(marie_component_counter(cs[1], "shm_overwritten"), 0);
+    free(cells);
+    for (int i = 0; i < 3; i++)
+        marie_component_destroy(cs[i]);
+    lcm_destroy(spy);
+    unlink(file);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_ERROR);
@@ -214,6 +348,7 @@ int main(void)
         cmocka_unit_test(push_delivers_typed_messages_and_drops_mistyped_ones),
         cmocka_unit_test(pull_gets_the_newest_value_or_times_out),
         cmocka_unit_test(async_pull_calls_back_exactly_once),
+        cmocka_unit_test(shm_transport_carries_large_messages_and_lcm_sees_notices),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
