@@ -384,8 +384,8 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
         case F_LCM_URL: {
             fprintf(f, "%s", sys->lcm_url ? sys->lcm_url : "");
             /* A channel moved to shared memory changes how its ports run. */
-            char *tr = marie_node_get(marie_doc_root(sys->doc), "transports")
-                           ? marie_node_canonical(marie_node_get(marie_doc_root(sys->doc), "transports")) : NULL;
+            const marie_node_t *tn = marie_node_get(marie_doc_root(sys->doc), "transports");
+            char *tr = tn ? marie_node_canonical(tn) : NULL;
             if (tr)
                 fprintf(f, " transports=%s", tr);
             free(tr);
