@@ -460,10 +460,8 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         goto err_runtime;
     if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {
         /* A fast simulator sends clock bursts; LCM's default queue (30) would drop ticks. */
-        lcm_subscription_t *clk = lcm_subscribe(c->buses[0].lcm, MARIE_CH_CLOCK, on_clock, c);
-        if (!clk)
+        if (!marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_CLOCK, on_clock, c))
             goto err_runtime;
-        lcm_subscription_set_queue_capacity(clk, 1000);
     }
     free(o.params);
     free(o.ports);

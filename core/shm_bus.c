@@ -8,6 +8,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/loop.h"
 #include "core/shm.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
@@ -250,13 +251,12 @@ marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t ma
     s->buf = malloc(max_size);
     if (!s->r || !s->buf)
         goto err;
-    s->notice_sub = lcm_subscribe(lcm, notice_ch, on_notice, s);
+    /* Notices come in bursts at high rates; each is small. */
+    s->notice_sub = marie_lcm_subscribe(lcm, notice_ch, on_notice, s);
     if (!s->notice_sub) {
         errno = EIO;
         goto err;
     }
-    /* Notices come in bursts at high rates; each is small. */
-    lcm_subscription_set_queue_capacity(s->notice_sub, 1024);
     return s;
 err:;
     int e = errno ? errno : ENOMEM;
