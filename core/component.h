@@ -162,7 +162,8 @@ const void *marie_component_params(const marie_component_t *c);
 typedef struct {
     const char *channel;
     int64_t recv_utime;         /* wall clock at receipt */
-    const void *raw;            /* the LCM payload */
+    const void *raw;            /* the LCM payload; NULL for a typed port whose channel is on
+                                 * shared memory (decoded in place, the bytes are the writer's) */
     size_t raw_len;
 } marie_msg_info_t;
 typedef void (*marie_msg_cb_t)(marie_component_t *c, marie_port_t *p, const void *msg,

@@ -15,6 +15,22 @@
 
 /* ---- ports ---- */
 
+static void bad_payload(marie_port_t *p, const char *why, size_t len)
+{
+    marie_component_bad_input(p->c, why, "port %s: %zu bytes on %s: not a well-formed, finite %s", p->spec->name, len,
+                              p->channel, p->spec->type->name);
+}
+
+/* Hands the message decoded in p->scratch to the handler, then frees what decoding made. */
+static void hand_over(marie_port_t *p, const marie_msg_info_t *info)
+{
+    marie_component_t *c = p->c;
+    c->msgs_in++;
+    p->msgs++;
+    p->cb(c, p, p->scratch, info);
+    p->spec->type->decode_cleanup(p->scratch);
+}
+
 /* Decodes a payload for port p; on success calls the handler. Returns 0 or -1 (counted). */
 static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_utime)
 {
@@ -29,14 +45,10 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
     }
     const char *why;
     if (marie_decode_input(t, data, len, p->scratch, &why) < 0) {
-        marie_component_bad_input(c, why, "port %s: %zu bytes on %s: not a well-formed, finite %s", p->spec->name,
-                                  len, p->channel, t->name);
+        bad_payload(p, why, len);
         return -1;
     }
-    c->msgs_in++;
-    p->msgs++;
-    p->cb(c, p, p->scratch, &info);
-    t->decode_cleanup(p->scratch);
+    hand_over(p, &info);
     return 0;
 }
 
@@ -58,19 +70,19 @@ void marie_comp_flush_events(marie_component_t *c)
 }
 
 /* A message for port p from its transport: delivered now, held (an event port not running) or
- * counted as ignored. */
-static void port_receive(marie_port_t *p, const void *data, size_t len, int64_t recv_utime)
+ * counted as ignored. Returns true when it was held (a copy at the end of the queue). */
+static bool port_receive(marie_port_t *p, const void *data, size_t len, int64_t recv_utime)
 {
     marie_component_t *c = p->c;
     if (!p->cb)
-        return;
+        return false;
     if (c->state == MARIE_STATE_RUNNING) {
         deliver(p, data, len, recv_utime);
-        return;
+        return false;
     }
     if (p->spec->mech != MARIE_EVENT) {
         marie_component_count(c, "ignored_not_running", 1);
-        return;
+        return false;
     }
     /* Events wait for the component to run again; an overflow is a counted loss. */
     if (p->nqueue == EVENT_QUEUE_MAX) {
@@ -84,10 +96,11 @@ static void port_receive(marie_port_t *p, const void *data, size_t len, int64_t 
     if (!copy) {
         c->drops++;
         marie_component_count(c, "events_lost", 1);
-        return;
+        return false;
     }
     memcpy(copy, data, len);
     p->queue[p->nqueue++] = (queued_t){copy, len, recv_utime};
+    return true;
 }
 
 static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
@@ -98,6 +111,41 @@ static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, voi
 static void on_shm_message(const void *data, size_t len, void *user)
 {
     port_receive(user, data, len, marie_wall_us());
+}
+
+/* Typed ports read shared memory in place: the message is decoded where the writer put it, and
+ * handed over only once the ring says the bytes stayed intact throughout (else it is a counted
+ * loss, never a torn message). A port not running keeps a copy, taken back the same way. */
+static void on_shm_in_place(const void *data, size_t len, void *user)
+{
+    marie_port_t *p = user;
+    p->peek.len = len;
+    p->peek.decoded = p->peek.queued = false;
+    if (p->c->state != MARIE_STATE_RUNNING || !p->cb)
+        p->peek.queued = port_receive(p, data, len, marie_wall_us());
+    else
+        p->peek.decoded = marie_decode_input(p->spec->type, data, len, p->scratch, &p->peek.why) == 0;
+}
+
+static void on_shm_verdict(bool intact, void *user)
+{
+    marie_port_t *p = user;
+    if (!intact) {
+        if (p->peek.decoded)
+            p->spec->type->decode_cleanup(p->scratch);
+        else if (p->peek.queued)
+            free(p->queue[--p->nqueue].data);
+        return;
+    }
+    if (p->peek.queued || p->c->state != MARIE_STATE_RUNNING || !p->cb)
+        return;
+    if (!p->peek.decoded) {
+        bad_payload(p, p->peek.why, p->peek.len);
+        return;
+    }
+    /* raw stays NULL: the bytes are the writer's again once they were decoded. */
+    marie_msg_info_t info = {p->channel, marie_wall_us(), NULL, 0};
+    hand_over(p, &info);
 }
 
 void marie_comp_count_shm_losses(marie_component_t *c)
@@ -138,13 +186,9 @@ marie_port_t *marie_port(marie_component_t *c, const char *name)
 const char *marie_port_channel(const marie_port_t *p) { return p->channel; }
 const char *marie_port_name(const marie_port_t *p) { return p->spec->name; }
 
-int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
+/* Counts a publication on p: done, or failed with errno err (a drop). 0 or -err. */
+static int published(marie_port_t *p, int err, size_t len)
 {
-    int err = 0;
-    if (p->shm_pub)
-        err = -marie_shm_pub_publish(p->shm_pub, data, len);
-    else if (lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0)
-        err = errno ? errno : EIO;
     if (err) {
         p->c->drops++;
         marie_component_count(p->c, err == EMSGSIZE ? "publish_too_big" : "publish_failed", 1);
@@ -160,6 +204,27 @@ int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
     return 0;
 }
 
+int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
+{
+    int err = 0;
+    if (p->shm_pub)
+        err = -marie_shm_pub_publish(p->shm_pub, data, len);
+    else if (lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0)
+        err = errno ? errno : EIO;
+    return published(p, err, len);
+}
+
+typedef struct {
+    const marie_type_t *t;
+    const void *msg;
+} encoding_t;
+
+static int encode_into(void *dst, size_t len, void *user)
+{
+    const encoding_t *e = user;
+    return e->t->encode(dst, 0, (int)len, e->msg) == (int)len ? 0 : -1;
+}
+
 int marie_port_publish(marie_port_t *p, const void *msg)
 {
     const marie_type_t *t = p->spec->type;
@@ -167,6 +232,9 @@ int marie_port_publish(marie_port_t *p, const void *msg)
     int size = t->encoded_size(msg);
     if (size < 0)
         return -EINVAL;
+    if (p->shm_pub)     /* encoded straight into the ring */
+        return published(p, -marie_shm_pub_publish_with(p->shm_pub, (size_t)size, encode_into,
+                                                          &(encoding_t){t, msg}), (size_t)size);
     if ((size_t)size > p->bufcap) {
         uint8_t *n = realloc(p->buf, (size_t)size);
         if (!n)
@@ -185,9 +253,14 @@ int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
         return -EINVAL;
     p->cb = cb;
     if (p->shm) {
-        if (!p->shm_sub && !(p->shm_sub = marie_shm_sub_create(p->lcm, p->channel, p->shm->max_size,
-                                                                on_shm_message, p)))
-            return -EIO;
+        if (!p->shm_sub) {
+            bool in_place = p->spec->type != NULL;
+            if (!(p->shm_sub = marie_shm_sub_create(p->lcm, p->channel, p->shm->max_size,
+                                                    in_place ? on_shm_in_place : on_shm_message, p)))
+                return -EIO;
+            if (in_place)
+                marie_shm_sub_in_place(p->shm_sub, on_shm_verdict);
+        }
     } else if (!p->sub) {
         p->sub = lcm_subscribe(p->lcm, p->channel, on_port_message, p);
         if (!p->sub)

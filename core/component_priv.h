@@ -52,6 +52,11 @@ struct marie_port {
     marie_shm_pub_t *shm_pub;
     marie_shm_sub_t *shm_sub;
     marie_shm_sub_stats_t shm_counted;  /* the reader's losses already in the counters */
+    struct {                    /* a message read in place, until the ring's verdict */
+        bool decoded, queued;
+        const char *why;        /* why it did not decode */
+        size_t len;
+    } peek;
 };
 
 typedef struct {

@@ -142,7 +142,7 @@ void marie_shm_writer_destroy(marie_shm_writer_t *w)
 
 const char *marie_shm_writer_segment(const marie_shm_writer_t *w) { return w->name; }
 
-int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_shm_ref_t *ref)
+int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref)
 {
     shm_hdr_t *h = w->hdr;
     if (len > h->slot_size)
@@ -151,16 +151,29 @@ int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_s
     slot_hdr_t *s = slot_at(w->base, h, n % h->nslots);
     atomic_store_explicit(&s->seq, 2 * n - 1, memory_order_relaxed);
     atomic_thread_fence(memory_order_release);      /* odd before any byte of the new data */
-    memcpy((uint8_t *)s + DATA_OFF, data, len);
-    s->size = len;
+    bool filled = fill((uint8_t *)s + DATA_OFF, len, user) == 0;
+    s->size = filled ? len : 0;
     atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
     atomic_store_explicit(&h->write_seq, n, memory_order_release);
+    if (!filled)
+        return -EINVAL;     /* no ref: nobody is told of the empty slot */
     if (ref) {
         snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
         ref->seq = (int64_t)n;
         ref->size = (uint32_t)len;
     }
     return 0;
+}
+
+int marie_shm_fill_copy(void *dst, size_t len, void *src)
+{
+    memcpy(dst, src, len);
+    return 0;
+}
+
+int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_shm_ref_t *ref)
+{
+    return marie_shm_write_with(w, len, marie_shm_fill_copy, (void *)data, ref);
 }
 
 marie_shm_reader_t *marie_shm_reader_create(void)

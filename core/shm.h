@@ -35,6 +35,12 @@ marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_siz
 void marie_shm_writer_destroy(marie_shm_writer_t *w);      /* NULL is a no-op; unlinks */
 /* Copy one message into the next slot. 0, or -EMSGSIZE when it does not fit a slot. */
 int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_shm_ref_t *ref);
+/* Without the copy: `fill(dst, len, user)` writes the len bytes of the message straight into the
+ * slot (an encoder) and returns 0, or -1 to abandon it (the slot is left empty, no ref made, and
+ * this returns -EINVAL). dst is only valid during the call. 0, -EMSGSIZE or -EINVAL. */
+typedef int (*marie_shm_fill_t)(void *dst, size_t len, void *user);
+int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref);
+int marie_shm_fill_copy(void *dst, size_t len, void *src);     /* the fill of marie_shm_write: a memcpy */
 const char *marie_shm_writer_segment(const marie_shm_writer_t *w);
 
 marie_shm_reader_t *marie_shm_reader_create(void);

@@ -105,27 +105,49 @@ void marie_shm_pub_destroy(marie_shm_pub_t *p)
     free(p);
 }
 
-int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len)
+/* Remembers where the message was written: the notice's fingerprint and an LCM copy read it there
+ * (only this writer ever writes the slot). */
+typedef struct {
+    marie_shm_fill_t fill;
+    void *user;
+    const uint8_t *at;
+} fill_t;
+
+static int fill_noting(void *dst, size_t len, void *user)
+{
+    fill_t *f = user;
+    f->at = dst;
+    return f->fill(dst, len, f->user);
+}
+
+int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t fill, void *user)
 {
     if (len < 8)
         return -EINVAL;
     marie_shm_ref_t ref;
-    int rc = marie_shm_write(p->w, data, len, &ref);
+    fill_t f = { fill, user, NULL };
+    int rc = marie_shm_write_with(p->w, len, fill_noting, &f, &ref);
     if (rc < 0) {
-        p->st.too_big++;
+        if (rc == -EMSGSIZE)
+            p->st.too_big++;
         return rc;
     }
     marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
-                             .size = (int32_t)ref.size, .fingerprint = fingerprint(data) };
+                             .size = (int32_t)ref.size, .fingerprint = fingerprint(f.at) };
     if (marie_shm_notice_t_publish(p->lcm, p->notice_ch, &n) != 0)
         return -EIO;
     p->st.published++;
     if (p->wanted_until && marie_mono_us() < p->wanted_until) {
-        if (lcm_publish(p->lcm, p->channel, data, (unsigned)len) != 0)
+        if (lcm_publish(p->lcm, p->channel, f.at, (unsigned)len) != 0)
             return -EIO;
         p->st.lcm_copies++;
     }
     return 0;
+}
+
+int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len)
+{
+    return marie_shm_pub_publish_with(p, len, marie_shm_fill_copy, (void *)data);
 }
 
 const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p) { return &p->st; }
@@ -152,6 +174,8 @@ static void on_copy(const lcm_recv_buf_t *rb, const char *channel, void *user)
     marie_shm_sub_t *s = user;
     s->st.remote++;
     s->cb(rb->data, rb->data_size, s->user);
+    if (s->verdict)
+        s->verdict(true, s->user);      /* LCM's copy is the subscriber's own */
 }
 
 /* The writer is not on this host: ask for the messages on LCM (repeated while they come). */

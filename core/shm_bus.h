@@ -8,6 +8,8 @@
 
 #include <lcm/lcm.h>
 
+#include "core/shm.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -31,6 +33,9 @@ marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t ma
 void marie_shm_pub_destroy(marie_shm_pub_t *p);         /* NULL is a no-op */
 /* 0, or -EMSGSIZE (larger than max_size), -EINVAL (shorter than a fingerprint), -EIO (LCM). */
 int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len);
+/* Without the copy: fill writes the len encoded bytes straight into the ring (marie_shm_write_with).
+ * The same returns, and -EINVAL when fill gave up. */
+int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t fill, void *user);
 const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p);
 
 /* A subscriber gets each message's bytes, read from the ring on this host; when the writer is

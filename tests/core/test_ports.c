@@ -334,6 +334,18 @@ static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **sta
     assert_int_equal(far.intact, far.got);
     assert_int_equal(sp.whole, far.got);
     assert_int_equal(marie_component_counter(cs[1], "shm_overwritten"), 0);
+    /* A reader that stalls while ten grids go through four slots: the six overwritten are
+     * counted, the four still there arrive whole (decoded in place), none torn. */
+    marie_occupancy_grid_t big;
+    for (int k = 0; k < 10; k++) {
+        fill_grid(&big, cells, W * H, 1, 20 + k);
+        assert_int_equal(marie_port_publish(marie_port(cs[0], "map"), &big), 0);
+    }
+    spin_spy(cs, 3, spy, 300);
+    assert_int_equal(rx.got, 15);
+    assert_int_equal(rx.intact, 15);
+    marie_component_heartbeat(cs[1]);      /* the reader's losses are counted with each heartbeat */
+    assert_int_equal(marie_component_counter(cs[1], "shm_overwritten"), 6);
     free(cells);
     for (int i = 0; i < 3; i++)
         marie_component_destroy(cs[i]);
