@@ -125,7 +125,11 @@ static bool make_scan(const slam_t *s, const slam_scan_t *in, Scan *out)
             continue;               /* a beam with no reading tells nothing */
         double a = in->angle_min + i * in->angle_increment;
         bool hit = r < in->range_max - 1e-3;
-        double d = hit ? r : free_r;
+        /* A return comes from a wall's surface, the boundary between the free cell before it and
+         * the wall's own: half a cell further along the beam is inside the wall, for the map and
+         * for the matcher alike (at the surface itself, walls seen from one side would be drawn a
+         * cell out of place). */
+        double d = hit ? r + p.resolution / 2 : free_r;
         double lx = d * std::cos(a), ly = d * std::sin(a);
         float x = (float)(p.laser_x + c0 * lx - s0 * ly), y = (float)(p.laser_y + s0 * lx + c0 * ly);
         if (hit) {
