@@ -11,6 +11,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/loop.h"
+#include "core/shm_bus.h"
+#include "core/time.h"
+
 void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64_t n,
              const char *fmt, ...)
 {
@@ -105,6 +109,50 @@ char *ca_channel_pattern(const char *channel)
     }
     *o = 0;
     return out;
+}
+
+static void on_input_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    ca_input_t *in = user;
+    in->fn(in->user, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+}
+
+static void on_input_shm(const void *data, size_t len, void *user)
+{
+    ca_input_t *in = user;
+    in->fn(in->user, data, len, marie_wall_us());
+}
+
+int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, size_t shm_max, ca_input_fn fn, void *user)
+{
+    *in = (ca_input_t){ .lcm = lcm, .fn = fn, .user = user };
+    if (shm_max > 0) {
+        in->shm = marie_shm_sub_create(lcm, channel, shm_max, on_input_shm, in);
+        return in->shm ? 0 : errno == ENOMEM ? -ENOMEM : -EIO;
+    }
+    char *pat = ca_channel_pattern(channel);
+    if (!pat)
+        return -ENOMEM;
+    in->sub = marie_lcm_subscribe(lcm, pat, on_input_lcm, in);
+    free(pat);
+    return in->sub ? 0 : -EIO;
+}
+
+void ca_input_close(ca_input_t *in)
+{
+    if (in->sub)
+        lcm_unsubscribe(in->lcm, in->sub);
+    marie_shm_sub_destroy(in->shm);
+    in->sub = NULL;
+    in->shm = NULL;
+}
+
+int64_t ca_input_lost(const ca_input_t *in)
+{
+    if (!in->shm)
+        return 0;
+    const marie_shm_sub_stats_t *st = marie_shm_sub_stats(in->shm);
+    return st->lost + st->bad;
 }
 
 static uint32_t crc_table[256];

@@ -387,9 +387,9 @@ static int attach(marie_component_t *c)
     if (p->attached)
         return 0;
     for (size_t i = 0; i < p->nmb && rc == 0; i++)
-        rc = mailbox_attach(p->mb[i], lcm);
+        rc = mailbox_attach(p->mb[i], lcm, marie_component_shm_max(c, mailbox_channel(p->mb[i])));
     if (p->sp && rc == 0)
-        rc = splitter_attach(p->sp, lcm);
+        rc = splitter_attach(p->sp, lcm, marie_component_shm_max(c, splitter_input(p->sp)));
     if (p->sm && rc == 0) {
         rc = sharedmap_attach(p->sm, lcm, p->sm_channel);
         if (rc == 0)
@@ -457,6 +457,14 @@ static void on_tick(marie_component_t *c, int64_t overruns)
     }
     if (p->sw)
         fwd += ca_switch_stats(p->sw)->forwarded;
+    /* Messages of a shared-memory input overwritten before they were read (or whose notices
+     * were malformed): drops. */
+    int64_t lost = p->sp ? splitter_shm_lost(p->sp) : 0;
+    for (size_t i = 0; i < p->nmb; i++)
+        lost += mailbox_shm_lost(p->mb[i]);
+    if (lost > p->shown[4])
+        marie_component_drop(c, lost - p->shown[4]);
+    show(p, 4, "shm_lost", lost);
     show(p, 0, "received", in);
     show(p, 1, p->sm ? "requests" : "replies", replies);
     show(p, 2, "forwarded", fwd);

@@ -34,7 +34,8 @@ struct mailbox {
     size_t enc_cap;
     mailbox_stats_t stats;
     lcm_t *lcm;
-    lcm_subscription_t *sub_data, *sub_pull;
+    ca_input_t data;
+    lcm_subscription_t *sub_pull;
 };
 
 mailbox_t *mailbox_create(const char *channel, const marie_type_t *type, int depth,
@@ -288,9 +289,9 @@ int64_t mailbox_next_deadline(const mailbox_t *mb)
     return d;
 }
 
-static void on_data(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+static void on_data(void *user, const void *buf, size_t len, int64_t recv_utime)
 {
-    mailbox_push(user, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+    mailbox_push(user, buf, len, recv_utime);
 }
 
 static void on_pull(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
@@ -298,38 +299,37 @@ static void on_pull(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     mailbox_handle_request_raw(user, rbuf->data, rbuf->data_size, marie_wall_us());
 }
 
-int mailbox_attach(mailbox_t *mb, lcm_t *lcm)
+int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max)
 {
     if (mb->lcm)
         return -EALREADY;
-    char *p1 = ca_channel_pattern(mb->channel);
-    char *p2 = ca_channel_pattern(mb->pull_channel);
-    int rc = -ENOMEM;
-    if (!p1 || !p2)
-        goto out;
-    mb->sub_data = marie_lcm_subscribe(lcm, p1, on_data, mb);
-    mb->sub_pull = marie_lcm_subscribe(lcm, p2, on_pull, mb);
+    char *pat = ca_channel_pattern(mb->pull_channel);
+    if (!pat)
+        return -ENOMEM;
+    int rc = ca_input_open(&mb->data, lcm, mb->channel, shm_max, on_data, mb);
+    mb->sub_pull = marie_lcm_subscribe(lcm, pat, on_pull, mb);
+    free(pat);
     mb->lcm = lcm;
     mb->sink.lcm = lcm;
-    rc = 0;
-    if (!mb->sub_data || !mb->sub_pull) {
+    if (rc < 0 || !mb->sub_pull) {
         mailbox_detach(mb);
-        rc = -EIO;
+        return rc < 0 ? rc : -EIO;
     }
-out:
-    free(p1);
-    free(p2);
-    return rc;
+    return 0;
+}
+
+int64_t mailbox_shm_lost(const mailbox_t *mb)
+{
+    return ca_input_lost(&mb->data);
 }
 
 void mailbox_detach(mailbox_t *mb)
 {
     if (!mb->lcm)
         return;
-    if (mb->sub_data)
-        lcm_unsubscribe(mb->lcm, mb->sub_data);
+    ca_input_close(&mb->data);
     if (mb->sub_pull)
         lcm_unsubscribe(mb->lcm, mb->sub_pull);
-    mb->sub_data = mb->sub_pull = NULL;
+    mb->sub_pull = NULL;
     mb->lcm = NULL;
 }

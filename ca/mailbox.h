@@ -69,9 +69,14 @@ int mailbox_latest(const mailbox_t *mb, void *msg, int64_t now, int64_t *age_us)
 const mailbox_stats_t *mailbox_stats(const mailbox_t *mb);
 
 /* Serve over LCM: subscribe to the channel and its pull channel on `lcm` (replies go
- * out on it unless the sink has a publish function). The host must still call
- * mailbox_tick() (every 10 ms is plenty) to answer requests that time out. 0 or -errno. */
-int mailbox_attach(mailbox_t *mb, lcm_t *lcm);
+ * out on it unless the sink has a publish function). shm_max > 0: the channel is on shared
+ * memory (the system file's `transports:`), its messages read from the ring (ca_input_open).
+ * The host must still call mailbox_tick() (every 10 ms is plenty) to answer requests that
+ * time out. 0 or -errno. */
+int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max);
+/* Messages of a shared-memory channel overwritten before they were read, and malformed
+ * notices, since attached. */
+int64_t mailbox_shm_lost(const mailbox_t *mb);
 void mailbox_detach(mailbox_t *mb);           /* unsubscribe; no-op when not attached */
 
 #ifdef __cplusplus

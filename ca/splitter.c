@@ -23,7 +23,7 @@ struct splitter {
     output_t *outputs;
     size_t n;
     lcm_t *lcm;
-    lcm_subscription_t *sub;
+    ca_input_t in;
     splitter_stats_t stats;
 };
 
@@ -124,32 +124,34 @@ int splitter_push(splitter_t *sp, const void *raw, size_t len, int64_t now_us)
     return sent;
 }
 
-static void on_input(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+static void on_input(void *user, const void *buf, size_t len, int64_t recv_utime)
 {
-    splitter_push(user, rbuf->data, rbuf->data_size, marie_mono_us());
+    splitter_push(user, buf, len, marie_mono_us());
 }
 
-int splitter_attach(splitter_t *sp, lcm_t *lcm)
+int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max)
 {
     if (sp->lcm)
         return -EALREADY;
-    char *pat = ca_channel_pattern(sp->input);
-    if (!pat)
-        return -ENOMEM;
-    sp->sub = marie_lcm_subscribe(lcm, pat, on_input, sp);
-    free(pat);
-    if (!sp->sub)
-        return -EIO;
+    int rc = ca_input_open(&sp->in, lcm, sp->input, shm_max, on_input, sp);
+    if (rc < 0)
+        return rc;
     sp->lcm = lcm;
     sp->sink.lcm = lcm;
     return 0;
+}
+
+const char *splitter_input(const splitter_t *sp) { return sp->input; }
+
+int64_t splitter_shm_lost(const splitter_t *sp)
+{
+    return ca_input_lost(&sp->in);
 }
 
 void splitter_detach(splitter_t *sp)
 {
     if (!sp->lcm)
         return;
-    lcm_unsubscribe(sp->lcm, sp->sub);
-    sp->sub = NULL;
+    ca_input_close(&sp->in);
     sp->lcm = NULL;
 }

@@ -36,9 +36,14 @@ int64_t splitter_output_limited(const splitter_t *sp, size_t i);   /* held back 
 int splitter_push(splitter_t *sp, const void *raw, size_t len, int64_t now_us);
 
 const splitter_stats_t *splitter_stats(const splitter_t *sp);
+const char *splitter_input(const splitter_t *sp);
 
-int splitter_attach(splitter_t *sp, lcm_t *lcm);
+/* Subscribe to the input on `lcm` (outputs go out on it unless the sink has a publish
+ * function); shm_max > 0: the input channel is on shared memory (ca_input_open). 0 or -errno. */
+int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max);
 void splitter_detach(splitter_t *sp);
+/* Input messages overwritten in shared memory before they were read, and malformed notices. */
+int64_t splitter_shm_lost(const splitter_t *sp);
 
 #ifdef __cplusplus
 }

@@ -379,6 +379,12 @@ const char *marie_component_name(const marie_component_t *c) { return c->name; }
 marie_state_t marie_component_state(const marie_component_t *c) { return c->state; }
 marie_loop_t *marie_component_loop(marie_component_t *c) { return c->loop; }
 lcm_t *marie_component_lcm(marie_component_t *c) { return c->buses[0].lcm; }
+
+size_t marie_component_shm_max(const marie_component_t *c, const char *channel)
+{
+    const marie_transport_cfg_t *tr = marie_system_transport(c->sys, channel);
+    return tr && tr->shm ? tr->max_size : 0;
+}
 int64_t marie_component_now(const marie_component_t *c) { return marie_loop_now(c->loop); }
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c) { return c->cfg; }
 

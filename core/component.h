@@ -142,6 +142,9 @@ const char *marie_component_name(const marie_component_t *c);
 marie_state_t marie_component_state(const marie_component_t *c);
 marie_loop_t *marie_component_loop(marie_component_t *c);
 lcm_t *marie_component_lcm(marie_component_t *c);      /* the system bus */
+/* The max_size of the shared-memory transport the system file gives `channel` (`transports:`),
+ * or 0 when the channel is on LCM (or the component has no system file). */
+size_t marie_component_shm_max(const marie_component_t *c, const char *channel);
 int64_t marie_component_now(const marie_component_t *c);  /* us, on the configured clock */
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c);  /* NULL standalone */
 /* Reason for the refusal a hook is about to return; formatted into the component. */

@@ -6,11 +6,14 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
 
 #include "ca/mailbox.h"
+#include "core/shm_bus.h"
+#include "lcmtypes/marie_occupancy_grid_t.h"
 #include "lcmtypes/marie_pose2d_t.h"
 #include "lcmtypes/marie_gyro_t.h"
 #include "lcmtypes/marie_laser_scan_t.h"
@@ -311,6 +314,24 @@ static void test_waiting_requests_are_bounded(void **state)
     mailbox_destroy(mb);    /* frees the waiting requests */
 }
 
+/* Waits (2 s at most) for mb to hold a message, then pulls it on CHANNEL.PULL with request id
+ * `id`, replies on CHANNEL_REPLY, and waits for *replies to turn non-zero. */
+static void pull_when_held(lcm_t *lcm, mailbox_t *mb, const char *channel, int64_t id, const int *replies)
+{
+    for (int i = 0; i < 100 && mailbox_count(mb) == 0; i++)
+        lcm_handle_timeout(lcm, 20);
+    assert_int_equal(mailbox_count(mb), 1);
+    char reply_ch[64], pull_ch[64];
+    snprintf(reply_ch, sizeof reply_ch, "%s_REPLY", channel);
+    snprintf(pull_ch, sizeof pull_ch, "%s.PULL", channel);
+    marie_pull_request_t r = req(id, 100);
+    r.channel = (char *)channel;
+    r.reply_channel = reply_ch;
+    marie_pull_request_t_publish(lcm, pull_ch, &r);
+    for (int i = 0; i < 100 && !*replies; i++)
+        lcm_handle_timeout(lcm, 20);
+}
+
 /* In-process use over a real bus: attach to an lcm_t the component already has. */
 static int replies_seen;
 static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
@@ -326,20 +347,12 @@ static void test_attached_mailbox_serves_the_bus(void **state)
     lcm_t *lcm = lcm_create(NULL);
     assert_non_null(lcm);
     mailbox_t *mb = mailbox_create("INPROC", &marie_type_pose2d_t, 2, NULL);
-    assert_int_equal(mailbox_attach(mb, lcm), 0);
+    assert_int_equal(mailbox_attach(mb, lcm, 0), 0);
     assert_string_equal(mailbox_pull_channel(mb), "INPROC.PULL");
     lcm_subscription_t *sub = lcm_subscribe(lcm, "INPROC_REPLY", on_reply, NULL);
     marie_pose2d_t p = { .x = 5 };
     marie_pose2d_t_publish(lcm, "INPROC", &p);
-    for (int i = 0; i < 100 && mailbox_count(mb) == 0; i++)
-        lcm_handle_timeout(lcm, 20);
-    assert_int_equal(mailbox_count(mb), 1);
-    marie_pull_request_t r = req(77, 100);
-    r.channel = "INPROC";
-    r.reply_channel = "INPROC_REPLY";
-    marie_pull_request_t_publish(lcm, "INPROC.PULL", &r);
-    for (int i = 0; i < 100 && !replies_seen; i++)
-        lcm_handle_timeout(lcm, 20);
+    pull_when_held(lcm, mb, "INPROC", 77, &replies_seen);
     assert_int_equal(replies_seen, 1);
     mailbox_detach(mb);
     marie_pose2d_t_publish(lcm, "INPROC", &p);
@@ -347,6 +360,68 @@ static void test_attached_mailbox_serves_the_bus(void **state)
         lcm_handle_timeout(lcm, 20);
     assert_int_equal(mailbox_stats(mb)->received, 1);
     lcm_unsubscribe(lcm, sub);
+    mailbox_destroy(mb);
+    lcm_destroy(lcm);
+}
+
+/* A channel the system file puts on shared memory: the mailbox reads the ring (LCM carries only
+ * the notices) and answers a pull with the whole message. */
+typedef struct {
+    int whole, replies, payload_ok;
+    int64_t want_size;
+} shm_seen_t;
+
+static void on_whole(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    ((shm_seen_t *)user)->whole++;
+}
+
+static void on_grid_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    shm_seen_t *s = user;
+    marie_pull_reply_t r;
+    if (ca_view_pull_reply(rbuf->data, rbuf->data_size, &r) == 0 && r.request_id == 78 &&
+        r.status == MARIE_PULL_REPLY_T_STATUS_OK) {
+        s->replies++;
+        marie_occupancy_grid_t g;
+        if (r.size == s->want_size && marie_occupancy_grid_t_decode(r.data, 0, r.size, &g) == r.size) {
+            s->payload_ok = g.ncells == 200 * 200 && g.cells[199] == 99;
+            marie_occupancy_grid_t_decode_cleanup(&g);
+        }
+    }
+}
+
+static void test_attached_mailbox_reads_shared_memory(void **state)
+{
+    lcm_t *lcm = lcm_create(NULL);
+    assert_non_null(lcm);
+    shm_seen_t seen = {0};
+    mailbox_t *mb = mailbox_create("INSHM", &marie_type_occupancy_grid_t, 2, NULL);
+    assert_int_equal(mailbox_attach(mb, lcm, 1000000), 0);
+    lcm_subscription_t *spy = lcm_subscribe(lcm, "INSHM", on_whole, &seen);
+    lcm_subscription_t *rsub = lcm_subscribe(lcm, "INSHM_REPLY", on_grid_reply, &seen);
+    marie_shm_pub_t *pub = marie_shm_pub_create(lcm, "INSHM", 1000000, 4);
+    assert_non_null(pub);
+    static int8_t cells[200 * 200];
+    for (int i = 0; i < 200 * 200; i++)
+        cells[i] = (int8_t)(i % 100);
+    marie_occupancy_grid_t g = { .resolution = 0.05f, .width = 200, .height = 200, .ncells = 200 * 200,
+                                 .cells = cells };
+    int size = marie_occupancy_grid_t_encoded_size(&g);
+    uint8_t *buf = malloc((size_t)size);
+    assert_int_equal(marie_occupancy_grid_t_encode(buf, 0, size, &g), size);
+    seen.want_size = size;
+    assert_int_equal(marie_shm_pub_publish(pub, buf, (size_t)size), 0);
+    pull_when_held(lcm, mb, "INSHM", 78, &seen.replies);
+    assert_int_equal(seen.replies, 1);
+    assert_true(seen.payload_ok);
+    assert_int_equal(seen.whole, 0);        /* the grid itself never went on LCM */
+    assert_int_equal(mailbox_shm_lost(mb), 0);
+    mailbox_detach(mb);
+    marie_shm_pub_destroy(pub);
+    lcm_unsubscribe(lcm, spy);
+    lcm_unsubscribe(lcm, rsub);
+    free(buf);
     mailbox_destroy(mb);
     lcm_destroy(lcm);
 }
@@ -365,6 +440,7 @@ int main(void)
         cmocka_unit_test(test_bad_requests_counted),
         cmocka_unit_test(test_waiting_requests_are_bounded),
         cmocka_unit_test(test_attached_mailbox_serves_the_bus),
+        cmocka_unit_test(test_attached_mailbox_reads_shared_memory),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

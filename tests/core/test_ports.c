@@ -313,6 +313,9 @@ static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **sta
     enum { W = 960, H = 960 };      /* 921 600 cells: a 640 x 480 RGB image's size */
     int8_t *cells = malloc((size_t)W * H * 2);
     marie_occupancy_grid_t g;
+    /* What marie-ca asks to put its Mailboxes and Splitters on the ring too. */
+    assert_int_equal(marie_component_shm_max(cs[1], "T_GRID"), 1000000);
+    assert_int_equal(marie_component_shm_max(cs[1], "T_OTHER"), 0);
     publish_grids(cs, 2, spy, cells, W * H, 5);
     /* Every grid arrived whole through the ring; LCM carried only the notices. */
     assert_int_equal(rx.got, 5);
