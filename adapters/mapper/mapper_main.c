@@ -14,7 +14,8 @@
 /* The parameters, each declared once in `params` below. */
 typedef struct {
     double resolution, size_m, init_x, init_y, init_theta, laser_x, laser_y, laser_theta, free_range;
-    double search_xy, search_th, kf_dist, kf_angle, min_score, loop_radius, loop_min_score, map_hz, republish_s;
+    double search_xy, search_th, kf_dist, kf_angle, min_score, loop_radius, loop_min_score, loop_max_rival, map_hz,
+        republish_s;
     double odom_timeout_s;
     bool loop_closure;
     int64_t loop_min_gap, max_keyframes;
@@ -38,6 +39,7 @@ static void report(marie_component_t *c, mapper_t *s)
     marie_component_count(c, "keyframes", st.keyframes - s->seen.keyframes);
     marie_component_count(c, "match_failures", st.match_failures - s->seen.match_failures);
     marie_component_count(c, "loop_candidates", st.loop_candidates - s->seen.loop_candidates);
+    marie_component_count(c, "loop_ambiguous", st.loop_ambiguous - s->seen.loop_ambiguous);
     if (st.loop_closures > s->seen.loop_closures) {
         marie_component_count(c, "loop_closures", st.loop_closures - s->seen.loop_closures);
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "loop_closed", "loop closed: %lld keyframes optimized in %.1f ms",
@@ -186,6 +188,7 @@ static int init(marie_component_t *c)
     p.loop_radius = q->loop_radius;
     p.loop_min_score = q->loop_min_score;
     p.loop_min_gap = (int)q->loop_min_gap;
+    p.loop_max_rival = q->loop_max_rival;
     p.max_keyframes = (int)q->max_keyframes;
     s->slam = slam_create(&p, (const double[3]){ q->init_x, q->init_y, q->init_theta });
     if (!s->slam) {
@@ -231,6 +234,8 @@ static const marie_param_spec_t params[] = {
     MARIE_PARAM_AT(mapper_params_t, loop_radius, DOUBLE, "4", "m: older keyframes this near are loop candidates"),
     MARIE_PARAM_AT(mapper_params_t, loop_min_gap, INT, "40", "keyframes between a loop candidate and the newest"),
     MARIE_PARAM_AT(mapper_params_t, loop_min_score, DOUBLE, "0.55", "mean likelihood per beam a closure needs"),
+    MARIE_PARAM_AT(mapper_params_t, loop_max_rival, DOUBLE, "0.95",
+                   "refuse a closure that scores this share of its best 0.3 m away too (a look-alike place)"),
     MARIE_PARAM_AT(mapper_params_t, max_keyframes, INT, "20000", "memory bound of the pose graph"),
     MARIE_PARAM_AT(mapper_params_t, map_hz, DOUBLE, "1", "map messages per second (when it changed)"),
     MARIE_PARAM_AT(mapper_params_t, republish_s, DOUBLE, "5", "s: send the map again even unchanged (0: never)"),

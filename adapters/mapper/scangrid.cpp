@@ -184,7 +184,7 @@ double Grid::score(const Scan &s, const Pose &at) const
     return sum / (double)s.hx.size();
 }
 
-double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out) const
+double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival) const
 {
     const double r = p_.resolution;
     const int n = (int)s.hx.size(), step = std::max(1, win.step_cells);
@@ -193,6 +193,11 @@ double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &wi
     std::vector<int> idx(n);
     std::vector<uint8_t> in(n);
     double best = -1, best_raw = 0;
+    int best_dx = 0, best_dy = 0;
+    std::vector<float> raws;            // every translation's best raw score over the angles, for the rival
+    const int side = 2 * nc + 1;
+    if (rival)
+        raws.assign((size_t)side * side, 0.0f);
     *out = guess;
     for (int t = -nt; t <= nt; t++) {
         double th = guess.th + t * win.step_th, c = std::cos(th), sn = std::sin(th);
@@ -211,6 +216,10 @@ double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &wi
                     if (in[i])
                         sum += like_[idx[i] + off];
                 double raw = sum / n;
+                if (rival) {
+                    float &v = raws[(size_t)(dy + nc) * side + (dx + nc)];
+                    v = std::max(v, (float)raw);
+                }
                 // A mild pull towards the prediction breaks ties along featureless corridors.
                 double sc = raw;
                 if (win.prior_xy > 0 && win.prior_th > 0) {
@@ -224,9 +233,20 @@ double Grid::correlative(const Scan &s, const Pose &guess, const MatchWindow &wi
                 if (sc > best) {
                     best = sc;
                     best_raw = raw;
+                    best_dx = dx;
+                    best_dy = dy;
                     *out = { guess.x + dx * step * r, guess.y + dy * step * r, wrap(th) };
                 }
             }
+    }
+    if (rival) {
+        double far2 = win.rival_radius / (step * r);
+        far2 *= far2;
+        *rival = 0;
+        for (int dy = -nc; dy <= nc; dy++)
+            for (int dx = -nc; dx <= nc; dx++)
+                if ((dx - best_dx) * (dx - best_dx) + (dy - best_dy) * (dy - best_dy) >= far2)
+                    *rival = std::max(*rival, (double)raws[(size_t)(dy + nc) * side + (dx + nc)]);
     }
     return best_raw;
 }
@@ -298,7 +318,7 @@ Scan Grid::seen_hits(const Scan &s, const Pose &guess) const
     return k;
 }
 
-double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, Pose *out) const
+double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, Pose *out, double *rival) const
 {
     *out = guess;
     Scan seen = seen_hits(all, guess);
@@ -306,7 +326,7 @@ double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, P
     if (s.hx.size() < 10)
         return 0;
     Pose c;
-    correlative(s, guess, win, &c);
+    correlative(s, guess, win, &c, win.rival_radius > 0 ? rival : nullptr);
     double sc = score(s, c);
     if (win.refine)
         sc = refine(s, guess, win, &c);

@@ -38,6 +38,9 @@ struct MatchWindow {
     // room whose far wall is out of range the scan cannot tell how far the robot went, and
     // without a prior the match slides towards the part of the map already seen.
     double prior_xy = 0.15, prior_th = 0.1;
+    // > 0: match() also finds the best score of the poses at least this far (m) from the best
+    // one, its rival: a rival nearly as good says the place looks alike along some direction.
+    double rival_radius = 0;
 };
 
 class Grid {
@@ -57,7 +60,7 @@ public:
     bool seen(int cx, int cy) const { return seen_[(size_t)cy * w_ + cx] != 0; }
     // Best pose near `guess` for the scan's hits; the mean likelihood per hit (0..1), and the
     // pose in *out. Scans with fewer than 10 hits score 0.
-    double match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out) const;
+    double match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival = nullptr) const;
     double score(const Scan &s, const Pose &at) const;
     size_t memory_bytes() const;
 
@@ -66,7 +69,7 @@ private:
     void stamp(int cx, int cy);
     void hit(int cx, int cy);
     void miss(int cx, int cy);
-    double correlative(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out) const;
+    double correlative(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival) const;
     double refine(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *pose) const;
     double sample(double x, double y, double *gx, double *gy) const;
 

@@ -65,6 +65,7 @@ extern "C" void slam_params_default(slam_params_t *p)
     p->loop_search_xy = 1.5;
     p->loop_search_th = 0.3;
     p->loop_min_score = 0.55;
+    p->loop_max_rival = 0.95;
     p->max_keyframes = 20000;
 }
 
@@ -203,9 +204,15 @@ static void try_loop(slam_t *s)
             local.integrate(s->kfs[j].pose, s->kfs[j].scan);
             used++;
         }
-    MatchWindow coarse{ p.loop_search_xy, p.loop_search_th, 0.01, 2, false, 0, 0 };
+    MatchWindow coarse{ p.loop_search_xy, p.loop_search_th, 0.01, 2, false, 0, 0, 0.3 };
     Pose m1, m2;
-    local.match(cur.scan, cur.pose, coarse, &m1);
+    /* Along a corridor the scan fits nearly as well a metre further on: such a match is no
+     * closure (on the office route 1 closure in 3 was 0.8-1.6 m wrong before this check). */
+    double rival = 0, csc = local.match(cur.scan, cur.pose, coarse, &m1, &rival);
+    if (rival > p.loop_max_rival * csc) {
+        s->st.loop_ambiguous++;
+        return;
+    }
     MatchWindow fine{ 0.1, 0.02, 0.004, 1, true, 0, 0 };
     double sc = local.match(cur.scan, m1, fine, &m2);
     if (sc < p.loop_min_score || cur.scan.hx.size() < 40)

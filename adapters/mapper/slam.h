@@ -30,6 +30,8 @@ typedef struct {
     int loop_every;                     /* try a closure at most every this many keyframes */
     double loop_search_xy, loop_search_th; /* the loop matcher's window */
     double loop_min_score;
+    double loop_max_rival;              /* refuse a closure whose match scores this share (of
+                                         * its best) 0.3 m or more away from it too */
     int max_keyframes;                  /* memory bound: older keyframes are frozen into the grid */
 } slam_params_t;
 
@@ -44,6 +46,7 @@ typedef struct {
 
 typedef struct {
     int64_t scans, keyframes, matches, match_failures, loop_candidates, loop_closures, optimizations;
+    int64_t loop_ambiguous;             /* matched, but as well elsewhere in the window: refused */
     double last_score;                  /* mean likelihood of the last match */
     double last_match_ms, last_opt_ms;
 } slam_stats_t;
