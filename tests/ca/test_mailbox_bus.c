@@ -17,6 +17,7 @@
 #include "ca/ca.h"
 #include "core/time.h"
 #include "lcmtypes/marie_gyro_t.h"
+#include "lcmtypes/marie_occupancy_grid_t.h"
 #include "lcmtypes/marie_odometry_t.h"
 #include "lcmtypes/marie_pose2d_t.h"
 #include "lcmtypes/marie_pull_reply_t.h"
@@ -247,6 +248,60 @@ static void test_core_pull_client_empty_mailbox(void **state)
     marie_component_destroy(c);
 }
 
+/* The system file puts the mailbox's channel on shared memory: marie-ca reads the grids from the
+ * ring (a publisher component writes them there; LCM carries only the notices) and a pull gets
+ * the newest whole. */
+static int whole_on_lcm;
+static void on_whole(const lcm_recv_buf_t *rbuf, const char *channel, void *user) { whole_on_lcm++; }
+
+static void test_mailbox_on_a_shared_memory_channel(void **state)
+{
+    char file[] = "/tmp/marie-test-mbshm-XXXXXX.yaml";
+    int fd = mkstemps(file, 5);
+    assert_true(fd >= 0);
+    dprintf(fd, "system: mbshm\ntransports:\n  BIG: {kind: shm, max_size: 1000000, slots: 4}\ncomponents:\n"
+                "  mbs:\n    exec: marie-ca\n    args: [mailbox]\n"
+                "    params: {channel: BIG, type: marie.occupancy_grid_t}\n"
+                "  pub: {exec: /bin/true}\n");
+    close(fd);
+    const char *args[] = { "mailbox", "--system", file, "--name", "mbs", NULL };
+    pid_t pid = cat_spawn(args);
+    assert_true(cat_wait_running(bus, "mbs", 5000));
+    static const marie_port_spec_t ports[] = {
+        { "map", &marie_type_occupancy_grid_t, MARIE_OUT, MARIE_PUSH, "BIG" }, { 0 } };
+    static const marie_component_def_t def = { .kind = "gridpub", .ports = ports };
+    char *argv[] = { "gridpub", "--system", file, "--name", "pub", NULL };
+    marie_errors_t errs = {0};
+    marie_component_t *c = marie_component_create(&def, 5, argv, NULL, &errs);
+    marie_errors_print(&errs, stderr);
+    assert_non_null(c);
+    lcm_subscription_t *spy = lcm_subscribe(cat_lcm(bus), "BIG", on_whole, NULL);
+    static int8_t cells[300 * 300];
+    for (int k = 1; k <= 3; k++) {
+        for (int i = 0; i < 300 * 300; i++)
+            cells[i] = (int8_t)((i + k) % 100);
+        marie_occupancy_grid_t g = { .utime = k, .resolution = 0.05f, .width = 300, .height = 300,
+                                     .ncells = 300 * 300, .cells = cells };
+        assert_int_equal(marie_port_publish(marie_port(c, "map"), &g), 0);
+        cat_spin(bus, 50, NULL, NULL);
+    }
+    marie_pull_reply_t *r = pull("BIG", "BIG", 500);
+    assert_non_null(r);
+    assert_int_equal(r->status, MARIE_PULL_REPLY_T_STATUS_OK);
+    marie_occupancy_grid_t got;
+    assert_true(marie_occupancy_grid_t_decode(r->data, 0, r->size, &got) == r->size);
+    assert_int_equal(got.utime, 3);                 /* the newest */
+    assert_int_equal(got.ncells, 300 * 300);
+    assert_int_equal(got.cells[299], (int8_t)((299 + 3) % 100));
+    marie_occupancy_grid_t_decode_cleanup(&got);
+    free(r);
+    assert_int_equal(whole_on_lcm, 0);              /* the grids never went on LCM */
+    lcm_unsubscribe(cat_lcm(bus), spy);
+    marie_component_destroy(c);
+    cat_stop(pid, SIGTERM);
+    unlink(file);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -257,6 +312,7 @@ int main(void)
         cmocka_unit_test(test_malformed_requests_survived_and_counted),
         cmocka_unit_test(test_core_pull_client),
         cmocka_unit_test(test_core_pull_client_empty_mailbox),
+        cmocka_unit_test(test_mailbox_on_a_shared_memory_channel),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
