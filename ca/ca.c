@@ -12,7 +12,6 @@
 #include <unistd.h>
 
 #include "core/loop.h"
-#include "core/shm_bus.h"
 #include "core/time.h"
 
 void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64_t n,
@@ -147,12 +146,9 @@ void ca_input_close(ca_input_t *in)
     in->shm = NULL;
 }
 
-int64_t ca_input_lost(const ca_input_t *in)
+const marie_shm_sub_stats_t *ca_input_shm_stats(const ca_input_t *in)
 {
-    if (!in->shm)
-        return 0;
-    const marie_shm_sub_stats_t *st = marie_shm_sub_stats(in->shm);
-    return st->lost + st->bad;
+    return in->shm ? marie_shm_sub_stats(in->shm) : NULL;
 }
 
 static uint32_t crc_table[256];

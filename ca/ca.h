@@ -8,6 +8,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/shm_bus.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "lcmtypes/marie_pull_reply_t.h"
@@ -102,15 +103,16 @@ typedef void (*ca_input_fn)(void *user, const void *buf, size_t len, int64_t rec
 typedef struct {
     lcm_t *lcm;
     lcm_subscription_t *sub;
-    struct marie_shm_sub *shm;
+    marie_shm_sub_t *shm;
     ca_input_fn fn;
     void *user;
 } ca_input_t;
 /* 0, or -ENOMEM / -EIO (nothing left open). */
 int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, size_t shm_max, ca_input_fn fn, void *user);
 void ca_input_close(ca_input_t *in);    /* no-op when not open */
-/* The shared-memory reader's losses and malformed notices since it opened (0 on LCM). */
-int64_t ca_input_lost(const ca_input_t *in);
+/* The shared-memory reader's counts since it opened (NULL on LCM): `lost` overwritten before
+ * they were read, `bad` malformed notices. */
+const marie_shm_sub_stats_t *ca_input_shm_stats(const ca_input_t *in);
 
 /* CRC-32 (IEEE 802.3), for the SharedMap's log records. */
 uint32_t ca_crc32(uint32_t crc, const void *buf, size_t len);

@@ -435,6 +435,29 @@ static void on_quit(marie_component_t *c)
     proc_free(marie_component_user(c));
 }
 
+/* Shared-memory inputs, named as ports name them: messages overwritten before they were read
+ * (drops) and malformed notices (bad input). */
+static void count_shm_losses(ca_proc_t *p)
+{
+    const marie_shm_sub_stats_t *st[MAX_MAILBOXES + 1] = { 0 };
+    for (size_t i = 0; i < p->nmb; i++)
+        st[i] = mailbox_shm_stats(p->mb[i]);
+    if (p->sp)
+        st[p->nmb] = splitter_shm_stats(p->sp);
+    int64_t lost = 0, bad = 0;
+    for (size_t i = 0; i <= p->nmb; i++) {
+        lost += st[i] ? st[i]->lost : 0;
+        bad += st[i] ? st[i]->bad : 0;
+    }
+    if (lost > p->shown[4])
+        marie_component_drop(p->c, lost - p->shown[4]);
+    show(p, 4, "shm_overwritten", lost);
+    if (bad > p->shown[5])
+        marie_component_bad_input(p->c, "bad_shm_notice", "%lld malformed or mismatched notices on shared-memory inputs",
+                                  (long long)(bad - p->shown[5]));
+    p->shown[5] = bad;
+}
+
 static void on_tick(marie_component_t *c, int64_t overruns)
 {
     ca_proc_t *p = marie_component_user(c);
@@ -457,14 +480,7 @@ static void on_tick(marie_component_t *c, int64_t overruns)
     }
     if (p->sw)
         fwd += ca_switch_stats(p->sw)->forwarded;
-    /* Messages of a shared-memory input overwritten before they were read (or whose notices
-     * were malformed): drops. */
-    int64_t lost = p->sp ? splitter_shm_lost(p->sp) : 0;
-    for (size_t i = 0; i < p->nmb; i++)
-        lost += mailbox_shm_lost(p->mb[i]);
-    if (lost > p->shown[4])
-        marie_component_drop(c, lost - p->shown[4]);
-    show(p, 4, "shm_lost", lost);
+    count_shm_losses(p);
     show(p, 0, "received", in);
     show(p, 1, p->sm ? "requests" : "replies", replies);
     show(p, 2, "forwarded", fwd);

@@ -318,9 +318,9 @@ int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max)
     return 0;
 }
 
-int64_t mailbox_shm_lost(const mailbox_t *mb)
+const marie_shm_sub_stats_t *mailbox_shm_stats(const mailbox_t *mb)
 {
-    return ca_input_lost(&mb->data);
+    return ca_input_shm_stats(&mb->data);
 }
 
 void mailbox_detach(mailbox_t *mb)

@@ -74,9 +74,8 @@ const mailbox_stats_t *mailbox_stats(const mailbox_t *mb);
  * The host must still call mailbox_tick() (every 10 ms is plenty) to answer requests that
  * time out. 0 or -errno. */
 int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max);
-/* Messages of a shared-memory channel overwritten before they were read, and malformed
- * notices, since attached. */
-int64_t mailbox_shm_lost(const mailbox_t *mb);
+/* On a shared-memory channel, its reader's counts since attached (NULL on LCM). */
+const marie_shm_sub_stats_t *mailbox_shm_stats(const mailbox_t *mb);
 void mailbox_detach(mailbox_t *mb);           /* unsubscribe; no-op when not attached */
 
 #ifdef __cplusplus

@@ -143,9 +143,9 @@ int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max)
 
 const char *splitter_input(const splitter_t *sp) { return sp->input; }
 
-int64_t splitter_shm_lost(const splitter_t *sp)
+const marie_shm_sub_stats_t *splitter_shm_stats(const splitter_t *sp)
 {
-    return ca_input_lost(&sp->in);
+    return ca_input_shm_stats(&sp->in);
 }
 
 void splitter_detach(splitter_t *sp)

@@ -42,8 +42,8 @@ const char *splitter_input(const splitter_t *sp);
  * function); shm_max > 0: the input channel is on shared memory (ca_input_open). 0 or -errno. */
 int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max);
 void splitter_detach(splitter_t *sp);
-/* Input messages overwritten in shared memory before they were read, and malformed notices. */
-int64_t splitter_shm_lost(const splitter_t *sp);
+/* On a shared-memory input, its reader's counts since attached (NULL on LCM). */
+const marie_shm_sub_stats_t *splitter_shm_stats(const splitter_t *sp);
 
 #ifdef __cplusplus
 }
