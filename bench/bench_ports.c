@@ -10,6 +10,7 @@
 
 #include "bench/bench.h"
 #include "core/component.h"
+#include "tests/proc.h"
 
 typedef struct {
     int64_t *lat;
@@ -225,14 +226,14 @@ static void large_at_30hz(void)
 static void shm_ports(void)
 {
     char file[] = "/tmp/bench-ports-shm-XXXXXX.yaml";
-    int fd = mkstemps(file, 5);
-    if (fd < 0)
+    if (test_write_temp(file, 5, "system: bench\n"
+                                 "transports:\n  BENCH_S: {kind: shm, max_size: 1000000, slots: 8}\n"
+                                 "components:\n"
+                                 "  tx: {exec: /bin/true, ports: {out: BENCH_S}}\n"
+                                 "  rx0: {exec: /bin/true, ports: {in: BENCH_S}}\n"
+                                 "  rx1: {exec: /bin/true, ports: {in: BENCH_S}}\n"
+                                 "  rx2: {exec: /bin/true, ports: {in: BENCH_S}}\n") < 0)
         return;
-    dprintf(fd, "system: bench\ntransports:\n  BENCH_S: {kind: shm, max_size: 1000000, slots: 8}\ncomponents:\n"
-                "  tx: {exec: /bin/true, ports: {out: BENCH_S}}\n");
-    for (int i = 0; i < 3; i++)
-        dprintf(fd, "  rx%d: {exec: /bin/true, ports: {in: BENCH_S}}\n", i);
-    close(fd);
     /* Subscriber 0 is b.rx (b.marie its sink); b.raw is raw LCM over the same two lcm_t. */
     bench_t b = {.tx = component_in(file, &tx_def, "tx", NULL)};
     sink_t more[2] = {0}, *sink[3] = {&b.marie, &more[0], &more[1]}, rawn[3] = {0};

@@ -13,7 +13,7 @@ $(eval $(call marie_test,test_ca_splitter,tests/ca/test_splitter.c,$(LIBCA)))
 $(eval $(call marie_test,test_ca_switch,tests/ca/test_switch.c,$(LIBCA)))
 
 # Tests of marie-ca processes over real LCM.
-CA_TESTLIB := tests/ca/ca_test.c
+CA_TESTLIB := tests/ca/ca_test.c tests/proc.c
 CA_BUS_TESTS := test_ca_mailbox_bus test_ca_sharedmap_bus test_ca_sharedmap_crash test_ca_switch_bus \
                 test_ca_splitter_bus test_ca_config test_ca_sharedmap_durability test_ca_sharedmap_recovery
 $(foreach t,$(CA_BUS_TESTS),$(eval $(call marie_test,$(t),tests/ca/$(patsubst test_ca_%,test_%,$(t)).c $(CA_TESTLIB),$(LIBCA))))

@@ -33,15 +33,6 @@ static void host_name(char *out, size_t cap)
     out[cap - 1] = '\0';
 }
 
-static int64_t fingerprint(const void *data)
-{
-    const uint8_t *p = data;
-    uint64_t v = 0;
-    for (int i = 0; i < 8; i++)
-        v = v << 8 | p[i];
-    return (int64_t)v;
-}
-
 /* ---- publisher ---- */
 
 struct marie_shm_pub {
@@ -133,7 +124,7 @@ int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t 
         return rc;
     }
     marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
-                             .size = (int32_t)ref.size, .fingerprint = fingerprint(f.at) };
+                             .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(f.at, len) };
     if (marie_shm_notice_t_publish(p->lcm, p->notice_ch, &n) != 0)
         return -EIO;
     p->st.published++;
@@ -204,7 +195,7 @@ static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int
             s->st.bad++;
         return;
     }
-    if (fingerprint(p) != fp) {
+    if (marie_payload_fingerprint(p, ref->size) != fp) {
         s->st.bad++;
         return;
     }
@@ -238,7 +229,7 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
             return;
         }
         int64_t got = marie_shm_read(s->r, &ref, s->buf, s->cap);
-        if (got == n.size && fingerprint(s->buf) == n.fingerprint) {
+        if (got == n.size && marie_payload_fingerprint(s->buf, (size_t)got) == n.fingerprint) {
             s->st.received++;
             s->cb(s->buf, (size_t)got, s->user);
         } else if (got == -ENOENT) {

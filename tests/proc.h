@@ -9,5 +9,9 @@
 pid_t test_spawn(char *const argv[], const char *log);
 /* SIGTERM, then SIGKILL if the process is still there after 5 s; reaps it. pid <= 0: no-op. */
 void test_stop(pid_t pid);
+/* Writes `text` to a new file named after the mkstemps template `path` (its last `suffix_len`
+ * characters kept, such as ".yaml"; the name is written back into path): a system file for a
+ * test. 0, or -1 with errno. */
+int test_write_temp(char *path, int suffix_len, const char *text);
 
 #endif

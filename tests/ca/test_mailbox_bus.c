@@ -23,6 +23,7 @@
 #include "lcmtypes/marie_pull_reply_t.h"
 #include "lcmtypes/marie_pull_request_t.h"
 #include "tests/ca/ca_test.h"
+#include "tests/proc.h"
 
 static cat_bus_t *bus;
 static pid_t mb_pid;
@@ -257,13 +258,13 @@ static void on_whole(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 static void test_mailbox_on_a_shared_memory_channel(void **state)
 {
     char file[] = "/tmp/marie-test-mbshm-XXXXXX.yaml";
-    int fd = mkstemps(file, 5);
-    assert_true(fd >= 0);
-    dprintf(fd, "system: mbshm\ntransports:\n  BIG: {kind: shm, max_size: 1000000, slots: 4}\ncomponents:\n"
-                "  mbs:\n    exec: marie-ca\n    args: [mailbox]\n"
-                "    params: {channel: BIG, type: marie.occupancy_grid_t}\n"
-                "  pub: {exec: /bin/true}\n");
-    close(fd);
+    assert_int_equal(test_write_temp(file, 5, "system: mbshm\n"
+                                              "transports:\n  BIG: {kind: shm, max_size: 1000000, slots: 4}\n"
+                                              "components:\n"
+                                              "  mbs:\n    exec: marie-ca\n    args: [mailbox]\n"
+                                              "    params: {channel: BIG, type: marie.occupancy_grid_t}\n"
+                                              "  pub: {exec: /bin/true}\n"),
+                     0);
     const char *args[] = { "mailbox", "--system", file, "--name", "mbs", NULL };
     pid_t pid = cat_spawn(args);
     assert_true(cat_wait_running(bus, "mbs", 5000));

@@ -14,6 +14,7 @@
 #include <cmocka.h>
 
 #include "core/component.h"
+#include "tests/proc.h"
 
 static const marie_port_spec_t tx_ports[] = {
     {"pose", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "T_POSE"},
@@ -295,16 +296,14 @@ static void publish_grids(marie_component_t **cs, int n, lcm_t *spy, int8_t *cel
 static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **state)
 {
     char file[] = "/tmp/marie-test-shm-XXXXXX.yaml";
-    int fd = mkstemps(file, 5);
-    assert_true(fd >= 0);
-    dprintf(fd, "system: shmports\n"
-                "transports:\n"
-                "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
-                "components:\n"
-                "  tx: {exec: /bin/true}\n"
-                "  rx: {exec: /bin/true}\n"
-                "  far: {exec: /bin/true}\n");
-    close(fd);
+    assert_int_equal(test_write_temp(file, 5, "system: shmports\n"
+                                              "transports:\n"
+                                              "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
+                                              "components:\n"
+                                              "  tx: {exec: /bin/true}\n"
+                                              "  rx: {exec: /bin/true}\n"
+                                              "  far: {exec: /bin/true}\n"),
+                     0);
     lcm_t *spy = lcm_create(marie_default_url());   /* the components' bus, with its receive buffer */
     spy_t sp = {0};
     lcm_subscribe(spy, "T_GRID(\\.SHM)?", on_spy, &sp);
