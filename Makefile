@@ -97,6 +97,14 @@ include map/module.mk
 include camera/module.mk
 include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk camera/module.mk,$(wildcard */module.mk */*/module.mk)))
 
+# A component's parameters are declared once, in NAME.params.yaml beside its code: the struct
+# and spec tables are generated into $(B)/gen/c/DIR/NAME_params.h (core/params_gen.py).
+PARAM_SPECS := $(sort $(wildcard */*.params.yaml */*/*.params.yaml))
+GEN_HEADERS += $(patsubst %.params.yaml,$(B)/gen/c/%_params.h,$(PARAM_SPECS))
+$(B)/gen/c/%_params.h: %.params.yaml core/params_gen.py
+	@mkdir -p $(@D)
+	python3 core/params_gen.py $< $@
+
 all: $(LIBMARIE) $(PROGRAMS) $(TESTS) $(BENCHES) $(EXTRA_TARGETS)
 
 $(B)/obj/%.o: %.c | $(GEN_HEADERS)
@@ -167,6 +175,7 @@ install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \
 	    $(DESTDIR)$(PREFIX)/include/marie/core $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
 	install -m 755 $(PROGRAMS) $(DESTDIR)$(PREFIX)/bin/
+	install -m 755 core/params_gen.py $(DESTDIR)$(PREFIX)/bin/marie-params-gen
 	install -m 644 $(LIBMARIE) $(DESTDIR)$(PREFIX)/lib/
 	install -m 644 $(filter-out %_priv.h,$(wildcard core/*.h)) $(DESTDIR)$(PREFIX)/include/marie/core/
 	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/

@@ -11,29 +11,9 @@
 #include "ca/switch.h"
 #include "core/file.h"
 #include "core/component.h"
+#include "ca/ca_params.h"
 
 #define MAX_MAILBOXES 64
-
-/* The parameters of the four kinds, declared once in their tables below (a kind binds the
- * fields it has); read with params_of(). */
-typedef struct {
-    const char *channel;
-    const marie_node_t *channels;
-    int64_t compact_min_records;
-    int64_t depth;
-    const char *initial;
-    const char *input;
-    const marie_node_t *inputs;
-    const char *output;
-    const marie_node_t *outputs;
-    const char *select_channel;
-    const char *snapshot_channel;
-    int64_t snapshot_min_interval_ms;
-    const char *state_channel;
-    const char *state_file;
-    bool strict_log;
-    const char *type;
-} ca_params_t;
 
 static const ca_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -490,40 +470,10 @@ static void on_tick(marie_component_t *c, int64_t overruns)
 
 static const marie_port_spec_t no_ports[] = { { 0 } };
 
-static const marie_param_spec_t mailbox_params[] = {
-    MARIE_PARAM_AT(ca_params_t, type, STRING, "''", "LCM type carried (marie.laser_scan_t); '' takes any payload"),
-    MARIE_PARAM_AT(ca_params_t, channel, STRING, "''", "the buffered channel"),
-    MARIE_PARAM_AT(ca_params_t, channels, NODE, "[]", "more channels: names or {channel, type, depth}"),
-    MARIE_PARAM_AT(ca_params_t, depth, INT, "10", "messages kept per channel"),
-    { 0 },
-};
-static const marie_param_spec_t splitter_params[] = {
-    MARIE_PARAM_AT(ca_params_t, type, STRING, "''", "LCM type carried; '' takes any payload"),
-    MARIE_PARAM_AT(ca_params_t, input, STRING, NULL, "input channel"),
-    MARIE_PARAM_AT(ca_params_t, outputs, NODE, NULL, "list of channels or {channel, max_hz}"),
-    { 0 },
-};
-static const marie_param_spec_t sharedmap_params[] = {
-    MARIE_PARAM_AT(ca_params_t, channel, STRING, "SHAREDMAP", "request channel"),
-    MARIE_PARAM_AT(ca_params_t, snapshot_channel, STRING, "''",
-                   "snapshot channel; '' = CHANNEL.SNAPSHOT, 'none' = none"),
-    MARIE_PARAM_AT(ca_params_t, snapshot_min_interval_ms, INT, "20", "snapshots at most this often"),
-    MARIE_PARAM_AT(ca_params_t, state_file, STRING, "''", "log file; '' = STATE_DIR/NAME.sharedmap (docs/ca.md)"),
-    MARIE_PARAM_AT(ca_params_t, compact_min_records, INT, "1024", "compact when records > 2 x keys + this"),
-    MARIE_PARAM_AT(ca_params_t, strict_log, BOOL, "false", "refuse to start on a damaged log instead of recovering"),
-    { 0 },
-};
-static const marie_param_spec_t switch_params[] = {
-    MARIE_PARAM_AT(ca_params_t, type, STRING, "''", "LCM type carried; '' takes any payload"),
-    MARIE_PARAM_AT(ca_params_t, output, STRING, NULL, "output channel"),
-    MARIE_PARAM_AT(ca_params_t, inputs, NODE, NULL, "map of input name to channel"),
-    MARIE_PARAM_AT(ca_params_t, initial, STRING, "''",
-                   "selected when nothing is persisted; '' = first input, 'none' = none"),
-    MARIE_PARAM_AT(ca_params_t, select_channel, STRING, "''", "selection requests; '' = OUTPUT.SELECT"),
-    MARIE_PARAM_AT(ca_params_t, state_channel, STRING, "''", "state replies; '' = OUTPUT.STATE"),
-    MARIE_PARAM_AT(ca_params_t, state_file, STRING, "''", "selection file; '' = STATE_DIR/NAME.switch (docs/ca.md)"),
-    { 0 },
-};
+static const marie_param_spec_t mailbox_params[] = CA_MAILBOX_PARAMS;
+static const marie_param_spec_t splitter_params[] = CA_SPLITTER_PARAMS;
+static const marie_param_spec_t sharedmap_params[] = CA_SHAREDMAP_PARAMS;
+static const marie_param_spec_t switch_params[] = CA_SWITCH_PARAMS;
 
 #define CA_DEF(KIND, PARAMS, INIT) { \
     .kind = KIND, .ports = no_ports, .params = PARAMS, .params_size = sizeof(ca_params_t), .on_init = INIT, \

@@ -25,3 +25,4 @@ $(eval $(call marie_link,$(B)/tests/malformed_peer,tests/core/malformed_peer.c,)
 EXTRA_TARGETS += $(B)/tests/malformed_peer
 ITESTS += tests/core/test_malformed_inputs.sh
 $(eval $(call marie_fuzz,shm,tests/core/fuzz_shm.c))
+ITESTS += tests/core/test_params_gen.sh

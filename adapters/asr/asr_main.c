@@ -7,12 +7,7 @@
 #include "adapters/asr/asr.h"
 #include "core/component.h"
 #include "core/file.h"
-
-typedef struct {
-    const char *input, *commands, *hmm, *dict;
-    int64_t channel, block;
-    double deaf_after_s;
-} asr_params_t;
+#include "adapters/asr/asr_params.h"
 
 typedef struct {
     asr_t *asr;
@@ -176,16 +171,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(asr_params_t, input, STRING, "separated", "separated: marie-ssl's streams; array: one microphone"),
-    MARIE_PARAM_AT(asr_params_t, channel, INT, "0", "microphone used with input=array"),
-    MARIE_PARAM_AT(asr_params_t, block, INT, "256", "samples per audio block"),
-    MARIE_PARAM_AT(asr_params_t, commands, STRING, "", "file of command phrases, one a line (empty: the built-in 20)"),
-    MARIE_PARAM_AT(asr_params_t, hmm, STRING, "", "acoustic model folder (empty: Debian's pocketsphinx-en-us)"),
-    MARIE_PARAM_AT(asr_params_t, dict, STRING, "", "pronunciation dictionary (empty: the model's cmudict)"),
-    MARIE_PARAM_AT(asr_params_t, deaf_after_s, DOUBLE, "0.3", "s still deaf after the robot stops speaking (echo)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = ASR_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "asr", .ports = ports, .params = params, .params_size = sizeof(asr_params_t),

@@ -10,40 +10,9 @@
 #include "adapters/behaviours/recovery.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
+#include "adapters/behaviours/behaviours_params.h"
 
 enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_FACE, IN_COUNT };
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *input_mode;
-    double rate_hz;
-    int64_t pull_timeout_ms;
-    int64_t priority_estop;
-    int64_t priority_avoid;
-    int64_t priority_teleop;
-    int64_t priority_face;
-    int64_t priority_follow;
-    double lookahead;
-    double corner_angle;
-    double v_max;
-    double omega_max;
-    double goal_tolerance;
-    double stale_pose_s;
-    double robot_radius;
-    double robot_clearance;
-    double half_width;
-    double stop_distance;
-    double slow_distance;
-    double stale_scan_s;
-    bool estop_required;
-    bool estop_immediate;
-    double stale_estop_s;
-    double stuck_s;
-    double detour_s;
-    double teleop_timeout_s;
-    double face_timeout_s;
-    double face_tolerance;
-} bhv_params_t;
-
 static const bhv_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
 static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop", "face" };
@@ -482,47 +451,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(bhv_params_t, input_mode, STRING, "pull",
-                   "pull (ask the inputs' Mailboxes each cycle) or subscribe"),
-    MARIE_PARAM_AT(bhv_params_t, rate_hz, DOUBLE, "5", "arbitration rate"),
-    MARIE_PARAM_AT(bhv_params_t, pull_timeout_ms, INT, "60", "how long a cycle waits for a Mailbox"),
-    MARIE_PARAM_AT(bhv_params_t, priority_estop, INT, "100", ""),
-    MARIE_PARAM_AT(bhv_params_t, priority_avoid, INT, "80", ""),
-    MARIE_PARAM_AT(bhv_params_t, priority_teleop, INT, "60", ""),
-    MARIE_PARAM_AT(bhv_params_t, priority_face, INT, "50", "turn toward who spoke (the face port, marie-dialogue)"),
-    MARIE_PARAM_AT(bhv_params_t, priority_follow, INT, "40", ""),
-    MARIE_PARAM_AT(bhv_params_t, lookahead, DOUBLE, "0.5", "m, pure pursuit"),
-    MARIE_PARAM_AT(bhv_params_t, corner_angle, DOUBLE, "0.5",
-                   "rad: where the path turns more than this, drive to the corner, then turn (0: cut it)"),
-    MARIE_PARAM_AT(bhv_params_t, v_max, DOUBLE, "0.5", "m/s"),
-    MARIE_PARAM_AT(bhv_params_t, omega_max, DOUBLE, "1.2", "rad/s"),
-    MARIE_PARAM_AT(bhv_params_t, goal_tolerance, DOUBLE, "0.15", "m: the path is done this close to its end"),
-    MARIE_PARAM_AT(bhv_params_t, stale_pose_s, DOUBLE, "0.5", "s: older poses are not followed"),
-    MARIE_PARAM_AT(bhv_params_t, robot_radius, DOUBLE, "0.3",
-                   "m: circle around the footprint (the system file's robot.radius)"),
-    MARIE_PARAM_AT(bhv_params_t, robot_clearance, DOUBLE, "0.1", "m: margin kept beyond it (robot.clearance)"),
-    MARIE_PARAM_AT(bhv_params_t, half_width, DOUBLE, "0",
-                   "m: half the swept corridor checked by avoid (0: robot_radius + robot_clearance/2)"),
-    MARIE_PARAM_AT(bhv_params_t, stop_distance, DOUBLE, "0",
-                   "m ahead: stop and turn away (0: robot_radius + robot_clearance/2)"),
-    MARIE_PARAM_AT(bhv_params_t, slow_distance, DOUBLE, "0",
-                   "m ahead: slow down and turn away (0: stop_distance + 0.25)"),
-    MARIE_PARAM_AT(bhv_params_t, stale_scan_s, DOUBLE, "1.0", "s"),
-    MARIE_PARAM_AT(bhv_params_t, estop_required, BOOL, "false", "no fresh e-stop state counts as pressed"),
-    MARIE_PARAM_AT(bhv_params_t, estop_immediate, BOOL, "true",
-                   "a press on estop_now stops the robot at once, between cycles"),
-    MARIE_PARAM_AT(bhv_params_t, stale_estop_s, DOUBLE, "2.0", "s"),
-    MARIE_PARAM_AT(bhv_params_t, stuck_s, DOUBLE, "10",
-                   "s without 0.3 m of progress towards the path's end before a recovery (0: never)"),
-    MARIE_PARAM_AT(bhv_params_t, detour_s, DOUBLE, "4",
-                   "s of the recovery's detour, times its escalation level (up to 4)"),
-    MARIE_PARAM_AT(bhv_params_t, teleop_timeout_s, DOUBLE, "0.5",
-                   "s: teleop is active while its commands are this recent"),
-    MARIE_PARAM_AT(bhv_params_t, face_timeout_s, DOUBLE, "6", "s: a speaker heard longer ago is not turned to"),
-    MARIE_PARAM_AT(bhv_params_t, face_tolerance, DOUBLE, "0.15", "rad: facing the speaker this closely ends the turn"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = BHV_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "behaviours", .ports = ports, .params = params, .params_size = sizeof(bhv_params_t), .on_init = init, .on_stop = stop_hook,

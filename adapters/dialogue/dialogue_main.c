@@ -9,11 +9,7 @@
 #include "core/auth.h"
 #include "core/component.h"
 #include "core/time.h"
-
-typedef struct {
-    const char *places, *robot_name, *key_file;
-    double min_confidence, tolerance;
-} dlg_params_t;
+#include "adapters/dialogue/dialogue_params.h"
 
 typedef struct {
     dialogue_t d;
@@ -166,14 +162,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(dlg_params_t, places, STRING, "", "name=x,y,theta;... the places a command may name (map frame)"),
-    MARIE_PARAM_AT(dlg_params_t, robot_name, STRING, "Spartacus", "what the robot answers to its name"),
-    MARIE_PARAM_AT(dlg_params_t, min_confidence, DOUBLE, "0.3", "recognitions below this are ignored"),
-    MARIE_PARAM_AT(dlg_params_t, tolerance, DOUBLE, "0.3", "m: goal tolerance"),
-    MARIE_PARAM_AT(dlg_params_t, key_file, STRING, "\"\"", "order key: spoken goals also go to the mission as signed requests (empty: not)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = DLG_PARAMS;
 
 static void quit(marie_component_t *c)
 {

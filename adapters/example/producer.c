@@ -1,15 +1,10 @@
 /* example producer: publishes a numbered counter_t at a fixed rate; the smallest useful component. */
 #include "core/component.h"
+#include "adapters/example/producer_params.h"
 
 typedef struct {
     int64_t seq;
 } producer_t;
-
-/* Its parameters: each declared once, in `params` below, and read from this struct. */
-typedef struct {
-    double rate_hz;
-    const char *label;
-} producer_params_t;
 
 static void tick(marie_component_t *c, int64_t overruns)
 {
@@ -33,11 +28,7 @@ static const marie_port_spec_t ports[] = {
     {"out", &marie_type_counter_t, MARIE_OUT, MARIE_PUSH, "EXAMPLE"},
     {0},
 };
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(producer_params_t, rate_hz, DOUBLE, "10", "publishing rate"),
-    MARIE_PARAM_AT(producer_params_t, label, STRING, "example", "name carried in every message"),
-    {0},
-};
+static const marie_param_spec_t params[] = PRODUCER_PARAMS;
 static const marie_component_def_t def = {
     .kind = "example-producer", .ports = ports, .params = params, .params_size = sizeof(producer_params_t),
     .on_init = init,

@@ -9,45 +9,7 @@
 #include "adapters/common/scanwait.h"
 #include "adapters/localizer/mcl.h"
 #include "core/component.h"
-
-/* The parameters, declared once in the table at the end. */
-typedef struct {
-    const char *map;
-    const char *init_mode;
-    double init_x;
-    double init_y;
-    double init_theta;
-    double init_sigma_xy;
-    double init_sigma_theta;
-    int64_t particles_min;
-    int64_t particles_max;
-    int64_t max_beams;
-    double sigma_hit;
-    double z_hit;
-    double z_rand;
-    double max_dist;
-    double alpha1;
-    double alpha2;
-    double alpha3;
-    double alpha4;
-    double laser_x;
-    double laser_y;
-    double laser_theta;
-    double update_min_d;
-    double update_min_a;
-    double resample_ess;
-    bool recovery;
-    double lost_likelihood;
-    double kidnap_likelihood;
-    int64_t kidnap_updates;
-    double relocalized_likelihood;
-    double relocalized_sigma;
-    int64_t seed;
-    double cloud_hz;
-    int64_t cloud_max;
-    double odom_timeout_s;
-    double resume_max_age_s;
-} loc_params_t;
+#include "adapters/localizer/localizer_params.h"
 
 typedef struct {
     const loc_params_t *q;
@@ -386,44 +348,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(loc_params_t, map, STRING, NULL, "map_server map.yaml"),
-    MARIE_PARAM_AT(loc_params_t, init_mode, STRING, "pose", "pose (around init_x/y/theta) or global (uniform over free space)"),
-    MARIE_PARAM_AT(loc_params_t, init_x, DOUBLE, "0", "m"),
-    MARIE_PARAM_AT(loc_params_t, init_y, DOUBLE, "0", "m"),
-    MARIE_PARAM_AT(loc_params_t, init_theta, DOUBLE, "0", "rad"),
-    MARIE_PARAM_AT(loc_params_t, init_sigma_xy, DOUBLE, "0.2", "m, spread of the initial particles"),
-    MARIE_PARAM_AT(loc_params_t, init_sigma_theta, DOUBLE, "0.1", "rad"),
-    MARIE_PARAM_AT(loc_params_t, particles_min, INT, "200", "KLD lower bound"),
-    MARIE_PARAM_AT(loc_params_t, particles_max, INT, "3000", "KLD upper bound and initial count"),
-    MARIE_PARAM_AT(loc_params_t, max_beams, INT, "60", "beams used per scan"),
-    MARIE_PARAM_AT(loc_params_t, sigma_hit, DOUBLE, "0.1", "m, likelihood field spread"),
-    MARIE_PARAM_AT(loc_params_t, z_hit, DOUBLE, "0.9", "weight of the hit model"),
-    MARIE_PARAM_AT(loc_params_t, z_rand, DOUBLE, "0.1", "weight of random readings"),
-    MARIE_PARAM_AT(loc_params_t, max_dist, DOUBLE, "1.0", "m, likelihood field saturation"),
-    MARIE_PARAM_AT(loc_params_t, alpha1, DOUBLE, "0.05", "rotation noise from rotation"),
-    MARIE_PARAM_AT(loc_params_t, alpha2, DOUBLE, "0.02", "rotation noise from translation"),
-    MARIE_PARAM_AT(loc_params_t, alpha3, DOUBLE, "0.05", "translation noise from translation"),
-    MARIE_PARAM_AT(loc_params_t, alpha4, DOUBLE, "0.02", "translation noise from rotation"),
-    MARIE_PARAM_AT(loc_params_t, laser_x, DOUBLE, "0", "m, laser position on the robot"),
-    MARIE_PARAM_AT(loc_params_t, laser_y, DOUBLE, "0", "m"),
-    MARIE_PARAM_AT(loc_params_t, laser_theta, DOUBLE, "0", "rad"),
-    MARIE_PARAM_AT(loc_params_t, update_min_d, DOUBLE, "0.05", "m travelled between filter updates"),
-    MARIE_PARAM_AT(loc_params_t, update_min_a, DOUBLE, "0.05", "rad turned between filter updates"),
-    MARIE_PARAM_AT(loc_params_t, resample_ess, DOUBLE, "0.5", "resample below this effective sample fraction"),
-    MARIE_PARAM_AT(loc_params_t, recovery, BOOL, "true", "inject random particles when the likelihood drops"),
-    MARIE_PARAM_AT(loc_params_t, lost_likelihood, DOUBLE, "0.25", "mean per-beam likelihood below which the robot is lost"),
-    MARIE_PARAM_AT(loc_params_t, kidnap_likelihood, DOUBLE, "0.15", "scan fit below which, kidnap_updates times running, the " "robot is lost: relocalize over the whole map (0: never)"),
-    MARIE_PARAM_AT(loc_params_t, kidnap_updates, INT, "8", "filter updates of poor (or, relocalizing, good) fit before deciding"),
-    MARIE_PARAM_AT(loc_params_t, relocalized_likelihood, DOUBLE, "0.4", "scan fit that ends a relocalization ..."),
-    MARIE_PARAM_AT(loc_params_t, relocalized_sigma, DOUBLE, "0.3", "m: ... with the estimate's position spread below this"),
-    MARIE_PARAM_AT(loc_params_t, seed, INT, "1", "random seed (same seed and log: same output)"),
-    MARIE_PARAM_AT(loc_params_t, cloud_hz, DOUBLE, "1", "particle cloud rate (0: never)"),
-    MARIE_PARAM_AT(loc_params_t, cloud_max, INT, "2000", "particles per cloud message at most"),
-    MARIE_PARAM_AT(loc_params_t, odom_timeout_s, DOUBLE, "0.5", "s: a scan this much newer than the odometry gives no pose"),
-    MARIE_PARAM_AT(loc_params_t, resume_max_age_s, DOUBLE, "30", "at start, continue from the pose in the POSE Mailbox " "when it is younger than this (0: never)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = LOC_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "localizer", .ports = ports, .params = params, .params_size = sizeof(loc_params_t),

@@ -10,16 +10,7 @@
 #include "adapters/mapper/slam.h"
 #include "core/component.h"
 #include "map/occmap.h"
-
-/* The parameters, each declared once in `params` below. */
-typedef struct {
-    double resolution, size_m, init_x, init_y, init_theta, laser_x, laser_y, laser_theta, free_range;
-    double search_xy, search_th, kf_dist, kf_angle, min_score, loop_radius, loop_min_score, loop_max_rival, map_hz,
-        republish_s;
-    double odom_timeout_s;
-    bool loop_closure;
-    int64_t loop_min_gap, max_keyframes;
-} mapper_params_t;
+#include "adapters/mapper/mapper_params.h"
 
 typedef struct {
     slam_t *slam;
@@ -215,33 +206,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(mapper_params_t, resolution, DOUBLE, "0.05", "m per cell"),
-    MARIE_PARAM_AT(mapper_params_t, size_m, DOUBLE, "100", "m: side of the square the map may cover, centred on the start"),
-    MARIE_PARAM_AT(mapper_params_t, init_x, DOUBLE, "0", "m: the robot's pose in the map frame at the first scan"),
-    MARIE_PARAM_AT(mapper_params_t, init_y, DOUBLE, "0", "m"),
-    MARIE_PARAM_AT(mapper_params_t, init_theta, DOUBLE, "0", "rad"),
-    MARIE_PARAM_AT(mapper_params_t, laser_x, DOUBLE, "0", "m, laser position on the robot"),
-    MARIE_PARAM_AT(mapper_params_t, laser_y, DOUBLE, "0", "m"),
-    MARIE_PARAM_AT(mapper_params_t, laser_theta, DOUBLE, "0", "rad"),
-    MARIE_PARAM_AT(mapper_params_t, free_range, DOUBLE, "6", "m cleared along a beam that saw nothing"),
-    MARIE_PARAM_AT(mapper_params_t, search_xy, DOUBLE, "0.2", "m: scan matcher's window around the odometry's guess"),
-    MARIE_PARAM_AT(mapper_params_t, search_th, DOUBLE, "0.1", "rad"),
-    MARIE_PARAM_AT(mapper_params_t, min_score, DOUBLE, "0.3", "mean likelihood per beam below which odometry is kept"),
-    MARIE_PARAM_AT(mapper_params_t, kf_dist, DOUBLE, "0.2", "m between keyframes (map updates)"),
-    MARIE_PARAM_AT(mapper_params_t, kf_angle, DOUBLE, "0.15", "rad between keyframes"),
-    MARIE_PARAM_AT(mapper_params_t, loop_closure, BOOL, "true", "close loops and optimize the pose graph"),
-    MARIE_PARAM_AT(mapper_params_t, loop_radius, DOUBLE, "4", "m: older keyframes this near are loop candidates"),
-    MARIE_PARAM_AT(mapper_params_t, loop_min_gap, INT, "40", "keyframes between a loop candidate and the newest"),
-    MARIE_PARAM_AT(mapper_params_t, loop_min_score, DOUBLE, "0.55", "mean likelihood per beam a closure needs"),
-    MARIE_PARAM_AT(mapper_params_t, loop_max_rival, DOUBLE, "0.95",
-                   "refuse a closure that scores this share of its best 0.3 m away too (a look-alike place)"),
-    MARIE_PARAM_AT(mapper_params_t, max_keyframes, INT, "20000", "memory bound of the pose graph"),
-    MARIE_PARAM_AT(mapper_params_t, map_hz, DOUBLE, "1", "map messages per second (when it changed)"),
-    MARIE_PARAM_AT(mapper_params_t, republish_s, DOUBLE, "5", "s: send the map again even unchanged (0: never)"),
-    MARIE_PARAM_AT(mapper_params_t, odom_timeout_s, DOUBLE, "0.5", "s: a scan this much newer than the odometry is skipped"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = MAPPER_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "mapper", .ports = ports, .params = params, .params_size = sizeof(mapper_params_t),

@@ -8,14 +8,9 @@
 #include "adapters/mission/explore.h"
 #include "core/component.h"
 #include "map/occmap.h"
+#include "adapters/mission/explore_params.h"
 
 #define MAX_BLACK 256
-
-/* The parameters, each declared once in `params` below. */
-typedef struct {
-    double rate_hz, robot_radius, info_weight, tolerance, goal_timeout_s, replan_s, done_after_s;
-    int64_t min_cells;
-} exp_params_t;
 
 typedef struct {
     occmap_t *map;
@@ -174,17 +169,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(exp_params_t, rate_hz, DOUBLE, "1", "frontier choices per second"),
-    MARIE_PARAM_AT(exp_params_t, robot_radius, DOUBLE, "0.45", "m kept from occupied cells on the way to a frontier"),
-    MARIE_PARAM_AT(exp_params_t, info_weight, DOUBLE, "0.2", "cost = path m - info_weight * frontier m"),
-    MARIE_PARAM_AT(exp_params_t, min_cells, INT, "8", "shorter frontiers are ignored"),
-    MARIE_PARAM_AT(exp_params_t, tolerance, DOUBLE, "0.4", "m: a frontier goal this near counts as reached"),
-    MARIE_PARAM_AT(exp_params_t, goal_timeout_s, DOUBLE, "90", "s: a frontier not reached by then is given up"),
-    MARIE_PARAM_AT(exp_params_t, replan_s, DOUBLE, "3", "s between frontier choices while a goal is pursued"),
-    MARIE_PARAM_AT(exp_params_t, done_after_s, DOUBLE, "10", "s without a reachable frontier before exploration is done"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = EXP_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "explore", .ports = ports, .params = params, .params_size = sizeof(exp_params_t),

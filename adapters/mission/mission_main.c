@@ -13,23 +13,7 @@
 #include "core/auth.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const marie_node_t *goals;
-    const marie_node_t *signs;
-    const char *key_file;
-    double tolerance;
-    double rate_hz;
-    double republish_s;
-    double stale_pose_s;
-    bool sharedmap;
-    const char *sharedmap_channel;
-    const char *state_key;
-    int64_t sharedmap_timeout_ms;
-    double unreachable_s;
-    double resume_max_age_s;
-} mission_params_t;
+#include "adapters/mission/mission_params.h"
 
 static const mission_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -377,27 +361,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(mission_params_t, goals, NODE, NULL,
-                   "list of {name, x, y, theta, priority, deadline (s after start), tolerance, id}"),
-    MARIE_PARAM_AT(mission_params_t, signs, NODE, "[]",
-                   "goals found by reading signs: list of {message, search: [[x, y], ...], approach, " "name, priority, deadline, tolerance, id} (docs/vision.md)"),
-    MARIE_PARAM_AT(mission_params_t, key_file, STRING, "\"\"",
-                   "order key checking goal requests from people (empty: all refused)"),
-    MARIE_PARAM_AT(mission_params_t, tolerance, DOUBLE, "0.3", "m: default distance at which a goal counts as reached"),
-    MARIE_PARAM_AT(mission_params_t, rate_hz, DOUBLE, "5", "how often progress is checked"),
-    MARIE_PARAM_AT(mission_params_t, republish_s, DOUBLE, "1.0", "s between repeats of the current goal"),
-    MARIE_PARAM_AT(mission_params_t, stale_pose_s, DOUBLE, "2.0", "s: an older pose reaches nothing (0: no limit)"),
-    MARIE_PARAM_AT(mission_params_t, sharedmap, BOOL, "true", "keep progress in the SharedMap"),
-    MARIE_PARAM_AT(mission_params_t, sharedmap_channel, STRING, "SHAREDMAP", "the SharedMap's request channel"),
-    MARIE_PARAM_AT(mission_params_t, state_key, STRING, "\"\"", "SharedMap key (default mission/<component name>)"),
-    MARIE_PARAM_AT(mission_params_t, sharedmap_timeout_ms, INT, "300", "how long to wait for the SharedMap"),
-    MARIE_PARAM_AT(mission_params_t, unreachable_s, DOUBLE, "30",
-                   "s of failed plans before the current goal is given up (0: never)"),
-    MARIE_PARAM_AT(mission_params_t, resume_max_age_s, DOUBLE, "300",
-                   "older saved progress starts a new mission (0: any age)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = MISSION_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "mission", .ports = ports, .params = params, .params_size = sizeof(mission_params_t), .on_init = init, .on_quit = quit,

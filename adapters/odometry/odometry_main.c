@@ -6,12 +6,7 @@
 
 #include "adapters/odometry/odo.h"
 #include "core/component.h"
-
-/* The parameters, each declared once in `params` below. */
-typedef struct {
-    double wheel_radius, track, rate_hz, gyro_timeout_s, k_dist, k_gyro, k_enc_heading;
-    bool use_gyro, invert_left, invert_right;
-} odom_params_t;
+#include "adapters/odometry/odometry_params.h"
 
 typedef struct {
     odo_t o;
@@ -97,19 +92,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(odom_params_t, wheel_radius, DOUBLE, "0.1", "m"),
-    MARIE_PARAM_AT(odom_params_t, track, DOUBLE, "0.4", "m between the wheels"),
-    MARIE_PARAM_AT(odom_params_t, rate_hz, DOUBLE, "10", "odometry publishing rate"),
-    MARIE_PARAM_AT(odom_params_t, use_gyro, BOOL, "true", "heading from the gyro (else from the encoders)"),
-    MARIE_PARAM_AT(odom_params_t, gyro_timeout_s, DOUBLE, "0.3", "s: older gyro data falls back to encoder heading"),
-    MARIE_PARAM_AT(odom_params_t, k_dist, DOUBLE, "0.001", "m^2 position variance per m"),
-    MARIE_PARAM_AT(odom_params_t, k_gyro, DOUBLE, "1e-5", "rad^2 heading variance per s on the gyro"),
-    MARIE_PARAM_AT(odom_params_t, k_enc_heading, DOUBLE, "0.01", "rad^2 heading variance per rad on the encoders"),
-    MARIE_PARAM_AT(odom_params_t, invert_left, BOOL, "false", "left ticks count backwards when driving forward"),
-    MARIE_PARAM_AT(odom_params_t, invert_right, BOOL, "false", "right ticks count backwards when driving forward"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = ODOM_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "odometry", .ports = ports, .params = params, .params_size = sizeof(odom_params_t), .on_init = init,

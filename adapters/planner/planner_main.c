@@ -9,15 +9,7 @@
 #include "adapters/common/posebuf.h"
 #include "adapters/planner/planner.h"
 #include "core/component.h"
-
-/* The parameters, each declared once in `params` below. */
-typedef struct {
-    const char *map, *algorithm;
-    double robot_radius, robot_clearance, time_limit, range, obstacle_ttl, horizon, check_hz, replan_min_s,
-        republish_s, laser_x, laser_y, laser_theta;
-    bool unknown_is_free, use_scan;
-    int64_t seed;
-} pln_params_t;
+#include "adapters/planner/planner_params.h"
 
 typedef struct {
     const pln_params_t *q;
@@ -382,27 +374,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(pln_params_t, map, STRING, "\"\"", "map_server map.yaml ('': wait for a map on the map port)"),
-    MARIE_PARAM_AT(pln_params_t, robot_radius, DOUBLE, "0.3", "m: circle around the robot's footprint (the system file's robot.radius)"),
-    MARIE_PARAM_AT(pln_params_t, robot_clearance, DOUBLE, "0.1", "m kept free beyond robot_radius (robot.clearance; the map is inflated by both)"),
-    MARIE_PARAM_AT(pln_params_t, algorithm, STRING, "grid",
-                   "grid (A* on the inflated grid, shortest), rrtconnect or prm (OMPL, sampling)"),
-    MARIE_PARAM_AT(pln_params_t, time_limit, DOUBLE, "1.0", "s per planning attempt"),
-    MARIE_PARAM_AT(pln_params_t, range, DOUBLE, "0", "m: RRTConnect step (0: OMPL's default)"),
-    MARIE_PARAM_AT(pln_params_t, unknown_is_free, BOOL, "false", "plan through unknown cells"),
-    MARIE_PARAM_AT(pln_params_t, use_scan, BOOL, "true", "add laser obstacles and replan when the path is blocked"),
-    MARIE_PARAM_AT(pln_params_t, obstacle_ttl, DOUBLE, "10", "s a laser obstacle is remembered"),
-    MARIE_PARAM_AT(pln_params_t, horizon, DOUBLE, "3.0", "m of path ahead checked for blocking"),
-    MARIE_PARAM_AT(pln_params_t, check_hz, DOUBLE, "2", "blocking checks per second"),
-    MARIE_PARAM_AT(pln_params_t, replan_min_s, DOUBLE, "1.0", "s between two plans for the same goal"),
-    MARIE_PARAM_AT(pln_params_t, republish_s, DOUBLE, "1.0", "s between repeats of the current path (0: never)"),
-    MARIE_PARAM_AT(pln_params_t, laser_x, DOUBLE, "0", "m, laser position on the robot"),
-    MARIE_PARAM_AT(pln_params_t, laser_y, DOUBLE, "0", "m"),
-    MARIE_PARAM_AT(pln_params_t, laser_theta, DOUBLE, "0", "rad"),
-    MARIE_PARAM_AT(pln_params_t, seed, INT, "1", "OMPL's random seed (0: OMPL picks one)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = PLN_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "planner", .ports = ports, .params = params, .params_size = sizeof(pln_params_t), .on_init = init, .on_quit = quit,

@@ -7,13 +7,7 @@
 
 #include "adapters/ssl/ssl.h"
 #include "core/component.h"
-
-typedef struct {
-    const char *mics;
-    int64_t rate, nfft, potentials;
-    double min_energy, birth_energy, gate_deg, death_s, sources_hz;
-    bool separate, nulls, postfilter;
-} ssl_params_t;
+#include "adapters/ssl/ssl_params.h"
 
 typedef struct {
     marie_component_t *c;
@@ -147,21 +141,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(ssl_params_t, mics, STRING, MICARRAY_DEFAULT, "microphone positions x,y,z;... in the robot frame, m"),
-    MARIE_PARAM_AT(ssl_params_t, rate, INT, "16000", "sample rate of the array, Hz"),
-    MARIE_PARAM_AT(ssl_params_t, nfft, INT, "512", "analysis frame, samples (power of two); the hop is half"),
-    MARIE_PARAM_AT(ssl_params_t, potentials, INT, "3", "directions taken from each frame's SRP-PHAT map (1..4)"),
-    MARIE_PARAM_AT(ssl_params_t, min_energy, DOUBLE, "0.02", "SRP-PHAT coherence under which a peak is noise"),
-    MARIE_PARAM_AT(ssl_params_t, birth_energy, DOUBLE, "0.03", "coherence a new track needs to grow"),
-    MARIE_PARAM_AT(ssl_params_t, gate_deg, DOUBLE, "15", "deg: how far a peak may be from a track to update it"),
-    MARIE_PARAM_AT(ssl_params_t, death_s, DOUBLE, "1.5", "s: a track unheard this long ends"),
-    MARIE_PARAM_AT(ssl_params_t, sources_hz, DOUBLE, "10", "tracked sources publishing rate (at most one per frame)"),
-    MARIE_PARAM_AT(ssl_params_t, separate, BOOL, "true", "publish each tracked source's separated stream"),
-    MARIE_PARAM_AT(ssl_params_t, nulls, BOOL, "true", "geometric beams with nulls toward the other sources (else delay-and-sum)"),
-    MARIE_PARAM_AT(ssl_params_t, postfilter, BOOL, "true", "Wiener post-filter against stationary noise"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = SSL_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "ssl", .ports = ports, .params = params, .params_size = sizeof(ssl_params_t),

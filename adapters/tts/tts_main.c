@@ -7,14 +7,9 @@
 
 #include "adapters/tts/tts_child.h"
 #include "core/component.h"
+#include "adapters/tts/tts_params.h"
 
 #define QUEUE 8
-
-typedef struct {
-    const char *command;
-    int64_t block;
-    double synth_timeout_s;
-} tts_params_t;
 
 typedef struct {
     int32_t id;
@@ -208,13 +203,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(tts_params_t, command, STRING, "text2wave -F 16000 -o -",
-                   "synthesizer: text on stdin, a 16-bit WAVE on stdout"),
-    MARIE_PARAM_AT(tts_params_t, block, INT, "256", "samples per published audio block"),
-    MARIE_PARAM_AT(tts_params_t, synth_timeout_s, DOUBLE, "20", "s a synthesis may take before it is killed"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = TTS_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "tts", .ports = ports, .params = params, .params_size = sizeof(tts_params_t),

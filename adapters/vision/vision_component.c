@@ -15,41 +15,9 @@
 #include "adapters/vision/vision_source.h"
 #include "adapters/vision/vision_track.h"
 #include "core/time.h"
+#include "adapters/vision/vision_params.h"
 
 #define MAX_TAGS 64     /* per frame; more are counted as truncated */
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *source;
-    double rate_hz;
-    bool loop;
-    const char *camera;
-    const char *family;
-    double decimate;
-    double sigma;
-    int64_t threads;
-    bool refine_edges;
-    double sharpening;
-    int64_t max_hamming;
-    double min_margin;
-    double tag_size;
-    double fx;
-    double fy;
-    double cx;
-    double cy;
-    int64_t width;
-    int64_t height;
-    double smoothing;
-    double lost_after_s;
-    int64_t min_hits;
-    double mount_x;
-    double mount_y;
-    double mount_z;
-    double mount_yaw;
-    double mount_pitch;
-    double pose_slack_s;
-    const marie_node_t *messages;
-} vision_params_t;
 
 static const vision_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -88,42 +56,7 @@ static const marie_port_spec_t ports[] = {
     { NULL },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(vision_params_t, source, STRING, "lcm",
-                   "lcm (images on the image port), device:N, /dev/videoN, video:FILE or folder:DIR"),
-    MARIE_PARAM_AT(vision_params_t, rate_hz, DOUBLE, "10", "frames read per second from a device, file or folder"),
-    MARIE_PARAM_AT(vision_params_t, loop, BOOL, "false", "start a file or folder over at its end"),
-    MARIE_PARAM_AT(vision_params_t, camera, STRING, "camera", "camera name in the detections"),
-    MARIE_PARAM_AT(vision_params_t, family, STRING, "tag36h11", "AprilTag family"),
-    MARIE_PARAM_AT(vision_params_t, decimate, DOUBLE, "2.0", "quad detection on an image decimated by this factor"),
-    MARIE_PARAM_AT(vision_params_t, sigma, DOUBLE, "0.0",
-                   "Gaussian blur (px) before quad detection; 0.8 helps noisy images"),
-    MARIE_PARAM_AT(vision_params_t, threads, INT, "1", "detector threads"),
-    MARIE_PARAM_AT(vision_params_t, refine_edges, BOOL, "true", "snap quad edges to image gradients"),
-    MARIE_PARAM_AT(vision_params_t, sharpening, DOUBLE, "0.25", "decode sharpening"),
-    MARIE_PARAM_AT(vision_params_t, max_hamming, INT, "2", "bit errors the decoder may correct (0..2)"),
-    MARIE_PARAM_AT(vision_params_t, min_margin, DOUBLE, "0", "drop detections with a lower decision margin"),
-    MARIE_PARAM_AT(vision_params_t, tag_size, DOUBLE, "0.16", "edge of a tag's black border, m"),
-    MARIE_PARAM_AT(vision_params_t, fx, DOUBLE, "0", "focal length x, px (0: no poses)"),
-    MARIE_PARAM_AT(vision_params_t, fy, DOUBLE, "0", "focal length y, px"),
-    MARIE_PARAM_AT(vision_params_t, cx, DOUBLE, "0", "principal point x, px (pixel centres at integers)"),
-    MARIE_PARAM_AT(vision_params_t, cy, DOUBLE, "0", "principal point y, px"),
-    MARIE_PARAM_AT(vision_params_t, width, INT, "0", "image width the intrinsics were calibrated for"),
-    MARIE_PARAM_AT(vision_params_t, height, INT, "0", "image height the intrinsics were calibrated for"),
-    MARIE_PARAM_AT(vision_params_t, smoothing, DOUBLE, "0.3", "weight of a new pose in a track's smoothed pose (0..1]"),
-    MARIE_PARAM_AT(vision_params_t, lost_after_s, DOUBLE, "0.5", "a tag unseen this long ends its track"),
-    MARIE_PARAM_AT(vision_params_t, min_hits, INT, "2", "frames before a track counts (and its message is read)"),
-    MARIE_PARAM_AT(vision_params_t, mount_x, DOUBLE, "0.2", "camera forward of the robot's origin, m (landmarks)"),
-    MARIE_PARAM_AT(vision_params_t, mount_y, DOUBLE, "0", "camera left of the robot's origin, m"),
-    MARIE_PARAM_AT(vision_params_t, mount_z, DOUBLE, "0.5", "camera above the floor, m"),
-    MARIE_PARAM_AT(vision_params_t, mount_yaw, DOUBLE, "0", "camera turned left, rad"),
-    MARIE_PARAM_AT(vision_params_t, mount_pitch, DOUBLE, "0", "camera tilted down, rad"),
-    MARIE_PARAM_AT(vision_params_t, pose_slack_s, DOUBLE, "0.3",
-                   "a frame newer than the newest pose by more is not placed"),
-    MARIE_PARAM_AT(vision_params_t, messages, NODE, "[]",
-                   "list of {id, message, kind, severity, goal: {x, y, theta, ...}}"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = VISION_PARAMS;
 
 static void release(vision_t *v)
 {

@@ -5,21 +5,7 @@
 
 #include "adapters/xml_bridge/xb_server.h"
 #include "core/component.h"
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *bind;
-    int64_t port;
-    int64_t max_document;
-    int64_t max_depth;
-    int64_t queue;
-    int64_t queue_bytes;
-    int64_t max_clients;
-    int64_t stall_ms;
-    int64_t max_message;
-    int64_t sndbuf;
-    int64_t max_memory;
-} xb_params_t;
+#include "adapters/xml_bridge/xml_bridge_params.h"
 
 static const xb_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -28,22 +14,7 @@ typedef struct {
     xb_server_stats_t last;
 } bridge_t;
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(xb_params_t, bind, STRING, "127.0.0.1", "address to listen on (loopback unless configured)"),
-    MARIE_PARAM_AT(xb_params_t, port, INT, "7670", "TCP port (0: any free port)"),
-    MARIE_PARAM_AT(xb_params_t, max_document, INT, "1048576", "largest incoming document in bytes"),
-    MARIE_PARAM_AT(xb_params_t, max_depth, INT, "32", "deepest element nesting of an incoming document"),
-    MARIE_PARAM_AT(xb_params_t, queue, INT, "1024", "outgoing documents kept per client before the oldest is dropped"),
-    MARIE_PARAM_AT(xb_params_t, queue_bytes, INT, "8388608",
-                   "outgoing bytes kept per client before the oldest is dropped"),
-    MARIE_PARAM_AT(xb_params_t, max_clients, INT, "512", "clients served at once; more are refused with busy"),
-    MARIE_PARAM_AT(xb_params_t, stall_ms, INT, "10000", "an unfinished document older than this closes its client"),
-    MARIE_PARAM_AT(xb_params_t, max_message, INT, "4194304", "largest LCM payload bridged, in bytes"),
-    MARIE_PARAM_AT(xb_params_t, sndbuf, INT, "0", "per-client socket send buffer in bytes (0: kernel autotuning)"),
-    MARIE_PARAM_AT(xb_params_t, max_memory, INT, "268435456",
-                   "bytes held for incoming documents of all clients; over it the largest are closed (no-memory)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = XB_PARAMS;
 
 static const marie_port_spec_t ports[] = {
     { NULL, NULL, 0, 0, NULL },

@@ -9,13 +9,9 @@
 
 #include "core/component.h"
 #include "hw/audio/blocker.h"
+#include "hw/audio/audio_params.h"
 
 #define MAX_FDS 8
-
-typedef struct {
-    const char *device, *playback;
-    int64_t channels, rate, block;
-} audio_params_t;
 
 typedef struct {
     marie_component_t *c;
@@ -166,14 +162,7 @@ static const marie_port_spec_t ports[] = {
     { 0 },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(audio_params_t, device, STRING, "", "ALSA capture device (hw:1, plughw:1, a PCM of asoundrc); empty: none"),
-    MARIE_PARAM_AT(audio_params_t, playback, STRING, "", "ALSA playback device for the play port; empty: none"),
-    MARIE_PARAM_AT(audio_params_t, channels, INT, "8", "capture channels, in the order of the mics parameter"),
-    MARIE_PARAM_AT(audio_params_t, rate, INT, "16000", "Hz"),
-    MARIE_PARAM_AT(audio_params_t, block, INT, "256", "samples per channel in one AUDIO message"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = AUDIO_PARAMS;
 
 static const marie_component_def_t def = {
     .kind = "audio", .ports = ports, .params = params, .params_size = sizeof(audio_params_t),

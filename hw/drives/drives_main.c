@@ -11,30 +11,7 @@
 #include "hw/canopen/emcy.h"
 #include "hw/canopen/sdo.h"
 #include "hw/drives/drives_ctl.h"
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *can;
-    int64_t left_node;
-    int64_t right_node;
-    bool left_invert;
-    bool right_invert;
-    double wheel_radius;
-    double track_width;
-    int64_t ticks_per_rev;
-    double max_wheel_velocity;
-    double sync_hz;
-    double publish_hz;
-    double cmd_timeout;
-    int64_t heartbeat_ms;
-    double heartbeat_timeout;
-    double fault_reset_delay;
-    double sdo_timeout;
-    int64_t master_node;
-    int64_t master_heartbeat_ms;
-    double master_timeout;
-    double rpdo_timeout;
-} drives_params_t;
+#include "hw/drives/drives_params.h"
 
 static const drives_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -57,32 +34,7 @@ static const marie_port_spec_t ports[] = {
     { NULL },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(drives_params_t, can, STRING, "can:can0",
-                   "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)"),
-    MARIE_PARAM_AT(drives_params_t, left_node, INT, "1", "CANopen node id of the left drive"),
-    MARIE_PARAM_AT(drives_params_t, right_node, INT, "2", "CANopen node id of the right drive"),
-    MARIE_PARAM_AT(drives_params_t, left_invert, BOOL, "false", "left motor mounted mirrored"),
-    MARIE_PARAM_AT(drives_params_t, right_invert, BOOL, "false", "right motor mounted mirrored"),
-    MARIE_PARAM_AT(drives_params_t, wheel_radius, DOUBLE, "0.1", "m"),
-    MARIE_PARAM_AT(drives_params_t, track_width, DOUBLE, "0.5", "m, distance between the wheels"),
-    MARIE_PARAM_AT(drives_params_t, ticks_per_rev, INT, "4096", "encoder increments per wheel revolution"),
-    MARIE_PARAM_AT(drives_params_t, max_wheel_velocity, DOUBLE, "20", "rad/s; commands are scaled down to it"),
-    MARIE_PARAM_AT(drives_params_t, sync_hz, DOUBLE, "50", "SYNC / RPDO cycle rate"),
-    MARIE_PARAM_AT(drives_params_t, publish_hz, DOUBLE, "20", "wheel encoder publish rate"),
-    MARIE_PARAM_AT(drives_params_t, cmd_timeout, DOUBLE, "0.5", "s without a motor command before the wheels stop"),
-    MARIE_PARAM_AT(drives_params_t, heartbeat_ms, INT, "100", "drive heartbeat period written to 0x1017"),
-    MARIE_PARAM_AT(drives_params_t, heartbeat_timeout, DOUBLE, "0.35", "s without a drive heartbeat: offline"),
-    MARIE_PARAM_AT(drives_params_t, fault_reset_delay, DOUBLE, "1.0", "s in fault before a fault reset"),
-    MARIE_PARAM_AT(drives_params_t, sdo_timeout, DOUBLE, "0.2", "s"),
-    MARIE_PARAM_AT(drives_params_t, master_node, INT, "127", "our CANopen node id (heartbeat 0x700 + id)"),
-    MARIE_PARAM_AT(drives_params_t, master_heartbeat_ms, INT, "20",
-                   "our heartbeat period (0: none, drives not watching)"),
-    MARIE_PARAM_AT(drives_params_t, master_timeout, DOUBLE, "0.1",
-                   "s: the drives' heartbeat consumer time for us (0x1016)"),
-    MARIE_PARAM_AT(drives_params_t, rpdo_timeout, DOUBLE, "0.1", "s: the drives' RPDO1 deadline (0x1400:05; 0: off)"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = DRIVES_PARAMS;
 
 /* The protocol's clock: monotonic on the robot, simulated time under `--clock sim`, where the
  * virtual drives judge our heartbeat and RPDO deadlines on simulated time too. */

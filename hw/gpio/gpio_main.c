@@ -9,19 +9,7 @@
 #include "hw/gpio/debounce.h"
 #include "hw/gpio/gpio.h"
 #include "lcmtypes/marie_estop_t.h"
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *chip;
-    int64_t estop_line;
-    bool estop_active_low;
-    const char *estop_bias;
-    int64_t press_ms;
-    int64_t release_ms;
-    double publish_hz;
-    int64_t led_line;
-    bool led_active_low;
-} gpio_params_t;
+#include "hw/gpio/gpio_params.h"
 
 static const gpio_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -40,18 +28,7 @@ static const marie_port_spec_t ports[] = {
     { NULL },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(gpio_params_t, chip, STRING, "gpiochip0", "GPIO chip: name, path, label or number"),
-    MARIE_PARAM_AT(gpio_params_t, estop_line, INT, "0", "offset of the e-stop input on the chip"),
-    MARIE_PARAM_AT(gpio_params_t, estop_active_low, BOOL, "false", "pressed reads low"),
-    MARIE_PARAM_AT(gpio_params_t, estop_bias, STRING, "pull-up", "as-is, disable, pull-up or pull-down"),
-    MARIE_PARAM_AT(gpio_params_t, press_ms, INT, "2", "a press counts once the input held this long"),
-    MARIE_PARAM_AT(gpio_params_t, release_ms, INT, "50", "a release counts once the input held this long"),
-    MARIE_PARAM_AT(gpio_params_t, publish_hz, DOUBLE, "2", "periodic estop_t besides every change"),
-    MARIE_PARAM_AT(gpio_params_t, led_line, INT, "-1", "offset of the status LED output; -1: none"),
-    MARIE_PARAM_AT(gpio_params_t, led_active_low, BOOL, "false", "the LED lights when the line is low"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = GPIO_PARAMS;
 
 static void publish(gp_t *g)
 {

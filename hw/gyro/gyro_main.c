@@ -12,23 +12,7 @@
 #include "hw/canopen/sdo.h"
 #include "hw/gyro/gyro_bias.h"
 #include "hw/gyro/gyro_ctl.h"
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *can;
-    int64_t node;
-    double rate_hz;
-    int64_t heartbeat_ms;
-    double heartbeat_timeout;
-    bool invert;
-    double standstill_window;
-    double still_wheel_velocity;
-    double assume_still_at_start;
-    double bias_tau;
-    int64_t bias_min_samples;
-    double max_still_rate;
-    double degraded_after;
-} gyro_params_t;
+#include "hw/gyro/gyro_params.h"
 
 static const gyro_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -59,24 +43,7 @@ static const marie_port_spec_t ports[] = {
     { NULL },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(gyro_params_t, can, STRING, "can:can0",
-                   "CAN bus: can:IFNAME (SocketCAN) or emu:PATH (marie-canbus)"),
-    MARIE_PARAM_AT(gyro_params_t, node, INT, "32", "CANopen node id of the gyro"),
-    MARIE_PARAM_AT(gyro_params_t, rate_hz, DOUBLE, "50", "sample rate (TPDO event timer)"),
-    MARIE_PARAM_AT(gyro_params_t, heartbeat_ms, INT, "100", "gyro heartbeat period written to 0x1017"),
-    MARIE_PARAM_AT(gyro_params_t, heartbeat_timeout, DOUBLE, "0.35", "s without a heartbeat: offline"),
-    MARIE_PARAM_AT(gyro_params_t, invert, BOOL, "false", "sensor mounted upside down"),
-    MARIE_PARAM_AT(gyro_params_t, standstill_window, DOUBLE, "0.5", "s of standstill before samples feed the bias"),
-    MARIE_PARAM_AT(gyro_params_t, still_wheel_velocity, DOUBLE, "0.02", "rad/s: wheels slower than this are stopped"),
-    MARIE_PARAM_AT(gyro_params_t, assume_still_at_start, DOUBLE, "0",
-                   "s after start taken as standstill when no encoder or command has arrived (0: never)"),
-    MARIE_PARAM_AT(gyro_params_t, bias_tau, DOUBLE, "30", "s, time constant for following bias drift"),
-    MARIE_PARAM_AT(gyro_params_t, bias_min_samples, INT, "50", "samples before the bias is valid"),
-    MARIE_PARAM_AT(gyro_params_t, max_still_rate, DOUBLE, "0.05", "rad/s: faster at standstill means moved by hand"),
-    MARIE_PARAM_AT(gyro_params_t, degraded_after, DOUBLE, "1.0", "s without a sample: heartbeat says degraded"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = GYRO_PARAMS;
 
 #define FRESH_US 500000
 

@@ -8,20 +8,7 @@
 #include "core/component.h"
 #include "hw/lms200/driver.h"
 #include "lcmtypes/marie_laser_scan_t.h"
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    const char *device;
-    int64_t baud;
-    double resolution;
-    int64_t address;
-    int64_t reply_timeout_ms;
-    int64_t config_timeout_ms;
-    int64_t retries;
-    int64_t data_timeout_ms;
-    int64_t reopen_ms;
-    int64_t degraded_ms;
-} lms200_params_t;
+#include "hw/lms200/lms200_params.h"
 
 static const lms200_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -43,20 +30,7 @@ static const marie_port_spec_t ports[] = {
     { NULL },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(lms200_params_t, device, STRING, "/dev/ttyUSB0", "serial device of the LMS200"),
-    MARIE_PARAM_AT(lms200_params_t, baud, INT, "500000",
-                   "line rate while streaming: 9600, 19200, 38400 (RS-232) or 500000 (RS-422)"),
-    MARIE_PARAM_AT(lms200_params_t, resolution, DOUBLE, "0.5", "degrees between beams: 1 (181 beams) or 0.5 (361)"),
-    MARIE_PARAM_AT(lms200_params_t, address, INT, "0", "device address on the line"),
-    MARIE_PARAM_AT(lms200_params_t, reply_timeout_ms, INT, "300", "wait for the answer to a probe at one rate"),
-    MARIE_PARAM_AT(lms200_params_t, config_timeout_ms, INT, "3000", "wait for the variant, baud and start replies"),
-    MARIE_PARAM_AT(lms200_params_t, retries, INT, "2", "sends of one command before the next step of recovery"),
-    MARIE_PARAM_AT(lms200_params_t, data_timeout_ms, INT, "1000", "no scan this long while streaming: re-initialise"),
-    MARIE_PARAM_AT(lms200_params_t, reopen_ms, INT, "500", "between attempts to open a missing device"),
-    MARIE_PARAM_AT(lms200_params_t, degraded_ms, INT, "2000", "no valid scan this long: heartbeat says degraded"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = LMS200_PARAMS;
 
 static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t mono_us)
 {

@@ -15,22 +15,11 @@
 #include "managers/am_proto.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webserve.h"
+#include "tools/face/face_params.h"
 
 #define MAX_PLACES 24
 #define MAX_HOSTS 16
 #define MAX_TALK 4
-
-/* The parameters, declared once in the table below; read with params_of(). */
-typedef struct {
-    int64_t http_port;
-    const char *bind;
-    const char *www;
-    const char *key_file;
-    const char *pin;
-    const marie_node_t *places;
-    const char *stop_target;
-    const char *url_file;
-} face_params_t;
 
 static const face_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
@@ -68,19 +57,7 @@ static const marie_port_spec_t ports[] = {
     { NULL },
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(face_params_t, http_port, INT, "8090", "HTTP and WebSocket port (0: any free port)"),
-    MARIE_PARAM_AT(face_params_t, bind, STRING, "127.0.0.1",
-                   "address to listen on (0.0.0.0 for a screen on another host)"),
-    MARIE_PARAM_AT(face_params_t, www, STRING, "\"\"", "folder of the page; empty: the installed or source copy"),
-    MARIE_PARAM_AT(face_params_t, key_file, STRING, "\"\"", "order key; empty: the page shows, requests are refused"),
-    MARIE_PARAM_AT(face_params_t, pin, STRING, "\"\"",
-                   "PIN the page must give with each request; empty: a random one, printed"),
-    MARIE_PARAM_AT(face_params_t, places, NODE, "[]", "the buttons: list of {name, x, y, theta}"),
-    MARIE_PARAM_AT(face_params_t, stop_target, STRING, "behaviours", "component or group paused by the stop request"),
-    MARIE_PARAM_AT(face_params_t, url_file, STRING, "\"\"", "write the page's URL to this file once serving"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = FACE_PARAMS;
 
 static void keep(char **slot, const marie_buf_t *b)
 {

@@ -11,6 +11,7 @@
 #include "core/component.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webserve.h"
+#include "tools/viewer/viewer_params.h"
 
 /* Inputs: one per thing the page shows; the channel is the port's binding. */
 enum {
@@ -23,24 +24,6 @@ extern const marie_port_spec_t viewer_ports[];
 extern const marie_type_t *const viewer_port_type[P_NIN];
 
 /* Per-channel decimation and the latest message kept for live snapshots. */
-/* The viewer's parameters, declared once in viewer_main.c's table (MARIE_PARAM_AT). */
-typedef struct {
-    const char *log;
-    int64_t http_port;
-    const char *bind;
-    const char *www;
-    const char *map;
-    double speed;
-    bool autoplay;
-    const char *key_file;
-    double goal_tolerance;
-    double laser_hz;
-    double pose_hz;
-    double particles_hz;
-    double map_period_s;
-    const char *url_file;
-} viewer_params_t;
-
 static inline const viewer_params_t *viewer_params(const marie_component_t *c) { return marie_component_params(c); }
 
 typedef struct {

@@ -49,24 +49,7 @@ const marie_type_t *const viewer_port_type[P_NIN] = {
     [P_TAGS] = &marie_type_tag_detections_t, [P_LANDMARKS] = &marie_type_landmarks_t,
 };
 
-static const marie_param_spec_t params[] = {
-    MARIE_PARAM_AT(viewer_params_t, log, STRING, "\"\"", "LCM log to play; empty: follow the live bus"),
-    MARIE_PARAM_AT(viewer_params_t, http_port, INT, "8080", "HTTP and WebSocket port"),
-    MARIE_PARAM_AT(viewer_params_t, bind, STRING, "127.0.0.1",
-                   "address to listen on (0.0.0.0 exposes the controls to the network)"),
-    MARIE_PARAM_AT(viewer_params_t, www, STRING, "\"\"", "folder of the page; empty: the installed or source copy"),
-    MARIE_PARAM_AT(viewer_params_t, map, STRING, "\"\"", "map.yaml shown when no map arrives on the map port"),
-    MARIE_PARAM_AT(viewer_params_t, speed, DOUBLE, "1", "log playback speed"),
-    MARIE_PARAM_AT(viewer_params_t, autoplay, BOOL, "true", "start playing a log at once"),
-    MARIE_PARAM_AT(viewer_params_t, key_file, STRING, "\"\"", "order key; empty: controls disabled"),
-    MARIE_PARAM_AT(viewer_params_t, goal_tolerance, DOUBLE, "0.3", "m, of goals set from the page"),
-    MARIE_PARAM_AT(viewer_params_t, laser_hz, DOUBLE, "10", "most laser scans per second sent to the page"),
-    MARIE_PARAM_AT(viewer_params_t, pose_hz, DOUBLE, "20", "most poses per second (each of estimate and truth)"),
-    MARIE_PARAM_AT(viewer_params_t, particles_hz, DOUBLE, "2", "most particle clouds per second"),
-    MARIE_PARAM_AT(viewer_params_t, map_period_s, DOUBLE, "30", "an unchanged map is sent again after this long"),
-    MARIE_PARAM_AT(viewer_params_t, url_file, STRING, "\"\"", "write the page's URL to this file once serving"),
-    { 0 },
-};
+static const marie_param_spec_t params[] = VIEWER_PARAMS;
 
 void viewer_send(viewer_t *v, int id, const char *data, size_t len, bool droppable)
 {
