@@ -17,6 +17,14 @@
 #include "managers/am.h"
 #include "managers/progcheck.h"
 
+/* STATE_DIR/name opened with fopen's mode; NULL with errno. */
+static FILE *state_open(const am_t *am, const char *name, const char *mode)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/%s", am->state_dir, name);
+    return fopen(path, mode);
+}
+
 /* The live children, so that a manager restarted after a crash can end the ones that
  * outlived it (a component that ignores SIGTERM survives PR_SET_PDEATHSIG). */
 void am_save_children(am_t *am)
@@ -38,9 +46,7 @@ void am_save_children(am_t *am)
 
 void am_kill_leftovers(am_t *am)
 {
-    char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/children", am->state_dir);
-    FILE *f = fopen(path, "r");
+    FILE *f = state_open(am, "children", "r");
     if (!f)
         return;
     int pid;
@@ -56,6 +62,8 @@ void am_kill_leftovers(am_t *am)
         }
     }
     fclose(f);
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/children", am->state_dir);
     unlink(path);
 }
 
@@ -266,9 +274,7 @@ void am_comp_open_log(comp_t *c)
  * (sim against robot): logged, and kept in the state directory. */
 static void record_hashes(am_t *am)
 {
-    char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/config-hashes", am->state_dir);
-    FILE *f = fopen(path, "w");
+    FILE *f = state_open(am, "config-hashes", "w");
     for (size_t i = 0; i < am->ncomps; i++) {
         const comp_t *c = &am->comps[i];
         if (!c->sv.local)
@@ -312,9 +318,7 @@ void am_apply_move(am_t *am, comp_t *c, const char *host)
 
 void am_restore_up_state(am_t *am)
 {
-    char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/up", am->state_dir);
-    FILE *f = fopen(path, "r");
+    FILE *f = state_open(am, "up", "r");
     if (!f)
         return;
     char line[PATH_MAX + 64], sys[PATH_MAX] = "", profile[128] = "";

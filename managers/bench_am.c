@@ -296,26 +296,9 @@ static void bench_bringup_and_idle(void)
         int64_t t1 = marie_mono_us();
         row("am_idle_cpu_45_components", 100.0 * (double)(c1 - c0) / (double)(t1 - t0), "%core");
         row("am_idle_rss_45_components", (double)r1 / (1 << 20), "MiB");
-        char path[64], line[256];
-        snprintf(path, sizeof path, "/proc/%d/status", (int)a);
-        FILE *f = fopen(path, "r");
-        while (f && fgets(line, sizeof line, f)) {
-            long long kb;
-            if (sscanf(line, "RssAnon: %lld kB", &kb) == 1)
-                row("am_idle_rss_anon_45_components", kb / 1024.0, "MiB");
-        }
-        if (f)
-            fclose(f);
+        row("am_idle_rss_anon_45_components", (double)marie_proc_field_bytes(a, "status", "RssAnon") / (1 << 20), "MiB");
         /* shared library pages divided among the processes that map them */
-        snprintf(path, sizeof path, "/proc/%d/smaps_rollup", (int)a);
-        f = fopen(path, "r");
-        while (f && fgets(line, sizeof line, f)) {
-            long long kb;
-            if (sscanf(line, "Pss: %lld kB", &kb) == 1)
-                row("am_idle_pss_45_components", kb / 1024.0, "MiB");
-        }
-        if (f)
-            fclose(f);
+        row("am_idle_pss_45_components", (double)marie_proc_field_bytes(a, "smaps_rollup", "Pss") / (1 << 20), "MiB");
     } else {
         fprintf(stderr, "bench_am: 45-component up failed\n");
     }

@@ -507,15 +507,8 @@ static int on_init(marie_component_t *c)
                s->lockstep > 0 ? ", lockstep" : "");
     return 0;
 fail:
-    sim_camera_destroy(s->camera);
-    s->camera = NULL;
+    release(s);
     occmap_destroy(map);
-    sim_audio_port_destroy(s->audio);
-    s->audio = NULL;
-    sim_world_destroy(s->world);
-    s->world = NULL;
-    free(s->scan);
-    s->scan = NULL;
     return -1;
 }
 

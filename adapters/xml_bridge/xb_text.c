@@ -49,24 +49,28 @@ int xb_base64_encode(marie_buf_t *b, const uint8_t *d, size_t len)
 
 /* ---- scalar syntax ---- */
 
-static void trim(const char **s, size_t *len)
+/* The text of s[0..len) without surrounding white space, as a C string in tmp[size]: 0, or -1
+ * when nothing is left or it does not fit. */
+static int trimmed(char *tmp, size_t size, const char *s, size_t len)
 {
-    while (*len && xb_is_ws(**s)) {
-        (*s)++;
-        (*len)--;
+    while (len && xb_is_ws(*s)) {
+        s++;
+        len--;
     }
-    while (*len && xb_is_ws((*s)[*len - 1]))
-        (*len)--;
+    while (len && xb_is_ws(s[len - 1]))
+        len--;
+    if (len == 0 || len >= size)
+        return -1;
+    memcpy(tmp, s, len);
+    tmp[len] = '\0';
+    return 0;
 }
 
 int xb_parse_int(marie_prim_t prim, const char *s, size_t len, int64_t *v)
 {
     char tmp[64];
-    trim(&s, &len);
-    if (len == 0 || len >= sizeof tmp)
+    if (trimmed(tmp, sizeof tmp, s, len) < 0)
         return -1;
-    memcpy(tmp, s, len);
-    tmp[len] = '\0';
     if (prim == MARIE_PRIM_BOOL) {
         if (!strcmp(tmp, "true") || !strcmp(tmp, "1"))
             *v = 1;
@@ -96,11 +100,8 @@ int xb_parse_int(marie_prim_t prim, const char *s, size_t len, int64_t *v)
 int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v)
 {
     char tmp[128];
-    trim(&s, &len);
-    if (len == 0 || len >= sizeof tmp)
+    if (trimmed(tmp, sizeof tmp, s, len) < 0)
         return -1;
-    memcpy(tmp, s, len);
-    tmp[len] = '\0';
     char *end;
     errno = 0;
     double x = strtod(tmp, &end);

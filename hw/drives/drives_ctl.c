@@ -424,28 +424,25 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
     }
     case CO_FC_TPDO: {
         uint64_t v[2];
+        const co_pdo_map_t *map = pdo == 1 ? &tpdo1_map : pdo == 2 ? &tpdo2_map : NULL;
+        if (!map) {
+            ev(d, i, DRIVES_EV_UNEXPECTED, rx->can_id);
+            break;
+        }
+        if (co_pdo_decode(map, rx, v) < 0) {
+            ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
+            break;
+        }
+        if (a->phase != DRIVES_AX_RUN)
+            break;
         if (pdo == 1) {
-            if (co_pdo_decode(&tpdo1_map, rx, v) < 0) {
-                ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
-                break;
-            }
-            if (a->phase != DRIVES_AX_RUN)
-                break;
             int32_t pos = (int32_t)co_pdo_signed(v[1], 32);
             a->position = d->cfg.invert[i] ? (int32_t)(0u - (uint32_t)pos) : pos;
             a->have_tpdo = true;
             note_state(d, i, (uint16_t)v[0]);
-        } else if (pdo == 2) {
-            if (co_pdo_decode(&tpdo2_map, rx, v) < 0) {
-                ev(d, i, DRIVES_EV_BAD_FRAME, rx->can_id);
-                break;
-            }
-            if (a->phase != DRIVES_AX_RUN)
-                break;
+        } else {
             int32_t vel = (int32_t)co_pdo_signed(v[0], 32);
             a->velocity = d->cfg.invert[i] ? -vel : vel;
-        } else {
-            ev(d, i, DRIVES_EV_UNEXPECTED, rx->can_id);
         }
         break;
     }

@@ -217,22 +217,16 @@ static void go(struct mg_connection *ws, int place, const char *name, double x, 
     mg_websocket_client_write(ws, MG_WEBSOCKET_OPCODE_TEXT, cmd, (size_t)len);
 }
 
-static int cmp(const void *a, const void *b)
+/* Rows WHAT_p50 and, with `max`, WHAT_max of n latencies in us, as ms (sorts v). */
+static void ms_rows(const char *what, int64_t *v, int n, bool max)
 {
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return (x > y) - (x < y);
-}
-
-static double ms_p50(int64_t *v, int n)
-{
-    qsort(v, (size_t)n, sizeof v[0], cmp);
-    return v[n / 2] / 1e3;
-}
-
-static double ms_max(int64_t *v, int n)
-{
-    qsort(v, (size_t)n, sizeof v[0], cmp);
-    return v[n - 1] / 1e3;
+    char metric[96];
+    snprintf(metric, sizeof metric, "%s_p50", what);
+    row(metric, bench_percentile(v, n, 0.5) / 1e3, "ms");
+    if (max) {
+        snprintf(metric, sizeof metric, "%s_max", what);
+        row(metric, bench_percentile(v, n, 1.0) / 1e3, "ms");
+    }
 }
 
 /* The page, the server's signature and the mission's goal, 40 requests alternating 2 places. */
@@ -262,9 +256,8 @@ static int mission_only(const char *keyp)
     stop_all();
     row("tap_to_mission_goal_answered", n, "of 40");
     if (n) {
-        row("tap_to_signed_request_p50", ms_p50(sig, n), "ms");
-        row("tap_to_mission_goal_p50", ms_p50(lat, n), "ms");
-        row("tap_to_mission_goal_max", ms_max(lat, n), "ms");
+        ms_rows("tap_to_signed_request", sig, n, false);
+        ms_rows("tap_to_mission_goal", lat, n, true);
     }
     return n == ROUNDS ? 0 : -1;
 }
@@ -313,15 +306,13 @@ static int to_motor(const char *keyp)
     stop_all();
     row("tap_to_motor_command_answered", n, "of 12");
     if (n) {
-        row("tap_to_motor_command_p50", ms_p50(motor, n), "ms");
-        row("tap_to_motor_command_max", ms_max(motor, n), "ms");
-        row("sim_tap_to_mission_goal_p50", ms_p50(goal, n), "ms");
-        row("goal_to_path_p50", ms_p50(path, n), "ms");
-        row("path_to_motor_command_p50", ms_p50(wait, n), "ms");
-        row("path_to_motor_command_max", ms_max(wait, n), "ms");
+        ms_rows("tap_to_motor_command", motor, n, true);
+        ms_rows("sim_tap_to_mission_goal", goal, n, false);
+        ms_rows("goal_to_path", path, n, false);
+        ms_rows("path_to_motor_command", wait, n, true);
     }
     if (ncycles)
-        row("behaviours_period_p50", ms_p50(cycle, ncycles), "ms");
+        ms_rows("behaviours_period", cycle, ncycles, false);
     return n == TAPS ? 0 : -1;
 }
 
