@@ -9,6 +9,7 @@
 #include "ca/sharedmap.h"
 #include "ca/splitter.h"
 #include "ca/switch.h"
+#include "core/clear.h"
 #include "core/file.h"
 #include "core/component.h"
 #include "ca/ca_params.h"
@@ -113,12 +114,9 @@ static void proc_free(ca_proc_t *p)
     for (size_t i = 0; i < p->nmb; i++)
         mailbox_destroy(p->mb[i]);
     p->nmb = 0;
-    splitter_destroy(p->sp);
-    p->sp = NULL;
-    sharedmap_close(p->sm);
-    p->sm = NULL;
-    ca_switch_destroy(p->sw);
-    p->sw = NULL;
+    MARIE_CLEAR(p->sp, splitter_destroy);
+    MARIE_CLEAR(p->sm, sharedmap_close);
+    MARIE_CLEAR(p->sw, ca_switch_destroy);
     free(p->sm_channel);
     free(p->sw_select);
     p->sm_channel = p->sw_select = NULL;

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "ca/ca.h"
+#include "core/clear.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_sharedmap_reply_t.h"
@@ -41,8 +42,7 @@ static void drop_reply(sharedmap_client_t *cl)
 {
     if (cl->reply)
         free(cl->view.keys);
-    free(cl->reply_buf);
-    cl->reply_buf = NULL;
+    MARIE_CLEAR(cl->reply_buf, free);
     cl->reply = NULL;
 }
 
@@ -181,8 +181,7 @@ static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int time
     if (!cl->wait_loop) {
         cl->wait_loop = marie_loop_create();
         if (!cl->wait_loop || marie_loop_add_lcm(cl->wait_loop, cl->lcm, 1) < 0) {
-            marie_loop_destroy(cl->wait_loop);
-            cl->wait_loop = NULL;
+            MARIE_CLEAR(cl->wait_loop, marie_loop_destroy);
             return -ENOMEM;
         }
     }

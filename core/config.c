@@ -1,4 +1,5 @@
 /* config: the system file model (components, profiles, restart policies, hashes) over the YAML tree. */
+#include "core/clear.h"
 #include "core/config.h"
 
 #include <errno.h>
@@ -431,8 +432,7 @@ char *marie_component_differences(const marie_system_t *sa, const marie_componen
         if (strcmp(ta + oa[i], tb + ob[i]) != 0)
             snprintf(out + strlen(out), 512 - strlen(out), "%s%s", out[0] ? "," : "", field_names[i]);
     if (!ta || !tb) {
-        free(out);
-        out = NULL;
+        MARIE_CLEAR(out, free);
     }
     free(ta);
     free(tb);

@@ -1,4 +1,5 @@
 /* yaml: YAML text (libfyaml events) into a node tree with file:line:col on every node, typed reads, errors. */
+#include "core/clear.h"
 #include "core/config.h"
 
 #include <errno.h>
@@ -52,8 +53,7 @@ void marie_errors_clear(marie_errors_t *e)
         return;
     for (size_t i = 0; i < e->n; i++)
         free(e->msgs[i]);
-    free(e->msgs);
-    e->msgs = NULL;
+    MARIE_CLEAR(e->msgs, free);
     e->n = 0;
 }
 
@@ -155,8 +155,7 @@ static int node_append(marie_node_t *parent, marie_node_t *child)
     if (2 * parent->n > parent->index_cap) {
         /* indexes every item, the new one included; without memory, lookups stay linear */
         if (index_grow(parent) < 0) {
-            free(parent->index);
-            parent->index = NULL;
+            MARIE_CLEAR(parent->index, free);
             parent->index_cap = 0;
         }
         return 0;

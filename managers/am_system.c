@@ -11,6 +11,7 @@
 
 #include <sodium.h>
 
+#include "core/clear.h"
 #include "core/file.h"
 #include "core/log.h"
 #include "core/procstat.h"
@@ -75,8 +76,7 @@ void am_comps_free(am_t *am)
         am_comp_close_output(c);
         marie_logfile_close(c->logf);
     }
-    free(am->comps);
-    am->comps = NULL;
+    MARIE_CLEAR(am->comps, free);
     am->ncomps = 0;
 }
 
@@ -223,8 +223,7 @@ void am_loading_install(am_t *am, am_loading_t *l)
     if (!am->opt_log_keep)
         am->log_keep = set.log_keep;
     am_comps_free(am);
-    balance_destroy(am->bal);
-    am->bal = NULL;
+    MARIE_CLEAR(am->bal, balance_destroy);
     marie_system_destroy(am->sys);
     am->sys = sys;
     am->bal_cfg = set.balance;

@@ -13,6 +13,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/clear.h"
 #include "core/config.h"
 #include "core/file.h"
 #include "core/time.h"
@@ -65,8 +66,7 @@ int cmd_up(cli_t *cli, int argc, char **argv)
     marie_system_t *sys = marie_system_load(file, profile, &errs);
     marie_am_settings_t set;
     if (sys && (marie_am_check_system(sys, &set, &errs) < 0 || check_programs(sys, &errs) < 0)) {
-        marie_system_destroy(sys);
-        sys = NULL;
+        MARIE_CLEAR(sys, marie_system_destroy);
     }
     if (!sys) {
         marie_errors_print(&errs, stderr);

@@ -17,6 +17,7 @@
 
 #include <sodium.h>
 
+#include "core/clear.h"
 #include "core/loop.h"
 #include "core/spec.h"
 
@@ -309,8 +310,7 @@ static marie_doc_t *parse_spec(const char *path, const char *text, size_t len)
     marie_doc_t *d = marie_doc_parse(path, text, len, &ignore);
     marie_errors_clear(&ignore);
     if (d && !marie_spec_valid(marie_doc_root(d))) {
-        marie_doc_destroy(d);
-        d = NULL;
+        MARIE_CLEAR(d, marie_doc_destroy);
     }
     return d;
 }
@@ -338,8 +338,7 @@ static int describe(marie_progcheck_t *p, const char *path, const marie_componen
         if (text && !doc)
             unlink(f);          /* a damaged cache file is described again */
         free(f);
-        free(text);
-        text = NULL;
+        MARIE_CLEAR(text, free);
         if (!doc && has_marker(path)) {
             if (run_describe(path, c, kind_args(c), &text, &len, why, whylen) < 0)
                 return -1;

@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/clear.h"
 #include "core/file.h"
 
 /* Images larger than this are refused before they are read (20000 x 20000 16-bit pixels). */
@@ -235,8 +236,7 @@ char *occmap_read_meta(const char *yaml_path, occmap_meta_t *meta, marie_errors_
         meta->image_col = n->col;
     }
     if (errs->n != nerr) {
-        free(path);
-        path = NULL;
+        MARIE_CLEAR(path, free);
     }
 out:
     marie_doc_destroy(doc);

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/clear.h"
 #include "core/log.h"
 #include "hw/audio/wav.h"
 #include "sim/rng.h"
@@ -180,8 +181,7 @@ static int load_source(sim_audio_t *a, source_t *s, sim_rng_t *r, char *why, siz
         if (!s->sig)
             return marie_fail_why(why, whylen, "%s: %s", s->s.file, strerror(errno));
         if (frate != rate) {
-            free(s->sig);
-            s->sig = NULL;
+            MARIE_CLEAR(s->sig, free);
             return marie_fail_why(why, whylen, "%s: %d Hz, the array runs at %d Hz", s->s.file, frate, rate);
         }
         normalize_active(s->sig, s->len, s->s.level);

@@ -7,6 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/clear.h"
 #include "core/component.h"
 #include "sim/camera.h"
 #include "sim/audio_port.h"
@@ -369,16 +370,11 @@ static int place_robot(marie_component_t *c, const occmap_t *map, sim_params_t *
 /* Everything init builds, let go (devices first: they step the world). */
 static void release(sim_t *s)
 {
-    sim_devices_destroy(s->devices);
-    s->devices = NULL;
-    sim_camera_destroy(s->camera);
-    s->camera = NULL;
-    sim_audio_port_destroy(s->audio);
-    s->audio = NULL;
-    sim_world_destroy(s->world);
-    s->world = NULL;
-    free(s->scan);
-    s->scan = NULL;
+    MARIE_CLEAR(s->devices, sim_devices_destroy);
+    MARIE_CLEAR(s->camera, sim_camera_destroy);
+    MARIE_CLEAR(s->audio, sim_audio_port_destroy);
+    MARIE_CLEAR(s->world, sim_world_destroy);
+    MARIE_CLEAR(s->scan, free);
 }
 
 static int on_init(marie_component_t *c)
@@ -469,8 +465,7 @@ static int on_init(marie_component_t *c)
     if (sim_audio_port_create(c, map, (double[3]){ p.start_x, p.start_y, p.start_theta }, p.seed,
                               s->start_utime, &s->audio))
         goto fail;
-    occmap_destroy(map);
-    map = NULL;
+    MARIE_CLEAR(map, occmap_destroy);
     if (device) {
         sim_devices_cfg_t dc = {
             .can_url = o->can, .can_serve = o->can_serve,

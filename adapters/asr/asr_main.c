@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "adapters/asr/asr.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "core/file.h"
 #include "adapters/asr/asr_params.h"
@@ -153,8 +154,7 @@ static int init(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     asr_state_t *s = marie_component_user(c);
-    asr_destroy(s->asr);
-    s->asr = NULL;
+    MARIE_CLEAR(s->asr, asr_destroy);
     free(s->mono);
     free(s->phrases);
     free(s->phrase_text);

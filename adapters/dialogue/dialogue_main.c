@@ -7,6 +7,7 @@
 
 #include "adapters/dialogue/dialogue.h"
 #include "core/auth.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "core/time.h"
 #include "adapters/dialogue/dialogue_params.h"
@@ -132,8 +133,7 @@ static int init(marie_component_t *c)
     s->p_event = marie_port(c, "events");
     s->p_face = marie_port(c, "face");
     s->p_request = marie_port(c, "request");
-    marie_auth_destroy(s->auth);
-    s->auth = NULL;
+    MARIE_CLEAR(s->auth, marie_auth_destroy);
     if (q->key_file[0]) {
         char err[256], host[64] = "";
         if (!(s->auth = marie_auth_load(q->key_file, err, sizeof err))) {
@@ -167,8 +167,7 @@ static const marie_param_spec_t params[] = DLG_PARAMS;
 static void quit(marie_component_t *c)
 {
     dlg_t *s = marie_component_user(c);
-    marie_auth_destroy(s->auth);
-    s->auth = NULL;
+    MARIE_CLEAR(s->auth, marie_auth_destroy);
 }
 
 static const marie_component_def_t def = {

@@ -8,6 +8,7 @@
 #include "adapters/common/posebuf.h"
 #include "adapters/common/scanwait.h"
 #include "adapters/localizer/mcl.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "adapters/localizer/localizer_params.h"
 
@@ -254,11 +255,9 @@ static int start(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     loc_t *s = marie_component_user(c);
-    mcl_destroy(s->f);
-    s->f = NULL;
+    MARIE_CLEAR(s->f, mcl_destroy);
     scanwait_free(&s->wait);
-    free(s->cloud_buf);
-    s->cloud_buf = NULL;
+    MARIE_CLEAR(s->cloud_buf, free);
 }
 
 static int init(marie_component_t *c)

@@ -8,6 +8,7 @@
 #include "adapters/common/posebuf.h"
 #include "adapters/common/scanwait.h"
 #include "adapters/mapper/slam.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "map/occmap.h"
 #include "adapters/mapper/mapper_params.h"
@@ -145,8 +146,7 @@ static void publish_map(marie_component_t *c, int64_t overruns)
 static void quit(marie_component_t *c)
 {
     mapper_t *s = marie_component_user(c);
-    slam_destroy(s->slam);
-    s->slam = NULL;
+    MARIE_CLEAR(s->slam, slam_destroy);
     scanwait_free(&s->wait);
 }
 

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "adapters/mission/explore.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "map/occmap.h"
 #include "adapters/mission/explore_params.h"
@@ -139,8 +140,7 @@ static void tick(marie_component_t *c, int64_t overruns)
 static void quit(marie_component_t *c)
 {
     exp_t *s = marie_component_user(c);
-    occmap_destroy(s->map);
-    s->map = NULL;
+    MARIE_CLEAR(s->map, occmap_destroy);
 }
 
 static int init(marie_component_t *c)

@@ -11,6 +11,7 @@
 #include "adapters/mission/mission_signs.h"
 #include "ca/sharedmap_client.h"
 #include "core/auth.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
 #include "adapters/mission/mission_params.h"
@@ -280,12 +281,9 @@ static void on_path(marie_component_t *c, marie_port_t *p, const void *msg, cons
 static void quit(marie_component_t *c)
 {
     mis_t *s = marie_component_user(c);
-    sharedmap_client_destroy(s->sm);
-    s->sm = NULL;
-    marie_auth_destroy(s->auth);
-    s->auth = NULL;
-    marie_replay_destroy(s->replay);
-    s->replay = NULL;
+    MARIE_CLEAR(s->sm, sharedmap_client_destroy);
+    MARIE_CLEAR(s->auth, marie_auth_destroy);
+    MARIE_CLEAR(s->replay, marie_replay_destroy);
 }
 
 static int init(marie_component_t *c)

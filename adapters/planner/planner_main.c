@@ -8,6 +8,7 @@
 #include "map/occmap.h"
 #include "adapters/common/posebuf.h"
 #include "adapters/planner/planner.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "adapters/planner/planner_params.h"
 
@@ -290,13 +291,10 @@ static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const
 static void quit(marie_component_t *c)
 {
     pln_t *s = marie_component_user(c);
-    planner_destroy(s->pl);
-    s->pl = NULL;
-    free(s->path);
-    s->path = NULL;
+    MARIE_CLEAR(s->pl, planner_destroy);
+    MARIE_CLEAR(s->path, free);
     s->npath = 0;
-    free(s->pts);
-    s->pts = NULL;
+    MARIE_CLEAR(s->pts, free);
     s->pts_cap = 0;
 }
 

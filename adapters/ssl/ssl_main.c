@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "adapters/ssl/ssl.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "adapters/ssl/ssl_params.h"
 
@@ -77,8 +78,7 @@ static int init(marie_component_t *c)
 {
     ssl_state_t *s = marie_component_user(c);
     const ssl_params_t *q = marie_component_params(c);
-    ssl_destroy(s->ssl);
-    s->ssl = NULL;
+    MARIE_CLEAR(s->ssl, ssl_destroy);
     ssl_cfg_t cfg;
     ssl_cfg_default(&cfg);
     const char *why = NULL;
@@ -128,10 +128,8 @@ static int init(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     ssl_state_t *s = marie_component_user(c);
-    ssl_destroy(s->ssl);
-    s->ssl = NULL;
-    free(s->pcm);
-    s->pcm = NULL;
+    MARIE_CLEAR(s->ssl, ssl_destroy);
+    MARIE_CLEAR(s->pcm, free);
 }
 
 static const marie_port_spec_t ports[] = {

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "adapters/tts/tts_child.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "adapters/tts/tts_params.h"
 
@@ -47,14 +48,12 @@ static void done(tts_t *s, int8_t state)
     marie_loop_remove_timer(loop, s->pace);
     marie_loop_remove_timer(loop, s->timeout);
     s->pace = s->timeout = NULL;
-    tts_child_cancel(s->child);
-    s->child = NULL;
+    MARIE_CLEAR(s->child, tts_child_cancel);
     report(s, &s->queue[0], state);
     marie_component_count(s->c, state == MARIE_ROBOT_SPEECH_T_STATE_DONE ? "said" : "failed", 1);
     free(s->queue[0].text);
     memmove(s->queue, s->queue + 1, sizeof(request_t) * (size_t)(--s->nqueue));
-    free(s->pcm);
-    s->pcm = NULL;
+    MARIE_CLEAR(s->pcm, free);
     s->busy = false;
     next(s);
 }

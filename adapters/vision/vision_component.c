@@ -14,6 +14,7 @@
 #include "adapters/vision/vision_msgmap.h"
 #include "adapters/vision/vision_source.h"
 #include "adapters/vision/vision_track.h"
+#include "core/clear.h"
 #include "core/time.h"
 #include "adapters/vision/vision_params.h"
 
@@ -291,8 +292,7 @@ static void on_tick(marie_component_t *c, int64_t overruns)
     } else {
         marie_component_count(c, "camera_errors", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "camera_failed", "%s: %s", vision_source_describe(v->src), why);
-        vision_source_close(v->src);
-        v->src = NULL;
+        MARIE_CLEAR(v->src, vision_source_close);
         v->reopen_at_us = marie_mono_us() + 1000000;
     }
 }

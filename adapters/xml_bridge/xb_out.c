@@ -8,6 +8,7 @@
 #include <sys/uio.h>
 
 #include "adapters/xml_bridge/xb_server_int.h"
+#include "core/clear.h"
 
 msgbuf_t *xb_msgbuf_new(const char *data, size_t len)
 {
@@ -178,8 +179,7 @@ void xb_client_flush(client_t *c)
                 continue;
             }
             left -= rem;
-            xb_msgbuf_unref(c->cur.b);
-            c->cur.b = NULL;
+            MARIE_CLEAR(c->cur.b, xb_msgbuf_unref);
             c->off = 0;
         }
         while (c->qlen > 0 && (left > 0 || c->q[c->qhead].b->len == 0)) {

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "adapters/xml_bridge/xb_server_int.h"
+#include "core/clear.h"
 #include "core/log.h"
 #include "core/time.h"
 
@@ -77,8 +78,7 @@ static void client_close(client_t *c)
         xb_msgbuf_unref(c->q[(c->qhead + i) % c->qcap].b);
     xb_msgbuf_unref(c->cur.b);
     free(c->q);
-    xb_doc_parser_destroy(c->parser);
-    c->parser = NULL;
+    MARIE_CLEAR(c->parser, xb_doc_parser_destroy);
     charge(c);
     if (c->prev)
         c->prev->next = c->next;
@@ -97,8 +97,7 @@ static void client_fail(client_t *c, const char *code, const char *reason)
         return;
     xb_reply_error(c, NULL, code, reason);     /* code and reason may be the parser's */
     /* Nothing more will be parsed: what the unfinished document held goes back at once. */
-    xb_doc_parser_destroy(c->parser);
-    c->parser = NULL;
+    MARIE_CLEAR(c->parser, xb_doc_parser_destroy);
     charge(c);
     c->closing_since = marie_mono_us();
     c->s->st.closed_bad++;

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "adapters/xml_bridge/xb_server.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "adapters/xml_bridge/xml_bridge_params.h"
 
@@ -91,8 +92,7 @@ static void shut(marie_component_t *c)
 {
     bridge_t *b = marie_component_user(c);
     on_tick(c, 0);
-    xb_server_destroy(b->server);
-    b->server = NULL;
+    MARIE_CLEAR(b->server, xb_server_destroy);
 }
 
 static int on_stop(marie_component_t *c)

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/clear.h"
 #include "core/component.h"
 #include "hw/audio/blocker.h"
 #include "hw/audio/audio_params.h"
@@ -113,8 +114,7 @@ static void close_all(marie_component_t *c, audio_t *s)
         snd_pcm_close(s->play);
     s->cap = s->play = NULL;
     audio_blocker_free(&s->blocker);
-    free(s->rbuf);
-    s->rbuf = NULL;
+    MARIE_CLEAR(s->rbuf, free);
 }
 
 static int init(marie_component_t *c)

@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include "core/clear.h"
 
 int audio_blocker_init(audio_blocker_t *b, int nchannels, int block, int rate, audio_block_cb_t cb, void *user)
 {
@@ -25,8 +26,7 @@ int audio_blocker_init(audio_blocker_t *b, int nchannels, int block, int rate, a
 
 void audio_blocker_free(audio_blocker_t *b)
 {
-    free(b->buf);
-    b->buf = NULL;
+    MARIE_CLEAR(b->buf, free);
 }
 
 void audio_blocker_feed(audio_blocker_t *b, const int16_t *frames, int n, int64_t utime)

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/clear.h"
 #include "core/log.h"
 #include "core/time.h"
 
@@ -54,8 +55,7 @@ static void disconnect(can_link_t *l, const char *why)
         return;
     marie_loop_remove_fd(l->loop, can_bus_fd(l->bus));
     accumulate(&l->past, can_bus_stats(l->bus));
-    can_bus_close(l->bus);
-    l->bus = NULL;
+    MARIE_CLEAR(l->bus, can_bus_close);
     event(l, "disconnected", "%s: %s", l->url, why);
 }
 

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/clear.h"
 #include "core/component.h"
 #include "managers/am_proto.h"
 #include "tools/webcommon/vjson.h"
@@ -417,10 +418,8 @@ static int init(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     face_t *f = marie_component_user(c);
-    webserve_stop(f->web);
-    f->web = NULL;
-    marie_auth_destroy(f->auth);
-    f->auth = NULL;
+    MARIE_CLEAR(f->web, webserve_stop);
+    MARIE_CLEAR(f->auth, marie_auth_destroy);
     free(f->arb);
     free(f->goal);
     free(f->mission);

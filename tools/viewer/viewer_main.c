@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/clear.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
 #include "managers/am_proto.h"
@@ -631,8 +632,7 @@ static int init(marie_component_t *c)
 static void quit(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
-    webserve_stop(v->web);
-    v->web = NULL;
+    MARIE_CLEAR(v->web, webserve_stop);
     for (int i = 0; i < P_NIN; i++)
         free(v->chans[i].latest);
     for (int i = 0; i < RING; i++) {
