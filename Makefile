@@ -187,3 +187,4 @@ clean:
 	rm -rf build
 
 -include $(shell find $(B)/obj -name '*.d' 2>/dev/null)
+-include $(patsubst %.params.yaml,$(B)/gen/c/%_params.d,$(PARAM_SPECS))

@@ -100,6 +100,12 @@ typedef struct {
 #endif
 #define MARIE_PARAM_AT(st, field, T, def, help) \
     { #field, MARIE_PARAM_##T, def, help, offsetof(st, field) + MARIE_PARAM_TYPECHECK_(st, field, T), true }
+/* The same for a field of a member struct: a library's parameters inside the component's
+ * (core/params_gen.py's `members:`), named by the field alone:
+ *   MARIE_PARAM_IN(mapper_params_t, slam, resolution, DOUBLE, "0.05", "m per cell") */
+#define MARIE_PARAM_IN(st, member, field, T, def, help) \
+    { #field, MARIE_PARAM_##T, def, help, \
+      offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
 
 /* What a component is. Hooks return 0, or -1 after marie_component_fail_reason() to refuse
  * the transition (the reply and the heartbeat carry the reason). Any hook may be NULL. */

@@ -113,7 +113,7 @@ int sim_camera_init(marie_component_t *c, const char *yaml, const occmap_t *map,
     if (!sim_opts(c)->camera)
         return 0;
     sim_camera_cfg_t cfg = { .hz = sim_opts(c)->camera_hz, .step = step,
-                             .seed = (uint32_t)sim_opts(c)->seed };
+                             .seed = (uint32_t)sim_opts(c)->model.seed };
     const char *size = sim_opts(c)->camera_size;
     char tail;
     if (size[0] && sscanf(size, "%dx%d%c", &cfg.width, &cfg.height, &tail) != 2) {

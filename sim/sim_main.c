@@ -399,28 +399,9 @@ static int on_init(marie_component_t *c)
         marie_errors_clear(&errs);
         return -1;
     }
-    sim_params_t p;
-    sim_params_default(&p);
-    p.step = o->step;
-    p.seed = (uint64_t)o->seed;
-    p.start_x = o->start_x;
-    p.start_y = o->start_y;
-    p.start_theta = o->start_theta;
-    p.robot_radius = o->robot_radius;
+    sim_params_t p = o->model;
     if (place_robot(c, map, &p) < 0)
         goto fail;
-    p.wheel_radius = o->wheel_radius;
-    p.track = o->track;
-    p.ticks_per_rev = (int32_t)o->ticks_per_rev;
-    p.accel = o->accel;
-    p.estop_decel = o->estop_decel;
-    p.max_wheel_speed = o->max_wheel_speed;
-    p.laser_beams = (int)o->laser_beams;
-    p.laser_max = o->laser_max;
-    p.laser_noise = o->laser_noise;
-    p.laser_x = o->laser_x;
-    p.gyro_noise = o->gyro_noise;
-    p.gyro_bias = o->gyro_bias;
     if (device) {
         /* The virtual LMS200 resamples 361 beams to the resolution its driver asks for, and
          * the virtual drives ramp the velocity themselves. */
@@ -428,7 +409,7 @@ static int on_init(marie_component_t *c)
         p.accel = 100.0;
     }
     if (p.laser_beams != 181 && p.laser_beams != 361) {
-        marie_component_fail_reason(c, "laser_beams: expected 181 or 361, got %d", p.laser_beams);
+        marie_component_fail_reason(c, "laser_beams: expected 181 or 361, got %ld", (long)p.laser_beams);
         goto fail;
     }
     if (!(p.step > 0 && p.step <= 0.02)) {

@@ -67,23 +67,7 @@ static void ode_init(void)
 
 void sim_params_default(sim_params_t *p)
 {
-    memset(p, 0, sizeof(*p));
-    p->step = 0.005;
-    p->seed = 1;
-    p->wheel_radius = 0.1;
-    p->track = 0.4;
-    p->max_wheel_speed = 15.0;
-    p->accel = 1.5;
-    p->estop_decel = 4.0;
-    p->ticks_per_rev = 4096;
-    p->laser_beams = 181;
-    p->laser_fov = M_PI;
-    p->laser_x = 0.0;
-    p->laser_min = 0.05;
-    p->laser_max = 8.0;
-    p->laser_noise = 0.01;
-    p->gyro_noise = 0.002;
-    p->gyro_bias = 0.0005;
+    *p = (sim_params_t)SIM_PARAMS_DEFAULTS;
 }
 
 static void place(dBodyID b, double x, double y, double z, double ox, double oy, double th)

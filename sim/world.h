@@ -6,36 +6,14 @@
 #include <stdint.h>
 
 #include "sim/walls.h"
+#include "sim/world_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* Robot and sensor settings; sim_params_default() gives the values the drivers assume. */
-typedef struct {
-    double step;                /* s, fixed physics step (0.005) */
-    uint64_t seed;              /* sensor noise; same seed and inputs -> same trajectory */
-    double start_x, start_y, start_theta;  /* m, m, rad in the map frame */
-    double robot_radius;        /* m: the chassis is scaled to fit this circle (0: 0.50 x 0.34 m) */
-    /* drive */
-    double wheel_radius;        /* m (0.1) */
-    double track;               /* m between the wheels' contact points (0.4) */
-    double max_wheel_speed;     /* rad/s at the wheel (15) */
-    double accel;               /* m/s^2 at the rim: the drives' velocity ramp (1.5) */
-    double estop_decel;         /* m/s^2 at the rim: quick stop on the e-stop (4.0, as the
-                                 * virtual drives' 40 rad/s^2 quick stop) */
-    int32_t ticks_per_rev;      /* encoder ticks per wheel turn (4096) */
-    /* laser, mounted at (laser_x, 0) on the robot, facing forward */
-    int laser_beams;            /* 181 or 361 over laser_fov */
-    double laser_fov;           /* rad (pi) */
-    double laser_x;             /* m forward of the wheel axis (0) */
-    double laser_min, laser_max;/* m (0.05, 8.0) */
-    double laser_noise;         /* m, std of the range noise (0.01) */
-    /* gyro */
-    double gyro_noise;          /* rad/s, std per sample (0.002) */
-    double gyro_bias;           /* rad/s, constant offset (0.0005) */
-} sim_params_t;
-
+/* sim_params_t, the robot and sensor settings: declared in world.params.yaml; these are its
+ * defaults, the values the drivers assume. */
 void sim_params_default(sim_params_t *p);
 
 typedef struct sim_world sim_world_t;

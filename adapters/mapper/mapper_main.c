@@ -162,26 +162,7 @@ static int init(marie_component_t *c)
     s->changed = false;
     s->last_map_pub = 0;
     memset(&s->seen, 0, sizeof(s->seen));
-    slam_params_t p;
-    slam_params_default(&p);
-    p.resolution = q->resolution;
-    p.size_m = q->size_m;
-    p.laser_x = q->laser_x;
-    p.laser_y = q->laser_y;
-    p.laser_theta = q->laser_theta;
-    p.free_range = q->free_range;
-    p.search_xy = q->search_xy;
-    p.search_th = q->search_th;
-    p.kf_dist = q->kf_dist;
-    p.kf_angle = q->kf_angle;
-    p.min_score = q->min_score;
-    p.loop_closure = q->loop_closure;
-    p.loop_radius = q->loop_radius;
-    p.loop_min_score = q->loop_min_score;
-    p.loop_min_gap = (int)q->loop_min_gap;
-    p.loop_max_rival = q->loop_max_rival;
-    p.max_keyframes = (int)q->max_keyframes;
-    s->slam = slam_create(&p, (const double[3]){ q->init_x, q->init_y, q->init_theta });
+    s->slam = slam_create(&q->slam, (const double[3]){ q->init_x, q->init_y, q->init_theta });
     if (!s->slam) {
         marie_component_fail_reason(c, "bad mapper parameters (resolution >= 0.01, size_m / resolution <= 8000, "
                                        "kf_dist and kf_angle > 0)");

@@ -43,30 +43,8 @@ struct slam {
 
 extern "C" void slam_params_default(slam_params_t *p)
 {
-    *p = {};
-    p->resolution = 0.05;
-    p->size_m = 100;
-    p->free_range = 6.0;
-    p->l_hit = 0.9;
-    p->l_miss = -0.7;
-    p->l_min = -2.0;
-    p->l_max = 2.0;
-    p->sigma = 0.05;
-    p->search_xy = 0.2;
-    p->search_th = 0.1;
-    p->step_th = 0.008;
-    p->min_score = 0.3;
-    p->kf_dist = 0.2;
-    p->kf_angle = 0.15;
-    p->loop_closure = true;
-    p->loop_radius = 4.0;
-    p->loop_min_gap = 40;
-    p->loop_every = 10;
-    p->loop_search_xy = 1.5;
-    p->loop_search_th = 0.3;
-    p->loop_min_score = 0.55;
-    p->loop_max_rival = 0.95;
-    p->max_keyframes = 20000;
+    const slam_params_t d = SLAM_PARAMS_DEFAULTS;
+    *p = d;
 }
 
 static GridParams grid_params(const slam_params_t *p)

@@ -6,6 +6,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapters/mapper/slam_params.h"
 #include "map/occmap.h"
 
 #ifdef __cplusplus
@@ -14,27 +15,7 @@ extern "C" {
 
 typedef struct slam slam_t;
 
-typedef struct {
-    double resolution;                  /* m per cell */
-    double size_m;                      /* side of the square grid, centred on the first pose */
-    double laser_x, laser_y, laser_theta; /* laser pose in the robot frame */
-    double free_range;                  /* m of free space cleared along a beam that saw nothing */
-    double l_hit, l_miss, l_min, l_max; /* log-odds: per hit, per pass, clamps */
-    double sigma;                       /* m: spread of the matching likelihood around a wall */
-    double search_xy, search_th, step_th; /* correlative window (m, rad) and angular step (rad) */
-    double min_score;                   /* mean likelihood per beam below which a match is refused */
-    double kf_dist, kf_angle;           /* move this much (m, rad) between keyframes */
-    bool loop_closure;
-    double loop_radius;                 /* m: older keyframes this near are candidates */
-    int loop_min_gap;                   /* keyframes between a candidate and the new one */
-    int loop_every;                     /* try a closure at most every this many keyframes */
-    double loop_search_xy, loop_search_th; /* the loop matcher's window */
-    double loop_min_score;
-    double loop_max_rival;              /* refuse a closure whose match scores this share (of
-                                         * its best) 0.3 m or more away from it too */
-    int max_keyframes;                  /* memory bound: older keyframes are frozen into the grid */
-} slam_params_t;
-
+/* slam_params_t: the parameters, declared in slam.params.yaml; these are its defaults. */
 void slam_params_default(slam_params_t *p);
 
 /* One laser scan in the sensor frame; a beam at or beyond range_max saw nothing. */
