@@ -15,31 +15,19 @@ const char *arb_name(int b)
 
 void arb_params_default(arb_params_t *p)
 {
-    memset(p, 0, sizeof(*p));
-    p->priority[ARB_ESTOP] = 100;
-    p->priority[ARB_AVOID] = 80;
-    p->priority[ARB_TELEOP] = 60;
-    p->priority[ARB_FACE] = 50;
-    p->priority[ARB_FOLLOW] = 40;
-    p->priority[ARB_IDLE] = 0;
-    p->lookahead = 0.5;
-    p->v_max = 0.5;
-    p->omega_max = 1.2;
-    p->goal_tolerance = 0.15;
-    p->turn_in_place = 1.0;
-    p->corner_angle = 0.5;
-    p->stale_pose_s = 0.5;
-    p->stale_path_s = 0;            /* a path stays valid until replaced */
-    p->half_width = 0.35;
-    p->stop_distance = 0.35;
-    p->slow_distance = 0.6;
-    p->avoid_omega = 0.6;
-    p->stale_scan_s = 1.0;
-    p->estop_required = false;
-    p->stale_estop_s = 2.0;
-    p->teleop_timeout_s = 0.5;
-    p->face_timeout_s = 6.0;
-    p->face_tolerance = 0.15;
+    *p = (arb_params_t)ARB_PARAMS_DEFAULTS;
+}
+
+static int priority(const arb_params_t *p, int behaviour)
+{
+    switch (behaviour) {
+    case ARB_ESTOP: return (int)p->priority_estop;
+    case ARB_AVOID: return (int)p->priority_avoid;
+    case ARB_TELEOP: return (int)p->priority_teleop;
+    case ARB_FACE: return (int)p->priority_face;
+    case ARB_FOLLOW: return (int)p->priority_follow;
+    default: return 0;
+    }
 }
 
 void arb_state_reset(arb_state_t *s)
@@ -295,7 +283,7 @@ int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, ar
 {
     for (int b = 0; b < ARB_COUNT; b++) {
         votes[b].name = names[b];
-        votes[b].priority = p->priority[b];
+        votes[b].priority = priority(p, b);
     }
     arb_estop(p, in, &votes[ARB_ESTOP]);
     arb_avoid(p, in, &votes[ARB_AVOID]);

@@ -6,36 +6,15 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapters/behaviours/arbiter_params.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
 enum { ARB_ESTOP = 0, ARB_AVOID, ARB_TELEOP, ARB_FACE, ARB_FOLLOW, ARB_IDLE, ARB_COUNT };
 
-typedef struct {
-    int priority[ARB_COUNT];    /* higher wins among active behaviours */
-    /* follow path (pure pursuit) */
-    double lookahead;           /* m */
-    double v_max, omega_max;    /* m/s, rad/s */
-    double goal_tolerance;      /* m: closer than this to the last pose ends the path */
-    double turn_in_place;       /* rad: heading error above which the robot turns on the spot */
-    double corner_angle;        /* rad: the path turning more than this at a point is a corner the
-                                 * robot drives to before it turns (0: pure pursuit cuts it) */
-    double stale_pose_s, stale_path_s;
-    /* avoid obstacles */
-    double half_width;          /* m: half the robot's width plus a margin (swept corridor) */
-    double stop_distance, slow_distance;  /* m, measured from the laser ahead */
-    double avoid_omega;         /* rad/s turning away while blocked */
-    double stale_scan_s;
-    /* e-stop and teleop */
-    bool estop_required;        /* no fresh e-stop state = pressed */
-    double stale_estop_s;
-    double teleop_timeout_s;
-    /* face the speaker */
-    double face_timeout_s;      /* s: a speaker's direction older than this is not turned to */
-    double face_tolerance;      /* rad: facing within this ends the turn */
-} arb_params_t;
-
+/* arb_params_t: the parameters, declared in arbiter.params.yaml; these are its defaults. */
 void arb_params_default(arb_params_t *p);
 
 /* Inputs of one cycle. Ages in seconds at decision time; negative: never received. */

@@ -367,38 +367,17 @@ static int init(marie_component_t *c)
     }
     if (b->pull_timeout_ms > 0.8e3 / hz)
         b->pull_timeout_ms = (int)(0.8e3 / hz);   /* answers must come back within the cycle */
-    b->p.priority[ARB_ESTOP] = (int)q->priority_estop;
-    b->p.priority[ARB_AVOID] = (int)q->priority_avoid;
-    b->p.priority[ARB_TELEOP] = (int)q->priority_teleop;
-    b->p.priority[ARB_FACE] = (int)q->priority_face;
-    b->p.priority[ARB_FOLLOW] = (int)q->priority_follow;
-    b->p.lookahead = q->lookahead;
-    b->p.corner_angle = q->corner_angle;
-    b->p.v_max = q->v_max;
-    b->p.omega_max = q->omega_max;
-    b->p.goal_tolerance = q->goal_tolerance;
-    b->p.stale_pose_s = q->stale_pose_s;
+    b->p = q->arb;
     /* The avoid corridor follows the robot's size unless set on its own: the footprint and half
      * its clearance to the side, and the same ahead of the laser before stopping. */
     double radius = q->robot_radius, margin = q->robot_clearance / 2;
-    b->p.half_width = q->half_width;
-    b->p.stop_distance = q->stop_distance;
-    b->p.slow_distance = q->slow_distance;
     if (b->p.half_width <= 0)
         b->p.half_width = radius + margin;
     if (b->p.stop_distance <= 0)
         b->p.stop_distance = radius + margin;
     if (b->p.slow_distance <= 0)
         b->p.slow_distance = b->p.stop_distance + 0.25;
-    b->p.stale_scan_s = q->stale_scan_s;
-    b->p.estop_required = q->estop_required;
-    b->p.stale_estop_s = q->stale_estop_s;
-    b->p.teleop_timeout_s = q->teleop_timeout_s;
-    b->p.face_timeout_s = q->face_timeout_s;
-    b->p.face_tolerance = q->face_tolerance;
-    rec_params_default(&b->rp);
-    b->rp.stuck_s = q->stuck_s;
-    b->rp.detour_s = q->detour_s;
+    b->rp = q->rec;
     rec_state_reset(&b->rs);
     if (b->p.slow_distance <= b->p.stop_distance) {
         marie_component_fail_reason(c, "slow_distance must be greater than stop_distance");

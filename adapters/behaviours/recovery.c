@@ -6,15 +6,7 @@
 
 void rec_params_default(rec_params_t *p)
 {
-    p->stuck_s = 10;
-    p->min_progress = 0.3;
-    p->backoff_s = 2;
-    p->backoff_v = 0.1;
-    p->rotate_s = 4;
-    p->detour_s = 4;
-    p->detour_ahead = 1.5;
-    p->detour_side = 0.8;
-    p->max_level = 4;
+    *p = (rec_params_t)REC_PARAMS_DEFAULTS;
 }
 
 void rec_state_reset(rec_state_t *s)

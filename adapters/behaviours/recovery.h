@@ -7,21 +7,13 @@
 #include <stdint.h>
 
 #include "adapters/behaviours/arbiter.h"
+#include "adapters/behaviours/recovery_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    double stuck_s;             /* s without min_progress along the path (0: off) */
-    double min_progress;        /* m */
-    double backoff_s, backoff_v;/* s, m/s (the laser sees only ahead: short and slow) */
-    double rotate_s;            /* s at most turning to face the detour's target */
-    double detour_s;            /* s at most driving to it under avoid, times the escalation level */
-    double detour_ahead, detour_side;  /* m: the target, ahead towards the goal and to the side (times the level) */
-    int max_level;              /* the detour grows up to this many times detour_s */
-} rec_params_t;
-
+/* rec_params_t: the parameters, declared in recovery.params.yaml; these are its defaults. */
 void rec_params_default(rec_params_t *p);
 
 enum { REC_NONE = 0, REC_REPLAN, REC_BACKOFF, REC_ROTATE, REC_DETOUR };
