@@ -281,26 +281,7 @@ static int init(marie_component_t *c)
         return -1;
     }
     marie_info("map %s: %d x %d cells at %.3f m", q->map, map->width, map->height, map->resolution);
-    mcl_params_t p;
-    mcl_params_default(&p);
-    p.min_particles = (int)q->particles_min;
-    p.max_particles = (int)q->particles_max;
-    p.max_beams = (int)q->max_beams;
-    p.sigma_hit = q->sigma_hit;
-    p.z_hit = q->z_hit;
-    p.z_rand = q->z_rand;
-    p.max_dist = q->max_dist;
-    p.alpha[0] = q->alpha1;
-    p.alpha[1] = q->alpha2;
-    p.alpha[2] = q->alpha3;
-    p.alpha[3] = q->alpha4;
-    p.laser_x = q->laser_x;
-    p.laser_y = q->laser_y;
-    p.laser_theta = q->laser_theta;
-    p.update_min_d = q->update_min_d;
-    p.update_min_a = q->update_min_a;
-    p.resample_ess = q->resample_ess;
-    p.lost_likelihood = q->lost_likelihood;
+    mcl_params_t p = q->mcl;
     if (!q->recovery) {
         p.alpha_slow = p.alpha_fast = 0;
         p.lost_likelihood = 0;

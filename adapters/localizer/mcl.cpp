@@ -87,33 +87,13 @@ struct mcl {
 
 extern "C" void mcl_params_default(mcl_params_t *p)
 {
-    *p = mcl_params_t{};
-    p->min_particles = 200;
-    p->max_particles = 3000;
-    p->kld_err = 0.05;
-    p->kld_z = 2.33;            // 99% upper quantile
-    p->bin_xy = 0.25;
-    p->bin_theta = 10 * M_PI / 180;
-    p->alpha[0] = 0.05;
-    p->alpha[1] = 0.02;
-    p->alpha[2] = 0.05;
-    p->alpha[3] = 0.02;
-    p->sigma_hit = 0.1;
-    p->z_hit = 0.9;
-    p->z_rand = 0.1;
-    p->max_dist = 1.0;
-    p->max_beams = 60;
-    p->update_min_d = 0.05;
-    p->update_min_a = 0.05;
-    p->resample_ess = 0.5;
-    p->alpha_slow = 0.001;
-    p->alpha_fast = 0.1;
-    p->lost_likelihood = 0.25;
+    const mcl_params_t d = MCL_PARAMS_DEFAULTS;
+    *p = d;
 }
 
 extern "C" mcl_t *mcl_create(const occmap_t *map, const mcl_params_t *p, uint64_t seed)
 {
-    if (!map || !p || p->max_particles < 1 || p->min_particles < 1 || p->min_particles > p->max_particles ||
+    if (!map || !p || p->particles_max < 1 || p->particles_min < 1 || p->particles_min > p->particles_max ||
         !(p->sigma_hit > 0) || p->max_beams < 1) {
         errno = EINVAL;
         return nullptr;
@@ -167,7 +147,7 @@ extern "C" void mcl_destroy(mcl_t *f)
 
 extern "C" void mcl_init_pose(mcl_t *f, const double pose[3], const double sigma[3])
 {
-    int n = f->p_.max_particles;
+    int n = f->p_.particles_max;
     f->resize(n);
     for (int i = 0; i < n; i++) {
         f->x_[i] = pose[0] + f->gauss(sigma[0]);
@@ -181,7 +161,7 @@ extern "C" void mcl_init_pose(mcl_t *f, const double pose[3], const double sigma
 
 extern "C" void mcl_init_global(mcl_t *f)
 {
-    int n = f->p_.max_particles;
+    int n = f->p_.particles_max;
     f->resize(n);
     for (int i = 0; i < n; i++) {
         double x, y, th;
@@ -207,7 +187,7 @@ void mcl::motion(const double o0[3], const double o1[3])
         trans = -trans;
     }
     double rot2 = wrap(o1[2] - o0[2] - rot1);
-    const double *a = p_.alpha;
+    const double a[4] = { p_.alpha1, p_.alpha2, p_.alpha3, p_.alpha4 };
     double s_r1 = std::sqrt(a[0] * rot1 * rot1 + a[1] * trans * trans);
     double s_t = std::sqrt(a[2] * trans * trans + a[3] * (rot1 * rot1 + rot2 * rot2));
     double s_r2 = std::sqrt(a[0] * rot2 * rot2 + a[1] * trans * trans);
@@ -291,10 +271,10 @@ void mcl::resample()
         inject = std::max(inject, 0.5 * (1.0 - w_fast_ / p_.lost_likelihood));
 
     std::vector<double> nx, ny, nt;
-    nx.reserve(p_.max_particles); ny.reserve(p_.max_particles); nt.reserve(p_.max_particles);
+    nx.reserve(p_.particles_max); ny.reserve(p_.particles_max); nt.reserve(p_.particles_max);
     std::unordered_set<uint64_t> bins;
-    size_t target = (size_t)p_.min_particles;
-    while (nx.size() < (size_t)p_.max_particles && (nx.size() < target || nx.size() < (size_t)p_.min_particles)) {
+    size_t target = (size_t)p_.particles_min;
+    while (nx.size() < (size_t)p_.particles_max && (nx.size() < target || nx.size() < (size_t)p_.particles_min)) {
         double x, y, th;
         if (inject > 0 && uniform() < inject) {
             random_free_pose(&x, &y, &th);

@@ -5,6 +5,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapters/localizer/mcl_params.h"
 #include "map/occmap.h"
 
 #ifdef __cplusplus
@@ -13,23 +14,7 @@ extern "C" {
 
 typedef struct mcl mcl_t;
 
-typedef struct {
-    int min_particles, max_particles;   /* KLD bounds on the particle count */
-    double kld_err, kld_z;              /* KLD error bound and upper normal quantile */
-    double bin_xy, bin_theta;           /* KLD histogram bins: m, rad */
-    double alpha[4];                    /* odometry noise: rot<-rot, rot<-trans, trans<-trans, trans<-rot */
-    double sigma_hit;                   /* m: spread of the likelihood field */
-    double z_hit, z_rand;               /* mixture weights of hit and random measurement */
-    double max_dist;                    /* m: the field saturates beyond this distance */
-    int max_beams;                      /* beams used per scan (evenly subsampled) */
-    double laser_x, laser_y, laser_theta; /* laser pose in the robot frame */
-    double update_min_d, update_min_a;  /* move this much (m, rad) between sensor updates */
-    double resample_ess;                /* resample when ESS < this fraction of the count */
-    double alpha_slow, alpha_fast;      /* random-particle recovery (0, 0 disables) */
-    double lost_likelihood;             /* mean per-beam likelihood below which the filter
-                                           counts as lost and injects random particles (0: off) */
-} mcl_params_t;
-
+/* mcl_params_t: the parameters, declared in mcl.params.yaml; these are its defaults. */
 void mcl_params_default(mcl_params_t *p);
 
 /* One laser scan in the sensor frame. */

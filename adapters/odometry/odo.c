@@ -7,15 +7,7 @@
 
 void odo_params_default(odo_params_t *p)
 {
-    memset(p, 0, sizeof(*p));
-    p->wheel_radius = 0.1;
-    p->track = 0.4;
-    p->gyro_timeout_s = 0.3;
-    p->use_gyro = true;
-    p->k_dist = 0.001;
-    p->k_gyro = 1e-5;
-    p->k_enc_heading = 0.01;
-    p->max_wheel_speed = 100;
+    *p = (odo_params_t)ODO_PARAMS_DEFAULTS;
 }
 
 void odo_init(odo_t *o, const odo_params_t *p)

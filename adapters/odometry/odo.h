@@ -6,21 +6,13 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapters/odometry/odo_params.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    double wheel_radius;        /* m */
-    double track;               /* m between the wheels */
-    double gyro_timeout_s;      /* older gyro data is not trusted for heading */
-    bool use_gyro;
-    double k_dist;              /* m^2 of position variance per m travelled */
-    double k_gyro;              /* rad^2 of heading variance per s on the gyro */
-    double k_enc_heading;       /* rad^2 per rad turned on encoder heading */
-    double max_wheel_speed;     /* rad/s: faster tick changes are glitches */
-} odo_params_t;
-
+/* odo_params_t: the parameters, declared in odo.params.yaml; these are its defaults. */
 void odo_params_default(odo_params_t *p);
 
 typedef struct {

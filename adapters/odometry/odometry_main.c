@@ -60,20 +60,12 @@ static int init(marie_component_t *c)
 {
     odom_t *s = marie_component_user(c);
     const odom_params_t *q = marie_component_params(c);
-    odo_params_t p;
-    odo_params_default(&p);
-    p.wheel_radius = q->wheel_radius;
-    p.track = q->track;
-    p.use_gyro = q->use_gyro;
-    p.gyro_timeout_s = q->gyro_timeout_s;
-    p.k_dist = q->k_dist;
-    p.k_gyro = q->k_gyro;
-    p.k_enc_heading = q->k_enc_heading;
-    if (!(p.wheel_radius > 0) || !(p.track > 0) || !(q->rate_hz > 0 && q->rate_hz <= 1000)) {
+    const odo_params_t *p = &q->odo;
+    if (!(p->wheel_radius > 0) || !(p->track > 0) || !(q->rate_hz > 0 && q->rate_hz <= 1000)) {
         marie_component_fail_reason(c, "wheel_radius and track must be > 0, rate_hz in (0, 1000]");
         return -1;
     }
-    odo_init(&s->o, &p);
+    odo_init(&s->o, p);
     s->published_utime = 0;
     s->sign_l = q->invert_left ? -1 : 1;
     s->sign_r = q->invert_right ? -1 : 1;

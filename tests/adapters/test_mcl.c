@@ -86,7 +86,7 @@ static void test_tracking_from_known_pose(void **state)
     assert_non_null(m);
     mcl_params_t p;
     mcl_params_default(&p);
-    p.max_particles = 1500;
+    p.particles_max = 1500;
     mcl_t *f = mcl_create(m, &p, 42);
     assert_non_null(f);
     simrobot_t r = robot_at(2.0, 6.0, 0.1, 99);
@@ -134,7 +134,7 @@ static void test_tracking_on_rotated_map(void **state)
 
     mcl_params_t p;
     mcl_params_default(&p);
-    p.max_particles = 1500;
+    p.particles_max = 1500;
     mcl_t *filter = mcl_create(m, &p, 42);
     assert_non_null(filter);
     simrobot_t r = robot_at(2.0, 6.0, 0.1, 99);
@@ -156,8 +156,8 @@ static void test_global_localization(void **state)
     occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
     mcl_params_t p;
     mcl_params_default(&p);
-    p.max_particles = 6000;
-    p.min_particles = 300;
+    p.particles_max = 6000;
+    p.particles_min = 300;
     mcl_t *f = mcl_create(m, &p, 4242);
     assert_non_null(f);
     mcl_init_global(f);
@@ -176,7 +176,7 @@ static void test_recovers_from_wrong_start(void **state)
     occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
     mcl_params_t p;
     mcl_params_default(&p);
-    p.max_particles = 4000;
+    p.particles_max = 4000;
     mcl_t *f = mcl_create(m, &p, 77);
     simrobot_t r = robot_at(4.0, 6.0, 0.0, 555);
     double start[3] = { 8.0, 6.0, 0.0 }, sig[3] = { 0.1, 0.1, 0.05 };
@@ -193,8 +193,8 @@ static void test_rejects_bad_params(void **state)
     occmap_t *m = occmap_create(10, 10, 0.1, 0, 0);
     mcl_params_t p;
     mcl_params_default(&p);
-    p.min_particles = 5000;
-    p.max_particles = 100;
+    p.particles_min = 5000;
+    p.particles_max = 100;
     assert_null(mcl_create(m, &p, 1));
     mcl_params_default(&p);
     p.sigma_hit = 0;
@@ -209,7 +209,7 @@ static void test_skips_update_when_still(void **state)
     occmap_t *m = occmap_make_office(16, 12, 0.05, 7);
     mcl_params_t p;
     mcl_params_default(&p);
-    p.max_particles = 500;
+    p.particles_max = 500;
     mcl_t *f = mcl_create(m, &p, 3);
     double pose[3] = { 3, 6, 0 }, sig[3] = { 0.1, 0.1, 0.1 }, odom[3] = { 0, 0, 0 };
     mcl_init_pose(f, pose, sig);
