@@ -23,11 +23,7 @@ typedef struct {
     marie_port_t *p_camera;
     sim_audio_port_t *audio;    /* the microphone array; NULL without an audio scene */
     marie_port_t *p_enc, *p_gyro, *p_laser, *p_estop, *p_truth, *p_clock;
-    double speed;               /* sim seconds per wall second; 0 = as fast as possible */
-    double lockstep;            /* s of sim time allowed past the last motor command; 0 = off */
-    double lockstep_timeout;    /* wall s to wait for a command before going on */
-    double cmd_timeout;         /* sim s without a command before the drives stop */
-    int64_t start_utime;
+    const sim_opts_t *o;        /* the parameters (speed, lockstep, cmd_timeout, start_utime, ...) */
     /* publication periods, in physics steps */
     int64_t n_clock, n_enc, n_gyro, n_laser, n_truth, n_estop;
     float *scan;
@@ -39,7 +35,6 @@ typedef struct {
     bool have_cmd, cmd_live;
     int64_t last_cmd_sim;       /* sim us when the last command arrived */
     int64_t wait_since;         /* mono us when the lockstep wait began, 0 if not waiting */
-    double lockstep_pose;       /* s of sim time allowed past the newest pose estimate; 0 = off */
     bool have_pose;
     int64_t last_pose_sim;      /* sim us of the newest pose estimate */
     bool estop, estop_dirty;
@@ -77,7 +72,7 @@ static int64_t period_steps(marie_component_t *c, const char *param, double step
 
 static int64_t sim_now(const sim_t *s)
 {
-    return s->start_utime + sim_world_time_us(s->world);
+    return s->o->start_utime + sim_world_time_us(s->world);
 }
 
 static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
@@ -122,7 +117,7 @@ static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, cons
     sim_t *s = marie_component_user(c);
     const marie_pose_cov_t *m = msg;
     int64_t now = s->world ? sim_now(s) : 0;
-    if (s->lockstep_pose <= 0 || m->utime > now || m->utime < s->last_pose_sim)
+    if (s->o->lockstep_pose <= 0 || m->utime > now || m->utime < s->last_pose_sim)
         return;
     s->last_pose_sim = m->utime;
     s->have_pose = true;
@@ -221,7 +216,7 @@ static void publish(marie_component_t *c, sim_t *s)
     }
     /* The clock goes last, so a component woken by it already has this instant's data. */
     if (k % s->n_clock == 0) {
-        marie_sim_clock_t ck = { .utime = now, .speed = s->speed };
+        marie_sim_clock_t ck = { .utime = now, .speed = s->o->speed };
         marie_port_publish(s->p_clock, &ck);
     }
 }
@@ -237,7 +232,7 @@ static bool lockstep_holds(marie_component_t *c, sim_t *s, int64_t *last, double
         marie_component_count(c, "lockstep_waits", 1);
         marie_debug("lockstep: waiting at %.3f s for an input of %.3f s", now / 1e6, *last / 1e6);
     }
-    if (mono - s->wait_since < (int64_t)(s->lockstep_timeout * 1e6))
+    if (mono - s->wait_since < (int64_t)(s->o->lockstep_timeout * 1e6))
         return true;
     /* The controller is gone or slow: go on, and wait again one lockstep later. */
     marie_component_count(c, "lockstep_timeouts", 1);
@@ -252,10 +247,10 @@ static bool lockstep_holds(marie_component_t *c, sim_t *s, int64_t *last, double
 static bool step_once(marie_component_t *c, sim_t *s)
 {
     int64_t now = sim_now(s);
-    if ((s->lockstep > 0 && s->have_cmd && lockstep_holds(c, s, &s->last_cmd_sim, s->lockstep, now)) ||
-        (s->have_pose && lockstep_holds(c, s, &s->last_pose_sim, s->lockstep_pose, now)))
+    if ((s->o->lockstep > 0 && s->have_cmd && lockstep_holds(c, s, &s->last_cmd_sim, s->o->lockstep, now)) ||
+        (s->have_pose && lockstep_holds(c, s, &s->last_pose_sim, s->o->lockstep_pose, now)))
         return false;
-    if (!s->devices && s->cmd_live && now - s->last_cmd_sim > (int64_t)(s->cmd_timeout * 1e6)) {
+    if (!s->devices && s->cmd_live && now - s->last_cmd_sim > (int64_t)(s->o->cmd_timeout * 1e6)) {
         /* The drives' own watchdog: no command, no motion. */
         sim_world_set_velocity(s->world, 0, 0);
         s->cmd_live = false;
@@ -292,7 +287,7 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
     if (marie_component_state(c) != MARIE_STATE_RUNNING || !s->world)
         return;
     int64_t steps0 = sim_world_steps(s->world);
-    if (s->speed <= 0) {
+    if (s->o->speed <= 0) {
         /* As fast as possible, but back to the loop every clock period so commands and
          * lifecycle orders are read between bursts. While waiting, look again every 1 ms
          * instead of spinning (an awaited input steps at once through resume()). */
@@ -303,13 +298,13 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
             marie_timer_set_period(s->timer, held ? 1000 : 1);
     } else {
         int64_t mono = marie_mono_us();
-        int64_t target = s->anchor_sim + (int64_t)((mono - s->anchor_mono) * s->speed);
+        int64_t target = s->anchor_sim + (int64_t)((mono - s->anchor_mono) * s->o->speed);
         if (target - sim_now(s) > 250000) {
             /* Too far behind (a slow machine or a stall): drop the debt rather than burst. */
             marie_component_count(c, "behind", 1);
             s->anchor_mono = mono;
             s->anchor_sim = sim_now(s);
-            target = s->anchor_sim + (int64_t)(1000 * s->speed);
+            target = s->anchor_sim + (int64_t)(1000 * s->o->speed);
         }
         while (sim_now(s) < target)
             if (!step_once(c, s))
@@ -383,7 +378,7 @@ static int on_init(marie_component_t *c)
     /* Init again after a failure: start from nothing. */
     release(s);
     s->last_touch = -1;
-    const sim_opts_t *o = sim_opts(c);
+    const sim_opts_t *o = s->o = sim_opts(c);
     bool device = strcmp(o->mode, "device") == 0;
     if (!device && strcmp(o->mode, "channel") != 0) {
         marie_component_fail_reason(c, "mode: expected channel or device, got '%s'", o->mode);
@@ -416,14 +411,8 @@ static int on_init(marie_component_t *c)
         marie_component_fail_reason(c, "step: expected 0 < step <= 0.02 s");
         goto fail;
     }
-    s->speed = o->speed;
-    s->lockstep = o->lockstep;
-    s->lockstep_timeout = o->lockstep_timeout;
-    s->lockstep_pose = o->lockstep_pose;
-    s->cmd_timeout = o->cmd_timeout;
-    s->start_utime = o->start_utime;
     s->estop = o->estop;
-    if (!(s->speed >= 0) || !isfinite(s->speed)) {
+    if (!(s->o->speed >= 0) || !isfinite(s->o->speed)) {
         marie_component_fail_reason(c, "speed: expected 0 (as fast as possible) or a positive factor");
         goto fail;
     }
@@ -444,7 +433,7 @@ static int on_init(marie_component_t *c)
     if (sim_camera_init(c, path, map, p.step, &s->camera) < 0)
         goto fail;
     if (sim_audio_port_create(c, map, (double[3]){ p.start_x, p.start_y, p.start_theta }, p.seed,
-                              s->start_utime, &s->audio))
+                              s->o->start_utime, &s->audio))
         goto fail;
     MARIE_CLEAR(map, occmap_destroy);
     if (device) {
@@ -479,8 +468,8 @@ static int on_init(marie_component_t *c)
     marie_port_on_message(marie_port(c, "estop_set"), on_estop_set);
     marie_port_on_message(marie_port(c, "teleport"), on_teleport);
     marie_info("world %s: %ld wall boxes, start (%.2f, %.2f, %.2f), speed %g%s", path,
-               sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->speed,
-               s->lockstep > 0 ? ", lockstep" : "");
+               sim_world_wall_boxes(s->world), p.start_x, p.start_y, p.start_theta, s->o->speed,
+               s->o->lockstep > 0 ? ", lockstep" : "");
     return 0;
 fail:
     release(s);
@@ -494,14 +483,14 @@ static int arm(marie_component_t *c)
     s->anchor_mono = marie_mono_us();
     s->anchor_sim = sim_now(s);
     s->wait_since = 0;
-    if (s->lockstep > 0 && !s->have_cmd) {
+    if (s->o->lockstep > 0 && !s->have_cmd) {
         /* Lockstep holds from the start: the controller gets its first clock ticks and then
          * the simulator waits for it, instead of racing ahead while it starts up. */
         s->have_cmd = true;
         s->last_cmd_sim = sim_now(s);
     }
     /* Speed 0 polls with a zero timeout between bursts; otherwise 1 ms wall pacing. */
-    s->timer = marie_loop_add_wall_timer(marie_component_loop(c), s->speed > 0 ? 1000 : 1, on_timer, c);
+    s->timer = marie_loop_add_wall_timer(marie_component_loop(c), s->o->speed > 0 ? 1000 : 1, on_timer, c);
     if (!s->timer) {
         marie_component_fail_reason(c, "cannot add the step timer: %s", strerror(errno));
         return -1;

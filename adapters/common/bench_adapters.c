@@ -75,7 +75,7 @@ static void bench_localizer(const occmap_t *m, int particles, int beams, const c
     mcl_destroy(f);
 }
 
-static void bench_planner(const occmap_t *m, planner_algo_t algo, const char *tag)
+static void bench_planner(const occmap_t *m, const char *algo, const char *tag)
 {
     planner_params_t p;
     planner_params_default(&p);
@@ -146,9 +146,9 @@ int main(void)
     fprintf(stderr, "bench_adapters: map %s (%dx%d cells)\n", which, m->width, m->height);
     bench_localizer(m, 2000, 181, "2000x181");
     bench_localizer(m, 500, 60, "500x60");
-    bench_planner(m, PLANNER_RRTCONNECT, "rrtconnect_office");
-    bench_planner(m, PLANNER_PRM, "prm_office");
-    bench_planner(m, PLANNER_GRID, "grid_office");
+    bench_planner(m, "rrtconnect", "rrtconnect_office");
+    bench_planner(m, "prm", "prm_office");
+    bench_planner(m, "grid", "grid_office");
     bench_arbitration();
     occmap_destroy(m);
     return 0;

@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <new>
 #include <unordered_map>
@@ -26,7 +27,8 @@ namespace ob = ompl::base;
 namespace og = ompl::geometric;
 
 struct planner {
-    planner_params_t p_{};
+    planner_params_t p_{};             // p_.algorithm is the caller's: algo_ is what is kept
+    planner_algo_t algo_ = PLANNER_GRID;
     double footprint_ = 0;              // the robot's own radius, without the clearance
     int w_ = 0, h_ = 0;
     double res_ = 0, ox_ = 0, oy_ = 0;
@@ -88,21 +90,24 @@ struct planner {
 
 extern "C" void planner_params_default(planner_params_t *p)
 {
-    *p = planner_params_t{};
-    p->robot_radius = 0.3;
-    p->clearance = 0.1;
-    p->time_limit = 1.0;
-    p->simplify_time = 0.03;
-    p->range = 0;
-    p->algorithm = PLANNER_GRID;
-    p->unknown_is_free = false;
-    p->obstacle_ttl = 10.0;
-    p->obstacle_margin = 0.25;
+    const planner_params_t d = PLANNER_PARAMS_DEFAULTS;
+    *p = d;
+}
+
+extern "C" int planner_algorithm(const char *name)
+{
+    static const char *const names[] = { "rrtconnect", "prm", "grid" };   // planner_algo_t's order
+    for (int i = 0; name && i < 3; i++)
+        if (strcmp(name, names[i]) == 0)
+            return i;
+    errno = EINVAL;
+    return -1;
 }
 
 extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t *p, uint64_t seed)
 {
-    if (!map || !p || !(p->robot_radius >= 0) || !(p->clearance >= 0) || !(p->time_limit > 0)) {
+    int algo = p ? planner_algorithm(p->algorithm) : -1;
+    if (!map || algo < 0 || !(p->robot_radius >= 0) || !(p->robot_clearance >= 0) || !(p->time_limit > 0)) {
         errno = EINVAL;
         return nullptr;
     }
@@ -121,7 +126,8 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
     }
     try {
         pl->p_ = *p;
-        pl->p_.robot_radius = p->robot_radius + p->clearance;   // everything below inflates by both
+        pl->algo_ = (planner_algo_t)algo;
+        pl->p_.robot_radius = p->robot_radius + p->robot_clearance;   // everything below inflates by both
         pl->footprint_ = p->robot_radius;
         pl->w_ = map->width;
         pl->h_ = map->height;
@@ -170,7 +176,7 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
         pl->ss_->getSpaceInformation()->setStateValidityCheckingResolution(
             0.5 * map->resolution / space->getMaximumExtent());
         ob::PlannerPtr planner;
-        if (p->algorithm == PLANNER_PRM) {
+        if (pl->algo_ == PLANNER_PRM) {
             planner = std::make_shared<og::PRM>(pl->ss_->getSpaceInformation());
         } else {
             auto rrt = std::make_shared<og::RRTConnect>(pl->ss_->getSpaceInformation());
@@ -252,11 +258,11 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
     double sx = start[0], sy = start[1], gx = goal[0], gy = goal[1];
     if (!pl->snap(sx, sy, pl->p_.robot_radius) || !pl->snap(gx, gy, pl->p_.robot_radius))
         return -EINVAL;
-    if (pl->p_.algorithm == PLANNER_GRID)
+    if (pl->algo_ == PLANNER_GRID)
         return grid_plan(pl, start, goal, sx, sy, gx, gy, poses, n);
     try {
         og::SimpleSetup &ss = *pl->ss_;
-        if (pl->p_.algorithm == PLANNER_PRM && !pl->layer_changed_)
+        if (pl->algo_ == PLANNER_PRM && !pl->layer_changed_)
             ss.getPlanner()->clearQuery();    // keep the roadmap between queries
         else
             ss.clear();

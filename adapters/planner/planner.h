@@ -6,6 +6,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapters/planner/planner_params.h"
 #include "map/occmap.h"
 
 #ifdef __cplusplus
@@ -18,19 +19,12 @@ typedef struct planner planner_t;
  * cells by line of sight (map/gridpath.h): the shortest path on the grid, every time. */
 typedef enum { PLANNER_RRTCONNECT = 0, PLANNER_PRM, PLANNER_GRID } planner_algo_t;
 
-typedef struct {
-    double robot_radius;        /* m: radius of the circle around the robot's footprint */
-    double clearance;           /* m kept free beyond it: the map is inflated by radius + clearance */
-    double time_limit;          /* s for the planner itself */
-    double simplify_time;       /* s for shortcutting the solution */
-    double range;               /* m: RRTConnect step (0: OMPL's default) */
-    planner_algo_t algorithm;
-    bool unknown_is_free;       /* plan through unknown cells */
-    double obstacle_ttl;        /* s a laser obstacle stays in the layer */
-    double obstacle_margin;     /* m: laser points this close to a map obstacle are the map's */
-} planner_params_t;
-
+/* planner_params_t: the parameters, declared in planner.params.yaml; these are its defaults.
+ * Its algorithm is one of the names planner_algorithm() knows. */
 void planner_params_default(planner_params_t *p);
+
+/* The algorithm called grid, rrtconnect or prm; -1 with errno EINVAL for any other name. */
+int planner_algorithm(const char *name);
 
 /* NULL on failure (errno). planner_destroy(NULL) is a no-op. The map is copied. */
 planner_t *planner_create(const occmap_t *map, const planner_params_t *p, uint64_t seed);

@@ -30,7 +30,6 @@ typedef struct {
     double check_period_s;
     double *pts;
     int pts_cap;
-    planner_params_t params;
     uint64_t seed;
 } pln_t;
 
@@ -270,7 +269,7 @@ static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const
         int8_t v = om->cells[i];
         om->cells[i] = v < 0 ? OCCMAP_UNKNOWN : v >= 65 ? OCCMAP_OCCUPIED : v < 20 ? OCCMAP_FREE : OCCMAP_UNKNOWN;
     }
-    planner_t *pl = planner_create(om, &s->params, s->seed);
+    planner_t *pl = planner_create(om, &s->q->planner, s->seed);
     occmap_destroy(om);
     if (!pl) {
         marie_component_bad_input(c, "bad_map", "cannot build a planner on the %dx%d map", m->width, m->height);
@@ -305,30 +304,15 @@ static int init(marie_component_t *c)
     quit(c);
     s->have_goal = s->have_pose = s->want_plan = s->have_odom_to_map = false;
     posebuf_clear(&s->odom);
-    planner_params_t p;
-    planner_params_default(&p);
-    p.robot_radius = q->robot_radius;
-    p.clearance = q->robot_clearance;
-    p.time_limit = q->time_limit;
-    p.range = q->range;
-    p.obstacle_ttl = q->obstacle_ttl;
-    p.unknown_is_free = q->unknown_is_free;
-    const char *algo = q->algorithm;
-    if (strcmp(algo, "grid") == 0) {
-        p.algorithm = PLANNER_GRID;
-    } else if (strcmp(algo, "rrtconnect") == 0) {
-        p.algorithm = PLANNER_RRTCONNECT;
-    } else if (strcmp(algo, "prm") == 0) {
-        p.algorithm = PLANNER_PRM;
-    } else {
-        marie_component_fail_reason(c, "algorithm: expected grid, rrtconnect or prm, got '%s'", algo);
+    const planner_params_t *p = &q->planner;
+    if (planner_algorithm(p->algorithm) < 0) {
+        marie_component_fail_reason(c, "algorithm: expected grid, rrtconnect or prm, got '%s'", p->algorithm);
         return -1;
     }
-    if (!(p.robot_radius >= 0) || !(p.clearance >= 0) || !(p.time_limit > 0)) {
+    if (!(p->robot_radius >= 0) || !(p->robot_clearance >= 0) || !(p->time_limit > 0)) {
         marie_component_fail_reason(c, "bad planner parameters (robot_radius, robot_clearance >= 0, time_limit > 0)");
         return -1;
     }
-    s->params = p;
     s->seed = (uint64_t)q->seed;
     const char *path = q->map;
     if (path[0]) {

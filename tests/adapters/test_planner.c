@@ -44,13 +44,12 @@ static void test_plans_between_rooms(void **state)
 {
     occmap_t *m = occmap_make_office(40, 30, 0.05, 11);
     assert_non_null(m);
-    static const planner_algo_t algos[] = { PLANNER_GRID, PLANNER_RRTCONNECT, PLANNER_PRM };
     static const char *names[] = { "grid", "rrtconnect", "prm" };
     double grid_len = 0;
     for (int a = 0; a < 3; a++) {
         planner_params_t p;
         planner_params_default(&p);
-        p.algorithm = algos[a];
+        p.algorithm = names[a];
         planner_t *pl = planner_create(m, &p, 1);
         assert_non_null(pl);
         /* Lower room near the left end to an upper room near the right end. */
@@ -171,7 +170,7 @@ static void test_prm_reuses_roadmap(void **state)
     occmap_t *m = occmap_make_office(20, 15, 0.05, 3);
     planner_params_t p;
     planner_params_default(&p);
-    p.algorithm = PLANNER_PRM;
+    p.algorithm = "prm";
     planner_t *pl = planner_create(m, &p, 1);
     assert_non_null(pl);
     double a[3] = { 2, 7.5, 0 }, b[3] = { 18, 7.5, 0 };
@@ -205,7 +204,7 @@ static void test_small_footprint_passes_the_06m_door(void **state)
     assert_int_not_equal(planner_plan(big, s, g, &P, &n), 0);
     planner_destroy(big);
     p.robot_radius = 0.18;
-    p.clearance = 0.06;
+    p.robot_clearance = 0.06;
     planner_t *small = planner_create(m, &p, 1);
     assert_non_null(small);
     assert_int_equal(planner_plan(small, s, g, &P, &n), 0);
