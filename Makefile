@@ -100,7 +100,9 @@ include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk came
 # A component's parameters are declared once, in NAME.params.yaml beside its code: the struct
 # and spec tables are generated into $(B)/gen/c/DIR/NAME_params.h (core/params_gen.py).
 PARAM_SPECS := $(sort $(wildcard */*.params.yaml */*/*.params.yaml))
-GEN_HEADERS += $(patsubst %.params.yaml,$(B)/gen/c/%_params.h,$(PARAM_SPECS))
+PARAM_HEADERS := $(patsubst %.params.yaml,$(B)/gen/c/%_params.h,$(PARAM_SPECS))
+GEN_HEADERS += $(PARAM_HEADERS)
+.SECONDARY: $(PARAM_HEADERS)
 $(B)/gen/c/%_params.h: %.params.yaml core/params_gen.py
 	@mkdir -p $(@D)
 	python3 core/params_gen.py $< $@
@@ -187,4 +189,4 @@ clean:
 	rm -rf build
 
 -include $(shell find $(B)/obj -name '*.d' 2>/dev/null)
--include $(patsubst %.params.yaml,$(B)/gen/c/%_params.d,$(PARAM_SPECS))
+-include $(PARAM_HEADERS:.h=.d)

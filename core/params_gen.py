@@ -193,6 +193,11 @@ def load_member(name, node):
 def c_value(ptype, default, node):
     """The C literal of a default, for the DEFAULTS initializer."""
     v = None if isinstance(default, CExpr) else yaml.safe_load(default)
+    if ptype == "double" and isinstance(v, str):
+        try:
+            v = float(v)        # YAML 1.1 reads 1e-5 as text; the config loader reads it as a number
+        except ValueError:
+            pass
     ok = {"int": isinstance(v, int) and not isinstance(v, bool),
           "double": isinstance(v, (int, float)) and not isinstance(v, bool),
           "bool": isinstance(v, bool),

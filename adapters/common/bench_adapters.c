@@ -48,7 +48,7 @@ static void bench_localizer(const occmap_t *m, int particles, int beams, const c
 {
     mcl_params_t p;
     mcl_params_default(&p);
-    p.min_particles = p.max_particles = particles;
+    p.particles_min = p.particles_max = particles;
     p.max_beams = beams;
     mcl_t *f = mcl_create(m, &p, 1);
     /* In the main corridor, moving along it. */

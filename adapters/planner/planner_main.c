@@ -10,7 +10,7 @@
 #include "adapters/planner/planner.h"
 #include "core/clear.h"
 #include "core/component.h"
-#include "adapters/planner/planner_params.h"
+#include "adapters/planner/planner_main_params.h"
 
 typedef struct {
     const pln_params_t *q;
@@ -324,7 +324,7 @@ static int init(marie_component_t *c)
             return -1;
         }
         marie_info("map %s: %d x %d cells at %.3f m", path, map->width, map->height, map->resolution);
-        s->pl = planner_create(map, &p, s->seed);
+        s->pl = planner_create(map, p, s->seed);
         occmap_destroy(map);
         if (!s->pl) {
             marie_component_fail_reason(c, "cannot build the planner on %s", path);

@@ -97,4 +97,91 @@ tables:
   S:
     a: [double, \"5\", help"
 check "no tables" fails 1 "struct: s_t"
+
+# A library's parameters in a file of their own, with its defaults as an initializer; a
+# component that takes them as a member, one default of its own.
+mkdir -p "$T/lib"
+cat > "$T/lib/filt.params.yaml" <<'YAML'
+struct: filt_params_t
+defaults: FILT_PARAMS_DEFAULTS
+tables:
+  FILT_PARAMS:
+    gain: [double, "0.05", "per step"]
+    count: [int, "40", ""]
+    on: [bool, "true", ""]
+    name: [string, "'text'", ""]
+YAML
+cat > "$T/comp.params.yaml" <<YAML
+struct: comp_params_t
+members:
+  filt: {file: $T/lib/filt.params.yaml, defaults: {count: "7"}}
+tables:
+  COMP_PARAMS:
+    rate_hz: [double, "10", ""]
+YAML
+cat > "$T/comp.c" <<'C'
+#include <stdio.h>
+#include "core/component.h"
+#include "comp_params.h"
+static const marie_param_spec_t params[] = COMP_PARAMS;
+static const marie_component_def_t def = { .kind = "comp", .params = params, .params_size = sizeof(comp_params_t) };
+int main(int argc, char **argv)
+{
+    const filt_params_t d = FILT_PARAMS_DEFAULTS;
+    printf("defaults %g %ld %d %s\n", d.gain, (long)d.count, d.on, d.name);
+    marie_errors_t errs = { 0 };
+    marie_component_t *c = marie_component_create(&def, argc, argv, NULL, &errs);
+    if (!c) {
+        marie_errors_print(&errs, stderr);
+        return 1;
+    }
+    const comp_params_t *q = marie_component_params(c);
+    printf("values %g %g %ld %d %s\n", q->rate_hz, q->filt.gain, (long)q->filt.count, q->filt.on, q->filt.name);
+    marie_component_destroy(c);
+    return 0;
+}
+C
+members_build() {
+    python3 core/params_gen.py "$T/lib/filt.params.yaml" "$T/lib/filt_params.h" &&
+        python3 core/params_gen.py "$T/comp.params.yaml" "$T/comp_params.h" &&
+        grep -q "lib/filt.params.yaml" "$T/comp_params.d" &&
+        ${CC:-cc} -std=gnu11 -Wall -Werror -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE \
+            $(pkg-config --cflags lcm glib-2.0 libfyaml) -o "$T/comp" "$T/comp.c" "$B/lib/libmarie.a" \
+            $(pkg-config --libs lcm glib-2.0 libfyaml libsodium) -lm -lpthread
+}
+check "a member's header compiles; make learns the member's file (comp_params.d)" members_build
+check "defaults: the library's initializer holds its table's defaults" \
+    test "$("$T/comp" | sed -n 1p)" = "defaults 0.05 40 1 text"
+check "a member's parameters land in the member, with the component's own default" \
+    test "$("$T/comp" | sed -n 2p)" = "values 10 0.05 7 1 text"
+check "a member's parameter is set by its own name" \
+    test "$("$T/comp" --param gain=2.5 --param name=x | sed -n 2p)" = "values 10 2.5 7 1 x"
+check "a member's parameters are in --describe" test "$("$T/comp" --describe | grep -c '"name": "gain"')" = 1
+
+check "a member file that does not exist" fails 3 "struct: s_t
+members:
+  m: no/such.params.yaml
+tables:
+  S: {}"
+check "a member default for a parameter it does not have" fails 3 "struct: s_t
+members:
+  m: {file: $T/lib/filt.params.yaml, defaults: {nosuch: \"1\"}}
+tables:
+  S: {}"
+check "a parameter that a member has too" fails 6 "struct: s_t
+members:
+  m: $T/lib/filt.params.yaml
+tables:
+  S:
+    gain: [double, \"1\", help]"
+check "defaults: with two tables" fails 2 "struct: s_t
+defaults: D
+tables:
+  S: {}
+  T: {}"
+check "defaults: a value that is no plain literal" fails 5 "struct: s_t
+defaults: D
+tables:
+  S:
+    n: [node, \"[]\", help]"
 finish
