@@ -8,7 +8,8 @@
 #   scripts/run-tests.sh [--jobs N] TEST... [-- TEST...]   (env: B, TEST_TIMEOUT seconds per
 #   program, default 300; a test whose first lines say "# test-timeout: N" gets N when that is
 #   more, for a run that is long by design): with --jobs, the tests before `--` run N at a time (each in its own
-#   namespace; their lines print when all are done, in order), those after it one at a time.
+#   namespace; a worker takes the next test as it finishes one; their lines print when all are
+#   done, in order), those after it one at a time.
 set -u
 B=${B:-build}
 logs=$B/test-logs
@@ -79,13 +80,16 @@ for t in "$@"; do
     n=$((n + 1))
 done
 if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
+    # Each worker takes the next test not yet taken (a counter under flock), so a long test
+    # holds one worker while the others go on through the list.
+    echo 0 > "$res/next"
     q=0
     while [ "$q" -lt "$jobs" ]; do
-        (i=0
-         for t in "$@"; do
-             [ "$t" = -- ] && break
-             [ $((i % jobs)) -eq "$q" ] && run_one "$t" "$res/$i" > "$res/$i"
-             i=$((i + 1))
+        (while :; do
+             i=$(flock "$res/next" sh -c 'i=$(cat "$1"); echo $((i + 1)) > "$1"; echo "$i"' _ "$res/next")
+             [ "$i" -lt "$n" ] || break
+             eval "t=\${$((i + 1))}"
+             run_one "$t" "$res/$i" > "$res/$i"
          done) &
         q=$((q + 1))
     done
