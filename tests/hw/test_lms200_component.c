@@ -125,7 +125,8 @@ static void test_scans_counters_and_reconnect_over_the_bus(void **state)
     pid_t pd = test_spawn(dargv, NULL);
 
     end = mono_ms() + 20000;
-    while (mono_ms() < end && !(s.scans_after_reconnect >= 5 && s.reconnects >= 1 && s.crc_errors >= 1))
+    while (mono_ms() < end &&
+           !(s.scans >= 10 && s.scans_after_reconnect >= 5 && s.reconnects >= 1 && s.crc_errors >= 1))
         pump(lcm, 50);
     test_stop(pd);
     test_stop(pe);
