@@ -22,7 +22,7 @@ so the library's defaults and the component's are the same line. A component tak
     members:
       slam: adapters/mapper/slam.params.yaml   # a field `slam_params_t slam;` of the struct,
                                                # and the file's parameters in every table
-      world: {file: sim/world.params.yaml, defaults: {start_x: "2.0"}}   # its own defaults
+      model: {file: sim/world.params.yaml, defaults: {start_x: "2.0"}}   # its own defaults
 and hands `&params->slam` to the library: nothing is copied by name.
 
 usage: params_gen.py IN.params.yaml OUT.h     (also writes OUT.d: OUT.h's members for make)

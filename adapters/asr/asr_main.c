@@ -5,10 +5,10 @@
 #include <string.h>
 
 #include "adapters/asr/asr.h"
+#include "adapters/asr/asr_params.h"
 #include "core/clear.h"
 #include "core/component.h"
 #include "core/file.h"
-#include "adapters/asr/asr_params.h"
 
 typedef struct {
     asr_t *asr;

@@ -7,10 +7,10 @@
 #include <string.h>
 
 #include "adapters/behaviours/arbiter.h"
+#include "adapters/behaviours/behaviours_params.h"
 #include "adapters/behaviours/recovery.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
-#include "adapters/behaviours/behaviours_params.h"
 
 enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_FACE, IN_COUNT };
 static const bhv_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }

@@ -6,11 +6,11 @@
 #include <unistd.h>
 
 #include "adapters/dialogue/dialogue.h"
+#include "adapters/dialogue/dialogue_params.h"
 #include "core/auth.h"
 #include "core/clear.h"
 #include "core/component.h"
 #include "core/time.h"
-#include "adapters/dialogue/dialogue_params.h"
 
 typedef struct {
     dialogue_t d;

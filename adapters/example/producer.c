@@ -1,6 +1,6 @@
 /* example producer: publishes a numbered counter_t at a fixed rate; the smallest useful component. */
-#include "core/component.h"
 #include "adapters/example/producer_params.h"
+#include "core/component.h"
 
 typedef struct {
     int64_t seq;

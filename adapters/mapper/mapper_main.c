@@ -7,11 +7,11 @@
 
 #include "adapters/common/posebuf.h"
 #include "adapters/common/scanwait.h"
+#include "adapters/mapper/mapper_params.h"
 #include "adapters/mapper/slam.h"
 #include "core/clear.h"
 #include "core/component.h"
 #include "map/occmap.h"
-#include "adapters/mapper/mapper_params.h"
 
 typedef struct {
     slam_t *slam;

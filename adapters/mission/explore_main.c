@@ -6,10 +6,10 @@
 #include <string.h>
 
 #include "adapters/mission/explore.h"
+#include "adapters/mission/explore_params.h"
 #include "core/clear.h"
 #include "core/component.h"
 #include "map/occmap.h"
-#include "adapters/mission/explore_params.h"
 
 #define MAX_BLACK 256
 

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "adapters/mission/mission.h"
+#include "adapters/mission/mission_params.h"
 #include "adapters/mission/mission_request.h"
 #include "adapters/mission/mission_signs.h"
 #include "ca/sharedmap_client.h"
@@ -14,7 +15,6 @@
 #include "core/clear.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
-#include "adapters/mission/mission_params.h"
 
 static const mission_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 

@@ -5,8 +5,8 @@
 #include <string.h>
 
 #include "adapters/odometry/odo.h"
-#include "core/component.h"
 #include "adapters/odometry/odometry_params.h"
+#include "core/component.h"
 
 typedef struct {
     odo_t o;

@@ -6,9 +6,9 @@
 #include <string.h>
 
 #include "adapters/ssl/ssl.h"
+#include "adapters/ssl/ssl_params.h"
 #include "core/clear.h"
 #include "core/component.h"
-#include "adapters/ssl/ssl_params.h"
 
 typedef struct {
     marie_component_t *c;

@@ -6,9 +6,9 @@
 #include <string.h>
 
 #include "adapters/tts/tts_child.h"
+#include "adapters/tts/tts_params.h"
 #include "core/clear.h"
 #include "core/component.h"
-#include "adapters/tts/tts_params.h"
 
 #define QUEUE 8
 

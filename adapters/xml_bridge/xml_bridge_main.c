@@ -4,9 +4,9 @@
 #include <string.h>
 
 #include "adapters/xml_bridge/xb_server.h"
+#include "adapters/xml_bridge/xml_bridge_params.h"
 #include "core/clear.h"
 #include "core/component.h"
-#include "adapters/xml_bridge/xml_bridge_params.h"
 
 static const xb_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 

@@ -9,8 +9,8 @@
 
 #include "core/clear.h"
 #include "core/component.h"
-#include "hw/audio/blocker.h"
 #include "hw/audio/audio_params.h"
+#include "hw/audio/blocker.h"
 
 #define MAX_FDS 8
 

@@ -8,8 +8,8 @@
 #include "core/component.h"
 #include "hw/gpio/debounce.h"
 #include "hw/gpio/gpio.h"
-#include "lcmtypes/marie_estop_t.h"
 #include "hw/gpio/gpio_params.h"
+#include "lcmtypes/marie_estop_t.h"
 
 static const gpio_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 

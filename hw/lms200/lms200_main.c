@@ -7,8 +7,8 @@
 
 #include "core/component.h"
 #include "hw/lms200/driver.h"
-#include "lcmtypes/marie_laser_scan_t.h"
 #include "hw/lms200/lms200_params.h"
+#include "lcmtypes/marie_laser_scan_t.h"
 
 static const lms200_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 

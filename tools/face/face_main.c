@@ -14,9 +14,9 @@
 #include "core/clear.h"
 #include "core/component.h"
 #include "managers/am_proto.h"
+#include "tools/face/face_params.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webserve.h"
-#include "tools/face/face_params.h"
 
 #define MAX_PLACES 24
 #define MAX_HOSTS 16

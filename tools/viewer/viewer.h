@@ -9,9 +9,9 @@
 
 #include "core/auth.h"
 #include "core/component.h"
+#include "tools/viewer/viewer_params.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webserve.h"
-#include "tools/viewer/viewer_params.h"
 
 /* Inputs: one per thing the page shows; the channel is the port's binding. */
 enum {
