@@ -97,8 +97,9 @@ include map/module.mk
 include camera/module.mk
 include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk camera/module.mk,$(wildcard */module.mk */*/module.mk)))
 
-# A component's parameters are declared once, in NAME.params.yaml beside its code: the struct
-# and spec tables are generated into $(B)/gen/c/DIR/NAME_params.h (core/params_gen.py).
+# Parameters are declared once, in NAME.params.yaml beside the component's or library's code:
+# the struct, spec tables and defaults are generated into $(B)/gen/c/DIR/NAME_params.h
+# (core/params_gen.py, docs/core.md).
 PARAM_SPECS := $(sort $(wildcard */*.params.yaml */*/*.params.yaml))
 PARAM_HEADERS := $(patsubst %.params.yaml,$(B)/gen/c/%_params.h,$(PARAM_SPECS))
 GEN_HEADERS += $(PARAM_HEADERS)

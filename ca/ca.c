@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/log.h"
 #include "core/loop.h"
 #include "core/time.h"
 
@@ -21,10 +22,7 @@ void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64
         return;
     char text[512];
     if (fmt) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(text, sizeof text, fmt, ap);
-        va_end(ap);
+        MARIE_VFORMAT(text, fmt);
     }
     s->note(s->user, kind, counter, n, fmt ? text : NULL);
 }

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include <jpeglib.h>
+#include "core/log.h"
 
 void vision_frame_free(vision_frame_t *f)
 {
@@ -38,10 +39,7 @@ static __thread char why_buf[160];
 static int bad(const char **why, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static int bad(const char **why, const char *fmt, ...)
 {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why_buf, sizeof why_buf, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(why_buf, fmt);
     if (why)
         *why = why_buf;
     return -EBADMSG;

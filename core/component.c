@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/log.h"
 #include "core/typeinfo.h"
 #include "core/spec.h"
 #include "lcmtypes/marie_types.h"
@@ -74,10 +75,7 @@ int64_t marie_component_counter(const marie_component_t *c, const char *counter)
 void marie_component_bad_input(marie_component_t *c, const char *counter, const char *fmt, ...)
 {
     char msg[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(msg, fmt);
     c->bad_input++;
     if (counter)
         marie_component_count(c, counter, 1);
@@ -135,10 +133,7 @@ void marie_component_heartbeat(marie_component_t *c)
 void marie_component_event(marie_component_t *c, int severity, const char *kind, const char *fmt, ...)
 {
     char text[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof text, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(text, fmt);
     marie_event_t ev = {
         .utime = marie_wall_us(), .source = c->name, .seq = ++c->event_seq,
         .severity = (int8_t)severity, .kind = (char *)kind, .text = text,
@@ -153,10 +148,7 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
 
 void marie_component_set_degraded(marie_component_t *c, bool degraded, const char *fmt, ...)
 {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(c->degraded_reason, sizeof c->degraded_reason, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(c->degraded_reason, fmt);
     if (degraded == c->degraded)
         return;
     c->degraded = degraded;
@@ -179,10 +171,7 @@ static void set_state(marie_component_t *c, marie_state_t s, const char *why)
 
 void marie_component_fail_reason(marie_component_t *c, const char *fmt, ...)
 {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(c->fail_reason, sizeof c->fail_reason, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(c->fail_reason, fmt);
 }
 
 /* Runs a hook; on refusal leaves the reason in c->reason. */

@@ -43,10 +43,7 @@ void marie_log_write(marie_log_level_t level, const char *file, int line, const 
     base = base ? base + 1 : file;
     extern char *program_invocation_short_name;
     char msg[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(msg, fmt);
     int64_t now = marie_wall_us();
     time_t secs = (time_t)(now / 1000000);
     struct tm tm;

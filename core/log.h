@@ -4,6 +4,7 @@
 
 #include <stdarg.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -42,6 +43,16 @@ int marie_log_ratelimit_pass(long long *last_s, int every_s);
 /* The error rule's reason (docs/core.md): the printf-style reason goes to why[0..len) when why is
  * given, errno becomes EINVAL, and -1 is returned: `return marie_fail_why(why, len, "...", ...);` */
 int marie_fail_why(char *why, size_t len, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+/* In a function ending in `fmt, ...`: its message, formatted into the char array buf (cut at
+ * the array's size). The one way marie's reporters (bad input, errors, events) format. */
+#define MARIE_VFORMAT(buf, fmt) \
+    do { \
+        va_list ap_; \
+        va_start(ap_, fmt); \
+        vsnprintf(buf, sizeof(buf), fmt, ap_); \
+        va_end(ap_); \
+    } while (0)
 
 #ifdef __cplusplus
 }

@@ -21,10 +21,7 @@ void marie_errors_add(marie_errors_t *e, const char *file, int line, int col, co
     if (!e)
         return;
     char msg[768], full[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(msg, fmt);
     if (line > 0)
         snprintf(full, sizeof full, "%s:%d:%d: %s", file ? file : "<config>", line, col, msg);
     else
@@ -60,10 +57,7 @@ void marie_errors_clear(marie_errors_t *e)
 void marie_node_error(marie_errors_t *e, const marie_node_t *n, const char *fmt, ...)
 {
     char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(msg, fmt);
     marie_errors_add(e, n->file, n->line, n->col, "%s", msg);
 }
 

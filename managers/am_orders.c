@@ -37,10 +37,7 @@ static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, co
 static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, const char *fmt, ...)
 {
     char reason[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(reason, sizeof reason, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(reason, fmt);
     marie_am_reply_t r = {
         .utime = marie_wall_us(), .host = am->host, .sender = o->sender, .seq = o->seq, .ok = ok,
         .reason = reason, .affected = affected,

@@ -13,10 +13,7 @@
 void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...)
 {
     char text[512], source[160];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof text, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(text, fmt);
     snprintf(source, sizeof source, "marie-am@%s", am->host);
     marie_event_t ev = {
         .utime = marie_wall_us(), .source = source, .seq = ++am->event_seq,

@@ -16,6 +16,7 @@
 #include <lcm/lcm.h>
 
 #include "core/config.h"
+#include "core/log.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
@@ -33,10 +34,7 @@ static void check(cli_t *cli, doc_t *d, const char *name, bool ok, const char *f
 static void check(cli_t *cli, doc_t *d, const char *name, bool ok, const char *fmt, ...)
 {
     char detail[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(detail, sizeof detail, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(detail, fmt);
     if (!ok)
         d->problems++;
     if (cli->json) {

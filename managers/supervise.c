@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 
 #include "core/component.h"
+#include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 
 static const char *const state_names[] = {
@@ -28,10 +29,7 @@ static void act_event(marie_sv_action_t *act, int sev, const char *kind, const c
     __attribute__((format(printf, 4, 5)));
 static void act_event(marie_sv_action_t *act, int sev, const char *kind, const char *fmt, ...)
 {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(act->event_text, sizeof act->event_text, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(act->event_text, fmt);
     act->event_sev = sev;
     act->event_kind = kind;
 }

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/component.h"
+#include "core/log.h"
 
 /* Heartbeats also come on every state change: a rate over less than this is too noisy, so
  * the baseline moves only once this much sender time has passed. */
@@ -487,10 +488,7 @@ static void line_set(top_line_t *ln, top_line_kind_t kind, int width, const char
     __attribute__((format(printf, 4, 5)));
 static void line_set(top_line_t *ln, top_line_kind_t kind, int width, const char *fmt, ...)
 {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(ln->text, sizeof ln->text, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(ln->text, fmt);
     if ((int)strlen(ln->text) > width)
         ln->text[width] = 0;
     ln->kind = kind;

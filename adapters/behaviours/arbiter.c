@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include "core/log.h"
 
 static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "face_speaker", "follow_path", "idle" };
 
@@ -49,10 +50,7 @@ static void vote(arb_vote_t *o, bool active, double v, double w, const char *fmt
     o->active = active;
     o->v = v;
     o->omega = w;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(o->reason, sizeof(o->reason), fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(o->reason, fmt);
 }
 
 static bool fresh(double age, double limit)

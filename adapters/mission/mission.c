@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include "core/log.h"
 
 void mission_init(mission_t *m)
 {
@@ -91,10 +92,7 @@ static void emit(mission_event_fn ev, void *user, const char *kind, const missio
     if (!ev)
         return;
     char text[200];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof(text), fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(text, fmt);
     ev(user, kind, g, text);
 }
 

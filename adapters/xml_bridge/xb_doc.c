@@ -10,16 +10,14 @@
 #include <sys/random.h>
 #include <time.h>
 #include <unistd.h>
+#include "core/log.h"
 
 void xb_error_set(xb_error_t *e, const char *code, const char *fmt, ...)
 {
     if (!e)
         return;
     snprintf(e->code, sizeof e->code, "%s", code);
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(e->reason, sizeof e->reason, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(e->reason, fmt);
 }
 
 const char *xb_node_attr(const xb_node_t *n, const char *name)

@@ -42,10 +42,7 @@ void xb_server_cfg_defaults(xb_server_cfg_t *cfg)
 void xb_bad_input(xb_server_t *s, const char *counter, const char *fmt, ...)
 {
     char reason[320];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(reason, sizeof reason, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(reason, fmt);
     if (s->hooks.bad_input)
         s->hooks.bad_input(s->hooks.user, counter, reason);
     else

@@ -35,10 +35,7 @@ static void event(can_link_t *l, const char *kind, const char *fmt, ...) __attri
 static void event(can_link_t *l, const char *kind, const char *fmt, ...)
 {
     char text[200];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof text, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(text, fmt);
     if (l->on_event)
         l->on_event(l->user, kind, text);
 }

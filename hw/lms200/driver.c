@@ -11,6 +11,7 @@
 #include <poll.h>
 
 #include "hw/lms200/serial.h"
+#include "core/log.h"
 
 #define MAX_PROBE 6
 /* Extra probe rounds at a rate where the line talks but the device has not answered yet
@@ -61,10 +62,7 @@ static void emit(lms200_driver_t *d, int sev, const char *kind, const char *fmt,
     if (!d->ops.on_event)
         return;
     char text[256];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof text, fmt, ap);
-    va_end(ap);
+    MARIE_VFORMAT(text, fmt);
     d->ops.on_event(d->user, sev, kind, text);
 }
 
