@@ -58,18 +58,9 @@ static void on_scan_copy(const lcm_recv_buf_t *rb, const char *ch, const marie_l
     add(&hop, last_hop);
 }
 
-static int cmp(const void *a, const void *b)
-{
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double pct(series_t *s, double p)
 {
-    if (!s->n)
-        return NAN;
-    qsort(s->v, (size_t)s->n, sizeof s->v[0], cmp);
-    return (double)s->v[(int)(p * (s->n - 1) + 0.5)];
+    return bench_percentile(s->v, s->n, p);
 }
 
 int main(void)

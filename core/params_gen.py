@@ -95,7 +95,7 @@ def param(name, knode, node):
         if not IDENT.match(default):
             raise SpecError(dnode, "%s: !c takes the name of a C macro" % name)
         return ptype, CExpr(default), scalar(hnode, name + " help")
-    if dnode.tag.endswith(":null") or (dnode.style is None and default in ("null", "~", "")):
+    if dnode.tag.endswith(":null"):
         default = None
     elif dnode.style not in ('"', "'"):
         raise SpecError(dnode, "%s: quote the default (it is YAML text: \"%s\")" % (name, default))

@@ -18,12 +18,18 @@
 #include "managers/am.h"
 #include "managers/progcheck.h"
 
+/* The path of the state file STATE_DIR/name in path[PATH_MAX]. */
+static char *state_path(const am_t *am, const char *name, char path[PATH_MAX])
+{
+    snprintf(path, PATH_MAX, "%s/%s", am->state_dir, name);
+    return path;
+}
+
 /* STATE_DIR/name opened with fopen's mode; NULL with errno. */
 static FILE *state_open(const am_t *am, const char *name, const char *mode)
 {
     char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/%s", am->state_dir, name);
-    return fopen(path, mode);
+    return fopen(state_path(am, name, path), mode);
 }
 
 /* The live children, so that a manager restarted after a crash can end the ones that
@@ -31,8 +37,7 @@ static FILE *state_open(const am_t *am, const char *name, const char *mode)
 void am_save_children(am_t *am)
 {
     char path[PATH_MAX], tmp[PATH_MAX + 8];
-    snprintf(path, sizeof path, "%s/children", am->state_dir);
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    snprintf(tmp, sizeof tmp, "%s.tmp", state_path(am, "children", path));
     FILE *f = fopen(tmp, "w");
     if (!f)
         return;
@@ -64,8 +69,7 @@ void am_kill_leftovers(am_t *am)
     }
     fclose(f);
     char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/children", am->state_dir);
-    unlink(path);
+    unlink(state_path(am, "children", path));
 }
 
 void am_comps_free(am_t *am)
@@ -109,7 +113,7 @@ void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65]
 void am_save_up_state(am_t *am)
 {
     char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/up", am->state_dir);
+    state_path(am, "up", path);
     if (!am->up || !am->sys) {
         unlink(path);
         return;
