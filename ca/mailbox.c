@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "core/component.h"
+#include "core/err.h"
 #include "lcmtypes/marie_pull_reply_t.h"
 
 typedef struct {
@@ -41,10 +42,8 @@ struct mailbox {
 mailbox_t *mailbox_create(const char *channel, const marie_type_t *type, int depth,
                           const ca_sink_t *sink)
 {
-    if (!channel || !*channel || depth < 1) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!channel || !*channel || depth < 1)
+        return marie_fail_null(EINVAL);
     mailbox_t *mb = calloc(1, sizeof *mb);
     if (!mb)
         return NULL;
@@ -54,8 +53,7 @@ mailbox_t *mailbox_create(const char *channel, const marie_type_t *type, int dep
     mb->overflow_counter = malloc(strlen(channel) + sizeof ".overflow");
     if (!mb->channel || !mb->pull_channel || !mb->ring || !mb->overflow_counter) {
         mailbox_destroy(mb);
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     strcpy(mb->pull_channel, channel);
     strcat(mb->pull_channel, MARIE_PULL_SUFFIX);

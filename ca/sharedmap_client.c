@@ -9,6 +9,7 @@
 
 #include "ca/ca.h"
 #include "core/clear.h"
+#include "core/err.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_sharedmap_reply_t.h"
@@ -122,8 +123,7 @@ sharedmap_client_t *sharedmap_client_create(lcm_t *lcm, const char *request_chan
     return cl;
 err:
     sharedmap_client_destroy(cl);
-    errno = ENOMEM;
-    return NULL;
+    return marie_fail_null(ENOMEM);
 }
 
 void sharedmap_client_destroy(sharedmap_client_t *cl)

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/loop.h"
 #include "core/time.h"
 
@@ -29,18 +30,15 @@ struct splitter {
 
 splitter_t *splitter_create(const char *input, const marie_type_t *type, const ca_sink_t *sink)
 {
-    if (!input || !*input) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!input || !*input)
+        return marie_fail_null(EINVAL);
     splitter_t *sp = calloc(1, sizeof *sp);
     if (!sp)
         return NULL;
     sp->input = strdup(input);
     if (!sp->input) {
         free(sp);
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     sp->type = type;
     if (sink)

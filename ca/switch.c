@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
@@ -34,10 +35,8 @@ struct ca_switch {
 ca_switch_t *ca_switch_create(const char *output, const marie_type_t *type, const char *state_file,
                               const ca_sink_t *sink)
 {
-    if (!output || !*output) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!output || !*output)
+        return marie_fail_null(EINVAL);
     ca_switch_t *sw = calloc(1, sizeof *sw);
     if (!sw)
         return NULL;
@@ -50,8 +49,7 @@ ca_switch_t *ca_switch_create(const char *output, const marie_type_t *type, cons
         sw->sink = *sink;
     if (!sw->output || !sw->source || (state_file && *state_file && !sw->state_file)) {
         ca_switch_destroy(sw);
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     return sw;
 }

@@ -14,6 +14,8 @@
 #include <apriltag/tagStandard41h12.h>
 #include <apriltag/tagStandard52h13.h>
 
+#include "core/err.h"
+
 static const struct {
     const char *name;
     apriltag_family_t *(*create)(void);
@@ -45,8 +47,7 @@ apriltag_family_t *vision_family_create(const char *name)
                 errno = ENOMEM;
             return f;
         }
-    errno = ENOENT;
-    return NULL;
+    return marie_fail_null(ENOENT);
 }
 
 void vision_family_destroy(apriltag_family_t *fam)

@@ -13,6 +13,7 @@
 
 #include <sodium.h>
 
+#include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
 
@@ -35,8 +36,7 @@ marie_auth_t *marie_auth_load(const char *path, char *err, size_t errlen)
     err[0] = 0;
     if (sodium_init() < 0) {
         snprintf(err, errlen, "libsodium failed to initialise");
-        errno = EIO;
-        return NULL;
+        return marie_fail_null(EIO);
     }
     int fd = open(path, O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
     if (fd < 0) {
@@ -98,11 +98,7 @@ err_free:
     free(a);
 err_close:
     sodium_memzero(buf, sizeof buf);
-    {
-        int e = errno;
-        close(fd);
-        errno = e;
-    }
+    MARIE_KEEP_ERRNO(close(fd));
     return NULL;
 }
 
@@ -320,10 +316,8 @@ static void replay_load(marie_replay_t *r)
 
 marie_replay_t *marie_replay_create_window(const char *path, int64_t lifetime_us, int64_t max_skew_us)
 {
-    if (lifetime_us < 0 || max_skew_us < 0 || lifetime_us > INT64_MAX / 8 || max_skew_us > INT64_MAX / 8) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (lifetime_us < 0 || max_skew_us < 0 || lifetime_us > INT64_MAX / 8 || max_skew_us > INT64_MAX / 8)
+        return marie_fail_null(EINVAL);
     marie_replay_t *r = calloc(1, sizeof *r);
     if (!r)
         return NULL;

@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/err.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "core/component_priv.h"
@@ -352,15 +353,11 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
 static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, void *user, void *msg)
 {
     marie_component_t *c = p->c;
-    if (p->spec->mech != MARIE_PULL || timeout_ms < 0) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (p->spec->mech != MARIE_PULL || timeout_ms < 0)
+        return marie_fail_null(EINVAL);
     if (!c->reply_subscribed) {
-        if (!lcm_subscribe(p->lcm, c->reply_channel, on_pull_reply, c)) {
-            errno = EIO;
-            return NULL;
-        }
+        if (!lcm_subscribe(p->lcm, c->reply_channel, on_pull_reply, c))
+            return marie_fail_null(EIO);
         c->reply_subscribed = true;
     }
     pull_t **n = realloc(c->pulls, (c->npulls + 1) * sizeof *n);
@@ -369,8 +366,7 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
         free(pl);
         if (n)
             c->pulls = n;
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     c->pulls = n;
     *pl = (pull_t){.request_id = ++c->next_request_id, .port = p, .cb = cb, .user = user, .msg = msg};
@@ -383,8 +379,7 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
     if (marie_pull_request_t_publish(p->lcm, req_channel, &req) != 0) {
         c->drops++;
         free(pl);
-        errno = EIO;
-        return NULL;
+        return marie_fail_null(EIO);
     }
     c->msgs_out++;
     /* On the wall clock: a Mailbox answers in wall time, and under --clock sim a component that
@@ -437,10 +432,8 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
 
 marie_timer_t *marie_component_every(marie_component_t *c, double hz, marie_tick_cb_t cb)
 {
-    if (hz <= 0 || !cb) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (hz <= 0 || !cb)
+        return marie_fail_null(EINVAL);
     for (size_t i = 0; i < c->nticks; i++)
         if (c->ticks[i]->cb == cb) {
             marie_timer_set_period(c->ticks[i]->timer, (int64_t)(1e6 / hz + 0.5));
@@ -452,8 +445,7 @@ marie_timer_t *marie_component_every(marie_component_t *c, double hz, marie_tick
         free(k);
         if (n)
             c->ticks = n;
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     c->ticks = n;
     *k = (tick_t){c, cb, NULL};

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 static int append(char **buf, size_t *len, size_t *cap, const char *s, size_t n)
 {
     if (*len + n + 1 > *cap) {
@@ -78,10 +80,8 @@ char *marie_expand_env(const char *in, char *why, size_t why_len)
     return buf;
 err_inval:
     free(buf);
-    errno = EINVAL;
-    return NULL;
+    return marie_fail_null(EINVAL);
 err_nomem:
     free(buf);
-    errno = ENOMEM;
-    return NULL;
+    return marie_fail_null(ENOMEM);
 }

@@ -10,9 +10,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 void *marie_file_read(const char *path, size_t max, size_t *len)
 {
-    int e, fd = open(path, O_RDONLY | O_CLOEXEC);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0)
         return NULL;
     size_t cap = 1 << 16, n = 0;
@@ -50,13 +52,9 @@ void *marie_file_read(const char *path, size_t max, size_t *len)
     *len = n;
     return buf;
 err_free:
-    e = errno;
-    free(buf);
-    errno = e;
+    MARIE_KEEP_ERRNO(free(buf));
 err_close:
-    e = errno;
-    close(fd);
-    errno = e;
+    MARIE_KEEP_ERRNO(close(fd));
     return NULL;
 }
 
@@ -101,13 +99,10 @@ char *marie_state_dir(void)
         if (asprintf(&dir, "%s/.local/state/marie", home) < 0)
             dir = NULL;
     } else {
-        errno = ENOENT;
-        return NULL;
+        return marie_fail_null(ENOENT);
     }
-    if (!dir) {
-        errno = ENOMEM;
-        return NULL;
-    }
+    if (!dir)
+        return marie_fail_null(ENOMEM);
     int rc = make_dirs(dir, 0700);
     if (rc < 0) {
         free(dir);

@@ -8,6 +8,7 @@
 #include <strings.h>
 #include <time.h>
 
+#include "core/err.h"
 #include "core/time.h"
 
 static int threshold = -1;
@@ -71,6 +72,5 @@ int marie_fail_why(char *why, size_t len, const char *fmt, ...)
         vsnprintf(why, len, fmt, ap);
         va_end(ap);
     }
-    errno = EINVAL;
-    return -1;
+    return marie_fail(EINVAL);
 }

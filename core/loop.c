@@ -12,6 +12,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
 
@@ -197,10 +198,8 @@ static int64_t clock_now(const marie_loop_t *loop, int wall)
 static marie_timer_t *add_timer(marie_loop_t *loop, int64_t period, int64_t delay,
                                 marie_timer_cb_t cb, void *user, int wall)
 {
-    if (delay < 0 || !cb) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (delay < 0 || !cb)
+        return marie_fail_null(EINVAL);
     marie_timer_t *t = calloc(1, sizeof *t);
     if (!t)
         return NULL;
@@ -216,19 +215,15 @@ static marie_timer_t *add_timer(marie_loop_t *loop, int64_t period, int64_t dela
 
 marie_timer_t *marie_loop_add_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user)
 {
-    if (period_us <= 0) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (period_us <= 0)
+        return marie_fail_null(EINVAL);
     return add_timer(loop, period_us, period_us, cb, user, 0);
 }
 
 marie_timer_t *marie_loop_add_wall_timer(marie_loop_t *loop, int64_t period_us, marie_timer_cb_t cb, void *user)
 {
-    if (period_us < 0) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (period_us < 0)
+        return marie_fail_null(EINVAL);
     return add_timer(loop, period_us, period_us, cb, user, 1);
 }
 

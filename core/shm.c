@@ -14,6 +14,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 #define SHM_MAGIC 0x6d73686du     /* "mshm" */
 #define SHM_VERSION 1
 #define SHM_PREFIX "marie-shm."
@@ -80,10 +82,8 @@ static int segment_name(char *out, size_t cap, const char *channel, pid_t pid)
 
 marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_size, int nslots)
 {
-    if (!channel || !*channel || slot_size == 0 || slot_size > ((size_t)1 << 30) || nslots < 2 || nslots > 1024) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!channel || !*channel || slot_size == 0 || slot_size > ((size_t)1 << 30) || nslots < 2 || nslots > 1024)
+        return marie_fail_null(EINVAL);
     marie_shm_sweep();
     marie_shm_writer_t *w = calloc(1, sizeof *w);
     if (!w)
@@ -117,15 +117,10 @@ marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_siz
     atomic_thread_fence(memory_order_release);
     w->hdr->magic = SHM_MAGIC;
     return w;
-err_unlink:;
-    int e = errno;
-    close(fd);
-    unlink(path);
-    errno = e;
+err_unlink:
+    MARIE_KEEP_ERRNO(close(fd); unlink(path));
 err_free:
-    e = errno;
-    free(w);
-    errno = e;
+    MARIE_KEEP_ERRNO(free(w));
     return NULL;
 }
 

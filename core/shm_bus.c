@@ -8,6 +8,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/err.h"
 #include "core/loop.h"
 #include "core/shm.h"
 #include "core/time.h"
@@ -58,10 +59,8 @@ static void on_want(const lcm_recv_buf_t *rb, const char *channel, void *user)
 
 marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t max_size, int nslots)
 {
-    if (!lcm || !channel || strlen(channel) >= CH_MAX) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!lcm || !channel || strlen(channel) >= CH_MAX)
+        return marie_fail_null(EINVAL);
     marie_shm_pub_t *p = calloc(1, sizeof *p);
     if (!p)
         return NULL;
@@ -79,11 +78,8 @@ marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t ma
         goto err;
     }
     return p;
-err:;
-    int e = errno;
-    marie_shm_writer_destroy(p->w);
-    free(p);
-    errno = e;
+err:
+    MARIE_KEEP_ERRNO(marie_shm_writer_destroy(p->w); free(p));
     return NULL;
 }
 
@@ -246,10 +242,8 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
 marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t max_size, marie_shm_msg_cb_t cb,
                                       void *user)
 {
-    if (!lcm || !channel || strlen(channel) >= CH_MAX || !cb || max_size < 8) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!lcm || !channel || strlen(channel) >= CH_MAX || !cb || max_size < 8)
+        return marie_fail_null(EINVAL);
     marie_shm_sub_t *s = calloc(1, sizeof *s);
     if (!s)
         return NULL;

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 #define RING 256
 
 typedef struct {
@@ -258,8 +260,7 @@ balance_t *balance_create(const char *self, const marie_system_t *sys, const bal
     return b;
 err:
     balance_destroy(b);
-    errno = ENOMEM;
-    return NULL;
+    return marie_fail_null(ENOMEM);
 }
 
 void balance_destroy(balance_t *b)

@@ -9,6 +9,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 static void emit(marie_linebuf_t *lb, marie_line_cb_t cb, void *user)
 {
     size_t n = lb->len;
@@ -105,9 +107,7 @@ marie_logfile_t *marie_logfile_open(const char *path, int64_t max_bytes, int kee
     lf->max_bytes = max_bytes;
     lf->keep = keep < 1 ? 1 : keep;
     if (!lf->path || logfile_reopen(lf) < 0) {
-        int e = errno;
-        marie_logfile_close(lf);
-        errno = e;
+        MARIE_KEEP_ERRNO(marie_logfile_close(lf));
         return NULL;
     }
     return lf;

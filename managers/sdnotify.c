@@ -9,6 +9,8 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 int marie_sd_notify(const char *state)
 {
     const char *path = getenv("NOTIFY_SOCKET");
@@ -28,9 +30,7 @@ int marie_sd_notify(const char *state)
     if (fd < 0)
         return -1;
     ssize_t n = sendto(fd, state, strlen(state), MSG_NOSIGNAL, (struct sockaddr *)&sa, salen);
-    int err = errno;
-    close(fd);
-    errno = err;
+    MARIE_KEEP_ERRNO(close(fd));
     return n < 0 ? -1 : 1;
 }
 

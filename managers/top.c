@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/component.h"
+#include "core/err.h"
 #include "core/log.h"
 
 /* Heartbeats also come on every state change: a rate over less than this is too noisy, so
@@ -91,10 +92,8 @@ static int grow(void **p, size_t *cap, size_t need, size_t size)
     while (n < need)
         n *= 2;
     void *q = realloc(*p, n * size);
-    if (!q) {
-        errno = ENOMEM;
-        return -1;
-    }
+    if (!q)
+        return marie_fail(ENOMEM);
     *p = q;
     *cap = n;
     return 0;

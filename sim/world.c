@@ -10,6 +10,7 @@
 
 #include <ode/ode.h>
 
+#include "core/err.h"
 #include "sim/rng.h"
 
 /* Robot body, in the robot frame (x forward, y left, z up; origin on the ground under the
@@ -96,10 +97,8 @@ int sim_world_teleport(sim_world_t *w, double x, double y, double theta)
 {
     double lx, ly;
     sim_world_footprint(&w->p, &lx, &ly);
-    if (!isfinite(x) || !isfinite(y) || !isfinite(theta) || !occmap_footprint_clear(w->map, x, y, theta, lx, ly)) {
-        errno = EINVAL;
-        return -1;
-    }
+    if (!isfinite(x) || !isfinite(y) || !isfinite(theta) || !occmap_footprint_clear(w->map, x, y, theta, lx, ly))
+        return marie_fail(EINVAL);
     place(w->chassis, 0, 0, CHASSIS_Z, x, y, theta);
     for (int k = 0; k < 2; k++)
         place(w->wheel[k], 0, (k == 0 ? 1 : -1) * w->p.track / 2, w->p.wheel_radius, x, y, theta);
@@ -120,10 +119,8 @@ sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
     pthread_once(&ode_once, ode_init);
     dAllocateODEDataForThread(dAllocateMaskAll);
     if (p->step <= 0 || p->wheel_radius <= 0 || p->track <= 0 || p->laser_beams < 1 ||
-        p->laser_max <= p->laser_min || p->ticks_per_rev <= 0) {
-        errno = EINVAL;
-        return NULL;
-    }
+        p->laser_max <= p->laser_min || p->ticks_per_rev <= 0)
+        return marie_fail_null(EINVAL);
     sim_world_t *w = calloc(1, sizeof(*w));
     if (!w)
         return NULL;
@@ -150,8 +147,7 @@ sim_world_t *sim_world_create(const occmap_t *map, const sim_params_t *p)
     long nr = sim_walls_rects(map, &rects);
     if (nr < 0) {
         sim_world_destroy(w);
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     double res = map->resolution;
     for (long k = 0; k < nr; k++) {

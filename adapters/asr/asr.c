@@ -9,6 +9,7 @@
 
 #include <pocketsphinx.h>
 
+#include "core/err.h"
 #include "core/log.h"
 
 const char *const asr_default_commands[] = {
@@ -77,8 +78,7 @@ asr_t *asr_create(const asr_cfg_t *cfg, asr_result_cb_t cb, void *user, char *wh
 {
     if (cfg->ncommands < 1 || cfg->block < 1 || cfg->rate != 16000) {
         marie_fail_why(why, whylen, "need commands, a block size and 16000 Hz (the model's rate)");
-        errno = EINVAL;
-        return NULL;
+        return marie_fail_null(EINVAL);
     }
     asr_t *a = calloc(1, sizeof(*a));
     char *jsgf = make_jsgf(cfg);
@@ -110,8 +110,7 @@ asr_t *asr_create(const asr_cfg_t *cfg, asr_result_cb_t cb, void *user, char *wh
 fail:
     free(jsgf);
     asr_destroy(a);
-    errno = EINVAL;
-    return NULL;
+    return marie_fail_null(EINVAL);
 }
 
 void asr_destroy(asr_t *a)

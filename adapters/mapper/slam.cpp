@@ -11,6 +11,7 @@
 
 #include "adapters/mapper/posegraph.hpp"
 #include "adapters/mapper/scangrid.hpp"
+#include "core/err.h"
 
 using namespace mapper;
 
@@ -214,10 +215,8 @@ static void try_loop(slam_t *s)
 extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t *scan, double pose[3])
 {
     Scan sc;
-    if (!std::isfinite(odom[0]) || !std::isfinite(odom[1]) || !std::isfinite(odom[2]) || !make_scan(s, scan, &sc)) {
-        errno = EINVAL;
-        return -1;
-    }
+    if (!std::isfinite(odom[0]) || !std::isfinite(odom[1]) || !std::isfinite(odom[2]) || !make_scan(s, scan, &sc))
+        return marie_fail(EINVAL);
     auto t0 = std::chrono::steady_clock::now();
     Pose o{ odom[0], odom[1], odom[2] };
     s->st.scans++;

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 enum { C_UNKNOWN = 0, C_FREE = 1, C_OCC = 2 };
 
 void explore_params_default(explore_params_t *p)
@@ -52,10 +54,8 @@ static int reach(const occmap_t *m, const unsigned char *ok, double rx, double r
     int W = m->width, H = m->height, cx, cy, start = -1;
     for (size_t i = 0; i < (size_t)W * H; i++)
         dist[i] = -1;
-    if (!occmap_cell(m, rx, ry, &cx, &cy)) {
-        errno = ENOENT;
-        return -1;
-    }
+    if (!occmap_cell(m, rx, ry, &cx, &cy))
+        return marie_fail(ENOENT);
     int r = (int)ceil(radius / m->resolution) + 1, best = INT32_MAX;
     for (int dy = -r; dy <= r; dy++)
         for (int dx = -r; dx <= r; dx++) {
@@ -65,10 +65,8 @@ static int reach(const occmap_t *m, const unsigned char *ok, double rx, double r
                 start = v * W + u;
             }
         }
-    if (start < 0) {
-        errno = ENOENT;
-        return -1;
-    }
+    if (start < 0)
+        return marie_fail(ENOENT);
     int *queue = malloc(sizeof(int) * (size_t)W * H);
     if (!queue)
         return -1;
@@ -195,10 +193,8 @@ int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, d
                       int nblack, explore_frontier_t *out, int max)
 {
     if (!m || !p || !out || max < 0 || m->width <= 0 || m->height <= 0 || !(m->resolution > 0) || !isfinite(rx) ||
-        !isfinite(ry)) {
-        errno = EINVAL;
-        return -1;
-    }
+        !isfinite(ry))
+        return marie_fail(EINVAL);
     size_t n = (size_t)m->width * m->height;
     unsigned char *ok = passable(m, p->robot_radius);
     int *dist = malloc(sizeof(int) * n), *parent = malloc(sizeof(int) * n);
@@ -222,10 +218,8 @@ out:
 int explore_path(const occmap_t *m, const explore_params_t *p, double rx, double ry, double gx, double gy, double *xy,
                  int max)
 {
-    if (!m || !p || !xy || max < 2) {
-        errno = EINVAL;
-        return -1;
-    }
+    if (!m || !p || !xy || max < 2)
+        return marie_fail(EINVAL);
     size_t n = (size_t)m->width * m->height;
     unsigned char *ok = passable(m, p->robot_radius);
     int *dist = malloc(sizeof(int) * n), *parent = malloc(sizeof(int) * n);

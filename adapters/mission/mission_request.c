@@ -3,6 +3,8 @@
 
 #include <errno.h>
 
+#include "core/err.h"
+
 int mission_request_insert(mission_t *m, const mission_goal_t *g)
 {
     int slot = -1;
@@ -14,10 +16,8 @@ int mission_request_insert(mission_t *m, const mission_goal_t *g)
             top = m->goals[i].priority + 1;
     }
     if (slot < 0) {
-        if (m->n >= MISSION_MAX_GOALS) {
-            errno = ENOSPC;
-            return -1;
-        }
+        if (m->n >= MISSION_MAX_GOALS)
+            return marie_fail(ENOSPC);
         slot = m->n++;
     }
     if (m->current >= 0 && m->current != slot)

@@ -2,6 +2,7 @@
 // The inflation comes from an OpenCV distance transform; laser obstacles are stamped as
 // robot-radius disks.
 #include "adapters/planner/planner.h"
+#include "core/err.h"
 #include "map/gridpath.h"
 
 #include <algorithm>
@@ -100,8 +101,7 @@ extern "C" int planner_algorithm(const char *name)
     for (int i = 0; name && i < 3; i++)
         if (strcmp(name, names[i]) == 0)
             return i;
-    errno = EINVAL;
-    return -1;
+    return marie_fail(EINVAL);
 }
 
 extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t *p, uint64_t seed)

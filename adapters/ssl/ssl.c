@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 typedef struct {
     int id;                     /* 0: free */
     float *ola;                 /* nfft */
@@ -81,10 +83,8 @@ static int spec_stride(const ssl_t *s)
 
 ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
 {
-    if (cfg->hop * 2 != cfg->srp.nfft || cfg->potentials < 1 || cfg->potentials > SSL_MAX_POTENTIALS) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (cfg->hop * 2 != cfg->srp.nfft || cfg->potentials < 1 || cfg->potentials > SSL_MAX_POTENTIALS)
+        return marie_fail_null(EINVAL);
     ssl_t *s = calloc(1, sizeof(*s));
     if (!s)
         return NULL;
@@ -241,10 +241,8 @@ static void frame(ssl_t *s)
 
 static int feed(ssl_t *s, const int16_t *i16, const float *f32, int nchannels, int nsamples, int64_t utime)
 {
-    if (nchannels != s->M || nsamples < 0) {
-        errno = EINVAL;
-        return -1;
-    }
+    if (nchannels != s->M || nsamples < 0)
+        return marie_fail(EINVAL);
     int rate = s->cfg.srp.rate;
     for (int j = 0; j < nsamples; j++) {
         for (int m = 0; m < s->M; m++) {

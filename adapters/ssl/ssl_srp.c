@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 #define SPEED_OF_SOUND 343.0
 
 struct ssl_srp {
@@ -71,10 +73,8 @@ static void make_lags(ssl_srp_t *s, const micarray_t *mics)
 ssl_srp_t *ssl_srp_create(const ssl_srp_cfg_t *cfg, const micarray_t *mics)
 {
     if (cfg->nfft < 64 || cfg->nfft > 8192 || (cfg->nfft & (cfg->nfft - 1)) || cfg->upsample < 1 ||
-        cfg->upsample > 16 || mics->n < 2 || cfg->rate < 4000 || !(cfg->az_step > 0) || !(cfg->el_step > 0)) {
-        errno = EINVAL;
-        return NULL;
-    }
+        cfg->upsample > 16 || mics->n < 2 || cfg->rate < 4000 || !(cfg->az_step > 0) || !(cfg->el_step > 0))
+        return marie_fail_null(EINVAL);
     ssl_srp_t *s = calloc(1, sizeof(*s));
     if (!s)
         return NULL;
@@ -112,8 +112,7 @@ ssl_srp_t *ssl_srp_create(const ssl_srp_cfg_t *cfg, const micarray_t *mics)
     return s;
 fail:
     ssl_srp_destroy(s);
-    errno = ENOMEM;
-    return NULL;
+    return marie_fail_null(ENOMEM);
 }
 
 void ssl_srp_destroy(ssl_srp_t *s)

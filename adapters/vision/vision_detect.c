@@ -11,6 +11,7 @@
 #include <apriltag/apriltag_pose.h>
 
 #include "camera/vision_family.h"
+#include "core/err.h"
 
 struct vision_detector {
     apriltag_detector_t *td;
@@ -52,8 +53,7 @@ vision_detector_t *vision_detector_create(const vision_detector_opts_t *o, char 
         why = "sharpening must be within 0..10";
     if (why) {
         snprintf(err, errlen, "%s", why);
-        errno = EINVAL;
-        return NULL;
+        return marie_fail_null(EINVAL);
     }
     vision_detector_t *d = calloc(1, sizeof *d);
     if (!d)
@@ -89,8 +89,7 @@ err_family:
     return NULL;
 err_alloc:
     snprintf(err, errlen, "out of memory");
-    errno = ENOMEM;
-    return NULL;
+    return marie_fail_null(ENOMEM);
 }
 
 void vision_detector_destroy(vision_detector_t *d)

@@ -5,14 +5,13 @@
 #include <stdlib.h>
 #include <string.h>
 #include "core/clear.h"
+#include "core/err.h"
 
 int audio_blocker_init(audio_blocker_t *b, int nchannels, int block, int rate, audio_block_cb_t cb, void *user)
 {
     memset(b, 0, sizeof(*b));
-    if (nchannels < 1 || nchannels > 64 || block < 1 || block > 65536 || rate < 1) {
-        errno = EINVAL;
-        return -1;
-    }
+    if (nchannels < 1 || nchannels > 64 || block < 1 || block > 65536 || rate < 1)
+        return marie_fail(EINVAL);
     b->buf = malloc(sizeof(int16_t) * (size_t)nchannels * (size_t)block);
     if (!b->buf)
         return -1;

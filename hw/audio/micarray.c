@@ -6,12 +6,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 static int refuse(const char **why, const char *reason)
 {
     if (why)
         *why = reason;
-    errno = EINVAL;
-    return -1;
+    return marie_fail(EINVAL);
 }
 
 int micarray_parse(const char *text, micarray_t *out, const char **why)

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/file.h"
 
 static uint32_t le32(const uint8_t *p)
@@ -22,8 +23,7 @@ static int refuse(const char **why, const char *reason)
 {
     if (why)
         *why = reason;
-    errno = EINVAL;
-    return -1;
+    return marie_fail(EINVAL);
 }
 
 int wav_parse(const uint8_t *buf, size_t len, wav_info_t *out, const char **why)
@@ -88,9 +88,7 @@ float *wav_load_mono(const char *path, size_t *frames, int *rate)
     } else if (!errno) {
         errno = EINVAL;
     }
-    int e = errno;
-    free(buf);
-    errno = e;
+    MARIE_KEEP_ERRNO(free(buf));
     return out;
 }
 

@@ -18,6 +18,8 @@
 #include <linux/netlink.h>
 #include <linux/rtnetlink.h>
 
+#include "core/err.h"
+
 #define CAN_MAX_FILTERS 64
 /* Frames held for the emulated bus's server, whose socket takes only 10 packets per client
  * (net.unix.max_dgram_qlen) until it runs again; a real controller's queue drains on the wire
@@ -199,10 +201,8 @@ can_bus_t *can_bus_open(const char *url)
 {
     int fd, ifindex = 0;
     bool sc;
-    if (!url) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!url)
+        return marie_fail_null(EINVAL);
     if (strncmp(url, "can:", 4) == 0) {
         fd = open_socketcan(url + 4, &ifindex);
         sc = true;
@@ -210,8 +210,7 @@ can_bus_t *can_bus_open(const char *url)
         fd = open_emu(url + 4);
         sc = false;
     } else {
-        errno = EINVAL;
-        return NULL;
+        return marie_fail_null(EINVAL);
     }
     if (fd < 0) {
         errno = -fd;
@@ -220,8 +219,7 @@ can_bus_t *can_bus_open(const char *url)
     can_bus_t *b = bus_new(fd, sc, url);
     if (!b) {
         close(fd);
-        errno = ENOMEM;
-        return NULL;
+        return marie_fail_null(ENOMEM);
     }
     b->ifindex = ifindex;
     return b;

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "core/clear.h"
+#include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
 
@@ -144,10 +145,8 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
 can_link_t *can_link_open(marie_loop_t *loop, const char *url, const struct can_filter *filters, size_t n,
                           can_link_frame_cb_t on_frame, can_link_event_cb_t on_event, void *user)
 {
-    if (n > MAX_FILTERS || !url || strlen(url) >= sizeof ((can_link_t *)0)->url) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (n > MAX_FILTERS || !url || strlen(url) >= sizeof ((can_link_t *)0)->url)
+        return marie_fail_null(EINVAL);
     can_link_t *l = calloc(1, sizeof *l);
     if (!l)
         return NULL;

@@ -11,6 +11,8 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 #define EMUBUS_MAX_CLIENTS 64
 /* Frames held for a client whose socket is full. An AF_UNIX socket takes only
  * net.unix.max_dgram_qlen (10) packets, where a SocketCAN socket's receive buffer holds
@@ -48,10 +50,8 @@ can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
     memset(&sa, 0, sizeof sa);
     sa.sun_family = AF_UNIX;
     int n = snprintf(sa.sun_path, sizeof sa.sun_path, "%s.new", path);
-    if (n < 0 || (size_t)n >= sizeof sa.sun_path) {
-        errno = ENAMETOOLONG;
-        return NULL;
-    }
+    if (n < 0 || (size_t)n >= sizeof sa.sun_path)
+        return marie_fail_null(ENAMETOOLONG);
     can_emubus_t *b = calloc(1, sizeof *b);
     if (!b)
         return NULL;
@@ -64,9 +64,7 @@ can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
     if (bind(b->lfd, (struct sockaddr *)&sa, sizeof sa) < 0)
         goto err_close;
     if (listen(b->lfd, 16) < 0 || rename(sa.sun_path, path) < 0) {
-        int e = errno;
-        unlink(sa.sun_path);
-        errno = e;
+        MARIE_KEEP_ERRNO(unlink(sa.sun_path));
         goto err_close;
     }
     int r = marie_loop_add_fd(loop, b->lfd, POLLIN, on_listen, b);
@@ -75,18 +73,12 @@ can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
         goto err_unlink;
     }
     return b;
-err_unlink:;
-    int e = errno;
-    unlink(path);
-    errno = e;
+err_unlink:
+    MARIE_KEEP_ERRNO(unlink(path));
 err_close:
-    e = errno;
-    close(b->lfd);
-    errno = e;
+    MARIE_KEEP_ERRNO(close(b->lfd));
 err_free:
-    e = errno;
-    free(b);
-    errno = e;
+    MARIE_KEEP_ERRNO(free(b));
     return NULL;
 }
 

@@ -73,3 +73,20 @@ int64_t co_pdo_signed(uint64_t v, uint8_t bits)
     v &= (UINT64_C(1) << bits) - 1;
     return (int64_t)((v ^ sign) - sign);
 }
+
+int co_pdo_map_steps(co_sdo_step_t *out, uint16_t comm, canid_t cob, const co_pdo_map_t *m, uint8_t trans,
+                     const co_sdo_step_t *extra)
+{
+    uint16_t map = (uint16_t)(comm + 0x200);
+    int n = 0;
+    out[n++] = (co_sdo_step_t){ CO_STEP_DN, comm, 1, 4, CO_STEP_INVALID_NODE, cob };
+    out[n++] = (co_sdo_step_t){ CO_STEP_DN, map, 0, 1, CO_STEP_CONST, 0 };
+    for (int i = 0; i < m->n && i < CO_PDO_MAX_ENTRIES; i++)
+        out[n++] = (co_sdo_step_t){ CO_STEP_DN, map, (uint8_t)(i + 1), 4, CO_STEP_CONST, co_pdo_entry_u32(m->e[i]) };
+    out[n++] = (co_sdo_step_t){ CO_STEP_DN, map, 0, 1, CO_STEP_CONST, m->n };
+    out[n++] = (co_sdo_step_t){ CO_STEP_DN, comm, 2, 1, CO_STEP_CONST, trans };
+    if (extra)
+        out[n++] = *extra;
+    out[n++] = (co_sdo_step_t){ CO_STEP_DN, comm, 1, 4, CO_STEP_NODE, cob };
+    return n;
+}

@@ -5,6 +5,8 @@
 #include <stdint.h>
 #include <linux/can.h>
 
+#include "hw/canopen/sdo.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -44,6 +46,16 @@ int co_pdo_encode(const co_pdo_map_t *m, const uint64_t *vals, struct can_frame 
 int co_pdo_decode(const co_pdo_map_t *m, const struct can_frame *f, uint64_t *vals);
 /* Sign-extend a `bits`-wide value. */
 int64_t co_pdo_signed(uint64_t v, uint8_t bits);
+
+#define CO_PDO_MAX_STEPS (CO_PDO_MAX_ENTRIES + 6)
+/* The configuration steps (sdo.h) that give a node's PDO the mapping m, in CiA 301's order:
+ * switch the PDO off (COB-ID cob + node, bit 31 set), clear the mapping count, write the
+ * entries, set the count, the transmission type trans, then `extra` unless NULL (an event timer,
+ * an RPDO deadline), and switch the PDO on. comm is the PDO's communication parameter object
+ * (0x1400 + n: RPDO n+1, 0x1800 + n: TPDO n+1); its mapping is at comm + 0x200. Writes at most
+ * CO_PDO_MAX_STEPS steps into out and returns how many. */
+int co_pdo_map_steps(co_sdo_step_t *out, uint16_t comm, canid_t cob, const co_pdo_map_t *m, uint8_t trans,
+                     const co_sdo_step_t *extra);
 
 #ifdef __cplusplus
 }

@@ -383,3 +383,26 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
         return srv_abort(s, tx, index, sub, CO_SDO_ABORT_CMD);
     }
 }
+
+int co_sdo_step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_value_cb_t own, void *user,
+                      int64_t now, struct can_frame *tx)
+{
+    if (s->op == CO_STEP_UP || s->op == CO_STEP_UP_OPT)
+        return co_sdo_client_upload(c, s->index, s->sub, now, tx);
+    uint32_t v = s->value;
+    if (s->kind == CO_STEP_NODE)
+        v += c->node;
+    else if (s->kind == CO_STEP_INVALID_NODE)
+        v = 0x80000000u | (v + c->node);
+    else if (s->kind >= CO_STEP_OWN)
+        v = own(user, s);
+    uint8_t b[4];
+    co_put_u32(b, v);
+    return co_sdo_client_download(c, s->index, s->sub, b, s->size, now, tx);
+}
+
+bool co_sdo_step_skips(const co_sdo_step_t *s, uint32_t abort)
+{
+    return (abort == CO_SDO_ABORT_NO_OBJECT || abort == CO_SDO_ABORT_NO_SUB) &&
+           (s->op == CO_STEP_UP_OPT || s->op == CO_STEP_DN_OPT);
+}

@@ -76,6 +76,29 @@ int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t n
 /* Timeouts: 1 with the abort frame in *tx when the transfer timed out (the callback ran). */
 int co_sdo_client_poll(co_sdo_client_t *c, int64_t now, struct can_frame *tx);
 
+/* A node's configuration as a table of steps, one SDO transfer each, run one after the other
+ * (the drives' and the gyro's PDO mappings). A download writes `value`, or a value made from the
+ * node id (kind CO_STEP_NODE: value + node; CO_STEP_INVALID_NODE: the same with bit 31, a COB-ID
+ * switched off), or one the device computes (kinds CO_STEP_OWN and up). */
+enum { CO_STEP_UP, CO_STEP_DN, CO_STEP_UP_OPT, CO_STEP_DN_OPT };    /* _OPT: may be missing */
+enum { CO_STEP_CONST, CO_STEP_NODE, CO_STEP_INVALID_NODE, CO_STEP_OWN };
+typedef struct {
+    uint8_t op;
+    uint16_t index;
+    uint8_t sub;
+    uint8_t size;
+    uint8_t kind;
+    uint32_t value;
+} co_sdo_step_t;
+typedef uint32_t (*co_sdo_step_value_cb_t)(void *user, const co_sdo_step_t *s);
+/* Starts step s on c (whose node is the node id); own(user, s) gives the value of the kinds
+ * CO_STEP_OWN and up. The request is written to *tx; returns as co_sdo_client_upload. */
+int co_sdo_step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_value_cb_t own, void *user,
+                      int64_t now, struct can_frame *tx);
+/* Whether an abort of step s only skips it: the step is optional and the node has no such
+ * object or sub-index. */
+bool co_sdo_step_skips(const co_sdo_step_t *s, uint32_t abort);
+
 /* ---- server ---- */
 /* Object access for the server. read: copy the value into buf (cap bytes), set *len; write:
  * take len bytes. Both return 0 or an abort code. An expedited download without size

@@ -6,64 +6,37 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "hw/canopen/co.h"
 #include "hw/canopen/emcy.h"
 #include "hw/canopen/pdo.h"
 
 #define EMCY_STORM 10       /* per second and axis: beyond this, count without events */
 
-/* Configuration written to each drive, in order (CiA 301 PDO remapping procedure:
- * invalidate, clear the count, write the entries, set the count, validate). An optional
- * object the drive does not have (abort "no object" / "no sub-index") is skipped. */
-enum { J_UP, J_DN, J_UP_OPT, J_DN_OPT };
-enum { V_CONST, V_NODE, V_INVALID_NODE, V_HB, V_CONSUMER, V_RPDO_TMO };
-typedef struct {
-    uint8_t op;
-    uint16_t index;
-    uint8_t sub;
-    uint8_t size;
-    uint8_t vkind;
-    uint32_t value;
-} job_t;
-
-static const job_t jobs[] = {
-    { J_UP, 0x1000, 0, 4, V_CONST, 0 },                  /* device type: must be 402 */
-    { J_UP_OPT, 0x1008, 0, 0, V_CONST, 0 },              /* device name (segmented upload) */
-    { J_DN, CIA402_OBJ_MODE, 0, 1, V_CONST, CIA402_MODE_PROFILE_VELOCITY },
-    { J_DN, 0x1017, 0, 2, V_HB, 0 },
-    /* the drive watches our heartbeat and reacts per 0x6007 (1: fault reaction) when it stops */
-    { J_DN, 0x1016, 1, 4, V_CONSUMER, 0 },
-    { J_DN_OPT, CIA402_OBJ_ABORT_CONN, 0, 2, V_CONST, 1 },
-    { J_DN, 0x1400, 1, 4, V_INVALID_NODE, CO_COB_RPDO1 },
-    { J_DN, 0x1600, 0, 1, V_CONST, 0 },
-    { J_DN, 0x1600, 1, 4, V_CONST, 0x60400010 },
-    { J_DN, 0x1600, 2, 4, V_CONST, 0x60FF0020 },
-    { J_DN, 0x1600, 0, 1, V_CONST, 2 },
-    { J_DN, 0x1400, 2, 1, V_CONST, 1 },                  /* synchronous: applied at SYNC */
-    { J_DN_OPT, 0x1400, 5, 2, V_RPDO_TMO, 0 },           /* RPDO deadline monitoring */
-    { J_DN, 0x1400, 1, 4, V_NODE, CO_COB_RPDO1 },
-    { J_DN, 0x1800, 1, 4, V_INVALID_NODE, CO_COB_TPDO1 },
-    { J_DN, 0x1A00, 0, 1, V_CONST, 0 },
-    { J_DN, 0x1A00, 1, 4, V_CONST, 0x60410010 },
-    { J_DN, 0x1A00, 2, 4, V_CONST, 0x60640020 },
-    { J_DN, 0x1A00, 0, 1, V_CONST, 2 },
-    { J_DN, 0x1800, 2, 1, V_CONST, 1 },                  /* every SYNC */
-    { J_DN, 0x1800, 1, 4, V_NODE, CO_COB_TPDO1 },
-    { J_DN, 0x1801, 1, 4, V_INVALID_NODE, CO_COB_TPDO2 },
-    { J_DN, 0x1A01, 0, 1, V_CONST, 0 },
-    { J_DN, 0x1A01, 1, 4, V_CONST, 0x606C0020 },
-    { J_DN, 0x1A01, 0, 1, V_CONST, 1 },
-    { J_DN, 0x1801, 2, 1, V_CONST, 1 },
-    { J_DN, 0x1801, 1, 4, V_NODE, CO_COB_TPDO2 },
-};
-#define NJOBS ((int)(sizeof jobs / sizeof jobs[0]))
-
 static const co_pdo_map_t tpdo1_map = { 0, 2, { { 0x6041, 0, 16 }, { 0x6064, 0, 32 } } };
 static const co_pdo_map_t tpdo2_map = { 0, 1, { { 0x606C, 0, 32 } } };
 static const co_pdo_map_t rpdo1_map = { 0, 2, { { 0x6040, 0, 16 }, { 0x60FF, 0, 32 } } };
 
+/* Configuration written to each drive, in order: these steps, then the three PDO mappings above
+ * (CiA 301's remapping procedure, co_pdo_map_steps). An optional object the drive does not have
+ * (abort "no object" / "no sub-index") is skipped. */
+enum { V_HB = CO_STEP_OWN, V_CONSUMER, V_RPDO_TMO };
+static const co_sdo_step_t setup[] = {
+    { CO_STEP_UP, 0x1000, 0, 4, CO_STEP_CONST, 0 },        /* device type: must be 402 */
+    { CO_STEP_UP_OPT, 0x1008, 0, 0, CO_STEP_CONST, 0 },    /* device name (segmented upload) */
+    { CO_STEP_DN, CIA402_OBJ_MODE, 0, 1, CO_STEP_CONST, CIA402_MODE_PROFILE_VELOCITY },
+    { CO_STEP_DN, 0x1017, 0, 2, V_HB, 0 },
+    /* the drive watches our heartbeat and reacts per 0x6007 (1: fault reaction) when it stops */
+    { CO_STEP_DN, 0x1016, 1, 4, V_CONSUMER, 0 },
+    { CO_STEP_DN_OPT, CIA402_OBJ_ABORT_CONN, 0, 2, CO_STEP_CONST, 1 },
+};
+#define NSETUP ((int)(sizeof setup / sizeof setup[0]))
+static const co_sdo_step_t rpdo_deadline = { CO_STEP_DN_OPT, 0x1400, 5, 2, V_RPDO_TMO, 0 };
+
 struct drives_ctl {
     drives_cfg_t cfg;
+    co_sdo_step_t jobs[NSETUP + 3 * CO_PDO_MAX_STEPS];
+    int njobs;
     drives_event_cb_t cb;
     void *user;
     drives_axis_t ax[DRIVES_N];
@@ -143,11 +116,22 @@ static void stop_drive(drives_ctl_t *d, int i, co_nmt_cmd_t cmd)
     d->ax[i].stops++;
 }
 
+/* The values of the drive's own kinds of configuration step. */
+static uint32_t job_value(void *user, const co_sdo_step_t *j)
+{
+    const drives_ctl_t *d = user;
+    if (j->kind == V_HB)
+        return d->cfg.heartbeat_ms;
+    if (j->kind == V_CONSUMER)
+        return d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | d->cfg.consumer_ms : 0;
+    return d->cfg.rpdo_timeout_ms;
+}
+
 static void run_job(drives_ctl_t *d, int i)
 {
     drives_axis_t *a = &d->ax[i];
     struct can_frame f;
-    if (a->job >= NJOBS) {
+    if (a->job >= d->njobs) {
         co_nmt_encode(&f, CO_NMT_CMD_START, d->cfg.node[i]);
         pend(d, &f);
         set_phase(d, i, DRIVES_AX_RUN);
@@ -155,21 +139,7 @@ static void run_job(drives_ctl_t *d, int i)
         ev(d, i, DRIVES_EV_CONFIGURED, 0);
         return;
     }
-    const job_t *j = &jobs[a->job];
-    if (j->op == J_UP || j->op == J_UP_OPT) {
-        co_sdo_client_upload(&a->sdo, j->index, j->sub, d->now, &f);
-    } else {
-        uint32_t v = j->value;
-        if (j->vkind == V_NODE) v += d->cfg.node[i];
-        if (j->vkind == V_INVALID_NODE) v = 0x80000000u | (v + d->cfg.node[i]);
-        if (j->vkind == V_HB) v = d->cfg.heartbeat_ms;
-        if (j->vkind == V_CONSUMER)
-            v = d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | d->cfg.consumer_ms : 0;
-        if (j->vkind == V_RPDO_TMO) v = d->cfg.rpdo_timeout_ms;
-        uint8_t b[4];
-        co_put_u32(b, v);
-        co_sdo_client_download(&a->sdo, j->index, j->sub, b, j->size, d->now, &f);
-    }
+    co_sdo_step_start(&a->sdo, &d->jobs[a->job], job_value, d, d->now, &f);
     pend(d, &f);
 }
 
@@ -183,8 +153,7 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
         return;
     if (!abort && index == 0x1000 && (len != 4 || (co_get_u32(data) & 0xFFFF) != 402))
         abort = CO_SDO_ABORT_TYPE_LEN;          /* not a CiA 402 device */
-    uint8_t op = a->job < NJOBS ? jobs[a->job].op : J_UP;
-    if ((abort == CO_SDO_ABORT_NO_OBJECT || abort == CO_SDO_ABORT_NO_SUB) && (op == J_UP_OPT || op == J_DN_OPT)) {
+    if (a->job < d->njobs && co_sdo_step_skips(&d->jobs[a->job], abort)) {
         ev(d, i, DRIVES_EV_OPTIONAL_MISSING, (uint32_t)index << 8 | sub);
         abort = 0;
         data = NULL;
@@ -271,14 +240,17 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
 drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, void *user)
 {
     if (!cfg || cfg->node[0] == 0 || cfg->node[1] == 0 || cfg->node[0] == cfg->node[1] ||
-        cfg->node[0] > CO_NODE_MAX || cfg->node[1] > CO_NODE_MAX || cfg->ticks_per_rev <= 0) {
-        errno = EINVAL;
-        return NULL;
-    }
+        cfg->node[0] > CO_NODE_MAX || cfg->node[1] > CO_NODE_MAX || cfg->ticks_per_rev <= 0)
+        return marie_fail_null(EINVAL);
     drives_ctl_t *d = calloc(1, sizeof *d);
     if (!d)
         return NULL;
     d->cfg = *cfg;
+    memcpy(d->jobs, setup, sizeof setup);
+    d->njobs = NSETUP;
+    d->njobs += co_pdo_map_steps(d->jobs + d->njobs, 0x1400, CO_COB_RPDO1, &rpdo1_map, 1, &rpdo_deadline);
+    d->njobs += co_pdo_map_steps(d->jobs + d->njobs, 0x1800, CO_COB_TPDO1, &tpdo1_map, 1, NULL);
+    d->njobs += co_pdo_map_steps(d->jobs + d->njobs, 0x1801, CO_COB_TPDO2, &tpdo2_map, 1, NULL);
     d->cb = cb;
     d->user = user;
     d->enable = true;

@@ -7,6 +7,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "core/err.h"
+
 struct gpio_in {
     struct gpiod_chip *chip;
     struct gpiod_line *line;
@@ -62,11 +64,8 @@ gpio_in_t *gpio_in_open(const char *chip, unsigned line, bool active_low, gpio_b
     if (gpiod_line_request_both_edges_events_flags(in->line, consumer, bias_flags(bias)) < 0)
         goto err_line;
     return in;
-err_line: {
-        int e = errno;
-        gpiod_chip_close(in->chip);
-        errno = e;
-    }
+err_line:
+    MARIE_KEEP_ERRNO(gpiod_chip_close(in->chip));
 err_chip:
     free(in);
     return NULL;
@@ -125,11 +124,8 @@ gpio_out_t *gpio_out_open(const char *chip, unsigned line, bool active_low, bool
     if (!out->line || gpiod_line_request_output(out->line, consumer, on != active_low) < 0)
         goto err_line;
     return out;
-err_line: {
-        int e = errno;
-        gpiod_chip_close(out->chip);
-        errno = e;
-    }
+err_line:
+    MARIE_KEEP_ERRNO(gpiod_chip_close(out->chip));
 err_chip:
     free(out);
     return NULL;

@@ -5,35 +5,29 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "hw/canopen/co.h"
 #include "hw/canopen/emcy.h"
 #include "hw/canopen/pdo.h"
 #include "hw/gyro/gyro_proto.h"
 
 enum { PH_BOOT, PH_CONFIG, PH_RUN, PH_OFFLINE };
-enum { J_UP, J_DN };
-enum { V_CONST, V_NODE, V_INVALID_NODE, V_HB, V_PERIOD };
-typedef struct { uint8_t op; uint16_t index; uint8_t sub; uint8_t size; uint8_t vkind; uint32_t value; } job_t;
-
-static const job_t jobs[] = {
-    { J_UP, 0x1008, 0, 0, V_CONST, 0 },
-    { J_DN, 0x1017, 0, 2, V_HB, 0 },
-    { J_DN, 0x1800, 1, 4, V_INVALID_NODE, CO_COB_TPDO1 },
-    { J_DN, 0x1A00, 0, 1, V_CONST, 0 },
-    { J_DN, 0x1A00, 1, 4, V_CONST, GYRO_MAP_RATE },
-    { J_DN, 0x1A00, 2, 4, V_CONST, GYRO_MAP_STATUS },
-    { J_DN, 0x1A00, 3, 4, V_CONST, GYRO_MAP_COUNTER },
-    { J_DN, 0x1A00, 0, 1, V_CONST, 3 },
-    { J_DN, 0x1800, 2, 1, V_CONST, 254 },       /* event-driven (manufacturer specific) */
-    { J_DN, 0x1800, 5, 2, V_PERIOD, 0 },        /* event timer, ms */
-    { J_DN, 0x1800, 1, 4, V_NODE, CO_COB_TPDO1 },
-};
-#define NJOBS ((int)(sizeof jobs / sizeof jobs[0]))
-
 static const co_pdo_map_t tpdo_map = { 0, 3, { { GYRO_OBJ_RATE, 0, 32 }, { GYRO_OBJ_STATUS, 0, 8 }, { GYRO_OBJ_COUNTER, 0, 8 } } };
+
+/* Configuration written to the gyro, in order: these steps, then its TPDO's mapping
+ * (co_pdo_map_steps), event-driven (type 254, manufacturer specific) every period_ms. */
+enum { V_HB = CO_STEP_OWN, V_PERIOD };
+static const co_sdo_step_t setup[] = {
+    { CO_STEP_UP, 0x1008, 0, 0, CO_STEP_CONST, 0 },
+    { CO_STEP_DN, 0x1017, 0, 2, V_HB, 0 },
+};
+#define NSETUP ((int)(sizeof setup / sizeof setup[0]))
+static const co_sdo_step_t event_timer = { CO_STEP_DN, 0x1800, 5, 2, V_PERIOD, 0 };
 
 struct gyro_ctl {
     gyro_cfg_t cfg;
+    co_sdo_step_t jobs[NSETUP + CO_PDO_MAX_STEPS];
+    int njobs;
     gyro_sample_cb_t on_sample;
     gyro_event_cb_t on_event;
     void *user;
@@ -109,10 +103,17 @@ static void watch(gyro_ctl_t *g, int64_t timeout_us)
     co_hb_consumer_add(&g->hb, g->cfg.node, timeout_us, g->now);
 }
 
+/* The values of the gyro's own kinds of configuration step. */
+static uint32_t job_value(void *user, const co_sdo_step_t *j)
+{
+    const gyro_ctl_t *g = user;
+    return j->kind == V_HB ? g->cfg.heartbeat_ms : g->cfg.period_ms;
+}
+
 static void run_job(gyro_ctl_t *g)
 {
     struct can_frame f;
-    if (g->job >= NJOBS) {
+    if (g->job >= g->njobs) {
         co_nmt_encode(&f, CO_NMT_CMD_START, g->cfg.node);
         pend(g, &f);
         set_phase(g, PH_RUN);
@@ -120,19 +121,7 @@ static void run_job(gyro_ctl_t *g)
         ev(g, GYRO_EV_CONFIGURED, 0);
         return;
     }
-    const job_t *j = &jobs[g->job];
-    if (j->op == J_UP) {
-        co_sdo_client_upload(&g->sdo, j->index, j->sub, g->now, &f);
-    } else {
-        uint32_t v = j->value;
-        if (j->vkind == V_NODE) v += g->cfg.node;
-        if (j->vkind == V_INVALID_NODE) v = 0x80000000u | (v + g->cfg.node);
-        if (j->vkind == V_HB) v = g->cfg.heartbeat_ms;
-        if (j->vkind == V_PERIOD) v = g->cfg.period_ms;
-        uint8_t b[4];
-        co_put_u32(b, v);
-        co_sdo_client_download(&g->sdo, j->index, j->sub, b, j->size, g->now, &f);
-    }
+    co_sdo_step_start(&g->sdo, &g->jobs[g->job], job_value, g, g->now, &f);
     pend(g, &f);
 }
 
@@ -197,14 +186,14 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
 
 gyro_ctl_t *gyro_ctl_create(const gyro_cfg_t *cfg, gyro_sample_cb_t on_sample, gyro_event_cb_t on_event, void *user)
 {
-    if (!cfg || cfg->node == 0 || cfg->node > CO_NODE_MAX || cfg->period_ms == 0) {
-        errno = EINVAL;
-        return NULL;
-    }
+    if (!cfg || cfg->node == 0 || cfg->node > CO_NODE_MAX || cfg->period_ms == 0)
+        return marie_fail_null(EINVAL);
     gyro_ctl_t *g = calloc(1, sizeof *g);
     if (!g)
         return NULL;
     g->cfg = *cfg;
+    memcpy(g->jobs, setup, sizeof setup);
+    g->njobs = NSETUP + co_pdo_map_steps(g->jobs + NSETUP, 0x1800, CO_COB_TPDO1, &tpdo_map, 254, &event_timer);
     g->on_sample = on_sample;
     g->on_event = on_event;
     g->user = user;

@@ -10,6 +10,7 @@
 #include <unistd.h>
 #include <poll.h>
 
+#include "core/err.h"
 #include "hw/lms200/serial.h"
 #include "core/log.h"
 
@@ -397,10 +398,8 @@ static void report_parser(lms200_driver_t *d)
 lms200_driver_t *lms200_driver_create(const lms200_driver_cfg_t *cfg, const lms200_driver_ops_t *ops, void *user)
 {
     if (!cfg->device || lms200_baud_mode(cfg->baud) < 0 || !lms200_serial_speed(cfg->baud) ||
-        (cfg->res_cdeg != 100 && cfg->res_cdeg != 50) || cfg->addr > 0x7f) {
-        errno = EINVAL;
-        return NULL;
-    }
+        (cfg->res_cdeg != 100 && cfg->res_cdeg != 50) || cfg->addr > 0x7f)
+        return marie_fail_null(EINVAL);
     lms200_driver_t *d = calloc(1, sizeof *d);
     if (!d)
         return NULL;
@@ -427,8 +426,7 @@ err:
     lms200_parser_destroy(d->parser);
     free(d->device);
     free(d);
-    errno = ENOMEM;
-    return NULL;
+    return marie_fail_null(ENOMEM);
 }
 
 void lms200_driver_destroy(lms200_driver_t *d)
