@@ -108,11 +108,7 @@ static int mem_set(sharedmap_t *sm, const char *key, const char *type, const voi
         entry_t *e = &sm->entries[i];
         free(e->type);
         free(e->data);
-        e->type = t;
-        e->data = d;
-        e->len = len;
-        e->version = version;
-        e->set_utime = set_utime;
+        *e = (entry_t){ e->key, t, d, len, version, set_utime };
         return 0;
     }
     if (sm->n == sm->cap) {
@@ -465,12 +461,7 @@ int sharedmap_delete(sharedmap_t *sm, const char *key)
 
 static void fill(const entry_t *e, sharedmap_value_t *out)
 {
-    out->key = e->key;
-    out->type = e->type;
-    out->data = e->data;
-    out->len = e->len;
-    out->version = e->version;
-    out->set_utime = e->set_utime;
+    *out = (sharedmap_value_t){ e->key, e->type, e->data, e->len, e->version, e->set_utime };
 }
 
 int sharedmap_get(const sharedmap_t *sm, const char *key, sharedmap_value_t *out)

@@ -20,6 +20,7 @@ typedef struct {
     int64_t bad_input;            /* wrong fingerprint */
     int64_t selections, refused, bad_requests;
 } ca_switch_stats_t;
+const ca_switch_stats_t *ca_switch_stats(const ca_switch_t *sw);
 
 /* A Switch publishing on `output`, carrying `type` (NULL: any payload), persisting its
  * selection in `state_file` (NULL: not persisted). NULL with errno. */
@@ -54,8 +55,6 @@ int ca_switch_handle_select_raw(ca_switch_t *sw, const void *buf, size_t len, in
 void ca_switch_set_state_channel(ca_switch_t *sw, const char *channel, const char *source);
 int ca_switch_publish_state(ca_switch_t *sw, int64_t request_id, const char *requester,
                             int8_t status, int64_t now);
-
-const ca_switch_stats_t *ca_switch_stats(const ca_switch_t *sw);
 
 /* Subscribe to every input and to select_channel on `lcm`. 0 or -errno. */
 int ca_switch_attach(ca_switch_t *sw, lcm_t *lcm, const char *select_channel);

@@ -10,6 +10,7 @@
 
 #include "core/err.h"
 #include "core/loop.h"
+#include "core/new.h"
 #include "core/shm.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
@@ -244,13 +245,9 @@ marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t ma
 {
     if (!lcm || !channel || strlen(channel) >= CH_MAX || !cb || max_size < 8)
         return marie_fail_null(EINVAL);
-    marie_shm_sub_t *s = calloc(1, sizeof *s);
+    marie_shm_sub_t *s = MARIE_NEW(marie_shm_sub_t, .lcm = lcm, .cb = cb, .user = user, .cap = max_size);
     if (!s)
         return NULL;
-    s->lcm = lcm;
-    s->cb = cb;
-    s->user = user;
-    s->cap = max_size;
     snprintf(s->channel, sizeof s->channel, "%s", channel);
     snprintf(s->want_ch, sizeof s->want_ch, "%s.SHMWANT", channel);
     host_name(s->host, sizeof s->host);

@@ -71,8 +71,11 @@ static const marie_node_t *find_entry(const marie_node_t *list, const char *name
     return NULL;
 }
 
-static void names_of(const marie_node_t *list, char *buf, size_t len)
+/* The names in a spec's list, comma-separated, for a message (valid until the next call). */
+static const char *names_of(const marie_node_t *list)
 {
+    static __thread char buf[1024];
+    size_t len = sizeof buf;
     buf[0] = 0;
     for (size_t i = 0; list && list->kind == MARIE_NODE_SEQ && i < list->n; i++) {
         const char *n = field(list->items[i], "name");
@@ -81,6 +84,7 @@ static void names_of(const marie_node_t *list, char *buf, size_t len)
     }
     if (!buf[0])
         snprintf(buf, len, "none");
+    return buf;
 }
 
 /* The value must read as the declared type; messages carry the parameter's name. */
@@ -171,14 +175,12 @@ static int check_params(const marie_node_t *spec, const marie_component_cfg_t *c
 {
     const marie_node_t *params = marie_node_get(spec, "params");
     int rc = 0;
-    char known[1024];
     for (size_t i = 0; c->params && c->params->kind == MARIE_NODE_MAP && i < c->params->n; i++) {
         marie_node_t *g = c->params->items[i];
         const marie_node_t *e = find_entry(params, g->key, strlen(g->key));
         if (!e) {
-            names_of(params, known, sizeof known);
             marie_errors_add(errs, g->file, g->key_line, g->key_col, "unknown parameter '%s' for %s '%s' (known: %s)",
-                             g->key, kind, c->name, known);
+                             g->key, kind, c->name, names_of(params));
             rc = -1;
         } else if (check_type(e, g, g->key, errs) < 0) {
             rc = -1;
@@ -201,13 +203,11 @@ static int check_ports(const marie_node_t *spec, const marie_component_cfg_t *c,
 {
     const marie_node_t *ports = marie_node_get(spec, "ports");
     int rc = 0;
-    char known[1024];
     for (size_t i = 0; i < c->nports; i++) {
         const marie_port_binding_t *b = &c->ports[i];
         if (!find_entry(ports, b->name, strlen(b->name))) {
-            names_of(ports, known, sizeof known);
             marie_errors_add(errs, c->file, b->line, b->col, "%s '%s' has no port '%s' (ports: %s)", kind, c->name,
-                             b->name, known);
+                             b->name, names_of(ports));
             rc = -1;
         }
     }

@@ -217,15 +217,15 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
     vdevices_tick(d->dev, dt, now);
     vlms200_tick(d->laser, now);
     laser_sync_fd(d);
-    d->st.can_frames_in = vdevices_frames_in(d->dev);
-    d->st.can_frames_out = vdevices_frames_out(d->dev);
+    d->st.can_frames_in = vdevices_stats(d->dev)->frames_in;
+    d->st.can_frames_out = vdevices_stats(d->dev)->frames_out;
 }
 
 /* The master's periodic frames (SYNC, heartbeat): not any frame, or another master's SDO
  * traffic would keep the drives' master for alive. */
 static void note_drivers(sim_devices_t *d)
 {
-    uint64_t in = vdevices_master_frames_in(d->dev);
+    uint64_t in = vdevices_stats(d->dev)->master_frames_in;
     if (in != d->rx_seen) {
         d->rx_seen = in;
         d->last_rx = d->now;

@@ -525,11 +525,6 @@ static int on_pause(marie_component_t *c)
     return 0;
 }
 
-static int on_resume(marie_component_t *c)
-{
-    return arm(c);
-}
-
 static void on_abort(marie_component_t *c)
 {
     disarm(c);
@@ -550,7 +545,7 @@ static const marie_component_def_t def = {
     .on_start = on_start,
     .on_stop = on_stop,
     .on_pause = on_pause,
-    .on_resume = on_resume,
+    .on_resume = on_start,       /* the clock goes on where it stood */
     .on_abort = on_abort,
     .on_quit = on_quit,
 };

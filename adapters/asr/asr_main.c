@@ -155,12 +155,9 @@ static void quit(marie_component_t *c)
 {
     asr_state_t *s = marie_component_user(c);
     MARIE_CLEAR(s->asr, asr_destroy);
-    free(s->mono);
-    free(s->phrases);
-    free(s->phrase_text);
-    s->mono = NULL;
-    s->phrases = NULL;
-    s->phrase_text = NULL;
+    MARIE_CLEAR(s->mono, free);
+    MARIE_CLEAR(s->phrases, free);
+    MARIE_CLEAR(s->phrase_text, free);
 }
 
 static const marie_port_spec_t ports[] = {

@@ -288,8 +288,8 @@ static void quit(marie_component_t *c)
 
 static int init(marie_component_t *c)
 {
+    quit(c);    /* init again after a failure starts from scratch */
     mis_t *s = marie_component_user(c);
-    quit(c);
     s->c = c;
     mission_init(&s->m);
     s->restored = s->dirty = s->restoring = s->saving = s->save_again = false;

@@ -9,18 +9,12 @@
 
 int audio_blocker_init(audio_blocker_t *b, int nchannels, int block, int rate, audio_block_cb_t cb, void *user)
 {
-    memset(b, 0, sizeof(*b));
+    *b = (audio_blocker_t){ 0 };
     if (nchannels < 1 || nchannels > 64 || block < 1 || block > 65536 || rate < 1)
         return marie_fail(EINVAL);
-    b->buf = malloc(sizeof(int16_t) * (size_t)nchannels * (size_t)block);
-    if (!b->buf)
-        return -1;
-    b->nchannels = nchannels;
-    b->block = block;
-    b->rate = rate;
-    b->cb = cb;
-    b->user = user;
-    return 0;
+    *b = (audio_blocker_t){ .nchannels = nchannels, .block = block, .rate = rate, .cb = cb, .user = user,
+                            .buf = malloc(sizeof(int16_t) * (size_t)nchannels * (size_t)block) };
+    return b->buf ? 0 : -1;
 }
 
 void audio_blocker_free(audio_blocker_t *b)

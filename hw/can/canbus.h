@@ -23,6 +23,7 @@ typedef struct {
     uint64_t overflow;          /* copies dropped: a client's queue (socket and 512 held frames) was full */
     uint64_t bad;               /* packets that are not a CAN / CAN FD frame */
 } can_emubus_stats_t;
+const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b);
 
 /* Listen on `path` (an existing socket file is replaced; the path appears only once the bus
  * listens, so a client that sees it can connect); the bus accepts, relays and drops clients
@@ -38,7 +39,6 @@ int can_emubus_inject(can_emubus_t *b, const struct can_frame *f);
 int can_emubus_nclients(const can_emubus_t *b);
 /* Clients that have frames they have not read yet (held here or in their socket). */
 int can_emubus_unread(const can_emubus_t *b);
-const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b);
 
 #ifdef __cplusplus
 }

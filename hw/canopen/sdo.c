@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "hw/canopen/co.h"
+#include "hw/canopen/nmt.h"
 
 /* Command specifiers (top three bits of byte 0). */
 #define CCS_DN_SEG  0   /* client: download segment */
@@ -399,6 +400,17 @@ int co_sdo_step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_va
     uint8_t b[4];
     co_put_u32(b, v);
     return co_sdo_client_download(c, s->index, s->sub, b, s->size, now, tx);
+}
+
+int co_sdo_steps_next(co_sdo_client_t *c, const co_sdo_step_t *steps, int n, int pos, co_sdo_step_value_cb_t own,
+                      void *user, int64_t now, struct can_frame *tx)
+{
+    if (pos < n) {
+        co_sdo_step_start(c, &steps[pos], own, user, now, tx);
+        return 1;
+    }
+    co_nmt_encode(tx, CO_NMT_CMD_START, c->node);
+    return 0;
 }
 
 bool co_sdo_step_skips(const co_sdo_step_t *s, uint32_t abort)

@@ -131,16 +131,12 @@ static void run_job(drives_ctl_t *d, int i)
 {
     drives_axis_t *a = &d->ax[i];
     struct can_frame f;
-    if (a->job >= d->njobs) {
-        co_nmt_encode(&f, CO_NMT_CMD_START, d->cfg.node[i]);
-        pend(d, &f);
-        set_phase(d, i, DRIVES_AX_RUN);
-        a->have_tpdo = false;
-        ev(d, i, DRIVES_EV_CONFIGURED, 0);
-        return;
-    }
-    co_sdo_step_start(&a->sdo, &d->jobs[a->job], job_value, d, d->now, &f);
+    bool last = !co_sdo_steps_next(&a->sdo, d->jobs, d->njobs, a->job, job_value, d, d->now, &f);
     pend(d, &f);
+    if (last) {
+        set_phase(d, i, DRIVES_AX_RUN);     /* have_tpdo is still false: start_config's */
+        ev(d, i, DRIVES_EV_CONFIGURED, 0);
+    }
 }
 
 static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub, uint32_t abort,

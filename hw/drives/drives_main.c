@@ -331,14 +331,8 @@ static void safe_stop(marie_component_t *c)
     send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, now_us(d), tx, 4));
 }
 
+/* Stopped or paused (no cycle runs, the drives would keep their last target): powered down. */
 static int on_stop(marie_component_t *c)
-{
-    safe_stop(c);
-    return 0;
-}
-
-/* Paused, no cycle runs: the drives would keep their last target, so power them down too. */
-static int on_pause(marie_component_t *c)
 {
     safe_stop(c);
     return 0;
@@ -377,7 +371,7 @@ static const marie_component_def_t def = {
     .on_init = on_init,
     .on_start = on_start,
     .on_stop = on_stop,
-    .on_pause = on_pause,
+    .on_pause = on_stop,
     .on_resume = on_resume,
     .on_abort = on_abort,
     .on_quit = on_quit,

@@ -2,16 +2,17 @@
  * a CAN bus, with ideal motors, for tests and benches without the simulator.
  *   marie-vcan-devices --can URL [--left N] [--right N] [--gyro N] [--ticks-per-rev T]
  *       [--wheel-radius M] [--track-width M] [--gyro-bias R] [--gyro-noise R] [--rpdo-timeout S]
+ * (--help lists them; a value out of range or not a number is refused with exit status 2.)
  * SIGUSR1 puts the left drive into fault (EMCY 0x2310 over-current); SIGUSR2 toggles a gyro
  * sensor fault. SIGTERM/SIGINT quit and print frame counts. */
 #include <errno.h>
-#include <getopt.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "core/cli.h"
 #include "core/log.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -66,46 +67,37 @@ static void on_usr(marie_loop_t *loop, int signo, void *user)
     }
 }
 
-static void usage(FILE *out)
-{
-    fprintf(out, "usage: marie-vcan-devices --can URL [--left N] [--right N] [--gyro N (0: none)]\n"
-                 "       [--ticks-per-rev T] [--wheel-radius M] [--track-width M] [--gyro-bias R]\n"
-                 "       [--gyro-noise R] [--rpdo-timeout S]\n");
-}
-
 int main(int argc, char **argv)
 {
     vdevices_cfg_t cfg;
     vdevices_cfg_default(&cfg);
-    static const struct option opts[] = {
-        { "can", required_argument, 0, 'c' }, { "left", required_argument, 0, 'l' },
-        { "right", required_argument, 0, 'r' }, { "gyro", required_argument, 0, 'g' },
-        { "ticks-per-rev", required_argument, 0, 't' }, { "wheel-radius", required_argument, 0, 'w' },
-        { "track-width", required_argument, 0, 'k' }, { "gyro-bias", required_argument, 0, 'b' },
-        { "gyro-noise", required_argument, 0, 'n' }, { "rpdo-timeout", required_argument, 0, 'o' },
-        { "help", no_argument, 0, 'h' }, { 0, 0, 0, 0 },
+    int64_t left = cfg.left, right = cfg.right, gyro = cfg.gyro, ticks = cfg.ticks_per_rev;
+    double rpdo_timeout = cfg.rpdo_timeout_us / 1e6;
+    const marie_cli_opt_t opts[] = {
+        { "can", MARIE_CLI_STRING, &cfg.can_url, 0, 0, "URL  the bus: can:IFNAME or emu:PATH (required)" },
+        { "left", MARIE_CLI_INT, &left, 0, 127, "N    the left drive's node id (0: none)" },
+        { "right", MARIE_CLI_INT, &right, 0, 127, "N    the right drive's node id (0: none)" },
+        { "gyro", MARIE_CLI_INT, &gyro, 0, 127, "N    the gyro's node id (0: none)" },
+        { "ticks-per-rev", MARIE_CLI_INT, &ticks, 1, 1 << 24, "T    encoder increments per wheel turn" },
+        { "wheel-radius", MARIE_CLI_DOUBLE, &cfg.wheel_radius, 1e-3, 10, "M    for the ideal yaw rate" },
+        { "track-width", MARIE_CLI_DOUBLE, &cfg.track_width, 1e-3, 100, "M    for the ideal yaw rate" },
+        { "gyro-bias", MARIE_CLI_DOUBLE, &cfg.gyro_bias, -10, 10, "R    rad/s" },
+        { "gyro-noise", MARIE_CLI_DOUBLE, &cfg.gyro_noise, 0, 10, "R    rad/s" },
+        { "rpdo-timeout", MARIE_CLI_DOUBLE, &rpdo_timeout, 0, 60, "S    the drives' RPDO deadline (0: off)" },
+        { NULL },
     };
-    int ch;
-    while ((ch = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-        switch (ch) {
-        case 'c': cfg.can_url = optarg; break;
-        case 'l': cfg.left = (uint8_t)atoi(optarg); break;
-        case 'r': cfg.right = (uint8_t)atoi(optarg); break;
-        case 'g': cfg.gyro = (uint8_t)atoi(optarg); break;
-        case 't': cfg.ticks_per_rev = atoi(optarg); break;
-        case 'w': cfg.wheel_radius = atof(optarg); break;
-        case 'k': cfg.track_width = atof(optarg); break;
-        case 'b': cfg.gyro_bias = atof(optarg); break;
-        case 'n': cfg.gyro_noise = atof(optarg); break;
-        case 'o': cfg.rpdo_timeout_us = (int64_t)(atof(optarg) * 1e6); break;
-        case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
-        }
-    }
+    int rc = marie_cli_parse("marie-vcan-devices", opts, argc, argv);
+    if (rc >= 0)
+        return rc;
     if (!cfg.can_url || optind != argc) {
-        usage(stderr);
+        marie_cli_usage("marie-vcan-devices", opts, stderr);
         return 2;
     }
+    cfg.left = (uint8_t)left;
+    cfg.right = (uint8_t)right;
+    cfg.gyro = (uint8_t)gyro;
+    cfg.ticks_per_rev = (int32_t)ticks;
+    cfg.rpdo_timeout_us = (int64_t)(rpdo_timeout * 1e6);
     marie_loop_t *loop = marie_loop_create();
     if (!loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
         marie_error("cannot set up the loop: %s", strerror(errno));
@@ -129,8 +121,8 @@ int main(int argc, char **argv)
     } else if (marie_loop_run(loop) < 0) {
         d.rc = 1;
     }
-    marie_info("frames in %llu, out %llu", (unsigned long long)vdevices_frames_in(d.v),
-               (unsigned long long)vdevices_frames_out(d.v));
+    const vdevices_stats_t *st = vdevices_stats(d.v);
+    marie_info("frames in %llu, out %llu", (unsigned long long)st->frames_in, (unsigned long long)st->frames_out);
     vdevices_destroy(d.v);
     marie_loop_destroy(loop);
     return d.rc;

@@ -12,8 +12,7 @@ struct vdevices {
     can_bus_t *bus;
     vdrive_t *drive[2];
     vgyro_t *gyro;
-    uint64_t in, out;
-    uint64_t master_in;         /* SYNC and heartbeats: what a live master sends periodically */
+    vdevices_stats_t st;
 };
 
 void vdevices_cfg_default(vdevices_cfg_t *cfg)
@@ -35,7 +34,7 @@ static void route(vdevices_t *v, const struct can_frame *f, int n)
 {
     for (int i = 0; i < n; i++)
         if (can_bus_write(v->bus, &f[i]) == 0)
-            v->out++;
+            v->st.frames_out++;
 }
 
 static void deliver(vdevices_t *v, const struct can_frame *f, int64_t now)
@@ -117,10 +116,10 @@ int vdevices_process(vdevices_t *v, int64_t now)
             return r;
         if (r == 0)
             break;
-        v->in++;
+        v->st.frames_in++;
         canid_t id = f.can_id & CAN_SFF_MASK;
         if (!(f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) && (id == 0x080 || (id & 0x780) == 0x700))
-            v->master_in++;
+            v->st.master_frames_in++;
         n++;
         deliver(v, &f, now);
     }
@@ -152,6 +151,4 @@ int vdevices_tick(vdevices_t *v, double dt, int64_t now)
 
 vdrive_t *vdevices_drive(vdevices_t *v, int i) { return i >= 0 && i < 2 ? v->drive[i] : NULL; }
 vgyro_t *vdevices_gyro(vdevices_t *v) { return v->gyro; }
-uint64_t vdevices_frames_in(const vdevices_t *v) { return v->in; }
-uint64_t vdevices_frames_out(const vdevices_t *v) { return v->out; }
-uint64_t vdevices_master_frames_in(const vdevices_t *v) { return v->master_in; }
+const vdevices_stats_t *vdevices_stats(const vdevices_t *v) { return &v->st; }

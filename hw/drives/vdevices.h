@@ -43,11 +43,13 @@ int vdevices_process(vdevices_t *v, int64_t now);
 int vdevices_tick(vdevices_t *v, double dt, int64_t now);
 vdrive_t *vdevices_drive(vdevices_t *v, int i);     /* 0 left, 1 right; NULL if absent */
 vgyro_t *vdevices_gyro(vdevices_t *v);
-uint64_t vdevices_frames_in(const vdevices_t *v);
-uint64_t vdevices_frames_out(const vdevices_t *v);
-/* SYNC and heartbeat frames received: the master's periodic traffic (not its SDOs, nor another
- * master's requests), which a simulator paces itself on. */
-uint64_t vdevices_master_frames_in(const vdevices_t *v);
+typedef struct {
+    uint64_t frames_in, frames_out;
+    /* SYNC and heartbeat frames received: the master's periodic traffic (not its SDOs, nor
+     * another master's requests), which a simulator paces itself on. */
+    uint64_t master_frames_in;
+} vdevices_stats_t;
+const vdevices_stats_t *vdevices_stats(const vdevices_t *v);
 
 #ifdef __cplusplus
 }

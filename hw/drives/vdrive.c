@@ -36,13 +36,8 @@ struct vdrive {
 
 void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node)
 {
-    memset(cfg, 0, sizeof *cfg);
-    cfg->node = node;
-    cfg->ticks_per_rev = 4096;
-    cfg->accel = 20;
-    cfg->quickstop_decel = 40;
-    cfg->max_velocity = 30;
-    cfg->name = "marie vdrive";
+    *cfg = (vdrive_cfg_t){ .node = node, .ticks_per_rev = 4096, .accel = 20, .quickstop_decel = 40,
+                           .max_velocity = 30, .name = "marie vdrive" };
 }
 
 static double counts_to_rad(const vdrive_t *v, double c) { return c * 2 * M_PI / v->cfg.ticks_per_rev; }

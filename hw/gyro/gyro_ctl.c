@@ -113,16 +113,13 @@ static uint32_t job_value(void *user, const co_sdo_step_t *j)
 static void run_job(gyro_ctl_t *g)
 {
     struct can_frame f;
-    if (g->job >= g->njobs) {
-        co_nmt_encode(&f, CO_NMT_CMD_START, g->cfg.node);
-        pend(g, &f);
+    bool last = !co_sdo_steps_next(&g->sdo, g->jobs, g->njobs, g->job, job_value, g, g->now, &f);
+    pend(g, &f);
+    if (last) {
         set_phase(g, PH_RUN);
         g->have_counter = false;
         ev(g, GYRO_EV_CONFIGURED, 0);
-        return;
     }
-    co_sdo_step_start(&g->sdo, &g->jobs[g->job], job_value, g, g->now, &f);
-    pend(g, &f);
 }
 
 static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub, uint32_t abort,

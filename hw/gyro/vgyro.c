@@ -27,13 +27,8 @@ struct vgyro {
 
 void vgyro_cfg_default(vgyro_cfg_t *cfg, uint8_t node)
 {
-    memset(cfg, 0, sizeof *cfg);
-    cfg->node = node;
-    cfg->bias = 0.01;
-    cfg->noise = 0.002;
-    cfg->range = 5.0;
-    cfg->seed = 1;
-    cfg->name = "marie vgyro";
+    *cfg = (vgyro_cfg_t){ .node = node, .bias = 0.01, .noise = 0.002, .range = 5.0, .seed = 1,
+                          .name = "marie vgyro" };
 }
 
 static double uniform(vgyro_t *g)

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/new.h"
+
 uint16_t lms200_crc(const uint8_t *buf, size_t len)
 {
     /* SICK's checksum from the LMS2xx telegram listing: shift the register left one bit per
@@ -46,13 +48,7 @@ struct lms200_parser {
 
 lms200_parser_t *lms200_parser_create(lms200_telegram_cb_t on_telegram, lms200_ack_cb_t on_ack, void *user)
 {
-    lms200_parser_t *p = calloc(1, sizeof *p);
-    if (!p)
-        return NULL;
-    p->on_telegram = on_telegram;
-    p->on_ack = on_ack;
-    p->user = user;
-    return p;
+    return MARIE_NEW(lms200_parser_t, .on_telegram = on_telegram, .on_ack = on_ack, .user = user);
 }
 
 void lms200_parser_destroy(lms200_parser_t *p)

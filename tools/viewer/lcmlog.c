@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/new.h"
+
 struct lcmlog_parser {
     lcmlog_event_cb_t on_event;
     lcmlog_corrupt_cb_t on_corrupt;
@@ -43,13 +45,7 @@ static void put64(uint8_t *p, uint64_t v)
 
 lcmlog_parser_t *lcmlog_parser_create(lcmlog_event_cb_t on_event, lcmlog_corrupt_cb_t on_corrupt, void *user)
 {
-    lcmlog_parser_t *p = calloc(1, sizeof *p);
-    if (!p)
-        return NULL;
-    p->on_event = on_event;
-    p->on_corrupt = on_corrupt;
-    p->user = user;
-    return p;
+    return MARIE_NEW(lcmlog_parser_t, .on_event = on_event, .on_corrupt = on_corrupt, .user = user);
 }
 
 void lcmlog_parser_destroy(lcmlog_parser_t *p)
