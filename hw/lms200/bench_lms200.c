@@ -63,6 +63,13 @@ static void on_scan(const lcm_recv_buf_t *rb, const char *ch, const marie_laser_
     bus_scans++;
 }
 
+/* The program `name` of the build b: out, "B/bin/NAME". */
+static char *bin_path(char out[256], const char *b, const char *name)
+{
+    snprintf(out, 256, "%s/bin/%s", b, name);
+    return out;
+}
+
 static void bench_driver(const char *b, const char *res, const char *rate, const char *label)
 {
     char dir[] = "/tmp/lms200-bench-XXXXXX";
@@ -70,15 +77,13 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
         return;
     char link[128], emu[256], drv[256], dev[160], resp[64];
     snprintf(link, sizeof link, "%s/tty", dir);
-    snprintf(emu, sizeof emu, "%s/bin/marie-vlms200", b);
-    snprintf(drv, sizeof drv, "%s/bin/marie-lms200", b);
     snprintf(dev, sizeof dev, "device=%s", link);
     snprintf(resp, sizeof resp, "resolution=%s", res);
-    char *eargv[] = { emu, "--link", link, "--rate", (char *)rate, NULL };
+    char *eargv[] = { bin_path(emu, b, "marie-vlms200"), "--link", link, "--rate", (char *)rate, NULL };
     pid_t pe = test_spawn(eargv, NULL);
     for (int i = 0; i < 100 && access(link, F_OK) != 0; i++)
         usleep(20000);
-    char *dargv[] = { drv, "--param", dev, "--param", "baud=500000", "--param", resp, NULL };
+    char *dargv[] = { bin_path(drv, b, "marie-lms200"), "--param", dev, "--param", "baud=500000", "--param", resp, NULL };
     pid_t pd = test_spawn(dargv, NULL);
     lcm_t *lcm = lcm_create(NULL);
     marie_laser_scan_t_subscription_t *sub = marie_laser_scan_t_subscribe(lcm, "LASER", on_scan, NULL);

@@ -65,15 +65,16 @@ static void on_heartbeat(const marie_heartbeat_t *h)
     for (int i = 0; i < 3; i++) {
         if (strcmp(h->component, drivers[i]) != 0)
             continue;
+        static const struct { const char *name; size_t at; } fields[] = {
+            { "faults", offsetof(counts_t, faults) }, { "hb_timeouts", offsetof(counts_t, hb_timeouts) },
+            { "timeouts", offsetof(counts_t, timeouts) }, { "emcy", offsetof(counts_t, emcy) },
+            { "config_failures", offsetof(counts_t, config_failures) },
+            { "lost_samples", offsetof(counts_t, lost_samples) }, { "scans", offsetof(counts_t, scans) },
+        };
         counts_t *c = &rx.c[i];
         snprintf(c->name, sizeof c->name, "%s", h->component);
-        c->faults = counter(h, "faults");
-        c->hb_timeouts = counter(h, "hb_timeouts");
-        c->timeouts = counter(h, "timeouts");
-        c->emcy = counter(h, "emcy");
-        c->config_failures = counter(h, "config_failures");
-        c->lost_samples = counter(h, "lost_samples");
-        c->scans = counter(h, "scans");
+        for (size_t k = 0; k < sizeof fields / sizeof fields[0]; k++)
+            *(int64_t *)((char *)c + fields[k].at) = counter(h, fields[k].name);
         c->beats++;
     }
 }
