@@ -10,8 +10,10 @@ status=0
 for b in "$@"; do
     name=$(basename "$b")
     echo "bench: running $name" >&2
-    # A long bench may have its own limit: BENCH_TIMEOUT_<name> (bench_eval drives 200 goals).
-    limit=$(eval echo "\${BENCH_TIMEOUT_$name:-}")
+    # A long bench may have its own limit: BENCH_TIMEOUT_<name>, the name's other characters
+    # written _ (BENCH_TIMEOUT_bench_demo_sh; bench_eval drives 200 goals).
+    var=BENCH_TIMEOUT_$(printf '%s' "$name" | tr -c 'A-Za-z0-9_' '_')
+    limit=$(eval echo "\${$var:-}")
     [ -z "$limit" ] && [ "$name" = bench_eval ] && limit=10800
     if ! B=$B timeout -k 5 "${limit:-${BENCH_TIMEOUT:-600}}" scripts/netns-run "$b" > "$B/bench/logs/$name.tsv" 2> "$B/bench/logs/$name.log"; then
         echo "bench: $name failed (see $B/bench/logs/$name.log)" >&2
