@@ -80,10 +80,10 @@ void Grid::stamp(int cx, int cy)
         }
 }
 
-void Grid::hit(int cx, int cy, double weight)
+void Grid::hit(int cx, int cy)
 {
     size_t i = (size_t)cy * w_ + cx;
-    lo_[i] = (float)std::min(p_.l_max, lo_[i] + weight * p_.l_hit);
+    lo_[i] = (float)std::min(p_.l_max, lo_[i] + p_.l_hit);
     seen_[i] = 1;
     if (!wall_[i] && lo_[i] > p_.l_occupied) {
         wall_[i] = 1;
@@ -153,9 +153,8 @@ void Grid::integrate(const Pose &at, const Scan &s)
     for (size_t i = 0; i < s.hx.size(); i++) {
         int ex, ey;
         cell(s.hx[i], s.hy[i], &ex, &ey);
-        double d = std::hypot(s.hx[i] - s.ox, s.hy[i] - s.oy);
         if (ex >= 0 && ey >= 0 && ex < w_ && ey < h_)
-            hit(ex, ey, p_.hit_range > 0 && d > p_.hit_range ? (p_.hit_range * p_.hit_range) / (d * d) : 1.0);
+            hit(ex, ey);
     }
 }
 

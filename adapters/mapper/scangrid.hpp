@@ -28,9 +28,6 @@ struct GridParams {
     double l_hit = 0.9, l_miss = -0.4, l_min = -2.0, l_max = 3.5;
     double l_occupied = 0.6;                   // log-odds above which a cell is a wall for matching
     double sigma = 0.05;                       // m
-    // m: a hit farther than this adds (hit_range / range)^2 of l_hit (0: every hit alike). A far
-    // wall seen at a grazing angle or through a door carries the angular error times the range.
-    double hit_range = 0;
 };
 
 struct MatchWindow {
@@ -70,7 +67,7 @@ public:
 private:
     Scan seen_hits(const Scan &s, const Pose &guess) const;
     void stamp(int cx, int cy);
-    void hit(int cx, int cy, double weight);
+    void hit(int cx, int cy);
     void miss(int cx, int cy);
     double correlative(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival) const;
     double refine(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *pose) const;

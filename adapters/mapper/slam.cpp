@@ -57,7 +57,6 @@ static GridParams grid_params(const slam_params_t *p)
     g.l_min = p->l_min;
     g.l_max = p->l_max;
     g.sigma = p->sigma;
-    g.hit_range = p->hit_range;
     return g;
 }
 
