@@ -87,6 +87,7 @@ struct am {
     int64_t quit_deadline;
     uint64_t watchdog_us;
     marie_timer_t *status_timer;
+    marie_timer_t *children_timer;  /* the children file is written when it fires (am_save_children) */
     bool opt_status_hz, opt_log_rate, opt_log_max, opt_log_keep;   /* given on the command line */
     /* automatic placement (the system's balance: section; NULL without one) */
     balance_cfg_t bal_cfg;

@@ -34,8 +34,10 @@ static FILE *state_open(const am_t *am, const char *name, const char *mode)
 
 /* The live children, so that a manager restarted after a crash can end the ones that
  * outlived it (a component that ignores SIGTERM survives PR_SET_PDEATHSIG). */
-void am_save_children(am_t *am)
+static void write_children(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
+    am_t *am = user;
+    am->children_timer = NULL;
     char path[PATH_MAX], tmp[PATH_MAX + 8];
     snprintf(tmp, sizeof tmp, "%s.tmp", state_path(am, "children", path));
     FILE *f = fopen(tmp, "w");
@@ -48,6 +50,16 @@ void am_save_children(am_t *am)
     }
     if (fclose(f) == 0)
         rename(tmp, path);
+}
+
+/* Written once the loop has done what it is doing: a bring-up of 45 writes the file once, not
+ * once per spawn with every child before it. */
+void am_save_children(am_t *am)
+{
+    if (!am->children_timer)
+        am->children_timer = marie_loop_add_wall_oneshot(am->loop, 0, write_children, am);
+    if (!am->children_timer)
+        write_children(am->loop, NULL, 0, am);
 }
 
 void am_kill_leftovers(am_t *am)
