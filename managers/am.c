@@ -360,6 +360,7 @@ int main(int argc, char **argv)
     marie_info("managing host %s (state %s, bus %s)%s", am->host, am->state_dir, am->url,
                am->auth ? "" : " WITHOUT a key: orders refused");
     am_publish_status(am, true);
+    am_flush_children(am);      /* READY=1: what it started at start-up is on disk */
     char ready[sizeof am->host + 40];
     snprintf(ready, sizeof ready, "READY=1\nSTATUS=managing host %.127s", am->host);
     marie_sd_notify(ready);
@@ -373,6 +374,7 @@ int main(int argc, char **argv)
         if (am->comps[i].sv.pid > 0)
             kill(-am->comps[i].sv.pid, SIGKILL);
     am_publish_status(am, false);
+    am_flush_children(am);
 
     close(am->sigfd);
 out_lcm:

@@ -139,7 +139,8 @@ bool am_host_known(am_t *am, const char *h);
 void am_comp_open_log(comp_t *c);
 void am_save_up_state(am_t *am);
 void am_restore_up_state(am_t *am);
-void am_save_children(am_t *am);
+void am_save_children(am_t *am);       /* written from the loop, once it has done its work */
+void am_flush_children(am_t *am);      /* a write still waiting, now (before READY=1, at exit) */
 void am_kill_leftovers(am_t *am);
 /* Replace path atomically (written beside it, then renamed); failures are silent. */
 void am_write_file(const char *path, const char *text, size_t len, mode_t mode);

@@ -62,6 +62,14 @@ void am_save_children(am_t *am)
         write_children(am->loop, NULL, 0, am);
 }
 
+void am_flush_children(am_t *am)
+{
+    if (!am->children_timer)
+        return;
+    marie_loop_remove_timer(am->loop, am->children_timer);
+    write_children(am->loop, NULL, 0, am);
+}
+
 void am_kill_leftovers(am_t *am)
 {
     FILE *f = state_open(am, "children", "r");

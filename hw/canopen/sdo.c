@@ -385,11 +385,13 @@ int co_sdo_server_feed(co_sdo_server_t *s, const struct can_frame *rx, struct ca
     }
 }
 
-int co_sdo_step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_value_cb_t own, void *user,
-                      int64_t now, struct can_frame *tx)
+static void step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_value_cb_t own, void *user,
+                       int64_t now, struct can_frame *tx)
 {
-    if (s->op == CO_STEP_UP || s->op == CO_STEP_UP_OPT)
-        return co_sdo_client_upload(c, s->index, s->sub, now, tx);
+    if (s->op == CO_STEP_UP || s->op == CO_STEP_UP_OPT) {
+        co_sdo_client_upload(c, s->index, s->sub, now, tx);
+        return;
+    }
     uint32_t v = s->value;
     if (s->kind == CO_STEP_NODE)
         v += c->node;
@@ -399,14 +401,14 @@ int co_sdo_step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_va
         v = own(user, s);
     uint8_t b[4];
     co_put_u32(b, v);
-    return co_sdo_client_download(c, s->index, s->sub, b, s->size, now, tx);
+    co_sdo_client_download(c, s->index, s->sub, b, s->size, now, tx);
 }
 
 int co_sdo_steps_next(co_sdo_client_t *c, const co_sdo_step_t *steps, int n, int pos, co_sdo_step_value_cb_t own,
                       void *user, int64_t now, struct can_frame *tx)
 {
     if (pos < n) {
-        co_sdo_step_start(c, &steps[pos], own, user, now, tx);
+        step_start(c, &steps[pos], own, user, now, tx);
         return 1;
     }
     co_nmt_encode(tx, CO_NMT_CMD_START, c->node);

@@ -91,12 +91,9 @@ typedef struct {
     uint32_t value;
 } co_sdo_step_t;
 typedef uint32_t (*co_sdo_step_value_cb_t)(void *user, const co_sdo_step_t *s);
-/* Starts step s on c (whose node is the node id); own(user, s) gives the value of the kinds
- * CO_STEP_OWN and up. The request is written to *tx; returns as co_sdo_client_upload. */
-int co_sdo_step_start(co_sdo_client_t *c, const co_sdo_step_t *s, co_sdo_step_value_cb_t own, void *user,
-                      int64_t now, struct can_frame *tx);
-/* Configuration step `pos` of the n in steps: 1 with its request in *tx (co_sdo_step_start), or,
- * once every step is done, 0 with the node's NMT start in *tx: the configuration's last frame. */
+/* Configuration step `pos` of the n in steps on c (whose node is the node id): 1 with its
+ * request in *tx (own(user, step) gives the value of the kinds CO_STEP_OWN and up), or, once
+ * every step is done, 0 with the node's NMT start in *tx: the configuration's last frame. */
 int co_sdo_steps_next(co_sdo_client_t *c, const co_sdo_step_t *steps, int n, int pos, co_sdo_step_value_cb_t own,
                       void *user, int64_t now, struct can_frame *tx);
 /* Whether an abort of step s only skips it: the step is optional and the node has no such

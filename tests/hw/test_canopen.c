@@ -189,6 +189,54 @@ static void sdo_expedited_upload_and_download(void **state)
     assert_false(co_sdo_client_busy(&c));
 }
 
+static uint32_t own_value(void *user, const co_sdo_step_t *s) { return 250; }
+
+/* A PDO's mapping as configuration steps, in CiA 301's order, and the table run to its end. */
+static void pdo_remap_steps_and_their_frames(void **state)
+{
+    const co_pdo_map_t m = { 0, 2, { { 0x6040, 0, 16 }, { 0x60FF, 0, 32 } } };
+    const co_sdo_step_t deadline = { CO_STEP_DN_OPT, 0x1400, 5, 2, CO_STEP_OWN, 0 };
+    co_sdo_step_t st[CO_PDO_MAX_STEPS];
+    int n = co_pdo_map_steps(st, 0x1400, CO_COB_RPDO1, &m, 1, &deadline);
+    const struct { uint16_t index; uint8_t sub, kind; uint32_t value; } want[] = {
+        { 0x1400, 1, CO_STEP_INVALID_NODE, CO_COB_RPDO1 }, { 0x1600, 0, CO_STEP_CONST, 0 },
+        { 0x1600, 1, CO_STEP_CONST, 0x60400010 },          { 0x1600, 2, CO_STEP_CONST, 0x60FF0020 },
+        { 0x1600, 0, CO_STEP_CONST, 2 },                   { 0x1400, 2, CO_STEP_CONST, 1 },
+        { 0x1400, 5, CO_STEP_OWN, 0 },                     { 0x1400, 1, CO_STEP_NODE, CO_COB_RPDO1 },
+    };
+    assert_int_equal(n, 8);
+    for (int i = 0; i < n; i++) {
+        assert_int_equal(st[i].index, want[i].index);
+        assert_int_equal(st[i].sub, want[i].sub);
+        assert_int_equal(st[i].kind, want[i].kind);
+        assert_int_equal(st[i].value, want[i].value);
+    }
+    assert_true(co_sdo_step_skips(&st[6], CO_SDO_ABORT_NO_SUB));
+    assert_false(co_sdo_step_skips(&st[5], CO_SDO_ABORT_NO_SUB));
+    assert_false(co_sdo_step_skips(&st[6], CO_SDO_ABORT_TYPE_LEN));
+
+    /* The requests for node 5: the COB-ID switched off, the device's own value, switched on;
+     * after the last step the node's NMT start. */
+    co_sdo_client_t c;
+    struct done d = { 0 };
+    struct can_frame f;
+    const int at[] = { 0, 6, 7 };
+    const uint32_t value[] = { 0x80000205, 250, 0x205 };
+    for (int k = 0; k < 3; k++) {
+        co_sdo_client_init(&c, 5, 100000, sdo_cb, &d);
+        assert_int_equal(co_sdo_steps_next(&c, st, n, at[k], own_value, NULL, 0, &f), 1);
+        assert_int_equal(f.can_id, 0x605);
+        assert_int_equal(f.data[1] | f.data[2] << 8, st[at[k]].index);
+        assert_int_equal(f.data[3], st[at[k]].sub);
+        assert_int_equal(co_get_u32(&f.data[4]) & (st[at[k]].size == 2 ? 0xFFFF : 0xFFFFFFFF), value[k]);
+    }
+    co_sdo_client_init(&c, 5, 100000, sdo_cb, &d);
+    assert_int_equal(co_sdo_steps_next(&c, st, n, n, own_value, NULL, 0, &f), 0);
+    assert_int_equal(f.can_id, 0);
+    assert_int_equal(f.data[0], CO_NMT_CMD_START);
+    assert_int_equal(f.data[1], 5);
+}
+
 static void sdo_segmented_upload_and_download(void **state)
 {
     co_sdo_client_t c;
@@ -474,6 +522,7 @@ int main(void)
         cmocka_unit_test(sdo_segmented_upload_and_download),
         cmocka_unit_test(sdo_aborts_and_timeouts),
         cmocka_unit_test(pdo_pack_unpack),
+        cmocka_unit_test(pdo_remap_steps_and_their_frames),
         cmocka_unit_test(emcy_codec),
         cmocka_unit_test(device_node_nmt_sdo_pdo),
         cmocka_unit_test(device_event_timer_tpdo),
