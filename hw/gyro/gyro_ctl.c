@@ -12,7 +12,7 @@
 #include "hw/gyro/gyro_proto.h"
 
 enum { PH_BOOT, PH_CONFIG, PH_RUN, PH_OFFLINE };
-static const co_pdo_map_t tpdo_map = { 0, 3, { { GYRO_OBJ_RATE, 0, 32 }, { GYRO_OBJ_STATUS, 0, 8 }, { GYRO_OBJ_COUNTER, 0, 8 } } };
+static const co_pdo_map_t tpdo_map = GYRO_TPDO_MAP;
 
 /* Configuration written to the gyro, in order: these steps, then its TPDO's mapping
  * (co_pdo_map_steps), event-driven (type 254, manufacturer specific) every period_ms. */

@@ -7,9 +7,9 @@
 #define GYRO_OBJ_RATE       0x2100  /* i32, yaw rate in micro-rad/s, counter-clockwise positive */
 #define GYRO_OBJ_STATUS     0x2101  /* u8, 0 ok, else a fault code (GYRO_STATUS_*) */
 #define GYRO_OBJ_COUNTER    0x2102  /* u8, sample counter, +1 per TPDO */
-#define GYRO_MAP_RATE       0x21000020u
-#define GYRO_MAP_STATUS     0x21010008u
-#define GYRO_MAP_COUNTER    0x21020008u
+/* The TPDO's layout, a co_pdo_map_t initializer (hw/canopen/pdo.h): what the driver maps and
+ * decodes, and the virtual gyro's power-on mapping. */
+#define GYRO_TPDO_MAP { 0, 3, { { GYRO_OBJ_RATE, 0, 32 }, { GYRO_OBJ_STATUS, 0, 8 }, { GYRO_OBJ_COUNTER, 0, 8 } } }
 #define GYRO_RATE_SCALE     1e-6    /* rad/s per unit */
 #define GYRO_STATUS_OK          0
 #define GYRO_STATUS_SATURATED   1

@@ -8,6 +8,7 @@
 
 #include "hw/canopen/co.h"
 #include "hw/canopen/emcy.h"
+#include "hw/canopen/pdo.h"
 #include "hw/gyro/gyro_proto.h"
 
 struct vgyro {
@@ -59,8 +60,11 @@ vgyro_t *vgyro_create(const vgyro_cfg_t *cfg)
     };
     memcpy(g->od, od, sizeof od);
     co_dev_init(&g->dev, cfg->node, g->od, 5, NULL, g);
-    uint32_t map[] = { GYRO_MAP_RATE, GYRO_MAP_STATUS, GYRO_MAP_COUNTER };
-    co_dev_set_pdo(&g->dev, true, 1, CO_COB_TPDO1 + cfg->node, 254, 10, map, 3);
+    const co_pdo_map_t tm = GYRO_TPDO_MAP;
+    uint32_t map[CO_PDO_MAX_ENTRIES];
+    for (int i = 0; i < tm.n; i++)
+        map[i] = co_pdo_entry_u32(tm.e[i]);
+    co_dev_set_pdo(&g->dev, true, 1, CO_COB_TPDO1 + cfg->node, 254, 10, map, tm.n);
     return g;
 }
 
