@@ -32,10 +32,15 @@ static void report(marie_component_t *c, mapper_t *s)
     marie_component_count(c, "match_failures", st.match_failures - s->seen.match_failures);
     marie_component_count(c, "loop_candidates", st.loop_candidates - s->seen.loop_candidates);
     marie_component_count(c, "loop_ambiguous", st.loop_ambiguous - s->seen.loop_ambiguous);
+    marie_component_count(c, "loop_implausible", st.loop_implausible - s->seen.loop_implausible);
     if (st.loop_closures > s->seen.loop_closures) {
         marie_component_count(c, "loop_closures", st.loop_closures - s->seen.loop_closures);
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "loop_closed", "loop closed: %lld keyframes optimized in %.1f ms",
-                              (long long)st.keyframes, st.last_opt_ms);
+        if (st.optimizations > s->seen.optimizations)
+            marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "loop_closed", "loop closed: %lld keyframes optimized in %.1f ms",
+                                  (long long)st.keyframes, st.last_opt_ms);
+        else
+            marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "loop_closed",
+                                  "loop closed: agrees with the map within loop_optimize_xy/_th (kept in the graph)");
     }
     s->seen = st;
 }

@@ -28,7 +28,7 @@ struct RelativeCost {
 
 }  // namespace
 
-OptResult optimize(std::vector<Pose> &nodes, const std::vector<Edge> &edges, int max_iterations)
+OptResult optimize(std::vector<Pose> &nodes, const std::vector<Edge> &edges, int max_iterations, int fixed_upto)
 {
     OptResult res;
     if (nodes.size() < 2 || edges.empty()) {
@@ -52,7 +52,9 @@ OptResult optimize(std::vector<Pose> &nodes, const std::vector<Edge> &edges, int
         res.message = "the first node has no edge";
         return res;
     }
-    problem.SetParameterBlockConstant(&x[0]);
+    for (int i = 0; i <= fixed_upto && i < (int)nodes.size(); i++)
+        if (problem.HasParameterBlock(&x[3 * i]))
+            problem.SetParameterBlockConstant(&x[3 * i]);
     ceres::Solver::Options opt;
     opt.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
     std::string why;

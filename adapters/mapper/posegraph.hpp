@@ -24,7 +24,7 @@ struct OptResult {
 };
 
 // Moves nodes (node 0 held fixed) to best agree with the edges.
-OptResult optimize(std::vector<Pose> &nodes, const std::vector<Edge> &edges, int max_iterations = 50);
+OptResult optimize(std::vector<Pose> &nodes, const std::vector<Edge> &edges, int max_iterations = 50, int fixed_upto = 0);
 
 }  // namespace mapper
 #endif

@@ -28,6 +28,8 @@ typedef struct {
 typedef struct {
     int64_t scans, keyframes, matches, match_failures, loop_candidates, loop_closures, optimizations;
     int64_t loop_ambiguous;             /* matched, but as well elsewhere in the window: refused */
+    int64_t loop_implausible;           /* best at the window's edge, or further than the matcher drifts: refused */
+    int64_t loop_unconfirmed;           /* a large correction the next closure did not repeat: dropped */
     double last_score;                  /* mean likelihood of the last match */
     double last_match_ms, last_opt_ms;
 } slam_stats_t;

@@ -127,7 +127,10 @@ static void test_explores_the_office_from_empty(void **state)
             continue;
         }
         /* Follow the way (the pilot steers on the mapper's pose, as the robot would). */
-        int wp = 1, budget = 600;
+        double len = 0;
+        for (int i = 1; i < k; i++)
+            len += hypot(xy[2 * i] - xy[2 * i - 2], xy[2 * i + 1] - xy[2 * i - 1]);
+        int wp = 1, budget = 200 + (int)(3 * len / (0.5 * 0.1));    /* three times the way at 0.5 m/s */
         while (wp < k && budget-- > 0) {
             double dx = xy[2 * wp] - pose[0], dy = xy[2 * wp + 1] - pose[1];
             if (hypot(dx, dy) < 0.15) {
