@@ -95,7 +95,9 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
 
 
 /* Alignment: every rotation in 0.0025 rad steps, every shift in cells, counted against the world's
- * walls dilated by one cell. */
+ * walls dilated by one cell. Ties (a shift within one cell keeps a cell "near" its wall) go to
+ * the transform that puts more cells on the walls themselves, then to the smallest one: a map
+ * that is right is not moved. */
 occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
                         double *odx, double *ody, double *oth)
 {
@@ -107,6 +109,7 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
         free(px);
         return NULL;
     }
+    /* 2: a wall cell, 1: within one cell of one */
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++)
             if (truth->cells[(size_t)y * W + x] == OCCMAP_OCCUPIED)
@@ -114,6 +117,9 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
                     for (int dx = -1; dx <= 1; dx++)
                         if (x + dx >= 0 && y + dy >= 0 && x + dx < W && y + dy < H)
                             near[(size_t)(y + dy) * W + x + dx] = 1;
+    for (int i = 0; i < W * H; i++)
+        if (truth->cells[i] == OCCMAP_OCCUPIED)
+            near[i] = 2;
     long n = 0;
     for (int y = 0; y < map->height; y++)
         for (int x = 0; x < map->width; x++)
@@ -121,21 +127,26 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
                 occmap_cell_center(map, x, y, &px[2 * n], &px[2 * n + 1]);
                 n++;
             }
-    long best = -1;
-    double r = truth->resolution;
+    long best = -1, best_on = -1;
+    double best_size = INFINITY, r = truth->resolution;
     *odx = *ody = *oth = 0;
     for (double th = -max_th; th <= max_th + 1e-9; th += 0.0025) {
         double c = cos(th), sn = sin(th);
         for (double dy = -max_xy; dy <= max_xy + 1e-9; dy += r)
             for (double dx = -max_xy; dx <= max_xy + 1e-9; dx += r) {
-                long hits = 0;
+                long hits = 0, on = 0;
                 for (long i = 0; i < n; i++) {
                     double x = c * px[2 * i] - sn * px[2 * i + 1] + dx, y = sn * px[2 * i] + c * px[2 * i + 1] + dy;
                     int cx = (int)floor((x - truth->origin_x) / r), cy = (int)floor((y - truth->origin_y) / r);
-                    hits += cx >= 0 && cy >= 0 && cx < W && cy < H && near[(size_t)cy * W + cx];
+                    int k = cx >= 0 && cy >= 0 && cx < W && cy < H ? near[(size_t)cy * W + cx] : 0;
+                    hits += k > 0;
+                    on += k == 2;
                 }
-                if (hits > best) {
+                double size = fabs(dx) + fabs(dy) + fabs(th) * 10;   /* 0.1 rad weighs as 1 m */
+                if (hits > best || (hits == best && (on > best_on || (on == best_on && size < best_size - 1e-9)))) {
                     best = hits;
+                    best_on = on;
+                    best_size = size;
                     *odx = dx, *ody = dy, *oth = th;
                 }
             }

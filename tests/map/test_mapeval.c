@@ -50,6 +50,30 @@ static void test_a_shifted_copy_is_found_by_alignment(void **state)
     occmap_destroy(w);
 }
 
+/* A map that is right needs no alignment: every shift within a cell fits as well (the walls are
+ * dilated by one), and the smallest, none, is the one taken. */
+static void test_a_copy_is_not_moved_by_alignment(void **state)
+{
+    /* The office with a margin, so that no wall sits on the grid's edge (a shift would push it
+     * off the grid and lose it, which would break the tie). */
+    occmap_t *o = office(), *w = occmap_create(o->width + 40, o->height + 40, o->resolution, -1.0, -1.0);
+    assert_non_null(w);
+    for (int y = 0; y < o->height; y++)
+        memcpy(&w->cells[(size_t)(y + 20) * w->width + 20], &o->cells[(size_t)y * o->width], (size_t)o->width);
+    occmap_destroy(o);
+    occmap_t *c = occmap_clone(w);
+    double dx = 1, dy = 1, th = 1;
+    occmap_t *al = mapeval_align(w, c, 0.5, 0.03, &dx, &dy, &th);
+    assert_non_null(al);
+    assert_true(fabs(dx) < 1e-9 && fabs(dy) < 1e-9 && fabs(th) < 1e-9);
+    mapeval_t e;
+    mapeval_compare(w, al, 2.0, 15.0, &e);
+    assert_true(e.precision == 1.0 && e.recall == 1.0);
+    occmap_destroy(al);
+    occmap_destroy(c);
+    occmap_destroy(w);
+}
+
 /* A wall drawn across free space where the world has none: every one of its cells is a false
  * positive, and nothing else changes. */
 static void test_invented_walls_lower_precision(void **state)
@@ -108,6 +132,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_a_copy_scores_one),
         cmocka_unit_test(test_a_shifted_copy_is_found_by_alignment),
+        cmocka_unit_test(test_a_copy_is_not_moved_by_alignment),
         cmocka_unit_test(test_invented_walls_lower_precision),
         cmocka_unit_test(test_lost_walls_lower_recall_and_unseen_space_coverage),
     };
