@@ -67,7 +67,7 @@ extern "C" slam_t *slam_create(const slam_params_t *p, const double pose0[3])
 {
     if (!p || !(p->resolution >= 0.01) || !(p->size_m >= 1) || p->size_m / p->resolution > 8000 ||
         !(p->l_hit > 0) || !(p->l_miss < 0) || !(p->sigma > 0) || !(p->kf_dist > 0) || !(p->kf_angle > 0) ||
-        !(p->search_xy >= 0) || !(p->search_th >= 0) || !(p->step_th > 0) || p->loop_every < 1 ||
+        !(p->search_xy >= 0) || !(p->prior_xy > 0) || !(p->prior_th > 0) || !(p->search_th >= 0) || !(p->step_th > 0) || p->loop_every < 1 ||
         !(p->loop_drift >= 0) || !(p->loop_drift_per_kf >= 0) || !(p->loop_optimize_xy >= 0) || !(p->loop_optimize_th >= 0) ||
         !std::isfinite(pose0[0]) || !std::isfinite(pose0[1]) || !std::isfinite(pose0[2])) {
         errno = EINVAL;
@@ -263,7 +263,7 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
         s->last_pose = s->pose0;
     } else {
         Pose guess = s->have_odom ? compose(s->last_pose, between(s->last_odom, o)) : s->last_pose;
-        MatchWindow win{ s->p.search_xy, s->p.search_th, s->p.step_th, 1, true };
+        MatchWindow win{ s->p.search_xy, s->p.search_th, s->p.step_th, 1, true, s->p.prior_xy, s->p.prior_th };
         if (!s->have_odom) {        /* after an odometry restart the robot may have moved unseen */
             win.xy *= 3;
             win.th *= 3;
