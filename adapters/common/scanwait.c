@@ -4,57 +4,86 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Copy m into the wait slot (intensities are not kept). 0, or -1 (ENOMEM): nothing waits. */
+static void count(marie_component_t *c, const char *counter)
+{
+    if (c)
+        marie_component_count(c, counter, 1);
+}
+
+/* Copy m into the next free slot (intensities are not kept). 0, or -1 (ENOMEM): it does not wait. */
 static int hold(scanwait_t *w, const marie_laser_scan_t *m)
 {
-    if (m->nranges > w->cap) {
-        float *n = realloc(w->ranges, sizeof(float) * (size_t)m->nranges);
-        if (!n)
+    scanwait_slot_t *s = &w->slot[(w->head + w->n) % SCANWAIT_CAP];
+    if (m->nranges > s->cap) {
+        float *r = realloc(s->scan.ranges, sizeof(float) * (size_t)m->nranges);
+        if (!r)
             return -1;
-        w->ranges = n;
-        w->cap = m->nranges;
+        s->scan.ranges = r;
+        s->cap = m->nranges;
     }
-    w->scan = *m;
-    memcpy(w->ranges, m->ranges, sizeof(float) * (size_t)m->nranges);
-    w->scan.ranges = w->ranges;
-    w->scan.nintensities = 0;
-    w->scan.intensities = NULL;
-    w->held = true;
+    float *r = s->scan.ranges;
+    s->scan = *m;
+    s->scan.ranges = r;
+    memcpy(r, m->ranges, sizeof(float) * (size_t)m->nranges);
+    s->scan.nintensities = 0;
+    s->scan.intensities = NULL;
+    w->n++;
     return 0;
+}
+
+/* Run the oldest waiting scan. */
+static void run_oldest(scanwait_t *w, marie_component_t *c, scanwait_fn fn)
+{
+    const marie_laser_scan_t *m = &w->slot[w->head].scan;
+    w->head = (w->head + 1) % SCANWAIT_CAP;
+    w->n--;
+    fn(c, m);       /* the slot's buffer stays valid: only hold() writes it, after this returns */
 }
 
 void scanwait_scan(scanwait_t *w, marie_component_t *c, const posebuf_t *odom, const marie_laser_scan_t *m,
                    scanwait_fn fn)
 {
     if (odom->n == 0) {
-        marie_component_count(c, "scans_without_odometry", 1);
+        count(c, "scans_without_odometry");
         return;
     }
     if (posebuf_newest(odom) >= m->utime) {
+        while (w->n)            /* older than this one, so covered too */
+            run_oldest(w, c, fn);
         fn(c, m);
         return;
     }
-    /* The odometry that brackets it is at most one period behind. */
-    if (w->held) {
-        marie_component_count(c, "scans_late_odometry", 1);
-        w->held = false;
-        fn(c, &w->scan);
+    if (w->n && m->utime <= w->slot[(w->head + w->n - 1) % SCANWAIT_CAP].scan.utime) {
+        count(c, "scans_out_of_order");     /* not after the newest waiting one */
+        return;
+    }
+    if (w->n == SCANWAIT_CAP) {
+        /* Odometry a whole queue behind: the oldest would be placed with odometry older than
+         * itself (a turning robot's heading off by more than any matcher searches), so it goes. */
+        count(c, "scans_late_odometry");
+        w->head = (w->head + 1) % SCANWAIT_CAP;
+        w->n--;
     }
     hold(w, m);
 }
 
 void scanwait_odometry(scanwait_t *w, marie_component_t *c, int64_t utime, scanwait_fn fn)
 {
-    if (w->held && utime >= w->scan.utime) {
-        w->held = false;
-        fn(c, &w->scan);
-    }
+    while (w->n && w->slot[w->head].scan.utime <= utime)
+        run_oldest(w, c, fn);
 }
 
-void scanwait_drop(scanwait_t *w) { w->held = false; }
+int scanwait_waiting(const scanwait_t *w) { return w->n; }
+
+void scanwait_drop(scanwait_t *w)
+{
+    w->head = 0;
+    w->n = 0;
+}
 
 void scanwait_free(scanwait_t *w)
 {
-    free(w->ranges);
+    for (int i = 0; i < SCANWAIT_CAP; i++)
+        free(w->slot[i].scan.ranges);
     memset(w, 0, sizeof *w);
 }
