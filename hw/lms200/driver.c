@@ -18,6 +18,7 @@
 /* Extra probe rounds at a rate where the line talks but the device has not answered yet
  * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
 #define MAX_STAY 3
+#define BATCH_MAX 8                 /* scans one read may complete: 0.1 s of the device's 75 Hz */
 
 struct lms200_driver {
     lms200_driver_cfg_t cfg;
@@ -46,6 +47,11 @@ struct lms200_driver {
     bool running;                   /* between start and stop */
     bool degraded;
     int64_t last_good;              /* last good scan (or the start), for degraded_ms */
+    /* Scans completed by one read: stamped together once it is done (see deliver()). */
+    lms200_scan_t batch[BATCH_MAX];
+    int nbatch;
+    int64_t period_us;              /* the device's scan period as the arrivals show it; 0: not yet */
+    int64_t last_arrival, last_stamp;
     lms200_driver_stats_t st;
 };
 
@@ -323,16 +329,21 @@ static void on_variant_reply(lms200_driver_t *d, const lms200_variant_t *v)
         enter(d, LMS200_DRV_BAUD);
 }
 
+static void deliver(lms200_driver_t *d);
+
 static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
 {
     if (d->state != LMS200_DRV_STREAM)
         return;     /* the tail of an earlier stream while re-initialising */
-    static lms200_scan_t scan;  /* 1.6 KB: kept off the stack of the poll loop */
+    if (d->nbatch == BATCH_MAX)
+        deliver(d);
+    lms200_scan_t *scan = &d->batch[d->nbatch];
     int want = d->cfg.res_cdeg == 50 ? 361 : 181;
-    if (lms200_decode_scan(t, &scan) < 0 || scan.n != want || scan.partial) {
+    if (lms200_decode_scan(t, scan) < 0 || scan->n != want || scan->partial) {
         count(d, "bad_scans", &d->st.bad_scans, 1, true);
         return;
     }
+    d->nbatch++;
     d->st.scans++;
     d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
     d->last_good = d->now;
@@ -344,8 +355,35 @@ static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
             d->ops.on_health(d->user, false, why);
         }
     }
-    if (d->ops.on_scan)
-        d->ops.on_scan(d->user, &scan, d->cfg.res_cdeg, d->now);
+}
+
+/* The scans one read completed. A device streams at its own fixed period, so when a read
+ * brings several (the driver was late: a loaded machine, a stalled loop) they were sent one
+ * period apart and only the last arrived just now: each is stamped back from the read by the
+ * period the single arrivals show, never at or before the scan delivered before it (which
+ * would put two scans of a turning robot at one instant). */
+static void deliver(lms200_driver_t *d)
+{
+    int n = d->nbatch;
+    d->nbatch = 0;
+    if (n == 0)
+        return;
+    if (n == 1 && d->last_arrival > 0) {
+        int64_t dt = d->now - d->last_arrival;
+        if (d->period_us == 0)
+            d->period_us = dt;
+        else if (dt > d->period_us / 2 && dt < 2 * d->period_us)
+            d->period_us += (dt - d->period_us) / 8;
+    }
+    d->last_arrival = d->now;
+    for (int i = 0; i < n; i++) {
+        int64_t at = d->now - (int64_t)(n - 1 - i) * d->period_us;
+        if (d->last_stamp && at <= d->last_stamp && d->last_stamp - at < 1000000)
+            at = d->last_stamp + (d->period_us > 0 ? d->period_us : 1);
+        d->last_stamp = at;
+        if (d->ops.on_scan)
+            d->ops.on_scan(d->user, &d->batch[i], d->cfg.res_cdeg, at);
+    }
 }
 
 static void on_telegram(void *user, const lms200_telegram_t *t)
@@ -487,9 +525,17 @@ lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d) { return d->sta
 int lms200_driver_baud(const lms200_driver_t *d) { return d->baud; }
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d) { return &d->st; }
 
+static void read_input(lms200_driver_t *d, short revents);
+
 void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
 {
     d->now = now_us;
+    read_input(d, revents);
+    deliver(d);
+}
+
+static void read_input(lms200_driver_t *d, short revents)
+{
     if (d->fd < 0)
         return;
     if (revents & POLLOUT)

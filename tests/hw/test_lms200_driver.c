@@ -43,6 +43,9 @@ typedef struct {
     int moving_bad;
     int degraded_calls, recovered_calls;
     bool degraded;
+    bool stalled;               /* the driver reads nothing (a loaded machine) */
+    int64_t stamp[512];         /* each scan's time as the driver gave it */
+    int nstamp;
 } rig_t;
 
 static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t t)
@@ -50,6 +53,8 @@ static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t t)
     rig_t *r = user;
     r->scans++;
     r->last_n = s->n;
+    if (r->nstamp < 512)
+        r->stamp[r->nstamp++] = t;
     if (r->moving) {
         /* Every beam sees the same wall, a little further than in the scan before. */
         double w = lms200_value_m(s->values[0], s->unit);
@@ -153,7 +158,7 @@ static void step(rig_t *r)
     int efd = vlms200_fd(r->emu), dfd = r->drv ? lms200_driver_fd(r->drv) : -1;
     if (ie >= 0 && p[ie].revents && p[ie].fd == efd)
         vlms200_io(r->emu, p[ie].revents, now);
-    if (id >= 0 && p[id].revents && p[id].fd == dfd)
+    if (id >= 0 && p[id].revents && p[id].fd == dfd && !r->stalled)
         lms200_driver_io(r->drv, p[id].revents, now);
     vlms200_tick(r->emu, now);
     if (r->drv)
@@ -241,6 +246,29 @@ static void test_scan_callback_feeds_each_scan(void **state)
     assert_true(r.last_wall > 2.0);
     assert_true(k >= 5);
     assert_true(vlms200_expected_range(r.emu, 0, 100) > 2.0);
+    rig_close(&r);
+}
+
+/* A driver that could not read for 120 ms finds six scans waiting: they were sent one period
+ * apart, so they are stamped one period apart back from the read, not all at the read. */
+static void test_scans_read_late_are_stamped_one_period_apart(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    assert_true(rig_streaming(&r, &e, 500000, 100, 20, 5000));
+    int before = r.nstamp;
+    r.stalled = true;
+    run_for(&r, 120);
+    r.stalled = false;
+    int64_t read_at = mono_us();
+    assert_true(RUN_UNTIL(&r, 1000, r.nstamp >= before + 5));
+    int late = r.nstamp - before;
+    print_message("%d scans read at once\n", late);
+    for (int i = before; i < r.nstamp; i++) {
+        int64_t gap = r.stamp[i] - r.stamp[i - 1];
+        assert_true(gap > 14000 && gap < 26000);        /* 20 ms, as measured by the arrivals */
+    }
+    assert_true(r.stamp[r.nstamp - 1] >= read_at - 20000 && r.stamp[r.nstamp - 1] <= mono_us());
     rig_close(&r);
 }
 
@@ -557,6 +585,7 @@ int main(void)
         cmocka_unit_test(test_init_sequence_reaches_stream_at_500000_half_degree),
         cmocka_unit_test(test_one_degree_in_centimetres_at_38400),
         cmocka_unit_test(test_scan_callback_feeds_each_scan),
+        cmocka_unit_test(test_scans_read_late_are_stamped_one_period_apart),
         cmocka_unit_test(test_stays_at_9600_when_configured),
         cmocka_unit_test(test_crc_errors_counted_and_skipped),
         cmocka_unit_test(test_garbage_between_scans_resyncs),
