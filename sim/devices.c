@@ -160,7 +160,7 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
         snprintf(err, errlen, "cannot poll the devices' bus connection: %s", strerror(errno));
         goto fail;
     }
-    vlms200_cfg_t lc = { .rate_hz = cfg->laser_hz, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t lc = { .rate_hz = cfg->laser_hz, .unit = LMS200_UNIT_MM, .line_time = true };
     d->laser = vlms200_create(&lc);
     int rc = d->laser ? vlms200_open(d->laser, cfg->laser_link) : -errno;
     if (rc < 0) {
@@ -195,6 +195,11 @@ void sim_devices_before_step(sim_devices_t *d)
 {
     vdrive_t *l = vdevices_drive(d->dev, 0), *r = vdevices_drive(d->dev, 1);
     sim_world_set_wheels(d->world, l ? vdrive_command(l) : 0.0, r ? vdrive_command(r) : 0.0);
+}
+
+bool sim_devices_laser_sends(const sim_devices_t *d, int64_t now)
+{
+    return d->laser && vlms200_sends_at(d->laser, now);
 }
 
 void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)

@@ -45,6 +45,11 @@ void sim_devices_destroy(sim_devices_t *d);             /* NULL is a no-op; leav
  * feedback, the true yaw rate and time-driven frames go out after it. */
 void sim_devices_before_step(sim_devices_t *d);
 void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now);
+/* Whether the step ending at `now` sends the laser's host a telegram (sim_devices_after_step
+ * does): the simulator publishes that instant on the clock first, so the driver, which stamps
+ * what it reads by the clock, stamps the scan when it left the device and not up to a clock
+ * period earlier. */
+bool sim_devices_laser_sends(const sim_devices_t *d, int64_t now);
 /* Driver lockstep, asked before each step: false while the devices are more than driver_lag of
  * simulated time ahead of a driver: past the CAN master's last frame (marie-drives sends SYNC
  * and heartbeat every 20 ms), or since the laser's host has left bytes unread. So a driver that

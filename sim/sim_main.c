@@ -39,6 +39,7 @@ typedef struct {
     int64_t last_pose_sim;      /* sim us of the newest pose estimate */
     bool estop, estop_dirty;
     int64_t last_touch;         /* sim us of the last step with a wall contact; -1: never */
+    int64_t clock_sent;         /* sim us the clock last said; -1: nothing yet */
 } sim_t;
 
 static const marie_port_spec_t ports[] = {
@@ -188,6 +189,15 @@ static void publish_sensors(sim_t *s, int64_t k, int64_t now)
     }
 }
 
+static void publish_clock(sim_t *s, int64_t now)
+{
+    if (now == s->clock_sent)
+        return;
+    marie_sim_clock_t ck = { .utime = now, .speed = s->o->speed };
+    marie_port_publish(s->p_clock, &ck);
+    s->clock_sent = now;
+}
+
 static void publish(marie_component_t *c, sim_t *s)
 {
     int64_t k = sim_world_steps(s->world), now = sim_now(s);
@@ -215,10 +225,8 @@ static void publish(marie_component_t *c, sim_t *s)
         s->estop_dirty = false;
     }
     /* The clock goes last, so a component woken by it already has this instant's data. */
-    if (k % s->n_clock == 0) {
-        marie_sim_clock_t ck = { .utime = now, .speed = s->o->speed };
-        marie_port_publish(s->p_clock, &ck);
-    }
+    if (k % s->n_clock == 0)
+        publish_clock(s, now);
 }
 
 /* Lockstep on one input last seen at *last (sim us): true while the simulator waits for it. */
@@ -262,8 +270,11 @@ static bool step_once(marie_component_t *c, sim_t *s)
     if (s->devices)
         sim_devices_before_step(s->devices);
     sim_world_step(s->world);
-    if (s->devices)
+    if (s->devices) {
+        if (sim_devices_laser_sends(s->devices, sim_now(s)))
+            publish_clock(s, sim_now(s));
         sim_devices_after_step(s->devices, sim_world_step_s(s->world), sim_now(s));
+    }
     /* Heartbeat counters: "collisions" counts each new contact with a wall (contacts that
      * flicker while the robot scrapes along one count once). */
     bool touching = sim_world_wall_contacts(s->world) > 0;
@@ -378,6 +389,7 @@ static int on_init(marie_component_t *c)
     /* Init again after a failure: start from nothing. */
     release(s);
     s->last_touch = -1;
+    s->clock_sent = -1;
     const sim_opts_t *o = s->o = sim_opts(c);
     bool device = strcmp(o->mode, "device") == 0;
     if (!device && strcmp(o->mode, "channel") != 0) {

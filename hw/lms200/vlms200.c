@@ -35,6 +35,7 @@ struct vlms200 {
     uint8_t out[OUT_CAP];
     size_t out_len;
     int64_t next_scan;
+    int64_t release_at;             /* line_time: the queued bytes reach the host then */
     int64_t now;
     int64_t silent_until;
     int64_t back_at;                /* INT64_MAX: not scheduled */
@@ -54,6 +55,7 @@ static void power_on(vlms200_t *v)
     v->res_cdeg = 100;
     v->out_len = 0;
     v->next_scan = 0;
+    v->release_at = 0;
     if (v->parser)
         lms200_parser_reset(v->parser);
 }
@@ -197,7 +199,7 @@ static void queue(vlms200_t *v, const uint8_t *b, size_t n)
 
 static void flush_out(vlms200_t *v)
 {
-    if (v->master < 0 || v->out_len == 0)
+    if (v->master < 0 || v->out_len == 0 || v->now < v->release_at)
         return;
     bool garble = !host_rate_matches(v);
     if (garble) {
@@ -264,6 +266,12 @@ void vlms200_on_scan(vlms200_t *v, vlms200_scan_cb_t cb, void *user)
     v->on_scan_user = user;
 }
 
+/* What n bytes take on the line: 10 bits each at the current rate. */
+static int64_t wire_us(const vlms200_t *v, size_t n)
+{
+    return (int64_t)n * 10 * 1000000 / v->baud;
+}
+
 static void send_scan(vlms200_t *v)
 {
     if (v->on_scan)
@@ -289,6 +297,8 @@ static void send_scan(vlms200_t *v)
         v->st.truncated++;
     }
     queue(v, tg, len);
+    if (v->cfg.line_time)
+        v->release_at = v->now + wire_us(v, len);
     v->st.scans_sent++;
 }
 
@@ -427,10 +437,10 @@ void vlms200_tick(vlms200_t *v, int64_t now_us)
     if (v->streaming && now_us >= v->next_scan) {
         /* The line limits the rate too: 10 bits per byte at the current speed. */
         int n = v->res_cdeg == 100 ? 181 : 361;
-        int64_t wire_us = (int64_t)(4 + 4 + 2 * n + 2) * 10 * 1000000 / v->baud;
+        int64_t wire = wire_us(v, 4 + 4 + 2 * (size_t)n + 2);
         int64_t period = (int64_t)(1e6 / v->cfg.rate_hz);
-        if (period < wire_us)
-            period = wire_us;
+        if (period < wire)
+            period = wire;
         if (v->out_len < LMS200_MAX_TELEGRAM)
             send_scan(v);
         else
@@ -448,7 +458,17 @@ int64_t vlms200_deadline(const vlms200_t *v)
         return v->back_at;
     if (v->now < v->silent_until)
         return v->silent_until;
-    return v->streaming ? v->next_scan : INT64_MAX;
+    int64_t d = v->streaming ? v->next_scan : INT64_MAX;
+    return v->out_len && v->release_at > v->now && v->release_at < d ? v->release_at : d;
+}
+
+bool vlms200_sends_at(const vlms200_t *v, int64_t now_us)
+{
+    if (v->master < 0 || now_us < v->silent_until)
+        return false;
+    if (v->out_len && now_us >= v->release_at)
+        return true;
+    return v->streaming && now_us >= v->next_scan && !v->cfg.line_time;
 }
 
 void vlms200_silence(vlms200_t *v, int64_t until_us)

@@ -23,6 +23,8 @@ typedef struct {
     int truncate_every;         /* every Nth scan telegram is cut off half way */
     bool ignore_baud;           /* accept the host at any line speed (default: like a real
                                  * UART, bytes at the wrong rate are garbled) */
+    bool line_time;             /* a scan's telegram reaches the host the line's transfer time
+                                 * after the scan, as on the wire (default: at once) */
 } vlms200_cfg_t;
 
 typedef struct {
@@ -53,6 +55,9 @@ short vlms200_events(const vlms200_t *v);               /* what to watch the fd 
 void vlms200_io(vlms200_t *v, short revents, int64_t now_us);
 void vlms200_tick(vlms200_t *v, int64_t now_us);
 int64_t vlms200_deadline(const vlms200_t *v);           /* monotonic us; INT64_MAX: none */
+/* Whether vlms200_tick(v, now_us) writes to the host: a caller whose host stamps what it
+ * reads by a clock the caller publishes (the simulator) publishes that instant first. */
+bool vlms200_sends_at(const vlms200_t *v, int64_t now_us);
 
 /* Ranges in metres for the next scans: n >= 2 values evenly spread from 0 to 180 degrees
  * (right to left), resampled to the current resolution. Non-finite or out-of-range values
