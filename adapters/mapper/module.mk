@@ -6,9 +6,11 @@ $(eval $(call marie_lib,mapper,adapters/mapper/slam.cpp adapters/mapper/scangrid
 $(eval $(call marie_program,marie-mapper,adapters/mapper/mapper_main.c,$(MAPPER_LIBS)))
 $(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
 $(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER_LIBS)))
-# The integration test's pilot (not installed).
+# The integration test's pilot, and a recorded run through the mapper's library (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
-EXTRA_TARGETS += $(B)/tests/helpers/route_driver
+$(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c,$(MAPPER_LIBS)))
+EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/mapper_replay
+ITESTS += tests/mapper/test_mapper_replay.sh
 SLOW_TESTS += tests/mapper/test_mapper_sim.sh
 # The simulated robot mapping the office along a route (~2 min) and by itself (3-4 min):
 # make test-slow runs them (make test stays within its 20 minutes; docs/mapping.md).

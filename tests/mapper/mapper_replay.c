@@ -1,0 +1,243 @@
+/* mapper_replay: a recorded run (an LCM log with LASER and ODOMETRY, and SIM_TRUTH from the
+ * simulator) through the mapper's library as marie-mapper feeds it, alone and in log order, so
+ * two versions or two settings of the mapper are compared on the very same input (a live run
+ * never gives the same input twice). Prints the mapper's counters, its trajectory against the
+ * truth (ATE) and the map against a world (as `marie map compare`). Not installed.
+ *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [PARAM=VALUE ...]
+ * (--traj: "utime x y theta" of each scan placed).
+ * PARAMs are the mapper library's (adapters/mapper/slam.params.yaml); only the log's first run
+ * is read (it ends where the simulated time goes back, as in marie-demo's two-part logs). */
+#include <errno.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "adapters/common/posebuf.h"
+#include "adapters/common/scanwait.h"
+#include "adapters/mapper/slam.h"
+#include "adapters/mapper/slam_params.h"
+#include "core/config.h"
+#include "lcmtypes/marie_laser_scan_t.h"
+#include "lcmtypes/marie_odometry_t.h"
+#include "lcmtypes/marie_pose_cov_t.h"
+#include "map/mapeval.h"
+#include "map/occmap.h"
+
+static const marie_param_spec_t slam_spec[] = SLAM_PARAMS;
+
+typedef struct {
+    slam_t *slam;
+    posebuf_t odom;
+    scanwait_t wait;
+    int64_t last_scan;
+    double (*est)[4];           /* utime, x, y, theta of each placed scan */
+    size_t nest, cap;
+} replay_t;
+
+static replay_t R;
+
+/* NAME=VALUE onto the library's parameters: 0, or -1 with a message. */
+static int set_param(slam_params_t *p, const char *arg)
+{
+    const char *eq = strchr(arg, '=');
+    for (const marie_param_spec_t *s = slam_spec; eq && s->name; s++) {
+        if (strlen(s->name) != (size_t)(eq - arg) || strncmp(s->name, arg, (size_t)(eq - arg)) != 0)
+            continue;
+        char *end;
+        errno = 0;
+        double v = strtod(eq + 1, &end);
+        if (s->type == MARIE_PARAM_BOOL && (!strcmp(eq + 1, "true") || !strcmp(eq + 1, "false"))) {
+            *(bool *)((char *)p + s->offset) = eq[1] == 't';
+            return 0;
+        }
+        if (errno || end == eq + 1 || *end || !isfinite(v))
+            break;
+        if (s->type == MARIE_PARAM_DOUBLE)
+            *(double *)((char *)p + s->offset) = v;
+        else if (s->type == MARIE_PARAM_INT && v == (double)(int64_t)v)
+            *(int64_t *)((char *)p + s->offset) = (int64_t)v;
+        else if (s->type == MARIE_PARAM_BOOL && (v == 0 || v == 1))
+            *(bool *)((char *)p + s->offset) = v != 0;
+        else
+            break;
+        return 0;
+    }
+    fprintf(stderr, "mapper_replay: %s: not NAME=VALUE with a parameter of slam.params.yaml and its type\n", arg);
+    return -1;
+}
+
+static void place(marie_component_t *c, const marie_laser_scan_t *m)
+{
+    double od[3], pose[3];
+    if (!posebuf_at(&R.odom, m->utime, od) || m->utime <= R.last_scan)
+        return;
+    slam_scan_t ss = { m->ranges, m->nranges, m->angle_min, m->angle_increment, m->range_min, m->range_max };
+    if (slam_add_scan(R.slam, od, &ss, pose) < 0)
+        return;
+    R.last_scan = m->utime;
+    if (R.nest == R.cap) {
+        R.cap = R.cap ? 2 * R.cap : 4096;
+        R.est = realloc(R.est, R.cap * sizeof R.est[0]);
+        if (!R.est)
+            exit(1);
+    }
+    memcpy(R.est[R.nest++], (double[4]){ (double)m->utime, pose[0], pose[1], pose[2] }, sizeof R.est[0]);
+}
+
+static uint32_t be32(const unsigned char *b) { return (uint32_t)b[0] << 24 | b[1] << 16 | b[2] << 8 | b[3]; }
+
+int main(int argc, char **argv)
+{
+    const char *log = NULL, *world = NULL, *save = NULL, *traj = NULL;
+    double start[3] = { 0, 0, 0 };
+    slam_params_t p;
+    slam_params_default(&p);
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--world") && i + 1 < argc)
+            world = argv[++i];
+        else if (!strcmp(argv[i], "--save") && i + 1 < argc)
+            save = argv[++i];
+        else if (!strcmp(argv[i], "--traj") && i + 1 < argc)
+            traj = argv[++i];
+        else if (!strcmp(argv[i], "--start") && i + 3 < argc)
+            for (int k = 0; k < 3; k++)
+                start[k] = atof(argv[++i]);
+        else if (strchr(argv[i], '=')) {
+            if (set_param(&p, argv[i]) < 0)
+                return 2;
+        } else if (!log)
+            log = argv[i];
+        else
+            log = NULL, i = argc;
+    }
+    FILE *f = log ? fopen(log, "rb") : NULL;
+    if (!f) {
+        fprintf(stderr, "usage: mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [PARAM=VALUE ...]%s%s\n",
+                log ? ": " : "", log ? strerror(errno) : "");
+        return 2;
+    }
+    R.slam = slam_create(&p, start);
+    if (!R.slam) {
+        fprintf(stderr, "mapper_replay: the parameters are refused by slam_create\n");
+        return 2;
+    }
+    posebuf_clear(&R.odom);
+    R.last_scan = INT64_MIN;
+    double (*truth)[3] = NULL;
+    int64_t *tt = NULL;
+    size_t nt = 0, tcap = 0, bad = 0;
+    unsigned char hdr[28], *data = NULL;
+    size_t dcap = 0;
+    char ch[256];
+    while (fread(hdr, 1, 28, f) == 28 && be32(hdr) == 0xEDA1DA01u) {
+        uint32_t cl = be32(hdr + 20), dl = be32(hdr + 24);
+        if (cl >= sizeof ch || fread(ch, 1, cl, f) != cl)
+            break;
+        ch[cl] = 0;
+        if (dl > dcap && !(data = realloc(data, dcap = dl)))
+            return 1;
+        if (fread(data, 1, dl, f) != dl)
+            break;
+        if (!strcmp(ch, "SIM_TRUTH")) {
+            marie_pose_cov_t t;
+            if (marie_pose_cov_t_decode(data, 0, (int)dl, &t) < 0) {
+                bad++;
+                continue;
+            }
+            bool back = nt && t.utime < tt[nt - 1] - 5000000;  /* the log's next run */
+            if (!back && nt == tcap) {
+                tcap = tcap ? 2 * tcap : 4096;
+                if (!(tt = realloc(tt, tcap * sizeof *tt)) || !(truth = realloc(truth, tcap * sizeof *truth)))
+                    return 1;
+            }
+            if (!back) {
+                tt[nt] = t.utime;
+                memcpy(truth[nt++], (double[3]){ t.pose.x, t.pose.y, t.pose.theta }, sizeof truth[0]);
+            }
+            marie_pose_cov_t_decode_cleanup(&t);
+            if (back)
+                break;
+        } else if (!strcmp(ch, "ODOMETRY")) {
+            marie_odometry_t o;
+            if (marie_odometry_t_decode(data, 0, (int)dl, &o) < 0) {
+                bad++;
+                continue;
+            }
+            if (posebuf_newest(&R.odom) == INT64_MIN || o.utime > posebuf_newest(&R.odom)) {
+                posebuf_add(&R.odom, o.utime, (const double[3]){ o.pose.x, o.pose.y, o.pose.theta });
+                scanwait_odometry(&R.wait, NULL, o.utime, place);
+            }
+            marie_odometry_t_decode_cleanup(&o);
+        } else if (!strcmp(ch, "LASER")) {
+            marie_laser_scan_t m;
+            if (marie_laser_scan_t_decode(data, 0, (int)dl, &m) < 0) {
+                bad++;
+                continue;
+            }
+            if (m.utime > R.last_scan)
+                scanwait_scan(&R.wait, NULL, &R.odom, &m, place);
+            marie_laser_scan_t_decode_cleanup(&m);
+        }
+    }
+    fclose(f);
+    free(data);
+    slam_stats_t st;
+    slam_get_stats(R.slam, &st);
+    printf("scans %zu keyframes %" PRId64 " closures %" PRId64 " optimizations %" PRId64 " ambiguous %" PRId64
+           " implausible %" PRId64 " match_failures %" PRId64 " undecodable %zu\n",
+           R.nest, st.keyframes, st.loop_closures, st.optimizations, st.loop_ambiguous, st.loop_implausible,
+           st.match_failures, bad);
+    /* The trajectory against the truth, interpolated at each scan's time. */
+    double se = 0, mx = 0;
+    size_t n = 0, k = 0;
+    for (size_t i = 0; i < R.nest && nt > 1; i++) {
+        int64_t t = (int64_t)R.est[i][0];
+        while (k + 2 < nt && tt[k + 1] < t)
+            k++;
+        if (t < tt[k] || t > tt[k + 1])
+            continue;
+        double w = (double)(t - tt[k]) / (double)(tt[k + 1] - tt[k] ? tt[k + 1] - tt[k] : 1);
+        double dx = R.est[i][1] - (truth[k][0] + w * (truth[k + 1][0] - truth[k][0]));
+        double dy = R.est[i][2] - (truth[k][1] + w * (truth[k + 1][1] - truth[k][1]));
+        se += dx * dx + dy * dy;
+        mx = fmax(mx, hypot(dx, dy));
+        n++;
+    }
+    if (n)
+        printf("ate_rms %.3f max %.3f poses %zu\n", sqrt(se / (double)n), mx, n);
+    FILE *tf = traj ? fopen(traj, "w") : NULL;
+    for (size_t i = 0; tf && i < R.nest; i++)
+        fprintf(tf, "%.0f %.4f %.4f %.5f\n", R.est[i][0], R.est[i][1], R.est[i][2], R.est[i][3]);
+    if (tf)
+        fclose(tf);
+    occmap_t *m = slam_render(R.slam);
+    int rc = 0;
+    if (m && save && occmap_save(m, save) < 0) {
+        fprintf(stderr, "mapper_replay: cannot save %s: %s\n", save, strerror(errno));
+        rc = 1;
+    }
+    if (m && world) {
+        marie_errors_t errs = { 0 };
+        occmap_t *w = occmap_load(world, &errs);
+        mapeval_judgement_t j;
+        if (!w || mapeval_judge(w, m, start[0], start[1], &j) < 0) {
+            marie_errors_print(&errs, stderr);
+            rc = 1;
+        } else {
+            printf("precision %.3f recall %.3f coverage %.3f\n", j.raw.precision, j.raw.recall, j.raw.coverage);
+            printf("aligned by (%.2f m, %.2f m, %.3f rad): aprecision %.3f arecall %.3f acoverage %.3f\n", j.dx, j.dy,
+                   j.th, j.aligned.precision, j.aligned.recall, j.aligned.coverage);
+        }
+        occmap_destroy(w);
+        marie_errors_clear(&errs);
+    }
+    occmap_destroy(m);
+    slam_destroy(R.slam);
+    scanwait_free(&R.wait);
+    free(R.est);
+    free(truth);
+    free(tt);
+    return rc;
+}
