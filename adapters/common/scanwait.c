@@ -31,13 +31,13 @@ static int hold(scanwait_t *w, const marie_laser_scan_t *m)
     return 0;
 }
 
-/* Run the oldest waiting scan. */
-static void run_oldest(scanwait_t *w, marie_component_t *c, scanwait_fn fn)
+/* Take the oldest waiting scan out of the queue; its slot stays valid until the next hold(). */
+static const marie_laser_scan_t *pop(scanwait_t *w)
 {
     const marie_laser_scan_t *m = &w->slot[w->head].scan;
     w->head = (w->head + 1) % SCANWAIT_CAP;
     w->n--;
-    fn(c, m);       /* the slot's buffer stays valid: only hold() writes it, after this returns */
+    return m;
 }
 
 void scanwait_scan(scanwait_t *w, marie_component_t *c, const posebuf_t *odom, const marie_laser_scan_t *m,
@@ -49,7 +49,7 @@ void scanwait_scan(scanwait_t *w, marie_component_t *c, const posebuf_t *odom, c
     }
     if (posebuf_newest(odom) >= m->utime) {
         while (w->n)            /* older than this one, so covered too */
-            run_oldest(w, c, fn);
+            fn(c, pop(w));
         fn(c, m);
         return;
     }
@@ -61,8 +61,7 @@ void scanwait_scan(scanwait_t *w, marie_component_t *c, const posebuf_t *odom, c
         /* Odometry a whole queue behind: the oldest would be placed with odometry older than
          * itself (a turning robot's heading off by more than any matcher searches), so it goes. */
         count(c, "scans_late_odometry");
-        w->head = (w->head + 1) % SCANWAIT_CAP;
-        w->n--;
+        pop(w);
     }
     hold(w, m);
 }
@@ -70,7 +69,7 @@ void scanwait_scan(scanwait_t *w, marie_component_t *c, const posebuf_t *odom, c
 void scanwait_odometry(scanwait_t *w, marie_component_t *c, int64_t utime, scanwait_fn fn)
 {
     while (w->n && w->slot[w->head].scan.utime <= utime)
-        run_oldest(w, c, fn);
+        fn(c, pop(w));
 }
 
 int scanwait_waiting(const scanwait_t *w) { return w->n; }

@@ -18,7 +18,7 @@
 /* Extra probe rounds at a rate where the line talks but the device has not answered yet
  * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
 #define MAX_STAY 3
-#define BATCH_MAX 8                 /* scans one read may complete: 0.1 s of the device's 75 Hz */
+#define BATCH_MAX 8                 /* scans of one read stamped together; a longer backlog goes out in turns */
 
 struct lms200_driver {
     lms200_driver_cfg_t cfg;
