@@ -32,8 +32,8 @@ typedef struct {
 
 /* A scan arrived: fn runs on it now when odom covers its time (after the scans waiting before
  * it), else it waits. When SCANWAIT_CAP already wait, the oldest is dropped, never run with
- * odometry older than itself (counted as scans_late_odometry); one not newer than the newest waiting scan is dropped
- * (scans_out_of_order). Without odometry it is dropped and counted
+ * odometry older than itself (counted as scans_late_odometry); a scan not newer than the newest
+ * waiting one is dropped (scans_out_of_order), and so is one before any odometry
  * (scans_without_odometry). c may be NULL (nothing is counted). */
 void scanwait_scan(scanwait_t *w, marie_component_t *c, const posebuf_t *odom, const marie_laser_scan_t *m,
                    scanwait_fn fn);
