@@ -8,7 +8,7 @@ $(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
 $(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER_LIBS)))
 # The integration test's pilot, and a recorded run through the mapper's library (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
-$(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c,$(MAPPER_LIBS)))
+$(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c tools/viewer/lcmlog.c,$(MAPPER_LIBS)))
 EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/mapper_replay
 ITESTS += tests/mapper/test_mapper_replay.sh
 SLOW_TESTS += tests/mapper/test_mapper_sim.sh

@@ -6,7 +6,9 @@
  *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [PARAM=VALUE ...]
  * (--traj: "utime x y theta" of each scan placed).
  * PARAMs are the mapper library's (adapters/mapper/slam.params.yaml); only the log's first run
- * is read (it ends where the simulated time goes back, as in marie-demo's two-part logs). */
+ * is read (it ends where the simulated time goes back, as in marie-demo's two-part logs). The log
+ * is read with the viewer's parser (tools/viewer/lcmlog), which resynchronises past damage and
+ * counts it as `corrupt`. */
 #include <errno.h>
 #include <inttypes.h>
 #include <math.h>
@@ -24,6 +26,7 @@
 #include "lcmtypes/marie_pose_cov_t.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
+#include "tools/viewer/lcmlog.h"
 
 static const marie_param_spec_t slam_spec[] = SLAM_PARAMS;
 
@@ -34,6 +37,10 @@ typedef struct {
     int64_t last_scan;
     double (*est)[4];           /* utime, x, y, theta of each placed scan */
     size_t nest, cap;
+    struct { int64_t t; double x, y; } *truth;     /* SIM_TRUTH, in time order */
+    size_t nt, tcap;
+    size_t undecodable;
+    bool done;                  /* the log's first run is over */
 } replay_t;
 
 static replay_t R;
@@ -68,6 +75,18 @@ static int set_param(slam_params_t *p, const char *arg)
     return -1;
 }
 
+/* Grow an array of n elements of size `size` to hold one more. */
+static void *room(void *a, size_t n, size_t *cap, size_t size)
+{
+    if (n < *cap)
+        return a;
+    *cap = *cap ? 2 * *cap : 4096;
+    a = realloc(a, *cap * size);
+    if (!a)
+        exit(1);
+    return a;
+}
+
 static void place(marie_component_t *c, const marie_laser_scan_t *m)
 {
     double od[3], pose[3];
@@ -77,16 +96,57 @@ static void place(marie_component_t *c, const marie_laser_scan_t *m)
     if (slam_add_scan(R.slam, od, &ss, pose) < 0)
         return;
     R.last_scan = m->utime;
-    if (R.nest == R.cap) {
-        R.cap = R.cap ? 2 * R.cap : 4096;
-        R.est = realloc(R.est, R.cap * sizeof R.est[0]);
-        if (!R.est)
-            exit(1);
-    }
+    R.est = room(R.est, R.nest, &R.cap, sizeof R.est[0]);
     memcpy(R.est[R.nest++], (double[4]){ (double)m->utime, pose[0], pose[1], pose[2] }, sizeof R.est[0]);
 }
 
-static uint32_t be32(const unsigned char *b) { return (uint32_t)b[0] << 24 | b[1] << 16 | b[2] << 8 | b[3]; }
+static bool is(const lcmlog_event_t *ev, const char *ch)
+{
+    return ev->channel_len == strlen(ch) && memcmp(ev->channel, ch, ev->channel_len) == 0;
+}
+
+static void on_event(void *user, const lcmlog_event_t *ev)
+{
+    int len = (int)ev->data_len;
+    if (R.done)
+        return;
+    if (is(ev, "SIM_TRUTH")) {
+        marie_pose_cov_t t;
+        if (marie_pose_cov_t_decode(ev->data, 0, len, &t) < 0) {
+            R.undecodable++;
+            return;
+        }
+        if (R.nt && t.utime < R.truth[R.nt - 1].t - 5000000) {
+            R.done = true;      /* simulated time went back: the log's next run */
+        } else {
+            R.truth = room(R.truth, R.nt, &R.tcap, sizeof *R.truth);
+            R.truth[R.nt].t = t.utime;
+            R.truth[R.nt].x = t.pose.x;
+            R.truth[R.nt++].y = t.pose.y;
+        }
+        marie_pose_cov_t_decode_cleanup(&t);
+    } else if (is(ev, "ODOMETRY")) {
+        marie_odometry_t o;
+        if (marie_odometry_t_decode(ev->data, 0, len, &o) < 0) {
+            R.undecodable++;
+            return;
+        }
+        if (posebuf_newest(&R.odom) == INT64_MIN || o.utime > posebuf_newest(&R.odom)) {
+            posebuf_add(&R.odom, o.utime, (const double[3]){ o.pose.x, o.pose.y, o.pose.theta });
+            scanwait_odometry(&R.wait, NULL, o.utime, place);
+        }
+        marie_odometry_t_decode_cleanup(&o);
+    } else if (is(ev, "LASER")) {
+        marie_laser_scan_t m;
+        if (marie_laser_scan_t_decode(ev->data, 0, len, &m) < 0) {
+            R.undecodable++;
+            return;
+        }
+        if (m.utime > R.last_scan)
+            scanwait_scan(&R.wait, NULL, &R.odom, &m, place);
+        marie_laser_scan_t_decode_cleanup(&m);
+    }
+}
 
 int main(int argc, char **argv)
 {
@@ -125,82 +185,37 @@ int main(int argc, char **argv)
     }
     posebuf_clear(&R.odom);
     R.last_scan = INT64_MIN;
-    double (*truth)[3] = NULL;
-    int64_t *tt = NULL;
-    size_t nt = 0, tcap = 0, bad = 0;
-    unsigned char hdr[28], *data = NULL;
-    size_t dcap = 0;
-    char ch[256];
-    while (fread(hdr, 1, 28, f) == 28 && be32(hdr) == 0xEDA1DA01u) {
-        uint32_t cl = be32(hdr + 20), dl = be32(hdr + 24);
-        if (cl >= sizeof ch || fread(ch, 1, cl, f) != cl)
-            break;
-        ch[cl] = 0;
-        if (dl > dcap && !(data = realloc(data, dcap = dl)))
+    lcmlog_parser_t *lp = lcmlog_parser_create(on_event, NULL, NULL);
+    if (!lp)
+        return 1;
+    unsigned char buf[65536];
+    size_t got;
+    while (!R.done && (got = fread(buf, 1, sizeof buf, f)) > 0)
+        if (lcmlog_parser_feed(lp, buf, got) < 0)
             return 1;
-        if (fread(data, 1, dl, f) != dl)
-            break;
-        if (!strcmp(ch, "SIM_TRUTH")) {
-            marie_pose_cov_t t;
-            if (marie_pose_cov_t_decode(data, 0, (int)dl, &t) < 0) {
-                bad++;
-                continue;
-            }
-            bool back = nt && t.utime < tt[nt - 1] - 5000000;  /* the log's next run */
-            if (!back && nt == tcap) {
-                tcap = tcap ? 2 * tcap : 4096;
-                if (!(tt = realloc(tt, tcap * sizeof *tt)) || !(truth = realloc(truth, tcap * sizeof *truth)))
-                    return 1;
-            }
-            if (!back) {
-                tt[nt] = t.utime;
-                memcpy(truth[nt++], (double[3]){ t.pose.x, t.pose.y, t.pose.theta }, sizeof truth[0]);
-            }
-            marie_pose_cov_t_decode_cleanup(&t);
-            if (back)
-                break;
-        } else if (!strcmp(ch, "ODOMETRY")) {
-            marie_odometry_t o;
-            if (marie_odometry_t_decode(data, 0, (int)dl, &o) < 0) {
-                bad++;
-                continue;
-            }
-            if (posebuf_newest(&R.odom) == INT64_MIN || o.utime > posebuf_newest(&R.odom)) {
-                posebuf_add(&R.odom, o.utime, (const double[3]){ o.pose.x, o.pose.y, o.pose.theta });
-                scanwait_odometry(&R.wait, NULL, o.utime, place);
-            }
-            marie_odometry_t_decode_cleanup(&o);
-        } else if (!strcmp(ch, "LASER")) {
-            marie_laser_scan_t m;
-            if (marie_laser_scan_t_decode(data, 0, (int)dl, &m) < 0) {
-                bad++;
-                continue;
-            }
-            if (m.utime > R.last_scan)
-                scanwait_scan(&R.wait, NULL, &R.odom, &m, place);
-            marie_laser_scan_t_decode_cleanup(&m);
-        }
-    }
+    if (!R.done)
+        lcmlog_parser_finish(lp);       /* a record cut short at the file's end */
+    int64_t corrupt = lcmlog_parser_stats(lp)->corrupt;
+    lcmlog_parser_destroy(lp);
     fclose(f);
-    free(data);
     slam_stats_t st;
     slam_get_stats(R.slam, &st);
     printf("scans %zu keyframes %" PRId64 " closures %" PRId64 " optimizations %" PRId64 " ambiguous %" PRId64
-           " implausible %" PRId64 " match_failures %" PRId64 " undecodable %zu\n",
+           " implausible %" PRId64 " match_failures %" PRId64 " undecodable %zu corrupt %" PRId64 "\n",
            R.nest, st.keyframes, st.loop_closures, st.optimizations, st.loop_ambiguous, st.loop_implausible,
-           st.match_failures, bad);
+           st.match_failures, R.undecodable, corrupt);
     /* The trajectory against the truth, interpolated at each scan's time. */
     double se = 0, mx = 0;
     size_t n = 0, k = 0;
-    for (size_t i = 0; i < R.nest && nt > 1; i++) {
+    for (size_t i = 0; i < R.nest && R.nt > 1; i++) {
         int64_t t = (int64_t)R.est[i][0];
-        while (k + 2 < nt && tt[k + 1] < t)
+        while (k + 2 < R.nt && R.truth[k + 1].t < t)
             k++;
-        if (t < tt[k] || t > tt[k + 1])
+        if (t < R.truth[k].t || t > R.truth[k + 1].t)
             continue;
-        double w = (double)(t - tt[k]) / (double)(tt[k + 1] - tt[k] ? tt[k + 1] - tt[k] : 1);
-        double dx = R.est[i][1] - (truth[k][0] + w * (truth[k + 1][0] - truth[k][0]));
-        double dy = R.est[i][2] - (truth[k][1] + w * (truth[k + 1][1] - truth[k][1]));
+        double w = (double)(t - R.truth[k].t) / (double)(R.truth[k + 1].t - R.truth[k].t ? R.truth[k + 1].t - R.truth[k].t : 1);
+        double dx = R.est[i][1] - (R.truth[k].x + w * (R.truth[k + 1].x - R.truth[k].x));
+        double dy = R.est[i][2] - (R.truth[k].y + w * (R.truth[k + 1].y - R.truth[k].y));
         se += dx * dx + dy * dy;
         mx = fmax(mx, hypot(dx, dy));
         n++;
@@ -237,7 +252,6 @@ int main(int argc, char **argv)
     slam_destroy(R.slam);
     scanwait_free(&R.wait);
     free(R.est);
-    free(truth);
-    free(tt);
+    free(R.truth);
     return rc;
 }
