@@ -103,7 +103,7 @@ static void test_explores_the_office_from_empty(void **state)
     int nblack = 0, goals = 0, steps = 0;
     float ranges[181];
     bool done = false;
-    while (steps < 12000 && goals < 120) {
+    while (steps < 20000 && goals < 120) {
         /* Look around first: the laser sees only ahead. */
         for (int k = 0; k < 63 && (goals == 0 || k < 1); k++, steps++) {
             sim_scan(&r, world, ranges, 181, 8.0, 0.01, 0.0);
@@ -156,11 +156,12 @@ static void test_explores_the_office_from_empty(void **state)
     print_message("explore: %s after %d goals, %d scans (%.0f s at 10 Hz); coverage %.3f precision %.3f recall %.3f\n",
                   done ? "no reachable frontier left" : "stopped", goals, steps, steps / 10.0, e.coverage,
                   e.precision, e.recall);
-    /* Measured here: coverage 0.97, precision 0.69, recall 0.58 (docs/mapping.md: the map built
-     * while exploring is worse than along a route; its poses drift). */
+    /* Measured here: 57 goals, 12733 scans; coverage 0.99, precision 0.99, recall 0.95 (with the
+     * matcher's prior at 0.15 m instead of 0.03: 10112 scans, precision 0.83, recall 0.75). */
     assert_true(done);
-    assert_true(e.coverage >= 0.90);
-    assert_true(e.precision >= 0.40);
+    assert_true(e.coverage >= 0.95);
+    assert_true(e.precision >= 0.90);
+    assert_true(e.recall >= 0.85);
     occmap_destroy(m);
     slam_destroy(s);
     occmap_destroy(world);

@@ -3,8 +3,10 @@
  * two versions or two settings of the mapper are compared on the very same input (a live run
  * never gives the same input twice). Prints the mapper's counters, its trajectory against the
  * truth (ATE) and the map against a world (as `marie map compare`). Not installed.
- *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [PARAM=VALUE ...]
- * (--traj: "utime x y theta" of each scan placed).
+ *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry]
+ *                 [PARAM=VALUE ...]
+ * (--traj: "utime x y theta" of each scan placed; --truth-odometry: the simulator's truth stands in
+ * for the odometry, so what error is left is the scan matcher's and the map's own).
  * PARAMs are the mapper library's (adapters/mapper/slam.params.yaml); only the log's first run
  * is read (it ends where the simulated time goes back, as in marie-demo's two-part logs). The log
  * is read with the viewer's parser (tools/viewer/lcmlog), which resynchronises past damage and
@@ -41,6 +43,7 @@ typedef struct {
     size_t nt, tcap;
     size_t undecodable;
     bool done;                  /* the log's first run is over */
+    bool truth_odometry;        /* --truth-odometry */
 } replay_t;
 
 static replay_t R;
@@ -100,6 +103,14 @@ static void place(marie_component_t *c, const marie_laser_scan_t *m)
     memcpy(R.est[R.nest++], (double[4]){ (double)m->utime, pose[0], pose[1], pose[2] }, sizeof R.est[0]);
 }
 
+static void add_odometry(int64_t utime, const double pose[3])
+{
+    if (posebuf_newest(&R.odom) == INT64_MIN || utime > posebuf_newest(&R.odom)) {
+        posebuf_add(&R.odom, utime, pose);
+        scanwait_odometry(&R.wait, NULL, utime, place);
+    }
+}
+
 static bool is(const lcmlog_event_t *ev, const char *ch)
 {
     return ev->channel_len == strlen(ch) && memcmp(ev->channel, ch, ev->channel_len) == 0;
@@ -123,6 +134,8 @@ static void on_event(void *user, const lcmlog_event_t *ev)
             R.truth[R.nt].t = t.utime;
             R.truth[R.nt].x = t.pose.x;
             R.truth[R.nt++].y = t.pose.y;
+            if (R.truth_odometry)
+                add_odometry(t.utime, (const double[3]){ t.pose.x, t.pose.y, t.pose.theta });
         }
         marie_pose_cov_t_decode_cleanup(&t);
     } else if (is(ev, "ODOMETRY")) {
@@ -131,10 +144,8 @@ static void on_event(void *user, const lcmlog_event_t *ev)
             R.undecodable++;
             return;
         }
-        if (posebuf_newest(&R.odom) == INT64_MIN || o.utime > posebuf_newest(&R.odom)) {
-            posebuf_add(&R.odom, o.utime, (const double[3]){ o.pose.x, o.pose.y, o.pose.theta });
-            scanwait_odometry(&R.wait, NULL, o.utime, place);
-        }
+        if (!R.truth_odometry)
+            add_odometry(o.utime, (const double[3]){ o.pose.x, o.pose.y, o.pose.theta });
         marie_odometry_t_decode_cleanup(&o);
     } else if (is(ev, "LASER")) {
         marie_laser_scan_t m;
@@ -161,6 +172,8 @@ int main(int argc, char **argv)
             save = argv[++i];
         else if (!strcmp(argv[i], "--traj") && i + 1 < argc)
             traj = argv[++i];
+        else if (!strcmp(argv[i], "--truth-odometry"))
+            R.truth_odometry = true;
         else if (!strcmp(argv[i], "--start") && i + 3 < argc)
             for (int k = 0; k < 3; k++)
                 start[k] = atof(argv[++i]);
@@ -174,7 +187,7 @@ int main(int argc, char **argv)
     }
     FILE *f = log ? fopen(log, "rb") : NULL;
     if (!f) {
-        fprintf(stderr, "usage: mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [PARAM=VALUE ...]%s%s\n",
+        fprintf(stderr, "usage: mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry] [PARAM=VALUE ...]%s%s\n",
                 log ? ": " : "", log ? strerror(errno) : "");
         return 2;
     }
