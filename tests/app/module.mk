@@ -10,4 +10,4 @@ ITESTS += tests/app/test_spoken_mission.sh
 # test_spoken_mission runs the audio chain on the phrases the build speaks.
 $(B)/tests/spoken_probe: | $(B)/bin/marie-ssl $(B)/bin/marie-asr $(B)/bin/marie-dialogue $(B)/bin/marie-tts \
     $(B)/bin/marie-audio $(B)/share/sounds/phrases.stamp
-SLOW_TESTS += tests/app/test_explore_app.sh
+ITESTS += tests/app/test_explore_app.sh
