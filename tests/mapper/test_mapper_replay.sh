@@ -2,7 +2,8 @@
 # test_mapper_replay: a run recorded with lcm-logger (marie-sim in channel mode driven along a
 # short route, marie-odometry, and marie-mapper live) goes through the mapper's library again
 # with mapper_replay: it places the robot as the truth has it, gives the same answer twice, and
-# takes the library's parameters by name (docs/mapping.md, "Comparing mapper versions").
+# takes the library's parameters by name; --truth-odometry puts the truth in the odometry's place
+# (docs/mapping.md, "Comparing mapper versions").
 . tests/lib.sh
 B=${B:-build}
 BIN=$B/bin
@@ -28,7 +29,8 @@ replay > "$OUT/b.txt" 2>&1
 replay loop_closure=false kf_dist=0.4 > "$OUT/c.txt" 2>&1
 replay no_such_parameter=1 > "$OUT/d.txt" 2>&1
 drc2=$?
-cat "$OUT/a.txt" "$OUT/c.txt" "$OUT/d.txt"
+replay --truth-odometry min_score=2 loop_closure=false > "$OUT/e.txt" 2>&1
+cat "$OUT/a.txt" "$OUT/c.txt" "$OUT/d.txt" "$OUT/e.txt"
 fig() { awk -v k="$2" '{ for (i = 1; i < NF; i++) if ($i == k) { print $(i + 1); exit } }' "$1"; }
 
 check "the route is driven to its end with the mapper live" test "$drc" -eq 0
@@ -39,5 +41,7 @@ check "it writes the map it built" test -s "$OUT/replayed.yaml" -a -s "$OUT/repl
 check "the same log gives the same answer twice" cmp -s "$OUT/a.txt" "$OUT/b.txt"
 check "parameters are taken by name (no closures, half the keyframes)" \
     eval 'test "$(fig $OUT/c.txt closures)" -eq 0 && test "$(fig $OUT/c.txt keyframes)" -lt "$(fig $OUT/a.txt keyframes)"'
+check "with the truth as odometry and the matcher off, the poses are the truth's (ATE < 1 mm)" \
+    lt "$(fig $OUT/e.txt ate_rms)" 0.001
 check "an unknown parameter is refused" eval 'test "$drc2" -eq 2 && grep -q "no_such_parameter=1" "$OUT/d.txt"'
 finish
