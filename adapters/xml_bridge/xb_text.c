@@ -185,7 +185,8 @@ int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v)
  * digits in [1e-4, 1e15), found without printf: when N / 10^k (N < 10^15, both exact, one
  * correctly rounded division) gives v back, that decimal is what %.15g prints (15-digit
  * decimals are farther apart than a double's rounding error) and it reads back to v. Written
- * as %g writes it there: fixed notation, no trailing zeros. -1 for other values. */
+ * as %g writes it there: fixed notation, no trailing zeros. -1 for values outside that range,
+ * -2 for those inside it that no such decimal gives back (then %.15g does not either). */
 static int format_short_decimal(double v, char *buf, size_t size)
 {
     double a = fabs(v);
@@ -204,10 +205,10 @@ static int format_short_decimal(double v, char *buf, size_t size)
     int k = 0;
     for (;; k++) {
         if (k > EXACT_POW10_MAX)
-            return -1;
+            return -2;
         double t = a * exact_pow10[k];
         if (t >= 1e15)
-            return -1;
+            return -2;
         n = (uint64_t)(t + 0.5);
         if (n < 1000000000000000ull && (double)n / exact_pow10[k] == a)
             break;
@@ -242,8 +243,14 @@ static int format_short_decimal(double v, char *buf, size_t size)
 
 void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
 {
-    if (prim != MARIE_PRIM_FLOAT && !isnan(v) && !isinf(v) && format_short_decimal(v, buf, size) == 0)
-        return;
+    int first = 15;
+    if (prim != MARIE_PRIM_FLOAT && !isnan(v) && !isinf(v)) {
+        int rc = format_short_decimal(v, buf, size);
+        if (rc == 0)
+            return;
+        if (rc == -2)
+            first = 16;
+    }
     if (isnan(v)) {
         snprintf(buf, size, "NaN");
         return;
@@ -261,7 +268,7 @@ void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
         }
         return;
     }
-    for (int prec = 15; prec <= 17; prec++) {
+    for (int prec = first; prec <= 17; prec++) {
         snprintf(buf, size, "%.*g", prec, v);
         if (strtod(buf, NULL) == v)
             return;
