@@ -198,6 +198,23 @@ static int read_lines(reader_t *r, long want, int latency)
     return marie_loop_run_until(r->loop, 20000, lines_in, r) == 1 && !r->failed ? 0 : -1;
 }
 
+/* Reads until `want` lines have come, for bus messages that may be lost on their way to the
+ * bridge: when none has come for 50 ms the missing ones are written off (counted in `lost`), as
+ * window_wait does the other way, instead of waiting out read_lines' deadline. */
+static void read_bus_lines(reader_t *r, long want)
+{
+    r->want = want - lost;
+    r->latency = 0;
+    while (!lines_in(r)) {
+        long before = r->lines;
+        marie_loop_run_until(r->loop, 50, lines_in, r);
+        if (r->lines == before && !lines_in(r)) {
+            lost = want - r->lines;
+            return;
+        }
+    }
+}
+
 static void latency_rows(const char *what, double base_p50)
 {
     long n = atomic_load(&nlat);
@@ -328,20 +345,21 @@ int main(void)
     read_lines(rd, 1, 0);               /* ok */
     rd->lines = 0;
     t0 = marie_mono_us();
+    lost = 0;
     long sent = 0;
-    while (sent < N_RATE) {
+    while (sent < N_RATE && !rd->failed) {
         long burst = sent + WINDOW / 2 <= N_RATE ? WINDOW / 2 : N_RATE - sent;
         for (long k = 0; k < burst; k++) {
             int n = encode_pose(buf, sizeof buf, 0);
             lcm_publish(peer, "BENCH_OUT", buf, (unsigned)n);
         }
         sent += burst;
-        if (read_lines(rd, sent - WINDOW / 2 > 0 ? sent - WINDOW / 2 : 0, 0) < 0)
-            break;
+        read_bus_lines(rd, sent - WINDOW / 2 > 0 ? sent - WINDOW / 2 : 0);
     }
-    read_lines(rd, N_RATE, 0);
+    read_bus_lines(rd, N_RATE);
     double out_rate = (double)rd->lines / ((double)(marie_mono_us() - t0) / 1e6);
     row("bus_to_xml_msgs_per_s", out_rate, "msg/s", direct_rate);
+    row("bus_to_xml_lost", (double)(N_RATE - rd->lines), "msgs", (double)direct_lost);
     atomic_store(&nlat, 0);
     rd->lines = 0;
     for (long i = 0; i < N_LAT; i++) {

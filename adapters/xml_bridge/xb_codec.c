@@ -497,6 +497,30 @@ static int get_real(dec_t *d, marie_prim_t prim, double *v)
     return 0;
 }
 
+/* <name> or </name>, without printf: one per field of every message delivered. */
+static int put_tag(marie_buf_t *o, const char *open, const char *name)
+{
+    return marie_buf_puts(o, open) < 0 || marie_buf_puts(o, name) < 0 || marie_buf_put(o, ">", 1) < 0
+               ? -1 : 0;
+}
+
+/* The "%lld" text of v. */
+static void format_int(int64_t v, char *buf)
+{
+    char dig[24];
+    int nd = 0;
+    uint64_t u = v < 0 ? 0 - (uint64_t)v : (uint64_t)v;
+    do {
+        dig[nd++] = (char)('0' + u % 10);
+        u /= 10;
+    } while (u);
+    if (v < 0)
+        *buf++ = '-';
+    while (nd)
+        *buf++ = dig[--nd];
+    *buf = '\0';
+}
+
 static int put_scalar_text(dec_t *d, marie_prim_t prim, int64_t *intval)
 {
     char tmp[40];
@@ -512,9 +536,8 @@ static int put_scalar_text(dec_t *d, marie_prim_t prim, int64_t *intval)
         if (intval)
             *intval = v;
         if (prim == MARIE_PRIM_BOOL)
-            snprintf(tmp, sizeof tmp, "%s", v ? "true" : "false");
-        else
-            snprintf(tmp, sizeof tmp, "%lld", (long long)v);
+            return marie_buf_puts(d->out, v ? "true" : "false");
+        format_int(v, tmp);
     }
     return marie_buf_puts(d->out, tmp);
 }
@@ -537,13 +560,13 @@ static int decode_value(dec_t *d, const char *tag, const marie_tfield_t *f, int6
             return dec_fail(d, "string not NUL-terminated");
         d->pos += (size_t)n;
         if (xb_xml_safe(s, (size_t)n - 1))
-            return marie_buf_printf(o, "<%s>", tag) < 0 || xb_escape(o, s, (size_t)n - 1) < 0 ||
-                   marie_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
+            return put_tag(o, "<", tag) < 0 || xb_escape(o, s, (size_t)n - 1) < 0 ||
+                   put_tag(o, "</", tag) < 0 ? -1 : 0;
         return marie_buf_printf(o, "<%s encoding=\"base64\">", tag) < 0 ||
                xb_base64_encode(o, (const uint8_t *)s, (size_t)n - 1) < 0 ||
-               marie_buf_printf(o, "</%s>", tag) < 0 ? -1 : 0;
+               put_tag(o, "</", tag) < 0 ? -1 : 0;
     }
-    if (marie_buf_printf(o, "<%s>", tag) < 0)
+    if (put_tag(o, "<", tag) < 0)
         return -1;
     if (f->prim == MARIE_PRIM_STRUCT) {
         if (decode_struct(d, f->sub, depth + 1) < 0)
@@ -551,7 +574,7 @@ static int decode_value(dec_t *d, const char *tag, const marie_tfield_t *f, int6
     } else if (put_scalar_text(d, f->prim, intval) < 0) {
         return -1;
     }
-    return marie_buf_printf(o, "</%s>", tag);
+    return put_tag(o, "</", tag);
 }
 
 static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
@@ -591,7 +614,7 @@ static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
             goto out;
         }
         marie_buf_t *o = d->out;
-        if (marie_buf_printf(o, "<%s>", f->name) < 0)
+        if (put_tag(o, "<", f->name) < 0)
             goto out;
         if (f->prim == MARIE_PRIM_BYTE) {
             if (xb_base64_encode(o, d->p + d->pos, (size_t)count) < 0)
@@ -606,7 +629,7 @@ static int decode_struct(dec_t *d, const marie_typeinfo_t *t, int depth)
                 if ((k && marie_buf_put(o, " ", 1) < 0) || put_scalar_text(d, f->prim, NULL) < 0)
                     goto out;
         }
-        if (marie_buf_printf(o, "</%s>", f->name) < 0)
+        if (put_tag(o, "</", f->name) < 0)
             goto out;
     }
     rc = 0;

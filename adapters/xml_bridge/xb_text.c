@@ -97,24 +97,160 @@ int xb_parse_int(marie_prim_t prim, const char *s, size_t len, int64_t *v)
     return 0;
 }
 
+/* Powers of ten a double holds exactly. */
+static const double exact_pow10[] = {
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+    1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+};
+#define EXACT_POW10_MAX 22
+
+/* Reads [+-]digits[.digits][e[+-]digits] with at most 15 significant digits and a scale of at
+ * most 10^22 (Clinger's fast path): mantissa and power are then exact doubles, so one correctly
+ * rounded multiplication or division gives what strtod gives, at a fraction of its cost (reals
+ * are most of what a message document holds). -1 for anything else: strtod decides. */
+static int parse_short_decimal(const char *s, size_t len, double *v)
+{
+    size_t i = 0;
+    int neg = 0, digits = 0, frac = 0, any = 0;
+    uint64_t m = 0;
+    if (i < len && (s[i] == '-' || s[i] == '+'))
+        neg = s[i++] == '-';
+    for (int in_frac = 0;; i++) {
+        if (i < len && s[i] == '.' && !in_frac) {
+            in_frac = 1;
+            continue;
+        }
+        if (i >= len || s[i] < '0' || s[i] > '9')
+            break;
+        any = 1;
+        frac += in_frac;
+        if (m == 0 && s[i] == '0')
+            continue;           /* leading zeros are not significant */
+        if (++digits > 15)
+            return -1;
+        m = m * 10 + (uint64_t)(s[i] - '0');
+    }
+    if (!any)
+        return -1;
+    int e = 0;
+    if (i < len && (s[i] == 'e' || s[i] == 'E')) {
+        int eneg = 0, ed = 0;
+        i++;
+        if (i < len && (s[i] == '-' || s[i] == '+'))
+            eneg = s[i++] == '-';
+        for (; i < len && s[i] >= '0' && s[i] <= '9' && ed < 4; i++, ed++)
+            e = e * 10 + (s[i] - '0');
+        if (ed == 0 || ed == 4)
+            return -1;
+        if (eneg)
+            e = -e;
+    }
+    if (i != len)
+        return -1;
+    int scale = e - frac;
+    if (scale < -EXACT_POW10_MAX || scale > EXACT_POW10_MAX)
+        return -1;
+    double x = (double)m;
+    x = scale < 0 ? x / exact_pow10[-scale] : x * exact_pow10[scale];
+    *v = neg ? -x : x;
+    return 0;
+}
+
 int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v)
 {
-    char tmp[128];
-    if (trimmed(tmp, sizeof tmp, s, len) < 0)
-        return -1;
-    char *end;
-    errno = 0;
-    double x = strtod(tmp, &end);
-    if (*end || end == tmp || (errno == ERANGE && isinf(x)))
-        return -1;
+    while (len && xb_is_ws(*s)) {
+        s++;
+        len--;
+    }
+    while (len && xb_is_ws(s[len - 1]))
+        len--;
+    double x;
+    if (parse_short_decimal(s, len, &x) < 0) {
+        char tmp[128];
+        if (trimmed(tmp, sizeof tmp, s, len) < 0)
+            return -1;
+        char *end;
+        errno = 0;
+        x = strtod(tmp, &end);
+        if (*end || end == tmp || (errno == ERANGE && isinf(x)))
+            return -1;
+    }
     if (prim == MARIE_PRIM_FLOAT && isfinite(x) && fabs(x) > FLT_MAX)
         return -1;
     *v = x;
     return 0;
 }
 
+/* The "%.15g" text of a double that is the nearest to a decimal of at most 15 significant
+ * digits in [1e-4, 1e15), found without printf: when N / 10^k (N < 10^15, both exact, one
+ * correctly rounded division) gives v back, that decimal is what %.15g prints (15-digit
+ * decimals are farther apart than a double's rounding error) and it reads back to v. Written
+ * as %g writes it there: fixed notation, no trailing zeros. -1 for values outside that range,
+ * -2 for those inside it that no such decimal gives back (then %.15g does not either). */
+static int format_short_decimal(double v, char *buf, size_t size)
+{
+    double a = fabs(v);
+    char *o = buf;
+    if (size < 40)
+        return -1;
+    if (signbit(v))
+        *o++ = '-';
+    if (a == 0) {
+        strcpy(o, "0");
+        return 0;
+    }
+    if (!(a >= 1e-4 && a < 1e15))
+        return -1;
+    uint64_t n = 0;
+    int k = 0;
+    for (;; k++) {
+        if (k > EXACT_POW10_MAX)
+            return -2;
+        double t = a * exact_pow10[k];
+        if (t >= 1e15)
+            return -2;
+        n = (uint64_t)(t + 0.5);
+        if (n < 1000000000000000ull && (double)n / exact_pow10[k] == a)
+            break;
+    }
+    while (k > 0 && n % 10 == 0) {
+        n /= 10;
+        k--;
+    }
+    char dig[24];
+    int nd = 0;
+    do {
+        dig[nd++] = (char)('0' + n % 10);
+        n /= 10;
+    } while (n);
+    if (nd <= k) {                      /* 0.00ddd */
+        *o++ = '0';
+        *o++ = '.';
+        for (int i = nd; i < k; i++)
+            *o++ = '0';
+        while (nd)
+            *o++ = dig[--nd];
+    } else {                            /* ddd[.ddd] */
+        for (int i = nd; i > 0; i--) {
+            if (i == k)
+                *o++ = '.';
+            *o++ = dig[i - 1];
+        }
+    }
+    *o = '\0';
+    return 0;
+}
+
 void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
 {
+    int first = 15;
+    if (prim != MARIE_PRIM_FLOAT && !isnan(v) && !isinf(v)) {
+        int rc = format_short_decimal(v, buf, size);
+        if (rc == 0)
+            return;
+        if (rc == -2)
+            first = 16;
+    }
     if (isnan(v)) {
         snprintf(buf, size, "NaN");
         return;
@@ -132,7 +268,7 @@ void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
         }
         return;
     }
-    for (int prec = 15; prec <= 17; prec++) {
+    for (int prec = first; prec <= 17; prec++) {
         snprintf(buf, size, "%.*g", prec, v);
         if (strtod(buf, NULL) == v)
             return;

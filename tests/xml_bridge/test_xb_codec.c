@@ -1,4 +1,5 @@
 /* test_xb_codec: the XML bridge's type-driven codec and document parser against lcm-gen's code. */
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -388,6 +389,76 @@ static void test_bad_streams_fail_once_and_stay_failed(void **state)
     expect_fatal("<a>&#1;</a>", NULL, "malformed", 0);
 }
 
+/* What the bridge wrote before it had its own fast paths: the shortest of %.15g..%.17g that
+ * reads back. */
+static void printf_real(double v, char *buf, size_t size)
+{
+    for (int prec = 15; prec <= 17; prec++) {
+        snprintf(buf, size, "%.*g", prec, v);
+        if (strtod(buf, NULL) == v)
+            return;
+    }
+}
+
+static void expect_real_text(double v)
+{
+    char got[64], want[64];
+    xb_format_real(MARIE_PRIM_DOUBLE, v, got, sizeof got);
+    printf_real(v, want, sizeof want);
+    if (strcmp(got, want) != 0)
+        fail_msg("%.17g written as %s, printf gives %s", v, got, want);
+    double back;
+    assert_int_equal(xb_parse_real(MARIE_PRIM_DOUBLE, got, strlen(got), &back), 0);
+    assert_memory_equal(&back, &v, sizeof v);
+}
+
+static void expect_real_read(const char *text)
+{
+    char *end;
+    double want = strtod(text, &end), got;
+    assert_int_equal(xb_parse_real(MARIE_PRIM_DOUBLE, text, strlen(text), &got), 0);
+    if (memcmp(&got, &want, sizeof got) != 0)
+        fail_msg("'%s' read as %.17g, strtod gives %.17g", text, got, want);
+}
+
+static void test_reals_read_and_written_as_strtod_and_printf_do(void **state)
+{
+    static const double edges[] = { 0.0, -0.0, 1e-4, 9.99999999999999e-5, 1e-5, 1e15, 1e15 - 1,
+                                    1e14, 0.1, 0.2, 0.3, 1.0 / 3, 12.345678, -3.25, 0.000125 * 3,
+                                    0.000125 * 7, 1.5707963267948966, 100, 123456789012345e-18,
+                                    2.5e-300, 1.7976931348623157e308, 4.9e-324 };
+    for (size_t i = 0; i < sizeof edges / sizeof *edges; i++)
+        expect_real_text(edges[i]);
+    uint64_t r = 88172645463325252ull;
+    for (int i = 0; i < 200000; i++) {
+        r ^= r << 13; r ^= r >> 7; r ^= r << 17;
+        double v;
+        if (i % 3 == 0) {
+            memcpy(&v, &r, sizeof v);                                   /* any bits */
+            if (isnan(v) || isinf(v))
+                continue;
+        } else {                                                        /* short decimals */
+            v = (double)(int64_t)(r % 1000000000000000ull) / pow(10, (double)((r >> 50) % 24));
+            if (r >> 63)
+                v = -v;
+        }
+        expect_real_text(v);
+        char text[64];
+        snprintf(text, sizeof text, "%.*g", (int)(1 + (r >> 40) % 17), v);
+        expect_real_read(text);
+    }
+    static const char *texts[] = { "1.", ".5", "-0", "+0", "0.0000", "1e0005", "1e22", "1e23",
+                                   "123456789012345e-22", "1234567890123456", "0x10", "INF",
+                                   "00000000000000000000001.5", "1.50000000000000000000",
+                                   "  2.5\n", "1e-400" };
+    for (size_t i = 0; i < sizeof texts / sizeof *texts; i++)
+        expect_real_read(texts[i]);
+    static const char *bad[] = { "", ".", "-", "1e", "1e+", "1.5.", "1..5", "--1", "1e400", "1 2" };
+    double v;
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++)
+        assert_int_equal(xb_parse_real(MARIE_PRIM_DOUBLE, bad[i], strlen(bad[i]), &v), -1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -400,6 +471,7 @@ int main(void)
         cmocka_unit_test(test_stream_is_cut_into_documents),
         cmocka_unit_test(test_bad_streams_fail_once_and_stay_failed),
         cmocka_unit_test(test_long_texts_cost_their_length),
+        cmocka_unit_test(test_reals_read_and_written_as_strtod_and_printf_do),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
