@@ -178,9 +178,11 @@ static int cluster(const occmap_t *m, const explore_params_t *p, const int *dist
         }
         all[nall++] = f;
     }
-    qsort(all, (size_t)nall, sizeof(*all), by_cost);
     found = nall;
-    memcpy(out, all, sizeof(*all) * (size_t)(nall < max ? nall : max));
+    if (nall > 0) {             /* no frontier: `all` was never allocated */
+        qsort(all, (size_t)nall, sizeof(*all), by_cost);
+        memcpy(out, all, sizeof(*all) * (size_t)(nall < max ? nall : max));
+    }
 out:
     free(fr);
     free(stack);
