@@ -5,8 +5,9 @@
  * instead, but make the caller wait for the exec, and on a loaded machine each child first
  * waits for a CPU: a bring-up of 45 took longer that way than with fork (docs/managers.md).
  * Here the child shares the memory (CLONE_VM) on a stack of its own, and the caller goes on at
- * once. Its part (a copy of argv and envp, its stack) is freed once the kernel has cleared
- * ctid (CLONE_CHILD_CLEARTID: at the exec, or at the exit).
+ * once. Its part (a copy of argv and envp, its stack: a mapping of its own, so that the pages
+ * it touched go back to the system, not to malloc) is unmapped once the kernel has cleared ctid
+ * (CLONE_CHILD_CLEARTID: at the exec, or at the exit).
  *
  * What the child may do, running beside the caller in its memory: read its own part, write its
  * own stack, and make system calls that cannot fail through glibc (resetting signals, setsid,
@@ -25,6 +26,7 @@
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -52,6 +54,7 @@ typedef struct child {
     char **argv;                /* argv[-1] is "/bin/sh": the script's argv */
     char **envp;
     char *stack_top;
+    size_t size;                /* of the mapping */
     max_align_t data[];         /* argv, envp, their strings, the stack */
 } child_t;
 
@@ -210,7 +213,7 @@ size_t marie_spawner_sweep(marie_spawner_t *s)
         child_t *c = *p;
         if (__atomic_load_n(&c->ctid, __ATOMIC_ACQUIRE) == 0) {
             *p = c->next;
-            free(c);
+            munmap(c, c->size);
         } else {
             left++;
             p = &c->next;
@@ -246,10 +249,12 @@ static child_t *child_new(const marie_spawner_t *s, const marie_spawn_req_t *req
     size_t head = offsetof(child_t, data) + (argc + 2 + envc + 1) * sizeof(char *) + bytes;
     head = (head + 15) & ~(size_t)15;
     /* execvpe puts a script's argv on the stack */
-    size_t size = head + CHILD_STACK + ((argc + 2) * sizeof(char *) + 15) / 16 * 16;
-    child_t *c = malloc(size);
-    if (!c)
+    size_t page = (size_t)sysconf(_SC_PAGESIZE);
+    size_t size = (head + CHILD_STACK + (argc + 2) * sizeof(char *) + page - 1) / page * page;
+    child_t *c = mmap(NULL, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_STACK, -1, 0);
+    if (c == MAP_FAILED)
         return NULL;
+    c->size = size;
     char **ptrs = (char **)c->data;
     ptrs[0] = "/bin/sh";
     c->argv = ptrs + 1;
@@ -294,7 +299,7 @@ pid_t marie_spawn(marie_spawner_t *s, const marie_spawn_req_t *req)
     int err = errno;
     sigprocmask(SIG_SETMASK, &old, NULL);
     if (pid < 0) {
-        free(c);
+        munmap(c, c->size);
         errno = err;
         return -1;
     }
