@@ -31,10 +31,16 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
-#if defined(__x86_64__) || defined(__aarch64__)
-#define SPAWN_RAW 1
-#else
+/* raw3 is written for these; strerrordesc_np (strerror's words without its locale) is glibc's
+ * since 2.32. Elsewhere (musl, older glibc) the caller waits for each exec. */
 #define SPAWN_RAW 0
+#if defined(__x86_64__) || defined(__aarch64__)
+#if defined(__GLIBC__) && defined(__GLIBC_PREREQ)
+#if __GLIBC_PREREQ(2, 32)
+#undef SPAWN_RAW
+#define SPAWN_RAW 1
+#endif
+#endif
 #endif
 
 enum { CHILD_STACK = 32 * 1024 };
@@ -114,6 +120,7 @@ CHILD static size_t append(char *buf, size_t len, size_t cap, const char *s)
     return len;
 }
 
+#if SPAWN_RAW
 CHILD static const char *decimal(int v, char out[16])
 {
     char *p = out + 15;
@@ -126,29 +133,33 @@ CHILD static const char *decimal(int v, char out[16])
         *--p = '-';
     return p;
 }
+#endif
 
-/* "WHO: exec ARGV0: REASON" on stderr, in strerror's words (the C locale's, marie-am's). */
+/* "WHO: exec ARGV0: REASON" on stderr, in strerror's words (marie-am keeps the C locale). */
 CHILD static void child_say_failed(const child_t *c, int err)
 {
-    char buf[1024], num[16];
+    char buf[1024];
     size_t n = 0, cap = sizeof buf - 1;
     n = append(buf, n, cap, c->who);
     n = append(buf, n, cap, ": exec ");
     n = append(buf, n, cap, c->argv[0]);
     n = append(buf, n, cap, ": ");
-    const char *why = strerrordesc_np(err);
-    if (!why) {
-        n = append(buf, n, cap, "Unknown error ");
-        why = decimal(err, num);
-    }
-    n = append(buf, n, cap, why);
-    buf[n++] = '\n';
 #if SPAWN_RAW
     if (!c->wait) {
+        char num[16];
+        const char *why = strerrordesc_np(err);
+        if (!why) {
+            n = append(buf, n, cap, "Unknown error ");
+            why = decimal(err, num);
+        }
+        n = append(buf, n, cap, why);
+        buf[n++] = '\n';
         raw3(SYS_write, 2, (long)buf, (long)n);
         return;
     }
 #endif
+    n = append(buf, n, cap, strerror(err));
+    buf[n++] = '\n';
     ssize_t w = write(2, buf, n);
     (void)w;
 }
