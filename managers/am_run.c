@@ -247,7 +247,7 @@ static void comp_spawn(comp_t *c)
 
     /* Own session and process group (stop signals go to the whole group); SIGTERM if the
      * manager dies (SIGTERM = quit: a restarted manager starts them again instead of finding
-     * orphans); default signal handling; pipes and every other descriptor of the manager
+     * orphans); default signal handling; the pipes and the other descriptors marie-am opens
      * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
     char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
     marie_spawn_req_t req = {
