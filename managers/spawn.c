@@ -199,7 +199,7 @@ marie_spawner_t *marie_spawner_create(void)
         return NULL;
     s->null_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
     if (s->null_fd >= 0 && s->null_fd < 3) {
-        /* not one of the child's 0, 1 and 2, which dup2 keeps close-on-exec if it is */
+        /* not one of 0, 1 and 2: dup2 onto itself would leave it close-on-exec in the child */
         int fd = fcntl(s->null_fd, F_DUPFD_CLOEXEC, 3);
         close(s->null_fd);
         s->null_fd = fd;
@@ -252,7 +252,7 @@ static char *copy_strv(char **dst, char *const *src, size_t n, char *str)
     return str;
 }
 
-/* One allocation: the child's part, its strings and its stack. */
+/* One mapping: the child's part, its strings and its stack. */
 static child_t *child_new(const marie_spawner_t *s, const marie_spawn_req_t *req)
 {
     size_t bytes = (req->path ? strlen(req->path) : 0) + strlen(req->who) + 2;
