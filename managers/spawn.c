@@ -13,9 +13,10 @@
  * own stack, and make system calls that cannot fail through glibc (resetting signals, setsid,
  * prctl, dup2, the signal mask). A call that can fail (the exec, writing why it failed) goes
  * around glibc (raw3): glibc would set errno, which is thread-local, and the child runs with
- * the caller's thread's (CLONE_VM without CLONE_SETTLS). Where raw3 is not written for the
- * architecture, and to search PATH (execvpe), the caller waits for the exec (CLONE_VFORK, as
- * posix_spawn does), so that glibc's calls are safe there. */
+ * the caller's thread's (CLONE_VM without CLONE_SETTLS). To search PATH (execvpe, for a name
+ * that marie-am did not find: a failure to come), the caller waits for the exec (CLONE_VFORK,
+ * as posix_spawn does), so that glibc's calls are safe. Where raw3 is not written and tried
+ * (only x86_64 so far), the child is a fork as before: its own copy of the memory. */
 #include "managers/spawn.h"
 
 #include <errno.h>
@@ -31,10 +32,10 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
-/* raw3 is written for these; strerrordesc_np (strerror's words without its locale) is glibc's
- * since 2.32. Elsewhere (musl, older glibc) the caller waits for each exec. */
+/* raw3 is written for x86_64; strerrordesc_np (strerror's words without its locale) is glibc's
+ * since 2.32. Elsewhere (other processors, musl, older glibc) the child is a fork. */
 #define SPAWN_RAW 0
-#if defined(__x86_64__) || defined(__aarch64__)
+#if defined(__x86_64__)
 #if defined(__GLIBC__) && defined(__GLIBC_PREREQ)
 #if __GLIBC_PREREQ(2, 32)
 #undef SPAWN_RAW
@@ -51,11 +52,12 @@ enum { CHILD_STACK = 32 * 1024 };
 typedef struct child {
     struct child *next;         /* the caller's list (the child never reads it) */
     pid_t ctid;                 /* not 0 until the kernel clears it: the child is done with this */
-    bool wait;                  /* the caller waits for the exec: glibc's calls are safe */
+    bool shared;                /* CLONE_VM: the caller's memory, else a copy (fork) */
+    bool raw;                   /* shared, the caller not waiting: calls that fail go around glibc */
     bool script;                /* execvpe's way: a file without #! runs through /bin/sh */
     int null_fd, out_fd, err_fd;
     pid_t parent;
-    const char *path;           /* NULL: execvpe(argv[0]) (the caller waits) */
+    const char *path;           /* NULL: execvpe(argv[0]) (not raw) */
     const char *who;
     char **argv;                /* argv[-1] is "/bin/sh": the script's argv */
     char **envp;
@@ -75,18 +77,9 @@ struct marie_spawner {
 /* A system call without glibc: -errno on failure, errno untouched. */
 CHILD static long raw3(long nr, long a, long b, long c)
 {
-#if defined(__x86_64__)
     long r;
     __asm__ volatile("syscall" : "=a"(r) : "a"(nr), "D"(a), "S"(b), "d"(c) : "rcx", "r11", "memory");
     return r;
-#else
-    register long x8 __asm__("x8") = nr;
-    register long x0 __asm__("x0") = a;
-    register long x1 __asm__("x1") = b;
-    register long x2 __asm__("x2") = c;
-    __asm__ volatile("svc 0" : "+r"(x0) : "r"(x8), "r"(x1), "r"(x2) : "memory");
-    return x0;
-#endif
 }
 #endif
 
@@ -94,7 +87,7 @@ CHILD static long raw3(long nr, long a, long b, long c)
 CHILD static int child_execve(const child_t *c, const char *path, char *const *argv)
 {
 #if SPAWN_RAW
-    if (!c->wait)
+    if (c->raw)
         return (int)-raw3(SYS_execve, (long)path, (long)argv, (long)c->envp);
 #endif
     execve(path, argv, c->envp);
@@ -104,7 +97,7 @@ CHILD static int child_execve(const child_t *c, const char *path, char *const *a
 CHILD static int child_exec(const child_t *c)
 {
     if (!c->path) {
-        execvpe(c->argv[0], c->argv, c->envp);      /* c->wait */
+        execvpe(c->argv[0], c->argv, c->envp);      /* not raw */
         return errno;
     }
     int err = child_execve(c, c->path, c->argv);
@@ -145,7 +138,7 @@ CHILD static void child_say_failed(const child_t *c, int err)
     n = append(buf, n, cap, c->argv[0]);
     n = append(buf, n, cap, ": ");
 #if SPAWN_RAW
-    if (!c->wait) {
+    if (c->raw) {
         char num[16];
         const char *why = strerrordesc_np(err);
         if (!why) {
@@ -286,7 +279,8 @@ static child_t *child_new(const marie_spawner_t *s, const marie_spawn_req_t *req
     c->script = !c->path;
     if (!c->path && strchr(c->argv[0], '/'))
         c->path = c->argv[0];
-    c->wait = !SPAWN_RAW || !c->path;
+    c->shared = SPAWN_RAW;
+    c->raw = c->shared && c->path;
     c->ctid = -1;
     c->next = NULL;
     return c;
@@ -305,16 +299,18 @@ pid_t marie_spawn(marie_spawner_t *s, const marie_spawn_req_t *req)
     sigset_t all, old;
     sigfillset(&all);
     sigprocmask(SIG_SETMASK, &all, &old);
-    int flags = CLONE_VM | CLONE_CHILD_CLEARTID | SIGCHLD | (c->wait ? CLONE_VFORK : 0);
+    int flags = SIGCHLD;
+    if (c->shared)
+        flags |= CLONE_VM | CLONE_CHILD_CLEARTID | (c->raw ? 0 : CLONE_VFORK);
     pid_t pid = clone(child_main, c->stack_top, flags, c, NULL, NULL, &c->ctid);
     int err = errno;
     sigprocmask(SIG_SETMASK, &old, NULL);
-    if (pid < 0) {
-        munmap(c, c->size);
-        errno = err;
-        return -1;
+    if (pid >= 0 && c->shared) {
+        c->next = s->pending;
+        s->pending = c;
+    } else {
+        munmap(c, c->size);         /* a fork's child has a copy of its own */
     }
-    c->next = s->pending;
-    s->pending = c;
+    errno = err;
     return pid;
 }

@@ -1,5 +1,6 @@
 /* spawn: starts a supervised program without fork's copy of the caller: the child runs in the
- * caller's memory (CLONE_VM) on a stack of its own until its exec, while the caller goes on. */
+ * caller's memory (CLONE_VM) on a stack of its own until its exec, while the caller goes on
+ * (x86_64 with glibc 2.32 or later; elsewhere the child is a fork, as before). */
 #ifndef MARIE_SPAWN_H
 #define MARIE_SPAWN_H
 
