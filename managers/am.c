@@ -280,8 +280,11 @@ int main(int argc, char **argv)
     marie_errors_t errs = {0};
     am->start_mono = am_now_us();
     am->loop = marie_loop_create();
-    if (!am->loop) {
-        marie_error("loop: %s", strerror(errno));
+    am->spawner = marie_spawner_create();
+    if (!am->loop || !am->spawner) {
+        marie_error("%s: %s", am->loop ? "spawner" : "loop", strerror(errno));
+        marie_loop_destroy(am->loop);
+        marie_spawner_destroy(am->spawner);
         return 1;
     }
     if (system) {
@@ -383,6 +386,7 @@ out_lcm:
 out_loop:
     am_comps_free(am);
     marie_loop_destroy(am->loop);
+    marie_spawner_destroy(am->spawner);
     balance_destroy(am->bal);
     marie_system_destroy(am->sys);
     marie_auth_destroy(am->auth);

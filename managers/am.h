@@ -17,6 +17,7 @@
 #include "core/time.h"
 #include "managers/am_proto.h"
 #include "managers/logcap.h"
+#include "managers/spawn.h"
 #include "managers/supervise.h"
 
 typedef struct am am_t;
@@ -58,6 +59,7 @@ struct am {
     marie_loop_t *loop;
     lcm_t *lcm;
     int sigfd;
+    marie_spawner_t *spawner;   /* starts the components (spawn.c) */
     marie_auth_t *auth;
     marie_replay_t *replay;
     int64_t order_lifetime_us, max_skew_us;    /* the replay table's window */

@@ -6,7 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -16,6 +15,7 @@
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am.h"
 #include "managers/progcheck.h"
+#include "managers/spawn.h"
 
 comp_t *am_comp_find(am_t *am, const char *name)
 {
@@ -166,37 +166,6 @@ static char *resolve_exec(am_t *am, const char *name)
     return marie_am_resolve_exec(am->self_dir, name);
 }
 
-static void child_exec(comp_t *c, int outfd, int errfd, pid_t parent, const char *prog, char **argv, char **envp)
-{
-    /* Own session and process group: stop signals go to the whole group. */
-    setsid();
-    /* If the manager dies, its components quit (SIGTERM = quit); a restarted manager
-     * starts them again instead of finding orphans. */
-    prctl(PR_SET_PDEATHSIG, SIGTERM);
-    if (getppid() != parent)
-        _exit(127);
-    sigset_t none;
-    sigemptyset(&none);
-    sigprocmask(SIG_SETMASK, &none, NULL);
-    for (int s = 1; s < NSIG; s++)
-        if (s != SIGKILL && s != SIGSTOP)
-            signal(s, SIG_DFL);
-    int nul = open("/dev/null", O_RDONLY);
-    if (nul >= 0 && nul != 0) {
-        dup2(nul, 0);
-        close(nul);
-    }
-    dup2(outfd, 1);
-    dup2(errfd, 2);
-    /* pipes and every other descriptor of the manager are close-on-exec */
-    if (prog)
-        execve(prog, argv, envp);
-    else
-        execvpe(argv[0], argv, envp);
-    dprintf(2, "marie-am: exec %s: %s\n", argv[0], strerror(errno));
-    _exit(127);
-}
-
 /* The environment of a component: the manager's, minus service plumbing, plus marie's and
  * the component's. NULL on failure; the caller frees the *ne strings and the array. */
 static char **child_env(comp_t *c, size_t *nep)
@@ -276,17 +245,20 @@ static void comp_spawn(comp_t *c)
     if (!envp)
         goto fail;
 
+    /* Own session and process group (stop signals go to the whole group); SIGTERM if the
+     * manager dies (SIGTERM = quit: a restarted manager starts them again instead of finding
+     * orphans); default signal handling; the pipes and the other descriptors marie-am opens
+     * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
     char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
-    pid_t parent = getpid();
-    pid_t pid = fork();
+    marie_spawn_req_t req = {
+        .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
+    };
+    pid_t pid = marie_spawn(am->spawner, &req);
+    free(prog);
     if (pid < 0) {
-        am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: fork: %s", cfg->name, strerror(errno));
-        free(prog);
+        am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: spawn: %s", cfg->name, strerror(errno));
         goto fail;
     }
-    if (pid == 0)
-        child_exec(c, po[1], pe[1], parent, prog, argv, envp);
-    free(prog);
     close(po[1]);
     close(pe[1]);
     int rd[2] = {po[0], pe[0]};
@@ -297,12 +269,11 @@ static void comp_spawn(comp_t *c)
         op->fd = rd[i];
         op->stream = i == 0 ? MARIE_LOG_LINE_T_STDOUT : MARIE_LOG_LINE_T_STDERR;
         op->lb.len = 0;
-        fcntl(op->fd, F_SETFL, fcntl(op->fd, F_GETFL) | O_NONBLOCK);
+        fcntl(op->fd, F_SETFL, O_NONBLOCK);     /* a new pipe's end has no other flag */
         marie_loop_add_fd(am->loop, op->fd, POLLIN, on_outpipe, op);
     }
     marie_sv_spawned(&c->sv, pid, am_now_us());
-    c->start_ticks = 0;
-    marie_proc_starttime(pid, &c->start_ticks);
+    c->start_ticks = 0;         /* read when the children file is written */
     am_save_children(am);
     c->cpu_prev.at_us = 0;
     c->cpu = 0;

@@ -127,6 +127,8 @@ static void on_status_soon(marie_loop_t *loop, marie_timer_t *t, int64_t overrun
 
 void am_on_status_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
+    am_t *am = user;
+    marie_spawner_sweep(am->spawner);   /* what started children no longer use */
     am_publish_status(user, true);
     am_balance_decide(user);
 }

@@ -45,8 +45,12 @@ static void write_children(marie_loop_t *loop, marie_timer_t *t, int64_t overrun
         return;
     for (size_t i = 0; i < am->ncomps; i++) {
         comp_t *c = &am->comps[i];
-        if (c->sv.pid > 0 && c->sv.local)
-            fprintf(f, "%d %lld %s\n", (int)c->sv.pid, (long long)c->start_ticks, c->cfg->name);
+        if (c->sv.pid <= 0 || !c->sv.local)
+            continue;
+        /* read here, not at each spawn: a pid not yet reaped is still that process */
+        if (c->start_ticks == 0)
+            marie_proc_starttime(c->sv.pid, &c->start_ticks);
+        fprintf(f, "%d %lld %s\n", (int)c->sv.pid, (long long)c->start_ticks, c->cfg->name);
     }
     if (fclose(f) == 0)
         rename(tmp, path);

@@ -1,6 +1,6 @@
 # managers: marie-am (one per host), the marie command line, and the order-signing library.
 MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/supervise.c managers/balance.c))
+$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c))
 
 # marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
 # am_check.c: an up order's program check in a child, sdnotify.c: systemd's notify protocol)
@@ -19,11 +19,12 @@ EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp $(B)/tests/bin/marie-test-order
 
 $(eval $(call marie_test,test_auth,tests/managers/test_auth.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB)))
+$(eval $(call marie_test,test_spawn,tests/managers/test_spawn.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_supervise,tests/managers/test_supervise.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 $(eval $(call marie_test,test_sdnotify,tests/managers/test_sdnotify.c managers/sdnotify.c,))
-ITESTS += tests/managers/test_am.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
+ITESTS += tests/managers/test_am.sh tests/managers/test_am_spawn.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
 ITESTS += tests/managers/test_balance.sh tests/managers/test_fast_detect.sh
 # make fuzz links only the listed sources: the generated decoders it needs are listed too.
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/logcap.c,))
