@@ -89,7 +89,12 @@ static void test_signals_default_none_blocked(void **state)
     run(s, "/bin/grep", argv, no_env, &r);
     signal(SIGPIPE, was);
     sigprocmask(SIG_SETMASK, &old, NULL);
-    assert_string_equal(r.out, "SigBlk:\t0000000000000000\nSigIgn:\t0000000000000000\n");
+    /* Signals 32 and 33 are glibc's own: its posix_spawn (make's, for one) starts programs with
+     * them ignored and glibc refuses to change them, so the child may inherit that; no other. */
+    unsigned long long blk = 1, ign = 1;
+    assert_int_equal(sscanf(r.out, "SigBlk:\t%llx\nSigIgn:\t%llx\n", &blk, &ign), 2);
+    assert_true(blk == 0);
+    assert_true((ign & ~0x180000000ull) == 0);
     marie_spawner_destroy(s);
 }
 
