@@ -23,9 +23,11 @@
 #include "adapters/mapper/slam.h"
 #include "adapters/mapper/slam_params.h"
 #include "core/config.h"
+#include "core/typeinfo.h"
 #include "lcmtypes/marie_laser_scan_t.h"
 #include "lcmtypes/marie_odometry_t.h"
 #include "lcmtypes/marie_pose_cov_t.h"
+#include "lcmtypes/marie_types.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
 #include "tools/viewer/lcmlog.h"
@@ -116,17 +118,24 @@ static bool is(const lcmlog_event_t *ev, const char *ch)
     return ev->channel_len == strlen(ch) && memcmp(ev->channel, ch, ev->channel_len) == 0;
 }
 
+/* A record of type t from the log, through the checked decode path (a damaged log may hold
+ * anything): true, or counted as undecodable. */
+static bool decode(const lcmlog_event_t *ev, const marie_type_t *t, void *out)
+{
+    if (marie_decode_input(t, ev->data, ev->data_len, out, NULL) == 0)
+        return true;
+    R.undecodable++;
+    return false;
+}
+
 static void on_event(void *user, const lcmlog_event_t *ev)
 {
-    int len = (int)ev->data_len;
     if (R.done)
         return;
     if (is(ev, "SIM_TRUTH")) {
         marie_pose_cov_t t;
-        if (marie_pose_cov_t_decode(ev->data, 0, len, &t) < 0) {
-            R.undecodable++;
+        if (!decode(ev, &marie_type_pose_cov_t, &t))
             return;
-        }
         if (R.nt && t.utime < R.truth[R.nt - 1].t - 5000000) {
             R.done = true;      /* simulated time went back: the log's next run */
         } else {
@@ -140,19 +149,15 @@ static void on_event(void *user, const lcmlog_event_t *ev)
         marie_pose_cov_t_decode_cleanup(&t);
     } else if (is(ev, "ODOMETRY")) {
         marie_odometry_t o;
-        if (marie_odometry_t_decode(ev->data, 0, len, &o) < 0) {
-            R.undecodable++;
+        if (!decode(ev, &marie_type_odometry_t, &o))
             return;
-        }
         if (!R.truth_odometry)
             add_odometry(o.utime, (const double[3]){ o.pose.x, o.pose.y, o.pose.theta });
         marie_odometry_t_decode_cleanup(&o);
     } else if (is(ev, "LASER")) {
         marie_laser_scan_t m;
-        if (marie_laser_scan_t_decode(ev->data, 0, len, &m) < 0) {
-            R.undecodable++;
+        if (!decode(ev, &marie_type_laser_scan_t, &m))
             return;
-        }
         if (m.utime > R.last_scan)
             scanwait_scan(&R.wait, NULL, &R.odom, &m, place);
         marie_laser_scan_t_decode_cleanup(&m);
@@ -226,7 +231,8 @@ int main(int argc, char **argv)
             k++;
         if (t < R.truth[k].t || t > R.truth[k + 1].t)
             continue;
-        double w = (double)(t - R.truth[k].t) / (double)(R.truth[k + 1].t - R.truth[k].t ? R.truth[k + 1].t - R.truth[k].t : 1);
+        int64_t span = R.truth[k + 1].t - R.truth[k].t;
+        double w = span ? (double)(t - R.truth[k].t) / (double)span : 0;
         double dx = R.est[i][1] - (R.truth[k].x + w * (R.truth[k + 1].x - R.truth[k].x));
         double dy = R.est[i][2] - (R.truth[k].y + w * (R.truth[k + 1].y - R.truth[k].y));
         se += dx * dx + dy * dy;
@@ -235,13 +241,17 @@ int main(int argc, char **argv)
     }
     if (n)
         printf("ate_rms %.3f max %.3f poses %zu\n", sqrt(se / (double)n), mx, n);
+    int rc = 0;
     FILE *tf = traj ? fopen(traj, "w") : NULL;
+    if (traj && !tf) {
+        fprintf(stderr, "mapper_replay: cannot write %s: %s\n", traj, strerror(errno));
+        rc = 1;
+    }
     for (size_t i = 0; tf && i < R.nest; i++)
         fprintf(tf, "%.0f %.4f %.4f %.5f\n", R.est[i][0], R.est[i][1], R.est[i][2], R.est[i][3]);
     if (tf)
         fclose(tf);
     occmap_t *m = slam_render(R.slam);
-    int rc = 0;
     if (m && save && occmap_save(m, save) < 0) {
         fprintf(stderr, "mapper_replay: cannot save %s: %s\n", save, strerror(errno));
         rc = 1;
