@@ -12,7 +12,12 @@
 #include "core/component.h"
 #include "tests/proc.h"
 
-/* ---- the echo process: ports in to out, and RTT_RAW_PING to RTT_RAW_PONG on the same lcm_t ---- */
+/* The raw baseline's bus: plain liblcm instances (lcm_create: liblcm's receive thread reads
+ * them) on a port of their own, so neither side's sockets read the other's traffic. */
+#define RAW_URL "udpm://239.255.76.67:7668?ttl=0&recv_buf_size=8388608"
+
+/* ---- the echo process: ports in to out, and RTT_RAW_PING to RTT_RAW_PONG on the raw bus, on
+ * the same loop ---- */
 
 static void echo_port(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
@@ -26,8 +31,9 @@ static void echo_raw(const lcm_recv_buf_t *rb, const char *ch, const marie_image
 
 static int pong_init(marie_component_t *c)
 {
-    lcm_t *lcm = marie_component_lcm(c);
-    if (!marie_image_t_subscribe(lcm, "RTT_RAW_PING", echo_raw, lcm))
+    lcm_t *lcm = lcm_create(RAW_URL);
+    if (!lcm || !marie_image_t_subscribe(lcm, "RTT_RAW_PING", echo_raw, lcm) ||
+        marie_loop_add_lcm(marie_component_loop(c), lcm, 1) < 0)
         return -1;
     return marie_port_on_message(marie_port(c, "ping"), echo_port);
 }
@@ -227,8 +233,11 @@ int main(int argc, char **argv)
         test_stop(pong);
         return 1;
     }
-    pg.lcm = marie_component_lcm(pg.c);
-    marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.raw);
+    pg.lcm = lcm_create(RAW_URL);     /* the baseline: a plain liblcm program */
+    if (!pg.lcm || !marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.raw)) {
+        test_stop(pong);
+        return 1;
+    }
     /* Wait for the echo process: ping until one comes back (5 s at most). */
     marie_image_t probe = {.width = 1, .height = 1, .size = 1, .format = MARIE_IMAGE_T_FORMAT_GRAY8};
     uint8_t byte = 0;
@@ -246,6 +255,7 @@ int main(int argc, char **argv)
     run_size(&pg, "8KB", 8192, 1000);
     run_size(&pg, "900KB", 921600, 200);
     marie_component_destroy(pg.c);
+    lcm_destroy(pg.lcm);
     test_stop(pong);
     return 0;
 }

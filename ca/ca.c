@@ -138,7 +138,7 @@ int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, size_t shm_ma
 void ca_input_close(ca_input_t *in)
 {
     if (in->sub)
-        lcm_unsubscribe(in->lcm, in->sub);
+        marie_lcm_unsubscribe(in->lcm, in->sub);
     marie_shm_sub_destroy(in->shm);
     in->sub = NULL;
     in->shm = NULL;

@@ -8,6 +8,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/lcm.h"
 #include "core/shm_bus.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
@@ -102,7 +103,7 @@ char *ca_channel_pattern(const char *channel);
 typedef void (*ca_input_fn)(void *user, const void *buf, size_t len, int64_t recv_utime);
 typedef struct {
     lcm_t *lcm;
-    lcm_subscription_t *sub;
+    marie_lcm_sub_t *sub;
     marie_shm_sub_t *shm;
     ca_input_fn fn;
     void *user;

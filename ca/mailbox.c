@@ -36,7 +36,7 @@ struct mailbox {
     mailbox_stats_t stats;
     lcm_t *lcm;
     ca_input_t data;
-    lcm_subscription_t *sub_pull;
+    marie_lcm_sub_t *sub_pull;
 };
 
 mailbox_t *mailbox_create(const char *channel, const marie_type_t *type, int depth,
@@ -327,7 +327,7 @@ void mailbox_detach(mailbox_t *mb)
         return;
     ca_input_close(&mb->data);
     if (mb->sub_pull)
-        lcm_unsubscribe(mb->lcm, mb->sub_pull);
+        marie_lcm_unsubscribe(mb->lcm, mb->sub_pull);
     mb->sub_pull = NULL;
     mb->lcm = NULL;
 }

@@ -48,7 +48,7 @@ struct sharedmap {
     int64_t snap_min_interval, snap_last;
     int snap_due;
     lcm_t *lcm;
-    lcm_subscription_t *sub;
+    marie_lcm_sub_t *sub;
     sharedmap_stats_t stats;
 };
 
@@ -714,7 +714,7 @@ void sharedmap_detach(sharedmap_t *sm)
 {
     if (!sm->lcm)
         return;
-    lcm_unsubscribe(sm->lcm, sm->sub);
+    marie_lcm_unsubscribe(sm->lcm, sm->sub);
     sm->sub = NULL;
     sm->lcm = NULL;
 }

@@ -27,7 +27,7 @@ struct sharedmap_client {
     char *request_channel;
     char *reply_channel;
     char *name;
-    lcm_subscription_t *sub;
+    marie_lcm_sub_t *sub;
     int64_t next_id;
     int64_t waiting_id;             /* 0: none */
     marie_sharedmap_reply_t *reply; /* view of the matching reply (into reply_buf), or NULL */
@@ -131,7 +131,7 @@ void sharedmap_client_destroy(sharedmap_client_t *cl)
     if (!cl)
         return;
     if (cl->sub)
-        lcm_unsubscribe(cl->lcm, cl->sub);
+        marie_lcm_unsubscribe(cl->lcm, cl->sub);
     drop_reply(cl);
     marie_loop_destroy(cl->wait_loop);
     free(cl->pending);

@@ -450,7 +450,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
     for (size_t i = 0; i < c->nbuses; i++)
         if (marie_loop_add_lcm(c->loop, c->buses[i].lcm, 1) < 0)
             goto err_runtime;
-    if (!lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
+    if (!marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
         !marie_loop_add_wall_timer(c->loop, heartbeat_period_us(c), on_heartbeat_timer, c))
         goto err_runtime;
     if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {
@@ -514,7 +514,7 @@ void marie_component_destroy(marie_component_t *c)
     }
     free(c->ports);
     for (size_t i = 0; i < c->nbuses; i++) {
-        lcm_destroy(c->buses[i].lcm);
+        marie_lcm_destroy(c->buses[i].lcm);
         free(c->buses[i].url);
     }
     free(c->buses);

@@ -263,13 +263,9 @@ int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
                 marie_shm_sub_in_place(p->shm_sub, on_shm_verdict);
         }
     } else if (!p->sub) {
-        p->sub = lcm_subscribe(p->lcm, p->channel, on_port_message, p);
+        p->sub = marie_lcm_subscribe(p->lcm, p->channel, on_port_message, p);
         if (!p->sub)
             return -EIO;
-        /* LCM drops silently past a subscription's queue capacity (30 by default):
-         * events must not be lost there, so give their ports room for bursts. */
-        if (p->spec->mech == MARIE_EVENT)
-            lcm_subscription_set_queue_capacity(p->sub, EVENT_QUEUE_MAX * 4);
     }
     return 0;
 }
@@ -356,7 +352,7 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
     if (p->spec->mech != MARIE_PULL || timeout_ms < 0)
         return marie_fail_null(EINVAL);
     if (!c->reply_subscribed) {
-        if (!lcm_subscribe(p->lcm, c->reply_channel, on_pull_reply, c))
+        if (!marie_lcm_subscribe(p->lcm, c->reply_channel, on_pull_reply, c))
             return marie_fail_null(EIO);
         c->reply_subscribed = true;
     }
@@ -467,7 +463,7 @@ lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url)
     if (!n)
         return NULL;
     c->buses = n;
-    lcm_t *lcm = lcm_create(url);
+    lcm_t *lcm = marie_lcm_create(url);
     if (!lcm) {
         marie_error("%s: cannot open the LCM bus '%s'", c->name, url);
         return NULL;

@@ -40,7 +40,7 @@ struct marie_port {
     const marie_port_spec_t *spec;
     char *channel;
     lcm_t *lcm;
-    lcm_subscription_t *sub;
+    marie_lcm_sub_t *sub;
     marie_msg_cb_t cb;
     void *scratch;              /* decoded message */
     uint8_t *buf;               /* encode buffer */

@@ -145,22 +145,12 @@ int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
 static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     lcm_watch_t *w = user;
-    lcm_handle(w->lcm);         /* readable: this does not block */
-    for (int i = 1; i < w->burst && lcm_handle_timeout(w->lcm, 0) > 0; i++)
-        ;
-}
-
-lcm_subscription_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user)
-{
-    lcm_subscription_t *s = lcm_subscribe(lcm, channel, handler, user);
-    if (s)
-        lcm_subscription_set_queue_capacity(s, MARIE_LCM_QUEUE);
-    return s;
+    marie_lcm_handle(w->lcm, w->burst);
 }
 
 int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
 {
-    int fd = lcm ? lcm_get_fileno(lcm) : -1;
+    int fd = lcm ? marie_lcm_fd(lcm) : -1;
     if (fd < 0)
         return -EINVAL;
     lcm_watch_t *w = calloc(1, sizeof *w);
@@ -183,7 +173,7 @@ int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm)
             lcm_watch_t *w = *p;
             *p = w->next;
             free(w);
-            return marie_loop_remove_fd(loop, lcm_get_fileno(lcm));
+            return marie_loop_remove_fd(loop, marie_lcm_fd(lcm));
         }
     }
     return -ENOENT;

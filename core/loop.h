@@ -7,6 +7,8 @@
 
 #include <lcm/lcm.h>
 
+#include "core/lcm.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -31,17 +33,11 @@ int marie_loop_remove_fd(marie_loop_t *loop, int fd);
 /* Change what a watched fd waits for (POLLIN, POLLOUT...), from the next poll round on. */
 int marie_loop_set_events(marie_loop_t *loop, int fd, short events);
 
-/* An LCM instance as one more fd: its handlers run from the loop, at most `burst` messages per
+/* An LCM instance as one more fd (core/lcm.h): its handlers run from the loop, at most `burst` messages per
  * round (1 keeps timers and other fds served between messages; a bridge that forwards floods
  * may take more). 0 or -errno. */
 int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst);
 int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm);
-
-/* lcm_subscribe with room for MARIE_LCM_QUEUE messages until the loop reads them. LCM's own
- * default is 30, and it drops the rest without a word: a bring-up of 45 components sends ~135
- * heartbeats while the managers are busy spawning. NULL on failure; lcm_unsubscribe frees it. */
-#define MARIE_LCM_QUEUE 4096
-lcm_subscription_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user);
 
 /* Bytes waiting to be read on fd now, without waiting for more (0 when the fd cannot say).
  * For a tty this includes what the kernel still holds in its flip buffer: bytes written to a

@@ -42,7 +42,7 @@ struct marie_shm_pub {
     char channel[CH_MAX], notice_ch[CH_MAX + 8], want_ch[CH_MAX + 12];
     char host[64];
     marie_shm_writer_t *w;
-    lcm_subscription_t *want_sub;
+    marie_lcm_sub_t *want_sub;
     int64_t wanted_until;       /* mono us */
     marie_shm_pub_stats_t st;
 };
@@ -73,7 +73,7 @@ marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t ma
     p->w = marie_shm_writer_create(channel, max_size, nslots);
     if (!p->w)
         goto err;
-    p->want_sub = lcm_subscribe(lcm, p->want_ch, on_want, p);
+    p->want_sub = marie_lcm_subscribe(lcm, p->want_ch, on_want, p);
     if (!p->want_sub) {
         errno = EIO;
         goto err;
@@ -88,7 +88,7 @@ void marie_shm_pub_destroy(marie_shm_pub_t *p)
 {
     if (!p)
         return;
-    lcm_unsubscribe(p->lcm, p->want_sub);
+    marie_lcm_unsubscribe(p->lcm, p->want_sub);
     marie_shm_writer_destroy(p->w);
     free(p);
 }
@@ -152,7 +152,7 @@ struct marie_shm_sub {
     marie_shm_msg_cb_t cb;
     marie_shm_verdict_cb_t verdict;     /* in place: NULL means copy first */
     void *user;
-    lcm_subscription_t *notice_sub, *copy_sub;
+    marie_lcm_sub_t *notice_sub, *copy_sub;
     int64_t last_want;          /* mono us */
     marie_shm_sub_stats_t st;
 };
@@ -171,7 +171,7 @@ static void want_remote(marie_shm_sub_t *s)
 {
     int64_t now = marie_mono_us();
     if (!s->copy_sub)
-        s->copy_sub = lcm_subscribe(s->lcm, s->channel, on_copy, s);
+        s->copy_sub = marie_lcm_subscribe(s->lcm, s->channel, on_copy, s);
     if (now - s->last_want < WANT_EVERY_US)
         return;
     s->last_want = now;
@@ -277,9 +277,9 @@ void marie_shm_sub_destroy(marie_shm_sub_t *s)
 {
     if (!s)
         return;
-    lcm_unsubscribe(s->lcm, s->notice_sub);
+    marie_lcm_unsubscribe(s->lcm, s->notice_sub);
     if (s->copy_sub)
-        lcm_unsubscribe(s->lcm, s->copy_sub);
+        marie_lcm_unsubscribe(s->lcm, s->copy_sub);
     marie_shm_reader_destroy(s->r);
     free(s->buf);
     free(s);

@@ -322,7 +322,7 @@ int main(int argc, char **argv)
     }
     marie_ratelimit_init(&am->refusal_rl, 5, 10);
 
-    am->lcm = lcm_create(am->url);
+    am->lcm = marie_lcm_create(am->url);
     if (!am->lcm) {
         marie_error("lcm_create(%s) failed", am->url);
         goto out_loop;
@@ -382,7 +382,7 @@ int main(int argc, char **argv)
     close(am->sigfd);
 out_lcm:
     am_comps_free(am);
-    lcm_destroy(am->lcm);
+    marie_lcm_destroy(am->lcm);
 out_loop:
     am_comps_free(am);
     marie_loop_destroy(am->loop);

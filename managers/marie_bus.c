@@ -192,7 +192,7 @@ RAW_HANDLER(on_raw_log, log_line_t, on_log)
 
 int cli_open(cli_t *cli)
 {
-    cli->lcm = lcm_create(cli->url);
+    cli->lcm = marie_lcm_create(cli->url);
     if (!cli->lcm) {
         fprintf(stderr, "marie: cannot open the bus %s\n", cli->url);
         return -1;

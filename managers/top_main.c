@@ -343,7 +343,7 @@ int main(int argc, char **argv)
     int sigfd = -1, rc = MARIE_EXIT_FAIL;
     a.model = top_create();
     a.loop = marie_loop_create();
-    a.lcm = lcm_create(url);
+    a.lcm = marie_lcm_create(url);
     if (!a.model || !a.loop) {
         fprintf(stderr, "marie top: %s\n", strerror(errno));
         goto out;
@@ -381,7 +381,7 @@ out:
     if (sigfd >= 0)
         close(sigfd);
     if (a.lcm)
-        lcm_destroy(a.lcm);
+        marie_lcm_destroy(a.lcm);
     marie_loop_destroy(a.loop);
     top_destroy(a.model);
     free(a.lines);

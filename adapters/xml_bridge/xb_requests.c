@@ -149,10 +149,9 @@ static sub_t *sub_get(xb_server_t *s, const char *channel, const marie_typeinfo_
         re[k++] = *p;
     }
     re[k] = '\0';
-    u->ls = lcm_subscribe(s->lcm, re, on_lcm, u);
+    u->ls = marie_lcm_subscribe(s->lcm, re, on_lcm, u);
     if (!u->ls)
         goto fail;
-    lcm_subscription_set_queue_capacity(u->ls, 1000);
     u->next = s->subs;
     s->subs = u;
     s->st.subscriptions++;
@@ -173,7 +172,7 @@ void xb_sub_release(xb_server_t *s, sub_t *u)
             *pp = u->next;
             break;
         }
-    lcm_unsubscribe(s->lcm, u->ls);
+    marie_lcm_unsubscribe(s->lcm, u->ls);
     free(u->channel);
     free(u->clients);
     free(u->stream);

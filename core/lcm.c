@@ -1,0 +1,593 @@
+/* lcm: marie's reader of LCM's UDP multicast protocol, on the loop's thread (core/lcm.h). */
+#include "core/lcm.h"
+
+#include <arpa/inet.h>
+#include <errno.h>
+#include <netinet/in.h>
+#include <regex.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+
+#include "core/config.h"
+#include "core/err.h"
+#include "core/log.h"
+#include "core/time.h"
+
+/* LCM's wire format (lcm/udpm_util.h): big-endian headers, then the channel and its NUL in a
+ * short message or in the first fragment of a long one. */
+#define MAGIC_SHORT 0x4c433032u     /* "LC02" */
+#define MAGIC_LONG 0x4c433033u      /* "LC03" */
+#define SHORT_HDR 8                 /* magic, sequence number */
+#define LONG_HDR 20                 /* magic, seqno, size, fragment offset, fragment no, count */
+#define DATAGRAM_MAX 65536
+#define RECV_BUF_DEFAULT (2 << 20)  /* bytes of kernel buffer when the URL names none */
+/* Fragmented messages being put together: at most this many senders at once, this many bytes
+ * each (liblcm's own bound on all of them is 16 MB). */
+#define FRAG_SLOTS 16
+#define FRAG_MAX_BYTES (64u << 20)
+#define SPARE_MAX (16u << 20)
+/* Datagrams read per call at most, whole messages or not (fragments, strangers' garbage). */
+#define DATAGRAMS_PER_CALL 256
+
+struct marie_lcm_sub {
+    struct marie_lcm_sub *next;
+    lcm_msg_handler_t handler;
+    void *user;
+    char *channel;
+    bool literal;           /* no regular expression character: compared as a string */
+    bool removed;           /* unsubscribed during a dispatch: freed after it */
+    regex_t re;
+};
+
+typedef struct {
+    bool used, ignore;      /* ignore: nobody subscribes to its channel */
+    struct sockaddr_in from;
+    uint32_t seqno, size, have;
+    uint16_t nfrags, got;
+    uint8_t *seen;          /* one bit per fragment */
+    uint8_t *data;
+    size_t cap;             /* of data */
+    char channel[LCM_MAX_CHANNEL_NAME_LENGTH + 1];
+    int64_t touched;        /* order of use, for eviction */
+} frag_t;
+
+typedef struct bus {
+    struct bus *next;
+    lcm_t *lcm;
+    int fd;                 /* -1: liblcm reads this bus */
+    marie_lcm_sub_t *subs;
+    int depth;              /* dispatches running (a handler may read the bus again) */
+    bool any_removed;
+    uint8_t *buf;           /* DATAGRAM_MAX, for the outermost read */
+    uint8_t *spare;         /* the last large message's buffer, for the next one */
+    size_t spare_cap;
+    frag_t frags[FRAG_SLOTS];
+    int64_t clock;
+    uint32_t ovfl;          /* the kernel's drop count at the last datagram */
+    marie_lcm_stats_t st;
+} bus_t;
+
+static bus_t *buses;
+
+static bus_t *find(const lcm_t *lcm)
+{
+    for (bus_t *b = buses; b; b = b->next)
+        if (b->lcm == lcm)
+            return b;
+    return NULL;
+}
+
+/* "udpm://ADDR:PORT?opt=v&..." into the group, the port and the receive buffer size; false when
+ * marie should leave the bus to liblcm (another provider, transmit_only, not understood). */
+static bool parse_udpm(const char *url, struct in_addr *group, uint16_t *port, int *rcvbuf)
+{
+    const char *p = url;
+    if (strncmp(p, "udpm://", 7) != 0)
+        return false;
+    p += 7;
+    char addr[64];
+    size_t n = strcspn(p, ":?");
+    if (n == 0 || n >= sizeof addr)
+        return false;
+    memcpy(addr, p, n);
+    addr[n] = '\0';
+    if (inet_pton(AF_INET, addr, group) != 1 || !IN_MULTICAST(ntohl(group->s_addr)))
+        return false;
+    p += n;
+    *port = 7667;
+    if (*p == ':') {
+        char *end;
+        unsigned long v = strtoul(p + 1, &end, 10);
+        if (end == p + 1 || v == 0 || v > 65535)
+            return false;
+        *port = (uint16_t)v;
+        p = end;
+    }
+    *rcvbuf = RECV_BUF_DEFAULT;
+    if (*p == '\0')
+        return true;
+    if (*p != '?')
+        return false;
+    for (p++; *p; p += *p == '&') {
+        size_t len = strcspn(p, "&");
+        if (strncmp(p, "recv_buf_size=", 14) == 0) {
+            long v = atol(p + 14);
+            if (v > 0 && v <= (1 << 30))
+                *rcvbuf = (int)v;
+        } else if (strncmp(p, "transmit_only=", 14) == 0 &&
+                   (strncmp(p + 14, "true", 4) == 0 || p[14] == '1')) {
+            return false;
+        }
+        p += len;
+    }
+    return true;
+}
+
+static int open_socket(struct in_addr group, uint16_t port, int rcvbuf)
+{
+    int fd = socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        return -1;
+    int one = 1;
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons(port), .sin_addr.s_addr = htonl(INADDR_ANY)};
+    struct ip_mreq m = {.imr_multiaddr = group, .imr_interface.s_addr = htonl(INADDR_ANY)};
+    if (setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) < 0 ||
+        bind(fd, (struct sockaddr *)&a, sizeof a) < 0 ||
+        setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &m, sizeof m) < 0 ||
+        setsockopt(fd, SOL_SOCKET, SO_TIMESTAMP, &one, sizeof one) < 0 ||
+        setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one) < 0) {
+        MARIE_KEEP_ERRNO(close(fd));
+        return -1;
+    }
+    /* No receive thread empties this buffer while the loop is busy: it must hold a burst. Past
+     * net.core.rmem_max only a privileged process may ask (docs/transport.md). */
+    if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &rcvbuf, sizeof rcvbuf) < 0)
+        (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    return fd;
+}
+
+lcm_t *marie_lcm_create(const char *url)
+{
+    if (!url)
+        url = marie_default_url();
+    lcm_t *lcm = lcm_create(url);
+    if (!lcm)
+        return NULL;
+    bus_t *b = calloc(1, sizeof *b);
+    if (!b) {
+        lcm_destroy(lcm);
+        return marie_fail_null(ENOMEM);
+    }
+    b->lcm = lcm;
+    b->fd = -1;
+    struct in_addr group;
+    uint16_t port;
+    int rcvbuf;
+    const char *mode = getenv("MARIE_LCM_RECEIVE");
+    if (!(mode && strcmp(mode, "liblcm") == 0) && parse_udpm(url, &group, &port, &rcvbuf)) {
+        b->fd = open_socket(group, port, rcvbuf);
+        if (b->fd < 0)      /* liblcm will say what is wrong when it is asked to read */
+            marie_warn("%s: marie cannot read this bus itself (%s); liblcm reads it", url, strerror(errno));
+        else if (!(b->buf = malloc(DATAGRAM_MAX))) {
+            close(b->fd);
+            b->fd = -1;
+        }
+    }
+    b->next = buses;
+    buses = b;
+    return lcm;
+}
+
+static void frag_drop(frag_t *f)
+{
+    free(f->data);
+    free(f->seen);
+    memset(f, 0, sizeof *f);
+}
+
+static void sub_free(marie_lcm_sub_t *s)
+{
+    if (!s->literal)
+        regfree(&s->re);
+    free(s->channel);
+    free(s);
+}
+
+void marie_lcm_destroy(lcm_t *lcm)
+{
+    if (!lcm)
+        return;
+    for (bus_t **pp = &buses; *pp; pp = &(*pp)->next) {
+        bus_t *b = *pp;
+        if (b->lcm != lcm)
+            continue;
+        *pp = b->next;
+        while (b->subs) {
+            marie_lcm_sub_t *n = b->subs->next;
+            sub_free(b->subs);
+            b->subs = n;
+        }
+        for (int i = 0; i < FRAG_SLOTS; i++)
+            frag_drop(&b->frags[i]);
+        if (b->fd >= 0)
+            close(b->fd);
+        free(b->buf);
+        free(b->spare);
+        free(b);
+        break;
+    }
+    lcm_destroy(lcm);
+}
+
+int marie_lcm_native(const lcm_t *lcm)
+{
+    const bus_t *b = find(lcm);
+    return b && b->fd >= 0;
+}
+
+void marie_lcm_stats(const lcm_t *lcm, marie_lcm_stats_t *st)
+{
+    const bus_t *b = find(lcm);
+    *st = b ? b->st : (marie_lcm_stats_t){0};
+}
+
+marie_lcm_sub_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user)
+{
+    if (!lcm || !channel || !handler)
+        return marie_fail_null(EINVAL);
+    bus_t *b = find(lcm);
+    if (!b || b->fd < 0) {      /* liblcm's own subscription stands for it */
+        lcm_subscription_t *ls = lcm_subscribe(lcm, channel, handler, user);
+        if (!ls)
+            return marie_fail_null(EIO);
+        lcm_subscription_set_queue_capacity(ls, MARIE_LCM_QUEUE);
+        return (marie_lcm_sub_t *)ls;
+    }
+    marie_lcm_sub_t *s = calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->handler = handler;
+    s->user = user;
+    s->literal = strpbrk(channel, ".[]()*+?{}|^$\\") == NULL;
+    char *anchored = NULL;
+    if (!(s->channel = strdup(channel)) ||
+        (!s->literal && (asprintf(&anchored, "^(%s)$", channel) < 0 ||
+                         regcomp(&s->re, anchored, REG_EXTENDED | REG_NOSUB) != 0))) {
+        if (!s->literal && anchored)
+            marie_warn("cannot subscribe to '%s': not a regular expression", channel);
+        free(anchored);
+        s->literal = true;
+        sub_free(s);
+        return marie_fail_null(EINVAL);
+    }
+    free(anchored);
+    marie_lcm_sub_t **pp = &b->subs;    /* in subscription order, as liblcm calls them */
+    while (*pp)
+        pp = &(*pp)->next;
+    *pp = s;
+    return s;
+}
+
+static void sweep_removed(bus_t *b)
+{
+    for (marie_lcm_sub_t **pp = &b->subs; *pp;) {
+        marie_lcm_sub_t *s = *pp;
+        if (s->removed) {
+            *pp = s->next;
+            sub_free(s);
+        } else {
+            pp = &s->next;
+        }
+    }
+    b->any_removed = false;
+}
+
+void marie_lcm_unsubscribe(lcm_t *lcm, marie_lcm_sub_t *s)
+{
+    if (!s)
+        return;
+    bus_t *b = find(lcm);
+    if (!b || b->fd < 0) {
+        lcm_unsubscribe(lcm, (lcm_subscription_t *)s);
+        return;
+    }
+    s->removed = true;
+    b->any_removed = true;
+    if (b->depth == 0)
+        sweep_removed(b);
+}
+
+static bool matches(const marie_lcm_sub_t *s, const char *channel)
+{
+    return s->literal ? strcmp(s->channel, channel) == 0 : regexec(&s->re, channel, 0, NULL, 0) == 0;
+}
+
+static bool wanted(const bus_t *b, const char *channel)
+{
+    for (const marie_lcm_sub_t *s = b->subs; s; s = s->next)
+        if (!s->removed && matches(s, channel))
+            return true;
+    return false;
+}
+
+static void dispatch(bus_t *b, const char *channel, void *data, uint32_t size, int64_t utime)
+{
+    b->st.messages++;
+    lcm_recv_buf_t rb = {data, size, utime, b->lcm};
+    b->depth++;
+    for (marie_lcm_sub_t *s = b->subs; s; s = s->next)
+        if (!s->removed && matches(s, channel))
+            s->handler(&rb, channel, s->user);
+    if (--b->depth == 0 && b->any_removed)
+        sweep_removed(b);
+}
+
+/* The channel at p (at most n bytes, NUL included), or NULL when there is none. */
+static const char *channel_at(const uint8_t *p, size_t n)
+{
+    const uint8_t *nul = memchr(p, '\0', n < LCM_MAX_CHANNEL_NAME_LENGTH + 1 ? n : LCM_MAX_CHANNEL_NAME_LENGTH + 1);
+    return nul && nul > p ? (const char *)p : NULL;
+}
+
+static uint32_t be32(const uint8_t *p) { return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]; }
+static uint16_t be16(const uint8_t *p) { return (uint16_t)(p[0] << 8 | p[1]); }
+
+static frag_t *frag_slot(bus_t *b, const struct sockaddr_in *from)
+{
+    frag_t *free_slot = NULL, *oldest = NULL;
+    for (int i = 0; i < FRAG_SLOTS; i++) {
+        frag_t *f = &b->frags[i];
+        if (!f->used) {
+            if (!free_slot)
+                free_slot = f;
+        } else if (f->from.sin_addr.s_addr == from->sin_addr.s_addr && f->from.sin_port == from->sin_port) {
+            return f;
+        } else if (!oldest || f->touched < oldest->touched) {
+            oldest = f;
+        }
+    }
+    if (free_slot)
+        return free_slot;
+    if (!oldest->ignore)
+        b->st.incomplete++;
+    frag_drop(oldest);
+    return oldest;
+}
+
+/* A datagram being read: its first bytes seen without taking it from the socket (MSG_PEEK), so
+ * that what nobody subscribes to is dropped uncopied and a fragment goes straight to its place
+ * in the message being put together. */
+typedef struct {
+    uint8_t head[LONG_HDR + LCM_MAX_CHANNEL_NAME_LENGTH + 1];
+    size_t len;             /* the whole datagram's */
+    size_t seen;            /* of it in head */
+    struct sockaddr_in from;
+    int64_t utime;
+} datagram_t;
+
+/* Takes the datagram from the socket into the iov (none: dropped), with its time of arrival and
+ * the kernel's drop count; false when the socket gave something else than was peeked. */
+static bool take(bus_t *b, datagram_t *g, struct iovec *iov, int niov)
+{
+    uint8_t none;
+    struct iovec discard = {&none, 1};
+    union {
+        char space[CMSG_SPACE(sizeof(struct timeval)) + CMSG_SPACE(sizeof(uint32_t))];
+        struct cmsghdr align;
+    } ctl;
+    struct msghdr msg = {.msg_iov = niov ? iov : &discard, .msg_iovlen = niov ? (size_t)niov : 1,
+                         .msg_control = ctl.space, .msg_controllen = sizeof ctl.space};
+    ssize_t n;
+    do
+        n = recvmsg(b->fd, &msg, MSG_DONTWAIT | MSG_TRUNC);
+    while (n < 0 && errno == EINTR);
+    g->utime = 0;
+    for (struct cmsghdr *c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
+        if (c->cmsg_level != SOL_SOCKET)
+            continue;
+        if (c->cmsg_type == SO_TIMESTAMP) {
+            struct timeval tv;
+            memcpy(&tv, CMSG_DATA(c), sizeof tv);
+            g->utime = (int64_t)tv.tv_sec * 1000000 + tv.tv_usec;
+        } else if (c->cmsg_type == SO_RXQ_OVFL) {
+            uint32_t total;
+            memcpy(&total, CMSG_DATA(c), sizeof total);
+            if (total != b->ovfl) {
+                b->st.dropped += (uint32_t)(total - b->ovfl);
+                b->ovfl = total;
+                marie_warn_ratelimited(10, "the LCM bus's receive buffer overflowed: %lld datagrams lost so far",
+                                       (long long)b->st.dropped);
+            }
+        }
+    }
+    if (!g->utime)
+        g->utime = marie_wall_us();
+    return n == (ssize_t)g->len;
+}
+
+static void drop_malformed(bus_t *b, datagram_t *g)
+{
+    b->st.malformed++;
+    take(b, g, NULL, 0);
+}
+
+/* A buffer for a large message: the spare when it is large enough. Images at 30 Hz would
+ * otherwise map, fault in and unmap a megabyte per message. */
+static uint8_t *buffer(bus_t *b, size_t size, size_t *cap)
+{
+    if (b->spare && b->spare_cap >= size) {
+        uint8_t *p = b->spare;
+        *cap = b->spare_cap;
+        b->spare = NULL;
+        return p;
+    }
+    *cap = size ? size : 1;
+    return malloc(*cap);
+}
+
+/* Keeps the larger of the spare and p (at most SPARE_MAX bytes), frees the other. */
+static void give_back(bus_t *b, uint8_t *p, size_t cap)
+{
+    if (cap > SPARE_MAX || (b->spare && b->spare_cap >= cap)) {
+        free(p);
+        return;
+    }
+    free(b->spare);
+    b->spare = p;
+    b->spare_cap = cap;
+}
+
+/* One LC03 fragment; returns 1 when it completed a message (then dispatched). */
+static int on_fragment(bus_t *b, datagram_t *g)
+{
+    const uint8_t *d = g->head;
+    uint32_t seqno = be32(d + 4), size = be32(d + 8), offset = be32(d + 12);
+    uint16_t no = be16(d + 16), count = be16(d + 18);
+    size_t len = g->len - LONG_HDR, cl = 0;
+    const char *ch = NULL;
+    if (no == 0 && (!(ch = channel_at(d + LONG_HDR, g->seen - LONG_HDR)) || offset != 0)) {
+        drop_malformed(b, g);
+        return 0;
+    }
+    if (ch) {
+        cl = strlen(ch) + 1;
+        len -= cl;
+    }
+    if (count == 0 || no >= count || size > FRAG_MAX_BYTES || (uint64_t)offset + len > size) {
+        drop_malformed(b, g);
+        return 0;
+    }
+    frag_t *f = frag_slot(b, &g->from);
+    if (f->used && (f->seqno != seqno || f->size != size || f->nfrags != count)) {
+        if (!f->ignore)
+            b->st.incomplete++;     /* the sender moved on: what it sent before is lost */
+        frag_drop(f);
+    }
+    bool unwanted = ch && !wanted(b, ch);  /* nobody listens: counted whole, never copied */
+    if (!f->used) {
+        f->used = true;
+        f->from = g->from;
+        f->seqno = seqno;
+        f->size = size;
+        f->nfrags = count;
+        if (!(f->seen = calloc((count + 7u) / 8, 1)) || (!unwanted && !(f->data = buffer(b, size, &f->cap)))) {
+            frag_drop(f);
+            take(b, g, NULL, 0);
+            return 0;
+        }
+    }
+    f->touched = ++b->clock;
+    if (ch)
+        memcpy(f->channel, ch, cl);
+    if (unwanted) {
+        f->ignore = true;
+        free(f->data);
+        f->data = NULL;
+    }
+    uint8_t hdr[LONG_HDR + LCM_MAX_CHANNEL_NAME_LENGTH + 1];
+    struct iovec iov[2] = {{hdr, LONG_HDR + cl}, {f->data ? f->data + offset : NULL, len}};
+    bool dup = f->seen[no / 8] & (1u << (no % 8));
+    if (!take(b, g, iov, f->data && !dup ? 2 : 0)) {
+        b->st.malformed++;          /* the datagram changed under the peek: cannot be */
+        frag_drop(f);
+        return 0;
+    }
+    if (dup)
+        return 0;
+    f->seen[no / 8] |= (uint8_t)(1u << (no % 8));
+    f->have += (uint32_t)len;
+    if (++f->got < f->nfrags)
+        return 0;
+    if (f->have != f->size) {
+        b->st.malformed++;              /* every fragment came, and yet bytes are missing */
+    } else if (f->ignore) {
+        b->st.messages++;
+    } else {
+        char channel[sizeof f->channel];
+        memcpy(channel, f->channel, sizeof channel);
+        uint8_t *data = f->data;
+        size_t cap = f->cap;
+        f->data = NULL;
+        frag_drop(f);                   /* before the handlers: they may read the bus again */
+        dispatch(b, channel, data, size, g->utime);
+        give_back(b, data, cap);
+        return 1;
+    }
+    frag_drop(f);
+    return 0;
+}
+
+/* One LC02 message: read whole into buf when someone subscribes to it. */
+static int on_short(bus_t *b, datagram_t *g, uint8_t *buf)
+{
+    const char *ch = channel_at(g->head + SHORT_HDR, g->seen - SHORT_HDR);
+    if (!ch) {
+        drop_malformed(b, g);
+        return 0;
+    }
+    if (!wanted(b, ch)) {
+        b->st.messages++;
+        take(b, g, NULL, 0);
+        return 0;
+    }
+    struct iovec iov = {buf, DATAGRAM_MAX};
+    if (!take(b, g, &iov, 1)) {
+        b->st.malformed++;
+        return 0;
+    }
+    size_t cl = strlen((const char *)buf + SHORT_HDR) + 1;
+    dispatch(b, (const char *)buf + SHORT_HDR, buf + SHORT_HDR + cl, (uint32_t)(g->len - SHORT_HDR - cl), g->utime);
+    return 1;
+}
+
+int marie_lcm_fd(lcm_t *lcm)
+{
+    const bus_t *b = find(lcm);
+    return b && b->fd >= 0 ? b->fd : lcm_get_fileno(lcm);
+}
+
+int marie_lcm_handle(lcm_t *lcm, int max)
+{
+    bus_t *b = find(lcm);
+    if (!b || b->fd < 0) {
+        int n = lcm_handle(lcm) == 0;    /* the pipe was readable: this does not block */
+        while (n < max && lcm_handle_timeout(lcm, 0) > 0)
+            n++;
+        return n;
+    }
+    /* A handler that reads the bus again (a nested loop waiting for a reply) gets a buffer of
+     * its own: the outer message is still being delivered from b->buf. */
+    uint8_t *buf = b->depth == 0 ? b->buf : malloc(DATAGRAM_MAX);
+    if (!buf)
+        return 0;
+    int handled = 0;
+    for (int i = 0; i < DATAGRAMS_PER_CALL && handled < max; i++) {
+        datagram_t g;
+        struct iovec iov = {g.head, sizeof g.head};
+        struct msghdr msg = {.msg_name = &g.from, .msg_namelen = sizeof g.from, .msg_iov = &iov, .msg_iovlen = 1};
+        ssize_t n = recvmsg(b->fd, &msg, MSG_PEEK | MSG_DONTWAIT | MSG_TRUNC);
+        if (n < 0) {
+            if (errno == EINTR)
+                continue;
+            if (errno != EAGAIN && errno != EWOULDBLOCK)
+                marie_warn_ratelimited(10, "reading the LCM bus: %s", strerror(errno));
+            break;
+        }
+        g.len = (size_t)n;
+        g.seen = g.len < sizeof g.head ? g.len : sizeof g.head;
+        uint32_t magic = g.seen >= 4 ? be32(g.head) : 0;
+        if (magic == MAGIC_SHORT && g.len >= SHORT_HDR && g.len <= DATAGRAM_MAX)
+            handled += on_short(b, &g, buf);
+        else if (magic == MAGIC_LONG && g.len >= LONG_HDR)
+            handled += on_fragment(b, &g);
+        else
+            drop_malformed(b, &g);
+    }
+    if (buf != b->buf)
+        free(buf);
+    return handled;
+}

@@ -1,0 +1,52 @@
+/* lcm: marie's LCM buses. A bus opened with marie_lcm_create() on a UDP multicast URL is read by
+ * marie itself, from the loop's thread (docs/transport.md, "Reading the bus"): liblcm's receive
+ * thread and its pipe cost two wake-ups per message. Messages are sent by liblcm (lcm_publish,
+ * lcm-gen's *_publish) and the wire protocol is LCM's (LC02 datagrams, LC03 fragments), so
+ * lcm-spy, lcm-logger and every other LCM program share the bus. Other URLs (file://, memq://),
+ * a bus made by lcm_create(), and every bus when MARIE_LCM_RECEIVE=liblcm is set, are read by
+ * liblcm as before. Subscriptions to a bus a loop reads go through marie_lcm_subscribe(). */
+#ifndef MARIE_LCM_H
+#define MARIE_LCM_H
+
+#include <stdint.h>
+
+#include <lcm/lcm.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* lcm_create(url) (NULL: marie_default_url()), read by marie when it is UDP multicast. */
+lcm_t *marie_lcm_create(const char *url);
+void marie_lcm_destroy(lcm_t *lcm);                 /* NULL is a no-op */
+int marie_lcm_native(const lcm_t *lcm);             /* 1: marie reads it, 0: liblcm does */
+
+/* A subscription: `channel` is a regular expression matched against the whole channel name, as
+ * in LCM. liblcm's subscriptions hold MARIE_LCM_QUEUE messages until read (its own default is
+ * 30, dropped without a word: a bring-up of 45 components sends ~135 heartbeats while the
+ * managers spawn); marie's are held by the socket's kernel buffer, which marie enlarges. NULL
+ * with errno on failure. Unsubscribing from a handler, the handler's own included, is allowed.
+ * On a bus liblcm reads, the pointer is liblcm's subscription (lcm_subscription_t). */
+#define MARIE_LCM_QUEUE 4096
+typedef struct marie_lcm_sub marie_lcm_sub_t;
+marie_lcm_sub_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user);
+void marie_lcm_unsubscribe(lcm_t *lcm, marie_lcm_sub_t *s);    /* NULL is a no-op */
+
+/* What marie's receiver saw on a bus (all zero for a bus liblcm reads). */
+typedef struct {
+    int64_t messages;       /* whole messages received (delivered or not subscribed) */
+    int64_t malformed;      /* datagrams that are not LCM's or contradict themselves */
+    int64_t incomplete;     /* fragmented messages given up with fragments missing */
+    int64_t dropped;        /* datagrams the kernel dropped: the socket's buffer was full */
+} marie_lcm_stats_t;
+void marie_lcm_stats(const lcm_t *lcm, marie_lcm_stats_t *st);
+
+/* For the loop: the descriptor to poll (marie's socket, or liblcm's pipe), and the handling of
+ * at most `max` messages that are ready, without waiting. Returns how many were handled. */
+int marie_lcm_fd(lcm_t *lcm);
+int marie_lcm_handle(lcm_t *lcm, int max);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
