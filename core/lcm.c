@@ -46,9 +46,9 @@ struct marie_lcm_sub {
 typedef struct {
     bool used, ignore;      /* ignore: nobody subscribes to its channel */
     struct sockaddr_in from;
-    uint32_t seqno, size, have;
+    uint32_t seqno, size;
     uint16_t nfrags, got;
-    uint8_t *seen;          /* one bit per fragment */
+    uint32_t *span;         /* per fragment: its offset and 1 + its length (0: not come) */
     uint8_t *data;
     size_t cap;             /* of data */
     char channel[LCM_MAX_CHANNEL_NAME_LENGTH + 1];
@@ -185,7 +185,7 @@ lcm_t *marie_lcm_create(const char *url)
 static void frag_drop(frag_t *f)
 {
     free(f->data);
-    free(f->seen);
+    free(f->span);
     memset(f, 0, sizeof *f);
 }
 
@@ -441,6 +441,18 @@ static void give_back(bus_t *b, uint8_t *p, size_t cap)
     b->spare_cap = cap;
 }
 
+/* The fragments, in their order, cover the message from its first byte to its last once each. */
+static bool contiguous(const frag_t *f)
+{
+    uint64_t at = 0;
+    for (uint32_t i = 0; i < f->nfrags; i++) {
+        if (f->span[2 * i] != at)
+            return false;
+        at += f->span[2 * i + 1] - 1;
+    }
+    return at == f->size;
+}
+
 /* One LC03 fragment; returns 1 when it completed a message (then dispatched). */
 static int on_fragment(bus_t *b, datagram_t *g)
 {
@@ -474,7 +486,7 @@ static int on_fragment(bus_t *b, datagram_t *g)
         f->seqno = seqno;
         f->size = size;
         f->nfrags = count;
-        if (!(f->seen = calloc((count + 7u) / 8, 1)) || (!unwanted && !(f->data = buffer(b, size, &f->cap)))) {
+        if (!(f->span = calloc(2 * (size_t)count, sizeof *f->span)) || (!unwanted && !(f->data = buffer(b, size, &f->cap)))) {
             frag_drop(f);
             take(b, g, NULL, 0);
             return 0;
@@ -490,7 +502,7 @@ static int on_fragment(bus_t *b, datagram_t *g)
     }
     uint8_t hdr[LONG_HDR + LCM_MAX_CHANNEL_NAME_LENGTH + 1];
     struct iovec iov[2] = {{hdr, LONG_HDR + cl}, {f->data ? f->data + offset : NULL, len}};
-    bool dup = f->seen[no / 8] & (1u << (no % 8));
+    bool dup = f->span[2 * no + 1] != 0;
     if (!take(b, g, iov, f->data && !dup ? 2 : 0)) {
         b->st.malformed++;          /* the datagram changed under the peek: cannot be */
         frag_drop(f);
@@ -498,12 +510,12 @@ static int on_fragment(bus_t *b, datagram_t *g)
     }
     if (dup)
         return 0;
-    f->seen[no / 8] |= (uint8_t)(1u << (no % 8));
-    f->have += (uint32_t)len;
+    f->span[2 * no] = offset;
+    f->span[2 * no + 1] = (uint32_t)len + 1;
     if (++f->got < f->nfrags)
         return 0;
-    if (f->have != f->size) {
-        b->st.malformed++;              /* every fragment came, and yet bytes are missing */
+    if (!contiguous(f)) {
+        b->st.malformed++;              /* every fragment came, and yet they overlap or leave a hole */
     } else if (f->ignore) {
         b->st.messages++;
     } else {

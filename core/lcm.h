@@ -16,7 +16,8 @@
 extern "C" {
 #endif
 
-/* lcm_create(url) (NULL: marie_default_url()), read by marie when it is UDP multicast. */
+/* lcm_create(url) (NULL: marie_default_url()), read by marie when it is UDP multicast. A bus is
+ * made, read and destroyed by one thread (the loop's), as marie_loop is. */
 lcm_t *marie_lcm_create(const char *url);
 void marie_lcm_destroy(lcm_t *lcm);                 /* NULL is a no-op */
 int marie_lcm_native(const lcm_t *lcm);             /* 1: marie reads it, 0: liblcm does */

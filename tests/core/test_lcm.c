@@ -1,0 +1,357 @@
+/* test_lcm: marie's own reader of LCM's UDP multicast (core/lcm.h) against liblcm as the peer
+ * that sends (lcm_publish, with its own fragmentation), and against hand-made datagrams that are
+ * not what LCM sends. Runs in its own network namespace (make test). */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <arpa/inet.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "core/lcm.h"
+#include "core/loop.h"
+#include "core/time.h"
+
+#define URL "udpm://239.255.76.67:7667?ttl=0"
+
+typedef struct {
+    int n;
+    char channel[64];
+    uint8_t *data;      /* the last message */
+    uint32_t size;
+    int bad;            /* messages whose bytes were not the pattern */
+} got_t;
+
+static void pattern(uint8_t *p, size_t n, unsigned seed)
+{
+    for (size_t i = 0; i < n; i++)
+        p[i] = (uint8_t)(i * 31 + seed);
+}
+
+static void on_msg(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    got_t *g = user;
+    g->n++;
+    snprintf(g->channel, sizeof g->channel, "%s", channel);
+    free(g->data);
+    g->data = malloc(rb->data_size ? rb->data_size : 1);
+    memcpy(g->data, rb->data, rb->data_size);
+    g->size = rb->data_size;
+    uint8_t *want = malloc(rb->data_size ? rb->data_size : 1);
+    pattern(want, rb->data_size, rb->data_size ? ((uint8_t *)rb->data)[0] : 0);
+    if (memcmp(want, rb->data, rb->data_size) != 0)
+        g->bad++;
+    free(want);
+}
+
+/* Handles what arrives for ms milliseconds, or until `until` messages came to g. */
+static void pump(lcm_t *lcm, got_t *g, int until, int ms)
+{
+    int64_t end = marie_mono_us() + ms * 1000;
+    while (marie_mono_us() < end && (!g || g->n < until)) {
+        struct pollfd p = {marie_lcm_fd(lcm), POLLIN, 0};
+        if (poll(&p, 1, 10) > 0)
+            marie_lcm_handle(lcm, 64);
+    }
+}
+
+static void publish_pattern(lcm_t *pub, const char *channel, size_t n, unsigned seed)
+{
+    uint8_t *p = malloc(n);
+    pattern(p, n, seed);
+    assert_int_equal(lcm_publish(pub, channel, p, (unsigned)n), 0);
+    free(p);
+}
+
+/* liblcm sends short messages and fragmented ones; marie gets every byte, in order. */
+static void test_from_liblcm(void **state)
+{
+    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    assert_non_null(pub);
+    assert_non_null(rx);
+    assert_true(marie_lcm_native(rx));
+    got_t small = {0}, big = {0};
+    assert_non_null(marie_lcm_subscribe(rx, "T_SMALL", on_msg, &small));
+    assert_non_null(marie_lcm_subscribe(rx, "T_BIG\\.[0-9]+", on_msg, &big));
+    const size_t sizes[] = {0, 1, 64, 8192, 65000};
+    for (size_t i = 0; i < 5; i++) {
+        publish_pattern(pub, "T_SMALL", sizes[i], 0);
+        pump(rx, &small, (int)i + 1, 2000);
+        assert_int_equal(small.n, (int)i + 1);
+        assert_int_equal(small.size, sizes[i]);
+    }
+    for (unsigned k = 0; k < 3; k++) {
+        publish_pattern(pub, "T_BIG.42", 921600 + k, 7 * k);
+        pump(rx, &big, (int)k + 1, 2000);
+        assert_int_equal(big.n, (int)k + 1);
+        assert_int_equal(big.size, 921600 + k);
+        assert_string_equal(big.channel, "T_BIG.42");
+        assert_int_equal(big.data[0], (uint8_t)(7 * k));
+    }
+    publish_pattern(pub, "T_BIG.x", 100000, 0);     /* not matched by the expression */
+    publish_pattern(pub, "T_BIG.7", 100000, 3);
+    pump(rx, &big, 4, 2000);
+    assert_int_equal(big.n, 4);
+    assert_string_equal(big.channel, "T_BIG.7");
+    assert_int_equal(small.bad + big.bad, 0);
+    marie_lcm_stats_t st;
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(st.messages, 10);
+    assert_int_equal(st.malformed + st.incomplete + st.dropped, 0);
+    free(small.data);
+    free(big.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(pub);
+}
+
+/* A liblcm reader and marie's reader on the same host both get each message. */
+static void test_beside_liblcm(void **state)
+{
+    lcm_t *pub = lcm_create(URL), *lib = lcm_create(URL), *rx = marie_lcm_create(URL);
+    got_t a = {0}, b = {0};
+    assert_non_null(lcm_subscribe(lib, "T_BOTH", on_msg, &a));
+    assert_non_null(marie_lcm_subscribe(rx, "T_BOTH", on_msg, &b));
+    publish_pattern(pub, "T_BOTH", 100000, 1);     /* liblcm's socket holds 208 kB here */
+    pump(rx, &b, 1, 2000);
+    lcm_handle_timeout(lib, 2000);
+    assert_int_equal(a.n, 1);
+    assert_int_equal(b.n, 1);
+    assert_int_equal(a.size, b.size);
+    assert_memory_equal(a.data, b.data, a.size);
+    free(a.data);
+    free(b.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(lib);
+    lcm_destroy(pub);
+}
+
+static int sender(void)
+{
+    int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    unsigned char ttl = 0;
+    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
+    return fd;
+}
+
+static void send_raw(int fd, const void *d, size_t n)
+{
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons(7667)};
+    inet_pton(AF_INET, "239.255.76.67", &to.sin_addr);
+    assert_int_equal(sendto(fd, d, n, 0, (struct sockaddr *)&to, sizeof to), (ssize_t)n);
+}
+
+static size_t short_msg(uint8_t *out, uint32_t seq, const char *channel, const char *text)
+{
+    uint32_t h[2] = {htonl(0x4c433032), htonl(seq)};
+    memcpy(out, h, 8);
+    size_t cl = strlen(channel) + 1, tl = strlen(text);
+    memcpy(out + 8, channel, cl);
+    memcpy(out + 8 + cl, text, tl);
+    return 8 + cl + tl;
+}
+
+/* A fragment: header, then (fragment 0) the channel, then len bytes of data. */
+static size_t fragment(uint8_t *out, uint32_t seq, uint32_t size, uint32_t offset, uint16_t no, uint16_t count,
+                       const char *channel, size_t len)
+{
+    uint32_t h[4] = {htonl(0x4c433033), htonl(seq), htonl(size), htonl(offset)};
+    uint16_t f[2] = {htons(no), htons(count)};
+    memcpy(out, h, 16);
+    memcpy(out + 16, f, 4);
+    size_t k = 20;
+    if (channel) {
+        memcpy(out + k, channel, strlen(channel) + 1);
+        k += strlen(channel) + 1;
+    }
+    memset(out + k, 'x', len);
+    return k + len;
+}
+
+/* Datagrams that are not LCM's, or contradict themselves: counted, never delivered, and the
+ * bus keeps working. */
+static void test_malformed(void **state)
+{
+    lcm_t *rx = marie_lcm_create(URL);
+    got_t g = {0};
+    assert_non_null(marie_lcm_subscribe(rx, "T_BAD", on_msg, &g));
+    int fd = sender();
+    static uint8_t d[70000];
+    send_raw(fd, "LC0", 3);                                        /* shorter than a header */
+    send_raw(fd, "hello world, not LCM", 20);                      /* no magic */
+    memcpy(d, "LC02\0\0\0\1", 8);
+    memset(d + 8, 'A', 100);
+    send_raw(fd, d, 108);                                           /* channel never ends */
+    send_raw(fd, d, fragment(d, 1, 100, 0, 0, 0, "T_BAD", 10));     /* no fragments */
+    send_raw(fd, d, fragment(d, 1, 100, 0, 3, 2, NULL, 10));        /* fragment 3 of 2 */
+    send_raw(fd, d, fragment(d, 1, 100, 95, 1, 2, NULL, 10));       /* past the end */
+    send_raw(fd, d, fragment(d, 1, 100, 4, 0, 2, "T_BAD", 10));     /* first one not at 0 */
+    send_raw(fd, d, fragment(d, 1, 1u << 30, 0, 0, 2, "T_BAD", 10)); /* a gigabyte */
+    pump(rx, NULL, 0, 300);
+    marie_lcm_stats_t st;
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(st.malformed, 8);
+    assert_int_equal(g.n, 0);
+    /* Every fragment came, but they overlap and leave a hole: refused whole. */
+    send_raw(fd, d, fragment(d, 2, 100, 0, 0, 2, "T_BAD", 50));
+    send_raw(fd, d, fragment(d, 2, 100, 40, 1, 2, NULL, 50));
+    /* A message started and abandoned for the next one: counted incomplete. */
+    send_raw(fd, d, fragment(d, 3, 100, 0, 0, 2, "T_BAD", 50));
+    send_raw(fd, d, short_msg(d, 4, "T_BAD", "fine"));
+    pump(rx, &g, 1, 2000);
+    send_raw(fd, d, fragment(d, 5, 100, 50, 1, 2, NULL, 50));        /* out of order, */
+    send_raw(fd, d, fragment(d, 5, 100, 50, 1, 2, NULL, 50));        /* a duplicate: ignored, */
+    send_raw(fd, d, fragment(d, 5, 100, 0, 0, 2, "T_BAD", 50));      /* the first: whole */
+    pump(rx, &g, 2, 2000);
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(st.malformed, 9);
+    assert_int_equal(st.incomplete, 1);
+    assert_int_equal(g.n, 2);
+    assert_int_equal(g.size, 100);
+    close(fd);
+    free(g.data);
+    marie_lcm_destroy(rx);
+}
+
+typedef struct {
+    lcm_t *lcm;
+    marie_lcm_sub_t *self;
+    got_t later;
+    int calls;
+} reentry_t;
+
+static void on_once(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    reentry_t *r = user;
+    r->calls++;
+    marie_lcm_unsubscribe(r->lcm, r->self);
+    assert_non_null(marie_lcm_subscribe(r->lcm, "T_ONCE", on_msg, &r->later));
+}
+
+/* A handler may unsubscribe itself and subscribe anew. */
+static void test_subscribe_from_handler(void **state)
+{
+    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    reentry_t r = {rx};
+    r.self = marie_lcm_subscribe(rx, "T_ONCE", on_once, &r);
+    for (int i = 0; i < 3; i++) {
+        publish_pattern(pub, "T_ONCE", 16, 0);
+        pump(rx, &r.later, i, 1000);
+    }
+    assert_int_equal(r.calls, 1);
+    assert_int_equal(r.later.n, 2);
+    free(r.later.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(pub);
+}
+
+typedef struct {
+    lcm_t *lcm;
+    got_t inner;
+    int intact;
+} nested_t;
+
+/* While delivering a message, read the bus again (a client waiting for a reply does). */
+static void on_outer(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    nested_t *n = user;
+    uint8_t *copy = malloc(rb->data_size);
+    memcpy(copy, rb->data, rb->data_size);
+    pump(n->lcm, &n->inner, 1, 2000);
+    n->intact = memcmp(copy, rb->data, rb->data_size) == 0;
+    free(copy);
+}
+
+static void test_nested_read(void **state)
+{
+    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    nested_t n = {rx};
+    marie_lcm_subscribe(rx, "T_OUTER", on_outer, &n);
+    marie_lcm_subscribe(rx, "T_INNER", on_msg, &n.inner);
+    publish_pattern(pub, "T_OUTER", 1000, 1);
+    publish_pattern(pub, "T_INNER", 2000, 2);
+    pump(rx, &n.inner, 1, 2000);
+    assert_int_equal(n.inner.n, 1);
+    assert_true(n.intact);
+    free(n.inner.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(pub);
+}
+
+/* A receive buffer too small for a burst: the datagrams the kernel dropped are counted. */
+static void test_drops_counted(void **state)
+{
+    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL "&recv_buf_size=8192");
+    got_t g = {0};
+    marie_lcm_subscribe(rx, "T_FLOOD", on_msg, &g);
+    for (int i = 0; i < 200; i++)
+        publish_pattern(pub, "T_FLOOD", 4000, 0);
+    pump(rx, NULL, 0, 300);
+    /* The kernel tells the count with the next datagram it queues. */
+    publish_pattern(pub, "T_FLOOD", 4000, 0);
+    pump(rx, NULL, 0, 300);
+    marie_lcm_stats_t st;
+    marie_lcm_stats(rx, &st);
+    assert_true(st.dropped > 0);
+    assert_int_equal(g.n + st.dropped, 201);
+    free(g.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(pub);
+}
+
+/* MARIE_LCM_RECEIVE=liblcm leaves the bus to liblcm; the loop reads it the same way. */
+static void test_liblcm_fallback(void **state)
+{
+    setenv("MARIE_LCM_RECEIVE", "liblcm", 1);
+    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    unsetenv("MARIE_LCM_RECEIVE");
+    assert_false(marie_lcm_native(rx));
+    got_t g = {0};
+    marie_lcm_sub_t *s = marie_lcm_subscribe(rx, "T_LIB", on_msg, &g);
+    assert_non_null(s);
+    marie_loop_t *loop = marie_loop_create();
+    assert_int_equal(marie_loop_add_lcm(loop, rx, 1), 0);
+    publish_pattern(pub, "T_LIB", 200000, 5);
+    for (int64_t end = marie_mono_us() + 2000000; g.n < 1 && marie_mono_us() < end;)
+        marie_loop_run_once(loop, 10);
+    assert_int_equal(g.n, 1);
+    assert_int_equal(g.bad, 0);
+    marie_lcm_unsubscribe(rx, s);
+    marie_loop_destroy(loop);
+    free(g.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(pub);
+}
+
+/* Other providers stay liblcm's. */
+static void test_other_urls(void **state)
+{
+    lcm_t *m = marie_lcm_create("memq://");
+    assert_non_null(m);
+    assert_false(marie_lcm_native(m));
+    marie_lcm_destroy(m);
+    lcm_t *t = marie_lcm_create(URL "&transmit_only=true");
+    assert_non_null(t);
+    assert_false(marie_lcm_native(t));
+    marie_lcm_destroy(t);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_from_liblcm),
+        cmocka_unit_test(test_beside_liblcm),
+        cmocka_unit_test(test_malformed),
+        cmocka_unit_test(test_subscribe_from_handler),
+        cmocka_unit_test(test_nested_read),
+        cmocka_unit_test(test_drops_counted),
+        cmocka_unit_test(test_liblcm_fallback),
+        cmocka_unit_test(test_other_urls),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
