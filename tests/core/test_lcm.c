@@ -110,6 +110,46 @@ static void test_from_liblcm(void **state)
     lcm_destroy(pub);
 }
 
+/* Short messages on channels nobody subscribes to never leave the kernel (a socket filter made
+ * from the subscriptions); a subscription that may match anything lets everything through. */
+static void test_kernel_filter(void **state)
+{
+    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    got_t a = {0}, b = {0}, any = {0};
+    marie_lcm_subscribe(rx, "T_FILT_A", on_msg, &a);
+    marie_lcm_sub_t *sb = marie_lcm_subscribe(rx, "T_FILT_B[0-9]*", on_msg, &b);
+    const char *chans[] = {"T_FILT_A", "T_FILT_AB", "T_FILT_", "T_FILT_B", "T_FILT_B12", "T_FILT_Bx", "OTHER", "T"};
+    for (int i = 0; i < 8; i++)
+        publish_pattern(pub, chans[i], 10, 0);
+    pump(rx, NULL, 0, 300);
+    marie_lcm_stats_t st;
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(a.n, 1);
+    assert_int_equal(b.n, 2);
+    /* T_FILT_B, T_FILT_B12 and T_FILT_Bx start as the expression's literal part: read, and
+     * the last refused by the expression; the other five never read. */
+    assert_int_equal(st.messages, 4);
+    marie_lcm_unsubscribe(rx, sb);
+    marie_lcm_sub_t *sa = marie_lcm_subscribe(rx, ".*", on_msg, &any);
+    for (int i = 0; i < 8; i++)
+        publish_pattern(pub, chans[i], 10, 0);
+    pump(rx, &any, 8, 2000);
+    assert_int_equal(any.n, 8);
+    assert_int_equal(a.n, 2);
+    assert_int_equal(b.n, 2);
+    marie_lcm_unsubscribe(rx, sa);
+    publish_pattern(pub, "OTHER", 10, 0);
+    publish_pattern(pub, "T_FILT_A", 10, 0);
+    pump(rx, &a, 3, 2000);
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(st.messages, 4 + 8 + 1);
+    free(a.data);
+    free(b.data);
+    free(any.data);
+    marie_lcm_destroy(rx);
+    lcm_destroy(pub);
+}
+
 /* A liblcm reader and marie's reader on the same host both get each message. */
 static void test_beside_liblcm(void **state)
 {
@@ -178,14 +218,18 @@ static size_t fragment(uint8_t *out, uint32_t seq, uint32_t size, uint32_t offse
 static void test_malformed(void **state)
 {
     lcm_t *rx = marie_lcm_create(URL);
-    got_t g = {0};
+    got_t g = {0}, other = {0};
     assert_non_null(marie_lcm_subscribe(rx, "T_BAD", on_msg, &g));
+    /* Short messages whose channel cannot match a subscription are dropped by the kernel's
+     * filter, unread and uncounted (like anyone's traffic on other channels): this one lets
+     * channels that start "T_BAD" through, terminated or not. */
+    assert_non_null(marie_lcm_subscribe(rx, "T_BAD.+", on_msg, &other));
     int fd = sender();
     static uint8_t d[70000];
     send_raw(fd, "LC0", 3);                                        /* shorter than a header */
     send_raw(fd, "hello world, not LCM", 20);                      /* no magic */
-    memcpy(d, "LC02\0\0\0\1", 8);
-    memset(d + 8, 'A', 100);
+    memcpy(d, "LC02\0\0\0\1T_BAD", 13);
+    memset(d + 13, 'A', 95);
     send_raw(fd, d, 108);                                           /* channel never ends */
     send_raw(fd, d, fragment(d, 1, 100, 0, 0, 0, "T_BAD", 10));     /* no fragments */
     send_raw(fd, d, fragment(d, 1, 100, 0, 3, 2, NULL, 10));        /* fragment 3 of 2 */
@@ -213,6 +257,7 @@ static void test_malformed(void **state)
     assert_int_equal(st.incomplete, 1);
     assert_int_equal(g.n, 2);
     assert_int_equal(g.size, 100);
+    assert_int_equal(other.n, 0);
     close(fd);
     free(g.data);
     marie_lcm_destroy(rx);
@@ -345,6 +390,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_from_liblcm),
+        cmocka_unit_test(test_kernel_filter),
         cmocka_unit_test(test_beside_liblcm),
         cmocka_unit_test(test_malformed),
         cmocka_unit_test(test_subscribe_from_handler),
