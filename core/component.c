@@ -100,6 +100,7 @@ void marie_component_heartbeat(marie_component_t *c)
     marie_counter_t counters[64];
     marie_port_status_t ports[64];
     marie_comp_count_shm_losses(c);
+    marie_comp_count_bus_losses(c);
     hb.utime = marie_wall_us();
     hb.component = c->name;
     hb.host = c->host;

@@ -167,6 +167,31 @@ void marie_comp_count_shm_losses(marie_component_t *c)
     }
 }
 
+/* What the buses' receivers saw since the last heartbeat: datagrams that are not LCM's are bad
+ * input, messages lost in the kernel or given up with fragments missing are drops. */
+void marie_comp_count_bus_losses(marie_component_t *c)
+{
+    for (size_t i = 0; i < c->nbuses; i++) {
+        bus_t *b = &c->buses[i];
+        marie_lcm_stats_t st;
+        marie_lcm_stats(b->lcm, &st);
+        int64_t bad = st.malformed - b->counted.malformed, lost = st.dropped - b->counted.dropped,
+                gaps = st.incomplete - b->counted.incomplete;
+        if (bad > 0) {
+            c->bad_input += bad;
+            marie_component_count(c, "bus_malformed", bad);
+            marie_warn_ratelimited(5, "%s: %lld datagrams on %s that are not LCM messages", c->name, (long long)bad, b->url);
+        }
+        if (lost > 0)
+            marie_component_count(c, "bus_dropped", lost);
+        if (gaps > 0)
+            marie_component_count(c, "bus_incomplete", gaps);
+        if (lost + gaps > 0)
+            c->drops += lost + gaps;
+        b->counted = st;
+    }
+}
+
 void marie_comp_port_close(marie_port_t *p)
 {
     marie_shm_pub_destroy(p->shm_pub);
@@ -468,7 +493,7 @@ lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url)
         marie_error("%s: cannot open the LCM bus '%s'", c->name, url);
         return NULL;
     }
-    c->buses[c->nbuses++] = (bus_t){strdup(url), lcm};
+    c->buses[c->nbuses++] = (bus_t){strdup(url), lcm, {0}};
     return lcm;
 }
 

@@ -83,6 +83,7 @@ typedef struct {
 typedef struct {
     char *url;
     lcm_t *lcm;
+    marie_lcm_stats_t counted;  /* what the heartbeat has reported of marie_lcm_stats() */
 } bus_t;
 
 struct marie_component {
@@ -141,8 +142,11 @@ void marie_comp_flush_events(marie_component_t *c);
 /* The LCM instance for url (NULL: the system bus), created on first use; NULL on failure. */
 lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url);
 int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors_t *errs);
-/* Add the shared-memory readers' losses since the last call to the counters. */
+/* Add the shared-memory readers' losses since the last call to the counters; and the buses'
+ * receivers' (datagrams that are not LCM's as bad input, kernel drops and messages given up
+ * with fragments missing as drops). */
 void marie_comp_count_shm_losses(marie_component_t *c);
+void marie_comp_count_bus_losses(marie_component_t *c);
 /* Close what a port opened (its shared memory); the port's strings and buffers stay. */
 void marie_comp_port_close(marie_port_t *p);
 

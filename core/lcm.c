@@ -69,6 +69,7 @@ typedef struct bus {
     frag_t frags[FRAG_SLOTS];
     int64_t clock;
     uint32_t ovfl;          /* the kernel's drop count at the last datagram */
+    bool filtered;          /* a socket filter is attached (refilter()) */
     marie_lcm_stats_t st;
 } bus_t;
 
@@ -317,14 +318,17 @@ static void refilter(bus_t *b)
         n = bpf_add(p, n, BPF_RET | BPF_K, 0, 0, ACCEPT);
     }
     n = bpf_add(p, n, BPF_RET | BPF_K, 0, 0, 0);
+    struct sock_fprog prog = {(unsigned short)n, p};
     if (open || n > BPF_MAX) {
         int zero = 0;
         (void)setsockopt(b->fd, SOL_SOCKET, SO_DETACH_FILTER, &zero, sizeof zero);
-        return;
-    }
-    struct sock_fprog prog = {(unsigned short)n, p};
-    if (setsockopt(b->fd, SOL_SOCKET, SO_ATTACH_FILTER, &prog, sizeof prog) < 0)
+        b->filtered = false;
+    } else if (setsockopt(b->fd, SOL_SOCKET, SO_ATTACH_FILTER, &prog, sizeof prog) < 0) {
         marie_warn_ratelimited(60, "cannot filter the LCM bus in the kernel (%s): every message is read", strerror(errno));
+        b->filtered = false;
+    } else {
+        b->filtered = true;
+    }
 }
 
 marie_lcm_sub_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user)
@@ -490,12 +494,14 @@ static bool take(bus_t *b, datagram_t *g, struct iovec *iov, int niov)
         } else if (c->cmsg_type == SO_RXQ_OVFL) {
             uint32_t total;
             memcpy(&total, CMSG_DATA(c), sizeof total);
-            if (total != b->ovfl) {
+            /* The kernel counts what the filter refused with what the buffer could not hold:
+             * only a bus without a filter can tell its losses. */
+            if (total != b->ovfl && !b->filtered) {
                 b->st.dropped += (uint32_t)(total - b->ovfl);
-                b->ovfl = total;
                 marie_warn_ratelimited(10, "the LCM bus's receive buffer overflowed: %lld datagrams lost so far",
                                        (long long)b->st.dropped);
             }
+            b->ovfl = total;
         }
     }
     if (!g->utime)

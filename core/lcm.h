@@ -38,7 +38,9 @@ typedef struct {
     int64_t messages;       /* whole messages received (delivered or not subscribed) */
     int64_t malformed;      /* datagrams that are not LCM's or contradict themselves */
     int64_t incomplete;     /* fragmented messages given up with fragments missing */
-    int64_t dropped;        /* datagrams the kernel dropped: the socket's buffer was full */
+    int64_t dropped;        /* datagrams the kernel dropped, the socket's buffer full: counted
+                             * only while a subscription may match any channel (the kernel
+                             * counts what its filter refuses with them, docs/transport.md) */
 } marie_lcm_stats_t;
 void marie_lcm_stats(const lcm_t *lcm, marie_lcm_stats_t *st);
 

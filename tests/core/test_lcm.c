@@ -328,12 +328,14 @@ static void test_nested_read(void **state)
     lcm_destroy(pub);
 }
 
-/* A receive buffer too small for a burst: the datagrams the kernel dropped are counted. */
+/* A receive buffer too small for a burst: the datagrams the kernel dropped are counted (on a
+ * bus whose subscriptions let every channel through: the kernel counts its filter's refusals
+ * with the losses). */
 static void test_drops_counted(void **state)
 {
     lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL "&recv_buf_size=8192");
     got_t g = {0};
-    marie_lcm_subscribe(rx, "T_FLOOD", on_msg, &g);
+    marie_lcm_subscribe(rx, ".*", on_msg, &g);
     for (int i = 0; i < 200; i++)
         publish_pattern(pub, "T_FLOOD", 4000, 0);
     pump(rx, NULL, 0, 300);

@@ -3,6 +3,7 @@
  * signed orders captured before a restart. */
 #include <errno.h>
 #include <setjmp.h>
+#include <arpa/inet.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -262,11 +263,23 @@ static void malformed_orders_are_answered_counted_and_survived(void **state)
     assert_string_equal(b.reply.reason, "unknown command");
     /* Orders for another component are ignored by this one. */
     assert_int_equal(order(&b, "someone-else", MARIE_CMD_INIT), -1);
+    /* A datagram on the bus that is not an LCM message (a fragment of a message of 0 fragments):
+     * counted by the component's bus reader. */
+    int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    unsigned char ttl = 0;
+    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons(7667)};
+    inet_pton(AF_INET, "239.255.76.67", &to.sin_addr);
+    static const unsigned char frag[] = {'L', 'C', '0', '3', 0, 0, 0, 1, 0, 0, 0, 9, 0, 0, 0, 0, 0, 0, 0, 0,
+                                         'M', 'A', 'R', 'I', 'E', 0, 'x'};
+    assert_int_equal(sendto(fd, frag, sizeof frag, 0, (struct sockaddr *)&to, sizeof to), (ssize_t)sizeof frag);
+    close(fd);
     /* Still alive and counting. */
     assert_int_equal(order(&b, "prod2", MARIE_CMD_INIT), 1);
     pump(&b, 1100);
-    assert_true(b.hb.bad_input >= 2);
+    assert_true(b.hb.bad_input >= 3);
     assert_true(counter_of(&b, "bad_lifecycle") >= 2);
+    assert_int_equal(counter_of(&b, "bus_malformed"), 1);
     /* SIGTERM is quit: exit status 0 and a last heartbeat saying exited. */
     kill(pid, SIGTERM);
     expect_clean_exit(pid);
