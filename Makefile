@@ -12,8 +12,10 @@ NPROC := $(shell nproc 2>/dev/null || echo 2)
 
 CC  ?= gcc
 CXX ?= g++
-PKGS := lcm glib-2.0 libfyaml libsodium
-PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+PKGS := lcm glib-2.0 libsodium
+# libfyaml is opened at run time by core/yaml.c (dlopen), so a process that has read its
+# YAML can let it go: only its header is needed here.
+PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) libfyaml 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 
 # -Wno-missing-field-initializers: spec tables leave their optional trailing fields unset.
