@@ -12,16 +12,22 @@ NPROC := $(shell nproc 2>/dev/null || echo 2)
 
 CC  ?= gcc
 CXX ?= g++
-PKGS := lcm glib-2.0 libfyaml libsodium
-PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+PKGS := lcm glib-2.0 libsodium
+# libfyaml is opened at run time by core/yaml.c (dlopen), so a process that has read its
+# YAML can let it go: only its header is needed here.
+PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) libfyaml 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 
 # -Wno-missing-field-initializers: spec tables leave their optional trailing fields unset.
 WARN     := -Wall -Wextra -Wno-unused-parameter -Wno-missing-field-initializers
 CPPFLAGS := -I. -I$(B)/gen/c -I$(B)/gen/cpp $(PKG_CFLAGS) -D_GNU_SOURCE
-CFLAGS   := -O2 -g -std=gnu11 $(WARN) -MMD -MP
-CXXFLAGS := -O2 -g -std=gnu++17 $(WARN) -MMD -MP
-LDFLAGS  :=
+# A section per function and datum, so the linker keeps only what a program reaches (libmarie
+# and the generated types brought 350 kB of code into each driver, a third of it used), and
+# relative relocations packed (DT_RELR: 1 kB instead of 30 kB read at every start).
+SECTIONS := -ffunction-sections -fdata-sections
+CFLAGS   := -O2 -g -std=gnu11 $(WARN) -MMD -MP $(SECTIONS)
+CXXFLAGS := -O2 -g -std=gnu++17 $(WARN) -MMD -MP $(SECTIONS)
+LDFLAGS  := -Wl,--gc-sections -Wl,-z,pack-relative-relocs
 LDLIBS   := $(PKG_LIBS) -lm -lpthread
 ifeq ($(SAN),1)
 SANFLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined

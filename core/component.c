@@ -328,6 +328,7 @@ static void on_lifecycle(const lcm_recv_buf_t *rbuf, const char *channel, void *
             rc = marie_component_command(c, (marie_cmd_t)cmd.command, &why);
             if (rc < 0)
                 marie_component_count(c, "refused_commands", 1);
+            marie_yaml_unload();    /* an init may have read YAML (a map's description) */
         }
         if (auth == MARIE_AUTH_OK)      /* refusals: logged above, at most every 5 s (floods) */
             marie_info("%s: %s from %s: %s", c->name, marie_cmd_name(cmd.command), cmd.sender, rc == 0 ? "ok" : why);
@@ -486,6 +487,8 @@ int marie_component_run(marie_component_t *c)
                 set_state(c, MARIE_STATE_FAILED, why);
         }
     }
+    /* Parameters, the system file and what init read are in memory now. */
+    marie_yaml_unload();
     int rc = marie_loop_run(c->loop);
     marie_loop_catch_signals(c->loop, NULL, NULL);
     return rc;

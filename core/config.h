@@ -48,6 +48,11 @@ typedef struct marie_doc marie_doc_t;
 marie_doc_t *marie_doc_load(const char *path, marie_errors_t *errs);
 marie_doc_t *marie_doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs);
 void marie_doc_destroy(marie_doc_t *doc);
+/* The YAML library is opened by the first parse and stays open until this call (unless a
+ * parse is under way in another thread); the next parse opens it again. A long-running
+ * process calls it once its YAML is read (components do after starting) so the library's
+ * pages are not resident for the rest of its life. */
+void marie_yaml_unload(void);
 /* A program that wants long parses to end on a signal registers a check (nonzero: stop);
  * the parser calls it every few thousand keys and fails with "interrupted" and errno EINTR. */
 void marie_config_set_interrupt(int (*check)(void));

@@ -2,8 +2,10 @@
 #include "core/clear.h"
 #include "core/config.h"
 
+#include <dlfcn.h>
 #include <errno.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -158,6 +160,71 @@ static int node_append(marie_node_t *parent, marie_node_t *child)
     return 0;
 }
 
+/* ---- libfyaml, opened at run time ----
+ * A component reads its YAML at start-up only; linked for good, libfyaml's pages (about
+ * 440 kB) would stay resident in every process for its whole life. It is opened when a
+ * document is parsed and closed by marie_yaml_unload(), which components call once started. */
+#define FY_SONAME "libfyaml.so.0"
+
+#define FY_FUNCS(X)                                                                              \
+    X(diag_cfg_default) X(diag_create) X(diag_destroy) X(event_start_mark) X(parser_create)    \
+    X(parser_destroy) X(parser_event_free) X(parser_get_stream_error) X(parser_parse)          \
+    X(parser_set_string) X(token_get_text) X(token_scalar_style)
+
+static struct {
+#define FY_FIELD(f) __typeof__(fy_##f) *f;
+    FY_FUNCS(FY_FIELD)
+#undef FY_FIELD
+} fy;
+
+static pthread_mutex_t fy_lock = PTHREAD_MUTEX_INITIALIZER;
+static void *fy_lib;
+static unsigned fy_users;       /* documents being parsed now: the library stays open */
+
+/* Opens libfyaml if it is not open and holds it until fy_put(). 0, or -1 with the reason in errs. */
+static int fy_get(const char *name, marie_errors_t *errs)
+{
+    pthread_mutex_lock(&fy_lock);
+    if (!fy_lib) {
+        void *lib = dlopen(FY_SONAME, RTLD_NOW | RTLD_LOCAL);
+        bool ok = lib != NULL;
+#define FY_LOAD(f) ok = ok && (*(void **)&fy.f = dlsym(lib, "fy_" #f)) != NULL;
+        FY_FUNCS(FY_LOAD)
+#undef FY_LOAD
+        if (!ok) {
+            const char *why = dlerror();
+            marie_errors_add(errs, name, 0, 0, "cannot load the YAML library: %s", why ? why : FY_SONAME);
+            if (lib)
+                dlclose(lib);
+            pthread_mutex_unlock(&fy_lock);
+            errno = ENOENT;
+            return -1;
+        }
+        fy_lib = lib;
+    }
+    fy_users++;
+    pthread_mutex_unlock(&fy_lock);
+    return 0;
+}
+
+static void fy_put(void)
+{
+    pthread_mutex_lock(&fy_lock);
+    fy_users--;
+    pthread_mutex_unlock(&fy_lock);
+}
+
+void marie_yaml_unload(void)
+{
+    pthread_mutex_lock(&fy_lock);
+    if (fy_lib && fy_users == 0) {
+        dlclose(fy_lib);
+        fy_lib = NULL;
+        memset(&fy, 0, sizeof fy);
+    }
+    pthread_mutex_unlock(&fy_lock);
+}
+
 static int (*interrupt_check)(void);
 
 void marie_config_set_interrupt(int (*check)(void)) { interrupt_check = check; }
@@ -174,7 +241,7 @@ typedef struct {
 
 static void mark_of(struct fy_event *ev, int *line, int *col)
 {
-    const struct fy_mark *m = fy_event_start_mark(ev);
+    const struct fy_mark *m = fy.event_start_mark(ev);
     *line = m ? m->line + 1 : 0;
     *col = m ? m->column + 1 : 0;
 }
@@ -194,10 +261,10 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
     switch (ev->type) {
     case FYET_SCALAR: {
         size_t len;
-        const char *text = fy_token_get_text(ev->scalar.value, &len);
+        const char *text = fy.token_get_text(ev->scalar.value, &len);
         n->kind = MARIE_NODE_SCALAR;
         n->value = strndup(text ? text : "", text ? len : 0);
-        enum fy_scalar_style st = fy_token_scalar_style(ev->scalar.value);
+        enum fy_scalar_style st = fy.token_scalar_style(ev->scalar.value);
         n->quoted = st == FYSS_SINGLE_QUOTED || st == FYSS_DOUBLE_QUOTED;
         if (!n->value)
             goto err;
@@ -212,11 +279,11 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
         enum fy_event_type end = is_map ? FYET_MAPPING_END : FYET_SEQUENCE_END;
         n->kind = is_map ? MARIE_NODE_MAP : MARIE_NODE_SEQ;
         for (;;) {
-            struct fy_event *kev = fy_parser_parse(b->fyp);
+            struct fy_event *kev = fy.parser_parse(b->fyp);
             if (!kev)
                 goto err;
             if (kev->type == end) {
-                fy_parser_event_free(b->fyp, kev);
+                fy.parser_event_free(b->fyp, kev);
                 return n;
             }
             char *key = NULL;
@@ -226,13 +293,13 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
                 mark_of(kev, &kline, &kcol);
                 if (kev->type != FYET_SCALAR) {
                     marie_errors_add(b->errs, b->file, kline, kcol, "mapping keys must be plain scalars");
-                    fy_parser_event_free(b->fyp, kev);
+                    fy.parser_event_free(b->fyp, kev);
                     goto err;
                 }
                 size_t len;
-                const char *text = fy_token_get_text(kev->scalar.value, &len);
+                const char *text = fy.token_get_text(kev->scalar.value, &len);
                 key = strndup(text ? text : "", text ? len : 0);
-                fy_parser_event_free(b->fyp, kev);
+                fy.parser_event_free(b->fyp, kev);
                 const marie_node_t *first = key ? map_find(n, key) : NULL;
                 if (first) {
                     marie_errors_add(b->errs, b->file, kline, kcol, "duplicate key '%s' (first at line %d)",
@@ -246,16 +313,16 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
                     errno = EINTR;
                     goto err;
                 }
-                vev = fy_parser_parse(b->fyp);
+                vev = fy.parser_parse(b->fyp);
                 if (!vev || !key) {
                     free(key);
                     if (vev)
-                        fy_parser_event_free(b->fyp, vev);
+                        fy.parser_event_free(b->fyp, vev);
                     goto err;
                 }
             }
             marie_node_t *child = build_node(b, vev, depth + 1);
-            fy_parser_event_free(b->fyp, vev);
+            fy.parser_event_free(b->fyp, vev);
             if (!child) {
                 free(key);
                 goto err;
@@ -344,34 +411,32 @@ static int prescan(const char *name, const char *text, size_t len, marie_errors_
     return 0;
 }
 
-static marie_doc_t *doc_build(const char *name, const char *text, size_t len, marie_errors_t *errs)
+static marie_doc_t *doc_parse(const char *name, const char *text, size_t len, marie_errors_t *errs)
 {
-    if (prescan(name, text, len, errs) < 0)
-        return NULL;
     marie_doc_t *doc = calloc(1, sizeof *doc);
     if (!doc)
         return NULL;
     doc->file = strdup(name);
     builder_t b = {.file = doc->file, .errs = errs, .errs_before = errs ? errs->n : 0};
     struct fy_diag_cfg dcfg;
-    fy_diag_cfg_default(&dcfg);
+    fy.diag_cfg_default(&dcfg);
     dcfg.fp = NULL;
     dcfg.output_fn = on_diag_output;
     dcfg.user = &b;
     dcfg.colorize = false;
-    struct fy_diag *diag = fy_diag_create(&dcfg);
+    struct fy_diag *diag = fy.diag_create(&dcfg);
     struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET, .diag = diag};
-    struct fy_parser *fyp = diag ? fy_parser_create(&cfg) : NULL;
+    struct fy_parser *fyp = diag ? fy.parser_create(&cfg) : NULL;
     b.fyp = fyp;
-    if (!fyp || !doc->file || fy_parser_set_string(fyp, text, len) != 0)
+    if (!fyp || !doc->file || fy.parser_set_string(fyp, text, len) != 0)
         goto err;
     struct fy_event *ev;
     size_t ndocs = 0;
-    while ((ev = fy_parser_parse(fyp)) != NULL) {
+    while ((ev = fy.parser_parse(fyp)) != NULL) {
         enum fy_event_type t = ev->type;
         if (t == FYET_SEQUENCE_START || t == FYET_MAPPING_START || t == FYET_SCALAR || t == FYET_ALIAS) {
             marie_node_t *root = build_node(&b, ev, 0);
-            fy_parser_event_free(fyp, ev);
+            fy.parser_event_free(fyp, ev);
             if (!root)
                 goto fail;
             if (ndocs++ > 0) {
@@ -382,26 +447,35 @@ static marie_doc_t *doc_build(const char *name, const char *text, size_t len, ma
             doc->root = root;
             continue;
         }
-        fy_parser_event_free(fyp, ev);
+        fy.parser_event_free(fyp, ev);
     }
-    if (fy_parser_get_stream_error(fyp))
+    if (fy.parser_get_stream_error(fyp))
         goto fail;
     if (!doc->root) {
         marie_errors_add(errs, name, 1, 1, "the file is empty");
         goto err;
     }
-    fy_parser_destroy(fyp);
-    fy_diag_destroy(diag);
+    fy.parser_destroy(fyp);
+    fy.diag_destroy(diag);
     return doc;
 fail:
     report_diag(&b);
 err:
     if (fyp)
-        fy_parser_destroy(fyp);
+        fy.parser_destroy(fyp);
     if (diag)
-        fy_diag_destroy(diag);
+        fy.diag_destroy(diag);
     marie_doc_destroy(doc);
     return NULL;
+}
+
+static marie_doc_t *doc_build(const char *name, const char *text, size_t len, marie_errors_t *errs)
+{
+    if (prescan(name, text, len, errs) < 0 || fy_get(name, errs) < 0)
+        return NULL;
+    marie_doc_t *doc = doc_parse(name, text, len, errs);
+    fy_put();
+    return doc;
 }
 
 #define MAX_FILE_SIZE (16 << 20)

@@ -198,6 +198,7 @@ am_loading_t *am_loading_open(const char *path, const char *profile, marie_error
         return NULL;
     }
     l->sys = marie_system_load(path, l->profile, errs);
+    marie_yaml_unload();        /* the next system file is orders away, if it ever comes */
     if (!l->sys || marie_am_check_system(l->sys, &l->set, errs) < 0) {
         am_loading_free(l);
         return NULL;

@@ -1,6 +1,7 @@
 /* bench_hw_can: motor command to CAN frame latency (LCM publish -> RPDO1 on the emulated
- * bus, p50/p99) and CPU and RSS of marie-drives and marie-gyro at their nominal rates
- * (50 Hz SYNC, 20 Hz encoders, 50 Hz gyro), against marie-vcan-devices on marie-canbus. */
+ * bus, p50/p99) and CPU and memory (RSS, anonymous RSS, PSS) of marie-drives and marie-gyro at
+ * their nominal rates (50 Hz SYNC, 20 Hz encoders, 50 Hz gyro), against marie-vcan-devices on
+ * marie-canbus. */
 #include <fcntl.h>
 #include <lcm/lcm.h>
 #include <math.h>
@@ -64,7 +65,7 @@ static void on_spy(marie_loop_t *loop, int fd, short revents, void *user)
     }
 }
 
-/* CPU seconds used so far, and a /proc/PID/status memory field in MB. */
+/* CPU seconds used so far, and a memory field of /proc/PID/status or smaps_rollup in MB. */
 static double cpu_s(pid_t pid)
 {
     int64_t us = 0, rss;
@@ -72,9 +73,9 @@ static double cpu_s(pid_t pid)
     return us / 1e6;
 }
 
-static double rss_mb(pid_t pid, const char *key)
+static double mem_mb(pid_t pid, const char *key)
 {
-    return marie_proc_field_bytes(pid, "status", key) / 1048576.0;
+    return marie_proc_field_bytes(pid, strcmp(key, "Pss") == 0 ? "smaps_rollup" : "status", key) / 1048576.0;
 }
 
 static int cmp(const void *a, const void *b)
@@ -153,7 +154,7 @@ int main(void)
     snprintf(of, sizeof of, "of %d", N);
     bench_row("hw_can", "cmd_to_rpdo_seen", got, of, NAN);
 
-    /* CPU and RSS over 10 s at nominal rates, commanded at 10 Hz. */
+    /* CPU and memory over 10 s at nominal rates, commanded at 10 Hz. */
     double d0 = cpu_s(drv), g0 = cpu_s(gyr), v0 = cpu_s(dev), b0 = cpu_s(bus);
     int64_t w0 = marie_mono_us(), last = 0;
     while (marie_mono_us() - w0 < 10000000) {
@@ -166,11 +167,13 @@ int main(void)
     }
     double wall = (marie_mono_us() - w0) / 1e6;
     bench_row("hw_can", "marie-drives_cpu", 100.0 * (cpu_s(drv) - d0) / wall, "% of a core", NAN);
-    bench_row("hw_can", "marie-drives_rss", rss_mb(drv, "VmRSS"), "MB", NAN);
-    bench_row("hw_can", "marie-drives_rss_anon", rss_mb(drv, "RssAnon"), "MB", NAN);
+    bench_row("hw_can", "marie-drives_rss", mem_mb(drv, "VmRSS"), "MB", NAN);
+    bench_row("hw_can", "marie-drives_rss_anon", mem_mb(drv, "RssAnon"), "MB", NAN);
+    bench_row("hw_can", "marie-drives_pss", mem_mb(drv, "Pss"), "MB", NAN);
     bench_row("hw_can", "marie-gyro_cpu", 100.0 * (cpu_s(gyr) - g0) / wall, "% of a core", NAN);
-    bench_row("hw_can", "marie-gyro_rss", rss_mb(gyr, "VmRSS"), "MB", NAN);
-    bench_row("hw_can", "marie-gyro_rss_anon", rss_mb(gyr, "RssAnon"), "MB", NAN);
+    bench_row("hw_can", "marie-gyro_rss", mem_mb(gyr, "VmRSS"), "MB", NAN);
+    bench_row("hw_can", "marie-gyro_rss_anon", mem_mb(gyr, "RssAnon"), "MB", NAN);
+    bench_row("hw_can", "marie-gyro_pss", mem_mb(gyr, "Pss"), "MB", NAN);
     bench_row("hw_can", "marie-vcan-devices_cpu", 100.0 * (cpu_s(dev) - v0) / wall, "% of a core", NAN);
     bench_row("hw_can", "marie-canbus_cpu", 100.0 * (cpu_s(bus) - b0) / wall, "% of a core", NAN);
     rc = 0;

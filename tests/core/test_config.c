@@ -646,6 +646,44 @@ static void transports_are_read_and_checked(void **state)
     marie_errors_clear(&e);
 }
 
+/* Whether libfyaml is mapped into this process now. */
+static bool yaml_library_mapped(void)
+{
+    FILE *f = fopen("/proc/self/maps", "r");
+    assert_non_null(f);
+    char line[512];
+    bool found = false;
+    while (!found && fgets(line, sizeof line, f))
+        found = strstr(line, "libfyaml") != NULL;
+    fclose(f);
+    return found;
+}
+
+/* A component lets the YAML library go once started: what it read stays, the library's pages
+ * leave the process, and a later parse (a re-init reading a map) opens it again. */
+static void the_yaml_library_is_let_go_and_comes_back(void **state)
+{
+    marie_errors_t e = {0};
+    marie_doc_t *a = marie_doc_parse("a", "k: [1, 2]\n", 10, &e);
+    assert_non_null(a);
+    assert_true(yaml_library_mapped());
+    marie_yaml_unload();
+    assert_false(yaml_library_mapped());
+    const marie_node_t *k = marie_node_get(marie_doc_root(a), "k");
+    assert_non_null(k);
+    assert_int_equal(k->n, 2);
+    assert_string_equal(k->items[1]->value, "2");
+    marie_doc_t *b = marie_doc_parse("b", "x: [", 4, &e);
+    assert_null(b);
+    assert_true(has_error(&e, "b:2:1: YAML: flow sequence without a closing bracket"));
+    assert_true(yaml_library_mapped());
+    marie_yaml_unload();
+    marie_yaml_unload();    /* nothing to let go: no effect */
+    assert_false(yaml_library_mapped());
+    marie_doc_destroy(a);
+    marie_errors_clear(&e);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_OFF);
@@ -672,6 +710,7 @@ int main(void)
         cmocka_unit_test(a_profile_extends_another),
         cmocka_unit_test(a_profile_chain_is_checked),
         cmocka_unit_test(transports_are_read_and_checked),
+        cmocka_unit_test(the_yaml_library_is_let_go_and_comes_back),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -30,6 +30,9 @@ check "marie up starts the laser driver" "$M" --timeout 15 up "$T/sys.yaml"
 check "marie ps: running while scans flow" wait_for 10 is_state running
 pid=$(ps_field laser pid)
 check "the driver has a pid" test "${pid:-0}" -gt 0
+# Both read YAML (the system file, the parameters) only while starting: the library is let go.
+check "the running driver holds no YAML library" sh -c "! grep -q libfyaml /proc/$pid/maps"
+check "the manager holds no YAML library after up" sh -c "! grep -q libfyaml /proc/$pid_am/maps"
 kill -STOP "$pid_emu"
 check "marie ps: degraded while the device is frozen" wait_for 10 is_state degraded
 "$M" ps
