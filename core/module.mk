@@ -7,8 +7,9 @@ $(LIBMARIE): $(call marie_objs,$(CORE_SRCS)) $(LCM_OBJS)
 	$(AR) rcs $@ $^
 
 # tests/core/test_NAME.c, each a program of its own
-CORE_TESTS := loop lcm base64 buf cli config spec lifecycle typeinfo expand shm shm_bus
+CORE_TESTS := loop base64 buf cli config spec typeinfo expand shm shm_bus
 $(foreach t,$(CORE_TESTS),$(eval $(call marie_test,test_$(t),tests/core/test_$(t).c)))
+$(foreach t,lcm lifecycle,$(eval $(call marie_test,test_$(t),tests/core/test_$(t).c tests/udp.c)))
 $(eval $(call marie_test,test_ports,tests/core/test_ports.c tests/proc.c))
 $(eval $(call marie_fuzz,config,tests/core/fuzz_config.c))
 $(eval $(call marie_fuzz,typeinfo,tests/core/fuzz_typeinfo.c))
@@ -18,5 +19,5 @@ $(eval $(call marie_link,$(B)/tests/malformed_peer,tests/core/malformed_peer.c,)
 EXTRA_TARGETS += $(B)/tests/malformed_peer
 ITESTS += tests/core/test_malformed_inputs.sh
 $(eval $(call marie_fuzz,shm,tests/core/fuzz_shm.c))
-$(eval $(call marie_fuzz,lcm,tests/core/fuzz_lcm.c))
+$(eval $(call marie_fuzz,lcm,tests/core/fuzz_lcm.c tests/udp.c))
 ITESTS += tests/core/test_params_gen.sh

@@ -4,16 +4,15 @@
  * they are, nothing is read out of bounds, every delivery holds the bytes of one datagram's
  * worth or of a message put together from fragments, and a good message sent after them from
  * another socket is still delivered (abort otherwise). Needs its own network namespace. */
-#include <arpa/inet.h>
 #include <poll.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include "core/lcm.h"
 #include "core/time.h"
+#include "tests/udp.h"
 
 #define URL "udpm://239.255.76.67:7667?ttl=0"
 
@@ -30,21 +29,6 @@ static void on_any(const lcm_recv_buf_t *rb, const char *channel, void *user)
         good++;
 }
 
-static int sender(void)
-{
-    int fd = socket(AF_INET, SOCK_DGRAM, 0);
-    unsigned char ttl = 0;
-    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
-    return fd;
-}
-
-static void send_to_group(int fd, const void *d, size_t n)
-{
-    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons(7667)};
-    inet_pton(AF_INET, "239.255.76.67", &to.sin_addr);
-    (void)sendto(fd, d, n, 0, (struct sockaddr *)&to, sizeof to);
-}
-
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static lcm_t *rx;
@@ -53,8 +37,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         rx = marie_lcm_create(URL);
         if (!rx || !marie_lcm_native(rx) || !marie_lcm_subscribe(rx, "F.*", on_any, NULL))
             abort();
-        fuzz_fd = sender();
-        good_fd = sender();
+        fuzz_fd = test_udp_socket();
+        good_fd = test_udp_socket();
     }
     for (int k = 0; k < 64 && size >= 2; k++) {
         size_t n = (size_t)data[0] << 8 | data[1];
@@ -62,14 +46,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         size -= 2;
         if (n > size)
             n = size;
-        send_to_group(fuzz_fd, data, n);
+        test_udp_send(fuzz_fd, data, n);
         data += n;
         size -= n;
     }
     static const uint8_t msg[] = {'L', 'C', '0', '2', 0, 0, 0, 1, 'F', 'U', 'Z', 'Z', '_', 'G', 'O', 'O', 'D', 0,
                                   'g', 'o', 'o', 'd'};
     int before = good;
-    send_to_group(good_fd, msg, sizeof msg);
+    test_udp_send(good_fd, msg, sizeof msg);
     for (int64_t end = marie_mono_us() + 2000000; good == before && marie_mono_us() < end;) {
         struct pollfd p = {marie_lcm_fd(rx), POLLIN, 0};
         if (poll(&p, 1, 10) > 0)

@@ -17,6 +17,7 @@
 #include "core/lcm.h"
 #include "core/loop.h"
 #include "core/time.h"
+#include "tests/udp.h"
 
 #define URL "udpm://239.255.76.67:7667?ttl=0"
 
@@ -171,19 +172,9 @@ static void test_beside_liblcm(void **state)
     lcm_destroy(pub);
 }
 
-static int sender(void)
-{
-    int fd = socket(AF_INET, SOCK_DGRAM, 0);
-    unsigned char ttl = 0;
-    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
-    return fd;
-}
-
 static void send_raw(int fd, const void *d, size_t n)
 {
-    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons(7667)};
-    inet_pton(AF_INET, "239.255.76.67", &to.sin_addr);
-    assert_int_equal(sendto(fd, d, n, 0, (struct sockaddr *)&to, sizeof to), (ssize_t)n);
+    assert_int_equal(test_udp_send(fd, d, n), (ssize_t)n);
 }
 
 static size_t short_msg(uint8_t *out, uint32_t seq, const char *channel, const char *text)
@@ -224,7 +215,7 @@ static void test_malformed(void **state)
      * filter, unread and uncounted (like anyone's traffic on other channels): this one lets
      * channels that start "T_BAD" through, terminated or not. */
     assert_non_null(marie_lcm_subscribe(rx, "T_BAD.+", on_msg, &other));
-    int fd = sender();
+    int fd = test_udp_socket();
     static uint8_t d[70000];
     send_raw(fd, "LC0", 3);                                        /* shorter than a header */
     send_raw(fd, "hello world, not LCM", 20);                      /* no magic */

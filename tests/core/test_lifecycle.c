@@ -3,7 +3,6 @@
  * signed orders captured before a restart. */
 #include <errno.h>
 #include <setjmp.h>
-#include <arpa/inet.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -17,6 +16,7 @@
 
 #include "core/auth.h"
 #include "core/component.h"
+#include "tests/udp.h"
 
 typedef struct {
     lcm_t *lcm;
@@ -265,14 +265,10 @@ static void malformed_orders_are_answered_counted_and_survived(void **state)
     assert_int_equal(order(&b, "someone-else", MARIE_CMD_INIT), -1);
     /* A datagram on the bus that is not an LCM message (a fragment of a message of 0 fragments):
      * counted by the component's bus reader. */
-    int fd = socket(AF_INET, SOCK_DGRAM, 0);
-    unsigned char ttl = 0;
-    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl);
-    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons(7667)};
-    inet_pton(AF_INET, "239.255.76.67", &to.sin_addr);
+    int fd = test_udp_socket();
     static const unsigned char frag[] = {'L', 'C', '0', '3', 0, 0, 0, 1, 0, 0, 0, 9, 0, 0, 0, 0, 0, 0, 0, 0,
                                          'M', 'A', 'R', 'I', 'E', 0, 'x'};
-    assert_int_equal(sendto(fd, frag, sizeof frag, 0, (struct sockaddr *)&to, sizeof to), (ssize_t)sizeof frag);
+    assert_int_equal(test_udp_send(fd, frag, sizeof frag), (ssize_t)sizeof frag);
     close(fd);
     /* Still alive and counting. */
     assert_int_equal(order(&b, "prod2", MARIE_CMD_INIT), 1);
