@@ -131,16 +131,18 @@ test-deps: deps
 	@scripts/install-deps.sh vm browser
 
 # Each test runs in its own network namespace (so the PyPI witnesses' venv is made before,
-# outside): the test programs NPROC at a time, the shell tests (whole systems, VMs, browsers,
-# timings) one by one; the last line is the summary. (All side by side took 3 min 54 s, 4 at a
-# time, but the test programs' timing checks, the LMS200 driver's 150 ms replies and the
-# simulator's device heartbeats, then failed beside a whole robot or a VM.)
+# outside): the test programs NPROC at a time with, beside them, the light shell tests (those
+# that mostly wait and time nothing: "# test-light" in their head) one by one; then the other
+# shell tests (whole systems, VMs, browsers, timings) one by one, alone; the last line is the
+# summary. (All side by side took 3 min 54 s, 4 at a time, but the test programs' timing
+# checks, the LMS200 driver's 150 ms replies and the simulator's device heartbeats, then failed
+# beside a whole robot or a VM.)
 test: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) SAN=$(SAN) scripts/run-tests.sh --jobs $(NPROC) $(TESTS) -- $(ITESTS)
 
-# Long end-to-end runs kept out of make test's 20 minutes (each says why in its module.mk).
+# Long end-to-end runs kept out of make test's 11 minutes on two cores (each says why in its module.mk).
 test-slow: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) SAN=$(SAN) TEST_TIMEOUT=$${TEST_TIMEOUT:-600} scripts/run-tests.sh $(SLOW_TESTS)

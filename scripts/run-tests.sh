@@ -9,7 +9,10 @@
 #   program, default 300; a test whose first lines say "# test-timeout: N" gets N when that is
 #   more, for a run that is long by design): with --jobs, the tests before `--` run N at a time (each in its own
 #   namespace; a worker takes the next test as it finishes one; their lines print when all are
-#   done, in order), those after it one at a time.
+#   done, in order), those after it one at a time. A test after `--` whose first lines say
+#   "# test-light" (it mostly waits, and checks no timing that busy cores would break) runs
+#   meanwhile, one light test at a time beside the N; the others after `--` run alone, once
+#   all of those are done.
 set -u
 B=${B:-build}
 logs=$B/test-logs
@@ -79,7 +82,19 @@ for t in "$@"; do
     [ "$t" = -- ] && break
     n=$((n + 1))
 done
+# light TEST: its head says "# test-light".
+light() { head -20 "$1" 2>/dev/null | grep -q '^# test-light\($\|:\)'; }
+lane=0
 if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
+    lane=1
+    # The light tests after `--`, one at a time beside the workers.
+    (i=0; seen=0
+     for t in "$@"; do
+         if [ "$t" = -- ]; then seen=1
+         elif [ "$seen" = 1 ] && light "$t"; then run_one "$t" "$res/l$i" > "$res/l$i"
+         fi
+         i=$((i + 1))
+     done) &
     # Each worker takes the next test not yet taken (a counter under flock), so a long test
     # holds one worker while the others go on through the list.
     echo 0 > "$res/next"
@@ -96,11 +111,17 @@ if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
     wait
     i=0
     while [ "$i" -lt "$n" ]; do tally "$res/$i"; i=$((i + 1)); done
+    i=0
+    for t in "$@"; do
+        [ -f "$res/l$i" ] && tally "$res/l$i"
+        i=$((i + 1))
+    done
     shift "$n"
 fi
 i=0
 for t in "$@"; do
     [ "$t" = -- ] && continue
+    [ "$lane" = 1 ] && light "$t" && continue
     run_one "$t" "$res/s$i" > "$res/s$i"
     tally "$res/s$i"
     i=$((i + 1))

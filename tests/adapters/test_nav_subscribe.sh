@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_nav_subscribe: the same pipeline without Communication Adapters: marie-behaviours in
 # input_mode=subscribe, the mission without a SharedMap; a two-goal mission in the office world,
 # after malformed and absurd messages (random bytes, NaN poses, empty scans) on every input;

@@ -1,6 +1,7 @@
 /* replay_check: compares the poses a fresh localizer publishes on POSE_REPLAY while a recorded
  * log is played back with the poses recorded on POSE in that log, matched by timestamp.
- *   replay_check LOG SECONDS     prints matched count, median and max error; exit 0 if they agree */
+ *   replay_check LOG SECONDS     prints matched count, median and max error; exit 0 if they agree
+ * It listens until the localizer has replayed the log's last pose, or SECONDS at most. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -63,7 +64,8 @@ int main(int argc, char **argv)
     lcm_t *lcm = lcm_create(NULL);
     marie_pose_cov_t_subscription_t *sub = marie_pose_cov_t_subscribe(lcm, "POSE_REPLAY", on_replay, NULL);
     int64_t end = marie_mono_us() + (int64_t)(atof(argv[2]) * 1e6);
-    while (marie_mono_us() < end)
+    int64_t last = nrec ? recorded[nrec - 1].t : INT64_MAX;
+    while (marie_mono_us() < end && !(nrep && replayed[nrep - 1].t >= last))
         lcm_handle_timeout(lcm, 100);
     marie_pose_cov_t_unsubscribe(lcm, sub);
     lcm_destroy(lcm);

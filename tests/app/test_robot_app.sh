@@ -6,7 +6,7 @@
 # so the stop alone proves nothing): the e-stop behaviour's zero command and the drives
 # reporting e-stop, each within 0.3 s (sim) and after the press,
 # SIGKILLed components come back and the mission still completes (every goal with a kill
-# every 5 s, the drivers among the victims), and replaying the log into a fresh localizer
+# every 2 s, the drivers among the victims), and replaying the log into a fresh localizer
 # reproduces its poses.
 . tests/lib.sh
 out=$B/test-app
@@ -49,22 +49,16 @@ kill $loc 2>/dev/null; wait $loc 2>/dev/null
 cat "$out/replay.txt"
 check "replayed log reproduces the localizer's poses" test $rc = 0
 
-# 3. Chaos: a random non-simulator component is SIGKILLed every 2 s (the nominal run takes
-# 8-10 s on two cores: three or four kills).
-$BIN/marie-demo --quiet --out "$out/chaos" --timeout 300 --chaos 2 > "$out/chaos.txt" 2>&1
+# 3. Chaos: a random non-simulator component is SIGKILLed every 2 s, the laser driver first (the
+# nominal run takes 20-25 s here: about ten kills). The laser driver dies mid-stream while the
+# virtual LMS200 streams on at 500 kbaud; its successor must find it and publish again.
+$BIN/marie-demo --quiet --out "$out/chaos" --timeout 300 --chaos 2 --chaos-first laser > "$out/chaos.txt" 2>&1
 c=$out/chaos/summary.json
 cat "$out/chaos.txt"
 check "chaos: components were killed" le 2 "$(json $c kills)"
+check "chaos: the laser driver was among the victims" grep -q "SIGKILL laser" "$out/chaos.txt"
 check "chaos: the mission still completes" test "$(json $c mission_done)" = True
+check "chaos: every goal reached" test "$(json $c reached)" = "$(json $c goals)"
+check "chaos: at least 5 goals" le 5 "$(json $c goals)"
 check "chaos: the summary counts the restarts" le "$(json $c kills)" "$(json $c restarts)"
-
-# 4. Harder chaos: a kill every 3 s, the laser driver first. It dies mid-stream while the
-# virtual LMS200 streams on at 500 kbaud; its successor must find it and publish again.
-$BIN/marie-demo --quiet --out "$out/chaos3" --timeout 300 --chaos 3 --chaos-first laser > "$out/chaos3.txt" 2>&1
-c=$out/chaos3/summary.json
-cat "$out/chaos3.txt"
-check "chaos 3 s: the laser driver was among the victims" grep -q "SIGKILL laser" "$out/chaos3.txt"
-check "chaos 3 s: the mission completes" test "$(json $c mission_done)" = True
-check "chaos 3 s: every goal reached (5/5)" test "$(json $c reached)" = "$(json $c goals)"
-check "chaos 3 s: at least 5 goals" le 5 "$(json $c goals)"
 finish

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_decode_rule: no production source runs lcm-gen's decoder on bus bytes except core's checked path.
 # lcm-gen's C decoders trust the wire (a lying array count or string length is a crash), so
 # every payload from outside a process must go through marie_decode_checked() /

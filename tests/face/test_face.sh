@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_face: the touch page in a headless Chromium at 800x480 and 1024x600, touch screen
 # emulated and tapped with touch events: what the robot heard and said shows once the dialogue
 # speaks, and fits; a tap on a place

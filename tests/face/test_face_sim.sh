@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_face_sim: a tap on the touch page moves the simulated robot: the navigation stack runs
 # with marie-sim, the mission (holding the key) has finished its list, a person taps "door B"
 # on the page (touch screen emulated), and the robot drives there: the mission reaches the

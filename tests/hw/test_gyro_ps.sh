@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_gyro_ps: marie-gyro under marie-am against the virtual gyro on an emulated CAN bus: a
 # normal start raises no fault event; with the device frozen marie ps says degraded; thawed,
 # the driver configures it again and says running.

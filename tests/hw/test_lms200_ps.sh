@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_lms200_ps: marie-lms200 under marie-am; while its (virtual) LMS200 is frozen, marie ps
 # says degraded and the manager leaves the process alone; scans again: running.
 . tests/lib.sh

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_am_spawn: what a component gets from marie-am when it starts (its own session and process
 # group, stdin /dev/null, output pipes, default signal handling with nothing blocked, its argv and
 # environment, none of the manager's close-on-exec descriptors), and a program gone by the time

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_multihost: four network namespaces (onboard1-3, laptop) on one bridge, LCM with ttl=1,
 # a marie-am in each and marie on the laptop: cross-host dependency order, respawn after
 # kill -9, a lost host shown by marie ps, and its components back when its manager returns.

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_systemd: the marie-am unit is what systemd expects (systemd-analyze verify) and asks for
 # the behaviour marie-am implements (Type=notify, WatchdogSec=, Restart=on-failure: the notify
 # and watchdog protocol itself is tested against a real socket in test_am_notify), and make

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_up_check: marie up and marie-am --system refuse, before anything starts, entries their
 # programs would reject (the programs describe themselves with --describe, cached per binary),
 # missing programs, programs silent on or failing --describe, bad backoff and cycles (also for a

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_mapper_replay: a run recorded with lcm-logger (marie-sim in channel mode driven along a
 # short route, marie-odometry, and marie-mapper live) goes through the mapper's library again
 # with mapper_replay: it places the robot as the truth has it, gives the same answer twice, and

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_install_deps: scripts/install-deps.sh installs every set it is asked for, and only what is
 # missing (stand-in dpkg-query, apt-get and id on PATH record what would happen).
 . tests/lib.sh

@@ -2,7 +2,8 @@
 # test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
 # no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so; with
 # --jobs the programs before `--` run side by side and are reported in order, counted once; a
-# program is killed at TEST_TIMEOUT unless its head declares a longer "# test-timeout: N".
+# program is killed at TEST_TIMEOUT unless its head declares a longer "# test-timeout: N"; one
+# after `--` whose head says "# test-light" runs beside those before it.
 . tests/lib.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT INT TERM
@@ -42,4 +43,14 @@ check "--jobs: every program reported once, in order, the summary counts them al
     sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh fails.sh skips.sh passes.sh ' &&
            tail -1 $tmp/out | grep -qx '5 passed, 1 failed, 1 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
 check "--jobs 2: two 2-second programs side by side take less than the 4 s of one after the other ($took s)" [ "$took" -lt 4 ]
+printf '#!/bin/sh\n# test-light\n. tests/lib.sh\nsleep 2\ncheck "light" true\nfinish\n' > "$tmp/light.sh"
+start=$(date +%s)
+run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" -- "$tmp/light.sh" "$tmp/passes.sh"
+took=$(( $(date +%s) - start ))
+check "--jobs: a test-light program after -- runs beside those before it, reported after them ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh light.sh passes.sh ' &&
+           tail -1 $tmp/out | grep -qx '5 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+run "$tmp/light.sh" -- "$tmp/light.sh"
+check "without --jobs a test-light program runs like the others" \
+    sh -c "grep -c '^PASS light.sh' $tmp/out | grep -qx 2 && tail -1 $tmp/out | grep -qx '2 passed, 0 failed, 0 skipped'"
 finish

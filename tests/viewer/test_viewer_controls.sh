@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_viewer_controls: the viewer's controls go through the managers: pause and resume a
 # component with orders signed by the shared key (a real marie-am obeys them), set a goal;
 # without a key the controls are refused; foreign web origins cannot open the WebSocket.

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_viewer_graph: the system graph page in headless Chromium against a real marie-am: hosts,
 # components, ports and the channel between them with its live rate; a click on a component
 # and on Restart sends a signed order that the manager obeys.

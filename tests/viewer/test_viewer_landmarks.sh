@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_viewer_landmarks: tags marie-vision placed in the map (LANDMARKS) are drawn on the
 # viewer's map, with what they say. Screenshot: $B/test-logs/viewer-landmarks.png.
 . tests/lib.sh

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_vision_process: the marie-vision and marie-vision-render programs as separate
 # processes on the bus: synthetic camera frames in, tag messages read; a camera that cannot
 # be opened is reported with its reason; SIGTERM quits cleanly.
