@@ -44,3 +44,4 @@ $(B)/tests/test_sim_fast_devices: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B
 # time), so it runs in make test's one-at-a-time phase.
 TESTS := $(filter-out $(B)/tests/test_sim_fast_devices,$(TESTS))
 ITESTS += $(B)/tests/test_sim_fast_devices
+EXTRA_TARGETS += $(B)/tests/test_sim_fast_devices
