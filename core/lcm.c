@@ -348,7 +348,7 @@ marie_lcm_sub_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_ha
         return NULL;
     s->handler = handler;
     s->user = user;
-    s->literal = strpbrk(channel, ".[]()*+?{}|^$\\") == NULL;
+    literal_prefix(channel, &s->literal);  /* a plain name is compared as a string */
     char *anchored = NULL;
     if (!(s->channel = strdup(channel)) ||
         (!s->literal && (asprintf(&anchored, "^(%s)$", channel) < 0 ||
