@@ -20,7 +20,8 @@ typedef struct {
     int64_t last_scan_utime;
     double last_distance;
     bool changed;                   /* keyframes added since the last map message */
-    int64_t last_map_pub;
+    int64_t last_map_pub;           /* the last whole map's time: its readers' map_utime */
+    occmap_t *sent;                 /* what the readers hold: the last whole map and the updates since */
     slam_stats_t seen;              /* counters already reported */
 } mapper_t;
 
@@ -127,24 +128,86 @@ static void on_odom(marie_component_t *c, marie_port_t *p, const void *msg, cons
     scanwait_odometry(&s->wait, c, m->utime, on_scan_at_odometry);
 }
 
+/* The smallest rectangle holding every cell of `now` that differs from `was` (same geometry);
+ * false when none does. */
+static bool changed_rect(const occmap_t *was, const occmap_t *now, int r[4])
+{
+    int x0 = now->width, y0 = now->height, x1 = -1, y1 = -1;
+    for (int y = 0; y < now->height; y++) {
+        const int8_t *a = was->cells + (size_t)y * now->width, *b = now->cells + (size_t)y * now->width;
+        if (!memcmp(a, b, (size_t)now->width))
+            continue;
+        int lo = 0, hi = now->width - 1;
+        while (a[lo] == b[lo])
+            lo++;
+        while (a[hi] == b[hi])
+            hi--;
+        x0 = lo < x0 ? lo : x0;
+        x1 = hi > x1 ? hi : x1;
+        y0 = y < y0 ? y : y0;
+        y1 = y;
+    }
+    r[0] = x0, r[1] = y0, r[2] = x1 - x0 + 1, r[3] = y1 - y0 + 1;
+    return x1 >= 0;
+}
+
+/* Only the rectangle that changed since what the readers hold, when the map is large, its frame
+ * the same and a whole map is not due: 1 when sent (or nothing changed), 0 when the whole map
+ * must go. */
+static int publish_update(marie_component_t *c, mapper_t *s, const occmap_t *m, int64_t now, bool due)
+{
+    const mapper_params_t *q = marie_component_params(c);
+    const occmap_t *o = s->sent;
+    if (due || !o || q->update_cells <= 0 || (int64_t)m->width * m->height < q->update_cells ||
+        m->width != o->width || m->height != o->height || m->resolution != o->resolution ||
+        m->origin_x != o->origin_x || m->origin_y != o->origin_y)
+        return 0;
+    int r[4];
+    if (!changed_rect(o, m, r))
+        return 1;
+    if ((int64_t)r[2] * r[3] * 2 > (int64_t)m->width * m->height)
+        return 0;       /* most of it changed (a closure re-rendered it): the whole map is as small */
+    int8_t *cells = malloc((size_t)r[2] * r[3]);
+    if (!cells)
+        return 0;
+    for (int y = 0; y < r[3]; y++) {
+        const int8_t *row = m->cells + (size_t)(r[1] + y) * m->width + r[0];
+        memcpy(cells + (size_t)y * r[2], row, (size_t)r[2]);
+        memcpy(s->sent->cells + (size_t)(r[1] + y) * m->width + r[0], row, (size_t)r[2]);
+    }
+    marie_occupancy_grid_update_t u = { .utime = now, .map_utime = s->last_map_pub, .x = r[0], .y = r[1],
+                                        .width = r[2], .height = r[3], .ncells = r[2] * r[3], .cells = cells };
+    if (marie_port_publish(marie_port(c, "map_update"), &u) == 0)
+        marie_component_count(c, "map_updates", 1);
+    free(cells);
+    return 1;
+}
+
 static void publish_map(marie_component_t *c, int64_t overruns)
 {
     mapper_t *s = marie_component_user(c);
     const mapper_params_t *q = marie_component_params(c);
     int64_t now = marie_component_now(c);
-    bool stale = q->republish_s > 0 && (double)(now - s->last_map_pub) / 1e6 >= q->republish_s;
-    if (!s->changed && !stale)
+    bool due = q->republish_s > 0 && (double)(now - s->last_map_pub) / 1e6 >= q->republish_s;
+    if (!s->changed && !due)
         return;
-    occmap_t *m = slam_render(s->slam);
+    /* A large map is cropped to whole blocks, so that its frame stays while it grows inside one. */
+    bool large = q->update_cells > 0 && s->sent && (int64_t)s->sent->width * s->sent->height >= q->update_cells;
+    occmap_t *m = slam_render_blocks(s->slam, large ? q->map_block : 1);
     if (!m)
         return;
+    s->changed = false;
+    if (publish_update(c, s, m, now, due)) {
+        occmap_destroy(m);
+        return;
+    }
     marie_occupancy_grid_t g = { .utime = now, .resolution = (float)m->resolution, .width = m->width,
                                  .height = m->height, .origin = { m->origin_x, m->origin_y, 0 },
                                  .ncells = m->width * m->height, .cells = m->cells };
     if (marie_port_publish(marie_port(c, "map"), &g) == 0)
         marie_component_count(c, "maps", 1);
-    occmap_destroy(m);
-    s->changed = false;
+    occmap_destroy(s->sent);
+    s->sent = m;
     s->last_map_pub = now;
 }
 
@@ -152,6 +215,7 @@ static void quit(marie_component_t *c)
 {
     mapper_t *s = marie_component_user(c);
     MARIE_CLEAR(s->slam, slam_destroy);
+    MARIE_CLEAR(s->sent, occmap_destroy);
     scanwait_free(&s->wait);
 }
 
@@ -173,8 +237,8 @@ static int init(marie_component_t *c)
                                        "kf_dist and kf_angle > 0)");
         return -1;
     }
-    if (!(q->map_hz > 0 && q->map_hz <= 100)) {
-        marie_component_fail_reason(c, "map_hz must be in (0, 100]");
+    if (!(q->map_hz > 0 && q->map_hz <= 100) || q->map_block < 1 || q->map_block > 4096) {
+        marie_component_fail_reason(c, "map_hz must be in (0, 100], map_block in [1, 4096]");
         return -1;
     }
     if (marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "scan"), on_scan)) {
@@ -188,6 +252,7 @@ static const marie_port_spec_t ports[] = {
     { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
     { "map", &marie_type_occupancy_grid_t, MARIE_OUT, MARIE_PUSH, "MAP" },
+    { "map_update", &marie_type_occupancy_grid_update_t, MARIE_OUT, MARIE_PUSH, "MAP_UPDATE" },
     { "pose", &marie_type_pose_cov_t, MARIE_OUT, MARIE_PUSH, "POSE" },
     { 0 },
 };

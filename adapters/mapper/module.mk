@@ -9,8 +9,10 @@ $(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER
 # The integration test's pilot, and a recorded run through the mapper's library (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
 $(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c tools/viewer/lcmlog.c,$(MAPPER_LIBS)))
-EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/mapper_replay
+$(eval $(call marie_link,$(B)/tests/helpers/map_updates_check,tests/mapper/map_updates_check.c tools/viewer/lcmlog.c,$(ADAPT_COMMON)))
+EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/mapper_replay $(B)/tests/helpers/map_updates_check
 ITESTS += tests/mapper/test_mapper_replay.sh
+ITESTS += tests/mapper/test_map_updates.sh
 SLOW_TESTS += tests/mapper/test_mapper_sim.sh
 # The simulated robot mapping the office along a route (~2 min) and by itself (3-4 min):
 # make test-slow runs them (make test stays within its 20 minutes; docs/mapping.md).

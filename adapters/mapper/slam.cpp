@@ -344,15 +344,20 @@ extern "C" void slam_odometry_reset(slam_t *s)
 
 extern "C" occmap_t *slam_render(const slam_t *s)
 {
+    return slam_render_blocks(s, 1);
+}
+
+extern "C" occmap_t *slam_render_blocks(const slam_t *s, int block)
+{
     int x0, y0, x1, y1;
     s->grid->bounds(&x0, &y0, &x1, &y1);
-    if (x1 <= x0 || y1 <= y0) {
-        errno = ENOENT;
+    if (x1 <= x0 || y1 <= y0 || block < 1) {
+        errno = block < 1 ? EINVAL : ENOENT;
         return nullptr;
     }
     const Grid &g = *s->grid;
-    x0 = std::max(0, x0 - 1), y0 = std::max(0, y0 - 1);
-    x1 = std::min(g.width(), x1 + 1), y1 = std::min(g.height(), y1 + 1);
+    x0 = std::max(0, (x0 - 1) / block * block), y0 = std::max(0, (y0 - 1) / block * block);
+    x1 = std::min(g.width(), (x1 + block) / block * block), y1 = std::min(g.height(), (y1 + block) / block * block);
     double r = s->p.resolution;
     occmap_t *m = occmap_create(x1 - x0, y1 - y0, r, g.origin_x() + x0 * r, g.origin_y() + y0 * r);
     if (!m)

@@ -49,6 +49,9 @@ void slam_odometry_reset(slam_t *s);
 /* The map cropped to the cells seen (plus a one-cell margin): 0 free .. 100 occupied,
  * OCCMAP_UNKNOWN unseen. NULL with errno (ENOENT: nothing seen yet; ENOMEM). */
 occmap_t *slam_render(const slam_t *s);
+/* The same with the crop's edges on multiples of `block` cells of the whole grid (and the margin
+ * inside): the crop, so the map's frame, then changes only when the map grows past a block. */
+occmap_t *slam_render_blocks(const slam_t *s, int block);
 /* The keyframes' map-frame poses, 3 doubles each, oldest first; the count. */
 int slam_keyframes(const slam_t *s, double *poses, int max);
 void slam_get_stats(const slam_t *s, slam_stats_t *st);

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "adapters/common/livemap.h"
 #include "adapters/mission/explore.h"
 #include "adapters/mission/explore_params.h"
 #include "core/clear.h"
@@ -14,7 +15,8 @@
 #define MAX_BLACK 256
 
 typedef struct {
-    occmap_t *map;
+    livemap_t live;             /* the map from the bus (MAP, MAP_UPDATE) */
+    occmap_t *map;              /* the same for explore_frontiers */
     double pose[3];
     bool have_pose, have_goal, done;
     double goal[2];
@@ -27,20 +29,34 @@ typedef struct {
 static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     exp_t *s = marie_component_user(c);
-    const marie_occupancy_grid_t *m = msg;
-    if (m->width <= 0 || m->height <= 0 || (int64_t)m->width * m->height != m->ncells || !(m->resolution > 0) ||
-        (int64_t)m->width * m->height > (1 << 26)) {
-        marie_component_bad_input(c, "bad_map", "map %dx%d with %d cells, resolution %g", m->width, m->height,
-                                  m->ncells, m->resolution);
+    char why[128];
+    occmap_t *om;
+    if (livemap_full(&s->live, msg, why, sizeof(why)) != 0) {
+        marie_component_bad_input(c, "bad_map", "%s", why);
         return;
     }
-    occmap_t *om = occmap_from_cells(m->width, m->height, m->resolution, m->origin.x, m->origin.y, m->origin.theta,
-                                     m->cells);
-    if (!om)
+    if (!(om = livemap_occmap(&s->live)))
         return;
     occmap_destroy(s->map);
     s->map = om;
     marie_component_count(c, "maps", 1);
+}
+
+static void on_map_update(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    exp_t *s = marie_component_user(c);
+    char why[128];
+    occmap_t *om;
+    int r = livemap_update(&s->live, msg, why, sizeof(why));
+    if (r < 0)
+        marie_component_bad_input(c, "bad_map_update", "%s", why);
+    else if (r > 0)
+        marie_component_count(c, "map_updates_unmatched", 1);      /* not for the map held: the next whole one comes */
+    else if ((om = livemap_occmap(&s->live))) {
+        occmap_destroy(s->map);
+        s->map = om;
+        marie_component_count(c, "map_updates", 1);
+    }
 }
 
 static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -141,6 +157,7 @@ static void quit(marie_component_t *c)
 {
     exp_t *s = marie_component_user(c);
     MARIE_CLEAR(s->map, occmap_destroy);
+    livemap_free(&s->live);
 }
 
 static int init(marie_component_t *c)
@@ -153,7 +170,8 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "rate_hz in (0, 100], robot_radius >= 0 and tolerance > 0 expected");
         return -1;
     }
-    if (marie_port_on_message(marie_port(c, "map"), on_map) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
+    if (marie_port_on_message(marie_port(c, "map"), on_map) ||
+        marie_port_on_message(marie_port(c, "map_update"), on_map_update) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
         marie_port_on_message(marie_port(c, "path"), on_path)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
@@ -163,6 +181,7 @@ static int init(marie_component_t *c)
 
 static const marie_port_spec_t ports[] = {
     { "map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "MAP" },
+    { "map_update", &marie_type_occupancy_grid_update_t, MARIE_IN, MARIE_PUSH, "MAP_UPDATE" },
     { "pose", &marie_type_pose_cov_t, MARIE_IN, MARIE_PUSH, "POSE" },
     { "path", &marie_type_path_t, MARIE_IN, MARIE_PUSH, "PATH" },
     { "goal", &marie_type_goal_t, MARIE_OUT, MARIE_PUSH, "GOAL" },

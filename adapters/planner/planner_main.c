@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "map/occmap.h"
+#include "adapters/common/livemap.h"
 #include "adapters/common/posebuf.h"
 #include "adapters/planner/planner.h"
 #include "core/clear.h"
@@ -15,6 +16,7 @@
 typedef struct {
     const pln_params_t *q;
     planner_t *pl;
+    livemap_t live;             /* the map from the bus (MAP, MAP_UPDATE) */
     bool have_pose, have_goal, want_plan;
     double pose[3];             /* the newest POSE, and the time it is for */
     int64_t pose_utime;
@@ -249,20 +251,11 @@ static void tick(marie_component_t *c, int64_t overruns)
         publish_path(c, s);
 }
 
-/* A new map (marie.occupancy_grid_t, 0..100 occupancy, -1 unknown) replaces the planner's; a
- * current path the robot would no longer fit along is planned again. */
-static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+/* The live map (marie.occupancy_grid_t, 0..100 occupancy, -1 unknown, with the updates since)
+ * replaces the planner's; a current path the robot would no longer fit along is planned again. */
+static void use_live_map(marie_component_t *c, pln_t *s)
 {
-    pln_t *s = marie_component_user(c);
-    const marie_occupancy_grid_t *m = msg;
-    if (m->width <= 0 || m->height <= 0 || (int64_t)m->width * m->height != m->ncells || !(m->resolution > 0) ||
-        !isfinite(m->origin.x) || !isfinite(m->origin.y) || !isfinite(m->origin.theta) || (int64_t)m->width * m->height > (1 << 26)) {
-        marie_component_bad_input(c, "bad_map", "map %dx%d with %d cells, resolution %g", m->width, m->height,
-                                  m->ncells, m->resolution);
-        return;
-    }
-    occmap_t *om = occmap_from_cells(m->width, m->height, m->resolution, m->origin.x, m->origin.y,
-                                     m->origin.theta, m->cells);
+    occmap_t *om = livemap_occmap(&s->live);
     if (!om)
         return;
     for (size_t i = 0; i < (size_t)om->width * om->height; i++) {
@@ -270,14 +263,14 @@ static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const
         om->cells[i] = v < 0 ? OCCMAP_UNKNOWN : v >= 65 ? OCCMAP_OCCUPIED : v < 20 ? OCCMAP_FREE : OCCMAP_UNKNOWN;
     }
     planner_t *pl = planner_create(om, &s->q->planner, s->seed);
+    int w = om->width, h = om->height;
     occmap_destroy(om);
     if (!pl) {
-        marie_component_bad_input(c, "bad_map", "cannot build a planner on the %dx%d map", m->width, m->height);
+        marie_component_bad_input(c, "bad_map", "cannot build a planner on the %dx%d map", w, h);
         return;
     }
     planner_destroy(s->pl);
     s->pl = pl;
-    marie_component_count(c, "maps", 1);
     if (s->npath >= 2 && planner_path_collides(s->pl, s->path, s->npath) >= 0) {
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "path_blocked", "goal %d: the new map blocks the path, replanning",
                               s->goal.id);
@@ -287,10 +280,38 @@ static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const
     }
 }
 
+static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    char why[128];
+    if (livemap_full(&s->live, msg, why, sizeof(why)) != 0) {
+        marie_component_bad_input(c, "bad_map", "%s", why);
+        return;
+    }
+    marie_component_count(c, "maps", 1);
+    use_live_map(c, s);
+}
+
+static void on_map_update(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    pln_t *s = marie_component_user(c);
+    char why[128];
+    int r = livemap_update(&s->live, msg, why, sizeof(why));
+    if (r < 0)
+        marie_component_bad_input(c, "bad_map_update", "%s", why);
+    else if (r > 0)
+        marie_component_count(c, "map_updates_unmatched", 1);      /* not for the map held: the next whole one comes */
+    else {
+        marie_component_count(c, "map_updates", 1);
+        use_live_map(c, s);
+    }
+}
+
 static void quit(marie_component_t *c)
 {
     pln_t *s = marie_component_user(c);
     MARIE_CLEAR(s->pl, planner_destroy);
+    livemap_free(&s->live);
     MARIE_CLEAR(s->path, free);
     s->npath = 0;
     MARIE_CLEAR(s->pts, free);
@@ -338,6 +359,7 @@ static int init(marie_component_t *c)
     if (marie_port_on_message(marie_port(c, "goal"), on_goal) || marie_port_on_message(marie_port(c, "pose"), on_pose) ||
         marie_port_on_message(marie_port(c, "scan"), on_scan) ||
         marie_port_on_message(marie_port(c, "odom"), on_odom) || marie_port_on_message(marie_port(c, "map"), on_map) ||
+        marie_port_on_message(marie_port(c, "map_update"), on_map_update) ||
         marie_port_on_message(marie_port(c, "replan"), on_replan)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");
         return -1;
@@ -351,6 +373,7 @@ static const marie_port_spec_t ports[] = {
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PUSH, "LASER" },
     { "odom", &marie_type_odometry_t, MARIE_IN, MARIE_PUSH, "ODOMETRY" },
     { "map", &marie_type_occupancy_grid_t, MARIE_IN, MARIE_PUSH, "MAP" },
+    { "map_update", &marie_type_occupancy_grid_update_t, MARIE_IN, MARIE_PUSH, "MAP_UPDATE" },
     { "replan", &marie_type_goal_t, MARIE_IN, MARIE_PUSH, "REPLAN" },
     { "path", &marie_type_path_t, MARIE_OUT, MARIE_PUSH, "PATH" },
     { 0 },

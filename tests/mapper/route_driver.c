@@ -1,12 +1,15 @@
 /* route_driver: drives the simulated robot along waypoints from its ground truth (a perfect
  * pilot, so the mapper is judged alone) and measures the mapper's pose against the truth:
- * prints "ate_rms M max M poses N" and "route done" or "route timeout". Exit 0 when done. */
+ * prints "ate_rms M max M poses N" and "route done" or "route timeout". Exit 0 when done.
+ * --hold S: then stands still for S seconds of wall time, sending stop commands (a simulator in
+ * lockstep goes on at its speed). */
 #include <math.h>
 #include <stdbool.h>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <lcm/lcm.h>
 
@@ -78,11 +81,13 @@ static void on_pose(const lcm_recv_buf_t *rb, const char *ch, const marie_pose_c
 int main(int argc, char **argv)
 {
     static drv_t d;
-    double timeout = 120;
+    double timeout = 120, hold = 0;
     const char *route = NULL;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--timeout") == 0 && i + 1 < argc)
             timeout = atof(argv[++i]);
+        else if (strcmp(argv[i], "--hold") == 0 && i + 1 < argc)
+            hold = atof(argv[++i]);
         else if (strcmp(argv[i], "--route") == 0 && i + 1 < argc)
             route = argv[++i];
         else if (strcmp(argv[i], "--traj") == 0 && i + 1 < argc)
@@ -96,7 +101,7 @@ int main(int argc, char **argv)
         p = p ? p + 1 : NULL;
     }
     if (!d.nwp) {
-        fprintf(stderr, "usage: route_driver --route 'x,y;x,y;...' [--timeout S] [--traj FILE]\n");
+        fprintf(stderr, "usage: route_driver --route 'x,y;x,y;...' [--timeout S] [--hold S] [--traj FILE]\n");
         return 2;
     }
     d.lcm = lcm_create(NULL);
@@ -112,6 +117,10 @@ int main(int argc, char **argv)
     }
     marie_motor_command_t stop = { .utime = 0, .v = 0, .omega = 0, .source = "route_driver" };
     marie_motor_command_t_publish(d.lcm, "MOTOR_COMMAND", &stop);
+    for (int64_t until = marie_mono_us() + (int64_t)(hold * 1e6); marie_mono_us() < until;) {
+        usleep(50000);
+        marie_motor_command_t_publish(d.lcm, "MOTOR_COMMAND", &stop);
+    }
     printf("ate_rms %.3f max %.3f poses %ld\n", d.npose ? sqrt(d.sum2 / d.npose) : -1.0, d.max, d.npose);
     printf("route %s (%d of %d waypoints)\n", d.next >= d.nwp ? "done" : "timeout", d.next, d.nwp);
     if (d.traj)

@@ -1,0 +1,51 @@
+#!/bin/sh
+# test-light
+# test_map_updates: marie-mapper sends a large map whole only now and then and the rectangles
+# that changed in between (MAP_UPDATE); its readers assemble them. A short route in marie-sim
+# with the threshold at one cell (every map is "large"), recorded with lcm-logger: the whole
+# maps and the updates, assembled as a reader does, give cell for cell the map the mapper sends
+# whole once the robot stands still; the updates are a fraction of the bytes; the planner and
+# marie-explore apply them (docs/mapping.md, "Map updates").
+. tests/lib.sh
+B=${B:-build}
+BIN=$B/bin
+OUT=$B/test-logs/map_updates
+rm -rf "$OUT" && mkdir -p "$OUT"
+export LCM_DEFAULT_URL="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
+trap stop_started EXIT INT TERM
+
+start logger lcm-logger -q --lcm-url="$LCM_DEFAULT_URL" "--channel=^(MAP|MAP_UPDATE|MARIE_HEARTBEAT)$" "$OUT/run.lcm"
+start sim $BIN/marie-sim --name sim --param world=sim/worlds/office.yaml --param speed=4 --param lockstep=0.5 --param start_y=15.7
+start odometry $BIN/marie-odometry --name odometry --clock sim
+start mapper $BIN/marie-mapper --name mapper --clock sim --param init_x=2 --param init_y=15.7 \
+    --param update_cells=1 --param republish_s=4
+start planner $BIN/marie-planner --name planner --clock sim --param unknown_is_free=true
+start explore $BIN/marie-explore --name explore --clock sim
+$B/tests/helpers/route_driver --route "4.1,15.7;4.1,21.5;4.1,15.7;9.0,15.7" --timeout 90 --hold 3 > "$OUT/driver.txt" 2>&1
+drc=$?
+cat "$OUT/driver.txt"
+# (--hold: standing still, the last changes go out as an update, then the whole map again after
+# republish_s of simulated time, at speed 4, and heartbeats.)
+sleep 1
+stop_started
+pids=""
+
+$B/tests/helpers/map_updates_check "$OUT/run.lcm" planner explore > "$OUT/check.txt" 2>&1
+crc=$?
+cat "$OUT/check.txt"
+fig() { awk -v k="$2" '{ for (i = 1; i < NF; i++) if ($i == k) { print $(i + 1); exit } }' "$1"; }
+val() { awk -v k="$2" '$1 == k { print $2; f = 1 } END { if (!f) print 0 }' "$1"; }
+
+check "the route is driven to its end with the mapper live" test "$drc" -eq 0
+check "the log is read" test "$crc" -eq 0
+check "the map goes as updates between whole maps (>= 5 updates, >= 2 whole)" \
+    eval 'test "$(fig $OUT/check.txt updates)" -ge 5 && test "$(fig $OUT/check.txt whole)" -ge 2'
+check "every update is well formed and inside its map" test "$(fig $OUT/check.txt refused)" -eq 0
+check "the updates since the last whole map rebuild it cell for cell" test "$(fig $OUT/check.txt last_diff)" -eq 0
+check "an update is on average under a quarter of a whole map" \
+    eval 'test $(( $(fig $OUT/check.txt update_bytes) * 4 * $(fig $OUT/check.txt whole) )) -lt $(( $(fig $OUT/check.txt whole_bytes) * $(fig $OUT/check.txt updates) ))'
+check "the planner applies them" test "$(val $OUT/check.txt planner.map_updates)" -ge 3
+check "marie-explore applies them" test "$(val $OUT/check.txt explore.map_updates)" -ge 3
+check "neither reader refuses one" \
+    eval 'test "$(val $OUT/check.txt planner.bad_map_update)" -eq 0 && test "$(val $OUT/check.txt explore.bad_map_update)" -eq 0'
+finish
