@@ -9,7 +9,7 @@ $(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER
 # The integration test's pilot, and a recorded run through the mapper's library (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
 $(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c tools/viewer/lcmlog.c,$(MAPPER_LIBS)))
-$(eval $(call marie_link,$(B)/tests/helpers/map_updates_check,tests/mapper/map_updates_check.c tools/viewer/lcmlog.c,$(ADAPT_COMMON)))
+$(eval $(call marie_link,$(B)/tests/helpers/map_updates_check,tests/mapper/map_updates_check.c tools/viewer/lcmlog.c,$(MAP_LIB)))
 EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/mapper_replay $(B)/tests/helpers/map_updates_check
 ITESTS += tests/mapper/test_mapper_replay.sh
 ITESTS += tests/mapper/test_map_updates.sh

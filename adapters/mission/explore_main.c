@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "adapters/common/livemap.h"
+#include "map/livemap.h"
 #include "adapters/mission/explore.h"
 #include "adapters/mission/explore_params.h"
 #include "core/clear.h"

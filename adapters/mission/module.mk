@@ -8,4 +8,4 @@ $(eval $(call marie_test,test_mission_signs,tests/adapters/test_mission_signs.c,
 $(eval $(call marie_fuzz,mission_signs,tests/adapters/fuzz_mission_signs.c adapters/mission/mission_signs.c adapters/mission/mission.c core/config.c core/log.c core/time.c,))
 $(eval $(call marie_lib,explore,adapters/mission/explore.c))
 $(eval $(call marie_test,test_explore,tests/adapters/test_explore.c,$(B)/lib/libexplore.a $(B)/lib/libmapper.a $(ADAPT_COMMON) -lceres -lglog))
-$(eval $(call marie_program,marie-explore,adapters/mission/explore_main.c,$(B)/lib/libexplore.a $(ADAPT_COMMON)))
+$(eval $(call marie_program,marie-explore,adapters/mission/explore_main.c,$(B)/lib/libexplore.a $(MAP_LIB)))

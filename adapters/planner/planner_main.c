@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "map/occmap.h"
-#include "adapters/common/livemap.h"
+#include "map/livemap.h"
 #include "adapters/common/posebuf.h"
 #include "adapters/planner/planner.h"
 #include "core/clear.h"

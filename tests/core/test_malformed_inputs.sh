@@ -62,7 +62,7 @@ raw_type() {
     path) echo marie.path_t ;; goal) echo marie.goal_t ;; arbitration) echo marie.arbitration_t ;;
     event) echo marie.event_t ;; heartbeat) echo marie.heartbeat_t ;; am_status) echo marie.am_status_t ;;
     am_reply) echo marie.am_reply_t ;; tags) echo marie.tag_detections_t ;;
-    landmarks) echo marie.landmarks_t ;; *) return 1 ;;
+    landmarks) echo marie.landmarks_t ;; map_update) echo marie.occupancy_grid_update_t ;; *) return 1 ;;
     esac
 }
 

@@ -1,15 +1,17 @@
 /* map_updates_check LOG [COMPONENT...]: reads a recorded run's MAP (whole maps) and MAP_UPDATE
- * (changed rectangles) as a reader does (adapters/common/livemap), and at every whole map after
+ * (changed rectangles) as a reader does (map/livemap), and at every whole map after
  * the first compares it with the map assembled from the one before and the updates since. Prints
  *   whole N updates M unmatched U refused R update_bytes B whole_bytes W compared C last_diff D
- * (D: cells of the last whole map that differ from the assembled one, -1 if not comparable), and
- * for each COMPONENT the last heartbeat's counters "NAME.COUNTER VALUE", one per line. */
+ * (D: cells of the last whole map that differ from the assembled one, -1 if not comparable), then
+ *   final WIDTH HEIGHT occupied O known K
+ * of the map assembled at the end (cells >= 65, cells >= 0), and for each COMPONENT the last
+ * heartbeat's counters "NAME.COUNTER VALUE", one per line. */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "adapters/common/livemap.h"
+#include "map/livemap.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "lcmtypes/marie_types.h"
@@ -127,6 +129,13 @@ int main(int argc, char **argv)
     printf("whole %" PRId64 " updates %" PRId64 " unmatched %" PRId64 " refused %" PRId64 " update_bytes %" PRId64
            " whole_bytes %" PRId64 " compared %" PRId64 " last_diff %" PRId64 "\n",
            R.whole, R.updates, R.unmatched, R.refused, R.update_bytes, R.whole_bytes, R.compared, R.last_diff);
+    const marie_occupancy_grid_t *m = &R.live.map;
+    int occupied = 0, known = 0;
+    for (int i = 0; m->cells && i < m->ncells; i++) {
+        occupied += m->cells[i] >= 65;
+        known += m->cells[i] >= 0;
+    }
+    printf("final %d %d occupied %d known %d\n", m->width, m->height, occupied, known);
     for (int i = 0; i < R.nnames; i++) {
         for (int k = 0; k < R.hb[i].ncounters; k++)
             printf("%s.%s %" PRId64 "\n", R.names[i], R.hb[i].counters[k].name, R.hb[i].counters[k].value);

@@ -5,7 +5,8 @@
 # with the threshold at one cell (every map is "large"), recorded with lcm-logger: the whole
 # maps and the updates, assembled as a reader does, give cell for cell the map the mapper sends
 # whole once the robot stands still; the updates are a fraction of the bytes; the planner and
-# marie-explore apply them (docs/mapping.md, "Map updates").
+# marie-explore apply them, and the viewer serves the map they make (docs/mapping.md, "Map
+# updates").
 . tests/lib.sh
 B=${B:-build}
 BIN=$B/bin
@@ -21,18 +22,29 @@ start mapper $BIN/marie-mapper --name mapper --clock sim --param init_x=2 --para
     --param update_cells=1 --param republish_s=4
 start planner $BIN/marie-planner --name planner --clock sim --param unknown_is_free=true
 start explore $BIN/marie-explore --name explore --clock sim
+start viewer $BIN/marie-viewer-server --name viewer --param http_port=8131 --param url_file="$OUT/viewer.url"
 $B/tests/helpers/route_driver --route "4.1,15.7;4.1,21.5;4.1,15.7;9.0,15.7" --timeout 90 --hold 3 > "$OUT/driver.txt" 2>&1
 drc=$?
 cat "$OUT/driver.txt"
 # (--hold: standing still, the last changes go out as an update, then the whole map again after
 # republish_s of simulated time, at speed 4, and heartbeats.)
 sleep 1
+# What the viewer gives a page that opens now: width, height, occupied and known cells.
+python3 - > "$OUT/page.txt" 2>&1 <<'PY'
+import base64, sys
+sys.path.insert(0, "tests/viewer")
+from wsclient import WsClient
+m = WsClient("127.0.0.1", 8131).until(lambda f: f.get("k") == "map", 5)
+c = [v - 256 if v > 127 else v for v in base64.b64decode(m["msg"]["cells"])] if m else []    # int8, base64
+print("page", m and m["msg"]["width"], m and m["msg"]["height"], "occupied", sum(v >= 65 for v in c),
+      "known", sum(v >= 0 for v in c))
+PY
 stop_started
 pids=""
 
-$B/tests/helpers/map_updates_check "$OUT/run.lcm" planner explore > "$OUT/check.txt" 2>&1
+$B/tests/helpers/map_updates_check "$OUT/run.lcm" planner explore viewer > "$OUT/check.txt" 2>&1
 crc=$?
-cat "$OUT/check.txt"
+cat "$OUT/check.txt" "$OUT/page.txt"
 fig() { awk -v k="$2" '{ for (i = 1; i < NF; i++) if ($i == k) { print $(i + 1); exit } }' "$1"; }
 val() { awk -v k="$2" '$1 == k { print $2; f = 1 } END { if (!f) print 0 }' "$1"; }
 
@@ -46,6 +58,9 @@ check "an update is on average under a quarter of a whole map" \
     eval 'test $(( $(fig $OUT/check.txt update_bytes) * 4 * $(fig $OUT/check.txt whole) )) -lt $(( $(fig $OUT/check.txt whole_bytes) * $(fig $OUT/check.txt updates) ))'
 check "the planner applies them" test "$(val $OUT/check.txt planner.map_updates)" -ge 3
 check "marie-explore applies them" test "$(val $OUT/check.txt explore.map_updates)" -ge 3
-check "neither reader refuses one" \
-    eval 'test "$(val $OUT/check.txt planner.bad_map_update)" -eq 0 && test "$(val $OUT/check.txt explore.bad_map_update)" -eq 0'
+check "the viewer applies them" test "$(val $OUT/check.txt viewer.map_updates)" -ge 3
+check "no reader refuses one" eval 'test "$(val $OUT/check.txt planner.bad_map_update)" -eq 0 &&
+    test "$(val $OUT/check.txt explore.bad_map_update)" -eq 0 && test "$(val $OUT/check.txt viewer.bad_map_update)" -eq 0'
+check "a page opened at the end gets the map the updates made" \
+    test "$(awk '$1 == "final" { print $2, $3, $4, $5, $6, $7 }' $OUT/check.txt)" = "$(awk '{ print $2, $3, $4, $5, $6, $7 }' $OUT/page.txt)"
 finish

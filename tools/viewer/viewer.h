@@ -9,6 +9,7 @@
 
 #include "core/auth.h"
 #include "core/component.h"
+#include "map/livemap.h"
 #include "tools/viewer/viewer_params.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webserve.h"
@@ -16,7 +17,7 @@
 /* Inputs: one per thing the page shows; the channel is the port's binding. */
 enum {
     P_MAP, P_POSE, P_TRUTH, P_PARTICLES, P_LASER, P_PATH, P_GOAL, P_ARB, P_EVENT, P_HB,
-    P_AM_STATUS, P_AM_REPLY, P_TAGS, P_LANDMARKS, P_NIN,
+    P_AM_STATUS, P_AM_REPLY, P_TAGS, P_LANDMARKS, P_MAP_UPDATE, P_NIN,
 };
 
 extern const marie_port_spec_t viewer_ports[];
@@ -59,6 +60,9 @@ typedef struct viewer {
     chan_state_t chans[P_NIN];
     int64_t min_gap_us[P_NIN];
     uint64_t map_hash;          /* of the last map sent */
+    livemap_t live_map;         /* live: the last MAP with the MAP_UPDATE rectangles since */
+    uint8_t *map_raw;           /* live_map encoded again, as a MAP message */
+    size_t map_raw_cap;
     /* live snapshots */
     char *arb_ring[RING];
     int arb_next;

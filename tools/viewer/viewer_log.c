@@ -310,7 +310,7 @@ static void send_rec(viewer_t *v, int id, size_t i, bool droppable)
 {
     const rec_t *r = &v->recs[i];
     int pi = v->lchans[r->chan].port;
-    if (pi < 0)
+    if (pi < 0 || pi == P_MAP_UPDATE)       /* a log plays its whole maps only */
         return;
     const char *ch = v->lchans[r->chan].name;
     const void *data = v->file + r->off;

@@ -36,6 +36,7 @@ const marie_port_spec_t viewer_ports[] = {
     [P_AM_REPLY] = {"am_reply", NULL, MARIE_IN, MARIE_PUSH, MARIE_CH_AM_REPLY},
     [P_TAGS] = {"tags", NULL, MARIE_IN, MARIE_PUSH, "TAG_DETECTIONS"},
     [P_LANDMARKS] = {"landmarks", NULL, MARIE_IN, MARIE_PUSH, "LANDMARKS"},
+    [P_MAP_UPDATE] = {"map_update", NULL, MARIE_IN, MARIE_PUSH, "MAP_UPDATE"},
     [P_NIN] = {"request", &marie_type_goal_request_t, MARIE_OUT, MARIE_PUSH, "GOAL_REQUEST"},
     {"order", &marie_type_am_order_t, MARIE_OUT, MARIE_PUSH, MARIE_CH_AM_ORDER},
     {0},
@@ -48,6 +49,7 @@ const marie_type_t *const viewer_port_type[P_NIN] = {
     [P_ARB] = &marie_type_arbitration_t, [P_EVENT] = &marie_type_event_t, [P_HB] = &marie_type_heartbeat_t,
     [P_AM_STATUS] = &marie_type_am_status_t, [P_AM_REPLY] = &marie_type_am_reply_t,
     [P_TAGS] = &marie_type_tag_detections_t, [P_LANDMARKS] = &marie_type_landmarks_t,
+    [P_MAP_UPDATE] = &marie_type_occupancy_grid_update_t,
 };
 
 static const marie_param_spec_t params[] = VIEWER_PARAMS;
@@ -240,6 +242,52 @@ static void live_remember(viewer_t *v, int pi, const marie_buf_t *b, int64_t uti
     }
 }
 
+/* A live map is held as a reader holds it (map/livemap.h): a whole map is kept, an update is
+ * patched in and the map it makes encoded again as a whole one in *raw. 0, or -1 when there is
+ * nothing to draw (an update for a map not held, counted; or one that contradicts itself). */
+static int live_map(viewer_t *v, int pi, const void **raw, size_t *raw_len)
+{
+    char why[128];
+    int rc = -1;
+    if (pi == P_MAP) {
+        marie_occupancy_grid_t g;
+        if (marie_decode_input(&marie_type_occupancy_grid_t, *raw, *raw_len, &g, NULL) != 0)
+            return -1;
+        rc = livemap_full(&v->live_map, &g, why, sizeof why);
+        marie_type_occupancy_grid_t.decode_cleanup(&g);
+        if (rc != 0)
+            marie_component_bad_input(v->c, "bad_map", "%s", why);
+        return rc;
+    }
+    marie_occupancy_grid_update_t u;
+    if (marie_decode_input(&marie_type_occupancy_grid_update_t, *raw, *raw_len, &u, NULL) != 0)
+        return -1;
+    int r = livemap_update(&v->live_map, &u, why, sizeof why);
+    marie_type_occupancy_grid_update_t.decode_cleanup(&u);
+    if (r < 0)
+        marie_component_bad_input(v->c, "bad_map_update", "%s", why);
+    else if (r > 0)
+        marie_component_count(v->c, "map_updates_unmatched", 1);
+    if (r != 0)
+        return -1;
+    int len = marie_type_occupancy_grid_t.encoded_size(&v->live_map.map);
+    if (len <= 0)
+        return -1;
+    if ((size_t)len > v->map_raw_cap) {
+        uint8_t *nb = realloc(v->map_raw, (size_t)len);
+        if (!nb)
+            return -1;
+        v->map_raw = nb;
+        v->map_raw_cap = (size_t)len;
+    }
+    if (marie_type_occupancy_grid_t.encode(v->map_raw, 0, len, &v->live_map.map) != len)
+        return -1;
+    marie_component_count(v->c, "map_updates", 1);
+    *raw = v->map_raw;
+    *raw_len = (size_t)len;
+    return 0;
+}
+
 static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     viewer_t *v = marie_component_user(c);
@@ -255,13 +303,22 @@ static void on_live(marie_component_t *c, marie_port_t *p, const void *msg, cons
      * place of a good one in the page's share. */
     if (!viewer_payload_ok(v, pi, info->channel, info->raw, info->raw_len))
         return;
+    const void *raw = info->raw;
+    size_t raw_len = info->raw_len;
+    const char *ch = info->channel;
+    if ((pi == P_MAP || pi == P_MAP_UPDATE) && live_map(v, pi, &raw, &raw_len) != 0)
+        return;
+    if (pi == P_MAP_UPDATE) {
+        pi = P_MAP;     /* the page gets the map with the update in it */
+        ch = marie_port_channel(marie_port(c, viewer_ports[P_MAP].name));
+    }
     /* The snapshot cache wants every message; the page only the rate-limited ones. */
-    bool send = viewer_pass_rate(v, pi, now, info->raw, info->raw_len);
+    bool send = viewer_pass_rate(v, pi, now, raw, raw_len);
     if (!send && (pi != P_POSE && pi != P_TRUTH)) {
         v->last_rx_mono = now;      /* only data ports are viewer_decimated */
         return;
     }
-    if (!viewer_encode_msg(v, &v->jb, pi, info->channel, info->recv_utime, info->raw, info->raw_len))
+    if (!viewer_encode_msg(v, &v->jb, pi, ch, info->recv_utime, raw, raw_len))
         return;
     /* Heartbeats and manager reports say the components live, not that data flows: the
      * page's "no data" banner follows the data ports only. */
@@ -635,6 +692,9 @@ static void quit(marie_component_t *c)
     MARIE_CLEAR(v->web, webserve_stop);
     for (int i = 0; i < P_NIN; i++)
         free(v->chans[i].latest);
+    livemap_free(&v->live_map);
+    MARIE_CLEAR(v->map_raw, free);
+    v->map_raw_cap = 0;
     for (int i = 0; i < RING; i++) {
         free(v->arb_ring[i]);
         free(v->ev_ring[i]);

@@ -1,5 +1,5 @@
 /* livemap: full maps and the rectangles that changed since, as a reader holds them. */
-#include "adapters/common/livemap.h"
+#include "map/livemap.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -6,7 +6,7 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "adapters/common/livemap.h"
+#include "map/livemap.h"
 
 static int8_t cells[4 * 3];
 

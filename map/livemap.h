@@ -1,8 +1,8 @@
 /* livemap: a mapper's map as its readers hold it: the last full marie.occupancy_grid_t (MAP) with
  * the marie.occupancy_grid_update_t rectangles (MAP_UPDATE) sent since patched into it
  * (docs/mapping.md, "Map updates"). Used by every component that reads a live map. */
-#ifndef ADAPTERS_LIVEMAP_H
-#define ADAPTERS_LIVEMAP_H
+#ifndef MARIE_MAP_LIVEMAP_H
+#define MARIE_MAP_LIVEMAP_H
 
 #include <stdbool.h>
 #include <stddef.h>
