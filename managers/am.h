@@ -28,7 +28,8 @@ typedef struct {
     comp_t *c;
     int fd;
     int stream;
-    marie_linebuf_t lb;
+    marie_linebuf_t *lb;        /* from the first spawn: most of a system's components run on
+                                 * other hosts, and 1 KiB a pipe for each was most of the heap */
 } outpipe_t;
 
 /* A component: the supervision state (pure) and what the I/O around it holds. */
