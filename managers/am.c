@@ -155,6 +155,17 @@ static void on_raw_status(const lcm_recv_buf_t *rbuf, const char *channel, void 
     marie_am_status_t_decode_cleanup(&st);
 }
 
+static void on_raw_status_request(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_am_status_request_t rq;
+    if (marie_decode_checked(&marie_type_am_status_request_t, rbuf->data, rbuf->data_size, &rq) < 0) {
+        bad_message(user, channel, rbuf);
+        return;
+    }
+    am_on_status_request(user, &rq);
+    marie_am_status_request_t_decode_cleanup(&rq);
+}
+
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -321,6 +332,7 @@ int main(int argc, char **argv)
         goto out_loop;
     }
     marie_ratelimit_init(&am->refusal_rl, 5, 10);
+    marie_ratelimit_init(&am->status_answer_rl, AM_STATUS_ANSWER_RATE, AM_STATUS_ANSWER_BURST);
 
     am->lcm = marie_lcm_create(am->url);
     if (!am->lcm) {
@@ -330,6 +342,7 @@ int main(int argc, char **argv)
     marie_lcm_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
     marie_lcm_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
     marie_lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
+    marie_lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS_REQUEST, on_raw_status_request, am);
     marie_loop_add_lcm(am->loop, am->lcm, 1);
 
     sigset_t mask;

@@ -28,7 +28,8 @@ typedef struct {
     comp_t *c;
     int fd;
     int stream;
-    marie_linebuf_t lb;
+    marie_linebuf_t *lb;        /* from the first spawn: most of a system's components run on
+                                 * other hosts, and 1 KiB a pipe for each was most of the heap */
 } outpipe_t;
 
 /* A component: the supervision state (pure) and what the I/O around it holds. */
@@ -65,6 +66,8 @@ struct am {
     int64_t order_lifetime_us, max_skew_us;    /* the replay table's window */
     marie_ratelimit_t refusal_rl;              /* answers and events for refused orders */
     int64_t refusals_unannounced;
+    marie_ratelimit_t status_answer_rl;        /* statuses sent on request (am_on_status_request) */
+    int64_t status_requests_unanswered;
     /* the loaded system */
     marie_system_t *sys;
     char sys_hash[65];
@@ -103,6 +106,12 @@ struct am {
 static inline int64_t am_now_us(void) { return marie_mono_us(); }
 
 /* am_status.c: events and the status message */
+/* Status requests are answered at once, at most AM_STATUS_ANSWER_BURST together and then
+ * AM_STATUS_ANSWER_RATE a second: a flood of requests costs the bus a few statuses a second
+ * (as refused orders do), and the periodic status goes on regardless. */
+#define AM_STATUS_ANSWER_BURST 10
+#define AM_STATUS_ANSWER_RATE 5
+void am_on_status_request(am_t *am, const marie_am_status_request_t *rq);
 void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
 void am_status_changed(am_t *am);
 void am_publish_status(am_t *am, bool sample);

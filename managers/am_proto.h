@@ -7,6 +7,7 @@
 
 #include "lcmtypes/marie_am_order_t.h"
 #include "lcmtypes/marie_am_reply_t.h"
+#include "lcmtypes/marie_am_status_request_t.h"
 #include "lcmtypes/marie_am_status_t.h"
 #include "lcmtypes/marie_log_line_t.h"
 
@@ -17,6 +18,7 @@ extern "C" {
 #define MARIE_CH_AM_ORDER  "MARIE_AM_ORDER"
 #define MARIE_CH_AM_REPLY  "MARIE_AM_REPLY"
 #define MARIE_CH_AM_STATUS "MARIE_AM_STATUS"
+#define MARIE_CH_AM_STATUS_REQUEST "MARIE_AM_STATUS_REQUEST"
 #define MARIE_CH_LOG       "MARIE_LOG"
 
 /* The most of a system file read to send or load (the loader, core/yaml.c, refuses more). */

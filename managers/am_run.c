@@ -97,7 +97,7 @@ static void outpipe_close(outpipe_t *op)
 {
     if (op->fd < 0)
         return;
-    marie_linebuf_flush(&op->lb, log_line_cb, op);
+    marie_linebuf_flush(op->lb, log_line_cb, op);
     marie_loop_remove_fd(op->am->loop, op->fd);
     close(op->fd);
     op->fd = -1;
@@ -110,7 +110,7 @@ static int outpipe_drain(outpipe_t *op)
     for (int rounds = 0; rounds < 16; rounds++) {
         ssize_t n = read(op->fd, buf, sizeof buf);
         if (n > 0) {
-            marie_linebuf_feed(&op->lb, buf, (size_t)n, log_line_cb, op);
+            marie_linebuf_feed(op->lb, buf, (size_t)n, log_line_cb, op);
             continue;
         }
         if (n == 0)
@@ -222,6 +222,11 @@ static void comp_spawn(comp_t *c)
 
     am_comp_cancel_timer(c);
     am_comp_close_output(c);
+    for (int i = 0; i < 2; i++)
+        if (!c->out[i].lb && !(c->out[i].lb = malloc(sizeof *c->out[i].lb))) {
+            am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: out of memory", cfg->name);
+            goto fail;
+        }
     if (pipe2(po, O_CLOEXEC) < 0 || pipe2(pe, O_CLOEXEC) < 0) {
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: pipe: %s", cfg->name, strerror(errno));
         goto fail;
@@ -268,7 +273,7 @@ static void comp_spawn(comp_t *c)
         op->c = c;
         op->fd = rd[i];
         op->stream = i == 0 ? MARIE_LOG_LINE_T_STDOUT : MARIE_LOG_LINE_T_STDERR;
-        op->lb.len = 0;
+        op->lb->len = 0;
         fcntl(op->fd, F_SETFL, O_NONBLOCK);     /* a new pipe's end has no other flag */
         marie_loop_add_fd(am->loop, op->fd, POLLIN, on_outpipe, op);
     }

@@ -3,6 +3,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 #include "core/component.h"
@@ -24,6 +25,23 @@ void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...)
         marie_warn("%s: %s", kind, text);
     else
         marie_info("%s: %s", kind, text);
+}
+
+/* A request (marie ps) asks only for what this manager broadcasts anyway, so it is not signed;
+ * the rate limit is what keeps a flood of them from turning into a flood of statuses. */
+void am_on_status_request(am_t *am, const marie_am_status_request_t *rq)
+{
+    if (strcmp(rq->host, "*") != 0 && strcmp(rq->host, am->host) != 0)
+        return;
+    if (!marie_ratelimit_take(&am->status_answer_rl, am_now_us())) {
+        am->status_requests_unanswered++;
+        marie_warn_ratelimited(5, "status requests beyond %d a second: %lld not answered (the periodic status "
+                               "goes on; last from '%s')", AM_STATUS_ANSWER_RATE,
+                               (long long)am->status_requests_unanswered, rq->sender);
+        return;
+    }
+    marie_debug("status requested by '%s'", rq->sender);
+    am_publish_status(am, false);
 }
 
 static void on_status_soon(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);

@@ -102,6 +102,8 @@ void am_comps_free(am_t *am)
         comp_t *c = &am->comps[i];
         am_comp_cancel_timer(c);
         am_comp_close_output(c);
+        free(c->out[0].lb);
+        free(c->out[1].lb);
         marie_logfile_close(c->logf);
     }
     MARIE_CLEAR(am->comps, free);

@@ -73,9 +73,13 @@ static bool replied(const cli_t *cli, const char *host)
 static void on_status(const lcm_recv_buf_t *rbuf, const char *channel, const marie_am_status_t *st, void *user)
 {
     cli_t *cli = user;
+    int before = cli->nhosts;
     host_t *h = host_get(cli, st->host, true);
     if (!h)
         return;
+    if (cli->nhosts > before)
+        cli->new_host_mono = marie_mono_us();
+    cli->hosts_unnamed |= st->nhosts == 0;
     if (h->st)
         marie_am_status_t_destroy(h->st);
     h->st = marie_am_status_t_copy(st);
@@ -293,6 +297,20 @@ int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg
         }
     }
     return rc;
+}
+
+/* Not signed: it asks only for what the managers broadcast anyway, and each answers within a
+ * rate limit. A manager that does not know the request is heard at its next periodic status. */
+int request_status(cli_t *cli)
+{
+    char sender[256];
+    marie_am_sender(sender, sizeof sender);
+    marie_am_status_request_t rq = {.utime = marie_wall_us(), .sender = sender, .host = "*"};
+    if (marie_am_status_request_t_publish(cli->lcm, MARIE_CH_AM_STATUS_REQUEST, &rq) < 0) {
+        fprintf(stderr, "marie: cannot send the status request\n");
+        return -1;
+    }
+    return 0;
 }
 
 void print_replies_json(cli_t *cli, int rc)

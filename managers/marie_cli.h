@@ -50,6 +50,8 @@ typedef struct {
     /* status */
     host_t hosts[MAX_HOSTS];
     int nhosts;
+    int64_t new_host_mono;      /* when a host was first heard, last */
+    bool hosts_unnamed;         /* a heard manager names no hosts (it has no system) */
     /* logs */
     const char *log_name;
     int64_t last_log_mono;
@@ -74,6 +76,8 @@ int load_key(cli_t *cli);
 int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg,
                const char *path, const char *text);
 void print_replies_json(cli_t *cli, int rc);
+/* Ask every manager for its status now (marie ps). 0 or -1. */
+int request_status(cli_t *cli);
 int wait_states(cli_t *cli, char **targets, int ntargets, bool running, double timeout);
 
 /* One per command (marie_cmds.c, marie_doctor.c); each returns the exit status. */

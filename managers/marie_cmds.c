@@ -287,6 +287,10 @@ static int print_ps(cli_t *cli, int64_t lost_us)
     return lost;
 }
 
+/* Every host named in the managers' status has answered. A manager without a system names no
+ * hosts, so while one is heard the others may still be unknown: then the answers must also have
+ * stopped bringing new hosts for PS_QUIET_US (they come within milliseconds of the request). */
+#define PS_QUIET_US 150000
 static bool all_heard(cli_t *cli)
 {
     for (int i = 0; i < cli->nexpect; i++) {
@@ -294,7 +298,7 @@ static bool all_heard(cli_t *cli)
         if (!h || !h->st)
             return false;
     }
-    return cli->nexpect > 0;
+    return cli->nexpect > 0 && (!cli->hosts_unnamed || marie_mono_us() - cli->new_host_mono >= PS_QUIET_US);
 }
 
 int cmd_ps(cli_t *cli, int argc, char **argv)
@@ -314,10 +318,11 @@ int cmd_ps(cli_t *cli, int argc, char **argv)
         fprintf(stderr, "usage: marie ps [--window S] [--watch]\n");
         return MARIE_EXIT_USAGE;
     }
-    if (cli_open(cli) < 0)
+    if (cli_open(cli) < 0 || request_status(cli) < 0)
         return MARIE_EXIT_FAIL;
-    /* Managers report twice a second: a host silent for the whole window is lost. Every host
-     * a status names has reported: the table is complete, no need to wait longer. */
+    /* Every manager answers the request at once (or, past its rate limit or too old to know
+     * it, reports within its 2 Hz period): a host silent for the whole window is lost. Once
+     * every host a status names has reported, the table is complete. */
     pump(cli, window, watch ? NULL : all_heard);
     if (watch) {
         /* every second; a host silent for more than 2 s is lost */

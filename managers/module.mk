@@ -11,11 +11,13 @@ $(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers
 # The systemd unit, with the install prefix substituted.
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/lib/systemd/system && sed "s|/usr/local/|$(PREFIX)/|g" deploy/systemd/marie-am.service > $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service && chmod 644 $(DESTDIR)$(PREFIX)/lib/systemd/system/marie-am.service;
 
-# Test helpers (not installed): a component that can be made to hang, crash or print, and a
-# sender of hand-made (unsigned, forged, replayed, malformed) orders.
+# Test helpers (not installed): a component that can be made to hang, crash or print, a
+# sender of hand-made (unsigned, forged, replayed, malformed) orders, and a flood of status
+# requests or a manager that does not answer them.
 $(eval $(call marie_link,$(B)/tests/bin/marie-test-comp,tests/managers/test_comp.c,))
 $(eval $(call marie_link,$(B)/tests/bin/marie-test-order,tests/managers/order_tool.c,$(MANAGERS_LIB)))
-EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp $(B)/tests/bin/marie-test-order
+$(eval $(call marie_link,$(B)/tests/bin/marie-test-status,tests/managers/status_tool.c,$(MANAGERS_LIB)))
+EXTRA_TARGETS += $(B)/tests/bin/marie-test-comp $(B)/tests/bin/marie-test-order $(B)/tests/bin/marie-test-status
 
 $(eval $(call marie_test,test_auth,tests/managers/test_auth.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_logcap,tests/managers/test_logcap.c,$(MANAGERS_LIB)))
@@ -25,7 +27,7 @@ $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_L
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 $(eval $(call marie_test,test_sdnotify,tests/managers/test_sdnotify.c managers/sdnotify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_am_spawn.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
-ITESTS += tests/managers/test_balance.sh tests/managers/test_fast_detect.sh
+ITESTS += tests/managers/test_balance.sh tests/managers/test_fast_detect.sh tests/managers/test_ps.sh
 # make fuzz links only the listed sources: the generated decoders it needs are listed too.
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/logcap.c,))
 

@@ -61,7 +61,8 @@ int main(int argc, char **argv)
         lcm_t *lcm = lcm_create(marie_default_url());
         if (!lcm)
             return 1;
-        static const char *const channels[] = {MARIE_CH_AM_ORDER, "MARIE_HEARTBEAT", MARIE_CH_AM_STATUS};
+        static const char *const channels[] = {MARIE_CH_AM_ORDER, "MARIE_HEARTBEAT", MARIE_CH_AM_STATUS,
+                                               MARIE_CH_AM_STATUS_REQUEST};
         srand(7);
         for (int i = 0; i < repeat; i++) {
             uint8_t buf[300];
@@ -78,7 +79,7 @@ int main(int argc, char **argv)
                     memset(buf + 16, 0xff, 4);
                 }
             }
-            lcm_publish(lcm, channels[i % 3], buf, (unsigned)n);
+            lcm_publish(lcm, channels[i % 4], buf, (unsigned)n);
         }
         lcm_destroy(lcm);
         printf("sent %d\n", repeat);

@@ -266,7 +266,9 @@ usage() {
     wait_for 20 sh -c "[ \$(awk '{print \$24}' /proc/$sp/stat) -gt 50000 ]"    # 200 MiB touched (pages)
     sleep 2
     t0=$(date +%s%N); c0=$(awk '{print $14 + $15}' /proc/$sp/stat)
-    for i in 1 2 3; do "$M" --json ps --window 1.1 > "$T/ps$i.json"; done
+    # ps answers at once with the manager's last sample (one 0.5 s status period): spread the
+    # three over about 1.5 s, so that the kernel's count covers the periods they show
+    for i in 1 2 3; do "$M" --json ps --window 1.1 > "$T/ps$i.json"; sleep 0.5; done
     t1=$(date +%s%N); c1=$(awk '{print $14 + $15}' /proc/$sp/stat)
     python3 - "$T" "$t0" "$t1" "$c0" "$c1" "$(getconf CLK_TCK)" <<'PY'
 import json, sys

@@ -68,7 +68,7 @@ static void test_status_with_components(void **state)
     free(buf);
 }
 
-static void test_reply_log_event_heartbeat(void **state)
+static void test_reply_request_log_event_heartbeat(void **state)
 {
     char *hosts[] = {"h1"};
     marie_am_reply_t r = {.host = "h1", .sender = "s", .reason = "ok", .ok = 1, .nhosts = 1, .hosts = hosts};
@@ -76,6 +76,10 @@ static void test_reply_log_event_heartbeat(void **state)
     int n;
     ENCODE(marie_am_reply_t, &r, buf, n);
     expect_all_truncations_refused(buf, n, "am_reply_t");
+    free(buf);
+    marie_am_status_request_t rq = {.utime = 1, .sender = "ops@laptop", .host = "*"};
+    ENCODE(marie_am_status_request_t, &rq, buf, n);
+    expect_all_truncations_refused(buf, n, "am_status_request_t");
     free(buf);
     marie_log_line_t l = {.host = "h", .component = "c", .text = "hello"};
     ENCODE(marie_log_line_t, &l, buf, n);
@@ -113,7 +117,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_order),
         cmocka_unit_test(test_status_with_components),
-        cmocka_unit_test(test_reply_log_event_heartbeat),
+        cmocka_unit_test(test_reply_request_log_event_heartbeat),
         cmocka_unit_test(test_huge_count_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
