@@ -34,6 +34,7 @@ static void report(marie_component_t *c, mapper_t *s)
     marie_component_count(c, "loop_candidates", st.loop_candidates - s->seen.loop_candidates);
     marie_component_count(c, "loop_ambiguous", st.loop_ambiguous - s->seen.loop_ambiguous);
     marie_component_count(c, "loop_implausible", st.loop_implausible - s->seen.loop_implausible);
+    marie_component_count(c, "cells_cleared", st.cells_cleared - s->seen.cells_cleared);
     if (st.loop_closures > s->seen.loop_closures) {
         marie_component_count(c, "loop_closures", st.loop_closures - s->seen.loop_closures);
         if (st.optimizations > s->seen.optimizations)

@@ -96,8 +96,10 @@ void Grid::hit(int cx, int cy)
 void Grid::miss(int cx, int cy)
 {
     size_t i = (size_t)cy * w_ + cx;
+    bool was_wall = lo_[i] > p_.l_occupied;
     lo_[i] = (float)std::max(p_.l_min, lo_[i] + p_.l_miss);
     seen_[i] = 1;
+    cleared_ += was_wall && lo_[i] < 0;
     bx0_ = std::min(bx0_, cx), bx1_ = std::max(bx1_, cx);
     by0_ = std::min(by0_, cy), by1_ = std::max(by1_, cy);
 }

@@ -63,6 +63,9 @@ public:
     double match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival = nullptr) const;
     double score(const Scan &s, const Pose &at) const;
     size_t memory_bytes() const;
+    // Cells that were walls (log-odds above l_occupied) and that beams have since made free
+    // (log-odds below 0): a moved obstacle, or a wall drawn out of place. Counted since creation.
+    int64_t cleared() const { return cleared_; }
 
 private:
     Scan seen_hits(const Scan &s, const Pose &guess) const;
@@ -82,6 +85,7 @@ private:
     std::vector<float> kernel_;
     int kr_;                                   // kernel radius, cells
     int bx0_, by0_, bx1_, by1_;
+    int64_t cleared_ = 0;
 };
 
 }  // namespace mapper

@@ -250,6 +250,15 @@ static void try_loop(slam_t *s)
     optimize_graph(s, std::min(best, s->pending_edge.a));
 }
 
+// A new scan drawn into the grid at the robot's pose; the walls it clears are counted (a
+// re-render draws them again, uncounted).
+static void add_to_grid(slam_t *s, const Scan &sc)
+{
+    int64_t cleared = s->grid->cleared();
+    s->grid->integrate(s->last_pose, sc);
+    s->st.cells_cleared += s->grid->cleared() - cleared;
+}
+
 extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t *scan, double pose[3])
 {
     Scan sc;
@@ -309,10 +318,10 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
             s->kfs.push_back({ s->last_pose, sc });
             s->odom_since_kf = 0;
             s->st.keyframes = (int64_t)s->kfs.size();
-            s->grid->integrate(s->last_pose, sc);
+            add_to_grid(s, sc);
             try_loop(s);
         } else {
-            s->grid->integrate(s->last_pose, sc);   /* past the bound the map still grows */
+            add_to_grid(s, sc);     /* past the bound the map still grows */
         }
         added = 1;
     }

@@ -30,6 +30,8 @@ typedef struct {
     int64_t loop_ambiguous;             /* matched, but as well elsewhere in the window: refused */
     int64_t loop_implausible;           /* best at the window's edge, or further than the matcher drifts: refused */
     int64_t loop_unconfirmed;           /* a large correction the next closure did not repeat: dropped */
+    int64_t cells_cleared;              /* walls the beams have since seen through: a moved obstacle (or a
+                                         * wall drawn out of place), cleared from the map */
     double last_score;                  /* mean likelihood of the last match */
     double last_match_ms, last_opt_ms;
 } slam_stats_t;

@@ -1,5 +1,5 @@
 /* test_slam: the mapper builds the office world from a simulated robot with drifting odometry:
- * map quality against the world, trajectory error, loop closure, bad input. */
+ * map quality against the world, trajectory error, loop closure, bad input, a moved obstacle. */
 #include <errno.h>
 #include <math.h>
 #include <setjmp.h>
@@ -206,6 +206,75 @@ static void test_bad_input_refused_map_kept(void **state)
     occmap_destroy(world);
 }
 
+/* Cells of map m in the square of side `side` centred on (x, y) (one cell more all round) that
+ * are occupied (>= 65). */
+static int occupied_near(const occmap_t *m, double x, double y, double side)
+{
+    int n = 0;
+    double h = side / 2 + m->resolution;
+    for (double py = y - h; py <= y + h; py += m->resolution)
+        for (double px = x - h; px <= x + h; px += m->resolution) {
+            int cx, cy;
+            if (occmap_cell(m, px, py, &cx, &cy))
+                n += m->cells[(size_t)cy * m->width + cx] >= 65;
+        }
+    return n;
+}
+
+/* A box (side 0.5 m) put in or taken out of the world at (x, y). */
+static void box(occmap_t *w, double x, double y, int8_t v)
+{
+    for (double py = y - 0.25; py < y + 0.25; py += w->resolution / 2)
+        for (double px = x - 0.25; px < x + 0.25; px += w->resolution / 2) {
+            int cx = 0, cy = 0;
+            assert_true(occmap_cell(w, px, py, &cx, &cy));
+            w->cells[(size_t)cy * w->width + cx] = v;
+        }
+}
+
+/* A box in a room is mapped, then moved while the robot is away: driving through the room again
+ * clears it where it was (counted as cells_cleared), draws it where it is, and the robot's pose
+ * stays right (the map stays consistent). */
+static void test_moved_obstacle(void **state)
+{
+    occmap_t *world = office();
+    const double ax = 5.3, ay = 20.5, bx = 3.0, by = 19.0;
+    assert_int_equal(occupied_near(world, ax, ay, 0.5), 0);     /* both places are free floor */
+    assert_int_equal(occupied_near(world, bx, by, 0.5), 0);
+    box(world, ax, ay, OCCMAP_OCCUPIED);
+    simrobot_t r = robot_at(4.1, 15.7, 11);
+    slam_params_t p;
+    slam_params_default(&p);
+    slam_t *s = slam_create(&p, r.truth);
+    static const double room[][2] = { { 4.1, 15.7 }, { 4.1, 22.5 }, { 4.1, 15.7 }, { 8.0, 15.7 } };
+    drive(s, world, &r, room, 4);
+    occmap_t *m1 = slam_render(s);
+    int a1 = occupied_near(m1, ax, ay, 0.5), b1 = occupied_near(m1, bx, by, 0.5);
+    slam_stats_t st1;
+    slam_get_stats(s, &st1);
+    box(world, ax, ay, OCCMAP_FREE);
+    box(world, bx, by, OCCMAP_OCCUPIED);
+    static const double back[][2] = { { 4.1, 15.7 }, { 4.1, 22.5 }, { 4.1, 15.7 }, { 4.1, 22.5 }, { 4.1, 15.7 } };
+    drive_t d = drive(s, world, &r, back, 5);
+    occmap_t *m2 = slam_render(s);
+    int a2 = occupied_near(m2, ax, ay, 0.5), b2 = occupied_near(m2, bx, by, 0.5);
+    slam_stats_t st2;
+    slam_get_stats(s, &st2);
+    print_message("box where it was: %d occupied cells before the move, %d after; where it went: %d before, %d after; "
+                  "cells cleared %lld then %lld; ATE after the move %.3f m (max %.3f)\n", a1, a2, b1, b2,
+                  (long long)st1.cells_cleared, (long long)st2.cells_cleared, d.ate_rms, d.max_err);
+    assert_true(a1 >= 8);                       /* the box's faces the robot saw */
+    assert_true(b1 == 0);
+    assert_true(a2 <= a1 / 10);                 /* gone from where it was */
+    assert_true(b2 >= 8);                       /* drawn where it is */
+    assert_true(st2.cells_cleared - st1.cells_cleared >= a1 / 2);   /* counted as cleared */
+    assert_true(d.ate_rms < 0.10);
+    occmap_destroy(m1);
+    occmap_destroy(m2);
+    slam_destroy(s);
+    occmap_destroy(world);
+}
+
 static void test_bad_parameters_refused(void **state)
 {
     slam_params_t p;
@@ -232,6 +301,7 @@ int main(void)
         cmocka_unit_test(test_office_route_map_quality),
         cmocka_unit_test(test_loop_closure_office_loop),
         cmocka_unit_test(test_bad_input_refused_map_kept),
+        cmocka_unit_test(test_moved_obstacle),
         cmocka_unit_test(test_bad_parameters_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
