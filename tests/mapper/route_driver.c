@@ -107,8 +107,8 @@ int main(int argc, char **argv)
     d.lcm = lcm_create(NULL);
     if (!d.lcm)
         return 1;
-    marie_pose_cov_t_subscribe(d.lcm, "SIM_TRUTH", on_truth, &d);
-    marie_pose_cov_t_subscribe(d.lcm, "POSE", on_pose, &d);
+    marie_pose_cov_t_subscription_t *st = marie_pose_cov_t_subscribe(d.lcm, "SIM_TRUTH", on_truth, &d);
+    marie_pose_cov_t_subscription_t *sp = marie_pose_cov_t_subscribe(d.lcm, "POSE", on_pose, &d);
     int64_t end = marie_mono_us() + (int64_t)(timeout * 1e6);
     while (d.next < d.nwp && marie_mono_us() < end) {
         struct pollfd pfd = { .fd = lcm_get_fileno(d.lcm), .events = POLLIN };
@@ -125,6 +125,8 @@ int main(int argc, char **argv)
     printf("route %s (%d of %d waypoints)\n", d.next >= d.nwp ? "done" : "timeout", d.next, d.nwp);
     if (d.traj)
         fclose(d.traj);
+    marie_pose_cov_t_unsubscribe(d.lcm, st);
+    marie_pose_cov_t_unsubscribe(d.lcm, sp);
     lcm_destroy(d.lcm);
     return d.next >= d.nwp ? 0 : 1;
 }
