@@ -18,6 +18,7 @@
 #include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
+#include "lcmtypes/marie_types.h"
 
 /* LCM's wire format (lcm/udpm_util.h): big-endian headers, then the channel and its NUL in a
  * short message or in the first fragment of a long one. */
@@ -869,6 +870,22 @@ int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigne
                                   : send_fragments(b, channel, cl, data, len, (unsigned)nfrags);
     b->tx_seqno++;
     pthread_mutex_unlock(&b->tx_lock);
+    return rc;
+}
+
+int marie_lcm_publish_msg(lcm_t *lcm, const char *channel, const marie_type_t *t, const void *msg)
+{
+    uint8_t small[2048];    /* heartbeats, events, replies: no allocation */
+    int size = t->encoded_size(msg);
+    if (size < 0)
+        return marie_fail(EINVAL);
+    uint8_t *buf = (size_t)size <= sizeof small ? small : malloc((size_t)size);
+    if (!buf)
+        return -1;
+    int rc = t->encode(buf, 0, size, msg) == size ? marie_lcm_publish(lcm, channel, buf, (unsigned)size)
+                                                  : marie_fail(EINVAL);
+    if (buf != small)
+        MARIE_KEEP_ERRNO(free(buf));
     return rc;
 }
 

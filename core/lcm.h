@@ -34,6 +34,11 @@ int marie_lcm_native(const lcm_t *lcm);             /* 1: marie reads it, 0: lib
 int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned len);
 int marie_lcm_sends(const lcm_t *lcm);              /* 1: marie sends on it, 0: liblcm does */
 
+/* lcm-gen's TYPE_publish() through marie_lcm_publish(): encodes msg, of type t (lcmtypes'
+ * marie_type_TYPE), and sends it. 0, or -1 with errno (EINVAL: t cannot encode it). */
+struct marie_type;
+int marie_lcm_publish_msg(lcm_t *lcm, const char *channel, const struct marie_type *t, const void *msg);
+
 /* A subscription: `channel` is a regular expression matched against the whole channel name, as
  * in LCM. liblcm's subscriptions hold MARIE_LCM_QUEUE messages until read (its own default is
  * 30, dropped without a word: a bring-up of 45 components sends ~135 heartbeats while the
