@@ -116,9 +116,6 @@ typedef struct {
  * provider, transmit_only, not understood). */
 static bool parse_udpm(const char *url, udpm_t *u)
 {
-    struct in_addr *group = &u->group;
-    uint16_t *port = &u->port;
-    int *rcvbuf = &u->rcvbuf;
     const char *p = url;
     if (strncmp(p, "udpm://", 7) != 0)
         return false;
@@ -129,19 +126,19 @@ static bool parse_udpm(const char *url, udpm_t *u)
         return false;
     memcpy(addr, p, n);
     addr[n] = '\0';
-    if (inet_pton(AF_INET, addr, group) != 1 || !IN_MULTICAST(ntohl(group->s_addr)))
+    if (inet_pton(AF_INET, addr, &u->group) != 1 || !IN_MULTICAST(ntohl(u->group.s_addr)))
         return false;
     p += n;
-    *port = 7667;
+    u->port = 7667;
     if (*p == ':') {
         char *end;
         unsigned long v = strtoul(p + 1, &end, 10);
         if (end == p + 1 || v == 0 || v > 65535)
             return false;
-        *port = (uint16_t)v;
+        u->port = (uint16_t)v;
         p = end;
     }
-    *rcvbuf = RECV_BUF_DEFAULT;
+    u->rcvbuf = RECV_BUF_DEFAULT;
     u->ttl = 0;             /* liblcm's default: nothing leaves the host */
     if (*p == '\0')
         return true;
@@ -152,7 +149,7 @@ static bool parse_udpm(const char *url, udpm_t *u)
         if (strncmp(p, "recv_buf_size=", 14) == 0) {
             long v = atol(p + 14);
             if (v > 0 && v <= (1 << 30))
-                *rcvbuf = (int)v;
+                u->rcvbuf = (int)v;
         } else if (strncmp(p, "ttl=", 4) == 0) {
             char *end;
             long v = strtol(p + 4, &end, 0);    /* liblcm's reading: base 0 */
