@@ -84,8 +84,9 @@ int main(void)
     pid_t pm = test_spawn(mbx_argv, "/dev/null");
     usleep(300000);
     pid_t pb = test_spawn(beh_argv, "/dev/null");
-    /* The observer reads the bus as the components do (marie's receiver, core/lcm.h). */
-    lcm_t *tx = lcm_create(NULL), *rx = marie_lcm_create(NULL);
+    /* The inputs are sent, and the observer reads the bus, as components do (marie's sender
+     * and receiver, core/lcm.h). */
+    lcm_t *tx = marie_lcm_create(NULL), *rx = marie_lcm_create(NULL);
     marie_lcm_subscribe(rx, "LASER\\.PULL", on_pull, NULL);
     marie_lcm_subscribe(rx, "MOTOR_COMMAND", on_cmd, NULL);
     marie_lcm_subscribe(rx, "LASER", on_scan_copy, NULL);
@@ -104,13 +105,13 @@ int main(void)
             for (int i = 0; i < 181; i++)
                 ranges[i] = (i > 80 && i < 100) ? ahead : 6.0f;
             marie_laser_scan_t scan = {now, (float)-M_PI / 2, (float)M_PI / 180, 0.05f, 8.0f, 181, ranges, 0, NULL};
-            marie_laser_scan_t_publish(tx, "LASER", &scan);
+            marie_lcm_publish_msg(tx, "LASER", &marie_type_laser_scan_t, &scan);
             marie_pose_cov_t pose = {.utime = now, .frame = "map", .pose = {0, 0, 0}};
-            marie_pose_cov_t_publish(tx, "POSE", &pose);
+            marie_lcm_publish_msg(tx, "POSE", &marie_type_pose_cov_t, &pose);
             marie_path_t p = {.utime = now, .goal_id = 1, .nposes = 20, .poses = path};
-            marie_path_t_publish(tx, "PATH", &p);
+            marie_lcm_publish_msg(tx, "PATH", &marie_type_path_t, &p);
             marie_estop_t e = {now, 0, "bench"};
-            marie_estop_t_publish(tx, "ESTOP", &e);
+            marie_lcm_publish_msg(tx, "ESTOP", &marie_type_estop_t, &e);
             k++;
             next += 20000;  /* 50 Hz inputs */
         }
@@ -131,7 +132,7 @@ int main(void)
     bench_row("pipeline", "laser_to_motor_command_p50", pct(&chain, 0.5), "us", 500);
     bench_row("pipeline", "laser_to_motor_command_p99", pct(&chain, 0.99), "us", 500);
     bench_row("pipeline", "laser_to_motor_command_p99_bound", h99 + t99, "us", 500);
-    lcm_destroy(tx);
+    marie_lcm_destroy(tx);
     marie_lcm_destroy(rx);
     return tick_to_cmd.n > 10 ? 0 : 1;
 }

@@ -1,7 +1,9 @@
 /* bench_rtt: round trip (ping, wait for the echo, ping again) to an echo process, through marie
  * ports and through the raw LCM C API in the same run, and Cyclone DDS's own ddsperf ping/pong
  * (ROS 2's middleware of Debian 12's generation) measured the same way right after, for 64 B,
- * 8 KB and 900 KB. `bench_rtt pong [--url URL]` is the echo process. */
+ * 8 KB and 900 KB. A third path in the same run reads as ports do but sends with liblcm's
+ * lcm_publish on the same bus, both ways: marie's sender against liblcm's, all else equal.
+ * `bench_rtt pong [--url URL]` is the echo process. */
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,6 +26,15 @@ static void echo_port(marie_component_t *c, marie_port_t *p, const void *msg, co
     marie_port_publish(marie_port(c, "pong"), msg);
 }
 
+/* The same echo, sent by liblcm on the port's bus (marie reads it). */
+static void echo_lib(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    static uint8_t buf[1 << 20];
+    int n = marie_image_t_encode(buf, 0, sizeof buf, msg);
+    if (n > 0)
+        lcm_publish(marie_component_lcm(c), "RTT_PONG_LIB", buf, (unsigned)n);
+}
+
 static void echo_raw(const lcm_recv_buf_t *rb, const char *ch, const marie_image_t *m, void *user)
 {
     marie_image_t_publish(user, "RTT_RAW_PONG", m);
@@ -35,12 +46,15 @@ static int pong_init(marie_component_t *c)
     if (!lcm || !marie_image_t_subscribe(lcm, "RTT_RAW_PING", echo_raw, lcm) ||
         marie_loop_add_lcm(marie_component_loop(c), lcm, 1) < 0)
         return -1;
+    if (marie_port_on_message(marie_port(c, "ping_lib"), echo_lib) < 0)
+        return -1;
     return marie_port_on_message(marie_port(c, "ping"), echo_port);
 }
 
 static const marie_port_spec_t pong_ports[] = {
     {"ping", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PING"},
     {"pong", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PONG"},
+    {"ping_lib", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PING_LIB"},
     {0},
 };
 static const marie_component_def_t pong_def = {.kind = "bench-pong", .ports = pong_ports, .on_init = pong_init};
@@ -57,7 +71,7 @@ typedef struct {
 typedef struct {
     marie_component_t *c;
     lcm_t *lcm;
-    rtt_t marie, raw;
+    rtt_t marie, lib, raw;  /* ports; ports read, liblcm sends; raw liblcm */
 } pinger_t;
 
 static void got(rtt_t *r, const marie_image_t *m)
@@ -79,28 +93,47 @@ static void on_raw_pong(const lcm_recv_buf_t *rb, const char *ch, const marie_im
     got(user, m);
 }
 
-static int ping_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "pong"), on_pong); }
+static void on_pong_lib(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    got(&((pinger_t *)marie_component_user(c))->lib, msg);
+}
+
+static int ping_init(marie_component_t *c)
+{
+    if (marie_port_on_message(marie_port(c, "pong_lib"), on_pong_lib) < 0)
+        return -1;
+    return marie_port_on_message(marie_port(c, "pong"), on_pong);
+}
 
 static const marie_port_spec_t ping_ports[] = {
     {"ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PING"},
     {"pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG"},
+    {"pong_lib", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG_LIB"},
     {0},
 };
 static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
 
+enum { PORTS, LIB_SEND, RAW };
+
 /* One round trip: 0 when the echo came back within timeout_ms. The raw side waits the way a
  * plain LCM program does (poll the fd, lcm_handle); marie's on its loop. */
-static int round_trip(pinger_t *pg, int use_marie, marie_image_t *img, int32_t seq, int timeout_ms)
+static int round_trip(pinger_t *pg, int path, marie_image_t *img, int32_t seq, int timeout_ms)
 {
-    rtt_t *r = use_marie ? &pg->marie : &pg->raw;
+    int use_marie = path != RAW;
+    rtt_t *r = path == PORTS ? &pg->marie : path == LIB_SEND ? &pg->lib : &pg->raw;
     r->want = seq;
     r->back = 0;
     img->row_stride = seq;
     img->utime = marie_mono_us();
-    if (use_marie)
+    if (path == PORTS) {
         marie_port_publish(marie_port(pg->c, "ping"), img);
-    else
+    } else if (path == LIB_SEND) {
+        static uint8_t buf[1 << 20];
+        int n = marie_image_t_encode(buf, 0, sizeof buf, img);
+        lcm_publish(marie_component_lcm(pg->c), "RTT_PING_LIB", buf, (unsigned)n);
+    } else {
         marie_image_t_publish(pg->lcm, "RTT_RAW_PING", img);
+    }
     int64_t end = img->utime + timeout_ms * 1000;
     while (!r->back && marie_mono_us() < end) {
         if (use_marie) {
@@ -175,16 +208,24 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     marie_image_t img = {.width = 1, .height = (int32_t)size, .size = (int32_t)size,
                          .format = MARIE_IMAGE_T_FORMAT_GRAY8};
     img.data = calloc(1, size);
-    int lost_m = 0, lost_r = 0;
+    int lost_m = 0, lost_l = 0, lost_r = 0;
     for (int pass = 0; pass < 2; pass++) {  /* the first pass warms caches and sockets */
-        pg->marie.n = pg->raw.n = 0;
-        lost_m = lost_r = 0;
+        pg->marie.n = pg->lib.n = pg->raw.n = 0;
+        lost_m = lost_l = lost_r = 0;
         int32_t seq = 1000000 * (pass + 1);
-        for (int blk = 0; blk < 10; blk++) {  /* interleaved: drift hits both alike */
+        /* Interleaved, so that drift hits all alike; the two senders take turns going first (a
+         * block's first round trips, after another path's, are slower: p99 follows the order). */
+        for (int blk = 0; blk < 10; blk++) {
+            for (int turn = 0; turn < 2; turn++) {
+                if ((blk + turn) % 2 == 0)
+                    for (int i = 0; i < n / 10; i++)
+                        lost_m -= round_trip(pg, PORTS, &img, seq++, 200);
+                else
+                    for (int i = 0; i < n / 10; i++)
+                        lost_l -= round_trip(pg, LIB_SEND, &img, seq++, 200);
+            }
             for (int i = 0; i < n / 10; i++)
-                lost_m -= round_trip(pg, 1, &img, seq++, 200);
-            for (int i = 0; i < n / 10; i++)
-                lost_r -= round_trip(pg, 0, &img, seq++, 200);
+                lost_r -= round_trip(pg, RAW, &img, seq++, 200);
         }
     }
     free(img.data);
@@ -193,6 +234,9 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("p50", label, m50, "us", bench_percentile(pg->raw.lat, pg->raw.n, 0.5));
     row("p99", label, m99, "us", bench_percentile(pg->raw.lat, pg->raw.n, 0.99));
     row("lost", label, lost_m, "msgs", lost_r);
+    row("p50_vs_liblcm_send", label, m50, "us", bench_percentile(pg->lib.lat, pg->lib.n, 0.5));
+    row("p99_vs_liblcm_send", label, m99, "us", bench_percentile(pg->lib.lat, pg->lib.n, 0.99));
+    row("lost_liblcm_send", label, lost_l, "msgs", NAN);
     dds_t d;
     if (dds_round_trip(size, 3, &d) < 0) {
         printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
@@ -244,7 +288,7 @@ int main(int argc, char **argv)
     probe.data = &byte;
     int up = 0;
     for (int i = 0; i < 100 && !up; i++)
-        up = round_trip(&pg, 1, &probe, -1 - i, 50) == 0;
+        up = round_trip(&pg, PORTS, &probe, -1 - i, 50) == 0;
     if (!up) {
         fprintf(stderr, "bench_rtt: the echo process did not answer\n");
         test_stop(pong);

@@ -4,3 +4,4 @@ BENCHES += bench/bench_demo.sh bench/bench_scale.sh
 $(eval $(call marie_bench,bench_config,bench/bench_config.c))
 $(eval $(call marie_bench,bench_shm,bench/bench_shm.c))
 $(eval $(call marie_bench,bench_rtt,bench/bench_rtt.c tests/proc.c))
+$(eval $(call marie_bench,bench_send,bench/bench_send.c))

@@ -32,7 +32,7 @@ int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t 
     if (s && s->publish)
         return s->publish(s->user, channel, buf, len);
     if (s && s->lcm)
-        return lcm_publish(s->lcm, channel, buf, (unsigned int)len) < 0 ? -EIO : 0;
+        return marie_lcm_publish(s->lcm, channel, buf, (unsigned int)len) < 0 ? -EIO : 0;
     return 0;
 }
 

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/lcm.h"
 #include "core/log.h"
 #include "core/typeinfo.h"
 #include "core/spec.h"
@@ -128,7 +129,7 @@ void marie_component_heartbeat(marie_component_t *c)
                                          p->msgs};
     }
     hb.ports = ports;
-    marie_heartbeat_t_publish(c->buses[0].lcm, MARIE_CH_HEARTBEAT, &hb);
+    marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_HEARTBEAT, &marie_type_heartbeat_t, &hb);
 }
 
 void marie_component_event(marie_component_t *c, int severity, const char *kind, const char *fmt, ...)
@@ -139,7 +140,7 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
         .utime = marie_wall_us(), .source = c->name, .seq = ++c->event_seq,
         .severity = (int8_t)severity, .kind = (char *)kind, .text = text,
     };
-    if (marie_event_t_publish(c->buses[0].lcm, MARIE_CH_EVENT, &ev) != 0)
+    if (marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev) != 0)
         c->drops++;
     marie_log_level_t lvl = severity >= MARIE_EVENT_T_SEV_ERROR  ? MARIE_LOG_ERROR
                             : severity >= MARIE_EVENT_T_SEV_WARN ? MARIE_LOG_WARN
@@ -292,7 +293,7 @@ static void reply(marie_component_t *c, int64_t request_id, int cmd, bool ok, co
         .utime = marie_wall_us(), .request_id = request_id, .component = c->name,
         .command = (int8_t)cmd, .ok = ok, .state = (int8_t)c->state, .reason = (char *)why,
     };
-    marie_lifecycle_reply_t_publish(c->buses[0].lcm, MARIE_CH_LIFECYCLE_REPLY, &r);
+    marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_LIFECYCLE_REPLY, &marie_type_lifecycle_reply_t, &r);
 }
 
 static bool targets_me(const marie_component_t *c, const char *target)

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "core/err.h"
+#include "core/lcm.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "core/component_priv.h"
@@ -235,8 +236,8 @@ int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
     int err = 0;
     if (p->shm_pub)
         err = -marie_shm_pub_publish(p->shm_pub, data, len);
-    else if (lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0)
-        err = errno ? errno : EIO;
+    else if (marie_lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0)
+        err = errno;
     return published(p, err, len);
 }
 
@@ -397,7 +398,7 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
         .utime = marie_wall_us(), .request_id = pl->request_id, .requester = c->name,
         .channel = p->channel, .reply_channel = c->reply_channel, .timeout_ms = timeout_ms,
     };
-    if (marie_pull_request_t_publish(p->lcm, req_channel, &req) != 0) {
+    if (marie_lcm_publish_msg(p->lcm, req_channel, &marie_type_pull_request_t, &req) != 0) {
         c->drops++;
         free(pl);
         return marie_fail_null(EIO);

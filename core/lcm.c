@@ -1,10 +1,11 @@
-/* lcm: marie's reader of LCM's UDP multicast protocol, on the loop's thread (core/lcm.h). */
+/* lcm: marie's reader and sender of LCM's UDP multicast protocol (core/lcm.h). */
 #include "core/lcm.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
 #include <linux/filter.h>
 #include <netinet/in.h>
+#include <pthread.h>
 #include <regex.h>
 #include <stdbool.h>
 #include <stdlib.h>
@@ -17,6 +18,7 @@
 #include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
+#include "lcmtypes/marie_types.h"
 
 /* LCM's wire format (lcm/udpm_util.h): big-endian headers, then the channel and its NUL in a
  * short message or in the first fragment of a long one. */
@@ -25,6 +27,13 @@
 #define SHORT_HDR 8                 /* magic, sequence number */
 #define LONG_HDR 20                 /* magic, seqno, size, fragment offset, fragment no, count */
 #define DATAGRAM_MAX 65536
+/* What liblcm 1.3.1 sends on Linux (udpm_util.h): a message whose channel, its NUL and payload
+ * take at most SHORT_MAX bytes goes in one LC02 datagram, a larger one in LC03 fragments of at
+ * most FRAG_PAYLOAD bytes after their header, the channel and its NUL counted in the first. */
+#define SHORT_MAX 65499
+#define FRAG_PAYLOAD 65487
+#define FRAGS_MAX 65535
+#define FRAGS_PER_CALL 64           /* fragments handed to one sendmmsg() */
 #define RECV_BUF_DEFAULT (2 << 20)  /* bytes of kernel buffer when the URL names none */
 /* Fragmented messages being put together: at most this many senders at once, this many bytes
  * each (liblcm's own bound on all of them is 16 MB). */
@@ -71,23 +80,41 @@ typedef struct bus {
     uint32_t ovfl;          /* the kernel's drop count at the last datagram */
     bool filtered;          /* a socket filter is attached (refilter()) */
     marie_lcm_stats_t st;
+    /* Sending (marie_lcm_publish), from any thread: tx_lock keeps a message's fragments
+     * together and its sequence number its own, as liblcm's transmit lock does. */
+    int tx_fd;              /* -1: liblcm sends on this bus */
+    struct sockaddr_in tx_to;
+    uint32_t tx_seqno;
+    pthread_mutex_t tx_lock;
 } bus_t;
 
+/* The buses marie_lcm_create() made. Guarded, since a bus may be published on from any thread;
+ * it is still made, read and destroyed by one. */
 static bus_t *buses;
+static pthread_mutex_t buses_lock = PTHREAD_MUTEX_INITIALIZER;
 
 static void refilter(bus_t *b);
 
 static bus_t *find(const lcm_t *lcm)
 {
-    for (bus_t *b = buses; b; b = b->next)
-        if (b->lcm == lcm)
-            return b;
-    return NULL;
+    pthread_mutex_lock(&buses_lock);
+    bus_t *b = buses;
+    while (b && b->lcm != lcm)
+        b = b->next;
+    pthread_mutex_unlock(&buses_lock);
+    return b;
 }
 
-/* "udpm://ADDR:PORT?opt=v&..." into the group, the port and the receive buffer size; false when
- * marie should leave the bus to liblcm (another provider, transmit_only, not understood). */
-static bool parse_udpm(const char *url, struct in_addr *group, uint16_t *port, int *rcvbuf)
+typedef struct {
+    struct in_addr group;
+    uint16_t port;
+    int rcvbuf;
+    int ttl;                /* -1: not one liblcm would read the same (left to liblcm) */
+} udpm_t;
+
+/* "udpm://ADDR:PORT?opt=v&..." into u; false when marie should leave the bus to liblcm (another
+ * provider, transmit_only, not understood). */
+static bool parse_udpm(const char *url, udpm_t *u)
 {
     const char *p = url;
     if (strncmp(p, "udpm://", 7) != 0)
@@ -99,19 +126,20 @@ static bool parse_udpm(const char *url, struct in_addr *group, uint16_t *port, i
         return false;
     memcpy(addr, p, n);
     addr[n] = '\0';
-    if (inet_pton(AF_INET, addr, group) != 1 || !IN_MULTICAST(ntohl(group->s_addr)))
+    if (inet_pton(AF_INET, addr, &u->group) != 1 || !IN_MULTICAST(ntohl(u->group.s_addr)))
         return false;
     p += n;
-    *port = 7667;
+    u->port = 7667;
     if (*p == ':') {
         char *end;
         unsigned long v = strtoul(p + 1, &end, 10);
         if (end == p + 1 || v == 0 || v > 65535)
             return false;
-        *port = (uint16_t)v;
+        u->port = (uint16_t)v;
         p = end;
     }
-    *rcvbuf = RECV_BUF_DEFAULT;
+    u->rcvbuf = RECV_BUF_DEFAULT;
+    u->ttl = 0;             /* liblcm's default: nothing leaves the host */
     if (*p == '\0')
         return true;
     if (*p != '?')
@@ -121,7 +149,11 @@ static bool parse_udpm(const char *url, struct in_addr *group, uint16_t *port, i
         if (strncmp(p, "recv_buf_size=", 14) == 0) {
             long v = atol(p + 14);
             if (v > 0 && v <= (1 << 30))
-                *rcvbuf = (int)v;
+                u->rcvbuf = (int)v;
+        } else if (strncmp(p, "ttl=", 4) == 0) {
+            char *end;
+            long v = strtol(p + 4, &end, 0);    /* liblcm's reading: base 0 */
+            u->ttl = end > p + 4 && end == p + len && v >= 0 && v <= 255 ? (int)v : -1;
         } else if (strncmp(p, "transmit_only=", 14) == 0 &&
                    (strncmp(p + 14, "true", 4) == 0 || p[14] == '1')) {
             return false;
@@ -154,6 +186,28 @@ static int open_socket(struct in_addr group, uint16_t port, int rcvbuf)
     return fd;
 }
 
+/* The socket marie sends on: its own port (receivers put fragments together per sender), the
+ * URL's TTL, and multicast loopback on, so this process and this host hear what it sends. */
+static int open_sender(const udpm_t *u)
+{
+    int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        return -1;
+    int ttl = u->ttl, loop = 1;
+    if (setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl) < 0 ||
+        setsockopt(fd, IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof loop) < 0) {
+        MARIE_KEEP_ERRNO(close(fd));
+        return -1;
+    }
+    return fd;
+}
+
+static bool env_is(const char *name, const char *value)
+{
+    const char *v = getenv(name);
+    return v && strcmp(v, value) == 0;
+}
+
 lcm_t *marie_lcm_create(const char *url)
 {
     if (!url)
@@ -168,12 +222,11 @@ lcm_t *marie_lcm_create(const char *url)
     }
     b->lcm = lcm;
     b->fd = -1;
-    struct in_addr group;
-    uint16_t port;
-    int rcvbuf;
-    const char *mode = getenv("MARIE_LCM_RECEIVE");
-    if (!(mode && strcmp(mode, "liblcm") == 0) && parse_udpm(url, &group, &port, &rcvbuf)) {
-        b->fd = open_socket(group, port, rcvbuf);
+    b->tx_fd = -1;
+    pthread_mutex_init(&b->tx_lock, NULL);
+    udpm_t u;
+    if (!env_is("MARIE_LCM_RECEIVE", "liblcm") && parse_udpm(url, &u)) {
+        b->fd = open_socket(u.group, u.port, u.rcvbuf);
         if (b->fd < 0)      /* liblcm will say what is wrong when it is asked to read */
             marie_warn("%s: marie cannot read this bus itself (%s); liblcm reads it", url, strerror(errno));
         else if (!(b->buf = malloc(DATAGRAM_MAX))) {
@@ -182,9 +235,17 @@ lcm_t *marie_lcm_create(const char *url)
         }
         if (b->fd >= 0)
             refilter(b);        /* nothing subscribed yet: no short message is read */
+        /* Sent by marie only where it reads too, and with a TTL liblcm would read the same. */
+        if (b->fd >= 0 && u.ttl >= 0 && !env_is("MARIE_LCM_SEND", "liblcm")) {
+            b->tx_to = (struct sockaddr_in){.sin_family = AF_INET, .sin_port = htons(u.port), .sin_addr = u.group};
+            if ((b->tx_fd = open_sender(&u)) < 0)
+                marie_warn("%s: marie cannot send on this bus itself (%s); liblcm sends", url, strerror(errno));
+        }
     }
+    pthread_mutex_lock(&buses_lock);
     b->next = buses;
     buses = b;
+    pthread_mutex_unlock(&buses_lock);
     return lcm;
 }
 
@@ -207,11 +268,17 @@ void marie_lcm_destroy(lcm_t *lcm)
 {
     if (!lcm)
         return;
+    bus_t *b = NULL;
+    pthread_mutex_lock(&buses_lock);
     for (bus_t **pp = &buses; *pp; pp = &(*pp)->next) {
-        bus_t *b = *pp;
-        if (b->lcm != lcm)
-            continue;
-        *pp = b->next;
+        if ((*pp)->lcm == lcm) {
+            b = *pp;
+            *pp = b->next;
+            break;
+        }
+    }
+    pthread_mutex_unlock(&buses_lock);
+    if (b) {
         while (b->subs) {
             marie_lcm_sub_t *n = b->subs->next;
             sub_free(b->subs);
@@ -221,10 +288,12 @@ void marie_lcm_destroy(lcm_t *lcm)
             frag_drop(&b->frags[i]);
         if (b->fd >= 0)
             close(b->fd);
+        if (b->tx_fd >= 0)
+            close(b->tx_fd);
+        pthread_mutex_destroy(&b->tx_lock);
         free(b->buf);
         free(b->spare);
         free(b);
-        break;
     }
     lcm_destroy(lcm);
 }
@@ -702,4 +771,123 @@ int marie_lcm_handle(lcm_t *lcm, int max)
     if (buf != b->buf)
         free(buf);
     return handled;
+}
+
+/* ---- sending ---- */
+
+static void put32(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)(v >> 24), p[1] = (uint8_t)(v >> 16), p[2] = (uint8_t)(v >> 8), p[3] = (uint8_t)v;
+}
+
+static ssize_t send_one(bus_t *b, struct iovec *iov, int niov)
+{
+    struct msghdr m = {.msg_name = &b->tx_to, .msg_namelen = sizeof b->tx_to, .msg_iov = iov, .msg_iovlen = (size_t)niov};
+    ssize_t n;
+    do
+        n = sendmsg(b->tx_fd, &m, 0);
+    while (n < 0 && errno == EINTR);
+    return n;
+}
+
+/* One LC02 datagram: header, channel and its NUL, payload. */
+static int send_short(bus_t *b, const char *channel, size_t cl, const void *data, unsigned len)
+{
+    uint8_t hdr[SHORT_HDR];
+    put32(hdr, MAGIC_SHORT);
+    put32(hdr + 4, b->tx_seqno);
+    struct iovec iov[3] = {{hdr, sizeof hdr}, {(void *)channel, cl}, {(void *)data, len}};
+    ssize_t n = send_one(b, iov, 3);
+    if (n < 0)
+        return -1;
+    return n == (ssize_t)(sizeof hdr + cl + len) ? 0 : marie_fail(EIO);   /* UDP sends all or nothing */
+}
+
+/* LC03 fragments, FRAGS_PER_CALL to a system call: the first carries the channel and as much of
+ * the payload as fits beside it, the others FRAG_PAYLOAD bytes each, the last what is left. */
+static int send_fragments(bus_t *b, const char *channel, size_t cl, const uint8_t *data, unsigned len, unsigned nfrags)
+{
+    uint8_t hdr[FRAGS_PER_CALL][LONG_HDR];
+    struct iovec iov[FRAGS_PER_CALL][3];
+    struct mmsghdr mm[FRAGS_PER_CALL];
+    uint32_t offset = 0;
+    for (unsigned first = 0; first < nfrags; first += FRAGS_PER_CALL) {
+        unsigned k = nfrags - first < FRAGS_PER_CALL ? nfrags - first : FRAGS_PER_CALL;
+        for (unsigned i = 0; i < k; i++) {
+            unsigned no = first + i;
+            size_t room = no == 0 ? FRAG_PAYLOAD - cl : FRAG_PAYLOAD;
+            size_t n = len - offset < room ? len - offset : room;
+            uint8_t *h = hdr[i];
+            put32(h, MAGIC_LONG);
+            put32(h + 4, b->tx_seqno);
+            put32(h + 8, len);
+            put32(h + 12, offset);
+            h[16] = (uint8_t)(no >> 8), h[17] = (uint8_t)no;
+            h[18] = (uint8_t)(nfrags >> 8), h[19] = (uint8_t)nfrags;
+            int niov = 0;
+            iov[i][niov++] = (struct iovec){h, LONG_HDR};
+            if (no == 0)
+                iov[i][niov++] = (struct iovec){(void *)channel, cl};
+            iov[i][niov++] = (struct iovec){(void *)(data + offset), n};
+            mm[i] = (struct mmsghdr){.msg_hdr = {.msg_name = &b->tx_to, .msg_namelen = sizeof b->tx_to,
+                                                 .msg_iov = iov[i], .msg_iovlen = (size_t)niov}};
+            offset += (uint32_t)n;
+        }
+        for (unsigned sent = 0; sent < k;) {
+            int n = sendmmsg(b->tx_fd, mm + sent, k - sent, 0);
+            if (n < 0 && errno == EINTR)
+                continue;
+            if (n <= 0)
+                return -1;      /* the receivers give the message up, as they would a loss */
+            sent += (unsigned)n;
+        }
+    }
+    return 0;
+}
+
+int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned len)
+{
+    if (!lcm || !channel || (!data && len))
+        return marie_fail(EINVAL);
+    bus_t *b = find(lcm);
+    if (!b || b->tx_fd < 0) {
+        if (lcm_publish(lcm, channel, data, len) == 0)
+            return 0;
+        return marie_fail(EIO);
+    }
+    size_t cl = strlen(channel) + 1;
+    if (cl > LCM_MAX_CHANNEL_NAME_LENGTH + 1)
+        return marie_fail(EINVAL);
+    uint64_t payload = cl + (uint64_t)len;
+    uint64_t nfrags = (payload + FRAG_PAYLOAD - 1) / FRAG_PAYLOAD;
+    if (payload > SHORT_MAX && nfrags > FRAGS_MAX)
+        return marie_fail(EMSGSIZE);
+    pthread_mutex_lock(&b->tx_lock);
+    int rc = payload <= SHORT_MAX ? send_short(b, channel, cl, data, len)
+                                  : send_fragments(b, channel, cl, data, len, (unsigned)nfrags);
+    b->tx_seqno++;
+    pthread_mutex_unlock(&b->tx_lock);
+    return rc;
+}
+
+int marie_lcm_publish_msg(lcm_t *lcm, const char *channel, const marie_type_t *t, const void *msg)
+{
+    uint8_t small[2048];    /* heartbeats, events, replies: no allocation */
+    int size = t->encoded_size(msg);
+    if (size < 0)
+        return marie_fail(EINVAL);
+    uint8_t *buf = (size_t)size <= sizeof small ? small : malloc((size_t)size);
+    if (!buf)
+        return -1;
+    int rc = t->encode(buf, 0, size, msg) == size ? marie_lcm_publish(lcm, channel, buf, (unsigned)size)
+                                                  : marie_fail(EINVAL);
+    if (buf != small)
+        MARIE_KEEP_ERRNO(free(buf));
+    return rc;
+}
+
+int marie_lcm_sends(const lcm_t *lcm)
+{
+    const bus_t *b = find(lcm);
+    return b && b->tx_fd >= 0;
 }

@@ -1,10 +1,11 @@
 /* lcm: marie's LCM buses. A bus opened with marie_lcm_create() on a UDP multicast URL is read by
  * marie itself, from the loop's thread (docs/transport.md, "Reading the bus"): liblcm's receive
- * thread and its pipe cost two wake-ups per message. Messages are sent by liblcm (lcm_publish,
- * lcm-gen's *_publish) and the wire protocol is LCM's (LC02 datagrams, LC03 fragments), so
- * lcm-spy, lcm-logger and every other LCM program share the bus. Other URLs (file://, memq://),
- * a bus made by lcm_create(), and every bus when MARIE_LCM_RECEIVE=liblcm is set, are read by
- * liblcm as before. Subscriptions to a bus a loop reads go through marie_lcm_subscribe(). */
+ * thread and its pipe cost two wake-ups per message. marie_lcm_publish() sends on such a bus
+ * from a socket of marie's own ("Sending"). The wire protocol is LCM's (LC02 datagrams, LC03
+ * fragments), so lcm-spy, lcm-logger and every other LCM program share the bus. Other URLs
+ * (file://, memq://), a bus made by lcm_create(), and every bus when MARIE_LCM_RECEIVE=liblcm is
+ * set, are read and sent on by liblcm as before. Subscriptions to a bus a loop reads go through
+ * marie_lcm_subscribe(). */
 #ifndef MARIE_LCM_H
 #define MARIE_LCM_H
 
@@ -21,6 +22,22 @@ extern "C" {
 lcm_t *marie_lcm_create(const char *url);
 void marie_lcm_destroy(lcm_t *lcm);                 /* NULL is a no-op */
 int marie_lcm_native(const lcm_t *lcm);             /* 1: marie reads it, 0: liblcm does */
+
+/* lcm_publish() for a bus made by marie_lcm_create(): on a bus marie reads, the message goes out
+ * on marie's own socket as liblcm would send it (one LC02 datagram when the channel, its NUL and
+ * the payload take at most 65499 bytes, LC03 fragments otherwise), to the URL's group and port
+ * with its ttl (0 when it names none) and multicast loopback on, so this process and this host
+ * receive it. Elsewhere (another provider, a bus made by lcm_create(), MARIE_LCM_RECEIVE=liblcm,
+ * or MARIE_LCM_SEND=liblcm, which leaves only the sending to liblcm) it is lcm_publish(). Any
+ * thread may call it. Keeps nothing of its arguments. 0, or -1 with errno (EINVAL: a channel
+ * over 63 characters; EMSGSIZE: over 65535 fragments; EIO: liblcm refused). */
+int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned len);
+int marie_lcm_sends(const lcm_t *lcm);              /* 1: marie sends on it, 0: liblcm does */
+
+/* lcm-gen's TYPE_publish() through marie_lcm_publish(): encodes msg, of type t (lcmtypes'
+ * marie_type_TYPE), and sends it. 0, or -1 with errno (EINVAL: t cannot encode it). */
+struct marie_type;
+int marie_lcm_publish_msg(lcm_t *lcm, const char *channel, const struct marie_type *t, const void *msg);
 
 /* A subscription: `channel` is a regular expression matched against the whole channel name, as
  * in LCM. liblcm's subscriptions hold MARIE_LCM_QUEUE messages until read (its own default is

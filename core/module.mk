@@ -18,6 +18,9 @@ ITESTS += tests/core/test_decode_rule.sh
 $(eval $(call marie_link,$(B)/tests/malformed_peer,tests/core/malformed_peer.c,))
 EXTRA_TARGETS += $(B)/tests/malformed_peer
 ITESTS += tests/core/test_malformed_inputs.sh
+$(eval $(call marie_link,$(B)/tests/lcm_send,tests/core/lcm_send.c,))
+EXTRA_TARGETS += $(B)/tests/lcm_send
+ITESTS += tests/core/test_lcm_python_peer.sh
 $(eval $(call marie_fuzz,shm,tests/core/fuzz_shm.c))
 $(eval $(call marie_fuzz,lcm,tests/core/fuzz_lcm.c tests/udp.c))
 ITESTS += tests/core/test_params_gen.sh

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "core/err.h"
+#include "core/lcm.h"
 #include "core/loop.h"
 #include "core/new.h"
 #include "core/shm.h"
@@ -122,11 +123,11 @@ int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t 
     }
     marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
                              .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(f.at, len) };
-    if (marie_shm_notice_t_publish(p->lcm, p->notice_ch, &n) != 0)
+    if (marie_lcm_publish_msg(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
         return -EIO;
     p->st.published++;
     if (p->wanted_until && marie_mono_us() < p->wanted_until) {
-        if (lcm_publish(p->lcm, p->channel, f.at, (unsigned)len) != 0)
+        if (marie_lcm_publish(p->lcm, p->channel, f.at, (unsigned)len) != 0)
             return -EIO;
         p->st.lcm_copies++;
     }
@@ -176,7 +177,7 @@ static void want_remote(marie_shm_sub_t *s)
         return;
     s->last_want = now;
     marie_shm_want_t w = { .utime = marie_wall_us(), .host = s->host, .requester = s->host };
-    marie_shm_want_t_publish(s->lcm, s->want_ch, &w);
+    marie_lcm_publish_msg(s->lcm, s->want_ch, &marie_type_shm_want_t, &w);
 }
 
 static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int64_t fp)

@@ -11,8 +11,10 @@
 #include <unistd.h>
 
 #include "core/component.h"
+#include "core/lcm.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
+#include "lcmtypes/marie_types.h"
 #include "managers/am.h"
 #include "managers/progcheck.h"
 #include "managers/spawn.h"
@@ -69,7 +71,7 @@ static void log_line_cb(const char *line, size_t len, void *user)
         .stream = (int8_t)op->stream, .seq = ++c->log_seq, .dropped = c->drops_pending,
         .request_seq = 0, .text = text,
     };
-    marie_log_line_t_publish(am->lcm, MARIE_CH_LOG, &m);
+    marie_lcm_publish_msg(am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
     if (c->logf) {
         char hdr[96];
         time_t secs = (time_t)(wall / 1000000);

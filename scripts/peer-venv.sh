@@ -6,8 +6,8 @@ set -e
 B=${B:-build}
 V=$B/peers
 # Pinned: a witness must not change under the tests.
-PKGS="canopen==2.4.1 python-can==4.6.1"
-if [ -x "$V/bin/python" ] && "$V/bin/python" -c 'import canopen, can; assert canopen.__version__ == "2.4.1"' 2>/dev/null; then
+PKGS="canopen==2.4.1 python-can==4.6.1 lcm==1.5.1"
+if [ -x "$V/bin/python" ] && "$V/bin/python" -c 'import canopen, can, lcm; assert canopen.__version__ == "2.4.1"' 2>/dev/null; then
     echo "$V/bin/python"; exit 0
 fi
 python3 -m venv "$V" >&2

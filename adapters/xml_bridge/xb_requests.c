@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "adapters/xml_bridge/xb_server_int.h"
+#include "core/lcm.h"
 #include "core/time.h"
 
 /* ---- replies ---- */
@@ -353,7 +354,7 @@ static void do_publish(client_t *c, const xb_node_t *req)
         xb_reply_error(c, req, err.code, err.reason);
         return;
     }
-    if (lcm_publish(s->lcm, ch, s->enc.data, (unsigned)s->enc.len) < 0) {
+    if (marie_lcm_publish(s->lcm, ch, s->enc.data, (unsigned)s->enc.len) < 0) {
         if (s->hooks.drop)
             s->hooks.drop(s->hooks.user, 1);
         xb_reply_error(c, req, "publish-failed", "the bus refused the message");

@@ -1,6 +1,7 @@
-/* test_lcm: marie's own reader of LCM's UDP multicast (core/lcm.h) against liblcm as the peer
- * that sends (lcm_publish, with its own fragmentation), and against hand-made datagrams that are
- * not what LCM sends. Runs in its own network namespace (make test). */
+/* test_lcm: marie's own reader and sender of LCM's UDP multicast (core/lcm.h) against liblcm as
+ * the peer (lcm_publish with its own fragmentation; lcm_subscribe and lcm_handle reading what
+ * marie_lcm_publish sent), and against hand-made datagrams that are not what LCM sends. Runs in
+ * its own network namespace (make test). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -8,7 +9,10 @@
 #include <cmocka.h>
 
 #include <arpa/inet.h>
+#include <errno.h>
+#include <netinet/in.h>
 #include <poll.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
@@ -23,6 +27,7 @@
 
 typedef struct {
     int n;
+    uint32_t sizes[32];  /* of the first 32 messages, in their order of arrival */
     char channel[64];
     uint8_t *data;      /* the last message */
     uint32_t size;
@@ -38,6 +43,8 @@ static void pattern(uint8_t *p, size_t n, unsigned seed)
 static void on_msg(const lcm_recv_buf_t *rb, const char *channel, void *user)
 {
     got_t *g = user;
+    if (g->n < 32)
+        g->sizes[g->n] = rb->data_size;
     g->n++;
     snprintf(g->channel, sizeof g->channel, "%s", channel);
     free(g->data);
@@ -379,6 +386,276 @@ static void test_other_urls(void **state)
     marie_lcm_destroy(t);
 }
 
+/* ---- marie_lcm_publish ---- */
+
+/* A socket that sees every datagram on the group, as any LCM reader's does: with each its
+ * sender's port and the TTL it came with. */
+static int sniffer(void)
+{
+    int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    int one = 1, big = 4 << 20;
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons(7667)};
+    struct ip_mreq m = {.imr_interface.s_addr = htonl(INADDR_ANY)};
+    inet_pton(AF_INET, "239.255.76.67", &m.imr_multiaddr);
+    assert_true(fd >= 0);
+    assert_int_equal(setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one), 0);
+    assert_int_equal(bind(fd, (struct sockaddr *)&a, sizeof a), 0);
+    assert_int_equal(setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &m, sizeof m), 0);
+    assert_int_equal(setsockopt(fd, IPPROTO_IP, IP_RECVTTL, &one, sizeof one), 0);
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &big, sizeof big);
+    return fd;
+}
+
+typedef struct {
+    uint8_t *d;
+    size_t len;
+    uint16_t port;      /* the sender's */
+    int ttl;
+} dgram_t;
+
+/* The next datagram (waiting up to 2 s), or len 0 and d NULL. Free d. */
+static dgram_t sniff(int fd)
+{
+    dgram_t g = {0};
+    struct pollfd p = {fd, POLLIN, 0};
+    if (poll(&p, 1, 2000) <= 0)
+        return g;
+    g.d = malloc(65536);
+    struct sockaddr_in from;
+    union {
+        char space[CMSG_SPACE(sizeof(int))];
+        struct cmsghdr align;
+    } ctl;
+    struct iovec iov = {g.d, 65536};
+    struct msghdr m = {.msg_name = &from, .msg_namelen = sizeof from, .msg_iov = &iov, .msg_iovlen = 1,
+                       .msg_control = ctl.space, .msg_controllen = sizeof ctl.space};
+    ssize_t n = recvmsg(fd, &m, 0);
+    assert_true(n >= 0);
+    g.len = (size_t)n;
+    g.port = ntohs(from.sin_port);
+    g.ttl = -1;
+    for (struct cmsghdr *c = CMSG_FIRSTHDR(&m); c; c = CMSG_NXTHDR(&m, c))
+        if (c->cmsg_level == IPPROTO_IP && c->cmsg_type == IP_TTL)
+            memcpy(&g.ttl, CMSG_DATA(c), sizeof g.ttl);
+    return g;
+}
+
+static void marie_publish_pattern(lcm_t *pub, const char *channel, size_t n, unsigned seed)
+{
+    uint8_t *p = malloc(n ? n : 1);
+    pattern(p, n, seed);
+    assert_int_equal(marie_lcm_publish(pub, channel, p, (unsigned)n), 0);
+    free(p);
+}
+
+/* Runs liblcm's handling until `until` messages came to g or 3 s passed. */
+static void lib_pump(lcm_t *lib, got_t *g, int until)
+{
+    for (int64_t end = marie_mono_us() + 3000000; g->n < until && marie_mono_us() < end;)
+        lcm_handle_timeout(lib, 50);
+}
+
+/* channel "T_TO_LIB": 9 bytes with its NUL, so 65490 bytes is the largest single datagram. */
+static const uint32_t to_lib_sizes[] = {0, 1, 65489, 65490, 65491, 65492, 66560, 921600, 64, 921601};
+#define NSIZES (sizeof to_lib_sizes / sizeof to_lib_sizes[0])
+
+/* marie sends, a plain liblcm reader (its receive thread, lcm_handle) gets every message whole
+ * and in order: empty, one byte, at and around the single-datagram limit, 65 KB and 900 KB. And
+ * a marie reader on the sending bus itself gets them too (multicast loopback). */
+static void test_to_liblcm(void **state)
+{
+    lcm_t *tx = marie_lcm_create(URL), *lib = lcm_create(URL "&recv_buf_size=4194304");
+    assert_non_null(tx);
+    assert_non_null(lib);
+    assert_true(marie_lcm_sends(tx));
+    got_t g = {0}, self = {0};
+    assert_non_null(lcm_subscribe(lib, "T_TO_LIB", on_msg, &g));
+    assert_non_null(marie_lcm_subscribe(tx, "T_TO_LIB", on_msg, &self));
+    for (size_t i = 0; i < NSIZES; i++) {
+        marie_publish_pattern(tx, "T_TO_LIB", to_lib_sizes[i], (unsigned)i);
+        pump(tx, &self, (int)i + 1, 2000);     /* the process's own reader drains as it goes */
+    }
+    lib_pump(lib, &g, (int)NSIZES);
+    assert_int_equal(g.n, NSIZES);
+    assert_int_equal(self.n, NSIZES);
+    assert_memory_equal(g.sizes, to_lib_sizes, sizeof to_lib_sizes);
+    assert_memory_equal(self.sizes, to_lib_sizes, sizeof to_lib_sizes);
+    assert_int_equal(g.bad + self.bad, 0);
+    assert_string_equal(g.channel, "T_TO_LIB");
+    marie_lcm_stats_t st;
+    marie_lcm_stats(tx, &st);
+    assert_int_equal(st.malformed + st.incomplete + st.dropped, 0);
+    free(g.data);
+    free(self.data);
+    lcm_destroy(lib);
+    marie_lcm_destroy(tx);
+}
+
+/* The bytes on the wire are liblcm's: a fresh liblcm instance and a fresh marie bus sending the
+ * same messages send the same datagrams (sequence numbers included: both count from 0), one
+ * LC02 datagram up to the limit, LC03 fragments past it. */
+static void test_same_datagrams_as_liblcm(void **state)
+{
+    int fd = sniffer();
+    lcm_t *lib = lcm_create(URL), *tx = marie_lcm_create(URL);
+    const uint32_t sizes[] = {0, 65490, 65491, 66560, 200000};
+    const size_t want_frags[] = {1, 1, 2, 2, 4};
+    for (int who = 0; who < 2; who++)
+        for (size_t i = 0; i < 5; i++) {
+            uint8_t *p = malloc(sizes[i] ? sizes[i] : 1);
+            pattern(p, sizes[i], (unsigned)i);
+            if (who == 0)
+                assert_int_equal(lcm_publish(lib, "T_TO_LIB", p, sizes[i]), 0);
+            else
+                assert_int_equal(marie_lcm_publish(tx, "T_TO_LIB", p, sizes[i]), 0);
+            free(p);
+        }
+    size_t total = 0;
+    for (size_t i = 0; i < 5; i++)
+        total += want_frags[i];
+    dgram_t *seen = calloc(2 * total, sizeof *seen);
+    for (size_t i = 0; i < 2 * total; i++) {
+        seen[i] = sniff(fd);
+        assert_non_null(seen[i].d);
+    }
+    size_t k = 0;
+    for (size_t i = 0; i < 5; i++)
+        for (size_t f = 0; f < want_frags[i]; f++, k++) {
+            const dgram_t *a = &seen[k], *b = &seen[total + k];
+            assert_int_equal(a->len, b->len);
+            assert_memory_equal(a->d, b->d, a->len);
+            assert_memory_equal(b->d, want_frags[i] == 1 ? "LC02" : "LC03", 4);
+            assert_true(b->port != a->port);        /* from marie's own socket */
+        }
+    for (size_t i = 0; i < 2 * total; i++)
+        free(seen[i].d);
+    free(seen);
+    close(fd);
+    marie_lcm_destroy(tx);
+    lcm_destroy(lib);
+}
+
+/* The URL's ttl is the datagrams' TTL (0 by default: nothing leaves the host). */
+static void test_ttl(void **state)
+{
+    const char *urls[] = {"udpm://239.255.76.67:7667", URL, "udpm://239.255.76.67:7667?ttl=3"};
+    const int ttls[] = {0, 0, 3};
+    int fd = sniffer();
+    for (int i = 0; i < 3; i++) {
+        lcm_t *tx = marie_lcm_create(urls[i]);
+        assert_true(marie_lcm_sends(tx));
+        marie_publish_pattern(tx, "T_TTL", 10, 0);
+        marie_publish_pattern(tx, "T_TTL", 100000, 0);
+        for (int k = 0; k < 3; k++) {
+            dgram_t g = sniff(fd);
+            assert_non_null(g.d);
+            assert_int_equal(g.ttl, ttls[i]);
+            free(g.d);
+        }
+        marie_lcm_destroy(tx);
+    }
+    close(fd);
+}
+
+typedef struct {
+    lcm_t *lcm;
+    unsigned seed;
+} sender_t;
+
+static void *send_many(void *arg)
+{
+    sender_t *s = arg;
+    for (int i = 0; i < 20; i++)
+        marie_publish_pattern(s->lcm, "T_THREADS", 150000 + s->seed, s->seed);
+    return NULL;
+}
+
+/* Two threads sending large messages on one bus at once: every message arrives whole (a
+ * message's fragments are never interleaved with another's). */
+static void test_threads_publish(void **state)
+{
+    lcm_t *tx = marie_lcm_create(URL), *rx = marie_lcm_create(URL "&recv_buf_size=8388608");
+    got_t g = {0};
+    marie_lcm_subscribe(rx, "T_THREADS", on_msg, &g);
+    sender_t a = {tx, 1}, b = {tx, 2};
+    pthread_t ta, tb;
+    pthread_create(&ta, NULL, send_many, &a);
+    pthread_create(&tb, NULL, send_many, &b);
+    pump(rx, &g, 40, 5000);
+    pthread_join(ta, NULL);
+    pthread_join(tb, NULL);
+    pump(rx, &g, 40, 1000);
+    assert_int_equal(g.n, 40);
+    assert_int_equal(g.bad, 0);
+    marie_lcm_stats_t st;
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(st.incomplete + st.malformed, 0);
+    free(g.data);
+    marie_lcm_destroy(rx);
+    marie_lcm_destroy(tx);
+}
+
+/* Where marie does not send, marie_lcm_publish() is lcm_publish(): MARIE_LCM_SEND=liblcm,
+ * MARIE_LCM_RECEIVE=liblcm, a bus made by lcm_create(), another provider. */
+static void test_publish_fallback(void **state)
+{
+    lcm_t *lib = lcm_create(URL);
+    got_t g = {0};
+    assert_non_null(lcm_subscribe(lib, "T_FALLBACK", on_msg, &g));
+    int fd = sniffer();     /* after liblcm's self-test message (sent as it subscribes) */
+    const char *vars[] = {"MARIE_LCM_SEND", "MARIE_LCM_RECEIVE", NULL};
+    for (int i = 0; i < 3; i++) {
+        if (vars[i])
+            setenv(vars[i], "liblcm", 1);
+        lcm_t *tx = vars[i] ? marie_lcm_create(URL) : lcm_create(URL);
+        if (vars[i])
+            unsetenv(vars[i]);
+        assert_non_null(tx);
+        assert_false(marie_lcm_sends(tx));
+        assert_int_equal(marie_lcm_native(tx), i == 0);
+        /* liblcm's own count of messages sent becomes 1 ... */
+        assert_int_equal(lcm_publish(tx, "T_FALLBACK_FIRST", "", 0), 0);
+        dgram_t d = sniff(fd);
+        assert_non_null(d.d);
+        free(d.d);
+        marie_publish_pattern(tx, "T_FALLBACK", 100000, (unsigned)i);
+        lib_pump(lib, &g, i + 1);
+        assert_int_equal(g.n, i + 1);
+        assert_int_equal(g.size, 100000);
+        /* ... so liblcm sent this one: sequence number 1 (marie's sender would count from 0) */
+        d = sniff(fd);
+        assert_non_null(d.d);
+        assert_memory_equal(d.d, "LC03\0\0\0\1", 8);
+        free(d.d);
+        while ((d = sniff(fd)).d && d.len == 65507)
+            free(d.d);          /* the other fragment */
+        free(d.d);
+        if (vars[i])
+            marie_lcm_destroy(tx);
+        else
+            lcm_destroy(tx);
+    }
+    assert_int_equal(g.bad, 0);
+    lcm_t *m = marie_lcm_create("memq://");
+    got_t mg = {0};
+    assert_non_null(marie_lcm_subscribe(m, "T_MEMQ", on_msg, &mg));
+    assert_int_equal(marie_lcm_publish(m, "T_MEMQ", "abc", 3), 0);
+    assert_true(lcm_handle_timeout(m, 1000) > 0);
+    assert_int_equal(mg.n, 1);
+    marie_lcm_destroy(m);
+    char longname[80];
+    memset(longname, 'C', 64);
+    longname[64] = '\0';
+    lcm_t *tx = marie_lcm_create(URL);
+    assert_int_equal(marie_lcm_publish(tx, longname, "x", 1), -1);
+    assert_int_equal(errno, EINVAL);
+    marie_lcm_destroy(tx);
+    free(g.data);
+    free(mg.data);
+    lcm_destroy(lib);
+    close(fd);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -391,6 +668,11 @@ int main(void)
         cmocka_unit_test(test_drops_counted),
         cmocka_unit_test(test_liblcm_fallback),
         cmocka_unit_test(test_other_urls),
+        cmocka_unit_test(test_to_liblcm),
+        cmocka_unit_test(test_same_datagrams_as_liblcm),
+        cmocka_unit_test(test_ttl),
+        cmocka_unit_test(test_threads_publish),
+        cmocka_unit_test(test_publish_fallback),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
