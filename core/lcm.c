@@ -870,6 +870,63 @@ int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigne
     return rc;
 }
 
+/* Sends m[0..k) (each one datagram) with one sendmmsg per kernel call; rc[i] for each. */
+static int send_shorts(bus_t *b, const marie_lcm_msg_t *m, int k, int *rc)
+{
+    uint8_t hdr[FRAGS_PER_CALL][SHORT_HDR];
+    struct iovec iov[FRAGS_PER_CALL][3];
+    struct mmsghdr mm[FRAGS_PER_CALL];
+    int sent = 0;
+    pthread_mutex_lock(&b->tx_lock);
+    for (int i = 0; i < k; i++) {
+        put32(hdr[i], MAGIC_SHORT);
+        put32(hdr[i] + 4, b->tx_seqno++);
+        iov[i][0] = (struct iovec){hdr[i], SHORT_HDR};
+        iov[i][1] = (struct iovec){(void *)m[i].channel, strlen(m[i].channel) + 1};
+        iov[i][2] = (struct iovec){(void *)m[i].data, m[i].len};
+        mm[i] = (struct mmsghdr){.msg_hdr = {.msg_name = &b->tx_to, .msg_namelen = sizeof b->tx_to,
+                                             .msg_iov = iov[i], .msg_iovlen = 3}};
+    }
+    for (int at = 0; at < k;) {
+        int n = sendmmsg(b->tx_fd, mm + at, (unsigned)(k - at), 0);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0) {               /* this one is refused; the rest are tried */
+            rc[at++] = -1;
+            continue;
+        }
+        for (int j = 0; j < n; j++)
+            rc[at + j] = 0;
+        at += n;
+        sent += n;
+    }
+    pthread_mutex_unlock(&b->tx_lock);
+    return sent;
+}
+
+int marie_lcm_publish_batch(lcm_t *lcm, const marie_lcm_msg_t *m, int n, int *rc)
+{
+    bus_t *b = lcm ? find(lcm) : NULL;
+    bool own = b && b->tx_fd >= 0;
+    int sent = 0;
+    for (int i = 0; i < n;) {
+        int k = 0;
+        while (own && i + k < n && k < FRAGS_PER_CALL && m[i + k].channel && (m[i + k].data || !m[i + k].len) &&
+               strlen(m[i + k].channel) <= LCM_MAX_CHANNEL_NAME_LENGTH &&
+               strlen(m[i + k].channel) + 1 + (uint64_t)m[i + k].len <= SHORT_MAX)
+            k++;
+        if (k >= 2) {
+            sent += send_shorts(b, m + i, k, rc + i);
+            i += k;
+            continue;
+        }
+        rc[i] = marie_lcm_publish(lcm, m[i].channel, m[i].data, m[i].len);
+        sent += rc[i] == 0;
+        i++;
+    }
+    return sent;
+}
+
 int marie_lcm_publish_msg(lcm_t *lcm, const char *channel, const marie_type_t *t, const void *msg)
 {
     uint8_t small[2048];    /* heartbeats, events, replies: no allocation */

@@ -32,6 +32,16 @@ int marie_lcm_native(const lcm_t *lcm);             /* 1: marie reads it, 0: lib
  * thread may call it. Keeps nothing of its arguments. 0, or -1 with errno (EINVAL: a channel
  * over 63 characters; EMSGSIZE: over 65535 fragments; EIO: liblcm refused). */
 int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned len);
+/* Several messages at once, in their order: on a bus marie sends on, a run of messages that fit
+ * one datagram each goes to the kernel in one system call (sendmmsg); anything else as
+ * marie_lcm_publish() sends it. rc[i] gets message i's result (0, or -1 with errno set as
+ * marie_lcm_publish() sets it). Returns how many were sent. */
+typedef struct {
+    const char *channel;
+    const void *data;
+    unsigned len;
+} marie_lcm_msg_t;
+int marie_lcm_publish_batch(lcm_t *lcm, const marie_lcm_msg_t *m, int n, int *rc);
 int marie_lcm_sends(const lcm_t *lcm);              /* 1: marie sends on it, 0: liblcm does */
 
 /* lcm-gen's TYPE_publish() through marie_lcm_publish(): encodes msg, of type t (lcmtypes'

@@ -5,7 +5,6 @@
 #include <string.h>
 
 #include "adapters/xml_bridge/xb_server_int.h"
-#include "core/lcm.h"
 #include "core/time.h"
 
 /* ---- replies ---- */
@@ -22,6 +21,7 @@ static void put_attr(marie_buf_t *b, const char *name, const char *value)
 void xb_reply_error(client_t *c, const xb_node_t *req, const char *code, const char *reason)
 {
     xb_server_t *s = c->s;
+    xb_publish_flush(s);        /* replies keep request order */
     marie_buf_t *b = &s->out;
     b->len = 0;
     marie_buf_puts(b, "<error");
@@ -39,6 +39,7 @@ void xb_reply_error(client_t *c, const xb_node_t *req, const char *code, const c
 
 static void reply_ok(client_t *c, const xb_node_t *req, const char *extra_name, const char *extra)
 {
+    xb_publish_flush(c->s);
     marie_buf_t *b = &c->s->out;
     b->len = 0;
     marie_buf_puts(b, "<ok");
@@ -335,6 +336,61 @@ static void do_unsubscribe(client_t *c, const xb_node_t *req)
         reply_ok(c, req, NULL, NULL);
 }
 
+/* Publishes the batched messages in request order; a failure is answered as it would have
+ * been at once (no other reply can have been queued after the batch began). */
+void xb_publish_flush(xb_server_t *s)
+{
+    int n = s->npend;
+    if (n == 0)
+        return;
+    s->npend = 0;               /* the failure replies below call this again */
+    marie_lcm_msg_t msgs[XB_BATCH_MSGS] = { 0 };
+    int rc[XB_BATCH_MSGS];
+    for (int i = 0; i < n; i++)
+        msgs[i] = (marie_lcm_msg_t){ s->batch.data + s->pend[i].channel, s->batch.data + s->pend[i].data,
+                                     (unsigned)s->pend[i].len };
+    marie_lcm_publish_batch(s->lcm, msgs, n, rc);     /* one system call for the lot */
+    for (int i = 0; i < n; i++) {
+        pend_t *m = &s->pend[i];
+        const char *ch = s->batch.data + m->channel;
+        if (rc[i] < 0) {
+            if (s->hooks.drop)
+                s->hooks.drop(s->hooks.user, 1);
+            const char *attrs[] = { "channel", ch, m->id == SIZE_MAX ? NULL : "id",
+                                    s->batch.data + m->id, NULL };
+            xb_node_t req = { .name = "publish", .attrs = attrs };
+            xb_reply_error(m->c, &req, "publish-failed", "the bus refused the message");
+            continue;
+        }
+        s->st.published++;
+    }
+    marie_buf_reset(&s->batch);
+}
+
+/* Adds the encoded message in s->enc to the batch: 0, or -1 when it does not fit (the batch
+ * is left as it was). */
+static int batch_add(xb_server_t *s, client_t *c, const char *ch, const char *id)
+{
+    marie_buf_t *b = &s->batch;
+    size_t at = b->len;
+    pend_t m = { .c = c, .channel = at, .id = SIZE_MAX };
+    marie_buf_put(b, ch, strlen(ch) + 1);
+    if (id) {
+        m.id = b->len;
+        marie_buf_put(b, id, strlen(id) + 1);
+    }
+    m.data = b->len;
+    m.len = s->enc.len;
+    marie_buf_put(b, s->enc.data, s->enc.len);
+    if (b->failed) {
+        b->len = at;
+        b->failed = false;
+        return -1;
+    }
+    s->pend[s->npend++] = m;
+    return 0;
+}
+
 static void do_publish(client_t *c, const xb_node_t *req)
 {
     xb_server_t *s = c->s;
@@ -354,16 +410,23 @@ static void do_publish(client_t *c, const xb_node_t *req)
         xb_reply_error(c, req, err.code, err.reason);
         return;
     }
-    if (marie_lcm_publish(s->lcm, ch, s->enc.data, (unsigned)s->enc.len) < 0) {
-        if (s->hooks.drop)
-            s->hooks.drop(s->hooks.user, 1);
-        xb_reply_error(c, req, "publish-failed", "the bus refused the message");
+    const char *ack = xb_node_attr(req, "ack");
+    int quiet = ack && strcmp(ack, "false") == 0;
+    /* A reply must follow the batch it comes after; the batch never holds a large message. */
+    if (!quiet || s->enc.len > XB_BATCH_BYTES / 4 || batch_add(s, c, ch, xb_node_attr(req, "id")) < 0) {
+        xb_publish_flush(s);
+        if (batch_add(s, c, ch, xb_node_attr(req, "id")) < 0) {
+            xb_reply_error(c, req, "publish-failed", "out of memory");
+            return;
+        }
+        uint64_t before = s->st.published;
+        xb_publish_flush(s);
+        if (!quiet && s->st.published != before)
+            reply_ok(c, req, NULL, NULL);
         return;
     }
-    s->st.published++;
-    const char *ack = xb_node_attr(req, "ack");
-    if (!ack || strcmp(ack, "false") != 0)
-        reply_ok(c, req, NULL, NULL);
+    if (s->npend == XB_BATCH_MSGS)
+        xb_publish_flush(s);
 }
 
 static void do_pull(client_t *c, const xb_node_t *req)
@@ -459,9 +522,12 @@ void xb_on_document(void *user, xb_node_t *req)
     if (c->dead || c->closing_since)
         return;
     const char *op = req->name;
-    if (strcmp(op, "publish") == 0)
+    if (strcmp(op, "publish") == 0) {
         do_publish(c, req);
-    else if (strcmp(op, "subscribe") == 0)
+        return;
+    }
+    xb_publish_flush(s);        /* what came before is done before this request */
+    if (strcmp(op, "subscribe") == 0)
         do_subscribe(c, req);
     else if (strcmp(op, "unsubscribe") == 0)
         do_unsubscribe(c, req);

@@ -145,6 +145,7 @@ static void client_read(client_t *c)
             break;
         }
         int rc = xb_doc_parser_feed(c->parser, buf, (size_t)n);
+        xb_publish_flush(s);
         if (rc < 0) {
             const xb_error_t *e = xb_doc_parser_error(c->parser);
             xb_bad_input(s, "bad_document", "%s: %s", e->code, e->reason);
@@ -287,6 +288,7 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     /* The largest outgoing document: a max-size payload as base64 XML plus the envelope. */
     marie_buf_init(&s->out, s->cfg.max_message * 4 + 4096);
     marie_buf_init(&s->enc, s->cfg.max_message);
+    marie_buf_init(&s->batch, 0);
 
     struct addrinfo hints = { .ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM,
                               .ai_flags = AI_PASSIVE | AI_NUMERICSERV };
@@ -339,6 +341,7 @@ err:
         close(s->lfd);
     marie_buf_free(&s->out);
     marie_buf_free(&s->enc);
+    marie_buf_free(&s->batch);
     free(s);
     return NULL;
 }
@@ -347,6 +350,7 @@ void xb_server_destroy(xb_server_t *s)
 {
     if (!s)
         return;
+    xb_publish_flush(s);
     while (s->clients)
         client_close(s->clients);
     while (s->subs) {
@@ -361,6 +365,7 @@ void xb_server_destroy(xb_server_t *s)
     close(s->lfd);
     marie_buf_free(&s->out);
     marie_buf_free(&s->enc);
+    marie_buf_free(&s->batch);
     free(s);
 }
 

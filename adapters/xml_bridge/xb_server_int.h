@@ -74,6 +74,19 @@ struct sub {
     sub_t *next;
 };
 
+/* A publish waiting in the batch: its strings and payload are in the server's `batch` buffer. */
+typedef struct {
+    client_t *c;
+    size_t channel, id;         /* offsets of NUL-terminated texts; id SIZE_MAX when absent */
+    size_t data, len;           /* the encoded payload */
+} pend_t;
+
+/* Publishes answered only on failure wait in a batch until the read that brought them is
+ * parsed (or the batch is full, or another request comes), so the datagrams of one read leave
+ * together and their receivers wake once for several. */
+#define XB_BATCH_MSGS 32
+#define XB_BATCH_BYTES 65536
+
 struct xb_server {
     xb_server_cfg_t cfg;
     char bind[64];
@@ -87,6 +100,9 @@ struct xb_server {
     xb_server_stats_t st;
     marie_buf_t out;               /* scratch for one outgoing document */
     marie_buf_t enc;               /* scratch for one encoded LCM payload */
+    marie_buf_t batch;             /* pending publishes' channels, ids and payloads */
+    pend_t pend[XB_BATCH_MSGS];
+    int npend;
 };
 
 /* xb_server.c: bad input goes to the component's counters (or the log). */
@@ -106,5 +122,6 @@ void xb_reply_error(client_t *c, const xb_node_t *req, const char *code, const c
 void xb_on_document(void *user, xb_node_t *req);            /* xb_doc callback; user: client */
 void xb_sub_remove_client(xb_server_t *s, sub_t *u, client_t *c);
 void xb_sub_release(xb_server_t *s, sub_t *u);              /* frees u once it has no client */
+void xb_publish_flush(xb_server_t *s);          /* publishes the batch, in order; replies to failures */
 
 #endif

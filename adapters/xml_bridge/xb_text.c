@@ -177,7 +177,8 @@ int xb_parse_real(marie_prim_t prim, const char *s, size_t len, double *v)
     }
     if (prim == MARIE_PRIM_FLOAT && isfinite(x) && fabs(x) > FLT_MAX)
         return -1;
-    *v = x;
+    /* One NaN: strtod's "-nan" has the sign bit set, which the bridge writes back as "NaN". */
+    *v = isnan(x) ? NAN : x;
     return 0;
 }
 

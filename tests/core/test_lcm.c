@@ -597,6 +597,49 @@ static void test_threads_publish(void **state)
 
 /* Where marie does not send, marie_lcm_publish() is lcm_publish(): MARIE_LCM_SEND=liblcm,
  * MARIE_LCM_RECEIVE=liblcm, a bus made by lcm_create(), another provider. */
+/* A batch: runs of short messages go in one system call, a large one in its fragments between
+ * them, and a plain liblcm reader gets them all whole and in order; a bus liblcm sends on sends
+ * the same batch one by one. */
+static void test_publish_batch(void **state)
+{
+    static const uint32_t sizes[] = {0, 64, 330, 65490, 921600, 1, 2, 8192};
+    enum { N = sizeof sizes / sizeof sizes[0] };
+    lcm_t *lib = lcm_create(URL "&recv_buf_size=4194304");
+    assert_non_null(lib);
+    for (int pass = 0; pass < 2; pass++) {
+        lcm_t *tx = pass == 0 ? marie_lcm_create(URL) : lcm_create(URL);
+        assert_non_null(tx);
+        assert_int_equal(marie_lcm_sends(tx), pass == 0);
+        got_t g = {0};
+        lcm_subscription_t *sub = lcm_subscribe(lib, "T_BATCH", on_msg, &g);
+        uint8_t *bufs[N];
+        marie_lcm_msg_t m[N];
+        int rc[N];
+        for (int i = 0; i < N; i++) {
+            bufs[i] = malloc(sizes[i] ? sizes[i] : 1);
+            pattern(bufs[i], sizes[i], (unsigned)i);
+            m[i] = (marie_lcm_msg_t){"T_BATCH", bufs[i], sizes[i]};
+            rc[i] = 7;
+        }
+        assert_int_equal(marie_lcm_publish_batch(tx, m, N, rc), N);
+        for (int i = 0; i < N; i++)
+            assert_int_equal(rc[i], 0);
+        lib_pump(lib, &g, N);
+        assert_int_equal(g.n, N);
+        assert_memory_equal(g.sizes, sizes, sizeof sizes);
+        assert_int_equal(g.bad, 0);
+        for (int i = 0; i < N; i++)
+            free(bufs[i]);
+        free(g.data);
+        lcm_unsubscribe(lib, sub);
+        if (pass == 0)
+            marie_lcm_destroy(tx);
+        else
+            lcm_destroy(tx);
+    }
+    lcm_destroy(lib);
+}
+
 static void test_publish_fallback(void **state)
 {
     lcm_t *lib = lcm_create(URL);
@@ -672,6 +715,7 @@ int main(void)
         cmocka_unit_test(test_same_datagrams_as_liblcm),
         cmocka_unit_test(test_ttl),
         cmocka_unit_test(test_threads_publish),
+        cmocka_unit_test(test_publish_batch),
         cmocka_unit_test(test_publish_fallback),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

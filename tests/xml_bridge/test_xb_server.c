@@ -398,6 +398,72 @@ static void test_semantic_errors_keep_the_connection(void **state)
     cli_free(&c);
 }
 
+/* Publishes answered only on failure leave in batches: every one still reaches the bus, in
+ * order, a bad one among them is answered before what follows it, and a stream that breaks after
+ * some of them loses none of those before the break. */
+typedef struct {
+    double x[512];
+    int n;
+} seq_t;
+
+static void on_seq(const lcm_recv_buf_t *rb, const char *channel, void *user)
+{
+    seq_t *q = user;
+    marie_pose2d_t m;
+    if (q->n < 512 && marie_pose2d_t_decode(rb->data, 0, (int)rb->data_size, &m) >= 0)
+        q->x[q->n++] = m.x;
+}
+
+static void test_quiet_publishes_keep_order_and_lose_nothing(void **state)
+{
+    seq_t q = { .n = 0 };
+    lcm_subscription_t *ls = lcm_subscribe(env.lcm, "SEQ", on_seq, &q);
+    lcm_subscription_set_queue_capacity(ls, 512);
+    cli_t c;
+    assert_int_equal(cli_connect(&c, 0), 0);
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    for (int i = 0; i < 100; i++) {
+        if (i == 50)
+            marie_buf_puts(&b, "<publish channel=\"SEQ\" type=\"pose2d_t\" ack=\"false\" id=\"bad\"><x>no</x></publish>");
+        marie_buf_printf(&b, "<publish channel=\"SEQ\" type=\"pose2d_t\" ack=\"false\"><x>%d</x></publish>", i);
+    }
+    marie_buf_puts(&b, "<publish channel=\"SEQ\" type=\"pose2d_t\" id=\"acked\"><x>100</x></publish><ping id=\"end\"/>");
+    cli_send(&c, b.data);
+    assert_true(cli_wait(&c, 4));
+    assert_true(starts(c.docs[1], "error|code=bad-value|reason=x: not a real number in range|to=publish|id=bad"));
+    assert_true(starts(c.docs[2], "ok|to=publish|id=acked"));
+    assert_true(starts(c.docs[3], "ok|to=ping|id=end"));
+    int64_t end = marie_mono_us() + 2000000;
+    while (q.n < 101 && marie_mono_us() < end)
+        marie_loop_run_once(env.loop, 2);
+    assert_int_equal(q.n, 101);
+    for (int i = 0; i <= 100; i++)
+        assert_true(q.x[i] == i);
+
+    /* Three good ones, then bytes that are not XML, in one write. */
+    q.n = 0;
+    b.len = 0;
+    for (int i = 0; i < 3; i++)
+        marie_buf_printf(&b, "<publish channel=\"SEQ\" type=\"pose2d_t\" ack=\"false\"><x>%d</x></publish>", i);
+    marie_buf_puts(&b, "<a><b></a>");
+    cli_send(&c, b.data);
+    assert_true(cli_wait_eof(&c));
+    assert_true(starts(c.docs[c.ndocs - 1], "error|code=malformed"));
+    end = marie_mono_us() + 2000000;
+    while (q.n < 3 && marie_mono_us() < end)
+        marie_loop_run_once(env.loop, 2);
+    assert_int_equal(q.n, 3);
+    for (int i = 0; i < 3; i++)
+        assert_true(q.x[i] == i);
+    xb_server_stats_t st;
+    xb_server_stats(env.srv, &st);
+    assert_int_equal(st.published, 104);
+    marie_buf_free(&b);
+    lcm_unsubscribe(env.lcm, ls);
+    cli_free(&c);
+}
+
 static void expect_closed_with(const char *input, const char *code)
 {
     cli_t bad, good;
@@ -610,6 +676,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_every_type_both_directions, setup, teardown),
         cmocka_unit_test_setup_teardown(test_pull_gives_the_latest_value, setup, teardown),
         cmocka_unit_test_setup_teardown(test_semantic_errors_keep_the_connection, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_quiet_publishes_keep_order_and_lose_nothing, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_streams_close_only_their_client, setup_small, teardown),
         cmocka_unit_test_setup_teardown(test_too_large_message_keeps_the_connection, setup_tiny_message, teardown),
         cmocka_unit_test_setup_teardown(test_hundreds_of_clients_and_the_rest_refused, setup_small, teardown),
