@@ -179,7 +179,9 @@ fuzz: deps all
 	        $(B)/fuzz/corpus-$$f tests/data/fuzz/$$f 2>&1 | tail -3; \
 	done
 
-$(B)/fuzz/%: $(LIBMARIE)
+# A fuzzer is built again when its own sources change too (secondary expansion names them).
+.SECONDEXPANSION:
+$(B)/fuzz/%: $(LIBMARIE) $$(FUZZ_$$*_SOURCES)
 	@mkdir -p $(@D)
 	clang -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize=nonnull-attribute $(CPPFLAGS) -o $@ $(FUZZ_$*_SOURCES) $(CORE_SRCS) \
 	    $(LCM_C_SRCS) $(FUZZ_$*_LIBS) $(LDLIBS) -lstdc++
