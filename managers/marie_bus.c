@@ -301,6 +301,20 @@ int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg
 
 /* Not signed: it asks only for what the managers broadcast anyway, and each answers within a
  * rate limit. A manager that does not know the request is heard at its next periodic status. */
+/* Every host named in the managers' status has answered. A manager without a system names no
+ * hosts, so while one is heard the others may still be unknown: then the answers must also have
+ * stopped bringing new hosts for PS_QUIET_US (they come within milliseconds of the request). */
+#define PS_QUIET_US 150000
+bool all_hosts_heard(cli_t *cli)
+{
+    for (int i = 0; i < cli->nexpect; i++) {
+        host_t *h = host_get(cli, cli->expect[i], false);
+        if (!h || !h->st)
+            return false;
+    }
+    return cli->nexpect > 0 && (!cli->hosts_unnamed || marie_mono_us() - cli->new_host_mono >= PS_QUIET_US);
+}
+
 int request_status(cli_t *cli)
 {
     char sender[256];

@@ -78,6 +78,9 @@ int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg
 void print_replies_json(cli_t *cli, int rc);
 /* Ask every manager for its status now (marie ps). 0 or -1. */
 int request_status(cli_t *cli);
+/* pump()'s `done` after request_status(): every host the managers' status names has answered
+ * (and, while a manager names none, no new one for 150 ms). */
+bool all_hosts_heard(cli_t *cli);
 int wait_states(cli_t *cli, char **targets, int ntargets, bool running, double timeout);
 
 /* One per command (marie_cmds.c, marie_doctor.c); each returns the exit status. */

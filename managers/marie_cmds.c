@@ -287,20 +287,6 @@ static int print_ps(cli_t *cli, int64_t lost_us)
     return lost;
 }
 
-/* Every host named in the managers' status has answered. A manager without a system names no
- * hosts, so while one is heard the others may still be unknown: then the answers must also have
- * stopped bringing new hosts for PS_QUIET_US (they come within milliseconds of the request). */
-#define PS_QUIET_US 150000
-static bool all_heard(cli_t *cli)
-{
-    for (int i = 0; i < cli->nexpect; i++) {
-        host_t *h = host_get(cli, cli->expect[i], false);
-        if (!h || !h->st)
-            return false;
-    }
-    return cli->nexpect > 0 && (!cli->hosts_unnamed || marie_mono_us() - cli->new_host_mono >= PS_QUIET_US);
-}
-
 int cmd_ps(cli_t *cli, int argc, char **argv)
 {
     static const struct option opts[] = {{"window", required_argument, 0, 'w'}, {"watch", no_argument, 0, 'W'},
@@ -323,7 +309,7 @@ int cmd_ps(cli_t *cli, int argc, char **argv)
     /* Every manager answers the request at once (or, past its rate limit or too old to know
      * it, reports within its 2 Hz period): a host silent for the whole window is lost. Once
      * every host a status names has reported, the table is complete. */
-    pump(cli, window, watch ? NULL : all_heard);
+    pump(cli, window, watch ? NULL : all_hosts_heard);
     if (watch) {
         /* every second; a host silent for more than 2 s is lost */
         while (!interrupted) {

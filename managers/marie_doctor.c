@@ -123,8 +123,8 @@ int cmd_doctor(cli_t *cli, int argc, char **argv)
     long long ttl = url_param(cli->url, "ttl");
     /* hosts and clock skew from the managers' status */
     bool lcm_ok = cli_open(cli) == 0;
-    if (lcm_ok)
-        pump(cli, 1.2, NULL);
+    if (lcm_ok)     /* the managers answer at once; a silent one is waited for the whole 1.2 s */
+        pump(cli, 1.2, request_status(cli) == 0 ? all_hosts_heard : NULL);
     int nhosts_sys = 0;
     for (int i = 0; i < cli->nhosts; i++)
         if (cli->hosts[i].st && cli->hosts[i].st->nhosts > nhosts_sys)
