@@ -36,7 +36,7 @@ static void listen_until(lcm_t *lcm, int64_t end_mono)
  * count what it published meanwhile, even statuses lost on the way here. */
 static int flood(lcm_t *lcm, int n)
 {
-    marie_am_status_t_subscribe(lcm, MARIE_CH_AM_STATUS, on_status, NULL);
+    marie_am_status_t_subscription_t *sub = marie_am_status_t_subscribe(lcm, MARIE_CH_AM_STATUS, on_status, NULL);
     marie_am_status_request_t rq = {.utime = marie_wall_us(), .sender = "flood@test", .host = "*"};
     marie_am_status_request_t_publish(lcm, MARIE_CH_AM_STATUS_REQUEST, &rq);
     int64_t end = marie_mono_us() + 3000000;
@@ -44,6 +44,7 @@ static int flood(lcm_t *lcm, int n)
         lcm_handle_timeout(lcm, 50);
     if (first_seq < 0) {
         printf("no status from %s\n", watch_host);
+        marie_am_status_t_unsubscribe(lcm, sub);
         return 1;
     }
     int64_t seq0 = last_seq, t0 = marie_mono_us();
@@ -55,6 +56,7 @@ static int flood(lcm_t *lcm, int n)
     listen_until(lcm, marie_mono_us() + 1500000);
     printf("sent %d statuses %lld seconds %.1f\n", n, (long long)(last_seq - seq0),
            (double)(marie_mono_us() - t0) / 1e6);
+    marie_am_status_t_unsubscribe(lcm, sub);
     return 0;
 }
 
