@@ -154,12 +154,13 @@ static bool changed_rect(const occmap_t *was, const occmap_t *now, int r[4])
 
 /* Only the rectangle that changed since what the readers hold, when the map is large, its frame
  * the same and a whole map is not due: 1 when sent (or nothing changed), 0 when the whole map
- * must go. */
+ * must go. A reader that lost an update is mended by the next whole map: without republish_s
+ * every map goes whole. */
 static int publish_update(marie_component_t *c, mapper_t *s, const occmap_t *m, int64_t now, bool due)
 {
     const mapper_params_t *q = marie_component_params(c);
     const occmap_t *o = s->sent;
-    if (due || !o || q->update_cells <= 0 || (int64_t)m->width * m->height < q->update_cells ||
+    if (due || !o || q->update_cells <= 0 || !(q->republish_s > 0) || (int64_t)m->width * m->height < q->update_cells ||
         m->width != o->width || m->height != o->height || m->resolution != o->resolution ||
         m->origin_x != o->origin_x || m->origin_y != o->origin_y)
         return 0;
