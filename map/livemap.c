@@ -47,6 +47,28 @@ int livemap_update(livemap_t *lm, const marie_occupancy_grid_update_t *u, char *
     return 0;
 }
 
+bool livemap_take_full(livemap_t *lm, marie_component_t *c, const marie_occupancy_grid_t *m)
+{
+    char why[128];
+    if (livemap_full(lm, m, why, sizeof why) == 0)
+        return true;
+    marie_component_bad_input(c, "bad_map", "%s", why);
+    return false;
+}
+
+bool livemap_take_update(livemap_t *lm, marie_component_t *c, const marie_occupancy_grid_update_t *u)
+{
+    char why[128];
+    int r = livemap_update(lm, u, why, sizeof why);
+    if (r < 0)
+        marie_component_bad_input(c, "bad_map_update", "%s", why);
+    else if (r > 0)
+        marie_component_count(c, "map_updates_unmatched", 1);      /* the next whole map comes */
+    else
+        marie_component_count(c, "map_updates", 1);
+    return r == 0;
+}
+
 occmap_t *livemap_occmap(const livemap_t *lm)
 {
     const marie_occupancy_grid_t *m = &lm->map;

@@ -26,37 +26,30 @@ typedef struct {
     int nblack;
 } exp_t;
 
+/* explore_frontiers works on an occmap: made again from the live map when it changes. */
+static void use_live_map(exp_t *s)
+{
+    occmap_t *om = livemap_occmap(&s->live);
+    if (om) {
+        occmap_destroy(s->map);
+        s->map = om;
+    }
+}
+
 static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     exp_t *s = marie_component_user(c);
-    char why[128];
-    occmap_t *om;
-    if (livemap_full(&s->live, msg, why, sizeof(why)) != 0) {
-        marie_component_bad_input(c, "bad_map", "%s", why);
-        return;
+    if (livemap_take_full(&s->live, c, msg)) {
+        use_live_map(s);
+        marie_component_count(c, "maps", 1);
     }
-    if (!(om = livemap_occmap(&s->live)))
-        return;
-    occmap_destroy(s->map);
-    s->map = om;
-    marie_component_count(c, "maps", 1);
 }
 
 static void on_map_update(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     exp_t *s = marie_component_user(c);
-    char why[128];
-    occmap_t *om;
-    int r = livemap_update(&s->live, msg, why, sizeof(why));
-    if (r < 0)
-        marie_component_bad_input(c, "bad_map_update", "%s", why);
-    else if (r > 0)
-        marie_component_count(c, "map_updates_unmatched", 1);      /* not for the map held: the next whole one comes */
-    else if ((om = livemap_occmap(&s->live))) {
-        occmap_destroy(s->map);
-        s->map = om;
-        marie_component_count(c, "map_updates", 1);
-    }
+    if (livemap_take_update(&s->live, c, msg))
+        use_live_map(s);
 }
 
 static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)

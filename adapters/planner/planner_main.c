@@ -283,28 +283,17 @@ static void use_live_map(marie_component_t *c, pln_t *s)
 static void on_map(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     pln_t *s = marie_component_user(c);
-    char why[128];
-    if (livemap_full(&s->live, msg, why, sizeof(why)) != 0) {
-        marie_component_bad_input(c, "bad_map", "%s", why);
-        return;
+    if (livemap_take_full(&s->live, c, msg)) {
+        marie_component_count(c, "maps", 1);
+        use_live_map(c, s);
     }
-    marie_component_count(c, "maps", 1);
-    use_live_map(c, s);
 }
 
 static void on_map_update(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     pln_t *s = marie_component_user(c);
-    char why[128];
-    int r = livemap_update(&s->live, msg, why, sizeof(why));
-    if (r < 0)
-        marie_component_bad_input(c, "bad_map_update", "%s", why);
-    else if (r > 0)
-        marie_component_count(c, "map_updates_unmatched", 1);      /* not for the map held: the next whole one comes */
-    else {
-        marie_component_count(c, "map_updates", 1);
+    if (livemap_take_update(&s->live, c, msg))
         use_live_map(c, s);
-    }
 }
 
 static void quit(marie_component_t *c)

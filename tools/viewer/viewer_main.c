@@ -247,28 +247,21 @@ static void live_remember(viewer_t *v, int pi, const marie_buf_t *b, int64_t uti
  * nothing to draw (an update for a map not held, counted; or one that contradicts itself). */
 static int live_map(viewer_t *v, int pi, const void **raw, size_t *raw_len)
 {
-    char why[128];
-    int rc = -1;
+    bool taken = false;
     if (pi == P_MAP) {
         marie_occupancy_grid_t g;
         if (marie_decode_input(&marie_type_occupancy_grid_t, *raw, *raw_len, &g, NULL) != 0)
             return -1;
-        rc = livemap_full(&v->live_map, &g, why, sizeof why);
+        taken = livemap_take_full(&v->live_map, v->c, &g);
         marie_type_occupancy_grid_t.decode_cleanup(&g);
-        if (rc != 0)
-            marie_component_bad_input(v->c, "bad_map", "%s", why);
-        return rc;
+        return taken ? 0 : -1;
     }
     marie_occupancy_grid_update_t u;
     if (marie_decode_input(&marie_type_occupancy_grid_update_t, *raw, *raw_len, &u, NULL) != 0)
         return -1;
-    int r = livemap_update(&v->live_map, &u, why, sizeof why);
+    taken = livemap_take_update(&v->live_map, v->c, &u);
     marie_type_occupancy_grid_update_t.decode_cleanup(&u);
-    if (r < 0)
-        marie_component_bad_input(v->c, "bad_map_update", "%s", why);
-    else if (r > 0)
-        marie_component_count(v->c, "map_updates_unmatched", 1);
-    if (r != 0)
+    if (!taken)
         return -1;
     int len = marie_type_occupancy_grid_t.encoded_size(&v->live_map.map);
     if (len <= 0)
@@ -282,7 +275,6 @@ static int live_map(viewer_t *v, int pi, const void **raw, size_t *raw_len)
     }
     if (marie_type_occupancy_grid_t.encode(v->map_raw, 0, len, &v->live_map.map) != len)
         return -1;
-    marie_component_count(v->c, "map_updates", 1);
     *raw = v->map_raw;
     *raw_len = (size_t)len;
     return 0;
