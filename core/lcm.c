@@ -780,27 +780,47 @@ static void put32(uint8_t *p, uint32_t v)
     p[0] = (uint8_t)(v >> 24), p[1] = (uint8_t)(v >> 16), p[2] = (uint8_t)(v >> 8), p[3] = (uint8_t)v;
 }
 
-static ssize_t send_one(bus_t *b, struct iovec *iov, int niov)
+/* A message that goes in one LC02 datagram: its channel, the channel's NUL and payload take at
+ * most SHORT_MAX bytes. */
+static bool one_datagram(const marie_lcm_msg_t *m)
 {
-    struct msghdr m = {.msg_name = &b->tx_to, .msg_namelen = sizeof b->tx_to, .msg_iov = iov, .msg_iovlen = (size_t)niov};
-    ssize_t n;
-    do
-        n = sendmsg(b->tx_fd, &m, 0);
-    while (n < 0 && errno == EINTR);
-    return n;
+    size_t n = m->channel ? strlen(m->channel) : SIZE_MAX;
+    return n <= LCM_MAX_CHANNEL_NAME_LENGTH && (m->data || !m->len) && n + 1 + (uint64_t)m->len <= SHORT_MAX;
 }
 
-/* One LC02 datagram: header, channel and its NUL, payload. */
-static int send_short(bus_t *b, const char *channel, size_t cl, const void *data, unsigned len)
+/* LC02 datagrams (header, channel and its NUL, payload) for m[0..k), one sequence number each,
+ * handed to the kernel by sendmmsg; rc[i] for each. Returns how many were sent. */
+static int send_shorts(bus_t *b, const marie_lcm_msg_t *m, int k, int *rc)
 {
-    uint8_t hdr[SHORT_HDR];
-    put32(hdr, MAGIC_SHORT);
-    put32(hdr + 4, b->tx_seqno);
-    struct iovec iov[3] = {{hdr, sizeof hdr}, {(void *)channel, cl}, {(void *)data, len}};
-    ssize_t n = send_one(b, iov, 3);
-    if (n < 0)
-        return -1;
-    return n == (ssize_t)(sizeof hdr + cl + len) ? 0 : marie_fail(EIO);   /* UDP sends all or nothing */
+    uint8_t hdr[FRAGS_PER_CALL][SHORT_HDR];
+    struct iovec iov[FRAGS_PER_CALL][3];
+    struct mmsghdr mm[FRAGS_PER_CALL];
+    int sent = 0;
+    pthread_mutex_lock(&b->tx_lock);
+    for (int i = 0; i < k; i++) {
+        put32(hdr[i], MAGIC_SHORT);
+        put32(hdr[i] + 4, b->tx_seqno++);
+        iov[i][0] = (struct iovec){hdr[i], SHORT_HDR};
+        iov[i][1] = (struct iovec){(void *)m[i].channel, strlen(m[i].channel) + 1};
+        iov[i][2] = (struct iovec){(void *)m[i].data, m[i].len};
+        mm[i] = (struct mmsghdr){.msg_hdr = {.msg_name = &b->tx_to, .msg_namelen = sizeof b->tx_to,
+                                             .msg_iov = iov[i], .msg_iovlen = 3}};
+    }
+    for (int at = 0; at < k;) {
+        int n = sendmmsg(b->tx_fd, mm + at, (unsigned)(k - at), 0);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0) {               /* this one is refused; the rest are tried */
+            rc[at++] = -1;
+            continue;
+        }
+        for (int j = 0; j < n; j++)
+            rc[at + j] = 0;
+        at += n;
+        sent += n;
+    }
+    pthread_mutex_unlock(&b->tx_lock);
+    return sent;
 }
 
 /* LC03 fragments, FRAGS_PER_CALL to a system call: the first carries the channel and as much of
@@ -862,46 +882,16 @@ int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigne
     uint64_t nfrags = (payload + FRAG_PAYLOAD - 1) / FRAG_PAYLOAD;
     if (payload > SHORT_MAX && nfrags > FRAGS_MAX)
         return marie_fail(EMSGSIZE);
+    int rc;
+    if (payload <= SHORT_MAX) {
+        send_shorts(b, &(marie_lcm_msg_t){channel, data, len}, 1, &rc);
+        return rc;
+    }
     pthread_mutex_lock(&b->tx_lock);
-    int rc = payload <= SHORT_MAX ? send_short(b, channel, cl, data, len)
-                                  : send_fragments(b, channel, cl, data, len, (unsigned)nfrags);
+    rc = send_fragments(b, channel, cl, data, len, (unsigned)nfrags);
     b->tx_seqno++;
     pthread_mutex_unlock(&b->tx_lock);
     return rc;
-}
-
-/* Sends m[0..k) (each one datagram) with one sendmmsg per kernel call; rc[i] for each. */
-static int send_shorts(bus_t *b, const marie_lcm_msg_t *m, int k, int *rc)
-{
-    uint8_t hdr[FRAGS_PER_CALL][SHORT_HDR];
-    struct iovec iov[FRAGS_PER_CALL][3];
-    struct mmsghdr mm[FRAGS_PER_CALL];
-    int sent = 0;
-    pthread_mutex_lock(&b->tx_lock);
-    for (int i = 0; i < k; i++) {
-        put32(hdr[i], MAGIC_SHORT);
-        put32(hdr[i] + 4, b->tx_seqno++);
-        iov[i][0] = (struct iovec){hdr[i], SHORT_HDR};
-        iov[i][1] = (struct iovec){(void *)m[i].channel, strlen(m[i].channel) + 1};
-        iov[i][2] = (struct iovec){(void *)m[i].data, m[i].len};
-        mm[i] = (struct mmsghdr){.msg_hdr = {.msg_name = &b->tx_to, .msg_namelen = sizeof b->tx_to,
-                                             .msg_iov = iov[i], .msg_iovlen = 3}};
-    }
-    for (int at = 0; at < k;) {
-        int n = sendmmsg(b->tx_fd, mm + at, (unsigned)(k - at), 0);
-        if (n < 0 && errno == EINTR)
-            continue;
-        if (n <= 0) {               /* this one is refused; the rest are tried */
-            rc[at++] = -1;
-            continue;
-        }
-        for (int j = 0; j < n; j++)
-            rc[at + j] = 0;
-        at += n;
-        sent += n;
-    }
-    pthread_mutex_unlock(&b->tx_lock);
-    return sent;
 }
 
 int marie_lcm_publish_batch(lcm_t *lcm, const marie_lcm_msg_t *m, int n, int *rc)
@@ -911,9 +901,7 @@ int marie_lcm_publish_batch(lcm_t *lcm, const marie_lcm_msg_t *m, int n, int *rc
     int sent = 0;
     for (int i = 0; i < n;) {
         int k = 0;
-        while (own && i + k < n && k < FRAGS_PER_CALL && m[i + k].channel && (m[i + k].data || !m[i + k].len) &&
-               strlen(m[i + k].channel) <= LCM_MAX_CHANNEL_NAME_LENGTH &&
-               strlen(m[i + k].channel) + 1 + (uint64_t)m[i + k].len <= SHORT_MAX)
+        while (own && i + k < n && k < FRAGS_PER_CALL && one_datagram(&m[i + k]))
             k++;
         if (k >= 2) {
             sent += send_shorts(b, m + i, k, rc + i);
