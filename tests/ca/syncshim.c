@@ -259,6 +259,16 @@ ssize_t sendmsg(int fd, const struct msghdr *msg, int flags)
     return n;
 }
 
+/* marie's own LCM sender hands datagrams to the kernel this way (core/lcm.c): each one traced. */
+int sendmmsg(int fd, struct mmsghdr *vec, unsigned int vlen, int flags)
+{
+    REAL(int, "sendmmsg", int, struct mmsghdr *, unsigned int, int);
+    int n = real_(fd, vec, vlen, flags);
+    for (int i = 0; i < n; i++)
+        sent((ssize_t)vec[i].msg_len);
+    return n;
+}
+
 ssize_t sendto(int fd, const void *buf, size_t len, int flags, const struct sockaddr *to, socklen_t tolen)
 {
     REAL(ssize_t, "sendto", int, const void *, size_t, int, const struct sockaddr *, socklen_t);
