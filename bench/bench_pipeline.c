@@ -17,7 +17,9 @@
  *   normal: the Mailbox and the behaviours started as marie-am starts them (marie_spawn) with
  *           no sched;
  *   rt:     started the same way with the sched that config/spartacus.yaml gives `mailbox` and
- *           `behaviours`, and this bench, which plays the laser and the drives, at the drives'.
+ *           `behaviours`, and this bench, which plays the laser and the drives, at the drives'
+ *           policy and priority (not their CPUs: on the robot the drives run on another
+ *           computer than the Mailbox and the behaviours).
  * Nothing real-time here spins: the components and the bench wait in poll; the busy loops are
  * at the normal policy and end by themselves after the run's length (and with the bench). Where
  * real-time scheduling is refused, the bench says so and measures the normal mode only. */
@@ -178,13 +180,14 @@ static int chain_sched_load(chain_sched_t *cs, const char *path)
     cs->behaviours = b ? &b->sched : &none;
     cs->drives = d ? &d->sched : &none;
     char t1[64], t2[64], t3[64];
-    fprintf(stderr, "bench_pipeline: rt mode from %s: mailbox '%s', behaviours '%s', the bench (drives) '%s'\n", path,
+    fprintf(stderr, "bench_pipeline: rt mode from %s: mailbox '%s', behaviours '%s'; the bench at the policy and "
+                    "priority of drives' '%s'\n", path,
             marie_sched_cfg_text(cs->mailbox, t1, sizeof t1), marie_sched_cfg_text(cs->behaviours, t2, sizeof t2),
             marie_sched_cfg_text(cs->drives, t3, sizeof t3));
     return 0;
 }
 
-/* This thread at the drives' policy (rt) or back at the normal one; 0, or the errno. */
+/* This thread at the drives' policy and priority (rt) or back at the normal one; 0, or the errno. */
 static int bench_sched(const marie_sched_cfg_t *s)
 {
     struct sched_param p = {.sched_priority = s ? s->priority : 0};

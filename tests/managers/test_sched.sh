@@ -58,7 +58,14 @@ start am "$BIN/marie-am" --host alpha --state-dir "$T/alpha"
 # beta lacks the right: no CAP_SYS_NICE, and a real-time priority limit of 0
 start beta prlimit --rtprio=0:0 setpriv --inh-caps=-sys_nice --bounding-set=-sys_nice \
     "$BIN/marie-am" --host beta --state-dir "$T/beta"
-sleep 0.3
+# both managers on the bus (a loaded machine can take a while to start them)
+managers_up() {
+    "$M" --json ps --window 0.5 2>/dev/null | python3 -c '
+import json, sys
+hosts = {h["host"] for h in json.load(sys.stdin)["hosts"]}
+sys.exit(0 if {"alpha", "beta"} <= hosts else 1)'
+}
+setup "both managers answer" wait_for 20 managers_up
 setup "up" "$M" up --wait-timeout 20 "$T/sched.yaml"
 
 # sched_of PID: "POLICY RTPRIO CPUS" as the kernel has them: /proc/PID/stat fields 41 (policy:
