@@ -1,6 +1,7 @@
 /* proc: start and stop the project's programs from tests and benchmarks. */
 #include "tests/proc.h"
 
+#include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -29,9 +30,15 @@ void test_stop(pid_t pid)
 {
     if (pid <= 0)
         return;
+    /* Already ended, or not (or no longer) our child, as when stopped twice: nothing to wait
+     * for, and the pid may be someone else's by now. */
+    pid_t r = waitpid(pid, NULL, WNOHANG);
+    if (r == pid || (r < 0 && errno == ECHILD))
+        return;
     kill(pid, SIGTERM);
     for (int i = 0; i < 250; i++) {
-        if (waitpid(pid, NULL, WNOHANG) == pid)
+        r = waitpid(pid, NULL, WNOHANG);
+        if (r == pid || (r < 0 && errno == ECHILD))
             return;
         usleep(20000);
     }

@@ -7,7 +7,8 @@
 /* Runs argv[0] with argv (NULL-terminated). stdout and stderr are appended to `log`
  * ("/dev/null" to drop them), or inherited when log is NULL. The pid, or -1. */
 pid_t test_spawn(char *const argv[], const char *log);
-/* SIGTERM, then SIGKILL if the process is still there after 5 s; reaps it. pid <= 0: no-op. */
+/* SIGTERM, then SIGKILL if the process is still there after 5 s; reaps it. pid <= 0, or a
+ * process already reaped (stopped twice) or not this process's child: no-op. */
 void test_stop(pid_t pid);
 /* Writes `text` to a new file named after the mkstemps template `path` (its last `suffix_len`
  * characters kept, such as ".yaml"; the name is written back into path): a system file for a

@@ -1,6 +1,8 @@
 #!/bin/sh
 # Fetches and unpacks Debian's linux-image-amd64 kernel (vmlinuz + modules) for the VM test,
-# once; later runs only print the directory. Nothing is installed on the host.
+# once; later runs only print the directory. Nothing is installed on the host. The kernel is
+# also kept uncompressed (vmlinux, scripts/vm/unpack-kernel.py) when it has a PVH entry point:
+# qemu boots that directly, without decompressing it in the emulated CPU first.
 #   scripts/vm/fetch-kernel.sh            prints the unpacked root, e.g. /var/cache/marie-vm/6.1.0-56-amd64
 #   scripts/vm/fetch-kernel.sh --extras   also builds the out-of-tree modules the VM tests load
 #                                         (scripts/vm/build-gpio-sim.sh, cached likewise)
@@ -24,10 +26,16 @@ if [ -z "$cache" ]; then
     fi
 fi
 mkdir -p "$cache"
+# elf DIR: DIR/vmlinux from DIR/vmlinuz, once; a kernel without a PVH entry is marked so, and
+# booted compressed.
+elf() {
+    [ -f "$1/vmlinux" ] || [ -f "$1/vmlinux.none" ] ||
+        python3 "$(dirname "$0")"/unpack-kernel.py "$1/vmlinuz" "$1/vmlinux" || : > "$1/vmlinux.none"
+}
 # A kernel already unpacked is used as is (no network needed).
 want=${MARIE_VM_KERNEL:+${MARIE_VM_KERNEL#linux-image-}}
 for d in "$cache"/${want:-*-amd64}; do
-    if [ -f "$d/vmlinuz" ] && [ -d "$d/modules" ]; then echo "$d"; exit 0; fi
+    if [ -f "$d/vmlinuz" ] && [ -d "$d/modules" ]; then elf "$d" 2>/dev/null; echo "$d"; exit 0; fi
 done
 pkg=${MARIE_VM_KERNEL:-}
 [ -n "$pkg" ] || pkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
@@ -52,4 +60,5 @@ rm -rf "$out"; mkdir -p "$out"
 cp "$tmp"/boot/vmlinuz-"$ver" "$out"/vmlinuz
 mv "$tmp"/lib/modules/"$ver" "$out"/modules 2>/dev/null || mv "$tmp"/usr/lib/modules/"$ver" "$out"/modules
 rm -rf "$tmp" "$dl"
+elf "$out"
 echo "$out"

@@ -20,7 +20,8 @@
 # in the current directory as root, so the build's binaries run as they are (keep them out of
 # /tmp). Only `lo` exists inside; bring it up yourself (ip link set lo up). The command's
 # output comes on stdout; the script exits with the command's exit status.
-# The kernel comes from scripts/vm/fetch-kernel.sh (downloaded once into a cache).
+# The kernel comes from scripts/vm/fetch-kernel.sh (downloaded once into a cache); its
+# uncompressed vmlinux is booted when there is one (the PVH entry: no decompression under TCG).
 # env: MARIE_VM_MEM (default 512M), QEMU (default qemu-system-x86_64), MARIE_VM_CACHE.
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
@@ -48,6 +49,8 @@ bb=$(command -v busybox || true)
 
 kdir=$("$here"/fetch-kernel.sh)
 mdir=$kdir/modules
+kernel=$kdir/vmlinuz
+[ -f "$kdir/vmlinux" ] && kernel=$kdir/vmlinux
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/marie-vm.XXXXXX")
 trap 'rm -rf "$work"' EXIT INT TERM
@@ -150,7 +153,7 @@ share_w=""
 log=$work/console.log
 # shellcheck disable=SC2086
 timeout -k 5 "$limit" "$qemu" -accel tcg -m "${MARIE_VM_MEM:-512M}" -smp 1 -nographic -no-reboot \
-    -nic none -kernel "$kdir/vmlinuz" -initrd "$work/initramfs.gz" \
+    -nic none -kernel "$kernel" -initrd "$work/initramfs.gz" \
     -append "console=ttyS0 quiet loglevel=3 panic=-1" \
     -virtfs local,path=/,mount_tag=host,security_model=none,readonly=on,multidevs=remap $share_w $qargs \
     < /dev/null > "$log" 2>&1 || true

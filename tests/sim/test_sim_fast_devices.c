@@ -222,8 +222,10 @@ static void test_fast_device_mode_no_timeouts(void **state)
         send_cmd(l, 0, 0);
         lcm_handle_timeout(l, 50);
     }
-    for (int i = 3; i >= 0; i--)
+    for (int i = 3; i >= 0; i--) {
         test_stop(pids[i]);
+        pids[i] = 0;
+    }
     lcm_destroy(l);
     unlink(link);
     unlink(can);

@@ -57,6 +57,19 @@ if [ -z "$CHROME" ]; then
     check "chromium installed" false
     finish
 fi
+# the demo's own log: a short run of marie-demo (the robot application under the managers, as
+# make demo runs it) recorded meanwhile, in a network namespace of its own (the live checks
+# below follow this one's bus), or VIEWER_DEMO_LOG; no log is a failure, never a skip
+demo_log=${VIEWER_DEMO_LOG:-}
+demo_pid=
+if [ -z "$demo_log" ]; then
+    demo_log=$tmp/realdemo/demo.lcm
+    env -u MARIE_IN_NETNS scripts/netns-run "$BIN/marie-demo" --quiet --out "$tmp/realdemo" --timeout 15 \
+        > "$tmp/realdemo.txt" 2>&1 &
+    demo_pid=$!
+    pids="$pids $demo_pid"
+fi
+
 setup "headless chromium with a DevTools port" start_chrome
 
 "$GEN" log "$tmp/demo.lcmlog" --seconds 45 --truth "$tmp/demo.truth"
@@ -117,23 +130,6 @@ sys.exit(0 if a and b and z and arb and z["t"] >= b["t"] else 1)
 PY
 }
 check "play at 20x streams decisions, pause stops" playback
-
-# the demo's own log: a short run of marie-demo (the robot application under the managers, as
-# make demo runs it) recorded here, or VIEWER_DEMO_LOG; no log is a failure, never a skip
-demo_log=${VIEWER_DEMO_LOG:-}
-if [ -z "$demo_log" ]; then
-    demo_log=$tmp/realdemo/demo.lcm
-    "$BIN/marie-demo" --quiet --out "$tmp/realdemo" --timeout 15 > "$tmp/realdemo.txt" 2>&1
-fi
-check "the demo's log recorded ($demo_log)" test -s "$demo_log"
-check "server plays the demo's log" serve real 8110 --param log="$demo_log" --param map=sim/worlds/office.yaml
-page "http://127.0.0.1:8110/?t=20&paused=1" "$tmp/real.html"
-r=$tmp/real.html
-check "demo log: map, poses and laser drawn" \
-    sh -c "[ \"$(attr data-map-drawn "$r")\" = 1 ] && [ \"$(attr data-pose "$r")\" = 1 ] && [ \"$(attr data-laser "$r")\" -ge 1 ]"
-check "demo log: decisions on the timeline and in the list" \
-    sh -c "[ \"$(attr data-decisions "$r")\" -ge 10 ] && grep -q '<li data-winner=' $r"
-check "demo log: components from heartbeats" sh -c "[ \"$(attr data-components "$r")\" -ge 3 ]"
 
 # ---- the launcher: marie view LOG --port N prints the URL and serves the page
 "$BIN/marie" view "$tmp/demo.lcmlog" --port 8107 --paused > "$tmp/launcher.out" 2>&1 &
@@ -204,6 +200,18 @@ if [ -x "$BIN/marie-sim" ]; then
         sh -c "[ $(attr data-truth "$s") = 1 ] && [ $(attr data-laser "$s") -ge 1 ]"
     check "sim: the simulator in the components table" has 'data-component="sim"' "$s"
 fi
+
+# ---- the demo's own log, recorded meanwhile
+[ -n "$demo_pid" ] && wait "$demo_pid"
+check "the demo's log recorded ($demo_log)" test -s "$demo_log"
+check "server plays the demo's log" serve real 8110 --param log="$demo_log" --param map=sim/worlds/office.yaml
+page "http://127.0.0.1:8110/?t=20&paused=1" "$tmp/real.html"
+r=$tmp/real.html
+check "demo log: map, poses and laser drawn" \
+    sh -c "[ \"$(attr data-map-drawn "$r")\" = 1 ] && [ \"$(attr data-pose "$r")\" = 1 ] && [ \"$(attr data-laser "$r")\" -ge 1 ]"
+check "demo log: decisions on the timeline and in the list" \
+    sh -c "[ \"$(attr data-decisions "$r")\" -ge 10 ] && grep -q '<li data-winner=' $r"
+check "demo log: components from heartbeats" sh -c "[ \"$(attr data-components "$r")\" -ge 3 ]"
 
 # every server quits cleanly on SIGTERM (under SAN=1: no sanitizer report, no leak)
 clean_exit() {
