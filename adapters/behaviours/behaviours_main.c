@@ -185,7 +185,14 @@ static void decide(beh_t *b)
     double v = votes[win].v, w = votes[win].omega;
     const char *winner = votes[win].name;
     bool replan = false;
+    int64_t cut = b->rs.backoffs_cut;
     int stage = rec_step(&b->rp, &b->rs, (double)now / 1e6, &b->p, &in, win, votes, &v, &w, &replan);
+    if (b->rs.backoffs_cut > cut) {
+        marie_component_count(c, "back_off_cut", 1);
+        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "back_off_cut",
+                              "goal %d: back-off stopped, a return seen %.2f m behind the footprint or less",
+                              (int)in.path_goal, b->rp.backoff_clearance);
+    }
     if (replan) {
         marie_component_count(c, "recoveries", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "no_progress",

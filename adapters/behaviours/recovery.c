@@ -66,10 +66,65 @@ static double remaining(const arb_inputs_t *in)
     return left;
 }
 
+/* Keeps the returns of each new scan that lie within a metre of the robot, in the map frame: one
+ * per 5 cm (a return near one kept renews it), the oldest given up for a new one. */
+static void remember(rec_state_t *s, double now_s, const arb_params_t *ap, const arb_inputs_t *in)
+{
+    if (!in->ranges || in->scan_age < 0 || in->scan_age > ap->stale_scan_s || in->pose_age < 0 ||
+        in->pose_age > ap->stale_pose_s)
+        return;
+    double t = now_s - in->scan_age;
+    if (fabs(t - s->last_scan_t) < 1e-6)
+        return;                 /* this scan is already in */
+    s->last_scan_t = t;
+    double c = cos(in->pose[2]), sn = sin(in->pose[2]);
+    for (int k = 0; k < in->nranges; k++) {
+        double r = in->ranges[k];
+        if (!isfinite(r) || r <= in->range_min || r >= fmin(in->range_max, 1.0))
+            continue;
+        double a = in->angle_min + k * in->angle_increment, lx = r * cos(a), ly = r * sin(a);
+        float x = (float)(in->pose[0] + c * lx - sn * ly), y = (float)(in->pose[1] + sn * lx + c * ly);
+        int slot = 0;
+        bool kept = false;
+        for (int i = 0; i < REC_SEEN_MAX && !kept; i++) {
+            float dx = s->seen[i][0] - x, dy = s->seen[i][1] - y;
+            if (s->seen_t[i] > 0 && dx * dx + dy * dy < 0.05f * 0.05f) {
+                s->seen_t[i] = t;
+                kept = true;
+            } else if (s->seen_t[i] < s->seen_t[slot]) {
+                slot = i;
+            }
+        }
+        if (kept)
+            continue;
+        s->seen[slot][0] = x;
+        s->seen[slot][1] = y;
+        s->seen_t[slot] = t;
+    }
+}
+
+/* Whether a remembered return lies behind the robot, within its width and less than `clear`
+ * behind its footprint. */
+static bool blocked_behind(const rec_state_t *s, double now_s, const rec_params_t *p, const arb_params_t *ap,
+                           const arb_inputs_t *in)
+{
+    double c = cos(in->pose[2]), sn = sin(in->pose[2]), hw = ap->half_width;
+    for (int i = 0; i < REC_SEEN_MAX; i++) {
+        if (s->seen_t[i] <= 0 || now_s - s->seen_t[i] > p->memory_s)
+            continue;
+        double dx = s->seen[i][0] - in->pose[0], dy = s->seen[i][1] - in->pose[1];
+        double x = c * dx + sn * dy, y = -sn * dx + c * dy;
+        if (x < 0 && x > -(hw + p->backoff_clearance) && fabs(y) < hw)
+            return true;
+    }
+    return false;
+}
+
 int rec_step(const rec_params_t *p, rec_state_t *s, double now_s, const arb_params_t *ap, const arb_inputs_t *in,
              int win, const arb_vote_t votes[ARB_COUNT], double *v, double *omega, bool *replan)
 {
     *replan = false;
+    remember(s, now_s, ap, in);
     bool following = in->path && in->npath > 0 && in->path_status == 0 && votes[ARB_FOLLOW].active;
     if (p->stuck_s <= 0 || win == ARB_ESTOP || win == ARB_TELEOP || !in->path || in->npath <= 0 || in->pose_age < 0) {
         s->stage = REC_NONE;
@@ -106,8 +161,15 @@ int rec_step(const rec_params_t *p, rec_state_t *s, double now_s, const arb_para
         s->stage_end = now_s + 1.0;
         *replan = true;
     }
-    /* Advance through the ladder. */
-    while (s->stage != REC_NONE && now_s >= s->stage_end) {
+    /* Advance through the ladder; a back-off ends (or is skipped) where it would reach what is
+     * behind. */
+    for (;;) {
+        if (s->stage == REC_BACKOFF && now_s < s->stage_end && blocked_behind(s, now_s, p, ap, in)) {
+            s->stage_end = now_s;
+            s->backoffs_cut++;
+        }
+        if (s->stage == REC_NONE || now_s < s->stage_end)
+            break;
         switch (s->stage) {
         case REC_REPLAN:
             s->stage = REC_BACKOFF;

@@ -362,6 +362,62 @@ static void test_recovery_when_no_progress(void **state)
     assert_int_equal(rec_step(&rp, &rs, 61, &ap, &in, win, votes, &v, &w, &replan), REC_NONE);
 }
 
+/* The laser sees only ahead: a robot that faced a wall 0.3 m away, turned its back to it and got
+ * stuck there does not back off into it (the back-off is skipped, the recovery goes on to
+ * rotate); the same robot with nothing seen behind it backs off the whole backoff_s. */
+static int backoff_cycles(bool wall_seen)
+{
+    arb_params_t ap;
+    arb_params_default(&ap);
+    rec_params_t rp;
+    rec_params_default(&rp);
+    rec_state_t rs;
+    rec_state_reset(&rs);
+    arb_state_t st;
+    arb_state_reset(&st);
+    static float wall[181];
+    double path[6] = { 3, 0, M_PI, -5, 0, M_PI };      /* west, away from the wall at x = 3.3 */
+    arb_inputs_t in = base_inputs();
+    in.path = path;
+    in.npath = 2;
+    in.path_age = 0.1;
+    in.pose_age = 0.05;
+    in.path_goal = 4;
+    in.pose[0] = 3.0;
+    arb_vote_t votes[ARB_COUNT];
+    double v, w;
+    bool replan;
+    int backing = 0, rotating = 0;
+    for (int k = 0; k < 150; k++) {          /* 30 s at 5 Hz, held in place */
+        in.pose[2] = k < 5 ? 0 : M_PI;      /* the first second facing east, then west */
+        in.ranges = open_scan;
+        if (k < 5 && wall_seen) {
+            for (int j = 0; j < 181; j++) {
+                double a = in.angle_min + j * in.angle_increment;
+                wall[j] = fabs(a) < 1.2 ? (float)(0.3 / cos(a)) : 10.0f;
+            }
+            in.ranges = wall;
+        }
+        in.scan_age = 0.05 + 1e-3 * (k % 2);      /* a new scan every cycle */
+        int win = arb_decide(&ap, &st, &in, votes);
+        int stage = rec_step(&rp, &rs, 100 + k * 0.2, &ap, &in, win, votes, &v, &w, &replan);
+        backing += stage == REC_BACKOFF && v < 0;
+        rotating += stage == REC_ROTATE;
+    }
+    printf("%s: %d cycles backing off, %d rotating, %lld back-offs cut\n", wall_seen ? "wall behind" : "open behind",
+           backing, rotating, (long long)rs.backoffs_cut);
+    assert_true(rotating > 0);
+    return backing;
+}
+
+static void test_backoff_stops_at_what_was_seen_behind(void **state)
+{
+    assert_int_equal(backoff_cycles(true), 0);
+    rec_params_t rp;
+    rec_params_default(&rp);
+    assert_true(backoff_cycles(false) >= (int)(rp.backoff_s / 0.2) - 1);
+}
+
 /* A corner's wall beside the robot, just inside the corridor it sweeps, while the path steers
  * towards that side: avoid turns away from it (turning with the path turned into it, and the
  * two took turns in a maze corner until a recovery). Dead ahead, the path's way still wins. */
@@ -442,6 +498,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_idle_without_inputs),
         cmocka_unit_test(test_recovery_when_no_progress),
+        cmocka_unit_test(test_backoff_stops_at_what_was_seen_behind),
         cmocka_unit_test(test_follow_drives_along_path),
         cmocka_unit_test(test_follow_does_not_cut_a_sharp_corner),
         cmocka_unit_test(test_follow_stops_at_end_and_on_stale_pose),
