@@ -1,9 +1,11 @@
 #!/bin/sh
+# test-light
 # test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
 # no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so; with
 # --jobs the programs before `--` run side by side and are reported in order, counted once; a
 # program is killed at TEST_TIMEOUT unless its head declares a longer "# test-timeout: N"; one
-# after `--` whose head says "# test-light" runs beside those before it.
+# after `--` whose head says "# test-light" runs beside those before it and then beside the
+# others after it, and those after it of one "# test-group: NAME" run side by side.
 . tests/lib.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT INT TERM
@@ -47,9 +49,23 @@ printf '#!/bin/sh\n# test-light\n. tests/lib.sh\nsleep 2\ncheck "light" true\nfi
 start=$(date +%s)
 run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" -- "$tmp/light.sh" "$tmp/passes.sh"
 took=$(( $(date +%s) - start ))
-check "--jobs: a test-light program after -- runs beside those before it, reported after them ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh light.sh passes.sh ' &&
+check "--jobs: a test-light program after -- runs beside those before it, reported after the others ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh passes.sh light.sh ' &&
            tail -1 $tmp/out | grep -qx '5 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+start=$(date +%s)
+run --jobs 2 "$tmp/passes.sh" "$tmp/passes.sh" -- "$tmp/light.sh" "$tmp/slow.sh"
+took=$(( $(date +%s) - start ))
+check "--jobs: a test-light program still running when those before -- are done runs on beside the others after -- ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'passes.sh passes.sh slow.sh light.sh ' &&
+           tail -1 $tmp/out | grep -qx '6 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+printf '#!/bin/sh\n# test-group: pair\n. tests/lib.sh\nsleep 2\ncheck "grouped" true\nfinish\n' > "$tmp/g1.sh"
+cp "$tmp/g1.sh" "$tmp/g2.sh"
+start=$(date +%s)
+run --jobs 2 "$tmp/passes.sh" "$tmp/passes.sh" -- "$tmp/g1.sh" "$tmp/passes.sh" "$tmp/g2.sh"
+took=$(( $(date +%s) - start ))
+check "--jobs: the tests of one test-group after -- run side by side, printed where the first of them is ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'passes.sh passes.sh g1.sh g2.sh passes.sh ' &&
+           tail -1 $tmp/out | grep -qx '8 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
 run "$tmp/light.sh" -- "$tmp/light.sh"
 check "without --jobs a test-light program runs like the others" \
     sh -c "grep -c '^PASS light.sh' $tmp/out | grep -qx 2 && tail -1 $tmp/out | grep -qx '2 passed, 0 failed, 0 skipped'"
