@@ -52,19 +52,22 @@ took=$(( $(date +%s) - start ))
 check "--jobs: a test-light program after -- runs beside those before it, reported after the others ($took s)" \
     sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh passes.sh light.sh ' &&
            tail -1 $tmp/out | grep -qx '5 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+# (two programs of one name side by side would share one log: two copies)
+cp "$tmp/passes.sh" "$tmp/p1.sh"
+cp "$tmp/passes.sh" "$tmp/p2.sh"
 start=$(date +%s)
-run --jobs 2 "$tmp/passes.sh" "$tmp/passes.sh" -- "$tmp/light.sh" "$tmp/slow.sh"
+run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/light.sh" "$tmp/slow.sh"
 took=$(( $(date +%s) - start ))
 check "--jobs: a test-light program still running when those before -- are done runs on beside the others after -- ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'passes.sh passes.sh slow.sh light.sh ' &&
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh slow.sh light.sh ' &&
            tail -1 $tmp/out | grep -qx '6 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
 printf '#!/bin/sh\n# test-group: pair\n. tests/lib.sh\nsleep 2\ncheck "grouped" true\nfinish\n' > "$tmp/g1.sh"
 cp "$tmp/g1.sh" "$tmp/g2.sh"
 start=$(date +%s)
-run --jobs 2 "$tmp/passes.sh" "$tmp/passes.sh" -- "$tmp/g1.sh" "$tmp/passes.sh" "$tmp/g2.sh"
+run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/g1.sh" "$tmp/passes.sh" "$tmp/g2.sh"
 took=$(( $(date +%s) - start ))
 check "--jobs: the tests of one test-group after -- run side by side, printed where the first of them is ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'passes.sh passes.sh g1.sh g2.sh passes.sh ' &&
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh g1.sh g2.sh passes.sh ' &&
            tail -1 $tmp/out | grep -qx '8 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
 run "$tmp/light.sh" -- "$tmp/light.sh"
 check "without --jobs a test-light program runs like the others" \
