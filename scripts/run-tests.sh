@@ -5,7 +5,7 @@
 # `skip NAME REASON` prints "[  SKIPPED ] NAME: REASON"). A program that fails without naming
 # a case counts as one failure, and so does one that exits 0 having run no case and skipped
 # none: a test that silently does nothing is a failure, never a pass. Logs go to $B/test-logs/.
-#   scripts/run-tests.sh [--jobs N] TEST... [-- TEST...]   (env: B, TEST_TIMEOUT seconds per
+#   scripts/run-tests.sh [--jobs N] TEST... [-- TEST... [-- TEST...]]   (env: B, TEST_TIMEOUT seconds per
 #   program, default 300; a test whose first lines say "# test-timeout: N" gets N when that is
 #   more, for a run that is long by design): with --jobs, the tests before `--` run N at a time (each in its own
 #   namespace; a worker takes the next test as it finishes one; their lines print when all are
@@ -15,7 +15,9 @@
 #   the others after `--`; those run one at a time once the N are done, each printed as it
 #   ends, and the light tests' lines print last, in order. Tests after `--` whose first lines
 #   say "# test-group: NAME" (each was checked to keep its margins beside the others) run
-#   side by side, all of that NAME at once where the first of them is in the list.
+#   side by side, all of that NAME at once where the first of them is in the list. Tests after
+#   a second `--` (that need the cores to themselves) run last, one at a time, once all the
+#   others are done, the light ones too.
 set -u
 B=${B:-build}
 logs=$B/test-logs
@@ -96,7 +98,7 @@ if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
     # others after `--`: their results are l0, l1, ... in list order.
     (k=0; seen=0
      for t in "$@"; do
-         if [ "$t" = -- ]; then seen=1
+         if [ "$t" = -- ]; then seen=$((seen + 1))
          elif [ "$seen" = 1 ] && light "$t"; then
              run_one "$t" "$res/l$k" > "$res/l$k"
              k=$((k + 1))
@@ -123,26 +125,30 @@ if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
     while [ "$i" -lt "$n" ]; do tally "$res/$i"; i=$((i + 1)); done
     shift "$n"
 fi
-i=0; groups=""
+# After `--`: one at a time; with the lane, those of a group side by side, and those after a
+# second `--` once all else is done, the light lane too.
+i=0; groups=""; sec=0
 for t in "$@"; do
-    [ "$t" = -- ] && continue
-    [ "$lane" = 1 ] && light "$t" && continue
+    if [ "$t" = -- ]; then sec=$((sec + 1)); continue; fi
     g=""
-    [ "$jobs" -gt 1 ] && g=$(group "$t")
+    if [ "$lane" = 1 ]; then
+        [ "$sec" -ge 2 ] && continue
+        light "$t" && continue
+        g=$(group "$t")
+    fi
     if [ -z "$g" ]; then
         run_one "$t" "$res/s$i" > "$res/s$i"
         tally "$res/s$i"
         i=$((i + 1))
         continue
     fi
-    # The first of a group: every test of that group after `--` runs now, side by side.
+    # The first of a group: every test of that group runs now, side by side.
     case " $groups " in *" $g "*) continue ;; esac
     groups="$groups $g"
-    members=""; started=""
+    members=""; started=""; usec=0
     for u in "$@"; do
-        [ "$u" = -- ] && continue
-        [ "$lane" = 1 ] && light "$u" && continue
-        [ "$(group "$u")" = "$g" ] || continue
+        if [ "$u" = -- ]; then usec=$((usec + 1)); continue; fi
+        [ "$usec" = 1 ] && ! light "$u" && [ "$(group "$u")" = "$g" ] || continue
         run_one "$u" "$res/s$i" > "$res/s$i" &
         started="$started $!"; members="$members s$i"
         i=$((i + 1))
@@ -155,6 +161,14 @@ if [ "$lane" = 1 ]; then
     wait "$lane_pid"
     k=0
     while [ -f "$res/l$k.counts" ]; do tally "$res/l$k"; k=$((k + 1)); done
+    sec=0
+    for t in "$@"; do
+        if [ "$t" = -- ]; then sec=$((sec + 1)); continue; fi
+        [ "$sec" -ge 2 ] || continue
+        run_one "$t" "$res/s$i" > "$res/s$i"
+        tally "$res/s$i"
+        i=$((i + 1))
+    done
 fi
 rm -f "$res/next"
 rmdir "$res" 2>/dev/null
