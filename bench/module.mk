@@ -1,5 +1,7 @@
 # bench: benchmarks that span several components.
-$(eval $(call marie_bench,bench_pipeline,bench/bench_pipeline.c tests/proc.c))
+# bench_pipeline starts the chain as marie-am does (managers/spawn.c; that module.mk comes later,
+# hence the library's path rather than MANAGERS_LIB).
+$(eval $(call marie_bench,bench_pipeline,bench/bench_pipeline.c tests/proc.c,$(B)/lib/libmarie_managers.a))
 BENCHES += bench/bench_demo.sh bench/bench_scale.sh
 $(eval $(call marie_bench,bench_config,bench/bench_config.c))
 $(eval $(call marie_bench,bench_shm,bench/bench_shm.c))

@@ -40,6 +40,7 @@ static void component_cfg_free(marie_component_cfg_t *c)
     }
     free(c->ports);
     free_strv(c->depends, c->ndepends);
+    marie_sched_cfg_clear(&c->sched);
 }
 
 void marie_system_destroy(marie_system_t *sys)
@@ -300,16 +301,16 @@ static int read_env(const marie_node_t *n, marie_component_cfg_t *c, marie_error
 
 static const char *const component_keys[] = {
     "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart",
-    "stop_timeout", "heartbeat_timeout", "depends", NULL,
+    "stop_timeout", "heartbeat_timeout", "depends", "sched", NULL,
 };
 
 /* ---- effective configuration and its hash ---- */
 
 enum { F_EXEC, F_ARGS, F_ENV, F_SHELL, F_HOST, F_GROUP, F_PORTS, F_PARAMS, F_RESTART, F_STOP_TIMEOUT,
-       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_CLOCK, F_LCM_URL, F_AUTH, NFIELDS };
+       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_SCHED, F_CLOCK, F_LCM_URL, F_AUTH, NFIELDS };
 static const char *const field_names[NFIELDS] = {
     "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart", "stop_timeout",
-    "heartbeat_timeout", "depends", "clock", "lcm_url", "auth",
+    "heartbeat_timeout", "depends", "sched", "clock", "lcm_url", "auth",
 };
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
@@ -381,6 +382,11 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
         case F_STOP_TIMEOUT: fprintf(f, "%.17g", c->stop_timeout_s); break;
         case F_HEARTBEAT_TIMEOUT: fprintf(f, "%.17g", c->heartbeat_timeout_s); break;
         case F_DEPENDS: put_list(f, c->depends, c->ndepends, true); break;
+        case F_SCHED: {
+            char text[64 + 5 * (MARIE_SCHED_MAX_CPU + 1)];
+            fprintf(f, "%s", marie_sched_cfg_text(&c->sched, text, sizeof text));
+            break;
+        }
         case F_CLOCK: fprintf(f, "%s", sys->clock == MARIE_CLOCK_SIM ? "sim" : "wall"); break;
         case F_LCM_URL: {
             fprintf(f, "%s", sys->lcm_url ? sys->lcm_url : "");
@@ -496,6 +502,14 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     rc |= read_restart(marie_node_get(n, "restart"), &c->restart, errs);
     rc |= read_seconds(n, "stop_timeout", &c->stop_timeout_s, errs);
     rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
+    if ((v = marie_node_get(n, "sched")) && marie_sched_cfg_read(v, &c->sched, errs) < 0)
+        rc = -1;
+    /* Simulated time does not need the CPU on time, and a simulation must run where real-time
+     * scheduling is not allowed: on the simulator's clock the setting is checked, not applied. */
+    if (sys->clock == MARIE_CLOCK_SIM && marie_sched_cfg_any(&c->sched)) {
+        marie_sched_cfg_clear(&c->sched);
+        c->sched_sim = true;
+    }
     if (c->restart.backoff_min_s > c->restart.backoff_max_s) {
         const marie_node_t *r = marie_node_get(n, "restart");
         marie_errors_add(errs, n->file, r ? r->line : n->key_line, r ? r->col : n->key_col,

@@ -82,6 +82,18 @@ typedef struct {
     double window_s;                       /* ... within this window */
 } marie_restart_cfg_t;
 
+/* `sched:` of a component: how the kernel is to schedule it, given by marie-am when it starts
+ * it (docs/system-file.md). The zero value asks for nothing: the manager's own scheduling. */
+typedef enum { MARIE_SCHED_OTHER = 0, MARIE_SCHED_FIFO, MARIE_SCHED_RR } marie_sched_policy_t;
+
+typedef struct {
+    marie_sched_policy_t policy;    /* OTHER: the normal time-sharing policy */
+    int priority;                   /* 1-99 with FIFO and RR, else 0 */
+    int *cpus; size_t ncpus;        /* the CPUs it may run on, ascending; none: the manager's */
+} marie_sched_cfg_t;
+
+#define MARIE_SCHED_MAX_CPU 1023    /* the highest CPU number a cpu_set_t holds */
+
 typedef struct {
     char *name;                 /* the component's port name */
     char *channel;
@@ -102,6 +114,8 @@ typedef struct {
     marie_restart_cfg_t restart;
     double stop_timeout_s;      /* stop signal, then SIGKILL after this */
     double heartbeat_timeout_s; /* not responding after this long without a heartbeat */
+    marie_sched_cfg_t sched;    /* effective: nothing on the simulator's clock (then sched_sim) */
+    bool sched_sim;             /* the file asks for a sched that the simulator's clock leaves out */
     char **depends; size_t ndepends;
     char hash[65];              /* sha256 hex of the effective configuration (every setting that
                                    changes how it runs, inherited ones resolved) */
@@ -146,6 +160,17 @@ const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, c
  * ("" when none). Caller frees; NULL when out of memory. */
 char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
                                   const marie_system_t *sb, const marie_component_cfg_t *b);
+
+/* ---- sched (core/config_sched.c) ---- */
+/* Reads a `sched:` mapping ({policy, priority, cpus}) into s, which then owns its cpus
+ * (marie_sched_cfg_clear). -1 with "file:line:col: ..." in errs; s is then empty. */
+int marie_sched_cfg_read(const marie_node_t *n, marie_sched_cfg_t *s, marie_errors_t *errs);
+void marie_sched_cfg_clear(marie_sched_cfg_t *s);
+/* Whether s asks for anything (a policy or CPUs). */
+bool marie_sched_cfg_any(const marie_sched_cfg_t *s);
+/* s as the file would say it, "fifo 44", "other cpus 1,3", "" when it asks for nothing: the
+ * configuration hash's text and the words of messages. Returns out (cut to size). */
+const char *marie_sched_cfg_text(const marie_sched_cfg_t *s, char *out, size_t size);
 
 /* The default bus URL: LCM_DEFAULT_URL if set, else marie's (ttl=0, 8 MB receive buffer). */
 const char *marie_default_url(void);

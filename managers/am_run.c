@@ -213,6 +213,25 @@ fail:
     return NULL;
 }
 
+/* A refused real-time policy or CPU set is a warning, not a failure: the component runs (with
+ * the manager's own scheduling in place of what was refused), and the event says why. */
+static void report_sched(comp_t *c, const marie_spawn_refused_t *refused)
+{
+    const marie_component_cfg_t *cfg = c->cfg;
+    char asked[256];
+    marie_sched_cfg_text(&cfg->sched, asked, sizeof asked);
+    if (refused->policy_err)
+        am_event(c->am, MARIE_EVENT_T_SEV_WARN, "sched_refused",
+                 "%s: sched %s: policy refused (%s): it runs at the normal policy", cfg->name, asked,
+                 strerror(refused->policy_err));
+    if (refused->cpus_err)
+        am_event(c->am, MARIE_EVENT_T_SEV_WARN, "sched_refused",
+                 "%s: sched %s: CPUs refused (%s): it runs on the manager's CPUs", cfg->name, asked,
+                 strerror(refused->cpus_err));
+    if (cfg->sched_sim && c->sv.restarts == 0)
+        marie_info("%s: sched not applied: the system runs on the simulator's clock", cfg->name);
+}
+
 static void comp_spawn(comp_t *c)
 {
     am_t *am = c->am;
@@ -257,8 +276,10 @@ static void comp_spawn(comp_t *c)
      * orphans); default signal handling; the pipes and the other descriptors marie-am opens
      * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
     char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
+    marie_spawn_refused_t refused;
     marie_spawn_req_t req = {
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
+        .sched = &cfg->sched, .refused = &refused,
     };
     pid_t pid = marie_spawn(am->spawner, &req);
     free(prog);
@@ -266,6 +287,7 @@ static void comp_spawn(comp_t *c)
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: spawn: %s", cfg->name, strerror(errno));
         goto fail;
     }
+    report_sched(c, &refused);
     close(po[1]);
     close(pe[1]);
     int rd[2] = {po[0], pe[0]};

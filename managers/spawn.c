@@ -183,6 +183,63 @@ CHILD static int child_main(void *arg)
     _exit(127);
 }
 
+/* ---------------------------------------------------------------- the child's scheduling */
+
+/* The child is born with its scheduling: the caller's thread takes the policy and CPUs asked
+ * for just before the clone and goes back to its own right after (clone passes a thread's
+ * scheduling on, and execve keeps it). Done so, the kernel's refusal comes to the caller with
+ * its errno, the child has no call that can fail before its exec, and nothing it starts (a
+ * shell's command, a thread) runs a moment at the normal policy first. */
+typedef struct {
+    bool policy, cpus;          /* changed: to be put back */
+    int old_policy;
+    struct sched_param old_param;
+    cpu_set_t old_cpus;
+} sched_saved_t;
+
+static int sched_kernel_policy(marie_sched_policy_t p)
+{
+    return p == MARIE_SCHED_FIFO ? SCHED_FIFO : p == MARIE_SCHED_RR ? SCHED_RR : SCHED_OTHER;
+}
+
+static void sched_enter(const marie_sched_cfg_t *want, sched_saved_t *saved, marie_spawn_refused_t *refused)
+{
+    *saved = (sched_saved_t){0};
+    *refused = (marie_spawn_refused_t){0};
+    if (!want)
+        return;
+    if (want->policy != MARIE_SCHED_OTHER) {
+        struct sched_param p = {.sched_priority = want->priority};
+        saved->old_policy = sched_getscheduler(0);
+        if (saved->old_policy < 0 || sched_getparam(0, &saved->old_param) < 0)
+            refused->policy_err = errno;
+        else if (sched_setscheduler(0, sched_kernel_policy(want->policy), &p) < 0)
+            refused->policy_err = errno;
+        else
+            saved->policy = true;
+    }
+    if (want->ncpus) {
+        cpu_set_t set;
+        CPU_ZERO(&set);
+        for (size_t i = 0; i < want->ncpus; i++)
+            CPU_SET(want->cpus[i], &set);
+        if (sched_getaffinity(0, sizeof saved->old_cpus, &saved->old_cpus) < 0 ||
+            sched_setaffinity(0, sizeof set, &set) < 0)
+            refused->cpus_err = errno;
+        else
+            saved->cpus = true;
+    }
+}
+
+/* Going back to one's own policy and CPUs is always allowed. */
+static void sched_leave(const sched_saved_t *saved)
+{
+    if (saved->policy)
+        sched_setscheduler(0, saved->old_policy, &saved->old_param);
+    if (saved->cpus)
+        sched_setaffinity(0, sizeof saved->old_cpus, &saved->old_cpus);
+}
+
 /* ---------------------------------------------------------------- the caller */
 
 marie_spawner_t *marie_spawner_create(void)
@@ -302,9 +359,15 @@ pid_t marie_spawn(marie_spawner_t *s, const marie_spawn_req_t *req)
     int flags = SIGCHLD;
     if (c->shared)
         flags |= CLONE_VM | CLONE_CHILD_CLEARTID | (c->raw ? 0 : CLONE_VFORK);
+    sched_saved_t saved;
+    marie_spawn_refused_t refused;
+    sched_enter(req->sched, &saved, &refused);
     pid_t pid = clone(child_main, c->stack_top, flags, c, NULL, NULL, &c->ctid);
     int err = errno;
+    sched_leave(&saved);
     sigprocmask(SIG_SETMASK, &old, NULL);
+    if (req->refused)
+        *req->refused = refused;
     if (pid >= 0 && c->shared) {
         c->next = s->pending;
         s->pending = c;

@@ -7,11 +7,20 @@
 #include <stddef.h>
 #include <sys/types.h>
 
+#include "core/config.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
 typedef struct marie_spawner marie_spawner_t;
+
+/* What of a request's scheduling the kernel refused: 0, or its errno. The child runs all the
+ * same, with the caller's policy (or CPUs) in place of the refused ones. */
+typedef struct {
+    int policy_err;
+    int cpus_err;
+} marie_spawn_refused_t;
 
 /* What to start. The spawner copies all of it: the caller may free it once marie_spawn returns. */
 typedef struct {
@@ -19,6 +28,8 @@ typedef struct {
     char *const *argv, *const *envp;
     int out_fd, err_fd;         /* the child's stdout and stderr; its stdin is /dev/null */
     const char *who;            /* a failed exec writes "WHO: exec ARGV0: REASON" to err_fd */
+    const marie_sched_cfg_t *sched;     /* the child's policy, priority and CPUs; NULL: the caller's */
+    marie_spawn_refused_t *refused;     /* written by marie_spawn when not NULL */
 } marie_spawn_req_t;
 
 /* NULL with errno on failure. */
@@ -27,7 +38,9 @@ marie_spawner_t *marie_spawner_create(void);
  * never a crash). NULL is a no-op. */
 void marie_spawner_destroy(marie_spawner_t *s);
 
-/* Starts req: the child's pid, or -1 with errno (nothing started). The child gets its own
+/* Starts req: the child's pid, or -1 with errno (nothing started). The child is born with
+ * req->sched (from its first instruction: what it starts inherits it too), or with the
+ * caller's scheduling where the kernel refuses it (req->refused says which). It gets its own
  * session and process group, SIGTERM when the caller's thread ends (PR_SET_PDEATHSIG; it
  * exits 127 at once if the caller has already gone), every signal at its default action and
  * none blocked, and only the caller's descriptors that are not close-on-exec. A failed exec

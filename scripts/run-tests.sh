@@ -17,7 +17,9 @@
 #   say "# test-group: NAME" (each was checked to keep its margins beside the others) run
 #   side by side, all of that NAME at once where the first of them is in the list. Tests after
 #   a second `--` (that need the cores to themselves) run last, one at a time, once all the
-#   others are done, the light ones too.
+#   others are done, the light ones too. A test whose first lines say
+#   "# test-keep-user" runs in a network namespace that keeps the caller's user where it may
+#   (scripts/netns-run).
 set -u
 B=${B:-build}
 logs=$B/test-logs
@@ -40,8 +42,10 @@ run_one() {
     limit=${TEST_TIMEOUT:-300}
     own=$(head -20 "$t" 2>/dev/null | sed -n 's/^# test-timeout: \([0-9][0-9]*\)$/\1/p' | head -1)
     [ -n "$own" ] && [ "$own" -gt "$limit" ] && limit=$own
+    keep=0
+    head -20 "$t" 2>/dev/null | grep -q '^# test-keep-user$' && keep=1
     # Own process group and network namespace; a hung test is killed whole.
-    B=$B timeout -k 5 "$limit" scripts/netns-run $cmd > "$log" 2>&1 < /dev/null
+    B=$B MARIE_NETNS_KEEP_USER=$keep timeout -k 5 "$limit" scripts/netns-run $cmd > "$log" 2>&1 < /dev/null
     rc=$?
     ok=$(grep -c '^\[       OK \]' "$log")
     bad=$(grep '^\[  FAILED  \] [^0-9]' "$log" | sort -u | wc -l)

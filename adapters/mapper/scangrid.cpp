@@ -85,9 +85,10 @@ void Grid::hit(int cx, int cy)
     size_t i = (size_t)cy * w_ + cx;
     lo_[i] = (float)std::min(p_.l_max, lo_[i] + p_.l_hit);
     seen_[i] = 1;
-    if (!wall_[i] && lo_[i] > p_.l_occupied) {
-        wall_[i] = 1;
-        stamp(cx, cy);
+    if (lo_[i] > p_.l_occupied) {
+        if (!(wall_[i] & STAMPED))
+            stamp(cx, cy);
+        wall_[i] = STAMPED | WALL;
     }
     bx0_ = std::min(bx0_, cx), bx1_ = std::max(bx1_, cx);
     by0_ = std::min(by0_, cy), by1_ = std::max(by1_, cy);
@@ -96,10 +97,12 @@ void Grid::hit(int cx, int cy)
 void Grid::miss(int cx, int cy)
 {
     size_t i = (size_t)cy * w_ + cx;
-    bool was_wall = lo_[i] > p_.l_occupied;
     lo_[i] = (float)std::max(p_.l_min, lo_[i] + p_.l_miss);
     seen_[i] = 1;
-    cleared_ += was_wall && lo_[i] < 0;
+    if ((wall_[i] & WALL) && lo_[i] < 0) {
+        wall_[i] &= (uint8_t)~WALL;
+        cleared_++;
+    }
     bx0_ = std::min(bx0_, cx), bx1_ = std::max(bx1_, cx);
     by0_ = std::min(by0_, cy), by1_ = std::max(by1_, cy);
 }
@@ -146,11 +149,15 @@ void Grid::integrate(const Pose &at, const Scan &s)
         if (trace(scx, scy, ex, ey, w_, h_, pass))
             miss(ex, ey);
     }
-    // Hits after the free rays, so a wall is not cleared by a grazing beam of the same scan.
-    for (size_t i = 0; i < s.hx.size(); i++) {
+    // A beam that hit clears the cells in front of the surface it hit, the last one included;
+    // traced to the hit itself, its line would enter the wall's row of cells before the hit's
+    // cell (up to several cells before it at a grazing angle) and wear the wall away. The hits
+    // come after all the free rays, so no beam of the same scan clears a wall it drew.
+    for (size_t i = 0; i < s.fx.size(); i++) {
         int ex, ey;
-        cell(s.hx[i], s.hy[i], &ex, &ey);
-        trace(scx, scy, ex, ey, w_, h_, pass);
+        cell(s.fx[i], s.fy[i], &ex, &ey);
+        if (trace(scx, scy, ex, ey, w_, h_, pass))
+            miss(ex, ey);
     }
     for (size_t i = 0; i < s.hx.size(); i++) {
         int ex, ey;

@@ -20,6 +20,7 @@ double wrap(double a);
 struct Scan {
     double ox = 0, oy = 0;                     // sensor position
     std::vector<float> hx, hy;                 // beam end points that hit something
+    std::vector<float> fx, fy;                 // where each of those beams stops clearing: before the surface
     std::vector<float> mx, my;                 // where beams that saw nothing stop clearing
 };
 
@@ -63,8 +64,9 @@ public:
     double match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival = nullptr) const;
     double score(const Scan &s, const Pose &at) const;
     size_t memory_bytes() const;
-    // Cells that were walls (log-odds above l_occupied) and that beams have since made free
-    // (log-odds below 0): a moved obstacle, or a wall drawn out of place. Counted since creation.
+    // Walls (log-odds above l_occupied) that beams have since made free (log-odds below 0): a
+    // moved obstacle, or a wall drawn out of place. Counted since creation, a cell again each
+    // time it had turned a wall again.
     int64_t cleared() const { return cleared_; }
 
 private:
@@ -81,7 +83,9 @@ private:
     GridParams p_;
     std::vector<float> lo_;                    // log-odds
     std::vector<float> like_;                  // matching likelihood 0..1, max of the walls' kernels
-    std::vector<uint8_t> seen_, wall_;
+    std::vector<uint8_t> seen_;
+    enum : uint8_t { STAMPED = 1, WALL = 2 };  // wall_: likelihood stamped; a wall since last made free
+    std::vector<uint8_t> wall_;
     std::vector<float> kernel_;
     int kr_;                                   // kernel radius, cells
     int bx0_, by0_, bx1_, by1_;

@@ -112,16 +112,17 @@ static bool make_scan(const slam_t *s, const slam_scan_t *in, Scan *out)
         /* A return comes from a wall's surface, the boundary between the free cell before it and
          * the wall's own: half a cell further along the beam is inside the wall, for the map and
          * for the matcher alike (at the surface itself, walls seen from one side would be drawn a
-         * cell out of place). */
-        double d = hit ? r + p.resolution / 2 : free_r;
-        double lx = d * std::cos(a), ly = d * std::sin(a);
-        float x = (float)(p.laser_x + c0 * lx - s0 * ly), y = (float)(p.laser_y + s0 * lx + c0 * ly);
+         * cell out of place), and half a cell before it is the last free cell the beam clears. */
+        auto along = [&](double d, std::vector<float> &vx, std::vector<float> &vy) {
+            double lx = d * std::cos(a), ly = d * std::sin(a);
+            vx.push_back((float)(p.laser_x + c0 * lx - s0 * ly));
+            vy.push_back((float)(p.laser_y + s0 * lx + c0 * ly));
+        };
         if (hit) {
-            out->hx.push_back(x);
-            out->hy.push_back(y);
+            along(r + p.resolution / 2, out->hx, out->hy);
+            along(std::fmax(0, r - p.resolution / 2), out->fx, out->fy);
         } else {
-            out->mx.push_back(x);
-            out->my.push_back(y);
+            along(free_r, out->mx, out->my);
         }
     }
     return true;

@@ -156,12 +156,14 @@ static void test_explores_the_office_from_empty(void **state)
     print_message("explore: %s after %d goals, %d scans (%.0f s at 10 Hz); coverage %.3f precision %.3f recall %.3f\n",
                   done ? "no reachable frontier left" : "stopped", goals, steps, steps / 10.0, e.coverage,
                   e.precision, e.recall);
-    /* Measured here: 57 goals, 12733 scans; coverage 0.99, precision 0.99, recall 0.95 (with the
-     * matcher's prior at 0.15 m instead of 0.03: 10112 scans, precision 0.83, recall 0.75). */
+    /* Measured here: 54 goals, 10295 scans; coverage 0.995, precision 1.000, recall 0.982 (while
+     * a beam that hit cleared up to its hit's cell: 57 goals, 12733 scans, 0.99, 0.99, 0.95; with
+     * the matcher's prior at 0.15 m instead of 0.03: 10112 scans, precision 0.83, recall 0.75).
+     * The issue's figures for a map: coverage, precision and recall >= 0.95. */
     assert_true(done);
     assert_true(e.coverage >= 0.95);
-    assert_true(e.precision >= 0.90);
-    assert_true(e.recall >= 0.85);
+    assert_true(e.precision >= 0.95);
+    assert_true(e.recall >= 0.95);
     occmap_destroy(m);
     slam_destroy(s);
     occmap_destroy(world);

@@ -353,6 +353,8 @@ static void every_setting_enters_the_hash(void **state)
         {"    args: [--hold]\n", "    args: [--hold]\n    heartbeat_timeout: 0\n", "heartbeat_timeout"},
         {"    args: [--hold]\n", "    args: [--hold]\n    shell: true\n", "shell"},
         {"    args: [--hold]\n", "    args: [--hold]\n    params: {x: 1}\n", "params"},
+        {"    args: [--hold]\n", "    args: [--hold]\n    sched: {policy: fifo, priority: 40}\n", "sched"},
+        {"    args: [--hold]\n", "    args: [--hold]\n    sched: {cpus: [1]}\n", "sched"},
     };
     marie_errors_t e = {0};
     marie_system_t *base = load_text(BASE_SYSTEM, NULL, &e);
@@ -417,6 +419,66 @@ static void the_loader_refuses_cycles_and_bad_backoff(void **state)
     assert_non_null(sys);
     marie_system_destroy(sys);
     free(chain);
+}
+
+static void sched_is_read_and_checked(void **state)
+{
+    marie_errors_t e = {0};
+    const char *ok = "components:\n"
+                     "  a:\n    exec: x\n    sched: {policy: fifo, priority: 44, cpus: [3, 1, 3]}\n"
+                     "  b:\n    exec: x\n    sched: {policy: rr, priority: 1}\n"
+                     "  c:\n    exec: x\n    sched: {cpus: 0}\n"
+                     "  d:\n    exec: x\n"
+                     "profiles:\n  sim: {clock: sim}\n";
+    marie_system_t *sys = load_text(ok, NULL, &e);
+    assert_non_null(sys);
+    const marie_component_cfg_t *a = marie_system_component(sys, "a"), *c = marie_system_component(sys, "c");
+    char text[128];
+    assert_int_equal(a->sched.policy, MARIE_SCHED_FIFO);
+    assert_int_equal(a->sched.priority, 44);
+    assert_string_equal(marie_sched_cfg_text(&a->sched, text, sizeof text), "fifo 44 cpus 1,3");
+    assert_string_equal(marie_sched_cfg_text(&marie_system_component(sys, "b")->sched, text, sizeof text), "rr 1");
+    assert_string_equal(marie_sched_cfg_text(&c->sched, text, sizeof text), "other cpus 0");
+    assert_false(marie_sched_cfg_any(&marie_system_component(sys, "d")->sched));
+    assert_false(a->sched_sim);
+    /* On the simulator's clock the setting is checked but not applied, and the hash says so. */
+    marie_system_t *sim = load_text(ok, "sim", &e);
+    assert_non_null(sim);
+    const marie_component_cfg_t *sa = marie_system_component(sim, "a");
+    assert_false(marie_sched_cfg_any(&sa->sched));
+    assert_true(sa->sched_sim);
+    char *diff = marie_component_differences(sys, a, sim, sa);
+    assert_string_equal(diff, "sched,clock");
+    free(diff);
+    marie_system_destroy(sim);
+    marie_system_destroy(sys);
+
+    /* Each bad value is refused at its position, the file whole. */
+    static const struct { const char *sched, *error; } bad[] = {
+        {"{policy: fifi, priority: 40}", ":3:21: sched policy: expected other, fifo or rr, got 'fifi'"},
+        {"{policy: fifo}", ":3:21: sched: policy fifo needs a priority (1 to 99)"},
+        {"{policy: rr, priority: 0}", ":3:35: sched priority: expected 1 to 99, got 0"},
+        {"{policy: fifo, priority: 100}", ":3:37: sched priority: expected 1 to 99, got 100"},
+        {"{policy: fifo, priority: high}", ":3:37: priority: expected an integer, got 'high'"},
+        {"{priority: 10}", ":3:23: sched priority: only policies fifo and rr have one"},
+        {"{policy: other, priority: 10}", ":3:38: sched priority: only policies fifo and rr have one"},
+        {"{cpus: []}", ":3:19: sched cpus: an empty list leaves no CPU to run on"},
+        {"{cpus: [1, -1]}", ":3:23: sched cpus: CPU -1 is not 0 to 1023"},
+        {"{cpus: [1024]}", ":3:20: sched cpus: CPU 1024 is not 0 to 1023"},
+        {"{policy: fifo, priority: 40, nice: 5}", ":3:41: unknown key 'nice' in sched"},
+        {"fifo", ":3:12: sched: expected a mapping such as {policy: fifo, priority: 40}"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char file[256];
+        snprintf(file, sizeof file, "components:\n  a:\n    sched: %s\n    exec: x\n", bad[i].sched);
+        assert_null(load_text(file, NULL, &e));
+        assert_true(has_error(&e, bad[i].error));
+        marie_errors_clear(&e);
+    }
+    /* A sim profile does not make a bad setting good. */
+    assert_null(load_text("clock: sim\ncomponents:\n  a:\n    sched: {policy: fast}\n    exec: x\n", NULL, &e));
+    assert_true(has_error(&e, ":4:21: sched policy: expected other, fifo or rr, got 'fast'"));
+    marie_errors_clear(&e);
 }
 
 static void non_finite_numbers_are_refused(void **state)
@@ -703,6 +765,7 @@ int main(void)
         cmocka_unit_test(a_profile_entry_with_many_params_keeps_them),
         cmocka_unit_test(every_setting_enters_the_hash),
         cmocka_unit_test(the_loader_refuses_cycles_and_bad_backoff),
+        cmocka_unit_test(sched_is_read_and_checked),
         cmocka_unit_test(non_finite_numbers_are_refused),
         cmocka_unit_test(an_oversized_file_gets_a_position),
         cmocka_unit_test(loading_time_grows_linearly),
