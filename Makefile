@@ -39,6 +39,8 @@ endif
 PROGRAMS :=
 TESTS    :=
 ITESTS   :=
+# make test's tests that need the cores to themselves: they run last, alone.
+ALONE_TESTS :=
 BENCHES  :=
 FUZZERS  :=
 LIBMARIE := $(B)/lib/libmarie.a
@@ -131,16 +133,21 @@ test-deps: deps
 	@scripts/install-deps.sh vm browser
 
 # Each test runs in its own network namespace (so the PyPI witnesses' venv is made before,
-# outside): the test programs NPROC at a time with, beside them, the light shell tests (those
-# that mostly wait and time nothing: "# test-light" in their head) one by one; then the other
-# shell tests (whole systems, VMs, browsers, timings) one by one, alone; the last line is the
-# summary. (All side by side took 3 min 54 s, 4 at a time, but the test programs' timing
-# checks, the LMS200 driver's 150 ms replies and the simulator's device heartbeats, then failed
-# beside a whole robot or a VM.)
+# outside): the test programs NPROC at a time; then the other shell tests (whole systems, VMs,
+# browsers, loads and timings) one by one, alone but for those of one "# test-group: NAME",
+# which run side by side: the three VM tests (one-CPU VMs whose margins are an emulated CPU's:
+# 44-47 s together, 91 s one after the other) and the three manager tests whose loads are
+# measured against the kernel's count (am, balance, top: 46-47 s together, 94 s one after the
+# other). From the start, beside all of these, the light shell tests (those that mostly wait
+# and time nothing that busy cores would break: "# test-light" in their head) run one by
+# one. Last, once all that is done, the ALONE_TESTS, one by one. The last line is the summary.
+# (All side by side took 3 min 54 s, 4 at a time, but the test programs' timing checks, the
+# LMS200 driver's 150 ms replies and the simulator's device heartbeats, then failed beside a
+# whole robot or a VM.)
 test: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/peer-venv.sh >/dev/null
-	@B=$(B) SAN=$(SAN) scripts/run-tests.sh --jobs $(NPROC) $(TESTS) -- $(ITESTS)
+	@B=$(B) SAN=$(SAN) scripts/run-tests.sh --jobs $(NPROC) $(TESTS) -- $(ITESTS) -- $(ALONE_TESTS)
 
 # Long end-to-end runs kept out of make test's 11 minutes on two cores (each says why in its module.mk).
 test-slow: test-deps

@@ -5,15 +5,21 @@
 # `skip NAME REASON` prints "[  SKIPPED ] NAME: REASON"). A program that fails without naming
 # a case counts as one failure, and so does one that exits 0 having run no case and skipped
 # none: a test that silently does nothing is a failure, never a pass. Logs go to $B/test-logs/.
-#   scripts/run-tests.sh [--jobs N] TEST... [-- TEST...]   (env: B, TEST_TIMEOUT seconds per
+#   scripts/run-tests.sh [--jobs N] TEST... [-- TEST... [-- TEST...]]   (env: B, TEST_TIMEOUT seconds per
 #   program, default 300; a test whose first lines say "# test-timeout: N" gets N when that is
 #   more, for a run that is long by design): with --jobs, the tests before `--` run N at a time (each in its own
 #   namespace; a worker takes the next test as it finishes one; their lines print when all are
 #   done, in order), those after it one at a time. A test after `--` whose first lines say
-#   "# test-light" (it mostly waits, and checks no timing that busy cores would break) runs
-#   meanwhile, one light test at a time beside the N; the others after `--` run alone, once
-#   all of those are done. A test whose first lines say "# test-keep-user" runs in a network
-#   namespace that keeps the caller's user where it may (scripts/netns-run).
+#   "# test-light" (it mostly waits, and checks no timing that busy cores would break) runs in
+#   a lane of its own from the start, one light test at a time, beside the N and then beside
+#   the others after `--`; those run one at a time once the N are done, each printed as it
+#   ends, and the light tests' lines print last, in order. Tests after `--` whose first lines
+#   say "# test-group: NAME" (each was checked to keep its margins beside the others) run
+#   side by side, all of that NAME at once where the first of them is in the list. Tests after
+#   a second `--` (that need the cores to themselves) run last, one at a time, once all the
+#   others are done, the light ones too. A test whose first lines say
+#   "# test-keep-user" runs in a network namespace that keeps the caller's user where it may
+#   (scripts/netns-run).
 set -u
 B=${B:-build}
 logs=$B/test-logs
@@ -87,21 +93,26 @@ for t in "$@"; do
 done
 # light TEST: its head says "# test-light".
 light() { head -20 "$1" 2>/dev/null | grep -q '^# test-light\($\|:\)'; }
+# group TEST: the NAME its head gives as "# test-group: NAME", if any.
+group() { head -20 "$1" 2>/dev/null | sed -n 's/^# test-group: \([A-Za-z0-9_-]*\)$/\1/p' | head -1; }
 lane=0
 if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
     lane=1
-    # The light tests after `--`, one at a time beside the workers.
-    (i=0; seen=0
+    # The light tests after `--`, one at a time, beside the workers and then beside the
+    # others after `--`: their results are l0, l1, ... in list order.
+    (k=0; seen=0
      for t in "$@"; do
-         if [ "$t" = -- ]; then seen=1
-         elif [ "$seen" = 1 ] && light "$t"; then run_one "$t" "$res/l$i" > "$res/l$i"
+         if [ "$t" = -- ]; then seen=$((seen + 1))
+         elif [ "$seen" = 1 ] && light "$t"; then
+             run_one "$t" "$res/l$k" > "$res/l$k"
+             k=$((k + 1))
          fi
-         i=$((i + 1))
      done) &
+    lane_pid=$!
     # Each worker takes the next test not yet taken (a counter under flock), so a long test
     # holds one worker while the others go on through the list.
     echo 0 > "$res/next"
-    q=0
+    q=0; workers=""
     while [ "$q" -lt "$jobs" ]; do
         (while :; do
              i=$(flock "$res/next" sh -c 'i=$(cat "$1"); echo $((i + 1)) > "$1"; echo "$i"' _ "$res/next")
@@ -109,26 +120,61 @@ if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
              eval "t=\${$((i + 1))}"
              run_one "$t" "$res/$i" > "$res/$i"
          done) &
+        workers="$workers $!"
         q=$((q + 1))
     done
-    wait
+    # shellcheck disable=SC2086
+    wait $workers
     i=0
     while [ "$i" -lt "$n" ]; do tally "$res/$i"; i=$((i + 1)); done
-    i=0
-    for t in "$@"; do
-        [ -f "$res/l$i" ] && tally "$res/l$i"
-        i=$((i + 1))
-    done
     shift "$n"
 fi
-i=0
+# After `--`: one at a time; with the lane, those of a group side by side, and those after a
+# second `--` once all else is done, the light lane too.
+i=0; groups=""; sec=0
 for t in "$@"; do
-    [ "$t" = -- ] && continue
-    [ "$lane" = 1 ] && light "$t" && continue
-    run_one "$t" "$res/s$i" > "$res/s$i"
-    tally "$res/s$i"
-    i=$((i + 1))
+    if [ "$t" = -- ]; then sec=$((sec + 1)); continue; fi
+    g=""
+    if [ "$lane" = 1 ]; then
+        [ "$sec" -ge 2 ] && continue
+        light "$t" && continue
+        g=$(group "$t")
+    fi
+    if [ -z "$g" ]; then
+        run_one "$t" "$res/s$i" > "$res/s$i"
+        tally "$res/s$i"
+        i=$((i + 1))
+        continue
+    fi
+    # The first of a group: every test of that group runs now, side by side.
+    case " $groups " in *" $g "*) continue ;; esac
+    groups="$groups $g"
+    members=""; started=""; usec=0
+    for u in "$@"; do
+        if [ "$u" = -- ]; then usec=$((usec + 1)); continue; fi
+        [ "$usec" = 1 ] && ! light "$u" && [ "$(group "$u")" = "$g" ] || continue
+        run_one "$u" "$res/s$i" > "$res/s$i" &
+        started="$started $!"; members="$members s$i"
+        i=$((i + 1))
+    done
+    # shellcheck disable=SC2086
+    wait $started
+    for m in $members; do tally "$res/$m"; done
 done
+if [ "$lane" = 1 ]; then
+    wait "$lane_pid"
+    k=0
+    while [ -f "$res/l$k.counts" ]; do tally "$res/l$k"; k=$((k + 1)); done
+    sec=0
+    for t in "$@"; do
+        if [ "$t" = -- ]; then sec=$((sec + 1)); continue; fi
+        [ "$sec" -ge 2 ] || continue
+        run_one "$t" "$res/s$i" > "$res/s$i"
+        tally "$res/s$i"
+        i=$((i + 1))
+    done
+fi
+rm -f "$res/next"
 rmdir "$res" 2>/dev/null
 [ -n "$failed_names" ] && echo "failed:$failed_names"
 echo "$passed passed, $failed failed, $skipped skipped"

@@ -41,7 +41,7 @@ $(eval $(call marie_test,test_sim_fast_devices,tests/sim/test_sim_fast_devices.c
 $(B)/tests/test_sim_fast_devices: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bin/marie-gyro $(B)/bin/marie-lms200
 # Its checks (no protocol timeout on either side of the emulated bus at speed 0) need the two
 # cores: beside the parallel tests it failed now and then (a driver starved for a second of wall
-# time), so it runs in make test's one-at-a-time phase.
+# time), and beside the light tests too, so it runs last in make test, alone.
 TESTS := $(filter-out $(B)/tests/test_sim_fast_devices,$(TESTS))
-ITESTS += $(B)/tests/test_sim_fast_devices
+ALONE_TESTS += $(B)/tests/test_sim_fast_devices
 EXTRA_TARGETS += $(B)/tests/test_sim_fast_devices

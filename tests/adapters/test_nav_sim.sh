@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_nav_sim: the adapters drive the simulated robot through a mission in the office world:
 # odometry -> localizer -> planner -> behaviours (pulling from Mailboxes) -> marie-sim, with
 # the mission's progress in a SharedMap. The mission is killed with SIGKILL halfway and

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_malformed_inputs: every component binary, fed every kind of malformed payload on every input
 # port it declares (pushed, and as pull replies; behaviours in both input modes; the CAs on their
 # channels), stays alive, does not act on it, and counts each payload once in its heartbeat.

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_ps: marie ps asks the managers for their status and each answers at once: with managers
 # that report only every 10 s, ps still shows every host and component within its window; a
 # flood of requests is answered within the managers' rate limit; a silent host is shown lost

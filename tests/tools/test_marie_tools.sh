@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_marie_tools: marie-record, marie-play and marie-spy on a real bus (the test's own network
 # namespace): filters, splitting, speed and loop, and every marie type decoded from a recorded
 # log by the Java types jar. Everything runs on a non-default LCM URL with a raised receive

@@ -1,9 +1,12 @@
 #!/bin/sh
+# test-light
 # test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
 # no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so; with
 # --jobs the programs before `--` run side by side and are reported in order, counted once; a
 # program is killed at TEST_TIMEOUT unless its head declares a longer "# test-timeout: N"; one
-# after `--` whose head says "# test-light" runs beside those before it.
+# after `--` whose head says "# test-light" runs beside those before it and then beside the
+# others after it, those after it of one "# test-group: NAME" run side by side, and those after
+# a second `--` run last, once the light ones are done.
 . tests/lib.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT INT TERM
@@ -47,9 +50,32 @@ printf '#!/bin/sh\n# test-light\n. tests/lib.sh\nsleep 2\ncheck "light" true\nfi
 start=$(date +%s)
 run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" -- "$tmp/light.sh" "$tmp/passes.sh"
 took=$(( $(date +%s) - start ))
-check "--jobs: a test-light program after -- runs beside those before it, reported after them ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh light.sh passes.sh ' &&
+check "--jobs: a test-light program after -- runs beside those before it, reported after the others ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh passes.sh light.sh ' &&
            tail -1 $tmp/out | grep -qx '5 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+# (two programs of one name side by side would share one log: two copies)
+cp "$tmp/passes.sh" "$tmp/p1.sh"
+cp "$tmp/passes.sh" "$tmp/p2.sh"
+start=$(date +%s)
+run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/light.sh" "$tmp/slow.sh"
+took=$(( $(date +%s) - start ))
+check "--jobs: a test-light program still running when those before -- are done runs on beside the others after -- ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh slow.sh light.sh ' &&
+           tail -1 $tmp/out | grep -qx '6 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+printf '#!/bin/sh\n# test-group: pair\n. tests/lib.sh\nsleep 2\ncheck "grouped" true\nfinish\n' > "$tmp/g1.sh"
+cp "$tmp/g1.sh" "$tmp/g2.sh"
+start=$(date +%s)
+run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/g1.sh" "$tmp/passes.sh" "$tmp/g2.sh"
+took=$(( $(date +%s) - start ))
+check "--jobs: the tests of one test-group after -- run side by side, printed where the first of them is ($took s)" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh g1.sh g2.sh passes.sh ' &&
+           tail -1 $tmp/out | grep -qx '8 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+printf '#!/bin/sh\n# test-light\n. tests/lib.sh\nsleep 1\ncheck "light" true\n: > "%s/light.done"\nfinish\n' "$tmp" > "$tmp/light1.sh"
+printf '. tests/lib.sh\ncheck "the light test was done before" test -f "%s/light.done"\nfinish\n' "$tmp" > "$tmp/alone.sh"
+run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/light1.sh" -- "$tmp/alone.sh"
+check "--jobs: a test after a second -- runs last, once the light lane is done" \
+    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh light1.sh alone.sh ' &&
+           tail -1 $tmp/out | grep -qx '6 passed, 0 failed, 0 skipped'"
 run "$tmp/light.sh" -- "$tmp/light.sh"
 check "without --jobs a test-light program runs like the others" \
     sh -c "grep -c '^PASS light.sh' $tmp/out | grep -qx 2 && tail -1 $tmp/out | grep -qx '2 passed, 0 failed, 0 skipped'"

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-light
 # test_sign_mission: the mission uses what the robot reads. Its only goal is "the room whose
 # sign says B": the robot drives along the office corridor (search points), the simulator's
 # camera shows the door signs, marie-vision places them in the map from the localizer's pose,
