@@ -306,40 +306,51 @@ static void test_turn_in_a_doorway_is_not_vetoed(void **state)
 /* The progress watch: a robot held in place on a path for stuck_s gets a recovery (replan
  * asked once, then back off, face the detour point, drive), which ends at the detour point; a
  * robot making way never does, nor one under e-stop. */
+/* The recovery's tests: default parameters, fresh state, a fresh pose and a two-point path. */
+typedef struct {
+    arb_params_t ap;
+    rec_params_t rp;
+    rec_state_t rs;
+    arb_state_t st;
+    arb_inputs_t in;
+} rec_case_t;
+
+static void rec_case(rec_case_t *k, const double path[6], int32_t goal)
+{
+    arb_params_default(&k->ap);
+    rec_params_default(&k->rp);
+    rec_state_reset(&k->rs);
+    arb_state_reset(&k->st);
+    k->in = base_inputs();
+    k->in.path = path;
+    k->in.npath = 2;
+    k->in.path_age = 0.1;
+    k->in.pose_age = 0.05;
+    k->in.path_goal = goal;
+}
+
 static void test_recovery_when_no_progress(void **state)
 {
-    arb_params_t ap;
-    arb_params_default(&ap);
-    rec_params_t rp;
-    rec_params_default(&rp);
-    rec_state_t rs;
-    rec_state_reset(&rs);
-    double path[6] = { 0, 0, 0, 10, 0, 0 };
-    arb_inputs_t in = base_inputs();
-    in.path = path;
-    in.npath = 2;
-    in.path_age = 0.1;
-    in.pose_age = 0.05;
-    in.path_goal = 3;
+    static rec_case_t rc;
+    const double path[6] = { 0, 0, 0, 10, 0, 0 };
+    rec_case(&rc, path, 3);
     arb_vote_t votes[ARB_COUNT];
-    arb_state_t st;
-    arb_state_reset(&st);
     double v, w;
     bool replan;
     int replans = 0, stage = REC_NONE;
     /* Making way: 0.1 m/s for 30 s. */
     for (int k = 0; k < 150; k++) {
-        in.pose[0] = 0.02 * k;
-        int win = arb_decide(&ap, &st, &in, votes);
-        stage = rec_step(&rp, &rs, k * 0.2, &ap, &in, win, votes, &v, &w, &replan);
+        rc.in.pose[0] = 0.02 * k;
+        int win = arb_decide(&rc.ap, &rc.st, &rc.in, votes);
+        stage = rec_step(&rc.rp, &rc.rs, k * 0.2, &rc.ap, &rc.in, win, votes, &v, &w, &replan);
         assert_int_equal(stage, REC_NONE);
     }
     /* Held at x = 3 (something ahead): a recovery after stuck_s. */
     int first = -1, seen[REC_DETOUR + 1] = { 0 };
     for (int k = 150; k < 300; k++) {
-        in.pose[0] = 3.0;
-        int win = arb_decide(&ap, &st, &in, votes);
-        stage = rec_step(&rp, &rs, k * 0.2, &ap, &in, win, votes, &v, &w, &replan);
+        rc.in.pose[0] = 3.0;
+        int win = arb_decide(&rc.ap, &rc.st, &rc.in, votes);
+        stage = rec_step(&rc.rp, &rc.rs, k * 0.2, &rc.ap, &rc.in, win, votes, &v, &w, &replan);
         replans += replan;
         seen[stage]++;
         if (stage != REC_NONE && first < 0)
@@ -350,16 +361,16 @@ static void test_recovery_when_no_progress(void **state)
             assert_true(v == 0 && w != 0);
     }
     /* stuck_s after the last 0.3 m of progress, which came at most 3 s before the hold. */
-    assert_true(first >= 150 + (int)(rp.stuck_s / 0.2) - 16 && first <= 150 + (int)(rp.stuck_s / 0.2) + 1);
+    assert_true(first >= 150 + (int)(rc.rp.stuck_s / 0.2) - 16 && first <= 150 + (int)(rc.rp.stuck_s / 0.2) + 1);
     assert_true(replans >= 1);
     assert_true(seen[REC_REPLAN] && seen[REC_BACKOFF] && seen[REC_ROTATE] && seen[REC_DETOUR]);
-    assert_true(rs.recoveries >= 1);
+    assert_true(rc.rs.recoveries >= 1);
     /* The e-stop wins over a recovery. */
-    in.estop_pressed = true;
-    in.estop_age = 0.05;
-    int win = arb_decide(&ap, &st, &in, votes);
+    rc.in.estop_pressed = true;
+    rc.in.estop_age = 0.05;
+    int win = arb_decide(&rc.ap, &rc.st, &rc.in, votes);
     assert_int_equal(win, ARB_ESTOP);
-    assert_int_equal(rec_step(&rp, &rs, 61, &ap, &in, win, votes, &v, &w, &replan), REC_NONE);
+    assert_int_equal(rec_step(&rc.rp, &rc.rs, 61, &rc.ap, &rc.in, win, votes, &v, &w, &replan), REC_NONE);
 }
 
 /* The laser sees only ahead: a robot that faced a wall 0.3 m away, turned its back to it and got
@@ -367,45 +378,34 @@ static void test_recovery_when_no_progress(void **state)
  * rotate); the same robot with nothing seen behind it backs off the whole backoff_s. */
 static int backoff_cycles(bool wall_seen)
 {
-    arb_params_t ap;
-    arb_params_default(&ap);
-    rec_params_t rp;
-    rec_params_default(&rp);
-    rec_state_t rs;
-    rec_state_reset(&rs);
-    arb_state_t st;
-    arb_state_reset(&st);
+    static rec_case_t rc;
     static float wall[181];
-    double path[6] = { 3, 0, M_PI, -5, 0, M_PI };      /* west, away from the wall at x = 3.3 */
-    arb_inputs_t in = base_inputs();
-    in.path = path;
-    in.npath = 2;
-    in.path_age = 0.1;
-    in.pose_age = 0.05;
-    in.path_goal = 4;
-    in.pose[0] = 3.0;
+    const double path[6] = { 3, 0, M_PI, -5, 0, M_PI };      /* west, away from the wall at x = 3.3 */
+    rec_case(&rc, path, 4);
+    arb_inputs_t *in = &rc.in;
+    in->pose[0] = 3.0;
     arb_vote_t votes[ARB_COUNT];
     double v, w;
     bool replan;
     int backing = 0, rotating = 0;
-    for (int k = 0; k < 150; k++) {          /* 30 s at 5 Hz, held in place */
-        in.pose[2] = k < 5 ? 0 : M_PI;      /* the first second facing east, then west */
-        in.ranges = open_scan;
-        if (k < 5 && wall_seen) {
+    for (int c = 0; c < 150; c++) {          /* 30 s at 5 Hz, held in place */
+        in->pose[2] = c < 5 ? 0 : M_PI;      /* the first second facing east, then west */
+        in->ranges = open_scan;
+        if (c < 5 && wall_seen) {
             for (int j = 0; j < 181; j++) {
-                double a = in.angle_min + j * in.angle_increment;
+                double a = in->angle_min + j * in->angle_increment;
                 wall[j] = fabs(a) < 1.2 ? (float)(0.3 / cos(a)) : 10.0f;
             }
-            in.ranges = wall;
+            in->ranges = wall;
         }
-        in.scan_age = 0.05 + 1e-3 * (k % 2);      /* a new scan every cycle */
-        int win = arb_decide(&ap, &st, &in, votes);
-        int stage = rec_step(&rp, &rs, 100 + k * 0.2, &ap, &in, win, votes, &v, &w, &replan);
+        in->scan_age = 0.05 + 1e-3 * (c % 2);      /* a new scan every cycle */
+        int win = arb_decide(&rc.ap, &rc.st, in, votes);
+        int stage = rec_step(&rc.rp, &rc.rs, 100 + c * 0.2, &rc.ap, in, win, votes, &v, &w, &replan);
         backing += stage == REC_BACKOFF && v < 0;
         rotating += stage == REC_ROTATE;
     }
     printf("%s: %d cycles backing off, %d rotating, %lld back-offs cut\n", wall_seen ? "wall behind" : "open behind",
-           backing, rotating, (long long)rs.backoffs_cut);
+           backing, rotating, (long long)rc.rs.backoffs_cut);
     assert_true(rotating > 0);
     return backing;
 }
