@@ -71,7 +71,7 @@ static double remaining(const arb_inputs_t *in)
 static void remember(rec_state_t *s, double now_s, const arb_params_t *ap, const arb_inputs_t *in)
 {
     if (!in->ranges || in->scan_age < 0 || in->scan_age > ap->stale_scan_s || in->pose_age < 0 ||
-        in->pose_age > ap->stale_pose_s)
+        in->pose_age > ap->stale_pose_s || !isfinite(in->pose[0]) || !isfinite(in->pose[1]) || !isfinite(in->pose[2]))
         return;
     double t = now_s - in->scan_age;
     if (fabs(t - s->last_scan_t) < 1e-6)
@@ -103,8 +103,8 @@ static void remember(rec_state_t *s, double now_s, const arb_params_t *ap, const
     }
 }
 
-/* Whether a remembered return lies behind the robot, within its width and less than `clear`
- * behind its footprint. */
+/* Whether a remembered return lies behind the robot, within its width (half_width each side)
+ * and less than backoff_clearance behind its footprint. */
 static bool blocked_behind(const rec_state_t *s, double now_s, const rec_params_t *p, const arb_params_t *ap,
                            const arb_inputs_t *in)
 {
