@@ -18,13 +18,28 @@ pkgver=$(apt-cache show "linux-headers-$ver" 2>/dev/null | sed -n 's/^Version: /
 series=$(echo "$ver" | cut -d. -f1-2)          # 6.1
 flavour=${ver##*-}                               # amd64
 common=linux-headers-${ver%-"$flavour"}-common
+# same PKG: the version of PKG to fetch: the headers' own where apt has it, else the newest of
+# the same kernel release (the security archive publishes a new Debian revision of
+# linux-kbuild and linux-source before, or without, new headers: 6.1.192-3 beside headers
+# 6.1.192-2 once, and the -2 of those was gone).
+same() {
+    vs=$(apt-cache show "$1" 2>/dev/null | sed -n 's/^Version: //p')
+    if echo "$vs" | grep -qxF "$pkgver"; then echo "$pkgver"; return; fi
+    echo "$vs" | awk -v u="${pkgver%-*}-" 'index($0, u) == 1' | sort -V | tail -1
+}
+pkgs="linux-headers-$ver=$pkgver"
+for p in "$common" "linux-kbuild-$series" "linux-source-$series"; do
+    v=$(same "$p")
+    [ -n "$v" ] || { echo "build-gpio-sim: no $p of kernel ${pkgver%-*} in apt (apt-get update?)" >&2; exit 1; }
+    pkgs="$pkgs $p=$v"
+done
 tmp=$kdir/.gpio-sim.$$
 rm -rf "$tmp"; mkdir -p "$tmp/deb" "$tmp/root" "$tmp/mod"
 trap 'rm -rf "$tmp"' EXIT INT TERM
-echo "build-gpio-sim: downloading headers and source of $ver ($pkgver)" >&2
-(cd "$tmp/deb" && apt-get download "linux-headers-$ver=$pkgver" "$common=$pkgver" \
-    "linux-kbuild-$series=$pkgver" "linux-source-$series=$pkgver" >&2 2>/dev/null) || {
-    echo "build-gpio-sim: apt-get download failed (network? scripts/install-deps.sh vm)" >&2; exit 1; }
+echo "build-gpio-sim: downloading headers and source of $ver: $pkgs" >&2
+# shellcheck disable=SC2086
+(cd "$tmp/deb" && apt-get download $pkgs >&2 2>/dev/null) || {
+    echo "build-gpio-sim: apt-get download $pkgs failed (network? scripts/install-deps.sh vm)" >&2; exit 1; }
 for d in "$tmp"/deb/*.deb; do dpkg-deb -x "$d" "$tmp/root"; done
 rm -rf "$tmp/deb"
 hdr=$tmp/root/usr/src/linux-headers-$ver
