@@ -240,7 +240,7 @@ static void shm_ports(void)
     marie_component_t *rx[3];
     lcm_t *raw3[3];     /* the 30 Hz baseline's subscribers: plain liblcm, on the same loops */
     for (int i = 0; i < 3; i++) {
-        char name[8];
+        char name[16];
         snprintf(name, sizeof name, "rx%d", i);
         rx[i] = component_in(file, &rx_def, name, sink[i]);
         raw3[i] = lcm_create(marie_default_url());

@@ -163,7 +163,7 @@ typedef struct {
  * first (discovery, warm-up) is dropped and the figures are the medians of the others. */
 static int dds_round_trip(size_t size, int seconds, dds_t *out)
 {
-    char dur[16], cmd[128];
+    char dur[16], cmd[320];
     snprintf(dur, sizeof dur, "%d", seconds + 3);
     char *pong[] = {"ddsperf", "-D", dur, "pong", NULL};
     /* test_spawn takes a path: find ddsperf on PATH the way the shell would. */
