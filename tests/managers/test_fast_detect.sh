@@ -5,7 +5,11 @@
 T=$(mktemp -d /tmp/marie-test-fast.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
 OUT=$T
+pids=""
 cleanup() {
+    # The busy loops end with the test: left to their 20 s they loaded the next test too (the
+    # simulator's devices at full speed, which then lost CAN frames).
+    [ -n "$pids" ] && kill $pids 2>/dev/null
     "$BIN/marie" down > /dev/null 2>&1
     stop_started
     rm -rf "$T"
