@@ -224,6 +224,7 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
     laser_sync_fd(d);
     d->st.can_frames_in = vdevices_stats(d->dev)->frames_in;
     d->st.can_frames_out = vdevices_stats(d->dev)->frames_out;
+    d->st.can_dropped = vdevices_stats(d->dev)->frames_dropped + (d->bus ? can_emubus_stats(d->bus)->overflow : 0);
 }
 
 /* The master's periodic frames (SYNC, heartbeat): not any frame, or another master's SDO

@@ -27,6 +27,7 @@ typedef struct {
 
 typedef struct {
     uint64_t can_frames_in, can_frames_out;
+    uint64_t can_dropped;       /* frames lost on the emulated bus: refused to a device, or a driver's queue full */
     int64_t laser_scans;
     int64_t driver_waits, driver_timeouts;
 } sim_devices_stats_t;

@@ -333,6 +333,7 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
         marie_component_count(c, "driver_waits", ds->driver_waits - marie_component_counter(c, "driver_waits"));
         marie_component_count(c, "driver_timeouts",
                               ds->driver_timeouts - marie_component_counter(c, "driver_timeouts"));
+        marie_component_count(c, "can_dropped", (int64_t)ds->can_dropped - marie_component_counter(c, "can_dropped"));
     }
 }
 

@@ -35,6 +35,8 @@ static void route(vdevices_t *v, const struct can_frame *f, int n)
     for (int i = 0; i < n; i++)
         if (can_bus_write(v->bus, &f[i]) == 0)
             v->st.frames_out++;
+        else
+            v->st.frames_dropped++;
 }
 
 static void deliver(vdevices_t *v, const struct can_frame *f, int64_t now)

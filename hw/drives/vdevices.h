@@ -45,6 +45,7 @@ vdrive_t *vdevices_drive(vdevices_t *v, int i);     /* 0 left, 1 right; NULL if 
 vgyro_t *vdevices_gyro(vdevices_t *v);
 typedef struct {
     uint64_t frames_in, frames_out;
+    uint64_t frames_dropped;    /* frames the devices made that the bus refused (its queue full) */
     /* SYNC and heartbeat frames received: the master's periodic traffic (not its SDOs, nor
      * another master's requests), which a simulator paces itself on. */
     uint64_t master_frames_in;

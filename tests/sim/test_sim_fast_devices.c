@@ -40,7 +40,7 @@ static struct {
     int nscan_gaps;
     counts_t c[3];
     bool enc_ok;                /* the drives configured and enabled */
-    int64_t driver_waits, driver_timeouts, sim_ms;
+    int64_t driver_waits, driver_timeouts, sim_ms, can_dropped;
 } rx;
 
 static const char *const drivers[3] = { "drives", "gyro", "laser" };
@@ -59,6 +59,7 @@ static void on_heartbeat(const marie_heartbeat_t *h)
     if (strcmp(h->component, "sim") == 0) {
         rx.driver_waits = counter(h, "driver_waits");
         rx.driver_timeouts = counter(h, "driver_timeouts");
+        rx.can_dropped = counter(h, "can_dropped");
         rx.sim_ms = counter(h, "sim_ms");
         return;
     }
@@ -202,6 +203,7 @@ static void test_fast_device_mode_no_timeouts(void **state)
     assert_true(up);
     counts_t base[3];
     memcpy(base, rx.c, sizeof base);
+    int64_t dropped0 = rx.can_dropped, timeouts0 = rx.driver_timeouts;
     /* A slow straight drive (0.5 m/s, turning a little so the test world's walls stay away),
      * one command per 100 ms of simulated time, as the 5 Hz behaviours would send it. */
     int64_t t0 = -1, next = 0, wall0 = marie_mono_us();
@@ -231,8 +233,10 @@ static void test_fast_device_mode_no_timeouts(void **state)
     unlink(can);
     rmdir(dir);
 
-    fprintf(stderr, "ran %.1f s of sim time in %.1f s (%.1fx), driver waits %lld, driver timeouts %lld\n",
-            ran / 1e6, wall_s, ran / 1e6 / wall_s, (long long)rx.driver_waits, (long long)rx.driver_timeouts);
+    fprintf(stderr, "ran %.1f s of sim time in %.1f s (%.1fx), driver waits %lld, driver timeouts %lld (%lld in the run), "
+            "CAN frames dropped %lld (%lld in the run)\n",
+            ran / 1e6, wall_s, ran / 1e6 / wall_s, (long long)rx.driver_waits, (long long)rx.driver_timeouts,
+            (long long)(rx.driver_timeouts - timeouts0), (long long)rx.can_dropped, (long long)(rx.can_dropped - dropped0));
     for (int i = 0; i < 3; i++)
         fprintf(stderr, "%-7s faults %lld hb_timeouts %lld timeouts %lld emcy %lld config_failures %lld lost %lld\n",
                 drivers[i], (long long)rx.c[i].faults, (long long)rx.c[i].hb_timeouts, (long long)rx.c[i].timeouts,
@@ -249,7 +253,10 @@ static void test_fast_device_mode_no_timeouts(void **state)
     assert_int_equal(rx.c[0].emcy - base[0].emcy, 0);
     assert_true(rx.c[0].hb_timeouts - base[0].hb_timeouts <= 2);  /* both drives, once */
     assert_true(rx.c[1].hb_timeouts - base[1].hb_timeouts <= 1);
-    assert_int_equal(rx.c[1].lost_samples - base[1].lost_samples, 0);
+    /* The gyro driver loses no sample the emulated bus delivered: at speed 0 the bus drops
+     * frames now and then, counted by the simulator (`can_dropped`; docs/sim.md, known limits),
+     * and a sample lost there is seen by the driver as a gap in the device's counter. */
+    assert_true(rx.c[1].lost_samples - base[1].lost_samples <= rx.can_dropped - dropped0);
     assert_int_equal(rx.c[2].timeouts - base[2].timeouts, 0);
     /* The SYNC cycle follows simulated time: moving wheels show new positions in (nearly) every
      * message; with SYNC on wall time at 10x only one in ten would. */
