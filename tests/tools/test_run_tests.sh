@@ -16,6 +16,14 @@ printf '. tests/lib.sh\ncheck "one" true\ncheck "two" true\nfinish\n' > "$tmp/pa
 printf '. tests/lib.sh\ncheck "good" true\ncheck "bad" false\nfinish\n' > "$tmp/fails.sh"
 printf '#!/bin/sh\nexit 3\n' > "$tmp/crashes.sh"
 run() { B="$tmp" scripts/run-tests.sh "$@" > "$tmp/out" 2>&1; echo $? > "$tmp/rc"; cat "$tmp/out"; }
+# timed ARGS...: run, and how many seconds it took in $took.
+timed() { start=$(date +%s); run "$@"; took=$(( $(date +%s) - start )); }
+# reported NAMES SUMMARY [RC]: the programs' lines came in this order, the last line is SUMMARY
+# (and the exit status RC).
+reported() {
+    [ "$(grep -E '^(PASS|FAIL) ' "$tmp/out" | awk '{print $2}' | tr '\n' ' ')" = "$1 " ] &&
+        [ "$(tail -1 "$tmp/out")" = "$2" ] && { [ -z "${3:-}" ] || [ "$(cat "$tmp/rc")" -eq "$3" ]; }
+}
 
 run "$tmp/silent.sh"
 check "a program that runs no case fails" grep -q '^FAIL silent.sh' "$tmp/out"
@@ -39,43 +47,30 @@ printf '# test-timeout: 10\n. tests/lib.sh\nsleep 2\ncheck "long by design" true
 TEST_TIMEOUT=1 run "$tmp/slow.sh" "$tmp/long.sh"
 check "a program over TEST_TIMEOUT is killed; one that declares a longer test-timeout is not" \
     sh -c "grep -q '^FAIL slow.sh' $tmp/out && grep -q 'timed out after 1s' $tmp/out && grep -q '^PASS long.sh' $tmp/out"
-start=$(date +%s)
-run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" "$tmp/fails.sh" -- "$tmp/skips.sh" "$tmp/passes.sh"
-took=$(( $(date +%s) - start ))
+timed --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" "$tmp/fails.sh" -- "$tmp/skips.sh" "$tmp/passes.sh"
 check "--jobs: every program reported once, in order, the summary counts them all" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh fails.sh skips.sh passes.sh ' &&
-           tail -1 $tmp/out | grep -qx '5 passed, 1 failed, 1 skipped' && [ \$(cat $tmp/rc) -eq 1 ]"
+    reported 'slow.sh slow.sh fails.sh skips.sh passes.sh' '5 passed, 1 failed, 1 skipped' 1
 check "--jobs 2: two 2-second programs side by side take less than the 4 s of one after the other ($took s)" [ "$took" -lt 4 ]
 printf '#!/bin/sh\n# test-light\n. tests/lib.sh\nsleep 2\ncheck "light" true\nfinish\n' > "$tmp/light.sh"
-start=$(date +%s)
-run --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" -- "$tmp/light.sh" "$tmp/passes.sh"
-took=$(( $(date +%s) - start ))
+timed --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" -- "$tmp/light.sh" "$tmp/passes.sh"
 check "--jobs: a test-light program after -- runs beside those before it, reported after the others ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'slow.sh slow.sh passes.sh light.sh ' &&
-           tail -1 $tmp/out | grep -qx '5 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+    eval 'reported "slow.sh slow.sh passes.sh light.sh" "5 passed, 0 failed, 0 skipped" && [ "$took" -lt 4 ]'
 # (two programs of one name side by side would share one log: two copies)
 cp "$tmp/passes.sh" "$tmp/p1.sh"
 cp "$tmp/passes.sh" "$tmp/p2.sh"
-start=$(date +%s)
-run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/light.sh" "$tmp/slow.sh"
-took=$(( $(date +%s) - start ))
+timed --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/light.sh" "$tmp/slow.sh"
 check "--jobs: a test-light program still running when those before -- are done runs on beside the others after -- ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh slow.sh light.sh ' &&
-           tail -1 $tmp/out | grep -qx '6 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+    eval 'reported "p1.sh p2.sh slow.sh light.sh" "6 passed, 0 failed, 0 skipped" && [ "$took" -lt 4 ]'
 printf '#!/bin/sh\n# test-group: pair\n. tests/lib.sh\nsleep 2\ncheck "grouped" true\nfinish\n' > "$tmp/g1.sh"
 cp "$tmp/g1.sh" "$tmp/g2.sh"
-start=$(date +%s)
-run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/g1.sh" "$tmp/passes.sh" "$tmp/g2.sh"
-took=$(( $(date +%s) - start ))
+timed --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/g1.sh" "$tmp/passes.sh" "$tmp/g2.sh"
 check "--jobs: the tests of one test-group after -- run side by side, printed where the first of them is ($took s)" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh g1.sh g2.sh passes.sh ' &&
-           tail -1 $tmp/out | grep -qx '8 passed, 0 failed, 0 skipped' && [ $took -lt 4 ]"
+    eval 'reported "p1.sh p2.sh g1.sh g2.sh passes.sh" "8 passed, 0 failed, 0 skipped" && [ "$took" -lt 4 ]'
 printf '#!/bin/sh\n# test-light\n. tests/lib.sh\nsleep 1\ncheck "light" true\n: > "%s/light.done"\nfinish\n' "$tmp" > "$tmp/light1.sh"
 printf '. tests/lib.sh\ncheck "the light test was done before" test -f "%s/light.done"\nfinish\n' "$tmp" > "$tmp/alone.sh"
 run --jobs 2 "$tmp/p1.sh" "$tmp/p2.sh" -- "$tmp/light1.sh" -- "$tmp/alone.sh"
 check "--jobs: a test after a second -- runs last, once the light lane is done" \
-    sh -c "grep -E '^(PASS|FAIL) ' $tmp/out | awk '{print \$2}' | tr '\n' ' ' | grep -qx 'p1.sh p2.sh light1.sh alone.sh ' &&
-           tail -1 $tmp/out | grep -qx '6 passed, 0 failed, 0 skipped'"
+    reported 'p1.sh p2.sh light1.sh alone.sh' '6 passed, 0 failed, 0 skipped'
 run "$tmp/light.sh" -- "$tmp/light.sh"
 check "without --jobs a test-light program runs like the others" \
     sh -c "grep -c '^PASS light.sh' $tmp/out | grep -qx 2 && tail -1 $tmp/out | grep -qx '2 passed, 0 failed, 0 skipped'"
