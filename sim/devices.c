@@ -222,9 +222,6 @@ void sim_devices_after_step(sim_devices_t *d, double dt, int64_t now)
     vdevices_tick(d->dev, dt, now);
     vlms200_tick(d->laser, now);
     laser_sync_fd(d);
-    d->st.can_frames_in = vdevices_stats(d->dev)->frames_in;
-    d->st.can_frames_out = vdevices_stats(d->dev)->frames_out;
-    d->st.can_dropped = vdevices_stats(d->dev)->frames_dropped + (d->bus ? can_emubus_stats(d->bus)->overflow : 0);
 }
 
 /* The master's periodic frames (SYNC, heartbeat): not any frame, or another master's SDO
@@ -277,6 +274,11 @@ bool sim_devices_may_step(sim_devices_t *d)
 
 const sim_devices_stats_t *sim_devices_stats(sim_devices_t *d)
 {
+    /* The bus's counts are read when asked, not copied at every step. */
+    const vdevices_stats_t *v = vdevices_stats(d->dev);
+    d->st.can_frames_in = v->frames_in;
+    d->st.can_frames_out = v->frames_out;
+    d->st.can_dropped = v->frames_dropped + (d->bus ? can_emubus_stats(d->bus)->overflow : 0);
     return &d->st;
 }
 
