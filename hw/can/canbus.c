@@ -14,10 +14,10 @@
 #include "core/err.h"
 
 #define EMUBUS_MAX_CLIENTS 64
-/* Frames held for a client whose socket is full. An AF_UNIX socket takes only
- * net.unix.max_dgram_qlen (10) packets, where a SocketCAN socket's receive buffer holds
- * hundreds of frames: without this a reader late by a few ms would lose frames that a real
- * controller keeps. */
+/* Frames held for a client whose socket is full. A connected AF_UNIX packet socket takes
+ * what fits in the sender's buffer (net.core.wmem_default, about 280 frames of ~770 bytes'
+ * accounting each); a SocketCAN socket's receive buffer holds a few hundred frames too, and
+ * these 512 more keep a reader late by some ms from losing what a real controller keeps. */
 #define EMUBUS_QUEUE 512
 
 typedef struct {

@@ -428,6 +428,7 @@ static int rpdo(drives_ctl_t *d, int i, struct can_frame *f)
     uint64_t v[2] = { a->controlword, (uint32_t)a->target };
     co_pdo_map_t m = rpdo1_map;
     m.cob_id = CO_COB_RPDO1 + d->cfg.node[i];
+    a->rpdo_cw = a->controlword;
     return co_pdo_encode(&m, v, f) > 0;
 }
 
@@ -447,7 +448,9 @@ static cia402_want_t want(const drives_ctl_t *d)
     return !d->enable ? CIA402_WANT_DISABLED : d->estop ? CIA402_WANT_QUICK_STOP : CIA402_WANT_ENABLED;
 }
 
-int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
+/* RPDO1 of each running drive now; unless `force`, one whose early RPDO1 of this SYNC period
+ * already went out with the same controlword waits for the cycle's. */
+static int rpdo_early(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max, bool force)
 {
     int n = 0;
     for (int i = 0; i < DRIVES_N && n < max; i++) {
@@ -459,9 +462,17 @@ int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int 
         if (a->have_tpdo && want(d) != CIA402_WANT_ENABLED)
             a->controlword = cia402_next_controlword(a->state, want(d), a->controlword, false);
         compute_target(d, i, now);
+        if (!force && a->rpdo_early && a->controlword == a->rpdo_cw)
+            continue;
         n += rpdo(d, i, &tx[n]);
+        a->rpdo_early = true;
     }
     return n;
+}
+
+int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max)
+{
+    return rpdo_early(d, now, tx, max, false);
 }
 
 /* Our heartbeat, on the cycle when due; a cycle a little early still sends it, so timer
@@ -480,7 +491,7 @@ int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int 
 {
     d->now = now;
     d->enable = false;
-    int n = drives_ctl_rpdo_now(d, now, tx, max);
+    int n = rpdo_early(d, now, tx, max, true);
     if (n > 0 && n < max)
         n += co_sync_encode(&tx[n], 0) >= 0;
     for (int i = 0; i < DRIVES_N && n < max; i++)
@@ -525,6 +536,7 @@ int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
         a->controlword = cw;
         compute_target(d, i, now);
         n += rpdo(d, i, &tx[n]);
+        a->rpdo_early = false;          /* the SYNC below closes the period */
     }
     if (any_run && n < max) {
         co_sync_encode(&tx[n], 0);

@@ -64,6 +64,8 @@ typedef struct {
     int job;
     int64_t phase_since, fault_since, emcy_window_start;
     uint32_t emcy_in_window;
+    bool rpdo_early;                /* an RPDO1 went out at once since the last SYNC */
+    uint16_t rpdo_cw;               /* the controlword of the last RPDO1 sent */
     co_sdo_client_t sdo;
 } drives_axis_t;
 
@@ -105,8 +107,11 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
  * (also while disabled), or they see the heartbeat and RPDOs stop. Returns frames to send
  * (at most 9 are ever needed). */
 int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
-/* RPDO1 of both running drives now, with the current command (lower latency than waiting
- * for the cycle; the drives apply them at the next SYNC). */
+/* RPDO1 of both running drives now, with the current command (on the bus at once rather
+ * than up to a cycle later; the drives apply them at the next SYNC). At most one per drive
+ * between two SYNCs unless its controlword changes (an e-stop, a disable): a later command
+ * in the same period rides with the cycle's RPDO1 just before that SYNC, applied at the same
+ * instant, so a client sending commands far faster than the cycle cannot flood the bus. */
 int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
 
 /* Leaving for good: disable voltage in RPDO1 with one last SYNC, then NMT stop to both. */

@@ -170,6 +170,43 @@ static void velocity_reaches_the_wheels(void **state)
     assert_true(fabs(vdrive_velocity(r->vd[1]) - 10.0) < 0.05);
 }
 
+/* A client sending commands far faster than the SYNC cycle (here 100 in one period) puts
+ * one RPDO1 per drive on the bus at once, not 100: the drives apply what they latched at
+ * the next SYNC, which the cycle's own RPDO1 just before it brings up to the last command.
+ * An e-stop in the same period still goes out at once. */
+static void command_flood_is_one_rpdo_per_drive_per_cycle(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 0, 0, true);
+    run(r, 5, 0, 0, true);                      /* between two cycles */
+    struct can_frame tx[4];
+    int frames = 0;
+    for (int k = 1; k <= 100; k++) {
+        drives_ctl_set_wheels(r->ctl, 0.02 * k, -0.02 * k, r->now);
+        int n = drives_ctl_rpdo_now(r->ctl, r->now, tx, 4);
+        for (int i = 0; i < n; i++)
+            assert_int_equal(tx[i].can_id & ~0x7Fu, CO_COB_RPDO1);
+        frames += n;
+        put(r, tx, n, -1);
+    }
+    assert_int_equal(frames, 2);
+    run(r, 300, 2.0, -2.0, false);              /* cycles go on; no more commands */
+    assert_true(fabs(vdrive_command(r->vd[0]) - 2.0) < 0.01);
+    assert_true(fabs(vdrive_command(r->vd[1]) + 2.0) < 0.01);
+    /* Two commands in the next period, then an e-stop: three early rounds, the last with
+     * the quick-stop controlword. */
+    run(r, 25, 0, 0, false);
+    frames = 0;
+    for (int k = 0; k < 2; k++) {
+        drives_ctl_set_wheels(r->ctl, 1.0, 1.0, r->now);
+        frames += drives_ctl_rpdo_now(r->ctl, r->now, tx, 4);
+    }
+    assert_int_equal(frames, 2);
+    drives_ctl_set_estop(r->ctl, true);
+    assert_int_equal(drives_ctl_rpdo_now(r->ctl, r->now, tx, 4), 2);
+    assert_int_equal(tx[0].data[0] | tx[0].data[1] << 8, CIA402_CW_QUICK_STOP);
+}
+
 static void command_timeout_stops_the_wheels(void **state)
 {
     rig_t *r = *state;
@@ -810,6 +847,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         T(startup_configures_and_enables),
         T(velocity_reaches_the_wheels),
+        T(command_flood_is_one_rpdo_per_drive_per_cycle),
         T(command_timeout_stops_the_wheels),
         T(estop_quick_stops_then_releases),
         T(fault_with_emcy_is_reset_and_recovers),
