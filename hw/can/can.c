@@ -20,10 +20,8 @@
 
 #include "core/err.h"
 
-#define CAN_MAX_FILTERS 64
-/* Frames held for the emulated bus's server, whose socket takes only 10 packets per client
- * (net.unix.max_dgram_qlen) until it runs again; a real controller's queue drains on the wire
- * by itself. A server that does not run (a loaded machine, a simulator descheduled) does not
+/* Frames held for the emulated bus's server, whose socket takes what fits in our send buffer
+ * until it runs again; a real controller's queue drains on the wire by itself. A server that does not run (a loaded machine, a simulator descheduled) does not
  * advance simulated time either, so holding the frame, not losing it, is what a bus would do. */
 #define EMU_TX_QUEUE 64
 
@@ -35,9 +33,10 @@ typedef struct {
 struct can_bus {
     int fd;
     bool socketcan;
+    bool server;                /* an "emu:" bus: a server to tell our filters to */
     int ifindex;
     char url[128];
-    struct can_filter filters[CAN_MAX_FILTERS];  /* emulated backend filters in software */
+    struct can_filter filters[CAN_EMU_MAX_FILTERS];  /* emulated backend filters in software */
     size_t nfilters;
     can_err_mask_t err_mask;
     bool fd_on;
@@ -222,6 +221,7 @@ can_bus_t *can_bus_open(const char *url)
         return marie_fail_null(ENOMEM);
     }
     b->ifindex = ifindex;
+    b->server = !sc;
     return b;
 }
 
@@ -253,9 +253,27 @@ const char *can_bus_url(const can_bus_t *bus) { return bus->url; }
 can_bus_health_t can_bus_health(const can_bus_t *bus) { return bus->state; }
 const can_stats_t *can_bus_stats(const can_bus_t *bus) { return &bus->stats; }
 
+/* The emulated bus's server gets our filters and error mask (can.h, CAN_EMU_FILTER_MAGIC).
+ * Not sent (a full socket) only means the server sends more than we read: not an error. */
+static void tell_server(can_bus_t *bus)
+{
+    if (!bus->server)
+        return;
+    uint8_t pkt[CAN_EMU_FILTER_HDR + CAN_EMU_MAX_FILTERS * 8];
+    uint32_t n = (uint32_t)bus->nfilters, mask = bus->err_mask;
+    memcpy(pkt, CAN_EMU_FILTER_MAGIC, 4);
+    memcpy(pkt + 4, &n, 4);
+    memcpy(pkt + 8, &mask, 4);
+    for (uint32_t i = 0; i < n; i++) {
+        memcpy(pkt + CAN_EMU_FILTER_HDR + 8 * i, &bus->filters[i].can_id, 4);
+        memcpy(pkt + CAN_EMU_FILTER_HDR + 8 * i + 4, &bus->filters[i].can_mask, 4);
+    }
+    (void)send(bus->fd, pkt, CAN_EMU_FILTER_HDR + 8 * n, MSG_DONTWAIT | MSG_NOSIGNAL);
+}
+
 int can_bus_set_filters(can_bus_t *bus, const struct can_filter *filters, size_t n)
 {
-    if (n > CAN_MAX_FILTERS)
+    if (n > CAN_EMU_MAX_FILTERS)
         return -EINVAL;
     if (bus->socketcan) {
         /* The kernel filters before our socket's queue, so unwanted frames cost nothing. */
@@ -266,6 +284,7 @@ int can_bus_set_filters(can_bus_t *bus, const struct can_filter *filters, size_t
     if (n)
         memcpy(bus->filters, filters, n * sizeof *filters);
     bus->nfilters = n;
+    tell_server(bus);
     return 0;
 }
 
@@ -275,6 +294,7 @@ int can_bus_set_err_mask(can_bus_t *bus, can_err_mask_t mask)
         setsockopt(bus->fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &mask, sizeof mask) < 0)
         return -errno;
     bus->err_mask = mask & CAN_ERR_MASK;
+    tell_server(bus);
     return 0;
 }
 

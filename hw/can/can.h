@@ -68,7 +68,19 @@ int can_bus_fd(const can_bus_t *bus);       /* poll it for can_bus_events() */
 bool can_bus_is_socketcan(const can_bus_t *bus);
 const char *can_bus_url(const can_bus_t *bus);
 
-/* Receive filters (replace the previous set; n == 0 receives everything). 0 or -errno. */
+/* The emulated bus's one packet that is not a frame: a client's receive filters, so that its
+ * server sends it only what they take, as SocketCAN's CAN_RAW_FILTER and CAN_RAW_ERR_FILTER do
+ * in the kernel. 12 + 8 n bytes (never a frame's 16 or 72): "MFLT", n (u32, at most
+ * CAN_EMU_MAX_FILTERS), the error mask (u32), then n x { can_id, can_mask } (u32 each), host
+ * byte order. Sent by can_bus_set_filters and can_bus_set_err_mask on an "emu:" bus, whole
+ * each time; a server that has none from a client sends it everything. */
+#define CAN_EMU_FILTER_MAGIC "MFLT"
+#define CAN_EMU_MAX_FILTERS 64
+#define CAN_EMU_FILTER_HDR 12
+
+/* Receive filters (replace the previous set; n == 0 receives everything). 0 or -errno. On
+ * the emulated bus the server is told too (best effort: the client filters what it reads
+ * whatever the server sends). */
 int can_bus_set_filters(can_bus_t *bus, const struct can_filter *filters, size_t n);
 /* Which error frames to deliver (CAN_ERR_MASK bits; 0 = none, the default). */
 int can_bus_set_err_mask(can_bus_t *bus, can_err_mask_t mask);

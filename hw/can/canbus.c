@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "core/err.h"
+#include "hw/can/can.h"
 
 #define EMUBUS_MAX_CLIENTS 64
 /* Frames held for a client whose socket is full. A connected AF_UNIX packet socket takes
@@ -30,6 +31,10 @@ typedef struct {
     pkt_t *q;                   /* ring of EMUBUS_QUEUE, allocated when first needed */
     int head, count;
     bool want_out;              /* POLLOUT asked of the loop */
+    bool filtered;              /* it told us its filters: send only what they take */
+    uint32_t nfilters;
+    can_err_mask_t err_mask;
+    struct can_filter filters[CAN_EMU_MAX_FILTERS];
 } client_t;
 
 struct can_emubus {
@@ -162,11 +167,51 @@ static void deliver(can_emubus_t *b, client_t *c, const void *pkt, size_t len)
     want_out(b, c, true);
 }
 
+/* What the kernel's CAN_RAW filters would let through to this client. */
+static bool takes(const client_t *c, const void *pkt)
+{
+    if (!c->filtered)
+        return true;
+    canid_t id;
+    memcpy(&id, pkt, sizeof id);
+    if (id & CAN_ERR_FLAG)
+        return (id & c->err_mask & CAN_ERR_MASK) != 0;
+    return can_filter_match(c->filters, c->nfilters, id);
+}
+
 static void relay(can_emubus_t *b, int from, const void *pkt, size_t len)
 {
-    for (int i = 0; i < b->nclients; i++)
-        if (b->clients[i].fd != from)
-            deliver(b, &b->clients[i], pkt, len);
+    for (int i = 0; i < b->nclients; i++) {
+        client_t *c = &b->clients[i];
+        if (c->fd == from)
+            continue;
+        if (takes(c, pkt))
+            deliver(b, c, pkt, len);
+        else
+            b->stats.filtered++;
+    }
+}
+
+/* A client's filter packet (can.h): true when pkt is one, taken or counted bad. */
+static bool filter_packet(can_emubus_t *b, client_t *c, const uint8_t *pkt, size_t len)
+{
+    if (len < CAN_EMU_FILTER_HDR || memcmp(pkt, CAN_EMU_FILTER_MAGIC, 4) != 0)
+        return false;
+    uint32_t n, mask;
+    memcpy(&n, pkt + 4, 4);
+    memcpy(&mask, pkt + 8, 4);
+    if (n > CAN_EMU_MAX_FILTERS || len != CAN_EMU_FILTER_HDR + 8 * (size_t)n) {
+        b->stats.bad++;
+        return true;
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        memcpy(&c->filters[i].can_id, pkt + CAN_EMU_FILTER_HDR + 8 * i, 4);
+        memcpy(&c->filters[i].can_mask, pkt + CAN_EMU_FILTER_HDR + 8 * i + 4, 4);
+    }
+    c->nfilters = n;
+    c->err_mask = mask;
+    c->filtered = true;
+    return true;
 }
 
 int can_emubus_unread(const can_emubus_t *b)
@@ -205,17 +250,19 @@ static void accept_all(can_emubus_t *b)
 }
 
 /* Read everything waiting on one client; returns frames relayed, -1 if it hung up. */
-static int drain(can_emubus_t *b, int fd)
+static int drain(can_emubus_t *b, client_t *c)
 {
-    int n = 0;
+    int n = 0, fd = c->fd;
     /* Bounded so one chatty client cannot starve the others. */
     for (int k = 0; k < 256; k++) {
-        uint8_t pkt[CANFD_MTU + 8];
+        uint8_t pkt[CAN_EMU_FILTER_HDR + 8 * CAN_EMU_MAX_FILTERS + 8];
         ssize_t r = recv(fd, pkt, sizeof pkt, MSG_DONTWAIT);
         if (r < 0)
             return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? n : -1;
         if (r == 0)
             return -1;
+        if (r != CAN_MTU && r != CANFD_MTU && filter_packet(b, c, pkt, (size_t)r))
+            continue;
         if ((r != CAN_MTU && r != CANFD_MTU) || pkt[4] > (r == CAN_MTU ? CAN_MAX_DLEN : CANFD_MAX_DLEN)) {
             b->stats.bad++;
             continue;
@@ -248,7 +295,7 @@ static void on_client(marie_loop_t *loop, int fd, short revents, void *user)
         return;
     if (revents & POLLOUT)
         flush(b, &b->clients[i]);
-    int r = (revents & (POLLIN | POLLHUP | POLLERR)) ? drain(b, fd) : 0;
+    int r = (revents & (POLLIN | POLLHUP | POLLERR)) ? drain(b, &b->clients[i]) : 0;
     /* drain relays to the others, which may drop none: i still names this client */
     if (r < 0 || (revents & (POLLHUP | POLLERR) && r == 0))
         drop_client(b, i);
@@ -261,7 +308,7 @@ int can_emubus_process(can_emubus_t *b)
     for (int i = 0; i < b->nclients;) {
         if (b->clients[i].count > 0)
             flush(b, &b->clients[i]);
-        int r = drain(b, b->clients[i].fd);
+        int r = drain(b, &b->clients[i]);
         if (r < 0) {
             drop_client(b, i);      /* the last one moved here: look at slot i again */
             continue;

@@ -1,5 +1,6 @@
 /* canbus: the emulated CAN bus: an AF_UNIX SOCK_SEQPACKET server relaying every frame a
- * client writes to all other clients, as a real bus (and SocketCAN's loopback) would. Its
+ * client writes to all other clients, as a real bus (and SocketCAN's loopback) would, each
+ * through the receive filters it told (can.h, CAN_EMU_FILTER_MAGIC) as the kernel would. Its
  * listening socket and its clients are fds of the caller's marie_loop. */
 #ifndef MARIE_HW_CANBUS_H
 #define MARIE_HW_CANBUS_H
@@ -21,7 +22,8 @@ typedef struct {
     uint64_t frames;            /* frames received from clients */
     uint64_t delivered;         /* frame copies handed to clients */
     uint64_t overflow;          /* copies dropped: a client's queue (socket and 512 held frames) was full */
-    uint64_t bad;               /* packets that are not a CAN / CAN FD frame */
+    uint64_t bad;               /* packets that are not a CAN / CAN FD frame or a filter packet */
+    uint64_t filtered;          /* copies not sent: the client's filters do not take them */
 } can_emubus_stats_t;
 const can_emubus_stats_t *can_emubus_stats(const can_emubus_t *b);
 

@@ -160,8 +160,83 @@ static void emulated_bus_relays_to_others(void **state)
     assert_int_equal(access(path, F_OK), -1);
 }
 
-/* A sender faster than the bus server (its socket takes 10 packets) loses nothing and is never
- * blocked: the rest is held and goes out, in order, once the server has run. */
+/* Raw packets waiting on a client's socket, read past its own filtering: what the server sent. */
+static int raw_ids(can_bus_t *c, canid_t *ids, int max)
+{
+    int n = 0;
+    struct can_frame f;
+    while (n < max && recv(can_bus_fd(c), &f, sizeof f, MSG_DONTWAIT) == CAN_MTU)
+        ids[n++] = f.can_id;
+    return n;
+}
+
+/* The server sends each client only what the filters it told take, as the kernel would for a
+ * SocketCAN socket: a gyro driver on the bus is not sent the drives' SYNC and PDOs. Error
+ * frames go by the error mask; a client that told nothing gets everything; a malformed filter
+ * packet is counted bad and changes nothing. */
+static void emulated_bus_sends_each_client_what_its_filters_take(void **state)
+{
+    char path[64], url[80];
+    snprintf(path, sizeof path, "/tmp/marie-test-canbus-f-%d.sock", getpid());
+    snprintf(url, sizeof url, "emu:%s", path);
+    marie_loop_t *loop = marie_loop_create();
+    can_emubus_t *bus = can_emubus_create(loop, path);
+    assert_non_null(bus);
+    can_bus_t *tx = can_bus_open(url), *gyro = can_bus_open(url), *all = can_bus_open(url);
+    assert_non_null(tx);
+    assert_non_null(gyro);
+    assert_non_null(all);
+    struct can_filter f[2] = { { 0x1A0, CAN_SFF_MASK }, { 0x720, CAN_SFF_MASK } };
+    assert_int_equal(can_bus_set_filters(gyro, f, 2), 0);
+    assert_int_equal(can_bus_set_err_mask(gyro, CAN_ERR_BUSOFF), 0);
+    pump(loop);
+    const canid_t sent[] = { 0x080, 0x201, 0x1A0, 0x181, 0x720, 0x77F };
+    for (size_t i = 0; i < sizeof sent / sizeof sent[0]; i++) {
+        struct can_frame fr = frame(sent[i], 1, (uint8_t)i);
+        assert_int_equal(can_bus_write(tx, &fr), 0);
+    }
+    pump(loop);
+    struct can_frame crtl = frame(CAN_ERR_FLAG | CAN_ERR_CRTL, CAN_ERR_DLC, 0);
+    struct can_frame off = frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, CAN_ERR_DLC, 0);
+    can_emubus_inject(bus, &crtl);
+    can_emubus_inject(bus, &off);
+    pump(loop);
+    canid_t ids[16];
+    assert_int_equal(raw_ids(gyro, ids, 16), 3);
+    assert_int_equal(ids[0], 0x1A0);
+    assert_int_equal(ids[1], 0x720);
+    assert_int_equal(ids[2], CAN_ERR_FLAG | CAN_ERR_BUSOFF);
+    assert_int_equal(raw_ids(all, ids, 16), 8);
+    assert_int_equal(can_emubus_stats(bus)->filtered, 5);
+    /* n = 65 filters, or a length that does not match n: bad, the old filters stay */
+    uint8_t junk[CAN_EMU_FILTER_HDR + 8] = "MFLT";
+    uint32_t n = 65;
+    memcpy(junk + 4, &n, 4);
+    assert_int_equal(send(can_bus_fd(gyro), junk, CAN_EMU_FILTER_HDR, 0), CAN_EMU_FILTER_HDR);
+    n = 2;
+    memcpy(junk + 4, &n, 4);
+    assert_int_equal(send(can_bus_fd(gyro), junk, sizeof junk, 0), (ssize_t)sizeof junk);
+    pump(loop);
+    assert_int_equal(can_emubus_stats(bus)->bad, 2);
+    struct can_frame sync = frame(0x080, 0, 0);
+    assert_int_equal(can_bus_write(tx, &sync), 0);
+    pump(loop);
+    assert_int_equal(raw_ids(gyro, ids, 16), 0);
+    /* no filters again: everything */
+    assert_int_equal(can_bus_set_filters(gyro, NULL, 0), 0);
+    pump(loop);
+    assert_int_equal(can_bus_write(tx, &sync), 0);
+    pump(loop);
+    assert_int_equal(raw_ids(gyro, ids, 16), 1);
+    can_bus_close(tx);
+    can_bus_close(gyro);
+    can_bus_close(all);
+    can_emubus_destroy(bus);
+    marie_loop_destroy(loop);
+}
+
+/* A sender faster than the bus server (its socket takes what fits in its send buffer) loses
+ * nothing and is never blocked: the rest is held and goes out, in order, once the server has run. */
 static void emulated_bus_holds_frames_the_server_has_no_room_for(void **state)
 {
     char path[64], url[80];
@@ -258,6 +333,7 @@ int main(void)
         cmocka_unit_test(socketpair_roundtrip_counts_bad_packets),
         cmocka_unit_test(emulated_bus_relays_to_others),
         cmocka_unit_test(emulated_bus_holds_frames_the_server_has_no_room_for),
+        cmocka_unit_test(emulated_bus_sends_each_client_what_its_filters_take),
         cmocka_unit_test(can_fd_frames_when_enabled),
         cmocka_unit_test(urls_are_checked),
     };
