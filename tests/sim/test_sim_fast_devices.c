@@ -261,10 +261,13 @@ static void test_fast_device_mode_no_timeouts(void **state)
     assert_int_equal(rx.can_dropped - dropped0, 0);
     assert_int_equal(rx.c[1].lost_samples - base[1].lost_samples, 0);
     assert_int_equal(rx.c[2].timeouts - base[2].timeouts, 0);
-    /* The SYNC cycle follows simulated time: moving wheels show new positions in (nearly) every
-     * message; with SYNC on wall time at 10x only one in ten would. */
+    /* The SYNC cycle follows simulated time: moving wheels show new positions in most messages
+     * (97-100% on an idle machine); with SYNC on wall time at 10x, a 50 ms message period is
+     * 5 ms of wall time and fewer than one in three would. The lockstep lets a driver trail the
+     * world by up to `driver_lag` (50 ms, one message period), so on a busy machine some repeat
+     * the last positions (74% once at 49x, beside a full test run and other work). */
     assert_true(rx.enc_moving >= 100);
-    assert_true(rx.enc_changed >= rx.enc_moving * 80 / 100);
+    assert_true(rx.enc_changed >= rx.enc_moving * 60 / 100);
     /* The laser streams at its 10 Hz of simulated time. */
     assert_true(rx.nscan_gaps >= 150);
     qsort(rx.scan_gaps, (size_t)rx.nscan_gaps, sizeof rx.scan_gaps[0], cmp64);
