@@ -27,6 +27,11 @@ static void free_strv(char **v, size_t n)
 
 static void component_cfg_free(marie_component_cfg_t *c)
 {
+    if (c->params_merged) {
+        free(c->params_merged->items);
+        free(c->params_merged->index);
+        free(c->params_merged);
+    }
     free(c->name);
     free(c->exec);
     free_strv(c->args, c->nargs);
@@ -530,7 +535,7 @@ static const marie_node_t *find_profile(const marie_node_t *root, const char *pr
         marie_errors_add(errs, file, at ? at->line : 1, at ? at->col : 1, "no profile '%s' in this file", profile);
         return NULL;
     }
-    static const char *const keys[] = {"extends", "components", "remove", "clock", "robot", NULL};
+    static const char *const keys[] = {"extends", "components", "remove", "clock", "robot", "params", NULL};
     if (marie_node_check_keys(p, keys, "profile", errs) < 0)
         return NULL;
     return p;
@@ -607,6 +612,43 @@ static int find_cycle(const marie_system_t *sys, marie_errors_t *errs)
     free(stack);
     free(next);
     return rc;
+}
+
+/* A profile's `params: {COMPONENT: {KEY: VALUE, ...}}` over a component's params: a new map
+ * with the component's own entries that are not overridden, then the profile's, each the
+ * file's own node (so a bad value is reported at its line). */
+static int override_params(marie_component_cfg_t *c, const marie_node_t *over, marie_errors_t *errs)
+{
+    if (over->kind != MARIE_NODE_MAP) {
+        marie_node_error(errs, over, "params: %s: expected a mapping of parameter: value", over->key);
+        return -1;
+    }
+    const marie_node_t *base = c->params;
+    size_t n = over->n + (base ? base->n : 0);
+    marie_node_t *m = calloc(1, sizeof *m);
+    marie_node_t **items = calloc(n ? n : 1, sizeof *items);
+    if (!m || !items) {
+        free(m);
+        free(items);
+        marie_node_error(errs, over, "params: out of memory");
+        return -1;
+    }
+    *m = (marie_node_t){ .kind = MARIE_NODE_MAP, .file = over->file, .line = over->line, .col = over->col,
+                         .key = base ? base->key : over->key, .key_line = over->key_line,
+                         .key_col = over->key_col, .items = items };
+    for (size_t i = 0; base && i < base->n; i++)
+        if (!marie_node_get(over, base->items[i]->key))
+            items[m->n++] = base->items[i];
+    for (size_t i = 0; i < over->n; i++)
+        items[m->n++] = over->items[i];
+    if (c->params_merged) {
+        free(c->params_merged->items);
+        free(c->params_merged->index);
+        free(c->params_merged);
+    }
+    c->params_merged = m;
+    c->params = m;
+    return 0;
 }
 
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
@@ -720,7 +762,10 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
             rc = -1;
     }
     sys->components = rc ? NULL : calloc(max ? max : 1, sizeof *sys->components);
-    for (int k = 0; sys->components && k <= nchain; k++)
+    int *level = sys->components ? calloc(max ? max : 1, sizeof *level) : NULL;
+    if (!level)
+        MARIE_CLEAR(sys->components, free);
+    for (int k = 0; level && k <= nchain; k++)
         for (size_t i = 0; level_comps[k] && i < level_comps[k]->n; i++) {
             const marie_node_t *n = level_comps[k]->items[i];
             bool kept = true;
@@ -729,9 +774,40 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
                 for (size_t r = 0; r < nremoved[m] && kept; r++)
                     kept = strcmp(removed[m][r], n->key) != 0;
             }
-            if (kept)
+            if (kept) {
+                level[sys->ncomponents] = k;
                 rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
+            }
         }
+    /* Each profile's `params:`, base-most first, over the components present after it: one
+     * that a nearer profile replaces or removes takes that profile's entry instead. */
+    for (int k = 1; level && k <= nchain; k++) {
+        const marie_node_t *pp = marie_node_get(chain[nchain - k], "params");
+        if (pp && pp->kind != MARIE_NODE_MAP) {
+            marie_node_error(errs, pp, "params: expected a mapping of component: {parameter: value}");
+            rc = -1;
+            continue;
+        }
+        for (size_t i = 0; pp && i < pp->n; i++) {
+            const marie_node_t *o = pp->items[i];
+            bool known = false;
+            for (int m = 0; m <= k; m++)
+                known |= marie_node_get(level_comps[m], o->key) != NULL;
+            for (size_t r = 0; r < nremoved[k]; r++)
+                known &= strcmp(removed[k][r], o->key) != 0;
+            size_t j = 0;
+            while (j < sys->ncomponents && strcmp(sys->components[j].name, o->key) != 0)
+                j++;
+            if (!known) {
+                marie_errors_add(errs, o->file, o->key_line, o->key_col,
+                                 "params: no component '%s' in this profile", o->key);
+                rc = -1;
+            } else if (j < sys->ncomponents && level[j] <= k) {
+                rc |= override_params(&sys->components[j], o, errs);
+            }
+        }
+    }
+    free(level);
     for (int k = 0; k <= nchain; k++)
         free_strv(removed[k], nremoved[k]);
     if (!sys->components)

@@ -111,6 +111,7 @@ typedef struct {
     char *group;
     marie_port_binding_t *ports; size_t nports;
     const marie_node_t *params; /* a map node, or NULL */
+    marie_node_t *params_merged;/* private: params with a profile's `params:` over them (owned) */
     marie_restart_cfg_t restart;
     double stop_timeout_s;      /* stop signal, then SIGKILL after this */
     double heartbeat_timeout_s; /* not responding after this long without a heartbeat */

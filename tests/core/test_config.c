@@ -657,6 +657,51 @@ static void a_profile_extends_another(void **state)
     assert_int_equal(e.n, 0);
 }
 
+/* A profile's `params:` changes some parameters of a component it keeps, without copying its
+ * entry: the others stay, the hash changes; a nearer profile that replaces the component
+ * takes its own entry, one that removes it drops the override with it; a component that is
+ * not there and a value that is not a mapping are errors at their line. */
+static void a_profile_overrides_some_params(void **state)
+{
+    marie_errors_t e = {0};
+    const char *text = BASE_SYSTEM
+        "profiles:\n"
+        "  sim:\n    components:\n"
+        "      s: {exec: marie-example-producer, params: {rate_hz: 50, camera: true, world: office}}\n"
+        "      v: {exec: marie-example-producer}\n"
+        "    params: {a: {rate_hz: 7}, v: {rate_hz: 3}}\n"
+        "  explore:\n    extends: sim\n    remove: [v]\n"
+        "    components:\n      a: {exec: marie-example-producer, params: {rate_hz: 9}}\n"
+        "    params:\n      s: {camera: false}\n";
+    marie_system_t *sim = load_text(text, "sim", &e), *ex = load_text(text, "explore", &e);
+    assert_non_null(sim);
+    assert_non_null(ex);
+    const marie_component_cfg_t *s = marie_system_component(ex, "s");
+    assert_string_equal(marie_node_get(s->params, "camera")->value, "false");
+    assert_string_equal(marie_node_get(s->params, "rate_hz")->value, "50");
+    assert_string_equal(marie_node_get(s->params, "world")->value, "office");
+    assert_int_equal(s->params->n, 3);
+    assert_string_equal(marie_node_get(marie_system_component(sim, "s")->params, "camera")->value, "true");
+    assert_string_not_equal(s->hash, marie_system_component(sim, "s")->hash);
+    /* sim's override of a (the base's, rate_hz 5) holds in sim; explore's own a replaces it */
+    assert_string_equal(marie_node_get(marie_system_component(sim, "a")->params, "rate_hz")->value, "7");
+    assert_string_equal(marie_node_get(marie_system_component(ex, "a")->params, "rate_hz")->value, "9");
+    assert_null(marie_system_component(ex, "v"));
+    assert_int_equal(e.n, 0);
+    marie_system_destroy(sim);
+    marie_system_destroy(ex);
+
+    assert_null(load_text(BASE_SYSTEM "profiles:\n  p:\n    params:\n      nope: {rate_hz: 1}\n", "p", &e));
+    assert_true(has_error(&e, ":18:7: params: no component 'nope' in this profile"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "profiles:\n  p:\n    params:\n      a: 5\n", "p", &e));
+    assert_true(has_error(&e, ":18:10: params: a: expected a mapping"));
+    marie_errors_clear(&e);
+    assert_null(load_text(BASE_SYSTEM "profiles:\n  p:\n    remove: [a]\n    params:\n      a: {rate_hz: 1}\n", "p", &e));
+    assert_true(has_error(&e, "params: no component 'a' in this profile"));
+    marie_errors_clear(&e);
+}
+
 static void a_profile_chain_is_checked(void **state)
 {
     marie_errors_t e = {0};
@@ -771,6 +816,7 @@ int main(void)
         cmocka_unit_test(loading_time_grows_linearly),
         cmocka_unit_test(the_robot_section_feeds_robot_params),
         cmocka_unit_test(a_profile_extends_another),
+        cmocka_unit_test(a_profile_overrides_some_params),
         cmocka_unit_test(a_profile_chain_is_checked),
         cmocka_unit_test(transports_are_read_and_checked),
         cmocka_unit_test(the_yaml_library_is_let_go_and_comes_back),
