@@ -25,13 +25,19 @@ static void free_strv(char **v, size_t n)
     free(v);
 }
 
+/* A map made by override_params: its items are the document's nodes, not its own. */
+static void free_merged(marie_node_t *m)
+{
+    if (!m)
+        return;
+    free(m->items);
+    free(m->index);
+    free(m);
+}
+
 static void component_cfg_free(marie_component_cfg_t *c)
 {
-    if (c->params_merged) {
-        free(c->params_merged->items);
-        free(c->params_merged->index);
-        free(c->params_merged);
-    }
+    free_merged(c->params_merged);
     free(c->name);
     free(c->exec);
     free_strv(c->args, c->nargs);
@@ -641,11 +647,7 @@ static int override_params(marie_component_cfg_t *c, const marie_node_t *over, m
             items[m->n++] = base->items[i];
     for (size_t i = 0; i < over->n; i++)
         items[m->n++] = over->items[i];
-    if (c->params_merged) {
-        free(c->params_merged->items);
-        free(c->params_merged->index);
-        free(c->params_merged);
-    }
+    free_merged(c->params_merged);
     c->params_merged = m;
     c->params = m;
     return 0;

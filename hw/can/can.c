@@ -21,8 +21,9 @@
 #include "core/err.h"
 
 /* Frames held for the emulated bus's server, whose socket takes what fits in our send buffer
- * until it runs again; a real controller's queue drains on the wire by itself. A server that does not run (a loaded machine, a simulator descheduled) does not
- * advance simulated time either, so holding the frame, not losing it, is what a bus would do. */
+ * until it runs again; a real controller's queue drains on the wire by itself. A server that
+ * does not run (a loaded machine, a simulator descheduled) does not advance simulated time
+ * either, so holding the frame, not losing it, is what a bus would do. */
 #define EMU_TX_QUEUE 64
 
 typedef struct {
