@@ -4,7 +4,8 @@ virtual drives and gyro on the emulated bus (marie-canbus): the identity object 
 device type, an expedited SDO download without size indication, reset communication restoring
 communication objects and keeping application ones, and the drive's heartbeat consumer: a
 master that configures 0x1016, sets the motor turning and falls silent sees 0x606C reach 0
-within 300 ms."""
+within 300 ms. Also the bus's filter packet, packed here from docs/hw/canopen.md: a client that
+told it one filter is sent only the frames that filter takes."""
 import os
 import select
 import socket
@@ -168,7 +169,41 @@ def heartbeat_consumer_stops_the_motor():
     assert sw & 0x4F == 0x08, "fault after the fault reaction, statusword 0x%04X" % sw
 
 
+def raw_ids(sock, seconds):
+    ids, end = [], time.time() + seconds
+    while time.time() < end:
+        r, _, _ = select.select([sock], [], [], 0.05)
+        if r:
+            data = sock.recv(128)
+            ids.append(struct.unpack("=I", data[:4])[0] if len(data) == 16 else -len(data))
+    return ids
+
+
+def filters_told_to_the_bus():
+    # The filter packet as docs/hw/canopen.md gives it: "MFLT", n, the error mask, then n x
+    # (can_id, can_mask), u32 each in host order; the bus then sends us only what they take.
+    told = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    whole = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    told.connect(SOCK)
+    whole.connect(SOCK)
+    try:
+        told.send(struct.pack("=4sIIII", b"MFLT", 1, 0, 0x581, 0x7FF))
+        time.sleep(0.2)
+        for s in (told, whole):
+            raw_ids(s, 0.1)                          # what came before the filter took hold
+        for index in (0x1000, 0x1018):
+            drive.sdo.upload(index, 0)
+            gyro.sdo.upload(index, 0)
+        seen, all_ids = raw_ids(told, 0.3), raw_ids(whole, 0.3)
+        assert seen and set(seen) == {0x581}, "filtered client got %s" % sorted(set(seen))
+        assert {0x601, 0x581, 0x620, 0x5A0} <= set(all_ids), "unfiltered client got %s" % sorted(set(all_ids))
+    finally:
+        told.close()
+        whole.close()
+
+
 try:
+    check("the bus sends a client what the filters it told take", filters_told_to_the_bus)
     check("identity 0x1018 in drive and gyro", identity)
     check("expedited download without size indication", download_without_size)
     check("reset communication restores 0x1017, keeps 0x6060", reset_communication)
