@@ -51,10 +51,10 @@ int main(int argc, char **argv)
     if (rc == 0)
         rc = marie_loop_run(loop);
     const can_emubus_stats_t *s = can_emubus_stats(b);
-    marie_info("bus closed: %llu clients, %llu frames, %llu delivered, %llu overflow, %llu bad",
+    marie_info("bus closed: %llu clients, %llu frames, %llu delivered, %llu filtered out, %llu overflow, %llu bad",
                (unsigned long long)s->clients, (unsigned long long)s->frames,
-               (unsigned long long)s->delivered, (unsigned long long)s->overflow,
-               (unsigned long long)s->bad);
+               (unsigned long long)s->delivered, (unsigned long long)s->filtered,
+               (unsigned long long)s->overflow, (unsigned long long)s->bad);
     can_emubus_destroy(b);
     marie_loop_destroy(loop);
     return rc < 0 ? 1 : 0;
