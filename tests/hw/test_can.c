@@ -104,32 +104,50 @@ static void pump(marie_loop_t *loop)
             break;
 }
 
+/* An emulated bus served from a loop of the test's own, at a path of its own. */
+typedef struct {
+    char path[64], url[80];
+    marie_loop_t *loop;
+    can_emubus_t *bus;
+} emu_t;
+
+static void emu_open(emu_t *e, const char *tag)
+{
+    snprintf(e->path, sizeof e->path, "/tmp/marie-test-canbus%s-%d.sock", tag, getpid());
+    snprintf(e->url, sizeof e->url, "emu:%s", e->path);
+    e->loop = marie_loop_create();
+    e->bus = can_emubus_create(e->loop, e->path);
+    assert_non_null(e->bus);
+}
+
+static void emu_close(emu_t *e)
+{
+    can_emubus_destroy(e->bus);
+    marie_loop_destroy(e->loop);
+}
+
 static void emulated_bus_relays_to_others(void **state)
 {
-    char path[64], url[80];
-    snprintf(path, sizeof path, "/tmp/marie-test-canbus-%d.sock", getpid());
-    snprintf(url, sizeof url, "emu:%s", path);
-    marie_loop_t *loop = marie_loop_create();
-    can_emubus_t *bus = can_emubus_create(loop, path);
-    assert_non_null(bus);
+    emu_t e;
+    emu_open(&e, "");
     can_bus_t *c[3];
     for (int i = 0; i < 3; i++) {
-        c[i] = can_bus_open(url);
+        c[i] = can_bus_open(e.url);
         assert_non_null(c[i]);
     }
-    pump(loop);
-    assert_int_equal(can_emubus_nclients(bus), 3);
+    pump(e.loop);
+    assert_int_equal(can_emubus_nclients(e.bus), 3);
     struct can_frame in, out = frame(0x080, 0, 0);
     assert_int_equal(can_bus_write(c[0], &out), 0);
-    pump(loop);
+    pump(e.loop);
     assert_int_equal(can_bus_read(c[1], &in), 1);
     assert_int_equal(can_bus_read(c[2], &in), 1);
     assert_int_equal(in.can_id, 0x080);
     assert_int_equal(can_bus_read(c[0], &in), 0);    /* no echo to the sender */
     /* error frames reach only clients that asked for them, and set bus-off */
     assert_int_equal(can_bus_set_err_mask(c[1], CAN_ERR_MASK), 0);
-    struct can_frame e = frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, CAN_ERR_DLC, 0);
-    can_emubus_inject(bus, &e);
+    struct can_frame off = frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, CAN_ERR_DLC, 0);
+    can_emubus_inject(e.bus, &off);
     assert_int_equal(can_bus_read(c[1], &in), 1);
     assert_true(in.can_id & CAN_ERR_FLAG);
     assert_int_equal(can_bus_health(c[1]), CAN_BUS_BUS_OFF);
@@ -138,26 +156,25 @@ static void emulated_bus_relays_to_others(void **state)
     assert_int_equal(can_bus_health(c[2]), CAN_BUS_ACTIVE);
     /* recovery: a data frame gets through again */
     assert_int_equal(can_bus_write(c[0], &out), 0);
-    pump(loop);
+    pump(e.loop);
     assert_int_equal(can_bus_read(c[1], &in), 1);
     assert_int_equal(can_bus_health(c[1]), CAN_BUS_ACTIVE);
     assert_int_equal(can_bus_restart(c[1]), 0);
     /* garbage to the daemon is counted there and not relayed */
     uint8_t junk[3] = { 0 };
     assert_int_equal(send(can_bus_fd(c[0]), junk, 3, 0), 3);
-    pump(loop);
-    assert_int_equal(can_emubus_stats(bus)->bad, 1);
+    pump(e.loop);
+    assert_int_equal(can_emubus_stats(e.bus)->bad, 1);
     assert_int_equal(can_bus_read(c[2], &in), 1);    /* the earlier frame */
     assert_int_equal(can_bus_read(c[2], &in), 0);
     /* a client that leaves is dropped */
     can_bus_close(c[2]);
-    pump(loop);
-    assert_int_equal(can_emubus_nclients(bus), 2);
+    pump(e.loop);
+    assert_int_equal(can_emubus_nclients(e.bus), 2);
     can_bus_close(c[0]);
     can_bus_close(c[1]);
-    can_emubus_destroy(bus);
-    marie_loop_destroy(loop);
-    assert_int_equal(access(path, F_OK), -1);
+    emu_close(&e);
+    assert_int_equal(access(e.path, F_OK), -1);
 }
 
 /* Raw packets waiting on a client's socket, read past its own filtering: what the server sent. */
@@ -176,38 +193,34 @@ static int raw_ids(can_bus_t *c, canid_t *ids, int max)
  * packet is counted bad and changes nothing. */
 static void emulated_bus_sends_each_client_what_its_filters_take(void **state)
 {
-    char path[64], url[80];
-    snprintf(path, sizeof path, "/tmp/marie-test-canbus-f-%d.sock", getpid());
-    snprintf(url, sizeof url, "emu:%s", path);
-    marie_loop_t *loop = marie_loop_create();
-    can_emubus_t *bus = can_emubus_create(loop, path);
-    assert_non_null(bus);
-    can_bus_t *tx = can_bus_open(url), *gyro = can_bus_open(url), *all = can_bus_open(url);
+    emu_t e;
+    emu_open(&e, "-f");
+    can_bus_t *tx = can_bus_open(e.url), *gyro = can_bus_open(e.url), *all = can_bus_open(e.url);
     assert_non_null(tx);
     assert_non_null(gyro);
     assert_non_null(all);
     struct can_filter f[2] = { { 0x1A0, CAN_SFF_MASK }, { 0x720, CAN_SFF_MASK } };
     assert_int_equal(can_bus_set_filters(gyro, f, 2), 0);
     assert_int_equal(can_bus_set_err_mask(gyro, CAN_ERR_BUSOFF), 0);
-    pump(loop);
+    pump(e.loop);
     const canid_t sent[] = { 0x080, 0x201, 0x1A0, 0x181, 0x720, 0x77F };
     for (size_t i = 0; i < sizeof sent / sizeof sent[0]; i++) {
         struct can_frame fr = frame(sent[i], 1, (uint8_t)i);
         assert_int_equal(can_bus_write(tx, &fr), 0);
     }
-    pump(loop);
+    pump(e.loop);
     struct can_frame crtl = frame(CAN_ERR_FLAG | CAN_ERR_CRTL, CAN_ERR_DLC, 0);
     struct can_frame off = frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, CAN_ERR_DLC, 0);
-    can_emubus_inject(bus, &crtl);
-    can_emubus_inject(bus, &off);
-    pump(loop);
+    can_emubus_inject(e.bus, &crtl);
+    can_emubus_inject(e.bus, &off);
+    pump(e.loop);
     canid_t ids[16];
     assert_int_equal(raw_ids(gyro, ids, 16), 3);
     assert_int_equal(ids[0], 0x1A0);
     assert_int_equal(ids[1], 0x720);
     assert_int_equal(ids[2], CAN_ERR_FLAG | CAN_ERR_BUSOFF);
     assert_int_equal(raw_ids(all, ids, 16), 8);
-    assert_int_equal(can_emubus_stats(bus)->filtered, 5);
+    assert_int_equal(can_emubus_stats(e.bus)->filtered, 5);
     /* n = 65 filters, or a length that does not match n: bad, the old filters stay */
     uint8_t junk[CAN_EMU_FILTER_HDR + 8] = "MFLT";
     uint32_t n = 65;
@@ -216,39 +229,34 @@ static void emulated_bus_sends_each_client_what_its_filters_take(void **state)
     n = 2;
     memcpy(junk + 4, &n, 4);
     assert_int_equal(send(can_bus_fd(gyro), junk, sizeof junk, 0), (ssize_t)sizeof junk);
-    pump(loop);
-    assert_int_equal(can_emubus_stats(bus)->bad, 2);
+    pump(e.loop);
+    assert_int_equal(can_emubus_stats(e.bus)->bad, 2);
     struct can_frame sync = frame(0x080, 0, 0);
     assert_int_equal(can_bus_write(tx, &sync), 0);
-    pump(loop);
+    pump(e.loop);
     assert_int_equal(raw_ids(gyro, ids, 16), 0);
     /* no filters again: everything */
     assert_int_equal(can_bus_set_filters(gyro, NULL, 0), 0);
-    pump(loop);
+    pump(e.loop);
     assert_int_equal(can_bus_write(tx, &sync), 0);
-    pump(loop);
+    pump(e.loop);
     assert_int_equal(raw_ids(gyro, ids, 16), 1);
     can_bus_close(tx);
     can_bus_close(gyro);
     can_bus_close(all);
-    can_emubus_destroy(bus);
-    marie_loop_destroy(loop);
+    emu_close(&e);
 }
 
 /* A sender faster than the bus server (its socket takes what fits in its send buffer) loses
  * nothing and is never blocked: the rest is held and goes out, in order, once the server has run. */
 static void emulated_bus_holds_frames_the_server_has_no_room_for(void **state)
 {
-    char path[64], url[80];
-    snprintf(path, sizeof path, "/tmp/marie-test-canbus-q-%d.sock", getpid());
-    snprintf(url, sizeof url, "emu:%s", path);
-    marie_loop_t *loop = marie_loop_create();
-    can_emubus_t *bus = can_emubus_create(loop, path);
-    assert_non_null(bus);
-    can_bus_t *tx = can_bus_open(url), *rx = can_bus_open(url);
+    emu_t e;
+    emu_open(&e, "-q");
+    can_bus_t *tx = can_bus_open(e.url), *rx = can_bus_open(e.url);
     assert_non_null(tx);
     assert_non_null(rx);
-    pump(loop);
+    pump(e.loop);
     /* fill the server's socket behind the API's back: K frames */
     int k = 0;
     for (;; k++) {
@@ -268,7 +276,7 @@ static void emulated_bus_holds_frames_the_server_has_no_room_for(void **state)
     struct can_frame in;
     for (int round = 0; round < 200 && got < k + N; round++) {
         can_bus_flush(tx);
-        marie_loop_run_once(loop, 10);
+        marie_loop_run_once(e.loop, 10);
         while (can_bus_read(rx, &in) == 1) {
             assert_int_equal(in.can_id, 0x100 + (canid_t)got);
             assert_int_equal(in.data[0], (uint8_t)got);
@@ -281,8 +289,7 @@ static void emulated_bus_holds_frames_the_server_has_no_room_for(void **state)
     assert_int_equal(can_bus_events(tx), POLLIN);
     can_bus_close(tx);
     can_bus_close(rx);
-    can_emubus_destroy(bus);
-    marie_loop_destroy(loop);
+    emu_close(&e);
 }
 
 static void can_fd_frames_when_enabled(void **state)
