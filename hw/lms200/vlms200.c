@@ -87,8 +87,14 @@ vlms200_t *vlms200_create(const vlms200_cfg_t *cfg)
     return v;
 }
 
+/* The link goes first, as udev removes /dev/ttyUSB0 and its by-id link with the adapter: left
+ * behind, it names a freed pty number that the kernel gives to the next pty anyone opens, and a
+ * driver reopening it talks to that program's device (another test's emulator, in a parallel
+ * make test) instead of finding nothing until this one is back. */
 static void close_pty(vlms200_t *v)
 {
+    if (v->link)
+        unlink(v->link);
     if (v->master >= 0)
         close(v->master);
     if (v->slave >= 0)
@@ -102,8 +108,6 @@ void vlms200_destroy(vlms200_t *v)
     if (!v)
         return;
     close_pty(v);
-    if (v->link)
-        unlink(v->link);
     free(v->link);
     lms200_parser_destroy(v->parser);
     free(v);
@@ -145,11 +149,11 @@ static int make_pty(vlms200_t *v)
 
 int vlms200_open(vlms200_t *v, const char *link)
 {
+    close_pty(v);
     free(v->link);
     v->link = link ? strdup(link) : NULL;
     if (link && !v->link)
         return -ENOMEM;
-    close_pty(v);
     return make_pty(v);
 }
 

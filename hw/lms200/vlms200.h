@@ -47,7 +47,8 @@ void vlms200_destroy(vlms200_t *v);                     /* NULL is a no-op */
 
 /* Create the pty and power the device on (9600 baud, output stopped, 180 deg at 1 deg).
  * link (may be NULL) becomes a symlink to the slave, replaced atomically on every reopen,
- * so a driver configured with the link finds the device again after an unplug. */
+ * so a driver configured with the link finds the device again after an unplug; it is
+ * removed while the device is unplugged and by vlms200_destroy. */
 int vlms200_open(vlms200_t *v, const char *link);
 const char *vlms200_path(const vlms200_t *v);          /* the slave's path, "" when unplugged */
 int vlms200_fd(const vlms200_t *v);                     /* master fd, -1 when unplugged */
@@ -73,8 +74,8 @@ double vlms200_expected_range(const vlms200_t *v, int i, int res_cdeg);
 /* Faults. */
 void vlms200_silence(vlms200_t *v, int64_t until_us);   /* no answers, no scans until then */
 void vlms200_inject_garbage(vlms200_t *v, size_t n);    /* n garbage bytes right now */
-/* Close the pty now (the cable is pulled); a fresh pty, with the device power-cycled,
- * appears after back_after_us (< 0: never). */
+/* Close the pty and remove the link now (the cable is pulled); a fresh pty, with the device
+ * power-cycled, and the link to it appear after back_after_us (< 0: never). */
 void vlms200_unplug(vlms200_t *v, int64_t now_us, int64_t back_after_us);
 
 /* State as the device sees it. */
