@@ -310,8 +310,12 @@ static void test_line_time_puts_stamps_on_the_scans_instants(void **state)
     for (int i = 0; i < n; i++)
         d[i] = r.stamp[r.nstamp - n + i] - wire - taken[r.nstamp - n + i + off];
     qsort(d, n, sizeof d[0], cmp_i64);
-    print_message("stamp - scan: median %lld us\n", (long long)d[n / 2]);
-    assert_true(d[n / 2] > -3000 && d[n / 2] < 4000);
+    print_message("stamp - scan: lower quartile %lld us, median %lld us\n", (long long)d[n / 4],
+                  (long long)d[n / 2]);
+    /* A scan read late is stamped late (by the read's delay): on a loaded machine a third of
+     * the runs had a median past 4 ms. The lower quartile, read on time, still shows a stamp
+     * off by the telegram's wire time (7.4 ms) or a period (20 ms). */
+    assert_true(d[n / 4] > -3000 && d[n / 4] < 4000);
     rig_close(&r);
 }
 
