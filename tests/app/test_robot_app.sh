@@ -1,5 +1,6 @@
 #!/bin/sh
 # test-timeout: 600
+# test-group: robot
 # The robot application in simulation under the managers: the mission completes with
 # localization within bounds and no collision, the robot stops within 0.3 s of the e-stop
 # because the software chain acted (the simulator brakes by itself when its e-stop is pressed,

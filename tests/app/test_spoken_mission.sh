@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-light
+# test-group: robot
 # The spoken-command mission in the robot application: config/spartacus.yaml's sim-voice profile
 # under the four managers. A person behind the robot, to its left, says "go to room b": the
 # phrase is recognized on the tracked speaker's separated stream, the robot turns on the spot

@@ -1,4 +1,5 @@
 #!/bin/sh
+# test-group: robot
 # test_viewer: marie-view seen through headless Chromium. A recorded demo log (map, poses,
 # laser, particles, path, goals, decision timeline, components and a restart), scrubbing to a
 # time, live following of publishers and of the simulator on the bus, corrupt and foreign
