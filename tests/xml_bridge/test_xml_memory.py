@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# test-light
 """test_xml_memory: marie-xml-bridge's memory stays linear in what its clients send. A hundred
 clients each leave a 1 MB text node unfinished (under the 1 MiB document limit); the bridge's
 resident memory stays under 200 MB and another client keeps getting publish/pull round trips

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# test-light
 """test_xml_peer: a peer of marie-xml-bridge written only from docs/xml-bridge.md with Python's
 standard library (socket + xml.etree). It round-trips a random message of every type the bridge
 describes (XML -> bus -> XML, field by field), pulls latest values, and checks that bad input,
