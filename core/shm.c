@@ -232,9 +232,10 @@ static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name, int *
         return NULL;
     }
     const shm_hdr_t *h = base;
-    /* Nothing in the header is trusted: a slot must lie inside the file. */
+    /* Nothing in the header is trusted: a slot must lie inside the file, aligned as the writer
+     * lays them out (its seq is read atomically). */
     if (h->magic != SHM_MAGIC || h->version != SHM_VERSION || h->nslots < 2 || h->slot_size == 0 ||
-        h->stride < DATA_OFF + h->slot_size ||
+        h->stride < DATA_OFF + h->slot_size || h->stride % ALIGN != 0 ||
         h->stride > ((uint64_t)st.st_size - HDR_SIZE) / h->nslots) {
         munmap(base, (size_t)st.st_size);
         *err = -EBADMSG;
