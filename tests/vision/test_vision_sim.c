@@ -72,8 +72,8 @@ static void run(const char *start_y, const char *pose_channel, int want_landmark
     memset(&rx, 0, sizeof rx);
     lcm_t *lcm = lcm_create(NULL);
     assert_non_null(lcm);
-    marie_landmarks_t_subscribe(lcm, "LANDMARKS", on_landmarks, NULL);
-    marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, NULL);
+    marie_landmarks_t_subscription_t *lm = marie_landmarks_t_subscribe(lcm, "LANDMARKS", on_landmarks, NULL);
+    marie_event_t_subscription_t *ev = marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, NULL);
     lcm_subscribe(lcm, "CAMERA_IMAGE", on_image, NULL);
     char pose_port[64];
     snprintf(pose_port, sizeof pose_port, "pose=%s", pose_channel);
@@ -92,6 +92,8 @@ static void run(const char *start_y, const char *pose_channel, int want_landmark
         lcm_handle_timeout(lcm, 100);
     test_stop(s);
     test_stop(v);
+    marie_landmarks_t_unsubscribe(lcm, lm);
+    marie_event_t_unsubscribe(lcm, ev);
     lcm_destroy(lcm);
 }
 
