@@ -121,8 +121,8 @@ int main(int argc, char **argv)
     lcm = lcm_create(marie_default_url());
     if (!lcm)
         return 2;
-    marie_estop_t_subscribe(lcm, "ESTOP", on_estop, NULL);
-    marie_heartbeat_t_subscribe(lcm, "MARIE_HEARTBEAT", on_hb, NULL);
+    marie_estop_t_subscription_t *es = marie_estop_t_subscribe(lcm, "ESTOP", on_estop, NULL);
+    marie_heartbeat_t_subscription_t *hb = marie_heartbeat_t_subscribe(lcm, "MARIE_HEARTBEAT", on_hb, NULL);
     int64_t end = marie_mono_us() + 30000000;
     while (nmsg == 0 && marie_mono_us() < end)
         lcm_handle_timeout(lcm, 50);
@@ -150,6 +150,8 @@ int main(int argc, char **argv)
     printf("releases_during_release_bounce=%d\npresses_total=%d\n", releases - before, presses);
     spin(1200000);          /* one more heartbeat with the counters */
     printf("edges=%lld\n", (long long)edges);
+    marie_estop_t_unsubscribe(lcm, es);
+    marie_heartbeat_t_unsubscribe(lcm, hb);
     lcm_destroy(lcm);
     return 0;
 }
