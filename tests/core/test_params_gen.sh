@@ -34,9 +34,12 @@ int main(int argc, char **argv)
 }
 C
 
+# Linked against the tree's libmarie: with its sanitizers when make built it with them.
+SANFLAGS=""
+[ "${SAN:-0}" = 1 ] && SANFLAGS="-fsanitize=address,undefined"
 generates() {
     python3 core/params_gen.py "$T/demo.params.yaml" "$T/demo_params.h" &&
-        ${CC:-cc} -std=gnu11 -Wall -Werror -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE $(pkg-config --cflags lcm glib-2.0 libfyaml) \
+        ${CC:-cc} -std=gnu11 -Wall -Werror $SANFLAGS -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE $(pkg-config --cflags lcm glib-2.0 libfyaml) \
             -o "$T/demo" "$T/demo.c" "$B/lib/libmarie.a" $(pkg-config --libs lcm glib-2.0 libfyaml libsodium) -lm -lpthread
 }
 check "the generated struct and tables compile against the component runtime" generates
@@ -145,7 +148,7 @@ members_build() {
     python3 core/params_gen.py "$T/lib/filt.params.yaml" "$T/lib/filt_params.h" &&
         python3 core/params_gen.py "$T/comp.params.yaml" "$T/comp_params.h" &&
         grep -q "lib/filt.params.yaml" "$T/comp_params.d" &&
-        ${CC:-cc} -std=gnu11 -Wall -Werror -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE \
+        ${CC:-cc} -std=gnu11 -Wall -Werror $SANFLAGS -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE \
             $(pkg-config --cflags lcm glib-2.0 libfyaml) -o "$T/comp" "$T/comp.c" "$B/lib/libmarie.a" \
             $(pkg-config --libs lcm glib-2.0 libfyaml libsodium) -lm -lpthread
 }
