@@ -62,8 +62,9 @@ static void on_sources(marie_component_t *c, marie_port_t *p, const void *msg, c
 {
     dlg_t *s = marie_component_user(c);
     const marie_sound_sources_t *m = msg;
-    s->nsources = m->count < 16 ? m->count : 16;
-    memcpy(s->sources, m->sources, sizeof(marie_sound_source_t) * (size_t)s->nsources);
+    s->nsources = m->count < 0 ? 0 : m->count < 16 ? m->count : 16;
+    if (s->nsources > 0)        /* no sources: an empty array, NULL */
+        memcpy(s->sources, m->sources, sizeof(marie_sound_source_t) * (size_t)s->nsources);
 }
 
 static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
