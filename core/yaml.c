@@ -653,7 +653,8 @@ static void canonical(marie_buf_t *s, const marie_node_t *n)
     }
     marie_node_t **items = malloc((n->n ? n->n : 1) * sizeof *items);
     if (!items) { s->failed = true; return; }
-    memcpy(items, n->items, n->n * sizeof *items);
+    if (n->n)                   /* an empty map or sequence has no items array */
+        memcpy(items, n->items, n->n * sizeof *items);
     if (n->kind == MARIE_NODE_MAP)
         qsort(items, n->n, sizeof *items, cmp_key);
     marie_buf_put(s, n->kind == MARIE_NODE_MAP ? "{" : "[", 1);

@@ -702,6 +702,24 @@ static void a_profile_overrides_some_params(void **state)
     marie_errors_clear(&e);
 }
 
+/* Empty mappings and sequences hash like any other value (the canonical form of a node with
+ * no items; under UBSan a copy from their NULL items array stopped the program). */
+static void empty_collections_hash(void **state)
+{
+    marie_errors_t e = {0};
+    marie_system_t *sys = load_text("system: h\ncomponents:\n"
+                                    "  a: {exec: marie-example-producer, params: {}, args: []}\n"
+                                    "  b: {exec: marie-example-producer, params: {x: []}}\n", NULL, &e);
+    assert_non_null(sys);
+    assert_int_equal(strlen(marie_system_component(sys, "a")->hash), 64);
+    assert_string_not_equal(marie_system_component(sys, "a")->hash, marie_system_component(sys, "b")->hash);
+    char *c = marie_node_canonical(marie_system_component(sys, "b")->params);
+    assert_string_equal(c, "{1:x=[],}");      /* keys length-prefixed */
+    free(c);
+    marie_system_destroy(sys);
+    assert_int_equal(e.n, 0);
+}
+
 static void a_profile_chain_is_checked(void **state)
 {
     marie_errors_t e = {0};
@@ -817,6 +835,7 @@ int main(void)
         cmocka_unit_test(the_robot_section_feeds_robot_params),
         cmocka_unit_test(a_profile_extends_another),
         cmocka_unit_test(a_profile_overrides_some_params),
+        cmocka_unit_test(empty_collections_hash),
         cmocka_unit_test(a_profile_chain_is_checked),
         cmocka_unit_test(transports_are_read_and_checked),
         cmocka_unit_test(the_yaml_library_is_let_go_and_comes_back),
