@@ -34,7 +34,8 @@ setup "headless chromium" wait_for 30 python3 -c "import urllib.request; urllib.
 
 "$BIN/marie" keygen "$T/key"
 start am "$BIN/marie-am" --host alpha --state-dir "$T/am"
-sleep 0.3
+# Answering, not just started: a sanitizer build beside the other tests took over 3 s.
+setup "marie-am answers" wait_for 20 sh -c '"$0" ps > /dev/null' "$BIN/marie"
 check "system up under marie-am" "$BIN/marie" up tests/data/viewer/controls.yaml
 "$BIN/marie-mission" --name mission --param sharedmap=false --param key_file="$T/key" \
     --param 'goals=[{name: waiting, x: 50, y: 50}]' > "$T/mission.log" 2>&1 &
