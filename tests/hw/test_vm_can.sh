@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-group: vms-managers
+# test-group: vm
 # test_vm_can: the real PF_CAN path: boots Debian's kernel under qemu (scripts/vm/run-in-vm.sh)
 # with vcan, and runs tests/hw/vm_can_inner.sh there. Without qemu or busybox-static
 # (scripts/install-deps.sh vm) the VM cannot boot: the case is reported as SKIPPED with that

@@ -36,7 +36,10 @@ drained() {
 stop_recorder() {
     pid=$1; url=$2; n=$3; shift 3
     wait_for 60 drained "$url"
-    sleep 0.5                   # from LCM's receive thread to lcm-logger's writer
+    # From LCM's receive thread to lcm-logger's writer: until the files hold them, bounded (a
+    # fixed 0.5 s before the SIGINT left 30 of 106 unwritten once on a loaded machine).
+    # shellcheck disable=SC2048,SC2086
+    wait_for 10 records "$n" $* || true
     kill -INT "$pid"
     wait "$pid" || return 1
     # shellcheck disable=SC2048,SC2086
