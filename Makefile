@@ -142,7 +142,7 @@ test-deps: deps
 # balance, top: 46-48 s together, 94 s one after the other); `robot`, the robot application's
 # missions (test_robot_app, the spoken mission at real time) with the log viewer's page (50 s
 # together, 126 s one after the other). (`vm` and `managers` as one group took 48 s and passed
-# six runs, but in one a VM never finished booting within its 240 s: kept apart.) From the start, beside
+# five runs, but in a sixth a VM never finished booting within its 240 s: kept apart.) From the start, beside
 # all of these, the light shell tests (those that mostly wait and time nothing that busy cores
 # would break: "# test-light" in their head) run one by one. Last, once all that is done, the
 # ALONE_TESTS, one by one. The last line is the summary. (All side by side took 3 min 54 s,
