@@ -11,8 +11,8 @@
 #   namespace; a worker takes the next test as it finishes one; their lines print when all are
 #   done, in order), those after it one at a time. A test after `--` whose first lines say
 #   "# test-light" (it mostly waits, and checks no timing that busy cores would break) runs in
-#   a lane of its own from the start, one light test at a time, beside the N and then beside
-#   the others after `--`; those run one at a time once the N are done, each printed as it
+#   lanes of their own from the start, LIGHT_LANES (default 2) light tests at a time, beside
+#   the N and then beside the others after `--`; those run one at a time once the N are done, each printed as it
 #   ends, and the light tests' lines print last, in order. Tests after `--` whose first lines
 #   say "# test-group: NAME" (each was checked to keep its margins beside the others) run
 #   side by side, all of that NAME at once where the first of them is in the list. Tests after
@@ -57,6 +57,7 @@ run_one() {
         bad=1; nocase=1
     fi
     secs=$(( $(date +%s) - start ))
+    echo "$name $secs" >> "$logs/durations.new"
     echo "$ok $bad $skip $name" > "$2.counts"
     if [ "$bad" -eq 0 ]; then
         if [ "$skip" -eq 0 ]; then
@@ -95,28 +96,52 @@ done
 light() { head -20 "$1" 2>/dev/null | grep -q '^# test-light\($\|:\)'; }
 # group TEST: the NAME its head gives as "# test-group: NAME", if any.
 group() { head -20 "$1" 2>/dev/null | sed -n 's/^# test-group: \([A-Za-z0-9_-]*\)$/\1/p' | head -1; }
+# take COUNTER: the next number of a counter file shared by workers (under flock).
+take() { flock "$1" sh -c 'i=$(cat "$1"); echo $((i + 1)) > "$1"; echo "$i"' _ "$1"; }
 lane=0
 if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
     lane=1
-    # The light tests after `--`, one at a time, beside the workers and then beside the
-    # others after `--`: their results are l0, l1, ... in list order.
-    (k=0; seen=0
-     for t in "$@"; do
-         if [ "$t" = -- ]; then seen=$((seen + 1))
-         elif [ "$seen" = 1 ] && light "$t"; then
-             run_one "$t" "$res/l$k" > "$res/l$k"
-             k=$((k + 1))
-         fi
-     done) &
-    lane_pid=$!
+    # The light tests after `--`, LIGHT_LANES (default 2) at a time, beside the workers and then
+    # beside the others after `--`: their results are l0, l1, ... in list order.
+    : > "$res/light"
+    seen=0
+    for t in "$@"; do
+        if [ "$t" = -- ]; then seen=$((seen + 1))
+        elif [ "$seen" = 1 ] && light "$t"; then echo "$t" >> "$res/light"
+        fi
+    done
+    nl=$(wc -l < "$res/light")
+    echo 0 > "$res/next-light"
+    q=0; lane_pids=""
+    while [ "$q" -lt "${LIGHT_LANES:-2}" ]; do
+        (while :; do
+             k=$(take "$res/next-light")
+             [ "$k" -lt "$nl" ] || break
+             run_one "$(sed -n "$((k + 1))p" "$res/light")" "$res/l$k" > "$res/l$k"
+         done) &
+        lane_pids="$lane_pids $!"
+        q=$((q + 1))
+    done
     # Each worker takes the next test not yet taken (a counter under flock), so a long test
-    # holds one worker while the others go on through the list.
+    # holds one worker while the others go on through the list; the longest are taken first,
+    # by the times of the last run ($logs/durations; a test it does not know counts as longest),
+    # so that no long one is left to run alone at the end.
+    dur=$logs/durations
+    [ -f "$dur" ] || dur=/dev/null
+    i=0
+    for t in "$@"; do
+        [ "$t" = -- ] && break
+        echo "$i $(basename "$t")"
+        i=$((i + 1))
+    done | awk 'FILENAME != "-" { d[$1] = $2; next } { print ($2 in d ? d[$2] : 1e9), $1 }' "$dur" - |
+        sort -s -k1,1gr | awk '{ print $2 }' > "$res/order"
     echo 0 > "$res/next"
     q=0; workers=""
     while [ "$q" -lt "$jobs" ]; do
         (while :; do
-             i=$(flock "$res/next" sh -c 'i=$(cat "$1"); echo $((i + 1)) > "$1"; echo "$i"' _ "$res/next")
+             i=$(take "$res/next")
              [ "$i" -lt "$n" ] || break
+             i=$(sed -n "$((i + 1))p" "$res/order")
              eval "t=\${$((i + 1))}"
              run_one "$t" "$res/$i" > "$res/$i"
          done) &
@@ -162,7 +187,8 @@ for t in "$@"; do
     for m in $members; do tally "$res/$m"; done
 done
 if [ "$lane" = 1 ]; then
-    wait "$lane_pid"
+    # shellcheck disable=SC2086
+    wait $lane_pids
     k=0
     while [ -f "$res/l$k.counts" ]; do tally "$res/l$k"; k=$((k + 1)); done
     sec=0
@@ -174,7 +200,11 @@ if [ "$lane" = 1 ]; then
         i=$((i + 1))
     done
 fi
-rm -f "$res/next"
+rm -f "$res/next" "$res/next-light" "$res/light" "$res/order"
+# The times of this run replace those of the last one for the next ordering.
+cat "$logs/durations" "$logs/durations.new" 2>/dev/null | awk '{ d[$1] = $2 } END { for (k in d) print k, d[k] }' \
+    > "$logs/durations.tmp" && mv "$logs/durations.tmp" "$logs/durations"
+rm -f "$logs/durations.new"
 rmdir "$res" 2>/dev/null
 [ -n "$failed_names" ] && echo "failed:$failed_names"
 echo "$passed passed, $failed failed, $skipped skipped"

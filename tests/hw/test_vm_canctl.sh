@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-group: vm
+# test-group: vm-managers
 # test_vm_canctl: the drivers on a real CAN controller driver, not only vcan: qemu emulates two
 # Kvaser PCICANx boards (SJA1000, Linux's kvaser_pci + sja1000 drivers) on one emulated bus;
 # the drivers use can0 and the virtual devices can1, both set to 500 kbit/s with restart-ms

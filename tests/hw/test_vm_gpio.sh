@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-group: vm
+# test-group: vm-managers
 # test_vm_gpio: marie-gpio on a real GPIO line: boots Debian's kernel under qemu with the
 # gpio-sim module built out of tree for it (scripts/vm/build-gpio-sim.sh, cached), and runs
 # tests/hw/vm_gpio_inner.sh there. Without qemu or busybox-static it says SKIPPED and counts

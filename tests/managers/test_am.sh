@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-group: managers
+# test-group: vm-managers
 # test_am: one marie-am supervising test components: dependency order, respawn after kill -9,
 # restart of a hung component, give-up, stop/start by group, logs, refused orders (unsigned,
 # forged, replayed, stale, far-future, floods), bad keys and system files, and a restarted

@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-group: managers
+# test-group: vm-managers
 # test_balance: automatic placement across four hosts (network namespaces on one bridge): an
 # overloaded host sheds a movable component and nothing flaps, a lost host's movable
 # components start elsewhere, a returning host starts nothing twice, and after a partition

@@ -1,5 +1,5 @@
 #!/bin/sh
-# test-group: managers
+# test-group: vm-managers
 # test_top: `marie top` in a real terminal (tmux as the witness) over one marie-am: every
 # component shown running, a CPU-hungry one first and high, keys re-sort, a kill -9 counted as a
 # restart, resizing redraws within the new size, `q` gives the terminal back untouched; the
