@@ -5,8 +5,9 @@
  * truth (ATE) and the map against a world (as `marie map compare`). Not installed.
  *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry]
  *                 [PARAM=VALUE ...]
- * (--traj: "utime x y theta" of each scan placed; --truth-odometry: the simulator's truth stands in
- * for the odometry, so what error is left is the scan matcher's and the map's own).
+ * (--traj: "utime x y theta" of each scan placed, then the truth's and the odometry's "x y theta"
+ * at its time, the truth's NaN where it has none; --truth-odometry: the simulator's truth stands
+ * in for the odometry, so what error is left is the scan matcher's and the map's own).
  * PARAMs are the mapper library's (adapters/mapper/slam.params.yaml); only the log's first run
  * is read (it ends where the simulated time goes back, as in marie-demo's two-part logs). The log
  * is read with the viewer's parser (tools/viewer/lcmlog), which resynchronises past damage and
@@ -39,9 +40,9 @@ typedef struct {
     posebuf_t odom;
     scanwait_t wait;
     int64_t last_scan;
-    double (*est)[4];           /* utime, x, y, theta of each placed scan */
+    double (*est)[7];           /* utime, x, y, theta of each placed scan, and its odometry x, y, theta */
     size_t nest, cap;
-    struct { int64_t t; double x, y; } *truth;     /* SIM_TRUTH, in time order */
+    struct { int64_t t; double x, y, th; } *truth; /* SIM_TRUTH, in time order */
     size_t nt, tcap;
     size_t undecodable;
     bool done;                  /* the log's first run is over */
@@ -102,7 +103,8 @@ static void place(marie_component_t *c, const marie_laser_scan_t *m)
         return;
     R.last_scan = m->utime;
     R.est = room(R.est, R.nest, &R.cap, sizeof R.est[0]);
-    memcpy(R.est[R.nest++], (double[4]){ (double)m->utime, pose[0], pose[1], pose[2] }, sizeof R.est[0]);
+    memcpy(R.est[R.nest++], (double[7]){ (double)m->utime, pose[0], pose[1], pose[2], od[0], od[1], od[2] },
+           sizeof R.est[0]);
 }
 
 static void add_odometry(int64_t utime, const double pose[3])
@@ -142,7 +144,8 @@ static void on_event(void *user, const lcmlog_event_t *ev)
             R.truth = room(R.truth, R.nt, &R.tcap, sizeof *R.truth);
             R.truth[R.nt].t = t.utime;
             R.truth[R.nt].x = t.pose.x;
-            R.truth[R.nt++].y = t.pose.y;
+            R.truth[R.nt].y = t.pose.y;
+            R.truth[R.nt++].th = t.pose.theta;
             if (R.truth_odometry)
                 add_odometry(t.utime, (const double[3]){ t.pose.x, t.pose.y, t.pose.theta });
         }
@@ -223,32 +226,36 @@ int main(int argc, char **argv)
            R.nest, st.keyframes, st.loop_closures, st.optimizations, st.loop_ambiguous, st.loop_implausible,
            st.match_failures, R.undecodable, corrupt);
     /* The trajectory against the truth, interpolated at each scan's time. */
-    double se = 0, mx = 0;
-    size_t n = 0, k = 0;
-    for (size_t i = 0; i < R.nest && R.nt > 1; i++) {
-        int64_t t = (int64_t)R.est[i][0];
-        while (k + 2 < R.nt && R.truth[k + 1].t < t)
-            k++;
-        if (t < R.truth[k].t || t > R.truth[k + 1].t)
-            continue;
-        int64_t span = R.truth[k + 1].t - R.truth[k].t;
-        double w = span ? (double)(t - R.truth[k].t) / (double)span : 0;
-        double dx = R.est[i][1] - (R.truth[k].x + w * (R.truth[k + 1].x - R.truth[k].x));
-        double dy = R.est[i][2] - (R.truth[k].y + w * (R.truth[k + 1].y - R.truth[k].y));
-        se += dx * dx + dy * dy;
-        mx = fmax(mx, hypot(dx, dy));
-        n++;
-    }
-    if (n)
-        printf("ate_rms %.3f max %.3f poses %zu\n", sqrt(se / (double)n), mx, n);
     int rc = 0;
     FILE *tf = traj ? fopen(traj, "w") : NULL;
     if (traj && !tf) {
         fprintf(stderr, "mapper_replay: cannot write %s: %s\n", traj, strerror(errno));
         rc = 1;
     }
-    for (size_t i = 0; tf && i < R.nest; i++)
-        fprintf(tf, "%.0f %.4f %.4f %.5f\n", R.est[i][0], R.est[i][1], R.est[i][2], R.est[i][3]);
+    double se = 0, mx = 0;
+    size_t n = 0, k = 0;
+    for (size_t i = 0; i < R.nest; i++) {
+        int64_t t = (int64_t)R.est[i][0];
+        while (k + 2 < R.nt && R.truth[k + 1].t < t)
+            k++;
+        double tx = NAN, ty = NAN, tth = NAN;
+        if (R.nt > 1 && t >= R.truth[k].t && t <= R.truth[k + 1].t) {
+            int64_t span = R.truth[k + 1].t - R.truth[k].t;
+            double w = span ? (double)(t - R.truth[k].t) / (double)span : 0;
+            tx = R.truth[k].x + w * (R.truth[k + 1].x - R.truth[k].x);
+            ty = R.truth[k].y + w * (R.truth[k + 1].y - R.truth[k].y);
+            tth = R.truth[k].th + w * remainder(R.truth[k + 1].th - R.truth[k].th, 2 * M_PI);
+            double dx = R.est[i][1] - tx, dy = R.est[i][2] - ty;
+            se += dx * dx + dy * dy;
+            mx = fmax(mx, hypot(dx, dy));
+            n++;
+        }
+        if (tf)
+            fprintf(tf, "%.0f %.4f %.4f %.5f %.4f %.4f %.5f %.4f %.4f %.5f\n", R.est[i][0], R.est[i][1], R.est[i][2],
+                    R.est[i][3], tx, ty, tth, R.est[i][4], R.est[i][5], R.est[i][6]);
+    }
+    if (n)
+        printf("ate_rms %.3f max %.3f poses %zu\n", sqrt(se / (double)n), mx, n);
     if (tf)
         fclose(tf);
     occmap_t *m = slam_render(R.slam);
