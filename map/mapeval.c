@@ -28,7 +28,36 @@ static int mapeval_near(const occmap_t *g, double x, double y, int k)
     return 0;
 }
 
-void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_t *e)
+/* A rigid transform of the built map's frame into the world's (rotation th about the origin,
+ * then dx, dy): the comparison moves points, never the grid, which a rotation would resample. */
+typedef struct {
+    double c, s, dx, dy;
+} frame_t;
+
+static void to_world(const frame_t *f, double x, double y, double *wx, double *wy)
+{
+    *wx = f->c * x - f->s * y + f->dx;
+    *wy = f->s * x + f->c * y + f->dy;
+}
+
+/* The class of the built map's cell under world point (x, y); within one cell of it. */
+static int built_at(const occmap_t *map, const frame_t *f, double x, double y)
+{
+    x -= f->dx;
+    y -= f->dy;
+    return mapeval_at(map, f->c * x + f->s * y, -f->s * x + f->c * y);
+}
+
+static int built_near(const occmap_t *map, const frame_t *f, double x, double y, int k)
+{
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++)
+            if (built_at(map, f, x + dx * map->resolution, y + dy * map->resolution) == k)
+                return 1;
+    return 0;
+}
+
+static void compare_in(const occmap_t *truth, const occmap_t *map, const frame_t *f, double sx, double sy, mapeval_t *e)
 {
     long tp = 0, nocc = 0, walls = 0, found = 0, nfree = 0, covered = 0;
     for (int y = 0; y < map->height; y++)
@@ -37,6 +66,7 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
                 continue;
             double px, py;
             occmap_cell_center(map, x, y, &px, &py);
+            to_world(f, px, py, &px, &py);
             nocc++;
             tp += mapeval_near(truth, px, py, 1);
         }
@@ -66,7 +96,7 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
             int8_t t = truth->cells[(size_t)y * W + x];
             if (reach[y * W + x]) {
                 nfree++;
-                covered += mapeval_at(map, px, py) == 0;
+                covered += built_at(map, f, px, py) == 0;
             }
             if (t != OCCMAP_OCCUPIED)
                 continue;
@@ -76,12 +106,12 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
                 int u = x + nb[k][0], v = y + nb[k][1];
                 double qx, qy;
                 occmap_cell_center(truth, u, v, &qx, &qy);
-                visible = occmap_get(truth, u, v) == OCCMAP_FREE && mapeval_at(map, qx, qy) == 0;
+                visible = occmap_get(truth, u, v) == OCCMAP_FREE && built_at(map, f, qx, qy) == 0;
             }
             if (!visible)
                 continue;
             walls++;
-            found += mapeval_near(map, px, py, 1);
+            found += built_near(map, f, px, py, 1);
         }
     free(reach);
     free(stack);
@@ -93,13 +123,19 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
     e->coverage = nfree ? (double)covered / nfree : 0;
 }
 
+void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, double sy, mapeval_t *e)
+{
+    compare_in(truth, map, &(frame_t){ 1, 0, 0, 0 }, sx, sy, e);
+}
+
 
 /* Alignment: every rotation in 0.0025 rad steps, every shift in cells, counted against the world's
  * walls dilated by one cell. Ties (a shift within one cell keeps a cell "near" its wall) go to
  * the transform that puts more cells on the walls themselves, then to the smallest one: a map
  * that is right is not moved. */
-occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
-                        double *odx, double *ody, double *oth)
+/* The best alignment into *odx, *ody, *oth: 0, or -1 when out of memory. */
+static int best_alignment(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th, double *odx,
+                          double *ody, double *oth)
 {
     int W = truth->width, H = truth->height;
     unsigned char *near = calloc((size_t)W * H, 1);
@@ -107,7 +143,7 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
     if (!near || !px) {
         free(near);
         free(px);
-        return NULL;
+        return -1;
     }
     /* 2: a wall cell, 1: within one cell of one */
     for (int y = 0; y < H; y++)
@@ -153,6 +189,14 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
     }
     free(near);
     free(px);
+    return 0;
+}
+
+occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th,
+                        double *odx, double *ody, double *oth)
+{
+    if (best_alignment(truth, map, max_xy, max_th, odx, ody, oth) < 0)
+        return NULL;
     double c = cos(*oth), sn = sin(*oth);
     return occmap_from_cells(map->width, map->height, map->resolution, c * map->origin_x - sn * map->origin_y + *odx,
                              sn * map->origin_x + c * map->origin_y + *ody, *oth, map->cells);
@@ -162,10 +206,8 @@ int mapeval_judge(const occmap_t *truth, const occmap_t *map, double sx, double 
 {
     *j = (mapeval_judgement_t){ 0 };
     mapeval_compare(truth, map, sx, sy, &j->raw);
-    occmap_t *al = mapeval_align(truth, map, 0.5, 0.03, &j->dx, &j->dy, &j->th);
-    if (!al)
+    if (best_alignment(truth, map, 0.5, 0.03, &j->dx, &j->dy, &j->th) < 0)
         return -1;
-    mapeval_compare(truth, al, sx, sy, &j->aligned);
-    occmap_destroy(al);
+    compare_in(truth, map, &(frame_t){ cos(j->th), sin(j->th), j->dx, j->dy }, sx, sy, &j->aligned);
     return 0;
 }
