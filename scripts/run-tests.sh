@@ -8,7 +8,8 @@
 #   scripts/run-tests.sh [--jobs N] TEST... [-- TEST... [-- TEST...]]   (env: B, TEST_TIMEOUT seconds per
 #   program, default 300; a test whose first lines say "# test-timeout: N" gets N when that is
 #   more, for a run that is long by design): with --jobs, the tests before `--` run N at a time (each in its own
-#   namespace; a worker takes the next test as it finishes one; their lines print when all are
+#   namespace; a worker takes the next test as it finishes one, the longest of the last run
+#   first by $B/test-logs/durations, which every run updates; their lines print when all are
 #   done, in order), those after it one at a time. A test after `--` whose first lines say
 #   "# test-light" (it mostly waits, and checks no timing that busy cores would break) runs in
 #   lanes of their own from the start, LIGHT_LANES (default 2) light tests at a time, beside

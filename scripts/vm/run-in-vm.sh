@@ -22,7 +22,8 @@
 # output comes on stdout; the script exits with the command's exit status.
 # The kernel comes from scripts/vm/fetch-kernel.sh (downloaded once into a cache); its
 # uncompressed vmlinux is booted when there is one (the PVH entry: no decompression under TCG).
-# env: MARIE_VM_MEM (default 512M), QEMU (default qemu-system-x86_64), MARIE_VM_CACHE.
+# env: MARIE_VM_MEM (default 512M), QEMU (default qemu-system-x86_64), MARIE_VM_CACHE,
+# MARIE_VM_BOOT_LIMIT (seconds for init to start, default 60; then one more boot).
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
 mods=""
