@@ -99,60 +99,58 @@ light() { head -20 "$1" 2>/dev/null | grep -q '^# test-light\($\|:\)'; }
 group() { head -20 "$1" 2>/dev/null | sed -n 's/^# test-group: \([A-Za-z0-9_-]*\)$/\1/p' | head -1; }
 # take COUNTER: the next number of a counter file shared by workers (under flock).
 take() { flock "$1" sh -c 'i=$(cat "$1"); echo $((i + 1)) > "$1"; echo "$i"' _ "$1"; }
+# workers N NAME: N workers run the tests listed in $res/NAME (one a line), taking them in the
+# order of the line numbers (from 0) in $res/NAME.order; the result of line i goes to
+# $res/NAMEi. Their pids in $pids.
+workers() {
+    echo 0 > "$res/$2.next"
+    pids=""
+    q=0
+    while [ "$q" -lt "$1" ]; do
+        (while :; do
+             i=$(sed -n "$(( $(take "$res/$2.next") + 1 ))p" "$res/$2.order")
+             [ -n "$i" ] || break
+             run_one "$(sed -n "$((i + 1))p" "$res/$2")" "$res/$2$i" > "$res/$2$i"
+         done) &
+        pids="$pids $!"
+        q=$((q + 1))
+    done
+}
 lane=0
 if [ "$jobs" -gt 1 ] && [ "$n" -gt 1 ]; then
     lane=1
-    # The light tests after `--`, LIGHT_LANES (default 2) at a time, beside the workers and then
-    # beside the others after `--`: their results are l0, l1, ... in list order.
-    : > "$res/light"
+    # The light tests after `--`, LIGHT_LANES (default 2) at a time, in list order, beside the
+    # workers and then beside the others after `--`.
+    : > "$res/l"
     seen=0
     for t in "$@"; do
         if [ "$t" = -- ]; then seen=$((seen + 1))
-        elif [ "$seen" = 1 ] && light "$t"; then echo "$t" >> "$res/light"
+        elif [ "$seen" = 1 ] && light "$t"; then echo "$t" >> "$res/l"
         fi
     done
-    nl=$(wc -l < "$res/light")
-    echo 0 > "$res/next-light"
-    q=0; lane_pids=""
-    while [ "$q" -lt "${LIGHT_LANES:-2}" ]; do
-        (while :; do
-             k=$(take "$res/next-light")
-             [ "$k" -lt "$nl" ] || break
-             run_one "$(sed -n "$((k + 1))p" "$res/light")" "$res/l$k" > "$res/l$k"
-         done) &
-        lane_pids="$lane_pids $!"
-        q=$((q + 1))
-    done
-    # Each worker takes the next test not yet taken (a counter under flock), so a long test
-    # holds one worker while the others go on through the list; the longest are taken first,
-    # by the times of the last run ($logs/durations; a test it does not know counts as longest),
-    # so that no long one is left to run alone at the end.
+    awk '{ print NR - 1 }' "$res/l" > "$res/l.order"
+    workers "${LIGHT_LANES:-2}" l
+    lane_pids=$pids
+    # The tests before `--`, `jobs` at a time: a long test holds one worker while the others go
+    # on through the list; the longest are taken first, by the times of the last run
+    # ($logs/durations; a test it does not know counts as longest), so that no long one is left
+    # to run alone at the end.
     dur=$logs/durations
     [ -f "$dur" ] || dur=/dev/null
+    : > "$res/p"
     i=0
     for t in "$@"; do
         [ "$t" = -- ] && break
+        echo "$t" >> "$res/p"
         echo "$i $(basename "$t")"
         i=$((i + 1))
     done | awk 'FILENAME != "-" { d[$1] = $2; next } { print ($2 in d ? d[$2] : 1e9), $1 }' "$dur" - |
-        sort -s -k1,1gr | awk '{ print $2 }' > "$res/order"
-    echo 0 > "$res/next"
-    q=0; workers=""
-    while [ "$q" -lt "$jobs" ]; do
-        (while :; do
-             i=$(take "$res/next")
-             [ "$i" -lt "$n" ] || break
-             i=$(sed -n "$((i + 1))p" "$res/order")
-             eval "t=\${$((i + 1))}"
-             run_one "$t" "$res/$i" > "$res/$i"
-         done) &
-        workers="$workers $!"
-        q=$((q + 1))
-    done
+        sort -s -k1,1gr | awk '{ print $2 }' > "$res/p.order"
+    workers "$jobs" p
     # shellcheck disable=SC2086
-    wait $workers
+    wait $pids
     i=0
-    while [ "$i" -lt "$n" ]; do tally "$res/$i"; i=$((i + 1)); done
+    while [ "$i" -lt "$n" ]; do tally "$res/p$i"; i=$((i + 1)); done
     shift "$n"
 fi
 # After `--`: one at a time; with the lane, those of a group side by side, and those after a
@@ -201,7 +199,7 @@ if [ "$lane" = 1 ]; then
         i=$((i + 1))
     done
 fi
-rm -f "$res/next" "$res/next-light" "$res/light" "$res/order"
+rm -f "$res/p" "$res/p.order" "$res/p.next" "$res/l" "$res/l.order" "$res/l.next"
 # The times of this run replace those of the last one for the next ordering.
 cat "$logs/durations" "$logs/durations.new" 2>/dev/null | awk '{ d[$1] = $2 } END { for (k in d) print k, d[k] }' \
     > "$logs/durations.tmp" && mv "$logs/durations.tmp" "$logs/durations"
