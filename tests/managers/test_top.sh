@@ -146,7 +146,8 @@ check "the manager reports again: alive" seen wait_for 5 sh -c "tmux -S $SOCK ca
 
 # -- q quits and leaves the terminal as it was
 tm send-keys -t top q
-sleep 0.5
+# (typed before marie-top has quit, on a busy machine, the line below went to marie-top)
+wait_for 5 sh -c "! kill -0 $TOP_PID 2>/dev/null"
 tm send-keys -t top "echo top-exited-\$?; stty -g > $T/stty.after" Enter
 restored() {
     p=$(pane)
