@@ -40,7 +40,7 @@ static void to_world(const frame_t *f, double x, double y, double *wx, double *w
     *wy = f->s * x + f->c * y + f->dy;
 }
 
-/* The class of the built map's cell under world point (x, y); within one cell of it. */
+/* The class of the built map's cell under world point (x, y). */
 static int built_at(const occmap_t *map, const frame_t *f, double x, double y)
 {
     x -= f->dx;
@@ -48,6 +48,7 @@ static int built_at(const occmap_t *map, const frame_t *f, double x, double y)
     return mapeval_at(map, f->c * x + f->s * y, -f->s * x + f->c * y);
 }
 
+/* Whether the built map has a cell of class k within one cell of world point (x, y). */
 static int built_near(const occmap_t *map, const frame_t *f, double x, double y, int k)
 {
     for (int dy = -1; dy <= 1; dy++)
@@ -128,12 +129,10 @@ void mapeval_compare(const occmap_t *truth, const occmap_t *map, double sx, doub
     compare_in(truth, map, &(frame_t){ 1, 0, 0, 0 }, sx, sy, e);
 }
 
-
 /* Alignment: every rotation in 0.0025 rad steps, every shift in cells, counted against the world's
  * walls dilated by one cell. Ties (a shift within one cell keeps a cell "near" its wall) go to
  * the transform that puts more cells on the walls themselves, then to the smallest one: a map
- * that is right is not moved. */
-/* The best alignment into *odx, *ody, *oth: 0, or -1 when out of memory. */
+ * that is right is not moved. The best one goes to *odx, *ody, *oth: 0, or -1 when out of memory. */
 static int best_alignment(const occmap_t *truth, const occmap_t *map, double max_xy, double max_th, double *odx,
                           double *ody, double *oth)
 {

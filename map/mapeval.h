@@ -24,7 +24,7 @@ occmap_t *mapeval_align(const occmap_t *truth, const occmap_t *map, double max_x
                         double *ody, double *oth);
 
 /* The whole judgement `marie map compare` prints: as built, and aligned within 0.5 m and
- * 0.03 rad. -1 when out of memory (the aligned figures are then zero). */
+ * 0.03 rad (compared at that transform, the built map not resampled). -1 when out of memory (the aligned figures are then zero). */
 typedef struct {
     mapeval_t raw, aligned;
     double dx, dy, th;          /* the alignment */

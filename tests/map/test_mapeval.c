@@ -74,6 +74,27 @@ static void test_a_copy_is_not_moved_by_alignment(void **state)
     occmap_destroy(w);
 }
 
+/* A copy turned by 0.004 rad about the map frame's origin (the rows of its cells along that
+ * heading, as a map's own frame may be): the judgement finds the turn and scores the cells where
+ * they are, without resampling the map onto the world's grid a second time (which cost a right
+ * map several points of precision). */
+static void test_a_turned_copy_is_judged_at_its_turn(void **state)
+{
+    occmap_t *w = office();
+    double c = cos(-0.004), s = sin(-0.004);
+    occmap_t *t = occmap_from_cells(w->width, w->height, w->resolution, c * w->origin_x - s * w->origin_y,
+                                    s * w->origin_x + c * w->origin_y, -0.004, w->cells);
+    assert_non_null(t);
+    mapeval_judgement_t j;
+    assert_int_equal(mapeval_judge(w, t, 2.0, 15.0, &j), 0);
+    print_message("turned copy: as built %.3f / %.3f, aligned by %.4f rad: %.3f / %.3f\n", j.raw.precision,
+                  j.raw.recall, j.th, j.aligned.precision, j.aligned.recall);
+    assert_true(fabs(j.th - 0.004) < 0.0026);
+    assert_true(j.aligned.precision > 0.99 && j.aligned.recall > 0.99);
+    occmap_destroy(t);
+    occmap_destroy(w);
+}
+
 /* A wall drawn across free space where the world has none: every one of its cells is a false
  * positive, and nothing else changes. */
 static void test_invented_walls_lower_precision(void **state)
@@ -133,6 +154,7 @@ int main(void)
         cmocka_unit_test(test_a_copy_scores_one),
         cmocka_unit_test(test_a_shifted_copy_is_found_by_alignment),
         cmocka_unit_test(test_a_copy_is_not_moved_by_alignment),
+        cmocka_unit_test(test_a_turned_copy_is_judged_at_its_turn),
         cmocka_unit_test(test_invented_walls_lower_precision),
         cmocka_unit_test(test_lost_walls_lower_recall_and_unseen_space_coverage),
     };
