@@ -3,10 +3,10 @@
 # test_run_tests: scripts/run-tests.sh counts what ran: a program that exits 0 with no case and
 # no SKIPPED line fails, an explicit skip is counted as skipped, and the summary says so; with
 # --jobs the programs before `--` run side by side, the longest of the last run first, and are
-# reported in order, counted once; a
-# program is killed at TEST_TIMEOUT unless its head declares a longer "# test-timeout: N"; one
-# after `--` whose head says "# test-light" runs beside those before it and then beside the
-# others after it (two light ones at a time unless LIGHT_LANES says otherwise), those after it of one "# test-group: NAME" run side by side, and those after
+# reported in order, counted once; a program is killed at TEST_TIMEOUT unless its head declares
+# a longer "# test-timeout: N"; one after `--` whose head says "# test-light" runs beside those
+# before it and then beside the others after it (two light ones at a time unless LIGHT_LANES
+# says otherwise), those after it of one "# test-group: NAME" run side by side, and those after
 # a second `--` run last, once the light ones are done.
 . tests/lib.sh
 tmp=$(mktemp -d)
