@@ -87,6 +87,10 @@ tally() {
 jobs=1
 if [ "${1:-}" = --jobs ]; then jobs=$2; shift 2; fi
 res=$(mktemp -d "${TMPDIR:-/tmp}/marie-tests.XXXXXX")
+# Interrupted (Ctrl-C, a time limit), the workers go and so does the results folder.
+pids=""; lane_pids=""
+# shellcheck disable=SC2086
+trap 'trap - INT TERM HUP; kill $pids $lane_pids 2>/dev/null; rm -rf "$res"; exit 130' INT TERM HUP
 # The tests before `--` may run side by side (all of them when there is no `--`).
 n=0
 for t in "$@"; do

@@ -103,4 +103,12 @@ check "--jobs with LIGHT_LANES=1: the test-light programs run one after the othe
 run "$tmp/light.sh" -- "$tmp/light.sh"
 check "without --jobs a test-light program runs like the others" \
     sh -c "grep -c '^PASS light.sh' $tmp/out | grep -qx 2 && tail -1 $tmp/out | grep -qx '2 passed, 0 failed, 0 skipped'"
+# A run stopped midway (SIGTERM while two programs sleep) leaves no results folder behind.
+mkdir "$tmp/t"; rm -f "$tmp/events"
+B="$tmp" TMPDIR="$tmp/t" scripts/run-tests.sh --jobs 2 "$tmp/slow.sh" "$tmp/slow.sh" > "$tmp/out" 2>&1 &
+stopped=$!
+for _ in $(seq 50); do [ -s "$tmp/events" ] && break; sleep 0.1; done
+kill -TERM "$stopped"; wait "$stopped"; echo $? > "$tmp/rc"
+check "a run stopped midway exits 130 and removes its results folder ($(ls "$tmp/t" | wc -l) left)" \
+    eval '[ "$(cat "$tmp/rc")" -eq 130 ] && [ -z "$(ls "$tmp/t")" ]'
 finish
