@@ -98,7 +98,7 @@ struct am {
     balance_cfg_t bal_cfg;
     balance_t *bal;
     char bal_sender[160];       /* "balance@HOST": its orders' sender */
-    char bal_last[256];         /* its last decision, in the status */
+    char bal_last[sizeof ((balance_move_t *)0)->reason]; /* its last decision, in the status */
     int64_t adopt_until;        /* a returning manager learns the placement before it starts */
     struct am_check *check;     /* an up order's programs being checked (am_check.c), or NULL */
 };

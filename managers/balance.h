@@ -41,7 +41,7 @@ typedef struct {
     char component[128];
     char from[128];         /* where it was placed (or also running, for DUPLICATE) */
     char to[128];
-    char reason[256];       /* one sentence for the event, ps and the viewer */
+    char reason[640];       /* one sentence for the event, ps and the viewer: room for four names whole */
 } balance_move_t;
 
 /* A balancer for the manager of host `self` over the system's hosts and components. NULL with
