@@ -16,6 +16,7 @@
 #include "core/procstat.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
+#include "managers/balance.h"
 #include "managers/logcap.h"
 #include "managers/spawn.h"
 #include "managers/supervise.h"
