@@ -148,6 +148,37 @@ static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *use
     marie_lcm_handle(w->lcm, w->burst);
 }
 
+/* Under the simulated clock, what another fd brings (a device's bytes, a CAN frame) came at the
+ * newest instant the simulator has sent, and that clock message may still wait in the bus's
+ * socket behind others, read one a round: the driver would stamp the input with an older time
+ * (marie-lms200 stamped a third of its scans 20-50 ms early while the simulator ran ahead).
+ * So before such an fd's callback the bus is read up to now (bounded: a flood cannot starve the
+ * device). */
+#define CATCH_UP_MAX 256
+
+static int is_lcm_fd(const marie_loop_t *loop, int fd)
+{
+    for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
+        if (marie_lcm_fd(w->lcm) == fd)
+            return 1;
+    return 0;
+}
+
+static void catch_up_clock(marie_loop_t *loop)
+{
+    /* A handler may remove a bus: each is looked up again before it is read. */
+    lcm_t *buses[8];
+    int n = 0;
+    for (const lcm_watch_t *w = loop->lcms; w && n < 8; w = w->next)
+        buses[n++] = w->lcm;
+    for (int i = 0; i < n && !loop->quit; i++)
+        for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
+            if (w->lcm == buses[i]) {
+                marie_lcm_handle(buses[i], CATCH_UP_MAX);
+                break;
+            }
+}
+
 int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
 {
     int fd = lcm ? marie_lcm_fd(lcm) : -1;
@@ -376,6 +407,8 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
         /* A callback may add or remove fds: look the watch up again by fd. */
         int fd = loop->pfds[i].fd;
         short revents = loop->pfds[i].revents;
+        if (loop->clock == MARIE_CLOCK_SIM && loop->lcms && !is_lcm_fd(loop, fd))
+            catch_up_clock(loop);
         for (size_t k = 0; k < loop->nfds; k++) {
             if (loop->fds[k].fd == fd) {
                 fd_watch_t w = loop->fds[k];

@@ -51,6 +51,7 @@ struct sim_devices {
     int64_t now;                /* simulated us: every device's clock */
     /* driver lockstep: the devices never run more than driver_lag ahead of their drivers */
     int64_t driver_lag, driver_wait;    /* sim us; wall us before a lagging driver counts as gone */
+    bool laser_hold;                    /* a telegram unread holds the world at once */
     uint64_t rx_seen;           /* frames from the CAN master counted at the last look */
     int64_t last_rx;            /* sim us of the newest frame from the master; -1: none, or gone */
     lag_t laser_lag, can_lag;   /* the laser's host, and the CAN clients, leaving data unread */
@@ -120,6 +121,7 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     d->now = now;
     d->driver_lag = (int64_t)(cfg->driver_lag * 1e6);
     d->driver_wait = (int64_t)(cfg->driver_wait * 1e6);
+    d->laser_hold = cfg->laser_hold;
     d->last_rx = d->laser_lag.since = d->can_lag.since = -1;
     if (sim_world_params(world)->laser_beams != SCAN_BEAMS) {
         snprintf(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
@@ -243,7 +245,9 @@ bool sim_devices_may_step(sim_devices_t *d)
 {
     note_drivers(d);
     bool master = d->last_rx >= 0 && d->now - d->last_rx > d->driver_lag;
-    bool laser = lag_over(&d->laser_lag, d->now, d->driver_lag), can = lag_over(&d->can_lag, d->now, d->driver_lag);
+    bool laser = d->laser_hold ? !d->laser_lag.gone_at && vlms200_host_unread(d->laser) > 0
+                               : lag_over(&d->laser_lag, d->now, d->driver_lag);
+    bool can = lag_over(&d->can_lag, d->now, d->driver_lag);
     if (d->driver_lag <= 0 || (!master && !laser && !can)) {
         d->wait_since = 0;
         return true;

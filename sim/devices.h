@@ -23,6 +23,7 @@ typedef struct {
     double laser_hz;            /* scans per second while streaming */
     double driver_lag;          /* sim s the devices may run ahead of their drivers (0: off) */
     double driver_wait;         /* wall s to wait for a lagging driver before running on */
+    bool laser_hold;            /* with the lockstep on, no step while a telegram is unread */
 } sim_devices_cfg_t;
 
 typedef struct {
@@ -55,8 +56,11 @@ bool sim_devices_laser_sends(const sim_devices_t *d, int64_t now);
  * simulated time ahead of a driver: past the CAN master's last frame (marie-drives sends SYNC
  * and heartbeat every 20 ms), or since the laser's host has left bytes unread. So a driver that
  * lags in wall time (a loaded machine, a fast simulation) is never taken for dead on simulated
- * time, and its data never pile up. A driver lagging for driver_wait of wall time counts as gone
- * (killed, frozen) until its next frame or read, and the world runs on. */
+ * time, and its data never pile up. With laser_hold the world does not step at all while a
+ * telegram is unread: the laser's driver then reads it with the clock at the instant it came
+ * (the clock message of that instant is the newest sent) and stamps the scan exactly. A driver
+ * lagging for driver_wait of wall time counts as gone (killed, frozen) until its next frame or
+ * read, and the world runs on. */
 bool sim_devices_may_step(sim_devices_t *d);
 const sim_devices_stats_t *sim_devices_stats(sim_devices_t *d);
 const char *sim_devices_laser_path(const sim_devices_t *d);   /* the pty slave */

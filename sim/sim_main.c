@@ -457,7 +457,7 @@ static int on_init(marie_component_t *c)
             .gyro_node = (int)o->gyro_node,
             .gyro_bias = o->vgyro_bias, .gyro_noise = p.gyro_noise,
             .laser_link = o->laser_link, .laser_hz = o->laser_hz,
-            .driver_lag = o->driver_lag, .driver_wait = o->driver_wait,
+            .driver_lag = o->driver_lag, .driver_wait = o->driver_wait, .laser_hold = o->laser_hold,
         };
         char why[512];
         s->devices = sim_devices_create(&dc, s->world, marie_component_loop(c), sim_now(s), why, sizeof(why));

@@ -173,6 +173,11 @@ int vlms200_unread(const vlms200_t *v)
     return marie_fd_unread(v->slave) + (int)v->out_len;
 }
 
+int vlms200_host_unread(const vlms200_t *v)
+{
+    return v->slave < 0 ? 0 : marie_fd_unread(v->slave);
+}
+
 short vlms200_events(const vlms200_t *v)
 {
     if (v->master < 0)

@@ -86,6 +86,9 @@ const vlms200_stats_t *vlms200_stats(const vlms200_t *v);
 /* Bytes sent that the host has not read yet (0 when unplugged or unknown): a simulator uses it
  * to keep simulated time from running far ahead of a driver that lags in wall time. */
 int vlms200_unread(const vlms200_t *v);
+/* Of those, the bytes already on the host's side of the line (the device's own queue for the
+ * line time left out): what the host could read now and has not. */
+int vlms200_host_unread(const vlms200_t *v);
 
 #ifdef __cplusplus
 }

@@ -11,6 +11,7 @@
 
 #include <cmocka.h>
 
+#include "core/lcm.h"
 #include "core/loop.h"
 #include "core/time.h"
 
@@ -306,6 +307,56 @@ static void fd_unread_counts_a_pty_write_at_once(void **state)
     close(s);
 }
 
+/* ---- under the simulated clock, a device's input sees the newest clock already sent ---- */
+
+typedef struct {
+    marie_loop_t *loop;
+    int64_t seen;       /* the loop's time when the device's byte was read; -1: not yet */
+} device_clock_t;
+
+static void on_clock_msg(const lcm_recv_buf_t *rb, const char *ch, void *user)
+{
+    int64_t us;
+    memcpy(&us, rb->data, sizeof us);
+    marie_loop_set_sim_time(user, us);
+}
+
+static void on_device_byte(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    device_clock_t *d = user;
+    char c;
+    if (read(fd, &c, 1) == 1)
+        d->seen = marie_loop_now(loop);
+}
+
+static void device_input_is_read_at_the_newest_clock_sent_before_it(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    marie_loop_set_clock(loop, MARIE_CLOCK_SIM);
+    lcm_t *bus = marie_lcm_create("udpm://239.255.76.67:7667?ttl=0");
+    assert_non_null(bus);
+    assert_non_null(marie_lcm_subscribe(bus, "TEST_CLOCK", on_clock_msg, loop));
+    assert_int_equal(marie_loop_add_lcm(loop, bus, 1), 0);     /* one message a round */
+    int p[2];
+    assert_int_equal(pipe(p), 0);
+    device_clock_t d = {loop, -1};
+    assert_int_equal(marie_loop_add_fd(loop, p[0], POLLIN, on_device_byte, &d), 0);
+    /* As the simulator does: the clock ticks (the last one the instant of the device's
+     * output), then the output; the reader was busy meanwhile and finds all of it queued. */
+    for (int64_t us = 10000; us <= 50000; us += 10000)
+        assert_int_equal(marie_lcm_publish(bus, "TEST_CLOCK", &us, sizeof us), 0);
+    assert_int_equal(write(p[1], "x", 1), 1);
+    for (int i = 0; i < 10 && d.seen < 0; i++)
+        marie_loop_run_once(loop, 1000);
+    assert_int_equal(d.seen, 50000);
+    marie_loop_remove_fd(loop, p[0]);
+    marie_loop_remove_lcm(loop, bus);
+    marie_lcm_destroy(bus);
+    close(p[0]);
+    close(p[1]);
+    marie_loop_destroy(loop);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -321,6 +372,7 @@ int main(void)
         cmocka_unit_test(run_until_returns_on_quit),
         cmocka_unit_test(watched_signals_arrive_from_the_loop),
         cmocka_unit_test(fd_unread_counts_a_pty_write_at_once),
+        cmocka_unit_test(device_input_is_read_at_the_newest_clock_sent_before_it),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
