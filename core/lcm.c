@@ -79,6 +79,7 @@ typedef struct bus {
     int64_t clock;
     uint32_t ovfl;          /* the kernel's drop count at the last datagram */
     bool filtered;          /* a socket filter is attached (refilter()) */
+    bool peek;              /* the last datagram was not a short message taken: peek the next */
     marie_lcm_stats_t st;
     /* Sending (marie_lcm_publish), from any thread: tx_lock keeps a message's fragments
      * together and its sequence number its own, as liblcm's transmit lock does. */
@@ -527,33 +528,27 @@ static frag_t *frag_slot(bus_t *b, const struct sockaddr_in *from)
 
 /* A datagram being read: its first bytes seen without taking it from the socket (MSG_PEEK), so
  * that what nobody subscribes to is dropped uncopied and a fragment goes straight to its place
- * in the message being put together. */
+ * in the message being put together; or, where short messages for this process come one after
+ * the other, read whole at once (data), one system call instead of two. */
 typedef struct {
     uint8_t head[LONG_HDR + LCM_MAX_CHANNEL_NAME_LENGTH + 1];
     size_t len;             /* the whole datagram's */
     size_t seen;            /* of it in head */
+    const uint8_t *data;    /* the datagram when read whole, else NULL (peeked) */
     struct sockaddr_in from;
     int64_t utime;
 } datagram_t;
 
-/* Takes the datagram from the socket into the iov (none: dropped), with its time of arrival and
- * the kernel's drop count; false when the socket gave something else than was peeked. */
-static bool take(bus_t *b, datagram_t *g, struct iovec *iov, int niov)
+typedef union {
+    char space[CMSG_SPACE(sizeof(struct timeval)) + CMSG_SPACE(sizeof(uint32_t))];
+    struct cmsghdr align;
+} arrival_ctl_t;
+
+/* The datagram's time of arrival and the kernel's drop count, from what recvmsg gave with it. */
+static void arrival(bus_t *b, datagram_t *g, struct msghdr *msg)
 {
-    uint8_t none;
-    struct iovec discard = {&none, 1};
-    union {
-        char space[CMSG_SPACE(sizeof(struct timeval)) + CMSG_SPACE(sizeof(uint32_t))];
-        struct cmsghdr align;
-    } ctl;
-    struct msghdr msg = {.msg_iov = niov ? iov : &discard, .msg_iovlen = niov ? (size_t)niov : 1,
-                         .msg_control = ctl.space, .msg_controllen = sizeof ctl.space};
-    ssize_t n;
-    do
-        n = recvmsg(b->fd, &msg, MSG_DONTWAIT | MSG_TRUNC);
-    while (n < 0 && errno == EINTR);
     g->utime = 0;
-    for (struct cmsghdr *c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
+    for (struct cmsghdr *c = CMSG_FIRSTHDR(msg); c; c = CMSG_NXTHDR(msg, c)) {
         if (c->cmsg_level != SOL_SOCKET)
             continue;
         if (c->cmsg_type == SO_TIMESTAMP) {
@@ -575,7 +570,58 @@ static bool take(bus_t *b, datagram_t *g, struct iovec *iov, int niov)
     }
     if (!g->utime)
         g->utime = marie_wall_us();
+}
+
+/* Takes the datagram from the socket into the iov (none: dropped), with its time of arrival and
+ * the kernel's drop count; false when the socket gave something else than was peeked. A datagram
+ * read whole is copied from where it was read. */
+static bool take(bus_t *b, datagram_t *g, struct iovec *iov, int niov)
+{
+    if (g->data) {
+        size_t have = g->len < DATAGRAM_MAX ? g->len : DATAGRAM_MAX, at = 0;
+        for (int i = 0; i < niov && at < have; i++) {
+            size_t n = have - at < iov[i].iov_len ? have - at : iov[i].iov_len;
+            memcpy(iov[i].iov_base, g->data + at, n);
+            at += n;
+        }
+        return have == g->len;
+    }
+    uint8_t none;
+    struct iovec discard = {&none, 1};
+    arrival_ctl_t ctl;
+    struct msghdr msg = {.msg_iov = niov ? iov : &discard, .msg_iovlen = niov ? (size_t)niov : 1,
+                         .msg_control = ctl.space, .msg_controllen = sizeof ctl.space};
+    ssize_t n;
+    do
+        n = recvmsg(b->fd, &msg, MSG_DONTWAIT | MSG_TRUNC);
+    while (n < 0 && errno == EINTR);
+    arrival(b, g, &msg);
     return n == (ssize_t)g->len;
+}
+
+/* The next datagram: peeked (its head), or read whole into buf (DATAGRAM_MAX bytes). The
+ * datagram's length, or -1 with errno. */
+static ssize_t next_datagram(bus_t *b, datagram_t *g, uint8_t *buf)
+{
+    struct iovec iov = buf ? (struct iovec){buf, DATAGRAM_MAX} : (struct iovec){g->head, sizeof g->head};
+    arrival_ctl_t ctl;
+    struct msghdr msg = {.msg_name = &g->from, .msg_namelen = sizeof g->from, .msg_iov = &iov, .msg_iovlen = 1};
+    if (buf) {
+        msg.msg_control = ctl.space;
+        msg.msg_controllen = sizeof ctl.space;
+    }
+    ssize_t n = recvmsg(b->fd, &msg, (buf ? 0 : MSG_PEEK) | MSG_DONTWAIT | MSG_TRUNC);
+    if (n < 0)
+        return -1;
+    g->len = (size_t)n;
+    g->seen = g->len < sizeof g->head ? g->len : sizeof g->head;
+    g->data = NULL;
+    if (buf) {
+        memcpy(g->head, buf, g->seen);
+        g->data = buf;
+        arrival(b, g, &msg);
+    }
+    return n;
 }
 
 static void drop_malformed(bus_t *b, datagram_t *g)
@@ -716,7 +762,7 @@ static int on_short(bus_t *b, datagram_t *g, uint8_t *buf)
         return 0;
     }
     struct iovec iov = {buf, DATAGRAM_MAX};
-    if (!take(b, g, &iov, 1)) {
+    if (!g->data && !take(b, g, &iov, 1)) {
         b->st.malformed++;
         return 0;
     }
@@ -746,27 +792,28 @@ int marie_lcm_handle(lcm_t *lcm, int max)
     if (!buf)
         return 0;
     int handled = 0;
+    /* A datagram is read whole after a short message someone here took (a flood of them costs
+     * one system call each); after anything else it is peeked first. */
     for (int i = 0; i < DATAGRAMS_PER_CALL && handled < max; i++) {
         datagram_t g;
-        struct iovec iov = {g.head, sizeof g.head};
-        struct msghdr msg = {.msg_name = &g.from, .msg_namelen = sizeof g.from, .msg_iov = &iov, .msg_iovlen = 1};
-        ssize_t n = recvmsg(b->fd, &msg, MSG_PEEK | MSG_DONTWAIT | MSG_TRUNC);
-        if (n < 0) {
+        if (next_datagram(b, &g, b->peek ? NULL : buf) < 0) {
             if (errno == EINTR)
                 continue;
             if (errno != EAGAIN && errno != EWOULDBLOCK)
                 marie_warn_ratelimited(10, "reading the LCM bus: %s", strerror(errno));
             break;
         }
-        g.len = (size_t)n;
-        g.seen = g.len < sizeof g.head ? g.len : sizeof g.head;
         uint32_t magic = g.seen >= 4 ? be32(g.head) : 0;
-        if (magic == MAGIC_SHORT && g.len >= SHORT_HDR && g.len <= DATAGRAM_MAX)
-            handled += on_short(b, &g, buf);
-        else if (magic == MAGIC_LONG && g.len >= LONG_HDR)
+        b->peek = true;
+        if (magic == MAGIC_SHORT && g.len >= SHORT_HDR && g.len <= DATAGRAM_MAX) {
+            int taken = on_short(b, &g, buf);
+            handled += taken;
+            b->peek = !taken;
+        } else if (magic == MAGIC_LONG && g.len >= LONG_HDR) {
             handled += on_fragment(b, &g);
-        else
+        } else {
             drop_malformed(b, &g);
+        }
     }
     if (buf != b->buf)
         free(buf);

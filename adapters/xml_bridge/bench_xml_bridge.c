@@ -16,6 +16,7 @@
 
 #include "adapters/xml_bridge/xb_server.h"
 #include "bench/bench.h"
+#include "core/lcm.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_pose_cov_t.h"
@@ -26,6 +27,9 @@
 
 static marie_loop_t *bloop, *ploop;    /* the bridge's, the peer's (each run by its thread) */
 static xb_server_t *srv;
+/* The bridge's bus is read and sent on by marie, as marie-xml-bridge's (the component's bus,
+ * marie_lcm_create); the peer is a plain liblcm program, and so is the baseline's publisher
+ * (lcm_publish on blcm is liblcm's sender). */
 static lcm_t *blcm, *peer;
 static atomic_int stop_bridge, stop_peer;
 static atomic_long heard;               /* bus messages heard by the peer */
@@ -245,7 +249,7 @@ static long rss_kb(void)
 int main(void)
 {
     lat = calloc(N_LAT, sizeof *lat);
-    blcm = lcm_create(NULL);
+    blcm = marie_lcm_create(NULL);
     peer = lcm_create(NULL);
     bloop = marie_loop_create();
     ploop = marie_loop_create();
@@ -409,7 +413,7 @@ int main(void)
     xb_server_destroy(srv);
     marie_loop_destroy(bloop);
     marie_loop_destroy(ploop);
-    lcm_destroy(blcm);
+    marie_lcm_destroy(blcm);
     lcm_destroy(peer);
     free(rd);
     free(lat);

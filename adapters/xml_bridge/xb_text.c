@@ -264,14 +264,14 @@ void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
         float f = (float)v;
         for (int prec = 6; prec <= 9; prec++) {
             snprintf(buf, size, "%.*g", prec, (double)f);
-            if (strtof(buf, NULL) == f)
+            if (prec == 9 || strtof(buf, NULL) == f)    /* 9 digits always read back */
                 return;
         }
         return;
     }
     for (int prec = first; prec <= 17; prec++) {
         snprintf(buf, size, "%.*g", prec, v);
-        if (strtod(buf, NULL) == v)
+        if (prec == 17 || strtod(buf, NULL) == v)       /* 17 digits always read back */
             return;
     }
 }

@@ -261,6 +261,53 @@ static void test_malformed(void **state)
     marie_lcm_destroy(rx);
 }
 
+/* A fragment of size bytes at offset, its data the pattern on_msg expects (seed 0). */
+static size_t pattern_fragment(uint8_t *out, uint32_t seq, uint32_t size, uint32_t offset, uint16_t no,
+                               uint16_t count, const char *channel, size_t len)
+{
+    size_t n = fragment(out, seq, size, offset, no, count, channel, len);
+    for (size_t i = 0; i < len; i++)
+        out[n - len + i] = (uint8_t)((offset + i) * 31);
+    return n;
+}
+
+/* Short messages someone takes are read whole, one system call each; a fragment that comes
+ * after one is copied into its place from there, and what follows a fragment is peeked again.
+ * Queued together and read in one call: every message whole, in the order it was completed. */
+static void test_fragments_among_shorts(void **state)
+{
+    lcm_t *rx = marie_lcm_create(URL);
+    got_t all = {0};
+    assert_non_null(marie_lcm_subscribe(rx, "T_MIX_S", on_msg, &all));
+    assert_non_null(marie_lcm_subscribe(rx, "T_MIX_B", on_msg, &all));
+    int fd = test_udp_socket();
+    static uint8_t d[2000];
+    const char *text = "A`\x7f";         /* the pattern of 3 bytes, seed 'A' */
+    send_raw(fd, d, short_msg(d, 1, "T_MIX_S", text));
+    send_raw(fd, d, pattern_fragment(d, 2, 3000, 0, 0, 2, "T_MIX_B", 1500));    /* after a short */
+    send_raw(fd, d, short_msg(d, 3, "T_MIX_S", text));                         /* after a fragment */
+    send_raw(fd, d, short_msg(d, 4, "T_MIX_S", text));
+    send_raw(fd, d, pattern_fragment(d, 2, 3000, 1500, 1, 2, NULL, 1500));     /* completes it */
+    send_raw(fd, d, short_msg(d, 5, "T_MIX_S", text));
+    send_raw(fd, d, pattern_fragment(d, 6, 3000, 0, 0, 2, "T_NOBODY", 1500));  /* nobody's */
+    send_raw(fd, d, pattern_fragment(d, 6, 3000, 1500, 1, 2, NULL, 1500));
+    send_raw(fd, d, short_msg(d, 7, "T_MIX_S", text));
+    struct pollfd p = {marie_lcm_fd(rx), POLLIN, 0};
+    assert_int_equal(poll(&p, 1, 2000), 1);
+    assert_int_equal(marie_lcm_handle(rx, 64), 6);
+    const uint32_t order[] = {3, 3, 3, 3000, 3, 3};
+    assert_int_equal(all.n, 6);
+    assert_memory_equal(all.sizes, order, sizeof order);
+    assert_int_equal(all.bad, 0);
+    marie_lcm_stats_t st;
+    marie_lcm_stats(rx, &st);
+    assert_int_equal(st.messages, 7);
+    assert_int_equal(st.malformed + st.incomplete, 0);
+    close(fd);
+    free(all.data);
+    marie_lcm_destroy(rx);
+}
+
 typedef struct {
     lcm_t *lcm;
     marie_lcm_sub_t *self;
@@ -706,6 +753,7 @@ int main(void)
         cmocka_unit_test(test_kernel_filter),
         cmocka_unit_test(test_beside_liblcm),
         cmocka_unit_test(test_malformed),
+        cmocka_unit_test(test_fragments_among_shorts),
         cmocka_unit_test(test_subscribe_from_handler),
         cmocka_unit_test(test_nested_read),
         cmocka_unit_test(test_drops_counted),
