@@ -133,13 +133,15 @@ static void test_office_route_map_quality(void **state)
     occmap_destroy(world);
 }
 
-static void run_loop(bool closure, drive_t *d, slam_stats_t *st)
+static void run_loop(bool closure, double optimize_xy, drive_t *d, slam_stats_t *st)
 {
     occmap_t *world = office();
     simrobot_t r = robot_at(10.0, 15.0, 11);
     slam_params_t p;
     slam_params_default(&p);
     p.loop_closure = closure;
+    if (optimize_xy >= 0)
+        p.loop_optimize_xy = optimize_xy;
     slam_t *s = slam_create(&p, r.truth);
     assert_non_null(s);
     *d = drive(s, world, &r, loop_route, sizeof(loop_route) / sizeof(loop_route[0]));
@@ -150,18 +152,26 @@ static void run_loop(bool closure, drive_t *d, slam_stats_t *st)
 
 static void test_loop_closure_office_loop(void **state)
 {
-    drive_t open, closed;
-    slam_stats_t so, sc;
-    run_loop(false, &open, &so);
-    run_loop(true, &closed, &sc);
+    drive_t open, closed, opt;
+    slam_stats_t so, sc, sx;
+    run_loop(false, -1, &open, &so);
+    run_loop(true, -1, &closed, &sc);
+    /* Here the scan matcher alone holds the loop well under loop_optimize_xy, so no closure
+     * optimizes; every closure optimizing (threshold 0) must keep the map as good. */
+    run_loop(true, 0, &opt, &sx);
     print_message("loop: odometry alone ends %.2f m off; without closure end %.3f m, ATE %.3f; with closure end "
-                  "%.3f m, ATE %.3f (%lld closures, last optimization %.1f ms)\n",
+                  "%.3f m, ATE %.3f (%lld closures, %lld optimizations); optimizing every closure: end %.3f m, "
+                  "ATE %.3f (%lld optimizations, last %.1f ms)\n",
                   closed.odom_end_err, open.end_err, open.ate_rms, closed.end_err, closed.ate_rms,
-                  (long long)sc.loop_closures, sc.last_opt_ms);
+                  (long long)sc.loop_closures, (long long)sc.optimizations, opt.end_err, opt.ate_rms,
+                  (long long)sx.optimizations, sx.last_opt_ms);
     assert_true(closed.odom_end_err > 1.0);
     assert_true(sc.loop_closures >= 1);
     assert_true(closed.end_err < 0.15);
     assert_true(closed.ate_rms < 0.10);
+    assert_true(sx.optimizations >= 1);
+    assert_true(opt.end_err < 0.15);
+    assert_true(opt.ate_rms < 0.10);
 }
 
 static void test_bad_input_refused_map_kept(void **state)
