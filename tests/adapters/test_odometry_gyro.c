@@ -55,7 +55,7 @@ static void test_heading_from_the_encoders_until_the_gyro_is_calibrated(void **s
     assert_true(pid > 0);
     lcm_t *lcm = lcm_create(NULL);
     assert_non_null(lcm);
-    marie_odometry_t_subscribe(lcm, "ODOMETRY", on_odometry, NULL);
+    marie_odometry_t_subscription_t *sub = marie_odometry_t_subscribe(lcm, "ODOMETRY", on_odometry, NULL);
     int64_t start = marie_mono_us();
     while (!heard && marie_mono_us() - start < 10000000) {   /* until it runs: a bound, not a timing check */
         marie_wheel_encoders_t e = {.utime = marie_wall_us(), .ticks_per_rev = 4096};
@@ -70,6 +70,7 @@ static void test_heading_from_the_encoders_until_the_gyro_is_calibrated(void **s
                   uncal, cal);
     assert_true(fabs(uncal) < 0.01);            /* 0.4 rad had the rate been taken */
     assert_true(cal - uncal > 0.1);             /* the calibrated rate turns it (0.2 rad) */
+    marie_odometry_t_unsubscribe(lcm, sub);
     lcm_destroy(lcm);
     test_stop(pid);
 }
