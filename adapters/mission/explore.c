@@ -16,6 +16,7 @@ void explore_params_default(explore_params_t *p)
     p->min_cells = 8;
     p->info_weight = 0.2;
     p->blacklist_radius = 0.6;
+    p->escape_radius = 0;
 }
 
 static int cell_class(int8_t v)
@@ -198,20 +199,32 @@ int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, d
         !isfinite(ry))
         return marie_fail(EINVAL);
     size_t n = (size_t)m->width * m->height;
-    unsigned char *ok = passable(m, p->robot_radius);
     int *dist = malloc(sizeof(int) * n), *parent = malloc(sizeof(int) * n);
     int found = -1;
-    if (!ok || !dist || !parent) {
+    if (!dist || !parent) {
         errno = ENOMEM;
         goto out;
     }
-    if (reach(m, ok, rx, ry, p->robot_radius, dist, parent) < 0) {
-        found = 0;              /* the robot stands on nothing passable: nothing it can reach */
-        goto out;
+    /* With robot_radius first; then, if that finds nothing, with escape_radius: a robot that
+     * drove through a gap narrower than twice robot_radius (the planner keeps less) into a spot
+     * walled in at that clearance, behind a box, saw nothing reachable and called the
+     * exploration done with a third of the office unseen. */
+    double radii[2] = { p->robot_radius, p->escape_radius };
+    int tries = p->escape_radius > 0 && p->escape_radius < p->robot_radius ? 2 : 1;
+    for (int t = 0; t < tries; t++) {
+        unsigned char *ok = passable(m, radii[t]);
+        if (!ok) {
+            errno = ENOMEM;
+            found = -1;
+            goto out;
+        }
+        /* reach() < 0: the robot stands on nothing passable, nothing it can reach */
+        found = reach(m, ok, rx, ry, radii[t], dist, parent) < 0 ? 0 : cluster(m, p, dist, blacklist, nblack, out, max);
+        free(ok);
+        if (found != 0)
+            break;
     }
-    found = cluster(m, p, dist, blacklist, nblack, out, max);
 out:
-    free(ok);
     free(dist);
     free(parent);
     return found;

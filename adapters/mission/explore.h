@@ -14,6 +14,9 @@ typedef struct {
     int min_cells;              /* smaller frontiers are noise (a missed beam) */
     double info_weight;         /* cost = path length (m) - info_weight * frontier length (m) */
     double blacklist_radius;    /* m: frontiers this near a goal given up are skipped */
+    double escape_radius;       /* m: when nothing is reachable with robot_radius, look again with
+                                 * this clearance (the robot may stand in a spot reached through a
+                                 * narrower gap); 0: never */
 } explore_params_t;
 
 typedef struct {

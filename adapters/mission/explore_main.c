@@ -113,6 +113,7 @@ static void tick(marie_component_t *c, int64_t overruns)
     explore_params_t p;
     explore_params_default(&p);
     p.robot_radius = q->robot_radius;
+    p.escape_radius = q->escape_radius;
     p.info_weight = q->info_weight;
     p.min_cells = (int)q->min_cells;
     explore_frontier_t f[1];

@@ -71,6 +71,24 @@ static void test_door_too_narrow_is_no_frontier(void **state)
     occmap_destroy(m);
 }
 
+/* The robot behind a wall whose gap (0.8 m) it came through but which robot_radius (0.45 m)
+ * closes: nothing is reachable at that clearance; escape_radius (0.3 m) finds the door again. */
+static void test_a_robot_walled_in_at_the_clearance_looks_again_narrower(void **state)
+{
+    occmap_t *m = half_seen_room(1.2);
+    occmap_fill_rect(m, 3.0, 0.4, 3.1, 3.1, OCCMAP_OCCUPIED);
+    occmap_fill_rect(m, 3.0, 3.9, 3.1, 6.6, OCCMAP_OCCUPIED);
+    explore_params_t p;
+    explore_params_default(&p);
+    p.robot_radius = 0.45;
+    explore_frontier_t f[8];
+    assert_int_equal(explore_frontiers(m, &p, 2, 3, NULL, 0, f, 8), 0);     /* escape_radius 0: never */
+    p.escape_radius = 0.3;
+    assert_int_equal(explore_frontiers(m, &p, 2, 3, NULL, 0, f, 8), 1);
+    assert_true(fabs(f[0].x - 6.1) < 0.2 && fabs(f[0].y - 3.5) < 0.3);
+    occmap_destroy(m);
+}
+
 static void test_nearer_and_larger_first(void **state)
 {
     occmap_t *m = half_seen_room(1.2);
@@ -174,6 +192,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_frontier_at_the_door),
         cmocka_unit_test(test_door_too_narrow_is_no_frontier),
+        cmocka_unit_test(test_a_robot_walled_in_at_the_clearance_looks_again_narrower),
         cmocka_unit_test(test_nearer_and_larger_first),
         cmocka_unit_test(test_explores_the_office_from_empty),
     };
