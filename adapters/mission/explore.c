@@ -192,6 +192,17 @@ out:
     return found;
 }
 
+/* The clearances to try, in order (the count): robot_radius, then escape_radius. A robot that
+ * drove through a gap narrower than twice robot_radius (the planner keeps less) into a spot
+ * walled in at that clearance, behind a box, saw nothing reachable and called the exploration
+ * done with a third of the office unseen. */
+static int clearances(const explore_params_t *p, double r[2])
+{
+    r[0] = p->robot_radius;
+    r[1] = p->escape_radius;
+    return p->escape_radius > 0 && p->escape_radius < p->robot_radius ? 2 : 1;
+}
+
 int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, double ry, const double *blacklist,
                       int nblack, explore_frontier_t *out, int max)
 {
@@ -205,12 +216,8 @@ int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, d
         errno = ENOMEM;
         goto out;
     }
-    /* With robot_radius first; then, if that finds nothing, with escape_radius: a robot that
-     * drove through a gap narrower than twice robot_radius (the planner keeps less) into a spot
-     * walled in at that clearance, behind a box, saw nothing reachable and called the
-     * exploration done with a third of the office unseen. */
-    double radii[2] = { p->robot_radius, p->escape_radius };
-    int tries = p->escape_radius > 0 && p->escape_radius < p->robot_radius ? 2 : 1;
+    double radii[2];
+    int tries = clearances(p, radii);
     for (int t = 0; t < tries; t++) {
         unsigned char *ok = passable(m, radii[t]);
         if (!ok) {
@@ -236,15 +243,29 @@ int explore_path(const occmap_t *m, const explore_params_t *p, double rx, double
     if (!m || !p || !xy || max < 2)
         return marie_fail(EINVAL);
     size_t n = (size_t)m->width * m->height;
-    unsigned char *ok = passable(m, p->robot_radius);
     int *dist = malloc(sizeof(int) * n), *parent = malloc(sizeof(int) * n);
     int count = -1, gcx, gcy;
-    if (!ok || !dist || !parent) {
+    if (!dist || !parent) {
         errno = ENOMEM;
         goto out;
     }
-    if (reach(m, ok, rx, ry, p->robot_radius, dist, parent) < 0 || !occmap_cell(m, gx, gy, &gcx, &gcy) ||
-        dist[(size_t)gcy * m->width + gcx] < 0) {
+    if (!occmap_cell(m, gx, gy, &gcx, &gcy)) {
+        errno = ENOENT;
+        goto out;
+    }
+    /* At the clearances explore_frontiers() tries, in the same order. */
+    double radii[2];
+    int tries = clearances(p, radii), reached = 0;
+    for (int t = 0; t < tries && !reached; t++) {
+        unsigned char *ok = passable(m, radii[t]);
+        if (!ok) {
+            errno = ENOMEM;
+            goto out;
+        }
+        reached = reach(m, ok, rx, ry, radii[t], dist, parent) >= 0 && dist[(size_t)gcy * m->width + gcx] >= 0;
+        free(ok);
+    }
+    if (!reached) {
         errno = ENOENT;
         goto out;
     }
@@ -257,7 +278,6 @@ int explore_path(const occmap_t *m, const explore_params_t *p, double rx, double
             occmap_cell_center(m, i % m->width, i / m->width, &xy[2 * (idx / step)], &xy[2 * (idx / step) + 1]);
     occmap_cell_center(m, gcx, gcy, &xy[2 * (count - 1)], &xy[2 * (count - 1) + 1]);
 out:
-    free(ok);
     free(dist);
     free(parent);
     return count;

@@ -278,9 +278,10 @@ static void test_fast_device_mode_no_timeouts(void **state)
     int off_beat = 0;
     for (int i = 1; i < rx.nscan_gaps; i++) {
         int64_t r = rx.scan_gaps[i] % 100000;
-        if (r > 1000 && r < 99000)
+        if (r > 1000 && r < 99000) {
             fprintf(stderr, "scan gap %lld us, the %dth\n", (long long)rx.scan_gaps[i], i);
-        off_beat += r > 1000 && r < 99000;
+            off_beat++;
+        }
     }
     fprintf(stderr, "scans off the 10 Hz beat: %d of %d\n", off_beat, rx.nscan_gaps - 1);
     assert_int_equal(off_beat, 0);
