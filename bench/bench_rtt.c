@@ -2,10 +2,15 @@
  * ports and through the raw LCM C API in the same run, and Cyclone DDS's own ddsperf ping/pong
  * (ROS 2's middleware of Debian 12's generation) measured the same way right after, for 64 B,
  * 8 KB and 900 KB. A third path in the same run reads as ports do but sends with liblcm's
- * lcm_publish on the same bus, both ways: marie's sender against liblcm's, all else equal.
- * `bench_rtt pong [--url URL]` is the echo process. */
+ * lcm_publish on the same bus, both ways: marie's sender against liblcm's, all else equal. Two
+ * more go through ports as a system file sets them up, each to an echo process of its own: with
+ * both loops spinning (`sched: {spin_us}`, with what it costs in CPU), and on channels the file
+ * puts on shared memory (`transports: {kind: shm}`).
+ * `bench_rtt pong [--url URL]` and `bench_rtt echo --system FILE --name NAME` are the echo
+ * processes. */
 #include <poll.h>
 #include <stdio.h>
+#include <time.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -59,6 +64,19 @@ static const marie_port_spec_t pong_ports[] = {
 };
 static const marie_component_def_t pong_def = {.kind = "bench-pong", .ports = pong_ports, .on_init = pong_init};
 
+/* The echoes a system file sets up (its channels, spin and transports): ports only. */
+static int echo_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "ping"), echo_port); }
+
+static const marie_port_spec_t echo_ports[] = {
+    {"ping", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_ECHO_PING"},
+    {"pong", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_ECHO_PONG"},
+    {0},
+};
+static const marie_component_def_t echo_def = {.kind = "bench-echo", .ports = echo_ports, .on_init = echo_init};
+
+/* How long both spinning loops spin after work: longer than a 64 B or 8 KB round trip under load. */
+#define SPIN_US 200
+
 /* ---- the pinging side ---- */
 
 typedef struct {
@@ -72,6 +90,9 @@ typedef struct {
     marie_component_t *c;
     lcm_t *lcm;
     rtt_t marie, lib, raw;  /* ports; ports read, liblcm sends; raw liblcm */
+    rtt_t spin, shm;        /* ports, both loops spinning; ports on shared memory */
+    pid_t pong, pong_spin, pong_shm;    /* the echo processes */
+    int64_t cpu_ns[2];      /* CPU of both sides in the ports and the spin blocks */
 } pinger_t;
 
 static void got(rtt_t *r, const marie_image_t *m)
@@ -98,9 +119,21 @@ static void on_pong_lib(marie_component_t *c, marie_port_t *p, const void *msg, 
     got(&((pinger_t *)marie_component_user(c))->lib, msg);
 }
 
+static void on_spin_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    got(&((pinger_t *)marie_component_user(c))->spin, msg);
+}
+
+static void on_shm_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    got(&((pinger_t *)marie_component_user(c))->shm, msg);
+}
+
 static int ping_init(marie_component_t *c)
 {
-    if (marie_port_on_message(marie_port(c, "pong_lib"), on_pong_lib) < 0)
+    if (marie_port_on_message(marie_port(c, "pong_lib"), on_pong_lib) < 0 ||
+        marie_port_on_message(marie_port(c, "spin_pong"), on_spin_pong) < 0 ||
+        marie_port_on_message(marie_port(c, "shm_pong"), on_shm_pong) < 0)
         return -1;
     return marie_port_on_message(marie_port(c, "pong"), on_pong);
 }
@@ -109,24 +142,52 @@ static const marie_port_spec_t ping_ports[] = {
     {"ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PING"},
     {"pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG"},
     {"pong_lib", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG_LIB"},
+    {"spin_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_SPIN_PING"},
+    {"spin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_SPIN_PONG"},
+    {"shm_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_SHM_PING"},
+    {"shm_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_SHM_PONG"},
     {0},
 };
 static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
 
-enum { PORTS, LIB_SEND, RAW };
+enum { PORTS, LIB_SEND, RAW, SPIN, SHM };
+
+/* CPU time a process's main thread has had, in ns (the scheduler's own count, to the ns). */
+static int64_t thread_cpu_ns(pid_t pid)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/schedstat", (int)pid);
+    FILE *f = fopen(path, "r");
+    long long ns = 0;
+    if (f) {
+        if (fscanf(f, "%lld", &ns) != 1)
+            ns = 0;
+        fclose(f);
+    }
+    return ns;
+}
+
+static int64_t self_cpu_ns(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return (int64_t)t.tv_sec * 1000000000 + t.tv_nsec;
+}
 
 /* One round trip: 0 when the echo came back within timeout_ms. The raw side waits the way a
  * plain LCM program does (poll the fd, lcm_handle); marie's on its loop. */
 static int round_trip(pinger_t *pg, int path, marie_image_t *img, int32_t seq, int timeout_ms)
 {
     int use_marie = path != RAW;
-    rtt_t *r = path == PORTS ? &pg->marie : path == LIB_SEND ? &pg->lib : &pg->raw;
+    rtt_t *const paths[] = {&pg->marie, &pg->lib, &pg->raw, &pg->spin, &pg->shm};
+    rtt_t *r = paths[path];
+    static const char *const ports[] = {"ping", NULL, NULL, "spin_ping", "shm_ping"};
     r->want = seq;
     r->back = 0;
     img->row_stride = seq;
     img->utime = marie_mono_us();
-    if (path == PORTS) {
-        marie_port_publish(marie_port(pg->c, "ping"), img);
+    if (ports[path]) {
+        marie_port_publish(marie_port(pg->c, ports[path]), img);
     } else if (path == LIB_SEND) {
         static uint8_t buf[1 << 20];
         int n = marie_image_t_encode(buf, 0, sizeof buf, img);
@@ -203,29 +264,44 @@ static int dds_round_trip(size_t size, int seconds, dds_t *out)
     return n ? 0 : -1;
 }
 
+/* n round trips on one path; for the ports and the spin paths, the CPU both sides took. */
+static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n)
+{
+    int lost = 0;
+    pid_t echo = path == SPIN ? pg->pong_spin : path == SHM ? pg->pong_shm : pg->pong;
+    int64_t cpu = self_cpu_ns() + thread_cpu_ns(echo);
+    marie_loop_set_spin(marie_component_loop(pg->c), path == SPIN ? SPIN_US : 0);
+    for (int i = 0; i < n; i++)
+        lost -= round_trip(pg, path, img, (*seq)++, 200);
+    marie_loop_set_spin(marie_component_loop(pg->c), 0);
+    if (path == PORTS || path == SPIN)
+        pg->cpu_ns[path == SPIN] += self_cpu_ns() + thread_cpu_ns(echo) - cpu;
+    return lost;
+}
+
 static void run_size(pinger_t *pg, const char *label, size_t size, int n)
 {
     marie_image_t img = {.width = 1, .height = (int32_t)size, .size = (int32_t)size,
                          .format = MARIE_IMAGE_T_FORMAT_GRAY8};
     img.data = calloc(1, size);
-    int lost_m = 0, lost_l = 0, lost_r = 0;
+    int lost_m = 0, lost_l = 0, lost_r = 0, lost_s = 0, lost_h = 0;
     for (int pass = 0; pass < 2; pass++) {  /* the first pass warms caches and sockets */
-        pg->marie.n = pg->lib.n = pg->raw.n = 0;
-        lost_m = lost_l = lost_r = 0;
+        pg->marie.n = pg->lib.n = pg->raw.n = pg->spin.n = pg->shm.n = 0;
+        pg->cpu_ns[0] = pg->cpu_ns[1] = 0;
+        lost_m = lost_l = lost_r = lost_s = lost_h = 0;
         int32_t seq = 1000000 * (pass + 1);
         /* Interleaved, so that drift hits all alike; the two senders take turns going first (a
          * block's first round trips, after another path's, are slower: p99 follows the order). */
         for (int blk = 0; blk < 10; blk++) {
             for (int turn = 0; turn < 2; turn++) {
                 if ((blk + turn) % 2 == 0)
-                    for (int i = 0; i < n / 10; i++)
-                        lost_m -= round_trip(pg, PORTS, &img, seq++, 200);
+                    lost_m += block(pg, PORTS, &img, &seq, n / 10);
                 else
-                    for (int i = 0; i < n / 10; i++)
-                        lost_l -= round_trip(pg, LIB_SEND, &img, seq++, 200);
+                    lost_l += block(pg, LIB_SEND, &img, &seq, n / 10);
             }
-            for (int i = 0; i < n / 10; i++)
-                lost_r -= round_trip(pg, RAW, &img, seq++, 200);
+            lost_r += block(pg, RAW, &img, &seq, n / 10);
+            lost_s += block(pg, SPIN, &img, &seq, n / 10);
+            lost_h += block(pg, SHM, &img, &seq, n / 10);
         }
     }
     free(img.data);
@@ -237,6 +313,19 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("p50_vs_liblcm_send", label, m50, "us", bench_percentile(pg->lib.lat, pg->lib.n, 0.5));
     row("p99_vs_liblcm_send", label, m99, "us", bench_percentile(pg->lib.lat, pg->lib.n, 0.99));
     row("lost_liblcm_send", label, lost_l, "msgs", NAN);
+    double s50 = bench_percentile(pg->spin.lat, pg->spin.n, 0.5);
+    double s99 = bench_percentile(pg->spin.lat, pg->spin.n, 0.99);
+    row("p50_spin", label, s50, "us", m50);
+    row("p99_spin", label, s99, "us", m99);
+    row("lost_spin", label, lost_s, "msgs", NAN);
+    double h50 = bench_percentile(pg->shm.lat, pg->shm.n, 0.5);
+    double h99 = bench_percentile(pg->shm.lat, pg->shm.n, 0.99);
+    row("p50_shm", label, h50, "us", m50);
+    row("p99_shm", label, h99, "us", m99);
+    row("lost_shm", label, lost_h, "msgs", NAN);
+    /* What a round trip costs both sides in CPU, spinning against not (baseline). */
+    row("cpu_per_rtt_spin", label, pg->spin.n ? pg->cpu_ns[1] / 1000.0 / pg->spin.n : NAN, "us",
+        pg->marie.n ? pg->cpu_ns[0] / 1000.0 / pg->marie.n : NAN);
     dds_t d;
     if (dds_round_trip(size, 3, &d) < 0) {
         printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
@@ -245,6 +334,10 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     }
     row("p50_vs_dds", label, m50, "us", d.p50);
     row("p99_vs_dds", label, m99, "us", d.p99);
+    row("p50_spin_vs_dds", label, s50, "us", d.p50);
+    row("p99_spin_vs_dds", label, s99, "us", d.p99);
+    row("p50_shm_vs_dds", label, h50, "us", d.p50);
+    row("p99_shm_vs_dds", label, h99, "us", d.p99);
     fprintf(stderr, "bench_rtt: ddsperf %s: %ld round trips\n", label, d.count);
 }
 
@@ -252,6 +345,8 @@ int main(int argc, char **argv)
 {
     if (argc > 1 && !strcmp(argv[1], "pong"))
         return marie_main(&pong_def, argc - 1, argv + 1, NULL);
+    if (argc > 1 && !strcmp(argv[1], "echo"))
+        return marie_main(&echo_def, argc - 1, argv + 1, NULL);
     marie_log_set_threshold(MARIE_LOG_ERROR);
     /* ddsperf on loopback only, like every LCM socket here (the benchmarks run in a namespace
      * with nothing but lo). */
@@ -263,43 +358,68 @@ int main(int argc, char **argv)
     if (k <= 0)
         return 1;
     self[k] = 0;
-    char *pong_argv[] = {self, "pong", "--url", (char *)url, NULL};
-    pid_t pong = test_spawn(pong_argv, NULL);
-
     static pinger_t pg;
-    char *av[] = {"bench-ping", "--url", (char *)url};
+    /* The spinning echo and the shared-memory channels are set up as a robot's are: by the
+     * system file (the pinging side reads it too, for the channels' transport). */
+    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[1024];
+    snprintf(text, sizeof text, "system: bench-rtt\nlcm_url: \"%s\"\n"
+             "transports:\n"
+             "  RTT_SHM_PING: {kind: shm, max_size: 1000000, slots: 8}\n"
+             "  RTT_SHM_PONG: {kind: shm, max_size: 1000000, slots: 8}\n"
+             "components:\n"
+             "  ping: {exec: /bin/true}\n"
+             "  pong-spin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_SPIN_PING, pong: RTT_SPIN_PONG}}\n"
+             "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n", url, SPIN_US);
+    if (test_write_temp(sys, 5, text) < 0)
+        return 1;
+    char *pong_argv[] = {self, "pong", "--url", (char *)url, NULL};
+    char *spin_argv[] = {self, "echo", "--system", sys, "--name", "pong-spin", NULL};
+    char *shm_argv[] = {self, "echo", "--system", sys, "--name", "pong-shm", NULL};
+    pg.pong = test_spawn(pong_argv, NULL);
+    pg.pong_spin = test_spawn(spin_argv, NULL);
+    pg.pong_shm = test_spawn(shm_argv, NULL);
+
+    char *av[] = {"bench-ping", "--system", sys, "--name", "ping"};
     marie_errors_t e = {0};
-    pg.c = marie_component_create(&ping_def, 3, av, &pg, &e);
+    pg.c = marie_component_create(&ping_def, 5, av, &pg, &e);
     const char *why;
+    int rc = 1;
     if (!pg.c || marie_component_command(pg.c, MARIE_CMD_INIT, &why) < 0 ||
         marie_component_command(pg.c, MARIE_CMD_START, &why) < 0) {
         marie_errors_print(&e, stderr);
-        test_stop(pong);
-        return 1;
+        goto out;
     }
     pg.lcm = lcm_create(RAW_URL);     /* the baseline: a plain liblcm program */
-    if (!pg.lcm || !marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.raw)) {
-        test_stop(pong);
-        return 1;
-    }
-    /* Wait for the echo process: ping until one comes back (5 s at most). */
+    if (!pg.lcm || !marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.raw))
+        goto out;
+    /* Wait for the echo processes: ping each until one comes back (5 s at most). */
     marie_image_t probe = {.width = 1, .height = 1, .size = 1, .format = MARIE_IMAGE_T_FORMAT_GRAY8};
     uint8_t byte = 0;
     probe.data = &byte;
-    int up = 0;
-    for (int i = 0; i < 100 && !up; i++)
-        up = round_trip(&pg, PORTS, &probe, -1 - i, 50) == 0;
-    if (!up) {
-        fprintf(stderr, "bench_rtt: the echo process did not answer\n");
-        test_stop(pong);
-        return 1;
+    static const int echoes[] = {PORTS, SPIN, SHM};
+    for (int k = 0; k < 3; k++) {
+        int path = echoes[k];
+        int up = 0;
+        for (int i = 0; i < 100 && !up; i++)
+            up = round_trip(&pg, path, &probe, -1 - i, 50) == 0;
+        if (!up) {
+            fprintf(stderr, "bench_rtt: the %s echo process did not answer\n",
+                    path == SPIN ? "spinning" : path == SHM ? "shared-memory" : "first");
+            goto out;
+        }
     }
     printf("# bench\tmetric\tvalue (marie ports)\tunit\tbaseline (raw LCM, or ddsperf for _vs_dds)\tratio\n");
     run_size(&pg, "64B", 64, 2000);
     run_size(&pg, "8KB", 8192, 1000);
     run_size(&pg, "900KB", 921600, 200);
+    rc = 0;
+out:
     marie_component_destroy(pg.c);
-    lcm_destroy(pg.lcm);
-    test_stop(pong);
-    return 0;
+    if (pg.lcm)
+        lcm_destroy(pg.lcm);
+    test_stop(pg.pong);
+    test_stop(pg.pong_spin);
+    test_stop(pg.pong_shm);
+    unlink(sys);
+    return rc;
 }

@@ -443,6 +443,8 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
     }
     if (o.clock ? strcmp(o.clock, "sim") == 0 : (c->sys && c->sys->clock == MARIE_CLOCK_SIM))
         marie_loop_set_clock(c->loop, MARIE_CLOCK_SIM);
+    if (c->cfg)
+        marie_loop_set_spin(c->loop, c->cfg->sched.spin_us);
     int rc = marie_comp_bind_params(c, &o, errs);
     if (rc == 0 && marie_comp_fill_params(c) < 0)
         rc = -1;

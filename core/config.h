@@ -90,7 +90,11 @@ typedef struct {
     marie_sched_policy_t policy;    /* OTHER: the normal time-sharing policy */
     int priority;                   /* 1-99 with FIFO and RR, else 0 */
     int *cpus; size_t ncpus;        /* the CPUs it may run on, ascending; none: the manager's */
+    int spin_us;                    /* the component's loop spins this long after work (0: never;
+                                     * applied by the component itself, marie_loop_set_spin) */
 } marie_sched_cfg_t;
+
+#define MARIE_SCHED_MAX_SPIN_US 10000
 
 #define MARIE_SCHED_MAX_CPU 1023    /* the highest CPU number a cpu_set_t holds */
 
@@ -163,7 +167,7 @@ char *marie_component_differences(const marie_system_t *sa, const marie_componen
                                   const marie_system_t *sb, const marie_component_cfg_t *b);
 
 /* ---- sched (core/config_sched.c) ---- */
-/* Reads a `sched:` mapping ({policy, priority, cpus}) into s, which then owns its cpus
+/* Reads a `sched:` mapping ({policy, priority, cpus, spin_us}) into s, which then owns its cpus
  * (marie_sched_cfg_clear). -1 with "file:line:col: ..." in errs; s is then empty. */
 int marie_sched_cfg_read(const marie_node_t *n, marie_sched_cfg_t *s, marie_errors_t *errs);
 void marie_sched_cfg_clear(marie_sched_cfg_t *s);

@@ -1,4 +1,4 @@
-/* config_sched: a component's `sched:` setting (policy, priority, CPUs) read and written as text. */
+/* config_sched: a component's `sched:` setting (policy, priority, CPUs, spinning) read and written as text. */
 #include "core/config.h"
 
 #include <stdio.h>
@@ -57,9 +57,23 @@ static int read_cpus(const marie_node_t *n, marie_sched_cfg_t *s, marie_errors_t
     return 0;
 }
 
+static int read_spin(const marie_node_t *n, marie_sched_cfg_t *s, marie_errors_t *errs)
+{
+    int64_t v;
+    if (marie_node_int(n, &v, errs) < 0)
+        return -1;
+    if (v < 0 || v > MARIE_SCHED_MAX_SPIN_US) {
+        marie_node_error(errs, n, "sched spin_us: expected 0 to %d microseconds, got %lld", MARIE_SCHED_MAX_SPIN_US,
+                         (long long)v);
+        return -1;
+    }
+    s->spin_us = (int)v;
+    return 0;
+}
+
 static int read_all(const marie_node_t *n, marie_sched_cfg_t *s, marie_errors_t *errs)
 {
-    static const char *const keys[] = {"policy", "priority", "cpus", NULL};
+    static const char *const keys[] = {"policy", "priority", "cpus", "spin_us", NULL};
     if (n->kind != MARIE_NODE_MAP) {
         marie_node_error(errs, n, "sched: expected a mapping such as {policy: fifo, priority: 40}");
         return -1;
@@ -67,8 +81,9 @@ static int read_all(const marie_node_t *n, marie_sched_cfg_t *s, marie_errors_t 
     if (marie_node_check_keys(n, keys, "sched", errs) < 0)
         return -1;
     const marie_node_t *pol = marie_node_get(n, "policy"), *pri = marie_node_get(n, "priority"),
-                       *cpus = marie_node_get(n, "cpus");
-    if ((pol && read_policy(pol, s, errs) < 0) || (cpus && read_cpus(cpus, s, errs) < 0))
+                       *cpus = marie_node_get(n, "cpus"), *spin = marie_node_get(n, "spin_us");
+    if ((pol && read_policy(pol, s, errs) < 0) || (cpus && read_cpus(cpus, s, errs) < 0) ||
+        (spin && read_spin(spin, s, errs) < 0))
         return -1;
     bool real_time = s->policy != MARIE_SCHED_OTHER;
     if (!pri) {
@@ -109,7 +124,7 @@ void marie_sched_cfg_clear(marie_sched_cfg_t *s)
 
 bool marie_sched_cfg_any(const marie_sched_cfg_t *s)
 {
-    return s->policy != MARIE_SCHED_OTHER || s->ncpus > 0;
+    return s->policy != MARIE_SCHED_OTHER || s->ncpus > 0 || s->spin_us > 0;
 }
 
 const char *marie_sched_cfg_text(const marie_sched_cfg_t *s, char *out, size_t size)
@@ -123,5 +138,7 @@ const char *marie_sched_cfg_text(const marie_sched_cfg_t *s, char *out, size_t s
         len += (size_t)snprintf(out + len, size - len, " %d", s->priority);
     for (size_t i = 0; i < s->ncpus && len < size; i++)
         len += (size_t)snprintf(out + len, size - len, "%s%d", i ? "," : " cpus ", s->cpus[i]);
+    if (s->spin_us && len < size)
+        snprintf(out + len, size - len, " spin %d us", s->spin_us);
     return out;
 }

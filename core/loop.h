@@ -74,6 +74,15 @@ int64_t marie_loop_mono(const marie_loop_t *loop);
  * from 0 and expire at the first clock message), 1 after it and always on the wall clock. */
 int marie_loop_clock_known(const marie_loop_t *loop);
 
+/* Spinning: for spin_us after a callback ran, a round that would sleep looks at its fds
+ * without sleeping first (poll with no wait, again and again), so an answer that comes within
+ * the window is read without waking a sleeping process: the round trip of a request and its
+ * reply loses the kernel's wake-ups (docs/transport.md, "Spinning"). It costs up to spin_us of
+ * CPU after each burst of work and nothing while idle. 0 (the default) never spins; never on
+ * the simulator's clock. Components take it from `sched: {spin_us: N}` in the system file. */
+void marie_loop_set_spin(marie_loop_t *loop, int64_t spin_us);
+int64_t marie_loop_spin(const marie_loop_t *loop);
+
 /* Run one poll round, waiting at most timeout_ms (-1: until an fd or timer is due).
  * Returns the number of callbacks run, or -errno. EINTR is retried. */
 int marie_loop_run_once(marie_loop_t *loop, int timeout_ms);

@@ -429,6 +429,7 @@ static void sched_is_read_and_checked(void **state)
                      "  b:\n    exec: x\n    sched: {policy: rr, priority: 1}\n"
                      "  c:\n    exec: x\n    sched: {cpus: 0}\n"
                      "  d:\n    exec: x\n"
+                     "  e:\n    exec: x\n    sched: {spin_us: 50}\n"
                      "profiles:\n  sim: {clock: sim}\n";
     marie_system_t *sys = load_text(ok, NULL, &e);
     assert_non_null(sys);
@@ -440,6 +441,9 @@ static void sched_is_read_and_checked(void **state)
     assert_string_equal(marie_sched_cfg_text(&marie_system_component(sys, "b")->sched, text, sizeof text), "rr 1");
     assert_string_equal(marie_sched_cfg_text(&c->sched, text, sizeof text), "other cpus 0");
     assert_false(marie_sched_cfg_any(&marie_system_component(sys, "d")->sched));
+    const marie_component_cfg_t *sp = marie_system_component(sys, "e");
+    assert_int_equal(sp->sched.spin_us, 50);
+    assert_string_equal(marie_sched_cfg_text(&sp->sched, text, sizeof text), "other spin 50 us");
     assert_false(a->sched_sim);
     /* On the simulator's clock the setting is checked but not applied, and the hash says so. */
     marie_system_t *sim = load_text(ok, "sim", &e);
@@ -450,6 +454,7 @@ static void sched_is_read_and_checked(void **state)
     char *diff = marie_component_differences(sys, a, sim, sa);
     assert_string_equal(diff, "sched,clock");
     free(diff);
+    assert_int_equal(marie_system_component(sim, "e")->sched.spin_us, 0);   /* no spinning either */
     marie_system_destroy(sim);
     marie_system_destroy(sys);
 
@@ -467,6 +472,9 @@ static void sched_is_read_and_checked(void **state)
         {"{cpus: [1024]}", ":3:20: sched cpus: CPU 1024 is not 0 to 1023"},
         {"{policy: fifo, priority: 40, nice: 5}", ":3:41: unknown key 'nice' in sched"},
         {"fifo", ":3:12: sched: expected a mapping such as {policy: fifo, priority: 40}"},
+        {"{spin_us: -5}", ":3:22: sched spin_us: expected 0 to 10000 microseconds, got -5"},
+        {"{spin_us: 20000}", ":3:22: sched spin_us: expected 0 to 10000 microseconds, got 20000"},
+        {"{spin_us: fast}", ":3:22: "},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char file[256];

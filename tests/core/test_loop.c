@@ -4,8 +4,11 @@
 #include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
+#include <poll.h>
+#include <pthread.h>
 #include <pty.h>
 #include <string.h>
+#include <time.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -357,6 +360,100 @@ static void device_input_is_read_at_the_newest_clock_sent_before_it(void **state
     marie_loop_destroy(loop);
 }
 
+/* ---- spinning ---- */
+
+static int64_t thread_cpu_us(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return (int64_t)t.tv_sec * 1000000 + t.tv_nsec / 1000;
+}
+
+static void on_byte(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    char c;
+    if (read(fd, &c, 1) == 1)
+        (*(int *)user)++;
+}
+
+/* After work a spinning loop keeps its CPU for the window (so that an answer within it is read
+ * without a wake-up); idle, it sleeps as any loop; on the simulator's clock it never spins. */
+static void spinning_keeps_the_cpu_after_work_only(void **state)
+{
+    for (int sim = 0; sim < 2; sim++) {
+        marie_loop_t *loop = marie_loop_create();
+        if (sim)
+            marie_loop_set_clock(loop, MARIE_CLOCK_SIM);
+        marie_loop_set_spin(loop, 40000);   /* 40 ms: plain to see in CPU time */
+        assert_int_equal(marie_loop_spin(loop), 40000);
+        int p[2], got = 0;
+        assert_int_equal(pipe(p), 0);
+        marie_loop_add_fd(loop, p[0], POLLIN, on_byte, &got);
+        assert_int_equal(write(p[1], "x", 1), 1);
+        assert_int_equal(marie_loop_run_once(loop, 100), 1);
+        /* Nothing comes: 40 ms spinning, then 20 ms asleep. */
+        int64_t cpu = thread_cpu_us(), t0 = marie_mono_us();
+        assert_int_equal(marie_loop_run_once(loop, 60), 0);
+        int64_t spent = thread_cpu_us() - cpu;
+        assert_true(marie_mono_us() - t0 >= 55000);
+        if (sim)
+            assert_true(spent < 4000);
+        else
+            assert_true(spent >= 4000);     /* a tenth of the window, even beside other work */
+        /* Idle since: the next round sleeps. */
+        cpu = thread_cpu_us();
+        assert_int_equal(marie_loop_run_once(loop, 60), 0);
+        assert_true(thread_cpu_us() - cpu < 4000);
+        marie_loop_destroy(loop);
+        close(p[0]);
+        close(p[1]);
+    }
+}
+
+static void *write_later(void *arg)
+{
+    usleep(10000);
+    if (write(*(int *)arg, "y", 1) != 1)
+        return arg;
+    return NULL;
+}
+
+/* The window never holds up what the round waits for: input that comes meanwhile, a timer,
+ * the round's own timeout. */
+static void spinning_keeps_deadlines_and_reads_what_comes(void **state)
+{
+    marie_loop_t *loop = marie_loop_create();
+    marie_loop_set_spin(loop, 300000);      /* 300 ms: longer than any wait below */
+    int p[2], got = 0;
+    assert_int_equal(pipe(p), 0);
+    marie_loop_add_fd(loop, p[0], POLLIN, on_byte, &got);
+    assert_int_equal(write(p[1], "x", 1), 1);
+    assert_int_equal(marie_loop_run_once(loop, 100), 1);
+    /* A byte written 10 ms into the window is read then. */
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, write_later, &p[1]), 0);
+    int64_t t0 = marie_mono_us();
+    assert_int_equal(marie_loop_run_once(loop, 1000), 1);
+    assert_int_equal(got, 2);
+    assert_true(marie_mono_us() - t0 < 200000);
+    pthread_join(th, NULL);
+    /* A timer due in 20 ms fires at its time. */
+    tick_state_t s = {0};
+    marie_loop_add_oneshot(loop, 20000, on_tick, &s);
+    t0 = marie_mono_us();
+    while (!s.fired && marie_mono_us() - t0 < 1000000)
+        marie_loop_run_once(loop, 1000);
+    assert_int_equal(s.fired, 1);
+    assert_true(marie_mono_us() - t0 < 200000);
+    /* The round's own timeout (30 ms) ends the window. */
+    t0 = marie_mono_us();
+    assert_int_equal(marie_loop_run_once(loop, 30), 0);
+    assert_true(marie_mono_us() - t0 < 200000);
+    marie_loop_destroy(loop);
+    close(p[0]);
+    close(p[1]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -373,6 +470,8 @@ int main(void)
         cmocka_unit_test(watched_signals_arrive_from_the_loop),
         cmocka_unit_test(fd_unread_counts_a_pty_write_at_once),
         cmocka_unit_test(device_input_is_read_at_the_newest_clock_sent_before_it),
+        cmocka_unit_test(spinning_keeps_the_cpu_after_work_only),
+        cmocka_unit_test(spinning_keeps_deadlines_and_reads_what_comes),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -355,6 +355,28 @@ static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **sta
     unlink(file);
 }
 
+/* A component's loop spins as `sched: {spin_us}` in its entry says, except on the simulator's
+ * clock. */
+static void a_component_spins_as_its_system_file_says(void **state)
+{
+    char file[] = "/tmp/marie-test-spin-XXXXXX.yaml";
+    assert_int_equal(test_write_temp(file, 5, "system: spin\n"
+                                              "components:\n"
+                                              "  fast: {exec: /bin/true, sched: {spin_us: 150}}\n"
+                                              "  calm: {exec: /bin/true}\n"
+                                              "profiles:\n  sim: {clock: sim}\n"),
+                     0);
+    marie_component_t *fast = make_in(file, &rx_def, "fast", NULL), *calm = make_in(file, &rx_def, "calm", NULL);
+    marie_component_t *sim = started(&rx_def, 7, (char *[]){"rx", "--system", file, "--name", "fast", "--profile", "sim"}, NULL);
+    assert_int_equal(marie_loop_spin(marie_component_loop(fast)), 150);
+    assert_int_equal(marie_loop_spin(marie_component_loop(calm)), 0);
+    assert_int_equal(marie_loop_spin(marie_component_loop(sim)), 0);
+    marie_component_destroy(fast);
+    marie_component_destroy(calm);
+    marie_component_destroy(sim);
+    unlink(file);
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_ERROR);
@@ -363,6 +385,7 @@ int main(void)
         cmocka_unit_test(pull_gets_the_newest_value_or_times_out),
         cmocka_unit_test(async_pull_calls_back_exactly_once),
         cmocka_unit_test(shm_transport_carries_large_messages_and_lcm_sees_notices),
+        cmocka_unit_test(a_component_spins_as_its_system_file_says),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
