@@ -1,13 +1,13 @@
 /* bench_rtt: round trip (ping, wait for the echo, ping again) to an echo process, through marie
  * ports and through the raw LCM C API in the same run, and Cyclone DDS's own ddsperf ping/pong
  * (ROS 2's middleware of Debian 12's generation) measured the same way right after, for 64 B,
- * 8 KB and 900 KB. A third path in the same run reads as ports do but sends with liblcm's
- * lcm_publish on the same bus, both ways: marie's sender against liblcm's, all else equal. Two
- * more go through ports as a system file sets them up, each to an echo process of its own: with
- * both loops spinning (`sched: {spin_us}`, with what it costs in CPU), and on channels the file
- * puts on shared memory (`transports: {kind: shm}`).
- * `bench_rtt pong [--url URL]` and `bench_rtt echo --system FILE --name NAME` are the echo
- * processes. */
+ * 8 KB and 900 KB. Each path has an echo process of its own, as ddsperf's pong is one: marie
+ * ports; ports read by marie and sent by liblcm's lcm_publish on the same bus both ways (marie's
+ * sender against liblcm's, all else equal); ports with both loops spinning (`sched: {spin_us}`,
+ * with what it costs in CPU); ports on channels put on shared memory (`transports: {kind:
+ * shm}`); and a plain liblcm program. The marie echoes are components of a system file, which
+ * sets their channels, spin and transports as a robot's file would.
+ * `bench_rtt echo|echo-lib --system FILE --name NAME` and `bench_rtt echo-raw` are the echoes. */
 #include <poll.h>
 #include <stdio.h>
 #include <time.h>
@@ -23,8 +23,7 @@
  * them) on a port of their own, so neither side's sockets read the other's traffic. */
 #define RAW_URL "udpm://239.255.76.67:7668?ttl=0&recv_buf_size=8388608"
 
-/* ---- the echo process: ports in to out, and RTT_RAW_PING to RTT_RAW_PONG on the raw bus, on
- * the same loop ---- */
+/* ---- the echo processes ---- */
 
 static void echo_port(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
@@ -37,47 +36,48 @@ static void echo_lib(marie_component_t *c, marie_port_t *p, const void *msg, con
     static uint8_t buf[1 << 20];
     int n = marie_image_t_encode(buf, 0, sizeof buf, msg);
     if (n > 0)
-        lcm_publish(marie_component_lcm(c), "RTT_PONG_LIB", buf, (unsigned)n);
+        lcm_publish(marie_component_lcm(c), marie_port_channel(marie_port(c, "pong")), buf, (unsigned)n);
 }
 
-static void echo_raw(const lcm_recv_buf_t *rb, const char *ch, const marie_image_t *m, void *user)
-{
-    marie_image_t_publish(user, "RTT_RAW_PONG", m);
-}
-
-static int pong_init(marie_component_t *c)
-{
-    lcm_t *lcm = lcm_create(RAW_URL);
-    if (!lcm || !marie_image_t_subscribe(lcm, "RTT_RAW_PING", echo_raw, lcm) ||
-        marie_loop_add_lcm(marie_component_loop(c), lcm, 1) < 0)
-        return -1;
-    if (marie_port_on_message(marie_port(c, "ping_lib"), echo_lib) < 0)
-        return -1;
-    return marie_port_on_message(marie_port(c, "ping"), echo_port);
-}
-
-static const marie_port_spec_t pong_ports[] = {
-    {"ping", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PING"},
-    {"pong", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PONG"},
-    {"ping_lib", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PING_LIB"},
-    {0},
-};
-static const marie_component_def_t pong_def = {.kind = "bench-pong", .ports = pong_ports, .on_init = pong_init};
-
-/* The echoes a system file sets up (its channels, spin and transports): ports only. */
 static int echo_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "ping"), echo_port); }
+static int echo_lib_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "ping"), echo_lib); }
 
+/* Channels from the system file. */
 static const marie_port_spec_t echo_ports[] = {
     {"ping", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_ECHO_PING"},
     {"pong", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_ECHO_PONG"},
     {0},
 };
 static const marie_component_def_t echo_def = {.kind = "bench-echo", .ports = echo_ports, .on_init = echo_init};
+static const marie_component_def_t echo_lib_def = {.kind = "bench-echo-lib", .ports = echo_ports,
+                                                   .on_init = echo_lib_init};
+
+/* The raw baseline's echo: a plain liblcm program. */
+static void echo_raw(const lcm_recv_buf_t *rb, const char *ch, const marie_image_t *m, void *user)
+{
+    marie_image_t_publish(user, "RTT_RAW_PONG", m);
+}
+
+static int raw_echo_main(void)
+{
+    lcm_t *lcm = lcm_create(RAW_URL);
+    if (!lcm || !marie_image_t_subscribe(lcm, "RTT_RAW_PING", echo_raw, lcm))
+        return 1;
+    for (;;)
+        lcm_handle(lcm);
+}
 
 /* How long both spinning loops spin after work: longer than a 64 B or 8 KB round trip under load. */
 #define SPIN_US 200
 
 /* ---- the pinging side ---- */
+
+/* The paths, each to an echo of its own; PORTS is the row's value, RAW its baseline. */
+enum { PORTS, LIB_SEND, RAW, SPIN, SHM, NPATHS };
+static const char *const echo_names[NPATHS] = {"pong", "pong-lib", NULL, "pong-spin", "pong-shm"};
+/* The pinging component's ports of each path (LIB_SEND sends with liblcm on ping_lib's channel). */
+static const char *const ping_port[NPATHS] = {"ping", "ping_lib", NULL, "spin_ping", "shm_ping"};
+static const char *const pong_port[NPATHS] = {"pong", "pong_lib", NULL, "spin_pong", "shm_pong"};
 
 typedef struct {
     int64_t lat[4000];
@@ -88,11 +88,10 @@ typedef struct {
 
 typedef struct {
     marie_component_t *c;
-    lcm_t *lcm;
-    rtt_t marie, lib, raw;  /* ports; ports read, liblcm sends; raw liblcm */
-    rtt_t spin, shm;        /* ports, both loops spinning; ports on shared memory */
-    pid_t pong, pong_spin, pong_shm;    /* the echo processes */
-    int64_t cpu_ns[2];      /* CPU of both sides in the ports and the spin blocks */
+    lcm_t *lcm;             /* the raw path's: a plain liblcm instance */
+    rtt_t path[NPATHS];
+    pid_t echo[NPATHS];
+    int64_t cpu_ns[NPATHS]; /* CPU of both sides' main threads in the path's blocks */
 } pinger_t;
 
 static void got(rtt_t *r, const marie_image_t *m)
@@ -106,7 +105,10 @@ static void got(rtt_t *r, const marie_image_t *m)
 
 static void on_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
-    got(&((pinger_t *)marie_component_user(c))->marie, msg);
+    pinger_t *pg = marie_component_user(c);
+    for (int k = 0; k < NPATHS; k++)
+        if (pong_port[k] && marie_port(c, pong_port[k]) == p)
+            got(&pg->path[k], msg);
 }
 
 static void on_raw_pong(const lcm_recv_buf_t *rb, const char *ch, const marie_image_t *m, void *user)
@@ -114,33 +116,18 @@ static void on_raw_pong(const lcm_recv_buf_t *rb, const char *ch, const marie_im
     got(user, m);
 }
 
-static void on_pong_lib(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
-{
-    got(&((pinger_t *)marie_component_user(c))->lib, msg);
-}
-
-static void on_spin_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
-{
-    got(&((pinger_t *)marie_component_user(c))->spin, msg);
-}
-
-static void on_shm_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
-{
-    got(&((pinger_t *)marie_component_user(c))->shm, msg);
-}
-
 static int ping_init(marie_component_t *c)
 {
-    if (marie_port_on_message(marie_port(c, "pong_lib"), on_pong_lib) < 0 ||
-        marie_port_on_message(marie_port(c, "spin_pong"), on_spin_pong) < 0 ||
-        marie_port_on_message(marie_port(c, "shm_pong"), on_shm_pong) < 0)
-        return -1;
-    return marie_port_on_message(marie_port(c, "pong"), on_pong);
+    for (int k = 0; k < NPATHS; k++)
+        if (pong_port[k] && marie_port_on_message(marie_port(c, pong_port[k]), on_pong) < 0)
+            return -1;
+    return 0;
 }
 
 static const marie_port_spec_t ping_ports[] = {
     {"ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PING"},
     {"pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG"},
+    {"ping_lib", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_PING_LIB"},
     {"pong_lib", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_PONG_LIB"},
     {"spin_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_SPIN_PING"},
     {"spin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_SPIN_PONG"},
@@ -149,8 +136,6 @@ static const marie_port_spec_t ping_ports[] = {
     {0},
 };
 static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
-
-enum { PORTS, LIB_SEND, RAW, SPIN, SHM };
 
 /* CPU time a process's main thread has had, in ns (the scheduler's own count, to the ns). */
 static int64_t thread_cpu_ns(pid_t pid)
@@ -178,26 +163,24 @@ static int64_t self_cpu_ns(void)
  * plain LCM program does (poll the fd, lcm_handle); marie's on its loop. */
 static int round_trip(pinger_t *pg, int path, marie_image_t *img, int32_t seq, int timeout_ms)
 {
-    int use_marie = path != RAW;
-    rtt_t *const paths[] = {&pg->marie, &pg->lib, &pg->raw, &pg->spin, &pg->shm};
-    rtt_t *r = paths[path];
-    static const char *const ports[] = {"ping", NULL, NULL, "spin_ping", "shm_ping"};
+    rtt_t *r = &pg->path[path];
     r->want = seq;
     r->back = 0;
     img->row_stride = seq;
     img->utime = marie_mono_us();
-    if (ports[path]) {
-        marie_port_publish(marie_port(pg->c, ports[path]), img);
+    if (path == RAW) {
+        marie_image_t_publish(pg->lcm, "RTT_RAW_PING", img);
     } else if (path == LIB_SEND) {
         static uint8_t buf[1 << 20];
         int n = marie_image_t_encode(buf, 0, sizeof buf, img);
-        lcm_publish(marie_component_lcm(pg->c), "RTT_PING_LIB", buf, (unsigned)n);
+        lcm_publish(marie_component_lcm(pg->c), marie_port_channel(marie_port(pg->c, "ping_lib")), buf,
+                    (unsigned)n);
     } else {
-        marie_image_t_publish(pg->lcm, "RTT_RAW_PING", img);
+        marie_port_publish(marie_port(pg->c, ping_port[path]), img);
     }
     int64_t end = img->utime + timeout_ms * 1000;
     while (!r->back && marie_mono_us() < end) {
-        if (use_marie) {
+        if (path != RAW) {
             marie_loop_run_once(marie_component_loop(pg->c), 5);
         } else {
             struct pollfd p = {lcm_get_fileno(pg->lcm), POLLIN, 0};
@@ -264,121 +247,114 @@ static int dds_round_trip(size_t size, int seconds, dds_t *out)
     return n ? 0 : -1;
 }
 
-/* n round trips on one path; for the ports and the spin paths, the CPU both sides took. */
+/* n round trips on one path; the CPU both sides' main threads took meanwhile. */
 static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n)
 {
     int lost = 0;
-    pid_t echo = path == SPIN ? pg->pong_spin : path == SHM ? pg->pong_shm : pg->pong;
-    int64_t cpu = self_cpu_ns() + thread_cpu_ns(echo);
+    int64_t cpu = self_cpu_ns() + thread_cpu_ns(pg->echo[path]);
     marie_loop_set_spin(marie_component_loop(pg->c), path == SPIN ? SPIN_US : 0);
     for (int i = 0; i < n; i++)
-        lost -= round_trip(pg, path, img, (*seq)++, 200);
+        lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
     marie_loop_set_spin(marie_component_loop(pg->c), 0);
-    if (path == PORTS || path == SPIN)
-        pg->cpu_ns[path == SPIN] += self_cpu_ns() + thread_cpu_ns(echo) - cpu;
+    pg->cpu_ns[path] += self_cpu_ns() + thread_cpu_ns(pg->echo[path]) - cpu;
     return lost;
 }
+
+static double pct(const rtt_t *r, double p) { return bench_percentile((int64_t *)r->lat, r->n, p); }
 
 static void run_size(pinger_t *pg, const char *label, size_t size, int n)
 {
     marie_image_t img = {.width = 1, .height = (int32_t)size, .size = (int32_t)size,
                          .format = MARIE_IMAGE_T_FORMAT_GRAY8};
     img.data = calloc(1, size);
-    int lost_m = 0, lost_l = 0, lost_r = 0, lost_s = 0, lost_h = 0;
+    int lost[NPATHS];
     for (int pass = 0; pass < 2; pass++) {  /* the first pass warms caches and sockets */
-        pg->marie.n = pg->lib.n = pg->raw.n = pg->spin.n = pg->shm.n = 0;
-        pg->cpu_ns[0] = pg->cpu_ns[1] = 0;
-        lost_m = lost_l = lost_r = lost_s = lost_h = 0;
+        for (int k = 0; k < NPATHS; k++)
+            pg->path[k].n = lost[k] = pg->cpu_ns[k] = 0;
         int32_t seq = 1000000 * (pass + 1);
-        /* Interleaved, so that drift hits all alike; the two senders take turns going first (a
-         * block's first round trips, after another path's, are slower: p99 follows the order). */
-        for (int blk = 0; blk < 10; blk++) {
-            for (int turn = 0; turn < 2; turn++) {
-                if ((blk + turn) % 2 == 0)
-                    lost_m += block(pg, PORTS, &img, &seq, n / 10);
-                else
-                    lost_l += block(pg, LIB_SEND, &img, &seq, n / 10);
+        /* Interleaved in blocks of a tenth, so that drift hits all alike, each block starting
+         * with the next path (a block's first round trips, after another path's, are slower:
+         * with a fixed order the p99s followed the order, not the path). */
+        for (int blk = 0; blk < 10; blk++)
+            for (int k = 0; k < NPATHS; k++) {
+                int path = (blk + k) % NPATHS;
+                lost[path] += block(pg, path, &img, &seq, n / 10);
             }
-            lost_r += block(pg, RAW, &img, &seq, n / 10);
-            lost_s += block(pg, SPIN, &img, &seq, n / 10);
-            lost_h += block(pg, SHM, &img, &seq, n / 10);
-        }
     }
     free(img.data);
-    double m50 = bench_percentile(pg->marie.lat, pg->marie.n, 0.5);
-    double m99 = bench_percentile(pg->marie.lat, pg->marie.n, 0.99);
-    row("p50", label, m50, "us", bench_percentile(pg->raw.lat, pg->raw.n, 0.5));
-    row("p99", label, m99, "us", bench_percentile(pg->raw.lat, pg->raw.n, 0.99));
-    row("lost", label, lost_m, "msgs", lost_r);
-    row("p50_vs_liblcm_send", label, m50, "us", bench_percentile(pg->lib.lat, pg->lib.n, 0.5));
-    row("p99_vs_liblcm_send", label, m99, "us", bench_percentile(pg->lib.lat, pg->lib.n, 0.99));
-    row("lost_liblcm_send", label, lost_l, "msgs", NAN);
-    double s50 = bench_percentile(pg->spin.lat, pg->spin.n, 0.5);
-    double s99 = bench_percentile(pg->spin.lat, pg->spin.n, 0.99);
-    row("p50_spin", label, s50, "us", m50);
-    row("p99_spin", label, s99, "us", m99);
-    row("lost_spin", label, lost_s, "msgs", NAN);
-    double h50 = bench_percentile(pg->shm.lat, pg->shm.n, 0.5);
-    double h99 = bench_percentile(pg->shm.lat, pg->shm.n, 0.99);
-    row("p50_shm", label, h50, "us", m50);
-    row("p99_shm", label, h99, "us", m99);
-    row("lost_shm", label, lost_h, "msgs", NAN);
+    const rtt_t *m = &pg->path[PORTS], *raw = &pg->path[RAW], *lib = &pg->path[LIB_SEND];
+    const rtt_t *spin = &pg->path[SPIN], *shm = &pg->path[SHM];
+    row("p50", label, pct(m, 0.5), "us", pct(raw, 0.5));
+    row("p99", label, pct(m, 0.99), "us", pct(raw, 0.99));
+    row("lost", label, lost[PORTS], "msgs", lost[RAW]);
+    row("p50_vs_liblcm_send", label, pct(m, 0.5), "us", pct(lib, 0.5));
+    row("p99_vs_liblcm_send", label, pct(m, 0.99), "us", pct(lib, 0.99));
+    row("lost_liblcm_send", label, lost[LIB_SEND], "msgs", NAN);
+    row("p50_spin", label, pct(spin, 0.5), "us", pct(m, 0.5));
+    row("p99_spin", label, pct(spin, 0.99), "us", pct(m, 0.99));
+    row("lost_spin", label, lost[SPIN], "msgs", NAN);
     /* What a round trip costs both sides in CPU, spinning against not (baseline). */
-    row("cpu_per_rtt_spin", label, pg->spin.n ? pg->cpu_ns[1] / 1000.0 / pg->spin.n : NAN, "us",
-        pg->marie.n ? pg->cpu_ns[0] / 1000.0 / pg->marie.n : NAN);
+    row("cpu_per_rtt_spin", label, spin->n ? pg->cpu_ns[SPIN] / 1000.0 / spin->n : NAN, "us",
+        m->n ? pg->cpu_ns[PORTS] / 1000.0 / m->n : NAN);
+    row("p50_shm", label, pct(shm, 0.5), "us", pct(m, 0.5));
+    row("p99_shm", label, pct(shm, 0.99), "us", pct(m, 0.99));
+    row("lost_shm", label, lost[SHM], "msgs", NAN);
     dds_t d;
     if (dds_round_trip(size, 3, &d) < 0) {
         printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
                "cyclonedds-tools)\n", label);
         return;
     }
-    row("p50_vs_dds", label, m50, "us", d.p50);
-    row("p99_vs_dds", label, m99, "us", d.p99);
-    row("p50_spin_vs_dds", label, s50, "us", d.p50);
-    row("p99_spin_vs_dds", label, s99, "us", d.p99);
-    row("p50_shm_vs_dds", label, h50, "us", d.p50);
-    row("p99_shm_vs_dds", label, h99, "us", d.p99);
+    row("p50_vs_dds", label, pct(m, 0.5), "us", d.p50);
+    row("p99_vs_dds", label, pct(m, 0.99), "us", d.p99);
+    row("p50_spin_vs_dds", label, pct(spin, 0.5), "us", d.p50);
+    row("p99_spin_vs_dds", label, pct(spin, 0.99), "us", d.p99);
+    row("p50_shm_vs_dds", label, pct(shm, 0.5), "us", d.p50);
+    row("p99_shm_vs_dds", label, pct(shm, 0.99), "us", d.p99);
     fprintf(stderr, "bench_rtt: ddsperf %s: %ld round trips\n", label, d.count);
 }
 
 int main(int argc, char **argv)
 {
-    if (argc > 1 && !strcmp(argv[1], "pong"))
-        return marie_main(&pong_def, argc - 1, argv + 1, NULL);
     if (argc > 1 && !strcmp(argv[1], "echo"))
         return marie_main(&echo_def, argc - 1, argv + 1, NULL);
+    if (argc > 1 && !strcmp(argv[1], "echo-lib"))
+        return marie_main(&echo_lib_def, argc - 1, argv + 1, NULL);
+    if (argc > 1 && !strcmp(argv[1], "echo-raw"))
+        return raw_echo_main();
     marie_log_set_threshold(MARIE_LOG_ERROR);
     /* ddsperf on loopback only, like every LCM socket here (the benchmarks run in a namespace
      * with nothing but lo). */
     setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/>"
            "</Interfaces></General></Domain></CycloneDDS>", 1);
-    const char *url = marie_default_url();
     char self[512];
     ssize_t k = readlink("/proc/self/exe", self, sizeof self - 1);
     if (k <= 0)
         return 1;
     self[k] = 0;
-    static pinger_t pg;
-    /* The spinning echo and the shared-memory channels are set up as a robot's are: by the
-     * system file (the pinging side reads it too, for the channels' transport). */
-    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[1024];
+    /* The echoes and the pinging side are components of one system file (channels, spin,
+     * transports), as a robot's are. */
+    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[1536];
     snprintf(text, sizeof text, "system: bench-rtt\nlcm_url: \"%s\"\n"
              "transports:\n"
              "  RTT_SHM_PING: {kind: shm, max_size: 1000000, slots: 8}\n"
              "  RTT_SHM_PONG: {kind: shm, max_size: 1000000, slots: 8}\n"
              "components:\n"
              "  ping: {exec: /bin/true}\n"
+             "  pong: {exec: /bin/true, ports: {ping: RTT_PING, pong: RTT_PONG}}\n"
+             "  pong-lib: {exec: /bin/true, ports: {ping: RTT_PING_LIB, pong: RTT_PONG_LIB}}\n"
              "  pong-spin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_SPIN_PING, pong: RTT_SPIN_PONG}}\n"
-             "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n", url, SPIN_US);
+             "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n",
+             marie_default_url(), SPIN_US);
     if (test_write_temp(sys, 5, text) < 0)
         return 1;
-    char *pong_argv[] = {self, "pong", "--url", (char *)url, NULL};
-    char *spin_argv[] = {self, "echo", "--system", sys, "--name", "pong-spin", NULL};
-    char *shm_argv[] = {self, "echo", "--system", sys, "--name", "pong-shm", NULL};
-    pg.pong = test_spawn(pong_argv, NULL);
-    pg.pong_spin = test_spawn(spin_argv, NULL);
-    pg.pong_shm = test_spawn(shm_argv, NULL);
-
+    static pinger_t pg;
+    for (int p = 0; p < NPATHS; p++) {
+        char *argv_echo[] = {self, p == LIB_SEND ? "echo-lib" : "echo", "--system", sys, "--name",
+                             (char *)echo_names[p], NULL};
+        char *argv_raw[] = {self, "echo-raw", NULL};
+        pg.echo[p] = test_spawn(p == RAW ? argv_raw : argv_echo, NULL);
+    }
     char *av[] = {"bench-ping", "--system", sys, "--name", "ping"};
     marie_errors_t e = {0};
     pg.c = marie_component_create(&ping_def, 5, av, &pg, &e);
@@ -390,21 +366,18 @@ int main(int argc, char **argv)
         goto out;
     }
     pg.lcm = lcm_create(RAW_URL);     /* the baseline: a plain liblcm program */
-    if (!pg.lcm || !marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.raw))
+    if (!pg.lcm || !marie_image_t_subscribe(pg.lcm, "RTT_RAW_PONG", on_raw_pong, &pg.path[RAW]))
         goto out;
     /* Wait for the echo processes: ping each until one comes back (5 s at most). */
     marie_image_t probe = {.width = 1, .height = 1, .size = 1, .format = MARIE_IMAGE_T_FORMAT_GRAY8};
     uint8_t byte = 0;
     probe.data = &byte;
-    static const int echoes[] = {PORTS, SPIN, SHM};
-    for (int k = 0; k < 3; k++) {
-        int path = echoes[k];
+    for (int p = 0; p < NPATHS; p++) {
         int up = 0;
         for (int i = 0; i < 100 && !up; i++)
-            up = round_trip(&pg, path, &probe, -1 - i, 50) == 0;
+            up = round_trip(&pg, p, &probe, -1 - i, 50) == 0;
         if (!up) {
-            fprintf(stderr, "bench_rtt: the %s echo process did not answer\n",
-                    path == SPIN ? "spinning" : path == SHM ? "shared-memory" : "first");
+            fprintf(stderr, "bench_rtt: the echo %s did not answer\n", echo_names[p] ? echo_names[p] : "raw");
             goto out;
         }
     }
@@ -417,9 +390,8 @@ out:
     marie_component_destroy(pg.c);
     if (pg.lcm)
         lcm_destroy(pg.lcm);
-    test_stop(pg.pong);
-    test_stop(pg.pong_spin);
-    test_stop(pg.pong_shm);
+    for (int p = 0; p < NPATHS; p++)
+        test_stop(pg.echo[p]);
     unlink(sys);
     return rc;
 }
