@@ -10,9 +10,9 @@
  * `bench_rtt echo|echo-lib --system FILE --name NAME` and `bench_rtt echo-raw` are the echoes. */
 #include <poll.h>
 #include <stdio.h>
-#include <time.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "bench/bench.h"
@@ -260,7 +260,7 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
     return lost;
 }
 
-static double pct(const rtt_t *r, double p) { return bench_percentile((int64_t *)r->lat, r->n, p); }
+static double pct(rtt_t *r, double p) { return bench_percentile(r->lat, r->n, p); }    /* sorts r's samples */
 
 static void run_size(pinger_t *pg, const char *label, size_t size, int n)
 {
@@ -269,8 +269,10 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     img.data = calloc(1, size);
     int lost[NPATHS];
     for (int pass = 0; pass < 2; pass++) {  /* the first pass warms caches and sockets */
-        for (int k = 0; k < NPATHS; k++)
-            pg->path[k].n = lost[k] = pg->cpu_ns[k] = 0;
+        for (int k = 0; k < NPATHS; k++) {
+            pg->path[k].n = lost[k] = 0;
+            pg->cpu_ns[k] = 0;
+        }
         int32_t seq = 1000000 * (pass + 1);
         /* Interleaved in blocks of a tenth, so that drift hits all alike, each block starting
          * with the next path (a block's first round trips, after another path's, are slower:
@@ -282,8 +284,8 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
             }
     }
     free(img.data);
-    const rtt_t *m = &pg->path[PORTS], *raw = &pg->path[RAW], *lib = &pg->path[LIB_SEND];
-    const rtt_t *spin = &pg->path[SPIN], *shm = &pg->path[SHM];
+    rtt_t *m = &pg->path[PORTS], *raw = &pg->path[RAW], *lib = &pg->path[LIB_SEND];
+    rtt_t *spin = &pg->path[SPIN], *shm = &pg->path[SHM];
     row("p50", label, pct(m, 0.5), "us", pct(raw, 0.5));
     row("p99", label, pct(m, 0.99), "us", pct(raw, 0.99));
     row("lost", label, lost[PORTS], "msgs", lost[RAW]);
