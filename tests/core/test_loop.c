@@ -378,19 +378,27 @@ static void on_byte(marie_loop_t *loop, int fd, short revents, void *user)
 
 /* After work a spinning loop keeps its CPU for the window (so that an answer within it is read
  * without a wake-up); idle, it sleeps as any loop; on the simulator's clock it never spins. */
+/* A loop spinning spin_us on the given clock, watching pipe p (a byte read counts in *got),
+ * right after a piece of work: one byte read. */
+static marie_loop_t *spinning_after_work(int64_t spin_us, marie_clock_kind_t clock, int p[2], int *got)
+{
+    marie_loop_t *loop = marie_loop_create();
+    marie_loop_set_clock(loop, clock);
+    marie_loop_set_spin(loop, spin_us);
+    assert_int_equal(marie_loop_spin(loop), spin_us);
+    assert_int_equal(pipe(p), 0);
+    marie_loop_add_fd(loop, p[0], POLLIN, on_byte, got);
+    assert_int_equal(write(p[1], "x", 1), 1);
+    assert_int_equal(marie_loop_run_once(loop, 100), 1);
+    return loop;
+}
+
 static void spinning_keeps_the_cpu_after_work_only(void **state)
 {
     for (int sim = 0; sim < 2; sim++) {
-        marie_loop_t *loop = marie_loop_create();
-        if (sim)
-            marie_loop_set_clock(loop, MARIE_CLOCK_SIM);
-        marie_loop_set_spin(loop, 40000);   /* 40 ms: plain to see in CPU time */
-        assert_int_equal(marie_loop_spin(loop), 40000);
         int p[2], got = 0;
-        assert_int_equal(pipe(p), 0);
-        marie_loop_add_fd(loop, p[0], POLLIN, on_byte, &got);
-        assert_int_equal(write(p[1], "x", 1), 1);
-        assert_int_equal(marie_loop_run_once(loop, 100), 1);
+        /* 40 ms: plain to see in CPU time */
+        marie_loop_t *loop = spinning_after_work(40000, sim ? MARIE_CLOCK_SIM : MARIE_CLOCK_WALL, p, &got);
         /* Nothing comes: 40 ms spinning, then 20 ms asleep. */
         int64_t cpu = thread_cpu_us(), t0 = marie_mono_us();
         assert_int_equal(marie_loop_run_once(loop, 60), 0);
@@ -422,13 +430,9 @@ static void *write_later(void *arg)
  * the round's own timeout. */
 static void spinning_keeps_deadlines_and_reads_what_comes(void **state)
 {
-    marie_loop_t *loop = marie_loop_create();
-    marie_loop_set_spin(loop, 300000);      /* 300 ms: longer than any wait below */
     int p[2], got = 0;
-    assert_int_equal(pipe(p), 0);
-    marie_loop_add_fd(loop, p[0], POLLIN, on_byte, &got);
-    assert_int_equal(write(p[1], "x", 1), 1);
-    assert_int_equal(marie_loop_run_once(loop, 100), 1);
+    /* 300 ms: longer than any wait below */
+    marie_loop_t *loop = spinning_after_work(300000, MARIE_CLOCK_WALL, p, &got);
     /* A byte written 10 ms into the window is read then. */
     pthread_t th;
     assert_int_equal(pthread_create(&th, NULL, write_later, &p[1]), 0);
