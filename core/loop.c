@@ -383,13 +383,14 @@ int64_t marie_loop_spin(const marie_loop_t *loop) { return loop->spin_us; }
 /* Within spin_us of the last callback, look at the fds without sleeping until one is ready or
  * the window (or the round's wait) ends: a reply that comes back within it is read without the
  * wake-up of a sleeping process. Returns poll()'s result (0: nothing came, sleep in poll) or 0
- * when not spinning. Never on the simulator's clock (simulated time needs no CPU on time). */
-static int spin(marie_loop_t *loop, size_t n, int timeout_ms)
+ * when not spinning; *timeout_ms loses the time spun. Never on the simulator's clock (simulated
+ * time needs no CPU on time). */
+static int spin(marie_loop_t *loop, size_t n, int *timeout_ms)
 {
-    if (!loop->spin_us || loop->clock == MARIE_CLOCK_SIM || timeout_ms == 0)
+    if (!loop->spin_us || loop->clock == MARIE_CLOCK_SIM || *timeout_ms == 0)
         return 0;
-    int64_t now = marie_mono_us(), until = loop->last_active + loop->spin_us;
-    int wait_ms = next_timeout_ms(loop, timeout_ms);
+    int64_t start = marie_mono_us(), now = start, until = loop->last_active + loop->spin_us;
+    int wait_ms = next_timeout_ms(loop, *timeout_ms);
     if (wait_ms == 0)
         return 0;
     if (wait_ms > 0 && now + (int64_t)wait_ms * 1000 < until)
@@ -400,6 +401,10 @@ static int spin(marie_loop_t *loop, size_t n, int timeout_ms)
          * likes to wake it beside its waker) runs now instead of after the window. */
         sched_yield();
         now = marie_mono_us();
+    }
+    if (*timeout_ms > 0) {
+        int spent_ms = (int)((now - start) / 1000);
+        *timeout_ms = spent_ms < *timeout_ms ? *timeout_ms - spent_ms : 0;
     }
     return rc;
 }
@@ -421,7 +426,7 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
     size_t n = loop->nfds;
     for (size_t i = 0; i < n; i++)
         loop->pfds[i] = (struct pollfd){loop->fds[i].fd, loop->fds[i].events, 0};
-    int rc = spin(loop, n, timeout_ms);
+    int rc = spin(loop, n, &timeout_ms);
     if (rc == 0)
         do {
             rc = poll(loop->pfds, n, next_timeout_ms(loop, timeout_ms));
