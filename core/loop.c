@@ -387,7 +387,7 @@ int64_t marie_loop_spin(const marie_loop_t *loop) { return loop->spin_us; }
  * time needs no CPU on time). */
 static int spin(marie_loop_t *loop, size_t n, int *timeout_ms)
 {
-    if (!loop->spin_us || loop->clock == MARIE_CLOCK_SIM || *timeout_ms == 0)
+    if (!loop->spin_us || loop->clock == MARIE_CLOCK_SIM)
         return 0;
     int64_t start = marie_mono_us(), now = start, until = loop->last_active + loop->spin_us;
     int wait_ms = next_timeout_ms(loop, *timeout_ms);

@@ -203,6 +203,18 @@ static int clearances(const explore_params_t *p, double r[2])
     return p->escape_radius > 0 && p->escape_radius < p->robot_radius ? 2 : 1;
 }
 
+/* reach() at a clearance, the passable cells made for it: 0, -1 when the robot stands on
+ * nothing passable, -ENOMEM. */
+static int reach_at(const occmap_t *m, double radius, double rx, double ry, int *dist, int *parent)
+{
+    unsigned char *ok = passable(m, radius);
+    if (!ok)
+        return -ENOMEM;
+    int rc = reach(m, ok, rx, ry, radius, dist, parent) < 0 ? -1 : 0;
+    free(ok);
+    return rc;
+}
+
 int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, double ry, const double *blacklist,
                       int nblack, explore_frontier_t *out, int max)
 {
@@ -218,18 +230,16 @@ int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, d
     }
     double radii[2];
     int tries = clearances(p, radii);
-    for (int t = 0; t < tries; t++) {
-        unsigned char *ok = passable(m, radii[t]);
-        if (!ok) {
+    found = 0;
+    for (int t = 0; t < tries && found == 0; t++) {
+        int rc = reach_at(m, radii[t], rx, ry, dist, parent);
+        if (rc == -ENOMEM) {
             errno = ENOMEM;
             found = -1;
-            goto out;
-        }
-        /* reach() < 0: the robot stands on nothing passable, nothing it can reach */
-        found = reach(m, ok, rx, ry, radii[t], dist, parent) < 0 ? 0 : cluster(m, p, dist, blacklist, nblack, out, max);
-        free(ok);
-        if (found != 0)
             break;
+        }
+        /* the robot on nothing passable: nothing it can reach */
+        found = rc < 0 ? 0 : cluster(m, p, dist, blacklist, nblack, out, max);
     }
 out:
     free(dist);
@@ -257,13 +267,12 @@ int explore_path(const occmap_t *m, const explore_params_t *p, double rx, double
     double radii[2];
     int tries = clearances(p, radii), reached = 0;
     for (int t = 0; t < tries && !reached; t++) {
-        unsigned char *ok = passable(m, radii[t]);
-        if (!ok) {
+        int rc = reach_at(m, radii[t], rx, ry, dist, parent);
+        if (rc == -ENOMEM) {
             errno = ENOMEM;
             goto out;
         }
-        reached = reach(m, ok, rx, ry, radii[t], dist, parent) >= 0 && dist[(size_t)gcy * m->width + gcx] >= 0;
-        free(ok);
+        reached = rc == 0 && dist[(size_t)gcy * m->width + gcx] >= 0;
     }
     if (!reached) {
         errno = ENOENT;

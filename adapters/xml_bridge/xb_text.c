@@ -262,14 +262,13 @@ void xb_format_real(marie_prim_t prim, double v, char *buf, size_t size)
     }
     if (prim == MARIE_PRIM_FLOAT) {
         float f = (float)v;
-        for (int prec = 6; prec <= 9; prec++) {
+        for (int prec = 6;; prec++) {
             snprintf(buf, size, "%.*g", prec, (double)f);
             if (prec == 9 || strtof(buf, NULL) == f)    /* 9 digits always read back */
                 return;
         }
-        return;
     }
-    for (int prec = first; prec <= 17; prec++) {
+    for (int prec = first;; prec++) {
         snprintf(buf, size, "%.*g", prec, v);
         if (prec == 17 || strtod(buf, NULL) == v)       /* 17 digits always read back */
             return;

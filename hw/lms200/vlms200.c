@@ -166,16 +166,14 @@ const vlms200_stats_t *vlms200_stats(const vlms200_t *v) { return &v->st; }
 
 /* What the host has not read: the slave's queue (the kernel's too, see marie_fd_unread) and the
  * bytes still held here because the line was full. */
-int vlms200_unread(const vlms200_t *v)
-{
-    if (v->slave < 0)
-        return 0;
-    return marie_fd_unread(v->slave) + (int)v->out_len;
-}
-
 int vlms200_host_unread(const vlms200_t *v)
 {
     return v->slave < 0 ? 0 : marie_fd_unread(v->slave);
+}
+
+int vlms200_unread(const vlms200_t *v)
+{
+    return v->slave < 0 ? 0 : vlms200_host_unread(v) + (int)v->out_len;
 }
 
 short vlms200_events(const vlms200_t *v)
