@@ -184,6 +184,13 @@ const char *marie_port_name(const marie_port_t *p);
 /* Encode with the port's type and publish. 0, or -errno (counted as a drop). */
 int marie_port_publish(marie_port_t *p, const void *msg);
 int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len);
+/* A loan, so that a large message is never copied: on a port whose channel the system file puts
+ * on shared memory and whose type ends in a byte array after fixed-size fields (image_t's data),
+ * room for n bytes of that array straight in the ring. Make the bytes there, point the
+ * message's array at the loan (its length at most n), and marie_port_publish() encodes only the
+ * fields before it. Valid until the port's next publish, which a loan does not outlive. NULL with
+ * errno ENOTSUP (another transport or type shape) or EMSGSIZE (past the transport's max_size). */
+void *marie_port_loan(marie_port_t *p, size_t n);
 /* Input handler for a push or event port: gets the decoded message (NULL msg for raw
  * ports: use info->raw). Payloads with the wrong fingerprint or that fail to decode are
  * counted as bad input and dropped. */

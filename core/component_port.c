@@ -213,9 +213,20 @@ marie_port_t *marie_port(marie_component_t *c, const char *name)
 const char *marie_port_channel(const marie_port_t *p) { return p->channel; }
 const char *marie_port_name(const marie_port_t *p) { return p->spec->name; }
 
+static bool grow_buf(marie_port_t *p, size_t size)
+{
+    uint8_t *n = realloc(p->buf, size);
+    if (!n)
+        return false;
+    p->buf = n;
+    p->bufcap = size;
+    return true;
+}
+
 /* Counts a publication on p: done, or failed with errno err (a drop). 0 or -err. */
 static int published(marie_port_t *p, int err, size_t len)
 {
+    p->loan = NULL;             /* taken up by this publish, whatever it was */
     if (err) {
         p->c->drops++;
         marie_component_count(p->c, err == EMSGSIZE ? "publish_too_big" : "publish_failed", 1);
@@ -229,6 +240,40 @@ static int published(marie_port_t *p, int err, size_t len)
     p->c->msgs_out++;
     p->msgs++;
     return 0;
+}
+
+void *marie_port_loan(marie_port_t *p, size_t n)
+{
+    const marie_type_t *t = p->spec->type;
+    if (!p->shm_pub || !t || marie_typeinfo_tail(marie_typeinfo_by_fingerprint(t->hash()), &p->tail) < 0)
+        return marie_fail_null(ENOTSUP);
+    if (n > INT32_MAX || p->tail.wire_off + n > p->shm->max_size)
+        return marie_fail_null(EMSGSIZE);
+    p->loan = (uint8_t *)marie_shm_pub_loan(p->shm_pub) + p->tail.wire_off;
+    p->loan_cap = n;
+    return p->loan;
+}
+
+/* msg's array is the loan, its bytes already in the ring: only the fields before them are
+ * encoded, in front of them (a copy of msg with an empty array, then its length patched in). */
+static int publish_loaned(marie_port_t *p, const void *msg)
+{
+    const marie_type_t *t = p->spec->type;
+    const marie_tail_t *tl = &p->tail;
+    int32_t n;
+    memcpy(&n, (const uint8_t *)msg + tl->len_off, sizeof n);
+    if (n < 0 || (size_t)n > p->loan_cap || (t->size > p->bufcap && !grow_buf(p, t->size)))
+        return published(p, EINVAL, 0);
+    memcpy(p->buf, msg, t->size);
+    memset(p->buf + tl->len_off, 0, sizeof n);
+    memset(p->buf + tl->ptr_off, 0, sizeof(void *));
+    uint8_t *head = p->loan - tl->wire_off;
+    if (t->encode(head, 0, (int)tl->wire_off, p->buf) != (int)tl->wire_off)
+        return published(p, EINVAL, 0);
+    for (int i = 0; i < 4; i++)     /* big-endian, as LCM writes it */
+        head[tl->len_wire_off + (size_t)i] = (uint8_t)((uint32_t)n >> (24 - 8 * i));
+    size_t len = tl->wire_off + (size_t)n;
+    return published(p, -marie_shm_pub_commit(p->shm_pub, len), len);
 }
 
 int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
@@ -256,19 +301,16 @@ int marie_port_publish(marie_port_t *p, const void *msg)
 {
     const marie_type_t *t = p->spec->type;
     assert(t && "marie_port_publish on a raw port");
+    if (p->loan && *(uint8_t *const *)((const uint8_t *)msg + p->tail.ptr_off) == p->loan)
+        return publish_loaned(p, msg);
     int size = t->encoded_size(msg);
     if (size < 0)
         return -EINVAL;
     if (p->shm_pub)     /* encoded straight into the ring */
         return published(p, -marie_shm_pub_publish_with(p->shm_pub, (size_t)size, encode_into,
                                                           &(encoding_t){t, msg}), (size_t)size);
-    if ((size_t)size > p->bufcap) {
-        uint8_t *n = realloc(p->buf, (size_t)size);
-        if (!n)
-            return -ENOMEM;
-        p->buf = n;
-        p->bufcap = (size_t)size;
-    }
+    if ((size_t)size > p->bufcap && !grow_buf(p, (size_t)size))
+        return -ENOMEM;
     if (t->encode(p->buf, 0, size, msg) != size)
         return -EINVAL;
     return marie_port_publish_raw(p, p->buf, (size_t)size);

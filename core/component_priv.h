@@ -13,6 +13,7 @@
 #include "core/component.h"
 #include "core/shm_bus.h"
 #include "core/spec.h"
+#include "core/typeinfo.h"
 
 #define EVENT_QUEUE_MAX 256
 
@@ -52,6 +53,9 @@ struct marie_port {
     marie_shm_pub_t *shm_pub;
     marie_shm_sub_t *shm_sub;
     marie_shm_sub_stats_t shm_counted;  /* the reader's losses already in the counters */
+    uint8_t *loan;              /* marie_port_loan(): the array's bytes in the ring, until a publish */
+    size_t loan_cap;
+    marie_tail_t tail;          /* where that array lies (the type's shape) */
     struct {                    /* a message read in place, until the ring's verdict */
         bool decoded, queued;
         const char *why;        /* why it did not decode */

@@ -47,6 +47,7 @@ struct marie_shm_writer {
     size_t len;
     shm_hdr_t *hdr;
     uint64_t seq;
+    uint64_t open;              /* the message begun and not committed, or 0 */
 };
 
 typedef struct {
@@ -137,27 +138,47 @@ void marie_shm_writer_destroy(marie_shm_writer_t *w)
 
 const char *marie_shm_writer_segment(const marie_shm_writer_t *w) { return w->name; }
 
+void *marie_shm_begin(marie_shm_writer_t *w)
+{
+    if (!w->open) {             /* else a write begun and not committed: its slot again */
+        w->open = ++w->seq;
+        slot_hdr_t *s = slot_at(w->base, w->hdr, w->open % w->hdr->nslots);
+        atomic_store_explicit(&s->seq, 2 * w->open - 1, memory_order_relaxed);
+        atomic_thread_fence(memory_order_release);      /* odd before any byte of the new data */
+    }
+    return (uint8_t *)slot_at(w->base, w->hdr, w->open % w->hdr->nslots) + DATA_OFF;
+}
+
+int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
+{
+    if (!w->open)
+        return -EINVAL;
+    uint64_t n = w->open;
+    w->open = 0;
+    slot_hdr_t *s = slot_at(w->base, w->hdr, n % w->hdr->nslots);
+    bool fits = len <= w->hdr->slot_size;
+    s->size = fits ? len : 0;
+    atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
+    atomic_store_explicit(&w->hdr->write_seq, n, memory_order_release);
+    if (!fits || !ref)
+        return fits ? 0 : -EMSGSIZE;
+    snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
+    ref->seq = (int64_t)n;
+    ref->size = (uint32_t)len;
+    return 0;
+}
+
+size_t marie_shm_slot_size(const marie_shm_writer_t *w) { return w->hdr->slot_size; }
+
 int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref)
 {
-    shm_hdr_t *h = w->hdr;
-    if (len > h->slot_size)
+    if (len > w->hdr->slot_size)
         return -EMSGSIZE;
-    uint64_t n = ++w->seq;
-    slot_hdr_t *s = slot_at(w->base, h, n % h->nslots);
-    atomic_store_explicit(&s->seq, 2 * n - 1, memory_order_relaxed);
-    atomic_thread_fence(memory_order_release);      /* odd before any byte of the new data */
-    bool filled = fill((uint8_t *)s + DATA_OFF, len, user) == 0;
-    s->size = filled ? len : 0;
-    atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
-    atomic_store_explicit(&h->write_seq, n, memory_order_release);
-    if (!filled)
+    if (fill(marie_shm_begin(w), len, user) < 0) {
+        marie_shm_commit(w, 0, NULL);
         return -EINVAL;     /* no ref: nobody is told of the empty slot */
-    if (ref) {
-        snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
-        ref->seq = (int64_t)n;
-        ref->size = (uint32_t)len;
     }
-    return 0;
+    return marie_shm_commit(w, len, ref);
 }
 
 int marie_shm_fill_copy(void *dst, size_t len, void *src)

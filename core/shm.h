@@ -41,6 +41,14 @@ int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_s
 typedef int (*marie_shm_fill_t)(void *dst, size_t len, void *user);
 int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref);
 int marie_shm_fill_copy(void *dst, size_t len, void *src);     /* the fill of marie_shm_write: a memcpy */
+/* In two steps, for a producer that makes the message in place (a loan): begin gives the next
+ * slot's bytes (slot_size of them), marked as being written, so a reader of what the slot held
+ * sees it gone; commit publishes its first len bytes. A begin not committed is taken up by the
+ * next begin or write. Commit: 0, -EMSGSIZE (len past the slot: the slot is left empty, no ref),
+ * -EINVAL (nothing begun). */
+void *marie_shm_begin(marie_shm_writer_t *w);
+int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref);
+size_t marie_shm_slot_size(const marie_shm_writer_t *w);
 const char *marie_shm_writer_segment(const marie_shm_writer_t *w);
 
 marie_shm_reader_t *marie_shm_reader_create(void);

@@ -44,6 +44,7 @@ struct marie_shm_pub {
     char host[64];
     marie_shm_writer_t *w;
     marie_lcm_sub_t *want_sub;
+    uint8_t *loan;              /* the slot begun for a message, or NULL */
     int64_t wanted_until;       /* mono us */
     marie_shm_pub_stats_t st;
 };
@@ -94,44 +95,51 @@ void marie_shm_pub_destroy(marie_shm_pub_t *p)
     free(p);
 }
 
-/* Remembers where the message was written: the notice's fingerprint and an LCM copy read it there
- * (only this writer ever writes the slot). */
-typedef struct {
-    marie_shm_fill_t fill;
-    void *user;
-    const uint8_t *at;
-} fill_t;
+void *marie_shm_pub_loan(marie_shm_pub_t *p) { return p->loan = marie_shm_begin(p->w); }
 
-static int fill_noting(void *dst, size_t len, void *user)
-{
-    fill_t *f = user;
-    f->at = dst;
-    return f->fill(dst, len, f->user);
-}
-
-int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t fill, void *user)
+/* 0 when len bytes make a message a slot holds, else what publishing them returns (counted). */
+static int refused(marie_shm_pub_t *p, size_t len)
 {
     if (len < 8)
         return -EINVAL;
+    if (len <= marie_shm_slot_size(p->w))
+        return 0;
+    p->st.too_big++;
+    return -EMSGSIZE;
+}
+
+int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len)
+{
+    const uint8_t *at = p->loan;    /* only this writer ever writes the slot */
+    if (!at)
+        return -EINVAL;
+    p->loan = NULL;
+    int rc = refused(p, len);
     marie_shm_ref_t ref;
-    fill_t f = { fill, user, NULL };
-    int rc = marie_shm_write_with(p->w, len, fill_noting, &f, &ref);
-    if (rc < 0) {
-        if (rc == -EMSGSIZE)
-            p->st.too_big++;
+    marie_shm_commit(p->w, rc ? 0 : len, rc ? NULL : &ref);
+    if (rc)
         return rc;
-    }
     marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
-                             .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(f.at, len) };
+                             .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(at, len) };
     if (marie_lcm_publish_msg(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
         return -EIO;
     p->st.published++;
     if (p->wanted_until && marie_mono_us() < p->wanted_until) {
-        if (marie_lcm_publish(p->lcm, p->channel, f.at, (unsigned)len) != 0)
+        if (marie_lcm_publish(p->lcm, p->channel, at, (unsigned)len) != 0)
             return -EIO;
         p->st.lcm_copies++;
     }
     return 0;
+}
+
+int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t fill, void *user)
+{
+    int rc = refused(p, len);
+    if (rc)
+        return rc;
+    if (fill(marie_shm_pub_loan(p), len, user) < 0)
+        len = 0;                    /* committed empty: no notice */
+    return marie_shm_pub_commit(p, len);
 }
 
 int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len)

@@ -36,6 +36,11 @@ int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len);
 /* Without the copy: fill writes the len encoded bytes straight into the ring (marie_shm_write_with).
  * The same returns, and -EINVAL when fill gave up. */
 int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t fill, void *user);
+/* Without any copy, for a producer that makes the message where it will be read: the loan is
+ * the next slot's bytes (max_size of them), and commit publishes its first len as above. The
+ * loan stays valid until the next commit or publish, which takes up a loan not committed. */
+void *marie_shm_pub_loan(marie_shm_pub_t *p);
+int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len);
 const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p);
 
 /* A subscriber gets each message's bytes, read from the ring on this host; when the writer is

@@ -155,6 +155,47 @@ static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
     return 0;
 }
 
+/* Bytes field f always takes on the wire (a scalar, or a struct of such: nested structs carry no
+ * fingerprint), or -1 when that depends on the message. */
+static int fixed_wire_size(const marie_tfield_t *f, int depth)
+{
+    if (f->ndims != 0 || depth > MAX_DEPTH)
+        return -1;
+    if (f->prim != MARIE_PRIM_STRUCT)
+        return marie_prim_size(f->prim) ? marie_prim_size(f->prim) : -1;
+    int sum = 0;
+    for (int i = 0; i < f->sub->nfields; i++) {
+        int size = fixed_wire_size(&f->sub->fields[i], depth + 1);
+        if (size < 0)
+            return -1;
+        sum += size;
+    }
+    return sum;
+}
+
+int marie_typeinfo_tail(const marie_typeinfo_t *t, marie_tail_t *out)
+{
+    if (!t || t->nfields < 2)
+        return -ENOTSUP;
+    const marie_tfield_t *last = &t->fields[t->nfields - 1];
+    if ((last->prim != MARIE_PRIM_BYTE && last->prim != MARIE_PRIM_INT8) || last->ndims != 1 ||
+        last->dims[0].len_field < 0 || t->fields[last->dims[0].len_field].prim != MARIE_PRIM_INT32)
+        return -ENOTSUP;
+    size_t wire = 8;            /* the fingerprint */
+    for (int i = 0; i < t->nfields - 1; i++) {
+        int size = fixed_wire_size(&t->fields[i], 0);
+        if (size < 0)
+            return -ENOTSUP;
+        if (i == last->dims[0].len_field)
+            out->len_wire_off = wire;
+        wire += (size_t)size;
+    }
+    out->wire_off = wire;
+    out->ptr_off = last->c_offset;
+    out->len_off = t->fields[last->dims[0].len_field].c_offset;
+    return 0;
+}
+
 int64_t marie_payload_fingerprint(const void *buf, size_t len)
 {
     return len < 8 ? 0 : marie_wire_int(buf, 8);

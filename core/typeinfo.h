@@ -31,6 +31,7 @@ typedef struct {
     const marie_typeinfo_t *sub;     /* MARIE_PRIM_STRUCT only */
     int ndims;
     const marie_tdim_t *dims;       /* ndims entries, outermost first */
+    size_t c_offset;                /* where lcm-gen's C struct holds it (offsetof) */
 } marie_tfield_t;
 
 typedef struct {
@@ -73,6 +74,17 @@ int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
  * (scalars, arrays, nested structs) and returns -EDOM when one is NaN or infinite. */
 #define MARIE_CHECK_FINITE 1
 int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags);
+
+/* A type that ends in a byte array after fixed-size scalars only (image_t's pixels): where the
+ * array's bytes and its int32 length lie on the wire and in lcm-gen's C struct, so that the bytes
+ * can be written apart from the other fields (a loaned publish, core/component.h). */
+typedef struct {
+    size_t wire_off;            /* the array's first byte on the wire, fingerprint included */
+    size_t len_wire_off;        /* its length on the wire */
+    size_t ptr_off, len_off;    /* the array's pointer and its length in the C struct */
+} marie_tail_t;
+/* 0, or -ENOTSUP for a type of any other shape. */
+int marie_typeinfo_tail(const marie_typeinfo_t *t, marie_tail_t *out);
 
 /* The registered type called `name` ("marie.pose2d_t", or "pose2d_t"), or NULL. */
 const marie_type_t *marie_type_find(const char *name);

@@ -206,7 +206,8 @@ def emit_table(structs, by_name, out):
             prim = PRIMS.get(mtype, "MARIE_PRIM_STRUCT")
             subref = "&marie_typeinfo_%s" % sub.cname if sub else "NULL"
             dimref = "marie_tdims_%s_%d" % (st.cname, i) if dims else "NULL"
-            w("    { %s, %s, %s, %d, %s },\n" % (cstr(mname), prim, subref, len(dims), dimref))
+            w("    { %s, %s, %s, %d, %s, offsetof(%s, %s) },\n" % (cstr(mname), prim, subref, len(dims), dimref,
+                                                               st.cname, mname))
         w("};\n")
         if st.consts:
             w("static const marie_tconst_t marie_tconsts_%s[] = {\n" % st.cname)

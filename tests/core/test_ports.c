@@ -355,6 +355,92 @@ static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **sta
     unlink(file);
 }
 
+/* lcm-gen's decoder reads the LCM copies another host gets: every one a whole grid. */
+static void on_grid_copy(const lcm_recv_buf_t *rb, const char *ch, void *user)
+{
+    grid_rx_t *s = user;
+    marie_occupancy_grid_t g;
+    if (marie_occupancy_grid_t_decode(rb->data, 0, (int)rb->data_size, &g) < 0)
+        return;
+    int k = (int)g.utime - 1, ok = g.ncells == g.width * g.height && g.resolution == 0.05f;
+    for (int i = 0; ok && i < g.ncells; i++)
+        ok = g.cells[i] == (int8_t)((i * 7 + k) % 101);
+    s->got++;
+    s->intact += ok;
+    marie_occupancy_grid_t_decode_cleanup(&g);
+}
+
+/* A loaned grid is made in the ring and published without a copy: it arrives whole here and, as
+ * LCM's copy, on another host; a loan is taken up by the next publish, and refused past max_size
+ * or where the channel or the type cannot have one. */
+static void a_loaned_message_is_made_in_the_ring(void **state)
+{
+    char file[] = "/tmp/marie-test-loan-XXXXXX.yaml";
+    assert_int_equal(test_write_temp(file, 5, "system: loan\n"
+                                              "transports:\n"
+                                              "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
+                                              "components:\n"
+                                              "  tx: {exec: /bin/true}\n"
+                                              "  rx: {exec: /bin/true}\n"
+                                              "  far: {exec: /bin/true}\n"),
+                     0);
+    lcm_t *spy = lcm_create(marie_default_url());
+    grid_rx_t rx = {0}, far = {0}, copies = {0};
+    lcm_subscribe(spy, "T_GRID", on_grid_copy, &copies);
+    setenv("MARIE_SHM_HOST", "another-host", 1);
+    marie_component_t *far_c = make_in(file, &grid_rx_def, "far", &far);
+    unsetenv("MARIE_SHM_HOST");
+    marie_component_t *cs[3] = {make_in(file, &grid_tx_def, "tx", NULL), make_in(file, &grid_rx_def, "rx", &rx), far_c};
+    marie_port_t *out = marie_port(cs[0], "map");
+    enum { W = 960, H = 960 };
+    marie_occupancy_grid_t g;
+    spin_spy(cs, 3, spy, 100);      /* far's request for LCM copies reaches the writer */
+    for (int k = 0; k < 6; k++) {
+        int8_t *cells = marie_port_loan(out, (size_t)W * H);
+        assert_non_null(cells);
+        fill_grid(&g, cells, W, H, k);
+        assert_int_equal(marie_port_publish(out, &g), 0);
+        spin_spy(cs, 3, spy, 50);
+    }
+    spin_spy(cs, 3, spy, 200);
+    assert_int_equal(rx.got, 6);
+    assert_int_equal(rx.intact, 6);
+    assert_true(far.got >= 4);
+    assert_int_equal(far.intact, far.got);
+    assert_int_equal(copies.got, far.got);
+    assert_int_equal(copies.intact, copies.got);
+    /* A loan holds a smaller grid than it could; one not published is taken up by the next. */
+    int8_t *cells = marie_port_loan(out, (size_t)W * H), *mine = malloc((size_t)W * H);
+    fill_grid(&g, cells, W, H / 2, 10);
+    assert_int_equal(marie_port_publish(out, &g), 0);
+    assert_non_null(marie_port_loan(out, 100));
+    fill_grid(&g, mine, W, H, 11);      /* not the loan: encoded into the same slot */
+    assert_int_equal(marie_port_publish(out, &g), 0);
+    spin_spy(cs, 3, spy, 200);
+    assert_int_equal(rx.got, 8);
+    assert_int_equal(rx.intact, 8);
+    /* A length past the loan is refused and counted; so is a loan past max_size, or where there
+     * can be none (a plain LCM channel, a type with no byte array last). */
+    cells = marie_port_loan(out, 1000);
+    fill_grid(&g, cells, 1000, 1, 12);
+    g.ncells = 2000;
+    assert_int_equal(marie_port_publish(out, &g), -EINVAL);
+    assert_int_equal(marie_component_counter(cs[0], "publish_failed"), 1);
+    assert_null(marie_port_loan(out, 1000000));
+    assert_int_equal(errno, EMSGSIZE);
+    marie_component_t *plain = make(&tx_def, "plain", NULL);
+    assert_null(marie_port_loan(marie_port(plain, "pose"), 10));
+    assert_int_equal(errno, ENOTSUP);
+    spin_spy(cs, 3, spy, 100);
+    assert_int_equal(rx.got, 8);
+    free(mine);
+    marie_component_destroy(plain);
+    for (int i = 0; i < 3; i++)
+        marie_component_destroy(cs[i]);
+    lcm_destroy(spy);
+    unlink(file);
+}
+
 /* A component's loop spins as `sched: {spin_us}` in its entry says, except on the simulator's
  * clock. */
 static void a_component_spins_as_its_system_file_says(void **state)
@@ -385,6 +471,7 @@ int main(void)
         cmocka_unit_test(pull_gets_the_newest_value_or_times_out),
         cmocka_unit_test(async_pull_calls_back_exactly_once),
         cmocka_unit_test(shm_transport_carries_large_messages_and_lcm_sees_notices),
+        cmocka_unit_test(a_loaned_message_is_made_in_the_ring),
         cmocka_unit_test(a_component_spins_as_its_system_file_says),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -89,6 +89,44 @@ static void test_round_trip_and_bounds(void **state)
     free(out);
 }
 
+/* A message made in its slot (begin, then commit): the slot's old message is gone from the
+ * moment it is begun, a begin not committed is taken up by the next write, and a commit past
+ * the slot or with nothing begun publishes nothing. */
+static void test_begin_and_commit_in_place(void **state)
+{
+    marie_shm_writer_t *w = marie_shm_writer_create("T_LOAN", BIG, 2);
+    marie_shm_reader_t *r = marie_shm_reader_create();
+    uint8_t *out = malloc(BIG);
+    marie_shm_ref_t first, ref;
+    assert_int_equal(marie_shm_commit(w, 8, &ref), -EINVAL);
+    fill(marie_shm_begin(w), BIG, 1);
+    assert_int_equal(marie_shm_commit(w, BIG, &first), 0);
+    assert_int_equal(marie_shm_read(r, &first, out, BIG), BIG);
+    assert_true(intact(out, BIG, NULL));
+    uint8_t *slot = marie_shm_begin(w);     /* message 2 */
+    assert_ptr_equal(marie_shm_begin(w), slot);
+    slot = marie_shm_begin(w);
+    (void)marie_shm_begin(w);
+    fill(slot, 64, 2);
+    assert_int_equal(marie_shm_commit(w, 64, &ref), 0);
+    assert_int_equal(ref.seq, 2);
+    uint8_t *third = marie_shm_begin(w);    /* message 3, in message 1's slot */
+    assert_int_equal(marie_shm_read(r, &first, out, BIG), -ESTALE);
+    uint8_t in[64];
+    fill(in, sizeof in, 3);
+    assert_int_equal(marie_shm_write(w, in, sizeof in, &ref), 0);   /* takes up the begin */
+    assert_ptr_equal(marie_shm_begin(w), slot);
+    assert_int_equal(ref.seq, 3);
+    assert_int_equal(marie_shm_read(r, &ref, out, BIG), 64);
+    assert_memory_equal(out, in, 64);
+    assert_memory_equal(third, in, 64);
+    assert_int_equal(marie_shm_commit(w, BIG + 1, &ref), -EMSGSIZE);
+    assert_int_equal(ref.seq, 3);           /* untouched: nothing to tell anyone */
+    free(out);
+    marie_shm_reader_destroy(r);
+    marie_shm_writer_destroy(w);
+}
+
 /* A reader child copying whatever is newest as fast as it can; it reports (exit status) how
  * many copies it got that were torn yet returned as good: must be 0. */
 static pid_t spawn_reader(const char *segment, int nslots)
@@ -266,6 +304,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_round_trip_and_bounds),
+        cmocka_unit_test(test_begin_and_commit_in_place),
         cmocka_unit_test(test_readers_killed_or_stalled_harm_nobody),
         cmocka_unit_test(test_writer_restart_sweeps_leftovers),
         cmocka_unit_test(test_three_readers_30hz_no_loss),
