@@ -31,8 +31,9 @@ check "e-stop chain: zero command from the e-stop behaviour and drives in e-stop
     $B/tests/estop_check "$out/nominal/demo.lcm" 0.3
 check "summary line printed" grep -q "^demo: [0-9]*/[0-9]* goals reached, localization RMS .* m (max .* m), restarts [0-9]*, [0-9]* s$" "$out/nominal.txt"
 goals=$(sed -n '/^profiles:/q; s/.*{name: [^,]*, x: \([-0-9.]*\), y: \([-0-9.]*\),.*/\1,\2/p' config/spartacus.yaml)
+tolerance=$(sed -n '/^  mission:/,/^  [a-z]/s/^ *tolerance: \([0-9.]*\)$/\1/p' config/spartacus.yaml | head -1)
 check "trajectory PNG: the office map with every goal and the true path through each" \
-    python3 tests/app/traj_png_check.py "$out/nominal/trajectories.png" sim/worlds/office.pgm 0.05 $goals
+    python3 tests/app/traj_png_check.py "$out/nominal/trajectories.png" sim/worlds/office.pgm 0.05 "$tolerance" $goals
 
 # 2. Replay the recorded sensor data into a fresh localizer (same seed, following the log's clock).
 $BIN/marie-localizer --name replay --clock sim --port pose=POSE_REPLAY --port particles=PARTICLES_REPLAY \
