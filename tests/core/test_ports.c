@@ -293,17 +293,19 @@ static void publish_grids(marie_component_t **cs, int n, lcm_t *spy, int8_t *cel
     spin_spy(cs, n, spy, 200);
 }
 
+/* A grid sender, a reader, and a reader that plays another host, on a ring of four slots. */
+static const char grid_system[] = "system: shmports\n"
+                                  "transports:\n"
+                                  "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
+                                  "components:\n"
+                                  "  tx: {exec: /bin/true}\n"
+                                  "  rx: {exec: /bin/true}\n"
+                                  "  far: {exec: /bin/true}\n";
+
 static void shm_transport_carries_large_messages_and_lcm_sees_notices(void **state)
 {
     char file[] = "/tmp/marie-test-shm-XXXXXX.yaml";
-    assert_int_equal(test_write_temp(file, 5, "system: shmports\n"
-                                              "transports:\n"
-                                              "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
-                                              "components:\n"
-                                              "  tx: {exec: /bin/true}\n"
-                                              "  rx: {exec: /bin/true}\n"
-                                              "  far: {exec: /bin/true}\n"),
-                     0);
+    assert_int_equal(test_write_temp(file, 5, grid_system), 0);
     lcm_t *spy = lcm_create(marie_default_url());   /* the components' bus, with its receive buffer */
     spy_t sp = {0};
     lcm_subscribe(spy, "T_GRID(\\.SHM)?", on_spy, &sp);
@@ -375,15 +377,8 @@ static void on_grid_copy(const lcm_recv_buf_t *rb, const char *ch, void *user)
  * or where the channel or the type cannot have one. */
 static void a_loaned_message_is_made_in_the_ring(void **state)
 {
-    char file[] = "/tmp/marie-test-loan-XXXXXX.yaml";
-    assert_int_equal(test_write_temp(file, 5, "system: loan\n"
-                                              "transports:\n"
-                                              "  T_GRID: {kind: shm, max_size: 1000000, slots: 4}\n"
-                                              "components:\n"
-                                              "  tx: {exec: /bin/true}\n"
-                                              "  rx: {exec: /bin/true}\n"
-                                              "  far: {exec: /bin/true}\n"),
-                     0);
+    char file[] = "/tmp/marie-test-shm-XXXXXX.yaml";
+    assert_int_equal(test_write_temp(file, 5, grid_system), 0);
     lcm_t *spy = lcm_create(marie_default_url());
     grid_rx_t rx = {0}, far = {0}, copies = {0};
     lcm_subscribe(spy, "T_GRID", on_grid_copy, &copies);
