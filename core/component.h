@@ -188,8 +188,8 @@ int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len);
  * on shared memory and whose type ends in a byte array after fixed-size fields (image_t's data),
  * room for n bytes of that array straight in the ring. Make the bytes there, point the
  * message's array at the loan (its length at most n), and marie_port_publish() encodes only the
- * fields before it. Valid until the port's next publish, which a loan does not outlive. NULL with
- * errno ENOTSUP (another transport or type shape) or EMSGSIZE (past the transport's max_size). */
+ * fields before it. The loan lasts until the port's next publish, of it or of anything else. NULL
+ * with errno ENOTSUP (another transport or type shape) or EMSGSIZE (past the transport's max_size). */
 void *marie_port_loan(marie_port_t *p, size_t n);
 /* Input handler for a push or event port: gets the decoded message (NULL msg for raw
  * ports: use info->raw). Payloads with the wrong fingerprint or that fail to decode are
