@@ -76,9 +76,9 @@ int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
 int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags);
 
 /* A type that ends in a byte array after fields of fixed size only (scalars, or structs of them:
- * image_t's pixels, occupancy_grid_t's cells): where the
- * array's bytes and its int32 length lie on the wire and in lcm-gen's C struct, so that the bytes
- * can be written apart from the other fields (a loaned publish, core/component.h). */
+ * image_t's pixels, occupancy_grid_t's cells): where the array's bytes and its int32 length lie
+ * on the wire and in lcm-gen's C struct, so that the bytes can be written apart from the other
+ * fields (a loaned publish, core/component.h). */
 typedef struct {
     size_t wire_off;            /* the array's first byte on the wire, fingerprint included */
     size_t len_wire_off;        /* its length on the wire */
