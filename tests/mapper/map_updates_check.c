@@ -2,7 +2,9 @@
  * (changed rectangles) as a reader does (map/livemap), and at every whole map after
  * the first compares it with the map assembled from the one before and the updates since. Prints
  *   whole N updates M unmatched U refused R update_bytes B whole_bytes W compared C last_diff D
- * (D: cells of the last whole map that differ from the assembled one, -1 if not comparable), then
+ * (D: cells of the last whole map in the frame of the one before, that differ from the map
+ * assembled from it and the updates since; -1 if no whole map kept its frame: a map that grew
+ * comes whole in its new frame, with nothing to compare it with), then
  *   final WIDTH HEIGHT occupied O known K
  * of the map assembled at the end (cells >= 65, cells >= 0), and for each COMPONENT the last
  * heartbeat's counters "NAME.COUNTER VALUE", one per line. */
@@ -41,14 +43,12 @@ static void on_whole(const lcmlog_event_t *ev)
     R.whole++;
     R.whole_bytes += (int64_t)ev->data_len;
     const marie_occupancy_grid_t *h = &R.live.map;
-    if (h->cells) {
-        R.last_diff = -1;
-        if (h->width == g.width && h->height == g.height && h->origin.x == g.origin.x && h->origin.y == g.origin.y) {
-            R.compared++;
-            R.last_diff = 0;
-            for (int i = 0; i < g.ncells; i++)
-                R.last_diff += h->cells[i] != g.cells[i];
-        }
+    if (h->cells && h->width == g.width && h->height == g.height && h->origin.x == g.origin.x &&
+        h->origin.y == g.origin.y) {
+        R.compared++;
+        R.last_diff = 0;
+        for (int i = 0; i < g.ncells; i++)
+            R.last_diff += h->cells[i] != g.cells[i];
     }
     if (getenv("MAP_UPDATES_VERBOSE"))
         fprintf(stderr, "whole %dx%d at (%g, %g) utime %" PRId64 ": diff %" PRId64 "\n", g.width, g.height, g.origin.x,
