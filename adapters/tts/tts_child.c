@@ -98,6 +98,35 @@ static void on_output(marie_loop_t *loop, int fd, short revents, void *user)
     }
 }
 
+int tts_split_command(char *line, char *argv[], int max)
+{
+    int n = 0;
+    char *in = line, *out = line;
+    for (;;) {
+        while (*in == ' ' || *in == '\t')
+            in++;
+        if (!*in)
+            break;
+        if (n >= max - 1)
+            return -1;
+        argv[n++] = out;
+        char quote = 0;
+        for (; *in && (quote || (*in != ' ' && *in != '\t')); in++) {
+            if (quote ? *in == quote : (*in == '\'' || *in == '"'))
+                quote = quote ? 0 : *in;
+            else
+                *out++ = *in;
+        }
+        if (quote)
+            return -1;
+        if (*in)
+            in++;
+        *out++ = '\0';
+    }
+    argv[n] = NULL;
+    return n;
+}
+
 tts_child_t *tts_child_start(marie_loop_t *loop, char *const argv[], const char *text,
                              tts_child_done_cb_t cb, void *user)
 {

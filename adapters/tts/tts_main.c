@@ -163,13 +163,9 @@ static int init(marie_component_t *c)
     }
     free(s->argv_buf);
     s->argv_buf = strdup(q->command);
-    int n = 0;
-    for (char *save = NULL, *w = s->argv_buf ? strtok_r(s->argv_buf, " ", &save) : NULL; w && n < 31;
-         w = strtok_r(NULL, " ", &save))
-        s->argv[n++] = w;
-    s->argv[n] = NULL;
-    if (n == 0) {
-        marie_component_fail_reason(c, "command is empty");
+    int n = s->argv_buf ? tts_split_command(s->argv_buf, s->argv, 32) : -1;
+    if (n <= 0) {
+        marie_component_fail_reason(c, n == 0 ? "command is empty" : "command: a quote not closed, or over 31 words");
         return -1;
     }
     s->p_state = marie_port(c, "state");

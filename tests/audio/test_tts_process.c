@@ -1,6 +1,7 @@
 /* test_tts_process: marie-tts as a process on a real LCM bus (this test's namespace): a say
  * request becomes Festival's voice as audio blocks between a "speaking" and a "done" report;
- * an empty request is refused; a synthesizer that cannot run reports "failed", not a hang. */
+ * an empty request is refused; a synthesizer that cannot run reports "failed", not a hang; the
+ * command parameter is split into words as a shell splits a simple line. */
 #include <math.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -14,6 +15,7 @@
 
 #include <lcm/lcm.h>
 
+#include "adapters/tts/tts_child.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
 #include "tests/proc.h"
@@ -134,11 +136,31 @@ static void test_missing_synthesizer_reports_failed(void **state)
     lcm_destroy(l);
 }
 
+static void test_command_words_split_as_a_shell_does(void **state)
+{
+    char line[] = "festival --heap 1000000 -b '(set! argv (list \"-F\" \"16000\"))'  /usr/bin/text2wave\t",
+         *argv[8];
+    assert_int_equal(tts_split_command(line, argv, 8), 6);
+    assert_string_equal(argv[3], "-b");
+    assert_string_equal(argv[4], "(set! argv (list \"-F\" \"16000\"))");
+    assert_string_equal(argv[5], "/usr/bin/text2wave");
+    assert_null(argv[6]);
+    char glued[] = "say a\"b c\"'d' \"\"";     /* quoted parts join their word; "" is an empty word */
+    assert_int_equal(tts_split_command(glued, argv, 8), 3);
+    assert_string_equal(argv[1], "ab cd");
+    assert_string_equal(argv[2], "");
+    char open_quote[] = "text2wave 'oops", spaces[] = "   ", many[] = "a b c d";
+    assert_int_equal(tts_split_command(open_quote, argv, 8), -1);
+    assert_int_equal(tts_split_command(spaces, argv, 8), 0);
+    assert_int_equal(tts_split_command(many, argv, 4), -1);      /* three words and the NULL */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_say_is_heard_between_speaking_and_done),
         cmocka_unit_test(test_missing_synthesizer_reports_failed),
+        cmocka_unit_test(test_command_words_split_as_a_shell_does),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
