@@ -31,7 +31,9 @@ $(B)/obj/tests/sim/test_sim_camera.o: CPPFLAGS += $(CAMERA_CV_CFLAGS)
 SIM_PHRASES := $(shell seq -f '$(B)/share/sounds/phrase_%02g.wav' 1 $$(wc -l < sim/sounds/phrases.txt))
 $(B)/share/sounds/phrase_%.wav: sim/sounds/phrases.txt
 	@mkdir -p $(@D)
-	sed -n "$$(echo $* | sed 's/^0//')p" $< > $@.txt && text2wave -F 16000 -o $@ $@.txt && rm -f $@.txt
+	@# text2wave with a Lisp heap of 1M cells, as marie-tts runs it: the same file, 3x faster (docs/audio.md)
+	sed -n "$$(echo $* | sed 's/^0//')p" $< > $@.txt && \
+	festival --heap 1000000 -b '(set! argv (list "-F" "16000" "-o" "$@" "$@.txt"))' /usr/bin/text2wave && rm -f $@.txt
 EXTRA_TARGETS += $(SIM_PHRASES)
 $(eval $(call marie_fuzz,audio_scene,tests/audio/fuzz_audio_scene.c sim/audio.c hw/audio/wav.c hw/audio/micarray.c map/occmap.c map/pgm.c map/occmap_load.c,))
 $(B)/share/sounds/phrases.stamp: $(SIM_PHRASES)
