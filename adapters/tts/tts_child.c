@@ -8,6 +8,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -19,11 +20,33 @@ struct tts_child {
     marie_loop_t *loop;
     pid_t pid;
     int fd;
+    int err_fd;                 /* the synthesizer's stderr (a memfd), for why it failed */
+    char why[160];
     uint8_t *buf;
     size_t len, cap;
     tts_child_done_cb_t cb;
     void *user;
 };
+
+/* The synthesizer's last line on stderr ("SIOD ERROR: ran out of storage"), or `fallback`. */
+static const char *stderr_why(tts_child_t *t, const char *fallback)
+{
+    char buf[1024];
+    off_t end = t->err_fd >= 0 ? lseek(t->err_fd, 0, SEEK_END) : -1;
+    off_t from = end > (off_t)sizeof buf - 1 ? end - (off_t)sizeof buf + 1 : 0;
+    ssize_t n = end > 0 ? pread(t->err_fd, buf, (size_t)(end - from), from) : -1;
+    if (n <= 0)
+        return fallback;
+    buf[n] = '\0';
+    char *line = NULL;
+    for (char *save = NULL, *l = strtok_r(buf, "\r\n", &save); l; l = strtok_r(NULL, "\r\n", &save))
+        if (!line || !strstr(line, "ERROR"))     /* an error line outranks what follows it */
+            line = l;
+    if (!line)
+        return fallback;
+    snprintf(t->why, sizeof t->why, "%s (%s)", fallback, line);
+    return t->why;
+}
 
 static void reap(tts_child_t *t, bool kill_it)
 {
@@ -39,6 +62,14 @@ static void reap(tts_child_t *t, bool kill_it)
             ;
         t->pid = 0;
     }
+}
+
+static void free_child(tts_child_t *t)
+{
+    if (t->err_fd >= 0)
+        close(t->err_fd);
+    free(t->buf);
+    free(t);
 }
 
 static void finish(tts_child_t *t)
@@ -60,11 +91,10 @@ static void finish(tts_child_t *t)
         }
         free(f);
     } else {
-        t->cb(NULL, 0, 0, why, t->user);
+        t->cb(NULL, 0, 0, stderr_why(t, why), t->user);
     }
     free(pcm);
-    free(t->buf);
-    free(t);
+    free_child(t);
 }
 
 static void on_output(marie_loop_t *loop, int fd, short revents, void *user)
@@ -77,8 +107,7 @@ static void on_output(marie_loop_t *loop, int fd, short revents, void *user)
             if (!nb) {
                 reap(t, true);
                 t->cb(NULL, 0, 0, "synthesizer output too long", t->user);
-                free(t->buf);
-                free(t);
+                free_child(t);
                 return;
             }
             t->buf = nb;
@@ -132,22 +161,26 @@ tts_child_t *tts_child_start(marie_loop_t *loop, char *const argv[], const char 
 {
     int in[2] = { -1, -1 }, out[2] = { -1, -1 };
     tts_child_t *t = calloc(1, sizeof(*t));
+    if (t) {
+        t->fd = -1;
+        t->err_fd = memfd_create("tts-stderr", MFD_CLOEXEC);     /* -1: stderr goes nowhere */
+    }
     if (!t || pipe2(in, O_CLOEXEC) || pipe2(out, O_CLOEXEC))
         goto err;
     t->loop = loop;
     t->cb = cb;
     t->user = user;
-    t->fd = -1;
     t->pid = fork();
     if (t->pid < 0)
         goto err;
     if (t->pid == 0) {
         dup2(in[0], 0);
         dup2(out[1], 1);
-        int devnull = open("/dev/null", O_WRONLY);
-        if (devnull >= 0)
-            dup2(devnull, 2);
+        int err = t->err_fd >= 0 ? t->err_fd : open("/dev/null", O_WRONLY);
+        if (err >= 0)
+            dup2(err, 2);
         execvp(argv[0], argv);
+        dprintf(2, "cannot run %s: %s\n", argv[0], strerror(errno));
         _exit(127);
     }
     close(in[0]);
@@ -162,7 +195,7 @@ tts_child_t *tts_child_start(marie_loop_t *loop, char *const argv[], const char 
     fcntl(t->fd, F_SETFL, fcntl(t->fd, F_GETFL) | O_NONBLOCK);
     if (marie_loop_add_fd(loop, t->fd, POLLIN, on_output, t)) {
         reap(t, true);
-        free(t);
+        free_child(t);
         return NULL;
     }
     return t;
@@ -174,7 +207,8 @@ err:;
         if (out[i] >= 0)
             close(out[i]);
     }
-    free(t);
+    if (t)
+        free_child(t);
     errno = e;
     return NULL;
 }
@@ -184,6 +218,5 @@ void tts_child_cancel(tts_child_t *t)
     if (!t)
         return;
     reap(t, true);
-    free(t->buf);
-    free(t);
+    free_child(t);
 }

@@ -117,13 +117,18 @@ static void test_say_is_heard_between_speaking_and_done(void **state)
     lcm_destroy(l);
 }
 
-static void test_missing_synthesizer_reports_failed(void **state)
+/* A synthesizer that cannot run, or stops with an error, reports "failed" (not a hang), and the
+ * component's log says why, in the synthesizer's words. */
+static void fails_saying(const char *command, const char *why)
 {
     memset(&rx, 0, sizeof(rx));
     lcm_t *l = lcm_create(marie_default_url());
     lcm_subscribe(l, "ROBOT_SPEECH", on_state, NULL);
-    char *argv[] = { bin("marie-tts"), "--param", "command=/nonexistent/text2wave -o -", NULL };
-    pid_t pid = test_spawn(argv, "/dev/null");
+    char param[256], log[] = "/tmp/marie-tts-XXXXXX";
+    snprintf(param, sizeof param, "command=%s", command);
+    close(mkstemp(log));
+    char *argv[] = { bin("marie-tts"), "--param", param, NULL };
+    pid_t pid = test_spawn(argv, log);
     usleep(500000);
     say(l, 8, "hello");
     int64_t t0 = marie_mono_us();
@@ -133,7 +138,24 @@ static void test_missing_synthesizer_reports_failed(void **state)
     test_stop(pid);
     assert_int_equal(rx.failed, 1);
     assert_true(alive);
+    FILE *f = fopen(log, "r");
+    char line[512];
+    int said = 0;
+    while (f && fgets(line, sizeof(line), f))
+        said |= strstr(line, "cannot say \"hello\"") && strstr(line, why);
+    if (f)
+        fclose(f);
+    assert_true(said);
+    unlink(log);
     lcm_destroy(l);
+}
+
+static void test_missing_synthesizer_reports_failed(void **state)
+{
+    fails_saying("/nonexistent/text2wave -o -", "cannot run /nonexistent/text2wave: No such file or directory");
+    /* (the value is YAML: quoted, for its ": ") */
+    fails_saying("\"sh -c 'echo SIOD ERROR: ran out of storage >&2; echo closing a file >&2; exit 255'\"",
+                 "(SIOD ERROR: ran out of storage)");
 }
 
 static void test_command_words_split_as_a_shell_does(void **state)
