@@ -44,6 +44,8 @@ static const char *stderr_why(tts_child_t *t, const char *fallback)
             line = l;
     if (!line)
         return fallback;
+    for (size_t n = strlen(line); n > 0 && (line[n - 1] == ' ' || line[n - 1] == '\t'); n--)
+        line[n - 1] = '\0';
     snprintf(t->why, sizeof t->why, "%s (%s)", fallback, line);
     return t->why;
 }

@@ -156,6 +156,9 @@ static void test_missing_synthesizer_reports_failed(void **state)
     /* (the value is YAML: quoted, for its ": ") */
     fails_saying("\"sh -c 'echo SIOD ERROR: ran out of storage >&2; echo closing a file >&2; exit 255'\"",
                  "(SIOD ERROR: ran out of storage)");
+    /* Festival itself, given too small a heap */
+    fails_saying("'festival --heap 20000 -b ''(set! argv (list \"-F\" \"16000\"))'' /usr/bin/text2wave'",
+                 "(SIOD ERROR: ran out of storage)");
 }
 
 static void test_command_words_split_as_a_shell_does(void **state)
