@@ -28,7 +28,8 @@ struct tts_child {
     void *user;
 };
 
-/* The synthesizer's last line on stderr ("SIOD ERROR: ran out of storage"), or `fallback`. */
+/* `fallback` with the synthesizer's own words from the end of its stderr: its first line there
+ * that says ERROR ("SIOD ERROR: ran out of storage"), else its last line. */
 static const char *stderr_why(tts_child_t *t, const char *fallback)
 {
     char buf[1024];
@@ -44,8 +45,8 @@ static const char *stderr_why(tts_child_t *t, const char *fallback)
             line = l;
     if (!line)
         return fallback;
-    for (size_t n = strlen(line); n > 0 && (line[n - 1] == ' ' || line[n - 1] == '\t'); n--)
-        line[n - 1] = '\0';
+    for (size_t len = strlen(line); len > 0 && (line[len - 1] == ' ' || line[len - 1] == '\t'); len--)
+        line[len - 1] = '\0';
     snprintf(t->why, sizeof t->why, "%s (%s)", fallback, line);
     return t->why;
 }
