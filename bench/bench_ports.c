@@ -1,6 +1,7 @@
 /* bench_ports: one-way latency and throughput through marie ports against the raw LCM C API
  * in the same run (64 B, 8 KB, 900 KB image_t payloads), 900 KB at 30 Hz loss, and the same
- * 900 KB through ports on a channel the system file puts on shared memory. */
+ * 900 KB through ports on a channel the system file puts on shared memory, published from the
+ * producer's buffer and through a loan. */
 #include <math.h>
 #include <poll.h>
 #include <stdio.h>
@@ -103,7 +104,7 @@ static void publish(bench_t *b, int use_marie, marie_image_t *img)
         memcpy(loaned.data, img->data, (size_t)img->size);
     img->utime = loaned.utime = marie_mono_us();
     if (use_marie)
-        marie_port_publish(marie_port(b->tx, "out"), use_marie == 2 ? &loaned : img);
+        marie_port_publish(marie_port(b->tx, "out"), use_marie == 2 && loaned.data ? &loaned : img);
     else
         marie_image_t_publish(b->raw_tx, "BENCH_R", img);
 }
