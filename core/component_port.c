@@ -244,8 +244,7 @@ static int published(marie_port_t *p, int err, size_t len)
 
 void *marie_port_loan(marie_port_t *p, size_t n)
 {
-    const marie_type_t *t = p->spec->type;
-    if (!p->shm_pub || !t || marie_typeinfo_tail(marie_typeinfo_by_fingerprint(t->hash()), &p->tail) < 0)
+    if (!p->shm_pub || !p->loanable)
         return marie_fail_null(ENOTSUP);
     if (n > INT32_MAX || p->tail.wire_off + n > p->shm->max_size)
         return marie_fail_null(EMSGSIZE);
@@ -596,6 +595,8 @@ int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors
                                  c->def->kind, c->name, p->spec->name, channel, strerror(errno));
                 rc = -1;
             }
+            p->loanable = p->shm_pub && p->spec->type &&
+                          marie_typeinfo_tail(marie_typeinfo_by_fingerprint(p->spec->type->hash()), &p->tail) == 0;
         }
         if (p->spec->type && !(p->scratch = calloc(1, p->spec->type->size)))
             return -1;

@@ -53,9 +53,10 @@ struct marie_port {
     marie_shm_pub_t *shm_pub;
     marie_shm_sub_t *shm_sub;
     marie_shm_sub_stats_t shm_counted;  /* the reader's losses already in the counters */
+    bool loanable;              /* a shared-memory output whose type has a tail (below) */
+    marie_tail_t tail;          /* where that byte array lies (the type's shape) */
     uint8_t *loan;              /* marie_port_loan(): the array's bytes in the ring, until a publish */
     size_t loan_cap;
-    marie_tail_t tail;          /* where that array lies (the type's shape) */
     struct {                    /* a message read in place, until the ring's verdict */
         bool decoded, queued;
         const char *why;        /* why it did not decode */

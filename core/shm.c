@@ -146,7 +146,12 @@ void *marie_shm_begin(marie_shm_writer_t *w)
         atomic_store_explicit(&s->seq, 2 * w->open - 1, memory_order_relaxed);
         atomic_thread_fence(memory_order_release);      /* odd before any byte of the new data */
     }
-    return (uint8_t *)slot_at(w->base, w->hdr, w->open % w->hdr->nslots) + DATA_OFF;
+    return marie_shm_begun(w);
+}
+
+void *marie_shm_begun(const marie_shm_writer_t *w)
+{
+    return w->open ? (uint8_t *)slot_at(w->base, w->hdr, w->open % w->hdr->nslots) + DATA_OFF : NULL;
 }
 
 int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
@@ -160,8 +165,10 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
     s->size = fits ? len : 0;
     atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
     atomic_store_explicit(&w->hdr->write_seq, n, memory_order_release);
-    if (!fits || !ref)
-        return fits ? 0 : -EMSGSIZE;
+    if (!fits)
+        return -EMSGSIZE;
+    if (!ref)
+        return 0;
     snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
     ref->seq = (int64_t)n;
     ref->size = (uint32_t)len;

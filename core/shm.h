@@ -47,6 +47,7 @@ int marie_shm_fill_copy(void *dst, size_t len, void *src);     /* the fill of ma
  * next begin or write. Commit: 0, -EMSGSIZE (len past the slot: the slot is left empty, no ref),
  * -EINVAL (nothing begun). */
 void *marie_shm_begin(marie_shm_writer_t *w);
+void *marie_shm_begun(const marie_shm_writer_t *w);     /* what begin gave, or NULL: nothing begun */
 int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref);
 size_t marie_shm_slot_size(const marie_shm_writer_t *w);
 const char *marie_shm_writer_segment(const marie_shm_writer_t *w);

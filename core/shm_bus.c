@@ -44,7 +44,6 @@ struct marie_shm_pub {
     char host[64];
     marie_shm_writer_t *w;
     marie_lcm_sub_t *want_sub;
-    uint8_t *loan;              /* the slot begun for a message, or NULL */
     int64_t wanted_until;       /* mono us */
     marie_shm_pub_stats_t st;
 };
@@ -95,7 +94,7 @@ void marie_shm_pub_destroy(marie_shm_pub_t *p)
     free(p);
 }
 
-void *marie_shm_pub_loan(marie_shm_pub_t *p) { return p->loan = marie_shm_begin(p->w); }
+void *marie_shm_pub_loan(marie_shm_pub_t *p) { return marie_shm_begin(p->w); }
 
 /* 0 when len bytes make a message a slot holds, else what publishing them returns (counted). */
 static int refused(marie_shm_pub_t *p, size_t len)
@@ -110,10 +109,9 @@ static int refused(marie_shm_pub_t *p, size_t len)
 
 int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len)
 {
-    const uint8_t *at = p->loan;    /* only this writer ever writes the slot */
+    const uint8_t *at = marie_shm_begun(p->w);     /* only this writer ever writes the slot */
     if (!at)
         return -EINVAL;
-    p->loan = NULL;
     int rc = refused(p, len);
     marie_shm_ref_t ref;
     marie_shm_commit(p->w, rc ? 0 : len, rc ? NULL : &ref);

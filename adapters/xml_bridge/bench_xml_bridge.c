@@ -268,14 +268,15 @@ static void count(rate_t *r, int counted, long msgs, int64_t t0)
 }
 
 /* Direct LCM: the bridge-side instance publishes, the peer hears. */
-static void direct_block(uint8_t *buf, rate_t *r, int counted)
+static void direct_block(rate_t *r, int counted)
 {
+    uint8_t buf[512];
     atomic_store(&heard, 0);
     lost = 0;
     int64_t t0 = marie_mono_us();
     for (long i = 0; i < BLOCK; i++) {
         window_wait(i);
-        int n = encode_pose(buf, 512, 0);
+        int n = encode_pose(buf, sizeof buf, 0);
         lcm_publish(blcm, "BENCH_DIRECT", buf, (unsigned)n);
     }
     drain_wait(BLOCK);
@@ -303,15 +304,16 @@ static int xml_to_bus_block(int fd, rate_t *r, int counted)
 }
 
 /* bus -> XML: the peer publishes, the subscribed client reads the documents. */
-static int bus_to_xml_block(reader_t *rd, uint8_t *buf, rate_t *r, int counted)
+static int bus_to_xml_block(reader_t *rd, rate_t *r, int counted)
 {
+    uint8_t buf[512];
     rd->lines = 0;
     lost = 0;
     int64_t t0 = marie_mono_us();
     for (long sent = 0; sent < BLOCK && !rd->failed;) {
         long burst = sent + WINDOW / 2 <= BLOCK ? WINDOW / 2 : BLOCK - sent;
         for (long k = 0; k < burst; k++) {
-            int n = encode_pose(buf, 512, 0);
+            int n = encode_pose(buf, sizeof buf, 0);
             lcm_publish(peer, "BENCH_OUT", buf, (unsigned)n);
         }
         sent += burst;
@@ -374,12 +376,12 @@ int main(void)
          * peer reads back, and drops, every datagram the peer sent): without the pause the
          * direct rate came 10-25 % lower. */
         usleep(100000);
-        direct_block(buf, &direct, counted);
+        direct_block(&direct, counted);
         usleep(100000);
         if (xml_to_bus_block(fd, &in, counted) < 0)
             return 1;
         usleep(100000);
-        if (bus_to_xml_block(srd, buf, &out, counted) < 0)
+        if (bus_to_xml_block(srd, &out, counted) < 0)
             return 1;
     }
     double direct_rate = rate_of(&direct), in_rate = rate_of(&in), out_rate = rate_of(&out);
