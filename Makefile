@@ -42,6 +42,7 @@ ITESTS   :=
 # make test's tests that need the cores to themselves: they run last, alone.
 ALONE_TESTS :=
 BENCHES  :=
+BENCHES_FULL :=
 FUZZERS  :=
 LIBMARIE := $(B)/lib/libmarie.a
 
@@ -82,6 +83,13 @@ $(call marie_link,$(B)/bench/$(1),$(2),$(3))
 BENCHES += $(B)/bench/$(1)
 endef
 
+# $(call marie_bench_full,NAME,SOURCES,LIBS): a benchmark too long for make bench's ten minutes
+# (whole evaluations over many worlds or logs): run by make bench-full, after the default set.
+define marie_bench_full
+$(call marie_link,$(B)/bench/$(1),$(2),$(3))
+BENCHES_FULL += $(B)/bench/$(1)
+endef
+
 # $(call marie_fuzz,NAME,SOURCES,LIBS): SOURCES define LLVMFuzzerTestOneInput; the seed corpus
 # is tests/data/fuzz/NAME/. make test runs the replay build over the corpus plus seeded
 # mutations; make fuzz runs libFuzzer on it.
@@ -93,7 +101,7 @@ FUZZ_$(1)_LIBS := $(3)
 FUZZERS += $(1)
 endef
 
-.PHONY: build all deps test-deps test test-slow test-vm test-fresh bench demo install fuzz clean
+.PHONY: build all deps test-deps test test-slow test-vm test-fresh bench bench-full demo install fuzz clean
 # `make` alone installs what is missing first, like the other verbs; `all` only builds.
 build: deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
@@ -116,7 +124,7 @@ $(B)/gen/c/%_params.h: %.params.yaml core/params_gen.py
 	@mkdir -p $(@D)
 	python3 core/params_gen.py $< $@
 
-all: $(LIBMARIE) $(PROGRAMS) $(TESTS) $(BENCHES) $(EXTRA_TARGETS)
+all: $(LIBMARIE) $(PROGRAMS) $(TESTS) $(BENCHES) $(BENCHES_FULL) $(EXTRA_TARGETS)
 
 $(B)/obj/%.o: %.c | $(GEN_HEADERS)
 	@mkdir -p $(@D)
@@ -175,6 +183,12 @@ bench: deps
 	@scripts/install-deps.sh bench
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-bench.sh $(BENCHES)
+
+# The default set, then the long evaluations; the same table and results file.
+bench-full: deps
+	@scripts/install-deps.sh bench
+	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) scripts/run-bench.sh $(BENCHES) $(BENCHES_FULL)
 
 demo: deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all

@@ -34,7 +34,7 @@ FUZZ_ca_requests_SOURCES := tests/ca/fuzz_requests.c $(CA_LIB_SRCS) core/time.c 
 
 # Benchmark: each CA process against a plain LCM relay process in the same run.
 $(eval $(call marie_link,$(B)/bench/ca-lcm-relay,tests/ca/lcm_relay.c,$(LIBCA)))
-$(eval $(call marie_bench,bench_ca,tests/ca/bench_ca.c $(CA_TESTLIB),$(LIBCA)))
+$(eval $(call marie_bench,bench_ca,bench/bench_ca.c $(CA_TESTLIB),$(LIBCA)))
 $(B)/bench/bench_ca: $(B)/bench/ca-lcm-relay | $(B)/bin/marie-ca
 
 # SharedMap state files, damaged or hostile.

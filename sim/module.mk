@@ -14,7 +14,7 @@ SIM_DEVICE_LIBS := $(B)/lib/libmarie_vdevices.a $(B)/lib/libmarie_drives.a $(B)/
     $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a $(B)/lib/libmarie_lms200.a -lutil
 $(eval $(call marie_program,marie-sim,sim/sim_main.c sim/devices.c sim/camera.c,$(SIM_LIB) $(SIM_AUDIO_LIB) $(SIM_DEVICE_LIBS) $(ODE_LIBS) $(CAMERA_LIBS)))
 
-$(eval $(call marie_bench,bench_sim,sim/bench_sim.c,$(SIM_LIB) $(ODE_LIBS)))
+$(eval $(call marie_bench,bench_sim,bench/bench_sim.c,$(SIM_LIB) $(ODE_LIBS)))
 $(B)/bench/bench_sim: | $(B)/bin/marie-sim
 
 $(eval $(call marie_test,test_sim_channels,tests/sim/test_sim_channels.c tests/proc.c,))
@@ -23,7 +23,7 @@ $(B)/tests/test_sim_channels: | $(B)/bin/marie-sim $(B)/bin/marie-drives $(B)/bi
 
 
 # The camera's cost (docs/vision.md): render time and real-time factor with and without it.
-$(eval $(call marie_bench,bench_sim_camera,sim/bench_sim_camera.c sim/camera.c,$(SIM_LIB) $(ODE_LIBS) $(CAMERA_LIBS)))
+$(eval $(call marie_bench,bench_sim_camera,bench/bench_sim_camera.c sim/camera.c,$(SIM_LIB) $(ODE_LIBS) $(CAMERA_LIBS)))
 $(B)/bench/bench_sim_camera: | $(B)/bin/marie-sim
 $(eval $(call marie_test,test_sim_camera,tests/sim/test_sim_camera.c sim/camera.c,$(SIM_LIB) $(VISION_LIBS)))
 $(B)/obj/tests/sim/test_sim_camera.o: CPPFLAGS += $(CAMERA_CV_CFLAGS)

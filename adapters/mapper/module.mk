@@ -5,7 +5,7 @@ $(B)/obj/adapters/mapper/%.o: CPPFLAGS += $(ADAPT_EIGEN_CFLAGS)
 $(eval $(call marie_lib,mapper,adapters/mapper/slam.cpp adapters/mapper/scangrid.cpp adapters/mapper/posegraph.cpp))
 $(eval $(call marie_program,marie-mapper,adapters/mapper/mapper_main.c,$(MAPPER_LIBS)))
 $(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
-$(eval $(call marie_bench,bench_mapper,adapters/mapper/bench_mapper.cpp,$(MAPPER_LIBS)))
+$(eval $(call marie_bench,bench_mapper,bench/bench_mapper.cpp,$(MAPPER_LIBS)))
 # The integration test's pilot, and a recorded run through the mapper's library (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
 $(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c tools/viewer/lcmlog.c,$(MAPPER_LIBS)))

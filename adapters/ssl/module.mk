@@ -8,5 +8,5 @@ $(B)/tests/test_ssl: | $(B)/share/sounds/phrases.stamp
 $(eval $(call marie_program,marie-ssl,adapters/ssl/ssl_main.c,$(SSL_LIBS)))
 $(eval $(call marie_test,test_ssl_process,tests/audio/test_ssl_process.c tests/proc.c,))
 $(B)/tests/test_ssl_process: | $(B)/bin/marie-sim $(B)/bin/marie-ssl $(B)/share/sounds/phrases.stamp
-$(eval $(call marie_bench,bench_ssl,adapters/ssl/bench_ssl.c tests/audio/audio_scene_util.c,$(SSL_TEST_LIBS)))
+$(eval $(call marie_bench,bench_ssl,bench/bench_ssl.c tests/audio/audio_scene_util.c,$(SSL_TEST_LIBS)))
 $(B)/bench/bench_ssl: | $(B)/share/sounds/phrases.stamp

@@ -22,7 +22,7 @@ $(eval $(call marie_test,test_vision_component,tests/vision/test_vision_componen
 $(eval $(call marie_fuzz,vision_image,adapters/vision/fuzz_vision_image.c camera/vision_image.c,-ljpeg))
 ITESTS += tests/vision/test_vision_process.sh
 
-$(eval $(call marie_bench,bench_vision,adapters/vision/bench_vision.c,$(VISION_LIBS)))
+$(eval $(call marie_bench,bench_vision,bench/bench_vision.c,$(VISION_LIBS)))
 # The vision adapter on the simulator's camera (processes on this test's bus).
 $(eval $(call marie_test,test_vision_sim,tests/vision/test_vision_sim.c tests/proc.c,))
 $(B)/tests/test_vision_sim: | $(B)/bin/marie-sim $(B)/bin/marie-vision

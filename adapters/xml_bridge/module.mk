@@ -29,4 +29,4 @@ $(eval $(call marie_test,test_xb_codec,tests/xml_bridge/test_xb_codec.c $(XB_TES
 $(eval $(call marie_test,test_xb_server,tests/xml_bridge/test_xb_server.c $(XB_TEST_SRCS),$(XB_LIB) -lexpat))
 $(eval $(call marie_fuzz,xml_bridge_doc,tests/xml_bridge/fuzz_xml_bridge_doc.c $(XB_CODEC_SRCS),-lexpat))
 ITESTS += tests/xml_bridge/test_xml_peer.py tests/xml_bridge/test_xml_memory.py
-$(eval $(call marie_bench,bench_xml_bridge,adapters/xml_bridge/bench_xml_bridge.c,$(XB_LIB) -lexpat))
+$(eval $(call marie_bench,bench_xml_bridge,bench/bench_xml_bridge.c,$(XB_LIB) -lexpat))

@@ -23,7 +23,7 @@ ITESTS += tests/hw/test_vm_can.sh
 # The same checks on two emulated SJA1000 controllers (kvaser_pci) instead of vcan; ~60 s.
 VMTESTS += tests/hw/test_vm_canctl.sh
 ITESTS += tests/hw/test_vm_canctl.sh
-$(eval $(call marie_bench,bench_hw_can,hw/drives/bench_hw_can.c tests/proc.c,$(B)/lib/libmarie_can.a))
+$(eval $(call marie_bench,bench_hw_can,bench/bench_hw_can.c tests/proc.c,$(B)/lib/libmarie_can.a))
 $(B)/bench/bench_hw_can: | $(B)/bin/marie-canbus $(B)/bin/marie-vcan-devices $(B)/bin/marie-drives $(B)/bin/marie-gyro
 # For programs hosting the virtual devices (the simulator's device mode): link these.
 HW_VDEVICES_LIBS := $(VDEVICES_LIB) $(DRIVES_LIB) $(B)/lib/libmarie_gyro.a $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a

@@ -16,5 +16,5 @@ ITESTS += tests/hw/test_lms200_ps.sh
 # libFuzzer builds take sources only, so the codec is listed as a source here.
 $(eval $(call marie_fuzz,lms200,tests/hw/fuzz_lms200.c hw/lms200/lms200.c))
 
-$(eval $(call marie_bench,bench_lms200,hw/lms200/bench_lms200.c tests/proc.c,$(LMS200_LIB)))
+$(eval $(call marie_bench,bench_lms200,bench/bench_lms200.c tests/proc.c,$(LMS200_LIB)))
 $(B)/bench/bench_lms200: $(B)/bin/marie-lms200 $(B)/bin/marie-vlms200

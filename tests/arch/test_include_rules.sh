@@ -23,7 +23,7 @@ allowed() {
 
 production_files() {
     find core map camera ca hw managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
-        grep -v '/bench_' | sort
+        sort
 }
 
 # Prints "file:line: includes X" for every include outside the file's allowed prefixes: the
@@ -80,8 +80,15 @@ a_private_wait_is_caught() {
     [ "$(echo "$v" | grep -c .)" -eq 2 ]
 }
 
+# Benchmarks live in bench/ (they may include tests' helpers, which production code may not).
+benchmarks_live_in_bench() {
+    v=$(production_files | grep '/bench_')
+    [ -z "$v" ] || { echo "benchmarks outside bench/: $v"; return 1; }
+}
+
 check every_include_follows_the_layers every_include_follows_the_layers
 check a_violation_is_caught a_violation_is_caught
 check "one loop: no program waits outside marie_loop" no_program_waits_outside_the_loop
 check "one loop: a private wait is caught" a_private_wait_is_caught
+check "benchmarks live in bench/" benchmarks_live_in_bench
 finish

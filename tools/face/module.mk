@@ -5,7 +5,7 @@ INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie/face && install -m 6
 $(eval $(call marie_link,$(B)/tests/helpers/face_probe,tests/face/face_probe.c,))
 EXTRA_TARGETS += $(B)/tests/helpers/face_probe
 ITESTS += tests/face/test_face.sh
-$(eval $(call marie_bench,bench_face,tools/face/bench_face.c,-lcivetweb))
+$(eval $(call marie_bench,bench_face,bench/bench_face.c,-lcivetweb))
 $(B)/bench/bench_face: | $(B)/bin/marie-face $(B)/bin/marie-mission $(B)/bin/marie-sim $(B)/bin/marie-odometry \
     $(B)/bin/marie-localizer $(B)/bin/marie-planner $(B)/bin/marie-ca $(B)/bin/marie-behaviours
 ITESTS += tests/face/test_face_sim.sh

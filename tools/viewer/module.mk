@@ -20,6 +20,6 @@ ITESTS += tests/viewer/test_viewer.sh
 ITESTS += tests/viewer/test_viewer_controls.sh
 ITESTS += tests/viewer/test_viewer_graph.sh
 
-$(eval $(call marie_bench,bench_viewer,tools/viewer/bench_viewer.c,-lcivetweb))
+$(eval $(call marie_bench,bench_viewer,bench/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen
 ITESTS += tests/viewer/test_viewer_landmarks.sh
