@@ -5,13 +5,9 @@
 #define MARIE_BENCH_H
 
 #include <math.h>
-#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <sys/prctl.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 static inline void bench_row(const char *bench, const char *metric, double value, const char *unit, double baseline)
 {
@@ -35,32 +31,6 @@ static inline double bench_percentile(int64_t *v, int n, double p)
         return NAN;
     qsort(v, (size_t)n, sizeof *v, bench_cmp_i64);
     return (double)v[(int)(p * (n - 1) + 0.5)];
-}
-
-/* Busy loops at the normal policy, one per pid slot, that keep the cores busy until
- * bench_busy_stop() (or the bench's end: they die with it). 0, or -1 when fork failed. */
-static inline int bench_busy_start(pid_t *pids, int n)
-{
-    for (int i = 0; i < n; i++) {
-        if ((pids[i] = fork()) < 0)
-            return -1;
-        if (pids[i] == 0) {
-            prctl(PR_SET_PDEATHSIG, SIGKILL);
-            for (volatile uint64_t k = 0;; k++)
-                ;
-        }
-    }
-    return 0;
-}
-
-static inline void bench_busy_stop(pid_t *pids, int n)
-{
-    for (int i = 0; i < n; i++)
-        if (pids[i] > 0) {
-            kill(pids[i], SIGKILL);
-            waitpid(pids[i], NULL, 0);
-            pids[i] = 0;
-        }
 }
 
 #endif

@@ -11,12 +11,14 @@
 #include <linux/futex.h>
 #include <math.h>
 #include <poll.h>
+#include <signal.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/syscall.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "bench/bench.h"
@@ -305,10 +307,10 @@ static void two_processes(void)
         throughput(&pb, sizes[k].label, sizes[k].size);
     /* Beside two busy loops of the bench's own, on top of whatever else the machine runs. */
     pid_t busy[2] = {0};
-    if (bench_busy_start(busy, 2) == 0)
+    if (test_busy_start(busy, 2) == 0)
         for (int k = 0; k < 3; k++)
             latency(&pb, sizes[k].label, "_busy", sizes[k].size, sizes[k].n);
-    bench_busy_stop(busy, 2);
+    test_busy_stop(busy, 2);
     kill(pb.sub, SIGTERM);
     waitpid(pb.sub, NULL, 0);
     marie_component_destroy(pb.tx);
