@@ -186,7 +186,7 @@ static void bench_respawn_and_hang(void)
     /* hang: SIGUSR1 stops the victim's loop; detection = manager's not_responding event */
     lcm_t *lcm = lcm_create(marie_default_url());
     marie_loop_t *loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 1) < 0) {
         fprintf(stderr, "bench_am: no LCM\n");
         exit(1);
     }

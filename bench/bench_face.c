@@ -329,7 +329,7 @@ int main(void)
     snprintf(keyp, sizeof keyp, "key_file=%s", key);
     lcm_t *lcm = lcm_create(NULL);
     loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 8) < 0)
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 8) < 0)
         return 1;
     marie_goal_t_subscribe(lcm, "GOAL", on_goal, NULL);
     marie_goal_request_t_subscribe(lcm, "GOAL_REQUEST", on_req, NULL);

@@ -154,7 +154,7 @@ static int subscriber_main(void)
     marie_component_t *c = component(&sub_def, NULL, marie_default_url());
     lcm_t *raw = lcm_create(RAW_URL);
     marie_loop_t *loop = marie_component_loop(c);
-    if (!raw || !marie_image_t_subscribe(raw, "BENCH_R", sub_raw, NULL) || marie_loop_add_lcm(loop, raw, 1) < 0)
+    if (!raw || !marie_image_t_subscribe(raw, "BENCH_R", sub_raw, NULL) || marie_loop_add_bus(loop, raw, 1) < 0)
         return 1;
     marie_loop_catch_signals(loop, on_quit, NULL);
     atomic_store(&sh->ready, 1);
@@ -449,7 +449,7 @@ static void shm_ports(void)
     for (int i = 0; i < 3; i++) {
         raw3[i] = lcm_create(marie_default_url());
         marie_image_t_subscribe(raw3[i], "BENCH_R3", raw_handler, &rawn[i]);
-        marie_loop_add_lcm(marie_component_loop(rx[i]), raw3[i], 1);
+        marie_loop_add_bus(marie_component_loop(rx[i]), raw3[i], 1);
     }
     const int n = 90;
     /* Subscribers 1 and 2 were not pumped while 0 was timed: drain what they hold first. */

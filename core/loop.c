@@ -148,7 +148,7 @@ int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
 static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     lcm_watch_t *w = user;
-    marie_lcm_handle(w->lcm, w->burst);
+    marie_bus_handle(w->lcm, w->burst);
 }
 
 /* Under the simulated clock, what another fd brings (a device's bytes, a CAN frame) came at the
@@ -162,7 +162,7 @@ static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *use
 static int is_lcm_fd(const marie_loop_t *loop, int fd)
 {
     for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
-        if (marie_lcm_fd(w->lcm) == fd)
+        if (marie_bus_fd(w->lcm) == fd)
             return 1;
     return 0;
 }
@@ -177,14 +177,14 @@ static void catch_up_clock(marie_loop_t *loop)
     for (int i = 0; i < n && !loop->quit; i++)
         for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
             if (w->lcm == buses[i]) {
-                marie_lcm_handle(buses[i], CATCH_UP_MAX);
+                marie_bus_handle(buses[i], CATCH_UP_MAX);
                 break;
             }
 }
 
-int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
+int marie_loop_add_bus(marie_loop_t *loop, lcm_t *lcm, int burst)
 {
-    int fd = lcm ? marie_lcm_fd(lcm) : -1;
+    int fd = lcm ? marie_bus_fd(lcm) : -1;
     if (fd < 0)
         return -EINVAL;
     lcm_watch_t *w = calloc(1, sizeof *w);
@@ -200,14 +200,14 @@ int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
     return 0;
 }
 
-int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm)
+int marie_loop_remove_bus(marie_loop_t *loop, lcm_t *lcm)
 {
     for (lcm_watch_t **p = &loop->lcms; *p; p = &(*p)->next) {
         if ((*p)->lcm == lcm) {
             lcm_watch_t *w = *p;
             *p = w->next;
             free(w);
-            return marie_loop_remove_fd(loop, marie_lcm_fd(lcm));
+            return marie_loop_remove_fd(loop, marie_bus_fd(lcm));
         }
     }
     return -ENOENT;

@@ -1,5 +1,5 @@
 # core: libmarie (component runtime, loop, config, logging) with the generated LCM types.
-CORE_SRCS := $(sort $(wildcard core/*.c))
+CORE_SRCS := $(sort $(wildcard core/*.c core/bus/*.c))
 
 $(LIBMARIE): $(call marie_objs,$(CORE_SRCS)) $(LCM_OBJS)
 	@mkdir -p $(@D)

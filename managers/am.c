@@ -334,16 +334,16 @@ int main(int argc, char **argv)
     marie_ratelimit_init(&am->refusal_rl, 5, 10);
     marie_ratelimit_init(&am->status_answer_rl, AM_STATUS_ANSWER_RATE, AM_STATUS_ANSWER_BURST);
 
-    am->lcm = marie_lcm_create(am->url);
+    am->lcm = marie_bus_create(am->url);
     if (!am->lcm) {
         marie_error("lcm_create(%s) failed", am->url);
         goto out_loop;
     }
-    marie_lcm_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
-    marie_lcm_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
-    marie_lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
-    marie_lcm_subscribe(am->lcm, MARIE_CH_AM_STATUS_REQUEST, on_raw_status_request, am);
-    marie_loop_add_lcm(am->loop, am->lcm, 1);
+    marie_bus_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
+    marie_bus_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
+    marie_bus_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
+    marie_bus_subscribe(am->lcm, MARIE_CH_AM_STATUS_REQUEST, on_raw_status_request, am);
+    marie_loop_add_bus(am->loop, am->lcm, 1);
 
     sigset_t mask;
     sigemptyset(&mask);
@@ -395,7 +395,7 @@ int main(int argc, char **argv)
     close(am->sigfd);
 out_lcm:
     am_comps_free(am);
-    marie_lcm_destroy(am->lcm);
+    marie_bus_destroy(am->lcm);
 out_loop:
     am_comps_free(am);
     marie_loop_destroy(am->loop);
