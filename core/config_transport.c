@@ -13,7 +13,7 @@ const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, c
     return NULL;
 }
 
-/* transports: {CHANNEL: {kind: shm|lcm, max_size: BYTES, slots: N}, ...} */
+/* transports: {CHANNEL: {kind: shm|local|lcm, max_size: BYTES, slots: N}, ...} */
 int marie_transports_read(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs)
 {
     if (!n)
@@ -42,8 +42,8 @@ int marie_transports_read(const marie_node_t *n, marie_system_t *sys, marie_erro
             rc = -1;
             continue;
         }
-        if (strcmp(kind, "shm") != 0 && strcmp(kind, "lcm") != 0) {
-            marie_node_error(errs, marie_node_get(t, "kind"), "transport of '%s': kind is shm or lcm, not '%s'",
+        if (strcmp(kind, "shm") != 0 && strcmp(kind, "local") != 0 && strcmp(kind, "lcm") != 0) {
+            marie_node_error(errs, marie_node_get(t, "kind"), "transport of '%s': kind is shm, local or lcm, not '%s'",
                              t->key, kind);
             rc = -1;
         } else if (max_size < 64 || max_size > (1LL << 30) || slots < 2 || slots > 1024) {

@@ -15,13 +15,15 @@
 
 /* The bus's own providers, asked in this order for its URL; then those a channel may move to. */
 static const marie_bus_provider_t *const own_providers[] = {&marie_bus_udpm, &marie_bus_liblcm};
-static const marie_bus_provider_t *const channel_providers[] = {&marie_bus_shm};
+static const marie_bus_provider_t *const channel_providers[] = {&marie_bus_shm, &marie_bus_local};
+#define NCHANNEL_PROVIDERS (sizeof channel_providers / sizeof *channel_providers)
 
 typedef struct route {
     struct route *next;
     char *channel, *kind;
     marie_bus_transport_t t;        /* its strings are channel and kind above */
     const marie_bus_provider_t *p;
+    size_t pi;                      /* p's index in channel_providers */
     void *st;                       /* opened at first use */
 } route_t;
 
@@ -39,6 +41,7 @@ typedef struct bus {
     void *st;
     route_t *routes;
     marie_bus_sub_t *subs;          /* let go at destroy, those not unsubscribed */
+    void *chan_st[NCHANNEL_PROVIDERS];  /* each channel provider's state for the bus, or NULL */
 } bus_t;
 
 /* The buses made, for lookups by lcm_t: guarded, since any thread may publish. */
@@ -133,6 +136,9 @@ void marie_bus_destroy(lcm_t *lcm)
         route_free(b->routes);
         b->routes = n;
     }
+    for (size_t i = 0; i < NCHANNEL_PROVIDERS; i++)
+        if (b->chan_st[i])
+            channel_providers[i]->close_bus(b->chan_st[i]);
     b->p->close(b->st);
     lcm_destroy(b->lcm);
     free(b);
@@ -154,7 +160,7 @@ static route_t *route_open(bus_t *b, const char *channel, int *err)
 {
     route_t *r = route_named(b, channel);
     *err = 0;
-    if (r && !r->st && !(r->st = r->p->open_channel(b->lcm, &r->t)))
+    if (r && !r->st && !(r->st = r->p->open_channel(b->lcm, &r->t, &b->chan_st[r->pi])))
         *err = errno ? errno : EIO;
     return r;
 }
@@ -165,9 +171,10 @@ int marie_bus_set_transport(lcm_t *lcm, const marie_bus_transport_t *t)
     if (!b || !t || !t->channel || !t->kind)
         return marie_fail(EINVAL);
     const marie_bus_provider_t *p = NULL;
-    for (size_t i = 0; i < sizeof channel_providers / sizeof *channel_providers; i++)
+    size_t pi = 0;
+    for (size_t i = 0; i < NCHANNEL_PROVIDERS; i++)
         if (strcmp(channel_providers[i]->name, t->kind) == 0)
-            p = channel_providers[i];
+            p = channel_providers[pi = i];
     route_t *old = route_named(b, t->channel);
     if (old && old->st)
         return marie_fail(EEXIST);
@@ -191,6 +198,7 @@ int marie_bus_set_transport(lcm_t *lcm, const marie_bus_transport_t *t)
     r->t.channel = r->channel;
     r->t.kind = r->kind;
     r->p = p;
+    r->pi = pi;
     r->next = b->routes;
     b->routes = r;
     return 0;
@@ -434,6 +442,45 @@ int marie_bus_handle(lcm_t *lcm, int max)
 {
     bus_t plain, *b = bus_of(lcm, &plain);
     return b ? b->p->handle(b->st, max) : 0;
+}
+
+/* The channel providers' own parts (the fast path's doorbell). One provider has them. */
+static const marie_bus_provider_t *bus_part(const bus_t *b, void **st)
+{
+    for (size_t i = 0; b && i < NCHANNEL_PROVIDERS; i++)
+        if (b->chan_st[i] && channel_providers[i]->bus_fd) {
+            *st = b->chan_st[i];
+            return channel_providers[i];
+        }
+    return NULL;
+}
+
+int marie_bus_wake_fd(lcm_t *lcm)
+{
+    void *st;
+    const marie_bus_provider_t *p = bus_part(find(lcm), &st);
+    return p ? p->bus_fd(st) : -1;
+}
+
+int marie_bus_handle_wake(lcm_t *lcm, int max)
+{
+    void *st;
+    const marie_bus_provider_t *p = bus_part(find(lcm), &st);
+    return p ? p->bus_handle(st, max) : 0;
+}
+
+int marie_bus_sleep(lcm_t *lcm, bool on)
+{
+    void *st;
+    const marie_bus_provider_t *p = bus_part(find(lcm), &st);
+    return p ? p->bus_sleep(st, on) : 0;
+}
+
+bool marie_bus_pending(lcm_t *lcm)
+{
+    void *st;
+    const marie_bus_provider_t *p = bus_part(find(lcm), &st);
+    return p && p->bus_pending(st);
 }
 
 void marie_bus_stats(const lcm_t *lcm, marie_bus_stats_t *st)

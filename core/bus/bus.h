@@ -119,6 +119,18 @@ marie_bus_sub_stats_t marie_bus_sub_stats(const lcm_t *bus, const marie_bus_sub_
 int marie_bus_fd(lcm_t *bus);
 int marie_bus_handle(lcm_t *bus, int max);
 
+/* The same-host fast path has a descriptor of its own, a doorbell, from the bus's first
+ * subscription on a `local` channel (-1 before): the loop polls it too, and hands what it
+ * signals to marie_bus_handle_wake() (at most max messages; how many were handled). A fast
+ * path's publisher rings a reader's doorbell only while the reader sleeps: the loop says so,
+ * marie_bus_sleep(bus, 1) before it sleeps (1: messages wait already, do not sleep) and
+ * marie_bus_sleep(bus, 0) once it wakes. marie_bus_pending() says whether messages wait on the
+ * fast path without a system call (the loop's spinning looks at it). */
+int marie_bus_wake_fd(lcm_t *bus);
+int marie_bus_handle_wake(lcm_t *bus, int max);
+int marie_bus_sleep(lcm_t *bus, bool on);
+bool marie_bus_pending(lcm_t *bus);
+
 /* What marie's reader saw on the bus (all zero where liblcm reads it). */
 typedef struct {
     int64_t messages;       /* whole messages received (delivered or not subscribed) */

@@ -18,8 +18,10 @@ typedef struct marie_bus_provider {
     /* A bus's own provider: its state for the bus at url, or NULL with errno (EPROTONOSUPPORT:
      * not a URL it reads; the bus then asks the next). */
     void *(*open)(lcm_t *bus, const char *url);
-    /* A channel's provider: its state for one channel a transport moved to it. */
-    void *(*open_channel)(lcm_t *bus, const marie_bus_transport_t *t);
+    /* A channel's provider: its state for one channel a transport moved to it. *bus_st is the
+     * provider's state for the whole bus (NULL until a channel makes it; close_bus lets it go
+     * with the bus). */
+    void *(*open_channel)(lcm_t *bus, const marie_bus_transport_t *t, void **bus_st);
     void (*close)(void *st);
     void *(*subscribe)(void *st, const char *channel, const marie_bus_recv_t *r);
     void (*unsubscribe)(void *st, void *sub);
@@ -36,11 +38,20 @@ typedef struct marie_bus_provider {
     int (*handle)(void *st, int max);
     void (*stats)(const void *st, marie_bus_stats_t *out);
     int (*sends)(const void *st);
+    /* A channel provider's state for the whole bus: a descriptor of its own for the loop (-1:
+     * none yet), the handling of what it signalled, the loop going to sleep (on: 1 when messages
+     * wait already) or waking, and whether messages wait, seen without a system call. */
+    void (*close_bus)(void *bus_st);
+    int (*bus_fd)(void *bus_st);
+    int (*bus_handle)(void *bus_st, int max);
+    int (*bus_sleep)(void *bus_st, bool on);
+    bool (*bus_pending)(void *bus_st);
 } marie_bus_provider_t;
 
 extern const marie_bus_provider_t marie_bus_udpm;      /* core/bus/udpm.c */
 extern const marie_bus_provider_t marie_bus_liblcm;    /* core/bus/liblcm.c */
 extern const marie_bus_provider_t marie_bus_shm;       /* core/bus/shm_bus.c */
+extern const marie_bus_provider_t marie_bus_local;     /* core/bus/local.c */
 
 /* For channel providers, which carry their notices and copies on the bus's own provider: a
  * publish and a subscription that no transport reroutes. */

@@ -24,7 +24,7 @@
 
 /* The machine: only there can a segment be mapped. MARIE_SHM_HOST overrides the host name
  * (machines that share one, such as containers; tests playing another host). */
-static void host_name(char *out, size_t cap)
+void marie_shm_host(char *out, size_t cap)
 {
     const char *env = getenv("MARIE_SHM_HOST");
     if (env && *env) {
@@ -55,6 +55,10 @@ struct marie_shm_pub {
     marie_shm_writer_t *w;
     marie_bus_sub_t *want_sub;
     int64_t wanted_until;       /* mono us */
+    int64_t notice_every_us;    /* 0: a notice per message */
+    int64_t last_notice;        /* mono us */
+    void (*after_ring)(void *); /* run between the ring and LCM (the fast path's doorbells) */
+    void *after_user;
     marie_shm_pub_stats_t st;
 };
 
@@ -80,7 +84,7 @@ marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t ma
     snprintf(p->channel, sizeof p->channel, "%s", channel);
     snprintf(p->notice_ch, sizeof p->notice_ch, "%s.SHM", channel);
     snprintf(p->want_ch, sizeof p->want_ch, "%s.SHMWANT", channel);
-    host_name(p->host, sizeof p->host);
+    marie_shm_host(p->host, sizeof p->host);
     p->w = marie_shm_writer_create(channel, max_size, nslots);
     if (!p->w)
         goto err;
@@ -127,11 +131,17 @@ int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len)
     marie_shm_commit(p->w, rc ? 0 : len, rc ? NULL : &ref);
     if (rc)
         return rc;
-    marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
-                             .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(at, len) };
-    if (publish_notice(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
-        return -EIO;
+    if (p->after_ring)
+        p->after_ring(p->after_user);
     p->st.published++;
+    int64_t now = p->notice_every_us ? marie_mono_us() : 0;
+    if (!p->notice_every_us || now - p->last_notice >= p->notice_every_us) {
+        p->last_notice = now;
+        marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
+                                 .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(at, len) };
+        if (publish_notice(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
+            return -EIO;
+    }
     if (p->wanted_until && marie_mono_us() < p->wanted_until) {
         if (marie_bus_publish_own(p->lcm, p->channel, at, len) != 0)
             return -EIO;
@@ -157,6 +167,15 @@ int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len)
 
 const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p) { return &p->st; }
 
+const char *marie_shm_pub_segment(const marie_shm_pub_t *p) { return marie_shm_writer_segment(p->w); }
+
+void marie_shm_pub_pace(marie_shm_pub_t *p, int64_t notice_every_us, void (*after_ring)(void *), void *user)
+{
+    p->notice_every_us = notice_every_us;
+    p->after_ring = after_ring;
+    p->after_user = user;
+}
+
 /* ---- subscriber ---- */
 
 struct marie_shm_sub {
@@ -170,6 +189,7 @@ struct marie_shm_sub {
     marie_shm_verdict_cb_t verdict;     /* in place: NULL means copy first */
     void *user;
     marie_bus_sub_t *notice_sub, *copy_sub;
+    bool remote_only;           /* this host's writers are read another way (the fast path) */
     int depth;                  /* callbacks running */
     bool dead;                  /* destroyed from one: freed once it returns */
     int64_t last_want;          /* mono us */
@@ -254,6 +274,8 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
     }
     if (strcmp(n.host, s->host) != 0) {
         want_remote(s);
+    } else if (s->remote_only) {
+        /* read from the ring by the fast path */
     } else if (n.size < 8 || (size_t)n.size > s->cap || strlen(n.segment) >= MARIE_SHM_NAME_MAX) {
         s->st.bad++;
     } else {
@@ -291,7 +313,7 @@ marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t ma
         return NULL;
     snprintf(s->channel, sizeof s->channel, "%s", channel);
     snprintf(s->want_ch, sizeof s->want_ch, "%s.SHMWANT", channel);
-    host_name(s->host, sizeof s->host);
+    marie_shm_host(s->host, sizeof s->host);
     char notice_ch[CH_MAX + 8];
     snprintf(notice_ch, sizeof notice_ch, "%s.SHM", channel);
     s->r = marie_shm_reader_create();
@@ -330,6 +352,7 @@ void marie_shm_sub_destroy(marie_shm_sub_t *s)
 const marie_shm_sub_stats_t *marie_shm_sub_stats(const marie_shm_sub_t *s) { return &s->st; }
 
 void marie_shm_sub_in_place(marie_shm_sub_t *s, marie_shm_verdict_cb_t verdict) { s->verdict = verdict; }
+void marie_shm_sub_remote_only(marie_shm_sub_t *s) { s->remote_only = true; }
 
 /* ---- the provider: a channel a transport puts on shared memory (`kind: shm`) ---- */
 
@@ -346,7 +369,7 @@ typedef struct {
     const char *channel;        /* the route's */
 } shm_sub_t;
 
-static void *chan_open(lcm_t *bus, const marie_bus_transport_t *t)
+static void *chan_open(lcm_t *bus, const marie_bus_transport_t *t, void **bus_st)
 {
     return MARIE_NEW(chan_t, .bus = bus, .t = *t);
 }
