@@ -27,5 +27,6 @@ $(eval $(call marie_link,$(B)/tests/lcm_send,tests/core/lcm_send.c,))
 EXTRA_TARGETS += $(B)/tests/lcm_send
 ITESTS += tests/core/test_lcm_python_peer.sh
 $(eval $(call marie_fuzz,shm,tests/core/fuzz_shm.c))
+$(eval $(call marie_fuzz,local,tests/core/fuzz_local.c))
 $(eval $(call marie_fuzz,lcm,tests/core/fuzz_lcm.c tests/udp.c))
 ITESTS += tests/core/test_params_gen.sh

@@ -112,7 +112,9 @@ static void ring_bells(void *user)
             ch->bell_fd[i] = -1;
         }
         ch->bell_ticket[i] = ticket;
-        local_bell_ring(e->bell, &ch->bell_fd[i]);
+        char bell[LOCAL_BELL_MAX];
+        snprintf(bell, sizeof bell, "%.*s", (int)sizeof e->bell - 1, e->bell);
+        local_bell_ring(bell, &ch->bell_fd[i]);
     }
 }
 
@@ -188,7 +190,8 @@ static void rescan(lchan_t *ch)
             peer_drop(p);
         if (!pid || p->pid || !(p->r = marie_shm_reader_create()))
             continue;
-        snprintf(p->segment, sizeof p->segment, "%s", e->segment);
+        /* Written by another process: bounded, a name without its NUL is cut. */
+        snprintf(p->segment, sizeof p->segment, "%.*s", (int)sizeof e->segment - 1, e->segment);
         int64_t newest = marie_shm_newest(p->r, p->segment);
         if (newest < 0) {
             peer_drop(p);           /* not there (yet): the next change looks again */

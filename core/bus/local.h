@@ -46,6 +46,8 @@ typedef struct {
     char path[320];
 } local_reg_t;
 
+/* The channel's registry's path, in this network namespace on this host. */
+void local_reg_path(char *out, size_t cap, const char *channel);
 /* Opens (or makes) the channel's registry. 0, or -1 with errno. */
 int local_reg_open(local_reg_t *r, const char *channel);
 /* Lets go of it, and removes it when nobody is registered any more. */

@@ -53,7 +53,7 @@ static int escaped(char *out, size_t cap, int n, const char *name)
 
 /* The registry of a channel in this network namespace on this host (the host as the shared
  * memory transport names it: a test plays another host with MARIE_SHM_HOST). */
-static void reg_path(char *out, size_t cap, const char *channel)
+void local_reg_path(char *out, size_t cap, const char *channel)
 {
     char host[64];
     marie_shm_host(host, sizeof host);
@@ -116,7 +116,7 @@ out:
 int local_reg_open(local_reg_t *r, const char *channel)
 {
     *r = (local_reg_t){.fd = -1};
-    reg_path(r->path, sizeof r->path, channel);
+    local_reg_path(r->path, sizeof r->path, channel);
     /* A registry its last user removes is unlinked while that user holds it alone: one opened
      * just before is let go and opened again. */
     for (int attempt = 0; attempt < 8; attempt++) {
