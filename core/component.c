@@ -417,6 +417,9 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
             goto err;
         }
     }
+    /* Users' types (marie-types-gen) before anything decodes: ports, the XML bridge, the CAs. */
+    if (marie_system_load_types(c->sys, errs) < 0)
+        goto err;
     c->name = strdup(o.name ? o.name : def->kind);
     marie_log_set_name(c->name);
     const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
