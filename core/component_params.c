@@ -245,3 +245,83 @@ int marie_comp_bind_params(marie_component_t *c, const options_t *o, marie_error
     }
     return rc;
 }
+
+/* ---- the resolved configuration, for runtimes in other languages (core/spec.h) ---- */
+
+static const char *bus_url(const marie_component_t *c, const lcm_t *lcm)
+{
+    for (size_t i = 0; i < c->nbuses; i++)
+        if (c->buses[i].lcm == lcm)
+            return c->buses[i].url;
+    return c->buses[0].url;
+}
+
+static void param_json(const param_t *pa, FILE *out)
+{
+    char *canon;
+    switch (pa->spec->type) {
+    case MARIE_PARAM_INT: fprintf(out, "%lld", (long long)pa->i); break;
+    case MARIE_PARAM_DOUBLE: fprintf(out, "%.17g", pa->d); break;
+    case MARIE_PARAM_BOOL: fputs(pa->b ? "true" : "false", out); break;
+    case MARIE_PARAM_STRING: marie_spec_json_str(out, pa->s); break;
+    case MARIE_PARAM_NODE:
+        canon = pa->node ? marie_node_canonical(pa->node) : NULL;
+        marie_spec_json_str(out, canon);
+        free(canon);
+        break;
+    }
+}
+
+void marie_spec_resolved(const marie_component_t *c, FILE *out)
+{
+    const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
+    fputs("{\"name\": ", out);
+    marie_spec_json_str(out, c->name);
+    fputs(", \"kind\": ", out);
+    marie_spec_json_str(out, c->def->kind);
+    fputs(", \"host\": ", out);
+    marie_spec_json_str(out, c->host);
+    fputs(", \"group\": ", out);
+    marie_spec_json_str(out, c->cfg ? c->cfg->group : NULL);
+    fputs(", \"url\": ", out);
+    marie_spec_json_str(out, c->buses[0].url);
+    fprintf(out, ", \"clock\": \"%s\", \"key_file\": ", marie_loop_clock(c->loop) == MARIE_CLOCK_SIM ? "sim" : "wall");
+    marie_spec_json_str(out, key);
+    fputs(", \"system\": ", out);
+    marie_spec_json_str(out, c->sys ? c->sys->file : NULL);
+    fputs(", \"profile\": ", out);
+    marie_spec_json_str(out, c->sys ? c->sys->profile : NULL);
+    fprintf(out, ", \"heartbeat_timeout_s\": %.17g, \"spin_us\": %d, \"hold\": %s, \"hash\": ",
+            c->cfg ? c->cfg->heartbeat_timeout_s : 0.0, c->cfg ? c->cfg->sched.spin_us : 0, c->hold ? "true" : "false");
+    marie_spec_json_str(out, c->cfg ? c->cfg->hash : NULL);
+    fputs(", \"types\": [", out);
+    for (size_t i = 0; c->sys && i < c->sys->ntypes; i++) {
+        char path[4096];
+        const char *t = c->sys->types[i], *slash = strrchr(c->sys->file, '/');
+        if (t[0] == '/' || !slash)
+            snprintf(path, sizeof path, "%s", t);
+        else
+            snprintf(path, sizeof path, "%.*s/%s", (int)(slash - c->sys->file), c->sys->file, t);
+        fputs(i ? ", " : "", out);
+        marie_spec_json_str(out, path);
+    }
+    fputs("],\n \"params\": {", out);
+    for (size_t i = 0; i < c->nparams; i++) {
+        fputs(i ? ", " : "", out);
+        marie_spec_json_str(out, c->params[i].spec->name);
+        fputs(": ", out);
+        param_json(&c->params[i], out);
+    }
+    fputs("},\n \"ports\": {", out);
+    for (size_t i = 0; i < c->nports; i++) {
+        const marie_port_t *p = &c->ports[i];
+        fputs(i ? ", " : "", out);
+        marie_spec_json_str(out, p->spec->name);
+        fputs(": {\"channel\": ", out);
+        marie_spec_json_str(out, p->channel);
+        fputs(", \"url\": ", out);
+        marie_spec_json_str(out, bus_url(c, p->lcm));
+        fprintf(out, ", \"shm\": %s}", p->shm ? "true" : "false");
+    }
+    fputs("}}\n", out);
+}

@@ -1,0 +1,81 @@
+#!/bin/sh
+# test_python_component: Python components (python/marie) under marie-am, checked from upstream
+# LCM for Python: described and checked before start, restarted after kill -9, paused and
+# resumed, a forged order refused, malformed input counted, the simulator's clock followed, a
+# pull answered by a Mailbox, messages crossing to and from a C component.
+. tests/lib.sh
+T=$(mktemp -d /tmp/marie-test-py.XXXXXX)
+export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
+M="$BIN/marie"
+AM_PID=
+cleanup() { [ -n "$AM_PID" ] && kill "$AM_PID" 2>/dev/null; sleep 0.5; rm -rf "$T"; }
+trap cleanup EXIT
+py=$(scripts/peer-venv.sh) || { echo "LCM for Python is not installed (scripts/peer-venv.sh); failing"; exit 1; }
+peer() { PYTHONPATH=$B/python "$py" tests/python/lcm_peer.py "$@"; }
+# hbv NAME EXPR: a Python expression over NAME's last heartbeat h (counters in h["counters"])
+hbv() { peer hb "$1" 3 | python3 -c "import json,sys; h=json.load(sys.stdin); c=h['counters']; print($2)"; }
+field() { ps_field "$1" "$2"; }
+is_state() { [ "$(field "$1" state)" = "$2" ]; }
+pid_changed() { p=$(field "$1" pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "$2" ] && is_state "$1" running; }
+
+"$M" keygen "$T/key"
+"$BIN/marie-am" --host alpha --state-dir "$T/am" > "$T/am.log" 2>&1 & AM_PID=$!
+sleep 0.3
+
+# a Python component's entry is checked against its --describe like a C component's
+sed 's/rate_hz: 20, label: from-python/rate_hz: 20, lable: typo/' tests/data/python/system.yaml > "$T/bad.yaml"
+bad_entry() { out=$("$M" up "$T/bad.yaml" 2>&1); echo "$out"; echo "$out" | grep -q "bad.yaml:[0-9]*:[0-9]*: unknown parameter 'lable'"; }
+check "a Python component's unknown parameter is refused before start" bad_entry
+check "up starts the Python components" "$M" up tests/data/python/system.yaml
+check "producer running" wait_for 10 is_state producer running
+check "consumer running" wait_for 10 is_state consumer running
+sleep 1.5
+c_hears() { n=$(hbv cconsumer 'c.get("received", 0)'); echo "received $n"; [ "$n" -gt 10 ]; }
+check "the C consumer receives the Python producer's counters" c_hears
+py_hears() { n=$(hbv consumer 'c.get("received", 0) if c.get("gaps", 0) == 0 else -1'); echo "received $n"; [ "$n" -gt 10 ]; }
+check "the Python consumer receives them, without gaps" py_hears
+pulled() { n=$(hbv consumer 'c.get("pulled", 0)'); echo "pulled $n"; [ "$n" -ge 1 ]; }
+check "a pull port is answered by the Mailbox" wait_for 5 pulled
+
+# kill -9: marie-am restarts it
+P=$(field producer pid)
+kill -9 "$P"
+check "kill -9 restarts the Python component" wait_for 10 pid_changed producer "$P"
+
+# pause / resume: the producer stops publishing while paused
+check "pause" "$M" pause producer
+check "paused" wait_for 5 is_state producer paused
+quiet() { n=$(peer count EXAMPLE 1); echo "$n while paused"; [ "$n" -eq 0 ]; }
+check "nothing published while paused" quiet
+check "resume" "$M" resume producer
+check "running again" wait_for 5 is_state producer running
+talks() { n=$(peer count EXAMPLE 1); echo "$n after resume"; [ "$n" -gt 5 ]; }
+check "publishing again after resume" talks
+
+# a forged order (a MAC made with another key) is refused and counted; the component runs on
+peer forge producer 8
+forged() { is_state producer running && [ "$(hbv producer 'c.get("refused_orders", 0)')" -ge 1 ]; }
+check "a forged quit is refused and counted" wait_for 5 forged
+
+# malformed input: each of three bad payloads counted once, under its reason
+peer malformed EXAMPLE
+bad_counted() {
+    v=$(hbv consumer 'c.get("bad_fingerprint", 0), c.get("bad_payload", 0)'); echo "$v"
+    [ "$v" = "1 2" ]
+}
+check "malformed input counted (bad_fingerprint 1, bad_payload 2)" wait_for 5 bad_counted
+check "the consumer runs on" is_state consumer running
+
+# the simulator's clock: 2 s of sim time in 0.1 s steps give 20 ticks at 10 Hz; none without it
+peer count SIMCOUNT 4 > "$T/simcount" &
+CP=$!
+sleep 0.3
+peer clock 100 0.1 21 20
+wait $CP
+sim_ticks() { n=$(cat "$T/simcount"); echo "$n ticks for 2 s of sim time"; [ "$n" -ge 19 ] && [ "$n" -le 21 ]; }
+check "a Python component follows the simulator's clock" sim_ticks
+still() { n=$(peer count SIMCOUNT 1); echo "$n without the clock"; [ "$n" -eq 0 ]; }
+check "and stops with it" still
+
+check "down" "$M" down
+finish
