@@ -11,12 +11,13 @@
 extern "C" {
 #endif
 
-typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE } marie_cli_type_t;
+/* FLAG takes no value: given, it sets its int64_t to 1. */
+typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE, MARIE_CLI_FLAG } marie_cli_type_t;
 
 typedef struct {
     const char *name;           /* --name VALUE (or --name=VALUE) */
     marie_cli_type_t type;
-    void *value;                /* where it goes: const char **, int64_t *, double * */
+    void *value;                /* where it goes: const char **, int64_t * (INT, FLAG), double * */
     double min, max;            /* INT and DOUBLE: the range a value must lie in */
     const char *help;           /* the value's name, then what it is: "N the left drive's node id" */
 } marie_cli_opt_t;

@@ -12,6 +12,7 @@
 
 #include "core/expand.h"
 #include "core/spec.h"
+#include "core/version.h"
 #include "lcmtypes/marie_types.h"
 #include "core/component_priv.h"
 
@@ -67,7 +68,7 @@ int marie_comp_fill_params(marie_component_t *c)
 static void usage(const marie_component_def_t *def, FILE *out)
 {
     fprintf(out, "usage: %s [--system FILE] [--name NAME] [--profile P] [--url URL] [--clock wall|sim]\n"
-                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold] [--describe]\n", def->kind);
+                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold] [--describe] [--version]\n", def->kind);
     fprintf(out, "ports:\n");
     for (const marie_port_spec_t *p = def->ports; p && p->name; p++)
         fprintf(out, "  %-16s %-4s %-6s %-28s default channel %s\n", p->name, p->dir == MARIE_IN ? "in" : "out",
@@ -85,7 +86,8 @@ int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **
         {"profile", required_argument, 0, 'p'}, {"url", required_argument, 0, 'u'},
         {"clock", required_argument, 0, 'c'}, {"param", required_argument, 0, 'P'},
         {"port", required_argument, 0, 'o'}, {"hold", no_argument, 0, 'H'},
-        {"help", no_argument, 0, 'h'}, {"describe", no_argument, 0, 'D'}, {0, 0, 0, 0},
+        {"help", no_argument, 0, 'h'}, {"describe", no_argument, 0, 'D'}, {"version", no_argument, 0, 'V'},
+        {0, 0, 0, 0},
     };
     memset(o, 0, sizeof *o);
     o->system = getenv("MARIE_SYSTEM");
@@ -110,6 +112,7 @@ int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **
         case 'H': o->hold = true; break;
         case 'h': usage(def, stdout); exit(0);
         case 'D': marie_spec_describe(def, stdout); exit(0);   /* for the managers' checks */
+        case 'V': printf("%s (marie %s)\n", def->kind, MARIE_VERSION); exit(0);
         default:
             marie_errors_add(errs, "command line", 0, optind > 1 ? optind - 1 : 0, "unknown option '%s'",
                              argv[optind - 1]);

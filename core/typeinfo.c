@@ -74,6 +74,18 @@ const marie_type_t *marie_type_by_fingerprint(int64_t fp)
     return NULL;
 }
 
+const marie_typeinfo_t *marie_typeinfo_at(size_t i)
+{
+    if (i < marie_typeinfos_count)
+        return marie_typeinfos[i];
+    i -= marie_typeinfos_count;
+    for (size_t m = 0; m < nmodules; m++)
+        for (const marie_typeinfo_t *const *t = modules[m]->infos; *t; t++)
+            if (i-- == 0)
+                return *t;
+    return NULL;
+}
+
 int marie_types_register(const marie_types_module_t *m)
 {
     if (!m || m->version != MARIE_TYPES_MODULE_VERSION || !m->types || !m->infos)

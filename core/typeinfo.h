@@ -69,6 +69,9 @@ typedef struct {
  * errno EINVAL (another version) or ENOSPC (too many modules). A module registered twice is
  * registered once. */
 int marie_types_register(const marie_types_module_t *m);
+/* The i-th known type: marie's own (marie_typeinfos order), then the registered modules'; NULL
+ * past the last. For listings (the XML bridge's <types/>, marie topic). */
+const marie_typeinfo_t *marie_typeinfo_at(size_t i);
 /* Load what marie-types-gen made: a shared library (its `marie_types_module` symbol), or an output
  * directory (every lib/libmarie-types-*.so in it). A relative path is taken from `base_dir` when
  * not NULL. 0, or -1 with errno and a one-line reason in why. */

@@ -109,9 +109,10 @@ int main(int argc, char **argv)
     const char *cmd = argv[i];
     int sargc = argc - i;
     char **sargv = argv + i;
-    /* --json may also follow the command */
+    /* --json may also follow the command (marie-X, run for `marie X`, reads its own) */
+    bool own_json = strcmp(cmd, "logs") == 0 || strcmp(cmd, "topic") == 0;
     for (int k = 1; k < sargc; k++)
-        if (strcmp(sargv[k], "--json") == 0 && strcmp(cmd, "logs") != 0) {
+        if (strcmp(sargv[k], "--json") == 0 && !own_json) {
             cli.json = true;
             memmove(&sargv[k], &sargv[k + 1], (size_t)(sargc - k) * sizeof *sargv);
             sargc--;

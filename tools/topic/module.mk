@@ -1,0 +1,2 @@
+# tools/topic: marie-topic (`marie topic list|echo|hz|pub`), on the viewer's JSON walker.
+$(eval $(call marie_program,marie-topic,tools/topic/topic_main.c tools/topic/topic_encode.c tools/webcommon/vjson.c))
