@@ -194,12 +194,14 @@ test-fresh:
 bench: deps
 	@scripts/install-deps.sh bench
 	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) scripts/run-bench.sh $(BENCHES)
 
 # The default set, then the long evaluations; the same table and results file.
 bench-full: deps
 	@scripts/install-deps.sh bench
 	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) scripts/run-bench.sh $(BENCHES) $(BENCHES_FULL)
 
 demo: deps

@@ -8,6 +8,7 @@ all come is given up and counted. Nothing here blocks: the component's loop poll
 import re
 import socket
 import struct
+import time
 import urllib.parse
 
 MAGIC_SHORT = 0x4C433032        # "LC02"
@@ -47,10 +48,9 @@ class Bus:
 
     def __init__(self, url=None, clock=None):
         import os
-        import time
         self.url = url or os.environ.get("LCM_DEFAULT_URL") or DEFAULT_URL
         group, port, ttl, rcvbuf = parse_url(self.url)
-        self._time = clock or time.time
+        self._time_us = clock or (lambda: time.time_ns() // 1000)
         self._to = (group, port)
         self.rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.rx.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -69,6 +69,7 @@ class Bus:
         self._subs = {}             # channel -> [callbacks]
         self._patterns = []         # (compiled regex, callback)
         self._frags = {}            # sender -> [seqno, size, channel, bytearray, got, count, seen]
+        self._chbytes = {}          # channel -> its bytes and NUL, as sent
         self.stats = {"bad_datagrams": 0, "given_up": 0, "received": 0, "sent": 0, "send_failed": 0}
 
     def fileno(self):
@@ -95,7 +96,9 @@ class Bus:
 
     def publish(self, channel, data):
         """Sends one message; False (counted) when the kernel refused it."""
-        ch = channel.encode() + b"\0"
+        ch = self._chbytes.get(channel)
+        if ch is None:
+            ch = self._chbytes[channel] = channel.encode() + b"\0"
         seq = self._seq
         self._seq = (self._seq + 1) & 0xFFFFFFFF
         try:
@@ -122,9 +125,11 @@ class Bus:
             off += len(chunk)
             no += 1
 
-    def handle(self, limit=256):
-        """Reads what waits (at most `limit` datagrams) and calls the subscribers; returns the
-        number of messages delivered."""
+    def handle(self, limit=1):
+        """Reads at most `limit` datagrams and calls the subscribers; returns the number of
+        messages delivered. One a call by default, as the C loop reads the bus: a loop calls it
+        when fileno() is readable, and asking the socket whether more waits (EAGAIN raised as
+        an exception) cost 6 us, more than the rest of a message's path."""
         delivered = 0
         for _ in range(limit):
             try:
@@ -180,9 +185,11 @@ class Bus:
     def _deliver(self, channel_b, data):
         self.stats["received"] += 1
         channel = channel_b.decode("utf-8", "replace")
-        utime = int(self._time() * 1e6)
-        for cb in self._subs.get(channel, ()):
-            cb(channel, data, utime)
-        for rx, cb in self._patterns:
+        utime = self._time_us()
+        subs = self._subs.get(channel)
+        if subs:
+            for cb in tuple(subs):
+                cb(channel, data, utime)
+        for rx, cb in tuple(self._patterns):
             if rx.fullmatch(channel):
                 cb(channel, data, utime)

@@ -79,10 +79,14 @@ class Port:
         the kernel refused it (counted as a drop)."""
         if self.dir != OUT:
             raise ValueError("port %s is an input" % self.name)
-        data = msg if isinstance(msg, (bytes, bytearray)) else msg.encode()
-        if self.type and not isinstance(msg, (bytes, bytearray)) and data[:8] != self.type.packed_fp:
-            raise TypeError("port %s carries %s" % (self.name, self.type.name))
-        if not self.bus.publish(self.channel, bytes(data)):
+        if self.type is not None and msg.__class__ is self.type.cls:
+            data = msg.encode()
+        elif isinstance(msg, (bytes, bytearray)):
+            data = bytes(msg)
+        else:
+            raise TypeError("port %s carries %s, not %s" % (self.name, self.type.name if self.type else "raw bytes",
+                                                            type(msg).__name__))
+        if not self.bus.publish(self.channel, data):
             self.c.drops += 1
             self.c.count("publish_failed")
             return False

@@ -4,8 +4,6 @@
 A fourth item, `dynamic`, lets `marie param set` change the parameter while the component runs
 (the component's on_param hook may still refuse the value). Python has no C macros: a `!c`
 default is refused; `members:` (a library's parameters inside a component's) is C only."""
-import yaml
-
 TYPES = ("int", "double", "bool", "string", "node")
 
 
@@ -13,24 +11,27 @@ class ParamsError(Exception):
     pass
 
 
-class _Loader(yaml.SafeLoader):
-    pass
+def _loader():
+    """PyYAML's safe loader that refuses `!c` (imported only when a component has a file)."""
+    import yaml
 
+    class Loader(yaml.SafeLoader):
+        pass
 
-def _c_default(loader, node):
-    raise ParamsError("%s:%d: a `!c` default is a C macro: give the YAML text in a Python component's file"
-                      % (node.start_mark.name, node.start_mark.line + 1))
-
-
-_Loader.add_constructor("!c", _c_default)
+    def c_default(loader, node):
+        raise ParamsError("%s:%d: a `!c` default is a C macro: give the YAML text in a Python component's file"
+                          % (node.start_mark.name, node.start_mark.line + 1))
+    Loader.add_constructor("!c", c_default)
+    return yaml, Loader
 
 
 def load(path, table=None):
     """[{"name", "type", "default", "help", "dynamic"}] of the file's table (the only one, or
     `table`). ParamsError with FILE:LINE on a mistake."""
+    yaml, loader = _loader()
     try:
         with open(path, encoding="utf-8") as f:
-            doc = yaml.load(f, Loader=_Loader)
+            doc = yaml.load(f, Loader=loader)
     except (OSError, yaml.YAMLError) as e:
         raise ParamsError("%s: %s" % (path, e)) from None
     tables = (doc or {}).get("tables") if isinstance(doc, dict) else None
