@@ -9,3 +9,4 @@ $(B)/bench/bench_python: bench/bench_python.py python/wrapper.sh.in
 	printf '#!/bin/sh\n# bench_python: bench/bench_python.py in the peers venv, with marie'"'"'s Python package (generated)\nexport MARIE_RESOLVE=%s/marie-resolve\nPYTHONPATH=%s exec %s %s "$$@"\n' \
 	    '$(CURDIR)/$(B)/bin' '$(CURDIR)/python:$(CURDIR)/$(B)/python' '$(CURDIR)/$(B)/peers/bin/python' '$(CURDIR)/bench/bench_python.py' > $@ && chmod 755 $@
 BENCHES += $(B)/bench/bench_python
+INSTALL_EXTRA += python/install.sh '$(DESTDIR)' '$(PREFIX)' '$(B)' $(PY_PROGRAMS);

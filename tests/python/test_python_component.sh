@@ -26,6 +26,19 @@ sleep 0.3
 sed 's/rate_hz: 20, label: from-python/rate_hz: 20, lable: typo/' tests/data/python/system.yaml > "$T/bad.yaml"
 bad_entry() { out=$("$M" up "$T/bad.yaml" 2>&1); echo "$out"; echo "$out" | grep -q "bad.yaml:[0-9]*:[0-9]*: unknown parameter 'lable'"; }
 check "a Python component's unknown parameter is refused before start" bad_entry
+# a bare Python script (no launcher) is described too: it imports marie
+cat > "$T/bare.yaml" <<EOF2
+system: bare
+hosts: [alpha]
+components:
+  bare:
+    exec: $PWD/adapters/example/py/producer.py
+    host: alpha
+    env: {PYTHONPATH: $PWD/python:$PWD/$B/python, MARIE_RESOLVE: $PWD/$BIN/marie-resolve}
+    params: {rate: 3}
+EOF2
+bare_entry() { out=$("$M" up "$T/bare.yaml" 2>&1); echo "$out"; echo "$out" | grep -q "bare.yaml:[0-9]*:[0-9]*: unknown parameter 'rate'"; }
+check "a bare Python script's entry is checked against its --describe" bare_entry
 check "up starts the Python components" "$M" up tests/data/python/system.yaml
 check "producer running" wait_for 10 is_state producer running
 check "consumer running" wait_for 10 is_state consumer running
