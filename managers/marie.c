@@ -35,6 +35,8 @@ static void usage(FILE *out)
             "                                      two, which components are configured the same\n"
             "                                      (--base: the file without a profile)\n"
             "  keygen FILE                         write a new order key (mode 0600)\n"
+            "  topic list|echo|hz|pub ...          the bus's channels and messages (marie topic --help)\n"
+            "  param list|get|set COMPONENT ...    a running component's parameters\n"
             "  X ...                               runs marie-X (next to marie, or on PATH)\n"
             "exit status: 0 ok, 1 failure, 2 usage or system file error, 3 timeout or host\n"
             "unreachable, 4 key problem or order refused as unauthenticated\n");
@@ -110,7 +112,7 @@ int main(int argc, char **argv)
     int sargc = argc - i;
     char **sargv = argv + i;
     /* --json may also follow the command (marie-X, run for `marie X`, reads its own) */
-    bool own_json = strcmp(cmd, "logs") == 0 || strcmp(cmd, "topic") == 0;
+    bool own_json = strcmp(cmd, "logs") == 0 || strcmp(cmd, "topic") == 0 || strcmp(cmd, "param") == 0;
     for (int k = 1; k < sargc; k++)
         if (strcmp(sargv[k], "--json") == 0 && !own_json) {
             cli.json = true;

@@ -252,6 +252,7 @@ class Component:
         self.reply_channel = "MARIE_REPLY.%s.%d" % (self.name, os.getpid())
         self.bus.subscribe("MARIE_LIFECYCLE", self._on_lifecycle)
         self.bus.subscribe(self.reply_channel, self._on_pull_reply)
+        self.bus.subscribe("MARIE_PARAM", self._on_param_request)
         if self.sim:
             self.bus.subscribe("MARIE_CLOCK", self._on_clock)
         self._add_timer(self._heartbeat_period(), lambda overruns: self.heartbeat(), sim=False, wanted=False)
@@ -625,6 +626,58 @@ class Component:
         if not known:
             self._clock_heard()
 
+    # ---- parameters at run time (marie param) ----
+
+    def _param_reply(self, rq, ok, why, names=()):
+        vt = types.find("marie.param_value_t")
+        specs = {q["name"]: q for q in type(self)._param_specs()}
+        vals = [vt.new(name=n, type=specs[n]["type"], value=_ParamService.text(getattr(self.params, n), specs[n]["type"]),
+                       dynamic=specs[n].get("dynamic", False), help=specs[n]["help"] or "") for n in names] if ok else []
+        r = types.find("marie.param_reply_t").new(utime=wall_us(), request_id=rq.request_id, component=self.name,
+                                                  op=rq.op, ok=ok, reason=why, nparams=len(vals), params=vals)
+        self.bus.publish("MARIE_PARAM_REPLY", r.encode())
+
+    def _on_param_request(self, channel, data, utime):
+        try:
+            rq = types.find("marie.param_request_t").decode(data, finite=False)
+        except types.BadMessage:
+            self.bad_input("bad_param_request", "undecodable parameter request (%d bytes)" % len(data))
+            return
+        if rq.target != self.name:
+            return
+        specs = {q["name"]: q for q in type(self)._param_specs()}
+        if rq.op == 1:
+            return self._param_reply(rq, True, "ok", list(specs))
+        if rq.op not in (2, 3):
+            return self._param_reply(rq, False, "unknown operation")
+        if rq.name not in specs:
+            return self._param_reply(rq, False, "no such parameter")
+        if rq.op == 2:
+            return self._param_reply(rq, True, "ok", [rq.name])
+        verdict = auth.check(self.key, self.replay, rq) if self.key else "ok"
+        if verdict != "ok":
+            self.bad_input("refused_orders", "param set %s from %s: order refused: %s" % (rq.name, rq.sender, verdict))
+            return self._param_reply(rq, False, "order refused: %s" % verdict)
+        if rq.name not in self._dynamic:
+            return self._param_reply(rq, False, "parameter '%s' is not dynamic: %s reads it at init (set it in the "
+                                     "system file or with --param, then restart)" % (rq.name, self.kind_name()))
+        try:
+            value = _ParamService.parse(rq.value, specs[rq.name]["type"])
+        except Exception as e:
+            return self._param_reply(rq, False, "%s: %s" % (rq.name, e))
+        old = getattr(self.params, rq.name)
+        setattr(self.params, rq.name, value)
+        hook = getattr(self, "on_param", None)
+        try:
+            if hook is not None:
+                hook(rq.name, value)
+        except Exception as e:
+            setattr(self.params, rq.name, old)
+            return self._param_reply(rq, False, "refused: %s" % e)
+        self.count("params_set")
+        self.log("info", "%s: parameter %s set to %s by %s" % (self.name, rq.name, rq.value, rq.sender))
+        self._param_reply(rq, True, "ok", [rq.name])
+
     # ---- ports ----
 
     def _port_receive(self, p, data, utime):
@@ -705,6 +758,35 @@ class Component:
         self.msgs_in += 1
         p.msgs += 1
         cb("ok", msg if p.type is not None else bytes(r.data), r.age_us)
+
+
+class _ParamService:
+    """marie param: list, get and set (parameters declared `dynamic`, then on_param(name, value),
+    which may raise Refused), as core/component_params.c answers for C components."""
+
+    @staticmethod
+    def text(v, ptype):
+        if ptype == "bool":
+            return "true" if v else "false"
+        if ptype == "double":
+            return repr(float(v))
+        return "" if v is None else str(v)
+
+    @staticmethod
+    def parse(text, ptype):
+        import yaml
+        v = yaml.safe_load(text) if text else ""
+        if ptype == "int" and (isinstance(v, bool) or not isinstance(v, int)):
+            raise ValueError("expected an integer, got '%s'" % text)
+        if ptype == "double":
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v or v in (float("inf"), float("-inf")):
+                raise ValueError("expected a finite number, got '%s'" % text)
+            v = float(v)
+        if ptype == "bool" and not isinstance(v, bool):
+            raise ValueError("expected true or false, got '%s'" % text)
+        if ptype == "string":
+            v = text
+        return v
 
 
 def types_name(t):

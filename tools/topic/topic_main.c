@@ -46,7 +46,7 @@ typedef struct {
 static void usage(FILE *out)
 {
     fprintf(out, "usage: marie topic list [--duration S] [--json]\n"
-                 "       marie topic echo CHANNEL [--once] [-n N] [--field a.b[0].c] [--json] [--timeout S]\n"
+                 "       marie topic echo CHANNEL [--once] [--count N] [--field a.b[0].c] [--json] [--timeout S]\n"
                  "       marie topic hz CHANNEL [--window N] [--duration S]\n"
                  "       marie topic pub CHANNEL TYPE '{field: value, ...}' [--rate HZ] [--count N] [--key FILE]\n"
                  "common: [--url URL] [--system FILE] (its lcm_url and types:); users' types from MARIE_TYPES_PATH\n");
@@ -440,6 +440,10 @@ int main(int argc, char **argv)
         {"version", MARIE_CLI_FLAG, &t.seen, 0, 0, "print the version"},
         {0},
     };
+    if (argc > 1 && strcmp(argv[1], "--version") == 0) {
+        printf("marie-topic %s\n", MARIE_VERSION);
+        return 0;
+    }
     const char *verb = argc > 1 ? argv[1] : NULL;
     int rc = marie_cli_parse("marie topic VERB", opts, argc - 1, argv + 1);
     if (rc >= 0) {
