@@ -8,6 +8,7 @@
 
 #include "core/component.h"
 #include "core/spec.h"
+#include "core/version.h"
 
 #define MAX_ENTRIES 256
 
@@ -56,6 +57,12 @@ static int make_def(const marie_node_t *spec, marie_component_def_t *def, marie_
 
 int main(int argc, char **argv)
 {
+    if (argc == 2 && (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "--version") == 0)) {
+        printf("usage: PROG --describe | marie-resolve [COMPONENT OPTIONS...]   (marie %s)\n"
+               "The configuration of a component in another language (python/marie), resolved by libmarie:\n"
+               "its description on stdin, its options as arguments, JSON on stdout.\n", MARIE_VERSION);
+        return 0;
+    }
     static char text[1 << 20];
     size_t len = fread(text, 1, sizeof text - 1, stdin);
     marie_errors_t errs = {0};
