@@ -680,13 +680,19 @@ static int override_params(marie_component_cfg_t *c, const marie_node_t *over, m
 
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
 {
+    return marie_system_load_text(path, NULL, 0, profile, errs);
+}
+
+marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
+                                       marie_errors_t *errs)
+{
     marie_system_t *sys = calloc(1, sizeof *sys);
     if (!sys)
         return NULL;
     size_t errs_before = errs ? errs->n : 0;
     sys->file = strdup(path);
     sys->profile = dup_or_null(profile);
-    if (!(sys->doc = marie_doc_load(path, errs)))
+    if (!(sys->doc = text ? marie_doc_parse(path, text, len, errs) : marie_doc_load(path, errs)))
         goto err;
     const marie_node_t *root = marie_doc_root(sys->doc), *v;
     static const char *const top_keys[] = {"system", "lcm_url", "clock", "auth", "hosts", "defaults",

@@ -159,6 +159,10 @@ typedef struct marie_system {
  * replace or add whole components by name. Dependency cycles are errors. On any error returns NULL with every problem
  * in errs; nothing is half-applied. */
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs);
+/* The same from text already in memory (the file's text with launch arguments filled in, marie up
+ * -a); path names it in messages and is where its relative paths start. */
+marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
+                                       marie_errors_t *errs);
 void marie_system_destroy(marie_system_t *sys);
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
 /* Register the users' types named by MARIE_TYPES_PATH and the file's `types:` (core/typeinfo.h,

@@ -23,7 +23,9 @@ static void usage(FILE *out)
 {
     fprintf(out,
             "usage: marie [--json] [--url URL] [--key FILE] [--timeout S] COMMAND [ARGS]\n"
-            "  up FILE [--profile P] [--no-wait]   load a system on every host and start it\n"
+            "  up FILE [--profile P] [-a NAME=VALUE]... [--no-wait]\n"
+            "                                      load a system on every host and start it;\n"
+            "                                      -a fills ${NAME} in the file (launch arguments)\n"
             "  down [--no-wait]                    stop every component (reverse dependency order)\n"
             "  ps [--window S] [--watch]           components of every host (--watch: every second)\n"
             "  start|stop|restart NAME|GROUP... [--wait]\n"

@@ -15,6 +15,7 @@
 
 #include "core/clear.h"
 #include "core/config.h"
+#include "core/expand.h"
 #include "core/file.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
@@ -41,29 +42,65 @@ static int check_programs(const marie_system_t *sys, marie_errors_t *errs)
     return rc;
 }
 
+/* The file's text with the launch arguments (-a name=value) in its ${name}s; NULL after saying why. */
+static char *read_with_args(const char *file, char **args, size_t nargs, size_t *len)
+{
+    char *text = marie_file_read(file, MARIE_AM_SYSTEM_MAX_BYTES, len), why[256];
+    if (!text) {
+        fprintf(stderr, "marie: %s: %s\n", file, strerror(errno));
+        return NULL;
+    }
+    if (!nargs)
+        return text;
+    int *used = calloc(nargs, sizeof *used);
+    char *filled = used ? marie_expand_args(text, args, nargs, used, why, sizeof why) : NULL;
+    free(text);
+    for (size_t i = 0; filled && i < nargs; i++)
+        if (!used[i]) {
+            snprintf(why, sizeof why, "launch argument '%.*s' is not used in %s (no ${%.*s} in it)",
+                     (int)strcspn(args[i], "="), args[i], file, (int)strcspn(args[i], "="), args[i]);
+            MARIE_CLEAR(filled, free);
+        }
+    free(used);
+    if (!filled)
+        fprintf(stderr, "marie: %s\n", why);
+    *len = filled ? strlen(filled) : 0;
+    return filled;
+}
+
 int cmd_up(cli_t *cli, int argc, char **argv)
 {
     static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {"no-wait", no_argument, 0, 'n'},
-                                         {"wait-timeout", required_argument, 0, 'w'}, {0, 0, 0, 0}};
+                                         {"wait-timeout", required_argument, 0, 'w'}, {"arg", required_argument, 0, 'a'},
+                                         {0, 0, 0, 0}};
     const char *profile = NULL;
     bool wait = true;
     double wait_s = 30;
+    char **args = calloc((size_t)argc + 1, sizeof *args);
+    size_t nargs = 0;
     int opt;
     optind = 1;
-    while ((opt = getopt_long(argc, argv, "p:", opts, NULL)) != -1) {
+    while (args && (opt = getopt_long(argc, argv, "p:a:", opts, NULL)) != -1) {
         if (opt == 'p') profile = optarg;
         else if (opt == 'n') wait = false;
         else if (opt == 'w') wait_s = atof(optarg);
-        else return MARIE_EXIT_USAGE;
+        else if (opt == 'a') args[nargs++] = optarg;
+        else { free(args); return MARIE_EXIT_USAGE; }
     }
-    if (optind != argc - 1) {
-        fprintf(stderr, "usage: marie up FILE [--profile P] [--no-wait]\n");
+    if (!args || optind != argc - 1) {
+        fprintf(stderr, "usage: marie up FILE [--profile P] [-a NAME=VALUE]... [--no-wait]\n");
+        free(args);
         return MARIE_EXIT_USAGE;
     }
     const char *file = argv[optind];
+    size_t text_len;
+    char *text = read_with_args(file, args, nargs, &text_len);
+    free(args);
+    if (!text)
+        return MARIE_EXIT_USAGE;
     /* Validate here first: a bad file never reaches a manager. */
     marie_errors_t errs = {0};
-    marie_system_t *sys = marie_system_load(file, profile, &errs);
+    marie_system_t *sys = marie_system_load_text(file, text, text_len, profile, &errs);
     marie_am_settings_t set;
     if (sys && (marie_am_check_system(sys, &set, &errs) < 0 || check_programs(sys, &errs) < 0)) {
         MARIE_CLEAR(sys, marie_system_destroy);
@@ -71,12 +108,11 @@ int cmd_up(cli_t *cli, int argc, char **argv)
     if (!sys) {
         marie_errors_print(&errs, stderr);
         marie_errors_clear(&errs);
+        free(text);
         return interrupted ? interrupted_status() : MARIE_EXIT_USAGE;
     }
     for (size_t i = 0; i < sys->nhosts; i++)
         expect_host(cli, sys->hosts[i]);
-    size_t text_len;
-    char *text = marie_file_read(file, MARIE_AM_SYSTEM_MAX_BYTES, &text_len);
     char *abs = realpath(file, NULL);
     int rc = text ? cli_open(cli) : -1;
     if (rc == 0)

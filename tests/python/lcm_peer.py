@@ -65,9 +65,10 @@ def malformed(lc, channel):
 
 
 def clock(lc, start, step, n, hz):
+    start_us, step_us = round(float(start) * 1e6), round(float(step) * 1e6)
     for i in range(int(n)):
         m = sim_clock_t()
-        m.utime, m.speed = int((float(start) + i * float(step)) * 1e6), 1.0
+        m.utime, m.speed = start_us + i * step_us, 1.0
         lc.publish("MARIE_CLOCK", m.encode())
         time.sleep(1.0 / float(hz))
     return 0

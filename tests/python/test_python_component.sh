@@ -23,7 +23,7 @@ pid_changed() { p=$(field "$1" pid); [ -n "$p" ] && [ "$p" != 0 ] && [ "$p" != "
 sleep 0.3
 
 # a Python component's entry is checked against its --describe like a C component's
-sed 's/rate_hz: 20, label: from-python/rate_hz: 20, lable: typo/' tests/data/python/system.yaml > "$T/bad.yaml"
+sed 's/rate_hz: ${rate}, label/rate_hz: 20, lable/' tests/data/python/system.yaml > "$T/bad.yaml"
 bad_entry() { out=$("$M" up "$T/bad.yaml" 2>&1); echo "$out"; echo "$out" | grep -q "bad.yaml:[0-9]*:[0-9]*: unknown parameter 'lable'"; }
 check "a Python component's unknown parameter is refused before start" bad_entry
 # a bare Python script (no launcher) is described too: it imports marie
@@ -39,7 +39,12 @@ components:
 EOF2
 bare_entry() { out=$("$M" up "$T/bare.yaml" 2>&1); echo "$out"; echo "$out" | grep -q "bare.yaml:[0-9]*:[0-9]*: unknown parameter 'rate'"; }
 check "a bare Python script's entry is checked against its --describe" bare_entry
-check "up starts the Python components" "$M" up tests/data/python/system.yaml
+unused_arg() { out=$("$M" up tests/data/python/system.yaml -a rate=20 -a nosuch=1 2>&1); [ $? = 2 ] && echo "$out" | grep -q "launch argument 'nosuch' is not used"; }
+check "up -a: an argument the file does not use is refused" unused_arg
+# (the manager describes the five programs first: seconds under load)
+check "up -a rate=20 starts the Python components" "$M" --timeout 20 up tests/data/python/system.yaml -a rate=20
+check "the launch argument reached the component" sh -c "$M param get producer rate_hz | grep -qx '20\(\.0\)\?'"
+check "the default of an argument not given too" sh -c "$M param get producer label | grep -qx from-python"
 check "producer running" wait_for 10 is_state producer running
 check "consumer running" wait_for 10 is_state consumer running
 sleep 1.5
@@ -53,7 +58,7 @@ check "a pull port is answered by the Mailbox" wait_for 5 pulled
 # kill -9: marie-am restarts it
 P=$(field producer pid)
 kill -9 "$P"
-check "kill -9 restarts the Python component" wait_for 10 pid_changed producer "$P"
+check "kill -9 restarts the Python component" wait_for 20 pid_changed producer "$P"
 
 # pause / resume: the producer stops publishing while paused
 check "pause" "$M" pause producer

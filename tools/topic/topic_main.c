@@ -444,6 +444,11 @@ int main(int argc, char **argv)
         printf("marie-topic %s\n", MARIE_VERSION);
         return 0;
     }
+    if (argc > 1 && (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0)) {
+        usage(stdout);
+        marie_cli_usage("marie topic VERB", opts, stdout);
+        return 0;
+    }
     const char *verb = argc > 1 ? argv[1] : NULL;
     int rc = marie_cli_parse("marie topic VERB", opts, argc - 1, argv + 1);
     if (rc >= 0) {
