@@ -23,6 +23,7 @@ for prog in "$@"; do
         # marie's own commands, and the marie-X programs `marie X` runs
         cmds=$(echo "$help" | sed -n 's/^  \([a-z][a-z|]*\) .*/\1/p' | tr '|' ' ' | tr '\n' ' ')
         for p in "$@"; do b=$(basename "$p"); case $b in marie-*) cmds="$cmds ${b#marie-}" ;; esac; done
+        cmds=$(printf '%s\n' $cmds | sort -u | tr '\n' ' ')
         cat > "$out/completions/$name" <<C
 # bash completion for marie (generated from marie --help by scripts/gen-man-completion.sh)
 _marie() {
