@@ -1,0 +1,25 @@
+# adapters/ros2: marie-ros2, the ROS 2 bridge on Cyclone DDS (docs/ros2.md). The ROS 2 messages'
+# IDL is generated from their field lists (ros2_msgs.txt), then idlc makes their C types.
+include adapters/common/adapters.mk
+ROS2_GEN := $(B)/gen/ros2
+$(ROS2_GEN)/ros2_types.idl: adapters/ros2/ros2_msgs.txt adapters/ros2/ros2_idl_gen.py
+	@mkdir -p $(@D)
+	python3 adapters/ros2/ros2_idl_gen.py $< $@
+$(ROS2_GEN)/ros2_types.h: $(ROS2_GEN)/ros2_types.idl
+	cd $(ROS2_GEN) && idlc ros2_types.idl
+$(ROS2_GEN)/ros2_types.c: $(ROS2_GEN)/ros2_types.h ;
+GEN_HEADERS += $(ROS2_GEN)/ros2_types.h
+$(B)/obj/gen/ros2/ros2_types.o: $(ROS2_GEN)/ros2_types.c
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) -I$(ROS2_GEN) $(CFLAGS) -c -o $@ $<
+ROS2_OBJS := $(B)/obj/adapters/ros2/ros2_conv.o $(B)/obj/adapters/ros2/ros2_dds.o \
+             $(B)/obj/adapters/ros2/ros2_table.o $(B)/obj/gen/ros2/ros2_types.o
+$(ROS2_OBJS): CPPFLAGS += -I$(ROS2_GEN)
+$(B)/obj/adapters/ros2/ros2_main.o: CPPFLAGS += -I$(ROS2_GEN)
+$(B)/lib/libmarie_ros2.a: $(ROS2_OBJS)
+	@mkdir -p $(@D)
+	@rm -f $@
+	$(AR) rcs $@ $^
+ROS2_LIB := $(B)/lib/libmarie_ros2.a
+ROS2_LIBS := $(ROS2_LIB) -lddsc
+$(eval $(call marie_program,marie-ros2,adapters/ros2/ros2_main.c,$(ROS2_LIBS) $(ADAPT_COMMON)))
