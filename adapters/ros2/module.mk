@@ -1,12 +1,13 @@
 # adapters/ros2: marie-ros2, the ROS 2 bridge on Cyclone DDS (docs/ros2.md). The ROS 2 messages'
-# IDL is generated from their field lists (ros2_msgs.txt), then idlc makes their C types.
+# IDL is generated from their field lists (ros2_msgs.txt), then idlc makes their C types: without
+# XTypes type information (-t), as rmw_cyclonedds registers them, so endpoints match by type name.
 include adapters/common/adapters.mk
 ROS2_GEN := $(B)/gen/ros2
 $(ROS2_GEN)/ros2_types.idl: adapters/ros2/ros2_msgs.txt adapters/ros2/ros2_idl_gen.py
 	@mkdir -p $(@D)
 	python3 adapters/ros2/ros2_idl_gen.py $< $@
 $(ROS2_GEN)/ros2_types.h: $(ROS2_GEN)/ros2_types.idl
-	cd $(ROS2_GEN) && idlc ros2_types.idl
+	cd $(ROS2_GEN) && idlc -t ros2_types.idl
 $(ROS2_GEN)/ros2_types.c: $(ROS2_GEN)/ros2_types.h ;
 GEN_HEADERS += $(ROS2_GEN)/ros2_types.h
 $(B)/obj/gen/ros2/ros2_types.o: $(ROS2_GEN)/ros2_types.c
