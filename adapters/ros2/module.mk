@@ -24,3 +24,4 @@ $(B)/lib/libmarie_ros2.a: $(ROS2_OBJS)
 ROS2_LIB := $(B)/lib/libmarie_ros2.a
 ROS2_LIBS := $(ROS2_LIB) -lddsc
 $(eval $(call marie_program,marie-ros2,adapters/ros2/ros2_main.c,$(ROS2_LIBS) $(ADAPT_COMMON)))
+ITESTS += tests/ros2/test_ros2_system.sh
