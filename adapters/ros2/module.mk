@@ -12,11 +12,10 @@ $(ROS2_GEN)/ros2_types.c: $(ROS2_GEN)/ros2_types.h ;
 GEN_HEADERS += $(ROS2_GEN)/ros2_types.h
 $(B)/obj/gen/ros2/ros2_types.o: $(ROS2_GEN)/ros2_types.c
 	@mkdir -p $(@D)
-	$(CC) $(CPPFLAGS) -I$(ROS2_GEN) $(CFLAGS) -c -o $@ $<
+	$(CC) $(CPPFLAGS) $(CFLAGS) -c -o $@ $<
+CPPFLAGS += -I$(ROS2_GEN)
 ROS2_OBJS := $(B)/obj/adapters/ros2/ros2_conv.o $(B)/obj/adapters/ros2/ros2_dds.o \
              $(B)/obj/adapters/ros2/ros2_table.o $(B)/obj/gen/ros2/ros2_types.o
-$(ROS2_OBJS): CPPFLAGS += -I$(ROS2_GEN)
-$(B)/obj/adapters/ros2/ros2_main.o: CPPFLAGS += -I$(ROS2_GEN)
 $(B)/lib/libmarie_ros2.a: $(ROS2_OBJS)
 	@mkdir -p $(@D)
 	@rm -f $@
@@ -25,3 +24,9 @@ ROS2_LIB := $(B)/lib/libmarie_ros2.a
 ROS2_LIBS := $(ROS2_LIB) -lddsc
 $(eval $(call marie_program,marie-ros2,adapters/ros2/ros2_main.c,$(ROS2_LIBS) $(ADAPT_COMMON)))
 ITESTS += tests/ros2/test_ros2_system.sh
+# Bytes from DDS through Cyclone's CDR check and the bridge's conversions (seeds: CDR written by
+# the PyPI cyclonedds binding). The libFuzzer build compiles the conversions and types itself.
+$(eval $(call marie_fuzz,ros2_cdr,tests/ros2/fuzz_ros2_cdr.c,$(ROS2_LIBS)))
+FUZZ_ros2_cdr_SOURCES += adapters/ros2/ros2_conv.c $(ROS2_GEN)/ros2_types.c
+FUZZ_ros2_cdr_LIBS := -lddsc
+ITESTS += tests/ros2/test_ros2_bad_input.sh

@@ -362,6 +362,7 @@ static int goal_from(ros2_ctx_t *x, const void *in, void *out, const char **why)
         FAIL("PoseStamped: a goal not in the map frame");
     m->goal.utime = x->now_us;
     m->goal.name = (char *)"ros2 goal";
+    m->sender = (char *)x->source;     /* the bridge signs it as its own before it goes out */
     return 0;
 }
 
