@@ -191,7 +191,7 @@ static const char system_text[] =
     "    - {channel: MOTOR_COMMAND, topic: /marie/motor_command}\n"
     "    - {channel: MARIE_CLOCK, topic: /clock}\n"
     "    - {channel: MARIE_HEARTBEAT, topic: /diagnostics}\n"
-    "    - {channel: CAMERA_IMAGE, topic: /image}\n"
+    "    - {channel: CAMERA_IMAGE, topic: /image, qos: default}\n"
     "components:\n"
     "  ros2: {exec: marie-ros2}\n";
 
@@ -221,12 +221,16 @@ int main(int argc, char **argv)
     dds_qos_t *qos = dds_create_qos();
     dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
     dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 5);
+    /* frames that must all arrive go reliably (the entry's qos: default), as a recorder asks */
+    dds_qos_t *reliable = dds_create_qos();
+    dds_qset_reliability(reliable, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+    dds_qset_history(reliable, DDS_HISTORY_KEEP_LAST, 10);
     for (int s = 0; s < NSTREAM; s++) {
         char name[64];
         snprintf(name, sizeof name, "rt%s", topics[s]);
         l[s] = dds_create_listener((void *)(intptr_t)s);
         dds_lset_data_available(l[s], on_data);
-        dds_create_reader(pp, dds_create_topic(pp, desc[s], name, NULL, NULL), qos, l[s]);
+        dds_create_reader(pp, dds_create_topic(pp, desc[s], name, NULL, NULL), s == IMAGE ? reliable : qos, l[s]);
     }
     if (bridge < 0 || !lcm || pp < 0)
         return 1;
