@@ -30,4 +30,5 @@ $(eval $(call marie_fuzz,ros2_cdr,tests/ros2/fuzz_ros2_cdr.c,$(ROS2_LIBS)))
 FUZZ_ros2_cdr_SOURCES += adapters/ros2/ros2_conv.c $(ROS2_GEN)/ros2_types.c
 FUZZ_ros2_cdr_LIBS := -lddsc
 ITESTS += tests/ros2/test_ros2_bad_input.sh
+$(eval $(call marie_test,test_ros2_conv,tests/ros2/test_ros2_conv.c tests/proc.c,$(ROS2_LIBS)))
 $(eval $(call marie_bench,bench_ros2,bench/bench_ros2.c tests/proc.c,$(ROS2_LIBS)))
