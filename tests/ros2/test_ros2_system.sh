@@ -1,6 +1,5 @@
 #!/bin/sh
 # test-timeout: 240
-# test-group: robot
 # marie and ROS 2 as one system: config/spartacus.yaml's ros2 profile (the simulated Spartacus with
 # marie-ros2) under the four managers, and a ROS 2 peer that is not marie code (the PyPI cyclonedds
 # binding, its own Cyclone build, with rosbags' ROS 2 message definitions: tests/ros2/ros2_peer.py)

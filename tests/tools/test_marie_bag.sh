@@ -1,5 +1,4 @@
 #!/bin/sh
-# test-group: robot
 # marie bag: the demo's log exported to rosbag2 (MCAP) and read back by rosbags, not marie code:
 # every message there, scans in limits or +inf; imported again: the same messages (every field a
 # ROS 2 message carries, angles to 1e-9 rad through their quaternions). Then a bag rosbags wrote
