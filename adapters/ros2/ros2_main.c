@@ -240,11 +240,11 @@ static const ros2_kind_t *kind_for(marie_component_t *c, const ros2_entry_cfg_t 
         if (!ec->type[0] || strcmp(ec->type, k[i].ros_type) == 0)
             found = &k[i];
     }
-    if (!found)
-        marie_node_error(errs, ec->node, channel_seen ? "ros2 topic: channel %s does not go as %s" :
-                         "ros2 topic: no port of marie-ros2 %s channel %s%s (bind one in its ports:)",
-                         channel_seen ? ec->channel : ec->from_ros ? "writes" : "reads",
-                         channel_seen ? ec->type : ec->channel, "");
+    if (!found && channel_seen)
+        marie_node_error(errs, ec->node, "ros2 topic: channel %s does not go as %s", ec->channel, ec->type);
+    else if (!found)
+        marie_node_error(errs, ec->node, "ros2 topic: no port of marie-ros2 %s channel %s (bind one in its ports:)",
+                         ec->from_ros ? "writes" : "reads", ec->channel);
     return found;
 }
 
@@ -282,9 +282,8 @@ static int publish_static(bridge_t *b)
 {
     b->tf_static = ros2_dds_writer(b->dds, "/tf_static", &tf2_msgs_msg_dds__TFMessage__desc, ROS2_QOS_LATCHED);
     ros2_arena_rewind(&b->x.arena);
-    void *m = ros2_arena_alloc(&b->x.arena, 0);
-    m = ros2_tf_one(&b->x, marie_wall_us(), b->q->base_frame, b->q->laser_frame, b->q->laser_x, b->q->laser_y,
-                    b->q->laser_yaw);
+    void *m = ros2_tf_one(&b->x, marie_wall_us(), b->q->base_frame, b->q->laser_frame, b->q->laser_x,
+                          b->q->laser_y, b->q->laser_yaw);
     return b->tf_static < 0 || !m || dds_write(b->tf_static, m) < 0 ? -1 : 0;
 }
 
