@@ -4,7 +4,7 @@
 # goal in another frame, CDR that is not the type it is named (Cyclone refuses it, the bridge
 # counts it), a LaserScan whose ranges count lies, and a writer of another type under /cmd_vel's
 # name are each counted; TELEOP and GOAL_REQUEST carry nothing of them, and one good /cmd_vel
-# after them all goes through. Then the table's own mistakes: a goal topic without the key, a
+# after them all goes through. ROS_DOMAIN_ID picks the domain. Then the table's own mistakes: a goal topic without the key, a
 # channel no port reads, an unknown key, each refused at its file:line:col.
 . tests/lib.sh
 OUT=$B/test-logs/ros2_bad_input
@@ -31,6 +31,14 @@ check "CDR that does not decode as its type counted (malformed Twist, lying Lase
 check "a writer of another type under /cmd_vel counted" le 1 "$(n wrong_type)"
 check "only the one good /cmd_vel reached TELEOP" test "$(n channel_TELEOP)" = 1
 check "no goal reached GOAL_REQUEST, no scan SCAN_IN" test "$(n channel_GOAL_REQUEST)$(n channel_SCAN_IN)" = 00
+
+# ROS_DOMAIN_ID: a bridge on domain 7 is heard on 7, not on 0.
+start dom7 env ROS_DOMAIN_ID=7 "$BIN/marie-ros2" --system tests/ros2/bad_input.yaml --name ros2
+sleep 1
+on7=$(PYTHONPATH=tests/ros2 timeout 30 "$PY" tests/ros2/domain_peer.py 7 5)
+on0=$(PYTHONPATH=tests/ros2 timeout 30 "$PY" tests/ros2/domain_peer.py 0 3)
+stop_started
+check "ROS_DOMAIN_ID=7: heard on domain 7, not on 0" test "$on7 $on0" = "heard=1 heard=0"
 
 # The table's mistakes, each at its position in the file.
 refused() {     # refused FILE TEXT: the bridge does not start, and says TEXT
