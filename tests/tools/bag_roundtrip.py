@@ -90,6 +90,8 @@ def same(log, back):
         b[e.channel].append(e)
     ok = True
     for ch, (_, tname) in CARRIED.items():
+        # a bag is in time order; a log is in arrival order, which a recorder's clock may not follow
+        a[ch].sort(key=lambda e: e.timestamp)
         cls = getattr(marie, tname)
         diff = 0
         if len(a[ch]) != len(b[ch]):

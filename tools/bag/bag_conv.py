@@ -274,7 +274,7 @@ def jpeg_from(r, mt, t):
 
 def clock_from(r, mt, t):
     m = mt.sim_clock_t()
-    m.utime, m.speed = utime_of(r.clock, t), 1.0
+    m.utime, m.speed = r.clock.sec * 1000000 + r.clock.nanosec // 1000, 1.0   # 0 is a time: the sim's start
     return m
 
 
