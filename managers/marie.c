@@ -13,6 +13,7 @@
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
+#include "core/version.h"
 
 volatile sig_atomic_t interrupted;      /* the signal that asked marie to stop */
 static void on_sigint(int s) { interrupted = s; }
@@ -30,7 +31,7 @@ static void usage(FILE *out)
             "  ps [--window S] [--watch]           components of every host (--watch: every second)\n"
             "  start|stop|restart NAME|GROUP... [--wait]\n"
             "  pause|resume NAME|GROUP...          lifecycle pause/resume\n"
-            "  logs [-f] [-n N] NAME               last lines of a component's output (-f: follow)\n"
+            "  logs [-f] [-n N] NAME|GROUP...      last lines of components' output (-f: follow)\n"
             "  move NAME HOST                      run a component on another host\n"
             "  doctor                              check the bus: route, TTL, buffers, clock skew\n"
             "  hash FILE [--profile A|--base [--profile B|--base]]  configuration hashes; with\n"
@@ -83,6 +84,7 @@ static int run_external(const char *cmd, int argc, char **argv)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie", argc, argv);
     cli_t cli = {0};
     cli.timeout_s = 3;
     cli.url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();

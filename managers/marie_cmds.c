@@ -25,6 +25,8 @@
 
 /* ---------------------------------------------------------------- commands */
 
+#define MAX_FOLLOWED 256
+
 /* Every component's program, on whichever host it runs, is checked here: the programs are
  * installed alike on every host (deploy/), and a bad entry must stop `up` before any start. */
 static int check_programs(const marie_system_t *sys, marie_errors_t *errs)
@@ -370,34 +372,62 @@ static bool logs_quiet(cli_t *cli)
     return all_replied(cli) && marie_mono_us() - cli->last_log_mono > 300000;
 }
 
+/* -f: the components the names and groups asked for stand for, from the managers' status. */
+static int resolve_followed(cli_t *cli)
+{
+    if (!(cli->followed = calloc(MAX_FOLLOWED, sizeof *cli->followed)))
+        return -1;
+    if (request_status(cli) == 0)
+        pump(cli, cli->timeout_s, all_hosts_heard);
+    for (int k = 0; k < cli->nlog_names; k++) {
+        bool found = false;
+        for (int h = 0; h < cli->nhosts; h++)
+            for (int i = 0; cli->hosts[h].st && i < cli->hosts[h].st->ncomponents; i++) {
+                const marie_am_component_status_t *c = &cli->hosts[h].st->components[i];
+                if ((strcmp(c->name, cli->log_names[k]) == 0 || strcmp(c->group, cli->log_names[k]) == 0) &&
+                    cli->nfollowed < MAX_FOLLOWED) {
+                    snprintf(cli->followed[cli->nfollowed++], sizeof *cli->followed, "%s", c->name);
+                    found = true;
+                }
+            }
+        if (!found && cli->nfollowed < MAX_FOLLOWED)   /* not running yet: its own name */
+            snprintf(cli->followed[cli->nfollowed++], sizeof *cli->followed, "%s", cli->log_names[k]);
+    }
+    return 0;
+}
+
 int cmd_logs(cli_t *cli, int argc, char **argv)
 {
     int n = 20, opt;
+    bool n_given = false;
     optind = 1;
     while ((opt = getopt(argc, argv, "fn:")) != -1) {
         if (opt == 'f') cli->follow = true;
-        else if (opt == 'n') n = atoi(optarg);
+        else if (opt == 'n') { n = atoi(optarg); n_given = true; }
         else return MARIE_EXIT_USAGE;
     }
-    if (optind != argc - 1) {
-        fprintf(stderr, "usage: marie logs [-f] [-n N] NAME\n");
+    if (optind >= argc) {
+        fprintf(stderr, "usage: marie logs [-f] [-n N] NAME|GROUP...\n");
         return MARIE_EXIT_USAGE;
     }
-    cli->log_name = argv[optind];
-    if (cli_open(cli) < 0)
+    cli->log_names = argv + optind;
+    cli->nlog_names = argc - optind;
+    if (cli_open(cli) < 0 || (cli->follow && resolve_followed(cli) < 0))
         return MARIE_EXIT_FAIL;
     int rc = MARIE_EXIT_OK;
     if (n > 0) {
         char arg[32];
         snprintf(arg, sizeof arg, "%d", n);
         if (load_key(cli) < 0) {
+            fprintf(stderr, "marie: the last lines are read by the managers, and asking them is an order signed "
+                            "with the key (--key FILE, MARIE_KEY or the system file's auth.key_file)%s\n",
+                    cli->follow ? "; following new lines only" : n_given ? "" : "; marie logs -f NAME follows new lines without one");
             if (!cli->follow)
                 return MARIE_EXIT_AUTH;
-            fprintf(stderr, "marie: following new lines only\n");
         } else {
             /* the answers carry the order's seq (on_log matches it) */
             cli->last_log_mono = marie_mono_us();
-            rc = send_order(cli, MARIE_AM_ORDER_T_OP_TAIL, &argv[optind], 1, arg, NULL, NULL);
+            rc = send_order(cli, MARIE_AM_ORDER_T_OP_TAIL, cli->log_names, cli->nlog_names, arg, NULL, NULL);
             pump(cli, 0.5, logs_quiet);
         }
     }
@@ -405,5 +435,6 @@ int cmd_logs(cli_t *cli, int argc, char **argv)
         while (!interrupted)
             marie_loop_run_once(cli->loop, 200);
     }
+    free(cli->followed);
     return rc;
 }

@@ -13,7 +13,8 @@ M=$BIN/marie
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
 start cp "$BIN/marie-example-producer" --name cp --param rate_hz=20 --param label=from-c
 start pp "$BIN/marie-example-producer-py" --name pp --param rate_hz=10 --port out=PY_EXAMPLE
-sleep 1.5
+setup "both producers publish" sh -c "$M topic echo PY_EXAMPLE --once --timeout 20 > /dev/null && $M topic echo EXAMPLE --once --timeout 20 > /dev/null"
+sleep 1.2   # a heartbeat of each, naming its output
 
 listed() {
     "$M" topic list --duration 1.2 > "$T/list"; cat "$T/list"

@@ -25,6 +25,7 @@ extern "C" {
 #include "core/config.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
+#include "core/version.h"
 }
 
 extern char **environ;
@@ -584,6 +585,7 @@ using marie_demo::usage;
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-demo", argc, argv);
     Options o;
     static const struct option opts[] = {
         {"system", required_argument, nullptr, 's'}, {"profile", required_argument, nullptr, 'p'},
