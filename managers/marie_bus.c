@@ -112,7 +112,8 @@ static bool log_followed(const cli_t *cli, const char *component)
 }
 
 /* A component's own log line on stderr ("12:00:01.234 NAME info file.c:12: text") is not an
- * error: its level is the tag, and its time, which the manager's stamp repeats, goes. */
+ * error: its level is the tag, and its time and name, which the line's stamp and the component
+ * repeat, go. */
 static const char *log_tag(const marie_log_line_t *l, const char **text)
 {
     static const char *const levels[] = {"debug", "info", "warn", "error"};
@@ -124,7 +125,7 @@ static const char *log_tag(const marie_log_line_t *l, const char **text)
         for (size_t i = 0; i < sizeof levels / sizeof *levels; i++) {
             size_t n = strlen(levels[i]);
             if (strncmp(sp + 1, levels[i], n) == 0 && sp[1 + n] == ' ') {
-                *text = t + 13;
+                *text = sp + 2 + n;
                 return levels[i];
             }
         }

@@ -60,6 +60,9 @@ P=$(field producer pid)
 kill -9 "$P"
 check "kill -9 restarts the Python component" wait_for 20 pid_changed producer "$P"
 
+(timeout 4 "$M" logs -f -n 0 producer > "$T/follow.out" 2>&1 &)
+sleep 1.5
+
 # pause / resume: the producer stops publishing while paused
 check "pause" "$M" pause producer
 check "paused" wait_for 5 is_state producer paused
@@ -67,6 +70,12 @@ quiet() { n=$(peer count EXAMPLE 1); echo "$n while paused"; [ "$n" -eq 0 ]; }
 check "nothing published while paused" quiet
 check "resume" "$M" resume producer
 check "running again" wait_for 5 is_state producer running
+sleep 2
+follow_tagged() {
+    cat "$T/follow.out"
+    grep -q 'Z info example-producer-py: producer: pause from' "$T/follow.out" && ! grep -q ' err [0-9][0-9]:[0-9][0-9]:' "$T/follow.out"
+}
+check "logs -f tags a component's info line info, with one time stamp" follow_tagged
 talks() { n=$(peer count EXAMPLE 1); echo "$n after resume"; [ "$n" -gt 5 ]; }
 check "publishing again after resume" talks
 
@@ -83,6 +92,16 @@ bad_counted() {
 }
 check "malformed input counted (bad_fingerprint 1, bad_payload 2)" wait_for 5 bad_counted
 check "the consumer runs on" is_state consumer running
+
+# marie logs: several components, a group, a component's own log lines tagged by their level
+logs_group() { out=$("$M" logs -n 50 py 2>&1); echo "$out" | tail -4; echo "$out" | grep -q '^producer: ' && echo "$out" | grep -q '^consumer: '; }
+check "logs -n of a group prints each member's lines, named" logs_group
+logs_two() { out=$("$M" logs -n 50 producer consumer 2>&1); echo "$out" | grep -q '^producer: ' && echo "$out" | grep -q '^consumer: '; }
+check "logs -n of two components" logs_two
+logs_nokey() { out=$(MARIE_KEY=$T/nosuchkey "$M" logs -n 3 producer 2>&1); rc=$?; echo "$out"; [ $rc = 4 ] && echo "$out" | grep -q 'signed with the key'; }
+check "logs -n without a key says why (exit 4)" logs_nokey
+
+
 
 # the simulator's clock: 2 s of sim time in 0.1 s steps give 20 ticks at 10 Hz; none without it
 peer count SIMCOUNT 4 > "$T/simcount" &
