@@ -53,9 +53,9 @@ static int put_prim(marie_buf_t *b, marie_prim_t p, const marie_node_t *n, const
         int64_t v = 0;
         int size = marie_prim_size(p);
         rc = n ? marie_node_int(n, &v, &errs) : 0;
-        int64_t lo = p == MARIE_PRIM_BYTE ? 0 : -(INT64_C(1) << (8 * size - 1)) + (size == 8);
         int64_t hi = p == MARIE_PRIM_BYTE ? 255 : size == 8 ? INT64_MAX : (INT64_C(1) << (8 * size - 1)) - 1;
-        if (rc == 0 && (v < lo || v > hi || (size == 8 && v == INT64_MIN)))
+        int64_t lo = p == MARIE_PRIM_BYTE ? 0 : size == 8 ? INT64_MIN : -hi - 1;
+        if (rc == 0 && (v < lo || v > hi))
             rc = -1;
         put_be(b, (uint64_t)v, size);
     }
