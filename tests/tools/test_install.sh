@@ -8,7 +8,7 @@ T=$(mktemp -d /tmp/marie-test-install.XXXXXX)
 cleanup() { rm -rf "$T"; }
 trap cleanup EXIT
 P=$T/prefix
-setup "make install PREFIX=$P" sh -c "make --no-print-directory -s install B=$B PREFIX=$P > $T/install.log 2>&1 || { tail -20 $T/install.log; exit 1; }"
+setup "make install PREFIX=$P" sh -c "make --no-print-directory -s install B=$B SAN=${SAN:-0} PREFIX=$P > $T/install.log 2>&1 || { tail -20 $T/install.log; exit 1; }"
 export PKG_CONFIG_PATH=$P/lib/pkgconfig
 cat > "$T/hello.c" <<'C'
 #include "core/component.h"
