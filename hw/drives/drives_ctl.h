@@ -161,6 +161,7 @@ int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int 
 int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
 
 const drives_axis_t *drives_ctl_axis(const drives_ctl_t *d, int axis);
+const drives_cfg_t *drives_ctl_cfg(const drives_ctl_t *d);
 bool drives_ctl_all_enabled(const drives_ctl_t *d);
 bool drives_ctl_command_stale(const drives_ctl_t *d, int64_t now);
 /* CAN filters matching every frame the drives send: fills up to max, returns count. */

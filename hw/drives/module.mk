@@ -1,6 +1,6 @@
 # hw/drives: CiA 402 wheel drives: state machine, master logic, virtual drive, marie-drives.
 DRIVES_LIB := $(B)/lib/libmarie_drives.a
-$(eval $(call marie_lib,marie_drives,hw/drives/cia402.c hw/drives/drives_ctl.c hw/drives/vdrive.c))
+$(eval $(call marie_lib,marie_drives,hw/drives/cia402.c hw/drives/drives_ctl.c hw/drives/drives_text.c hw/drives/vdrive.c))
 $(eval $(call marie_test,test_cia402,tests/hw/test_cia402.c,$(DRIVES_LIB)))
 $(eval $(call marie_test,test_drives_ctl,tests/hw/test_drives_ctl.c,$(DRIVES_LIB) $(B)/lib/libmarie_gyro.a $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a))
 $(eval $(call marie_program,marie-drives,hw/drives/drives_main.c,$(DRIVES_LIB) $(B)/lib/libmarie_canopen.a $(B)/lib/libmarie_can.a))
