@@ -278,7 +278,8 @@ static int replay_found(const uint8_t *buf, found_list_t *f, sharedmap_log_fn fn
                         sharedmap_replay_t *rep)
 {
     char key[SHAREDMAP_MAX_KEY + 1], type[SHAREDMAP_MAX_TYPE + 1];
-    qsort(f->v, f->n, sizeof *f->v, by_seq);
+    if (f->n)
+        qsort(f->v, f->n, sizeof *f->v, by_seq);
     int64_t prev = 0;
     size_t prev_end = SHAREDMAP_LOG_MAGIC_LEN, prev_off = 0;
     for (size_t i = 0; i < f->n; i++) {
