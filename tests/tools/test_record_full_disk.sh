@@ -78,7 +78,9 @@ disk_filling_up_keeps_whole_messages() {
 
 falling_below_min_free_stops() {
     disk 512 || return 1
-    (sleep 1; dd if=/dev/zero of="$D/fill" bs=1k count=400 2> /dev/null) &
+    # the disk fills once the recorder runs (its file made), not before: a loaded machine
+    # may take longer than a fixed second to start it
+    (wait_for 20 test -e "$D/below.lcmlog"; sleep 0.5; dd if=/dev/zero of="$D/fill" bs=1k count=400 2> /dev/null) &
     record below.lcmlog --duration 20 --min-free 200k
     [ "$rc" = 1 ] && grep -q "below --min-free.*recording stopped" "$T/err" &&
         whole_messages "$D/below.lcmlog" > /dev/null
