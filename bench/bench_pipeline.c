@@ -279,7 +279,7 @@ int main(void)
     for (int i = 0; i < BUSY_LOOPS; i++)
         busy[i] = busy_loop(marie_mono_us() + run_us);
     /* The inputs are sent, and the observer reads the bus, as components do (marie's sender
-     * and receiver, core/lcm.h). */
+     * and receiver, core/bus/bus.h). */
     feed_t f = {.tx = marie_bus_create(NULL), .rx = marie_bus_create(NULL)};
     marie_bus_subscribe(f.rx, "LASER\\.PULL", on_pull, NULL);
     marie_bus_subscribe(f.rx, "MOTOR_COMMAND", on_cmd, NULL);

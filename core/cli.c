@@ -13,7 +13,7 @@
 
 void marie_cli_usage(const char *prog, const marie_cli_opt_t *opts, FILE *out)
 {
-    fprintf(out, "usage: %s [OPTION VALUE]...\n", prog);
+    fprintf(out, "usage: %s [OPTION [VALUE]]...\n", prog);
     for (const marie_cli_opt_t *o = opts; o->name; o++)
         fprintf(out, "  --%-18s %s\n", o->name, o->help ? o->help : "");
     fprintf(out, "  --%-18s this text\n", "help");
@@ -22,8 +22,11 @@ void marie_cli_usage(const char *prog, const marie_cli_opt_t *opts, FILE *out)
 /* The option's value from text: 0, or -1 with the reason on stderr. */
 static int store(const char *prog, const marie_cli_opt_t *o, const char *text)
 {
-    if (o->type == MARIE_CLI_STRING) {
-        *(const char **)o->value = text;
+    if (o->type == MARIE_CLI_STRING || o->type == MARIE_CLI_FLAG) {
+        if (o->type == MARIE_CLI_FLAG)
+            *(int64_t *)o->value = 1;
+        else
+            *(const char **)o->value = text;
         return 0;
     }
     if (o->type == MARIE_CLI_LIST) {
@@ -61,7 +64,8 @@ int marie_cli_parse(const char *prog, const marie_cli_opt_t *opts, int argc, cha
         return 1;
     }
     for (size_t i = 0; i < n; i++)
-        lo[i] = (struct option){ opts[i].name, required_argument, NULL, OPT_FIRST + (int)i };
+        lo[i] = (struct option){ opts[i].name, opts[i].type == MARIE_CLI_FLAG ? no_argument : required_argument, NULL,
+                                 OPT_FIRST + (int)i };
     lo[n] = (struct option){ "help", no_argument, NULL, OPT_HELP };
     int ch, rc = -1;
     optind = 1;

@@ -10,7 +10,7 @@ The file (docs/core.md, "Parameters"):
     struct: bhv_params_t           # the C struct to generate
     tables:                        # one or more tables: a component kind each
       BHV_PARAMS:
-        rate_hz: [double, "5", "arbitration rate"]      # NAME: [TYPE, DEFAULT, HELP]
+        rate_hz: [double, "5", "arbitration rate"]      # NAME: [TYPE, DEFAULT, HELP(, dynamic)]
         map: [string, null, "map_server map.yaml"]       # null: the system file must set it
 TYPE is int, double, bool, string or node; DEFAULT is the YAML text of the value, quoted, or
 `!c NAME` for a C macro holding that text (one the C code shares; the file that uses the table
@@ -84,9 +84,12 @@ def mapping(node, what):
 def param(name, knode, node):
     if not IDENT.match(name):
         raise SpecError(knode, "'%s' is not a C identifier" % name)
-    if not isinstance(node, yaml.SequenceNode) or len(node.value) != 3:
+    if not isinstance(node, yaml.SequenceNode) or len(node.value) not in (3, 4):
         raise SpecError(node, "%s: expected [TYPE, DEFAULT, HELP]" % name)
-    tnode, dnode, hnode = node.value
+    # A fourth item `dynamic`: `marie param set` may change it while the component runs.
+    if len(node.value) == 4 and scalar(node.value[3], name + " flag") != "dynamic":
+        raise SpecError(node.value[3], "%s: the fourth item may only be `dynamic`" % name)
+    tnode, dnode, hnode = node.value[:3]
     ptype = scalar(tnode, name + " type")
     if ptype not in CTYPES:
         raise SpecError(tnode, "%s: type '%s' is not one of %s" % (name, ptype, ", ".join(CTYPES)))

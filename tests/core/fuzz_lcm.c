@@ -1,6 +1,6 @@
 /* fuzz_lcm: datagrams on the bus are bytes from anyone on the network. The input is a series of
  * datagrams (each a 2-byte big-endian length and its bytes, at most 64 of them) sent to the LCM
- * group from one socket, read by marie's receiver (core/lcm.c) with "F.*" subscribed: whatever
+ * group from one socket, read by marie's receiver (core/bus/udpm*.c) with "F.*" subscribed: whatever
  * they are, nothing is read out of bounds, every delivery holds the bytes of one datagram's
  * worth or of a message put together from fragments, and a good message sent after them from
  * another socket is still delivered (abort otherwise). Needs its own network namespace. */

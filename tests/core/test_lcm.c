@@ -1,4 +1,4 @@
-/* test_lcm: marie's own reader and sender of LCM's UDP multicast (core/lcm.h) against liblcm as
+/* test_lcm: marie's own reader and sender of LCM's UDP multicast (core/bus/bus.h) against liblcm as
  * the peer (lcm_publish with its own fragmentation; lcm_subscribe and lcm_handle reading what
  * marie_bus_publish sent), and against hand-made datagrams that are not what LCM sends. Runs in
  * its own network namespace (make test). */
