@@ -340,7 +340,10 @@ static int start_reading(lchan_t *ch)
     if ((ch->sub_at = local_reg_add_sub(&ch->reg, lb->bell.name)) < 0)
         goto err;
     ch->ticket = atomic_load(&ch->reg.reg->subs[ch->sub_at].ticket);
-    ch->peers_seen = ch->ticket - 1;        /* scanned at the first look */
+    ch->peers_seen = ch->ticket - 1;
+    /* The publishers there already are followed from now: what they publish once the
+     * subscription is made is read, as LCM's socket would have it. */
+    rescan(ch);
     ch->next_reading = lb->reading;
     lb->reading = ch;
     return 0;
