@@ -131,6 +131,22 @@ static void on_outpipe(marie_loop_t *loop, int fd, short revents, void *user)
         outpipe_close(op);
 }
 
+void am_comp_carry(comp_t *to, comp_t *from)
+{
+    const marie_component_cfg_t *cfg = to->cfg;
+    *to = *from;
+    to->cfg = to->sv.cfg = cfg;
+    for (int i = 0; i < 2; i++) {
+        outpipe_t *op = &to->out[i];
+        op->c = to;
+        if (op->fd >= 0) {      /* the loop's callback follows the pipe to its new place */
+            marie_loop_remove_fd(to->am->loop, op->fd);
+            marie_loop_add_fd(to->am->loop, op->fd, POLLIN, on_outpipe, op);
+        }
+    }
+    *from = (comp_t){.am = from->am, .out = {{.fd = -1}, {.fd = -1}}};
+}
+
 void am_comp_close_output(comp_t *c)
 {
     for (int i = 0; i < 2; i++)
@@ -162,10 +178,11 @@ static bool env_dropped(const char *kv)
 }
 
 /* The program to exec: a name without '/' is looked up in marie-am's own directory, then
- * in PATH (execvpe would search the manager's PATH only). NULL: let execvpe report it. */
-static char *resolve_exec(am_t *am, const char *name)
+ * in PATH (execvpe would search the manager's PATH only), a relative path from the system
+ * file's folder, as marie up checked it. NULL: let execvpe report it. */
+static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
 {
-    return marie_am_resolve_exec(am->self_dir, name);
+    return marie_am_resolve_exec(am->self_dir, cfg->file, cfg->exec);
 }
 
 /* The environment of a component: the manager's, minus service plumbing, plus marie's and
@@ -275,7 +292,7 @@ static void comp_spawn(comp_t *c)
      * manager dies (SIGTERM = quit: a restarted manager starts them again instead of finding
      * orphans); default signal handling; the pipes and the other descriptors marie-am opens
      * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
-    char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
+    char *prog = cfg->shell ? NULL : resolve_exec(am, cfg);
     marie_spawn_refused_t refused;
     marie_spawn_req_t req = {
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
@@ -472,6 +489,7 @@ void am_reap_children(am_t *am)
                 break;
             }
     }
+    am_apply_progress(am);
     am_try_start_waiting(am);
 }
 
