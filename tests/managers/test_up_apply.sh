@@ -107,6 +107,24 @@ missing() {
     [ $rc -eq 2 ] && echo "$out" | grep -q "m.yaml:[0-9]*:[0-9]*: component 'e': program '$T/sys/bin/nosuch': No such file or directory (a relative exec starts from the system file's folder)"
 }
 check "a relative exec that is not there is refused with where it was looked for" missing
+# a change that takes time to apply (a component that ignores SIGTERM: killed after its 2 s
+# stop_timeout): an up meanwhile is "busy", and a down drops the change
+slow() { printf 'system: apply\nhosts: [alpha]\ncomponents:\n  a: {exec: bin/tc}\n  slow: {exec: '"'"'trap "" TERM; while :; do sleep 0.2; done'"'"', shell: true, args: [%s], heartbeat_timeout: 0, stop_timeout: 2}\n' "$1"; }
+slow 1 > "$T/sys/slow.yaml"
+check "a system with a component that ignores SIGTERM" "$M" up "$T/sys/slow.yaml"
+busy_then_down() {
+    slow 2 > "$T/sys/slow.yaml"
+    "$M" up --no-wait "$T/sys/slow.yaml" > "$T/up6.out" 2>&1 || return 1
+    "$M" up --no-wait "$T/sys/slow.yaml" > "$T/up7.out" 2>&1; rc=$?; cat "$T/up6.out" "$T/up7.out"
+    [ $rc -ne 0 ] && grep -q "busy: the last up is being applied" "$T/up7.out" || return 1
+    "$M" down > /dev/null && "$M" --json ps | grep -q '"name":"slow"' && [ -z "$(pgrep -f 'while :; do sleep 0.2')" ]
+}
+check "an up while a change is applied is busy; a down drops the change and stops all" busy_then_down
 check "down" "$M" down
-kill "$AM_PID"; wait "$AM_PID" 2>/dev/null; AM_PID=
+am_clean() {
+    kill "$AM_PID"; wait "$AM_PID"; rc=$?; AM_PID=
+    echo "marie-am exit $rc"; grep -A5 "Sanitizer" "$T/am.log"
+    [ $rc -eq 0 ] && ! grep -q "Sanitizer" "$T/am.log"
+}
+check "the manager exits cleanly (no sanitizer report under SAN=1)" am_clean
 finish
