@@ -11,7 +11,8 @@
 extern "C" {
 #endif
 
-typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE, MARIE_CLI_LIST } marie_cli_type_t;
+/* MARIE_CLI_FLAG is a bool: `--name` alone sets it, `--name=0|1|false|true` says which. */
+typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE, MARIE_CLI_LIST, MARIE_CLI_FLAG } marie_cli_type_t;
 
 /* A repeatable option (MARIE_CLI_LIST): each --name VALUE appends VALUE; more than
  * MARIE_CLI_LIST_MAX is refused like a bad value. */
@@ -24,9 +25,11 @@ typedef struct {
 typedef struct {
     const char *name;           /* --name VALUE (or --name=VALUE) */
     marie_cli_type_t type;
-    void *value;                /* where it goes: const char **, int64_t *, double *, marie_cli_list_t * */
+    void *value;                /* where it goes: const char **, int64_t *, double *, marie_cli_list_t *,
+                                 * bool * */
     double min, max;            /* INT and DOUBLE: the range a value must lie in */
     const char *help;           /* the value's name, then what it is: "N the left drive's node id" */
+    const char *choices;        /* STRING: the words it may be, "mm|cm" (NULL: any) */
 } marie_cli_opt_t;
 
 /* Reads argv's options into the table's values (the table ends with a NULL name; what is not
