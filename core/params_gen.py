@@ -190,7 +190,7 @@ class Spec:
         if "struct" not in top or "tables" not in top:
             raise SpecError(root, "expected struct: and tables:")
         self.struct = ident(top["struct"], "struct")
-        self.extra = [(name, ident(knode, "field"), ctype(v, name)) for name, knode, v in
+        self.extra = [(ident(knode, "field"),) + field(v, name) for name, knode, v in
                       (mapping(top["fields"], "fields") if "fields" in top else [])]
         self.members = []       # (name, Spec, prefix, {parameter: default text})
         for name, knode, vnode in mapping(top["members"], "members") if "members" in top else []:
@@ -238,9 +238,9 @@ class Spec:
                 raise SpecError(top["members"], "member %s: %s also named elsewhere in the file"
                                 % (mname, ", ".join(sorted(member.names(prefix) & seen))))
             seen |= member.names(prefix) | {mname}
-        for name, knode, _ in self.extra:
+        for name, _, _ in self.extra:
             if name in seen:
-                raise SpecError(knode, "field %s: also the name of a parameter or member" % name)
+                raise SpecError(top["fields"], "field %s: also the name of a parameter or member" % name)
 
     def check_cli(self, node):
         if len(self.tables) != 1:
@@ -267,11 +267,15 @@ def ident(node, what):
     return value
 
 
-def ctype(node, what):
+def field(node, what):
+    """A field that is no parameter: CTYPE, or [CTYPE, "what it is"]."""
+    text = ""
+    if isinstance(node, yaml.SequenceNode) and len(node.value) == 2:
+        node, text = node.value[0], scalar(node.value[1], what + " comment")
     value = scalar(node, what)
     if not CDECL.match(value):
-        raise SpecError(node, "%s: '%s' is not a C type (TYPE, const TYPE *)" % (what, value))
-    return value
+        raise SpecError(node, "%s: '%s' is not a C type (TYPE, const TYPE *; or [TYPE, COMMENT])" % (what, value))
+    return value, text
 
 
 def is_null(node):
@@ -368,16 +372,16 @@ def cli_help(p):
     text = p.help
     if p.default is not None and not isinstance(p.default, CExpr) and p.ptype != "bool":
         value = yaml.safe_load(p.default)
-        if value not in ("", None):
+        if value not in ("", None, 0):
             text += " (default %s)" % value
     return ("%-4s %s" % (p.metavar, text)) if p.metavar else "     " + text
 
 
 def cli_entry(p):
     where = "&(p)->%s%s" % ("" if p.member is None else p.member + ".", p.field)
-    lo, hi = p.range or (0, 0)
+    lo, hi = ("%.17g" % v for v in (p.range or (0, 0)))
     choices = c_string("|".join(p.choices)) if p.choices else "NULL"
-    return "    { %s, %s, %s, %r, %r, %s, %s }, \\" % (c_string(p.option), CLI_TYPES[p.ptype], where, lo, hi,
+    return "    { %s, %s, %s, %s, %s, %s, %s }, \\" % (c_string(p.option), CLI_TYPES[p.ptype], where, lo, hi,
                                                   c_string(cli_help(p)), choices)
 
 
@@ -396,8 +400,9 @@ def generate(spec):
     for name, member, prefix, _ in spec.members:
         named = ", parameters %s*" % prefix if prefix else ""
         out.append("    %s %s;  /* %s%s */" % (member.struct, name, member.path, named))
-    for name, _, ctype_ in spec.extra:
-        out.append("    %s%s%s;  /* not a parameter: set by the code */" % (ctype_, "" if ctype_.endswith("*") else " ", name))
+    for name, ctype_, text in spec.extra:
+        out.append("    %s%s%s;  /* %s(not a parameter: set by the code) */"
+                   % (ctype_, "" if ctype_.endswith("*") else " ", name, text.replace("*/", "* /") + " " if text else ""))
     out += ["} %s;" % spec.struct, ""]
     for tname, entries in spec.tables:
         out.append("#define %s { \\" % tname)

@@ -162,7 +162,9 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
         snprintf(err, errlen, "cannot poll the devices' bus connection: %s", strerror(errno));
         goto fail;
     }
-    vlms200_cfg_t lc = { .rate_hz = cfg->laser_hz, .unit = LMS200_UNIT_MM, .line_time = true };
+    vlms200_cfg_t lc = VLMS200_DEFAULTS;
+    lc.rate_hz = cfg->laser_hz;
+    lc.line_time = true;
     d->laser = vlms200_create(&lc);
     int rc = d->laser ? vlms200_open(d->laser, cfg->laser_link) : -errno;
     if (rc < 0) {
