@@ -142,15 +142,15 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     const sim_params_t *p = sim_world_params(world);
     vdevices_cfg_t vc;
     vdevices_cfg_default(&vc);
-    vc.can_url = cfg->can_url;
-    vc.left = (uint8_t)cfg->left_node;
-    vc.right = (uint8_t)cfg->right_node;
-    vc.gyro = (uint8_t)cfg->gyro_node;
-    vc.ticks_per_rev = p->ticks_per_rev;
+    vc.can = cfg->can_url;
+    vc.left = cfg->left_node;
+    vc.right = cfg->right_node;
+    vc.gyro = cfg->gyro_node;
+    vc.drive.ticks_per_rev = p->ticks_per_rev;
     vc.wheel_radius = p->wheel_radius;
     vc.track_width = p->track;
-    vc.gyro_bias = cfg->gyro_bias;
-    vc.gyro_noise = cfg->gyro_noise;
+    vc.vgyro.bias = cfg->gyro_bias;
+    vc.vgyro.noise = cfg->gyro_noise;
     vc.external_physics = true;         /* ODE turns the wheels */
     d->dev = vdevices_create(&vc, now);
     if (!d->dev) {
