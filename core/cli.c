@@ -25,6 +25,8 @@ void marie_cli_usage(const char *prog, const marie_cli_opt_t *opts, FILE *out)
 static bool chosen(const char *choices, const char *word)
 {
     size_t n = strlen(word);
+    if (strchr(word, '|'))
+        return false;
     for (const char *c = choices;; c++) {
         if (strncmp(c, word, n) == 0 && (c[n] == '|' || c[n] == '\0'))
             return true;

@@ -214,7 +214,7 @@ class Spec:
                         raise SpecError(knode, "%s: also a parameter of member %s (%s)" % (name, mname, member.path))
                 entries.append(p)
             for mname, member, prefix, overrides in self.members:
-                entries += [e.within(mname, prefix, overrides.get(e.name, e.default)) for e in member.tables[0][1]]
+                entries += [e.within(mname, prefix, overrides.get(prefix + e.name, e.default)) for e in member.tables[0][1]]
             self.tables.append((tname, entries))
         self.check_names(top)
         self.defaults = None
