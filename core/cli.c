@@ -73,7 +73,7 @@ static int store(const char *prog, const marie_cli_opt_t *o, const char *text)
     errno = 0;
     double v = o->type == MARIE_CLI_INT ? (double)strtoll(text, &end, 0) : strtod(text, &end);
     if (!text[0] || *end || errno || !isfinite(v) || v < o->min || v > o->max) {
-        fprintf(stderr, "%s: --%s: expected %s from %g to %g, got '%s'\n", prog, o->name,
+        fprintf(stderr, "%s: --%s: expected %s from %.15g to %.15g, got '%s'\n", prog, o->name,
                 o->type == MARIE_CLI_INT ? "a whole number" : "a number", o->min, o->max, text);
         return -1;
     }
