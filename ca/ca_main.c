@@ -13,6 +13,7 @@
 #include "core/file.h"
 #include "core/component.h"
 #include "ca/ca_params.h"
+#include "core/version.h"
 
 #define MAX_MAILBOXES 64
 
@@ -486,6 +487,7 @@ static const marie_component_def_t defs[] = {
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-ca", argc, argv);
     const marie_component_def_t *def = NULL;
     for (size_t i = 0; argc > 1 && i < sizeof defs / sizeof defs[0]; i++)
         if (strcmp(argv[1], defs[i].kind) == 0)

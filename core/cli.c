@@ -14,7 +14,7 @@
 
 void marie_cli_usage(const char *prog, const marie_cli_opt_t *opts, FILE *out)
 {
-    fprintf(out, "usage: %s [OPTION VALUE]...\n", prog);
+    fprintf(out, "usage: %s [OPTION [VALUE]]...\n", prog);
     for (const marie_cli_opt_t *o = opts; o->name; o++)
         fprintf(out, "  --%-18s %s%s%s%s\n", o->name, o->help ? o->help : "", o->choices ? " [" : "",
                 o->choices ? o->choices : "", o->choices ? "]" : "");

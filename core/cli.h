@@ -4,6 +4,7 @@
 #ifndef MARIE_CLI_H
 #define MARIE_CLI_H
 
+#include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -11,7 +12,8 @@
 extern "C" {
 #endif
 
-/* MARIE_CLI_FLAG is a bool: `--name` alone sets it, `--name=0|1|false|true` says which. */
+/* MARIE_CLI_FLAG is a bool: `--name` alone sets it, `--name=0|1|false|true` says which (a word
+ * after `--name` is not its value but the next argument). */
 typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE, MARIE_CLI_LIST, MARIE_CLI_FLAG } marie_cli_type_t;
 
 /* A repeatable option (MARIE_CLI_LIST): each --name VALUE appends VALUE; more than

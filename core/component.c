@@ -418,6 +418,9 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
             goto err;
         }
     }
+    /* Users' types (marie-types-gen) before anything decodes: ports, the XML bridge, the CAs. */
+    if (marie_system_load_types(c->sys, errs) < 0)
+        goto err;
     c->name = strdup(o.name ? o.name : def->kind);
     marie_log_set_name(c->name);
     const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
@@ -457,6 +460,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         if (marie_loop_add_lcm(c->loop, c->buses[i].lcm, 1) < 0)
             goto err_runtime;
     if (!marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
+        !marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_PARAM, marie_comp_on_param_request, c) ||
         !marie_loop_add_wall_timer(c->loop, heartbeat_period_us(c), on_heartbeat_timer, c))
         goto err_runtime;
     if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {

@@ -24,6 +24,8 @@ extern "C" {
 #define MARIE_CH_LIFECYCLE_REPLY "MARIE_LIFECYCLE_REPLY"
 #define MARIE_CH_EVENT           "MARIE_EVENT"
 #define MARIE_CH_CLOCK           "MARIE_CLOCK"
+#define MARIE_CH_PARAM           "MARIE_PARAM"          /* marie param: requests ... */
+#define MARIE_CH_PARAM_REPLY     "MARIE_PARAM_REPLY"    /* ... and the components' replies */
 /* Pull requests for channel X go to X MARIE_PULL_SUFFIX, served by the Mailbox of X. */
 #define MARIE_PULL_SUFFIX        ".PULL"
 
@@ -171,6 +173,14 @@ const marie_node_t *marie_param_node(const marie_component_t *c, const char *nam
 /* The params struct that MARIE_PARAM_AT entries filled (def.params_size bytes; NULL if 0). It and
  * its strings live as long as the component. */
 const void *marie_component_params(const marie_component_t *c);
+
+/* Parameters changed at run time (`marie param set COMPONENT NAME VALUE`, docs/cli.md): a
+ * parameter is dynamic once the component registers a callback for it (in on_init, say). When cb
+ * runs, the new value is already in the params struct and marie_param_*(); cb returns -1 after
+ * marie_component_fail_reason() to refuse it, and the old value comes back. A set of a parameter
+ * without a callback is refused with the reason. 0, or -1 with errno ENOENT (no such parameter). */
+typedef int (*marie_param_cb_t)(marie_component_t *c, const char *name);
+int marie_component_on_param(marie_component_t *c, const char *name, marie_param_cb_t cb);
 
 /* Ports. marie_port() on an undeclared name is a programmer error (assert). */
 typedef struct {

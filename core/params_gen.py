@@ -10,7 +10,7 @@ The file (docs/core.md, "Parameters"):
     struct: bhv_params_t           # the C struct to generate
     tables:                        # one or more tables: a component kind each
       BHV_PARAMS:
-        rate_hz: [double, "5", "arbitration rate"]      # NAME: [TYPE, DEFAULT, HELP]
+        rate_hz: [double, "5", "arbitration rate"]      # NAME: [TYPE, DEFAULT, HELP(, dynamic)]
         map: [string, null, "map_server map.yaml"]       # null: the system file must set it
 TYPE is int, double, bool, string or node; DEFAULT is the YAML text of the value, quoted, or
 `!c NAME` for a C macro holding that text (one the C code shares; the file that uses the table
@@ -155,13 +155,18 @@ def param(name, knode, node):
     if not IDENT.match(name):
         raise SpecError(knode, "'%s' is not a C identifier" % name)
     if not isinstance(node, yaml.SequenceNode) or len(node.value) not in (3, 4):
-        raise SpecError(node, "%s: expected [TYPE, DEFAULT, HELP] or [TYPE, DEFAULT, HELP, {OPTIONS}]" % name)
+        raise SpecError(node, "%s: expected [TYPE, DEFAULT, HELP], with dynamic or {OPTIONS} fourth" % name)
+    # A fourth item `dynamic`: `marie param set` may change it while the component runs; or the
+    # mapping of what a command line needs.
+    fourth = node.value[3] if len(node.value) == 4 else None
+    if isinstance(fourth, yaml.ScalarNode) and scalar(fourth, name + " flag") != "dynamic":
+        raise SpecError(fourth, "%s: the fourth item may only be `dynamic` or {OPTIONS}" % name)
     tnode, dnode, hnode = node.value[:3]
     ptype = scalar(tnode, name + " type")
     if ptype not in CTYPES:
         raise SpecError(tnode, "%s: type '%s' is not one of %s" % (name, ptype, ", ".join(CTYPES)))
     default = scalar(dnode, name + " default")
-    extras = extras_of(name, ptype, node.value[3]) if len(node.value) == 4 else {}
+    extras = extras_of(name, ptype, fourth) if isinstance(fourth, yaml.MappingNode) else {}
     if dnode.tag == "!c":
         if not IDENT.match(default):
             raise SpecError(dnode, "%s: !c takes the name of a C macro" % name)

@@ -25,6 +25,7 @@
 #include "core/typeinfo.h"
 #include "managers/am.h"
 #include "managers/sdnotify.h"
+#include "core/version.h"
 
 /* ---------------------------------------------------------------- heartbeats */
 
@@ -255,6 +256,7 @@ static int parse_args(am_t *am, int argc, char **argv, const char **system, cons
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-am", argc, argv);
     am_t am_storage = {0}, *am = &am_storage;
     const char *system = NULL, *profile = NULL, *key = NULL;
     int done = parse_args(am, argc, argv, &system, &profile, &key);

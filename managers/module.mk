@@ -43,3 +43,4 @@ $(eval $(call marie_test,test_top,tests/managers/test_top.c managers/top.c,))
 ITESTS += tests/managers/test_top.sh
 # Two competing loads for five minutes: no flapping (lasts five minutes by design).
 SLOW_TESTS += tests/managers/test_balance_loads.sh
+ITESTS += tests/managers/test_doctor_readme.sh

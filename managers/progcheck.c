@@ -93,8 +93,23 @@ void marie_progcheck_destroy(marie_progcheck_t *p)
 
 int marie_progcheck_described(const marie_progcheck_t *p) { return p ? p->described : 0; }
 
-/* Only programs built on libmarie are run with --describe: anything else (a script, a device
- * tool) might do something on an unknown option. */
+/* A Python script built on marie's Python package (python/marie): a python #! line, and the
+ * package imported at the start of a line. */
+static int is_python_component(const char *m, size_t len)
+{
+    const char *nl = memchr(m, '\n', len);
+    if (len < 2 || m[0] != '#' || m[1] != '!' || !nl || !memmem(m, (size_t)(nl - m), "python", 6))
+        return 0;
+    for (const char *p = nl; p && p + 1 < m + len; p = memchr(p + 1, '\n', (size_t)(m + len - p - 1))) {
+        size_t left = (size_t)(m + len - p - 1);
+        if ((left >= 13 && memcmp(p + 1, "import marie\n", 13) == 0) || (left >= 11 && memcmp(p + 1, "from marie ", 11) == 0))
+            return 1;
+    }
+    return 0;
+}
+
+/* Only programs built on libmarie (or marie's Python package) are run with --describe: anything
+ * else (a script, a device tool) might do something on an unknown option. */
 static int has_marker(const char *path)
 {
     int fd = open(path, O_RDONLY | O_CLOEXEC);
@@ -108,7 +123,8 @@ static int has_marker(const char *path)
     close(fd);
     if (m == MAP_FAILED)
         return 0;
-    int found = memmem(m, (size_t)st.st_size, MARIE_SPEC_MARKER, strlen(MARIE_SPEC_MARKER)) != NULL;
+    int found = memmem(m, (size_t)st.st_size, MARIE_SPEC_MARKER, strlen(MARIE_SPEC_MARKER)) != NULL ||
+                is_python_component(m, (size_t)st.st_size);
     munmap(m, (size_t)st.st_size);
     return found;
 }

@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "core/loop.h"
 #include "hw/can/canbus.h"
+#include "core/version.h"
 
 static void on_quit(marie_loop_t *loop, int signo, void *user)
 {
@@ -29,6 +30,7 @@ static void on_usr(marie_loop_t *loop, int signo, void *user)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-canbus", argc, argv);
     if (argc != 2 || argv[1][0] == '-') {
         fprintf(stderr, "usage: marie-canbus PATH   (clients use emu:PATH)\n");
         return 2;

@@ -9,6 +9,7 @@
 
 #include "core/loop.h"
 #include "hw/can/can.h"
+#include "core/version.h"
 
 typedef struct {
     can_bus_t *bus;
@@ -46,6 +47,7 @@ static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-candump", argc, argv);
     if (argc < 2 || argv[1][0] == '-') {
         fprintf(stderr, "usage: marie-candump URL [-n COUNT]   (URL: can:IFNAME or emu:PATH)\n");
         return 2;

@@ -18,6 +18,7 @@
 #include "core/time.h"
 #include "hw/canopen/emcy.h"
 #include "hw/drives/vdevices.h"
+#include "core/version.h"
 
 /* Physics and the devices' timers (heartbeats, the gyro's event timer, RPDO deadlines) step at
  * 1 kHz; frames are answered as they arrive. */
@@ -69,6 +70,7 @@ static void on_usr(marie_loop_t *loop, int signo, void *user)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-vcan-devices", argc, argv);
     vdevices_cfg_t cfg;
     vdevices_cfg_default(&cfg);
     const marie_cli_opt_t opts[] = { VDEVICES_CLI(&cfg) { NULL } };

@@ -10,7 +10,9 @@
 #include "core/log.h"
 #include "core/loop.h"
 #include "core/time.h"
+#include "core/version.h"
 #include "hw/lms200/vlms200.h"
+#include "core/version.h"
 
 typedef struct {
     marie_loop_t *loop;
@@ -109,6 +111,7 @@ static void on_unplug(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, vo
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-vlms200", argc, argv);
     vlms200_cfg_t cfg = VLMS200_DEFAULTS;
     const char *link = NULL, *path_file = NULL;
     int64_t silent_at = -1, silent_ms = 0, unplug_at = -1, unplug_ms = 1000;

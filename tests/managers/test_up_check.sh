@@ -202,7 +202,8 @@ sim_vs_base() {
         [ "$(verdict "$T/h1" $c)" = "differs clock" ] || return 1
     done
     [ "$(verdict "$T/h1" sim)" = "only-in-a " ] && [ "$(verdict "$T/h1" estop)" = "only-in-b " ] &&
-        [ "$(verdict "$T/h1" vision)" = "only-in-a " ] && [ "$(wc -l < "$T/h1")" = 14 ]
+        [ "$(verdict "$T/h1" vision)" = "only-in-a " ] && [ "$(verdict "$T/h1" odometer)" = "only-in-a " ] &&
+        [ "$(wc -l < "$T/h1")" = 15 ]
 }
 check "hash: sim against the real robot (--base) on the shipped system" sim_vs_base
 sim_vs_channel() {
@@ -213,8 +214,8 @@ d = {c["name"]: c for c in json.load(open(sys.argv[1]))["components"]}
 same = {"odometry", "localizer", "planner", "mailbox", "behaviours", "sharedmap", "mission"}
 assert all(d[n]["verdict"] == "same" for n in same), d
 assert d["sim"]["verdict"] == "differs" and d["sim"]["fields"] == ["params"], d["sim"]
-assert all(d[n]["verdict"] == "only-in-a" for n in ("drives", "gyro", "laser", "vision"))
-assert len(d) == 12
+assert all(d[n]["verdict"] == "only-in-a" for n in ("drives", "gyro", "laser", "vision", "odometer"))
+assert len(d) == 13
 EOF
 }
 check "hash: sim against sim-channel, as JSON" sim_vs_channel
@@ -226,13 +227,13 @@ d = {c["name"]: c for c in json.load(open(sys.argv[1]))["components"]}
 # explore extends sim: sim's drivers as they are, the simulator with its camera off (the
 # profile's params:), the planner without a map, the mapper and the explorer in place of the
 # localizer and the mission
-same = {"drives", "gyro", "laser", "odometry", "mailbox", "behaviours", "sharedmap"}
+same = {"drives", "gyro", "laser", "odometry", "mailbox", "behaviours", "sharedmap", "odometer"}
 assert all(d[n]["verdict"] == "same" for n in same), d
 for n in ("sim", "planner"):
     assert d[n]["verdict"] == "differs" and d[n]["fields"] == ["params"], d[n]
 assert all(d[n]["verdict"] == "only-in-a" for n in ("mapper", "explore"))
 assert all(d[n]["verdict"] == "only-in-b" for n in ("localizer", "mission", "vision"))
-assert len(d) == 14
+assert len(d) == 15
 EOF
 }
 check "hash: explore (extends sim) against sim, as JSON" explore_vs_sim

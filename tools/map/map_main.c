@@ -15,6 +15,7 @@
 #include "managers/am_proto.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
+#include "core/version.h"
 
 typedef struct {
     marie_occupancy_grid_t grid;
@@ -149,6 +150,7 @@ out:
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-map", argc, argv);
     const char *channel = "MAP", *name = NULL;
     const char *url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
     double wait_s = 6;          /* the mapper sends its map again every 5 s */
