@@ -288,4 +288,13 @@ members:
 tables:
   S:
     x_bias: [int, \"5\", help]"
+dynamic_ok() {
+    printf 'struct: s_t\ntables:\n  S:\n    a: [double, "5", help, dynamic]\n' > "$T/dyn.params.yaml"
+    python3 core/params_gen.py "$T/dyn.params.yaml" "$T/dyn_params.h" && grep -q "MARIE_PARAM_AT(s_t, a, DOUBLE" "$T/dyn_params.h"
+}
+check "dynamic: a fourth item marie param set reads" dynamic_ok
+check "a fourth item that is neither dynamic nor options" fails 4 "struct: s_t
+tables:
+  S:
+    a: [double, \"5\", help, static]"
 finish
