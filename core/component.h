@@ -108,6 +108,10 @@ typedef struct {
 #define MARIE_PARAM_IN(st, member, field, T, def, help) \
     { #field, MARIE_PARAM_##T, def, help, \
       offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
+/* ... and under another name (a member taken with a prefix: its `bias` is "gyro_bias"). */
+#define MARIE_PARAM_IN_AS(st, member, name, field, T, def, help) \
+    { name, MARIE_PARAM_##T, def, help, \
+      offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
 
 /* What a component is. Hooks return 0, or -1 after marie_component_fail_reason() to refuse
  * the transition (the reply and the heartbeat carry the reason). Any hook may be NULL. */
