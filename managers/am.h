@@ -154,6 +154,8 @@ bool am_comp_carried(const comp_t *c, const marie_system_t *next);
 void am_loading_free(am_loading_t *l);
 int am_load_system(am_t *am, const char *path, const char *origin, const char *profile, marie_errors_t *errs);
 void am_comps_free(am_t *am);
+/* The user's file the running system is a copy of (MARIE_SYSTEM_ORIGIN), or NULL. */
+const char *am_system_origin(const am_t *am);
 void am_up(am_t *am);
 void am_apply_move(am_t *am, comp_t *c, const char *host);
 bool am_host_known(am_t *am, const char *h);

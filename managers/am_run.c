@@ -170,7 +170,7 @@ static bool env_dropped(const char *kv)
     static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
                                        "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
                                        "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
-                                       "MARIE_STATE_DIR=", "MARIE_KEY=", NULL};
+                                       "MARIE_STATE_DIR=", "MARIE_KEY=", "MARIE_SYSTEM_ORIGIN=", NULL};
     for (int i = 0; drop[i]; i++)
         if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
             return true;
@@ -197,7 +197,7 @@ static char **child_env(comp_t *c, size_t *nep)
     size_t nenv = 0;
     while (environ[nenv])
         nenv++;
-    envp = calloc(nenv + cfg->nenv + 10, sizeof *envp);
+    envp = calloc(nenv + cfg->nenv + 11, sizeof *envp);
     if (!envp)
         return NULL;
     for (size_t i = 0; i < nenv; i++)
@@ -213,6 +213,8 @@ static char **child_env(comp_t *c, size_t *nep)
         asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
         goto fail;
     if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
+        goto fail;
+    if (am_system_origin(am) && asprintf(&envp[ne++], "MARIE_SYSTEM_ORIGIN=%s", am_system_origin(am)) < 0)
         goto fail;
     if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
         goto fail;

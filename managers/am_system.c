@@ -156,14 +156,20 @@ void am_save_up_state(am_t *am)
     if (!m)
         return;
     fprintf(m, "system %s\nprofile %s\n", am->sys_path, am->profile ? am->profile : "");
-    if (am->sys->file[0] == '/' && strcmp(am->sys->file, am->sys_path) != 0)     /* a copy */
-        fprintf(m, "origin %s\n", am->sys->file);
+    if (am_system_origin(am))
+        fprintf(m, "origin %s\n", am_system_origin(am));
     for (size_t i = 0; i < am->ncomps; i++)
         if (strcmp(am->comps[i].host, marie_am_component_host(am->sys, am->comps[i].cfg, am->host)) != 0)
             fprintf(m, "move %s %s\n", am->comps[i].cfg->name, am->comps[i].host);
     fclose(m);
     am_write_file(path, text, len, 0644);
     free(text);
+}
+
+const char *am_system_origin(const am_t *am)
+{
+    const char *f = am->sys ? am->sys->file : NULL;
+    return f && f[0] == '/' && am->sys_path && strcmp(f, am->sys_path) != 0 ? f : NULL;
 }
 
 bool am_host_known(am_t *am, const char *h)

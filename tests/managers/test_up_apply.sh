@@ -89,12 +89,14 @@ check "another system is refused while one runs" other_refused
 # launch arguments: the manager runs its own copy of the filled-in file, from its state folder;
 # the relative exec still starts from the user's file's folder
 check "down" "$M" down
-sed 's/print_hz: 5/print_hz: ${hz}/' "$T/sys/s.yaml" > "$T/sys/args.yaml"
+# ... and so do the components' relative types: (read by each component from the copy)
+"$BIN/marie-types-gen" -o "$T/sys/gen" tests/data/types/reading.lcm --lang c > /dev/null
+sed -e 's/print_hz: 5/print_hz: ${hz}/' -e 's/^hosts: \[alpha\]$/hosts: [alpha]\ntypes: [gen]/' "$T/sys/s.yaml" > "$T/sys/args.yaml"
 copy_relative() {
     "$M" up "$T/sys/args.yaml" -a hz=3 > "$T/up4.out" 2>&1; rc=$?; cat "$T/up4.out"
-    [ $rc -eq 0 ] && [ "$(ps_field a state)" = running ] && [ -f "$T/am/system.yaml" ]
+    [ $rc -eq 0 ] && [ "$(ps_field a state)" = running ] && grep -q '^types: \[gen\]' "$T/am/system.yaml"
 }
-check "a relative exec in a file with launch arguments (the manager's copy) runs" copy_relative
+check "a relative exec and types: in a file with launch arguments (the manager's copy) run" copy_relative
 elsewhere() {
     "$M" down > /dev/null
     (cd / && "$TOP/$M" up "$T/sys/s.yaml") > "$T/up5.out" 2>&1; rc=$?; cat "$T/up5.out"
