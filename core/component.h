@@ -137,6 +137,9 @@ typedef struct {
  *   --param KEY=VALUE   --port PORT=CHANNEL   --clock wall|sim   --hold (wait for init/start) */
 int marie_main(const marie_component_def_t *def, int argc, char **argv, void *user);
 
+/* What --help prints: the options, ports and parameters (prog NULL: the kind's name). */
+void marie_component_usage(const marie_component_def_t *def, const char *prog, FILE *out);
+
 /* The same in steps, for tests and programs with their own main. NULL on failure with the
  * reasons in errs (exit status 2 for configuration errors). */
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv,

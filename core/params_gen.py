@@ -40,6 +40,7 @@ may be named with a prefix (`{file: PATH, prefix: gyro_}`: its `bias` is `gyro_b
 usage: params_gen.py IN.params.yaml OUT.h     (also writes OUT.d: OUT.h's members for make)
 Errors are printed as FILE:LINE: message, and the exit status is 1.
 """
+import os
 import re
 import sys
 
@@ -428,6 +429,12 @@ def generate(spec):
 
 
 def main(argv):
+    if argv[1:] == ["--help"]:
+        sys.stdout.write(__doc__)
+        return 0
+    if argv[1:] == ["--version"]:
+        sys.stdout.write("marie-params-gen (marie %s)\n" % os.environ.get("MARIE_VERSION", "0.1.0"))
+        return 0
     if len(argv) != 3:
         sys.stderr.write(__doc__.split("usage: ")[1])
         return 2
