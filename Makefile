@@ -232,7 +232,6 @@ install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \
 	    $(DESTDIR)$(PREFIX)/include/marie/core $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
 	install -m 755 $(PROGRAMS) $(DESTDIR)$(PREFIX)/bin/
-	install -m 755 core/params_gen.py $(DESTDIR)$(PREFIX)/bin/marie-params-gen
 	install -m 644 $(LIBMARIE) $(DESTDIR)$(PREFIX)/lib/
 	install -m 644 $(filter-out %_priv.h,$(wildcard core/*.h)) $(DESTDIR)$(PREFIX)/include/marie/core/
 	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/

@@ -492,10 +492,18 @@ int main(int argc, char **argv)
     for (size_t i = 0; argc > 1 && i < sizeof defs / sizeof defs[0]; i++)
         if (strcmp(argv[1], defs[i].kind) == 0)
             def = &defs[i];
+    bool help = argc == 2 && strcmp(argv[1], "--help") == 0;
     if (!def) {
-        fprintf(stderr, "usage: marie-ca mailbox|splitter|sharedmap|switch [component options]\n"
-                        "       (marie-ca KIND --help lists the options)\n");
-        return 2;
+        FILE *out = help ? stdout : stderr;
+        fprintf(out, "usage: marie-ca mailbox|splitter|sharedmap|switch [component options]\n"
+                     "       (marie-ca KIND --help lists one kind's options)\n");
+        for (size_t i = 0; help && i < sizeof defs / sizeof defs[0]; i++) {
+            char prog[64];
+            snprintf(prog, sizeof prog, "marie-ca %s", defs[i].kind);
+            fprintf(out, "\n");
+            marie_component_usage(&defs[i], prog, out);
+        }
+        return help ? 0 : 2;
     }
     static ca_proc_t proc;
     argv[1] = argv[0];

@@ -12,6 +12,7 @@
 
 #include "core/auth.h"
 #include "core/bus/bus.h"
+#include "core/file.h"
 #include "core/log.h"
 #include "core/typeinfo.h"
 #include "core/spec.h"
@@ -390,6 +391,26 @@ static int64_t heartbeat_period_us(const marie_component_t *c)
     return p < 20000 ? 20000 : p;
 }
 
+/* The system file. A manager that runs its own copy of the user's file (filled in with launch
+ * arguments, or sent to a host that cannot read it) names the original in MARIE_SYSTEM_ORIGIN:
+ * the copy is read under that name, so its relative paths (types:) start from the user's folder
+ * and its messages name the user's file. */
+static marie_system_t *load_system(const options_t *o, marie_errors_t *errs)
+{
+    const char *origin = getenv("MARIE_SYSTEM_ORIGIN"), *given = getenv("MARIE_SYSTEM");
+    if (!origin || !*origin || !given || strcmp(given, o->system) != 0)
+        return marie_system_load(o->system, o->profile, errs);
+    size_t len;
+    char *text = marie_file_read(o->system, 16 << 20, &len);
+    if (!text) {
+        marie_errors_add(errs, o->system, 0, 0, "%s", strerror(errno));
+        return NULL;
+    }
+    marie_system_t *sys = marie_system_load_text(origin, text, len, o->profile, errs);
+    free(text);
+    return sys;
+}
+
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv, void *user,
                                           marie_errors_t *errs)
 {
@@ -404,7 +425,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         goto err;
     c->hold = o.hold;
     if (o.system) {
-        c->sys = marie_system_load(o.system, o.profile, errs);
+        c->sys = load_system(&o, errs);
         if (!c->sys)
             goto err;
         if (!o.name) {

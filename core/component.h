@@ -108,6 +108,10 @@ typedef struct {
 #define MARIE_PARAM_IN(st, member, field, T, def, help) \
     { #field, MARIE_PARAM_##T, def, help, \
       offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
+/* ... and under another name (a member taken with a prefix: its `bias` is "gyro_bias"). */
+#define MARIE_PARAM_IN_AS(st, member, name, field, T, def, help) \
+    { name, MARIE_PARAM_##T, def, help, \
+      offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
 
 /* What a component is. Hooks return 0, or -1 after marie_component_fail_reason() to refuse
  * the transition (the reply and the heartbeat carry the reason). Any hook may be NULL. */
@@ -132,6 +136,9 @@ typedef struct {
  *   --profile P | MARIE_PROFILE                        --url URL   (else system, LCM_DEFAULT_URL)
  *   --param KEY=VALUE   --port PORT=CHANNEL   --clock wall|sim   --hold (wait for init/start) */
 int marie_main(const marie_component_def_t *def, int argc, char **argv, void *user);
+
+/* What --help prints: the options, ports and parameters (prog NULL: the kind's name). */
+void marie_component_usage(const marie_component_def_t *def, const char *prog, FILE *out);
 
 /* The same in steps, for tests and programs with their own main. NULL on failure with the
  * reasons in errs (exit status 2 for configuration errors). */

@@ -71,10 +71,11 @@ int marie_comp_fill_params(marie_component_t *c)
 /* ---- creation ---- */
 
 
-static void usage(const marie_component_def_t *def, FILE *out)
+void marie_component_usage(const marie_component_def_t *def, const char *prog, FILE *out)
 {
     fprintf(out, "usage: %s [--system FILE] [--name NAME] [--profile P] [--url URL] [--clock wall|sim]\n"
-                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold] [--describe] [--version]\n", def->kind);
+                 "       [--param KEY=VALUE]... [--port PORT=CHANNEL]... [--hold] [--describe] [--version]\n",
+            prog ? prog : def->kind);
     fprintf(out, "ports:\n");
     for (const marie_port_spec_t *p = def->ports; p && p->name; p++)
         fprintf(out, "  %-16s %-4s %-6s %-28s default channel %s\n", p->name, p->dir == MARIE_IN ? "in" : "out",
@@ -116,7 +117,7 @@ int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **
         case 'P': o->params[o->nparams++] = optarg; break;
         case 'o': o->ports[o->nports++] = optarg; break;
         case 'H': o->hold = true; break;
-        case 'h': usage(def, stdout); exit(0);
+        case 'h': marie_component_usage(def, NULL, stdout); exit(0);
         case 'D': marie_spec_describe(def, stdout); exit(0);   /* for the managers' checks */
         case 'V': printf("%s (marie %s)\n", def->kind, MARIE_VERSION); exit(0);
         default:

@@ -328,7 +328,7 @@ int main(int argc, char **argv)
         return 1;
     }
     if (system) {
-        if (am_load_system(am, system, profile, &errs) < 0) {
+        if (am_load_system(am, system, NULL, profile, &errs) < 0) {
             marie_errors_print(&errs, stderr);
             marie_errors_clear(&errs);
             rc = 2;
@@ -414,6 +414,7 @@ int main(int argc, char **argv)
 
     rc = marie_loop_run(am->loop) < 0 ? 1 : 0;
     am_check_cancel(am, "the manager stopped\n");
+    am_apply_cancel(am);
     /* whatever is still alive after the deadline goes now */
     for (size_t i = 0; i < am->ncomps; i++)
         if (am->comps[i].sv.pid > 0)

@@ -71,6 +71,15 @@ static char *read_with_args(const char *file, char **args, size_t nargs, size_t 
     return filled;
 }
 
+/* "NAME is up on N host(s)", then what each manager changed of a system already running. */
+static void print_up(const cli_t *cli, const char *name)
+{
+    printf("%s is up on %d host(s)\n", name, cli->nreplies);
+    for (int i = 0; i < cli->nreplies; i++)
+        if (strcmp(cli->replies[i].reason, "ok") != 0)
+            printf("  %s: %s\n", cli->replies[i].host, cli->replies[i].reason);
+}
+
 int cmd_up(cli_t *cli, int argc, char **argv)
 {
     static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {"no-wait", no_argument, 0, 'n'},
@@ -127,7 +136,7 @@ int cmd_up(cli_t *cli, int argc, char **argv)
     if (cli->json)
         print_replies_json(cli, rc);
     else if (rc == MARIE_EXIT_OK)
-        printf("%s is up on %d host(s)\n", sys->name ? sys->name : file, cli->nreplies);
+        print_up(cli, sys->name ? sys->name : file);
     free(abs);
     free(text);
     marie_system_destroy(sys);

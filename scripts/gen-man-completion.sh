@@ -1,6 +1,7 @@
 #!/bin/sh
 # gen-man-completion.sh: a man page and a bash completion for each program, made from its own
-# --help (run with a time limit; a program whose --help fails gets neither).
+# --help (run with a time limit, 30 s for a loaded machine; a program whose --help fails gets
+# neither, and is named on stderr).
 #   scripts/gen-man-completion.sh OUTDIR PROGRAM...   writes OUTDIR/man1/NAME.1, OUTDIR/completions/NAME
 set -u
 out=$1; shift
@@ -9,7 +10,7 @@ version=$(sed -n 's/^#define MARIE_VERSION "\(.*\)"/\1/p' "$(dirname "$0")/../co
 roff() { sed -e 's/\\/\\\\/g' -e 's/^\./\\\&./' -e "s/^'/\\\\\&'/" -e 's/^-/\\-/'; }
 for prog in "$@"; do
     name=$(basename "$prog")
-    help=$(timeout 5 "$prog" --help < /dev/null 2>&1) || continue
+    help=$(timeout 30 "$prog" --help < /dev/null 2>&1) || { echo "$name: --help failed: no man page" >&2; continue; }
     [ -n "$help" ] || continue
     {
         printf '.TH %s 1 "" "marie %s" "marie"\n.SH NAME\n%s \\- a program of marie, the robotics integration stack\n' \

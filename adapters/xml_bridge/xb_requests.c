@@ -87,7 +87,7 @@ static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     if (sub->nclients == 0)
         return;
     s->st.received++;
-    if ((size_t)rbuf->data_size > s->cfg.max_message) {
+    if (rbuf->data_size > s->cfg.max_message) {
         xb_bad_input(s, "oversized_message", "%s: %u bytes over the limit", channel, rbuf->data_size);
         return;
     }

@@ -3,6 +3,7 @@ check every input goes through before lcm-gen's decoder runs, with the rules of 
 the fingerprint first; every string NUL-terminated within its length; every array count
 non-negative and within the payload; nothing trailing; and for input a NaN or infinity in any
 float or double is refused. The descriptors come from typeinfo_gen.py (PACKAGE/_typeinfo.py)."""
+import glob
 import importlib
 import math
 import os
@@ -49,6 +50,24 @@ def find(name):
                            "MARIE_TYPES_PATH or the system file's types:)" % (name, pkg)) from None
         t = _by_name[full] = MessageType(full, cls, info)
     return t
+
+
+def known():
+    """Every type whose package has descriptors on the path (marie's and the users' packages made by
+    marie-types-gen), as {name: MessageType}."""
+    for entry in sys.path:
+        for info in sorted(glob.glob(os.path.join(entry or ".", "lcmtypes", "*", "_typeinfo.py"))):
+            pkg = os.path.basename(os.path.dirname(info))
+            try:
+                names = list(importlib.import_module("lcmtypes.%s._typeinfo" % pkg).TYPES)
+            except ImportError:
+                continue
+            for name in names:
+                try:
+                    find(name)
+                except KeyError:
+                    pass
+    return dict(_by_name)
 
 
 class MessageType:

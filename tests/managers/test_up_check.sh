@@ -6,6 +6,8 @@
 # component run alone); marie hash covers every setting and names the base; a long parse ends on
 # SIGTERM or SIGINT.
 . tests/lib.sh
+# marie-test-comp, named bare by the system files in tests/data/managers
+export PATH="$(pwd)/$B/tests/bin:$PATH"
 T=$(mktemp -d /tmp/marie-test-upcheck.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace XDG_CACHE_HOME=$T/cache
 M="$BIN/marie"
@@ -37,7 +39,7 @@ components:
   missing:
     exec: marie-no-such-program
   notexec:
-    exec: tests/data/managers/single.yaml
+    exec: $(pwd)/tests/data/managers/single.yaml
   splitter:
     exec: marie-ca
     args: [splitter]
@@ -52,7 +54,7 @@ all_reported() {
     grep -q "$f:12:[0-9]*: unknown parameter 'colour' for test_comp 'unknown'" "$1" &&
     grep -q "$f:15:[0-9]*: test_comp 'port' has no port 'nosuch'" "$1" &&
     grep -q "$f:17:[0-9]*: component 'missing': program 'marie-no-such-program' not found" "$1" &&
-    grep -q "$f:19:[0-9]*: component 'notexec': program 'tests/data/managers/single.yaml' is not an executable" "$1" &&
+    grep -q "$f:19:[0-9]*: component 'notexec': program '$(pwd)/tests/data/managers/single.yaml' is not an executable" "$1" &&
     grep -q "$f:20:[0-9]*: splitter 'splitter': missing required parameter 'input'" "$1"
 }
 

@@ -1,7 +1,8 @@
 #!/bin/sh
 # test_install: what make install puts in a prefix works from there, away from the source tree:
 # a component built with the README's pkg-config line, a user's type made by the installed
-# marie-types-gen, the installed Python component, man pages and bash completion, and the
+# marie-types-gen, the installed Python component, man pages and bash completion for every
+# installed program, marie bag (with its libraries, away from the build's venv), and the
 # installed marie-demo run from an empty directory (its first status line says what it waits for).
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-install.XXXXXX)
@@ -24,6 +25,32 @@ check "the installed Python component describes itself" sh -c "cd $T && $P/bin/m
 check "man pages from --help" sh -c "man -l $P/share/man/man1/marie-topic.1 2>/dev/null | grep -q 'marie topic list' || grep -q 'marie topic list' $P/share/man/man1/marie-topic.1"
 check "bash completion of marie's commands" bash -c ". $P/share/bash-completion/completions/marie && COMP_WORDS=(marie topi) COMP_CWORD=1 && _marie && [ \"\${COMPREPLY[*]}\" = topic ]"
 mkdir "$T/empty"
+every_man() {
+    n=0; for p in "$P"/bin/*; do
+        n=$((n + 1)); b=${p##*/}
+        [ -s "$P/share/man/man1/$b.1" ] && [ -s "$P/share/bash-completion/completions/$b" ] || { echo "no man page or completion: $b"; return 1; }
+    done
+    echo "$n programs, each with its man page and completion"
+}
+check "every installed program has a man page and a bash completion" every_man
+check "marie bag is installed: marie bag --version" sh -c "$P/bin/marie bag --version | grep -q '^marie-bag (marie '"
+installed_bag() {
+    # a log written with the LCM library installed beside marie bag, then read and exported by it
+    PYTHONPATH=$P/lib/marie/bag/site:$P/lib/marie/python python3 - "$T/c.lcm" <<'PY' || return 1
+import sys
+import lcm
+from lcmtypes.marie import estop_t
+log = lcm.EventLog(sys.argv[1], "w", overwrite=True)
+for i in range(3):
+    m = estop_t(); m.utime = i; m.pressed = i == 1; m.source = "test"
+    log.write_event(1000 + i, "ESTOP", m.encode())
+log.close()
+PY
+    (cd "$T/empty" && "$P/bin/marie" bag info "$T/c.lcm" && "$P/bin/marie" bag export "$T/c.lcm" "$T/c_bag") > "$T/bag.out" 2>&1
+    rc=$?; cat "$T/bag.out"
+    [ $rc -eq 0 ] && grep -q '^  ESTOP  *marie.estop_t  *3$' "$T/bag.out" && grep -q '^/estop  *std_msgs/msg/Bool  *3$' "$T/bag.out"
+}
+check "the installed marie bag reads and exports a log, away from the build tree" installed_bag
 demo() {
     (cd "$T/empty" && timeout 120 "$OLDPWD/scripts/netns-run" "$P/bin/marie-demo" --timeout 60 --out demo > "$T/demo.log" 2>&1)
     rc=$?; head -5 "$T/demo.log"; tail -3 "$T/demo.log"

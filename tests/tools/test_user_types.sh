@@ -1,8 +1,9 @@
 #!/bin/sh
 # test_user_types: a message type defined outside marie (tests/data/types/reading.lcm, copied to a
 # temporary directory), made first-class by marie-types-gen, flows through a user's C component,
-# a user's Python component, the XML bridge, marie topic, marie-spy and a recording played back;
-# malformed and non-finite payloads of it are still refused. The other side is upstream LCM for
+# a user's Python component, the XML bridge, marie topic, marie-spy, a Mailbox (a pull), a
+# Splitter and a recording played back; malformed and non-finite payloads of it are still refused
+# (by the Mailbox and the Splitter too). The other side is upstream LCM for
 # Python with lcm-gen's classes.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-types.XXXXXX)
@@ -42,6 +43,11 @@ hbv() { peer hb "$1" 3 | python3 -c "import json,sys; h=json.load(sys.stdin); c=
 start probe "$T/ux-probe" --name probe
 start echo env PYTHONPATH=python:$B/python MARIE_RESOLVE=$BIN/marie-resolve python3 "$T/ux/ux_echo.py" --name echo
 start bridge "$BIN/marie-xml-bridge" --name bridge --param port=7677
+# the Communication Adapters carry it by name, as any type: a Mailbox answers pulls of the
+# probe's readings, a Splitter copies them to two channels
+start mailbox "$BIN/marie-ca" mailbox --name mb --param type=ux.reading_t --param channel=READING
+start splitter "$BIN/marie-ca" splitter --name sp --param type=ux.reading_t --param input=READING \
+    --param 'outputs=[READING_A, READING_B]'
 sleep 2
 round_trip() {
     e=$(hbv echo 'c.get("received", 0)'); p=$(hbv probe 'c.get("received", 0), c.get("intact", 0)')
@@ -68,6 +74,41 @@ refused() {
     echo "probe $v echo $w"; [ "$v" = "1 1" ] && [ "$w" = 1 ]
 }
 check "malformed and non-finite readings are refused and counted" wait_for 5 refused
+ca_refused() {
+    m=$(hbv mb 'c.get("bad_payload", 0), h["bad_input"]'); s=$(hbv sp 'c.get("bad_payload", 0), h["bad_input"]')
+    echo "mailbox $m splitter $s"; [ "$m" = "1 1" ] && [ "$s" = "1 1" ]
+}
+check "the Mailbox and the Splitter refuse the malformed reading, and count it" wait_for 5 ca_refused
+
+# a pull answered by the Mailbox: the newest reading, well-formed, as upstream LCM decodes it
+pull() {
+    PYTHONPATH=$B/python:$T/gen/python "$py" - <<'PY'
+import select, sys, time
+import lcm
+from lcmtypes.marie import pull_request_t, pull_reply_t
+from lcmtypes.ux import reading_t
+lc = lcm.LCM("udpm://239.255.76.67:7667?ttl=0")
+got = []
+lc.subscribe("PULL_ME", lambda ch, data: got.append(pull_reply_t.decode(data)))
+rq = pull_request_t(); rq.utime = int(time.time() * 1e6); rq.request_id = 7; rq.requester = "test"
+rq.channel, rq.reply_channel, rq.timeout_ms = "READING", "PULL_ME", 500
+lc.publish("READING.PULL", rq.encode())
+end = time.time() + 3
+while not got and time.time() < end:
+    if select.select([lc.fileno()], [], [], 0.1)[0]:
+        lc.handle()
+r = got[0]
+m = reading_t.decode(bytes(r.data))
+print("pull: status", r.status, "age", r.age_us, "us, sensor", m.sensor, "samples", list(m.samples), "where", m.where.x, m.where.y)
+sys.exit(0 if r.status == 0 and r.request_id == 7 and m.sensor == "thermo" and r.size == len(r.data) else 1)
+PY
+}
+check "a Mailbox pull answers the newest reading" pull
+split() {
+    a=$(peer count READING_A 1.5) b=$(peer count READING_B 1.5); echo "READING_A $a READING_B $b in 1.5 s"
+    [ "$a" -ge 5 ] && [ "$b" -ge 5 ] && "$BIN/marie" topic echo READING_B --once --field sensor | grep -qx thermo
+}
+check "the Splitter copies readings to its two outputs" split
 
 # the XML bridge: lists, describes, streams and publishes the user's type
 PYTHONPATH= python3 - "$T/xml.out" <<'PY' > "$T/xml.log" 2>&1

@@ -92,7 +92,7 @@ int main(int argc, char **argv)
 {
     const char *url = NULL, *key = getenv("MARIE_KEY");
     double timeout = 3;
-    int64_t json = 0, version = 0;
+    bool json = false, version = false;
     const marie_cli_opt_t opts[] = {
         {"url", MARIE_CLI_STRING, &url, 0, 0, "URL the bus (default $LCM_DEFAULT_URL, else marie's)"},
         {"key", MARIE_CLI_STRING, &key, 0, 0, "FILE the order key a set is signed with (default $MARIE_KEY)"},

@@ -33,7 +33,8 @@ typedef struct {
     marie_loop_t *loop;
     lcm_t *lcm;
     const char *url, *system, *field, *key;
-    int64_t json, once, count, window, seen;
+    int64_t count, window, seen;
+    bool json, once, version;
     double duration, timeout, rate;
     marie_buf_t buf;
     chan_t *chans;
@@ -437,7 +438,7 @@ int main(int argc, char **argv)
         {"window", MARIE_CLI_INT, &t.window, 2, HZ_WINDOW_MAX, "N hz: intervals averaged (100)"},
         {"rate", MARIE_CLI_DOUBLE, &t.rate, 0, 1e6, "HZ pub: again at HZ until --count or Ctrl-C"},
         {"key", MARIE_CLI_STRING, &t.key, 0, 0, "FILE pub: the order key (default $MARIE_KEY)"},
-        {"version", MARIE_CLI_FLAG, &t.seen, 0, 0, "print the version"},
+        {"version", MARIE_CLI_FLAG, &t.version, 0, 0, "print the version"},
         {0},
     };
     if (argc > 1 && strcmp(argv[1], "--version") == 0) {
@@ -456,7 +457,7 @@ int main(int argc, char **argv)
             usage(stdout);
         return rc;
     }
-    if (t.seen) {
+    if (t.version) {
         printf("marie-topic %s\n", MARIE_VERSION);
         return 0;
     }
