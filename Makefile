@@ -230,10 +230,11 @@ $(B)/fuzz/%: $(LIBMARIE) $$(FUZZ_$$*_SOURCES)
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \
-	    $(DESTDIR)$(PREFIX)/include/marie/core $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
+	    $(DESTDIR)$(PREFIX)/include/marie/core/bus $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
 	install -m 755 $(PROGRAMS) $(DESTDIR)$(PREFIX)/bin/
 	install -m 644 $(LIBMARIE) $(DESTDIR)$(PREFIX)/lib/
 	install -m 644 $(filter-out %_priv.h,$(wildcard core/*.h)) $(DESTDIR)$(PREFIX)/include/marie/core/
+	install -m 644 $(wildcard core/bus/*.h) $(DESTDIR)$(PREFIX)/include/marie/core/bus/
 	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/
 	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@REQUIRES@|$(PKGS)|' core/marie.pc.in \
 	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/marie.pc
