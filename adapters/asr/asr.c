@@ -58,7 +58,7 @@ void asr_cfg_default(asr_cfg_t *c, const char *const *commands, int ncommands, i
     c->decide_s = 0.25;
     c->min_spread_db = 2.5;
     c->stale_s = 0.2;
-    c->conf_mid = -40;
+    c->conf_mid = -42;
     c->conf_scale = 4;
 }
 
@@ -250,12 +250,14 @@ static void admit(asr_t *a, int64_t utime, bool ending)
 
 void asr_expire(asr_t *a, int64_t utime)
 {
-    if (a->locked < 0)
-        return;
-    stream_t *s = &a->s[a->locked];
-    if (utime - s->last_utime > (int64_t)(a->cfg.stale_s * 1e6)) {
-        finish(a, s, s->last_utime);
-        asr_vad_init(&s->vad, &a->cfg.vad);
+    for (int i = 0; i < ASR_MAX_STREAMS; i++) {
+        stream_t *s = &a->s[i];
+        if (!s->used || utime - s->last_utime <= (int64_t)(a->cfg.stale_s * 1e6) || !(s->vad.in_utt || i == a->locked))
+            continue;
+        if (i == a->locked)
+            finish(a, s, s->last_utime);
+        asr_vad_init(&s->vad, &a->cfg.vad);     /* what it began to say is over */
+        s->utt_len = 0;
     }
 }
 

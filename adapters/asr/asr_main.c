@@ -19,6 +19,7 @@ typedef struct {
     int16_t *mono;
     bool speaking;
     int64_t deaf_until, deaf_after_us;
+    int64_t last_utime, last_now;   /* the newest block's time, and the clock's then */
     marie_component_t *c;
 } asr_state_t;
 
@@ -50,8 +51,19 @@ static void on_separated(marie_component_t *c, marie_port_t *p, const void *msg,
                                   m->nsamples, m->sample_rate, s->block);
         return;
     }
+    s->last_utime = m->utime;
+    s->last_now = marie_component_now(c);
     if (!deaf(s, m->utime))
         asr_feed(s->asr, m->source_id, m->data, m->nsamples, m->utime);
+}
+
+/* No block at all (every track died): the stream being decoded is over all the same. Time
+ * goes on from the newest block's stamp by the clock. */
+static void on_tick(marie_component_t *c, int64_t overruns)
+{
+    asr_state_t *s = marie_component_user(c);
+    if (s->last_now)
+        asr_expire(s->asr, s->last_utime + (marie_component_now(c) - s->last_now));
 }
 
 static void on_array(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -145,6 +157,10 @@ static int init(marie_component_t *c)
     if (marie_port_on_message(marie_port(c, array ? "array" : "separated"), array ? on_array : on_separated) ||
         marie_port_on_message(marie_port(c, "robot_speech"), on_robot_speech)) {
         marie_component_fail_reason(c, "cannot subscribe to the audio");
+        return -1;
+    }
+    if (!array && !marie_component_every(c, 10, on_tick)) {
+        marie_component_fail_reason(c, "cannot start the stream timer");
         return -1;
     }
     marie_info("%d command phrases, listening to the %s", n, array ? "array's first microphone" : "separated streams");

@@ -80,23 +80,27 @@ static void on_heard(const asr_result_t *r, void *user)
         v->heard = true;
 }
 
-/* Is a track far (> 25 deg) from both the one speaking and the fan? */
+/* Is a track born during this utterance far (> 25 deg) from both the one speaking and the fan
+ * (a wall's reflection)? */
 static void count_tracks(asr_eval_t *e, const ssl_result_t *r)
 {
-    double t = r->utime / 1e6, speaker = NAN, fan = NAN;
+    double t = r->utime / 1e6, speaker = NAN, fan = NAN, since = 0;
     for (int i = 0; i < e->nevents; i++) {
         const asr_eval_event_t *v = &e->ev[i];
         if (!strcmp(v->kind, "fan"))
             fan = v->bearing;
-        else if (strcmp(v->kind, "noise") && t >= v->start + 0.1 && t < v->end - 0.1)
+        else if (strcmp(v->kind, "noise") && t >= v->start + 0.1 && t < v->end - 0.1) {
             speaker = v->bearing;
+            since = v->start;
+        }
     }
     if (isnan(speaker))
         return;
     e->speech_frames++;
     for (int i = 0; i < r->tracker->n; i++) {
         const ssl_track_t *k = &r->tracker->t[i];
-        if (k->confirmed && fabs(ssl_wrap(k->azimuth - speaker)) > 25 * DEG &&
+        /* born while this one speaks (a track left from the one before is not this one's echo) */
+        if (k->confirmed && k->first_utime >= (int64_t)(since * 1e6) && fabs(ssl_wrap(k->azimuth - speaker)) > 25 * DEG &&
             (isnan(fan) || fabs(ssl_wrap(k->azimuth - fan)) > 25 * DEG)) {
             e->false_track_frames++;
             return;
