@@ -8,8 +8,6 @@
 
 #include "core/component.h"
 #include "hw/can/can_link.h"
-#include "hw/canopen/emcy.h"
-#include "hw/canopen/sdo.h"
 #include "hw/drives/drives_ctl.h"
 #include "hw/drives/drives_params.h"
 
@@ -24,7 +22,8 @@ typedef struct {
     double radius, track;
     bool estop, started;
     bool start_pending;         /* started before the simulated clock was known */
-    int64_t last_emcy_event;
+    bool degraded;
+    int64_t trouble_since;      /* a drive in trouble since (protocol clock), 0: none */
 } drives_t;
 
 static const marie_port_spec_t ports[] = {
@@ -65,71 +64,54 @@ static void on_link_event(void *user, const char *kind, const char *text)
         marie_info("%s", text);
 }
 
-static const char *side(int axis) { return axis == 0 ? "left" : axis == 1 ? "right" : "bus"; }
-
+/* Each event: its counter, its kind and severity on MARIE_EVENT, the text drives_ctl gives it. */
 static void on_drive_event(void *user, int axis, drives_ev_t ev, uint32_t code)
 {
     drives_t *d = user;
     marie_component_t *c = d->c;
-    const drives_axis_t *a = axis >= 0 ? drives_ctl_axis(d->ctl, axis) : NULL;
-    switch (ev) {
-    case DRIVES_EV_CONFIGURED:
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_configured", "%s drive '%s' configured, started",
-                              side(axis), a->name);
-        break;
-    case DRIVES_EV_CONFIG_FAILED:
-        marie_component_count(c, "config_failures", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_config_failed", "%s drive: %s (0x%08X)",
-                              side(axis), co_sdo_abort_str(code), code);
-        marie_warn_ratelimited(5, "%s drive configuration failed: %s", side(axis), co_sdo_abort_str(code));
-        break;
-    case DRIVES_EV_FAULT:
-        marie_component_count(c, "faults", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "drive_fault", "%s drive in fault (last EMCY 0x%04X %s)",
-                              side(axis), code, co_emcy_str((uint16_t)code));
-        marie_warn("%s drive fault (0x%04X %s)", side(axis), code, co_emcy_str((uint16_t)code));
-        break;
-    case DRIVES_EV_FAULT_RESET:
-        marie_component_count(c, "fault_resets", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_fault_reset", "%s drive: fault reset", side(axis));
-        break;
-    case DRIVES_EV_RECOVERED:
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_recovered", "%s drive operational again", side(axis));
-        break;
-    case DRIVES_EV_EMCY:
-        marie_component_count(c, "emcy", 1);
-        if (code)
-            marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_emcy", "%s drive EMCY 0x%04X %s",
-                                  side(axis), code, co_emcy_str((uint16_t)code));
-        break;
-    case DRIVES_EV_EMCY_QUIET:
-        marie_component_count(c, "emcy", 1);
-        break;
-    case DRIVES_EV_OPTIONAL_MISSING:
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_optional_missing",
-                              "%s drive has no object 0x%04X:%02X (optional, skipped)", side(axis), code >> 8,
-                              code & 0xFF);
-        break;
-    case DRIVES_EV_EMCY_STORM:
-        marie_component_count(c, "emcy", 1);
-        marie_component_bad_input(c, "emcy_storm", "%s drive: EMCY storm (0x%04X), further ones only counted",
-                                  side(axis), code);
-        break;
-    case DRIVES_EV_HB_TIMEOUT:
-        marie_component_count(c, "hb_timeouts", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "drive_offline", "%s drive: heartbeat lost", side(axis));
-        marie_warn("%s drive: heartbeat lost", side(axis));
-        break;
-    case DRIVES_EV_BOOTUP:
-        marie_component_count(c, "bootups", 1);
-        break;
-    case DRIVES_EV_BAD_FRAME:
-        marie_component_bad_input(c, "bad_frame", "%s drive: malformed frame id 0x%03X", side(axis), code);
-        break;
-    case DRIVES_EV_UNEXPECTED:
-        marie_component_bad_input(c, "unexpected_cob", "unexpected frame id 0x%03X", code);
-        break;
+    static const struct { const char *kind, *counter; int sev; } evs[] = {
+        [DRIVES_EV_CONFIGURED] = { "drive_configured", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_CONFIG_FAILED] = { "drive_config_failed", "config_failures", MARIE_EVENT_T_SEV_WARN },
+        [DRIVES_EV_FAULT] = { "drive_fault", "faults", MARIE_EVENT_T_SEV_ERROR },
+        [DRIVES_EV_FAULT_RESET] = { "drive_fault_reset", "fault_resets", MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_RECOVERED] = { "drive_recovered", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_EMCY] = { "drive_emcy", "emcy", MARIE_EVENT_T_SEV_WARN },
+        [DRIVES_EV_EMCY_STORM] = { NULL, "emcy", 0 },
+        [DRIVES_EV_HB_TIMEOUT] = { "drive_offline", "hb_timeouts", MARIE_EVENT_T_SEV_ERROR },
+        [DRIVES_EV_BOOTUP] = { NULL, "bootups", 0 },
+        [DRIVES_EV_BAD_FRAME] = { NULL, NULL, 0 },
+        [DRIVES_EV_UNEXPECTED] = { NULL, NULL, 0 },
+        [DRIVES_EV_EMCY_QUIET] = { NULL, "emcy", 0 },
+        [DRIVES_EV_OPTIONAL_MISSING] = { "drive_optional_missing", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_WATCH] = { "drive_watch", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_HOLD] = { "drive_hold", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_NOT_FOUND] = { "drive_not_found", NULL, MARIE_EVENT_T_SEV_WARN },
+    };
+    char text[400];
+    drives_ctl_event_text(d->ctl, axis, ev, code, text, sizeof text);
+    int sev = evs[ev].sev;
+    if (ev == DRIVES_EV_WATCH && code != DRIVES_WATCH_RPDO_ONLY)
+        sev = code == DRIVES_WATCH_NONE_REFUSED ? MARIE_EVENT_T_SEV_ERROR : MARIE_EVENT_T_SEV_WARN;
+    if (evs[ev].counter)
+        marie_component_count(c, evs[ev].counter, 1);
+    if (ev == DRIVES_EV_EMCY && code == 0)
+        return;                 /* an error reset: counted, not told */
+    /* a drive failing alike every retry is told once, then only counted and logged */
+    if (ev == DRIVES_EV_CONFIG_FAILED && drives_ctl_axis(d->ctl, axis)->fail.repeats) {
+        marie_warn_ratelimited(5, "%s", text);
+        return;
     }
+    if (ev == DRIVES_EV_EMCY_STORM)
+        marie_component_bad_input(c, "emcy_storm", "%s", text);
+    else if (ev == DRIVES_EV_BAD_FRAME)
+        marie_component_bad_input(c, "bad_frame", "%s", text);
+    else if (ev == DRIVES_EV_UNEXPECTED)
+        marie_component_bad_input(c, "unexpected_cob", "%s", text);
+    if (!evs[ev].kind)
+        return;
+    marie_component_event(c, sev, evs[ev].kind, "%s", text);
+    if (sev >= MARIE_EVENT_T_SEV_WARN)
+        marie_warn("%s", text);
 }
 
 static void begin(drives_t *d)
@@ -153,16 +135,50 @@ static void on_sync(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     send_frames(d, tx, drives_ctl_cycle(d->ctl, now_us(d), tx, 16));
 }
 
+/* Why a drive's position is not known, or why it cannot drive: NULL when it is fine. */
+static const char *trouble(const drives_axis_t *a)
+{
+    switch (a->phase) {
+    case DRIVES_AX_BOOT:
+        return a->fail.index ? "configuration failed" : "not booted (no answer to reset communication)";
+    case DRIVES_AX_CONFIG: return "being configured";
+    case DRIVES_AX_OFFLINE: return "heartbeat lost";
+    case DRIVES_AX_RUN: break;
+    }
+    if (a->refused)
+        return "kept disabled: it cannot watch marie-drives (no 0x1016, no 0x1400:05)";
+    return a->have_tpdo ? NULL : "no position yet";
+}
+
+/* The heartbeat says degraded while a drive has been in trouble for degraded_after. */
+static void health(drives_t *d, const char *why[DRIVES_N])
+{
+    int64_t now = now_us(d);
+    if (!why[0] && !why[1]) {
+        d->trouble_since = 0;
+        if (d->degraded)
+            marie_component_set_degraded(d->c, false, "both drives configured and reporting");
+        d->degraded = false;
+        return;
+    }
+    if (!d->trouble_since)
+        d->trouble_since = now;
+    if (now - d->trouble_since < (int64_t)(params_of(d->c)->degraded_after * 1e6))
+        return;
+    d->degraded = true;
+    marie_component_set_degraded(d->c, true, "%s%s%s%s%s", why[0] ? "left drive: " : "", why[0] ? why[0] : "",
+                                 why[0] && why[1] ? "; " : "", why[1] ? "right drive: " : "", why[1] ? why[1] : "");
+}
+
+/* WHEEL_ENCODERS at publish_hz whatever the drives do: a position not read from a drive yet (a
+ * new process, a drive just configured, one that never came up) is sent as FAULT, which
+ * odometry skips (it would take the jump to and from 0 for motion), and counted. */
 static void publish(marie_component_t *c, int64_t overruns)
 {
     drives_t *d = marie_component_user(c);
     const drives_axis_t *l = drives_ctl_axis(d->ctl, DRIVES_LEFT), *r = drives_ctl_axis(d->ctl, DRIVES_RIGHT);
-    /* Positions not yet read from the drives (a new process, a drive just configured) are not
-     * zero: odometry would take the jump to and from 0 for motion. */
-    if (!l->have_tpdo || !r->have_tpdo) {
-        marie_component_count(c, "encoders_unknown", 1);
-        return;
-    }
+    const char *why[DRIVES_N] = { trouble(l), trouble(r) };
+    health(d, why);
     marie_wheel_encoders_t m = {
         .utime = marie_component_now(c),
         .left_ticks = l->position,
@@ -174,9 +190,11 @@ static void publish(marie_component_t *c, int64_t overruns)
     bool fault = false;
     for (int i = 0; i < DRIVES_N; i++) {
         const drives_axis_t *a = drives_ctl_axis(d->ctl, i);
-        if (a->phase == DRIVES_AX_OFFLINE || a->state == CIA402_FAULT || a->state == CIA402_FAULT_REACTION_ACTIVE)
+        if (why[i] || a->state == CIA402_FAULT || a->state == CIA402_FAULT_REACTION_ACTIVE)
             fault = true;
     }
+    if (!l->have_tpdo || !r->have_tpdo)
+        marie_component_count(c, "encoders_unknown", 1);
     if (fault || !can_link_up(d->link))
         m.status = MARIE_WHEEL_ENCODERS_T_STATUS_FAULT;
     else if (d->estop)
@@ -272,6 +290,7 @@ static int on_init(marie_component_t *c)
     cfg.master_heartbeat_ms = (uint16_t)mhb;
     cfg.consumer_ms = (uint16_t)lround(mto * 1000);
     cfg.rpdo_timeout_ms = (uint16_t)lround(rto * 1000);
+    cfg.allow_unwatched = params_of(c)->allow_unwatched;
     d->ctl = drives_ctl_create(&cfg, on_drive_event, d);
     if (!d->ctl) {
         marie_component_fail_reason(c, "drive controller: %s", strerror(errno));

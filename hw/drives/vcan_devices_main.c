@@ -73,6 +73,7 @@ int main(int argc, char **argv)
     vdevices_cfg_default(&cfg);
     int64_t left = cfg.left, right = cfg.right, gyro = cfg.gyro, ticks = cfg.ticks_per_rev;
     double rpdo_timeout = cfg.rpdo_timeout_us / 1e6;
+    int64_t no_consumer = 0, no_deadline = 0;
     const marie_cli_opt_t opts[] = {
         { "can", MARIE_CLI_STRING, &cfg.can_url, 0, 0, "URL  the bus: can:IFNAME or emu:PATH (required)" },
         { "left", MARIE_CLI_INT, &left, 0, 127, "N    the left drive's node id (0: none)" },
@@ -84,6 +85,8 @@ int main(int argc, char **argv)
         { "gyro-bias", MARIE_CLI_DOUBLE, &cfg.gyro_bias, -10, 10, "R    rad/s" },
         { "gyro-noise", MARIE_CLI_DOUBLE, &cfg.gyro_noise, 0, 10, "R    rad/s" },
         { "rpdo-timeout", MARIE_CLI_DOUBLE, &rpdo_timeout, 0, 60, "S    the drives' RPDO deadline (0: off)" },
+        { "no-consumer", MARIE_CLI_INT, &no_consumer, 0, 1, "1    drives without 0x1016 (consumer heartbeat)" },
+        { "no-rpdo-deadline", MARIE_CLI_INT, &no_deadline, 0, 1, "1    drives without 0x1400:05 (RPDO event timer)" },
         { NULL },
     };
     int rc = marie_cli_parse("marie-vcan-devices", opts, argc, argv);
@@ -98,6 +101,8 @@ int main(int argc, char **argv)
     cfg.gyro = (uint8_t)gyro;
     cfg.ticks_per_rev = (int32_t)ticks;
     cfg.rpdo_timeout_us = (int64_t)(rpdo_timeout * 1e6);
+    cfg.no_consumer = no_consumer;
+    cfg.no_rpdo_deadline = no_deadline;
     marie_loop_t *loop = marie_loop_create();
     if (!loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
         marie_error("cannot set up the loop: %s", strerror(errno));

@@ -66,6 +66,8 @@ vdevices_t *vdevices_create(const vdevices_cfg_t *cfg, int64_t now)
         vdrive_cfg_default(&dc, nodes[i]);
         dc.ticks_per_rev = cfg->ticks_per_rev;
         dc.rpdo_timeout_us = cfg->rpdo_timeout_us;
+        dc.no_consumer = cfg->no_consumer;
+        dc.no_rpdo_deadline = cfg->no_rpdo_deadline;
         dc.name = i == 0 ? "marie vdrive left" : "marie vdrive right";
         if (!(v->drive[i] = vdrive_create(&dc)))
             goto err;

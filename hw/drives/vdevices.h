@@ -25,6 +25,8 @@ typedef struct {
     double wheel_radius, track_width;   /* m, for the ideal yaw rate */
     double gyro_bias, gyro_noise;       /* rad/s */
     int64_t rpdo_timeout_us;    /* drives fault when enabled and RPDOs stop (0: off) */
+    bool no_consumer;           /* drives without 0x1016 (consumer heartbeat) */
+    bool no_rpdo_deadline;      /* drives without an RPDO event timer (0x1400:05) */
     bool external_physics;
 } vdevices_cfg_t;
 

@@ -29,6 +29,8 @@ typedef struct {
     double max_velocity;        /* rad/s; larger targets are clamped (default 30) */
     int64_t rpdo_timeout_us;    /* power-on RPDO1 deadline 0x1400:05, rounded up to ms (0: off) */
     const char *name;           /* device name, object 0x1008 ("": no 0x1008) */
+    bool no_consumer;           /* a drive without the optional 0x1016 (consumer heartbeat) */
+    bool no_rpdo_deadline;      /* ... without an RPDO event timer (0x1400:05) */
 } vdrive_cfg_t;
 
 void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node);

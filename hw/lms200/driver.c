@@ -19,6 +19,9 @@
  * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
 #define MAX_STAY 3
 #define BATCH_MAX 8                 /* scans of one read stamped together; a longer backlog goes out in turns */
+/* Damaged scan telegrams in a row that do not yet make a silent line (see data_timeout_us). */
+#define LOST_TELEGRAMS 2
+#define DATA_MARGIN_US 200000
 
 struct lms200_driver {
     lms200_driver_cfg_t cfg;
@@ -227,12 +230,24 @@ static void send_current(lms200_driver_t *d)
     write_out(d, out, n);
 }
 
+/* No good scan for this long while streaming: the line is silent. One damaged telegram leaves
+ * two telegram times between good scans (1.52 s for 361 values at 9600 baud), longer than a
+ * fixed second: the wait is data_timeout_ms, or LOST_TELEGRAMS + 1 telegram times at the
+ * line's rate (and a margin) where that is longer. */
+static int64_t data_timeout_us(const lms200_driver_t *d)
+{
+    size_t bytes = lms200_scan_telegram_len(d->cfg.res_cdeg == 50 ? 361 : 181);
+    int64_t derived = (LOST_TELEGRAMS + 1) * lms200_wire_us(bytes, d->baud) + DATA_MARGIN_US;
+    int64_t fixed = (int64_t)d->cfg.data_timeout_ms * 1000;
+    return derived > fixed ? derived : fixed;
+}
+
 static void enter(lms200_driver_t *d, lms200_drv_state_t s)
 {
     d->state = s;
     d->tries = 0;
     if (s == LMS200_DRV_STREAM) {
-        d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+        d->deadline = d->now + data_timeout_us(d);
         return;
     }
     send_current(d);
@@ -345,7 +360,7 @@ static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
     }
     d->nbatch++;
     d->st.scans++;
-    d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+    d->deadline = d->now + data_timeout_us(d);
     d->last_good = d->now;
     if (d->degraded) {
         d->degraded = false;
@@ -523,6 +538,7 @@ int64_t lms200_driver_deadline(const lms200_driver_t *d)
 }
 lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d) { return d->state; }
 int lms200_driver_baud(const lms200_driver_t *d) { return d->baud; }
+int lms200_driver_data_timeout_ms(const lms200_driver_t *d) { return (int)(data_timeout_us(d) / 1000); }
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d) { return &d->st; }
 
 static void read_input(lms200_driver_t *d, short revents);
@@ -641,7 +657,8 @@ void lms200_driver_tick(lms200_driver_t *d, int64_t now_us)
         break;
     case LMS200_DRV_STREAM:
         count(d, "timeouts", &d->st.timeouts, 1, false);
-        emit(d, 2, "laser_silent", "%s: no scan for %d ms; re-initialising", d->device, d->cfg.data_timeout_ms);
+        emit(d, 2, "laser_silent", "%s: no scan for %lld ms (%d baud); re-initialising", d->device,
+             (long long)(data_timeout_us(d) / 1000), d->baud);
         d->lost = true;
         reinit(d);
         break;

@@ -21,7 +21,9 @@ typedef struct {
     int config_timeout_ms;      /* wait for variant, baud and start replies (the device
                                  * reconfigures itself first); default 3000 */
     int retries;                /* sends of one command before giving up; default 2 */
-    int data_timeout_ms;        /* no scan for this long while streaming: re-initialise; default 1000 */
+    int data_timeout_ms;        /* no scan for this long while streaming: re-initialise; default 1000,
+                                 * longer where 3 scan telegram times at the line's rate are (2.49 s
+                                 * for 361 values at 9600 baud) */
     int reopen_ms;              /* between attempts to open the device; default 500 */
     int degraded_ms;            /* no good scan for this long after start: degraded; default 2000 */
 } lms200_driver_cfg_t;
@@ -86,6 +88,8 @@ lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d);
 bool lms200_driver_degraded(const lms200_driver_t *d);
 const char *lms200_driver_state_name(lms200_drv_state_t s);
 int lms200_driver_baud(const lms200_driver_t *d);      /* the line's current rate */
+/* The stream's data timeout at the line's current rate (see data_timeout_ms). */
+int lms200_driver_data_timeout_ms(const lms200_driver_t *d);
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d);
 
 #ifdef __cplusplus

@@ -44,7 +44,7 @@ static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t mo
         l->ranges[i] = (float)(isinf(m) ? range_max : m);
     }
     /* Stamp the scan when its telegram began to arrive, not when its last byte did. */
-    int64_t wire_us = (int64_t)(10 + 2 * s->n) * 10 * 1000000 / (l->baud > 0 ? l->baud : 9600);
+    int64_t wire_us = lms200_wire_us(lms200_scan_telegram_len(s->n), l->baud);
     marie_laser_scan_t msg = {
         .utime = marie_component_now(c) - (now_us(l) - mono_us) - wire_us,
         .angle_min = (float)(-M_PI / 2),

@@ -276,7 +276,7 @@ void vlms200_on_scan(vlms200_t *v, vlms200_scan_cb_t cb, void *user)
 /* What n bytes take on the line: 10 bits each at the current rate. */
 static int64_t wire_us(const vlms200_t *v, size_t n)
 {
-    return (int64_t)n * 10 * 1000000 / v->baud;
+    return lms200_wire_us(n, v->baud);
 }
 
 static void send_scan(vlms200_t *v)

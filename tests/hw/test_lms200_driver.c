@@ -306,7 +306,7 @@ static void test_line_time_puts_stamps_on_the_scans_instants(void **state)
     /* The driver's last scans against the device's: the stream's scans, one to one. */
     int n = 30, off = ntaken - r.nstamp;
     assert_true(off >= 0 && off <= 1);      /* one may be on the line still */
-    int64_t d[30], wire = (10 + 2 * 181) * 10 * 1000000LL / 500000;     /* as lms200_main.c */
+    int64_t d[30], wire = lms200_wire_us(lms200_scan_telegram_len(181), 500000);     /* as lms200_main.c */
     for (int i = 0; i < n; i++)
         d[i] = r.stamp[r.nstamp - n + i] - wire - taken[r.nstamp - n + i + off];
     qsort(d, n, sizeof d[0], cmp_i64);
@@ -328,6 +328,28 @@ static void test_stays_at_9600_when_configured(void **state)
     assert_int_equal(vlms200_stats(r.emu)->baud_changes, 0);
     assert_int_equal(lms200_driver_stats(r.drv)->timeouts, 0);
     assert_int_equal(r.bad_ranges, 0);
+    rig_close(&r);
+}
+
+/* At 9600 baud a 0.5 degree scan takes 0.76 s on the line: one damaged telegram leaves 1.52 s
+ * between good scans, beyond the rig's fixed 800 ms (the production 1000 ms alike). The wait
+ * follows the line instead (3 telegram times, 2.49 s): damage is counted, the laser is not
+ * declared silent, nor re-initialised. */
+static void test_a_bad_telegram_at_9600_is_no_silence(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM, .corrupt_every = 3 };
+    assert_true(rig_streaming(&r, &e, 9600, 50, 1, 10000));
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    int64_t scans = r.scans;
+    RUN_UNTIL(&r, 8000, st->crc_errors >= 2 && r.scans >= scans + 4);
+    assert_true(st->crc_errors >= 2);
+    assert_true(r.scans >= scans + 4);
+    assert_int_equal(st->timeouts, 0);
+    assert_int_equal(st->inits, 1);
+    assert_int_equal(st->garbage_bytes, 0);
+    assert_int_equal(r.bad_ranges, 0);
+    assert_int_equal(lms200_driver_data_timeout_ms(r.drv), 2487);     /* 3 x 762.5 ms + 200 */
     rig_close(&r);
 }
 
@@ -644,6 +666,7 @@ int main(void)
         cmocka_unit_test(test_scans_read_late_are_stamped_one_period_apart),
         cmocka_unit_test(test_line_time_puts_stamps_on_the_scans_instants),
         cmocka_unit_test(test_stays_at_9600_when_configured),
+        cmocka_unit_test(test_a_bad_telegram_at_9600_is_no_silence),
         cmocka_unit_test(test_crc_errors_counted_and_skipped),
         cmocka_unit_test(test_garbage_between_scans_resyncs),
         cmocka_unit_test(test_truncated_telegrams_counted),

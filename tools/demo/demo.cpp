@@ -3,6 +3,7 @@
 // --mission explore first maps the world from nothing (the explore profile), saves the map,
 // judges it against the world, and runs the navigation mission on it.
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -272,7 +273,8 @@ void Demo::on_signal(marie_loop_t *, int, void *user)
 void Demo::chaos_tick()
 {
     // SIGKILL a random running component other than the simulator (and the Mailbox, the
-    // SharedMap and the drivers are fair game: the managers must bring them back).
+    // SharedMap and the drivers are fair game: the managers must bring them back). Sorted by
+    // name, so a seed draws the same names wherever the same components run.
     std::vector<std::pair<std::string, int>> victims;
     for (auto &h : hosts_)
         for (int i = 0; i < h.second->ncomponents; i++) {
@@ -282,7 +284,8 @@ void Demo::chaos_tick()
         }
     if (victims.empty())
         return;
-    auto v = victims[std::uniform_int_distribution<size_t>(0, victims.size() - 1)(rng_)];
+    std::sort(victims.begin(), victims.end());
+    auto v = victims[demo_chaos_pick(&chaos_, victims.size())];
     for (auto &c : victims)
         if (kills_ == 0 && c.first == opt_.chaos_first)
             v = c;
@@ -493,6 +496,9 @@ int Demo::navigate()
     if (up(opt_.profile) != 0)
         return 1;
     marie_timer_t *progress_timer = marie_loop_add_wall_timer(loop_, 2000000, on_progress_timer, this);
+    if (opt_.chaos_s > 0)
+        printf("demo: chaos every %g s, seed %llu (--seed %llu draws the same victims)\n", opt_.chaos_s,
+               (unsigned long long)chaos_.seed, (unsigned long long)chaos_.seed);
     marie_timer_t *chaos_timer = opt_.chaos_s > 0 ? marie_loop_add_wall_timer(loop_, int64_t(opt_.chaos_s * 1e6),
                                                                               on_chaos_timer, this)
                                                   : nullptr;
@@ -542,7 +548,7 @@ int Demo::run()
 void usage(FILE *out)
 {
     fprintf(out, "usage: marie-demo [--system FILE] [--profile P] [--out DIR] [--timeout S] [--chaos S]\n"
-                 "                  [--chaos-first NAME] [--estop-after-goal K] [--quiet]\n"
+                 "                  [--chaos-first NAME] [--seed N] [--estop-after-goal K] [--quiet]\n"
                  "                  [--mission navigate|explore] [--explore-profile P] [--explore-timeout S]\n"
                  "  --mission explore: map the world from nothing first (profile explore), save it as\n"
                  "  OUT/explored.yaml, judge it against the world, then navigate on it (MARIE_MAP)\n");
@@ -563,7 +569,7 @@ int main(int argc, char **argv)
         {"chaos", required_argument, nullptr, 'c'}, {"estop-after-goal", required_argument, nullptr, 'e'},
         {"chaos-first", required_argument, nullptr, 'f'}, {"mission", required_argument, nullptr, 'm'},
         {"explore-profile", required_argument, nullptr, 'x'}, {"explore-timeout", required_argument, nullptr, 'T'},
-        {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
+        {"seed", required_argument, nullptr, 'S'}, {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
     };
     int c;
     while ((c = getopt_long(argc, argv, "", opts, nullptr)) != -1) {
@@ -574,6 +580,17 @@ int main(int argc, char **argv)
         case 't': o.timeout_s = atof(optarg); break;
         case 'c': o.chaos_s = atof(optarg); break;
         case 'f': o.chaos_first = optarg; break;
+        case 'S': {
+            char *end;
+            errno = 0;
+            o.seed = strtoull(optarg, &end, 0);
+            if (errno || end == optarg || *end || optarg[0] == '-') {
+                fprintf(stderr, "marie-demo: --seed takes an unsigned integer, not '%s'\n", optarg);
+                return 2;
+            }
+            o.seed_set = true;
+            break;
+        }
         case 'e': o.estop_after_goal = atoi(optarg); break;
         case 'm': o.mission = optarg; break;
         case 'x': o.explore_profile = optarg; break;
