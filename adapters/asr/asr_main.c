@@ -35,8 +35,20 @@ static void on_heard(const asr_result_t *r, void *user)
     marie_port_publish(s->p_speech, &m);
 }
 
+/* The audio's time now: the newest block's stamp, and what the component's clock says passed
+ * since it came. The robot's voice is timed by this, not by ROBOT_SPEECH's stamp, which comes
+ * from another clock (the speaker's computer, or the wall while the audio runs on the
+ * simulator's): a stamp seconds ahead of the audio's left the recognizer deaf for good. */
+static int64_t audio_now(const asr_state_t *s)
+{
+    return s->last_now ? s->last_utime + (marie_component_now(s->c) - s->last_now) : 0;
+}
+
+/* A block arrives: the recognizer hears it unless the robot speaks. */
 static bool deaf(asr_state_t *s, int64_t utime)
 {
+    s->last_utime = utime;
+    s->last_now = marie_component_now(s->c);
     bool d = s->speaking || utime < s->deaf_until;
     asr_mute(s->asr, d);
     return d;
@@ -51,8 +63,6 @@ static void on_separated(marie_component_t *c, marie_port_t *p, const void *msg,
                                   m->nsamples, m->sample_rate, s->block);
         return;
     }
-    s->last_utime = m->utime;
-    s->last_now = marie_component_now(c);
     if (!deaf(s, m->utime))
         asr_feed(s->asr, m->source_id, m->data, m->nsamples, m->utime);
 }
@@ -63,7 +73,7 @@ static void on_tick(marie_component_t *c, int64_t overruns)
 {
     asr_state_t *s = marie_component_user(c);
     if (s->last_now)
-        asr_expire(s->asr, s->last_utime + (marie_component_now(c) - s->last_now));
+        asr_expire(s->asr, audio_now(s));
 }
 
 static void on_array(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -91,7 +101,7 @@ static void on_robot_speech(marie_component_t *c, marie_port_t *p, const void *m
         s->speaking = true;
     } else if (m->state == MARIE_ROBOT_SPEECH_T_STATE_DONE || m->state == MARIE_ROBOT_SPEECH_T_STATE_FAILED) {
         s->speaking = false;
-        s->deaf_until = m->utime + s->deaf_after_us;
+        s->deaf_until = audio_now(s) + s->deaf_after_us;
     }
 }
 
