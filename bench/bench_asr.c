@@ -21,7 +21,7 @@ int main(int argc, char **argv)
 {
     const char *b = getenv("B") ? getenv("B") : "build";
     bool full = strstr(argv[0], "full") != NULL;
-    int utterances = full ? 1500 : 40;
+    int utterances = full ? 1500 : 30;     /* the default: well under a minute of decoding */
     const char *bench = full ? "asr_full" : "asr";
     static asr_eval_t e;
     for (size_t i = 0; i < sizeof(conditions) / sizeof(conditions[0]); i++) {
@@ -44,14 +44,16 @@ int main(int argc, char **argv)
         }
         snprintf(metric, sizeof(metric), "%s_commands_recognized", conditions[i].name);
         bench_row(bench, metric, 100.0 * e.recognized / (e.commands ? e.commands : 1), "%", -1);
+        snprintf(metric, sizeof(metric), "%s_commands_wrong", conditions[i].name);
+        bench_row(bench, metric, 100.0 * e.wrong / (e.commands ? e.commands : 1), "%", -1);
         snprintf(metric, sizeof(metric), "%s_others_accepted", conditions[i].name);
         bench_row(bench, metric, 100.0 * e.accepted / (e.others ? e.others : 1), "%", -1);
         snprintf(metric, sizeof(metric), "%s_reflection_track_frames", conditions[i].name);
         bench_row(bench, metric, 100.0 * e.false_track_frames / (e.speech_frames ? e.speech_frames : 1), "%", -1);
         snprintf(metric, sizeof(metric), "%s_cpu_per_audio_s", conditions[i].name);
         bench_row(bench, metric, e.cpu_s / e.seconds, "s/s", -1);
-        fprintf(stderr, "%s: %d/%d commands, %d/%d others accepted, %d stray, %.0f s of audio\n", conditions[i].name,
-                e.recognized, e.commands, e.accepted, e.others, e.stray, e.seconds);
+        fprintf(stderr, "%s: %d/%d commands (%d taken for another), %d/%d others accepted, %d stray, %.0f s of audio\n",
+                conditions[i].name, e.recognized, e.commands, e.wrong, e.accepted, e.others, e.stray, e.seconds);
     }
     return 0;
 }

@@ -33,8 +33,13 @@ typedef struct {
     double stale_s;
     /* Confidence: the hypothesis's words' mean acoustic score per frame against the best
      * state of each frame (PocketSphinx's own normalization: a garbage model of every state),
-     * through a logistic: 0.5 at conf_mid, conf_scale per step of e. */
+     * through a logistic: 0.5 at conf_mid, conf_scale per step of e; multiplied by doubt when
+     * a second decode with narrow beams does not find the same words, or when more than
+     * max_outside_s of the utterance lies outside the words (pre-roll and end wait included:
+     * something longer than a command was said), or when it is part of a sound longer than
+     * the voice detector's limit. */
     double conf_mid, conf_scale;
+    double max_outside_s, doubt;
 } asr_cfg_t;
 
 /* The default model of Debian's pocketsphinx-en-us, and a 16 kHz rate. */
@@ -45,6 +50,8 @@ typedef struct {
     const char *text;           /* "" when nothing of the grammar was heard */
     double confidence;          /* 0..1: 0.5 where in-grammar and other speech are told apart */
     double score;               /* the words' mean acoustic score per frame it comes from */
+    bool verified;              /* the narrow-beam decode found the same words */
+    double outside_s;           /* of the utterance, outside the words */
     double over_db, spread_db;  /* what the stream's voice detector saw */
     int64_t start_utime, end_utime;
 } asr_result_t;

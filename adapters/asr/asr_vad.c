@@ -55,8 +55,11 @@ asr_vad_event_t asr_vad_block(asr_vad_t *v, const int16_t *pcm, int n)
     bool speech = db > v->floor_db + v->cfg.threshold_db;
     if (!v->in_utt) {
         v->run = speech ? v->run + 1 : 0;
+        v->since_end_s += v->cfg.block_s;
         if (v->run < v->cfg.start_blocks)
             return ASR_VAD_SILENCE;
+        v->long_sound = v->cut && v->since_end_s - v->run * v->cfg.block_s < 0.25;
+        v->cut = false;
         v->in_utt = true;
         v->utt_s = v->run * v->cfg.block_s;
         v->quiet_s = 0;
@@ -71,6 +74,9 @@ asr_vad_event_t asr_vad_block(asr_vad_t *v, const int16_t *pcm, int n)
     if (v->quiet_s >= v->cfg.hangover_s || v->utt_s >= v->cfg.max_s) {
         v->in_utt = false;
         v->run = 0;
+        v->cut = v->quiet_s < v->cfg.hangover_s;
+        v->long_sound = v->long_sound || v->cut;
+        v->since_end_s = 0;
         return ASR_VAD_END;
     }
     return ASR_VAD_SPEECH;

@@ -31,6 +31,11 @@ typedef struct {
      * well out of it) and the spread of their dB (speech comes in syllables, a fan is steady). */
     int nblk;
     double sum_over, sum_db, sum_db2;
+    /* The utterance is part of a sound longer than max_s: cut at the limit, or starting right
+     * after one that was (no command lasts that long: a talk, a radio, a fan's change). */
+    bool long_sound;
+    bool cut;                   /* the last utterance ended at the limit */
+    double since_end_s;
 } asr_vad_t;
 
 void asr_vad_init(asr_vad_t *v, const asr_vad_cfg_t *cfg);

@@ -69,15 +69,17 @@ static void on_heard(const asr_result_t *r, void *user)
     bool accepted = r->text[0] && r->confidence >= u->min_conf;
     asr_eval_event_t *v = overlapping(e, t0, t1);
     if (u->verbose)
-        printf("# %7.2f-%7.2f src %d \"%s\" conf %.2f score %.1f over %.1f spread %.1f | %s: %s\n", t0, t1,
-               r->source_id, r->text, r->confidence, r->score, r->over_db, r->spread_db, v ? v->kind : "-",
-               v ? v->text : "");
+        printf("# %7.2f-%7.2f src %d \"%s\" conf %.2f score %.1f %s outside %.2f s over %.1f spread %.1f | %s: %s\n",
+               t0, t1, r->source_id, r->text, r->confidence, r->score, r->verified ? "verified" : "unverified",
+               r->outside_s, r->over_db, r->spread_db, v ? v->kind : "-", v ? v->text : "");
     if (!accepted)
         return;
     if (!v)
         e->stray++;
-    else if (!strcmp(v->kind, "command") ? !strcmp(v->text, r->text) : true)
+    else if (strcmp(v->kind, "command") || !strcmp(v->text, r->text))
         v->heard = true;
+    else
+        v->wrong = true;
 }
 
 /* Is a track born during this utterance far (> 25 deg) from both the one speaking and the fan
@@ -108,15 +110,23 @@ static void count_tracks(asr_eval_t *e, const ssl_result_t *r)
     }
 }
 
+static void feed_hop(run_t *u, int id, const float *x, int64_t utime)
+{
+    for (int j = 0; j < BLOCK; j++)
+        u->pcm[j] = (int16_t)lrintf(fmaxf(-32768.0f, fminf(32767.0f, x[j] * 32768.0f)));
+    asr_feed(u->asr, id, u->pcm, BLOCK, utime);
+}
+
 /* What marie-asr does with marie-ssl's output: every separated stream to the recognizer. */
 static void on_frame(const ssl_result_t *r, void *user)
 {
     run_t *u = user;
     count_tracks(u->e, r);
     for (int i = 0; i < r->nstreams; i++) {
-        for (int j = 0; j < BLOCK; j++)
-            u->pcm[j] = (int16_t)lrintf(fmaxf(-32768.0f, fminf(32767.0f, r->streams[i].samples[j] * 32768.0f)));
-        asr_feed(u->asr, r->streams[i].id, u->pcm, BLOCK, r->stream_utime);
+        const ssl_stream_t *st = &r->streams[i];
+        for (int h = 0; h < st->nhistory; h++)
+            feed_hop(u, st->id, st->history + h * BLOCK, r->stream_utime - (int64_t)(st->nhistory - h) * BLOCK * 1000000 / 16000);
+        feed_hop(u, st->id, st->samples, r->stream_utime);
     }
     asr_expire(u->asr, r->stream_utime);    /* marie-asr's timer */
 }
@@ -130,6 +140,7 @@ static void score(asr_eval_t *e)
         bool cmd = !strcmp(v->kind, "command");
         e->commands += cmd;
         e->recognized += cmd && v->heard;
+        e->wrong += cmd && v->wrong && !v->heard;
         e->others += !cmd;
         e->accepted += !cmd && v->heard;
     }

@@ -15,12 +15,14 @@ typedef struct {
     char text[160];
     double bearing;             /* rad, robot frame */
     bool heard;                 /* scoring: recognized (commands), taken for a command (others) */
+    bool wrong;                 /* a command taken for another command */
 } asr_eval_event_t;
 
 typedef struct {
     int nevents;
     asr_eval_event_t ev[ASR_EVAL_MAX_EVENTS];
     int commands, recognized;   /* commands said, and recognized right with confidence >= min */
+    int wrong;                  /* commands taken for another command (and never for the right one) */
     int others, accepted;       /* other utterances and noises, and those taken for a command */
     int stray;                  /* commands accepted over no utterance at all */
     int results;                /* what the recognizer reported */

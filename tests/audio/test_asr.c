@@ -49,11 +49,15 @@ static void on_sep(const ssl_result_t *r, void *user)
 {
     grab_t *g = user;
     for (int i = 0; i < r->nstreams; i++) {
-        if (fabs(ssl_wrap(r->streams[i].azimuth - g->bearing)) > 15 * DEG || g->nsep + BLOCK > g->cap)
+        const ssl_stream_t *st = &r->streams[i];
+        if (fabs(ssl_wrap(st->azimuth - g->bearing)) > 15 * DEG || g->nsep + (size_t)(st->nhistory + 1) * BLOCK > g->cap)
             continue;
-        for (int j = 0; j < BLOCK; j++)
-            g->sep[g->nsep + j] = (int16_t)lrintf(fmaxf(-32768, fminf(32767, r->streams[i].samples[j] * 32768)));
-        g->nsep += BLOCK;
+        for (int h = 0; h <= st->nhistory; h++) {   /* a new stream's onset first */
+            const float *x = h < st->nhistory ? st->history + h * BLOCK : st->samples;
+            for (int j = 0; j < BLOCK; j++)
+                g->sep[g->nsep + j] = (int16_t)lrintf(fmaxf(-32768, fminf(32767, x[j] * 32768)));
+            g->nsep += BLOCK;
+        }
         break;
     }
 }
@@ -151,7 +155,7 @@ static void test_commands_raw_vs_separated(void **state)
     /* Measured here: raw 2/20, tracked 18/20 (a short phrase can lose its start while its track
      * is being confirmed), steered 20/20. */
     assert_true(ok_steer >= 18);
-    assert_true(ok_sep >= 16);
+    assert_true(ok_sep >= 18);     /* measured 20/20; 17/20 while a new stream lost the words' onset */
     assert_true(ok_sep >= ok_raw + 8);
     asr_destroy(raw);
     asr_destroy(sep);
@@ -348,8 +352,9 @@ static void test_confidence_refuses_what_is_not_a_command(void **state)
             free(pcm);
         }
     printf("# espeak-ng, clean (confidence >= 0.5): commands accepted %d/%d, other phrases accepted %d/%d\n", in_ok, in, out_ok, out);
-    /* Measured: 1/24 and 3/18 (clean espeak-ng is far from the model: the score that keeps other
-     * phrases out also refuses half the commands; docs/audio.md) */
+    /* Measured: 1/24 and 6/18 (clean espeak-ng over near-silence is far from the model: the
+     * score and the narrow-beam check that keep other phrases out also refuse most commands
+     * here; in the room, from the array, 20 of 25: test_asr_continuous, docs/audio.md) */
     assert_true(out_ok * 10 <= out);
     assert_true(in_ok * 6 >= in);
     asr_destroy(a);

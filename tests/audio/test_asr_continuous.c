@@ -20,15 +20,19 @@ static void test_continuous_room(void **state)
     snprintf(wav, sizeof(wav), "%s/share/rooms/test_rt30_snr5.wav", b);
     snprintf(tsv, sizeof(tsv), "%s/share/rooms/test_rt30_snr5.tsv", b);
     assert_int_equal(asr_eval_run(wav, tsv, 0.5, true, &e), 0);
-    printf("# %.0f s heard in %.1f s of CPU: commands recognized %d/%d, other sounds taken for commands %d/%d, "
-           "commands over nothing %d, frames with a track born at a reflection %ld/%ld\n", e.seconds, e.cpu_s,
-           e.recognized, e.commands, e.accepted, e.others, e.stray, e.false_track_frames, e.speech_frames);
+    printf("# %.0f s heard in %.1f s of CPU: commands recognized %d/%d (%d taken for another), other sounds taken "
+           "for commands %d/%d, commands over nothing %d, frames with a track born at a reflection %ld/%ld\n",
+           e.seconds, e.cpu_s, e.recognized, e.commands, e.wrong, e.accepted, e.others, e.stray, e.false_track_frames,
+           e.speech_frames);
     /* The decoder is never held: something is reported for most utterances to the end. */
     assert_true(e.results >= (e.commands + e.others) / 2);
-    /* Measured here: 14/25 recognized, 5/15 taken (long real recordings decoded as a short command);
-     * the goals (90%, under 2%) are not met: docs/audio.md. */
-    assert_true(e.recognized * 4 >= e.commands);
-    assert_true(e.accepted * 2 <= e.others);
+    /* Measured here: 20/25 recognized, 1 taken for another command, 0/15 other sounds taken for
+     * a command (before new streams began with the words' onset and before the narrow-beam
+     * check: 14/25 and 5/15). The checks keep a margin under that (70%, 2 of 15, 2 wrong); the
+     * goals (90%, under 2%) are not met: docs/audio.md. */
+    assert_true(e.recognized * 10 >= e.commands * 7);
+    assert_true(e.accepted * 7 <= e.others);
+    assert_true(e.wrong <= 2);
     assert_true(e.stray <= 1);
 }
 
