@@ -17,6 +17,7 @@
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
+#include "core/version.h"
 
 #define PROG "marie-vision-render"
 
@@ -226,6 +227,7 @@ static int choose(const char *opt, const char *text, const char *const *names)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-vision-render", argc, argv);
     const char *family = "tag36h11", *size = "640x480", *background = "flat", *out = NULL, *channel = NULL,
                *url = NULL, *format = "gray", *world = NULL, *robot = "0:0:0";
     double fx = 500, fy = 500, cx = -1, cy = -1, noise = 2, blur = 0.5, rate = 10, turn = 0;

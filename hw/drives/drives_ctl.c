@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/err.h"
+#include "core/log.h"
 #include "hw/canopen/co.h"
 #include "hw/canopen/emcy.h"
 #include "hw/canopen/pdo.h"
@@ -66,24 +67,13 @@ const char *drives_ev_name(drives_ev_t ev)
     return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
 }
 
-void drives_cfg_default(drives_cfg_t *cfg)
-{
-    memset(cfg, 0, sizeof *cfg);
-    cfg->node[DRIVES_LEFT] = 1;
-    cfg->node[DRIVES_RIGHT] = 2;
-    cfg->ticks_per_rev = 4096;
-    cfg->max_wheel_velocity = 20;
-    cfg->cmd_timeout_us = 500000;
-    cfg->sdo_timeout_us = 200000;
-    cfg->heartbeat_ms = 100;
-    cfg->heartbeat_timeout_us = 350000;
-    cfg->boot_retry_us = 2000000;
-    cfg->fault_reset_delay_us = 1000000;
-    cfg->master_node = 127;
-    cfg->master_heartbeat_ms = 20;
-    cfg->consumer_ms = 100;
-    cfg->rpdo_timeout_ms = 100;
-}
+void drives_cfg_default(drives_cfg_t *cfg) { *cfg = (drives_cfg_t)DRIVES_CFG_DEFAULTS; }
+
+/* The parameters in the protocol's units: s to us, s to ms; an axis' node id and mounting. */
+static int64_t us(double s) { return (int64_t)(s * 1e6); }
+static uint16_t ms(double s) { return (uint16_t)lround(s * 1000); }
+static uint8_t node_id(const drives_ctl_t *d, int i) { return (uint8_t)(i == DRIVES_LEFT ? d->cfg.left_node : d->cfg.right_node); }
+static bool inverted(const drives_ctl_t *d, int i) { return i == DRIVES_LEFT ? d->cfg.left_invert : d->cfg.right_invert; }
 
 static void ev(drives_ctl_t *d, int axis, drives_ev_t e, uint32_t code)
 {
@@ -97,10 +87,10 @@ static void pend(drives_ctl_t *d, const struct can_frame *f)
         d->pend[d->npend++] = *f;
 }
 
-static int axis_of_node(const drives_ctl_t *d, uint8_t node)
+static int axis_of_node(const drives_ctl_t *d, uint8_t id)
 {
     for (int i = 0; i < DRIVES_N; i++)
-        if (d->cfg.node[i] == node)
+        if (node_id(d, i) == id)
             return i;
     return -1;
 }
@@ -117,7 +107,7 @@ static void set_phase(drives_ctl_t *d, int i, drives_ax_phase_t p)
 static void stop_drive(drives_ctl_t *d, int i, co_nmt_cmd_t cmd)
 {
     struct can_frame f;
-    co_nmt_encode(&f, cmd, d->cfg.node[i]);
+    co_nmt_encode(&f, cmd, node_id(d, i));
     pend(d, &f);
     d->ax[i].stops++;
 }
@@ -127,9 +117,9 @@ static void stop_drive(drives_ctl_t *d, int i, co_nmt_cmd_t cmd)
 static void reset_drive(drives_ctl_t *d, int i)
 {
     struct can_frame f;
-    co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, d->cfg.node[i]);
+    co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, node_id(d, i));
     pend(d, &f);
-    co_hb_consumer_set_timeout(&d->hb, d->cfg.node[i], 0, d->now);
+    co_hb_consumer_set_timeout(&d->hb, node_id(d, i), 0, d->now);
     d->ax[i].booted = false;
 }
 
@@ -140,8 +130,8 @@ static uint32_t job_value(void *user, const co_sdo_step_t *j)
     if (j->kind == V_HB)
         return d->cfg.heartbeat_ms;
     if (j->kind == V_CONSUMER)
-        return d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | d->cfg.consumer_ms : 0;
-    return d->cfg.rpdo_timeout_ms;
+        return d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | ms(d->cfg.master_timeout) : 0;
+    return ms(d->cfg.rpdo_timeout);
 }
 
 /* Configured: how will the drive notice that we died? By our heartbeat (0x1016), or by its
@@ -175,7 +165,7 @@ static void run_job(drives_ctl_t *d, int i)
 }
 
 /* A configuration step failed: the drive is stopped, the failure kept (naming the object)
- * and told, and the configuration starts again after boot_retry_us. */
+ * and told, and the configuration starts again after DRIVES_BOOT_RETRY_US. */
 static void config_failed(drives_ctl_t *d, int i, uint16_t index, uint8_t sub, uint32_t abort, uint32_t value)
 {
     drives_axis_t *a = &d->ax[i];
@@ -189,7 +179,7 @@ static void config_failed(drives_ctl_t *d, int i, uint16_t index, uint8_t sub, u
     a->config_failures++;
     stop_drive(d, i, CO_NMT_CMD_STOP);
     ev(d, i, DRIVES_EV_CONFIG_FAILED, abort);
-    set_phase(d, i, DRIVES_AX_BOOT);        /* retried after boot_retry_us */
+    set_phase(d, i, DRIVES_AX_BOOT);        /* retried after DRIVES_BOOT_RETRY_US */
 }
 
 /* A step's value, taken. Heartbeat supervision begins once 0x1017 is written. */
@@ -203,12 +193,12 @@ static void took(drives_ctl_t *d, int i, uint16_t index, uint8_t sub, const uint
     } else if (index == 0x1018 && sub >= 1 && sub <= 4 && len == 4) {
         a->identity[sub - 1] = co_get_u32(data);
     } else if (index == 0x1017) {
-        int64_t t = d->cfg.heartbeat_ms ? d->cfg.heartbeat_timeout_us : 0;
-        co_hb_consumer_set_timeout(&d->hb, d->cfg.node[i], t, d->now);
+        int64_t t = d->cfg.heartbeat_ms ? us(d->cfg.heartbeat_timeout) : 0;
+        co_hb_consumer_set_timeout(&d->hb, node_id(d, i), t, d->now);
     } else if (index == 0x1016) {
         a->watches_hb = d->cfg.master_heartbeat_ms > 0;
     } else if (index == 0x1400 && sub == 5) {
-        a->watches_rpdo = d->cfg.rpdo_timeout_ms > 0;
+        a->watches_rpdo = ms(d->cfg.rpdo_timeout) > 0;
     }
 }
 
@@ -254,7 +244,7 @@ static void start_config(drives_ctl_t *d, int i)
 {
     drives_axis_t *a = &d->ax[i];
     set_phase(d, i, DRIVES_AX_CONFIG);
-    co_hb_consumer_set_timeout(&d->hb, d->cfg.node[i], 0, d->now);
+    co_hb_consumer_set_timeout(&d->hb, node_id(d, i), 0, d->now);
     a->job = 0;
     a->state = CIA402_UNKNOWN;
     a->have_tpdo = false;
@@ -265,7 +255,7 @@ static void start_config(drives_ctl_t *d, int i)
     a->interlocked = true;
     a->enabled_at = 0;
     a->missing_index = 0;
-    co_sdo_client_init(&a->sdo, d->cfg.node[i], d->cfg.sdo_timeout_us, sdo_done, d);
+    co_sdo_client_init(&a->sdo, node_id(d, i), us(d->cfg.sdo_timeout), sdo_done, d);
     run_job(d, i);
 }
 
@@ -318,10 +308,33 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
     }
 }
 
+static bool node_ok(int64_t n) { return n >= 1 && n <= CO_NODE_MAX; }
+static bool period_ok(int64_t ms) { return ms >= 0 && ms <= 65535; }
+static bool seconds_ok(double s, double max) { return s >= 0 && s <= max; }
+
+int drives_cfg_check(const drives_cfg_t *c, char *why, size_t len)
+{
+    if (!node_ok(c->left_node) || !node_ok(c->right_node) || !node_ok(c->master_node) ||
+        c->left_node == c->right_node || c->master_node == c->left_node || c->master_node == c->right_node)
+        return marie_fail_why(why, len, "node ids 1..127, the drives' and master_node distinct");
+    if (c->ticks_per_rev <= 0 || c->ticks_per_rev > INT32_MAX)
+        return marie_fail_why(why, len, "ticks_per_rev must be positive");
+    if (!period_ok(c->heartbeat_ms) || !period_ok(c->master_heartbeat_ms))
+        return marie_fail_why(why, len, "heartbeat_ms and master_heartbeat_ms 0..65535");
+    if (!seconds_ok(c->master_timeout, 65.535) || !seconds_ok(c->rpdo_timeout, 65.535))
+        return marie_fail_why(why, len, "master_timeout and rpdo_timeout 0..65.535 s");
+    if (c->master_heartbeat_ms > 0 && c->master_timeout * 1000 <= c->master_heartbeat_ms)
+        return marie_fail_why(why, len, "master_timeout (s) longer than master_heartbeat_ms");
+    if (!seconds_ok(c->cmd_timeout, INFINITY) || !seconds_ok(c->heartbeat_timeout, INFINITY) ||
+        !seconds_ok(c->sdo_timeout, INFINITY) || !seconds_ok(c->fault_reset_delay, INFINITY))
+        return marie_fail_why(why, len, "cmd_timeout, heartbeat_timeout, sdo_timeout and fault_reset_delay "
+                                        "must not be negative");
+    return 0;
+}
+
 drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, void *user)
 {
-    if (!cfg || cfg->node[0] == 0 || cfg->node[1] == 0 || cfg->node[0] == cfg->node[1] ||
-        cfg->node[0] > CO_NODE_MAX || cfg->node[1] > CO_NODE_MAX || cfg->ticks_per_rev <= 0)
+    if (!cfg || drives_cfg_check(cfg, NULL, 0) < 0)
         return marie_fail_null(EINVAL);
     drives_ctl_t *d = calloc(1, sizeof *d);
     if (!d)
@@ -339,7 +352,7 @@ drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, v
         d->ax[i].state = CIA402_UNKNOWN;
         d->ax[i].nmt = CO_NMT_UNKNOWN;
         d->ax[i].interlocked = true;
-        co_sdo_client_init(&d->ax[i].sdo, cfg->node[i], cfg->sdo_timeout_us, sdo_done, d);
+        co_sdo_client_init(&d->ax[i].sdo, node_id(d, i), us(cfg->sdo_timeout), sdo_done, d);
     }
     co_hb_consumer_init(&d->hb, hb_event, d);
     return d;
@@ -362,7 +375,7 @@ int drives_ctl_start(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
     d->now = now;
     co_hb_consumer_init(&d->hb, hb_event, d);
     for (int i = 0; i < DRIVES_N; i++) {
-        co_hb_consumer_add(&d->hb, d->cfg.node[i], 0, now);   /* timed once 0x1017 is written */
+        co_hb_consumer_add(&d->hb, node_id(d, i), 0, now);   /* timed once 0x1017 is written */
         reset_drive(d, i);
         set_phase(d, i, DRIVES_AX_BOOT);
     }
@@ -391,7 +404,8 @@ void drives_ctl_set_wheels(drives_ctl_t *d, double left, double right, int64_t n
 
 bool drives_ctl_command_stale(const drives_ctl_t *d, int64_t now)
 {
-    return !d->have_cmd || (d->cfg.cmd_timeout_us > 0 && now - d->cmd_us > d->cfg.cmd_timeout_us);
+    int64_t timeout = us(d->cfg.cmd_timeout);
+    return !d->have_cmd || (timeout > 0 && now - d->cmd_us > timeout);
 }
 
 double drives_ctl_counts_to_rad(const drives_ctl_t *d, double counts)
@@ -498,12 +512,12 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
             break;
         if (pdo == 1) {
             int32_t pos = (int32_t)co_pdo_signed(v[1], 32);
-            a->position = d->cfg.invert[i] ? (int32_t)(0u - (uint32_t)pos) : pos;
+            a->position = inverted(d, i) ? (int32_t)(0u - (uint32_t)pos) : pos;
             a->have_tpdo = true;
             note_state(d, i, (uint16_t)v[0]);
         } else {
             int32_t vel = (int32_t)co_pdo_signed(v[0], 32);
-            a->velocity = d->cfg.invert[i] ? -vel : vel;
+            a->velocity = inverted(d, i) ? -vel : vel;
         }
         break;
     }
@@ -520,7 +534,7 @@ static int rpdo(drives_ctl_t *d, int i, struct can_frame *f)
     drives_axis_t *a = &d->ax[i];
     uint64_t v[2] = { a->controlword, (uint32_t)a->target };
     co_pdo_map_t m = rpdo1_map;
-    m.cob_id = CO_COB_RPDO1 + d->cfg.node[i];
+    m.cob_id = CO_COB_RPDO1 + node_id(d, i);
     a->rpdo_cw = a->controlword;
     return co_pdo_encode(&m, v, f) > 0;
 }
@@ -553,7 +567,7 @@ static void compute_target(drives_ctl_t *d, int i, int64_t now)
     if (d->estop || !d->enable || drives_ctl_command_stale(d, now) || a->state != CIA402_OPERATION_ENABLED ||
         a->refused || interlock_holds(d, i, now))
         w = 0;
-    if (d->cfg.invert[i])
+    if (inverted(d, i))
         w = -w;
     a->target = (int32_t)lround(w * d->cfg.ticks_per_rev / (2 * M_PI));
 }
@@ -612,7 +626,7 @@ int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int 
     if (n > 0 && n < max)
         n += co_sync_encode(&tx[n], 0) >= 0;
     for (int i = 0; i < DRIVES_N && n < max; i++)
-        n += co_nmt_encode(&tx[n], CO_NMT_CMD_STOP, d->cfg.node[i]) > 0;
+        n += co_nmt_encode(&tx[n], CO_NMT_CMD_STOP, node_id(d, i)) > 0;
     return n;
 }
 
@@ -629,7 +643,7 @@ int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
             pend(d, &f);
         }
         if ((a->phase == DRIVES_AX_BOOT || a->phase == DRIVES_AX_OFFLINE) &&
-            now - a->phase_since >= d->cfg.boot_retry_us) {
+            now - a->phase_since >= DRIVES_BOOT_RETRY_US) {
             if (a->phase == DRIVES_AX_BOOT && !a->booted && !a->not_found_told) {
                 a->not_found_told = true;
                 ev(d, i, DRIVES_EV_NOT_FOUND, 0);
@@ -645,7 +659,7 @@ int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
         if (a->phase != DRIVES_AX_RUN)
             continue;
         any_run = true;
-        bool allow = now - a->fault_since >= d->cfg.fault_reset_delay_us;
+        bool allow = now - a->fault_since >= us(d->cfg.fault_reset_delay);
         uint16_t cw = a->have_tpdo ? cia402_next_controlword(a->state, want(d, i), a->controlword, allow)
                                    : CIA402_CW_DISABLE_VOLTAGE;
         if (cw == CIA402_CW_FAULT_RESET && !(a->controlword & CIA402_CW_FAULT_RESET)) {
@@ -679,11 +693,12 @@ int drives_ctl_filters(const drives_ctl_t *d, struct can_filter *f, int max)
 {
     int n = 0;
     for (int i = 0; i < DRIVES_N && n < max; i++) {
-        f[n].can_id = d->cfg.node[i];
+        f[n].can_id = node_id(d, i);
         f[n].can_mask = 0x7F | CAN_EFF_FLAG | CAN_RTR_FLAG;
         n++;
     }
     return n;
 }
 
-const drives_cfg_t *drives_ctl_cfg(const drives_ctl_t *d) { return &d->cfg; }
+uint8_t drives_ctl_node(const drives_ctl_t *d, int axis) { return node_id(d, axis); }
+uint16_t drives_ctl_rpdo_timeout_ms(const drives_ctl_t *d) { return ms(d->cfg.rpdo_timeout); }

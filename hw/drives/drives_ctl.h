@@ -13,6 +13,7 @@
 #include "hw/canopen/nmt.h"
 #include "hw/canopen/sdo.h"
 #include "hw/drives/cia402.h"
+#include "hw/drives/drives_ctl_params.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -22,26 +23,9 @@ enum { DRIVES_LEFT = 0, DRIVES_RIGHT = 1, DRIVES_N = 2 };
 
 typedef struct drives_ctl drives_ctl_t;
 
-typedef struct {
-    uint8_t node[DRIVES_N];
-    bool invert[DRIVES_N];          /* mirrored mounting: negate velocity and position */
-    int32_t ticks_per_rev;          /* increments per wheel revolution */
-    double max_wheel_velocity;      /* rad/s; targets are clamped */
-    int64_t cmd_timeout_us;         /* no command for this long: target 0 */
-    int64_t sdo_timeout_us;
-    uint16_t heartbeat_ms;          /* written to the drives' 0x1017 */
-    int64_t heartbeat_timeout_us;   /* consumer timeout */
-    int64_t boot_retry_us;          /* resend reset-communication when a node stays silent */
-    int64_t fault_reset_delay_us;   /* wait this long in fault before a fault reset */
-    uint8_t master_node;            /* our node id: heartbeat 0x700 + master_node */
-    uint16_t master_heartbeat_ms;   /* our heartbeat period (0: none, no consumer in the drives) */
-    uint16_t consumer_ms;           /* written to the drives' 0x1016: our heartbeat's deadline */
-    uint16_t rpdo_timeout_ms;       /* written to the drives' 0x1400:05 where supported (0: off) */
-    bool allow_unwatched;           /* enable a drive that can watch neither our heartbeat (no
-                                     * 0x1016) nor our RPDOs (no 0x1400:05); else it is kept
-                                     * disabled: it would turn on if we died */
-} drives_cfg_t;
-
+/* drives_cfg_t: the master's parameters, declared in drives_ctl.params.yaml (node ids, inverted
+ * mountings, encoder resolution, the command timeout, heartbeats, SDO and RPDO deadlines, in the
+ * units a user writes: s and ms); drives_cfg_default() gives their defaults. */
 void drives_cfg_default(drives_cfg_t *cfg);
 
 typedef enum {
@@ -118,7 +102,7 @@ typedef enum {
                                  * code = DRIVES_WATCH_* */
     DRIVES_EV_HOLD,             /* (re)enabled with a motor command from before: target held at 0
                                  * until a newer one (restart interlock) */
-    DRIVES_EV_NOT_FOUND,        /* no boot-up within boot_retry_us of a reset communication */
+    DRIVES_EV_NOT_FOUND,        /* no boot-up within DRIVES_BOOT_RETRY_US of a reset communication */
 } drives_ev_t;
 
 enum {
@@ -127,12 +111,20 @@ enum {
     DRIVES_WATCH_NONE_REFUSED,  /* neither: kept disabled */
 };
 
+/* A silent node is sent reset communication again after this long. */
+#define DRIVES_BOOT_RETRY_US 2000000
+
 const char *drives_ev_name(drives_ev_t ev);
 /* What an event says to a person, naming the drive, and for configuration failures the object
  * (index, sub-index, its name, read or write) and the abort; into buf. */
 void drives_ctl_event_text(const drives_ctl_t *d, int axis, drives_ev_t ev, uint32_t code, char *buf, size_t cap);
 typedef void (*drives_event_cb_t)(void *user, int axis, drives_ev_t ev, uint32_t code);
 
+/* -1 with the reason in why[0..len) (EINVAL) for parameters the protocol cannot carry: node ids
+ * outside 1..127 or alike, ticks_per_rev <= 0, periods over 65535 ms, negative times, a
+ * heartbeat consumer time (master_timeout) not longer than our heartbeat's period. */
+int drives_cfg_check(const drives_cfg_t *cfg, char *why, size_t len);
+/* NULL with errno (EINVAL: drives_cfg_check refuses cfg). */
 drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, void *user);
 void drives_ctl_destroy(drives_ctl_t *d);           /* NULL is a no-op */
 
@@ -161,12 +153,14 @@ int drives_ctl_rpdo_now(drives_ctl_t *d, int64_t now, struct can_frame *tx, int 
 int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max);
 
 const drives_axis_t *drives_ctl_axis(const drives_ctl_t *d, int axis);
-const drives_cfg_t *drives_ctl_cfg(const drives_ctl_t *d);
 bool drives_ctl_all_enabled(const drives_ctl_t *d);
 bool drives_ctl_command_stale(const drives_ctl_t *d, int64_t now);
 /* CAN filters matching every frame the drives send: fills up to max, returns count. */
 int drives_ctl_filters(const drives_ctl_t *d, struct can_filter *f, int max);
 double drives_ctl_counts_to_rad(const drives_ctl_t *d, double counts);
+uint8_t drives_ctl_node(const drives_ctl_t *d, int axis);
+/* The RPDO deadline written to the drives' 0x1400:05, ms (0: off). */
+uint16_t drives_ctl_rpdo_timeout_ms(const drives_ctl_t *d);
 
 #ifdef __cplusplus
 }

@@ -19,7 +19,6 @@ typedef struct {
     can_link_t *link;
     marie_port_t *out;
     marie_timer_t *sync_timer, *pub_timer;
-    double radius, track;
     bool estop, started;
     bool start_pending;         /* started before the simulated clock was known */
     bool degraded;
@@ -183,7 +182,7 @@ static void publish(marie_component_t *c, int64_t overruns)
         .utime = marie_component_now(c),
         .left_ticks = l->position,
         .right_ticks = r->position,
-        .ticks_per_rev = (int32_t)params_of(c)->ticks_per_rev,
+        .ticks_per_rev = (int32_t)params_of(c)->ctl.ticks_per_rev,
         .left_velocity = drives_ctl_counts_to_rad(d->ctl, l->velocity),
         .right_velocity = drives_ctl_counts_to_rad(d->ctl, r->velocity),
     };
@@ -216,9 +215,9 @@ static void on_command(marie_component_t *c, marie_port_t *p, const void *msg, c
         return;
     }
     /* Differential drive: each wheel's rim speed is v -/+ omega * half the track. */
-    double half = d->track / 2;
+    double half = params_of(c)->track_width / 2, radius = params_of(c)->wheel_radius;
     int64_t now = now_us(d);
-    drives_ctl_set_wheels(d->ctl, (m->v - m->omega * half) / d->radius, (m->v + m->omega * half) / d->radius, now);
+    drives_ctl_set_wheels(d->ctl, (m->v - m->omega * half) / radius, (m->v + m->omega * half) / radius, now);
     /* Out at once (the drives apply RPDOs at the next SYNC) instead of up to a cycle later. */
     struct can_frame tx[4];
     send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, now, tx, 4));
@@ -254,51 +253,25 @@ static int on_init(marie_component_t *c)
     }
     d->c = c;
     marie_component_set_user(c, d);
-    drives_cfg_t cfg;
-    drives_cfg_default(&cfg);
-    int64_t ln = params_of(c)->left_node, rn = params_of(c)->right_node;
-    int64_t tpr = params_of(c)->ticks_per_rev, hb = params_of(c)->heartbeat_ms;
-    d->radius = params_of(c)->wheel_radius;
-    d->track = params_of(c)->track_width;
-    double sync_hz = params_of(c)->sync_hz, pub_hz = params_of(c)->publish_hz;
-    if (ln < 1 || ln > 127 || rn < 1 || rn > 127 || ln == rn || tpr <= 0 || hb < 0 || hb > 65535 ||
-        !(d->radius > 0) || !(d->track > 0) || !(sync_hz > 0 && sync_hz <= 1000) || !(pub_hz > 0)) {
-        marie_component_fail_reason(c, "bad parameters: node ids 1..127 and distinct, positive radius, "
-                                       "track, ticks_per_rev and rates");
+    const drives_params_t *p = params_of(c);
+    char why[160];
+    if (!(p->wheel_radius > 0) || !(p->track_width > 0) || !(p->sync_hz > 0 && p->sync_hz <= 1000) ||
+        !(p->publish_hz > 0)) {
+        marie_component_fail_reason(c, "bad parameters: positive radius, track and rates, sync_hz up to 1000");
         goto err;
     }
-    cfg.node[0] = (uint8_t)ln;
-    cfg.node[1] = (uint8_t)rn;
-    cfg.invert[0] = params_of(c)->left_invert;
-    cfg.invert[1] = params_of(c)->right_invert;
-    cfg.ticks_per_rev = (int32_t)tpr;
-    cfg.max_wheel_velocity = params_of(c)->max_wheel_velocity;
-    cfg.cmd_timeout_us = (int64_t)(params_of(c)->cmd_timeout * 1e6);
-    cfg.heartbeat_ms = (uint16_t)hb;
-    cfg.heartbeat_timeout_us = (int64_t)(params_of(c)->heartbeat_timeout * 1e6);
-    cfg.fault_reset_delay_us = (int64_t)(params_of(c)->fault_reset_delay * 1e6);
-    cfg.sdo_timeout_us = (int64_t)(params_of(c)->sdo_timeout * 1e6);
-    int64_t mn = params_of(c)->master_node, mhb = params_of(c)->master_heartbeat_ms;
-    double mto = params_of(c)->master_timeout, rto = params_of(c)->rpdo_timeout;
-    if (mn < 1 || mn > 127 || mn == ln || mn == rn || mhb < 0 || mhb > 65535 || !(mto >= 0 && mto <= 65.535) ||
-        !(rto >= 0 && rto <= 65.535) || (mhb > 0 && mto * 1000 <= mhb)) {
-        marie_component_fail_reason(c, "bad parameters: master_node 1..127 and not a drive's, "
-                                       "master_timeout (s) longer than master_heartbeat_ms, timeouts up to 65 s");
+    if (drives_cfg_check(&p->ctl, why, sizeof why) < 0) {
+        marie_component_fail_reason(c, "bad parameters: %s", why);
         goto err;
     }
-    cfg.master_node = (uint8_t)mn;
-    cfg.master_heartbeat_ms = (uint16_t)mhb;
-    cfg.consumer_ms = (uint16_t)lround(mto * 1000);
-    cfg.rpdo_timeout_ms = (uint16_t)lround(rto * 1000);
-    cfg.allow_unwatched = params_of(c)->allow_unwatched;
-    d->ctl = drives_ctl_create(&cfg, on_drive_event, d);
+    d->ctl = drives_ctl_create(&p->ctl, on_drive_event, d);
     if (!d->ctl) {
         marie_component_fail_reason(c, "drive controller: %s", strerror(errno));
         goto err;
     }
     struct can_filter flt[4];
     int nf = drives_ctl_filters(d->ctl, flt, 4);
-    const char *url = params_of(c)->can;
+    const char *url = p->can;
     d->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, d);
     if (!d->link) {
         marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));
@@ -307,8 +280,8 @@ static int on_init(marie_component_t *c)
     d->out = marie_port(c, "wheel_encoders");
     marie_port_on_message(marie_port(c, "motor_command"), on_command);
     marie_port_on_message(marie_port(c, "estop"), on_estop);
-    d->sync_timer = marie_loop_add_timer(marie_component_loop(c), (int64_t)(1e6 / sync_hz), on_sync, d);
-    d->pub_timer = marie_component_every(c, pub_hz, publish);
+    d->sync_timer = marie_loop_add_timer(marie_component_loop(c), (int64_t)(1e6 / p->sync_hz), on_sync, d);
+    d->pub_timer = marie_component_every(c, p->publish_hz, publish);
     if (!d->sync_timer || !d->pub_timer) {
         marie_component_fail_reason(c, "timers: %s", strerror(errno));
         goto err;

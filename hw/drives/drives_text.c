@@ -25,7 +25,7 @@ static void fail_text(const drives_ctl_t *d, int axis, char *buf, size_t cap)
         n = snprintf(buf, cap, "%s drive: configuration failed at 0x%04X:%02X (%s): 0x%08X is not a CiA 402 drive",
                      side(axis), f->index, f->sub, object_name(f->index), f->value);
     if (n > 0 && (size_t)n < cap)
-        snprintf(buf + n, cap - (size_t)n, "; stopped, again in %.0f s%s", drives_ctl_cfg(d)->boot_retry_us / 1e6,
+        snprintf(buf + n, cap - (size_t)n, "; stopped, again in %.0f s%s", DRIVES_BOOT_RETRY_US / 1e6,
                  f->repeats ? " (failed alike before)" : "");
 }
 
@@ -35,11 +35,11 @@ static void watch_text(const drives_ctl_t *d, int axis, uint32_t code, char *buf
     const char *hb = a->lacks_consumer ? "it has no 0x1016" : "master_heartbeat_ms is 0";
     if (code == DRIVES_WATCH_RPDO_ONLY)
         snprintf(buf, cap, "%s drive cannot watch our heartbeat (%s): it notices a dead marie-drives by its RPDO "
-                 "deadline alone (0x1400:05, %u ms)", side(axis), hb, drives_ctl_cfg(d)->rpdo_timeout_ms);
+                 "deadline alone (0x1400:05, %u ms)", side(axis), hb, drives_ctl_rpdo_timeout_ms(d));
     else
         snprintf(buf, cap, "%s drive can watch neither our heartbeat (%s) nor our RPDOs (%s): it would keep turning "
                  "if marie-drives died; %s", side(axis), hb,
-                 drives_ctl_cfg(d)->rpdo_timeout_ms ? "it has no 0x1400:05" : "rpdo_timeout is 0",
+                 drives_ctl_rpdo_timeout_ms(d) ? "it has no 0x1400:05" : "rpdo_timeout is 0",
                  code == DRIVES_WATCH_NONE_REFUSED ? "kept disabled (allow_unwatched: true drives it anyway)"
                                                    : "driven all the same (allow_unwatched)");
 }
@@ -93,7 +93,7 @@ void drives_ctl_event_text(const drives_ctl_t *d, int axis, drives_ev_t e, uint3
         break;
     case DRIVES_EV_NOT_FOUND:
         snprintf(buf, cap, "%s drive (node %u): no boot-up %.0f s after reset communication; asking again",
-                 side(axis), drives_ctl_cfg(d)->node[axis], drives_ctl_cfg(d)->boot_retry_us / 1e6);
+                 side(axis), drives_ctl_node(d, axis), DRIVES_BOOT_RETRY_US / 1e6);
         break;
     }
 }

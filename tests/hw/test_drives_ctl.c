@@ -108,12 +108,12 @@ static int setup(void **state)
     rig_t *r = calloc(1, sizeof *r);
     drives_cfg_t cfg;
     drives_cfg_default(&cfg);
-    cfg.node[0] = 1;
-    cfg.node[1] = 2;
-    cfg.invert[1] = false;
-    cfg.rpdo_timeout_ms = rig_rpdo_timeout_ms;
+    cfg.left_node = 1;
+    cfg.right_node = 2;
+    cfg.right_invert = false;
+    cfg.rpdo_timeout = rig_rpdo_timeout_ms / 1000.0;
     cfg.allow_unwatched = rig_allow_unwatched;
-    cfg.cmd_timeout_us = rig_cmd_timeout_us;
+    cfg.cmd_timeout = rig_cmd_timeout_us / 1e6;
     r->ctl = drives_ctl_create(&cfg, on_ev, r);
     for (int i = 0; i < 2; i++) {
         vdrive_cfg_t vc;

@@ -26,6 +26,7 @@ extern "C" {
 #include "core/config.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
+#include "core/version.h"
 }
 
 extern char **environ;
@@ -247,6 +248,11 @@ void Demo::progress(bool final)
         printf("demo: %5.1f s (sim %6.1f s) | exploring: frontier %d, %d given up | pose error %.2f m | "
                "components %d/%d running | restarts %d\n",
                wall, sim_now_ / 1e6, frontiers_, given_up_, err, running, total, restarts());
+    else if ((!opt_.quiet || final) && (total == 0 || ngoals_ == 0 || std::isnan(err)))
+        // Before the first mission state and pose: say what is awaited, not "goal 1 of 0 ... nan".
+        printf("demo: %5.1f s (sim %6.1f s) | starting: components %d/%d running%s%s\n", wall, sim_now_ / 1e6,
+               running, total, ngoals_ ? "" : ", waiting for the mission's goals",
+               std::isnan(err) ? ", waiting for the first pose estimate" : "");
     else if (!opt_.quiet || final)
         printf("demo: %5.1f s (sim %6.1f s) | goal %d of %d%s%s | reached %d | loc error %.2f m | "
                "components %d/%d running | restarts %d\n",
@@ -328,6 +334,27 @@ void Demo::estop_tick()
     }
 }
 
+// Installed (make install), the system file and what its relative paths name (maps, worlds) are
+// in <bin>/../share/marie: run from there when the file is not found here, the output directory
+// kept where it was asked for, and the simulator's phrases from share/marie/sounds.
+int Demo::use_installed_data()
+{
+    std::string share = bin_ + "/../share/marie";
+    if (access(opt_.system.c_str(), R_OK) == 0 || opt_.system[0] == '/' ||
+        access((share + "/" + opt_.system).c_str(), R_OK) != 0)
+        return 0;
+    char cwd[4096];
+    if (!getcwd(cwd, sizeof cwd))
+        return -1;
+    if (opt_.out[0] != '/')
+        opt_.out = std::string(cwd) + "/" + opt_.out;
+    run_cmd({"mkdir", "-p", opt_.out}, "/dev/null");
+    if (access((share + "/sounds").c_str(), R_OK) == 0)
+        setenv("MARIE_SOUNDS", (share + "/sounds").c_str(), 0);
+    printf("demo: %s from %s\n", opt_.system.c_str(), share.c_str());
+    return chdir(share.c_str());
+}
+
 // Key, logger and one manager per host: what both missions run under.
 int Demo::start()
 {
@@ -337,6 +364,8 @@ int Demo::start()
         return 1;
     self[n] = 0;
     bin_ = std::string(self).substr(0, std::string(self).find_last_of('/'));
+    if (use_installed_data() < 0)
+        return 1;
     std::string path = bin_ + ":" + (getenv("PATH") ? getenv("PATH") : "/usr/bin:/bin");
     setenv("PATH", path.c_str(), 1);
     mkdir(opt_.out.c_str(), 0755);
@@ -562,6 +591,7 @@ using marie_demo::usage;
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-demo", argc, argv);
     Options o;
     static const struct option opts[] = {
         {"system", required_argument, nullptr, 's'}, {"profile", required_argument, nullptr, 'p'},

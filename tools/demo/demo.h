@@ -60,6 +60,7 @@ private:
     int run_cmd(const std::vector<std::string> &args, const std::string &log);
     int start();
     int up(const std::string &profile);
+    int use_installed_data();
     void down();
     void shutdown();
     // the two missions
