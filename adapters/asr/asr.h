@@ -47,7 +47,7 @@ void asr_cfg_default(asr_cfg_t *c, const char *const *commands, int ncommands, i
 
 typedef struct {
     int source_id;
-    const char *text;           /* "" when nothing of the grammar was heard */
+    const char *text;           /* "" when nothing of the grammar was heard; valid in the callback */
     double confidence;          /* 0..1: 0.5 where in-grammar and other speech are told apart */
     double score;               /* the words' mean acoustic score per frame it comes from */
     bool verified;              /* the narrow-beam decode found the same words */

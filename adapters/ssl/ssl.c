@@ -52,7 +52,7 @@ void ssl_cfg_default(ssl_cfg_t *c)
     c->hop = c->srp.nfft / 2;
     c->potentials = 3;
     c->separate = true;
-    c->backfill_s = 0.5;
+    c->stream = (ssl_stream_params_t)SSL_STREAM_PARAMS_DEFAULTS;
 }
 
 void ssl_destroy(ssl_t *s)
@@ -90,7 +90,7 @@ static int spec_stride(const ssl_t *s)
 ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
 {
     if (cfg->hop * 2 != cfg->srp.nfft || cfg->potentials < 1 || cfg->potentials > SSL_MAX_POTENTIALS ||
-        !(cfg->backfill_s >= 0 && cfg->backfill_s <= 10))
+        !(cfg->stream.backfill_s >= 0 && cfg->stream.backfill_s <= 10))
         return marie_fail_null(EINVAL);
     ssl_t *s = calloc(1, sizeof(*s));
     if (!s)
@@ -123,7 +123,7 @@ ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
     s->inv = fftwf_plan_dft_c2r_1d(s->nfft, s->Y, s->yout, FFTW_ESTIMATE);
     if (!s->fwd || !s->inv)
         goto fail;
-    s->nhist = (int)(cfg->backfill_s * cfg->srp.rate / s->hop + 0.5);
+    s->nhist = (int)(cfg->stream.backfill_s * cfg->srp.rate / s->hop + 0.5);
     if (s->nhist && !(s->hist = malloc(sizeof(float complex) * (size_t)(s->nhist * s->M * spec_stride(s)))))
         goto fail;
     for (int i = 0; i < SSL_TRACK_MAX; i++) {

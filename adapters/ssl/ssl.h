@@ -5,6 +5,7 @@
 #include <stdint.h>
 
 #include "adapters/ssl/ssl_sep.h"
+#include "adapters/ssl/ssl_stream_params.h"
 #include "adapters/ssl/ssl_srp.h"
 #include "adapters/ssl/ssl_track.h"
 
@@ -22,10 +23,10 @@ typedef struct {
     int hop;                    /* nfft / 2 */
     int potentials;             /* per frame, <= SSL_MAX_POTENTIALS */
     bool separate;
-    /* A new track's stream starts with the sound of the backfill_s before its birth, beamed
-     * toward it: the birth comes a few frames after the onset, and the words' first syllable
-     * (and the quiet before it, which a voice detector measures its floor on) is there. */
-    double backfill_s;
+    /* A new track's stream starts with the sound of the stream.backfill_s before its birth,
+     * beamed toward it: the birth comes a few frames after the onset, and the words' first
+     * syllable (and the quiet before it, which a voice detector measures its floor on) is there. */
+    ssl_stream_params_t stream;
     int nfixed;                 /* > 0: no tracking, beams toward these (az, el) with ids 1..n */
     double fixed[SSL_TRACK_MAX][2];
 } ssl_cfg_t;

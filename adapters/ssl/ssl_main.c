@@ -103,7 +103,7 @@ static int init(marie_component_t *c)
     cfg.track.gate = q->gate_deg * M_PI / 180;
     cfg.track.death_s = q->death_s;
     cfg.separate = q->separate;
-    cfg.backfill_s = q->backfill_s;
+    cfg.stream = q->stream;
     cfg.sep.nulls = q->nulls;
     cfg.sep.postfilter = q->postfilter;
     if (!(q->sources_hz > 0)) {
