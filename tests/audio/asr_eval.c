@@ -24,6 +24,15 @@ typedef struct {
     int16_t pcm[BLOCK];
 } run_t;
 
+static bool known_kind(const char *k)
+{
+    static const char *const kinds[] = { "command", "oog", "real", "noise", "fan" };
+    for (size_t i = 0; i < sizeof(kinds) / sizeof(kinds[0]); i++)
+        if (!strcmp(k, kinds[i]))
+            return true;
+    return false;
+}
+
 static int load_truth(const char *tsv, asr_eval_t *e)
 {
     size_t len;
@@ -31,12 +40,22 @@ static int load_truth(const char *tsv, asr_eval_t *e)
     if (!text)
         return -1;
     e->nevents = 0;
-    for (char *save = NULL, *line = strtok_r(text, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
+    int lineno = 0;
+    for (char *next = text, *line; (line = strsep(&next, "\n"));) {
+        lineno++;
         asr_eval_event_t *v = &e->ev[e->nevents];
         double deg;
-        if (line[0] == '#' || e->nevents == ASR_EVAL_MAX_EVENTS ||
-            sscanf(line, "%lf\t%lf\t%15[^\t]\t%159[^\t]\t%lf", &v->start, &v->end, v->kind, v->text, &deg) != 5)
+        if (line[0] == '#' || !line[0])
             continue;
+        if (e->nevents == ASR_EVAL_MAX_EVENTS ||
+            sscanf(line, "%lf\t%lf\t%15[^\t]\t%159[^\t]\t%lf", &v->start, &v->end, v->kind, v->text, &deg) != 5 ||
+            !(v->end >= v->start) || !known_kind(v->kind)) {
+            /* a hand-written file: say where it is wrong, use the rest */
+            if (e->bad_lines++ < 5)
+                fprintf(stderr, "%s:%d:1: expected start_s end_s kind(command|oog|real|noise|fan) text bearing_deg, "
+                        "tab-separated%s\n", tsv, lineno, e->nevents == ASR_EVAL_MAX_EVENTS ? " (too many lines)" : "");
+            continue;
+        }
         v->bearing = deg * DEG;
         e->nevents++;
     }
@@ -152,7 +171,8 @@ int asr_eval_run(const char *wav, const char *tsv, double min_confidence, bool v
     size_t len;
     uint8_t *buf = (uint8_t *)marie_file_read(wav, (size_t)1 << 31, &len);
     wav_info_t info;
-    if (!buf || load_truth(tsv, e) || wav_parse(buf, len, &info, NULL) || info.channels != 8 || info.rate != 16000) {
+    if (!buf || load_truth(tsv, e) || wav_parse(buf, len, &info, NULL) || info.channels != 8 || info.rate != 16000 ||
+        info.frames < 16000) {
         free(buf);
         errno = errno ? errno : EINVAL;
         return -1;

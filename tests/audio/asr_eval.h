@@ -26,6 +26,7 @@ typedef struct {
     int others, accepted;       /* other utterances and noises, and those taken for a command */
     int stray;                  /* commands accepted over no utterance at all */
     int results;                /* what the recognizer reported */
+    int bad_lines;              /* of the TSV, not understood (reported on stderr with their line) */
     long speech_frames, false_track_frames;   /* frames during speech; with a track far from the speaker and the fan */
     double seconds, cpu_s;
 } asr_eval_t;
