@@ -19,6 +19,7 @@ typedef struct {
     int16_t *mono;
     bool speaking;
     int64_t deaf_until, deaf_after_us;
+    int64_t last_utime, last_now;   /* the newest block's time, and the clock's then */
     marie_component_t *c;
 } asr_state_t;
 
@@ -34,8 +35,20 @@ static void on_heard(const asr_result_t *r, void *user)
     marie_port_publish(s->p_speech, &m);
 }
 
+/* The audio's time now: the newest block's stamp, and what the component's clock says passed
+ * since it came. The robot's voice is timed by this, not by ROBOT_SPEECH's stamp, which comes
+ * from another clock (the speaker's computer, or the wall while the audio runs on the
+ * simulator's): a stamp seconds ahead of the audio's left the recognizer deaf for good. */
+static int64_t audio_now(const asr_state_t *s)
+{
+    return s->last_now ? s->last_utime + (marie_component_now(s->c) - s->last_now) : 0;
+}
+
+/* A block arrives: the recognizer hears it unless the robot speaks. */
 static bool deaf(asr_state_t *s, int64_t utime)
 {
+    s->last_utime = utime;
+    s->last_now = marie_component_now(s->c);
     bool d = s->speaking || utime < s->deaf_until;
     asr_mute(s->asr, d);
     return d;
@@ -52,6 +65,15 @@ static void on_separated(marie_component_t *c, marie_port_t *p, const void *msg,
     }
     if (!deaf(s, m->utime))
         asr_feed(s->asr, m->source_id, m->data, m->nsamples, m->utime);
+}
+
+/* No block at all (every track died): the stream being decoded is over all the same. Time
+ * goes on from the newest block's stamp by the clock. */
+static void on_tick(marie_component_t *c, int64_t overruns)
+{
+    asr_state_t *s = marie_component_user(c);
+    if (s->last_now)
+        asr_expire(s->asr, audio_now(s));
 }
 
 static void on_array(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -79,7 +101,7 @@ static void on_robot_speech(marie_component_t *c, marie_port_t *p, const void *m
         s->speaking = true;
     } else if (m->state == MARIE_ROBOT_SPEECH_T_STATE_DONE || m->state == MARIE_ROBOT_SPEECH_T_STATE_FAILED) {
         s->speaking = false;
-        s->deaf_until = m->utime + s->deaf_after_us;
+        s->deaf_until = audio_now(s) + s->deaf_after_us;
     }
 }
 
@@ -145,6 +167,10 @@ static int init(marie_component_t *c)
     if (marie_port_on_message(marie_port(c, array ? "array" : "separated"), array ? on_array : on_separated) ||
         marie_port_on_message(marie_port(c, "robot_speech"), on_robot_speech)) {
         marie_component_fail_reason(c, "cannot subscribe to the audio");
+        return -1;
+    }
+    if (!array && !marie_component_every(c, 10, on_tick)) {
+        marie_component_fail_reason(c, "cannot start the stream timer");
         return -1;
     }
     marie_info("%d command phrases, listening to the %s", n, array ? "array's first microphone" : "separated streams");

@@ -7,6 +7,7 @@
 
 #include "adapters/dialogue/dialogue.h"
 #include "adapters/dialogue/dialogue_params.h"
+#include "adapters/dialogue/speaker_dir.h"
 #include "core/auth.h"
 #include "core/clear.h"
 #include "core/component.h"
@@ -16,6 +17,7 @@ typedef struct {
     dialogue_t d;
     marie_sound_source_t sources[16];
     int nsources;
+    speaker_dir_t dirs;         /* the sources of the last seconds, for where each utterance came from */
     int32_t say_id, goal_id;
     int64_t event_seq, last_seq;
     marie_port_t *p_say, *p_goal, *p_event, *p_face, *p_request;
@@ -65,6 +67,9 @@ static void on_sources(marie_component_t *c, marie_port_t *p, const void *msg, c
     s->nsources = m->count < 0 ? 0 : m->count < 16 ? m->count : 16;
     if (s->nsources > 0)        /* no sources: an empty array, NULL */
         memcpy(s->sources, m->sources, sizeof(marie_sound_source_t) * (size_t)s->nsources);
+    for (int i = 0; i < s->nsources; i++)
+        speaker_dir_add(&s->dirs, m->utime, m->sources[i].id, m->sources[i].azimuth, m->sources[i].energy,
+                        m->sources[i].activity);
 }
 
 static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -78,13 +83,8 @@ static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, co
         event(c, s, "unsure", buf);
         return;
     }
-    bool has_az = false;
     double az = 0;
-    for (int i = 0; i < s->nsources; i++)
-        if (s->sources[i].id == m->source_id) {
-            has_az = true;
-            az = s->sources[i].azimuth;
-        }
+    bool has_az = speaker_dir_get(&s->dirs, m->source_id, m->start_utime, m->utime, &az);
     dialogue_reply_t r;
     dialogue_hear(&s->d, m->text, m->source_id, has_az, az, &r);
     snprintf(buf, sizeof(buf), "heard \"%.200s\" from source %d", m->text, m->source_id);
@@ -127,6 +127,7 @@ static int init(marie_component_t *c)
         return -1;
     }
     dialogue_init(&s->d, places, n, q->robot_name);
+    speaker_dir_init(&s->dirs);
     s->tolerance = q->tolerance;
     s->min_confidence = q->min_confidence;
     s->p_say = marie_port(c, "say");

@@ -1,5 +1,5 @@
 # adapters/dialogue: marie-dialogue, spoken commands to goals, stops and answers.
-$(eval $(call marie_lib,dialogue,adapters/dialogue/dialogue.c))
+$(eval $(call marie_lib,dialogue,adapters/dialogue/dialogue.c adapters/dialogue/speaker_dir.c))
 $(eval $(call marie_program,marie-dialogue,adapters/dialogue/dialogue_main.c,$(B)/lib/libdialogue.a))
 $(eval $(call marie_test,test_dialogue,tests/audio/test_dialogue.c,$(B)/lib/libdialogue.a))
 $(eval $(call marie_fuzz,dialogue_places,tests/audio/fuzz_dialogue_places.c adapters/dialogue/dialogue.c,))

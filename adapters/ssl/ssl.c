@@ -37,6 +37,9 @@ struct ssl {
     float *yout;
     stream_t streams[SSL_TRACK_MAX];
     float *out[SSL_TRACK_MAX];  /* hop samples handed out */
+    float complex *hist;        /* the spectra of the last nhist frames (M x stride each), a ring */
+    int nhist, hist_next, hist_fill;
+    float *back[SSL_TRACK_MAX]; /* a new stream's history, nhist * hop samples */
 };
 
 void ssl_cfg_default(ssl_cfg_t *c)
@@ -49,6 +52,7 @@ void ssl_cfg_default(ssl_cfg_t *c)
     c->hop = c->srp.nfft / 2;
     c->potentials = 3;
     c->separate = true;
+    c->stream = (ssl_stream_params_t)SSL_STREAM_PARAMS_DEFAULTS;
 }
 
 void ssl_destroy(ssl_t *s)
@@ -71,7 +75,9 @@ void ssl_destroy(ssl_t *s)
         free(s->streams[i].ola);
         ssl_postfilter_free(&s->streams[i].pf);
         free(s->out[i]);
+        free(s->back[i]);
     }
+    free(s->hist);
     free(s);
 }
 
@@ -83,7 +89,8 @@ static int spec_stride(const ssl_t *s)
 
 ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
 {
-    if (cfg->hop * 2 != cfg->srp.nfft || cfg->potentials < 1 || cfg->potentials > SSL_MAX_POTENTIALS)
+    if (cfg->hop * 2 != cfg->srp.nfft || cfg->potentials < 1 || cfg->potentials > SSL_MAX_POTENTIALS ||
+        !(cfg->stream.backfill_s >= 0 && cfg->stream.backfill_s <= 10))
         return marie_fail_null(EINVAL);
     ssl_t *s = calloc(1, sizeof(*s));
     if (!s)
@@ -116,10 +123,14 @@ ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
     s->inv = fftwf_plan_dft_c2r_1d(s->nfft, s->Y, s->yout, FFTW_ESTIMATE);
     if (!s->fwd || !s->inv)
         goto fail;
+    s->nhist = (int)(cfg->stream.backfill_s * cfg->srp.rate / s->hop + 0.5);
+    if (s->nhist && !(s->hist = malloc(sizeof(float complex) * (size_t)(s->nhist * s->M * spec_stride(s)))))
+        goto fail;
     for (int i = 0; i < SSL_TRACK_MAX; i++) {
         s->streams[i].ola = calloc((size_t)s->nfft, sizeof(float));
         s->out[i] = malloc(sizeof(float) * (size_t)s->hop);
-        if (!s->streams[i].ola || !s->out[i] || ssl_postfilter_init(&s->streams[i].pf, s->nbins))
+        s->back[i] = malloc(sizeof(float) * (size_t)(s->hop * (s->nhist + 1)));
+        if (!s->streams[i].ola || !s->out[i] || !s->back[i] || ssl_postfilter_init(&s->streams[i].pf, s->nbins))
             goto fail;
     }
     return s;
@@ -144,9 +155,22 @@ static void analyse(ssl_t *s)
     }
 }
 
-static stream_t *stream_for(ssl_t *s, int id)
+/* This frame's spectra into the history ring (after it has been used: the history is of the
+ * frames before the current one). */
+static void remember(ssl_t *s)
+{
+    if (!s->nhist)
+        return;
+    size_t one = (size_t)s->M * (size_t)spec_stride(s);
+    memcpy(s->hist + (size_t)s->hist_next * one, s->spec_mem, sizeof(float complex) * one);
+    s->hist_next = (s->hist_next + 1) % s->nhist;
+    s->hist_fill += s->hist_fill < s->nhist;
+}
+
+static stream_t *stream_for(ssl_t *s, int id, bool *fresh)
 {
     stream_t *free_slot = NULL;
+    *fresh = false;
     for (int i = 0; i < SSL_TRACK_MAX; i++) {
         if (s->streams[i].id == id)
             return &s->streams[i];
@@ -154,6 +178,7 @@ static stream_t *stream_for(ssl_t *s, int id)
             free_slot = &s->streams[i];
     }
     if (free_slot) {
+        *fresh = true;
         free_slot->id = id;
         free_slot->seq = 0;
         memset(free_slot->ola, 0, sizeof(float) * (size_t)s->nfft);
@@ -175,6 +200,35 @@ static void release_streams(ssl_t *s)
     }
 }
 
+/* One frame's spectra X (M pointers) beamed toward source k of dirs into the stream's next hop. */
+static void beam_hop(ssl_t *s, stream_t *st, const float complex *const *X, const double (*dirs)[3], int n, int k,
+                     float *hop)
+{
+    ssl_sep_beam(&s->cfg.sep, &s->cfg.mics, s->cfg.srp.rate, s->nfft, X, dirs, n, k, s->Y);
+    if (s->cfg.sep.postfilter)
+        ssl_postfilter_apply(&st->pf, &s->cfg.sep, s->Y);
+    fftwf_execute_dft_c2r(s->inv, s->Y, s->yout);
+    for (int i = 0; i < s->nfft; i++)
+        st->ola[i] += s->yout[i] * s->window[i] / (float)s->nfft;
+    memcpy(hop, st->ola, sizeof(float) * (size_t)s->hop);
+    memmove(st->ola, st->ola + s->hop, sizeof(float) * (size_t)(s->nfft - s->hop));
+    memset(st->ola + s->nfft - s->hop, 0, sizeof(float) * (size_t)s->hop);
+}
+
+/* A new stream: the remembered frames, oldest first, beamed toward it; returns the hops made. */
+static int backfill(ssl_t *s, stream_t *st, int slot, const double (*dirs)[3], int n, int k)
+{
+    size_t one = (size_t)s->M * (size_t)spec_stride(s);
+    const float complex *X[MICARRAY_MAX];
+    for (int f = 0; f < s->hist_fill; f++) {
+        int at = (s->hist_next - s->hist_fill + f + s->nhist) % s->nhist;
+        for (int m = 0; m < s->M; m++)
+            X[m] = s->hist + (size_t)at * one + (size_t)m * spec_stride(s);
+        beam_hop(s, st, X, dirs, n, k, s->back[slot] + (size_t)f * s->hop);
+    }
+    return s->hist_fill;
+}
+
 static void separate(ssl_t *s, ssl_result_t *r)
 {
     double dirs[SSL_TRACK_MAX][3];
@@ -191,23 +245,18 @@ static void separate(ssl_t *s, ssl_result_t *r)
     }
     release_streams(s);
     for (int k = 0; k < n; k++) {
-        stream_t *st = stream_for(s, tr[k]->id);
+        bool fresh;
+        stream_t *st = stream_for(s, tr[k]->id, &fresh);
         if (!st)
             continue;
-        ssl_sep_beam(&s->cfg.sep, &s->cfg.mics, s->cfg.srp.rate, s->nfft,
-                     (const float complex *const *)s->spec, (const double (*)[3])dirs, n, k, s->Y);
-        if (s->cfg.sep.postfilter)
-            ssl_postfilter_apply(&st->pf, &s->cfg.sep, s->Y);
-        fftwf_execute_dft_c2r(s->inv, s->Y, s->yout);
-        for (int i = 0; i < s->nfft; i++)
-            st->ola[i] += s->yout[i] * s->window[i] / (float)s->nfft;
         int slot = r->nstreams++;
-        memcpy(s->out[slot], st->ola, sizeof(float) * (size_t)s->hop);
-        memmove(st->ola, st->ola + s->hop, sizeof(float) * (size_t)(s->nfft - s->hop));
-        memset(st->ola + s->nfft - s->hop, 0, sizeof(float) * (size_t)s->hop);
+        int nhistory = fresh && s->cfg.nfixed <= 0 ? backfill(s, st, slot, (const double (*)[3])dirs, n, k) : 0;
+        st->seq += nhistory;
+        beam_hop(s, st, (const float complex *const *)s->spec, (const double (*)[3])dirs, n, k, s->out[slot]);
         r->streams[slot] = (ssl_stream_t){ .id = tr[k]->id, .azimuth = tr[k]->azimuth,
                                            .elevation = tr[k]->elevation, .seq = st->seq++,
-                                           .samples = s->out[slot] };
+                                           .samples = s->out[slot], .nhistory = nhistory,
+                                           .history = s->back[slot] };
     }
 }
 
@@ -237,6 +286,7 @@ static void frame(ssl_t *s)
         separate(s, &r);
     if (s->cb)
         s->cb(&r, s->user);
+    remember(s);
 }
 
 static int feed(ssl_t *s, const int16_t *i16, const float *f32, int nchannels, int nsamples, int64_t utime)

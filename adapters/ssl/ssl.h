@@ -5,6 +5,7 @@
 #include <stdint.h>
 
 #include "adapters/ssl/ssl_sep.h"
+#include "adapters/ssl/ssl_stream_params.h"
 #include "adapters/ssl/ssl_srp.h"
 #include "adapters/ssl/ssl_track.h"
 
@@ -22,6 +23,10 @@ typedef struct {
     int hop;                    /* nfft / 2 */
     int potentials;             /* per frame, <= SSL_MAX_POTENTIALS */
     bool separate;
+    /* A new track's stream starts with the sound of the stream.backfill_s before its birth,
+     * beamed toward it: the birth comes a few frames after the onset, and the words' first
+     * syllable (and the quiet before it, which a voice detector measures its floor on) is there. */
+    ssl_stream_params_t stream;
     int nfixed;                 /* > 0: no tracking, beams toward these (az, el) with ids 1..n */
     double fixed[SSL_TRACK_MAX][2];
 } ssl_cfg_t;
@@ -31,8 +36,10 @@ void ssl_cfg_default(ssl_cfg_t *c);     /* the default array of micarray.h */
 typedef struct {
     int id;
     double azimuth, elevation;
-    int64_t seq;
+    int64_t seq;                /* of samples; the history's hops take the seqs before it */
     const float *samples;       /* hop samples, full scale 1 */
+    int nhistory;               /* a new stream: hops before samples (backfill_s), oldest first */
+    const float *history;       /* nhistory * hop samples, ending where samples start */
 } ssl_stream_t;
 
 typedef struct {

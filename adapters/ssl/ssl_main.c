@@ -40,6 +40,16 @@ static void publish_sources(ssl_state_t *s, const ssl_result_t *r)
     marie_port_publish(s->p_sources, &m);
 }
 
+static void publish_hop(ssl_state_t *s, const ssl_stream_t *st, const float *x, int64_t seq, int64_t utime)
+{
+    for (int j = 0; j < s->hop; j++)
+        s->pcm[j] = (int16_t)lrintf(fmaxf(-32768.0f, fminf(32767.0f, x[j] * 32768.0f)));
+    marie_separated_audio_t m = { .utime = utime, .seq = seq, .source_id = st->id, .azimuth = (float)st->azimuth,
+                                  .elevation = (float)st->elevation, .sample_rate = s->rate, .nsamples = s->hop,
+                                  .data = s->pcm };
+    marie_port_publish(s->p_sep, &m);
+}
+
 static void on_result(const ssl_result_t *r, void *user)
 {
     ssl_state_t *s = user;
@@ -47,12 +57,10 @@ static void on_result(const ssl_result_t *r, void *user)
         publish_sources(s, r);
     for (int i = 0; i < r->nstreams; i++) {
         const ssl_stream_t *st = &r->streams[i];
-        for (int j = 0; j < s->hop; j++)
-            s->pcm[j] = (int16_t)lrintf(fmaxf(-32768.0f, fminf(32767.0f, st->samples[j] * 32768.0f)));
-        marie_separated_audio_t m = { .utime = r->stream_utime, .seq = st->seq, .source_id = st->id,
-                                      .azimuth = (float)st->azimuth, .elevation = (float)st->elevation,
-                                      .sample_rate = s->rate, .nsamples = s->hop, .data = s->pcm };
-        marie_port_publish(s->p_sep, &m);
+        for (int h = 0; h < st->nhistory; h++)     /* a new stream's onset, before its first hop */
+            publish_hop(s, st, st->history + (size_t)h * s->hop, st->seq - st->nhistory + h,
+                        r->stream_utime - (int64_t)(st->nhistory - h) * s->hop * 1000000 / s->rate);
+        publish_hop(s, st, st->samples, st->seq, r->stream_utime);
     }
 }
 
@@ -95,6 +103,7 @@ static int init(marie_component_t *c)
     cfg.track.gate = q->gate_deg * M_PI / 180;
     cfg.track.death_s = q->death_s;
     cfg.separate = q->separate;
+    cfg.stream = q->stream;
     cfg.sep.nulls = q->nulls;
     cfg.sep.postfilter = q->postfilter;
     if (!(q->sources_hz > 0)) {

@@ -1,6 +1,7 @@
 /* test_dialogue: marie-dialogue's rules: "go to room b" is a goal at that place and an answer,
  * an unknown place is said so, "stop" stops, "where are you going" tells the goal, the speaker
- * is faced when the array knows where they are; places text parsed or refused with a reason. */
+ * is faced when the array knows where they are, in the direction the words came from; places text
+ * parsed or refused with a reason. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -10,6 +11,7 @@
 #include <cmocka.h>
 
 #include "adapters/dialogue/dialogue.h"
+#include "adapters/dialogue/speaker_dir.h"
 
 static dialogue_t d;
 
@@ -79,12 +81,64 @@ static void test_places_refused_with_reason(void **state)
     assert_int_equal(n, 0);
 }
 
+/* marie-ssl's track of a speaker 60 degrees away in a room with reflecting walls (logged from
+ * test_spoken_command's scene, 10 Hz): heard at 61-63 degrees, then drifting on its rate after
+ * the words, 70 degrees by the time the recognizer reports them. The fan's track at -154. */
+static const struct {
+    double t, az, energy, activity;
+} speaker_track[] = {
+    { 1.33, 61.2, 0.14, 0.19 }, { 1.42, 60.9, 0.08, 0.57 }, { 1.52, 60.9, 0.04, 0.49 }, { 1.62, 62.2, 0.06, 0.73 },
+    { 1.71, 62.6, 0.07, 0.86 }, { 1.81, 63.4, 0.05, 0.92 }, { 1.90, 67.7, 0.03, 0.96 }, { 2.00, 67.6, 0.07, 0.61 },
+    { 2.10, 67.4, 0.04, 0.79 }, { 2.19, 68.6, 0.03, 0.48 }, { 2.29, 69.1, 0.03, 0.26 }, { 2.38, 69.5, 0.03, 0.14 },
+    { 2.48, 69.8, 0.03, 0.07 }, { 2.58, 70.0, 0.03, 0.04 }, { 2.67, 70.2, 0.03, 0.02 },
+};
+
+static void test_speaker_faced_where_the_words_came_from(void **state)
+{
+    static speaker_dir_t h;
+    speaker_dir_init(&h);
+    for (size_t i = 0; i < sizeof(speaker_track) / sizeof(speaker_track[0]); i++) {
+        int64_t t = (int64_t)(speaker_track[i].t * 1e6);
+        speaker_dir_add(&h, t, 1, -154 * M_PI / 180, 0.03, 0.3);
+        speaker_dir_add(&h, t, 2, speaker_track[i].az * M_PI / 180, speaker_track[i].energy, speaker_track[i].activity);
+    }
+    double az;
+    /* the utterance as the recognizer reported it: 1.33 to 2.62 s */
+    assert_true(speaker_dir_get(&h, 2, 1330000, 2620000, &az));
+    printf("# speaker at 60 degrees: faced at %.1f (the track's latest: 70.2)\n", az * 180 / M_PI);
+    assert_true(fabs(az * 180 / M_PI - 60) < 5);
+    /* seen only before the utterance (its track died): its latest direction */
+    assert_true(speaker_dir_get(&h, 2, 3000000, 4000000, &az));
+    assert_true(fabs(az * 180 / M_PI - 70.2) < 0.01);
+    assert_false(speaker_dir_get(&h, 3, 0, 4000000, &az));
+    /* across the back of the robot (+-180 degrees): the mean of 179 and -179 is 180, not 0 */
+    speaker_dir_add(&h, 5000000, 4, 179 * M_PI / 180, 0.1, 1);
+    speaker_dir_add(&h, 5100000, 4, -179 * M_PI / 180, 0.1, 1);
+    assert_true(speaker_dir_get(&h, 4, 5000000, 5100000, &az));
+    assert_true(fabs(fabs(az) - M_PI) < 0.01);
+}
+
+/* Thousands of sightings later the oldest are forgotten and the newest kept. */
+static void test_speaker_dir_keeps_the_last_seconds(void **state)
+{
+    static speaker_dir_t h;
+    speaker_dir_init(&h);
+    for (int i = 0; i < 3 * SPEAKER_DIR_MAX; i++)
+        speaker_dir_add(&h, (int64_t)i * 1000, i % 7, (i % 7) * 0.1, 0.1, 1);
+    double az;
+    assert_false(speaker_dir_get(&h, 1, 0, 2 * SPEAKER_DIR_MAX * 1000 - 1, &az));
+    assert_true(speaker_dir_get(&h, 3, (3 * SPEAKER_DIR_MAX - 100) * 1000, 3 * SPEAKER_DIR_MAX * 1000, &az));
+    assert_true(fabs(az - 0.3) < 1e-6);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup(test_go_to_room_b, setup),
         cmocka_unit_test_setup(test_unknown_place_and_stop, setup),
         cmocka_unit_test(test_places_refused_with_reason),
+        cmocka_unit_test(test_speaker_faced_where_the_words_came_from),
+        cmocka_unit_test(test_speaker_dir_keeps_the_last_seconds),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,7 +1,7 @@
 /* test_ssl: marie-ssl's pipeline on scenes rendered by the simulator's array: a Festival
  * phrase at known bearings and SNRs is localized (error distribution printed and bounded),
- * two speakers 60 degrees apart are two tracks, a walking speaker is followed, and the
- * separated streams gain SIR and SNR over one microphone. */
+ * two speakers 60 degrees apart are two tracks, a walking speaker is followed, the separated
+ * streams gain SIR and SNR over one microphone, and a new stream starts before the words. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -11,6 +11,7 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "hw/audio/wav.h"
 #include "map/occmap.h"
 #include "tests/audio/audio_scene_util.h"
 
@@ -249,6 +250,70 @@ static void test_walking_speaker_is_followed(void **state)
     sim_audio_destroy(a);
 }
 
+/* ---- a new stream's onset -------------------------------------------------------------- */
+
+typedef struct {
+    int id;                     /* the first stream's source, 0 before it */
+    double first_sample, birth; /* s */
+} onset_t;
+
+static void on_onset(const ssl_result_t *r, void *user)
+{
+    onset_t *o = user;
+    if (o->id || r->nstreams == 0)
+        return;
+    o->id = r->streams[0].id;
+    o->birth = r->stream_utime / 1e6;
+    o->first_sample = o->birth - (double)r->streams[0].nhistory * BLOCK / 16000;
+}
+
+static double power(const float *x, size_t n, size_t skip);
+
+/* When the words start, in the phrase file: the first 10 ms with 1% of the loudest 10 ms's power. */
+static double phrase_onset(int phrase)
+{
+    size_t n = 0;
+    int rate;
+    float *x = wav_load_mono(audio_phrase(phrase), &n, &rate);
+    assert_non_null(x);
+    double peak = 0, onset = 0;
+    for (int pass = 0; pass < 2; pass++)
+        for (size_t i = 0; i + 160 <= n; i += 160) {
+            double e = power(x + i, 160, 0);
+            peak = pass == 0 ? fmax(peak, e) : peak;
+            if (pass == 1 && e > 0.01 * peak) {
+                onset = (double)i / rate;
+                break;
+            }
+        }
+    free(x);
+    return onset;
+}
+
+/* A track is born a few frames into the words; its stream must still start before them (the
+ * recognizer needs the first syllable, and the quiet before it to measure its floor). */
+static void test_new_stream_starts_before_the_words(void **state)
+{
+    const double pose[3] = { 0, 0, 0 };
+    sim_audio_scene_t sc = { .n = 1, .snr_db = 10 };
+    sc.src[0] = speech_at(2, 60 * DEG, 2.0, 1.0);
+    sim_audio_t *a = scene(&sc, NULL, pose);
+    assert_non_null(a);
+    ssl_cfg_t cfg;
+    ssl_cfg_default(&cfg);
+    onset_t o = { 0 };
+    ssl_t *s = ssl_create(&cfg, on_onset, &o);
+    assert_non_null(s);
+    audio_run(a, s, pose, 0, 1.0 + audio_phrase_frames(2) / 16000.0, BLOCK);
+    double words = 1.0 + phrase_onset(2) + 2.0 / 343;
+    printf("# words start at %.3f s, the track is born at %.3f s, its stream starts at %.3f s\n", words, o.birth,
+           o.first_sample);
+    assert_true(o.id > 0);
+    assert_true(o.first_sample <= words - 0.1);
+    ssl_destroy(s);
+    sim_audio_destroy(a);
+}
+
 /* ---- separation ------------------------------------------------------------------------ */
 
 typedef struct {
@@ -363,6 +428,7 @@ int main(void)
         cmocka_unit_test(test_two_speakers_60_degrees_apart_are_two_tracks),
         cmocka_unit_test(test_walking_speaker_is_followed),
         cmocka_unit_test(test_separation_gains_sir_and_snr),
+        cmocka_unit_test(test_new_stream_starts_before_the_words),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
