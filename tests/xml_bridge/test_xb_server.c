@@ -372,6 +372,38 @@ static void test_pull_gives_the_latest_value(void **state)
     cli_free(&c);
 }
 
+/* A bus message with bytes after its end is what components refuse (marie_decode_checked):
+ * the bridge refuses it too, to stream subscribers as an error, and it never becomes the value
+ * a pull answers. */
+static void test_trailing_bytes_refused_as_components_do(void **state)
+{
+    cli_t c;
+    assert_int_equal(cli_connect(&c, 0), 0);
+    cli_send(&c, "<subscribe channel=\"ODOM\" type=\"marie.odometry_t\"/>");
+    assert_true(cli_wait(&c, 2));
+    uint8_t buf[256];
+    for (int i = 1; i <= 2; i++) {
+        marie_odometry_t m = { 0 };
+        m.utime = i;
+        int n = marie_odometry_t_encode(buf, 0, sizeof buf - 4, &m);
+        assert_true(n > 0);
+        memset(buf + n, 0xab, 4);
+        lcm_publish(env.lcm, "ODOM", buf, (unsigned)(n + (i == 2 ? 4 : 0)));  /* the second has 4 more */
+        pump_ms(50);
+    }
+    assert_true(cli_wait(&c, 4));
+    assert_true(starts(c.docs[2], "message|channel=ODOM"));
+    assert_non_null(strstr(c.raw[2].data, "<utime>1</utime>"));
+    if (!starts(c.docs[3], "error|code=bad-message"))
+        fail_msg("a message with 4 trailing bytes was passed on: %s", c.docs[3]);
+    assert_non_null(strstr(c.docs[3], "4 bytes after the end"));
+    cli_send(&c, "<pull channel=\"ODOM\" id=\"p\"/>");
+    assert_true(cli_wait(&c, 5));
+    assert_true(starts(c.docs[4], "message|channel=ODOM"));
+    assert_non_null(strstr(c.raw[4].data, "<utime>1</utime>"));
+    cli_free(&c);
+}
+
 static void test_semantic_errors_keep_the_connection(void **state)
 {
     cli_t c;
@@ -675,6 +707,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_every_type_both_directions, setup, teardown),
         cmocka_unit_test_setup_teardown(test_pull_gives_the_latest_value, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_trailing_bytes_refused_as_components_do, setup, teardown),
         cmocka_unit_test_setup_teardown(test_semantic_errors_keep_the_connection, setup, teardown),
         cmocka_unit_test_setup_teardown(test_quiet_publishes_keep_order_and_lose_nothing, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_streams_close_only_their_client, setup_small, teardown),
