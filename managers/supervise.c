@@ -132,6 +132,8 @@ void marie_sv_set_local(marie_sv_t *sv, bool local, bool up, marie_sv_action_t *
 {
     act_clear(act);
     bool was_local = sv->local;
+    if (was_local && local)
+        return;     /* the instance running here goes on: its heartbeats are still its own */
     sv->local = local;
     sv->hb_us = 0;
     sv->hb_state = -1;
