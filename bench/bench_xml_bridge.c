@@ -337,6 +337,7 @@ int main(void)
     cfg.port = 0;
     cfg.handle_lcm = 1;
     cfg.max_clients = 1024;
+    cfg.max_per_address = 0;       /* the 500 clients of part 4 all come from 127.0.0.1 */
     if (!lat || !blcm || !peer || !bloop || !ploop || marie_loop_add_lcm(ploop, peer, 1) < 0 ||
         !(srv = xb_server_create(&cfg, blcm, bloop, NULL))) {
         fprintf(stderr, "bench_xml_bridge: setup failed\n");

@@ -533,6 +533,7 @@ void xb_on_document(void *user, xb_node_t *req)
     client_t *c = user;
     xb_server_t *s = c->s;
     s->st.documents++;
+    c->active_us = marie_mono_us();
     if (c->dead || c->closing_since)
         return;
     const char *op = req->name;

@@ -28,6 +28,11 @@ typedef struct {
     int sndbuf;                 /* per-client SO_SNDBUF in bytes; 0: the kernel's autotuning */
     size_t max_memory;          /* bytes held for incoming documents of all clients; over it,
                                  * the largest holders are closed with "no-memory" */
+    int idle_s;                 /* a client without subscription that sent no complete document
+                                 * this long is closed ("idle"); 0: never */
+    int evict_idle_ms;          /* when full, the client idle longest, if idle this long, makes
+                                 * room for a new one ("idle"); 0: never */
+    int max_per_address;        /* clients from one address at once; 0: no cap */
 } xb_server_cfg_t;
 
 void xb_server_cfg_defaults(xb_server_cfg_t *cfg);
@@ -53,6 +58,8 @@ typedef struct {
     uint64_t subscriptions;     /* distinct (channel, type) subscriptions now */
     uint64_t doc_bytes;         /* bytes held now for incoming documents (all clients) */
     uint64_t closed_memory;     /* clients closed for the memory budget */
+    uint64_t closed_idle;       /* clients closed after idle_s without a request */
+    uint64_t evicted;           /* idle clients closed to make room for a new one */
 } xb_server_stats_t;
 
 typedef struct xb_server xb_server_t;

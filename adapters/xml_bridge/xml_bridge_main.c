@@ -31,6 +31,11 @@ static void hook_drop(void *user, int64_t n)
     marie_component_drop(user, n);
 }
 
+static void hook_count(void *user, const char *counter, int64_t delta)
+{
+    marie_component_count(user, counter, delta);
+}
+
 /* Mirrors the server's totals into the heartbeat counters. */
 static void on_tick(marie_component_t *c, int64_t overruns)
 {
@@ -71,13 +76,17 @@ static int on_start(marie_component_t *c)
     cfg.max_message = (size_t)params_of(c)->max_message;
     cfg.sndbuf = (int)params_of(c)->sndbuf;
     cfg.max_memory = (size_t)params_of(c)->max_memory;
+    cfg.idle_s = (int)params_of(c)->idle_s;
+    cfg.max_per_address = (int)params_of(c)->max_per_address;
+    cfg.evict_idle_ms = (int)params_of(c)->evict_idle_ms;
     if (cfg.port < 0 || cfg.port > 65535 || cfg.max_depth < 1 || cfg.queue_docs < 2 ||
         cfg.max_clients < 1 || cfg.stall_ms < 1 || (int64_t)cfg.max_doc_bytes < 64 ||
+        cfg.idle_s < 0 || cfg.max_per_address < 0 || cfg.evict_idle_ms < 0 ||
         (int64_t)cfg.max_memory < (int64_t)cfg.max_doc_bytes) {
         marie_component_fail_reason(c, "xml bridge parameters out of range");
         return -1;
     }
-    xb_server_hooks_t hooks = { hook_bad_input, hook_drop, NULL, c };
+    xb_server_hooks_t hooks = { hook_bad_input, hook_drop, hook_count, c };
     b->server = xb_server_create(&cfg, marie_component_lcm(c), marie_component_loop(c), &hooks);
     if (!b->server) {
         marie_component_fail_reason(c, "cannot listen on %s:%d", cfg.bind, cfg.port);
