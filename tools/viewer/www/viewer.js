@@ -147,6 +147,7 @@ function handle(m) {
   case 'notice':
     notice(m.text);
     if (m.level === 'error') banner(m.text, 'error');
+    controlPin.refused(m.text);
     break;
   case 'pong': break;
   }
@@ -517,7 +518,7 @@ function drawPanels() {
       for (const cmd of ['pause', 'resume']) {
         const b = document.createElement('button');
         b.textContent = cmd;
-        b.onclick = () => send({ op: 'order', cmd, target: n });
+        b.onclick = () => send({ op: 'order', cmd, target: n, pin: controlPin.get() });
         td.appendChild(b);
       }
     }
@@ -666,7 +667,7 @@ mapCv.onmousemove = (ev) => {
 mapCv.onmouseup = () => {
   if (S.drag) {
     const d = S.drag, len = Math.hypot(d.x2 - d.x, d.y2 - d.y);
-    send({ op: 'goal', x: d.x, y: d.y, th: len > 0.2 ? Math.atan2(d.y2 - d.y, d.x2 - d.x) : 0 });
+    send({ op: 'goal', x: d.x, y: d.y, th: len > 0.2 ? Math.atan2(d.y2 - d.y, d.x2 - d.x) : 0, pin: controlPin.get() });
     S.drag = null; S.goalMode = false; $('goal-mode').textContent = 'Set goal';
   }
   pan = null;
