@@ -1,6 +1,7 @@
 /* config: the system file model (components, profiles, restart policies, hashes) over the YAML tree. */
 #include "core/clear.h"
 #include "core/config.h"
+#include "core/config_priv.h"
 
 #include <errno.h>
 #include <stdlib.h>
@@ -89,58 +90,6 @@ const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, c
     return hit ? *hit : NULL;
 }
 
-const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, const char *channel)
-{
-    for (size_t i = 0; sys && channel && i < sys->ntransports; i++)
-        if (strcmp(sys->transports[i].channel, channel) == 0)
-            return &sys->transports[i];
-    return NULL;
-}
-
-/* transports: {CHANNEL: {kind: shm|lcm, max_size: BYTES, slots: N}, ...} */
-static int read_transports(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs)
-{
-    if (!n)
-        return 0;
-    if (n->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, n, "transports: expected a mapping of channel: {kind: shm, max_size: BYTES}");
-        return -1;
-    }
-    if (!(sys->transports = calloc(n->n ? n->n : 1, sizeof *sys->transports)))
-        return -1;
-    int rc = 0;
-    for (size_t i = 0; i < n->n; i++) {
-        static const char *const keys[] = {"kind", "max_size", "slots", NULL};
-        const marie_node_t *t = n->items[i], *v;
-        const char *kind = "lcm";
-        int64_t max_size = 1 << 20, slots = 8;
-        if (t->kind != MARIE_NODE_MAP) {
-            marie_node_error(errs, t, "transport of '%s': expected a mapping such as {kind: shm}", t->key);
-            rc = -1;
-            continue;
-        }
-        if (marie_node_check_keys(t, keys, "transport", errs) < 0 ||
-            ((v = marie_node_get(t, "kind")) && marie_node_str(v, &kind, errs) < 0) ||
-            ((v = marie_node_get(t, "max_size")) && marie_node_int(v, &max_size, errs) < 0) ||
-            ((v = marie_node_get(t, "slots")) && marie_node_int(v, &slots, errs) < 0)) {
-            rc = -1;
-            continue;
-        }
-        if (strcmp(kind, "shm") != 0 && strcmp(kind, "lcm") != 0) {
-            marie_node_error(errs, marie_node_get(t, "kind"), "transport of '%s': kind is shm or lcm, not '%s'",
-                             t->key, kind);
-            rc = -1;
-        } else if (max_size < 64 || max_size > (1LL << 30) || slots < 2 || slots > 1024) {
-            marie_node_error(errs, t, "transport of '%s': max_size is 64 B to 1 GiB and slots 2 to 1024", t->key);
-            rc = -1;
-        } else {
-            sys->transports[sys->ntransports++] = (marie_transport_cfg_t){
-                strdup(t->key), strcmp(kind, "shm") == 0, (size_t)max_size, (int)slots, t->line, t->col};
-        }
-    }
-    return rc;
-}
-
 /* A sequence of scalars (or one scalar) as a string vector. */
 static int read_strv(const marie_node_t *n, char ***out, size_t *count, marie_errors_t *errs)
 {
@@ -181,11 +130,7 @@ static int read_seconds(const marie_node_t *map, const char *key, double *out, m
         return 0;
     if (marie_node_double(n, out, errs) < 0)
         return -1;
-    if (*out < 0) {
-        marie_node_error(errs, n, "%s: must not be negative", key);
-        return -1;
-    }
-    return 0;
+    return marie_config_seconds_ok(n, key, *out, errs);
 }
 
 static int read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_errors_t *errs)
@@ -580,46 +525,6 @@ static int profile_chain(const marie_node_t *root, const char *profile, const ma
     return n;
 }
 
-/* Iterative depth-first search (a long dependency chain must not overflow the stack): a
- * dependency on a component still on the path closes a cycle. */
-static int find_cycle(const marie_system_t *sys, marie_errors_t *errs)
-{
-    size_t n = sys->ncomponents;
-    unsigned char *mark = calloc(n ? n : 1, 1);           /* 0 new, 1 on the path, 2 done */
-    size_t *stack = malloc((n ? n : 1) * sizeof *stack), *next = calloc(n ? n : 1, sizeof *next);
-    int rc = mark && stack && next ? 0 : -1;
-    for (size_t root = 0; rc == 0 && root < n; root++) {
-        if (mark[root])
-            continue;
-        size_t top = 0;
-        stack[top++] = root;
-        mark[root] = 1;
-        while (top && rc == 0) {
-            const marie_component_cfg_t *c = &sys->components[stack[top - 1]];
-            if (next[stack[top - 1]] == c->ndepends) {
-                mark[stack[--top]] = 2;
-                continue;
-            }
-            const marie_component_cfg_t *d = marie_system_component(sys, c->depends[next[stack[top - 1]]++]);
-            size_t j = d ? (size_t)(d - sys->components) : 0;
-            if (!d || mark[j] == 2)
-                continue;
-            if (mark[j] == 1) {
-                marie_errors_add(errs, d->file, d->line, d->col, "component '%s' is part of a dependency cycle",
-                                 d->name);
-                rc = -1;
-                break;
-            }
-            mark[j] = 1;
-            stack[top++] = j;
-        }
-    }
-    free(mark);
-    free(stack);
-    free(next);
-    return rc;
-}
-
 /* A profile's `params: {COMPONENT: {KEY: VALUE, ...}}` over a component's params: a new map
  * with the component's own entries that are not overridden, then the profile's, each the
  * file's own node (so a bad value is reported at its line). */
@@ -688,7 +593,7 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
             goto err;
         }
     }
-    if (read_transports(marie_node_get(root, "transports"), sys, errs) < 0)
+    if (marie_config_read_transports(marie_node_get(root, "transports"), sys, errs) < 0)
         goto err;
     marie_restart_cfg_t defaults = {MARIE_RESTART_ON_FAILURE, 0.1, 5.0, 10.0, 5, 60.0};
     if ((v = marie_node_get(root, "defaults"))) {
@@ -831,7 +736,7 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
         }
         hash_component(sys, c);
     }
-    if (rc == 0 && find_cycle(sys, errs) < 0)
+    if (rc == 0 && marie_config_check(sys, errs) < 0)
         rc = -1;
     if (rc || (errs && errs->n > errs_before))
         goto err;

@@ -20,6 +20,10 @@ extern "C" {
 /* lcm_create(url) (NULL: marie_default_url()), read by marie when it is UDP multicast. A bus is
  * made, read and destroyed by one thread (the loop's), as marie_loop is. */
 lcm_t *marie_lcm_create(const char *url);
+/* Whether url is one liblcm opens: PROVIDER://TARGET?OPTIONS with a provider it has; for udpm
+ * (and mpudpm) a multicast IPv4 group, a port 1-65535 and only the options ttl (0-255),
+ * recv_buf_size (1 to 1 GiB) and transmit_only. 0, or -1 with the reason in why. */
+int marie_lcm_url_check(const char *url, char *why, size_t len);
 void marie_lcm_destroy(lcm_t *lcm);                 /* NULL is a no-op */
 int marie_lcm_native(const lcm_t *lcm);             /* 1: marie reads it, 0: liblcm does */
 
