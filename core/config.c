@@ -257,16 +257,16 @@ static int read_env(const marie_node_t *n, marie_component_cfg_t *c, marie_error
 
 static const char *const component_keys[] = {
     "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart",
-    "stop_timeout", "heartbeat_timeout", "depends", "sched", NULL,
+    "stop_timeout", "heartbeat_timeout", "depends", "sched", "limits", NULL,
 };
 
 /* ---- effective configuration and its hash ---- */
 
 enum { F_EXEC, F_ARGS, F_ENV, F_SHELL, F_HOST, F_GROUP, F_PORTS, F_PARAMS, F_RESTART, F_STOP_TIMEOUT,
-       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_SCHED, F_CLOCK, F_LCM_URL, F_AUTH, NFIELDS };
+       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_SCHED, F_CLOCK, F_LCM_URL, F_AUTH, F_LIMITS, NFIELDS };
 static const char *const field_names[NFIELDS] = {
     "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart", "stop_timeout",
-    "heartbeat_timeout", "depends", "sched", "clock", "lcm_url", "auth",
+    "heartbeat_timeout", "depends", "sched", "clock", "lcm_url", "auth", "limits",
 };
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
@@ -355,6 +355,7 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
             break;
         }
         case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
+        case F_LIMITS: fprintf(f, "%s", marie_limits_cfg_text(&c->limits, (char[128]){0}, 128)); break;
         }
         fputc(0, f);
     }
@@ -375,6 +376,8 @@ static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
     for (int i = 0; i < NFIELDS; i++) {
         char head[64];
         const char *t = buf ? buf + off[i] : "";
+        if (i == F_LIMITS && !*t)
+            continue;       /* no limits: the hash a component had before limits existed */
         int n = snprintf(head, sizeof head, "%s:%zu:", field_names[i], strlen(t));
         crypto_hash_sha256_update(&st, (const unsigned char *)head, (unsigned long long)n);
         crypto_hash_sha256_update(&st, (const unsigned char *)t, strlen(t));
@@ -459,6 +462,8 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     rc |= read_seconds(n, "stop_timeout", &c->stop_timeout_s, errs);
     rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
     if ((v = marie_node_get(n, "sched")) && marie_sched_cfg_read(v, &c->sched, errs) < 0)
+        rc = -1;
+    if ((v = marie_node_get(n, "limits")) && marie_limits_cfg_read(v, &c->limits, errs) < 0)
         rc = -1;
     /* Simulated time does not need the CPU on time, and a simulation must run where real-time
      * scheduling is not allowed: on the simulator's clock the setting is checked, not applied. */

@@ -105,6 +105,7 @@ void am_comps_free(am_t *am)
         free(c->out[0].lb);
         free(c->out[1].lb);
         marie_logfile_close(c->logf);
+        am_limits_comp_free(c);
     }
     MARIE_CLEAR(am->comps, free);
     am->ncomps = 0;

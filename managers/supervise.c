@@ -326,6 +326,17 @@ void marie_sv_timer(marie_sv_t *sv, marie_sv_action_t *act)
     }
 }
 
+void marie_sv_breach(marie_sv_t *sv, bool stop, marie_sv_action_t *act)
+{
+    act_clear(act);
+    if (stop)
+        sv->wanted = false;
+    if (sv->pid <= 0 || sv->st == MARIE_SV_STOPPING)
+        return;
+    sv->count_failure = true;
+    sv_stop(sv, !stop, act);
+}
+
 void marie_sv_check_heartbeat(marie_sv_t *sv, int64_t now, marie_sv_action_t *act)
 {
     act_clear(act);

@@ -105,6 +105,10 @@ void marie_sv_heartbeat(marie_sv_t *sv, int state, const char *reason, int64_t n
 bool marie_sv_peer_status(marie_sv_t *sv, bool running, int64_t now);
 /* The timer armed with timer_s fired. */
 void marie_sv_timer(marie_sv_t *sv, marie_sv_action_t *act);
+/* The component broke its limits (limits.h): a failure. A live one gets the stop signal and is
+ * started again as after any failure, unless stop: then it is not wanted any more (and one the
+ * kernel already killed is not started again). */
+void marie_sv_breach(marie_sv_t *sv, bool stop, marie_sv_action_t *act);
 /* Periodic: a live component silent for heartbeat_timeout is restarted. */
 void marie_sv_check_heartbeat(marie_sv_t *sv, int64_t now, marie_sv_action_t *act);
 
