@@ -28,7 +28,7 @@ components:
   hog:
     exec: $TC
     params: {busy: 0.8}
-    limits: {cpu: 0.3, on_breach: stop}
+    limits: {cpu: 0.1, on_breach: stop}
   files:
     exec: $TC
     params: {open_files: 10}
@@ -64,7 +64,8 @@ check "each time a limit_exceeded event says why" sh -c "[ $(events leaker 'memo
 check "resident memory seen by ps never far over the limit (peak $((peak >> 20)) MB, limit 64 MB + one sample)" \
     [ "$peak" -le $(((64 + 12) << 20)) ]
 hog_stopped() { [ "$(ps_field hog state)" = stopped ] && [ "$(events hog 'cpu: ')" -ge 1 ]; }
-check "a CPU hog (0.8 core) over its 0.3 core for a 5 s window is stopped (on_breach: stop)" wait_for 30 hog_stopped
+# 0.1 core: a hog gets more even on a machine loaded ten times over its two cores
+check "a CPU hog (0.8 core) over its 0.1 core for a 5 s window is stopped (on_breach: stop)" wait_for 30 hog_stopped
 pid=$(ps_field files pid)
 check "the kernel holds files to 64 open files (its rlimit)" \
     grep -Eq '^Max open files +64 +64 ' "/proc/$pid/limits"
@@ -76,7 +77,7 @@ check "files, within its limits, was never touched" sh -c "[ $(events files .) -
 shown() {
     out=$("$M" ps); echo "$out"
     echo "$out" | grep -q "^alpha  *leaker .*memory 64M (\(watched\|cgroup\)), breached [1-9][0-9]*$" &&
-        echo "$out" | grep -q "^alpha  *hog  *stopped .*cpu 0.3 on_breach stop (\(watched\|cgroup\)), breached [1-9]" &&
+        echo "$out" | grep -q "^alpha  *hog  *stopped .*cpu 0.1 on_breach stop (\(watched\|cgroup\)), breached [1-9]" &&
         echo "$out" | grep -q "^alpha  *files .*nofile 64 (rlimit)$" &&
         echo "$out" | grep -Eq "^alpha  *free .*[0-9.]+[KMG]?$"
 }
