@@ -81,11 +81,11 @@ check "and nothing runs on onboard3" none_on_onboard3
 # 5. a partition between {onboard1, laptop} and {onboard2, onboard3}, then the heal; then one
 # host alone against three. Each side runs a copy of what it lost; once healed, the leader's
 # placement wins and the other copies stop, but the copies it keeps go on: none is restarted
-# (they beat all along: a move to where a copy runs must not make its manager forget them).
+# (they beat all along: a move to where a copy runs must not make its manager forget them; it
+# did, and restarted them as not_responding, so they started again after the heal).
 ip link add br1 type bridge
 ip link set br1 type bridge mcast_snooping 0 2>/dev/null
 ip link set br1 up
-not_responding() { cat "$T"/*.log | grep -c "not_responding"; }
 # kept_since TIME: every component's running copy started before TIME (none was restarted)
 kept_since() {
     r=$(running complete); echo "$r"
@@ -95,14 +95,11 @@ partition() {   # partition NAME VETH...: those hosts apart for 6 s, then healed
     name=$1; shift
     for v in "$@"; do ip link set "$v" master br1; done
     sleep 6
-    nr=$(not_responding)
     t_heal=$(date +%s.%N)
     for v in "$@"; do ip link set "$v" master br0; done
     check "partition $name healed: every component runs once within 15 s" wait_for 15 once
     sleep 3
     check "partition $name: the copies kept after the heal were not restarted" kept_since "$t_heal"
-    check "partition $name: no kept copy reported not responding ($(not_responding) against $nr)" \
-        test "$(not_responding)" -eq "$nr"
 }
 partition 2+2 v1 v4
 partition 1+3 v2
