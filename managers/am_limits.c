@@ -94,6 +94,9 @@ static char *make_base(char *why, size_t len)
     char *dir = own_cgroup(why, len), ctl[256] = "", leaf[PATH_MAX];
     if (!dir)
         return NULL;
+    size_t dl = strlen(dir);
+    if (dl > 9 && strcmp(dir + dl - 9, "/marie-am") == 0)
+        dir[dl - 9] = 0;        /* a manager started again where the last one moved itself */
     snprintf(leaf, sizeof leaf, "%s/cgroup.controllers", dir);
     FILE *f = fopen(leaf, "re");
     if (f && !fgets(ctl, sizeof ctl, f))
