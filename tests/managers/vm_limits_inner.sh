@@ -41,7 +41,7 @@ check "up with limits" "$M" --timeout 30 up --no-wait "$T/limits.yaml"
 check "marie-am made cgroups for them (cgroup v2 with memory and cpu)" \
     wait_for 10 grep -q "limits: memory and cpu limits are cgroup v2 limits, in /sys/fs/cgroup" "$out/am.log"
 # A component's processes are in its cgroup: marie-am put them there (its own pid is elsewhere).
-in_cgroup() { [ -s "/sys/fs/cgroup/c.$1/cgroup.procs" ] && ! grep -qx "$am" "/sys/fs/cgroup/c.$1/cgroup.procs"; }
+in_cgroup() { p=$(cat "/sys/fs/cgroup/c.$1/cgroup.procs"); [ -n "$p" ] && ! echo "$p" | grep -qx "$am"; }
 check "the hog runs in its cgroup" wait_for 30 in_cgroup hog
 check "and so does the leaker" wait_for 30 in_cgroup leaker
 check "its cgroup holds its limit (memory.max 16M)" \
