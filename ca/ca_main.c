@@ -13,6 +13,7 @@
 #include "core/file.h"
 #include "core/component.h"
 #include "ca/ca_params.h"
+#include "core/version.h"
 
 #define MAX_MAILBOXES 64
 
@@ -365,9 +366,9 @@ static int attach(marie_component_t *c)
     if (p->attached)
         return 0;
     for (size_t i = 0; i < p->nmb && rc == 0; i++)
-        rc = mailbox_attach(p->mb[i], lcm, marie_component_shm_max(c, mailbox_channel(p->mb[i])));
+        rc = mailbox_attach(p->mb[i], lcm);
     if (p->sp && rc == 0)
-        rc = splitter_attach(p->sp, lcm, marie_component_shm_max(c, splitter_input(p->sp)));
+        rc = splitter_attach(p->sp, lcm);
     if (p->sm && rc == 0) {
         rc = sharedmap_attach(p->sm, lcm, p->sm_channel);
         if (rc == 0)
@@ -417,15 +418,15 @@ static void on_quit(marie_component_t *c)
  * (drops) and malformed notices (bad input). */
 static void count_shm_losses(ca_proc_t *p)
 {
-    const marie_shm_sub_stats_t *st[MAX_MAILBOXES + 1] = { 0 };
+    marie_bus_sub_stats_t st[MAX_MAILBOXES + 1] = { 0 };
     for (size_t i = 0; i < p->nmb; i++)
-        st[i] = mailbox_shm_stats(p->mb[i]);
+        st[i] = mailbox_input_stats(p->mb[i]);
     if (p->sp)
-        st[p->nmb] = splitter_shm_stats(p->sp);
+        st[p->nmb] = splitter_input_stats(p->sp);
     int64_t lost = 0, bad = 0;
     for (size_t i = 0; i <= p->nmb; i++) {
-        lost += st[i] ? st[i]->lost : 0;
-        bad += st[i] ? st[i]->bad : 0;
+        lost += st[i].lost;
+        bad += st[i].bad;
     }
     if (lost > p->shown[4])
         marie_component_drop(p->c, lost - p->shown[4]);
@@ -486,14 +487,23 @@ static const marie_component_def_t defs[] = {
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-ca", argc, argv);
     const marie_component_def_t *def = NULL;
     for (size_t i = 0; argc > 1 && i < sizeof defs / sizeof defs[0]; i++)
         if (strcmp(argv[1], defs[i].kind) == 0)
             def = &defs[i];
+    bool help = argc == 2 && strcmp(argv[1], "--help") == 0;
     if (!def) {
-        fprintf(stderr, "usage: marie-ca mailbox|splitter|sharedmap|switch [component options]\n"
-                        "       (marie-ca KIND --help lists the options)\n");
-        return 2;
+        FILE *out = help ? stdout : stderr;
+        fprintf(out, "usage: marie-ca mailbox|splitter|sharedmap|switch [component options]\n"
+                     "       (marie-ca KIND --help lists one kind's options)\n");
+        for (size_t i = 0; help && i < sizeof defs / sizeof defs[0]; i++) {
+            char prog[64];
+            snprintf(prog, sizeof prog, "marie-ca %s", defs[i].kind);
+            fprintf(out, "\n");
+            marie_component_usage(&defs[i], prog, out);
+        }
+        return help ? 0 : 2;
     }
     static ca_proc_t proc;
     argv[1] = argv[0];

@@ -2,6 +2,7 @@
 #include "core/clear.h"
 #include "core/config.h"
 #include "core/config_priv.h"
+#include "core/typeinfo.h"
 
 #include <errno.h>
 #include <stdlib.h>
@@ -67,6 +68,7 @@ void marie_system_destroy(marie_system_t *sys)
         free(sys->transports[i].channel);
     free(sys->transports);
     free_strv(sys->hosts, sys->nhosts);
+    free_strv(sys->types, sys->ntypes);
     free(sys->file);
     free(sys->name);
     free(sys->profile);
@@ -74,6 +76,29 @@ void marie_system_destroy(marie_system_t *sys)
     free(sys->key_file);
     marie_doc_destroy(sys->doc);
     free(sys);
+}
+
+int marie_system_load_types(const marie_system_t *sys, marie_errors_t *errs)
+{
+    char why[512], dir[4096];
+    if (marie_types_load_list(getenv("MARIE_TYPES_PATH"), why, sizeof why) < 0) {
+        marie_errors_add(errs, "MARIE_TYPES_PATH", 0, 0, "%s", why);
+        return -1;
+    }
+    if (!sys || !sys->ntypes)
+        return 0;
+    snprintf(dir, sizeof dir, "%s", sys->file);
+    char *slash = strrchr(dir, '/');
+    snprintf(slash ? slash : dir, sizeof dir - (size_t)(slash ? slash - dir : 0), "%s", slash ? "" : ".");
+    const marie_node_t *n = marie_node_get(marie_doc_root(sys->doc), "types");
+    for (size_t i = 0; i < sys->ntypes; i++) {
+        if (marie_types_load(sys->types[i], dir, why, sizeof why) < 0) {
+            const marie_node_t *at = n && n->kind == MARIE_NODE_SEQ && i < n->n ? n->items[i] : n;
+            marie_errors_add(errs, sys->file, at ? at->line : 0, at ? at->col : 0, "%s", why);
+            return -1;
+        }
+    }
+    return 0;
 }
 
 static int cmp_cfg_name(const void *a, const void *b)
@@ -570,18 +595,24 @@ static int override_params(marie_component_cfg_t *c, const marie_node_t *over, m
 
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
 {
+    return marie_system_load_text(path, NULL, 0, profile, errs);
+}
+
+marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
+                                       marie_errors_t *errs)
+{
     marie_system_t *sys = calloc(1, sizeof *sys);
     if (!sys)
         return NULL;
     size_t errs_before = errs ? errs->n : 0;
     sys->file = strdup(path);
     sys->profile = dup_or_null(profile);
-    if (!(sys->doc = marie_doc_load(path, errs)))
+    if (!(sys->doc = text ? marie_doc_parse(path, text, len, errs) : marie_doc_load(path, errs)))
         goto err;
     const marie_node_t *root = marie_doc_root(sys->doc), *v;
     static const char *const top_keys[] = {"system", "lcm_url", "clock", "auth", "hosts", "defaults",
                                            "components", "profiles", "manager", "balance", "robot", "transports",
-                                           "ros2", NULL};
+                                           "ros2", "types", NULL};
     if (marie_node_check_keys(root, top_keys, "the system file", errs) < 0)
         goto err;
     const char *s;
@@ -603,7 +634,8 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
             goto err;
         }
     }
-    if (marie_config_read_transports(marie_node_get(root, "transports"), sys, errs) < 0)
+    if (marie_transports_read(marie_node_get(root, "transports"), sys, errs) < 0 ||
+        read_strv(marie_node_get(root, "types"), &sys->types, &sys->ntypes, errs) < 0)
         goto err;
     /* The bridge reads the entries themselves (with their positions); the loader checks the shape. */
     if ((v = marie_node_get(root, "ros2")) && v->kind != MARIE_NODE_MAP) {

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 
 #define MAX_NAME 63         /* a component, group or host name */
 #define MAX_CHANNEL 63      /* LCM's limit (LCM_MAX_CHANNEL_NAME_LENGTH): a longer one is never sent */
@@ -77,7 +77,7 @@ static int check_channel(const char *file, int line, int col, const char *what, 
 static int check_url(const marie_node_t *at, const char *what, const char *url, marie_errors_t *errs)
 {
     char why[200];
-    if (marie_lcm_url_check(url, why, sizeof why) == 0)
+    if (marie_bus_url_check(url, why, sizeof why) == 0)
         return 0;
     marie_node_error(errs, at, "%s '%s': %s", what, url, why);
     return -1;

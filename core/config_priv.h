@@ -16,7 +16,4 @@ int marie_config_seconds_ok(const marie_node_t *n, const char *key, double value
  * "file:line:col: ..." in errs. */
 int marie_config_check(const marie_system_t *sys, marie_errors_t *errs);
 
-/* transports: {CHANNEL: {kind: shm|lcm, max_size: BYTES, slots: N}, ...} into sys. */
-int marie_config_read_transports(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs);
-
 #endif

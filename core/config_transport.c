@@ -1,6 +1,7 @@
-/* config_transport: the `transports:` section of a system file (docs/transport.md). */
-#include "core/config_priv.h"
+/* config_transport: the system file's `transports:`, which channels move to a provider of their own. */
+#include "core/config.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -12,8 +13,8 @@ const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, c
     return NULL;
 }
 
-/* transports: {CHANNEL: {kind: shm|lcm, max_size: BYTES, slots: N}, ...} */
-int marie_config_read_transports(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs)
+/* transports: {CHANNEL: {kind: shm|local|lcm, max_size: BYTES, slots: N}, ...} */
+int marie_transports_read(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs)
 {
     if (!n)
         return 0;
@@ -41,16 +42,18 @@ int marie_config_read_transports(const marie_node_t *n, marie_system_t *sys, mar
             rc = -1;
             continue;
         }
-        if (strcmp(kind, "shm") != 0 && strcmp(kind, "lcm") != 0) {
-            marie_node_error(errs, marie_node_get(t, "kind"), "transport of '%s': kind is shm or lcm, not '%s'",
+        if (strcmp(kind, "shm") != 0 && strcmp(kind, "local") != 0 && strcmp(kind, "lcm") != 0) {
+            marie_node_error(errs, marie_node_get(t, "kind"), "transport of '%s': kind is shm, local or lcm, not '%s'",
                              t->key, kind);
             rc = -1;
         } else if (max_size < 64 || max_size > (1LL << 30) || slots < 2 || slots > 1024) {
             marie_node_error(errs, t, "transport of '%s': max_size is 64 B to 1 GiB and slots 2 to 1024", t->key);
             rc = -1;
         } else {
-            sys->transports[sys->ntransports++] = (marie_transport_cfg_t){
-                strdup(t->key), strcmp(kind, "shm") == 0, (size_t)max_size, (int)slots, t->line, t->col};
+            marie_transport_cfg_t *tr = &sys->transports[sys->ntransports++];
+            *tr = (marie_transport_cfg_t){.channel = strdup(t->key), .shm = strcmp(kind, "lcm") != 0,
+                                          .max_size = (size_t)max_size, .slots = (int)slots, .line = t->line, .col = t->col};
+            snprintf(tr->kind, sizeof tr->kind, "%s", kind);
         }
     }
     return rc;

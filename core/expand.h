@@ -19,6 +19,13 @@ char *marie_expand_env(const char *in, char *why, size_t why_len);
  * check of a system file before its components start. 0, or -1 with why (errno EINVAL or ENOMEM). */
 int marie_expand_check(const char *in, char *const *extra, size_t nextra, char *why, size_t why_len);
 
+/* Launch arguments (marie up FILE -a name=value): every ${name} and ${name:-default} of `in`
+ * whose name is one of args ("name=value") becomes the value; every other ${...} is kept as it
+ * is, for the components' environment. used[i] (args' count, may be NULL) is set for each
+ * argument met. A new string the caller frees, or NULL with errno (EINVAL: an argument not
+ * name=value, explained in why; ENOMEM). */
+char *marie_expand_args(const char *in, char *const *args, size_t nargs, int *used, char *why, size_t why_len);
+
 #ifdef __cplusplus
 }
 #endif

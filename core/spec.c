@@ -12,7 +12,7 @@
 static const char *const type_names[] = {"int", "double", "bool", "string", "node"};
 
 /* NULL as null: a spec's optional text that is not given. */
-static void json_str(FILE *f, const char *s)
+void marie_spec_json_str(FILE *f, const char *s)
 {
     if (s)
         marie_json_fputs(f, s);
@@ -23,26 +23,26 @@ static void json_str(FILE *f, const char *s)
 void marie_spec_describe(const marie_component_def_t *def, FILE *out)
 {
     fprintf(out, "{\"describe\": \"%s\", \"kind\": ", MARIE_SPEC_MARKER);
-    json_str(out, def->kind);
+    marie_spec_json_str(out, def->kind);
     fputs(",\n \"ports\": [", out);
     for (const marie_port_spec_t *p = def->ports; p && p->name; p++) {
         fprintf(out, "%s\n  {\"name\": ", p == def->ports ? "" : ",");
-        json_str(out, p->name);
+        marie_spec_json_str(out, p->name);
         fprintf(out, ", \"dir\": \"%s\", \"mech\": \"%s\", \"type\": ", p->dir == MARIE_IN ? "in" : "out",
                 p->mech == MARIE_PUSH ? "push" : p->mech == MARIE_PULL ? "pull" : "event");
-        json_str(out, p->type ? p->type->name : NULL);
+        marie_spec_json_str(out, p->type ? p->type->name : NULL);
         fputs(", \"channel\": ", out);
-        json_str(out, p->channel);
+        marie_spec_json_str(out, p->channel);
         fputs("}", out);
     }
     fputs("],\n \"params\": [", out);
     for (const marie_param_spec_t *p = def->params; p && p->name; p++) {
         fprintf(out, "%s\n  {\"name\": ", p == def->params ? "" : ",");
-        json_str(out, p->name);
+        marie_spec_json_str(out, p->name);
         fprintf(out, ", \"type\": \"%s\", \"default\": ", type_names[p->type]);
-        json_str(out, p->def);
+        marie_spec_json_str(out, p->def);
         fputs(", \"help\": ", out);
-        json_str(out, p->help);
+        marie_spec_json_str(out, p->help);
         fputs("}", out);
     }
     fputs("]}\n", out);

@@ -3,10 +3,10 @@ MANAGERS_LIB := $(B)/lib/libmarie_managers.a
 $(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c managers/limits.c))
 
 # marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
-# am_check.c: an up order's program check in a child, am_limits.c: resource limits,
-# sdnotify.c: systemd's notify protocol) around the pure parts in the library (supervise.c,
-# limits.c).
-$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_balance.c managers/am_limits.c managers/sdnotify.c,$(MANAGERS_LIB)))
+# am_check.c: an up order's program check in a child, am_apply.c: an up of a changed system
+# applied as a difference, am_limits.c: resource limits, sdnotify.c: systemd's notify protocol)
+# around the pure parts in the library (supervise.c, limits.c).
+$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_apply.c managers/am_balance.c managers/am_limits.c managers/sdnotify.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.
@@ -29,14 +29,14 @@ $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_L
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 $(eval $(call marie_test,test_sdnotify,tests/managers/test_sdnotify.c managers/sdnotify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_am_spawn.sh tests/managers/test_up_check.sh tests/managers/test_up_refuses.sh tests/managers/test_limits.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
-ITESTS += tests/managers/test_balance.sh tests/managers/test_ps.sh tests/managers/test_sched.sh
+ITESTS += tests/managers/test_balance.sh tests/managers/test_ps.sh tests/managers/test_sched.sh tests/managers/test_up_apply.sh
 # Its two busy loops load both cores and a 0.3 s heartbeat must still get through: with a light
 # test beside them it saw false restarts, so it runs last in make test, alone.
 ALONE_TESTS += tests/managers/test_fast_detect.sh
 # make fuzz links only the listed sources: the generated decoders it needs are listed too.
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/logcap.c,))
 
-$(eval $(call marie_bench,bench_am,bench/bench_am.c,$(MANAGERS_LIB)))
+$(eval $(call marie_bench,bench_am,bench/bench_am.c tests/proc.c,$(MANAGERS_LIB)))
 
 # marie top: the live system in a terminal; its table model is a pure module, unit-tested.
 $(eval $(call marie_program,marie-top,managers/top_main.c managers/top.c,))
@@ -49,3 +49,4 @@ SLOW_TESTS += tests/managers/test_balance_loads.sh
 # (about 30 s; alone, not beside the other VMs, whose margins were measured without it).
 ITESTS += tests/managers/test_vm_limits.sh
 VMTESTS += tests/managers/test_vm_limits.sh
+ITESTS += tests/managers/test_doctor_readme.sh

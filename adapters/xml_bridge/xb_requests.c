@@ -100,7 +100,7 @@ static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     if (sub->nclients == 0)
         return;
     s->st.received++;
-    if ((size_t)rbuf->data_size > s->cfg.max_message) {
+    if (rbuf->data_size > s->cfg.max_message) {
         xb_bad_input(s, "oversized_message", "%s: %u bytes over the limit", channel, rbuf->data_size);
         return;
     }
@@ -165,7 +165,7 @@ static sub_t *sub_get(xb_server_t *s, const char *channel, const marie_typeinfo_
         re[k++] = *p;
     }
     re[k] = '\0';
-    u->ls = marie_lcm_subscribe(s->lcm, re, on_lcm, u);
+    u->ls = marie_bus_subscribe(s->lcm, re, on_lcm, u);
     if (!u->ls)
         goto fail;
     u->next = s->subs;
@@ -188,7 +188,7 @@ void xb_sub_release(xb_server_t *s, sub_t *u)
             *pp = u->next;
             break;
         }
-    marie_lcm_unsubscribe(s->lcm, u->ls);
+    marie_bus_unsubscribe(s->lcm, u->ls);
     free(u->channel);
     free(u->clients);
     free(u->stream);
@@ -358,12 +358,12 @@ void xb_publish_flush(xb_server_t *s)
     if (n == 0)
         return;
     s->npend = 0;               /* the failure replies below call this again */
-    marie_lcm_msg_t msgs[XB_BATCH_MSGS] = { 0 };
+    marie_bus_msg_t msgs[XB_BATCH_MSGS] = { 0 };
     int rc[XB_BATCH_MSGS];
     for (int i = 0; i < n; i++)
-        msgs[i] = (marie_lcm_msg_t){ s->batch.data + s->pend[i].channel, s->batch.data + s->pend[i].data,
+        msgs[i] = (marie_bus_msg_t){ s->batch.data + s->pend[i].channel, s->batch.data + s->pend[i].data,
                                      (unsigned)s->pend[i].len };
-    marie_lcm_publish_batch(s->lcm, msgs, n, rc);     /* one system call for the lot */
+    marie_bus_publish_batch(s->lcm, msgs, n, rc);     /* one system call for the lot */
     for (int i = 0; i < n; i++) {
         pend_t *m = &s->pend[i];
         const char *ch = s->batch.data + m->channel;
@@ -491,9 +491,10 @@ static void do_types(client_t *c, const xb_node_t *req)
     marie_buf_puts(b, "<types");
     put_attr(b, "id", xb_node_attr(req, "id"));
     marie_buf_puts(b, ">");
-    for (size_t i = 0; marie_typeinfos[i]; i++)
-        marie_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", marie_typeinfos[i]->name,
-                      (unsigned long long)marie_typeinfos[i]->fingerprint);
+    const marie_typeinfo_t *t;
+    for (size_t i = 0; (t = marie_typeinfo_at(i)); i++)
+        marie_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", t->name,
+                      (unsigned long long)t->fingerprint);
     marie_buf_puts(b, "</types>\n");
     xb_client_enqueue_text(c, b->data, b->len);
 }

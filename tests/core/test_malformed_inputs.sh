@@ -26,6 +26,8 @@ recipe() {
     marie-drives) echo "drives|--param can=emu:$OUT/can" ;;
     marie-gyro) echo "gyro|--param can=emu:$OUT/can" ;;
     marie-example-consumer) echo "consumer|" ;;
+    marie-example-consumer-py) echo "consumer_py|" ;;
+    marie-odometer-py) echo "odometer_py|" ;;
     marie-localizer) echo "localizer|--param map=sim/worlds/office.yaml --param init_x=2 --param init_y=15" ;;
     marie-mapper) echo "mapper|" ;;
     marie-explore) echo "explore|" ;;

@@ -13,7 +13,7 @@ import pathlib
 import sys
 
 import lcm
-import marie
+from lcmtypes import marie
 import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer

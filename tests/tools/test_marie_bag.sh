@@ -8,7 +8,7 @@
 OUT=$B/test-logs/marie_bag
 rm -rf "$OUT"; mkdir -p "$OUT"
 PY=$(scripts/peer-venv.sh) || { echo "[  FAILED  ] setup: peer venv"; exit 1; }
-W="env PYTHONPATH=$B/gen/bag-python $PY tests/tools/bag_roundtrip.py"
+W="env PYTHONPATH=$B/python $PY tests/tools/bag_roundtrip.py"
 trap stop_started EXIT
 
 setup "the demo runs" "$BIN/marie-demo" --quiet --out "$OUT/demo" --timeout 120
@@ -19,7 +19,7 @@ check "rosbags reads back every message, scans in limits or +inf" $W readback "$
 check "marie bag import brings them back" "$BIN/marie" bag import "$OUT/bag" "$OUT/back.lcm"
 check "export -> import: the same messages" $W same "$LOG" "$OUT/back.lcm"
 check "marie bag info: an MCAP bag" sh -c "'$BIN/marie' bag info '$OUT/bag' | grep -q '^  /scan  *sensor_msgs/msg/LaserScan  *[1-9][0-9]*$'"
-check "marie bag info: an LCM log" sh -c "'$BIN/marie' bag info '$LOG' | grep -q '^  LASER  *laser_scan_t'"
+check "marie bag info: an LCM log" sh -c "'$BIN/marie' bag info '$LOG' | grep -q '^  LASER  *marie.laser_scan_t  *[1-9][0-9]*$'"
 
 # A bag marie did not write, replayed into the localizer.
 setup "rosbags writes a sqlite3 bag" $W write "$LOG" "$OUT/rosbags_bag"

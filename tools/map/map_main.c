@@ -15,6 +15,7 @@
 #include "managers/am_proto.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
+#include "core/version.h"
 
 typedef struct {
     marie_occupancy_grid_t grid;
@@ -57,16 +58,18 @@ static char *url_with_buffer(const char *url)
     return u;
 }
 
-static int usage(void)
+static int usage_to(FILE *out, int status)
 {
-    fprintf(stderr, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
+    fprintf(out, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
                     "  writes NAME.yaml and NAME.pgm from the next map on the channel\n"
                     "       marie map compare BUILT.yaml WORLD.yaml [--start X Y]\n"
                     "  precision and recall of BUILT's occupied cells against WORLD's walls (within one\n"
                     "  cell), coverage of WORLD's free space reachable from (X, Y) (default 0 0);\n"
                     "  then the same after the best alignment within 0.5 m and 0.03 rad\n");
-    return MARIE_EXIT_USAGE;
+    return status;
 }
+
+static int usage(void) { return usage_to(stderr, MARIE_EXIT_USAGE); }
 
 static int write_map(const marie_occupancy_grid_t *g, const char *name)
 {
@@ -149,6 +152,10 @@ out:
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-map", argc, argv);
+    for (int i = 1; i < argc; i++)
+        if (strcmp(argv[i], "--help") == 0)
+            return usage_to(stdout, MARIE_EXIT_OK);
     const char *channel = "MAP", *name = NULL;
     const char *url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
     double wait_s = 6;          /* the mapper sends its map again every 5 s */
@@ -171,24 +178,24 @@ int main(int argc, char **argv)
     if (!name || !*name || !(wait_s > 0))
         return usage();
     char *u = url_with_buffer(url);
-    lcm_t *lcm = u ? lcm_create(u) : NULL;
+    lcm_t *lcm = u ? marie_bus_create(u) : NULL;
     free(u);
     if (!lcm) {
         fprintf(stderr, "marie: map save: cannot open the bus at %s\n", url);
         return MARIE_EXIT_FAIL;
     }
     mapsave_t s = { 0 };
-    marie_lcm_subscribe(lcm, channel, on_map, &s);
+    marie_bus_subscribe(lcm, channel, on_map, &s);
     marie_loop_t *loop = marie_loop_create();
-    if (!loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+    if (!loop || marie_loop_add_bus(loop, lcm, 1) < 0) {
         fprintf(stderr, "marie: map save: out of memory\n");
         marie_loop_destroy(loop);
-        lcm_destroy(lcm);
+        marie_bus_destroy(lcm);
         return MARIE_EXIT_FAIL;
     }
     marie_loop_run_until(loop, wait_s > 86400 ? 86400000 : (int)(wait_s * 1000), have_map, &s);
     marie_loop_destroy(loop);
-    lcm_destroy(lcm);
+    marie_bus_destroy(lcm);
     if (!s.have) {
         fprintf(stderr, "marie: map save: no map on %s within %.1f s%s\n", channel, wait_s,
                 s.bad ? " (malformed maps were refused)" : "");

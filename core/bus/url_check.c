@@ -1,6 +1,6 @@
-/* lcm_url: whether a bus URL is one liblcm opens, so that a system file's mistake is found
+/* url_check: whether a bus URL is one liblcm opens, so that a system file's mistake is found
  * before its components start (core/config_check.c). */
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -36,7 +36,7 @@ static int url_bad(char *why, size_t len, const char *reason)
     return -1;
 }
 
-int marie_lcm_url_check(const char *url, char *why, size_t len)
+int marie_bus_url_check(const char *url, char *why, size_t len)
 {
     static const char *const providers[] = {"udpm", "mpudpm", "tcpq", "file", "memq", NULL};
     const char *sep = strstr(url, "://");
