@@ -212,7 +212,7 @@ static void go(struct mg_connection *ws, int place, const char *name, double x, 
     rq.x = x;
     rq.y = y;
     char cmd[64];
-    int len = snprintf(cmd, sizeof cmd, "{\"op\":\"go\",\"place\":%d,\"pin\":\"1\"}", place);
+    int len = snprintf(cmd, sizeof cmd, "{\"op\":\"go\",\"place\":%d,\"pin\":\"1357\"}", place);
     rq.t0 = marie_mono_us();
     mg_websocket_client_write(ws, MG_WEBSOCKET_OPCODE_TEXT, cmd, (size_t)len);
 }
@@ -232,7 +232,7 @@ static void ms_rows(const char *what, int64_t *v, int n, bool max)
 /* The page, the server's signature and the mission's goal, 40 requests alternating 2 places. */
 static int mission_only(const char *keyp)
 {
-    spawn("marie-face", "--param", "http_port=8141", "--param", keyp, "--param", "pin=1", "--param",
+    spawn("marie-face", "--param", "http_port=8141", "--param", keyp, "--param", "pin=1357", "--param",
           "places=[{name: p0, x: 1, y: 1}, {name: p1, x: 2, y: 2}]", (char *)NULL);
     spawn("marie-mission", "--param", "sharedmap=false", "--param", keyp, "--param",
           "goals=[{name: waiting, x: 50, y: 50}]", (char *)NULL);
@@ -278,7 +278,7 @@ static int to_motor(const char *keyp)
     spawn("marie-behaviours", "--name", "behaviours", "--clock", "sim", "--param", "input_mode=pull", (char *)NULL);
     spawn("marie-mission", "--name", "mission", "--clock", "sim", "--param", "sharedmap=false", "--param", keyp,
           "--param", "tolerance=0.35", "--param", "goals=[{name: start, x: 2.0, y: 15.0}]", (char *)NULL);
-    spawn("marie-face", "--name", "face", "--param", "http_port=8142", "--param", keyp, "--param", "pin=1",
+    spawn("marie-face", "--name", "face", "--param", "http_port=8142", "--param", keyp, "--param", "pin=1357",
           "--param", "places=[{name: east, x: 4.5, y: 15.0}, {name: west, x: 2.0, y: 15.0}]", (char *)NULL);
     struct mg_connection *ws = ws_connect(8142);
     int64_t motor[TAPS], goal[TAPS], path[TAPS], wait[TAPS];

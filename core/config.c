@@ -1,6 +1,7 @@
 /* config: the system file model (components, profiles, restart policies, hashes) over the YAML tree. */
 #include "core/clear.h"
 #include "core/config.h"
+#include "core/config_priv.h"
 #include "core/typeinfo.h"
 
 #include <errno.h>
@@ -154,11 +155,7 @@ static int read_seconds(const marie_node_t *map, const char *key, double *out, m
         return 0;
     if (marie_node_double(n, out, errs) < 0)
         return -1;
-    if (*out < 0) {
-        marie_node_error(errs, n, "%s: must not be negative", key);
-        return -1;
-    }
-    return 0;
+    return marie_config_seconds_ok(n, key, *out, errs);
 }
 
 static int read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_errors_t *errs)
@@ -285,16 +282,16 @@ static int read_env(const marie_node_t *n, marie_component_cfg_t *c, marie_error
 
 static const char *const component_keys[] = {
     "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart",
-    "stop_timeout", "heartbeat_timeout", "depends", "sched", NULL,
+    "stop_timeout", "heartbeat_timeout", "depends", "sched", "limits", NULL,
 };
 
 /* ---- effective configuration and its hash ---- */
 
 enum { F_EXEC, F_ARGS, F_ENV, F_SHELL, F_HOST, F_GROUP, F_PORTS, F_PARAMS, F_RESTART, F_STOP_TIMEOUT,
-       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_SCHED, F_CLOCK, F_LCM_URL, F_AUTH, NFIELDS };
+       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_SCHED, F_CLOCK, F_LCM_URL, F_AUTH, F_LIMITS, NFIELDS };
 static const char *const field_names[NFIELDS] = {
     "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart", "stop_timeout",
-    "heartbeat_timeout", "depends", "sched", "clock", "lcm_url", "auth",
+    "heartbeat_timeout", "depends", "sched", "clock", "lcm_url", "auth", "limits",
 };
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
@@ -388,6 +385,7 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
             break;
         }
         case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
+        case F_LIMITS: fprintf(f, "%s", marie_limits_cfg_text(&c->limits, (char[128]){0}, 128)); break;
         }
         fputc(0, f);
     }
@@ -408,6 +406,8 @@ static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
     for (int i = 0; i < NFIELDS; i++) {
         char head[64];
         const char *t = buf ? buf + off[i] : "";
+        if (i == F_LIMITS && !*t)
+            continue;       /* no limits: the hash a component had before limits existed */
         int n = snprintf(head, sizeof head, "%s:%zu:", field_names[i], strlen(t));
         crypto_hash_sha256_update(&st, (const unsigned char *)head, (unsigned long long)n);
         crypto_hash_sha256_update(&st, (const unsigned char *)t, strlen(t));
@@ -493,6 +493,8 @@ static int read_component(const marie_node_t *n, const marie_system_t *sys, cons
     rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
     if ((v = marie_node_get(n, "sched")) && marie_sched_cfg_read(v, &c->sched, errs) < 0)
         rc = -1;
+    if ((v = marie_node_get(n, "limits")) && marie_limits_cfg_read(v, &c->limits, errs) < 0)
+        rc = -1;
     /* Simulated time does not need the CPU on time, and a simulation must run where real-time
      * scheduling is not allowed: on the simulator's clock the setting is checked, not applied. */
     if (sys->clock == MARIE_CLOCK_SIM && marie_sched_cfg_any(&c->sched)) {
@@ -556,46 +558,6 @@ static int profile_chain(const marie_node_t *root, const char *profile, const ma
             return -1;
     }
     return n;
-}
-
-/* Iterative depth-first search (a long dependency chain must not overflow the stack): a
- * dependency on a component still on the path closes a cycle. */
-static int find_cycle(const marie_system_t *sys, marie_errors_t *errs)
-{
-    size_t n = sys->ncomponents;
-    unsigned char *mark = calloc(n ? n : 1, 1);           /* 0 new, 1 on the path, 2 done */
-    size_t *stack = malloc((n ? n : 1) * sizeof *stack), *next = calloc(n ? n : 1, sizeof *next);
-    int rc = mark && stack && next ? 0 : -1;
-    for (size_t root = 0; rc == 0 && root < n; root++) {
-        if (mark[root])
-            continue;
-        size_t top = 0;
-        stack[top++] = root;
-        mark[root] = 1;
-        while (top && rc == 0) {
-            const marie_component_cfg_t *c = &sys->components[stack[top - 1]];
-            if (next[stack[top - 1]] == c->ndepends) {
-                mark[stack[--top]] = 2;
-                continue;
-            }
-            const marie_component_cfg_t *d = marie_system_component(sys, c->depends[next[stack[top - 1]]++]);
-            size_t j = d ? (size_t)(d - sys->components) : 0;
-            if (!d || mark[j] == 2)
-                continue;
-            if (mark[j] == 1) {
-                marie_errors_add(errs, d->file, d->line, d->col, "component '%s' is part of a dependency cycle",
-                                 d->name);
-                rc = -1;
-                break;
-            }
-            mark[j] = 1;
-            stack[top++] = j;
-        }
-    }
-    free(mark);
-    free(stack);
-    free(next);
-    return rc;
 }
 
 /* A profile's `params: {COMPONENT: {KEY: VALUE, ...}}` over a component's params: a new map
@@ -822,7 +784,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
         }
         hash_component(sys, c);
     }
-    if (rc == 0 && find_cycle(sys, errs) < 0)
+    if (rc == 0 && marie_config_check(sys, errs) < 0)
         rc = -1;
     if (rc || (errs && errs->n > errs_before))
         goto err;

@@ -98,6 +98,17 @@ typedef struct {
 
 #define MARIE_SCHED_MAX_CPU 1023    /* the highest CPU number a cpu_set_t holds */
 
+/* `limits:` of a component: what marie-am holds it to (docs/managers.md, "Resource limits"). The
+ * zero value asks for nothing. */
+typedef enum { MARIE_BREACH_RESTART = 0, MARIE_BREACH_STOP } marie_breach_t;
+
+typedef struct {
+    int64_t memory;             /* bytes; 0: none */
+    double cpu;                 /* cores; 0: none */
+    int64_t nofile;             /* open files; 0: none */
+    marie_breach_t on_breach;   /* what a breach does to it */
+} marie_limits_cfg_t;
+
 typedef struct {
     char *name;                 /* the component's port name */
     char *channel;
@@ -121,6 +132,7 @@ typedef struct {
     double heartbeat_timeout_s; /* not responding after this long without a heartbeat */
     marie_sched_cfg_t sched;    /* effective: nothing on the simulator's clock (then sched_sim) */
     bool sched_sim;             /* the file asks for a sched that the simulator's clock leaves out */
+    marie_limits_cfg_t limits;  /* resources it may use */
     char **depends; size_t ndepends;
     char hash[65];              /* sha256 hex of the effective configuration (every setting that
                                    changes how it runs, inherited ones resolved) */
@@ -193,6 +205,15 @@ bool marie_sched_cfg_any(const marie_sched_cfg_t *s);
 /* s as the file would say it, "fifo 44", "other cpus 1,3", "" when it asks for nothing: the
  * configuration hash's text and the words of messages. Returns out (cut to size). */
 const char *marie_sched_cfg_text(const marie_sched_cfg_t *s, char *out, size_t size);
+
+/* ---- limits (core/config_limits.c) ---- */
+/* Reads a `limits:` mapping ({memory: 256M, cpu: 0.5, nofile: 256, on_breach: restart|stop}).
+ * -1 with "file:line:col: ..." in errs; l is then empty. */
+int marie_limits_cfg_read(const marie_node_t *n, marie_limits_cfg_t *l, marie_errors_t *errs);
+bool marie_limits_cfg_any(const marie_limits_cfg_t *l);
+/* "memory 256M cpu 0.5 nofile 256" (and " on_breach stop"), "" for none: the configuration
+ * hash's text and what marie ps shows. Returns out. */
+const char *marie_limits_cfg_text(const marie_limits_cfg_t *l, char *out, size_t size);
 
 /* The default bus URL: LCM_DEFAULT_URL if set, else marie's (ttl=0, 8 MB receive buffer). */
 const char *marie_default_url(void);

@@ -26,8 +26,20 @@ static int append(char **buf, size_t *len, size_t *cap, const char *s, size_t n)
     return 0;
 }
 
+/* NAME's value among "NAME=value" (or bare "NAME": set, value unknown) entries, else the
+ * environment's; NULL when unset. */
+static const char *value_of(const char *name, char *const *extra, size_t nextra)
+{
+    size_t nl = strlen(name);
+    for (size_t i = 0; i < nextra; i++)
+        if (strncmp(extra[i], name, nl) == 0 && (extra[i][nl] == '=' || extra[i][nl] == 0))
+            return extra[i][nl] == '=' ? extra[i] + nl + 1 : "?";
+    return getenv(name);
+}
+
 /* One "${...}" whose inside is [p, end): its value, or NULL with why set. */
-static const char *lookup(const char *p, const char *end, size_t *vlen, char *why, size_t why_len)
+static const char *lookup(const char *p, const char *end, char *const *extra, size_t nextra, size_t *vlen,
+                          char *why, size_t why_len)
 {
     const char *sep = memmem(p, (size_t)(end - p), ":-", 2);
     size_t nlen = (size_t)((sep ? sep : end) - p);
@@ -38,7 +50,7 @@ static const char *lookup(const char *p, const char *end, size_t *vlen, char *wh
     }
     memcpy(name, p, nlen);
     name[nlen] = '\0';
-    const char *v = getenv(name);
+    const char *v = value_of(name, extra, nextra);
     if (v && *v) {
         *vlen = strlen(v);
         return v;
@@ -51,7 +63,7 @@ static const char *lookup(const char *p, const char *end, size_t *vlen, char *wh
     return NULL;
 }
 
-char *marie_expand_env(const char *in, char *why, size_t why_len)
+static char *expand(const char *in, char *const *extra, size_t nextra, char *why, size_t why_len)
 {
     char *buf = NULL;
     size_t len = 0, cap = 0;
@@ -70,7 +82,7 @@ char *marie_expand_env(const char *in, char *why, size_t why_len)
             goto err_inval;
         }
         size_t vlen = 0;
-        const char *v = lookup(d + 2, end, &vlen, why, why_len);
+        const char *v = lookup(d + 2, end, extra, nextra, &vlen, why, why_len);
         if (!v)
             goto err_inval;
         if (append(&buf, &len, &cap, p, (size_t)(d - p)) < 0 || append(&buf, &len, &cap, v, vlen) < 0)
@@ -84,6 +96,18 @@ err_inval:
 err_nomem:
     free(buf);
     return marie_fail_null(ENOMEM);
+}
+
+char *marie_expand_env(const char *in, char *why, size_t why_len)
+{
+    return expand(in, NULL, 0, why, why_len);
+}
+
+int marie_expand_check(const char *in, char *const *extra, size_t nextra, char *why, size_t why_len)
+{
+    char *out = expand(in, extra, nextra, why, why_len);
+    free(out);
+    return out ? 0 : -1;
 }
 
 /* The index of the argument named by the inside of a "${...}" [p, end), or -1. */

@@ -14,6 +14,11 @@ extern "C" {
  * or an unclosed "${", explained in why[why_len]; ENOMEM). */
 char *marie_expand_env(const char *in, char *why, size_t why_len);
 
+/* Whether `in` would expand where NAME may also come from `extra` ("NAME=value" entries, or a
+ * bare "NAME" for a variable known to be set there: what a manager gives every component): the
+ * check of a system file before its components start. 0, or -1 with why (errno EINVAL or ENOMEM). */
+int marie_expand_check(const char *in, char *const *extra, size_t nextra, char *why, size_t why_len);
+
 /* Launch arguments (marie up FILE -a name=value): every ${name} and ${name:-default} of `in`
  * whose name is one of args ("name=value") becomes the value; every other ${...} is kept as it
  * is, for the components' environment. used[i] (args' count, may be NULL) is set for each

@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/expand.h"
+
 static const char *const type_names[] = {"int", "double", "bool", "string", "node"};
 
 /* NULL as null: a spec's optional text that is not given. */
@@ -79,8 +81,32 @@ static const char *names_of(const marie_node_t *list)
     return buf;
 }
 
+/* What marie-am sets for every component it starts (docs/managers.md): set wherever it runs. */
+static char *const manager_env[] = {"MARIE_SYSTEM", "MARIE_NAME", "MARIE_HOST", "MARIE_PROFILE", "MARIE_STATE_DIR",
+                                    "MARIE_RUN_DIR"};
+
+/* A string the component expands (${NAME}) must expand where it runs: with the entry's env, what
+ * the manager sets, and the environment here. */
+static int check_expands(const marie_component_cfg_t *c, const marie_node_t *value, const char *name,
+                         const char *s, marie_errors_t *errs)
+{
+    size_t n = c->nenv + sizeof manager_env / sizeof manager_env[0];
+    char **env = strstr(s, "${") ? calloc(n, sizeof *env) : NULL;
+    if (!env)
+        return 0;
+    memcpy(env, c->env, c->nenv * sizeof *env);
+    memcpy(env + c->nenv, manager_env, sizeof manager_env);
+    char why[256] = "";
+    int rc = marie_expand_check(s, env, n, why, sizeof why);
+    free(env);
+    if (rc < 0)
+        marie_node_error(errs, value, "%s: %s (the component would refuse to start)", name, why);
+    return rc;
+}
+
 /* The value must read as the declared type; messages carry the parameter's name. */
-static int check_type(const marie_node_t *entry, marie_node_t *value, const char *name, marie_errors_t *errs)
+static int check_type(const marie_component_cfg_t *c, const marie_node_t *entry, marie_node_t *value,
+                      const char *name, marie_errors_t *errs)
 {
     const char *type = field(entry, "type");
     char *saved = value->key;
@@ -96,8 +122,8 @@ static int check_type(const marie_node_t *entry, marie_node_t *value, const char
         rc = marie_node_double(value, &d, errs);
     else if (type && strcmp(type, "bool") == 0)
         rc = marie_node_bool(value, &b, errs);
-    else if (type && strcmp(type, "string") == 0)
-        rc = marie_node_str(value, &s, errs);
+    else if (type && strcmp(type, "string") == 0 && (rc = marie_node_str(value, &s, errs)) == 0)
+        rc = check_expands(c, value, name, s, errs);
     value->key = saved;
     return rc;
 }
@@ -136,14 +162,20 @@ static int check_args(const marie_node_t *spec, const marie_component_cfg_t *c, 
             rc = -1;
             continue;
         }
-        if (is_port)
+        if (is_port) {
+            if (strlen(eq + 1) == 0 || strlen(eq + 1) > 63) {
+                marie_errors_add(errs, file, line, col, "args: --port %.*s: channel of %zu bytes (1 to 63: LCM "
+                                 "sends no longer name)", (int)(eq - kv), kv, strlen(eq + 1));
+                rc = -1;
+            }
             continue;
+        }
         char label[256];
         snprintf(label, sizeof label, "%s:%d:%d: args --param %.*s", file, line, col, (int)(eq - kv), kv);
         marie_doc_t *d = marie_doc_parse(label, eq + 1, strlen(eq + 1), errs);
         char name[128];
         snprintf(name, sizeof name, "%.*s", (int)(eq - kv), kv);
-        if (!d || check_type(e, (marie_node_t *)marie_doc_root(d), name, errs) < 0)
+        if (!d || check_type(c, e, (marie_node_t *)marie_doc_root(d), name, errs) < 0)
             rc = -1;
         marie_doc_destroy(d);
     }
@@ -174,7 +206,7 @@ static int check_params(const marie_node_t *spec, const marie_component_cfg_t *c
             marie_errors_add(errs, g->file, g->key_line, g->key_col, "unknown parameter '%s' for %s '%s' (known: %s)",
                              g->key, kind, c->name, names_of(params));
             rc = -1;
-        } else if (check_type(e, g, g->key, errs) < 0) {
+        } else if (check_type(c, e, g, g->key, errs) < 0) {
             rc = -1;
         }
     }
@@ -232,4 +264,90 @@ bool marie_spec_valid(const marie_node_t *spec)
 {
     const char *m = field(spec, "describe");
     return spec && spec->kind == MARIE_NODE_MAP && m && strcmp(m, MARIE_SPEC_MARKER) == 0;
+}
+
+/* ---- one type per channel, across components ---- */
+
+typedef struct {
+    const char *channel, *type, *port;
+    const marie_component_cfg_t *c;
+    bool out;
+    int line, col;
+} use_t;
+
+/* Where port `name` of c is bound: its ports entry, a --port in its args, else the program's
+ * default; position of the binding (the component's when it is the default). */
+static const char *bound_channel(const marie_component_cfg_t *c, const char *name, const char *def, int *line,
+                                 int *col)
+{
+    *line = c->line;
+    *col = c->col;
+    for (size_t k = 0; k < c->nports; k++)
+        if (strcmp(c->ports[k].name, name) == 0) {
+            *line = c->ports[k].line;
+            *col = c->ports[k].col;
+            return c->ports[k].channel;
+        }
+    size_t nl = strlen(name);
+    const char *found = def;
+    for (size_t i = 0; i < c->nargs; i++) {
+        const char *kv = arg_value(c->args, c->nargs, &i, "port");
+        const marie_node_t *at = marie_node_get(c->node, "args");
+        if (kv && strncmp(kv, name, nl) == 0 && kv[nl] == '=') {
+            found = kv + nl + 1;
+            *line = at ? at->line : c->line;
+            *col = at ? at->col : c->col;
+        }
+    }
+    return found;
+}
+
+/* The typed ports of comp, with their channels, appended to *uses. */
+static int collect_uses(const marie_node_t *spec, const marie_component_cfg_t *c, use_t **uses, size_t *n,
+                        size_t *cap)
+{
+    const marie_node_t *ports = marie_node_get(spec, "ports");
+    for (size_t i = 0; ports && ports->kind == MARIE_NODE_SEQ && i < ports->n; i++) {
+        const marie_node_t *p = ports->items[i];
+        const char *name = field(p, "name"), *type = field(p, "type"), *dir = field(p, "dir");
+        use_t u = {.port = name, .type = type, .c = c, .out = dir && strcmp(dir, "out") == 0};
+        if (!name || !type || !(u.channel = bound_channel(c, name, field(p, "channel"), &u.line, &u.col)))
+            continue;
+        if (*n == *cap) {
+            use_t *m = realloc(*uses, (*cap = *cap ? 2 * *cap : 64) * sizeof *m);
+            if (!m)
+                return -1;
+            *uses = m;
+        }
+        (*uses)[(*n)++] = u;
+    }
+    return 0;
+}
+
+int marie_spec_check_channels(const marie_node_t *const *spec, const marie_component_cfg_t *const *comp, size_t n,
+                              marie_errors_t *errs)
+{
+    use_t *u = NULL;
+    size_t nu = 0, cap = 0;
+    int rc = 0;
+    for (size_t i = 0; i < n && rc == 0; i++)
+        if (spec[i])
+            rc = collect_uses(spec[i], comp[i], &u, &nu, &cap);
+    bool bad = false;
+    for (size_t i = 0; rc == 0 && i < nu; i++) {
+        /* the type the channel carries: its first output's, else its first input's */
+        const use_t *ref = NULL;
+        for (size_t k = 0; k < nu && !(ref && ref->out); k++)
+            if (strcmp(u[k].channel, u[i].channel) == 0 && (!ref || u[k].out))
+                ref = &u[k];
+        if (ref == &u[i] || strcmp(ref->type, u[i].type) == 0)
+            continue;
+        marie_errors_add(errs, u[i].c->file, u[i].line, u[i].col, "channel '%s': port '%s' of '%s' %s %s, but port "
+                         "'%s' of '%s' (line %d) %s %s", u[i].channel, u[i].port, u[i].c->name,
+                         u[i].out ? "publishes" : "reads", u[i].type, ref->port, ref->c->name, ref->line,
+                         ref->out ? "publishes" : "reads", ref->type);
+        bad = true;
+    }
+    free(u);
+    return rc || bad ? -1 : 0;
 }

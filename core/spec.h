@@ -41,6 +41,13 @@ bool marie_spec_valid(const marie_node_t *spec);
  * parameters, unbound ports. 0, or -1 with file:line:col messages added to errs. */
 int marie_spec_check(const marie_node_t *spec, const marie_component_cfg_t *c, marie_errors_t *errs);
 
+/* Across components (spec[i] describes comp[i]'s program; NULL: not a marie component): every
+ * channel carries one type. Two outputs of different types on one channel, or an input bound to
+ * a channel whose outputs (or other inputs) have another type, are errors at the binding, which
+ * name the other port and its component. Ports of no declared type (raw) are left out. */
+int marie_spec_check_channels(const marie_node_t *const *spec, const marie_component_cfg_t *const *comp, size_t n,
+                              marie_errors_t *errs);
+
 #ifdef __cplusplus
 }
 #endif

@@ -96,6 +96,7 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     am_t *am = user;
     am_balance_tick(am);
     am_check_heartbeats(am);
+    am_limits_tick(am);
     am_arm_heartbeat_check(am);
     am_progress_stops(am);
     am_try_start_waiting(am);
@@ -428,6 +429,7 @@ out_lcm:
     marie_bus_destroy(am->lcm);
 out_loop:
     am_comps_free(am);
+    am_limits_free(am);
     marie_loop_destroy(am->loop);
     marie_spawner_destroy(am->spawner);
     balance_destroy(am->bal);

@@ -17,6 +17,7 @@
 #include "core/time.h"
 #include "managers/am_proto.h"
 #include "managers/balance.h"
+#include "managers/limits.h"
 #include "managers/logcap.h"
 #include "managers/spawn.h"
 #include "managers/supervise.h"
@@ -50,6 +51,14 @@ struct comp {
     marie_ratelimit_t rl;
     int64_t drops_pending, drops_total, log_seq;
     marie_logfile_t *logf;
+    /* resource limits (am_limits.c) */
+    struct {
+        marie_limit_watch_t w;
+        int64_t next_us;            /* the next look at what it uses */
+        int breaches;
+        bool in_cgroup;             /* this instance runs in its cgroup, under the kernel's limits */
+        char *cgroup;               /* its cgroup directory; NULL: none */
+    } lim;
 };
 
 struct am {
@@ -103,6 +112,7 @@ struct am {
     char bal_last[sizeof ((balance_move_t *)0)->reason]; /* its last decision, in the status */
     int64_t adopt_until;        /* a returning manager learns the placement before it starts */
     struct am_check *check;     /* an up order's programs being checked (am_check.c), or NULL */
+    struct am_limits *limits;   /* how components' limits are held (am_limits.c), or NULL */
     struct am_loading *applying;/* an up order's changed system, installed once the components it
                                  * changes or drops have exited (am_apply.c), or NULL */
 };
@@ -188,6 +198,16 @@ int am_check_start(am_t *am, am_loading_t *l, am_check_done_t done, void *user);
 bool am_check_busy(const am_t *am);
 /* Ends a check under way: its child is killed and done runs with ok false and `why`. */
 void am_check_cancel(am_t *am, const char *why);
+
+/* am_limits.c: components held to their limits: a cgroup v2 where marie-am may make one, the
+ * open-file rlimit, and marie-am's own watch */
+void am_limits_prepare(comp_t *c, int *cgroup_fd, long *nofile);   /* before a spawn (the request's fields) */
+void am_limits_spawned(comp_t *c, int cgroup_fd);                  /* after it, whatever came of it */
+void am_limits_tick(am_t *am);
+void am_limits_exited(comp_t *c);                                   /* before the exit is handled */
+const char *am_limits_text(const comp_t *c, char *out, size_t len); /* for the status; "" without */
+void am_limits_comp_free(comp_t *c);
+void am_limits_free(am_t *am);
 
 /* am_apply.c: an up order of a changed system while components run (one at a time) */
 bool am_any_running(const am_t *am);

@@ -300,8 +300,10 @@ static void comp_spawn(comp_t *c)
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
         .sched = &cfg->sched, .refused = &refused,
     };
+    am_limits_prepare(c, &req.cgroup_fd, &req.nofile);
     pid_t pid = marie_spawn(am->spawner, &req);
     free(prog);
+    am_limits_spawned(c, req.cgroup_fd);
     if (pid < 0) {
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: spawn: %s", cfg->name, strerror(errno));
         goto fail;
@@ -471,6 +473,7 @@ static void comp_exited(comp_t *c, int status)
             outpipe_close(&c->out[i]);
     /* leftovers of the process group (shell children) go with their leader */
     kill(-old, SIGKILL);
+    am_limits_exited(c);
     marie_sv_state_t before = c->sv.st;
     marie_sv_action_t act;
     marie_sv_exited(&c->sv, status, am_now_us(), &act);

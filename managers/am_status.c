@@ -61,8 +61,8 @@ void am_publish_status(am_t *am, bool sample)
     int64_t now = am_now_us();
     marie_am_status_t st = {0};
     marie_am_component_status_t *cs = calloc(am->ncomps ? am->ncomps : 1, sizeof *cs);
-    char **states = calloc(am->ncomps ? am->ncomps : 1, sizeof *states);
-    if (!cs || !states)
+    char (*limits)[160] = calloc(am->ncomps ? am->ncomps : 1, sizeof *limits);
+    if (!cs || !limits)
         goto out;
     int n = 0;
     for (size_t i = 0; i < am->ncomps; i++) {
@@ -97,6 +97,8 @@ void am_publish_status(am_t *am, bool sample)
         s->heartbeat_age_us = c->sv.pid > 0 && c->sv.hb_us ? now - c->sv.hb_us : -1;
         s->config_hash = (char *)c->cfg->hash;
         s->log_drops = c->drops_total;
+        s->limits = (char *)am_limits_text(c, limits[n - 1], sizeof limits[0]);
+        s->limit_breaches = c->lim.breaches;
     }
     if (sample) {
         int64_t cpu_us, rss;
@@ -134,7 +136,7 @@ void am_publish_status(am_t *am, bool sample)
     }
     marie_bus_publish_msg(am->lcm, MARIE_CH_AM_STATUS, &marie_type_am_status_t, &st);
 out:
-    free(states);
+    free(limits);
     free(cs);
 }
 

@@ -105,6 +105,7 @@ static void comps_free(comp_t *comps, size_t n)
         free(c->out[0].lb);
         free(c->out[1].lb);
         marie_logfile_close(c->logf);
+        am_limits_comp_free(c);
     }
     free(comps);
 }
@@ -364,6 +365,8 @@ void am_apply_move(am_t *am, comp_t *c, const char *host)
 {
     if (am->bal)
         balance_placed(am->bal, c->cfg->name, host, am_now_us());
+    if (strcmp(c->host, host) == 0)
+        return;     /* placed where it runs: the same instance, watched as before */
     bool was_local = c->sv.local;
     marie_sv_state_t before = c->sv.st;
     marie_sv_action_t act;

@@ -304,6 +304,8 @@ int send_order(cli_t *cli, int op, char **targets, int ntargets, const char *arg
             fprintf(stderr, "marie: %s: %s\n", r->host, r->reason);
             if (strstr(r->reason, "refused: ") == r->reason)
                 rc = MARIE_EXIT_AUTH;
+            else if (strstr(r->reason, "system file refused:") == r->reason && rc != MARIE_EXIT_AUTH)
+                rc = MARIE_EXIT_USAGE;   /* its file:line:col, as a check here would have said */
             else if (rc == MARIE_EXIT_OK)
                 rc = MARIE_EXIT_FAIL;
         }

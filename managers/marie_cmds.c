@@ -250,8 +250,8 @@ static int print_ps(cli_t *cli, int64_t lost_us)
     if (cli->json)
         printf("{\"hosts\":[");
     else
-        printf("%-12s %-20s %-9s %7s %8s %4s %6s %7s\n", "HOST", "COMPONENT", "STATE", "PID", "UPTIME",
-               "RST", "CPU%", "RSS");
+        printf("%-12s %-20s %-9s %7s %8s %4s %6s %7s  %s\n", "HOST", "COMPONENT", "STATE", "PID", "UPTIME",
+               "RST", "CPU%", "RSS", "LIMITS");
     for (int i = 0; i < cli->nexpect; i++) {
         host_t *h = host_get(cli, cli->expect[i], false);
         bool is_lost = !h || !h->st || now - h->recv_mono > lost_us;
@@ -290,7 +290,9 @@ static int print_ps(cli_t *cli, int64_t lost_us)
                        c->comp_state, c->pid, (long long)c->uptime_us, c->restarts, c->last_exit, c->cpu,
                        (long long)c->rss, (long long)c->heartbeat_age_us, (long long)c->log_drops);
                 marie_json_fputs(stdout, c->config_hash);
-                printf("}");
+                printf(",\"limits\":");
+                marie_json_fputs(stdout, c->limits);
+                printf(",\"limit_breaches\":%d}", c->limit_breaches);
             }
             printf("]}");
             continue;
@@ -309,8 +311,13 @@ static int print_ps(cli_t *cli, int64_t lost_us)
             fmt_bytes(c->rss, rss, sizeof rss);
             snprintf(pid, sizeof pid, c->pid ? "%d" : "-", c->pid);
             snprintf(cpu, sizeof cpu, c->pid ? "%.1f" : "-", c->cpu);
-            printf("%-12s %-20s %-9s %7s %8s %4d %6s %7s\n", st->host, c->name, c->state, pid, up, c->restarts,
-                   cpu, rss);
+            char lim[200] = "";
+            if (c->limits[0])
+                snprintf(lim, sizeof lim, "  %s%s", c->limits, c->limit_breaches ? ", breached " : "");
+            if (c->limit_breaches)
+                snprintf(lim + strlen(lim), sizeof lim - strlen(lim), "%d", c->limit_breaches);
+            printf("%-12s %-20s %-9s %7s %8s %4d %6s %7s%s\n", st->host, c->name, c->state, pid, up, c->restarts,
+                   cpu, rss, lim);
         }
     }
     if (cli->json) {

@@ -393,7 +393,10 @@ static int describe(marie_progcheck_t *p, const char *path, const marie_componen
     return 0;
 }
 
-static int check_one(marie_progcheck_t *p, const marie_component_cfg_t *c, marie_errors_t *errs)
+/* c's program exists and its entry fits the program's description, kept in *spec (NULL when the
+ * program is not a marie component or could not be described). */
+static int check_one(marie_progcheck_t *p, const marie_component_cfg_t *c, const marie_node_t **spec_out,
+                     marie_errors_t *errs)
 {
     const marie_node_t *en = marie_node_get(c->node, "exec");
     const char *file = c->file;
@@ -426,6 +429,7 @@ static int check_one(marie_progcheck_t *p, const marie_component_cfg_t *c, marie
             rc = -1;
         } else if (spec) {
             rc = marie_spec_check(spec, c, errs);
+            *spec_out = spec;
         }
     }
     free(path);
@@ -435,15 +439,29 @@ static int check_one(marie_progcheck_t *p, const marie_component_cfg_t *c, marie
 int marie_progcheck_system(marie_progcheck_t *p, const marie_system_t *sys, const char *only_host,
                            const char *fallback_host, marie_errors_t *errs)
 {
+    size_t n = sys->ncomponents ? sys->ncomponents : 1;
+    const marie_node_t **specs = calloc(n, sizeof *specs);
+    const marie_component_cfg_t **comps = calloc(n, sizeof *comps);
     int rc = 0;
+    if (!specs || !comps) {
+        free(specs);
+        free(comps);
+        marie_errors_add(errs, sys->file, 0, 0, "out of memory");
+        return -1;
+    }
     for (size_t i = 0; i < sys->ncomponents; i++) {
-        const marie_component_cfg_t *c = &sys->components[i];
+        const marie_component_cfg_t *c = comps[i] = &sys->components[i];
         if (c->shell || !c->exec)
             continue;     /* a shell command is the shell's business */
         if (only_host && strcmp(marie_am_component_host(sys, c, fallback_host), only_host) != 0)
             continue;
-        rc |= check_one(p, c, errs);
+        rc |= check_one(p, c, &specs[i], errs);
     }
+    /* Each channel carries one type: what one component publishes, the others read. */
+    if (marie_spec_check_channels(specs, comps, sys->ncomponents, errs) < 0)
+        rc = -1;
+    free(specs);
+    free(comps);
     return rc;
 }
 

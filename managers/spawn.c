@@ -29,6 +29,7 @@
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -56,6 +57,8 @@ typedef struct child {
     bool raw;                   /* shared, the caller not waiting: calls that fail go around glibc */
     bool script;                /* execvpe's way: a file without #! runs through /bin/sh */
     int null_fd, out_fd, err_fd;
+    int cgroup_fd;              /* > 0: the child writes "0" (itself) to it before its exec */
+    long nofile;                /* > 0: its RLIMIT_NOFILE */
     pid_t parent;
     const char *path;           /* NULL: execvpe(argv[0]) (not raw) */
     const char *who;
@@ -82,6 +85,29 @@ CHILD static long raw3(long nr, long a, long b, long c)
     return r;
 }
 #endif
+
+/* A system call that may fail, around glibc in a raw child (errno is the caller's thread's). */
+CHILD static long child_sys(const child_t *c, long nr, long a, long b, long d)
+{
+#if SPAWN_RAW
+    if (c->raw)
+        return raw3(nr, a, b, d);
+#endif
+    return syscall(nr, a, b, d);
+}
+
+/* Its limits, set in the child so that it never runs without them: its cgroup (the caller
+ * made it and set its limits) and its open-file limit. A failure leaves the child as it is: the
+ * caller checks where it landed (am_limits.c). */
+CHILD static void child_limits(const child_t *c)
+{
+    if (c->cgroup_fd > 0)
+        child_sys(c, SYS_write, c->cgroup_fd, (long)"0", 1);
+    if (c->nofile > 0) {
+        struct rlimit rl = {(rlim_t)c->nofile, (rlim_t)c->nofile};
+        child_sys(c, SYS_setrlimit, RLIMIT_NOFILE, (long)&rl, 0);
+    }
+}
 
 /* execve: returns the errno of its failure. */
 CHILD static int child_execve(const child_t *c, const char *path, char *const *argv)
@@ -176,6 +202,7 @@ CHILD static int child_main(void *arg)
         dup2(c->null_fd, 0);
     dup2(c->out_fd, 1);
     dup2(c->err_fd, 2);
+    child_limits(c);
     sigset_t none;
     sigemptyset(&none);
     sigprocmask(SIG_SETMASK, &none, NULL);
@@ -330,6 +357,8 @@ static child_t *child_new(const marie_spawner_t *s, const marie_spawn_req_t *req
     c->null_fd = s->null_fd;
     c->out_fd = req->out_fd;
     c->err_fd = req->err_fd;
+    c->cgroup_fd = req->cgroup_fd;
+    c->nofile = req->nofile;
     c->parent = getpid();
     /* execvpe's ways without it: a name with '/' is executed as is, then through /bin/sh if
      * it has no #!; a bare name is searched in PATH, by execvpe itself */

@@ -30,6 +30,10 @@ typedef struct {
     const char *who;            /* a failed exec writes "WHO: exec ARGV0: REASON" to err_fd */
     const marie_sched_cfg_t *sched;     /* the child's policy, priority and CPUs; NULL: the caller's */
     marie_spawn_refused_t *refused;     /* written by marie_spawn when not NULL */
+    int cgroup_fd;              /* an open cgroup.procs the child moves itself into before its
+                                 * exec (so it runs in that cgroup from its first instruction);
+                                 * < 0: the caller's cgroup. 0 is taken as none: set it */
+    long nofile;                /* the child's RLIMIT_NOFILE (soft and hard), set before its exec; 0: the caller's */
 } marie_spawn_req_t;
 
 /* NULL with errno on failure. */

@@ -132,6 +132,8 @@ void marie_sv_set_local(marie_sv_t *sv, bool local, bool up, marie_sv_action_t *
 {
     act_clear(act);
     bool was_local = sv->local;
+    if (was_local && local)
+        return;     /* the instance running here goes on: its heartbeats are still its own */
     sv->local = local;
     sv->hb_us = 0;
     sv->hb_state = -1;
@@ -322,6 +324,17 @@ void marie_sv_timer(marie_sv_t *sv, marie_sv_action_t *act)
                   sv->cfg->name, sv->cfg->stop_timeout_s);
         act->what |= MARIE_SV_KILL;
     }
+}
+
+void marie_sv_breach(marie_sv_t *sv, bool stop, marie_sv_action_t *act)
+{
+    act_clear(act);
+    if (stop)
+        sv->wanted = false;
+    if (sv->pid <= 0 || sv->st == MARIE_SV_STOPPING)
+        return;
+    sv->count_failure = true;
+    sv_stop(sv, !stop, act);
 }
 
 int64_t marie_sv_heartbeat_deadline(const marie_sv_t *sv)

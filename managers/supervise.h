@@ -88,7 +88,9 @@ void marie_sv_restart(marie_sv_t *sv, marie_sv_action_t *act);
 void marie_sv_stop_later(marie_sv_t *sv, int64_t now, marie_sv_action_t *act);
 /* A pending stop goes ahead once no dependent is alive, or stop_timeout + 2 s later. */
 void marie_sv_progress_stop(marie_sv_t *sv, bool dependents_alive, int64_t now, marie_sv_action_t *act);
-/* The component moved to another host, or here. */
+/* The component moved to another host, or here. A move to this host while it is already
+ * here changes nothing: its liveness stays that of the instance that runs (the caller does
+ * not call this for a move between two other hosts that leaves its host as it was). */
 void marie_sv_set_local(marie_sv_t *sv, bool local, bool up, marie_sv_action_t *act);
 
 /* Dependencies are ready: a waiting component asks to be spawned. */
@@ -103,6 +105,10 @@ void marie_sv_heartbeat(marie_sv_t *sv, int state, const char *reason, int64_t n
 bool marie_sv_peer_status(marie_sv_t *sv, bool running, int64_t now);
 /* The timer armed with timer_s fired. */
 void marie_sv_timer(marie_sv_t *sv, marie_sv_action_t *act);
+/* The component broke its limits (limits.h): a failure. A live one gets the stop signal and is
+ * started again as after any failure, unless stop: then it is not wanted any more (and one the
+ * kernel already killed is not started again). */
+void marie_sv_breach(marie_sv_t *sv, bool stop, marie_sv_action_t *act);
 /* Periodic: a live component silent for heartbeat_timeout is restarted. */
 void marie_sv_check_heartbeat(marie_sv_t *sv, int64_t now, marie_sv_action_t *act);
 /* When marie_sv_check_heartbeat() would find it silent too long if nothing came (INT64_MAX:

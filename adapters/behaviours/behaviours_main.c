@@ -353,6 +353,14 @@ static void quit(marie_component_t *c)
     b->path_cap = b->ranges_cap = b->npath = b->nranges = 0;
 }
 
+/* With the immediate e-stop on the e-stop's own channel (the default binding), its push port
+ * already stores every e-stop message: a second subscription would take (and count) each twice. */
+static bool estop_pushed(marie_component_t *c)
+{
+    return params_of(c)->estop_immediate &&
+           strcmp(marie_port_channel(marie_port(c, "estop")), marie_port_channel(marie_port(c, "estop_now"))) == 0;
+}
+
 static int init(marie_component_t *c)
 {
     beh_t *b = marie_component_user(c);
@@ -397,7 +405,7 @@ static int init(marie_component_t *c)
     }
     if (!b->pull) {
         for (int i = 0; i < IN_PULLED; i++) {
-            if (b->in[i].sub)
+            if (b->in[i].sub || (i == IN_ESTOP && estop_pushed(c)))
                 continue;
             b->in[i].sub = marie_bus_subscribe(marie_component_lcm(c), marie_port_channel(marie_port(c, in_ports[i])),
                                          on_raw, &b->in[i]);

@@ -654,7 +654,13 @@ int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, marie_buf
     if (decode_struct(&d, t, 0) < 0)
         goto fail;
     if (d.pos != d.len) {
-        /* LCM ignores trailing bytes too; they are tolerated but not carried. */
+        xb_error_set(err, "bad-message", "%s: %zu bytes after the end of the message", t->name, d.len - d.pos);
+        goto fail;
+    }
+    /* The verdict components get from marie_decode_checked: what they refuse is not passed on. */
+    if (marie_typeinfo_check(t, data, len) < 0) {
+        xb_error_set(err, "bad-message", "%s: not a well-formed message", t->name);
+        goto fail;
     }
     return 0;
 fail:

@@ -25,8 +25,10 @@ int xb_escape(marie_buf_t *b, const char *s, size_t len);
 int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, marie_buf_t *out, xb_error_t *err);
 
 /* Appends the fields of the LCM payload `data` (fingerprint first) as XML child elements.
- * Returns 0, or -1 with err set (bad-fingerprint, bad-message, too-large). On failure the
- * buffer is left at its length on entry. */
+ * A payload that components would refuse (marie_typeinfo_check, what marie_decode_checked
+ * applies: trailing bytes included) is refused too. Returns 0, or -1 with err set
+ * (bad-fingerprint, bad-message, too-large). On failure the buffer is left at its length on
+ * entry. */
 int xb_decode(const marie_typeinfo_t *t, const void *data, size_t len, marie_buf_t *out, xb_error_t *err);
 
 /* The value syntax of one scalar: integers in decimal, booleans true/false/1/0, reals as

@@ -80,6 +80,19 @@ static int format_message(xb_server_t *s, const sub_t *sub, const char *channel,
 
 /* ---- subscriptions ---- */
 
+/* The newest well-formed payload, for pull. */
+static void keep_latest(sub_t *sub, const lcm_recv_buf_t *rbuf)
+{
+    char *copy = realloc(sub->latest, rbuf->data_size ? rbuf->data_size : 1);
+    if (!copy)
+        return;
+    memcpy(copy, rbuf->data, rbuf->data_size);
+    sub->latest = copy;
+    sub->latest_len = rbuf->data_size;
+    sub->latest_utime = rbuf->recv_utime;
+    sub->has_latest = 1;
+}
+
 static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     sub_t *sub = user;
@@ -91,20 +104,21 @@ static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
         xb_bad_input(s, "oversized_message", "%s: %u bytes over the limit", channel, rbuf->data_size);
         return;
     }
-    char *copy = realloc(sub->latest, rbuf->data_size ? rbuf->data_size : 1);
-    if (!copy)
-        return;
-    memcpy(copy, rbuf->data, rbuf->data_size);
-    sub->latest = copy;
-    sub->latest_len = rbuf->data_size;
-    sub->latest_utime = rbuf->recv_utime;
-    sub->has_latest = 1;
-    if (sub->nstream == 0)
-        return;
     xb_error_t err;
-    if (format_message(s, sub, channel, rbuf->data, rbuf->data_size, rbuf->recv_utime, NULL, &err) < 0) {
+    if (sub->nstream == 0) {
+        /* Kept for pull only: a message components would refuse never becomes the latest. */
+        if (marie_typeinfo_check(sub->type, rbuf->data, rbuf->data_size) < 0) {
+            xb_bad_input(s, "bad_lcm_message", "%s: not a well-formed %s (%u bytes)", channel, sub->type->name,
+                         rbuf->data_size);
+            return;
+        }
+        keep_latest(sub, rbuf);
+        return;
+    }
+    if (format_message(s, sub, channel, rbuf->data, rbuf->data_size, rbuf->recv_utime, NULL, &err) == 0) {
+        keep_latest(sub, rbuf);
+    } else {
         xb_bad_input(s, "bad_lcm_message", "%s: %s", channel, err.reason);
-        sub->has_latest = 0;
         marie_buf_t *b = &s->out;
         b->len = 0;
         marie_buf_puts(b, "<error");
@@ -520,6 +534,7 @@ void xb_on_document(void *user, xb_node_t *req)
     client_t *c = user;
     xb_server_t *s = c->s;
     s->st.documents++;
+    c->active_us = marie_mono_us();
     if (c->dead || c->closing_since)
         return;
     const char *op = req->name;

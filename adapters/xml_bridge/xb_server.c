@@ -38,6 +38,8 @@ int xb_server_cfg_check(const xb_server_cfg_t *c, char *why, size_t len)
     if (c->queue_bytes < 1 || c->max_message < 1 || c->max_message > INT32_MAX || c->sndbuf < 0 ||
         c->sndbuf > INT32_MAX)
         return marie_fail_why(why, len, "queue_bytes and max_message at least 1, sndbuf not negative");
+    if (c->idle_s < 0 || c->evict_idle_ms < 0 || c->max_per_address < 0)
+        return marie_fail_why(why, len, "idle_s, evict_idle_ms and max_per_address not negative");
     return 0;
 }
 
@@ -90,7 +92,7 @@ static void client_close(client_t *c)
 }
 
 /* Tells the client why, stops reading, and closes once the reply is written (or soon). */
-static void client_fail(client_t *c, const char *code, const char *reason)
+static void client_end(client_t *c, const char *code, const char *reason)
 {
     if (c->closing_since)
         return;
@@ -99,9 +101,16 @@ static void client_fail(client_t *c, const char *code, const char *reason)
     MARIE_CLEAR(c->parser, xb_doc_parser_destroy);
     charge(c);
     c->closing_since = marie_mono_us();
-    c->s->st.closed_bad++;
     c->want_out = -1;           /* force the loop's update */
     xb_client_set_out(c, 1);
+}
+
+/* client_end for a bad stream or a stall. */
+static void client_fail(client_t *c, const char *code, const char *reason)
+{
+    if (!c->closing_since)
+        c->s->st.closed_bad++;
+    client_end(c, code, reason);
 }
 
 /* Over budget, the clients holding the most for unfinished documents are closed, largest
@@ -182,24 +191,103 @@ static void on_client(marie_loop_t *loop, int fd, short revents, void *user)
         client_close(c);
 }
 
+/* The client that has gone longest without a complete document, of those silent for at least
+ * evict_idle_ms (only those from addr, when given); NULL when every one is active. */
+static client_t *longest_idle(xb_server_t *s, const char *addr, int64_t now)
+{
+    client_t *best = NULL;
+    if (s->cfg.evict_idle_ms <= 0)
+        return NULL;
+    for (client_t *c = s->clients; c; c = c->next)
+        if (!c->closing_since && !c->dead && now - c->active_us >= (int64_t)s->cfg.evict_idle_ms * 1000 &&
+            (!addr || strcmp(c->addr, addr) == 0) && (!best || c->active_us < best->active_us))
+            best = c;
+    return best;
+}
+
+/* Closes c to let a new client in: told why, and gone at once unless output is on its way. */
+static void evict(xb_server_t *s, client_t *c, int64_t now, const char *scope)
+{
+    char why[160];
+    snprintf(why, sizeof why, "closed to make room for a new client (%s: no request for %.1f s)", scope,
+             (double)(now - c->active_us) * 1e-6);
+    s->st.evicted++;
+    if (s->hooks.count)
+        s->hooks.count(s->hooks.user, "evicted_client", 1);
+    client_end(c, "idle", why);
+    xb_client_flush(c);
+    if (c->dead)
+        client_close(c);
+}
+
+/* Room for a client from addr: under the per-address cap and max_clients, by closing the
+ * longest idle client (of that address for its cap) when full. -1 with why when every one
+ * that holds a place is active. */
+static int make_room(xb_server_t *s, const char *addr, char *why, size_t len)
+{
+    int64_t now = marie_mono_us();
+    int live = 0, same = 0;
+    for (client_t *c = s->clients; c; c = c->next)
+        if (!c->closing_since && !c->dead) {
+            live++;
+            same += strcmp(c->addr, addr) == 0;
+        }
+    client_t *v;
+    if (s->cfg.max_per_address > 0 && same >= s->cfg.max_per_address) {
+        if (!(v = longest_idle(s, addr, now))) {
+            snprintf(why, len, "%d clients from %s already connected, all active", same, addr);
+            return -1;
+        }
+        evict(s, v, now, "its address's cap");
+    } else if (live >= s->cfg.max_clients) {
+        if (!(v = longest_idle(s, NULL, now))) {
+            snprintf(why, len, "%d clients already connected, all active", live);
+            return -1;
+        }
+        evict(s, v, now, "the bridge is full");
+    }
+    /* Clients still closing hold their fd for up to CLOSE_GRACE_US: bounded all the same. */
+    if ((int64_t)s->st.clients >= 2 * (int64_t)s->cfg.max_clients) {
+        snprintf(why, len, "%d clients connected or closing", (int)s->st.clients);
+        return -1;
+    }
+    return 0;
+}
+
+static void refuse(xb_server_t *s, int fd, const char *why)
+{
+    char msg[256];
+    int n = snprintf(msg, sizeof msg, "<error code=\"busy\" reason=\"%s\"/>\n", why);
+    ssize_t w = send(fd, msg, (size_t)n, MSG_NOSIGNAL);
+    (void)w;
+    close(fd);
+    s->st.refused++;
+    xb_bad_input(s, "refused_client", "%s", why);
+}
+
+static void peer_address(const struct sockaddr_storage *sa, char *out, size_t len)
+{
+    const void *a = sa->ss_family == AF_INET6 ? (const void *)&((const struct sockaddr_in6 *)sa)->sin6_addr
+                                              : (const void *)&((const struct sockaddr_in *)sa)->sin_addr;
+    if (!inet_ntop(sa->ss_family, a, out, (socklen_t)len))
+        snprintf(out, len, "?");
+}
+
 static void accept_clients(xb_server_t *s)
 {
     for (int i = 0; i < 64; i++) {
-        int fd = accept4(s->lfd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        struct sockaddr_storage sa;
+        socklen_t sl = sizeof sa;
+        int fd = accept4(s->lfd, (struct sockaddr *)&sa, &sl, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) {
             if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)
                 marie_warn_ratelimited(5, "xml bridge: accept: %s", strerror(errno));
             return;
         }
-        if ((int64_t)s->st.clients >= s->cfg.max_clients) {
-            char msg[160];
-            int n = snprintf(msg, sizeof msg, "<error code=\"busy\" reason=\"%lld clients already connected\"/>\n",
-                             (long long)s->cfg.max_clients);
-            ssize_t w = send(fd, msg, (size_t)n, MSG_NOSIGNAL);
-            (void)w;
-            close(fd);
-            s->st.refused++;
-            xb_bad_input(s, "refused_client", "more than %lld clients", (long long)s->cfg.max_clients);
+        char addr[48], why[200];
+        peer_address(&sa, addr, sizeof addr);
+        if (make_room(s, addr, why, sizeof why) < 0) {
+            refuse(s, fd, why);
             continue;
         }
         int one = 1;
@@ -215,6 +303,8 @@ static void accept_clients(xb_server_t *s)
         }
         c->s = s;
         c->fd = fd;
+        c->active_us = marie_mono_us();
+        snprintf(c->addr, sizeof c->addr, "%s", addr);
         if (marie_loop_add_fd(s->loop, fd, POLLIN, on_client, c) < 0) {
             xb_doc_parser_destroy(c->parser);
             free(c->q);
@@ -255,6 +345,14 @@ static void on_sweep(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
                  now - c->partial_since > (int64_t)s->cfg.stall_ms * 1000) {
             xb_bad_input(s, "stalled_client", "document unfinished for %lld ms", (long long)s->cfg.stall_ms);
             client_fail(c, "stalled", "document left unfinished too long");
+        } else if (!c->closing_since && !c->partial_since && c->nsubs == 0 && s->cfg.idle_s > 0 &&
+                   now - c->active_us > (int64_t)s->cfg.idle_s * 1000000) {
+            char why[96];
+            snprintf(why, sizeof why, "no request for %lld s and no subscription", (long long)s->cfg.idle_s);
+            s->st.closed_idle++;
+            if (s->hooks.count)
+                s->hooks.count(s->hooks.user, "idle_closed", 1);
+            client_end(c, "idle", why);
         }
         if (c->dead)
             client_close(c);

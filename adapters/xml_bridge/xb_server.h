@@ -22,7 +22,8 @@ extern "C" {
 void xb_server_cfg_defaults(xb_server_cfg_t *cfg);
 /* -1 with the reason in why[0..len) (EINVAL) for values the server cannot work with: a port
  * outside 0..65535, max_depth, max_clients or stall_ms below 1, queue below 2, max_document below
- * 64 or above max_memory, queue_bytes or max_message below 1, a negative sndbuf. */
+ * 64 or above max_memory, queue_bytes or max_message below 1, a negative sndbuf, idle_s,
+ * evict_idle_ms or max_per_address. */
 int xb_server_cfg_check(const xb_server_cfg_t *cfg, char *why, size_t len);
 
 /* Where bad input and drops are reported (the component's counters); any may be NULL. */
@@ -46,6 +47,8 @@ typedef struct {
     uint64_t subscriptions;     /* distinct (channel, type) subscriptions now */
     uint64_t doc_bytes;         /* bytes held now for incoming documents (all clients) */
     uint64_t closed_memory;     /* clients closed for the memory budget */
+    uint64_t closed_idle;       /* clients closed after idle_s without a request */
+    uint64_t evicted;           /* idle clients closed to make room for a new one */
 } xb_server_stats_t;
 
 typedef struct xb_server xb_server_t;

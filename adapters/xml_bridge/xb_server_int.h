@@ -53,6 +53,8 @@ struct client {
     csub_t *subs;
     int nsubs, capsubs;
     int64_t partial_since;      /* monotonic us when an unfinished document began, or 0 */
+    int64_t active_us;          /* monotonic us of its connection or its last complete document */
+    char addr[48];              /* the peer's address, numeric */
     size_t mem;                 /* parser memory charged to the budget */
     int64_t closing_since;      /* nonzero: close once the queue is written */
     int want_out;

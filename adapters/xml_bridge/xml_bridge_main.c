@@ -31,6 +31,11 @@ static void hook_drop(void *user, int64_t n)
     marie_component_drop(user, n);
 }
 
+static void hook_count(void *user, const char *counter, int64_t delta)
+{
+    marie_component_count(user, counter, delta);
+}
+
 /* Mirrors the server's totals into the heartbeat counters. */
 static void on_tick(marie_component_t *c, int64_t overruns)
 {
@@ -64,7 +69,7 @@ static int on_start(marie_component_t *c)
         marie_component_fail_reason(c, "xml bridge parameters out of range: %s", why);
         return -1;
     }
-    xb_server_hooks_t hooks = { hook_bad_input, hook_drop, NULL, c };
+    xb_server_hooks_t hooks = { hook_bad_input, hook_drop, hook_count, c };
     b->server = xb_server_create(cfg, marie_component_lcm(c), marie_component_loop(c), &hooks);
     if (!b->server) {
         marie_component_fail_reason(c, "cannot listen on %s:%lld", cfg->bind, (long long)cfg->port);

@@ -25,6 +25,10 @@ struct marie_system;
 
 /* Opens the bus at url (NULL: marie_default_url()). NULL with errno when no provider can. */
 lcm_t *marie_bus_create(const char *url);
+/* Whether url is one liblcm opens: PROVIDER://TARGET?OPTIONS with a provider it has; for udpm
+ * (and mpudpm) a multicast IPv4 group, a port 1-65535 and only the options ttl (0-255),
+ * recv_buf_size (1 to 1 GiB) and transmit_only. 0, or -1 with the reason in why (url_check.c). */
+int marie_bus_url_check(const char *url, char *why, size_t len);
 void marie_bus_destroy(lcm_t *bus);                 /* NULL is a no-op */
 
 /* ---- per-channel transports ---- */

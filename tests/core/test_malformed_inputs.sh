@@ -13,14 +13,16 @@ SPEC=$OUT/spec
 : > "$SPEC"
 trap 'stop_started' EXIT
 
-# recipe BINARY: "INSTANCE|ARGS[|subscribe][|UNUSED...]" lines, one per run of that binary; no
-# line: no inputs to test. "subscribe": the instance subscribes to its pull ports' channels
-# instead. UNUSED: input ports this instance's mode does not listen to (another line's does).
+# recipe BINARY: "INSTANCE|ARGS[|subscribe][|UNUSED...][|PORT=OTHER...]" lines, one per run of
+# that binary; no line: no inputs to test. "subscribe": the instance subscribes to its pull
+# ports' channels instead. UNUSED: input ports this instance's mode does not listen to (another
+# line's does). PORT=OTHER: PORT is bound to OTHER's channel, as the defaults bind them (a
+# payload there must still be counted once).
 recipe() {
     case $1 in
     marie-behaviours)
         echo "beh_pull|--param input_mode=pull --param rate_hz=5 --param pull_timeout_ms=150"
-        echo "beh_sub|--param input_mode=subscribe --param rate_hz=10|subscribe" ;;
+        echo "beh_sub|--param input_mode=subscribe --param rate_hz=10|subscribe||estop_now=estop" ;;
     marie-drives) echo "drives|--param can=emu:$OUT/can" ;;
     marie-gyro) echo "gyro|--param can=emu:$OUT/can" ;;
     marie-example-consumer) echo "consumer|" ;;
@@ -83,12 +85,14 @@ for bin in "$BIN"/marie-*; do
         missing="$missing $prog"
         continue
     fi
-    recipe "$prog" | while IFS='|' read -r inst args how unused; do
+    recipe "$prog" | while IFS='|' read -r inst args how unused shared; do
         remap=""
         echo "$ports" | while read -r port dir mech type; do
             ch="$(echo "${inst}_$port" | tr a-z A-Z)"
+            other=$(echo " $shared " | sed -n "s/.* $port=\([a-z_]*\) .*/\1/p")
+            [ -n "$other" ] && ch="$(echo "${inst}_$other" | tr a-z A-Z)"
             [ "$type" = raw ] && type=$(raw_type "$port")
-            if [ "$dir" = in ] && echo " $unused " | grep -q " $port "; then
+            if [ -n "$other" ] || { [ "$dir" = in ] && echo " $unused " | grep -q " $port "; }; then
                 :
             elif [ "$dir" = in ]; then
                 mode=push; [ "$mech" = pull ] && [ "$how" != subscribe ] && mode=pull

@@ -3,7 +3,7 @@
  * NAME publishes a goal request without a signature and one with a forged one; --landmark
  * ID:X:Y:YAW:TEXT publishes a landmark (as marie-vision does) every 0.2 s while watching;
  * --heard TEXT publishes an utterance as marie-asr does, --said TEXT a request to speak as
- * marie-dialogue does. */
+ * marie-dialogue does. While watching it also prints every event (MARIE_EVENT). */
 #include <getopt.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -23,6 +23,12 @@ static void on_request(const lcm_recv_buf_t *rb, const char *ch, const marie_goa
     marie_auth_result_t r = marie_auth_check_goal_request(auth, NULL, m);
     printf("request %s (%.2f, %.2f) from %s: %s\n", m->goal.name, m->goal.pose.x, m->goal.pose.y, m->sender,
            r == MARIE_AUTH_OK ? "signed" : marie_auth_result_name(r));
+    fflush(stdout);
+}
+
+static void on_event(const lcm_recv_buf_t *rb, const char *ch, const marie_event_t *m, void *u)
+{
+    printf("event %s from %s: %s\n", m->kind, m->source, m->text);
     fflush(stdout);
 }
 
@@ -89,6 +95,7 @@ int main(int argc, char **argv)
     }
     marie_goal_request_t_subscribe(lcm, "GOAL_REQUEST", on_request, NULL);
     marie_goal_t_subscribe(lcm, "GOAL", on_goal, NULL);
+    marie_event_t_subscribe(lcm, "MARIE_EVENT", on_event, NULL);
     int64_t end = marie_mono_us() + (int64_t)(watch * 1e6), next = 0;
     lm.message = lm_text;
     while (marie_mono_us() < end) {

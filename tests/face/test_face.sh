@@ -94,8 +94,8 @@ check "the goal request on the bus is signed with the key" wait_for 10 grep -q "
 check "the mission obeys it: the place is its goal" wait_for 10 grep -q "^goal lab (10.00, 2.00)" "$T/probe.txt"
 check "the mission says who asked" wait_for 5 grep -q "request_accepted.*lab" "$T/mission.log"
 
-check "a wrong PIN is refused by the server" tap 1111 '[data-place="0"]' 'wrong PIN' --size 1024x600
-sleep 0.5
+check "a wrong PIN is refused by the server" tap 1111 '[data-place="0"]' 'wrong PIN: try again in 1 s' --size 1024x600
+sleep 1.5   # the wait a wrong PIN imposes on this address
 check "no request for kitchen reached the bus" sh -c "! grep -q 'request kitchen' '$T/probe.txt'"
 
 "$B/tests/helpers/face_probe" --unsigned intruder --watch 0.5 > /dev/null 2>&1

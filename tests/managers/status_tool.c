@@ -65,7 +65,7 @@ static int play_old(lcm_t *lcm, double seconds, int nhosts, char **hosts)
 {
     marie_am_component_status_t comp = {
         .name = "legacy", .group = "", .state = "running", .comp_state = 2, .pid = getpid(),
-        .config_hash = "", .heartbeat_age_us = 100000,
+        .config_hash = "", .heartbeat_age_us = 100000, .limits = "",
     };
     marie_am_status_t st = {
         .host = (char *)watch_host, .pid = getpid(), .system = "ps", .system_hash = "", .profile = "",

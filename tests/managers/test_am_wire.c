@@ -54,8 +54,9 @@ static void test_order(void **state)
 static void test_status_with_components(void **state)
 {
     marie_am_component_status_t cs[2] = {
-        {.name = "a", .group = "", .state = "running", .comp_state = 2, .pid = 10, .config_hash = "abc"},
-        {.name = "b", .group = "g", .state = "stopped", .comp_state = -1, .config_hash = ""},
+        {.name = "a", .group = "", .state = "running", .comp_state = 2, .pid = 10, .config_hash = "abc",
+         .limits = "memory 64M (cgroup)", .limit_breaches = 2},
+        {.name = "b", .group = "g", .state = "stopped", .comp_state = -1, .config_hash = "", .limits = ""},
     };
     char *hosts[] = {"h1", "h2"};
     marie_am_status_t st = {.host = "h1", .system = "s", .system_hash = "x", .profile = "", .nhosts = 2,

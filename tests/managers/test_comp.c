@@ -1,5 +1,8 @@
 /* marie-test-comp: a component for the manager tests that can be told to hang (SIGUSR1),
- * crash (SIGUSR2), print, or exit, and that records when it started. */
+ * crash (SIGUSR2), print, exit, burn CPU, leak memory or hold files open, and that records when
+ * it started. */
+#include <errno.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -61,6 +64,18 @@ static void tick(marie_component_t *c, int64_t overruns)
         while (cpu_us() < until)
             ;
     }
+    /* a leak: memory taken and written (so it is resident) at each tick, never given back */
+    double leak = marie_param_double(c, "leak_mb_s");
+    static void *volatile kept;                 /* a chain of the blocks: none is ever unreachable */
+    if (leak > 0) {
+        size_t n = (size_t)(leak * 1e5);       /* a tenth of a second's worth, in bytes */
+        void **p = n >= sizeof *p ? malloc(n) : NULL;
+        if (p) {
+            memset(p, 0x5a, n);
+            *p = kept;
+            kept = p;
+        }
+    }
     double exit_after = marie_param_double(c, "exit_after_s");
     static int64_t started;
     int64_t now = marie_mono_us();
@@ -83,6 +98,12 @@ static int on_init(marie_component_t *c)
 static int on_start(marie_component_t *c)
 {
     trace("running");
+    /* files held open (a leak of descriptors, or a component that needs many) */
+    for (int64_t i = 0, n = marie_param_int(c, "open_files"); i < n; i++)
+        if (open("/dev/null", O_RDONLY) < 0) {
+            fprintf(stderr, "open_files: only %lld opened: %s\n", (long long)i, strerror(errno));
+            break;
+        }
     return 0;
 }
 
@@ -92,6 +113,8 @@ static const marie_param_spec_t params[] = {
     {"exit_after_s", MARIE_PARAM_DOUBLE, "0", "exit after this long (0: never)"},
     {"exit_code", MARIE_PARAM_INT, "1", "status for exit_after_s"},
     {"busy", MARIE_PARAM_DOUBLE, "0", "fraction of one core to burn (a CPU-hungry component)"},
+    {"leak_mb_s", MARIE_PARAM_DOUBLE, "0", "MB of memory taken, written and kept each second (a leak)"},
+    {"open_files", MARIE_PARAM_INT, "0", "files opened at start and held"},
     {NULL, 0, NULL, NULL},
 };
 

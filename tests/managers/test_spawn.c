@@ -33,6 +33,8 @@ static void read_all(int fd, char *buf, size_t cap)
     buf[n] = 0;
 }
 
+static long run_nofile;         /* the next run's RLIMIT_NOFILE (0: the caller's) */
+
 /* Spawns, reads stdout then stderr to their ends, reaps: the child's pid. */
 static pid_t run(marie_spawner_t *s, const char *path, char *const *argv, char *const *envp, ran_t *r)
 {
@@ -41,6 +43,7 @@ static pid_t run(marie_spawner_t *s, const char *path, char *const *argv, char *
     assert_int_equal(pipe2(pe, O_CLOEXEC), 0);
     marie_spawn_req_t req = {
         .path = path, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "test",
+        .nofile = run_nofile,
     };
     pid_t pid = marie_spawn(s, &req);
     assert_true(pid > 0);
@@ -72,6 +75,21 @@ static void test_output_env_and_session(void **state)
     snprintf(want, sizeof want, "hello world\n%d %d %d\n/dev/null\n", (int)pid, (int)pid, (int)pid);
     assert_string_equal(r.out, want);           /* process group and session are its own */
     assert_string_equal(r.err, "to-stderr\n");
+    marie_spawner_destroy(s);
+}
+
+/* A child's open-file limit is set before its exec: the program never runs without it. */
+static void test_nofile_limit_before_exec(void **state)
+{
+    marie_spawner_t *s = marie_spawner_create();
+    char *argv[] = {"sh", "-c", "ulimit -Sn; ulimit -Hn", NULL};
+    ran_t r;
+    run_nofile = 37;
+    run(s, "/bin/sh", argv, no_env, &r);
+    run_nofile = 0;
+    assert_string_equal(r.out, "37\n37\n");
+    run(s, "/bin/sh", argv, no_env, &r);
+    assert_string_not_equal(r.out, "37\n37\n");
     marie_spawner_destroy(s);
 }
 
@@ -186,6 +204,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_output_env_and_session),
+        cmocka_unit_test(test_nofile_limit_before_exec),
         cmocka_unit_test(test_signals_default_none_blocked),
         cmocka_unit_test(test_exec_failure_says_why),
         cmocka_unit_test(test_execvpe_ways),

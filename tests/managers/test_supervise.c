@@ -394,6 +394,31 @@ static void test_move_away_stops_it(void **state)
     assert_true(sv.wanted);
 }
 
+/* A move to the host where it already runs (the leader's placement after a partition heals):
+ * the instance that runs there goes on, and its liveness is still its own heartbeats. */
+static void test_move_to_where_it_runs_keeps_it(void **state)
+{
+    marie_component_cfg_t cfg = cfg_make(MARIE_RESTART_ON_FAILURE);
+    cfg.heartbeat_timeout_s = 2;
+    marie_sv_t sv;
+    marie_sv_action_t act;
+    marie_sv_init(&sv, &cfg, true);
+    run_at(&sv, 130, 0);
+    for (int t = 1; t <= 135; t++)
+        marie_sv_heartbeat(&sv, MARIE_STATE_RUNNING, "", S(t), &act);
+    marie_sv_set_local(&sv, true, true, &act);
+    assert_int_equal(act.what & (MARIE_SV_TERM | MARIE_SV_SPAWN), 0);
+    marie_sv_check_heartbeat(&sv, S(135.05), &act);
+    if (act.event_kind)
+        fail_msg("the kept copy was restarted: %s", act.event_text);
+    assert_int_equal(sv.st, MARIE_SV_RUNNING);
+    assert_int_equal(sv.pid, 130);
+    assert_true(marie_sv_up(&sv, S(135.1)));
+    /* still watched: silent for heartbeat_timeout after its last beat, it is restarted */
+    marie_sv_check_heartbeat(&sv, S(137.5), &act);
+    assert_string_equal(act.event_kind, "not_responding");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -411,6 +436,7 @@ int main(void)
         cmocka_unit_test(test_dependencies),
         cmocka_unit_test(test_down_waits_for_dependents),
         cmocka_unit_test(test_move_away_stops_it),
+        cmocka_unit_test(test_move_to_where_it_runs_keeps_it),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

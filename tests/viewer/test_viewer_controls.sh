@@ -2,7 +2,9 @@
 # test-light
 # test_viewer_controls: the viewer's controls go through the managers: pause and resume a
 # component with orders signed by the shared key (a real marie-am obeys them), set a goal;
-# without a key the controls are refused; foreign web origins cannot open the WebSocket.
+# without a key the controls are refused; foreign web origins cannot open the WebSocket; a
+# local script that is not a browser (no Origin) but has no PIN is refused, and so is a wrong
+# PIN.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-viewer.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
@@ -28,7 +30,33 @@ pids="$pids $!"
 viewer1=$!
 pids="$pids $!"
 check "viewer serves with a key" wait_for 10 test -s "$T/url"
-check "pause, resume and goal from the page" python3 tests/viewer/controls_client.py 8111
+PIN=$(sed -n 's|^marie-view: following the bus at http://127.0.0.1:8111/#pin=\([0-9]\{10\}\)$|\1|p' "$T/viewer.log")
+check "it prints the page's address with a random 10-digit PIN" test -n "$PIN"
+# A script on this host, no browser (so no Origin), as the peers that found the hole: an order
+# and a goal without a PIN, then with a wrong one; nothing may reach the bus.
+intruder() {
+    python3 - "$1" <<'PY'
+import sys
+sys.path.insert(0, "tests/viewer")
+from wsclient import WsClient
+c = WsClient("127.0.0.1", 8111)
+c.until(lambda m: m["type"] == "hello")
+extra = {"pin": sys.argv[1]} if sys.argv[1] else {}
+c.send(dict({"op": "order", "cmd": "pause", "target": "walker"}, **extra))
+a = c.until(lambda m: m["type"] == "notice")
+c.send(dict({"op": "goal", "x": 9, "y": 9}, **extra))
+b = c.until(lambda m: m["type"] == "notice")
+print(a, b)
+sys.exit(0 if a and b and a["text"].startswith(("wrong PIN", "too soon")) and
+         b["text"].startswith(("wrong PIN", "too soon")) else 1)
+PY
+}
+check "a local script without a PIN: its order and goal are refused" intruder ""
+check "with a wrong PIN too" intruder 0000000000
+check "nothing reached the bus: walker still running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
+check "and the viewer sent no order" sh -c "! grep -q 'order sent' '$T/viewer.log'"
+sleep 4     # past the wait wrong PINs impose on this address (1 s, then 2 s)
+check "pause, resume and goal from the page" python3 tests/viewer/controls_client.py 8111 "$PIN"
 check "the mission accepted the viewer's signed goal request" grep -q "request_accepted.*viewer" "$T/mission.log"
 check "marie ps agrees: walker running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
 

@@ -2,7 +2,8 @@
 # test-light
 # test_viewer_graph: the system graph page in headless Chromium against a real marie-am: hosts,
 # components, ports and the channel between them with its live rate; a click on a component
-# and on Restart sends a signed order that the manager obeys.
+# and on Restart (the PIN given in the address, as marie view prints it) sends a signed order that
+# the manager obeys.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-graph.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
@@ -20,7 +21,7 @@ CHROME=$(command -v chromium || command -v chromium-browser || true)
 start am "$BIN/marie-am" --host alpha --state-dir "$T/am"
 sleep 0.3
 setup "system up under marie-am" "$BIN/marie" up tests/data/viewer/graph.yaml
-"$BIN/marie-viewer-server" --name viewer --param http_port=8121 --param key_file="$T/key" \
+"$BIN/marie-viewer-server" --name viewer --param http_port=8121 --param key_file="$T/key" --param pin=27182818 \
     --param url_file="$T/url" > "$T/viewer.log" 2>&1 &
 pids="$pids $!"
 setup "viewer serves" wait_for 10 test -s "$T/url"
@@ -42,7 +43,7 @@ python3 tests/viewer/cdp.py --port $CDP http://127.0.0.1:8121/graph.html --timeo
 check "graph: host, two components and the EXAMPLE channel with its type and a live rate" [ $? -eq 0 ]
 check "graph: a publisher's edge into the channel and a subscriber's edge out of it" \
     grep -q 'class="edge-in"' "$T/graph1.html"
-python3 tests/viewer/cdp.py --port $CDP http://127.0.0.1:8121/graph.html --timeout 20 --dom "$T/graph2.html" \
+python3 tests/viewer/cdp.py --port $CDP 'http://127.0.0.1:8121/graph.html#pin=27182818' --timeout 20 --dom "$T/graph2.html" \
     --until "$drawn" --do "$click" --until2 "$restarted" > "$T/cdp2.log" 2>&1
 check "click walker, Restart: the page shows it restarted once" [ $? -eq 0 ]
 ps_restart() { "$BIN/marie" ps | awk '$2 == "walker" { print $6 }' | grep -qx 1; }

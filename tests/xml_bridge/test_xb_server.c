@@ -92,13 +92,19 @@ static void collect(void *user, xb_node_t *root)
     c->ndocs++;
 }
 
-static int cli_connect(cli_t *c, int rcvbuf)
+/* A client from source address `from` (NULL: the kernel's choice, 127.0.0.1). */
+static int cli_connect_from(cli_t *c, int rcvbuf, const char *from)
 {
     memset(c, 0, sizeof *c);
     c->fd = socket(AF_INET, SOCK_STREAM, 0);
     assert_true(c->fd >= 0);
     if (rcvbuf)
         setsockopt(c->fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    if (from) {
+        struct sockaddr_in src = { .sin_family = AF_INET };
+        assert_int_equal(inet_pton(AF_INET, from, &src.sin_addr), 1);
+        assert_int_equal(bind(c->fd, (struct sockaddr *)&src, sizeof src), 0);
+    }
     struct sockaddr_in sa = { .sin_family = AF_INET, .sin_port = htons((uint16_t)xb_server_port(env.srv)) };
     sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     if (connect(c->fd, (struct sockaddr *)&sa, sizeof sa) < 0)
@@ -106,6 +112,11 @@ static int cli_connect(cli_t *c, int rcvbuf)
     fcntl(c->fd, F_SETFL, O_NONBLOCK);
     c->p = xb_doc_parser_create(NULL, collect, c);
     return 0;
+}
+
+static int cli_connect(cli_t *c, int rcvbuf)
+{
+    return cli_connect_from(c, rcvbuf, NULL);
 }
 
 static void cli_free(cli_t *c)
@@ -372,6 +383,38 @@ static void test_pull_gives_the_latest_value(void **state)
     cli_free(&c);
 }
 
+/* A bus message with bytes after its end is what components refuse (marie_decode_checked):
+ * the bridge refuses it too, to stream subscribers as an error, and it never becomes the value
+ * a pull answers. */
+static void test_trailing_bytes_refused_as_components_do(void **state)
+{
+    cli_t c;
+    assert_int_equal(cli_connect(&c, 0), 0);
+    cli_send(&c, "<subscribe channel=\"ODOM\" type=\"marie.odometry_t\"/>");
+    assert_true(cli_wait(&c, 2));
+    uint8_t buf[256];
+    for (int i = 1; i <= 2; i++) {
+        marie_odometry_t m = { 0 };
+        m.utime = i;
+        int n = marie_odometry_t_encode(buf, 0, sizeof buf - 4, &m);
+        assert_true(n > 0);
+        memset(buf + n, 0xab, 4);
+        lcm_publish(env.lcm, "ODOM", buf, (unsigned)(n + (i == 2 ? 4 : 0)));  /* the second has 4 more */
+        pump_ms(50);
+    }
+    assert_true(cli_wait(&c, 4));
+    assert_true(starts(c.docs[2], "message|channel=ODOM"));
+    assert_non_null(strstr(c.raw[2].data, "<utime>1</utime>"));
+    if (!starts(c.docs[3], "error|code=bad-message"))
+        fail_msg("a message with 4 trailing bytes was passed on: %s", c.docs[3]);
+    assert_non_null(strstr(c.docs[3], "4 bytes after the end"));
+    cli_send(&c, "<pull channel=\"ODOM\" id=\"p\"/>");
+    assert_true(cli_wait(&c, 5));
+    assert_true(starts(c.docs[4], "message|channel=ODOM"));
+    assert_non_null(strstr(c.raw[4].data, "<utime>1</utime>"));
+    cli_free(&c);
+}
+
 static void test_semantic_errors_keep_the_connection(void **state)
 {
     cli_t c;
@@ -491,6 +534,7 @@ static int setup_small(void **state)
     cfg.max_depth = 8;
     cfg.stall_ms = 300;
     cfg.max_clients = 200;
+    cfg.max_per_address = 0;
     return setup_with(&cfg);
 }
 
@@ -588,6 +632,147 @@ static void test_hundreds_of_clients_and_the_rest_refused(void **state)
     assert_int_equal(st.subscriptions, 0);
 }
 
+/* Idle connections that fill the bridge: a new client still gets in, in place of the one idle
+ * longest, which is told why; with every place held by an active client it is refused. */
+static int setup_full(void **state)
+{
+    xb_server_cfg_t cfg;
+    xb_server_cfg_defaults(&cfg);
+    cfg.max_clients = 64;
+    cfg.max_per_address = 0;
+    cfg.idle_s = 0;
+    cfg.evict_idle_ms = 1000;
+    return setup_with(&cfg);
+}
+
+static void test_idle_connections_never_lock_the_bridge(void **state)
+{
+    enum { N = 64 };
+    static cli_t cs[N];
+    for (int i = 0; i < N; i++) {
+        assert_int_equal(cli_connect(&cs[i], 0), 0);
+        assert_true(cli_wait(&cs[i], 1));
+        assert_true(starts(cs[i].docs[0], "hello"));
+        if (i == 0)
+            pump_ms(50);        /* the first is the longest idle */
+    }
+    pump_ms(1100);
+    cli_t fresh;
+    assert_int_equal(cli_connect(&fresh, 0), 0);
+    assert_true(cli_wait(&fresh, 1));
+    if (!starts(fresh.docs[0], "hello"))
+        fail_msg("%d idle connections lock the bridge: a new client got %s", N, fresh.docs[0]);
+    cli_send(&fresh, "<ping id=\"in\"/>");
+    assert_true(cli_wait(&fresh, 2));
+    assert_true(starts(fresh.docs[1], "ok|to=ping|id=in"));
+    /* the one idle longest made room, and was told why */
+    assert_true(cli_wait_eof(&cs[0]));
+    assert_true(cs[0].ndocs == 2 && starts(cs[0].docs[1], "error|code=idle"));
+    assert_non_null(strstr(cs[0].docs[1], "make room"));
+    cli_pump(&cs[1]);
+    assert_false(cs[1].eof);
+    /* every place held by a client that just spoke: the newcomer is refused */
+    for (int i = 1; i < N; i++)
+        cli_send(&cs[i], "<ping/>");
+    cli_send(&fresh, "<ping/>");
+    pump_ms(100);
+    cli_t late;
+    assert_int_equal(cli_connect(&late, 0), 0);
+    assert_true(cli_wait(&late, 1));
+    assert_true(starts(late.docs[0], "error|code=busy"));
+    assert_non_null(strstr(late.docs[0], "all active"));
+    xb_server_stats_t st;
+    xb_server_stats(env.srv, &st);
+    assert_int_equal(st.evicted, 1);
+    cli_free(&late);
+    cli_free(&fresh);
+    for (int i = 0; i < N; i++)
+        cli_free(&cs[i]);
+}
+
+/* idle_s: a client that says nothing is closed; one that pings, or that subscribed, is kept. */
+static int setup_idle(void **state)
+{
+    xb_server_cfg_t cfg;
+    xb_server_cfg_defaults(&cfg);
+    cfg.idle_s = 1;
+    return setup_with(&cfg);
+}
+
+static void test_idle_timeout_closes_silent_clients(void **state)
+{
+    cli_t silent, pinger, sub;
+    assert_int_equal(cli_connect(&silent, 0), 0);
+    assert_int_equal(cli_connect(&pinger, 0), 0);
+    assert_int_equal(cli_connect(&sub, 0), 0);
+    cli_send(&sub, "<subscribe channel=\"IDLE\" type=\"pose2d_t\"/>");
+    for (int i = 0; i < 8; i++) {
+        cli_send(&pinger, "<ping/>");
+        pump_ms(250);
+    }
+    cli_pump(&silent);
+    cli_pump(&pinger);
+    cli_pump(&sub);
+    assert_true(silent.eof);
+    assert_true(starts(silent.docs[silent.ndocs - 1], "error|code=idle"));
+    assert_false(pinger.eof);
+    assert_false(sub.eof);
+    xb_server_stats_t st;
+    xb_server_stats(env.srv, &st);
+    assert_int_equal(st.closed_idle, 1);
+    assert_int_equal(st.closed_bad, 0);
+    cli_free(&silent);
+    cli_free(&pinger);
+    cli_free(&sub);
+}
+
+/* max_per_address: one address's clients make room among themselves; another address's are not
+ * touched, and one address cannot take the bridge's places. */
+static int setup_per_address(void **state)
+{
+    xb_server_cfg_t cfg;
+    xb_server_cfg_defaults(&cfg);
+    cfg.max_per_address = 4;
+    cfg.idle_s = 0;
+    cfg.evict_idle_ms = 1000;
+    return setup_with(&cfg);
+}
+
+static void test_per_address_cap(void **state)
+{
+    cli_t a[5], other;
+    for (int i = 0; i < 4; i++) {
+        assert_int_equal(cli_connect_from(&a[i], 0, "127.0.0.1"), 0);
+        assert_true(cli_wait(&a[i], 1));
+    }
+    assert_int_equal(cli_connect_from(&other, 0, "127.0.0.2"), 0);
+    assert_true(cli_wait(&other, 1));
+    assert_true(starts(other.docs[0], "hello"));
+    cli_send(&a[3], "<ping/>");
+    pump_ms(50);
+    /* all four active: a fifth from the same address is refused, naming it */
+    assert_int_equal(cli_connect_from(&a[4], 0, "127.0.0.1"), 0);
+    assert_true(cli_wait(&a[4], 1));
+    assert_true(starts(a[4].docs[0], "error|code=busy"));
+    assert_non_null(strstr(a[4].docs[0], "from 127.0.0.1"));
+    cli_free(&a[4]);
+    /* idle a second: the fifth takes the place of that address's longest idle, not other's */
+    pump_ms(1100);
+    cli_send(&a[3], "<ping/>");
+    pump_ms(20);
+    assert_int_equal(cli_connect_from(&a[4], 0, "127.0.0.1"), 0);
+    assert_true(cli_wait(&a[4], 1));
+    assert_true(starts(a[4].docs[0], "hello"));
+    assert_true(cli_wait_eof(&a[0]));
+    cli_pump(&other);
+    assert_false(other.eof);
+    cli_pump(&a[3]);
+    assert_false(a[3].eof);
+    for (int i = 0; i < 5; i++)
+        cli_free(&a[i]);
+    cli_free(&other);
+}
+
 static int setup_slow(void **state)
 {
     xb_server_cfg_t cfg;
@@ -675,12 +860,16 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_every_type_both_directions, setup, teardown),
         cmocka_unit_test_setup_teardown(test_pull_gives_the_latest_value, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_trailing_bytes_refused_as_components_do, setup, teardown),
         cmocka_unit_test_setup_teardown(test_semantic_errors_keep_the_connection, setup, teardown),
         cmocka_unit_test_setup_teardown(test_quiet_publishes_keep_order_and_lose_nothing, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_streams_close_only_their_client, setup_small, teardown),
         cmocka_unit_test_setup_teardown(test_too_large_message_keeps_the_connection, setup_tiny_message, teardown),
         cmocka_unit_test_setup_teardown(test_hundreds_of_clients_and_the_rest_refused, setup_small, teardown),
         cmocka_unit_test_setup_teardown(test_slow_client_loses_oldest_and_never_blocks, setup_slow, teardown),
+        cmocka_unit_test_setup_teardown(test_idle_connections_never_lock_the_bridge, setup_full, teardown),
+        cmocka_unit_test_setup_teardown(test_idle_timeout_closes_silent_clients, setup_idle, teardown),
+        cmocka_unit_test_setup_teardown(test_per_address_cap, setup_per_address, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

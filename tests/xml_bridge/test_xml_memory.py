@@ -120,7 +120,7 @@ def replies(s, wait, lines=None):
 
 
 def case_hundred_unfinished_documents():
-    bridge = peer.start_bridge(["stall_ms=600000", "max_clients=512"], "xml_bridge_memory.stderr")
+    bridge = peer.start_bridge(["stall_ms=600000", "max_clients=512", "max_per_address=0"], "xml_bridge_memory.stderr")
     try:
         base = rss(bridge.pid)
         witness = Witness()

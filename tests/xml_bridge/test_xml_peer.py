@@ -88,7 +88,7 @@ class Peer:
 
 
 PEER_PARAMS = ["stall_ms=500", "max_clients=150", "max_document=65536", "max_depth=16", "queue=32",
-               "sndbuf=4096"]
+               "sndbuf=4096", "max_per_address=0"]
 
 
 def start_bridge(params=PEER_PARAMS, log="xml_bridge_peer.stderr"):

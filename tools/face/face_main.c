@@ -16,6 +16,7 @@
 #include "managers/am_proto.h"
 #include "tools/face/face_params.h"
 #include "tools/webcommon/vjson.h"
+#include "tools/webcommon/webpin.h"
 #include "tools/webcommon/webserve.h"
 
 #define MAX_PLACES 24
@@ -35,7 +36,8 @@ typedef struct {
     marie_auth_t *auth;
     char sender[300];
     int64_t last_seq;
-    char pin[16];
+    pinguard_t *pins;           /* the PIN every request must carry */
+    char pin[80];
     place_t places[MAX_PLACES];
     int nplaces;
     /* the present, for pages that connect later */
@@ -259,7 +261,7 @@ static int send_order(face_t *f, int op)
     return marie_port_publish(marie_port(f->c, "order"), &o);
 }
 
-static void on_cmd(void *user, int client, bool hello, const char *text, size_t len)
+static void on_cmd(void *user, int client, const char *addr, bool hello, const char *text, size_t len)
 {
     face_t *f = user;
     if (hello) {
@@ -267,7 +269,7 @@ static void on_cmd(void *user, int client, bool hello, const char *text, size_t 
         return;
     }
     vj_cmd_t cmd;
-    const char *op = NULL, *pin;
+    const char *op = NULL;
     if (vj_cmd_parse(&cmd, text, len) < 0 || !(op = vj_cmd_str(&cmd, "op"))) {
         marie_component_bad_input(f->c, "bad_command", "page command not understood (%zu bytes)", len);
         webserve_notice(f->web, client, "error", "command not understood");
@@ -277,11 +279,8 @@ static void on_cmd(void *user, int client, bool hello, const char *text, size_t 
         webserve_notice(f->web, client, "error", "requests are disabled (no key)");
         return;
     }
-    if (!(pin = vj_cmd_str(&cmd, "pin")) || strcmp(pin, f->pin) != 0) {
-        marie_component_count(f->c, "wrong_pin", 1);
-        webserve_notice(f->web, client, "error", "wrong PIN");
+    if (!webpin_allow(f->pins, f->c, f->web, client, addr, vj_cmd_str(&cmd, "pin")))
         return;
-    }
     double k = -1;
     char msg[128];
     int rc = -1;
@@ -378,11 +377,10 @@ static int init(marie_component_t *c)
         marie_am_sender(who, sizeof who);
         snprintf(f->sender, sizeof f->sender, "%s/face", who);
     }
-    const char *pin = params_of(c)->pin;
-    if (pin[0])
-        snprintf(f->pin, sizeof f->pin, "%s", pin);
-    else
-        snprintf(f->pin, sizeof f->pin, "%06u", (unsigned)(marie_mono_us() ^ (uint64_t)getpid() * 2654435761u) % 1000000);
+    const face_params_t *q = params_of(c);
+    webpin_params_t wp = { q->pin, q->pin_digits, q->pin_max_failures, q->pin_max_failures_all, q->pin_lockout_s };
+    if (!f->pins && !(f->pins = webpin_open(c, &wp, f->pin, sizeof f->pin)))
+        return -1;
     static char www[4096];
     if (find_www(f, www, sizeof www) < 0) {
         marie_component_fail_reason(c, "cannot find the page (tools/face/www): set the www parameter");
@@ -420,6 +418,7 @@ static void quit(marie_component_t *c)
     face_t *f = marie_component_user(c);
     MARIE_CLEAR(f->web, webserve_stop);
     MARIE_CLEAR(f->auth, marie_auth_destroy);
+    MARIE_CLEAR(f->pins, pinguard_destroy);
     free(f->arb);
     free(f->goal);
     free(f->mission);

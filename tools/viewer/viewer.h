@@ -8,6 +8,7 @@
 #include <stdint.h>
 
 #include "core/auth.h"
+#include "tools/webcommon/pinguard.h"
 #include "core/component.h"
 #include "map/livemap.h"
 #include "tools/viewer/viewer_params.h"
@@ -104,6 +105,8 @@ typedef struct viewer {
 
     /* controls */
     marie_auth_t *auth;
+    pinguard_t *pins;           /* the controls' PIN (with auth) */
+    char pin[80];
     char sender[300];
     int64_t last_seq;
     int goals_sent;

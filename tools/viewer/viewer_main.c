@@ -18,6 +18,7 @@
 #include "core/auth.h"
 #include "tools/viewer/lcmlog.h"
 #include "tools/webcommon/vjson.h"
+#include "tools/webcommon/webpin.h"
 #include "tools/webcommon/webserve.h"
 #include "tools/viewer/viewer.h"
 
@@ -448,7 +449,7 @@ static void do_goal(viewer_t *v, int id, double x, double y, double th)
     viewer_notice(v, -1, "info", msg);
 }
 
-static void handle_cmd(void *user, int client, bool hello, const char *text, size_t len)
+static void handle_cmd(void *user, int client, const char *addr, bool hello, const char *text, size_t len)
 {
     viewer_t *v = user;
     if (hello) {
@@ -472,6 +473,8 @@ static void handle_cmd(void *user, int client, bool hello, const char *text, siz
     } else if (strcmp(op, "goal") == 0 || strcmp(op, "order") == 0) {
         if (!v->auth) {
             viewer_notice(v, client, "error", "controls are disabled: start the viewer with --key-file");
+        } else if (!webpin_allow(v->pins, v->c, v->web, client, addr, vj_cmd_str(&cmd, "pin"))) {
+            return;         /* the page was told why */
         } else if (strcmp(op, "goal") == 0) {
             if (!vj_cmd_num(&cmd, "x", &x) || !vj_cmd_num(&cmd, "y", &y))
                 viewer_notice(v, client, "error", "goal needs x and y");
@@ -613,6 +616,10 @@ static int init_viewer(marie_component_t *c)
         char who[256];
         marie_am_sender(who, sizeof who);
         snprintf(v->sender, sizeof v->sender, "%s/viewer", who);
+        const viewer_params_t *q = viewer_params(c);
+        webpin_params_t wp = { q->pin, q->pin_digits, q->pin_max_failures, q->pin_max_failures_all, q->pin_lockout_s };
+        if (!v->pins && !(v->pins = webpin_open(c, &wp, v->pin, sizeof v->pin)))
+            return -1;
     }
     const char *map = viewer_params(c)->map;
     if (map && *map && load_map_file(v, map) < 0)
@@ -645,6 +652,7 @@ static int init_viewer(marie_component_t *c)
         {"/viewer.css", "viewer.css", "text/css; charset=utf-8"},
         {"/graph.html", "graph.html", "text/html; charset=utf-8"},
         {"/graph.js", "graph.js", "text/javascript; charset=utf-8"},
+        {"/pin.js", "pin.js", "text/javascript; charset=utf-8"},
     };
     webserve_cfg_t wc = {
         .bind = viewer_params(c)->bind, .port = (int)viewer_params(c)->http_port, .www = v->www,
@@ -655,12 +663,14 @@ static int init_viewer(marie_component_t *c)
         marie_component_fail_reason(c, "%s", why);
         return -1;
     }
-    char url[256];
+    char url[256], pin[sizeof v->pin + 8] = "";
     webserve_url(v->web, viewer_params(c)->url_file, url, sizeof url);
+    if (v->pins)
+        snprintf(pin, sizeof pin, "#pin=%s", v->pin);  /* the page takes it from there: not sent */
     if (v->live)
-        printf("marie-view: following the bus at %s\n", url);
+        printf("marie-view: following the bus at %s%s\n", url, pin);
     else
-        printf("marie-view: playing %s at %s\n", log, url);
+        printf("marie-view: playing %s at %s%s\n", log, url, pin);
     fflush(stdout);
     return 0;
 }
@@ -682,6 +692,7 @@ static void quit(marie_component_t *c)
 {
     viewer_t *v = marie_component_user(c);
     MARIE_CLEAR(v->web, webserve_stop);
+    MARIE_CLEAR(v->pins, pinguard_destroy);
     for (int i = 0; i < P_NIN; i++)
         free(v->chans[i].latest);
     livemap_free(&v->live_map);

@@ -23,6 +23,7 @@ typedef struct frame {
 typedef struct client {
     struct client *next;
     int id;
+    char addr[48];              /* the page's address */
     struct mg_connection *conn;
     pthread_t writer;
     pthread_mutex_t mu;
@@ -37,6 +38,7 @@ typedef struct client {
 typedef struct cmd {
     struct cmd *next;
     int client;                 /* -1: none */
+    char addr[48];
     bool hello;                 /* a new client: send it the state */
     size_t len;
     char text[];
@@ -139,13 +141,14 @@ void webserve_notice(webserve_t *v, int id, const char *level, const char *text)
     marie_buf_free(&b);
 }
 
-static void push_cmd(webserve_t *v, int client, bool hello, const char *text, size_t len)
+static void push_cmd(webserve_t *v, const client_t *cl, bool hello, const char *text, size_t len)
 {
     cmd_t *c = malloc(sizeof *c + len + 1);
     if (!c)
         return;
     c->next = NULL;
-    c->client = client;
+    c->client = cl->id;
+    memcpy(c->addr, cl->addr, sizeof c->addr);
     c->hello = hello;
     c->len = len;
     memcpy(c->text, text, len);
@@ -187,6 +190,7 @@ static void ws_ready(struct mg_connection *conn, void *ud)
     if (!cl)
         return;
     cl->conn = conn;
+    snprintf(cl->addr, sizeof cl->addr, "%s", mg_get_request_info(conn)->remote_addr);
     pthread_mutex_init(&cl->mu, NULL);
     pthread_cond_init(&cl->cv, NULL);
     if (pthread_create(&cl->writer, NULL, writer_main, cl) != 0) {
@@ -199,7 +203,7 @@ static void ws_ready(struct mg_connection *conn, void *ud)
     v->clients = cl;
     pthread_mutex_unlock(&v->mu);
     mg_set_user_connection_data(conn, cl);
-    push_cmd(v, cl->id, true, "", 0);
+    push_cmd(v, cl, true, "", 0);
 }
 
 static int ws_data(struct mg_connection *conn, int bits, char *data, size_t len, void *ud)
@@ -210,7 +214,7 @@ static int ws_data(struct mg_connection *conn, int bits, char *data, size_t len,
     if (op == MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE)
         return 0;
     if (op == MG_WEBSOCKET_OPCODE_TEXT && cl && len <= 4096)
-        push_cmd(v, cl->id, false, data, len);
+        push_cmd(v, cl, false, data, len);
     return 1;
 }
 
@@ -282,7 +286,7 @@ static void on_wake(marie_loop_t *loop, int fd, short revents, void *user)
         pthread_mutex_unlock(&v->mu);
         if (!c)
             break;
-        v->cfg.on_cmd(v->cfg.user, c->client, c->hello, c->text, c->len);
+        v->cfg.on_cmd(v->cfg.user, c->client, c->addr, c->hello, c->text, c->len);
         free(c);
     }
 }

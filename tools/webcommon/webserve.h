@@ -23,8 +23,9 @@ typedef struct {
 } webserve_file_t;
 
 /* A command from a page (text, a JSON object), or hello = true when a page connected (send it
- * the present state). Runs in the loop's thread. */
-typedef void (*webserve_cmd_fn)(void *user, int client, bool hello, const char *text, size_t len);
+ * the present state); addr is the page's address as the server saw it ("127.0.0.1"). Runs in
+ * the loop's thread. */
+typedef void (*webserve_cmd_fn)(void *user, int client, const char *addr, bool hello, const char *text, size_t len);
 
 typedef struct {
     const char *bind;               /* address, e.g. 127.0.0.1 */

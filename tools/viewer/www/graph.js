@@ -45,6 +45,7 @@ function handle(m) {
     $('mode').textContent = (m.mode === 'log' ? 'log' : 'live bus') + (controls ? ', controls enabled' : ', controls disabled');
   } else if (m.type === 'notice') {
     notice(m.text);
+    controlPin.refused(m.text);
   } else if (m.type === 'msg') {
     onMsg(m);
   }
@@ -198,7 +199,7 @@ function showSelected() {
 for (const b of document.querySelectorAll('#sel-controls button')) {
   b.addEventListener('click', () => {
     if (!S.selected) return;
-    const o = { op: 'order', cmd: b.dataset.cmd, target: S.selected };
+    const o = { op: 'order', cmd: b.dataset.cmd, target: S.selected, pin: controlPin.get() };
     if (b.dataset.cmd === 'move') o.host = $('move-host').value;
     send(o);
   });

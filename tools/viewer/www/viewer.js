@@ -143,6 +143,7 @@ function handle(m) {
   case 'notice':
     notice(m.text);
     if (m.level === 'error') banner(m.text, 'error');
+    controlPin.refused(m.text);
     break;
   case 'pong': break;
   }
@@ -592,7 +593,7 @@ function drawPanels() {
         const b = document.createElement('button');
         b.textContent = icon;
         b.title = cmd + ' ' + n;
-        b.onclick = () => send({ op: 'order', cmd, target: n });
+        b.onclick = () => send({ op: 'order', cmd, target: n, pin: controlPin.get() });
         td.appendChild(b);
       }
     }
@@ -745,7 +746,7 @@ mapCv.onmousemove = (ev) => {
 mapCv.onmouseup = () => {
   if (S.drag) {
     const d = S.drag, len = Math.hypot(d.x2 - d.x, d.y2 - d.y);
-    send({ op: 'goal', x: d.x, y: d.y, th: len > 0.2 ? Math.atan2(d.y2 - d.y, d.x2 - d.x) : 0 });
+    send({ op: 'goal', x: d.x, y: d.y, th: len > 0.2 ? Math.atan2(d.y2 - d.y, d.x2 - d.x) : 0, pin: controlPin.get() });
     S.drag = null; S.goalMode = false; $('goal-mode').textContent = 'Set goal';
   }
   pan = null;
