@@ -3,14 +3,14 @@
  * two versions or two settings of the mapper are compared on the very same input (a live run
  * never gives the same input twice). Prints the mapper's counters, its trajectory against the
  * truth (ATE) and the map against a world (as `marie map compare`). Not installed.
- *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry]
+ *   mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry] [--times]
  *                 [PARAM=VALUE ...]
- * (--traj: "utime x y theta" of each scan placed, then the truth's and the odometry's "x y theta"
+ * (--times: the mapper's time per scan, p50 p99 max; --traj: "utime x y theta" of each scan placed, then the truth's and the odometry's "x y theta"
  * at its time, the truth's NaN where it has none; --truth-odometry: the simulator's truth stands
  * in for the odometry, so what error is left is the scan matcher's and the map's own).
  * PARAMs are the mapper library's (adapters/mapper/slam.params.yaml); only the log's first run
  * is read (it ends where the simulated time goes back, as in marie-demo's two-part logs). The log
- * is read with the viewer's parser (tools/viewer/lcmlog), which resynchronises past damage and
+ * is read with the viewer's parser (core/lcmlog), which resynchronises past damage and
  * counts it as `corrupt`. */
 #include <errno.h>
 #include <inttypes.h>
@@ -18,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "adapters/common/posebuf.h"
 #include "adapters/common/scanwait.h"
@@ -31,7 +32,8 @@
 #include "lcmtypes/marie_types.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
-#include "tools/viewer/lcmlog.h"
+#include "map/trajeval.h"
+#include "core/lcmlog.h"
 
 static const marie_param_spec_t slam_spec[] = SLAM_PARAMS;
 
@@ -44,9 +46,13 @@ typedef struct {
     size_t nest, cap;
     struct { int64_t t; double x, y, th; } *truth; /* SIM_TRUTH, in time order */
     size_t nt, tcap;
+    traj_pose_t *ref;           /* REFERENCE (an imported log's own estimate), in time order */
+    size_t nref, rcap;
+    double *ms;                 /* each placed scan's time in the mapper, ms */
     size_t undecodable;
     bool done;                  /* the log's first run is over */
     bool truth_odometry;        /* --truth-odometry */
+    bool times;                 /* --times: the mapper's time per scan (differs from run to run) */
 } replay_t;
 
 static replay_t R;
@@ -99,10 +105,16 @@ static void place(marie_component_t *c, const marie_laser_scan_t *m)
     if (!posebuf_at(&R.odom, m->utime, od) || m->utime <= R.last_scan)
         return;
     slam_scan_t ss = { m->ranges, m->nranges, m->angle_min, m->angle_increment, m->range_min, m->range_max };
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
     if (slam_add_scan(R.slam, od, &ss, pose) < 0)
         return;
+    clock_gettime(CLOCK_MONOTONIC, &t1);
     R.last_scan = m->utime;
+    size_t cap = R.cap;
     R.est = room(R.est, R.nest, &R.cap, sizeof R.est[0]);
+    R.ms = room(R.ms, R.nest, &cap, sizeof R.ms[0]);
+    R.ms[R.nest] = (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) / 1e6;
     memcpy(R.est[R.nest++], (double[7]){ (double)m->utime, pose[0], pose[1], pose[2], od[0], od[1], od[2] },
            sizeof R.est[0]);
 }
@@ -150,6 +162,20 @@ static void on_event(void *user, const lcmlog_event_t *ev)
                 add_odometry(t.utime, (const double[3]){ t.pose.x, t.pose.y, t.pose.theta });
         }
         marie_pose_cov_t_decode_cleanup(&t);
+    } else if (is(ev, "REFERENCE")) {
+        marie_pose_cov_t t;
+        if (!decode(ev, &marie_type_pose_cov_t, &t))
+            return;
+        R.ref = room(R.ref, R.nref, &R.rcap, sizeof *R.ref);
+        R.ref[R.nref++] = (traj_pose_t){ t.utime, t.pose.x, t.pose.y, t.pose.theta };
+        R.truth = room(R.truth, R.nt, &R.tcap, sizeof *R.truth);     /* for --traj */
+        R.truth[R.nt].t = t.utime;
+        R.truth[R.nt].x = t.pose.x;
+        R.truth[R.nt].y = t.pose.y;
+        R.truth[R.nt++].th = t.pose.theta;
+        if (R.truth_odometry)
+            add_odometry(t.utime, (const double[3]){ t.pose.x, t.pose.y, t.pose.theta });
+        marie_pose_cov_t_decode_cleanup(&t);
     } else if (is(ev, "ODOMETRY")) {
         marie_odometry_t o;
         if (!decode(ev, &marie_type_odometry_t, &o))
@@ -167,6 +193,50 @@ static void on_event(void *user, const lcmlog_event_t *ev)
     }
 }
 
+/* Against the log's REFERENCE (an imported log's own estimate): ATE after the best rigid
+ * alignment, relation errors over 1 m and 5 m of path (map/trajeval.h). */
+static void score_reference(void)
+{
+    if (!R.nref || !R.nest)
+        return;
+    traj_pose_t *est = malloc(R.nest * sizeof *est), *pe = malloc(R.nest * sizeof *pe), *pr = malloc(R.nest * sizeof *pr);
+    if (!est || !pe || !pr)
+        exit(1);
+    for (size_t i = 0; i < R.nest; i++)
+        est[i] = (traj_pose_t){ (int64_t)R.est[i][0], R.est[i][1], R.est[i][2], R.est[i][3] };
+    size_t n = trajeval_pair(est, R.nest, R.ref, R.nref, 0, pe, pr);
+    trajeval_t e;
+    const double d[2] = { 1, 5 };
+    if (trajeval_run(pe, pr, n, d, 2, &e) == 0)
+        printf("reference pairs %zu path %.1f ate %.3f ate_max %.3f re1 %.4f re1_rot %.4f re5 %.4f re5_rot %.4f\n", e.pairs,
+               e.path, e.ate_rms, e.ate_max, e.rel[0].trans_mean, e.rel[0].rot_mean, e.rel[1].trans_mean,
+               e.rel[1].rot_mean);
+    free(est), free(pe), free(pr);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The mapper's time per scan (closures and their re-renders included). */
+static void print_times(void)
+{
+    if (!R.nest)
+        return;
+    double *ms = malloc(R.nest * sizeof *ms), sum = 0;
+    if (!ms)
+        exit(1);
+    memcpy(ms, R.ms, R.nest * sizeof *ms);
+    qsort(ms, R.nest, sizeof *ms, cmp_double);
+    for (size_t i = 0; i < R.nest; i++)
+        sum += ms[i];
+    printf("scan_ms p50 %.2f p99 %.2f max %.2f total_s %.2f\n", ms[R.nest / 2], ms[(size_t)(0.99 * (double)(R.nest - 1))],
+           ms[R.nest - 1], sum / 1e3);
+    free(ms);
+}
+
 int main(int argc, char **argv)
 {
     const char *log = NULL, *world = NULL, *save = NULL, *traj = NULL;
@@ -182,6 +252,8 @@ int main(int argc, char **argv)
             traj = argv[++i];
         else if (!strcmp(argv[i], "--truth-odometry"))
             R.truth_odometry = true;
+        else if (!strcmp(argv[i], "--times"))
+            R.times = true;
         else if (!strcmp(argv[i], "--start") && i + 3 < argc)
             for (int k = 0; k < 3; k++)
                 start[k] = atof(argv[++i]);
@@ -195,7 +267,7 @@ int main(int argc, char **argv)
     }
     FILE *f = log ? fopen(log, "rb") : NULL;
     if (!f) {
-        fprintf(stderr, "usage: mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry] [PARAM=VALUE ...]%s%s\n",
+        fprintf(stderr, "usage: mapper_replay LOG [--world W.yaml] [--start X Y TH] [--save NAME] [--traj FILE] [--truth-odometry] [--times] [PARAM=VALUE ...]%s%s\n",
                 log ? ": " : "", log ? strerror(errno) : "");
         return 2;
     }
@@ -256,6 +328,9 @@ int main(int argc, char **argv)
     }
     if (n)
         printf("ate_rms %.3f max %.3f poses %zu\n", sqrt(se / (double)n), mx, n);
+    score_reference();
+    if (R.times)
+        print_times();
     if (tf)
         fclose(tf);
     occmap_t *m = slam_render(R.slam);
@@ -283,5 +358,7 @@ int main(int argc, char **argv)
     scanwait_free(&R.wait);
     free(R.est);
     free(R.truth);
+    free(R.ref);
+    free(R.ms);
     return rc;
 }
