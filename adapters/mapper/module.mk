@@ -8,7 +8,7 @@ $(eval $(call marie_test,test_slam,tests/mapper/test_slam.c,$(MAPPER_LIBS)))
 $(eval $(call marie_bench,bench_mapper,bench/bench_mapper.cpp,$(MAPPER_LIBS)))
 # The integration test's pilot, and a recorded run through the mapper's library (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/route_driver,tests/mapper/route_driver.c,))
-$(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c,$(MAPPER_LIBS)))
+$(eval $(call marie_link,$(B)/tests/helpers/mapper_replay,tests/mapper/mapper_replay.c tests/mapper/replay.c,$(MAPPER_LIBS)))
 $(eval $(call marie_link,$(B)/tests/helpers/map_updates_check,tests/mapper/map_updates_check.c,$(MAP_LIB)))
 EXTRA_TARGETS += $(B)/tests/helpers/route_driver $(B)/tests/helpers/mapper_replay $(B)/tests/helpers/map_updates_check
 ITESTS += tests/mapper/test_mapper_replay.sh

@@ -1,6 +1,7 @@
 /* marie-map: `marie map save NAME` waits for the next map on the bus (marie.occupancy_grid_t)
  * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load;
- * `marie map compare BUILT WORLD` judges a built map against the world it was built in. */
+ * `marie map compare BUILT WORLD` judges a built map against the world it was built in;
+ * `marie map eval RUN.lcm` scores a recorded run's poses against a reference (map_eval.c). */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +16,7 @@
 #include "managers/am_proto.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
+#include "tools/map/map_tool.h"
 
 typedef struct {
     marie_occupancy_grid_t grid;
@@ -64,7 +66,10 @@ static int usage(void)
                     "       marie map compare BUILT.yaml WORLD.yaml [--start X Y]\n"
                     "  precision and recall of BUILT's occupied cells against WORLD's walls (within one\n"
                     "  cell), coverage of WORLD's free space reachable from (X, Y) (default 0 0);\n"
-                    "  then the same after the best alignment within 0.5 m and 0.03 rad\n");
+                    "  then the same after the best alignment within 0.5 m and 0.03 rad\n"
+                    "       marie map eval RUN.lcm [--reference LOG] [--png FILE] [--json 1] ...\n"
+                    "  the mapper's POSE in RUN against a reference trajectory (REFERENCE): ATE after\n"
+                    "  the best rigid alignment, relation errors over 1 m and 5 m of path (--help: all options)\n");
     return MARIE_EXIT_USAGE;
 }
 
@@ -154,6 +159,8 @@ int main(int argc, char **argv)
     double wait_s = 6;          /* the mapper sends its map again every 5 s */
     if (argc >= 2 && strcmp(argv[1], "compare") == 0)
         return compare(argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "eval") == 0)
+        return map_eval_main(argc - 1, argv + 1);
     if (argc < 3 || strcmp(argv[1], "save") != 0)
         return usage();
     for (int i = 2; i < argc; i++) {
