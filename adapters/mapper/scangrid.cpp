@@ -64,9 +64,11 @@ void Grid::clear()
         size_t len = (size_t)(x1 - x0 + 1);
         for (int y = y0; y <= y1; y++) {
             size_t i = (size_t)y * w_ + x0;
-            std::fill_n(&lo_[i], len, 0.0f);
+            if (used_logodds_) {
+                std::fill_n(&lo_[i], len, 0.0f);
+                std::fill_n(&seen_[i], len, 0);
+            }
             std::fill_n(&like_[i], len, 0.0f);
-            std::fill_n(&seen_[i], len, 0);
             std::fill_n(&wall_[i], len, 0);
         }
         for (int l = 0; l < LEVELS; l++) {
@@ -79,6 +81,45 @@ void Grid::clear()
     }
     bx0_ = by0_ = INT32_MAX;
     bx1_ = by1_ = INT32_MIN;
+    used_logodds_ = false;
+}
+
+void Grid::end_batch()
+{
+    batch_ = false;
+    if (bx1_ >= bx0_)
+        build_pyramid(std::max(0, bx0_ - kr_), std::max(0, by0_ - kr_), std::min(w_ - 1, bx1_ + kr_),
+                      std::min(h_ - 1, by1_ + kr_));
+}
+
+// The pyramid over the cells [x0, x1] x [y0, y1] from the likelihood, level by level (each
+// block the maximum of the four below it), and the 2 x 2 maxima of each level beside it.
+void Grid::build_pyramid(int x0, int y0, int x1, int y1)
+{
+    for (int l = 0; l < LEVELS; l++) {
+        const int sh = l + 1, bx0 = x0 >> sh, by0 = y0 >> sh;
+        const int bx1 = std::min(x1 >> sh, pw_[l] - 1), by1 = std::min(y1 >> sh, ph_[l] - 1);
+        /* The level below: the likelihood itself, or the previous level; its row length and extent. */
+        const float *below = l ? pyr_[l - 1].data() : like_.data();
+        const int bw = l ? pw_[l - 1] : w_, bh = l ? ph_[l - 1] : h_;
+        float *out = pyr_[l].data();
+        for (int by = by0; by <= by1; by++) {
+            const int y = 2 * by;
+            const float *r0 = below + (size_t)y * bw, *r1 = y + 1 < bh ? r0 + bw : r0;
+            for (int bx = bx0; bx <= bx1; bx++) {
+                const int x = 2 * bx, x2 = x + 1 < bw ? x + 1 : x;
+                out[(size_t)by * pw_[l] + bx] = std::max(std::max(r0[x], r0[x2]), std::max(r1[x], r1[x2]));
+            }
+        }
+        float *q = quad_[l].data();
+        for (int by = std::max(0, by0 - 1); by <= by1; by++) {
+            const float *r0 = out + (size_t)by * pw_[l], *r1 = by + 1 < ph_[l] ? r0 + pw_[l] : r0;
+            for (int bx = std::max(0, bx0 - 1); bx <= bx1; bx++) {
+                const int x2 = bx + 1 < pw_[l] ? bx + 1 : bx;
+                q[(size_t)by * pw_[l] + bx] = std::max(std::max(r0[bx], r0[x2]), std::max(r1[bx], r1[x2]));
+            }
+        }
+    }
 }
 
 // What the grid holds in memory: the part of its arrays the map has reached.
@@ -112,7 +153,7 @@ void Grid::raise(int cx, int cy, float v)
     if (v <= c)
         return;
     c = v;
-    for (int l = 0; l < LEVELS; l++) {
+    for (int l = 0; l < LEVELS && !batch_; l++) {
         int bx = cx >> (l + 1), by = cy >> (l + 1);
         float &b = pyr_[l][(size_t)by * pw_[l] + bx];
         if (b >= v)
@@ -194,6 +235,7 @@ static bool trace(int x0, int y0, int x1, int y1, int w, int h, F pass)
 
 bool Grid::integrate(const Pose &at, const Scan &s)
 {
+    used_logodds_ = true;
     double c = std::cos(at.th), sn = std::sin(at.th), r = p_.resolution;
     double sx = at.x + c * s.ox - sn * s.oy, sy = at.y + sn * s.ox + c * s.oy;
     int scx = (int)std::floor((sx - ox_) / r), scy = (int)std::floor((sy - oy_) / r);
@@ -280,16 +322,28 @@ void Grid::copy_likelihood(const Grid &src)
 {
     const double r = p_.resolution;
     const int dx = (int)std::lround((ox_ - src.ox_) / r), dy = (int)std::lround((oy_ - src.oy_) / r);
-    const int x0 = std::max(0, -dx), x1 = std::min(w_, src.w_ - dx);
-    const int y0 = std::max(0, -dy), y1 = std::min(h_, src.h_ - dy);
+    const int B = 1 << LEVELS;
+    if (src.bx1_ < src.bx0_ || dx % B || dy % B)
+        return;
+    /* Where the source has anything (its touched cells and their kernels' reach), in whole
+     * blocks of the coarsest level, so that the pyramid is copied as it is. */
+    int x0 = std::max(0, (src.bx0_ - src.kr_ - dx) / B * B), x1 = std::min(w_, (src.bx1_ + src.kr_ + 1 - dx + B) / B * B);
+    int y0 = std::max(0, (src.by0_ - src.kr_ - dy) / B * B), y1 = std::min(h_, (src.by1_ + src.kr_ + 1 - dy + B) / B * B);
+    x1 = std::min(x1, src.w_ - dx), y1 = std::min(y1, src.h_ - dy);
+    if (x1 <= x0 || y1 <= y0)
+        return;
     for (int y = y0; y < y1; y++)
-        for (int x = x0; x < x1; x++) {
-            float v = src.like_[(size_t)(y + dy) * src.w_ + (x + dx)];
-            if (v > 0) {
-                raise(x, y, v);
-                touch(x, y);
-            }
+        std::copy_n(&src.like_[(size_t)(y + dy) * src.w_ + (x0 + dx)], x1 - x0, &like_[(size_t)y * w_ + x0]);
+    for (int l = 0; l < LEVELS; l++) {
+        int sh = l + 1, a = x0 >> sh, b = std::min(pw_[l], (x1 + (1 << sh) - 1) >> sh), ox = dx >> sh, oy = dy >> sh;
+        b = std::min(b, src.pw_[l] - ox);
+        for (int by = y0 >> sh; by < std::min(ph_[l], std::min(src.ph_[l] - oy, (y1 + (1 << sh) - 1) >> sh)); by++) {
+            std::copy_n(&src.pyr_[l][(size_t)(by + oy) * src.pw_[l] + a + ox], b - a, &pyr_[l][(size_t)by * pw_[l] + a]);
+            std::copy_n(&src.quad_[l][(size_t)(by + oy) * src.pw_[l] + a + ox], b - a, &quad_[l][(size_t)by * pw_[l] + a]);
         }
+    }
+    touch(x0, y0);
+    touch(x1 - 1, y1 - 1);
 }
 
 double Grid::contradiction(const Scan &s, const Pose &at, double l_free) const
@@ -330,12 +384,14 @@ struct Grid::Search {
         }
         return 1 - 0.01 * (double)(dx * dx + dy * dy + t * t) / (double)(nc * nc + nt * nt + 1);
     }
+    // The search has scored as many regions and poses as it may: what it found is what it has.
+    bool cut() const { return win.max_evals > 0 && evals >= win.max_evals; }
     // Mean likelihood of the points at offset (x, y) for angle t (level 0), or its bound over the
     // region of 2^level offsets from (x, y).
-    mutable long evals[LEVELS + 1] = {};
+    mutable long evals = 0;                    // regions and poses scored so far
     double raw(int t, int x, int y, int level) const
     {
-        evals[level]++;
+        evals++;
         const int *cx = &px[(size_t)(t + nt) * n], *cy = &py[(size_t)(t + nt) * n];
         double sum = 0;
         if (level == 0) {
@@ -385,7 +441,7 @@ struct Grid::Search {
     {
         std::sort(cands.begin(), cands.end(), [](const Cand &a, const Cand &b) { return a.bound > b.bound; });
         for (const Cand &c : cands) {
-            if (c.bound <= *best_score)
+            if (c.bound <= *best_score || cut())
                 break;
             if (c.level == 0) {
                 *best_score = c.bound;
@@ -497,7 +553,7 @@ Scan Grid::seen_hits(const Scan &s, const Pose &guess) const
 }
 
 double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, Pose *out, double *rival,
-                   bool *edge) const
+                   bool *edge, bool *cut) const
 {
     *out = guess;
     if (edge)
@@ -524,14 +580,12 @@ double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, P
     }
     std::vector<Search::Cand> cands = q.roots(true, 0, 0, 0);
     Search::Cand best{ 0, 0, 0, 0, 0 };
-    double best_score = -1;
+    double best_score = win.floor > 0 ? win.floor : -1;
     q.descend(cands, true, 0, 0, 0, &best, &best_score);
-    if (getenv("BNB_DEBUG")) {
-        fprintf(stderr, "bnb: n %d nc %d nt %d top %d evals", q.n, q.nc, q.nt, q.top);
-        for (int l = 0; l <= LEVELS; l++)
-            fprintf(stderr, " %ld", q.evals[l]);
-        fprintf(stderr, " best %.3f\n", best_score);
-    }
+    if (win.floor > 0 && best_score <= win.floor)
+        return 0;
+    if (cut)
+        *cut = q.cut();
     if (best_score < 0)
         return 0;
     Pose c{ guess.x + best.x * r, guess.y + best.y * r, wrap(guess.th + best.t * win.step_th) };
@@ -541,9 +595,10 @@ double Grid::match(const Scan &all, const Pose &guess, const MatchWindow &win, P
         double excl = win.rival_radius / r;
         std::vector<Search::Cand> rc = q.roots(false, best.x, best.y, excl * excl);
         Search::Cand rb{ 0, 0, 0, 0, 0 };
-        double rs = 0;
+        /* A rival matters only near the best: below win.rival_floor of it, none is sought. */
+        double rs = win.rival_floor * best_score;
         q.descend(rc, false, best.x, best.y, excl * excl, &rb, &rs);
-        *rival = rs;
+        *rival = rs > win.rival_floor * best_score ? rs : 0;
     }
     double sc = score(s, c);
     if (win.refine)

@@ -43,6 +43,13 @@ struct MatchWindow {
     // > 0: match() also finds the best score of the poses at least this far (m) from the best
     // one, its rival: a rival nearly as good says the place looks alike along some direction.
     double rival_radius = 0;
+    double rival_floor = 0;                    // ... and only one scoring above this share of the best
+    // The search looks only for poses scoring above this (weighted): a caller that would refuse
+    // less prunes most of the window at once. match() returns 0 when none does.
+    double floor = 0;
+    // > 0: the search scores at most this many regions and poses (each costs a pass over the
+    // points): a wide window over a place that fits poorly everywhere prunes little.
+    long max_evals = 0;
     // Match only the hits that land on cells the map has seen (tracking: a new wall's part would
     // pull the match back onto the known map); a grid of hits alone has seen nothing.
     bool seen_only = true;
@@ -89,8 +96,8 @@ public:
     void set_origin(double ox, double oy) { ox_ = ox, oy_ = oy; }
     // Whether integrate() stamps the walls (cells above l_occupied) into the likelihood.
     void set_stamp_walls(bool on) { stamp_walls_ = on; }
-    // The likelihood of `src` (same resolution, origins a whole number of cells apart) where the
-    // two overlap, into this cleared grid.
+    // The likelihood of `src` with its pyramid (same resolution, origins a whole number of
+    // coarsest blocks apart: 2^LEVELS cells) where the two overlap, into this cleared grid.
     void copy_likelihood(const Grid &src);
     const GridParams &params() const { return p_; }
     // Integrate a scan seen from robot pose `at` into the log-odds; false when part of it fell off
@@ -99,6 +106,10 @@ public:
     // The scan's hits into the matching likelihood, each a Gaussian (max) around its cell: a grid
     // to match against, built from a few keyframes.
     void add_hits(const Pose &at, const Scan &s);
+    // Between these, add_hits() leaves the pyramid alone; end_batch() builds it once over what
+    // was touched (cheaper for a grid drawn whole from many keyframes).
+    void begin_batch() { batch_ = true; }
+    void end_batch();
     // The hits that land on cells this grid has seen (hit or passed), at `guess`.
     Scan seen_hits(const Scan &s, const Pose &guess) const;
     void clear();
@@ -108,9 +119,10 @@ public:
     bool seen(int cx, int cy) const { return seen_[(size_t)cy * w_ + cx] != 0; }
     // Best pose near `guess` for the scan's hits; the mean likelihood per hit (0..1), and the
     // pose in *out. Scans with fewer than 10 hits score 0. *edge (may be NULL): the search's
-    // best lay at the window's edge (a maximum the window cut off).
+    // best lay at the window's edge (a maximum the window cut off); *cut: the search stopped at
+    // win.max_evals, its best is the best it had found.
     double match(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *out, double *rival = nullptr,
-                 bool *edge = nullptr) const;
+                 bool *edge = nullptr, bool *cut = nullptr) const;
     double score(const Scan &s, const Pose &at) const;
     // Share of the scan's hits (all of them) that land where the map is surely free (log-odds
     // below l_free): a pose the map contradicts.
@@ -132,6 +144,7 @@ private:
     void touch(int cx, int cy);
     double refine(const Scan &s, const Pose &guess, const MatchWindow &win, Pose *pose) const;
     double sample(double x, double y, double *gx, double *gy) const;
+    void build_pyramid(int x0, int y0, int x1, int y1);
 
     int w_, h_;
     double ox_, oy_;
@@ -150,6 +163,8 @@ private:
     int bx0_, by0_, bx1_, by1_;                // cells touched (the likelihood reaches kr_ further)
     int64_t cleared_ = 0;
     bool stamp_walls_ = false;
+    bool used_logodds_ = false;                // integrate() wrote lo_ and seen_ since the last clear
+    bool batch_ = false;
 };
 
 }  // namespace mapper

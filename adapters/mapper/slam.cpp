@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <memory>
 #include <new>
 #include <vector>
@@ -23,7 +24,9 @@ namespace {
 struct Keyframe {
     Pose pose;
     Scan scan;
+    Scan few;                                  // its hits thinned (match_points): what a loop matches against
     double path;                               // m along the keyframes from the first
+    double drift;                              // m the tracking may have drifted since the first (see drift_step)
 };
 
 double ms_since(std::chrono::steady_clock::time_point t0)
@@ -49,6 +52,7 @@ struct slam {
     Pose pose0;
     std::unique_ptr<Grid> grid;                // the map shown (log-odds), never matched against
     Tracker trk[2];                            // two, half a life apart: the older is matched against
+    std::unique_ptr<Grid> chain;               // the loop matcher's grid of an older stretch of path
     std::vector<Keyframe> kfs;
     std::vector<Edge> edges;
     bool have_odom = false;
@@ -103,6 +107,8 @@ extern "C" slam_t *slam_create(const slam_params_t *p, const double pose0[3])
         for (Tracker &k : s->trk)
             k.grid = std::make_unique<Grid>(t, t, 0, 0, grid_params(p));
         s->grid->set_stamp_walls(true);
+        int cn = (int)std::ceil(30.0 / p->resolution);
+        s->chain = std::make_unique<Grid>(cn, cn, 0, 0, grid_params(p));
         return s;
     } catch (const std::bad_alloc &) {
         errno = ENOMEM;
@@ -211,8 +217,9 @@ static void tracker_restart(const slam_t *s, Tracker *t, int first, const Pose &
     t->grid->clear();
     /* On the map's lattice, and holding the walls the map has of this place: the recent
      * keyframes' hits come on top. */
-    t->grid->set_origin(g.origin_x() + std::round((at.x - half - g.origin_x()) / r) * r,
-                        g.origin_y() + std::round((at.y - half - g.origin_y()) / r) * r);
+    const double block = r * (1 << Grid::LEVELS);     /* the pyramids' blocks line up: copied whole */
+    t->grid->set_origin(g.origin_x() + std::round((at.x - half - g.origin_x()) / block) * block,
+                        g.origin_y() + std::round((at.y - half - g.origin_y()) / block) * block);
     t->grid->copy_likelihood(g);
     t->first = first;
     t->count = 0;
@@ -292,7 +299,7 @@ static int loop_candidate(const slam_t *s, int k)
     double best_d = INFINITY;
     for (int j = 0; j <= k - p.loop_min_gap && cur.path - s->kfs[j].path >= p.loop_min_path; j++) {
         double d = std::hypot(s->kfs[j].pose.x - cur.pose.x, s->kfs[j].pose.y - cur.pose.y);
-        double radius = p.loop_radius + p.loop_drift_per_m * (cur.path - s->kfs[j].path);
+        double radius = p.loop_radius + (cur.drift - s->kfs[j].drift);
         if (d < std::min(radius, 2 * p.loop_radius) && d < best_d) {
             best_d = d;
             best = j;
@@ -303,15 +310,19 @@ static int loop_candidate(const slam_t *s, int k)
 
 // The stretch of path around keyframe j (up to loop_chain keyframes each way, none of the last
 // loop_min_gap) as a grid of their hits around keyframe j: what the robot saw when it was there.
-static Grid chain_grid(const slam_t *s, int j, int k)
+// One grid, kept between attempts: its pages are touched once.
+static const Grid &chain_grid(slam_t *s, int j, int k)
 {
     const slam_params_t &p = s->p;
     const Pose &c = s->kfs[j].pose;
-    const double half = 15.0;
-    int n = (int)std::ceil(2 * half / p.resolution);
-    Grid local(n, n, c.x - half, c.y - half, grid_params(&p));
+    Grid &local = *s->chain;
+    const double half = local.width() * p.resolution / 2;
+    local.clear();
+    local.set_origin(c.x - half, c.y - half);
+    local.begin_batch();
     for (int i = std::max(0, j - (int)p.loop_chain); i <= std::min(k - (int)p.loop_min_gap, j + (int)p.loop_chain); i++)
-        local.add_hits(s->kfs[i].pose, s->kfs[i].scan);
+        local.add_hits(s->kfs[i].pose, s->kfs[i].few);
+    local.end_batch();
     return local;
 }
 
@@ -332,20 +343,35 @@ static void try_loop(slam_t *s)
         return;
     s->st.loop_candidates++;
     const Pose &c = s->kfs[best].pose;
-    Grid local = chain_grid(s, best, k);
+    auto cpu = [] { struct timespec t; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t); return t.tv_sec * 1e3 + t.tv_nsec / 1e6; };
+    double ta = cpu();
+    const Grid &local = chain_grid(s, best, k);
+    double tb = cpu();
     /* The window covers what the matcher may have drifted along the path between the two. */
-    const double drift = p.loop_drift + p.loop_drift_per_m * (cur.path - s->kfs[best].path);
+    const double drift = p.loop_drift + (cur.drift - s->kfs[best].drift);
     const double wxy = std::min(std::max(p.loop_search_xy, drift + 0.5), p.search_max_xy);
-    MatchWindow coarse{ wxy, p.loop_search_th, 0.01, false, 0, 0, 0.3, false };
+    MatchWindow coarse;
+    coarse.xy = wxy, coarse.th = p.loop_search_th, coarse.step_th = 0.02, coarse.refine = false;
+    coarse.prior_xy = coarse.prior_th = 0;
+    coarse.rival_radius = 0.3, coarse.rival_floor = 0.9 * p.loop_max_rival;
+    coarse.floor = 0.9 * p.loop_min_score;     /* no closure below it: the search prunes most of a wide window */
+    coarse.seen_only = false;
+    coarse.max_evals = p.loop_max_evals;
     Pose m1, m2;
     /* Along a corridor the scan fits nearly as well a metre further on: such a match is no
      * closure (on the office route 1 closure in 3 was 0.8-1.6 m wrong before this check). */
-    const Scan pts = thin(cur.scan, (size_t)p.match_points);
-    double rival = 0, csc = local.match(pts, cur.pose, coarse, &m1, &rival);
+    bool cut = false;
+    double rival = 0, csc = local.match(cur.few, cur.pose, coarse, &m1, &rival, nullptr, &cut);
+    if (getenv("SLAM_TIMES"))
+        fprintf(stderr, "loop times: chain %.1f search %.1f win %.2f score %.3f\n", tb - ta, cpu() - tb, wxy, csc);
     if (getenv("SLAM_DEBUG")) {
         Pose mv = between(cur.pose, m1);
         fprintf(stderr, "loop: kf %d cand %d dist %.2f path %.1f win %.2f score %.3f rival %.3f moved %.2f %.2f %.3f drift %.2f\n", k, best,
                 std::hypot(c.x - cur.pose.x, c.y - cur.pose.y), cur.path - s->kfs[best].path, wxy, csc, rival, mv.x, mv.y, mv.th, drift);
+    }
+    if (cut) {                  /* fits poorly everywhere: no place found in time */
+        s->st.loop_cut++;
+        return;
     }
     if (rival > p.loop_max_rival * csc) {
         s->st.loop_ambiguous++;
@@ -360,7 +386,8 @@ static void try_loop(slam_t *s)
         s->st.loop_implausible++;
         return;
     }
-    MatchWindow fine{ 0.1, 0.02, 0.004, true, 0, 0, 0, false };
+    MatchWindow fine;
+    fine.xy = 0.1, fine.th = 0.02, fine.step_th = 0.004, fine.prior_xy = fine.prior_th = 0, fine.seen_only = false;
     double sc = local.match(cur.scan, m1, fine, &m2);
     if (sc < p.loop_min_score || cur.scan.hx.size() < 40)
         return;
@@ -415,7 +442,9 @@ static MatchWindow track_window(const slam_t *s, const Pose &moved)
     const slam_params_t &p = s->p;
     double dist = std::hypot(moved.x, moved.y), turn = std::fabs(moved.th);
     double exy = p.odom_noise_xy * dist, eth = p.odom_noise_th * turn + p.odom_noise_thd * dist;
-    MatchWindow w{ p.search_xy + 3 * exy, p.search_th + 3 * eth, p.step_th, true, p.prior_xy + exy, p.prior_th + eth };
+    MatchWindow w;
+    w.xy = p.search_xy + 3 * exy, w.th = p.search_th + 3 * eth, w.step_th = p.step_th;
+    w.prior_xy = p.prior_xy + exy, w.prior_th = p.prior_th + eth;
     if (!s->have_odom) {        /* after an odometry restart the robot may have moved unseen */
         w.xy *= 3;
         w.th *= 3;
@@ -455,9 +484,12 @@ static double track(slam_t *s, const Scan &all, const Pose &guess, const Pose &m
         win.prior_xy *= 2;
         win.prior_th *= 2;
         win.step_th *= 2;
+        win.max_evals = p.loop_max_evals;
         Pose m, f;
         g.match(sc, guess, win, &m, nullptr, &edge);
-        MatchWindow fine{ 2 * p.resolution, win.step_th, p.step_th, true, 0, 0, 0, false };
+        MatchWindow fine;
+        fine.xy = 2 * p.resolution, fine.th = win.step_th, fine.step_th = p.step_th, fine.prior_xy = fine.prior_th = 0;
+        fine.seen_only = false;
         double sc2 = g.match(sc, m, fine, &f);
         s->st.window_grown++;
         /* Along a corridor a pose a metre away scores nearly as well, and a robot entering a
@@ -474,6 +506,16 @@ static double track(slam_t *s, const Scan &all, const Pose &guess, const Pose &m
     if (std::hypot(d.x / sxy, d.y / sxy) + std::fabs(d.th / sth) > p.disagree_sigma)
         s->st.odometry_disagreements++;
     return score;
+}
+
+// How far the tracking may have drifted over a step of `step` m: loop_drift_per_m of it for a
+// match of loop_drift_score, more for a poorer one, less for a better (a simulator's scans fit
+// their map at 0.9 and drift by millimetres a metre; a real robot's at 0.5-0.8, by centimetres).
+static double drift_step(const slam_t *s, double step)
+{
+    const slam_params_t &p = s->p;
+    double f = (1 - std::min(s->st.last_score, 0.99)) / (1 - p.loop_drift_score);
+    return step * p.loop_drift_per_m * std::clamp(f, 0.1, 3.0);
 }
 
 // A new scan drawn into the grid at the robot's pose; the walls it clears are counted (a
@@ -535,14 +577,23 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
                 e.sigma_th = 0.01;
                 s->edges.push_back(e);
             }
-            double path = s->kfs.empty() ? 0 : s->kfs.back().path + std::hypot(s->last_pose.x - s->kfs.back().pose.x,
-                                                                               s->last_pose.y - s->kfs.back().pose.y);
-            s->kfs.push_back({ s->last_pose, sc, path });
+            double step = s->kfs.empty() ? 0 : std::hypot(s->last_pose.x - s->kfs.back().pose.x,
+                                                          s->last_pose.y - s->kfs.back().pose.y);
+            double path = s->kfs.empty() ? 0 : s->kfs.back().path + step;
+            double drift = s->kfs.empty() ? 0 : s->kfs.back().drift + drift_step(s, step);
+            s->kfs.push_back({ s->last_pose, sc, thin(sc, (size_t)s->p.match_points), path, drift });
             s->odom_since_kf = 0;
             s->st.keyframes = (int64_t)s->kfs.size();
+            auto cpu = [] { struct timespec t; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t); return t.tv_sec * 1e3 + t.tv_nsec / 1e6; };
+            double ta = cpu();
             add_to_grid(s, sc);
+            double tb = cpu();
             tracker_add(s, (int)s->kfs.size() - 1, s->last_pose, sc);
+            double tc = cpu();
             try_loop(s);
+            double td = cpu();
+            if (getenv("SLAM_TIMES") && td - ta > 5)
+                fprintf(stderr, "times: kf %zu grid %.1f trackers %.1f loop %.1f\n", s->kfs.size(), tb - ta, tc - tb, td - tc);
         } else {
             add_to_grid(s, sc);     /* past the bound the map still grows */
             tracker_add(s, (int)s->kfs.size(), s->last_pose, sc);

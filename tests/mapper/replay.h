@@ -18,7 +18,7 @@ typedef struct {
     int64_t utime;
     double pose[3];             /* the mapper's, in the map frame */
     double odom[3];             /* the odometry at the scan */
-    double ms;                  /* time in slam_add_scan */
+    double ms;                  /* CPU time of slam_add_scan (the thread's: load elsewhere does not count) */
     bool optimized;             /* a closure optimized the graph (and re-rendered the map) in it */
 } replay_scan_t;
 
