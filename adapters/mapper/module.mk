@@ -21,3 +21,4 @@ SLOW_TESTS += tests/mapper/test_explore_sim.sh
 RADISH_BENCH_SRCS := bench/bench_mapper_radish.cpp tests/mapper/replay.c tools/log/carmen.c
 $(eval $(call marie_bench,bench_mapper_radish,$(RADISH_BENCH_SRCS),$(MAPPER_LIBS) $(MAP_LIB) -lz))
 $(eval $(call marie_bench_full,bench_mapper_radish_full,$(RADISH_BENCH_SRCS),$(MAPPER_LIBS) $(MAP_LIB) -lz))
+ITESTS += tests/mapper/test_radish.sh

@@ -76,13 +76,14 @@ static void on_msg(void *user, const carmen_msg_t *m)
     marie_laser_scan_t s = { .utime = m->utime, .angle_min = (float)m->angle_min,
                              .angle_increment = (float)m->angle_increment, .range_min = 0,
                              .range_max = (float)m->range_max, .nranges = m->n, .ranges = (float *)m->ranges };
-    put(w, w->laser_ch, m->utime, marie_laser_scan_t_encoded_size(&s), enc_scan, &s);
+    /* The reference first: a replay that takes it for the odometry has it when the scan comes. */
     if (m->has_reference && w->ref_ch[0]) {
         marie_pose_cov_t p = { .utime = m->utime, .frame = "reference",
                                .pose = { m->reference[0], m->reference[1], m->reference[2] } };
         put(w, w->ref_ch, m->utime, marie_pose_cov_t_encoded_size(&p), enc_pose, &p);
         w->references++;
     }
+    put(w, w->laser_ch, m->utime, marie_laser_scan_t_encoded_size(&s), enc_scan, &s);
 }
 
 /* Every line of the file to the pass: 0, or -1 with errno. */

@@ -182,20 +182,21 @@ int map_eval_main(int argc, char **argv)
 {
     eval_t e = { .pose_ch = "POSE", .ref_ch = "REFERENCE", .map_ch = "MAP", .update_ch = "MAP_UPDATE" };
     const char *ref_file = NULL, *png = NULL;
-    int64_t json = 0;
+    const char *format = "text";
     const marie_cli_opt_t opts[] = {
         { "reference", MARIE_CLI_STRING, &ref_file, 0, 0, "LOG  where the reference trajectory is (default: RUN itself)" },
         { "pose", MARIE_CLI_STRING, &e.pose_ch, 0, 0, "CH   the mapper's poses (POSE)" },
         { "ref", MARIE_CLI_STRING, &e.ref_ch, 0, 0, "CH   the reference's poses (REFERENCE)" },
         { "map", MARIE_CLI_STRING, &e.map_ch, 0, 0, "CH   the mapper's map (MAP, and MAP_UPDATE)" },
         { "png", MARIE_CLI_STRING, &png, 0, 0, "FILE the map with both trajectories, as PNG" },
-        { "json", MARIE_CLI_INT, &json, 0, 1, "1    the figures as one JSON object" },
+        { "format", MARIE_CLI_STRING, &format, 0, 0, "F    text, or json: the figures as one JSON object" },
         { NULL },
     };
     int rc = marie_cli_parse("marie map eval", opts, argc, argv);
     if (rc >= 0)
         return rc;
-    if (optind != argc - 1) {
+    bool json = strcmp(format, "json") == 0;
+    if (optind != argc - 1 || (!json && strcmp(format, "text") != 0)) {
         fprintf(stderr, "usage: marie map eval RUN.lcm [OPTION VALUE]...\n");
         marie_cli_usage("marie map eval", opts, stderr);
         return MARIE_EXIT_USAGE;
@@ -212,7 +213,7 @@ int map_eval_main(int argc, char **argv)
     if (e.bad)
         fprintf(stderr, "marie: map eval: %lld records refused (not decodable, or out of order)\n", (long long)e.bad);
     if (rc == MARIE_EXIT_OK)
-        rc = score(&e, png, json != 0);
+        rc = score(&e, png, json);
     free(e.est);
     free(e.ref);
     occmap_destroy(e.map);

@@ -67,7 +67,7 @@ static int usage(void)
                     "  precision and recall of BUILT's occupied cells against WORLD's walls (within one\n"
                     "  cell), coverage of WORLD's free space reachable from (X, Y) (default 0 0);\n"
                     "  then the same after the best alignment within 0.5 m and 0.03 rad\n"
-                    "       marie map eval RUN.lcm [--reference LOG] [--png FILE] [--json 1] ...\n"
+                    "       marie map eval RUN.lcm [--reference LOG] [--png FILE] [--format json] ...\n"
                     "  the mapper's POSE in RUN against a reference trajectory (REFERENCE): ATE after\n"
                     "  the best rigid alignment, relation errors over 1 m and 5 m of path (--help: all options)\n");
     return MARIE_EXIT_USAGE;
