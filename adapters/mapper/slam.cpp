@@ -6,9 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <ctime>
 #include <memory>
 #include <new>
 #include <vector>
@@ -343,10 +340,7 @@ static void try_loop(slam_t *s)
         return;
     s->st.loop_candidates++;
     const Pose &c = s->kfs[best].pose;
-    auto cpu = [] { struct timespec t; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t); return t.tv_sec * 1e3 + t.tv_nsec / 1e6; };
-    double ta = cpu();
     const Grid &local = chain_grid(s, best, k);
-    double tb = cpu();
     /* The window covers what the matcher may have drifted along the path between the two. */
     const double drift = p.loop_drift + (cur.drift - s->kfs[best].drift);
     const double wxy = std::min(std::max(p.loop_search_xy, drift + 0.5), p.search_max_xy);
@@ -362,13 +356,6 @@ static void try_loop(slam_t *s)
      * closure (on the office route 1 closure in 3 was 0.8-1.6 m wrong before this check). */
     bool cut = false;
     double rival = 0, csc = local.match(cur.few, cur.pose, coarse, &m1, &rival, nullptr, &cut);
-    if (getenv("SLAM_TIMES"))
-        fprintf(stderr, "loop times: chain %.1f search %.1f win %.2f score %.3f\n", tb - ta, cpu() - tb, wxy, csc);
-    if (getenv("SLAM_DEBUG")) {
-        Pose mv = between(cur.pose, m1);
-        fprintf(stderr, "loop: kf %d cand %d dist %.2f path %.1f win %.2f score %.3f rival %.3f moved %.2f %.2f %.3f drift %.2f\n", k, best,
-                std::hypot(c.x - cur.pose.x, c.y - cur.pose.y), cur.path - s->kfs[best].path, wxy, csc, rival, mv.x, mv.y, mv.th, drift);
-    }
     if (cut) {                  /* fits poorly everywhere: no place found in time */
         s->st.loop_cut++;
         return;
@@ -403,8 +390,6 @@ static void try_loop(slam_t *s)
      * already holds it together at that scale, and the closures' own errors (median 2-3 cm, one in
      * ten 0.1-0.3 m or 0.02-0.05 rad) bent the map more than they mended (docs/mapping.md). */
     Pose fixed = compose(c, e.z), d = between(cur.pose, fixed);
-    if (getenv("SLAM_DEBUG"))
-        fprintf(stderr, "closure: kf %d-%d score %.3f correction %.3f %.3f %.3f pending %d\n", best, k, sc, d.x, d.y, d.th, s->pending);
     if (std::hypot(d.x, d.y) <= p.loop_optimize_xy && std::fabs(d.th) <= p.loop_optimize_th) {
         s->edges.push_back(e);
         s->st.loop_closures++;
@@ -416,7 +401,9 @@ static void try_loop(slam_t *s)
     Pose fix = compose(fixed, between(cur.pose, Pose{}));
     bool recent = s->pending && k - s->pending_edge.b <= 3 * p.loop_every;
     Pose agree = recent ? between(compose(s->pending_fix, cur.pose), fixed) : Pose{};
-    if (!recent || std::hypot(agree.x, agree.y) > 0.1 || std::fabs(agree.th) > 0.03) {
+    /* Within 0.1 m and 0.03 rad, and what the tracking may have drifted between the two. */
+    const double between_drift = recent ? cur.drift - s->kfs[s->pending_edge.b].drift : 0;
+    if (!recent || std::hypot(agree.x, agree.y) > 0.1 + between_drift || std::fabs(agree.th) > 0.03 + between_drift / 10) {
         if (s->pending)
             s->st.loop_unconfirmed++;
         s->pending = true;
@@ -429,8 +416,6 @@ static void try_loop(slam_t *s)
     s->edges.push_back(e);
     s->st.loop_closures += 2;
     /* What came before the older of the two places stays: the drift is in what came after. */
-    if (getenv("SLAM_DEBUG"))
-        fprintf(stderr, "optimize: at kf %d fixed up to %d\n", k, std::min(best, s->pending_edge.a));
     optimize_graph(s, std::min(best, s->pending_edge.a));
 }
 
@@ -473,8 +458,6 @@ static double track(slam_t *s, const Scan &all, const Pose &guess, const Pose &m
     const double sxy = win.prior_xy, sth = win.prior_th;
     bool edge;
     double score = g.match(sc, guess, win, out, nullptr, &edge);
-    double first = score;
-    bool first_edge = edge;
     const double contra = s->grid->contradiction(all, *out, p.l_min / 2);
     while ((score < p.grow_score || edge) && (win.xy < p.search_max_xy || win.th < p.search_max_th)) {
         /* Each wider window at twice the angular step (a coarse search), the pose it finds then
@@ -501,8 +484,6 @@ static double track(slam_t *s, const Scan &all, const Pose &guess, const Pose &m
         }
     }
     Pose d = between(guess, *out);
-    if (getenv("SLAM_DEBUG"))
-        fprintf(stderr, "track: kf %zu moved %.2f %.2f %.3f win %.2f %.2f score %.3f d %.3f %.3f %.3f first %.3f edge %d\n", s->kfs.size(), moved.x, moved.y, moved.th, win.xy, win.th, score, d.x, d.y, d.th, first, first_edge);
     if (std::hypot(d.x / sxy, d.y / sxy) + std::fabs(d.th / sth) > p.disagree_sigma)
         s->st.odometry_disagreements++;
     return score;
@@ -584,16 +565,9 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
             s->kfs.push_back({ s->last_pose, sc, thin(sc, (size_t)s->p.match_points), path, drift });
             s->odom_since_kf = 0;
             s->st.keyframes = (int64_t)s->kfs.size();
-            auto cpu = [] { struct timespec t; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t); return t.tv_sec * 1e3 + t.tv_nsec / 1e6; };
-            double ta = cpu();
             add_to_grid(s, sc);
-            double tb = cpu();
             tracker_add(s, (int)s->kfs.size() - 1, s->last_pose, sc);
-            double tc = cpu();
             try_loop(s);
-            double td = cpu();
-            if (getenv("SLAM_TIMES") && td - ta > 5)
-                fprintf(stderr, "times: kf %zu grid %.1f trackers %.1f loop %.1f\n", s->kfs.size(), tb - ta, tc - tb, td - tc);
         } else {
             add_to_grid(s, sc);     /* past the bound the map still grows */
             tracker_add(s, (int)s->kfs.size(), s->last_pose, sc);
