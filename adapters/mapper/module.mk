@@ -17,8 +17,6 @@ SLOW_TESTS += tests/mapper/test_mapper_sim.sh
 # The simulated robot mapping the office along a route (~2 min) and by itself (3-4 min):
 # make test-slow runs them (make test stays within its 20 minutes; docs/mapping.md).
 SLOW_TESTS += tests/mapper/test_explore_sim.sh
-# The mapper on the real robots' logs of tests/data/radish: two in make bench, the nine in bench-full.
-RADISH_BENCH_SRCS := bench/bench_mapper_radish.cpp tests/mapper/replay.c tools/log/carmen.c
-$(eval $(call marie_bench,bench_mapper_radish,$(RADISH_BENCH_SRCS),$(MAPPER_LIBS) $(MAP_LIB) -lz))
-$(eval $(call marie_bench_full,bench_mapper_radish_full,$(RADISH_BENCH_SRCS),$(MAPPER_LIBS) $(MAP_LIB) -lz))
+# The mapper on the nine real robots' logs of tests/data/radish (about 35 s).
+$(eval $(call marie_bench,bench_mapper_radish,bench/bench_mapper_radish.cpp tests/mapper/replay.c tools/log/carmen.c,$(MAPPER_LIBS) $(MAP_LIB) -lz))
 ITESTS += tests/mapper/test_radish.sh
