@@ -37,6 +37,7 @@ LDFLAGS  += $(SANFLAGS)
 endif
 
 PROGRAMS :=
+PY_PROGRAMS :=
 TESTS    :=
 ITESTS   :=
 # make test's tests that need the cores to themselves: they run last, alone.
@@ -68,6 +69,17 @@ endef
 define marie_program
 $(call marie_link,$(B)/bin/$(1),$(2),$(3))
 PROGRAMS += $(B)/bin/$(1)
+endef
+
+# $(call marie_py_program,NAME,SCRIPT): a Python component (python/marie, docs/python.md):
+# $(B)/bin/NAME runs SCRIPT with marie's Python package and types; make install installs both.
+define marie_py_program
+$(B)/bin/$(1): $(2) python/wrapper.sh.in
+	@mkdir -p $$(@D)
+	sed -e 's|@NAME@|$(1)|g' -e 's|@SCRIPT@|$(CURDIR)/$(2)|g' -e 's|@BIN@|$(CURDIR)/$(B)/bin|g' \
+	    -e 's|@PYPATH@|$(CURDIR)/python:$(CURDIR)/$(B)/python|g' python/wrapper.sh.in > $$@ && chmod 755 $$@
+PY_PROGRAMS += $(1)=$(2)
+EXTRA_TARGETS += $(B)/bin/$(1)
 endef
 
 # $(call marie_test,NAME,SOURCES,LIBS): cmocka test $(B)/tests/NAME, run by make test.
@@ -174,7 +186,7 @@ test-vm: deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-tests.sh $(VMTESTS)
 
-# The README's two commands on a brand-new Debian 12 root filesystem (slow: see README).
+# The README's two commands on a brand-new Debian 12 root filesystem (slow: docs/testing.md).
 test-fresh:
 	@scripts/install-deps.sh fresh
 	@scripts/test-fresh.sh
@@ -182,12 +194,14 @@ test-fresh:
 bench: deps
 	@scripts/install-deps.sh bench
 	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) scripts/run-bench.sh $(BENCHES)
 
 # The default set, then the long evaluations; the same table and results file.
 bench-full: deps
 	@scripts/install-deps.sh bench
 	@$(MAKE) -j$(NPROC) --no-print-directory all
+	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) scripts/run-bench.sh $(BENCHES) $(BENCHES_FULL)
 
 demo: deps
@@ -218,7 +232,6 @@ install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig \
 	    $(DESTDIR)$(PREFIX)/include/marie/core $(DESTDIR)$(PREFIX)/include/marie/lcmtypes
 	install -m 755 $(PROGRAMS) $(DESTDIR)$(PREFIX)/bin/
-	install -m 755 core/params_gen.py $(DESTDIR)$(PREFIX)/bin/marie-params-gen
 	install -m 644 $(LIBMARIE) $(DESTDIR)$(PREFIX)/lib/
 	install -m 644 $(filter-out %_priv.h,$(wildcard core/*.h)) $(DESTDIR)$(PREFIX)/include/marie/core/
 	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/

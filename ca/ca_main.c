@@ -13,6 +13,7 @@
 #include "core/file.h"
 #include "core/component.h"
 #include "ca/ca_params.h"
+#include "core/version.h"
 
 #define MAX_MAILBOXES 64
 
@@ -486,14 +487,23 @@ static const marie_component_def_t defs[] = {
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-ca", argc, argv);
     const marie_component_def_t *def = NULL;
     for (size_t i = 0; argc > 1 && i < sizeof defs / sizeof defs[0]; i++)
         if (strcmp(argv[1], defs[i].kind) == 0)
             def = &defs[i];
+    bool help = argc == 2 && strcmp(argv[1], "--help") == 0;
     if (!def) {
-        fprintf(stderr, "usage: marie-ca mailbox|splitter|sharedmap|switch [component options]\n"
-                        "       (marie-ca KIND --help lists the options)\n");
-        return 2;
+        FILE *out = help ? stdout : stderr;
+        fprintf(out, "usage: marie-ca mailbox|splitter|sharedmap|switch [component options]\n"
+                     "       (marie-ca KIND --help lists one kind's options)\n");
+        for (size_t i = 0; help && i < sizeof defs / sizeof defs[0]; i++) {
+            char prog[64];
+            snprintf(prog, sizeof prog, "marie-ca %s", defs[i].kind);
+            fprintf(out, "\n");
+            marie_component_usage(&defs[i], prog, out);
+        }
+        return help ? 0 : 2;
     }
     static ca_proc_t proc;
     argv[1] = argv[0];

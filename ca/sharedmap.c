@@ -206,6 +206,44 @@ static int lock(sharedmap_t *sm)
     return 0;
 }
 
+/* PATH.lock also holds the SharedMap's note of the last record it acknowledged, with the log's
+ * device and inode (a compaction makes a new file): "acked DEV INO SEQ", padded. Rewritten
+ * after every fdatasync, never synced itself: it survives a SIGKILL or a clean stop, not
+ * always a power loss (then it is older, or absent, and a torn tail is taken for the write
+ * the crash cut short, as without a note). */
+#define NOTE_LEN 64
+
+static void note_write(sharedmap_t *sm)
+{
+    struct stat st;
+    if (sm->lock_fd < 0 || sm->fd < 0 || fstat(sm->fd, &st) < 0)
+        return;
+    char note[NOTE_LEN + 1];
+    int n = snprintf(note, sizeof note, "acked %llu %llu %lld", (unsigned long long)st.st_dev,
+                     (unsigned long long)st.st_ino, (long long)sm->seq);
+    memset(note + n, ' ', NOTE_LEN - 1 - (size_t)n);
+    note[NOTE_LEN - 1] = '\n';
+    (void)!pwrite(sm->lock_fd, note, NOTE_LEN, 0);
+}
+
+/* The sequence number the note says was acknowledged last in the log now at PATH; 0 when
+ * unknown (no note, or a note about another file). */
+static int64_t note_acked(const sharedmap_t *sm)
+{
+    char note[NOTE_LEN + 1] = "";
+    unsigned long long dev, ino;
+    long long seq;
+    struct stat st;
+    ssize_t n = pread(sm->lock_fd, note, NOTE_LEN, 0);
+    if (n <= 0 || stat(sm->path, &st) < 0)
+        return 0;
+    note[n] = 0;
+    if (sscanf(note, "acked %llu %llu %lld", &dev, &ino, &seq) != 3 || dev != st.st_dev || ino != st.st_ino ||
+        seq < 0)
+        return 0;
+    return seq;
+}
+
 /* Keeps the damaged log as PATH.corrupt-TIMESTAMP, the bytes as found, before it is
  * rewritten: a hard link, or a copy where the filesystem has none. */
 static int keep_aside(sharedmap_t *sm, const uint8_t *buf, size_t len)
@@ -242,20 +280,20 @@ static int on_damage(sharedmap_t *sm, const uint8_t *buf, size_t len)
     sharedmap_log_describe(rep, what, sizeof what);
     if (sm->flags & SHAREDMAP_STRICT) {
         ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_log_damaged", MARIE_EVENT_T_SEV_ERROR,
-                "%s: damaged log (%s lost); left as it is, not started (strict)", sm->path, what);
+                "%s: damaged log (%s); left as it is, not started (strict)", sm->path, what);
         return -EBADMSG;
     }
     int rc = keep_aside(sm, buf, len);
     if (rc < 0) {
         ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", MARIE_EVENT_T_SEV_ERROR,
-                "%s: damaged log (%s lost) cannot be kept aside: %s", sm->path, what, strerror(-rc));
+                "%s: damaged log (%s) cannot be kept aside: %s", sm->path, what, strerror(-rc));
         return rc;
     }
     sm->stats.records_skipped = rep->records_skipped;
     sm->stats.bytes_skipped = rep->bytes_skipped;
     ca_note(&sm->sink, CA_NOTE_COUNT, "log_records_skipped", rep->records_skipped, NULL);
     ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_log_damaged", MARIE_EVENT_T_SEV_WARN,
-            "%s: damaged log: %s skipped, %lld intact records kept; damaged file kept as %s",
+            "%s: damaged log: %s; %lld intact records kept; damaged file kept as %s",
             sm->path, what, (long long)rep->records, sm->aside);
     return 0;
 }
@@ -282,13 +320,14 @@ static int load(sharedmap_t *sm)
         if ((rc = ca_fsync_dir(sm->path)) < 0)
             goto err_free;
         sm->loaded = (sharedmap_replay_t){ .format = 2, .end = (int64_t)ml };
-    } else if ((rc = sharedmap_log_scan(buf, len, replay_record, sm, &sm->loaded)) < 0) {
+    } else if ((rc = sharedmap_log_scan_acked(buf, len, note_acked(sm), replay_record, sm, &sm->loaded)) < 0) {
         goto err_free;      /* -EINVAL: not a SharedMap log, never overwrite it */
     }
     const sharedmap_replay_t *rep = &sm->loaded;
-    if (rep->nranges > 0 && (rc = on_damage(sm, buf, len)) < 0)
+    int damaged = sharedmap_log_damaged(rep);
+    if (damaged && (rc = on_damage(sm, buf, len)) < 0)
         goto err_free;
-    if (rep->torn_bytes > 0 && rep->nranges == 0 && rep->format == 2) {
+    if (rep->torn_bytes > 0 && !damaged && rep->format == 2) {
         /* The torn tail of a write that was never acknowledged. */
         sm->stats.tail_bytes_dropped = rep->torn_bytes;
         if (ftruncate(fd, (off_t)rep->end) < 0 || fsync(fd) < 0) {
@@ -303,10 +342,11 @@ static int load(sharedmap_t *sm)
         return -errno;
     sm->log_size = (off_t)rep->end;
     /* A damaged log is replaced by its intact records; an old one is rewritten as today's. */
-    if (rep->nranges > 0 || rep->format == 1) {
+    if (damaged || rep->format == 1) {
         sm->stats.tail_bytes_dropped = rep->torn_bytes;
         return sharedmap_compact(sm);
     }
+    note_write(sm);
     return 0;
 
 err_free:
@@ -385,6 +425,7 @@ static int log_append(sharedmap_t *sm, const uint8_t *rec, size_t len)
     sm->log_size += (off_t)len;
     sm->nrecords++;
     sm->seq++;
+    note_write(sm);
     return 0;
 err:;
     int e = errno ? errno : EIO;
@@ -529,6 +570,7 @@ int sharedmap_compact(sharedmap_t *sm)
     sm->nrecords = seq;
     sm->seq = seq;
     sm->stats.compactions++;
+    note_write(sm);
     return 0;
 }
 
@@ -638,11 +680,13 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
 int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, int64_t now)
 {
     marie_sharedmap_request_t req;
-    if (ca_view_sharedmap_request(buf, len, &req) < 0) {
+    if (marie_decode_checked(&marie_type_sharedmap_request_t, buf, len, &req) < 0) {
         sm->stats.bad_requests++;
         return ca_bad_request(&sm->sink, NULL, "SharedMap request", buf, len);
     }
-    return sharedmap_handle_request(sm, &req, now);
+    int rc = sharedmap_handle_request(sm, &req, now);
+    marie_sharedmap_request_t_decode_cleanup(&req);
+    return rc;
 }
 
 void sharedmap_set_snapshot(sharedmap_t *sm, const char *channel, const char *source,

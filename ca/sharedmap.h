@@ -38,7 +38,8 @@ typedef struct {
 } sharedmap_stats_t;
 
 /* What replaying a log found. A torn tail (the write being made when the process died,
- * never acknowledged) is the only damage a crash causes; anything else is corruption. */
+ * never acknowledged) is the only damage a crash causes; anything else is corruption. The
+ * log is damaged when sharedmap_log_damaged() says so. */
 #define SHAREDMAP_MAX_RANGES 16
 typedef struct {
     int format;                 /* 1 ("MARIESM1", read and rewritten) or 2 */
@@ -46,8 +47,14 @@ typedef struct {
     int64_t records_skipped;    /* records lost to damage: exact between intact records; for
                                  * damage that runs to the end of the file, a lower bound */
     int64_t bytes_skipped;      /* in damaged stretches */
-    int64_t torn_bytes;         /* a torn unacknowledged tail, not counted as damage */
-    int64_t end;                /* offset after the last intact record */
+    int64_t duplicates;         /* intact records whose sequence number came before: ignored */
+    int64_t reordered;          /* intact records found after a later one: replayed in order */
+    int64_t torn_bytes;         /* a torn tail: the write a crash cut short, or (see
+                                 * acked_lost) an acknowledged record cut off */
+    int64_t acked_lost;         /* acknowledged records missing at the end of the log (known
+                                 * from the SharedMap's note of its last acknowledgement) */
+    int64_t end;                /* offset after the last intact record in the file */
+    int64_t last_seq;           /* the highest sequence number replayed */
     size_t nranges;             /* damaged stretches; the first SHAREDMAP_MAX_RANGES listed */
     struct { int64_t off, len, records; } ranges[SHAREDMAP_MAX_RANGES];
 } sharedmap_replay_t;

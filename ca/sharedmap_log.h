@@ -39,14 +39,25 @@ size_t sharedmap_log_encode(uint8_t *out, const sharedmap_log_rec_t *r);
 /* Called for each intact record, in file order; a negative return stops the scan with it. */
 typedef int (*sharedmap_log_fn)(void *user, const sharedmap_log_rec_t *r);
 
-/* Scans a log image (magic included), calling fn for every intact record and filling rep
- * (zeroed first). Damaged stretches are skipped: the scan resynchronises on the next record
- * marker whose header checksum holds. 0, -EINVAL when no known magic starts the image,
- * or fn's negative return. */
+/* Scans a log image (magic included), calling fn for every intact record, in sequence order,
+ * each sequence number once, and filling rep (zeroed first). Damaged stretches are skipped: the
+ * scan resynchronises on the next record marker whose header and body hold, whatever its
+ * sequence number. 0, -EINVAL when no known magic starts the image, -ENOMEM, or fn's
+ * negative return. */
 int sharedmap_log_scan(const void *image, size_t len, sharedmap_log_fn fn, void *user,
                        sharedmap_replay_t *rep);
 
-/* "N records (B bytes) at offsets O1+L1, O2+L2, ..." for messages, into buf. */
+/* The same, for a log whose writer noted that it acknowledged the records up to sequence
+ * number `acked` (0: unknown): those the log does not hold at its end are lost (acked_lost),
+ * a torn tail among them, and count as damage. */
+int sharedmap_log_scan_acked(const void *image, size_t len, int64_t acked, sharedmap_log_fn fn, void *user,
+                             sharedmap_replay_t *rep);
+
+/* Whether the scan found damage (a damaged stretch, records lost, a duplicate, records out of
+ * sequence): the log is then kept aside and rewritten. */
+int sharedmap_log_damaged(const sharedmap_replay_t *rep);
+/* "N records (B bytes) at offsets O1+L1, O2+L2, ... lost; D duplicate records ignored; R
+ * records out of sequence, replayed in order" (the parts that apply), into buf. */
 void sharedmap_log_describe(const sharedmap_replay_t *rep, char *buf, size_t cap);
 
 #ifdef __cplusplus

@@ -169,37 +169,7 @@ static uint8_t no_mac[1];
         }                                                                         \
     } while (0)
 
-int marie_auth_sign_order(const marie_auth_t *a, marie_am_order_t *o, uint8_t store[MARIE_AUTH_MAC_LEN])
-{
-    uint8_t *buf;
-    int n;
-    ENCODE_UNSIGNED(marie_am_order_t, o, buf, n);
-    if (n < 0) {
-        free(buf);
-        return n;
-    }
-    marie_auth_mac(a, buf, (size_t)n, store);
-    free(buf);
-    o->mac = store;
-    o->mac_len = MARIE_AUTH_MAC_LEN;
-    return 0;
-}
 
-int marie_auth_sign_command(const marie_auth_t *a, marie_lifecycle_command_t *c, uint8_t store[MARIE_AUTH_MAC_LEN])
-{
-    uint8_t *buf;
-    int n;
-    ENCODE_UNSIGNED(marie_lifecycle_command_t, c, buf, n);
-    if (n < 0) {
-        free(buf);
-        return n;
-    }
-    marie_auth_mac(a, buf, (size_t)n, store);
-    free(buf);
-    c->mac = store;
-    c->mac_len = MARIE_AUTH_MAC_LEN;
-    return 0;
-}
 
 const char *marie_auth_result_name(marie_auth_result_t r)
 {
@@ -384,38 +354,7 @@ static marie_auth_result_t check_fresh(marie_replay_t *r, const char *sender, in
     return MARIE_AUTH_OK;
 }
 
-marie_auth_result_t marie_auth_check_order(const marie_auth_t *a, marie_replay_t *r, const marie_am_order_t *o)
-{
-    if (o->mac_len <= 0)
-        return MARIE_AUTH_UNSIGNED;
-    if (!a)
-        return MARIE_AUTH_NOKEY;
-    uint8_t *buf;
-    int n;
-    ENCODE_UNSIGNED(marie_am_order_t, o, buf, n);
-    int ok = n >= 0 && marie_auth_verify(a, buf, (size_t)n, o->mac, (size_t)o->mac_len) == 0;
-    free(buf);
-    if (!ok)
-        return MARIE_AUTH_FORGED;
-    return check_fresh(r, o->sender, o->utime, o->seq);
-}
 
-marie_auth_result_t marie_auth_check_command(const marie_auth_t *a, marie_replay_t *r,
-                                             const marie_lifecycle_command_t *c)
-{
-    if (c->mac_len <= 0)
-        return MARIE_AUTH_UNSIGNED;
-    if (!a)
-        return MARIE_AUTH_NOKEY;
-    uint8_t *buf;
-    int n;
-    ENCODE_UNSIGNED(marie_lifecycle_command_t, c, buf, n);
-    int ok = n >= 0 && marie_auth_verify(a, buf, (size_t)n, c->mac, (size_t)c->mac_len) == 0;
-    free(buf);
-    if (!ok)
-        return MARIE_AUTH_FORGED;
-    return check_fresh(r, c->sender, c->utime, c->seq);
-}
 
 int64_t marie_auth_next_seq(const char *path)
 {
@@ -441,35 +380,38 @@ int64_t marie_auth_next_seq(const char *path)
     return seq;
 }
 
-int marie_auth_sign_goal_request(const marie_auth_t *a, marie_goal_request_t *g, uint8_t store[MARIE_AUTH_MAC_LEN])
-{
-    uint8_t *buf;
-    int n;
-    ENCODE_UNSIGNED(marie_goal_request_t, g, buf, n);
-    if (n < 0) {
-        free(buf);
-        return n;
+/* Signing and checking of one signed message type: every one carries utime, sender, seq and a
+ * mac (mac_len bytes), and its MAC covers its encoding with an empty mac. */
+#define MARIE_AUTH_SIGNED(type, sign_fn, check_fn)                                                   \
+    int sign_fn(const marie_auth_t *a, type *m, uint8_t store[MARIE_AUTH_MAC_LEN])                   \
+    {                                                                                                \
+        uint8_t *buf;                                                                                \
+        int n;                                                                                       \
+        ENCODE_UNSIGNED(type, m, buf, n);                                                            \
+        if (n >= 0)                                                                                  \
+            marie_auth_mac(a, buf, (size_t)n, store);                                                \
+        free(buf);                                                                                   \
+        if (n < 0)                                                                                   \
+            return n;                                                                                \
+        m->mac = store;                                                                              \
+        m->mac_len = MARIE_AUTH_MAC_LEN;                                                             \
+        return 0;                                                                                    \
+    }                                                                                                \
+    marie_auth_result_t check_fn(const marie_auth_t *a, marie_replay_t *r, const type *m)            \
+    {                                                                                                \
+        if (m->mac_len <= 0)                                                                         \
+            return MARIE_AUTH_UNSIGNED;                                                              \
+        if (!a)                                                                                      \
+            return MARIE_AUTH_NOKEY;                                                                 \
+        uint8_t *buf;                                                                                \
+        int n;                                                                                       \
+        ENCODE_UNSIGNED(type, m, buf, n);                                                            \
+        int ok = n >= 0 && marie_auth_verify(a, buf, (size_t)n, m->mac, (size_t)m->mac_len) == 0;    \
+        free(buf);                                                                                   \
+        return ok ? check_fresh(r, m->sender, m->utime, m->seq) : MARIE_AUTH_FORGED;                 \
     }
-    marie_auth_mac(a, buf, (size_t)n, store);
-    free(buf);
-    g->mac = store;
-    g->mac_len = MARIE_AUTH_MAC_LEN;
-    return 0;
-}
 
-marie_auth_result_t marie_auth_check_goal_request(const marie_auth_t *a, marie_replay_t *r,
-                                                  const marie_goal_request_t *g)
-{
-    if (g->mac_len <= 0)
-        return MARIE_AUTH_UNSIGNED;
-    if (!a)
-        return MARIE_AUTH_NOKEY;
-    uint8_t *buf;
-    int n;
-    ENCODE_UNSIGNED(marie_goal_request_t, g, buf, n);
-    int ok = n >= 0 && marie_auth_verify(a, buf, (size_t)n, g->mac, (size_t)g->mac_len) == 0;
-    free(buf);
-    if (!ok)
-        return MARIE_AUTH_FORGED;
-    return check_fresh(r, g->sender, g->utime, g->seq);
-}
+MARIE_AUTH_SIGNED(marie_am_order_t, marie_auth_sign_order, marie_auth_check_order)
+MARIE_AUTH_SIGNED(marie_lifecycle_command_t, marie_auth_sign_command, marie_auth_check_command)
+MARIE_AUTH_SIGNED(marie_goal_request_t, marie_auth_sign_goal_request, marie_auth_check_goal_request)
+MARIE_AUTH_SIGNED(marie_param_request_t, marie_auth_sign_param, marie_auth_check_param)

@@ -9,6 +9,7 @@
 #include "lcmtypes/marie_am_order_t.h"
 #include "lcmtypes/marie_goal_request_t.h"
 #include "lcmtypes/marie_lifecycle_command_t.h"
+#include "lcmtypes/marie_param_request_t.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -75,6 +76,9 @@ int64_t marie_replay_epoch(const marie_replay_t *r);
 marie_auth_result_t marie_auth_check_order(const marie_auth_t *a, marie_replay_t *r, const marie_am_order_t *o);
 marie_auth_result_t marie_auth_check_command(const marie_auth_t *a, marie_replay_t *r,
                                              const marie_lifecycle_command_t *c);
+/* Parameter changes at run time (marie param set): signed and checked as orders are. */
+int marie_auth_sign_param(const marie_auth_t *a, marie_param_request_t *p, uint8_t store[MARIE_AUTH_MAC_LEN]);
+marie_auth_result_t marie_auth_check_param(const marie_auth_t *a, marie_replay_t *r, const marie_param_request_t *p);
 /* Goals asked for by people (the touch page): signed and checked as orders are. */
 int marie_auth_sign_goal_request(const marie_auth_t *a, marie_goal_request_t *g, uint8_t store[MARIE_AUTH_MAC_LEN]);
 marie_auth_result_t marie_auth_check_goal_request(const marie_auth_t *a, marie_replay_t *r,

@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -13,24 +14,66 @@
 
 void marie_cli_usage(const char *prog, const marie_cli_opt_t *opts, FILE *out)
 {
-    fprintf(out, "usage: %s [OPTION VALUE]...\n", prog);
+    fprintf(out, "usage: %s [OPTION [VALUE]]...\n", prog);
     for (const marie_cli_opt_t *o = opts; o->name; o++)
-        fprintf(out, "  --%-18s %s\n", o->name, o->help ? o->help : "");
+        fprintf(out, "  --%-18s %s%s%s%s\n", o->name, o->help ? o->help : "", o->choices ? " [" : "",
+                o->choices ? o->choices : "", o->choices ? "]" : "");
     fprintf(out, "  --%-18s this text\n", "help");
+}
+
+/* Whether word is one of the |-separated choices. */
+static bool chosen(const char *choices, const char *word)
+{
+    size_t n = strlen(word);
+    if (strchr(word, '|'))
+        return false;
+    for (const char *c = choices;; c++) {
+        if (strncmp(c, word, n) == 0 && (c[n] == '|' || c[n] == '\0'))
+            return true;
+        if (!(c = strchr(c, '|')))
+            return false;
+    }
+}
+
+static int store_flag(const char *prog, const marie_cli_opt_t *o, const char *text)
+{
+    static const char *const words[] = { "0", "false", "1", "true" };
+    for (int i = 0; i < 4; i++)
+        if (!text || strcmp(text, words[i]) == 0) {
+            *(bool *)o->value = !text || i >= 2;
+            return 0;
+        }
+    fprintf(stderr, "%s: --%s: expected nothing, or =0, =1, =false or =true, got '%s'\n", prog, o->name, text);
+    return -1;
 }
 
 /* The option's value from text: 0, or -1 with the reason on stderr. */
 static int store(const char *prog, const marie_cli_opt_t *o, const char *text)
 {
+    if (o->type == MARIE_CLI_FLAG)
+        return store_flag(prog, o, text);
+    if (o->type == MARIE_CLI_STRING && o->choices && !chosen(o->choices, text)) {
+        fprintf(stderr, "%s: --%s: expected one of %s, got '%s'\n", prog, o->name, o->choices, text);
+        return -1;
+    }
     if (o->type == MARIE_CLI_STRING) {
         *(const char **)o->value = text;
+        return 0;
+    }
+    if (o->type == MARIE_CLI_LIST) {
+        marie_cli_list_t *l = o->value;
+        if (l->n == MARIE_CLI_LIST_MAX) {
+            fprintf(stderr, "%s: --%s: at most %d of them\n", prog, o->name, MARIE_CLI_LIST_MAX);
+            return -1;
+        }
+        l->items[l->n++] = text;
         return 0;
     }
     char *end;
     errno = 0;
     double v = o->type == MARIE_CLI_INT ? (double)strtoll(text, &end, 0) : strtod(text, &end);
     if (!text[0] || *end || errno || !isfinite(v) || v < o->min || v > o->max) {
-        fprintf(stderr, "%s: --%s: expected %s from %g to %g, got '%s'\n", prog, o->name,
+        fprintf(stderr, "%s: --%s: expected %s from %.15g to %.15g, got '%s'\n", prog, o->name,
                 o->type == MARIE_CLI_INT ? "a whole number" : "a number", o->min, o->max, text);
         return -1;
     }
@@ -52,7 +95,8 @@ int marie_cli_parse(const char *prog, const marie_cli_opt_t *opts, int argc, cha
         return 1;
     }
     for (size_t i = 0; i < n; i++)
-        lo[i] = (struct option){ opts[i].name, required_argument, NULL, OPT_FIRST + (int)i };
+        lo[i] = (struct option){ opts[i].name, opts[i].type == MARIE_CLI_FLAG ? optional_argument : required_argument,
+                                 NULL, OPT_FIRST + (int)i };
     lo[n] = (struct option){ "help", no_argument, NULL, OPT_HELP };
     int ch, rc = -1;
     optind = 1;

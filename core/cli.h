@@ -4,6 +4,7 @@
 #ifndef MARIE_CLI_H
 #define MARIE_CLI_H
 
+#include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -11,14 +12,26 @@
 extern "C" {
 #endif
 
-typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE } marie_cli_type_t;
+/* MARIE_CLI_FLAG is a bool: `--name` alone sets it, `--name=0|1|false|true` says which (a word
+ * after `--name` is not its value but the next argument). */
+typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE, MARIE_CLI_LIST, MARIE_CLI_FLAG } marie_cli_type_t;
+
+/* A repeatable option (MARIE_CLI_LIST): each --name VALUE appends VALUE; more than
+ * MARIE_CLI_LIST_MAX is refused like a bad value. */
+#define MARIE_CLI_LIST_MAX 64
+typedef struct {
+    const char *items[MARIE_CLI_LIST_MAX];
+    int n;
+} marie_cli_list_t;
 
 typedef struct {
     const char *name;           /* --name VALUE (or --name=VALUE) */
     marie_cli_type_t type;
-    void *value;                /* where it goes: const char **, int64_t *, double * */
+    void *value;                /* where it goes: const char **, int64_t *, double *, marie_cli_list_t *,
+                                 * bool * */
     double min, max;            /* INT and DOUBLE: the range a value must lie in */
     const char *help;           /* the value's name, then what it is: "N the left drive's node id" */
+    const char *choices;        /* STRING: the words it may be, "mm|cm" (NULL: any) */
 } marie_cli_opt_t;
 
 /* Reads argv's options into the table's values (the table ends with a NULL name; what is not

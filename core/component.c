@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/file.h"
 #include "core/lcm.h"
 #include "core/log.h"
 #include "core/typeinfo.h"
@@ -379,6 +380,7 @@ size_t marie_component_shm_max(const marie_component_t *c, const char *channel)
 }
 int64_t marie_component_now(const marie_component_t *c) { return marie_loop_now(c->loop); }
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c) { return c->cfg; }
+const marie_system_t *marie_component_system(const marie_component_t *c) { return c->sys; }
 
 /* 1 Hz, or four beats within the manager's heartbeat_timeout when that is shorter than 4 s, so
  * a quick detection (down to a few hundred ms) never sees a silence that is only the period. */
@@ -387,6 +389,26 @@ static int64_t heartbeat_period_us(const marie_component_t *c)
     double t = c->cfg ? c->cfg->heartbeat_timeout_s : 0;
     int64_t p = t > 0 && t < 4 ? (int64_t)(t / 4 * 1e6) : 1000000;
     return p < 20000 ? 20000 : p;
+}
+
+/* The system file. A manager that runs its own copy of the user's file (filled in with launch
+ * arguments, or sent to a host that cannot read it) names the original in MARIE_SYSTEM_ORIGIN:
+ * the copy is read under that name, so its relative paths (types:) start from the user's folder
+ * and its messages name the user's file. */
+static marie_system_t *load_system(const options_t *o, marie_errors_t *errs)
+{
+    const char *origin = getenv("MARIE_SYSTEM_ORIGIN"), *given = getenv("MARIE_SYSTEM");
+    if (!origin || !*origin || !given || strcmp(given, o->system) != 0)
+        return marie_system_load(o->system, o->profile, errs);
+    size_t len;
+    char *text = marie_file_read(o->system, 16 << 20, &len);
+    if (!text) {
+        marie_errors_add(errs, o->system, 0, 0, "%s", strerror(errno));
+        return NULL;
+    }
+    marie_system_t *sys = marie_system_load_text(origin, text, len, o->profile, errs);
+    free(text);
+    return sys;
 }
 
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv, void *user,
@@ -403,7 +425,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         goto err;
     c->hold = o.hold;
     if (o.system) {
-        c->sys = marie_system_load(o.system, o.profile, errs);
+        c->sys = load_system(&o, errs);
         if (!c->sys)
             goto err;
         if (!o.name) {
@@ -417,6 +439,9 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
             goto err;
         }
     }
+    /* Users' types (marie-types-gen) before anything decodes: ports, the XML bridge, the CAs. */
+    if (marie_system_load_types(c->sys, errs) < 0)
+        goto err;
     c->name = strdup(o.name ? o.name : def->kind);
     marie_log_set_name(c->name);
     const char *key = getenv("MARIE_KEY") && *getenv("MARIE_KEY") ? getenv("MARIE_KEY") : c->sys ? c->sys->key_file : NULL;
@@ -456,6 +481,7 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         if (marie_loop_add_lcm(c->loop, c->buses[i].lcm, 1) < 0)
             goto err_runtime;
     if (!marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
+        !marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_PARAM, marie_comp_on_param_request, c) ||
         !marie_loop_add_wall_timer(c->loop, heartbeat_period_us(c), on_heartbeat_timer, c))
         goto err_runtime;
     if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {

@@ -24,6 +24,8 @@ extern "C" {
 #define MARIE_CH_LIFECYCLE_REPLY "MARIE_LIFECYCLE_REPLY"
 #define MARIE_CH_EVENT           "MARIE_EVENT"
 #define MARIE_CH_CLOCK           "MARIE_CLOCK"
+#define MARIE_CH_PARAM           "MARIE_PARAM"          /* marie param: requests ... */
+#define MARIE_CH_PARAM_REPLY     "MARIE_PARAM_REPLY"    /* ... and the components' replies */
 /* Pull requests for channel X go to X MARIE_PULL_SUFFIX, served by the Mailbox of X. */
 #define MARIE_PULL_SUFFIX        ".PULL"
 
@@ -106,6 +108,10 @@ typedef struct {
 #define MARIE_PARAM_IN(st, member, field, T, def, help) \
     { #field, MARIE_PARAM_##T, def, help, \
       offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
+/* ... and under another name (a member taken with a prefix: its `bias` is "gyro_bias"). */
+#define MARIE_PARAM_IN_AS(st, member, name, field, T, def, help) \
+    { name, MARIE_PARAM_##T, def, help, \
+      offsetof(st, member.field) + MARIE_PARAM_TYPECHECK_(st, member.field, T), true }
 
 /* What a component is. Hooks return 0, or -1 after marie_component_fail_reason() to refuse
  * the transition (the reply and the heartbeat carry the reason). Any hook may be NULL. */
@@ -131,6 +137,9 @@ typedef struct {
  *   --param KEY=VALUE   --port PORT=CHANNEL   --clock wall|sim   --hold (wait for init/start) */
 int marie_main(const marie_component_def_t *def, int argc, char **argv, void *user);
 
+/* What --help prints: the options, ports and parameters (prog NULL: the kind's name). */
+void marie_component_usage(const marie_component_def_t *def, const char *prog, FILE *out);
+
 /* The same in steps, for tests and programs with their own main. NULL on failure with the
  * reasons in errs (exit status 2 for configuration errors). */
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv,
@@ -153,6 +162,7 @@ lcm_t *marie_component_lcm(marie_component_t *c);      /* the system bus */
 size_t marie_component_shm_max(const marie_component_t *c, const char *channel);
 int64_t marie_component_now(const marie_component_t *c);  /* us, on the configured clock */
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c);  /* NULL standalone */
+const marie_system_t *marie_component_system(const marie_component_t *c);      /* NULL standalone */
 /* Reason for the refusal a hook is about to return; formatted into the component. */
 void marie_component_fail_reason(marie_component_t *c, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
@@ -166,6 +176,14 @@ const marie_node_t *marie_param_node(const marie_component_t *c, const char *nam
 /* The params struct that MARIE_PARAM_AT entries filled (def.params_size bytes; NULL if 0). It and
  * its strings live as long as the component. */
 const void *marie_component_params(const marie_component_t *c);
+
+/* Parameters changed at run time (`marie param set COMPONENT NAME VALUE`, docs/cli.md): a
+ * parameter is dynamic once the component registers a callback for it (in on_init, say). When cb
+ * runs, the new value is already in the params struct and marie_param_*(); cb returns -1 after
+ * marie_component_fail_reason() to refuse it, and the old value comes back. A set of a parameter
+ * without a callback is refused with the reason. 0, or -1 with errno ENOENT (no such parameter). */
+typedef int (*marie_param_cb_t)(marie_component_t *c, const char *name);
+int marie_component_on_param(marie_component_t *c, const char *name, marie_param_cb_t cb);
 
 /* Ports. marie_port() on an undeclared name is a programmer error (assert). */
 typedef struct {

@@ -72,6 +72,7 @@ typedef struct {
     bool b;
     const char *s;
     char *expanded;             /* s after ${VAR} expansion, when it differed */
+    marie_param_cb_t on_change; /* set: the parameter is dynamic (marie param set) */
 } param_t;
 
 typedef struct {
@@ -159,5 +160,7 @@ void marie_comp_port_close(marie_port_t *p);
 int marie_comp_parse_options(const marie_component_def_t *def, int argc, char **argv, options_t *o, marie_errors_t *errs);
 int marie_comp_bind_params(marie_component_t *c, const options_t *o, marie_errors_t *errs);
 int marie_comp_fill_params(marie_component_t *c);
+/* MARIE_PARAM: list, get and set parameters at run time (marie param). */
+void marie_comp_on_param_request(const lcm_recv_buf_t *rbuf, const char *channel, void *user);
 
 #endif

@@ -1,6 +1,7 @@
 /* config: the system file model (components, profiles, restart policies, hashes) over the YAML tree. */
 #include "core/clear.h"
 #include "core/config.h"
+#include "core/typeinfo.h"
 
 #include <errno.h>
 #include <stdlib.h>
@@ -66,6 +67,7 @@ void marie_system_destroy(marie_system_t *sys)
         free(sys->transports[i].channel);
     free(sys->transports);
     free_strv(sys->hosts, sys->nhosts);
+    free_strv(sys->types, sys->ntypes);
     free(sys->file);
     free(sys->name);
     free(sys->profile);
@@ -73,6 +75,29 @@ void marie_system_destroy(marie_system_t *sys)
     free(sys->key_file);
     marie_doc_destroy(sys->doc);
     free(sys);
+}
+
+int marie_system_load_types(const marie_system_t *sys, marie_errors_t *errs)
+{
+    char why[512], dir[4096];
+    if (marie_types_load_list(getenv("MARIE_TYPES_PATH"), why, sizeof why) < 0) {
+        marie_errors_add(errs, "MARIE_TYPES_PATH", 0, 0, "%s", why);
+        return -1;
+    }
+    if (!sys || !sys->ntypes)
+        return 0;
+    snprintf(dir, sizeof dir, "%s", sys->file);
+    char *slash = strrchr(dir, '/');
+    snprintf(slash ? slash : dir, sizeof dir - (size_t)(slash ? slash - dir : 0), "%s", slash ? "" : ".");
+    const marie_node_t *n = marie_node_get(marie_doc_root(sys->doc), "types");
+    for (size_t i = 0; i < sys->ntypes; i++) {
+        if (marie_types_load(sys->types[i], dir, why, sizeof why) < 0) {
+            const marie_node_t *at = n && n->kind == MARIE_NODE_SEQ && i < n->n ? n->items[i] : n;
+            marie_errors_add(errs, sys->file, at ? at->line : 0, at ? at->col : 0, "%s", why);
+            return -1;
+        }
+    }
+    return 0;
 }
 
 static int cmp_cfg_name(const void *a, const void *b)
@@ -407,6 +432,11 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
             if (tr)
                 fprintf(f, " transports=%s", tr);
             free(tr);
+            /* So does the table of what the ROS 2 bridge carries. */
+            char *r2 = sys->ros2 ? marie_node_canonical(sys->ros2) : NULL;
+            if (r2)
+                fprintf(f, " ros2=%s", r2);
+            free(r2);
             break;
         }
         case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
@@ -655,18 +685,24 @@ static int override_params(marie_component_cfg_t *c, const marie_node_t *over, m
 
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs)
 {
+    return marie_system_load_text(path, NULL, 0, profile, errs);
+}
+
+marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
+                                       marie_errors_t *errs)
+{
     marie_system_t *sys = calloc(1, sizeof *sys);
     if (!sys)
         return NULL;
     size_t errs_before = errs ? errs->n : 0;
     sys->file = strdup(path);
     sys->profile = dup_or_null(profile);
-    if (!(sys->doc = marie_doc_load(path, errs)))
+    if (!(sys->doc = text ? marie_doc_parse(path, text, len, errs) : marie_doc_load(path, errs)))
         goto err;
     const marie_node_t *root = marie_doc_root(sys->doc), *v;
     static const char *const top_keys[] = {"system", "lcm_url", "clock", "auth", "hosts", "defaults",
                                            "components", "profiles", "manager", "balance", "robot", "transports",
-                                           NULL};
+                                           "ros2", "types", NULL};
     if (marie_node_check_keys(root, top_keys, "the system file", errs) < 0)
         goto err;
     const char *s;
@@ -688,8 +724,15 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
             goto err;
         }
     }
-    if (read_transports(marie_node_get(root, "transports"), sys, errs) < 0)
+    if (read_transports(marie_node_get(root, "transports"), sys, errs) < 0 ||
+        read_strv(marie_node_get(root, "types"), &sys->types, &sys->ntypes, errs) < 0)
         goto err;
+    /* The bridge reads the entries themselves (with their positions); the loader checks the shape. */
+    if ((v = marie_node_get(root, "ros2")) && v->kind != MARIE_NODE_MAP) {
+        marie_node_error(errs, v, "ros2: expected a mapping such as {topics: [{channel: LASER, topic: /scan}]}");
+        goto err;
+    }
+    sys->ros2 = v;
     marie_restart_cfg_t defaults = {MARIE_RESTART_ON_FAILURE, 0.1, 5.0, 10.0, 5, 60.0};
     if ((v = marie_node_get(root, "defaults"))) {
         static const char *const keys[] = {"restart", NULL};

@@ -145,9 +145,13 @@ typedef struct marie_system {
     marie_clock_kind_t clock;
     char *key_file;             /* order authentication key, or NULL */
     char **hosts; size_t nhosts;
+    char **types; size_t ntypes;  /* `types:`: what marie-types-gen made (directories or .so files,
+                                     relative to the system file's directory) */
     const marie_node_t *robot;  /* `robot:` (the profile's when it has one): a component parameter
                                    robot_KEY not set in its entry takes robot.KEY; NULL: none */
     marie_transport_cfg_t *transports; size_t ntransports;
+    const marie_node_t *ros2;   /* `ros2:` (a mapping): which channels marie-ros2 bridges to which
+                                   ROS 2 topics (docs/ros2.md); NULL: none */
     marie_component_cfg_t *components; size_t ncomponents;
     marie_component_cfg_t **by_name;   /* private: sorted by name for lookups */
     marie_doc_t *doc;
@@ -157,8 +161,15 @@ typedef struct marie_system {
  * replace or add whole components by name. Dependency cycles are errors. On any error returns NULL with every problem
  * in errs; nothing is half-applied. */
 marie_system_t *marie_system_load(const char *path, const char *profile, marie_errors_t *errs);
+/* The same from text already in memory (the file's text with launch arguments filled in, marie up
+ * -a); path names it in messages and is where its relative paths start. */
+marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
+                                       marie_errors_t *errs);
 void marie_system_destroy(marie_system_t *sys);
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
+/* Register the users' types named by MARIE_TYPES_PATH and the file's `types:` (core/typeinfo.h,
+ * marie_types_load); sys may be NULL (the environment only). 0, or -1 with file:line:col in errs. */
+int marie_system_load_types(const marie_system_t *sys, marie_errors_t *errs);
 /* The transport the file sets for `channel`, or NULL (plain LCM). */
 const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, const char *channel);
 /* Which settings of two components' effective configurations differ, as "clock,params"

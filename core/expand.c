@@ -85,3 +85,50 @@ err_nomem:
     free(buf);
     return marie_fail_null(ENOMEM);
 }
+
+/* The index of the argument named by the inside of a "${...}" [p, end), or -1. */
+static int arg_of(const char *p, const char *end, char *const *args, size_t nargs)
+{
+    const char *sep = memmem(p, (size_t)(end - p), ":-", 2);
+    size_t nlen = (size_t)((sep ? sep : end) - p);
+    for (size_t i = 0; i < nargs; i++)
+        if (strncmp(args[i], p, nlen) == 0 && args[i][nlen] == '=')
+            return (int)i;
+    return -1;
+}
+
+char *marie_expand_args(const char *in, char *const *args, size_t nargs, int *used, char *why, size_t why_len)
+{
+    for (size_t i = 0; i < nargs; i++) {
+        const char *eq = strchr(args[i], '=');
+        if (!eq || eq == args[i] || strcspn(args[i], "${}:") < (size_t)(eq - args[i])) {
+            snprintf(why, why_len, "launch argument '%s': expected name=value", args[i]);
+            return marie_fail_null(EINVAL);
+        }
+    }
+    char *buf = NULL;
+    size_t len = 0, cap = 0;
+    if (append(&buf, &len, &cap, "", 0) < 0)
+        goto err_nomem;
+    for (const char *p = in; *p;) {
+        const char *d = strstr(p, "${"), *end = d ? strchr(d + 2, '}') : NULL;
+        int k = end ? arg_of(d + 2, end, args, nargs) : -1;
+        if (!end || k < 0) {        /* not ours: kept, up to and past it */
+            size_t n = end ? (size_t)(end + 1 - p) : strlen(p);
+            if (append(&buf, &len, &cap, p, n) < 0)
+                goto err_nomem;
+            p += n;
+            continue;
+        }
+        const char *v = strchr(args[k], '=') + 1;
+        if (used)
+            used[k] = 1;
+        if (append(&buf, &len, &cap, p, (size_t)(d - p)) < 0 || append(&buf, &len, &cap, v, strlen(v)) < 0)
+            goto err_nomem;
+        p = end + 1;
+    }
+    return buf;
+err_nomem:
+    free(buf);
+    return marie_fail_null(ENOMEM);
+}

@@ -14,6 +14,13 @@ extern "C" {
  * or an unclosed "${", explained in why[why_len]; ENOMEM). */
 char *marie_expand_env(const char *in, char *why, size_t why_len);
 
+/* Launch arguments (marie up FILE -a name=value): every ${name} and ${name:-default} of `in`
+ * whose name is one of args ("name=value") becomes the value; every other ${...} is kept as it
+ * is, for the components' environment. used[i] (args' count, may be NULL) is set for each
+ * argument met. A new string the caller frees, or NULL with errno (EINVAL: an argument not
+ * name=value, explained in why; ENOMEM). */
+char *marie_expand_args(const char *in, char *const *args, size_t nargs, int *used, char *why, size_t why_len);
+
 #ifdef __cplusplus
 }
 #endif

@@ -24,3 +24,9 @@ ITESTS += tests/core/test_lcm_python_peer.sh
 $(eval $(call marie_fuzz,shm,tests/core/fuzz_shm.c))
 $(eval $(call marie_fuzz,lcm,tests/core/fuzz_lcm.c tests/udp.c))
 ITESTS += tests/core/test_params_gen.sh
+# marie-params-gen: the generator, installed for users' components (docs/core.md, "Parameters").
+$(B)/bin/marie-params-gen: core/params_gen.py
+	@mkdir -p $(@D)
+	cp $< $@ && chmod 755 $@
+EXTRA_TARGETS += $(B)/bin/marie-params-gen
+INSTALL_EXTRA += install -m 755 $(B)/bin/marie-params-gen $(DESTDIR)$(PREFIX)/bin/;

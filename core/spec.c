@@ -2,53 +2,45 @@
  * a system file entry against such a description, so managers refuse a bad file before start. */
 #include "core/spec.h"
 
+#include "core/buf.h"
+
 #include <stdlib.h>
 #include <string.h>
 
 static const char *const type_names[] = {"int", "double", "bool", "string", "node"};
 
-static void json_str(FILE *f, const char *s)
+/* NULL as null: a spec's optional text that is not given. */
+void marie_spec_json_str(FILE *f, const char *s)
 {
-    if (!s) {
+    if (s)
+        marie_json_fputs(f, s);
+    else
         fputs("null", f);
-        return;
-    }
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            fprintf(f, "\\%c", ch);
-        else if (ch < 0x20)
-            fprintf(f, "\\u%04x", ch);
-        else
-            fputc(ch, f);
-    }
-    fputc('"', f);
 }
 
 void marie_spec_describe(const marie_component_def_t *def, FILE *out)
 {
     fprintf(out, "{\"describe\": \"%s\", \"kind\": ", MARIE_SPEC_MARKER);
-    json_str(out, def->kind);
+    marie_spec_json_str(out, def->kind);
     fputs(",\n \"ports\": [", out);
     for (const marie_port_spec_t *p = def->ports; p && p->name; p++) {
         fprintf(out, "%s\n  {\"name\": ", p == def->ports ? "" : ",");
-        json_str(out, p->name);
+        marie_spec_json_str(out, p->name);
         fprintf(out, ", \"dir\": \"%s\", \"mech\": \"%s\", \"type\": ", p->dir == MARIE_IN ? "in" : "out",
                 p->mech == MARIE_PUSH ? "push" : p->mech == MARIE_PULL ? "pull" : "event");
-        json_str(out, p->type ? p->type->name : NULL);
+        marie_spec_json_str(out, p->type ? p->type->name : NULL);
         fputs(", \"channel\": ", out);
-        json_str(out, p->channel);
+        marie_spec_json_str(out, p->channel);
         fputs("}", out);
     }
     fputs("],\n \"params\": [", out);
     for (const marie_param_spec_t *p = def->params; p && p->name; p++) {
         fprintf(out, "%s\n  {\"name\": ", p == def->params ? "" : ",");
-        json_str(out, p->name);
+        marie_spec_json_str(out, p->name);
         fprintf(out, ", \"type\": \"%s\", \"default\": ", type_names[p->type]);
-        json_str(out, p->def);
+        marie_spec_json_str(out, p->def);
         fputs(", \"help\": ", out);
-        json_str(out, p->help);
+        marie_spec_json_str(out, p->help);
         fputs("}", out);
     }
     fputs("]}\n", out);

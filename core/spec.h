@@ -22,6 +22,17 @@ extern "C" {
  * A null channel must be bound by the configuration; a null default makes the parameter required. */
 void marie_spec_describe(const marie_component_def_t *def, FILE *out);
 
+/* s as a JSON string ("null" for NULL). */
+void marie_spec_json_str(FILE *f, const char *s);
+
+/* What a component was configured with, once created (for a runtime in another language that
+ * resolves its configuration with libmarie, python/marie): one JSON object
+ *   {"name", "kind", "host", "group", "url", "clock": "wall"|"sim", "key_file", "system", "profile",
+ *    "heartbeat_timeout_s", "spin_us", "hash", "types": [dirs], "params": {NAME: value},
+ *    "ports": {NAME: {"channel", "url", "shm"}}}
+ * A node parameter's value is its canonical YAML text. */
+void marie_spec_resolved(const marie_component_t *c, FILE *out);
+
 /* Is this parsed document a description? */
 bool marie_spec_valid(const marie_node_t *spec);
 

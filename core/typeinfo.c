@@ -1,18 +1,38 @@
-/* typeinfo: lookups in the generated type descriptors, and the payload checker. */
+/* typeinfo: lookups in the generated type descriptors (marie's and users' modules), and the payload checker. */
 #include "core/typeinfo.h"
 
+#include <dlfcn.h>
 #include <errno.h>
+#include <glob.h>
 #include <stdbool.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+
+#include "core/err.h"
+
+/* ---- the registry: marie's own types, then the modules of users' types ---- */
+
+#define MAX_MODULES 64
+static const marie_types_module_t *modules[MAX_MODULES];
+static size_t nmodules;
+
+static const marie_typeinfo_t *info_named(const marie_typeinfo_t *t, const char *name)
+{
+    return strcmp(t->name, name) == 0 || strcmp(t->short_name, name) == 0 ? t : NULL;
+}
 
 const marie_typeinfo_t *marie_typeinfo_find(const char *name)
 {
-    for (size_t i = 0; i < marie_typeinfos_count; i++) {
-        const marie_typeinfo_t *t = marie_typeinfos[i];
-        if (strcmp(t->name, name) == 0 || strcmp(t->short_name, name) == 0)
-            return t;
-    }
+    for (size_t i = 0; i < marie_typeinfos_count; i++)
+        if (info_named(marie_typeinfos[i], name))
+            return marie_typeinfos[i];
+    for (size_t m = 0; m < nmodules; m++)
+        for (const marie_typeinfo_t *const *t = modules[m]->infos; *t; t++)
+            if (strcmp((*t)->name, name) == 0)      /* users' types by their full name only */
+                return *t;
     return NULL;
 }
 
@@ -21,6 +41,10 @@ const marie_typeinfo_t *marie_typeinfo_by_fingerprint(int64_t fp)
     for (size_t i = 0; i < marie_typeinfos_count; i++)
         if (marie_typeinfos[i]->fingerprint == fp)
             return marie_typeinfos[i];
+    for (size_t m = 0; m < nmodules; m++)
+        for (const marie_typeinfo_t *const *t = modules[m]->infos; *t; t++)
+            if ((*t)->fingerprint == fp)
+                return *t;
     return NULL;
 }
 
@@ -31,6 +55,10 @@ const marie_type_t *marie_type_find(const char *name)
         if (strcmp(tn, name) == 0 || (strncmp(tn, "marie.", 6) == 0 && strcmp(tn + 6, name) == 0))
             return marie_types[i];
     }
+    for (size_t m = 0; name && m < nmodules; m++)
+        for (const marie_type_t *const *t = modules[m]->types; *t; t++)
+            if (strcmp((*t)->name, name) == 0)
+                return *t;
     return NULL;
 }
 
@@ -39,7 +67,96 @@ const marie_type_t *marie_type_by_fingerprint(int64_t fp)
     for (size_t i = 0; marie_types[i]; i++)
         if (marie_types[i]->hash() == fp)
             return marie_types[i];
+    for (size_t m = 0; m < nmodules; m++)
+        for (const marie_type_t *const *t = modules[m]->types; *t; t++)
+            if ((*t)->hash() == fp)
+                return *t;
     return NULL;
+}
+
+const marie_typeinfo_t *marie_typeinfo_at(size_t i)
+{
+    if (i < marie_typeinfos_count)
+        return marie_typeinfos[i];
+    i -= marie_typeinfos_count;
+    for (size_t m = 0; m < nmodules; m++)
+        for (const marie_typeinfo_t *const *t = modules[m]->infos; *t; t++)
+            if (i-- == 0)
+                return *t;
+    return NULL;
+}
+
+int marie_types_register(const marie_types_module_t *m)
+{
+    if (!m || m->version != MARIE_TYPES_MODULE_VERSION || !m->types || !m->infos)
+        return marie_fail(EINVAL);
+    for (size_t i = 0; i < nmodules; i++)
+        if (modules[i] == m || strcmp(modules[i]->name, m->name) == 0)
+            return 0;
+    if (nmodules == MAX_MODULES)
+        return marie_fail(ENOSPC);
+    modules[nmodules++] = m;
+    return 0;
+}
+
+static int load_so(const char *path, char *why, size_t whylen)
+{
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        snprintf(why, whylen, "%s", dlerror());
+        return marie_fail(ENOENT);
+    }
+    const marie_types_module_t *const *m = dlsym(lib, "marie_types_module");
+    if (!m || !*m) {
+        snprintf(why, whylen, "%s: not a library of marie-types-gen (no marie_types_module)", path);
+        dlclose(lib);
+        return marie_fail(EINVAL);
+    }
+    if (marie_types_register(*m) < 0) {
+        snprintf(why, whylen, "%s: %s", path, errno == ENOSPC ? "too many type libraries" : "made by another version of marie-types-gen");
+        dlclose(lib);
+        return -1;
+    }
+    return 0;       /* kept open: the registry points into it */
+}
+
+int marie_types_load(const char *path, const char *base_dir, char *why, size_t whylen)
+{
+    char full[4096], pattern[4200];
+    if (path[0] != '/' && base_dir)
+        snprintf(full, sizeof full, "%s/%s", base_dir, path);
+    else
+        snprintf(full, sizeof full, "%s", path);
+    struct stat st;
+    if (stat(full, &st) < 0) {
+        snprintf(why, whylen, "types %s: %s", full, strerror(errno));
+        return -1;
+    }
+    if (!S_ISDIR(st.st_mode))
+        return load_so(full, why, whylen);
+    snprintf(pattern, sizeof pattern, "%s/lib/libmarie-types-*.so", full);
+    glob_t g;
+    int rc = glob(pattern, 0, NULL, &g);
+    if (rc != 0) {
+        snprintf(why, whylen, "types %s: no lib/libmarie-types-*.so in it (made by marie-types-gen?)", full);
+        return marie_fail(ENOENT);
+    }
+    for (size_t i = 0; rc == 0 && i < g.gl_pathc; i++)
+        rc = load_so(g.gl_pathv[i], why, whylen);
+    globfree(&g);
+    return rc;
+}
+
+int marie_types_load_list(const char *list, char *why, size_t whylen)
+{
+    char *copy = list ? strdup(list) : NULL, *save = NULL;
+    if (list && !copy)
+        return -1;
+    int rc = 0;
+    for (char *p = copy ? strtok_r(copy, ":", &save) : NULL; p && rc == 0; p = strtok_r(NULL, ":", &save))
+        rc = marie_types_load(p, NULL, why, whylen);
+    free(copy);
+    return rc;
 }
 
 const char *marie_prim_name(marie_prim_t p)

@@ -59,6 +59,32 @@ struct marie_typeinfo {
 extern const marie_typeinfo_t *const marie_typeinfos[];
 extern const size_t marie_typeinfos_count;
 
+/* A user's types, made by marie-types-gen from .lcm files outside marie (docs/types.md): their
+ * codecs and descriptors. Once registered, every lookup below finds them as it finds marie's own,
+ * so typed ports, checked decode, the XML bridge, the viewer and the command line handle them. */
+#define MARIE_TYPES_MODULE_VERSION 1
+typedef struct {
+    int version;                                /* MARIE_TYPES_MODULE_VERSION */
+    const char *name;                           /* "ux" */
+    const marie_type_t *const *types;           /* NULL-terminated */
+    const marie_typeinfo_t *const *infos;       /* NULL-terminated: the same types' descriptors */
+} marie_types_module_t;
+/* Register a module (kept, not copied; at start-up, before any thread reads the tables). A type
+ * whose name or fingerprint is already known is skipped: the first registered wins. 0, or -1 with
+ * errno EINVAL (another version) or ENOSPC (too many modules). A module registered twice is
+ * registered once. */
+int marie_types_register(const marie_types_module_t *m);
+/* The i-th known type: marie's own (marie_typeinfos order), then the registered modules'; NULL
+ * past the last. For listings (the XML bridge's <types/>, marie topic). */
+const marie_typeinfo_t *marie_typeinfo_at(size_t i);
+/* Load what marie-types-gen made: a shared library (its `marie_types_module` symbol), or an output
+ * directory (every lib/libmarie-types-*.so in it). A relative path is taken from `base_dir` when
+ * not NULL. 0, or -1 with errno and a one-line reason in why. */
+int marie_types_load(const char *path, const char *base_dir, char *why, size_t whylen);
+/* marie_types_load() for each entry of a colon-separated list (MARIE_TYPES_PATH); an empty or
+ * NULL list loads nothing. Stops at the first failure, with its reason. */
+int marie_types_load_list(const char *list, char *why, size_t whylen);
+
 /* By full ("marie.pose_cov_t") or short name ("pose_cov_t"); NULL if unknown. */
 const marie_typeinfo_t *marie_typeinfo_find(const char *name);
 /* By wire fingerprint; NULL if unknown. */

@@ -37,3 +37,13 @@ $(LCM_JAR): $(LCM_FILES)
 	javac -nowarn -cp /usr/share/java/lcm.jar -d $(B)/java/classes $(B)/java/src/marie/*.java
 	jar cf $@ -C $(B)/java/classes .
 EXTRA_TARGETS += $(LCM_JAR)
+
+# Python: lcm-gen's classes under the namespace package lcmtypes (lcmtypes.marie: the name marie
+# is the component package's, python/marie), with the descriptors python/marie checks payloads by.
+PY_TYPES := $(B)/python/lcmtypes/marie/_typeinfo.py
+$(PY_TYPES): $(LCM_FILES) lcmtypes/typeinfo_gen.py
+	@rm -rf $(B)/python/lcmtypes/marie && mkdir -p $(B)/python
+	lcm-gen -p --ppath $(B)/python --package-prefix lcmtypes $(LCM_FILES)
+	@rm -f $(B)/python/lcmtypes/__init__.py
+	python3 lcmtypes/typeinfo_gen.py py $@ $(LCM_FILES)
+EXTRA_TARGETS += $(PY_TYPES)

@@ -25,6 +25,7 @@
 #include "core/typeinfo.h"
 #include "managers/am.h"
 #include "managers/sdnotify.h"
+#include "core/version.h"
 
 /* ---------------------------------------------------------------- heartbeats */
 
@@ -255,6 +256,7 @@ static int parse_args(am_t *am, int argc, char **argv, const char **system, cons
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-am", argc, argv);
     am_t am_storage = {0}, *am = &am_storage;
     const char *system = NULL, *profile = NULL, *key = NULL;
     int done = parse_args(am, argc, argv, &system, &profile, &key);
@@ -299,7 +301,7 @@ int main(int argc, char **argv)
         return 1;
     }
     if (system) {
-        if (am_load_system(am, system, profile, &errs) < 0) {
+        if (am_load_system(am, system, NULL, profile, &errs) < 0) {
             marie_errors_print(&errs, stderr);
             marie_errors_clear(&errs);
             rc = 2;
@@ -385,6 +387,7 @@ int main(int argc, char **argv)
 
     rc = marie_loop_run(am->loop) < 0 ? 1 : 0;
     am_check_cancel(am, "the manager stopped\n");
+    am_apply_cancel(am);
     /* whatever is still alive after the deadline goes now */
     for (size_t i = 0; i < am->ncomps; i++)
         if (am->comps[i].sv.pid > 0)

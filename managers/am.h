@@ -102,6 +102,8 @@ struct am {
     char bal_last[sizeof ((balance_move_t *)0)->reason]; /* its last decision, in the status */
     int64_t adopt_until;        /* a returning manager learns the placement before it starts */
     struct am_check *check;     /* an up order's programs being checked (am_check.c), or NULL */
+    struct am_loading *applying;/* an up order's changed system, installed once the components it
+                                 * changes or drops have exited (am_apply.c), or NULL */
 };
 
 static inline int64_t am_now_us(void) { return marie_mono_us(); }
@@ -137,14 +139,23 @@ void am_reap_children(am_t *am);
 /* am_system.c: the loaded system and what survives a restart of the manager */
 /* Loading a system: read and check the file (NULL with errs), check this host's programs (they
  * answer --describe: seconds, so an order does it in a child, am_check.c), then install it
- * (not yet started; takes the loading). am_load_system does the three at once. */
+ * (not yet started; takes the loading). am_load_system does the three at once. origin (NULL:
+ * path) is the file path is a copy of, where the sender read it: the name in messages and the
+ * folder its relative paths (exec, types) start from. */
 typedef struct am_loading am_loading_t;
-am_loading_t *am_loading_open(const char *path, const char *profile, marie_errors_t *errs);
+const marie_system_t *am_loading_system(const am_loading_t *l);
+am_loading_t *am_loading_open(const char *path, const char *origin, const char *profile, marie_errors_t *errs);
 int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs);
+/* Installing carries over the components of the same name and configuration hash that have
+ * no timer pending (not stopping, not backing off): their process, output, log and counters go
+ * on as they are. */
 void am_loading_install(am_t *am, am_loading_t *l);
+bool am_comp_carried(const comp_t *c, const marie_system_t *next);
 void am_loading_free(am_loading_t *l);
-int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs);
+int am_load_system(am_t *am, const char *path, const char *origin, const char *profile, marie_errors_t *errs);
 void am_comps_free(am_t *am);
+/* The user's file the running system is a copy of (MARIE_SYSTEM_ORIGIN), or NULL. */
+const char *am_system_origin(const am_t *am);
 void am_up(am_t *am);
 void am_apply_move(am_t *am, comp_t *c, const char *host);
 bool am_host_known(am_t *am, const char *h);
@@ -174,6 +185,18 @@ int am_check_start(am_t *am, am_loading_t *l, am_check_done_t done, void *user);
 bool am_check_busy(const am_t *am);
 /* Ends a check under way: its child is killed and done runs with ok false and `why`. */
 void am_check_cancel(am_t *am, const char *why);
+
+/* am_apply.c: an up order of a changed system while components run (one at a time) */
+bool am_any_running(const am_t *am);
+bool am_apply_busy(const am_t *am);
+/* Stops what l changes or drops and installs l once they have exited (takes l); the plan, as
+ * the order's answer, in plan_text. Returns how many components it starts or stops here. */
+int am_apply_start(am_t *am, am_loading_t *l, char *plan_text, size_t plan_len);
+void am_apply_progress(am_t *am);      /* after exits: install when the stops are done */
+void am_apply_cancel(am_t *am);        /* a down order, or the manager quits */
+
+/* am_run.c: c's run moved into to (the same component of a new system) */
+void am_comp_carry(comp_t *to, comp_t *from);
 
 /* am_orders.c */
 void am_on_order(am_t *am, const marie_am_order_t *o);

@@ -74,6 +74,10 @@ static void up_checked(am_t *am, am_loading_t *l, bool ok, const char *errors, v
     if (!ok) {
         reply(am, o, false, 0, "system file refused:\n%s", errors);
         am_loading_free(l);
+    } else if (am_any_running(am)) {
+        char plan[900];
+        int n = am_apply_start(am, l, plan, sizeof plan);
+        reply(am, o, true, n, "%s", plan);
     } else {
         am_loading_install(am, l);
         am_up(am);
@@ -90,17 +94,15 @@ static void order_up(am_t *am, const marie_am_order_t *o)
     char hash[65];
     const char *profile = o->arg;
     am_sha256_hex(o->system_text, strlen(o->system_text), profile, hash);
+    if (am_apply_busy(am)) {
+        reply(am, o, false, 0, "busy: the last up is being applied");
+        return;
+    }
     if (am->sys && strcmp(hash, am->sys_hash) == 0) {
         am_up(am);
         reply(am, o, true, 0, "ok");
         return;
     }
-    for (size_t i = 0; i < am->ncomps; i++)
-        if (am->comps[i].sv.pid > 0) {
-            reply(am, o, false, 0, "another system (%s) is running here: marie down first",
-                  am->sys && am->sys->name ? am->sys->name : "?");
-            return;
-        }
     /* before the copy below: the pending check's system may be that very file */
     if (am_check_busy(am)) {
         reply(am, o, false, 0, "busy: the programs of the last up are being checked");
@@ -111,15 +113,17 @@ static void order_up(am_t *am, const marie_am_order_t *o)
     char path[PATH_MAX];
     size_t len = 0;
     char *local = o->system_path[0] ? marie_file_read(o->system_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
+    const char *origin = NULL;
     if (local && len == strlen(o->system_text) && memcmp(local, o->system_text, len) == 0) {
         snprintf(path, sizeof path, "%s", o->system_path);
     } else {
         snprintf(path, sizeof path, "%s/system.yaml", am->state_dir);
         am_write_file(path, o->system_text, strlen(o->system_text), 0644);
+        origin = o->system_path;
     }
     free(local);
     marie_errors_t errs = {0};
-    am_loading_t *l = am_loading_open(path, profile, &errs);
+    am_loading_t *l = am_loading_open(path, origin, profile, &errs);
     if (!l) {
         char *msg = NULL;
         size_t ml = 0;
@@ -131,6 +135,13 @@ static void order_up(am_t *am, const marie_am_order_t *o)
         reply(am, o, false, 0, "system file refused:\n%s", msg ? msg : "");
         free(msg);
         marie_errors_clear(&errs);
+        return;
+    }
+    const char *running = am_any_running(am) ? am->sys->name : NULL, *next = am_loading_system(l)->name;
+    if (running && strcmp(running, next ? next : "") != 0) {
+        /* a change applies to the system that runs; another one replaces it only after a down */
+        reply(am, o, false, 0, "another system (%s) is running here: marie down first", running);
+        am_loading_free(l);
         return;
     }
     marie_am_order_t *copy = marie_am_order_t_copy(o);
@@ -183,6 +194,7 @@ static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_
 static void order_down(am_t *am, const marie_am_order_t *o)
 {
     am_check_cancel(am, "cancelled by a down order\n");
+    am_apply_cancel(am);
     am->up = false;
     am_save_up_state(am);
     int n = 0;

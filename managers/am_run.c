@@ -131,6 +131,22 @@ static void on_outpipe(marie_loop_t *loop, int fd, short revents, void *user)
         outpipe_close(op);
 }
 
+void am_comp_carry(comp_t *to, comp_t *from)
+{
+    const marie_component_cfg_t *cfg = to->cfg;
+    *to = *from;
+    to->cfg = to->sv.cfg = cfg;
+    for (int i = 0; i < 2; i++) {
+        outpipe_t *op = &to->out[i];
+        op->c = to;
+        if (op->fd >= 0) {      /* the loop's callback follows the pipe to its new place */
+            marie_loop_remove_fd(to->am->loop, op->fd);
+            marie_loop_add_fd(to->am->loop, op->fd, POLLIN, on_outpipe, op);
+        }
+    }
+    *from = (comp_t){.am = from->am, .out = {{.fd = -1}, {.fd = -1}}};
+}
+
 void am_comp_close_output(comp_t *c)
 {
     for (int i = 0; i < 2; i++)
@@ -154,7 +170,7 @@ static bool env_dropped(const char *kv)
     static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
                                        "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
                                        "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
-                                       "MARIE_STATE_DIR=", "MARIE_KEY=", NULL};
+                                       "MARIE_STATE_DIR=", "MARIE_KEY=", "MARIE_SYSTEM_ORIGIN=", NULL};
     for (int i = 0; drop[i]; i++)
         if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
             return true;
@@ -162,10 +178,11 @@ static bool env_dropped(const char *kv)
 }
 
 /* The program to exec: a name without '/' is looked up in marie-am's own directory, then
- * in PATH (execvpe would search the manager's PATH only). NULL: let execvpe report it. */
-static char *resolve_exec(am_t *am, const char *name)
+ * in PATH (execvpe would search the manager's PATH only), a relative path from the system
+ * file's folder, as marie up checked it. NULL: let execvpe report it. */
+static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
 {
-    return marie_am_resolve_exec(am->self_dir, name);
+    return marie_am_resolve_exec(am->self_dir, cfg->file, cfg->exec);
 }
 
 /* The environment of a component: the manager's, minus service plumbing, plus marie's and
@@ -180,7 +197,7 @@ static char **child_env(comp_t *c, size_t *nep)
     size_t nenv = 0;
     while (environ[nenv])
         nenv++;
-    envp = calloc(nenv + cfg->nenv + 10, sizeof *envp);
+    envp = calloc(nenv + cfg->nenv + 11, sizeof *envp);
     if (!envp)
         return NULL;
     for (size_t i = 0; i < nenv; i++)
@@ -196,6 +213,8 @@ static char **child_env(comp_t *c, size_t *nep)
         asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
         goto fail;
     if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
+        goto fail;
+    if (am_system_origin(am) && asprintf(&envp[ne++], "MARIE_SYSTEM_ORIGIN=%s", am_system_origin(am)) < 0)
         goto fail;
     if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
         goto fail;
@@ -275,7 +294,7 @@ static void comp_spawn(comp_t *c)
      * manager dies (SIGTERM = quit: a restarted manager starts them again instead of finding
      * orphans); default signal handling; the pipes and the other descriptors marie-am opens
      * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
-    char *prog = cfg->shell ? NULL : resolve_exec(am, cfg->exec);
+    char *prog = cfg->shell ? NULL : resolve_exec(am, cfg);
     marie_spawn_refused_t refused;
     marie_spawn_req_t req = {
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
@@ -472,6 +491,7 @@ void am_reap_children(am_t *am)
                 break;
             }
     }
+    am_apply_progress(am);
     am_try_start_waiting(am);
 }
 

@@ -96,17 +96,23 @@ void am_kill_leftovers(am_t *am)
     unlink(state_path(am, "children", path));
 }
 
-void am_comps_free(am_t *am)
+static void comps_free(comp_t *comps, size_t n)
 {
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < n; i++) {
+        comp_t *c = &comps[i];
         am_comp_cancel_timer(c);
         am_comp_close_output(c);
         free(c->out[0].lb);
         free(c->out[1].lb);
         marie_logfile_close(c->logf);
     }
-    MARIE_CLEAR(am->comps, free);
+    free(comps);
+}
+
+void am_comps_free(am_t *am)
+{
+    comps_free(am->comps, am->ncomps);
+    am->comps = NULL;
     am->ncomps = 0;
 }
 
@@ -150,12 +156,20 @@ void am_save_up_state(am_t *am)
     if (!m)
         return;
     fprintf(m, "system %s\nprofile %s\n", am->sys_path, am->profile ? am->profile : "");
+    if (am_system_origin(am))
+        fprintf(m, "origin %s\n", am_system_origin(am));
     for (size_t i = 0; i < am->ncomps; i++)
         if (strcmp(am->comps[i].host, marie_am_component_host(am->sys, am->comps[i].cfg, am->host)) != 0)
             fprintf(m, "move %s %s\n", am->comps[i].cfg->name, am->comps[i].host);
     fclose(m);
     am_write_file(path, text, len, 0644);
     free(text);
+}
+
+const char *am_system_origin(const am_t *am)
+{
+    const char *f = am->sys ? am->sys->file : NULL;
+    return f && f[0] == '/' && am->sys_path && strcmp(f, am->sys_path) != 0 ? f : NULL;
 }
 
 bool am_host_known(am_t *am, const char *h)
@@ -175,6 +189,14 @@ struct am_loading {
     marie_am_settings_t set;
 };
 
+const marie_system_t *am_loading_system(const am_loading_t *l) { return l->sys; }
+
+bool am_comp_carried(const comp_t *c, const marie_system_t *next)
+{
+    const marie_component_cfg_t *n = marie_system_component(next, c->cfg->name);
+    return n && strcmp(n->hash, c->cfg->hash) == 0 && !c->timer;
+}
+
 void am_loading_free(am_loading_t *l)
 {
     if (!l)
@@ -186,7 +208,7 @@ void am_loading_free(am_loading_t *l)
     free(l);
 }
 
-am_loading_t *am_loading_open(const char *path, const char *profile, marie_errors_t *errs)
+am_loading_t *am_loading_open(const char *path, const char *origin, const char *profile, marie_errors_t *errs)
 {
     am_loading_t *l = calloc(1, sizeof *l);
     if (!l || !(l->path = strdup(path)) || (profile && *profile && !(l->profile = strdup(profile)))) {
@@ -199,7 +221,7 @@ am_loading_t *am_loading_open(const char *path, const char *profile, marie_error
         am_loading_free(l);
         return NULL;
     }
-    l->sys = marie_system_load(path, l->profile, errs);
+    l->sys = marie_system_load_text(origin && *origin ? origin : path, l->text, l->len, l->profile, errs);
     marie_yaml_unload();        /* the next system file is orders away, if it ever comes */
     if (!l->sys || marie_am_check_system(l->sys, &l->set, errs) < 0) {
         am_loading_free(l);
@@ -222,9 +244,9 @@ int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *e
     return rc;
 }
 
-int am_load_system(am_t *am, const char *path, const char *profile, marie_errors_t *errs)
+int am_load_system(am_t *am, const char *path, const char *origin, const char *profile, marie_errors_t *errs)
 {
-    am_loading_t *l = am_loading_open(path, profile, errs);
+    am_loading_t *l = am_loading_open(path, origin, profile, errs);
     if (!l || am_loading_check_programs(am, l, errs) < 0) {
         am_loading_free(l);
         return -1;
@@ -253,9 +275,10 @@ void am_loading_install(am_t *am, am_loading_t *l)
         am->log_max_bytes = set.log_max_bytes;
     if (!am->opt_log_keep)
         am->log_keep = set.log_keep;
-    am_comps_free(am);
+    comp_t *old = am->comps;
+    size_t nold = am->ncomps;
+    marie_system_t *old_sys = am->sys;
     MARIE_CLEAR(am->bal, balance_destroy);
-    marie_system_destroy(am->sys);
     am->sys = sys;
     am->bal_cfg = set.balance;
     if (set.balance.enabled && !(am->bal = balance_create(am->host, sys, &am->bal_cfg)))
@@ -284,8 +307,13 @@ void am_loading_install(am_t *am, am_loading_t *l)
         marie_sv_init(&c->sv, c->cfg, strcmp(c->host, am->host) == 0);
         for (int k = 0; k < 2; k++)
             c->out[k].fd = -1;
+        const marie_component_cfg_t *was = old_sys ? marie_system_component(old_sys, c->cfg->name) : NULL;
+        if (was && am_comp_carried(&old[was - old_sys->components], sys))
+            am_comp_carry(c, &old[was - old_sys->components]);
         marie_ratelimit_init(&c->rl, am->log_rate, am->log_burst);
     }
+    comps_free(old, nold);
+    marie_system_destroy(old_sys);
     am_status_changed(am);
 }
 
@@ -351,13 +379,15 @@ void am_restore_up_state(am_t *am)
     FILE *f = state_open(am, "up", "r");
     if (!f)
         return;
-    char line[PATH_MAX + 64], sys[PATH_MAX] = "", profile[128] = "";
+    char line[PATH_MAX + 64], sys[PATH_MAX] = "", origin[PATH_MAX] = "", profile[128] = "";
     char moves[64][2][128];
     int nmoves = 0;
     while (fgets(line, sizeof line, f)) {
         line[strcspn(line, "\n")] = 0;
         if (strncmp(line, "system ", 7) == 0)
             snprintf(sys, sizeof sys, "%.*s", (int)sizeof sys - 1, line + 7);
+        else if (strncmp(line, "origin ", 7) == 0)
+            snprintf(origin, sizeof origin, "%.*s", (int)sizeof origin - 1, line + 7);
         else if (strncmp(line, "profile ", 8) == 0)
             snprintf(profile, sizeof profile, "%.*s", (int)sizeof profile - 1, line + 8);
         else if (nmoves < 64 && sscanf(line, "move %127s %127s", moves[nmoves][0], moves[nmoves][1]) == 2)
@@ -367,7 +397,7 @@ void am_restore_up_state(am_t *am)
     if (!sys[0])
         return;
     marie_errors_t errs = {0};
-    if (am_load_system(am, sys, profile, &errs) < 0) {
+    if (am_load_system(am, sys, origin, profile, &errs) < 0) {
         marie_error("cannot restore the system that was up (%s):", sys);
         marie_errors_print(&errs, stderr);
         marie_errors_clear(&errs);

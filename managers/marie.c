@@ -13,6 +13,7 @@
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
+#include "core/version.h"
 
 volatile sig_atomic_t interrupted;      /* the signal that asked marie to stop */
 static void on_sigint(int s) { interrupted = s; }
@@ -23,18 +24,22 @@ static void usage(FILE *out)
 {
     fprintf(out,
             "usage: marie [--json] [--url URL] [--key FILE] [--timeout S] COMMAND [ARGS]\n"
-            "  up FILE [--profile P] [--no-wait]   load a system on every host and start it\n"
+            "  up FILE [--profile P] [-a NAME=VALUE]... [--no-wait]\n"
+            "                                      load a system on every host and start it;\n"
+            "                                      -a fills ${NAME} in the file (launch arguments)\n"
             "  down [--no-wait]                    stop every component (reverse dependency order)\n"
             "  ps [--window S] [--watch]           components of every host (--watch: every second)\n"
             "  start|stop|restart NAME|GROUP... [--wait]\n"
             "  pause|resume NAME|GROUP...          lifecycle pause/resume\n"
-            "  logs [-f] [-n N] NAME               last lines of a component's output (-f: follow)\n"
+            "  logs [-f] [-n N] NAME|GROUP...      last lines of components' output (-f: follow)\n"
             "  move NAME HOST                      run a component on another host\n"
             "  doctor                              check the bus: route, TTL, buffers, clock skew\n"
             "  hash FILE [--profile A|--base [--profile B|--base]]  configuration hashes; with\n"
             "                                      two, which components are configured the same\n"
             "                                      (--base: the file without a profile)\n"
             "  keygen FILE                         write a new order key (mode 0600)\n"
+            "  topic list|echo|hz|pub ...          the bus's channels and messages (marie topic --help)\n"
+            "  param list|get|set COMPONENT ...    a running component's parameters\n"
             "  X ...                               runs marie-X (next to marie, or on PATH)\n"
             "exit status: 0 ok, 1 failure, 2 usage or system file error, 3 timeout or host\n"
             "unreachable, 4 key problem or order refused as unauthenticated\n");
@@ -79,6 +84,7 @@ static int run_external(const char *cmd, int argc, char **argv)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie", argc, argv);
     cli_t cli = {0};
     cli.timeout_s = 3;
     cli.url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
@@ -109,9 +115,10 @@ int main(int argc, char **argv)
     const char *cmd = argv[i];
     int sargc = argc - i;
     char **sargv = argv + i;
-    /* --json may also follow the command */
+    /* --json may also follow the command (marie-X, run for `marie X`, reads its own) */
+    bool own_json = strcmp(cmd, "logs") == 0 || strcmp(cmd, "topic") == 0 || strcmp(cmd, "param") == 0;
     for (int k = 1; k < sargc; k++)
-        if (strcmp(sargv[k], "--json") == 0 && strcmp(cmd, "logs") != 0) {
+        if (strcmp(sargv[k], "--json") == 0 && !own_json) {
             cli.json = true;
             memmove(&sargv[k], &sargv[k + 1], (size_t)(sargc - k) * sizeof *sargv);
             sargc--;

@@ -12,31 +12,13 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/config.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
 #include "core/typeinfo.h"
-
-/* ---------------------------------------------------------------- JSON output */
-
-void json_str(FILE *f, const char *s)
-{
-    fputc('"', f);
-    for (; s && *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            fprintf(f, "\\%c", ch);
-        else if (ch == '\n')
-            fputs("\\n", f);
-        else if (ch < 0x20)
-            fprintf(f, "\\u%04x", ch);
-        else
-            fputc(ch, f);
-    }
-    fputc('"', f);
-}
 
 /* ---------------------------------------------------------------- bus */
 
@@ -121,42 +103,82 @@ static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, const mari
         expect_host(cli, r->host);
 }
 
+static bool log_followed(const cli_t *cli, const char *component)
+{
+    for (int i = 0; i < cli->nfollowed; i++)
+        if (strcmp(cli->followed[i], component) == 0)
+            return true;
+    return false;
+}
+
+/* A component's own log line on stderr ("12:00:01.234 NAME info file.c:12: text") is not an
+ * error: its level is the tag, and its time and name, which the line's stamp and the component
+ * repeat, go. */
+static const char *log_tag(const marie_log_line_t *l, const char **text)
+{
+    static const char *const levels[] = {"debug", "info", "warn", "error"};
+    const char *t = l->text, *sp;
+    *text = t;
+    if (l->stream != MARIE_LOG_LINE_T_STDERR)
+        return "out";
+    if (strlen(t) > 13 && t[2] == ':' && t[5] == ':' && t[8] == '.' && t[12] == ' ' && (sp = strchr(t + 13, ' ')))
+        for (size_t i = 0; i < sizeof levels / sizeof *levels; i++) {
+            size_t n = strlen(levels[i]);
+            if (strncmp(sp + 1, levels[i], n) == 0 && sp[1 + n] == ' ') {
+                *text = sp + 2 + n;
+                return levels[i];
+            }
+        }
+    return "err";
+}
+
+static void print_follow(const cli_t *cli, const marie_log_line_t *l)
+{
+    const char *text, *tag = log_tag(l, &text);
+    if (cli->json) {
+        printf("{\"utime\":%lld,\"host\":", (long long)l->utime);
+        marie_json_fputs(stdout, l->host);
+        printf(",\"component\":");
+        marie_json_fputs(stdout, l->component);
+        printf(",\"pid\":%d,\"stream\":\"%s\",\"tag\":\"%s\",\"dropped\":%lld,\"text\":", (int)l->pid,
+               l->stream == MARIE_LOG_LINE_T_STDERR ? "err" : "out", tag, (long long)l->dropped);
+        marie_json_fputs(stdout, l->text);
+        printf("}\n");
+        return;
+    }
+    time_t secs = (time_t)(l->utime / 1000000);
+    struct tm tm;
+    gmtime_r(&secs, &tm);
+    if (l->dropped)
+        printf("-- %lld lines dropped (rate limit)\n", (long long)l->dropped);
+    printf("%04d-%02d-%02dT%02d:%02d:%02d.%03dZ %s%s%s %s\n", tm.tm_year + 1900, tm.tm_mon + 1, tm.tm_mday,
+           tm.tm_hour, tm.tm_min, tm.tm_sec, (int)(l->utime / 1000 % 1000), cli->nfollowed > 1 ? l->component : "",
+           cli->nfollowed > 1 ? " " : "", tag, text);
+}
+
 static void on_log(const lcm_recv_buf_t *rbuf, const char *channel, const marie_log_line_t *l, void *user)
 {
     cli_t *cli = user;
-    if (!cli->log_name || strcmp(l->component, cli->log_name) != 0)
-        return;
     if (l->request_seq != 0) {
+        /* an answer to our tail order: the manager chose the components (names and groups) */
         if (l->request_seq != cli->seq)
             return;
         cli->last_log_mono = marie_mono_us();
         if (cli->json) {
             printf("{\"host\":");
-            json_str(stdout, l->host);
+            marie_json_fputs(stdout, l->host);
+            printf(",\"component\":");
+            marie_json_fputs(stdout, l->component);
             printf(",\"text\":");
-            json_str(stdout, l->text);
+            marie_json_fputs(stdout, l->text);
             printf("}\n");
+        } else if (cli->nlog_names > 1 || strcmp(cli->log_names[0], l->component) != 0) {
+            printf("%s: %s\n", l->component, l->text);
         } else {
             printf("%s\n", l->text);
         }
-    } else if (cli->follow) {
-        if (cli->json) {
-            printf("{\"utime\":%lld,\"host\":", (long long)l->utime);
-            json_str(stdout, l->host);
-            printf(",\"pid\":%d,\"stream\":\"%s\",\"dropped\":%lld,\"text\":", (int)l->pid,
-                   l->stream == MARIE_LOG_LINE_T_STDERR ? "err" : "out", (long long)l->dropped);
-            json_str(stdout, l->text);
-            printf("}\n");
-        } else {
-            time_t secs = (time_t)(l->utime / 1000000);
-            struct tm tm;
-            gmtime_r(&secs, &tm);
-            if (l->dropped)
-                printf("-- %lld lines dropped (rate limit)\n", (long long)l->dropped);
-            printf("%04d-%02d-%02dT%02d:%02d:%02d.%03dZ %s %s\n", tm.tm_year + 1900, tm.tm_mon + 1,
-                   tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, (int)(l->utime / 1000 % 1000),
-                   l->stream == MARIE_LOG_LINE_T_STDERR ? "err" : "out", l->text);
-        }
+    } else if (cli->follow && log_followed(cli, l->component)) {
+        print_follow(cli, l);
     }
     fflush(stdout);
 }
@@ -332,10 +354,10 @@ void print_replies_json(cli_t *cli, int rc)
     printf("{\"ok\":%s,\"exit\":%d,\"replies\":[", rc == 0 ? "true" : "false", rc);
     for (int i = 0; i < cli->nreplies; i++) {
         printf("%s{\"host\":", i ? "," : "");
-        json_str(stdout, cli->replies[i].host);
+        marie_json_fputs(stdout, cli->replies[i].host);
         printf(",\"ok\":%s,\"affected\":%d,\"reason\":", cli->replies[i].ok ? "true" : "false",
                cli->replies[i].affected);
-        json_str(stdout, cli->replies[i].reason);
+        marie_json_fputs(stdout, cli->replies[i].reason);
         printf("}");
     }
     printf("]}\n");

@@ -53,7 +53,10 @@ typedef struct {
     int64_t new_host_mono;      /* when a host was first heard, last */
     bool hosts_unnamed;         /* a heard manager names no hosts (it has no system) */
     /* logs */
-    const char *log_name;
+    char **log_names;           /* marie logs: the components and groups asked for (argv) */
+    int nlog_names;
+    char (*followed)[128];      /* -f: the components they name (groups resolved from status) */
+    int nfollowed;
     int64_t last_log_mono;
     bool follow;
 } cli_t;
@@ -65,7 +68,6 @@ extern volatile sig_atomic_t interrupted;
 int interrupted_status(void);
 
 /* marie_bus.c: the bus, orders and replies */
-void json_str(FILE *f, const char *s);
 host_t *host_get(cli_t *cli, const char *name, bool create);
 void expect_host(cli_t *cli, const char *name);
 bool all_replied(cli_t *cli);

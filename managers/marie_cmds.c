@@ -13,8 +13,10 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/clear.h"
 #include "core/config.h"
+#include "core/expand.h"
 #include "core/file.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
@@ -22,6 +24,8 @@
 #include "managers/progcheck.h"
 
 /* ---------------------------------------------------------------- commands */
+
+#define MAX_FOLLOWED 256
 
 /* Every component's program, on whichever host it runs, is checked here: the programs are
  * installed alike on every host (deploy/), and a bad entry must stop `up` before any start. */
@@ -41,29 +45,74 @@ static int check_programs(const marie_system_t *sys, marie_errors_t *errs)
     return rc;
 }
 
+/* The file's text with the launch arguments (-a name=value) in its ${name}s; NULL after saying why. */
+static char *read_with_args(const char *file, char **args, size_t nargs, size_t *len)
+{
+    char *text = marie_file_read(file, MARIE_AM_SYSTEM_MAX_BYTES, len), why[256];
+    if (!text) {
+        fprintf(stderr, "marie: %s: %s\n", file, strerror(errno));
+        return NULL;
+    }
+    if (!nargs)
+        return text;
+    int *used = calloc(nargs, sizeof *used);
+    char *filled = used ? marie_expand_args(text, args, nargs, used, why, sizeof why) : NULL;
+    free(text);
+    for (size_t i = 0; filled && i < nargs; i++)
+        if (!used[i]) {
+            snprintf(why, sizeof why, "launch argument '%.*s' is not used in %s (no ${%.*s} in it)",
+                     (int)strcspn(args[i], "="), args[i], file, (int)strcspn(args[i], "="), args[i]);
+            MARIE_CLEAR(filled, free);
+        }
+    free(used);
+    if (!filled)
+        fprintf(stderr, "marie: %s\n", why);
+    *len = filled ? strlen(filled) : 0;
+    return filled;
+}
+
+/* "NAME is up on N host(s)", then what each manager changed of a system already running. */
+static void print_up(const cli_t *cli, const char *name)
+{
+    printf("%s is up on %d host(s)\n", name, cli->nreplies);
+    for (int i = 0; i < cli->nreplies; i++)
+        if (strcmp(cli->replies[i].reason, "ok") != 0)
+            printf("  %s: %s\n", cli->replies[i].host, cli->replies[i].reason);
+}
+
 int cmd_up(cli_t *cli, int argc, char **argv)
 {
     static const struct option opts[] = {{"profile", required_argument, 0, 'p'}, {"no-wait", no_argument, 0, 'n'},
-                                         {"wait-timeout", required_argument, 0, 'w'}, {0, 0, 0, 0}};
+                                         {"wait-timeout", required_argument, 0, 'w'}, {"arg", required_argument, 0, 'a'},
+                                         {0, 0, 0, 0}};
     const char *profile = NULL;
     bool wait = true;
     double wait_s = 30;
+    char **args = calloc((size_t)argc + 1, sizeof *args);
+    size_t nargs = 0;
     int opt;
     optind = 1;
-    while ((opt = getopt_long(argc, argv, "p:", opts, NULL)) != -1) {
+    while (args && (opt = getopt_long(argc, argv, "p:a:", opts, NULL)) != -1) {
         if (opt == 'p') profile = optarg;
         else if (opt == 'n') wait = false;
         else if (opt == 'w') wait_s = atof(optarg);
-        else return MARIE_EXIT_USAGE;
+        else if (opt == 'a') args[nargs++] = optarg;
+        else { free(args); return MARIE_EXIT_USAGE; }
     }
-    if (optind != argc - 1) {
-        fprintf(stderr, "usage: marie up FILE [--profile P] [--no-wait]\n");
+    if (!args || optind != argc - 1) {
+        fprintf(stderr, "usage: marie up FILE [--profile P] [-a NAME=VALUE]... [--no-wait]\n");
+        free(args);
         return MARIE_EXIT_USAGE;
     }
     const char *file = argv[optind];
+    size_t text_len;
+    char *text = read_with_args(file, args, nargs, &text_len);
+    free(args);
+    if (!text)
+        return MARIE_EXIT_USAGE;
     /* Validate here first: a bad file never reaches a manager. */
     marie_errors_t errs = {0};
-    marie_system_t *sys = marie_system_load(file, profile, &errs);
+    marie_system_t *sys = marie_system_load_text(file, text, text_len, profile, &errs);
     marie_am_settings_t set;
     if (sys && (marie_am_check_system(sys, &set, &errs) < 0 || check_programs(sys, &errs) < 0)) {
         MARIE_CLEAR(sys, marie_system_destroy);
@@ -71,12 +120,11 @@ int cmd_up(cli_t *cli, int argc, char **argv)
     if (!sys) {
         marie_errors_print(&errs, stderr);
         marie_errors_clear(&errs);
+        free(text);
         return interrupted ? interrupted_status() : MARIE_EXIT_USAGE;
     }
     for (size_t i = 0; i < sys->nhosts; i++)
         expect_host(cli, sys->hosts[i]);
-    size_t text_len;
-    char *text = marie_file_read(file, MARIE_AM_SYSTEM_MAX_BYTES, &text_len);
     char *abs = realpath(file, NULL);
     int rc = text ? cli_open(cli) : -1;
     if (rc == 0)
@@ -88,7 +136,7 @@ int cmd_up(cli_t *cli, int argc, char **argv)
     if (cli->json)
         print_replies_json(cli, rc);
     else if (rc == MARIE_EXIT_OK)
-        printf("%s is up on %d host(s)\n", sys->name ? sys->name : file, cli->nreplies);
+        print_up(cli, sys->name ? sys->name : file);
     free(abs);
     free(text);
     marie_system_destroy(sys);
@@ -210,38 +258,38 @@ static int print_ps(cli_t *cli, int64_t lost_us)
         lost += is_lost;
         if (cli->json) {
             printf("%s{\"host\":", i ? "," : "");
-            json_str(stdout, cli->expect[i]);
+            marie_json_fputs(stdout, cli->expect[i]);
             if (is_lost) {
                 printf(",\"lost\":true,\"components\":[]}");
                 continue;
             }
             marie_am_status_t *st = h->st;
             printf(",\"lost\":false,\"system\":");
-            json_str(stdout, st->system);
+            marie_json_fputs(stdout, st->system);
             printf(",\"profile\":");
-            json_str(stdout, st->profile);
+            marie_json_fputs(stdout, st->profile);
             printf(",\"load\":[%.2f,%.2f,%.2f],\"ncpu\":%d,\"am_pid\":%d,\"am_cpu\":%.2f,\"am_rss\":%lld,"
                    "\"orders_refused\":%lld,\"clock_offset_us\":%lld,",
                    st->load1, st->load5, st->load15, st->ncpu, st->pid, st->am_cpu, (long long)st->am_rss,
                    (long long)st->orders_refused, (long long)(st->utime - h->recv_wall));
             printf("\"balance_term\":%lld,\"balance_leader\":", (long long)st->balance_term);
-            json_str(stdout, st->balance_leader);
+            marie_json_fputs(stdout, st->balance_leader);
             printf(",\"balance_last\":");
-            json_str(stdout, st->balance_last);
+            marie_json_fputs(stdout, st->balance_last);
             printf(",\"components\":[");
             for (int k = 0; k < st->ncomponents; k++) {
                 marie_am_component_status_t *c = &st->components[k];
                 printf("%s{\"name\":", k ? "," : "");
-                json_str(stdout, c->name);
+                marie_json_fputs(stdout, c->name);
                 printf(",\"group\":");
-                json_str(stdout, c->group);
+                marie_json_fputs(stdout, c->group);
                 printf(",\"state\":");
-                json_str(stdout, c->state);
+                marie_json_fputs(stdout, c->state);
                 printf(",\"comp_state\":%d,\"pid\":%d,\"uptime_us\":%lld,\"restarts\":%d,\"last_exit\":%d,"
                        "\"cpu\":%.2f,\"rss\":%lld,\"heartbeat_age_us\":%lld,\"log_drops\":%lld,\"config_hash\":",
                        c->comp_state, c->pid, (long long)c->uptime_us, c->restarts, c->last_exit, c->cpu,
                        (long long)c->rss, (long long)c->heartbeat_age_us, (long long)c->log_drops);
-                json_str(stdout, c->config_hash);
+                marie_json_fputs(stdout, c->config_hash);
                 printf("}");
             }
             printf("]}");
@@ -333,34 +381,62 @@ static bool logs_quiet(cli_t *cli)
     return all_replied(cli) && marie_mono_us() - cli->last_log_mono > 300000;
 }
 
+/* -f: the components the names and groups asked for stand for, from the managers' status. */
+static int resolve_followed(cli_t *cli)
+{
+    if (!(cli->followed = calloc(MAX_FOLLOWED, sizeof *cli->followed)))
+        return -1;
+    if (request_status(cli) == 0)
+        pump(cli, cli->timeout_s, all_hosts_heard);
+    for (int k = 0; k < cli->nlog_names; k++) {
+        bool found = false;
+        for (int h = 0; h < cli->nhosts; h++)
+            for (int i = 0; cli->hosts[h].st && i < cli->hosts[h].st->ncomponents; i++) {
+                const marie_am_component_status_t *c = &cli->hosts[h].st->components[i];
+                if ((strcmp(c->name, cli->log_names[k]) == 0 || strcmp(c->group, cli->log_names[k]) == 0) &&
+                    cli->nfollowed < MAX_FOLLOWED) {
+                    snprintf(cli->followed[cli->nfollowed++], sizeof *cli->followed, "%s", c->name);
+                    found = true;
+                }
+            }
+        if (!found && cli->nfollowed < MAX_FOLLOWED)   /* not running yet: its own name */
+            snprintf(cli->followed[cli->nfollowed++], sizeof *cli->followed, "%s", cli->log_names[k]);
+    }
+    return 0;
+}
+
 int cmd_logs(cli_t *cli, int argc, char **argv)
 {
     int n = 20, opt;
+    bool n_given = false;
     optind = 1;
     while ((opt = getopt(argc, argv, "fn:")) != -1) {
         if (opt == 'f') cli->follow = true;
-        else if (opt == 'n') n = atoi(optarg);
+        else if (opt == 'n') { n = atoi(optarg); n_given = true; }
         else return MARIE_EXIT_USAGE;
     }
-    if (optind != argc - 1) {
-        fprintf(stderr, "usage: marie logs [-f] [-n N] NAME\n");
+    if (optind >= argc) {
+        fprintf(stderr, "usage: marie logs [-f] [-n N] NAME|GROUP...\n");
         return MARIE_EXIT_USAGE;
     }
-    cli->log_name = argv[optind];
-    if (cli_open(cli) < 0)
+    cli->log_names = argv + optind;
+    cli->nlog_names = argc - optind;
+    if (cli_open(cli) < 0 || (cli->follow && resolve_followed(cli) < 0))
         return MARIE_EXIT_FAIL;
     int rc = MARIE_EXIT_OK;
     if (n > 0) {
         char arg[32];
         snprintf(arg, sizeof arg, "%d", n);
         if (load_key(cli) < 0) {
+            fprintf(stderr, "marie: the last lines are read by the managers, and asking them is an order signed "
+                            "with the key (--key FILE, MARIE_KEY or the system file's auth.key_file)%s\n",
+                    cli->follow ? "; following new lines only" : n_given ? "" : "; marie logs -f NAME follows new lines without one");
             if (!cli->follow)
                 return MARIE_EXIT_AUTH;
-            fprintf(stderr, "marie: following new lines only\n");
         } else {
             /* the answers carry the order's seq (on_log matches it) */
             cli->last_log_mono = marie_mono_us();
-            rc = send_order(cli, MARIE_AM_ORDER_T_OP_TAIL, &argv[optind], 1, arg, NULL, NULL);
+            rc = send_order(cli, MARIE_AM_ORDER_T_OP_TAIL, cli->log_names, cli->nlog_names, arg, NULL, NULL);
             pump(cli, 0.5, logs_quiet);
         }
     }
@@ -368,5 +444,6 @@ int cmd_logs(cli_t *cli, int argc, char **argv)
         while (!interrupted)
             marie_loop_run_once(cli->loop, 200);
     }
+    free(cli->followed);
     return rc;
 }

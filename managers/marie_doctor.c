@@ -5,6 +5,7 @@
 #include <limits.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <sys/socket.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,6 +16,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/config.h"
 #include "core/log.h"
 #include "core/time.h"
@@ -39,9 +41,9 @@ static void check(cli_t *cli, doc_t *d, const char *name, bool ok, const char *f
         d->problems++;
     if (cli->json) {
         printf("%s{\"check\":", d->first ? "" : ",");
-        json_str(stdout, name);
+        marie_json_fputs(stdout, name);
         printf(",\"ok\":%s,\"detail\":", ok ? "true" : "false");
-        json_str(stdout, detail);
+        marie_json_fputs(stdout, detail);
         printf("}");
         d->first = false;
     } else {
@@ -72,6 +74,19 @@ static long long url_param(const char *url, const char *key)
         q = strchr(q, '&');
     }
     return -1;
+}
+
+/* Whether this process may have a receive buffer of `want` bytes past net.core.rmem_max: marie's
+ * bus asks with SO_RCVBUFFORCE first (core/lcm.c), which a privileged user may. */
+static bool can_force_rcvbuf(long long want)
+{
+    int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0), v = want > INT_MAX / 2 ? INT_MAX / 2 : (int)want, got = 0;
+    socklen_t len = sizeof got;
+    bool ok = fd >= 0 && setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &v, sizeof v) == 0 &&
+              getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &got, &len) == 0 && got >= v;
+    if (fd >= 0)
+        close(fd);
+    return ok;
 }
 
 int cmd_doctor(cli_t *cli, int argc, char **argv)
@@ -138,10 +153,12 @@ int cmd_doctor(cli_t *cli, int argc, char **argv)
     long long rmem_max = read_long("/proc/sys/net/core/rmem_max");
     long long rmem_def = read_long("/proc/sys/net/core/rmem_default");
     long long want = url_param(cli->url, "recv_buf_size");
+    bool forced = want > rmem_max && rmem_max >= 0 && can_force_rcvbuf(want);
     if (want > 0)
-        check(cli, &d, "recv-buffer", rmem_max < 0 || want <= rmem_max,
+        check(cli, &d, "recv-buffer", rmem_max < 0 || want <= rmem_max || forced,
               "recv_buf_size=%lld, net.core.rmem_max=%lld%s", want, rmem_max,
-              rmem_max >= 0 && want > rmem_max ? " (the kernel caps it: sysctl -w net.core.rmem_max=N)" : "");
+              forced ? " (above it, but this user may force the buffer: SO_RCVBUFFORCE, as marie's bus does)"
+              : rmem_max >= 0 && want > rmem_max ? " (the kernel caps it: sysctl -w net.core.rmem_max=N)" : "");
     else
         check(cli, &d, "recv-buffer", true, "no recv_buf_size in the URL: kernel default %lld bytes (large messages may be lost)",
               rmem_def);
@@ -194,7 +211,7 @@ static void hash_row(cli_t *cli, bool *first, const char *name, const char *verd
 {
     if (cli->json) {
         printf("%s{\"name\":", *first ? "" : ",");
-        json_str(stdout, name);
+        marie_json_fputs(stdout, name);
         printf(",\"hash\":\"%s\"", ha ? ha : "");
         if (n == 2) {
             printf(",\"hash_b\":\"%s\",\"verdict\":\"%s\",\"fields\":[", hb ? hb : "", verdict);

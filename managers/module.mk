@@ -3,9 +3,10 @@ MANAGERS_LIB := $(B)/lib/libmarie_managers.a
 $(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c))
 
 # marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
-# am_check.c: an up order's program check in a child, sdnotify.c: systemd's notify protocol)
+# am_check.c: an up order's program check in a child, am_apply.c: an up of a changed system
+# applied as a difference, sdnotify.c: systemd's notify protocol)
 # around the supervision state machine in the library (supervise.c).
-$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_balance.c managers/sdnotify.c,$(MANAGERS_LIB)))
+$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_apply.c managers/am_balance.c managers/sdnotify.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.
@@ -27,7 +28,7 @@ $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_L
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 $(eval $(call marie_test,test_sdnotify,tests/managers/test_sdnotify.c managers/sdnotify.c,))
 ITESTS += tests/managers/test_am.sh tests/managers/test_am_spawn.sh tests/managers/test_up_check.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
-ITESTS += tests/managers/test_balance.sh tests/managers/test_ps.sh tests/managers/test_sched.sh
+ITESTS += tests/managers/test_balance.sh tests/managers/test_ps.sh tests/managers/test_sched.sh tests/managers/test_up_apply.sh
 # Its two busy loops load both cores and a 0.3 s heartbeat must still get through: with a light
 # test beside them it saw false restarts, so it runs last in make test, alone.
 ALONE_TESTS += tests/managers/test_fast_detect.sh
@@ -43,3 +44,4 @@ $(eval $(call marie_test,test_top,tests/managers/test_top.c managers/top.c,))
 ITESTS += tests/managers/test_top.sh
 # Two competing loads for five minutes: no flapping (lasts five minutes by design).
 SLOW_TESTS += tests/managers/test_balance_loads.sh
+ITESTS += tests/managers/test_doctor_readme.sh

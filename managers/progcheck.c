@@ -24,10 +24,22 @@
 #define DESCRIBE_TIMEOUT_MS 5000
 #define DESCRIBE_MAX (1 << 20)
 
-char *marie_am_resolve_exec(const char *self_dir, const char *name)
+/* sys_file's folder joined with a relative path. */
+static char *beside_file(const char *sys_file, const char *name)
 {
-    if (strchr(name, '/'))
+    const char *slash = sys_file ? strrchr(sys_file, '/') : NULL;
+    char *out;
+    if (asprintf(&out, "%.*s%s", slash ? (int)(slash - sys_file + 1) : 0, slash ? sys_file : "", name) < 0)
         return NULL;
+    return out;
+}
+
+char *marie_am_resolve_exec(const char *self_dir, const char *sys_file, const char *name)
+{
+    if (name[0] == '/')
+        return strdup(name);
+    if (strchr(name, '/'))
+        return beside_file(sys_file, name);
     const char *path = getenv("PATH");
     char *dirs;
     if (asprintf(&dirs, "%s:%s", self_dir ? self_dir : "", path ? path : "/usr/local/bin:/usr/bin:/bin") < 0)
@@ -93,8 +105,23 @@ void marie_progcheck_destroy(marie_progcheck_t *p)
 
 int marie_progcheck_described(const marie_progcheck_t *p) { return p ? p->described : 0; }
 
-/* Only programs built on libmarie are run with --describe: anything else (a script, a device
- * tool) might do something on an unknown option. */
+/* A Python script built on marie's Python package (python/marie): a python #! line, and the
+ * package imported at the start of a line. */
+static int is_python_component(const char *m, size_t len)
+{
+    const char *nl = memchr(m, '\n', len);
+    if (len < 2 || m[0] != '#' || m[1] != '!' || !nl || !memmem(m, (size_t)(nl - m), "python", 6))
+        return 0;
+    for (const char *p = nl; p && p + 1 < m + len; p = memchr(p + 1, '\n', (size_t)(m + len - p - 1))) {
+        size_t left = (size_t)(m + len - p - 1);
+        if ((left >= 13 && memcmp(p + 1, "import marie\n", 13) == 0) || (left >= 11 && memcmp(p + 1, "from marie ", 11) == 0))
+            return 1;
+    }
+    return 0;
+}
+
+/* Only programs built on libmarie (or marie's Python package) are run with --describe: anything
+ * else (a script, a device tool) might do something on an unknown option. */
 static int has_marker(const char *path)
 {
     int fd = open(path, O_RDONLY | O_CLOEXEC);
@@ -108,7 +135,8 @@ static int has_marker(const char *path)
     close(fd);
     if (m == MAP_FAILED)
         return 0;
-    int found = memmem(m, (size_t)st.st_size, MARIE_SPEC_MARKER, strlen(MARIE_SPEC_MARKER)) != NULL;
+    int found = memmem(m, (size_t)st.st_size, MARIE_SPEC_MARKER, strlen(MARIE_SPEC_MARKER)) != NULL ||
+                is_python_component(m, (size_t)st.st_size);
     munmap(m, (size_t)st.st_size);
     return found;
 }
@@ -370,7 +398,7 @@ static int check_one(marie_progcheck_t *p, const marie_component_cfg_t *c, marie
     const marie_node_t *en = marie_node_get(c->node, "exec");
     const char *file = c->file;
     int line = en ? en->line : c->line, col = en ? en->col : c->col;
-    char *path = strchr(c->exec, '/') ? strdup(c->exec) : marie_am_resolve_exec(p->self_dir, c->exec);
+    char *path = marie_am_resolve_exec(p->self_dir, c->file, c->exec);
     struct stat st;
     if (!path) {
         marie_errors_add(errs, file, line, col, "component '%s': program '%s' not found (looked in %s and PATH)",
@@ -379,7 +407,8 @@ static int check_one(marie_progcheck_t *p, const marie_component_cfg_t *c, marie
     }
     int rc = 0;
     if (stat(path, &st) < 0) {
-        marie_errors_add(errs, file, line, col, "component '%s': program '%s': %s", c->name, path, strerror(errno));
+        marie_errors_add(errs, file, line, col, "component '%s': program '%s': %s%s", c->name, path, strerror(errno),
+                         c->exec[0] != '/' ? " (a relative exec starts from the system file's folder)" : "");
         rc = -1;
     } else if (!S_ISREG(st.st_mode) || access(path, X_OK) < 0) {
         marie_errors_add(errs, file, line, col, "component '%s': program '%s' is not an executable file", c->name,

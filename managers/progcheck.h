@@ -9,9 +9,11 @@
 extern "C" {
 #endif
 
-/* The program a bare `exec` name runs: self_dir (the manager's own directory), then PATH.
- * NULL when not found or when name holds a '/' (used as given). Caller frees. */
-char *marie_am_resolve_exec(const char *self_dir, const char *name);
+/* The program an `exec` runs: a bare name is looked up in self_dir (the manager's own
+ * directory), then PATH (NULL when not found); a relative path with a '/' starts from the folder
+ * of sys_file, the system file that names it, wherever the reader runs; an absolute one is used
+ * as given. Caller frees. */
+char *marie_am_resolve_exec(const char *self_dir, const char *sys_file, const char *name);
 
 typedef struct marie_progcheck marie_progcheck_t;
 

@@ -22,6 +22,7 @@
 #include "core/typeinfo.h"
 #include "managers/am_proto.h"
 #include "managers/top.h"
+#include "core/version.h"
 
 typedef struct {
     top_t *model;
@@ -329,6 +330,7 @@ static int watch_signals(app_t *a)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-top", argc, argv);
     app_t a = {.view = {.sort = TOP_SORT_CPU, .interval_s = 1.0}, .color = true, .rc = MARIE_EXIT_OK};
     const char *url = NULL;     /* NULL: liblcm takes LCM_DEFAULT_URL, else its default */
     if (parse_args(&a, argc, argv, &url) < 0)

@@ -142,15 +142,15 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     const sim_params_t *p = sim_world_params(world);
     vdevices_cfg_t vc;
     vdevices_cfg_default(&vc);
-    vc.can_url = cfg->can_url;
-    vc.left = (uint8_t)cfg->left_node;
-    vc.right = (uint8_t)cfg->right_node;
-    vc.gyro = (uint8_t)cfg->gyro_node;
-    vc.ticks_per_rev = p->ticks_per_rev;
+    vc.can = cfg->can_url;
+    vc.left = cfg->left_node;
+    vc.right = cfg->right_node;
+    vc.gyro = cfg->gyro_node;
+    vc.drive.ticks_per_rev = p->ticks_per_rev;
     vc.wheel_radius = p->wheel_radius;
     vc.track_width = p->track;
-    vc.gyro_bias = cfg->gyro_bias;
-    vc.gyro_noise = cfg->gyro_noise;
+    vc.vgyro.bias = cfg->gyro_bias;
+    vc.vgyro.noise = cfg->gyro_noise;
     vc.external_physics = true;         /* ODE turns the wheels */
     d->dev = vdevices_create(&vc, now);
     if (!d->dev) {
@@ -162,7 +162,9 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
         snprintf(err, errlen, "cannot poll the devices' bus connection: %s", strerror(errno));
         goto fail;
     }
-    vlms200_cfg_t lc = { .rate_hz = cfg->laser_hz, .unit = LMS200_UNIT_MM, .line_time = true };
+    vlms200_cfg_t lc = VLMS200_DEFAULTS;
+    lc.rate_hz = cfg->laser_hz;
+    lc.line_time = true;
     d->laser = vlms200_create(&lc);
     int rc = d->laser ? vlms200_open(d->laser, cfg->laser_link) : -errno;
     if (rc < 0) {

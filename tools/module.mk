@@ -9,4 +9,4 @@ INSTALL_EXTRA += install -m 755 $(addprefix $(B)/bin/,$(TOOLS_SCRIPTS)) $(DESTDI
 
 $(eval $(call marie_link,$(B)/tests/bin/xb-samples,tests/tools/xb_samples.c tests/xml_bridge/xb_canon.c $(XB_STRUCTDUMP),$(XB_LIB) -lexpat))
 EXTRA_TARGETS += $(B)/tests/bin/xb-samples
-ITESTS += tests/tools/test_marie_tools.sh tests/tools/test_run_tests.sh
+ITESTS += tests/tools/test_marie_tools.sh tests/tools/test_run_tests.sh tests/tools/test_record_full_disk.sh

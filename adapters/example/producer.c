@@ -14,7 +14,8 @@ static void tick(marie_component_t *c, int64_t overruns)
     marie_port_publish(marie_port(c, "out"), &msg);
 }
 
-static int init(marie_component_t *c)
+/* rate_hz may change at run time (marie param set): the same timer, at the new rate. */
+static int rate_changed(marie_component_t *c, const char *name)
 {
     const producer_params_t *q = marie_component_params(c);
     if (q->rate_hz <= 0 || q->rate_hz > 10000) {
@@ -22,6 +23,11 @@ static int init(marie_component_t *c)
         return -1;
     }
     return marie_component_every(c, q->rate_hz, tick) ? 0 : -1;
+}
+
+static int init(marie_component_t *c)
+{
+    return rate_changed(c, "rate_hz") < 0 ? -1 : marie_component_on_param(c, "rate_hz", rate_changed);
 }
 
 static const marie_port_spec_t ports[] = {

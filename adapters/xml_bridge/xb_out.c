@@ -79,7 +79,7 @@ static int push_entry(client_t *c, msgbuf_t *b, int notice)
 {
     if (c->qlen >= c->qcap) {
         /* An idle client holds a small ring; it grows only when documents pile up. */
-        int max = c->s->cfg.queue_docs + 2, ncap = c->qcap ? c->qcap * 2 : 8;
+        int max = c->s->cfg.queue + 2, ncap = c->qcap ? c->qcap * 2 : 8;
         if (c->qlen >= max)
             return -1;
         if (ncap > max)
@@ -111,7 +111,7 @@ void xb_client_enqueue(client_t *c, msgbuf_t *b)
     if (c->dead || c->fd < 0)
         return;
     xb_server_t *s = c->s;
-#define XB_QUEUE_FULL (c->qlen > 0 && (c->qlen + 2 > s->cfg.queue_docs || c->qbytes + b->len > s->cfg.queue_bytes))
+#define XB_QUEUE_FULL (c->qlen > 0 && (c->qlen + 2 > s->cfg.queue || c->qbytes + b->len > (size_t)s->cfg.queue_bytes))
     if (XB_QUEUE_FULL)
         xb_client_flush(c);               /* only a client whose socket is full is slow */
     while (XB_QUEUE_FULL && !c->dead)

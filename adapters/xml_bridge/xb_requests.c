@@ -87,7 +87,7 @@ static void on_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     if (sub->nclients == 0)
         return;
     s->st.received++;
-    if ((size_t)rbuf->data_size > s->cfg.max_message) {
+    if (rbuf->data_size > s->cfg.max_message) {
         xb_bad_input(s, "oversized_message", "%s: %u bytes over the limit", channel, rbuf->data_size);
         return;
     }
@@ -477,9 +477,10 @@ static void do_types(client_t *c, const xb_node_t *req)
     marie_buf_puts(b, "<types");
     put_attr(b, "id", xb_node_attr(req, "id"));
     marie_buf_puts(b, ">");
-    for (size_t i = 0; marie_typeinfos[i]; i++)
-        marie_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", marie_typeinfos[i]->name,
-                      (unsigned long long)marie_typeinfos[i]->fingerprint);
+    const marie_typeinfo_t *t;
+    for (size_t i = 0; (t = marie_typeinfo_at(i)); i++)
+        marie_buf_printf(b, "<type name=\"%s\" fingerprint=\"%016llx\"/>", t->name,
+                      (unsigned long long)t->fingerprint);
     marie_buf_puts(b, "</types>\n");
     xb_client_enqueue_text(c, b->data, b->len);
 }

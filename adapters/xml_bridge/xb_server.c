@@ -18,25 +18,27 @@
 
 #include "adapters/xml_bridge/xb_server_int.h"
 #include "core/clear.h"
+#include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
 
 #define XB_PROTOCOL 1
 #define CLOSE_GRACE_US 1000000      /* a closing client gets this long to take its last reply */
 
-void xb_server_cfg_defaults(xb_server_cfg_t *cfg)
+void xb_server_cfg_defaults(xb_server_cfg_t *cfg) { *cfg = (xb_server_cfg_t)XB_SERVER_DEFAULTS; }
+
+int xb_server_cfg_check(const xb_server_cfg_t *c, char *why, size_t len)
 {
-    memset(cfg, 0, sizeof *cfg);
-    cfg->bind = "127.0.0.1";
-    cfg->port = 7670;
-    cfg->max_doc_bytes = 1 << 20;
-    cfg->max_depth = 32;
-    cfg->queue_docs = 1024;
-    cfg->queue_bytes = 8u << 20;
-    cfg->max_clients = 512;
-    cfg->stall_ms = 10000;
-    cfg->max_message = 4u << 20;
-    cfg->max_memory = 256u << 20;
+    if (c->port < 0 || c->port > 65535)
+        return marie_fail_why(why, len, "port %lld is not 0..65535", (long long)c->port);
+    if (c->max_depth < 1 || c->max_clients < 1 || c->stall_ms < 1 || c->queue < 2)
+        return marie_fail_why(why, len, "max_depth, max_clients and stall_ms at least 1, queue at least 2");
+    if (c->max_document < 64 || c->max_memory < c->max_document || (uint64_t)c->max_memory > SIZE_MAX / 2)
+        return marie_fail_why(why, len, "max_document at least 64 and at most max_memory");
+    if (c->queue_bytes < 1 || c->max_message < 1 || c->max_message > INT32_MAX || c->sndbuf < 0 ||
+        c->sndbuf > INT32_MAX)
+        return marie_fail_why(why, len, "queue_bytes and max_message at least 1, sndbuf not negative");
+    return 0;
 }
 
 void xb_bad_input(xb_server_t *s, const char *counter, const char *fmt, ...)
@@ -106,7 +108,7 @@ static void client_fail(client_t *c, const char *code, const char *reason)
  * first, until the rest fits: whoever sends the big document pays, not whoever comes next. */
 static void enforce_budget(xb_server_t *s)
 {
-    while (s->st.doc_bytes > s->cfg.max_memory) {
+    while (s->st.doc_bytes > (uint64_t)s->cfg.max_memory) {
         client_t *big = NULL;
         for (client_t *c = s->clients; c; c = c->next)
             if (!c->closing_since && c->parser && xb_doc_parser_partial(c->parser) &&
@@ -117,7 +119,7 @@ static void enforce_budget(xb_server_t *s)
         char why[200];
         snprintf(why, sizeof why, "unfinished document holds %zu bytes, over its share (%zu) of "
                  "the bridge's %zu-byte document memory", big->mem,
-                 s->cfg.max_memory / (size_t)(s->st.clients ? s->st.clients : 1), s->cfg.max_memory);
+                 (uint64_t)s->cfg.max_memory / (size_t)(s->st.clients ? s->st.clients : 1), (uint64_t)s->cfg.max_memory);
         xb_bad_input(s, "memory_budget", "%s", why);
         s->st.closed_memory++;
         client_fail(big, "no-memory", why);
@@ -159,7 +161,7 @@ static void client_read(client_t *c)
             c->partial_since = 0;
         }
         charge(c);
-        if (s->st.doc_bytes > s->cfg.max_memory)
+        if (s->st.doc_bytes > (uint64_t)s->cfg.max_memory)
             enforce_budget(s);
         if ((size_t)n < sizeof buf)
             break;
@@ -189,23 +191,23 @@ static void accept_clients(xb_server_t *s)
                 marie_warn_ratelimited(5, "xml bridge: accept: %s", strerror(errno));
             return;
         }
-        if ((int)s->st.clients >= s->cfg.max_clients) {
+        if ((int64_t)s->st.clients >= s->cfg.max_clients) {
             char msg[160];
-            int n = snprintf(msg, sizeof msg, "<error code=\"busy\" reason=\"%d clients already connected\"/>\n",
-                             s->cfg.max_clients);
+            int n = snprintf(msg, sizeof msg, "<error code=\"busy\" reason=\"%lld clients already connected\"/>\n",
+                             (long long)s->cfg.max_clients);
             ssize_t w = send(fd, msg, (size_t)n, MSG_NOSIGNAL);
             (void)w;
             close(fd);
             s->st.refused++;
-            xb_bad_input(s, "refused_client", "more than %d clients", s->cfg.max_clients);
+            xb_bad_input(s, "refused_client", "more than %lld clients", (long long)s->cfg.max_clients);
             continue;
         }
         int one = 1;
         setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
         if (s->cfg.sndbuf > 0)
-            setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &s->cfg.sndbuf, sizeof s->cfg.sndbuf);
+            setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &(int){ (int)s->cfg.sndbuf }, sizeof(int));
         client_t *c = calloc(1, sizeof *c);
-        xb_doc_limits_t lim = { s->cfg.max_doc_bytes, s->cfg.max_depth };
+        xb_doc_limits_t lim = { (size_t)s->cfg.max_document, s->cfg.max_depth };
         if (!c || !(c->parser = xb_doc_parser_create(&lim, xb_on_document, c))) {
             free(c);
             close(fd);
@@ -229,8 +231,9 @@ static void accept_clients(xb_server_t *s)
         s->st.accepted++;
         char hello[256];
         int n = snprintf(hello, sizeof hello,
-                         "<hello protocol=\"%d\" max_document=\"%zu\" max_depth=\"%d\" queue=\"%d\"/>\n",
-                         XB_PROTOCOL, s->cfg.max_doc_bytes, s->cfg.max_depth, s->cfg.queue_docs);
+                         "<hello protocol=\"%d\" max_document=\"%lld\" max_depth=\"%lld\" queue=\"%lld\"/>\n",
+                         XB_PROTOCOL, (long long)s->cfg.max_document, (long long)s->cfg.max_depth,
+                         (long long)s->cfg.queue);
         xb_client_enqueue_text(c, hello, (size_t)n);
     }
 }
@@ -250,7 +253,7 @@ static void on_sweep(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
             c->dead = 1;
         else if (!c->closing_since && c->partial_since &&
                  now - c->partial_since > (int64_t)s->cfg.stall_ms * 1000) {
-            xb_bad_input(s, "stalled_client", "document unfinished for %d ms", s->cfg.stall_ms);
+            xb_bad_input(s, "stalled_client", "document unfinished for %lld ms", (long long)s->cfg.stall_ms);
             client_fail(c, "stalled", "document left unfinished too long");
         }
         if (c->dead)
@@ -268,33 +271,27 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
         s->cfg = *cfg;
     else
         xb_server_cfg_defaults(&s->cfg);
+    if (xb_server_cfg_check(&s->cfg, NULL, 0) < 0) {
+        free(s);
+        return marie_fail_null(EINVAL);
+    }
     snprintf(s->bind, sizeof s->bind, "%s", s->cfg.bind ? s->cfg.bind : "127.0.0.1");
     s->cfg.bind = s->bind;
-    if (s->cfg.queue_docs < 2)
-        s->cfg.queue_docs = 2;
-    if (s->cfg.max_clients < 1)
-        s->cfg.max_clients = 1;
-    if (!s->cfg.max_message)
-        s->cfg.max_message = 4u << 20;
-    if (!s->cfg.queue_bytes)
-        s->cfg.queue_bytes = 8u << 20;
-    if (!s->cfg.max_memory)
-        s->cfg.max_memory = 256u << 20;
     if (hooks)
         s->hooks = *hooks;
     s->lcm = lcm;
     s->loop = loop;
     s->lfd = -1;
     /* The largest outgoing document: a max-size payload as base64 XML plus the envelope. */
-    marie_buf_init(&s->out, s->cfg.max_message * 4 + 4096);
-    marie_buf_init(&s->enc, s->cfg.max_message);
+    marie_buf_init(&s->out, (size_t)s->cfg.max_message * 4 + 4096);
+    marie_buf_init(&s->enc, (size_t)s->cfg.max_message);
     marie_buf_init(&s->batch, 0);
 
     struct addrinfo hints = { .ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM,
                               .ai_flags = AI_PASSIVE | AI_NUMERICSERV };
     struct addrinfo *ai = NULL;
     char port[16];
-    snprintf(port, sizeof port, "%d", s->cfg.port);
+    snprintf(port, sizeof port, "%lld", (long long)s->cfg.port);
     int rc = getaddrinfo(s->bind[0] ? s->bind : NULL, port, &hints, &ai);
     if (rc != 0) {
         marie_error("xml bridge: bad bind address '%s': %s", s->bind, gai_strerror(rc));
@@ -306,7 +303,7 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     if (s->lfd < 0 || setsockopt(s->lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) < 0 ||
         bind(s->lfd, ai->ai_addr, ai->ai_addrlen) < 0 || listen(s->lfd, 1024) < 0) {
         int e = errno;
-        marie_error("xml bridge: cannot listen on %s:%d: %s", s->bind, s->cfg.port, strerror(e));
+        marie_error("xml bridge: cannot listen on %s:%lld: %s", s->bind, (long long)s->cfg.port, strerror(e));
         freeaddrinfo(ai);
         errno = e;
         goto err;

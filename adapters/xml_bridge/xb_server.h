@@ -9,28 +9,21 @@
 #include <lcm/lcm.h>
 
 #include "core/loop.h"
+#include "adapters/xml_bridge/xb_server_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    const char *bind;           /* address to listen on; default "127.0.0.1" */
-    int port;                   /* 0: any free port (see xb_server_port) */
-    size_t max_doc_bytes;       /* per incoming document */
-    int max_depth;              /* element nesting per incoming document */
-    int queue_docs;             /* per-client outgoing documents before the oldest is dropped */
-    size_t queue_bytes;         /* per-client outgoing bytes before the oldest is dropped */
-    int max_clients;            /* more are told "busy" and closed */
-    int stall_ms;               /* a document left unfinished this long closes the client */
-    size_t max_message;         /* largest LCM payload published or delivered */
-    int handle_lcm;             /* nonzero: the server watches the LCM fd itself */
-    int sndbuf;                 /* per-client SO_SNDBUF in bytes; 0: the kernel's autotuning */
-    size_t max_memory;          /* bytes held for incoming documents of all clients; over it,
-                                 * the largest holders are closed with "no-memory" */
-} xb_server_cfg_t;
+/* xb_server_cfg_t: the server's parameters, declared in xb_server.params.yaml (bind, port, the
+ * limits per document, client and message, the memory budget), and handle_lcm, set by a program
+ * that has no component's loop; xb_server_cfg_defaults() gives their defaults. */
 
 void xb_server_cfg_defaults(xb_server_cfg_t *cfg);
+/* -1 with the reason in why[0..len) (EINVAL) for values the server cannot work with: a port
+ * outside 0..65535, max_depth, max_clients or stall_ms below 1, queue below 2, max_document below
+ * 64 or above max_memory, queue_bytes or max_message below 1, a negative sndbuf. */
+int xb_server_cfg_check(const xb_server_cfg_t *cfg, char *why, size_t len);
 
 /* Where bad input and drops are reported (the component's counters); any may be NULL. */
 typedef struct {
@@ -57,7 +50,8 @@ typedef struct {
 
 typedef struct xb_server xb_server_t;
 
-/* NULL with errno set on failure (e.g. the address is in use). */
+/* NULL with errno set on failure (EINVAL: xb_server_cfg_check refuses cfg; the address is in
+ * use). cfg NULL takes the defaults. */
 xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop_t *loop,
                               const xb_server_hooks_t *hooks);
 void xb_server_destroy(xb_server_t *s);         /* closes every client; NULL is a no-op */

@@ -58,33 +58,20 @@ static int on_init(marie_component_t *c)
 static int on_start(marie_component_t *c)
 {
     bridge_t *b = marie_component_user(c);
-    xb_server_cfg_t cfg;
-    xb_server_cfg_defaults(&cfg);
-    cfg.bind = params_of(c)->bind;
-    cfg.port = (int)params_of(c)->port;
-    cfg.max_doc_bytes = (size_t)params_of(c)->max_document;
-    cfg.max_depth = (int)params_of(c)->max_depth;
-    cfg.queue_docs = (int)params_of(c)->queue;
-    cfg.queue_bytes = (size_t)params_of(c)->queue_bytes;
-    cfg.max_clients = (int)params_of(c)->max_clients;
-    cfg.stall_ms = (int)params_of(c)->stall_ms;
-    cfg.max_message = (size_t)params_of(c)->max_message;
-    cfg.sndbuf = (int)params_of(c)->sndbuf;
-    cfg.max_memory = (size_t)params_of(c)->max_memory;
-    if (cfg.port < 0 || cfg.port > 65535 || cfg.max_depth < 1 || cfg.queue_docs < 2 ||
-        cfg.max_clients < 1 || cfg.stall_ms < 1 || (int64_t)cfg.max_doc_bytes < 64 ||
-        (int64_t)cfg.max_memory < (int64_t)cfg.max_doc_bytes) {
-        marie_component_fail_reason(c, "xml bridge parameters out of range");
+    const xb_server_cfg_t *cfg = &params_of(c)->server;
+    char why[160];
+    if (xb_server_cfg_check(cfg, why, sizeof why) < 0) {
+        marie_component_fail_reason(c, "xml bridge parameters out of range: %s", why);
         return -1;
     }
     xb_server_hooks_t hooks = { hook_bad_input, hook_drop, NULL, c };
-    b->server = xb_server_create(&cfg, marie_component_lcm(c), marie_component_loop(c), &hooks);
+    b->server = xb_server_create(cfg, marie_component_lcm(c), marie_component_loop(c), &hooks);
     if (!b->server) {
-        marie_component_fail_reason(c, "cannot listen on %s:%d", cfg.bind, cfg.port);
+        marie_component_fail_reason(c, "cannot listen on %s:%lld", cfg->bind, (long long)cfg->port);
         return -1;
     }
     memset(&b->last, 0, sizeof b->last);
-    marie_info("xml bridge listening on %s:%d", cfg.bind, xb_server_port(b->server));
+    marie_info("xml bridge listening on %s:%d", cfg->bind, xb_server_port(b->server));
     return 0;
 }
 

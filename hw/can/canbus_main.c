@@ -8,9 +8,13 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/cli.h"
 #include "core/log.h"
 #include "core/loop.h"
 #include "hw/can/canbus.h"
+#include "core/version.h"
+
+#define PROG "marie-canbus PATH"
 
 static void on_quit(marie_loop_t *loop, int signo, void *user)
 {
@@ -29,25 +33,31 @@ static void on_usr(marie_loop_t *loop, int signo, void *user)
 
 int main(int argc, char **argv)
 {
-    if (argc != 2 || argv[1][0] == '-') {
-        fprintf(stderr, "usage: marie-canbus PATH   (clients use emu:PATH)\n");
+    marie_version_exit("marie-canbus", argc, argv);
+    static const marie_cli_opt_t opts[] = {{NULL}};
+    int status = marie_cli_parse(PROG, opts, argc, argv);
+    if (status >= 0)
+        return status;
+    if (optind != argc - 1) {
+        marie_cli_usage(PROG, opts, stderr);
         return 2;
     }
+    const char *path = argv[optind];
     marie_loop_t *loop = marie_loop_create();
     if (!loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
         marie_error("cannot set up the loop: %s", strerror(errno));
         return 1;
     }
-    can_emubus_t *b = can_emubus_create(loop, argv[1]);
+    can_emubus_t *b = can_emubus_create(loop, path);
     if (!b) {
-        marie_error("cannot listen on %s: %s", argv[1], strerror(errno));
+        marie_error("cannot listen on %s: %s", path, strerror(errno));
         return 1;
     }
     int rc = marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, b);
     if (rc < 0)
         marie_error("cannot watch SIGUSR1/SIGUSR2: %s", strerror(-rc));
     else
-        marie_info("emulated CAN bus on %s", argv[1]);
+        marie_info("emulated CAN bus on %s", path);
     if (rc == 0)
         rc = marie_loop_run(loop);
     const can_emubus_stats_t *s = can_emubus_stats(b);

@@ -1,14 +1,19 @@
 /* marie-candump: prints every frame on a CAN bus in candump's log format, for the emulated
  * bus (which can-utils cannot reach) as well as SocketCAN.
- *   marie-candump URL [-n COUNT]       e.g. marie-candump emu:/tmp/marie-can.sock */
+ *   marie-candump URL [--count N]      e.g. marie-candump emu:/tmp/marie-can.sock */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/time.h>
+#include <unistd.h>
 
+#include "core/cli.h"
 #include "core/loop.h"
 #include "hw/can/can.h"
+#include "core/version.h"
+
+#define PROG "marie-candump URL"
 
 typedef struct {
     can_bus_t *bus;
@@ -46,18 +51,28 @@ static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
 
 int main(int argc, char **argv)
 {
-    if (argc < 2 || argv[1][0] == '-') {
-        fprintf(stderr, "usage: marie-candump URL [-n COUNT]   (URL: can:IFNAME or emu:PATH)\n");
+    marie_version_exit("marie-candump", argc, argv);
+    int64_t count = -1;
+    const marie_cli_opt_t opts[] = {
+        { "count", MARIE_CLI_INT, &count, 1, 1e15, "N    stop after N frames (default: never)" },
+        { NULL },
+    };
+    int rc = marie_cli_parse(PROG, opts, argc, argv);
+    if (rc >= 0)
+        return rc;
+    if (optind != argc - 1) {
+        marie_cli_usage(PROG, opts, stderr);
         return 2;
     }
-    dump_t d = { .count = argc >= 4 && strcmp(argv[2], "-n") == 0 ? atol(argv[3]) : -1 };
-    d.bus = can_bus_open(argv[1]);
+    const char *url = argv[optind];
+    dump_t d = { .count = (long)count };
+    d.bus = can_bus_open(url);
     if (!d.bus) {
-        fprintf(stderr, "marie-candump: %s: %s\n", argv[1], strerror(errno));
+        fprintf(stderr, "marie-candump: %s: %s\n", url, strerror(errno));
         return 1;
     }
     can_bus_set_err_mask(d.bus, CAN_ERR_MASK);
-    d.name = strncmp(argv[1], "emu:", 4) == 0 ? "emu" : strchr(argv[1], ':') + 1;
+    d.name = strncmp(url, "emu:", 4) == 0 ? "emu" : strchr(url, ':') + 1;
     marie_loop_t *loop = marie_loop_create();
     int r = loop ? marie_loop_catch_signals(loop, on_quit, NULL) : -ENOMEM;
     if (r == 0)

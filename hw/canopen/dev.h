@@ -95,6 +95,9 @@ struct co_dev {
     co_dev_pdo_t tpdo[CO_DEV_NPDO], rpdo[CO_DEV_NPDO];
     uint32_t consumer[CO_DEV_NCONSUMER];
     uint32_t identity[4];   /* 0x1018 sub 1..4: vendor, product code, revision, serial */
+    /* Optional objects a device may lack (CiA 301): no 0x1016 (abort "no object"), no RPDO
+     * event timer 0x1400+n sub 5 (abort "no sub-index"); set before the first frame. */
+    bool no_consumer, no_rpdo_deadline;
     co_dev_stats_t stats;
     /* private */
     co_dev_comm_t power_on;

@@ -127,6 +127,18 @@ int co_hb_consumer_add(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, in
     return 0;
 }
 
+int co_hb_consumer_set_timeout(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, int64_t now)
+{
+    for (int i = 0; i < c->count; i++)
+        if (c->n[i].node == node) {
+            c->n[i].timeout_us = timeout_us;
+            c->n[i].last_us = now;
+            c->n[i].timed_out = false;
+            return 0;
+        }
+    return -ENOENT;
+}
+
 static void fire(co_hb_consumer_t *c, uint8_t node, co_hb_event_t ev, co_nmt_state_t s)
 {
     if (c->cb)

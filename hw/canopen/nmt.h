@@ -80,6 +80,10 @@ typedef struct {
 void co_hb_consumer_init(co_hb_consumer_t *c, co_hb_cb_t cb, void *user);
 /* Watch `node`; a node never heard from times out `timeout_us` after `now`. 0 or -ENOSPC. */
 int co_hb_consumer_add(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, int64_t now);
+/* Supervise `node` with timeout_us from now on (0: only listen, for boot-ups and states): a
+ * node sends heartbeats only once its 0x1017 is written, and a reset communication clears it.
+ * 0, or -ENOENT for a node not added. */
+int co_hb_consumer_set_timeout(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, int64_t now);
 /* 1 if f was a heartbeat of a watched node, 0 if not for us, -EBADMSG if malformed. */
 int co_hb_consumer_feed(co_hb_consumer_t *c, const struct can_frame *f, int64_t now);
 /* Fire timeouts due at `now`. */

@@ -420,3 +420,21 @@ bool co_sdo_step_skips(const co_sdo_step_t *s, uint32_t abort)
     return (abort == CO_SDO_ABORT_NO_OBJECT || abort == CO_SDO_ABORT_NO_SUB) &&
            (s->op == CO_STEP_UP_OPT || s->op == CO_STEP_DN_OPT);
 }
+
+const char *co_object_name(uint16_t index)
+{
+    static const struct { uint16_t index; const char *name; } names[] = {
+        { 0x1000, "device type" }, { 0x1001, "error register" }, { 0x1008, "manufacturer device name" },
+        { 0x1016, "consumer heartbeat time" }, { 0x1017, "producer heartbeat time" },
+        { 0x1018, "identity object" }, { 0x1029, "error behavior" },
+    };
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (names[i].index == index)
+            return names[i].name;
+    if (index >= 0x1400 && index < 0x1C00) {
+        static const char *pdo[] = { "RPDO communication parameter", "RPDO mapping parameter",
+                                     "TPDO communication parameter", "TPDO mapping parameter" };
+        return pdo[(index - 0x1400) >> 9];
+    }
+    return NULL;
+}

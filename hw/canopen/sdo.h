@@ -96,6 +96,10 @@ typedef uint32_t (*co_sdo_step_value_cb_t)(void *user, const co_sdo_step_t *s);
  * every step is done, 0 with the node's NMT start in *tx: the configuration's last frame. */
 int co_sdo_steps_next(co_sdo_client_t *c, const co_sdo_step_t *steps, int n, int pos, co_sdo_step_value_cb_t own,
                       void *user, int64_t now, struct can_frame *tx);
+/* The CiA 301 name of a communication object ("consumer heartbeat time", "RPDO mapping
+ * parameter", ...), NULL outside 0x1000-0x1FFF or when marie does not know it. */
+const char *co_object_name(uint16_t index);
+
 /* Whether an abort of step s only skips it: the step is optional and the node has no such
  * object or sub-index. */
 bool co_sdo_step_skips(const co_sdo_step_t *s, uint32_t abort);

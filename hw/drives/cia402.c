@@ -1,6 +1,26 @@
 /* cia402: the drive state machine of CiA 402 (IEC 61800-7-201), both ends. */
 #include "hw/drives/cia402.h"
 
+#include <stddef.h>
+
+#include "hw/canopen/sdo.h"
+
+const char *cia402_object_name(uint16_t index)
+{
+    static const struct { uint16_t index; const char *name; } names[] = {
+        { CIA402_OBJ_ABORT_CONN, "abort connection option code" }, { CIA402_OBJ_ERROR_CODE, "error code" },
+        { CIA402_OBJ_CONTROLWORD, "controlword" }, { CIA402_OBJ_STATUSWORD, "statusword" },
+        { CIA402_OBJ_MODE, "modes of operation" }, { CIA402_OBJ_MODE_DISPLAY, "modes of operation display" },
+        { CIA402_OBJ_POSITION, "position actual value" }, { CIA402_OBJ_VELOCITY, "velocity actual value" },
+        { CIA402_OBJ_PROFILE_ACC, "profile acceleration" }, { CIA402_OBJ_QUICKSTOP_DEC, "quick stop deceleration" },
+        { CIA402_OBJ_TARGET_VEL, "target velocity" },
+    };
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (names[i].index == index)
+            return names[i].name;
+    return co_object_name(index);
+}
+
 const char *cia402_state_name(cia402_state_t s)
 {
     switch (s) {

@@ -63,6 +63,9 @@ typedef enum {
 #define CIA402_CW_HALT              0x0100
 
 const char *cia402_state_name(cia402_state_t s);
+/* The name of an object a CiA 402 drive has ("modes of operation"; the CiA 301 names of
+ * communication objects, co_object_name), NULL when marie does not know it. */
+const char *cia402_object_name(uint16_t index);
 cia402_state_t cia402_state_from_sw(uint16_t sw);
 /* The statusword of a state (bits 0-6), as a device reports it. */
 uint16_t cia402_sw_from_state(cia402_state_t s);

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/err.h"
+#include "core/log.h"
 #include "hw/canopen/co.h"
 #include "hw/canopen/emcy.h"
 #include "hw/canopen/pdo.h"
@@ -23,11 +24,17 @@ static const co_pdo_map_t rpdo1_map = { 0, 2, { { 0x6040, 0, 16 }, { 0x60FF, 0, 
 enum { V_HB = CO_STEP_OWN, V_CONSUMER, V_RPDO_TMO };
 static const co_sdo_step_t setup[] = {
     { CO_STEP_UP, 0x1000, 0, 4, CO_STEP_CONST, 0 },        /* device type: must be 402 */
+    /* identity: CiA 301 asks for the vendor id only; the rest is read where it is */
+    { CO_STEP_UP_OPT, 0x1018, 1, 4, CO_STEP_CONST, 0 },
+    { CO_STEP_UP_OPT, 0x1018, 2, 4, CO_STEP_CONST, 0 },
+    { CO_STEP_UP_OPT, 0x1018, 3, 4, CO_STEP_CONST, 0 },
+    { CO_STEP_UP_OPT, 0x1018, 4, 4, CO_STEP_CONST, 0 },
     { CO_STEP_UP_OPT, 0x1008, 0, 0, CO_STEP_CONST, 0 },    /* device name (segmented upload) */
     { CO_STEP_DN, CIA402_OBJ_MODE, 0, 1, CO_STEP_CONST, CIA402_MODE_PROFILE_VELOCITY },
     { CO_STEP_DN, 0x1017, 0, 2, V_HB, 0 },
-    /* the drive watches our heartbeat and reacts per 0x6007 (1: fault reaction) when it stops */
-    { CO_STEP_DN, 0x1016, 1, 4, V_CONSUMER, 0 },
+    /* the drive watches our heartbeat and reacts per 0x6007 (1: fault reaction) when it stops;
+     * 0x1016 is optional in CiA 301: without it only the RPDO deadline (0x1400:05) watches us */
+    { CO_STEP_DN_OPT, 0x1016, 1, 4, V_CONSUMER, 0 },
     { CO_STEP_DN_OPT, CIA402_OBJ_ABORT_CONN, 0, 2, CO_STEP_CONST, 1 },
 };
 #define NSETUP ((int)(sizeof setup / sizeof setup[0]))
@@ -56,28 +63,17 @@ const char *drives_ev_name(drives_ev_t ev)
 {
     static const char *n[] = { "configured", "config_failed", "fault", "fault_reset", "recovered",
                                "emcy", "emcy_storm", "hb_timeout", "bootup", "bad_frame", "unexpected",
-                               "emcy_quiet", "optional_missing" };
+                               "emcy_quiet", "optional_missing", "watch", "hold", "not_found" };
     return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
 }
 
-void drives_cfg_default(drives_cfg_t *cfg)
-{
-    memset(cfg, 0, sizeof *cfg);
-    cfg->node[DRIVES_LEFT] = 1;
-    cfg->node[DRIVES_RIGHT] = 2;
-    cfg->ticks_per_rev = 4096;
-    cfg->max_wheel_velocity = 20;
-    cfg->cmd_timeout_us = 500000;
-    cfg->sdo_timeout_us = 200000;
-    cfg->heartbeat_ms = 100;
-    cfg->heartbeat_timeout_us = 350000;
-    cfg->boot_retry_us = 2000000;
-    cfg->fault_reset_delay_us = 1000000;
-    cfg->master_node = 127;
-    cfg->master_heartbeat_ms = 20;
-    cfg->consumer_ms = 100;
-    cfg->rpdo_timeout_ms = 100;
-}
+void drives_cfg_default(drives_cfg_t *cfg) { *cfg = (drives_cfg_t)DRIVES_CFG_DEFAULTS; }
+
+/* The parameters in the protocol's units: s to us, s to ms; an axis' node id and mounting. */
+static int64_t us(double s) { return (int64_t)(s * 1e6); }
+static uint16_t ms(double s) { return (uint16_t)lround(s * 1000); }
+static uint8_t node_id(const drives_ctl_t *d, int i) { return (uint8_t)(i == DRIVES_LEFT ? d->cfg.left_node : d->cfg.right_node); }
+static bool inverted(const drives_ctl_t *d, int i) { return i == DRIVES_LEFT ? d->cfg.left_invert : d->cfg.right_invert; }
 
 static void ev(drives_ctl_t *d, int axis, drives_ev_t e, uint32_t code)
 {
@@ -91,10 +87,10 @@ static void pend(drives_ctl_t *d, const struct can_frame *f)
         d->pend[d->npend++] = *f;
 }
 
-static int axis_of_node(const drives_ctl_t *d, uint8_t node)
+static int axis_of_node(const drives_ctl_t *d, uint8_t id)
 {
     for (int i = 0; i < DRIVES_N; i++)
-        if (d->cfg.node[i] == node)
+        if (node_id(d, i) == id)
             return i;
     return -1;
 }
@@ -111,9 +107,20 @@ static void set_phase(drives_ctl_t *d, int i, drives_ax_phase_t p)
 static void stop_drive(drives_ctl_t *d, int i, co_nmt_cmd_t cmd)
 {
     struct can_frame f;
-    co_nmt_encode(&f, cmd, d->cfg.node[i]);
+    co_nmt_encode(&f, cmd, node_id(d, i));
     pend(d, &f);
     d->ax[i].stops++;
+}
+
+/* NMT reset communication: the drive reboots into its power-on communication objects, 0x1017
+ * = 0 among them, so its heartbeat is not awaited until the configuration writes it again. */
+static void reset_drive(drives_ctl_t *d, int i)
+{
+    struct can_frame f;
+    co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, node_id(d, i));
+    pend(d, &f);
+    co_hb_consumer_set_timeout(&d->hb, node_id(d, i), 0, d->now);
+    d->ax[i].booted = false;
 }
 
 /* The values of the drive's own kinds of configuration step. */
@@ -123,8 +130,24 @@ static uint32_t job_value(void *user, const co_sdo_step_t *j)
     if (j->kind == V_HB)
         return d->cfg.heartbeat_ms;
     if (j->kind == V_CONSUMER)
-        return d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | d->cfg.consumer_ms : 0;
-    return d->cfg.rpdo_timeout_ms;
+        return d->cfg.master_heartbeat_ms ? (uint32_t)d->cfg.master_node << 16 | ms(d->cfg.master_timeout) : 0;
+    return ms(d->cfg.rpdo_timeout);
+}
+
+/* Configured: how will the drive notice that we died? By our heartbeat (0x1016), or by its
+ * RPDO deadline (0x1400:05) alone; a drive that watches neither would keep turning: refused,
+ * unless the system file allows it. */
+static void check_watch(drives_ctl_t *d, int i)
+{
+    drives_axis_t *a = &d->ax[i];
+    if (a->watches_hb)
+        return;
+    if (a->watches_rpdo) {
+        ev(d, i, DRIVES_EV_WATCH, DRIVES_WATCH_RPDO_ONLY);
+        return;
+    }
+    a->refused = !d->cfg.allow_unwatched;
+    ev(d, i, DRIVES_EV_WATCH, a->refused ? DRIVES_WATCH_NONE_REFUSED : DRIVES_WATCH_NONE_ALLOWED);
 }
 
 static void run_job(drives_ctl_t *d, int i)
@@ -135,8 +158,59 @@ static void run_job(drives_ctl_t *d, int i)
     pend(d, &f);
     if (last) {
         set_phase(d, i, DRIVES_AX_RUN);     /* have_tpdo is still false: start_config's */
+        a->fail = (drives_cfg_fail_t){ 0 };
+        check_watch(d, i);
         ev(d, i, DRIVES_EV_CONFIGURED, 0);
     }
+}
+
+/* A configuration step failed: the drive is stopped, the failure kept (naming the object)
+ * and told, and the configuration starts again after DRIVES_BOOT_RETRY_US. */
+static void config_failed(drives_ctl_t *d, int i, uint16_t index, uint8_t sub, uint32_t abort, uint32_t value)
+{
+    drives_axis_t *a = &d->ax[i];
+    bool write = a->job < d->njobs && (d->jobs[a->job].op == CO_STEP_DN || d->jobs[a->job].op == CO_STEP_DN_OPT);
+    drives_cfg_fail_t f = { index, sub, write, abort, value, 0 };
+    if (a->fail.index == index && a->fail.sub == sub && a->fail.abort == abort && a->fail.value == value)
+        f.repeats = a->fail.repeats + 1;
+    a->fail = f;
+    if (abort)
+        a->sdo_aborts++;
+    a->config_failures++;
+    stop_drive(d, i, CO_NMT_CMD_STOP);
+    ev(d, i, DRIVES_EV_CONFIG_FAILED, abort);
+    set_phase(d, i, DRIVES_AX_BOOT);        /* retried after DRIVES_BOOT_RETRY_US */
+}
+
+/* A step's value, taken. Heartbeat supervision begins once 0x1017 is written. */
+static void took(drives_ctl_t *d, int i, uint16_t index, uint8_t sub, const uint8_t *data, size_t len)
+{
+    drives_axis_t *a = &d->ax[i];
+    if (index == 0x1008 && data) {
+        size_t n = len < sizeof a->name - 1 ? len : sizeof a->name - 1;
+        memcpy(a->name, data, n);
+        a->name[n] = 0;
+    } else if (index == 0x1018 && sub >= 1 && sub <= 4 && len == 4) {
+        a->identity[sub - 1] = co_get_u32(data);
+    } else if (index == 0x1017) {
+        int64_t t = d->cfg.heartbeat_ms ? us(d->cfg.heartbeat_timeout) : 0;
+        co_hb_consumer_set_timeout(&d->hb, node_id(d, i), t, d->now);
+    } else if (index == 0x1016) {
+        a->watches_hb = d->cfg.master_heartbeat_ms > 0;
+    } else if (index == 0x1400 && sub == 5) {
+        a->watches_rpdo = ms(d->cfg.rpdo_timeout) > 0;
+    }
+}
+
+/* An optional object the drive has not: skipped, told once per object and configuration. */
+static void missing(drives_ctl_t *d, int i, uint16_t index, uint8_t sub)
+{
+    drives_axis_t *a = &d->ax[i];
+    if (index == 0x1016)
+        a->lacks_consumer = true;
+    if (a->missing_index != index)
+        ev(d, i, DRIVES_EV_OPTIONAL_MISSING, (uint32_t)index << 8 | sub);
+    a->missing_index = index;
 }
 
 static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub, uint32_t abort,
@@ -147,38 +221,41 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
     drives_axis_t *a = &d->ax[i];
     if (a->phase != DRIVES_AX_CONFIG)
         return;
-    if (!abort && index == 0x1000 && (len != 4 || (co_get_u32(data) & 0xFFFF) != 402))
-        abort = CO_SDO_ABORT_TYPE_LEN;          /* not a CiA 402 device */
-    if (a->job < d->njobs && co_sdo_step_skips(&d->jobs[a->job], abort)) {
-        ev(d, i, DRIVES_EV_OPTIONAL_MISSING, (uint32_t)index << 8 | sub);
-        abort = 0;
-        data = NULL;
-    }
-    if (abort) {
-        a->sdo_aborts++;
-        a->config_failures++;
-        stop_drive(d, i, CO_NMT_CMD_STOP);
-        ev(d, i, DRIVES_EV_CONFIG_FAILED, abort);
-        set_phase(d, i, DRIVES_AX_BOOT);        /* retried after boot_retry_us */
+    if (!abort && index == 0x1000 && (len != 4 || (co_get_u32(data) & 0xFFFF) != 402)) {
+        config_failed(d, i, index, sub, 0, len == 4 ? co_get_u32(data) : 0);   /* not a CiA 402 drive */
         return;
     }
-    if (index == 0x1008 && data) {
-        size_t n = len < sizeof a->name - 1 ? len : sizeof a->name - 1;
-        memcpy(a->name, data, n);
-        a->name[n] = 0;
+    if (a->job < d->njobs && co_sdo_step_skips(&d->jobs[a->job], abort)) {
+        missing(d, i, index, sub);
+    } else if (abort) {
+        config_failed(d, i, index, sub, abort, 0);
+        return;
+    } else {
+        took(d, i, index, sub, data, len);
     }
     a->job++;
     run_job(d, i);
 }
 
+/* A boot-up: the drive starts from its power-on objects, which the configuration writes
+ * again; what it had before (watching, refusal, a pending fault's EMCY) is forgotten, and it
+ * will not move before a motor command newer than its enabling (restart interlock). */
 static void start_config(drives_ctl_t *d, int i)
 {
     drives_axis_t *a = &d->ax[i];
     set_phase(d, i, DRIVES_AX_CONFIG);
+    co_hb_consumer_set_timeout(&d->hb, node_id(d, i), 0, d->now);
     a->job = 0;
     a->state = CIA402_UNKNOWN;
     a->have_tpdo = false;
-    co_sdo_client_init(&a->sdo, d->cfg.node[i], d->cfg.sdo_timeout_us, sdo_done, d);
+    a->name[0] = 0;
+    memset(a->identity, 0, sizeof a->identity);
+    a->watches_hb = a->watches_rpdo = a->lacks_consumer = a->refused = false;
+    a->have_fault_emcy = false;
+    a->interlocked = true;
+    a->enabled_at = 0;
+    a->missing_index = 0;
+    co_sdo_client_init(&a->sdo, node_id(d, i), us(d->cfg.sdo_timeout), sdo_done, d);
     run_job(d, i);
 }
 
@@ -192,6 +269,8 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
     switch (e) {
     case CO_HB_EV_BOOTUP:
         a->bootups++;
+        a->booted = true;
+        a->not_found_told = false;
         /* A boot-up while we drove it may be forged or a glitch: make sure it is not left
          * turning during the configuration (a real boot-up finds it pre-operational anyway). */
         if (a->phase == DRIVES_AX_RUN || a->phase == DRIVES_AX_CONFIG)
@@ -206,9 +285,7 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
          * we think it runs: configure it again from the start. */
         if (a->phase == DRIVES_AX_RUN && s != CO_NMT_OPERATIONAL &&
             d->now - a->phase_since > 2 * (int64_t)d->cfg.heartbeat_ms * 1000) {
-            struct can_frame f;
-            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, node);
-            pend(d, &f);
+            reset_drive(d, i);
             set_phase(d, i, DRIVES_AX_BOOT);
         }
         break;
@@ -224,19 +301,40 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
         /* Heard again without a boot-up: it may have kept its configuration, but we cannot
          * know; reset its communication so it reboots into a known state. */
         if (s != CO_NMT_BOOTUP) {
-            struct can_frame f;
-            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, node);
-            pend(d, &f);
+            reset_drive(d, i);
             set_phase(d, i, DRIVES_AX_BOOT);
         }
         break;
     }
 }
 
+static bool node_ok(int64_t n) { return n >= 1 && n <= CO_NODE_MAX; }
+static bool period_ok(int64_t ms) { return ms >= 0 && ms <= 65535; }
+static bool seconds_ok(double s, double max) { return s >= 0 && s <= max; }
+
+int drives_cfg_check(const drives_cfg_t *c, char *why, size_t len)
+{
+    if (!node_ok(c->left_node) || !node_ok(c->right_node) || !node_ok(c->master_node) ||
+        c->left_node == c->right_node || c->master_node == c->left_node || c->master_node == c->right_node)
+        return marie_fail_why(why, len, "node ids 1..127, the drives' and master_node distinct");
+    if (c->ticks_per_rev <= 0 || c->ticks_per_rev > INT32_MAX)
+        return marie_fail_why(why, len, "ticks_per_rev must be positive");
+    if (!period_ok(c->heartbeat_ms) || !period_ok(c->master_heartbeat_ms))
+        return marie_fail_why(why, len, "heartbeat_ms and master_heartbeat_ms 0..65535");
+    if (!seconds_ok(c->master_timeout, 65.535) || !seconds_ok(c->rpdo_timeout, 65.535))
+        return marie_fail_why(why, len, "master_timeout and rpdo_timeout 0..65.535 s");
+    if (c->master_heartbeat_ms > 0 && c->master_timeout * 1000 <= c->master_heartbeat_ms)
+        return marie_fail_why(why, len, "master_timeout (s) longer than master_heartbeat_ms");
+    if (!seconds_ok(c->cmd_timeout, INFINITY) || !seconds_ok(c->heartbeat_timeout, INFINITY) ||
+        !seconds_ok(c->sdo_timeout, INFINITY) || !seconds_ok(c->fault_reset_delay, INFINITY))
+        return marie_fail_why(why, len, "cmd_timeout, heartbeat_timeout, sdo_timeout and fault_reset_delay "
+                                        "must not be negative");
+    return 0;
+}
+
 drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, void *user)
 {
-    if (!cfg || cfg->node[0] == 0 || cfg->node[1] == 0 || cfg->node[0] == cfg->node[1] ||
-        cfg->node[0] > CO_NODE_MAX || cfg->node[1] > CO_NODE_MAX || cfg->ticks_per_rev <= 0)
+    if (!cfg || drives_cfg_check(cfg, NULL, 0) < 0)
         return marie_fail_null(EINVAL);
     drives_ctl_t *d = calloc(1, sizeof *d);
     if (!d)
@@ -253,7 +351,8 @@ drives_ctl_t *drives_ctl_create(const drives_cfg_t *cfg, drives_event_cb_t cb, v
     for (int i = 0; i < DRIVES_N; i++) {
         d->ax[i].state = CIA402_UNKNOWN;
         d->ax[i].nmt = CO_NMT_UNKNOWN;
-        co_sdo_client_init(&d->ax[i].sdo, cfg->node[i], cfg->sdo_timeout_us, sdo_done, d);
+        d->ax[i].interlocked = true;
+        co_sdo_client_init(&d->ax[i].sdo, node_id(d, i), us(cfg->sdo_timeout), sdo_done, d);
     }
     co_hb_consumer_init(&d->hb, hb_event, d);
     return d;
@@ -276,10 +375,8 @@ int drives_ctl_start(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
     d->now = now;
     co_hb_consumer_init(&d->hb, hb_event, d);
     for (int i = 0; i < DRIVES_N; i++) {
-        co_hb_consumer_add(&d->hb, d->cfg.node[i], d->cfg.heartbeat_timeout_us, now);
-        struct can_frame f;
-        co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, d->cfg.node[i]);
-        pend(d, &f);
+        co_hb_consumer_add(&d->hb, node_id(d, i), 0, now);   /* timed once 0x1017 is written */
+        reset_drive(d, i);
         set_phase(d, i, DRIVES_AX_BOOT);
     }
     return take_pending(d, tx, 0, max);
@@ -307,7 +404,8 @@ void drives_ctl_set_wheels(drives_ctl_t *d, double left, double right, int64_t n
 
 bool drives_ctl_command_stale(const drives_ctl_t *d, int64_t now)
 {
-    return !d->have_cmd || (d->cfg.cmd_timeout_us > 0 && now - d->cmd_us > d->cfg.cmd_timeout_us);
+    int64_t timeout = us(d->cfg.cmd_timeout);
+    return !d->have_cmd || (timeout > 0 && now - d->cmd_us > timeout);
 }
 
 double drives_ctl_counts_to_rad(const drives_ctl_t *d, double counts)
@@ -327,11 +425,18 @@ static void note_state(drives_ctl_t *d, int i, uint16_t sw)
             a->faults++;
             a->fault_since = d->now;
             a->recovering = true;
-            ev(d, i, DRIVES_EV_FAULT, a->last_emcy);
+            ev(d, i, DRIVES_EV_FAULT, a->have_fault_emcy ? a->fault_emcy : 0);
         }
     } else if (ns == CIA402_OPERATION_ENABLED && a->recovering) {
         a->recovering = false;
         ev(d, i, DRIVES_EV_RECOVERED, 0);
+    }
+    /* Restart interlock: leaving operation enabled arms it, entering it dates it. */
+    if (a->state == CIA402_OPERATION_ENABLED)
+        a->interlocked = true;
+    if (ns == CIA402_OPERATION_ENABLED && a->interlocked) {
+        a->enabled_at = d->now;
+        a->hold_told = false;
     }
     a->state = ns;
 }
@@ -378,6 +483,8 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
         }
         a->emcy++;
         a->last_emcy = e.code;
+        a->have_fault_emcy = e.code != CO_EMCY_NO_ERROR;     /* 0x0000: error reset, all clear */
+        a->fault_emcy = e.code;
         if (now - a->emcy_window_start > 1000000) {
             a->emcy_window_start = now;
             a->emcy_in_window = 0;
@@ -405,12 +512,12 @@ int drives_ctl_feed(drives_ctl_t *d, const struct can_frame *rx, int64_t now, st
             break;
         if (pdo == 1) {
             int32_t pos = (int32_t)co_pdo_signed(v[1], 32);
-            a->position = d->cfg.invert[i] ? (int32_t)(0u - (uint32_t)pos) : pos;
+            a->position = inverted(d, i) ? (int32_t)(0u - (uint32_t)pos) : pos;
             a->have_tpdo = true;
             note_state(d, i, (uint16_t)v[0]);
         } else {
             int32_t vel = (int32_t)co_pdo_signed(v[0], 32);
-            a->velocity = d->cfg.invert[i] ? -vel : vel;
+            a->velocity = inverted(d, i) ? -vel : vel;
         }
         break;
     }
@@ -427,25 +534,49 @@ static int rpdo(drives_ctl_t *d, int i, struct can_frame *f)
     drives_axis_t *a = &d->ax[i];
     uint64_t v[2] = { a->controlword, (uint32_t)a->target };
     co_pdo_map_t m = rpdo1_map;
-    m.cob_id = CO_COB_RPDO1 + d->cfg.node[i];
+    m.cob_id = CO_COB_RPDO1 + node_id(d, i);
     a->rpdo_cw = a->controlword;
     return co_pdo_encode(&m, v, f) > 0;
+}
+
+/* The restart interlock holds a drive (re)enabled at enabled_at until a motor command newer
+ * than that: a drive that rebooted, recovered from a fault or came back from a stop, an e-stop
+ * or a pause does not resume a command given before. */
+static bool interlock_holds(drives_ctl_t *d, int i, int64_t now)
+{
+    drives_axis_t *a = &d->ax[i];
+    if (!a->interlocked)
+        return false;
+    if (a->state != CIA402_OPERATION_ENABLED || !a->enabled_at)
+        return true;
+    if (d->have_cmd && d->cmd_us > a->enabled_at) {
+        a->interlocked = false;
+        return false;
+    }
+    if (!a->hold_told && !drives_ctl_command_stale(d, now) && d->wheel[i] != 0) {
+        a->hold_told = true;
+        ev(d, i, DRIVES_EV_HOLD, 0);
+    }
+    return true;
 }
 
 static void compute_target(drives_ctl_t *d, int i, int64_t now)
 {
     drives_axis_t *a = &d->ax[i];
     double w = d->wheel[i];
-    if (d->estop || !d->enable || drives_ctl_command_stale(d, now) || a->state != CIA402_OPERATION_ENABLED)
+    if (d->estop || !d->enable || drives_ctl_command_stale(d, now) || a->state != CIA402_OPERATION_ENABLED ||
+        a->refused || interlock_holds(d, i, now))
         w = 0;
-    if (d->cfg.invert[i])
+    if (inverted(d, i))
         w = -w;
     a->target = (int32_t)lround(w * d->cfg.ticks_per_rev / (2 * M_PI));
 }
 
-static cia402_want_t want(const drives_ctl_t *d)
+static cia402_want_t want(const drives_ctl_t *d, int i)
 {
-    return !d->enable ? CIA402_WANT_DISABLED : d->estop ? CIA402_WANT_QUICK_STOP : CIA402_WANT_ENABLED;
+    if (!d->enable || d->ax[i].refused)
+        return CIA402_WANT_DISABLED;
+    return d->estop ? CIA402_WANT_QUICK_STOP : CIA402_WANT_ENABLED;
 }
 
 /* RPDO1 of each running drive now; unless `force`, one whose early RPDO1 of this SYNC period
@@ -459,8 +590,8 @@ static int rpdo_early(drives_ctl_t *d, int64_t now, struct can_frame *tx, int ma
             continue;
         /* e-stop or disable take effect now (the drive applies them at the next SYNC);
          * enabling and fault resets are the cycle's business */
-        if (a->have_tpdo && want(d) != CIA402_WANT_ENABLED)
-            a->controlword = cia402_next_controlword(a->state, want(d), a->controlword, false);
+        if (a->have_tpdo && want(d, i) != CIA402_WANT_ENABLED)
+            a->controlword = cia402_next_controlword(a->state, want(d, i), a->controlword, false);
         compute_target(d, i, now);
         if (!force && a->rpdo_early && a->controlword == a->rpdo_cw)
             continue;
@@ -495,7 +626,7 @@ int drives_ctl_shutdown(drives_ctl_t *d, int64_t now, struct can_frame *tx, int 
     if (n > 0 && n < max)
         n += co_sync_encode(&tx[n], 0) >= 0;
     for (int i = 0; i < DRIVES_N && n < max; i++)
-        n += co_nmt_encode(&tx[n], CO_NMT_CMD_STOP, d->cfg.node[i]) > 0;
+        n += co_nmt_encode(&tx[n], CO_NMT_CMD_STOP, node_id(d, i)) > 0;
     return n;
 }
 
@@ -512,9 +643,12 @@ int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
             pend(d, &f);
         }
         if ((a->phase == DRIVES_AX_BOOT || a->phase == DRIVES_AX_OFFLINE) &&
-            now - a->phase_since >= d->cfg.boot_retry_us) {
-            co_nmt_encode(&f, CO_NMT_CMD_RESET_COMM, d->cfg.node[i]);
-            pend(d, &f);
+            now - a->phase_since >= DRIVES_BOOT_RETRY_US) {
+            if (a->phase == DRIVES_AX_BOOT && !a->booted && !a->not_found_told) {
+                a->not_found_told = true;
+                ev(d, i, DRIVES_EV_NOT_FOUND, 0);
+            }
+            reset_drive(d, i);
             a->phase_since = now;
         }
     }
@@ -525,13 +659,13 @@ int drives_ctl_cycle(drives_ctl_t *d, int64_t now, struct can_frame *tx, int max
         if (a->phase != DRIVES_AX_RUN)
             continue;
         any_run = true;
-        bool allow = now - a->fault_since >= d->cfg.fault_reset_delay_us;
-        uint16_t cw = a->have_tpdo ? cia402_next_controlword(a->state, want(d), a->controlword, allow)
+        bool allow = now - a->fault_since >= us(d->cfg.fault_reset_delay);
+        uint16_t cw = a->have_tpdo ? cia402_next_controlword(a->state, want(d, i), a->controlword, allow)
                                    : CIA402_CW_DISABLE_VOLTAGE;
         if (cw == CIA402_CW_FAULT_RESET && !(a->controlword & CIA402_CW_FAULT_RESET)) {
             a->fault_resets++;
             a->fault_since = now;       /* next attempt only after another delay */
-            ev(d, i, DRIVES_EV_FAULT_RESET, a->last_emcy);
+            ev(d, i, DRIVES_EV_FAULT_RESET, a->fault_emcy);
         }
         a->controlword = cw;
         compute_target(d, i, now);
@@ -559,9 +693,12 @@ int drives_ctl_filters(const drives_ctl_t *d, struct can_filter *f, int max)
 {
     int n = 0;
     for (int i = 0; i < DRIVES_N && n < max; i++) {
-        f[n].can_id = d->cfg.node[i];
+        f[n].can_id = node_id(d, i);
         f[n].can_mask = 0x7F | CAN_EFF_FLAG | CAN_RTR_FLAG;
         n++;
     }
     return n;
 }
+
+uint8_t drives_ctl_node(const drives_ctl_t *d, int axis) { return node_id(d, axis); }
+uint16_t drives_ctl_rpdo_timeout_ms(const drives_ctl_t *d) { return ms(d->cfg.rpdo_timeout); }

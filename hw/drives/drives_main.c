@@ -8,8 +8,6 @@
 
 #include "core/component.h"
 #include "hw/can/can_link.h"
-#include "hw/canopen/emcy.h"
-#include "hw/canopen/sdo.h"
 #include "hw/drives/drives_ctl.h"
 #include "hw/drives/drives_params.h"
 
@@ -21,10 +19,10 @@ typedef struct {
     can_link_t *link;
     marie_port_t *out;
     marie_timer_t *sync_timer, *pub_timer;
-    double radius, track;
     bool estop, started;
     bool start_pending;         /* started before the simulated clock was known */
-    int64_t last_emcy_event;
+    bool degraded;
+    int64_t trouble_since;      /* a drive in trouble since (protocol clock), 0: none */
 } drives_t;
 
 static const marie_port_spec_t ports[] = {
@@ -65,71 +63,54 @@ static void on_link_event(void *user, const char *kind, const char *text)
         marie_info("%s", text);
 }
 
-static const char *side(int axis) { return axis == 0 ? "left" : axis == 1 ? "right" : "bus"; }
-
+/* Each event: its counter, its kind and severity on MARIE_EVENT, the text drives_ctl gives it. */
 static void on_drive_event(void *user, int axis, drives_ev_t ev, uint32_t code)
 {
     drives_t *d = user;
     marie_component_t *c = d->c;
-    const drives_axis_t *a = axis >= 0 ? drives_ctl_axis(d->ctl, axis) : NULL;
-    switch (ev) {
-    case DRIVES_EV_CONFIGURED:
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_configured", "%s drive '%s' configured, started",
-                              side(axis), a->name);
-        break;
-    case DRIVES_EV_CONFIG_FAILED:
-        marie_component_count(c, "config_failures", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_config_failed", "%s drive: %s (0x%08X)",
-                              side(axis), co_sdo_abort_str(code), code);
-        marie_warn_ratelimited(5, "%s drive configuration failed: %s", side(axis), co_sdo_abort_str(code));
-        break;
-    case DRIVES_EV_FAULT:
-        marie_component_count(c, "faults", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "drive_fault", "%s drive in fault (last EMCY 0x%04X %s)",
-                              side(axis), code, co_emcy_str((uint16_t)code));
-        marie_warn("%s drive fault (0x%04X %s)", side(axis), code, co_emcy_str((uint16_t)code));
-        break;
-    case DRIVES_EV_FAULT_RESET:
-        marie_component_count(c, "fault_resets", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_fault_reset", "%s drive: fault reset", side(axis));
-        break;
-    case DRIVES_EV_RECOVERED:
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_recovered", "%s drive operational again", side(axis));
-        break;
-    case DRIVES_EV_EMCY:
-        marie_component_count(c, "emcy", 1);
-        if (code)
-            marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "drive_emcy", "%s drive EMCY 0x%04X %s",
-                                  side(axis), code, co_emcy_str((uint16_t)code));
-        break;
-    case DRIVES_EV_EMCY_QUIET:
-        marie_component_count(c, "emcy", 1);
-        break;
-    case DRIVES_EV_OPTIONAL_MISSING:
-        marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "drive_optional_missing",
-                              "%s drive has no object 0x%04X:%02X (optional, skipped)", side(axis), code >> 8,
-                              code & 0xFF);
-        break;
-    case DRIVES_EV_EMCY_STORM:
-        marie_component_count(c, "emcy", 1);
-        marie_component_bad_input(c, "emcy_storm", "%s drive: EMCY storm (0x%04X), further ones only counted",
-                                  side(axis), code);
-        break;
-    case DRIVES_EV_HB_TIMEOUT:
-        marie_component_count(c, "hb_timeouts", 1);
-        marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "drive_offline", "%s drive: heartbeat lost", side(axis));
-        marie_warn("%s drive: heartbeat lost", side(axis));
-        break;
-    case DRIVES_EV_BOOTUP:
-        marie_component_count(c, "bootups", 1);
-        break;
-    case DRIVES_EV_BAD_FRAME:
-        marie_component_bad_input(c, "bad_frame", "%s drive: malformed frame id 0x%03X", side(axis), code);
-        break;
-    case DRIVES_EV_UNEXPECTED:
-        marie_component_bad_input(c, "unexpected_cob", "unexpected frame id 0x%03X", code);
-        break;
+    static const struct { const char *kind, *counter; int sev; } evs[] = {
+        [DRIVES_EV_CONFIGURED] = { "drive_configured", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_CONFIG_FAILED] = { "drive_config_failed", "config_failures", MARIE_EVENT_T_SEV_WARN },
+        [DRIVES_EV_FAULT] = { "drive_fault", "faults", MARIE_EVENT_T_SEV_ERROR },
+        [DRIVES_EV_FAULT_RESET] = { "drive_fault_reset", "fault_resets", MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_RECOVERED] = { "drive_recovered", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_EMCY] = { "drive_emcy", "emcy", MARIE_EVENT_T_SEV_WARN },
+        [DRIVES_EV_EMCY_STORM] = { NULL, "emcy", 0 },
+        [DRIVES_EV_HB_TIMEOUT] = { "drive_offline", "hb_timeouts", MARIE_EVENT_T_SEV_ERROR },
+        [DRIVES_EV_BOOTUP] = { NULL, "bootups", 0 },
+        [DRIVES_EV_BAD_FRAME] = { NULL, NULL, 0 },
+        [DRIVES_EV_UNEXPECTED] = { NULL, NULL, 0 },
+        [DRIVES_EV_EMCY_QUIET] = { NULL, "emcy", 0 },
+        [DRIVES_EV_OPTIONAL_MISSING] = { "drive_optional_missing", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_WATCH] = { "drive_watch", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_HOLD] = { "drive_hold", NULL, MARIE_EVENT_T_SEV_INFO },
+        [DRIVES_EV_NOT_FOUND] = { "drive_not_found", NULL, MARIE_EVENT_T_SEV_WARN },
+    };
+    char text[400];
+    drives_ctl_event_text(d->ctl, axis, ev, code, text, sizeof text);
+    int sev = evs[ev].sev;
+    if (ev == DRIVES_EV_WATCH && code != DRIVES_WATCH_RPDO_ONLY)
+        sev = code == DRIVES_WATCH_NONE_REFUSED ? MARIE_EVENT_T_SEV_ERROR : MARIE_EVENT_T_SEV_WARN;
+    if (evs[ev].counter)
+        marie_component_count(c, evs[ev].counter, 1);
+    if (ev == DRIVES_EV_EMCY && code == 0)
+        return;                 /* an error reset: counted, not told */
+    /* a drive failing alike every retry is told once, then only counted and logged */
+    if (ev == DRIVES_EV_CONFIG_FAILED && drives_ctl_axis(d->ctl, axis)->fail.repeats) {
+        marie_warn_ratelimited(5, "%s", text);
+        return;
     }
+    if (ev == DRIVES_EV_EMCY_STORM)
+        marie_component_bad_input(c, "emcy_storm", "%s", text);
+    else if (ev == DRIVES_EV_BAD_FRAME)
+        marie_component_bad_input(c, "bad_frame", "%s", text);
+    else if (ev == DRIVES_EV_UNEXPECTED)
+        marie_component_bad_input(c, "unexpected_cob", "%s", text);
+    if (!evs[ev].kind)
+        return;
+    marie_component_event(c, sev, evs[ev].kind, "%s", text);
+    if (sev >= MARIE_EVENT_T_SEV_WARN)
+        marie_warn("%s", text);
 }
 
 static void begin(drives_t *d)
@@ -153,30 +134,66 @@ static void on_sync(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     send_frames(d, tx, drives_ctl_cycle(d->ctl, now_us(d), tx, 16));
 }
 
+/* Why a drive's position is not known, or why it cannot drive: NULL when it is fine. */
+static const char *trouble(const drives_axis_t *a)
+{
+    switch (a->phase) {
+    case DRIVES_AX_BOOT:
+        return a->fail.index ? "configuration failed" : "not booted (no answer to reset communication)";
+    case DRIVES_AX_CONFIG: return "being configured";
+    case DRIVES_AX_OFFLINE: return "heartbeat lost";
+    case DRIVES_AX_RUN: break;
+    }
+    if (a->refused)
+        return "kept disabled: it cannot watch marie-drives (no 0x1016, no 0x1400:05)";
+    return a->have_tpdo ? NULL : "no position yet";
+}
+
+/* The heartbeat says degraded while a drive has been in trouble for degraded_after. */
+static void health(drives_t *d, const char *why[DRIVES_N])
+{
+    int64_t now = now_us(d);
+    if (!why[0] && !why[1]) {
+        d->trouble_since = 0;
+        if (d->degraded)
+            marie_component_set_degraded(d->c, false, "both drives configured and reporting");
+        d->degraded = false;
+        return;
+    }
+    if (!d->trouble_since)
+        d->trouble_since = now;
+    if (now - d->trouble_since < (int64_t)(params_of(d->c)->degraded_after * 1e6))
+        return;
+    d->degraded = true;
+    marie_component_set_degraded(d->c, true, "%s%s%s%s%s", why[0] ? "left drive: " : "", why[0] ? why[0] : "",
+                                 why[0] && why[1] ? "; " : "", why[1] ? "right drive: " : "", why[1] ? why[1] : "");
+}
+
+/* WHEEL_ENCODERS at publish_hz whatever the drives do: a position not read from a drive yet (a
+ * new process, a drive just configured, one that never came up) is sent as FAULT, which
+ * odometry skips (it would take the jump to and from 0 for motion), and counted. */
 static void publish(marie_component_t *c, int64_t overruns)
 {
     drives_t *d = marie_component_user(c);
     const drives_axis_t *l = drives_ctl_axis(d->ctl, DRIVES_LEFT), *r = drives_ctl_axis(d->ctl, DRIVES_RIGHT);
-    /* Positions not yet read from the drives (a new process, a drive just configured) are not
-     * zero: odometry would take the jump to and from 0 for motion. */
-    if (!l->have_tpdo || !r->have_tpdo) {
-        marie_component_count(c, "encoders_unknown", 1);
-        return;
-    }
+    const char *why[DRIVES_N] = { trouble(l), trouble(r) };
+    health(d, why);
     marie_wheel_encoders_t m = {
         .utime = marie_component_now(c),
         .left_ticks = l->position,
         .right_ticks = r->position,
-        .ticks_per_rev = (int32_t)params_of(c)->ticks_per_rev,
+        .ticks_per_rev = (int32_t)params_of(c)->ctl.ticks_per_rev,
         .left_velocity = drives_ctl_counts_to_rad(d->ctl, l->velocity),
         .right_velocity = drives_ctl_counts_to_rad(d->ctl, r->velocity),
     };
     bool fault = false;
     for (int i = 0; i < DRIVES_N; i++) {
         const drives_axis_t *a = drives_ctl_axis(d->ctl, i);
-        if (a->phase == DRIVES_AX_OFFLINE || a->state == CIA402_FAULT || a->state == CIA402_FAULT_REACTION_ACTIVE)
+        if (why[i] || a->state == CIA402_FAULT || a->state == CIA402_FAULT_REACTION_ACTIVE)
             fault = true;
     }
+    if (!l->have_tpdo || !r->have_tpdo)
+        marie_component_count(c, "encoders_unknown", 1);
     if (fault || !can_link_up(d->link))
         m.status = MARIE_WHEEL_ENCODERS_T_STATUS_FAULT;
     else if (d->estop)
@@ -198,9 +215,9 @@ static void on_command(marie_component_t *c, marie_port_t *p, const void *msg, c
         return;
     }
     /* Differential drive: each wheel's rim speed is v -/+ omega * half the track. */
-    double half = d->track / 2;
+    double half = params_of(c)->track_width / 2, radius = params_of(c)->wheel_radius;
     int64_t now = now_us(d);
-    drives_ctl_set_wheels(d->ctl, (m->v - m->omega * half) / d->radius, (m->v + m->omega * half) / d->radius, now);
+    drives_ctl_set_wheels(d->ctl, (m->v - m->omega * half) / radius, (m->v + m->omega * half) / radius, now);
     /* Out at once (the drives apply RPDOs at the next SYNC) instead of up to a cycle later. */
     struct can_frame tx[4];
     send_frames(d, tx, drives_ctl_rpdo_now(d->ctl, now, tx, 4));
@@ -236,50 +253,25 @@ static int on_init(marie_component_t *c)
     }
     d->c = c;
     marie_component_set_user(c, d);
-    drives_cfg_t cfg;
-    drives_cfg_default(&cfg);
-    int64_t ln = params_of(c)->left_node, rn = params_of(c)->right_node;
-    int64_t tpr = params_of(c)->ticks_per_rev, hb = params_of(c)->heartbeat_ms;
-    d->radius = params_of(c)->wheel_radius;
-    d->track = params_of(c)->track_width;
-    double sync_hz = params_of(c)->sync_hz, pub_hz = params_of(c)->publish_hz;
-    if (ln < 1 || ln > 127 || rn < 1 || rn > 127 || ln == rn || tpr <= 0 || hb < 0 || hb > 65535 ||
-        !(d->radius > 0) || !(d->track > 0) || !(sync_hz > 0 && sync_hz <= 1000) || !(pub_hz > 0)) {
-        marie_component_fail_reason(c, "bad parameters: node ids 1..127 and distinct, positive radius, "
-                                       "track, ticks_per_rev and rates");
+    const drives_params_t *p = params_of(c);
+    char why[160];
+    if (!(p->wheel_radius > 0) || !(p->track_width > 0) || !(p->sync_hz > 0 && p->sync_hz <= 1000) ||
+        !(p->publish_hz > 0)) {
+        marie_component_fail_reason(c, "bad parameters: positive radius, track and rates, sync_hz up to 1000");
         goto err;
     }
-    cfg.node[0] = (uint8_t)ln;
-    cfg.node[1] = (uint8_t)rn;
-    cfg.invert[0] = params_of(c)->left_invert;
-    cfg.invert[1] = params_of(c)->right_invert;
-    cfg.ticks_per_rev = (int32_t)tpr;
-    cfg.max_wheel_velocity = params_of(c)->max_wheel_velocity;
-    cfg.cmd_timeout_us = (int64_t)(params_of(c)->cmd_timeout * 1e6);
-    cfg.heartbeat_ms = (uint16_t)hb;
-    cfg.heartbeat_timeout_us = (int64_t)(params_of(c)->heartbeat_timeout * 1e6);
-    cfg.fault_reset_delay_us = (int64_t)(params_of(c)->fault_reset_delay * 1e6);
-    cfg.sdo_timeout_us = (int64_t)(params_of(c)->sdo_timeout * 1e6);
-    int64_t mn = params_of(c)->master_node, mhb = params_of(c)->master_heartbeat_ms;
-    double mto = params_of(c)->master_timeout, rto = params_of(c)->rpdo_timeout;
-    if (mn < 1 || mn > 127 || mn == ln || mn == rn || mhb < 0 || mhb > 65535 || !(mto >= 0 && mto <= 65.535) ||
-        !(rto >= 0 && rto <= 65.535) || (mhb > 0 && mto * 1000 <= mhb)) {
-        marie_component_fail_reason(c, "bad parameters: master_node 1..127 and not a drive's, "
-                                       "master_timeout (s) longer than master_heartbeat_ms, timeouts up to 65 s");
+    if (drives_cfg_check(&p->ctl, why, sizeof why) < 0) {
+        marie_component_fail_reason(c, "bad parameters: %s", why);
         goto err;
     }
-    cfg.master_node = (uint8_t)mn;
-    cfg.master_heartbeat_ms = (uint16_t)mhb;
-    cfg.consumer_ms = (uint16_t)lround(mto * 1000);
-    cfg.rpdo_timeout_ms = (uint16_t)lround(rto * 1000);
-    d->ctl = drives_ctl_create(&cfg, on_drive_event, d);
+    d->ctl = drives_ctl_create(&p->ctl, on_drive_event, d);
     if (!d->ctl) {
         marie_component_fail_reason(c, "drive controller: %s", strerror(errno));
         goto err;
     }
     struct can_filter flt[4];
     int nf = drives_ctl_filters(d->ctl, flt, 4);
-    const char *url = params_of(c)->can;
+    const char *url = p->can;
     d->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, d);
     if (!d->link) {
         marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));
@@ -288,8 +280,8 @@ static int on_init(marie_component_t *c)
     d->out = marie_port(c, "wheel_encoders");
     marie_port_on_message(marie_port(c, "motor_command"), on_command);
     marie_port_on_message(marie_port(c, "estop"), on_estop);
-    d->sync_timer = marie_loop_add_timer(marie_component_loop(c), (int64_t)(1e6 / sync_hz), on_sync, d);
-    d->pub_timer = marie_component_every(c, pub_hz, publish);
+    d->sync_timer = marie_loop_add_timer(marie_component_loop(c), (int64_t)(1e6 / p->sync_hz), on_sync, d);
+    d->pub_timer = marie_component_every(c, p->publish_hz, publish);
     if (!d->sync_timer || !d->pub_timer) {
         marie_component_fail_reason(c, "timers: %s", strerror(errno));
         goto err;

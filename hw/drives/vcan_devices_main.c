@@ -1,8 +1,8 @@
 /* marie-vcan-devices: the robot's virtual CAN devices (two CiA 402 drives and the gyro) on
  * a CAN bus, with ideal motors, for tests and benches without the simulator.
- *   marie-vcan-devices --can URL [--left N] [--right N] [--gyro N] [--ticks-per-rev T]
- *       [--wheel-radius M] [--track-width M] [--gyro-bias R] [--gyro-noise R] [--rpdo-timeout S]
- * (--help lists them; a value out of range or not a number is refused with exit status 2.)
+ *   marie-vcan-devices --can URL [--left N] [--right N] [--gyro N] [--ticks-per-rev T] ...
+ * (the options are vdevices.params.yaml's; --help lists them; a value out of range or not a
+ * number is refused with exit status 2.)
  * SIGUSR1 puts the left drive into fault (EMCY 0x2310 over-current); SIGUSR2 toggles a gyro
  * sensor fault. SIGTERM/SIGINT quit and print frame counts. */
 #include <errno.h>
@@ -18,6 +18,7 @@
 #include "core/time.h"
 #include "hw/canopen/emcy.h"
 #include "hw/drives/vdevices.h"
+#include "core/version.h"
 
 /* Physics and the devices' timers (heartbeats, the gyro's event timer, RPDO deadlines) step at
  * 1 kHz; frames are answered as they arrive. */
@@ -69,47 +70,30 @@ static void on_usr(marie_loop_t *loop, int signo, void *user)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-vcan-devices", argc, argv);
     vdevices_cfg_t cfg;
     vdevices_cfg_default(&cfg);
-    int64_t left = cfg.left, right = cfg.right, gyro = cfg.gyro, ticks = cfg.ticks_per_rev;
-    double rpdo_timeout = cfg.rpdo_timeout_us / 1e6;
-    const marie_cli_opt_t opts[] = {
-        { "can", MARIE_CLI_STRING, &cfg.can_url, 0, 0, "URL  the bus: can:IFNAME or emu:PATH (required)" },
-        { "left", MARIE_CLI_INT, &left, 0, 127, "N    the left drive's node id (0: none)" },
-        { "right", MARIE_CLI_INT, &right, 0, 127, "N    the right drive's node id (0: none)" },
-        { "gyro", MARIE_CLI_INT, &gyro, 0, 127, "N    the gyro's node id (0: none)" },
-        { "ticks-per-rev", MARIE_CLI_INT, &ticks, 1, 1 << 24, "T    encoder increments per wheel turn" },
-        { "wheel-radius", MARIE_CLI_DOUBLE, &cfg.wheel_radius, 1e-3, 10, "M    for the ideal yaw rate" },
-        { "track-width", MARIE_CLI_DOUBLE, &cfg.track_width, 1e-3, 100, "M    for the ideal yaw rate" },
-        { "gyro-bias", MARIE_CLI_DOUBLE, &cfg.gyro_bias, -10, 10, "R    rad/s" },
-        { "gyro-noise", MARIE_CLI_DOUBLE, &cfg.gyro_noise, 0, 10, "R    rad/s" },
-        { "rpdo-timeout", MARIE_CLI_DOUBLE, &rpdo_timeout, 0, 60, "S    the drives' RPDO deadline (0: off)" },
-        { NULL },
-    };
+    const marie_cli_opt_t opts[] = { VDEVICES_CLI(&cfg) { NULL } };
     int rc = marie_cli_parse("marie-vcan-devices", opts, argc, argv);
     if (rc >= 0)
         return rc;
-    if (!cfg.can_url || optind != argc) {
+    if (!cfg.can || optind != argc) {
         marie_cli_usage("marie-vcan-devices", opts, stderr);
         return 2;
     }
-    cfg.left = (uint8_t)left;
-    cfg.right = (uint8_t)right;
-    cfg.gyro = (uint8_t)gyro;
-    cfg.ticks_per_rev = (int32_t)ticks;
-    cfg.rpdo_timeout_us = (int64_t)(rpdo_timeout * 1e6);
     marie_loop_t *loop = marie_loop_create();
     if (!loop || marie_loop_catch_signals(loop, on_quit, NULL) < 0) {
         marie_error("cannot set up the loop: %s", strerror(errno));
         return 1;
     }
-    vcan_t d = { .url = cfg.can_url, .last = marie_mono_us() };
+    vcan_t d = { .url = cfg.can, .last = marie_mono_us() };
     d.v = vdevices_create(&cfg, d.last);
     if (!d.v) {
-        marie_error("cannot attach to %s: %s", cfg.can_url, strerror(errno));
+        marie_error("cannot attach to %s: %s", cfg.can, strerror(errno));
         return 1;
     }
-    marie_info("virtual drives %u/%u and gyro %u on %s", cfg.left, cfg.right, cfg.gyro, cfg.can_url);
+    marie_info("virtual drives %lld/%lld and gyro %lld on %s", (long long)cfg.left, (long long)cfg.right,
+               (long long)cfg.gyro, cfg.can);
     int r = marie_loop_add_fd(loop, vdevices_fd(d.v), POLLIN, on_frames, &d);
     if (r == 0)
         r = marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, &d);

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "hw/can/can.h"
 
 struct vdevices {
@@ -15,18 +16,7 @@ struct vdevices {
     vdevices_stats_t st;
 };
 
-void vdevices_cfg_default(vdevices_cfg_t *cfg)
-{
-    memset(cfg, 0, sizeof *cfg);
-    cfg->left = 1;
-    cfg->right = 2;
-    cfg->gyro = 0x20;
-    cfg->ticks_per_rev = 4096;
-    cfg->wheel_radius = 0.1;
-    cfg->track_width = 0.5;
-    cfg->gyro_bias = 0.01;
-    cfg->gyro_noise = 0.002;
-}
+void vdevices_cfg_default(vdevices_cfg_t *cfg) { *cfg = (vdevices_cfg_t)VDEVICES_DEFAULTS; }
 
 /* Answers go on the bus. The devices never talk to each other (only to the master), so
  * there is no need to loop their frames back locally as a real bus would. */
@@ -51,30 +41,29 @@ static void deliver(vdevices_t *v, const struct can_frame *f, int64_t now)
 
 vdevices_t *vdevices_create(const vdevices_cfg_t *cfg, int64_t now)
 {
+    if (!cfg->can || cfg->left < 0 || cfg->left > 127 || cfg->right < 0 || cfg->right > 127 || cfg->gyro < 0 ||
+        cfg->gyro > 127)
+        return marie_fail_null(EINVAL);
     vdevices_t *v = calloc(1, sizeof *v);
     if (!v)
         return NULL;
     v->cfg = *cfg;
-    v->bus = can_bus_open(cfg->can_url);
+    v->bus = can_bus_open(cfg->can);
     if (!v->bus)
         goto err;
-    uint8_t nodes[2] = { cfg->left, cfg->right };
+    int64_t nodes[2] = { cfg->left, cfg->right };
     for (int i = 0; i < 2; i++) {
         if (!nodes[i])
             continue;
-        vdrive_cfg_t dc;
-        vdrive_cfg_default(&dc, nodes[i]);
-        dc.ticks_per_rev = cfg->ticks_per_rev;
-        dc.rpdo_timeout_us = cfg->rpdo_timeout_us;
+        vdrive_cfg_t dc = cfg->drive;
+        dc.node = (uint8_t)nodes[i];
         dc.name = i == 0 ? "marie vdrive left" : "marie vdrive right";
         if (!(v->drive[i] = vdrive_create(&dc)))
             goto err;
     }
     if (cfg->gyro) {
-        vgyro_cfg_t gc;
-        vgyro_cfg_default(&gc, cfg->gyro);
-        gc.bias = cfg->gyro_bias;
-        gc.noise = cfg->gyro_noise;
+        vgyro_cfg_t gc = cfg->vgyro;
+        gc.node = (uint8_t)cfg->gyro;
         if (!(v->gyro = vgyro_create(&gc)))
             goto err;
     }

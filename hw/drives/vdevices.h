@@ -12,21 +12,16 @@
 
 #include "hw/drives/vdrive.h"
 #include "hw/gyro/vgyro.h"
+#include "hw/drives/vdevices_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    const char *can_url;        /* can:IF or emu:PATH */
-    uint8_t left, right;        /* drive node ids (0: no such drive) */
-    uint8_t gyro;               /* gyro node id (0: none) */
-    int32_t ticks_per_rev;
-    double wheel_radius, track_width;   /* m, for the ideal yaw rate */
-    double gyro_bias, gyro_noise;       /* rad/s */
-    int64_t rpdo_timeout_us;    /* drives fault when enabled and RPDOs stop (0: off) */
-    bool external_physics;
-} vdevices_cfg_t;
+/* vdevices_cfg_t: declared in vdevices.params.yaml: the bus, the drives' and the gyro's node ids
+ * (0: none), the geometry for the ideal yaw rate, both drives' settings (`drive`) and the
+ * gyro's (`vgyro`), and external_physics, set by the simulator; VDEVICES_DEFAULTS and
+ * marie-vcan-devices' options VDEVICES_CLI come with it. */
 
 void vdevices_cfg_default(vdevices_cfg_t *cfg);
 

@@ -1,11 +1,13 @@
 /* vdrive: virtual CiA 402 drive on the generic CANopen device of hw/canopen. */
 #include "hw/drives/vdrive.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "hw/canopen/co.h"
 #include "hw/canopen/emcy.h"
 
@@ -36,8 +38,8 @@ struct vdrive {
 
 void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node)
 {
-    *cfg = (vdrive_cfg_t){ .node = node, .ticks_per_rev = 4096, .accel = 20, .quickstop_decel = 40,
-                           .max_velocity = 30, .name = "marie vdrive" };
+    *cfg = (vdrive_cfg_t)VDRIVE_DEFAULTS;
+    cfg->node = node;
 }
 
 static double counts_to_rad(const vdrive_t *v, double c) { return c * 2 * M_PI / v->cfg.ticks_per_rev; }
@@ -171,12 +173,12 @@ static void on_nmt(void *user, co_dev_t *d, co_nmt_state_t s, bool reset)
 
 vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
 {
+    if (cfg->ticks_per_rev <= 0 || cfg->ticks_per_rev > INT32_MAX)
+        return marie_fail_null(EINVAL);
     vdrive_t *v = calloc(1, sizeof *v);
     if (!v)
         return NULL;
     v->cfg = *cfg;
-    if (v->cfg.ticks_per_rev <= 0)
-        v->cfg.ticks_per_rev = 4096;
     snprintf(v->name, sizeof v->name, "%s", cfg->name ? cfg->name : "marie vdrive");
     v->device_type = CIA402_DEVICE_TYPE;
     v->acc = (uint32_t)rad_to_counts(v, cfg->accel);
@@ -205,13 +207,16 @@ vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
     }
     static const co_dev_hooks_t hooks = { on_nmt, on_rpdo, on_sync, on_write, on_comm_error };
     co_dev_init(&v->dev, cfg->node, v->od, nod, &hooks, v);
+    v->dev.no_consumer = cfg->no_consumer;
+    v->dev.no_rpdo_deadline = cfg->no_rpdo_deadline;
     co_dev_set_identity(&v->dev, VDRIVE_VENDOR_ID, VDRIVE_PRODUCT_CODE, VDRIVE_REVISION, cfg->node);
     v->abort_opt = 1;
     /* Defaults that marie-drives also writes at configuration (see docs/hw/drives.md). */
     uint32_t rmap[] = { 0x60400010, 0x60FF0020 };
     uint32_t t1map[] = { 0x60410010, 0x60640020 };
     uint32_t t2map[] = { 0x606C0020 };
-    int64_t tmo_ms = cfg->rpdo_timeout_us > 0 ? (cfg->rpdo_timeout_us + 999) / 1000 : 0;
+    int64_t tmo_us = (int64_t)(cfg->rpdo_timeout * 1e6);
+    int64_t tmo_ms = tmo_us > 0 && !cfg->no_rpdo_deadline ? (tmo_us + 999) / 1000 : 0;
     co_dev_set_pdo(&v->dev, false, 1, CO_COB_RPDO1 + cfg->node, 1, (uint16_t)(tmo_ms > 65535 ? 65535 : tmo_ms),
                    rmap, 2);
     co_dev_set_pdo(&v->dev, true, 1, CO_COB_TPDO1 + cfg->node, 1, 0, t1map, 2);

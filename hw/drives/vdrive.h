@@ -11,6 +11,7 @@
 
 #include "hw/drives/cia402.h"
 #include "hw/canopen/dev.h"
+#include "hw/drives/vdrive_params.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -21,21 +22,15 @@ extern "C" {
 #define VDRIVE_PRODUCT_CODE 0x00000402u
 #define VDRIVE_REVISION     0x00010000u
 
-typedef struct {
-    uint8_t node;
-    int32_t ticks_per_rev;      /* encoder increments per wheel revolution (default 4096) */
-    double accel;               /* profile acceleration, rad/s^2 at the wheel (default 20) */
-    double quickstop_decel;     /* rad/s^2 (default 40) */
-    double max_velocity;        /* rad/s; larger targets are clamped (default 30) */
-    int64_t rpdo_timeout_us;    /* power-on RPDO1 deadline 0x1400:05, rounded up to ms (0: off) */
-    const char *name;           /* device name, object 0x1008 ("": no 0x1008) */
-} vdrive_cfg_t;
+/* vdrive_cfg_t: the drive's settings, declared in vdrive.params.yaml (ticks_per_rev, accel,
+ * quickstop_decel, max_velocity, the power-on RPDO deadline in s, the optional objects it lacks)
+ * with VDRIVE_DEFAULTS, and its node id and name, set by the code. */
 
 void vdrive_cfg_default(vdrive_cfg_t *cfg, uint8_t node);
 
 typedef struct vdrive vdrive_t;
 
-vdrive_t *vdrive_create(const vdrive_cfg_t *cfg);   /* NULL on failure */
+vdrive_t *vdrive_create(const vdrive_cfg_t *cfg);   /* NULL with errno (EINVAL: ticks_per_rev <= 0) */
 void vdrive_destroy(vdrive_t *v);                   /* NULL is a no-op */
 
 /* Power on: boot-up message. Returns frames written (at most max). */

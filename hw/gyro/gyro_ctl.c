@@ -2,6 +2,7 @@
 #include "hw/gyro/gyro_ctl.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -51,15 +52,10 @@ const char *gyro_ev_name(gyro_ev_t ev)
     return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
 }
 
-void gyro_cfg_default(gyro_cfg_t *cfg)
-{
-    cfg->node = GYRO_NODE_DEFAULT;
-    cfg->period_ms = 10;
-    cfg->heartbeat_ms = 100;
-    cfg->heartbeat_timeout_us = 350000;
-    cfg->sdo_timeout_us = 200000;
-    cfg->boot_retry_us = 2000000;
-}
+void gyro_cfg_default(gyro_cfg_t *cfg) { *cfg = (gyro_cfg_t)GYRO_CFG_DEFAULTS; }
+
+/* The TPDO's event timer, ms: one sample per period. */
+static uint16_t period_ms(const gyro_ctl_t *g) { return (uint16_t)lround(1000 / g->cfg.rate_hz); }
 
 static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s);
 
@@ -107,7 +103,7 @@ static void watch(gyro_ctl_t *g, int64_t timeout_us)
 static uint32_t job_value(void *user, const co_sdo_step_t *j)
 {
     const gyro_ctl_t *g = user;
-    return j->kind == V_HB ? g->cfg.heartbeat_ms : g->cfg.period_ms;
+    return j->kind == V_HB ? (uint32_t)g->cfg.heartbeat_ms : period_ms(g);
 }
 
 static void run_job(gyro_ctl_t *g)
@@ -139,7 +135,7 @@ static void sdo_done(void *user, co_sdo_client_t *c, uint16_t index, uint8_t sub
         g->name[n] = 0;
     }
     if (index == 0x1017 && g->cfg.heartbeat_ms)
-        watch(g, g->cfg.heartbeat_timeout_us);
+        watch(g, (int64_t)(g->cfg.heartbeat_timeout * 1e6));
     g->job++;
     run_job(g);
 }
@@ -156,7 +152,7 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
         watch(g, 0);        /* its heartbeat restarts with the configuration */
         set_phase(g, PH_CONFIG);
         g->job = 0;
-        co_sdo_client_init(&g->sdo, g->cfg.node, g->cfg.sdo_timeout_us, sdo_done, g);
+        co_sdo_client_init(&g->sdo, (uint8_t)g->cfg.node, GYRO_SDO_TIMEOUT_US, sdo_done, g);
         run_job(g);
         break;
     case CO_HB_EV_TIMEOUT:
@@ -183,7 +179,8 @@ static void hb_event(void *user, uint8_t node, co_hb_event_t e, co_nmt_state_t s
 
 gyro_ctl_t *gyro_ctl_create(const gyro_cfg_t *cfg, gyro_sample_cb_t on_sample, gyro_event_cb_t on_event, void *user)
 {
-    if (!cfg || cfg->node == 0 || cfg->node > CO_NODE_MAX || cfg->period_ms == 0)
+    if (!cfg || cfg->node < 1 || cfg->node > CO_NODE_MAX || !(cfg->rate_hz >= 1 && cfg->rate_hz <= 1000) ||
+        cfg->heartbeat_ms < 0 || cfg->heartbeat_ms > 65535 || !(cfg->heartbeat_timeout >= 0))
         return marie_fail_null(EINVAL);
     gyro_ctl_t *g = calloc(1, sizeof *g);
     if (!g)
@@ -194,7 +191,7 @@ gyro_ctl_t *gyro_ctl_create(const gyro_cfg_t *cfg, gyro_sample_cb_t on_sample, g
     g->on_sample = on_sample;
     g->on_event = on_event;
     g->user = user;
-    co_sdo_client_init(&g->sdo, cfg->node, cfg->sdo_timeout_us, sdo_done, g);
+    co_sdo_client_init(&g->sdo, (uint8_t)cfg->node, GYRO_SDO_TIMEOUT_US, sdo_done, g);
     co_hb_consumer_init(&g->hb, hb_event, g);
     return g;
 }
@@ -283,7 +280,7 @@ int gyro_ctl_poll(gyro_ctl_t *g, int64_t now, struct can_frame *tx, int max)
     co_hb_consumer_check(&g->hb, now);
     if (co_sdo_client_poll(&g->sdo, now, &f))
         pend(g, &f);
-    if ((g->phase == PH_BOOT || g->phase == PH_OFFLINE) && now - g->phase_since >= g->cfg.boot_retry_us) {
+    if ((g->phase == PH_BOOT || g->phase == PH_OFFLINE) && now - g->phase_since >= GYRO_BOOT_RETRY_US) {
         if (!g->booted && !g->not_found_reported) {
             g->not_found_reported = true;
             ev(g, GYRO_EV_NOT_FOUND, 0);
@@ -306,3 +303,5 @@ int gyro_ctl_filters(const gyro_ctl_t *g, struct can_filter *f, int max)
     f[0].can_mask = 0x7F | CAN_EFF_FLAG | CAN_RTR_FLAG;
     return 1;
 }
+
+double gyro_ctl_period_s(const gyro_ctl_t *g) { return period_ms(g) / 1000.0; }

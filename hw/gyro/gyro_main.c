@@ -23,10 +23,8 @@ typedef struct {
     marie_port_t *out;
     marie_timer_t *poll_timer;
     gyro_bias_t bias;
-    double sign, still_wheel, period_s, start_still_s;
     int64_t started_us;
     int64_t sample_us;              /* last sample (mono), or the start: for degraded_after */
-    int64_t degraded_us;
     bool degraded;
     bool start_pending;         /* started before the simulated clock was known */
     int64_t enc_us, cmd_us;         /* last receipt (mono), 0 never */
@@ -56,7 +54,7 @@ static bool standstill(gyro_t *g, int64_t now)
     if (cmd_fresh)
         return g->cmd_still;
     /* Nothing tells us: only the configured start window counts as standstill. */
-    return !g->enc_us && !g->cmd_us && now - g->started_us < (int64_t)(g->start_still_s * 1e6);
+    return !g->enc_us && !g->cmd_us && now - g->started_us < (int64_t)(params_of(g->c)->assume_still_at_start * 1e6);
 }
 
 static void on_sample(void *user, double rate, uint8_t status)
@@ -70,9 +68,9 @@ static void on_sample(void *user, double rate, uint8_t status)
         g->degraded = false;
         marie_component_set_degraded(g->c, false, "gyro samples again");
     }
-    double raw = g->sign * rate;
+    double raw = params_of(g->c)->invert ? -rate : rate;
     if (status == 0)
-        gyro_bias_feed(&g->bias, raw, standstill(g, now), now, g->period_s);
+        gyro_bias_feed(&g->bias, raw, standstill(g, now), now, gyro_ctl_period_s(g->ctl));
     marie_gyro_t m = {
         .utime = marie_component_now(g->c),
         .yaw_rate = g->bias.valid ? raw - g->bias.bias : raw,
@@ -122,8 +120,8 @@ static void on_gyro_event(void *user, gyro_ev_t ev, uint32_t code)
     case GYRO_EV_NOT_FOUND:
         marie_component_count(c, "not_found", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "gyro_not_found",
-                              "no boot-up from gyro node %lld yet; resetting it every 2 s",
-                              (long long)params_of(c)->node);
+                              "no boot-up from gyro node %lld yet; resetting it every %g s",
+                              (long long)params_of(c)->ctl.node, GYRO_BOOT_RETRY_US / 1e6);
         break;
     }
 }
@@ -167,7 +165,7 @@ static void on_poll(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     struct can_frame tx[8];
     int64_t now = now_us(g);
     send_frames(g, tx, gyro_ctl_poll(g->ctl, now, tx, 8));
-    if (!g->degraded && now - g->sample_us > g->degraded_us) {
+    if (!g->degraded && now - g->sample_us > (int64_t)(params_of(g->c)->degraded_after * 1e6)) {
         g->degraded = true;
         marie_component_set_degraded(g->c, true, "no gyro sample for %.1f s (%s)", (now - g->sample_us) / 1e6,
                                      gyro_ctl_running(g->ctl) ? "configured" : "not configured");
@@ -178,10 +176,11 @@ static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, 
 {
     gyro_t *g = marie_component_user(c);
     const marie_wheel_encoders_t *m = msg;
+    double still = params_of(c)->still_wheel_velocity;
     g->enc_us = now_us(g);
     g->enc_still = m->status == MARIE_WHEEL_ENCODERS_T_STATUS_OK || m->status == MARIE_WHEEL_ENCODERS_T_STATUS_DISABLED ||
                    m->status == MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP
-                   ? fabs(m->left_velocity) < g->still_wheel && fabs(m->right_velocity) < g->still_wheel
+                   ? fabs(m->left_velocity) < still && fabs(m->right_velocity) < still
                    : false;
 }
 
@@ -202,33 +201,21 @@ static int on_init(marie_component_t *c)
     }
     g->c = c;
     marie_component_set_user(c, g);
-    gyro_cfg_t cfg;
-    gyro_cfg_default(&cfg);
-    int64_t node = params_of(c)->node, hb = params_of(c)->heartbeat_ms;
-    double hz = params_of(c)->rate_hz;
-    if (node < 1 || node > 127 || !(hz >= 1 && hz <= 1000) || hb < 0 || hb > 65535) {
+    const gyro_params_t *p = params_of(c);
+    if (p->ctl.node < 1 || p->ctl.node > 127 || !(p->ctl.rate_hz >= 1 && p->ctl.rate_hz <= 1000) ||
+        p->ctl.heartbeat_ms < 0 || p->ctl.heartbeat_ms > 65535) {
         marie_component_fail_reason(c, "bad parameters: node 1..127, rate_hz 1..1000, heartbeat_ms 0..65535");
         goto err;
     }
-    cfg.node = (uint8_t)node;
-    cfg.period_ms = (uint16_t)lround(1000 / hz);
-    cfg.heartbeat_ms = (uint16_t)hb;
-    cfg.heartbeat_timeout_us = (int64_t)(params_of(c)->heartbeat_timeout * 1e6);
-    g->period_s = cfg.period_ms / 1000.0;
-    g->sign = params_of(c)->invert ? -1 : 1;
-    g->still_wheel = params_of(c)->still_wheel_velocity;
-    g->start_still_s = params_of(c)->assume_still_at_start;
-    g->degraded_us = (int64_t)(params_of(c)->degraded_after * 1e6);
-    gyro_bias_init(&g->bias, params_of(c)->standstill_window, params_of(c)->bias_tau,
-                   (int)params_of(c)->bias_min_samples, params_of(c)->max_still_rate);
-    g->ctl = gyro_ctl_create(&cfg, on_sample, on_gyro_event, g);
+    gyro_bias_init(&g->bias, p->standstill_window, p->bias_tau, (int)p->bias_min_samples, p->max_still_rate);
+    g->ctl = gyro_ctl_create(&p->ctl, on_sample, on_gyro_event, g);
     if (!g->ctl) {
         marie_component_fail_reason(c, "gyro controller: %s", strerror(errno));
         goto err;
     }
     struct can_filter flt[2];
     int nf = gyro_ctl_filters(g->ctl, flt, 2);
-    const char *url = params_of(c)->can;
+    const char *url = p->can;
     g->link = can_link_open(marie_component_loop(c), url, flt, (size_t)nf, on_frame, on_link_event, g);
     if (!g->link) {
         marie_component_fail_reason(c, "cannot open CAN bus %s: %s", url, strerror(errno));

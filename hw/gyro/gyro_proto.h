@@ -3,7 +3,6 @@
 #ifndef MARIE_HW_GYRO_PROTO_H
 #define MARIE_HW_GYRO_PROTO_H
 
-#define GYRO_NODE_DEFAULT   0x20
 #define GYRO_OBJ_RATE       0x2100  /* i32, yaw rate in micro-rad/s, counter-clockwise positive */
 #define GYRO_OBJ_STATUS     0x2101  /* u8, 0 ok, else a fault code (GYRO_STATUS_*) */
 #define GYRO_OBJ_COUNTER    0x2102  /* u8, sample counter, +1 per TPDO */

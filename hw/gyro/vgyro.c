@@ -28,8 +28,8 @@ struct vgyro {
 
 void vgyro_cfg_default(vgyro_cfg_t *cfg, uint8_t node)
 {
-    *cfg = (vgyro_cfg_t){ .node = node, .bias = 0.01, .noise = 0.002, .range = 5.0, .seed = 1,
-                          .name = "marie vgyro" };
+    *cfg = (vgyro_cfg_t)VGYRO_DEFAULTS;
+    cfg->node = node;
 }
 
 static double uniform(vgyro_t *g)
@@ -49,7 +49,7 @@ vgyro_t *vgyro_create(const vgyro_cfg_t *cfg)
     if (!g)
         return NULL;
     g->cfg = *cfg;
-    g->rng = cfg->seed ? cfg->seed : 1;
+    g->rng = cfg->seed ? (uint64_t)cfg->seed : 1;
     snprintf(g->name, sizeof g->name, "%s", cfg->name ? cfg->name : "marie vgyro");
     co_od_entry_t od[] = {
         { 0x1000, 0, 4, CO_OD_RO, &g->device_type },

@@ -7,19 +7,14 @@
 #include <linux/can.h>
 
 #include "hw/canopen/dev.h"
+#include "hw/gyro/vgyro_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    uint8_t node;
-    double bias;            /* rad/s added to every sample */
-    double noise;           /* rad/s, standard deviation of white noise */
-    double range;           /* rad/s: beyond this the sample saturates (status 1) */
-    uint32_t seed;          /* noise is reproducible */
-    const char *name;       /* 0x1008 */
-} vgyro_cfg_t;
+/* vgyro_cfg_t: the gyro's settings, declared in vgyro.params.yaml (bias, noise, range, seed)
+ * with VGYRO_DEFAULTS, and its node id and name, set by the code. */
 
 void vgyro_cfg_default(vgyro_cfg_t *cfg, uint8_t node);
 

@@ -3,6 +3,7 @@
 #include "hw/lms200/driver.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,9 +20,13 @@
  * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
 #define MAX_STAY 3
 #define BATCH_MAX 8                 /* scans of one read stamped together; a longer backlog goes out in turns */
+/* Damaged scan telegrams in a row that do not yet make a silent line (see data_timeout_us). */
+#define LOST_TELEGRAMS 2
+#define DATA_MARGIN_US 200000
 
 struct lms200_driver {
     lms200_driver_cfg_t cfg;
+    int res_cdeg;                   /* the resolution in 1/100 degree: 50 or 100 */
     char *device;
     lms200_driver_ops_t ops;
     void *user;
@@ -104,8 +109,8 @@ static void close_line(lms200_driver_t *d)
 static void hangup(lms200_driver_t *d, const char *why)
 {
     count(d, "disconnects", &d->st.disconnects, 1, false);
-    emit(d, 2, "laser_disconnected", "%s: %s (state %s); reopening every %d ms",
-         d->device, why, lms200_driver_state_name(d->state), d->cfg.reopen_ms);
+    emit(d, 2, "laser_disconnected", "%s: %s (state %s); reopening every %lld ms",
+         d->device, why, lms200_driver_state_name(d->state), (long long)d->cfg.reopen_ms);
     d->lost = true;
     close_line(d);
     d->state = LMS200_DRV_CLOSED;
@@ -115,7 +120,7 @@ static void hangup(lms200_driver_t *d, const char *why)
 /* Candidate rates, the likeliest first, without duplicates. */
 static void build_probe(lms200_driver_t *d, int first)
 {
-    const int cand[] = { first, 9600, d->cfg.baud, 38400, 19200, 500000 };
+    const int cand[] = { first, 9600, (int)d->cfg.baud, 38400, 19200, 500000 };
     d->nprobe = 0;
     for (size_t i = 0; i < sizeof cand / sizeof cand[0]; i++) {
         bool dup = false;
@@ -207,16 +212,16 @@ static void send_current(lms200_driver_t *d)
     size_t n = 0;
     switch (d->state) {
     case LMS200_DRV_PROBE:
-        n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_STOP, NULL);
+        n = lms200_encode_mode(out, sizeof out, (uint8_t)d->cfg.address, LMS200_MODE_STOP, NULL);
         break;
     case LMS200_DRV_VARIANT:
-        n = lms200_encode_variant(out, sizeof out, d->cfg.addr, 180, (uint16_t)d->cfg.res_cdeg);
+        n = lms200_encode_variant(out, sizeof out, (uint8_t)d->cfg.address, 180, (uint16_t)d->res_cdeg);
         break;
     case LMS200_DRV_BAUD:
-        n = lms200_encode_mode(out, sizeof out, d->cfg.addr, (uint8_t)lms200_baud_mode(d->cfg.baud), NULL);
+        n = lms200_encode_mode(out, sizeof out, (uint8_t)d->cfg.address, (uint8_t)lms200_baud_mode((int)d->cfg.baud), NULL);
         break;
     case LMS200_DRV_START:
-        n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_CONTINUOUS, NULL);
+        n = lms200_encode_mode(out, sizeof out, (uint8_t)d->cfg.address, LMS200_MODE_CONTINUOUS, NULL);
         break;
     default:
         return;
@@ -227,12 +232,24 @@ static void send_current(lms200_driver_t *d)
     write_out(d, out, n);
 }
 
+/* No good scan for this long while streaming: the line is silent. One damaged telegram leaves
+ * two telegram times between good scans (1.52 s for 361 values at 9600 baud), longer than a
+ * fixed second: the wait is data_timeout_ms, or LOST_TELEGRAMS + 1 telegram times at the
+ * line's rate (and a margin) where that is longer. */
+static int64_t data_timeout_us(const lms200_driver_t *d)
+{
+    size_t bytes = lms200_scan_telegram_len(d->res_cdeg == 50 ? 361 : 181);
+    int64_t derived = (LOST_TELEGRAMS + 1) * lms200_wire_us(bytes, d->baud) + DATA_MARGIN_US;
+    int64_t fixed = (int64_t)d->cfg.data_timeout_ms * 1000;
+    return derived > fixed ? derived : fixed;
+}
+
 static void enter(lms200_driver_t *d, lms200_drv_state_t s)
 {
     d->state = s;
     d->tries = 0;
     if (s == LMS200_DRV_STREAM) {
-        d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+        d->deadline = d->now + data_timeout_us(d);
         return;
     }
     send_current(d);
@@ -252,8 +269,8 @@ static void try_open(lms200_driver_t *d)
     int fd = lms200_serial_open(d->device);
     if (fd < 0) {
         if (!d->open_failed_reported)
-            emit(d, 2, "laser_open_failed", "cannot open %s: %s; retrying every %d ms",
-                 d->device, strerror(-fd), d->cfg.reopen_ms);
+            emit(d, 2, "laser_open_failed", "cannot open %s: %s; retrying every %lld ms",
+                 d->device, strerror(-fd), (long long)d->cfg.reopen_ms);
         d->open_failed_reported = true;
         d->deadline = d->now + (int64_t)d->cfg.reopen_ms * 1000;
         return;
@@ -273,10 +290,10 @@ static void streaming_started(lms200_driver_t *d)
     if (d->lost) {
         count(d, "reconnects", &d->st.reconnects, 1, false);
         emit(d, 1, "laser_reconnected", "%s streaming again at %d baud, %s deg resolution",
-             d->device, d->baud, d->cfg.res_cdeg == 50 ? "0.5" : "1");
+             d->device, d->baud, d->res_cdeg == 50 ? "0.5" : "1");
     } else {
         emit(d, 1, "laser_streaming", "%s streaming at %d baud, %s deg resolution",
-             d->device, d->baud, d->cfg.res_cdeg == 50 ? "0.5" : "1");
+             d->device, d->baud, d->res_cdeg == 50 ? "0.5" : "1");
     }
     d->lost = false;
     enter(d, LMS200_DRV_STREAM);
@@ -297,9 +314,9 @@ static void on_mode_reply(lms200_driver_t *d, uint8_t result)
         break;
     case LMS200_DRV_BAUD: {
         /* The device answered at the old rate and now listens at the new one. */
-        int r = set_line_baud(d, d->cfg.baud);
+        int r = set_line_baud(d, (int)d->cfg.baud);
         if (r < 0) {
-            emit(d, 3, "laser_baud_failed", "cannot set %s to %d baud: %s", d->device, d->cfg.baud, strerror(-r));
+            emit(d, 3, "laser_baud_failed", "cannot set %s to %d baud: %s", d->device, (int)d->cfg.baud, strerror(-r));
             reinit(d);
             break;
         }
@@ -318,12 +335,12 @@ static void on_variant_reply(lms200_driver_t *d, const lms200_variant_t *v)
 {
     if (d->state != LMS200_DRV_VARIANT)
         return;
-    if (!v->ok || v->angle_deg != 180 || v->res_cdeg != d->cfg.res_cdeg) {
+    if (!v->ok || v->angle_deg != 180 || v->res_cdeg != d->res_cdeg) {
         emit(d, 3, "laser_variant_refused", "%s refused variant 180 deg / %d cdeg (answered ok=%d %u/%u)",
-             d->device, d->cfg.res_cdeg, v->ok, v->angle_deg, v->res_cdeg);
+             d->device, d->res_cdeg, v->ok, v->angle_deg, v->res_cdeg);
         return;
     }
-    if (d->baud == d->cfg.baud)
+    if (d->baud == (int)d->cfg.baud)
         enter(d, LMS200_DRV_START);
     else
         enter(d, LMS200_DRV_BAUD);
@@ -338,14 +355,14 @@ static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
     if (d->nbatch == BATCH_MAX)
         deliver(d);
     lms200_scan_t *scan = &d->batch[d->nbatch];
-    int want = d->cfg.res_cdeg == 50 ? 361 : 181;
+    int want = d->res_cdeg == 50 ? 361 : 181;
     if (lms200_decode_scan(t, scan) < 0 || scan->n != want || scan->partial) {
         count(d, "bad_scans", &d->st.bad_scans, 1, true);
         return;
     }
     d->nbatch++;
     d->st.scans++;
-    d->deadline = d->now + (int64_t)d->cfg.data_timeout_ms * 1000;
+    d->deadline = d->now + data_timeout_us(d);
     d->last_good = d->now;
     if (d->degraded) {
         d->degraded = false;
@@ -382,14 +399,14 @@ static void deliver(lms200_driver_t *d)
             at = d->last_stamp + (d->period_us > 0 ? d->period_us : 1);
         d->last_stamp = at;
         if (d->ops.on_scan)
-            d->ops.on_scan(d->user, &d->batch[i], d->cfg.res_cdeg, at);
+            d->ops.on_scan(d->user, &d->batch[i], d->res_cdeg, at);
     }
 }
 
 static void on_telegram(void *user, const lms200_telegram_t *t)
 {
     lms200_driver_t *d = user;
-    if (!(t->addr & LMS200_REPLY_BIT) || (t->addr & 0x7f) != d->cfg.addr)
+    if (!(t->addr & LMS200_REPLY_BIT) || (t->addr & 0x7f) != (uint8_t)d->cfg.address)
         return;     /* our own echo, or another device on a shared RS-422 line */
     d->rate_heard = true;
     switch (t->cmd) {
@@ -433,21 +450,29 @@ static void report_parser(lms200_driver_t *d)
     d->seen = *s;
 }
 
+/* The resolution in 1/100 degree, -1 for one the device has not. */
+static int res_cdeg(double deg)
+{
+    return fabs(deg - 0.5) < 1e-6 ? 50 : fabs(deg - 1.0) < 1e-6 ? 100 : -1;
+}
+
+static bool cfg_ok(const lms200_driver_cfg_t *c)
+{
+    return c->device && c->baud > 0 && c->baud <= 500000 && lms200_baud_mode((int)c->baud) >= 0 &&
+           lms200_serial_speed((int)c->baud) && res_cdeg(c->resolution) > 0 && c->address >= 0 &&
+           c->address <= 0x7f && c->reply_timeout_ms > 0 && c->config_timeout_ms > 0 && c->retries > 0 &&
+           c->data_timeout_ms > 0 && c->reopen_ms > 0 && c->degraded_ms > 0;
+}
+
 lms200_driver_t *lms200_driver_create(const lms200_driver_cfg_t *cfg, const lms200_driver_ops_t *ops, void *user)
 {
-    if (!cfg->device || lms200_baud_mode(cfg->baud) < 0 || !lms200_serial_speed(cfg->baud) ||
-        (cfg->res_cdeg != 100 && cfg->res_cdeg != 50) || cfg->addr > 0x7f)
+    if (!cfg_ok(cfg))
         return marie_fail_null(EINVAL);
     lms200_driver_t *d = calloc(1, sizeof *d);
     if (!d)
         return NULL;
     d->cfg = *cfg;
-    if (d->cfg.reply_timeout_ms <= 0) d->cfg.reply_timeout_ms = 300;
-    if (d->cfg.config_timeout_ms <= 0) d->cfg.config_timeout_ms = 3000;
-    if (d->cfg.retries <= 0) d->cfg.retries = 2;
-    if (d->cfg.data_timeout_ms <= 0) d->cfg.data_timeout_ms = 1000;
-    if (d->cfg.reopen_ms <= 0) d->cfg.reopen_ms = 500;
-    if (d->cfg.degraded_ms <= 0) d->cfg.degraded_ms = 2000;
+    d->res_cdeg = res_cdeg(cfg->resolution);
     if (ops)
         d->ops = *ops;
     d->user = user;
@@ -495,7 +520,7 @@ void lms200_driver_stop(lms200_driver_t *d)
         /* Best effort, as the line is closed right after: what it has no room for is lost,
          * and the next start stops the stream first anyway. */
         uint8_t out[16];
-        size_t n = lms200_encode_mode(out, sizeof out, d->cfg.addr, LMS200_MODE_STOP, NULL);
+        size_t n = lms200_encode_mode(out, sizeof out, (uint8_t)d->cfg.address, LMS200_MODE_STOP, NULL);
         flush_out(d);
         if (d->fd >= 0 && d->nout == 0)
             (void)lms200_serial_write(d->fd, out, n);
@@ -523,6 +548,7 @@ int64_t lms200_driver_deadline(const lms200_driver_t *d)
 }
 lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d) { return d->state; }
 int lms200_driver_baud(const lms200_driver_t *d) { return d->baud; }
+int lms200_driver_data_timeout_ms(const lms200_driver_t *d) { return (int)(data_timeout_us(d) / 1000); }
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d) { return &d->st; }
 
 static void read_input(lms200_driver_t *d, short revents);
@@ -584,8 +610,8 @@ static void check_health(lms200_driver_t *d)
     count(d, "degraded", &d->st.degraded, 1, false);
     if (d->ops.on_health) {
         char why[200];
-        snprintf(why, sizeof why, "no valid scan from %s for %d ms (%s at %d baud)", d->device,
-                 d->cfg.degraded_ms, lms200_driver_state_name(d->state), d->baud);
+        snprintf(why, sizeof why, "no valid scan from %s for %lld ms (%s at %d baud)", d->device,
+                 (long long)d->cfg.degraded_ms, lms200_driver_state_name(d->state), d->baud);
         d->ops.on_health(d->user, true, why);
     }
 }
@@ -641,7 +667,8 @@ void lms200_driver_tick(lms200_driver_t *d, int64_t now_us)
         break;
     case LMS200_DRV_STREAM:
         count(d, "timeouts", &d->st.timeouts, 1, false);
-        emit(d, 2, "laser_silent", "%s: no scan for %d ms; re-initialising", d->device, d->cfg.data_timeout_ms);
+        emit(d, 2, "laser_silent", "%s: no scan for %lld ms (%d baud); re-initialising", d->device,
+             (long long)(data_timeout_us(d) / 1000), d->baud);
         d->lost = true;
         reinit(d);
         break;

@@ -7,24 +7,15 @@
 #include <stdint.h>
 
 #include "hw/lms200/lms200.h"
+#include "hw/lms200/driver_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    const char *device;         /* serial device path (copied) */
-    int baud;                   /* line rate while streaming: 9600, 19200, 38400 or 500000 */
-    int res_cdeg;               /* angular resolution: 100 (181 beams) or 50 (361 beams) */
-    uint8_t addr;               /* device address, 0 for a point-to-point line */
-    int reply_timeout_ms;       /* wait for the answer to a probe; default 300 */
-    int config_timeout_ms;      /* wait for variant, baud and start replies (the device
-                                 * reconfigures itself first); default 3000 */
-    int retries;                /* sends of one command before giving up; default 2 */
-    int data_timeout_ms;        /* no scan for this long while streaming: re-initialise; default 1000 */
-    int reopen_ms;              /* between attempts to open the device; default 500 */
-    int degraded_ms;            /* no good scan for this long after start: degraded; default 2000 */
-} lms200_driver_cfg_t;
+/* lms200_driver_cfg_t: the driver's parameters, declared in driver.params.yaml (device, baud,
+ * resolution in degrees, address, the timeouts in ms, retries); LMS200_DRIVER_DEFAULTS gives
+ * their defaults. The driver copies the device's path. */
 
 typedef enum {
     LMS200_DRV_CLOSED = 0,      /* no fd; reopening on a timer */
@@ -63,7 +54,9 @@ typedef struct {
 
 typedef struct lms200_driver lms200_driver_t;
 
-/* NULL with errno (EINVAL for a bad configuration). Any op may be NULL. */
+/* NULL with errno: EINVAL for a baud rate other than 9600, 19200, 38400 or 500000, a resolution
+ * other than 0.5 or 1, an address over 127, or a timeout or retries not above 0. Any op may be
+ * NULL. */
 lms200_driver_t *lms200_driver_create(const lms200_driver_cfg_t *cfg, const lms200_driver_ops_t *ops, void *user);
 void lms200_driver_destroy(lms200_driver_t *d);        /* closes the fd; NULL is a no-op */
 
@@ -86,6 +79,9 @@ lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d);
 bool lms200_driver_degraded(const lms200_driver_t *d);
 const char *lms200_driver_state_name(lms200_drv_state_t s);
 int lms200_driver_baud(const lms200_driver_t *d);      /* the line's current rate */
+/* The stream's data timeout at the line's current rate (data_timeout_ms, or longer where 3
+ * scan telegram times at the line's rate are: 2.49 s for 361 values at 9600 baud). */
+int lms200_driver_data_timeout_ms(const lms200_driver_t *d);
 const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d);
 
 #ifdef __cplusplus

@@ -41,7 +41,9 @@ struct lms200_parser {
     size_t head, len;           /* held bytes are buf[head .. head+len) */
     uint64_t pos;               /* stream offset of buf[head] */
     bool fail_pending;          /* a candidate failed its CRC ... */
-    uint64_t fail_end;          /* ... and claimed the bytes up to here */
+    uint64_t fail_end;          /* ... and claimed the bytes up to here, */
+    uint8_t fail_addr;          /* with this address byte */
+    size_t fail_len;            /* and length field */
     bool in_callback, reset_requested;
     lms200_parser_stats_t st;
 };
@@ -151,9 +153,18 @@ static int parse_held(lms200_parser_t *p)
             break;
         uint16_t want = rd16(b + total - 2);
         if (lms200_crc(b, total - 2) != want) {
+            /* The header of a telegram like the failed one, inside its bytes: that one was cut
+             * short by this one (a device sending the same telegram over and over). Any other
+             * STX in there may be a value's byte, and waits for the end of the failed one. */
+            if (p->fail_pending && b[1] == p->fail_addr && l == p->fail_len) {
+                p->st.truncated++;
+                p->fail_pending = false;
+            }
             if (!p->fail_pending) {
                 p->fail_pending = true;
                 p->fail_end = p->pos + total;
+                p->fail_addr = b[1];
+                p->fail_len = l;
             }
             consume(p, 1);
             continue;
@@ -280,6 +291,14 @@ size_t lms200_encode_scan(uint8_t *out, size_t cap, uint8_t addr, lms200_unit_t 
         wr16(d + 2 + 2 * i, values[i]);
     return lms200_encode(out, cap, addr | LMS200_REPLY_BIT, LMS200_REPLY_SCAN, d, 2 + 2 * n, status);
 }
+
+size_t lms200_scan_telegram_len(size_t n)
+{
+    /* header, reply code, count word, the values, status, CRC */
+    return LMS200_HEADER_LEN + 1 + 2 + 2 * n + 1 + LMS200_CRC_LEN;
+}
+
+int64_t lms200_wire_us(size_t bytes, int baud) { return (int64_t)bytes * 10 * 1000000 / (baud > 0 ? baud : 9600); }
 
 int lms200_baud_mode(int baud)
 {

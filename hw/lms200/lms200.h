@@ -117,6 +117,11 @@ size_t lms200_encode_variant_reply(uint8_t *out, size_t cap, uint8_t addr, bool 
 size_t lms200_encode_scan(uint8_t *out, size_t cap, uint8_t addr, lms200_unit_t unit,
                           const uint16_t *values, size_t n, uint8_t status);
 
+/* Bytes of a scan telegram of n values (732 for 361), and the time n bytes take on the line
+ * at baud (8N1: 10 bits a byte; 0.76 s for that telegram at 9600). */
+size_t lms200_scan_telegram_len(size_t n);
+int64_t lms200_wire_us(size_t bytes, int baud);
+
 /* Baud rate <-> mode byte. -1 / 0 when not an LMS200 rate. */
 int lms200_baud_mode(int baud);
 int lms200_mode_baud(uint8_t mode);

@@ -18,7 +18,6 @@ typedef struct {
     marie_timer_t *tick;
     marie_port_t *scan_port;
     float ranges[LMS200_MAX_VALUES];
-    int baud;
     bool start_pending;         /* started before the simulated clock was known */
 } lms_t;
 
@@ -44,7 +43,7 @@ static void on_scan(void *user, const lms200_scan_t *s, int res_cdeg, int64_t mo
         l->ranges[i] = (float)(isinf(m) ? range_max : m);
     }
     /* Stamp the scan when its telegram began to arrive, not when its last byte did. */
-    int64_t wire_us = (int64_t)(10 + 2 * s->n) * 10 * 1000000 / (l->baud > 0 ? l->baud : 9600);
+    int64_t wire_us = lms200_wire_us(lms200_scan_telegram_len(s->n), (int)params_of(l->c)->drv.baud);
     marie_laser_scan_t msg = {
         .utime = marie_component_now(c) - (now_us(l) - mono_us) - wire_us,
         .angle_min = (float)(-M_PI / 2),
@@ -142,28 +141,15 @@ static int on_init(marie_component_t *c)
         return -1;
     }
     l->c = c;
-    double res = params_of(c)->resolution;
-    lms200_driver_cfg_t cfg = {
-        .device = params_of(c)->device,
-        .baud = (int)params_of(c)->baud,
-        .res_cdeg = fabs(res - 0.5) < 1e-6 ? 50 : fabs(res - 1.0) < 1e-6 ? 100 : -1,
-        .addr = (uint8_t)params_of(c)->address,
-        .reply_timeout_ms = (int)params_of(c)->reply_timeout_ms,
-        .config_timeout_ms = (int)params_of(c)->config_timeout_ms,
-        .retries = (int)params_of(c)->retries,
-        .data_timeout_ms = (int)params_of(c)->data_timeout_ms,
-        .reopen_ms = (int)params_of(c)->reopen_ms,
-        .degraded_ms = (int)params_of(c)->degraded_ms,
-    };
-    l->baud = cfg.baud;
-    if (cfg.res_cdeg < 0 || lms200_baud_mode(cfg.baud) < 0 || params_of(c)->address < 0 ||
-        params_of(c)->address > 127) {
-        marie_component_fail_reason(c, "resolution must be 0.5 or 1, baud 9600/19200/38400/500000, address 0..127 "
-                                    "(got %g, %d, %lld)", res, cfg.baud, (long long)params_of(c)->address);
+    const lms200_driver_cfg_t *cfg = &params_of(c)->drv;
+    l->drv = lms200_driver_create(cfg, &driver_ops, l);
+    if (!l->drv && errno == EINVAL) {
+        marie_component_fail_reason(c, "resolution must be 0.5 or 1, baud 9600/19200/38400/500000, address 0..127, "
+                                    "timeouts and retries above 0 (got %g, %lld, %lld)", cfg->resolution,
+                                    (long long)cfg->baud, (long long)cfg->address);
         free(l);
         return -1;
     }
-    l->drv = lms200_driver_create(&cfg, &driver_ops, l);
     l->tick = marie_loop_add_timer(marie_component_loop(c), 20000, on_tick, l);
     l->scan_port = marie_port(c, "scan");
     if (!l->drv || !l->tick) {

@@ -12,6 +12,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/err.h"
 #include "core/loop.h"
 #include "hw/lms200/serial.h"
 
@@ -20,6 +21,7 @@
 
 struct vlms200 {
     vlms200_cfg_t cfg;
+    lms200_unit_t unit;             /* cfg.units */
     char *link;
     int master, slave;
     char path[128];
@@ -64,13 +66,17 @@ static void on_command(void *user, const lms200_telegram_t *t);
 
 vlms200_t *vlms200_create(const vlms200_cfg_t *cfg)
 {
+    static const vlms200_cfg_t defaults = VLMS200_DEFAULTS;
+    cfg = cfg ? cfg : &defaults;
+    if (!cfg->units || (strcmp(cfg->units, "mm") && strcmp(cfg->units, "cm")) || cfg->address < 0 ||
+        cfg->address > 0x7f)
+        return marie_fail_null(EINVAL);
     vlms200_t *v = calloc(1, sizeof *v);
     if (!v)
         return NULL;
-    if (cfg)
-        v->cfg = *cfg;
-    else
-        v->cfg.unit = LMS200_UNIT_MM;
+    v->cfg = *cfg;
+    v->cfg.units = NULL;        /* the caller's string is not kept: unit says it */
+    v->unit = strcmp(cfg->units, "mm") == 0 ? LMS200_UNIT_MM : LMS200_UNIT_CM;
     if (v->cfg.rate_hz <= 0)
         v->cfg.rate_hz = 75;
     v->master = v->slave = -1;
@@ -236,7 +242,7 @@ static void flush_out(vlms200_t *v)
 
 static uint16_t raw_value(const vlms200_t *v, double m)
 {
-    double scale = v->cfg.unit == LMS200_UNIT_MM ? 1000.0 : 100.0;
+    double scale = v->unit == LMS200_UNIT_MM ? 1000.0 : 100.0;
     if (!isfinite(m) || m < 0 || m * scale >= LMS200_VALUE_ERROR_MIN)
         return 0x1FFF;
     return (uint16_t)lround(m * scale);
@@ -248,7 +254,7 @@ double vlms200_expected_range(const vlms200_t *v, int i, int res_cdeg)
     if (g < 0 || g >= NGRID)
         return NAN;
     uint16_t raw = raw_value(v, v->ranges[g]);
-    return lms200_value_m(raw, v->cfg.unit);
+    return lms200_value_m(raw, v->unit);
 }
 
 void vlms200_set_ranges(vlms200_t *v, const float *m, size_t n)
@@ -276,7 +282,7 @@ void vlms200_on_scan(vlms200_t *v, vlms200_scan_cb_t cb, void *user)
 /* What n bytes take on the line: 10 bits each at the current rate. */
 static int64_t wire_us(const vlms200_t *v, size_t n)
 {
-    return (int64_t)n * 10 * 1000000 / v->baud;
+    return lms200_wire_us(n, v->baud);
 }
 
 static void send_scan(vlms200_t *v)
@@ -291,7 +297,7 @@ static void send_scan(vlms200_t *v)
     for (int i = 0; i < n; i++)
         vals[i] = raw_value(v, v->ranges[i * step]);
     uint8_t tg[LMS200_MAX_TELEGRAM];
-    size_t len = lms200_encode_scan(tg, sizeof tg, v->cfg.addr, v->cfg.unit, vals, (size_t)n, 0x10);
+    size_t len = lms200_encode_scan(tg, sizeof tg, (uint8_t)v->cfg.address, v->unit, vals, (size_t)n, 0x10);
     uint64_t k = ++v->scan_no;
     if (v->cfg.garbage_every > 0 && k % (uint64_t)v->cfg.garbage_every == 0)
         vlms200_inject_garbage(v, 1 + rnd(v) % 32);
@@ -326,7 +332,7 @@ static void reply_mode(vlms200_t *v, uint8_t result)
 {
     uint8_t ack = LMS200_ACK, tg[16];
     queue(v, &ack, 1);
-    queue(v, tg, lms200_encode_mode_reply(tg, sizeof tg, v->cfg.addr, result, 0x10));
+    queue(v, tg, lms200_encode_mode_reply(tg, sizeof tg, (uint8_t)v->cfg.address, result, 0x10));
 }
 
 static void nak(vlms200_t *v)
@@ -339,7 +345,7 @@ static void nak(vlms200_t *v)
 static void on_command(void *user, const lms200_telegram_t *t)
 {
     vlms200_t *v = user;
-    if ((t->addr & LMS200_REPLY_BIT) || t->addr != v->cfg.addr)
+    if ((t->addr & LMS200_REPLY_BIT) || t->addr != (uint8_t)v->cfg.address)
         return;     /* another device's telegram, or a reply looped back */
     v->st.commands++;
     switch (t->cmd) {
@@ -383,7 +389,7 @@ static void on_command(void *user, const lms200_telegram_t *t)
         }
         uint8_t ack = LMS200_ACK, tg[24];
         queue(v, &ack, 1);
-        queue(v, tg, lms200_encode_variant_reply(tg, sizeof tg, v->cfg.addr, ok,
+        queue(v, tg, lms200_encode_variant_reply(tg, sizeof tg, (uint8_t)v->cfg.address, ok,
                                                  (uint16_t)v->angle_deg, (uint16_t)v->res_cdeg, 0x10));
         break;
     }

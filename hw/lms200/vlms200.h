@@ -8,24 +8,15 @@
 #include <stdint.h>
 
 #include "hw/lms200/lms200.h"
+#include "hw/lms200/vlms200_params.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    uint8_t addr;               /* device address (0) */
-    double rate_hz;             /* scans per second while streaming; also capped by the line
-                                 * speed like the real device (<= 0: 75, the LMS200's mirror) */
-    lms200_unit_t unit;         /* units of measured values */
-    int corrupt_every;          /* every Nth scan telegram carries a wrong CRC (0: never) */
-    int garbage_every;          /* every Nth scan is preceded by 1..32 garbage bytes */
-    int truncate_every;         /* every Nth scan telegram is cut off half way */
-    bool ignore_baud;           /* accept the host at any line speed (default: like a real
-                                 * UART, bytes at the wrong rate are garbled) */
-    bool line_time;             /* a scan's telegram reaches the host the line's transfer time
-                                 * after the scan, as on the wire (default: at once) */
-} vlms200_cfg_t;
+/* vlms200_cfg_t: the device's settings, declared in vlms200.params.yaml (rate_hz, units "mm" or
+ * "cm", address, fault injection every Nth scan, ignore_baud) with VLMS200_DEFAULTS, and
+ * marie-vlms200's options VLMS200_CLI; line_time is set by the code (the simulator). */
 
 typedef struct {
     int64_t commands;           /* good telegrams received */
@@ -41,7 +32,8 @@ typedef struct {
 
 typedef struct vlms200 vlms200_t;
 
-/* NULL with errno on failure; cfg NULL takes the defaults. */
+/* NULL with errno on failure (EINVAL: units not "mm" or "cm", an address over 127); cfg NULL
+ * takes the defaults; a rate_hz <= 0 is the LMS200's mirror, 75. */
 vlms200_t *vlms200_create(const vlms200_cfg_t *cfg);
 void vlms200_destroy(vlms200_t *v);                     /* NULL is a no-op */
 

@@ -1,16 +1,18 @@
 /* marie-vlms200: a virtual SICK LMS200 on a pty, for tests and for running marie-lms200 without
  * the laser. The slave path goes to --path-file and/or the --link symlink. */
 #include <errno.h>
-#include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "core/cli.h"
 #include "core/log.h"
 #include "core/loop.h"
 #include "core/time.h"
+#include "core/version.h"
 #include "hw/lms200/vlms200.h"
+#include "core/version.h"
 
 typedef struct {
     marie_loop_t *loop;
@@ -20,24 +22,8 @@ typedef struct {
     int fd;                     /* as watched by the loop, -1: none */
     short events;
     marie_timer_t *wake;        /* one-shot at the device's next deadline, NULL: none */
-    long silent_ms, unplug_ms;
+    int64_t silent_ms, unplug_ms;
 } emu_t;
-
-static void usage(FILE *out)
-{
-    fprintf(out,
-            "usage: marie-vlms200 [options]\n"
-            "  --link PATH          symlink to the pty slave (kept current across unplugs)\n"
-            "  --path-file FILE     write the slave's path to FILE (rewritten on every reopen)\n"
-            "  --rate HZ            scans per second while streaming (default 10; a real LMS200: 75)\n"
-            "  --units mm|cm        units of measured values (default mm)\n"
-            "  --corrupt-every N    every Nth scan has a bad CRC\n"
-            "  --garbage-every N    garbage bytes before every Nth scan\n"
-            "  --truncate-every N   every Nth scan is cut off half way\n"
-            "  --silent-at MS --silent-ms T    stop answering T ms, MS ms after start\n"
-            "  --unplug-at MS --unplug-ms T    close the pty MS ms after start; a fresh one T ms later\n"
-            "  --ignore-baud        accept the host at any line speed\n");
-}
 
 static int write_path(const char *file, const char *path)
 {
@@ -110,7 +96,7 @@ static void on_wake(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
 static void on_silent(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     emu_t *e = user;
-    marie_info("fault: silent for %ld ms", e->silent_ms);
+    marie_info("fault: silent for %lld ms", (long long)e->silent_ms);
     vlms200_silence(e->v, marie_mono_us() + e->silent_ms * 1000);
     sync_device(e);
 }
@@ -118,56 +104,32 @@ static void on_silent(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, vo
 static void on_unplug(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     emu_t *e = user;
-    marie_info("fault: unplugged for %ld ms", e->unplug_ms);
+    marie_info("fault: unplugged for %lld ms", (long long)e->unplug_ms);
     vlms200_unplug(e->v, marie_mono_us(), e->unplug_ms * 1000);
     sync_device(e);
 }
 
 int main(int argc, char **argv)
 {
-    vlms200_cfg_t cfg = { .rate_hz = 10, .unit = LMS200_UNIT_MM };
+    marie_version_exit("marie-vlms200", argc, argv);
+    vlms200_cfg_t cfg = VLMS200_DEFAULTS;
     const char *link = NULL, *path_file = NULL;
-    long silent_at = -1, silent_ms = 0, unplug_at = -1, unplug_ms = 1000;
-    enum { O_LINK = 1, O_PATH, O_RATE, O_UNITS, O_CORRUPT, O_GARBAGE, O_TRUNC, O_SAT, O_SMS,
-           O_UAT, O_UMS, O_IGN, O_HELP };
-    static const struct option opts[] = {
-        { "link", required_argument, 0, O_LINK }, { "path-file", required_argument, 0, O_PATH },
-        { "rate", required_argument, 0, O_RATE }, { "units", required_argument, 0, O_UNITS },
-        { "corrupt-every", required_argument, 0, O_CORRUPT },
-        { "garbage-every", required_argument, 0, O_GARBAGE },
-        { "truncate-every", required_argument, 0, O_TRUNC },
-        { "silent-at", required_argument, 0, O_SAT }, { "silent-ms", required_argument, 0, O_SMS },
-        { "unplug-at", required_argument, 0, O_UAT }, { "unplug-ms", required_argument, 0, O_UMS },
-        { "ignore-baud", no_argument, 0, O_IGN }, { "help", no_argument, 0, O_HELP },
-        { 0 },
+    int64_t silent_at = -1, silent_ms = 0, unplug_at = -1, unplug_ms = 1000;
+    const marie_cli_opt_t opts[] = {
+        { "link", MARIE_CLI_STRING, &link, 0, 0, "PATH symlink to the pty slave (kept current across unplugs)" },
+        { "path-file", MARIE_CLI_STRING, &path_file, 0, 0, "FILE write the slave's path to FILE (rewritten on every reopen)" },
+        VLMS200_CLI(&cfg)
+        { "silent-at", MARIE_CLI_INT, &silent_at, 0, 1e9, "MS   stop answering for --silent-ms, MS ms after start" },
+        { "silent-ms", MARIE_CLI_INT, &silent_ms, 0, 1e9, "T    how long it stays silent" },
+        { "unplug-at", MARIE_CLI_INT, &unplug_at, 0, 1e9, "MS   close the pty MS ms after start" },
+        { "unplug-ms", MARIE_CLI_INT, &unplug_ms, 0, 1e9, "T    a fresh pty T ms after the unplug (default 1000)" },
+        { NULL },
     };
-    int o;
-    while ((o = getopt_long(argc, argv, "", opts, NULL)) != -1) {
-        switch (o) {
-        case O_LINK: link = optarg; break;
-        case O_PATH: path_file = optarg; break;
-        case O_RATE: cfg.rate_hz = atof(optarg); break;
-        case O_UNITS:
-            if (strcmp(optarg, "mm") && strcmp(optarg, "cm")) {
-                fprintf(stderr, "marie-vlms200: --units must be mm or cm\n");
-                return 2;
-            }
-            cfg.unit = strcmp(optarg, "mm") == 0 ? LMS200_UNIT_MM : LMS200_UNIT_CM;
-            break;
-        case O_CORRUPT: cfg.corrupt_every = atoi(optarg); break;
-        case O_GARBAGE: cfg.garbage_every = atoi(optarg); break;
-        case O_TRUNC: cfg.truncate_every = atoi(optarg); break;
-        case O_SAT: silent_at = atol(optarg); break;
-        case O_SMS: silent_ms = atol(optarg); break;
-        case O_UAT: unplug_at = atol(optarg); break;
-        case O_UMS: unplug_ms = atol(optarg); break;
-        case O_IGN: cfg.ignore_baud = true; break;
-        case O_HELP: usage(stdout); return 0;
-        default: usage(stderr); return 2;
-        }
-    }
-    if (optind < argc || cfg.rate_hz <= 0) {
-        usage(stderr);
+    int rc = marie_cli_parse("marie-vlms200", opts, argc, argv);
+    if (rc >= 0)
+        return rc;
+    if (optind < argc) {
+        marie_cli_usage("marie-vlms200", opts, stderr);
         return 2;
     }
 
@@ -176,7 +138,7 @@ int main(int argc, char **argv)
         marie_error("cannot create the virtual LMS200: %s", strerror(errno));
         return 1;
     }
-    int rc = vlms200_open(v, link);
+    rc = vlms200_open(v, link);
     if (rc < 0) {
         marie_error("cannot create the pty%s%s: %s", link ? " or link " : "", link ? link : "", strerror(-rc));
         vlms200_destroy(v);

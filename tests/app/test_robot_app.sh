@@ -63,4 +63,6 @@ check "chaos: the mission still completes" test "$(json $c mission_done)" = True
 check "chaos: every goal reached" test "$(json $c reached)" = "$(json $c goals)"
 check "chaos: at least 5 goals" le 5 "$(json $c goals)"
 check "chaos: the summary counts the restarts" le "$(json $c kills)" "$(json $c restarts)"
+check "chaos: the run says its seed, and the summary keeps it" \
+    grep -q "seed $(json $c seed) (--seed $(json $c seed) draws" "$out/chaos.txt"
 finish

@@ -44,12 +44,14 @@ static void trace(const char *fmt, ...)
         syscall(SYS_write, trace_fd, line, (size_t)n < sizeof line ? (size_t)n : sizeof line - 1);
 }
 
-/* 1 for a path under the directory, 2 for the directory itself, else 0. */
+/* 1 for a path under the directory, 2 for the directory itself, else 0. A SharedMap's
+ * FILE.lock is not watched: besides the lock it holds only a note of the last record
+ * acknowledged, advisory and never synced by design (docs/ca.md). */
 static int classify(const char *path)
 {
     const char *d = getenv("SYNCSHIM_DIR");
-    size_t n = d ? strlen(d) : 0;
-    if (!n || !path || strncmp(path, d, n) != 0)
+    size_t n = d ? strlen(d) : 0, len = path ? strlen(path) : 0;
+    if (!n || !path || strncmp(path, d, n) != 0 || (len > 5 && strcmp(path + len - 5, ".lock") == 0))
         return 0;
     return path[n] == 0 ? 2 : path[n] == '/' ? 1 : 0;
 }

@@ -17,6 +17,7 @@
 
 #include "ca/sharedmap.h"
 #include "ca/sharedmap_log.h"
+#include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_pose2d_t.h"
 #include "tests/ca/sharedmap_damage.h"
 
@@ -292,6 +293,128 @@ static void test_whole_records_cut_out_are_counted(void **state)
     sharedmap_close(sm);
 }
 
+/* Damage that removes nothing: a record written twice, bytes inserted between two records,
+ * two records swapped. Every record is intact and must be replayed, in sequence order (the
+ * swapped pair sets one key, so the order shows in the value); the reader used to accept
+ * after damage only a record whose number skipped one, and lost the intact record after it. */
+static size_t image_with(int kind, smd_log_t *l, uint8_t *out)
+{
+    smd_init(l);
+    for (int i = 0; i < 30; i++) {
+        uint8_t data[16];
+        char key[16];
+        memset(data, i, sizeof data);
+        snprintf(key, sizeof key, "key%02d", i == 11 ? 10 : i);   /* 10 and 11 set one key */
+        smd_add(l, SHAREDMAP_LOG_SET, key, data, sizeof data);
+    }
+    const smd_rec_t *a = &l->r[10], *b = &l->r[11];
+    size_t n = 0;
+    memcpy(out, l->img, b->off);
+    n = b->off;
+    if (kind == 0) {                    /* record 10 twice */
+        memcpy(out + n, l->img + a->off, a->size);
+        n += a->size;
+    } else if (kind == 1) {             /* 37 stray bytes */
+        for (int i = 0; i < 37; i++)
+            out[n++] = (uint8_t)(0xA7 ^ (i * 29));
+    } else {                            /* 11 before 10 */
+        n = a->off;
+        memcpy(out + n, l->img + b->off, b->size);
+        memcpy(out + n + b->size, l->img + a->off, a->size);
+        n += a->size + b->size;
+    }
+    memcpy(out + n, l->img + b->off + (kind == 2 ? b->size : 0), l->len - b->off - (kind == 2 ? b->size : 0));
+    return n + l->len - b->off - (kind == 2 ? b->size : 0);
+}
+
+static void test_damage_that_removes_nothing_keeps_every_record(void **state)
+{
+    static const char *what[] = { "a record written twice", "bytes inserted between records",
+                                  "two records swapped" };
+    for (int kind = 0; kind < 3; kind++) {
+        clean_dir();
+        size_t len = image_with(kind, &lg, img);
+        write_file(path, img, len);
+        sharedmap_t *sm = sharedmap_open(path, NULL);
+        assert_non_null(sm);
+        print_message("%s: %lld records replayed, %lld lost\n", what[kind],
+                      (long long)sharedmap_load_report(sm)->records,
+                      (long long)sharedmap_load_report(sm)->records_skipped);
+        assert_map_is(sm, &lg);         /* all 30, in their order */
+        const sharedmap_replay_t *rep = sharedmap_load_report(sm);
+        assert_int_equal(rep->records, 30);
+        assert_int_equal(rep->records_skipped, 0);
+        assert_int_equal(rep->duplicates, kind == 0);
+        assert_int_equal(rep->bytes_skipped, kind == 1 ? 37 : 0);
+        assert_int_equal(rep->reordered, kind == 2);
+        /* still damage: kept aside as found, the log rewritten clean */
+        char aside[600];
+        assert_int_equal(kept_aside(aside, sizeof aside), 1);
+        sharedmap_close(sm);
+        sm = sharedmap_open(path, NULL);
+        assert_false(sharedmap_log_damaged(sharedmap_load_report(sm)));
+        assert_map_is(sm, &lg);
+        sharedmap_close(sm);
+    }
+}
+
+typedef struct {
+    char kind[64];
+    int64_t severity;
+    char text[600];
+} last_event_t;
+
+static void note_event(void *user, ca_note_kind_t kind, const char *counter, int64_t n, const char *text)
+{
+    last_event_t *e = user;
+    if (kind != CA_NOTE_EVENT)
+        return;
+    snprintf(e->kind, sizeof e->kind, "%s", counter);
+    e->severity = n;
+    snprintf(e->text, sizeof e->text, "%s", text ? text : "");
+}
+
+/* The SharedMap notes the last record it acknowledged (beside the log, in FILE.lock): a log
+ * cut after a clean stop lost acknowledged records, which a torn tail alone would pass off
+ * as the write a crash cut short. That is damage, at warn. */
+static void test_acknowledged_records_cut_off_are_damage(void **state)
+{
+    for (int whole = 0; whole < 2; whole++) {
+        clean_dir();
+        sharedmap_t *sm = sharedmap_open(path, NULL);
+        assert_non_null(sm);
+        size_t last = 0;
+        for (int i = 0; i < 6; i++) {
+            uint8_t buf[64];
+            char key[16];
+            marie_pose2d_t p = { .x = i };
+            snprintf(key, sizeof key, "k%d", i);
+            int n = marie_pose2d_t_encode(buf, 0, sizeof buf, &p);
+            last = file_size(path);
+            assert_int_equal(sharedmap_set(sm, key, "marie.pose2d_t", buf, (size_t)n, i), 0);
+        }
+        sharedmap_close(sm);
+        /* the last record loses its end, or goes whole */
+        assert_int_equal(truncate(path, whole ? (off_t)last : (off_t)file_size(path) - 5), 0);
+        last_event_t ev = { "" };
+        ca_sink_t sink = { .note = note_event, .user = &ev };
+        sm = sharedmap_open(path, &sink);
+        assert_non_null(sm);
+        const sharedmap_replay_t *rep = sharedmap_load_report(sm);
+        print_message("%s\n", ev.text);
+        assert_int_equal(sharedmap_size(sm), 5);
+        assert_int_equal(rep->acked_lost, 1);
+        assert_int_equal(rep->records_skipped, 1);
+        assert_int_equal(rep->torn_bytes, 0);
+        assert_string_equal(ev.kind, "sharedmap_log_damaged");
+        assert_int_equal(ev.severity, MARIE_EVENT_T_SEV_WARN);
+        assert_non_null(strstr(ev.text, "1 acknowledged"));
+        char aside[600];
+        assert_int_equal(kept_aside(aside, sizeof aside), 1);
+        sharedmap_close(sm);
+    }
+}
+
 /* Logs written before records carried a marker are read and rewritten in today's format. */
 static void test_old_format_is_read_and_migrated(void **state)
 {
@@ -326,6 +449,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_random_damage_keeps_every_untouched_record, setup, teardown),
         cmocka_unit_test_setup_teardown(test_strict_refuses_and_leaves_the_file, setup, teardown),
         cmocka_unit_test_setup_teardown(test_whole_records_cut_out_are_counted, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_damage_that_removes_nothing_keeps_every_record, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_acknowledged_records_cut_off_are_damage, setup, teardown),
         cmocka_unit_test_setup_teardown(test_old_format_is_read_and_migrated, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -2,6 +2,7 @@
  * --help, unknown options. */
 #include <setjmp.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -90,6 +91,74 @@ static void usage_lists_every_option(void **state)
     assert_non_null(strstr(buf, "--help"));
 }
 
+static void a_repeated_option_keeps_every_value_in_order(void **state)
+{
+    marie_cli_list_t tags = { .n = 0 };
+    const marie_cli_opt_t opts[] = { { "tag", MARIE_CLI_LIST, &tags, 0, 0, "T a tag" }, { NULL } };
+    FILE *saved = stderr;
+    stderr = fopen("/dev/null", "w");
+    int rc = marie_cli_parse("prog", opts, 5, (char *[]){ "prog", "--tag", "a", "--tag=b", "op", NULL });
+    assert_int_equal(rc, -1);
+    assert_int_equal(tags.n, 2);
+    assert_string_equal(tags.items[0], "a");
+    assert_string_equal(tags.items[1], "b");
+    char *many[2 * MARIE_CLI_LIST_MAX + 4] = { "prog" };
+    for (int i = 0; i <= MARIE_CLI_LIST_MAX; i++) {
+        many[1 + 2 * i] = "--tag";
+        many[2 + 2 * i] = "x";
+    }
+    tags.n = 0;
+    rc = marie_cli_parse("prog", opts, 2 * MARIE_CLI_LIST_MAX + 3, many);
+    fclose(stderr);
+    stderr = saved;
+    assert_int_equal(rc, 2);
+    assert_int_equal(tags.n, MARIE_CLI_LIST_MAX);
+}
+
+/* A flag alone sets its bool; =0/=1/=false/=true say which; anything else is refused. */
+static void a_flag_alone_sets_it_and_takes_an_explicit_value(void **state)
+{
+    bool on = false;
+    const marie_cli_opt_t opts[] = { { "ignore-baud", MARIE_CLI_FLAG, &on, 0, 0, "accept any rate" }, { NULL } };
+    FILE *saved = stderr;
+    stderr = fopen("/dev/null", "w");
+    assert_int_equal(marie_cli_parse("prog", opts, 2, (char *[]){ "prog", "--ignore-baud", NULL }), -1);
+    assert_true(on);
+    assert_int_equal(marie_cli_parse("prog", opts, 2, (char *[]){ "prog", "--ignore-baud=false", NULL }), -1);
+    assert_false(on);
+    assert_int_equal(marie_cli_parse("prog", opts, 2, (char *[]){ "prog", "--ignore-baud=1", NULL }), -1);
+    assert_true(on);
+    assert_int_equal(marie_cli_parse("prog", opts, 2, (char *[]){ "prog", "--ignore-baud=yes please", NULL }), 2);
+    assert_true(on);
+    /* a flag takes no separate value: the word after it is an operand */
+    assert_int_equal(marie_cli_parse("prog", opts, 3, (char *[]){ "prog", "--ignore-baud", "0", NULL }), -1);
+    assert_int_equal(optind, 2);
+    fclose(stderr);
+    stderr = saved;
+}
+
+/* A string with choices takes one of them, whole; the usage lists them. */
+static void a_string_with_choices_takes_only_those(void **state)
+{
+    const char *units = "mm";
+    const marie_cli_opt_t opts[] = { { "units", MARIE_CLI_STRING, &units, 0, 0, "U units", "mm|cm" }, { NULL } };
+    FILE *saved = stderr;
+    stderr = fopen("/dev/null", "w");
+    assert_int_equal(marie_cli_parse("prog", opts, 3, (char *[]){ "prog", "--units", "cm", NULL }), -1);
+    assert_string_equal(units, "cm");
+    const char *bad[] = { "m", "mmm", "c", "", "mm|cm", "MM" };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
+        assert_int_equal(marie_cli_parse("prog", opts, 3, (char *[]){ "prog", "--units", (char *)bad[i], NULL }), 2);
+    assert_string_equal(units, "cm");
+    fclose(stderr);
+    stderr = saved;
+    char buf[256] = "";
+    FILE *f = fmemopen(buf, sizeof buf - 1, "w");
+    marie_cli_usage("prog", opts, f);
+    fclose(f);
+    assert_non_null(strstr(buf, "U units [mm|cm]"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -97,6 +166,9 @@ int main(void)
         cmocka_unit_test(bad_values_exit_2_and_leave_the_value),
         cmocka_unit_test(help_exits_0_and_unknown_or_missing_values_exit_2),
         cmocka_unit_test(usage_lists_every_option),
+        cmocka_unit_test(a_repeated_option_keeps_every_value_in_order),
+        cmocka_unit_test(a_flag_alone_sets_it_and_takes_an_explicit_value),
+        cmocka_unit_test(a_string_with_choices_takes_only_those),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -55,6 +55,32 @@ static void unset_or_malformed_references_are_errors(void **state)
     assert_non_null(strstr(why, "bad variable name"));
 }
 
+/* marie up -a: the named ${...} (with or without a default) take the argument's value, anywhere
+ * in the text; the others stay for the components' environment. */
+static void launch_arguments_fill_only_their_names(void **state)
+{
+    char *args[] = {"rate=20", "host=onboard1"}, why[256] = "";
+    int used[2] = {0, 0};
+    char *out = marie_expand_args("a: ${rate}\nb: ${host:-x} ${MARIE_RUN_DIR}/can ${rate}\nc: ${other:-5}", args, 2,
+                                  used, why, sizeof why);
+    assert_non_null(out);
+    assert_string_equal(out, "a: 20\nb: onboard1 ${MARIE_RUN_DIR}/can 20\nc: ${other:-5}");
+    assert_int_equal(used[0], 1);
+    assert_int_equal(used[1], 1);
+    free(out);
+    char *unused[] = {"nothere=1"};
+    used[0] = 0;
+    out = marie_expand_args("a: ${rate}", unused, 1, used, why, sizeof why);
+    assert_string_equal(out, "a: ${rate}");
+    assert_int_equal(used[0], 0);
+    free(out);
+    char *bad[] = {"novalue"};
+    errno = 0;
+    assert_null(marie_expand_args("x", bad, 1, NULL, why, sizeof why));
+    assert_int_equal(errno, EINVAL);
+    assert_non_null(strstr(why, "expected name=value"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -62,6 +88,7 @@ int main(void)
         cmocka_unit_test(defaults_apply_when_unset_or_empty),
         cmocka_unit_test(plain_dollars_are_kept),
         cmocka_unit_test(unset_or_malformed_references_are_errors),
+        cmocka_unit_test(launch_arguments_fill_only_their_names),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

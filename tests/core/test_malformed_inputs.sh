@@ -24,6 +24,8 @@ recipe() {
     marie-drives) echo "drives|--param can=emu:$OUT/can" ;;
     marie-gyro) echo "gyro|--param can=emu:$OUT/can" ;;
     marie-example-consumer) echo "consumer|" ;;
+    marie-example-consumer-py) echo "consumer_py|" ;;
+    marie-odometer-py) echo "odometer_py|" ;;
     marie-localizer) echo "localizer|--param map=sim/worlds/office.yaml --param init_x=2 --param init_y=15" ;;
     marie-mapper) echo "mapper|" ;;
     marie-explore) echo "explore|" ;;
@@ -40,6 +42,7 @@ recipe() {
         echo "asr_array|--param input=array||separated" ;;
     marie-tts) echo "tts|" ;;
     marie-dialogue) echo "dialogue|" ;;
+    marie-ros2) echo "ros2|--system tests/ros2/malformed_inputs.yaml" ;;
     marie-audio) echo "audio|--param 'device=\"\"' --param playback=null" ;;   # no capture: the null PCM has no clock
     *) return 1 ;;
     esac

@@ -187,4 +187,114 @@ defaults: D
 tables:
   S:
     n: [node, \"[]\", help]"
+# A program that is not a component: its options from a file with cli:, a member taken with a
+# prefix, fields that are no parameter, and defaults: over the members.
+cat > "$T/lib/dev.params.yaml" <<'YAML'
+struct: dev_cfg_t
+defaults: DEV_DEFAULTS
+fields:
+  node: [uint8_t, "set by the code"]
+tables:
+  DEV_PARAMS:
+    bias: [double, "0.01", "rad/s", {range: [-1, 1], metavar: R}]
+    seed: [int, "1", "noise seed", {range: [1, 100]}]
+YAML
+cat > "$T/emu.params.yaml" <<YAML
+struct: emu_cfg_t
+defaults: EMU_DEFAULTS
+cli: EMU_CLI
+members:
+  dev: {file: $T/lib/dev.params.yaml, prefix: gyro_, defaults: {seed: "7"}}
+fields:
+  external: bool
+tables:
+  EMU_PARAMS:
+    can: [string, null, "the bus", {metavar: URL}]
+    rate_hz: [double, "10", "scans per second", {option: rate, range: [0.01, 1000]}]
+    units: [string, "mm", "units", {choices: [mm, cm]}]
+    quiet: [bool, "false", "say nothing"]
+    hidden: [int, "3", "not an option", {option: no}]
+YAML
+cat > "$T/emu.c" <<'C'
+#include <stdio.h>
+#include <unistd.h>
+#include "emu_params.h"
+int main(int argc, char **argv)
+{
+    emu_cfg_t cfg = EMU_DEFAULTS;
+    const marie_cli_opt_t opts[] = { EMU_CLI(&cfg) { NULL } };
+    int rc = marie_cli_parse("emu", opts, argc, argv);
+    if (rc >= 0)
+        return rc;
+    printf("%s %g %s %d %lld %g %lld %d %d\n", cfg.can ? cfg.can : "-", cfg.rate_hz, cfg.units, cfg.quiet,
+           (long long)cfg.hidden, cfg.dev.bias, (long long)cfg.dev.seed, cfg.dev.node, cfg.external);
+    return 0;
+}
+C
+cli_build() {
+    python3 core/params_gen.py "$T/lib/dev.params.yaml" "$T/lib/dev_params.h" &&
+        python3 core/params_gen.py "$T/emu.params.yaml" "$T/emu_params.h" &&
+        ${CC:-cc} -std=gnu11 -Wall -Werror $SANFLAGS -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE \
+            $(pkg-config --cflags lcm glib-2.0 libfyaml) -o "$T/emu" "$T/emu.c" "$B/lib/libmarie.a" \
+            $(pkg-config --libs lcm glib-2.0 libfyaml libsodium) -lm -lpthread
+}
+check "cli: a program's options compile from the file, with a member's and its fields" cli_build
+check "cli: the defaults, a member's with the file's own override, fields zero" \
+    test "$("$T/emu")" = "- 10 mm 0 3 0.01 7 0 0"
+check "cli: options by their names (rate for rate_hz, gyro-bias for the prefixed member's bias, a flag)" \
+    test "$("$T/emu" --can emu:/x --rate 20 --units cm --quiet --gyro-bias=-0.5 --gyro-seed 9)" = "emu:/x 20 cm 1 3 -0.5 9 0 0"
+check "cli: out of range, not a choice, and option: no are refused with status 2" \
+    sh -c "! '$T/emu' --rate 0 2>/dev/null && ! '$T/emu' --units km 2>/dev/null && ! '$T/emu' --hidden 4 2>/dev/null &&
+           '$T/emu' --rate 0 2>/dev/null; [ \$? -eq 2 ]"
+usage_has() { "$T/emu" --help | grep -q -- "$1"; }
+check "cli: the usage says the value's name, the help, the default and the choices" \
+    usage_has "--rate  *X    scans per second (default 10)"
+check "... choices" usage_has "--units  *TEXT units (default mm) \[mm|cm\]"
+check "... a prefixed member's option" usage_has "--gyro-bias  *R    rad/s (default 0.01)"
+
+check "an option without its range" fails 5 "struct: s_t
+cli: S_CLI
+tables:
+  S:
+    a: [double, \"5\", help]"
+check "a flag that defaults to true" fails 5 "struct: s_t
+cli: S_CLI
+tables:
+  S:
+    a: [bool, \"true\", help]"
+check "an unknown option key" fails 4 "struct: s_t
+tables:
+  S:
+    a: [double, \"5\", help, {ragne: [0, 1]}]"
+check "choices on a number" fails 4 "struct: s_t
+tables:
+  S:
+    a: [double, \"5\", help, {choices: [a, b]}]"
+check "two options of one name" fails 6 "struct: s_t
+cli: S_CLI
+tables:
+  S:
+    a_b: [int, \"5\", help, {range: [0, 9]}]
+    c: [int, \"5\", help, {range: [0, 9], option: a-b}]"
+check "a field named like a parameter" fails 3 "struct: s_t
+fields:
+  a: int
+tables:
+  S:
+    a: [int, \"5\", help]"
+check "a prefixed member parameter named like a parameter" fails 6 "struct: s_t
+members:
+  m: {file: $T/lib/dev.params.yaml, prefix: x_}
+tables:
+  S:
+    x_bias: [int, \"5\", help]"
+dynamic_ok() {
+    printf 'struct: s_t\ntables:\n  S:\n    a: [double, "5", help, dynamic]\n' > "$T/dyn.params.yaml"
+    python3 core/params_gen.py "$T/dyn.params.yaml" "$T/dyn_params.h" && grep -q "MARIE_PARAM_AT(s_t, a, DOUBLE" "$T/dyn_params.h"
+}
+check "dynamic: a fourth item marie param set reads" dynamic_ok
+check "a fourth item that is neither dynamic nor options" fails 4 "struct: s_t
+tables:
+  S:
+    a: [double, \"5\", help, static]"
 finish

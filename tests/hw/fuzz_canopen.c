@@ -44,7 +44,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     drives_ctl_t *ctl = drives_ctl_create(&cfg, drcb, NULL);
     vdrive_cfg_t vc;
     vdrive_cfg_default(&vc, 1);
-    vc.rpdo_timeout_us = 5000;
+    vc.rpdo_timeout = 0.005;
     vdrive_t *vd = vdrive_create(&vc);
     gyro_cfg_t gc;
     gyro_cfg_default(&gc);

@@ -33,8 +33,9 @@ typedef struct {
     bool master_dead;           /* the master neither cycles nor answers */
     struct { struct can_frame f; int src; } q[QMAX];   /* src: -1 master, 0/1 drive */
     int qh, qt;
-    int ev[16];                 /* events seen per kind */
-    uint32_t last_code[16];
+    int ev[32];                 /* events seen per kind */
+    uint32_t last_code[32];
+    char last_text[32][400];
     int frames_on_bus;
 } rig_t;
 
@@ -43,6 +44,8 @@ static void on_ev(void *user, int axis, drives_ev_t e, uint32_t code)
     rig_t *r = user;
     r->ev[e]++;
     r->last_code[e] = code;
+    if (r->ctl)
+        drives_ctl_event_text(r->ctl, axis, e, code, r->last_text[e], sizeof r->last_text[e]);
 }
 
 static void put(rig_t *r, const struct can_frame *f, int n, int src)
@@ -96,24 +99,33 @@ static void run(rig_t *r, int ms, double wl, double wr, bool command)
 
 static const char *drive_name = "marie vdrive";
 static uint16_t rig_rpdo_timeout_ms = 100;
+static bool rig_no_consumer, rig_no_deadline, rig_allow_unwatched;
+static bool rig_mute_left, rig_cut_right;      /* from power-on */
+static int64_t rig_cmd_timeout_us = 500000;
 
 static int setup(void **state)
 {
     rig_t *r = calloc(1, sizeof *r);
     drives_cfg_t cfg;
     drives_cfg_default(&cfg);
-    cfg.node[0] = 1;
-    cfg.node[1] = 2;
-    cfg.invert[1] = false;
-    cfg.rpdo_timeout_ms = rig_rpdo_timeout_ms;
+    cfg.left_node = 1;
+    cfg.right_node = 2;
+    cfg.right_invert = false;
+    cfg.rpdo_timeout = rig_rpdo_timeout_ms / 1000.0;
+    cfg.allow_unwatched = rig_allow_unwatched;
+    cfg.cmd_timeout = rig_cmd_timeout_us / 1e6;
     r->ctl = drives_ctl_create(&cfg, on_ev, r);
     for (int i = 0; i < 2; i++) {
         vdrive_cfg_t vc;
         vdrive_cfg_default(&vc, (uint8_t)(i + 1));
         vc.name = drive_name;
+        vc.no_consumer = rig_no_consumer;
+        vc.no_rpdo_deadline = rig_no_deadline;
         r->vd[i] = vdrive_create(&vc);
     }
     r->now = 1000000;
+    r->mute_sdo[0] = rig_mute_left;
+    r->cut[1] = rig_cut_right;
     struct can_frame tx[16];
     for (int i = 0; i < 2; i++)
         put(r, tx, vdrive_boot(r->vd[i], r->now, tx, 16), i);
@@ -518,6 +530,184 @@ static void drive_without_name_comes_up(void **state)
     assert_true(drives_ctl_all_enabled(r->ctl));
 }
 
+/* ---- drives without optional objects, the restart interlock, what events say ---- */
+
+/* 0x1016 is optional in CiA 301. A drive without it is configured, driven, and stopped by its
+ * RPDO deadline when the master dies (it used to be refused its configuration forever, the
+ * event naming no object). */
+static int setup_no_consumer(void **state)
+{
+    rig_no_consumer = true;
+    int rc = setup(state);
+    rig_no_consumer = false;
+    return rc;
+}
+
+static void drive_without_0x1016_relies_on_its_rpdo_deadline(void **state)
+{
+    rig_t *r = *state;
+    run(r, 1000, 0, 0, true);
+    assert_int_equal(r->ev[DRIVES_EV_CONFIG_FAILED], 0);
+    assert_int_equal(r->ev[DRIVES_EV_CONFIGURED], 2);
+    assert_int_equal(r->ev[DRIVES_EV_WATCH], 2);
+    assert_int_equal(r->last_code[DRIVES_EV_WATCH], DRIVES_WATCH_RPDO_ONLY);
+    assert_non_null(strstr(r->last_text[DRIVES_EV_WATCH], "RPDO deadline alone (0x1400:05, 100 ms)"));
+    assert_non_null(strstr(r->last_text[DRIVES_EV_OPTIONAL_MISSING], "0x1016:01 (consumer heartbeat time"));
+    const drives_axis_t *a = drives_ctl_axis(r->ctl, 0);
+    assert_true(a->lacks_consumer && !a->watches_hb && a->watches_rpdo && !a->refused);
+    assert_int_equal(a->identity[1], VDRIVE_PRODUCT_CODE);          /* 0x1018 read */
+    assert_int_equal(a->identity[3], 1);
+    assert_non_null(strstr(r->last_text[DRIVES_EV_CONFIGURED], "serial 2"));
+    run(r, 600, 5.0, 5.0, true);
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 5.0) < 0.01);
+    r->master_dead = true;
+    int ms = ms_to_standstill(r, 2000);
+    print_message("standstill %d ms after the master died (RPDO deadline only)\n", ms);
+    assert_true(ms >= 0 && ms <= 300);
+    assert_int_equal(vdrive_stats(r->vd[0])->rpdo_timeouts, 1);
+    assert_int_equal(vdrive_stats(r->vd[0])->hb_losses, 0);
+}
+
+/* Neither 0x1016 nor 0x1400:05: nothing would stop the drive if the master died. Refused (kept
+ * disabled, told as an error), unless the system file allows it. */
+static int setup_unwatched(void **state)
+{
+    rig_no_consumer = rig_no_deadline = true;
+    int rc = setup(state);
+    rig_no_consumer = rig_no_deadline = false;
+    return rc;
+}
+
+static int setup_unwatched_allowed(void **state)
+{
+    rig_allow_unwatched = true;
+    int rc = setup_unwatched(state);
+    rig_allow_unwatched = false;
+    return rc;
+}
+
+static void drive_watching_nothing_is_refused(void **state)
+{
+    rig_t *r = *state;
+    run(r, 1000, 3.0, 3.0, true);
+    assert_int_equal(r->ev[DRIVES_EV_CONFIGURED], 2);
+    assert_int_equal(r->last_code[DRIVES_EV_WATCH], DRIVES_WATCH_NONE_REFUSED);
+    assert_non_null(strstr(r->last_text[DRIVES_EV_WATCH], "kept disabled"));
+    for (int i = 0; i < 2; i++) {
+        assert_true(drives_ctl_axis(r->ctl, i)->refused);
+        assert_int_equal(vdrive_state(r->vd[i]), CIA402_SWITCH_ON_DISABLED);
+        assert_true(fabs(vdrive_velocity(r->vd[i])) < 1e-9);
+    }
+    assert_false(drives_ctl_all_enabled(r->ctl));
+}
+
+static void drive_watching_nothing_is_driven_where_allowed(void **state)
+{
+    rig_t *r = *state;
+    run(r, 1000, 3.0, 3.0, true);
+    assert_int_equal(r->last_code[DRIVES_EV_WATCH], DRIVES_WATCH_NONE_ALLOWED);
+    assert_true(drives_ctl_all_enabled(r->ctl));
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 3.0) < 0.01);
+}
+
+/* A drive that reboots mid-run is reconfigured and enabled with target 0, and turns only for a
+ * command newer than its enabling: it used to resume the last one at once, at full speed until
+ * cmd_timeout. Here the last command stays fresh (cmd_timeout 5 s) for the whole reboot. */
+static int setup_long_cmd_timeout(void **state)
+{
+    rig_cmd_timeout_us = 5000000;
+    int rc = setup(state);
+    rig_cmd_timeout_us = 500000;
+    return rc;
+}
+
+static void rebooted_drive_waits_for_a_new_command(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 4.0, 4.0, true);
+    run(r, 500, 4.0, 4.0, true);
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 4.0) < 0.01);
+    struct can_frame tx[16];
+    vdrive_destroy(r->vd[0]);                   /* power cycle, no new command after it */
+    vdrive_cfg_t vc;
+    vdrive_cfg_default(&vc, 1);
+    r->vd[0] = vdrive_create(&vc);
+    put(r, tx, vdrive_boot(r->vd[0], r->now, tx, 16), 0);
+    deliver(r);
+    run(r, 1500, 0, 0, false);
+    assert_int_equal(vdrive_state(r->vd[0]), CIA402_OPERATION_ENABLED);
+    assert_false(drives_ctl_command_stale(r->ctl, r->now));
+    assert_true(fabs(vdrive_velocity(r->vd[0])) < 1e-9);       /* held at 0 */
+    assert_true(fabs(vdrive_velocity(r->vd[1]) - 4.0) < 0.01);  /* the other one was never restarted */
+    assert_int_equal(r->ev[DRIVES_EV_HOLD], 1);
+    assert_non_null(strstr(r->last_text[DRIVES_EV_HOLD], "left drive enabled again"));
+    run(r, 300, 2.0, 2.0, true);                /* a new command */
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 2.0) < 0.01);
+}
+
+/* The same after a fault reset: the drive comes back at 0 until commanded anew. */
+static void recovered_drive_waits_for_a_new_command(void **state)
+{
+    rig_t *r = *state;
+    run(r, 600, 4.0, 4.0, true);
+    vdrive_inject_fault(r->vd[0], CO_EMCY_OVERCURRENT);
+    run(r, 2000, 4.0, 4.0, false);
+    assert_int_equal(r->ev[DRIVES_EV_RECOVERED], 1);
+    assert_true(fabs(vdrive_velocity(r->vd[0])) < 1e-9);
+    run(r, 300, 4.0, 4.0, true);
+    assert_true(fabs(vdrive_velocity(r->vd[0]) - 4.0) < 0.01);
+}
+
+/* A configuration that fails before 0x1017 is written (the drive's SDO answers lost from the
+ * start) is no heartbeat loss: the drive sends none yet. It used to be followed by a false
+ * "heartbeat lost" 0.35 s later. The failure names the object, and a drive that never boots
+ * is told once. */
+static int setup_mute(void **state)
+{
+    rig_mute_left = rig_cut_right = true;
+    int rc = setup(state);
+    rig_mute_left = rig_cut_right = false;
+    return rc;
+}
+
+static void early_config_failure_is_no_heartbeat_loss(void **state)
+{
+    rig_t *r = *state;
+    run(r, 4500, 0, 0, true);
+    assert_int_equal(r->ev[DRIVES_EV_HB_TIMEOUT], 0);
+    assert_true(r->ev[DRIVES_EV_CONFIG_FAILED] >= 2);
+    const drives_axis_t *a = drives_ctl_axis(r->ctl, 0);
+    assert_int_equal(a->fail.index, 0x1000);
+    assert_int_equal(a->fail.abort, CO_SDO_ABORT_TIMEOUT);
+    assert_true(a->fail.repeats >= 1);
+    assert_string_equal(r->last_text[DRIVES_EV_CONFIG_FAILED],
+                        "left drive: configuration failed at 0x1000:00 (device type, read): SDO protocol timed out "
+                        "(0x05040000); stopped, again in 2 s (failed alike before)");
+    assert_int_equal(r->ev[DRIVES_EV_NOT_FOUND], 1);    /* the right one, silent */
+    assert_non_null(strstr(r->last_text[DRIVES_EV_NOT_FOUND], "right drive (node 2): no boot-up"));
+    /* once answers come, it comes up */
+    r->mute_sdo[0] = r->cut[1] = false;
+    run(r, 4500, 0, 0, true);
+    assert_true(drives_ctl_all_enabled(r->ctl));
+    assert_int_equal(r->ev[DRIVES_EV_HB_TIMEOUT], 0);
+}
+
+/* A fault told by the statusword alone says so: not "last EMCY 0x0000 error reset" (the
+ * default of a drive that never sent one, or the reset EMCY that cleared an earlier fault). */
+static void fault_without_emcy_says_no_emcy(void **state)
+{
+    rig_t *r = *state;
+    run(r, 500, 0, 0, true);
+    vdrive_inject_fault(r->vd[1], CO_EMCY_OVERCURRENT);    /* an earlier fault, reset by its EMCY 0x0000 */
+    run(r, 2000, 0, 0, true);
+    assert_int_equal(r->last_code[DRIVES_EV_EMCY], CO_EMCY_NO_ERROR);
+    assert_non_null(strstr(r->last_text[DRIVES_EV_FAULT], "last EMCY 0x2310"));
+    vdrive_inject_silent_fault(r->vd[1], CO_EMCY_OVERTEMP_DRIVE);
+    run(r, 100, 0, 0, true);
+    assert_int_equal(r->ev[DRIVES_EV_FAULT], 2);
+    assert_string_equal(r->last_text[DRIVES_EV_FAULT], "right drive in fault (no EMCY told why; statusword 0x1608)");
+}
+
 /* ---- CiA 301 objects of the virtual devices, through their SDO servers ---- */
 
 struct sdo_res { bool done; uint32_t abort; uint8_t data[CO_SDO_MAX]; size_t len; };
@@ -862,6 +1052,13 @@ int main(void)
         cmocka_unit_test_setup_teardown(forged_bootup_and_failed_config_stop_the_drive, setup_no_deadline, teardown),
         T(shutdown_leaves_drives_disabled_and_stopped),
         cmocka_unit_test_setup_teardown(drive_without_name_comes_up, setup_nameless, teardown),
+        cmocka_unit_test_setup_teardown(drive_without_0x1016_relies_on_its_rpdo_deadline, setup_no_consumer, teardown),
+        cmocka_unit_test_setup_teardown(drive_watching_nothing_is_refused, setup_unwatched, teardown),
+        cmocka_unit_test_setup_teardown(drive_watching_nothing_is_driven_where_allowed, setup_unwatched_allowed, teardown),
+        cmocka_unit_test_setup_teardown(rebooted_drive_waits_for_a_new_command, setup_long_cmd_timeout, teardown),
+        cmocka_unit_test_setup_teardown(recovered_drive_waits_for_a_new_command, setup_long_cmd_timeout, teardown),
+        cmocka_unit_test_setup_teardown(early_config_failure_is_no_heartbeat_loss, setup_mute, teardown),
+        T(fault_without_emcy_says_no_emcy),
         cmocka_unit_test(identity_object_in_drive_and_gyro),
         cmocka_unit_test(reset_communication_restores_communication_objects),
         cmocka_unit_test(expedited_download_without_size),

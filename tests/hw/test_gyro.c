@@ -14,6 +14,9 @@
 #include "hw/gyro/gyro_proto.h"
 #include "hw/gyro/vgyro.h"
 
+/* The master's default node id: the virtual gyro's in these rigs. */
+#define GYRO_NODE ((uint8_t)((gyro_cfg_t)GYRO_CFG_DEFAULTS).node)
+
 typedef struct {
     gyro_ctl_t *ctl;
     vgyro_t *dev;
@@ -81,10 +84,10 @@ static int setup(void **state)
     rig_t *r = calloc(1, sizeof *r);
     gyro_cfg_t cfg;
     gyro_cfg_default(&cfg);
-    cfg.period_ms = 10;
+    cfg.rate_hz = 100;
     r->ctl = gyro_ctl_create(&cfg, on_sample, on_ev, r);
     vgyro_cfg_t vc;
-    vgyro_cfg_default(&vc, GYRO_NODE_DEFAULT);
+    vgyro_cfg_default(&vc, GYRO_NODE);
     vc.bias = 0.02;
     vc.noise = 0.001;
     r->dev = vgyro_create(&vc);
@@ -219,7 +222,7 @@ static void slow_start(slow_t *s, int latency_ms, int boot_ms, int run_ms)
     gyro_cfg_default(&cfg);
     s->r.ctl = gyro_ctl_create(&cfg, on_sample, on_ev, &s->r);
     vgyro_cfg_t vc;
-    vgyro_cfg_default(&vc, GYRO_NODE_DEFAULT);
+    vgyro_cfg_default(&vc, GYRO_NODE);
     s->r.dev = vgyro_create(&vc);
     s->r.now = 1000000;
     struct can_frame tx[16];

@@ -294,6 +294,41 @@ static void test_crc_error_counted_and_next_telegram_kept(void **state)
     lms200_parser_destroy(p);
 }
 
+/* A device sending the same scan over and over, cut short five times in a row: five truncated
+ * telegrams, not three (each failed candidate used to swallow the start of the next), then
+ * the intact one. */
+static void test_truncated_telegrams_in_a_row_each_counted(void **state)
+{
+    uint8_t buf[2048];
+    size_t n = load_file(DATA "scan_361_mm.bin", buf, sizeof buf);
+    assert_int_equal(n, lms200_scan_telegram_len(361));
+    static uint8_t stream[8192];
+    size_t len = 0;
+    for (int i = 0; i < 5; i++) {
+        memcpy(stream + len, buf, n / 2);
+        len += n / 2;
+    }
+    memcpy(stream + len, buf, n);
+    len += n;
+    sink_t s = { 0 };
+    lms200_parser_t *p = lms200_parser_create(on_telegram, NULL, &s);
+    lms200_parser_feed(p, stream, len);
+    const lms200_parser_stats_t *st = lms200_parser_stats(p);
+    assert_int_equal(s.scans, 1);
+    assert_int_equal(st->truncated, 5);
+    assert_int_equal(st->crc_errors, 0);
+    /* a whole telegram with a bad CRC is still a CRC error, and one cut by it truncated */
+    memcpy(stream, buf, n / 3);
+    memcpy(stream + n / 3, buf, n);
+    stream[n / 3 + n - 1] ^= 0x5a;
+    memcpy(stream + n / 3 + n, buf, n);
+    lms200_parser_feed(p, stream, n / 3 + 2 * n);
+    assert_int_equal(s.scans, 2);
+    assert_int_equal(st->truncated, 6);
+    assert_int_equal(st->crc_errors, 1);
+    lms200_parser_destroy(p);
+}
+
 static void test_truncated_telegram_counted_and_next_kept(void **state)
 {
     uint8_t buf[2048];
@@ -418,6 +453,7 @@ int main(void)
         cmocka_unit_test(test_garbage_before_and_between_is_skipped),
         cmocka_unit_test(test_crc_error_counted_and_next_telegram_kept),
         cmocka_unit_test(test_truncated_telegram_counted_and_next_kept),
+        cmocka_unit_test(test_truncated_telegrams_in_a_row_each_counted),
         cmocka_unit_test(test_oversized_length_counted),
         cmocka_unit_test(test_ack_and_nak_between_telegrams),
         cmocka_unit_test(test_reset_from_callback_drops_rest_of_chunk),

@@ -98,6 +98,16 @@ static void on_health(void *user, bool degraded, const char *why)
 
 static const lms200_driver_ops_t ops = { .on_scan = on_scan, .on_event = on_event, .on_health = on_health };
 
+/* The driver's defaults with a test's device, line rate and resolution (1/100 degree). */
+static lms200_driver_cfg_t drv_cfg(const char *device, int baud, int res_cdeg)
+{
+    lms200_driver_cfg_t c = LMS200_DRIVER_DEFAULTS;
+    c.device = device;
+    c.baud = baud;
+    c.resolution = res_cdeg / 100.0;
+    return c;
+}
+
 static void rig_open(rig_t *r, const vlms200_cfg_t *ecfg, int baud, int res)
 {
     memset(r, 0, sizeof *r);
@@ -107,10 +117,12 @@ static void rig_open(rig_t *r, const vlms200_cfg_t *ecfg, int baud, int res)
     r->emu = vlms200_create(ecfg);
     assert_non_null(r->emu);
     assert_int_equal(vlms200_open(r->emu, r->link), 0);
-    lms200_driver_cfg_t cfg = {
-        .device = r->link, .baud = baud, .res_cdeg = res,
-        .reply_timeout_ms = 150, .config_timeout_ms = 500, .retries = 2, .data_timeout_ms = 800, .reopen_ms = 100,
-    };
+    lms200_driver_cfg_t cfg = drv_cfg(r->link, baud, res);
+    cfg.reply_timeout_ms = 150;
+    cfg.config_timeout_ms = 500;
+    cfg.retries = 2;
+    cfg.data_timeout_ms = 800;
+    cfg.reopen_ms = 100;
     r->drv = lms200_driver_create(&cfg, &ops, r);
     assert_non_null(r->drv);
 }
@@ -188,7 +200,7 @@ static void run_for(rig_t *r, int ms)
 static void test_init_sequence_reaches_stream_at_500000_half_degree(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 500000, 50, 5, 5000));
     assert_int_equal(lms200_driver_state(r.drv), LMS200_DRV_STREAM);
     /* Both ends agree on the rate the driver was configured for. */
@@ -208,7 +220,7 @@ static void test_init_sequence_reaches_stream_at_500000_half_degree(void **state
 static void test_one_degree_in_centimetres_at_38400(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_CM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "cm" };
     rig_open(&r, &e, 38400, 100);
     /* Feed a pattern like the simulator does: a wall with a gap that sees nothing. */
     float m[19];
@@ -236,7 +248,7 @@ static void moving_wall(void *user, vlms200_t *v, int64_t now)
 static void test_scan_callback_feeds_each_scan(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     rig_open(&r, &e, 500000, 100);
     int k = 0;
     r.moving = true;
@@ -255,7 +267,7 @@ static void test_scan_callback_feeds_each_scan(void **state)
 static void test_scans_read_late_are_stamped_one_period_apart(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 500000, 100, 20, 5000));
     int before = r.nstamp;
     r.stalled = true;
@@ -297,7 +309,7 @@ static int cmp_i64(const void *a, const void *b)
 static void test_line_time_puts_stamps_on_the_scans_instants(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM, .line_time = true };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm", .line_time = true };
     rig_open(&r, &e, 500000, 100);
     ntaken = 0;
     vlms200_on_scan(r.emu, note_taken, NULL);
@@ -306,7 +318,7 @@ static void test_line_time_puts_stamps_on_the_scans_instants(void **state)
     /* The driver's last scans against the device's: the stream's scans, one to one. */
     int n = 30, off = ntaken - r.nstamp;
     assert_true(off >= 0 && off <= 1);      /* one may be on the line still */
-    int64_t d[30], wire = (10 + 2 * 181) * 10 * 1000000LL / 500000;     /* as lms200_main.c */
+    int64_t d[30], wire = lms200_wire_us(lms200_scan_telegram_len(181), 500000);     /* as lms200_main.c */
     for (int i = 0; i < n; i++)
         d[i] = r.stamp[r.nstamp - n + i] - wire - taken[r.nstamp - n + i + off];
     qsort(d, n, sizeof d[0], cmp_i64);
@@ -322,7 +334,7 @@ static void test_line_time_puts_stamps_on_the_scans_instants(void **state)
 static void test_stays_at_9600_when_configured(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     /* 181 values at 9600 baud take 0.38 s each: the device is slower, not broken. */
     assert_true(rig_streaming(&r, &e, 9600, 100, 2, 8000));
     assert_int_equal(vlms200_stats(r.emu)->baud_changes, 0);
@@ -331,10 +343,32 @@ static void test_stays_at_9600_when_configured(void **state)
     rig_close(&r);
 }
 
+/* At 9600 baud a 0.5 degree scan takes 0.76 s on the line: one damaged telegram leaves 1.52 s
+ * between good scans, beyond the rig's fixed 800 ms (the production 1000 ms alike). The wait
+ * follows the line instead (3 telegram times, 2.49 s): damage is counted, the laser is not
+ * declared silent, nor re-initialised. */
+static void test_a_bad_telegram_at_9600_is_no_silence(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm", .corrupt_every = 3 };
+    assert_true(rig_streaming(&r, &e, 9600, 50, 1, 10000));
+    const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
+    int64_t scans = r.scans;
+    RUN_UNTIL(&r, 8000, st->crc_errors >= 2 && r.scans >= scans + 4);
+    assert_true(st->crc_errors >= 2);
+    assert_true(r.scans >= scans + 4);
+    assert_int_equal(st->timeouts, 0);
+    assert_int_equal(st->inits, 1);
+    assert_int_equal(st->garbage_bytes, 0);
+    assert_int_equal(r.bad_ranges, 0);
+    assert_int_equal(lms200_driver_data_timeout_ms(r.drv), 2487);     /* 3 x 762.5 ms + 200 */
+    rig_close(&r);
+}
+
 static void test_crc_errors_counted_and_skipped(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .corrupt_every = 3 };
+    vlms200_cfg_t e = { .rate_hz = 60, .units = "mm", .corrupt_every = 3 };
     assert_true(rig_streaming(&r, &e, 500000, 50, 20, 8000));
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(st->crc_errors >= 5);
@@ -346,7 +380,7 @@ static void test_crc_errors_counted_and_skipped(void **state)
 static void test_garbage_between_scans_resyncs(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .garbage_every = 2 };
+    vlms200_cfg_t e = { .rate_hz = 60, .units = "mm", .garbage_every = 2 };
     assert_true(rig_streaming(&r, &e, 500000, 50, 20, 8000));
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(st->garbage_bytes + st->truncated + st->crc_errors + st->oversized > 0);
@@ -359,7 +393,7 @@ static void test_garbage_between_scans_resyncs(void **state)
 static void test_truncated_telegrams_counted(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 60, .unit = LMS200_UNIT_MM, .truncate_every = 4 };
+    vlms200_cfg_t e = { .rate_hz = 60, .units = "mm", .truncate_every = 4 };
     assert_true(rig_streaming(&r, &e, 500000, 50, 20, 8000));
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
     assert_true(st->truncated >= 3);
@@ -370,7 +404,7 @@ static void test_truncated_telegrams_counted(void **state)
 static void test_silent_device_reinitialised(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 38400, 50, 3, 5000));
     vlms200_silence(r.emu, mono_us() + 2000 * 1000);
     const lms200_driver_stats_t *st = lms200_driver_stats(r.drv);
@@ -386,7 +420,7 @@ static void test_silent_device_reinitialised(void **state)
 static void test_unplugged_mid_scan_and_back(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 500000, 50, 3, 5000));
     /* Pull the cable with a scan half written, then plug in a power-cycled device. */
     run_for(&r, 5);
@@ -416,17 +450,19 @@ static void test_unplugged_mid_scan_and_back(void **state)
 static void test_restarted_driver_finds_streaming_device(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 38400, 50, 3, 5000));
     /* The driver process dies without stopping the device: it keeps streaming at 38400. */
     lms200_driver_destroy(r.drv);
     r.drv = NULL;
     run_for(&r, 100);
     assert_true(vlms200_streaming(r.emu));
-    lms200_driver_cfg_t cfg = {
-        .device = r.link, .baud = 38400, .res_cdeg = 50,
-        .reply_timeout_ms = 150, .config_timeout_ms = 500, .retries = 2, .data_timeout_ms = 800, .reopen_ms = 100,
-    };
+    lms200_driver_cfg_t cfg = drv_cfg(r.link, 38400, 50);
+    cfg.reply_timeout_ms = 150;
+    cfg.config_timeout_ms = 500;
+    cfg.retries = 2;
+    cfg.data_timeout_ms = 800;
+    cfg.reopen_ms = 100;
     r.drv = lms200_driver_create(&cfg, &ops, &r);
     int64_t before = r.scans;
     lms200_driver_start(r.drv, mono_us());
@@ -446,7 +482,7 @@ static int64_t restart_driver(rig_t *r, int baud, int res, int max_ms)
     r->drv = NULL;
     run_for(r, 300);
     assert_true(vlms200_streaming(r->emu));
-    lms200_driver_cfg_t cfg = { .device = r->link, .baud = baud, .res_cdeg = res };
+    lms200_driver_cfg_t cfg = drv_cfg(r->link, baud, res);
     r->drv = lms200_driver_create(&cfg, &ops, r);
     assert_non_null(r->drv);
     int64_t before = r->scans, t0 = mono_us();
@@ -463,7 +499,7 @@ static void test_restart_mid_stream_at_each_rate(void **state)
     static const int rates[] = { 9600, 38400, 500000 };
     for (size_t i = 0; i < sizeof rates / sizeof rates[0]; i++) {
         rig_t r;
-        vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
+        vlms200_cfg_t e = { .rate_hz = 40, .units = "mm" };
         assert_true(rig_streaming(&r, &e, rates[i], 100, 3, 8000));
         assert_int_equal(vlms200_baud(r.emu), rates[i]);
         int64_t ms = restart_driver(&r, rates[i], 100, 5000);
@@ -480,7 +516,7 @@ static void test_restart_finds_device_left_at_another_rate(void **state)
 {
     /* The last run used 38400 (RS-232); this one is configured for 500000 (RS-422). */
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 40, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 38400, 100, 3, 8000));
     int64_t ms = restart_driver(&r, 500000, 100, 8000);
     print_message("device left at 38400, driver for 500000: first scan after %lld ms\n", (long long)ms);
@@ -494,11 +530,13 @@ static void test_restart_finds_device_left_at_another_rate(void **state)
 static void test_degraded_while_silent_then_running(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 40, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 40, .units = "mm" };
     rig_open(&r, &e, 500000, 100);
     lms200_driver_destroy(r.drv);
-    lms200_driver_cfg_t cfg = { .device = r.link, .baud = 500000, .res_cdeg = 100, .reply_timeout_ms = 150,
-                                .data_timeout_ms = 500, .degraded_ms = 1000 };
+    lms200_driver_cfg_t cfg = drv_cfg(r.link, 500000, 100);
+    cfg.reply_timeout_ms = 150;
+    cfg.data_timeout_ms = 500;
+    cfg.degraded_ms = 1000;
     r.drv = lms200_driver_create(&cfg, &ops, &r);
     lms200_driver_start(r.drv, mono_us());
     assert_true(RUN_UNTIL(&r, 5000, r.scans >= 3));
@@ -525,7 +563,7 @@ static void test_degraded_while_silent_then_running(void **state)
 static void test_unread_counts_a_scan_the_moment_it_is_written(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 500000, 100, 2, 5000));
     int seen_at_once = 0;
     for (int i = 0; i < 30; i++) {
@@ -557,7 +595,7 @@ static void test_unread_counts_a_scan_the_moment_it_is_written(void **state)
 static void test_missing_device_retried_until_it_appears(void **state)
 {
     rig_t r;
-    vlms200_cfg_t e = { .rate_hz = 50, .unit = LMS200_UNIT_MM };
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     rig_open(&r, &e, 38400, 100);
     vlms200_unplug(r.emu, mono_us(), 600 * 1000);
     lms200_driver_start(r.drv, mono_us());
@@ -594,7 +632,8 @@ static void test_full_line_never_blocks_and_command_goes_out_later(void **state)
         assert_true(errno == EAGAIN);
         usleep(20000);
     }
-    lms200_driver_cfg_t cfg = { .device = path, .baud = 9600, .res_cdeg = 100, .reply_timeout_ms = 300 };
+    lms200_driver_cfg_t cfg = drv_cfg(path, 9600, 100);
+    cfg.reply_timeout_ms = 300;
     lms200_driver_t *d = lms200_driver_create(&cfg, NULL, NULL);
     assert_non_null(d);
     int64_t t0 = mono_us();
@@ -627,11 +666,11 @@ static void test_full_line_never_blocks_and_command_goes_out_later(void **state)
 
 static void test_bad_config_refused(void **state)
 {
-    lms200_driver_cfg_t cfg = { .device = "/dev/null", .baud = 115200, .res_cdeg = 50 };
+    lms200_driver_cfg_t cfg = drv_cfg("/dev/null", 115200, 50);
     assert_null(lms200_driver_create(&cfg, &ops, NULL));
     assert_int_equal(errno, EINVAL);
     cfg.baud = 38400;
-    cfg.res_cdeg = 25;
+    cfg.resolution = 0.25;
     assert_null(lms200_driver_create(&cfg, &ops, NULL));
 }
 
@@ -644,6 +683,7 @@ int main(void)
         cmocka_unit_test(test_scans_read_late_are_stamped_one_period_apart),
         cmocka_unit_test(test_line_time_puts_stamps_on_the_scans_instants),
         cmocka_unit_test(test_stays_at_9600_when_configured),
+        cmocka_unit_test(test_a_bad_telegram_at_9600_is_no_silence),
         cmocka_unit_test(test_crc_errors_counted_and_skipped),
         cmocka_unit_test(test_garbage_between_scans_resyncs),
         cmocka_unit_test(test_truncated_telegrams_counted),

@@ -35,9 +35,11 @@ dump=$!
 $BIN/marie-vcan-devices --can can:$DEV_IF --gyro-noise 0.0005 > $out/vcan-devices.log 2>&1 &
 devs=$!
 # An emulated CPU (TCG) on a shared host stalls for tenths of a second: the drives' watch on
-# marie-drives (0.1 s on the robot), and the driver's watch on the drives (0.35 s), get the
+# marie-drives (0.1 s on the robot), the driver's watch on the drives (0.35 s) and its SDO
+# timeout (0.2 s; 4 s of configuration steps timed out one after the other at a load of 9) get the
 # margin of a slow machine here.
-$BIN/marie-drives --param can=can:$IF --param master_timeout=1 --param rpdo_timeout=1 --param heartbeat_timeout=1 > $out/drives.log 2>&1 &
+$BIN/marie-drives --param can=can:$IF --param master_timeout=1 --param rpdo_timeout=1 --param heartbeat_timeout=1 \
+    --param sdo_timeout=1 > $out/drives.log 2>&1 &
 drv=$!
 $BIN/marie-gyro --param can=can:$IF > $out/gyro.log 2>&1 &
 gyr=$!

@@ -2,6 +2,8 @@
 # and helpers to start a marie-am in each and run marie on the laptop. Sourced by the
 # manager tests that need several hosts.
 . tests/lib.sh
+# marie-test-comp, named bare by the system files in tests/data/managers
+export PATH="$(pwd)/$B/tests/bin:$PATH"
 T=$(mktemp -d /tmp/marie-test-hosts.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
 export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=1'

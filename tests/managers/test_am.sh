@@ -5,6 +5,8 @@
 # forged, replayed, stale, far-future, floods), bad keys and system files, and a restarted
 # manager bringing its components back and refusing orders captured before.
 . tests/lib.sh
+# marie-test-comp, named bare by the system files in tests/data/managers
+export PATH="$(pwd)/$B/tests/bin:$PATH"
 T=$(mktemp -d /tmp/marie-test-am.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
 M="$BIN/marie"

@@ -2,6 +2,8 @@
 # test_fast_detect: a heartbeat_timeout of 0.3 s catches a hung component within that time and
 # never restarts a healthy one while two busy loops load both cores.
 . tests/lib.sh
+# marie-test-comp, named bare by the system files in tests/data/managers
+export PATH="$(pwd)/$B/tests/bin:$PATH"
 T=$(mktemp -d /tmp/marie-test-fast.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
 OUT=$T

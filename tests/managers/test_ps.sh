@@ -36,7 +36,7 @@ system() {
       for h in "$@"; do
           case $h in old*) continue ;; esac
           printf '  c%d:\n    exec: %s/tests/bin/marie-test-comp\n    host: %s\n    heartbeat_timeout: 2.5\n    stop_timeout: 1\n' \
-              "$i" "$B" "$h"
+              "$i" "$(pwd)/$B" "$h"
           i=$((i + 1))
       done; } > "$f"
 }

@@ -20,7 +20,7 @@ trap cleanup EXIT INT TERM
 
 # The highest CPU this test may use: the one the pinned components are asked to run on.
 LAST=$(python3 -c 'import os; print(max(os.sched_getaffinity(0)))')
-COMP=$B/tests/bin/marie-test-comp
+COMP=$(pwd)/$B/tests/bin/marie-test-comp
 cat > "$T/sched.yaml" <<EOF
 system: sched
 hosts: [alpha, beta]

@@ -5,6 +5,8 @@
 # restart, resizing redraws within the new size, `q` gives the terminal back untouched; the
 # --once snapshot; and marie-top's own CPU use while idle.
 . tests/lib.sh
+# marie-test-comp, named bare by the system files in tests/data/managers
+export PATH="$(pwd)/$B/tests/bin:$PATH"
 T=$(mktemp -d /tmp/marie-test-top.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
 M="$BIN/marie"

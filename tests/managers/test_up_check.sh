@@ -6,6 +6,8 @@
 # component run alone); marie hash covers every setting and names the base; a long parse ends on
 # SIGTERM or SIGINT.
 . tests/lib.sh
+# marie-test-comp, named bare by the system files in tests/data/managers
+export PATH="$(pwd)/$B/tests/bin:$PATH"
 T=$(mktemp -d /tmp/marie-test-upcheck.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace XDG_CACHE_HOME=$T/cache
 M="$BIN/marie"
@@ -37,7 +39,7 @@ components:
   missing:
     exec: marie-no-such-program
   notexec:
-    exec: tests/data/managers/single.yaml
+    exec: $(pwd)/tests/data/managers/single.yaml
   splitter:
     exec: marie-ca
     args: [splitter]
@@ -52,7 +54,7 @@ all_reported() {
     grep -q "$f:12:[0-9]*: unknown parameter 'colour' for test_comp 'unknown'" "$1" &&
     grep -q "$f:15:[0-9]*: test_comp 'port' has no port 'nosuch'" "$1" &&
     grep -q "$f:17:[0-9]*: component 'missing': program 'marie-no-such-program' not found" "$1" &&
-    grep -q "$f:19:[0-9]*: component 'notexec': program 'tests/data/managers/single.yaml' is not an executable" "$1" &&
+    grep -q "$f:19:[0-9]*: component 'notexec': program '$(pwd)/tests/data/managers/single.yaml' is not an executable" "$1" &&
     grep -q "$f:20:[0-9]*: splitter 'splitter': missing required parameter 'input'" "$1"
 }
 
@@ -202,7 +204,8 @@ sim_vs_base() {
         [ "$(verdict "$T/h1" $c)" = "differs clock" ] || return 1
     done
     [ "$(verdict "$T/h1" sim)" = "only-in-a " ] && [ "$(verdict "$T/h1" estop)" = "only-in-b " ] &&
-        [ "$(verdict "$T/h1" vision)" = "only-in-a " ] && [ "$(wc -l < "$T/h1")" = 14 ]
+        [ "$(verdict "$T/h1" vision)" = "only-in-a " ] && [ "$(verdict "$T/h1" odometer)" = "only-in-a " ] &&
+        [ "$(wc -l < "$T/h1")" = 15 ]
 }
 check "hash: sim against the real robot (--base) on the shipped system" sim_vs_base
 sim_vs_channel() {
@@ -213,8 +216,8 @@ d = {c["name"]: c for c in json.load(open(sys.argv[1]))["components"]}
 same = {"odometry", "localizer", "planner", "mailbox", "behaviours", "sharedmap", "mission"}
 assert all(d[n]["verdict"] == "same" for n in same), d
 assert d["sim"]["verdict"] == "differs" and d["sim"]["fields"] == ["params"], d["sim"]
-assert all(d[n]["verdict"] == "only-in-a" for n in ("drives", "gyro", "laser", "vision"))
-assert len(d) == 12
+assert all(d[n]["verdict"] == "only-in-a" for n in ("drives", "gyro", "laser", "vision", "odometer"))
+assert len(d) == 13
 EOF
 }
 check "hash: sim against sim-channel, as JSON" sim_vs_channel
@@ -226,13 +229,13 @@ d = {c["name"]: c for c in json.load(open(sys.argv[1]))["components"]}
 # explore extends sim: sim's drivers as they are, the simulator with its camera off (the
 # profile's params:), the planner without a map, the mapper and the explorer in place of the
 # localizer and the mission
-same = {"drives", "gyro", "laser", "odometry", "mailbox", "behaviours", "sharedmap"}
+same = {"drives", "gyro", "laser", "odometry", "mailbox", "behaviours", "sharedmap", "odometer"}
 assert all(d[n]["verdict"] == "same" for n in same), d
 for n in ("sim", "planner"):
     assert d[n]["verdict"] == "differs" and d[n]["fields"] == ["params"], d[n]
 assert all(d[n]["verdict"] == "only-in-a" for n in ("mapper", "explore"))
 assert all(d[n]["verdict"] == "only-in-b" for n in ("localizer", "mission", "vision"))
-assert len(d) == 14
+assert len(d) == 15
 EOF
 }
 check "hash: explore (extends sim) against sim, as JSON" explore_vs_sim

@@ -29,7 +29,8 @@ $BIN/marie-vision --param min_hits=2 \
     --param 'messages=[{id: 3, message: three ahead}, {id: 7, message: seven on the left}]' \
     > "$tmp/v7.log" 2>&1 &
 vpid=$!
-sleep 0.5
+# Its first heartbeat says it reads the bus (a fixed wait missed the frames on a loaded machine).
+$BIN/marie topic echo MARIE_HEARTBEAT --once --timeout 20 > /dev/null
 $BIN/marie-vision-render --world tests/data/vision/world.yaml --robot 0:0:0 --turn 1.5 --rate 10 --count 14 \
     --publish CAMERA_IMAGE
 check "turning robot reads the tag ahead" wait_for 5 grep -q 'tag 3 reads: three ahead' "$tmp/v7.log"

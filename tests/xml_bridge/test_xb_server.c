@@ -487,7 +487,7 @@ static int setup_small(void **state)
 {
     xb_server_cfg_t cfg;
     xb_server_cfg_defaults(&cfg);
-    cfg.max_doc_bytes = 4096;
+    cfg.max_document = 4096;
     cfg.max_depth = 8;
     cfg.stall_ms = 300;
     cfg.max_clients = 200;
@@ -517,7 +517,7 @@ static int setup_tiny_message(void **state)
     xb_server_cfg_t cfg;
     xb_server_cfg_defaults(&cfg);
     cfg.max_message = 64;
-    cfg.max_doc_bytes = 4096;
+    cfg.max_document = 4096;
     return setup_with(&cfg);
 }
 
@@ -592,7 +592,7 @@ static int setup_slow(void **state)
 {
     xb_server_cfg_t cfg;
     xb_server_cfg_defaults(&cfg);
-    cfg.queue_docs = 32;
+    cfg.queue = 32;
     cfg.sndbuf = 4096;
     return setup_with(&cfg);
 }

@@ -3,6 +3,7 @@
 // --mission explore first maps the world from nothing (the explore profile), saves the map,
 // judges it against the world, and runs the navigation mission on it.
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -25,6 +26,7 @@ extern "C" {
 #include "core/config.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
+#include "core/version.h"
 }
 
 extern char **environ;
@@ -246,6 +248,11 @@ void Demo::progress(bool final)
         printf("demo: %5.1f s (sim %6.1f s) | exploring: frontier %d, %d given up | pose error %.2f m | "
                "components %d/%d running | restarts %d\n",
                wall, sim_now_ / 1e6, frontiers_, given_up_, err, running, total, restarts());
+    else if ((!opt_.quiet || final) && (total == 0 || ngoals_ == 0 || std::isnan(err)))
+        // Before the first mission state and pose: say what is awaited, not "goal 1 of 0 ... nan".
+        printf("demo: %5.1f s (sim %6.1f s) | starting: components %d/%d running%s%s\n", wall, sim_now_ / 1e6,
+               running, total, ngoals_ ? "" : ", waiting for the mission's goals",
+               std::isnan(err) ? ", waiting for the first pose estimate" : "");
     else if (!opt_.quiet || final)
         printf("demo: %5.1f s (sim %6.1f s) | goal %d of %d%s%s | reached %d | loc error %.2f m | "
                "components %d/%d running | restarts %d\n",
@@ -272,7 +279,8 @@ void Demo::on_signal(marie_loop_t *, int, void *user)
 void Demo::chaos_tick()
 {
     // SIGKILL a random running component other than the simulator (and the Mailbox, the
-    // SharedMap and the drivers are fair game: the managers must bring them back).
+    // SharedMap and the drivers are fair game: the managers must bring them back). Sorted by
+    // name, so a seed draws the same names wherever the same components run.
     std::vector<std::pair<std::string, int>> victims;
     for (auto &h : hosts_)
         for (int i = 0; i < h.second->ncomponents; i++) {
@@ -282,7 +290,8 @@ void Demo::chaos_tick()
         }
     if (victims.empty())
         return;
-    auto v = victims[std::uniform_int_distribution<size_t>(0, victims.size() - 1)(rng_)];
+    std::sort(victims.begin(), victims.end());
+    auto v = victims[demo_chaos_pick(&chaos_, victims.size())];
     for (auto &c : victims)
         if (kills_ == 0 && c.first == opt_.chaos_first)
             v = c;
@@ -325,6 +334,27 @@ void Demo::estop_tick()
     }
 }
 
+// Installed (make install), the system file and what its relative paths name (maps, worlds) are
+// in <bin>/../share/marie: run from there when the file is not found here, the output directory
+// kept where it was asked for, and the simulator's phrases from share/marie/sounds.
+int Demo::use_installed_data()
+{
+    std::string share = bin_ + "/../share/marie";
+    if (access(opt_.system.c_str(), R_OK) == 0 || opt_.system[0] == '/' ||
+        access((share + "/" + opt_.system).c_str(), R_OK) != 0)
+        return 0;
+    char cwd[4096];
+    if (!getcwd(cwd, sizeof cwd))
+        return -1;
+    if (opt_.out[0] != '/')
+        opt_.out = std::string(cwd) + "/" + opt_.out;
+    run_cmd({"mkdir", "-p", opt_.out}, "/dev/null");
+    if (access((share + "/sounds").c_str(), R_OK) == 0)
+        setenv("MARIE_SOUNDS", (share + "/sounds").c_str(), 0);
+    printf("demo: %s from %s\n", opt_.system.c_str(), share.c_str());
+    return chdir(share.c_str());
+}
+
 // Key, logger and one manager per host: what both missions run under.
 int Demo::start()
 {
@@ -334,6 +364,8 @@ int Demo::start()
         return 1;
     self[n] = 0;
     bin_ = std::string(self).substr(0, std::string(self).find_last_of('/'));
+    if (use_installed_data() < 0)
+        return 1;
     std::string path = bin_ + ":" + (getenv("PATH") ? getenv("PATH") : "/usr/bin:/bin");
     setenv("PATH", path.c_str(), 1);
     mkdir(opt_.out.c_str(), 0755);
@@ -493,6 +525,9 @@ int Demo::navigate()
     if (up(opt_.profile) != 0)
         return 1;
     marie_timer_t *progress_timer = marie_loop_add_wall_timer(loop_, 2000000, on_progress_timer, this);
+    if (opt_.chaos_s > 0)
+        printf("demo: chaos every %g s, seed %llu (--seed %llu draws the same victims)\n", opt_.chaos_s,
+               (unsigned long long)chaos_.seed, (unsigned long long)chaos_.seed);
     marie_timer_t *chaos_timer = opt_.chaos_s > 0 ? marie_loop_add_wall_timer(loop_, int64_t(opt_.chaos_s * 1e6),
                                                                               on_chaos_timer, this)
                                                   : nullptr;
@@ -542,7 +577,7 @@ int Demo::run()
 void usage(FILE *out)
 {
     fprintf(out, "usage: marie-demo [--system FILE] [--profile P] [--out DIR] [--timeout S] [--chaos S]\n"
-                 "                  [--chaos-first NAME] [--estop-after-goal K] [--quiet]\n"
+                 "                  [--chaos-first NAME] [--seed N] [--estop-after-goal K] [--quiet]\n"
                  "                  [--mission navigate|explore] [--explore-profile P] [--explore-timeout S]\n"
                  "  --mission explore: map the world from nothing first (profile explore), save it as\n"
                  "  OUT/explored.yaml, judge it against the world, then navigate on it (MARIE_MAP)\n");
@@ -556,6 +591,7 @@ using marie_demo::usage;
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-demo", argc, argv);
     Options o;
     static const struct option opts[] = {
         {"system", required_argument, nullptr, 's'}, {"profile", required_argument, nullptr, 'p'},
@@ -563,7 +599,7 @@ int main(int argc, char **argv)
         {"chaos", required_argument, nullptr, 'c'}, {"estop-after-goal", required_argument, nullptr, 'e'},
         {"chaos-first", required_argument, nullptr, 'f'}, {"mission", required_argument, nullptr, 'm'},
         {"explore-profile", required_argument, nullptr, 'x'}, {"explore-timeout", required_argument, nullptr, 'T'},
-        {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
+        {"seed", required_argument, nullptr, 'S'}, {"quiet", no_argument, nullptr, 'q'}, {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0},
     };
     int c;
     while ((c = getopt_long(argc, argv, "", opts, nullptr)) != -1) {
@@ -574,6 +610,17 @@ int main(int argc, char **argv)
         case 't': o.timeout_s = atof(optarg); break;
         case 'c': o.chaos_s = atof(optarg); break;
         case 'f': o.chaos_first = optarg; break;
+        case 'S': {
+            char *end;
+            errno = 0;
+            o.seed = strtoull(optarg, &end, 0);
+            if (errno || end == optarg || *end || optarg[0] == '-') {
+                fprintf(stderr, "marie-demo: --seed takes an unsigned integer, not '%s'\n", optarg);
+                return 2;
+            }
+            o.seed_set = true;
+            break;
+        }
         case 'e': o.estop_after_goal = atoi(optarg); break;
         case 'm': o.mission = optarg; break;
         case 'x': o.explore_profile = optarg; break;

@@ -4,7 +4,6 @@
 
 #include <cstdint>
 #include <map>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -17,6 +16,7 @@ extern "C" {
 #include "map/occmap.h"
 #include "core/loop.h"
 #include "lcmtypes/marie_types.h"
+#include "tools/demo/chaos.h"
 }
 
 namespace marie_demo {
@@ -37,6 +37,8 @@ struct Options {
     double explore_timeout_s = 600;     // ...and for the exploration
     double chaos_s = 0;           // kill a random non-simulator component this often
     std::string chaos_first;      // ...and this one first, when it runs
+    uint64_t seed = 0;            // the victims' draw (--seed); a fresh one when not set
+    bool seed_set = false;
     int estop_after_goal = 0;     // press the e-stop once this many goals are reached
     int hosts = 4;
     bool quiet = false;
@@ -44,7 +46,10 @@ struct Options {
 
 class Demo {
 public:
-    explicit Demo(const Options &o) : opt_(o) {}
+    explicit Demo(const Options &o) : opt_(o)
+    {
+        demo_chaos_init(&chaos_, o.seed_set ? o.seed : demo_chaos_fresh_seed());
+    }
     ~Demo() { shutdown(); }
 
     int run();
@@ -55,6 +60,7 @@ private:
     int run_cmd(const std::vector<std::string> &args, const std::string &log);
     int start();
     int up(const std::string &profile);
+    int use_installed_data();
     void down();
     void shutdown();
     // the two missions
@@ -111,7 +117,7 @@ private:
     // map
     cv::Mat map_;
     double res_ = 0.05, ox_ = 0, oy_ = 0;
-    std::mt19937 rng_{7};
+    demo_chaos_t chaos_{};
     int64_t start_mono_ = 0, phase_mono_ = 0;
     // whole system, from the managers' status: CPU summed over components, RSS summed
     double cpu_sum_ = 0, rss_peak_mb_ = 0;

@@ -119,10 +119,11 @@ void Demo::summary(double wall_s)
                 "{\"goals\": %d, \"reached\": %d, \"missed\": %d, \"mission_done\": %s, \"rms\": %.4f, "
                 "\"max\": %.4f, \"pose_samples\": %zu, \"restarts\": %d, \"kills\": %d, \"collisions\": %lld, "
                 "\"estop_stop_s\": %.3f, \"wall_s\": %.1f, \"sim_s\": %.1f, \"system_cpu_percent\": %.1f, "
-                "\"system_rss_mb\": %.1f%s}\n",
+                "\"system_rss_mb\": %.1f, \"seed\": %llu%s}\n",
                 ngoals_, reached_, missed_, mission_done_ ? "true" : "false", std::isnan(rms) ? -1.0 : rms, mx,
                 errors_.size(), restarts, kills_, (long long)collisions_, estop_stop_s_, wall_s, sim_now_ / 1e6,
-                cpu_samples_ ? cpu_sum_ / cpu_samples_ : -1.0, rss_peak_mb_, explore_json_.c_str());
+                cpu_samples_ ? cpu_sum_ / cpu_samples_ : -1.0, rss_peak_mb_, (unsigned long long)chaos_.seed,
+                explore_json_.c_str());
         fclose(f);
     }
     printf("demo: whole system (components and managers): CPU %.0f%% of a core on average, RSS %.0f MB at most\n",

@@ -22,6 +22,7 @@
 #include "lcmtypes/marie_types.h"
 #include "map/gridpath.h"
 #include "map/occmap.h"
+#include "core/version.h"
 
 extern char **environ;
 
@@ -429,6 +430,7 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-eval", argc, argv);
     const char *b = getenv("B") ? getenv("B") : "build";
     static char dir[512], bin[512], out[512];
     snprintf(dir, sizeof dir, "%s/worlds/eval", b);

@@ -16,6 +16,7 @@
 #include "managers/am_proto.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
+#include "core/version.h"
 #include "tools/map/map_tool.h"
 
 typedef struct {
@@ -59,9 +60,9 @@ static char *url_with_buffer(const char *url)
     return u;
 }
 
-static int usage(void)
+static int usage_to(FILE *out, int status)
 {
-    fprintf(stderr, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
+    fprintf(out, "usage: marie map save NAME [--channel MAP] [--wait S] [--url URL]\n"
                     "  writes NAME.yaml and NAME.pgm from the next map on the channel\n"
                     "       marie map compare BUILT.yaml WORLD.yaml [--start X Y]\n"
                     "  precision and recall of BUILT's occupied cells against WORLD's walls (within one\n"
@@ -70,8 +71,10 @@ static int usage(void)
                     "       marie map eval RUN.lcm [--reference LOG] [--png FILE] [--format json] ...\n"
                     "  the mapper's POSE in RUN against a reference trajectory (REFERENCE): ATE after\n"
                     "  the best rigid alignment, relation errors over 1 m and 5 m of path (--help: all options)\n");
-    return MARIE_EXIT_USAGE;
+    return status;
 }
+
+static int usage(void) { return usage_to(stderr, MARIE_EXIT_USAGE); }
 
 static int write_map(const marie_occupancy_grid_t *g, const char *name)
 {
@@ -154,13 +157,17 @@ out:
 
 int main(int argc, char **argv)
 {
+    marie_version_exit("marie-map", argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "eval") == 0)
+        return map_eval_main(argc - 1, argv + 1);      /* its own options, --help among them */
+    for (int i = 1; i < argc; i++)
+        if (strcmp(argv[i], "--help") == 0)
+            return usage_to(stdout, MARIE_EXIT_OK);
     const char *channel = "MAP", *name = NULL;
     const char *url = getenv("LCM_DEFAULT_URL") ? getenv("LCM_DEFAULT_URL") : marie_default_url();
     double wait_s = 6;          /* the mapper sends its map again every 5 s */
     if (argc >= 2 && strcmp(argv[1], "compare") == 0)
         return compare(argc, argv);
-    if (argc >= 2 && strcmp(argv[1], "eval") == 0)
-        return map_eval_main(argc - 1, argv + 1);
     if (argc < 3 || strcmp(argv[1], "save") != 0)
         return usage();
     for (int i = 2; i < argc; i++) {

@@ -22,4 +22,4 @@ ITESTS += tests/viewer/test_viewer_graph.sh
 
 $(eval $(call marie_bench,bench_viewer,bench/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen
-ITESTS += tests/viewer/test_viewer_landmarks.sh
+ITESTS += tests/viewer/test_viewer_landmarks.sh tests/viewer/test_viewer_layout.sh

@@ -22,7 +22,7 @@ function fresh() {
     comps: {}, am: {}, events: [], restarts: {},
     player: { t: 0, t0: 0, t1: 0, playing: false, speed: 1 },
     now: 0, rxAge: 0, corruptText: '', view: null, goalMode: false, drag: null,
-    counts: { laser: 0 },
+    counts: { laser: 0 }, outs: {}, busText: '',
   };
 }
 
@@ -138,11 +138,7 @@ function handle(m) {
   case 'msg': onMsg(m); break;
   case 'stats':
     S.rxAge = m.rx_age;
-    if (S.mode === 'live') {
-      if (m.rx_age < 0) banner('waiting for data from the bus…', 'warn');
-      else if (m.rx_age > 3) banner('no data from the bus for ' + m.rx_age.toFixed(0) + ' s (heartbeats in the table)', 'warn');
-      else if ($('banner').textContent.startsWith('no data') || $('banner').textContent.startsWith('waiting')) banner('');
-    }
+    if (S.mode === 'live') busBanner(m);
     break;
   case 'notice':
     notice(m.text);
@@ -222,6 +218,7 @@ function onMsg(f) {
       S.events.push([f.t, m.component, 2, 'restart', 'restarted: pid ' + old.msg.pid + ' → ' + m.pid]);
     }
     S.comps[m.component] = f;
+    noteOutputs(f);
     break;
   }
   case 'am': for (const c of m.components) S.am[c.name] = c; break;
@@ -233,6 +230,64 @@ function onMsg(f) {
     body.dataset.landmarks = String(Object.keys(S.landmarks).length);
     break;
   }
+}
+
+// Live: what each component's output ports publish, from the counts in its heartbeats.
+function noteOutputs(f) {
+  const m = f.msg, t = f.t || 0;
+  for (const p of m.ports || []) {
+    if (p.direction !== 1) continue;
+    const key = m.component + '/' + p.name, o = S.outs[key];
+    if (o && t - o.t >= 500000) {
+      S.outs[key] = { channel: p.channel, from: m.component, msgs: p.msgs, t, rate: Math.max(0, (p.msgs - o.msgs) / ((t - o.t) / 1e6)) };
+    } else if (!o) {
+      S.outs[key] = { channel: p.channel, from: m.component, msgs: p.msgs, t, rate: 0 };
+    }
+  }
+}
+
+// The channels this page draws (not the heartbeats and the managers' reports).
+function drawnChannels() {
+  const skip = ['heartbeat', 'am_status', 'am_reply', 'request', 'order'];
+  return Object.entries(S.channels || {}).filter(([port]) => !skip.includes(port)).map(([, ch]) => ch);
+}
+
+// Live: the banner says what the bus carries. The server's rx_age is the age of the last message
+// on a channel this page draws; the components' heartbeats say what else flows, so a bus busy
+// with channels the page does not draw is reported as such, not as a silent one.
+function busBanner(m) {
+  // another banner (connection lost, a page error) stays until its own cause goes
+  if ($('banner').className !== 'banner hidden' && $('banner').textContent !== S.busText) return;
+  if (m.rx_age >= 0 && m.rx_age <= 3) {
+    if (S.busText) banner('');
+    S.busText = '';
+    body.dataset.bus = 'drawn';
+    return;
+  }
+  const flows = {};
+  for (const o of Object.values(S.outs)) {
+    if (o.rate < 0.5 || S.now - o.t > 3e6) continue;
+    const f = flows[o.channel] || (flows[o.channel] = { rate: 0, from: [] });
+    f.rate += o.rate; f.from.push(o.from);
+  }
+  const list = Object.entries(flows).sort((a, b) => b[1].rate - a[1].rate);
+  let text, level = 'warn';
+  if (list.length) {
+    const total = list.reduce((n, e) => n + e[1].rate, 0);
+    text = 'the bus carries ' + total.toFixed(0) + ' msg/s, ' + (m.rx_age < 0 ? 'none' : 'none for ' +
+      m.rx_age.toFixed(0) + ' s') + ' on a channel this page draws: ' + list.slice(0, 3).map(([ch, f]) =>
+      ch + ' ' + f.rate.toFixed(0) + '/s (' + f.from.join(', ') + ')').join(', ') + (list.length > 3 ? ', …' : '');
+    level = 'info';
+  } else if (m.rx_age < 0) {
+    text = 'waiting for data from the bus…';
+  } else {
+    text = 'no data from the bus for ' + m.rx_age.toFixed(0) + ' s (heartbeats in the table)';
+  }
+  if (m.bad) text += '; ' + m.bad + ' messages refused (malformed, or not the type this page draws)';
+  body.dataset.bus = level === 'info' ? 'other' : 'quiet';
+  banner(text, level);
+  $('banner').title = 'channels drawn here: ' + drawnChannels().join(', ');
+  S.busText = text;
 }
 
 // An occupancy_grid_t: cells are base64 of int8 values, row 0 at the origin.
@@ -274,7 +329,18 @@ function fitView() {
     x0 = p.x - 10; x1 = p.x + 10; y0 = p.y - 7; y1 = p.y + 7;
   }
   const scale = Math.min(cv.width / (x1 - x0), cv.height / (y1 - y0)) * 0.98;
-  S.view = { scale, cx: (x0 + x1) / 2, cy: (y0 + y1) / 2 };
+  S.view = { scale, cx: (x0 + x1) / 2, cy: (y0 + y1) / 2, auto: true };
+}
+
+// The map's drawing buffer follows its box, one canvas pixel per CSS pixel: the layout decides the
+// map's size. A view fitted by the page is fitted again; one the user panned or zoomed stays.
+function sizeMap() {
+  const cv = $('map'), box = $('map-box');
+  const w = Math.max(1, box.clientWidth), h = Math.max(1, box.clientHeight);
+  if (cv.width === w && cv.height === h) return;
+  cv.width = w; cv.height = h;
+  if (S.view && S.view.auto) S.view = null;
+  redraw();
 }
 
 function toPx(x, y) {
@@ -436,6 +502,13 @@ function colorOf(name) {
   return colors[name];
 }
 // A speed or a rate as the panels show it: millimetres, and no trailing zeros.
+// A message count in at most 4 characters (the table fits a laptop's side panel); exact in the title.
+function count(n) {
+  if (n < 10000) return String(n);
+  if (n < 1e6) return (n / 1e3).toFixed(0) + 'k';
+  if (n < 1e9) return (n / 1e6).toFixed(n < 1e7 ? 1 : 0) + 'M';
+  return (n / 1e9).toFixed(1) + 'G';
+}
 function num(v) { return v === null ? '?' : +v.toFixed(3); }
 function esc(s) {
   return String(s).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c]));
@@ -509,14 +582,16 @@ function drawPanels() {
     tr.innerHTML = '<td>' + esc(n) + '</td><td>' + esc(c.host || '') + '</td><td class="state-' + esc(state) + '">' + esc(state) +
       (age !== null && age > 3 ? ' (silent ' + age.toFixed(0) + ' s)' : '') + '</td><td>' + (c.pid || a.pid || '') + '</td><td>' +
       (c.uptime_us !== undefined ? (c.uptime_us / 1e6).toFixed(0) + ' s' : '') + '</td><td class="restarts">' + rs + '</td><td>' +
-      (c.msgs_in !== undefined ? c.msgs_in + '/' + c.msgs_out + '/' + c.bad_input : '') + '</td><td>' +
+      (c.msgs_in !== undefined ? '<span title="' + c.msgs_in + ' in, ' + c.msgs_out + ' out, ' + c.bad_input + ' bad input">' +
+        count(c.msgs_in) + '/' + count(c.msgs_out) + '/' + count(c.bad_input) + '</span>' : '') + '</td><td>' +
       (a.cpu !== undefined ? a.cpu.toFixed(1) + '%' : '') +
       '</td><td></td>';
     if (S.controls) {
       const td = tr.lastChild;
-      for (const cmd of ['pause', 'resume']) {
+      for (const [cmd, icon] of [['pause', '❚❚'], ['resume', '▶']]) {
         const b = document.createElement('button');
-        b.textContent = cmd;
+        b.textContent = icon;
+        b.title = cmd + ' ' + n;
         b.onclick = () => send({ op: 'order', cmd, target: n });
         td.appendChild(b);
       }
@@ -661,7 +736,11 @@ mapCv.onmousedown = (ev) => {
 mapCv.onmousemove = (ev) => {
   const [px, py] = mapPos(ev);
   if (S.drag) { [S.drag.x2, S.drag.y2] = toWorld(px, py); redraw(); }
-  else if (pan) { S.view.cx = pan.cx - (px - pan.px) / S.view.scale; S.view.cy = pan.cy + (py - pan.py) / S.view.scale; redraw(); }
+  else if (pan) {
+    S.view.cx = pan.cx - (px - pan.px) / S.view.scale; S.view.cy = pan.cy + (py - pan.py) / S.view.scale;
+    S.view.auto = false;
+    redraw();
+  }
 };
 mapCv.onmouseup = () => {
   if (S.drag) {
@@ -676,10 +755,13 @@ mapCv.onwheel = (ev) => {
   if (!S.view) return;
   ev.preventDefault();
   S.view.scale *= ev.deltaY < 0 ? 1.15 : 1 / 1.15;
+  S.view.auto = false;
   redraw();
 };
 mapCv.ondblclick = () => { S.view = null; redraw(); };
 
 window.onerror = (msg) => { banner('page error: ' + msg, 'error'); };
+new ResizeObserver(sizeMap).observe($('map-box'));
+sizeMap();
 connect();
 redraw();
