@@ -326,8 +326,9 @@ void Grid::copy_likelihood(const Grid &src)
         return;
     /* Where the source has anything (its touched cells and their kernels' reach), in whole
      * blocks of the coarsest level, so that the pyramid is copied as it is. */
-    int x0 = std::max(0, (src.bx0_ - src.kr_ - dx) / B * B), x1 = std::min(w_, (src.bx1_ + src.kr_ + 1 - dx + B) / B * B);
-    int y0 = std::max(0, (src.by0_ - src.kr_ - dy) / B * B), y1 = std::min(h_, (src.by1_ + src.kr_ + 1 - dy + B) / B * B);
+    /* Both grids' cells: x in [0, w_) here and x + dx in [0, src.w_) there (dx, -dx multiples of B). */
+    int x0 = std::max({ 0, -dx, (src.bx0_ - src.kr_ - dx) / B * B }), x1 = std::min(w_, (src.bx1_ + src.kr_ + 1 - dx + B) / B * B);
+    int y0 = std::max({ 0, -dy, (src.by0_ - src.kr_ - dy) / B * B }), y1 = std::min(h_, (src.by1_ + src.kr_ + 1 - dy + B) / B * B);
     x1 = std::min(x1, src.w_ - dx), y1 = std::min(y1, src.h_ - dy);
     if (x1 <= x0 || y1 <= y0)
         return;

@@ -190,10 +190,11 @@ static Scan thin(const Scan &in, size_t max)
     Scan out;
     out.ox = in.ox, out.oy = in.oy;
     for (double side = 0.1; side < 100; side *= 1.5) {
-        std::vector<int64_t> keys;
+        std::vector<uint64_t> keys;
         out.hx.clear(), out.hy.clear();
         for (size_t i = 0; i < in.hx.size(); i++) {
-            int64_t key = ((int64_t)std::floor(in.hx[i] / side) << 32) ^ (int64_t)(uint32_t)(int32_t)std::floor(in.hy[i] / side);
+            uint64_t key = (uint64_t)(uint32_t)(int32_t)std::floor(in.hx[i] / side) << 32 |
+                           (uint32_t)(int32_t)std::floor(in.hy[i] / side);
             if (std::find(keys.begin(), keys.end(), key) != keys.end())
                 continue;
             keys.push_back(key);
