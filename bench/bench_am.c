@@ -21,6 +21,8 @@
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "managers/am_proto.h"
 #include "core/procstat.h"
+#include "core/typeinfo.h"
+#include "tests/proc.h"
 
 static char dir[64];
 static const char *bin = "build";
@@ -116,6 +118,29 @@ static void on_hb(const lcm_recv_buf_t *rb, const char *ch, const marie_heartbea
         last_hb_us = marie_mono_us();
 }
 
+static void on_hb_raw(const lcm_recv_buf_t *rb, const char *ch, void *u)
+{
+    marie_heartbeat_t hb;
+    if (marie_decode_checked(&marie_type_heartbeat_t, rb->data, rb->data_size, &hb) < 0)
+        return;
+    on_hb(rb, ch, &hb, u);
+    marie_heartbeat_t_decode_cleanup(&hb);
+}
+
+/* How many "exec" (or "running") trace lines a component has. */
+static int count_trace(const char *trace, const char *name, const char *what)
+{
+    FILE *f = fopen(trace, "r");
+    char line[256], n[64], w[32];
+    long long tt;
+    int p, count = 0;
+    while (f && fgets(line, sizeof line, f))
+        count += sscanf(line, "%lld %63s %31s %d", &tt, n, w, &p) == 4 && !strcmp(n, name) && !strcmp(w, what);
+    if (f)
+        fclose(f);
+    return count;
+}
+
 /* The time stamps above are 0 until taken. */
 static int stamped(void *user) { return *(int64_t *)user != 0; }
 
@@ -186,7 +211,7 @@ static void bench_respawn_and_hang(void)
     /* hang: SIGUSR1 stops the victim's loop; detection = manager's not_responding event */
     lcm_t *lcm = lcm_create(marie_default_url());
     marie_loop_t *loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 1) < 0) {
         fprintf(stderr, "bench_am: no LCM\n");
         exit(1);
     }
@@ -225,6 +250,81 @@ static void bench_respawn_and_hang(void)
     }
     marie_loop_destroy(loop);
     lcm_destroy(lcm);
+    run_marie("down");
+    stop_am(am);
+    unsetenv("MARIE_TEST_TRACE");
+}
+
+/* Heartbeat loss to restart with a short timeout, beside two busy loops: a component whose
+ * entry says heartbeat_timeout: 0.15 and stop_timeout: 0.02 is hung right after a heartbeat,
+ * HANGS times; the time from the hang to its replacement's exec, and the restarts nobody
+ * caused while it ran 6 s beside the loops. */
+#define HANGS 6
+static void bench_fast_restart(void)
+{
+    char sys[128], state[128], trace[128], text[1024];
+    snprintf(sys, sizeof sys, "%s/fast.yaml", dir);
+    snprintf(state, sizeof state, "%s/fast", dir);
+    snprintf(trace, sizeof trace, "%s/trace-fast", dir);
+    snprintf(text, sizeof text,
+             "system: fast\nhosts: [b1]\ncomponents:\n  victim:\n    exec: %s/tests/bin/marie-test-comp\n"
+             "    host: b1\n    heartbeat_timeout: 0.15\n    stop_timeout: 0.02\n"
+             "    restart: {policy: always, backoff_min: 0, backoff_max: 0, stable_after: 0, max_failures: 0}\n",
+             bin);
+    write_text(sys, text);
+    setenv("MARIE_TEST_TRACE", trace, 1);
+    pid_t busy[2] = {0};
+    pid_t am = spawn_am("b1", state);
+    usleep(300000);
+    char args[256];
+    snprintf(args, sizeof args, "up %s", sys);
+    lcm_t *lcm = marie_bus_create(marie_default_url());
+    marie_loop_t *loop = marie_loop_create();
+    if (run_marie(args) != 0 || !lcm || !loop || marie_loop_add_bus(loop, lcm, 1) < 0 || test_busy_start(busy, 2) < 0) {
+        fprintf(stderr, "bench_am: the fast system did not come up (see %s/marie.log)\n", dir);
+        goto out;
+    }
+    marie_bus_subscribe(lcm, MARIE_CH_HEARTBEAT, on_hb_raw, NULL);
+    int64_t t0;
+    int pid0 = 0;
+    usleep(500000);
+    last_trace(trace, "victim", "exec", &t0, &pid0);
+    marie_loop_run_until(loop, 6000, NULL, NULL);       /* 6 s beside the busy loops */
+    int restarts = count_trace(trace, "victim", "exec") - 1;
+    double lat[HANGS];
+    int n = 0;
+    for (int i = 0; i < HANGS; i++) {
+        int64_t t_run, t_exec;
+        int pid, pid2 = 0;
+        if (last_trace(trace, "victim", "running", &t_run, &pid) != 0)
+            break;
+        victim_pid = pid;
+        last_hb_us = 0;
+        marie_loop_run_until(loop, 3000, stamped, &last_hb_us);     /* right after a heartbeat */
+        int64_t t_hang = marie_mono_us();
+        kill(pid, SIGUSR1);
+        for (int64_t end = t_hang + 3000000; marie_mono_us() < end;) {
+            if (last_trace(trace, "victim", "exec", &t_exec, &pid2) == 0 && pid2 != pid)
+                break;
+            usleep(1000);
+        }
+        if (pid2 != pid && t_exec > t_hang)
+            lat[n++] = (double)(t_exec - t_hang) / 1000.0;
+        for (int64_t end = marie_mono_us() + 3000000; marie_mono_us() < end;)     /* the new one runs */
+            if (last_trace(trace, "victim", "running", &t_run, &pid2) == 0 && pid2 != pid)
+                break;
+    }
+    if (n > 0) {
+        double copy[HANGS];
+        memcpy(copy, lat, sizeof lat);
+        row("heartbeat_loss_to_restart_p50_timeout_0.15s_busy", pct(copy, n, 0.5), "ms");
+        row("heartbeat_loss_to_restart_max_timeout_0.15s_busy", pct(lat, n, 1.0), "ms");
+    }
+    row("false_restarts_6s_timeout_0.15s_busy", restarts, "count");
+out:
+    test_busy_stop(busy, 2);
+    marie_loop_destroy(loop);
+    marie_bus_destroy(lcm);
     run_marie("down");
     stop_am(am);
     unsetenv("MARIE_TEST_TRACE");
@@ -356,6 +456,7 @@ int main(void)
     if (run_marie(args) != 0)
         return 1;
     bench_respawn_and_hang();
+    bench_fast_restart();
     bench_bringup_and_idle();
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);

@@ -25,7 +25,7 @@
 #include "lcmtypes/marie_types.h"
 
 #define ROUNDS 40               /* requests to the mission alone */
-#define TAPS 12                 /* requests that drive the simulated robot */
+#define TAPS 8                  /* requests that drive the simulated robot */
 #define TAP_LIMIT_US 30000000   /* one tap: the robot reaches the previous place, then moves */
 #define MAX_PIDS 12
 #define MAX_CYCLES 4096
@@ -329,7 +329,7 @@ int main(void)
     snprintf(keyp, sizeof keyp, "key_file=%s", key);
     lcm_t *lcm = lcm_create(NULL);
     loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 8) < 0)
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 8) < 0)
         return 1;
     marie_goal_t_subscribe(lcm, "GOAL", on_goal, NULL);
     marie_goal_request_t_subscribe(lcm, "GOAL_REQUEST", on_req, NULL);

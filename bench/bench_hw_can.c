@@ -111,7 +111,7 @@ int main(void)
     can_bus_set_filters(spy, &flt, 1);
     marie_wheel_encoders_t_subscription_t *se = marie_wheel_encoders_t_subscribe(lcm, "WHEEL_ENCODERS", on_enc, NULL);
     probe_t pr = { .spy = spy };
-    marie_loop_add_lcm(loop, lcm, 1);
+    marie_loop_add_bus(loop, lcm, 1);
     marie_loop_add_fd(loop, can_bus_fd(spy), POLLIN, on_spy, &pr);
     int64_t t0 = marie_mono_us();
     while (!enc_ok && marie_mono_us() - t0 < 20000000)

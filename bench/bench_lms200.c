@@ -88,7 +88,7 @@ static void bench_driver(const char *b, const char *res, const char *rate, const
     lcm_t *lcm = lcm_create(NULL);
     marie_laser_scan_t_subscription_t *sub = marie_laser_scan_t_subscribe(lcm, "LASER", on_scan, NULL);
     marie_loop_t *loop = marie_loop_create();
-    marie_loop_add_lcm(loop, lcm, 1);
+    marie_loop_add_bus(loop, lcm, 1);
     /* Warm up until streaming, then measure over a fixed window. */
     int64_t end = marie_mono_us() + 5000000;
     while (bus_scans < 5 && marie_mono_us() < end)

@@ -40,7 +40,7 @@
 
 #include "bench/bench.h"
 #include "core/config.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
@@ -142,19 +142,19 @@ static void feed_run(feed_t *f, int64_t us)
             for (int i = 0; i < 181; i++)
                 f->ranges[i] = (i > 80 && i < 100) ? ahead : 6.0f;
             marie_laser_scan_t scan = {now, (float)-M_PI / 2, (float)M_PI / 180, 0.05f, 8.0f, 181, f->ranges, 0, NULL};
-            marie_lcm_publish_msg(f->tx, "LASER", &marie_type_laser_scan_t, &scan);
+            marie_bus_publish_msg(f->tx, "LASER", &marie_type_laser_scan_t, &scan);
             marie_pose_cov_t pose = {.utime = now, .frame = "map", .pose = {0, 0, 0}};
-            marie_lcm_publish_msg(f->tx, "POSE", &marie_type_pose_cov_t, &pose);
+            marie_bus_publish_msg(f->tx, "POSE", &marie_type_pose_cov_t, &pose);
             marie_path_t p = {.utime = now, .goal_id = 1, .nposes = 20, .poses = f->path};
-            marie_lcm_publish_msg(f->tx, "PATH", &marie_type_path_t, &p);
+            marie_bus_publish_msg(f->tx, "PATH", &marie_type_path_t, &p);
             marie_estop_t e = {now, 0, "bench"};
-            marie_lcm_publish_msg(f->tx, "ESTOP", &marie_type_estop_t, &e);
+            marie_bus_publish_msg(f->tx, "ESTOP", &marie_type_estop_t, &e);
             f->k++;
             next += 20000;  /* 50 Hz inputs */
         }
-        struct pollfd pf = {marie_lcm_fd(f->rx), POLLIN, 0};
+        struct pollfd pf = {marie_bus_fd(f->rx), POLLIN, 0};
         if (poll(&pf, 1, 2) > 0)
-            marie_lcm_handle(f->rx, 16);
+            marie_bus_handle(f->rx, 16);
     }
 }
 
@@ -279,11 +279,11 @@ int main(void)
     for (int i = 0; i < BUSY_LOOPS; i++)
         busy[i] = busy_loop(marie_mono_us() + run_us);
     /* The inputs are sent, and the observer reads the bus, as components do (marie's sender
-     * and receiver, core/lcm.h). */
-    feed_t f = {.tx = marie_lcm_create(NULL), .rx = marie_lcm_create(NULL)};
-    marie_lcm_subscribe(f.rx, "LASER\\.PULL", on_pull, NULL);
-    marie_lcm_subscribe(f.rx, "MOTOR_COMMAND", on_cmd, NULL);
-    marie_lcm_subscribe(f.rx, "LASER", on_scan_copy, NULL);
+     * and receiver, core/bus/bus.h). */
+    feed_t f = {.tx = marie_bus_create(NULL), .rx = marie_bus_create(NULL)};
+    marie_bus_subscribe(f.rx, "LASER\\.PULL", on_pull, NULL);
+    marie_bus_subscribe(f.rx, "MOTOR_COMMAND", on_cmd, NULL);
+    marie_bus_subscribe(f.rx, "LASER", on_scan_copy, NULL);
     for (int i = 0; i < 20; i++)
         f.path[i] = (marie_pose2d_t){0.5 * i, 0, 0};
     /* Alternating, each mode first in every other round. */
@@ -303,8 +303,8 @@ int main(void)
         bench_row("pipeline", "laser_to_motor_command_p99_rt_vs_normal", pct(&results[RT].chain, 0.99), "us",
                   pct(&results[NORMAL].chain, 0.99));
     }
-    marie_lcm_destroy(f.tx);
-    marie_lcm_destroy(f.rx);
+    marie_bus_destroy(f.tx);
+    marie_bus_destroy(f.rx);
     marie_spawner_destroy(sp);
     marie_system_destroy(cs.sys);
     close(null_fd);

@@ -14,7 +14,7 @@
 
 #include "adapters/ros2/ros2_conv.h"
 #include "bench/bench.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/procstat.h"
 #include "core/time.h"
 #include "ros2_types.h"
@@ -109,9 +109,9 @@ static void publish_scan_odom(lcm_t *lcm)
     for (int i = 0; i < N_LAT; i++) {
         marie_laser_scan_t m;
         fill_scan(&m, ranges);
-        marie_lcm_publish_msg(lcm, "LASER", &marie_type_laser_scan_t, &m);
+        marie_bus_publish_msg(lcm, "LASER", &marie_type_laser_scan_t, &m);
         marie_odometry_t o = {.utime = marie_wall_us(), .pose = {1, 2, 0.5}, .v = 0.3};
-        marie_lcm_publish_msg(lcm, "ODOMETRY", &marie_type_odometry_t, &o);
+        marie_bus_publish_msg(lcm, "ODOMETRY", &marie_type_odometry_t, &o);
         usleep(1000000 / LAT_HZ);
     }
     usleep(500000);
@@ -127,7 +127,7 @@ static int publish_images(lcm_t *lcm)
     int64_t t0 = marie_mono_us();
     for (int i = 0; i < N_IMG; i++) {
         marie_image_t im = {marie_wall_us(), 640, 480, 640 * 3, MARIE_IMAGE_T_FORMAT_RGB8, (int32_t)size, px};
-        sent += marie_lcm_publish_msg(lcm, "CAMERA_IMAGE", &marie_type_image_t, &im) == 0;
+        sent += marie_bus_publish_msg(lcm, "CAMERA_IMAGE", &marie_type_image_t, &im) == 0;
         int64_t next = t0 + (int64_t)(i + 1) * 1000000 / 30 - marie_mono_us();
         if (next > 0)
             usleep((useconds_t)next);
@@ -149,28 +149,28 @@ static double spartacus_cpu(lcm_t *lcm, pid_t bridge, double seconds)
     for (int tick = 0; tick < (int)(seconds * 50); tick++) {
         int64_t now = marie_wall_us();
         marie_sim_clock_t clk = {now, 1.0};
-        marie_lcm_publish_msg(lcm, "MARIE_CLOCK", &marie_type_sim_clock_t, &clk);
+        marie_bus_publish_msg(lcm, "MARIE_CLOCK", &marie_type_sim_clock_t, &clk);
         if (tick % 5 == 0) {
             marie_laser_scan_t m;
             fill_scan(&m, ranges);
             marie_odometry_t o = {.utime = now, .pose = {1, 2, 0.5}, .v = 0.3};
             marie_pose_cov_t p = {.utime = now, .frame = "map", .pose = {3, 4, 0.5}};
-            marie_lcm_publish_msg(lcm, "LASER", &marie_type_laser_scan_t, &m);
-            marie_lcm_publish_msg(lcm, "ODOMETRY", &marie_type_odometry_t, &o);
-            marie_lcm_publish_msg(lcm, "POSE", &marie_type_pose_cov_t, &p);
+            marie_bus_publish_msg(lcm, "LASER", &marie_type_laser_scan_t, &m);
+            marie_bus_publish_msg(lcm, "ODOMETRY", &marie_type_odometry_t, &o);
+            marie_bus_publish_msg(lcm, "POSE", &marie_type_pose_cov_t, &p);
         }
         if (tick % 10 == 0) {
             marie_motor_command_t mc = {now, 0.3, 0.1, "follow_path"};
-            marie_lcm_publish_msg(lcm, "MOTOR_COMMAND", &marie_type_motor_command_t, &mc);
+            marie_bus_publish_msg(lcm, "MOTOR_COMMAND", &marie_type_motor_command_t, &mc);
         }
         if (tick % 4 == 0 || tick % 25 == 1) {      /* 12.5 + 2 heartbeats a second */
             marie_heartbeat_t hb = {.utime = now, .component = "localizer", .host = "onboard2", .state = 2,
                                     .reason = "", .ncounters = 4, .counters = counters};
-            marie_lcm_publish_msg(lcm, "MARIE_HEARTBEAT", &marie_type_heartbeat_t, &hb);
+            marie_bus_publish_msg(lcm, "MARIE_HEARTBEAT", &marie_type_heartbeat_t, &hb);
         }
         if (tick % 100 == 0) {
             marie_path_t path = {now, 1, 0, 100, poses};
-            marie_lcm_publish_msg(lcm, "PATH", &marie_type_path_t, &path);
+            marie_bus_publish_msg(lcm, "PATH", &marie_type_path_t, &path);
         }
         int64_t next = t0 + (int64_t)(tick + 1) * 20000 - marie_mono_us();
         if (next > 0)
@@ -212,7 +212,7 @@ int main(int argc, char **argv)
         return 1;
     char *const args[] = {bin, "--system", sys, "--name", "ros2", NULL};
     pid_t bridge = test_spawn(args, "/dev/null");
-    lcm_t *lcm = marie_lcm_create(NULL);
+    lcm_t *lcm = marie_bus_create(NULL);
     dds_entity_t pp = dds_create_participant(0, NULL, NULL);
     dds_listener_t *l[NSTREAM];
     const dds_topic_descriptor_t *desc[NSTREAM] = {&sensor_msgs_msg_dds__LaserScan__desc, &nav_msgs_msg_dds__Odometry__desc,
@@ -251,6 +251,6 @@ int main(int argc, char **argv)
     test_stop(bridge);
     unlink(sys);
     dds_delete(pp);
-    marie_lcm_destroy(lcm);
+    marie_bus_destroy(lcm);
     return 0;
 }

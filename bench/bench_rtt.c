@@ -73,11 +73,15 @@ static int raw_echo_main(void)
 /* ---- the pinging side ---- */
 
 /* The paths, each to an echo of its own; PORTS is the row's value, RAW its baseline. */
-enum { PORTS, LIB_SEND, RAW, SPIN, SHM, NPATHS };
-static const char *const echo_names[NPATHS] = {"pong", "pong-lib", NULL, "pong-spin", "pong-shm"};
+enum { PORTS, LIB_SEND, RAW, SPIN, SHM, LOCAL, LOCAL_SPIN, NPATHS };
+static const char *const echo_names[NPATHS] = {"pong", "pong-lib", NULL, "pong-spin", "pong-shm", "pong-local",
+                                               "pong-lspin"};
 /* The pinging component's ports of each path (LIB_SEND sends with liblcm on ping_lib's channel). */
-static const char *const ping_port[NPATHS] = {"ping", "ping_lib", NULL, "spin_ping", "shm_ping"};
-static const char *const pong_port[NPATHS] = {"pong", "pong_lib", NULL, "spin_pong", "shm_pong"};
+static const char *const ping_port[NPATHS] = {"ping", "ping_lib", NULL, "spin_ping", "shm_ping", "local_ping",
+                                              "lspin_ping"};
+static const char *const pong_port[NPATHS] = {"pong", "pong_lib", NULL, "spin_pong", "shm_pong", "local_pong",
+                                              "lspin_pong"};
+static bool spins(int path) { return path == SPIN || path == LOCAL_SPIN; }
 
 typedef struct {
     int64_t lat[4000];
@@ -133,6 +137,10 @@ static const marie_port_spec_t ping_ports[] = {
     {"spin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_SPIN_PONG"},
     {"shm_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_SHM_PING"},
     {"shm_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_SHM_PONG"},
+    {"local_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_LOCAL_PING"},
+    {"local_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LOCAL_PONG"},
+    {"lspin_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_LSPIN_PING"},
+    {"lspin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LSPIN_PONG"},
     {0},
 };
 static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
@@ -258,7 +266,7 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
 {
     int lost = 0;
     rtt_t *r = &pg->path[path];
-    marie_loop_set_spin(marie_component_loop(pg->c), path == SPIN ? SPIN_US : 0);
+    marie_loop_set_spin(marie_component_loop(pg->c), spins(path) ? SPIN_US : 0);
     int kept = r->n;
     for (int i = 0; i < WARMUP; i++)
         lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
@@ -312,6 +320,15 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("p50_shm", label, pct(shm, 0.5), "us", pct(m, 0.5));
     row("p99_shm", label, pct(shm, 0.99), "us", pct(m, 0.99));
     row("lost_shm", label, lost[SHM], "msgs", NAN);
+    rtt_t *loc = &pg->path[LOCAL], *lspin = &pg->path[LOCAL_SPIN];
+    row("p50_local", label, pct(loc, 0.5), "us", pct(m, 0.5));
+    row("p99_local", label, pct(loc, 0.99), "us", pct(m, 0.99));
+    row("lost_local", label, lost[LOCAL], "msgs", NAN);
+    row("p50_local_spin", label, pct(lspin, 0.5), "us", pct(m, 0.5));
+    row("p99_local_spin", label, pct(lspin, 0.99), "us", pct(m, 0.99));
+    row("lost_local_spin", label, lost[LOCAL_SPIN], "msgs", NAN);
+    row("cpu_per_rtt_local_spin", label, lspin->n ? pg->cpu_ns[LOCAL_SPIN] / 1000.0 / lspin->n : NAN, "us",
+        loc->n ? pg->cpu_ns[LOCAL] / 1000.0 / loc->n : NAN);
     dds_t d;
     if (dds_round_trip(size, 3, &d) < 0) {
         printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
@@ -324,6 +341,10 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("p99_spin_vs_dds", label, pct(spin, 0.99), "us", d.p99);
     row("p50_shm_vs_dds", label, pct(shm, 0.5), "us", d.p50);
     row("p99_shm_vs_dds", label, pct(shm, 0.99), "us", d.p99);
+    row("p50_local_vs_dds", label, pct(loc, 0.5), "us", d.p50);
+    row("p99_local_vs_dds", label, pct(loc, 0.99), "us", d.p99);
+    row("p50_local_spin_vs_dds", label, pct(lspin, 0.5), "us", d.p50);
+    row("p99_local_spin_vs_dds", label, pct(lspin, 0.99), "us", d.p99);
     fprintf(stderr, "bench_rtt: ddsperf %s: %ld round trips\n", label, d.count);
 }
 
@@ -347,18 +368,24 @@ int main(int argc, char **argv)
     self[k] = 0;
     /* The echoes and the pinging side are components of one system file (channels, spin,
      * transports), as a robot's are. */
-    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[1536];
+    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[2560];
     snprintf(text, sizeof text, "system: bench-rtt\nlcm_url: \"%s\"\n"
              "transports:\n"
              "  RTT_SHM_PING: {kind: shm, max_size: 1000000, slots: 8}\n"
              "  RTT_SHM_PONG: {kind: shm, max_size: 1000000, slots: 8}\n"
+             "  RTT_LOCAL_PING: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_LOCAL_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_LSPIN_PING: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_LSPIN_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
              "components:\n"
              "  ping: {exec: /bin/true}\n"
              "  pong: {exec: /bin/true, ports: {ping: RTT_PING, pong: RTT_PONG}}\n"
              "  pong-lib: {exec: /bin/true, ports: {ping: RTT_PING_LIB, pong: RTT_PONG_LIB}}\n"
              "  pong-spin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_SPIN_PING, pong: RTT_SPIN_PONG}}\n"
-             "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n",
-             marie_default_url(), SPIN_US);
+             "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n"
+             "  pong-local: {exec: /bin/true, ports: {ping: RTT_LOCAL_PING, pong: RTT_LOCAL_PONG}}\n"
+             "  pong-lspin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_LSPIN_PING, pong: RTT_LSPIN_PONG}}\n",
+             marie_default_url(), SPIN_US, SPIN_US);
     if (test_write_temp(sys, 5, text) < 0)
         return 1;
     static pinger_t pg;
@@ -395,9 +422,21 @@ int main(int argc, char **argv)
         }
     }
     printf("# bench\tmetric\tvalue (marie ports)\tunit\tbaseline (raw LCM, or ddsperf for _vs_dds)\tratio\n");
-    run_size(&pg, "64B", 64, 2000);
-    run_size(&pg, "8KB", 8192, 1000);
-    run_size(&pg, "900KB", 921600, 400);
+    /* Fewer round trips than the samples' room: seven paths in two CPU states (a p99 of 1000
+     * is its tenth-largest; 900 KB's of 200 its second). */
+    run_size(&pg, "64B", 64, 1000);
+    run_size(&pg, "8KB", 8192, 600);
+    run_size(&pg, "900KB", 921600, 200);
+    /* The same beside two busy loops of the bench's own, ddsperf too: with every CPU busy the
+     * kernel's wake-ups are cheap (no CPU comes out of its idle state), and the paths compare
+     * differently (docs/transport.md). */
+    pid_t busy[2] = {0};
+    if (test_busy_start(busy, 2) == 0) {
+        run_size(&pg, "64B_busy", 64, 1000);
+        run_size(&pg, "8KB_busy", 8192, 600);
+        run_size(&pg, "900KB_busy", 921600, 200);
+    }
+    test_busy_stop(busy, 2);
     rc = 0;
 out:
     marie_component_destroy(pg.c);

@@ -1,5 +1,5 @@
-/* bench_send: what one publish costs the caller, marie's sender (marie_lcm_publish on a bus of
- * marie_lcm_create) against liblcm's (lcm_publish on a bus of lcm_create) in the same run, for
+/* bench_send: what one publish costs the caller, marie's sender (marie_bus_publish on a bus of
+ * marie_bus_create) against liblcm's (lcm_publish on a bus of lcm_create) in the same run, for
  * 64 B, 8 KB and 900 KB, interleaved in blocks of a tenth. A marie reader subscribed to the
  * channel on the host is emptied after each message (untimed): the kernel hands it each
  * datagram within the sending call, as it would a component's. */
@@ -9,7 +9,7 @@
 #include <time.h>
 
 #include "bench/bench.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/time.h"
 
 #define URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
@@ -29,7 +29,7 @@ static void on_msg(const lcm_recv_buf_t *rb, const char *ch, void *user) { ++*(i
 static void drain(lcm_t *rx, int *got, int want)
 {
     for (int64_t end = marie_mono_us() + 200000; *got < want && marie_mono_us() < end;)
-        marie_lcm_handle(rx, 64);
+        marie_bus_handle(rx, 64);
 }
 
 static void run_size(lcm_t *mine, lcm_t *lib, lcm_t *rx, int *got, const char *label, size_t size, int n)
@@ -44,7 +44,7 @@ static void run_size(lcm_t *mine, lcm_t *lib, lcm_t *rx, int *got, const char *l
                 int want = *got + 1;
                 int64_t t = now_ns();
                 if (who == 0)
-                    marie_lcm_publish(mine, "BENCH_SEND", buf, (unsigned)size);
+                    marie_bus_publish(mine, "BENCH_SEND", buf, (unsigned)size);
                 else
                     lcm_publish(lib, "BENCH_SEND", buf, (unsigned)size);
                 lat[who][k[who]++] = now_ns() - t;
@@ -62,19 +62,19 @@ static void run_size(lcm_t *mine, lcm_t *lib, lcm_t *rx, int *got, const char *l
 
 int main(void)
 {
-    lcm_t *mine = marie_lcm_create(URL), *lib = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *mine = marie_bus_create(URL), *lib = lcm_create(URL), *rx = marie_bus_create(URL);
     int got = 0;
-    if (!mine || !lib || !rx || !marie_lcm_subscribe(rx, "BENCH_SEND", on_msg, &got)) {
+    if (!mine || !lib || !rx || !marie_bus_subscribe(rx, "BENCH_SEND", on_msg, &got)) {
         fprintf(stderr, "bench_send: no bus\n");
         return 1;
     }
-    if (!marie_lcm_sends(mine))
+    if (!marie_bus_sends(mine))
         printf("# send: marie does not send on its bus here (MARIE_LCM_SEND or MARIE_LCM_RECEIVE set)\n");
     run_size(mine, lib, rx, &got, "64B", 64, MAXN);
     run_size(mine, lib, rx, &got, "8KB", 8192, MAXN / 2);
     run_size(mine, lib, rx, &got, "900KB", 921600, 400);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(lib);
-    marie_lcm_destroy(mine);
+    marie_bus_destroy(mine);
     return 0;
 }

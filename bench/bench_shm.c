@@ -9,7 +9,7 @@
 
 #include "bench/bench.h"
 #include "core/config.h"
-#include "core/shm_bus.h"
+#include "core/bus/shm_bus.h"
 #include "core/time.h"
 
 #define NSUB 3

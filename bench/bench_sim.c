@@ -123,7 +123,7 @@ static void program(const char *bin, const char *speed, double wall_s)
 {
     lcm_t *lcm = lcm_create(NULL);
     marie_loop_t *loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 1) < 0) {
         fprintf(stderr, "bench_sim: no LCM\n");
         exit(1);
     }

@@ -89,7 +89,7 @@ static double program(const char *bin, const char *camera, double wall_s)
 {
     lcm_t *lcm = lcm_create(NULL);
     marie_loop_t *loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 1) < 0)
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 1) < 0)
         exit(1);
     marie_sim_clock_t_subscribe(lcm, "MARIE_CLOCK", on_clock, NULL);
     last_clock = -1;

@@ -188,7 +188,7 @@ int main(int argc, char **argv)
 
     lcm_t *pub = lcm_create(NULL), *sub = lcm_create(NULL);
     marie_loop_t *sub_loop = marie_loop_create();
-    if (!pub || !sub || !sub_loop || marie_loop_add_lcm(sub_loop, sub, 1) < 0)
+    if (!pub || !sub || !sub_loop || marie_loop_add_bus(sub_loop, sub, 1) < 0)
         return 1;
     marie_event_t_subscribe(sub, "MARIE_EVENT", on_bus_event, NULL);
     pthread_t th;

@@ -132,7 +132,7 @@ static void bench_detection(double seconds)
         exit(1);
     }
     a.bus = lcm_create(marie_default_url());
-    if (!a.bus || marie_loop_add_lcm(marie_component_loop(a.c), a.bus, 16) < 0) {
+    if (!a.bus || marie_loop_add_bus(marie_component_loop(a.c), a.bus, 16) < 0) {
         fprintf(stderr, "bench_vision: no LCM\n");
         exit(1);
     }
@@ -172,7 +172,7 @@ static void bench_detection(double seconds)
     row("detect_640x480_adapter_frames_unanswered", (double)lost, "frames", 0, false);
     for (int f = 0; f < NFRAMES; f++)
         free(a.img[f].data);
-    marie_loop_remove_lcm(marie_component_loop(a.c), a.bus);
+    marie_loop_remove_bus(marie_component_loop(a.c), a.bus);
     lcm_destroy(a.bus);
     marie_component_destroy(a.c);
     apriltag_detector_destroy(td);
@@ -242,7 +242,7 @@ static void transport(const char *label, const char *url, int format, int count,
     nlat = 0;
     lcm_t *rx = lcm_create(url);
     marie_loop_t *loop = marie_loop_create();
-    if (!rx || !loop || marie_loop_add_lcm(loop, rx, 64) < 0) {
+    if (!rx || !loop || marie_loop_add_bus(loop, rx, 64) < 0) {
         fprintf(stderr, "bench_vision: cannot open %s\n", url);
         marie_loop_destroy(loop);
         if (rx)

@@ -16,7 +16,7 @@
 
 #include "adapters/xml_bridge/xb_server.h"
 #include "bench/bench.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_pose_cov_t.h"
@@ -32,7 +32,7 @@
 static marie_loop_t *bloop, *ploop;    /* the bridge's, the peer's (each run by its thread) */
 static xb_server_t *srv;
 /* The bridge's bus is read and sent on by marie, as marie-xml-bridge's (the component's bus,
- * marie_lcm_create); the peer is a plain liblcm program, and so is the baseline's publisher
+ * marie_bus_create); the peer is a plain liblcm program, and so is the baseline's publisher
  * (lcm_publish on blcm is liblcm's sender). */
 static lcm_t *blcm, *peer;
 static atomic_int stop_bridge, stop_peer;
@@ -328,7 +328,7 @@ static int bus_to_xml_block(reader_t *rd, rate_t *r, int counted)
 int main(void)
 {
     lat = calloc(N_LAT, sizeof *lat);
-    blcm = marie_lcm_create(NULL);
+    blcm = marie_bus_create(NULL);
     peer = lcm_create(NULL);
     bloop = marie_loop_create();
     ploop = marie_loop_create();
@@ -337,7 +337,7 @@ int main(void)
     cfg.port = 0;
     cfg.handle_lcm = 1;
     cfg.max_clients = 1024;
-    if (!lat || !blcm || !peer || !bloop || !ploop || marie_loop_add_lcm(ploop, peer, 1) < 0 ||
+    if (!lat || !blcm || !peer || !bloop || !ploop || marie_loop_add_bus(ploop, peer, 1) < 0 ||
         !(srv = xb_server_create(&cfg, blcm, bloop, NULL))) {
         fprintf(stderr, "bench_xml_bridge: setup failed\n");
         return 1;
@@ -474,7 +474,7 @@ int main(void)
     xb_server_destroy(srv);
     marie_loop_destroy(bloop);
     marie_loop_destroy(ploop);
-    marie_lcm_destroy(blcm);
+    marie_bus_destroy(blcm);
     lcm_destroy(peer);
     free(lat);
     return 0;

@@ -32,7 +32,7 @@ int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t 
     if (s && s->publish)
         return s->publish(s->user, channel, buf, len);
     if (s && s->lcm)
-        return marie_lcm_publish(s->lcm, channel, buf, (unsigned int)len) < 0 ? -EIO : 0;
+        return marie_bus_publish(s->lcm, channel, buf, (unsigned int)len) < 0 ? -EIO : 0;
     return 0;
 }
 
@@ -114,39 +114,26 @@ static void on_input_lcm(const lcm_recv_buf_t *rbuf, const char *channel, void *
     in->fn(in->user, rbuf->data, rbuf->data_size, rbuf->recv_utime);
 }
 
-static void on_input_shm(const void *data, size_t len, void *user)
-{
-    ca_input_t *in = user;
-    in->fn(in->user, data, len, marie_wall_us());
-}
-
-int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, size_t shm_max, ca_input_fn fn, void *user)
+int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, ca_input_fn fn, void *user)
 {
     *in = (ca_input_t){ .lcm = lcm, .fn = fn, .user = user };
-    if (shm_max > 0) {
-        in->shm = marie_shm_sub_create(lcm, channel, shm_max, on_input_shm, in);
-        return in->shm ? 0 : errno == ENOMEM ? -ENOMEM : -EIO;
-    }
     char *pat = ca_channel_pattern(channel);
     if (!pat)
         return -ENOMEM;
-    in->sub = marie_lcm_subscribe(lcm, pat, on_input_lcm, in);
+    in->sub = marie_bus_subscribe(lcm, pat, on_input_lcm, in);
     free(pat);
     return in->sub ? 0 : -EIO;
 }
 
 void ca_input_close(ca_input_t *in)
 {
-    if (in->sub)
-        marie_lcm_unsubscribe(in->lcm, in->sub);
-    marie_shm_sub_destroy(in->shm);
+    marie_bus_unsubscribe(in->lcm, in->sub);
     in->sub = NULL;
-    in->shm = NULL;
 }
 
-const marie_shm_sub_stats_t *ca_input_shm_stats(const ca_input_t *in)
+marie_bus_sub_stats_t ca_input_stats(const ca_input_t *in)
 {
-    return in->shm ? marie_shm_sub_stats(in->shm) : NULL;
+    return marie_bus_sub_stats(in->lcm, in->sub);
 }
 
 static uint32_t crc_table[256];

@@ -8,8 +8,8 @@
 
 #include <lcm/lcm.h>
 
-#include "core/lcm.h"
-#include "core/shm_bus.h"
+#include "core/bus/bus.h"
+#include "core/bus/bus.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "lcmtypes/marie_pull_reply_t.h"
@@ -73,24 +73,23 @@ int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *cha
  * regular expression). Caller frees. */
 char *ca_channel_pattern(const char *channel);
 
-/* A CA's input channel: LCM, or, when the system file puts the channel on shared memory
- * (`transports:`, shm_max its max_size), the channel's ring on this host (core/shm_bus.h; the
- * messages over LCM when the writer is on another host). `fn(user, bytes, len, recv_utime)`
- * gets each message, whichever way it came. */
+/* A CA's input channel, read through the bus: from LCM, or from the ring on this host when the
+ * system file puts the channel on shared memory (`transports:`; the messages over LCM when the
+ * writer is on another host). `fn(user, bytes, len, recv_utime)` gets each message, whichever
+ * way it came. */
 typedef void (*ca_input_fn)(void *user, const void *buf, size_t len, int64_t recv_utime);
 typedef struct {
     lcm_t *lcm;
-    marie_lcm_sub_t *sub;
-    marie_shm_sub_t *shm;
+    marie_bus_sub_t *sub;
     ca_input_fn fn;
     void *user;
 } ca_input_t;
 /* 0, or -ENOMEM / -EIO (nothing left open). */
-int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, size_t shm_max, ca_input_fn fn, void *user);
+int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, ca_input_fn fn, void *user);
 void ca_input_close(ca_input_t *in);    /* no-op when not open */
-/* The shared-memory reader's counts since it opened (NULL on LCM): `lost` overwritten before
+/* The input's counts since it opened (zero on LCM): `lost` overwritten in shared memory before
  * they were read, `bad` malformed notices. */
-const marie_shm_sub_stats_t *ca_input_shm_stats(const ca_input_t *in);
+marie_bus_sub_stats_t ca_input_stats(const ca_input_t *in);
 
 /* CRC-32 (IEEE 802.3), for the SharedMap's log records. */
 uint32_t ca_crc32(uint32_t crc, const void *buf, size_t len);

@@ -366,9 +366,9 @@ static int attach(marie_component_t *c)
     if (p->attached)
         return 0;
     for (size_t i = 0; i < p->nmb && rc == 0; i++)
-        rc = mailbox_attach(p->mb[i], lcm, marie_component_shm_max(c, mailbox_channel(p->mb[i])));
+        rc = mailbox_attach(p->mb[i], lcm);
     if (p->sp && rc == 0)
-        rc = splitter_attach(p->sp, lcm, marie_component_shm_max(c, splitter_input(p->sp)));
+        rc = splitter_attach(p->sp, lcm);
     if (p->sm && rc == 0) {
         rc = sharedmap_attach(p->sm, lcm, p->sm_channel);
         if (rc == 0)
@@ -418,15 +418,15 @@ static void on_quit(marie_component_t *c)
  * (drops) and malformed notices (bad input). */
 static void count_shm_losses(ca_proc_t *p)
 {
-    const marie_shm_sub_stats_t *st[MAX_MAILBOXES + 1] = { 0 };
+    marie_bus_sub_stats_t st[MAX_MAILBOXES + 1] = { 0 };
     for (size_t i = 0; i < p->nmb; i++)
-        st[i] = mailbox_shm_stats(p->mb[i]);
+        st[i] = mailbox_input_stats(p->mb[i]);
     if (p->sp)
-        st[p->nmb] = splitter_shm_stats(p->sp);
+        st[p->nmb] = splitter_input_stats(p->sp);
     int64_t lost = 0, bad = 0;
     for (size_t i = 0; i <= p->nmb; i++) {
-        lost += st[i] ? st[i]->lost : 0;
-        bad += st[i] ? st[i]->bad : 0;
+        lost += st[i].lost;
+        bad += st[i].bad;
     }
     if (lost > p->shown[4])
         marie_component_drop(p->c, lost - p->shown[4]);

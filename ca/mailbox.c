@@ -36,7 +36,7 @@ struct mailbox {
     mailbox_stats_t stats;
     lcm_t *lcm;
     ca_input_t data;
-    marie_lcm_sub_t *sub_pull;
+    marie_bus_sub_t *sub_pull;
 };
 
 mailbox_t *mailbox_create(const char *channel, const marie_type_t *type, int depth,
@@ -299,15 +299,15 @@ static void on_pull(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
     mailbox_handle_request_raw(user, rbuf->data, rbuf->data_size, marie_wall_us());
 }
 
-int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max)
+int mailbox_attach(mailbox_t *mb, lcm_t *lcm)
 {
     if (mb->lcm)
         return -EALREADY;
     char *pat = ca_channel_pattern(mb->pull_channel);
     if (!pat)
         return -ENOMEM;
-    int rc = ca_input_open(&mb->data, lcm, mb->channel, shm_max, on_data, mb);
-    mb->sub_pull = marie_lcm_subscribe(lcm, pat, on_pull, mb);
+    int rc = ca_input_open(&mb->data, lcm, mb->channel, on_data, mb);
+    mb->sub_pull = marie_bus_subscribe(lcm, pat, on_pull, mb);
     free(pat);
     mb->lcm = lcm;
     mb->sink.lcm = lcm;
@@ -318,9 +318,9 @@ int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max)
     return 0;
 }
 
-const marie_shm_sub_stats_t *mailbox_shm_stats(const mailbox_t *mb)
+marie_bus_sub_stats_t mailbox_input_stats(const mailbox_t *mb)
 {
-    return ca_input_shm_stats(&mb->data);
+    return ca_input_stats(&mb->data);
 }
 
 void mailbox_detach(mailbox_t *mb)
@@ -329,7 +329,7 @@ void mailbox_detach(mailbox_t *mb)
         return;
     ca_input_close(&mb->data);
     if (mb->sub_pull)
-        marie_lcm_unsubscribe(mb->lcm, mb->sub_pull);
+        marie_bus_unsubscribe(mb->lcm, mb->sub_pull);
     mb->sub_pull = NULL;
     mb->lcm = NULL;
 }

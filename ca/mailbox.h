@@ -69,13 +69,12 @@ int mailbox_latest(const mailbox_t *mb, void *msg, int64_t now, int64_t *age_us)
 const mailbox_stats_t *mailbox_stats(const mailbox_t *mb);
 
 /* Serve over LCM: subscribe to the channel and its pull channel on `lcm` (replies go
- * out on it unless the sink has a publish function). shm_max > 0: the channel is on shared
- * memory (the system file's `transports:`), its messages read from the ring (ca_input_open).
- * The host must still call mailbox_tick() (every 10 ms is plenty) to answer requests that
- * time out. 0 or -errno. */
-int mailbox_attach(mailbox_t *mb, lcm_t *lcm, size_t shm_max);
-/* On a shared-memory channel, its reader's counts since attached (NULL on LCM). */
-const marie_shm_sub_stats_t *mailbox_shm_stats(const mailbox_t *mb);
+ * out on it unless the sink has a publish function). A channel the bus's transports put on
+ * shared memory is read from its ring (ca_input_open). The host must still call mailbox_tick()
+ * (every 10 ms is plenty) to answer requests that time out. 0 or -errno. */
+int mailbox_attach(mailbox_t *mb, lcm_t *lcm);
+/* Its input's counts since attached (ca_input_stats: zero on LCM). */
+marie_bus_sub_stats_t mailbox_input_stats(const mailbox_t *mb);
 void mailbox_detach(mailbox_t *mb);           /* unsubscribe; no-op when not attached */
 
 #ifdef __cplusplus

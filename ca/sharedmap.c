@@ -48,7 +48,7 @@ struct sharedmap {
     int64_t snap_min_interval, snap_last;
     int snap_due;
     lcm_t *lcm;
-    marie_lcm_sub_t *sub;
+    marie_bus_sub_t *sub;
     sharedmap_stats_t stats;
 };
 
@@ -745,7 +745,7 @@ int sharedmap_attach(sharedmap_t *sm, lcm_t *lcm, const char *request_channel)
     char *pat = ca_channel_pattern(request_channel);
     if (!pat)
         return -ENOMEM;
-    sm->sub = marie_lcm_subscribe(lcm, pat, on_request, sm);
+    sm->sub = marie_bus_subscribe(lcm, pat, on_request, sm);
     free(pat);
     if (!sm->sub)
         return -EIO;
@@ -758,7 +758,7 @@ void sharedmap_detach(sharedmap_t *sm)
 {
     if (!sm->lcm)
         return;
-    marie_lcm_unsubscribe(sm->lcm, sm->sub);
+    marie_bus_unsubscribe(sm->lcm, sm->sub);
     sm->sub = NULL;
     sm->lcm = NULL;
 }

@@ -27,7 +27,7 @@ struct sharedmap_client {
     char *request_channel;
     char *reply_channel;
     char *name;
-    marie_lcm_sub_t *sub;
+    marie_bus_sub_t *sub;
     int64_t next_id;
     int64_t waiting_id;             /* 0: none */
     marie_sharedmap_reply_t *reply; /* the matching reply (&decoded), or NULL */
@@ -103,7 +103,7 @@ sharedmap_client_t *sharedmap_client_create(lcm_t *lcm, const char *request_chan
     char *pat = cl->reply_channel ? ca_channel_pattern(cl->reply_channel) : NULL;
     if (!cl->name || !cl->request_channel || !pat)
         goto err;
-    cl->sub = marie_lcm_subscribe(lcm, pat, on_reply, cl);
+    cl->sub = marie_bus_subscribe(lcm, pat, on_reply, cl);
     free(pat);
     if (!cl->sub)
         goto err;
@@ -121,7 +121,7 @@ void sharedmap_client_destroy(sharedmap_client_t *cl)
     if (!cl)
         return;
     if (cl->sub)
-        marie_lcm_unsubscribe(cl->lcm, cl->sub);
+        marie_bus_unsubscribe(cl->lcm, cl->sub);
     drop_reply(cl);
     marie_loop_destroy(cl->wait_loop);
     free(cl->pending);
@@ -159,7 +159,7 @@ static int send_request(sharedmap_client_t *cl, marie_sharedmap_request_t *req)
         req->type = "";
     if (!req->data)
         req->data = (uint8_t *)"";  /* lcm-gen's encoder memcpy()s even 0 bytes */
-    return marie_lcm_publish_msg(cl->lcm, cl->request_channel, &marie_type_sharedmap_request_t, req) < 0 ? -EIO : 0;
+    return marie_bus_publish_msg(cl->lcm, cl->request_channel, &marie_type_sharedmap_request_t, req) < 0 ? -EIO : 0;
 }
 
 static int have_reply(void *user) { return ((sharedmap_client_t *)user)->reply != NULL; }
@@ -170,7 +170,7 @@ static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int time
     drop_reply(cl);
     if (!cl->wait_loop) {
         cl->wait_loop = marie_loop_create();
-        if (!cl->wait_loop || marie_loop_add_lcm(cl->wait_loop, cl->lcm, 1) < 0) {
+        if (!cl->wait_loop || marie_loop_add_bus(cl->wait_loop, cl->lcm, 1) < 0) {
             MARIE_CLEAR(cl->wait_loop, marie_loop_destroy);
             return -ENOMEM;
         }

@@ -127,11 +127,11 @@ static void on_input(void *user, const void *buf, size_t len, int64_t recv_utime
     splitter_push(user, buf, len, marie_mono_us());
 }
 
-int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max)
+int splitter_attach(splitter_t *sp, lcm_t *lcm)
 {
     if (sp->lcm)
         return -EALREADY;
-    int rc = ca_input_open(&sp->in, lcm, sp->input, shm_max, on_input, sp);
+    int rc = ca_input_open(&sp->in, lcm, sp->input, on_input, sp);
     if (rc < 0)
         return rc;
     sp->lcm = lcm;
@@ -141,9 +141,9 @@ int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max)
 
 const char *splitter_input(const splitter_t *sp) { return sp->input; }
 
-const marie_shm_sub_stats_t *splitter_shm_stats(const splitter_t *sp)
+marie_bus_sub_stats_t splitter_input_stats(const splitter_t *sp)
 {
-    return ca_input_shm_stats(&sp->in);
+    return ca_input_stats(&sp->in);
 }
 
 void splitter_detach(splitter_t *sp)

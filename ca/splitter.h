@@ -39,11 +39,11 @@ const splitter_stats_t *splitter_stats(const splitter_t *sp);
 const char *splitter_input(const splitter_t *sp);
 
 /* Subscribe to the input on `lcm` (outputs go out on it unless the sink has a publish
- * function); shm_max > 0: the input channel is on shared memory (ca_input_open). 0 or -errno. */
-int splitter_attach(splitter_t *sp, lcm_t *lcm, size_t shm_max);
+ * function), through the bus's transports (ca_input_open). 0 or -errno. */
+int splitter_attach(splitter_t *sp, lcm_t *lcm);
 void splitter_detach(splitter_t *sp);
-/* On a shared-memory input, its reader's counts since attached (NULL on LCM). */
-const marie_shm_sub_stats_t *splitter_shm_stats(const splitter_t *sp);
+/* Its input's counts since attached (ca_input_stats: zero on LCM). */
+marie_bus_sub_stats_t splitter_input_stats(const splitter_t *sp);
 
 #ifdef __cplusplus
 }

@@ -14,7 +14,7 @@
 
 typedef struct {
     char *name, *channel;
-    marie_lcm_sub_t *sub;
+    marie_bus_sub_t *sub;
     struct ca_switch *sw;
 } input_t;
 
@@ -28,7 +28,7 @@ struct ca_switch {
     size_t n;
     long selected;              /* index, -1 none */
     lcm_t *lcm;
-    marie_lcm_sub_t *sub_select;
+    marie_bus_sub_t *sub_select;
     ca_switch_stats_t stats;
 };
 
@@ -269,10 +269,10 @@ static void on_select(const lcm_recv_buf_t *rbuf, const char *channel, void *use
     ca_switch_handle_select_raw(user, rbuf->data, rbuf->data_size, marie_wall_us());
 }
 
-static marie_lcm_sub_t *subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t h, void *user)
+static marie_bus_sub_t *subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t h, void *user)
 {
     char *pat = ca_channel_pattern(channel);
-    marie_lcm_sub_t *s = pat ? marie_lcm_subscribe(lcm, pat, h, user) : NULL;
+    marie_bus_sub_t *s = pat ? marie_bus_subscribe(lcm, pat, h, user) : NULL;
     free(pat);
     return s;
 }
@@ -300,11 +300,11 @@ void ca_switch_detach(ca_switch_t *sw)
         return;
     for (size_t i = 0; i < sw->n; i++) {
         if (sw->inputs[i].sub)
-            marie_lcm_unsubscribe(sw->lcm, sw->inputs[i].sub);
+            marie_bus_unsubscribe(sw->lcm, sw->inputs[i].sub);
         sw->inputs[i].sub = NULL;
     }
     if (sw->sub_select)
-        marie_lcm_unsubscribe(sw->lcm, sw->sub_select);
+        marie_bus_unsubscribe(sw->lcm, sw->sub_select);
     sw->sub_select = NULL;
     sw->lcm = NULL;
 }

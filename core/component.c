@@ -11,8 +11,8 @@
 #include <unistd.h>
 
 #include "core/auth.h"
+#include "core/bus/bus.h"
 #include "core/file.h"
-#include "core/lcm.h"
 #include "core/log.h"
 #include "core/typeinfo.h"
 #include "core/spec.h"
@@ -130,7 +130,7 @@ void marie_component_heartbeat(marie_component_t *c)
                                          p->msgs};
     }
     hb.ports = ports;
-    marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_HEARTBEAT, &marie_type_heartbeat_t, &hb);
+    marie_bus_publish_msg(c->buses[0].lcm, MARIE_CH_HEARTBEAT, &marie_type_heartbeat_t, &hb);
 }
 
 void marie_component_event(marie_component_t *c, int severity, const char *kind, const char *fmt, ...)
@@ -141,7 +141,7 @@ void marie_component_event(marie_component_t *c, int severity, const char *kind,
         .utime = marie_wall_us(), .source = c->name, .seq = ++c->event_seq,
         .severity = (int8_t)severity, .kind = (char *)kind, .text = text,
     };
-    if (marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev) != 0)
+    if (marie_bus_publish_msg(c->buses[0].lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev) != 0)
         c->drops++;
     marie_log_level_t lvl = severity >= MARIE_EVENT_T_SEV_ERROR  ? MARIE_LOG_ERROR
                             : severity >= MARIE_EVENT_T_SEV_WARN ? MARIE_LOG_WARN
@@ -294,7 +294,7 @@ static void reply(marie_component_t *c, int64_t request_id, int cmd, bool ok, co
         .utime = marie_wall_us(), .request_id = request_id, .component = c->name,
         .command = (int8_t)cmd, .ok = ok, .state = (int8_t)c->state, .reason = (char *)why,
     };
-    marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_LIFECYCLE_REPLY, &marie_type_lifecycle_reply_t, &r);
+    marie_bus_publish_msg(c->buses[0].lcm, MARIE_CH_LIFECYCLE_REPLY, &marie_type_lifecycle_reply_t, &r);
 }
 
 static bool targets_me(const marie_component_t *c, const char *target)
@@ -478,15 +478,15 @@ marie_component_t *marie_component_create(const marie_component_def_t *def, int 
         goto err;
     snprintf(c->reply_channel, sizeof c->reply_channel, "MARIE_REPLY.%s.%d", c->name, (int)getpid());
     for (size_t i = 0; i < c->nbuses; i++)
-        if (marie_loop_add_lcm(c->loop, c->buses[i].lcm, 1) < 0)
+        if (marie_loop_add_bus(c->loop, c->buses[i].lcm, 1) < 0)
             goto err_runtime;
-    if (!marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
-        !marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_PARAM, marie_comp_on_param_request, c) ||
+    if (!marie_bus_subscribe(c->buses[0].lcm, MARIE_CH_LIFECYCLE, on_lifecycle, c) ||
+        !marie_bus_subscribe(c->buses[0].lcm, MARIE_CH_PARAM, marie_comp_on_param_request, c) ||
         !marie_loop_add_wall_timer(c->loop, heartbeat_period_us(c), on_heartbeat_timer, c))
         goto err_runtime;
     if (marie_loop_clock(c->loop) == MARIE_CLOCK_SIM) {
         /* A fast simulator sends clock bursts; LCM's default queue (30) would drop ticks. */
-        if (!marie_lcm_subscribe(c->buses[0].lcm, MARIE_CH_CLOCK, on_clock, c))
+        if (!marie_bus_subscribe(c->buses[0].lcm, MARIE_CH_CLOCK, on_clock, c))
             goto err_runtime;
     }
     free(o.params);
@@ -547,7 +547,7 @@ void marie_component_destroy(marie_component_t *c)
     }
     free(c->ports);
     for (size_t i = 0; i < c->nbuses; i++) {
-        marie_lcm_destroy(c->buses[i].lcm);
+        marie_bus_destroy(c->buses[i].lcm);
         free(c->buses[i].url);
     }
     free(c->buses);

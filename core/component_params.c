@@ -12,7 +12,7 @@
 
 #include "core/err.h"
 #include "core/expand.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/time.h"
 #include "core/spec.h"
 #include "core/version.h"
@@ -380,7 +380,7 @@ static void param_reply(marie_component_t *c, const marie_param_request_t *rq, b
     marie_param_reply_t r = {.utime = marie_wall_us(), .request_id = rq->request_id, .component = c->name,
                              .op = rq->op, .ok = ok, .reason = (char *)why,
                              .nparams = ok && vals && bufs && owned ? (int32_t)n : 0, .params = vals};
-    marie_lcm_publish_msg(c->buses[0].lcm, MARIE_CH_PARAM_REPLY, &marie_type_param_reply_t, &r);
+    marie_bus_publish_msg(c->buses[0].lcm, MARIE_CH_PARAM_REPLY, &marie_type_param_reply_t, &r);
     for (size_t i = 0; owned && i < n; i++)
         free(owned[i]);
     free(owned);

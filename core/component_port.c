@@ -10,7 +10,7 @@
 #include <unistd.h>
 
 #include "core/err.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
 #include "core/component_priv.h"
@@ -110,23 +110,18 @@ static void on_port_message(const lcm_recv_buf_t *rbuf, const char *channel, voi
     port_receive(user, rbuf->data, rbuf->data_size, rbuf->recv_utime);
 }
 
-static void on_shm_message(const void *data, size_t len, void *user)
-{
-    port_receive(user, data, len, marie_wall_us());
-}
-
 /* Typed ports read shared memory in place: the message is decoded where the writer put it, and
  * handed over only once the ring says the bytes stayed intact throughout (else it is a counted
  * loss, never a torn message). A port not running keeps a copy, taken back the same way. */
-static void on_shm_in_place(const void *data, size_t len, void *user)
+static void on_shm_in_place(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     marie_port_t *p = user;
-    p->peek.len = len;
+    p->peek.len = rbuf->data_size;
     p->peek.decoded = p->peek.queued = false;
     if (p->c->state != MARIE_STATE_RUNNING || !p->cb)
-        p->peek.queued = port_receive(p, data, len, marie_wall_us());
+        p->peek.queued = port_receive(p, rbuf->data, rbuf->data_size, rbuf->recv_utime);
     else
-        p->peek.decoded = marie_decode_input(p->spec->type, data, len, p->scratch, &p->peek.why) == 0;
+        p->peek.decoded = marie_decode_input(p->spec->type, rbuf->data, rbuf->data_size, p->scratch, &p->peek.why) == 0;
 }
 
 static void on_shm_verdict(bool intact, void *user)
@@ -154,17 +149,17 @@ void marie_comp_count_shm_losses(marie_component_t *c)
 {
     for (size_t i = 0; i < c->nports; i++) {
         marie_port_t *p = &c->ports[i];
-        if (!p->shm_sub)
+        if (!p->shm || !p->sub)
             continue;
-        const marie_shm_sub_stats_t *st = marie_shm_sub_stats(p->shm_sub);
-        if (st->lost > p->shm_counted.lost) {
-            c->drops += st->lost - p->shm_counted.lost;
-            marie_component_count(c, "shm_overwritten", st->lost - p->shm_counted.lost);
+        marie_bus_sub_stats_t st = marie_bus_sub_stats(p->lcm, p->sub);
+        if (st.lost > p->counted.lost) {
+            c->drops += st.lost - p->counted.lost;
+            marie_component_count(c, "shm_overwritten", st.lost - p->counted.lost);
         }
-        if (st->bad > p->shm_counted.bad)
+        if (st.bad > p->counted.bad)
             marie_component_bad_input(c, "bad_shm_notice", "port %s: %lld malformed or mismatched notices on %s.SHM",
-                                      p->spec->name, (long long)(st->bad - p->shm_counted.bad), p->channel);
-        p->shm_counted = *st;
+                                      p->spec->name, (long long)(st.bad - p->counted.bad), p->channel);
+        p->counted = st;
     }
 }
 
@@ -174,8 +169,8 @@ void marie_comp_count_bus_losses(marie_component_t *c)
 {
     for (size_t i = 0; i < c->nbuses; i++) {
         bus_t *b = &c->buses[i];
-        marie_lcm_stats_t st;
-        marie_lcm_stats(b->lcm, &st);
+        marie_bus_stats_t st;
+        marie_bus_stats(b->lcm, &st);
         int64_t bad = st.malformed - b->counted.malformed, lost = st.dropped - b->counted.dropped,
                 gaps = st.incomplete - b->counted.incomplete;
         if (bad > 0) {
@@ -195,10 +190,8 @@ void marie_comp_count_bus_losses(marie_component_t *c)
 
 void marie_comp_port_close(marie_port_t *p)
 {
-    marie_shm_pub_destroy(p->shm_pub);
-    marie_shm_sub_destroy(p->shm_sub);
-    p->shm_pub = NULL;
-    p->shm_sub = NULL;
+    marie_bus_unsubscribe(p->lcm, p->sub);
+    p->sub = NULL;
 }
 
 marie_port_t *marie_port(marie_component_t *c, const char *name)
@@ -244,11 +237,14 @@ static int published(marie_port_t *p, int err, size_t len)
 
 void *marie_port_loan(marie_port_t *p, size_t n)
 {
-    if (!p->shm_pub || !p->loanable)
+    if (!p->loanable)
         return marie_fail_null(ENOTSUP);
     if (n > INT32_MAX || p->tail.wire_off + n > p->shm->max_size)
         return marie_fail_null(EMSGSIZE);
-    p->loan = (uint8_t *)marie_shm_pub_loan(p->shm_pub) + p->tail.wire_off;
+    uint8_t *slot = marie_bus_loan(p->lcm, p->channel);
+    if (!slot)
+        return NULL;
+    p->loan = slot + p->tail.wire_off;
     p->loan_cap = n;
     return p->loan;
 }
@@ -272,17 +268,12 @@ static int publish_loaned(marie_port_t *p, const void *msg)
     for (int i = 0; i < 4; i++)     /* big-endian, as LCM writes it */
         head[tl->len_wire_off + (size_t)i] = (uint8_t)((uint32_t)n >> (24 - 8 * i));
     size_t len = tl->wire_off + (size_t)n;
-    return published(p, -marie_shm_pub_commit(p->shm_pub, len), len);
+    return published(p, marie_bus_commit(p->lcm, p->channel, len) ? errno : 0, len);
 }
 
 int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len)
 {
-    int err = 0;
-    if (p->shm_pub)
-        err = -marie_shm_pub_publish(p->shm_pub, data, len);
-    else if (marie_lcm_publish(p->lcm, p->channel, data, (unsigned int)len) != 0)
-        err = errno;
-    return published(p, err, len);
+    return published(p, marie_bus_publish(p->lcm, p->channel, data, len) ? errno : 0, len);
 }
 
 typedef struct {
@@ -305,9 +296,9 @@ int marie_port_publish(marie_port_t *p, const void *msg)
     int size = t->encoded_size(msg);
     if (size < 0)
         return -EINVAL;
-    if (p->shm_pub)     /* encoded straight into the ring */
-        return published(p, -marie_shm_pub_publish_with(p->shm_pub, (size_t)size, encode_into,
-                                                          &(encoding_t){t, msg}), (size_t)size);
+    if (p->shm)         /* encoded straight into the ring */
+        return published(p, marie_bus_publish_with(p->lcm, p->channel, (size_t)size, encode_into,
+                                                   &(encoding_t){t, msg}) ? errno : 0, (size_t)size);
     if ((size_t)size > p->bufcap && !grow_buf(p, (size_t)size))
         return -ENOMEM;
     if (t->encode(p->buf, 0, size, msg) != size)
@@ -320,21 +311,11 @@ int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
     if (p->spec->dir != MARIE_IN || p->spec->mech == MARIE_PULL)
         return -EINVAL;
     p->cb = cb;
-    if (p->shm) {
-        if (!p->shm_sub) {
-            bool in_place = p->spec->type != NULL;
-            if (!(p->shm_sub = marie_shm_sub_create(p->lcm, p->channel, p->shm->max_size,
-                                                    in_place ? on_shm_in_place : on_shm_message, p)))
-                return -EIO;
-            if (in_place)
-                marie_shm_sub_in_place(p->shm_sub, on_shm_verdict);
-        }
-    } else if (!p->sub) {
-        p->sub = marie_lcm_subscribe(p->lcm, p->channel, on_port_message, p);
-        if (!p->sub)
-            return -EIO;
-    }
-    return 0;
+    if (!p->sub)        /* typed messages in shared memory are decoded where they lie */
+        p->sub = p->shm && p->spec->type ? marie_bus_subscribe_in_place(p->lcm, p->channel, on_shm_in_place,
+                                                                         on_shm_verdict, p)
+                                         : marie_bus_subscribe(p->lcm, p->channel, on_port_message, p);
+    return p->sub ? 0 : -EIO;
 }
 
 /* ---- pull ---- */
@@ -419,7 +400,7 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
     if (p->spec->mech != MARIE_PULL || timeout_ms < 0)
         return marie_fail_null(EINVAL);
     if (!c->reply_subscribed) {
-        if (!marie_lcm_subscribe(p->lcm, c->reply_channel, on_pull_reply, c))
+        if (!marie_bus_subscribe(p->lcm, c->reply_channel, on_pull_reply, c))
             return marie_fail_null(EIO);
         c->reply_subscribed = true;
     }
@@ -439,7 +420,7 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
         .utime = marie_wall_us(), .request_id = pl->request_id, .requester = c->name,
         .channel = p->channel, .reply_channel = c->reply_channel, .timeout_ms = timeout_ms,
     };
-    if (marie_lcm_publish_msg(p->lcm, req_channel, &marie_type_pull_request_t, &req) != 0) {
+    if (marie_bus_publish_msg(p->lcm, req_channel, &marie_type_pull_request_t, &req) != 0) {
         c->drops++;
         free(pl);
         return marie_fail_null(EIO);
@@ -530,9 +511,14 @@ lcm_t *marie_comp_bus_for(marie_component_t *c, const char *url)
     if (!n)
         return NULL;
     c->buses = n;
-    lcm_t *lcm = marie_lcm_create(url);
+    lcm_t *lcm = marie_bus_create(url);
     if (!lcm) {
         marie_error("%s: cannot open the LCM bus '%s'", c->name, url);
+        return NULL;
+    }
+    if (marie_bus_set_transports(lcm, c->sys) < 0) {
+        marie_error("%s: the bus '%s' cannot take the system file's transports: %s", c->name, url, strerror(errno));
+        marie_bus_destroy(lcm);
         return NULL;
     }
     c->buses[c->nbuses++] = (bus_t){strdup(url), lcm, {0}};
@@ -589,13 +575,13 @@ int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors
         const marie_transport_cfg_t *tr = marie_system_transport(c->sys, channel);
         if (tr && tr->shm) {
             p->shm = tr;
-            if (p->spec->dir == MARIE_OUT && !(p->shm_pub = marie_shm_pub_create(p->lcm, channel, tr->max_size,
-                                                                                  tr->slots))) {
+            bool ready = p->spec->dir == MARIE_OUT && marie_bus_prepare(p->lcm, channel) == 0;
+            if (p->spec->dir == MARIE_OUT && !ready) {
                 marie_errors_add(errs, c->sys->file, tr->line, tr->col, "%s '%s': port '%s': no shared memory for %s: %s",
                                  c->def->kind, c->name, p->spec->name, channel, strerror(errno));
                 rc = -1;
             }
-            p->loanable = p->shm_pub && p->spec->type &&
+            p->loanable = ready && p->spec->type &&
                           marie_typeinfo_tail(marie_typeinfo_by_fingerprint(p->spec->type->hash()), &p->tail) == 0;
         }
         if (p->spec->type && !(p->scratch = calloc(1, p->spec->type->size)))

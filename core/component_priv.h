@@ -11,7 +11,7 @@
 
 #include "core/auth.h"
 #include "core/component.h"
-#include "core/shm_bus.h"
+#include "core/bus/bus.h"
 #include "core/spec.h"
 #include "core/typeinfo.h"
 
@@ -41,7 +41,7 @@ struct marie_port {
     const marie_port_spec_t *spec;
     char *channel;
     lcm_t *lcm;
-    marie_lcm_sub_t *sub;
+    marie_bus_sub_t *sub;
     marie_msg_cb_t cb;
     void *scratch;              /* decoded message */
     uint8_t *buf;               /* encode buffer */
@@ -49,10 +49,8 @@ struct marie_port {
     queued_t *queue;            /* event port: held while not running */
     size_t nqueue;
     int64_t msgs;               /* delivered (in) or published (out), for the heartbeat */
-    const marie_transport_cfg_t *shm;   /* the system file moves the channel to shared memory */
-    marie_shm_pub_t *shm_pub;
-    marie_shm_sub_t *shm_sub;
-    marie_shm_sub_stats_t shm_counted;  /* the reader's losses already in the counters */
+    const marie_transport_cfg_t *shm;   /* the system file moves the channel to this host's memory */
+    marie_bus_sub_stats_t counted;      /* the subscription's losses already in the counters */
     bool loanable;              /* a shared-memory output whose type has a tail (below) */
     marie_tail_t tail;          /* where that byte array lies (the type's shape) */
     uint8_t *loan;              /* marie_port_loan(): the array's bytes in the ring, until a publish */
@@ -89,7 +87,7 @@ typedef struct {
 typedef struct {
     char *url;
     lcm_t *lcm;
-    marie_lcm_stats_t counted;  /* what the heartbeat has reported of marie_lcm_stats() */
+    marie_bus_stats_t counted;  /* what the heartbeat has reported of marie_bus_stats() */
 } bus_t;
 
 struct marie_component {
@@ -153,7 +151,7 @@ int marie_comp_bind_ports(marie_component_t *c, const options_t *o, marie_errors
  * with fragments missing as drops). */
 void marie_comp_count_shm_losses(marie_component_t *c);
 void marie_comp_count_bus_losses(marie_component_t *c);
-/* Close what a port opened (its shared memory); the port's strings and buffers stay. */
+/* Close what a port opened (its subscription); the port's strings and buffers stay. */
 void marie_comp_port_close(marie_port_t *p);
 
 /* component_params.c */

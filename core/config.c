@@ -114,58 +114,6 @@ const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, c
     return hit ? *hit : NULL;
 }
 
-const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, const char *channel)
-{
-    for (size_t i = 0; sys && channel && i < sys->ntransports; i++)
-        if (strcmp(sys->transports[i].channel, channel) == 0)
-            return &sys->transports[i];
-    return NULL;
-}
-
-/* transports: {CHANNEL: {kind: shm|lcm, max_size: BYTES, slots: N}, ...} */
-static int read_transports(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs)
-{
-    if (!n)
-        return 0;
-    if (n->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, n, "transports: expected a mapping of channel: {kind: shm, max_size: BYTES}");
-        return -1;
-    }
-    if (!(sys->transports = calloc(n->n ? n->n : 1, sizeof *sys->transports)))
-        return -1;
-    int rc = 0;
-    for (size_t i = 0; i < n->n; i++) {
-        static const char *const keys[] = {"kind", "max_size", "slots", NULL};
-        const marie_node_t *t = n->items[i], *v;
-        const char *kind = "lcm";
-        int64_t max_size = 1 << 20, slots = 8;
-        if (t->kind != MARIE_NODE_MAP) {
-            marie_node_error(errs, t, "transport of '%s': expected a mapping such as {kind: shm}", t->key);
-            rc = -1;
-            continue;
-        }
-        if (marie_node_check_keys(t, keys, "transport", errs) < 0 ||
-            ((v = marie_node_get(t, "kind")) && marie_node_str(v, &kind, errs) < 0) ||
-            ((v = marie_node_get(t, "max_size")) && marie_node_int(v, &max_size, errs) < 0) ||
-            ((v = marie_node_get(t, "slots")) && marie_node_int(v, &slots, errs) < 0)) {
-            rc = -1;
-            continue;
-        }
-        if (strcmp(kind, "shm") != 0 && strcmp(kind, "lcm") != 0) {
-            marie_node_error(errs, marie_node_get(t, "kind"), "transport of '%s': kind is shm or lcm, not '%s'",
-                             t->key, kind);
-            rc = -1;
-        } else if (max_size < 64 || max_size > (1LL << 30) || slots < 2 || slots > 1024) {
-            marie_node_error(errs, t, "transport of '%s': max_size is 64 B to 1 GiB and slots 2 to 1024", t->key);
-            rc = -1;
-        } else {
-            sys->transports[sys->ntransports++] = (marie_transport_cfg_t){
-                strdup(t->key), strcmp(kind, "shm") == 0, (size_t)max_size, (int)slots, t->line, t->col};
-        }
-    }
-    return rc;
-}
-
 /* A sequence of scalars (or one scalar) as a string vector. */
 static int read_strv(const marie_node_t *n, char ***out, size_t *count, marie_errors_t *errs)
 {
@@ -724,7 +672,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
             goto err;
         }
     }
-    if (read_transports(marie_node_get(root, "transports"), sys, errs) < 0 ||
+    if (marie_transports_read(marie_node_get(root, "transports"), sys, errs) < 0 ||
         read_strv(marie_node_get(root, "types"), &sys->types, &sys->ntypes, errs) < 0)
         goto err;
     /* The bridge reads the entries themselves (with their positions); the loader checks the shape. */

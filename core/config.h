@@ -131,7 +131,9 @@ typedef struct {
 /* `transports:` in the system file: how a channel's messages travel between ports. */
 typedef struct {
     char *channel;
-    bool shm;                   /* kind: shm (same-host shared memory, notices on LCM); else lcm */
+    char kind[8];               /* a provider's name (core/bus/bus.h): "shm" (same-host shared
+                                   memory, notices on LCM), "local" (same-host fast path); "lcm" */
+    bool shm;                   /* kind is not lcm: the channel's messages are on this host's memory */
     size_t max_size;            /* bytes the largest message may take (shm) */
     int slots;                  /* messages the ring holds (shm) */
     int line, col;
@@ -176,6 +178,10 @@ const marie_transport_cfg_t *marie_system_transport(const marie_system_t *sys, c
  * ("" when none). Caller frees; NULL when out of memory. */
 char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
                                   const marie_system_t *sb, const marie_component_cfg_t *b);
+
+/* ---- transports (core/config_transport.c) ---- */
+/* Reads `transports:` (NULL: none) into sys->transports; errors at the entry's file:line:col. */
+int marie_transports_read(const marie_node_t *n, marie_system_t *sys, marie_errors_t *errs);
 
 /* ---- sched (core/config_sched.c) ---- */
 /* Reads a `sched:` mapping ({policy, priority, cpus, spin_us}) into s, which then owns its cpus

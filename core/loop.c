@@ -39,6 +39,7 @@ typedef struct lcm_watch {
     lcm_t *lcm;
     int burst;
     struct lcm_watch *next;
+    int wake_fd;            /* the bus's fast-path doorbell (marie_bus_wake_fd), or -1 */
 } lcm_watch_t;
 
 struct marie_loop {
@@ -148,7 +149,52 @@ int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
 static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
 {
     lcm_watch_t *w = user;
-    marie_lcm_handle(w->lcm, w->burst);
+    marie_bus_handle(w->lcm, w->burst);
+}
+
+static void on_wake(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    lcm_watch_t *w = user;
+    marie_bus_handle_wake(w->lcm, w->burst);
+}
+
+/* A bus's doorbell comes with its first fast-path subscription, after the bus joined the loop:
+ * watched from the next round on. */
+static void sync_wake_fds(marie_loop_t *loop)
+{
+    for (lcm_watch_t *w = loop->lcms; w; w = w->next) {
+        int fd = marie_bus_wake_fd(w->lcm);
+        if (fd == w->wake_fd)
+            continue;
+        if (w->wake_fd >= 0)
+            marie_loop_remove_fd(loop, w->wake_fd);
+        w->wake_fd = fd >= 0 && marie_loop_add_fd(loop, fd, POLLIN, on_wake, w) == 0 ? fd : -1;
+    }
+}
+
+/* Buses whose fast path holds messages: their doorbell's entry in pfds made ready without a
+ * system call. sleeping: the loop is about to sleep (the buses are told, so that publishers ring
+ * from now on). Returns how many. */
+static int fast_ready(marie_loop_t *loop, size_t n, bool sleeping)
+{
+    int ready = 0;
+    for (lcm_watch_t *w = loop->lcms; w; w = w->next) {
+        if (w->wake_fd < 0 || !(sleeping ? marie_bus_sleep(w->lcm, true) : marie_bus_pending(w->lcm)))
+            continue;
+        for (size_t i = 0; i < n; i++)
+            if (loop->pfds[i].fd == w->wake_fd) {
+                loop->pfds[i].revents = POLLIN;
+                ready++;
+            }
+    }
+    return ready;
+}
+
+static void fast_awake(marie_loop_t *loop)
+{
+    for (lcm_watch_t *w = loop->lcms; w; w = w->next)
+        if (w->wake_fd >= 0)
+            marie_bus_sleep(w->lcm, false);
 }
 
 /* Under the simulated clock, what another fd brings (a device's bytes, a CAN frame) came at the
@@ -162,7 +208,7 @@ static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *use
 static int is_lcm_fd(const marie_loop_t *loop, int fd)
 {
     for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
-        if (marie_lcm_fd(w->lcm) == fd)
+        if (marie_bus_fd(w->lcm) == fd || w->wake_fd == fd)
             return 1;
     return 0;
 }
@@ -177,20 +223,20 @@ static void catch_up_clock(marie_loop_t *loop)
     for (int i = 0; i < n && !loop->quit; i++)
         for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
             if (w->lcm == buses[i]) {
-                marie_lcm_handle(buses[i], CATCH_UP_MAX);
+                marie_bus_handle(buses[i], CATCH_UP_MAX);
                 break;
             }
 }
 
-int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
+int marie_loop_add_bus(marie_loop_t *loop, lcm_t *lcm, int burst)
 {
-    int fd = lcm ? marie_lcm_fd(lcm) : -1;
+    int fd = lcm ? marie_bus_fd(lcm) : -1;
     if (fd < 0)
         return -EINVAL;
     lcm_watch_t *w = calloc(1, sizeof *w);
     if (!w)
         return -ENOMEM;
-    *w = (lcm_watch_t){lcm, burst > 0 ? burst : 1, loop->lcms};
+    *w = (lcm_watch_t){lcm, burst > 0 ? burst : 1, loop->lcms, -1};
     int rc = marie_loop_add_fd(loop, fd, POLLIN, on_lcm_readable, w);
     if (rc < 0) {
         free(w);
@@ -200,14 +246,16 @@ int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst)
     return 0;
 }
 
-int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm)
+int marie_loop_remove_bus(marie_loop_t *loop, lcm_t *lcm)
 {
     for (lcm_watch_t **p = &loop->lcms; *p; p = &(*p)->next) {
         if ((*p)->lcm == lcm) {
             lcm_watch_t *w = *p;
             *p = w->next;
+            if (w->wake_fd >= 0)
+                marie_loop_remove_fd(loop, w->wake_fd);
             free(w);
-            return marie_loop_remove_fd(loop, marie_lcm_fd(lcm));
+            return marie_loop_remove_fd(loop, marie_bus_fd(lcm));
         }
     }
     return -ENOENT;
@@ -380,6 +428,34 @@ static int next_timeout_ms(const marie_loop_t *loop, int timeout_ms)
 void marie_loop_set_spin(marie_loop_t *loop, int64_t spin_us) { loop->spin_us = spin_us > 0 ? spin_us : 0; }
 int64_t marie_loop_spin(const marie_loop_t *loop) { return loop->spin_us; }
 
+static bool fast_path(const marie_loop_t *loop)
+{
+    for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
+        if (w->wake_fd >= 0)
+            return true;
+    return false;
+}
+
+/* Spinning with a fast path: its rings are looked at in memory at every turn and the fds every
+ * SPIN_POLL_EVERY turns, with the CPU yielded at every turn, as the plain spin does (a process
+ * woken on this CPU runs at once). */
+#define SPIN_POLL_EVERY 16
+static int spin_fast(marie_loop_t *loop, size_t n, int64_t now, int64_t until, int *timeout_ms, int64_t start)
+{
+    int rc = 0;
+    for (unsigned k = 1; now < until; k++) {
+        if ((rc = fast_ready(loop, n, false)) > 0 || (k % SPIN_POLL_EVERY == 0 && (rc = poll(loop->pfds, n, 0)) != 0))
+            break;
+        sched_yield();
+        now = marie_mono_us();
+    }
+    if (*timeout_ms > 0) {
+        int spent_ms = (int)((now - start) / 1000);
+        *timeout_ms = spent_ms < *timeout_ms ? *timeout_ms - spent_ms : 0;
+    }
+    return rc;
+}
+
 /* Within spin_us of the last callback, look at the fds without sleeping until one is ready or
  * the window (or the round's wait) ends: a reply that comes back within it is read without the
  * wake-up of a sleeping process. Returns poll()'s result (0: nothing came, sleep in poll) or 0
@@ -396,6 +472,8 @@ static int spin(marie_loop_t *loop, size_t n, int *timeout_ms)
     if (wait_ms > 0 && now + (int64_t)wait_ms * 1000 < until)
         until = now + (int64_t)wait_ms * 1000;
     int rc = 0;
+    if (fast_path(loop))
+        return spin_fast(loop, n, now, until, timeout_ms, start);
     while (now < until && (rc = poll(loop->pfds, n, 0)) == 0) {
         /* A process woken on this CPU (the peer this loop just sent to, often: the kernel
          * likes to wake it beside its waker) runs now instead of after the window. */
@@ -416,6 +494,7 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
         return ran;
     if (ran)
         timeout_ms = 0;
+    sync_wake_fds(loop);
     if (loop->cappfds < loop->nfds) {
         struct pollfd *n = realloc(loop->pfds, loop->nfds * sizeof *n);
         if (!n)
@@ -427,10 +506,17 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
     for (size_t i = 0; i < n; i++)
         loop->pfds[i] = (struct pollfd){loop->fds[i].fd, loop->fds[i].events, 0};
     int rc = spin(loop, n, &timeout_ms);
-    if (rc == 0)
-        do {
-            rc = poll(loop->pfds, n, next_timeout_ms(loop, timeout_ms));
-        } while (rc < 0 && errno == EINTR && !pending_signal);
+    if (rc == 0) {
+        int wait = next_timeout_ms(loop, timeout_ms);
+        /* Before sleeping the fast path's publishers are told to ring: what came before is
+         * handled now instead. */
+        rc = wait != 0 ? fast_ready(loop, n, true) : 0;
+        if (rc == 0)
+            do {
+                rc = poll(loop->pfds, n, wait);
+            } while (rc < 0 && errno == EINTR && !pending_signal);
+        fast_awake(loop);
+    }
     if (rc < 0 && errno != EINTR) {
         int err = errno;
         marie_error("poll: %s", strerror(err));

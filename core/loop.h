@@ -7,7 +7,7 @@
 
 #include <lcm/lcm.h>
 
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -33,11 +33,11 @@ int marie_loop_remove_fd(marie_loop_t *loop, int fd);
 /* Change what a watched fd waits for (POLLIN, POLLOUT...), from the next poll round on. */
 int marie_loop_set_events(marie_loop_t *loop, int fd, short events);
 
-/* An LCM instance as one more fd (core/lcm.h): its handlers run from the loop, at most `burst` messages per
+/* A bus as one more fd (core/bus/bus.h): its handlers run from the loop, at most `burst` messages per
  * round (1 keeps timers and other fds served between messages; a bridge that forwards floods
  * may take more). 0 or -errno. */
-int marie_loop_add_lcm(marie_loop_t *loop, lcm_t *lcm, int burst);
-int marie_loop_remove_lcm(marie_loop_t *loop, lcm_t *lcm);
+int marie_loop_add_bus(marie_loop_t *loop, lcm_t *lcm, int burst);
+int marie_loop_remove_bus(marie_loop_t *loop, lcm_t *lcm);
 
 /* Bytes waiting to be read on fd now, without waiting for more (0 when the fd cannot say).
  * For a tty this includes what the kernel still holds in its flip buffer: bytes written to a

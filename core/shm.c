@@ -319,6 +319,35 @@ bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref)
     return slot_of(r, ref, &s1, &err) != NULL;
 }
 
+int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment)
+{
+    int err = 0;
+    const reader_map_t *m = map_of(r, segment, &err);
+    if (!m)
+        return err;
+    return (int64_t)atomic_load_explicit(&((const shm_hdr_t *)m->base)->write_seq, memory_order_acquire);
+}
+
+int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref)
+{
+    int err = 0;
+    const reader_map_t *m = seq > 0 ? map_of(r, segment, &err) : NULL;
+    if (!m)
+        return err ? err : -EBADMSG;
+    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
+    slot_hdr_t *s = slot_at(m->base, h, (uint64_t)seq % h->nslots);
+    uint64_t want = 2 * (uint64_t)seq, s1 = atomic_load_explicit(&s->seq, memory_order_acquire);
+    if (s1 != want)
+        return s1 > want ? -ESTALE : -EAGAIN;
+    uint64_t size = s->size;
+    if (size > h->slot_size)
+        return -EAGAIN;
+    snprintf(ref->segment, sizeof ref->segment, "%s", segment);
+    ref->seq = seq;
+    ref->size = (uint32_t)size;
+    return 0;
+}
+
 int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *buf, size_t cap)
 {
     if (ref->seq <= 0)

@@ -67,6 +67,13 @@ int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *
 const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref, int *err);
 bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 
+/* Following a writer without notices (the same-host fast path): the newest complete message of
+ * a segment (0: none yet), or a negative errno as marie_shm_read() says; and the ref of message
+ * seq, its size read from its slot: 0, -ESTALE (overwritten), -EAGAIN (not complete, or being
+ * rewritten), or what opening the segment said. */
+int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment);
+int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref);
+
 /* Remove /dev/shm/marie-shm.* segments whose writer process is gone. Returns how many. */
 int marie_shm_sweep(void);
 

@@ -93,6 +93,7 @@ struct am {
     int64_t quit_deadline;
     uint64_t watchdog_us;
     marie_timer_t *status_timer;
+    marie_timer_t *hb_check;    /* at the earliest heartbeat deadline (am_arm_heartbeat_check) */
     marie_timer_t *children_timer;  /* the children file is written when it fires (am_save_children) */
     bool opt_status_hz, opt_log_rate, opt_log_max, opt_log_keep;   /* given on the command line */
     /* automatic placement (the system's balance: section; NULL without one) */
@@ -134,6 +135,8 @@ void am_try_start_waiting(am_t *am);
 void am_stop_all(am_t *am);
 void am_progress_stops(am_t *am);
 void am_check_heartbeats(am_t *am);
+/* Arms the check of the earliest heartbeat deadline (am.c). */
+void am_arm_heartbeat_check(am_t *am);
 void am_reap_children(am_t *am);
 
 /* am_system.c: the loaded system and what survives a restart of the manager */

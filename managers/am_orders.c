@@ -9,7 +9,7 @@
 
 #include "core/component.h"
 #include "core/file.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_lifecycle_command_t.h"
@@ -31,7 +31,7 @@ static void tail_line_cb(const char *line, size_t len, void *user)
         .utime = marie_wall_us(), .host = t->am->host, .component = (char *)t->component,
         .stream = MARIE_LOG_LINE_T_STDOUT, .request_seq = t->req, .text = text,
     };
-    marie_lcm_publish_msg(t->am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
+    marie_bus_publish_msg(t->am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
 }
 
 static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, const char *fmt, ...)
@@ -45,7 +45,7 @@ static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, co
         .reason = reason, .affected = affected,
         .nhosts = am->sys ? (int32_t)am->sys->nhosts : 0, .hosts = am->sys ? am->sys->hosts : NULL,
     };
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
     am_status_changed(am);      /* a status soon after every answer, for marie's waits */
 }
 
@@ -64,7 +64,7 @@ static void send_lifecycle(am_t *am, comp_t *c, int cmd, int64_t req)
     uint8_t mac[MARIE_AUTH_MAC_LEN];
     if (am->auth)
         marie_auth_sign_command(am->auth, &m, mac);
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_LIFECYCLE, &marie_type_lifecycle_command_t, &m);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_LIFECYCLE, &marie_type_lifecycle_command_t, &m);
 }
 
 /* An up order's programs checked (am_check.c): load and start the system, or refuse it. */
@@ -183,11 +183,11 @@ static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_
         .utime = now, .source = source, .seq = ++am->event_seq,
         .severity = MARIE_EVENT_T_SEV_WARN, .kind = "order_refused", .text = text,
     };
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
     marie_am_reply_t r = {
         .utime = now, .host = am->host, .sender = o->sender, .seq = o->seq, .ok = false, .reason = reason,
     };
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
     am_status_changed(am);
 }
 

@@ -6,7 +6,7 @@
 
 #include "core/time.h"
 #include "core/auth.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "lcmtypes/marie_types.h"
 
 #include <pwd.h>
@@ -134,7 +134,7 @@ int marie_am_send_order_as(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_
     int rc = marie_auth_sign_order(auth, o, mac);
     if (rc < 0)
         return rc;
-    rc = marie_lcm_publish_msg(lcm, MARIE_CH_AM_ORDER, &marie_type_am_order_t, o) < 0 ? -EIO : 0;
+    rc = marie_bus_publish_msg(lcm, MARIE_CH_AM_ORDER, &marie_type_am_order_t, o) < 0 ? -EIO : 0;
     o->mac_len = 0;          /* the MAC lived on this stack */
     return rc;
 }

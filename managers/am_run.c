@@ -11,7 +11,7 @@
 #include <unistd.h>
 
 #include "core/component.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_types.h"
@@ -71,7 +71,7 @@ static void log_line_cb(const char *line, size_t len, void *user)
         .stream = (int8_t)op->stream, .seq = ++c->log_seq, .dropped = c->drops_pending,
         .request_seq = 0, .text = text,
     };
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
     if (c->logf) {
         char hdr[96];
         time_t secs = (time_t)(wall / 1000000);

@@ -7,7 +7,7 @@
 #include <unistd.h>
 
 #include "core/component.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_types.h"
@@ -22,7 +22,7 @@ void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...)
         .utime = marie_wall_us(), .source = source, .seq = ++am->event_seq,
         .severity = (int8_t)sev, .kind = (char *)kind, .text = text,
     };
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
     if (sev >= MARIE_EVENT_T_SEV_WARN)
         marie_warn("%s: %s", kind, text);
     else
@@ -132,7 +132,7 @@ void am_publish_status(am_t *am, bool sample)
         st.balance_leader = (char *)(balance_leads(am->bal) ? am->host : balance_leader(am->bal, now));
         st.balance_term = balance_term(am->bal);
     }
-    marie_lcm_publish_msg(am->lcm, MARIE_CH_AM_STATUS, &marie_type_am_status_t, &st);
+    marie_bus_publish_msg(am->lcm, MARIE_CH_AM_STATUS, &marie_type_am_status_t, &st);
 out:
     free(states);
     free(cs);

@@ -169,6 +169,6 @@ int main(int argc, char **argv)
     marie_auth_destroy(cli.auth);
     marie_loop_destroy(cli.loop);
     if (cli.lcm)
-        marie_lcm_destroy(cli.lcm);
+        marie_bus_destroy(cli.lcm);
     return rc;
 }

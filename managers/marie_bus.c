@@ -218,15 +218,15 @@ RAW_HANDLER(on_raw_log, log_line_t, on_log)
 
 int cli_open(cli_t *cli)
 {
-    cli->lcm = marie_lcm_create(cli->url);
+    cli->lcm = marie_bus_create(cli->url);
     if (!cli->lcm) {
         fprintf(stderr, "marie: cannot open the bus %s\n", cli->url);
         return -1;
     }
-    marie_lcm_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_raw_status, cli);
-    marie_lcm_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_raw_reply, cli);
-    marie_lcm_subscribe(cli->lcm, MARIE_CH_LOG, on_raw_log, cli);
-    if (!(cli->loop = marie_loop_create()) || marie_loop_add_lcm(cli->loop, cli->lcm, 64) < 0) {
+    marie_bus_subscribe(cli->lcm, MARIE_CH_AM_STATUS, on_raw_status, cli);
+    marie_bus_subscribe(cli->lcm, MARIE_CH_AM_REPLY, on_raw_reply, cli);
+    marie_bus_subscribe(cli->lcm, MARIE_CH_LOG, on_raw_log, cli);
+    if (!(cli->loop = marie_loop_create()) || marie_loop_add_bus(cli->loop, cli->lcm, 64) < 0) {
         fprintf(stderr, "marie: out of memory\n");
         return -1;
     }

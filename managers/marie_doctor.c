@@ -77,7 +77,7 @@ static long long url_param(const char *url, const char *key)
 }
 
 /* Whether this process may have a receive buffer of `want` bytes past net.core.rmem_max: marie's
- * bus asks with SO_RCVBUFFORCE first (core/lcm.c), which a privileged user may. */
+ * bus asks with SO_RCVBUFFORCE first (core/bus/udpm.c), which a privileged user may. */
 static bool can_force_rcvbuf(long long want)
 {
     int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0), v = want > INT_MAX / 2 ? INT_MAX / 2 : (int)want, got = 0;

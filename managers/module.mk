@@ -35,7 +35,7 @@ ALONE_TESTS += tests/managers/test_fast_detect.sh
 # make fuzz links only the listed sources: the generated decoders it needs are listed too.
 $(eval $(call marie_fuzz,am_order,tests/managers/fuzz_am_order.c managers/logcap.c,))
 
-$(eval $(call marie_bench,bench_am,bench/bench_am.c,$(MANAGERS_LIB)))
+$(eval $(call marie_bench,bench_am,bench/bench_am.c tests/proc.c,$(MANAGERS_LIB)))
 
 # marie top: the live system in a terminal; its table model is a pure module, unit-tested.
 $(eval $(call marie_program,marie-top,managers/top_main.c managers/top.c,))

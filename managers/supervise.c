@@ -324,15 +324,23 @@ void marie_sv_timer(marie_sv_t *sv, marie_sv_action_t *act)
     }
 }
 
+int64_t marie_sv_heartbeat_deadline(const marie_sv_t *sv)
+{
+    if (!sv->local || sv->pid <= 0 || sv->cfg->heartbeat_timeout_s <= 0 ||
+        (sv->st != MARIE_SV_STARTING && sv->st != MARIE_SV_RUNNING))
+        return INT64_MAX;
+    int64_t ref = sv->hb_us > sv->started_us ? sv->hb_us : sv->started_us;
+    return ref + (int64_t)(sv->cfg->heartbeat_timeout_s * 1e6);
+}
+
 void marie_sv_check_heartbeat(marie_sv_t *sv, int64_t now, marie_sv_action_t *act)
 {
     act_clear(act);
-    if (!sv->local || sv->pid <= 0 || sv->cfg->heartbeat_timeout_s <= 0)
-        return;
-    if (sv->st != MARIE_SV_STARTING && sv->st != MARIE_SV_RUNNING)
+    int64_t deadline = marie_sv_heartbeat_deadline(sv);
+    if (deadline == INT64_MAX)
         return;
     int64_t ref = sv->hb_us > sv->started_us ? sv->hb_us : sv->started_us;
-    if (now - ref > (int64_t)(sv->cfg->heartbeat_timeout_s * 1e6)) {
+    if (now > deadline) {
         act_event(act, MARIE_EVENT_T_SEV_WARN, "not_responding", "%s (pid %d): no heartbeat for %.2f s: restarting it",
                   sv->cfg->name, sv->pid, (double)(now - ref) * 1e-6);
         sv->count_failure = true;

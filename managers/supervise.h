@@ -105,6 +105,9 @@ bool marie_sv_peer_status(marie_sv_t *sv, bool running, int64_t now);
 void marie_sv_timer(marie_sv_t *sv, marie_sv_action_t *act);
 /* Periodic: a live component silent for heartbeat_timeout is restarted. */
 void marie_sv_check_heartbeat(marie_sv_t *sv, int64_t now, marie_sv_action_t *act);
+/* When marie_sv_check_heartbeat() would find it silent too long if nothing came (INT64_MAX:
+ * never, no heartbeat is watched). */
+int64_t marie_sv_heartbeat_deadline(const marie_sv_t *sv);
 
 /* Is this component up enough for the ones that depend on it to start? */
 bool marie_sv_up(const marie_sv_t *sv, int64_t now);

@@ -345,7 +345,7 @@ int main(int argc, char **argv)
     int sigfd = -1, rc = MARIE_EXIT_FAIL;
     a.model = top_create();
     a.loop = marie_loop_create();
-    a.lcm = marie_lcm_create(url);
+    a.lcm = marie_bus_create(url);
     if (!a.model || !a.loop) {
         fprintf(stderr, "marie top: %s\n", strerror(errno));
         goto out;
@@ -354,11 +354,11 @@ int main(int argc, char **argv)
         fprintf(stderr, "marie top: cannot open the bus %s\n", url ? url : "(LCM_DEFAULT_URL or default)");
         goto out;
     }
-    marie_lcm_subscribe(a.lcm, MARIE_CH_AM_STATUS, on_status, &a);
-    marie_lcm_subscribe(a.lcm, MARIE_CH_HEARTBEAT, on_heartbeat, &a);
+    marie_bus_subscribe(a.lcm, MARIE_CH_AM_STATUS, on_status, &a);
+    marie_bus_subscribe(a.lcm, MARIE_CH_HEARTBEAT, on_heartbeat, &a);
     int64_t period = (int64_t)llround(a.view.interval_s * 1e6);
     if ((sigfd = watch_signals(&a)) < 0 ||
-        marie_loop_add_lcm(a.loop, a.lcm, 1) < 0 ||
+        marie_loop_add_bus(a.loop, a.lcm, 1) < 0 ||
         !marie_loop_add_wall_timer(a.loop, period, on_tick, &a)) {
         fprintf(stderr, "marie top: %s\n", strerror(errno));
         goto out;
@@ -383,7 +383,7 @@ out:
     if (sigfd >= 0)
         close(sigfd);
     if (a.lcm)
-        marie_lcm_destroy(a.lcm);
+        marie_bus_destroy(a.lcm);
     marie_loop_destroy(a.loop);
     top_destroy(a.model);
     free(a.lines);

@@ -7,6 +7,7 @@
 #include <spawn.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -55,4 +56,28 @@ int test_write_temp(char *path, int suffix_len, const char *text)
     ssize_t n = write(fd, text, len);
     close(fd);
     return n == (ssize_t)len ? 0 : -1;
+}
+
+int test_busy_start(pid_t *pids, int n)
+{
+    for (int i = 0; i < n; i++) {
+        if ((pids[i] = fork()) < 0)
+            return -1;
+        if (pids[i] == 0) {
+            prctl(PR_SET_PDEATHSIG, SIGKILL);
+            for (volatile unsigned long k = 0;; k++)
+                ;
+        }
+    }
+    return 0;
+}
+
+void test_busy_stop(pid_t *pids, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (pids[i] > 0) {
+            kill(pids[i], SIGKILL);
+            waitpid(pids[i], NULL, 0);
+            pids[i] = 0;
+        }
 }

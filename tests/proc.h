@@ -15,4 +15,9 @@ void test_stop(pid_t pid);
  * test. 0, or -1 with errno. */
 int test_write_temp(char *path, int suffix_len, const char *text);
 
+/* Busy loops at the normal policy, one per pid slot, keeping the cores busy until
+ * test_busy_stop() (or the caller's end: they die with it). 0, or -1 when fork failed. */
+int test_busy_start(pid_t *pids, int n);
+void test_busy_stop(pid_t *pids, int n);
+
 #endif

@@ -23,7 +23,7 @@ typedef struct {
     beh_t *b;
     int which;
     int64_t stamp;              /* component clock time the value describes; INT64_MIN: none */
-    marie_lcm_sub_t *sub;    /* subscribe mode */
+    marie_bus_sub_t *sub;    /* subscribe mode */
 } input_t;
 
 struct beh {
@@ -343,7 +343,7 @@ static void quit(marie_component_t *c)
                    (long long)marie_component_counter(c, "recovery"), (long long)b->rs.recoveries);
     for (int i = 0; i < IN_COUNT; i++)
         if (b->in[i].sub) {
-            marie_lcm_unsubscribe(marie_component_lcm(c), b->in[i].sub);
+            marie_bus_unsubscribe(marie_component_lcm(c), b->in[i].sub);
             b->in[i].sub = NULL;
         }
     free(b->path);
@@ -399,7 +399,7 @@ static int init(marie_component_t *c)
         for (int i = 0; i < IN_PULLED; i++) {
             if (b->in[i].sub)
                 continue;
-            b->in[i].sub = marie_lcm_subscribe(marie_component_lcm(c), marie_port_channel(marie_port(c, in_ports[i])),
+            b->in[i].sub = marie_bus_subscribe(marie_component_lcm(c), marie_port_channel(marie_port(c, in_ports[i])),
                                          on_raw, &b->in[i]);
             if (!b->in[i].sub) {
                 marie_component_fail_reason(c, "cannot subscribe to %s", marie_port_channel(marie_port(c, in_ports[i])));

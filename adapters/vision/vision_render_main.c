@@ -13,7 +13,7 @@
 #include "camera/vision_simcam.h"
 #include "core/cli.h"
 #include "core/config.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_types.h"
@@ -97,7 +97,7 @@ static int publish_next(pub_t *p)
         fprintf(stderr, PROG ": cannot render\n");
         return -1;
     }
-    int rc = marie_lcm_publish_msg(p->lcm, p->channel, &marie_type_image_t, &img);
+    int rc = marie_bus_publish_msg(p->lcm, p->channel, &marie_type_image_t, &img);
     if (rc < 0)
         fprintf(stderr, PROG ": cannot publish on %s: %s\n", p->channel, strerror(errno));
     scene_done(p->scene, &img);
@@ -122,12 +122,12 @@ static void on_signal(marie_loop_t *loop, int signo, void *user)
 /* count frames on channel, the first at once, then one every 1/rate s (0: back to back). */
 static int publish(scene_t *s, const char *channel, const char *url, int format, double rate, int64_t count)
 {
-    lcm_t *lcm = marie_lcm_create(url);
+    lcm_t *lcm = marie_bus_create(url);
     marie_loop_t *loop = marie_loop_create();
     if (!lcm || !loop) {
         fprintf(stderr, PROG ": cannot open the LCM bus: %s\n", strerror(errno));
         marie_loop_destroy(loop);
-        marie_lcm_destroy(lcm);
+        marie_bus_destroy(lcm);
         return 1;
     }
     pub_t p = { s, lcm, channel, format, count, 0, 0 };
@@ -140,7 +140,7 @@ static int publish(scene_t *s, const char *channel, const char *url, int format,
         marie_loop_catch_signals(loop, NULL, NULL);
     }
     marie_loop_destroy(loop);
-    marie_lcm_destroy(lcm);
+    marie_bus_destroy(lcm);
     return p.rc;
 }
 

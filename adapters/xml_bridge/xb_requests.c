@@ -151,7 +151,7 @@ static sub_t *sub_get(xb_server_t *s, const char *channel, const marie_typeinfo_
         re[k++] = *p;
     }
     re[k] = '\0';
-    u->ls = marie_lcm_subscribe(s->lcm, re, on_lcm, u);
+    u->ls = marie_bus_subscribe(s->lcm, re, on_lcm, u);
     if (!u->ls)
         goto fail;
     u->next = s->subs;
@@ -174,7 +174,7 @@ void xb_sub_release(xb_server_t *s, sub_t *u)
             *pp = u->next;
             break;
         }
-    marie_lcm_unsubscribe(s->lcm, u->ls);
+    marie_bus_unsubscribe(s->lcm, u->ls);
     free(u->channel);
     free(u->clients);
     free(u->stream);
@@ -344,12 +344,12 @@ void xb_publish_flush(xb_server_t *s)
     if (n == 0)
         return;
     s->npend = 0;               /* the failure replies below call this again */
-    marie_lcm_msg_t msgs[XB_BATCH_MSGS] = { 0 };
+    marie_bus_msg_t msgs[XB_BATCH_MSGS] = { 0 };
     int rc[XB_BATCH_MSGS];
     for (int i = 0; i < n; i++)
-        msgs[i] = (marie_lcm_msg_t){ s->batch.data + s->pend[i].channel, s->batch.data + s->pend[i].data,
+        msgs[i] = (marie_bus_msg_t){ s->batch.data + s->pend[i].channel, s->batch.data + s->pend[i].data,
                                      (unsigned)s->pend[i].len };
-    marie_lcm_publish_batch(s->lcm, msgs, n, rc);     /* one system call for the lot */
+    marie_bus_publish_batch(s->lcm, msgs, n, rc);     /* one system call for the lot */
     for (int i = 0; i < n; i++) {
         pend_t *m = &s->pend[i];
         const char *ch = s->batch.data + m->channel;

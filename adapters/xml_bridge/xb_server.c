@@ -320,7 +320,7 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
         goto err;
     }
     /* A bridge forwards floods: up to 256 messages per wake-up. */
-    if (s->cfg.handle_lcm && (rc = marie_loop_add_lcm(loop, lcm, 256)) < 0) {
+    if (s->cfg.handle_lcm && (rc = marie_loop_add_bus(loop, lcm, 256)) < 0) {
         marie_loop_remove_fd(loop, s->lfd);
         errno = -rc;
         goto err;
@@ -329,7 +329,7 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     if (!s->sweep) {
         marie_loop_remove_fd(loop, s->lfd);
         if (s->cfg.handle_lcm)
-            marie_loop_remove_lcm(loop, lcm);
+            marie_loop_remove_bus(loop, lcm);
         goto err;
     }
     return s;
@@ -358,7 +358,7 @@ void xb_server_destroy(xb_server_t *s)
     marie_loop_remove_timer(s->loop, s->sweep);
     marie_loop_remove_fd(s->loop, s->lfd);
     if (s->cfg.handle_lcm)
-        marie_loop_remove_lcm(s->loop, s->lcm);
+        marie_loop_remove_bus(s->loop, s->lcm);
     close(s->lfd);
     marie_buf_free(&s->out);
     marie_buf_free(&s->enc);

@@ -63,7 +63,7 @@ struct sub {
     xb_server_t *s;
     char *channel;
     const marie_typeinfo_t *type;
-    marie_lcm_sub_t *ls;
+    marie_bus_sub_t *ls;
     client_t **clients;         /* subscribed clients; csub says whether they stream */
     int *stream;
     int nclients, capclients, nstream;

@@ -1,4 +1,4 @@
-"""bus: LCM's UDP multicast (udpm://) read and sent by marie itself, as core/lcm.c does in C.
+"""bus: LCM's UDP multicast (udpm://) read and sent by marie itself, as core/bus/udpm*.c do in C.
 
 One socket joined to the group reads every channel; a second, unbound, sends. Subscriptions are
 exact channel names (ports are bound to channels, not patterns) or a regular expression for the

@@ -261,7 +261,7 @@ ssize_t sendmsg(int fd, const struct msghdr *msg, int flags)
     return n;
 }
 
-/* marie's own LCM sender hands datagrams to the kernel this way (core/lcm.c): each one traced. */
+/* marie's own LCM sender hands datagrams to the kernel this way (core/bus/udpm_send.c): each one traced. */
 int sendmmsg(int fd, struct mmsghdr *vec, unsigned int vlen, int flags)
 {
     REAL(int, "sendmmsg", int, struct mmsghdr *, unsigned int, int);

@@ -45,8 +45,8 @@ static void on_pose(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 static int setup(void **state)
 {
     bus = cat_bus_create();
-    marie_lcm_subscribe(cat_lcm(bus), "POSE_ALL", on_pose, &full);
-    marie_lcm_subscribe(cat_lcm(bus), "POSE_SLOW", on_pose, &slow);
+    marie_bus_subscribe(cat_lcm(bus), "POSE_ALL", on_pose, &full);
+    marie_bus_subscribe(cat_lcm(bus), "POSE_SLOW", on_pose, &slow);
     const char *args[] = { "splitter", "--name", "sp", "--param", "type=marie.pose2d_t",
         "--param", "input=POSE", "--param", "outputs=[POSE_ALL, {channel: POSE_SLOW, max_hz: 10}]", NULL };
     pid = cat_spawn(args);

@@ -1,6 +1,6 @@
 /* fuzz_lcm: datagrams on the bus are bytes from anyone on the network. The input is a series of
  * datagrams (each a 2-byte big-endian length and its bytes, at most 64 of them) sent to the LCM
- * group from one socket, read by marie's receiver (core/lcm.c) with "F.*" subscribed: whatever
+ * group from one socket, read by marie's receiver (core/bus/udpm*.c) with "F.*" subscribed: whatever
  * they are, nothing is read out of bounds, every delivery holds the bytes of one datagram's
  * worth or of a message put together from fragments, and a good message sent after them from
  * another socket is still delivered (abort otherwise). Needs its own network namespace. */
@@ -10,7 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/time.h"
 #include "tests/udp.h"
 
@@ -34,8 +34,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     static lcm_t *rx;
     static int fuzz_fd = -1, good_fd = -1;
     if (!rx) {
-        rx = marie_lcm_create(URL);
-        if (!rx || !marie_lcm_native(rx) || !marie_lcm_subscribe(rx, "F.*", on_any, NULL))
+        rx = marie_bus_create(URL);
+        if (!rx || !marie_bus_native(rx) || !marie_bus_subscribe(rx, "F.*", on_any, NULL))
             abort();
         fuzz_fd = test_udp_socket();
         good_fd = test_udp_socket();
@@ -55,9 +55,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int before = good;
     test_udp_send(good_fd, msg, sizeof msg);
     for (int64_t end = marie_mono_us() + 2000000; good == before && marie_mono_us() < end;) {
-        struct pollfd p = {marie_lcm_fd(rx), POLLIN, 0};
+        struct pollfd p = {marie_bus_fd(rx), POLLIN, 0};
         if (poll(&p, 1, 10) > 0)
-            marie_lcm_handle(rx, 64);
+            marie_bus_handle(rx, 64);
     }
     if (good != before + 1)
         abort();

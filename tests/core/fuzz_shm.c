@@ -36,6 +36,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int64_t n = marie_shm_read(r, &ref, buf, sizeof buf);
     if (n > (int64_t)sizeof buf)
         abort();
+    /* Following the segment without a notice: its newest message, and a ref made from its slot. */
+    marie_shm_ref_t at;
+    if (marie_shm_newest(r, name) > 0 && marie_shm_ref_at(r, name, ref.seq, &at) == 0 &&
+        marie_shm_read(r, &at, buf, sizeof buf) > (int64_t)sizeof buf)
+        abort();
     int err = 0;
     const uint8_t *p = marie_shm_peek(r, &ref, &err);
     if (p) {

@@ -1,4 +1,4 @@
-/* lcm_send: sends messages through marie_lcm_publish() for a peer of another make to check
+/* lcm_send: sends messages through marie_bus_publish() for a peer of another make to check
  * (tests/core/test_lcm_python_peer.py: upstream LCM for Python reads them).
  *
  *   lcm_send URL CHANNEL SIZE...
@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 
 int main(int argc, char **argv)
 {
@@ -18,20 +18,20 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: lcm_send URL CHANNEL SIZE...\n");
         return 2;
     }
-    lcm_t *lcm = marie_lcm_create(argv[1]);
+    lcm_t *lcm = marie_bus_create(argv[1]);
     if (!lcm)
         return 1;
-    printf("sends=%d\n", marie_lcm_sends(lcm));
+    printf("sends=%d\n", marie_bus_sends(lcm));
     int rc = 0;
     for (int i = 3; i < argc; i++) {
         size_t n = strtoul(argv[i], NULL, 10);
         uint8_t *p = malloc(n ? n : 1);
         for (size_t k = 0; k < n; k++)
             p[k] = (uint8_t)(k * 31 + (size_t)(i - 3));
-        if (!p || marie_lcm_publish(lcm, argv[2], p, (unsigned)n) != 0)
+        if (!p || marie_bus_publish(lcm, argv[2], p, (unsigned)n) != 0)
             rc = 1;
         free(p);
     }
-    marie_lcm_destroy(lcm);
+    marie_bus_destroy(lcm);
     return rc;
 }

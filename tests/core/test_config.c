@@ -749,12 +749,13 @@ static void a_profile_chain_is_checked(void **state)
     marie_errors_clear(&e);
 }
 
-/* transports: a channel on shared memory with its sizes; every mistake has its position. */
+/* transports: a channel on shared memory or the fast path, with its sizes; every mistake has
+ * its position. */
 static void transports_are_read_and_checked(void **state)
 {
     marie_errors_t e = {0};
     marie_system_t *sys = load_text(BASE_SYSTEM "transports:\n  CAM: {kind: shm, max_size: 1000000, slots: 4}\n"
-                                                "  LOG: {kind: lcm}\n", NULL, &e);
+                                                "  LOG: {kind: lcm}\n  CMD: {kind: local, max_size: 256}\n", NULL, &e);
     assert_non_null(sys);
     const marie_transport_cfg_t *t = marie_system_transport(sys, "CAM");
     assert_non_null(t);
@@ -762,11 +763,17 @@ static void transports_are_read_and_checked(void **state)
     assert_int_equal(t->max_size, 1000000);
     assert_int_equal(t->slots, 4);
     assert_int_equal(t->line, 16);
+    assert_string_equal(t->kind, "shm");
     assert_false(marie_system_transport(sys, "LOG")->shm);
+    t = marie_system_transport(sys, "CMD");
+    assert_true(t->shm);
+    assert_string_equal(t->kind, "local");
+    assert_int_equal(t->max_size, 256);
+    assert_int_equal(t->slots, 8);
     assert_null(marie_system_transport(sys, "X"));
     marie_system_destroy(sys);
     assert_null(load_text(BASE_SYSTEM "transports:\n  CAM: {kind: tcp}\n", NULL, &e));
-    assert_true(has_error(&e, ":16:15: transport of 'CAM': kind is shm or lcm, not 'tcp'"));
+    assert_true(has_error(&e, ":16:15: transport of 'CAM': kind is shm, local or lcm, not 'tcp'"));
     marie_errors_clear(&e);
     assert_null(load_text(BASE_SYSTEM "transports:\n  CAM: {kind: shm, slots: 1}\n", NULL, &e));
     assert_true(has_error(&e, ":16:8: transport of 'CAM': max_size is 64 B to 1 GiB and slots 2 to 1024"));

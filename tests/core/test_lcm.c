@@ -1,6 +1,6 @@
-/* test_lcm: marie's own reader and sender of LCM's UDP multicast (core/lcm.h) against liblcm as
+/* test_lcm: marie's own reader and sender of LCM's UDP multicast (core/bus/bus.h) against liblcm as
  * the peer (lcm_publish with its own fragmentation; lcm_subscribe and lcm_handle reading what
- * marie_lcm_publish sent), and against hand-made datagrams that are not what LCM sends. Runs in
+ * marie_bus_publish sent), and against hand-made datagrams that are not what LCM sends. Runs in
  * its own network namespace (make test). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -18,7 +18,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "tests/udp.h"
@@ -63,9 +63,9 @@ static void pump(lcm_t *lcm, got_t *g, int until, int ms)
 {
     int64_t end = marie_mono_us() + ms * 1000;
     while (marie_mono_us() < end && (!g || g->n < until)) {
-        struct pollfd p = {marie_lcm_fd(lcm), POLLIN, 0};
+        struct pollfd p = {marie_bus_fd(lcm), POLLIN, 0};
         if (poll(&p, 1, 10) > 0)
-            marie_lcm_handle(lcm, 64);
+            marie_bus_handle(lcm, 64);
     }
 }
 
@@ -80,13 +80,13 @@ static void publish_pattern(lcm_t *pub, const char *channel, size_t n, unsigned 
 /* liblcm sends short messages and fragmented ones; marie gets every byte, in order. */
 static void test_from_liblcm(void **state)
 {
-    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *pub = lcm_create(URL), *rx = marie_bus_create(URL);
     assert_non_null(pub);
     assert_non_null(rx);
-    assert_true(marie_lcm_native(rx));
+    assert_true(marie_bus_native(rx));
     got_t small = {0}, big = {0};
-    assert_non_null(marie_lcm_subscribe(rx, "T_SMALL", on_msg, &small));
-    assert_non_null(marie_lcm_subscribe(rx, "T_BIG\\.[0-9]+", on_msg, &big));
+    assert_non_null(marie_bus_subscribe(rx, "T_SMALL", on_msg, &small));
+    assert_non_null(marie_bus_subscribe(rx, "T_BIG\\.[0-9]+", on_msg, &big));
     const size_t sizes[] = {0, 1, 64, 8192, 65000};
     for (size_t i = 0; i < 5; i++) {
         publish_pattern(pub, "T_SMALL", sizes[i], 0);
@@ -108,13 +108,13 @@ static void test_from_liblcm(void **state)
     assert_int_equal(big.n, 4);
     assert_string_equal(big.channel, "T_BIG.7");
     assert_int_equal(small.bad + big.bad, 0);
-    marie_lcm_stats_t st;
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(rx, &st);
     assert_int_equal(st.messages, 10);
     assert_int_equal(st.malformed + st.incomplete + st.dropped, 0);
     free(small.data);
     free(big.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(pub);
 }
 
@@ -122,49 +122,49 @@ static void test_from_liblcm(void **state)
  * from the subscriptions); a subscription that may match anything lets everything through. */
 static void test_kernel_filter(void **state)
 {
-    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *pub = lcm_create(URL), *rx = marie_bus_create(URL);
     got_t a = {0}, b = {0}, any = {0};
-    marie_lcm_subscribe(rx, "T_FILT_A", on_msg, &a);
-    marie_lcm_sub_t *sb = marie_lcm_subscribe(rx, "T_FILT_B[0-9]*", on_msg, &b);
+    marie_bus_subscribe(rx, "T_FILT_A", on_msg, &a);
+    marie_bus_sub_t *sb = marie_bus_subscribe(rx, "T_FILT_B[0-9]*", on_msg, &b);
     const char *chans[] = {"T_FILT_A", "T_FILT_AB", "T_FILT_", "T_FILT_B", "T_FILT_B12", "T_FILT_Bx", "OTHER", "T"};
     for (int i = 0; i < 8; i++)
         publish_pattern(pub, chans[i], 10, 0);
     pump(rx, NULL, 0, 300);
-    marie_lcm_stats_t st;
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(rx, &st);
     assert_int_equal(a.n, 1);
     assert_int_equal(b.n, 2);
     /* T_FILT_B, T_FILT_B12 and T_FILT_Bx start as the expression's literal part: read, and
      * the last refused by the expression; the other five never read. */
     assert_int_equal(st.messages, 4);
-    marie_lcm_unsubscribe(rx, sb);
-    marie_lcm_sub_t *sa = marie_lcm_subscribe(rx, ".*", on_msg, &any);
+    marie_bus_unsubscribe(rx, sb);
+    marie_bus_sub_t *sa = marie_bus_subscribe(rx, ".*", on_msg, &any);
     for (int i = 0; i < 8; i++)
         publish_pattern(pub, chans[i], 10, 0);
     pump(rx, &any, 8, 2000);
     assert_int_equal(any.n, 8);
     assert_int_equal(a.n, 2);
     assert_int_equal(b.n, 2);
-    marie_lcm_unsubscribe(rx, sa);
+    marie_bus_unsubscribe(rx, sa);
     publish_pattern(pub, "OTHER", 10, 0);
     publish_pattern(pub, "T_FILT_A", 10, 0);
     pump(rx, &a, 3, 2000);
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats(rx, &st);
     assert_int_equal(st.messages, 4 + 8 + 1);
     free(a.data);
     free(b.data);
     free(any.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(pub);
 }
 
 /* A liblcm reader and marie's reader on the same host both get each message. */
 static void test_beside_liblcm(void **state)
 {
-    lcm_t *pub = lcm_create(URL), *lib = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *pub = lcm_create(URL), *lib = lcm_create(URL), *rx = marie_bus_create(URL);
     got_t a = {0}, b = {0};
     assert_non_null(lcm_subscribe(lib, "T_BOTH", on_msg, &a));
-    assert_non_null(marie_lcm_subscribe(rx, "T_BOTH", on_msg, &b));
+    assert_non_null(marie_bus_subscribe(rx, "T_BOTH", on_msg, &b));
     publish_pattern(pub, "T_BOTH", 100000, 1);     /* liblcm's socket holds 208 kB here */
     pump(rx, &b, 1, 2000);
     lcm_handle_timeout(lib, 2000);
@@ -174,7 +174,7 @@ static void test_beside_liblcm(void **state)
     assert_memory_equal(a.data, b.data, a.size);
     free(a.data);
     free(b.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(lib);
     lcm_destroy(pub);
 }
@@ -215,13 +215,13 @@ static size_t fragment(uint8_t *out, uint32_t seq, uint32_t size, uint32_t offse
  * bus keeps working. */
 static void test_malformed(void **state)
 {
-    lcm_t *rx = marie_lcm_create(URL);
+    lcm_t *rx = marie_bus_create(URL);
     got_t g = {0}, other = {0};
-    assert_non_null(marie_lcm_subscribe(rx, "T_BAD", on_msg, &g));
+    assert_non_null(marie_bus_subscribe(rx, "T_BAD", on_msg, &g));
     /* Short messages whose channel cannot match a subscription are dropped by the kernel's
      * filter, unread and uncounted (like anyone's traffic on other channels): this one lets
      * channels that start "T_BAD" through, terminated or not. */
-    assert_non_null(marie_lcm_subscribe(rx, "T_BAD.+", on_msg, &other));
+    assert_non_null(marie_bus_subscribe(rx, "T_BAD.+", on_msg, &other));
     int fd = test_udp_socket();
     static uint8_t d[70000];
     send_raw(fd, "LC0", 3);                                        /* shorter than a header */
@@ -235,8 +235,8 @@ static void test_malformed(void **state)
     send_raw(fd, d, fragment(d, 1, 100, 4, 0, 2, "T_BAD", 10));     /* first one not at 0 */
     send_raw(fd, d, fragment(d, 1, 1u << 30, 0, 0, 2, "T_BAD", 10)); /* a gigabyte */
     pump(rx, NULL, 0, 300);
-    marie_lcm_stats_t st;
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(rx, &st);
     assert_int_equal(st.malformed, 8);
     assert_int_equal(g.n, 0);
     /* Every fragment came, but they overlap and leave a hole: refused whole. */
@@ -250,7 +250,7 @@ static void test_malformed(void **state)
     send_raw(fd, d, fragment(d, 5, 100, 50, 1, 2, NULL, 50));        /* a duplicate: ignored, */
     send_raw(fd, d, fragment(d, 5, 100, 0, 0, 2, "T_BAD", 50));      /* the first: whole */
     pump(rx, &g, 2, 2000);
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats(rx, &st);
     assert_int_equal(st.malformed, 9);
     assert_int_equal(st.incomplete, 1);
     assert_int_equal(g.n, 2);
@@ -258,7 +258,7 @@ static void test_malformed(void **state)
     assert_int_equal(other.n, 0);
     close(fd);
     free(g.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
 }
 
 /* A fragment of size bytes at offset, its data the pattern on_msg expects (seed 0). */
@@ -276,10 +276,10 @@ static size_t pattern_fragment(uint8_t *out, uint32_t seq, uint32_t size, uint32
  * Queued together and read in one call: every message whole, in the order it was completed. */
 static void test_fragments_among_shorts(void **state)
 {
-    lcm_t *rx = marie_lcm_create(URL);
+    lcm_t *rx = marie_bus_create(URL);
     got_t all = {0};
-    assert_non_null(marie_lcm_subscribe(rx, "T_MIX_S", on_msg, &all));
-    assert_non_null(marie_lcm_subscribe(rx, "T_MIX_B", on_msg, &all));
+    assert_non_null(marie_bus_subscribe(rx, "T_MIX_S", on_msg, &all));
+    assert_non_null(marie_bus_subscribe(rx, "T_MIX_B", on_msg, &all));
     int fd = test_udp_socket();
     static uint8_t d[2000];
     const char *text = "A`\x7f";         /* the pattern of 3 bytes, seed 'A' */
@@ -292,25 +292,25 @@ static void test_fragments_among_shorts(void **state)
     send_raw(fd, d, pattern_fragment(d, 6, 3000, 0, 0, 2, "T_NOBODY", 1500));  /* nobody's */
     send_raw(fd, d, pattern_fragment(d, 6, 3000, 1500, 1, 2, NULL, 1500));
     send_raw(fd, d, short_msg(d, 7, "T_MIX_S", text));
-    struct pollfd p = {marie_lcm_fd(rx), POLLIN, 0};
+    struct pollfd p = {marie_bus_fd(rx), POLLIN, 0};
     assert_int_equal(poll(&p, 1, 2000), 1);
-    assert_int_equal(marie_lcm_handle(rx, 64), 6);
+    assert_int_equal(marie_bus_handle(rx, 64), 6);
     const uint32_t order[] = {3, 3, 3, 3000, 3, 3};
     assert_int_equal(all.n, 6);
     assert_memory_equal(all.sizes, order, sizeof order);
     assert_int_equal(all.bad, 0);
-    marie_lcm_stats_t st;
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(rx, &st);
     assert_int_equal(st.messages, 7);
     assert_int_equal(st.malformed + st.incomplete, 0);
     close(fd);
     free(all.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
 }
 
 typedef struct {
     lcm_t *lcm;
-    marie_lcm_sub_t *self;
+    marie_bus_sub_t *self;
     got_t later;
     int calls;
 } reentry_t;
@@ -319,16 +319,16 @@ static void on_once(const lcm_recv_buf_t *rb, const char *channel, void *user)
 {
     reentry_t *r = user;
     r->calls++;
-    marie_lcm_unsubscribe(r->lcm, r->self);
-    assert_non_null(marie_lcm_subscribe(r->lcm, "T_ONCE", on_msg, &r->later));
+    marie_bus_unsubscribe(r->lcm, r->self);
+    assert_non_null(marie_bus_subscribe(r->lcm, "T_ONCE", on_msg, &r->later));
 }
 
 /* A handler may unsubscribe itself and subscribe anew. */
 static void test_subscribe_from_handler(void **state)
 {
-    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *pub = lcm_create(URL), *rx = marie_bus_create(URL);
     reentry_t r = {rx};
-    r.self = marie_lcm_subscribe(rx, "T_ONCE", on_once, &r);
+    r.self = marie_bus_subscribe(rx, "T_ONCE", on_once, &r);
     for (int i = 0; i < 3; i++) {
         publish_pattern(pub, "T_ONCE", 16, 0);
         pump(rx, &r.later, i, 1000);
@@ -336,7 +336,7 @@ static void test_subscribe_from_handler(void **state)
     assert_int_equal(r.calls, 1);
     assert_int_equal(r.later.n, 2);
     free(r.later.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(pub);
 }
 
@@ -359,17 +359,17 @@ static void on_outer(const lcm_recv_buf_t *rb, const char *channel, void *user)
 
 static void test_nested_read(void **state)
 {
-    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *pub = lcm_create(URL), *rx = marie_bus_create(URL);
     nested_t n = {rx};
-    marie_lcm_subscribe(rx, "T_OUTER", on_outer, &n);
-    marie_lcm_subscribe(rx, "T_INNER", on_msg, &n.inner);
+    marie_bus_subscribe(rx, "T_OUTER", on_outer, &n);
+    marie_bus_subscribe(rx, "T_INNER", on_msg, &n.inner);
     publish_pattern(pub, "T_OUTER", 1000, 1);
     publish_pattern(pub, "T_INNER", 2000, 2);
     pump(rx, &n.inner, 1, 2000);
     assert_int_equal(n.inner.n, 1);
     assert_true(n.intact);
     free(n.inner.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(pub);
 }
 
@@ -378,21 +378,21 @@ static void test_nested_read(void **state)
  * with the losses). */
 static void test_drops_counted(void **state)
 {
-    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL "&recv_buf_size=8192");
+    lcm_t *pub = lcm_create(URL), *rx = marie_bus_create(URL "&recv_buf_size=8192");
     got_t g = {0};
-    marie_lcm_subscribe(rx, ".*", on_msg, &g);
+    marie_bus_subscribe(rx, ".*", on_msg, &g);
     for (int i = 0; i < 200; i++)
         publish_pattern(pub, "T_FLOOD", 4000, 0);
     pump(rx, NULL, 0, 300);
     /* The kernel tells the count with the next datagram it queues. */
     publish_pattern(pub, "T_FLOOD", 4000, 0);
     pump(rx, NULL, 0, 300);
-    marie_lcm_stats_t st;
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(rx, &st);
     assert_true(st.dropped > 0);
     assert_int_equal(g.n + st.dropped, 201);
     free(g.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(pub);
 }
 
@@ -400,40 +400,40 @@ static void test_drops_counted(void **state)
 static void test_liblcm_fallback(void **state)
 {
     setenv("MARIE_LCM_RECEIVE", "liblcm", 1);
-    lcm_t *pub = lcm_create(URL), *rx = marie_lcm_create(URL);
+    lcm_t *pub = lcm_create(URL), *rx = marie_bus_create(URL);
     unsetenv("MARIE_LCM_RECEIVE");
-    assert_false(marie_lcm_native(rx));
+    assert_false(marie_bus_native(rx));
     got_t g = {0};
-    marie_lcm_sub_t *s = marie_lcm_subscribe(rx, "T_LIB", on_msg, &g);
+    marie_bus_sub_t *s = marie_bus_subscribe(rx, "T_LIB", on_msg, &g);
     assert_non_null(s);
     marie_loop_t *loop = marie_loop_create();
-    assert_int_equal(marie_loop_add_lcm(loop, rx, 1), 0);
+    assert_int_equal(marie_loop_add_bus(loop, rx, 1), 0);
     publish_pattern(pub, "T_LIB", 200000, 5);
     for (int64_t end = marie_mono_us() + 2000000; g.n < 1 && marie_mono_us() < end;)
         marie_loop_run_once(loop, 10);
     assert_int_equal(g.n, 1);
     assert_int_equal(g.bad, 0);
-    marie_lcm_unsubscribe(rx, s);
+    marie_bus_unsubscribe(rx, s);
     marie_loop_destroy(loop);
     free(g.data);
-    marie_lcm_destroy(rx);
+    marie_bus_destroy(rx);
     lcm_destroy(pub);
 }
 
 /* Other providers stay liblcm's. */
 static void test_other_urls(void **state)
 {
-    lcm_t *m = marie_lcm_create("memq://");
+    lcm_t *m = marie_bus_create("memq://");
     assert_non_null(m);
-    assert_false(marie_lcm_native(m));
-    marie_lcm_destroy(m);
-    lcm_t *t = marie_lcm_create(URL "&transmit_only=true");
+    assert_false(marie_bus_native(m));
+    marie_bus_destroy(m);
+    lcm_t *t = marie_bus_create(URL "&transmit_only=true");
     assert_non_null(t);
-    assert_false(marie_lcm_native(t));
-    marie_lcm_destroy(t);
+    assert_false(marie_bus_native(t));
+    marie_bus_destroy(t);
 }
 
-/* ---- marie_lcm_publish ---- */
+/* ---- marie_bus_publish ---- */
 
 /* A socket that sees every datagram on the group, as any LCM reader's does: with each its
  * sender's port and the TTL it came with. */
@@ -491,7 +491,7 @@ static void marie_publish_pattern(lcm_t *pub, const char *channel, size_t n, uns
 {
     uint8_t *p = malloc(n ? n : 1);
     pattern(p, n, seed);
-    assert_int_equal(marie_lcm_publish(pub, channel, p, (unsigned)n), 0);
+    assert_int_equal(marie_bus_publish(pub, channel, p, (unsigned)n), 0);
     free(p);
 }
 
@@ -511,13 +511,13 @@ static const uint32_t to_lib_sizes[] = {0, 1, 65489, 65490, 65491, 65492, 66560,
  * a marie reader on the sending bus itself gets them too (multicast loopback). */
 static void test_to_liblcm(void **state)
 {
-    lcm_t *tx = marie_lcm_create(URL), *lib = lcm_create(URL "&recv_buf_size=4194304");
+    lcm_t *tx = marie_bus_create(URL), *lib = lcm_create(URL "&recv_buf_size=4194304");
     assert_non_null(tx);
     assert_non_null(lib);
-    assert_true(marie_lcm_sends(tx));
+    assert_true(marie_bus_sends(tx));
     got_t g = {0}, self = {0};
     assert_non_null(lcm_subscribe(lib, "T_TO_LIB", on_msg, &g));
-    assert_non_null(marie_lcm_subscribe(tx, "T_TO_LIB", on_msg, &self));
+    assert_non_null(marie_bus_subscribe(tx, "T_TO_LIB", on_msg, &self));
     for (size_t i = 0; i < NSIZES; i++) {
         marie_publish_pattern(tx, "T_TO_LIB", to_lib_sizes[i], (unsigned)i);
         pump(tx, &self, (int)i + 1, 2000);     /* the process's own reader drains as it goes */
@@ -529,13 +529,13 @@ static void test_to_liblcm(void **state)
     assert_memory_equal(self.sizes, to_lib_sizes, sizeof to_lib_sizes);
     assert_int_equal(g.bad + self.bad, 0);
     assert_string_equal(g.channel, "T_TO_LIB");
-    marie_lcm_stats_t st;
-    marie_lcm_stats(tx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(tx, &st);
     assert_int_equal(st.malformed + st.incomplete + st.dropped, 0);
     free(g.data);
     free(self.data);
     lcm_destroy(lib);
-    marie_lcm_destroy(tx);
+    marie_bus_destroy(tx);
 }
 
 /* The bytes on the wire are liblcm's: a fresh liblcm instance and a fresh marie bus sending the
@@ -544,7 +544,7 @@ static void test_to_liblcm(void **state)
 static void test_same_datagrams_as_liblcm(void **state)
 {
     int fd = sniffer();
-    lcm_t *lib = lcm_create(URL), *tx = marie_lcm_create(URL);
+    lcm_t *lib = lcm_create(URL), *tx = marie_bus_create(URL);
     const uint32_t sizes[] = {0, 65490, 65491, 66560, 200000};
     const size_t want_frags[] = {1, 1, 2, 2, 4};
     for (int who = 0; who < 2; who++)
@@ -554,7 +554,7 @@ static void test_same_datagrams_as_liblcm(void **state)
             if (who == 0)
                 assert_int_equal(lcm_publish(lib, "T_TO_LIB", p, sizes[i]), 0);
             else
-                assert_int_equal(marie_lcm_publish(tx, "T_TO_LIB", p, sizes[i]), 0);
+                assert_int_equal(marie_bus_publish(tx, "T_TO_LIB", p, sizes[i]), 0);
             free(p);
         }
     size_t total = 0;
@@ -578,7 +578,7 @@ static void test_same_datagrams_as_liblcm(void **state)
         free(seen[i].d);
     free(seen);
     close(fd);
-    marie_lcm_destroy(tx);
+    marie_bus_destroy(tx);
     lcm_destroy(lib);
 }
 
@@ -589,8 +589,8 @@ static void test_ttl(void **state)
     const int ttls[] = {0, 0, 3};
     int fd = sniffer();
     for (int i = 0; i < 3; i++) {
-        lcm_t *tx = marie_lcm_create(urls[i]);
-        assert_true(marie_lcm_sends(tx));
+        lcm_t *tx = marie_bus_create(urls[i]);
+        assert_true(marie_bus_sends(tx));
         marie_publish_pattern(tx, "T_TTL", 10, 0);
         marie_publish_pattern(tx, "T_TTL", 100000, 0);
         for (int k = 0; k < 3; k++) {
@@ -599,7 +599,7 @@ static void test_ttl(void **state)
             assert_int_equal(g.ttl, ttls[i]);
             free(g.d);
         }
-        marie_lcm_destroy(tx);
+        marie_bus_destroy(tx);
     }
     close(fd);
 }
@@ -621,9 +621,9 @@ static void *send_many(void *arg)
  * message's fragments are never interleaved with another's). */
 static void test_threads_publish(void **state)
 {
-    lcm_t *tx = marie_lcm_create(URL), *rx = marie_lcm_create(URL "&recv_buf_size=8388608");
+    lcm_t *tx = marie_bus_create(URL), *rx = marie_bus_create(URL "&recv_buf_size=8388608");
     got_t g = {0};
-    marie_lcm_subscribe(rx, "T_THREADS", on_msg, &g);
+    marie_bus_subscribe(rx, "T_THREADS", on_msg, &g);
     sender_t a = {tx, 1}, b = {tx, 2};
     pthread_t ta, tb;
     pthread_create(&ta, NULL, send_many, &a);
@@ -634,15 +634,15 @@ static void test_threads_publish(void **state)
     pump(rx, &g, 40, 1000);
     assert_int_equal(g.n, 40);
     assert_int_equal(g.bad, 0);
-    marie_lcm_stats_t st;
-    marie_lcm_stats(rx, &st);
+    marie_bus_stats_t st;
+    marie_bus_stats(rx, &st);
     assert_int_equal(st.incomplete + st.malformed, 0);
     free(g.data);
-    marie_lcm_destroy(rx);
-    marie_lcm_destroy(tx);
+    marie_bus_destroy(rx);
+    marie_bus_destroy(tx);
 }
 
-/* Where marie does not send, marie_lcm_publish() is lcm_publish(): MARIE_LCM_SEND=liblcm,
+/* Where marie does not send, marie_bus_publish() is lcm_publish(): MARIE_LCM_SEND=liblcm,
  * MARIE_LCM_RECEIVE=liblcm, a bus made by lcm_create(), another provider. */
 /* A batch: runs of short messages go in one system call, a large one in its fragments between
  * them, and a plain liblcm reader gets them all whole and in order; a bus liblcm sends on sends
@@ -654,21 +654,21 @@ static void test_publish_batch(void **state)
     lcm_t *lib = lcm_create(URL "&recv_buf_size=4194304");
     assert_non_null(lib);
     for (int pass = 0; pass < 2; pass++) {
-        lcm_t *tx = pass == 0 ? marie_lcm_create(URL) : lcm_create(URL);
+        lcm_t *tx = pass == 0 ? marie_bus_create(URL) : lcm_create(URL);
         assert_non_null(tx);
-        assert_int_equal(marie_lcm_sends(tx), pass == 0);
+        assert_int_equal(marie_bus_sends(tx), pass == 0);
         got_t g = {0};
         lcm_subscription_t *sub = lcm_subscribe(lib, "T_BATCH", on_msg, &g);
         uint8_t *bufs[N];
-        marie_lcm_msg_t m[N];
+        marie_bus_msg_t m[N];
         int rc[N];
         for (int i = 0; i < N; i++) {
             bufs[i] = malloc(sizes[i] ? sizes[i] : 1);
             pattern(bufs[i], sizes[i], (unsigned)i);
-            m[i] = (marie_lcm_msg_t){"T_BATCH", bufs[i], sizes[i]};
+            m[i] = (marie_bus_msg_t){"T_BATCH", bufs[i], sizes[i]};
             rc[i] = 7;
         }
-        assert_int_equal(marie_lcm_publish_batch(tx, m, N, rc), N);
+        assert_int_equal(marie_bus_publish_batch(tx, m, N, rc), N);
         for (int i = 0; i < N; i++)
             assert_int_equal(rc[i], 0);
         lib_pump(lib, &g, N);
@@ -680,7 +680,7 @@ static void test_publish_batch(void **state)
         free(g.data);
         lcm_unsubscribe(lib, sub);
         if (pass == 0)
-            marie_lcm_destroy(tx);
+            marie_bus_destroy(tx);
         else
             lcm_destroy(tx);
     }
@@ -697,12 +697,12 @@ static void test_publish_fallback(void **state)
     for (int i = 0; i < 3; i++) {
         if (vars[i])
             setenv(vars[i], "liblcm", 1);
-        lcm_t *tx = vars[i] ? marie_lcm_create(URL) : lcm_create(URL);
+        lcm_t *tx = vars[i] ? marie_bus_create(URL) : lcm_create(URL);
         if (vars[i])
             unsetenv(vars[i]);
         assert_non_null(tx);
-        assert_false(marie_lcm_sends(tx));
-        assert_int_equal(marie_lcm_native(tx), i == 0);
+        assert_false(marie_bus_sends(tx));
+        assert_int_equal(marie_bus_native(tx), i == 0);
         /* liblcm's own count of messages sent becomes 1 ... */
         assert_int_equal(lcm_publish(tx, "T_FALLBACK_FIRST", "", 0), 0);
         dgram_t d = sniff(fd);
@@ -721,25 +721,25 @@ static void test_publish_fallback(void **state)
             free(d.d);          /* the other fragment */
         free(d.d);
         if (vars[i])
-            marie_lcm_destroy(tx);
+            marie_bus_destroy(tx);
         else
             lcm_destroy(tx);
     }
     assert_int_equal(g.bad, 0);
-    lcm_t *m = marie_lcm_create("memq://");
+    lcm_t *m = marie_bus_create("memq://");
     got_t mg = {0};
-    assert_non_null(marie_lcm_subscribe(m, "T_MEMQ", on_msg, &mg));
-    assert_int_equal(marie_lcm_publish(m, "T_MEMQ", "abc", 3), 0);
+    assert_non_null(marie_bus_subscribe(m, "T_MEMQ", on_msg, &mg));
+    assert_int_equal(marie_bus_publish(m, "T_MEMQ", "abc", 3), 0);
     assert_true(lcm_handle_timeout(m, 1000) > 0);
     assert_int_equal(mg.n, 1);
-    marie_lcm_destroy(m);
+    marie_bus_destroy(m);
     char longname[80];
     memset(longname, 'C', 64);
     longname[64] = '\0';
-    lcm_t *tx = marie_lcm_create(URL);
-    assert_int_equal(marie_lcm_publish(tx, longname, "x", 1), -1);
+    lcm_t *tx = marie_bus_create(URL);
+    assert_int_equal(marie_bus_publish(tx, longname, "x", 1), -1);
     assert_int_equal(errno, EINVAL);
-    marie_lcm_destroy(tx);
+    marie_bus_destroy(tx);
     free(g.data);
     free(mg.data);
     lcm_destroy(lib);

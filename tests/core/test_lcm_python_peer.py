@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """test_lcm_python_peer: upstream LCM for Python (PyPI `lcm`, its own C receiver, in the venv
-scripts/peer-venv.sh makes), a reader no one here wrote, gets what marie_lcm_publish() sent
+scripts/peer-venv.sh makes), a reader no one here wrote, gets what marie_bus_publish() sent
 from marie's own socket: empty, one byte, around the single-datagram limit, 65 KB and 900 KB,
 every byte and in order; and again with MARIE_LCM_SEND=liblcm (liblcm sending), the same."""
 import os

@@ -15,7 +15,7 @@
 
 #include <cmocka.h>
 
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/loop.h"
 #include "core/time.h"
 
@@ -337,10 +337,10 @@ static void device_input_is_read_at_the_newest_clock_sent_before_it(void **state
 {
     marie_loop_t *loop = marie_loop_create();
     marie_loop_set_clock(loop, MARIE_CLOCK_SIM);
-    lcm_t *bus = marie_lcm_create("udpm://239.255.76.67:7667?ttl=0");
+    lcm_t *bus = marie_bus_create("udpm://239.255.76.67:7667?ttl=0");
     assert_non_null(bus);
-    assert_non_null(marie_lcm_subscribe(bus, "TEST_CLOCK", on_clock_msg, loop));
-    assert_int_equal(marie_loop_add_lcm(loop, bus, 1), 0);     /* one message a round */
+    assert_non_null(marie_bus_subscribe(bus, "TEST_CLOCK", on_clock_msg, loop));
+    assert_int_equal(marie_loop_add_bus(loop, bus, 1), 0);     /* one message a round */
     int p[2];
     assert_int_equal(pipe(p), 0);
     device_clock_t d = {loop, -1};
@@ -348,14 +348,14 @@ static void device_input_is_read_at_the_newest_clock_sent_before_it(void **state
     /* As the simulator does: the clock ticks (the last one the instant of the device's
      * output), then the output; the reader was busy meanwhile and finds all of it queued. */
     for (int64_t us = 10000; us <= 50000; us += 10000)
-        assert_int_equal(marie_lcm_publish(bus, "TEST_CLOCK", &us, sizeof us), 0);
+        assert_int_equal(marie_bus_publish(bus, "TEST_CLOCK", &us, sizeof us), 0);
     assert_int_equal(write(p[1], "x", 1), 1);
     for (int i = 0; i < 10 && d.seen < 0; i++)
         marie_loop_run_once(loop, 1000);
     assert_int_equal(d.seen, 50000);
     marie_loop_remove_fd(loop, p[0]);
-    marie_loop_remove_lcm(loop, bus);
-    marie_lcm_destroy(bus);
+    marie_loop_remove_bus(loop, bus);
+    marie_bus_destroy(bus);
     close(p[0]);
     close(p[1]);
     marie_loop_destroy(loop);

@@ -12,7 +12,7 @@
 #include <cmocka.h>
 
 #include "core/config.h"
-#include "core/shm_bus.h"
+#include "core/bus/shm_bus.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
 

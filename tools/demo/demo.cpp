@@ -101,7 +101,7 @@ void Demo::shutdown()
     marie_loop_destroy(loop_);         // default SIGINT/SIGTERM handling again
     loop_ = nullptr;
     if (lcm_)
-        lcm_destroy(lcm_);
+        marie_bus_destroy(lcm_);
     lcm_ = nullptr;
 }
 
@@ -395,15 +395,15 @@ int Demo::start()
         return 1;
     }
     start_mono_ = marie_mono_us();
-    // marie's URL (an 8 MB receive buffer) and deep queues: a simulation as fast as the computer
-    // allows sends truth and poses in bursts, and a lost one bends the trajectory drawn.
-    lcm_ = lcm_create(marie_default_url());
+    // marie's URL, read by marie (its 8 MB receive buffer is the queue): a simulation as fast as
+    // the computer allows sends truth and poses in bursts, and a lost one bends the trajectory drawn.
+    lcm_ = marie_bus_create(marie_default_url());
     loop_ = marie_loop_create();
-    if (!lcm_ || !loop_ || marie_loop_add_lcm(loop_, lcm_, 64) < 0)
+    if (!lcm_ || !loop_ || marie_loop_add_bus(loop_, lcm_, 64) < 0)
         return 1;
     for (const char *ch : {"SIM_TRUTH", "POSE", "GOAL", "MISSION_STATE", "MARIE_EVENT", "MARIE_AM_STATUS",
                            "MARIE_HEARTBEAT", "ESTOP"})
-        lcm_subscription_set_queue_capacity(lcm_subscribe(lcm_, ch, on_raw, this), 10000);
+        marie_bus_subscribe(lcm_, ch, on_raw, this);
     unlink((opt_.out + "/demo.lcm").c_str());
     // Record everything but the particle clouds, which are large and only for the viewer.
     // On marie's URL, with its large receive buffer: on LCM's default one a loaded machine made

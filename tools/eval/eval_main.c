@@ -327,18 +327,18 @@ static int run_world(const opts_t *o, const world_t *wd, result_t *res)
                       a_r, "--param", a_c, NULL };
     char *const *argvs[5] = { sim_a, odo_a, loc_a, pln_a, beh_a };
 
-    lcm_t *l = lcm_create(NULL);
+    lcm_t *l = marie_bus_create(NULL);
     marie_loop_t *loop = marie_loop_create();
     live_t L = { .lcm = l };
     pid_t pids[5];
     for (int i = 0; i < 5; i++)
         pids[i] = spawn(o, logs[i], argvs[i]);
     int rc = -1;
-    if (!l || !loop || marie_loop_add_lcm(loop, l, 64) < 0)
+    if (!l || !loop || marie_loop_add_bus(loop, l, 64) < 0)
         goto out;
-    marie_lcm_subscribe(l, "SIM_TRUTH", on_msg, &L);
-    marie_lcm_subscribe(l, "POSE", on_msg, &L);
-    marie_lcm_subscribe(l, "MARIE_HEARTBEAT", on_msg, &L);
+    marie_bus_subscribe(l, "SIM_TRUTH", on_msg, &L);
+    marie_bus_subscribe(l, "POSE", on_msg, &L);
+    marie_bus_subscribe(l, "MARIE_HEARTBEAT", on_msg, &L);
     marie_loop_run_until(loop, 30000, live_ready, &L);
     if (!L.have_pose) {
         fprintf(stderr, "eval: %s: no pose within 30 s (see %s)\n", wd->name, dir);
@@ -411,7 +411,7 @@ out:
     res->kidnaps = L.kidnaps;
     marie_loop_destroy(loop);
     if (l)
-        lcm_destroy(l);
+        marie_bus_destroy(l);
     occmap_destroy(m);
     free(pass);
     free(pass_path);

@@ -185,24 +185,24 @@ int main(int argc, char **argv)
     if (!name || !*name || !(wait_s > 0))
         return usage();
     char *u = url_with_buffer(url);
-    lcm_t *lcm = u ? lcm_create(u) : NULL;
+    lcm_t *lcm = u ? marie_bus_create(u) : NULL;
     free(u);
     if (!lcm) {
         fprintf(stderr, "marie: map save: cannot open the bus at %s\n", url);
         return MARIE_EXIT_FAIL;
     }
     mapsave_t s = { 0 };
-    marie_lcm_subscribe(lcm, channel, on_map, &s);
+    marie_bus_subscribe(lcm, channel, on_map, &s);
     marie_loop_t *loop = marie_loop_create();
-    if (!loop || marie_loop_add_lcm(loop, lcm, 1) < 0) {
+    if (!loop || marie_loop_add_bus(loop, lcm, 1) < 0) {
         fprintf(stderr, "marie: map save: out of memory\n");
         marie_loop_destroy(loop);
-        lcm_destroy(lcm);
+        marie_bus_destroy(lcm);
         return MARIE_EXIT_FAIL;
     }
     marie_loop_run_until(loop, wait_s > 86400 ? 86400000 : (int)(wait_s * 1000), have_map, &s);
     marie_loop_destroy(loop);
-    lcm_destroy(lcm);
+    marie_bus_destroy(lcm);
     if (!s.have) {
         fprintf(stderr, "marie: map save: no map on %s within %.1f s%s\n", channel, wait_s,
                 s.bad ? " (malformed maps were refused)" : "");

@@ -8,7 +8,7 @@
 #include "core/auth.h"
 #include "core/cli.h"
 #include "core/component.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/spec.h"
 #include "core/typeinfo.h"
 #include "core/time.h"
@@ -126,15 +126,15 @@ int main(int argc, char **argv)
                                 .op = (int8_t)op, .name = n > 2 ? a[2] : "", .value = n > 3 ? a[3] : "",
                                 .seq = marie_auth_next_seq(getenv("MARIE_SEQ_FILE")), .mac = (uint8_t[1]){0}};
     uint8_t mac[MARIE_AUTH_MAC_LEN];
-    lcm_t *lcm = marie_lcm_create(url ? url : marie_default_url());
+    lcm_t *lcm = marie_bus_create(url ? url : marie_default_url());
     marie_loop_t *loop = marie_loop_create();
-    if (!lcm || !loop || marie_loop_add_lcm(loop, lcm, 64) < 0 ||
-        !marie_lcm_subscribe(lcm, MARIE_CH_PARAM_REPLY, on_reply, &w)) {
+    if (!lcm || !loop || marie_loop_add_bus(loop, lcm, 64) < 0 ||
+        !marie_bus_subscribe(lcm, MARIE_CH_PARAM_REPLY, on_reply, &w)) {
         fprintf(stderr, "marie param: cannot open the bus\n");
         rc = 1;
     } else if (op == MARIE_PARAM_REQUEST_T_OP_SET && sign(&rq, key, mac) < 0) {
         rc = 1;
-    } else if (marie_lcm_publish_msg(lcm, MARIE_CH_PARAM, &marie_type_param_request_t, &rq) < 0) {
+    } else if (marie_bus_publish_msg(lcm, MARIE_CH_PARAM, &marie_type_param_request_t, &rq) < 0) {
         fprintf(stderr, "marie param: cannot send\n");
         rc = 1;
     } else if (marie_loop_run_until(loop, (int)(timeout * 1000), got, &w) != 1) {
@@ -146,6 +146,6 @@ int main(int argc, char **argv)
         marie_param_reply_t_decode_cleanup(&w.reply);
     }
     marie_loop_destroy(loop);
-    marie_lcm_destroy(lcm);
+    marie_bus_destroy(lcm);
     return rc;
 }

@@ -11,7 +11,7 @@
 #include "core/auth.h"
 #include "core/cli.h"
 #include "core/component.h"
-#include "core/lcm.h"
+#include "core/bus/bus.h"
 #include "core/spec.h"
 #include "core/time.h"
 #include "core/version.h"
@@ -53,7 +53,7 @@ static void usage(FILE *out)
                  "common: [--url URL] [--system FILE] (its lcm_url and types:); users' types from MARIE_TYPES_PATH\n");
 }
 
-/* ---- the bus: the one place marie-topic opens and subscribes (core/lcm.h) ---- */
+/* ---- the bus: the one place marie-topic opens and subscribes (core/bus/bus.h) ---- */
 
 static int bus_open(topic_t *t)
 {
@@ -69,8 +69,8 @@ static int bus_open(topic_t *t)
         t->url = sys ? sys->lcm_url : marie_default_url();
     t->url = strdup(t->url);
     marie_system_destroy(sys);
-    if (!t->url || !(t->lcm = marie_lcm_create(t->url)) || !(t->loop = marie_loop_create()) ||
-        marie_loop_add_lcm(t->loop, t->lcm, 64) < 0) {
+    if (!t->url || !(t->lcm = marie_bus_create(t->url)) || !(t->loop = marie_loop_create()) ||
+        marie_loop_add_bus(t->loop, t->lcm, 64) < 0) {
         fprintf(stderr, "marie topic: cannot open the bus %s\n", t->url ? t->url : "");
         return -1;
     }
@@ -88,7 +88,7 @@ static int subscribe(topic_t *t, const char *channel, bool literal, lcm_msg_hand
         re[k++] = *p;
     }
     re[k] = 0;
-    return marie_lcm_subscribe(t->lcm, literal ? re : channel, cb, t) ? 0 : -1;
+    return marie_bus_subscribe(t->lcm, literal ? re : channel, cb, t) ? 0 : -1;
 }
 
 static void on_signal(marie_loop_t *loop, int signo, void *user) { marie_loop_quit(loop); }
@@ -389,7 +389,7 @@ static int publish_once(pub_t *p)
     }
     if (p->type && sign_payload(p->t, p->type, &p->t->buf) < 0)
         return -1;
-    if (marie_lcm_publish(p->t->lcm, p->channel, p->t->buf.data, (unsigned)p->t->buf.len) < 0) {
+    if (marie_bus_publish(p->t->lcm, p->channel, p->t->buf.data, (unsigned)p->t->buf.len) < 0) {
         fprintf(stderr, "marie topic: publish on %s: %s\n", p->channel, strerror(errno));
         return -1;
     }
@@ -486,7 +486,7 @@ int main(int argc, char **argv)
     free(t.chans);
     free(t.stamps);
     marie_loop_destroy(t.loop);
-    marie_lcm_destroy(t.lcm);
+    marie_bus_destroy(t.lcm);
     free((char *)t.url);
     return rc;
 }

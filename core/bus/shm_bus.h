@@ -14,6 +14,10 @@
 extern "C" {
 #endif
 
+/* The host whose memory a segment is in: gethostname(), or MARIE_SHM_HOST where machines share a
+ * name (containers) or a test plays another host. */
+void marie_shm_host(char *out, size_t cap);
+
 /* A publisher writes each encoded message (the LCM payload, fingerprint first) into its ring
  * (core/shm.h) and publishes a marie.shm_notice_t on CHANNEL.SHM. The message itself goes on
  * CHANNEL over LCM only while someone that cannot map the ring has asked for it on
@@ -42,6 +46,11 @@ int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t 
 void *marie_shm_pub_loan(marie_shm_pub_t *p);
 int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len);
 const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p);
+const char *marie_shm_pub_segment(const marie_shm_pub_t *p);
+/* For the same-host fast path, whose readers follow the ring without notices: a notice (a
+ * beacon, for lcm-spy and other hosts) at most every notice_every_us, and after_ring(user) run
+ * once each message is in the ring, before anything goes on LCM. */
+void marie_shm_pub_pace(marie_shm_pub_t *p, int64_t notice_every_us, void (*after_ring)(void *), void *user);
 
 /* A subscriber gets each message's bytes, read from the ring on this host; when the writer is
  * elsewhere (its notice names another host, or the segment is not here) it asks for the
@@ -66,6 +75,9 @@ const marie_shm_sub_stats_t *marie_shm_sub_stats(const marie_shm_sub_t *s);
  * made of them must be dropped (counted as lost). Saves one copy of each message. */
 typedef void (*marie_shm_verdict_cb_t)(bool ok, void *user);
 void marie_shm_sub_in_place(marie_shm_sub_t *s, marie_shm_verdict_cb_t verdict);
+/* Only writers on other hosts: notices from this host are left alone (the fast path reads
+ * those rings itself). */
+void marie_shm_sub_remote_only(marie_shm_sub_t *s);
 
 #ifdef __cplusplus
 }

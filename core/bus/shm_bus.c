@@ -1,5 +1,5 @@
 /* shm_bus: shared-memory publishers and subscribers: notices on CHANNEL.SHM, LCM copies on request. */
-#include "core/shm_bus.h"
+#include "core/bus/shm_bus.h"
 
 #include <errno.h>
 #include <stdbool.h>
@@ -9,7 +9,7 @@
 #include <unistd.h>
 
 #include "core/err.h"
-#include "core/lcm.h"
+#include "core/bus/provider.h"
 #include "core/loop.h"
 #include "core/new.h"
 #include "core/shm.h"
@@ -24,7 +24,7 @@
 
 /* The machine: only there can a segment be mapped. MARIE_SHM_HOST overrides the host name
  * (machines that share one, such as containers; tests playing another host). */
-static void host_name(char *out, size_t cap)
+void marie_shm_host(char *out, size_t cap)
 {
     const char *env = getenv("MARIE_SHM_HOST");
     if (env && *env) {
@@ -36,6 +36,16 @@ static void host_name(char *out, size_t cap)
     out[cap - 1] = '\0';
 }
 
+/* A notice or a request, on the bus's own provider (the channel's transport is this one). */
+static int publish_notice(lcm_t *bus, const char *channel, const marie_type_t *t, const void *msg)
+{
+    uint8_t buf[1024];
+    int size = t->encoded_size(msg);
+    if (size < 0 || size > (int)sizeof buf || t->encode(buf, 0, size, msg) != size)
+        return marie_fail(EINVAL);
+    return marie_bus_publish_own(bus, channel, buf, (size_t)size);
+}
+
 /* ---- publisher ---- */
 
 struct marie_shm_pub {
@@ -43,8 +53,12 @@ struct marie_shm_pub {
     char channel[CH_MAX], notice_ch[CH_MAX + 8], want_ch[CH_MAX + 12];
     char host[64];
     marie_shm_writer_t *w;
-    marie_lcm_sub_t *want_sub;
+    marie_bus_sub_t *want_sub;
     int64_t wanted_until;       /* mono us */
+    int64_t notice_every_us;    /* 0: a notice per message */
+    int64_t last_notice;        /* mono us */
+    void (*after_ring)(void *); /* run between the ring and LCM (the fast path's doorbells) */
+    void *after_user;
     marie_shm_pub_stats_t st;
 };
 
@@ -70,11 +84,11 @@ marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t ma
     snprintf(p->channel, sizeof p->channel, "%s", channel);
     snprintf(p->notice_ch, sizeof p->notice_ch, "%s.SHM", channel);
     snprintf(p->want_ch, sizeof p->want_ch, "%s.SHMWANT", channel);
-    host_name(p->host, sizeof p->host);
+    marie_shm_host(p->host, sizeof p->host);
     p->w = marie_shm_writer_create(channel, max_size, nslots);
     if (!p->w)
         goto err;
-    p->want_sub = marie_lcm_subscribe(lcm, p->want_ch, on_want, p);
+    p->want_sub = marie_bus_subscribe_own(lcm, p->want_ch, on_want, p);
     if (!p->want_sub) {
         errno = EIO;
         goto err;
@@ -89,7 +103,7 @@ void marie_shm_pub_destroy(marie_shm_pub_t *p)
 {
     if (!p)
         return;
-    marie_lcm_unsubscribe(p->lcm, p->want_sub);
+    marie_bus_unsubscribe(p->lcm, p->want_sub);
     marie_shm_writer_destroy(p->w);
     free(p);
 }
@@ -117,13 +131,19 @@ int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len)
     marie_shm_commit(p->w, rc ? 0 : len, rc ? NULL : &ref);
     if (rc)
         return rc;
-    marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
-                             .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(at, len) };
-    if (marie_lcm_publish_msg(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
-        return -EIO;
+    if (p->after_ring)
+        p->after_ring(p->after_user);
     p->st.published++;
+    int64_t now = p->notice_every_us ? marie_mono_us() : 0;
+    if (!p->notice_every_us || now - p->last_notice >= p->notice_every_us) {
+        p->last_notice = now;
+        marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
+                                 .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(at, len) };
+        if (publish_notice(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
+            return -EIO;
+    }
     if (p->wanted_until && marie_mono_us() < p->wanted_until) {
-        if (marie_lcm_publish(p->lcm, p->channel, at, (unsigned)len) != 0)
+        if (marie_bus_publish_own(p->lcm, p->channel, at, len) != 0)
             return -EIO;
         p->st.lcm_copies++;
     }
@@ -147,6 +167,15 @@ int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len)
 
 const marie_shm_pub_stats_t *marie_shm_pub_stats(const marie_shm_pub_t *p) { return &p->st; }
 
+const char *marie_shm_pub_segment(const marie_shm_pub_t *p) { return marie_shm_writer_segment(p->w); }
+
+void marie_shm_pub_pace(marie_shm_pub_t *p, int64_t notice_every_us, void (*after_ring)(void *), void *user)
+{
+    p->notice_every_us = notice_every_us;
+    p->after_ring = after_ring;
+    p->after_user = user;
+}
+
 /* ---- subscriber ---- */
 
 struct marie_shm_sub {
@@ -159,18 +188,38 @@ struct marie_shm_sub {
     marie_shm_msg_cb_t cb;
     marie_shm_verdict_cb_t verdict;     /* in place: NULL means copy first */
     void *user;
-    marie_lcm_sub_t *notice_sub, *copy_sub;
+    marie_bus_sub_t *notice_sub, *copy_sub;
+    bool remote_only;           /* this host's writers are read another way (the fast path) */
+    int depth;                  /* callbacks running */
+    bool dead;                  /* destroyed from one: freed once it returns */
     int64_t last_want;          /* mono us */
     marie_shm_sub_stats_t st;
 };
+
+static void sub_free(marie_shm_sub_t *s)
+{
+    marie_shm_reader_destroy(s->r);
+    free(s->buf);
+    free(s);
+}
+
+/* A callback may destroy the subscriber (a handler unsubscribing): it is freed after. */
+static void enter(marie_shm_sub_t *s) { s->depth++; }
+static void leave(marie_shm_sub_t *s)
+{
+    if (--s->depth == 0 && s->dead)
+        sub_free(s);
+}
 
 static void on_copy(const lcm_recv_buf_t *rb, const char *channel, void *user)
 {
     marie_shm_sub_t *s = user;
     s->st.remote++;
+    enter(s);
     s->cb(rb->data, rb->data_size, s->user);
-    if (s->verdict)
+    if (s->verdict && !s->dead)
         s->verdict(true, s->user);      /* LCM's copy is the subscriber's own */
+    leave(s);
 }
 
 /* The writer is not on this host: ask for the messages on LCM (repeated while they come). */
@@ -178,12 +227,12 @@ static void want_remote(marie_shm_sub_t *s)
 {
     int64_t now = marie_mono_us();
     if (!s->copy_sub)
-        s->copy_sub = marie_lcm_subscribe(s->lcm, s->channel, on_copy, s);
+        s->copy_sub = marie_bus_subscribe_own(s->lcm, s->channel, on_copy, s);
     if (now - s->last_want < WANT_EVERY_US)
         return;
     s->last_want = now;
     marie_shm_want_t w = { .utime = marie_wall_us(), .host = s->host, .requester = s->host };
-    marie_lcm_publish_msg(s->lcm, s->want_ch, &marie_type_shm_want_t, &w);
+    publish_notice(s->lcm, s->want_ch, &marie_type_shm_want_t, &w);
 }
 
 static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int64_t fp)
@@ -203,13 +252,16 @@ static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int
         s->st.bad++;
         return;
     }
+    enter(s);
     s->cb(p, ref->size, s->user);
     bool ok = marie_shm_still_valid(s->r, ref);
     if (ok)
         s->st.received++;
     else
         s->st.lost++;
-    s->verdict(ok, s->user);
+    if (!s->dead)
+        s->verdict(ok, s->user);
+    leave(s);
 }
 
 static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
@@ -222,6 +274,8 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
     }
     if (strcmp(n.host, s->host) != 0) {
         want_remote(s);
+    } else if (s->remote_only) {
+        /* read from the ring by the fast path */
     } else if (n.size < 8 || (size_t)n.size > s->cap || strlen(n.segment) >= MARIE_SHM_NAME_MAX) {
         s->st.bad++;
     } else {
@@ -235,7 +289,9 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
         int64_t got = marie_shm_read(s->r, &ref, s->buf, s->cap);
         if (got == n.size && marie_payload_fingerprint(s->buf, (size_t)got) == n.fingerprint) {
             s->st.received++;
+            enter(s);
             s->cb(s->buf, (size_t)got, s->user);
+            leave(s);
         } else if (got == -ENOENT) {
             want_remote(s);         /* same name, another machine (containers), or gone */
         } else if (got == -ESTALE || got == -EAGAIN) {
@@ -257,7 +313,7 @@ marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t ma
         return NULL;
     snprintf(s->channel, sizeof s->channel, "%s", channel);
     snprintf(s->want_ch, sizeof s->want_ch, "%s.SHMWANT", channel);
-    host_name(s->host, sizeof s->host);
+    marie_shm_host(s->host, sizeof s->host);
     char notice_ch[CH_MAX + 8];
     snprintf(notice_ch, sizeof notice_ch, "%s.SHM", channel);
     s->r = marie_shm_reader_create();
@@ -265,7 +321,7 @@ marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t ma
     if (!s->r || !s->buf)
         goto err;
     /* Notices come in bursts at high rates; each is small. */
-    s->notice_sub = marie_lcm_subscribe(lcm, notice_ch, on_notice, s);
+    s->notice_sub = marie_bus_subscribe_own(lcm, notice_ch, on_notice, s);
     if (!s->notice_sub) {
         errno = EIO;
         goto err;
@@ -284,14 +340,135 @@ void marie_shm_sub_destroy(marie_shm_sub_t *s)
 {
     if (!s)
         return;
-    marie_lcm_unsubscribe(s->lcm, s->notice_sub);
-    if (s->copy_sub)
-        marie_lcm_unsubscribe(s->lcm, s->copy_sub);
-    marie_shm_reader_destroy(s->r);
-    free(s->buf);
-    free(s);
+    marie_bus_unsubscribe(s->lcm, s->notice_sub);
+    marie_bus_unsubscribe(s->lcm, s->copy_sub);
+    s->notice_sub = s->copy_sub = NULL;
+    if (s->depth > 0)
+        s->dead = true;             /* its callback is running: freed when it returns */
+    else
+        sub_free(s);
 }
 
 const marie_shm_sub_stats_t *marie_shm_sub_stats(const marie_shm_sub_t *s) { return &s->st; }
 
 void marie_shm_sub_in_place(marie_shm_sub_t *s, marie_shm_verdict_cb_t verdict) { s->verdict = verdict; }
+void marie_shm_sub_remote_only(marie_shm_sub_t *s) { s->remote_only = true; }
+
+/* ---- the provider: a channel a transport puts on shared memory (`kind: shm`) ---- */
+
+typedef struct {
+    lcm_t *bus;
+    marie_bus_transport_t t;
+    marie_shm_pub_t *pub;       /* made at the first publish or prepare */
+} chan_t;
+
+typedef struct {
+    marie_shm_sub_t *sub;
+    marie_bus_recv_t rv;
+    lcm_t *bus;
+    const char *channel;        /* the route's */
+} shm_sub_t;
+
+static void *chan_open(lcm_t *bus, const marie_bus_transport_t *t, void **bus_st)
+{
+    return MARIE_NEW(chan_t, .bus = bus, .t = *t);
+}
+
+static void chan_close(void *st)
+{
+    chan_t *ch = st;
+    marie_shm_pub_destroy(ch->pub);
+    free(ch);
+}
+
+static int chan_prepare(void *st)
+{
+    chan_t *ch = st;
+    if (!ch->pub && !(ch->pub = marie_shm_pub_create(ch->bus, ch->t.channel, ch->t.max_size, ch->t.slots)))
+        return -1;
+    return 0;
+}
+
+static int chan_publish_with(void *st, size_t len, marie_bus_fill_t fill, void *user)
+{
+    chan_t *ch = st;
+    if (chan_prepare(ch) < 0)
+        return -1;
+    int rc = marie_shm_pub_publish_with(ch->pub, len, fill, user);
+    return rc ? marie_fail(-rc) : 0;
+}
+
+static int chan_publish(void *st, const char *channel, const void *data, size_t len)
+{
+    return chan_publish_with(st, len, marie_shm_fill_copy, (void *)data);
+}
+
+static void *chan_loan(void *st)
+{
+    chan_t *ch = st;
+    return chan_prepare(ch) < 0 ? NULL : marie_shm_pub_loan(ch->pub);
+}
+
+static int chan_commit(void *st, size_t len)
+{
+    chan_t *ch = st;
+    int rc = ch->pub ? marie_shm_pub_commit(ch->pub, len) : -EINVAL;
+    return rc ? marie_fail(-rc) : 0;
+}
+
+static void on_bytes(const void *data, size_t len, void *user)
+{
+    shm_sub_t *w = user;
+    lcm_recv_buf_t rb = {(void *)data, (uint32_t)len, marie_wall_us(), w->bus};
+    w->rv.handler(&rb, w->channel, w->rv.user);
+}
+
+static void on_verdict(bool ok, void *user)
+{
+    shm_sub_t *w = user;
+    w->rv.verdict(ok, w->rv.user);
+}
+
+static void *chan_subscribe(void *st, const char *channel, const marie_bus_recv_t *rv)
+{
+    chan_t *ch = st;
+    shm_sub_t *w = MARIE_NEW(shm_sub_t, .rv = *rv, .bus = ch->bus, .channel = ch->t.channel);
+    if (!w)
+        return NULL;
+    if (!(w->sub = marie_shm_sub_create(ch->bus, ch->t.channel, ch->t.max_size, on_bytes, w))) {
+        MARIE_KEEP_ERRNO(free(w));
+        return NULL;
+    }
+    if (rv->verdict)
+        marie_shm_sub_in_place(w->sub, on_verdict);
+    return w;
+}
+
+/* From a handler too: the subscriber then frees itself once its callback returns, and calls
+ * nothing of w's after the handler (on_bytes touches nothing after it). */
+static void chan_unsubscribe(void *st, void *sub)
+{
+    shm_sub_t *w = sub;
+    marie_shm_sub_destroy(w->sub);
+    free(w);
+}
+
+static marie_bus_sub_stats_t chan_sub_stats(const void *sub)
+{
+    const marie_shm_sub_stats_t *s = marie_shm_sub_stats(((const shm_sub_t *)sub)->sub);
+    return (marie_bus_sub_stats_t){s->received, s->remote, s->lost, s->bad};
+}
+
+const marie_bus_provider_t marie_bus_shm = {
+    .name = "shm",
+    .open_channel = chan_open,
+    .close = chan_close,
+    .subscribe = chan_subscribe,
+    .unsubscribe = chan_unsubscribe,
+    .publish = chan_publish,
+    .publish_with = chan_publish_with,
+    .loan = chan_loan,
+    .commit = chan_commit,
+    .prepare = chan_prepare,
+    .sub_stats = chan_sub_stats,
+};

@@ -1,0 +1,61 @@
+/* provider: what a way of moving bytes offers the bus (core/bus/bus.c): a static table of
+ * functions private to its file, as LCM's providers are. Only core/bus uses it. */
+#ifndef MARIE_BUS_PROVIDER_H
+#define MARIE_BUS_PROVIDER_H
+
+#include "core/bus/bus.h"
+
+/* Who gets a subscription's messages: handler(rb, channel, user), then, for a subscription in
+ * place, verdict(intact, user). */
+typedef struct {
+    lcm_msg_handler_t handler;
+    marie_bus_verdict_t verdict;    /* NULL: the handler gets bytes of its own (copied) */
+    void *user;
+} marie_bus_recv_t;
+
+typedef struct marie_bus_provider {
+    const char *name;
+    /* A bus's own provider: its state for the bus at url, or NULL with errno (EPROTONOSUPPORT:
+     * not a URL it reads; the bus then asks the next). */
+    void *(*open)(lcm_t *bus, const char *url);
+    /* A channel's provider: its state for one channel a transport moved to it. *bus_st is the
+     * provider's state for the whole bus (NULL until a channel makes it; close_bus lets it go
+     * with the bus). */
+    void *(*open_channel)(lcm_t *bus, const marie_bus_transport_t *t, void **bus_st);
+    void (*close)(void *st);
+    void *(*subscribe)(void *st, const char *channel, const marie_bus_recv_t *r);
+    void (*unsubscribe)(void *st, void *sub);
+    int (*publish)(void *st, const char *channel, const void *data, size_t len);
+    /* Optional (NULL: the bus fills a buffer and publishes it, or has no loans). */
+    int (*publish_with)(void *st, size_t len, marie_bus_fill_t fill, void *user);
+    void *(*loan)(void *st);
+    int (*commit)(void *st, size_t len);
+    int (*prepare)(void *st);
+    marie_bus_sub_stats_t (*sub_stats)(const void *sub);
+    /* A bus's own provider only. */
+    int (*publish_batch)(void *st, const marie_bus_msg_t *m, int n, int *rc);
+    int (*fd)(void *st);
+    int (*handle)(void *st, int max);
+    void (*stats)(const void *st, marie_bus_stats_t *out);
+    int (*sends)(const void *st);
+    /* A channel provider's state for the whole bus: a descriptor of its own for the loop (-1:
+     * none yet), the handling of what it signalled, the loop going to sleep (on: 1 when messages
+     * wait already) or waking, and whether messages wait, seen without a system call. */
+    void (*close_bus)(void *bus_st);
+    int (*bus_fd)(void *bus_st);
+    int (*bus_handle)(void *bus_st, int max);
+    int (*bus_sleep)(void *bus_st, bool on);
+    bool (*bus_pending)(void *bus_st);
+} marie_bus_provider_t;
+
+extern const marie_bus_provider_t marie_bus_udpm;      /* core/bus/udpm.c */
+extern const marie_bus_provider_t marie_bus_liblcm;    /* core/bus/liblcm.c */
+extern const marie_bus_provider_t marie_bus_shm;       /* core/bus/shm_bus.c */
+extern const marie_bus_provider_t marie_bus_local;     /* core/bus/local.c */
+
+/* For channel providers, which carry their notices and copies on the bus's own provider: a
+ * publish and a subscription that no transport reroutes. */
+int marie_bus_publish_own(lcm_t *bus, const char *channel, const void *data, size_t len);
+marie_bus_sub_t *marie_bus_subscribe_own(lcm_t *bus, const char *channel, lcm_msg_handler_t handler, void *user);
+
+#endif
