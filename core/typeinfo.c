@@ -199,10 +199,13 @@ int marie_prim_size(marie_prim_t p)
 
 static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth);
 
-/* Notes a NaN or infinity among n floats or doubles at the cursor (big-endian IEEE 754). */
-static void scan_finite(cursor_t *c, marie_prim_t prim, int64_t n)
+/* Notes a NaN or infinity among n floats or doubles of field f at the cursor (big-endian IEEE
+ * 754), unless the field gives them a meaning. */
+static void scan_finite(cursor_t *c, const marie_tfield_t *f, int64_t n)
 {
-    if (!(c->flags & MARIE_CHECK_FINITE) || (prim != MARIE_PRIM_FLOAT && prim != MARIE_PRIM_DOUBLE))
+    marie_prim_t prim = f->prim;
+    if (!(c->flags & MARIE_CHECK_FINITE) || (prim != MARIE_PRIM_FLOAT && prim != MARIE_PRIM_DOUBLE) ||
+        (f->flags & MARIE_TFIELD_NONFINITE))
         return;
     /* All exponent bits set is NaN or an infinity; big-endian, they are in the first two bytes. */
     size_t size = prim == MARIE_PRIM_FLOAT ? 4 : 8;
@@ -235,7 +238,7 @@ static int walk_element(const marie_tfield_t *f, cursor_t *c, int depth, int64_t
         return -1;
     if (value)
         *value = marie_wire_int(c->buf + c->pos, size);
-    scan_finite(c, f->prim, 1);
+    scan_finite(c, f, 1);
     c->pos += (size_t)size;
     return 0;
 }
@@ -261,7 +264,7 @@ static int walk_struct(const marie_typeinfo_t *t, cursor_t *c, int depth)
             /* Arrays of fixed-size primitives: only their extent matters. */
             if ((uint64_t)count * (uint64_t)size > c->len - c->pos)
                 return -1;
-            scan_finite(c, f->prim, count);
+            scan_finite(c, f, count);
             c->pos += (size_t)count * (size_t)size;
             continue;
         }

@@ -32,7 +32,12 @@ typedef struct {
     int ndims;
     const marie_tdim_t *dims;       /* ndims entries, outermost first */
     size_t c_offset;                /* where lcm-gen's C struct holds it (offsetof) */
+    int flags;                      /* MARIE_TFIELD_* */
 } marie_tfield_t;
+
+/* The field's NaN and infinities have a meaning (its .lcm line says @nonfinite: a laser's ranges,
+ * REP 117), so MARIE_CHECK_FINITE lets them through. */
+#define MARIE_TFIELD_NONFINITE 1
 
 typedef struct {
     const char *name;
@@ -97,7 +102,8 @@ int64_t marie_wire_int(const uint8_t *p, int n);
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len);
 
 /* marie_typeinfo_check() with options: MARIE_CHECK_FINITE also walks every float and double
- * (scalars, arrays, nested structs) and returns -EDOM when one is NaN or infinite. */
+ * (scalars, arrays, nested structs; not the fields marked MARIE_TFIELD_NONFINITE) and returns
+ * -EDOM when one is NaN or infinite. */
 #define MARIE_CHECK_FINITE 1
 int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags);
 
@@ -125,8 +131,8 @@ int64_t marie_payload_fingerprint(const void *buf, size_t len);
 int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out);
 
 /* What a component does with an input message (ports, pull replies, raw subscriptions): as
- * marie_decode_checked(), and a NaN or infinity in any float or double field is refused too
- * (no marie type gives them a meaning; see docs/core.md). On failure *why (if why is not NULL)
+ * marie_decode_checked(), and a NaN or infinity in any float or double field is refused too,
+ * but in the fields that give them a meaning (MARIE_TFIELD_NONFINITE; see docs/core.md). On failure *why (if why is not NULL)
  * names the bad-input counter: "bad_fingerprint", "bad_payload" or "bad_nonfinite". 0,
  * -EBADMSG, or -EDOM (non-finite). */
 int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why);

@@ -43,6 +43,7 @@ class Struct:
         self.name = name
         self.members = []   # (type, name, [(mode, size_str)])
         self.consts = []    # (type, name, value_str)
+        self.nonfinite = set()  # members whose line says @nonfinite: NaN and infinities have a meaning
 
     @property
     def full(self):
@@ -53,8 +54,15 @@ class Struct:
         return self.full.replace(".", "_")
 
 
+# A member whose comment says @nonfinite gives NaN and the infinities a meaning (a laser's ranges:
+# REP 117's "no reading", "no return"), so the input check lets them through (core/typeinfo.h).
+NONFINITE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\s*(?:\[[^\]]*\]\s*)*;[^\n]*//[^\n]*@nonfinite")
+
+
 def parse_file(path):
-    toks = tokenize(strip_comments(open(path, encoding="utf-8").read()))
+    raw = open(path, encoding="utf-8").read()
+    nonfinite = set(NONFINITE.findall(raw))
+    toks = tokenize(strip_comments(raw))
     pos = 0
     package = ""
     structs = []
@@ -112,6 +120,7 @@ def parse_file(path):
                     expect(";")
                     break
             expect("}")
+            s.nonfinite = nonfinite & {m[1] for m in s.members}
             structs.append(s)
         else:
             raise LcmError("%s: unexpected token '%s'" % (path, t))
@@ -209,8 +218,9 @@ def emit_descriptors(structs, by_name, out, prefix="marie_", storage=""):
             prim = PRIMS.get(mtype, "MARIE_PRIM_STRUCT")
             subref = "&%stypeinfo_%s" % (prefix, sub.cname) if sub else "NULL"
             dimref = "%stdims_%s_%d" % (prefix, st.cname, i) if dims else "NULL"
-            w("    { %s, %s, %s, %d, %s, offsetof(%s, %s) },\n" % (cstr(mname), prim, subref, len(dims), dimref,
-                                                               st.cname, mname))
+            flags = ", MARIE_TFIELD_NONFINITE" if mname in st.nonfinite else ""
+            w("    { %s, %s, %s, %d, %s, offsetof(%s, %s)%s },\n" % (cstr(mname), prim, subref, len(dims), dimref,
+                                                                 st.cname, mname, flags))
         w("};\n")
         if st.consts:
             w("static const marie_tconst_t %stconsts_%s[] = {\n" % (prefix, st.cname))

@@ -35,6 +35,16 @@ static void report(marie_component_t *c, mapper_t *s)
     marie_component_count(c, "loop_ambiguous", st.loop_ambiguous - s->seen.loop_ambiguous);
     marie_component_count(c, "loop_implausible", st.loop_implausible - s->seen.loop_implausible);
     marie_component_count(c, "cells_cleared", st.cells_cleared - s->seen.cells_cleared);
+    marie_component_count(c, "loop_cut", st.loop_cut - s->seen.loop_cut);
+    marie_component_count(c, "window_grown", st.window_grown - s->seen.window_grown);
+    marie_component_count(c, "odometry_disagreements", st.odometry_disagreements - s->seen.odometry_disagreements);
+    if (st.off_grid > s->seen.off_grid) {
+        marie_component_count(c, "off_grid", st.off_grid - s->seen.off_grid);
+        if (s->seen.off_grid == 0)      /* once: the counter says how often since */
+            marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "off_grid",
+                                  "the robot's scans reach past the map's %.0f m square (size_m): not mapped there",
+                                  ((const mapper_params_t *)marie_component_params(c))->slam.size_m);
+    }
     if (st.loop_closures > s->seen.loop_closures) {
         marie_component_count(c, "loop_closures", st.loop_closures - s->seen.loop_closures);
         if (st.optimizations > s->seen.optimizations)

@@ -30,8 +30,12 @@ typedef struct {
     int64_t loop_ambiguous;             /* matched, but as well elsewhere in the window: refused */
     int64_t loop_implausible;           /* best at the window's edge, or further than the matcher drifts: refused */
     int64_t loop_unconfirmed;           /* a large correction the next closure did not repeat: dropped */
+    int64_t loop_cut;                   /* searched as far as loop_max_evals allows without a clear place: dropped */
     int64_t cells_cleared;              /* walls the beams have since seen through: a moved obstacle (or a
                                          * wall drawn out of place), cleared from the map */
+    int64_t window_grown;               /* searches again in a wider window after a poor match */
+    int64_t odometry_disagreements;     /* matches further from the odometry than it could have erred */
+    int64_t off_grid;                   /* scans part of which fell off the grid (size_m): not mapped there */
     double last_score;                  /* mean likelihood of the last match */
     double last_match_ms, last_opt_ms;
 } slam_stats_t;

@@ -156,7 +156,10 @@ static int gen_struct(const marie_typeinfo_t *t, sample_t *s, int depth)
                 rc = put(s, cnt ? 2 : 1, f->prim == MARIE_PRIM_INT32 ? 4 : 8, cnt ? SITE_COUNT : -1);
                 break;
             }
-            case MARIE_PRIM_FLOAT: rc = put(s, 0x3f800000u, 4, k == 0 ? SITE_FLOAT : -1); break;
+            /* A field that gives NaN a meaning (a laser's ranges, REP 117) is no place to lie. */
+            case MARIE_PRIM_FLOAT:
+                rc = put(s, 0x3f800000u, 4, k == 0 && !(f->flags & MARIE_TFIELD_NONFINITE) ? SITE_FLOAT : -1);
+                break;
             case MARIE_PRIM_DOUBLE: rc = put(s, 0x3ff0000000000000ull, 8, k == 0 ? SITE_DOUBLE : -1); break;
             case MARIE_PRIM_STRING:
                 rc = put(s, 3, 4, SITE_STRLEN);

@@ -93,7 +93,8 @@ static void large_primitive_arrays_are_checked_by_extent(void **state)
 }
 
 /* marie_decode_input: a NaN or an infinity in a scalar, a primitive array or a nested struct
- * array is refused with its own counter, before anything is decoded; finite values pass. */
+ * array is refused with its own counter, before anything is decoded (but in a field that gives
+ * them a meaning, below); finite values pass. */
 static void component_inputs_refuse_nan_and_inf_anywhere(void **state)
 {
     uint8_t buf[512];
@@ -116,7 +117,7 @@ static void component_inputs_refuse_nan_and_inf_anywhere(void **state)
     assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EDOM);
 
     float r[3] = {1, INFINITY, 2};
-    marie_laser_scan_t ls = {.range_max = 8, .nranges = 3, .ranges = r, .intensities = r};
+    marie_laser_scan_t ls = {.range_max = 8, .nranges = 3, .ranges = r, .nintensities = 3, .intensities = r};
     marie_laser_scan_t ols;
     n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
     assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
@@ -124,6 +125,41 @@ static void component_inputs_refuse_nan_and_inf_anywhere(void **state)
     n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
     assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), 0);
     marie_laser_scan_t_decode_cleanup(&ols);
+}
+
+/* A laser's ranges give NaN and the infinities a meaning (REP 117: no reading, no return, nearer
+ * than range_min; the field is @nonfinite in laser_scan_t.lcm): a scan with them is a scan, while
+ * a NaN anywhere else in it is still refused. */
+static void laser_ranges_may_be_nan_or_infinite(void **state)
+{
+    uint8_t buf[512];
+    const char *why = NULL;
+    float r[4] = {1, INFINITY, NAN, -INFINITY}, in[4] = {1, 2, 3, 4};
+    marie_laser_scan_t ls = {.range_max = 8, .nranges = 4, .ranges = r, .nintensities = 4, .intensities = in};
+    marie_laser_scan_t ols;
+    int n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), 0);
+    assert_true(isinf(ols.ranges[1]) && isnan(ols.ranges[2]) && isinf(ols.ranges[3]) && ols.ranges[3] < 0);
+    marie_laser_scan_t_decode_cleanup(&ols);
+    in[2] = NAN;
+    n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
+    in[2] = 3;
+    ls.angle_min = NAN;
+    n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
+    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
+    assert_string_equal(why, "bad_nonfinite");
+    const marie_typeinfo_t *ti = marie_typeinfo_find("laser_scan_t");
+    for (int i = 0; i < ti->nfields; i++)
+        assert_int_equal(ti->fields[i].flags, strcmp(ti->fields[i].name, "ranges") ? 0 : MARIE_TFIELD_NONFINITE);
+}
+
+static void other_inputs_refuse_nan(void **state)
+{
+    uint8_t buf[512];
+    const char *why = NULL;
+    int n;
+    marie_pose_cov_t out;
 
     marie_pose2d_t poses[2] = {{0, 0, 0}, {1, NAN, 0}};
     marie_path_t path = {.nposes = 2, .poses = poses};
@@ -176,6 +212,8 @@ int main(void)
         cmocka_unit_test(refuses_strings_without_nul_and_lying_counts),
         cmocka_unit_test(large_primitive_arrays_are_checked_by_extent),
         cmocka_unit_test(component_inputs_refuse_nan_and_inf_anywhere),
+        cmocka_unit_test(laser_ranges_may_be_nan_or_infinite),
+        cmocka_unit_test(other_inputs_refuse_nan),
         cmocka_unit_test(tails_lie_where_lcm_gen_encodes_them),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

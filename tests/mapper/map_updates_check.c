@@ -17,7 +17,7 @@
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_heartbeat_t.h"
 #include "lcmtypes/marie_types.h"
-#include "tools/viewer/lcmlog.h"
+#include "core/lcmlog.h"
 
 static struct {
     livemap_t live;

@@ -306,6 +306,102 @@ static void test_bad_parameters_refused(void **state)
     slam_destroy(NULL);
 }
 
+/* Along the corridor and back, scanning at 10 Hz; `kind` rewrites each scan's readings as a
+ * driver might: 0 as they are, 1 REP 117's +inf where nothing was seen and a 0.1 mm error code in
+ * one beam of 30 (range_min 0), 2 NaN in one beam of 20 and -inf in one of 50. The map, its
+ * keyframes, and the occupied cells at the places the robot stood. */
+static occmap_t *corridor_run(const occmap_t *world, int kind, int64_t *keyframes, int *at_robot)
+{
+    simrobot_t r = robot_at(4.0, 15.7, 21);
+    slam_params_t p;
+    slam_params_default(&p);
+    slam_t *s = slam_create(&p, r.truth);
+    static const double route[][2] = { { 16, 15.7 }, { 8, 15.7 } };
+    float ranges[NB];
+    double path[600][2];
+    int np = 0;
+    for (int i = 0, step = 0; i < 2 && step < 2000; step++) {
+        double dx = route[i][0] - r.truth[0], dy = route[i][1] - r.truth[1];
+        if (hypot(dx, dy) < 0.2) {
+            i++;
+            continue;
+        }
+        double herr = atan2(sin(atan2(dy, dx) - r.truth[2]), cos(atan2(dy, dx) - r.truth[2]));
+        sim_scan(&r, world, ranges, NB, RANGE_MAX, 0.01, 0);
+        for (int k = 0; k < NB; k++) {
+            if (kind == 1 && ranges[k] >= RANGE_MAX)
+                ranges[k] = INFINITY;
+            else if (kind == 1 && k % 30 == 11)
+                ranges[k] = 0.0001f;
+            else if (kind == 2 && k % 20 == 3)
+                ranges[k] = NAN;
+            else if (kind == 2 && k % 50 == 7)
+                ranges[k] = -INFINITY;
+        }
+        slam_scan_t sc = { ranges, NB, -M_PI / 2, M_PI / 180, kind == 1 ? 0 : 0.05, RANGE_MAX };
+        assert_true(slam_add_scan(s, r.odom, &sc, NULL) >= 0);     /* never a bad scan */
+        if (np < 600 && step % 5 == 0)
+            path[np][0] = r.truth[0], path[np++][1] = r.truth[1];
+        sim_move(&r, world, fabs(herr) > 0.4 ? 0.02 : 0.6, fmax(-1.0, fmin(1.0, 2.0 * herr)), 0.1);
+    }
+    occmap_t *m = slam_render(s);
+    assert_non_null(m);
+    slam_stats_t st;
+    slam_get_stats(s, &st);
+    *keyframes = st.keyframes;
+    *at_robot = 0;
+    for (int k = 0; k < np; k++)
+        *at_robot += occupied_near(m, path[k][0], path[k][1], 0.1);
+    slam_destroy(s);
+    return m;
+}
+
+/* REP 117 (ROS's LaserScan, what real drivers send): +inf is no return within range_max, so it
+ * clears the free space as a beam at range_max does; a reading under range_min (here 0, with a
+ * sensor's 0.1 mm error code) is no wall; NaN and -inf beams are beams without a reading, not bad
+ * scans. */
+static void test_nonfinite_and_near_readings(void **state)
+{
+    occmap_t *world = office();
+    mapeval_t e[3];
+    int64_t kf[3];
+    int at_robot[3];
+    for (int kind = 0; kind < 3; kind++) {
+        occmap_t *m = corridor_run(world, kind, &kf[kind], &at_robot[kind]);
+        mapeval_compare(world, m, 4.0, 15.7, &e[kind]);
+        occmap_destroy(m);
+        print_message("%s: precision %.3f coverage %.3f, %lld keyframes, %d occupied cells where the robot stood\n",
+                      kind == 0 ? "clean scans" : kind == 1 ? "+inf for no return, 0.1 mm readings" : "NaN and -inf beams",
+                      e[kind].precision, e[kind].coverage, (long long)kf[kind], at_robot[kind]);
+    }
+    assert_int_equal(at_robot[1], 0);
+    assert_true(e[1].coverage >= e[0].coverage - 0.005);
+    assert_true(e[1].precision >= e[0].precision - 0.02);
+    /* Every scan with NaN and -inf beams taken (the route's keyframes all there) and mapped. */
+    assert_true(kf[2] >= kf[0] - 2);
+    assert_true(e[2].precision >= 0.75);
+    occmap_destroy(world);
+}
+
+/* A map smaller than the building (size_m 10 m): the scans that reach past it are counted. */
+static void test_off_grid_counted(void **state)
+{
+    occmap_t *world = office();
+    simrobot_t r = robot_at(4.0, 15.7, 5);
+    slam_params_t p;
+    slam_params_default(&p);
+    p.size_m = 10;
+    slam_t *s = slam_create(&p, r.truth);
+    static const double route[][2] = { { 6, 15.7 }, { 12, 15.7 } };
+    drive(s, world, &r, route, 2);
+    slam_stats_t st;
+    slam_get_stats(s, &st);
+    print_message("off the 10 m grid: %lld of %lld keyframes\n", (long long)st.off_grid, (long long)st.keyframes);
+    assert_true(st.off_grid > 0);
+    slam_destroy(s);
+    occmap_destroy(world);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -314,6 +410,8 @@ int main(void)
         cmocka_unit_test(test_bad_input_refused_map_kept),
         cmocka_unit_test(test_moved_obstacle),
         cmocka_unit_test(test_bad_parameters_refused),
+        cmocka_unit_test(test_nonfinite_and_near_readings),
+        cmocka_unit_test(test_off_grid_counted),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

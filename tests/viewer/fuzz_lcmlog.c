@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tools/viewer/lcmlog.h"
+#include "core/lcmlog.h"
 
 typedef struct {
     int64_t events;

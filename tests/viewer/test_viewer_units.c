@@ -15,7 +15,7 @@
 
 #include <lcm/eventlog.h>
 
-#include "tools/viewer/lcmlog.h"
+#include "core/lcmlog.h"
 #include "tools/webcommon/vjson.h"
 
 typedef struct {

@@ -1,6 +1,7 @@
 /* marie-map: `marie map save NAME` waits for the next map on the bus (marie.occupancy_grid_t)
  * and writes it as NAME.yaml + NAME.pgm, which the localizer, planner and simulator load;
- * `marie map compare BUILT WORLD` judges a built map against the world it was built in. */
+ * `marie map compare BUILT WORLD` judges a built map against the world it was built in;
+ * `marie map eval RUN.lcm` scores a recorded run's poses against a reference (map_eval.c). */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,6 +17,7 @@
 #include "map/mapeval.h"
 #include "map/occmap.h"
 #include "core/version.h"
+#include "tools/map/map_tool.h"
 
 typedef struct {
     marie_occupancy_grid_t grid;
@@ -65,7 +67,10 @@ static int usage_to(FILE *out, int status)
                     "       marie map compare BUILT.yaml WORLD.yaml [--start X Y]\n"
                     "  precision and recall of BUILT's occupied cells against WORLD's walls (within one\n"
                     "  cell), coverage of WORLD's free space reachable from (X, Y) (default 0 0);\n"
-                    "  then the same after the best alignment within 0.5 m and 0.03 rad\n");
+                    "  then the same after the best alignment within 0.5 m and 0.03 rad\n"
+                    "       marie map eval RUN.lcm [--reference LOG] [--png FILE] [--format json] ...\n"
+                    "  the mapper's POSE in RUN against a reference trajectory (REFERENCE): ATE after\n"
+                    "  the best rigid alignment, relation errors over 1 m and 5 m of path (--help: all options)\n");
     return status;
 }
 
@@ -153,6 +158,8 @@ out:
 int main(int argc, char **argv)
 {
     marie_version_exit("marie-map", argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "eval") == 0)
+        return map_eval_main(argc - 1, argv + 1);      /* its own options, --help among them */
     for (int i = 1; i < argc; i++)
         if (strcmp(argv[i], "--help") == 0)
             return usage_to(stdout, MARIE_EXIT_OK);

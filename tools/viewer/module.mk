@@ -1,7 +1,7 @@
 # tools/viewer: marie-viewer-server (bus or log -> web page over WebSocket), the marie-view
 # launcher, the page (served from tools/viewer/www or $(PREFIX)/share/marie/viewer), its tests.
 VIEWER_LIBS := $(B)/lib/libmarie_managers.a $(MAP_LIB) -lcivetweb
-$(eval $(call marie_program,marie-viewer-server,tools/viewer/viewer_main.c tools/viewer/viewer_log.c tools/viewer/lcmlog.c tools/webcommon/webserve.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(VIEWER_LIBS)))
+$(eval $(call marie_program,marie-viewer-server,tools/viewer/viewer_main.c tools/viewer/viewer_log.c tools/webcommon/webserve.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(VIEWER_LIBS)))
 
 $(B)/bin/marie-view: tools/viewer/marie-view
 	@mkdir -p $(@D)
@@ -10,8 +10,8 @@ EXTRA_TARGETS += $(B)/bin/marie-view
 INSTALL_EXTRA += install -m 755 $(B)/bin/marie-view $(DESTDIR)$(PREFIX)/bin/ && install -d $(DESTDIR)$(PREFIX)/share/marie/viewer && install -m 644 tools/viewer/www/* $(DESTDIR)$(PREFIX)/share/marie/viewer/;
 
 $(eval $(call marie_test,test_pinguard,tests/viewer/test_pinguard.c tools/webcommon/pinguard.c))
-$(eval $(call marie_test,test_viewer_units,tests/viewer/test_viewer_units.c tools/viewer/lcmlog.c tools/webcommon/vjson.c))
-$(eval $(call marie_fuzz,lcmlog,tests/viewer/fuzz_lcmlog.c tools/viewer/lcmlog.c))
+$(eval $(call marie_test,test_viewer_units,tests/viewer/test_viewer_units.c tools/webcommon/vjson.c))
+$(eval $(call marie_fuzz,lcmlog,tests/viewer/fuzz_lcmlog.c))
 $(eval $(call marie_fuzz,viewer_cmd,tests/viewer/fuzz_viewer_cmd.c tools/webcommon/vjson.c))
 
 # Writes the synthetic demo log, or publishes the same stream live (not installed).

@@ -10,7 +10,7 @@
 #include <unistd.h>
 
 #include "core/typeinfo.h"
-#include "tools/viewer/lcmlog.h"
+#include "core/lcmlog.h"
 #include "tools/viewer/viewer.h"
 
 /* ---------------------------------------------------------------- log mode */

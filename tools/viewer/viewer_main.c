@@ -16,7 +16,7 @@
 #include "core/typeinfo.h"
 #include "managers/am_proto.h"
 #include "core/auth.h"
-#include "tools/viewer/lcmlog.h"
+#include "core/lcmlog.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webpin.h"
 #include "tools/webcommon/webserve.h"

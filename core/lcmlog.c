@@ -1,6 +1,6 @@
 /* lcmlog: pure reader of LCM log files; corrupt stretches are reported and skipped by
  * scanning for the next sync word, so one bad byte never loses the rest of a log. */
-#include "tools/viewer/lcmlog.h"
+#include "core/lcmlog.h"
 
 #include <errno.h>
 #include <stdio.h>

@@ -1,6 +1,6 @@
 /* lcmlog: pure reader of LCM log files (lcm-logger's event records), robust to corruption. */
-#ifndef VIEWER_LCMLOG_H
-#define VIEWER_LCMLOG_H
+#ifndef MARIE_LCMLOG_H
+#define MARIE_LCMLOG_H
 
 #include <stddef.h>
 #include <stdint.h>
