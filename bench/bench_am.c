@@ -26,6 +26,7 @@
 
 static char dir[64];
 static const char *bin = "build";
+static char bin_abs[4096];
 
 static void row(const char *metric, double value, const char *unit)
 {
@@ -443,6 +444,9 @@ int main(void)
 {
     if (getenv("B"))
         bin = getenv("B");
+    /* the system files' exec lines are read from their own folder, under dir */
+    if (realpath(bin, bin_abs))
+        bin = bin_abs;
     snprintf(dir, sizeof dir, "/tmp/marie-bench-am-XXXXXX");
     if (!mkdtemp(dir))
         return 1;

@@ -28,7 +28,7 @@ for hosts in ${SCALE_HOSTS:-10 20 40}; do
         echo 'components:'
         for i in $(seq 0 $((n - 1))); do
             printf '  c%03d:\n    exec: %s/tests/bin/marie-test-comp\n    host: bs%d\n    stop_timeout: 1\n' \
-                "$i" "$B" $((i % hosts + 1))
+                "$i" "$(cd "$B" && pwd)" $((i % hosts + 1))
         done
     } > "$sys"
     pids=""

@@ -14,7 +14,7 @@ mkdir -p $T
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_LOG=${MARIE_LOG:-warn}
 M="$BIN/marie"
 "$M" keygen "$T/key" > /dev/null
-TC=$B/tests/bin/marie-test-comp
+TC=$(cd "$B" && pwd)/tests/bin/marie-test-comp
 cat > "$T/limits.yaml" <<EOF
 system: limits
 hosts: [vm]
