@@ -1,8 +1,9 @@
 // planner: A* (map/gridpath.h) or OMPL geometric planning in R2 over an inflated occupancy grid.
-// The inflation comes from an OpenCV distance transform; laser obstacles are stamped as
+// The inflation comes from the map's clearance (map/clearance.h); laser obstacles are stamped as
 // robot-radius disks.
 #include "adapters/planner/planner.h"
 #include "core/err.h"
+#include "map/clearance.h"
 #include "map/gridpath.h"
 
 #include <algorithm>
@@ -22,7 +23,6 @@
 #include <ompl/geometric/planners/rrt/RRTConnect.h>
 #include <ompl/util/Console.h>
 #include <ompl/util/RandomNumbers.h>
-#include <opencv2/imgproc.hpp>
 
 namespace ob = ompl::base;
 namespace og = ompl::geometric;
@@ -135,25 +135,15 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
         pl->ox_ = map->origin_x;
         pl->oy_ = map->origin_y;
         size_t ncell = (size_t)map->width * map->height;
-        cv::Mat img(map->height, map->width, CV_8U);
-        for (int r = 0; r < map->height; r++)
-            for (int c = 0; c < map->width; c++) {
-                int8_t v = map->cells[(size_t)r * map->width + c];
-                bool blocked = v == OCCMAP_OCCUPIED || (v == OCCMAP_UNKNOWN && !p->unknown_is_free);
-                img.at<uint8_t>(r, c) = blocked ? 0 : 255;
-            }
-        cv::Mat dist;
-        cv::distanceTransform(img, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+        // The same clearance marie-eval picks its goals with (map/clearance.h).
+        std::unique_ptr<float, decltype(&std::free)> cl(occmap_clearance(map, p->unknown_is_free), &std::free);
+        if (!cl)
+            throw std::bad_alloc();
+        pl->dist_.assign(cl.get(), cl.get() + ncell);
         pl->static_free_.resize(ncell);
-        pl->dist_.resize(ncell);
         pl->dyn_.assign(ncell, 0);
-        for (int r = 0; r < map->height; r++)
-            for (int c = 0; c < map->width; c++) {
-                // Distance from this cell's centre to the nearest blocked cell's edge.
-                float d = (dist.at<float>(r, c) - 0.5f) * (float)map->resolution;
-                pl->dist_[(size_t)r * map->width + c] = d;
-                pl->static_free_[(size_t)r * map->width + c] = d > pl->p_.robot_radius;
-            }
+        for (size_t i = 0; i < ncell; i++)
+            pl->static_free_[i] = pl->dist_[i] > pl->p_.robot_radius;
         int rr = (int)std::ceil(pl->p_.robot_radius / map->resolution);
         for (int dy = -rr; dy <= rr; dy++)
             for (int dx = -rr; dx <= rr; dx++)
