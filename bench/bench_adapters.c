@@ -126,7 +126,8 @@ static void bench_arbitration(void)
     arb_state_reset(&s);
     arb_inputs_t in = { .pose = { 3, 0.5, 0.1 }, .pose_age = 0.05, .path = path, .npath = 50, .path_age = 0.5,
                         .ranges = ranges, .nranges = 181, .angle_min = -M_PI / 2, .angle_increment = M_PI / 180,
-                        .range_min = 0.05, .range_max = 8, .scan_age = 0.05, .estop_age = 0.1, .teleop_age = -1 };
+                        .range_min = 0.05, .range_max = 8, .scan_age = 0.05, .estop_age = 0.1, .teleop_age = -1,
+                        .reloc_age = -1 };
     arb_vote_t v[ARB_COUNT];
     enum { N = 200000 };
     int64_t t0 = marie_mono_us();

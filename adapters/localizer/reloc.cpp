@@ -1,0 +1,348 @@
+// reloc: global relocalization by search. A coarse pass scores every free position of the map
+// at every heading (5 degrees) with the cloud's points on a blurred table, one look-up a point;
+// the best are refined by hill climbing on the localizer's field and judged ray by ray.
+#include "adapters/localizer/reloc.h"
+#include "adapters/localizer/field.h"
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <new>
+#include <unordered_map>
+#include <vector>
+
+namespace {
+
+double wrap(double a)
+{
+    return std::atan2(std::sin(a), std::cos(a));
+}
+
+// out = a (+) b, and out = a^-1 (+) b.
+void compose(const double a[3], const double b[3], double out[3])
+{
+    double c = std::cos(a[2]), s = std::sin(a[2]);
+    out[0] = a[0] + c * b[0] - s * b[1];
+    out[1] = a[1] + s * b[0] + c * b[1];
+    out[2] = wrap(a[2] + b[2]);
+}
+
+void between(const double a[3], const double b[3], double out[3])
+{
+    double c = std::cos(a[2]), s = std::sin(a[2]), dx = b[0] - a[0], dy = b[1] - a[1];
+    out[0] = c * dx + s * dy;
+    out[1] = -s * dx + c * dy;
+    out[2] = wrap(b[2] - a[2]);
+}
+
+const int kHeadings = 72;       // coarse headings: 5 degrees
+const int kCoarsePoints = 60;
+const int kFinePoints = 300;
+const int kRefined = 150;       // coarse candidates refined
+const double kFreeOfWalls = 0.15;
+
+}  // namespace
+
+// Points are kept one per 10 cm square, and used once a second scan saw that square too: a
+// stray reading (or someone walking by) is seen once, a wall by every scan that faces it.
+struct reloc_cloud {
+    double ref[3] = {0, 0, 0};
+    std::vector<float> pts;     // sx, sy, x, y per square, from the first scan that saw it
+    std::vector<int> seen;      // scans that saw each square
+    std::vector<int> last;      // the last of them
+    std::unordered_map<uint64_t, int> cells;
+    std::vector<float> kept;    // the squares seen twice, as pts
+    uint64_t sectors = 0;
+    int scans = 0;
+
+    void keep()
+    {
+        kept.clear();
+        sectors = 0;
+        for (size_t i = 0; i < seen.size(); i++) {
+            if (seen[i] < 2)
+                continue;
+            kept.insert(kept.end(), pts.begin() + 4 * i, pts.begin() + 4 * i + 4);
+            int sector = (int)std::floor((std::atan2(pts[4 * i + 3], pts[4 * i + 2]) + M_PI) / (M_PI / 18));
+            sectors |= 1ull << std::clamp(sector, 0, 35);
+        }
+    }
+};
+
+extern "C" reloc_cloud_t *reloc_cloud_create(void)
+{
+    reloc_cloud_t *c = new (std::nothrow) reloc_cloud;
+    if (!c)
+        errno = ENOMEM;
+    return c;
+}
+
+extern "C" void reloc_cloud_destroy(reloc_cloud_t *c)
+{
+    delete c;
+}
+
+extern "C" void reloc_cloud_reset(reloc_cloud_t *c, const double odom[3])
+{
+    std::copy(odom, odom + 3, c->ref);
+    c->pts.clear();
+    c->seen.clear();
+    c->last.clear();
+    c->cells.clear();
+    c->kept.clear();
+    c->sectors = 0;
+    c->scans = 0;
+}
+
+extern "C" void reloc_cloud_add(reloc_cloud_t *c, const double odom[3], const double mount[3], const mcl_scan_t *scan)
+{
+    double rel[3], laser[3];
+    between(c->ref, odom, rel);
+    compose(rel, mount, laser);
+    try {
+        c->scans++;
+        for (int k = 0; k < scan->n; k++) {
+            double r = scan->ranges[k];
+            if (!std::isfinite(r) || r <= scan->range_min || r >= scan->range_max)
+                continue;
+            double a = laser[2] + scan->angle_min + k * scan->angle_increment;
+            double x = laser[0] + r * std::cos(a), y = laser[1] + r * std::sin(a);
+            uint64_t key = ((uint64_t)(uint32_t)(int32_t)std::floor(x / 0.1) << 32) |
+                           (uint32_t)(int32_t)std::floor(y / 0.1);
+            auto it = c->cells.find(key);
+            if (it != c->cells.end()) {
+                int i = it->second;
+                if (c->last[(size_t)i] != c->scans) {
+                    c->seen[(size_t)i]++;
+                    c->last[(size_t)i] = c->scans;
+                }
+                continue;
+            }
+            if (c->seen.size() >= 20000)
+                continue;
+            c->cells.emplace(key, (int)c->seen.size());
+            c->pts.insert(c->pts.end(), { (float)laser[0], (float)laser[1], (float)x, (float)y });
+            c->seen.push_back(1);
+            c->last.push_back(c->scans);
+        }
+        c->keep();
+    } catch (...) {
+        // Out of memory: the cloud keeps what it has.
+    }
+}
+
+extern "C" int reloc_cloud_size(const reloc_cloud_t *c)
+{
+    return (int)(c->kept.size() / 4);
+}
+
+extern "C" int reloc_cloud_coverage(const reloc_cloud_t *c)
+{
+    return 10 * __builtin_popcountll(c->sectors);
+}
+
+extern "C" void reloc_cloud_pose_now(const reloc_cloud_t *c, const double origin[3], const double odom[3], double out[3])
+{
+    double rel[3];
+    between(c->ref, odom, rel);
+    compose(origin, rel, out);
+}
+
+namespace {
+
+struct cand {
+    float score;
+    int cell, heading;
+};
+
+// Evenly spread indices of at most `want` of the n points.
+std::vector<int> spread(int n, int want)
+{
+    std::vector<int> idx;
+    int m = std::min(n, want);
+    for (int j = 0; j < m; j++)
+        idx.push_back((int)((double)j * n / m));
+    return idx;
+}
+
+struct searcher {
+    const lfield &fd;
+    double sigma;
+    const std::vector<float> &pts;
+    std::vector<int> fine_idx;
+
+    // Mean log likelihood per point of the frame's origin at pose q.
+    double score(const double q[3]) const
+    {
+        double c = std::cos(q[2]), s = std::sin(q[2]), k = 1.0 / (2 * sigma * sigma), sum = 0;
+        for (int i : fine_idx) {
+            double px = pts[4 * i + 2], py = pts[4 * i + 3];
+            int cell = fd.cell(q[0] + c * px - s * py, q[1] + s * px + c * py);
+            if (cell < 0) {
+                sum += std::log(0.005);
+                continue;
+            }
+            double d = std::min<double>(fd.dist[(size_t)cell], 1.0);
+            sum += std::log(std::exp(-d * d * k) + (fd.kind[(size_t)cell] == lfield::FREE ? 0.05 : 0.005));
+        }
+        return sum / std::max<size_t>(fine_idx.size(), 1);
+    }
+
+    void refine(double q[3], double step_xy, double step_th, double *best) const
+    {
+        *best = score(q);
+        for (int it = 0; it < 80 && (step_xy > 0.01 || step_th > 0.004); it++) {
+            static const int dirs[6][3] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
+            double bq[3] = { q[0], q[1], q[2] }, bs = *best;
+            for (auto &d : dirs) {
+                double t[3] = { q[0] + d[0] * step_xy, q[1] + d[1] * step_xy, wrap(q[2] + d[2] * step_th) };
+                double v = score(t);
+                if (v > bs) {
+                    bs = v;
+                    std::copy(t, t + 3, bq);
+                }
+            }
+            if (bs > *best) {
+                *best = bs;
+                std::copy(bq, bq + 3, q);
+            } else {
+                step_xy /= 2;
+                step_th /= 2;
+            }
+        }
+    }
+
+    void judge(reloc_hyp_t *h) const
+    {
+        double q[3] = { h->x, h->y, h->theta };
+        double c = std::cos(q[2]), s = std::sin(q[2]), near = 3 * sigma;
+        int hit = 0, through = 0;
+        for (int i : fine_idx) {
+            double sx = q[0] + c * pts[4 * i] - s * pts[4 * i + 1], sy = q[1] + s * pts[4 * i] + c * pts[4 * i + 1];
+            double ex = q[0] + c * pts[4 * i + 2] - s * pts[4 * i + 3], ey = q[1] + s * pts[4 * i + 2] + c * pts[4 * i + 3];
+            double r = std::hypot(ex - sx, ey - sy), on_way = std::max(r - near, 0.0);
+            int cell = fd.cell(ex, ey);
+            if (cell < 0 || (r > 0 && fd.trace(sx, sy, (ex - sx) / r, (ey - sy) / r, on_way) < on_way))
+                through++;
+            else if (fd.dist[(size_t)cell] <= near)
+                hit++;
+            else if (fd.kind[(size_t)cell] != lfield::FREE)
+                through++;
+        }
+        h->hit = (double)hit / std::max<size_t>(fine_idx.size(), 1);
+        h->contradiction = hit + through >= 10 ? (double)through / (hit + through) : 0.0;
+    }
+};
+
+// The coarse pass: the best headings (two, 20 degrees apart at least) of every candidate cell of
+// a grid of g m, scored on a table blurred to that grid; the kRefined best, as map poses.
+std::vector<std::array<double, 4>> coarse(const lfield &fd, double sigma, const std::vector<float> &pts)
+{
+    double area = (double)fd.free_cells.size() * fd.map_res * fd.map_res;
+    double g = std::max({ 0.1, fd.map_res, std::sqrt(area / 12000) });
+    double reach = 0;
+    for (size_t i = 0; i < pts.size(); i += 4)
+        reach = std::max(reach, (double)std::hypot(pts[i + 2], pts[i + 3]));
+    int pad = (int)std::ceil(reach / g) + 2;
+    int gw = (int)std::ceil(fd.w * fd.res / g), gh = (int)std::ceil(fd.h * fd.res / g);
+    int pw = gw + 2 * pad, ph = gh + 2 * pad;
+    double sc = std::max(sigma, 0.6 * g), k = 1.0 / (2 * sc * sc);
+    std::vector<float> table((size_t)pw * ph);
+    std::vector<int> cands;
+    for (int j = 0; j < ph; j++)
+        for (int i = 0; i < pw; i++) {
+            double x = fd.ox + (i - pad + 0.5) * g, y = fd.oy + (j - pad + 0.5) * g;
+            int cell = fd.cell(x, y);
+            float &t = table[(size_t)j * pw + i];
+            if (cell < 0) {
+                t = (float)std::log(0.01);
+                continue;
+            }
+            double d = std::max(0.0, (double)fd.dist[(size_t)cell] - 0.5 * g);
+            bool free = fd.kind[(size_t)cell] == lfield::FREE;
+            t = (float)std::log(std::exp(-d * d * k) + (free ? 0.1 : 0.01));
+            if (free && fd.dist[(size_t)cell] >= kFreeOfWalls)
+                cands.push_back(j * pw + i);
+        }
+    std::vector<int> idx = spread((int)pts.size() / 4, kCoarsePoints);
+    std::vector<float> b1(cands.size(), -INFINITY), b2(cands.size(), -INFINITY);
+    std::vector<int> h1(cands.size(), 0), h2(cands.size(), 0);
+    std::vector<int> off(idx.size());
+    for (int h = 0; h < kHeadings; h++) {
+        double th = 2 * M_PI * h / kHeadings, c = std::cos(th), s = std::sin(th);
+        for (size_t j = 0; j < idx.size(); j++) {
+            double px = pts[4 * idx[j] + 2], py = pts[4 * idx[j] + 3];
+            off[j] = (int)std::lround((s * px + c * py) / g) * pw + (int)std::lround((c * px - s * py) / g);
+        }
+        for (size_t ci = 0; ci < cands.size(); ci++) {
+            const float *t = table.data() + cands[ci];
+            float sum = 0;
+            for (int o : off)
+                sum += t[o];
+            if (sum > b1[ci]) {
+                if (std::abs(h - h1[ci]) >= 4 && std::abs(h - h1[ci]) <= kHeadings - 4) {
+                    b2[ci] = b1[ci];
+                    h2[ci] = h1[ci];
+                }
+                b1[ci] = sum;
+                h1[ci] = h;
+            } else if (sum > b2[ci] && std::abs(h - h1[ci]) >= 4 && std::abs(h - h1[ci]) <= kHeadings - 4) {
+                b2[ci] = sum;
+                h2[ci] = h;
+            }
+        }
+    }
+    std::vector<cand> all;
+    all.reserve(2 * cands.size());
+    for (size_t ci = 0; ci < cands.size(); ci++) {
+        all.push_back({ b1[ci], cands[ci], h1[ci] });
+        if (std::isfinite(b2[ci]))
+            all.push_back({ b2[ci], cands[ci], h2[ci] });
+    }
+    size_t keep = std::min<size_t>(all.size(), kRefined);
+    std::partial_sort(all.begin(), all.begin() + keep, all.end(),
+                      [](const cand &a, const cand &b) { return a.score > b.score; });
+    std::vector<std::array<double, 4>> out;
+    for (size_t i = 0; i < keep; i++) {
+        int ci = all[i].cell % pw - pad, cj = all[i].cell / pw - pad;
+        out.push_back({ fd.ox + (ci + 0.5) * g, fd.oy + (cj + 0.5) * g, wrap(2 * M_PI * all[i].heading / kHeadings), g });
+    }
+    return out;
+}
+
+}  // namespace
+
+extern "C" int reloc_search(const mcl_t *f, const reloc_cloud_t *c, reloc_hyp_t *out, int max)
+{
+    int n = reloc_cloud_size(c);
+    if (n == 0 || max <= 0)
+        return 0;
+    try {
+        const lfield &fd = mcl_field(f);
+        searcher se{ fd, mcl_sigma(f), c->kept, spread(n, kFinePoints) };
+        std::vector<reloc_hyp_t> found;
+        for (auto &q0 : coarse(fd, se.sigma, c->kept)) {
+            double q[3] = { q0[0], q0[1], q0[2] }, sc;
+            se.refine(q, q0[3] / 2, M_PI / kHeadings, &sc);
+            found.push_back({ q[0], q[1], q[2], sc, 0, 0 });
+        }
+        std::sort(found.begin(), found.end(), [](const reloc_hyp_t &a, const reloc_hyp_t &b) { return a.score > b.score; });
+        int m = 0;
+        for (const reloc_hyp_t &h : found) {
+            bool distinct = true;
+            for (int i = 0; i < m && distinct; i++)
+                distinct = std::hypot(h.x - out[i].x, h.y - out[i].y) > 1.0 || std::fabs(wrap(h.theta - out[i].theta)) > 0.35;
+            if (!distinct)
+                continue;
+            out[m] = h;
+            se.judge(&out[m]);
+            if (++m == max)
+                break;
+        }
+        return m;
+    } catch (...) {
+        errno = ENOMEM;
+        return -1;
+    }
+}
