@@ -34,6 +34,8 @@ typedef struct {
     bool seek_at_start;         /* init_mode global: search from the first scan */
     int64_t lost_since;         /* scan time the loss was declared */
     int64_t last_judged;        /* scan time of the last filter update or standing check */
+    reloc_cloud_t *doubts;      /* the scans of a doubtful while, searched for over the map */
+    int64_t last_doubt;         /* scan time of the last such search */
 } loc_t;
 
 static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
@@ -73,20 +75,63 @@ static void declare_lost(marie_component_t *c, loc_t *s, const double odom[3], c
                           (int)s->q->lost_checks);
 }
 
-/* A scan judged at the estimate (after an update, or standing still): contradicted lost_checks
- * times running, the robot is lost. Beams short of the map's walls never count. */
-static void watch_fit(marie_component_t *c, loc_t *s, const double odom[3], const mcl_fit_t *fit, int64_t utime)
+/* Whether the scans of a doubtful while fit clearly better somewhere else than at the estimate
+ * (odometry pose odom now): another place puts most of their points on walls and sees through
+ * none, and beats the estimate's own place by the search's margin. */
+static bool fits_elsewhere(marie_component_t *c, loc_t *s, const double odom[3])
+{
+    reloc_hyp_t h[4];
+    int n = reloc_search(s->f, s->doubts, h, 4);
+    marie_component_count(c, "doubt_searches", 1);
+    if (n <= 0)
+        return false;
+    double est[3], cov[9], now[3], here = -INFINITY;
+    mcl_pose_at(s->f, odom, est, cov);
+    for (int i = 0; i < n; i++) {
+        reloc_cloud_pose_now(s->doubts, (const double[3]){ h[i].x, h[i].y, h[i].theta }, odom, now);
+        if (hypot(now[0] - est[0], now[1] - est[1]) < 1.0 && fabs(remainder(now[2] - est[2], 2 * M_PI)) < 0.35)
+            here = fmax(here, h[i].score);
+    }
+    reloc_cloud_pose_now(s->doubts, (const double[3]){ h[0].x, h[0].y, h[0].theta }, odom, now);
+    bool elsewhere = h[0].score > here && h[0].score - here >= s->q->seek.margin &&
+                     h[0].contradiction <= s->q->seek.max_contradiction / 2 && h[0].hit >= s->q->seek.min_hit;
+    marie_info("doubt: the scans fit best at (%.2f, %.2f), %.0f%% on walls, %.0f%% through them; the estimate "
+               "(%.2f, %.2f) %s", now[0], now[1], 100 * h[0].hit, 100 * h[0].contradiction, est[0], est[1],
+               elsewhere ? "loses: lost" : "holds");
+    return elsewhere;
+}
+
+/* A scan judged at the estimate (after an update, or standing still). Contradicted lost_checks
+ * times running beyond lost_contradiction, the robot is lost; beyond doubt_contradiction only,
+ * those scans are searched for over the whole map and the robot is lost when they fit clearly
+ * elsewhere (a map that changed a little keeps the estimate). Beams short of the map's walls
+ * never count. */
+static void watch_fit(marie_component_t *c, loc_t *s, const double odom[3], const mcl_scan_t *scan, const mcl_fit_t *fit,
+                      int64_t utime)
 {
     s->last_judged = utime;
-    if (s->q->lost_contradiction <= 0 || s->force_left > 0) {
+    marie_debug("fit: %d on walls, %d short, %d through: contradiction %.2f (%d running)", fit->hit, fit->shorter,
+                fit->through, fit->contradiction, s->poor);
+    if (s->q->lost_contradiction <= 0 || s->force_left > 0 || fit->contradiction <= s->q->doubt_contradiction) {
         /* Particles just spread (a restart, a new initial pose) fit poorly until the forced
          * updates pull them in: that is not being lost. */
         s->poor = 0;
         return;
     }
-    s->poor = fit->contradiction > s->q->lost_contradiction ? s->poor + 1 : 0;
-    if (s->poor >= s->q->lost_checks)
+    if (s->poor++ == 0)
+        reloc_cloud_reset(s->doubts, odom);
+    reloc_cloud_add(s->doubts, odom, s->seek.mount, scan);
+    if (s->poor < s->q->lost_checks)
+        return;
+    if (fit->contradiction > s->q->lost_contradiction) {
         declare_lost(c, s, odom, fit, utime);
+    } else if ((double)(utime - s->last_doubt) / 1e6 >= s->q->doubt_every_s) {
+        s->last_doubt = utime;
+        if (fits_elsewhere(c, s, odom))
+            declare_lost(c, s, odom, fit, utime);
+        else
+            s->poor = 0;
+    }
 }
 
 static void seek_report(marie_component_t *c, loc_t *s, const seek_out_t *o, int64_t utime)
@@ -170,14 +215,14 @@ static void process(marie_component_t *c, loc_t *s, const marie_laser_scan_t *sc
     if (mcl_step(s->f, odom, &ms, force)) {
         marie_component_count(c, "filter_updates", 1);
         mcl_last_fit(s->f, &fit, NULL, NULL);
-        watch_fit(c, s, odom, &fit, scan->utime);
+        watch_fit(c, s, odom, &ms, &fit, scan->utime);
     } else if ((double)(scan->utime - s->last_judged) / 1e6 >= s->q->check_still_s) {
         /* Standing still the filter does not update; the scan is still checked. */
         double pose[3], cov[9];
         mcl_pose_at(s->f, odom, pose, cov);
         mcl_judge(s->f, pose, &ms, &fit);
         marie_component_count(c, "still_checks", 1);
-        watch_fit(c, s, odom, &fit, scan->utime);
+        watch_fit(c, s, odom, &ms, &fit, scan->utime);
     }
     if (seek_active(&s->seek))
         return;
@@ -345,6 +390,7 @@ static void quit(marie_component_t *c)
     loc_t *s = marie_component_user(c);
     MARIE_CLEAR(s->f, mcl_destroy);
     seek_free(&s->seek);
+    MARIE_CLEAR(s->doubts, reloc_cloud_destroy);
     scanwait_free(&s->wait);
     MARIE_CLEAR(s->cloud_buf, free);
 }
@@ -381,7 +427,9 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "bad filter parameters (particles_min <= particles_max, sigma_hit > 0, max_beams >= 1)");
         return -1;
     }
-    if (seek_init(&s->seek, &q->seek, (const double[3]){ p.laser_x, p.laser_y, p.laser_theta }) < 0) {
+    s->last_doubt = INT64_MIN / 2;
+    s->doubts = reloc_cloud_create();
+    if (!s->doubts || seek_init(&s->seek, &q->seek, (const double[3]){ p.laser_x, p.laser_y, p.laser_theta }) < 0) {
         marie_component_fail_reason(c, "out of memory");
         return -1;
     }

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -35,6 +36,7 @@ struct planner {
     double res_ = 0, ox_ = 0, oy_ = 0;
     std::vector<uint8_t> static_free_;  // the robot fits here according to the map
     std::vector<float> dist_;           // m to the nearest map obstacle
+    std::vector<int8_t> cells_;         // the map's cells, to say why a place is refused
     std::vector<uint16_t> dyn_;         // how many laser obstacle disks cover each cell
     std::unordered_map<int, double> obstacles_;  // cell -> last time seen
     std::vector<std::pair<int, int>> disk_;      // cell offsets within the robot radius
@@ -140,6 +142,7 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
         if (!cl)
             throw std::bad_alloc();
         pl->dist_.assign(cl.get(), cl.get() + ncell);
+        pl->cells_.assign(map->cells, map->cells + ncell);
         pl->static_free_.resize(ncell);
         pl->dyn_.assign(ncell, 0);
         for (size_t i = 0; i < ncell; i++)
@@ -292,6 +295,42 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
     } catch (...) {
         return -ENOMEM;
     }
+}
+
+// Why the robot cannot stand at (x, y), or nullptr when it can (after planner_plan's snapping).
+static const char *refusal(const planner_t *pl, double x, double y, char *buf, size_t len)
+{
+    double sx = x, sy = y;
+    if (pl->snap(sx, sy, pl->p_.robot_radius))
+        return nullptr;
+    double fx = (x - pl->ox_) / pl->res_, fy = (y - pl->oy_) / pl->res_;
+    if (!(fx >= 0 && fy >= 0 && fx < pl->w_ && fy < pl->h_))
+        return "off the map";
+    size_t i = (size_t)(int)fy * pl->w_ + (int)fx;
+    if (pl->cells_[i] == OCCMAP_OCCUPIED)
+        return "inside a wall";
+    if (pl->cells_[i] != OCCMAP_FREE && !pl->p_.unknown_is_free)
+        return "in unknown space";
+    if (pl->static_free_[i] || pl->dist_[i] > pl->p_.robot_radius)
+        return "in an obstacle seen by the laser";
+    snprintf(buf, len, "%.2f m from a wall (the robot needs %.2f m)", std::max(0.0f, pl->dist_[i]), pl->p_.robot_radius);
+    return buf;
+}
+
+extern "C" int planner_blocked(const planner_t *pl, const double start[3], const double goal[3], char *why, size_t why_len)
+{
+    char a[96], b[96];
+    const char *ws = refusal(pl, start[0], start[1], a, sizeof a), *wg = refusal(pl, goal[0], goal[1], b, sizeof b);
+    if (why && why_len) {
+        if (ws && wg)
+            snprintf(why, why_len, "start (%.2f, %.2f) %s; goal (%.2f, %.2f) %s", start[0], start[1], ws, goal[0], goal[1], wg);
+        else if (ws || wg)
+            snprintf(why, why_len, "%s (%.2f, %.2f) %s", ws ? "start" : "goal", ws ? start[0] : goal[0],
+                     ws ? start[1] : goal[1], ws ? ws : wg);
+        else
+            snprintf(why, why_len, "start and goal free");
+    }
+    return (ws ? PLANNER_START_BLOCKED : 0) | (wg ? PLANNER_GOAL_BLOCKED : 0);
 }
 
 extern "C" int planner_add_obstacles(planner_t *pl, const double *xy, int npoints, double now_s)
