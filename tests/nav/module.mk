@@ -11,3 +11,7 @@ $(eval $(call marie_test,test_kidnap,tests/nav/test_kidnap.c tests/nav/navrig.c 
 $(B)/tests/test_kidnap: | $(NAV_STACK)
 $(eval $(call marie_test,test_unmapped,tests/nav/test_unmapped.c tests/nav/navrig.c tests/proc.c,$(MAP_LIB)))
 $(B)/tests/test_unmapped: | $(NAV_STACK)
+$(eval $(call marie_test,test_bad_start,tests/nav/test_bad_start.c tests/proc.c,))
+$(B)/tests/test_bad_start: | $(B)/bin/marie-localizer $(B)/bin/marie-planner
+ITESTS += tests/nav/test_eval_map.sh
+SLOW_TESTS += tests/nav/test_coarse_map.sh

@@ -73,10 +73,39 @@ static void a_box_on_the_way_is_not_being_lost(void **state)
     assert_int_equal(r->collisions, 0);
 }
 
+/* nav2's depot with a 4 m wall 1.5 m beside the way from (3, 8) to (13, 8), which the map lacks:
+ * the wall explains the scan as well as the depot's own outer walls would from elsewhere, and
+ * must not pull the robot there. */
+static void a_wall_the_map_lacks_is_not_a_look_alike(void **state)
+{
+    rig_t *r = rig_open("test_unmapped_wall");
+    static const double wall[][4] = { { 6.0, 6.4, 10.0, 6.55 } };
+    char world[300];
+    world_with(r, "tests/data/nav2/depot.yaml", wall, 1, world, sizeof world);
+    start_stack(r, world, "tests/data/nav2/depot.yaml", 3.0, 8.0, 0.0);
+    rig_run(r, 3, false, 0, 0, NULL);
+    goal_xy[0] = 13.0, goal_xy[1] = 8.0;
+    rig_goal(r, 1, goal_xy[0], goal_xy[1]);
+    double worst = 0;
+    for (int k = 0; k < 60 && !near_goal(r); k++) {
+        rig_run(r, 1, false, 0, 0, near_goal);
+        if (r->pose_utime > r->sim_us - 500000)
+            worst = fmax(worst, rig_error(r));
+    }
+    rig_run(r, 1.5, false, 0, 0, NULL);
+    printf("wall: robot at (%.2f, %.2f), worst pose error %.2f m, lost %lld, collisions %lld\n", r->truth[0], r->truth[1],
+           worst, (long long)r->lost, (long long)r->collisions);
+    assert_true(hypot(r->truth[0] - goal_xy[0], r->truth[1] - goal_xy[1]) < 0.5);
+    assert_int_equal(r->lost, 0);
+    assert_true(worst < 0.5);
+    assert_int_equal(r->collisions, 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_teardown(a_box_on_the_way_is_not_being_lost, rig_teardown),
+        cmocka_unit_test_teardown(a_wall_the_map_lacks_is_not_a_look_alike, rig_teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
