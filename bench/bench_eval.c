@@ -30,7 +30,7 @@ int main(void)
         { "G", "--map", TB3, NULL },
         { "K", "--world", "office,cluttered", "--map", DEPOT, "--boxes", "6", NULL },
         { "K", "--world", "office,warehouse", "--map", DEPOT, "--walls", "4", NULL },
-        { "K", "--world", "office,hall", "--map", DEPOT, "--kidnap", "2", NULL },
+        { "K", "--world", "office,cluttered", "--map", DEPOT, "--kidnap", "2", NULL },
         { "K", "--world", "office,warehouse,hall", "--map", DEPOT, "--coarse", "0.2", NULL },
     };
     int status = 0;
