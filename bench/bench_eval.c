@@ -3,13 +3,26 @@
  * sandbox), and the kinds of world that are not the map: boxes and wall segments the map lacks,
  * the robot carried away, maps at 0.2 m cells. EVAL_GOALS goals per world (25 by default) on the
  * first three runs, EVAL_KIND_GOALS (10) on the others; the run is long: see docs/navigation.md. */
+#include <signal.h>
 #include <spawn.h>
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
 
 extern char **environ;
+
+/* A signal for this bench is for the marie-eval it runs (which stops its programs). */
+static volatile pid_t child;
+static volatile sig_atomic_t stop;
+
+static void forward(int signo)
+{
+    stop = 1;
+    if (child > 0)
+        kill(child, signo);
+}
 
 #define DEPOT "tests/data/nav2/depot.yaml"
 #define NAV2 DEPOT ",tests/data/nav2/warehouse.yaml"
@@ -34,7 +47,9 @@ int main(void)
         { "K", "--world", "office,warehouse,hall", "--map", DEPOT, "--coarse", "0.2", NULL },
     };
     int status = 0;
-    for (size_t r = 0; r < sizeof runs / sizeof runs[0]; r++) {
+    signal(SIGTERM, forward);
+    signal(SIGINT, forward);
+    for (size_t r = 0; r < sizeof runs / sizeof runs[0] && !stop; r++) {
         const char *argv[32] = { bin, "--goals", runs[r][0][0] == 'G' ? g : k, "--seed", "1", "--format", "tsv" };
         int n = 7;
         for (int i = 1; runs[r][i]; i++)
@@ -47,8 +62,12 @@ int main(void)
         fflush(stdout);
         pid_t pid;
         int st = 0;
-        if (posix_spawn(&pid, bin, NULL, NULL, (char *const *)argv, environ) != 0 || waitpid(pid, &st, 0) < 0 ||
-            !WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+        int rc = posix_spawn(&pid, bin, NULL, NULL, (char *const *)argv, environ);
+        child = rc == 0 ? pid : -1;
+        while (rc == 0 && waitpid(pid, &st, 0) < 0 && errno == EINTR)
+            ;
+        child = -1;
+        if (rc != 0 || !WIFEXITED(st) || WEXITSTATUS(st) != 0) {
             fprintf(stderr, "bench_eval: run %zu failed\n", r + 1);
             status = 1;
         }

@@ -17,6 +17,16 @@
 #include "lcmtypes/marie_types.h"
 #include "tests/proc.h"
 
+/* The program under test, stopped by the teardown too when a check failed. */
+static pid_t prog = -1;
+
+static int stop_prog(void **state)
+{
+    test_stop(prog);
+    prog = -1;
+    return 0;
+}
+
 typedef struct {
     int8_t loc_state;
     char loc_reason[300];
@@ -76,14 +86,13 @@ static void localizer_refuses_a_start_inside_a_wall(void **state)
     lcm_subscribe(l, "MARIE_HEARTBEAT", on_msg, &k);
     char *argv[] = { (char *)bin("marie-localizer"), "--name", "localizer", "--param", "map=sim/worlds/test.yaml",
                      "--param", "init_x=7.1", "--param", "init_y=2.0", "--param", "resume_max_age_s=0", NULL };
-    pid_t p = test_spawn(argv, "/dev/null");
+    prog = test_spawn(argv, "/dev/null");
     for (int i = 0; i < 100 && k.loc_state < 0; i++)
         handle_for(l, 100);
     handle_for(l, 300);
     printf("localizer: state %d: %s\n", k.loc_state, k.loc_reason);
     assert_int_equal(k.loc_state, MARIE_LIFECYCLE_COMMAND_T_STATE_FAILED);
     assert_non_null(strstr(k.loc_reason, "(7.10, 2.00) is inside a wall"));
-    test_stop(p);
     lcm_destroy(l);
 }
 
@@ -110,7 +119,7 @@ static void planner_says_which_end_is_blocked(void **state)
     lcm_subscribe(l, "MARIE_EVENT", on_msg, &k);
     char *argv[] = { (char *)bin("marie-planner"), "--name", "planner", "--param", "map=sim/worlds/test.yaml",
                      "--param", "use_scan=false", NULL };
-    pid_t p = test_spawn(argv, "/dev/null");
+    prog = test_spawn(argv, "/dev/null");
     handle_for(l, 1500);
     ask(l, &k, 1, 7.1, 2.0, 3.0, 3.0);          /* start inside wall A */
     assert_int_equal(k.path_status, MARIE_PATH_T_STATUS_INVALID_START);
@@ -122,15 +131,14 @@ static void planner_says_which_end_is_blocked(void **state)
     assert_int_equal(k.path_status, MARIE_PATH_T_STATUS_INVALID_GOAL);
     assert_non_null(strstr(k.no_path, "goal (0.20, 0.20) 0."));
     assert_non_null(strstr(k.no_path, "m from a wall (the robot needs 0.40 m)"));
-    test_stop(p);
     lcm_destroy(l);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(localizer_refuses_a_start_inside_a_wall),
-        cmocka_unit_test(planner_says_which_end_is_blocked),
+        cmocka_unit_test_teardown(localizer_refuses_a_start_inside_a_wall, stop_prog),
+        cmocka_unit_test_teardown(planner_says_which_end_is_blocked, stop_prog),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -62,7 +62,9 @@ void eval_rng_seed(uint64_t seed);
 double eval_rng_unit(void);
 
 /* Drives o->goals goals in w; r gets the counts (free r->time_s and r->ratio). 0, or -1 when the
- * run could not start. */
+ * run could not start. SIGTERM or SIGINT meanwhile ends it (its programs stopped) and makes
+ * eval_stopped() true. */
 int eval_run(const eval_opts_t *o, const eval_world_t *w, eval_result_t *r);
+bool eval_stopped(void);
 
 #endif

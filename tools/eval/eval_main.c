@@ -179,7 +179,8 @@ int main(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
     int status = 0;
     static char table[MAXWORLDS][200];
-    for (int i = 0; i < nw; i++) {
+    int done = 0;
+    for (int i = 0; i < nw && !eval_stopped(); i++, done++) {
         eval_rng_seed((uint64_t)o.seed * 1000003ull + (uint64_t)i);
         eval_result_t r;
         if (eval_run(&o, &worlds[i], &r) < 0)
@@ -199,8 +200,8 @@ int main(int argc, char **argv)
     if (!o.tsv) {
         printf("%s%s\n%-16s %7s %6s %5s %7s %9s %8s %6s %5s %6s %6s %7s\n", o.tag[0] ? "worlds " : "", o.tag, "world",
                "goals", "succ", "coll", "time_s", "path/sh", "loc_rms", "recov", "lost", "found", "asked", "refused");
-        for (int i = 0; i < nw; i++)
+        for (int i = 0; i < done; i++)
             printf("%s\n", table[i]);
     }
-    return status;
+    return eval_stopped() ? 1 : status;
 }

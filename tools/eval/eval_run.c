@@ -26,6 +26,20 @@ extern char **environ;
 
 #define NPROG 5
 
+/* SIGTERM or SIGINT: the run ends, its programs are stopped, and no world follows. */
+static bool stopped;
+
+bool eval_stopped(void)
+{
+    return stopped;
+}
+
+static void on_stop(marie_loop_t *loop, int signo, void *user)
+{
+    stopped = true;
+    marie_loop_quit(loop);
+}
+
 typedef struct {
     int64_t sim_us, truth_us;
     double truth[3];
@@ -292,6 +306,10 @@ static bool drive_goal(live_t *L, marie_loop_t *loop, const eval_opts_t *o, cons
     run_for(loop, o, (L->limit_us - (L->sim_us - L->t0)) / 1e6, goal_over, L);
     marie_loop_remove_timer(loop, repeat);
     L->driving = false;
+    if (stopped && !L->reached) {
+        r->tried--;             /* interrupted, not missed */
+        return false;
+    }
     double dt = (L->sim_us - L->t0) / 1e6;
     if (L->reached) {
         r->time_s[r->nres++] = dt;
@@ -329,7 +347,7 @@ int eval_run(const eval_opts_t *o, const eval_world_t *w, eval_result_t *r)
     live_t L = { .lcm = l, .res = r };
     pid_t pids[NPROG] = { -1, -1, -1, -1, -1 };
     int rc = -1;
-    if (!p || !l || !loop || marie_loop_add_lcm(loop, l, 64) < 0)
+    if (!p || !l || !loop || marie_loop_add_lcm(loop, l, 64) < 0 || marie_loop_catch_signals(loop, on_stop, NULL) < 0)
         goto out;
     programs(p, o, w, &s, dir);
     for (int i = 0; i < NPROG; i++)
@@ -338,12 +356,12 @@ int eval_run(const eval_opts_t *o, const eval_world_t *w, eval_result_t *r)
     for (int i = 0; i < 4; i++)
         marie_lcm_subscribe(l, channels[i], on_msg, &L);
     marie_loop_run_until(loop, 30000, live_ready, &L);
-    if (!L.have_pose) {
+    if (!L.have_pose && !stopped) {
         fprintf(stderr, "eval: %s: no pose within 30 s (see %s)\n", w->name, dir);
         goto out;
     }
     L.world = w->name;
-    for (int k = 1; k <= o->goals && drive_goal(&L, loop, o, &s, k); k++)
+    for (int k = 1; k <= o->goals && !stopped && drive_goal(&L, loop, o, &s, k); k++)
         ;
     /* Last counters: a heartbeat or two more. */
     marie_loop_run_until(loop, 1500, NULL, NULL);
@@ -351,6 +369,8 @@ int eval_run(const eval_opts_t *o, const eval_world_t *w, eval_result_t *r)
 out:
     stop_all(pids, NPROG);
     r->rms = L.nerr ? sqrt(L.err_sq / L.nerr) : NAN;
+    if (loop)
+        marie_loop_catch_signals(loop, NULL, NULL);
     marie_loop_destroy(loop);
     if (l)
         lcm_destroy(l);
