@@ -4,10 +4,12 @@
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 #include <cmocka.h>
 
 #include "adapters/localizer/mcl.h"
+#include "adapters/localizer/seek.h"
 #include "tests/adapters/simworld.h"
 
 #define NB 181
@@ -236,6 +238,68 @@ static void test_tracking_on_a_coarse_map(void **state)
     occmap_destroy(world);
 }
 
+/* A lost robot's search (seek.h) driving the simulated robot in the office of sim/worlds: where a
+ * turn on the spot tells the place, it is found there; in the cross corridor, whose other half is
+ * its mirror image for metres around, it is found at its true place (by driving on) or gives up,
+ * never found elsewhere; in a bare room, the same turned by half a turn, it gives up and says
+ * why. */
+static seek_event_t seek_from(const occmap_t *m, double x, double y, double th, double *err, char *why, size_t len)
+{
+    mcl_params_t p;
+    mcl_params_default(&p);
+    mcl_t *f = mcl_create(m, &p, 1);
+    simrobot_t r = { { x, y, th }, { 0, 0, 0 }, 1.01, 0.0005, 0.01, 0.005, { 5 } };
+    seek_params_t sp = SEEK_PARAMS_DEFAULTS;
+    seek_t s;
+    assert_int_equal(seek_init(&s, &sp, (const double[3]){ 0, 0, 0 }), 0);
+    seek_begin(&s, r.odom, 0);
+    float ranges[NB];
+    double v = 0, w = 0;
+    seek_out_t o = { 0 };
+    for (int k = 0; k < 4000 && o.event != SEEK_FOUND && o.event != SEEK_GAVE_UP; k++) {
+        sim_move(&r, m, v, w, 0.1);
+        sim_scan(&r, m, ranges, NB, RANGE_MAX, 0.01, 0.01);
+        mcl_scan_t scan = { ranges, NB, -M_PI / 2, M_PI / 180, 0.05, RANGE_MAX };
+        seek_step(&s, f, r.odom, &scan, k * 0.1, &o);
+        if (o.update_filter)
+            mcl_step(f, r.odom, &scan, true);
+        v = o.move ? o.v : 0;
+        w = o.move ? o.omega : 0;
+    }
+    *err = hypot(o.best_now[0] - r.truth[0], o.best_now[1] - r.truth[1]);
+    snprintf(why, len, "%s", o.why);
+    printf("search from (%.1f, %.1f): %s after %lld searches, error %.2f m %s\n", x, y,
+           o.event == SEEK_FOUND ? "found" : o.event == SEEK_GAVE_UP ? "gave up" : "nothing", (long long)s.searches,
+           *err, why);
+    seek_free(&s);
+    mcl_destroy(f);
+    return o.event;
+}
+
+static void test_lost_robot_is_found_or_asks(void **state)
+{
+    marie_errors_t errs = { 0 };
+    occmap_t *m = occmap_load("sim/worlds/office.yaml", &errs);
+    assert_non_null(m);
+    double err;
+    char why[200];
+    assert_int_equal(seek_from(m, 12.0, 25.0, -1.0, &err, why, sizeof why), SEEK_FOUND);
+    assert_true(err < 0.2);
+    assert_int_equal(seek_from(m, 35.0, 5.0, 2.0, &err, why, sizeof why), SEEK_FOUND);
+    assert_true(err < 0.2);
+    if (seek_from(m, 20.0, 3.0, 1.3, &err, why, sizeof why) == SEEK_FOUND)
+        assert_true(err < 0.2);
+    occmap_destroy(m);
+    m = occmap_create(160, 100, 0.05, 0, 0);        /* 8 x 5 m, walls 0.1 m thick */
+    occmap_fill_rect(m, 0, 0, 8, 0.1, OCCMAP_OCCUPIED);
+    occmap_fill_rect(m, 0, 4.9, 8, 5, OCCMAP_OCCUPIED);
+    occmap_fill_rect(m, 0, 0, 0.1, 5, OCCMAP_OCCUPIED);
+    occmap_fill_rect(m, 7.9, 0, 8, 5, OCCMAP_OCCUPIED);
+    assert_int_equal(seek_from(m, 3.0, 2.0, 0.4, &err, why, sizeof why), SEEK_GAVE_UP);
+    assert_non_null(strstr(why, "several places fit alike"));
+    occmap_destroy(m);
+}
+
 static void test_rejects_bad_params(void **state)
 {
     occmap_t *m = occmap_create(10, 10, 0.1, 0, 0);
@@ -291,6 +355,7 @@ int main(void)
         cmocka_unit_test(test_tracking_from_known_pose),
         cmocka_unit_test(test_tracking_on_rotated_map),
         cmocka_unit_test(test_tracking_on_a_coarse_map),
+        cmocka_unit_test(test_lost_robot_is_found_or_asks),
         cmocka_unit_test(test_global_localization),
         cmocka_unit_test(test_recovers_from_wrong_start),
     };
