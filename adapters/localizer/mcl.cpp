@@ -122,6 +122,8 @@ struct mcl {
         return fd_.kind[(size_t)cell] == lfield::FREE ? BEAM_SHORTER : BEAM_THROUGH;
     }
     void motion(const double o0[3], const double o1[3]);
+    std::vector<uint8_t> outliers(const std::vector<uint8_t> &bad, const Eigen::ArrayXd &br, const Eigen::ArrayXd &bc,
+                                  const Eigen::ArrayXd &bs);
     void weigh(const mcl_scan_t *scan);
     void resample();
 };
@@ -230,6 +232,36 @@ void mcl::motion(const double o0[3], const double o1[3])
     }
 }
 
+// Beam skipping: a beam most of the cloud cannot explain (bad: per particle and beam) is
+// something the map lacks, when from the estimate it ends in free space with nothing of the map
+// on its way (a beam seen through a wall or past the map's edge is evidence against the cloud,
+// never skipped); none when too many would go, or the cloud is spread.
+std::vector<uint8_t> mcl::outliers(const std::vector<uint8_t> &bad, const Eigen::ArrayXd &br, const Eigen::ArrayXd &bc,
+                                   const Eigen::ArrayXd &bs)
+{
+    const int nb = (int)br.size();
+    const Eigen::Index n = x_.size();
+    std::vector<uint8_t> skip((size_t)nb, 0);
+    int nskip = 0;
+    double est[3], cov[9];
+    bool one = estimate(this, est, cov) > 0.8;     // a spread cloud cannot tell what the map lacks
+    double ec = std::cos(est[2]), es = std::sin(est[2]);
+    double ex = est[0] + ec * p_.laser_x - es * p_.laser_y, ey = est[1] + es * p_.laser_x + ec * p_.laser_y;
+    for (int j = 0; j < nb && one; j++) {
+        double a = est[2] + p_.laser_theta + std::atan2(bs[j], bc[j]);
+        if (beam_verdict(ex, ey, std::cos(a), std::sin(a), br[j]) != BEAM_SHORTER)
+            continue;
+        double share = 0;
+        for (Eigen::Index i = 0; i < n; i++)
+            share += bad[(size_t)i * nb + j] ? w_[i] : 0.0;
+        skip[(size_t)j] = share > p_.outlier_share;
+        nskip += skip[(size_t)j];
+    }
+    if (nskip > p_.outlier_max * nb || nskip == nb)
+        std::fill(skip.begin(), skip.end(), 0);
+    return skip;
+}
+
 void mcl::weigh(const mcl_scan_t *scan)
 {
     if (scan->range_max != llf_range_max_)
@@ -270,29 +302,8 @@ void mcl::weigh(const mcl_scan_t *scan)
             bad[at] = cell < 0 || fd_.dist[(size_t)cell] > far;
         }
     }
-    // Beam skipping: a beam most of the cloud cannot explain is something the map lacks, when
-    // from the estimate it ends in free space with nothing of the map on its way (a beam seen
-    // through a wall or past the map's edge is evidence against the cloud, never skipped).
-    std::vector<uint8_t> skip((size_t)nb, 0);
-    int nskip = 0;
-    double est[3], cov[9];
-    bool one = estimate(this, est, cov) > 0.8;     // a spread cloud cannot tell what the map lacks
-    double ec = std::cos(est[2]), es = std::sin(est[2]);
-    double ex = est[0] + ec * p_.laser_x - es * p_.laser_y, ey = est[1] + es * p_.laser_x + ec * p_.laser_y;
-    for (int j = 0; j < nb && one; j++) {
-        double a = est[2] + p_.laser_theta + std::atan2(bs[j], bc[j]);
-        if (beam_verdict(ex, ey, std::cos(a), std::sin(a), br[j]) != BEAM_SHORTER)
-            continue;
-        double share = 0;
-        for (Eigen::Index i = 0; i < n; i++)
-            share += bad[(size_t)i * nb + j] ? w_[i] : 0.0;
-        skip[(size_t)j] = share > p_.outlier_share;
-        nskip += skip[(size_t)j];
-    }
-    if (nskip > p_.outlier_max * nb || nskip == nb) {
-        std::fill(skip.begin(), skip.end(), 0);
-        nskip = 0;
-    }
+    std::vector<uint8_t> skip = outliers(bad, br, bc, bs);
+    int nskip = (int)std::count(skip.begin(), skip.end(), 1);
     skipped_ = (double)nskip / nb;
     Eigen::ArrayXd ll(n);
     for (Eigen::Index i = 0; i < n; i++) {

@@ -3,6 +3,7 @@
 // the best are refined by hill climbing on the localizer's field and judged ray by ray.
 #include "adapters/localizer/reloc.h"
 #include "adapters/localizer/field.h"
+#include "adapters/common/posebuf.h"
 
 #include <algorithm>
 #include <array>
@@ -17,23 +18,6 @@ namespace {
 double wrap(double a)
 {
     return std::atan2(std::sin(a), std::cos(a));
-}
-
-// out = a (+) b, and out = a^-1 (+) b.
-void compose(const double a[3], const double b[3], double out[3])
-{
-    double c = std::cos(a[2]), s = std::sin(a[2]);
-    out[0] = a[0] + c * b[0] - s * b[1];
-    out[1] = a[1] + s * b[0] + c * b[1];
-    out[2] = wrap(a[2] + b[2]);
-}
-
-void between(const double a[3], const double b[3], double out[3])
-{
-    double c = std::cos(a[2]), s = std::sin(a[2]), dx = b[0] - a[0], dy = b[1] - a[1];
-    out[0] = c * dx + s * dy;
-    out[1] = -s * dx + c * dy;
-    out[2] = wrap(b[2] - a[2]);
 }
 
 const int kHeadings = 72;       // coarse headings: 5 degrees
@@ -98,8 +82,8 @@ extern "C" void reloc_cloud_reset(reloc_cloud_t *c, const double odom[3])
 extern "C" void reloc_cloud_add(reloc_cloud_t *c, const double odom[3], const double mount[3], const mcl_scan_t *scan)
 {
     double rel[3], laser[3];
-    between(c->ref, odom, rel);
-    compose(rel, mount, laser);
+    pose2d_between(c->ref, odom, rel);
+    pose2d_compose(rel, mount, laser);
     try {
         c->scans++;
         for (int k = 0; k < scan->n; k++) {
@@ -145,8 +129,8 @@ extern "C" int reloc_cloud_coverage(const reloc_cloud_t *c)
 extern "C" void reloc_cloud_pose_now(const reloc_cloud_t *c, const double origin[3], const double odom[3], double out[3])
 {
     double rel[3];
-    between(c->ref, odom, rel);
-    compose(origin, rel, out);
+    pose2d_between(c->ref, odom, rel);
+    pose2d_compose(origin, rel, out);
 }
 
 namespace {
@@ -235,79 +219,97 @@ struct searcher {
     }
 };
 
-// The coarse pass: the best headings (two, 20 degrees apart at least) of every candidate cell of
-// a grid of g m, scored on a table blurred to that grid; the kRefined best, as map poses.
+// The coarse pass's table: a grid of g m over the map, padded by the cloud's reach so no look-up
+// leaves it, each cell the log likelihood of a point there (blurred to the grid: distance less
+// half a cell); and the candidate origins, free cells at least kFreeOfWalls from a wall.
+struct table {
+    double g = 0;
+    int pad = 0, pw = 0, ph = 0;
+    std::vector<float> t;
+    std::vector<int> cands;
+
+    table(const lfield &fd, double sigma, const std::vector<float> &pts)
+    {
+        double area = (double)fd.free_cells.size() * fd.map_res * fd.map_res, reach = 0;
+        g = std::max({ 0.1, fd.map_res, std::sqrt(area / 12000) });
+        for (size_t i = 0; i < pts.size(); i += 4)
+            reach = std::max(reach, (double)std::hypot(pts[i + 2], pts[i + 3]));
+        pad = (int)std::ceil(reach / g) + 2;
+        pw = (int)std::ceil(fd.w * fd.res / g) + 2 * pad;
+        ph = (int)std::ceil(fd.h * fd.res / g) + 2 * pad;
+        double sc = std::max(sigma, 0.6 * g), k = 1.0 / (2 * sc * sc);
+        t.resize((size_t)pw * ph);
+        for (int j = 0; j < ph; j++)
+            for (int i = 0; i < pw; i++) {
+                int cell = fd.cell(fd.ox + (i - pad + 0.5) * g, fd.oy + (j - pad + 0.5) * g);
+                bool free = cell >= 0 && fd.kind[(size_t)cell] == lfield::FREE;
+                double d = cell < 0 ? INFINITY : std::max(0.0, (double)fd.dist[(size_t)cell] - 0.5 * g);
+                t[(size_t)j * pw + i] = (float)std::log(std::exp(-d * d * k) + (free ? 0.1 : 0.01));
+                if (free && fd.dist[(size_t)cell] >= kFreeOfWalls)
+                    cands.push_back(j * pw + i);
+            }
+    }
+    std::array<double, 4> pose(const lfield &fd, const cand &c) const
+    {
+        int ci = c.cell % pw - pad, cj = c.cell / pw - pad;
+        return { fd.ox + (ci + 0.5) * g, fd.oy + (cj + 0.5) * g, wrap(2 * M_PI * c.heading / kHeadings), g };
+    }
+};
+
+// Keeps a candidate's best two headings, 20 degrees apart at least.
+void keep_best(float sum, int h, float &b1, int &h1, float &b2, int &h2)
+{
+    bool apart = std::abs(h - h1) >= 4 && std::abs(h - h1) <= kHeadings - 4;
+    if (sum > b1) {
+        if (apart) {
+            b2 = b1;
+            h2 = h1;
+        }
+        b1 = sum;
+        h1 = h;
+    } else if (sum > b2 && apart) {
+        b2 = sum;
+        h2 = h;
+    }
+}
+
+// The coarse pass: every candidate at every heading scored with kCoarsePoints points, one table
+// look-up each; the kRefined best (two headings per candidate at most), as map poses with the
+// grid's step.
 std::vector<std::array<double, 4>> coarse(const lfield &fd, double sigma, const std::vector<float> &pts)
 {
-    double area = (double)fd.free_cells.size() * fd.map_res * fd.map_res;
-    double g = std::max({ 0.1, fd.map_res, std::sqrt(area / 12000) });
-    double reach = 0;
-    for (size_t i = 0; i < pts.size(); i += 4)
-        reach = std::max(reach, (double)std::hypot(pts[i + 2], pts[i + 3]));
-    int pad = (int)std::ceil(reach / g) + 2;
-    int gw = (int)std::ceil(fd.w * fd.res / g), gh = (int)std::ceil(fd.h * fd.res / g);
-    int pw = gw + 2 * pad, ph = gh + 2 * pad;
-    double sc = std::max(sigma, 0.6 * g), k = 1.0 / (2 * sc * sc);
-    std::vector<float> table((size_t)pw * ph);
-    std::vector<int> cands;
-    for (int j = 0; j < ph; j++)
-        for (int i = 0; i < pw; i++) {
-            double x = fd.ox + (i - pad + 0.5) * g, y = fd.oy + (j - pad + 0.5) * g;
-            int cell = fd.cell(x, y);
-            float &t = table[(size_t)j * pw + i];
-            if (cell < 0) {
-                t = (float)std::log(0.01);
-                continue;
-            }
-            double d = std::max(0.0, (double)fd.dist[(size_t)cell] - 0.5 * g);
-            bool free = fd.kind[(size_t)cell] == lfield::FREE;
-            t = (float)std::log(std::exp(-d * d * k) + (free ? 0.1 : 0.01));
-            if (free && fd.dist[(size_t)cell] >= kFreeOfWalls)
-                cands.push_back(j * pw + i);
-        }
-    std::vector<int> idx = spread((int)pts.size() / 4, kCoarsePoints);
-    std::vector<float> b1(cands.size(), -INFINITY), b2(cands.size(), -INFINITY);
-    std::vector<int> h1(cands.size(), 0), h2(cands.size(), 0);
-    std::vector<int> off(idx.size());
+    table tb(fd, sigma, pts);
+    std::vector<int> idx = spread((int)pts.size() / 4, kCoarsePoints), off(idx.size());
+    size_t nc = tb.cands.size();
+    std::vector<float> b1(nc, -INFINITY), b2(nc, -INFINITY);
+    std::vector<int> h1(nc, 0), h2(nc, 0);
     for (int h = 0; h < kHeadings; h++) {
         double th = 2 * M_PI * h / kHeadings, c = std::cos(th), s = std::sin(th);
         for (size_t j = 0; j < idx.size(); j++) {
             double px = pts[4 * idx[j] + 2], py = pts[4 * idx[j] + 3];
-            off[j] = (int)std::lround((s * px + c * py) / g) * pw + (int)std::lround((c * px - s * py) / g);
+            off[j] = (int)std::lround((s * px + c * py) / tb.g) * tb.pw + (int)std::lround((c * px - s * py) / tb.g);
         }
-        for (size_t ci = 0; ci < cands.size(); ci++) {
-            const float *t = table.data() + cands[ci];
+        for (size_t ci = 0; ci < nc; ci++) {
+            const float *t = tb.t.data() + tb.cands[ci];
             float sum = 0;
             for (int o : off)
                 sum += t[o];
-            if (sum > b1[ci]) {
-                if (std::abs(h - h1[ci]) >= 4 && std::abs(h - h1[ci]) <= kHeadings - 4) {
-                    b2[ci] = b1[ci];
-                    h2[ci] = h1[ci];
-                }
-                b1[ci] = sum;
-                h1[ci] = h;
-            } else if (sum > b2[ci] && std::abs(h - h1[ci]) >= 4 && std::abs(h - h1[ci]) <= kHeadings - 4) {
-                b2[ci] = sum;
-                h2[ci] = h;
-            }
+            keep_best(sum, h, b1[ci], h1[ci], b2[ci], h2[ci]);
         }
     }
     std::vector<cand> all;
-    all.reserve(2 * cands.size());
-    for (size_t ci = 0; ci < cands.size(); ci++) {
-        all.push_back({ b1[ci], cands[ci], h1[ci] });
+    all.reserve(2 * nc);
+    for (size_t ci = 0; ci < nc; ci++) {
+        all.push_back({ b1[ci], tb.cands[ci], h1[ci] });
         if (std::isfinite(b2[ci]))
-            all.push_back({ b2[ci], cands[ci], h2[ci] });
+            all.push_back({ b2[ci], tb.cands[ci], h2[ci] });
     }
     size_t keep = std::min<size_t>(all.size(), kRefined);
     std::partial_sort(all.begin(), all.begin() + keep, all.end(),
                       [](const cand &a, const cand &b) { return a.score > b.score; });
     std::vector<std::array<double, 4>> out;
-    for (size_t i = 0; i < keep; i++) {
-        int ci = all[i].cell % pw - pad, cj = all[i].cell / pw - pad;
-        out.push_back({ fd.ox + (ci + 0.5) * g, fd.oy + (cj + 0.5) * g, wrap(2 * M_PI * all[i].heading / kHeadings), g });
-    }
+    for (size_t i = 0; i < keep; i++)
+        out.push_back(tb.pose(fd, all[i]));
     return out;
 }
 

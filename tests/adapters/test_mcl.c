@@ -190,27 +190,13 @@ static void test_recovers_from_wrong_start(void **state)
     occmap_destroy(m);
 }
 
-/* The map as a mapper with cells of `res` draws it: a cell is a wall when any part of it is. */
-static occmap_t *coarser(const occmap_t *m, double res)
-{
-    int w = (int)ceil(m->width * m->resolution / res), h = (int)ceil(m->height * m->resolution / res);
-    occmap_t *c = occmap_create(w, h, res, m->origin_x, m->origin_y);
-    for (int y = 0; y < m->height; y++)
-        for (int x = 0; x < m->width; x++) {
-            int cx = (int)(x * m->resolution / res), cy = (int)(y * m->resolution / res);
-            if (m->cells[y * m->width + x] == OCCMAP_OCCUPIED)
-                c->cells[cy * w + cx] = OCCMAP_OCCUPIED;
-        }
-    return c;
-}
-
 /* The robot in a 5 cm world, the filter on a 20 cm map of it: the beams end on the walls' faces,
  * up to half a coarse cell in front of the coarse cells' centres. It tracks, and the scan fits the
  * map at the estimate (the mean per-beam likelihood stays above 0.45: measured from the cells'
  * centres, a 0.2 m map read 0.36 at best, and wrong poses that fit as well took the robot). */
 static void test_tracking_on_a_coarse_map(void **state)
 {
-    occmap_t *world = occmap_make_office(16, 12, 0.05, 7), *map = coarser(world, 0.2);
+    occmap_t *world = occmap_make_office(16, 12, 0.05, 7), *map = occmap_coarsen(world, 0.2);
     mcl_params_t p;
     mcl_params_default(&p);
     p.particles_max = 1500;

@@ -425,6 +425,27 @@ static void test_clearance_is_exact(void **state)
     }
 }
 
+/* A coarser copy: a coarse cell is a wall when any fine cell in it is, free when all are free,
+ * unknown otherwise; the origin stays and the size rounds up. */
+static void test_coarsen(void **state)
+{
+    occmap_t *m = occmap_create(10, 6, 0.05, -1.0, 2.0);
+    occmap_fill_rect(m, -1.0, 2.0, -0.96, 2.04, OCCMAP_OCCUPIED);      /* cell (0, 0) */
+    m->cells[1 * 10 + 5] = OCCMAP_UNKNOWN;                              /* cell (5, 1) */
+    occmap_t *c = occmap_coarsen(m, 0.2);
+    assert_non_null(c);
+    assert_int_equal(c->width, 3);
+    assert_int_equal(c->height, 2);
+    assert_true(c->origin_x == -1.0 && c->origin_y == 2.0 && c->resolution == 0.2);
+    assert_int_equal(occmap_get(c, 0, 0), OCCMAP_OCCUPIED);
+    assert_int_equal(occmap_get(c, 1, 0), OCCMAP_UNKNOWN);
+    assert_int_equal(occmap_get(c, 2, 0), OCCMAP_FREE);
+    assert_int_equal(occmap_get(c, 0, 1), OCCMAP_FREE);
+    assert_null(occmap_coarsen(m, 0.01));
+    occmap_destroy(c);
+    occmap_destroy(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -439,6 +460,7 @@ int main(void)
         cmocka_unit_test(test_gridpath),
         cmocka_unit_test(test_gridpath_is_shortest_on_random_grids),
         cmocka_unit_test(test_clearance_is_exact),
+        cmocka_unit_test(test_coarsen),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

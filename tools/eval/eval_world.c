@@ -122,31 +122,6 @@ static void draw_walls(eval_site_t *s, int n)
     }
 }
 
-/* The map at `res`: a cell is occupied when any part of it is, free when all of it is known
- * free, else unknown (what a mapper with coarse cells makes of the same walls). */
-static occmap_t *coarser(const occmap_t *m, double res)
-{
-    int w = (int)ceil(m->width * m->resolution / res), h = (int)ceil(m->height * m->resolution / res);
-    occmap_t *c = occmap_create(w, h, res, m->origin_x, m->origin_y);
-    if (!c)
-        return NULL;
-    memset(c->cells, OCCMAP_FREE, (size_t)w * h);
-    for (int y = 0; y < m->height; y++)
-        for (int x = 0; x < m->width; x++) {
-            double px, py;
-            int cx, cy;
-            occmap_cell_center(m, x, y, &px, &py);
-            if (!occmap_cell(c, px, py, &cx, &cy))
-                continue;
-            int8_t v = m->cells[y * m->width + x], *to = &c->cells[cy * w + cx];
-            if (v == OCCMAP_OCCUPIED)
-                *to = OCCMAP_OCCUPIED;
-            else if (v != OCCMAP_FREE && *to == OCCMAP_FREE)
-                *to = OCCMAP_UNKNOWN;
-        }
-    return c;
-}
-
 /* ---- the site ---- */
 static int grids(eval_site_t *s, double r_plan)
 {
@@ -194,7 +169,7 @@ int eval_site_make(eval_site_t *s, const eval_world_t *w, const eval_opts_t *o, 
         marie_errors_clear(&errs);
         return -1;
     }
-    s->map = o->coarse > 0 ? coarser(s->world, o->coarse) : occmap_clone(s->world);
+    s->map = o->coarse > 0 ? occmap_coarsen(s->world, o->coarse) : occmap_clone(s->world);
     double r_plan = w->radius + w->clearance;
     if (!s->map || grids(s, r_plan) < 0 || !pick_start(s)) {
         fprintf(stderr, "eval: %s: no free start for a robot of %.2f m + %.2f m\n", w->name, w->radius, w->clearance);
