@@ -36,6 +36,8 @@ struct mcl {
     float ll_out_ = 0;                  // ... outside the map
     double llf_range_max_ = -1;         // range_max the field was built for
     mcl_fit_t fit_{};                   // the last update's scan judged at the estimate
+    std::vector<float> bl_;             // weigh's scratch: log likelihood per particle and beam ...
+    std::vector<uint8_t> bad_;          // ... and whether the beam is unexplained there
     double skipped_ = 0, cluster_mass_ = 1;
 
     // Particles (structure of arrays; weights normalised to sum 1).
@@ -287,8 +289,10 @@ void mcl::weigh(const mcl_scan_t *scan)
     }
     // Each particle's log likelihood per beam, and whether the beam is explained there.
     const Eigen::Index n = x_.size();
-    std::vector<float> bl((size_t)n * nb);
-    std::vector<uint8_t> bad((size_t)n * nb);
+    bl_.resize((size_t)n * nb);
+    bad_.resize((size_t)n * nb);
+    std::vector<float> &bl = bl_;
+    std::vector<uint8_t> &bad = bad_;
     const float far = (float)p_.outlier_distance;
     for (Eigen::Index i = 0; i < n; i++) {
         double c = std::cos(th_[i]), s = std::sin(th_[i]);
