@@ -174,7 +174,7 @@ test-vm: deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) scripts/run-tests.sh $(VMTESTS)
 
-# The README's two commands on a brand-new Debian 12 root filesystem (slow: see README).
+# The README's two commands on a brand-new Debian 12 root filesystem (slow: docs/testing.md).
 test-fresh:
 	@scripts/install-deps.sh fresh
 	@scripts/test-fresh.sh

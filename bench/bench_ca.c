@@ -55,7 +55,10 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
 {
     path_t *p = user;
     marie_pull_reply_t r;
-    if (ca_view_pull_reply(rbuf->data, rbuf->data_size, &r) < 0 || r.status != 0)
+    if (marie_decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0)
+        return;
+    marie_pull_reply_t_decode_cleanup(&r);
+    if (r.status != 0)
         return;
     p->got_id = r.request_id;
     p->got_at = marie_mono_us();
@@ -65,9 +68,9 @@ static void on_sm_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *u
 {
     path_t *p = user;
     marie_sharedmap_reply_t r;
-    if (ca_view_sharedmap_reply(rbuf->data, rbuf->data_size, &r) < 0)
+    if (marie_decode_checked(&marie_type_sharedmap_reply_t, rbuf->data, rbuf->data_size, &r) < 0)
         return;
-    free(r.keys);
+    marie_sharedmap_reply_t_decode_cleanup(&r);
     if (r.status != 0)
         return;
     p->got_id = r.request_id;

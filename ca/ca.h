@@ -69,29 +69,6 @@ int ca_payload_check(const marie_type_t *type, const void *raw, size_t len, cons
  * CA_NOTE_BAD_INPUT, the counter named by why), naming `channel`. 0 or -EBADMSG. */
 int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *channel, const void *raw, size_t len);
 
-/* Checks an encoded LCM message before it is handed to lcm-gen's decoder, which trusts
- * string and array lengths (a negative or oversized length makes it copy out of bounds,
- * a string without its NUL is read past its end). `schema` lists the fields after the
- * fingerprint: 'l' int64, 'i' int32, 'b' int8, 'd' double, 's' string, 'B' bytes counted
- * by the last 'i', 'S' strings counted by the last 'i'. 0 when the fingerprint is
- * `type`'s and every field fits in len bytes exactly, else -EBADMSG. */
-int ca_lcm_check(const marie_type_t *type, const char *schema, const void *buf, size_t len);
-#define CA_SCHEMA_PULL_REQUEST      "llsssi"
-#define CA_SCHEMA_SHAREDMAP_REQUEST "llssbssiB"
-#define CA_SCHEMA_SHAREDMAP_REPLY   "llsbbslsliBiS"
-#define CA_SCHEMA_SWITCH_SELECT     "llss"
-#define CA_SCHEMA_PULL_REPLY        "llsblliB"
-
-/* Zero-copy decoders of the CA protocol messages: strings and data point into buf (valid
- * while it is), nothing to clean up except ca_view_sharedmap_reply's keys array
- * (free(out->keys)). They check like ca_lcm_check() and also avoid lcm-gen's decoder
- * copying zero-length arrays from NULL. 0 or -EBADMSG. */
-int ca_view_pull_request(const void *buf, size_t len, marie_pull_request_t *out);
-int ca_view_pull_reply(const void *buf, size_t len, marie_pull_reply_t *out);
-int ca_view_sharedmap_request(const void *buf, size_t len, marie_sharedmap_request_t *out);
-int ca_view_sharedmap_reply(const void *buf, size_t len, marie_sharedmap_reply_t *out);
-int ca_view_switch_select(const void *buf, size_t len, marie_switch_select_t *out);
-
 /* `channel` as an LCM subscription pattern that matches only itself (lcm_subscribe takes a
  * regular expression). Caller frees. */
 char *ca_channel_pattern(const char *channel);

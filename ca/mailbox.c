@@ -255,11 +255,13 @@ int mailbox_handle_request(mailbox_t *mb, const marie_pull_request_t *req, int64
 int mailbox_handle_request_raw(mailbox_t *mb, const void *buf, size_t len, int64_t now)
 {
     marie_pull_request_t req;
-    if (ca_view_pull_request(buf, len, &req) < 0) {
+    if (marie_decode_checked(&marie_type_pull_request_t, buf, len, &req) < 0) {
         mb->stats.bad_requests++;
         return ca_bad_request(&mb->sink, mb->pull_channel, "pull request", buf, len);
     }
-    return mailbox_handle_request(mb, &req, now);
+    int rc = mailbox_handle_request(mb, &req, now);
+    marie_pull_request_t_decode_cleanup(&req);
+    return rc;
 }
 
 int mailbox_tick(mailbox_t *mb, int64_t now)

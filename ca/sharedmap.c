@@ -638,11 +638,13 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
 int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, int64_t now)
 {
     marie_sharedmap_request_t req;
-    if (ca_view_sharedmap_request(buf, len, &req) < 0) {
+    if (marie_decode_checked(&marie_type_sharedmap_request_t, buf, len, &req) < 0) {
         sm->stats.bad_requests++;
         return ca_bad_request(&sm->sink, NULL, "SharedMap request", buf, len);
     }
-    return sharedmap_handle_request(sm, &req, now);
+    int rc = sharedmap_handle_request(sm, &req, now);
+    marie_sharedmap_request_t_decode_cleanup(&req);
+    return rc;
 }
 
 void sharedmap_set_snapshot(sharedmap_t *sm, const char *channel, const char *source,

@@ -30,9 +30,8 @@ struct sharedmap_client {
     marie_lcm_sub_t *sub;
     int64_t next_id;
     int64_t waiting_id;             /* 0: none */
-    marie_sharedmap_reply_t *reply; /* view of the matching reply (into reply_buf), or NULL */
-    marie_sharedmap_reply_t view;
-    uint8_t *reply_buf;
+    marie_sharedmap_reply_t *reply; /* the matching reply (&decoded), or NULL */
+    marie_sharedmap_reply_t decoded;
     int64_t timeouts, strays, bad;
     pending_t *pending;             /* asynchronous requests in flight */
     size_t npending, cap_pending;
@@ -42,8 +41,7 @@ struct sharedmap_client {
 static void drop_reply(sharedmap_client_t *cl)
 {
     if (cl->reply)
-        free(cl->view.keys);
-    MARIE_CLEAR(cl->reply_buf, free);
+        marie_sharedmap_reply_t_decode_cleanup(cl->reply);
     cl->reply = NULL;
 }
 
@@ -72,30 +70,22 @@ static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 {
     sharedmap_client_t *cl = user;
     marie_sharedmap_reply_t msg;
-    if (ca_view_sharedmap_reply(rbuf->data, rbuf->data_size, &msg) < 0) {
+    if (marie_decode_checked(&marie_type_sharedmap_reply_t, rbuf->data, rbuf->data_size, &msg) < 0) {
         cl->bad++;
         return;
     }
     int64_t id = msg.request_id;
-    bool taken = id != cl->waiting_id && deliver_async(cl, &msg);
-    free(msg.keys);
-    if (taken)
+    if (id != cl->waiting_id && deliver_async(cl, &msg)) {
+        marie_sharedmap_reply_t_decode_cleanup(&msg);
         return;
+    }
     if (cl->waiting_id == 0 || id != cl->waiting_id || cl->reply) {
         cl->strays++;
+        marie_sharedmap_reply_t_decode_cleanup(&msg);
         return;
     }
-    /* Keep the bytes; the view points into them. */
-    uint8_t *copy = malloc(rbuf->data_size ? rbuf->data_size : 1);
-    if (!copy)
-        return;
-    memcpy(copy, rbuf->data, rbuf->data_size);
-    if (ca_view_sharedmap_reply(copy, rbuf->data_size, &cl->view) < 0) {
-        free(copy);
-        return;
-    }
-    cl->reply_buf = copy;
-    cl->reply = &cl->view;
+    cl->decoded = msg;          /* kept until the waiting call has read it */
+    cl->reply = &cl->decoded;
 }
 
 sharedmap_client_t *sharedmap_client_create(lcm_t *lcm, const char *request_channel, const char *name)

@@ -249,11 +249,13 @@ int ca_switch_handle_select(ca_switch_t *sw, const marie_switch_select_t *req, i
 int ca_switch_handle_select_raw(ca_switch_t *sw, const void *buf, size_t len, int64_t now)
 {
     marie_switch_select_t req;
-    if (ca_view_switch_select(buf, len, &req) < 0) {
+    if (marie_decode_checked(&marie_type_switch_select_t, buf, len, &req) < 0) {
         sw->stats.bad_requests++;
         return ca_bad_request(&sw->sink, NULL, "selection request", buf, len);
     }
-    return ca_switch_handle_select(sw, &req, now);
+    int rc = ca_switch_handle_select(sw, &req, now);
+    marie_switch_select_t_decode_cleanup(&req);
+    return rc;
 }
 
 static void on_input(const lcm_recv_buf_t *rbuf, const char *channel, void *user)

@@ -87,3 +87,53 @@ int marie_buf_printf(marie_buf_t *b, const char *fmt, ...)
     b->len += (size_t)n;
     return 0;
 }
+
+/* The length of the well-formed UTF-8 sequence at p (2 to 4), or 0. */
+static int utf8_len(const unsigned char *p)
+{
+    int n = p[0] >= 0xf0 && p[0] <= 0xf4 ? 4 : p[0] >= 0xe0 ? 3 : p[0] >= 0xc2 && p[0] < 0xe0 ? 2 : 0;
+    for (int i = 1; i < n; i++)
+        if ((p[i] & 0xc0) != 0x80)
+            return 0;
+    if ((n == 3 && p[0] == 0xe0 && p[1] < 0xa0) || (n == 3 && p[0] == 0xed && p[1] >= 0xa0) ||
+        (n == 4 && p[0] == 0xf0 && p[1] < 0x90) || (n == 4 && p[0] == 0xf4 && p[1] >= 0x90))
+        return 0;               /* overlong, a surrogate, or past U+10FFFF */
+    return n;
+}
+
+int marie_buf_json_str(marie_buf_t *b, const char *s)
+{
+    static const char hex[] = "0123456789abcdef";
+    size_t start = b->len;
+    bool failed = b->failed;
+    marie_buf_put(b, "\"", 1);
+    for (const unsigned char *p = (const unsigned char *)(s ? s : ""); *p; p++) {
+        int n = *p >= 0x80 ? utf8_len(p) : 1;
+        if (*p == '"' || *p == '\\')
+            marie_buf_put(b, (char[]){ '\\', (char)*p }, 2);
+        else if (*p < 0x20 || *p == 0x7f)
+            marie_buf_put(b, (char[]){ '\\', 'u', '0', '0', hex[*p >> 4], hex[*p & 15] }, 6);
+        else if (n == 0)
+            marie_buf_puts(b, "\\ufffd");
+        else
+            marie_buf_put(b, p, (size_t)n);
+        p += n > 1 ? n - 1 : 0;
+    }
+    marie_buf_put(b, "\"", 1);
+    if (b->failed && !failed) {     /* all or nothing, as the other appends */
+        b->len = start;
+        if (b->data)
+            b->data[start] = 0;
+        return -1;
+    }
+    return b->failed ? -1 : 0;
+}
+
+void marie_json_fputs(FILE *f, const char *s)
+{
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    if (marie_buf_json_str(&b, s) == 0)
+        fwrite(b.data, 1, b.len, f);
+    marie_buf_free(&b);
+}

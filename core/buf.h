@@ -6,6 +6,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -28,6 +29,13 @@ int marie_buf_reserve(marie_buf_t *b, size_t extra);
 int marie_buf_put(marie_buf_t *b, const void *data, size_t len);
 int marie_buf_puts(marie_buf_t *b, const char *s);
 int marie_buf_printf(marie_buf_t *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* s as a JSON string, quotes included (NULL as ""): '"' and '\\' escaped, control characters
+ * as \u00XX, well-formed UTF-8 kept, any other byte as U+FFFD, so the text is always valid JSON
+ * whatever a name or a log line holds. 0, or -1 and `failed`. */
+int marie_buf_json_str(marie_buf_t *b, const char *s);
+/* The same, written to f. */
+void marie_json_fputs(FILE *f, const char *s);
 
 #ifdef __cplusplus
 }

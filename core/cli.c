@@ -26,6 +26,15 @@ static int store(const char *prog, const marie_cli_opt_t *o, const char *text)
         *(const char **)o->value = text;
         return 0;
     }
+    if (o->type == MARIE_CLI_LIST) {
+        marie_cli_list_t *l = o->value;
+        if (l->n == MARIE_CLI_LIST_MAX) {
+            fprintf(stderr, "%s: --%s: at most %d of them\n", prog, o->name, MARIE_CLI_LIST_MAX);
+            return -1;
+        }
+        l->items[l->n++] = text;
+        return 0;
+    }
     char *end;
     errno = 0;
     double v = o->type == MARIE_CLI_INT ? (double)strtoll(text, &end, 0) : strtod(text, &end);

@@ -11,12 +11,20 @@
 extern "C" {
 #endif
 
-typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE } marie_cli_type_t;
+typedef enum { MARIE_CLI_STRING, MARIE_CLI_INT, MARIE_CLI_DOUBLE, MARIE_CLI_LIST } marie_cli_type_t;
+
+/* A repeatable option (MARIE_CLI_LIST): each --name VALUE appends VALUE; more than
+ * MARIE_CLI_LIST_MAX is refused like a bad value. */
+#define MARIE_CLI_LIST_MAX 64
+typedef struct {
+    const char *items[MARIE_CLI_LIST_MAX];
+    int n;
+} marie_cli_list_t;
 
 typedef struct {
     const char *name;           /* --name VALUE (or --name=VALUE) */
     marie_cli_type_t type;
-    void *value;                /* where it goes: const char **, int64_t *, double * */
+    void *value;                /* where it goes: const char **, int64_t *, double *, marie_cli_list_t * */
     double min, max;            /* INT and DOUBLE: the range a value must lie in */
     const char *help;           /* the value's name, then what it is: "N the left drive's node id" */
 } marie_cli_opt_t;

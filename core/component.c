@@ -379,6 +379,7 @@ size_t marie_component_shm_max(const marie_component_t *c, const char *channel)
 }
 int64_t marie_component_now(const marie_component_t *c) { return marie_loop_now(c->loop); }
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c) { return c->cfg; }
+const marie_system_t *marie_component_system(const marie_component_t *c) { return c->sys; }
 
 /* 1 Hz, or four beats within the manager's heartbeat_timeout when that is shorter than 4 s, so
  * a quick detection (down to a few hundred ms) never sees a silence that is only the period. */

@@ -153,6 +153,7 @@ lcm_t *marie_component_lcm(marie_component_t *c);      /* the system bus */
 size_t marie_component_shm_max(const marie_component_t *c, const char *channel);
 int64_t marie_component_now(const marie_component_t *c);  /* us, on the configured clock */
 const marie_component_cfg_t *marie_component_cfg(const marie_component_t *c);  /* NULL standalone */
+const marie_system_t *marie_component_system(const marie_component_t *c);      /* NULL standalone */
 /* Reason for the refusal a hook is about to return; formatted into the component. */
 void marie_component_fail_reason(marie_component_t *c, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));

@@ -407,6 +407,11 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
             if (tr)
                 fprintf(f, " transports=%s", tr);
             free(tr);
+            /* So does the table of what the ROS 2 bridge carries. */
+            char *r2 = sys->ros2 ? marie_node_canonical(sys->ros2) : NULL;
+            if (r2)
+                fprintf(f, " ros2=%s", r2);
+            free(r2);
             break;
         }
         case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
@@ -666,7 +671,7 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
     const marie_node_t *root = marie_doc_root(sys->doc), *v;
     static const char *const top_keys[] = {"system", "lcm_url", "clock", "auth", "hosts", "defaults",
                                            "components", "profiles", "manager", "balance", "robot", "transports",
-                                           NULL};
+                                           "ros2", NULL};
     if (marie_node_check_keys(root, top_keys, "the system file", errs) < 0)
         goto err;
     const char *s;
@@ -690,6 +695,12 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
     }
     if (read_transports(marie_node_get(root, "transports"), sys, errs) < 0)
         goto err;
+    /* The bridge reads the entries themselves (with their positions); the loader checks the shape. */
+    if ((v = marie_node_get(root, "ros2")) && v->kind != MARIE_NODE_MAP) {
+        marie_node_error(errs, v, "ros2: expected a mapping such as {topics: [{channel: LASER, topic: /scan}]}");
+        goto err;
+    }
+    sys->ros2 = v;
     marie_restart_cfg_t defaults = {MARIE_RESTART_ON_FAILURE, 0.1, 5.0, 10.0, 5, 60.0};
     if ((v = marie_node_get(root, "defaults"))) {
         static const char *const keys[] = {"restart", NULL};

@@ -148,6 +148,8 @@ typedef struct marie_system {
     const marie_node_t *robot;  /* `robot:` (the profile's when it has one): a component parameter
                                    robot_KEY not set in its entry takes robot.KEY; NULL: none */
     marie_transport_cfg_t *transports; size_t ntransports;
+    const marie_node_t *ros2;   /* `ros2:` (a mapping): which channels marie-ros2 bridges to which
+                                   ROS 2 topics (docs/ros2.md); NULL: none */
     marie_component_cfg_t *components; size_t ncomponents;
     marie_component_cfg_t **by_name;   /* private: sorted by name for lookups */
     marie_doc_t *doc;

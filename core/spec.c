@@ -2,28 +2,20 @@
  * a system file entry against such a description, so managers refuse a bad file before start. */
 #include "core/spec.h"
 
+#include "core/buf.h"
+
 #include <stdlib.h>
 #include <string.h>
 
 static const char *const type_names[] = {"int", "double", "bool", "string", "node"};
 
+/* NULL as null: a spec's optional text that is not given. */
 static void json_str(FILE *f, const char *s)
 {
-    if (!s) {
+    if (s)
+        marie_json_fputs(f, s);
+    else
         fputs("null", f);
-        return;
-    }
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            fprintf(f, "\\%c", ch);
-        else if (ch < 0x20)
-            fprintf(f, "\\u%04x", ch);
-        else
-            fputc(ch, f);
-    }
-    fputc('"', f);
 }
 
 void marie_spec_describe(const marie_component_def_t *def, FILE *out)

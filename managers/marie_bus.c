@@ -12,31 +12,13 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/config.h"
 #include "core/time.h"
 #include "managers/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
 #include "core/typeinfo.h"
-
-/* ---------------------------------------------------------------- JSON output */
-
-void json_str(FILE *f, const char *s)
-{
-    fputc('"', f);
-    for (; s && *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            fprintf(f, "\\%c", ch);
-        else if (ch == '\n')
-            fputs("\\n", f);
-        else if (ch < 0x20)
-            fprintf(f, "\\u%04x", ch);
-        else
-            fputc(ch, f);
-    }
-    fputc('"', f);
-}
 
 /* ---------------------------------------------------------------- bus */
 
@@ -132,9 +114,9 @@ static void on_log(const lcm_recv_buf_t *rbuf, const char *channel, const marie_
         cli->last_log_mono = marie_mono_us();
         if (cli->json) {
             printf("{\"host\":");
-            json_str(stdout, l->host);
+            marie_json_fputs(stdout, l->host);
             printf(",\"text\":");
-            json_str(stdout, l->text);
+            marie_json_fputs(stdout, l->text);
             printf("}\n");
         } else {
             printf("%s\n", l->text);
@@ -142,10 +124,10 @@ static void on_log(const lcm_recv_buf_t *rbuf, const char *channel, const marie_
     } else if (cli->follow) {
         if (cli->json) {
             printf("{\"utime\":%lld,\"host\":", (long long)l->utime);
-            json_str(stdout, l->host);
+            marie_json_fputs(stdout, l->host);
             printf(",\"pid\":%d,\"stream\":\"%s\",\"dropped\":%lld,\"text\":", (int)l->pid,
                    l->stream == MARIE_LOG_LINE_T_STDERR ? "err" : "out", (long long)l->dropped);
-            json_str(stdout, l->text);
+            marie_json_fputs(stdout, l->text);
             printf("}\n");
         } else {
             time_t secs = (time_t)(l->utime / 1000000);
@@ -332,10 +314,10 @@ void print_replies_json(cli_t *cli, int rc)
     printf("{\"ok\":%s,\"exit\":%d,\"replies\":[", rc == 0 ? "true" : "false", rc);
     for (int i = 0; i < cli->nreplies; i++) {
         printf("%s{\"host\":", i ? "," : "");
-        json_str(stdout, cli->replies[i].host);
+        marie_json_fputs(stdout, cli->replies[i].host);
         printf(",\"ok\":%s,\"affected\":%d,\"reason\":", cli->replies[i].ok ? "true" : "false",
                cli->replies[i].affected);
-        json_str(stdout, cli->replies[i].reason);
+        marie_json_fputs(stdout, cli->replies[i].reason);
         printf("}");
     }
     printf("]}\n");

@@ -65,7 +65,6 @@ extern volatile sig_atomic_t interrupted;
 int interrupted_status(void);
 
 /* marie_bus.c: the bus, orders and replies */
-void json_str(FILE *f, const char *s);
 host_t *host_get(cli_t *cli, const char *name, bool create);
 void expect_host(cli_t *cli, const char *name);
 bool all_replied(cli_t *cli);

@@ -13,6 +13,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/clear.h"
 #include "core/config.h"
 #include "core/file.h"
@@ -210,38 +211,38 @@ static int print_ps(cli_t *cli, int64_t lost_us)
         lost += is_lost;
         if (cli->json) {
             printf("%s{\"host\":", i ? "," : "");
-            json_str(stdout, cli->expect[i]);
+            marie_json_fputs(stdout, cli->expect[i]);
             if (is_lost) {
                 printf(",\"lost\":true,\"components\":[]}");
                 continue;
             }
             marie_am_status_t *st = h->st;
             printf(",\"lost\":false,\"system\":");
-            json_str(stdout, st->system);
+            marie_json_fputs(stdout, st->system);
             printf(",\"profile\":");
-            json_str(stdout, st->profile);
+            marie_json_fputs(stdout, st->profile);
             printf(",\"load\":[%.2f,%.2f,%.2f],\"ncpu\":%d,\"am_pid\":%d,\"am_cpu\":%.2f,\"am_rss\":%lld,"
                    "\"orders_refused\":%lld,\"clock_offset_us\":%lld,",
                    st->load1, st->load5, st->load15, st->ncpu, st->pid, st->am_cpu, (long long)st->am_rss,
                    (long long)st->orders_refused, (long long)(st->utime - h->recv_wall));
             printf("\"balance_term\":%lld,\"balance_leader\":", (long long)st->balance_term);
-            json_str(stdout, st->balance_leader);
+            marie_json_fputs(stdout, st->balance_leader);
             printf(",\"balance_last\":");
-            json_str(stdout, st->balance_last);
+            marie_json_fputs(stdout, st->balance_last);
             printf(",\"components\":[");
             for (int k = 0; k < st->ncomponents; k++) {
                 marie_am_component_status_t *c = &st->components[k];
                 printf("%s{\"name\":", k ? "," : "");
-                json_str(stdout, c->name);
+                marie_json_fputs(stdout, c->name);
                 printf(",\"group\":");
-                json_str(stdout, c->group);
+                marie_json_fputs(stdout, c->group);
                 printf(",\"state\":");
-                json_str(stdout, c->state);
+                marie_json_fputs(stdout, c->state);
                 printf(",\"comp_state\":%d,\"pid\":%d,\"uptime_us\":%lld,\"restarts\":%d,\"last_exit\":%d,"
                        "\"cpu\":%.2f,\"rss\":%lld,\"heartbeat_age_us\":%lld,\"log_drops\":%lld,\"config_hash\":",
                        c->comp_state, c->pid, (long long)c->uptime_us, c->restarts, c->last_exit, c->cpu,
                        (long long)c->rss, (long long)c->heartbeat_age_us, (long long)c->log_drops);
-                json_str(stdout, c->config_hash);
+                marie_json_fputs(stdout, c->config_hash);
                 printf("}");
             }
             printf("]}");

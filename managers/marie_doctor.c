@@ -15,6 +15,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/config.h"
 #include "core/log.h"
 #include "core/time.h"
@@ -39,9 +40,9 @@ static void check(cli_t *cli, doc_t *d, const char *name, bool ok, const char *f
         d->problems++;
     if (cli->json) {
         printf("%s{\"check\":", d->first ? "" : ",");
-        json_str(stdout, name);
+        marie_json_fputs(stdout, name);
         printf(",\"ok\":%s,\"detail\":", ok ? "true" : "false");
-        json_str(stdout, detail);
+        marie_json_fputs(stdout, detail);
         printf("}");
         d->first = false;
     } else {
@@ -194,7 +195,7 @@ static void hash_row(cli_t *cli, bool *first, const char *name, const char *verd
 {
     if (cli->json) {
         printf("%s{\"name\":", *first ? "" : ",");
-        json_str(stdout, name);
+        marie_json_fputs(stdout, name);
         printf(",\"hash\":\"%s\"", ha ? ha : "");
         if (n == 2) {
             printf(",\"hash_b\":\"%s\",\"verdict\":\"%s\",\"fields\":[", hb ? hb : "", verdict);

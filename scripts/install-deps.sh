@@ -10,11 +10,13 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       systemd libcmocka-dev iproute2 python3 python3-yaml util-linux procps libcivetweb-dev libjpeg-dev
       libjchart2d-java tmux python3-venv xvfb x11-apps default-jre fonts-dejavu-core fontconfig
       libfftw3-dev libasound2-dev libpocketsphinx-dev pocketsphinx-en-us festival festvox-kallpc16k espeak-ng
-      libceres-dev"
+      libceres-dev cyclonedds-dev cyclonedds-tools"
 # (audio: FFTW for SRP-PHAT, ALSA for the array driver, PocketSphinx and its US English model
 # for marie-asr, Festival and its US English voice for marie-tts and the simulator's phrases
 # (festvox-kallpc16k: recommends are not installed), espeak-ng a second voice.)
 # (libceres-dev: the mapper's pose graph optimizer, adapters/mapper.)
+# (cyclonedds-dev: marie-ros2 speaks ROS 2 on Cyclone DDS; cyclonedds-tools has idlc, which
+# makes the C types of the ROS 2 messages at build time, adapters/ros2.)
 # (python3-venv: the PyPI witnesses, python-canopen among them, live in a venv under build/,
 # made by scripts/peer-venv.sh; xvfb and x11-apps: the real lcm-spy is started on a virtual
 # screen and photographed, which takes a Java with its X11 half (default-jre) and a font.)

@@ -34,7 +34,7 @@ static int cap_publish(void *user, const char *channel, const void *buf, size_t 
     assert_true(c->nreplies < MAXR);
     c->raw[c->nreplies] = malloc(len);
     memcpy(c->raw[c->nreplies], buf, len);
-    assert_int_equal(ca_view_pull_reply(c->raw[c->nreplies], len, &c->replies[c->nreplies]), 0);
+    assert_int_equal(marie_decode_checked(&marie_type_pull_reply_t, buf, len, &c->replies[c->nreplies]), 0);
     snprintf(c->channels[c->nreplies], 64, "%s", channel);
     c->nreplies++;
     return 0;
@@ -51,8 +51,10 @@ static void cap_note(void *user, ca_note_kind_t kind, const char *counter, int64
 
 static void cap_free(capture_t *c)
 {
-    for (int i = 0; i < c->nreplies; i++)
+    for (int i = 0; i < c->nreplies; i++) {
+        marie_pull_reply_t_decode_cleanup(&c->replies[i]);
         free(c->raw[i]);
+    }
     memset(c, 0, sizeof *c);
 }
 
@@ -337,9 +339,11 @@ static int replies_seen;
 static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 {
     marie_pull_reply_t r;
-    if (ca_view_pull_reply(rbuf->data, rbuf->data_size, &r) == 0 && r.status == MARIE_PULL_REPLY_T_STATUS_OK &&
-        r.request_id == 77)
+    if (marie_decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0)
+        return;
+    if (r.status == MARIE_PULL_REPLY_T_STATUS_OK && r.request_id == 77)
         replies_seen++;
+    marie_pull_reply_t_decode_cleanup(&r);
 }
 
 static void test_attached_mailbox_serves_the_bus(void **state)
@@ -380,8 +384,9 @@ static void on_grid_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
 {
     shm_seen_t *s = user;
     marie_pull_reply_t r;
-    if (ca_view_pull_reply(rbuf->data, rbuf->data_size, &r) == 0 && r.request_id == 78 &&
-        r.status == MARIE_PULL_REPLY_T_STATUS_OK) {
+    if (marie_decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &r) < 0)
+        return;
+    if (r.request_id == 78 && r.status == MARIE_PULL_REPLY_T_STATUS_OK) {
         s->replies++;
         marie_occupancy_grid_t g;
         if (r.size == s->want_size && marie_occupancy_grid_t_decode(r.data, 0, r.size, &g) == r.size) {
@@ -389,6 +394,7 @@ static void on_grid_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
             marie_occupancy_grid_t_decode_cleanup(&g);
         }
     }
+    marie_pull_reply_t_decode_cleanup(&r);
 }
 
 static void test_attached_mailbox_reads_shared_memory(void **state)

@@ -63,14 +63,20 @@ static void on_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user
 {
     pending_t *p = user;
     marie_pull_reply_t v;
-    assert_int_equal(ca_view_pull_reply(rbuf->data, rbuf->data_size, &v), 0);
+    assert_int_equal(marie_decode_checked(&marie_type_pull_reply_t, rbuf->data, rbuf->data_size, &v), 0);
     if (v.request_id == p->id && !p->reply) {
-        /* the view and the bytes it points into, in one block (free() it) */
-        uint8_t *blk = malloc(sizeof(marie_pull_reply_t) + rbuf->data_size);
-        memcpy(blk + sizeof(marie_pull_reply_t), rbuf->data, rbuf->data_size);
-        p->reply = (marie_pull_reply_t *)blk;
-        ca_view_pull_reply(blk + sizeof(marie_pull_reply_t), rbuf->data_size, p->reply);
+        p->reply = malloc(sizeof v);        /* reply_free() it */
+        *p->reply = v;
+    } else {
+        marie_pull_reply_t_decode_cleanup(&v);
     }
+}
+
+static void reply_free(marie_pull_reply_t *r)
+{
+    if (r)
+        marie_pull_reply_t_decode_cleanup(r);
+    free(r);
 }
 
 static bool got_reply(void *user) { return ((pending_t *)user)->reply != NULL; }
@@ -108,7 +114,7 @@ static void test_pull_returns_newest_in_publish_order(void **state)
         assert_true(pose_x(r) == (double)i);
         assert_int_equal(r->fingerprint, marie_type_pose2d_t.hash());
         assert_true(r->age_us >= 0);
-        free(r);
+        reply_free(r);
     }
 }
 
@@ -119,7 +125,7 @@ static void test_overflow_drops_oldest_and_counts(void **state)
     marie_pull_reply_t *r = pull("FULL", "FULL", 500);
     assert_non_null(r);
     assert_true(pose_x(r) == 10.0);
-    free(r);
+    reply_free(r);
     int64_t seen;
     assert_true(cat_wait_counter(bus, "mb", "FULL.overflow", 7, 3000, &seen));
     assert_int_equal(seen, 7);
@@ -131,11 +137,11 @@ static void test_empty_pull_times_out_then_waits_for_data(void **state)
     assert_non_null(r);     /* answered before the requester gives up */
     assert_int_equal(r->status, MARIE_PULL_REPLY_T_STATUS_EMPTY);
     assert_int_equal(r->size, 0);
-    free(r);
+    reply_free(r);
     r = pull("EMPTY", "EMPTY", 0);
     assert_non_null(r);
     assert_int_equal(r->status, MARIE_PULL_REPLY_T_STATUS_EMPTY);
-    free(r);
+    reply_free(r);
 
     /* a request held by the Mailbox is answered when data arrives */
     static int64_t id = 5000;
@@ -150,7 +156,7 @@ static void test_empty_pull_times_out_then_waits_for_data(void **state)
     assert_true(cat_spin(bus, 2000, got_reply, &p));
     assert_int_equal(p.reply->status, MARIE_PULL_REPLY_T_STATUS_OK);
     assert_true(pose_x(p.reply) == 42.0);
-    free(p.reply);
+    reply_free(p.reply);
     lcm_unsubscribe(cat_lcm(bus), sub);
 }
 
@@ -164,7 +170,7 @@ static void test_mistyped_payload_counted_not_stored(void **state)
     marie_pull_reply_t *r = pull("POSE", "POSE", 500);
     assert_non_null(r);
     assert_true(pose_x(r) == 7.0);     /* the gyro message was not stored */
-    free(r);
+    reply_free(r);
     assert_true(cat_wait_counter(bus, "mb", "bad_fingerprint", before + 1, 3000, NULL));
     /* the per-channel type wins over the process-wide one */
     marie_odometry_t o = { .utime = 5 };
@@ -173,7 +179,7 @@ static void test_mistyped_payload_counted_not_stored(void **state)
     assert_non_null(r);
     assert_int_equal(r->status, MARIE_PULL_REPLY_T_STATUS_OK);
     assert_int_equal(r->fingerprint, marie_type_odometry_t.hash());
-    free(r);
+    reply_free(r);
 }
 
 static void test_malformed_requests_survived_and_counted(void **state)
@@ -195,7 +201,7 @@ static void test_malformed_requests_survived_and_counted(void **state)
     marie_pull_reply_t *r = pull("POSE", "NOPE", 500);
     assert_non_null(r);
     assert_int_equal(r->status, MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL);
-    free(r);
+    reply_free(r);
     assert_true(cat_alive(mb_pid));
 }
 
@@ -295,7 +301,7 @@ static void test_mailbox_on_a_shared_memory_channel(void **state)
     assert_int_equal(got.ncells, 300 * 300);
     assert_int_equal(got.cells[299], (int8_t)((299 + 3) % 100));
     marie_occupancy_grid_t_decode_cleanup(&got);
-    free(r);
+    reply_free(r);
     assert_int_equal(whole_on_lcm, 0);              /* the grids never went on LCM */
     lcm_unsubscribe(cat_lcm(bus), spy);
     marie_component_destroy(c);

@@ -35,7 +35,7 @@ static int cap_publish(void *user, const char *channel, const void *buf, size_t 
     assert_true(c->nreplies < MAXR);
     c->raw[c->nreplies] = malloc(len);
     memcpy(c->raw[c->nreplies], buf, len);
-    assert_int_equal(ca_view_sharedmap_reply(c->raw[c->nreplies], len, &c->replies[c->nreplies]), 0);
+    assert_int_equal(marie_decode_checked(&marie_type_sharedmap_reply_t, buf, len, &c->replies[c->nreplies]), 0);
     c->nreplies++;
     return 0;
 }
@@ -51,7 +51,7 @@ static void cap_free(capture_t *c)
 {
     for (int i = 0; i < c->nreplies; i++)
     {
-        free(c->replies[i].keys);
+        marie_sharedmap_reply_t_decode_cleanup(&c->replies[i]);
         free(c->raw[i]);
     }
     memset(c, 0, sizeof *c);

@@ -58,11 +58,38 @@ static void past_the_maximum_nothing_changes_and_failed_is_set(void **state)
     marie_buf_free(&b);
 }
 
+static const char *json_of(marie_buf_t *b, const char *s)
+{
+    marie_buf_reset(b);
+    assert_int_equal(marie_buf_json_str(b, s), 0);
+    return b->data;
+}
+
+static void strings_become_valid_json_whatever_they_hold(void **state)
+{
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    assert_string_equal(json_of(&b, NULL), "\"\"");
+    assert_string_equal(json_of(&b, "a\"b\\c"), "\"a\\\"b\\\\c\"");
+    assert_string_equal(json_of(&b, "l1\nl2\x1b[2J\x7f"), "\"l1\\u000al2\\u001b[2J\\u007f\"");
+    assert_string_equal(json_of(&b, "caf\xc3\xa9 \xe2\x80\xae"), "\"caf\xc3\xa9 \xe2\x80\xae\"");   /* UTF-8 kept */
+    /* a stray byte, an overlong '/', a surrogate, a cut sequence: each one replacement */
+    assert_string_equal(json_of(&b, "\xff\xc0\xaf\xed\xa0\x80\xe2\x80"),
+                        "\"\\ufffd\\ufffd\\ufffd\\ufffd\\ufffd\\ufffd\\ufffd\\ufffd\"");
+    marie_buf_free(&b);
+    marie_buf_init(&b, 6);
+    assert_int_equal(marie_buf_puts(&b, "ab"), 0);
+    assert_int_equal(marie_buf_json_str(&b, "long text"), -1);
+    assert_string_equal(b.data, "ab");                  /* nothing of it kept */
+    marie_buf_free(&b);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(appends_grow_and_stay_terminated),
         cmocka_unit_test(past_the_maximum_nothing_changes_and_failed_is_set),
+        cmocka_unit_test(strings_become_valid_json_whatever_they_hold),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -90,6 +90,30 @@ static void usage_lists_every_option(void **state)
     assert_non_null(strstr(buf, "--help"));
 }
 
+static void a_repeated_option_keeps_every_value_in_order(void **state)
+{
+    marie_cli_list_t tags = { .n = 0 };
+    const marie_cli_opt_t opts[] = { { "tag", MARIE_CLI_LIST, &tags, 0, 0, "T a tag" }, { NULL } };
+    FILE *saved = stderr;
+    stderr = fopen("/dev/null", "w");
+    int rc = marie_cli_parse("prog", opts, 5, (char *[]){ "prog", "--tag", "a", "--tag=b", "op", NULL });
+    assert_int_equal(rc, -1);
+    assert_int_equal(tags.n, 2);
+    assert_string_equal(tags.items[0], "a");
+    assert_string_equal(tags.items[1], "b");
+    char *many[2 * MARIE_CLI_LIST_MAX + 4] = { "prog" };
+    for (int i = 0; i <= MARIE_CLI_LIST_MAX; i++) {
+        many[1 + 2 * i] = "--tag";
+        many[2 + 2 * i] = "x";
+    }
+    tags.n = 0;
+    rc = marie_cli_parse("prog", opts, 2 * MARIE_CLI_LIST_MAX + 3, many);
+    fclose(stderr);
+    stderr = saved;
+    assert_int_equal(rc, 2);
+    assert_int_equal(tags.n, MARIE_CLI_LIST_MAX);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -97,6 +121,7 @@ int main(void)
         cmocka_unit_test(bad_values_exit_2_and_leave_the_value),
         cmocka_unit_test(help_exits_0_and_unknown_or_missing_values_exit_2),
         cmocka_unit_test(usage_lists_every_option),
+        cmocka_unit_test(a_repeated_option_keeps_every_value_in_order),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

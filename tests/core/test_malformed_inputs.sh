@@ -40,6 +40,7 @@ recipe() {
         echo "asr_array|--param input=array||separated" ;;
     marie-tts) echo "tts|" ;;
     marie-dialogue) echo "dialogue|" ;;
+    marie-ros2) echo "ros2|--system tests/ros2/malformed_inputs.yaml" ;;
     marie-audio) echo "audio|--param 'device=\"\"' --param playback=null" ;;   # no capture: the null PCM has no clock
     *) return 1 ;;
     esac

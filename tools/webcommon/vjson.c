@@ -14,23 +14,7 @@
 
 void vj_str(marie_buf_t *b, const char *s)
 {
-    static const char hex[] = "0123456789abcdef";
-    marie_buf_put(b, "\"", 1);
-    for (const unsigned char *p = (const unsigned char *)(s ? s : ""); *p; p++) {
-        if (*p == '"' || *p == '\\') {
-            char e[2] = {'\\', (char)*p};
-            marie_buf_put(b, e, 2);
-        } else if (*p < 0x20 || *p == 0x7f) {
-            char e[6] = {'\\', 'u', '0', '0', hex[*p >> 4], hex[*p & 15]};
-            marie_buf_put(b, e, 6);
-        } else if (*p >= 0x80) {
-            /* Not checked as UTF-8: a stray byte would make the whole frame invalid text. */
-            marie_buf_put(b, "?", 1);
-        } else {
-            marie_buf_put(b, (const char *)p, 1);
-        }
-    }
-    marie_buf_put(b, "\"", 1);
+    marie_buf_json_str(b, s);
 }
 
 void vj_num(marie_buf_t *b, double v, int prec)
