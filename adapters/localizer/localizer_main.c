@@ -157,6 +157,7 @@ static void seek_report(marie_component_t *c, loc_t *s, const seek_out_t *o, int
         publish_search(c, utime, 0, 0);
         marie_component_set_degraded(c, true, "lost: cannot relocalize (%s); send a pose on %s", o->why,
                                      marie_port_channel(marie_port(c, "initialpose")));
+        marie_component_heartbeat(c);       /* the operator reads the new reason now */
         marie_component_event(c, MARIE_EVENT_T_SEV_ERROR, "relocalization_failed", "after %.1f s and %lld searches: %s; "
                               "standing still, waiting for a pose on %s", took, (long long)s->seek.searches, o->why,
                               marie_port_channel(marie_port(c, "initialpose")));

@@ -9,6 +9,8 @@ NAV_STACK := $(B)/bin/marie-sim $(B)/bin/marie-odometry $(B)/bin/marie-localizer
     $(B)/bin/marie-behaviours
 $(eval $(call marie_test,test_kidnap,tests/nav/test_kidnap.c tests/nav/navrig.c tests/proc.c,$(MAP_LIB)))
 $(B)/tests/test_kidnap: | $(NAV_STACK)
+$(eval $(call marie_test,test_relocalize,tests/nav/test_relocalize.c tests/nav/navrig.c tests/proc.c,$(MAP_LIB)))
+$(B)/tests/test_relocalize: | $(NAV_STACK)
 $(eval $(call marie_test,test_unmapped,tests/nav/test_unmapped.c tests/nav/navrig.c tests/proc.c,$(MAP_LIB)))
 $(B)/tests/test_unmapped: | $(NAV_STACK)
 $(eval $(call marie_test,test_bad_start,tests/nav/test_bad_start.c tests/proc.c,))
