@@ -52,6 +52,7 @@ typedef struct {
     bool driving, reached, refused;
     int64_t t0, limit_us;       /* sim time */
     double travelled;
+    bool asked;                 /* the localizer gave up and asks for a pose */
     const char *world;
     lcm_t *lcm;
 } live_t;
@@ -83,8 +84,10 @@ static void on_counters(live_t *L, const marie_heartbeat_t *hb)
             r->lost = v;
         else if (!strcmp(hb->component, "localizer") && !strcmp(n, "relocalizations"))
             r->found = v;
-        else if (!strcmp(hb->component, "localizer") && !strcmp(n, "relocalizations_failed"))
+        else if (!strcmp(hb->component, "localizer") && !strcmp(n, "relocalizations_failed")) {
+            L->asked |= v > r->asked;
             r->asked = v;
+        }
     }
 }
 
@@ -121,17 +124,23 @@ static void on_msg(const lcm_recv_buf_t *rb, const char *ch, void *user)
 
 static int live_ready(void *user) { return ((live_t *)user)->have_pose && ((live_t *)user)->have_truth; }
 
-/* Reached, or out of simulated time. */
+/* Reached, out of simulated time, or the robot asks for help. */
 static int goal_over(void *user)
 {
     live_t *L = user;
-    return L->reached || L->sim_us - L->t0 >= L->limit_us;
+    return L->reached || L->asked || L->sim_us - L->t0 >= L->limit_us;
 }
 
 static int sim_passed(void *user)
 {
     live_t *L = user;
     return L->reached || L->sim_us - L->t0 >= 5000000;
+}
+
+static int sim_passed_2s(void *user)
+{
+    live_t *L = user;
+    return L->sim_us - L->t0 >= 2000000;
 }
 
 /* Repeated, as the mission does. */
@@ -271,6 +280,18 @@ static void run_for(marie_loop_t *loop, const eval_opts_t *o, double sim_s, int 
     marie_loop_run_until(loop, wall_s > 86400 ? 86400000 : (int)(wall_s * 1000), done, L);
 }
 
+/* A robot that asks for a pose gets the true one, as an operator would answer: its goal is
+ * missed, the next ones are not lost with it. */
+static void answer(live_t *L, marie_loop_t *loop, const eval_opts_t *o)
+{
+    marie_pose_cov_t p = { .utime = L->sim_us, .frame = "map", .pose = { L->truth[0], L->truth[1], L->truth[2] },
+                           .cov = { 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01 } };
+    marie_pose_cov_t_publish(L->lcm, "INITIALPOSE", &p);
+    L->asked = false;
+    L->t0 = L->sim_us;
+    run_for(loop, o, 2, sim_passed_2s, L);
+}
+
 /* Goal k: published (and repeated) until reached or out of time. A kidnapping goal carries the
  * robot, 5 s after it set off, to a spot from which the goal can still be reached, and allows
  * 120 s more. false when no goal could be picked. */
@@ -318,11 +339,14 @@ static bool drive_goal(live_t *L, marie_loop_t *loop, const eval_opts_t *o, cons
         r->reached++;
     }
     r->refused += L->refused;
+    bool asked = L->asked;
+    if (asked)
+        answer(L, loop, o);
     if (!o->tsv)
-        printf("eval: %-9s goal %2d/%lld (%6.2f, %6.2f): %s in %5.1f s, %5.1f m driven, shortest %5.1f m%s, "
+        printf("eval: %-9s goal %2d/%lld (%6.2f, %6.2f): %s in %5.1f s, %5.1f m driven, shortest %5.1f m%s%s, "
                "robot at (%.2f, %.2f)\n", L->world, k, (long long)o->goals, g[0], g[1],
-               L->reached ? "reached" : "MISSED ", dt, L->travelled, len, carried ? ", carried away" : "", L->truth[0],
-               L->truth[1]);
+               L->reached ? "reached" : "MISSED ", dt, L->travelled, len, carried ? ", carried away" : "",
+               asked ? ", asked for a pose (given)" : "", L->truth[0], L->truth[1]);
     fflush(stdout);
     return true;
 }
