@@ -548,6 +548,11 @@ extern "C" void mcl_last_fit(const mcl_t *f, mcl_fit_t *fit, double *skipped, do
         *cluster_mass = f->cluster_mass_;
 }
 
+extern "C" double mcl_trace(const mcl_t *f, double x, double y, double angle, double max_r)
+{
+    return f->fd_.trace(x, y, std::cos(angle), std::sin(angle), max_r);
+}
+
 extern "C" mcl_place_t mcl_map_at(const mcl_t *f, double x, double y)
 {
     int c = f->fd_.cell(x, y);

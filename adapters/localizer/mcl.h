@@ -76,6 +76,9 @@ void mcl_judge(const mcl_t *f, const double pose[3], const mcl_scan_t *scan, mcl
 /* The last update's scan judged at the estimate, the share of beams it skipped as outliers,
  * and the weight of the estimate's cluster (1: one cluster). */
 void mcl_last_fit(const mcl_t *f, mcl_fit_t *fit, double *skipped, double *cluster_mass);
+/* How far a ray from (x, y) at `angle` (map frame) goes before the map's walls stop it, up to
+ * max_r (the map's edge stops it too). */
+double mcl_trace(const mcl_t *f, double x, double y, double angle, double max_r);
 /* What the map says of a map-frame point. */
 typedef enum { MCL_FREE = 0, MCL_WALL, MCL_UNKNOWN, MCL_OFF_MAP } mcl_place_t;
 mcl_place_t mcl_map_at(const mcl_t *f, double x, double y);

@@ -104,6 +104,30 @@ static double most_open(const seek_t *s, const mcl_scan_t *scan)
     return at;
 }
 
+/* Where to drive when two places fit alike (the robot now at a or at b): the robot-frame heading,
+ * of 16, that the map leaves free from both for the drive and whose end shows the two places most
+ * apart (36 rays from each end, 8 m, compared). The scan's most open side when none does (a
+ * place that is its own mirror image). */
+static double telling_heading(const seek_t *s, const mcl_t *f, const mcl_scan_t *scan, const double a[3],
+                              const double b[3])
+{
+    double best = 0, at = most_open(s, scan), reach = s->p.drive_distance + s->p.robot_radius + 0.3;
+    for (int k = 0; k < 16; k++) {
+        double d = -M_PI + k * M_PI / 8, la = a[2] + d, lb = b[2] + d, diff = 0;
+        if (mcl_trace(f, a[0], a[1], la, reach) < reach || mcl_trace(f, b[0], b[1], lb, reach) < reach)
+            continue;
+        double ea[2] = { a[0] + s->p.drive_distance * cos(la), a[1] + s->p.drive_distance * sin(la) };
+        double eb[2] = { b[0] + s->p.drive_distance * cos(lb), b[1] + s->p.drive_distance * sin(lb) };
+        for (int j = 0; j < 36; j++)
+            diff += fabs(mcl_trace(f, ea[0], ea[1], la + j * M_PI / 18, 8) - mcl_trace(f, eb[0], eb[1], lb + j * M_PI / 18, 8));
+        if (diff > best + 1.0) {        /* a metre of difference over the 36 rays, at least */
+            best = diff;
+            at = d;
+        }
+    }
+    return at;
+}
+
 /* Why no place was taken, for the operator. */
 static void say_why(const seek_out_t *o, const seek_params_t *p, char *why, size_t len)
 {
@@ -184,7 +208,9 @@ static void search(seek_t *s, mcl_t *f, const double odom[3], const mcl_scan_t *
         out->event = SEEK_GAVE_UP;
         return;
     }
-    s->face = wrap(odom[2] + most_open(s, scan));
+    double other[3];
+    reloc_cloud_pose_now(s->cloud, (const double[3]){ out->second.x, out->second.y, out->second.theta }, odom, other);
+    s->face = wrap(odom[2] + (n > 1 ? telling_heading(s, f, scan, out->best_now, other) : most_open(s, scan)));
     enter(s, SEEK_FACE, now_s);
 }
 
