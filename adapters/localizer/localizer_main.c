@@ -31,7 +31,7 @@ typedef struct {
      * and driving on, and says so in its heartbeat. */
     int poor;
     seek_t seek;
-    bool seek_at_start;         /* init_mode global: search from the first scan */
+    bool seek_at_start;         /* search from the next scan (init_mode global; a search whose odometry restarted) */
     int64_t lost_since;         /* scan time the loss was declared */
     int64_t last_judged;        /* scan time of the last filter update or standing check */
     reloc_cloud_t *doubts;      /* the scans of a doubtful while, searched for over the map */
