@@ -42,6 +42,7 @@ void seek_begin(seek_t *s, const double odom[3], double now_s)
 {
     memcpy(s->last_odom, odom, sizeof s->last_odom);
     s->attempts = 0;
+    s->searches = 0;
     s->nprev = 0;
     s->turn_dir = 1;
     start_turn(s, odom, now_s);

@@ -53,7 +53,7 @@ typedef struct {
     double drive_from[2];
     double phase_s;             /* when the phase began */
     int attempts, verified, doubts;
-    int64_t searches;
+    int64_t searches;           /* since the robot was lost */
     /* The last search's places (the origin of its turn's frame) and the evidence each has
      * gathered over the turns so far: a place seen from several spots sums its scores. */
     double origin_odom[3];      /* odometry pose where this turn's frame began */
