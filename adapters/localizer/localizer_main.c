@@ -76,28 +76,29 @@ static void declare_lost(marie_component_t *c, loc_t *s, const double odom[3], c
 }
 
 /* Whether the scans of a doubtful while fit clearly better somewhere else than at the estimate
- * (odometry pose odom now): another place puts most of their points on walls and sees through
- * none, and beats the estimate's own place by the search's margin. */
+ * (odometry pose odom now): another place, 1 m or 20 degrees from it, puts most of their points
+ * on walls and sees through none, and beats the estimate's own place by the search's margin. */
 static bool fits_elsewhere(marie_component_t *c, loc_t *s, const double odom[3])
 {
-    reloc_hyp_t h[4];
+    reloc_hyp_t h[4], here;
     int n = reloc_search(s->f, s->doubts, h, 4);
     marie_component_count(c, "doubt_searches", 1);
-    if (n <= 0)
-        return false;
-    double est[3], cov[9], now[3], here = -INFINITY;
+    double est[3], cov[9], origin[3], now[3];
     mcl_pose_at(s->f, odom, est, cov);
-    for (int i = 0; i < n; i++) {
-        reloc_cloud_pose_now(s->doubts, (const double[3]){ h[i].x, h[i].y, h[i].theta }, odom, now);
-        if (hypot(now[0] - est[0], now[1] - est[1]) < 1.0 && fabs(remainder(now[2] - est[2], 2 * M_PI)) < 0.35)
-            here = fmax(here, h[i].score);
-    }
-    reloc_cloud_pose_now(s->doubts, (const double[3]){ h[0].x, h[0].y, h[0].theta }, odom, now);
-    bool elsewhere = h[0].score > here && h[0].score - here >= s->q->seek.margin &&
-                     h[0].contradiction <= s->q->seek.max_contradiction / 2 && h[0].hit >= s->q->seek.min_hit;
-    marie_info("doubt: the scans fit best at (%.2f, %.2f), %.0f%% on walls, %.0f%% through them; the estimate "
-               "(%.2f, %.2f) %s", now[0], now[1], 100 * h[0].hit, 100 * h[0].contradiction, est[0], est[1],
-               elsewhere ? "loses: lost" : "holds");
+    reloc_cloud_origin(s->doubts, est, odom, origin);
+    reloc_judge_at(s->f, s->doubts, origin, &here);
+    int best = -1;
+    for (int i = 0; i < n && best < 0; i++)
+        if (hypot(h[i].x - here.x, h[i].y - here.y) >= 1.0 || fabs(remainder(h[i].theta - here.theta, 2 * M_PI)) >= 0.35)
+            best = i;
+    if (best < 0)
+        return false;
+    reloc_cloud_pose_now(s->doubts, (const double[3]){ h[best].x, h[best].y, h[best].theta }, odom, now);
+    bool elsewhere = h[best].score - here.score >= s->q->seek.margin && h[best].hit >= s->q->seek.min_hit &&
+                     h[best].contradiction <= s->q->seek.max_contradiction / 2;
+    marie_info("doubt: the scans fit at (%.2f, %.2f) with %.3f per point, %.0f%% on walls, %.0f%% through them; "
+               "at the estimate (%.2f, %.2f) with %.3f: %s", now[0], now[1], h[best].score, 100 * h[best].hit,
+               100 * h[best].contradiction, est[0], est[1], here.score, elsewhere ? "lost" : "the estimate holds");
     return elsewhere;
 }
 

@@ -133,6 +133,14 @@ extern "C" void reloc_cloud_pose_now(const reloc_cloud_t *c, const double origin
     pose2d_compose(origin, rel, out);
 }
 
+extern "C" void reloc_cloud_origin(const reloc_cloud_t *c, const double now[3], const double odom[3], double out[3])
+{
+    double rel[3], back[3];
+    pose2d_between(c->ref, odom, rel);
+    pose2d_between(rel, (const double[3]){ 0, 0, 0 }, back);
+    pose2d_compose(now, back, out);
+}
+
 namespace {
 
 struct cand {
@@ -346,5 +354,22 @@ extern "C" int reloc_search(const mcl_t *f, const reloc_cloud_t *c, reloc_hyp_t 
     } catch (...) {
         errno = ENOMEM;
         return -1;
+    }
+}
+
+extern "C" void reloc_judge_at(const mcl_t *f, const reloc_cloud_t *c, const double origin[3], reloc_hyp_t *out)
+{
+    *out = reloc_hyp_t{ origin[0], origin[1], origin[2], -INFINITY, 0, 0 };
+    int n = reloc_cloud_size(c);
+    if (n == 0)
+        return;
+    try {
+        searcher se{ mcl_field(f), mcl_sigma(f), c->kept, spread(n, kFinePoints) };
+        double q[3] = { origin[0], origin[1], origin[2] };
+        se.refine(q, 0.05, M_PI / kHeadings / 2, &out->score);
+        out->x = q[0], out->y = q[1], out->theta = q[2];
+        se.judge(out);
+    } catch (...) {
+        // Out of memory: no score, the place counts as not fitting.
     }
 }

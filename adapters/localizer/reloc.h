@@ -25,8 +25,10 @@ void reloc_cloud_add(reloc_cloud_t *c, const double odom[3], const double mount[
 int reloc_cloud_size(const reloc_cloud_t *c);    /* the squares that count */
 /* Degrees of the frame's directions (from its origin, in 10 degree sectors) the points cover. */
 int reloc_cloud_coverage(const reloc_cloud_t *c);
-/* The map pose of the robot now (odometry pose odom) if the frame's origin is at `origin`. */
+/* The map pose of the robot now (odometry pose odom) if the frame's origin is at `origin`, and the
+ * frame's origin if the robot is at map pose `now`. */
 void reloc_cloud_pose_now(const reloc_cloud_t *c, const double origin[3], const double odom[3], double out[3]);
+void reloc_cloud_origin(const reloc_cloud_t *c, const double now[3], const double odom[3], double out[3]);
 
 typedef struct {
     double x, y, theta;         /* the frame's origin in the map */
@@ -40,6 +42,9 @@ typedef struct {
  * the cloud's origin is searched over the map cells known free at least 0.15 m from a wall.
  * Returns how many; -1 with errno ENOMEM. */
 int reloc_search(const mcl_t *f, const reloc_cloud_t *c, reloc_hyp_t *out, int max);
+/* One place, the frame's origin near `origin` (refined within about 10 cm and 3 degrees), scored
+ * and judged as reloc_search's are. */
+void reloc_judge_at(const mcl_t *f, const reloc_cloud_t *c, const double origin[3], reloc_hyp_t *out);
 
 #ifdef __cplusplus
 }

@@ -297,6 +297,8 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
     }
 }
 
+static const char *const laser_reason = "in an obstacle seen by the laser";
+
 // Why the robot cannot stand at (x, y), or nullptr when it can (after planner_plan's snapping).
 static const char *refusal(const planner_t *pl, double x, double y, char *buf, size_t len)
 {
@@ -312,7 +314,7 @@ static const char *refusal(const planner_t *pl, double x, double y, char *buf, s
     if (pl->cells_[i] != OCCMAP_FREE && !pl->p_.unknown_is_free)
         return "in unknown space";
     if (pl->static_free_[i] || pl->dist_[i] > pl->p_.robot_radius)
-        return "in an obstacle seen by the laser";
+        return laser_reason;
     snprintf(buf, len, "%.2f m from a wall (the robot needs %.2f m)", std::max(0.0f, pl->dist_[i]), pl->p_.robot_radius);
     return buf;
 }
@@ -321,6 +323,7 @@ extern "C" int planner_blocked(const planner_t *pl, const double start[3], const
 {
     char a[96], b[96];
     const char *ws = refusal(pl, start[0], start[1], a, sizeof a), *wg = refusal(pl, goal[0], goal[1], b, sizeof b);
+    bool by_laser = (ws || wg) && (!ws || ws == laser_reason) && (!wg || wg == laser_reason);
     if (why && why_len) {
         if (ws && wg)
             snprintf(why, why_len, "start (%.2f, %.2f) %s; goal (%.2f, %.2f) %s", start[0], start[1], ws, goal[0], goal[1], wg);
@@ -330,7 +333,7 @@ extern "C" int planner_blocked(const planner_t *pl, const double start[3], const
         else
             snprintf(why, why_len, "start and goal free");
     }
-    return (ws ? PLANNER_START_BLOCKED : 0) | (wg ? PLANNER_GOAL_BLOCKED : 0);
+    return (ws ? PLANNER_START_BLOCKED : 0) | (wg ? PLANNER_GOAL_BLOCKED : 0) | (by_laser ? PLANNER_BY_LASER : 0);
 }
 
 extern "C" int planner_add_obstacles(planner_t *pl, const double *xy, int npoints, double now_s)

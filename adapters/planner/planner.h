@@ -41,10 +41,11 @@ bool planner_free(const planner_t *pl, double x, double y);
 int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n);
 
 /* Which ends planner_plan() refuses: PLANNER_START_BLOCKED, PLANNER_GOAL_BLOCKED or both; 0 when
- * neither. For each blocked end its reason goes to why (NULL: not wanted): "inside a wall",
- * "0.12 m from a wall (the robot needs 0.40 m)", "in unknown space", "off the map", "in an
- * obstacle seen by the laser". */
-enum { PLANNER_START_BLOCKED = 1, PLANNER_GOAL_BLOCKED = 2 };
+ * neither; with PLANNER_BY_LASER when every end refused is free on the map and only the laser's
+ * obstacles cover it. For each blocked end its reason goes to why (NULL: not wanted): "inside a
+ * wall", "0.12 m from a wall (the robot needs 0.40 m)", "in unknown space", "off the map", "in
+ * an obstacle seen by the laser". */
+enum { PLANNER_START_BLOCKED = 1, PLANNER_GOAL_BLOCKED = 2, PLANNER_BY_LASER = 4 };
 int planner_blocked(const planner_t *pl, const double start[3], const double goal[3], char *why, size_t why_len);
 
 /* Add laser returns (map-frame points at time now_s) that are not explained by the map to the

@@ -86,16 +86,17 @@ static void plan(marie_component_t *c, pln_t *s, const char *why)
     int64_t t0 = marie_mono_us();
     int rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
     int layer = planner_obstacle_count(s->pl);
-    if (rc == -ENOENT && layer > 0) {
-        /* The map has a way the laser layer closes. In a corridor barely wider than the robot
-         * one misplaced return does that, and the scans of a robot waiting for a path keep it
-         * there: forget the layer and plan on the map (as a costmap is cleared before a
-         * retry). Avoid still stops the robot short of whatever is really there, and a path
-         * the layer blocks again is planned again. */
+    bool laser_only = rc == -EINVAL && (planner_blocked(s->pl, s->pose, goal, NULL, 0) & PLANNER_BY_LASER);
+    if ((rc == -ENOENT || laser_only) && layer > 0) {
+        /* The map has a way (or room at the start and goal) the laser layer closes. In a
+         * corridor barely wider than the robot one misplaced return does that, and the scans of
+         * a robot waiting for a path keep it there: forget the layer and plan on the map (as a
+         * costmap is cleared before a retry). Avoid still stops the robot short of whatever is
+         * really there, and a path the layer blocks again is planned again. */
         marie_component_count(c, "obstacles_forgotten", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "obstacles_forgotten",
-                              "goal %d: no path past %d laser obstacle cells: forgotten, planning on the map",
-                              s->goal.id, layer);
+                              "goal %d: %s %d laser obstacle cells: forgotten, planning on the map", s->goal.id,
+                              laser_only ? "start or goal covered by" : "no path past", layer);
         planner_clear_obstacles(s->pl);
         rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
     }
