@@ -181,14 +181,20 @@ struct searcher {
         return sum / std::max<size_t>(fine_idx.size(), 1);
     }
 
-    void refine(double q[3], double step_xy, double step_th, double *best) const
+    // Hill climbing from q, steps halved when nothing is better; never farther from where it
+    // started than reach_xy, reach_th.
+    void refine(double q[3], double step_xy, double step_th, double *best, double reach_xy = INFINITY,
+                double reach_th = INFINITY) const
     {
+        static const int dirs[6][3] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
+        const double q0[3] = { q[0], q[1], q[2] };
         *best = score(q);
         for (int it = 0; it < 80 && (step_xy > 0.01 || step_th > 0.004); it++) {
-            static const int dirs[6][3] = { { 1, 0, 0 }, { -1, 0, 0 }, { 0, 1, 0 }, { 0, -1, 0 }, { 0, 0, 1 }, { 0, 0, -1 } };
             double bq[3] = { q[0], q[1], q[2] }, bs = *best;
             for (auto &d : dirs) {
                 double t[3] = { q[0] + d[0] * step_xy, q[1] + d[1] * step_xy, wrap(q[2] + d[2] * step_th) };
+                if (std::hypot(t[0] - q0[0], t[1] - q0[1]) > reach_xy || std::fabs(wrap(t[2] - q0[2])) > reach_th)
+                    continue;
                 double v = score(t);
                 if (v > bs) {
                     bs = v;
@@ -366,7 +372,7 @@ extern "C" void reloc_judge_at(const mcl_t *f, const reloc_cloud_t *c, const dou
     try {
         searcher se{ mcl_field(f), mcl_sigma(f), c->kept, spread(n, kFinePoints) };
         double q[3] = { origin[0], origin[1], origin[2] };
-        se.refine(q, 0.05, M_PI / kHeadings / 2, &out->score);
+        se.refine(q, 0.05, M_PI / kHeadings / 2, &out->score, 0.1, 0.05);
         out->x = q[0], out->y = q[1], out->theta = q[2];
         se.judge(out);
     } catch (...) {

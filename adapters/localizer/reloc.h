@@ -42,8 +42,8 @@ typedef struct {
  * the cloud's origin is searched over the map cells known free at least 0.15 m from a wall.
  * Returns how many; -1 with errno ENOMEM. */
 int reloc_search(const mcl_t *f, const reloc_cloud_t *c, reloc_hyp_t *out, int max);
-/* One place, the frame's origin near `origin` (refined within about 10 cm and 3 degrees), scored
- * and judged as reloc_search's are. */
+/* One place, the frame's origin near `origin` (refined within 10 cm and 3 degrees), scored and
+ * judged as reloc_search's are. */
 void reloc_judge_at(const mcl_t *f, const reloc_cloud_t *c, const double origin[3], reloc_hyp_t *out);
 
 #ifdef __cplusplus
