@@ -131,6 +131,38 @@ static void print_tsv(const char *name, const char *tg, const eval_result_t *r, 
     }
 }
 
+/* Every world in turn, its row printed (a table at the end, or TSV rows as they come). 0, 1 when
+ * a world could not be run or a signal ended the runs. */
+static int run_worlds(const eval_opts_t *o, const eval_world_t *worlds, int nw)
+{
+    int status = 0, done = 0;
+    static char table[MAXWORLDS][200];
+    for (int i = 0; i < nw && !eval_stopped(); i++, done++) {
+        eval_rng_seed((uint64_t)o->seed * 1000003ull + (uint64_t)i);
+        eval_result_t r;
+        if (eval_run(o, &worlds[i], &r) < 0)
+            status = 1;
+        double mt = median(r.time_s, r.nres), mr = median(r.ratio, r.nratio);
+        if (o->tsv)
+            print_tsv(worlds[i].name, o->tag, &r, mt, mr);
+        else
+            snprintf(table[i], sizeof table[0], "%-16.40s %3d/%-3d %5.0f%% %5lld %7.1f %9.2f %8.3f %6lld %5lld %6lld %6lld %7lld",
+                     worlds[i].name, r.reached, r.tried, r.tried ? 100.0 * r.reached / r.tried : 0,
+                     (long long)r.collisions, mt, mr, r.rms, (long long)r.recoveries, (long long)r.lost,
+                     (long long)r.found, (long long)r.asked, (long long)r.refused);
+        fflush(stdout);
+        free(r.time_s);
+        free(r.ratio);
+    }
+    if (!o->tsv) {
+        printf("%s%s\n%-16s %7s %6s %5s %7s %9s %8s %6s %5s %6s %6s %7s\n", o->tag[0] ? "worlds " : "", o->tag, "world",
+               "goals", "succ", "coll", "time_s", "path/sh", "loc_rms", "recov", "lost", "found", "asked", "refused");
+        for (int i = 0; i < done; i++)
+            printf("%s\n", table[i]);
+    }
+    return eval_stopped() ? 1 : status;
+}
+
 int main(int argc, char **argv)
 {
     const char *b = getenv("B") ? getenv("B") : "build";
@@ -177,31 +209,5 @@ int main(int argc, char **argv)
     if (nw <= 0)
         return nw < 0 ? 2 : (fprintf(stderr, "marie-eval: no world given\n"), 2);
     signal(SIGPIPE, SIG_IGN);
-    int status = 0;
-    static char table[MAXWORLDS][200];
-    int done = 0;
-    for (int i = 0; i < nw && !eval_stopped(); i++, done++) {
-        eval_rng_seed((uint64_t)o.seed * 1000003ull + (uint64_t)i);
-        eval_result_t r;
-        if (eval_run(&o, &worlds[i], &r) < 0)
-            status = 1;
-        double mt = median(r.time_s, r.nres), mr = median(r.ratio, r.nratio);
-        if (o.tsv)
-            print_tsv(worlds[i].name, o.tag, &r, mt, mr);
-        else
-            snprintf(table[i], sizeof table[0], "%-16.40s %3d/%-3d %5.0f%% %5lld %7.1f %9.2f %8.3f %6lld %5lld %6lld %6lld %7lld",
-                     worlds[i].name, r.reached, r.tried, r.tried ? 100.0 * r.reached / r.tried : 0,
-                     (long long)r.collisions, mt, mr, r.rms, (long long)r.recoveries, (long long)r.lost,
-                     (long long)r.found, (long long)r.asked, (long long)r.refused);
-        fflush(stdout);
-        free(r.time_s);
-        free(r.ratio);
-    }
-    if (!o.tsv) {
-        printf("%s%s\n%-16s %7s %6s %5s %7s %9s %8s %6s %5s %6s %6s %7s\n", o.tag[0] ? "worlds " : "", o.tag, "world",
-               "goals", "succ", "coll", "time_s", "path/sh", "loc_rms", "recov", "lost", "found", "asked", "refused");
-        for (int i = 0; i < done; i++)
-            printf("%s\n", table[i]);
-    }
-    return eval_stopped() ? 1 : status;
+    return run_worlds(&o, worlds, nw);
 }
