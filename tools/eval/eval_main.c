@@ -56,6 +56,25 @@ static bool next_item(const char **list, char *out, size_t len)
     return true;
 }
 
+/* A map's row name: its file's stem ("depot" for .../depot.yaml), or the folder's name and the stem
+ * ("nav2-warehouse") when an evaluation world or an earlier row has that name. */
+static void map_name(const char *path, const eval_world_t *before, int n, char *out, size_t len)
+{
+    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path, *dot = strstr(base, ".yaml");
+    int stem = (int)(dot ? dot - base : (long)strlen(base));
+    snprintf(out, len, "%.*s", stem, base);
+    bool taken = false;
+    for (int i = 0; i < NNAMED; i++)
+        taken |= strcmp(named[i].name, out) == 0;
+    for (int i = 0; i < n; i++)
+        taken |= strcmp(before[i].name, out) == 0;
+    const char *dir = base > path ? base - 1 : NULL, *from = dir;
+    while (from && from > path && from[-1] != '/')
+        from--;
+    if (taken && dir && dir > from)
+        snprintf(out, len, "%.*s-%.*s", (int)(dir - from), from, stem, base);
+}
+
 /* The worlds asked for: named ones (each checked), then maps. The count, or -1 (said why). */
 static int collect(const args_t *a, eval_world_t *out)
 {
@@ -82,9 +101,8 @@ static int collect(const args_t *a, eval_world_t *out)
     }
     list = a->maps;
     while (n < MAXWORLDS && next_item(&list, item, sizeof item)) {
-        const char *base = strrchr(item, '/') ? strrchr(item, '/') + 1 : item;
         eval_world_t w = { "", "", a->radius, a->clearance, a->track, a->wheel };
-        snprintf(w.name, sizeof w.name, "%.*s", (int)(strstr(base, ".yaml") ? strstr(base, ".yaml") - base : (long)strlen(base)), base);
+        map_name(item, out, n, w.name, sizeof w.name);
         snprintf(w.yaml, sizeof w.yaml, "%s", item);
         if (access(w.yaml, R_OK) != 0) {
             fprintf(stderr, "marie-eval: --map: %s: cannot read it\n", item);
