@@ -60,3 +60,19 @@ double lfield::trace(double x, double y, double c, double s, double max_r) const
     }
     return max_r;
 }
+
+lfield::verdict_t lfield::verdict(double x, double y, double c, double s, double r, double near) const
+{
+    double reach = r < 0 ? -r - std::max(0.3, near) : std::max(r - near, 0.0);
+    double t = trace(x, y, c, s, reach);
+    if (t < reach)      // stopped on the way: by a wall, or by the map's edge
+        return cell(x + t * c, y + t * s) >= 0 ? THROUGH : NOTHING;
+    if (r < 0)
+        return NOTHING;
+    int end = cell(x + r * c, y + r * s);
+    if (end < 0)
+        return NOTHING;
+    if (dist[(size_t)end] <= near)
+        return HIT;
+    return kind[(size_t)end] == FREE ? SHORTER : NOTHING;
+}

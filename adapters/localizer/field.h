@@ -37,6 +37,14 @@ struct lfield {
     // max_r (or leaves the map, which ends it too). Steps by the distance field, so free space
     // is crossed in a few steps.
     double trace(double x, double y, double c, double s, double max_r) const;
+
+    // A beam from the laser at (x, y) along (c, s) that read r (-range_max: nothing seen)
+    // against the map: it should end on a wall (within `near`), with no wall on its way there.
+    // SHORTER: it ends in free space short of the walls; THROUGH: it passed through a wall, or
+    // saw nothing where a wall stands well within range; NOTHING: it went where the map does
+    // not know (unknown cells, off the map), or saw nothing where the map has nothing.
+    enum verdict_t { HIT, SHORTER, THROUGH, NOTHING };
+    verdict_t verdict(double x, double y, double c, double s, double r, double near) const;
 };
 
 // The filter's field and its sigma_hit widened by the map's cells, for the global search.

@@ -105,24 +105,6 @@ struct mcl {
     {
         return p_.alpha_slow > 0 && p_.alpha_fast > 0 && fit_.contradiction > p_.inject_contradiction;
     }
-    // A beam from the laser at (lx, ly) along (c, s) that read r (-range_max: nothing seen)
-    // against the map: it should end on a wall, with no wall of the map on its way there.
-    enum { BEAM_HIT, BEAM_SHORTER, BEAM_THROUGH, BEAM_NOTHING };
-    int beam_verdict(double lx, double ly, double c, double s, double r) const
-    {
-        double near = 3 * sigma_;
-        if (r < 0) {
-            double margin = std::max(0.3, near), reach = -r - margin;
-            return fd_.trace(lx, ly, c, s, reach) < reach ? BEAM_THROUGH : BEAM_NOTHING;
-        }
-        int cell = fd_.cell(lx + r * c, ly + r * s);
-        double on_way = std::max(r - near, 0.0);
-        if (cell < 0 || fd_.trace(lx, ly, c, s, on_way) < on_way)
-            return BEAM_THROUGH;
-        if (fd_.dist[(size_t)cell] <= near)
-            return BEAM_HIT;
-        return fd_.kind[(size_t)cell] == lfield::FREE ? BEAM_SHORTER : BEAM_THROUGH;
-    }
     void motion(const double o0[3], const double o1[3]);
     std::vector<uint8_t> outliers(const std::vector<uint8_t> &bad, const Eigen::ArrayXd &br, const Eigen::ArrayXd &bc,
                                   const Eigen::ArrayXd &bs);
@@ -251,7 +233,7 @@ std::vector<uint8_t> mcl::outliers(const std::vector<uint8_t> &bad, const Eigen:
     double ex = est[0] + ec * p_.laser_x - es * p_.laser_y, ey = est[1] + es * p_.laser_x + ec * p_.laser_y;
     for (int j = 0; j < nb && one; j++) {
         double a = est[2] + p_.laser_theta + std::atan2(bs[j], bc[j]);
-        if (beam_verdict(ex, ey, std::cos(a), std::sin(a), br[j]) != BEAM_SHORTER)
+        if (fd_.verdict(ex, ey, std::cos(a), std::sin(a), br[j], 3 * sigma_) != lfield::SHORTER)
             continue;
         double share = 0;
         for (Eigen::Index i = 0; i < n; i++)
@@ -527,10 +509,10 @@ extern "C" void mcl_judge(const mcl_t *f, const double pose[3], const mcl_scan_t
             continue;
         double a = pose[2] + p.laser_theta + scan->angle_min + k * scan->angle_increment;
         fit->beams++;
-        switch (f->beam_verdict(lx, ly, std::cos(a), std::sin(a), r >= scan->range_max ? -scan->range_max : r)) {
-        case mcl::BEAM_HIT: fit->hit++; break;
-        case mcl::BEAM_SHORTER: fit->shorter++; break;
-        case mcl::BEAM_THROUGH: fit->through++; break;
+        switch (f->fd_.verdict(lx, ly, std::cos(a), std::sin(a), r >= scan->range_max ? -scan->range_max : r, 3 * f->sigma_)) {
+        case lfield::HIT: fit->hit++; break;
+        case lfield::SHORTER: fit->shorter++; break;
+        case lfield::THROUGH: fit->through++; break;
         default: break;
         }
     }

@@ -214,19 +214,17 @@ struct searcher {
     void judge(reloc_hyp_t *h) const
     {
         double q[3] = { h->x, h->y, h->theta };
-        double c = std::cos(q[2]), s = std::sin(q[2]), near = 3 * sigma;
+        double c = std::cos(q[2]), s = std::sin(q[2]);
         int hit = 0, through = 0;
         for (int i : fine_idx) {
             double sx = q[0] + c * pts[4 * i] - s * pts[4 * i + 1], sy = q[1] + s * pts[4 * i] + c * pts[4 * i + 1];
             double ex = q[0] + c * pts[4 * i + 2] - s * pts[4 * i + 3], ey = q[1] + s * pts[4 * i + 2] + c * pts[4 * i + 3];
-            double r = std::hypot(ex - sx, ey - sy), on_way = std::max(r - near, 0.0);
-            int cell = fd.cell(ex, ey);
-            if (cell < 0 || (r > 0 && fd.trace(sx, sy, (ex - sx) / r, (ey - sy) / r, on_way) < on_way))
-                through++;
-            else if (fd.dist[(size_t)cell] <= near)
-                hit++;
-            else if (fd.kind[(size_t)cell] != lfield::FREE)
-                through++;
+            double r = std::hypot(ex - sx, ey - sy);
+            if (r <= 0)
+                continue;
+            lfield::verdict_t v = fd.verdict(sx, sy, (ex - sx) / r, (ey - sy) / r, r, 3 * sigma);
+            hit += v == lfield::HIT;
+            through += v == lfield::THROUGH;
         }
         h->hit = (double)hit / std::max<size_t>(fine_idx.size(), 1);
         h->contradiction = hit + through >= 10 ? (double)through / (hit + through) : 0.0;
