@@ -62,8 +62,9 @@ double mcl_likelihood(const mcl_t *f);  /* smoothed mean per-beam likelihood of 
  * - hit: it ends on a wall of the map (within 3 sigma) with nothing of the map on the way;
  * - shorter: it ends in the map's free space, short of any wall: something the map lacks
  *   (a box, a person) stands there. Neither for nor against the pose;
- * - through: it passed through a wall of the map, ended in unknown space or off the map, or
- *   saw nothing (max range) where the map has a wall well within range. Against the pose.
+ * - through: it passed through a wall of the map, or saw nothing (max range) where the map has a
+ *   wall well within range. Against the pose.
+ * A beam that went where the map does not know (unknown cells, off the map) counts for neither. 
  * contradiction = through / (hit + through), 0 when fewer than 10 beams are hit or through
  * (the scan says nothing either way). */
 typedef struct {
