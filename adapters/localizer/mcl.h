@@ -64,7 +64,7 @@ double mcl_likelihood(const mcl_t *f);  /* smoothed mean per-beam likelihood of 
  *   (a box, a person) stands there. Neither for nor against the pose;
  * - through: it passed through a wall of the map, or saw nothing (max range) where the map has a
  *   wall well within range. Against the pose.
- * A beam that went where the map does not know (unknown cells, off the map) counts for neither. 
+ * A beam that went where the map does not know (unknown cells, off the map) counts for neither.
  * contradiction = through / (hit + through), 0 when fewer than 10 beams are hit or through
  * (the scan says nothing either way). */
 typedef struct {
