@@ -1,5 +1,6 @@
-/* bench_adapters: cost of a localizer update, planning time on the office map, and the cost of
- * one arbitration cycle. TSV rows: bench metric value unit baseline ratio. */
+/* bench_adapters: cost of a localizer update, of a lost robot's search over the whole map (the
+ * office and nav2's warehouse), planning time on the office map, and the cost of one arbitration
+ * cycle. TSV rows: bench metric value unit baseline ratio. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,6 +9,7 @@
 #include "adapters/behaviours/arbiter.h"
 #include "map/occmap.h"
 #include "adapters/localizer/mcl.h"
+#include "adapters/localizer/reloc.h"
 #include "adapters/planner/planner.h"
 #include "bench/bench.h"
 #include "core/time.h"
@@ -126,7 +128,8 @@ static void bench_arbitration(void)
     arb_state_reset(&s);
     arb_inputs_t in = { .pose = { 3, 0.5, 0.1 }, .pose_age = 0.05, .path = path, .npath = 50, .path_age = 0.5,
                         .ranges = ranges, .nranges = 181, .angle_min = -M_PI / 2, .angle_increment = M_PI / 180,
-                        .range_min = 0.05, .range_max = 8, .scan_age = 0.05, .estop_age = 0.1, .teleop_age = -1 };
+                        .range_min = 0.05, .range_max = 8, .scan_age = 0.05, .estop_age = 0.1, .teleop_age = -1,
+                        .reloc_age = -1 };
     arb_vote_t v[ARB_COUNT];
     enum { N = 200000 };
     int64_t t0 = marie_mono_us();
@@ -139,6 +142,45 @@ static void bench_arbitration(void)
     row("arbitration_cycle", (marie_mono_us() - t0) * 1e3 / N, "ns");
 }
 
+/* A turn on the spot at (x, y), then the whole map searched for where its points fit: the median
+ * of 5 searches, and whether the best place was the true one each time. */
+static void bench_search(const occmap_t *m, double x, double y, const char *tag)
+{
+    mcl_params_t p;
+    mcl_params_default(&p);
+    mcl_t *f = mcl_create(m, &p, 1);
+    simrobot_t r = { { x, y, 0.3 }, { 0, 0, 0 }, 1.0, 0, 0.005, 0.005, { 5 } };
+    reloc_cloud_t *c = reloc_cloud_create();
+    reloc_cloud_reset(c, r.odom);
+    float ranges[181];
+    for (int k = 0; k < 126; k++) {             /* 0.5 rad/s for 12.6 s, a scan every 0.1 s */
+        sim_move(&r, m, 0, 0.5, 0.1);
+        sim_scan(&r, m, ranges, 181, 8.0, 0.01, 0.0);
+        mcl_scan_t s = { ranges, 181, -M_PI / 2, M_PI / 180, 0.05, 8.0 };
+        reloc_cloud_add(c, r.odom, (const double[3]){ 0, 0, 0 }, &s);
+    }
+    enum { N = 5 };
+    double t[N];
+    int right = 0;
+    for (int i = 0; i < N; i++) {
+        reloc_hyp_t h[8];
+        int64_t t0 = marie_mono_us();
+        int n = reloc_search(f, c, h, 8);
+        t[i] = (marie_mono_us() - t0) / 1e3;
+        double now[3];
+        if (n > 0)
+            reloc_cloud_pose_now(c, (const double[3]){ h[0].x, h[0].y, h[0].theta }, r.odom, now);
+        right += n > 0 && hypot(now[0] - r.truth[0], now[1] - r.truth[1]) < 0.2;
+    }
+    char name[96];
+    snprintf(name, sizeof name, "relocalization_search_%s_median", tag);
+    row(name, pct(t, N, 0.5), "ms");
+    snprintf(name, sizeof name, "relocalization_search_%s_found", tag);
+    row(name, 100.0 * right / N, "%");
+    reloc_cloud_destroy(c);
+    mcl_destroy(f);
+}
+
 int main(void)
 {
     const char *which;
@@ -146,6 +188,13 @@ int main(void)
     fprintf(stderr, "bench_adapters: map %s (%dx%d cells)\n", which, m->width, m->height);
     bench_localizer(m, 2000, 181, "2000x181");
     bench_localizer(m, 500, 60, "500x60");
+    bench_search(m, 10.0, 15.0, "office");
+    marie_errors_t errs = { 0 };
+    occmap_t *wh = occmap_load("tests/data/nav2/warehouse.yaml", &errs);
+    marie_errors_clear(&errs);
+    if (wh)
+        bench_search(wh, 0.0, 0.0, "nav2_warehouse");
+    occmap_destroy(wh);
     bench_planner(m, "rrtconnect", "rrtconnect_office");
     bench_planner(m, "prm", "prm_office");
     bench_planner(m, "grid", "grid_office");

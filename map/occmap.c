@@ -101,6 +101,28 @@ int occmap_nearest_clear(const occmap_t *m, double x, double y, double radius, d
     return -1;
 }
 
+occmap_t *occmap_coarsen(const occmap_t *m, double res)
+{
+    if (!(res >= m->resolution)) {
+        errno = EINVAL;
+        return NULL;
+    }
+    int w = (int)ceil(m->width * m->resolution / res - 1e-9), h = (int)ceil(m->height * m->resolution / res - 1e-9);
+    occmap_t *c = occmap_create(w, h, res, m->origin_x, m->origin_y);
+    if (!c)
+        return NULL;
+    for (int y = 0; y < m->height; y++)
+        for (int x = 0; x < m->width; x++) {
+            int cx = (int)((x + 0.5) * m->resolution / res), cy = (int)((y + 0.5) * m->resolution / res);
+            int8_t v = m->cells[(size_t)y * m->width + x], *to = &c->cells[(size_t)cy * w + cx];
+            if (v == OCCMAP_OCCUPIED)
+                *to = OCCMAP_OCCUPIED;
+            else if (v != OCCMAP_FREE && *to == OCCMAP_FREE)
+                *to = OCCMAP_UNKNOWN;
+        }
+    return c;
+}
+
 void occmap_fill_rect(occmap_t *m, double x0, double y0, double x1, double y1, int8_t value)
 {
     if (x1 < x0) { double t = x0; x0 = x1; x1 = t; }

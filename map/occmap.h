@@ -96,6 +96,10 @@ bool occmap_occupied_at(const occmap_t *m, double x, double y);  /* outside: tru
 bool occmap_footprint_clear(const occmap_t *m, double x, double y, double th, double lx, double ly);
 int occmap_nearest_clear(const occmap_t *m, double x, double y, double radius, double *ox, double *oy);
 
+/* A copy at cells of `res` m (coarser than m's), same origin: a cell is occupied when any cell of
+ * m whose centre lies in it is, free when all of them are free, else unknown (what a mapper with
+ * coarse cells draws of the same walls). NULL with errno (EINVAL, ENOMEM). */
+occmap_t *occmap_coarsen(const occmap_t *m, double res);
 /* Set every cell of the map-frame rectangle [x0,x1]x[y0,y1] to value. */
 void occmap_fill_rect(occmap_t *m, double x0, double y0, double x1, double y1, int8_t value);
 /* Distance along a ray to the first occupied cell, or max_range when none is hit (cells

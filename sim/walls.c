@@ -1,4 +1,6 @@
-/* walls: the occupied cells of a map merged into rectangles, one physics box each. */
+/* walls: the cells of a map that are not known free merged into rectangles, one physics box each:
+ * the simulator makes no free space the map never saw (the unknown inside a warehouse's racks is
+ * solid, as the racks are). */
 #include "sim/walls.h"
 
 #include <errno.h>
@@ -20,12 +22,12 @@ long sim_walls_rects(const occmap_t *m, sim_rect_t **out)
             next[i] = -1;
         int i = 0;
         while (i < m->width) {
-            if (occmap_get(m, i, j) != OCCMAP_OCCUPIED) {
+            if (occmap_get(m, i, j) == OCCMAP_FREE) {
                 i++;
                 continue;
             }
             int i0 = i;
-            while (i < m->width && occmap_get(m, i, j) == OCCMAP_OCCUPIED)
+            while (i < m->width && occmap_get(m, i, j) != OCCMAP_FREE)
                 i++;
             long k = open[i0];
             if (k >= 0 && r[k].w == i - i0 && r[k].j + r[k].h == j) {

@@ -1,4 +1,4 @@
-/* walls: the occupied cells of a map merged into rectangles, one physics box each. */
+/* walls: the cells of a map that are not known free merged into rectangles, one physics box each. */
 #ifndef SIM_WALLS_H
 #define SIM_WALLS_H
 
@@ -8,8 +8,9 @@
 extern "C" {
 #endif
 
-/* Occupied cells merged into axis-aligned rectangles of cells (row runs, then identical runs
- * of consecutive rows stacked), so a straight wall becomes one box. */
+/* The cells that are not known free (occupied, unknown, map_server's in-between values) merged
+ * into axis-aligned rectangles of cells (row runs, then identical runs of consecutive rows
+ * stacked), so a straight wall becomes one box. */
 typedef struct {
     int i, j;                   /* lower-left cell */
     int w, h;                   /* cells */

@@ -7,7 +7,8 @@
 #include <string.h>
 #include "core/log.h"
 
-static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "face_speaker", "follow_path", "idle" };
+static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "relocalize", "face_speaker", "follow_path",
+                                               "idle" };
 
 const char *arb_name(int b)
 {
@@ -25,6 +26,7 @@ static int priority(const arb_params_t *p, int behaviour)
     case ARB_ESTOP: return (int)p->priority_estop;
     case ARB_AVOID: return (int)p->priority_avoid;
     case ARB_TELEOP: return (int)p->priority_teleop;
+    case ARB_RELOC: return (int)p->priority_relocalize;
     case ARB_FACE: return (int)p->priority_face;
     case ARB_FOLLOW: return (int)p->priority_follow;
     default: return 0;
@@ -75,6 +77,17 @@ void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
              "operator");
     else
         vote(o, false, 0, 0, in->teleop_age < 0 ? "no operator" : "operator idle");
+}
+
+/* The lost localizer turns the robot on the spot to see all around, and drives it to another
+ * place when where it stands is ambiguous (adapters/localizer/seek.h). */
+void arb_reloc(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+{
+    if (fresh(in->reloc_age, p->relocalize_timeout_s) && isfinite(in->reloc_v) && isfinite(in->reloc_omega))
+        vote(o, true, clamp(in->reloc_v, -p->v_max, p->v_max), clamp(in->reloc_omega, -p->omega_max, p->omega_max),
+             "lost: the localizer searches");
+    else
+        vote(o, false, 0, 0, "localized");
 }
 
 void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
@@ -286,6 +299,7 @@ int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, ar
     arb_estop(p, in, &votes[ARB_ESTOP]);
     arb_avoid(p, in, &votes[ARB_AVOID]);
     arb_teleop(p, in, &votes[ARB_TELEOP]);
+    arb_reloc(p, in, &votes[ARB_RELOC]);
     arb_face(p, s, in, &votes[ARB_FACE]);
     arb_follow(p, s, in, &votes[ARB_FOLLOW]);
     vote(&votes[ARB_IDLE], true, 0, 0, "nothing to do");

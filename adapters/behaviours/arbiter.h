@@ -1,5 +1,5 @@
-/* arbiter: the robot's behaviours (e-stop, avoid, teleop, face the speaker, follow path, idle) and their
- * priority arbitration, as pure functions of the inputs of one cycle. */
+/* arbiter: the robot's behaviours (e-stop, avoid, teleop, relocalize, face the speaker, follow path,
+ * idle) and their priority arbitration, as pure functions of the inputs of one cycle. */
 #ifndef ADAPTERS_ARBITER_H
 #define ADAPTERS_ARBITER_H
 
@@ -12,7 +12,7 @@
 extern "C" {
 #endif
 
-enum { ARB_ESTOP = 0, ARB_AVOID, ARB_TELEOP, ARB_FACE, ARB_FOLLOW, ARB_IDLE, ARB_COUNT };
+enum { ARB_ESTOP = 0, ARB_AVOID, ARB_TELEOP, ARB_RELOC, ARB_FACE, ARB_FOLLOW, ARB_IDLE, ARB_COUNT };
 
 /* arb_params_t: the parameters, declared in arbiter.params.yaml; these are its defaults. */
 void arb_params_default(arb_params_t *p);
@@ -24,6 +24,7 @@ typedef struct {
     const float *ranges; int nranges; double angle_min, angle_increment, range_min, range_max; double scan_age;
     bool estop_pressed; double estop_age;
     double teleop_v, teleop_omega; double teleop_age;
+    double reloc_v, reloc_omega; double reloc_age;          /* the lost localizer's search motion */
     double face_heading; int32_t face_id; double face_age;   /* map-frame heading toward the last speaker; id 0: none */
 } arb_inputs_t;
 
@@ -59,6 +60,7 @@ const char *arb_name(int behaviour);
 void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
 void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
 void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
+void arb_reloc(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
 void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
 void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
 

@@ -12,10 +12,10 @@
 #include "core/component.h"
 #include "core/typeinfo.h"
 
-enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_FACE, IN_COUNT };
+enum { IN_POSE = 0, IN_PATH, IN_SCAN, IN_ESTOP, IN_PULLED, IN_TELEOP = IN_PULLED, IN_RELOC, IN_FACE, IN_COUNT };
 static const bhv_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
-static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop", "face" };
+static const char *const in_ports[IN_COUNT] = { "pose", "path", "scan", "estop", "teleop", "relocalize", "face" };
 
 typedef struct beh beh_t;
 
@@ -43,6 +43,7 @@ struct beh {
     float *ranges; int nranges, ranges_cap; double angle_min, angle_inc, range_min, range_max;
     bool estop_pressed;
     double teleop_v, teleop_w;
+    double reloc_v, reloc_w;
     double face_heading; int32_t face_id;
 };
 
@@ -130,6 +131,13 @@ static void store(beh_t *b, int which, const void *msg, int64_t recv_age_us)
         utime = 0;              /* an operator's clock is not ours: age from receipt */
         break;
     }
+    case IN_RELOC: {
+        const marie_motor_command_t *m = msg;
+        b->reloc_v = m->v;
+        b->reloc_w = m->omega;
+        utime = m->utime;
+        break;
+    }
     case IN_FACE: {
         /* The speaker's azimuth is in the robot frame of when it was heard: held as a map
          * heading from the pose known now (the robot stands still while it listens). */
@@ -173,6 +181,7 @@ static void decide(beh_t *b)
         .range_min = b->range_min, .range_max = b->range_max, .scan_age = age_s(b, IN_SCAN, now),
         .estop_pressed = b->estop_pressed, .estop_age = age_s(b, IN_ESTOP, now),
         .teleop_v = b->teleop_v, .teleop_omega = b->teleop_w, .teleop_age = age_s(b, IN_TELEOP, now),
+        .reloc_v = b->reloc_v, .reloc_omega = b->reloc_w, .reloc_age = age_s(b, IN_RELOC, now),
         .face_heading = b->face_heading, .face_id = b->face_id, .face_age = age_s(b, IN_FACE, now),
     };
     arb_vote_t votes[ARB_COUNT];
@@ -275,6 +284,11 @@ static void on_teleop(marie_component_t *c, marie_port_t *p, const void *msg, co
     store(marie_component_user(c), IN_TELEOP, msg, 0);
 }
 
+static void on_reloc(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    store(marie_component_user(c), IN_RELOC, msg, 0);
+}
+
 static void on_face(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     store(marie_component_user(c), IN_FACE, msg, 0);
@@ -335,9 +349,10 @@ static void quit(marie_component_t *c)
     beh_t *b = marie_component_user(c);
     /* Who drove, in one line: a livelock shows as avoid winning most cycles. */
     if (b->cycle > 0)
-        marie_info("cycles %lld: estop %lld, avoid %lld, teleop %lld, face_speaker %lld, follow_path %lld, idle %lld, "
-                   "recovery %lld (recoveries %lld)", (long long)b->cycle, (long long)marie_component_counter(c, "estop"),
+        marie_info("cycles %lld: estop %lld, avoid %lld, teleop %lld, relocalize %lld, face_speaker %lld, follow_path %lld, "
+                   "idle %lld, recovery %lld (recoveries %lld)", (long long)b->cycle, (long long)marie_component_counter(c, "estop"),
                    (long long)marie_component_counter(c, "avoid"), (long long)marie_component_counter(c, "teleop"),
+                   (long long)marie_component_counter(c, "relocalize"),
                    (long long)marie_component_counter(c, "face_speaker"),
                    (long long)marie_component_counter(c, "follow_path"), (long long)marie_component_counter(c, "idle"),
                    (long long)marie_component_counter(c, "recovery"), (long long)b->rs.recoveries);
@@ -415,8 +430,9 @@ static int init(marie_component_t *c)
             }
         }
     }
-    if (marie_port_on_message(marie_port(c, "teleop"), on_teleop) || marie_port_on_message(marie_port(c, "face"), on_face)) {
-        marie_component_fail_reason(c, "cannot subscribe to teleop or face");
+    if (marie_port_on_message(marie_port(c, "teleop"), on_teleop) || marie_port_on_message(marie_port(c, "face"), on_face) ||
+        marie_port_on_message(marie_port(c, "relocalize"), on_reloc)) {
+        marie_component_fail_reason(c, "cannot subscribe to teleop, relocalize or face");
         return -1;
     }
     /* Both are idempotent: an init that runs again after a failure asks again. */
@@ -437,6 +453,7 @@ static const marie_port_spec_t ports[] = {
     { "scan", &marie_type_laser_scan_t, MARIE_IN, MARIE_PULL, "LASER" },
     { "estop", &marie_type_estop_t, MARIE_IN, MARIE_PULL, "ESTOP" },
     { "teleop", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "TELEOP" },
+    { "relocalize", &marie_type_motor_command_t, MARIE_IN, MARIE_PUSH, "RELOCALIZE" },
     { "estop_now", &marie_type_estop_t, MARIE_IN, MARIE_PUSH, "ESTOP" },
     { "face", &marie_type_sound_sources_t, MARIE_IN, MARIE_PUSH, "SPEAKER" },
     { "cmd", &marie_type_motor_command_t, MARIE_OUT, MARIE_PUSH, "MOTOR_COMMAND" },

@@ -4,7 +4,7 @@ include adapters/common/adapters.mk
 $(eval $(call marie_lib,adaptcommon,adapters/common/posebuf.c adapters/common/scanwait.c))
 $(eval $(call marie_test,test_posebuf,tests/adapters/test_posebuf.c,$(ADAPT_COMMON)))
 $(eval $(call marie_test,test_scanwait,tests/adapters/test_scanwait.c,$(ADAPT_COMMON)))
-$(eval $(call marie_bench,bench_adapters,bench/bench_adapters.c adapters/localizer/mcl.cpp adapters/planner/planner.cpp,$(ADAPT_COMMON) $(B)/lib/libarbiter.a $(ADAPT_OMPL_LIBS)))
+$(eval $(call marie_bench,bench_adapters,bench/bench_adapters.c adapters/localizer/mcl.cpp adapters/localizer/field.cpp adapters/localizer/reloc.cpp adapters/planner/planner.cpp,$(ADAPT_COMMON) $(B)/lib/libarbiter.a $(ADAPT_OMPL_LIBS)))
 # The integration tests' bus probe (not installed).
 $(eval $(call marie_link,$(B)/tests/helpers/adapt_probe,tests/adapters/adapt_probe.c,))
 EXTRA_TARGETS += $(B)/tests/helpers/adapt_probe

@@ -1,6 +1,9 @@
-// mcl: particle filter localization. The likelihood field is a log-probability per map cell,
-// precomputed from an OpenCV distance transform, so weighing a beam is one table look-up.
+// mcl: particle filter localization. The likelihood field is a log-probability per field cell
+// (adapters/localizer/field.h), so weighing a beam is one table look-up; beams that the cloud as
+// a whole cannot explain are skipped (AMCL's beam skipping), and a scan is judged at the
+// estimate by tracing its beams through the map.
 #include "adapters/localizer/mcl.h"
+#include "adapters/localizer/field.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -12,7 +15,6 @@
 #include <vector>
 
 #include <Eigen/Dense>
-#include <opencv2/imgproc.hpp>
 
 namespace {
 
@@ -28,14 +30,15 @@ double wrap(double a)
 
 struct mcl {
     mcl_params_t p_{};
-    // Map geometry and fields (copied from the occmap).
-    int mw_ = 0, mh_ = 0;
-    double res_ = 0, ox_ = 0, oy_ = 0;
-    std::vector<float> dist_;           // m to the nearest occupied cell, capped at max_dist
-    std::vector<float> llf_;            // log likelihood of a beam ending in each cell
+    lfield fd_;                         // the map as the localizer sees it
+    double sigma_ = 0;                  // sigma_hit widened by the map's cells
+    std::vector<float> llf_;            // log likelihood of a beam ending in each field cell
     float ll_out_ = 0;                  // ... outside the map
     double llf_range_max_ = -1;         // range_max the field was built for
-    std::vector<int32_t> free_;         // free cell indices, for global init and recovery
+    mcl_fit_t fit_{};                   // the last update's scan judged at the estimate
+    std::vector<float> bl_;             // weigh's scratch: log likelihood per particle and beam ...
+    std::vector<uint8_t> bad_;          // ... and whether the beam is unexplained there
+    double skipped_ = 0, cluster_mass_ = 1;
 
     // Particles (structure of arrays; weights normalised to sum 1).
     Eigen::ArrayXd x_, y_, th_, w_;
@@ -45,7 +48,6 @@ struct mcl {
     double odom_[3] = {0, 0, 0};        // odometry pose at the last sensor update
     double w_slow_ = 0, w_fast_ = 0, lik_ = 0;
     int64_t updates_ = 0, resamples_ = 0;
-    int quiet_ = 0;                     // updates left before a poor fit counts as lost
 
     double gauss(double sigma)
     {
@@ -61,29 +63,56 @@ struct mcl {
 
     void random_free_pose(double *x, double *y, double *th)
     {
-        int32_t c = free_[std::uniform_int_distribution<size_t>(0, free_.size() - 1)(rng_)];
-        *x = ox_ + (c % mw_ + uniform()) * res_;
-        *y = oy_ + (c / mw_ + uniform()) * res_;
+        const auto &fc = fd_.free_cells;
+        int32_t c = fc[std::uniform_int_distribution<size_t>(0, fc.size() - 1)(rng_)];
+        int mw = fd_.w / fd_.k;
+        *x = fd_.ox + (c % mw + uniform()) * fd_.map_res;
+        *y = fd_.oy + (c / mw + uniform()) * fd_.map_res;
+        *th = (uniform() * 2 - 1) * M_PI;
+    }
+
+    // A random pose in free space within inject_radius of `around`, any heading: the filter's
+    // own recovery stays near where it was (a far jump is the search's to make, seek.h).
+    void near_pose(const double around[3], double *x, double *y, double *th)
+    {
+        for (int k = 0; k < 20; k++) {
+            double r = p_.inject_radius * std::sqrt(uniform()), a = uniform() * 2 * M_PI;
+            *x = around[0] + r * std::cos(a);
+            *y = around[1] + r * std::sin(a);
+            int c = fd_.cell(*x, *y);
+            if (c >= 0 && fd_.kind[(size_t)c] == lfield::FREE)
+                break;
+        }
         *th = (uniform() * 2 - 1) * M_PI;
     }
 
     void build_llf(double range_max)
     {
         double zr = p_.z_rand / std::max(range_max, 1.0);
-        double k = 1.0 / (2 * p_.sigma_hit * p_.sigma_hit);
-        llf_.resize(dist_.size());
-        for (size_t i = 0; i < dist_.size(); i++)
-            llf_[i] = (float)std::log(p_.z_hit * std::exp(-dist_[i] * dist_[i] * k) + zr);
+        double k = 1.0 / (2 * sigma_ * sigma_);
+        llf_.resize(fd_.dist.size());
+        for (size_t i = 0; i < fd_.dist.size(); i++) {
+            double d = std::min<double>(fd_.dist[i], p_.max_dist);
+            llf_[i] = (float)std::log(p_.z_hit * std::exp(-d * d * k) + zr);
+        }
         ll_out_ = (float)std::log(p_.z_hit * std::exp(-p_.max_dist * p_.max_dist * k) + zr);
         llf_range_max_ = range_max;
     }
 
-    // A freshly spread cloud fits poorly by construction: give it time before calling it lost.
-    bool lost() const { return quiet_ == 0 && p_.lost_likelihood > 0 && w_fast_ > 0 && w_fast_ < p_.lost_likelihood; }
+    // Random particles answer a drop of the fit only when the scan contradicts the map at the
+    // estimate; what merely stands in front of the walls draws none (nor a jump to a look-alike).
+    bool inject_allowed() const
+    {
+        return p_.alpha_slow > 0 && p_.alpha_fast > 0 && fit_.contradiction > p_.inject_contradiction;
+    }
     void motion(const double o0[3], const double o1[3]);
+    std::vector<uint8_t> outliers(const std::vector<uint8_t> &bad, const Eigen::ArrayXd &br, const Eigen::ArrayXd &bc,
+                                  const Eigen::ArrayXd &bs);
     void weigh(const mcl_scan_t *scan);
     void resample();
 };
+
+static double estimate(const mcl_t *f, double pose[3], double cov[9]);
 
 extern "C" void mcl_params_default(mcl_params_t *p)
 {
@@ -105,30 +134,17 @@ extern "C" mcl_t *mcl_create(const occmap_t *map, const mcl_params_t *p, uint64_
     }
     try {
         f->p_ = *p;
-        f->mw_ = map->width;
-        f->mh_ = map->height;
-        f->res_ = map->resolution;
-        f->ox_ = map->origin_x;
-        f->oy_ = map->origin_y;
         f->rng_.seed(seed);
-        // distanceTransform measures to the nearest zero pixel: occupied cells are the zeros.
-        cv::Mat freeimg(map->height, map->width, CV_8U);
-        for (int r = 0; r < map->height; r++)
-            for (int c = 0; c < map->width; c++) {
-                int8_t v = map->cells[(size_t)r * map->width + c];
-                freeimg.at<uint8_t>(r, c) = v == OCCMAP_OCCUPIED ? 0 : 255;
-                if (v == OCCMAP_FREE)
-                    f->free_.push_back(r * map->width + c);
-            }
-        cv::Mat dist;
-        cv::distanceTransform(freeimg, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-        f->dist_.resize((size_t)map->width * map->height);
-        for (int r = 0; r < map->height; r++)
-            for (int c = 0; c < map->width; c++)
-                f->dist_[(size_t)r * map->width + c] =
-                    (float)std::min<double>(dist.at<float>(r, c) * map->resolution, p->max_dist);
-        if (f->free_.empty())
-            f->free_.push_back(0);
+        if (!f->fd_.build(map, 0.05)) {
+            int e = errno;
+            delete f;
+            errno = e;
+            return nullptr;
+        }
+        if (f->fd_.free_cells.empty())
+            f->fd_.free_cells.push_back(0);
+        // A wall lies anywhere within its cell: a coarse map's cells widen the spread.
+        f->sigma_ = std::sqrt(p->sigma_hit * p->sigma_hit + map->resolution * map->resolution / 12);
         f->build_llf(30.0);
         double zero[3] = {0, 0, 0}, sig[3] = {0, 0, 0};
         mcl_init_pose(f, zero, sig);
@@ -156,7 +172,7 @@ extern "C" void mcl_init_pose(mcl_t *f, const double pose[3], const double sigma
     }
     f->have_odom_ = false;
     f->w_slow_ = f->w_fast_ = 0;
-    f->quiet_ = 20;
+    f->fit_ = mcl_fit_t{};
 }
 
 extern "C" void mcl_init_global(mcl_t *f)
@@ -172,7 +188,7 @@ extern "C" void mcl_init_global(mcl_t *f)
     }
     f->have_odom_ = false;
     f->w_slow_ = f->w_fast_ = 0;
-    f->quiet_ = 20;
+    f->fit_ = mcl_fit_t{};
 }
 
 // The odometry motion model (rotate, translate, rotate) with noise growing with each part.
@@ -200,6 +216,36 @@ void mcl::motion(const double o0[3], const double o1[3])
     }
 }
 
+// Beam skipping: a beam most of the cloud cannot explain (bad: per particle and beam) is
+// something the map lacks, when from the estimate it ends in free space with nothing of the map
+// on its way (a beam seen through a wall or past the map's edge is evidence against the cloud,
+// never skipped); none when too many would go, or the cloud is spread.
+std::vector<uint8_t> mcl::outliers(const std::vector<uint8_t> &bad, const Eigen::ArrayXd &br, const Eigen::ArrayXd &bc,
+                                   const Eigen::ArrayXd &bs)
+{
+    const int nb = (int)br.size();
+    const Eigen::Index n = x_.size();
+    std::vector<uint8_t> skip((size_t)nb, 0);
+    int nskip = 0;
+    double est[3], cov[9];
+    bool one = estimate(this, est, cov) > 0.8;     // a spread cloud cannot tell what the map lacks
+    double ec = std::cos(est[2]), es = std::sin(est[2]);
+    double ex = est[0] + ec * p_.laser_x - es * p_.laser_y, ey = est[1] + es * p_.laser_x + ec * p_.laser_y;
+    for (int j = 0; j < nb && one; j++) {
+        double a = est[2] + p_.laser_theta + std::atan2(bs[j], bc[j]);
+        if (fd_.verdict(ex, ey, std::cos(a), std::sin(a), br[j], 3 * sigma_) != lfield::SHORTER)
+            continue;
+        double share = 0;
+        for (Eigen::Index i = 0; i < n; i++)
+            share += bad[(size_t)i * nb + j] ? w_[i] : 0.0;
+        skip[(size_t)j] = share > p_.outlier_share;
+        nskip += skip[(size_t)j];
+    }
+    if (nskip > p_.outlier_max * nb || nskip == nb)
+        std::fill(skip.begin(), skip.end(), 0);
+    return skip;
+}
+
 void mcl::weigh(const mcl_scan_t *scan)
 {
     if (scan->range_max != llf_range_max_)
@@ -223,27 +269,38 @@ void mcl::weigh(const mcl_scan_t *scan)
         bc[j] = std::cos(a);
         bs[j] = std::sin(a);
     }
-    const double inv = 1.0 / res_;
+    // Each particle's log likelihood per beam, and whether the beam is explained there.
     const Eigen::Index n = x_.size();
-    Eigen::ArrayXd ll(n);
+    bl_.resize((size_t)n * nb);
+    bad_.resize((size_t)n * nb);
+    std::vector<float> &bl = bl_;
+    std::vector<uint8_t> &bad = bad_;
+    const float far = (float)p_.outlier_distance;
     for (Eigen::Index i = 0; i < n; i++) {
         double c = std::cos(th_[i]), s = std::sin(th_[i]);
         double lx = x_[i] + c * p_.laser_x - s * p_.laser_y;
         double ly = y_[i] + s * p_.laser_x + c * p_.laser_y;
         double lc = std::cos(th_[i] + p_.laser_theta), ls = std::sin(th_[i] + p_.laser_theta);
-        double sum = 0;
         for (int j = 0; j < nb; j++) {
-            double fx = (lx + br[j] * (lc * bc[j] - ls * bs[j]) - ox_) * inv;
-            double fy = (ly + br[j] * (ls * bc[j] + lc * bs[j]) - oy_) * inv;
-            if (fx >= 0 && fy >= 0 && fx < mw_ && fy < mh_)
-                sum += llf_[(size_t)(int)fy * mw_ + (int)fx];
-            else
-                sum += ll_out_;
+            int cell = fd_.cell(lx + br[j] * (lc * bc[j] - ls * bs[j]), ly + br[j] * (ls * bc[j] + lc * bs[j]));
+            size_t at = (size_t)i * nb + j;
+            bl[at] = cell < 0 ? ll_out_ : llf_[(size_t)cell];
+            bad[at] = cell < 0 || fd_.dist[(size_t)cell] > far;
         }
+    }
+    std::vector<uint8_t> skip = outliers(bad, br, bc, bs);
+    int nskip = (int)std::count(skip.begin(), skip.end(), 1);
+    skipped_ = (double)nskip / nb;
+    Eigen::ArrayXd ll(n);
+    for (Eigen::Index i = 0; i < n; i++) {
+        double sum = 0;
+        for (int j = 0; j < nb; j++)
+            if (!skip[(size_t)j])
+                sum += bl[(size_t)i * nb + j];
         ll[i] = sum;
     }
     // Recovery bookkeeping on the per-beam geometric-mean likelihood (no underflow).
-    double avg = (ll / nb).exp().mean();
+    double avg = (ll / (nb - nskip)).exp().mean();
     lik_ = avg;
     if (w_slow_ == 0) {
         w_slow_ = w_fast_ = avg;
@@ -264,11 +321,13 @@ void mcl::resample()
     double acc = 0;
     for (Eigen::Index i = 0; i < n; i++)
         cdf[(size_t)i] = acc += w_[i];
-    double inject = 0;
-    if (p_.alpha_slow > 0 && p_.alpha_fast > 0 && w_slow_ > 0)
-        inject = std::max(0.0, 1.0 - w_fast_ / w_slow_);
-    if (lost())
-        inject = std::max(inject, 0.5 * (1.0 - w_fast_ / p_.lost_likelihood));
+    // Augmented MCL's share (a drop of the fast average below the slow one), and while the scan
+    // goes on contradicting the map, a share that grows with it.
+    double inject = 0, est[3], cov[9];
+    if (inject_allowed()) {
+        inject = std::max(w_slow_ > 0 ? 1.0 - w_fast_ / w_slow_ : 0.0, 0.5 * (fit_.contradiction - p_.inject_contradiction));
+        estimate(this, est, cov);
+    }
 
     std::vector<double> nx, ny, nt;
     nx.reserve(p_.particles_max); ny.reserve(p_.particles_max); nt.reserve(p_.particles_max);
@@ -277,7 +336,7 @@ void mcl::resample()
     while (nx.size() < (size_t)p_.particles_max && (nx.size() < target || nx.size() < (size_t)p_.particles_min)) {
         double x, y, th;
         if (inject > 0 && uniform() < inject) {
-            random_free_pose(&x, &y, &th);
+            near_pose(est, &x, &y, &th);
         } else {
             double u = uniform() * acc;
             size_t i = (size_t)(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin());
@@ -320,14 +379,16 @@ extern "C" int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, 
         return 0;
     f->motion(f->odom_, odom);
     f->odom_[0] = odom[0]; f->odom_[1] = odom[1]; f->odom_[2] = odom[2];
-    if (scan && scan->n > 0 && scan->ranges)
+    if (scan && scan->n > 0 && scan->ranges) {
         f->weigh(scan);
+        double pose[3], cov[9];
+        f->cluster_mass_ = estimate(f, pose, cov);
+        mcl_judge(f, pose, scan, &f->fit_);
+    }
     f->updates_++;
-    if (f->quiet_ > 0)
-        f->quiet_--;
     double ess = 1.0 / f->w_.square().sum();
     if (ess < f->p_.resample_ess * (double)f->w_.size() ||
-        (f->w_slow_ > 0 && f->w_fast_ < 0.5 * f->w_slow_ && f->p_.alpha_fast > 0) || f->lost())
+        (f->inject_allowed() && f->w_slow_ > 0 && f->w_fast_ < 0.5 * f->w_slow_))
         f->resample();
     return 1;
 }
@@ -368,11 +429,12 @@ static void weighted_stats(const mcl_t *f, const std::vector<Eigen::Index> *sel,
             cov[r * 3 + k] = c(r, k);
 }
 
-extern "C" void mcl_estimate(const mcl_t *f, double pose[3], double cov[9])
+// The estimate, and the share of the weight it stands for.
+static double estimate(const mcl_t *f, double pose[3], double cov[9])
 {
     weighted_stats(f, nullptr, pose, cov);
     if (cov[0] + cov[4] < 0.25)
-        return;
+        return 1;
     // Several hypotheses: report the heaviest 1 m cell's neighbourhood, not their average.
     std::unordered_map<uint64_t, double> mass;
     uint64_t best = 0;
@@ -386,11 +448,20 @@ extern "C" void mcl_estimate(const mcl_t *f, double pose[3], double cov[9])
     }
     double cx = (int32_t)(uint32_t)(best >> 32) + 0.5, cy = (int32_t)(uint32_t)best + 0.5;
     std::vector<Eigen::Index> sel;
+    double in = 0;
     for (Eigen::Index i = 0; i < f->x_.size(); i++)
-        if (std::hypot(f->x_[i] - cx, f->y_[i] - cy) < 1.5)
+        if (std::hypot(f->x_[i] - cx, f->y_[i] - cy) < 1.5) {
             sel.push_back(i);
+            in += f->w_[i];
+        }
     if (!sel.empty())
         weighted_stats(f, &sel, pose, cov);
+    return in;
+}
+
+extern "C" void mcl_estimate(const mcl_t *f, double pose[3], double cov[9])
+{
+    estimate(f, pose, cov);
 }
 
 extern "C" void mcl_pose_at(const mcl_t *f, const double odom[3], double pose[3], double cov[9])
@@ -425,3 +496,66 @@ extern "C" int mcl_particles(const mcl_t *f, float *xytw, int max)
 extern "C" int64_t mcl_updates(const mcl_t *f) { return f->updates_; }
 extern "C" int64_t mcl_resamples(const mcl_t *f) { return f->resamples_; }
 extern "C" double mcl_likelihood(const mcl_t *f) { return f->lik_; }
+
+extern "C" void mcl_judge(const mcl_t *f, const double pose[3], const mcl_scan_t *scan, mcl_fit_t *fit)
+{
+    *fit = mcl_fit_t{};
+    const mcl_params_t &p = f->p_;
+    double c = std::cos(pose[2]), s = std::sin(pose[2]);
+    double lx = pose[0] + c * p.laser_x - s * p.laser_y, ly = pose[1] + s * p.laser_x + c * p.laser_y;
+    for (int k = 0; k < scan->n; k++) {
+        double r = scan->ranges[k];
+        if (!std::isfinite(r) || r <= scan->range_min)
+            continue;
+        double a = pose[2] + p.laser_theta + scan->angle_min + k * scan->angle_increment;
+        fit->beams++;
+        switch (f->fd_.verdict(lx, ly, std::cos(a), std::sin(a), r >= scan->range_max ? -scan->range_max : r, 3 * f->sigma_)) {
+        case lfield::HIT: fit->hit++; break;
+        case lfield::SHORTER: fit->shorter++; break;
+        case lfield::THROUGH: fit->through++; break;
+        default: break;
+        }
+    }
+    int says = fit->hit + fit->through;
+    fit->contradiction = says >= 10 ? (double)fit->through / says : 0.0;
+}
+
+extern "C" void mcl_last_fit(const mcl_t *f, mcl_fit_t *fit, double *skipped, double *cluster_mass)
+{
+    if (fit)
+        *fit = f->fit_;
+    if (skipped)
+        *skipped = f->skipped_;
+    if (cluster_mass)
+        *cluster_mass = f->cluster_mass_;
+}
+
+extern "C" double mcl_trace(const mcl_t *f, double x, double y, double angle, double max_r)
+{
+    return f->fd_.trace(x, y, std::cos(angle), std::sin(angle), max_r);
+}
+
+extern "C" mcl_place_t mcl_map_at(const mcl_t *f, double x, double y)
+{
+    int c = f->fd_.cell(x, y);
+    if (c < 0)
+        return MCL_OFF_MAP;
+    uint8_t k = f->fd_.kind[(size_t)c];
+    return k == lfield::FREE ? MCL_FREE : k == lfield::OCC ? MCL_WALL : MCL_UNKNOWN;
+}
+
+extern "C" const char *mcl_place_name(mcl_place_t where)
+{
+    static const char *const names[] = { "in free space", "inside a wall", "in unknown space", "off the map" };
+    return names[where];
+}
+
+const lfield &mcl_field(const mcl *f)
+{
+    return f->fd_;
+}
+
+double mcl_sigma(const mcl *f)
+{
+    return f->sigma_;
+}

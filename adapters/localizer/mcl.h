@@ -1,4 +1,5 @@
-/* mcl: Monte Carlo localization on an occupancy map (likelihood field, KLD resampling). */
+/* mcl: Monte Carlo localization on an occupancy map (likelihood field with AMCL's beam skipping,
+ * augmented MCL, KLD resampling), and how well a scan fits the map at a pose. */
 #ifndef ADAPTERS_MCL_H
 #define ADAPTERS_MCL_H
 
@@ -24,8 +25,9 @@ typedef struct {
     double angle_min, angle_increment, range_min, range_max;
 } mcl_scan_t;
 
-/* The filter keeps its own likelihood field and free-cell list; the map may be freed after.
- * NULL on failure (errno). mcl_destroy(NULL) is a no-op. */
+/* The filter keeps its own field of the map (adapters/localizer/field.h); the map may be freed
+ * after. NULL on failure (errno: EINVAL bad parameters, ENOMEM, EFBIG a map too large).
+ * mcl_destroy(NULL) is a no-op. */
 mcl_t *mcl_create(const occmap_t *map, const mcl_params_t *p, uint64_t seed);
 void mcl_destroy(mcl_t *f);
 
@@ -55,6 +57,34 @@ int mcl_particles(const mcl_t *f, float *xytw, int max);
 int64_t mcl_updates(const mcl_t *f);
 int64_t mcl_resamples(const mcl_t *f);
 double mcl_likelihood(const mcl_t *f);  /* smoothed mean per-beam likelihood of the last update */
+
+/* A scan judged at one pose, beam by beam, against what the map shows from there:
+ * - hit: it ends on a wall of the map (within 3 sigma) with nothing of the map on the way;
+ * - shorter: it ends in the map's free space, short of any wall: something the map lacks
+ *   (a box, a person) stands there. Neither for nor against the pose;
+ * - through: it passed through a wall of the map, or saw nothing (max range) where the map has a
+ *   wall well within range. Against the pose.
+ * A beam that went where the map does not know (unknown cells, off the map) counts for neither.
+ * contradiction = through / (hit + through), 0 when fewer than 10 beams are hit or through
+ * (the scan says nothing either way). */
+typedef struct {
+    int beams, hit, shorter, through;
+    double contradiction;
+} mcl_fit_t;
+
+/* Judges the scan at a map-frame robot pose (the laser's mount applied). Every beam is used. */
+void mcl_judge(const mcl_t *f, const double pose[3], const mcl_scan_t *scan, mcl_fit_t *fit);
+/* The last update's scan judged at the estimate, the share of beams it skipped as outliers,
+ * and the weight of the estimate's cluster (1: one cluster). */
+void mcl_last_fit(const mcl_t *f, mcl_fit_t *fit, double *skipped, double *cluster_mass);
+/* How far a ray from (x, y) at `angle` (map frame) goes before the map's walls stop it, up to
+ * max_r (the map's edge stops it too). */
+double mcl_trace(const mcl_t *f, double x, double y, double angle, double max_r);
+/* What the map says of a map-frame point. */
+typedef enum { MCL_FREE = 0, MCL_WALL, MCL_UNKNOWN, MCL_OFF_MAP } mcl_place_t;
+mcl_place_t mcl_map_at(const mcl_t *f, double x, double y);
+/* "in free space", "inside a wall", "in unknown space", "off the map". */
+const char *mcl_place_name(mcl_place_t where);
 
 #ifdef __cplusplus
 }

@@ -1,4 +1,4 @@
-# adapters/planner: marie-planner (A* or OMPL on the inflated map; OpenCV distance transform).
+# adapters/planner: marie-planner (A* or OMPL on the map inflated by its clearance, map/clearance.h).
 include adapters/common/adapters.mk
 $(B)/obj/adapters/planner/%.o: CPPFLAGS += $(ADAPT_OMPL_CFLAGS)
 $(eval $(call marie_program,marie-planner,adapters/planner/planner_main.c adapters/planner/planner.cpp,$(ADAPT_COMMON) $(ADAPT_OMPL_LIBS)))

@@ -1,13 +1,15 @@
 // planner: A* (map/gridpath.h) or OMPL geometric planning in R2 over an inflated occupancy grid.
-// The inflation comes from an OpenCV distance transform; laser obstacles are stamped as
+// The inflation comes from the map's clearance (map/clearance.h); laser obstacles are stamped as
 // robot-radius disks.
 #include "adapters/planner/planner.h"
 #include "core/err.h"
+#include "map/clearance.h"
 #include "map/gridpath.h"
 
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -22,7 +24,6 @@
 #include <ompl/geometric/planners/rrt/RRTConnect.h>
 #include <ompl/util/Console.h>
 #include <ompl/util/RandomNumbers.h>
-#include <opencv2/imgproc.hpp>
 
 namespace ob = ompl::base;
 namespace og = ompl::geometric;
@@ -35,6 +36,7 @@ struct planner {
     double res_ = 0, ox_ = 0, oy_ = 0;
     std::vector<uint8_t> static_free_;  // the robot fits here according to the map
     std::vector<float> dist_;           // m to the nearest map obstacle
+    std::vector<int8_t> cells_;         // the map's cells, to say why a place is refused
     std::vector<uint16_t> dyn_;         // how many laser obstacle disks cover each cell
     std::unordered_map<int, double> obstacles_;  // cell -> last time seen
     std::vector<std::pair<int, int>> disk_;      // cell offsets within the robot radius
@@ -135,25 +137,16 @@ extern "C" planner_t *planner_create(const occmap_t *map, const planner_params_t
         pl->ox_ = map->origin_x;
         pl->oy_ = map->origin_y;
         size_t ncell = (size_t)map->width * map->height;
-        cv::Mat img(map->height, map->width, CV_8U);
-        for (int r = 0; r < map->height; r++)
-            for (int c = 0; c < map->width; c++) {
-                int8_t v = map->cells[(size_t)r * map->width + c];
-                bool blocked = v == OCCMAP_OCCUPIED || (v == OCCMAP_UNKNOWN && !p->unknown_is_free);
-                img.at<uint8_t>(r, c) = blocked ? 0 : 255;
-            }
-        cv::Mat dist;
-        cv::distanceTransform(img, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+        // The same clearance marie-eval picks its goals with (map/clearance.h).
+        std::unique_ptr<float, decltype(&std::free)> cl(occmap_clearance(map, p->unknown_is_free), &std::free);
+        if (!cl)
+            throw std::bad_alloc();
+        pl->dist_.assign(cl.get(), cl.get() + ncell);
+        pl->cells_.assign(map->cells, map->cells + ncell);
         pl->static_free_.resize(ncell);
-        pl->dist_.resize(ncell);
         pl->dyn_.assign(ncell, 0);
-        for (int r = 0; r < map->height; r++)
-            for (int c = 0; c < map->width; c++) {
-                // Distance from this cell's centre to the nearest blocked cell's edge.
-                float d = (dist.at<float>(r, c) - 0.5f) * (float)map->resolution;
-                pl->dist_[(size_t)r * map->width + c] = d;
-                pl->static_free_[(size_t)r * map->width + c] = d > pl->p_.robot_radius;
-            }
+        for (size_t i = 0; i < ncell; i++)
+            pl->static_free_[i] = pl->dist_[i] > pl->p_.robot_radius;
         int rr = (int)std::ceil(pl->p_.robot_radius / map->resolution);
         for (int dy = -rr; dy <= rr; dy++)
             for (int dx = -rr; dx <= rr; dx++)
@@ -302,6 +295,45 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
     } catch (...) {
         return -ENOMEM;
     }
+}
+
+static const char *const laser_reason = "in an obstacle seen by the laser";
+
+// Why the robot cannot stand at (x, y), or nullptr when it can (after planner_plan's snapping).
+static const char *refusal(const planner_t *pl, double x, double y, char *buf, size_t len)
+{
+    double sx = x, sy = y;
+    if (pl->snap(sx, sy, pl->p_.robot_radius))
+        return nullptr;
+    double fx = (x - pl->ox_) / pl->res_, fy = (y - pl->oy_) / pl->res_;
+    if (!(fx >= 0 && fy >= 0 && fx < pl->w_ && fy < pl->h_))
+        return "off the map";
+    size_t i = (size_t)(int)fy * pl->w_ + (int)fx;
+    if (pl->cells_[i] == OCCMAP_OCCUPIED)
+        return "inside a wall";
+    if (pl->cells_[i] != OCCMAP_FREE && !pl->p_.unknown_is_free)
+        return "in unknown space";
+    if (pl->static_free_[i] || pl->dist_[i] > pl->p_.robot_radius)
+        return laser_reason;
+    snprintf(buf, len, "%.2f m from a wall (the robot needs %.2f m)", std::max(0.0f, pl->dist_[i]), pl->p_.robot_radius);
+    return buf;
+}
+
+extern "C" int planner_blocked(const planner_t *pl, const double start[3], const double goal[3], char *why, size_t why_len)
+{
+    char a[96], b[96];
+    const char *ws = refusal(pl, start[0], start[1], a, sizeof a), *wg = refusal(pl, goal[0], goal[1], b, sizeof b);
+    bool by_laser = (ws || wg) && (!ws || ws == laser_reason) && (!wg || wg == laser_reason);
+    if (why && why_len) {
+        if (ws && wg)
+            snprintf(why, why_len, "start (%.2f, %.2f) %s; goal (%.2f, %.2f) %s", start[0], start[1], ws, goal[0], goal[1], wg);
+        else if (ws || wg)
+            snprintf(why, why_len, "%s (%.2f, %.2f) %s", ws ? "start" : "goal", ws ? start[0] : goal[0],
+                     ws ? start[1] : goal[1], ws ? ws : wg);
+        else
+            snprintf(why, why_len, "start and goal free");
+    }
+    return (ws ? PLANNER_START_BLOCKED : 0) | (wg ? PLANNER_GOAL_BLOCKED : 0) | (by_laser ? PLANNER_BY_LASER : 0);
 }
 
 extern "C" int planner_add_obstacles(planner_t *pl, const double *xy, int npoints, double now_s)

@@ -4,6 +4,7 @@
 #define ADAPTERS_PLANNER_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "adapters/planner/planner_params.h"
@@ -35,9 +36,17 @@ bool planner_free(const planner_t *pl, double x, double y);
 
 /* Plan from start to goal (x, y, theta). On success returns 0 and *poses (x,y,theta triples,
  * malloc'ed, the caller frees) with *n >= 2; the last pose is the goal. -EINVAL when the
- * start or goal is not free (a start inside the inflation is first moved to the nearest free
- * cell within a robot radius), -ENOENT when no path was found in time. */
+ * start or goal is not free (either is first moved to the nearest free cell within a robot
+ * radius; planner_blocked() says which), -ENOENT when no path was found in time. */
 int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n);
+
+/* Which ends planner_plan() refuses: PLANNER_START_BLOCKED, PLANNER_GOAL_BLOCKED or both; 0 when
+ * neither; with PLANNER_BY_LASER when every end refused is free on the map and only the laser's
+ * obstacles cover it. For each blocked end its reason goes to why (NULL: not wanted): "inside a
+ * wall", "0.12 m from a wall (the robot needs 0.40 m)", "in unknown space", "off the map", "in
+ * an obstacle seen by the laser". */
+enum { PLANNER_START_BLOCKED = 1, PLANNER_GOAL_BLOCKED = 2, PLANNER_BY_LASER = 4 };
+int planner_blocked(const planner_t *pl, const double start[3], const double goal[3], char *why, size_t why_len);
 
 /* Add laser returns (map-frame points at time now_s) that are not explained by the map to the
  * obstacle layer; points older than obstacle_ttl are forgotten. Returns how many were new. */

@@ -33,6 +33,7 @@ typedef struct {
     double *pts;
     int pts_cap;
     uint64_t seed;
+    char last_failure[320];     /* said once per goal until it changes */
 } pln_t;
 
 static double secs(int64_t us)
@@ -54,6 +55,23 @@ static void publish_path(marie_component_t *c, pln_t *s)
     free(poses);
 }
 
+/* A failed plan, said when it is new for this goal (a failure retried every few seconds is
+ * counted, not said again): which end is blocked and why, or that no path was found. */
+static void say_failure(marie_component_t *c, pln_t *s, int rc, const double goal[3], int64_t dt, const char *why)
+{
+    char what[160];
+    if (rc == -EINVAL)
+        planner_blocked(s->pl, s->pose, goal, what, sizeof what);
+    else
+        snprintf(what, sizeof what, "no path found from (%.2f, %.2f)", s->pose[0], s->pose[1]);
+    char line[sizeof s->last_failure];
+    snprintf(line, sizeof line, "goal %d '%s' (%.2f, %.2f): %s", s->goal.id, s->goal_name, goal[0], goal[1], what);
+    if (strcmp(line, s->last_failure) == 0)
+        return;
+    snprintf(s->last_failure, sizeof s->last_failure, "%s", line);
+    marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "no_path", "%s after %.0f ms (%s)", line, dt / 1e3, why);
+}
+
 static void plan(marie_component_t *c, pln_t *s, const char *why)
 {
     if (!s->pl) {
@@ -68,16 +86,17 @@ static void plan(marie_component_t *c, pln_t *s, const char *why)
     int64_t t0 = marie_mono_us();
     int rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
     int layer = planner_obstacle_count(s->pl);
-    if (rc == -ENOENT && layer > 0) {
-        /* The map has a way the laser layer closes. In a corridor barely wider than the robot
-         * one misplaced return does that, and the scans of a robot waiting for a path keep it
-         * there: forget the layer and plan on the map (as a costmap is cleared before a
-         * retry). Avoid still stops the robot short of whatever is really there, and a path
-         * the layer blocks again is planned again. */
+    bool laser_only = rc == -EINVAL && (planner_blocked(s->pl, s->pose, goal, NULL, 0) & PLANNER_BY_LASER);
+    if ((rc == -ENOENT || laser_only) && layer > 0) {
+        /* The map has a way (or room at the start and goal) the laser layer closes. In a
+         * corridor barely wider than the robot one misplaced return does that, and the scans of
+         * a robot waiting for a path keep it there: forget the layer and plan on the map (as a
+         * costmap is cleared before a retry). Avoid still stops the robot short of whatever is
+         * really there, and a path the layer blocks again is planned again. */
         marie_component_count(c, "obstacles_forgotten", 1);
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "obstacles_forgotten",
-                              "goal %d: no path past %d laser obstacle cells: forgotten, planning on the map",
-                              s->goal.id, layer);
+                              "goal %d: %s %d laser obstacle cells: forgotten, planning on the map", s->goal.id,
+                              laser_only ? "start or goal covered by" : "no path past", layer);
         planner_clear_obstacles(s->pl);
         rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
     }
@@ -85,16 +104,31 @@ static void plan(marie_component_t *c, pln_t *s, const char *why)
     free(s->path);
     s->path = poses;
     s->npath = rc == 0 ? n : 0;
-    s->status = rc == 0 ? MARIE_PATH_T_STATUS_OK : rc == -EINVAL ? MARIE_PATH_T_STATUS_INVALID_GOAL
-                                                                 : MARIE_PATH_T_STATUS_NO_PATH;
+    int ends = rc == -EINVAL ? planner_blocked(s->pl, s->pose, goal, NULL, 0) : 0;
+    s->status = rc == 0 ? MARIE_PATH_T_STATUS_OK : (ends & PLANNER_START_BLOCKED) ? MARIE_PATH_T_STATUS_INVALID_START
+              : rc == -EINVAL ? MARIE_PATH_T_STATUS_INVALID_GOAL : MARIE_PATH_T_STATUS_NO_PATH;
     marie_component_count(c, rc == 0 ? "plans" : "plan_failures", 1);
-    if (rc == 0)
+    if (rc == 0) {
         marie_debug("goal %d: %d poses in %.1f ms (%s)", s->goal.id, n, dt / 1e3, why);
-    else
-        marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "no_path", "goal %d '%s' (%.2f, %.2f): %s after %.0f ms (%s)",
-                              s->goal.id, s->goal_name, goal[0], goal[1],
-                              rc == -EINVAL ? "start or goal blocked" : "no path found", dt / 1e3, why);
+        s->last_failure[0] = 0;
+    } else {
+        say_failure(c, s, rc, goal, dt, why);
+    }
     publish_path(c, s);
+}
+
+/* Distance from a pose to a path's polyline. */
+static double path_distance(const double *path, int n, const double pose[3])
+{
+    double best = INFINITY;
+    for (int i = 0; i + 1 < n; i++) {
+        double ax = path[3 * i], ay = path[3 * i + 1], dx = path[3 * i + 3] - ax, dy = path[3 * i + 4] - ay;
+        double l2 = dx * dx + dy * dy;
+        double t = l2 > 0 ? ((pose[0] - ax) * dx + (pose[1] - ay) * dy) / l2 : 0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        best = fmin(best, hypot(ax + t * dx - pose[0], ay + t * dy - pose[1]));
+    }
+    return best;
 }
 
 static void on_goal(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -145,6 +179,14 @@ static void on_pose(marie_component_t *c, marie_port_t *p, const void *msg, cons
     s->pose[2] = m->pose.theta;
     s->pose_utime = m->utime;
     s->have_pose = true;
+    /* A robot far from its path (found again elsewhere after being lost) needs a path from where
+     * it is: following the old one would steer it across walls. */
+    int64_t now = marie_component_now(c);
+    if (s->have_goal && s->npath >= 2 && s->q->off_path > 0 && secs(now - s->last_plan) >= s->q->replan_min_s &&
+        path_distance(s->path, s->npath, s->pose) > s->q->off_path) {
+        marie_component_count(c, "replans_off_path", 1);
+        plan(c, s, "the robot is off its path");
+    }
     /* The localizer's pose is for an instant already past; odometry at that same instant gives
      * where the odometry frame lies in the map, and so the map pose at any later instant. */
     double o[3], inv[3];

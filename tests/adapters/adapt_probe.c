@@ -118,7 +118,7 @@ static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitra
     probe_t *p = u;
     p->arbs++;
     p->sum_v += m->v;
-    /* The record must explain the decision: every behaviour (the six and the recovery) and
+    /* The record must explain the decision: every behaviour (the seven and the recovery) and
      * input present, the winner the highest-priority active vote, the command the winner's. */
     int best = -1;
     for (int i = 0; i < m->nvotes; i++)
@@ -127,7 +127,7 @@ static void on_arb(const lcm_recv_buf_t *rb, const char *ch, const marie_arbitra
     for (int i = 0; i < m->ninputs; i++)
         if (strcmp(m->inputs[i].name, "pose") == 0)
             p->last_pose_age = m->inputs[i].age;
-    if (m->nvotes != 7 || m->ninputs != 6 || best < 0 || strcmp(m->votes[best].name, m->winner) != 0 ||
+    if (m->nvotes != 8 || m->ninputs != 7 || best < 0 || strcmp(m->votes[best].name, m->winner) != 0 ||
         m->votes[best].v != m->v || m->votes[best].omega != m->omega) {
         if (p->arb_bad++ == 0)
             fprintf(stderr, "probe: inconsistent decision record in cycle %lld (winner %s)\n", (long long)m->cycle, m->winner);

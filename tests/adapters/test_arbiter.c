@@ -18,7 +18,7 @@ static arb_inputs_t base_inputs(void)
         open_scan[k] = 10.0f;
     arb_inputs_t in;
     memset(&in, 0, sizeof(in));
-    in.pose_age = in.path_age = in.estop_age = in.teleop_age = in.scan_age = -1;
+    in.pose_age = in.path_age = in.estop_age = in.teleop_age = in.reloc_age = in.scan_age = -1;
     in.ranges = open_scan;
     in.nranges = 181;
     in.angle_min = -M_PI / 2;
@@ -170,6 +170,33 @@ static void test_teleop_only_while_recent(void **state)
     assert_true(v[w].omega == -0.3);
     in.teleop_age = 0.8;
     assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+}
+
+/* The lost localizer's search moves the robot while its commands are recent: above following
+ * a path, below the operator; its turn on the spot is not vetoed by a wall ahead, its drive is. */
+static void test_relocalize_search_between_teleop_and_follow(void **state)
+{
+    arb_params_t p; arb_params_default(&p);
+    arb_state_t s; arb_state_reset(&s);
+    arb_inputs_t in = base_inputs();
+    in.path = straight; in.npath = 3; in.path_age = 0.1; in.pose_age = 0.05;
+    in.reloc_age = 0.1; in.reloc_v = 0; in.reloc_omega = 0.5;
+    arb_vote_t v[ARB_COUNT];
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_RELOC);
+    assert_true(v[ARB_RELOC].v == 0 && v[ARB_RELOC].omega == 0.5);
+    in.teleop_age = 0.1; in.teleop_v = 0.2;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_TELEOP);
+    in.teleop_age = -1;
+    for (int k = 80; k < 100; k++)
+        open_scan[k] = 0.3f;            /* a wall just ahead */
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_RELOC);
+    in.reloc_v = 0.25; in.reloc_omega = 0;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_AVOID);
+    in.reloc_age = 0.8;                 /* the search stopped: nothing moves the robot for it */
+    for (int k = 80; k < 100; k++)
+        open_scan[k] = 10.0f;
+    assert_int_equal(arb_decide(&p, &s, &in, v), ARB_FOLLOW);
+    assert_string_equal(v[ARB_RELOC].reason, "localized");
 }
 
 static void test_avoid_blocks_and_turns_to_open_side(void **state)
@@ -505,6 +532,7 @@ int main(void)
         cmocka_unit_test(test_face_speaker_turns_once_then_follow),
         cmocka_unit_test(test_estop_beats_everything),
         cmocka_unit_test(test_teleop_only_while_recent),
+        cmocka_unit_test(test_relocalize_search_between_teleop_and_follow),
         cmocka_unit_test(test_avoid_blocks_and_turns_to_open_side),
         cmocka_unit_test(test_avoid_turns_away_from_a_wall_at_its_side),
         cmocka_unit_test(test_closed_loop_follows_l_path),

@@ -11,6 +11,7 @@
 #include <cmocka.h>
 
 #include "map/occmap.h"
+#include "map/clearance.h"
 #include "map/gridpath.h"
 #include <errno.h>
 
@@ -385,6 +386,66 @@ static void test_gridpath_is_shortest_on_random_grids(void **state)
     assert_true(found > 100 && found < 300);        /* both outcomes were exercised */
 }
 
+/* The clearance is the exact distance from each centre to the nearest blocked centre, less half a
+ * cell: checked against every blocked cell on random maps with unknown cells, both ways of
+ * counting the unknown, and on a map with nothing blocked. */
+static void test_clearance_is_exact(void **state)
+{
+    unsigned seed = 777;
+    for (int t = 0; t < 40; t++) {
+        int W = 5 + (int)(rand_r(&seed) % 60), H = 5 + (int)(rand_r(&seed) % 60);
+        occmap_t *m = occmap_create(W, H, 0.05 * (1 + t % 4), -1.0, 2.0);
+        assert_non_null(m);
+        int density = t % 10 == 0 ? 0 : 1 + (int)(rand_r(&seed) % 15);
+        for (int i = 0; i < W * H; i++) {
+            int r = (int)(rand_r(&seed) % 100);
+            m->cells[i] = r < density ? OCCMAP_OCCUPIED : r < density + 3 && t % 3 ? OCCMAP_UNKNOWN : OCCMAP_FREE;
+        }
+        for (int unk = 0; unk < 2; unk++) {
+            float *cl = occmap_clearance(m, unk);
+            uint8_t *pass = occmap_passable(m, 0.3, unk);
+            assert_non_null(cl);
+            assert_non_null(pass);
+            for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++) {
+                    double best = INFINITY;
+                    for (int j = 0; j < W * H; j++) {
+                        int8_t v = m->cells[j];
+                        if (v == OCCMAP_OCCUPIED || (v != OCCMAP_FREE && !unk))
+                            best = fmin(best, hypot(j % W - x, j / W - y));
+                    }
+                    double want = isfinite(best) ? (best - 0.5) * m->resolution : (W + H) * m->resolution;
+                    assert_true(fabs(cl[y * W + x] - want) < 1e-4);
+                    assert_int_equal(pass[y * W + x], cl[y * W + x] > 0.3);
+                }
+            free(cl);
+            free(pass);
+        }
+        occmap_destroy(m);
+    }
+}
+
+/* A coarser copy: a coarse cell is a wall when any fine cell in it is, free when all are free,
+ * unknown otherwise; the origin stays and the size rounds up. */
+static void test_coarsen(void **state)
+{
+    occmap_t *m = occmap_create(10, 6, 0.05, -1.0, 2.0);
+    occmap_fill_rect(m, -1.0, 2.0, -0.96, 2.04, OCCMAP_OCCUPIED);      /* cell (0, 0) */
+    m->cells[1 * 10 + 5] = OCCMAP_UNKNOWN;                              /* cell (5, 1) */
+    occmap_t *c = occmap_coarsen(m, 0.2);
+    assert_non_null(c);
+    assert_int_equal(c->width, 3);
+    assert_int_equal(c->height, 2);
+    assert_true(c->origin_x == -1.0 && c->origin_y == 2.0 && c->resolution == 0.2);
+    assert_int_equal(occmap_get(c, 0, 0), OCCMAP_OCCUPIED);
+    assert_int_equal(occmap_get(c, 1, 0), OCCMAP_UNKNOWN);
+    assert_int_equal(occmap_get(c, 2, 0), OCCMAP_FREE);
+    assert_int_equal(occmap_get(c, 0, 1), OCCMAP_FREE);
+    assert_null(occmap_coarsen(m, 0.01));
+    occmap_destroy(c);
+    occmap_destroy(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -398,6 +459,8 @@ int main(void)
         cmocka_unit_test(test_office_world_loads),
         cmocka_unit_test(test_gridpath),
         cmocka_unit_test(test_gridpath_is_shortest_on_random_grids),
+        cmocka_unit_test(test_clearance_is_exact),
+        cmocka_unit_test(test_coarsen),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

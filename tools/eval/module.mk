@@ -1,5 +1,6 @@
-# tools/eval: marie-eval, random-goal navigation runs over the evaluation worlds (make bench-full: bench_eval).
-$(eval $(call marie_program,marie-eval,tools/eval/eval_main.c,$(MAP_LIB)))
+# tools/eval: marie-eval, random-goal navigation runs over the evaluation worlds and any map_server
+# map (make bench-full: bench_eval).
+$(eval $(call marie_program,marie-eval,tools/eval/eval_main.c tools/eval/eval_world.c tools/eval/eval_run.c,$(MAP_LIB)))
 # The evaluation worlds are made at build time from sim/mkworld.py, not kept in git.
 EVAL_WORLDS := $(B)/worlds/eval/office.yaml
 $(EVAL_WORLDS): sim/mkworld.py
