@@ -1,4 +1,6 @@
-/* config: the system file model (components, profiles, restart policies, hashes) over the YAML tree. */
+/* config: the system file model over the YAML tree: loading a file, its profiles and their
+ * params, the lookups. A component's own keys are read in config_component.c, its hash in
+ * config_hash.c, the checks of a loaded file in config_check.c. */
 #include "core/clear.h"
 #include "core/config.h"
 #include "core/config_priv.h"
@@ -8,8 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <sodium.h>
-
 /* ---- system file ---- */
 
 const char *marie_default_url(void)
@@ -18,14 +18,6 @@ const char *marie_default_url(void)
     return env && *env ? env : MARIE_DEFAULT_URL;
 }
 
-static char *dup_or_null(const char *s) { return s ? strdup(s) : NULL; }
-
-static void free_strv(char **v, size_t n)
-{
-    for (size_t i = 0; i < n; i++)
-        free(v[i]);
-    free(v);
-}
 
 /* A map made by override_params: its items are the document's nodes, not its own. */
 static void free_merged(marie_node_t *m)
@@ -42,8 +34,8 @@ static void component_cfg_free(marie_component_cfg_t *c)
     free_merged(c->params_merged);
     free(c->name);
     free(c->exec);
-    free_strv(c->args, c->nargs);
-    free_strv(c->env, c->nenv);
+    marie_config_free_strv(c->args, c->nargs);
+    marie_config_free_strv(c->env, c->nenv);
     free(c->host);
     free(c->group);
     for (size_t i = 0; i < c->nports; i++) {
@@ -52,7 +44,7 @@ static void component_cfg_free(marie_component_cfg_t *c)
         free(c->ports[i].url);
     }
     free(c->ports);
-    free_strv(c->depends, c->ndepends);
+    marie_config_free_strv(c->depends, c->ndepends);
     marie_sched_cfg_clear(&c->sched);
 }
 
@@ -67,8 +59,8 @@ void marie_system_destroy(marie_system_t *sys)
     for (size_t i = 0; i < sys->ntransports; i++)
         free(sys->transports[i].channel);
     free(sys->transports);
-    free_strv(sys->hosts, sys->nhosts);
-    free_strv(sys->types, sys->ntypes);
+    marie_config_free_strv(sys->hosts, sys->nhosts);
+    marie_config_free_strv(sys->types, sys->ntypes);
     free(sys->file);
     free(sys->name);
     free(sys->profile);
@@ -115,401 +107,6 @@ const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, c
     return hit ? *hit : NULL;
 }
 
-/* A sequence of scalars (or one scalar) as a string vector. */
-static int read_strv(const marie_node_t *n, char ***out, size_t *count, marie_errors_t *errs)
-{
-    *out = NULL;
-    *count = 0;
-    if (!n)
-        return 0;
-    if (n->kind == MARIE_NODE_SCALAR) {
-        *out = calloc(1, sizeof **out);
-        if (!*out || !((*out)[0] = strdup(n->value)))
-            return -1;
-        *count = 1;
-        return 0;
-    }
-    if (n->kind != MARIE_NODE_SEQ) {
-        marie_node_error(errs, n, "%s: expected a list", n->key ? n->key : "value");
-        return -1;
-    }
-    *out = calloc(n->n ? n->n : 1, sizeof **out);
-    if (!*out)
-        return -1;
-    int rc = 0;
-    for (size_t i = 0; i < n->n; i++) {
-        const char *s;
-        if (marie_node_str(n->items[i], &s, errs) < 0) {
-            rc = -1;
-            continue;
-        }
-        (*out)[(*count)++] = strdup(s);
-    }
-    return rc;
-}
-
-static int read_seconds(const marie_node_t *map, const char *key, double *out, marie_errors_t *errs)
-{
-    const marie_node_t *n = marie_node_get(map, key);
-    if (!n)
-        return 0;
-    if (marie_node_double(n, out, errs) < 0)
-        return -1;
-    return marie_config_seconds_ok(n, key, *out, errs);
-}
-
-static int read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_errors_t *errs)
-{
-    if (!n)
-        return 0;
-    const char *policy = NULL;
-    const marie_node_t *pn = n;
-    if (n->kind == MARIE_NODE_MAP) {
-        static const char *const keys[] = {"policy", "backoff_min", "backoff_max", "stable_after",
-                                           "max_failures", "window", NULL};
-        int rc = marie_node_check_keys(n, keys, "restart", errs);
-        pn = marie_node_get(n, "policy");
-        rc |= read_seconds(n, "backoff_min", &r->backoff_min_s, errs);
-        rc |= read_seconds(n, "backoff_max", &r->backoff_max_s, errs);
-        rc |= read_seconds(n, "stable_after", &r->stable_s, errs);
-        rc |= read_seconds(n, "window", &r->window_s, errs);
-        const marie_node_t *mf = marie_node_get(n, "max_failures");
-        int64_t v = 0;
-        if (mf) {
-            if (marie_node_int(mf, &v, errs) < 0 || v < 0) {
-                if (v < 0)
-                    marie_node_error(errs, mf, "max_failures: must not be negative");
-                rc = -1;
-            } else {
-                r->max_failures = (int)v;
-            }
-        }
-        if (rc)
-            return -1;
-        if (!pn)
-            return 0;
-    }
-    if (marie_node_str(pn, &policy, errs) < 0)
-        return -1;
-    if (strcmp(policy, "always") == 0)
-        r->policy = MARIE_RESTART_ALWAYS;
-    else if (strcmp(policy, "on-failure") == 0)
-        r->policy = MARIE_RESTART_ON_FAILURE;
-    else if (strcmp(policy, "never") == 0)
-        r->policy = MARIE_RESTART_NEVER;
-    else {
-        marie_node_error(errs, pn, "restart policy: expected always, on-failure or never, got '%s'", policy);
-        return -1;
-    }
-    return 0;
-}
-
-static int read_ports(const marie_node_t *n, marie_component_cfg_t *c, marie_errors_t *errs)
-{
-    if (!n)
-        return 0;
-    if (n->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, n, "ports: expected a mapping of port: channel");
-        return -1;
-    }
-    c->ports = calloc(n->n ? n->n : 1, sizeof *c->ports);
-    if (!c->ports)
-        return -1;
-    int rc = 0;
-    for (size_t i = 0; i < n->n; i++) {
-        const marie_node_t *p = n->items[i];
-        const char *channel = NULL, *url = NULL;
-        if (p->kind == MARIE_NODE_MAP) {
-            static const char *const keys[] = {"channel", "url", NULL};
-            if (marie_node_check_keys(p, keys, "port", errs) < 0) {
-                rc = -1;
-                continue;
-            }
-            const marie_node_t *ch = marie_node_get(p, "channel"), *u = marie_node_get(p, "url");
-            if (!ch) {
-                marie_node_error(errs, p, "port '%s': missing 'channel'", p->key);
-                rc = -1;
-                continue;
-            }
-            if (marie_node_str(ch, &channel, errs) < 0 || (u && marie_node_str(u, &url, errs) < 0)) {
-                rc = -1;
-                continue;
-            }
-        } else if (marie_node_str(p, &channel, errs) < 0) {
-            rc = -1;
-            continue;
-        }
-        if (!channel[0]) {
-            marie_node_error(errs, p, "port '%s': empty channel name", p->key);
-            rc = -1;
-            continue;
-        }
-        marie_port_binding_t *b = &c->ports[c->nports++];
-        b->name = strdup(p->key);
-        b->channel = strdup(channel);
-        b->url = dup_or_null(url);
-        b->line = p->line;
-        b->col = p->col;
-    }
-    return rc;
-}
-
-static int read_env(const marie_node_t *n, marie_component_cfg_t *c, marie_errors_t *errs)
-{
-    if (!n)
-        return 0;
-    if (n->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, n, "env: expected a mapping of NAME: value");
-        return -1;
-    }
-    c->env = calloc(n->n ? n->n : 1, sizeof *c->env);
-    if (!c->env)
-        return -1;
-    int rc = 0;
-    for (size_t i = 0; i < n->n; i++) {
-        const char *v;
-        if (marie_node_str(n->items[i], &v, errs) < 0) {
-            rc = -1;
-            continue;
-        }
-        char *kv;
-        if (asprintf(&kv, "%s=%s", n->items[i]->key, v) < 0)
-            return -1;
-        c->env[c->nenv++] = kv;
-    }
-    return rc;
-}
-
-static const char *const component_keys[] = {
-    "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart",
-    "stop_timeout", "heartbeat_timeout", "depends", "sched", "limits", NULL,
-};
-
-/* ---- effective configuration and its hash ---- */
-
-enum { F_EXEC, F_ARGS, F_ENV, F_SHELL, F_HOST, F_GROUP, F_PORTS, F_PARAMS, F_RESTART, F_STOP_TIMEOUT,
-       F_HEARTBEAT_TIMEOUT, F_DEPENDS, F_SCHED, F_CLOCK, F_LCM_URL, F_AUTH, F_LIMITS, NFIELDS };
-static const char *const field_names[NFIELDS] = {
-    "exec", "args", "env", "shell", "host", "group", "ports", "params", "restart", "stop_timeout",
-    "heartbeat_timeout", "depends", "sched", "clock", "lcm_url", "auth", "limits",
-};
-
-static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
-
-/* A list as length-prefixed items, optionally sorted (order that does not matter). */
-static void put_list(FILE *f, char **v, size_t n, bool sorted)
-{
-    char **s = malloc((n ? n : 1) * sizeof *s);
-    if (!s)
-        return;
-    if (n)
-        memcpy(s, v, n * sizeof *s);
-    if (sorted)
-        qsort(s, n, sizeof *s, cmp_str);
-    for (size_t i = 0; i < n; i++)
-        fprintf(f, "%zu:%s,", strlen(s[i]), s[i]);
-    free(s);
-}
-
-/* Every setting that changes how the component runs, inherited ones (defaults, the system's
- * clock, bus and key) resolved, one canonical text per field: field i is the NUL-terminated
- * text at buf + off[i]. Returns the buffer (caller frees), NULL when out of memory. One
- * stream per component: opening one per field cost more than the rest of the loading. */
-static char *effective_fields(const marie_system_t *sys, const marie_component_cfg_t *c, size_t off[NFIELDS])
-{
-    char *buf = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&buf, &len);
-    if (!f)
-        return NULL;
-    const marie_restart_cfg_t *r = &c->restart;
-    for (int i = 0; i < NFIELDS; i++) {
-        fflush(f);
-        off[i] = len;
-        switch (i) {
-        case F_EXEC: fprintf(f, "%s", c->exec ? c->exec : ""); break;
-        case F_ARGS: put_list(f, c->args, c->nargs, false); break;
-        case F_ENV: put_list(f, c->env, c->nenv, true); break;
-        case F_SHELL: fprintf(f, "%d", c->shell); break;
-        case F_HOST: fprintf(f, "%s", c->host ? c->host : sys->nhosts ? sys->hosts[0] : ""); break;
-        case F_GROUP: fprintf(f, "%s", c->group ? c->group : ""); break;
-        case F_PORTS: {
-            char **v = calloc(c->nports ? c->nports : 1, sizeof *v);
-            size_t n = 0;
-            for (size_t k = 0; v && k < c->nports; k++)
-                if (asprintf(&v[n], "%s=%s@%s", c->ports[k].name, c->ports[k].channel,
-                             c->ports[k].url ? c->ports[k].url : "") >= 0)
-                    n++;
-            if (v)
-                put_list(f, v, n, true);
-            free_strv(v, n);
-            break;
-        }
-        case F_PARAMS: {
-            char *p = c->params ? marie_node_canonical(c->params) : NULL;
-            fprintf(f, "%s", p ? p : "~");
-            free(p);
-            /* The robot's shape reaches components' parameters, so it is part of how they run. */
-            char *rb = sys->robot ? marie_node_canonical(sys->robot) : NULL;
-            if (rb)
-                fprintf(f, " robot=%s", rb);
-            free(rb);
-            break;
-        }
-        case F_RESTART:
-            fprintf(f, "%d,%.17g,%.17g,%.17g,%d,%.17g", (int)r->policy, r->backoff_min_s, r->backoff_max_s,
-                    r->stable_s, r->max_failures, r->window_s);
-            break;
-        case F_STOP_TIMEOUT: fprintf(f, "%.17g", c->stop_timeout_s); break;
-        case F_HEARTBEAT_TIMEOUT: fprintf(f, "%.17g", c->heartbeat_timeout_s); break;
-        case F_DEPENDS: put_list(f, c->depends, c->ndepends, true); break;
-        case F_SCHED: {
-            char text[64 + 5 * (MARIE_SCHED_MAX_CPU + 1)];
-            fprintf(f, "%s", marie_sched_cfg_text(&c->sched, text, sizeof text));
-            break;
-        }
-        case F_CLOCK: fprintf(f, "%s", sys->clock == MARIE_CLOCK_SIM ? "sim" : "wall"); break;
-        case F_LCM_URL: {
-            fprintf(f, "%s", sys->lcm_url ? sys->lcm_url : "");
-            /* A channel moved to shared memory changes how its ports run. */
-            const marie_node_t *tn = marie_node_get(marie_doc_root(sys->doc), "transports");
-            char *tr = tn ? marie_node_canonical(tn) : NULL;
-            if (tr)
-                fprintf(f, " transports=%s", tr);
-            free(tr);
-            /* So does the table of what the ROS 2 bridge carries. */
-            char *r2 = sys->ros2 ? marie_node_canonical(sys->ros2) : NULL;
-            if (r2)
-                fprintf(f, " ros2=%s", r2);
-            free(r2);
-            break;
-        }
-        case F_AUTH: fprintf(f, "%s", sys->key_file ? sys->key_file : ""); break;
-        case F_LIMITS: fprintf(f, "%s", marie_limits_cfg_text(&c->limits, (char[128]){0}, 128)); break;
-        }
-        fputc(0, f);
-    }
-    if (fclose(f) != 0) {
-        free(buf);
-        return NULL;
-    }
-    return buf;
-}
-
-static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
-{
-    size_t off[NFIELDS];
-    char *buf = effective_fields(sys, c, off);
-    unsigned char h[crypto_hash_sha256_BYTES];
-    crypto_hash_sha256_state st;
-    crypto_hash_sha256_init(&st);
-    for (int i = 0; i < NFIELDS; i++) {
-        char head[64];
-        const char *t = buf ? buf + off[i] : "";
-        if (i == F_LIMITS && !*t)
-            continue;       /* no limits: the hash a component had before limits existed */
-        int n = snprintf(head, sizeof head, "%s:%zu:", field_names[i], strlen(t));
-        crypto_hash_sha256_update(&st, (const unsigned char *)head, (unsigned long long)n);
-        crypto_hash_sha256_update(&st, (const unsigned char *)t, strlen(t));
-    }
-    crypto_hash_sha256_final(&st, h);
-    free(buf);
-    for (size_t i = 0; i < sizeof h; i++)
-        snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
-}
-
-char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
-                                  const marie_system_t *sb, const marie_component_cfg_t *b)
-{
-    size_t oa[NFIELDS], ob[NFIELDS];
-    char *ta = effective_fields(sa, a, oa), *tb = effective_fields(sb, b, ob), *out = calloc(1, 512);
-    for (int i = 0; ta && tb && out && i < NFIELDS; i++)
-        if (strcmp(ta + oa[i], tb + ob[i]) != 0)
-            snprintf(out + strlen(out), 512 - strlen(out), "%s%s", out[0] ? "," : "", field_names[i]);
-    if (!ta || !tb) {
-        MARIE_CLEAR(out, free);
-    }
-    free(ta);
-    free(tb);
-    return out;
-}
-
-static int read_component(const marie_node_t *n, const marie_system_t *sys, const marie_restart_cfg_t *defaults,
-                          marie_component_cfg_t *c, marie_errors_t *errs)
-{
-    memset(c, 0, sizeof *c);
-    c->name = strdup(n->key);
-    c->node = n;
-    c->file = n->file;
-    c->line = n->key_line;
-    c->col = n->key_col;
-    c->restart = *defaults;
-    c->stop_timeout_s = 3.0;
-    c->heartbeat_timeout_s = 5.0;
-    if (n->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, n, "component '%s': expected a mapping", n->key);
-        return -1;
-    }
-    int rc = marie_node_check_keys(n, component_keys, "component", errs);
-    const marie_node_t *v;
-    const char *s;
-    if (!(v = marie_node_get(n, "exec"))) {
-        marie_errors_add(errs, n->file, n->key_line, n->key_col, "component '%s': missing 'exec'", n->key);
-        rc = -1;
-    } else if (marie_node_str(v, &s, errs) == 0) {
-        c->exec = strdup(s);
-    } else {
-        rc = -1;
-    }
-    if ((v = marie_node_get(n, "host")) && marie_node_str(v, &s, errs) == 0) {
-        int known = sys->nhosts == 0;
-        for (size_t i = 0; i < sys->nhosts; i++)
-            known |= strcmp(sys->hosts[i], s) == 0;
-        if (!known) {
-            marie_node_error(errs, v, "component '%s': host '%s' is not in hosts", n->key, s);
-            rc = -1;
-        }
-        c->host = strdup(s);
-    } else if (v) {
-        rc = -1;
-    }
-    if ((v = marie_node_get(n, "group")) && marie_node_str(v, &s, errs) == 0)
-        c->group = strdup(s);
-    else if (v)
-        rc = -1;
-    if ((v = marie_node_get(n, "shell")) && marie_node_bool(v, &c->shell, errs) < 0)
-        rc = -1;
-    if ((v = marie_node_get(n, "params")) && v->kind != MARIE_NODE_MAP) {
-        marie_node_error(errs, v, "params: expected a mapping");
-        rc = -1;
-    }
-    c->params = v;
-    rc |= read_strv(marie_node_get(n, "args"), &c->args, &c->nargs, errs);
-    rc |= read_strv(marie_node_get(n, "depends"), &c->depends, &c->ndepends, errs);
-    rc |= read_env(marie_node_get(n, "env"), c, errs);
-    rc |= read_ports(marie_node_get(n, "ports"), c, errs);
-    rc |= read_restart(marie_node_get(n, "restart"), &c->restart, errs);
-    rc |= read_seconds(n, "stop_timeout", &c->stop_timeout_s, errs);
-    rc |= read_seconds(n, "heartbeat_timeout", &c->heartbeat_timeout_s, errs);
-    if ((v = marie_node_get(n, "sched")) && marie_sched_cfg_read(v, &c->sched, errs) < 0)
-        rc = -1;
-    if ((v = marie_node_get(n, "limits")) && marie_limits_cfg_read(v, &c->limits, errs) < 0)
-        rc = -1;
-    /* Simulated time does not need the CPU on time, and a simulation must run where real-time
-     * scheduling is not allowed: on the simulator's clock the setting is checked, not applied. */
-    if (sys->clock == MARIE_CLOCK_SIM && marie_sched_cfg_any(&c->sched)) {
-        marie_sched_cfg_clear(&c->sched);
-        c->sched_sim = true;
-    }
-    if (c->restart.backoff_min_s > c->restart.backoff_max_s) {
-        const marie_node_t *r = marie_node_get(n, "restart");
-        marie_errors_add(errs, n->file, r ? r->line : n->key_line, r ? r->col : n->key_col,
-                         "component '%s': restart backoff_min (%g s) is above backoff_max (%g s)", n->key,
-                         c->restart.backoff_min_s, c->restart.backoff_max_s);
-        rc = -1;
-    }
-    return rc ? -1 : 0;
-}
 
 static const marie_node_t *find_profile(const marie_node_t *root, const char *profile, const marie_node_t *named_at,
                                         marie_errors_t *errs, const char *file)
@@ -606,7 +203,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
         return NULL;
     size_t errs_before = errs ? errs->n : 0;
     sys->file = strdup(path);
-    sys->profile = dup_or_null(profile);
+    sys->profile = profile ? strdup(profile) : NULL;
     if (!(sys->doc = text ? marie_doc_parse(path, text, len, errs) : marie_doc_load(path, errs)))
         goto err;
     const marie_node_t *root = marie_doc_root(sys->doc), *v;
@@ -630,12 +227,12 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
             sys->hosts = calloc(v->n ? v->n : 1, sizeof *sys->hosts);
             for (size_t i = 0; sys->hosts && i < v->n; i++)
                 sys->hosts[sys->nhosts++] = strdup(v->items[i]->key);
-        } else if (read_strv(v, &sys->hosts, &sys->nhosts, errs) < 0) {
+        } else if (marie_config_read_strv(v, &sys->hosts, &sys->nhosts, errs) < 0) {
             goto err;
         }
     }
     if (marie_transports_read(marie_node_get(root, "transports"), sys, errs) < 0 ||
-        read_strv(marie_node_get(root, "types"), &sys->types, &sys->ntypes, errs) < 0)
+        marie_config_read_strv(marie_node_get(root, "types"), &sys->types, &sys->ntypes, errs) < 0)
         goto err;
     /* The bridge reads the entries themselves (with their positions); the loader checks the shape. */
     if ((v = marie_node_get(root, "ros2")) && v->kind != MARIE_NODE_MAP) {
@@ -647,7 +244,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
     if ((v = marie_node_get(root, "defaults"))) {
         static const char *const keys[] = {"restart", NULL};
         if (marie_node_check_keys(v, keys, "defaults", errs) < 0 ||
-            read_restart(marie_node_get(v, "restart"), &defaults, errs) < 0)
+            marie_config_read_restart(marie_node_get(v, "restart"), &defaults, errs) < 0)
             goto err;
         if (defaults.backoff_min_s > defaults.backoff_max_s) {
             const marie_node_t *r = marie_node_get(v, "restart");
@@ -713,7 +310,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
         }
         level_comps[k] = pc && pc->kind == MARIE_NODE_MAP ? pc : NULL;
         max += level_comps[k] ? level_comps[k]->n : 0;
-        if (read_strv(marie_node_get(chain[nchain - k], "remove"), &removed[k], &nremoved[k], errs) < 0)
+        if (marie_config_read_strv(marie_node_get(chain[nchain - k], "remove"), &removed[k], &nremoved[k], errs) < 0)
             rc = -1;
     }
     sys->components = rc ? NULL : calloc(max ? max : 1, sizeof *sys->components);
@@ -731,7 +328,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
             }
             if (kept) {
                 level[sys->ncomponents] = k;
-                rc |= read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
+                rc |= marie_config_read_component(n, sys, &defaults, &sys->components[sys->ncomponents++], errs);
             }
         }
     /* Each profile's `params:`, base-most first, over the components present after it: one
@@ -764,7 +361,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
     }
     free(level);
     for (int k = 0; k <= nchain; k++)
-        free_strv(removed[k], nremoved[k]);
+        marie_config_free_strv(removed[k], nremoved[k]);
     if (!sys->components)
         goto err;
     if (!(sys->by_name = malloc((sys->ncomponents ? sys->ncomponents : 1) * sizeof *sys->by_name)))
@@ -782,7 +379,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
                 rc = -1;
             }
         }
-        hash_component(sys, c);
+        marie_config_hash(sys, c);
     }
     if (rc == 0 && marie_config_check(sys, errs) < 0)
         rc = -1;

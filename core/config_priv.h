@@ -1,5 +1,6 @@
-/* config_priv: the system file's checks that config.c runs once a file is read (config_check.c);
- * private to core/config*.c. */
+/* config_priv: what the parts of the system file's loader share (config.c loads the file,
+ * config_component.c reads one component, config_hash.c hashes it, config_check.c checks the
+ * result); private to core/config*.c. */
 #ifndef MARIE_CONFIG_PRIV_H
 #define MARIE_CONFIG_PRIV_H
 
@@ -15,5 +16,21 @@ int marie_config_seconds_ok(const marie_node_t *n, const char *key, double value
  * a list, every profile's `extends` chain (applied or not), dependency cycles. 0 or -1 with
  * "file:line:col: ..." in errs. */
 int marie_config_check(const marie_system_t *sys, marie_errors_t *errs);
+
+/* A sequence of scalars (or one scalar) as a string vector; NULL/0 when n is NULL. 0 or -1. */
+int marie_config_read_strv(const marie_node_t *n, char ***out, size_t *count, marie_errors_t *errs);
+void marie_config_free_strv(char **v, size_t n);
+
+/* A `restart:` entry (a policy word or a mapping) over r; nothing when n is NULL. 0 or -1. */
+int marie_config_read_restart(const marie_node_t *n, marie_restart_cfg_t *r, marie_errors_t *errs);
+
+/* The component entry n into c (zeroed first, restart from defaults); hosts checked against sys.
+ * 0 or -1 with "file:line:col: ..." in errs; c is filled as far as it could be read either way. */
+int marie_config_read_component(const marie_node_t *n, const marie_system_t *sys,
+                                const marie_restart_cfg_t *defaults, marie_component_cfg_t *c,
+                                marie_errors_t *errs);
+
+/* c->hash: the SHA-256 of c's effective configuration within sys. */
+void marie_config_hash(const marie_system_t *sys, marie_component_cfg_t *c);
 
 #endif

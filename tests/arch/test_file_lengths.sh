@@ -4,8 +4,8 @@
 # fails once the file is back under the bound (so it is taken out with the split).
 . tests/lib.sh
 MAX=800
-# core/config.c: split along its seam by its own change (the house's issue), not this one.
-EXEMPT="core/config.c"
+# None: every production file is under the bound. A file named here must be split soon.
+EXEMPT=""
 
 production_files() {
     find core map camera ca hw managers adapters sim tools scripts -type f \
