@@ -3,7 +3,8 @@
 # nothing and exited 0), an unreadable map too, and any map_server map drives: nav2's TurtleBot3
 # sandbox (a SLAM map no one here drew) for a TurtleBot-sized robot, with two boxes the map lacks
 # and the map given at 10 cm cells: every goal reached, none refused by the planner (the goals are
-# picked with its clearance), no collision, never lost.
+# picked with its clearance), no collision, never lost. Stopped by SIGTERM, it stops its five
+# programs and leaves none behind.
 . tests/lib.sh
 out=$B/test-nav-eval-map
 rm -rf "$out"; mkdir -p "$out"
@@ -32,4 +33,23 @@ check "a user's map: no goal refused by the planner" test "$(field 12)" = 0
 check "a user's map: the simulator drives in the world with the boxes, the robot has the coarse map" \
     sh -c "grep -q 'world $out/runs/tb3_sandbox/world.yaml' '$out/runs/tb3_sandbox/sim.log' &&
            grep -q 'map $out/runs/tb3_sandbox/map.yaml: .* at 0.100 m' '$out/runs/tb3_sandbox/localizer.log'"
+# SIGTERM during a run: the programs get SIGTERM, marie-eval waits for them on their pidfds and
+# exits 1 within their 5 s grace (and a margin), none of them left running.
+$BIN/marie-eval --map tests/data/nav2/tb3_sandbox.yaml --radius 0.12 --clearance 0.05 --track 0.16 --wheel 0.033 \
+    --goals 3 --speed 4 --seed 2 --out "$out/stopped" > "$out/stopped.txt" 2> "$out/stopped.log" &
+eval_pid=$!
+five_programs() { [ "$(pgrep -P $eval_pid | wc -l)" -eq 5 ]; }
+wait_for 30 five_programs
+kids=$(pgrep -P $eval_pid | tr '\n' ' ')
+sleep 2
+kill -TERM $eval_pid
+gone() { ! kill -0 $eval_pid; }
+wait_for 10 gone
+stopped=$?
+wait $eval_pid
+rc=$?
+none_left() { for k in $kids; do kill -0 "$k" 2>/dev/null && return 1; done; return 0; }
+check "SIGTERM: marie-eval had started its five programs" test "$(echo $kids | wc -w)" = 5
+check "SIGTERM: marie-eval exits within 10 s, status 1" test $stopped = 0 -a $rc = 1
+check "SIGTERM: none of its programs is left running" none_left
 finish

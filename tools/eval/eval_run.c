@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/pidfd.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -166,23 +167,59 @@ static pid_t spawn(const char *log, char *const argv[])
     return pid;
 }
 
+/* A program's pidfd is readable once it has exited: it is reaped then. */
+static void on_exit_fd(marie_loop_t *loop, int fd, short revents, void *user)
+{
+    pid_t *pid = user;
+    if (waitpid(*pid, NULL, WNOHANG) == *pid)
+        *pid = -1;
+    marie_loop_remove_fd(loop, fd);
+}
+
+typedef struct {
+    const pid_t *pids;
+    int n;
+} kids_t;
+
+static int none_left(void *user)
+{
+    const kids_t *k = user;
+    for (int i = 0; i < k->n; i++)
+        if (k->pids[i] > 0)
+            return 0;
+    return 1;
+}
+
+/* SIGTERM to every program, SIGKILL to those still there 5 s later. The wait runs a loop of its
+ * own over the programs' pidfds: the run's loop has quit when a signal ended the run, and the
+ * programs still get their 5 s. */
 static void stop_all(pid_t *pids, int n)
 {
-    for (int i = 0; i < n; i++)
-        if (pids[i] > 0)
-            kill(pids[i], SIGTERM);
-    int64_t end = marie_mono_us() + 5000000;
+    marie_loop_t *loop = marie_loop_create();
+    int fds[NPROG];
     for (int i = 0; i < n; i++) {
-        while (pids[i] > 0 && waitpid(pids[i], NULL, WNOHANG) == 0) {
-            if (marie_mono_us() > end) {
-                kill(pids[i], SIGKILL);
-                waitpid(pids[i], NULL, 0);
-                break;
-            }
-            usleep(20000);
+        fds[i] = -1;
+        if (pids[i] <= 0)
+            continue;
+        kill(pids[i], SIGTERM);
+        if (loop && (fds[i] = pidfd_open(pids[i], 0)) >= 0 &&
+            marie_loop_add_fd(loop, fds[i], POLLIN, on_exit_fd, &pids[i]) < 0) {
+            close(fds[i]);
+            fds[i] = -1;
+        }
+    }
+    if (loop)
+        marie_loop_run_until(loop, 5000, none_left, &(kids_t){ pids, n });
+    for (int i = 0; i < n; i++) {
+        if (pids[i] > 0 && waitpid(pids[i], NULL, WNOHANG) == 0) {
+            kill(pids[i], SIGKILL);
+            waitpid(pids[i], NULL, 0);
         }
         pids[i] = -1;
+        if (fds[i] >= 0)
+            close(fds[i]);
     }
+    marie_loop_destroy(loop);
 }
 
 /* The five programs' command lines, their logs in dir. */
