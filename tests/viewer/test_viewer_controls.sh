@@ -4,7 +4,8 @@
 # component with orders signed by the shared key (a real marie-am obeys them), set a goal;
 # without a key the controls are refused; foreign web origins cannot open the WebSocket; a
 # local script that is not a browser (no Origin) but has no PIN is refused, and so is a wrong
-# PIN.
+# PIN. Eight pages at most are open at once (a civetweb worker and a writer thread each): the
+# ninth is refused while the page's files are still served, and a page that closes makes room.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-viewer.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
@@ -78,6 +79,42 @@ sys.exit(0 if m and "controls are disabled" in m["text"] else 1)
 PY
 }
 check "without a key the controls are refused" refused
+pages() {
+    python3 - <<'PY'
+import sys, time, urllib.request
+sys.path.insert(0, "tests/viewer")
+from wsclient import WsClient
+def page():
+    c = WsClient("127.0.0.1", 8112, origin="http://127.0.0.1:8112")
+    return c if c.until(lambda m: m["type"] == "hello") else None
+def refused():
+    try:
+        c = WsClient("127.0.0.1", 8112, origin="http://127.0.0.1:8112")
+        return c.until(lambda m: m["type"] == "hello", 2) is None
+    except (ConnectionError, OSError):
+        return True
+open_ = [page() for _ in range(8)]
+ok = all(open_)
+print("8 pages open:", ok)
+r = refused()
+print("the ninth refused:", r)
+html = urllib.request.urlopen("http://127.0.0.1:8112/", timeout=5).status == 200
+print("the page's files still served:", html)
+open_.pop().close()
+again = None
+for _ in range(20):
+    time.sleep(0.1)
+    try:
+        again = page()
+    except (ConnectionError, OSError):
+        again = None
+    if again:
+        break
+print("a page closed, another opens:", bool(again))
+sys.exit(0 if ok and r and html and again else 1)
+PY
+}
+check "eight pages at once: the ninth refused, files still served, a closed page makes room" pages
 check "walker still running" sh -c "\"$BIN/marie\" ps | grep walker | grep -q running"
 quits() { kill "$1"; wait "$1"; rc=$?; [ $rc -eq 0 ] && ! grep -Eq 'Sanitizer|runtime error' "$2" || { tail -20 "$2"; false; }; }
 quits "$viewer1" "$T/viewer.log" && quits "$viewer2" "$T/viewer2.log"

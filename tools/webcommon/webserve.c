@@ -51,6 +51,7 @@ struct webserve {
     int port;
     pthread_mutex_t mu;         /* clients list, cmd queue, frames_out */
     client_t *clients;
+    int npages;                 /* clients on the list: at most WEBSERVE_MAX_PAGES */
     int next_client_id;
     cmd_t *cmd_head, *cmd_tail;
     int wake[2];
@@ -167,12 +168,32 @@ static void push_cmd(webserve_t *v, const client_t *cl, bool hello, const char *
 
 /* ---------------------------------------------------------------- civetweb handlers */
 
+static bool pages_full(webserve_t *v)
+{
+    pthread_mutex_lock(&v->mu);
+    bool full = v->npages >= WEBSERVE_MAX_PAGES;
+    pthread_mutex_unlock(&v->mu);
+    if (full)
+        marie_warn_ratelimited(10, "%s: %d pages open already: another one refused", v->cfg.name,
+                               WEBSERVE_MAX_PAGES);
+    return full;
+}
+
+/* A page over the bound (two opened at the same moment) is told to try again later (1013). */
+static void refuse_page(struct mg_connection *conn)
+{
+    static const char why[] = "\x03\xf5too many pages";
+    mg_websocket_write(conn, MG_WEBSOCKET_OPCODE_CONNECTION_CLOSE, why, sizeof why - 1);
+}
+
 /* Only pages served by this server may open the WebSocket: another site open in the same
- * browser must not be able to send orders to the robot. */
+ * browser must not be able to send orders to the robot. Nor may a page past the bound. */
 static int ws_connect(const struct mg_connection *conn, void *ud)
 {
     const char *origin = mg_get_header(conn, "Origin");
     const char *host = mg_get_header(conn, "Host");
+    if (pages_full(ud))
+        return 1;
     if (!origin)
         return 0;                               /* not a browser */
     if (!host || strncmp(origin, "http://", 7) != 0 || strcmp(origin + 7, host) != 0) {
@@ -187,21 +208,30 @@ static void ws_ready(struct mg_connection *conn, void *ud)
 {
     webserve_t *v = ud;
     client_t *cl = calloc(1, sizeof *cl);
-    if (!cl)
+    if (!cl) {
+        refuse_page(conn);
         return;
+    }
     cl->conn = conn;
     snprintf(cl->addr, sizeof cl->addr, "%s", mg_get_request_info(conn)->remote_addr);
     pthread_mutex_init(&cl->mu, NULL);
     pthread_cond_init(&cl->cv, NULL);
-    if (pthread_create(&cl->writer, NULL, writer_main, cl) != 0) {
+    pthread_mutex_lock(&v->mu);
+    bool room = v->npages < WEBSERVE_MAX_PAGES && pthread_create(&cl->writer, NULL, writer_main, cl) == 0;
+    if (room) {
+        cl->id = v->next_client_id++;
+        cl->next = v->clients;
+        v->clients = cl;
+        v->npages++;
+    }
+    pthread_mutex_unlock(&v->mu);
+    if (!room) {
+        pthread_mutex_destroy(&cl->mu);
+        pthread_cond_destroy(&cl->cv);
         free(cl);
+        refuse_page(conn);
         return;
     }
-    pthread_mutex_lock(&v->mu);
-    cl->id = v->next_client_id++;
-    cl->next = v->clients;
-    v->clients = cl;
-    pthread_mutex_unlock(&v->mu);
     mg_set_user_connection_data(conn, cl);
     push_cmd(v, cl, true, "", 0);
 }
@@ -228,6 +258,7 @@ static void ws_close(const struct mg_connection *conn, void *ud)
     for (client_t **pp = &v->clients; *pp; pp = &(*pp)->next)
         if (*pp == cl) {
             *pp = cl->next;
+            v->npages--;
             break;
         }
     pthread_mutex_unlock(&v->mu);
@@ -307,11 +338,12 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
         webserve_stop(v);
         return NULL;
     }
-    char listen[128], port[16];
+    char listen[128], port[16], threads[16];
     snprintf(port, sizeof port, "%d", cfg->port);
+    snprintf(threads, sizeof threads, "%d", WEBSERVE_MAX_PAGES + WEBSERVE_HTTP_THREADS);
     snprintf(listen, sizeof listen, "%s:%s", cfg->bind, port);
     const char *opts[] = {
-        "listening_ports", listen, "num_threads", "16", "websocket_timeout_ms", "3600000", "tcp_nodelay", "1", NULL,
+        "listening_ports", listen, "num_threads", threads, "websocket_timeout_ms", "3600000", "tcp_nodelay", "1", NULL,
     };
     struct mg_callbacks cb = {0};
     cb.log_message = log_message;

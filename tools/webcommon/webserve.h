@@ -1,6 +1,8 @@
 /* webserve: the web pages' server (civetweb): a few known files, one WebSocket per page with a
  * writer thread each, and the pages' commands handed to the process's loop. Shared by the
- * engineers' viewer and the touch page. */
+ * engineers' viewer and the touch page. civetweb serves a connection per worker thread and
+ * writes a WebSocket blocking, so the threads stay (docs/architecture.md); they are bounded:
+ * WEBSERVE_MAX_PAGES pages at once, the next one refused until one closes. */
 #ifndef TOOLS_WEBSERVE_H
 #define TOOLS_WEBSERVE_H
 
@@ -16,6 +18,11 @@ extern "C" {
 #endif
 
 typedef struct webserve webserve_t;
+
+/* Pages open at once (a WebSocket each, with a civetweb worker and a writer thread); the
+ * server's other WEBSERVE_HTTP_THREADS workers serve the files meanwhile. */
+#define WEBSERVE_MAX_PAGES 8
+#define WEBSERVE_HTTP_THREADS 8
 
 /* A file of the page: served at uri from the www folder; nothing else is. */
 typedef struct {
