@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "ca/sharedmap_log.h"
+#include "core/buf.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
@@ -54,17 +55,7 @@ struct sharedmap {
 
 static int grow(sharedmap_t *sm, size_t need)
 {
-    if (need <= sm->buf_cap)
-        return 0;
-    size_t cap = sm->buf_cap ? sm->buf_cap : 4096;
-    while (cap < need)
-        cap *= 2;
-    uint8_t *nb = realloc(sm->buf, cap);
-    if (!nb)
-        return -ENOMEM;
-    sm->buf = nb;
-    sm->buf_cap = cap;
-    return 0;
+    return MARIE_GROW(sm->buf, sm->buf_cap, need) < 0 ? -ENOMEM : 0;
 }
 
 static ssize_t find(const sharedmap_t *sm, const char *key, int *found)
@@ -111,14 +102,8 @@ static int mem_set(sharedmap_t *sm, const char *key, const char *type, const voi
         *e = (entry_t){ e->key, t, d, len, version, set_utime };
         return 0;
     }
-    if (sm->n == sm->cap) {
-        size_t cap = sm->cap ? sm->cap * 2 : 16;
-        entry_t *ne = realloc(sm->entries, cap * sizeof *ne);
-        if (!ne)
-            goto err;
-        sm->entries = ne;
-        sm->cap = cap;
-    }
+    if (MARIE_GROW(sm->entries, sm->cap, sm->n + 1) < 0)
+        goto err;
     char *k = strdup(key);
     if (!k)
         goto err;

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "ca/ca.h"
+#include "core/buf.h"
 #include "core/clear.h"
 #include "core/err.h"
 #include "core/loop.h"
@@ -314,14 +315,8 @@ static int call_async(sharedmap_client_t *cl, marie_sharedmap_request_t *req, in
 {
     if (!cb || timeout_ms < 0)
         return -EINVAL;
-    if (cl->npending == cl->cap_pending) {
-        size_t cap = cl->cap_pending ? cl->cap_pending * 2 : 8;
-        pending_t *np = realloc(cl->pending, cap * sizeof *np);
-        if (!np)
-            return -ENOMEM;
-        cl->pending = np;
-        cl->cap_pending = cap;
-    }
+    if (MARIE_GROW(cl->pending, cl->cap_pending, cl->npending + 1) < 0)
+        return -ENOMEM;
     if (send_request(cl, req) < 0)
         return -EIO;
     cl->pending[cl->npending++] = (pending_t){ req->request_id,

@@ -117,14 +117,8 @@ typedef struct {
 
 static int found_add(found_list_t *f, int64_t seq, size_t off, size_t size)
 {
-    if (f->n == f->cap) {
-        size_t cap = f->cap ? 2 * f->cap : 256;
-        found_t *v = realloc(f->v, cap * sizeof *v);
-        if (!v)
-            return -ENOMEM;
-        f->v = v;
-        f->cap = cap;
-    }
+    if (MARIE_GROW(f->v, f->cap, f->n + 1) < 0)
+        return -ENOMEM;
     f->v[f->n++] = (found_t){ seq, off, size };
     if (seq > f->max_seq)
         f->max_seq = seq;

@@ -1,7 +1,9 @@
 /* buf: the growable text buffer (core/buf.h). */
 #include "core/buf.h"
+#include "core/err.h"
 
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -136,4 +138,21 @@ void marie_json_fputs(FILE *f, const char *s)
     if (marie_buf_json_str(&b, s) == 0)
         fwrite(b.data, 1, b.len, f);
     marie_buf_free(&b);
+}
+
+int marie_grow(void **p, size_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap)
+        return 0;
+    size_t n = *cap ? *cap : 16;
+    while (n < need && n <= SIZE_MAX / 2)
+        n *= 2;
+    if (n < need || !elem || n > SIZE_MAX / elem)
+        return marie_fail(ENOMEM);
+    void *q = realloc(*p, n * elem);
+    if (!q)
+        return marie_fail(ENOMEM);
+    *p = q;
+    *cap = n;
+    return 0;
 }

@@ -1,6 +1,7 @@
 /* buf: the growable text buffer (the viewer's JSON, the XML bridge's documents). Always
  * NUL-terminated after its len bytes; appends past max (or out of memory) fail, leave the
- * text as it was, and set `failed`, so a writer may append a whole document and check once. */
+ * text as it was, and set `failed`, so a writer may append a whole document and check once.
+ * Also the one way an array grows (marie_grow). */
 #ifndef MARIE_BUF_H
 #define MARIE_BUF_H
 
@@ -36,6 +37,13 @@ int marie_buf_printf(marie_buf_t *b, const char *fmt, ...) __attribute__((format
 int marie_buf_json_str(marie_buf_t *b, const char *s);
 /* The same, written to f. */
 void marie_json_fputs(FILE *f, const char *s);
+
+/* Room for `need` elements of `elem` bytes in the array *p, whose room is *cap elements: the
+ * room doubles (from 16) until need fits; the elements are kept, the new room is not zeroed.
+ * 0, or -1 with errno ENOMEM and *p, *cap as they were. p is the address of the array's
+ * pointer (T **): MARIE_GROW(arr, cap, need) passes it, and the element's size, for you. */
+int marie_grow(void **p, size_t *cap, size_t need, size_t elem);
+#define MARIE_GROW(arr, cap, need) marie_grow((void **)&(arr), &(cap), (need), sizeof *(arr))
 
 #ifdef __cplusplus
 }

@@ -6,25 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/buf.h"
 #include "core/err.h"
-
-static int append(char **buf, size_t *len, size_t *cap, const char *s, size_t n)
-{
-    if (*len + n + 1 > *cap) {
-        size_t c = (*cap ? *cap : 64);
-        while (c < *len + n + 1)
-            c *= 2;
-        char *b = realloc(*buf, c);
-        if (!b)
-            return -1;
-        *buf = b;
-        *cap = c;
-    }
-    memcpy(*buf + *len, s, n);
-    *len += n;
-    (*buf)[*len] = '\0';
-    return 0;
-}
 
 /* NAME's value among "NAME=value" (or bare "NAME": set, value unknown) entries, else the
  * environment's; NULL when unset. */
@@ -65,14 +48,14 @@ static const char *lookup(const char *p, const char *end, char *const *extra, si
 
 static char *expand(const char *in, char *const *extra, size_t nextra, char *why, size_t why_len)
 {
-    char *buf = NULL;
-    size_t len = 0, cap = 0;
-    if (append(&buf, &len, &cap, "", 0) < 0)
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    if (marie_buf_put(&b, "", 0) < 0)       /* "" in, "" out */
         goto err_nomem;
     for (const char *p = in; *p;) {
         const char *d = strstr(p, "${");
         if (!d) {
-            if (append(&buf, &len, &cap, p, strlen(p)) < 0)
+            if (marie_buf_put(&b, p, strlen(p)) < 0)
                 goto err_nomem;
             break;
         }
@@ -85,16 +68,16 @@ static char *expand(const char *in, char *const *extra, size_t nextra, char *why
         const char *v = lookup(d + 2, end, extra, nextra, &vlen, why, why_len);
         if (!v)
             goto err_inval;
-        if (append(&buf, &len, &cap, p, (size_t)(d - p)) < 0 || append(&buf, &len, &cap, v, vlen) < 0)
+        if (marie_buf_put(&b, p, (size_t)(d - p)) < 0 || marie_buf_put(&b, v, vlen) < 0)
             goto err_nomem;
         p = end + 1;
     }
-    return buf;
+    return b.data;
 err_inval:
-    free(buf);
+    marie_buf_free(&b);
     return marie_fail_null(EINVAL);
 err_nomem:
-    free(buf);
+    marie_buf_free(&b);
     return marie_fail_null(ENOMEM);
 }
 
@@ -130,16 +113,16 @@ char *marie_expand_args(const char *in, char *const *args, size_t nargs, int *us
             return marie_fail_null(EINVAL);
         }
     }
-    char *buf = NULL;
-    size_t len = 0, cap = 0;
-    if (append(&buf, &len, &cap, "", 0) < 0)
+    marie_buf_t b;
+    marie_buf_init(&b, 0);
+    if (marie_buf_put(&b, "", 0) < 0)       /* "" in, "" out */
         goto err_nomem;
     for (const char *p = in; *p;) {
         const char *d = strstr(p, "${"), *end = d ? strchr(d + 2, '}') : NULL;
         int k = end ? arg_of(d + 2, end, args, nargs) : -1;
         if (!end || k < 0) {        /* not ours: kept, up to and past it */
             size_t n = end ? (size_t)(end + 1 - p) : strlen(p);
-            if (append(&buf, &len, &cap, p, n) < 0)
+            if (marie_buf_put(&b, p, n) < 0)
                 goto err_nomem;
             p += n;
             continue;
@@ -147,12 +130,12 @@ char *marie_expand_args(const char *in, char *const *args, size_t nargs, int *us
         const char *v = strchr(args[k], '=') + 1;
         if (used)
             used[k] = 1;
-        if (append(&buf, &len, &cap, p, (size_t)(d - p)) < 0 || append(&buf, &len, &cap, v, strlen(v)) < 0)
+        if (marie_buf_put(&b, p, (size_t)(d - p)) < 0 || marie_buf_put(&b, v, strlen(v)) < 0)
             goto err_nomem;
         p = end + 1;
     }
-    return buf;
+    return b.data;
 err_nomem:
-    free(buf);
+    marie_buf_free(&b);
     return marie_fail_null(ENOMEM);
 }

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/buf.h"
 #include "core/new.h"
 
 struct lcmlog_parser {
@@ -159,16 +160,8 @@ static int keep(lcmlog_parser_t *p, const uint8_t *b, size_t n)
 {
     if (n == 0)
         return 0;
-    if (p->len + n > p->cap) {
-        size_t cap = p->cap ? p->cap : 4096;
-        while (cap < p->len + n)
-            cap *= 2;
-        uint8_t *nb = realloc(p->buf, cap);
-        if (!nb)
-            return -ENOMEM;
-        p->buf = nb;
-        p->cap = cap;
-    }
+    if (MARIE_GROW(p->buf, p->cap, p->len + n) < 0)
+        return -ENOMEM;
     memcpy(p->buf + p->len, b, n);
     p->len += n;
     return 0;

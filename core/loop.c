@@ -13,6 +13,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
@@ -109,14 +110,8 @@ int marie_loop_add_fd(marie_loop_t *loop, int fd, short events, marie_fd_cb_t cb
     for (size_t i = 0; i < loop->nfds; i++)
         if (loop->fds[i].fd == fd)
             return -EEXIST;
-    if (loop->nfds == loop->capfds) {
-        size_t cap = loop->capfds ? loop->capfds * 2 : 8;
-        fd_watch_t *n = realloc(loop->fds, cap * sizeof *n);
-        if (!n)
-            return -ENOMEM;
-        loop->fds = n;
-        loop->capfds = cap;
-    }
+    if (MARIE_GROW(loop->fds, loop->capfds, loop->nfds + 1) < 0)
+        return -ENOMEM;
     loop->fds[loop->nfds++] = (fd_watch_t){fd, events, cb, user};
     loop->fds_changed = 1;
     return 0;

@@ -2,11 +2,10 @@
  * a system file entry against such a description, so managers refuse a bad file before start. */
 #include "core/spec.h"
 
-#include "core/buf.h"
-
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/buf.h"
 #include "core/expand.h"
 
 static const char *const type_names[] = {"int", "double", "bool", "string", "node"};
@@ -313,12 +312,8 @@ static int collect_uses(const marie_node_t *spec, const marie_component_cfg_t *c
         use_t u = {.port = name, .type = type, .c = c, .out = dir && strcmp(dir, "out") == 0};
         if (!name || !type || !(u.channel = bound_channel(c, name, field(p, "channel"), &u.line, &u.col)))
             continue;
-        if (*n == *cap) {
-            use_t *m = realloc(*uses, (*cap = *cap ? 2 * *cap : 64) * sizeof *m);
-            if (!m)
-                return -1;
-            *uses = m;
-        }
+        if (MARIE_GROW(*uses, *cap, *n + 1) < 0)
+            return -1;
         (*uses)[(*n)++] = u;
     }
     return 0;

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/buf.h"
 #include "core/component.h"
 #include "core/err.h"
 #include "core/log.h"
@@ -84,21 +85,6 @@ static void copy_clean(char *dst, size_t cap, const char *src)
     dst[i] = 0;
 }
 
-static int grow(void **p, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap)
-        return 0;
-    size_t n = *cap ? *cap * 2 : 16;
-    while (n < need)
-        n *= 2;
-    void *q = realloc(*p, n * size);
-    if (!q)
-        return marie_fail(ENOMEM);
-    *p = q;
-    *cap = n;
-    return 0;
-}
-
 static host_t *host_get(top_t *t, const char *name)
 {
     char clean[TOP_NAME_MAX];
@@ -106,7 +92,7 @@ static host_t *host_get(top_t *t, const char *name)
     for (size_t i = 0; i < t->nh; i++)
         if (strcmp(t->hosts[i].h.name, clean) == 0)
             return &t->hosts[i];
-    if (grow((void **)&t->hosts, &t->cap_h, t->nh + 1, sizeof(host_t)) < 0)
+    if (MARIE_GROW(t->hosts, t->cap_h, t->nh + 1) < 0)
         return NULL;
     host_t *h = &t->hosts[t->nh++];
     memset(h, 0, sizeof *h);
@@ -122,7 +108,7 @@ static entry_t *entry_get(top_t *t, const char *host, const char *name)
     for (size_t i = 0; i < t->ne; i++)
         if (strcmp(t->e[i].host, ch) == 0 && strcmp(t->e[i].name, cn) == 0)
             return &t->e[i];
-    if (grow((void **)&t->e, &t->cap_e, t->ne + 1, sizeof(entry_t)) < 0)
+    if (MARIE_GROW(t->e, t->cap_e, t->ne + 1) < 0)
         return NULL;
     entry_t *e = &t->e[t->ne++];
     memset(e, 0, sizeof *e);
@@ -204,7 +190,7 @@ static int cmp_host(const void *a, const void *b)
 
 size_t top_hosts(top_t *t, int64_t now_us, const top_host_t **hosts)
 {
-    if (grow((void **)&t->hview, &t->cap_hview, t->nh + 1, sizeof(top_host_t)) < 0) {
+    if (MARIE_GROW(t->hview, t->cap_hview, t->nh + 1) < 0) {
         *hosts = NULL;
         return 0;
     }
@@ -285,7 +271,7 @@ static int cmp_host_row(const void *pa, const void *pb)
 size_t top_rows(top_t *t, top_sort_t sort, int64_t now_us, const top_row_t **rows)
 {
     static int (*const cmp[])(const void *, const void *) = {cmp_cpu, cmp_mem, cmp_name, cmp_host_row};
-    if (grow((void **)&t->rview, &t->cap_rview, t->ne + 1, sizeof(top_row_t)) < 0) {
+    if (MARIE_GROW(t->rview, t->cap_rview, t->ne + 1) < 0) {
         *rows = NULL;
         return 0;
     }

@@ -16,6 +16,7 @@
 
 #include <lcm/lcm.h>
 
+#include "core/buf.h"
 #include "core/component.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -119,16 +120,8 @@ static const char *color_of(top_line_kind_t k)
 static int out_add(app_t *a, size_t *pos, const char *s)
 {
     size_t n = strlen(s);
-    if (*pos + n + 1 > a->cap_out) {
-        size_t cap = a->cap_out ? a->cap_out : 8192;
-        while (*pos + n + 1 > cap)
-            cap *= 2;
-        char *p = realloc(a->out, cap);
-        if (!p)
-            return -1;
-        a->out = p;
-        a->cap_out = cap;
-    }
+    if (MARIE_GROW(a->out, a->cap_out, *pos + n + 1) < 0)
+        return -1;
     memcpy(a->out + *pos, s, n + 1);
     *pos += n;
     return 0;

@@ -7,6 +7,8 @@
 #include <stdbool.h>
 #include <stdlib.h>
 
+#include "core/buf.h"
+
 typedef struct {
     double f;
     int cell;
@@ -20,14 +22,8 @@ typedef struct {
 
 static int heap_push(heap_t *h, node_t x)
 {
-    if (h->n == h->cap) {
-        size_t cap = h->cap ? 2 * h->cap : 1024;
-        node_t *v = realloc(h->v, cap * sizeof *v);
-        if (!v)
-            return -1;
-        h->v = v;
-        h->cap = cap;
-    }
+    if (MARIE_GROW(h->v, h->cap, h->n + 1) < 0)
+        return -1;
     size_t i = h->n++;
     while (i && h->v[(i - 1) / 2].f > x.f) {
         h->v[i] = h->v[(i - 1) / 2];

@@ -6,6 +6,8 @@
 #include <errno.h>
 #include <stdlib.h>
 
+#include "core/buf.h"
+
 long sim_walls_rects(const occmap_t *m, sim_rect_t **out)
 {
     size_t cap = 256, n = 0;
@@ -33,13 +35,8 @@ long sim_walls_rects(const occmap_t *m, sim_rect_t **out)
             if (k >= 0 && r[k].w == i - i0 && r[k].j + r[k].h == j) {
                 r[k].h++;               /* the same run as the row below: stack it */
             } else {
-                if (n == cap) {
-                    sim_rect_t *g = realloc(r, 2 * cap * sizeof(*r));
-                    if (!g)
-                        goto nomem;
-                    r = g;
-                    cap *= 2;
-                }
+                if (MARIE_GROW(r, cap, n + 1) < 0)
+                    goto nomem;
                 r[n] = (sim_rect_t){ i0, j, i - i0, 1 };
                 k = (long)n++;
             }

@@ -6,6 +6,7 @@
 
 #include "adapters/asr/asr.h"
 #include "adapters/asr/asr_params.h"
+#include "core/buf.h"
 #include "core/clear.h"
 #include "core/component.h"
 #include "core/file.h"
@@ -112,18 +113,16 @@ static int load_commands(asr_state_t *s, const char *path)
     s->phrase_text = marie_file_read(path, 1 << 20, &len);
     if (!s->phrase_text)
         return -1;
-    int cap = 16;
-    s->phrases = malloc(sizeof(char *) * (size_t)cap);
-    for (char *save = NULL, *line = strtok_r(s->phrase_text, "\n", &save); line && s->phrases;
+    size_t cap = 0;
+    for (char *save = NULL, *line = strtok_r(s->phrase_text, "\n", &save); line;
          line = strtok_r(NULL, "\n", &save)) {
         while (*line == ' ')
             line++;
         if (!*line || *line == '#')
             continue;
-        if (s->nphrases == cap)
-            s->phrases = realloc(s->phrases, sizeof(char *) * (size_t)(cap *= 2));
-        if (s->phrases)
-            s->phrases[s->nphrases++] = line;
+        if (MARIE_GROW(s->phrases, cap, (size_t)s->nphrases + 1) < 0)
+            return -1;
+        s->phrases[s->nphrases++] = line;
     }
     return s->phrases && s->nphrases ? 0 : (errno = EINVAL, -1);
 }

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/buf.h"
 #include "core/err.h"
 
 enum { C_UNKNOWN = 0, C_FREE = 1, C_OCC = 2 };
@@ -120,7 +121,8 @@ static int cluster(const occmap_t *m, const explore_params_t *p, const int *dist
     unsigned char *fr = calloc(n, 1);
     int *stack = malloc(sizeof(int) * n), *members = malloc(sizeof(int) * n);
     explore_frontier_t *all = NULL;
-    int nall = 0, cap = 0;
+    int nall = 0;
+    size_t cap = 0;
     if (!fr || !stack || !members)
         goto out;
     for (int y = 0; y < H; y++)
@@ -170,13 +172,8 @@ static int cluster(const occmap_t *m, const explore_params_t *p, const int *dist
         f.cells = nm;
         f.path_m = dist[goal] * m->resolution;
         f.cost = f.path_m - p->info_weight * nm * m->resolution;
-        if (nall == cap) {
-            cap = cap ? 2 * cap : 16;
-            explore_frontier_t *g = realloc(all, sizeof(*g) * (size_t)cap);
-            if (!g)
-                goto out;
-            all = g;
-        }
+        if (MARIE_GROW(all, cap, (size_t)nall + 1) < 0)
+            goto out;
         all[nall++] = f;
     }
     found = nall;

@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "core/buf.h"
 #include "hw/audio/wav.h"
 
 #define MAX_OUTPUT (32u << 20)
@@ -104,17 +105,12 @@ static void on_output(marie_loop_t *loop, int fd, short revents, void *user)
 {
     tts_child_t *t = user;
     for (;;) {
-        if (t->cap - t->len < 65536) {
-            size_t cap = t->cap ? t->cap * 2 : 262144;
-            uint8_t *nb = cap <= MAX_OUTPUT ? realloc(t->buf, cap) : NULL;
-            if (!nb) {
-                reap(t, true);
-                t->cb(NULL, 0, 0, "synthesizer output too long", t->user);
-                free_child(t);
-                return;
-            }
-            t->buf = nb;
-            t->cap = cap;
+        if (t->cap - t->len < 65536 &&
+            (t->len + 65536 > MAX_OUTPUT || MARIE_GROW(t->buf, t->cap, t->len + 65536) < 0)) {
+            reap(t, true);
+            t->cb(NULL, 0, 0, "synthesizer output too long", t->user);
+            free_child(t);
+            return;
         }
         ssize_t r = read(fd, t->buf + t->len, t->cap - t->len);
         if (r > 0) {

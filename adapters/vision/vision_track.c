@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/buf.h"
+
 struct vision_tracker {
     vision_tracker_opts_t opts;
     vision_track_t *tracks;
@@ -99,18 +101,10 @@ int vision_tracker_update(vision_tracker_t *t, int64_t now_us, const vision_dete
     vision_tracker_expire(t, now_us, cb, user);
     t->frame++;
     /* Grow first so that pointers handed out below stay valid for the whole frame. */
-    if (t->n + (size_t)(n > 0 ? n : 0) > t->cap) {
-        size_t cap = (t->n + n) * 2 + 8;
-        vision_track_t *nt = realloc(t->tracks, cap * sizeof *nt);
-        if (!nt)
-            return -ENOMEM;
-        t->tracks = nt;
-        int64_t *ns = realloc(t->seen_frame, cap * sizeof *ns);
-        if (!ns)
-            return -ENOMEM;
-        t->seen_frame = ns;
-        t->cap = cap;
-    }
+    size_t need = t->n + (size_t)(n > 0 ? n : 0), cap_tracks = t->cap, cap_seen = t->cap;
+    if (MARIE_GROW(t->tracks, cap_tracks, need) < 0 || MARIE_GROW(t->seen_frame, cap_seen, need) < 0)
+        return -ENOMEM;
+    t->cap = cap_tracks;                /* the two grow alike */
     for (int k = 0; k < n; k++) {
         const vision_detection_t *d = &dets[k];
         size_t i;

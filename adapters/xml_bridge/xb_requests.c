@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "adapters/xml_bridge/xb_server_int.h"
+#include "core/buf.h"
 #include "core/time.h"
 
 /* ---- replies ---- */
@@ -205,18 +206,11 @@ static int sub_add_client(sub_t *u, client_t *c, int stream)
             u->stream[i] = stream;
             return 0;
         }
-    if (u->nclients == u->capclients) {
-        int cap = u->capclients ? u->capclients * 2 : 4;
-        client_t **nc = realloc(u->clients, (size_t)cap * sizeof *nc);
-        if (!nc)
-            return -1;
-        u->clients = nc;
-        int *ns = realloc(u->stream, (size_t)cap * sizeof *ns);
-        if (!ns)
-            return -1;
-        u->stream = ns;
-        u->capclients = cap;
-    }
+    size_t cap_clients = u->capclients, cap_stream = u->capclients;   /* the two grow alike */
+    if (MARIE_GROW(u->clients, cap_clients, (size_t)u->nclients + 1) < 0 ||
+        MARIE_GROW(u->stream, cap_stream, (size_t)u->nclients + 1) < 0)
+        return -1;
+    u->capclients = cap_clients;
     u->clients[u->nclients] = c;
     u->stream[u->nclients] = stream;
     u->nclients++;
@@ -291,15 +285,9 @@ static void do_subscribe(client_t *c, const xb_node_t *req)
     int stream = !mode || strcmp(mode, "stream") == 0;
     csub_t *cs = client_sub(c, ch, t);
     if (!cs) {
-        if (c->nsubs == c->capsubs) {
-            int cap = c->capsubs ? c->capsubs * 2 : 4;
-            csub_t *n = realloc(c->subs, (size_t)cap * sizeof *n);
-            if (!n) {
-                xb_reply_error(c, req, "subscribe-failed", "out of memory");
-                return;
-            }
-            c->subs = n;
-            c->capsubs = cap;
+        if (MARIE_GROW(c->subs, c->capsubs, (size_t)c->nsubs + 1) < 0) {
+            xb_reply_error(c, req, "subscribe-failed", "out of memory");
+            return;
         }
         sub_t *u = sub_get(c->s, ch, t);
         if (!u || sub_add_client(u, c, stream) < 0) {

@@ -51,7 +51,8 @@ struct client {
     uint64_t dropped_told;      /* the total in the last notice written to it */
     int notices;                /* notices queued, not yet being written */
     csub_t *subs;
-    int nsubs, capsubs;
+    int nsubs;
+    size_t capsubs;
     int64_t partial_since;      /* monotonic us when an unfinished document began, or 0 */
     int64_t active_us;          /* monotonic us of its connection or its last complete document */
     char addr[48];              /* the peer's address, numeric */
@@ -68,7 +69,8 @@ struct sub {
     marie_bus_sub_t *ls;
     client_t **clients;         /* subscribed clients; csub says whether they stream */
     int *stream;
-    int nclients, capclients, nstream;
+    int nclients, nstream;
+    size_t capclients;
     char *latest;               /* newest raw payload */
     size_t latest_len;
     int64_t latest_utime;       /* wall clock at receipt */

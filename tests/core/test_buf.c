@@ -1,11 +1,15 @@
 /* test_buf: the text buffer grows, stays NUL-terminated, refuses appends past its maximum
- * without changing what it holds, and says so in `failed` until it is reset. */
+ * without changing what it holds, and says so in `failed` until it is reset. An array grown
+ * with marie_grow keeps its elements, doubles its room, and refuses a size it cannot hold
+ * without touching the array. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
 #include <cmocka.h>
+#include <errno.h>
+#include <stdlib.h>
 
 #include "core/buf.h"
 
@@ -84,12 +88,38 @@ static void strings_become_valid_json_whatever_they_hold(void **state)
     marie_buf_free(&b);
 }
 
+static void arrays_grow_by_doubling_and_keep_their_elements(void **state)
+{
+    int *a = NULL;
+    size_t n = 0, cap = 0;
+    for (int i = 0; i < 1000; i++) {
+        assert_int_equal(MARIE_GROW(a, cap, n + 1), 0);
+        a[n++] = i;
+    }
+    assert_int_equal(cap, 1024);                        /* 16, 32, ... 1024 */
+    for (int i = 0; i < 1000; i++)
+        assert_int_equal(a[i], i);
+    assert_int_equal(MARIE_GROW(a, cap, 10), 0);        /* room enough: nothing changes */
+    assert_int_equal(cap, 1024);
+    assert_int_equal(MARIE_GROW(a, cap, 5000), 0);      /* several doublings at once */
+    assert_int_equal(cap, 8192);
+    int *before = a;
+    errno = 0;
+    assert_int_equal(marie_grow((void **)&a, &cap, SIZE_MAX / 2, sizeof *a), -1);
+    assert_int_equal(errno, ENOMEM);
+    assert_ptr_equal(a, before);                        /* refused: the array as it was */
+    assert_int_equal(cap, 8192);
+    assert_int_equal(a[999], 999);
+    free(a);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(appends_grow_and_stay_terminated),
         cmocka_unit_test(past_the_maximum_nothing_changes_and_failed_is_set),
         cmocka_unit_test(strings_become_valid_json_whatever_they_hold),
+        cmocka_unit_test(arrays_grow_by_doubling_and_keep_their_elements),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -8,6 +8,7 @@
 #include <string.h>
 #include <getopt.h>
 
+#include "core/buf.h"
 #include "core/cli.h"
 #include "core/lcmlog.h"
 #include "core/typeinfo.h"
@@ -36,14 +37,8 @@ static int add(traj_pose_t **a, size_t *n, size_t *cap, const marie_pose_cov_t *
 {
     if (*n && p->utime <= (*a)[*n - 1].utime)
         return 0;               /* out of order or repeated: the first of an instant counts */
-    if (*n == *cap) {
-        size_t c = *cap ? 2 * *cap : 1024;
-        traj_pose_t *b = realloc(*a, c * sizeof *b);
-        if (!b)
-            return -1;
-        *a = b;
-        *cap = c;
-    }
+    if (MARIE_GROW(*a, *cap, *n + 1) < 0)
+        return -1;
     (*a)[(*n)++] = (traj_pose_t){ p->utime, p->pose.x, p->pose.y, p->pose.theta };
     return 0;
 }

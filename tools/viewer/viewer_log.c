@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/buf.h"
 #include "core/typeinfo.h"
 #include "core/lcmlog.h"
 #include "tools/viewer/viewer.h"
@@ -35,27 +36,15 @@ static void on_log_event(void *user, const lcmlog_event_t *ev)
     }
     log_chan_t *lc = &v->lchans[ci];
     lc->count++;
-    if (v->nrecs == v->recs_cap) {
-        size_t cap = v->recs_cap ? v->recs_cap * 2 : 4096;
-        rec_t *nr = realloc(v->recs, cap * sizeof *nr);
-        if (!nr)
-            return;
-        v->recs = nr;
-        v->recs_cap = cap;
-    }
+    if (MARIE_GROW(v->recs, v->recs_cap, v->nrecs + 1) < 0)
+        return;
     if (lc->port >= 0 && vj_type_of(ev->data, ev->data_len) != viewer_port_type[lc->port]) {
         v->bad_payloads++;          /* not the port's type: never played */
         return;
     }
     if (lc->port >= 0) {
-        if (lc->n == lc->cap) {
-            size_t cap = lc->cap ? lc->cap * 2 : 256;
-            uint32_t *ni = realloc(lc->idx, cap * sizeof *ni);
-            if (!ni)
-                return;
-            lc->idx = ni;
-            lc->cap = cap;
-        }
+        if (MARIE_GROW(lc->idx, lc->cap, lc->n + 1) < 0)
+            return;
         lc->idx[lc->n++] = (uint32_t)v->nrecs;
     }
     /* Play time never runs backwards, and a timestamp more than an hour off its neighbours
