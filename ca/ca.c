@@ -52,7 +52,8 @@ int ca_fingerprint(const void *raw, size_t len, int64_t *fp)
     return 0;
 }
 
-int ca_check_type(const marie_type_t *type, const void *raw, size_t len)
+/* 0 when `raw` carries `type` (NULL type: any payload of at least 8 bytes), else -EBADMSG. */
+static int ca_check_type(const marie_type_t *type, const void *raw, size_t len)
 {
     int64_t fp;
     if (ca_fingerprint(raw, len, &fp) < 0)

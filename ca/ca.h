@@ -56,8 +56,6 @@ int ca_bad_request(const ca_sink_t *s, const char *where, const char *what, cons
 
 /* The big-endian fingerprint that starts every LCM payload; -EBADMSG when len < 8. */
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp);
-/* 0 when `raw` carries `type` (NULL type: any payload of at least 8 bytes), else -EBADMSG. */
-int ca_check_type(const marie_type_t *type, const void *raw, size_t len);
 
 /* Whether a CA may store or forward `raw`: it carries `type` (NULL: any), and when its
  * fingerprint is a marie type, it is well formed (marie_typeinfo_check) with every float and

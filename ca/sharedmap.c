@@ -283,6 +283,11 @@ static int on_damage(sharedmap_t *sm, const uint8_t *buf, size_t len)
     return 0;
 }
 
+/* Rewrite the log holding only live entries (temporary file, fsync, rename, fsync of the
+ * directory): after a damaged or old log is loaded, and when it holds more than
+ * 2 x keys + min_records records. */
+static int sharedmap_compact(sharedmap_t *sm);
+
 static int load(sharedmap_t *sm)
 {
     int rc = lock(sm);
@@ -513,7 +518,7 @@ int sharedmap_entry(const sharedmap_t *sm, size_t i, sharedmap_value_t *out)
     return 0;
 }
 
-int sharedmap_compact(sharedmap_t *sm)
+static int sharedmap_compact(sharedmap_t *sm)
 {
     if (sm->fd < 0)
         return 0;

@@ -95,10 +95,9 @@ size_t sharedmap_size(const sharedmap_t *sm);
 int sharedmap_entry(const sharedmap_t *sm, size_t i, sharedmap_value_t *out);
 int64_t sharedmap_version(const sharedmap_t *sm);
 
-/* Rewrite the log holding only live entries (temporary file, fsync, rename, fsync of the
- * directory). Done automatically when the log holds more than 2 x keys + min_records
- * records (min_records defaults to SHAREDMAP_COMPACT_MIN). */
-int sharedmap_compact(sharedmap_t *sm);
+/* The log is rewritten holding only live entries (temporary file, fsync, rename, fsync of the
+ * directory) when it holds more than 2 x keys + min_records records (min_records defaults to
+ * SHAREDMAP_COMPACT_MIN). */
 #define SHAREDMAP_COMPACT_MIN 1024
 void sharedmap_set_compaction(sharedmap_t *sm, int64_t min_records);
 

@@ -132,9 +132,6 @@ void sharedmap_client_destroy(sharedmap_client_t *cl)
     free(cl);
 }
 
-int64_t sharedmap_client_timeouts(const sharedmap_client_t *cl) { return cl->timeouts; }
-int64_t sharedmap_client_stray_replies(const sharedmap_client_t *cl) { return cl->strays + cl->bad; }
-
 static int rc_of(int8_t status)
 {
     switch (status) {
@@ -231,31 +228,6 @@ int sharedmap_client_set(sharedmap_client_t *cl, const char *key, const marie_ty
     return rc;
 }
 
-int sharedmap_client_get_raw(sharedmap_client_t *cl, const char *key, void **data, size_t *len,
-                             char *type_name, size_t type_cap, int timeout_ms, int64_t *age_us)
-{
-    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_GET, .key = (char *)key };
-    int rc = call(cl, &req, timeout_ms);
-    if (rc < 0)
-        return rc;
-    const marie_sharedmap_reply_t *r = cl->reply;
-    if (r->size < 0)
-        return -EBADMSG;
-    if (data) {
-        *data = malloc(r->size ? (size_t)r->size : 1);
-        if (!*data)
-            return -ENOMEM;
-        memcpy(*data, r->data, (size_t)r->size);
-    }
-    if (len)
-        *len = (size_t)r->size;
-    if (type_name && type_cap)
-        snprintf(type_name, type_cap, "%s", r->type);
-    if (age_us)
-        *age_us = r->age_us;
-    return 0;
-}
-
 int sharedmap_client_get(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
                          void *msg, int timeout_ms, int64_t *age_us)
 {
@@ -324,7 +296,7 @@ static int call_async(sharedmap_client_t *cl, marie_sharedmap_request_t *req, in
     return 0;
 }
 
-int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, const char *type_name,
+static int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, const char *type_name,
                                    const void *data, size_t len, int timeout_ms,
                                    sharedmap_client_cb_t cb, void *user)
 {
@@ -352,13 +324,6 @@ int sharedmap_client_get_async(sharedmap_client_t *cl, const char *key, int time
                                sharedmap_client_cb_t cb, void *user)
 {
     marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_GET, .key = (char *)key };
-    return call_async(cl, &req, timeout_ms, cb, user);
-}
-
-int sharedmap_client_delete_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
-                                  sharedmap_client_cb_t cb, void *user)
-{
-    marie_sharedmap_request_t req = { .op = MARIE_SHAREDMAP_REQUEST_T_OP_DELETE, .key = (char *)key };
     return call_async(cl, &req, timeout_ms, cb, user);
 }
 

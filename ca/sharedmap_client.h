@@ -43,10 +43,6 @@ int sharedmap_client_set_raw(sharedmap_client_t *cl, const char *key, const char
 /* Fetch and decode into msg (free with type->decode_cleanup); -EBADMSG if it is another type. */
 int sharedmap_client_get(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
                          void *msg, int timeout_ms, int64_t *age_us);
-/* Fetch raw: *data (malloc'd, caller frees) and *len; type_name (may be NULL) receives up
- * to type_cap bytes of the type name. */
-int sharedmap_client_get_raw(sharedmap_client_t *cl, const char *key, void **data, size_t *len,
-                             char *type_name, size_t type_cap, int timeout_ms, int64_t *age_us);
 int sharedmap_client_delete(sharedmap_client_t *cl, const char *key, int timeout_ms);
 /* Keys starting with prefix ("" = all), sorted: *keys is a malloc'd array of malloc'd
  * strings; free with sharedmap_client_free_keys. */
@@ -74,19 +70,11 @@ typedef void (*sharedmap_client_cb_t)(sharedmap_client_t *cl, const sharedmap_re
 
 int sharedmap_client_set_async(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
                                const void *msg, int timeout_ms, sharedmap_client_cb_t cb, void *user);
-int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, const char *type_name,
-                                   const void *data, size_t len, int timeout_ms,
-                                   sharedmap_client_cb_t cb, void *user);
 int sharedmap_client_get_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
                                sharedmap_client_cb_t cb, void *user);
-int sharedmap_client_delete_async(sharedmap_client_t *cl, const char *key, int timeout_ms,
-                                  sharedmap_client_cb_t cb, void *user);
 /* Time out asynchronous requests whose deadline passed; returns how many are still pending. */
 int sharedmap_client_tick(sharedmap_client_t *cl);
 
-/* Requests whose reply did not come in time; replies that matched no request or were malformed. */
-int64_t sharedmap_client_timeouts(const sharedmap_client_t *cl);
-int64_t sharedmap_client_stray_replies(const sharedmap_client_t *cl);
 
 #ifdef __cplusplus
 }

@@ -76,7 +76,6 @@ int splitter_add_output(splitter_t *sp, const char *channel, double max_hz)
 }
 
 size_t splitter_noutputs(const splitter_t *sp) { return sp->n; }
-const char *splitter_output_channel(const splitter_t *sp, size_t i) { return i < sp->n ? sp->outputs[i].channel : NULL; }
 int64_t splitter_output_forwarded(const splitter_t *sp, size_t i) { return i < sp->n ? sp->outputs[i].forwarded : 0; }
 int64_t splitter_output_limited(const splitter_t *sp, size_t i) { return i < sp->n ? sp->outputs[i].limited : 0; }
 const splitter_stats_t *splitter_stats(const splitter_t *sp) { return &sp->stats; }
@@ -138,8 +137,6 @@ int splitter_attach(splitter_t *sp, lcm_t *lcm)
     sp->sink.lcm = lcm;
     return 0;
 }
-
-const char *splitter_input(const splitter_t *sp) { return sp->input; }
 
 marie_bus_sub_stats_t splitter_input_stats(const splitter_t *sp)
 {

@@ -27,7 +27,6 @@ void splitter_destroy(splitter_t *sp);          /* NULL is a no-op */
  * never exceeds max_hz and stays close to it under jitter. Returns the output's index. */
 int splitter_add_output(splitter_t *sp, const char *channel, double max_hz);
 size_t splitter_noutputs(const splitter_t *sp);
-const char *splitter_output_channel(const splitter_t *sp, size_t i);
 int64_t splitter_output_forwarded(const splitter_t *sp, size_t i);
 int64_t splitter_output_limited(const splitter_t *sp, size_t i);   /* held back by the rate limit */
 
@@ -36,7 +35,6 @@ int64_t splitter_output_limited(const splitter_t *sp, size_t i);   /* held back 
 int splitter_push(splitter_t *sp, const void *raw, size_t len, int64_t now_us);
 
 const splitter_stats_t *splitter_stats(const splitter_t *sp);
-const char *splitter_input(const splitter_t *sp);
 
 /* Subscribe to the input on `lcm` (outputs go out on it unless the sink has a publish
  * function), through the bus's transports (ca_input_open). 0 or -errno. */

@@ -102,7 +102,6 @@ int ca_switch_add_input(ca_switch_t *sw, const char *name, const char *channel)
 
 size_t ca_switch_ninputs(const ca_switch_t *sw) { return sw->n; }
 const char *ca_switch_input_name(const ca_switch_t *sw, size_t i) { return i < sw->n ? sw->inputs[i].name : NULL; }
-const char *ca_switch_input_channel(const ca_switch_t *sw, size_t i) { return i < sw->n ? sw->inputs[i].channel : NULL; }
 const char *ca_switch_selected(const ca_switch_t *sw) { return sw->selected >= 0 ? sw->inputs[sw->selected].name : ""; }
 const ca_switch_stats_t *ca_switch_stats(const ca_switch_t *sw) { return &sw->stats; }
 
@@ -150,7 +149,9 @@ int ca_switch_restore(ca_switch_t *sw, const char *initial)
     return 0;
 }
 
-int ca_switch_select(ca_switch_t *sw, const char *name)
+/* Select an input by name ("" selects none). Persisted before it takes effect.
+ * 0, -ENOENT (unknown: refused, selection unchanged), -EIO. */
+static int ca_switch_select(ca_switch_t *sw, const char *name)
 {
     long i = name && *name ? find(sw, name) : -1;
     if (name && *name && i < 0)

@@ -32,15 +32,11 @@ void ca_switch_destroy(ca_switch_t *sw);        /* NULL is a no-op */
 int ca_switch_add_input(ca_switch_t *sw, const char *name, const char *channel);
 size_t ca_switch_ninputs(const ca_switch_t *sw);
 const char *ca_switch_input_name(const ca_switch_t *sw, size_t i);
-const char *ca_switch_input_channel(const ca_switch_t *sw, size_t i);
 
 /* After the inputs are added: take the persisted selection if there is one and it names an
  * input, else `initial` (NULL or "": nothing selected). 1 when restored from the file. */
 int ca_switch_restore(ca_switch_t *sw, const char *initial);
 
-/* Select an input by name ("" selects none). Persisted before it takes effect.
- * 0, -ENOENT (unknown: refused, selection unchanged), -EIO. */
-int ca_switch_select(ca_switch_t *sw, const char *name);
 const char *ca_switch_selected(const ca_switch_t *sw);     /* "" when none */
 
 /* A payload arrived on input i: forwarded when i is selected. 1 forwarded, 0 not

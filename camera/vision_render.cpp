@@ -56,7 +56,6 @@ void vision_render_destroy(vision_render_t *r)
 
 int vision_render_ncodes(const vision_render_t *r) { return (int)r->fam->ncodes; }
 int vision_render_total_cells(const vision_render_t *r) { return r->total; }
-int vision_render_border_cells(const vision_render_t *r) { return r->border; }
 
 int vision_render_tag_cells(const vision_render_t *r, int id, uint8_t *out, int stride)
 {

@@ -53,7 +53,6 @@ void vision_render_destroy(vision_render_t *r);     /* NULL is a no-op */
 int vision_render_ncodes(const vision_render_t *r);
 /* Cells per side of a tag image (the family's total width) and of its black border. */
 int vision_render_total_cells(const vision_render_t *r);
-int vision_render_border_cells(const vision_render_t *r);
 
 /* Writes tag `id` as total x total cells, one byte each (0 black, 255 white), rows `stride`
  * apart. 0, or -EINVAL for an id outside the family. */

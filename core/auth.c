@@ -141,12 +141,13 @@ int marie_auth_keygen(const char *path)
     return rc;
 }
 
-void marie_auth_mac(const marie_auth_t *a, const void *data, size_t len, uint8_t mac[MARIE_AUTH_MAC_LEN])
+/* MAC of any bytes, and its constant-time check (0, or -EBADMSG). */
+static void marie_auth_mac(const marie_auth_t *a, const void *data, size_t len, uint8_t mac[MARIE_AUTH_MAC_LEN])
 {
     crypto_auth_hmacsha256(mac, data, len, a->key);
 }
 
-int marie_auth_verify(const marie_auth_t *a, const void *data, size_t len, const uint8_t *mac, size_t maclen)
+static int marie_auth_verify(const marie_auth_t *a, const void *data, size_t len, const uint8_t *mac, size_t maclen)
 {
     if (!mac || maclen != MARIE_AUTH_MAC_LEN)
         return -EBADMSG;

@@ -29,17 +29,9 @@ const char *marie_state_name(marie_state_t s)
     return (unsigned)s < sizeof state_names / sizeof *state_names ? state_names[s] : "unknown";
 }
 
-const char *marie_cmd_name(marie_cmd_t c)
+static const char *marie_cmd_name(marie_cmd_t c)
 {
     return c >= MARIE_CMD_INIT && c <= MARIE_CMD_QUIT ? cmd_names[c] : "unknown";
-}
-
-int marie_cmd_parse(const char *name)
-{
-    for (int i = MARIE_CMD_INIT; i <= MARIE_CMD_QUIT; i++)
-        if (strcmp(name, cmd_names[i]) == 0)
-            return i;
-    return -1;
 }
 
 /* ---- counters ---- */
@@ -86,12 +78,6 @@ void marie_component_bad_input(marie_component_t *c, const char *counter, const 
 }
 
 void marie_component_drop(marie_component_t *c, int64_t n) { c->drops += n; }
-
-void marie_component_count_io(marie_component_t *c, int64_t in, int64_t out)
-{
-    c->msgs_in += in;
-    c->msgs_out += out;
-}
 
 /* ---- heartbeat and events ---- */
 

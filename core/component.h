@@ -47,8 +47,6 @@ typedef enum {
 } marie_cmd_t;
 
 const char *marie_state_name(marie_state_t s);
-const char *marie_cmd_name(marie_cmd_t c);
-int marie_cmd_parse(const char *name);          /* -1 if unknown */
 
 typedef enum { MARIE_IN = 0, MARIE_OUT } marie_dir_t;
 typedef enum {
@@ -236,8 +234,6 @@ int64_t marie_component_counter(const marie_component_t *c, const char *counter)
 void marie_component_bad_input(marie_component_t *c, const char *counter, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 void marie_component_drop(marie_component_t *c, int64_t n);
-/* Traffic a component handles outside its declared ports (adapters on raw channels). */
-void marie_component_count_io(marie_component_t *c, int64_t in, int64_t out);
 
 /* Publish an event_t from this component (per-source sequence numbers). */
 void marie_component_event(marie_component_t *c, int severity, const char *kind, const char *fmt, ...)

@@ -81,6 +81,33 @@ static int segment_name(char *out, size_t cap, const char *channel, pid_t pid)
     return r > 0 && (size_t)r < cap ? 0 : -1;
 }
 
+/* Remove /dev/shm/marie-shm.* segments whose writer process is gone. Returns how many. */
+static int marie_shm_sweep(void)
+{
+    DIR *d = opendir(SHM_DIR);
+    if (!d)
+        return 0;
+    int removed = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (strncmp(e->d_name, SHM_PREFIX, strlen(SHM_PREFIX)) != 0)
+            continue;
+        const char *dot = strrchr(e->d_name, '.');
+        char *end;
+        long pid = dot ? strtol(dot + 1, &end, 10) : 0;
+        if (!dot || *end || pid <= 0)
+            continue;
+        if (kill((pid_t)pid, 0) < 0 && errno == ESRCH) {
+            char path[512];
+            snprintf(path, sizeof path, SHM_DIR "/%s", e->d_name);
+            if (unlink(path) == 0)
+                removed++;
+        }
+    }
+    closedir(d);
+    return removed;
+}
+
 marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_size, int nslots)
 {
     if (!channel || !*channel || slot_size == 0 || slot_size > ((size_t)1 << 30) || nslots < 2 || nslots > 1024)
@@ -372,30 +399,4 @@ int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *
     if (atomic_load_explicit(&s->seq, memory_order_relaxed) != s1)
         return -EAGAIN;
     return (int64_t)size;
-}
-
-int marie_shm_sweep(void)
-{
-    DIR *d = opendir(SHM_DIR);
-    if (!d)
-        return 0;
-    int removed = 0;
-    struct dirent *e;
-    while ((e = readdir(d))) {
-        if (strncmp(e->d_name, SHM_PREFIX, strlen(SHM_PREFIX)) != 0)
-            continue;
-        const char *dot = strrchr(e->d_name, '.');
-        char *end;
-        long pid = dot ? strtol(dot + 1, &end, 10) : 0;
-        if (!dot || *end || pid <= 0)
-            continue;
-        if (kill((pid_t)pid, 0) < 0 && errno == ESRCH) {
-            char path[512];
-            snprintf(path, sizeof path, SHM_DIR "/%s", e->d_name);
-            if (unlink(path) == 0)
-                removed++;
-        }
-    }
-    closedir(d);
-    return removed;
 }

@@ -74,8 +74,6 @@ bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment);
 int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref);
 
-/* Remove /dev/shm/marie-shm.* segments whose writer process is gone. Returns how many. */
-int marie_shm_sweep(void);
 
 #ifdef __cplusplus
 }

@@ -54,9 +54,6 @@ occmap_t *occmap_from_image(const pgm_t *img, const occmap_meta_t *meta);
  * origin_yaw is not 0. NULL with errno (EINVAL, ENOMEM). */
 occmap_t *occmap_from_cells(int width, int height, double resolution, double origin_x, double origin_y,
                             double origin_yaw, const int8_t *cells);
-/* Read and check a map.yaml (file:line:col errors in errs) and return the image path it names,
- * resolved against the yaml's folder, which the caller frees; NULL on error. */
-char *occmap_read_meta(const char *yaml_path, occmap_meta_t *meta, marie_errors_t *errs);
 /* Load a ROS map_server map: map.yaml and the PGM image it names. NULL with the reasons
  * (file:line:col) in errs. Free with occmap_destroy. */
 occmap_t *occmap_load(const char *yaml_path, marie_errors_t *errs);

@@ -195,7 +195,9 @@ static char *image_path(const marie_node_t *n, const char *yaml, marie_errors_t 
     return path;
 }
 
-char *occmap_read_meta(const char *yaml_path, occmap_meta_t *meta, marie_errors_t *errs)
+/* Read and check a map.yaml (file:line:col errors in errs) and return the image path it names,
+ * resolved against the yaml's folder, which the caller frees; NULL on error. */
+static char *occmap_read_meta(const char *yaml_path, occmap_meta_t *meta, marie_errors_t *errs)
 {
     *meta = (occmap_meta_t){ .mode = OCCMAP_TRINARY, .occupied_thresh = 0.65, .free_thresh = 0.196 };
     marie_doc_t *doc = marie_doc_load(yaml_path, errs);

@@ -61,17 +61,6 @@ static void align(const traj_pose_t *est, const traj_pose_t *ref, size_t n, doub
     out[2] = th;
 }
 
-void trajeval_apply(const double a[3], traj_pose_t *est, size_t n)
-{
-    double c = cos(a[2]), s = sin(a[2]);
-    for (size_t i = 0; i < n; i++) {
-        double x = est[i].x, y = est[i].y;
-        est[i].x = a[0] + c * x - s * y;
-        est[i].y = a[1] + s * x + c * y;
-        est[i].th = wrap(est[i].th + a[2]);
-    }
-}
-
 /* Each pose i with the first j whose reference path from i reaches dist: the motion from i to j
  * as estimated against the reference's. */
 static void relations(const traj_pose_t *est, const traj_pose_t *ref, const double *cum, size_t n, double dist,

@@ -45,8 +45,6 @@ size_t trajeval_pair(const traj_pose_t *est, size_t n_est, const traj_pose_t *re
 int trajeval_run(const traj_pose_t *est, const traj_pose_t *ref, size_t n, const double *dists, int ndist,
                  trajeval_t *out);
 
-/* The estimate moved by the alignment: est_i -> align (+) est_i, in place. */
-void trajeval_apply(const double align[3], traj_pose_t *est, size_t n);
 
 #ifdef __cplusplus
 }

@@ -395,11 +395,6 @@ int sim_audio_channels(const sim_audio_t *a)
     return a->cfg.mics.n;
 }
 
-double sim_audio_noise_rms(const sim_audio_t *a)
-{
-    return a->noise_rms;
-}
-
 /* ---- life ------------------------------------------------------------------------------ */
 
 /* The diffuse field: NDIFFUSE uncorrelated plane waves from directions spread evenly over the

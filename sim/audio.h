@@ -75,7 +75,6 @@ void sim_audio_set_mask(sim_audio_t *a, unsigned sources, bool diffuse);
 /* Where source i is at t (map frame), and whether it sounds then. */
 bool sim_audio_source_at(const sim_audio_t *a, int i, double t, double xyz[3]);
 
-double sim_audio_noise_rms(const sim_audio_t *a);
 int sim_audio_channels(const sim_audio_t *a);
 
 #ifdef __cplusplus

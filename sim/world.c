@@ -254,11 +254,6 @@ void sim_world_set_estop(sim_world_t *w, bool pressed)
     w->estop = pressed;
 }
 
-bool sim_world_estop(const sim_world_t *w)
-{
-    return w->estop;
-}
-
 typedef struct {
     sim_world_t *w;
     dGeomID robot_geom;

@@ -31,7 +31,6 @@ void sim_world_set_velocity(sim_world_t *w, double v, double omega);
 void sim_world_set_wheels(sim_world_t *w, double left, double right);   /* rad/s */
 /* Pressed e-stop: the drives brake to zero and ignore commands until released. */
 void sim_world_set_estop(sim_world_t *w, bool pressed);
-bool sim_world_estop(const sim_world_t *w);
 
 /* Carry the robot to a pose (the kidnapped robot): it lands at rest, its wheels did not turn,
  * so odometry sees nothing. -1 (EINVAL) when the chassis would not stand free there. */

@@ -10,11 +10,6 @@
 static const char *const names[ARB_COUNT] = { "estop", "avoid", "teleop", "relocalize", "face_speaker", "follow_path",
                                                "idle" };
 
-const char *arb_name(int b)
-{
-    return b >= 0 && b < ARB_COUNT ? names[b] : "?";
-}
-
 void arb_params_default(arb_params_t *p)
 {
     *p = (arb_params_t)ARB_PARAMS_DEFAULTS;
@@ -60,7 +55,7 @@ static bool fresh(double age, double limit)
     return age >= 0 && (limit <= 0 || age <= limit);
 }
 
-void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+static void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
 {
     if (in->estop_age >= 0 && in->estop_pressed)
         vote(o, true, 0, 0, "pressed");
@@ -70,7 +65,7 @@ void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
         vote(o, false, 0, 0, "released");
 }
 
-void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+static void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
 {
     if (fresh(in->teleop_age, p->teleop_timeout_s) && isfinite(in->teleop_v) && isfinite(in->teleop_omega))
         vote(o, true, clamp(in->teleop_v, -p->v_max, p->v_max), clamp(in->teleop_omega, -p->omega_max, p->omega_max),
@@ -81,7 +76,7 @@ void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
 
 /* The lost localizer turns the robot on the spot to see all around, and drives it to another
  * place when where it stands is ambiguous (adapters/localizer/seek.h). */
-void arb_reloc(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+static void arb_reloc(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
 {
     if (fresh(in->reloc_age, p->relocalize_timeout_s) && isfinite(in->reloc_v) && isfinite(in->reloc_omega))
         vote(o, true, clamp(in->reloc_v, -p->v_max, p->v_max), clamp(in->reloc_omega, -p->omega_max, p->omega_max),
@@ -90,7 +85,7 @@ void arb_reloc(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
         vote(o, false, 0, 0, "localized");
 }
 
-void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
+static void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
 {
     if (!in->ranges || in->nranges <= 0 || !fresh(in->scan_age, p->stale_scan_s)) {
         vote(o, false, 0, 0, "no fresh scan");
@@ -139,7 +134,7 @@ void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *o)
 
 /* Turns on the spot toward the last speaker once: when faced (or too late) the request is
  * over, so the path that the speaker's command brings can turn the robot away again. */
-void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
+static void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *o)
 {
     if (in->face_id <= 0 || !isfinite(in->face_heading)) {
         vote(o, false, 0, 0, "no speaker");

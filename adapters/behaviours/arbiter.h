@@ -54,14 +54,8 @@ void arb_state_reset(arb_state_t *s);
  * gets every vote. */
 int arb_decide(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t votes[ARB_COUNT]);
 
-const char *arb_name(int behaviour);
 
 /* The behaviours one by one (arb_decide calls these). */
-void arb_estop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
-void arb_avoid(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
-void arb_teleop(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
-void arb_reloc(const arb_params_t *p, const arb_inputs_t *in, arb_vote_t *out);
-void arb_face(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
 void arb_follow(const arb_params_t *p, arb_state_t *s, const arb_inputs_t *in, arb_vote_t *out);
 
 #ifdef __cplusplus

@@ -158,8 +158,3 @@ void dialogue_hear(dialogue_t *d, const char *text, int source_id, bool has_azim
     }
     d->understood += known;
 }
-
-void dialogue_arrived(dialogue_t *d)
-{
-    d->going = false;
-}

@@ -52,8 +52,6 @@ void dialogue_init(dialogue_t *d, const dialogue_place_t *places, int n, const c
 void dialogue_hear(dialogue_t *d, const char *text, int source_id, bool has_azimuth, double azimuth,
                    dialogue_reply_t *out);
 
-/* The goal was reached or given up: "where are you going" answers so. */
-void dialogue_arrived(dialogue_t *d);
 
 #ifdef __cplusplus
 }

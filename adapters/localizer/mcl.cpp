@@ -393,12 +393,6 @@ extern "C" int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, 
     return 1;
 }
 
-extern "C" void mcl_reanchor(mcl_t *f, const double odom[3])
-{
-    f->odom_[0] = odom[0]; f->odom_[1] = odom[1]; f->odom_[2] = odom[2];
-    f->have_odom_ = true;
-}
-
 static void weighted_stats(const mcl_t *f, const std::vector<Eigen::Index> *sel, double pose[3], double cov[9])
 {
     double sw = 0, mx = 0, my = 0, sc = 0, ss = 0;
@@ -494,7 +488,6 @@ extern "C" int mcl_particles(const mcl_t *f, float *xytw, int max)
 }
 
 extern "C" int64_t mcl_updates(const mcl_t *f) { return f->updates_; }
-extern "C" int64_t mcl_resamples(const mcl_t *f) { return f->resamples_; }
 extern "C" double mcl_likelihood(const mcl_t *f) { return f->lik_; }
 
 extern "C" void mcl_judge(const mcl_t *f, const double pose[3], const mcl_scan_t *scan, mcl_fit_t *fit)

@@ -41,9 +41,6 @@ void mcl_init_global(mcl_t *f);
  * Returns 1 when the filter was updated, 0 when the step was skipped. */
 int mcl_step(mcl_t *f, const double odom[3], const mcl_scan_t *scan, bool force);
 
-/* The odometry source restarted (its frame jumped): take `odom` as the new reference without
- * moving the particles. */
-void mcl_reanchor(mcl_t *f, const double odom[3]);
 
 /* Pose estimate (the mean of the best cluster) with its covariance (row-major x, y, theta). */
 void mcl_estimate(const mcl_t *f, double pose[3], double cov[9]);
@@ -55,7 +52,6 @@ int mcl_count(const mcl_t *f);
 int mcl_particles(const mcl_t *f, float *xytw, int max);
 /* Counters: sensor updates, resamplings, recovery particles injected. */
 int64_t mcl_updates(const mcl_t *f);
-int64_t mcl_resamples(const mcl_t *f);
 double mcl_likelihood(const mcl_t *f);  /* smoothed mean per-beam likelihood of the last update */
 
 /* A scan judged at one pose, beam by beam, against what the map shows from there:

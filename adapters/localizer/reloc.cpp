@@ -116,14 +116,9 @@ extern "C" void reloc_cloud_add(reloc_cloud_t *c, const double odom[3], const do
     }
 }
 
-extern "C" int reloc_cloud_size(const reloc_cloud_t *c)
+static int reloc_cloud_size(const reloc_cloud_t *c)
 {
     return (int)(c->kept.size() / 4);
-}
-
-extern "C" int reloc_cloud_coverage(const reloc_cloud_t *c)
-{
-    return 10 * __builtin_popcountll(c->sectors);
 }
 
 extern "C" void reloc_cloud_pose_now(const reloc_cloud_t *c, const double origin[3], const double odom[3], double out[3])

@@ -22,9 +22,6 @@ void reloc_cloud_reset(reloc_cloud_t *c, const double odom[3]);
  * returns (not max-range readings), one per 10 cm square of the frame (20000 squares at most).
  * A square counts once two scans have seen it: a stray reading is seen once. */
 void reloc_cloud_add(reloc_cloud_t *c, const double odom[3], const double mount[3], const mcl_scan_t *scan);
-int reloc_cloud_size(const reloc_cloud_t *c);    /* the squares that count */
-/* Degrees of the frame's directions (from its origin, in 10 degree sectors) the points cover. */
-int reloc_cloud_coverage(const reloc_cloud_t *c);
 /* The map pose of the robot now (odometry pose odom) if the frame's origin is at `origin`, and the
  * frame's origin if the robot is at map pose `now`. */
 void reloc_cloud_pose_now(const reloc_cloud_t *c, const double origin[3], const double odom[3], double out[3]);

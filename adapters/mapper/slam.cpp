@@ -584,18 +584,6 @@ extern "C" int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t 
     return added;
 }
 
-extern "C" void slam_pose(const slam_t *s, const double odom[3], double pose[3])
-{
-    Pose r = s->last_pose;
-    if (s->have_odom)
-        r = compose(s->last_pose, between(s->last_odom, { odom[0], odom[1], odom[2] }));
-    else if (s->kfs.empty())
-        r = s->pose0;
-    pose[0] = r.x;
-    pose[1] = r.y;
-    pose[2] = r.th;
-}
-
 extern "C" void slam_odometry_reset(slam_t *s)
 {
     s->have_odom = false;
@@ -633,28 +621,7 @@ extern "C" occmap_t *slam_render_blocks(const slam_t *s, int block)
     return m;
 }
 
-extern "C" int slam_keyframes(const slam_t *s, double *poses, int max)
-{
-    int n = 0;
-    for (const Keyframe &k : s->kfs) {
-        if (n >= max)
-            break;
-        poses[3 * n] = k.pose.x;
-        poses[3 * n + 1] = k.pose.y;
-        poses[3 * n + 2] = k.pose.th;
-        n++;
-    }
-    return (int)s->kfs.size() < max ? (int)s->kfs.size() : max;
-}
-
 extern "C" void slam_get_stats(const slam_t *s, slam_stats_t *st)
 {
     *st = s->st;
-}
-
-extern "C" int slam_optimize(slam_t *s)
-{
-    if (s->kfs.size() < 2)
-        return -1;
-    return optimize_graph(s);
 }

@@ -48,8 +48,6 @@ void slam_destroy(slam_t *s);
 /* Adds a scan taken at odometry pose odom; pose (may be NULL) gets the map-frame robot pose.
  * 1 when a keyframe was added (the map changed), 0 when not, -1 with errno EINVAL on a bad scan. */
 int slam_add_scan(slam_t *s, const double odom[3], const slam_scan_t *scan, double pose[3]);
-/* The map-frame pose of odometry pose odom under the current correction. */
-void slam_pose(const slam_t *s, const double odom[3], double pose[3]);
 /* Forget the odometry frame (it restarted): the next scan is matched from the last map pose. */
 void slam_odometry_reset(slam_t *s);
 /* The map cropped to the cells seen (plus a one-cell margin): 0 free .. 100 occupied,
@@ -58,11 +56,7 @@ occmap_t *slam_render(const slam_t *s);
 /* The same with the crop's edges on multiples of `block` cells of the whole grid (and the margin
  * inside): the crop, so the map's frame, then changes only when the map grows past a block. */
 occmap_t *slam_render_blocks(const slam_t *s, int block);
-/* The keyframes' map-frame poses, 3 doubles each, oldest first; the count. */
-int slam_keyframes(const slam_t *s, double *poses, int max);
 void slam_get_stats(const slam_t *s, slam_stats_t *st);
-/* Optimize the pose graph now and re-render (what a closure does); 0, or -1 if nothing to do. */
-int slam_optimize(slam_t *s);
 
 #ifdef __cplusplus
 }

@@ -58,7 +58,7 @@ void ros2_arena_free(ros2_arena_t *a)
 
 /* ---- shared pieces ---- */
 
-void ros2_stamp(int64_t utime, int32_t *sec, uint32_t *nanosec)
+static void ros2_stamp(int64_t utime, int32_t *sec, uint32_t *nanosec)
 {
     int64_t s = utime >= 0 ? utime / 1000000 : -((-utime + 999999) / 1000000);
     *sec = (int32_t)s;

@@ -55,7 +55,6 @@ const ros2_kind_t *ros2_kind_find(const char *port, const char *ros_type);
 const ros2_kind_t *ros2_kinds(size_t *n);
 
 /* Transforms and the stamps every conversion uses, for the bridge's /tf. */
-void ros2_stamp(int64_t utime, int32_t *sec, uint32_t *nanosec);
 int64_t ros2_utime(int32_t sec, uint32_t nanosec);
 double ros2_yaw(double x, double y, double z, double w);    /* NAN for a quaternion of no length */
 /* map -> odom from the robot's pose in the map and in the odometry frame at the same instant. */

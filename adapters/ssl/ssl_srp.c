@@ -253,7 +253,7 @@ int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potenti
         if (n < max)
             mask_explained(s, o->dir);
     }
-    /* The map of the first search is what ssl_srp_map() shows; the weights stay this frame's. */
+    /* The weights stay this frame's. */
     memcpy(s->weight, saved, sizeof(float) * (size_t)(s->kmax + 1));
     return n;
 }
@@ -261,9 +261,4 @@ int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potenti
 int ssl_srp_directions(const ssl_srp_t *s)
 {
     return s->ndirs;
-}
-
-const float *ssl_srp_map(const ssl_srp_t *s)
-{
-    return s->map;
 }

@@ -40,7 +40,6 @@ void ssl_srp_destroy(ssl_srp_t *s);
 int ssl_srp_frame(ssl_srp_t *s, const float complex *const *spectra, ssl_potential_t *out, int max);
 
 int ssl_srp_directions(const ssl_srp_t *s);
-const float *ssl_srp_map(const ssl_srp_t *s);       /* energy per direction of the last frame */
 
 #ifdef __cplusplus
 }

@@ -3,7 +3,8 @@
 
 #include <math.h>
 
-void vision_mount_camera_pose(const vision_mount_t *m, const double robot[3], vision_pose_t *out)
+/* The camera's optical frame in the map with the robot at robot = (x, y, theta). */
+static void vision_mount_camera_pose(const vision_mount_t *m, const double robot[3], vision_pose_t *out)
 {
     double c = cos(robot[2]), s = sin(robot[2]);
     vision_pose_camera_in_world(robot[0] + c * m->x - s * m->y, robot[1] + s * m->x + c * m->y, m->z,

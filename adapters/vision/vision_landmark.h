@@ -23,8 +23,6 @@ typedef struct {
     double bearing;     /* rad from the robot's heading, left positive */
 } vision_landmark_t;
 
-/* The camera's optical frame in the map with the robot at robot = (x, y, theta). */
-void vision_mount_camera_pose(const vision_mount_t *m, const double robot[3], vision_pose_t *out);
 /* Places a tag whose pose in the camera's optical frame is tag_in_cam. */
 void vision_landmark_place(const vision_mount_t *m, const double robot[3], const vision_pose_t *tag_in_cam,
                            vision_landmark_t *out);

@@ -17,7 +17,7 @@ struct vision_tracker {
     int64_t frame;
 };
 
-void vision_tracker_opts_default(vision_tracker_opts_t *o)
+static void vision_tracker_opts_default(vision_tracker_opts_t *o)
 {
     o->alpha = 0.3;
     o->lost_after_us = 500000;
@@ -51,7 +51,6 @@ void vision_tracker_destroy(vision_tracker_t *t)
 }
 
 size_t vision_tracker_count(const vision_tracker_t *t) { return t->n; }
-const vision_track_t *vision_tracker_get(const vision_tracker_t *t, size_t i) { return i < t->n ? &t->tracks[i] : NULL; }
 
 static void smooth(vision_track_t *tr, const vision_pose_t *p, double a)
 {

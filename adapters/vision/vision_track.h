@@ -37,7 +37,6 @@ typedef enum {
 } vision_track_event_t;
 typedef void (*vision_track_cb_t)(void *user, const vision_track_t *t, vision_track_event_t ev);
 
-void vision_tracker_opts_default(vision_tracker_opts_t *o);
 vision_tracker_t *vision_tracker_create(const vision_tracker_opts_t *o);
 void vision_tracker_destroy(vision_tracker_t *t);       /* NULL is a no-op */
 
@@ -50,7 +49,6 @@ int vision_tracker_update(vision_tracker_t *t, int64_t now_us, const vision_dete
 /* Ends tracks unseen since now_us - lost_after_us (also done by update). */
 void vision_tracker_expire(vision_tracker_t *t, int64_t now_us, vision_track_cb_t cb, void *user);
 size_t vision_tracker_count(const vision_tracker_t *t);
-const vision_track_t *vision_tracker_get(const vision_tracker_t *t, size_t i);
 
 #ifdef __cplusplus
 }

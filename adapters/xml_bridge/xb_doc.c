@@ -502,8 +502,3 @@ size_t xb_doc_parser_memory(const xb_doc_parser_t *p)
         mapped += page_round(n->pub.text_len + 1);
     return sizeof *p + p->arena_bytes + mapped + p->expat_bytes;
 }
-
-uint64_t xb_doc_parser_documents(const xb_doc_parser_t *p)
-{
-    return p->documents;
-}

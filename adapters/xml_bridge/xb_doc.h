@@ -56,7 +56,6 @@ int xb_doc_parser_feed(xb_doc_parser_t *p, const void *buf, size_t len);
 const xb_error_t *xb_doc_parser_error(const xb_doc_parser_t *p);
 /* Nonzero while part of a document has been received but not its end. */
 int xb_doc_parser_partial(const xb_doc_parser_t *p);
-uint64_t xb_doc_parser_documents(const xb_doc_parser_t *p);
 /* Bytes the parser holds now: the tree and text of the document being received, and expat's
  * own buffers. Linear in the size of that document. */
 size_t xb_doc_parser_memory(const xb_doc_parser_t *p);

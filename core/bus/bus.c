@@ -215,20 +215,6 @@ int marie_bus_set_transports(lcm_t *lcm, const marie_system_t *sys)
     return 0;
 }
 
-const char *marie_bus_provider_of(lcm_t *lcm, const char *channel)
-{
-    bus_t plain, *b = bus_of(lcm, &plain);
-    route_t *r = b ? route_named(b, channel) : NULL;
-    return r ? r->p->name : b ? b->p->name : NULL;
-}
-
-size_t marie_bus_max_size(lcm_t *lcm, const char *channel)
-{
-    bus_t plain, *b = bus_of(lcm, &plain);
-    route_t *r = b ? route_named(b, channel) : NULL;
-    return r ? r->t.max_size : 0;
-}
-
 /* ---- publishing ---- */
 
 int marie_bus_publish(lcm_t *lcm, const char *channel, const void *data, size_t len)

@@ -47,10 +47,6 @@ typedef struct {
 int marie_bus_set_transport(lcm_t *bus, const marie_bus_transport_t *t);
 /* Every entry of a system file's `transports:` (NULL: none). 0, or -1 as above. */
 int marie_bus_set_transports(lcm_t *bus, const struct marie_system *sys);
-/* The provider that carries `channel` on this bus ("udpm", "liblcm", "shm", "local"), and the
- * largest message it takes there (0: no bound but the provider's own). */
-const char *marie_bus_provider_of(lcm_t *bus, const char *channel);
-size_t marie_bus_max_size(lcm_t *bus, const char *channel);
 
 /* ---- publishing ---- */
 

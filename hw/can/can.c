@@ -250,7 +250,6 @@ void can_bus_close(can_bus_t *bus)
 
 int can_bus_fd(const can_bus_t *bus) { return bus->fd; }
 bool can_bus_is_socketcan(const can_bus_t *bus) { return bus->socketcan; }
-const char *can_bus_url(const can_bus_t *bus) { return bus->url; }
 can_bus_health_t can_bus_health(const can_bus_t *bus) { return bus->state; }
 const can_stats_t *can_bus_stats(const can_bus_t *bus) { return &bus->stats; }
 

@@ -66,7 +66,6 @@ void can_bus_close(can_bus_t *bus);         /* NULL is a no-op */
 
 int can_bus_fd(const can_bus_t *bus);       /* poll it for can_bus_events() */
 bool can_bus_is_socketcan(const can_bus_t *bus);
-const char *can_bus_url(const can_bus_t *bus);
 
 /* The emulated bus's one packet that is not a frame: a client's receive filters, so that its
  * server sends it only what they take, as SocketCAN's CAN_RAW_FILTER and CAN_RAW_ERR_FILTER do

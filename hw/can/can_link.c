@@ -217,13 +217,3 @@ int can_link_send(can_link_t *l, const struct can_frame *f, int n)
 }
 
 bool can_link_up(const can_link_t *l) { return l->bus && !l->was_busoff; }
-
-can_stats_t can_link_stats(const can_link_t *l)
-{
-    can_stats_t s = l->past;
-    if (l->bus)
-        accumulate(&s, can_bus_stats(l->bus));
-    return s;
-}
-
-can_bus_t *can_link_bus(can_link_t *l) { return l->bus; }

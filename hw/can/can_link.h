@@ -28,8 +28,6 @@ void can_link_close(can_link_t *l);         /* NULL is a no-op */
 /* Send frames in order; returns how many went out (the rest are counted as tx errors). */
 int can_link_send(can_link_t *l, const struct can_frame *f, int n);
 bool can_link_up(const can_link_t *l);      /* connected and not bus-off */
-can_stats_t can_link_stats(const can_link_t *l);   /* totals over reconnections */
-can_bus_t *can_link_bus(can_link_t *l);     /* NULL while disconnected */
 
 #ifdef __cplusplus
 }

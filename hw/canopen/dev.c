@@ -28,7 +28,7 @@ static void od_set(const co_od_entry_t *e, uint64_t v)
     }
 }
 
-const co_od_entry_t *co_dev_find(const co_dev_t *d, uint16_t index, uint8_t sub)
+static const co_od_entry_t *co_dev_find(const co_dev_t *d, uint16_t index, uint8_t sub)
 {
     for (size_t i = 0; i < d->nod; i++)
         if (d->od[i].index == index && d->od[i].sub == sub)
@@ -382,16 +382,6 @@ static int pdo_frame(co_dev_t *d, co_dev_pdo_t *p, struct can_frame *tx)
     d->stats.tpdo++;
     d->stats.tx_frames++;
     return 1;
-}
-
-int co_dev_tpdo(co_dev_t *d, int pdo, struct can_frame *tx)
-{
-    if (pdo < 1 || pdo > CO_DEV_NPDO || d->nmt != CO_NMT_OPERATIONAL)
-        return 0;
-    co_dev_pdo_t *p = &d->tpdo[pdo - 1];
-    if (p->cob & 0x80000000u)
-        return 0;
-    return pdo_frame(d, p, tx);
 }
 
 /* Write an RPDO's values into the dictionary. */

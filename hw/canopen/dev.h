@@ -127,10 +127,7 @@ int co_dev_feed(co_dev_t *d, const struct can_frame *rx, int64_t now, struct can
 int co_dev_poll(co_dev_t *d, int64_t now, struct can_frame *tx, int max);
 /* An emergency message (sent in any state but stopped). Returns 1 with *tx, 0 if not sent. */
 int co_dev_emcy(co_dev_t *d, uint16_t code, uint8_t reg, const uint8_t vendor[5], struct can_frame *tx);
-/* Send TPDO `pdo` now (e.g. an event-driven TPDO whose value changed). 1 with *tx or 0. */
-int co_dev_tpdo(co_dev_t *d, int pdo, struct can_frame *tx);
 
-const co_od_entry_t *co_dev_find(const co_dev_t *d, uint16_t index, uint8_t sub);
 
 #ifdef __cplusplus
 }

@@ -18,18 +18,6 @@ const char *co_nmt_state_name(co_nmt_state_t s)
     return "invalid";
 }
 
-const char *co_nmt_cmd_name(co_nmt_cmd_t c)
-{
-    switch (c) {
-    case CO_NMT_CMD_START: return "start";
-    case CO_NMT_CMD_STOP: return "stop";
-    case CO_NMT_CMD_ENTER_PREOP: return "enter-pre-operational";
-    case CO_NMT_CMD_RESET_NODE: return "reset-node";
-    case CO_NMT_CMD_RESET_COMM: return "reset-communication";
-    }
-    return "invalid";
-}
-
 static bool cmd_valid(uint8_t c)
 {
     return c == CO_NMT_CMD_START || c == CO_NMT_CMD_STOP || c == CO_NMT_CMD_ENTER_PREOP ||
@@ -74,7 +62,7 @@ int co_hb_encode(struct can_frame *f, uint8_t node, co_nmt_state_t s)
     return 1;
 }
 
-int co_hb_decode(const struct can_frame *f, uint8_t *node, co_nmt_state_t *s)
+static int co_hb_decode(const struct can_frame *f, uint8_t *node, co_nmt_state_t *s)
 {
     uint8_t n;
     if (co_classify(f->can_id, &n, NULL) != CO_FC_HEARTBEAT || f->len != 1)

@@ -28,7 +28,6 @@ typedef enum {
 } co_nmt_cmd_t;
 
 const char *co_nmt_state_name(co_nmt_state_t s);
-const char *co_nmt_cmd_name(co_nmt_cmd_t c);
 
 /* NMT command to `node` (0: all nodes). Returns the frame length (2). */
 int co_nmt_encode(struct can_frame *f, co_nmt_cmd_t cmd, uint8_t node);
@@ -40,7 +39,6 @@ co_nmt_state_t co_nmt_next(co_nmt_state_t cur, co_nmt_cmd_t cmd, bool *reset);
 
 /* Heartbeat / boot-up message 0x700+node with the state byte. */
 int co_hb_encode(struct can_frame *f, uint8_t node, co_nmt_state_t s);
-int co_hb_decode(const struct can_frame *f, uint8_t *node, co_nmt_state_t *s);
 
 /* Heartbeat producer: one message every period (0 disables). */
 typedef struct {

@@ -312,7 +312,6 @@ void vdrive_set_feedback(vdrive_t *v, double pos_rad, double vel_rad_s)
     update_sw(v);
 }
 
-double vdrive_position(const vdrive_t *v) { return v->pos_rad; }
 double vdrive_velocity(const vdrive_t *v) { return v->vel_rad; }
 
 static void fault(vdrive_t *v, uint16_t code, bool emcy)

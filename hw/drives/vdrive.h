@@ -46,7 +46,6 @@ int vdrive_poll(vdrive_t *v, int64_t now, struct can_frame *tx, int max);
 void vdrive_step(vdrive_t *v, double dt);
 double vdrive_command(const vdrive_t *v);            /* rad/s the motor is told to turn */
 void vdrive_set_feedback(vdrive_t *v, double pos_rad, double vel_rad_s);
-double vdrive_position(const vdrive_t *v);           /* rad */
 double vdrive_velocity(const vdrive_t *v);           /* rad/s */
 
 /* Fault injection: fault reaction, then fault; an EMCY with `code` is queued. */

@@ -45,13 +45,6 @@ struct gyro_ctl {
     int npend;
 };
 
-const char *gyro_ev_name(gyro_ev_t ev)
-{
-    static const char *n[] = { "configured", "config_failed", "emcy", "hb_timeout", "bootup", "bad_frame",
-                               "unexpected", "lost", "not_found" };
-    return (unsigned)ev < sizeof n / sizeof n[0] ? n[ev] : "?";
-}
-
 void gyro_cfg_default(gyro_cfg_t *cfg) { *cfg = (gyro_cfg_t)GYRO_CFG_DEFAULTS; }
 
 /* The TPDO's event timer, ms: one sample per period. */

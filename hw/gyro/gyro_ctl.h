@@ -29,7 +29,6 @@ typedef enum {
     GYRO_EV_BAD_FRAME, GYRO_EV_UNEXPECTED, GYRO_EV_LOST,   /* LOST: code = samples missed */
     GYRO_EV_NOT_FOUND,
 } gyro_ev_t;
-const char *gyro_ev_name(gyro_ev_t ev);
 
 typedef void (*gyro_sample_cb_t)(void *user, double rate, uint8_t status);
 typedef void (*gyro_event_cb_t)(void *user, gyro_ev_t ev, uint32_t code);

@@ -128,4 +128,3 @@ void vgyro_set_fault(vgyro_t *g, int fault)
 }
 
 co_nmt_state_t vgyro_nmt(const vgyro_t *g) { return g->dev.nmt; }
-const co_dev_stats_t *vgyro_stats(const vgyro_t *g) { return &g->dev.stats; }

@@ -29,7 +29,6 @@ void vgyro_set_rate(vgyro_t *g, double true_yaw_rate);
 /* Sensor fault: status 2 in every sample and an EMCY 0x7300; 0 clears it (EMCY 0x0000). */
 void vgyro_set_fault(vgyro_t *g, int fault);
 co_nmt_state_t vgyro_nmt(const vgyro_t *g);
-const co_dev_stats_t *vgyro_stats(const vgyro_t *g);
 
 #ifdef __cplusplus
 }

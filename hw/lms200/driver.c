@@ -62,7 +62,7 @@ struct lms200_driver {
 
 static const char *state_names[] = { "closed", "probe", "variant", "baud", "start", "stream" };
 
-const char *lms200_driver_state_name(lms200_drv_state_t s)
+static const char *lms200_driver_state_name(lms200_drv_state_t s)
 {
     return (unsigned)s < sizeof state_names / sizeof state_names[0] ? state_names[s] : "?";
 }

@@ -77,7 +77,6 @@ int64_t lms200_driver_deadline(const lms200_driver_t *d);   /* monotonic us; INT
 
 lms200_drv_state_t lms200_driver_state(const lms200_driver_t *d);
 bool lms200_driver_degraded(const lms200_driver_t *d);
-const char *lms200_driver_state_name(lms200_drv_state_t s);
 int lms200_driver_baud(const lms200_driver_t *d);      /* the line's current rate */
 /* The stream's data timeout at the line's current rate (data_timeout_ms, or longer where 3
  * scan telegram times at the line's rate are: 2.49 s for 361 values at 9600 baud). */

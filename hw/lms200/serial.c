@@ -22,7 +22,7 @@ speed_t lms200_serial_speed(int baud)
     return 0;
 }
 
-int lms200_serial_baud(speed_t speed)
+static int lms200_serial_baud(speed_t speed)
 {
     for (size_t i = 0; i < sizeof rates / sizeof rates[0]; i++)
         if (rates[i].speed == speed)

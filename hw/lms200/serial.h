@@ -22,7 +22,6 @@ int lms200_serial_set_baud(int fd, int baud);
 int lms200_serial_get_baud(int fd);
 /* Bxxx constant <-> baud; 0 / -1 when unknown. */
 speed_t lms200_serial_speed(int baud);
-int lms200_serial_baud(speed_t speed);
 /* Write as much of buf as the line takes now, without waiting: bytes written (0 when its
  * buffer is full; the caller keeps the rest and polls for POLLOUT), or -errno. */
 ssize_t lms200_serial_write(int fd, const void *buf, size_t len);

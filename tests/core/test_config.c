@@ -218,6 +218,45 @@ static void bound_params_fill_their_fields(void **state)
     marie_component_destroy(c);
 }
 
+/* The by-name reads of the types a params struct is not needed for: a bool and any YAML. */
+static void params_read_by_name(void **state)
+{
+    static const marie_port_spec_t no_ports[] = {{0}};
+    static const marie_param_spec_t specs[] = {
+        {"on", MARIE_PARAM_BOOL, "false", ""},
+        {"area", MARIE_PARAM_NODE, NULL, ""},
+        {0},
+    };
+    marie_component_def_t def = {.kind = "byname", .ports = no_ports, .params = specs};
+    char *argv[] = {"byname", "--param", "on=true", "--param", "area={x: 1, y: 2}"};
+    marie_errors_t e = {0};
+    marie_component_t *c = marie_component_create(&def, 5, argv, NULL, &e);
+    if (!c)
+        marie_errors_print(&e, stderr);
+    assert_non_null(c);
+    assert_true(marie_param_bool(c, "on"));
+    const marie_node_t *a = marie_param_node(c, "area");
+    assert_non_null(a);
+    assert_non_null(marie_node_get(a, "y"));
+    assert_string_equal(marie_node_get(a, "y")->value, "2");
+    marie_component_destroy(c);
+}
+
+static void quit_loop(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user) { marie_loop_quit(loop); }
+
+/* A program with its own main runs its component in steps: run starts it and returns once the
+ * loop is told to quit. */
+static void run_starts_and_returns_on_quit(void **state)
+{
+    marie_errors_t e = {0};
+    marie_component_t *c = create(&e, DATA "unbound.yaml", "probe", "--port=needs=WANTED");
+    assert_non_null(c);
+    assert_non_null(marie_loop_add_oneshot(marie_component_loop(c), 100000, quit_loop, NULL));
+    assert_int_equal(marie_component_run(c), 0);
+    assert_int_equal(marie_component_state(c), MARIE_STATE_RUNNING);
+    marie_component_destroy(c);
+}
+
 static void tick_nothing(marie_component_t *c, int64_t overruns) {}
 
 /* An on_init that runs again (after a failure) may ask for its timer again: it gets the same one. */
@@ -837,6 +876,8 @@ int main(void)
         cmocka_unit_test(unbound_port_is_an_error),
         cmocka_unit_test(command_line_params_override_the_file),
         cmocka_unit_test(bound_params_fill_their_fields),
+        cmocka_unit_test(params_read_by_name),
+        cmocka_unit_test(run_starts_and_returns_on_quit),
         cmocka_unit_test(every_twice_is_one_timer),
         cmocka_unit_test(duplicate_keys_and_aliases_are_refused),
         cmocka_unit_test(every_key_of_a_long_map_is_found),

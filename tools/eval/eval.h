@@ -59,7 +59,6 @@ double eval_pick_kidnap(const eval_site_t *s, const double from[2], const double
 
 /* The same seed gives the same worlds, starts and goals. */
 void eval_rng_seed(uint64_t seed);
-double eval_rng_unit(void);
 
 /* Drives o->goals goals in w; r gets the counts (free r->time_s and r->ratio). 0, or -1 when the
  * run could not start. SIGTERM or SIGINT meanwhile ends it (its programs stopped) and makes

@@ -27,7 +27,7 @@ static uint64_t rng_next(void)
     return z ^ (z >> 31);
 }
 
-double eval_rng_unit(void)
+static double eval_rng_unit(void)
 {
     return (double)(rng_next() >> 11) / 9007199254740992.0;
 }
