@@ -8,7 +8,7 @@
 #include "core/buf.h"
 #include "core/clear.h"
 #include "core/log.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/am.h"
 
 bool am_apply_busy(const am_t *am) { return am->applying != NULL; }

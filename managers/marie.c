@@ -10,7 +10,7 @@
 #include <lcm/lcm.h>
 
 #include "core/config.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
 #include "core/version.h"

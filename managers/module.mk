@@ -1,6 +1,7 @@
-# managers: marie-am (one per host), the marie command line, and the order-signing library.
-MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c managers/limits.c))
+# managers: marie-am (one per host), the marie command line, and their library (the order
+# protocol they share with the tools is proto/'s).
+MANAGERS_LIB := $(B)/lib/libmarie_managers.a $(PROTO_LIB)
+$(eval $(call marie_lib,marie_managers,managers/am_settings.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c managers/limits.c))
 
 # marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
 # am_check.c: an up order's program check in a child, am_apply.c: an up of a changed system

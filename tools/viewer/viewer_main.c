@@ -14,7 +14,7 @@
 #include "core/clear.h"
 #include "core/component.h"
 #include "core/typeinfo.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "core/auth.h"
 #include "core/lcmlog.h"
 #include "tools/webcommon/vjson.h"
