@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <lcm/lcm.h>
 
+#include "core/err.h"
 #include "core/time.h"
 #include "core/auth.h"
 #include "core/bus/bus.h"
@@ -81,15 +82,9 @@ int marie_am_send_order_as(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_
     if (!o->arg) o->arg = "";
     if (!o->system_path) o->system_path = "";
     if (!o->system_text) o->system_text = "";
-    if (marie_auth_sign_order(auth, o, mac) < 0) {
-        errno = EINVAL;
-        return -1;
-    }
+    if (marie_auth_sign_order(auth, o, mac) < 0)
+        return marie_fail(EINVAL);
     int rc = marie_bus_publish_msg(lcm, MARIE_CH_AM_ORDER, &marie_type_am_order_t, o);
     o->mac_len = 0;          /* the MAC lived on this stack */
-    if (rc < 0) {
-        errno = EIO;
-        return -1;
-    }
-    return 0;
+    return rc < 0 ? marie_fail(EIO) : 0;
 }
