@@ -225,6 +225,11 @@ void am_reap_children(am_t *am);
 typedef struct am_loading am_loading_t;
 const marie_system_t *am_loading_system(const am_loading_t *l);
 am_loading_t *am_loading_open(const char *path, const char *origin, const char *profile, marie_errors_t *errs);
+/* An up order's system text: the sender's file (sender_path) where this host reads the same
+ * text, else a copy in the state directory, opened. */
+am_loading_t *am_loading_sent(am_t *am, const char *text, const char *sender_path, const char *profile,
+                              marie_errors_t *errs);
+bool am_system_is(const am_t *am, const char *text, const char *profile);   /* the one loaded */
 int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs);
 /* Installing carries over the components of the same name and configuration hash that have
  * no timer pending (not stopping, not backing off): their process, output, log and counters go
@@ -256,9 +261,6 @@ void am_save_children(am_t *am);       /* written from the loop, once it has don
 void am_children_add(comp_t *c);       /* c was spawned: saved with the others */
 void am_flush_children(am_t *am);      /* a write still waiting, now (before READY=1, at exit) */
 void am_kill_leftovers(am_t *am);
-/* Replace path atomically (written beside it, then renamed); failures are silent. */
-void am_write_file(const char *path, const char *text, size_t len, mode_t mode);
-void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65]);
 
 /* am_balance.c: automatic placement (the decisions are balance.c's) */
 void am_balance_on_status(am_t *am, const marie_am_status_t *st);

@@ -9,7 +9,6 @@
 
 #include "core/clear.h"
 #include "core/component.h"
-#include "core/file.h"
 #include "core/bus/bus.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
@@ -94,39 +93,23 @@ static void up_checked(am_t *am, am_loading_t *l, bool ok, const char *errors, v
 
 static void order_up(am_t *am, const marie_am_order_t *o)
 {
-    char hash[65];
     const char *profile = o->arg;
-    am_sha256_hex(o->system_text, strlen(o->system_text), profile, hash);
     if (am_apply_busy(am)) {
         reply(am, o, false, 0, "busy: the last up is being applied");
         return;
     }
-    if (am_system(am) && strcmp(hash, am_system_hash(am)) == 0) {
+    if (am_system_is(am, o->system_text, profile)) {
         am_up(am);
         reply(am, o, true, 0, "ok");
         return;
     }
-    /* before the copy below: the pending check's system may be that very file */
+    /* before the copy am_loading_sent makes: the pending check's system may be that very file */
     if (am_check_busy(am)) {
         reply(am, o, false, 0, "busy: the programs of the last up are being checked");
         return;
     }
-    /* Use the sender's file where this host sees the same text (relative paths in it keep
-     * working); otherwise keep a copy in the state directory. */
-    char path[PATH_MAX];
-    size_t len = 0;
-    char *local = o->system_path[0] ? marie_file_read(o->system_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
-    const char *origin = NULL;
-    if (local && len == strlen(o->system_text) && memcmp(local, o->system_text, len) == 0) {
-        snprintf(path, sizeof path, "%s", o->system_path);
-    } else {
-        snprintf(path, sizeof path, "%s/system.yaml", am->env.state_dir);
-        am_write_file(path, o->system_text, strlen(o->system_text), 0644);
-        origin = o->system_path;
-    }
-    free(local);
     marie_errors_t errs = {0};
-    am_loading_t *l = am_loading_open(path, origin, profile, &errs);
+    am_loading_t *l = am_loading_sent(am, o->system_text, o->system_path, profile, &errs);
     if (!l) {
         char *msg = NULL;
         size_t ml = 0;

@@ -128,7 +128,8 @@ void am_comps_free(am_t *am)
     am->system.ncomps = 0;
 }
 
-void am_write_file(const char *path, const char *text, size_t len, mode_t mode)
+/* Replace path atomically (written beside it, then renamed); failures are silent. */
+static void write_file_atomic(const char *path, const char *text, size_t len, mode_t mode)
 {
     char tmp[PATH_MAX];
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
@@ -141,7 +142,7 @@ void am_write_file(const char *path, const char *text, size_t len, mode_t mode)
         rename(tmp, path);
 }
 
-void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65])
+static void sha256_hex(const void *data, size_t len, const char *extra, char out[65])
 {
     crypto_hash_sha256_state s;
     uint8_t h[32];
@@ -174,7 +175,7 @@ void am_save_up_state(am_t *am)
         if (strcmp(am->system.comps[i].host, marie_am_component_host(am->system.sys, am->system.comps[i].cfg, am->env.host)) != 0)
             fprintf(m, "move %s %s\n", am->system.comps[i].cfg->name, am->system.comps[i].host);
     fclose(m);
-    am_write_file(path, text, len, 0644);
+    write_file_atomic(path, text, len, 0644);
     free(text);
 }
 
@@ -256,6 +257,33 @@ int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *e
     return rc;
 }
 
+bool am_system_is(const am_t *am, const char *text, const char *profile)
+{
+    char hash[65];
+    sha256_hex(text, strlen(text), profile, hash);
+    return am->system.sys && strcmp(hash, am->system.hash) == 0;
+}
+
+am_loading_t *am_loading_sent(am_t *am, const char *text, const char *sender_path, const char *profile,
+                              marie_errors_t *errs)
+{
+    /* Use the sender's file where this host sees the same text (relative paths in it keep
+     * working); otherwise keep a copy in the state directory. */
+    char path[PATH_MAX];
+    size_t len = 0;
+    char *local = sender_path[0] ? marie_file_read(sender_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
+    const char *origin = NULL;
+    if (local && len == strlen(text) && memcmp(local, text, len) == 0) {
+        snprintf(path, sizeof path, "%s", sender_path);
+    } else {
+        snprintf(path, sizeof path, "%s/system.yaml", am->env.state_dir);
+        write_file_atomic(path, text, strlen(text), 0644);
+        origin = sender_path;
+    }
+    free(local);
+    return am_loading_open(path, origin, profile, errs);
+}
+
 int am_load_system(am_t *am, const char *path, const char *origin, const char *profile, marie_errors_t *errs)
 {
     am_loading_t *l = am_loading_open(path, origin, profile, errs);
@@ -288,7 +316,7 @@ void am_loading_install(am_t *am, am_loading_t *l)
     marie_system_t *old_sys = am->system.sys;
     am->system.sys = sys;
     am_balance_install(am, sys, &set.balance);
-    am_sha256_hex(l->text, l->len, l->profile ? l->profile : "", am->system.hash);
+    sha256_hex(l->text, l->len, l->profile ? l->profile : "", am->system.hash);
     free(am->system.path);
     am->system.path = realpath(l->path, NULL);
     if (!am->system.path)
