@@ -107,18 +107,6 @@ typedef struct {
     marie_timer_t *hb_check;    /* at the earliest heartbeat deadline (am_arm_heartbeat_check) */
 } am_daemon_t;
 
-/* am_output.c: components' output captured (c->out) */
-void am_output_init(comp_t *c);                /* a new component: no pipes yet */
-void am_output_set_rate(comp_t *c, double rate);   /* lines per second (burst 2x) */
-int am_output_prepare(comp_t *c);              /* before a spawn: its line buffers; -1 (ENOMEM) */
-void am_output_attach(comp_t *c, int out_fd, int err_fd);   /* the spawned child's pipes */
-void am_output_drain(comp_t *c);               /* its process exited: what the pipes still hold */
-void am_output_moved(comp_t *c);               /* c was copied to a new place: the loop follows */
-void am_comp_close_output(comp_t *c);
-void am_comp_open_log(comp_t *c);
-int64_t am_output_drops(const comp_t *c);      /* lines dropped by the rate limit */
-void am_output_free(comp_t *c);
-
 /* am_system.c: the loaded system, its components, and what survives a restart of the manager. */
 typedef struct {
     marie_system_t *sys;
@@ -215,6 +203,18 @@ void am_check_heartbeats(am_t *am);
 void am_arm_heartbeat_check(am_t *am);
 bool am_quitting(const am_t *am);              /* am.c: a signal asked it to stop and exit */
 void am_reap_children(am_t *am);
+
+/* am_output.c: components' output captured (c->out) */
+void am_output_init(comp_t *c);                /* a new component: no pipes yet */
+void am_output_set_rate(comp_t *c, double rate);   /* lines per second (burst 2x) */
+int am_output_prepare(comp_t *c);              /* before a spawn: its line buffers; -1 with errno */
+void am_output_attach(comp_t *c, int out_fd, int err_fd);   /* the spawned child's pipes */
+void am_output_drain(comp_t *c);               /* its process exited: what the pipes still hold */
+void am_output_moved(comp_t *c);               /* c was copied to a new place: the loop follows */
+void am_comp_close_output(comp_t *c);
+void am_comp_open_log(comp_t *c);
+int64_t am_output_drops(const comp_t *c);      /* lines dropped by the rate limit */
+void am_output_free(comp_t *c);
 
 /* am_system.c: the loaded system and what survives a restart of the manager */
 /* Loading a system: read and check the file (NULL with errs), check this host's programs (they
