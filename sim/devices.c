@@ -65,8 +65,7 @@ static void on_dev(marie_loop_t *loop, int fd, short revents, void *user)
     sim_devices_t *d = user;
     /* The devices run on simulated time, as the drivers on the other end of the bus do under
      * `--clock sim`; the master lockstep keeps the two within master_lag of each other. */
-    int rc = vdevices_process(d->dev, d->now);
-    if (rc == -EPIPE)
+    if (vdevices_process(d->dev, d->now) < 0 && errno == EPIPE)
         marie_warn_ratelimited(5, "device mode: the CAN bus went away");
 }
 
@@ -166,10 +165,9 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     lc.rate_hz = cfg->laser_hz;
     lc.line_time = true;
     d->laser = vlms200_create(&lc);
-    int rc = d->laser ? vlms200_open(d->laser, cfg->laser_link) : -errno;
-    if (rc < 0) {
+    if (!d->laser || vlms200_open(d->laser, cfg->laser_link) < 0) {
         snprintf(err, errlen, "cannot create the virtual LMS200 pty%s%s: %s", cfg->laser_link ? " at " : "",
-                 cfg->laser_link ? cfg->laser_link : "", strerror(-rc));
+                 cfg->laser_link ? cfg->laser_link : "", strerror(errno));
         goto fail;
     }
     vlms200_on_scan(d->laser, on_scan, d);
