@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
 #include "hw/can/canbus.h"
@@ -123,12 +124,12 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     d->laser_hold = cfg->laser_hold;
     d->last_rx = d->laser_lag.since = d->can_lag.since = -1;
     if (sim_world_params(world)->laser_beams != SCAN_BEAMS) {
-        snprintf(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
+        marie_fail_why(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
         goto fail;
     }
     if (cfg->can_serve) {
         if (strncmp(cfg->can_url, "emu:", 4) != 0) {
-            snprintf(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
+            marie_fail_why(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
             goto fail;
         }
         d->bus = can_emubus_create(loop, cfg->can_url + 4);
@@ -174,7 +175,7 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     laser_sync_fd(d);
     return d;
 fail:
-    sim_devices_destroy(d);
+    MARIE_KEEP_ERRNO(sim_devices_destroy(d));
     return NULL;
 }
 
