@@ -1,4 +1,7 @@
 /* component: the Application Adapter runtime: lifecycle, ports, params, heartbeat, events. */
+/* Errors follow the one rule (docs/core.md): a call fails with -1, a constructor with NULL, and
+ * errno says why; a refused transition also names its reason, and a pull's callback gets the
+ * errno value as its status. */
 #ifndef MARIE_COMPONENT_H
 #define MARIE_COMPONENT_H
 
