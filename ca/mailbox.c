@@ -230,9 +230,11 @@ int mailbox_handle_request(mailbox_t *mb, const marie_pull_request_t *req, int64
     }
     const slot_t *s = newest(mb, 0);
     if (s)
-        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_OK, s, now) < 0 ? marie_fail(EIO) : 0;
+        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_OK, s, now) < 0
+                   ? marie_fail(EIO) : 0;
     if (req->timeout_ms <= 0)
-        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_EMPTY, NULL, now) < 0 ? marie_fail(EIO) : 0;
+        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_EMPTY, NULL, now) < 0
+                   ? marie_fail(EIO) : 0;
     if (mb->nwaiting == MAILBOX_MAX_WAITING) {
         waiter_t *w = &mb->waiting[0];
         reply(mb, w->reply_channel, w->request_id, MARIE_PULL_REPLY_T_STATUS_EMPTY, NULL, now);

@@ -160,7 +160,8 @@ static int send_request(sharedmap_client_t *cl, marie_sharedmap_request_t *req)
         req->type = "";
     if (!req->data)
         req->data = (uint8_t *)"";  /* lcm-gen's encoder memcpy()s even 0 bytes */
-    return marie_bus_publish_msg(cl->lcm, cl->request_channel, &marie_type_sharedmap_request_t, req) < 0 ? marie_fail(EIO) : 0;
+    return marie_bus_publish_msg(cl->lcm, cl->request_channel, &marie_type_sharedmap_request_t, req) < 0
+               ? marie_fail(EIO) : 0;
 }
 
 static int have_reply(void *user) { return ((sharedmap_client_t *)user)->reply != NULL; }
