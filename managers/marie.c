@@ -158,7 +158,7 @@ int main(int argc, char **argv)
         }
         int r = marie_auth_keygen(sargv[1]);
         if (r < 0)
-            fprintf(stderr, "marie: keygen %s: %s\n", sargv[1], strerror(-r));
+            fprintf(stderr, "marie: keygen %s: %s\n", sargv[1], strerror(errno));
         rc = r < 0 ? MARIE_EXIT_FAIL : MARIE_EXIT_OK;
     } else {
         return run_external(cmd, sargc, sargv);
