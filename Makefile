@@ -123,7 +123,8 @@ include lcmtypes/module.mk
 include core/module.mk
 include map/module.mk
 include camera/module.mk
-include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk camera/module.mk,$(wildcard */module.mk */*/module.mk)))
+include proto/module.mk
+include $(sort $(filter-out core/module.mk lcmtypes/module.mk map/module.mk camera/module.mk proto/module.mk,$(wildcard */module.mk */*/module.mk)))
 
 # Parameters are declared once, in NAME.params.yaml beside the component's or library's code:
 # the struct, spec tables and defaults are generated into $(B)/gen/c/DIR/NAME_params.h

@@ -19,7 +19,7 @@
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "core/procstat.h"
 #include "core/typeinfo.h"
 #include "tests/proc.h"

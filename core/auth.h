@@ -33,7 +33,7 @@ int marie_auth_keygen(const char *path);
 
 
 /* Sign an order: the MAC covers the order encoded with mac_len = 0 (every field, seq
- * included). o->mac points into `store` afterwards. 0 or -errno. */
+ * included). o->mac points into `store` afterwards. 0, or -1 with errno. */
 int marie_auth_sign_order(const marie_auth_t *a, marie_am_order_t *o, uint8_t store[MARIE_AUTH_MAC_LEN]);
 int marie_auth_sign_command(const marie_auth_t *a, marie_lifecycle_command_t *c, uint8_t store[MARIE_AUTH_MAC_LEN]);
 

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/buf.h"
+#include "core/err.h"
 #include "core/new.h"
 
 struct lcmlog_parser {
@@ -161,7 +162,7 @@ static int keep(lcmlog_parser_t *p, const uint8_t *b, size_t n)
     if (n == 0)
         return 0;
     if (MARIE_GROW(p->buf, p->cap, p->len + n) < 0)
-        return -ENOMEM;
+        return -1;
     memcpy(p->buf + p->len, b, n);
     p->len += n;
     return 0;
@@ -202,7 +203,7 @@ long lcmlog_encode(void *out, size_t cap, int64_t eventnum, int64_t utime, const
     size_t clen = strlen(channel);
     size_t total = LCMLOG_HEADER_LEN + clen + data_len;
     if (total > cap)
-        return -ENOSPC;
+        return marie_fail(ENOSPC);
     uint8_t *b = out;
     put32(b, LCMLOG_SYNC);
     put64(b + 4, (uint64_t)eventnum);

@@ -50,7 +50,7 @@ static void on_heartbeat(am_t *am, const marie_heartbeat_t *hb)
 static void on_heartbeat_deadline(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     am_t *am = user;
-    am->hb_check = NULL;        /* a one-shot: freed by the loop */
+    am->daemon.hb_check = NULL;        /* a one-shot: freed by the loop */
     am_check_heartbeats(am);
     am_arm_heartbeat_check(am);
 }
@@ -60,23 +60,22 @@ static void on_heartbeat_deadline(marie_loop_t *loop, marie_timer_t *t, int64_t 
 void am_arm_heartbeat_check(am_t *am)
 {
     int64_t deadline = INT64_MAX;
-    for (size_t i = 0; i < am->ncomps; i++) {
-        int64_t d = marie_sv_heartbeat_deadline(&am->comps[i].sv);
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        int64_t d = marie_sv_heartbeat_deadline(&am_comp_at(am, i)->sv);
         deadline = d < deadline ? d : deadline;
     }
-    marie_loop_remove_timer(am->loop, am->hb_check);
-    am->hb_check = NULL;
+    marie_loop_remove_timer(am->env.loop, am->daemon.hb_check);
+    am->daemon.hb_check = NULL;
     if (deadline == INT64_MAX)
         return;
     int64_t delay = deadline - am_now_us() + 1000;
-    am->hb_check = marie_loop_add_wall_oneshot(am->loop, delay > 0 ? delay : 0, on_heartbeat_deadline, am);
+    am->daemon.hb_check = marie_loop_add_wall_oneshot(am->env.loop, delay > 0 ? delay : 0, on_heartbeat_deadline, am);
 }
 
 static void on_peer_status(am_t *am, const marie_am_status_t *st)
 {
-    if (am->bal)
-        am_balance_on_status(am, st);
-    if (strcmp(st->host, am->host) == 0)
+    am_balance_on_status(am, st);
+    if (strcmp(st->host, am->env.host) == 0)
         return;
     bool changed = false;
     for (int i = 0; i < st->ncomponents; i++) {
@@ -100,12 +99,12 @@ static void on_tick(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
     am_arm_heartbeat_check(am);
     am_progress_stops(am);
     am_try_start_waiting(am);
-    if (am->quitting) {
+    if (am->daemon.quitting) {
         bool alive = false;
-        for (size_t i = 0; i < am->ncomps; i++)
-            alive |= am->comps[i].sv.pid > 0;
-        if (!alive || am_now_us() > am->quit_deadline)
-            marie_loop_quit(am->loop);
+        for (size_t i = 0; i < am_ncomps(am); i++)
+            alive |= am_comp_at(am, i)->sv.pid > 0;
+        if (!alive || am_now_us() > am->daemon.quit_deadline)
+            marie_loop_quit(am->env.loop);
     }
 }
 
@@ -125,15 +124,15 @@ static void on_signalfd(marie_loop_t *loop, int fd, short revents, void *user)
     for (size_t i = 0; i < (size_t)n / sizeof si[0]; i++) {
         if (si[i].ssi_signo == SIGCHLD) {
             chld = true;
-        } else if (!am->quitting) {
+        } else if (!am->daemon.quitting) {
             marie_info("signal %d: stopping components, then exiting", (int)si[i].ssi_signo);
             marie_sd_notify("STOPPING=1");
-            am->quitting = true;
+            am->daemon.quitting = true;
             double longest = 0;
-            for (size_t k = 0; k < am->ncomps; k++)
-                if (am->comps[k].cfg->stop_timeout_s > longest)
-                    longest = am->comps[k].cfg->stop_timeout_s;
-            am->quit_deadline = am_now_us() + (int64_t)((longest + 3.0) * 1e6);
+            for (size_t k = 0; k < am_ncomps(am); k++)
+                if (am_comp_at(am, k)->cfg->stop_timeout_s > longest)
+                    longest = am_comp_at(am, k)->cfg->stop_timeout_s;
+            am->daemon.quit_deadline = am_now_us() + (int64_t)((longest + 3.0) * 1e6);
             am_stop_all(am);
             am_progress_stops(am);
         }
@@ -146,9 +145,9 @@ static void on_signalfd(marie_loop_t *loop, int fd, short revents, void *user)
  * never printed per message as the generated handlers would. */
 static void bad_message(am_t *am, const char *channel, const lcm_recv_buf_t *rbuf)
 {
-    am->bad_input++;
+    am->daemon.bad_input++;
     marie_warn_ratelimited(1, "undecodable message on %s (%u bytes); %lld bad so far", channel,
-                           rbuf->data_size, (long long)am->bad_input);
+                           rbuf->data_size, (long long)am->daemon.bad_input);
 }
 
 static void on_raw_order(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
@@ -241,44 +240,42 @@ static int parse_args(am_t *am, int argc, char **argv, const char **system, cons
         {"order-lifetime", required_argument, 0, 'L'}, {"max-skew", required_argument, 0, 'S'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0},
     };
-    am->status_hz = 2;
-    am->log_rate = 200;
-    am->log_max_bytes = 1 << 20;
-    am->log_keep = 3;
-    am->order_lifetime_us = MARIE_AUTH_LIFETIME_US;
-    am->max_skew_us = MARIE_AUTH_MAX_SKEW_US;
-    am->sigfd = -1;
+    am->env.opt.status_hz = 2;
+    am->env.opt.log_rate = 200;
+    am->env.opt.log_max_bytes = 1 << 20;
+    am->env.opt.log_keep = 3;
+    am->env.opt.order_lifetime_us = MARIE_AUTH_LIFETIME_US;
+    am->env.opt.max_skew_us = MARIE_AUTH_MAX_SKEW_US;
+    am->daemon.sigfd = -1;
     int opt;
     while ((opt = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
         switch (opt) {
-        case 'H': snprintf(am->host, sizeof am->host, "%s", optarg); break;
-        case 'd': am->state_dir = strdup(optarg); break;
+        case 'H': snprintf(am->env.host, sizeof am->env.host, "%s", optarg); break;
+        case 'd': am->env.state_dir = strdup(optarg); break;
         case 'k': *key = optarg; break;
         case 's': *system = optarg; break;
         case 'p': *profile = optarg; break;
-        case 'u': am->url = strdup(optarg); break;
-        case 'z': am->status_hz = atof(optarg); am->opt_status_hz = true; break;
-        case 'r': am->log_rate = atof(optarg); am->opt_log_rate = true; break;
-        case 'm': am->log_max_bytes = atoll(optarg); am->opt_log_max = true; break;
-        case 'K': am->log_keep = atoi(optarg); am->opt_log_keep = true; break;
-        case 'L': if (parse_window_s(optarg, &am->order_lifetime_us) < 0) return 2; break;
-        case 'S': if (parse_window_s(optarg, &am->max_skew_us) < 0) return 2; break;
+        case 'u': am->env.url = strdup(optarg); break;
+        case 'z': am->env.opt.status_hz = atof(optarg); am->env.opt.given_status_hz = true; break;
+        case 'r': am->env.opt.log_rate = atof(optarg); am->env.opt.given_log_rate = true; break;
+        case 'm': am->env.opt.log_max_bytes = atoll(optarg); am->env.opt.given_log_max = true; break;
+        case 'K': am->env.opt.log_keep = atoi(optarg); am->env.opt.given_log_keep = true; break;
+        case 'L': if (parse_window_s(optarg, &am->env.opt.order_lifetime_us) < 0) return 2; break;
+        case 'S': if (parse_window_s(optarg, &am->env.opt.max_skew_us) < 0) return 2; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
-    if (optind != argc || am->status_hz <= 0) {
+    if (optind != argc || am->env.opt.status_hz <= 0) {
         usage(stderr);
         return 2;
     }
-    am->log_burst = am->log_rate * 2;
-    if (!am->host[0])
-        gethostname(am->host, sizeof am->host - 1);
-    snprintf(am->bal_sender, sizeof am->bal_sender, "balance@%.128s", am->host);
-    if (!am->state_dir)
-        am->state_dir = marie_state_dir();
-    if (!am->url)
-        am->url = strdup(marie_default_url());
+    if (!am->env.host[0])
+        gethostname(am->env.host, sizeof am->env.host - 1);
+    if (!am->env.state_dir)
+        am->env.state_dir = marie_state_dir();
+    if (!am->env.url)
+        am->env.url = strdup(marie_default_url());
     return -1;
 }
 
@@ -291,7 +288,7 @@ int main(int argc, char **argv)
     if (done >= 0)
         return done;
     char log_name[160];
-    snprintf(log_name, sizeof log_name, "marie-am@%.128s", am->host);
+    snprintf(log_name, sizeof log_name, "marie-am@%.128s", am->env.host);
     marie_log_set_name(log_name);
     {
         char self[PATH_MAX];
@@ -301,31 +298,31 @@ int main(int argc, char **argv)
             char *slash = strrchr(self, '/');
             if (slash)
                 *slash = 0;
-            snprintf(am->self_dir, sizeof am->self_dir, "%s", self);
+            snprintf(am->env.self_dir, sizeof am->env.self_dir, "%s", self);
         }
     }
     if (sodium_init() < 0) {
         marie_error("libsodium failed to initialise");
         return 1;
     }
-    if (!am->state_dir) {
+    if (!am->env.state_dir) {
         marie_error("no state directory (%s): give --state-dir or set MARIE_STATE_DIR", strerror(errno));
         return 1;
     }
-    if (mkdir(am->state_dir, 0755) < 0 && errno != EEXIST) {
-        marie_error("state directory %s: %s", am->state_dir, strerror(errno));
+    if (mkdir(am->env.state_dir, 0755) < 0 && errno != EEXIST) {
+        marie_error("state directory %s: %s", am->env.state_dir, strerror(errno));
         return 1;
     }
     int rc = 1;
     /* Validate a given system before anything starts. */
     marie_errors_t errs = {0};
-    am->start_mono = am_now_us();
-    am->loop = marie_loop_create();
-    am->spawner = marie_spawner_create();
-    if (!am->loop || !am->spawner) {
-        marie_error("%s: %s", am->loop ? "spawner" : "loop", strerror(errno));
-        marie_loop_destroy(am->loop);
-        marie_spawner_destroy(am->spawner);
+    am_status_init(am);
+    am->env.loop = marie_loop_create();
+    am->env.spawner = marie_spawner_create();
+    if (!am->env.loop || !am->env.spawner) {
+        marie_error("%s: %s", am->env.loop ? "spawner" : "loop", strerror(errno));
+        marie_loop_destroy(am->env.loop);
+        marie_spawner_destroy(am->env.spawner);
         return 1;
     }
     if (system) {
@@ -336,14 +333,14 @@ int main(int argc, char **argv)
             goto out_loop;
         }
     }
-    if (!key && am->sys && am->sys->key_file)
-        key = am->sys->key_file;
+    if (!key && am_system(am) && am_system(am)->key_file)
+        key = am_system(am)->key_file;
     const char *key_path = marie_am_key_path(key);
     char err[512];
-    am->auth = marie_auth_load(key_path, err, sizeof err);
-    if (am->auth)
-        am->key_path = strdup(key_path);  /* components verify their lifecycle orders with it */
-    if (!am->auth) {
+    am->env.auth = marie_auth_load(key_path, err, sizeof err);
+    if (am->env.auth)
+        am->env.key_path = strdup(key_path);  /* components verify their lifecycle orders with it */
+    if (!am->env.auth) {
         /* A key that was asked for, or one that exists but is unusable, is a configuration
          * error; only the default file not being there yet (before `marie keygen`) is not. */
         if (key || errno != ENOENT) {
@@ -354,26 +351,19 @@ int main(int argc, char **argv)
         }
         marie_warn("%s: every order will be refused", err);
     }
-    char seqpath[PATH_MAX];
-    snprintf(seqpath, sizeof seqpath, "%s/order-seq", am->state_dir);
-    am->replay = marie_replay_create_window(seqpath, am->order_lifetime_us, am->max_skew_us);
-    if (!am->replay) {
-        marie_error("replay table %s: %s", seqpath, strerror(errno));
+    if (am_orders_init(am) < 0)
         goto out_loop;
-    }
-    marie_ratelimit_init(&am->refusal_rl, 5, 10);
-    marie_ratelimit_init(&am->status_answer_rl, AM_STATUS_ANSWER_RATE, AM_STATUS_ANSWER_BURST);
 
-    am->lcm = marie_bus_create(am->url);
-    if (!am->lcm) {
-        marie_error("lcm_create(%s) failed", am->url);
+    am->env.lcm = marie_bus_create(am->env.url);
+    if (!am->env.lcm) {
+        marie_error("lcm_create(%s) failed", am->env.url);
         goto out_loop;
     }
-    marie_bus_subscribe(am->lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
-    marie_bus_subscribe(am->lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
-    marie_bus_subscribe(am->lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
-    marie_bus_subscribe(am->lcm, MARIE_CH_AM_STATUS_REQUEST, on_raw_status_request, am);
-    marie_loop_add_bus(am->loop, am->lcm, 1);
+    marie_bus_subscribe(am->env.lcm, MARIE_CH_HEARTBEAT, on_raw_heartbeat, am);
+    marie_bus_subscribe(am->env.lcm, MARIE_CH_AM_ORDER, on_raw_order, am);
+    marie_bus_subscribe(am->env.lcm, MARIE_CH_AM_STATUS, on_raw_status, am);
+    marie_bus_subscribe(am->env.lcm, MARIE_CH_AM_STATUS_REQUEST, on_raw_status_request, am);
+    marie_loop_add_bus(am->env.loop, am->env.lcm, 1);
 
     sigset_t mask;
     sigemptyset(&mask);
@@ -383,63 +373,63 @@ int main(int argc, char **argv)
     sigaddset(&mask, SIGHUP);
     sigprocmask(SIG_BLOCK, &mask, NULL);
     signal(SIGPIPE, SIG_IGN);
-    am->sigfd = signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK);
-    if (am->sigfd < 0) {
+    am->daemon.sigfd = signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK);
+    if (am->daemon.sigfd < 0) {
         marie_error("signalfd: %s", strerror(errno));
         goto out_lcm;
     }
-    marie_loop_add_fd(am->loop, am->sigfd, POLLIN, on_signalfd, am);
-    am->status_timer = marie_loop_add_timer(am->loop, (int64_t)(1e6 / am->status_hz), am_on_status_timer, am);
-    marie_loop_add_timer(am->loop, 50000, on_tick, am);
+    marie_loop_add_fd(am->env.loop, am->daemon.sigfd, POLLIN, on_signalfd, am);
+    am_status_start(am);
+    marie_loop_add_timer(am->env.loop, 50000, on_tick, am);
     uint64_t wd = marie_sd_watchdog_usec();
     if (wd > 0) {
-        am->watchdog_us = wd;
-        marie_loop_add_timer(am->loop, (int64_t)(wd / 2), on_watchdog, am);
+        am->daemon.watchdog_us = wd;
+        marie_loop_add_timer(am->env.loop, (int64_t)(wd / 2), on_watchdog, am);
     }
 
     am_kill_leftovers(am);
-    if (am->sys) {
+    if (am_system(am)) {
         am_up(am);
     } else {
         am_restore_up_state(am);
     }
-    marie_info("managing host %s (state %s, bus %s)%s", am->host, am->state_dir, am->url,
-               am->auth ? "" : " WITHOUT a key: orders refused");
+    marie_info("managing host %s (state %s, bus %s)%s", am->env.host, am->env.state_dir, am->env.url,
+               am->env.auth ? "" : " WITHOUT a key: orders refused");
     am_publish_status(am, true);
     am_flush_children(am);      /* READY=1: what it started at start-up is on disk */
-    char ready[sizeof am->host + 40];
-    snprintf(ready, sizeof ready, "READY=1\nSTATUS=managing host %.127s", am->host);
+    char ready[sizeof am->env.host + 40];
+    snprintf(ready, sizeof ready, "READY=1\nSTATUS=managing host %.127s", am->env.host);
     marie_sd_notify(ready);
-    if (am->watchdog_us)
+    if (am->daemon.watchdog_us)
         marie_sd_notify("WATCHDOG=1");
 
-    rc = marie_loop_run(am->loop) < 0 ? 1 : 0;
+    rc = marie_loop_run(am->env.loop) < 0 ? 1 : 0;
     am_check_cancel(am, "the manager stopped\n");
     am_apply_cancel(am);
     /* whatever is still alive after the deadline goes now */
-    for (size_t i = 0; i < am->ncomps; i++)
-        if (am->comps[i].sv.pid > 0)
-            kill(-am->comps[i].sv.pid, SIGKILL);
+    for (size_t i = 0; i < am_ncomps(am); i++)
+        if (am_comp_at(am, i)->sv.pid > 0)
+            kill(-am_comp_at(am, i)->sv.pid, SIGKILL);
     am_publish_status(am, false);
     am_flush_children(am);
 
-    close(am->sigfd);
+    close(am->daemon.sigfd);
 out_lcm:
     am_comps_free(am);
-    marie_bus_destroy(am->lcm);
+    marie_bus_destroy(am->env.lcm);
 out_loop:
     am_comps_free(am);
     am_limits_free(am);
-    marie_loop_destroy(am->loop);
-    marie_spawner_destroy(am->spawner);
-    balance_destroy(am->bal);
-    marie_system_destroy(am->sys);
-    marie_auth_destroy(am->auth);
-    free(am->key_path);
-    marie_replay_destroy(am->replay);
-    free(am->sys_path);
-    free(am->profile);
-    free(am->state_dir);
-    free(am->url);
+    marie_loop_destroy(am->env.loop);
+    marie_spawner_destroy(am->env.spawner);
+    am_balance_free(am);
+    am_system_free(am);
+    marie_auth_destroy(am->env.auth);
+    free(am->env.key_path);
+    am_orders_free(am);
+    free(am->env.state_dir);
+    free(am->env.url);
     return rc;
 }
+
+bool am_quitting(const am_t *am) { return am->daemon.quitting; }

@@ -8,15 +8,15 @@
 #include "core/buf.h"
 #include "core/clear.h"
 #include "core/log.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/am.h"
 
 bool am_apply_busy(const am_t *am) { return am->applying != NULL; }
 
 bool am_any_running(const am_t *am)
 {
-    for (size_t i = 0; i < am->ncomps; i++)
-        if (am->comps[i].sv.local && am->comps[i].sv.pid > 0)
+    for (size_t i = 0; i < am_ncomps(am); i++)
+        if (am_comp_at(am, i)->sv.local && am_comp_at(am, i)->sv.pid > 0)
             return true;
     return false;
 }
@@ -30,8 +30,8 @@ static int plan(am_t *am, const marie_system_t *next, char *out, size_t len)
                                        "stop %s (removed); "};
     marie_buf_t names[3] = {{0}}, text = {0};
     int n[4] = {0};
-    for (size_t i = 0; i < am->ncomps; i++) {
-        const comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        const comp_t *c = am_comp_at(am, i);
         if (!c->sv.local)
             continue;
         int k = am_comp_carried(c, next) ? KEEP : marie_system_component(next, c->cfg->name) ? RESTART : STOP;
@@ -41,8 +41,8 @@ static int plan(am_t *am, const marie_system_t *next, char *out, size_t len)
     }
     for (size_t i = 0; i < next->ncomponents; i++) {
         const marie_component_cfg_t *cfg = &next->components[i];
-        if (!marie_system_component(am->sys, cfg->name) &&
-            strcmp(marie_am_component_host(next, cfg, am->host), am->host) == 0)
+        if (!marie_system_component(am_system(am), cfg->name) &&
+            strcmp(marie_am_component_host(next, cfg, am->env.host), am->env.host) == 0)
             marie_buf_printf(&names[START], "%s%s", n[START]++ ? ", " : "", cfg->name);
     }
     marie_buf_puts(&text, "applied the changes: ");
@@ -63,8 +63,8 @@ int am_apply_start(am_t *am, am_loading_t *l, char *plan_text, size_t plan_len)
     const marie_system_t *next = am_loading_system(l);
     int n = plan(am, next, plan_text, plan_len);
     marie_info("%s", plan_text);
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.local || am_comp_carried(c, next))
             continue;
         if (marie_system_component(next, c->cfg->name)) {
@@ -89,8 +89,8 @@ void am_apply_progress(am_t *am)
     if (!l)
         return;
     const marie_system_t *next = am_loading_system(l);
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.local || c->sv.pid <= 0 || am_comp_carried(c, next))
             continue;
         if (c->sv.wanted)       /* started again by an order meanwhile */

@@ -31,7 +31,7 @@ static void finish(am_t *am, bool ok, const char *errors)
 {
     struct am_check *k = am->check;
     am->check = NULL;
-    marie_loop_remove_fd(am->loop, k->fd);
+    marie_loop_remove_fd(am->env.loop, k->fd);
     close(k->fd);
     k->done(am, k->loading, ok, errors, k->user);
     marie_buf_free(&k->out);
@@ -89,7 +89,7 @@ int am_check_start(am_t *am, am_loading_t *l, am_check_done_t done, void *user)
     k->loading = l;
     k->done = done;
     k->user = user;
-    if (pid < 0 || marie_loop_add_fd(am->loop, p[0], POLLIN, on_check_out, am) < 0) {
+    if (pid < 0 || marie_loop_add_fd(am->env.loop, p[0], POLLIN, on_check_out, am) < 0) {
         if (pid > 0)
             kill(-pid, SIGKILL);
         close(p[0]);

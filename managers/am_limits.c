@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "core/clear.h"
+#include "core/err.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 #include "managers/am.h"
@@ -33,11 +34,10 @@ static int write_text(const char *dir, const char *name, const char *text)
     snprintf(path, sizeof path, "%s/%s", dir, name);
     int fd = open(path, O_WRONLY | O_CLOEXEC);
     if (fd < 0)
-        return -errno;
+        return -1;
     ssize_t n = write(fd, text, strlen(text));
-    int err = n < 0 ? errno : 0;
-    close(fd);
-    return n < 0 ? -err : 0;
+    MARIE_KEEP_ERRNO(close(fd));
+    return n < 0 ? -1 : 0;
 }
 
 /* The number after "key " in a flat-keyed file (memory.events, cpu.stat); -1 when absent. */
@@ -103,17 +103,16 @@ static char *make_base(char *why, size_t len)
         ctl[0] = 0;
     if (f)
         fclose(f);
-    int err = 0;
     if (!strstr(ctl, "memory") || !strstr(ctl, "cpu"))
         snprintf(why, len, "the cgroup v2 of marie-am (%s) has no memory and cpu controllers (it has: %s)", dir,
                  ctl[0] ? strtok(ctl, "\n") : "none");
     else if (snprintf(leaf, sizeof leaf, "%s/marie-am", dir) > 0 && mkdir(leaf, 0755) < 0 && errno != EEXIST)
         snprintf(why, len, "cannot make %.200s: %s", leaf, strerror(errno));
-    else if ((err = write_text(leaf, "cgroup.procs", "0")) < 0)
-        snprintf(why, len, "cannot move marie-am into %.200s: %s", leaf, strerror(-err));
-    else if ((err = write_text(dir, "cgroup.subtree_control", "+memory +cpu")) < 0)
+    else if (write_text(leaf, "cgroup.procs", "0") < 0)
+        snprintf(why, len, "cannot move marie-am into %.200s: %s", leaf, strerror(errno));
+    else if (write_text(dir, "cgroup.subtree_control", "+memory +cpu") < 0)
         snprintf(why, len, "cannot give %s's children the memory and cpu controllers: %s (other processes in "
-                 "it, or not delegated: Delegate=yes in the unit)", dir, strerror(-err));
+                 "it, or not delegated: Delegate=yes in the unit)", dir, strerror(errno));
     else
         return dir;
     free(dir);
@@ -122,8 +121,8 @@ static char *make_base(char *why, size_t len)
 
 static bool needs_cgroup(const am_t *am)
 {
-    for (size_t i = 0; i < am->ncomps; i++)
-        if (am->comps[i].sv.local && (am->comps[i].cfg->limits.memory > 0 || am->comps[i].cfg->limits.cpu > 0))
+    for (size_t i = 0; i < am_ncomps(am); i++)
+        if (am_comp_at(am, i)->sv.local && (am_comp_at(am, i)->cfg->limits.memory > 0 || am_comp_at(am, i)->cfg->limits.cpu > 0))
             return true;
     return false;
 }
@@ -174,13 +173,13 @@ static int prepare_cgroup(comp_t *c, const char *base)
         snprintf(mem, sizeof mem, "%lld", (long long)l->memory);
     if (l->cpu > 0)
         snprintf(cpu, sizeof cpu, "%lld 100000", (long long)(l->cpu * 100000 + 0.5));
-    int err = write_text(c->lim.cgroup, "memory.max", mem);
+    int err = write_text(c->lim.cgroup, "memory.max", mem) < 0 ? errno : 0;
     write_text(c->lim.cgroup, "memory.swap.max", "0");     /* absent without swap accounting */
-    if (err == 0)
-        err = write_text(c->lim.cgroup, "cpu.max", cpu);
-    if (err < 0) {
+    if (err == 0 && write_text(c->lim.cgroup, "cpu.max", cpu) < 0)
+        err = errno;
+    if (err) {
         am_event(c->am, MARIE_EVENT_T_SEV_WARN, "limit_refused", "%s: cgroup %s refuses its limits (%s): marie-am "
-                 "watches them instead", c->cfg->name, c->lim.cgroup, strerror(-err));
+                 "watches them instead", c->cfg->name, c->lim.cgroup, strerror(err));
         return -1;
     }
     char procs[PATH_MAX];
@@ -279,8 +278,8 @@ static void check(comp_t *c, bool exited)
 void am_limits_tick(am_t *am)
 {
     int64_t now = am_now_us();
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.local || c->sv.pid <= 0 || !marie_limits_cfg_any(&c->cfg->limits) || now < c->lim.next_us ||
             (c->sv.st != MARIE_SV_RUNNING && c->sv.st != MARIE_SV_STARTING))
             continue;
@@ -307,3 +306,5 @@ const char *am_limits_text(const comp_t *c, char *out, size_t len)
                  c->cfg->limits.cpu > 0 ? "watched" : "rlimit");
     return out;
 }
+
+int am_limits_breaches(const comp_t *c) { return c->lim.breaches; }

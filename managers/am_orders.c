@@ -7,8 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/clear.h"
 #include "core/component.h"
-#include "core/file.h"
 #include "core/bus/bus.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
@@ -28,10 +28,10 @@ static void tail_line_cb(const char *line, size_t len, void *user)
     char text[MARIE_LINE_MAX + 128];
     snprintf(text, sizeof text, "%.*s", (int)len, line);
     marie_log_line_t m = {
-        .utime = marie_wall_us(), .host = t->am->host, .component = (char *)t->component,
+        .utime = marie_wall_us(), .host = t->am->env.host, .component = (char *)t->component,
         .stream = MARIE_LOG_LINE_T_STDOUT, .request_seq = t->req, .text = text,
     };
-    marie_bus_publish_msg(t->am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
+    marie_bus_publish_msg(t->am->env.lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
 }
 
 static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, const char *fmt, ...)
@@ -41,30 +41,32 @@ static void reply(am_t *am, const marie_am_order_t *o, bool ok, int affected, co
     char reason[1024];
     MARIE_VFORMAT(reason, fmt);
     marie_am_reply_t r = {
-        .utime = marie_wall_us(), .host = am->host, .sender = o->sender, .seq = o->seq, .ok = ok,
+        .utime = marie_wall_us(), .host = am->env.host, .sender = o->sender, .seq = o->seq, .ok = ok,
         .reason = reason, .affected = affected,
-        .nhosts = am->sys ? (int32_t)am->sys->nhosts : 0, .hosts = am->sys ? am->sys->hosts : NULL,
     };
-    marie_bus_publish_msg(am->lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
+    const marie_system_t *sys = am_system(am);
+    r.nhosts = sys ? (int32_t)sys->nhosts : 0;
+    r.hosts = sys ? sys->hosts : NULL;
+    marie_bus_publish_msg(am->env.lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
     am_status_changed(am);      /* a status soon after every answer, for marie's waits */
 }
 
 static void send_lifecycle(am_t *am, comp_t *c, int cmd, int64_t req)
 {
     char sender[160];
-    snprintf(sender, sizeof sender, "marie-am@%s", am->host);
+    snprintf(sender, sizeof sender, "marie-am@%s", am->env.host);
     int64_t seq = marie_wall_us();
-    if (seq <= am->lc_seq)
-        seq = am->lc_seq + 1;
-    am->lc_seq = seq;
+    if (seq <= am->orders.lc_seq)
+        seq = am->orders.lc_seq + 1;
+    am->orders.lc_seq = seq;
     marie_lifecycle_command_t m = {
         .utime = marie_wall_us(), .request_id = req, .sender = sender, .target = c->cfg->name,
         .command = (int8_t)cmd, .seq = seq,
     };
     uint8_t mac[MARIE_AUTH_MAC_LEN];
-    if (am->auth)
-        marie_auth_sign_command(am->auth, &m, mac);
-    marie_bus_publish_msg(am->lcm, MARIE_CH_LIFECYCLE, &marie_type_lifecycle_command_t, &m);
+    if (am->env.auth)
+        marie_auth_sign_command(am->env.auth, &m, mac);
+    marie_bus_publish_msg(am->env.lcm, MARIE_CH_LIFECYCLE, &marie_type_lifecycle_command_t, &m);
 }
 
 /* An up order's programs checked (am_check.c): load and start the system, or refuse it. */
@@ -82,8 +84,8 @@ static void up_checked(am_t *am, am_loading_t *l, bool ok, const char *errors, v
         am_loading_install(am, l);
         am_up(am);
         int n = 0;
-        for (size_t i = 0; i < am->ncomps; i++)
-            n += am->comps[i].sv.local;
+        for (size_t i = 0; i < am_ncomps(am); i++)
+            n += am_comp_at(am, i)->sv.local;
         reply(am, o, true, n, "ok");
     }
     marie_am_order_t_destroy(o);
@@ -91,39 +93,23 @@ static void up_checked(am_t *am, am_loading_t *l, bool ok, const char *errors, v
 
 static void order_up(am_t *am, const marie_am_order_t *o)
 {
-    char hash[65];
     const char *profile = o->arg;
-    am_sha256_hex(o->system_text, strlen(o->system_text), profile, hash);
     if (am_apply_busy(am)) {
         reply(am, o, false, 0, "busy: the last up is being applied");
         return;
     }
-    if (am->sys && strcmp(hash, am->sys_hash) == 0) {
+    if (am_system_is(am, o->system_text, profile)) {
         am_up(am);
         reply(am, o, true, 0, "ok");
         return;
     }
-    /* before the copy below: the pending check's system may be that very file */
+    /* before the copy am_loading_sent makes: the pending check's system may be that very file */
     if (am_check_busy(am)) {
         reply(am, o, false, 0, "busy: the programs of the last up are being checked");
         return;
     }
-    /* Use the sender's file where this host sees the same text (relative paths in it keep
-     * working); otherwise keep a copy in the state directory. */
-    char path[PATH_MAX];
-    size_t len = 0;
-    char *local = o->system_path[0] ? marie_file_read(o->system_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
-    const char *origin = NULL;
-    if (local && len == strlen(o->system_text) && memcmp(local, o->system_text, len) == 0) {
-        snprintf(path, sizeof path, "%s", o->system_path);
-    } else {
-        snprintf(path, sizeof path, "%s/system.yaml", am->state_dir);
-        am_write_file(path, o->system_text, strlen(o->system_text), 0644);
-        origin = o->system_path;
-    }
-    free(local);
     marie_errors_t errs = {0};
-    am_loading_t *l = am_loading_open(path, origin, profile, &errs);
+    am_loading_t *l = am_loading_sent(am, o->system_text, o->system_path, profile, &errs);
     if (!l) {
         char *msg = NULL;
         size_t ml = 0;
@@ -137,7 +123,7 @@ static void order_up(am_t *am, const marie_am_order_t *o)
         marie_errors_clear(&errs);
         return;
     }
-    const char *running = am_any_running(am) ? am->sys->name : NULL, *next = am_loading_system(l)->name;
+    const char *running = am_any_running(am) ? am_system(am)->name : NULL, *next = am_loading_system(l)->name;
     if (running && strcmp(running, next ? next : "") != 0) {
         /* a change applies to the system that runs; another one replaces it only after a down */
         reply(am, o, false, 0, "another system (%s) is running here: marie down first", running);
@@ -159,35 +145,30 @@ static void order_up(am_t *am, const marie_am_order_t *o)
  * and nothing more (no hosts: the sender may not hold the key). */
 static void refuse_order(am_t *am, const marie_am_order_t *o, marie_auth_result_t ar)
 {
-    am->orders_refused++;
+    am->orders.refused++;
     marie_warn_ratelimited(1, "refused %s order from '%s' (seq %lld): %s (%lld refused so far)",
                            marie_am_op_name(o->op), o->sender, (long long)o->seq, marie_auth_result_name(ar),
-                           (long long)am->orders_refused);
-    if (!marie_ratelimit_take(&am->refusal_rl, am_now_us())) {
-        am->refusals_unannounced++;
+                           (long long)am->orders.refused);
+    if (!marie_ratelimit_take(&am->orders.refusal_rl, am_now_us())) {
+        am->orders.refusals_unannounced++;
         return;
     }
-    char reason[200], text[200], source[160];
+    char reason[200], text[200];
     int64_t now = marie_wall_us();
     if (ar == MARIE_AUTH_STALE || ar == MARIE_AUTH_FUTURE)
         snprintf(reason, sizeof reason, "refused: %s (utime %+.1f s, seq %+.1f s from this host's clock; "
                  "accepted: %+.1f..%+.1f s)", marie_auth_result_name(ar), (double)(o->utime - now) / 1e6,
-                 (double)(o->seq - now) / 1e6, -(double)(am->order_lifetime_us + am->max_skew_us) / 1e6,
-                 (double)am->max_skew_us / 1e6);
+                 (double)(o->seq - now) / 1e6, -(double)(am->orders.lifetime_us + am->orders.max_skew_us) / 1e6,
+                 (double)am->orders.max_skew_us / 1e6);
     else
         snprintf(reason, sizeof reason, "refused: %s", marie_auth_result_name(ar));
     snprintf(text, sizeof text, "%s (%lld refused, %lld not announced)", marie_auth_result_name(ar),
-             (long long)am->orders_refused, (long long)am->refusals_unannounced);
-    snprintf(source, sizeof source, "marie-am@%s", am->host);
-    marie_event_t ev = {
-        .utime = now, .source = source, .seq = ++am->event_seq,
-        .severity = MARIE_EVENT_T_SEV_WARN, .kind = "order_refused", .text = text,
-    };
-    marie_bus_publish_msg(am->lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
+             (long long)am->orders.refused, (long long)am->orders.refusals_unannounced);
+    am_event_quiet(am, MARIE_EVENT_T_SEV_WARN, "order_refused", text);
     marie_am_reply_t r = {
-        .utime = now, .host = am->host, .sender = o->sender, .seq = o->seq, .ok = false, .reason = reason,
+        .utime = now, .host = am->env.host, .sender = o->sender, .seq = o->seq, .ok = false, .reason = reason,
     };
-    marie_bus_publish_msg(am->lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
+    marie_bus_publish_msg(am->env.lcm, MARIE_CH_AM_REPLY, &marie_type_am_reply_t, &r);
     am_status_changed(am);
 }
 
@@ -195,11 +176,10 @@ static void order_down(am_t *am, const marie_am_order_t *o)
 {
     am_check_cancel(am, "cancelled by a down order\n");
     am_apply_cancel(am);
-    am->up = false;
-    am_save_up_state(am);
+    am_down(am);
     int n = 0;
-    for (size_t i = 0; i < am->ncomps; i++)
-        n += am->comps[i].sv.local && am->comps[i].sv.pid > 0;
+    for (size_t i = 0; i < am_ncomps(am); i++)
+        n += am_comp_at(am, i)->sv.local && am_comp_at(am, i)->sv.pid > 0;
     am_stop_all(am);
     am_progress_stops(am);
     reply(am, o, true, n, "ok");
@@ -216,7 +196,7 @@ static void order_move(am_t *am, const marie_am_order_t *o)
         reply(am, o, false, 0, "move: '%s' is not a component", o->targets[0]);
         return;
     }
-    bool affected = c->sv.local || strcmp(o->arg, am->host) == 0;
+    bool affected = c->sv.local || strcmp(o->arg, am->env.host) == 0;
     am_apply_move(am, c, o->arg);
     am_save_up_state(am);
     am_try_start_waiting(am);
@@ -247,7 +227,7 @@ static int order_one(am_t *am, comp_t *c, const marie_am_order_t *o)
         return 0;
     case MARIE_AM_ORDER_T_OP_TAIL: {
         char path[PATH_MAX];
-        snprintf(path, sizeof path, "%s/logs/%s.log", am->state_dir, c->cfg->name);
+        snprintf(path, sizeof path, "%s/logs/%s.log", am->env.state_dir, c->cfg->name);
         tail_ctx_t tc = {am, c->cfg->name, o->seq};
         int lines = atoi(o->arg);
         marie_logfile_tail(path, lines > 0 ? lines : 20, tail_line_cb, &tc);
@@ -260,9 +240,9 @@ static int order_one(am_t *am, comp_t *c, const marie_am_order_t *o)
 
 void am_on_order(am_t *am, const marie_am_order_t *o)
 {
-    if (strcmp(o->host, "*") != 0 && strcmp(o->host, am->host) != 0)
+    if (strcmp(o->host, "*") != 0 && strcmp(o->host, am->env.host) != 0)
         return;
-    marie_auth_result_t ar = marie_auth_check_order(am->auth, am->replay, o);
+    marie_auth_result_t ar = marie_auth_check_order(am->env.auth, am->orders.replay, o);
     if (ar != MARIE_AUTH_OK) {
         refuse_order(am, o, ar);
         return;
@@ -276,7 +256,7 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
         order_up(am, o);
         return;
     }
-    if (!am->sys) {
+    if (!am_system(am)) {
         reply(am, o, false, 0, "no system loaded: marie up FILE first");
         return;
     }
@@ -287,8 +267,8 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
     /* every target must name a component or a group of the system */
     for (int t = 0; t < o->ntargets; t++) {
         bool known = false;
-        for (size_t i = 0; i < am->ncomps && !known; i++)
-            known = am_comp_matches(&am->comps[i], o->targets[t]);
+        for (size_t i = 0; i < am_ncomps(am) && !known; i++)
+            known = am_comp_matches(am_comp_at(am, i), o->targets[t]);
         if (!known) {
             reply(am, o, false, 0, "no component or group named '%s'", o->targets[t]);
             return;
@@ -299,8 +279,8 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
         return;
     }
     int n = 0;
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         bool hit = false;
         for (int t = 0; t < o->ntargets; t++)
             hit |= am_comp_matches(c, o->targets[t]);
@@ -314,4 +294,26 @@ void am_on_order(am_t *am, const marie_am_order_t *o)
     }
     am_try_start_waiting(am);
     reply(am, o, true, n, "ok");
+}
+
+int am_orders_init(am_t *am)
+{
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/order-seq", am->env.state_dir);
+    am->orders.lifetime_us = am->env.opt.order_lifetime_us;
+    am->orders.max_skew_us = am->env.opt.max_skew_us;
+    am->orders.replay = marie_replay_create_window(path, am->orders.lifetime_us, am->orders.max_skew_us);
+    if (!am->orders.replay) {
+        marie_error("replay table %s: %s", path, strerror(errno));
+        return -1;
+    }
+    marie_ratelimit_init(&am->orders.refusal_rl, 5, 10);
+    return 0;
+}
+
+int64_t am_orders_refused(const am_t *am) { return am->orders.refused; }
+
+void am_orders_free(am_t *am)
+{
+    MARIE_CLEAR(am->orders.replay, marie_replay_destroy);
 }

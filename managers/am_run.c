@@ -1,5 +1,5 @@
-/* marie-am's hands: spawns components with their output captured, and carries out what the
- * supervision state machine (supervise.c) decides: signals, timers, respawns. */
+/* marie-am's hands: spawns components (their output goes to am_output.c), and carries out what
+ * the supervision state machine (supervise.c) decides: signals, timers, respawns. */
 #include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
@@ -7,11 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "core/component.h"
-#include "core/bus/bus.h"
 #include "core/log.h"
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_types.h"
@@ -21,9 +19,9 @@
 
 comp_t *am_comp_find(am_t *am, const char *name)
 {
-    for (size_t i = 0; i < am->ncomps; i++)
-        if (strcmp(am->comps[i].cfg->name, name) == 0)
-            return &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++)
+        if (strcmp(am_comp_at(am, i)->cfg->name, name) == 0)
+            return am_comp_at(am, i);
     return NULL;
 }
 
@@ -42,93 +40,14 @@ static void note_state(comp_t *c, marie_sv_state_t before)
     }
 }
 
+bool am_comp_timer_pending(const comp_t *c) { return c->timer != NULL; }
+
 void am_comp_cancel_timer(comp_t *c)
 {
     if (c->timer) {
-        marie_loop_remove_timer(c->am->loop, c->timer);
+        marie_loop_remove_timer(c->am->env.loop, c->timer);
         c->timer = NULL;
     }
-}
-
-/* ---------------------------------------------------------------- output capture */
-
-static void log_line_cb(const char *line, size_t len, void *user)
-{
-    outpipe_t *op = user;
-    comp_t *c = op->c;
-    am_t *am = op->am;
-    int64_t wall = marie_wall_us();
-    if (!marie_ratelimit_take(&c->rl, am_now_us())) {
-        c->drops_pending++;
-        c->drops_total++;
-        return;
-    }
-    char text[MARIE_LINE_MAX + 1];
-    memcpy(text, line, len);
-    text[len] = 0;
-    marie_log_line_t m = {
-        .utime = wall, .host = am->host, .component = c->cfg->name, .pid = c->sv.pid,
-        .stream = (int8_t)op->stream, .seq = ++c->log_seq, .dropped = c->drops_pending,
-        .request_seq = 0, .text = text,
-    };
-    marie_bus_publish_msg(am->lcm, MARIE_CH_LOG, &marie_type_log_line_t, &m);
-    if (c->logf) {
-        char hdr[96];
-        time_t secs = (time_t)(wall / 1000000);
-        struct tm tm;
-        gmtime_r(&secs, &tm);
-        int hl = 0;
-        if (c->drops_pending) {
-            char note[96];
-            int nl = snprintf(note, sizeof note, "-- %lld lines dropped (rate limit)\n", (long long)c->drops_pending);
-            marie_logfile_write(c->logf, note, (size_t)nl);
-        }
-        hl = snprintf(hdr, sizeof hdr, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ %s ", tm.tm_year + 1900,
-                      tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec,
-                      (int)(wall / 1000 % 1000), op->stream == MARIE_LOG_LINE_T_STDERR ? "err" : "out");
-        char buf[sizeof hdr + MARIE_LINE_MAX + 2];
-        memcpy(buf, hdr, (size_t)hl);
-        memcpy(buf + hl, line, len);
-        buf[hl + len] = '\n';
-        marie_logfile_write(c->logf, buf, (size_t)hl + len + 1);
-    }
-    c->drops_pending = 0;
-}
-
-static void outpipe_close(outpipe_t *op)
-{
-    if (op->fd < 0)
-        return;
-    marie_linebuf_flush(op->lb, log_line_cb, op);
-    marie_loop_remove_fd(op->am->loop, op->fd);
-    close(op->fd);
-    op->fd = -1;
-}
-
-/* Read what is there; returns 0 at end of file. */
-static int outpipe_drain(outpipe_t *op)
-{
-    char buf[4096];
-    for (int rounds = 0; rounds < 16; rounds++) {
-        ssize_t n = read(op->fd, buf, sizeof buf);
-        if (n > 0) {
-            marie_linebuf_feed(op->lb, buf, (size_t)n, log_line_cb, op);
-            continue;
-        }
-        if (n == 0)
-            return 0;
-        if (errno == EINTR)
-            continue;
-        return errno == EAGAIN ? 1 : 0;
-    }
-    return 1;
-}
-
-static void on_outpipe(marie_loop_t *loop, int fd, short revents, void *user)
-{
-    outpipe_t *op = user;
-    if (outpipe_drain(op) == 0)
-        outpipe_close(op);
 }
 
 void am_comp_carry(comp_t *to, comp_t *from)
@@ -136,21 +55,9 @@ void am_comp_carry(comp_t *to, comp_t *from)
     const marie_component_cfg_t *cfg = to->cfg;
     *to = *from;
     to->cfg = to->sv.cfg = cfg;
-    for (int i = 0; i < 2; i++) {
-        outpipe_t *op = &to->out[i];
-        op->c = to;
-        if (op->fd >= 0) {      /* the loop's callback follows the pipe to its new place */
-            marie_loop_remove_fd(to->am->loop, op->fd);
-            marie_loop_add_fd(to->am->loop, op->fd, POLLIN, on_outpipe, op);
-        }
-    }
-    *from = (comp_t){.am = from->am, .out = {{.fd = -1}, {.fd = -1}}};
-}
-
-void am_comp_close_output(comp_t *c)
-{
-    for (int i = 0; i < 2; i++)
-        outpipe_close(&c->out[i]);
+    am_output_moved(to);
+    *from = (comp_t){.am = from->am};
+    am_output_init(from);
 }
 
 /* ---------------------------------------------------------------- spawning */
@@ -158,10 +65,10 @@ void am_comp_close_output(comp_t *c)
 static char *path_with_self(am_t *am)
 {
     const char *p = getenv("PATH");
-    size_t n = strlen(am->self_dir) + (p ? strlen(p) : 0) + 8;
+    size_t n = strlen(am->env.self_dir) + (p ? strlen(p) : 0) + 8;
     char *s = malloc(n);
     if (s)
-        snprintf(s, n, "PATH=%s%s%s", am->self_dir, p ? ":" : "", p ? p : "");
+        snprintf(s, n, "PATH=%s%s%s", am->env.self_dir, p ? ":" : "", p ? p : "");
     return s;
 }
 
@@ -182,7 +89,7 @@ static bool env_dropped(const char *kv)
  * file's folder, as marie up checked it. NULL: let execvpe report it. */
 static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
 {
-    return marie_am_resolve_exec(am->self_dir, cfg->file, cfg->exec);
+    return marie_am_resolve_exec(am->env.self_dir, cfg->file, cfg->exec);
 }
 
 /* The environment of a component: the manager's, minus service plumbing, plus marie's and
@@ -204,19 +111,19 @@ static char **child_env(comp_t *c, size_t *nep)
         if (!env_dropped(environ[i]))
             envp[ne++] = strdup(environ[i]);
     envp[ne++] = path_with_self(am);
-    if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am->sys_path) < 0 ||
+    if (asprintf(&envp[ne++], "MARIE_SYSTEM=%s", am_system_path(am)) < 0 ||
         asprintf(&envp[ne++], "MARIE_NAME=%s", cfg->name) < 0 ||
         asprintf(&envp[ne++], "MARIE_HOST=%s", c->host) < 0 ||
         /* Components keep their state (SharedMap, Switch) beside the manager's, and their
          * run-time paths (emulated CAN bus sockets, pty links) in its run/ folder. */
-        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->state_dir) < 0 ||
-        asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->state_dir) < 0)
+        asprintf(&envp[ne++], "MARIE_STATE_DIR=%s", am->env.state_dir) < 0 ||
+        asprintf(&envp[ne++], "MARIE_RUN_DIR=%s/run", am->env.state_dir) < 0)
         goto fail;
-    if (am->key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->key_path) < 0)
+    if (am->env.key_path && asprintf(&envp[ne++], "MARIE_KEY=%s", am->env.key_path) < 0)
         goto fail;
     if (am_system_origin(am) && asprintf(&envp[ne++], "MARIE_SYSTEM_ORIGIN=%s", am_system_origin(am)) < 0)
         goto fail;
-    if (am->profile && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am->profile) < 0)
+    if (am_profile(am) && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am_profile(am)) < 0)
         goto fail;
     for (size_t i = 0; i < cfg->nenv; i++)
         envp[ne++] = strdup(cfg->env[i]);
@@ -262,11 +169,10 @@ static void comp_spawn(comp_t *c)
 
     am_comp_cancel_timer(c);
     am_comp_close_output(c);
-    for (int i = 0; i < 2; i++)
-        if (!c->out[i].lb && !(c->out[i].lb = malloc(sizeof *c->out[i].lb))) {
-            am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: out of memory", cfg->name);
-            goto fail;
-        }
+    if (am_output_prepare(c) < 0) {
+        am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: out of memory", cfg->name);
+        goto fail;
+    }
     if (pipe2(po, O_CLOEXEC) < 0 || pipe2(pe, O_CLOEXEC) < 0) {
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: pipe: %s", cfg->name, strerror(errno));
         goto fail;
@@ -301,7 +207,7 @@ static void comp_spawn(comp_t *c)
         .sched = &cfg->sched, .refused = &refused,
     };
     am_limits_prepare(c, &req.cgroup_fd, &req.nofile);
-    pid_t pid = marie_spawn(am->spawner, &req);
+    pid_t pid = marie_spawn(am->env.spawner, &req);
     free(prog);
     am_limits_spawned(c, req.cgroup_fd);
     if (pid < 0) {
@@ -311,23 +217,10 @@ static void comp_spawn(comp_t *c)
     report_sched(c, &refused);
     close(po[1]);
     close(pe[1]);
-    int rd[2] = {po[0], pe[0]};
-    for (int i = 0; i < 2; i++) {
-        outpipe_t *op = &c->out[i];
-        op->am = am;
-        op->c = c;
-        op->fd = rd[i];
-        op->stream = i == 0 ? MARIE_LOG_LINE_T_STDOUT : MARIE_LOG_LINE_T_STDERR;
-        op->lb->len = 0;
-        fcntl(op->fd, F_SETFL, O_NONBLOCK);     /* a new pipe's end has no other flag */
-        marie_loop_add_fd(am->loop, op->fd, POLLIN, on_outpipe, op);
-    }
+    am_output_attach(c, po[0], pe[0]);
     marie_sv_spawned(&c->sv, pid, am_now_us());
-    c->start_ticks = 0;         /* read when the children file is written */
-    am_save_children(am);
-    c->cpu_prev.at_us = 0;
-    c->cpu = 0;
-    c->rss = 0;
+    am_children_add(c);
+    am_status_usage_reset(c);
     note_state(c, before);
     marie_debug("%s: spawned pid %d", cfg->name, (int)pid);
     for (size_t i = 0; i < ne; i++)
@@ -384,7 +277,7 @@ void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *
         kill(pid, SIGKILL);
     }
     if (act->timer_s > 0)
-        c->timer = marie_loop_add_oneshot(am->loop, (int64_t)(act->timer_s * 1e6), on_sv_timer, c);
+        c->timer = marie_loop_add_oneshot(am->env.loop, (int64_t)(act->timer_s * 1e6), on_sv_timer, c);
     note_state(c, before);
     if (act->what & MARIE_SV_STATUS)
         am_status_changed(am);
@@ -425,8 +318,8 @@ void am_comp_restart(comp_t *c)
 static bool dependents_alive(am_t *am, const comp_t *c)
 {
     int64_t now = am_now_us();
-    for (size_t i = 0; i < am->ncomps; i++) {
-        const comp_t *d = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        const comp_t *d = am_comp_at(am, i);
         for (size_t k = 0; k < d->cfg->ndepends; k++)
             if (strcmp(d->cfg->depends[k], c->cfg->name) == 0 && marie_sv_alive(&d->sv, now))
                 return true;
@@ -438,8 +331,8 @@ static bool dependents_alive(am_t *am, const comp_t *c)
  * dependents on other hosts). */
 void am_stop_all(am_t *am)
 {
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.local)
             continue;
         marie_sv_state_t before = c->sv.st;
@@ -451,8 +344,8 @@ void am_stop_all(am_t *am)
 
 void am_progress_stops(am_t *am)
 {
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.stop_pending)
             continue;
         marie_sv_state_t before = c->sv.st;
@@ -467,10 +360,7 @@ void am_progress_stops(am_t *am)
 static void comp_exited(comp_t *c, int status)
 {
     pid_t old = c->sv.pid;
-    /* output still in the pipes belongs to this run */
-    for (int i = 0; i < 2; i++)
-        if (c->out[i].fd >= 0 && outpipe_drain(&c->out[i]) == 0)
-            outpipe_close(&c->out[i]);
+    am_output_drain(c);     /* output still in the pipes belongs to this run */
     /* leftovers of the process group (shell children) go with their leader */
     kill(-old, SIGKILL);
     am_limits_exited(c);
@@ -488,9 +378,9 @@ void am_reap_children(am_t *am)
         pid_t pid = waitpid(-1, &status, WNOHANG);
         if (pid <= 0)
             break;
-        for (size_t i = 0; i < am->ncomps; i++)
-            if (am->comps[i].sv.pid == pid) {
-                comp_exited(&am->comps[i], status);
+        for (size_t i = 0; i < am_ncomps(am); i++)
+            if (am_comp_at(am, i)->sv.pid == pid) {
+                comp_exited(am_comp_at(am, i), status);
                 break;
             }
     }
@@ -506,11 +396,11 @@ static bool dep_ready(am_t *am, const char *name)
 
 void am_try_start_waiting(am_t *am)
 {
-    if (am->quitting)
+    if (am_quitting(am))
         return;
     /* one pass per newly running component is enough: spawns make nothing ready at once */
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.local || !c->sv.wanted || c->sv.st != MARIE_SV_WAITING)
             continue;
         bool ready = true;
@@ -527,8 +417,8 @@ void am_try_start_waiting(am_t *am)
 /* Hung components: alive, but no heartbeat for heartbeat_timeout. */
 void am_check_heartbeats(am_t *am)
 {
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         marie_sv_state_t before = c->sv.st;
         marie_sv_action_t act;
         marie_sv_check_heartbeat(&c->sv, am_now_us(), &act);

@@ -13,33 +13,68 @@
 #include "lcmtypes/marie_types.h"
 #include "managers/am.h"
 
+void am_event_quiet(am_t *am, int sev, const char *kind, const char *text)
+{
+    char source[160];
+    snprintf(source, sizeof source, "marie-am@%s", am->env.host);
+    marie_event_t ev = {
+        .utime = marie_wall_us(), .source = source, .seq = ++am->status.event_seq,
+        .severity = (int8_t)sev, .kind = (char *)kind, .text = (char *)text,
+    };
+    marie_bus_publish_msg(am->env.lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
+}
+
 void am_event(am_t *am, int sev, const char *kind, const char *fmt, ...)
 {
-    char text[512], source[160];
+    char text[512];
     MARIE_VFORMAT(text, fmt);
-    snprintf(source, sizeof source, "marie-am@%s", am->host);
-    marie_event_t ev = {
-        .utime = marie_wall_us(), .source = source, .seq = ++am->event_seq,
-        .severity = (int8_t)sev, .kind = (char *)kind, .text = text,
-    };
-    marie_bus_publish_msg(am->lcm, MARIE_CH_EVENT, &marie_type_event_t, &ev);
+    am_event_quiet(am, sev, kind, text);
     if (sev >= MARIE_EVENT_T_SEV_WARN)
         marie_warn("%s: %s", kind, text);
     else
         marie_info("%s: %s", kind, text);
 }
 
+void am_status_init(am_t *am)
+{
+    am->status.start_mono = am_now_us();
+    am->status.hz = am->env.opt.status_hz;
+    marie_ratelimit_init(&am->status.answer_rl, AM_STATUS_ANSWER_RATE, AM_STATUS_ANSWER_BURST);
+}
+
+static void on_status_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
+
+static void arm_timer(am_t *am)
+{
+    marie_loop_remove_timer(am->env.loop, am->status.timer);
+    am->status.timer = marie_loop_add_timer(am->env.loop, (int64_t)(1e6 / am->status.hz), on_status_timer, am);
+}
+
+void am_status_start(am_t *am)
+{
+    arm_timer(am);
+}
+
+void am_status_set_hz(am_t *am, double hz)
+{
+    if (hz == am->status.hz)
+        return;
+    am->status.hz = hz;
+    if (am->status.timer)
+        arm_timer(am);
+}
+
 /* A request (marie ps) asks only for what this manager broadcasts anyway, so it is not signed;
  * the rate limit is what keeps a flood of them from turning into a flood of statuses. */
 void am_on_status_request(am_t *am, const marie_am_status_request_t *rq)
 {
-    if (strcmp(rq->host, "*") != 0 && strcmp(rq->host, am->host) != 0)
+    if (strcmp(rq->host, "*") != 0 && strcmp(rq->host, am->env.host) != 0)
         return;
-    if (!marie_ratelimit_take(&am->status_answer_rl, am_now_us())) {
-        am->status_requests_unanswered++;
+    if (!marie_ratelimit_take(&am->status.answer_rl, am_now_us())) {
+        am->status.requests_unanswered++;
         marie_warn_ratelimited(5, "status requests beyond %d a second: %lld not answered (the periodic status "
                                "goes on; last from '%s')", AM_STATUS_ANSWER_RATE,
-                               (long long)am->status_requests_unanswered, rq->sender);
+                               (long long)am->status.requests_unanswered, rq->sender);
         return;
     }
     marie_debug("status requested by '%s'", rq->sender);
@@ -50,30 +85,30 @@ static void on_status_soon(marie_loop_t *loop, marie_timer_t *t, int64_t overrun
 
 void am_status_changed(am_t *am)
 {
-    if (am->status_pending || !am->loop)
+    if (am->status.pending || !am->env.loop)
         return;
-    am->status_pending = true;
-    marie_loop_add_oneshot(am->loop, 20000, on_status_soon, am);
+    am->status.pending = true;
+    marie_loop_add_oneshot(am->env.loop, 20000, on_status_soon, am);
 }
 
 void am_publish_status(am_t *am, bool sample)
 {
     int64_t now = am_now_us();
     marie_am_status_t st = {0};
-    marie_am_component_status_t *cs = calloc(am->ncomps ? am->ncomps : 1, sizeof *cs);
-    char (*limits)[160] = calloc(am->ncomps ? am->ncomps : 1, sizeof *limits);
+    marie_am_component_status_t *cs = calloc(am_ncomps(am) ? am_ncomps(am) : 1, sizeof *cs);
+    char (*limits)[160] = calloc(am_ncomps(am) ? am_ncomps(am) : 1, sizeof *limits);
     if (!cs || !limits)
         goto out;
     int n = 0;
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        comp_t *c = am_comp_at(am, i);
         if (!c->sv.local)
             continue;
         if (sample && c->sv.pid > 0) {
             int64_t cpu_us, rss;
             if (marie_proc_usage(c->sv.pid, &cpu_us, &rss) == 0) {
-                c->cpu = marie_cpu_percent(&c->cpu_prev, cpu_us, now);
-                c->rss = rss;
+                c->use.cpu = marie_cpu_percent(&c->use.cpu_prev, cpu_us, now);
+                c->use.rss = rss;
             }
         }
         marie_am_component_status_t *s = &cs[n++];
@@ -92,49 +127,45 @@ void am_publish_status(am_t *am, bool sample)
         s->uptime_us = c->sv.pid > 0 ? now - c->sv.started_us : 0;
         s->restarts = c->sv.restarts;
         s->last_exit = c->sv.last_exit;
-        s->cpu = c->sv.pid > 0 ? c->cpu : 0;
-        s->rss = c->sv.pid > 0 ? c->rss : 0;
+        s->cpu = c->sv.pid > 0 ? c->use.cpu : 0;
+        s->rss = c->sv.pid > 0 ? c->use.rss : 0;
         s->heartbeat_age_us = c->sv.pid > 0 && c->sv.hb_us ? now - c->sv.hb_us : -1;
         s->config_hash = (char *)c->cfg->hash;
-        s->log_drops = c->drops_total;
+        s->log_drops = am_output_drops(c);
         s->limits = (char *)am_limits_text(c, limits[n - 1], sizeof limits[0]);
-        s->limit_breaches = c->lim.breaches;
+        s->limit_breaches = am_limits_breaches(c);
     }
     if (sample) {
         int64_t cpu_us, rss;
         if (marie_proc_usage(getpid(), &cpu_us, &rss) == 0) {
-            am->self_cpu_pct = marie_cpu_percent(&am->self_cpu, cpu_us, now);
-            am->self_rss = rss;
+            am->status.self_cpu_pct = marie_cpu_percent(&am->status.self_cpu, cpu_us, now);
+            am->status.self_rss = rss;
         }
     }
-    st.am_cpu = am->self_cpu_pct;      /* between samples: the last one */
-    st.am_rss = am->self_rss;
+    st.am_cpu = am->status.self_cpu_pct;      /* between samples: the last one */
+    st.am_rss = am->status.self_rss;
     float load[3] = {0};
     marie_host_load(load);
     st.utime = marie_wall_us();
-    st.host = am->host;
+    st.host = am->env.host;
     st.pid = getpid();
-    st.seq = ++am->status_seq;
-    st.uptime_us = now - am->start_mono;
-    st.system = am->sys && am->sys->name ? am->sys->name : "";
-    st.system_hash = am->sys ? am->sys_hash : "";
-    st.profile = am->profile ? am->profile : "";
+    st.seq = ++am->status.seq;
+    st.uptime_us = now - am->status.start_mono;
+    const marie_system_t *sys = am_system(am);
+    st.system = sys && sys->name ? sys->name : "";
+    st.system_hash = (char *)am_system_hash(am);
+    st.profile = am_profile(am) ? (char *)am_profile(am) : "";
     st.load1 = load[0];
     st.load5 = load[1];
     st.load15 = load[2];
     st.ncpu = (int32_t)sysconf(_SC_NPROCESSORS_ONLN);
-    st.orders_refused = am->orders_refused;
-    st.nhosts = am->sys ? (int32_t)am->sys->nhosts : 0;
-    st.hosts = am->sys ? am->sys->hosts : NULL;
+    st.orders_refused = am_orders_refused(am);
+    st.nhosts = sys ? (int32_t)sys->nhosts : 0;
+    st.hosts = sys ? sys->hosts : NULL;
     st.ncomponents = n;
     st.components = cs;
-    st.balance_leader = "";
-    st.balance_last = am->bal_last;
-    if (am->bal) {
-        st.balance_leader = (char *)(balance_leads(am->bal) ? am->host : balance_leader(am->bal, now));
-        st.balance_term = balance_term(am->bal);
-    }
-    marie_bus_publish_msg(am->lcm, MARIE_CH_AM_STATUS, &marie_type_am_status_t, &st);
+    am_balance_status(am, &st, now);
+    marie_bus_publish_msg(am->env.lcm, MARIE_CH_AM_STATUS, &marie_type_am_status_t, &st);
 out:
     free(limits);
     free(cs);
@@ -143,14 +174,19 @@ out:
 static void on_status_soon(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     am_t *am = user;
-    am->status_pending = false;
+    am->status.pending = false;
     am_publish_status(am, false);
 }
 
-void am_on_status_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+static void on_status_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     am_t *am = user;
-    marie_spawner_sweep(am->spawner);   /* what started children no longer use */
+    marie_spawner_sweep(am->env.spawner);   /* what started children no longer use */
     am_publish_status(user, true);
     am_balance_decide(user);
+}
+
+void am_status_usage_reset(comp_t *c)
+{
+    c->use = (am_usage_t){0};
 }

@@ -18,10 +18,18 @@
 #include "managers/am.h"
 #include "managers/progcheck.h"
 
+size_t am_ncomps(const am_t *am) { return am->system.ncomps; }
+comp_t *am_comp_at(const am_t *am, size_t i) { return &am->system.comps[i]; }
+const marie_system_t *am_system(const am_t *am) { return am->system.sys; }
+const char *am_system_hash(const am_t *am) { return am->system.sys ? am->system.hash : ""; }
+const char *am_system_path(const am_t *am) { return am->system.path; }
+const char *am_profile(const am_t *am) { return am->system.profile; }
+bool am_is_up(const am_t *am) { return am->system.up; }
+
 /* The path of the state file STATE_DIR/name in path[PATH_MAX]. */
 static char *state_path(const am_t *am, const char *name, char path[PATH_MAX])
 {
-    snprintf(path, PATH_MAX, "%s/%s", am->state_dir, name);
+    snprintf(path, PATH_MAX, "%s/%s", am->env.state_dir, name);
     return path;
 }
 
@@ -37,14 +45,14 @@ static FILE *state_open(const am_t *am, const char *name, const char *mode)
 static void write_children(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
 {
     am_t *am = user;
-    am->children_timer = NULL;
+    am->system.children_timer = NULL;
     char path[PATH_MAX], tmp[PATH_MAX + 8];
     snprintf(tmp, sizeof tmp, "%s.tmp", state_path(am, "children", path));
     FILE *f = fopen(tmp, "w");
     if (!f)
         return;
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am->system.ncomps; i++) {
+        comp_t *c = &am->system.comps[i];
         if (c->sv.pid <= 0 || !c->sv.local)
             continue;
         /* read here, not at each spawn: a pid not yet reaped is still that process */
@@ -60,18 +68,24 @@ static void write_children(marie_loop_t *loop, marie_timer_t *t, int64_t overrun
  * once per spawn with every child before it. */
 void am_save_children(am_t *am)
 {
-    if (!am->children_timer)
-        am->children_timer = marie_loop_add_wall_oneshot(am->loop, 0, write_children, am);
-    if (!am->children_timer)
-        write_children(am->loop, NULL, 0, am);
+    if (!am->system.children_timer)
+        am->system.children_timer = marie_loop_add_wall_oneshot(am->env.loop, 0, write_children, am);
+    if (!am->system.children_timer)
+        write_children(am->env.loop, NULL, 0, am);
+}
+
+void am_children_add(comp_t *c)
+{
+    c->start_ticks = 0;         /* read when the children file is written */
+    am_save_children(c->am);
 }
 
 void am_flush_children(am_t *am)
 {
-    if (!am->children_timer)
+    if (!am->system.children_timer)
         return;
-    marie_loop_remove_timer(am->loop, am->children_timer);
-    write_children(am->loop, NULL, 0, am);
+    marie_loop_remove_timer(am->env.loop, am->system.children_timer);
+    write_children(am->env.loop, NULL, 0, am);
 }
 
 void am_kill_leftovers(am_t *am)
@@ -101,10 +115,7 @@ static void comps_free(comp_t *comps, size_t n)
     for (size_t i = 0; i < n; i++) {
         comp_t *c = &comps[i];
         am_comp_cancel_timer(c);
-        am_comp_close_output(c);
-        free(c->out[0].lb);
-        free(c->out[1].lb);
-        marie_logfile_close(c->logf);
+        am_output_free(c);
         am_limits_comp_free(c);
     }
     free(comps);
@@ -112,12 +123,13 @@ static void comps_free(comp_t *comps, size_t n)
 
 void am_comps_free(am_t *am)
 {
-    comps_free(am->comps, am->ncomps);
-    am->comps = NULL;
-    am->ncomps = 0;
+    comps_free(am->system.comps, am->system.ncomps);
+    am->system.comps = NULL;
+    am->system.ncomps = 0;
 }
 
-void am_write_file(const char *path, const char *text, size_t len, mode_t mode)
+/* Replace path atomically (written beside it, then renamed); failures are silent. */
+static void write_file_atomic(const char *path, const char *text, size_t len, mode_t mode)
 {
     char tmp[PATH_MAX];
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
@@ -130,7 +142,7 @@ void am_write_file(const char *path, const char *text, size_t len, mode_t mode)
         rename(tmp, path);
 }
 
-void am_sha256_hex(const void *data, size_t len, const char *extra, char out[65])
+static void sha256_hex(const void *data, size_t len, const char *extra, char out[65])
 {
     crypto_hash_sha256_state s;
     uint8_t h[32];
@@ -147,7 +159,7 @@ void am_save_up_state(am_t *am)
 {
     char path[PATH_MAX];
     state_path(am, "up", path);
-    if (!am->up || !am->sys) {
+    if (!am->system.up || !am->system.sys) {
         unlink(path);
         return;
     }
@@ -156,27 +168,27 @@ void am_save_up_state(am_t *am)
     FILE *m = open_memstream(&text, &len);
     if (!m)
         return;
-    fprintf(m, "system %s\nprofile %s\n", am->sys_path, am->profile ? am->profile : "");
+    fprintf(m, "system %s\nprofile %s\n", am->system.path, am->system.profile ? am->system.profile : "");
     if (am_system_origin(am))
         fprintf(m, "origin %s\n", am_system_origin(am));
-    for (size_t i = 0; i < am->ncomps; i++)
-        if (strcmp(am->comps[i].host, marie_am_component_host(am->sys, am->comps[i].cfg, am->host)) != 0)
-            fprintf(m, "move %s %s\n", am->comps[i].cfg->name, am->comps[i].host);
+    for (size_t i = 0; i < am->system.ncomps; i++)
+        if (strcmp(am->system.comps[i].host, marie_am_component_host(am->system.sys, am->system.comps[i].cfg, am->env.host)) != 0)
+            fprintf(m, "move %s %s\n", am->system.comps[i].cfg->name, am->system.comps[i].host);
     fclose(m);
-    am_write_file(path, text, len, 0644);
+    write_file_atomic(path, text, len, 0644);
     free(text);
 }
 
 const char *am_system_origin(const am_t *am)
 {
-    const char *f = am->sys ? am->sys->file : NULL;
-    return f && f[0] == '/' && am->sys_path && strcmp(f, am->sys_path) != 0 ? f : NULL;
+    const char *f = am->system.sys ? am->system.sys->file : NULL;
+    return f && f[0] == '/' && am->system.path && strcmp(f, am->system.path) != 0 ? f : NULL;
 }
 
 bool am_host_known(am_t *am, const char *h)
 {
-    for (size_t i = 0; i < am->sys->nhosts; i++)
-        if (strcmp(am->sys->hosts[i], h) == 0)
+    for (size_t i = 0; i < am->system.sys->nhosts; i++)
+        if (strcmp(am->system.sys->hosts[i], h) == 0)
             return true;
     return false;
 }
@@ -195,7 +207,7 @@ const marie_system_t *am_loading_system(const am_loading_t *l) { return l->sys; 
 bool am_comp_carried(const comp_t *c, const marie_system_t *next)
 {
     const marie_component_cfg_t *n = marie_system_component(next, c->cfg->name);
-    return n && strcmp(n->hash, c->cfg->hash) == 0 && !c->timer;
+    return n && strcmp(n->hash, c->cfg->hash) == 0 && !am_comp_timer_pending(c);
 }
 
 void am_loading_free(am_loading_t *l)
@@ -236,13 +248,40 @@ am_loading_t *am_loading_open(const char *path, const char *origin, const char *
 int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs)
 {
     char *cache = NULL;
-    if (asprintf(&cache, "%s/describe", am->state_dir) < 0)
+    if (asprintf(&cache, "%s/describe", am->env.state_dir) < 0)
         cache = NULL;
-    marie_progcheck_t *p = marie_progcheck_create(am->self_dir, cache);
+    marie_progcheck_t *p = marie_progcheck_create(am->env.self_dir, cache);
     free(cache);
-    int rc = p ? marie_progcheck_system(p, l->sys, am->host, am->host, errs) : -1;
+    int rc = p ? marie_progcheck_system(p, l->sys, am->env.host, am->env.host, errs) : -1;
     marie_progcheck_destroy(p);
     return rc;
+}
+
+bool am_system_is(const am_t *am, const char *text, const char *profile)
+{
+    char hash[65];
+    sha256_hex(text, strlen(text), profile, hash);
+    return am->system.sys && strcmp(hash, am->system.hash) == 0;
+}
+
+am_loading_t *am_loading_sent(am_t *am, const char *text, const char *sender_path, const char *profile,
+                              marie_errors_t *errs)
+{
+    /* Use the sender's file where this host sees the same text (relative paths in it keep
+     * working); otherwise keep a copy in the state directory. */
+    char path[PATH_MAX];
+    size_t len = 0;
+    char *local = sender_path[0] ? marie_file_read(sender_path, MARIE_AM_SYSTEM_MAX_BYTES, &len) : NULL;
+    const char *origin = NULL;
+    if (local && len == strlen(text) && memcmp(local, text, len) == 0) {
+        snprintf(path, sizeof path, "%s", sender_path);
+    } else {
+        snprintf(path, sizeof path, "%s/system.yaml", am->env.state_dir);
+        write_file_atomic(path, text, strlen(text), 0644);
+        origin = sender_path;
+    }
+    free(local);
+    return am_loading_open(path, origin, profile, errs);
 }
 
 int am_load_system(am_t *am, const char *path, const char *origin, const char *profile, marie_errors_t *errs)
@@ -256,77 +295,64 @@ int am_load_system(am_t *am, const char *path, const char *origin, const char *p
     return 0;
 }
 
+/* The system file's manager settings, where the command line gave none. */
+static void apply_settings(am_t *am, const marie_am_settings_t *set)
+{
+    const am_opts_t *o = &am->env.opt;
+    am_status_set_hz(am, o->given_status_hz ? o->status_hz : set->status_hz);
+    am->system.log_rate = o->given_log_rate ? o->log_rate : set->log_rate;
+    am->system.log_max_bytes = o->given_log_max ? o->log_max_bytes : set->log_max_bytes;
+    am->system.log_keep = o->given_log_keep ? o->log_keep : set->log_keep;
+}
+
 void am_loading_install(am_t *am, am_loading_t *l)
 {
     const marie_am_settings_t set = l->set;
     marie_system_t *sys = l->sys;
     l->sys = NULL;
-    if (!am->opt_status_hz && set.status_hz != am->status_hz) {
-        am->status_hz = set.status_hz;
-        if (am->status_timer) {
-            marie_loop_remove_timer(am->loop, am->status_timer);
-            am->status_timer = marie_loop_add_timer(am->loop, (int64_t)(1e6 / am->status_hz), am_on_status_timer, am);
-        }
-    }
-    if (!am->opt_log_rate) {
-        am->log_rate = set.log_rate;
-        am->log_burst = set.log_rate * 2;
-    }
-    if (!am->opt_log_max)
-        am->log_max_bytes = set.log_max_bytes;
-    if (!am->opt_log_keep)
-        am->log_keep = set.log_keep;
-    comp_t *old = am->comps;
-    size_t nold = am->ncomps;
-    marie_system_t *old_sys = am->sys;
-    MARIE_CLEAR(am->bal, balance_destroy);
-    am->sys = sys;
-    am->bal_cfg = set.balance;
-    if (set.balance.enabled && !(am->bal = balance_create(am->host, sys, &am->bal_cfg)))
-        marie_error("automatic placement off: %s", strerror(errno));
-    am_sha256_hex(l->text, l->len, l->profile ? l->profile : "", am->sys_hash);
-    free(am->sys_path);
-    am->sys_path = realpath(l->path, NULL);
-    if (!am->sys_path)
-        am->sys_path = strdup(l->path);
-    free(am->profile);
-    am->profile = l->profile;
+    apply_settings(am, &set);
+    comp_t *old = am->system.comps;
+    size_t nold = am->system.ncomps;
+    marie_system_t *old_sys = am->system.sys;
+    am->system.sys = sys;
+    am_balance_install(am, sys, &set.balance);
+    sha256_hex(l->text, l->len, l->profile ? l->profile : "", am->system.hash);
+    free(am->system.path);
+    am->system.path = realpath(l->path, NULL);
+    if (!am->system.path)
+        am->system.path = strdup(l->path);
+    free(am->system.profile);
+    am->system.profile = l->profile;
     l->profile = NULL;
     am_loading_free(l);
-    am->comps = calloc(sys->ncomponents ? sys->ncomponents : 1, sizeof *am->comps);
-    am->ncomps = sys->ncomponents;
+    am->system.comps = calloc(sys->ncomponents ? sys->ncomponents : 1, sizeof *am->system.comps);
+    am->system.ncomps = sys->ncomponents;
     char logdir[PATH_MAX];
-    snprintf(logdir, sizeof logdir, "%s/logs", am->state_dir);
+    snprintf(logdir, sizeof logdir, "%s/logs", am->env.state_dir);
     mkdir(logdir, 0755);
-    snprintf(logdir, sizeof logdir, "%s/run", am->state_dir);
+    snprintf(logdir, sizeof logdir, "%s/run", am->env.state_dir);
     mkdir(logdir, 0755);
     for (size_t i = 0; i < sys->ncomponents; i++) {
-        comp_t *c = &am->comps[i];
+        comp_t *c = &am->system.comps[i];
         c->am = am;
         c->cfg = &sys->components[i];
-        snprintf(c->host, sizeof c->host, "%s", marie_am_component_host(sys, c->cfg, am->host));
-        marie_sv_init(&c->sv, c->cfg, strcmp(c->host, am->host) == 0);
-        for (int k = 0; k < 2; k++)
-            c->out[k].fd = -1;
+        snprintf(c->host, sizeof c->host, "%s", marie_am_component_host(sys, c->cfg, am->env.host));
+        marie_sv_init(&c->sv, c->cfg, strcmp(c->host, am->env.host) == 0);
+        am_output_init(c);
         const marie_component_cfg_t *was = old_sys ? marie_system_component(old_sys, c->cfg->name) : NULL;
         if (was && am_comp_carried(&old[was - old_sys->components], sys))
             am_comp_carry(c, &old[was - old_sys->components]);
-        marie_ratelimit_init(&c->rl, am->log_rate, am->log_burst);
+        am_output_set_rate(c, am->system.log_rate);
     }
     comps_free(old, nold);
     marie_system_destroy(old_sys);
     am_status_changed(am);
 }
 
-void am_comp_open_log(comp_t *c)
+void am_log_settings(const am_t *am, int64_t *max_bytes, int *keep)
 {
-    if (c->logf || !c->sv.local)
-        return;
-    char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/logs/%s.log", c->am->state_dir, c->cfg->name);
-    c->logf = marie_logfile_open(path, c->am->log_max_bytes, c->am->log_keep);
-    if (!c->logf)
-        marie_warn("%s: cannot open log file %s: %s", c->cfg->name, path, strerror(errno));
+    *max_bytes = am->system.log_max_bytes;
+    *keep = am->system.log_keep;
 }
 
 /* The effective configuration of every component this host runs, for comparing runs
@@ -334,24 +360,38 @@ void am_comp_open_log(comp_t *c)
 static void record_hashes(am_t *am)
 {
     FILE *f = state_open(am, "config-hashes", "w");
-    for (size_t i = 0; i < am->ncomps; i++) {
-        const comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am->system.ncomps; i++) {
+        const comp_t *c = &am->system.comps[i];
         if (!c->sv.local)
             continue;
         marie_info("%s: configuration %s", c->cfg->name, c->cfg->hash);
         if (f)
-            fprintf(f, "%s %s %s\n", c->cfg->name, c->cfg->hash, am->profile ? am->profile : "-");
+            fprintf(f, "%s %s %s\n", c->cfg->name, c->cfg->hash, am->system.profile ? am->system.profile : "-");
     }
     if (f)
         fclose(f);
 }
 
+void am_down(am_t *am)
+{
+    am->system.up = false;
+    am_save_up_state(am);
+}
+
+void am_system_free(am_t *am)
+{
+    am_comps_free(am);
+    MARIE_CLEAR(am->system.sys, marie_system_destroy);
+    MARIE_CLEAR(am->system.path, free);
+    MARIE_CLEAR(am->system.profile, free);
+}
+
 void am_up(am_t *am)
 {
-    am->up = true;
+    am->system.up = true;
     record_hashes(am);
-    for (size_t i = 0; i < am->ncomps; i++) {
-        comp_t *c = &am->comps[i];
+    for (size_t i = 0; i < am->system.ncomps; i++) {
+        comp_t *c = &am->system.comps[i];
         if (c->sv.local) {
             am_comp_open_log(c);
             am_comp_want(c);
@@ -363,15 +403,14 @@ void am_up(am_t *am)
 
 void am_apply_move(am_t *am, comp_t *c, const char *host)
 {
-    if (am->bal)
-        balance_placed(am->bal, c->cfg->name, host, am_now_us());
+    am_balance_placed(am, c->cfg->name, host);
     if (strcmp(c->host, host) == 0)
         return;     /* placed where it runs: the same instance, watched as before */
     bool was_local = c->sv.local;
     marie_sv_state_t before = c->sv.st;
     marie_sv_action_t act;
     snprintf(c->host, sizeof c->host, "%s", host);
-    marie_sv_set_local(&c->sv, strcmp(host, am->host) == 0, am->up, &act);
+    marie_sv_set_local(&c->sv, strcmp(host, am->env.host) == 0, am->system.up, &act);
     if (!was_local && c->sv.local)
         am_comp_open_log(c);
     am_comp_apply(c, before, &act);

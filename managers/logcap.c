@@ -91,7 +91,7 @@ static int logfile_reopen(marie_logfile_t *lf)
         close(lf->fd);
     lf->fd = open(lf->path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0640);
     if (lf->fd < 0)
-        return -errno;
+        return -1;
     struct stat st;
     lf->size = fstat(lf->fd, &st) == 0 ? st.st_size : 0;
     return 0;
@@ -130,14 +130,14 @@ static void logfile_rotate(marie_logfile_t *lf)
 int marie_logfile_write(marie_logfile_t *lf, const char *data, size_t len)
 {
     if (lf->fd < 0)
-        return -EBADF;
+        return marie_fail(EBADF);
     if (lf->max_bytes > 0 && lf->size + (int64_t)len > lf->max_bytes && lf->size > 0)
         logfile_rotate(lf);
     if (lf->fd < 0)
-        return -EBADF;
+        return marie_fail(EBADF);
     ssize_t w = write(lf->fd, data, len);
     if (w < 0)
-        return -errno;
+        return -1;
     lf->size += w;
     return 0;
 }
@@ -157,7 +157,7 @@ static int tail_file(const char *path, int n, char **ring, int *count, int *head
 {
     FILE *f = fopen(path, "r");
     if (!f)
-        return -errno;
+        return -1;
     char line[MARIE_LINE_MAX + 128];
     while (fgets(line, sizeof line, f)) {
         size_t l = strlen(line);
@@ -183,15 +183,16 @@ int marie_logfile_tail(const char *path, int n, marie_line_cb_t cb, void *user)
         return 0;
     char **ring = calloc((size_t)n, sizeof *ring);
     if (!ring)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int count = 0, head = 0;
     size_t pl = strlen(path) + 4;
     char prev[pl];
     snprintf(prev, pl, "%s.1", path);
     tail_file(prev, n, ring, &count, &head);
     int rc = tail_file(path, n, ring, &count, &head);
-    if (rc == -ENOENT && count > 0)
-        rc = 0;
+    int err = rc < 0 ? errno : 0;
+    if (err == ENOENT && count > 0)
+        rc = err = 0;
     for (int i = 0; i < count; i++) {
         const char *l = ring[(head + i) % n];
         if (l)
@@ -200,5 +201,5 @@ int marie_logfile_tail(const char *path, int n, marie_line_cb_t cb, void *user)
     for (int i = 0; i < n; i++)
         free(ring[i]);
     free(ring);
-    return rc;
+    return rc < 0 ? marie_fail(err) : 0;
 }

@@ -35,11 +35,11 @@ int marie_ratelimit_take(marie_ratelimit_t *rl, int64_t now_us);   /* 1: pass, 0
 /* Append-only log file, renamed to path.1 .. path.KEEP when it passes max_bytes. */
 typedef struct marie_logfile marie_logfile_t;
 marie_logfile_t *marie_logfile_open(const char *path, int64_t max_bytes, int keep);
-int marie_logfile_write(marie_logfile_t *lf, const char *data, size_t len);
+int marie_logfile_write(marie_logfile_t *lf, const char *data, size_t len);   /* 0, or -1 with errno */
 void marie_logfile_close(marie_logfile_t *lf);     /* NULL is a no-op */
 
 /* The last n lines of a file (and of its .1 predecessor when the file is short), each
- * passed to cb oldest first. 0 or -errno. */
+ * passed to cb oldest first. 0, or -1 with errno. */
 int marie_logfile_tail(const char *path, int n, marie_line_cb_t cb, void *user);
 
 #ifdef __cplusplus

@@ -10,7 +10,7 @@
 #include <lcm/lcm.h>
 
 #include "core/config.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
 #include "core/version.h"
@@ -158,7 +158,7 @@ int main(int argc, char **argv)
         }
         int r = marie_auth_keygen(sargv[1]);
         if (r < 0)
-            fprintf(stderr, "marie: keygen %s: %s\n", sargv[1], strerror(-r));
+            fprintf(stderr, "marie: keygen %s: %s\n", sargv[1], strerror(errno));
         rc = r < 0 ? MARIE_EXIT_FAIL : MARIE_EXIT_OK;
     } else {
         return run_external(cmd, sargc, sargv);

@@ -15,7 +15,7 @@
 #include "core/buf.h"
 #include "core/config.h"
 #include "core/time.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
 #include "core/typeinfo.h"

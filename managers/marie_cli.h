@@ -12,7 +12,7 @@
 
 #include "core/auth.h"
 #include "core/loop.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 
 #define MAX_HOSTS 64
 

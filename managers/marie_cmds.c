@@ -19,7 +19,8 @@
 #include "core/expand.h"
 #include "core/file.h"
 #include "core/time.h"
-#include "managers/am_proto.h"
+#include "managers/am_settings.h"
+#include "proto/am_proto.h"
 #include "managers/marie_cli.h"
 #include "managers/progcheck.h"
 

@@ -20,7 +20,7 @@
 #include "core/config.h"
 #include "core/log.h"
 #include "core/time.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/marie_cli.h"
 #include "core/auth.h"
 

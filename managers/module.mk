@@ -1,12 +1,14 @@
-# managers: marie-am (one per host), the marie command line, and the order-signing library.
-MANAGERS_LIB := $(B)/lib/libmarie_managers.a
-$(eval $(call marie_lib,marie_managers,managers/am_proto.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c managers/limits.c))
+# managers: marie-am (one per host), the marie command line, and their library (the order
+# protocol they share with the tools is proto/'s).
+MANAGERS_LIB := $(B)/lib/libmarie_managers.a $(PROTO_LIB)
+$(eval $(call marie_lib,marie_managers,managers/am_settings.c managers/logcap.c managers/progcheck.c managers/spawn.c managers/supervise.c managers/balance.c managers/limits.c))
 
-# marie-am: I/O (am.c main, am_run.c spawn and actions, am_status.c, am_system.c, am_orders.c,
-# am_check.c: an up order's program check in a child, am_apply.c: an up of a changed system
-# applied as a difference, am_limits.c: resource limits, sdnotify.c: systemd's notify protocol)
-# around the pure parts in the library (supervise.c, limits.c).
-$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_apply.c managers/am_balance.c managers/am_limits.c managers/sdnotify.c,$(MANAGERS_LIB)))
+# marie-am: I/O (am.c main, am_run.c spawn and actions, am_output.c output capture,
+# am_status.c, am_system.c, am_orders.c, am_check.c: an up order's program check in a child,
+# am_apply.c: an up of a changed system applied as a difference, am_balance.c: placement,
+# am_limits.c: resource limits, sdnotify.c: systemd's notify protocol) around the pure parts in
+# the library (supervise.c, balance.c, limits.c). Each file owns one part of struct am (am.h).
+$(eval $(call marie_program,marie-am,managers/am.c managers/am_run.c managers/am_output.c managers/am_status.c managers/am_system.c managers/am_orders.c managers/am_check.c managers/am_apply.c managers/am_balance.c managers/am_limits.c managers/sdnotify.c,$(MANAGERS_LIB)))
 $(eval $(call marie_program,marie,managers/marie.c managers/marie_bus.c managers/marie_cmds.c managers/marie_doctor.c,$(MANAGERS_LIB)))
 
 # The systemd unit, with the install prefix substituted.

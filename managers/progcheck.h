@@ -3,7 +3,7 @@
 #define MARIE_PROGCHECK_H
 
 #include "core/config.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -21,7 +21,7 @@
 #include "core/loop.h"
 #include "core/time.h"
 #include "core/typeinfo.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "managers/top.h"
 #include "core/version.h"
 

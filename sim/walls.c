@@ -7,6 +7,7 @@
 #include <stdlib.h>
 
 #include "core/buf.h"
+#include "core/err.h"
 
 long sim_walls_rects(const occmap_t *m, sim_rect_t **out)
 {
@@ -54,5 +55,5 @@ nomem:
     free(r);
     free(open);
     free(next);
-    return -ENOMEM;
+    return marie_fail(ENOMEM);
 }

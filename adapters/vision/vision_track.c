@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/buf.h"
+#include "core/err.h"
 
 struct vision_tracker {
     vision_tracker_opts_t opts;
@@ -102,7 +103,7 @@ int vision_tracker_update(vision_tracker_t *t, int64_t now_us, const vision_dete
     /* Grow first so that pointers handed out below stay valid for the whole frame. */
     size_t need = t->n + (size_t)(n > 0 ? n : 0), cap_tracks = t->cap, cap_seen = t->cap;
     if (MARIE_GROW(t->tracks, cap_tracks, need) < 0 || MARIE_GROW(t->seen_frame, cap_seen, need) < 0)
-        return -ENOMEM;
+        return -1;
     t->cap = cap_tracks;                /* the two grow alike */
     for (int k = 0; k < n; k++) {
         const vision_detection_t *d = &dets[k];

@@ -4,7 +4,7 @@ once") read from the sources.
 
 A parameter is declared once, in a NAME.params.yaml; code hands the generated struct (or a member
 of it) to a library rather than filling a second struct field by field. This reports every
-assignment or designated initializer in production code (core map camera ca hw managers adapters
+assignment or designated initializer in production code (core map camera ca hw proto managers adapters
 sim tools; benchmarks and tests are not production code) of the form
 
     X.f = R->g;   X->f = (int)R.g;   .f = (int64_t)(R->g * 1e6),   ...
@@ -26,7 +26,7 @@ import sys
 
 import yaml
 
-FOLDERS = "core map camera ca hw managers adapters sim tools".split()
+FOLDERS = "core map camera ca hw proto managers adapters sim tools".split()
 UNIT = re.compile(r"_(us|ms|s|hz)$")
 NUM = r"(?:\d+(?:\.\d*)?(?:e[+-]?\d+)?|\.\d+)"
 CAST = re.compile(r"(?<![\w)\]])\(\s*(?:const\s+)?(?:unsigned\s+)?\w+\s*\**\s*\)")

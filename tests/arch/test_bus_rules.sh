@@ -5,7 +5,7 @@
 . tests/lib.sh
 
 production_files() {
-    find core map camera ca hw managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
+    find core map camera ca hw proto managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
         sort
 }
 

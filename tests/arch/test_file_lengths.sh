@@ -8,7 +8,7 @@ MAX=800
 EXEMPT=""
 
 production_files() {
-    find core map camera ca hw managers adapters sim tools scripts -type f \
+    find core map camera ca hw proto managers adapters sim tools scripts -type f \
         \( -name '*.c' -o -name '*.cpp' -o -name '*.h' -o -name '*.py' -o -name '*.js' -o -name '*.sh' \) | sort
 }
 

@@ -13,16 +13,17 @@ allowed() {
     camera/*)   ok="camera/ map/ core/ lcmtypes/" ;;
     ca/*)       ok="ca/ core/ lcmtypes/" ;;
     hw/*)       ok="hw/ core/ lcmtypes/" ;;
-    managers/*) ok="managers/ core/ lcmtypes/" ;;
+    proto/*)    ok="proto/ core/ lcmtypes/" ;;
+    managers/*) ok="managers/ proto/ core/ lcmtypes/" ;;
     adapters/*) ok="$d/ adapters/common/ camera/ hw/ map/ ca/ core/ lcmtypes/" ;;
     sim/*)      ok="sim/ hw/ camera/ map/ core/ lcmtypes/" ;;
-    tools/*)    ok="$d/ tools/webcommon/ managers/am_proto.h map/ ca/ core/ lcmtypes/" ;;
+    tools/*)    ok="$d/ tools/webcommon/ proto/ map/ ca/ core/ lcmtypes/" ;;
     *)          ok="" ;;
     esac
 }
 
 production_files() {
-    find core map camera ca hw managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
+    find core map camera ca hw proto managers adapters sim tools -type f \( -name '*.c' -o -name '*.cpp' -o -name '*.h' \) |
         sort
 }
 

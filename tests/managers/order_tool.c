@@ -12,7 +12,7 @@
 #include "core/config.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "core/auth.h"
 
 static int64_t want_seq;

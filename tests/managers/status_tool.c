@@ -10,7 +10,7 @@
 
 #include "core/config.h"
 #include "core/time.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 
 static const char *watch_host;
 static int64_t first_seq = -1, last_seq = -1;

@@ -58,6 +58,14 @@ am_bad_refused() {
     rc=$?; cat "$T/am2.log"; [ $rc -eq 2 ] && grep -q 'bad.yaml:7:' "$T/am2.log" && [ ! -s "$T/trace" ]
 }
 check "marie-am refuses a bad --system file" am_bad_refused
+# -- a key is never overwritten, and the refusal says why (the errno of the failed open)
+keygen_keeps_key() {
+    before=$(cat "$T/key")
+    out=$("$M" keygen "$T/key" 2>&1); rc=$?
+    echo "$out"
+    [ $rc -eq 1 ] && echo "$out" | grep -q "key: File exists" && [ "$(cat "$T/key")" = "$before" ]
+}
+check "keygen refuses an existing key, saying why" keygen_keeps_key
 # a key given but unusable: exit 2 at once with the reason, never a manager refusing everything
 bad_key() {   # bad_key FILE WHY [marie-am options]: exit 2 naming the file and the reason
     f=$1; why=$2; shift 2

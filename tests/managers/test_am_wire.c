@@ -10,7 +10,7 @@
 
 #include "lcmtypes/marie_event_t.h"
 #include "lcmtypes/marie_heartbeat_t.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "core/typeinfo.h"
 
 #define ENCODE(type, msg, buf, n) do {                              \

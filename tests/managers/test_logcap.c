@@ -1,5 +1,6 @@
 /* test_logcap: captured output is split into lines, rate-limited, rotated and tailed, and
  * /proc usage parsing copes with odd command names. */
+#include <errno.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -112,6 +113,25 @@ static void test_rotation_and_tail(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* The error rule: -1 with errno, as every marie call fails (not -errno). */
+static void test_failures_set_errno(void **state)
+{
+    got_t g = {0};
+    errno = 0;
+    assert_int_equal(marie_logfile_tail("/nonexistent/marie/c.log", 5, collect, &g), -1);
+    assert_int_equal(errno, ENOENT);
+    assert_int_equal(g.n, 0);
+    errno = 0;
+    assert_null(marie_logfile_open("/nonexistent/marie/c.log", 100, 2));
+    assert_int_equal(errno, ENOENT);
+    marie_logfile_t *lf = marie_logfile_open("/dev/full", 0, 1);
+    assert_non_null(lf);
+    errno = 0;
+    assert_int_equal(marie_logfile_write(lf, "x\n", 2), -1);
+    assert_int_equal(errno, ENOSPC);
+    marie_logfile_close(lf);
+}
+
 static void test_proc_stat_parse(void **state)
 {
     int64_t ut, st;
@@ -140,6 +160,7 @@ int main(void)
         cmocka_unit_test(test_overlong_line_cut),
         cmocka_unit_test(test_rate_limit),
         cmocka_unit_test(test_rotation_and_tail),
+        cmocka_unit_test(test_failures_set_errno),
         cmocka_unit_test(test_proc_stat_parse),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

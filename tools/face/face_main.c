@@ -13,7 +13,7 @@
 #include "core/auth.h"
 #include "core/clear.h"
 #include "core/component.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "tools/face/face_params.h"
 #include "tools/webcommon/vjson.h"
 #include "tools/webcommon/webpin.h"

@@ -17,7 +17,7 @@
 #include "lcmtypes/marie_laser_scan_t.h"
 #include "lcmtypes/marie_odometry_t.h"
 #include "lcmtypes/marie_pose_cov_t.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "tools/log/carmen.h"
 
 #define MAX_LINE (4 << 20)      /* bytes: a line of 100000 beams fits */

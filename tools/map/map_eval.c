@@ -13,7 +13,7 @@
 #include "core/lcmlog.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "map/occmap.h"
 #include "map/trajeval.h"
 #include "tools/map/map_tool.h"

@@ -13,7 +13,7 @@
 #include "core/loop.h"
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_occupancy_grid_t.h"
-#include "managers/am_proto.h"
+#include "proto/am_proto.h"
 #include "map/mapeval.h"
 #include "map/occmap.h"
 #include "core/version.h"

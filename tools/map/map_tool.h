@@ -11,7 +11,7 @@
 extern "C" {
 #endif
 
-/* `marie map eval RUN.lcm [...]`: argv[0] is "eval". An exit status (managers/am_proto.h). */
+/* `marie map eval RUN.lcm [...]`: argv[0] is "eval". An exit status (proto/am_proto.h). */
 int map_eval_main(int argc, char **argv);
 
 /* The map (map_saver's grey levels: occupied black, free white, unknown grey) with the estimate

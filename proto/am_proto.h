@@ -1,6 +1,8 @@
-/* am_proto: channels, order names and defaults shared by marie-am and the marie command line. */
-#ifndef MARIE_AM_PROTO_H
-#define MARIE_AM_PROTO_H
+/* am_proto: the managers' wire protocol as their clients see it (libmarie_proto): channels,
+ * order names, exit codes, the key file, and signed orders sent. marie-am, the marie command
+ * line and the tools (viewer, face, log, map) include it; nothing in it knows marie-am's state. */
+#ifndef MARIE_PROTO_AM_PROTO_H
+#define MARIE_PROTO_AM_PROTO_H
 
 #include <stddef.h>
 #include <stdint.h>
@@ -46,30 +48,15 @@ void marie_am_sender(char *buf, size_t len);
 #endif
 
 #include "core/config.h"
-#include "managers/balance.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* Manager settings of a system file (its `manager:` section). */
-typedef struct {
-    double status_hz;           /* status messages per second (default 2) */
-    double log_rate;            /* captured lines per second per component (default 200; burst 2x) */
-    int64_t log_max_bytes;      /* rotate a component's log past this size (default 1 MiB) */
-    int log_keep;               /* rotated files kept (default 3) */
-    balance_cfg_t balance;      /* the `balance:` section */
-} marie_am_settings_t;
-
-/* What the managers check beyond marie_system_load (which refuses cycles): the `manager:`
- * section. Fills settings (defaults for absent keys). 0 or -1
- * with file:line:col messages in errs. */
-int marie_am_check_system(const marie_system_t *sys, marie_am_settings_t *settings, marie_errors_t *errs);
-
 /* Send an order as a client (marie, the log viewer): fills utime, sender ("user@host") and
  * seq (marie_auth_next_seq over seq_file, which may be NULL), signs with auth and publishes
  * on MARIE_CH_AM_ORDER. Answers come as marie_am_reply_t on MARIE_CH_AM_REPLY carrying the
- * same sender and seq. 0 or -errno. */
+ * same sender and seq. 0, or -1 with errno. */
 typedef struct marie_auth marie_auth_t;
 typedef struct _lcm_t lcm_t;
 int marie_am_send_order(lcm_t *lcm, const marie_auth_t *auth, marie_am_order_t *o, char *sender_buf,
