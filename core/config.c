@@ -415,7 +415,17 @@ static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
     crypto_hash_sha256_final(&st, h);
     free(buf);
     for (size_t i = 0; i < sizeof h; i++)
-        snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
+        snprintf(c->hash_ + 2 * i, 3, "%02x", h[i]);
+}
+
+/* Hashing every entry took half of a component's start-up (its file read for its own entry):
+ * the hash is made on demand, once. The entry is the system's, which a reader holds as const;
+ * the hash is a cache of what the entry says, so it is filled in place. */
+const char *marie_component_hash(const marie_component_cfg_t *c)
+{
+    if (!c->hash_[0])
+        hash_component(c->sys_, (marie_component_cfg_t *)c);
+    return c->hash_;
 }
 
 char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,
@@ -782,7 +792,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
                 rc = -1;
             }
         }
-        hash_component(sys, c);
+        c->sys_ = sys;
     }
     if (rc == 0 && marie_config_check(sys, errs) < 0)
         rc = -1;

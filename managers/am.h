@@ -98,6 +98,8 @@ struct am {
     float self_cpu_pct;
     int64_t self_rss;
     bool status_pending;
+    bool status_settled;
+    int rt_priority;            /* --rt-priority: SCHED_FIFO priority, 0 for the normal policy */        /* the last status published showed no component between states */
     bool quitting;
     int64_t quit_deadline;
     uint64_t watchdog_us;

@@ -195,7 +195,7 @@ const marie_system_t *am_loading_system(const am_loading_t *l) { return l->sys; 
 bool am_comp_carried(const comp_t *c, const marie_system_t *next)
 {
     const marie_component_cfg_t *n = marie_system_component(next, c->cfg->name);
-    return n && strcmp(n->hash, c->cfg->hash) == 0 && !c->timer;
+    return n && strcmp(marie_component_hash(n), marie_component_hash(c->cfg)) == 0 && !c->timer;
 }
 
 void am_loading_free(am_loading_t *l)
@@ -338,9 +338,9 @@ static void record_hashes(am_t *am)
         const comp_t *c = &am->comps[i];
         if (!c->sv.local)
             continue;
-        marie_info("%s: configuration %s", c->cfg->name, c->cfg->hash);
+        marie_info("%s: configuration %s", c->cfg->name, marie_component_hash(c->cfg));
         if (f)
-            fprintf(f, "%s %s %s\n", c->cfg->name, c->cfg->hash, am->profile ? am->profile : "-");
+            fprintf(f, "%s %s %s\n", c->cfg->name, marie_component_hash(c->cfg), am->profile ? am->profile : "-");
     }
     if (f)
         fclose(f);
