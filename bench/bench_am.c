@@ -45,7 +45,9 @@ static pid_t spawn_am_rt(const char *host, const char *state, int rt)
     if (pid == 0) {
         FILE *f = freopen(log, "a", stderr);
         (void)f;
-        execl(exe, exe, "--host", host, "--state-dir", state, "--rt-priority", prio, (char *)NULL);
+        if (rt > 0)
+            execl(exe, exe, "--host", host, "--state-dir", state, "--rt-priority", prio, (char *)NULL);
+        execl(exe, exe, "--host", host, "--state-dir", state, (char *)NULL);
         _exit(127);
     }
     return pid;
