@@ -89,7 +89,9 @@ ip link set br1 up
 # kept_since TIME: every component's running copy started before TIME (none was restarted)
 kept_since() {
     r=$(running complete); echo "$r"
-    echo "$r" | awk -v t="$1" '$3 >= t { print $1 " on " $2 " started after the heal"; bad = 1 } END { exit bad }'
+    echo "$r" | awk -v t="$1" '$3 >= t { print $1 " on " $2 " started after the heal"; bad = 1 } END { exit bad }' && return
+    grep -h 'worker\|loc\b\|planner\|lost\|heard' "$T"/*.log | tail -40
+    return 1
 }
 partition() {   # partition NAME VETH...: those hosts apart for 6 s, then healed
     name=$1; shift
