@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/err.h"
 #include "core/log.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -32,7 +33,7 @@ int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t 
     if (s && s->publish)
         return s->publish(s->user, channel, buf, len);
     if (s && s->lcm)
-        return marie_bus_publish(s->lcm, channel, buf, (unsigned int)len) < 0 ? -EIO : 0;
+        return marie_bus_publish(s->lcm, channel, buf, (unsigned int)len) < 0 ? marie_fail(EIO) : 0;
     return 0;
 }
 
@@ -41,13 +42,13 @@ int ca_bad_request(const ca_sink_t *s, const char *where, const char *what, cons
     ca_note(s, CA_NOTE_BAD_INPUT, "bad_request", 1, "%s%sundecodable %s (%zu bytes, fingerprint %016llx)",
             where ? where : "", where ? ": " : "", what, len,
             (unsigned long long)marie_payload_fingerprint(buf, len));
-    return -EBADMSG;
+    return marie_fail(EBADMSG);
 }
 
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp)
 {
     if (!raw || len < 8)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     *fp = marie_payload_fingerprint(raw, len);
     return 0;
 }
@@ -56,9 +57,9 @@ int ca_check_type(const marie_type_t *type, const void *raw, size_t len)
 {
     int64_t fp;
     if (ca_fingerprint(raw, len, &fp) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     if (type && fp != type->hash())
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     return 0;
 }
 
@@ -69,14 +70,14 @@ int ca_payload_check(const marie_type_t *type, const void *raw, size_t len, cons
     *why = "bad_fingerprint";
     int64_t fp;
     if (ca_check_type(type, raw, len) < 0 || ca_fingerprint(raw, len, &fp) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     /* An untyped CA can only check the types it knows; others pass on their fingerprint. */
     const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(fp);
     if (!ti)
         return 0;
     int rc = marie_typeinfo_check_flags(ti, raw, len, MARIE_CHECK_FINITE);
-    *why = rc == -EDOM ? "bad_nonfinite" : "bad_payload";
-    return rc < 0 ? -EBADMSG : 0;
+    *why = rc < 0 && errno == EDOM ? "bad_nonfinite" : "bad_payload";
+    return rc < 0 ? marie_fail(EBADMSG) : 0;
 }
 
 int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *channel, const void *raw, size_t len)
@@ -89,7 +90,7 @@ int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *cha
     const marie_type_t *t = type ? type : marie_type_by_fingerprint(fp);
     ca_note(s, CA_NOTE_BAD_INPUT, why, 1, "%s: payload of %zu bytes with fingerprint %016llx is not a well-formed, finite %s",
             channel, len, (unsigned long long)fp, t ? t->name : "LCM payload");
-    return -EBADMSG;
+    return marie_fail(EBADMSG);
 }
 
 char *ca_channel_pattern(const char *channel)
@@ -119,10 +120,10 @@ int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, ca_input_fn f
     *in = (ca_input_t){ .lcm = lcm, .fn = fn, .user = user };
     char *pat = ca_channel_pattern(channel);
     if (!pat)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     in->sub = marie_bus_subscribe(lcm, pat, on_input_lcm, in);
     free(pat);
-    return in->sub ? 0 : -EIO;
+    return in->sub ? 0 : marie_fail(EIO);
 }
 
 void ca_input_close(ca_input_t *in)
@@ -161,13 +162,13 @@ int ca_fsync_dir(const char *path)
 {
     char *copy = strdup(path);
     if (!copy)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int fd = open(dirname(copy), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     free(copy);
     if (fd < 0)
-        return -errno;
-    int rc = fsync(fd) < 0 ? -errno : 0;
-    close(fd);
+        return -1;
+    int rc = fsync(fd) < 0 ? -1 : 0;
+    MARIE_KEEP_ERRNO(close(fd));
     return rc;
 }
 
@@ -175,37 +176,31 @@ int ca_write_file_atomic(const char *path, const void *buf, size_t len)
 {
     char tmp[4096];
     if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
-        return -ENAMETOOLONG;
+        return marie_fail(ENAMETOOLONG);
     int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0)
-        return -errno;
+        return -1;
     const uint8_t *p = buf;
     size_t off = 0;
-    int rc = 0;
     while (off < len) {
         ssize_t w = write(fd, p + off, len - off);
         if (w < 0) {
             if (errno == EINTR)
                 continue;
-            rc = -errno;
             goto err_close;
         }
         off += (size_t)w;
     }
-    if (fsync(fd) < 0) {
-        rc = -errno;
+    if (fsync(fd) < 0)
         goto err_close;
-    }
     close(fd);
-    if (rename(tmp, path) < 0) {
-        rc = -errno;
+    if (rename(tmp, path) < 0)
         goto err_unlink;
-    }
     return ca_fsync_dir(path);
 
 err_close:
-    close(fd);
+    MARIE_KEEP_ERRNO(close(fd));
 err_unlink:
-    unlink(tmp);
-    return rc;
+    MARIE_KEEP_ERRNO(unlink(tmp));
+    return -1;
 }

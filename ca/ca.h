@@ -51,22 +51,22 @@ void ca_note(const ca_sink_t *s, ca_note_kind_t kind, const char *counter, int64
              const char *fmt, ...) __attribute__((format(printf, 5, 6)));
 int ca_publish(const ca_sink_t *s, const char *channel, const void *buf, size_t len);
 /* Counts (counter bad_request) and reports an undecodable request: "[where: ]undecodable
- * WHAT (N bytes, fingerprint F)". Returns -EBADMSG for the caller to pass on. */
+ * WHAT (N bytes, fingerprint F)". Returns -1 with errno EBADMSG for the caller to pass on. */
 int ca_bad_request(const ca_sink_t *s, const char *where, const char *what, const void *buf, size_t len);
 
-/* The big-endian fingerprint that starts every LCM payload; -EBADMSG when len < 8. */
+/* The big-endian fingerprint that starts every LCM payload; -1 with errno EBADMSG when len < 8. */
 int ca_fingerprint(const void *raw, size_t len, int64_t *fp);
-/* 0 when `raw` carries `type` (NULL type: any payload of at least 8 bytes), else -EBADMSG. */
+/* 0 when `raw` carries `type` (NULL type: any payload of at least 8 bytes), else -1 with errno EBADMSG. */
 int ca_check_type(const marie_type_t *type, const void *raw, size_t len);
 
 /* Whether a CA may store or forward `raw`: it carries `type` (NULL: any), and when its
  * fingerprint is a marie type, it is well formed (marie_typeinfo_check) with every float and
  * double finite, as a component's input port would demand; a CA never hands on what every
- * receiver would drop. 0, or -EBADMSG with *why (if why is not NULL) the counter to bump:
+ * receiver would drop. 0, or -1 with errno EBADMSG and *why (if why is not NULL) the counter to bump:
  * "bad_fingerprint", "bad_payload" or "bad_nonfinite". */
 int ca_payload_check(const marie_type_t *type, const void *raw, size_t len, const char **why);
 /* ca_payload_check() that also counts and reports a refusal through the sink (kind
- * CA_NOTE_BAD_INPUT, the counter named by why), naming `channel`. 0 or -EBADMSG. */
+ * CA_NOTE_BAD_INPUT, the counter named by why), naming `channel`. 0, or -1 with errno EBADMSG. */
 int ca_input_check(const ca_sink_t *s, const marie_type_t *type, const char *channel, const void *raw, size_t len);
 
 /* `channel` as an LCM subscription pattern that matches only itself (lcm_subscribe takes a
@@ -84,7 +84,7 @@ typedef struct {
     ca_input_fn fn;
     void *user;
 } ca_input_t;
-/* 0, or -ENOMEM / -EIO (nothing left open). */
+/* 0, or -1 with errno ENOMEM or EIO (nothing left open). */
 int ca_input_open(ca_input_t *in, lcm_t *lcm, const char *channel, ca_input_fn fn, void *user);
 void ca_input_close(ca_input_t *in);    /* no-op when not open */
 /* The input's counts since it opened (zero on LCM): `lost` overwritten in shared memory before
@@ -94,11 +94,11 @@ marie_bus_sub_stats_t ca_input_stats(const ca_input_t *in);
 /* CRC-32 (IEEE 802.3), for the SharedMap's log records. */
 uint32_t ca_crc32(uint32_t crc, const void *buf, size_t len);
 
-/* fsync the directory holding `path`, so a create or rename in it is durable. 0 or -errno. */
+/* fsync the directory holding `path`, so a create or rename in it is durable. 0, or -1 with errno. */
 int ca_fsync_dir(const char *path);
 
 /* Writes `len` bytes to `path` durably and atomically: a temporary file in the same
- * directory, fsync, rename over `path`, fsync of the directory. 0 or -errno. */
+ * directory, fsync, rename over `path`, fsync of the directory. 0, or -1 with errno. */
 int ca_write_file_atomic(const char *path, const void *buf, size_t len);
 
 #ifdef __cplusplus

@@ -380,7 +380,7 @@ static int attach(marie_component_t *c)
             ca_switch_publish_state(p->sw, 0, "", 0, marie_wall_us());
     }
     if (rc < 0) {
-        marie_component_fail_reason(c, "cannot subscribe: %s", strerror(-rc));
+        marie_component_fail_reason(c, "cannot subscribe: %s", strerror(errno));
         return -1;
     }
     p->attached = 1;

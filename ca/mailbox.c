@@ -99,7 +99,7 @@ int mailbox_peek(const mailbox_t *mb, size_t i, const void **raw, size_t *len, i
 {
     const slot_t *s = newest(mb, i);
     if (!s)
-        return -ENODATA;
+        return marie_fail(ENODATA);
     if (raw)
         *raw = s->data;
     if (len)
@@ -112,12 +112,12 @@ int mailbox_peek(const mailbox_t *mb, size_t i, const void **raw, size_t *len, i
 int mailbox_latest(const mailbox_t *mb, void *msg, int64_t now, int64_t *age_us)
 {
     if (!mb->type)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     const slot_t *s = newest(mb, 0);
     if (!s)
-        return -ENODATA;
+        return marie_fail(ENODATA);
     if (marie_decode_checked(mb->type, s->data, s->len, msg) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     if (age_us)
         *age_us = now - s->recv_utime;
     return 0;
@@ -145,18 +145,18 @@ static int reply(mailbox_t *mb, const char *reply_channel, int64_t request_id, i
         uint8_t *nb = realloc(mb->enc, (size_t)need);
         if (!nb) {
             ca_note(&mb->sink, CA_NOTE_DROP, "reply_failed", 1, NULL);
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         }
         mb->enc = nb;
         mb->enc_cap = (size_t)need;
     }
     int n = marie_pull_reply_t_encode(mb->enc, 0, need, &r);
     if (n < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     mb->stats.replies++;
     if (ca_publish(&mb->sink, reply_channel, mb->enc, (size_t)n) < 0) {
         ca_note(&mb->sink, CA_NOTE_DROP, "reply_failed", 1, "reply to %s failed", reply_channel);
-        return -EIO;
+        return marie_fail(EIO);
     }
     return 0;
 }
@@ -172,14 +172,14 @@ int mailbox_push(mailbox_t *mb, const void *raw, size_t len, int64_t recv_utime)
 {
     if (ca_input_check(&mb->sink, mb->type, mb->channel, raw, len) < 0) {
         mb->stats.bad_input++;
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     }
     slot_t *s = &mb->ring[mb->head];
     if (len > s->cap) {
         uint8_t *nb = realloc(s->data, len);
         if (!nb) {
             ca_note(&mb->sink, CA_NOTE_DROP, "overflow", 1, "%s: out of memory", mb->channel);
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         }
         s->data = nb;
         s->cap = len;
@@ -221,7 +221,7 @@ int mailbox_handle_request(mailbox_t *mb, const marie_pull_request_t *req, int64
         ca_note(&mb->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
                 "%s: pull request %lld from '%s' has no reply channel", mb->pull_channel,
                 (long long)req->request_id, req->requester ? req->requester : "");
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     if (!req->channel || strcmp(req->channel, mb->channel) != 0) {
         reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL,
@@ -230,9 +230,11 @@ int mailbox_handle_request(mailbox_t *mb, const marie_pull_request_t *req, int64
     }
     const slot_t *s = newest(mb, 0);
     if (s)
-        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_OK, s, now) < 0 ? -EIO : 0;
+        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_OK, s, now) < 0
+                   ? marie_fail(EIO) : 0;
     if (req->timeout_ms <= 0)
-        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_EMPTY, NULL, now) < 0 ? -EIO : 0;
+        return reply(mb, req->reply_channel, req->request_id, MARIE_PULL_REPLY_T_STATUS_EMPTY, NULL, now) < 0
+                   ? marie_fail(EIO) : 0;
     if (mb->nwaiting == MAILBOX_MAX_WAITING) {
         waiter_t *w = &mb->waiting[0];
         reply(mb, w->reply_channel, w->request_id, MARIE_PULL_REPLY_T_STATUS_EMPTY, NULL, now);
@@ -240,7 +242,7 @@ int mailbox_handle_request(mailbox_t *mb, const marie_pull_request_t *req, int64
     }
     char *rc = strdup(req->reply_channel);
     if (!rc)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int64_t t = (int64_t)req->timeout_ms;
     if (t > 3600 * 1000)
         t = 3600 * 1000;
@@ -302,18 +304,19 @@ static void on_pull(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
 int mailbox_attach(mailbox_t *mb, lcm_t *lcm)
 {
     if (mb->lcm)
-        return -EALREADY;
+        return marie_fail(EALREADY);
     char *pat = ca_channel_pattern(mb->pull_channel);
     if (!pat)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int rc = ca_input_open(&mb->data, lcm, mb->channel, on_data, mb);
+    int err = rc < 0 ? errno : EIO;
     mb->sub_pull = marie_bus_subscribe(lcm, pat, on_pull, mb);
     free(pat);
     mb->lcm = lcm;
     mb->sink.lcm = lcm;
     if (rc < 0 || !mb->sub_pull) {
         mailbox_detach(mb);
-        return rc < 0 ? rc : -EIO;
+        return marie_fail(err);
     }
     return 0;
 }

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "ca/sharedmap_log.h"
+#include "core/err.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
@@ -61,7 +62,7 @@ static int grow(sharedmap_t *sm, size_t need)
         cap *= 2;
     uint8_t *nb = realloc(sm->buf, cap);
     if (!nb)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     sm->buf = nb;
     sm->buf_cap = cap;
     return 0;
@@ -129,7 +130,7 @@ static int mem_set(sharedmap_t *sm, const char *key, const char *type, const voi
 err:
     free(t);
     free(d);
-    return -ENOMEM;
+    return marie_fail(ENOMEM);
 }
 
 static int mem_delete(sharedmap_t *sm, const char *key)
@@ -137,7 +138,7 @@ static int mem_delete(sharedmap_t *sm, const char *key)
     int found;
     size_t i = (size_t)find(sm, key, &found);
     if (!found)
-        return -ENOENT;
+        return marie_fail(ENOENT);
     entry_free(&sm->entries[i]);
     memmove(&sm->entries[i], &sm->entries[i + 1], (sm->n - i - 1) * sizeof *sm->entries);
     sm->n--;
@@ -149,7 +150,7 @@ static int replay_record(void *user, const sharedmap_log_rec_t *r)
     sharedmap_t *sm = user;
     if (r->op == SHAREDMAP_LOG_SET) {
         if (mem_set(sm, r->key, r->type, r->data, r->len, r->version, r->set_utime) < 0)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
     } else if (r->op == SHAREDMAP_LOG_DEL) {
         mem_delete(sm, r->key);
     }
@@ -174,11 +175,11 @@ static int read_all(int fd, uint8_t **out, size_t *len)
 {
     struct stat st;
     if (fstat(fd, &st) < 0)
-        return -errno;
+        return -1;
     size_t n = (size_t)st.st_size, got = 0;
     uint8_t *b = malloc(n ? n : 1);
     if (!b)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     while (got < n) {
         ssize_t r = read(fd, b + got, n - got);
         if (r < 0 && errno == EINTR)
@@ -196,13 +197,13 @@ static int lock(sharedmap_t *sm)
 {
     char lp[4096];
     if (snprintf(lp, sizeof lp, "%s.lock", sm->path) >= (int)sizeof lp)
-        return -ENAMETOOLONG;
+        return marie_fail(ENAMETOOLONG);
     sm->lock_fd = open(lp, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (sm->lock_fd < 0)
-        return -errno;
+        return -1;
     /* The kernel drops the lock when the holder dies, even by SIGKILL. */
     if (flock(sm->lock_fd, LOCK_EX | LOCK_NB) < 0)
-        return errno == EWOULDBLOCK ? -EBUSY : -errno;
+        return errno == EWOULDBLOCK ? marie_fail(EBUSY) : -1;
     return 0;
 }
 
@@ -256,7 +257,7 @@ static int keep_aside(sharedmap_t *sm, const uint8_t *buf, size_t len)
         int n = i == 1 ? snprintf(name, sizeof name, "%s.corrupt-%s", sm->path, stamp)
                        : snprintf(name, sizeof name, "%s.corrupt-%s-%d", sm->path, stamp, i);
         if (n >= (int)sizeof name)
-            return -ENAMETOOLONG;
+            return marie_fail(ENAMETOOLONG);
         int rc;
         if (link(sm->path, name) == 0)
             rc = ca_fsync_dir(sm->path);
@@ -265,10 +266,10 @@ static int keep_aside(sharedmap_t *sm, const uint8_t *buf, size_t len)
         else
             rc = ca_write_file_atomic(name, buf, len);    /* no hard links here */
         if (rc == 0 && !(sm->aside = strdup(name)))
-            rc = -ENOMEM;
+            rc = marie_fail(ENOMEM);
         return rc;
     }
-    return -EEXIST;
+    return marie_fail(EEXIST);
 }
 
 /* Damage found at open: refuse (strict), or report it and keep the file aside; the caller
@@ -281,13 +282,13 @@ static int on_damage(sharedmap_t *sm, const uint8_t *buf, size_t len)
     if (sm->flags & SHAREDMAP_STRICT) {
         ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_log_damaged", MARIE_EVENT_T_SEV_ERROR,
                 "%s: damaged log (%s); left as it is, not started (strict)", sm->path, what);
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     }
     int rc = keep_aside(sm, buf, len);
     if (rc < 0) {
-        ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", MARIE_EVENT_T_SEV_ERROR,
-                "%s: damaged log (%s) cannot be kept aside: %s", sm->path, what, strerror(-rc));
-        return rc;
+        MARIE_KEEP_ERRNO(ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", MARIE_EVENT_T_SEV_ERROR,
+                                 "%s: damaged log (%s) cannot be kept aside: %s", sm->path, what, strerror(errno)));
+        return -1;
     }
     sm->stats.records_skipped = rep->records_skipped;
     sm->stats.bytes_skipped = rep->bytes_skipped;
@@ -305,7 +306,7 @@ static int load(sharedmap_t *sm)
         return rc;
     int fd = open(sm->path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0)
-        return -errno;
+        return -1;
     uint8_t *buf = NULL;
     size_t len = 0;
     if ((rc = read_all(fd, &buf, &len)) < 0)
@@ -313,15 +314,13 @@ static int load(sharedmap_t *sm)
     const size_t ml = SHAREDMAP_LOG_MAGIC_LEN;
     if (len < ml && memcmp(buf, sharedmap_log_magic, len) == 0) {
         /* New file, or one whose creation was cut short: start it. */
-        if (ftruncate(fd, 0) < 0 || pwrite(fd, sharedmap_log_magic, ml, 0) != (ssize_t)ml || fsync(fd) < 0) {
-            rc = -errno;
+        if (ftruncate(fd, 0) < 0 || pwrite(fd, sharedmap_log_magic, ml, 0) != (ssize_t)ml || fsync(fd) < 0)
             goto err_free;
-        }
         if ((rc = ca_fsync_dir(sm->path)) < 0)
             goto err_free;
         sm->loaded = (sharedmap_replay_t){ .format = 2, .end = (int64_t)ml };
     } else if ((rc = sharedmap_log_scan_acked(buf, len, note_acked(sm), replay_record, sm, &sm->loaded)) < 0) {
-        goto err_free;      /* -EINVAL: not a SharedMap log, never overwrite it */
+        goto err_free;      /* EINVAL: not a SharedMap log, never overwrite it */
     }
     const sharedmap_replay_t *rep = &sm->loaded;
     int damaged = sharedmap_log_damaged(rep);
@@ -330,16 +329,14 @@ static int load(sharedmap_t *sm)
     if (rep->torn_bytes > 0 && !damaged && rep->format == 2) {
         /* The torn tail of a write that was never acknowledged. */
         sm->stats.tail_bytes_dropped = rep->torn_bytes;
-        if (ftruncate(fd, (off_t)rep->end) < 0 || fsync(fd) < 0) {
-            rc = -errno;
+        if (ftruncate(fd, (off_t)rep->end) < 0 || fsync(fd) < 0)
             goto err_free;
-        }
     }
     free(buf);
     close(fd);
     sm->fd = open(sm->path, O_WRONLY | O_APPEND | O_CLOEXEC);
     if (sm->fd < 0)
-        return -errno;
+        return -1;
     sm->log_size = (off_t)rep->end;
     /* A damaged log is replaced by its intact records; an old one is rewritten as today's. */
     if (damaged || rep->format == 1) {
@@ -350,10 +347,10 @@ static int load(sharedmap_t *sm)
     return 0;
 
 err_free:
-    free(buf);
+    MARIE_KEEP_ERRNO(free(buf));
 err_close:
-    close(fd);
-    return rc;
+    MARIE_KEEP_ERRNO(close(fd));
+    return -1;
 }
 
 sharedmap_t *sharedmap_open(const char *path, const ca_sink_t *sink)
@@ -374,10 +371,8 @@ sharedmap_t *sharedmap_open_flags(const char *path, unsigned flags, const ca_sin
         sm->sink = *sink;
     if (path) {
         sm->path = strdup(path);
-        int rc = sm->path ? load(sm) : -ENOMEM;
-        if (rc < 0) {
-            sharedmap_close(sm);
-            errno = -rc;
+        if (!sm->path || load(sm) < 0) {
+            MARIE_KEEP_ERRNO(sharedmap_close(sm));
             return NULL;
         }
     }
@@ -434,7 +429,7 @@ err:;
         fdatasync(sm->fd);
     ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", 3, "%s: write failed: %s", sm->path,
             strerror(e));
-    return -EIO;
+    return marie_fail(EIO);
 }
 
 static void maybe_compact(sharedmap_t *sm)
@@ -453,12 +448,12 @@ int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void
 {
     size_t klen = key ? strlen(key) : 0, tlen = type ? strlen(type) : 0;
     if (klen == 0 || klen > SHAREDMAP_MAX_KEY || tlen > SHAREDMAP_MAX_TYPE || len < 8)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (len > SHAREDMAP_MAX_VALUE)
-        return -EFBIG;
+        return marie_fail(EFBIG);
     const marie_type_t *t = marie_type_find(type);
     if (t && ca_payload_check(t, data, len, NULL) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     int rc = grow(sm, sharedmap_log_record_size(klen, tlen, len));
     if (rc < 0)
         return rc;
@@ -480,10 +475,10 @@ int sharedmap_delete(sharedmap_t *sm, const char *key)
 {
     int found;
     if (!key || !*key || strlen(key) > SHAREDMAP_MAX_KEY)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     find(sm, key, &found);
     if (!found)
-        return -ENOENT;
+        return marie_fail(ENOENT);
     int rc = grow(sm, sharedmap_log_record_size(strlen(key), 0, 0));
     if (rc < 0)
         return rc;
@@ -510,7 +505,7 @@ int sharedmap_get(const sharedmap_t *sm, const char *key, sharedmap_value_t *out
     int found;
     size_t i = (size_t)find(sm, key, &found);
     if (!found)
-        return -ENOENT;
+        return marie_fail(ENOENT);
     if (out)
         fill(&sm->entries[i], out);
     return 0;
@@ -523,7 +518,7 @@ const sharedmap_stats_t *sharedmap_stats(const sharedmap_t *sm) { return &sm->st
 int sharedmap_entry(const sharedmap_t *sm, size_t i, sharedmap_value_t *out)
 {
     if (i >= sm->n)
-        return -ENOENT;
+        return marie_fail(ENOENT);
     fill(&sm->entries[i], out);
     return 0;
 }
@@ -537,7 +532,7 @@ int sharedmap_compact(sharedmap_t *sm)
         total += sharedmap_log_record_size(strlen(sm->entries[i].key), strlen(sm->entries[i].type), sm->entries[i].len);
     uint8_t *img = malloc(total);
     if (!img)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     memcpy(img, sharedmap_log_magic, SHAREDMAP_LOG_MAGIC_LEN);
     size_t off = SHAREDMAP_LOG_MAGIC_LEN;
     int64_t seq = 0;
@@ -554,16 +549,16 @@ int sharedmap_compact(sharedmap_t *sm)
     /* The old log stays complete until the rename replaces it, so a crash at any point
      * leaves one whole log or the other. */
     int rc = ca_write_file_atomic(sm->path, img, off);
-    free(img);
+    MARIE_KEEP_ERRNO(free(img));
     if (rc < 0) {
         sm->stats.io_errors++;
-        ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", 2, "%s: compaction failed: %s",
-                sm->path, strerror(-rc));
-        return rc;
+        MARIE_KEEP_ERRNO(ca_note(&sm->sink, CA_NOTE_EVENT, "sharedmap_io_error", 2, "%s: compaction failed: %s",
+                                 sm->path, strerror(errno)));
+        return -1;
     }
     int fd = open(sm->path, O_WRONLY | O_APPEND | O_CLOEXEC);
     if (fd < 0)
-        return -errno;
+        return -1;
     close(sm->fd);
     sm->fd = fd;
     sm->log_size = (off_t)off;
@@ -580,25 +575,25 @@ static int send_reply(sharedmap_t *sm, const char *channel, marie_sharedmap_repl
 {
     int need = marie_sharedmap_reply_t_encoded_size(r);
     if (need < 0 || grow(sm, (size_t)need) < 0)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int n = marie_sharedmap_reply_t_encode(sm->buf, 0, need, r);
     if (n < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (ca_publish(&sm->sink, channel, sm->buf, (size_t)n) < 0) {
         ca_note(&sm->sink, CA_NOTE_DROP, "reply_failed", 1, "reply to %s failed", channel);
-        return -EIO;
+        return marie_fail(EIO);
     }
     return 0;
 }
 
-static int8_t status_of(int rc)
+static int8_t status_of(int err)
 {
-    switch (rc) {
+    switch (err) {
     case 0: return MARIE_SHAREDMAP_REPLY_T_STATUS_OK;
-    case -ENOENT: return MARIE_SHAREDMAP_REPLY_T_STATUS_NOT_FOUND;
-    case -EBADMSG: return MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_TYPE;
-    case -EFBIG: return MARIE_SHAREDMAP_REPLY_T_STATUS_TOO_LARGE;
-    case -EINVAL: return MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_REQUEST;
+    case ENOENT: return MARIE_SHAREDMAP_REPLY_T_STATUS_NOT_FOUND;
+    case EBADMSG: return MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_TYPE;
+    case EFBIG: return MARIE_SHAREDMAP_REPLY_T_STATUS_TOO_LARGE;
+    case EINVAL: return MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_REQUEST;
     default: return MARIE_SHAREDMAP_REPLY_T_STATUS_IO_ERROR;
     }
 }
@@ -611,7 +606,7 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
         ca_note(&sm->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
                 "request %lld from '%s' has no reply channel", (long long)req->request_id,
                 req->client ? req->client : "");
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     marie_sharedmap_reply_t r = {
         .utime = now, .request_id = req->request_id, .client = req->client ? req->client : "",
@@ -619,18 +614,19 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
         .data = (uint8_t *)"",      /* lcm-gen's encoder memcpy()s even 0 bytes */
     };
     char **keys = NULL;
-    int rc;
+    int err;                    /* 0, or the errno of the refusal */
     sharedmap_value_t v;
     switch (req->op) {
     case MARIE_SHAREDMAP_REQUEST_T_OP_SET:
-        rc = req->size < 0 ? -EINVAL : sharedmap_set(sm, req->key, req->type, req->data, (size_t)req->size, now);
-        if (rc == 0)
+        err = req->size < 0 ? EINVAL
+              : sharedmap_set(sm, req->key, req->type, req->data, (size_t)req->size, now) < 0 ? errno : 0;
+        if (err == 0)
             r.version = sm->version;
         break;
     case MARIE_SHAREDMAP_REQUEST_T_OP_GET:
         sm->stats.gets++;
-        rc = sharedmap_get(sm, r.key, &v);
-        if (rc == 0) {
+        err = sharedmap_get(sm, r.key, &v) < 0 ? errno : 0;
+        if (err == 0) {
             r.version = v.version;
             r.type = (char *)v.type;
             r.age_us = now - v.set_utime;
@@ -639,8 +635,8 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
         }
         break;
     case MARIE_SHAREDMAP_REQUEST_T_OP_DELETE:
-        rc = sharedmap_delete(sm, r.key);
-        if (rc == 0)
+        err = sharedmap_delete(sm, r.key) < 0 ? errno : 0;
+        if (err == 0)
             r.version = sm->version;
         break;
     case MARIE_SHAREDMAP_REQUEST_T_OP_LIST: {
@@ -648,7 +644,7 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
         size_t plen = strlen(r.key);
         keys = malloc((sm->n ? sm->n : 1) * sizeof *keys);
         if (!keys) {
-            rc = -ENOMEM;
+            err = ENOMEM;
             break;
         }
         for (size_t i = 0; i < sm->n; i++)
@@ -656,25 +652,25 @@ int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *r
                 keys[r.nkeys++] = sm->entries[i].key;
         r.keys = keys;
         r.version = sm->version;
-        rc = 0;
+        err = 0;
         break;
     }
     default:
-        rc = -EINVAL;
+        err = EINVAL;
         break;
     }
-    r.status = status_of(rc);
-    if (rc == -EINVAL || rc == -EBADMSG || rc == -EFBIG) {
+    r.status = status_of(err);
+    if (err == EINVAL || err == EBADMSG || err == EFBIG) {
         sm->stats.bad_requests++;
         ca_note(&sm->sink, CA_NOTE_BAD_INPUT, "bad_request", 1,
                 "request %lld from '%s' (op %d, key '%.64s') refused: %s", (long long)req->request_id,
-                r.client, req->op, r.key, strerror(-rc));
+                r.client, req->op, r.key, strerror(err));
     }
     send_reply(sm, req->reply_channel, &r);
     free(keys);
     if (sm->snap_due)
         sharedmap_tick(sm, now);
-    return rc;
+    return err ? marie_fail(err) : 0;
 }
 
 int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, int64_t now)
@@ -685,7 +681,7 @@ int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, i
         return ca_bad_request(&sm->sink, NULL, "SharedMap request", buf, len);
     }
     int rc = sharedmap_handle_request(sm, &req, now);
-    marie_sharedmap_request_t_decode_cleanup(&req);
+    MARIE_KEEP_ERRNO(marie_sharedmap_request_t_decode_cleanup(&req));
     return rc;
 }
 
@@ -705,7 +701,7 @@ int sharedmap_publish_snapshot(sharedmap_t *sm, int64_t now)
         return 0;
     marie_sharedmap_entry_t *es = calloc(sm->n ? sm->n : 1, sizeof *es);
     if (!es)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     for (size_t i = 0; i < sm->n; i++) {
         const entry_t *e = &sm->entries[i];
         es[i] = (marie_sharedmap_entry_t){ e->key, e->type, e->version, e->set_utime,
@@ -714,13 +710,15 @@ int sharedmap_publish_snapshot(sharedmap_t *sm, int64_t now)
     marie_sharedmap_snapshot_t s = { .utime = now, .source = sm->snap_source,
                                      .version = sm->version, .nentries = (int32_t)sm->n,
                                      .entries = es };
-    int rc = -ENOMEM;
+    int rc;
     int need = marie_sharedmap_snapshot_t_encoded_size(&s);
-    if (need >= 0 && grow(sm, (size_t)need) == 0) {
+    if (need < 0 || grow(sm, (size_t)need) != 0) {
+        rc = marie_fail(ENOMEM);
+    } else {
         int n = marie_sharedmap_snapshot_t_encode(sm->buf, 0, need, &s);
-        rc = n < 0 ? -EINVAL : ca_publish(&sm->sink, sm->snap_channel, sm->buf, (size_t)n);
+        rc = n < 0 ? marie_fail(EINVAL) : ca_publish(&sm->sink, sm->snap_channel, sm->buf, (size_t)n);
     }
-    free(es);
+    MARIE_KEEP_ERRNO(free(es));
     sm->snap_due = 0;
     sm->snap_last = now;
     sm->stats.snapshots++;
@@ -741,14 +739,14 @@ static void on_request(const lcm_recv_buf_t *rbuf, const char *channel, void *us
 int sharedmap_attach(sharedmap_t *sm, lcm_t *lcm, const char *request_channel)
 {
     if (sm->lcm)
-        return -EALREADY;
+        return marie_fail(EALREADY);
     char *pat = ca_channel_pattern(request_channel);
     if (!pat)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     sm->sub = marie_bus_subscribe(lcm, pat, on_request, sm);
     free(pat);
     if (!sm->sub)
-        return -EIO;
+        return marie_fail(EIO);
     sm->lcm = lcm;
     sm->sink.lcm = lcm;
     return 0;

@@ -77,18 +77,19 @@ const sharedmap_replay_t *sharedmap_load_report(const sharedmap_t *sm);
 const char *sharedmap_kept_aside(const sharedmap_t *sm);
 
 /* Replay a log image (the bytes of a state file) into the map, as sharedmap_open() does,
- * describing what it found in *rep (may be NULL). 0, or -EINVAL when the magic is missing.
+ * describing what it found in *rep (may be NULL). 0, or -1 with errno EINVAL when the magic is
+ * missing.
  * Used by open and by the fuzz target; a map opened from a path keeps logging to its own
  * file. */
 int sharedmap_replay(sharedmap_t *sm, const void *image, size_t len, sharedmap_replay_t *rep);
 
 /* Store operations. set/delete return only once the change is on disk (fdatasync).
- * set: 0, -EINVAL (empty/oversized key, short payload), -EBADMSG (payload is not `type`,
- * when `type` is a registered marie type), -EFBIG, -EIO. delete: 0, -ENOENT, -EIO. */
+ * 0, or -1 with errno: set: EINVAL (empty/oversized key, short payload), EBADMSG (payload is
+ * not `type`, when `type` is a registered marie type), EFBIG, EIO; delete: ENOENT, EIO. */
 int sharedmap_set(sharedmap_t *sm, const char *key, const char *type, const void *data,
                   size_t len, int64_t now);
 int sharedmap_delete(sharedmap_t *sm, const char *key);
-/* The value of `key`; pointers stay valid until the next change. 0 or -ENOENT. */
+/* The value of `key`; pointers stay valid until the next change. 0, or -1 with errno ENOENT. */
 int sharedmap_get(const sharedmap_t *sm, const char *key, sharedmap_value_t *out);
 size_t sharedmap_size(const sharedmap_t *sm);
 /* The i-th entry in key order. */
@@ -103,7 +104,7 @@ int sharedmap_compact(sharedmap_t *sm);
 void sharedmap_set_compaction(sharedmap_t *sm, int64_t min_records);
 
 /* Request protocol: decode, apply, and answer on the request's reply channel. Undecodable
- * bytes are counted and dropped (-EBADMSG); invalid requests are answered BAD_REQUEST or
+ * bytes are counted and dropped (errno EBADMSG); invalid requests are answered BAD_REQUEST or
  * BAD_TYPE. A change marks the snapshot due. */
 int sharedmap_handle_request(sharedmap_t *sm, const marie_sharedmap_request_t *req, int64_t now);
 int sharedmap_handle_request_raw(sharedmap_t *sm, const void *buf, size_t len, int64_t now);
@@ -117,7 +118,7 @@ void sharedmap_tick(sharedmap_t *sm, int64_t now);
 
 const sharedmap_stats_t *sharedmap_stats(const sharedmap_t *sm);
 
-/* Serve requests arriving on `request_channel` over `lcm`. 0 or -errno. */
+/* Serve requests arriving on `request_channel` over `lcm`. 0, or -1 with errno. */
 int sharedmap_attach(sharedmap_t *sm, lcm_t *lcm, const char *request_channel);
 void sharedmap_detach(sharedmap_t *sm);
 

@@ -45,7 +45,7 @@ static void drop_reply(sharedmap_client_t *cl)
     cl->reply = NULL;
 }
 
-static int rc_of(int8_t status);
+static int errno_of(int8_t status);
 
 /* Hand a reply to the asynchronous request it answers; false when none does. */
 static bool deliver_async(sharedmap_client_t *cl, const marie_sharedmap_reply_t *r)
@@ -56,7 +56,7 @@ static bool deliver_async(sharedmap_client_t *cl, const marie_sharedmap_reply_t 
         pending_t p = cl->pending[i];
         cl->pending[i] = cl->pending[--cl->npending];   /* before the callback: it may send more */
         sharedmap_result_t res = {
-            .status = rc_of(r->status), .request_id = r->request_id, .version = r->version,
+            .status = errno_of(r->status), .request_id = r->request_id, .version = r->version,
             .type = r->type, .data = r->data, .len = r->size > 0 ? (size_t)r->size : 0,
             .age_us = r->age_us, .keys = r->keys, .nkeys = r->nkeys > 0 ? (size_t)r->nkeys : 0,
         };
@@ -134,19 +134,20 @@ void sharedmap_client_destroy(sharedmap_client_t *cl)
 int64_t sharedmap_client_timeouts(const sharedmap_client_t *cl) { return cl->timeouts; }
 int64_t sharedmap_client_stray_replies(const sharedmap_client_t *cl) { return cl->strays + cl->bad; }
 
-static int rc_of(int8_t status)
+/* A reply's status as an errno value (0: OK). */
+static int errno_of(int8_t status)
 {
     switch (status) {
     case MARIE_SHAREDMAP_REPLY_T_STATUS_OK: return 0;
-    case MARIE_SHAREDMAP_REPLY_T_STATUS_NOT_FOUND: return -ENOENT;
-    case MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_REQUEST: return -EINVAL;
-    case MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_TYPE: return -EBADMSG;
-    case MARIE_SHAREDMAP_REPLY_T_STATUS_TOO_LARGE: return -EFBIG;
-    default: return -EIO;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_NOT_FOUND: return ENOENT;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_REQUEST: return EINVAL;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_BAD_TYPE: return EBADMSG;
+    case MARIE_SHAREDMAP_REPLY_T_STATUS_TOO_LARGE: return EFBIG;
+    default: return EIO;
     }
 }
 
-/* Fill in the common fields and publish. 0 or -EIO. */
+/* Fill in the common fields and publish. 0, or -1 with errno EIO. */
 static int send_request(sharedmap_client_t *cl, marie_sharedmap_request_t *req)
 {
     req->utime = marie_wall_us();
@@ -159,12 +160,13 @@ static int send_request(sharedmap_client_t *cl, marie_sharedmap_request_t *req)
         req->type = "";
     if (!req->data)
         req->data = (uint8_t *)"";  /* lcm-gen's encoder memcpy()s even 0 bytes */
-    return marie_bus_publish_msg(cl->lcm, cl->request_channel, &marie_type_sharedmap_request_t, req) < 0 ? -EIO : 0;
+    return marie_bus_publish_msg(cl->lcm, cl->request_channel, &marie_type_sharedmap_request_t, req) < 0
+               ? marie_fail(EIO) : 0;
 }
 
 static int have_reply(void *user) { return ((sharedmap_client_t *)user)->reply != NULL; }
 
-/* Send req, wait for its reply (left in cl->reply) and return its status as -errno. */
+/* Send req, wait for its reply (left in cl->reply): 0, or -1 with the reply's status as errno. */
 static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int timeout_ms)
 {
     drop_reply(cl);
@@ -172,26 +174,27 @@ static int call(sharedmap_client_t *cl, marie_sharedmap_request_t *req, int time
         cl->wait_loop = marie_loop_create();
         if (!cl->wait_loop || marie_loop_add_bus(cl->wait_loop, cl->lcm, 1) < 0) {
             MARIE_CLEAR(cl->wait_loop, marie_loop_destroy);
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         }
     }
     if (send_request(cl, req) < 0)
-        return -EIO;
+        return marie_fail(EIO);
     cl->waiting_id = req->request_id;
     marie_loop_run_until(cl->wait_loop, timeout_ms < 0 ? 0 : timeout_ms, have_reply, cl);
     cl->waiting_id = 0;
     if (!cl->reply) {
         cl->timeouts++;
-        return -ETIMEDOUT;
+        return marie_fail(ETIMEDOUT);
     }
-    return rc_of(cl->reply->status);
+    int err = errno_of(cl->reply->status);
+    return err ? marie_fail(err) : 0;
 }
 
 int sharedmap_client_set_raw(sharedmap_client_t *cl, const char *key, const char *type_name,
                              const void *data, size_t len, int timeout_ms, int64_t *version)
 {
     if (len > INT32_MAX)
-        return -EFBIG;
+        return marie_fail(EFBIG);
     marie_sharedmap_request_t req = {
         .op = MARIE_SHAREDMAP_REQUEST_T_OP_SET, .key = (char *)key, .type = (char *)type_name,
         .size = (int32_t)len, .data = (uint8_t *)data,
@@ -202,19 +205,20 @@ int sharedmap_client_set_raw(sharedmap_client_t *cl, const char *key, const char
     return rc;
 }
 
-/* encode_new: msg encoded into *buf (malloc'd; the caller frees it) of *n bytes: 0, -EINVAL or -ENOMEM. */
+/* encode_new: msg encoded into *buf (malloc'd; the caller frees it) of *n bytes: 0, or -1 with
+ * errno EINVAL or ENOMEM. */
 static int encode_new(const marie_type_t *type, const void *msg, uint8_t **buf, int *n)
 {
     *buf = NULL;
     *n = type->encoded_size(msg);
     if (*n < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (!(*buf = malloc((size_t)*n)))
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     if (type->encode(*buf, 0, *n, msg) != *n) {
         free(*buf);
         *buf = NULL;
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     return 0;
 }
@@ -226,7 +230,7 @@ int sharedmap_client_set(sharedmap_client_t *cl, const char *key, const marie_ty
     int n, rc = encode_new(type, msg, &buf, &n);
     if (rc == 0)
         rc = sharedmap_client_set_raw(cl, key, type->name, buf, (size_t)n, timeout_ms, NULL);
-    free(buf);
+    MARIE_KEEP_ERRNO(free(buf));
     return rc;
 }
 
@@ -239,11 +243,11 @@ int sharedmap_client_get_raw(sharedmap_client_t *cl, const char *key, void **dat
         return rc;
     const marie_sharedmap_reply_t *r = cl->reply;
     if (r->size < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     if (data) {
         *data = malloc(r->size ? (size_t)r->size : 1);
         if (!*data)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         memcpy(*data, r->data, (size_t)r->size);
     }
     if (len)
@@ -264,7 +268,7 @@ int sharedmap_client_get(sharedmap_client_t *cl, const char *key, const marie_ty
         return rc;
     const marie_sharedmap_reply_t *r = cl->reply;
     if (r->size < 0 || marie_decode_checked(type, r->data, (size_t)r->size, msg) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     if (age_us)
         *age_us = r->age_us;
     return 0;
@@ -294,12 +298,12 @@ int sharedmap_client_list(sharedmap_client_t *cl, const char *prefix, char ***ke
     size_t k = r->nkeys > 0 ? (size_t)r->nkeys : 0;
     char **out = calloc(k ? k : 1, sizeof *out);
     if (!out)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     for (size_t i = 0; i < k; i++) {
         out[i] = strdup(r->keys[i]);
         if (!out[i]) {
             sharedmap_client_free_keys(out, i);
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         }
     }
     *keys = out;
@@ -313,17 +317,17 @@ static int call_async(sharedmap_client_t *cl, marie_sharedmap_request_t *req, in
                       sharedmap_client_cb_t cb, void *user)
 {
     if (!cb || timeout_ms < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (cl->npending == cl->cap_pending) {
         size_t cap = cl->cap_pending ? cl->cap_pending * 2 : 8;
         pending_t *np = realloc(cl->pending, cap * sizeof *np);
         if (!np)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         cl->pending = np;
         cl->cap_pending = cap;
     }
     if (send_request(cl, req) < 0)
-        return -EIO;
+        return marie_fail(EIO);
     cl->pending[cl->npending++] = (pending_t){ req->request_id,
                                                marie_mono_us() + (int64_t)timeout_ms * 1000, cb, user };
     return 0;
@@ -334,7 +338,7 @@ int sharedmap_client_set_raw_async(sharedmap_client_t *cl, const char *key, cons
                                    sharedmap_client_cb_t cb, void *user)
 {
     if (len > INT32_MAX)
-        return -EFBIG;
+        return marie_fail(EFBIG);
     marie_sharedmap_request_t req = {
         .op = MARIE_SHAREDMAP_REQUEST_T_OP_SET, .key = (char *)key, .type = (char *)type_name,
         .size = (int32_t)len, .data = (uint8_t *)data,
@@ -349,7 +353,7 @@ int sharedmap_client_set_async(sharedmap_client_t *cl, const char *key, const ma
     int n, rc = encode_new(type, msg, &buf, &n);
     if (rc == 0)
         rc = sharedmap_client_set_raw_async(cl, key, type->name, buf, (size_t)n, timeout_ms, cb, user);
-    free(buf);
+    MARIE_KEEP_ERRNO(free(buf));
     return rc;
 }
 
@@ -378,7 +382,7 @@ int sharedmap_client_tick(sharedmap_client_t *cl)
         pending_t p = cl->pending[i];
         cl->pending[i] = cl->pending[--cl->npending];
         cl->timeouts++;
-        sharedmap_result_t res = { .status = -ETIMEDOUT, .request_id = p.id, .type = "" };
+        sharedmap_result_t res = { .status = ETIMEDOUT, .request_id = p.id, .type = "" };
         p.cb(cl, &res, p.user);
         i = 0;      /* the callback may have changed the list */
     }

@@ -30,9 +30,9 @@ void sharedmap_client_destroy(sharedmap_client_t *cl);     /* NULL is a no-op */
  * They are for programs that wait for the answer (a command line, a test); a program on a
  * marie loop uses the asynchronous forms further down. Do not call them from inside an LCM
  * handler of the same lcm_t (lcm_handle is not re-entrant).
- * Returns 0, -ETIMEDOUT (no reply: the write may or may not have happened), -ENOENT (no
- * such key), -EINVAL (refused as malformed), -EBADMSG (payload is not of the named type),
- * -EFBIG (too large), -EIO (the SharedMap could not make it durable). */
+ * Returns 0, or -1 with errno ETIMEDOUT (no reply: the write may or may not have happened),
+ * ENOENT (no such key), EINVAL (refused as malformed), EBADMSG (payload is not of the named
+ * type), EFBIG (too large), EIO (the SharedMap could not make it durable). */
 
 /* Encode `msg` of `type` and store it under `key`; OK means it is on the SharedMap's disk. */
 int sharedmap_client_set(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
@@ -40,7 +40,7 @@ int sharedmap_client_set(sharedmap_client_t *cl, const char *key, const marie_ty
 /* Store a raw payload named with its LCM type name. *version (may be NULL) gets the map version. */
 int sharedmap_client_set_raw(sharedmap_client_t *cl, const char *key, const char *type_name,
                              const void *data, size_t len, int timeout_ms, int64_t *version);
-/* Fetch and decode into msg (free with type->decode_cleanup); -EBADMSG if it is another type. */
+/* Fetch and decode into msg (free with type->decode_cleanup); errno EBADMSG if it is another type. */
 int sharedmap_client_get(sharedmap_client_t *cl, const char *key, const marie_type_t *type,
                          void *msg, int timeout_ms, int64_t *age_us);
 /* Fetch raw: *data (malloc'd, caller frees) and *len; type_name (may be NULL) receives up
@@ -56,11 +56,11 @@ void sharedmap_client_free_keys(char **keys, size_t n);
 
 /* Asynchronous forms, safe to call from LCM handlers: they only publish. cb runs exactly
  * once, from the handling of `lcm` when the reply arrives, or from sharedmap_client_tick()
- * with status -ETIMEDOUT once timeout_ms has passed. Call sharedmap_client_tick() from a
- * timer (10-100 Hz). The result's pointers are valid during the callback only. Return 0 or
- * -errno (then cb is never called). */
+ * with status ETIMEDOUT once timeout_ms has passed. Call sharedmap_client_tick() from a
+ * timer (10-100 Hz). The result's pointers are valid during the callback only. Return 0, or
+ * -1 with errno (then cb is never called). */
 typedef struct {
-    int status;                 /* 0 or -errno, as for the synchronous calls */
+    int status;                 /* 0, or the errno value the synchronous call would set */
     int64_t request_id;
     int64_t version;
     const char *type;           /* GET */

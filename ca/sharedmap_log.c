@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/buf.h"
+#include "core/err.h"
 
 /* Layout (all integers big-endian):
  *   file   := "MARIESM2" record*
@@ -64,29 +65,29 @@ size_t sharedmap_log_encode(uint8_t *out, const sharedmap_log_rec_t *r)
     return SHAREDMAP_LOG_HEAD + body;
 }
 
-/* Decodes a body whose checksum held; -EBADMSG when its fields do not fit. */
+/* Decodes a body whose checksum held; -1 with errno EBADMSG when its fields do not fit. */
 static int decode_body(const uint8_t *b, size_t blen, sharedmap_log_rec_t *r,
                        char key[SHAREDMAP_MAX_KEY + 1], char type[SHAREDMAP_MAX_TYPE + 1])
 {
     const uint8_t *end = b + blen, *p = b;
     if (blen < BODY_MIN)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     r->op = *p++;
     r->version = get_i64(p); p += 8;
     r->set_utime = get_i64(p); p += 8;
     size_t klen = get_u16(p); p += 2;
     if ((klen == 0) != (r->op == SHAREDMAP_LOG_VERSION) || klen > SHAREDMAP_MAX_KEY ||
         (size_t)(end - p) < klen + 2)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     memcpy(key, p, klen); key[klen] = 0; p += klen;
     size_t tlen = get_u16(p); p += 2;
     if (tlen > SHAREDMAP_MAX_TYPE || (size_t)(end - p) < tlen + 4)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     memcpy(type, p, tlen); type[tlen] = 0; p += tlen;
     size_t dlen = get_u32(p); p += 4;
     if (dlen != (size_t)(end - p) || strlen(key) != klen ||
         r->op < SHAREDMAP_LOG_SET || r->op > SHAREDMAP_LOG_VERSION)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     r->key = key;
     r->type = type;
     r->data = p;
@@ -121,7 +122,7 @@ static int found_add(found_list_t *f, int64_t seq, size_t off, size_t size)
         size_t cap = f->cap ? 2 * f->cap : 256;
         found_t *v = realloc(f->v, cap * sizeof *v);
         if (!v)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         f->v = v;
         f->cap = cap;
     }
@@ -213,7 +214,7 @@ static int find_records(const uint8_t *buf, size_t len, found_list_t *f, sharedm
         }
         stretch_close(rep, &s, off);
         if (found_add(f, seq, off, SHAREDMAP_LOG_HEAD + blen) < 0)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         off += SHAREDMAP_LOG_HEAD + blen;
         rep->end = (int64_t)off;
     }
@@ -365,7 +366,7 @@ int sharedmap_log_scan_acked(const void *image, size_t len, int64_t acked, share
 {
     memset(rep, 0, sizeof *rep);
     if (len < SHAREDMAP_LOG_MAGIC_LEN)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (memcmp(image, sharedmap_log_magic, SHAREDMAP_LOG_MAGIC_LEN) == 0) {
         rep->format = 2;
         return scan_v2(image, len, acked, fn, user, rep);
@@ -374,7 +375,7 @@ int sharedmap_log_scan_acked(const void *image, size_t len, int64_t acked, share
         rep->format = 1;
         return scan_v1(image, len, fn, user, rep);
     }
-    return -EINVAL;
+    return marie_fail(EINVAL);
 }
 
 int sharedmap_log_damaged(const sharedmap_replay_t *rep)

@@ -42,7 +42,7 @@ typedef int (*sharedmap_log_fn)(void *user, const sharedmap_log_rec_t *r);
 /* Scans a log image (magic included), calling fn for every intact record, in sequence order,
  * each sequence number once, and filling rep (zeroed first). Damaged stretches are skipped: the
  * scan resynchronises on the next record marker whose header and body hold, whatever its
- * sequence number. 0, -EINVAL when no known magic starts the image, -ENOMEM, or fn's
+ * sequence number. 0, or -1 with errno EINVAL when no known magic starts the image, ENOMEM, or fn's
  * negative return. */
 int sharedmap_log_scan(const void *image, size_t len, sharedmap_log_fn fn, void *user,
                        sharedmap_replay_t *rep);

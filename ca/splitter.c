@@ -61,16 +61,16 @@ void splitter_destroy(splitter_t *sp)
 int splitter_add_output(splitter_t *sp, const char *channel, double max_hz)
 {
     if (!channel || !*channel || strcmp(channel, sp->input) == 0 || !(max_hz >= 0) || max_hz > 1e6)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     output_t *no = realloc(sp->outputs, (sp->n + 1) * sizeof *no);
     if (!no)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     sp->outputs = no;
     output_t *o = &sp->outputs[sp->n];
     memset(o, 0, sizeof *o);
     o->channel = strdup(channel);
     if (!o->channel)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     o->period_us = max_hz > 0 ? (int64_t)(1e6 / max_hz + 0.5) : 0;
     return (int)sp->n++;
 }
@@ -102,7 +102,7 @@ int splitter_push(splitter_t *sp, const void *raw, size_t len, int64_t now_us)
 {
     if (ca_input_check(&sp->sink, sp->type, sp->input, raw, len) < 0) {
         sp->stats.bad_input++;
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     }
     sp->stats.received++;
     int sent = 0;
@@ -130,7 +130,7 @@ static void on_input(void *user, const void *buf, size_t len, int64_t recv_utime
 int splitter_attach(splitter_t *sp, lcm_t *lcm)
 {
     if (sp->lcm)
-        return -EALREADY;
+        return marie_fail(EALREADY);
     int rc = ca_input_open(&sp->in, lcm, sp->input, on_input, sp);
     if (rc < 0)
         return rc;

@@ -82,19 +82,19 @@ static long find(const ca_switch_t *sw, const char *name)
 int ca_switch_add_input(ca_switch_t *sw, const char *name, const char *channel)
 {
     if (!name || !*name || !channel || !*channel)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (find(sw, name) >= 0)
-        return -EEXIST;
+        return marie_fail(EEXIST);
     input_t *ni = realloc(sw->inputs, (sw->n + 1) * sizeof *ni);
     if (!ni)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     sw->inputs = ni;
     input_t *in = &sw->inputs[sw->n];
     *in = (input_t){ strdup(name), strdup(channel), NULL, sw };
     if (!in->name || !in->channel) {
         free(in->name);
         free(in->channel);
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     }
     sw->n++;
     return 0;
@@ -114,11 +114,11 @@ static int persist(ca_switch_t *sw, const char *name)
     char buf[512];
     int n = snprintf(buf, sizeof buf, "selected=%s\n", name);
     if (n < 0 || n >= (int)sizeof buf)
-        return -ENAMETOOLONG;
+        return marie_fail(ENAMETOOLONG);
     int rc = ca_write_file_atomic(sw->state_file, buf, (size_t)n);
     if (rc < 0)
-        ca_note(&sw->sink, CA_NOTE_EVENT, "switch_io_error", MARIE_EVENT_T_SEV_ERROR,
-                "%s: cannot save the selection: %s", sw->state_file, strerror(-rc));
+        MARIE_KEEP_ERRNO(ca_note(&sw->sink, CA_NOTE_EVENT, "switch_io_error", MARIE_EVENT_T_SEV_ERROR,
+                                 "%s: cannot save the selection: %s", sw->state_file, strerror(errno)));
     return rc;
 }
 
@@ -154,12 +154,12 @@ int ca_switch_select(ca_switch_t *sw, const char *name)
 {
     long i = name && *name ? find(sw, name) : -1;
     if (name && *name && i < 0)
-        return -ENOENT;
+        return marie_fail(ENOENT);
     if (i == sw->selected)
         return 0;
     int rc = persist(sw, name ? name : "");
     if (rc < 0)
-        return -EIO;
+        return marie_fail(EIO);
     sw->selected = i;
     return 0;
 }
@@ -167,10 +167,10 @@ int ca_switch_select(ca_switch_t *sw, const char *name)
 int ca_switch_push(ca_switch_t *sw, size_t i, const void *raw, size_t len)
 {
     if (i >= sw->n)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (ca_input_check(&sw->sink, sw->type, sw->inputs[i].channel, raw, len) < 0) {
         sw->stats.bad_input++;
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     }
     if ((long)i != sw->selected) {
         sw->stats.ignored++;
@@ -178,7 +178,7 @@ int ca_switch_push(ca_switch_t *sw, size_t i, const void *raw, size_t len)
     }
     if (ca_publish(&sw->sink, sw->output, raw, len) < 0) {
         ca_note(&sw->sink, CA_NOTE_DROP, "send_failed", 1, NULL);
-        return -EIO;
+        return marie_fail(EIO);
     }
     sw->stats.forwarded++;
     return 1;
@@ -202,7 +202,7 @@ int ca_switch_publish_state(ca_switch_t *sw, int64_t request_id, const char *req
         return 0;
     char **names = calloc(sw->n ? sw->n : 1, sizeof *names);
     if (!names)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     for (size_t i = 0; i < sw->n; i++)
         names[i] = sw->inputs[i].name;
     marie_switch_state_t st = {
@@ -210,15 +210,14 @@ int ca_switch_publish_state(ca_switch_t *sw, int64_t request_id, const char *req
         .requester = (char *)(requester ? requester : ""), .status = status,
         .selected = (char *)ca_switch_selected(sw), .ninputs = (int32_t)sw->n, .inputs = names,
     };
-    int rc = -ENOMEM;
     int need = marie_switch_state_t_encoded_size(&st);
     uint8_t *buf = need > 0 ? malloc((size_t)need) : NULL;
+    int rc = marie_fail(ENOMEM);
     if (buf) {
         int n = marie_switch_state_t_encode(buf, 0, need, &st);
-        rc = n < 0 ? -EINVAL : ca_publish(&sw->sink, sw->state_channel, buf, (size_t)n);
+        rc = n < 0 ? marie_fail(EINVAL) : ca_publish(&sw->sink, sw->state_channel, buf, (size_t)n);
     }
-    free(buf);
-    free(names);
+    MARIE_KEEP_ERRNO(free(buf); free(names));
     return rc;
 }
 
@@ -227,8 +226,9 @@ int ca_switch_handle_select(ca_switch_t *sw, const marie_switch_select_t *req, i
     const char *name = req->input ? req->input : "";
     const char *who = req->requester ? req->requester : "";
     int rc = ca_switch_select(sw, name);
+    int err = rc < 0 ? errno : 0;
     int8_t status = MARIE_SWITCH_STATE_T_STATUS_OK;
-    if (rc == -ENOENT) {
+    if (err == ENOENT) {
         status = MARIE_SWITCH_STATE_T_STATUS_UNKNOWN_INPUT;
         sw->stats.refused++;
         ca_note(&sw->sink, CA_NOTE_EVENT, "switch_unknown_input", MARIE_EVENT_T_SEV_WARN,
@@ -243,7 +243,7 @@ int ca_switch_handle_select(ca_switch_t *sw, const marie_switch_select_t *req, i
                 "'%s' selected by '%.64s'", ca_switch_selected(sw), who);
     }
     ca_switch_publish_state(sw, req->request_id, who, status, now);
-    return rc;
+    return err ? marie_fail(err) : 0;
 }
 
 int ca_switch_handle_select_raw(ca_switch_t *sw, const void *buf, size_t len, int64_t now)
@@ -254,7 +254,7 @@ int ca_switch_handle_select_raw(ca_switch_t *sw, const void *buf, size_t len, in
         return ca_bad_request(&sw->sink, NULL, "selection request", buf, len);
     }
     int rc = ca_switch_handle_select(sw, &req, now);
-    marie_switch_select_t_decode_cleanup(&req);
+    MARIE_KEEP_ERRNO(marie_switch_select_t_decode_cleanup(&req));
     return rc;
 }
 
@@ -280,7 +280,7 @@ static marie_bus_sub_t *subscribe(lcm_t *lcm, const char *channel, lcm_msg_handl
 int ca_switch_attach(ca_switch_t *sw, lcm_t *lcm, const char *select_channel)
 {
     if (sw->lcm)
-        return -EALREADY;
+        return marie_fail(EALREADY);
     sw->lcm = lcm;
     sw->sink.lcm = lcm;
     for (size_t i = 0; i < sw->n; i++)
@@ -291,7 +291,7 @@ int ca_switch_attach(ca_switch_t *sw, lcm_t *lcm, const char *select_channel)
     return 0;
 err:
     ca_switch_detach(sw);
-    return -EIO;
+    return marie_fail(EIO);
 }
 
 void ca_switch_detach(ca_switch_t *sw)

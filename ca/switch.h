@@ -28,7 +28,7 @@ ca_switch_t *ca_switch_create(const char *output, const marie_type_t *type, cons
                               const ca_sink_t *sink);
 void ca_switch_destroy(ca_switch_t *sw);        /* NULL is a no-op */
 
-/* Inputs, in order; names are unique. 0, -EEXIST, -EINVAL, -ENOMEM. */
+/* Inputs, in order; names are unique. 0, or -1 with errno EEXIST, EINVAL, ENOMEM. */
 int ca_switch_add_input(ca_switch_t *sw, const char *name, const char *channel);
 size_t ca_switch_ninputs(const ca_switch_t *sw);
 const char *ca_switch_input_name(const ca_switch_t *sw, size_t i);
@@ -39,16 +39,16 @@ const char *ca_switch_input_channel(const ca_switch_t *sw, size_t i);
 int ca_switch_restore(ca_switch_t *sw, const char *initial);
 
 /* Select an input by name ("" selects none). Persisted before it takes effect.
- * 0, -ENOENT (unknown: refused, selection unchanged), -EIO. */
+ * 0, or -1 with errno ENOENT (unknown: refused, selection unchanged), EIO. */
 int ca_switch_select(ca_switch_t *sw, const char *name);
 const char *ca_switch_selected(const ca_switch_t *sw);     /* "" when none */
 
 /* A payload arrived on input i: forwarded when i is selected. 1 forwarded, 0 not
- * selected, -EBADMSG wrong fingerprint (counted), -EINVAL bad index. */
+ * selected, -1 with errno EBADMSG wrong fingerprint (counted), EINVAL bad index. */
 int ca_switch_push(ca_switch_t *sw, size_t i, const void *raw, size_t len);
 
 /* A switch_select_t request: applied, or refused with an event; either way the state
- * (switch_state_t) is published on the state channel. Undecodable: counted, -EBADMSG. */
+ * (switch_state_t) is published on the state channel. Undecodable: counted, -1 with errno EBADMSG. */
 int ca_switch_handle_select(ca_switch_t *sw, const marie_switch_select_t *req, int64_t now);
 int ca_switch_handle_select_raw(ca_switch_t *sw, const void *buf, size_t len, int64_t now);
 /* Channels of selection requests and of the state (NULL: no state published). */
@@ -56,7 +56,7 @@ void ca_switch_set_state_channel(ca_switch_t *sw, const char *channel, const cha
 int ca_switch_publish_state(ca_switch_t *sw, int64_t request_id, const char *requester,
                             int8_t status, int64_t now);
 
-/* Subscribe to every input and to select_channel on `lcm`. 0 or -errno. */
+/* Subscribe to every input and to select_channel on `lcm`. 0, or -1 with errno. */
 int ca_switch_attach(ca_switch_t *sw, lcm_t *lcm, const char *select_channel);
 void ca_switch_detach(ca_switch_t *sw);
 

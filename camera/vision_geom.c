@@ -5,6 +5,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "core/err.h"
+
 void vision_pose_identity(vision_pose_t *p)
 {
     memset(p, 0, sizeof *p);
@@ -156,5 +158,5 @@ int vision_camera_check(const vision_camera_t *cam, const char **why)
         w = "fx and fy differ by more than 4x";
     if (why)
         *why = w;
-    return w ? -EINVAL : 0;
+    return w ? marie_fail(EINVAL) : 0;
 }

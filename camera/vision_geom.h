@@ -46,7 +46,7 @@ void vision_pose_camera_in_world(double x, double y, double z, double yaw, doubl
 bool vision_project_tag(const vision_camera_t *cam, const vision_pose_t *tag, double size, double px[4][2]);
 
 /* Checks intrinsics for a frame of width x height: finite, positive focal lengths, principal
- * point inside the image. 0, or -EINVAL with a reason. */
+ * point inside the image. 0, or -1 with errno EINVAL with a reason. */
 int vision_camera_check(const vision_camera_t *cam, const char **why);
 
 #ifdef __cplusplus

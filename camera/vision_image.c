@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include <jpeglib.h>
+#include "core/err.h"
 #include "core/log.h"
 
 void vision_frame_free(vision_frame_t *f)
@@ -24,7 +25,7 @@ int vision_frame_reserve(vision_frame_t *f, int width, int height)
     if (need > f->cap) {
         uint8_t *d = realloc(f->data, need);
         if (!d)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         f->data = d;
         f->cap = need;
     }
@@ -42,7 +43,7 @@ static int bad(const char **why, const char *fmt, ...)
     MARIE_VFORMAT(why_buf, fmt);
     if (why)
         *why = why_buf;
-    return -EBADMSG;
+    return marie_fail(EBADMSG);
 }
 
 /* libjpeg's warnings (a stream cut short, scrambled entropy data) become a refusal instead of
@@ -99,7 +100,7 @@ static int decode_jpeg(const marie_image_t *img, vision_frame_t *f, const char *
     }
     if (vision_frame_reserve(f, w, h) < 0) {
         jpeg_destroy_decompress(&ci);
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     }
     ci.out_color_space = JCS_GRAYSCALE;
     jpeg_start_decompress(&ci);
@@ -137,7 +138,7 @@ int vision_image_decode(const marie_image_t *img, vision_frame_t *f, const char 
         return bad(why, "image: %d bytes of data, %dx%d with stride %d needs %lld", img->size, w, h,
                    img->row_stride, (long long)need);
     if (vision_frame_reserve(f, w, h) < 0)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     /* Luma with the fixed-point weights OpenCV uses (0.299, 0.587, 0.114 in 1/16384). */
     int r = img->format == MARIE_IMAGE_T_FORMAT_RGB8 ? 0 : 2, b = 2 - r;
     for (int y = 0; y < h; y++) {

@@ -23,19 +23,19 @@ typedef struct {
 } vision_frame_t;
 
 void vision_frame_free(vision_frame_t *f);
-/* Makes room for width x height (stride = width). 0 or -ENOMEM. */
+/* Makes room for width x height (stride = width). 0, or -1 with errno ENOMEM. */
 int vision_frame_reserve(vision_frame_t *f, int width, int height);
 
 /* Writes a frame to an image file, the format chosen by the extension (png, jpg, pgm...).
- * 0 or -EIO. */
+ * 0, or -1 with errno EIO. */
 int vision_frame_save(const vision_frame_t *f, const char *path);
 
-/* Decodes a marie.image_t (GRAY8, RGB8, BGR8 or JPEG) into grey. 0, or -EBADMSG with a
+/* Decodes a marie.image_t (GRAY8, RGB8, BGR8 or JPEG) into grey. 0, or -1 with errno EBADMSG with a
  * reason (static text or one formatted into the thread's buffer) in *why. */
 int vision_image_decode(const marie_image_t *img, vision_frame_t *f, const char **why);
 
 /* Fills *img from pixels (channels 1: grey, 3: RGB) as raw (GRAY8 / RGB8) or JPEG with
- * `quality` 1..100. img->data is malloc'd: free it with free(). 0, -EINVAL or -ENOMEM. */
+ * `quality` 1..100. img->data is malloc'd: free it with free(). 0, or -1 with errno EINVAL or ENOMEM. */
 int vision_image_encode(const uint8_t *pix, int width, int height, int stride, int channels, int format,
                         int quality, int64_t utime, marie_image_t *img);
 

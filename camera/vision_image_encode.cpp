@@ -11,13 +11,15 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/err.h"
+
 int vision_frame_save(const vision_frame_t *f, const char *path)
 {
     try {
         cv::Mat m(f->height, f->width, CV_8UC1, f->data, f->stride);
-        return cv::imwrite(path, m) ? 0 : -EIO;
+        return cv::imwrite(path, m) ? 0 : marie_fail(EIO);
     } catch (const cv::Exception &) {
-        return -EIO;
+        return marie_fail(EIO);
     }
 }
 
@@ -25,7 +27,7 @@ int vision_image_encode(const uint8_t *pix, int width, int height, int stride, i
                         int quality, int64_t utime, marie_image_t *img)
 {
     if (!pix || width <= 0 || height <= 0 || (channels != 1 && channels != 3) || stride < width * channels)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     std::memset(img, 0, sizeof *img);
     img->utime = utime;
     img->width = width;
@@ -38,29 +40,29 @@ int vision_image_encode(const uint8_t *pix, int width, int height, int stride, i
         try {
             if (!cv::imencode(".jpg", channels == 3 ? bgr : src, out,
                               { cv::IMWRITE_JPEG_QUALITY, quality < 1 ? 1 : quality > 100 ? 100 : quality }))
-                return -EINVAL;
+                return marie_fail(EINVAL);
         } catch (const cv::Exception &) {
-            return -EINVAL;
+            return marie_fail(EINVAL);
         }
         img->data = (uint8_t *)malloc(out.size() ? out.size() : 1);
         if (!img->data)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         std::memcpy(img->data, out.data(), out.size());
         img->size = (int32_t)out.size();
         img->format = MARIE_IMAGE_T_FORMAT_JPEG;
         return 0;
     }
     if (format == MARIE_IMAGE_T_FORMAT_GRAY8 && channels != 1)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if ((format == MARIE_IMAGE_T_FORMAT_RGB8 || format == MARIE_IMAGE_T_FORMAT_BGR8) && channels != 3)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (format != MARIE_IMAGE_T_FORMAT_GRAY8 && format != MARIE_IMAGE_T_FORMAT_RGB8 &&
         format != MARIE_IMAGE_T_FORMAT_BGR8)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     size_t row = (size_t)width * channels;
     img->data = (uint8_t *)malloc(row * height);
     if (!img->data)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     for (int y = 0; y < height; y++)
         std::memcpy(img->data + row * y, pix + (size_t)stride * y, row);
     img->row_stride = (int32_t)row;

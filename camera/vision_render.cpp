@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "camera/vision_family.h"
+#include "core/err.h"
 
 struct vision_render {
     apriltag_family_t *fam = nullptr;
@@ -62,7 +63,7 @@ int vision_render_tag_cells(const vision_render_t *r, int id, uint8_t *out, int 
 {
     const apriltag_family_t *f = r->fam;
     if (id < 0 || (uint32_t)id >= f->ncodes || stride < r->total)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     int T = r->total;
     for (int y = 0; y < T; y++)
         std::memset(out + (size_t)y * stride, 0, T);
@@ -140,7 +141,7 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
     const char *why;
     if (!r || !cam || !out || (n && !tags) || (channels != 1 && channels != 3) ||
         vision_camera_check(cam, &why) < 0 || stride < cam->width * channels)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     int ss = std::clamp(o->supersample, 1, 8);
     int W = cam->width, H = cam->height;
 
@@ -148,7 +149,7 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
     std::vector<size_t> order;
     for (size_t i = 0; i < n; i++) {
         if (tags[i].id < 0 || (uint32_t)tags[i].id >= r->fam->ncodes || !(tags[i].size > 0))
-            return -EINVAL;
+            return marie_fail(EINVAL);
         order.push_back(i);
     }
     std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return tags[a].pose.t[2] > tags[b].pose.t[2]; });
@@ -187,7 +188,7 @@ int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vi
             continue;
         uint8_t cells[64 * 64];
         if (T - 2 > 64)
-            return -EINVAL;
+            return marie_fail(EINVAL);
         if (ink.empty()) {
             ink = cv::Mat(H * ss, W * ss, CV_8U, cv::Scalar(0));
             cover = cv::Mat(H * ss, W * ss, CV_8U, cv::Scalar(0));
@@ -268,7 +269,7 @@ int vision_render_world(vision_render_t *r, const vision_camera_t *cam, const vi
                         uint8_t *out, int stride, int channels)
 {
     if (!cam_in_world || (n && !tags))
-        return -EINVAL;
+        return marie_fail(EINVAL);
     vision_pose_t world_in_cam;
     vision_pose_inverse(cam_in_world, &world_in_cam);
     std::vector<vision_tag_t> local(tags, tags + n);

@@ -56,13 +56,13 @@ int vision_render_total_cells(const vision_render_t *r);
 int vision_render_border_cells(const vision_render_t *r);
 
 /* Writes tag `id` as total x total cells, one byte each (0 black, 255 white), rows `stride`
- * apart. 0, or -EINVAL for an id outside the family. */
+ * apart. 0, or -1 with errno EINVAL for an id outside the family. */
 int vision_render_tag_cells(const vision_render_t *r, int id, uint8_t *out, int stride);
 
 /* Draws `n` tags seen by `cam` into `out` (cam->width x cam->height, `channels` 1 or 3
  * identical bytes per pixel, rows `stride` bytes apart). Tags are drawn far to near so
  * nearer ones occlude; a tag reaching behind the camera is skipped. Returns how many tags
- * were drawn at least partly inside the image, or -EINVAL (bad camera, id or arguments). */
+ * were drawn at least partly inside the image, or -1 with errno EINVAL (bad camera, id or arguments). */
 int vision_render_frame(vision_render_t *r, const vision_camera_t *cam, const vision_tag_t *tags, size_t n,
                         const vision_render_opts_t *o, uint8_t *out, int stride, int channels);
 

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "camera/vision_image.h"
+#include "core/err.h"
 
 struct vision_simcam {
     vision_simcam_opts_t o;
@@ -71,7 +72,7 @@ int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vi
     if (camera) {
         if (camera->kind != MARIE_NODE_MAP) {
             marie_errors_add(errs, camera->file, camera->line, camera->col, "camera: expected a map");
-            return -EINVAL;
+            return marie_fail(EINVAL);
         }
         rc |= marie_node_check_keys(camera, cam_keys, "camera", errs);
         bool cx_set = marie_node_get(camera, "cx"), cy_set = marie_node_get(camera, "cy");
@@ -125,11 +126,11 @@ int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vi
     if (tags) {
         if (tags->kind != MARIE_NODE_SEQ) {
             marie_errors_add(errs, tags->file, tags->line, tags->col, "tags: expected a list of {id, x, y, z, yaw, size}");
-            return -EINVAL;
+            return marie_fail(EINVAL);
         }
         *out = calloc(tags->n ? tags->n : 1, sizeof **out);
         if (!*out)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         for (size_t i = 0; i < tags->n; i++) {
             const marie_node_t *t = tags->items[i];
             if (t->kind != MARIE_NODE_MAP || !marie_node_get(t, "id") || !marie_node_get(t, "x") || !marie_node_get(t, "y")) {
@@ -160,7 +161,7 @@ int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vi
         free(*out);
         *out = NULL;
         *nout = 0;
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     return 0;
 }
@@ -231,7 +232,7 @@ int vision_simcam_set_walls(vision_simcam_t *s, const occmap_t *map)
         occmap_destroy(m);
         free(scene);
         free(cols);
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     }
     occmap_destroy(s->walls);
     free(s->scene);

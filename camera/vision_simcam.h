@@ -36,7 +36,7 @@ void vision_simcam_opts_default(vision_simcam_opts_t *o);
 /* Reads a `camera` map (width, height, fx, fy, cx, cy, mount_x, mount_y, mount_z, mount_yaw,
  * mount_pitch, noise, blur, background, format, family; all optional) into o, and a `tags`
  * list of {id, x, y, z, yaw, size} (yaw: the heading the printed face points to) into a
- * malloc'd array. Either node may be NULL. 0, or -EINVAL with file:line:col errors in errs. */
+ * malloc'd array. Either node may be NULL. 0, or -1 with errno EINVAL with file:line:col errors in errs. */
 int vision_simcam_parse(const marie_node_t *camera, const marie_node_t *tags, vision_simcam_opts_t *o,
                         vision_tag_t **out, size_t *nout, marie_errors_t *errs);
 
@@ -48,7 +48,7 @@ void vision_simcam_destroy(vision_simcam_t *s);      /* NULL is a no-op */
 /* Walls: the occupied cells of `map` (copied) stand wall_height tall; the camera sees them
  * (floor, wall and ceiling shades, panel seams every metre) and a tag whose centre is behind
  * a wall is not drawn. Walls are drawn per image column, exact for mount_pitch = 0 and
- * shifted by the pitch otherwise. 0, or -ENOMEM. */
+ * shifted by the pitch otherwise. 0, or -1 with errno ENOMEM. */
 int vision_simcam_set_walls(vision_simcam_t *s, const occmap_t *map);
 
 /* Whether tag i (0..n-1 as given to create) is in front of the camera, inside its field of

@@ -123,21 +123,23 @@ void marie_auth_destroy(marie_auth_t *a)
 int marie_auth_keygen(const char *path)
 {
     if (sodium_init() < 0)
-        return -EIO;
+        return marie_fail(EIO);
     int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd < 0)
-        return -errno;
+        return -1;
     uint8_t key[MARIE_AUTH_KEY_LEN];
     char hex[2 * MARIE_AUTH_KEY_LEN + 2];
     randombytes_buf(key, sizeof key);
     sodium_bin2hex(hex, sizeof hex, key, sizeof key);
     strcat(hex, "\n");
     ssize_t w = write(fd, hex, strlen(hex));
-    int rc = (w == (ssize_t)strlen(hex)) ? 0 : -EIO;
+    int rc = (w == (ssize_t)strlen(hex)) ? 0 : marie_fail(EIO);
     sodium_memzero(key, sizeof key);
     sodium_memzero(hex, sizeof hex);
-    if (close(fd) < 0 && rc == 0)
-        rc = -errno;
+    if (rc < 0)
+        MARIE_KEEP_ERRNO(close(fd));
+    else if (close(fd) < 0)
+        rc = -1;
     return rc;
 }
 
@@ -149,8 +151,8 @@ void marie_auth_mac(const marie_auth_t *a, const void *data, size_t len, uint8_t
 int marie_auth_verify(const marie_auth_t *a, const void *data, size_t len, const uint8_t *mac, size_t maclen)
 {
     if (!mac || maclen != MARIE_AUTH_MAC_LEN)
-        return -EBADMSG;
-    return crypto_auth_hmacsha256_verify(mac, data, len, a->key) == 0 ? 0 : -EBADMSG;
+        return marie_fail(EBADMSG);
+    return crypto_auth_hmacsha256_verify(mac, data, len, a->key) == 0 ? 0 : marie_fail(EBADMSG);
 }
 
 /* Encode a copy of the message with an empty MAC: what the MAC covers. (liblcm copies
@@ -162,10 +164,10 @@ static uint8_t no_mac[1];
         tmp_.mac = no_mac;                                                        \
         int n_ = type##_encoded_size(&tmp_);                                      \
         (out_buf) = n_ > 0 ? malloc((size_t)n_) : NULL;                           \
-        (out_len) = -ENOMEM;                                                      \
+        (out_len) = marie_fail(ENOMEM);                                           \
         if (out_buf) {                                                            \
             (out_len) = type##_encode((out_buf), 0, n_, &tmp_);                   \
-            if ((out_len) < 0) (out_len) = -EINVAL;                               \
+            if ((out_len) < 0) (out_len) = marie_fail(EINVAL);                    \
         }                                                                         \
     } while (0)
 
@@ -216,11 +218,11 @@ static int replay_set(marie_replay_t *r, const char *sender, int64_t seq)
     }
     replay_entry_t *ne = realloc(r->e, (r->n + 1) * sizeof *ne);
     if (!ne)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     r->e = ne;
     r->e[r->n].sender = strdup(sender);
     if (!r->e[r->n].sender)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     r->e[r->n].seq = seq;
     r->n++;
     return 0;
@@ -390,9 +392,9 @@ int64_t marie_auth_next_seq(const char *path)
         ENCODE_UNSIGNED(type, m, buf, n);                                                            \
         if (n >= 0)                                                                                  \
             marie_auth_mac(a, buf, (size_t)n, store);                                                \
-        free(buf);                                                                                   \
+        MARIE_KEEP_ERRNO(free(buf));                                                                 \
         if (n < 0)                                                                                   \
-            return n;                                                                                \
+            return -1;                                                                               \
         m->mac = store;                                                                              \
         m->mac_len = MARIE_AUTH_MAC_LEN;                                                             \
         return 0;                                                                                    \

@@ -31,12 +31,12 @@ void marie_auth_destroy(marie_auth_t *a);          /* NULL is a no-op; wipes the
 /* Write a fresh random key as hex to path with mode 0600 (fails if the file exists). */
 int marie_auth_keygen(const char *path);
 
-/* MAC of any bytes, and its constant-time check (0, or -EBADMSG). */
+/* MAC of any bytes, and its constant-time check (0, or -1 with errno EBADMSG). */
 void marie_auth_mac(const marie_auth_t *a, const void *data, size_t len, uint8_t mac[MARIE_AUTH_MAC_LEN]);
 int marie_auth_verify(const marie_auth_t *a, const void *data, size_t len, const uint8_t *mac, size_t maclen);
 
 /* Sign an order: the MAC covers the order encoded with mac_len = 0 (every field, seq
- * included). o->mac points into `store` afterwards. 0 or -errno. */
+ * included). o->mac points into `store` afterwards. 0, or -1 with errno. */
 int marie_auth_sign_order(const marie_auth_t *a, marie_am_order_t *o, uint8_t store[MARIE_AUTH_MAC_LEN]);
 int marie_auth_sign_command(const marie_auth_t *a, marie_lifecycle_command_t *c, uint8_t store[MARIE_AUTH_MAC_LEN]);
 

@@ -12,6 +12,7 @@
 
 #include "core/auth.h"
 #include "core/bus/bus.h"
+#include "core/err.h"
 #include "core/file.h"
 #include "core/log.h"
 #include "core/typeinfo.h"
@@ -177,7 +178,7 @@ void marie_component_fail_reason(marie_component_t *c, const char *fmt, ...)
     MARIE_VFORMAT(c->fail_reason, fmt);
 }
 
-/* Runs a hook; on refusal leaves the reason in c->reason. */
+/* Runs a hook; on refusal leaves the reason in c->reason and fails with ECANCELED. */
 static int hook(marie_component_t *c, int (*fn)(marie_component_t *), const char *what)
 {
     if (!fn)
@@ -186,7 +187,7 @@ static int hook(marie_component_t *c, int (*fn)(marie_component_t *), const char
     if (fn(c) == 0)
         return 0;
     snprintf(c->reason, sizeof c->reason, "%s failed: %s", what, c->fail_reason[0] ? c->fail_reason : "refused");
-    return -1;
+    return marie_fail(ECANCELED);
 }
 
 static void quit_hook(marie_component_t *c)
@@ -200,11 +201,10 @@ int marie_component_command(marie_component_t *c, marie_cmd_t cmd, const char **
 {
     marie_state_t s = c->state;
     const marie_component_def_t *d = c->def;
-    int rc = -1;
     *reason = c->reason;
     if (s == MARIE_STATE_EXITED) {
         snprintf(c->reason, sizeof c->reason, "%s refused: the component has exited", marie_cmd_name(cmd));
-        return -1;
+        return marie_fail(EINVAL);
     }
     switch (cmd) {
     case MARIE_CMD_INIT:
@@ -255,13 +255,13 @@ int marie_component_command(marie_component_t *c, marie_cmd_t cmd, const char **
         if (s == MARIE_STATE_FAILED) {
             quit_hook(c);
             if (hook(c, d->on_init, "init") < 0) {
-                set_state(c, MARIE_STATE_FAILED, c->reason);
+                MARIE_KEEP_ERRNO(set_state(c, MARIE_STATE_FAILED, c->reason));
                 return -1;
             }
             c->initialised = true;
         }
         if (hook(c, d->on_start, "start") < 0) {
-            set_state(c, MARIE_STATE_READY, c->reason);
+            MARIE_KEEP_ERRNO(set_state(c, MARIE_STATE_READY, c->reason));
             return -1;
         }
         set_state(c, MARIE_STATE_RUNNING, "restart");
@@ -281,11 +281,10 @@ int marie_component_command(marie_component_t *c, marie_cmd_t cmd, const char **
         return 0;
     default:
         snprintf(c->reason, sizeof c->reason, "unknown command %d", (int)cmd);
-        return -1;
+        return marie_fail(EINVAL);
     }
-    rc = -1;
     snprintf(c->reason, sizeof c->reason, "%s refused in state %s", marie_cmd_name(cmd), marie_state_name(s));
-    return rc;
+    return marie_fail(EINVAL);
 }
 
 static void reply(marie_component_t *c, int64_t request_id, int cmd, bool ok, const char *why)
@@ -519,7 +518,7 @@ int marie_component_run(marie_component_t *c)
     /* Parameters, the system file and what init read are in memory now. */
     marie_yaml_unload();
     int rc = marie_loop_run(c->loop);
-    marie_loop_catch_signals(c->loop, NULL, NULL);
+    MARIE_KEEP_ERRNO(marie_loop_catch_signals(c->loop, NULL, NULL));
     return rc;
 }
 

@@ -1,4 +1,7 @@
 /* component: the Application Adapter runtime: lifecycle, ports, params, heartbeat, events. */
+/* Errors follow the one rule (docs/core.md): a call fails with -1, a constructor with NULL, and
+ * errno says why; a refused transition also names its reason, and a pull's callback gets the
+ * errno value as its status. */
 #ifndef MARIE_COMPONENT_H
 #define MARIE_COMPONENT_H
 
@@ -144,11 +147,12 @@ void marie_component_usage(const marie_component_def_t *def, const char *prog, F
  * reasons in errs (exit status 2 for configuration errors). */
 marie_component_t *marie_component_create(const marie_component_def_t *def, int argc, char **argv,
                                           void *user, marie_errors_t *errs);
-int marie_component_run(marie_component_t *c);          /* until quit; 0 or -errno */
+int marie_component_run(marie_component_t *c);          /* until quit; 0, or -1 with errno */
 void marie_component_destroy(marie_component_t *c);     /* NULL is a no-op */
 
 /* Drive the lifecycle in-process (the LCM command path uses the same function). Returns 0,
- * or -1 with *reason (static or owned by c) when the transition is refused. */
+ * or -1 with *reason (static or owned by c) when the transition is refused, and errno
+ * ECANCELED (a hook refused it) or EINVAL (not in this state, or an unknown command). */
 int marie_component_command(marie_component_t *c, marie_cmd_t cmd, const char **reason);
 
 void *marie_component_user(const marie_component_t *c);
@@ -199,7 +203,7 @@ typedef void (*marie_msg_cb_t)(marie_component_t *c, marie_port_t *p, const void
 marie_port_t *marie_port(marie_component_t *c, const char *name);
 const char *marie_port_channel(const marie_port_t *p);
 const char *marie_port_name(const marie_port_t *p);
-/* Encode with the port's type and publish. 0, or -errno (counted as a drop). */
+/* Encode with the port's type and publish. 0, or -1 with errno (counted as a drop). */
 int marie_port_publish(marie_port_t *p, const void *msg);
 int marie_port_publish_raw(marie_port_t *p, const void *data, size_t len);
 /* A loan, so that a large message is never copied: on a port whose channel the system file puts
@@ -215,10 +219,12 @@ void *marie_port_loan(marie_port_t *p, size_t n);
 int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb);
 /* Pull the newest value of a pull port from its channel's Mailbox, waiting at most
  * timeout_ms (other messages keep being handled meanwhile). Fills msg (free with the
- * type's decode_cleanup) and *age_us. 0, -ETIMEDOUT (no answer), -ENODATA (the Mailbox
- * holds nothing yet), -EBADMSG (bad reply; counted). */
+ * type's decode_cleanup) and *age_us. 0, or -1 with errno ETIMEDOUT (no answer), ENODATA (the
+ * Mailbox holds nothing yet), ENOENT (the Mailbox knows no such channel), EBADMSG (bad reply;
+ * counted) or ECANCELED (the loop quit first). */
 int marie_port_pull(marie_port_t *p, void *msg, int timeout_ms, int64_t *age_us);
-/* Asynchronous form: cb(status, msg or NULL, age_us) runs from the loop exactly once. */
+/* Asynchronous form: cb(status, msg or NULL, age_us) runs from the loop exactly once; status is
+ * 0, or the errno value marie_port_pull() would set (a value, as no errno survives the wait). */
 typedef void (*marie_pull_cb_t)(marie_component_t *c, marie_port_t *p, int status,
                                 const void *msg, int64_t age_us, void *user);
 int marie_port_pull_async(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, void *user);

@@ -228,7 +228,7 @@ static int published(marie_port_t *p, int err, size_t len)
                                    len, p->channel, p->shm->max_size);
         else
             marie_warn_ratelimited(5, "%s: publish on %s failed: %s", p->c->name, p->channel, strerror(err));
-        return -err;
+        return marie_fail(err);
     }
     p->c->msgs_out++;
     p->msgs++;
@@ -295,27 +295,27 @@ int marie_port_publish(marie_port_t *p, const void *msg)
         return publish_loaned(p, msg);
     int size = t->encoded_size(msg);
     if (size < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (p->shm)         /* encoded straight into the ring */
         return published(p, marie_bus_publish_with(p->lcm, p->channel, (size_t)size, encode_into,
                                                    &(encoding_t){t, msg}) ? errno : 0, (size_t)size);
     if ((size_t)size > p->bufcap && !grow_buf(p, (size_t)size))
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     if (t->encode(p->buf, 0, size, msg) != size)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     return marie_port_publish_raw(p, p->buf, (size_t)size);
 }
 
 int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
 {
     if (p->spec->dir != MARIE_IN || p->spec->mech == MARIE_PULL)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     p->cb = cb;
     if (!p->sub)        /* typed messages in shared memory are decoded where they lie */
         p->sub = p->shm && p->spec->type ? marie_bus_subscribe_in_place(p->lcm, p->channel, on_shm_in_place,
                                                                          on_shm_verdict, p)
                                          : marie_bus_subscribe(p->lcm, p->channel, on_port_message, p);
-    return p->sub ? 0 : -EIO;
+    return p->sub ? 0 : marie_fail(EIO);
 }
 
 /* ---- pull ---- */
@@ -346,7 +346,7 @@ static void on_pull_timeout(marie_loop_t *loop, marie_timer_t *t, int64_t overru
     pull_t *pl = user;
     pl->timeout = NULL;  /* one-shot: already freed by the loop */
     marie_component_count(pl->port->c, "pull_timeouts", 1);
-    pull_finish(pl->port->c, pl, -ETIMEDOUT, NULL, 0);
+    pull_finish(pl->port->c, pl, ETIMEDOUT, NULL, 0);
 }
 
 static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
@@ -370,16 +370,16 @@ static void on_pull_reply(const lcm_recv_buf_t *rbuf, const char *channel, void 
     int status = 0;
     void *msg = NULL;
     if (r.status == MARIE_PULL_REPLY_T_STATUS_EMPTY || r.status == MARIE_PULL_REPLY_T_STATUS_TIMEOUT) {
-        status = -ENODATA;
+        status = ENODATA;
     } else if (r.status != MARIE_PULL_REPLY_T_STATUS_OK) {
-        status = r.status == MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL ? -ENOENT : -EBADMSG;
+        status = r.status == MARIE_PULL_REPLY_T_STATUS_UNKNOWN_CHANNEL ? ENOENT : EBADMSG;
     } else if (t) {
         const char *why;
         msg = pl->cb ? pl->port->scratch : pl->msg;
         if (marie_decode_input(t, r.data, (size_t)r.size, msg, &why) < 0) {
             marie_component_bad_input(c, why, "pull reply on %s: %d bytes: not a well-formed, finite %s", r.channel,
                                       r.size, t->name);
-            status = -EBADMSG;
+            status = EBADMSG;
             msg = NULL;
         }
     }
@@ -437,30 +437,30 @@ static pull_t *pull_send(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, vo
 int marie_port_pull_async(marie_port_t *p, int timeout_ms, marie_pull_cb_t cb, void *user)
 {
     if (!cb)
-        return -EINVAL;
-    return pull_send(p, timeout_ms, cb, user, NULL) ? 0 : -errno;
+        return marie_fail(EINVAL);
+    return pull_send(p, timeout_ms, cb, user, NULL) ? 0 : -1;
 }
 
 int marie_port_pull(marie_port_t *p, void *msg, int timeout_ms, int64_t *age_us)
 {
     pull_t *pl = pull_send(p, timeout_ms, NULL, NULL, msg);
     if (!pl)
-        return -errno;
+        return -1;
     /* Other messages keep being handled while we wait for this reply. */
     while (!pl->done && !marie_loop_quitting(p->c->loop)) {
         int rc = marie_loop_run_once(p->c->loop, 10);
         if (rc < 0) {
-            pull_finish(p->c, pl, rc, NULL, 0);
+            pull_finish(p->c, pl, errno, NULL, 0);
             break;
         }
     }
     if (!pl->done)
-        pull_finish(p->c, pl, -ECANCELED, NULL, 0);
+        pull_finish(p->c, pl, ECANCELED, NULL, 0);
     int status = pl->status;
     if (age_us)
         *age_us = pl->age_us;
     free(pl);
-    return status;
+    return status ? marie_fail(status) : 0;
 }
 
 /* ---- ticks ---- */

@@ -63,7 +63,7 @@ static int make_dirs(const char *dir, mode_t mode)
 {
     char *p = strdup(dir);
     if (!p)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int rc = 0;
     for (char *s = p + 1; rc == 0; s++) {
         if (*s != '/' && *s)
@@ -71,12 +71,12 @@ static int make_dirs(const char *dir, mode_t mode)
         char c = *s;
         *s = 0;
         if (mkdir(p, mode) < 0 && errno != EEXIST)
-            rc = -errno;
+            rc = -1;
         *s = c;
         if (!c)
             break;
     }
-    free(p);
+    MARIE_KEEP_ERRNO(free(p));
     return rc;
 }
 
@@ -103,10 +103,8 @@ char *marie_state_dir(void)
     }
     if (!dir)
         return marie_fail_null(ENOMEM);
-    int rc = make_dirs(dir, 0700);
-    if (rc < 0) {
-        free(dir);
-        errno = -rc;
+    if (make_dirs(dir, 0700) < 0) {
+        MARIE_KEEP_ERRNO(free(dir));
         return NULL;
     }
     return dir;

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/new.h"
 
 struct lcmlog_parser {
@@ -165,7 +166,7 @@ static int keep(lcmlog_parser_t *p, const uint8_t *b, size_t n)
             cap *= 2;
         uint8_t *nb = realloc(p->buf, cap);
         if (!nb)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         p->buf = nb;
         p->cap = cap;
     }
@@ -209,7 +210,7 @@ long lcmlog_encode(void *out, size_t cap, int64_t eventnum, int64_t utime, const
     size_t clen = strlen(channel);
     size_t total = LCMLOG_HEADER_LEN + clen + data_len;
     if (total > cap)
-        return -ENOSPC;
+        return marie_fail(ENOSPC);
     uint8_t *b = out;
     put32(b, LCMLOG_SYNC);
     put64(b + 4, (uint64_t)eventnum);

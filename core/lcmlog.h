@@ -42,14 +42,14 @@ typedef struct {
 lcmlog_parser_t *lcmlog_parser_create(lcmlog_event_cb_t on_event, lcmlog_corrupt_cb_t on_corrupt, void *user);
 void lcmlog_parser_destroy(lcmlog_parser_t *p);     /* NULL is a no-op */
 
-/* Feed any number of bytes; complete records are reported at once. 0 or -ENOMEM. */
+/* Feed any number of bytes; complete records are reported at once. 0, or -1 with errno ENOMEM. */
 int lcmlog_parser_feed(lcmlog_parser_t *p, const void *buf, size_t len);
 /* End of stream: a partial record left over is reported as corrupt ("truncated"). */
 void lcmlog_parser_finish(lcmlog_parser_t *p);
 const lcmlog_stats_t *lcmlog_parser_stats(const lcmlog_parser_t *p);
 
-/* Encode one record into out (capacity cap); returns its length or -ENOSPC. For writers
- * and tests. */
+/* Encode one record into out (capacity cap); returns its length, or -1 with errno ENOSPC. For
+ * writers and tests. */
 long lcmlog_encode(void *out, size_t cap, int64_t eventnum, int64_t utime, const char *channel,
                    const void *data, size_t data_len);
 

@@ -105,15 +105,15 @@ void marie_loop_destroy(marie_loop_t *loop)
 int marie_loop_add_fd(marie_loop_t *loop, int fd, short events, marie_fd_cb_t cb, void *user)
 {
     if (fd < 0 || !cb)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     for (size_t i = 0; i < loop->nfds; i++)
         if (loop->fds[i].fd == fd)
-            return -EEXIST;
+            return marie_fail(EEXIST);
     if (loop->nfds == loop->capfds) {
         size_t cap = loop->capfds ? loop->capfds * 2 : 8;
         fd_watch_t *n = realloc(loop->fds, cap * sizeof *n);
         if (!n)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         loop->fds = n;
         loop->capfds = cap;
     }
@@ -132,7 +132,7 @@ int marie_loop_remove_fd(marie_loop_t *loop, int fd)
             return 0;
         }
     }
-    return -ENOENT;
+    return marie_fail(ENOENT);
 }
 
 int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
@@ -143,7 +143,7 @@ int marie_loop_set_events(marie_loop_t *loop, int fd, short events)
             return 0;
         }
     }
-    return -ENOENT;
+    return marie_fail(ENOENT);
 }
 
 static void on_lcm_readable(marie_loop_t *loop, int fd, short revents, void *user)
@@ -232,10 +232,10 @@ int marie_loop_add_bus(marie_loop_t *loop, lcm_t *lcm, int burst)
 {
     int fd = lcm ? marie_bus_fd(lcm) : -1;
     if (fd < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     lcm_watch_t *w = calloc(1, sizeof *w);
     if (!w)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     *w = (lcm_watch_t){lcm, burst > 0 ? burst : 1, loop->lcms, -1};
     int rc = marie_loop_add_fd(loop, fd, POLLIN, on_lcm_readable, w);
     if (rc < 0) {
@@ -258,7 +258,7 @@ int marie_loop_remove_bus(marie_loop_t *loop, lcm_t *lcm)
             return marie_loop_remove_fd(loop, marie_bus_fd(lcm));
         }
     }
-    return -ENOENT;
+    return marie_fail(ENOENT);
 }
 
 /* Timers run on CLOCK_MONOTONIC for the wall clock kind, on simulated time otherwise. */
@@ -498,7 +498,7 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
     if (loop->cappfds < loop->nfds) {
         struct pollfd *n = realloc(loop->pfds, loop->nfds * sizeof *n);
         if (!n)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         loop->pfds = n;
         loop->cappfds = loop->nfds;
     }
@@ -520,7 +520,7 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
     if (rc < 0 && errno != EINTR) {
         int err = errno;
         marie_error("poll: %s", strerror(err));
-        return -err;
+        return marie_fail(err);
     }
     loop->fds_changed = 0;
     for (size_t i = 0; rc > 0 && i < n && !loop->quit; i++) {
@@ -618,7 +618,7 @@ int marie_loop_catch_signals(marie_loop_t *loop, marie_signal_cb_t cb, void *use
     }
     if (loop->sigpipe[0] < 0) {
         if (pipe2(loop->sigpipe, O_NONBLOCK | O_CLOEXEC) < 0)
-            return -errno;
+            return -1;
         int rc = marie_loop_add_fd(loop, loop->sigpipe[0], POLLIN, on_sigpipe_readable, NULL);
         if (rc < 0)
             return rc;
@@ -643,21 +643,21 @@ static void on_sigfd_readable(marie_loop_t *loop, int fd, short revents, void *u
 int marie_loop_watch_signals(marie_loop_t *loop, const int *signos, int n, marie_signal_cb_t cb, void *user)
 {
     if (loop->sigfd >= 0 || !cb || n <= 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     sigset_t set;
     sigemptyset(&set);
     for (int i = 0; i < n; i++)
         if (sigaddset(&set, signos[i]) < 0)
-            return -errno;
+            return -1;
     if (sigprocmask(SIG_BLOCK, &set, NULL) < 0)
-        return -errno;
+        return -1;
     int fd = signalfd(-1, &set, SFD_NONBLOCK | SFD_CLOEXEC);
     if (fd < 0)
-        return -errno;
+        return -1;
     int rc = marie_loop_add_fd(loop, fd, POLLIN, on_sigfd_readable, NULL);
     if (rc < 0) {
-        close(fd);
-        return rc;
+        MARIE_KEEP_ERRNO(close(fd));
+        return -1;
     }
     loop->sigfd = fd;
     loop->on_watched = cb;

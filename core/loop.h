@@ -35,7 +35,7 @@ int marie_loop_set_events(marie_loop_t *loop, int fd, short events);
 
 /* A bus as one more fd (core/bus/bus.h): its handlers run from the loop, at most `burst` messages per
  * round (1 keeps timers and other fds served between messages; a bridge that forwards floods
- * may take more). 0 or -errno. */
+ * may take more). 0, or -1 with errno. */
 int marie_loop_add_bus(marie_loop_t *loop, lcm_t *lcm, int burst);
 int marie_loop_remove_bus(marie_loop_t *loop, lcm_t *lcm);
 
@@ -84,9 +84,9 @@ void marie_loop_set_spin(marie_loop_t *loop, int64_t spin_us);
 int64_t marie_loop_spin(const marie_loop_t *loop);
 
 /* Run one poll round, waiting at most timeout_ms (-1: until an fd or timer is due).
- * Returns the number of callbacks run, or -errno. EINTR is retried. */
+ * Returns the number of callbacks run, or -1 with errno. EINTR is retried. */
 int marie_loop_run_once(marie_loop_t *loop, int timeout_ms);
-/* Run until marie_loop_quit(). Returns 0, or -errno on a poll failure. */
+/* Run until marie_loop_quit(). Returns 0, or -1 with errno on a poll failure. */
 int marie_loop_run(marie_loop_t *loop);
 void marie_loop_quit(marie_loop_t *loop);
 int marie_loop_quitting(const marie_loop_t *loop);
@@ -95,7 +95,7 @@ int marie_loop_quitting(const marie_loop_t *loop);
  * messages) waits: run rounds until done(user) returns non-zero (checked before each round and
  * after the last; NULL: never), marie_loop_quit() is called, or timeout_ms of monotonic time
  * pass (-1: no deadline; 0: one round of what is ready). Not from a callback of the same loop.
- * Returns 1 when done held, 0 at the deadline or on quit, or -errno on a poll failure. */
+ * Returns 1 when done held, 0 at the deadline or on quit, or -1 with errno on a poll failure. */
 typedef int (*marie_loop_cond_t)(void *user);
 int marie_loop_run_until(marie_loop_t *loop, int timeout_ms, marie_loop_cond_t done, void *user);
 
@@ -105,7 +105,7 @@ typedef void (*marie_signal_cb_t)(marie_loop_t *loop, int signo, void *user);
 int marie_loop_catch_signals(marie_loop_t *loop, marie_signal_cb_t on_signal, void *user);
 /* Other signals as loop events (SIGUSR1 to inject a fault, SIGHUP to reload...): they are
  * blocked in this thread and read from a signalfd; on_signal runs from the loop once per signal
- * received, with its number. Once per loop; 0 or -errno. Children inherit the block: unblock in
+ * received, with its number. Once per loop; 0, or -1 with errno. Children inherit the block: unblock in
  * them before exec if they need these signals. */
 int marie_loop_watch_signals(marie_loop_t *loop, const int *signos, int n, marie_signal_cb_t on_signal, void *user);
 

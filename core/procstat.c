@@ -8,16 +8,17 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 static ssize_t read_small(const char *path, char *buf, size_t len)
 {
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0)
-        return -errno;
+        return -1;
     ssize_t n = read(fd, buf, len - 1);
-    int e = errno;
-    close(fd);
+    MARIE_KEEP_ERRNO(close(fd));
     if (n < 0)
-        return -e;
+        return -1;
     buf[n] = 0;
     return n;
 }
@@ -28,13 +29,13 @@ int marie_proc_parse_stat(const char *text, int64_t *utime, int64_t *stime)
      * majflt cmajflt utime(14) stime(15) */
     const char *p = strrchr(text, ')');
     if (!p)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     p++;
     long long v[13];
     char state;
     if (sscanf(p, " %c %lld %lld %lld %lld %lld %lld %lld %lld %lld %lld %lld %lld", &state,
                &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6], &v[7], &v[8], &v[9], &v[10], &v[11]) != 13)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     *utime = v[10];
     *stime = v[11];
     return 0;
@@ -51,18 +52,18 @@ int marie_proc_usage(pid_t pid, int64_t *cpu_us, int64_t *rss_bytes)
     snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
     ssize_t n = read_small(path, buf, sizeof buf);
     if (n < 0)
-        return (int)n;
+        return -1;
     int64_t ut, st;
     if (marie_proc_parse_stat(buf, &ut, &st) < 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     *cpu_us = (ut + st) * 1000000 / tck;
     snprintf(path, sizeof path, "/proc/%d/statm", (int)pid);
     n = read_small(path, buf, sizeof buf);
     if (n < 0)
-        return (int)n;
+        return -1;
     long long size, res;
     if (sscanf(buf, "%lld %lld", &size, &res) != 2)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     *rss_bytes = res * page;
     return 0;
 }
@@ -71,8 +72,8 @@ int marie_host_load(float load[3])
 {
     char buf[256];
     if (read_small("/proc/loadavg", buf, sizeof buf) < 0)
-        return -errno;
-    return sscanf(buf, "%f %f %f", &load[0], &load[1], &load[2]) == 3 ? 0 : -EINVAL;
+        return -1;
+    return sscanf(buf, "%f %f %f", &load[0], &load[1], &load[2]) == 3 ? 0 : marie_fail(EINVAL);
 }
 
 float marie_cpu_percent(marie_cpu_sample_t *prev, int64_t cpu_us, int64_t now_us)
@@ -91,10 +92,10 @@ int marie_proc_starttime(pid_t pid, int64_t *ticks)
     snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
     ssize_t n = read_small(path, buf, sizeof buf);
     if (n < 0)
-        return (int)n;
+        return -1;
     const char *p = strrchr(buf, ')');
     if (!p)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     /* after ')': field 3 (state) ... field 22 (starttime) is the 20th token */
     long long v = 0;
     p++;
@@ -102,7 +103,7 @@ int marie_proc_starttime(pid_t pid, int64_t *ticks)
         while (*p == ' ')
             p++;
         if (!*p)
-            return -EINVAL;
+            return marie_fail(EINVAL);
         if (field == 22)
             v = atoll(p);
         while (*p && *p != ' ')

@@ -157,7 +157,7 @@ void *marie_shm_begun(const marie_shm_writer_t *w)
 int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
 {
     if (!w->open)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     uint64_t n = w->open;
     w->open = 0;
     slot_hdr_t *s = slot_at(w->base, w->hdr, n % w->hdr->nslots);
@@ -166,7 +166,7 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
     atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
     atomic_store_explicit(&w->hdr->write_seq, n, memory_order_release);
     if (!fits)
-        return -EMSGSIZE;
+        return marie_fail(EMSGSIZE);
     if (!ref)
         return 0;
     snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
@@ -180,10 +180,10 @@ size_t marie_shm_slot_size(const marie_shm_writer_t *w) { return w->hdr->slot_si
 int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref)
 {
     if (len > w->hdr->slot_size)
-        return -EMSGSIZE;
+        return marie_fail(EMSGSIZE);
     if (fill(marie_shm_begin(w), len, user) < 0) {
         marie_shm_commit(w, 0, NULL);
-        return -EINVAL;     /* no ref: nobody is told of the empty slot */
+        return marie_fail(EINVAL);     /* no ref: nobody is told of the empty slot */
     }
     return marie_shm_commit(w, len, ref);
 }
@@ -225,7 +225,7 @@ static bool valid_name(const char *s)
 }
 
 /* The mapping of a segment, opened and checked the first time it is named. */
-static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name, int *err)
+static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name)
 {
     reader_map_t *free_slot = NULL, *oldest = &r->maps[0];
     for (int i = 0; i < READER_MAPS; i++) {
@@ -240,25 +240,20 @@ static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name, int *
             oldest = m;
     }
     if (!valid_name(name)) {
-        *err = -EBADMSG;
-        return NULL;
+        return marie_fail_null(EBADMSG);
     }
     char path[256];
     snprintf(path, sizeof path, SHM_DIR "/%s", name);
     int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        *err = errno == ENOENT ? -ENOENT : -errno;
+    if (fd < 0)
         return NULL;
-    }
     struct stat st;
     void *base = MAP_FAILED;
     if (fstat(fd, &st) == 0 && (size_t)st.st_size >= HDR_SIZE)
         base = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED, fd, 0);
     close(fd);
-    if (base == MAP_FAILED) {
-        *err = -EBADMSG;
-        return NULL;
-    }
+    if (base == MAP_FAILED)
+        return marie_fail_null(EBADMSG);
     const shm_hdr_t *h = base;
     /* Nothing in the header is trusted: a slot must lie inside the file, aligned as the writer
      * lays them out (its seq is read atomically). */
@@ -266,8 +261,7 @@ static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name, int *
         h->stride < DATA_OFF + h->slot_size || h->stride % ALIGN != 0 ||
         h->stride > ((uint64_t)st.st_size - HDR_SIZE) / h->nslots) {
         munmap(base, (size_t)st.st_size);
-        *err = -EBADMSG;
-        return NULL;
+        return marie_fail_null(EBADMSG);
     }
     reader_map_t *m = free_slot ? free_slot : oldest;
     if (m->base)
@@ -280,34 +274,28 @@ static const reader_map_t *map_of(marie_shm_reader_t *r, const char *name, int *
 }
 
 /* The slot of ref, when it still holds that message (s1 = its sequence number). */
-static slot_hdr_t *slot_of(marie_shm_reader_t *r, const marie_shm_ref_t *ref, uint64_t *s1, int *err)
+static slot_hdr_t *slot_of(marie_shm_reader_t *r, const marie_shm_ref_t *ref, uint64_t *s1)
 {
-    if (ref->seq <= 0) {
-        *err = -EBADMSG;
-        return NULL;
-    }
-    const reader_map_t *m = map_of(r, ref->segment, err);
+    if (ref->seq <= 0)
+        return marie_fail_null(EBADMSG);
+    const reader_map_t *m = map_of(r, ref->segment);
     if (!m)
         return NULL;
     const shm_hdr_t *h = (const shm_hdr_t *)m->base;
     slot_hdr_t *s = slot_at(m->base, h, (uint64_t)ref->seq % h->nslots);
     uint64_t want = 2 * (uint64_t)ref->seq;
     *s1 = atomic_load_explicit(&s->seq, memory_order_acquire);
-    if (*s1 != want) {
-        *err = *s1 > want ? -ESTALE : -EBADMSG;
-        return NULL;
-    }
-    if (s->size > h->slot_size || s->size != ref->size) {
-        *err = -EAGAIN;         /* a size being rewritten: the slot moved on */
-        return NULL;
-    }
+    if (*s1 != want)
+        return marie_fail_null(*s1 > want ? ESTALE : EBADMSG);
+    if (s->size > h->slot_size || s->size != ref->size)
+        return marie_fail_null(EAGAIN);     /* a size being rewritten: the slot moved on */
     return s;
 }
 
-const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref, int *err)
+const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref)
 {
     uint64_t s1;
-    slot_hdr_t *s = slot_of(r, ref, &s1, err);
+    slot_hdr_t *s = slot_of(r, ref, &s1);
     return s ? (const uint8_t *)s + DATA_OFF : NULL;
 }
 
@@ -315,33 +303,32 @@ bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref)
 {
     atomic_thread_fence(memory_order_acquire);      /* every use of the bytes before this look */
     uint64_t s1;
-    int err;
-    return slot_of(r, ref, &s1, &err) != NULL;
+    return slot_of(r, ref, &s1) != NULL;
 }
 
 int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment)
 {
-    int err = 0;
-    const reader_map_t *m = map_of(r, segment, &err);
+    const reader_map_t *m = map_of(r, segment);
     if (!m)
-        return err;
+        return -1;
     return (int64_t)atomic_load_explicit(&((const shm_hdr_t *)m->base)->write_seq, memory_order_acquire);
 }
 
 int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref)
 {
-    int err = 0;
-    const reader_map_t *m = seq > 0 ? map_of(r, segment, &err) : NULL;
+    if (seq <= 0)
+        return marie_fail(EBADMSG);
+    const reader_map_t *m = map_of(r, segment);
     if (!m)
-        return err ? err : -EBADMSG;
+        return -1;
     const shm_hdr_t *h = (const shm_hdr_t *)m->base;
     slot_hdr_t *s = slot_at(m->base, h, (uint64_t)seq % h->nslots);
     uint64_t want = 2 * (uint64_t)seq, s1 = atomic_load_explicit(&s->seq, memory_order_acquire);
     if (s1 != want)
-        return s1 > want ? -ESTALE : -EAGAIN;
+        return marie_fail(s1 > want ? ESTALE : EAGAIN);
     uint64_t size = s->size;
     if (size > h->slot_size)
-        return -EAGAIN;
+        return marie_fail(EAGAIN);
     snprintf(ref->segment, sizeof ref->segment, "%s", segment);
     ref->seq = seq;
     ref->size = (uint32_t)size;
@@ -351,26 +338,25 @@ int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, ma
 int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *buf, size_t cap)
 {
     if (ref->seq <= 0)
-        return -EBADMSG;
-    int err = 0;
-    const reader_map_t *m = map_of(r, ref->segment, &err);
+        return marie_fail(EBADMSG);
+    const reader_map_t *m = map_of(r, ref->segment);
     if (!m)
-        return err;
+        return -1;
     const shm_hdr_t *h = (const shm_hdr_t *)m->base;
     slot_hdr_t *s = slot_at(m->base, h, (uint64_t)ref->seq % h->nslots);
     uint64_t want = 2 * (uint64_t)ref->seq;
     uint64_t s1 = atomic_load_explicit(&s->seq, memory_order_acquire);
     if (s1 != want)
-        return s1 > want ? -ESTALE : -EBADMSG;
+        return marie_fail(s1 > want ? ESTALE : EBADMSG);
     uint64_t size = s->size;
     if (size > h->slot_size)
-        return -EAGAIN;         /* a size being rewritten: the slot moved on */
+        return marie_fail(EAGAIN);         /* a size being rewritten: the slot moved on */
     if (size > cap)
-        return -EMSGSIZE;
+        return marie_fail(EMSGSIZE);
     memcpy(buf, (const uint8_t *)s + DATA_OFF, size);
     atomic_thread_fence(memory_order_acquire);      /* the copy before the second look */
     if (atomic_load_explicit(&s->seq, memory_order_relaxed) != s1)
-        return -EAGAIN;
+        return marie_fail(EAGAIN);
     return (int64_t)size;
 }
 

@@ -33,19 +33,19 @@ typedef struct {
 /* NULL with errno (EINVAL: bad sizes or channel; what shm_open/ftruncate/mmap say). */
 marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_size, int nslots);
 void marie_shm_writer_destroy(marie_shm_writer_t *w);      /* NULL is a no-op; unlinks */
-/* Copy one message into the next slot. 0, or -EMSGSIZE when it does not fit a slot. */
+/* Copy one message into the next slot. 0, or -1 with errno EMSGSIZE when it does not fit a slot. */
 int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_shm_ref_t *ref);
 /* Without the copy: `fill(dst, len, user)` writes the len bytes of the message straight into the
  * slot (an encoder) and returns 0, or -1 to abandon it (the slot is left empty, no ref made, and
- * this returns -EINVAL). dst is only valid during the call. 0, -EMSGSIZE or -EINVAL. */
+ * this fails with EINVAL). dst is only valid during the call. 0, or -1 with errno EMSGSIZE or EINVAL. */
 typedef int (*marie_shm_fill_t)(void *dst, size_t len, void *user);
 int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref);
 int marie_shm_fill_copy(void *dst, size_t len, void *src);     /* the fill of marie_shm_write: a memcpy */
 /* In two steps, for a producer that makes the message in place (a loan): begin gives the next
  * slot's bytes (slot_size of them), marked as being written, so a reader of what the slot held
  * sees it gone; commit publishes its first len bytes. A begin not committed is taken up by the
- * next begin or write. Commit: 0, -EMSGSIZE (len past the slot: the slot is left empty, no ref),
- * -EINVAL (nothing begun). */
+ * next begin or write. Commit: 0, or -1 with errno EMSGSIZE (len past the slot: the slot is left
+ * empty, no ref) or EINVAL (nothing begun). */
 void *marie_shm_begin(marie_shm_writer_t *w);
 void *marie_shm_begun(const marie_shm_writer_t *w);     /* what begin gave, or NULL: nothing begun */
 int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref);
@@ -54,23 +54,23 @@ const char *marie_shm_writer_segment(const marie_shm_writer_t *w);
 
 marie_shm_reader_t *marie_shm_reader_create(void);
 void marie_shm_reader_destroy(marie_shm_reader_t *r);      /* NULL is a no-op */
-/* Copy the message `ref` names into buf (cap bytes). Its size, or -ENOENT (no such segment:
- * another host's writer, or gone), -ESTALE (already overwritten: the reader was too slow),
- * -EAGAIN (overwritten while copying), -EMSGSIZE (cap too small), -EBADMSG (a ref or segment
+/* Copy the message `ref` names into buf (cap bytes). Its size, or -1 with errno ENOENT (no such
+ * segment: another host's writer, or gone), ESTALE (already overwritten: the reader was too
+ * slow), EAGAIN (overwritten while copying), EMSGSIZE (cap too small), EBADMSG (a ref or segment
  * that makes no sense). Opens and maps the segment the first time it is named. */
 int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *buf, size_t cap);
 
 /* In place, without the copy: the message's bytes inside the mapping (valid until the reader
- * is destroyed), or NULL with *err as marie_shm_read() says. They may be overwritten at any
+ * is destroyed), or NULL with errno as marie_shm_read() says. They may be overwritten at any
  * moment: use them (decode them) first, then ask marie_shm_still_valid(), and drop whatever
  * was made of them when it says no. */
-const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref, int *err);
+const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 
 /* Following a writer without notices (the same-host fast path): the newest complete message of
- * a segment (0: none yet), or a negative errno as marie_shm_read() says; and the ref of message
- * seq, its size read from its slot: 0, -ESTALE (overwritten), -EAGAIN (not complete, or being
- * rewritten), or what opening the segment said. */
+ * a segment (0: none yet), or -1 with errno as marie_shm_read() says; and the ref of message
+ * seq, its size read from its slot: 0, or -1 with errno ESTALE (overwritten), EAGAIN (not
+ * complete, or being rewritten), or what opening the segment said. */
 int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment);
 int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref);
 

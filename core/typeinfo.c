@@ -296,16 +296,16 @@ static int fixed_wire_size(const marie_tfield_t *f, int depth)
 int marie_typeinfo_tail(const marie_typeinfo_t *t, marie_tail_t *out)
 {
     if (!t || t->nfields < 2)
-        return -ENOTSUP;
+        return marie_fail(ENOTSUP);
     const marie_tfield_t *last = &t->fields[t->nfields - 1];
     if ((last->prim != MARIE_PRIM_BYTE && last->prim != MARIE_PRIM_INT8) || last->ndims != 1 ||
         last->dims[0].len_field < 0 || t->fields[last->dims[0].len_field].prim != MARIE_PRIM_INT32)
-        return -ENOTSUP;
+        return marie_fail(ENOTSUP);
     size_t wire = 8;            /* the fingerprint */
     for (int i = 0; i < t->nfields - 1; i++) {
         int size = fixed_wire_size(&t->fields[i], 0);
         if (size < 0)
-            return -ENOTSUP;
+            return marie_fail(ENOTSUP);
         if (i == last->dims[0].len_field)
             out->len_wire_off = wire;
         wire += (size_t)size;
@@ -324,11 +324,11 @@ int64_t marie_payload_fingerprint(const void *buf, size_t len)
 int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags)
 {
     if (!t || len < 8 || marie_wire_int(buf, 8) != t->fingerprint)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     cursor_t c = {buf, len, 8, flags, false};
     if (walk_struct(t, &c, 0) < 0 || c.pos != len)
-        return -EBADMSG;
-    return c.nonfinite ? -EDOM : 0;
+        return marie_fail(EBADMSG);
+    return c.nonfinite ? marie_fail(EDOM) : 0;
 }
 
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
@@ -344,20 +344,21 @@ static int decode(const marie_type_t *t, const void *buf, size_t len, void *out,
     why = why ? why : &dummy;
     *why = "bad_fingerprint";
     if (marie_payload_fingerprint(buf, len) != t->hash() || len < 8)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     *why = "bad_payload";
-    int rc = len > INT32_MAX ? -EBADMSG : marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), buf, len, flags);
-    if (rc == -EDOM)
+    int rc = len > INT32_MAX ? marie_fail(EBADMSG)
+                             : marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), buf, len, flags);
+    if (rc < 0 && errno == EDOM)
         *why = "bad_nonfinite";
     if (rc < 0)
-        return rc;
+        return -1;
     memset(out, 0, t->size);
-    return t->decode(buf, 0, (int)len, out) < 0 ? -EBADMSG : 0;
+    return t->decode(buf, 0, (int)len, out) < 0 ? marie_fail(EBADMSG) : 0;
 }
 
 int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out)
 {
-    return decode(t, buf, len, out, 0, NULL) < 0 ? -EBADMSG : 0;
+    return decode(t, buf, len, out, 0, NULL) < 0 ? marie_fail(EBADMSG) : 0;
 }
 
 int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why)

@@ -98,12 +98,12 @@ int64_t marie_wire_int(const uint8_t *p, int n);
 /* Checks that buf holds exactly one well-formed payload of type t (fingerprint first): every
  * string is NUL-terminated within its length, every array count is non-negative and fits the
  * payload, and nothing trails it. lcm-gen's C decoders trust lengths, so nothing from the bus
- * is decoded before this passes. Returns 0 or -EBADMSG. */
+ * is decoded before this passes. Returns 0, or -1 with errno EBADMSG. */
 int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len);
 
 /* marie_typeinfo_check() with options: MARIE_CHECK_FINITE also walks every float and double
  * (scalars, arrays, nested structs; not the fields marked MARIE_TFIELD_NONFINITE) and returns
- * -EDOM when one is NaN or infinite. */
+ * fails with EDOM when one is NaN or infinite. */
 #define MARIE_CHECK_FINITE 1
 int marie_typeinfo_check_flags(const marie_typeinfo_t *t, const void *buf, size_t len, int flags);
 
@@ -116,7 +116,7 @@ typedef struct {
     size_t len_wire_off;        /* its length on the wire */
     size_t ptr_off, len_off;    /* the array's pointer and its length in the C struct */
 } marie_tail_t;
-/* 0, or -ENOTSUP for a type of any other shape. */
+/* 0, or -1 with errno ENOTSUP for a type of any other shape. */
 int marie_typeinfo_tail(const marie_typeinfo_t *t, marie_tail_t *out);
 
 /* The registered type called `name` ("marie.pose2d_t", or "pose2d_t"), or NULL. */
@@ -127,14 +127,14 @@ const marie_type_t *marie_type_by_fingerprint(int64_t fp);
 int64_t marie_payload_fingerprint(const void *buf, size_t len);
 
 /* Check a payload of the registered type t, then decode it into out (zeroed first; free with
- * t->decode_cleanup). 0 or -EBADMSG. Every decoder of bus input calls this. */
+ * t->decode_cleanup). 0, or -1 with errno EBADMSG. Every decoder of bus input calls this. */
 int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, void *out);
 
 /* What a component does with an input message (ports, pull replies, raw subscriptions): as
  * marie_decode_checked(), and a NaN or infinity in any float or double field is refused too,
  * but in the fields that give them a meaning (MARIE_TFIELD_NONFINITE; see docs/core.md). On failure *why (if why is not NULL)
  * names the bad-input counter: "bad_fingerprint", "bad_payload" or "bad_nonfinite". 0,
- * -EBADMSG, or -EDOM (non-finite). */
+ * or -1 with errno EBADMSG, or EDOM (non-finite). */
 int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why);
 
 #ifdef __cplusplus

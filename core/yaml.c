@@ -14,6 +14,7 @@
 #include <libfyaml.h>
 
 #include "core/buf.h"
+#include "core/err.h"
 #include "core/log.h"
 
 /* ---- errors ---- */
@@ -114,7 +115,7 @@ static int index_grow(marie_node_t *m)
         cap *= 2;
     size_t *index = calloc(cap, sizeof *index);
     if (!index)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     free(m->index);
     m->index = index;
     m->index_cap = cap;
@@ -142,7 +143,7 @@ static int node_append(marie_node_t *parent, marie_node_t *child)
     if ((n & (n - 1)) == 0) {
         marie_node_t **items = realloc(parent->items, (n ? 2 * n : 1) * sizeof *items);
         if (!items)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         parent->items = items;
     }
     parent->items[parent->n++] = child;

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 typedef struct {
     const uint8_t *buf;
     size_t len, pos;
@@ -52,24 +54,24 @@ int pgm_parse(const uint8_t *buf, size_t len, pgm_t *out, char *err, size_t errl
     memset(out, 0, sizeof(*out));
     if (len < 2 || buf[0] != 'P' || (buf[1] != '5' && buf[1] != '2')) {
         snprintf(err, errlen, "not a PGM image (expected magic P5 or P2)");
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     int ascii = buf[1] == '2';
     cursor_t c = { buf, len, 2 };
     long w = read_uint(&c), h = read_uint(&c), maxval = read_uint(&c);
     if (w <= 0 || h <= 0 || w > PGM_MAX_SIDE || h > PGM_MAX_SIDE) {
         snprintf(err, errlen, "bad PGM size (width and height must be 1..%d)", PGM_MAX_SIDE);
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     if (maxval <= 0 || maxval > 65535) {
         snprintf(err, errlen, "bad PGM maxval (must be 1..65535)");
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     size_t n = (size_t)w * (size_t)h;
     uint16_t *px = malloc(n * sizeof(*px));
     if (!px) {
         snprintf(err, errlen, "out of memory for a %ldx%ld image", w, h);
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     }
     if (ascii) {
         for (size_t i = 0; i < n; i++) {
@@ -115,5 +117,5 @@ int pgm_parse(const uint8_t *buf, size_t len, pgm_t *out, char *err, size_t errl
     return 0;
 fail:
     free(px);
-    return -EINVAL;
+    return marie_fail(EINVAL);
 }

@@ -18,7 +18,7 @@ typedef struct {
     uint16_t *pixels;           /* width*height, row 0 is the top row; caller frees */
 } pgm_t;
 
-/* Parse a whole PGM file held in buf. 0 on success (free out->pixels), or -EINVAL with a
+/* Parse a whole PGM file held in buf. 0 on success (free out->pixels), or -1 with errno EINVAL with a
  * one-line reason in err (including the byte offset when it helps). */
 int pgm_parse(const uint8_t *buf, size_t len, pgm_t *out, char *err, size_t errlen);
 

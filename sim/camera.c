@@ -9,6 +9,8 @@
 
 #include "camera/vision_simcam.h"
 #include "core/config.h"
+#include "core/err.h"
+#include "core/log.h"
 #include "sim/sim_opts.h"
 
 struct sim_camera {
@@ -40,7 +42,7 @@ sim_camera_t *sim_camera_create(const char *yaml, const occmap_t *map, const sim
                                 char *why, size_t len)
 {
     if (!(cfg->hz > 0) || !isfinite(cfg->hz) || !(cfg->step > 0)) {
-        snprintf(why, len, "camera_hz: expected a positive rate");
+        marie_fail_why(why, len, "camera_hz: expected a positive rate");
         return NULL;
     }
     marie_errors_t errs = { 0 };
@@ -77,12 +79,9 @@ sim_camera_t *sim_camera_create(const char *yaml, const occmap_t *map, const sim
     marie_doc_destroy(doc);
     return c;
 err_errs:
-    snprintf(why, len, "%s", errs.n ? errs.msgs[0] : "cannot read the world file");
+    marie_fail_why(why, len, "%s", errs.n ? errs.msgs[0] : "cannot read the world file");
 err:
-    marie_errors_clear(&errs);
-    sim_camera_destroy(c);
-    free(tags);
-    marie_doc_destroy(doc);
+    MARIE_KEEP_ERRNO(marie_errors_clear(&errs); sim_camera_destroy(c); free(tags); marie_doc_destroy(doc));
     return NULL;
 }
 

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/log.h"
 #include "core/time.h"
 #include "hw/can/canbus.h"
@@ -65,8 +66,7 @@ static void on_dev(marie_loop_t *loop, int fd, short revents, void *user)
     sim_devices_t *d = user;
     /* The devices run on simulated time, as the drivers on the other end of the bus do under
      * `--clock sim`; the master lockstep keeps the two within master_lag of each other. */
-    int rc = vdevices_process(d->dev, d->now);
-    if (rc == -EPIPE)
+    if (vdevices_process(d->dev, d->now) < 0 && errno == EPIPE)
         marie_warn_ratelimited(5, "device mode: the CAN bus went away");
 }
 
@@ -124,12 +124,12 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     d->laser_hold = cfg->laser_hold;
     d->last_rx = d->laser_lag.since = d->can_lag.since = -1;
     if (sim_world_params(world)->laser_beams != SCAN_BEAMS) {
-        snprintf(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
+        marie_fail_why(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
         goto fail;
     }
     if (cfg->can_serve) {
         if (strncmp(cfg->can_url, "emu:", 4) != 0) {
-            snprintf(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
+            marie_fail_why(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
             goto fail;
         }
         d->bus = can_emubus_create(loop, cfg->can_url + 4);
@@ -166,17 +166,16 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     lc.rate_hz = cfg->laser_hz;
     lc.line_time = true;
     d->laser = vlms200_create(&lc);
-    int rc = d->laser ? vlms200_open(d->laser, cfg->laser_link) : -errno;
-    if (rc < 0) {
+    if (!d->laser || vlms200_open(d->laser, cfg->laser_link) < 0) {
         snprintf(err, errlen, "cannot create the virtual LMS200 pty%s%s: %s", cfg->laser_link ? " at " : "",
-                 cfg->laser_link ? cfg->laser_link : "", strerror(-rc));
+                 cfg->laser_link ? cfg->laser_link : "", strerror(errno));
         goto fail;
     }
     vlms200_on_scan(d->laser, on_scan, d);
     laser_sync_fd(d);
     return d;
 fail:
-    sim_devices_destroy(d);
+    MARIE_KEEP_ERRNO(sim_devices_destroy(d));
     return NULL;
 }
 

@@ -6,6 +6,8 @@
 #include <errno.h>
 #include <stdlib.h>
 
+#include "core/err.h"
+
 long sim_walls_rects(const occmap_t *m, sim_rect_t **out)
 {
     size_t cap = 256, n = 0;
@@ -57,5 +59,5 @@ nomem:
     free(r);
     free(open);
     free(next);
-    return -ENOMEM;
+    return marie_fail(ENOMEM);
 }

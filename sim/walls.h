@@ -15,7 +15,7 @@ typedef struct {
     int i, j;                   /* lower-left cell */
     int w, h;                   /* cells */
 } sim_rect_t;
-/* Returns the number of rectangles and sets *out (caller frees), or -ENOMEM. */
+/* Returns the number of rectangles and sets *out (caller frees), or -1 with errno ENOMEM. */
 long sim_walls_rects(const occmap_t *m, sim_rect_t **out);
 
 #ifdef __cplusplus

@@ -244,9 +244,9 @@ static void on_pulled(marie_component_t *c, marie_port_t *p, int status, const v
     beh_t *b = in->b;
     if (status == 0 && msg)
         store(b, in->which, msg, age_us);
-    else if (status == -ETIMEDOUT)
+    else if (status == ETIMEDOUT)
         marie_component_count(c, "pull_timeouts", 1);
-    else if (status == -ENODATA)
+    else if (status == ENODATA)
         marie_component_count(c, "pull_empty", 1);
     else
         marie_component_count(c, "pull_errors", 1);

@@ -357,7 +357,7 @@ static void on_resume(marie_component_t *c, marie_port_t *p, int status, const v
     const marie_pose_cov_t *m = msg;
     if (status != 0 || !m || !s->f) {
         marie_info("no earlier pose to resume from (%s): starting from the configured one",
-                   status == -ENODATA ? "the Mailbox is empty" : status == -ETIMEDOUT ? "no Mailbox answered" : "bad reply");
+                   status == ENODATA ? "the Mailbox is empty" : status == ETIMEDOUT ? "no Mailbox answered" : "bad reply");
         return;
     }
     if (s->first_pub_utime && m->utime >= s->first_pub_utime) {

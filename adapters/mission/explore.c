@@ -203,14 +203,14 @@ static int clearances(const explore_params_t *p, double r[2])
     return p->escape_radius > 0 && p->escape_radius < p->robot_radius ? 2 : 1;
 }
 
-/* reach() at a clearance, the passable cells made for it: 0, -1 when the robot stands on
- * nothing passable, -ENOMEM. */
+/* reach() at a clearance, the passable cells made for it: 0, 1 when the robot stands on
+ * nothing passable, or -1 with errno ENOMEM. */
 static int reach_at(const occmap_t *m, double radius, double rx, double ry, int *dist, int *parent)
 {
     unsigned char *ok = passable(m, radius);
     if (!ok)
-        return -ENOMEM;
-    int rc = reach(m, ok, rx, ry, radius, dist, parent) < 0 ? -1 : 0;
+        return marie_fail(ENOMEM);
+    int rc = reach(m, ok, rx, ry, radius, dist, parent) < 0 ? 1 : 0;
     free(ok);
     return rc;
 }
@@ -233,13 +233,12 @@ int explore_frontiers(const occmap_t *m, const explore_params_t *p, double rx, d
     found = 0;
     for (int t = 0; t < tries && found == 0; t++) {
         int rc = reach_at(m, radii[t], rx, ry, dist, parent);
-        if (rc == -ENOMEM) {
-            errno = ENOMEM;
+        if (rc < 0) {
             found = -1;
             break;
         }
         /* the robot on nothing passable: nothing it can reach */
-        found = rc < 0 ? 0 : cluster(m, p, dist, blacklist, nblack, out, max);
+        found = rc ? 0 : cluster(m, p, dist, blacklist, nblack, out, max);
     }
 out:
     free(dist);
@@ -268,10 +267,8 @@ int explore_path(const occmap_t *m, const explore_params_t *p, double rx, double
     int tries = clearances(p, radii), reached = 0;
     for (int t = 0; t < tries && !reached; t++) {
         int rc = reach_at(m, radii[t], rx, ry, dist, parent);
-        if (rc == -ENOMEM) {
-            errno = ENOMEM;
+        if (rc < 0)
             goto out;
-        }
         reached = rc == 0 && dist[(size_t)gcy * m->width + gcx] >= 0;
     }
     if (!reached) {

@@ -65,9 +65,9 @@ static void on_saved(sharedmap_client_t *cl, const sharedmap_result_t *r, void *
 {
     mis_t *s = user;
     s->saving = false;
-    if (r->status < 0) {
+    if (r->status != 0) {
         marie_component_count(s->c, "state_save_failures", 1);
-        marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(-r->status));
+        marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(r->status));
     }
     if (s->save_again) {
         s->save_again = false;
@@ -89,10 +89,10 @@ static void save(mis_t *s)
     int8_t states[MISSION_MAX_GOALS];
     marie_mission_state_t st;
     fill_state(s, &st, ids, states);
-    int rc = sharedmap_client_set_async(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms, on_saved, s);
-    if (rc < 0) {
+    if (sharedmap_client_set_async(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms, on_saved, s) < 0) {
+        int err = errno;
         marie_component_count(s->c, "state_save_failures", 1);
-        marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(-rc));
+        marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(err));
         return;
     }
     s->saving = true;
@@ -123,21 +123,21 @@ static void on_restored(sharedmap_client_t *cl, const sharedmap_result_t *r, voi
 {
     mis_t *s = user;
     s->restoring = false;
-    int rc = r->status;
-    if (rc == -ETIMEDOUT && ++s->restore_tries < 3)
+    int err = r->status;
+    if (err == ETIMEDOUT && ++s->restore_tries < 3)
         return;                 /* the SharedMap may be starting too: ask again next tick */
     s->restored = true;
-    if (rc == -ENOENT) {
+    if (err == ENOENT) {
         marie_info("no saved progress under %s: starting the mission", s->key);
         return;
     }
     marie_mission_state_t st;
     memset(&st, 0, sizeof(st));
-    if (rc == 0 && marie_decode_checked(&marie_type_mission_state_t, r->data, r->len, &st) < 0)
-        rc = -EBADMSG;
-    if (rc < 0) {
+    if (err == 0 && marie_decode_checked(&marie_type_mission_state_t, r->data, r->len, &st) < 0)
+        err = EBADMSG;
+    if (err) {
         marie_component_count(s->c, "state_restore_failures", 1);
-        marie_warn("cannot read saved progress %s: %s; starting the mission", s->key, strerror(-rc));
+        marie_warn("cannot read saved progress %s: %s; starting the mission", s->key, strerror(err));
         return;
     }
     resume(s, &st);
@@ -154,7 +154,7 @@ static bool restore(mis_t *s)
         int rc = sharedmap_client_get_async(s->sm, s->key, s->sm_timeout_ms, on_restored, s);
         s->restoring = rc == 0;
         if (rc < 0) {
-            marie_warn("cannot ask for saved progress %s: %s; starting the mission", s->key, strerror(-rc));
+            marie_warn("cannot ask for saved progress %s: %s; starting the mission", s->key, strerror(errno));
             s->restored = true;
         }
     }

@@ -5,6 +5,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "core/err.h"
+
 void odo_params_default(odo_params_t *p)
 {
     *p = (odo_params_t)ODO_PARAMS_DEFAULTS;
@@ -35,7 +37,7 @@ int odo_gyro(odo_t *o, int64_t utime, double yaw_rate, int status)
     if (status != 0)
         return 0;
     if (!isfinite(yaw_rate) || fabs(yaw_rate) > 100 || (o->have_gyro && utime < o->gyro_utime))
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (o->have_gyro) {
         double dt = (double)(utime - o->gyro_utime) / 1e6;
         if (dt > o->p.gyro_timeout_s) {
@@ -59,7 +61,7 @@ void odo_encoders_lost(odo_t *o)
 int odo_encoders(odo_t *o, int64_t utime, int32_t left, int32_t right, int32_t tpr)
 {
     if (tpr <= 0)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (!o->have_enc || utime <= o->enc_utime) {
         bool back = o->have_enc && utime <= o->enc_utime;
         o->have_enc = true;
@@ -69,7 +71,7 @@ int odo_encoders(odo_t *o, int64_t utime, int32_t left, int32_t right, int32_t t
         o->g_valid = gyro_fresh(o, utime);
         o->g_at_enc = o->g_valid ? gyro_at(o, utime) : 0;
         o->utime = utime;
-        return back ? -EINVAL : 0;
+        return back ? marie_fail(EINVAL) : 0;
     }
     double dt = (double)(utime - o->enc_utime) / 1e6;
     /* Tick differences wrap with the int32 counters. */
@@ -84,7 +86,7 @@ int odo_encoders(odo_t *o, int64_t utime, int32_t left, int32_t right, int32_t t
         o->glitches++;
         o->g_valid = gyro_fresh(o, utime);
         o->g_at_enc = o->g_valid ? gyro_at(o, utime) : 0;
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     double dl = dl_t * per_tick * o->p.wheel_radius, dr = dr_t * per_tick * o->p.wheel_radius;
     double ds = 0.5 * (dl + dr);

@@ -38,10 +38,10 @@ void odo_init(odo_t *o, const odo_params_t *p);
  * next sample is a new reference, not motion since the last one. The pose stays. */
 void odo_encoders_lost(odo_t *o);
 /* Feed a gyro sample (rad/s, bias already removed). status != 0 samples are ignored.
- * 0, or -EINVAL for a non-finite rate or a time going backwards (ignored). */
+ * 0, or -1 with errno EINVAL for a non-finite rate or a time going backwards (ignored). */
 int odo_gyro(odo_t *o, int64_t utime, double yaw_rate, int status);
 /* Feed the cumulative encoder ticks (wrapping at int32). Returns 1 when the pose advanced,
- * 0 for the first sample, -EINVAL for bad input (ignored; the next sample re-anchors). */
+ * 0 for the first sample, -1 with errno EINVAL for bad input (ignored; the next sample re-anchors). */
 int odo_encoders(odo_t *o, int64_t utime, int32_t left, int32_t right, int32_t ticks_per_rev);
 
 #ifdef __cplusplus

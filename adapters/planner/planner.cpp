@@ -198,12 +198,12 @@ extern "C" bool planner_free(const planner_t *pl, double x, double y)
 }
 
 // to_poses: the path's points as (x, y, heading) triples, each heading toward the next point,
-// the last one the goal's: *poses malloc'd, *n of them. 0 or -ENOMEM.
+// the last one the goal's: *poses malloc'd, *n of them. 0, or -1 with errno ENOMEM.
 static int to_poses(const std::vector<std::pair<double, double>> &pts, double goal_heading, double **poses, int *n)
 {
     double *out = (double *)std::malloc(pts.size() * 3 * sizeof(double));
     if (!out)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     for (size_t i = 0; i < pts.size(); i++) {
         out[3 * i] = pts[i].first;
         out[3 * i + 1] = pts[i].second;
@@ -229,7 +229,7 @@ static int grid_plan(planner_t *pl, const double start[3], const double goal[3],
     };
     int *cells = nullptr, nn = 0;
     if (gridpath_find(pl->w_, pl->h_, pass.data(), cell(sx, sy), cell(gx, gy), &cells, &nn) < 0)
-        return errno == ENOMEM ? -ENOMEM : -ENOENT;
+        return errno == ENOMEM ? -1 : marie_fail(ENOENT);
     nn = gridpath_shortcut(pl->w_, pl->h_, pass.data(), cells, nn);
     std::vector<std::pair<double, double>> pts;
     pts.emplace_back(start[0], start[1]);
@@ -250,7 +250,7 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
     *n = 0;
     double sx = start[0], sy = start[1], gx = goal[0], gy = goal[1];
     if (!pl->snap(sx, sy, pl->p_.robot_radius) || !pl->snap(gx, gy, pl->p_.robot_radius))
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (pl->algo_ == PLANNER_GRID)
         return grid_plan(pl, start, goal, sx, sy, gx, gy, poses, n);
     try {
@@ -293,7 +293,7 @@ extern "C" int planner_plan(planner_t *pl, const double start[3], const double g
             pts.emplace_back(goal[0], goal[1]);
         return to_poses(pts, goal[2], poses, n);
     } catch (...) {
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     }
 }
 

@@ -35,9 +35,9 @@ void planner_destroy(planner_t *pl);
 bool planner_free(const planner_t *pl, double x, double y);
 
 /* Plan from start to goal (x, y, theta). On success returns 0 and *poses (x,y,theta triples,
- * malloc'ed, the caller frees) with *n >= 2; the last pose is the goal. -EINVAL when the
+ * malloc'ed, the caller frees) with *n >= 2; the last pose is the goal. -1 with errno EINVAL when the
  * start or goal is not free (either is first moved to the nearest free cell within a robot
- * radius; planner_blocked() says which), -ENOENT when no path was found in time. */
+ * radius; planner_blocked() says which), -1 with errno ENOENT when no path was found in time. */
 int planner_plan(planner_t *pl, const double start[3], const double goal[3], double **poses, int *n);
 
 /* Which ends planner_plan() refuses: PLANNER_START_BLOCKED, PLANNER_GOAL_BLOCKED or both; 0 when

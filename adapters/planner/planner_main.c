@@ -57,10 +57,10 @@ static void publish_path(marie_component_t *c, pln_t *s)
 
 /* A failed plan, said when it is new for this goal (a failure retried every few seconds is
  * counted, not said again): which end is blocked and why, or that no path was found. */
-static void say_failure(marie_component_t *c, pln_t *s, int rc, const double goal[3], int64_t dt, const char *why)
+static void say_failure(marie_component_t *c, pln_t *s, int err, const double goal[3], int64_t dt, const char *why)
 {
     char what[160];
-    if (rc == -EINVAL)
+    if (err == EINVAL)
         planner_blocked(s->pl, s->pose, goal, what, sizeof what);
     else
         snprintf(what, sizeof what, "no path found from (%.2f, %.2f)", s->pose[0], s->pose[1]);
@@ -84,10 +84,10 @@ static void plan(marie_component_t *c, pln_t *s, const char *why)
     double *poses = NULL;
     int n = 0;
     int64_t t0 = marie_mono_us();
-    int rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
+    int err = planner_plan(s->pl, s->pose, goal, &poses, &n) < 0 ? errno : 0;
     int layer = planner_obstacle_count(s->pl);
-    bool laser_only = rc == -EINVAL && (planner_blocked(s->pl, s->pose, goal, NULL, 0) & PLANNER_BY_LASER);
-    if ((rc == -ENOENT || laser_only) && layer > 0) {
+    bool laser_only = err == EINVAL && (planner_blocked(s->pl, s->pose, goal, NULL, 0) & PLANNER_BY_LASER);
+    if ((err == ENOENT || laser_only) && layer > 0) {
         /* The map has a way (or room at the start and goal) the laser layer closes. In a
          * corridor barely wider than the robot one misplaced return does that, and the scans of
          * a robot waiting for a path keep it there: forget the layer and plan on the map (as a
@@ -98,21 +98,21 @@ static void plan(marie_component_t *c, pln_t *s, const char *why)
                               "goal %d: %s %d laser obstacle cells: forgotten, planning on the map", s->goal.id,
                               laser_only ? "start or goal covered by" : "no path past", layer);
         planner_clear_obstacles(s->pl);
-        rc = planner_plan(s->pl, s->pose, goal, &poses, &n);
+        err = planner_plan(s->pl, s->pose, goal, &poses, &n) < 0 ? errno : 0;
     }
     int64_t dt = marie_mono_us() - t0;
     free(s->path);
     s->path = poses;
-    s->npath = rc == 0 ? n : 0;
-    int ends = rc == -EINVAL ? planner_blocked(s->pl, s->pose, goal, NULL, 0) : 0;
-    s->status = rc == 0 ? MARIE_PATH_T_STATUS_OK : (ends & PLANNER_START_BLOCKED) ? MARIE_PATH_T_STATUS_INVALID_START
-              : rc == -EINVAL ? MARIE_PATH_T_STATUS_INVALID_GOAL : MARIE_PATH_T_STATUS_NO_PATH;
-    marie_component_count(c, rc == 0 ? "plans" : "plan_failures", 1);
-    if (rc == 0) {
+    s->npath = err == 0 ? n : 0;
+    int ends = err == EINVAL ? planner_blocked(s->pl, s->pose, goal, NULL, 0) : 0;
+    s->status = err == 0 ? MARIE_PATH_T_STATUS_OK : (ends & PLANNER_START_BLOCKED) ? MARIE_PATH_T_STATUS_INVALID_START
+              : err == EINVAL ? MARIE_PATH_T_STATUS_INVALID_GOAL : MARIE_PATH_T_STATUS_NO_PATH;
+    marie_component_count(c, err == 0 ? "plans" : "plan_failures", 1);
+    if (err == 0) {
         marie_debug("goal %d: %d poses in %.1f ms (%s)", s->goal.id, n, dt / 1e3, why);
         s->last_failure[0] = 0;
     } else {
-        say_failure(c, s, rc, goal, dt, why);
+        say_failure(c, s, err, goal, dt, why);
     }
     publish_path(c, s);
 }

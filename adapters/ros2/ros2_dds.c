@@ -68,20 +68,24 @@ ros2_dds_t *ros2_dds_create(int domain_id, char *err, size_t errlen)
     d->participant = dds_create_participant((dds_domainid_t)domain_id, NULL, NULL);
     if (d->participant < 0) {
         snprintf(err, errlen, "DDS participant on domain %d: %s", domain_id, dds_strretcode(d->participant));
+        errno = EIO;
         goto err_fd;
     }
-    if (!(d->listener = dds_create_listener(d)))
+    if (!(d->listener = dds_create_listener(d))) {
+        snprintf(err, errlen, "DDS listener: out of memory");
+        errno = ENOMEM;
         goto err_participant;
+    }
     dds_lset_data_available(d->listener, on_data);
     d->publications = dds_create_reader(d->participant, DDS_BUILTIN_TOPIC_DCPSPUBLICATION, NULL, d->listener);
     return d;
 
 err_participant:
-    dds_delete(d->participant);
+    MARIE_KEEP_ERRNO(dds_delete(d->participant));
 err_fd:
-    close(d->fd);
+    MARIE_KEEP_ERRNO(close(d->fd));
 err_free:
-    free(d);
+    MARIE_KEEP_ERRNO(free(d));
     return NULL;
 }
 

@@ -169,10 +169,11 @@ static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
     int64_t t0 = marie_mono_us();
     bool skipped = false;
     int n = vision_detector_detect(v->det, f->data, f->width, f->height, f->stride, v->dets, MAX_TAGS, &skipped);
+    int err = errno;
     float ms = (float)(marie_mono_us() - t0) / 1000.0f;
     if (n < 0) {
         marie_component_bad_input(c, "bad_frame", "frame %dx%d cannot be processed: %s", f->width, f->height,
-                                  strerror(-n));
+                                  strerror(err));
         return;
     }
     if (n > MAX_TAGS) {
@@ -232,7 +233,7 @@ static void on_image(marie_component_t *c, marie_port_t *p, const void *msg, con
     if (v->pending)
         marie_component_count(c, "frames_skipped", 1);
     int rc = vision_image_decode(img, &v->frame, &why);
-    if (rc == -EBADMSG) {
+    if (rc < 0 && errno == EBADMSG) {
         marie_component_bad_input(c, "bad_image", "image on %s: %s", info->channel, why);
     } else if (rc < 0) {
         marie_component_drop(c, 1);
@@ -284,9 +285,9 @@ static void on_tick(marie_component_t *c, int64_t overruns)
     int rc = vision_source_read(v->src, &v->frame, &why);
     if (rc == 0) {
         process(v, &v->frame, marie_component_now(c));
-    } else if (rc == -EBADMSG) {
+    } else if (errno == EBADMSG) {
         marie_component_bad_input(c, "unreadable_image", "%s", why);
-    } else if (rc == -ENODATA) {
+    } else if (errno == ENODATA) {
         v->ended = true;
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "source_ended", "%s: %s", vision_source_describe(v->src), why);
     } else {

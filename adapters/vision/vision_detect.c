@@ -119,7 +119,7 @@ int vision_detector_set_camera(vision_detector_t *d, const vision_camera_t *cam,
         *why = w;
     if (w) {
         d->have_camera = false;
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     d->cam = *cam;
     d->tag_size = tag_size;
@@ -137,12 +137,12 @@ int vision_detector_detect(vision_detector_t *d, const uint8_t *gray, int width,
                            vision_detection_t *out, int max, bool *pose_skipped)
 {
     if (!d || !gray || width <= 0 || height <= 0 || stride < width || (max > 0 && !out))
-        return -EINVAL;
+        return marie_fail(EINVAL);
     /* libapriltag only reads the image; it takes a non-const buffer. */
     image_u8_t im = { .width = width, .height = height, .stride = stride, .buf = (uint8_t *)gray };
     zarray_t *dets = apriltag_detector_detect(d->td, &im);
     if (!dets)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     bool pose = d->have_camera && d->cam.width == width && d->cam.height == height;
     if (pose_skipped)
         *pose_skipped = d->have_camera && !pose;

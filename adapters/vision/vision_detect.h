@@ -44,11 +44,11 @@ void vision_detector_destroy(vision_detector_t *d);     /* NULL is a no-op */
 const char *vision_detector_family(const vision_detector_t *d);
 
 /* Intrinsics and tag size for poses; without them detections carry no pose. The camera's
- * width/height are those the intrinsics were calibrated for. 0, or -EINVAL with *why. */
+ * width/height are those the intrinsics were calibrated for. 0, or -1 with errno EINVAL with *why. */
 int vision_detector_set_camera(vision_detector_t *d, const vision_camera_t *cam, double tag_size, const char **why);
 
 /* Detects tags in an 8-bit grey image. Writes at most `max` detections to out, sorted by
- * id, and returns how many were found in total (may exceed max), or -EINVAL for bad
+ * id, and returns how many were found in total (may exceed max), or -1 with errno EINVAL for bad
  * arguments. When the frame's size differs from the camera's, poses are skipped and
  * *pose_skipped (if given) is set. */
 int vision_detector_detect(vision_detector_t *d, const uint8_t *gray, int width, int height, int stride,

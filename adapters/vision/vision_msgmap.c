@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "lcmtypes/marie_event_t.h"
 
 static const char *const entry_keys[] = { "id", "message", "kind", "severity", "goal", NULL };
@@ -127,28 +128,28 @@ int vision_msgmap_parse(const marie_node_t *seq, vision_msgmap_t *m, marie_error
         return 0;
     if (seq->kind != MARIE_NODE_SEQ) {
         marie_errors_add(errs, seq->file, seq->line, seq->col, "messages: expected a list of {id, message, goal}");
-        return -EINVAL;
+        return marie_fail(EINVAL);
     }
     m->items = calloc(seq->n ? seq->n : 1, sizeof *m->items);
     if (!m->items)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     int rc = 0;
     for (size_t i = 0; i < seq->n; i++) {
         vision_msg_t *it = &m->items[m->n++];
         if (parse_entry(seq->items[i], it, errs) < 0) {
-            rc = -EINVAL;
+            rc = -1;
             continue;
         }
         for (size_t j = 0; j + 1 < m->n; j++)
             if (m->items[j].tag_id == it->tag_id) {
                 const marie_node_t *e = seq->items[i];
                 marie_errors_add(errs, e->file, e->line, e->col, "messages: tag id %d is mapped twice", it->tag_id);
-                rc = -EINVAL;
+                rc = -1;
             }
     }
     if (rc < 0)
         vision_msgmap_clear(m);
-    return rc;
+    return rc < 0 ? marie_fail(EINVAL) : 0;
 }
 
 const vision_msg_t *vision_msgmap_find(const vision_msgmap_t *m, int tag_id)

@@ -36,7 +36,7 @@ typedef struct {
 } vision_msgmap_t;
 
 /* Reads a sequence node (NULL: an empty map). Every problem is added to errs as
- * "file:line:col: ..."; returns 0 or -EINVAL (then m is left empty). */
+ * "file:line:col: ..."; returns 0, or -1 with errno EINVAL (then m is left empty). */
 int vision_msgmap_parse(const marie_node_t *seq, vision_msgmap_t *m, marie_errors_t *errs);
 const vision_msg_t *vision_msgmap_find(const vision_msgmap_t *m, int tag_id);
 void vision_msgmap_clear(vision_msgmap_t *m);

@@ -17,6 +17,8 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "core/err.h"
+
 namespace {
 enum class Kind { Device, Video, Folder };
 }
@@ -157,7 +159,7 @@ static int to_frame(const cv::Mat &m, vision_frame_t *f)
     if (g.depth() != CV_8U)
         g.convertTo(g, CV_8U, g.depth() == CV_16U ? 1.0 / 256 : 1.0);
     if (vision_frame_reserve(f, g.cols, g.rows) < 0)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     for (int y = 0; y < g.rows; y++)
         std::memcpy(f->data + (size_t)y * f->stride, g.ptr<uint8_t>(y), g.cols);
     return 0;
@@ -170,7 +172,7 @@ int vision_source_read(vision_source_t *s, vision_frame_t *f, const char **why)
             if (!s->loop) {
                 if (why)
                     *why = "end of the image folder";
-                return -ENODATA;
+                return marie_fail(ENODATA);
             }
             s->next = 0;
         }
@@ -185,7 +187,7 @@ int vision_source_read(vision_source_t *s, vision_frame_t *f, const char **why)
             s->why = "image '" + p + "' cannot be read";
             if (why)
                 *why = s->why.c_str();
-            return -EBADMSG;
+            return marie_fail(EBADMSG);
         }
         return to_frame(m, f);
     }
@@ -201,11 +203,11 @@ int vision_source_read(vision_source_t *s, vision_frame_t *f, const char **why)
                 return to_frame(s->frame, f);
             if (why)
                 *why = "end of the video file";
-            return -ENODATA;
+            return marie_fail(ENODATA);
         }
         if (why)
             *why = "camera stopped delivering frames";
-        return -EIO;
+        return marie_fail(EIO);
     }
     return to_frame(s->frame, f);
 }
@@ -213,22 +215,22 @@ int vision_source_read(vision_source_t *s, vision_frame_t *f, const char **why)
 int vision_video_save(const char *path, const vision_frame_t *frames, int n, double fps)
 {
     if (!path || !frames || n <= 0 || !(fps > 0))
-        return -EINVAL;
+        return marie_fail(EINVAL);
     try {
         cv::Size size(frames[0].width, frames[0].height);
         cv::VideoWriter w(path, cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, size, true);
         if (!w.isOpened())
-            return -EIO;
+            return marie_fail(EIO);
         for (int i = 0; i < n; i++) {
             if (frames[i].width != size.width || frames[i].height != size.height)
-                return -EINVAL;
+                return marie_fail(EINVAL);
             /* Grey MJPEG from OpenCV's encoder is not read back cleanly by FFmpeg: write colour. */
             cv::Mat bgr;
             cv::cvtColor(cv::Mat(size, CV_8UC1, frames[i].data, frames[i].stride), bgr, cv::COLOR_GRAY2BGR);
             w.write(bgr);
         }
     } catch (const cv::Exception &) {
-        return -EIO;
+        return marie_fail(EIO);
     }
     return 0;
 }

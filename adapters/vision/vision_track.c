@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
+
 struct vision_tracker {
     vision_tracker_opts_t opts;
     vision_track_t *tracks;
@@ -103,11 +105,11 @@ int vision_tracker_update(vision_tracker_t *t, int64_t now_us, const vision_dete
         size_t cap = (t->n + n) * 2 + 8;
         vision_track_t *nt = realloc(t->tracks, cap * sizeof *nt);
         if (!nt)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         t->tracks = nt;
         int64_t *ns = realloc(t->seen_frame, cap * sizeof *ns);
         if (!ns)
-            return -ENOMEM;
+            return marie_fail(ENOMEM);
         t->seen_frame = ns;
         t->cap = cap;
     }

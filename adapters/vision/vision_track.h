@@ -43,7 +43,7 @@ void vision_tracker_destroy(vision_tracker_t *t);       /* NULL is a no-op */
 
 /* Feeds one frame's detections at time now_us. out (n entries, may be NULL) receives each
  * detection's track, valid until the next call. cb (may be NULL) hears about new,
- * confirmed and lost tracks. Returns 0 or -ENOMEM. A repeated id in one frame joins the
+ * confirmed and lost tracks. Returns 0, or -1 with errno ENOMEM. A repeated id in one frame joins the
  * same track; only its first sighting updates the pose. */
 int vision_tracker_update(vision_tracker_t *t, int64_t now_us, const vision_detection_t *dets, int n,
                           const vision_track_t **out, vision_track_cb_t cb, void *user);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "core/base64.h"
+#include "core/err.h"
 
 #define XB_MAX_STRUCT_DEPTH 64
 #define XB_MAX_ELEMENTS (1L << 26)
@@ -419,7 +420,7 @@ int xb_encode(const marie_typeinfo_t *t, const xb_node_t *msg, marie_buf_t *out,
             too_large(&e);
         out->len = start;
         out->failed = false;
-        return -1;
+        return marie_fail(EINVAL);
     }
     return 0;
 }
@@ -668,6 +669,6 @@ fail:
         xb_error_set(err, "too-large", "decoded %s larger than %zu bytes", t->name, out->max);
     out->len = start;
     out->failed = false;
-    return -1;
+    return marie_fail(EBADMSG);
 }
 

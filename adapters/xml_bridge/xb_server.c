@@ -413,14 +413,11 @@ xb_server_t *xb_server_create(const xb_server_cfg_t *cfg, lcm_t *lcm, marie_loop
     s->port = ntohs(sa.ss_family == AF_INET6 ? ((struct sockaddr_in6 *)&sa)->sin6_port
                                              : ((struct sockaddr_in *)&sa)->sin_port);
 
-    if ((rc = marie_loop_add_fd(loop, s->lfd, POLLIN, on_listen, s)) < 0) {
-        errno = -rc;
+    if ((rc = marie_loop_add_fd(loop, s->lfd, POLLIN, on_listen, s)) < 0)
         goto err;
-    }
     /* A bridge forwards floods: up to 256 messages per wake-up. */
     if (s->cfg.handle_lcm && (rc = marie_loop_add_bus(loop, lcm, 256)) < 0) {
-        marie_loop_remove_fd(loop, s->lfd);
-        errno = -rc;
+        MARIE_KEEP_ERRNO(marie_loop_remove_fd(loop, s->lfd));
         goto err;
     }
     s->sweep = marie_loop_add_wall_timer(loop, 100000, on_sweep, s);

@@ -142,8 +142,7 @@ static int chan_publish_with(void *st, size_t len, marie_bus_fill_t fill, void *
     lchan_t *ch = st;
     if (chan_prepare(ch) < 0)
         return -1;
-    int rc = marie_shm_pub_publish_with(ch->pub, len, fill, user);
-    return rc ? marie_fail(-rc) : 0;
+    return marie_shm_pub_publish_with(ch->pub, len, fill, user);
 }
 
 static int chan_publish(void *st, const char *channel, const void *data, size_t len)
@@ -160,8 +159,7 @@ static void *chan_loan(void *st)
 static int chan_commit(void *st, size_t len)
 {
     lchan_t *ch = st;
-    int rc = ch->pub ? marie_shm_pub_commit(ch->pub, len) : -EINVAL;
-    return rc ? marie_fail(-rc) : 0;
+    return ch->pub ? marie_shm_pub_commit(ch->pub, len) : marie_fail(EINVAL);
 }
 
 /* ---- reading ---- */
@@ -223,10 +221,9 @@ static void deliver(lchan_t *ch, peer_t *p, const marie_shm_ref_t *ref)
     for (lsub_t *s = ch->subs; s; s = s->next) {
         if (s->removed)
             continue;
-        int err = 0;
         const void *at = NULL;
         if (s->rv.verdict)
-            at = marie_shm_peek(p->r, ref, &err);
+            at = marie_shm_peek(p->r, ref);
         else if (copied < 0 && ch->buf)
             copied = marie_shm_read(p->r, ref, ch->buf, ch->t.max_size), at = copied >= 0 ? ch->buf : NULL;
         else if (copied >= 0)
@@ -257,9 +254,9 @@ static int follow(lchan_t *ch, peer_t *p, int max)
     while (p->pid && p->next <= newest && n < max) {
         marie_shm_ref_t ref;
         int rc = marie_shm_ref_at(p->r, p->segment, p->next, &ref);
-        if (rc == -EAGAIN)
+        if (rc < 0 && errno == EAGAIN)
             break;                  /* still being written */
-        if (rc == -ESTALE) {        /* overwritten before it was read: skip to the oldest kept */
+        if (rc < 0 && errno == ESTALE) {        /* overwritten before it was read: skip to the oldest kept */
             int64_t oldest = newest - (int64_t)ch->t.slots + 2;
             ch->st.lost += oldest > p->next ? oldest - p->next : 1;
             p->next = oldest > p->next ? oldest : p->next + 1;

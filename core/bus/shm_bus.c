@@ -114,23 +114,23 @@ void *marie_shm_pub_loan(marie_shm_pub_t *p) { return marie_shm_begin(p->w); }
 static int refused(marie_shm_pub_t *p, size_t len)
 {
     if (len < 8)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (len <= marie_shm_slot_size(p->w))
         return 0;
     p->st.too_big++;
-    return -EMSGSIZE;
+    return marie_fail(EMSGSIZE);
 }
 
 int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len)
 {
     const uint8_t *at = marie_shm_begun(p->w);     /* only this writer ever writes the slot */
     if (!at)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     int rc = refused(p, len);
     marie_shm_ref_t ref;
-    marie_shm_commit(p->w, rc ? 0 : len, rc ? NULL : &ref);
+    MARIE_KEEP_ERRNO(marie_shm_commit(p->w, rc ? 0 : len, rc ? NULL : &ref));
     if (rc)
-        return rc;
+        return -1;
     if (p->after_ring)
         p->after_ring(p->after_user);
     p->st.published++;
@@ -140,11 +140,11 @@ int marie_shm_pub_commit(marie_shm_pub_t *p, size_t len)
         marie_shm_notice_t n = { .utime = marie_wall_us(), .host = p->host, .segment = ref.segment, .seq = ref.seq,
                                  .size = (int32_t)ref.size, .fingerprint = marie_payload_fingerprint(at, len) };
         if (publish_notice(p->lcm, p->notice_ch, &marie_type_shm_notice_t, &n) != 0)
-            return -EIO;
+            return marie_fail(EIO);
     }
     if (p->wanted_until && marie_mono_us() < p->wanted_until) {
         if (marie_bus_publish_own(p->lcm, p->channel, at, len) != 0)
-            return -EIO;
+            return marie_fail(EIO);
         p->st.lcm_copies++;
     }
     return 0;
@@ -237,12 +237,11 @@ static void want_remote(marie_shm_sub_t *s)
 
 static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int64_t fp)
 {
-    int err = 0;
-    const void *p = marie_shm_peek(s->r, ref, &err);
+    const void *p = marie_shm_peek(s->r, ref);
     if (!p) {
-        if (err == -ENOENT)
+        if (errno == ENOENT)
             want_remote(s);
-        else if (err == -ESTALE || err == -EAGAIN)
+        else if (errno == ESTALE || errno == EAGAIN)
             s->st.lost++;
         else
             s->st.bad++;
@@ -292,9 +291,9 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
             enter(s);
             s->cb(s->buf, (size_t)got, s->user);
             leave(s);
-        } else if (got == -ENOENT) {
+        } else if (got < 0 && errno == ENOENT) {
             want_remote(s);         /* same name, another machine (containers), or gone */
-        } else if (got == -ESTALE || got == -EAGAIN) {
+        } else if (got < 0 && (errno == ESTALE || errno == EAGAIN)) {
             s->st.lost++;
         } else {
             s->st.bad++;
@@ -394,8 +393,7 @@ static int chan_publish_with(void *st, size_t len, marie_bus_fill_t fill, void *
     chan_t *ch = st;
     if (chan_prepare(ch) < 0)
         return -1;
-    int rc = marie_shm_pub_publish_with(ch->pub, len, fill, user);
-    return rc ? marie_fail(-rc) : 0;
+    return marie_shm_pub_publish_with(ch->pub, len, fill, user);
 }
 
 static int chan_publish(void *st, const char *channel, const void *data, size_t len)
@@ -412,8 +410,7 @@ static void *chan_loan(void *st)
 static int chan_commit(void *st, size_t len)
 {
     chan_t *ch = st;
-    int rc = ch->pub ? marie_shm_pub_commit(ch->pub, len) : -EINVAL;
-    return rc ? marie_fail(-rc) : 0;
+    return ch->pub ? marie_shm_pub_commit(ch->pub, len) : marie_fail(EINVAL);
 }
 
 static void on_bytes(const void *data, size_t len, void *user)

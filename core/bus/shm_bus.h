@@ -35,10 +35,10 @@ typedef struct {
 
 marie_shm_pub_t *marie_shm_pub_create(lcm_t *lcm, const char *channel, size_t max_size, int nslots);
 void marie_shm_pub_destroy(marie_shm_pub_t *p);         /* NULL is a no-op */
-/* 0, or -EMSGSIZE (larger than max_size), -EINVAL (shorter than a fingerprint), -EIO (LCM). */
+/* 0, or -1 with errno EMSGSIZE (larger than max_size), EINVAL (shorter than a fingerprint), EIO (LCM). */
 int marie_shm_pub_publish(marie_shm_pub_t *p, const void *data, size_t len);
 /* Without the copy: fill writes the len encoded bytes straight into the ring (marie_shm_write_with).
- * The same returns, and -EINVAL when fill gave up. */
+ * The same returns, and EINVAL when fill gave up. */
 int marie_shm_pub_publish_with(marie_shm_pub_t *p, size_t len, marie_shm_fill_t fill, void *user);
 /* Without any copy, for a producer that makes the message where it will be read: the loan is
  * the next slot's bytes (max_size of them), and commit publishes its first len as above. The

@@ -67,7 +67,7 @@ bool can_filter_match(const struct can_filter *filters, size_t n, canid_t id)
 int can_err_decode(const struct can_frame *f, can_err_info_t *info)
 {
     if (!(f->can_id & CAN_ERR_FLAG))
-        return -EINVAL;
+        return marie_fail(EINVAL);
     memset(info, 0, sizeof *info);
     uint32_t c = f->can_id & CAN_ERR_MASK;
     uint8_t d1 = f->len > 1 ? f->data[1] : 0;
@@ -137,7 +137,7 @@ static int set_nonblock(int fd)
 {
     int fl = fcntl(fd, F_GETFL);
     if (fl < 0 || fcntl(fd, F_SETFL, fl | O_NONBLOCK) < 0)
-        return -errno;
+        return -1;
     return 0;
 }
 
@@ -156,7 +156,7 @@ static int open_socketcan(const char *ifname, int *ifindex)
 {
     int fd = socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
     if (fd < 0)
-        return -errno;
+        return -1;
     struct ifreq ifr;
     memset(&ifr, 0, sizeof ifr);
     snprintf(ifr.ifr_name, sizeof ifr.ifr_name, "%s", ifname);
@@ -172,10 +172,9 @@ static int open_socketcan(const char *ifname, int *ifindex)
     setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &none, sizeof none);
     *ifindex = ifr.ifr_ifindex;
     return fd;
-err:;
-    int e = errno;
-    close(fd);
-    return -e;
+err:
+    MARIE_KEEP_ERRNO(close(fd));
+    return -1;
 }
 
 static int open_emu(const char *path)
@@ -184,15 +183,14 @@ static int open_emu(const char *path)
     memset(&sa, 0, sizeof sa);
     sa.sun_family = AF_UNIX;
     if (strlen(path) >= sizeof sa.sun_path)
-        return -ENAMETOOLONG;
+        return marie_fail(ENAMETOOLONG);
     strcpy(sa.sun_path, path);
     int fd = socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (fd < 0)
-        return -errno;
+        return -1;
     if (connect(fd, (struct sockaddr *)&sa, sizeof sa) < 0) {
-        int e = errno;
-        close(fd);
-        return -e;
+        MARIE_KEEP_ERRNO(close(fd));
+        return -1;
     }
     return fd;
 }
@@ -212,10 +210,8 @@ can_bus_t *can_bus_open(const char *url)
     } else {
         return marie_fail_null(EINVAL);
     }
-    if (fd < 0) {
-        errno = -fd;
+    if (fd < 0)
         return NULL;
-    }
     can_bus_t *b = bus_new(fd, sc, url);
     if (!b) {
         close(fd);
@@ -228,11 +224,8 @@ can_bus_t *can_bus_open(const char *url)
 
 can_bus_t *can_bus_from_fd(int fd)
 {
-    int r = set_nonblock(fd);
-    if (r < 0) {
-        errno = -r;
+    if (set_nonblock(fd) < 0)
         return NULL;
-    }
     can_bus_t *b = bus_new(fd, false, "fd:");
     if (!b)
         errno = ENOMEM;
@@ -275,12 +268,12 @@ static void tell_server(can_bus_t *bus)
 int can_bus_set_filters(can_bus_t *bus, const struct can_filter *filters, size_t n)
 {
     if (n > CAN_EMU_MAX_FILTERS)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     if (bus->socketcan) {
         /* The kernel filters before our socket's queue, so unwanted frames cost nothing. */
         if (setsockopt(bus->fd, SOL_CAN_RAW, CAN_RAW_FILTER, n ? filters : NULL,
                        (socklen_t)(n * sizeof *filters)) < 0)
-            return -errno;
+            return -1;
     }
     if (n)
         memcpy(bus->filters, filters, n * sizeof *filters);
@@ -293,13 +286,13 @@ int can_bus_set_err_mask(can_bus_t *bus, can_err_mask_t mask)
 {
     if (bus->socketcan &&
         setsockopt(bus->fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &mask, sizeof mask) < 0)
-        return -errno;
+        return -1;
     bus->err_mask = mask & CAN_ERR_MASK;
     tell_server(bus);
     return 0;
 }
 
-/* One frame of either kind, error frames noted, filters applied: 1, 0 or -errno. */
+/* One frame of either kind, error frames noted, filters applied: 1, 0, or -1 with errno. */
 static int read_any(can_bus_t *bus, struct canfd_frame *out, bool *is_fd)
 {
     for (;;) {
@@ -311,10 +304,10 @@ static int read_any(can_bus_t *bus, struct canfd_frame *out, bool *is_fd)
                 continue;
             if (errno == EAGAIN || errno == EWOULDBLOCK)
                 return 0;
-            return -errno;
+            return -1;
         }
         if (n == 0)
-            return bus->socketcan ? 0 : -EPIPE;    /* the bus daemon closed us */
+            return bus->socketcan ? 0 : marie_fail(EPIPE);    /* the bus daemon closed us */
         bool fd = n == (ssize_t)CANFD_MTU;
         if ((n != (ssize_t)CAN_MTU && !fd) || u.cf.len > (fd ? CANFD_MAX_DLEN : CAN_MAX_DLEN)) {
             bus->stats.rx_bad++;
@@ -376,12 +369,12 @@ int can_bus_enable_fd(can_bus_t *bus, bool on)
 {
     int v = on;
     if (bus->socketcan && setsockopt(bus->fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &v, sizeof v) < 0)
-        return -errno;
+        return -1;
     bus->fd_on = on;
     return 0;
 }
 
-/* 1 sent, 0 when the socket is full, -errno. */
+/* 1 sent, 0 when the socket is full, or -1 with errno. */
 static int send_now(can_bus_t *bus, const void *p, size_t len)
 {
     for (;;) {
@@ -394,7 +387,7 @@ static int send_now(can_bus_t *bus, const void *p, size_t len)
             continue;
         if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
             return 0;
-        return n < 0 ? -errno : -EIO;
+        return n < 0 ? -1 : marie_fail(EIO);
     }
 }
 
@@ -426,15 +419,15 @@ static int send_packet(can_bus_t *bus, const void *p, size_t len)
     }
     if (r < 0 || bus->socketcan) {
         bus->stats.tx_errors++;
-        return r < 0 ? r : -EAGAIN;     /* SocketCAN: the controller's queue is full */
+        return r < 0 ? -1 : marie_fail(EAGAIN);     /* SocketCAN: the controller's queue is full */
     }
     if (!bus->txq && !(bus->txq = malloc(EMU_TX_QUEUE * sizeof *bus->txq))) {
         bus->stats.tx_errors++;
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     }
     if (bus->tx_count == EMU_TX_QUEUE) {
         bus->stats.tx_errors++;
-        return -EAGAIN;
+        return marie_fail(EAGAIN);
     }
     tx_pkt_t *q = &bus->txq[(bus->tx_head + bus->tx_count) % EMU_TX_QUEUE];
     q->len = (uint8_t)len;
@@ -446,16 +439,16 @@ static int send_packet(can_bus_t *bus, const void *p, size_t len)
 int can_bus_write_fd(can_bus_t *bus, const struct canfd_frame *f)
 {
     if (!bus->fd_on)
-        return -EPROTONOSUPPORT;
+        return marie_fail(EPROTONOSUPPORT);
     if (f->len > CANFD_MAX_DLEN)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     return send_packet(bus, f, CANFD_MTU);
 }
 
 int can_bus_write(can_bus_t *bus, const struct can_frame *f)
 {
     if (f->len > CAN_MAX_DLEN)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     return send_packet(bus, f, CAN_MTU);
 }
 
@@ -493,20 +486,22 @@ static int netlink_restart(int ifindex)
 
     int fd = socket(AF_NETLINK, SOCK_RAW | SOCK_CLOEXEC, NETLINK_ROUTE);
     if (fd < 0)
-        return -errno;
+        return -1;
     int ret = 0;
     if (send(fd, &req, req.nh.nlmsg_len, 0) < 0) {
-        ret = -errno;
+        ret = -1;
     } else {
         char buf[512];
         ssize_t n = recv(fd, buf, sizeof buf, 0);
         struct nlmsghdr *nh = (struct nlmsghdr *)buf;
+        int nlerr = n >= (ssize_t)NLMSG_LENGTH(sizeof(struct nlmsgerr)) && nh->nlmsg_type == NLMSG_ERROR
+                        ? ((struct nlmsgerr *)NLMSG_DATA(nh))->error : 0;
         if (n < 0)
-            ret = -errno;
-        else if (n >= (ssize_t)NLMSG_LENGTH(sizeof(struct nlmsgerr)) && nh->nlmsg_type == NLMSG_ERROR)
-            ret = ((struct nlmsgerr *)NLMSG_DATA(nh))->error;
+            ret = -1;
+        else if (nlerr < 0)
+            ret = marie_fail(-nlerr);       /* netlink answers with a negative errno */
     }
-    close(fd);
+    MARIE_KEEP_ERRNO(close(fd));
     return ret;
 }
 

@@ -34,7 +34,7 @@ typedef struct {
     uint8_t tx_errors, rx_errors;    /* counters when the controller reports them */
 } can_err_info_t;
 
-/* Decode an error frame (CAN_ERR_FLAG set). 0, or -EINVAL if f is not an error frame. */
+/* Decode an error frame (CAN_ERR_FLAG set). 0, or -1 with errno EINVAL if f is not an error frame. */
 int can_err_decode(const struct can_frame *f, can_err_info_t *info);
 /* New bus state after an error frame; a data frame received means the bus works again. */
 can_bus_health_t can_health_next(can_bus_health_t cur, const can_err_info_t *info);
@@ -78,23 +78,23 @@ const char *can_bus_url(const can_bus_t *bus);
 #define CAN_EMU_MAX_FILTERS 64
 #define CAN_EMU_FILTER_HDR 12
 
-/* Receive filters (replace the previous set; n == 0 receives everything). 0 or -errno. On
+/* Receive filters (replace the previous set; n == 0 receives everything). 0, or -1 with errno. On
  * the emulated bus the server is told too (best effort: the client filters what it reads
  * whatever the server sends). */
 int can_bus_set_filters(can_bus_t *bus, const struct can_filter *filters, size_t n);
 /* Which error frames to deliver (CAN_ERR_MASK bits; 0 = none, the default). */
 int can_bus_set_err_mask(can_bus_t *bus, can_err_mask_t mask);
 
-/* Read one frame: 1 with *f filled, 0 when nothing is waiting, -errno on failure (-EPIPE
+/* Read one frame: 1 with *f filled, 0 when nothing is waiting, -1 with errno on failure (EPIPE
  * when the emulated bus went away). Packets that are not frames are counted and skipped.
  * Error frames update the bus state (can_bus_state) before they are returned. */
 int can_bus_read(can_bus_t *bus, struct can_frame *f);
-/* Write one frame without blocking. 0, or -errno (-EAGAIN: transmit queue full; -ENETDOWN:
+/* Write one frame without blocking. 0, or -1 with errno (EAGAIN: transmit queue full; ENETDOWN:
  * bus-off or link down); failures are counted in tx_errors. On the emulated bus a frame its
  * server has no room for yet is held (up to 64, in order) and 0 returned: the caller's loop
  * watches can_bus_events() and calls can_bus_flush() when the fd is writable. */
 int can_bus_write(can_bus_t *bus, const struct can_frame *f);
-/* Send held frames as far as the server takes them: how many are still held, or -errno. */
+/* Send held frames as far as the server takes them: how many are still held, or -1 with errno. */
 int can_bus_flush(can_bus_t *bus);
 /* What to poll the fd for: POLLIN, and POLLOUT while frames are held. */
 short can_bus_events(const can_bus_t *bus);
@@ -109,7 +109,7 @@ int can_bus_write_fd(can_bus_t *bus, const struct canfd_frame *f);
 
 can_bus_health_t can_bus_health(const can_bus_t *bus);
 /* Ask for recovery after bus-off: SocketCAN restarts the controller through rtnetlink
- * (needs CAP_NET_ADMIN; -EOPNOTSUPP on virtual interfaces), the emulated bus just resets
+ * (needs CAP_NET_ADMIN; EOPNOTSUPP on virtual interfaces), the emulated bus just resets
  * the state. The state returns to active in any case once frames flow again. */
 int can_bus_restart(can_bus_t *bus);
 const can_stats_t *can_bus_stats(const can_bus_t *bus);

@@ -71,7 +71,7 @@ static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
     if (revents & POLLOUT) {
         int r = can_bus_flush(l->bus);
         if (r < 0) {
-            disconnect(l, strerror(-r));
+            disconnect(l, strerror(errno));
             return;
         }
         sync_events(l);
@@ -82,7 +82,7 @@ static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
         if (r == 0)
             break;
         if (r < 0) {
-            disconnect(l, strerror(-r));
+            disconnect(l, strerror(errno));
             return;
         }
         if (f.can_id & CAN_ERR_FLAG) {
@@ -111,15 +111,15 @@ static int connect_bus(can_link_t *l)
 {
     can_bus_t *b = can_bus_open(l->url);
     if (!b)
-        return -errno;
+        return -1;
     int r = can_bus_set_filters(b, l->filters, l->nfilters);
     if (r == 0)
         r = can_bus_set_err_mask(b, CAN_ERR_BUSOFF | CAN_ERR_RESTARTED | CAN_ERR_CRTL | CAN_ERR_TX_TIMEOUT);
     if (r == 0)
         r = marie_loop_add_fd(l->loop, can_bus_fd(b), POLLIN, on_readable, l);
     if (r < 0) {
-        can_bus_close(b);
-        return r;
+        MARIE_KEEP_ERRNO(can_bus_close(b));
+        return -1;
     }
     l->bus = b;
     return 0;
@@ -135,7 +135,7 @@ static void on_timer(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, voi
     }
     if (l->was_busoff && marie_mono_us() - l->busoff_since >= BUSOFF_HOLD_US) {
         int r = can_bus_restart(l->bus);
-        event(l, "bus_restart", "%s: restart requested: %s", l->url, r == 0 ? "ok" : strerror(-r));
+        event(l, "bus_restart", "%s: restart requested: %s", l->url, r == 0 ? "ok" : strerror(errno));
         l->busoff_since = marie_mono_us();
         if (r == 0 && can_bus_health(l->bus) != CAN_BUS_BUS_OFF)
             l->was_busoff = false;
@@ -158,21 +158,16 @@ can_link_t *can_link_open(marie_loop_t *loop, const char *url, const struct can_
     l->on_frame = on_frame;
     l->on_event = on_event;
     l->user = user;
-    int r = connect_bus(l);
-    if (r < 0)
+    if (connect_bus(l) < 0)
         goto err;
     l->timer = marie_loop_add_wall_timer(loop, 250000, on_timer, l);
-    if (!l->timer) {
-        r = -errno;
+    if (!l->timer)
         goto err_bus;
-    }
     return l;
 err_bus:
-    marie_loop_remove_fd(loop, can_bus_fd(l->bus));
-    can_bus_close(l->bus);
+    MARIE_KEEP_ERRNO(marie_loop_remove_fd(loop, can_bus_fd(l->bus)); can_bus_close(l->bus));
 err:
-    free(l);
-    errno = -r;
+    MARIE_KEEP_ERRNO(free(l));
     return NULL;
 }
 
@@ -196,19 +191,19 @@ int can_link_send(can_link_t *l, const struct can_frame *f, int n)
             l->past.tx_errors++;
             continue;
         }
-        int r = can_bus_write(l->bus, &f[i]);
-        if (r == 0) {
+        if (can_bus_write(l->bus, &f[i]) == 0) {
             sent++;
             continue;
         }
-        if (r == -EPIPE || r == -ECONNRESET || r == -ENOTCONN) {
-            disconnect(l, strerror(-r));
+        int err = errno;
+        if (err == EPIPE || err == ECONNRESET || err == ENOTCONN) {
+            disconnect(l, strerror(err));
             continue;
         }
         /* ENOBUFS / EAGAIN (queue full) or ENETDOWN (bus-off, link down): tell once per burst. */
         if (can_bus_stats(l->bus)->tx_errors + l->past.tx_errors >= l->tx_fail_logged * 2 + 1) {
             l->tx_fail_logged = can_bus_stats(l->bus)->tx_errors + l->past.tx_errors;
-            event(l, "tx_error", "%s: send failed: %s (%llu so far)", l->url, strerror(-r),
+            event(l, "tx_error", "%s: send failed: %s (%llu so far)", l->url, strerror(err),
                   (unsigned long long)l->tx_fail_logged);
         }
     }

@@ -72,11 +72,8 @@ can_emubus_t *can_emubus_create(marie_loop_t *loop, const char *path)
         MARIE_KEEP_ERRNO(unlink(sa.sun_path));
         goto err_close;
     }
-    int r = marie_loop_add_fd(loop, b->lfd, POLLIN, on_listen, b);
-    if (r < 0) {
-        errno = -r;
+    if (marie_loop_add_fd(loop, b->lfd, POLLIN, on_listen, b) < 0)
         goto err_unlink;
-    }
     return b;
 err_unlink:
     MARIE_KEEP_ERRNO(unlink(path));

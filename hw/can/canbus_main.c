@@ -55,7 +55,7 @@ int main(int argc, char **argv)
     }
     int rc = marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, b);
     if (rc < 0)
-        marie_error("cannot watch SIGUSR1/SIGUSR2: %s", strerror(-rc));
+        marie_error("cannot watch SIGUSR1/SIGUSR2: %s", strerror(errno));
     else
         marie_info("emulated CAN bus on %s", path);
     if (rc == 0)

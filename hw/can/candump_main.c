@@ -40,9 +40,10 @@ static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
         if (d->count > 0)
             d->count--;
     }
+    int err = errno;
     fflush(stdout);
     if (r < 0) {
-        fprintf(stderr, "marie-candump: %s\n", strerror(-r));
+        fprintf(stderr, "marie-candump: %s\n", strerror(err));
         d->rc = 1;
     }
     if (r < 0 || d->count == 0)
@@ -74,11 +75,11 @@ int main(int argc, char **argv)
     can_bus_set_err_mask(d.bus, CAN_ERR_MASK);
     d.name = strncmp(url, "emu:", 4) == 0 ? "emu" : strchr(url, ':') + 1;
     marie_loop_t *loop = marie_loop_create();
-    int r = loop ? marie_loop_catch_signals(loop, on_quit, NULL) : -ENOMEM;
+    int r = loop ? marie_loop_catch_signals(loop, on_quit, NULL) : -1;
     if (r == 0)
         r = marie_loop_add_fd(loop, can_bus_fd(d.bus), POLLIN, on_readable, &d);
     if (r < 0) {
-        fprintf(stderr, "marie-candump: cannot set up the loop: %s\n", strerror(-r));
+        fprintf(stderr, "marie-candump: cannot set up the loop: %s\n", strerror(errno));
         d.rc = 1;
     } else if (d.count != 0 && marie_loop_run(loop) < 0) {
         d.rc = 1;

@@ -3,6 +3,7 @@
 
 #include <errno.h>
 
+#include "core/err.h"
 #include "hw/canopen/co.h"
 
 int co_emcy_encode(struct can_frame *f, const co_emcy_t *e)
@@ -20,7 +21,7 @@ int co_emcy_decode(const struct can_frame *f, co_emcy_t *e)
 {
     uint8_t node;
     if (co_classify(f->can_id, &node, NULL) != CO_FC_EMCY || f->len != 8)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     e->node = node;
     e->code = co_get_u16(f->data);
     e->reg = f->data[2];

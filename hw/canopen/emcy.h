@@ -40,7 +40,7 @@ typedef struct {
 } co_emcy_t;
 
 int co_emcy_encode(struct can_frame *f, const co_emcy_t *e);
-/* 0, or -EBADMSG (not 0x081..0x0FF, or DLC other than 8). */
+/* 0, or -1 with errno EBADMSG (not 0x081..0x0FF, or DLC other than 8). */
 int co_emcy_decode(const struct can_frame *f, co_emcy_t *e);
 /* Text for a code: exact where known, else its class ("voltage", "temperature"...). */
 const char *co_emcy_str(uint16_t code);

@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "hw/canopen/co.h"
 
 const char *co_nmt_state_name(co_nmt_state_t s)
@@ -46,7 +47,7 @@ int co_nmt_encode(struct can_frame *f, co_nmt_cmd_t cmd, uint8_t node)
 int co_nmt_decode(const struct can_frame *f, co_nmt_cmd_t *cmd, uint8_t *node)
 {
     if (f->can_id != CO_COB_NMT || f->len != 2 || !cmd_valid(f->data[0]) || f->data[1] > CO_NODE_MAX)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     *cmd = (co_nmt_cmd_t)f->data[0];
     *node = f->data[1];
     return 0;
@@ -78,10 +79,10 @@ int co_hb_decode(const struct can_frame *f, uint8_t *node, co_nmt_state_t *s)
 {
     uint8_t n;
     if (co_classify(f->can_id, &n, NULL) != CO_FC_HEARTBEAT || f->len != 1)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     uint8_t v = f->data[0] & 0x7F;      /* bit 7 is the toggle bit of node guarding */
     if (v != CO_NMT_BOOTUP && v != CO_NMT_STOPPED && v != CO_NMT_OPERATIONAL && v != CO_NMT_PREOPERATIONAL)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     *node = n;
     *s = (co_nmt_state_t)v;
     return 0;
@@ -115,9 +116,9 @@ void co_hb_consumer_init(co_hb_consumer_t *c, co_hb_cb_t cb, void *user)
 int co_hb_consumer_add(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, int64_t now)
 {
     if (c->count >= CO_HB_MAX_NODES)
-        return -ENOSPC;
+        return marie_fail(ENOSPC);
     if (node == 0 || node > CO_NODE_MAX)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     int i = c->count++;
     memset(&c->n[i], 0, sizeof c->n[i]);
     c->n[i].node = node;
@@ -136,7 +137,7 @@ int co_hb_consumer_set_timeout(co_hb_consumer_t *c, uint8_t node, int64_t timeou
             c->n[i].timed_out = false;
             return 0;
         }
-    return -ENOENT;
+    return marie_fail(ENOENT);
 }
 
 static void fire(co_hb_consumer_t *c, uint8_t node, co_hb_event_t ev, co_nmt_state_t s)
@@ -157,7 +158,7 @@ int co_hb_consumer_feed(co_hb_consumer_t *c, const struct can_frame *f, int64_t 
         return 0;
     co_nmt_state_t s;
     if (co_hb_decode(f, &node, &s) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     c->n[i].last_us = now;
     c->n[i].heard = true;
     if (c->n[i].timed_out) {
@@ -206,9 +207,9 @@ int co_sync_encode(struct can_frame *f, uint8_t counter)
 int co_sync_decode(const struct can_frame *f, uint8_t *counter)
 {
     if (f->can_id != CO_COB_SYNC || f->len > 1)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     *counter = f->len ? f->data[0] : 0;
     if (f->len && (*counter == 0 || *counter > 240))
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     return 0;
 }

@@ -32,7 +32,7 @@ const char *co_nmt_cmd_name(co_nmt_cmd_t c);
 
 /* NMT command to `node` (0: all nodes). Returns the frame length (2). */
 int co_nmt_encode(struct can_frame *f, co_nmt_cmd_t cmd, uint8_t node);
-/* 0, or -EBADMSG (not an NMT frame, wrong DLC, unknown command, node > 127). */
+/* 0, or -1 with errno EBADMSG (not an NMT frame, wrong DLC, unknown command, node > 127). */
 int co_nmt_decode(const struct can_frame *f, co_nmt_cmd_t *cmd, uint8_t *node);
 /* A node's NMT state machine: the state after `cmd`; *reset tells that the node must run its
  * reset (application or communication) and then send its boot-up message. */
@@ -78,13 +78,13 @@ typedef struct {
 } co_hb_consumer_t;
 
 void co_hb_consumer_init(co_hb_consumer_t *c, co_hb_cb_t cb, void *user);
-/* Watch `node`; a node never heard from times out `timeout_us` after `now`. 0 or -ENOSPC. */
+/* Watch `node`; a node never heard from times out `timeout_us` after `now`. 0, or -1 with errno ENOSPC. */
 int co_hb_consumer_add(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, int64_t now);
 /* Supervise `node` with timeout_us from now on (0: only listen, for boot-ups and states): a
  * node sends heartbeats only once its 0x1017 is written, and a reset communication clears it.
- * 0, or -ENOENT for a node not added. */
+ * 0, or -1 with errno ENOENT for a node not added. */
 int co_hb_consumer_set_timeout(co_hb_consumer_t *c, uint8_t node, int64_t timeout_us, int64_t now);
-/* 1 if f was a heartbeat of a watched node, 0 if not for us, -EBADMSG if malformed. */
+/* 1 if f was a heartbeat of a watched node, 0 if not for us, -1 with errno EBADMSG if malformed. */
 int co_hb_consumer_feed(co_hb_consumer_t *c, const struct can_frame *f, int64_t now);
 /* Fire timeouts due at `now`. */
 void co_hb_consumer_check(co_hb_consumer_t *c, int64_t now);
@@ -93,7 +93,7 @@ co_nmt_state_t co_hb_consumer_state(const co_hb_consumer_t *c, uint8_t node);
 
 /* SYNC: counter 0 sends the classic empty SYNC, 1..240 the counter byte. */
 int co_sync_encode(struct can_frame *f, uint8_t counter);
-/* 0 with *counter (0 when absent), or -EBADMSG. */
+/* 0 with *counter (0 when absent), or -1 with errno EBADMSG. */
 int co_sync_decode(const struct can_frame *f, uint8_t *counter);
 
 #ifdef __cplusplus

@@ -4,17 +4,19 @@
 #include <errno.h>
 #include <string.h>
 
+#include "core/err.h"
+
 static int map_bits(const co_pdo_map_t *m)
 {
     if (m->n > CO_PDO_MAX_ENTRIES)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     int bits = 0;
     for (int i = 0; i < m->n; i++) {
         if (m->e[i].bits == 0 || m->e[i].bits > 64)
-            return -EINVAL;
+            return marie_fail(EINVAL);
         bits += m->e[i].bits;
     }
-    return bits > 64 ? -EINVAL : bits;
+    return bits > 64 ? marie_fail(EINVAL) : bits;
 }
 
 int co_pdo_map_bytes(const co_pdo_map_t *m)
@@ -51,7 +53,7 @@ int co_pdo_decode(const co_pdo_map_t *m, const struct can_frame *f, uint64_t *va
     if (bits < 0)
         return bits;
     if (f->len < (bits + 7) / 8 || f->len > 8)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     uint64_t acc = 0;
     for (int k = 0; k < f->len; k++)
         acc |= (uint64_t)f->data[k] << (8 * k);

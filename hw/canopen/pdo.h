@@ -37,12 +37,13 @@ static inline co_pdo_entry_t co_pdo_entry_from_u32(uint32_t v)
     return e;
 }
 
-/* Total mapped length in bytes, or -EINVAL (more than 64 bits, an entry of 0 bits or > 64). */
+/* Total mapped length in bytes, or -1 with errno EINVAL (more than 64 bits, an entry of 0 bits or > 64). */
 int co_pdo_map_bytes(const co_pdo_map_t *m);
-/* Pack vals[i] (low `bits` bits, little-endian, in mapping order) into f. Returns the DLC or -EINVAL. */
+/* Pack vals[i] (low `bits` bits, little-endian, in mapping order) into f. Returns the DLC, or
+ * -1 with errno EINVAL. */
 int co_pdo_encode(const co_pdo_map_t *m, const uint64_t *vals, struct can_frame *f);
-/* Unpack f into vals[0..n-1]. 0, -EBADMSG if the frame is shorter than the mapping (a
- * longer frame is accepted, as CiA 301 allows), -EINVAL for a bad mapping. */
+/* Unpack f into vals[0..n-1]. 0, or -1 with errno EBADMSG if the frame is shorter than the
+ * mapping (a longer frame is accepted, as CiA 301 allows) or EINVAL for a bad mapping. */
 int co_pdo_decode(const co_pdo_map_t *m, const struct can_frame *f, uint64_t *vals);
 /* Sign-extend a `bits`-wide value. */
 int64_t co_pdo_signed(uint64_t v, uint8_t bits);

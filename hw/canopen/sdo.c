@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "hw/canopen/co.h"
 #include "hw/canopen/nmt.h"
 
@@ -82,7 +83,7 @@ static void cli_finish(co_sdo_client_t *c, uint32_t abort, const uint8_t *data, 
 int co_sdo_client_upload(co_sdo_client_t *c, uint16_t index, uint8_t sub, int64_t now, struct can_frame *tx)
 {
     if (c->x.state != ST_IDLE)
-        return -EBUSY;
+        return marie_fail(EBUSY);
     uint8_t d[8] = { CCS_UP_INIT << 5 };
     mux(d, index, sub);
     co_frame_set(tx, cli_tx_id(c), d, 8);
@@ -98,9 +99,9 @@ int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, cons
                            int64_t now, struct can_frame *tx)
 {
     if (c->x.state != ST_IDLE)
-        return -EBUSY;
+        return marie_fail(EBUSY);
     if (len > CO_SDO_MAX || len == 0)
-        return -EMSGSIZE;
+        return marie_fail(EMSGSIZE);
     uint8_t d[8] = { 0 };
     mux(d, index, sub);
     if (len <= 4) {
@@ -169,7 +170,7 @@ static int cli_protocol_error(co_sdo_client_t *c, uint32_t code, struct can_fram
     abort_frame(tx, cli_tx_id(c), c->x.index, c->x.sub, code);
     *tx_ready = true;
     cli_finish(c, code, NULL, 0);
-    return -EBADMSG;
+    return marie_fail(EBADMSG);
 }
 
 int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t now,

@@ -64,13 +64,13 @@ struct co_sdo_client {
 
 void co_sdo_client_init(co_sdo_client_t *c, uint8_t node, int64_t timeout_us, co_sdo_done_cb_t cb, void *user);
 bool co_sdo_client_busy(const co_sdo_client_t *c);
-/* Start a transfer; the request is written to *tx. 0, -EBUSY, -EMSGSIZE. */
+/* Start a transfer; the request is written to *tx. 0, or -1 with errno EBUSY or EMSGSIZE. */
 int co_sdo_client_upload(co_sdo_client_t *c, uint16_t index, uint8_t sub, int64_t now, struct can_frame *tx);
 int co_sdo_client_download(co_sdo_client_t *c, uint16_t index, uint8_t sub, const void *data, size_t len,
                            int64_t now, struct can_frame *tx);
 /* A frame from the bus: 1 with *tx to send, 0 consumed without answer (or not ours),
- * -EBADMSG when a response from our server made no sense (the transfer is aborted and the
- * abort frame is in *tx, return still -EBADMSG so the caller counts it; *tx_ready set). */
+ * -1 with errno EBADMSG when a response from our server made no sense (the transfer is aborted
+ * and the abort frame is in *tx, the return still -1 so the caller counts it; *tx_ready set). */
 int co_sdo_client_feed(co_sdo_client_t *c, const struct can_frame *rx, int64_t now,
                        struct can_frame *tx, bool *tx_ready);
 /* Timeouts: 1 with the abort frame in *tx when the transfer timed out (the callback ran). */

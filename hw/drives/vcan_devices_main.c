@@ -98,9 +98,9 @@ int main(int argc, char **argv)
     if (r == 0)
         r = marie_loop_watch_signals(loop, (const int[]){ SIGUSR1, SIGUSR2 }, 2, on_usr, &d);
     if (r == 0 && !marie_loop_add_timer(loop, TICK_US, on_tick, &d))
-        r = -errno;
+        r = -1;
     if (r < 0) {
-        marie_error("cannot set up the loop: %s", strerror(-r));
+        marie_error("cannot set up the loop: %s", strerror(errno));
         d.rc = 1;
     } else if (marie_loop_run(loop) < 0) {
         d.rc = 1;

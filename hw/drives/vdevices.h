@@ -31,10 +31,10 @@ vdevices_t *vdevices_create(const vdevices_cfg_t *cfg, int64_t now);   /* NULL w
 void vdevices_destroy(vdevices_t *v);
 int vdevices_fd(const vdevices_t *v);
 /* Read and answer every waiting frame, after the answers the emulated bus's server had no room
- * for before. Returns frames handled or -errno (-EPIPE: bus gone). */
+ * for before. Returns frames handled, or -1 with errno (EPIPE: bus gone). */
 int vdevices_process(vdevices_t *v, int64_t now);
 /* Read what waits on the bus, advance physics by dt seconds and send time-driven frames
- * (heartbeats, gyro samples, EMCY of lost heartbeats or RPDOs). 0 or -errno as process. */
+ * (heartbeats, gyro samples, EMCY of lost heartbeats or RPDOs). 0, or -1 with errno as process. */
 int vdevices_tick(vdevices_t *v, double dt, int64_t now);
 vdrive_t *vdevices_drive(vdevices_t *v, int i);     /* 0 left, 1 right; NULL if absent */
 vgyro_t *vdevices_gyro(vdevices_t *v);

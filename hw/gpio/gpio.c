@@ -89,7 +89,7 @@ int gpio_in_value(gpio_in_t *in)
 {
     int v = gpiod_line_get_value(in->line);
     if (v < 0)
-        return -errno;
+        return -1;
     return (v != 0) != in->active_low;
 }
 
@@ -98,7 +98,7 @@ int gpio_in_read(gpio_in_t *in, gpio_edge_cb_t cb, void *user)
     struct gpiod_line_event ev[16];
     int n = gpiod_line_event_read_fd_multiple(gpio_in_fd(in), ev, 16);
     if (n < 0)
-        return errno == EAGAIN ? 0 : -errno;
+        return errno == EAGAIN ? 0 : -1;
     int64_t now = mono_us();
     for (int i = 0; i < n; i++) {
         bool high = ev[i].event_type == GPIOD_LINE_EVENT_RISING_EDGE;
@@ -143,5 +143,5 @@ void gpio_out_close(gpio_out_t *out)
 
 int gpio_out_set(gpio_out_t *out, bool on)
 {
-    return gpiod_line_set_value(out->line, on != out->active_low) < 0 ? -errno : 0;
+    return gpiod_line_set_value(out->line, on != out->active_low) < 0 ? -1 : 0;
 }

@@ -22,15 +22,15 @@ typedef struct gpio_out gpio_out_t;
 gpio_in_t *gpio_in_open(const char *chip, unsigned line, bool active_low, gpio_bias_t bias, const char *consumer);
 void gpio_in_close(gpio_in_t *in);                       /* NULL is a no-op */
 int gpio_in_fd(const gpio_in_t *in);                     /* watch it for POLLIN: edge events */
-int gpio_in_value(gpio_in_t *in);                        /* 1 active, 0 inactive, -errno */
+int gpio_in_value(gpio_in_t *in);                        /* 1 active, 0 inactive, -1 with errno */
 /* Read the pending edge events; cb gets each one's active level and time on
- * CLOCK_MONOTONIC (us). Returns the number of events, or -errno. */
+ * CLOCK_MONOTONIC (us). Returns the number of events, or -1 with errno. */
 typedef void (*gpio_edge_cb_t)(void *user, bool active, int64_t mono_us);
 int gpio_in_read(gpio_in_t *in, gpio_edge_cb_t cb, void *user);
 
 gpio_out_t *gpio_out_open(const char *chip, unsigned line, bool active_low, bool on, const char *consumer);
 void gpio_out_close(gpio_out_t *out);                    /* leaves the line off; NULL is a no-op */
-int gpio_out_set(gpio_out_t *out, bool on);              /* 0 or -errno */
+int gpio_out_set(gpio_out_t *out, bool on);              /* 0, or -1 with errno */
 
 #ifdef __cplusplus
 }

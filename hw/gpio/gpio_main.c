@@ -87,7 +87,7 @@ static void on_readable(marie_loop_t *loop, int fd, short revents, void *user)
     if (n < 0) {
         if (!g->fault)
             marie_component_event(g->c, MARIE_EVENT_T_SEV_ERROR, "estop_read_failed",
-                                  "reading e-stop events: %s", strerror(-n));
+                                  "reading e-stop events: %s", strerror(errno));
         g->fault = true;
         marie_component_count(g->c, "read_errors", 1);
         return;
@@ -159,7 +159,7 @@ static int on_init(marie_component_t *c)
     }
     int v = gpio_in_value(g->in);
     if (v < 0) {
-        marie_component_fail_reason(c, "cannot read e-stop line %lld on %s: %s", (long long)line, chip, strerror(-v));
+        marie_component_fail_reason(c, "cannot read e-stop line %lld on %s: %s", (long long)line, chip, strerror(errno));
         gpio_in_close(g->in);
         free(g);
         return -1;

@@ -147,8 +147,7 @@ static int set_line_baud(lms200_driver_t *d, int baud)
     if (r == 0)
         d->baud = baud;
     d->nout = 0;                    /* a command meant for the old rate */
-    lms200_parser_reset(d->parser);
-    new_rate(d);
+    MARIE_KEEP_ERRNO(lms200_parser_reset(d->parser); new_rate(d));
     return r;
 }
 
@@ -166,10 +165,10 @@ static bool rate_promising(const lms200_driver_t *d)
     return d->rate_heard || (d->rate_bytes > 0 && !wrong_rate(d));
 }
 
-static void write_failed(lms200_driver_t *d, ssize_t r)
+static void write_failed(lms200_driver_t *d)
 {
     char why[96];
-    snprintf(why, sizeof why, "write failed: %s", strerror((int)-r));
+    snprintf(why, sizeof why, "write failed: %s", strerror(errno));
     hangup(d, why);
 }
 
@@ -180,7 +179,7 @@ static void flush_out(lms200_driver_t *d)
         return;
     ssize_t r = lms200_serial_write(d->fd, d->out, d->nout);
     if (r < 0) {
-        write_failed(d, r);
+        write_failed(d);
         return;
     }
     memmove(d->out, d->out + r, d->nout - (size_t)r);
@@ -196,7 +195,7 @@ static void write_out(lms200_driver_t *d, const uint8_t *buf, size_t n)
         return;
     ssize_t r = 0;
     if (d->nout == 0 && (r = lms200_serial_write(d->fd, buf, n)) < 0) {
-        write_failed(d, r);
+        write_failed(d);
         return;
     }
     size_t rest = n - (size_t)r;
@@ -270,7 +269,7 @@ static void try_open(lms200_driver_t *d)
     if (fd < 0) {
         if (!d->open_failed_reported)
             emit(d, 2, "laser_open_failed", "cannot open %s: %s; retrying every %lld ms",
-                 d->device, strerror(-fd), (long long)d->cfg.reopen_ms);
+                 d->device, strerror(errno), (long long)d->cfg.reopen_ms);
         d->open_failed_reported = true;
         d->deadline = d->now + (int64_t)d->cfg.reopen_ms * 1000;
         return;
@@ -316,7 +315,7 @@ static void on_mode_reply(lms200_driver_t *d, uint8_t result)
         /* The device answered at the old rate and now listens at the new one. */
         int r = set_line_baud(d, (int)d->cfg.baud);
         if (r < 0) {
-            emit(d, 3, "laser_baud_failed", "cannot set %s to %d baud: %s", d->device, (int)d->cfg.baud, strerror(-r));
+            emit(d, 3, "laser_baud_failed", "cannot set %s to %d baud: %s", d->device, (int)d->cfg.baud, strerror(errno));
             reinit(d);
             break;
         }

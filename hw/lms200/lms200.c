@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/err.h"
 #include "core/new.h"
 
 uint16_t lms200_crc(const uint8_t *buf, size_t len)
@@ -327,7 +328,7 @@ int lms200_mode_baud(uint8_t mode)
 int lms200_decode_mode_reply(const lms200_telegram_t *t, uint8_t *result)
 {
     if (t->cmd != LMS200_REPLY_MODE || t->data_len < 1)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     *result = t->data[0];
     return 0;
 }
@@ -335,7 +336,7 @@ int lms200_decode_mode_reply(const lms200_telegram_t *t, uint8_t *result)
 int lms200_decode_variant_reply(const lms200_telegram_t *t, lms200_variant_t *v)
 {
     if (t->cmd != LMS200_REPLY_VARIANT || t->data_len < 5)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     v->ok = t->data[0] == 1;
     v->angle_deg = rd16(t->data + 1);
     v->res_cdeg = rd16(t->data + 3);
@@ -345,14 +346,14 @@ int lms200_decode_variant_reply(const lms200_telegram_t *t, lms200_variant_t *v)
 int lms200_decode_scan(const lms200_telegram_t *t, lms200_scan_t *s)
 {
     if (t->cmd != LMS200_REPLY_SCAN || t->data_len < 2)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     uint16_t w = rd16(t->data);
     size_t n = w & 0x03ff;
     if (n > LMS200_MAX_VALUES || t->data_len < 2 + 2 * n)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     unsigned unit = w >> 14;
     if (unit > LMS200_UNIT_MM)
-        return -EBADMSG;        /* 10 cm units belong to other LMS2xx variants */
+        return marie_fail(EBADMSG);        /* 10 cm units belong to other LMS2xx variants */
     s->n = (uint16_t)n;
     s->unit = (lms200_unit_t)unit;
     s->partial = (w >> 13) & 1;

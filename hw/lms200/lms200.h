@@ -126,7 +126,7 @@ int64_t lms200_wire_us(size_t bytes, int baud);
 int lms200_baud_mode(int baud);
 int lms200_mode_baud(uint8_t mode);
 
-/* ---- reply decoders: 0, or -EBADMSG when the telegram is not a well-formed reply of that kind ---- */
+/* ---- reply decoders: 0, or -1 with errno EBADMSG when the telegram is not a well-formed reply ---- */
 int lms200_decode_mode_reply(const lms200_telegram_t *t, uint8_t *result);
 typedef struct {
     bool ok;

@@ -6,6 +6,8 @@
 #include <stdbool.h>
 #include <unistd.h>
 
+#include "core/err.h"
+
 static const struct { int baud; speed_t speed; } rates[] = {
     { 9600, B9600 }, { 19200, B19200 }, { 38400, B38400 },
     { 57600, B57600 }, { 115200, B115200 },
@@ -38,10 +40,10 @@ static int configure(int fd, int baud, bool first_setup)
 {
     speed_t sp = lms200_serial_speed(baud);
     if (!sp)
-        return -EINVAL;
+        return marie_fail(EINVAL);
     struct termios t;
     if (tcgetattr(fd, &t) < 0)
-        return -errno;
+        return -1;
     if (first_setup) {
         cfmakeraw(&t);
         t.c_cflag &= ~(CSTOPB | PARENB | CRTSCTS);
@@ -53,7 +55,7 @@ static int configure(int fd, int baud, bool first_setup)
     cfsetispeed(&t, sp);
     cfsetospeed(&t, sp);
     if (tcsetattr(fd, TCSANOW, &t) < 0)
-        return -errno;
+        return -1;
     tcflush(fd, TCIFLUSH);
     return 0;
 }
@@ -67,11 +69,10 @@ int lms200_serial_open(const char *path)
 {
     int fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (fd < 0)
-        return -errno;
-    int r = lms200_serial_setup(fd, 9600);
-    if (r < 0) {
-        close(fd);
-        return r;
+        return -1;
+    if (lms200_serial_setup(fd, 9600) < 0) {
+        MARIE_KEEP_ERRNO(close(fd));
+        return -1;
     }
     return fd;
 }
@@ -85,9 +86,9 @@ int lms200_serial_get_baud(int fd)
 {
     struct termios t;
     if (tcgetattr(fd, &t) < 0)
-        return -errno;
+        return -1;
     int b = lms200_serial_baud(cfgetospeed(&t));
-    return b < 0 ? -EINVAL : b;
+    return b < 0 ? marie_fail(EINVAL) : b;
 }
 
 ssize_t lms200_serial_write(int fd, const void *buf, size_t len)
@@ -102,7 +103,7 @@ ssize_t lms200_serial_write(int fd, const void *buf, size_t len)
         if (n < 0 && errno == EINTR)
             continue;
         if (n < 0 && errno != EAGAIN)
-            return -errno;
+            return -1;
         break;
     }
     return (ssize_t)done;

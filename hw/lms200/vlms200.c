@@ -123,15 +123,13 @@ static int make_pty(vlms200_t *v)
 {
     int m, s;
     if (openpty(&m, &s, v->path, NULL, NULL) < 0)
-        return -errno;
+        return -1;
     /* Raw from the start: a canonical, echoing slave would bounce our scans back to us
      * before the driver has set its line up. We keep the slave open so that the master
      * never reads EIO while the driver reopens it. */
-    int r = lms200_serial_setup(s, 9600);
-    if (r < 0) {
-        close(m);
-        close(s);
-        return r;
+    if (lms200_serial_setup(s, 9600) < 0) {
+        MARIE_KEEP_ERRNO(close(m); close(s));
+        return -1;
     }
     fcntl(m, F_SETFL, fcntl(m, F_GETFL) | O_NONBLOCK);
     fcntl(m, F_SETFD, FD_CLOEXEC);
@@ -143,10 +141,8 @@ static int make_pty(vlms200_t *v)
         snprintf(tmp, sizeof tmp, "%s.tmp%d", v->link, (int)getpid());
         unlink(tmp);
         if (symlink(v->path, tmp) < 0 || rename(tmp, v->link) < 0) {
-            r = -errno;
-            unlink(tmp);
-            close_pty(v);
-            return r;
+            MARIE_KEEP_ERRNO(unlink(tmp); close_pty(v));
+            return -1;
         }
     }
     power_on(v);
@@ -159,7 +155,7 @@ int vlms200_open(vlms200_t *v, const char *link)
     free(v->link);
     v->link = link ? strdup(link) : NULL;
     if (link && !v->link)
-        return -ENOMEM;
+        return marie_fail(ENOMEM);
     return make_pty(v);
 }
 

@@ -33,10 +33,10 @@ static int write_path(const char *file, const char *path)
     snprintf(tmp, sizeof tmp, "%s.tmp", file);
     FILE *f = fopen(tmp, "w");
     if (!f)
-        return -errno;
+        return -1;
     fprintf(f, "%s\n", path);
     if (fclose(f) != 0 || rename(tmp, file) < 0)
-        return -errno;
+        return -1;
     return 0;
 }
 
@@ -67,7 +67,7 @@ static void sync_device(emu_t *e)
         marie_info("plugged in again on %s", e->last_path);
         int rc = write_path(e->path_file, e->last_path);
         if (rc < 0)
-            marie_warn("cannot write %s: %s", e->path_file, strerror(-rc));
+            marie_warn("cannot write %s: %s", e->path_file, strerror(errno));
     }
     marie_loop_remove_timer(e->loop, e->wake);
     e->wake = NULL;
@@ -140,14 +140,14 @@ int main(int argc, char **argv)
     }
     rc = vlms200_open(v, link);
     if (rc < 0) {
-        marie_error("cannot create the pty%s%s: %s", link ? " or link " : "", link ? link : "", strerror(-rc));
+        marie_error("cannot create the pty%s%s: %s", link ? " or link " : "", link ? link : "", strerror(errno));
         vlms200_destroy(v);
         return 1;
     }
     char last_path[128];
     snprintf(last_path, sizeof last_path, "%s", vlms200_path(v));
     if ((rc = write_path(path_file, last_path)) < 0)
-        marie_warn("cannot write %s: %s", path_file, strerror(-rc));
+        marie_warn("cannot write %s: %s", path_file, strerror(errno));
     marie_info("virtual LMS200 on %s%s%s", last_path, link ? " via " : "", link ? link : "");
 
     emu_t e = { .loop = marie_loop_create(), .v = v, .path_file = path_file, .fd = -1,

@@ -9,6 +9,7 @@
 #include <cmocka.h>
 
 #include "adapters/planner/planner.h"
+#include "tests/fails.h"
 
 /* The path's vertices are free on the planner's grid, and every point along it, 2 cm apart,
  * keeps the robot's footprint circle clear of the map (checked on the map itself: the
@@ -92,9 +93,9 @@ static void test_refuses_goal_in_wall_and_unreachable(void **state)
     double *P = NULL;
     int n = 0;
     double s[3] = { -4, -4, 0 }, wall[3] = { -2.5, -2.5, 0 }, inside[3] = { 2, 2, 0 };
-    assert_int_equal(planner_plan(pl, s, wall, &P, &n), -EINVAL);
+    assert_fails(planner_plan(pl, s, wall, &P, &n), EINVAL);
     assert_null(P);
-    assert_int_equal(planner_plan(pl, s, inside, &P, &n), -ENOENT);
+    assert_fails(planner_plan(pl, s, inside, &P, &n), ENOENT);
     assert_null(P);
     /* A goal just inside the inflation is snapped to the nearest free spot. */
     double near[3] = { -1.75, -2.5, 0 };

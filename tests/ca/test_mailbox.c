@@ -18,6 +18,7 @@
 #include "lcmtypes/marie_gyro_t.h"
 #include "lcmtypes/marie_laser_scan_t.h"
 #include "lcmtypes/marie_pull_reply_t.h"
+#include "tests/fails.h"
 
 #define MAXR 64
 typedef struct {
@@ -105,7 +106,7 @@ static void test_keeps_newest_in_order(void **state)
         assert_true(p.x == 5.0 - (double)i);
         assert_int_equal(t, 1000 * (5 - (int)i));
     }
-    assert_int_equal(mailbox_peek(mb, 3, NULL, NULL, NULL), -ENODATA);
+    assert_fails(mailbox_peek(mb, 3, NULL, NULL, NULL), ENODATA);
     assert_int_equal(mailbox_stats(mb)->overflow, 2);
     assert_int_equal(c.drops, 2);
     marie_pose2d_t p;
@@ -186,8 +187,8 @@ static void test_mistyped_payload_is_counted_not_stored(void **state)
     uint8_t buf[256];
     marie_gyro_t g = {0};
     int n = marie_gyro_t_encode(buf, 0, sizeof buf, &g);
-    assert_int_equal(mailbox_push(mb, buf, (size_t)n, 1), -EBADMSG);
-    assert_int_equal(mailbox_push(mb, buf, 5, 1), -EBADMSG);    /* shorter than a fingerprint */
+    assert_fails(mailbox_push(mb, buf, (size_t)n, 1), EBADMSG);
+    assert_fails(mailbox_push(mb, buf, 5, 1), EBADMSG);    /* shorter than a fingerprint */
     assert_int_equal(mailbox_count(mb), 0);
     assert_int_equal(c.bad_input, 2);
     assert_int_equal(mailbox_stats(mb)->bad_input, 2);
@@ -205,13 +206,13 @@ static void test_malformed_payload_is_counted_not_stored(void **state)
     uint8_t buf[256], bad[260];
     size_t n = pose(buf, sizeof buf, 1.0);
     assert_int_equal(mailbox_push(mb, buf, n, 1), 0);
-    assert_int_equal(mailbox_push(mb, buf, n - 1, 2), -EBADMSG);     /* truncated */
+    assert_fails(mailbox_push(mb, buf, n - 1, 2), EBADMSG);     /* truncated */
     memcpy(bad, buf, n);
     bad[n] = 0;
-    assert_int_equal(mailbox_push(mb, bad, n + 1, 3), -EBADMSG);     /* trailing byte */
+    assert_fails(mailbox_push(mb, bad, n + 1, 3), EBADMSG);     /* trailing byte */
     size_t nan = pose(bad, sizeof bad, NAN), inf = pose(bad + 128, 128, INFINITY);
-    assert_int_equal(mailbox_push(mb, bad, nan, 4), -EBADMSG);
-    assert_int_equal(mailbox_push(mb, bad + 128, inf, 5), -EBADMSG);
+    assert_fails(mailbox_push(mb, bad, nan, 4), EBADMSG);
+    assert_fails(mailbox_push(mb, bad + 128, inf, 5), EBADMSG);
     assert_int_equal(mailbox_count(mb), 1);
     assert_int_equal(c.bad_input, 4);
     assert_int_equal(mailbox_stats(mb)->bad_input, 4);
@@ -241,7 +242,7 @@ static void test_untyped_mailbox_checks_known_types(void **state)
     assert_true(n > 0);
     /* nranges (after utime and four floats) claims INT32_MAX beams */
     buf[8 + 8 + 16] = 0x7f;
-    assert_int_equal(mailbox_push(mb, buf, (size_t)n, 1), -EBADMSG);
+    assert_fails(mailbox_push(mb, buf, (size_t)n, 1), EBADMSG);
     memset(buf, 0xa5, 16);       /* no marie type: only its length is checked */
     assert_int_equal(mailbox_push(mb, buf, 16, 2), 0);
     assert_int_equal(mailbox_count(mb), 1);
@@ -259,7 +260,7 @@ static void test_untyped_mailbox_takes_any_payload(void **state)
     marie_gyro_t g = {0};
     int n = marie_gyro_t_encode(buf, 0, sizeof buf, &g);
     assert_int_equal(mailbox_push(mb, buf, (size_t)n, 1), 0);
-    assert_int_equal(mailbox_push(mb, buf, 3, 1), -EBADMSG);
+    assert_fails(mailbox_push(mb, buf, 3, 1), EBADMSG);
     mailbox_destroy(mb);
     cap_free(&c);
 }
@@ -272,23 +273,23 @@ static void test_bad_requests_counted(void **state)
     /* truncated and wrong-type requests are dropped */
     marie_pull_request_t r = req(1, 10);
     int n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
-    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n - 3, 0), -EBADMSG);
+    assert_fails(mailbox_handle_request_raw(mb, buf, (size_t)n - 3, 0), EBADMSG);
     size_t pl = pose(buf, sizeof buf, 1);
-    assert_int_equal(mailbox_handle_request_raw(mb, buf, pl, 0), -EBADMSG);
+    assert_fails(mailbox_handle_request_raw(mb, buf, pl, 0), EBADMSG);
     /* a huge string length */
     n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
     buf[24] = 0x7f;
-    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), -EBADMSG);
+    assert_fails(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), EBADMSG);
     /* a negative string length, and a string without its NUL */
     n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
     buf[24] = 0xff;
-    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), -EBADMSG);
+    assert_fails(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), EBADMSG);
     n = marie_pull_request_t_encode(buf, 0, sizeof buf, &r);
     buf[28 + 1] = 'x';      /* requester "t" loses its terminator */
-    assert_int_equal(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), -EBADMSG);
+    assert_fails(mailbox_handle_request_raw(mb, buf, (size_t)n, 0), EBADMSG);
     /* no reply channel */
     r.reply_channel = "";
-    assert_int_equal(mailbox_handle_request(mb, &r, 0), -EINVAL);
+    assert_fails(mailbox_handle_request(mb, &r, 0), EINVAL);
     assert_int_equal(mailbox_stats(mb)->bad_requests, 6);
     assert_int_equal(c.bad_input, 6);
     assert_int_equal(c.nreplies, 0);

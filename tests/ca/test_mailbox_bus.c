@@ -24,6 +24,7 @@
 #include "lcmtypes/marie_pull_request_t.h"
 #include "tests/ca/ca_test.h"
 #include "tests/proc.h"
+#include "tests/fails.h"
 
 static cat_bus_t *bus;
 static pid_t mb_pid;
@@ -230,7 +231,7 @@ static void test_core_pull_client(void **state)
     assert_true(age >= 0);
     marie_pose2d_t_decode_cleanup(&p);
     /* nobody serves this channel: the requester times out */
-    assert_int_equal(marie_port_pull(marie_port(c, "empty"), &p, 200, &age), -ETIMEDOUT);
+    assert_fails(marie_port_pull(marie_port(c, "empty"), &p, 200, &age), ETIMEDOUT);
     marie_component_destroy(c);
 }
 
@@ -245,12 +246,12 @@ static void test_core_pull_client_empty_mailbox(void **state)
     marie_errors_print(&errs, stderr);
     assert_non_null(c);
     marie_pose2d_t p;
-    /* EMPTY_TOO is not served: -ETIMEDOUT; the EMPTY mailbox was filled earlier, so use a
+    /* EMPTY_TOO is not served: ETIMEDOUT; the EMPTY mailbox was filled earlier, so use a
      * second Mailbox process that holds nothing */
     const char *args[] = { "mailbox", "--name", "mb2", "--param", "channel=EMPTY_TOO", NULL };
     pid_t pid = cat_spawn(args);
     assert_true(cat_wait_running(bus, "mb2", 5000));
-    assert_int_equal(marie_port_pull(marie_port(c, "e"), &p, 1000, NULL), -ENODATA);
+    assert_fails(marie_port_pull(marie_port(c, "e"), &p, 1000, NULL), ENODATA);
     cat_stop(pid, SIGTERM);
     marie_component_destroy(c);
 }

@@ -14,6 +14,7 @@
 #include "lcmtypes/marie_motor_command_t.h"
 #include "lcmtypes/marie_gyro_t.h"
 #include "lcmtypes/marie_switch_state_t.h"
+#include "tests/fails.h"
 
 typedef struct {
     int out, states, events_refused, bad;
@@ -54,7 +55,7 @@ static ca_switch_t *make(capture_t *c)
     assert_non_null(sw);
     assert_int_equal(ca_switch_add_input(sw, "auto", "CMD_AUTO"), 0);
     assert_int_equal(ca_switch_add_input(sw, "teleop", "CMD_TELEOP"), 0);
-    assert_int_equal(ca_switch_add_input(sw, "teleop", "X"), -EEXIST);
+    assert_fails(ca_switch_add_input(sw, "teleop", "X"), EEXIST);
     ca_switch_set_state_channel(sw, "CMD.STATE", "sw");
     return sw;
 }
@@ -102,7 +103,7 @@ static void test_unknown_selection_refused_with_event(void **state)
     ca_switch_t *sw = make(&c);
     ca_switch_restore(sw, "auto");
     marie_switch_select_t sel = { .request_id = 9, .requester = "op", .input = "joystick" };
-    assert_int_equal(ca_switch_handle_select(sw, &sel, 1), -ENOENT);
+    assert_fails(ca_switch_handle_select(sw, &sel, 1), ENOENT);
     assert_int_equal(c.events_refused, 1);
     assert_int_equal(c.last.status, MARIE_SWITCH_STATE_T_STATUS_UNKNOWN_INPUT);
     assert_int_equal(c.last.request_id, 9);
@@ -112,8 +113,8 @@ static void test_unknown_selection_refused_with_event(void **state)
     uint8_t buf[128];
     marie_gyro_t g = {0};
     int n = marie_gyro_t_encode(buf, 0, sizeof buf, &g);
-    assert_int_equal(ca_switch_push(sw, 0, buf, (size_t)n), -EBADMSG);
-    assert_int_equal(ca_switch_handle_select_raw(sw, buf, (size_t)n, 1), -EBADMSG);
+    assert_fails(ca_switch_push(sw, 0, buf, (size_t)n), EBADMSG);
+    assert_fails(ca_switch_handle_select_raw(sw, buf, (size_t)n, 1), EBADMSG);
     assert_int_equal(c.bad, 2);
     assert_int_equal(c.out, 0);
     ca_switch_destroy(sw);
@@ -128,7 +129,7 @@ static void test_unsaved_selection_not_made(void **state)
     ca_switch_t *sw = make(&c);
     ca_switch_restore(sw, "auto");
     marie_switch_select_t sel = { .request_id = 3, .requester = "op", .input = "teleop" };
-    assert_int_equal(ca_switch_handle_select(sw, &sel, 1), -EIO);
+    assert_fails(ca_switch_handle_select(sw, &sel, 1), EIO);
     assert_int_equal(c.last.status, MARIE_SWITCH_STATE_T_STATUS_IO_ERROR);
     assert_string_equal(ca_switch_selected(sw), "auto");
     ca_switch_destroy(sw);

@@ -41,8 +41,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (marie_shm_newest(r, name) > 0 && marie_shm_ref_at(r, name, ref.seq, &at) == 0 &&
         marie_shm_read(r, &at, buf, sizeof buf) > (int64_t)sizeof buf)
         abort();
-    int err = 0;
-    const uint8_t *p = marie_shm_peek(r, &ref, &err);
+    const uint8_t *p = marie_shm_peek(r, &ref);
     if (p) {
         volatile uint8_t sum = 0;
         for (uint32_t i = 0; i < ref.size; i++)

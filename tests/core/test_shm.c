@@ -17,6 +17,7 @@
 
 #include "core/shm.h"
 #include "core/time.h"
+#include "tests/fails.h"
 
 #define BIG (900 * 1024)
 
@@ -61,8 +62,8 @@ static void test_round_trip_and_bounds(void **state)
     marie_shm_reader_t *r = marie_shm_reader_create();
     assert_int_equal(marie_shm_read(r, &ref, out, BIG), BIG);
     assert_memory_equal(in, out, BIG);
-    assert_int_equal(marie_shm_read(r, &ref, out, BIG - 1), -EMSGSIZE);
-    assert_int_equal(marie_shm_write(w, in, BIG + 1, NULL), -EMSGSIZE);
+    assert_fails(marie_shm_read(r, &ref, out, BIG - 1), EMSGSIZE);
+    assert_fails(marie_shm_write(w, in, BIG + 1, NULL), EMSGSIZE);
     /* Memory is fixed at creation: four slots and a header, whatever is written. */
     char path[256];
     snprintf(path, sizeof path, "/dev/shm/%s", ref.segment);
@@ -75,13 +76,13 @@ static void test_round_trip_and_bounds(void **state)
     assert_int_equal(st.st_size, st2.st_size);
     assert_true(st.st_size < 4 * BIG + 4 * 4096);
     /* Four writes later message 1's slot holds another: refused, not delivered. */
-    assert_int_equal(marie_shm_read(r, &ref, out, BIG), -ESTALE);
+    assert_fails(marie_shm_read(r, &ref, out, BIG), ESTALE);
     /* A reference that names nothing sensible is refused. */
     marie_shm_ref_t bad = ref;
     snprintf(bad.segment, sizeof bad.segment, "../etc/passwd");
-    assert_int_equal(marie_shm_read(r, &bad, out, BIG), -EBADMSG);
+    assert_fails(marie_shm_read(r, &bad, out, BIG), EBADMSG);
     snprintf(bad.segment, sizeof bad.segment, "marie-shm.nothing.1");
-    assert_int_equal(marie_shm_read(r, &bad, out, BIG), -ENOENT);
+    assert_fails(marie_shm_read(r, &bad, out, BIG), ENOENT);
     marie_shm_writer_destroy(w);
     assert_false(exists(ref.segment));          /* unlinked: freed with the last mapping */
     marie_shm_reader_destroy(r);
@@ -98,7 +99,7 @@ static void test_begin_and_commit_in_place(void **state)
     marie_shm_reader_t *r = marie_shm_reader_create();
     uint8_t *out = malloc(BIG);
     marie_shm_ref_t first, ref;
-    assert_int_equal(marie_shm_commit(w, 8, &ref), -EINVAL);
+    assert_fails(marie_shm_commit(w, 8, &ref), EINVAL);
     fill(marie_shm_begin(w), BIG, 1);
     assert_int_equal(marie_shm_commit(w, BIG, &first), 0);
     assert_int_equal(marie_shm_read(r, &first, out, BIG), BIG);
@@ -109,7 +110,7 @@ static void test_begin_and_commit_in_place(void **state)
     assert_int_equal(marie_shm_commit(w, 64, &ref), 0);
     assert_int_equal(ref.seq, 2);
     uint8_t *third = marie_shm_begin(w);    /* message 3, in message 1's slot */
-    assert_int_equal(marie_shm_read(r, &first, out, BIG), -ESTALE);
+    assert_fails(marie_shm_read(r, &first, out, BIG), ESTALE);
     uint8_t in[64];
     fill(in, sizeof in, 3);
     assert_int_equal(marie_shm_write(w, in, sizeof in, &ref), 0);   /* takes up the begin */
@@ -118,7 +119,7 @@ static void test_begin_and_commit_in_place(void **state)
     assert_int_equal(marie_shm_read(r, &ref, out, BIG), 64);
     assert_memory_equal(out, in, 64);
     assert_memory_equal(third, in, 64);
-    assert_int_equal(marie_shm_commit(w, BIG + 1, &ref), -EMSGSIZE);
+    assert_fails(marie_shm_commit(w, BIG + 1, &ref), EMSGSIZE);
     assert_int_equal(ref.seq, 3);           /* untouched: nothing to tell anyone */
     free(out);
     marie_shm_reader_destroy(r);

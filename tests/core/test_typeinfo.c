@@ -13,6 +13,7 @@
 
 #include "core/typeinfo.h"
 #include "lcmtypes/marie_types.h"
+#include "tests/fails.h"
 
 static void every_type_has_a_descriptor_with_the_same_fingerprint(void **state)
 {
@@ -41,9 +42,9 @@ static void accepts_encoded_messages_and_refuses_truncations(void **state)
     const marie_typeinfo_t *ti = marie_typeinfo_find("marie.arbitration_t");
     assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n), 0);
     for (int cut = 0; cut < n; cut++)
-        assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)cut), -EBADMSG);
+        assert_fails(marie_typeinfo_check(ti, buf, (size_t)cut), EBADMSG);
     /* Another type's checker refuses it by fingerprint. */
-    assert_int_equal(marie_typeinfo_check(marie_typeinfo_find("pose_cov_t"), buf, (size_t)n), -EBADMSG);
+    assert_fails(marie_typeinfo_check(marie_typeinfo_find("pose_cov_t"), buf, (size_t)n), EBADMSG);
 }
 
 static void refuses_strings_without_nul_and_lying_counts(void **state)
@@ -57,13 +58,13 @@ static void refuses_strings_without_nul_and_lying_counts(void **state)
     uint8_t bad[256];
     memcpy(bad, buf, (size_t)n);
     bad[23] = 'x';
-    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    assert_fails(marie_typeinfo_check(ti, bad, (size_t)n), EBADMSG);
     memcpy(bad, buf, (size_t)n);
     bad[16] = 0x80;  /* negative length */
-    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    assert_fails(marie_typeinfo_check(ti, bad, (size_t)n), EBADMSG);
     memcpy(bad, buf, (size_t)n);
     bad[19] = 0;     /* zero length: lcm-gen would hand out an unterminated string */
-    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    assert_fails(marie_typeinfo_check(ti, bad, (size_t)n), EBADMSG);
 
     marie_behaviour_vote_t votes[1] = {{"follow", 40, 1, 0.3, 0.1, "path"}};
     marie_arbitration_t a = {.nvotes = 1, .votes = votes, .winner = "w", .ninputs = 0};
@@ -73,10 +74,10 @@ static void refuses_strings_without_nul_and_lying_counts(void **state)
      * lcm-gen allocate that many votes and free their unset strings on cleanup. */
     memcpy(bad, buf, (size_t)n);
     bad[24] = 0x7f;
-    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    assert_fails(marie_typeinfo_check(ti, bad, (size_t)n), EBADMSG);
     memcpy(bad, buf, (size_t)n);
     bad[24] = 0xff;
-    assert_int_equal(marie_typeinfo_check(ti, bad, (size_t)n), -EBADMSG);
+    assert_fails(marie_typeinfo_check(ti, bad, (size_t)n), EBADMSG);
 }
 
 static void large_primitive_arrays_are_checked_by_extent(void **state)
@@ -89,7 +90,7 @@ static void large_primitive_arrays_are_checked_by_extent(void **state)
     int n = encode(&marie_type_laser_scan_t, &s, buf, sizeof buf);
     const marie_typeinfo_t *ti = marie_typeinfo_find("laser_scan_t");
     assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n), 0);
-    assert_int_equal(marie_typeinfo_check(ti, buf, (size_t)n - 1), -EBADMSG);
+    assert_fails(marie_typeinfo_check(ti, buf, (size_t)n - 1), EBADMSG);
 }
 
 /* marie_decode_input: a NaN or an infinity in a scalar, a primitive array or a nested struct
@@ -106,7 +107,7 @@ static void component_inputs_refuse_nan_and_inf_anywhere(void **state)
     marie_pose_cov_t_decode_cleanup(&out);
     pc.pose.theta = NAN;
     n = encode(&marie_type_pose_cov_t, &pc, buf, sizeof buf);
-    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EDOM);
+    assert_fails(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), EDOM);
     assert_string_equal(why, "bad_nonfinite");
     /* the plain checked decode leaves meaning to the caller (managers, tools) */
     assert_int_equal(marie_decode_checked(&marie_type_pose_cov_t, buf, (size_t)n, &out), 0);
@@ -114,13 +115,13 @@ static void component_inputs_refuse_nan_and_inf_anywhere(void **state)
     pc.pose.theta = 0;
     pc.cov[8] = -INFINITY;
     n = encode(&marie_type_pose_cov_t, &pc, buf, sizeof buf);
-    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EDOM);
+    assert_fails(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), EDOM);
 
     float r[3] = {1, INFINITY, 2};
     marie_laser_scan_t ls = {.range_max = 8, .nranges = 3, .ranges = r, .nintensities = 3, .intensities = r};
     marie_laser_scan_t ols;
     n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
-    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
+    assert_fails(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), EDOM);
     r[1] = 3;
     n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
     assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), 0);
@@ -143,11 +144,11 @@ static void laser_ranges_may_be_nan_or_infinite(void **state)
     marie_laser_scan_t_decode_cleanup(&ols);
     in[2] = NAN;
     n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
-    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
+    assert_fails(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), EDOM);
     in[2] = 3;
     ls.angle_min = NAN;
     n = encode(&marie_type_laser_scan_t, &ls, buf, sizeof buf);
-    assert_int_equal(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), -EDOM);
+    assert_fails(marie_decode_input(&marie_type_laser_scan_t, buf, (size_t)n, &ols, &why), EDOM);
     assert_string_equal(why, "bad_nonfinite");
     const marie_typeinfo_t *ti = marie_typeinfo_find("laser_scan_t");
     for (int i = 0; i < ti->nfields; i++)
@@ -165,11 +166,11 @@ static void other_inputs_refuse_nan(void **state)
     marie_path_t path = {.nposes = 2, .poses = poses};
     marie_path_t op;
     n = encode(&marie_type_path_t, &path, buf, sizeof buf);
-    assert_int_equal(marie_decode_input(&marie_type_path_t, buf, (size_t)n, &op, &why), -EDOM);
+    assert_fails(marie_decode_input(&marie_type_path_t, buf, (size_t)n, &op, &why), EDOM);
     /* a wrong fingerprint and a lying count keep their own counters */
-    assert_int_equal(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), -EBADMSG);
+    assert_fails(marie_decode_input(&marie_type_pose_cov_t, buf, (size_t)n, &out, &why), EBADMSG);
     assert_string_equal(why, "bad_fingerprint");
-    assert_int_equal(marie_decode_input(&marie_type_path_t, buf, (size_t)n - 1, &op, &why), -EBADMSG);
+    assert_fails(marie_decode_input(&marie_type_path_t, buf, (size_t)n - 1, &op, &why), EBADMSG);
     assert_string_equal(why, "bad_payload");
 }
 
@@ -198,9 +199,9 @@ static void tails_lie_where_lcm_gen_encodes_them(void **state)
     assert_int_equal(marie_typeinfo_tail(marie_typeinfo_find("image_t"), &tl), 0);
     assert_int_equal(tl.wire_off, 8 + 8 + 4 + 4 + 4 + 1 + 4);
     assert_int_equal(marie_typeinfo_tail(marie_typeinfo_find("occupancy_grid_t"), &tl), 0);   /* a nested pose */
-    assert_int_equal(marie_typeinfo_tail(marie_typeinfo_find("audio_frame_t"), &tl), -ENOTSUP);     /* a string */
-    assert_int_equal(marie_typeinfo_tail(marie_typeinfo_find("laser_scan_t"), &tl), -ENOTSUP);      /* floats */
-    assert_int_equal(marie_typeinfo_tail(marie_typeinfo_find("pose2d_t"), &tl), -ENOTSUP);
+    assert_fails(marie_typeinfo_tail(marie_typeinfo_find("audio_frame_t"), &tl), ENOTSUP);     /* a string */
+    assert_fails(marie_typeinfo_tail(marie_typeinfo_find("laser_scan_t"), &tl), ENOTSUP);      /* floats */
+    assert_fails(marie_typeinfo_tail(marie_typeinfo_find("pose2d_t"), &tl), ENOTSUP);
     assert_true(with_tail >= 2);
 }
 

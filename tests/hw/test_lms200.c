@@ -12,6 +12,7 @@
 #include <cmocka.h>
 
 #include "hw/lms200/lms200.h"
+#include "tests/fails.h"
 
 #define DATA "tests/data/hw/lms200/"
 
@@ -168,7 +169,7 @@ static void test_mode_and_variant_replies_decode(void **state)
     assert_int_equal(lms200_decode_mode_reply(&t, &res), 0);
     assert_int_equal(res, LMS200_MODE_BAD_PASSWORD);
     lms200_variant_t var;
-    assert_int_equal(lms200_decode_variant_reply(&t, &var), -EBADMSG);
+    assert_fails(lms200_decode_variant_reply(&t, &var), EBADMSG);
 
     l = lms200_encode_variant_reply(out, sizeof out, 0, true, 180, 50, 0x10);
     assert_int_equal(lms200_parser_feed(p, out, l), 1);
@@ -176,7 +177,7 @@ static void test_mode_and_variant_replies_decode(void **state)
     assert_true(var.ok);
     assert_int_equal(var.angle_deg, 180);
     assert_int_equal(var.res_cdeg, 50);
-    assert_int_equal(lms200_decode_mode_reply(&t, &res), -EBADMSG);
+    assert_fails(lms200_decode_mode_reply(&t, &res), EBADMSG);
     lms200_parser_destroy(p);
 }
 
@@ -426,12 +427,12 @@ static void test_bad_replies_are_refused(void **state)
     size_t l = lms200_encode(out, sizeof out, 0x80, LMS200_REPLY_SCAN, d, sizeof d, 0x10);
     lms200_parser_feed(p, out, l);
     lms200_scan_t scan;
-    assert_int_equal(lms200_decode_scan(&t, &scan), -EBADMSG);
+    assert_fails(lms200_decode_scan(&t, &scan), EBADMSG);
     /* Units "10 cm" (bits 14-15 = 2) are not produced by an LMS200. */
     uint8_t d2[] = { 0x01, 0x80, 0x10, 0x00 };
     l = lms200_encode(out, sizeof out, 0x80, LMS200_REPLY_SCAN, d2, sizeof d2, 0x10);
     lms200_parser_feed(p, out, l);
-    assert_int_equal(lms200_decode_scan(&t, &scan), -EBADMSG);
+    assert_fails(lms200_decode_scan(&t, &scan), EBADMSG);
     /* Too small output buffers and bad passwords give 0. */
     assert_int_equal(lms200_encode_mode(out, 7, 0, LMS200_MODE_STOP, NULL), 0);
     assert_int_equal(lms200_encode_mode(out, sizeof out, 0, LMS200_MODE_INSTALL, "short"), 0);

@@ -17,6 +17,7 @@
 
 #include "core/lcmlog.h"
 #include "tools/webcommon/vjson.h"
+#include "tests/fails.h"
 
 typedef struct {
     int events, corrupt;
@@ -305,10 +306,10 @@ static void a_malformed_payload_appends_nothing(void **state)
     marie_buf_t b;
     marie_buf_init(&b, 0);
     marie_buf_puts(&b, "{");
-    assert_int_equal(vj_message(&b, buf, (size_t)n - 1, VJ_ROLE_OTHER), -EBADMSG);   /* cut short */
+    assert_fails(vj_message(&b, buf, (size_t)n - 1, VJ_ROLE_OTHER), EBADMSG);   /* cut short */
     buf[n - 1] = 'x';                                                               /* unterminated string */
-    assert_int_equal(vj_message(&b, buf, (size_t)n, VJ_ROLE_OTHER), -EBADMSG);
-    assert_int_equal(vj_message(&b, "\x01\x02\x03\x04\x05\x06\x07\x08", 8, VJ_ROLE_OTHER), -EBADMSG);
+    assert_fails(vj_message(&b, buf, (size_t)n, VJ_ROLE_OTHER), EBADMSG);
+    assert_fails(vj_message(&b, "\x01\x02\x03\x04\x05\x06\x07\x08", 8, VJ_ROLE_OTHER), EBADMSG);
     assert_string_equal(b.data, "{");
     marie_buf_free(&b);
 }
@@ -344,7 +345,7 @@ static void page_commands_parse_or_are_refused(void **state)
     const char *bad[] = {"", "[]", "{\"op\":}", "{\"op\":\"a\"", "{\"op\":\"a\"} x", "{\"a\":{}}",
                          "{\"op\":nan}", "{\"op\":\"\\u0041\"}", "{\"a\":1,\"b\":2,\"c\":3,\"d\":4,\"e\":5,\"f\":6,\"g\":7,\"h\":8,\"i\":9}"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
-        assert_int_equal(vj_cmd_parse(&c, bad[i], strlen(bad[i])), -EBADMSG);
+        assert_fails(vj_cmd_parse(&c, bad[i], strlen(bad[i])), EBADMSG);
 }
 
 int main(void)

@@ -15,6 +15,7 @@
 #include "adapters/vision/vision_detect.h"
 #include "camera/vision_family.h"
 #include "camera/vision_render.h"
+#include "tests/fails.h"
 
 #define W 640
 #define H 480
@@ -262,7 +263,7 @@ static void test_no_false_positives(void **state)
     vision_render_destroy(r);
 }
 
-/* Bad arguments are refused with -EINVAL or NULL and a reason, never a crash. */
+/* Bad arguments are refused with -1 (errno EINVAL) or NULL and a reason, never a crash. */
 static void test_bad_arguments(void **state)
 {
     assert_null(vision_render_create("tag99h99"));
@@ -270,17 +271,17 @@ static void test_bad_arguments(void **state)
     vision_tag_t t = { .id = 587, .size = 0.1 };
     vision_pose_identity(&t.pose);
     t.pose.t[2] = 1;
-    assert_int_equal(vision_render_frame(r, &cam, &t, 1, NULL, img, W, 1), -22);
+    assert_fails(vision_render_frame(r, &cam, &t, 1, NULL, img, W, 1), EINVAL);
     t.id = 0;
     vision_camera_t bad = cam;
     bad.fx = 0;
-    assert_int_equal(vision_render_frame(r, &bad, &t, 1, NULL, img, W, 1), -22);
-    assert_int_equal(vision_render_frame(r, &cam, &t, 1, NULL, img, W - 1, 1), -22);
-    assert_int_equal(vision_render_frame(r, &cam, &t, 1, NULL, img, W, 2), -22);
+    assert_fails(vision_render_frame(r, &bad, &t, 1, NULL, img, W, 1), EINVAL);
+    assert_fails(vision_render_frame(r, &cam, &t, 1, NULL, img, W - 1, 1), EINVAL);
+    assert_fails(vision_render_frame(r, &cam, &t, 1, NULL, img, W, 2), EINVAL);
     /* Behind the camera: drawn nowhere. */
     t.pose.t[2] = -1;
     assert_int_equal(vision_render_frame(r, &cam, &t, 1, NULL, img, W, 1), 0);
-    assert_int_equal(vision_render_tag_cells(r, -1, img, 64), -22);
+    assert_fails(vision_render_tag_cells(r, -1, img, 64), EINVAL);
     vision_render_destroy(r);
 
     char err[256] = "";
@@ -299,12 +300,12 @@ static void test_bad_arguments(void **state)
     const char *why = NULL;
     bad = cam;
     bad.cx = 900;
-    assert_int_equal(vision_detector_set_camera(d, &bad, 0.16, &why), -22);
+    assert_fails(vision_detector_set_camera(d, &bad, 0.16, &why), EINVAL);
     assert_non_null(strstr(why, "principal point"));
     bad = cam;
     bad.fy = NAN;
-    assert_int_equal(vision_detector_set_camera(d, &bad, 0.16, &why), -22);
-    assert_int_equal(vision_detector_set_camera(d, &cam, -1, &why), -22);
+    assert_fails(vision_detector_set_camera(d, &bad, 0.16, &why), EINVAL);
+    assert_fails(vision_detector_set_camera(d, &cam, -1, &why), EINVAL);
     assert_non_null(strstr(why, "tag_size"));
     assert_int_equal(vision_detector_set_camera(d, &cam, 0.16, &why), 0);
     vision_render_t *rr = vision_render_create("tag36h11");
@@ -316,8 +317,8 @@ static void test_bad_arguments(void **state)
     assert_int_equal(vision_detector_detect(d, img, 320, 240, 320, det, 2, &skipped), 1);
     assert_true(skipped);
     assert_false(det[0].pose_valid);
-    assert_int_equal(vision_detector_detect(d, img, 0, 240, 320, det, 2, NULL), -22);
-    assert_int_equal(vision_detector_detect(d, img, 320, 240, 100, det, 2, NULL), -22);
+    assert_fails(vision_detector_detect(d, img, 0, 240, 320, det, 2, NULL), EINVAL);
+    assert_fails(vision_detector_detect(d, img, 320, 240, 100, det, 2, NULL), EINVAL);
     vision_render_destroy(rr);
     vision_detector_destroy(d);
 }

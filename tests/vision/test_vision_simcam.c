@@ -12,6 +12,7 @@
 #include "adapters/vision/vision_detect.h"
 #include "camera/vision_image.h"
 #include "camera/vision_simcam.h"
+#include "tests/fails.h"
 
 static const char *yaml =
     "camera: {width: 640, height: 480, fx: 500, fy: 500, mount_x: 0, mount_z: 0.5, noise: 3, blur: 0.6,\n"
@@ -89,7 +90,7 @@ static void expect_error(const char *text, const char *what)
     vision_simcam_opts_default(&o);
     vision_tag_t *tags;
     size_t n;
-    assert_int_equal(vision_simcam_parse(marie_node_get(root, "camera"), marie_node_get(root, "tags"), &o, &tags, &n, &errs), -22);
+    assert_fails(vision_simcam_parse(marie_node_get(root, "camera"), marie_node_get(root, "tags"), &o, &tags, &n, &errs), EINVAL);
     assert_null(tags);
     bool found = false;
     for (size_t i = 0; i < errs.n; i++)

@@ -8,6 +8,8 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "core/log.h"
+
 static void put_be(marie_buf_t *b, uint64_t v, int n)
 {
     uint8_t x[8];
@@ -18,8 +20,7 @@ static void put_be(marie_buf_t *b, uint64_t v, int n)
 
 static int fail(char *why, size_t len, const char *path, const char *what)
 {
-    snprintf(why, len, "%s: %s", path[0] ? path : "message", what);
-    return -1;
+    return marie_fail_why(why, len, "%s: %s", path[0] ? path : "message", what);
 }
 
 static int put_prim(marie_buf_t *b, marie_prim_t p, const marie_node_t *n, const char *path, char *why, size_t wl)

@@ -85,14 +85,14 @@ int viewer_port_of_channel(viewer_t *v, const char *ch)
 bool viewer_payload_ok(viewer_t *v, int pi, const char *ch, const void *data, size_t len)
 {
     const marie_typeinfo_t *ti = marie_typeinfo_by_fingerprint(viewer_port_type[pi]->hash());
-    int rc = marie_typeinfo_check_flags(ti, data, len, MARIE_CHECK_FINITE);
-    if (rc == 0)
+    if (marie_typeinfo_check_flags(ti, data, len, MARIE_CHECK_FINITE) == 0)
         return true;
+    bool nonfinite = errno == EDOM;
     /* A log's wrong types were counted when it was indexed: count live payloads only. */
     if (v->live) {
         bool fp = marie_payload_fingerprint(data, len) == ti->fingerprint;
         v->bad_payloads++;
-        marie_component_bad_input(v->c, !fp ? "bad_fingerprint" : rc == -EDOM ? "bad_nonfinite" : "bad_payload",
+        marie_component_bad_input(v->c, !fp ? "bad_fingerprint" : nonfinite ? "bad_nonfinite" : "bad_payload",
                                   "channel %s: %zu bytes: not a well-formed, finite %s", ch, len,
                                   viewer_port_type[pi]->name);
     }
@@ -537,7 +537,7 @@ static int load_map_file(viewer_t *v, const char *path)
     marie_buf_puts(&b, "{\"type\":\"msg\",\"ch\":");
     vj_str(&b, path);
     marie_buf_puts(&b, ",\"t\":0");
-    int rc = n > 0 ? vj_message(&b, raw, (size_t)n, VJ_ROLE_OTHER) : -ENOMEM;
+    int rc = n > 0 ? vj_message(&b, raw, (size_t)n, VJ_ROLE_OTHER) : -1;
     marie_buf_puts(&b, "}");
     free(raw);
     if (rc < 0 || b.failed) {

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/base64.h"
+#include "core/err.h"
 #include "core/typeinfo.h"
 
 void vj_str(marie_buf_t *b, const char *s)
@@ -274,7 +275,7 @@ int vj_message(marie_buf_t *b, const void *data, size_t len, vj_role_t role)
 {
     const marie_typeinfo_t *t = len < 8 ? NULL : marie_typeinfo_by_fingerprint(marie_payload_fingerprint(data, len));
     if (!t || marie_typeinfo_check(t, data, len) < 0)
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     int k = kind_index(t);
     marie_buf_puts(b, ",\"k\":");
     vj_str(b, k >= 0 ? kinds[k].kind : t->name);
@@ -339,7 +340,7 @@ int vj_cmd_parse(vj_cmd_t *cmd, const char *text, size_t len)
     memset(cmd, 0, sizeof *cmd);
     skip_ws(&p, end);
     if (p >= end || *p != '{')
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     p++;
     skip_ws(&p, end);
     if (p < end && *p == '}') {
@@ -348,24 +349,24 @@ int vj_cmd_parse(vj_cmd_t *cmd, const char *text, size_t len)
     }
     for (;;) {
         if (cmd->n >= VJ_CMD_MAX)
-            return -EBADMSG;
+            return marie_fail(EBADMSG);
         int i = cmd->n;
         skip_ws(&p, end);
         if (parse_string(&p, end, cmd->key[i], sizeof cmd->key[i]) < 0)
-            return -EBADMSG;
+            return marie_fail(EBADMSG);
         skip_ws(&p, end);
         if (p >= end || *p != ':')
-            return -EBADMSG;
+            return marie_fail(EBADMSG);
         p++;
         skip_ws(&p, end);
         if (p < end && *p == '"') {
             if (parse_string(&p, end, cmd->str[i], sizeof cmd->str[i]) < 0)
-                return -EBADMSG;
+                return marie_fail(EBADMSG);
         } else if (p < end && (*p == 't' || *p == 'f')) {
             const char *w = *p == 't' ? "true" : "false";
             size_t wl = strlen(w);
             if ((size_t)(end - p) < wl || memcmp(p, w, wl) != 0)
-                return -EBADMSG;
+                return marie_fail(EBADMSG);
             p += wl;
             cmd->is_num[i] = true;
             cmd->num[i] = *w == 't';
@@ -378,7 +379,7 @@ int vj_cmd_parse(vj_cmd_t *cmd, const char *text, size_t len)
             char *e;
             double v = strtod(tmp, &e);
             if (n == 0 || *e || !isfinite(v))
-                return -EBADMSG;
+                return marie_fail(EBADMSG);
             cmd->is_num[i] = true;
             cmd->num[i] = v;
         }
@@ -392,11 +393,11 @@ int vj_cmd_parse(vj_cmd_t *cmd, const char *text, size_t len)
             p++;
             break;
         }
-        return -EBADMSG;
+        return marie_fail(EBADMSG);
     }
 tail:
     skip_ws(&p, end);
-    return p == end ? 0 : -EBADMSG;
+    return p == end ? 0 : marie_fail(EBADMSG);
 }
 
 const char *vj_cmd_str(const vj_cmd_t *cmd, const char *k)

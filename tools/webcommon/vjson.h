@@ -38,7 +38,7 @@ typedef enum {
  * as null. KIND is the page's name of the type ("laser", "pose", ...), or the LCM type name
  * ("marie.gyro_t") for a type the page does not know. A kind may cap its top-level
  * variable-length arrays of numbers (laser 720 beams, particles 1500): a longer one is sent
- * as every N-th element. Returns 0, or -EBADMSG (nothing appended) for an unknown type or a
+ * as every N-th element. Returns 0, or -1 with errno EBADMSG (nothing appended) for an unknown type or a
  * payload that does not check (marie_typeinfo_check). */
 int vj_message(marie_buf_t *b, const void *data, size_t len, vj_role_t role);
 /* The page's name of a type's kind ("laser", "pose", ...), or NULL. */
@@ -54,7 +54,7 @@ typedef struct {
     bool is_num[VJ_CMD_MAX];
 } vj_cmd_t;
 
-/* Parse text[0..len). 0, or -EBADMSG on anything but a flat object of at most VJ_CMD_MAX
+/* Parse text[0..len). 0, or -1 with errno EBADMSG on anything but a flat object of at most VJ_CMD_MAX
  * string/number/bool members with short keys and values. */
 int vj_cmd_parse(vj_cmd_t *cmd, const char *text, size_t len);
 const char *vj_cmd_str(const vj_cmd_t *cmd, const char *key);          /* NULL if absent or a number */

@@ -12,6 +12,7 @@
 
 #include <civetweb.h>
 
+#include "core/err.h"
 #include "core/log.h"
 
 typedef struct frame {
@@ -304,7 +305,7 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
     pthread_mutex_init(&v->mu, NULL);
     if (pipe2(v->wake, O_NONBLOCK | O_CLOEXEC) < 0 || marie_loop_add_fd(loop, v->wake[0], POLLIN, on_wake, v) < 0) {
         snprintf(why, len, "cannot set up the loop: %s", strerror(errno));
-        webserve_stop(v);
+        MARIE_KEEP_ERRNO(webserve_stop(v));
         return NULL;
     }
     char listen[128], port[16];
@@ -319,7 +320,8 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
     v->http = mg_start(&cb, v, opts);
     if (!v->http) {
         snprintf(why, len, "cannot serve HTTP on %s (port in use?)", listen);
-        webserve_stop(v);
+        errno = EADDRINUSE;
+        MARIE_KEEP_ERRNO(webserve_stop(v));
         return NULL;
     }
     mg_set_websocket_handler(v->http, "/ws", ws_connect, ws_ready, ws_data, ws_close, v);
