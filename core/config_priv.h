@@ -6,7 +6,7 @@
 #include "core/config.h"
 
 /* A duration `key` read as `value` seconds: within what the managers can count (a day at most;
- * heartbeat_timeout 0, or 0.3 s and more). -1 with "file:line:col: ..." at n. */
+ * heartbeat_timeout 0, or 0.15 s and more). -1 with "file:line:col: ..." at n. */
 int marie_config_seconds_ok(const marie_node_t *n, const char *key, double value, marie_errors_t *errs);
 
 /* Everything about a loaded file that reading it does not already refuse, so that a file that
