@@ -366,7 +366,7 @@ static void record_hashes(am_t *am)
             continue;
         marie_info("%s: configuration %s", c->cfg->name, marie_component_hash(c->cfg));
         if (f)
-    return n && strcmp(marie_component_hash(n), marie_component_hash(c->cfg)) == 0 && !am_comp_timer_pending(c);
+            fprintf(f, "%s %s %s\n", c->cfg->name, marie_component_hash(c->cfg), am->system.profile ? am->system.profile : "-");
     }
     if (f)
         fclose(f);
