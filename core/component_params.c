@@ -303,7 +303,7 @@ void marie_spec_resolved(const marie_component_t *c, FILE *out)
     marie_spec_json_str(out, c->sys ? c->sys->profile : NULL);
     fprintf(out, ", \"heartbeat_timeout_s\": %.17g, \"spin_us\": %d, \"hold\": %s, \"hash\": ",
             c->cfg ? c->cfg->heartbeat_timeout_s : 0.0, c->cfg ? c->cfg->sched.spin_us : 0, c->hold ? "true" : "false");
-    marie_spec_json_str(out, c->cfg ? c->cfg->hash : NULL);
+    marie_spec_json_str(out, c->cfg ? marie_component_hash(c->cfg) : NULL);
     fputs(", \"types\": [", out);
     for (size_t i = 0; c->sys && i < c->sys->ntypes; i++) {
         char path[4096];

@@ -1,6 +1,6 @@
 /* config: the system file model over the YAML tree: loading a file, its profiles and their
- * params, the lookups. A component's own keys are read in config_component.c, its hash in
- * config_hash.c, the checks of a loaded file in config_check.c. */
+ * params, the lookups. A component's own keys are read in config_component.c, its hash (made
+ * when asked) in config_hash.c, the checks of a loaded file in config_check.c. */
 #include "core/clear.h"
 #include "core/config.h"
 #include "core/config_priv.h"
@@ -379,7 +379,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
                 rc = -1;
             }
         }
-        marie_config_hash(sys, c);
+        c->sys_ = sys;
     }
     if (rc == 0 && marie_config_check(sys, errs) < 0)
         rc = -1;

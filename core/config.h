@@ -134,8 +134,8 @@ typedef struct {
     bool sched_sim;             /* the file asks for a sched that the simulator's clock leaves out */
     marie_limits_cfg_t limits;  /* resources it may use */
     char **depends; size_t ndepends;
-    char hash[65];              /* sha256 hex of the effective configuration (every setting that
-                                   changes how it runs, inherited ones resolved) */
+    char hash_[65];             /* private: marie_component_hash()'s text, "" until asked */
+    const struct marie_system *sys_; /* private: the system it belongs to */
     const marie_node_t *node;   /* its entry in the file */
     const char *file; int line, col;
 } marie_component_cfg_t;
@@ -181,6 +181,12 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
                                        marie_errors_t *errs);
 void marie_system_destroy(marie_system_t *sys);
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
+
+/* The sha256 (64 hex digits) of a component's effective configuration: every setting that
+ * changes how it runs, inherited ones (defaults, the system's clock, bus, transports and key)
+ * resolved. Made when first asked (the managers ask; a component reading its own entry never
+ * does) and kept with the entry. */
+const char *marie_component_hash(const marie_component_cfg_t *c);
 /* Register the users' types named by MARIE_TYPES_PATH and the file's `types:` (core/typeinfo.h,
  * marie_types_load); sys may be NULL (the environment only). 0, or -1 with file:line:col in errs. */
 int marie_system_load_types(const marie_system_t *sys, marie_errors_t *errs);

@@ -12,7 +12,7 @@
 #define MAX_NAME 63         /* a component, group or host name */
 #define MAX_CHANNEL 63      /* LCM's limit (LCM_MAX_CHANNEL_NAME_LENGTH): a longer one is never sent */
 #define MAX_SECONDS 86400.0 /* a duration the managers count in microseconds without overflow */
-#define MIN_HEARTBEAT_S 0.3 /* the shortest heartbeat_timeout measured to hold (docs/system-file.md) */
+#define MIN_HEARTBEAT_S 0.15 /* the shortest heartbeat_timeout measured to hold (docs/system-file.md) */
 
 int marie_config_seconds_ok(const marie_node_t *n, const char *key, double v, marie_errors_t *errs)
 {
@@ -20,7 +20,7 @@ int marie_config_seconds_ok(const marie_node_t *n, const char *key, double v, ma
     if (v >= 0 && v <= MAX_SECONDS && (!hb || v == 0 || v >= MIN_HEARTBEAT_S))
         return 0;
     if (hb)
-        marie_node_error(errs, n, "heartbeat_timeout: 0 (no heartbeat) or %.1f to %.0f s, not %g", MIN_HEARTBEAT_S,
+        marie_node_error(errs, n, "heartbeat_timeout: 0 (no heartbeat) or %g to %.0f s, not %g", MIN_HEARTBEAT_S,
                          MAX_SECONDS, v);
     else
         marie_node_error(errs, n, "%s: 0 to %.0f s (a day), not %g", key, MAX_SECONDS, v);

@@ -1,9 +1,10 @@
 /* config_hash: a component's effective configuration (every setting that changes how it runs,
- * inherited ones resolved), its hash, and the fields in which two of them differ. */
+ * inherited ones resolved), its hash and the fields in which two entries differ. */
 #include "core/clear.h"
 #include "core/config.h"
 #include "core/config_priv.h"
 
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -119,7 +120,7 @@ static char *effective_fields(const marie_system_t *sys, const marie_component_c
     return buf;
 }
 
-void marie_config_hash(const marie_system_t *sys, marie_component_cfg_t *c)
+static void hash_component(const marie_system_t *sys, marie_component_cfg_t *c)
 {
     size_t off[NFIELDS];
     char *buf = effective_fields(sys, c, off);
@@ -138,7 +139,17 @@ void marie_config_hash(const marie_system_t *sys, marie_component_cfg_t *c)
     crypto_hash_sha256_final(&st, h);
     free(buf);
     for (size_t i = 0; i < sizeof h; i++)
-        snprintf(c->hash + 2 * i, 3, "%02x", h[i]);
+        snprintf(c->hash_ + 2 * i, 3, "%02x", h[i]);
+}
+
+/* Hashing every entry took half of a component's start-up (its file read for its own entry):
+ * the hash is made on demand, once. The entry is the system's, which a reader holds as const;
+ * the hash is a cache of what the entry says, so it is filled in place. */
+const char *marie_component_hash(const marie_component_cfg_t *c)
+{
+    if (!c->hash_[0])
+        hash_component(c->sys_, (marie_component_cfg_t *)c);
+    return c->hash_;
 }
 
 char *marie_component_differences(const marie_system_t *sa, const marie_component_cfg_t *a,

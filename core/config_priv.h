@@ -7,7 +7,7 @@
 #include "core/config.h"
 
 /* A duration `key` read as `value` seconds: within what the managers can count (a day at most;
- * heartbeat_timeout 0, or 0.3 s and more). -1 with "file:line:col: ..." at n. */
+ * heartbeat_timeout 0, or 0.15 s and more). -1 with "file:line:col: ..." at n. */
 int marie_config_seconds_ok(const marie_node_t *n, const char *key, double value, marie_errors_t *errs);
 
 /* Everything about a loaded file that reading it does not already refuse, so that a file that
@@ -29,8 +29,5 @@ int marie_config_read_restart(const marie_node_t *n, marie_restart_cfg_t *r, mar
 int marie_config_read_component(const marie_node_t *n, const marie_system_t *sys,
                                 const marie_restart_cfg_t *defaults, marie_component_cfg_t *c,
                                 marie_errors_t *errs);
-
-/* c->hash: the SHA-256 of c's effective configuration within sys. */
-void marie_config_hash(const marie_system_t *sys, marie_component_cfg_t *c);
 
 #endif

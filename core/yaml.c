@@ -187,7 +187,9 @@ static int fy_get(const char *name, marie_errors_t *errs)
 {
     pthread_mutex_lock(&fy_lock);
     if (!fy_lib) {
-        void *lib = dlopen(FY_SONAME, RTLD_NOW | RTLD_LOCAL);
+        /* Lazily bound: libfyaml calls its own 650 functions through its PLT, and binding them
+         * all at open took a tenth of a component's start-up; a parse binds the few it calls. */
+        void *lib = dlopen(FY_SONAME, RTLD_LAZY | RTLD_LOCAL);
         bool ok = lib != NULL;
 #define FY_LOAD(f) ok = ok && (*(void **)&fy.f = dlsym(lib, "fy_" #f)) != NULL;
         FY_FUNCS(FY_LOAD)

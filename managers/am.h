@@ -81,6 +81,7 @@ typedef struct {
     int log_keep;
     bool given_status_hz, given_log_rate, given_log_max, given_log_keep;
     int64_t order_lifetime_us, max_skew_us;    /* the replay table's window */
+    int rt_priority;            /* --rt-priority: SCHED_FIFO priority, 0 for the normal policy */
 } am_opts_t;
 
 /* am.c: the command line and start-up; read by every file, written by none once the loop runs. */
@@ -127,6 +128,7 @@ typedef struct {
     double hz;
     marie_timer_t *timer;
     bool pending;               /* a status soon (am_status_changed) */
+    bool settled;               /* the last status published showed no component between states */
     int64_t start_mono, seq, event_seq;
     marie_cpu_sample_t self_cpu;
     float self_cpu_pct;

@@ -82,10 +82,35 @@ void am_on_status_request(am_t *am, const marie_am_status_request_t *rq)
 }
 
 static void on_status_soon(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user);
+static bool am_settled(const am_t *am);
 
+/* No component between two states (waiting, starting, stopping, in backoff): what `marie up`,
+ * `marie down` and a restart wait for. */
+static bool am_settled(const am_t *am)
+{
+    for (size_t i = 0; i < am_ncomps(am); i++) {
+        const comp_t *c = am_comp_at((am_t *)am, i);
+        marie_sv_state_t st = c->sv.st;
+        if (c->sv.local && (st == MARIE_SV_WAITING || st == MARIE_SV_STARTING ||
+                                      st == MARIE_SV_STOPPING || st == MARIE_SV_BACKOFF))
+            return false;
+    }
+    return true;
+}
+
+/* Changes are gathered for 20 ms (a bring-up of 45 components is 135 of them), but a host
+ * that has just settled says so at once: waiting out the window was a fifth of a one-host
+ * bring-up. Only the change into a settled state skips the window, so a flood of changes
+ * (states shown in the heartbeats) still costs one status per window. */
 void am_status_changed(am_t *am)
 {
-    if (am->status.pending || !am->env.loop)
+    if (!am->env.loop)
+        return;
+    if (!am->status.settled && am_settled(am)) {
+        am_publish_status(am, false);
+        return;
+    }
+    if (am->status.pending)
         return;
     am->status.pending = true;
     marie_loop_add_oneshot(am->env.loop, 20000, on_status_soon, am);
@@ -130,7 +155,7 @@ void am_publish_status(am_t *am, bool sample)
         s->cpu = c->sv.pid > 0 ? c->use.cpu : 0;
         s->rss = c->sv.pid > 0 ? c->use.rss : 0;
         s->heartbeat_age_us = c->sv.pid > 0 && c->sv.hb_us ? now - c->sv.hb_us : -1;
-        s->config_hash = (char *)c->cfg->hash;
+        s->config_hash = (char *)marie_component_hash(c->cfg);
         s->log_drops = am_output_drops(c);
         s->limits = (char *)am_limits_text(c, limits[n - 1], sizeof limits[0]);
         s->limit_breaches = am_limits_breaches(c);
@@ -166,6 +191,7 @@ void am_publish_status(am_t *am, bool sample)
     st.components = cs;
     am_balance_status(am, &st, now);
     marie_bus_publish_msg(am->env.lcm, MARIE_CH_AM_STATUS, &marie_type_am_status_t, &st);
+    am->status.settled = am_settled(am);
 out:
     free(limits);
     free(cs);

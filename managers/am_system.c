@@ -207,7 +207,7 @@ const marie_system_t *am_loading_system(const am_loading_t *l) { return l->sys; 
 bool am_comp_carried(const comp_t *c, const marie_system_t *next)
 {
     const marie_component_cfg_t *n = marie_system_component(next, c->cfg->name);
-    return n && strcmp(n->hash, c->cfg->hash) == 0 && !am_comp_timer_pending(c);
+    return n && strcmp(marie_component_hash(n), marie_component_hash(c->cfg)) == 0 && !am_comp_timer_pending(c);
 }
 
 void am_loading_free(am_loading_t *l)
@@ -364,9 +364,9 @@ static void record_hashes(am_t *am)
         const comp_t *c = &am->system.comps[i];
         if (!c->sv.local)
             continue;
-        marie_info("%s: configuration %s", c->cfg->name, c->cfg->hash);
+        marie_info("%s: configuration %s", c->cfg->name, marie_component_hash(c->cfg));
         if (f)
-            fprintf(f, "%s %s %s\n", c->cfg->name, c->cfg->hash, am->system.profile ? am->system.profile : "-");
+            fprintf(f, "%s %s %s\n", c->cfg->name, marie_component_hash(c->cfg), am->system.profile ? am->system.profile : "-");
     }
     if (f)
         fclose(f);

@@ -275,17 +275,17 @@ int cmd_hash(cli_t *cli, int argc, char **argv)
     for (size_t i = 0; i < sys[0]->ncomponents; i++) {
         const marie_component_cfg_t *a = &sys[0]->components[i];
         const marie_component_cfg_t *b = n == 2 ? marie_system_component(sys[1], a->name) : NULL;
-        bool same = b && strcmp(a->hash, b->hash) == 0;
+        bool same = b && strcmp(marie_component_hash(a), marie_component_hash(b)) == 0;
         char *fields = b && !same ? marie_component_differences(sys[0], a, sys[1], b) : NULL;
         differ += b && !same;
-        hash_row(cli, &first, a->name, n == 1 ? "" : !b ? "only-in-a" : same ? "same" : "differs", a->hash,
-                 b ? b->hash : NULL, fields, n);
+        hash_row(cli, &first, a->name, n == 1 ? "" : !b ? "only-in-a" : same ? "same" : "differs", marie_component_hash(a),
+                 b ? marie_component_hash(b) : NULL, fields, n);
         free(fields);
     }
     for (size_t i = 0; n == 2 && i < sys[1]->ncomponents; i++) {
         const marie_component_cfg_t *b = &sys[1]->components[i];
         if (!marie_system_component(sys[0], b->name))
-            hash_row(cli, &first, b->name, "only-in-b", NULL, b->hash, NULL, n);
+            hash_row(cli, &first, b->name, "only-in-b", NULL, marie_component_hash(b), NULL, n);
     }
     if (cli->json)
         printf("],\"differ\":%d}\n", differ);

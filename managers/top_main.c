@@ -131,6 +131,10 @@ static int out_add(app_t *a, size_t *pos, const char *s)
  * with a newline, so the terminal never scrolls; off screen (--once) lines end with '\n'. */
 static void draw(app_t *a)
 {
+    /* stopped by ^Z, or resumed before SIGCONT is read: a frame now would land on the shell's
+     * screen and come back when marie top quits */
+    if (a->interactive && !a->on_screen)
+        return;
     int64_t now = marie_mono_us();
     int need = a->view.height > 0 ? a->view.height : top_frame_lines(a->model, now);
     if (need > a->cap_lines) {

@@ -15,10 +15,12 @@ for b in "$@"; do
     var=BENCH_TIMEOUT_$(printf '%s' "$name" | tr -c 'A-Za-z0-9_' '_')
     limit=$(eval echo "\${$var:-}")
     [ -z "$limit" ] && [ "$name" = bench_eval ] && limit=10800
-    # bench_pipeline compares real-time scheduling with the normal one: its namespace keeps
-    # the caller's user where it may (a user namespace refuses real-time scheduling).
+    # bench_pipeline compares real-time scheduling with the normal one, bench_am runs a manager
+    # at a real-time priority: their namespace keeps the caller's user where it may (a user
+    # namespace refuses real-time scheduling).
     keep=0
     [ "$name" = bench_pipeline ] && keep=1
+    [ "$name" = bench_am ] && keep=1
     if ! B=$B MARIE_NETNS_KEEP_USER=$keep timeout -k 5 "${limit:-${BENCH_TIMEOUT:-600}}" scripts/netns-run "$b" > "$B/bench/logs/$name.tsv" 2> "$B/bench/logs/$name.log"; then
         echo "bench: $name failed (see $B/bench/logs/$name.log)" >&2
         status=1

@@ -9,4 +9,6 @@ INSTALL_EXTRA += install -m 755 $(addprefix $(B)/bin/,$(TOOLS_SCRIPTS)) $(DESTDI
 
 $(eval $(call marie_link,$(B)/tests/bin/xb-samples,tests/tools/xb_samples.c tests/xml_bridge/xb_canon.c $(XB_STRUCTDUMP),$(XB_LIB) -lexpat))
 EXTRA_TARGETS += $(B)/tests/bin/xb-samples
+# marie-record on shm/local channels: a component publishing through the rings
+$(eval $(call marie_test,test_record_shm,tests/tools/test_record_shm.c tests/proc.c))
 ITESTS += tests/tools/test_marie_tools.sh tests/tools/test_run_tests.sh tests/tools/test_record_full_disk.sh

@@ -282,7 +282,7 @@ static void test_scans_read_late_are_stamped_one_period_apart(void **state)
     assert_true(r.stamp[before] > r.stamp[before - 1]);
     for (int i = before + 1; i < r.nstamp; i++) {
         int64_t gap = r.stamp[i] - r.stamp[i - 1];
-        assert_true(gap > 14000 && gap < 26000);
+        assert_true(gap > 10000 && gap < 30000);   /* all at the read would be 0 */
     }
     assert_true(r.stamp[r.nstamp - 1] >= read_at - 20000 && r.stamp[r.nstamp - 1] <= mono_us());
     rig_close(&r);

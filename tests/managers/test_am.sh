@@ -196,7 +196,7 @@ CAP=$(now_us)
 check "an order to capture obeyed" sh -c "$OT -k $T/key -S cap@test -s $CAP ping | grep -q '^ok'"
 A_PID=$(field a pid)
 C_PID=$(field c pid)
-kill -USR1 "$C_PID"          # c hangs at its next tick: its SIGTERM is never acted on
+kill -USR1 "$C_PID"          # c hangs at once: its SIGTERM is never acted on
 sleep 0.5
 kill -9 "$AM_PID"; wait "$AM_PID" 2>/dev/null
 check "components go with their manager" wait_for 5 sh -c "! kill -0 $A_PID 2>/dev/null"

@@ -5,7 +5,9 @@
 # marie-am says), a shell component's own child too, and the manager keeps its own; a manager
 # without the right (no CAP_SYS_NICE, RLIMIT_RTPRIO 0: root in a default container, or a user)
 # and CPUs that do not exist give a warning naming the component and the reason, and the
-# component runs; a bad policy name is refused with file:line:col before anything starts.
+# component runs; a bad policy name is refused with file:line:col before anything starts. The
+# managers run with --rt-priority 10: alpha at SCHED_FIFO 10 while what it starts keeps the
+# scheduling its entry asks for (the normal policy without one), beta refused with a warning.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-sched.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
@@ -54,10 +56,10 @@ components:
     sched: {policy: fifo, priority: 40}
 EOF
 "$M" keygen "$T/key" > /dev/null
-start am "$BIN/marie-am" --host alpha --state-dir "$T/alpha"
+start am "$BIN/marie-am" --host alpha --state-dir "$T/alpha" --rt-priority 10
 # beta lacks the right: no CAP_SYS_NICE, and a real-time priority limit of 0
 start beta prlimit --rtprio=0:0 setpriv --inh-caps=-sys_nice --bounding-set=-sys_nice \
-    "$BIN/marie-am" --host beta --state-dir "$T/beta"
+    "$BIN/marie-am" --host beta --state-dir "$T/beta" --rt-priority 10
 # both managers on the bus (a loaded machine can take a while to start them)
 managers_up() {
     "$M" --json ps --window 0.5 2>/dev/null | python3 -c '
@@ -92,7 +94,7 @@ if chrt -f 1 true 2>/dev/null; then
     kid=$(pgrep -P "$SH" sleep)
     check "a shell component and the program it starts: fifo 41 ($(sched_of "$kid"))" \
         sh -c "[ \"$(sched_of "$SH")\" = '1 41 $ALL' ] && [ \"$(sched_of "$kid")\" = '1 41 $ALL' ]"
-    check "the manager keeps its own scheduling" [ "$(sched_of "$pid_am")" = "0 0 $ALL" ]
+    check "the manager at --rt-priority 10: fifo 10 ($(sched_of "$pid_am"))" [ "$(sched_of "$pid_am")" = "1 10 $ALL" ]
 else
     skip "fifo, rr, plain, shell, manager" "this user may not use real-time scheduling here (chrt -f 1 refused)"
 fi
@@ -101,6 +103,8 @@ check "CPUs that do not exist: a warning naming the component" \
 check "and it runs on the manager's CPUs" is nocpu "0 0 $ALL"
 check "without the right: a warning naming the component and the reason" \
     warned "sched_refused: denied: sched fifo 40: policy refused (Operation not permitted): it runs at the normal policy" "$T/beta.log"
+check "a manager refused --rt-priority says so and runs" \
+    warned "rt-priority 10 refused (Operation not permitted): running at the normal policy" "$T/beta.log"
 check "and it runs, at the normal policy" is denied "0 0 $ALL"
 "$M" down > /dev/null 2>&1
 

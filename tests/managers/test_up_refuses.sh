@@ -35,11 +35,11 @@ one hb_huge <<EOF
   a: {exec: $TC, heartbeat_timeout: 1e300}
 EOF
 check "heartbeat_timeout: 1e300 (overflowed: not_responding after 0.04 s)" \
-    case_refused hb_huge 4 "heartbeat_timeout: 0 (no heartbeat) or 0.3 to 86400 s, not 1e+300"
+    case_refused hb_huge 4 "heartbeat_timeout: 0 (no heartbeat) or 0.15 to 86400 s, not 1e+300"
 one hb_tiny <<EOF
   a: {exec: $TC, heartbeat_timeout: 1e-6}
 EOF
-check "heartbeat_timeout: 1e-6" case_refused hb_tiny 4 "heartbeat_timeout: 0 (no heartbeat) or 0.3 to 86400 s"
+check "heartbeat_timeout: 1e-6" case_refused hb_tiny 4 "heartbeat_timeout: 0 (no heartbeat) or 0.15 to 86400 s"
 one stop_huge <<EOF
   a: {exec: $TC, stop_timeout: 1e300, restart: {policy: always, window: 1e300}}
 EOF
