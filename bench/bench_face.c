@@ -25,7 +25,7 @@
 #include "lcmtypes/marie_types.h"
 
 #define ROUNDS 40               /* requests to the mission alone */
-#define TAPS 8                  /* requests that drive the simulated robot */
+#define TAPS 5                  /* requests that drive the simulated robot */
 #define TAP_LIMIT_US 30000000   /* one tap: the robot reaches the previous place, then moves */
 #define MAX_PIDS 12
 #define MAX_CYCLES 4096

@@ -48,7 +48,7 @@
 #include "tests/proc.h"
 
 #define MAXS 4096
-#define ROUNDS 4
+#define ROUNDS 3
 #define PHASE_US 6000000    /* measured per phase */
 #define SETTLE_US 800000    /* from the behaviours' start to the first cycle counted */
 #define BUSY_LOOPS 2

@@ -28,6 +28,8 @@
 #include "managers/sdnotify.h"
 #include "core/version.h"
 
+static void am_arm_heartbeat_check(am_t *am);
+
 /* ---------------------------------------------------------------- heartbeats */
 
 static void on_heartbeat(am_t *am, const marie_heartbeat_t *hb)
@@ -58,7 +60,7 @@ static void on_heartbeat_deadline(marie_loop_t *loop, marie_timer_t *t, int64_t 
 
 /* A silent component is caught at its deadline, not at the next 50 ms tick: with a
  * heartbeat_timeout of 0.15 s the tick alone added up to a third to the time to its restart. */
-void am_arm_heartbeat_check(am_t *am)
+static void am_arm_heartbeat_check(am_t *am)
 {
     int64_t deadline = INT64_MAX;
     for (size_t i = 0; i < am_ncomps(am); i++) {

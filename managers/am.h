@@ -202,7 +202,6 @@ void am_stop_all(am_t *am);
 void am_progress_stops(am_t *am);
 void am_check_heartbeats(am_t *am);
 /* Arms the check of the earliest heartbeat deadline (am.c). */
-void am_arm_heartbeat_check(am_t *am);
 bool am_quitting(const am_t *am);              /* am.c: a signal asked it to stop and exit */
 void am_reap_children(am_t *am);
 
@@ -226,7 +225,6 @@ void am_output_free(comp_t *c);
  * folder its relative paths (exec, types) start from. */
 typedef struct am_loading am_loading_t;
 const marie_system_t *am_loading_system(const am_loading_t *l);
-am_loading_t *am_loading_open(const char *path, const char *origin, const char *profile, marie_errors_t *errs);
 /* An up order's system text: the sender's file (sender_path) where this host reads the same
  * text, else a copy in the state directory, opened. */
 am_loading_t *am_loading_sent(am_t *am, const char *text, const char *sender_path, const char *profile,

@@ -221,7 +221,7 @@ void am_loading_free(am_loading_t *l)
     free(l);
 }
 
-am_loading_t *am_loading_open(const char *path, const char *origin, const char *profile, marie_errors_t *errs)
+static am_loading_t *am_loading_open(const char *path, const char *origin, const char *profile, marie_errors_t *errs)
 {
     am_loading_t *l = calloc(1, sizeof *l);
     if (!l || !(l->path = strdup(path)) || (profile && *profile && !(l->profile = strdup(profile)))) {

@@ -386,7 +386,7 @@ static double host_cores(const bhost_t *h)
     return h->cores_cfg > 0 ? h->cores_cfg : h->ncpu > 0 ? h->ncpu : 1;
 }
 
-double balance_load(const balance_t *b, const char *host, int64_t now_us)
+static double balance_load(const balance_t *b, const char *host, int64_t now_us)
 {
     int i = host_index(b, host);
     if (i < 0)

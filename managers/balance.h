@@ -70,7 +70,6 @@ bool balance_acting(balance_t *b, int64_t now_us);
 /* Where the balancer believes a component is placed (NULL: unknown name). */
 const char *balance_placement(const balance_t *b, const char *component);
 /* A host's load over the window as a fraction of its cores; -1 until the window is covered. */
-double balance_load(const balance_t *b, const char *host, int64_t now_us);
 
 #ifdef __cplusplus
 }

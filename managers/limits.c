@@ -3,12 +3,6 @@
 
 #include <stdio.h>
 
-const char *marie_limit_kind_name(marie_limit_kind_t k)
-{
-    static const char *const names[] = {"none", "memory", "cpu", "nofile"};
-    return names[k];
-}
-
 static marie_limit_kind_t memory(const marie_limits_cfg_t *cfg, bool cgroup, const marie_limit_watch_t *w,
                                  const marie_limit_sample_t *s, char *why, size_t len)
 {

@@ -47,7 +47,6 @@ void marie_limits_start(marie_limit_watch_t *w, const marie_limit_sample_t *s);
 marie_limit_kind_t marie_limits_check(const marie_limits_cfg_t *cfg, bool cgroup, marie_limit_watch_t *w,
                                       const marie_limit_sample_t *s, char *why, size_t len);
 
-const char *marie_limit_kind_name(marie_limit_kind_t k);   /* "memory", "cpu", "nofile" */
 
 #ifdef __cplusplus
 }

@@ -103,7 +103,6 @@ void marie_progcheck_destroy(marie_progcheck_t *p)
     free(p);
 }
 
-int marie_progcheck_described(const marie_progcheck_t *p) { return p ? p->described : 0; }
 
 /* A Python script built on marie's Python package (python/marie): a python #! line, and the
  * package imported at the start of a line. */

@@ -31,7 +31,6 @@ int marie_progcheck_system(marie_progcheck_t *p, const marie_system_t *sys, cons
                            const char *fallback_host, marie_errors_t *errs);
 
 /* How many programs were run with --describe so far (the others came from a cache). */
-int marie_progcheck_described(const marie_progcheck_t *p);
 
 /* $XDG_CACHE_HOME/marie/describe, else $HOME/.cache/marie/describe (created); NULL if neither. */
 char *marie_progcheck_default_cache(void);

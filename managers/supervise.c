@@ -172,7 +172,7 @@ void marie_sv_spawned(marie_sv_t *sv, int pid, int64_t now)
     sv->st = sv->cfg->heartbeat_timeout_s > 0 ? MARIE_SV_STARTING : MARIE_SV_RUNNING;
 }
 
-void marie_sv_describe_exit(int status, char *buf, size_t len)
+static void marie_sv_describe_exit(int status, char *buf, size_t len)
 {
     if (WIFEXITED(status))
         snprintf(buf, len, "exit status %d", WEXITSTATUS(status));

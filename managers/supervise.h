@@ -121,7 +121,6 @@ bool marie_sv_up(const marie_sv_t *sv, int64_t now);
 bool marie_sv_alive(const marie_sv_t *sv, int64_t now);
 
 /* Text for a wait status: "exit status 1", "killed by signal 9 (Killed)". */
-void marie_sv_describe_exit(int status, char *buf, size_t len);
 
 #ifdef __cplusplus
 }

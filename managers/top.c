@@ -54,7 +54,7 @@ int top_sort_parse(const char *name)
     return -1;
 }
 
-const char *top_sort_name(top_sort_t s)
+static const char *top_sort_name(top_sort_t s)
 {
     static const char *const names[] = {"cpu", "mem", "name", "host"};
     return (unsigned)s < 4 ? names[s] : "?";

@@ -23,7 +23,6 @@ extern "C" {
 
 typedef enum { TOP_SORT_CPU = 0, TOP_SORT_MEM, TOP_SORT_NAME, TOP_SORT_HOST } top_sort_t;
 int top_sort_parse(const char *name);           /* "cpu" "mem" "name" "host"; -1 if unknown */
-const char *top_sort_name(top_sort_t s);
 
 /* One component as shown. Unknown numbers are negative. */
 typedef struct {
