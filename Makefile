@@ -177,7 +177,7 @@ test: test-deps
 	@B=$(B) scripts/peer-venv.sh >/dev/null
 	@B=$(B) SAN=$(SAN) scripts/run-tests.sh --jobs $(TEST_JOBS) $(TESTS) -- $(ITESTS) -- $(ALONE_TESTS)
 
-# Long end-to-end runs kept out of make test's 4-5 minutes on two cores (each says why in its module.mk).
+# Long end-to-end runs kept out of make test's 10 minutes on two cores (each says why in its module.mk).
 test-slow: test-deps
 	@$(MAKE) -j$(NPROC) --no-print-directory all
 	@B=$(B) SAN=$(SAN) TEST_TIMEOUT=$${TEST_TIMEOUT:-600} scripts/run-tests.sh $(SLOW_TESTS)
