@@ -222,3 +222,22 @@ bool rig_event(const rig_t *r, const char *kind)
     }
     return false;
 }
+
+void rig_start_localizer(rig_t *r, const char *map, double x, double y, double th)
+{
+    char m[300], lx[64], ly[64], lt[64];
+    snprintf(m, sizeof m, "map=%s", map);
+    snprintf(lx, sizeof lx, "init_x=%g", x), snprintf(ly, sizeof ly, "init_y=%g", y);
+    snprintf(lt, sizeof lt, "init_theta=%g", th);
+    rig_start(r, "localizer", m, lx, ly, lt, "resume_max_age_s=0", NULL);
+}
+
+void rig_start_sim(rig_t *r, const char *world, double x, double y, double th, const char *speed)
+{
+    char w[300], sx[64], sy[64], st[64];
+    snprintf(w, sizeof w, "world=%s", world);
+    snprintf(sx, sizeof sx, "start_x=%g", x), snprintf(sy, sizeof sy, "start_y=%g", y);
+    snprintf(st, sizeof st, "start_theta=%g", th);
+    rig_start(r, "sim", w, "mode=channel", speed ? speed : "speed=4", sx, sy, st, NULL);
+    rig_start(r, "odometry", NULL);
+}

@@ -38,6 +38,11 @@ rig_t *rig_open(const char *name);
 /* Starts $B/bin/marie-PROG --name PROG [--clock sim unless it is the simulator] and the given
  * "key=value" parameters (NULL-terminated). */
 void rig_start(rig_t *r, const char *prog, ...) __attribute__((sentinel));
+/* The localizer on MAP started at (x, y, th), its resume file ignored. */
+void rig_start_localizer(rig_t *r, const char *map, double x, double y, double th);
+/* marie-sim in WORLD (a name under sim/worlds) from (x, y, th) at SPEED ("speed=N"; NULL: 4x),
+ * and the odometry. */
+void rig_start_sim(rig_t *r, const char *world, double x, double y, double th, const char *speed);
 void rig_close(rig_t *r);
 int rig_teardown(void **state);
 

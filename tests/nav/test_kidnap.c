@@ -20,37 +20,13 @@ static int relocalized(const rig_t *r)
     return r->running_again_at && r->pose_utime > r->running_again_at - 1000000 && rig_error(r) < 0.5;
 }
 
-static void start_localizer(rig_t *r, const char *map, double x, double y, double th)
-{
-    char m[300], lx[64], ly[64], lt[64];
-    snprintf(m, sizeof m, "map=%s", map);
-    snprintf(lx, sizeof lx, "init_x=%g", x), snprintf(ly, sizeof ly, "init_y=%g", y);
-    snprintf(lt, sizeof lt, "init_theta=%g", th);
-    rig_start(r, "localizer", m, lx, ly, lt, "resume_max_age_s=0", NULL);
-}
-
-static void start_sim_at(rig_t *r, const char *world, double x, double y, double th, const char *speed)
-{
-    char w[300], sx[64], sy[64], st[64];
-    snprintf(w, sizeof w, "world=%s", world);
-    snprintf(sx, sizeof sx, "start_x=%g", x), snprintf(sy, sizeof sy, "start_y=%g", y);
-    snprintf(st, sizeof st, "start_theta=%g", th);
-    rig_start(r, "sim", w, "mode=channel", speed, sx, sy, st, NULL);
-    rig_start(r, "odometry", NULL);
-}
-
-static void start_sim(rig_t *r, const char *world, double x, double y, double th)
-{
-    start_sim_at(r, world, x, y, th, "speed=4");
-}
-
 /* Turning on the spot (the test turns it): no false alarm in 20 s; carried behind wall A of the
  * test world, it is lost within 20 s and found at its true pose within 90 s. */
 static void kidnapped_robot_is_found_again(void **state)
 {
     rig_t *r = rig_open("test_kidnap_turning");
-    start_sim(r, "test", 3.0, 2.0, 0.0);
-    start_localizer(r, "sim/worlds/test.yaml", 3.0, 2.0, 0.0);
+    rig_start_sim(r, "test", 3.0, 2.0, 0.0, NULL);
+    rig_start_localizer(r, "sim/worlds/test.yaml", 3.0, 2.0, 0.0);
     rig_run(r, 20, true, 0, 0.4, NULL);
     printf("before: %lld poses, error %.2f m, state %d, lost %lld\n", (long long)r->npose, rig_error(r), r->loc_state,
            (long long)r->lost);
@@ -80,8 +56,8 @@ static void kidnapped_robot_is_found_again(void **state)
 static void a_lost_robot_turns_and_finds_itself(void **state)
 {
     rig_t *r = rig_open("test_kidnap_still");
-    start_sim(r, "test", 3.0, 2.0, 0.0);
-    start_localizer(r, "sim/worlds/test.yaml", 3.0, 2.0, 0.0);
+    rig_start_sim(r, "test", 3.0, 2.0, 0.0, NULL);
+    rig_start_localizer(r, "sim/worlds/test.yaml", 3.0, 2.0, 0.0);
     rig_start(r, "behaviours", "input_mode=subscribe", NULL);
     rig_run(r, 5, false, 0, 0, NULL);
     assert_true(rig_error(r) < 0.2);

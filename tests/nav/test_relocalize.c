@@ -25,37 +25,13 @@ static int found_or_asked(const rig_t *r)
     return (r->found_at && r->pose_utime > r->found_at) || r->asked_at;
 }
 
-static void start_localizer(rig_t *r, const char *map, double x, double y, double th)
-{
-    char m[300], lx[64], ly[64], lt[64];
-    snprintf(m, sizeof m, "map=%s", map);
-    snprintf(lx, sizeof lx, "init_x=%g", x), snprintf(ly, sizeof ly, "init_y=%g", y);
-    snprintf(lt, sizeof lt, "init_theta=%g", th);
-    rig_start(r, "localizer", m, lx, ly, lt, "resume_max_age_s=0", NULL);
-}
-
-static void start_sim_at(rig_t *r, const char *world, double x, double y, double th, const char *speed)
-{
-    char w[300], sx[64], sy[64], st[64];
-    snprintf(w, sizeof w, "world=%s", world);
-    snprintf(sx, sizeof sx, "start_x=%g", x), snprintf(sy, sizeof sy, "start_y=%g", y);
-    snprintf(st, sizeof st, "start_theta=%g", th);
-    rig_start(r, "sim", w, "mode=channel", speed, sx, sy, st, NULL);
-    rig_start(r, "odometry", NULL);
-}
-
-static void start_sim(rig_t *r, const char *world, double x, double y, double th)
-{
-    start_sim_at(r, world, x, y, th, "speed=4");
-}
-
 /* Started 7 m off in free space of the office, standing: the scans at start contradict the map,
  * the robot is lost (not `running` 7 m off), turns, and is found where it stands. */
 static void a_wrong_start_is_found_standing(void **state)
 {
     rig_t *r = rig_open("test_relocalize_wrong_start");
-    start_sim(r, "office", 10.0, 15.0, 0.3);
-    start_localizer(r, "sim/worlds/office.yaml", 17.0, 15.0, 0.3);
+    rig_start_sim(r, "office", 10.0, 15.0, 0.3, NULL);
+    rig_start_localizer(r, "sim/worlds/office.yaml", 17.0, 15.0, 0.3);
     rig_start(r, "behaviours", "input_mode=subscribe", NULL);
     rig_run(r, 90, false, 0, 0, relocalized);
     printf("wrong start: lost %lld after %.1f s, found %lld after %.1f s, error %.2f m, state %d\n", (long long)r->lost,
@@ -71,8 +47,8 @@ static void a_wrong_start_is_found_standing(void **state)
 static void a_look_alike_place_is_not_taken(void **state)
 {
     rig_t *r = rig_open("test_relocalize_look_alike");
-    start_sim_at(r, "office", 2.0, 15.0, 0.0, "speed=6");
-    start_localizer(r, "sim/worlds/office.yaml", 2.0, 15.0, 0.0);
+    rig_start_sim(r, "office", 2.0, 15.0, 0.0, "speed=6");
+    rig_start_localizer(r, "sim/worlds/office.yaml", 2.0, 15.0, 0.0);
     rig_start(r, "behaviours", "input_mode=subscribe", NULL);
     rig_run(r, 4, false, 0, 0, NULL);
     rig_teleport(r, 20.0, 3.0, 1.3);
