@@ -49,7 +49,8 @@ struct webserve {
     webserve_cfg_t cfg;
     marie_loop_t *loop;
     struct mg_context *http;
-    int port;
+    char host[64];              /* of the page's address: bind, or 127.0.0.1 for every address */
+    int port;                   /* the port served on (the one picked for port 0) */
     pthread_mutex_t mu;         /* clients list, cmd queue, frames_out */
     client_t *clients;
     int npages;                 /* clients on the list: at most WEBSERVE_MAX_PAGES */
@@ -323,7 +324,8 @@ static void on_wake(marie_loop_t *loop, int fd, short revents, void *user)
     }
 }
 
-webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *why, size_t len)
+webserve_t *webserve_start(marie_loop_t *loop, const char *bind, int port, const webserve_cfg_t *cfg, char *why,
+                           size_t len)
 {
     webserve_t *v = calloc(1, sizeof *v);
     if (!v) {
@@ -331,6 +333,7 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
         return NULL;
     }
     v->cfg = *cfg;
+    snprintf(v->host, sizeof v->host, "%s", strcmp(bind, "0.0.0.0") == 0 ? "127.0.0.1" : bind);
     v->loop = loop;
     v->wake[0] = v->wake[1] = -1;
     pthread_mutex_init(&v->mu, NULL);
@@ -339,10 +342,9 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
         MARIE_KEEP_ERRNO(webserve_stop(v));
         return NULL;
     }
-    char listen[128], port[16], threads[16];
-    snprintf(port, sizeof port, "%d", cfg->port);
+    char listen[128], threads[16];
     snprintf(threads, sizeof threads, "%d", WEBSERVE_MAX_PAGES + WEBSERVE_HTTP_THREADS);
-    snprintf(listen, sizeof listen, "%s:%s", cfg->bind, port);
+    snprintf(listen, sizeof listen, "%s:%d", bind, port);
     const char *opts[] = {
         "listening_ports", listen, "num_threads", threads, "websocket_timeout_ms", "3600000", "tcp_nodelay", "1", NULL,
     };
@@ -360,7 +362,7 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
     mg_set_request_handler(v->http, "/", http_page, v);
     struct mg_server_port sp[4];
     int np = mg_get_server_ports(v->http, 4, sp);
-    v->port = np > 0 ? sp[0].port : cfg->port;
+    v->port = np > 0 ? sp[0].port : port;
     return v;
 }
 
@@ -385,7 +387,7 @@ void webserve_stop(webserve_t *v)
 
 void webserve_url(const webserve_t *w, const char *url_file, char *buf, size_t len)
 {
-    snprintf(buf, len, "http://%s:%d/", strcmp(w->cfg.bind, "0.0.0.0") == 0 ? "127.0.0.1" : w->cfg.bind, w->port);
+    snprintf(buf, len, "http://%s:%d/", w->host, w->port);
     FILE *f = url_file && *url_file ? fopen(url_file, "w") : NULL;
     if (f) {
         fprintf(f, "%s\n", buf);
