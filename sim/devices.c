@@ -252,7 +252,7 @@ bool sim_devices_may_step(sim_devices_t *d)
     note_drivers(d);
     bool master = d->last_rx >= 0 && d->now - d->last_rx > us(d->cfg.driver_lag);
     bool laser = d->cfg.laser_hold ? !d->laser_lag.gone_at && vlms200_host_unread(d->laser) > 0
-                               : lag_over(&d->laser_lag, d->now, us(d->cfg.driver_lag));
+                                   : lag_over(&d->laser_lag, d->now, us(d->cfg.driver_lag));
     bool can = lag_over(&d->can_lag, d->now, us(d->cfg.driver_lag));
     if (us(d->cfg.driver_lag) <= 0 || (!master && !laser && !can)) {
         d->wait_since = 0;
