@@ -7,7 +7,7 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       libeigen3-dev libode-dev libompl-dev libboost-serialization-dev
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev
-      systemd libcmocka-dev iproute2 python3 python3-yaml util-linux procps libcivetweb-dev libjpeg-dev
+      systemd libcmocka-dev iproute2 python3 python3-yaml util-linux procps libcivetweb-dev nettle-dev libjpeg-dev
       libjchart2d-java tmux python3-venv xvfb x11-apps default-jre fonts-dejavu-core fontconfig
       libfftw3-dev libasound2-dev libpocketsphinx-dev pocketsphinx-en-us festival festvox-kallpc16k espeak-ng
       libceres-dev cyclonedds-dev cyclonedds-tools zlib1g-dev"

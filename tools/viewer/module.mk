@@ -1,7 +1,7 @@
 # tools/viewer: marie-viewer-server (bus or log -> web page over WebSocket), the marie-view
 # launcher, the page (served from tools/viewer/www or $(PREFIX)/share/marie/viewer), its tests.
-VIEWER_LIBS := $(PROTO_LIB) $(MAP_LIB) -lcivetweb
-$(eval $(call marie_program,marie-viewer-server,tools/viewer/viewer_main.c tools/viewer/viewer_log.c tools/webcommon/webserve.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(VIEWER_LIBS)))
+VIEWER_LIBS := $(PROTO_LIB) $(MAP_LIB) -lnettle
+$(eval $(call marie_program,marie-viewer-server,tools/viewer/viewer_main.c tools/viewer/viewer_log.c tools/webcommon/webserve.c tools/webcommon/webproto.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(VIEWER_LIBS)))
 
 $(B)/bin/marie-view: tools/viewer/marie-view
 	@mkdir -p $(@D)

@@ -656,7 +656,7 @@ static int init_viewer(marie_component_t *c)
     };
     webserve_cfg_t wc = {
         .bind = viewer_params(c)->bind, .port = (int)viewer_params(c)->http_port, .www = v->www,
-        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v,
+        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v, .comp = c,
     };
     char why[256];
     if (!(v->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
