@@ -24,3 +24,6 @@ ITESTS += tests/viewer/test_viewer_graph.sh
 $(eval $(call marie_bench,bench_viewer,bench/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen
 ITESTS += tests/viewer/test_viewer_landmarks.sh tests/viewer/test_viewer_layout.sh
+$(eval $(call marie_test,test_webserve,tests/viewer/test_webserve.c tools/webcommon/webserve.c tools/webcommon/webproto.c tools/webcommon/vjson.c,$(PROTO_LIB) -lnettle))
+$(eval $(call marie_fuzz,webproto,tests/viewer/fuzz_webproto.c tools/webcommon/webproto.c,-lnettle))
+ITESTS += tests/viewer/test_viewer_stall.sh

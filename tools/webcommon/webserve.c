@@ -598,6 +598,23 @@ static void client_new(webserve_t *w, int fd, const struct sockaddr_storage *sa,
     setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
 }
 
+/* At the bound, the connection that has waited longest without a whole request makes room
+ * (pages are never let go so), so half-open requests cannot keep the pages' files from a browser. */
+static bool evict_idle(webserve_t *w)
+{
+    client_t *oldest = NULL;
+    for (client_t *cl = w->clients; cl; cl = cl->next)
+        if (!cl->dead && !cl->page && !cl->nq && (!oldest || cl->since < oldest->since))
+            oldest = cl;
+    if (!oldest)
+        return false;
+    w->st.refused++;
+    marie_warn_ratelimited(10, "%s: %d connections open: the longest idle (%s) closed", w->cfg.name,
+                           WEBSERVE_MAX_CONNS, oldest->addr);
+    client_kill(oldest);
+    return true;
+}
+
 static void on_listen(marie_loop_t *loop, int fd, short revents, void *user)
 {
     webserve_t *w = user;
@@ -610,7 +627,7 @@ static void on_listen(marie_loop_t *loop, int fd, short revents, void *user)
                 marie_warn_ratelimited(10, "%s: accept: %s", w->cfg.name, strerror(errno));
             return;
         }
-        if (w->st.conns >= WEBSERVE_MAX_CONNS) {
+        if (w->st.conns >= WEBSERVE_MAX_CONNS && !evict_idle(w)) {
             w->st.refused++;
             marie_warn_ratelimited(10, "%s: %d connections open already: another one refused", w->cfg.name,
                                    WEBSERVE_MAX_CONNS);
