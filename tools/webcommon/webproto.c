@@ -6,9 +6,9 @@
 #include <string.h>
 #include <strings.h>
 
-#include <nettle/base64.h>
 #include <nettle/sha1.h>
 
+#include "core/base64.h"
 #include "core/err.h"
 
 typedef struct {
@@ -226,8 +226,7 @@ int webreq_parse(webreq_t *r, const char *buf, size_t len, int *status, const ch
 int webws_accept(const char *key, char out[29])
 {
     static const char guid[] = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11";
-    static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    if (strlen(key) != 24 || strcmp(key + 22, "==") != 0 || strspn(key, b64) != 22)
+    if (strlen(key) != 24 || strcspn(key, " \t\r\n") != 24 || marie_base64_decoded_len(key, 24) != 16)
         return marie_fail(EINVAL);
     struct sha1_ctx c;
     uint8_t digest[SHA1_DIGEST_SIZE];
@@ -235,7 +234,7 @@ int webws_accept(const char *key, char out[29])
     sha1_update(&c, 24, (const uint8_t *)key);
     sha1_update(&c, sizeof guid - 1, (const uint8_t *)guid);
     sha1_digest(&c, sizeof digest, digest);
-    base64_encode_raw(out, sizeof digest, digest);
+    marie_base64_encode(out, digest, sizeof digest);
     out[28] = 0;
     return 0;
 }
