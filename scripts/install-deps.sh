@@ -14,6 +14,8 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
 # (audio: FFTW for SRP-PHAT, ALSA for the array driver, PocketSphinx and its US English model
 # for marie-asr, Festival and its US English voice for marie-tts and the simulator's phrases
 # (festvox-kallpc16k: recommends are not installed), espeak-ng a second voice.)
+# (nettle-dev: SHA-1 for the web pages' WebSocket handshake, tools/webcommon; libcivetweb-dev:
+# the WebSocket client of bench_viewer and bench_face.)
 # (libceres-dev: the mapper's pose graph optimizer, adapters/mapper; zlib1g-dev: marie log import
 # reads gzipped CARMEN logs.)
 # (cyclonedds-dev: marie-ros2 speaks ROS 2 on Cyclone DDS; cyclonedds-tools has idlc, which

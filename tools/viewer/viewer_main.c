@@ -1,5 +1,5 @@
 /* marie-viewer-server: follows the bus or plays an LCM log, and streams what the robot saw and
- * decided to a web page over WebSocket (civetweb), with signed manager orders as controls. */
+ * decided to a web page over WebSocket (tools/webcommon), with signed manager orders as controls. */
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
