@@ -36,7 +36,7 @@ typedef struct client {
     struct client *next;
     webserve_t *w;
     int fd, id;                 /* id: -1 until the connection is a page */
-    bool page, dead, closing, lingering;
+    bool page, counted, dead, closing, lingering;    /* counted: one of st.pages */
     short events;               /* asked of the loop */
     char addr[48];              /* the client's address, "127.0.0.1" */
     marie_buf_t in;             /* read and not yet used */
@@ -100,6 +100,14 @@ static void bad(client_t *cl, const char *what)
         marie_warn_ratelimited(10, "%s: %s from %s", w->cfg.name, what, cl->addr);
 }
 
+/* A page stops counting against WEBSERVE_MAX_PAGES once it closes, not when its socket does. */
+static void page_gone(client_t *cl)
+{
+    if (cl->counted)
+        cl->w->st.pages--;
+    cl->counted = false;
+}
+
 static void client_kill(client_t *cl)
 {
     if (cl->dead)
@@ -107,8 +115,7 @@ static void client_kill(client_t *cl)
     cl->dead = true;
     marie_loop_remove_fd(cl->w->loop, cl->fd);
     close(cl->fd);
-    if (cl->page)
-        cl->w->st.pages--;
+    page_gone(cl);
     cl->w->st.conns--;
     for (size_t i = 0; i < cl->nq; i++)
         frame_unref(cl->q[i]);
@@ -369,7 +376,7 @@ static void ws_upgrade(client_t *cl, const webreq_t *r)
     int hl = snprintf(head, sizeof head,
                       "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                       "Sec-WebSocket-Accept: %s\r\n\r\n", accept);
-    cl->page = true;
+    cl->page = cl->counted = true;
     cl->id = w->next_id++;
     w->st.pages++;
     cl->in.max = MSG_MAX + 14;                  /* a whole frame, its header included */
@@ -435,6 +442,7 @@ static void ws_close(client_t *cl, uint16_t code, const char *why)
     size_t n = strlen(why) < sizeof body - 2 ? strlen(why) : sizeof body - 2;
     memcpy(body + 2, why, n);
     push_owned(cl, ws_frame(WEBWS_CLOSE, body, n + 2, false));
+    page_gone(cl);
     cl->closing = true;
     if (!cl->dead && !cl->nq)
         linger(cl);
