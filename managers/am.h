@@ -112,6 +112,7 @@ typedef struct {
 typedef struct {
     marie_system_t *sys;
     char hash[65];
+    uint64_t text_hash;         /* marie_text_hash of the file, for MARIE_SYSTEM_ENTRY */
     char *path;                 /* path given to components as MARIE_SYSTEM */
     char *profile;
     bool up;
@@ -246,6 +247,7 @@ size_t am_ncomps(const am_t *am);
 comp_t *am_comp_at(const am_t *am, size_t i);
 const char *am_system_hash(const am_t *am);    /* "" without a system */
 const char *am_system_path(const am_t *am);
+uint64_t am_system_text_hash(const am_t *am);     /* marie_text_hash of its text */
 const char *am_profile(const am_t *am);        /* NULL: none */
 bool am_is_up(const am_t *am);
 void am_down(am_t *am);                        /* a down order: not up, across restarts too */

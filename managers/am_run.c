@@ -77,7 +77,7 @@ static bool env_dropped(const char *kv)
     static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
                                        "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
                                        "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
-                                       "MARIE_STATE_DIR=", "MARIE_KEY=", "MARIE_SYSTEM_ORIGIN=", NULL};
+                                       "MARIE_STATE_DIR=", "MARIE_KEY=", "MARIE_SYSTEM_ORIGIN=", "MARIE_SYSTEM_ENTRY=", NULL};
     for (int i = 0; drop[i]; i++)
         if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
             return true;
@@ -104,7 +104,7 @@ static char **child_env(comp_t *c, size_t *nep)
     size_t nenv = 0;
     while (environ[nenv])
         nenv++;
-    envp = calloc(nenv + cfg->nenv + 11, sizeof *envp);
+    envp = calloc(nenv + cfg->nenv + 12, sizeof *envp);
     if (!envp)
         return NULL;
     for (size_t i = 0; i < nenv; i++)
@@ -124,6 +124,11 @@ static char **child_env(comp_t *c, size_t *nep)
     if (am_system_origin(am) && asprintf(&envp[ne++], "MARIE_SYSTEM_ORIGIN=%s", am_system_origin(am)) < 0)
         goto fail;
     if (am_profile(am) && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am_profile(am)) < 0)
+        goto fail;
+    /* which lines of the file are its entry: it need not parse the others */
+    char spec[96];
+    if (marie_system_entry_spec(am_system(am), cfg->name, am_system_text_hash(am), spec, sizeof spec) == 0 &&
+        asprintf(&envp[ne++], "MARIE_SYSTEM_ENTRY=%s", spec) < 0)
         goto fail;
     for (size_t i = 0; i < cfg->nenv; i++)
         envp[ne++] = strdup(cfg->env[i]);
