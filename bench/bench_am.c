@@ -16,6 +16,7 @@
 
 #include "bench/bench.h"
 #include "core/component.h"
+#include "core/file.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
@@ -391,6 +392,73 @@ static double first_to_last_spawn(const char *log)
     return n >= 2 ? (double)(last - first) : -1;
 }
 
+/* One start of a component of the 45-component file (c17, marie-test-comp), from before the
+ * fork to its on_start: ms, -1 on failure. spec NULL: it reads the whole file, as before
+ * marie-am passed MARIE_SYSTEM_ENTRY. */
+static double one_start(const char *sys, const char *spec, const char *trace)
+{
+    char exe[4200];
+    snprintf(exe, sizeof exe, "%s/tests/bin/marie-test-comp", bin);
+    unlink(trace);
+    int64_t t0 = marie_mono_us();
+    pid_t pid = fork();
+    if (pid == 0) {
+        setenv("MARIE_SYSTEM", sys, 1);
+        setenv("MARIE_NAME", "c17", 1);
+        setenv("MARIE_HOST", "h1", 1);
+        setenv("MARIE_STATE_DIR", dir, 1);
+        setenv("MARIE_TEST_TRACE", trace, 1);
+        if (spec)
+            setenv("MARIE_SYSTEM_ENTRY", spec, 1);
+        else
+            unsetenv("MARIE_SYSTEM_ENTRY");
+        execl(exe, exe, (char *)NULL);
+        _exit(127);
+    }
+    int64_t t = 0;
+    int p = 0;
+    for (int64_t end = t0 + 5000000; marie_mono_us() < end && last_trace(trace, "c17", "running", &t, &p) != 0;)
+        usleep(500);
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+    return p == pid ? (double)(t - t0) / 1000.0 : -1;
+}
+
+/* A component's start reading its own entry against reading the whole 45-component file,
+ * alternating, in the same run (the ratio is the figure; the times follow the load). */
+static void bench_component_start(const char *sys)
+{
+    marie_errors_t errs = {0};
+    marie_system_t *s = marie_system_load(sys, NULL, &errs);
+    size_t len;
+    char *text = marie_file_read(sys, 1 << 20, &len), spec[96], trace[128];
+    snprintf(trace, sizeof trace, "%s/trace-start", dir);
+    if (!s || !text || marie_system_entry_spec(s, "c17", marie_text_hash(text, len), spec, sizeof spec) < 0) {
+        fprintf(stderr, "bench_am: no entry spec for the 45-component file\n");
+        marie_errors_print(&errs, stderr);
+        goto out;
+    }
+    enum { RUNS = 20 };
+    double own[RUNS], whole[RUNS];
+    int n = 0;
+    for (int i = 0; i < RUNS; i++) {
+        double a = one_start(sys, NULL, trace), b = one_start(sys, spec, trace);
+        if (a > 0 && b > 0) {
+            whole[n] = a;
+            own[n++] = b;
+        }
+    }
+    if (n > 0) {
+        double w = pct(whole, n, 0.5), o = pct(own, n, 0.5);
+        bench_row("bench_am", "component_start_p50_45_component_file", o, "ms", w);
+        fprintf(stderr, "bench_am: one start, own entry %.2f ms, whole file %.2f ms (medians of %d)\n", o, w, n);
+    }
+out:
+    marie_errors_clear(&errs);
+    marie_system_destroy(s);
+    free(text);
+}
+
 static void bench_bringup_and_idle(void)
 {
     char sys[128], state[128], args[256];
@@ -426,6 +494,7 @@ static void bench_bringup_and_idle(void)
      * debug log times the spawns. */
     snprintf(sys, sizeof sys, "%s/one45.yaml", dir);
     write_45(sys, 1);
+    bench_component_start(sys);
     char log[160];
     snprintf(log, sizeof log, "%s/h1.log", dir);
     snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
