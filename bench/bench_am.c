@@ -328,6 +328,8 @@ static void bench_fast_restart(int rt)
         }
         if (pid2 != pid && t_exec > t_hang)
             lat[n++] = (double)(t_exec - t_hang) / 1000.0;
+        fprintf(stderr, "bench_am: hang of pid %d at %lld: replaced %.1f ms after\n", pid, (long long)t_hang,
+                n ? lat[n - 1] : -1.0);
         for (int64_t end = marie_mono_us() + 3000000; marie_mono_us() < end;)     /* the new one runs */
             if (last_trace(trace, "victim", "running", &t_run, &pid2) == 0 && pid2 != pid)
                 break;
@@ -573,6 +575,10 @@ int main(void)
     }
     if (!only || strcmp(only, "bringup") == 0)
         bench_bringup_and_idle();
+    if (getenv("BENCH_AM_KEEP")) {       /* the managers' logs and traces, to read */
+        fprintf(stderr, "bench_am: kept %s\n", dir);
+        return 0;
+    }
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     return system(cmd) == 0 ? 0 : 1;

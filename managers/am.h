@@ -59,6 +59,8 @@ struct comp {
     char host[128];             /* effective host (a move changes it) */
     marie_timer_t *timer;       /* am_run.c: backoff or kill timer, as the state machine asks */
     int64_t start_ticks;        /* am_system.c: /proc start time, with pid names the process */
+    bool boosted;               /* am_run.c: started at the manager's real-time priority, until
+                                 * its first heartbeat (am_comp_unboost) */
     am_usage_t use;             /* am_status.c */
     am_output_t out;            /* am_output.c */
     struct {
@@ -190,6 +192,9 @@ void am_status_usage_reset(comp_t *c);            /* a new process: no sample ye
 
 /* am_run.c: the state machine's actions carried out */
 comp_t *am_comp_find(am_t *am, const char *name);
+/* A component started at the manager's real-time priority (--rt-priority) goes back to the
+ * normal policy: at its first heartbeat, or when its process ends. */
+void am_comp_unboost(comp_t *c);
 bool am_comp_matches(const comp_t *c, const char *target);
 /* Do what the state machine asked after an event that found the component in `before`. */
 void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *act);

@@ -1,11 +1,14 @@
 /* marie-am's hands: spawns components (their output goes to am_output.c), and carries out what
  * the supervision state machine (supervise.c) decides: signals, timers, respawns. */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -90,6 +93,67 @@ static bool env_dropped(const char *kv)
 static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
 {
     return marie_am_resolve_exec(am->env.self_dir, cfg->file, cfg->exec);
+}
+
+/* ---------------------------------------------------------------- the start at the manager's priority */
+
+/* A manager at a real-time priority starts a component with a short heartbeat_timeout at that
+ * priority less one (the manager's own wake-ups come first), and puts it back to the normal
+ * policy at its first heartbeat. Born at the normal policy, the new process waited for a CPU
+ * beside busy loops from its clone to its main and its first heartbeat: 60-90 ms of a restart
+ * whose floor is the timeout and the stop timeout (docs/managers.md, "Not responding"). Not for
+ * a component whose sched: asks for a policy of its own, nor a shell's (its children are not
+ * its threads), nor one with a long timeout (nothing to win, and it must not hold a CPU long). */
+#define BOOST_MAX_TIMEOUT_S 4.0
+
+static int boost_priority(const comp_t *c)
+{
+    const marie_component_cfg_t *cfg = c->cfg;
+    struct sched_param p;
+    if (cfg->shell || cfg->sched.policy != MARIE_SCHED_OTHER || cfg->heartbeat_timeout_s <= 0 ||
+        cfg->heartbeat_timeout_s >= BOOST_MAX_TIMEOUT_S || (sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) != SCHED_FIFO ||
+        sched_getparam(0, &p) < 0)
+        return 0;
+    return p.sched_priority > 1 ? p.sched_priority - 1 : 1;
+}
+
+/* Every thread of process pid (those it started while boosted have its policy too) to policy
+ * at prio; back to SCHED_OTHER at the manager's niceness or 0, as SCHED_RESET_ON_FORK makes it. */
+static void set_tasks_policy(pid_t pid, int policy, int prio)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/task", (int)pid);
+    DIR *d = pid > 0 ? opendir(path) : NULL;
+    struct sched_param p = {.sched_priority = prio};
+    errno = 0;
+    int nice = getpriority(PRIO_PROCESS, 0);
+    for (struct dirent *e; d && (e = readdir(d));) {
+        pid_t tid = (pid_t)atoi(e->d_name);
+        if (tid > 0 && sched_setscheduler(tid, policy, &p) == 0 && policy == SCHED_OTHER)
+            setpriority(PRIO_PROCESS, (id_t)tid, nice > 0 ? nice : 0);
+    }
+    if (d)
+        closedir(d);
+}
+
+void am_comp_unboost(comp_t *c)
+{
+    if (!c->boosted)
+        return;
+    c->boosted = false;
+    set_tasks_policy(c->sv.pid, SCHED_OTHER, 0);
+}
+
+/* A process killed at the normal policy waits for a CPU to die (the kernel ends it in its own
+ * context): beside busy loops its exit, and so the respawn, came 30-50 ms after the SIGKILL. A
+ * manager at a real-time priority gives it that priority less one for its last moment. */
+static void hurry_exit(comp_t *c, pid_t pid)
+{
+    struct sched_param p;
+    if ((sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) != SCHED_FIFO || sched_getparam(0, &p) < 0)
+        return;
+    set_tasks_policy(pid, SCHED_FIFO, p.sched_priority > 1 ? p.sched_priority - 1 : 1);
+    c->boosted = false;         /* nothing to put back: it is going */
 }
 
 /* The environment of a component: the manager's, minus service plumbing, plus marie's and
@@ -207,9 +271,12 @@ static void comp_spawn(comp_t *c)
      * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
     char *prog = cfg->shell ? NULL : resolve_exec(am, cfg);
     marie_spawn_refused_t refused;
+    marie_sched_cfg_t boost = cfg->sched;
+    boost.priority = boost_priority(c);
+    boost.policy = boost.priority ? MARIE_SCHED_FIFO : boost.policy;
     marie_spawn_req_t req = {
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
-        .sched = &cfg->sched, .refused = &refused,
+        .sched = boost.priority ? &boost : &cfg->sched, .refused = &refused,
     };
     am_limits_prepare(c, &req.cgroup_fd, &req.nofile);
     pid_t pid = marie_spawn(am->env.spawner, &req);
@@ -219,6 +286,9 @@ static void comp_spawn(comp_t *c)
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: spawn: %s", cfg->name, strerror(errno));
         goto fail;
     }
+    c->boosted = boost.priority && !refused.policy_err;
+    if (boost.priority)
+        refused.policy_err = 0;     /* not asked for by its entry: nothing to report */
     report_sched(c, &refused);
     close(po[1]);
     close(pe[1]);
@@ -280,6 +350,7 @@ void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *
     if ((act->what & MARIE_SV_KILL) && pid > 0) {
         kill(-pid, SIGKILL);
         kill(pid, SIGKILL);
+        hurry_exit(c, pid);
     }
     if (act->timer_s > 0)
         c->timer = marie_loop_add_oneshot(am->env.loop, (int64_t)(act->timer_s * 1e6), on_sv_timer, c);
@@ -365,6 +436,7 @@ void am_progress_stops(am_t *am)
 static void comp_exited(comp_t *c, int status)
 {
     pid_t old = c->sv.pid;
+    c->boosted = false;
     am_output_drain(c);     /* output still in the pipes belongs to this run */
     /* leftovers of the process group (shell children) go with their leader */
     kill(-old, SIGKILL);
