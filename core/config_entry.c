@@ -78,26 +78,30 @@ static size_t blank_lines(char *text, size_t len, int from, int to, int keep_fro
     return (size_t)(w - text);
 }
 
-marie_system_t *marie_system_load_entry(const char *path, const char *origin, const char *profile, const char *name,
-                                        const char *spec)
+marie_system_t *marie_system_load_entry_text(const char *file, char *text, size_t len, const char *profile,
+                                             const char *name, const char *spec)
 {
     uint64_t hash;
     int from, to, keep_from, keep_to;
-    if (!spec || !name || sscanf(spec, "%" SCNx64 " %d-%d %d-%d", &hash, &from, &to, &keep_from, &keep_to) != 5)
+    if (!spec || !name || sscanf(spec, "%" SCNx64 " %d-%d %d-%d", &hash, &from, &to, &keep_from, &keep_to) != 5 ||
+        marie_text_hash(text, len) != hash)
         return NULL;
-    size_t len;
-    char *text = marie_file_read(path, ENTRY_MAX_BYTES, &len);
-    if (!text)
-        return NULL;
-    marie_system_t *sys = NULL;
     marie_errors_t errs = {0};
-    if (marie_text_hash(text, len) == hash) {
-        len = blank_lines(text, len, from, to, keep_from, keep_to);
-        sys = marie_system_load_only(origin ? origin : path, text, len, profile, name, &errs);
-    }
+    len = blank_lines(text, len, from, to, keep_from, keep_to);
+    marie_system_t *sys = marie_system_load_only(file, text, len, profile, name, &errs);
     marie_errors_clear(&errs);
-    free(text);
     if (sys && !marie_system_component(sys, name))
         MARIE_CLEAR(sys, marie_system_destroy);
+    return sys;
+}
+
+marie_system_t *marie_system_load_entry(const char *path, const char *origin, const char *profile, const char *name,
+                                        const char *spec)
+{
+    size_t len;
+    char *text = spec && name ? marie_file_read(path, ENTRY_MAX_BYTES, &len) : NULL;
+    marie_system_t *sys = text ? marie_system_load_entry_text(origin ? origin : path, text, len, profile, name, spec)
+                               : NULL;
+    free(text);
     return sys;
 }

@@ -35,4 +35,8 @@ int marie_config_read_component(const marie_node_t *n, const marie_system_t *sys
 marie_system_t *marie_system_load_only(const char *path, const char *text, size_t len, const char *profile,
                                        const char *only, marie_errors_t *errs);
 
+/* marie_system_load_entry on text already read (emptied in place), named file in messages. */
+marie_system_t *marie_system_load_entry_text(const char *file, char *text, size_t len, const char *profile,
+                                             const char *name, const char *spec);
+
 #endif
