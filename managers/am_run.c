@@ -106,15 +106,20 @@ static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
  * its threads), nor one with a long timeout (nothing to win, and it must not hold a CPU long). */
 #define BOOST_MAX_TIMEOUT_S 4.0
 
+/* The manager's SCHED_FIFO priority less one (at least 1), or 0 at another policy. */
+static int below_manager(void)
+{
+    struct sched_param p;
+    if ((sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) != SCHED_FIFO || sched_getparam(0, &p) < 0)
+        return 0;
+    return p.sched_priority > 1 ? p.sched_priority - 1 : 1;
+}
+
 static int boost_priority(const comp_t *c)
 {
     const marie_component_cfg_t *cfg = c->cfg;
-    struct sched_param p;
-    if (cfg->shell || cfg->sched.policy != MARIE_SCHED_OTHER || cfg->heartbeat_timeout_s <= 0 ||
-        cfg->heartbeat_timeout_s >= BOOST_MAX_TIMEOUT_S || (sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) != SCHED_FIFO ||
-        sched_getparam(0, &p) < 0)
-        return 0;
-    return p.sched_priority > 1 ? p.sched_priority - 1 : 1;
+    bool short_timeout = cfg->heartbeat_timeout_s > 0 && cfg->heartbeat_timeout_s < BOOST_MAX_TIMEOUT_S;
+    return !cfg->shell && cfg->sched.policy == MARIE_SCHED_OTHER && short_timeout ? below_manager() : 0;
 }
 
 /* Every thread of process pid (those it started while boosted have its policy too) to policy
@@ -145,14 +150,13 @@ void am_comp_unboost(comp_t *c)
 }
 
 /* A process killed at the normal policy waits for a CPU to die (the kernel ends it in its own
- * context): beside busy loops its exit, and so the respawn, came 30-50 ms after the SIGKILL. A
- * manager at a real-time priority gives it that priority less one for its last moment. */
+ * context): beside busy loops its exit, and so the respawn, came up to 34 ms after the SIGKILL.
+ * A manager at a real-time priority gives it that priority less one for its last moment. */
 static void hurry_exit(comp_t *c, pid_t pid)
 {
-    struct sched_param p;
-    if ((sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) != SCHED_FIFO || sched_getparam(0, &p) < 0)
-        return;
-    set_tasks_policy(pid, SCHED_FIFO, p.sched_priority > 1 ? p.sched_priority - 1 : 1);
+    int prio = below_manager();
+    if (prio > 0)
+        set_tasks_policy(pid, SCHED_FIFO, prio);
     c->boosted = false;         /* nothing to put back: it is going */
 }
 
