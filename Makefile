@@ -13,10 +13,14 @@ NPROC := $(shell nproc 2>/dev/null || echo 2)
 CC  ?= gcc
 CXX ?= g++
 PKGS := lcm glib-2.0 libsodium
+# Linked only into programs that call it (--as-needed below): core/bus opens liblcm itself
+# when a bus needs it, so a component that marie's own bus serves loads neither liblcm nor
+# glib and pcre2. libsodium is linked in (its archive): one library fewer to map and relocate
+# at each start, and only the functions used.
 # libfyaml is opened at run time by core/yaml.c (dlopen), so a process that has read its
 # YAML can let it go: only its header is needed here.
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) libfyaml 2>/dev/null)
-PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
+PKG_LIBS   := $(patsubst -lsodium,-l:libsodium.a,$(shell pkg-config --libs $(PKGS) 2>/dev/null))
 
 # -Wno-missing-field-initializers: spec tables leave their optional trailing fields unset.
 WARN     := -Wall -Wextra -Wno-unused-parameter -Wno-missing-field-initializers
@@ -27,7 +31,7 @@ CPPFLAGS := -I. -I$(B)/gen/c -I$(B)/gen/cpp $(PKG_CFLAGS) -D_GNU_SOURCE
 SECTIONS := -ffunction-sections -fdata-sections
 CFLAGS   := -O2 -g -std=gnu11 $(WARN) -MMD -MP $(SECTIONS)
 CXXFLAGS := -O2 -g -std=gnu++17 $(WARN) -MMD -MP $(SECTIONS)
-LDFLAGS  := -Wl,--gc-sections -Wl,-z,pack-relative-relocs
+LDFLAGS  := -Wl,--gc-sections -Wl,-z,pack-relative-relocs -Wl,--as-needed
 LDLIBS   := $(PKG_LIBS) -lm -lpthread
 ifeq ($(SAN),1)
 SANFLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined

@@ -37,6 +37,7 @@ struct marie_bus_sub {
 typedef struct bus {
     struct bus *next;
     lcm_t *lcm;
+    bool own_handle;                /* lcm is marie's address, not liblcm's (handle_new) */
     const marie_bus_provider_t *p;
     void *st;
     route_t *routes;
@@ -69,6 +70,45 @@ static bus_t *bus_of(const lcm_t *lcm, bus_t *plain)
     return plain;
 }
 
+/* The bus's handle when marie reads and sends it itself and the program does not call liblcm:
+ * an address of marie's own, so that liblcm is never loaded. A program that links liblcm may
+ * hand the handle to liblcm's functions (a generated type's _publish): it gets liblcm's. */
+static lcm_t *handle_new(const char *url, bool own)
+{
+    if (own)
+        return malloc(1);
+    const marie_liblcm_t *l = marie_liblcm();
+    lcm_t *lcm = l ? l->create(url) : NULL;
+    return lcm ? lcm : marie_fail_null(EINVAL);
+}
+
+static void handle_free(lcm_t *lcm, bool own)
+{
+    if (own)
+        free(lcm);
+    else
+        marie_liblcm()->destroy(lcm);
+}
+
+/* Opens the bus's own provider on b->lcm; b->own_handle cleared when liblcm has to read it. */
+static int open_own(bus_t *b, const char *url)
+{
+    for (size_t i = 0; i < sizeof own_providers / sizeof *own_providers && !b->st; i++) {
+        if (own_providers[i] == &marie_bus_liblcm && b->own_handle) {
+            /* marie does not read this URL itself: liblcm's handle after all */
+            lcm_t *lcm = handle_new(url, false);
+            if (!lcm)
+                return -1;
+            free(b->lcm);
+            b->lcm = lcm;
+            b->own_handle = false;
+        }
+        if ((b->st = own_providers[i]->open(b->lcm, url)))
+            b->p = own_providers[i];
+    }
+    return b->st ? 0 : -1;
+}
+
 lcm_t *marie_bus_create(const char *url)
 {
     if (!url)
@@ -76,15 +116,13 @@ lcm_t *marie_bus_create(const char *url)
     bus_t *b = calloc(1, sizeof *b);
     if (!b)
         return NULL;
-    if (!(b->lcm = lcm_create(url))) {
-        free(b);
-        return marie_fail_null(EINVAL);
+    b->own_handle = !marie_liblcm_in_process();
+    if (!(b->lcm = handle_new(url, b->own_handle))) {
+        MARIE_KEEP_ERRNO(free(b));
+        return NULL;
     }
-    for (size_t i = 0; i < sizeof own_providers / sizeof *own_providers && !b->st; i++)
-        if ((b->st = own_providers[i]->open(b->lcm, url)))
-            b->p = own_providers[i];
-    if (!b->st) {
-        MARIE_KEEP_ERRNO(lcm_destroy(b->lcm); free(b));
+    if (open_own(b, url) < 0) {
+        MARIE_KEEP_ERRNO(handle_free(b->lcm, b->own_handle); free(b));
         return NULL;
     }
     pthread_mutex_lock(&buses_lock);
@@ -140,7 +178,7 @@ void marie_bus_destroy(lcm_t *lcm)
         if (b->chan_st[i])
             channel_providers[i]->close_bus(b->chan_st[i]);
     b->p->close(b->st);
-    lcm_destroy(b->lcm);
+    handle_free(b->lcm, b->own_handle);
     free(b);
 }
 
@@ -359,10 +397,11 @@ static marie_bus_sub_t *subscribe(lcm_t *lcm, const char *channel, const marie_b
     if (!lcm || !channel || !rv->handler)
         return marie_fail_null(EINVAL);
     if (!b) {       /* a plain lcm_create()'s bus: liblcm's own subscription stands for it */
-        lcm_subscription_t *ls = rv->verdict ? NULL : lcm_subscribe(lcm, channel, rv->handler, rv->user);
+        const marie_liblcm_t *l = marie_liblcm();
+        lcm_subscription_t *ls = rv->verdict || !l ? NULL : l->subscribe(lcm, channel, rv->handler, rv->user);
         if (!ls)
             return marie_fail_null(rv->verdict ? EINVAL : EIO);
-        lcm_subscription_set_queue_capacity(ls, MARIE_BUS_QUEUE);
+        l->subscription_set_queue_capacity(ls, MARIE_BUS_QUEUE);
         return (marie_bus_sub_t *)ls;
     }
     /* A name a transport moved, written plainly or with its special characters escaped. */
@@ -408,7 +447,7 @@ void marie_bus_unsubscribe(lcm_t *lcm, marie_bus_sub_t *s)
     if (b)
         sub_drop(b, s);
     else
-        lcm_unsubscribe(lcm, (lcm_subscription_t *)s);
+        marie_liblcm()->unsubscribe(lcm, (lcm_subscription_t *)s);
 }
 
 marie_bus_sub_stats_t marie_bus_sub_stats(const lcm_t *lcm, const marie_bus_sub_t *s)
@@ -489,4 +528,62 @@ int marie_bus_sends(const lcm_t *lcm)
     bus_t plain;
     const bus_t *b = bus_of(lcm, &plain);
     return b && b->p->sends && b->p->sends(b->st);
+}
+
+/* ---- the generated types' calls ----
+ * lcm-gen's TYPE_publish(), _subscribe(), _unsubscribe() and _subscription_set_queue_capacity()
+ * call liblcm; libmarie compiles them calling these instead (lcmtypes/module.mk renames the
+ * four), so that a program using marie's types need not load liblcm. On a bus with marie's own
+ * handle they are the bus's calls; on a bus liblcm made, liblcm's, as before. */
+static bool own_bus(const lcm_t *lcm)
+{
+    const bus_t *b = find(lcm);
+    return b && b->own_handle;
+}
+
+int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned int len)
+{
+    if (own_bus(lcm))
+        return marie_bus_publish(lcm, channel, data, len);
+    const marie_liblcm_t *l = marie_liblcm();
+    return l ? l->publish(lcm, channel, data, len) : -1;
+}
+
+lcm_subscription_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user)
+{
+    if (own_bus(lcm))
+        return (lcm_subscription_t *)marie_bus_subscribe(lcm, channel, handler, user);
+    const marie_liblcm_t *l = marie_liblcm();
+    return l ? l->subscribe(lcm, channel, handler, user) : NULL;
+}
+
+int marie_lcm_unsubscribe(lcm_t *lcm, lcm_subscription_t *s)
+{
+    if (own_bus(lcm)) {
+        marie_bus_unsubscribe(lcm, (marie_bus_sub_t *)s);
+        return 0;
+    }
+    const marie_liblcm_t *l = marie_liblcm();
+    return l ? l->unsubscribe(lcm, s) : -1;
+}
+
+/* Whether s is a subscription on a bus with marie's own handle. */
+static bool own_sub(const lcm_subscription_t *s)
+{
+    bool found = false;
+    pthread_mutex_lock(&buses_lock);
+    for (const bus_t *b = buses; b && !found; b = b->next)
+        for (const marie_bus_sub_t *m = b->own_handle ? b->subs : NULL; m && !found; m = m->next)
+            found = (const void *)m == (const void *)s;
+    pthread_mutex_unlock(&buses_lock);
+    return found;
+}
+
+/* marie's subscriptions keep MARIE_BUS_QUEUE messages, whatever is asked. */
+int marie_lcm_subscription_set_queue_capacity(lcm_subscription_t *s, int n)
+{
+    if (own_sub(s))
+        return 0;
+    const marie_liblcm_t *l = marie_liblcm();
+    return l ? l->subscription_set_queue_capacity(s, n) : -1;
 }

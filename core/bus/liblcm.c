@@ -4,10 +4,57 @@
  * lcm_t itself. */
 #include "core/bus/provider.h"
 
+#include <dlfcn.h>
 #include <errno.h>
+#include <pthread.h>
 #include <stdlib.h>
 
 #include "core/err.h"
+#include "core/log.h"
+
+/* ---- liblcm, opened at first use ----
+ * A component whose buses marie reads and sends itself never calls liblcm; linked, liblcm and
+ * what it needs (glib, pcre2) were mapped and relocated at every start (a quarter of the
+ * dynamic loader's work). A program that calls liblcm itself links it, and dlopen() then finds
+ * the copy in place. */
+#define LCM_SONAME "liblcm.so.1"
+
+static marie_liblcm_t lcm_fns;
+static const marie_liblcm_t *lcm_ok;
+static pthread_once_t lcm_once = PTHREAD_ONCE_INIT;
+
+static void lcm_load(void)
+{
+    void *lib = dlopen(LCM_SONAME, RTLD_LAZY | RTLD_LOCAL);
+    bool ok = lib != NULL;
+#define LCM_LOAD(f) ok = ok && (*(void **)&lcm_fns.f = dlsym(lib, "lcm_" #f)) != NULL;
+    MARIE_LIBLCM_FUNCS(LCM_LOAD)
+#undef LCM_LOAD
+    if (ok) {
+        lcm_ok = &lcm_fns;      /* never closed: its receive threads and sockets outlive any use */
+        return;
+    }
+    const char *why = dlerror();
+    marie_error("cannot load LCM's library: %s", why ? why : LCM_SONAME);
+    if (lib)
+        dlclose(lib);
+}
+
+const marie_liblcm_t *marie_liblcm(void)
+{
+    pthread_once(&lcm_once, lcm_load);
+    return lcm_ok ? lcm_ok : marie_fail_null(ENOENT);
+}
+
+bool marie_liblcm_in_process(void)
+{
+    if (lcm_ok)
+        return true;
+    void *lib = dlopen(LCM_SONAME, RTLD_LAZY | RTLD_NOLOAD);
+    if (lib)
+        dlclose(lib);       /* drops the reference NOLOAD took, not the program's */
+    return lib != NULL;
+}
 
 static void *liblcm_open(lcm_t *lcm, const char *url) { return lcm; }
 static void liblcm_close(void *st) {}
@@ -31,18 +78,18 @@ static void *liblcm_subscribe(void *st, const char *channel, const marie_bus_rec
     if (!s)
         return NULL;
     s->rv = *rv;
-    if (!(s->ls = lcm_subscribe(st, channel, on_message, s))) {
+    if (!(s->ls = marie_liblcm()->subscribe(st, channel, on_message, s))) {
         free(s);
         return marie_fail_null(EIO);
     }
-    lcm_subscription_set_queue_capacity(s->ls, MARIE_BUS_QUEUE);
+    marie_liblcm()->subscription_set_queue_capacity(s->ls, MARIE_BUS_QUEUE);
     return s;
 }
 
 static void liblcm_unsubscribe(void *st, void *sub)
 {
     sub_t *s = sub;
-    lcm_unsubscribe(st, s->ls);
+    marie_liblcm()->unsubscribe(st, s->ls);
     free(s);
 }
 
@@ -50,16 +97,17 @@ static int liblcm_publish(void *st, const char *channel, const void *data, size_
 {
     if (len > UINT32_MAX)
         return marie_fail(EMSGSIZE);
-    return lcm_publish(st, channel, data, (unsigned)len) == 0 ? 0 : marie_fail(EIO);
+    return marie_liblcm()->publish(st, channel, data, (unsigned)len) == 0 ? 0 : marie_fail(EIO);
 }
 
-static int liblcm_fd(void *st) { return lcm_get_fileno(st); }
+static int liblcm_fd(void *st) { return marie_liblcm()->get_fileno(st); }
 
 /* Called when the pipe is readable: the first handle does not block. */
 static int liblcm_handle(void *st, int max)
 {
-    int n = lcm_handle(st) == 0;
-    while (n < max && lcm_handle_timeout(st, 0) > 0)
+    const marie_liblcm_t *l = marie_liblcm();
+    int n = l->handle(st) == 0;
+    while (n < max && l->handle_timeout(st, 0) > 0)
         n++;
     return n;
 }

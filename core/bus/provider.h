@@ -53,6 +53,27 @@ extern const marie_bus_provider_t marie_bus_liblcm;    /* core/bus/liblcm.c */
 extern const marie_bus_provider_t marie_bus_shm;       /* core/bus/shm_bus.c */
 extern const marie_bus_provider_t marie_bus_local;     /* core/bus/local.c */
 
+/* liblcm's functions marie calls, opened at first use (core/bus/liblcm.c): a program that
+ * does not ask for liblcm does not load it. marie_liblcm(): the table, or NULL with errno
+ * (ENOENT: not installed, said in the log). Every bus liblcm made was made through it, or by a
+ * program that links liblcm, so the provider's calls on such a bus need no check.
+ * marie_liblcm_in_process(): whether liblcm is loaded already (the program links it). */
+#define MARIE_LIBLCM_FUNCS(X)                                                                   \
+    X(create) X(destroy) X(publish) X(subscribe) X(unsubscribe) X(get_fileno) X(handle)         \
+    X(handle_timeout) X(subscription_set_queue_capacity)
+typedef struct {
+#define MARIE_LIBLCM_FIELD(f) __typeof__(lcm_##f) *f;
+    MARIE_LIBLCM_FUNCS(MARIE_LIBLCM_FIELD)
+#undef MARIE_LIBLCM_FIELD
+} marie_liblcm_t;
+const marie_liblcm_t *marie_liblcm(void);
+bool marie_liblcm_in_process(void);
+/* What lcm-gen's generated functions call in libmarie (core/bus/bus.c). */
+int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned int len);
+lcm_subscription_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user);
+int marie_lcm_unsubscribe(lcm_t *lcm, lcm_subscription_t *s);
+int marie_lcm_subscription_set_queue_capacity(lcm_subscription_t *s, int n);
+
 /* For channel providers, which carry their notices and copies on the bus's own provider: a
  * publish and a subscription that no transport reroutes. */
 int marie_bus_publish_own(lcm_t *bus, const char *channel, const void *data, size_t len);

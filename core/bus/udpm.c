@@ -149,6 +149,11 @@ static void *udpm_open(lcm_t *lcm, const char *url)
         if ((u->tx_fd = open_sender(&a)) < 0)
             marie_warn("%s: marie cannot send on this bus itself (%s); liblcm sends", url, strerror(errno));
     }
+    const marie_liblcm_t *l = u->tx_fd < 0 ? marie_liblcm() : NULL;
+    if (u->tx_fd < 0 && !(u->tx_lcm = l ? l->create(url) : NULL)) {
+        udpm_close(u);
+        return marie_fail_null(EIO);
+    }
     return u;
 }
 
@@ -172,6 +177,8 @@ static void udpm_close(void *st)
     close(u->fd);
     if (u->tx_fd >= 0)
         close(u->tx_fd);
+    if (u->tx_lcm)
+        marie_liblcm()->destroy(u->tx_lcm);
     pthread_mutex_destroy(&u->tx_lock);
     free(u->buf);
     free(u->spare);

@@ -72,7 +72,8 @@ typedef struct {
     /* Sending, from any thread: tx_lock keeps a message's fragments together and its sequence
      * number its own, as liblcm's transmit lock does. */
     int tx_fd;              /* -1: liblcm sends on this bus (MARIE_LCM_SEND=liblcm, or a TTL
-                             * liblcm would read otherwise) */
+                             * liblcm would read otherwise), through tx_lcm */
+    lcm_t *tx_lcm;
     struct sockaddr_in tx_to;
     uint32_t tx_seqno;
     pthread_mutex_t tx_lock;

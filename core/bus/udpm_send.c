@@ -104,7 +104,7 @@ int udpm_publish(void *st, const char *channel, const void *data, size_t len)
     if (len > UINT32_MAX)
         return marie_fail(EMSGSIZE);
     if (u->tx_fd < 0)       /* MARIE_LCM_SEND=liblcm, or a TTL marie does not send with */
-        return lcm_publish(u->lcm, channel, data, (unsigned)len) == 0 ? 0 : marie_fail(EIO);
+        return marie_liblcm()->publish(u->tx_lcm, channel, data, (unsigned)len) == 0 ? 0 : marie_fail(EIO);
     size_t cl = strlen(channel) + 1;
     if (cl > LCM_MAX_CHANNEL_NAME_LENGTH + 1)
         return marie_fail(EINVAL);
