@@ -90,6 +90,9 @@ static void handle_free(lcm_t *lcm, bool own)
         marie_liblcm()->destroy(lcm);
 }
 
+/* The handle of the bus being opened on this thread, when it is marie's own. */
+static __thread const lcm_t *opening_own;
+
 /* Opens the bus's own provider on b->lcm; b->own_handle cleared when liblcm has to read it. */
 static int open_own(bus_t *b, const char *url)
 {
@@ -103,8 +106,10 @@ static int open_own(bus_t *b, const char *url)
             b->lcm = lcm;
             b->own_handle = false;
         }
+        opening_own = b->own_handle ? b->lcm : NULL;
         if ((b->st = own_providers[i]->open(b->lcm, url)))
             b->p = own_providers[i];
+        opening_own = NULL;
     }
     return b->st ? 0 : -1;
 }
@@ -540,6 +545,8 @@ static bool own_bus(const lcm_t *lcm)
     const bus_t *b = find(lcm);
     return b && b->own_handle;
 }
+
+bool marie_bus_handle_is_liblcm(const lcm_t *lcm) { return lcm != opening_own && !own_bus(lcm); }
 
 int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned int len)
 {

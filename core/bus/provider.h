@@ -68,6 +68,8 @@ typedef struct {
 } marie_liblcm_t;
 const marie_liblcm_t *marie_liblcm(void);
 bool marie_liblcm_in_process(void);
+/* Whether a bus's handle (one being opened included) is liblcm's, not marie's own address. */
+bool marie_bus_handle_is_liblcm(const lcm_t *lcm);
 /* What lcm-gen's generated functions call in libmarie (core/bus/bus.c). */
 int marie_lcm_publish(lcm_t *lcm, const char *channel, const void *data, unsigned int len);
 lcm_subscription_t *marie_lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user);

@@ -120,6 +120,21 @@ static bool env_is(const char *name, const char *value)
 
 static void udpm_close(void *st);
 
+/* liblcm sends for marie: on the bus's own handle when liblcm made it (its sequence numbers go
+ * on from the program's own sends), else on an instance of its own, loaded now. */
+static int open_liblcm_sender(udpm_t *u, const char *url)
+{
+    if (marie_bus_handle_is_liblcm(u->lcm)) {
+        u->tx_lcm = u->lcm;
+        return 0;
+    }
+    const marie_liblcm_t *l = marie_liblcm();
+    if (!l || !(u->tx_lcm = l->create(url)))
+        return -1;
+    u->tx_lcm_own = true;
+    return 0;
+}
+
 /* A udpm:// URL that marie reads the same as liblcm; anything else (and every bus when
  * MARIE_LCM_RECEIVE=liblcm is set) is left to liblcm: EPROTONOSUPPORT. */
 static void *udpm_open(lcm_t *lcm, const char *url)
@@ -149,8 +164,7 @@ static void *udpm_open(lcm_t *lcm, const char *url)
         if ((u->tx_fd = open_sender(&a)) < 0)
             marie_warn("%s: marie cannot send on this bus itself (%s); liblcm sends", url, strerror(errno));
     }
-    const marie_liblcm_t *l = u->tx_fd < 0 ? marie_liblcm() : NULL;
-    if (u->tx_fd < 0 && !(u->tx_lcm = l ? l->create(url) : NULL)) {
+    if (u->tx_fd < 0 && open_liblcm_sender(u, url) < 0) {
         udpm_close(u);
         return marie_fail_null(EIO);
     }
@@ -177,7 +191,7 @@ static void udpm_close(void *st)
     close(u->fd);
     if (u->tx_fd >= 0)
         close(u->tx_fd);
-    if (u->tx_lcm)
+    if (u->tx_lcm_own)
         marie_liblcm()->destroy(u->tx_lcm);
     pthread_mutex_destroy(&u->tx_lock);
     free(u->buf);

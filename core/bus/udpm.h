@@ -74,6 +74,7 @@ typedef struct {
     int tx_fd;              /* -1: liblcm sends on this bus (MARIE_LCM_SEND=liblcm, or a TTL
                              * liblcm would read otherwise), through tx_lcm */
     lcm_t *tx_lcm;
+    bool tx_lcm_own;        /* tx_lcm made for this bus (the bus's handle is marie's own) */
     struct sockaddr_in tx_to;
     uint32_t tx_seqno;
     pthread_mutex_t tx_lock;
