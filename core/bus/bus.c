@@ -49,6 +49,10 @@ typedef struct bus {
 static bus_t *buses;
 static pthread_mutex_t buses_lock = PTHREAD_MUTEX_INITIALIZER;
 
+/* The bus this thread is destroying: taken from the list, it is still found while its channels
+ * close (they let their subscriptions go and may publish on it). */
+static __thread bus_t *destroying;
+
 static bus_t *find(const lcm_t *lcm)
 {
     pthread_mutex_lock(&buses_lock);
@@ -56,7 +60,7 @@ static bus_t *find(const lcm_t *lcm)
     while (b && b->lcm != lcm)
         b = b->next;
     pthread_mutex_unlock(&buses_lock);
-    return b;
+    return b ? b : destroying && destroying->lcm == lcm ? destroying : NULL;
 }
 
 /* The bus lcm names; one marie did not make (plain lcm_create(): a tool's, a test's peer) is
@@ -137,13 +141,16 @@ lcm_t *marie_bus_create(const char *url)
     return b->lcm;
 }
 
+/* Lets s go; one not on the bus's list was let go already (with the bus: a channel closing
+ * after it asks again). */
 static void sub_drop(bus_t *b, marie_bus_sub_t *s)
 {
-    for (marie_bus_sub_t **pp = &b->subs; *pp; pp = &(*pp)->next)
-        if (*pp == s) {
-            *pp = s->next;
-            break;
-        }
+    marie_bus_sub_t **pp = &b->subs;
+    while (*pp && *pp != s)
+        pp = &(*pp)->next;
+    if (!*pp)
+        return;
+    *pp = s->next;
     s->p->unsubscribe(s->st, s->ps);
     free(s);
 }
@@ -172,6 +179,7 @@ void marie_bus_destroy(lcm_t *lcm)
     pthread_mutex_unlock(&buses_lock);
     if (!b)
         return;
+    destroying = b;
     while (b->subs)
         sub_drop(b, b->subs);
     while (b->routes) {     /* before the bus's own provider: they unsubscribe from it */
@@ -182,6 +190,7 @@ void marie_bus_destroy(lcm_t *lcm)
     for (size_t i = 0; i < NCHANNEL_PROVIDERS; i++)
         if (b->chan_st[i])
             channel_providers[i]->close_bus(b->chan_st[i]);
+    destroying = NULL;
     b->p->close(b->st);
     handle_free(b->lcm, b->own_handle);
     free(b);
