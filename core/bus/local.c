@@ -24,6 +24,9 @@ typedef struct {
     lcm_t *bus;
     local_bell_t bell;              /* fd -1 until the first subscription */
     lchan_t *reading;
+    /* The readers the last publish rang for (they slept): marie_bus_waking() */
+    local_registry_t *rang_reg;
+    uint64_t rang;                  /* their entries in rang_reg->subs, a bit each */
 } lbus_t;
 
 /* A publisher this bus follows. */
@@ -102,10 +105,13 @@ static void ring_bells(void *user)
     lchan_t *ch = user;
     local_registry_t *reg = ch->reg.reg;
     uint32_t used = atomic_load(&reg->subs_used);
+    ch->lb->rang_reg = reg;
+    ch->lb->rang = 0;
     for (uint32_t i = 0; i < used && i < LOCAL_SUBS; i++) {
         local_sub_t *e = &reg->subs[i];
         if (!atomic_load(&e->pid) || !atomic_load(&e->sleeping))
             continue;
+        ch->lb->rang |= 1ull << i;
         uint32_t ticket = atomic_load(&e->ticket);
         if (ch->bell_ticket[i] != ticket && ch->bell_fd[i] >= 0) {
             close(ch->bell_fd[i]);          /* the entry is another reader's now */
@@ -306,6 +312,17 @@ static int bus_sleep(void *bus_st, bool on)
     return on && bus_pending(lb);
 }
 
+/* A reader the last publish rang for that still sleeps: woken, it has not run yet (the loop
+ * stops spinning then, as that reader may wait for this CPU). */
+static bool bus_waking(void *bus_st)
+{
+    lbus_t *lb = bus_st;
+    for (uint64_t m = lb->rang; m; m &= m - 1)
+        if (atomic_load(&lb->rang_reg->subs[__builtin_ctzll(m)].sleeping))
+            return true;
+    return false;
+}
+
 static void on_remote(const void *data, size_t len, void *user)
 {
     lchan_t *ch = user;
@@ -409,6 +426,8 @@ static marie_bus_sub_stats_t chan_sub_stats(const void *sub) { return ((const ls
 static void chan_close(void *st)
 {
     lchan_t *ch = st;
+    if (ch->lb->rang_reg == ch->reg.reg)
+        ch->lb->rang = 0;
     while (ch->subs)
         chan_unsubscribe(ch, ch->subs);
     if (ch->pub_at >= 0)
@@ -438,4 +457,5 @@ const marie_bus_provider_t marie_bus_local = {
     .bus_handle = bus_handle,
     .bus_sleep = bus_sleep,
     .bus_pending = bus_pending,
+    .bus_waking = bus_waking,
 };
