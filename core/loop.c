@@ -514,28 +514,31 @@ static int fast_spin(marie_loop_t *loop, size_t n, int64_t start, int wait_ms)
     int64_t until = start + fast_window(loop);
     if (wait_ms > 0 && start + (int64_t)wait_ms * 1000 < until)
         until = start + (int64_t)wait_ms * 1000;
+    unsigned turns = 0;
     for (int64_t now = start; now < until; now = marie_mono_us()) {
         int rc = fast_ready(loop, n, false);
         if (rc > 0)
             return rc;
         if (now - start >= FAST_SPIN_WAKING_US && fast_waking(loop))
             break;
+        if (++turns % SPIN_POLL_EVERY == 0 && (rc = poll(loop->pfds, n, 0)) != 0)
+            return rc;
         for (int k = 0; k < 16; k++)
             cpu_relax();
     }
     return 0;
 }
 
-/* After a wait: how long the fast path took to bring something, when it did. */
+/* After a wait: how long the fast path took to bring something, or, when something else ended
+ * the wait (a socket, a timer), a wait the spin would not have shortened. */
 static void fast_waited(marie_loop_t *loop, size_t n, int64_t start)
 {
+    int64_t gap = INT32_MAX;
     for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
         for (size_t i = 0; w->wake_fd >= 0 && i < n; i++)
-            if (loop->pfds[i].fd == w->wake_fd && loop->pfds[i].revents) {
-                int64_t gap = marie_mono_us() - start;
-                loop->gaps[loop->ngaps++ % FAST_GAPS] = gap < INT32_MAX ? (int32_t)gap : INT32_MAX;
-                return;
-            }
+            if (loop->pfds[i].fd == w->wake_fd && loop->pfds[i].revents)
+                gap = marie_mono_us() - start;
+    loop->gaps[loop->ngaps++ % FAST_GAPS] = gap < INT32_MAX ? (int32_t)gap : INT32_MAX;
 }
 
 /* Within spin_us of the last callback, look at the fds without sleeping until one is ready or
@@ -601,7 +604,7 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
                 rc = poll(loop->pfds, n, wait);
             } while (rc < 0 && errno == EINTR && !pending_signal);
         fast_awake(loop);
-        if (start && rc > 0)
+        if (start && rc >= 0 && fast_path(loop))
             fast_waited(loop, n, start);
     }
     if (rc < 0 && errno != EINTR) {
