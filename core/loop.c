@@ -463,15 +463,11 @@ static int spin_fast(marie_loop_t *loop, size_t n, int64_t now, int64_t until, i
  * (then 2x it, plus a margin): a reader of a stream at 1 kHz or slower never spins, and one
  * whose answers stop coming goes back to sleeping at once after its next long wait. No
  * sched_yield(): beside busy processes a yield hands one of them the CPU for a whole slice
- * (docs/transport.md, "Waiting for the fast path"). Not when the loop spins anyway (spin_us)
- * nor on the simulator's clock. */
+ * (docs/transport.md, "Waiting for the fast path"). Not while a reader this loop's publish
+ * woke likely waits for this CPU (marie_bus_waking), when the loop spins anyway (spin_us), nor
+ * on the simulator's clock. */
 #define FAST_SPIN_MAX_US 50
 #define FAST_SPIN_MARGIN_US 5
-/* A reader this loop's last publish woke and that has not run after this long was most likely
- * put on this loop's CPU (a doorbell's wake-up asks the kernel for the waker's CPU when none is
- * idle), and would wait for the window to end: the loop sleeps instead. A wake-up onto the other
- * CPU runs within it here (8-10 us, woken to answer). */
-#define FAST_SPIN_WAKING_US 12
 
 static int cmp_gap(const void *a, const void *b) { return *(const int32_t *)a - *(const int32_t *)b; }
 
@@ -519,7 +515,7 @@ static int fast_spin(marie_loop_t *loop, size_t n, int64_t start, int wait_ms)
         int rc = fast_ready(loop, n, false);
         if (rc > 0)
             return rc;
-        if (now - start >= FAST_SPIN_WAKING_US && fast_waking(loop))
+        if (fast_waking(loop))
             break;
         if (++turns % SPIN_POLL_EVERY == 0 && (rc = poll(loop->pfds, n, 0)) != 0)
             return rc;
