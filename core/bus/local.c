@@ -30,6 +30,7 @@ typedef struct {
     uint64_t rang;                  /* their entries in rang_reg->subs, a bit each */
     bool rang_here;                 /* one of them went to sleep on this CPU */
     int64_t rang_at;                /* when (monotonic us) */
+    bool slept;                     /* the loop slept since the doorbell was last drained */
 } lbus_t;
 
 /* A woken reader that has not run after this long most likely waits for the publisher's CPU
@@ -296,8 +297,12 @@ static int follow(lchan_t *ch, peer_t *p, int max)
 static int bus_handle(void *bus_st, int max)
 {
     lbus_t *lb = bus_st;
-    if (lb->bell.fd >= 0)
+    /* Publishers ring only a reader that sleeps: one that found its messages while it spun has
+     * nothing to drain (a late ring stays until the next sleep: the spin's polls see it and the
+     * loop goes round once more meanwhile, nothing is lost). */
+    if (lb->bell.fd >= 0 && lb->slept)
         local_bell_drain(&lb->bell);
+    lb->slept = false;
     int n = 0;
     for (lchan_t *ch = lb->reading; ch && n < max; ch = ch->next_reading) {
         rescan(ch);
@@ -322,6 +327,7 @@ static int bus_sleep(void *bus_st, bool on)
 {
     lbus_t *lb = bus_st;
     int cpu = on ? sched_getcpu() : -1;
+    lb->slept |= on;
     for (lchan_t *ch = lb->reading; ch; ch = ch->next_reading) {
         if (on)
             atomic_store(&ch->reg.reg->subs[ch->sub_at].cpu, cpu);

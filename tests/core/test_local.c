@@ -346,7 +346,9 @@ static void a_reader_spins_while_answers_come_quickly_only(void **state)
         ;
     ping_pong(pinger, &got, 50, 0);         /* the loops learn that answers come quickly */
     long slept = thread_sleeps();
+    int64_t t0 = marie_mono_us();
     int back = ping_pong(pinger, &got, 400, 0);
+    int64_t rtt_ns = (marie_mono_us() - t0) * 1000 / 400;
     slept = thread_sleeps() - slept;
     long idle_slept = thread_sleeps();
     int64_t cpu = thread_cpu_us();
@@ -357,8 +359,9 @@ static void a_reader_spins_while_answers_come_quickly_only(void **state)
     waitpid(pid, NULL, 0);
     marie_component_destroy(pinger);
     sched_setaffinity(0, sizeof all, &all);
-    print_message("back to back: %d answers, slept %ld times; 20 ms apart: %d answers, slept %ld "
-                  "times, %lld us of CPU\n", back, slept, idle_back, idle_slept, (long long)cpu);
+    print_message("back to back: %d answers, slept %ld times, %lld ns a round trip; 20 ms apart: %d "
+                  "answers, slept %ld times, %lld us of CPU\n", back, slept, (long long)rtt_ns, idle_back,
+                  idle_slept, (long long)cpu);
     assert_int_equal(back, 400);
     assert_int_equal(idle_back, 20);
     /* Every answer a wake-up before the loops spun: 400 sleeps or more. */
