@@ -30,13 +30,20 @@ typedef struct {
     uint64_t rang;                  /* their entries in rang_reg->subs, a bit each */
     bool rang_here;                 /* one of them went to sleep on this CPU */
     int64_t rang_at;                /* when (monotonic us) */
+    bool gave_up;                   /* marie_bus_waking() said so for that ring */
+    int missed;                     /* rings in a row whose reader did not run in WAKING_US */
+    unsigned rings;
     bool slept;                     /* the loop slept since the doorbell was last drained */
 } lbus_t;
 
 /* A woken reader that has not run after this long most likely waits for the publisher's CPU
  * (docs/transport.md, "Waiting for the fast path"); one woken onto an idle CPU runs within it
- * here (8-10 us). */
+ * here (8-10 us). After MISSED_MAX rings in a row whose reader did not, the kernel is taken to
+ * put woken readers beside their waker: the loop does not wait that long, but for one ring in
+ * PROBE_EVERY, to see whether that changed. */
 #define WAKING_US 12
+#define MISSED_MAX 4
+#define PROBE_EVERY 16
 
 /* A publisher this bus follows. */
 typedef struct {
@@ -123,8 +130,12 @@ static void ring_bells(void *user)
         local_sub_t *e = &reg->subs[i];
         if (!atomic_load(&e->pid) || !atomic_load(&e->sleeping))
             continue;
-        if (!lb->rang)
-            lb->rang_at = marie_mono_us(), cpu = sched_getcpu();
+        if (!lb->rang) {
+            lb->rang_at = marie_mono_us();
+            cpu = sched_getcpu();
+            lb->gave_up = false;
+            lb->rings++;
+        }
         lb->rang |= 1ull << i;
         lb->rang_here |= cpu >= 0 && atomic_load(&e->cpu) == cpu;
         uint32_t ticket = atomic_load(&e->ticket);
@@ -342,11 +353,20 @@ static int bus_sleep(void *bus_st, bool on)
 static bool bus_waking(void *bus_st)
 {
     lbus_t *lb = bus_st;
-    if (!lb->rang || (!lb->rang_here && marie_mono_us() - lb->rang_at < WAKING_US))
+    bool probe = lb->missed < MISSED_MAX || lb->rings % PROBE_EVERY == 0;
+    if (!lb->rang || (!lb->rang_here && probe && marie_mono_us() - lb->rang_at < WAKING_US))
         return false;
     for (uint64_t m = lb->rang; m; m &= m - 1)
-        if (atomic_load(&lb->rang_reg->subs[__builtin_ctzll(m)].sleeping))
+        if (atomic_load(&lb->rang_reg->subs[__builtin_ctzll(m)].sleeping)) {
+            if (!lb->gave_up && !lb->rang_here && probe && lb->missed < MISSED_MAX)
+                lb->missed++;
+            lb->gave_up = true;
             return true;
+        }
+    /* The readers it rang run: on another CPU, as this one is busy spinning. */
+    if (!lb->rang_here)
+        lb->missed = 0;
+    lb->rang = 0;
     return false;
 }
 
