@@ -1,12 +1,15 @@
 /* bench_am: marie-am supervision costs: crash-to-respawn latency, heartbeat-loss detection,
- * bring-up of 45 components over 4 managers and on one (with its first to last spawn), and the
- * idle CPU and RSS of a manager. */
+ * bring-up of 45 components over 4 managers and on one (with its first to last spawn), one
+ * component's start from its own entry against the whole file, and the idle CPU and RSS of a
+ * manager. BENCH_AM_ONLY=respawn|fast|bringup runs one part, BENCH_AM_KEEP=1 keeps the
+ * managers' logs and traces. */
 #include <errno.h>
 #include <sched.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -16,6 +19,7 @@
 
 #include "bench/bench.h"
 #include "core/component.h"
+#include "core/file.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "lcmtypes/marie_event_t.h"
@@ -327,6 +331,8 @@ static void bench_fast_restart(int rt)
         }
         if (pid2 != pid && t_exec > t_hang)
             lat[n++] = (double)(t_exec - t_hang) / 1000.0;
+        fprintf(stderr, "bench_am: hang of pid %d at %lld: replaced %.1f ms after\n", pid, (long long)t_hang,
+                n ? lat[n - 1] : -1.0);
         for (int64_t end = marie_mono_us() + 3000000; marie_mono_us() < end;)     /* the new one runs */
             if (last_trace(trace, "victim", "running", &t_run, &pid2) == 0 && pid2 != pid)
                 break;
@@ -391,6 +397,80 @@ static double first_to_last_spawn(const char *log)
     return n >= 2 ? (double)(last - first) : -1;
 }
 
+/* One start of a component of the 45-component file (c17, marie-test-comp), from before the
+ * fork to its on_start: ms, -1 on failure. spec NULL: it reads the whole file, as before
+ * marie-am passed MARIE_SYSTEM_ENTRY. */
+static double one_start(const char *sys, const char *spec, const char *trace, double *cpu_ms)
+{
+    char exe[4200];
+    snprintf(exe, sizeof exe, "%s/tests/bin/marie-test-comp", bin);
+    unlink(trace);
+    int64_t t0 = marie_mono_us();
+    pid_t pid = fork();
+    if (pid == 0) {
+        setenv("MARIE_SYSTEM", sys, 1);
+        setenv("MARIE_NAME", "c17", 1);
+        setenv("MARIE_HOST", "h1", 1);
+        setenv("MARIE_STATE_DIR", dir, 1);
+        setenv("MARIE_TEST_TRACE", trace, 1);
+        if (spec)
+            setenv("MARIE_SYSTEM_ENTRY", spec, 1);
+        else
+            unsetenv("MARIE_SYSTEM_ENTRY");
+        execl(exe, exe, (char *)NULL);
+        _exit(127);
+    }
+    int64_t t = 0;
+    int p = 0;
+    for (int64_t end = t0 + 5000000; marie_mono_us() < end && last_trace(trace, "c17", "running", &t, &p) != 0;)
+        usleep(500);
+    kill(pid, SIGKILL);
+    struct rusage ru;
+    if (wait4(pid, NULL, 0, &ru) == pid)     /* its CPU time until killed (mostly its start) */
+        *cpu_ms = (ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) * 1e3 + (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) / 1e3;
+    return p == pid ? (double)(t - t0) / 1000.0 : -1;
+}
+
+/* A component's start reading its own entry against reading the whole 45-component file,
+ * alternating, in the same run (the ratio is the figure; the times follow the load). */
+static void bench_component_start(const char *sys)
+{
+    marie_errors_t errs = {0};
+    marie_system_t *s = marie_system_load(sys, NULL, &errs);
+    size_t len;
+    char *text = marie_file_read(sys, 1 << 20, &len), spec[96], trace[128];
+    snprintf(trace, sizeof trace, "%s/trace-start", dir);
+    if (!s || !text || marie_system_entry_spec(s, "c17", marie_text_hash(text, len), spec, sizeof spec) < 0) {
+        fprintf(stderr, "bench_am: no entry spec for the 45-component file\n");
+        marie_errors_print(&errs, stderr);
+        goto out;
+    }
+    enum { RUNS = 20 };
+    double own[RUNS], whole[RUNS], own_cpu[RUNS], whole_cpu[RUNS];
+    int n = 0;
+    for (int i = 0; i < RUNS; i++) {
+        double ca = 0, cb = 0, a = one_start(sys, NULL, trace, &ca), b = one_start(sys, spec, trace, &cb);
+        if (a > 0 && b > 0) {
+            whole[n] = a;
+            whole_cpu[n] = ca;
+            own_cpu[n] = cb;
+            own[n++] = b;
+        }
+    }
+    if (n > 0) {
+        double w = pct(whole, n, 0.5), o = pct(own, n, 0.5);
+        bench_row("bench_am", "component_start_p50_45_component_file", o, "ms", w);
+        /* CPU time counts what the start does, whatever else runs */
+        bench_row("bench_am", "component_start_cpu_p50_45_component_file", pct(own_cpu, n, 0.5), "ms",
+                  pct(whole_cpu, n, 0.5));
+        fprintf(stderr, "bench_am: one start, own entry %.2f ms, whole file %.2f ms (medians of %d)\n", o, w, n);
+    }
+out:
+    marie_errors_clear(&errs);
+    marie_system_destroy(s);
+    free(text);
+}
+
 static void bench_bringup_and_idle(void)
 {
     char sys[128], state[128], args[256];
@@ -426,6 +506,7 @@ static void bench_bringup_and_idle(void)
      * debug log times the spawns. */
     snprintf(sys, sizeof sys, "%s/one45.yaml", dir);
     write_45(sys, 1);
+    bench_component_start(sys);
     char log[160];
     snprintf(log, sizeof log, "%s/h1.log", dir);
     snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
@@ -504,6 +585,10 @@ int main(void)
     }
     if (!only || strcmp(only, "bringup") == 0)
         bench_bringup_and_idle();
+    if (getenv("BENCH_AM_KEEP")) {       /* the managers' logs and traces, to read */
+        fprintf(stderr, "bench_am: kept %s\n", dir);
+        return 0;
+    }
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     return system(cmd) == 0 ? 0 : 1;

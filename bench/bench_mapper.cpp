@@ -117,6 +117,7 @@ int main()
     if (!res.ok)
         fprintf(stderr, "bench_mapper: optimization failed: %s\n", res.message.c_str());
     mapper::GridParams gp;
+    slam_params_default(&gp);
     mapper::Grid big(2000, 2000, 0, 0, gp);
     row("grid_100x100m_memory", big.memory_bytes() / 1048576.0, "MiB");
     return 0;

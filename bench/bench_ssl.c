@@ -31,7 +31,7 @@ static double run_pipeline(const float *x, size_t n, int M, bool separate)
 {
     ssl_cfg_t cfg;
     ssl_cfg_default(&cfg);
-    cfg.separate = separate;
+    cfg.sep.separate = separate;
     ssl_t *s = ssl_create(&cfg, count, NULL);
     frames = 0;
     double t = cpu_s();

@@ -1,14 +1,18 @@
 /* bench_viewer: marie-viewer-server following a demo-like bus at full rate (laser and pose
  * 10 Hz, ground truth 50 Hz, particles 2 Hz, decisions 5 Hz, heartbeats, an office-sized map):
  * its CPU and memory, and the latency from publishing to the frame reaching a WebSocket
- * client, against the bus alone measured in the same run. */
+ * client, against the bus alone measured in the same run; then STALL_SECONDS more with 40
+ * half requests and 3 pages that never read beside the client, against the quiet part. */
 #include <fcntl.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <unistd.h>
 
 #include <civetweb.h>
@@ -22,10 +26,11 @@
 
 #define PORT 8121
 #define SECONDS 10
+#define STALL_SECONDS 5
 #define MAXSEQ 4096
 
 static int64_t pub_mono[MAXSEQ];
-static int64_t ws_lat[MAXSEQ], bus_lat[MAXSEQ];
+static int64_t seq_lat[MAXSEQ], bus_lat[MAXSEQ];     /* seq_lat: by probe, 0 if none */
 static int n_ws, n_bus;
 static int64_t ws_frames, ws_bytes;
 static pthread_mutex_t mu = PTHREAD_MUTEX_INITIALIZER;
@@ -52,8 +57,10 @@ static int on_ws(struct mg_connection *conn, int bits, char *data, size_t len, v
     if (memmem(data, len, "\"type\":\"hello\"", 14))
         connected = 1;
     int s = memmem(data, len, "\"k\":\"event\"", 11) ? seq_of(data, len) : -1;
-    if (s >= 0 && s < MAXSEQ && pub_mono[s] && n_ws < MAXSEQ)
-        ws_lat[n_ws++] = now - pub_mono[s];
+    if (s >= 0 && s < MAXSEQ && pub_mono[s] && !seq_lat[s]) {
+        seq_lat[s] = now - pub_mono[s];
+        n_ws++;
+    }
     pthread_mutex_unlock(&mu);
     return 1;
 }
@@ -107,6 +114,33 @@ static void publish(lcm_t *l, const char *ch, const marie_type_t *t, const void 
     if (buf && t->encode(buf, 0, n, msg) >= 0)
         lcm_publish(l, ch, buf, (unsigned)n);
     free(buf);
+}
+
+/* The probes [from, to) that reached the client, their latencies into out: how many. */
+static int probes(int from, int to, int64_t *out)
+{
+    int n = 0;
+    for (int s = from; s < to; s++)
+        if (seq_lat[s])
+            out[n++] = seq_lat[s];
+    return n;
+}
+
+/* A client that stalls: half a request, or a page with a 2 KB window that is never read. */
+static int stall_client(bool page)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0), small = 2048;
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons(PORT)};
+    inet_pton(AF_INET, "127.0.0.1", &sa.sin_addr);
+    if (connect(fd, (struct sockaddr *)&sa, sizeof sa) < 0)
+        return fd;
+    static const char half[] = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+    static const char ws[] = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+    const char *req = page ? ws : half;
+    (void)!send(fd, req, strlen(req), MSG_NOSIGNAL);    /* and nothing is ever read */
+    return fd;
 }
 
 /* Server CPU while playing a 60 s synthetic mission log at `speed` to one WebSocket client. */
@@ -216,11 +250,23 @@ int main(int argc, char **argv)
         path_pts[i] = (marie_pose2d_t){i * 0.5, 3, 0};
     const char *comps[8] = {"sim", "odometry", "localizer", "planner", "behaviours", "mission", "mailbox", "sharedmap"};
 
-    int64_t t0_us = 0, t1_us = 0, rss = 0;
+    int64_t t0_us = 0, t1_us = 0, rss = 0, frames = 0, bytes = 0;
     marie_proc_usage(srv, &t0_us, &rss);
     int64_t start = marie_mono_us();
-    int seq = 0;
-    for (int k = 0; k < SECONDS * 50; k++) {    /* 50 Hz master tick */
+    double wall_s = 0;
+    int seq = 0, quiet_seq = 0, stalled[43];
+    for (int k = 0; k < (SECONDS + STALL_SECONDS) * 50; k++) {    /* 50 Hz master tick */
+        if (k == SECONDS * 50) {                /* the quiet part's figures; then the stalls */
+            wall_s = (marie_mono_us() - start) / 1e6;
+            marie_proc_usage(srv, &t1_us, &rss);
+            pthread_mutex_lock(&mu);
+            frames = ws_frames;
+            bytes = ws_bytes;
+            pthread_mutex_unlock(&mu);
+            quiet_seq = seq;
+            for (int i = 0; i < 43; i++)
+                stalled[i] = stall_client(i >= 40);
+        }
         int64_t due = start + (int64_t)k * 20000, now = marie_mono_us();
         if (due > now)
             usleep((useconds_t)(due - now));
@@ -270,9 +316,9 @@ int main(int argc, char **argv)
             publish(pub, "MAP", &marie_type_occupancy_grid_t, &g);
         }
     }
-    double wall_s = (marie_mono_us() - start) / 1e6;
-    marie_proc_usage(srv, &t1_us, &rss);
     usleep(300000);                             /* the last frames in flight */
+    for (int i = 0; i < 43; i++)
+        close(stalled[i]);
 
     stop_listener = 1;
     pthread_join(th, NULL);
@@ -284,12 +330,19 @@ int main(int argc, char **argv)
     double cpu = (t1_us - t0_us) / 1e4 / wall_s;
     row("server_cpu_live_full_rate", cpu, "%core", 0);
     row("server_rss", rss / 1048576.0, "MiB", 0);
-    row("frames_to_browser", ws_frames / wall_s, "frames/s", 0);
-    row("bytes_to_browser", ws_bytes / wall_s / 1024.0, "KiB/s", 0);
+    row("frames_to_browser", frames / wall_s, "frames/s", 0);
+    row("bytes_to_browser", bytes / wall_s / 1024.0, "KiB/s", 0);
     double bus50 = pct(bus_lat, n_bus, 0.5), bus99 = pct(bus_lat, n_bus, 0.99);
-    row("bus_to_browser_latency_p50", pct(ws_lat, n_ws, 0.5), "ms", bus50);
-    row("bus_to_browser_latency_p99", pct(ws_lat, n_ws, 0.99), "ms", bus99);
-    row("probes_received", n_ws, "of", seq);
+    static int64_t lat[MAXSEQ];
+    int nq = probes(0, quiet_seq, lat);
+    double q50 = pct(lat, nq, 0.5), q99 = pct(lat, nq, 0.99);
+    row("bus_to_browser_latency_p50", q50, "ms", bus50);
+    row("bus_to_browser_latency_p99", q99, "ms", bus99);
+    row("probes_received", nq, "of", quiet_seq);
+    int ns = probes(quiet_seq, seq, lat);
+    row("latency_p50_beside_stalled_clients", pct(lat, ns, 0.5), "ms", q50);
+    row("latency_p99_beside_stalled_clients", pct(lat, ns, 0.99), "ms", q99);
+    row("probes_received_beside_stalled", ns, "of", seq - quiet_seq);
     pthread_mutex_unlock(&mu);
     marie_loop_destroy(sub_loop);
     lcm_destroy(pub);

@@ -379,11 +379,18 @@ static int64_t heartbeat_period_us(const marie_component_t *c)
 /* The system file. A manager that runs its own copy of the user's file (filled in with launch
  * arguments, or sent to a host that cannot read it) names the original in MARIE_SYSTEM_ORIGIN:
  * the copy is read under that name, so its relative paths (types:) start from the user's folder
- * and its messages name the user's file. */
+ * and its messages name the user's file. A component the manager started reads its own entry
+ * alone (MARIE_SYSTEM_ENTRY, core/config_entry.c) unless that fails. */
 static marie_system_t *load_system(const options_t *o, marie_errors_t *errs)
 {
     const char *origin = getenv("MARIE_SYSTEM_ORIGIN"), *given = getenv("MARIE_SYSTEM");
-    if (!origin || !*origin || !given || strcmp(given, o->system) != 0)
+    bool managers = given && strcmp(given, o->system) == 0;
+    /* its own entry alone, where the manager says which lines it is (else the whole file) */
+    marie_system_t *sys = managers ? marie_system_load_entry(o->system, origin && *origin ? origin : NULL, o->profile,
+                                                             o->name, getenv("MARIE_SYSTEM_ENTRY")) : NULL;
+    if (sys)
+        return sys;
+    if (!origin || !*origin || !managers)
         return marie_system_load(o->system, o->profile, errs);
     size_t len;
     char *text = marie_file_read(o->system, 16 << 20, &len);
@@ -391,7 +398,7 @@ static marie_system_t *load_system(const options_t *o, marie_errors_t *errs)
         marie_errors_add(errs, o->system, 0, 0, "%s", strerror(errno));
         return NULL;
     }
-    marie_system_t *sys = marie_system_load_text(origin, text, len, o->profile, errs);
+    sys = marie_system_load_text(origin, text, len, o->profile, errs);
     free(text);
     return sys;
 }

@@ -198,6 +198,12 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
 marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
                                        marie_errors_t *errs)
 {
+    return marie_system_load_only(path, text, len, profile, NULL, errs);
+}
+
+marie_system_t *marie_system_load_only(const char *path, const char *text, size_t len, const char *profile,
+                                       const char *only, marie_errors_t *errs)
+{
     marie_system_t *sys = calloc(1, sizeof *sys);
     if (!sys)
         return NULL;
@@ -320,7 +326,7 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
     for (int k = 0; level && k <= nchain; k++)
         for (size_t i = 0; level_comps[k] && i < level_comps[k]->n; i++) {
             const marie_node_t *n = level_comps[k]->items[i];
-            bool kept = true;
+            bool kept = !only || strcmp(n->key, only) == 0;
             for (int m = k + 1; m <= nchain && kept; m++) {
                 kept = !marie_node_get(level_comps[m], n->key);
                 for (size_t r = 0; r < nremoved[m] && kept; r++)
@@ -342,6 +348,8 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
         }
         for (size_t i = 0; pp && i < pp->n; i++) {
             const marie_node_t *o = pp->items[i];
+            if (only && strcmp(o->key, only) != 0)
+                continue;
             bool known = false;
             for (int m = 0; m <= k; m++)
                 known |= marie_node_get(level_comps[m], o->key) != NULL;
@@ -369,10 +377,10 @@ marie_system_t *marie_system_load_text(const char *path, const char *text, size_
     for (size_t i = 0; i < sys->ncomponents; i++)
         sys->by_name[i] = &sys->components[i];
     qsort(sys->by_name, sys->ncomponents, sizeof *sys->by_name, cmp_cfg_name);
-    /* Dependencies must name components of the system. */
+    /* Dependencies must name components of the system (the other entries, when one is read). */
     for (size_t i = 0; i < sys->ncomponents; i++) {
         marie_component_cfg_t *c = &sys->components[i];
-        for (size_t k = 0; k < c->ndepends; k++) {
+        for (size_t k = 0; !only && k < c->ndepends; k++) {
             if (!marie_system_component(sys, c->depends[k])) {
                 marie_errors_add(errs, c->file, c->line, c->col, "component '%s' depends on unknown component '%s'",
                                  c->name, c->depends[k]);

@@ -179,6 +179,20 @@ marie_system_t *marie_system_load(const char *path, const char *profile, marie_e
  * -a); path names it in messages and is where its relative paths start. */
 marie_system_t *marie_system_load_text(const char *path, const char *text, size_t len, const char *profile,
                                        marie_errors_t *errs);
+/* One component's part of a loaded file, for the process that runs it (marie-am passes it in
+ * MARIE_SYSTEM_ENTRY; core/config_entry.c): the lines of the file's `components:` mapping and
+ * of the entry `name`, and text_hash (marie_text_hash of the file's text), in out. -1 where the
+ * file's layout does not allow it (a flow mapping, entries sharing a line). */
+int marie_system_entry_spec(const marie_system_t *sys, const char *name, uint64_t text_hash, char *out,
+                            size_t size);
+uint64_t marie_text_hash(const void *text, size_t len);
+/* The file at path (named origin in messages when not NULL) read for the component `name`
+ * alone, with a spec from marie_system_entry_spec: the other entries' lines emptied (so lines
+ * and columns stay those of the file), then loaded as marie_system_load_text without the other
+ * entries or checks about them. NULL, reporting nothing, where the spec does not fit the text
+ * (the file changed since) or what is left does not load: then read the whole file. */
+marie_system_t *marie_system_load_entry(const char *path, const char *origin, const char *profile, const char *name,
+                                        const char *spec);
 void marie_system_destroy(marie_system_t *sys);
 const marie_component_cfg_t *marie_system_component(const marie_system_t *sys, const char *name);
 

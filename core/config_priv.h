@@ -30,4 +30,13 @@ int marie_config_read_component(const marie_node_t *n, const marie_system_t *sys
                                 const marie_restart_cfg_t *defaults, marie_component_cfg_t *c,
                                 marie_errors_t *errs);
 
+/* marie_system_load_text reading only the component `only` (NULL: all): the other entries,
+ * at every level, are skipped and not checked, nor are dependencies on them (config_entry.c). */
+marie_system_t *marie_system_load_only(const char *path, const char *text, size_t len, const char *profile,
+                                       const char *only, marie_errors_t *errs);
+
+/* marie_system_load_entry on text already read (emptied in place), named file in messages. */
+marie_system_t *marie_system_load_entry_text(const char *file, char *text, size_t len, const char *profile,
+                                             const char *name, const char *spec);
+
 #endif

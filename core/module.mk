@@ -7,7 +7,7 @@ $(LIBMARIE): $(call marie_objs,$(CORE_SRCS)) $(LCM_OBJS)
 	$(AR) rcs $@ $^
 
 # tests/core/test_NAME.c, each a program of its own
-CORE_TESTS := loop base64 buf cli config spec typeinfo expand shm shm_bus
+CORE_TESTS := loop base64 buf cli config config_entry spec typeinfo expand shm shm_bus
 $(foreach t,$(CORE_TESTS),$(eval $(call marie_test,test_$(t),tests/core/test_$(t).c)))
 $(foreach t,lcm lifecycle,$(eval $(call marie_test,test_$(t),tests/core/test_$(t).c tests/udp.c)))
 $(eval $(call marie_test,test_ports,tests/core/test_ports.c tests/proc.c))
@@ -17,6 +17,7 @@ $(eval $(call marie_link,$(B)/tests/test_burst,tests/core/test_burst.c tests/pro
 EXTRA_TARGETS += $(B)/tests/test_burst
 ALONE_TESTS += $(B)/tests/test_burst
 $(eval $(call marie_fuzz,config,tests/core/fuzz_config.c))
+$(eval $(call marie_fuzz,config_entry,tests/core/fuzz_config_entry.c))
 $(eval $(call marie_fuzz,typeinfo,tests/core/fuzz_typeinfo.c))
 $(eval $(call marie_bench,bench_ports,bench/bench_ports.c tests/proc.c))
 ITESTS += tests/core/test_decode_rule.sh

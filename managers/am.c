@@ -43,6 +43,8 @@ static void on_heartbeat(am_t *am, const marie_heartbeat_t *hb)
                                c->cfg->name, (int)hb->pid, (int)c->sv.pid);
         return;
     }
+    if (c->sv.local && hb->pid == c->sv.pid)
+        am_comp_unboost(c);     /* it runs: back to the normal policy */
     marie_sv_state_t before = c->sv.st;
     marie_sv_action_t act;
     marie_sv_heartbeat(&c->sv, hb->state, hb->reason, am_now_us(), &act);

@@ -59,6 +59,8 @@ struct comp {
     char host[128];             /* effective host (a move changes it) */
     marie_timer_t *timer;       /* am_run.c: backoff or kill timer, as the state machine asks */
     int64_t start_ticks;        /* am_system.c: /proc start time, with pid names the process */
+    bool boosted;               /* am_run.c: started at the manager's real-time priority, until
+                                 * its first heartbeat (am_comp_unboost) */
     am_usage_t use;             /* am_status.c */
     am_output_t out;            /* am_output.c */
     struct {
@@ -112,6 +114,7 @@ typedef struct {
 typedef struct {
     marie_system_t *sys;
     char hash[65];
+    uint64_t text_hash;         /* marie_text_hash of the file, for MARIE_SYSTEM_ENTRY */
     char *path;                 /* path given to components as MARIE_SYSTEM */
     char *profile;
     bool up;
@@ -189,6 +192,9 @@ void am_status_usage_reset(comp_t *c);            /* a new process: no sample ye
 
 /* am_run.c: the state machine's actions carried out */
 comp_t *am_comp_find(am_t *am, const char *name);
+/* A component started at the manager's real-time priority (--rt-priority) goes back to the
+ * normal policy: at its first heartbeat, or when its process ends. */
+void am_comp_unboost(comp_t *c);
 bool am_comp_matches(const comp_t *c, const char *target);
 /* Do what the state machine asked after an event that found the component in `before`. */
 void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *act);
@@ -246,6 +252,7 @@ size_t am_ncomps(const am_t *am);
 comp_t *am_comp_at(const am_t *am, size_t i);
 const char *am_system_hash(const am_t *am);    /* "" without a system */
 const char *am_system_path(const am_t *am);
+uint64_t am_system_text_hash(const am_t *am);     /* marie_text_hash of its text */
 const char *am_profile(const am_t *am);        /* NULL: none */
 bool am_is_up(const am_t *am);
 void am_down(am_t *am);                        /* a down order: not up, across restarts too */

@@ -1,11 +1,14 @@
 /* marie-am's hands: spawns components (their output goes to am_output.c), and carries out what
  * the supervision state machine (supervise.c) decides: signals, timers, respawns. */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -77,7 +80,7 @@ static bool env_dropped(const char *kv)
     static const char *const drop[] = {"NOTIFY_SOCKET=", "WATCHDOG_USEC=", "WATCHDOG_PID=",
                                        "LISTEN_FDS=", "LISTEN_PID=", "LISTEN_FDNAMES=", "PATH=",
                                        "MARIE_SYSTEM=", "MARIE_NAME=", "MARIE_PROFILE=", "MARIE_HOST=",
-                                       "MARIE_STATE_DIR=", "MARIE_KEY=", "MARIE_SYSTEM_ORIGIN=", NULL};
+                                       "MARIE_STATE_DIR=", "MARIE_KEY=", "MARIE_SYSTEM_ORIGIN=", "MARIE_SYSTEM_ENTRY=", NULL};
     for (int i = 0; drop[i]; i++)
         if (strncmp(kv, drop[i], strlen(drop[i])) == 0)
             return true;
@@ -92,6 +95,71 @@ static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
     return marie_am_resolve_exec(am->env.self_dir, cfg->file, cfg->exec);
 }
 
+/* ---------------------------------------------------------------- the start at the manager's priority */
+
+/* A manager at a real-time priority starts a component with a short heartbeat_timeout at that
+ * priority less one (the manager's own wake-ups come first), and puts it back to the normal
+ * policy at its first heartbeat. Born at the normal policy, the new process waited for a CPU
+ * beside busy loops from its clone to its main and its first heartbeat: 60-90 ms of a restart
+ * whose floor is the timeout and the stop timeout (docs/managers.md, "Not responding"). Not for
+ * a component whose sched: asks for a policy of its own, nor a shell's (its children are not
+ * its threads), nor one with a long timeout (nothing to win, and it must not hold a CPU long). */
+#define BOOST_MAX_TIMEOUT_S 4.0
+
+/* The manager's SCHED_FIFO priority less one (at least 1), or 0 at another policy. */
+static int below_manager(void)
+{
+    struct sched_param p;
+    if ((sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) != SCHED_FIFO || sched_getparam(0, &p) < 0)
+        return 0;
+    return p.sched_priority > 1 ? p.sched_priority - 1 : 1;
+}
+
+static int boost_priority(const comp_t *c)
+{
+    const marie_component_cfg_t *cfg = c->cfg;
+    bool short_timeout = cfg->heartbeat_timeout_s > 0 && cfg->heartbeat_timeout_s < BOOST_MAX_TIMEOUT_S;
+    return !cfg->shell && cfg->sched.policy == MARIE_SCHED_OTHER && short_timeout ? below_manager() : 0;
+}
+
+/* Every thread of process pid (those it started while boosted have its policy too) to policy
+ * at prio; back to SCHED_OTHER at the manager's niceness or 0, as SCHED_RESET_ON_FORK makes it. */
+static void set_tasks_policy(pid_t pid, int policy, int prio)
+{
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/task", (int)pid);
+    DIR *d = pid > 0 ? opendir(path) : NULL;
+    struct sched_param p = {.sched_priority = prio};
+    errno = 0;
+    int nice = getpriority(PRIO_PROCESS, 0);
+    for (struct dirent *e; d && (e = readdir(d));) {
+        pid_t tid = (pid_t)atoi(e->d_name);
+        if (tid > 0 && sched_setscheduler(tid, policy, &p) == 0 && policy == SCHED_OTHER)
+            setpriority(PRIO_PROCESS, (id_t)tid, nice > 0 ? nice : 0);
+    }
+    if (d)
+        closedir(d);
+}
+
+void am_comp_unboost(comp_t *c)
+{
+    if (!c->boosted)
+        return;
+    c->boosted = false;
+    set_tasks_policy(c->sv.pid, SCHED_OTHER, 0);
+}
+
+/* A process killed at the normal policy waits for a CPU to die (the kernel ends it in its own
+ * context): beside busy loops its exit, and so the respawn, came up to 34 ms after the SIGKILL.
+ * A manager at a real-time priority gives it that priority less one for its last moment. */
+static void hurry_exit(comp_t *c, pid_t pid)
+{
+    int prio = below_manager();
+    if (prio > 0)
+        set_tasks_policy(pid, SCHED_FIFO, prio);
+    c->boosted = false;         /* nothing to put back: it is going */
+}
+
 /* The environment of a component: the manager's, minus service plumbing, plus marie's and
  * the component's. NULL on failure; the caller frees the *ne strings and the array. */
 static char **child_env(comp_t *c, size_t *nep)
@@ -104,7 +172,7 @@ static char **child_env(comp_t *c, size_t *nep)
     size_t nenv = 0;
     while (environ[nenv])
         nenv++;
-    envp = calloc(nenv + cfg->nenv + 11, sizeof *envp);
+    envp = calloc(nenv + cfg->nenv + 12, sizeof *envp);
     if (!envp)
         return NULL;
     for (size_t i = 0; i < nenv; i++)
@@ -124,6 +192,11 @@ static char **child_env(comp_t *c, size_t *nep)
     if (am_system_origin(am) && asprintf(&envp[ne++], "MARIE_SYSTEM_ORIGIN=%s", am_system_origin(am)) < 0)
         goto fail;
     if (am_profile(am) && asprintf(&envp[ne++], "MARIE_PROFILE=%s", am_profile(am)) < 0)
+        goto fail;
+    /* which lines of the file are its entry: it need not parse the others */
+    char spec[96];
+    if (marie_system_entry_spec(am_system(am), cfg->name, am_system_text_hash(am), spec, sizeof spec) == 0 &&
+        asprintf(&envp[ne++], "MARIE_SYSTEM_ENTRY=%s", spec) < 0)
         goto fail;
     for (size_t i = 0; i < cfg->nenv; i++)
         envp[ne++] = strdup(cfg->env[i]);
@@ -202,9 +275,12 @@ static void comp_spawn(comp_t *c)
      * are close-on-exec. A failed exec says why on the component's stderr and exits 127. */
     char *prog = cfg->shell ? NULL : resolve_exec(am, cfg);
     marie_spawn_refused_t refused;
+    marie_sched_cfg_t boost = cfg->sched;
+    boost.priority = boost_priority(c);
+    boost.policy = boost.priority ? MARIE_SCHED_FIFO : boost.policy;
     marie_spawn_req_t req = {
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
-        .sched = &cfg->sched, .refused = &refused,
+        .sched = boost.priority ? &boost : &cfg->sched, .refused = &refused,
     };
     am_limits_prepare(c, &req.cgroup_fd, &req.nofile);
     pid_t pid = marie_spawn(am->env.spawner, &req);
@@ -214,6 +290,9 @@ static void comp_spawn(comp_t *c)
         am_event(am, MARIE_EVENT_T_SEV_ERROR, "spawn_failed", "%s: spawn: %s", cfg->name, strerror(errno));
         goto fail;
     }
+    c->boosted = boost.priority && !refused.policy_err;
+    if (boost.priority)
+        refused.policy_err = 0;     /* not asked for by its entry: nothing to report */
     report_sched(c, &refused);
     close(po[1]);
     close(pe[1]);
@@ -275,6 +354,7 @@ void am_comp_apply(comp_t *c, marie_sv_state_t before, const marie_sv_action_t *
     if ((act->what & MARIE_SV_KILL) && pid > 0) {
         kill(-pid, SIGKILL);
         kill(pid, SIGKILL);
+        hurry_exit(c, pid);
     }
     if (act->timer_s > 0)
         c->timer = marie_loop_add_oneshot(am->env.loop, (int64_t)(act->timer_s * 1e6), on_sv_timer, c);
@@ -360,6 +440,7 @@ void am_progress_stops(am_t *am)
 static void comp_exited(comp_t *c, int status)
 {
     pid_t old = c->sv.pid;
+    c->boosted = false;
     am_output_drain(c);     /* output still in the pipes belongs to this run */
     /* leftovers of the process group (shell children) go with their leader */
     kill(-old, SIGKILL);

@@ -23,6 +23,7 @@ comp_t *am_comp_at(const am_t *am, size_t i) { return &am->system.comps[i]; }
 const marie_system_t *am_system(const am_t *am) { return am->system.sys; }
 const char *am_system_hash(const am_t *am) { return am->system.sys ? am->system.hash : ""; }
 const char *am_system_path(const am_t *am) { return am->system.path; }
+uint64_t am_system_text_hash(const am_t *am) { return am->system.text_hash; }
 const char *am_profile(const am_t *am) { return am->system.profile; }
 bool am_is_up(const am_t *am) { return am->system.up; }
 
@@ -317,6 +318,7 @@ void am_loading_install(am_t *am, am_loading_t *l)
     am->system.sys = sys;
     am_balance_install(am, sys, &set.balance);
     sha256_hex(l->text, l->len, l->profile ? l->profile : "", am->system.hash);
+    am->system.text_hash = marie_text_hash(l->text, l->len);
     free(am->system.path);
     am->system.path = realpath(l->path, NULL);
     if (!am->system.path)

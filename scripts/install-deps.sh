@@ -7,13 +7,15 @@ base="gcc g++ make liblcm-dev liblcm-bin liblcm-java default-jdk-headless libgli
       libeigen3-dev libode-dev libompl-dev libboost-serialization-dev
       libboost-filesystem-dev libboost-system-dev libopencv-dev libapriltag-dev
       libgpiod-dev gpiod can-utils libfyaml-dev libexpat1-dev libsodium-dev
-      systemd libcmocka-dev iproute2 python3 python3-yaml util-linux procps libcivetweb-dev libjpeg-dev
+      systemd libcmocka-dev iproute2 python3 python3-yaml util-linux procps libcivetweb-dev nettle-dev libjpeg-dev
       libjchart2d-java tmux python3-venv xvfb x11-apps default-jre fonts-dejavu-core fontconfig
       libfftw3-dev libasound2-dev libpocketsphinx-dev pocketsphinx-en-us festival festvox-kallpc16k espeak-ng
       libceres-dev cyclonedds-dev cyclonedds-tools zlib1g-dev"
 # (audio: FFTW for SRP-PHAT, ALSA for the array driver, PocketSphinx and its US English model
 # for marie-asr, Festival and its US English voice for marie-tts and the simulator's phrases
 # (festvox-kallpc16k: recommends are not installed), espeak-ng a second voice.)
+# (nettle-dev: SHA-1 for the web pages' WebSocket handshake, tools/webcommon; libcivetweb-dev:
+# the WebSocket client of bench_viewer and bench_face.)
 # (libceres-dev: the mapper's pose graph optimizer, adapters/mapper; zlib1g-dev: marie log import
 # reads gzipped CARMEN logs.)
 # (cyclonedds-dev: marie-ros2 speaks ROS 2 on Cyclone DDS; cyclonedds-tools has idlc, which

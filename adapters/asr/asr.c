@@ -54,11 +54,14 @@ struct asr {
     cmn_state_t cmn_start;      /* the running cepstral mean the utterance was decoded with */
 };
 
+static const char *or_default(const char *path, const char *deflt)
+{
+    return path && *path ? path : deflt;
+}
+
 void asr_cfg_default(asr_cfg_t *c, const char *const *commands, int ncommands, int block)
 {
-    memset(c, 0, sizeof(*c));
-    c->hmm = "/usr/share/pocketsphinx/model/en-us/en-us";
-    c->dict = "/usr/share/pocketsphinx/model/en-us/cmudict-en-us.dict";
+    memset(c, 0, sizeof(*c));       /* model: Debian's */
     c->commands = commands;
     c->ncommands = ncommands;
     c->rate = 16000;
@@ -122,18 +125,20 @@ asr_t *asr_create(const asr_cfg_t *cfg, asr_result_cb_t cb, void *user, char *wh
     a->cb = cb;
     a->user = user;
     a->locked = -1;
-    a->config = cmd_ln_init(NULL, ps_args(), TRUE, "-hmm", cfg->hmm, "-dict", cfg->dict, "-logfn", "/dev/null",
+    const char *hmm = or_default(cfg->model.hmm, ASR_DEFAULT_HMM);
+    const char *dict = or_default(cfg->model.dict, ASR_DEFAULT_DICT);
+    a->config = cmd_ln_init(NULL, ps_args(), TRUE, "-hmm", hmm, "-dict", dict, "-logfn", "/dev/null",
                             "-samprate", "16000",
                             /* wider beams than the defaults: 103 of 120 clean espeak-ng commands
                                instead of 93 (the narrow ones lose the grammar's end) */
                             "-beam", "1e-80", "-wbeam", "1e-60", "-pbeam", "1e-80", NULL);
     if (!a->config || !(a->ps = ps_init(a->config))) {
-        marie_fail_why(why, whylen, "PocketSphinx cannot load the model %s with %s", cfg->hmm, cfg->dict);
+        marie_fail_why(why, whylen, "PocketSphinx cannot load the model %s with %s", hmm, dict);
         goto fail;
     }
     if (ps_set_jsgf_string(a->ps, "commands", jsgf) || set_verify_beams(a->config) ||
         ps_set_jsgf_string(a->ps, "verify", jsgf) || ps_set_search(a->ps, "commands")) {
-        marie_fail_why(why, whylen, "the command grammar is refused (a word missing from %s?)", cfg->dict);
+        marie_fail_why(why, whylen, "the command grammar is refused (a word missing from %s?)", dict);
         goto fail;
     }
     int preroll = (int)(cfg->preroll_s * cfg->rate) + cfg->block;

@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "adapters/asr/asr_model_params.h"
 #include "adapters/asr/asr_vad.h"
 
 #ifdef __cplusplus
@@ -15,8 +16,7 @@ extern "C" {
 #define ASR_MAX_STREAMS 8
 
 typedef struct {
-    const char *hmm;            /* acoustic model folder */
-    const char *dict;           /* pronunciation dictionary */
+    asr_model_t model;          /* hmm and dict; empty or NULL: ASR_DEFAULT_HMM, ASR_DEFAULT_DICT */
     const char *const *commands;/* phrases of the grammar, lower case */
     int ncommands;
     int rate;                   /* Hz of the streams (the model's: 16000) */
@@ -41,6 +41,9 @@ typedef struct {
     double conf_mid, conf_scale;
     double max_outside_s, doubt;
 } asr_cfg_t;
+
+#define ASR_DEFAULT_HMM "/usr/share/pocketsphinx/model/en-us/en-us"
+#define ASR_DEFAULT_DICT "/usr/share/pocketsphinx/model/en-us/cmudict-en-us.dict"
 
 /* The default model of Debian's pocketsphinx-en-us, and a 16 kHz rate. */
 void asr_cfg_default(asr_cfg_t *c, const char *const *commands, int ncommands, int block);

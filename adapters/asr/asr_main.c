@@ -16,13 +16,15 @@ typedef struct {
     marie_port_t *p_speech;
     const char **phrases;
     char *phrase_text;
-    int nphrases, block, channel;
+    int nphrases;
     int16_t *mono;
     bool speaking;
-    int64_t deaf_until, deaf_after_us;
+    int64_t deaf_until;
     int64_t last_utime, last_now;   /* the newest block's time, and the clock's then */
     marie_component_t *c;
 } asr_state_t;
+
+static const asr_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
 static void on_heard(const asr_result_t *r, void *user)
 {
@@ -59,9 +61,10 @@ static void on_separated(marie_component_t *c, marie_port_t *p, const void *msg,
 {
     asr_state_t *s = marie_component_user(c);
     const marie_separated_audio_t *m = msg;
-    if (m->sample_rate != 16000 || m->nsamples != s->block) {
+    int block = (int)params_of(c)->block;
+    if (m->sample_rate != 16000 || m->nsamples != block) {
         marie_component_bad_input(c, "bad_audio", "separated block of %d samples at %d Hz refused (want %d at 16000)",
-                                  m->nsamples, m->sample_rate, s->block);
+                                  m->nsamples, m->sample_rate, block);
         return;
     }
     if (!deaf(s, m->utime))
@@ -81,14 +84,15 @@ static void on_array(marie_component_t *c, marie_port_t *p, const void *msg, con
 {
     asr_state_t *s = marie_component_user(c);
     const marie_audio_frame_t *f = msg;
-    if (f->sample_rate != 16000 || f->nsamples != s->block || s->channel >= f->nchannels ||
+    int block = (int)params_of(c)->block, channel = (int)params_of(c)->channel;
+    if (f->sample_rate != 16000 || f->nsamples != block || channel >= f->nchannels ||
         (int64_t)f->nchannels * f->nsamples != f->nvalues) {
         marie_component_bad_input(c, "bad_audio", "array block of %d x %d samples at %d Hz refused (want channel %d, "
-                                  "%d samples at 16000)", f->nchannels, f->nsamples, f->sample_rate, s->channel, s->block);
+                                  "%d samples at 16000)", f->nchannels, f->nsamples, f->sample_rate, channel, block);
         return;
     }
     for (int i = 0; i < f->nsamples; i++)
-        s->mono[i] = f->data[i * f->nchannels + s->channel];
+        s->mono[i] = f->data[i * f->nchannels + channel];
     if (!deaf(s, f->utime))
         asr_feed(s->asr, -1, s->mono, f->nsamples, f->utime);
 }
@@ -102,7 +106,7 @@ static void on_robot_speech(marie_component_t *c, marie_port_t *p, const void *m
         s->speaking = true;
     } else if (m->state == MARIE_ROBOT_SPEECH_T_STATE_DONE || m->state == MARIE_ROBOT_SPEECH_T_STATE_FAILED) {
         s->speaking = false;
-        s->deaf_until = audio_now(s) + s->deaf_after_us;
+        s->deaf_until = audio_now(s) + (int64_t)(params_of(c)->deaf_after_s * 1e6);
     }
 }
 
@@ -132,9 +136,7 @@ static int init(marie_component_t *c)
     asr_state_t *s = marie_component_user(c);
     const asr_params_t *q = marie_component_params(c);
     s->c = c;
-    s->block = (int)q->block;
-    s->channel = (int)q->channel;
-    s->deaf_after_us = (int64_t)(q->deaf_after_s * 1e6);
+    int block = (int)q->block;
     const char *const *phrases = asr_default_commands;
     int n = asr_default_ncommands;
     if (q->commands && *q->commands) {
@@ -146,13 +148,10 @@ static int init(marie_component_t *c)
         n = s->nphrases;
     }
     asr_cfg_t cfg;
-    asr_cfg_default(&cfg, phrases, n, s->block);
-    if (*q->hmm)
-        cfg.hmm = q->hmm;
-    if (*q->dict)
-        cfg.dict = q->dict;
+    asr_cfg_default(&cfg, phrases, n, block);
+    cfg.model = q->model;
     char why[256] = "";
-    if (s->block < 16 || s->block > 16000 || !(s->mono = malloc(sizeof(int16_t) * (size_t)s->block)) ||
+    if (block < 16 || block > 16000 || !(s->mono = malloc(sizeof(int16_t) * (size_t)block)) ||
         !(s->asr = asr_create(&cfg, on_heard, s, why, sizeof(why)))) {
         marie_component_fail_reason(c, "recognizer: %s", why[0] ? why : "block out of range");
         return -1;

@@ -23,9 +23,9 @@ typedef struct {
     marie_port_t *p_say, *p_goal, *p_event, *p_face, *p_request;
     marie_auth_t *auth;         /* NULL: goals only on SPOKEN_GOAL, no request to the mission */
     char sender[96];
-    double tolerance;
-    double min_confidence;
 } dlg_t;
+
+static const dlg_params_t *params_of(const marie_component_t *c) { return marie_component_params(c); }
 
 static void event(marie_component_t *c, dlg_t *s, const char *kind, const char *text)
 {
@@ -77,7 +77,7 @@ static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, co
     dlg_t *s = marie_component_user(c);
     const marie_speech_t *m = msg;
     char buf[320];
-    if (m->confidence < s->min_confidence) {
+    if (m->confidence < params_of(c)->min_confidence) {
         marie_component_count(c, "unsure", 1);
         snprintf(buf, sizeof(buf), "\"%.200s\" ignored (confidence %.2f)", m->text, m->confidence);
         event(c, s, "unsure", buf);
@@ -99,9 +99,9 @@ static void on_speech(marie_component_t *c, marie_port_t *p, const void *msg, co
     if (r.actions & DIALOGUE_GOAL) {
         /* Ids of their own (the mission's list counts from 1, the touch page from 800000, the
          * viewer from 900000): a request with the id of a listed goal would replace it. */
+        double tol = params_of(c)->tolerance;     /* the goal carries the parameter: a use, no copy */
         marie_goal_t g = { .utime = marie_component_now(c), .id = 700000 + ++s->goal_id, .name = r.place.name,
-                           .pose = { r.place.x, r.place.y, r.place.theta }, .tolerance = s->tolerance,
-                           .priority = 10 };
+                           .pose = { r.place.x, r.place.y, r.place.theta }, .tolerance = tol, .priority = 10 };
         marie_port_publish(s->p_goal, &g);
         if (s->auth)
             request_goal(c, s, &g);
@@ -128,8 +128,6 @@ static int init(marie_component_t *c)
     }
     dialogue_init(&s->d, places, n, q->robot_name);
     speaker_dir_init(&s->dirs);
-    s->tolerance = q->tolerance;
-    s->min_confidence = q->min_confidence;
     s->p_say = marie_port(c, "say");
     s->p_goal = marie_port(c, "goal");
     s->p_event = marie_port(c, "events");

@@ -184,7 +184,7 @@ void Grid::hit(int cx, int cy)
     size_t i = (size_t)cy * w_ + cx;
     lo_[i] = (float)std::min(p_.l_max, lo_[i] + p_.l_hit);
     seen_[i] = 1;
-    if (lo_[i] > p_.l_occupied) {
+    if (lo_[i] > L_OCCUPIED) {
         /* Walls are stamped once, when a cell first turns occupied: a stray return (a beam's
          * noise, a passer-by) does not thicken the walls of a map matched against for hours. */
         if (stamp_walls_ && !(wall_[i] & STAMPED))

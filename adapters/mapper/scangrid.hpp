@@ -9,6 +9,8 @@
 #include <cstdlib>
 #include <vector>
 
+#include "adapters/mapper/slam_params.h"
+
 namespace mapper {
 
 struct Pose {
@@ -26,12 +28,8 @@ struct Scan {
     std::vector<float> mx, my;                 // where beams that saw nothing stop clearing
 };
 
-struct GridParams {
-    double resolution = 0.05;
-    double l_hit = 0.9, l_miss = -0.4, l_min = -2.0, l_max = 3.5;
-    double l_occupied = 0.6;                   // log-odds above which a cell is a wall for matching
-    double sigma = 0.05;                       // m
-};
+// The grid reads the mapper's own parameters (resolution, l_hit, l_miss, l_min, l_max, sigma).
+using GridParams = slam_params_t;
 
 struct MatchWindow {
     double xy = 0.2, th = 0.1, step_th = 0.008;
@@ -149,6 +147,7 @@ private:
     int w_, h_;
     double ox_, oy_;
     GridParams p_;
+    static constexpr double L_OCCUPIED = 0.6;  // log-odds above which a cell is a wall for matching
     ZeroArray<float> lo_;                      // log-odds
     ZeroArray<float> like_;                    // matching likelihood 0..1, max of the walls' kernels
     ZeroArray<uint8_t> seen_;

@@ -68,18 +68,6 @@ extern "C" void slam_params_default(slam_params_t *p)
     *p = d;
 }
 
-static GridParams grid_params(const slam_params_t *p)
-{
-    GridParams g;
-    g.resolution = p->resolution;
-    g.l_hit = p->l_hit;
-    g.l_miss = p->l_miss;
-    g.l_min = p->l_min;
-    g.l_max = p->l_max;
-    g.sigma = p->sigma;
-    return g;
-}
-
 extern "C" slam_t *slam_create(const slam_params_t *p, const double pose0[3])
 {
     if (!p || !(p->resolution >= 0.01) || !(p->size_m >= 1) || p->size_m / p->resolution > 8000 ||
@@ -99,13 +87,13 @@ extern "C" slam_t *slam_create(const slam_params_t *p, const double pose0[3])
         s->pose0 = { pose0[0], pose0[1], wrap(pose0[2]) };
         int n = (int)std::ceil(p->size_m / p->resolution);
         s->grid = std::make_unique<Grid>(n, n, pose0[0] - n * p->resolution / 2, pose0[1] - n * p->resolution / 2,
-                                         grid_params(p));
+                                         *p);
         int t = (int)std::ceil(p->track_size_m / p->resolution);
         for (Tracker &k : s->trk)
-            k.grid = std::make_unique<Grid>(t, t, 0, 0, grid_params(p));
+            k.grid = std::make_unique<Grid>(t, t, 0, 0, *p);
         s->grid->set_stamp_walls(true);
         int cn = (int)std::ceil(30.0 / p->resolution);
-        s->chain = std::make_unique<Grid>(cn, cn, 0, 0, grid_params(p));
+        s->chain = std::make_unique<Grid>(cn, cn, 0, 0, *p);
         return s;
     } catch (const std::bad_alloc &) {
         errno = ENOMEM;

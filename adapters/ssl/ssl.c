@@ -49,9 +49,7 @@ void ssl_cfg_default(ssl_cfg_t *c)
     ssl_srp_cfg_default(&c->srp);
     ssl_track_cfg_default(&c->track);
     ssl_sep_cfg_default(&c->sep);
-    c->hop = c->srp.nfft / 2;
-    c->potentials = 3;
-    c->separate = true;
+    c->hop = (int)c->srp.nfft / 2;
     c->stream = (ssl_stream_params_t)SSL_STREAM_PARAMS_DEFAULTS;
 }
 
@@ -89,7 +87,7 @@ static int spec_stride(const ssl_t *s)
 
 ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
 {
-    if (cfg->hop * 2 != cfg->srp.nfft || cfg->potentials < 1 || cfg->potentials > SSL_MAX_POTENTIALS ||
+    if (cfg->hop * 2 != cfg->srp.nfft || cfg->srp.potentials < 1 || cfg->srp.potentials > SSL_MAX_POTENTIALS ||
         !(cfg->stream.backfill_s >= 0 && cfg->stream.backfill_s <= 10))
         return marie_fail_null(EINVAL);
     ssl_t *s = calloc(1, sizeof(*s));
@@ -99,7 +97,7 @@ ssl_t *ssl_create(const ssl_cfg_t *cfg, ssl_result_cb_t cb, void *user)
     s->cb = cb;
     s->user = user;
     s->M = cfg->mics.n;
-    s->nfft = cfg->srp.nfft;
+    s->nfft = (int)cfg->srp.nfft;
     s->hop = cfg->hop;
     s->nbins = s->nfft / 2 + 1;
     s->cfg.track.dt = (double)s->hop / cfg->srp.rate;
@@ -142,7 +140,7 @@ fail:
 
 int ssl_rate(const ssl_t *s)
 {
-    return s->cfg.srp.rate;
+    return (int)s->cfg.srp.rate;
 }
 
 static void analyse(ssl_t *s)
@@ -276,13 +274,13 @@ static void frame(ssl_t *s)
     ssl_result_t r = { .utime = s->next_utime - (int64_t)s->nfft * 1000000 / s->cfg.srp.rate };
     r.stream_utime = r.utime;
     analyse(s);
-    r.npot = ssl_srp_frame(s->srp, (const float complex *const *)s->spec, r.pot, s->cfg.potentials);
+    r.npot = ssl_srp_frame(s->srp, (const float complex *const *)s->spec, r.pot, (int)s->cfg.srp.potentials);
     if (s->cfg.nfixed > 0)
         fix_tracks(s, r.utime);
     else
         ssl_tracker_update(&s->tracker, r.pot, r.npot, r.utime);
     r.tracker = &s->tracker;
-    if (s->cfg.separate)
+    if (s->cfg.sep.separate)
         separate(s, &r);
     if (s->cb)
         s->cb(&r, s->user);
@@ -293,7 +291,7 @@ static int feed(ssl_t *s, const int16_t *i16, const float *f32, int nchannels, i
 {
     if (nchannels != s->M || nsamples < 0)
         return marie_fail(EINVAL);
-    int rate = s->cfg.srp.rate;
+    int rate = (int)s->cfg.srp.rate;
     for (int j = 0; j < nsamples; j++) {
         for (int m = 0; m < s->M; m++) {
             float *x = s->ring + (size_t)m * s->nfft;

@@ -17,12 +17,10 @@ extern "C" {
 
 typedef struct {
     micarray_t mics;
-    ssl_srp_cfg_t srp;          /* rate and nfft of the whole pipeline */
+    ssl_srp_cfg_t srp;          /* rate and nfft of the whole pipeline, potentials per frame (<= 4) */
     ssl_track_cfg_t track;      /* dt is set from the hop */
-    ssl_sep_cfg_t sep;
+    ssl_sep_cfg_t sep;          /* separate: beam the tracked sources at all */
     int hop;                    /* nfft / 2 */
-    int potentials;             /* per frame, <= SSL_MAX_POTENTIALS */
-    bool separate;
     /* A new track's stream starts with the sound of the stream.backfill_s before its birth,
      * beamed toward it: the birth comes a few frames after the onset, and the words' first
      * syllable (and the quiet before it, which a voice detector measures its floor on) is there. */

@@ -13,7 +13,7 @@
 typedef struct {
     marie_component_t *c;
     ssl_t *ssl;
-    int nmics, rate;
+    int nmics;
     int64_t next_seq;           /* expected seq of the next input block; -1 before the first */
     int64_t sources_every, frames;
     marie_port_t *p_sources, *p_sep;
@@ -45,8 +45,8 @@ static void publish_hop(ssl_state_t *s, const ssl_stream_t *st, const float *x, 
     for (int j = 0; j < s->hop; j++)
         s->pcm[j] = (int16_t)lrintf(fmaxf(-32768.0f, fminf(32767.0f, x[j] * 32768.0f)));
     marie_separated_audio_t m = { .utime = utime, .seq = seq, .source_id = st->id, .azimuth = (float)st->azimuth,
-                                  .elevation = (float)st->elevation, .sample_rate = s->rate, .nsamples = s->hop,
-                                  .data = s->pcm };
+                                  .elevation = (float)st->elevation, .sample_rate = ssl_rate(s->ssl),
+                                  .nsamples = s->hop, .data = s->pcm };
     marie_port_publish(s->p_sep, &m);
 }
 
@@ -59,7 +59,7 @@ static void on_result(const ssl_result_t *r, void *user)
         const ssl_stream_t *st = &r->streams[i];
         for (int h = 0; h < st->nhistory; h++)     /* a new stream's onset, before its first hop */
             publish_hop(s, st, st->history + (size_t)h * s->hop, st->seq - st->nhistory + h,
-                        r->stream_utime - (int64_t)(st->nhistory - h) * s->hop * 1000000 / s->rate);
+                        r->stream_utime - (int64_t)(st->nhistory - h) * s->hop * 1000000 / ssl_rate(s->ssl));
         publish_hop(s, st, st->samples, st->seq, r->stream_utime);
     }
 }
@@ -68,11 +68,12 @@ static void on_audio(marie_component_t *c, marie_port_t *p, const void *msg, con
 {
     ssl_state_t *s = marie_component_user(c);
     const marie_audio_frame_t *f = msg;
-    if (f->nchannels != s->nmics || f->sample_rate != s->rate || f->nsamples < 0 ||
+    int rate = ssl_rate(s->ssl);
+    if (f->nchannels != s->nmics || f->sample_rate != rate || f->nsamples < 0 ||
         (int64_t)f->nchannels * f->nsamples != f->nvalues) {
         marie_component_bad_input(c, "bad_audio", "audio block of %d channels x %d samples at %d Hz refused "
                                   "(the array has %d channels at %d Hz)", f->nchannels, f->nsamples,
-                                  f->sample_rate, s->nmics, s->rate);
+                                  f->sample_rate, s->nmics, rate);
         return;
     }
     if (s->next_seq >= 0 && f->seq != s->next_seq)
@@ -94,18 +95,11 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "mics: %s", why);
         return -1;
     }
-    cfg.srp.rate = (int)q->rate;
-    cfg.srp.nfft = (int)q->nfft;
-    cfg.hop = cfg.srp.nfft / 2;
-    cfg.potentials = (int)q->potentials;
-    cfg.track.min_energy = q->min_energy;
-    cfg.track.birth_energy = q->birth_energy;
-    cfg.track.gate = q->gate_deg * M_PI / 180;
-    cfg.track.death_s = q->death_s;
-    cfg.separate = q->separate;
+    cfg.srp = q->srp;
+    cfg.track = q->tracker;
+    cfg.sep = q->sep;
     cfg.stream = q->stream;
-    cfg.sep.nulls = q->nulls;
-    cfg.sep.postfilter = q->postfilter;
+    cfg.hop = (int)cfg.srp.nfft / 2;
     if (!(q->sources_hz > 0)) {
         marie_component_fail_reason(c, "sources_hz must be > 0");
         return -1;
@@ -113,7 +107,6 @@ static int init(marie_component_t *c)
     free(s->pcm);
     s->c = c;
     s->nmics = cfg.mics.n;
-    s->rate = cfg.srp.rate;
     s->hop = cfg.hop;
     s->next_seq = -1;
     s->frames = 0;
@@ -122,7 +115,8 @@ static int init(marie_component_t *c)
     s->pcm = malloc(sizeof(int16_t) * (size_t)(cfg.hop > 0 ? cfg.hop : 1));
     if (!s->pcm || !(s->ssl = ssl_create(&cfg, on_result, s))) {
         marie_component_fail_reason(c, "cannot set up the pipeline (rate %d, nfft %d, potentials %d): %s",
-                                    cfg.srp.rate, cfg.srp.nfft, cfg.potentials, strerror(errno));
+                                    (int)cfg.srp.rate, (int)cfg.srp.nfft, (int)cfg.srp.potentials,
+                                    strerror(errno));
         return -1;
     }
     s->p_sources = marie_port(c, "sources");

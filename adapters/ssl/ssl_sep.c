@@ -7,10 +7,12 @@
 
 #define SPEED_OF_SOUND 343.0
 #define MAXK 8
+#define LOADING 0.05            /* diagonal loading of A^H A, relative to the microphone count */
+#define FLOOR_GAIN 0.3          /* the post-filter's lowest gain */
 
 void ssl_sep_cfg_default(ssl_sep_cfg_t *c)
 {
-    *c = (ssl_sep_cfg_t){ .loading = 0.05, .nulls = true, .postfilter = true, .floor_gain = 0.3 };
+    *c = (ssl_sep_cfg_t)SSL_SEP_CFG_DEFAULTS;
 }
 
 /* Solves G z = b in place (G n x n, complex, Gaussian elimination with partial pivoting). */
@@ -75,7 +77,7 @@ void ssl_sep_beam(const ssl_sep_cfg_t *cfg, const micarray_t *mics, int rate, in
                 double complex g = 0;
                 for (int m = 0; m < M; m++)
                     g += conj(A[m][i]) * A[m][j];
-                G[i][j] = g + (i == j ? cfg->loading * M : 0);
+                G[i][j] = g + (i == j ? LOADING * M : 0);
             }
             z[i] = i == k ? 1 : 0;
         }
@@ -88,7 +90,7 @@ void ssl_sep_beam(const ssl_sep_cfg_t *cfg, const micarray_t *mics, int rate, in
             y += conj(wm) * X[m][b];
         }
         /* The loading shrinks the gain toward the source by M / (M + dM): give it back. */
-        Y[b] = (float complex)(y * (n == 1 ? (1 + cfg->loading) : 1));
+        Y[b] = (float complex)(y * (n == 1 ? (1 + LOADING) : 1));
     }
 }
 
@@ -130,8 +132,8 @@ void ssl_postfilter_apply(ssl_postfilter_t *p, const ssl_sep_cfg_t *cfg, float c
         float post = *nz > 0 ? pw / *nz : 1000;
         float prio = 0.9f * p->prev_snr[b] + 0.1f * fmaxf(post - 1, 0);
         float g = prio / (1 + prio);
-        if (g < cfg->floor_gain)
-            g = (float)cfg->floor_gain;
+        if (g < FLOOR_GAIN)
+            g = FLOOR_GAIN;
         Y[b] *= g;
         p->prev_snr[b] = g * g * post;
     }

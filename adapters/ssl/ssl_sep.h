@@ -6,18 +6,15 @@
 #include <complex.h>
 #include <stdbool.h>
 
+#include "adapters/ssl/ssl_sep_params.h"
 #include "hw/audio/micarray.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    double loading;             /* diagonal loading of A^H A, relative to the microphone count */
-    bool nulls;                 /* false: plain delay-and-sum toward each source */
-    bool postfilter;
-    double floor_gain;          /* post-filter's lowest gain */
-} ssl_sep_cfg_t;
+/* ssl_sep_cfg_t (ssl_sep.params.yaml): separate (the pipeline beams the tracked sources at all),
+ * nulls (false: plain delay-and-sum toward each source), postfilter. */
 
 void ssl_sep_cfg_default(ssl_sep_cfg_t *c);
 

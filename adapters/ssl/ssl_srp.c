@@ -10,6 +10,18 @@
 #include "core/err.h"
 
 #define SPEED_OF_SOUND 343.0
+/* The grid and the band: constants, not parameters. */
+#define UPSAMPLE 4              /* cross-correlation resolution: 1/UPSAMPLE sample */
+#define AZ_STEP (2 * M_PI / 180)
+#define EL_MIN (-10 * M_PI / 180)
+#define EL_MAX (60 * M_PI / 180)
+#define EL_STEP (10 * M_PI / 180)
+#define F_MIN 150.0             /* Hz band used */
+#define F_MAX 7000.0
+/* A bin weighs 1 - OVERSUB * steady level / power (at least 0): 2 keeps a fan just trackable and
+ * diffuse noise out. */
+#define OVERSUB 2.0
+#define MIN_SEPARATION (25 * M_PI / 180)    /* rad of azimuth between two potentials of a frame */
 
 struct ssl_srp {
     ssl_srp_cfg_t cfg;
@@ -31,23 +43,19 @@ struct ssl_srp {
 
 void ssl_srp_cfg_default(ssl_srp_cfg_t *c)
 {
-    *c = (ssl_srp_cfg_t){ .rate = 16000, .nfft = 512, .upsample = 4, .az_step = 2 * M_PI / 180,
-                          .el_min = -10 * M_PI / 180, .el_max = 60 * M_PI / 180, .el_step = 10 * M_PI / 180,
-                          .f_min = 150, .f_max = 7000, .oversub = 2, .min_separation = 25 * M_PI / 180 };
+    *c = (ssl_srp_cfg_t)SSL_SRP_CFG_DEFAULTS;
 }
 
 static int make_grid(ssl_srp_t *s)
 {
-    int naz = (int)lround(2 * M_PI / s->cfg.az_step);
-    int nel = (int)floor((s->cfg.el_max - s->cfg.el_min) / s->cfg.el_step + 1e-9) + 1;
-    if (naz < 4 || naz > 3600 || nel < 1 || nel > 180)
-        return -1;
+    int naz = (int)lround(2 * M_PI / AZ_STEP);
+    int nel = (int)floor((EL_MAX - EL_MIN) / EL_STEP + 1e-9) + 1;
     s->ndirs = naz * nel;
     if (!(s->dirs = malloc(sizeof(*s->dirs) * (size_t)s->ndirs)))
         return -1;
     for (int e = 0; e < nel; e++)
         for (int a = 0; a < naz; a++) {
-            double el = s->cfg.el_min + e * s->cfg.el_step, az = a * 2 * M_PI / naz;
+            double el = EL_MIN + e * EL_STEP, az = a * 2 * M_PI / naz;
             double *d = s->dirs[e * naz + a];
             d[0] = cos(el) * cos(az);
             d[1] = cos(el) * sin(az);
@@ -60,7 +68,7 @@ static int make_grid(ssl_srp_t *s)
  * pair (i, j) correlates best at lag tau_i - tau_j. */
 static void make_lags(ssl_srp_t *s, const micarray_t *mics)
 {
-    double scale = (double)s->cfg.rate * s->cfg.upsample / SPEED_OF_SOUND;
+    double scale = (double)s->cfg.rate * UPSAMPLE / SPEED_OF_SOUND;
     for (int d = 0; d < s->ndirs; d++)
         for (int p = 0; p < s->npairs; p++) {
             const double *mi = mics->pos[s->pair[p][0]], *mj = mics->pos[s->pair[p][1]], *u = s->dirs[d];
@@ -72,8 +80,7 @@ static void make_lags(ssl_srp_t *s, const micarray_t *mics)
 
 ssl_srp_t *ssl_srp_create(const ssl_srp_cfg_t *cfg, const micarray_t *mics)
 {
-    if (cfg->nfft < 64 || cfg->nfft > 8192 || (cfg->nfft & (cfg->nfft - 1)) || cfg->upsample < 1 ||
-        cfg->upsample > 16 || mics->n < 2 || cfg->rate < 4000 || !(cfg->az_step > 0) || !(cfg->el_step > 0))
+    if (cfg->nfft < 64 || cfg->nfft > 8192 || (cfg->nfft & (cfg->nfft - 1)) || mics->n < 2 || cfg->rate < 4000)
         return marie_fail_null(EINVAL);
     ssl_srp_t *s = calloc(1, sizeof(*s));
     if (!s)
@@ -81,10 +88,10 @@ ssl_srp_t *ssl_srp_create(const ssl_srp_cfg_t *cfg, const micarray_t *mics)
     s->cfg = *cfg;
     s->nmics = mics->n;
     s->npairs = mics->n * (mics->n - 1) / 2;
-    s->nbins = cfg->nfft / 2 + 1;
-    s->ncorr = cfg->nfft * cfg->upsample;
-    s->kmin = (int)fmax(1, floor(cfg->f_min * cfg->nfft / cfg->rate));
-    s->kmax = (int)fmin(s->nbins - 1, ceil(cfg->f_max * cfg->nfft / cfg->rate));
+    s->nbins = (int)cfg->nfft / 2 + 1;
+    s->ncorr = (int)cfg->nfft * UPSAMPLE;
+    s->kmin = (int)fmax(1, floor(F_MIN * cfg->nfft / cfg->rate));
+    s->kmax = (int)fmin(s->nbins - 1, ceil(F_MAX * cfg->nfft / cfg->rate));
     s->pair = malloc(sizeof(*s->pair) * (size_t)s->npairs);
     if (!s->pair || make_grid(s))
         goto fail;
@@ -136,7 +143,7 @@ void ssl_srp_destroy(ssl_srp_t *s)
 
 /* Bins where the array hears little more than its steady noise carry no direction, yet PHAT
  * would weigh them as much as the loudest: each bin is weighed by how far its power stands
- * over the steady level (spectral subtraction with an over-subtraction, cfg.oversub), so diffuse noise
+ * over the steady level (spectral subtraction with an over-subtraction, OVERSUB), so diffuse noise
  * and stationary sources such as fans fade out of the map and speech stands out. The level is
  * a running mean of the power that leaves out bursts over 3 times it (speech), and creeps up
  * under a lasting rise (a fan turned on). */
@@ -155,7 +162,7 @@ static void update_weights(ssl_srp_t *s, const float complex *const *X)
             *n += 0.05f * (p - *n);
         else
             *n *= 1.01f;
-        float w = p > 0 ? 1 - (float)s->cfg.oversub * *n / p : 0;
+        float w = p > 0 ? 1 - (float)OVERSUB * *n / p : 0;
         s->weight[k] = w > 0 ? w : 0;
     }
 }
@@ -227,7 +234,7 @@ static int best_direction(const ssl_srp_t *s, const ssl_potential_t *found, int 
             continue;
         int near = 0;
         for (int k = 0; k < n && !near; k++)
-            near = fabs(remainder(atan2(s->dirs[d][1], s->dirs[d][0]) - found[k].azimuth, 2 * M_PI)) < s->cfg.min_separation;
+            near = fabs(remainder(atan2(s->dirs[d][1], s->dirs[d][0]) - found[k].azimuth, 2 * M_PI)) < MIN_SEPARATION;
         if (!near)
             best = d;
     }

@@ -5,6 +5,7 @@
 #define MARIE_SSL_SRP_H
 #include <complex.h>
 
+#include "adapters/ssl/ssl_srp_params.h"
 #include "hw/audio/micarray.h"
 
 #ifdef __cplusplus
@@ -17,17 +18,8 @@ typedef struct {
     double energy;              /* mean PHAT coherence over pairs, about 0 (noise) to 1 */
 } ssl_potential_t;
 
-typedef struct {
-    int rate, nfft;             /* the spectra handed to ssl_srp_frame have nfft/2 + 1 bins */
-    int upsample;               /* cross-correlation resolution: 1/upsample sample */
-    double az_step;             /* rad */
-    double el_min, el_max, el_step;
-    double f_min, f_max;        /* Hz band used */
-    double oversub;             /* a bin weighs 1 - oversub * steady level / power (at least 0):
-                                   2 keeps a fan just trackable and diffuse noise out */
-    double min_separation;      /* rad of azimuth between two potential sources of one frame */
-} ssl_srp_cfg_t;
-
+/* ssl_srp_cfg_t (ssl_srp.params.yaml): rate and nfft (the spectra handed to ssl_srp_frame have
+ * nfft/2 + 1 bins), and how many potentials the pipeline takes from each frame. */
 void ssl_srp_cfg_default(ssl_srp_cfg_t *c);
 
 typedef struct ssl_srp ssl_srp_t;

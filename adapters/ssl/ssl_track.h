@@ -7,6 +7,7 @@
 #include <stdint.h>
 
 #include "adapters/ssl/ssl_srp.h"
+#include "adapters/ssl/ssl_track_params.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -14,22 +15,11 @@ extern "C" {
 
 #define SSL_TRACK_MAX 8
 
-typedef struct {
-    double dt;                  /* s between frames */
-    double min_energy;          /* an observation weaker than this is noise */
-    double birth_ratio;         /* a weaker peak than this times the frame's best starts no track:
-                                   the array's sidelobes reach about 0.6 of their source */
-    double birth_energy;        /* a new or tentative track grows only on peaks this strong */
-    double update_ratio;        /* nor does a peak weaker than this times the best update one */
-    double gate;                /* rad: an observation this close may update a track */
-    int birth_hits;             /* sightings within birth_window frames to confirm a track */
-    int birth_window;
-    double death_s;             /* a confirmed track unseen this long dies */
-    double meas_std;            /* rad, azimuth measurement noise */
-    double accel_std;           /* rad/s^2, how fast a source may change its angular rate */
-} ssl_track_cfg_t;
-
-void ssl_track_cfg_default(ssl_track_cfg_t *c);
+/* ssl_track_cfg_t (ssl_track.params.yaml): min_energy (an observation weaker than this is noise),
+ * birth_energy (a new or tentative track grows only on peaks this strong), gate_deg (an observation
+ * this close may update a track), death_s (a confirmed track unseen this long dies), and dt, the s
+ * between frames. */
+void ssl_track_cfg_default(ssl_track_cfg_t *c);     /* dt: 0.016 s */
 
 typedef struct {
     int id;                     /* > 0 once confirmed, 0 while tentative */

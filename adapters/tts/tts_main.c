@@ -29,10 +29,11 @@ typedef struct {
     marie_timer_t *pace, *timeout;
     int16_t *pcm;
     size_t npcm, pos;
-    int rate, block;
+    int rate;
     int64_t seq;
-    double synth_timeout_s;
 } tts_t;
+
+static const tts_params_t *params_of(const tts_t *s) { return marie_component_params(s->c); }
 
 static void report(tts_t *s, const request_t *r, int8_t state)
 {
@@ -67,12 +68,13 @@ static void on_pace(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void
         return;
     }
     int16_t block[8192];
-    size_t n = s->npcm - s->pos < (size_t)s->block ? s->npcm - s->pos : (size_t)s->block;
-    memset(block, 0, sizeof(int16_t) * (size_t)s->block);
+    size_t len = (size_t)params_of(s)->block;
+    size_t n = s->npcm - s->pos < len ? s->npcm - s->pos : len;
+    memset(block, 0, sizeof(int16_t) * len);
     memcpy(block, s->pcm + s->pos, sizeof(int16_t) * n);
     s->pos += n;
     marie_audio_frame_t f = { .utime = marie_component_now(s->c), .seq = s->seq++, .device = "tts",
-                              .sample_rate = s->rate, .nchannels = 1, .nsamples = s->block, .nvalues = s->block,
+                              .sample_rate = s->rate, .nchannels = 1, .nsamples = (int32_t)len, .nvalues = (int32_t)len,
                               .data = block };
     marie_port_publish(s->p_audio, &f);
 }
@@ -99,7 +101,7 @@ static void on_synth(const int16_t *pcm, size_t n, int rate, const char *why, vo
     s->pos = 0;
     s->rate = rate;
     report(s, &s->queue[0], MARIE_ROBOT_SPEECH_T_STATE_SPEAKING);
-    s->pace = marie_loop_add_wall_timer(marie_component_loop(s->c), (int64_t)s->block * 1000000 / rate, on_pace, s);
+    s->pace = marie_loop_add_wall_timer(marie_component_loop(s->c), params_of(s)->block * 1000000 / rate, on_pace, s);
     if (!s->pace)
         done(s, MARIE_ROBOT_SPEECH_T_STATE_FAILED);
 }
@@ -109,7 +111,7 @@ static void on_timeout(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, v
     tts_t *s = user;
     s->timeout = NULL;
     marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "tts_timeout", "synthesis of \"%s\" took over %.0f s",
-                          s->queue[0].text, s->synth_timeout_s);
+                          s->queue[0].text, params_of(s)->synth_timeout_s);
     done(s, MARIE_ROBOT_SPEECH_T_STATE_FAILED);
 }
 
@@ -126,7 +128,7 @@ static void next(tts_t *s)
         done(s, MARIE_ROBOT_SPEECH_T_STATE_FAILED);
         return;
     }
-    s->timeout = marie_loop_add_wall_oneshot(loop, (int64_t)(s->synth_timeout_s * 1e6), on_timeout, s);
+    s->timeout = marie_loop_add_wall_oneshot(loop, (int64_t)(params_of(s)->synth_timeout_s * 1e6), on_timeout, s);
 }
 
 static void on_say(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -155,9 +157,7 @@ static int init(marie_component_t *c)
     tts_t *s = marie_component_user(c);
     const tts_params_t *q = marie_component_params(c);
     s->c = c;
-    s->block = (int)q->block;
-    s->synth_timeout_s = q->synth_timeout_s;
-    if (s->block < 16 || s->block > 8192 || !(q->synth_timeout_s > 0)) {
+    if (q->block < 16 || q->block > 8192 || !(q->synth_timeout_s > 0)) {
         marie_component_fail_reason(c, "block must be in [16, 8192], synth_timeout_s > 0");
         return -1;
     }

@@ -29,22 +29,18 @@ typedef struct {
     vision_msgmap_t msgs;
     vision_source_t *src;       /* NULL for the lcm source or after a failure */
     bool from_bus, ended, failed;
-    const char *uri;
-    bool loop;
     int64_t reopen_at_us;
     vision_frame_t frame;
     vision_detection_t dets[MAX_TAGS];
     const vision_track_t *tracks[MAX_TAGS];
     marie_tag_detection_t out[MAX_TAGS];
     int64_t frame_no;
-    const char *camera;
     marie_timer_t *tick;
     marie_timer_t *pending;     /* detection of the newest bus frame, once this read round ends */
     int64_t pending_utime;
     marie_port_t *p_det, *p_goal, *p_lm;
     posebuf_t poses;            /* the robot's pose, for landmarks at the image time */
     vision_mount_t mount;
-    int64_t pose_slack_us;
     marie_landmark_t lms[MAX_TAGS];
 } vision_t;
 
@@ -137,7 +133,8 @@ static void fill(marie_tag_detection_t *o, const vision_detection_t *d, const vi
 static void publish_landmarks(vision_t *v, int n, int64_t utime)
 {
     double robot[3];
-    if (!posebuf_covers(&v->poses, utime, v->pose_slack_us) || !posebuf_at(&v->poses, utime, robot)) {
+    int64_t slack_us = (int64_t)(params_of(v->c)->pose_slack_s * 1e6);
+    if (!posebuf_covers(&v->poses, utime, slack_us) || !posebuf_at(&v->poses, utime, robot)) {
         if (posebuf_newest(&v->poses) != INT64_MIN)
             marie_component_count(v->c, "landmarks_no_pose", 1);
         return;
@@ -192,8 +189,9 @@ static void process(vision_t *v, const vision_frame_t *f, int64_t utime)
     const char *family = vision_detector_family(v->det);
     for (int i = 0; i < n; i++)
         fill(&v->out[i], &v->dets[i], v->tracks[i], family);
+    char *camera = (char *)params_of(c)->camera;  /* the message names the parameter's camera: a use, no copy */
     marie_tag_detections_t msg = {
-        .utime = utime, .camera = (char *)v->camera, .frame = v->frame_no++,
+        .utime = utime, .camera = camera, .frame = v->frame_no++,
         .width = f->width, .height = f->height, .detect_ms = ms, .count = n, .tags = v->out,
     };
     marie_port_publish(v->p_det, &msg);
@@ -255,7 +253,7 @@ static void on_image(marie_component_t *c, marie_port_t *p, const void *msg, con
 static int open_source(vision_t *v)
 {
     char err[256];
-    v->src = vision_source_open(v->uri, v->loop, err, sizeof err);
+    v->src = vision_source_open(params_of(v->c)->source, params_of(v->c)->loop, err, sizeof err);
     if (!v->src) {
         marie_component_fail_reason(v->c, "%s", err);
         return -1;
@@ -276,7 +274,7 @@ static void on_tick(marie_component_t *c, int64_t overruns)
             return;
         v->reopen_at_us = marie_mono_us() + 1000000;
         char err[256];
-        v->src = vision_source_open(v->uri, v->loop, err, sizeof err);
+        v->src = vision_source_open(params_of(c)->source, params_of(c)->loop, err, sizeof err);
         if (!v->src)
             return;
         marie_component_event(c, MARIE_EVENT_T_SEV_INFO, "camera_reopened", "%s", vision_source_describe(v->src));
@@ -318,29 +316,15 @@ static int on_init(marie_component_t *c)
     v->mount = (vision_mount_t){ params_of(c)->mount_x, params_of(c)->mount_y,
                                  params_of(c)->mount_z, params_of(c)->mount_yaw,
                                  params_of(c)->mount_pitch };
-    v->pose_slack_us = (int64_t)(params_of(c)->pose_slack_s * 1e6);
     if (marie_port_on_message(marie_port(c, "pose"), on_pose) < 0) {
         marie_component_fail_reason(c, "cannot subscribe to %s", marie_port_channel(marie_port(c, "pose")));
         goto err;
     }
-    v->camera = params_of(c)->camera;
-    v->uri = params_of(c)->source;
-    v->loop = params_of(c)->loop;
-    v->from_bus = strcmp(v->uri, "lcm") == 0;
+    v->from_bus = strcmp(params_of(c)->source, "lcm") == 0;
     v->ended = v->failed = false;
 
-    vision_detector_opts_t o;
-    vision_detector_opts_default(&o);
-    o.family = params_of(c)->family;
-    o.decimate = params_of(c)->decimate;
-    o.sigma = params_of(c)->sigma;
-    o.threads = (int)params_of(c)->threads;
-    o.refine_edges = params_of(c)->refine_edges;
-    o.sharpening = params_of(c)->sharpening;
-    o.max_hamming = (int)params_of(c)->max_hamming;
-    o.min_margin = params_of(c)->min_margin;
     char err[256];
-    v->det = vision_detector_create(&o, err, sizeof err);
+    v->det = vision_detector_create(&params_of(c)->detector, err, sizeof err);
     if (!v->det) {
         marie_component_fail_reason(c, "detector: %s", err);
         goto err;

@@ -24,13 +24,7 @@ struct vision_detector {
 
 void vision_detector_opts_default(vision_detector_opts_t *o)
 {
-    memset(o, 0, sizeof *o);
-    o->family = "tag36h11";
-    o->decimate = 2.0;
-    o->threads = 1;
-    o->refine_edges = true;
-    o->sharpening = 0.25;
-    o->max_hamming = 2;
+    *o = (vision_detector_opts_t)VISION_DETECTOR_OPTS_DEFAULTS;
 }
 
 vision_detector_t *vision_detector_create(const vision_detector_opts_t *o, char *err, size_t errlen)

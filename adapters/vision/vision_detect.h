@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "adapters/vision/vision_detect_params.h"
 #include "camera/vision_geom.h"
 
 #ifdef __cplusplus
@@ -14,17 +15,10 @@ extern "C" {
 
 typedef struct vision_detector vision_detector_t;
 
-typedef struct {
-    const char *family;     /* default "tag36h11" (see vision_family_names) */
-    double decimate;        /* quad_decimate, default 2.0 */
-    double sigma;           /* quad_sigma, px of blur before segmenting; default 0 */
-    int threads;            /* default 1 */
-    bool refine_edges;      /* default true */
-    double sharpening;      /* decode_sharpening, default 0.25 */
-    int max_hamming;        /* bits the decoder may correct, 0..2, default 2 */
-    double min_margin;      /* detections with a lower decision margin are dropped; default 0 */
-} vision_detector_opts_t;
-
+/* vision_detector_opts_t (vision_detect.params.yaml): family (see vision_family_names), decimate
+ * (libapriltag's quad_decimate), sigma (quad_sigma, px of blur before segmenting), threads,
+ * refine_edges, sharpening (decode_sharpening), max_hamming (bits the decoder may correct, 0..2),
+ * min_margin (detections with a lower decision margin are dropped). */
 void vision_detector_opts_default(vision_detector_opts_t *o);
 
 typedef struct {

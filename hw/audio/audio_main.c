@@ -21,15 +21,16 @@ typedef struct {
     int nfds;
     audio_blocker_t blocker;
     int16_t *rbuf;
-    int channels, rate, block;
-    const char *device;
     marie_port_t *p_audio;
 } audio_t;
+
+static const audio_params_t *params_of(const audio_t *s) { return marie_component_params(s->c); }
 
 static void on_block(const int16_t *data, int nchannels, int nsamples, int64_t seq, int64_t utime, void *user)
 {
     audio_t *s = user;
-    marie_audio_frame_t f = { .utime = utime, .seq = seq, .device = (char *)s->device, .sample_rate = s->rate,
+    char *dev = (char *)params_of(s)->device;     /* the block names the parameter's device: a use, no copy */
+    marie_audio_frame_t f = { .utime = utime, .seq = seq, .device = dev, .sample_rate = (int32_t)params_of(s)->rate,
                               .nchannels = (int16_t)nchannels, .nsamples = nsamples, .nvalues = nchannels * nsamples,
                               .data = (int16_t *)data };
     marie_port_publish(s->p_audio, &f);
@@ -48,7 +49,7 @@ static void on_capture(marie_loop_t *loop, int fd, short revents, void *user)
     /* A few periods per wake-up at most: a device that is always ready (ALSA's null and file
      * plugins) must not keep the loop from its signals and timers. */
     for (int k = 0; k < 4; k++) {
-        snd_pcm_sframes_t n = snd_pcm_readi(s->cap, s->rbuf, (snd_pcm_uframes_t)s->block);
+        snd_pcm_sframes_t n = snd_pcm_readi(s->cap, s->rbuf, (snd_pcm_uframes_t)params_of(s)->block);
         if (n == -EAGAIN || n == 0)
             return;
         if (n < 0) {
@@ -62,7 +63,7 @@ static void on_capture(marie_loop_t *loop, int fd, short revents, void *user)
             continue;
         }
         /* The samples just read ended now: the first of them was taken n/rate ago. */
-        int64_t utime = marie_component_now(s->c) - (int64_t)n * 1000000 / s->rate;
+        int64_t utime = marie_component_now(s->c) - (int64_t)n * 1000000 / params_of(s)->rate;
         audio_blocker_feed(&s->blocker, s->rbuf, (int)n, utime);
     }
 }
@@ -73,9 +74,10 @@ static void on_play(marie_component_t *c, marie_port_t *p, const void *msg, cons
     const marie_audio_frame_t *f = msg;
     if (!s->play)
         return;
-    if (f->nchannels != 1 || f->sample_rate != s->rate || f->nvalues != f->nsamples) {
+    int rate = (int)params_of(s)->rate;
+    if (f->nchannels != 1 || f->sample_rate != rate || f->nvalues != f->nsamples) {
         marie_component_bad_input(c, "bad_play", "play block of %d channels at %d Hz refused (mono at %d)",
-                                  f->nchannels, f->sample_rate, s->rate);
+                                  f->nchannels, f->sample_rate, rate);
         return;
     }
     snd_pcm_sframes_t n = snd_pcm_writei(s->play, f->data, (snd_pcm_uframes_t)f->nsamples);
@@ -123,18 +125,15 @@ static int init(marie_component_t *c)
     const audio_params_t *q = marie_component_params(c);
     close_all(c, s);
     s->c = c;
-    s->channels = (int)q->channels;
-    s->rate = (int)q->rate;
-    s->block = (int)q->block;
-    s->device = q->device;
+    int channels = (int)q->channels, rate = (int)q->rate, block = (int)q->block;
     s->p_audio = marie_port(c, "audio");
-    if (audio_blocker_init(&s->blocker, s->channels, s->block, s->rate, on_block, s) ||
-        !(s->rbuf = malloc(sizeof(int16_t) * (size_t)s->channels * (size_t)s->block))) {
+    if (audio_blocker_init(&s->blocker, channels, block, rate, on_block, s) ||
+        !(s->rbuf = malloc(sizeof(int16_t) * (size_t)channels * (size_t)block))) {
         marie_component_fail_reason(c, "channels in [1, 64], block in [1, 65536], rate > 0");
         return -1;
     }
     if (*q->device) {
-        if (open_pcm(c, &s->cap, q->device, SND_PCM_STREAM_CAPTURE, s->channels, s->rate, s->block))
+        if (open_pcm(c, &s->cap, q->device, SND_PCM_STREAM_CAPTURE, channels, rate, block))
             return -1;
         s->nfds = snd_pcm_poll_descriptors(s->cap, s->fds, MAX_FDS);
         for (int i = 0; i < s->nfds; i++)
@@ -142,12 +141,12 @@ static int init(marie_component_t *c)
         snd_pcm_start(s->cap);
     }
     if (*q->playback) {
-        if (open_pcm(c, &s->play, q->playback, SND_PCM_STREAM_PLAYBACK, 1, s->rate, s->block))
+        if (open_pcm(c, &s->play, q->playback, SND_PCM_STREAM_PLAYBACK, 1, rate, block))
             return -1;
         marie_port_on_message(marie_port(c, "play"), on_play);
     }
-    marie_info("capture %s (%d ch), playback %s, %d Hz, blocks of %d", *q->device ? q->device : "off", s->channels,
-               *q->playback ? q->playback : "off", s->rate, s->block);
+    marie_info("capture %s (%d ch), playback %s, %d Hz, blocks of %d", *q->device ? q->device : "off", channels,
+               *q->playback ? q->playback : "off", rate, block);
     return 0;
 }
 

@@ -863,6 +863,43 @@ static void the_yaml_library_is_let_go_and_comes_back(void **state)
     marie_errors_clear(&e);
 }
 
+/* A lone plain word (every parameter's default) is built without the YAML library: the same
+ * scalar as the library reads inside a sequence; anything else still goes through it. */
+static void plain_words_read_as_yaml_reads_them(void **state)
+{
+    static const char *const words[] = {"0", "-1", "1.5e-3", "true", "null", "a_b.c/d+e", "-x", "x--y", "inf", NULL};
+    for (int i = 0; words[i]; i++) {
+        marie_errors_t e = {0};
+        char seq[64];
+        snprintf(seq, sizeof seq, "[%s]", words[i]);
+        marie_doc_t *w = marie_doc_parse("w", words[i], strlen(words[i]), &e), *s = marie_doc_parse("s", seq, strlen(seq), &e);
+        assert_non_null(w);
+        assert_non_null(s);
+        const marie_node_t *a = marie_doc_root(w), *b = marie_doc_root(s)->items[0];
+        assert_int_equal(a->kind, MARIE_NODE_SCALAR);
+        assert_string_equal(a->value, b->value);
+        assert_int_equal(a->quoted, b->quoted);
+        assert_int_equal(a->line, 1);
+        assert_int_equal(a->col, 1);
+        marie_doc_destroy(w);
+        marie_doc_destroy(s);
+    }
+    /* not words: a lone "-" is a sequence, "---" a document, "a: b" a mapping, '' a quoted string */
+    static const char *const others[] = {"-", "---", "...", "a: b", "''", "~", NULL};
+    static const marie_node_kind_t kinds[] = {MARIE_NODE_SEQ, MARIE_NODE_SCALAR, MARIE_NODE_SCALAR, MARIE_NODE_MAP,
+                                              MARIE_NODE_SCALAR, MARIE_NODE_SCALAR};
+    for (int i = 0; others[i]; i++) {
+        marie_errors_t e = {0};
+        marie_doc_t *d = marie_doc_parse("o", others[i], strlen(others[i]), &e);
+        if (d)
+            assert_int_equal(marie_doc_root(d)->kind, kinds[i]);
+        if (d && i == 4)
+            assert_true(marie_doc_root(d)->quoted);
+        marie_doc_destroy(d);
+        marie_errors_clear(&e);
+    }
+}
+
 int main(void)
 {
     marie_log_set_threshold(MARIE_LOG_OFF);
@@ -886,6 +923,7 @@ int main(void)
         cmocka_unit_test(the_loader_refuses_cycles_and_bad_backoff),
         cmocka_unit_test(sched_is_read_and_checked),
         cmocka_unit_test(non_finite_numbers_are_refused),
+        cmocka_unit_test(plain_words_read_as_yaml_reads_them),
         cmocka_unit_test(an_oversized_file_gets_a_position),
         cmocka_unit_test(loading_time_grows_linearly),
         cmocka_unit_test(the_robot_section_feeds_robot_params),

@@ -7,7 +7,8 @@
 # and CPUs that do not exist give a warning naming the component and the reason, and the
 # component runs; a bad policy name is refused with file:line:col before anything starts. The
 # managers run with --rt-priority 10: alpha at SCHED_FIFO 10 while what it starts keeps the
-# scheduling its entry asks for (the normal policy without one), beta refused with a warning.
+# scheduling its entry asks for (the normal policy without one; one with a short heartbeat_timeout
+# starts at 9 and is back at the normal policy once it beats), beta refused with a warning.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-sched.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
@@ -50,6 +51,10 @@ components:
     exec: $COMP
     host: alpha
     sched: {cpus: [1000]}
+  quick:
+    exec: $COMP
+    host: alpha
+    heartbeat_timeout: 0.5
   denied:
     exec: $COMP
     host: beta
@@ -95,6 +100,16 @@ if chrt -f 1 true 2>/dev/null; then
     check "a shell component and the program it starts: fifo 41 ($(sched_of "$kid"))" \
         sh -c "[ \"$(sched_of "$SH")\" = '1 41 $ALL' ] && [ \"$(sched_of "$kid")\" = '1 41 $ALL' ]"
     check "the manager at --rt-priority 10: fifo 10 ($(sched_of "$pid_am"))" [ "$(sched_of "$pid_am")" = "1 10 $ALL" ]
+    # started at fifo 9 (a short heartbeat_timeout), back to the normal policy once it beats
+    QP=$(ps_field quick pid)
+    tasks_plain() {
+        for t in /proc/"$QP"/task/*; do
+            [ "$(sed 's/.*) //' "$t/stat" | awk '{print $39, $38}')" = "0 0" ] || return 1
+        done
+    }
+    check "a component started at the manager's priority runs at the normal policy once it beats" \
+        is quick "0 0 $ALL"
+    check "every thread of it: the normal policy ($(sched_of "$QP"))" tasks_plain
 else
     skip "fifo, rr, plain, shell, manager" "this user may not use real-time scheduling here (chrt -f 1 refused)"
 fi

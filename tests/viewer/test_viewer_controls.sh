@@ -4,7 +4,7 @@
 # component with orders signed by the shared key (a real marie-am obeys them), set a goal;
 # without a key the controls are refused; foreign web origins cannot open the WebSocket; a
 # local script that is not a browser (no Origin) but has no PIN is refused, and so is a wrong
-# PIN. Eight pages at most are open at once (a civetweb worker and a writer thread each): the
+# PIN. Eight pages at most are open at once (WEBSERVE_MAX_PAGES): the
 # ninth is refused while the page's files are still served, and a page that closes makes room.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-viewer.XXXXXX)

@@ -393,7 +393,7 @@ static int init(marie_component_t *c)
         { "/face.css", "face.css", "text/css; charset=utf-8" },
     };
     webserve_cfg_t wc = { .bind = params_of(c)->bind, .port = (int)params_of(c)->http_port,
-                          .www = www, .files = files, .nfiles = 4, .name = "face", .on_cmd = on_cmd, .user = f };
+                          .www = www, .files = files, .nfiles = 4, .name = "face", .on_cmd = on_cmd, .user = f, .comp = c };
     char why[256];
     if (!(f->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
         marie_component_fail_reason(c, "%s", why);

@@ -1,6 +1,6 @@
 # tools/face: marie-face, the touch page for people near the robot (docs/face.md), on
 # the viewer's server code (tools/webcommon); its test.
-$(eval $(call marie_program,marie-face,tools/face/face_main.c tools/webcommon/webserve.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(PROTO_LIB) -lcivetweb))
+$(eval $(call marie_program,marie-face,tools/face/face_main.c tools/webcommon/webserve.c tools/webcommon/webproto.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(PROTO_LIB) -lnettle))
 INSTALL_EXTRA += install -d $(DESTDIR)$(PREFIX)/share/marie/face && install -m 644 tools/face/www/* $(DESTDIR)$(PREFIX)/share/marie/face/;
 $(eval $(call marie_link,$(B)/tests/helpers/face_probe,tests/face/face_probe.c,))
 EXTRA_TARGETS += $(B)/tests/helpers/face_probe

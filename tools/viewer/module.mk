@@ -1,7 +1,7 @@
 # tools/viewer: marie-viewer-server (bus or log -> web page over WebSocket), the marie-view
 # launcher, the page (served from tools/viewer/www or $(PREFIX)/share/marie/viewer), its tests.
-VIEWER_LIBS := $(PROTO_LIB) $(MAP_LIB) -lcivetweb
-$(eval $(call marie_program,marie-viewer-server,tools/viewer/viewer_main.c tools/viewer/viewer_log.c tools/webcommon/webserve.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(VIEWER_LIBS)))
+VIEWER_LIBS := $(PROTO_LIB) $(MAP_LIB) -lnettle
+$(eval $(call marie_program,marie-viewer-server,tools/viewer/viewer_main.c tools/viewer/viewer_log.c tools/webcommon/webserve.c tools/webcommon/webproto.c tools/webcommon/vjson.c tools/webcommon/webpin.c tools/webcommon/pinguard.c,$(VIEWER_LIBS)))
 
 $(B)/bin/marie-view: tools/viewer/marie-view
 	@mkdir -p $(@D)
@@ -24,3 +24,6 @@ ITESTS += tests/viewer/test_viewer_graph.sh
 $(eval $(call marie_bench,bench_viewer,bench/bench_viewer.c,-lcivetweb))
 $(B)/bench/bench_viewer: | $(B)/bin/marie-viewer-server $(B)/tests/bin/viewer-gen
 ITESTS += tests/viewer/test_viewer_landmarks.sh tests/viewer/test_viewer_layout.sh
+$(eval $(call marie_test,test_webserve,tests/viewer/test_webserve.c tools/webcommon/webserve.c tools/webcommon/webproto.c tools/webcommon/vjson.c,$(PROTO_LIB) -lnettle))
+$(eval $(call marie_fuzz,webproto,tests/viewer/fuzz_webproto.c tools/webcommon/webproto.c,-lnettle))
+ITESTS += tests/viewer/test_viewer_stall.sh

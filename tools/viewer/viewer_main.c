@@ -1,5 +1,5 @@
 /* marie-viewer-server: follows the bus or plays an LCM log, and streams what the robot saw and
- * decided to a web page over WebSocket (civetweb), with signed manager orders as controls. */
+ * decided to a web page over WebSocket (tools/webcommon), with signed manager orders as controls. */
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -656,7 +656,7 @@ static int init_viewer(marie_component_t *c)
     };
     webserve_cfg_t wc = {
         .bind = viewer_params(c)->bind, .port = (int)viewer_params(c)->http_port, .www = v->www,
-        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v,
+        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v, .comp = c,
     };
     char why[256];
     if (!(v->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
