@@ -23,7 +23,9 @@ so the library's defaults and the component's are the same line. A component tak
       slam: adapters/mapper/slam.params.yaml   # a field `slam_params_t slam;` of the struct,
                                                # and the file's parameters in every table
       model: {file: sim/world.params.yaml, defaults: {start_x: "2.0"}}   # its own defaults
-and hands `&params->slam` to the library: nothing is copied by name.
+and hands `&params->slam` to the library: nothing is copied by name. A member's file may take
+members of its own (a library over a lower layer's: the virtual drive over the CANopen device's
+`opts`); their parameters are the component's too, under their own names (`drive.opts.no_consumer`).
 
 A parameter may carry a fourth element, a mapping of what a command line needs (core/cli.h):
     rate_hz: [double, "10", "scans per second", {option: rate, range: [0.01, 1000], metavar: HZ}]
@@ -53,6 +55,7 @@ CLI_TYPES = {"int": "MARIE_CLI_INT", "double": "MARIE_CLI_DOUBLE", "bool": "MARI
 METAVARS = {"int": "N", "double": "X", "bool": "", "string": "TEXT"}
 IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 OPTION = re.compile(r"[a-z0-9][a-z0-9-]*\Z")
+LOADING = []        # the member files being read, outermost first (a file may not take itself)
 CDECL = re.compile(r"(const )?[A-Za-z_][A-Za-z0-9_]*( \*)?\Z")
 
 
@@ -79,9 +82,12 @@ class Param:
         self.metavar = extras.get("metavar", METAVARS.get(ptype, ""))
 
     def within(self, member, prefix, default):
+        """The parameter as the file that takes its file as `member` lists it (member None: as
+        its own); a member's member is the path `outer.inner`."""
         p = Param.__new__(Param)
         p.__dict__.update(self.__dict__)
-        p.member, p.name, p.default = member, prefix + self.name, default
+        p.member = member if member is None or self.member is None else member + "." + self.member
+        p.name, p.default = prefix + self.name, default
         if p.option:
             p.option = prefix.replace("_", "-") + p.option
         return p
@@ -202,8 +208,6 @@ class Spec:
         for name, knode, vnode in mapping(top["members"], "members") if "members" in top else []:
             ident(knode, "member")
             member, prefix, overrides = load_member(name, vnode)
-            if member.members:
-                raise SpecError(vnode, "%s: a member's file has members of its own" % name)
             if len(member.tables) != 1:
                 raise SpecError(vnode, "%s: a member's file has exactly one table" % name)
             self.members.append((name, member, prefix, overrides))
@@ -233,7 +237,12 @@ class Spec:
             self.check_cli(top["cli"])
 
     def names(self, prefix=""):
-        return set(prefix + n for n in self.fields)
+        """Every parameter's name, its members' too."""
+        return set(prefix + p.name for _, entries in self.tables for p in entries)
+
+    def files(self):
+        """The files of its members, and of theirs."""
+        return [f for _, m, _, _ in self.members for f in [m.path] + m.files()]
 
     def check_names(self, top):
         seen = set(self.fields)
@@ -308,12 +317,17 @@ def load_member(name, node):
     else:
         path_node = node
     path = scalar(path_node, name)
+    if os.path.normpath(path) in LOADING:
+        raise SpecError(path_node, "member %s: takes itself, through its members" % path)
+    LOADING.append(os.path.normpath(path))
     try:
         member = Spec(path)
     except OSError as e:
         raise SpecError(path_node, "member %s: %s" % (path, e.strerror))
+    finally:
+        LOADING.pop()
     for pname, (pknode, _) in overrides.items():
-        if pname not in member.fields:
+        if pname not in member.names():
             raise SpecError(pknode, "%s: no parameter '%s' in %s" % (name, pname, path))
     return member, prefix, dict((prefix + k, v[1]) for k, v in overrides.items())
 
@@ -359,14 +373,16 @@ def defaults_lines(entries, indent):
     out, members = [], []
     for p in entries:
         if p.member is not None:
-            if p.member not in members:
-                members.append(p.member)
+            if p.member.split(".")[0] not in members:
+                members.append(p.member.split(".")[0])
         elif p.default is not None:
             out.append("%s.%s = %s, \\" % (indent, p.field, c_value(p.ptype, p.default, p.node)))
     for m in members:
-        mine = [p.within(None, "", p.default) for p in entries if p.member == m]
-        for p in mine:
-            p.name = p.field
+        mine = []
+        for p in (p for p in entries if p.member and p.member.split(".")[0] == m):
+            q = p.within(None, "", p.default)
+            q.name, q.member = q.field, p.member.partition(".")[2] or None
+            mine.append(q)
         out.append("%s.%s = { \\" % (indent, m))
         out += defaults_lines(mine, indent + "    ")
         out.append("%s}, \\" % indent)
@@ -454,7 +470,7 @@ def main(argv):
         f.write(text)
     # make: the header is also out of date when a member's file changes
     with open(dst[:-2] + ".d", "w", encoding="utf-8") as f:
-        f.write("%s: %s\n" % (dst, " ".join(m.path for _, m, _, _ in spec.members)))
+        f.write("%s: %s\n" % (dst, " ".join(spec.files())))
     return 0
 
 

@@ -41,6 +41,12 @@ static bool lag_over(const lag_t *l, int64_t now, int64_t max)
     return !l->gone_at && l->since >= 0 && now - l->since > max;
 }
 
+/* The parameters' seconds in us, the devices' clock. */
+static int64_t us(double s)
+{
+    return (int64_t)(s * 1e6);
+}
+
 struct sim_devices {
     sim_world_t *world;
     marie_loop_t *loop;
@@ -50,9 +56,10 @@ struct sim_devices {
     int laser_fd;               /* as registered with the loop */
     short laser_events;
     int64_t now;                /* simulated us: every device's clock */
-    /* driver lockstep: the devices never run more than driver_lag ahead of their drivers */
-    int64_t driver_lag, driver_wait;    /* sim us; wall us before a lagging driver counts as gone */
-    bool laser_hold;                    /* a telegram unread holds the world at once */
+    /* driver lockstep: the devices never run more than driver_lag (sim s) ahead of their
+     * drivers; driver_wait (wall s) before a lagging driver counts as gone; laser_hold: a
+     * telegram unread holds the world at once */
+    sim_devices_cfg_t cfg;
     uint64_t rx_seen;           /* frames from the CAN master counted at the last look */
     int64_t last_rx;            /* sim us of the newest frame from the master; -1: none, or gone */
     lag_t laser_lag, can_lag;   /* the laser's host, and the CAN clients, leaving data unread */
@@ -119,22 +126,20 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     d->loop = loop;
     d->laser_fd = -1;
     d->now = now;
-    d->driver_lag = (int64_t)(cfg->driver_lag * 1e6);
-    d->driver_wait = (int64_t)(cfg->driver_wait * 1e6);
-    d->laser_hold = cfg->laser_hold;
+    d->cfg = *cfg;
     d->last_rx = d->laser_lag.since = d->can_lag.since = -1;
     if (sim_world_params(world)->laser_beams != SCAN_BEAMS) {
         marie_fail_why(err, errlen, "device mode needs the world's laser at %d beams", SCAN_BEAMS);
         goto fail;
     }
     if (cfg->can_serve) {
-        if (strncmp(cfg->can_url, "emu:", 4) != 0) {
-            marie_fail_why(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can_url);
+        if (strncmp(cfg->can, "emu:", 4) != 0) {
+            marie_fail_why(err, errlen, "can_serve needs an emu:PATH bus, not '%s'", cfg->can);
             goto fail;
         }
-        d->bus = can_emubus_create(loop, cfg->can_url + 4);
+        d->bus = can_emubus_create(loop, cfg->can + 4);
         if (!d->bus) {
-            snprintf(err, errlen, "cannot serve the emulated CAN bus at %s: %s", cfg->can_url + 4,
+            snprintf(err, errlen, "cannot serve the emulated CAN bus at %s: %s", cfg->can + 4,
                      strerror(errno));
             goto fail;
         }
@@ -142,19 +147,19 @@ sim_devices_t *sim_devices_create(const sim_devices_cfg_t *cfg, sim_world_t *wor
     const sim_params_t *p = sim_world_params(world);
     vdevices_cfg_t vc;
     vdevices_cfg_default(&vc);
-    vc.can = cfg->can_url;
+    vc.can = cfg->can;
     vc.left = cfg->left_node;
     vc.right = cfg->right_node;
     vc.gyro = cfg->gyro_node;
     vc.drive.ticks_per_rev = p->ticks_per_rev;
     vc.wheel_radius = p->wheel_radius;
     vc.track_width = p->track;
-    vc.vgyro.bias = cfg->gyro_bias;
-    vc.vgyro.noise = cfg->gyro_noise;
+    vc.vgyro.bias = cfg->vgyro_bias;
+    vc.vgyro.noise = p->gyro_noise;
     vc.external_physics = true;         /* ODE turns the wheels */
     d->dev = vdevices_create(&vc, now);
     if (!d->dev) {
-        snprintf(err, errlen, "cannot attach the virtual drives and gyro to %s: %s", cfg->can_url,
+        snprintf(err, errlen, "cannot attach the virtual drives and gyro to %s: %s", cfg->can,
                  strerror(errno));
         goto fail;
     }
@@ -237,19 +242,19 @@ static void note_drivers(sim_devices_t *d)
         d->last_rx = d->now;
     }
     int64_t mono = marie_mono_us();
-    lag_note(&d->laser_lag, vlms200_unread(d->laser) > 0, d->now, mono, d->driver_wait);
+    lag_note(&d->laser_lag, vlms200_unread(d->laser) > 0, d->now, mono, us(d->cfg.driver_wait));
     if (d->bus)
-        lag_note(&d->can_lag, can_emubus_unread(d->bus) > 0, d->now, mono, d->driver_wait);
+        lag_note(&d->can_lag, can_emubus_unread(d->bus) > 0, d->now, mono, us(d->cfg.driver_wait));
 }
 
 bool sim_devices_may_step(sim_devices_t *d)
 {
     note_drivers(d);
-    bool master = d->last_rx >= 0 && d->now - d->last_rx > d->driver_lag;
-    bool laser = d->laser_hold ? !d->laser_lag.gone_at && vlms200_host_unread(d->laser) > 0
-                               : lag_over(&d->laser_lag, d->now, d->driver_lag);
-    bool can = lag_over(&d->can_lag, d->now, d->driver_lag);
-    if (d->driver_lag <= 0 || (!master && !laser && !can)) {
+    bool master = d->last_rx >= 0 && d->now - d->last_rx > us(d->cfg.driver_lag);
+    bool laser = d->cfg.laser_hold ? !d->laser_lag.gone_at && vlms200_host_unread(d->laser) > 0
+                                   : lag_over(&d->laser_lag, d->now, us(d->cfg.driver_lag));
+    bool can = lag_over(&d->can_lag, d->now, us(d->cfg.driver_lag));
+    if (us(d->cfg.driver_lag) <= 0 || (!master && !laser && !can)) {
         d->wait_since = 0;
         return true;
     }
@@ -258,7 +263,7 @@ bool sim_devices_may_step(sim_devices_t *d)
         d->wait_since = mono;
         d->st.driver_waits++;
     }
-    if (mono - d->wait_since < d->driver_wait)
+    if (mono - d->wait_since < us(d->cfg.driver_wait))
         return false;
     /* The driver is gone or frozen: run on, and let the deadlines on both sides (on simulated
      * time) find it dead, as they would on a real bus. Its next frame or read re-arms the wait. */

@@ -8,23 +8,17 @@
 #include <stdint.h>
 
 #include "core/loop.h"
+#include "sim/devices_params.h"
 #include "sim/world.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    const char *can_url;        /* "emu:PATH" (emulated bus) or "can:IF" (SocketCAN) */
-    bool can_serve;             /* host the emulated bus at PATH in this process */
-    int left_node, right_node, gyro_node;
-    double gyro_bias, gyro_noise;   /* rad/s, the virtual gyro's own */
-    const char *laser_link;     /* symlink to the virtual LMS200's pty slave */
-    double laser_hz;            /* scans per second while streaming */
-    double driver_lag;          /* sim s the devices may run ahead of their drivers (0: off) */
-    double driver_wait;         /* wall s to wait for a lagging driver before running on */
-    bool laser_hold;            /* with the lockstep on, no step while a telegram is unread */
-} sim_devices_cfg_t;
+/* sim_devices_cfg_t is generated from devices.params.yaml: can ("emu:PATH", the emulated bus, or
+ * "can:IF", SocketCAN), can_serve, left_node, right_node, gyro_node, vgyro_bias (rad/s),
+ * laser_link, laser_hz, driver_lag (sim s), driver_wait (wall s), laser_hold. The world gives the
+ * devices its wheels, encoder resolution and gyro noise. */
 
 typedef struct {
     uint64_t can_frames_in, can_frames_out;

@@ -37,7 +37,7 @@ typedef struct {
     int64_t wait_since;         /* mono us when the lockstep wait began, 0 if not waiting */
     bool have_pose;
     int64_t last_pose_sim;      /* sim us of the newest pose estimate */
-    bool estop, estop_dirty;
+    bool pressed, estop_dirty;  /* the e-stop now: the estop parameter at start, then SIM_ESTOP */
     int64_t last_touch;         /* sim us of the last step with a wall contact; -1: never */
     int64_t clock_sent;         /* sim us the clock last said; -1: nothing yet */
 } sim_t;
@@ -131,8 +131,8 @@ static void on_estop_set(marie_component_t *c, marie_port_t *p, const void *msg,
 {
     sim_t *s = marie_component_user(c);
     const marie_estop_t *m = msg;
-    if (s->estop != (bool)m->pressed) {
-        s->estop = m->pressed;
+    if (s->pressed != (bool)m->pressed) {
+        s->pressed = m->pressed;
         s->estop_dirty = true;
         marie_component_event(c, MARIE_EVENT_T_SEV_WARN, "estop", "e-stop %s by %s",
                               m->pressed ? "pressed" : "released", m->source ? m->source : "?");
@@ -165,7 +165,7 @@ static void publish_sensors(sim_t *s, int64_t k, int64_t now)
             .utime = now, .left_ticks = l, .right_ticks = r,
             .ticks_per_rev = sim_world_params(s->world)->ticks_per_rev,
             .left_velocity = ls, .right_velocity = rs,
-            .status = s->estop ? MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP : MARIE_WHEEL_ENCODERS_T_STATUS_OK,
+            .status = s->pressed ? MARIE_WHEEL_ENCODERS_T_STATUS_ESTOP : MARIE_WHEEL_ENCODERS_T_STATUS_OK,
         };
         marie_port_publish(s->p_enc, &e);
     }
@@ -220,7 +220,7 @@ static void publish(marie_component_t *c, sim_t *s)
     }
     /* Both modes: no GPIO can be emulated here, so the simulator plays marie-gpio. */
     if (k % s->n_estop == 0 || s->estop_dirty) {
-        marie_estop_t e = { .utime = now, .pressed = s->estop, .source = "sim" };
+        marie_estop_t e = { .utime = now, .pressed = s->pressed, .source = "sim" };
         marie_port_publish(s->p_estop, &e);
         s->estop_dirty = false;
     }
@@ -266,7 +266,7 @@ static bool step_once(marie_component_t *c, sim_t *s)
     }
     if (s->devices && !sim_devices_may_step(s->devices))
         return false;       /* the drivers lag behind: their devices must not judge them dead */
-    sim_world_set_estop(s->world, s->estop);
+    sim_world_set_estop(s->world, s->pressed);
     if (s->devices)
         sim_devices_before_step(s->devices);
     sim_world_step(s->world);
@@ -424,7 +424,7 @@ static int on_init(marie_component_t *c)
         marie_component_fail_reason(c, "step: expected 0 < step <= 0.02 s");
         goto fail;
     }
-    s->estop = o->estop;
+    s->pressed = o->estop;
     if (!(s->o->speed >= 0) || !isfinite(s->o->speed)) {
         marie_component_fail_reason(c, "speed: expected 0 (as fast as possible) or a positive factor");
         goto fail;
@@ -450,23 +450,15 @@ static int on_init(marie_component_t *c)
         goto fail;
     MARIE_CLEAR(map, occmap_destroy);
     if (device) {
-        sim_devices_cfg_t dc = {
-            .can_url = o->can, .can_serve = o->can_serve,
-            .left_node = (int)o->left_node,
-            .right_node = (int)o->right_node,
-            .gyro_node = (int)o->gyro_node,
-            .gyro_bias = o->vgyro_bias, .gyro_noise = p.gyro_noise,
-            .laser_link = o->laser_link, .laser_hz = o->laser_hz,
-            .driver_lag = o->driver_lag, .driver_wait = o->driver_wait, .laser_hold = o->laser_hold,
-        };
+        const sim_devices_cfg_t *dc = &o->devices;
         char why[512];
-        s->devices = sim_devices_create(&dc, s->world, marie_component_loop(c), sim_now(s), why, sizeof(why));
+        s->devices = sim_devices_create(dc, s->world, marie_component_loop(c), sim_now(s), why, sizeof(why));
         if (!s->devices) {
             marie_component_fail_reason(c, "device mode: %s", why);
             goto fail;
         }
-        marie_info("device mode: drives %d/%d and gyro %d on %s, LMS200 on %s (%s)", dc.left_node,
-                   dc.right_node, dc.gyro_node, dc.can_url, dc.laser_link,
+        marie_info("device mode: drives %d/%d and gyro %d on %s, LMS200 on %s (%s)", (int)dc->left_node,
+                   (int)dc->right_node, (int)dc->gyro_node, dc->can, dc->laser_link,
                    sim_devices_laser_path(s->devices));
     }
     s->p_enc = marie_port(c, "encoders");

@@ -33,7 +33,6 @@ struct beh {
     rec_params_t rp;
     rec_state_t rs;
     bool pull;
-    int pull_timeout_ms;
     input_t in[IN_COUNT];
     int outstanding;            /* pulls of this cycle still unanswered */
     int64_t cycle;
@@ -254,6 +253,12 @@ static void on_pulled(marie_component_t *c, marie_port_t *p, int status, const v
         decide(b);
 }
 
+/* pull_timeout_ms, cut so that answers come back within the cycle. */
+static int pull_timeout_ms(const bhv_params_t *q)
+{
+    return q->pull_timeout_ms > 0.8e3 / q->rate_hz ? (int)(0.8e3 / q->rate_hz) : (int)q->pull_timeout_ms;
+}
+
 static void tick(marie_component_t *c, int64_t overruns)
 {
     beh_t *b = marie_component_user(c);
@@ -270,7 +275,7 @@ static void tick(marie_component_t *c, int64_t overruns)
     }
     b->outstanding = IN_PULLED + 1;   /* +1 holds the decision until every pull is sent */
     for (int i = 0; i < IN_PULLED; i++) {
-        if (marie_port_pull_async(marie_port(c, in_ports[i]), b->pull_timeout_ms, on_pulled, &b->in[i]) != 0) {
+        if (marie_port_pull_async(marie_port(c, in_ports[i]), pull_timeout_ms(params_of(c)), on_pulled, &b->in[i]) != 0) {
             marie_component_count(c, "pull_errors", 1);
             b->outstanding--;
         }
@@ -389,14 +394,11 @@ static int init(marie_component_t *c)
         return -1;
     }
     b->pull = strcmp(mode, "pull") == 0;
-    b->pull_timeout_ms = (int)q->pull_timeout_ms;
     double hz = q->rate_hz;
-    if (!(hz > 0 && hz <= 1000) || b->pull_timeout_ms < 1) {
+    if (!(hz > 0 && hz <= 1000) || q->pull_timeout_ms < 1) {
         marie_component_fail_reason(c, "rate_hz must be in (0, 1000], pull_timeout_ms >= 1");
         return -1;
     }
-    if (b->pull_timeout_ms > 0.8e3 / hz)
-        b->pull_timeout_ms = (int)(0.8e3 / hz);   /* answers must come back within the cycle */
     b->p = q->arb;
     /* The avoid corridor follows the robot's size unless set on its own: the footprint and half
      * its clearance to the side, and the same ahead of the laser before stopping. */

@@ -21,7 +21,6 @@ typedef struct {
     int64_t last_cloud;
     double cloud_period_us;
     float *cloud_buf;
-    int cloud_max;
     double last_distance;       /* odometry's distance travelled: it only grows, unless restarted */
     double last_v, last_omega;  /* odometry's last body velocity */
     int force_left;             /* sensor updates still forced after a (re)initialisation */
@@ -38,9 +37,15 @@ typedef struct {
     int64_t last_doubt;         /* scan time of the last such search */
 } loc_t;
 
+/* Particles per cloud message: cloud_max, at least one (cloud_buf holds that many). */
+static int cloud_max(const loc_params_t *q)
+{
+    return q->cloud_max < 1 ? 1 : (int)q->cloud_max;
+}
+
 static void publish_cloud(marie_component_t *c, loc_t *s, int64_t utime)
 {
-    int n = mcl_particles(s->f, s->cloud_buf, s->cloud_max);
+    int n = mcl_particles(s->f, s->cloud_buf, cloud_max(s->q));
     float *x = malloc(sizeof(float) * 4 * (size_t)(n ? n : 1));
     if (!x)
         return;
@@ -454,10 +459,7 @@ static int init(marie_component_t *c)
         return -1;
     }
     s->cloud_period_us = q->cloud_hz > 0 ? 1e6 / q->cloud_hz : 0;
-    s->cloud_max = (int)q->cloud_max;
-    if (s->cloud_max < 1)
-        s->cloud_max = 1;
-    s->cloud_buf = malloc(sizeof(float) * 4 * (size_t)s->cloud_max);
+    s->cloud_buf = malloc(sizeof(float) * 4 * (size_t)cloud_max(q));
     s->last_cloud = INT64_MIN / 2;
     if (!s->cloud_buf)
         return -1;

@@ -13,11 +13,7 @@ enum { C_UNKNOWN = 0, C_FREE = 1, C_OCC = 2 };
 
 void explore_params_default(explore_params_t *p)
 {
-    p->robot_radius = 0.3;
-    p->min_cells = 8;
-    p->info_weight = 0.2;
-    p->blacklist_radius = 0.6;
-    p->escape_radius = 0;
+    *p = (explore_params_t)EXPLORE_PARAMS_DEFAULTS;
 }
 
 static int cell_class(int8_t v)

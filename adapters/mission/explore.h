@@ -3,21 +3,15 @@
 #ifndef ADAPTERS_MISSION_EXPLORE_H
 #define ADAPTERS_MISSION_EXPLORE_H
 
+#include "adapters/mission/explore_params.h"
 #include "map/occmap.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-typedef struct {
-    double robot_radius;        /* m: a goal and the way to it keep this far from occupied cells */
-    int min_cells;              /* smaller frontiers are noise (a missed beam) */
-    double info_weight;         /* cost = path length (m) - info_weight * frontier length (m) */
-    double blacklist_radius;    /* m: frontiers this near a goal given up are skipped */
-    double escape_radius;       /* m: when nothing is reachable with robot_radius, look again with
-                                 * this clearance (the robot may stand in a spot reached through a
-                                 * narrower gap); 0: never */
-} explore_params_t;
+/* explore_params_t (robot_radius, escape_radius, info_weight, min_cells, blacklist_radius) is
+ * generated from explore.params.yaml. */
 
 typedef struct {
     double x, y;                /* goal: the frontier's reachable cell nearest its centroid */
@@ -26,6 +20,7 @@ typedef struct {
     double cost;
 } explore_frontier_t;
 
+/* The defaults of explore.params.yaml. */
 void explore_params_default(explore_params_t *p);
 
 /* Frontiers of m reachable from (rx, ry), cheapest first, at most max of them in out. Cells are

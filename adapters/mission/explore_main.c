@@ -7,7 +7,7 @@
 
 #include "map/livemap.h"
 #include "adapters/mission/explore.h"
-#include "adapters/mission/explore_params.h"
+#include "adapters/mission/explore_main_params.h"
 #include "core/clear.h"
 #include "core/component.h"
 #include "map/occmap.h"
@@ -110,14 +110,8 @@ static void tick(marie_component_t *c, int64_t overruns)
         send_goal(c, s);
         return;
     }
-    explore_params_t p;
-    explore_params_default(&p);
-    p.robot_radius = q->robot_radius;
-    p.escape_radius = q->escape_radius;
-    p.info_weight = q->info_weight;
-    p.min_cells = (int)q->min_cells;
     explore_frontier_t f[1];
-    int n = explore_frontiers(s->map, &p, s->pose[0], s->pose[1], s->black, s->nblack, f, 1);
+    int n = explore_frontiers(s->map, &q->explore, s->pose[0], s->pose[1], s->black, s->nblack, f, 1);
     s->last_choice = now;
     if (n < 0)
         return;
@@ -160,7 +154,7 @@ static int init(marie_component_t *c)
     const exp_params_t *q = marie_component_params(c);
     quit(c);
     memset(s, 0, sizeof(*s));
-    if (!(q->rate_hz > 0 && q->rate_hz <= 100) || !(q->robot_radius >= 0) || !(q->tolerance > 0)) {
+    if (!(q->rate_hz > 0 && q->rate_hz <= 100) || !(q->explore.robot_radius >= 0) || !(q->tolerance > 0)) {
         marie_component_fail_reason(c, "rate_hz in (0, 100], robot_radius >= 0 and tolerance > 0 expected");
         return -1;
     }

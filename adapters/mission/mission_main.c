@@ -26,13 +26,11 @@ typedef struct {
     int64_t pose_stamp;
     sharedmap_client_t *sm;
     char key[160];
-    int sm_timeout_ms;
     int restore_tries;
     bool restored, dirty;
     bool restoring;             /* a read of the saved progress is on its way */
     bool saving, save_again;    /* a write is on its way; another is due after it */
     int64_t last_goal_pub;
-    double republish_s, stale_pose_s, resume_max_age_s, unreachable_s;
     int32_t failing_goal;       /* goal the planner reports no path for, -1: none */
     int64_t failing_since;
     mission_signs_t signs;      /* goals found by reading signs */
@@ -89,7 +87,8 @@ static void save(mis_t *s)
     int8_t states[MISSION_MAX_GOALS];
     marie_mission_state_t st;
     fill_state(s, &st, ids, states);
-    if (sharedmap_client_set_async(s->sm, s->key, &marie_type_mission_state_t, &st, s->sm_timeout_ms, on_saved, s) < 0) {
+    int timeout_ms = (int)params_of(s->c)->sharedmap_timeout_ms;
+    if (sharedmap_client_set_async(s->sm, s->key, &marie_type_mission_state_t, &st, timeout_ms, on_saved, s) < 0) {
         int err = errno;
         marie_component_count(s->c, "state_save_failures", 1);
         marie_warn_ratelimited(10, "mission state not saved in the SharedMap (%s): %s", s->key, strerror(err));
@@ -101,13 +100,14 @@ static void save(mis_t *s)
 static void resume(mis_t *s, const marie_mission_state_t *st)
 {
     int64_t now = marie_component_now(s->c);
+    double max_age_s = params_of(s->c)->resume_max_age_s;
     if (st->utime > now || st->start_utime > now) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
                               "saved progress is from the future (another run?): starting afresh");
-    } else if (s->resume_max_age_s > 0 && (now - st->utime) / 1e6 > s->resume_max_age_s) {
+    } else if (max_age_s > 0 && (now - st->utime) / 1e6 > max_age_s) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_WARN, "mission_state_ignored",
                               "saved progress is %.0f s old (resume_max_age_s %.0f): starting afresh",
-                              (now - st->utime) / 1e6, s->resume_max_age_s);
+                              (now - st->utime) / 1e6, max_age_s);
     } else if (mission_restore(&s->m, st->start_utime, st->current, st->goal_ids, st->goal_states, st->ngoals) == 0) {
         marie_component_event(s->c, MARIE_EVENT_T_SEV_INFO, "mission_resumed",
                               "resumed: %lld reached, %lld missed of %d, current goal index %d",
@@ -151,7 +151,7 @@ static bool restore(mis_t *s)
     if (!s->sm || s->restored)
         return true;
     if (!s->restoring) {
-        int rc = sharedmap_client_get_async(s->sm, s->key, s->sm_timeout_ms, on_restored, s);
+        int rc = sharedmap_client_get_async(s->sm, s->key, (int)params_of(s->c)->sharedmap_timeout_ms, on_restored, s);
         s->restoring = rc == 0;
         if (rc < 0) {
             marie_warn("cannot ask for saved progress %s: %s; starting the mission", s->key, strerror(errno));
@@ -180,11 +180,12 @@ static void tick(marie_component_t *c, int64_t overruns)
         sharedmap_client_tick(s->sm);
     if (!restore(s))
         return;
+    const mission_params_t *q = params_of(c);
     int64_t now = marie_component_now(c);
-    bool fresh = s->have_pose && (s->stale_pose_s <= 0 || (now - s->pose_stamp) / 1e6 <= s->stale_pose_s);
+    bool fresh = s->have_pose && (q->stale_pose_s <= 0 || (now - s->pose_stamp) / 1e6 <= q->stale_pose_s);
     bool was_done = s->m.done;
-    if (s->m.current >= 0 && s->unreachable_s > 0 && s->failing_goal == s->m.goals[s->m.current].id &&
-        (now - s->failing_since) / 1e6 > s->unreachable_s) {
+    if (s->m.current >= 0 && q->unreachable_s > 0 && s->failing_goal == s->m.goals[s->m.current].id &&
+        (now - s->failing_since) / 1e6 > q->unreachable_s) {
         mission_give_up(&s->m, "the planner finds no path", on_event, s);
         s->failing_goal = -1;
     }
@@ -195,7 +196,7 @@ static void tick(marie_component_t *c, int64_t overruns)
         s->dirty = false;
         save(s);
         publish_goal(s);
-    } else if (s->republish_s > 0 && (now - s->last_goal_pub) / 1e6 >= s->republish_s) {
+    } else if (q->republish_s > 0 && (now - s->last_goal_pub) / 1e6 >= q->republish_s) {
         publish_goal(s);
     }
     if (!was_done || s->dirty) {
@@ -314,12 +315,7 @@ static int init(marie_component_t *c)
             return -1;
         }
     }
-    s->republish_s = params_of(c)->republish_s;
-    s->stale_pose_s = params_of(c)->stale_pose_s;
-    s->resume_max_age_s = params_of(c)->resume_max_age_s;
-    s->unreachable_s = params_of(c)->unreachable_s;
     s->failing_goal = -1;
-    s->sm_timeout_ms = (int)params_of(c)->sharedmap_timeout_ms;
     const char *skey = params_of(c)->state_key;
     if (skey[0])
         snprintf(s->key, sizeof(s->key), "%s", skey);

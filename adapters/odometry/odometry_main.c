@@ -12,7 +12,6 @@ typedef struct {
     odo_t o;
     int64_t published_utime;
     double sign_l, sign_r;
-    bool gyro_uncalibrated;     /* take the rate before the driver knows its bias */
 } odom_t;
 
 static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
@@ -36,6 +35,7 @@ static void on_encoders(marie_component_t *c, marie_port_t *p, const void *msg, 
 static void on_gyro(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     odom_t *s = marie_component_user(c);
+    const odom_params_t *q = marie_component_params(c);
     const marie_gyro_t *m = msg;
     if (m->status != 0) {
         marie_component_count(c, "gyro_faults", 1);
@@ -44,7 +44,7 @@ static void on_gyro(marie_component_t *c, marie_port_t *p, const void *msg, cons
     /* Until its driver has seen the robot stand still long enough, the rate carries the gyro's
      * raw bias (0.01 rad/s on the simulator's device: 9 degrees a quarter of an hour); the
      * encoders give the heading meanwhile. */
-    if (!m->bias_valid && !s->gyro_uncalibrated) {
+    if (!m->bias_valid && !q->gyro_uncalibrated) {
         marie_component_count(c, "gyro_uncalibrated", 1);
         return;
     }
@@ -77,7 +77,6 @@ static int init(marie_component_t *c)
     s->published_utime = 0;
     s->sign_l = q->invert_left ? -1 : 1;
     s->sign_r = q->invert_right ? -1 : 1;
-    s->gyro_uncalibrated = q->gyro_uncalibrated;
     if (marie_port_on_message(marie_port(c, "encoders"), on_encoders) ||
         marie_port_on_message(marie_port(c, "gyro"), on_gyro)) {
         marie_component_fail_reason(c, "cannot subscribe to inputs");

@@ -32,7 +32,6 @@ typedef struct {
     double check_period_s;
     double *pts;
     int pts_cap;
-    uint64_t seed;
     char last_failure[320];     /* said once per goal until it changes */
 } pln_t;
 
@@ -304,7 +303,7 @@ static void use_live_map(marie_component_t *c, pln_t *s)
         int8_t v = om->cells[i];
         om->cells[i] = v < 0 ? OCCMAP_UNKNOWN : v >= 65 ? OCCMAP_OCCUPIED : v < 20 ? OCCMAP_FREE : OCCMAP_UNKNOWN;
     }
-    planner_t *pl = planner_create(om, &s->q->planner, s->seed);
+    planner_t *pl = planner_create(om, &s->q->planner, (uint64_t)s->q->seed);
     int w = om->width, h = om->height;
     occmap_destroy(om);
     if (!pl) {
@@ -365,7 +364,6 @@ static int init(marie_component_t *c)
         marie_component_fail_reason(c, "bad planner parameters (robot_radius, robot_clearance >= 0, time_limit > 0)");
         return -1;
     }
-    s->seed = (uint64_t)q->seed;
     const char *path = q->map;
     if (path[0]) {
         marie_errors_t errs = { 0 };
@@ -376,7 +374,7 @@ static int init(marie_component_t *c)
             return -1;
         }
         marie_info("map %s: %d x %d cells at %.3f m", path, map->width, map->height, map->resolution);
-        s->pl = planner_create(map, p, s->seed);
+        s->pl = planner_create(map, p, (uint64_t)q->seed);
         occmap_destroy(map);
         if (!s->pl) {
             marie_component_fail_reason(c, "cannot build the planner on %s", path);

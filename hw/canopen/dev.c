@@ -142,13 +142,13 @@ static bool comm_object(co_dev_t *d, uint16_t index, uint8_t sub, co_dev_pdo_t *
     else if (index >= 0x1600 && index < 0x1600 + CO_DEV_NPDO) { *pdo = &d->rpdo[index - 0x1600]; *tx = false; *mapping = true; }
     else if (index >= 0x1800 && index < 0x1800 + CO_DEV_NPDO) { *pdo = &d->tpdo[index - 0x1800]; *tx = true; *mapping = false; }
     else if (index >= 0x1A00 && index < 0x1A00 + CO_DEV_NPDO) { *pdo = &d->tpdo[index - 0x1A00]; *tx = true; *mapping = true; }
-    return *pdo || index == 0x1001 || (index == 0x1016 && !d->no_consumer) || index == 0x1017 || index == 0x1018;
+    return *pdo || index == 0x1001 || (index == 0x1016 && !d->opts.no_consumer) || index == 0x1017 || index == 0x1018;
 }
 
 /* An RPDO's event timer (sub 5) on a device that has none. */
 static bool no_deadline(const co_dev_t *d, bool tx, bool mapping, uint8_t sub)
 {
-    return d->no_rpdo_deadline && !tx && !mapping && sub == 5;
+    return d->opts.no_rpdo_deadline && !tx && !mapping && sub == 5;
 }
 
 /* The size of a writable communication object (0: none such). */

@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <linux/can.h>
 
+#include "hw/canopen/dev_params.h"
 #include "hw/canopen/nmt.h"
 #include "hw/canopen/pdo.h"
 #include "hw/canopen/sdo.h"
@@ -95,9 +96,10 @@ struct co_dev {
     co_dev_pdo_t tpdo[CO_DEV_NPDO], rpdo[CO_DEV_NPDO];
     uint32_t consumer[CO_DEV_NCONSUMER];
     uint32_t identity[4];   /* 0x1018 sub 1..4: vendor, product code, revision, serial */
-    /* Optional objects a device may lack (CiA 301): no 0x1016 (abort "no object"), no RPDO
-     * event timer 0x1400+n sub 5 (abort "no sub-index"); set before the first frame. */
-    bool no_consumer, no_rpdo_deadline;
+    /* Optional objects a device may lack (CiA 301, dev.params.yaml): no 0x1016 (abort "no
+     * object"), no RPDO event timer 0x1400+n sub 5 (abort "no sub-index"); set before the
+     * first frame. */
+    co_dev_opts_t opts;
     co_dev_stats_t stats;
     /* private */
     co_dev_comm_t power_on;

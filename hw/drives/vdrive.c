@@ -207,8 +207,7 @@ vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
     }
     static const co_dev_hooks_t hooks = { on_nmt, on_rpdo, on_sync, on_write, on_comm_error };
     co_dev_init(&v->dev, cfg->node, v->od, nod, &hooks, v);
-    v->dev.no_consumer = cfg->no_consumer;
-    v->dev.no_rpdo_deadline = cfg->no_rpdo_deadline;
+    v->dev.opts = cfg->opts;
     co_dev_set_identity(&v->dev, VDRIVE_VENDOR_ID, VDRIVE_PRODUCT_CODE, VDRIVE_REVISION, cfg->node);
     v->abort_opt = 1;
     /* Defaults that marie-drives also writes at configuration (see docs/hw/drives.md). */
@@ -216,7 +215,7 @@ vdrive_t *vdrive_create(const vdrive_cfg_t *cfg)
     uint32_t t1map[] = { 0x60410010, 0x60640020 };
     uint32_t t2map[] = { 0x606C0020 };
     int64_t tmo_us = (int64_t)(cfg->rpdo_timeout * 1e6);
-    int64_t tmo_ms = tmo_us > 0 && !cfg->no_rpdo_deadline ? (tmo_us + 999) / 1000 : 0;
+    int64_t tmo_ms = tmo_us > 0 && !cfg->opts.no_rpdo_deadline ? (tmo_us + 999) / 1000 : 0;
     co_dev_set_pdo(&v->dev, false, 1, CO_COB_RPDO1 + cfg->node, 1, (uint16_t)(tmo_ms > 65535 ? 65535 : tmo_ms),
                    rmap, 2);
     co_dev_set_pdo(&v->dev, true, 1, CO_COB_TPDO1 + cfg->node, 1, 0, t1map, 2);

@@ -12,7 +12,9 @@ sim tools; benchmarks and tests are not production code) of the form
 where R is a params struct (a variable of a generated struct type, `params_of(c)`, `*_params(...)`),
 g one of its parameters, and f the same name as g, or g with a unit suffix (_us, _ms, _s, _hz):
 a config field that repeats the parameter. Casts, parentheses, lround() and a constant factor
-are looked through. Reading a parameter (a local, an argument, an expression) is not a copy.
+are looked through. Reading a parameter (a local, an argument, an expression) is not a copy, and
+neither is a field of a message put on the bus (an initializer of an LCM type, `marie_goal_t g =
+{ .tolerance = p->tolerance }`): the message carries the value, it does not declare it again.
 
 usage: params_copies.py [--allow FILE] [ROOT]
 Prints FILE:LINE: text, one a copy; with --allow, copies listed there (FILE: LHS = FIELD, one a
@@ -32,6 +34,7 @@ NUM = r"(?:\d+(?:\.\d*)?(?:e[+-]?\d+)?|\.\d+)"
 CAST = re.compile(r"(?<![\w)\]])\(\s*(?:const\s+)?(?:unsigned\s+)?\w+\s*\**\s*\)")
 ASSIGN = re.compile(r"(?:\.|->)\s*([A-Za-z_]\w*)(?:\s*\[[^\]]*\])?\s*=(?!=)\s*([^;,{}]+)")
 ACCESS = re.compile(r"^(\w+(?:\([^()]*\))?)\s*(?:->|\.)\s*(\w+)$")
+OPENER = re.compile(r"(?:\b(\w+)\s+\w+\s*(?:\[[^\]]*\])?\s*=|\(\s*(\w+)\s*\))\s*$")
 
 
 class Loader(yaml.SafeLoader):
@@ -69,6 +72,27 @@ def core(rhs):
             return r
 
 
+def messages(root):
+    """The C names of the LCM types (lcmtypes/NAME.lcm: marie_NAME)."""
+    return set("marie_" + os.path.basename(p)[:-4] for p in glob.glob(os.path.join(root, "lcmtypes", "*.lcm")))
+
+
+def initialized(text, pos):
+    """The type of the initializer `TYPE v = {` or `(TYPE){` that encloses pos, or None."""
+    depth = 0
+    for i in range(pos - 1, -1, -1):
+        if text[i] == "}":
+            depth += 1
+        elif text[i] == "{" and depth:
+            depth -= 1
+        elif text[i] == "{":
+            m = OPENER.search(text[max(0, i - 200):i])
+            return m and (m.group(1) or m.group(2))
+        elif text[i] == ";":
+            return None
+    return None
+
+
 def sources(root):
     for folder in FOLDERS:
         for top, _, files in os.walk(os.path.join(root, folder)):
@@ -83,13 +107,16 @@ def copies(root):
     if not structs:
         return
     params = set().union(*structs.values())
+    msgs = messages(root)
     typed = re.compile(r"\b(?:%s)\s*\*?\s*(?:const\s+)?\*?\s*(\w+)\s*[=;,)]" % "|".join(map(re.escape, structs)))
     for path in sources(root):
         with open(path, encoding="utf-8", errors="replace") as f:
             text = f.read()
         holders = set(typed.findall(text))
         rel = os.path.relpath(path, root)
+        start = 0
         for n, line in enumerate(text.split("\n"), 1):
+            at, start = start, start + len(line) + 1
             for m in ASSIGN.finditer(line):
                 lhs, rhs = m.group(1), m.group(2).strip()
                 a = ACCESS.match(core(rhs))
@@ -98,7 +125,7 @@ def copies(root):
                 holder, field = a.groups()
                 if not (re.match(r"\w*params(?:_of)?\(", holder) or holder in holders or holder.endswith("params")):
                     continue
-                if UNIT.sub("", lhs) == UNIT.sub("", field):
+                if UNIT.sub("", lhs) == UNIT.sub("", field) and initialized(text, at + m.start()) not in msgs:
                     yield rel, n, lhs, field, "%s = %s" % (lhs, rhs)
 
 

@@ -41,9 +41,15 @@ static int on_init(marie_component_t *c)
     double half = params_of(c)->track_width / 2;
     int64_t ln = params_of(c)->left_node;
     cfg.node[0] = (uint8_t)ln;
+    marie_goal_t g = { .id = 1,
+                       .pose = { 0, 0, 0 }, .cmd_timeout = p->cmd_timeout };
+    drives_cfg_t d = { .node = { 1, 2 },
+                       .cmd_timeout = p->cmd_timeout };
     return drives_ctl_create(&p->ctl, half) ? 0 : -1;
 }
 C
+mkdir -p "$T/lcmtypes"
+printf 'package marie;\nstruct goal_t\n{\n    int32_t id;\n}\n' > "$T/lcmtypes/goal_t.lcm"
 $SCAN "$T" > "$T/found"
 found() { grep -q "^hw/drives/drives_main.c:$1: $2 copies the parameter $3 by hand$" "$T/found" || { cat "$T/found"; return 1; }; }
 check "a field filled from the parameter of its name is caught, with file and line" \
@@ -51,7 +57,9 @@ check "a field filled from the parameter of its name is caught, with file and li
 check "... through a change of unit (s to us)" found 7 "cmd_timeout_us = (int64_t)(params_of(c)->cmd_timeout \* 1e6)" cmd_timeout
 check "... from a pointer to the params struct" found 8 "allow_unwatched = p->allow_unwatched" allow_unwatched
 check "... in a designated initializer" found 9 "ticks_per_rev = p->ticks_per_rev" ticks_per_rev
-check "reading a parameter, or handing the struct over, is no copy" test "$(wc -l < "$T/found")" -eq 4
+check "... in an initializer of several lines" found 16 "cmd_timeout = p->cmd_timeout" cmd_timeout
+check "reading a parameter, handing the struct over, or a message carrying it is no copy" \
+    test "$(wc -l < "$T/found")" -eq 5
 check "the scan fails on a copy" sh -c "! $SCAN '$T' > /dev/null"
 
 echo "hw/drives/drives_main.c: ticks_per_rev = ticks_per_rev" > "$T/allow"

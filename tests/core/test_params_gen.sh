@@ -187,6 +187,75 @@ defaults: D
 tables:
   S:
     n: [node, \"[]\", help]"
+
+# A member's file with a member of its own (a library that takes a lower layer's parameters):
+# the lower layer's struct inside the member, its parameters under their own names in the
+# component's table, its defaults in both initializers, a default given from the top.
+cat > "$T/lib/stage.params.yaml" <<YAML
+struct: stage_params_t
+defaults: STAGE_PARAMS_DEFAULTS
+members:
+  filt: $T/lib/filt.params.yaml
+tables:
+  STAGE_PARAMS:
+    depth: [int, "3", ""]
+YAML
+cat > "$T/comp2.params.yaml" <<YAML
+struct: comp2_params_t
+members:
+  stage: {file: $T/lib/stage.params.yaml, defaults: {count: "9"}}
+tables:
+  COMP2_PARAMS:
+    rate_hz: [double, "10", ""]
+YAML
+cat > "$T/comp2.c" <<'C'
+#include <stdio.h>
+#include "core/component.h"
+#include "comp2_params.h"
+static const marie_param_spec_t params[] = COMP2_PARAMS;
+static const marie_component_def_t def = { .kind = "comp2", .params = params, .params_size = sizeof(comp2_params_t) };
+int main(int argc, char **argv)
+{
+    const stage_params_t d = STAGE_PARAMS_DEFAULTS;
+    printf("defaults %ld %g %ld\n", (long)d.depth, d.filt.gain, (long)d.filt.count);
+    marie_errors_t errs = { 0 };
+    marie_component_t *c = marie_component_create(&def, argc, argv, NULL, &errs);
+    if (!c) {
+        marie_errors_print(&errs, stderr);
+        return 1;
+    }
+    const comp2_params_t *q = marie_component_params(c);
+    printf("values %g %ld %g %ld\n", q->rate_hz, (long)q->stage.depth, q->stage.filt.gain, (long)q->stage.filt.count);
+    marie_component_destroy(c);
+    return 0;
+}
+C
+nested_build() {
+    python3 core/params_gen.py "$T/lib/stage.params.yaml" "$T/lib/stage_params.h" &&
+        python3 core/params_gen.py "$T/comp2.params.yaml" "$T/comp2_params.h" &&
+        grep -q "lib/stage.params.yaml .*lib/filt.params.yaml" "$T/comp2_params.d" &&
+        ${CC:-cc} -std=gnu11 -Wall -Wextra -Werror $SANFLAGS -I. -I"$B/gen/c" -I"$T" -D_GNU_SOURCE \
+            $(pkg-config --cflags lcm glib-2.0 libfyaml) -o "$T/comp2" "$T/comp2.c" "$B/lib/libmarie.a" \
+            $(pkg-config --libs lcm glib-2.0 libfyaml libsodium) -lm -lpthread
+}
+check "a member's member compiles; make learns both files (comp2_params.d)" nested_build
+check "... the library's initializer holds its member's defaults" \
+    test "$("$T/comp2" | sed -n 1p)" = "defaults 3 0.05 40"
+check "... its parameters land in the member's member, with the component's default" \
+    test "$("$T/comp2" | sed -n 2p)" = "values 10 3 0.05 9"
+check "... and are set by their own names" \
+    test "$("$T/comp2" --param gain=2.5 --param count=1 | sed -n 2p)" = "values 10 3 2.5 1"
+check "a parameter that a member's member has too" fails 6 "struct: s_t
+members:
+  m: $T/lib/stage.params.yaml
+tables:
+  S:
+    gain: [double, \"1\", help]"
+check "a file that takes itself as a member" fails 3 "struct: s_t
+members:
+  m: $T/bad.params.yaml
+tables:
+  S: {}"
 # A program that is not a component: its options from a file with cli:, a member taken with a
 # prefix, fields that are no parameter, and defaults: over the members.
 cat > "$T/lib/dev.params.yaml" <<'YAML'

@@ -119,8 +119,8 @@ static int setup(void **state)
         vdrive_cfg_t vc;
         vdrive_cfg_default(&vc, (uint8_t)(i + 1));
         vc.name = drive_name;
-        vc.no_consumer = rig_no_consumer;
-        vc.no_rpdo_deadline = rig_no_deadline;
+        vc.opts.no_consumer = rig_no_consumer;
+        vc.opts.no_rpdo_deadline = rig_no_deadline;
         r->vd[i] = vdrive_create(&vc);
     }
     r->now = 1000000;

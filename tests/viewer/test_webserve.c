@@ -50,11 +50,10 @@ static int setup(void **state)
     fputs("<html>the page</html>\n", fp);
     fclose(fp);
     static const webserve_file_t files[] = {{"/", "index.html", "text/html"}};
-    webserve_cfg_t cfg = {.bind = "127.0.0.1", .port = 0, .www = f->dir, .files = files, .nfiles = 1,
-                          .name = "test", .on_cmd = on_cmd, .user = f};
+    webserve_cfg_t cfg = {.www = f->dir, .files = files, .nfiles = 1, .name = "test", .on_cmd = on_cmd, .user = f};
     char why[256];
     f->loop = marie_loop_create();
-    f->w = webserve_start(f->loop, &cfg, why, sizeof why);
+    f->w = webserve_start(f->loop, "127.0.0.1", 0, &cfg, why, sizeof why);
     assert_non_null(f->w);
     *state = f;
     return 0;

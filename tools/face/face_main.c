@@ -392,10 +392,10 @@ static int init(marie_component_t *c)
         { "/face.js", "face.js", "text/javascript; charset=utf-8" },
         { "/face.css", "face.css", "text/css; charset=utf-8" },
     };
-    webserve_cfg_t wc = { .bind = params_of(c)->bind, .port = (int)params_of(c)->http_port,
-                          .www = www, .files = files, .nfiles = 4, .name = "face", .on_cmd = on_cmd, .user = f, .comp = c };
+    webserve_cfg_t wc = { .www = www, .files = files, .nfiles = 4, .name = "face", .on_cmd = on_cmd, .user = f,
+                          .comp = c };
     char why[256];
-    if (!(f->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
+    if (!(f->web = webserve_start(marie_component_loop(c), q->bind, (int)q->http_port, &wc, why, sizeof why))) {
         marie_component_fail_reason(c, "%s", why);
         return -1;
     }

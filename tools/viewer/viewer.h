@@ -91,7 +91,7 @@ typedef struct viewer {
     char *summary;
     size_t summary_len;
     bool playing;
-    double speed;
+    double picked_speed;        /* playback speed chosen on the page; 0: the speed parameter's */
     size_t cursor;              /* next record to play */
     int64_t play_t;             /* log time at anchor_mono */
     int64_t anchor_mono;
@@ -114,6 +114,12 @@ typedef struct viewer {
     marie_buf_t jb;                /* scratch */
     bool init_failed;
 } viewer_t;
+
+/* The log's playback speed: the one chosen on the page, else the speed parameter. */
+static inline double viewer_speed(const viewer_t *v)
+{
+    return v->picked_speed > 0 ? v->picked_speed : viewer_params(v->c)->speed;
+}
 
 /* Sending to page `id` (every page when id < 0). */
 void viewer_send(viewer_t *v, int id, const char *data, size_t len, bool droppable);

@@ -328,7 +328,7 @@ void viewer_log_send_player(viewer_t *v, int id)
     marie_buf_t b;
     marie_buf_init(&b, 0);
     marie_buf_printf(&b, "{\"type\":\"player\",\"playing\":%s,\"speed\":", v->playing ? "true" : "false");
-    vj_num(&b, v->speed, 3);
+    vj_num(&b, viewer_speed(v), 3);
     marie_buf_printf(&b, ",\"t\":%lld,\"t0\":%lld,\"t1\":%lld}", (long long)v->play_t, (long long)v->t0, (long long)v->t1);
     viewer_send_json(v, id, &b, false);
     marie_buf_free(&b);
@@ -412,7 +412,7 @@ void viewer_log_tick(marie_loop_t *loop, marie_timer_t *tm, int64_t overruns, vo
     }
     if (!v->playing)
         return;
-    int64_t target = v->play_t + (int64_t)((now - v->anchor_mono) * v->speed);
+    int64_t target = v->play_t + (int64_t)((now - v->anchor_mono) * viewer_speed(v));
     v->play_t = target;
     v->anchor_mono = now;
     while (v->cursor < v->nrecs && v->recs[v->cursor].t <= target) {

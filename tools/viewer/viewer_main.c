@@ -502,7 +502,7 @@ static void handle_cmd(void *user, int client, const char *addr, bool hello, con
     } else if (strcmp(op, "seek") == 0 && vj_cmd_num(&cmd, "t", &x)) {
         viewer_log_seek(v, (int64_t)x);
     } else if (strcmp(op, "speed") == 0 && vj_cmd_num(&cmd, "v", &x) && x > 0 && x <= 1000) {
-        v->speed = x;
+        v->picked_speed = x;
         viewer_log_send_player(v, -1);
     } else {
         viewer_notice(v, client, "error", "unknown command");
@@ -591,8 +591,8 @@ static int init_viewer(marie_component_t *c)
     if (v->web)
         return 0;                       /* re-init after a stop: already serving */
     v->c = c;
-    v->speed = viewer_params(c)->speed;
-    if (!(v->speed > 0 && v->speed <= 1000)) {
+    double speed = viewer_params(c)->speed;
+    if (!(speed > 0 && speed <= 1000)) {
         marie_component_fail_reason(c, "speed must be in (0, 1000]");
         return -1;
     }
@@ -655,11 +655,12 @@ static int init_viewer(marie_component_t *c)
         {"/pin.js", "pin.js", "text/javascript; charset=utf-8"},
     };
     webserve_cfg_t wc = {
-        .bind = viewer_params(c)->bind, .port = (int)viewer_params(c)->http_port, .www = v->www,
-        .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer", .on_cmd = handle_cmd, .user = v, .comp = c,
+        .www = v->www, .files = files, .nfiles = sizeof files / sizeof files[0], .name = "viewer",
+        .on_cmd = handle_cmd, .user = v, .comp = c,
     };
     char why[256];
-    if (!(v->web = webserve_start(marie_component_loop(c), &wc, why, sizeof why))) {
+    const viewer_params_t *q = viewer_params(c);
+    if (!(v->web = webserve_start(marie_component_loop(c), q->bind, (int)q->http_port, &wc, why, sizeof why))) {
         marie_component_fail_reason(c, "%s", why);
         return -1;
     }

@@ -51,7 +51,8 @@ struct webserve {
     webserve_cfg_t cfg;
     marie_loop_t *loop;
     marie_timer_t *sweep;
-    int lfd, port;
+    int lfd, port;              /* port: the one served on (the one picked for port 0) */
+    char host[64];              /* of the page's address: bind, or 127.0.0.1 for every address */
     client_t *clients;
     int next_id;
     webserve_stats_t st;
@@ -685,7 +686,8 @@ static int listen_on(webserve_t *w, const char *host, int port)
     return 0;
 }
 
-webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *why, size_t len)
+webserve_t *webserve_start(marie_loop_t *loop, const char *bind, int port, const webserve_cfg_t *cfg, char *why,
+                           size_t len)
 {
     webserve_t *w = calloc(1, sizeof *w);
     if (!w) {
@@ -695,8 +697,9 @@ webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *
     w->cfg = *cfg;
     w->loop = loop;
     w->lfd = -1;
-    if (listen_on(w, cfg->bind, cfg->port) < 0) {
-        snprintf(why, len, "cannot serve HTTP on %s:%d (port in use?): %s", cfg->bind, cfg->port, strerror(errno));
+    snprintf(w->host, sizeof w->host, "%s", strcmp(bind, "0.0.0.0") == 0 ? "127.0.0.1" : bind);
+    if (listen_on(w, bind, port) < 0) {
+        snprintf(why, len, "cannot serve HTTP on %s:%d (port in use?): %s", bind, port, strerror(errno));
         MARIE_KEEP_ERRNO(webserve_stop(w));
         return NULL;
     }
@@ -729,7 +732,7 @@ void webserve_stop(webserve_t *w)
 
 void webserve_url(const webserve_t *w, const char *url_file, char *buf, size_t len)
 {
-    snprintf(buf, len, "http://%s:%d/", strcmp(w->cfg.bind, "0.0.0.0") == 0 ? "127.0.0.1" : w->cfg.bind, w->port);
+    snprintf(buf, len, "http://%s:%d/", w->host, w->port);
     FILE *f = url_file && *url_file ? fopen(url_file, "w") : NULL;
     if (f) {
         fprintf(f, "%s\n", buf);

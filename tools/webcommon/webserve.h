@@ -41,8 +41,6 @@ typedef struct {
 typedef void (*webserve_cmd_fn)(void *user, int client, const char *addr, bool hello, const char *text, size_t len);
 
 typedef struct {
-    const char *bind;               /* address, e.g. 127.0.0.1 */
-    int port;                       /* 0: any free port */
     const char *www;                /* folder of the files */
     const webserve_file_t *files;   /* the page's files (copied by reference: static tables) */
     size_t nfiles;
@@ -63,9 +61,11 @@ typedef struct {
     int pages, conns;           /* open now */
 } webserve_stats_t;
 
-/* Serves on cfg->bind:port, with the WebSocket at /ws (same-origin pages only). NULL with a
- * reason in why. */
-webserve_t *webserve_start(marie_loop_t *loop, const webserve_cfg_t *cfg, char *why, size_t len);
+/* Serves on bind:port (the component's bind and http_port parameters, e.g. 127.0.0.1 and 8080;
+ * port 0: any free port), with the WebSocket at /ws (same-origin pages only). NULL with a reason
+ * in why. */
+webserve_t *webserve_start(marie_loop_t *loop, const char *bind, int port, const webserve_cfg_t *cfg, char *why,
+                           size_t len);
 /* Closes every page and connection; NULL is a no-op. */
 void webserve_stop(webserve_t *w);
 /* The page's address, http://HOST:PORT/ (127.0.0.1 when serving on every address), into
