@@ -266,6 +266,14 @@ static int dds_round_trip(size_t size, int seconds, dds_t *out)
  * ddsperf's first second is dropped. */
 #define WARMUP 8
 
+/* A block ends after BLOCK_MAX_US of round trips (a quarter of it in the first, warming pass),
+ * with BLOCK_MIN_KEPT of them at least: beside
+ * busy loops the spinning paths' sched_yield() hands a whole slice away (2-16 ms a round trip),
+ * and without the bound their blocks alone took 20-50 s of the run. Their rows then hold fewer
+ * samples (a p99 near their largest); the others never come near it. */
+#define BLOCK_MAX_US 150000
+#define BLOCK_MIN_KEPT 10
+
 /* The pinned path's CPUs: the first two this process may use (its echo on the second, the
  * pinging side on the first during its blocks, as `sched: {cpus: [N]}` would put them). */
 static cpu_set_t cpus_all, cpus_pin[2];
@@ -285,8 +293,8 @@ static int pin_setup(void)
     return found ? 0 : -1;
 }
 
-/* n round trips on one path, after WARMUP more; the CPU both sides' main threads took for the n. */
-static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n)
+/* n round trips on one path (fewer past BLOCK_MAX_US), after WARMUP more; the CPU both sides' main threads took for the n. */
+static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n, int64_t max_us)
 {
     int lost = 0;
     rtt_t *r = &pg->path[path];
@@ -297,8 +305,8 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
     for (int i = 0; i < WARMUP; i++)
         lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
     r->n = kept;
-    int64_t cpu = self_cpu_ns() + thread_cpu_ns(pg->echo[path]);
-    for (int i = 0; i < n; i++)
+    int64_t cpu = self_cpu_ns() + thread_cpu_ns(pg->echo[path]), t0 = marie_mono_us();
+    for (int i = 0; i < n && (i < BLOCK_MIN_KEPT || marie_mono_us() - t0 < max_us); i++)
         lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
     marie_loop_set_spin(marie_component_loop(pg->c), 0);
     pg->cpu_ns[path] += self_cpu_ns() + thread_cpu_ns(pg->echo[path]) - cpu;
@@ -328,7 +336,8 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
         for (int blk = 0; blk < 10; blk++)
             for (int k = 0; k < NPATHS; k++) {
                 int path = (blk + k) % NPATHS;
-                lost[path] += block(pg, path, &img, &seq, pass ? n / 10 : n / 40);
+                int64_t max_us = pass ? BLOCK_MAX_US : BLOCK_MAX_US / 4;
+                lost[path] += block(pg, path, &img, &seq, pass ? n / 10 : n / 40, max_us);
             }
     }
     free(img.data);

@@ -69,6 +69,8 @@ struct marie_loop {
     int64_t last_active;    /* CLOCK_MONOTONIC when a callback last ran (spin only) */
     int32_t gaps[FAST_GAPS];    /* the last waits for the fast path, in us (fast_wait) */
     unsigned ngaps;
+    uint8_t unpaid;         /* the last 8 spins, a bit each: 1 when it ended without a message */
+    unsigned held;          /* waits since the last spin that found a message (probes) */
 };
 
 static volatile sig_atomic_t pending_signal;
@@ -468,6 +470,12 @@ static int spin_fast(marie_loop_t *loop, size_t n, int64_t now, int64_t until, i
  * on the simulator's clock. */
 #define FAST_SPIN_MAX_US 50
 #define FAST_SPIN_MARGIN_US 5
+/* When none of the last 8 spins found a message (the answer comes from this loop's own CPU,
+ * after it sleeps: two processes the kernel keeps on one CPU), the loop sleeps at once but for
+ * probes, which spin to see whether that changed: the 1st, 2nd, 4th, ... wait after the last spin
+ * that paid, then one in FAST_PROBE_EVERY (a loop whose peers change, one answering from another
+ * CPU after one from its own, spins again within a few waits). */
+#define FAST_PROBE_EVERY 32
 
 static int cmp_gap(const void *a, const void *b) { return *(const int32_t *)a - *(const int32_t *)b; }
 
@@ -503,26 +511,39 @@ static bool fast_waking(const marie_loop_t *loop)
     return false;
 }
 
+/* Whether this wait may spin: not while the last 8 spins all came to nothing, but to probe. */
+static bool fast_spin_pays(marie_loop_t *loop)
+{
+    if (loop->unpaid != 0xff)
+        return true;
+    unsigned h = ++loop->held;
+    return h % FAST_PROBE_EVERY == 0 || (h < FAST_PROBE_EVERY && (h & (h - 1)) == 0);
+}
+
 static int fast_spin(marie_loop_t *loop, size_t n, int64_t start, int wait_ms)
 {
     if (loop->spin_us || loop->clock == MARIE_CLOCK_SIM || !fast_path(loop))
         return 0;
-    int64_t until = start + fast_window(loop);
+    int64_t window = fast_window(loop);
+    if (window == 0 || !fast_spin_pays(loop))
+        return 0;
+    int64_t until = start + window;
     if (wait_ms > 0 && start + (int64_t)wait_ms * 1000 < until)
         until = start + (int64_t)wait_ms * 1000;
     unsigned turns = 0;
+    int rc = 0;
     for (int64_t now = start; now < until; now = marie_mono_us()) {
-        int rc = fast_ready(loop, n, false);
-        if (rc > 0)
-            return rc;
-        if (fast_waking(loop))
+        if ((rc = fast_ready(loop, n, false)) != 0 || fast_waking(loop))
             break;
         if (++turns % SPIN_POLL_EVERY == 0 && (rc = poll(loop->pfds, n, 0)) != 0)
-            return rc;
+            break;
         for (int k = 0; k < 16; k++)
             cpu_relax();
     }
-    return 0;
+    loop->unpaid = (uint8_t)(loop->unpaid << 1 | (rc <= 0));
+    if (rc > 0)
+        loop->held = 0;
+    return rc;
 }
 
 /* After a wait: how long the fast path took to bring something, or, when something else ended
