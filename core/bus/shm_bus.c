@@ -306,7 +306,7 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
     }
     if (!n.segment[0]) {
         /* no ring: the message follows on CHANNEL (a publisher that does not write rings) */
-        if (n.size < 8)
+        if (n.size < 8 || (size_t)n.size > s->cap)
             s->st.bad++;
         else if (!s->remote)
             announce(s, n.size, n.fingerprint);

@@ -64,10 +64,13 @@ class Port:
         self.type = None
         self.cb = None
         self.msgs = 0
-        self.seq = 0
+        self.seq = 0            # ringless notices sent
+        self.too_big = 0
         self.queue = []
 
-    def _bind(self, c, channel, bus, ring=False):
+    def _bind(self, c, channel, bus, ring=0):
+        """ring: the channel's max_size where the system file puts it on shared memory or the
+        fast path, else 0."""
         p = Port(self.name, self.type_name, self.dir, self.mech, self.default_channel)
         p.c, p.channel, p.bus, p.ring = c, channel, bus, ring
         p.type = types.find(self.type_name) if self.type_name else None
@@ -89,9 +92,10 @@ class Port:
         else:
             raise TypeError("port %s carries %s, not %s" % (self.name, self.type.name if self.type else "raw bytes",
                                                             type(msg).__name__))
-        if not ((not self.ring or self._announce(data)) and self.bus.publish(self.channel, data)):
+        why = self._announce(data) if self.ring else None
+        if why or not self.bus.publish(self.channel, data):
             self.c.drops += 1
-            self.c.count("publish_failed")
+            self.c.count(why or "publish_failed")
             return False
         self.c.msgs_out += 1
         self.msgs += 1
@@ -99,14 +103,20 @@ class Port:
 
     def _announce(self, data):
         """A channel on shared memory or the fast path: a notice without a ring on CHANNEL.SHM says
-        the message follows on CHANNEL, where the C readers take it (docs/python.md)."""
-        if len(data) < 8:
-            self.c.count("publish_too_small")
-            return False
+        the message follows on CHANNEL, where the C readers take it (docs/python.md). None, or
+        the counter of the reason it was not sent."""
+        if len(data) > self.ring:
+            if not self.too_big:
+                self.c.log("warn", "%d bytes on %s: larger than its transport's max_size (%d); such messages "
+                           "are counted publish_too_big" % (len(data), self.channel, self.ring))
+            self.too_big += 1
+            return "publish_too_big"
+        if len(data) < 8:       # no type fingerprint: the readers would refuse it
+            return "publish_failed"
         self.seq += 1
         n = types.find("marie.shm_notice_t").new(utime=wall_us(), host=self.c.shm_host, segment="", seq=self.seq,
                                                  size=len(data), fingerprint=struct.unpack(">q", data[:8])[0])
-        return self.bus.publish(self.channel + ".SHM", n.encode())
+        return None if self.bus.publish(self.channel + ".SHM", n.encode()) else "publish_failed"
 
     def _want(self):
         """An input on shared memory or the fast path asks for the messages on CHANNEL, as a
@@ -263,7 +273,7 @@ class Component:
         self._ports = {}
         for p in type(self).ports:
             b = self.cfg["ports"][p.name]
-            bp = p._bind(self, b["channel"], self._bus_for(b["url"]), b["shm"])
+            bp = p._bind(self, b["channel"], self._bus_for(b["url"]), b["max_size"] if b["shm"] else 0)
             self._ports[p.name] = bp
             if bp.dir == IN and bp.mech != PULL:
                 bp.bus.subscribe(bp.channel, lambda ch, data, ut, bp=bp: self._port_receive(bp, data, ut))

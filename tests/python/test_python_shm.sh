@@ -2,7 +2,8 @@
 # test_python_shm: a Python component's ports on channels the system file puts on shared memory
 # (kind: shm) and on the same-host fast path (kind: local). It publishes bursts of 100 KB images
 # that C Splitters (marie-ca) read there and forward through their own rings, and reads what they
-# forward back: every image of each burst must come back once and byte for byte as sent. Before
+# forward back: every image of each burst must come back once and byte for byte as sent, and one
+# past the channel's max_size is refused and counted. Before
 # Python ports took part (refused at start) and before the C readers took messages announced by
 # a notice without a ring, none came back.
 . tests/lib.sh
@@ -38,4 +39,5 @@ echo "exit $?"; cat "$T/out"; tail -5 "$T/err"
 whole() { grep -qx "$1 burst 24 received 24 exact 24" "$T/out"; }
 check "every image of a burst through a shm channel, C to Python and back, byte-exact" whole shm
 check "every image of a burst through a local channel, C to Python and back, byte-exact" whole local
+check "an image past max_size is refused and counted" grep -qx "publish_too_big 1" "$T/out"
 finish
