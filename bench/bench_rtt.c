@@ -5,10 +5,13 @@
  * ports; ports read by marie and sent by liblcm's lcm_publish on the same bus both ways (marie's
  * sender against liblcm's, all else equal); ports with both loops spinning (`sched: {spin_us}`,
  * with what it costs in CPU); ports on channels put on shared memory (`transports: {kind:
- * shm}`); and a plain liblcm program. The marie echoes are components of a system file, which
- * sets their channels, spin and transports as a robot's file would.
+ * shm}`); ports on the same-host fast path (`kind: local`), plain, spinning, and with the two
+ * processes on CPUs of their own (as `sched: {cpus: [N]}` puts components); and a plain liblcm
+ * program. The marie echoes are components of a system file, which sets their channels, spin
+ * and transports as a robot's file would.
  * `bench_rtt echo|echo-lib --system FILE --name NAME` and `bench_rtt echo-raw` are the echoes. */
 #include <poll.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -73,14 +76,14 @@ static int raw_echo_main(void)
 /* ---- the pinging side ---- */
 
 /* The paths, each to an echo of its own; PORTS is the row's value, RAW its baseline. */
-enum { PORTS, LIB_SEND, RAW, SPIN, SHM, LOCAL, LOCAL_SPIN, NPATHS };
+enum { PORTS, LIB_SEND, RAW, SPIN, SHM, LOCAL, LOCAL_SPIN, LOCAL_PINNED, NPATHS };
 static const char *const echo_names[NPATHS] = {"pong", "pong-lib", NULL, "pong-spin", "pong-shm", "pong-local",
-                                               "pong-lspin"};
+                                               "pong-lspin", "pong-lpin"};
 /* The pinging component's ports of each path (LIB_SEND sends with liblcm on ping_lib's channel). */
 static const char *const ping_port[NPATHS] = {"ping", "ping_lib", NULL, "spin_ping", "shm_ping", "local_ping",
-                                              "lspin_ping"};
+                                              "lspin_ping", "lpin_ping"};
 static const char *const pong_port[NPATHS] = {"pong", "pong_lib", NULL, "spin_pong", "shm_pong", "local_pong",
-                                              "lspin_pong"};
+                                              "lspin_pong", "lpin_pong"};
 static bool spins(int path) { return path == SPIN || path == LOCAL_SPIN; }
 
 typedef struct {
@@ -141,6 +144,8 @@ static const marie_port_spec_t ping_ports[] = {
     {"local_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LOCAL_PONG"},
     {"lspin_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_LSPIN_PING"},
     {"lspin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LSPIN_PONG"},
+    {"lpin_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_LPIN_PING"},
+    {"lpin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LPIN_PONG"},
     {0},
 };
 static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
@@ -261,21 +266,52 @@ static int dds_round_trip(size_t size, int seconds, dds_t *out)
  * ddsperf's first second is dropped. */
 #define WARMUP 8
 
-/* n round trips on one path, after WARMUP more; the CPU both sides' main threads took for the n. */
-static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n)
+/* A block ends after BLOCK_MAX_US of round trips (a quarter of it in the first, warming pass),
+ * with BLOCK_MIN_KEPT of them at least: beside
+ * busy loops the spinning paths' sched_yield() hands a whole slice away (2-16 ms a round trip),
+ * and without the bound their blocks alone took 20-50 s of the run. Their rows then hold fewer
+ * samples (a p99 near their largest); the others never come near it. */
+#define BLOCK_MAX_US 150000
+#define BLOCK_MIN_KEPT 10
+
+/* The pinned path's CPUs: the first two this process may use (its echo on the second, the
+ * pinging side on the first during its blocks, as `sched: {cpus: [N]}` would put them). */
+static cpu_set_t cpus_all, cpus_pin[2];
+
+static int pin_setup(void)
+{
+    if (sched_getaffinity(0, sizeof cpus_all, &cpus_all) < 0)
+        return -1;
+    int found = 0;
+    for (int c = 0; c < CPU_SETSIZE && found < 2; c++)
+        if (CPU_ISSET(c, &cpus_all)) {
+            CPU_ZERO(&cpus_pin[found]);
+            CPU_SET(c, &cpus_pin[found++]);
+        }
+    if (found == 1)
+        cpus_pin[1] = cpus_pin[0];
+    return found ? 0 : -1;
+}
+
+/* n round trips on one path (fewer past BLOCK_MAX_US), after WARMUP more; the CPU both sides' main threads took for the n. */
+static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n, int64_t max_us)
 {
     int lost = 0;
     rtt_t *r = &pg->path[path];
+    if (path == LOCAL_PINNED)
+        sched_setaffinity(0, sizeof cpus_pin[0], &cpus_pin[0]);
     marie_loop_set_spin(marie_component_loop(pg->c), spins(path) ? SPIN_US : 0);
     int kept = r->n;
     for (int i = 0; i < WARMUP; i++)
         lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
     r->n = kept;
-    int64_t cpu = self_cpu_ns() + thread_cpu_ns(pg->echo[path]);
-    for (int i = 0; i < n; i++)
+    int64_t cpu = self_cpu_ns() + thread_cpu_ns(pg->echo[path]), t0 = marie_mono_us();
+    for (int i = 0; i < n && (i < BLOCK_MIN_KEPT || marie_mono_us() - t0 < max_us); i++)
         lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
     marie_loop_set_spin(marie_component_loop(pg->c), 0);
     pg->cpu_ns[path] += self_cpu_ns() + thread_cpu_ns(pg->echo[path]) - cpu;
+    if (path == LOCAL_PINNED)
+        sched_setaffinity(0, sizeof cpus_all, &cpus_all);
     return lost;
 }
 
@@ -300,7 +336,8 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
         for (int blk = 0; blk < 10; blk++)
             for (int k = 0; k < NPATHS; k++) {
                 int path = (blk + k) % NPATHS;
-                lost[path] += block(pg, path, &img, &seq, pass ? n / 10 : n / 40);
+                int64_t max_us = pass ? BLOCK_MAX_US : BLOCK_MAX_US / 4;
+                lost[path] += block(pg, path, &img, &seq, pass ? n / 10 : n / 40, max_us);
             }
     }
     free(img.data);
@@ -330,6 +367,12 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("lost_local_spin", label, lost[LOCAL_SPIN], "msgs", NAN);
     row("cpu_per_rtt_local_spin", label, lspin->n ? pg->cpu_ns[LOCAL_SPIN] / 1000.0 / lspin->n : NAN, "us",
         loc->n ? pg->cpu_ns[LOCAL] / 1000.0 / loc->n : NAN);
+    rtt_t *lpin = &pg->path[LOCAL_PINNED];
+    row("p50_local_pinned", label, pct(lpin, 0.5), "us", pct(loc, 0.5));
+    row("p99_local_pinned", label, pct(lpin, 0.99), "us", pct(loc, 0.99));
+    row("lost_local_pinned", label, lost[LOCAL_PINNED], "msgs", NAN);
+    row("cpu_per_rtt_local_pinned", label, lpin->n ? pg->cpu_ns[LOCAL_PINNED] / 1000.0 / lpin->n : NAN, "us",
+        loc->n ? pg->cpu_ns[LOCAL] / 1000.0 / loc->n : NAN);
     dds_t d;
     if (dds_round_trip(size, 3, &d) < 0) {
         printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
@@ -346,6 +389,8 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("p99_local_vs_dds", label, pct(loc, 0.99), "us", d.p99);
     row("p50_local_spin_vs_dds", label, pct(lspin, 0.5), "us", d.p50);
     row("p99_local_spin_vs_dds", label, pct(lspin, 0.99), "us", d.p99);
+    row("p50_local_pinned_vs_dds", label, pct(lpin, 0.5), "us", d.p50);
+    row("p99_local_pinned_vs_dds", label, pct(lpin, 0.99), "us", d.p99);
     fprintf(stderr, "bench_rtt: ddsperf %s: %ld round trips\n", label, d.count);
 }
 
@@ -369,7 +414,7 @@ int main(int argc, char **argv)
     self[k] = 0;
     /* The echoes and the pinging side are components of one system file (channels, spin,
      * transports), as a robot's are. */
-    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[2560];
+    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[3072];
     snprintf(text, sizeof text, "system: bench-rtt\nlcm_url: \"%s\"\n"
              "transports:\n"
              "  RTT_SHM_PING: {kind: shm, max_size: 1000000, slots: 8}\n"
@@ -378,6 +423,8 @@ int main(int argc, char **argv)
              "  RTT_LOCAL_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
              "  RTT_LSPIN_PING: {kind: local, max_size: 1000000, slots: 8}\n"
              "  RTT_LSPIN_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_LPIN_PING: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_LPIN_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
              "components:\n"
              "  ping: {exec: /bin/true}\n"
              "  pong: {exec: /bin/true, ports: {ping: RTT_PING, pong: RTT_PONG}}\n"
@@ -385,16 +432,21 @@ int main(int argc, char **argv)
              "  pong-spin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_SPIN_PING, pong: RTT_SPIN_PONG}}\n"
              "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n"
              "  pong-local: {exec: /bin/true, ports: {ping: RTT_LOCAL_PING, pong: RTT_LOCAL_PONG}}\n"
-             "  pong-lspin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_LSPIN_PING, pong: RTT_LSPIN_PONG}}\n",
+             "  pong-lspin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_LSPIN_PING, pong: RTT_LSPIN_PONG}}\n"
+             "  pong-lpin: {exec: /bin/true, ports: {ping: RTT_LPIN_PING, pong: RTT_LPIN_PONG}}\n",
              marie_default_url(), SPIN_US, SPIN_US);
     if (test_write_temp(sys, 5, text) < 0)
         return 1;
     static pinger_t pg;
+    if (pin_setup() < 0)
+        return 1;
     for (int p = 0; p < NPATHS; p++) {
         char *argv_echo[] = {self, p == LIB_SEND ? "echo-lib" : "echo", "--system", sys, "--name",
                              (char *)echo_names[p], NULL};
         char *argv_raw[] = {self, "echo-raw", NULL};
         pg.echo[p] = test_spawn(p == RAW ? argv_raw : argv_echo, NULL);
+        if (p == LOCAL_PINNED && pg.echo[p] > 0)
+            sched_setaffinity(pg.echo[p], sizeof cpus_pin[1], &cpus_pin[1]);
     }
     char *av[] = {"bench-ping", "--system", sys, "--name", "ping"};
     marie_errors_t e = {0};
@@ -423,7 +475,7 @@ int main(int argc, char **argv)
         }
     }
     printf("# bench\tmetric\tvalue (marie ports)\tunit\tbaseline (raw LCM, or ddsperf for _vs_dds)\tratio\n");
-    /* Fewer round trips than the samples' room: seven paths in two CPU states (a p99 of 1000
+    /* Fewer round trips than the samples' room: eight paths in two CPU states (a p99 of 1000
      * is its tenth-largest; 900 KB's of 200 its second). */
     run_size(&pg, "64B", 64, 1000);
     run_size(&pg, "8KB", 8192, 600);

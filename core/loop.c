@@ -18,6 +18,9 @@
 #include "core/log.h"
 #include "core/time.h"
 
+/* The waits for the fast path a loop remembers, to decide whether to spin before sleeping. */
+#define FAST_GAPS 8
+
 struct marie_timer {
     marie_timer_t *next;
     int64_t period;         /* 0: one-shot */
@@ -64,6 +67,10 @@ struct marie_loop {
     struct lcm_watch *lcms;
     int64_t spin_us;        /* marie_loop_set_spin: 0 never spins */
     int64_t last_active;    /* CLOCK_MONOTONIC when a callback last ran (spin only) */
+    int32_t gaps[FAST_GAPS];    /* the last waits for the fast path, in us (fast_wait) */
+    unsigned ngaps;
+    uint8_t unpaid;         /* the last 8 spins, a bit each: 1 when it ended without a message */
+    unsigned held;          /* waits since the last spin that found a message (probes) */
 };
 
 static volatile sig_atomic_t pending_signal;
@@ -451,6 +458,106 @@ static int spin_fast(marie_loop_t *loop, size_t n, int64_t now, int64_t until, i
     return rc;
 }
 
+/* Waiting for the fast path: a loop whose recent waits for its rings were short looks at them
+ * in memory for a while before it sleeps on the doorbell, so that an answer that comes within
+ * that time costs neither side a system call nor the wake-up of a sleeping process. Bounded by
+ * FAST_SPIN_MAX_US and taken only when the median of the last FAST_GAPS waits was shorter
+ * (then 2x it, plus a margin): a reader of a stream at 1 kHz or slower never spins, and one
+ * whose answers stop coming goes back to sleeping at once after its next long wait. No
+ * sched_yield(): beside busy processes a yield hands one of them the CPU for a whole slice
+ * (docs/transport.md, "Waiting for the fast path"). Not while a reader this loop's publish
+ * woke likely waits for this CPU (marie_bus_waking), when the loop spins anyway (spin_us), nor
+ * on the simulator's clock. */
+#define FAST_SPIN_MAX_US 50
+#define FAST_SPIN_MARGIN_US 5
+/* When none of the last 8 spins found a message (the answer comes from this loop's own CPU,
+ * after it sleeps: two processes the kernel keeps on one CPU), the loop sleeps at once but for
+ * probes, which spin to see whether that changed: the 1st, 2nd, 4th, ... wait after the last spin
+ * that paid, then one in FAST_PROBE_EVERY (a loop whose peers change, one answering from another
+ * CPU after one from its own, spins again within a few waits). */
+#define FAST_PROBE_EVERY 32
+
+static int cmp_gap(const void *a, const void *b) { return *(const int32_t *)a - *(const int32_t *)b; }
+
+/* A CPU's hint that it is spinning (the other hyperthread gets the core meanwhile). */
+static inline void cpu_relax(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ volatile("yield");
+#endif
+}
+
+/* How long to spin, in us, from the last waits: 0 while fewer than FAST_GAPS were seen. */
+static int64_t fast_window(const marie_loop_t *loop)
+{
+    if (loop->ngaps < FAST_GAPS)
+        return 0;
+    int32_t g[FAST_GAPS];
+    memcpy(g, loop->gaps, sizeof g);
+    qsort(g, FAST_GAPS, sizeof g[0], cmp_gap);
+    int64_t median = g[FAST_GAPS / 2];
+    if (median >= FAST_SPIN_MAX_US)
+        return 0;
+    return 2 * median + FAST_SPIN_MARGIN_US < FAST_SPIN_MAX_US ? 2 * median + FAST_SPIN_MARGIN_US : FAST_SPIN_MAX_US;
+}
+
+static bool fast_waking(const marie_loop_t *loop)
+{
+    for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
+        if (w->wake_fd >= 0 && marie_bus_waking(w->lcm))
+            return true;
+    return false;
+}
+
+/* Whether this wait may spin: not while the last 8 spins all came to nothing, but to probe. */
+static bool fast_spin_pays(marie_loop_t *loop)
+{
+    if (loop->unpaid != 0xff)
+        return true;
+    unsigned h = ++loop->held;
+    return h % FAST_PROBE_EVERY == 0 || (h < FAST_PROBE_EVERY && (h & (h - 1)) == 0);
+}
+
+static int fast_spin(marie_loop_t *loop, size_t n, int64_t start, int wait_ms)
+{
+    if (loop->spin_us || loop->clock == MARIE_CLOCK_SIM || !fast_path(loop))
+        return 0;
+    int64_t window = fast_window(loop);
+    if (window == 0 || !fast_spin_pays(loop))
+        return 0;
+    int64_t until = start + window;
+    if (wait_ms > 0 && start + (int64_t)wait_ms * 1000 < until)
+        until = start + (int64_t)wait_ms * 1000;
+    unsigned turns = 0;
+    int rc = 0;
+    for (int64_t now = start; now < until; now = marie_mono_us()) {
+        if ((rc = fast_ready(loop, n, false)) != 0 || fast_waking(loop))
+            break;
+        if (++turns % SPIN_POLL_EVERY == 0 && (rc = poll(loop->pfds, n, 0)) != 0)
+            break;
+        for (int k = 0; k < 16; k++)
+            cpu_relax();
+    }
+    loop->unpaid = (uint8_t)(loop->unpaid << 1 | (rc <= 0));
+    if (rc > 0)
+        loop->held = 0;
+    return rc;
+}
+
+/* After a wait: how long the fast path took to bring something, or, when something else ended
+ * the wait (a socket, a timer), a wait the spin would not have shortened. */
+static void fast_waited(marie_loop_t *loop, size_t n, int64_t start)
+{
+    int64_t gap = INT32_MAX;
+    for (const lcm_watch_t *w = loop->lcms; w; w = w->next)
+        for (size_t i = 0; w->wake_fd >= 0 && i < n; i++)
+            if (loop->pfds[i].fd == w->wake_fd && loop->pfds[i].revents)
+                gap = marie_mono_us() - start;
+    loop->gaps[loop->ngaps++ % FAST_GAPS] = gap < INT32_MAX ? (int32_t)gap : INT32_MAX;
+}
+
 /* Within spin_us of the last callback, look at the fds without sleeping until one is ready or
  * the window (or the round's wait) ends: a reply that comes back within it is read without the
  * wake-up of a sleeping process. Returns poll()'s result (0: nothing came, sleep in poll) or 0
@@ -503,14 +610,19 @@ int marie_loop_run_once(marie_loop_t *loop, int timeout_ms)
     int rc = spin(loop, n, &timeout_ms);
     if (rc == 0) {
         int wait = next_timeout_ms(loop, timeout_ms);
+        int64_t start = wait != 0 ? marie_mono_us() : 0;
+        rc = wait != 0 ? fast_spin(loop, n, start, wait) : 0;
         /* Before sleeping the fast path's publishers are told to ring: what came before is
          * handled now instead. */
-        rc = wait != 0 ? fast_ready(loop, n, true) : 0;
+        if (rc == 0 && wait != 0)
+            rc = fast_ready(loop, n, true);
         if (rc == 0)
             do {
                 rc = poll(loop->pfds, n, wait);
             } while (rc < 0 && errno == EINTR && !pending_signal);
         fast_awake(loop);
+        if (start && rc >= 0 && fast_path(loop))
+            fast_waited(loop, n, start);
     }
     if (rc < 0 && errno != EINTR) {
         int err = errno;

@@ -469,6 +469,13 @@ bool marie_bus_pending(lcm_t *lcm)
     return p && p->bus_pending(st);
 }
 
+bool marie_bus_waking(lcm_t *lcm)
+{
+    void *st;
+    const marie_bus_provider_t *p = bus_part(find(lcm), &st);
+    return p && p->bus_waking && p->bus_waking(st);
+}
+
 void marie_bus_stats(const lcm_t *lcm, marie_bus_stats_t *st)
 {
     bus_t plain;

@@ -125,11 +125,14 @@ int marie_bus_handle(lcm_t *bus, int max);
  * path's publisher rings a reader's doorbell only while the reader sleeps: the loop says so,
  * marie_bus_sleep(bus, 1) before it sleeps (1: messages wait already, do not sleep) and
  * marie_bus_sleep(bus, 0) once it wakes. marie_bus_pending() says whether messages wait on the
- * fast path without a system call (the loop's spinning looks at it). */
+ * fast path without a system call (the loop's spinning looks at it). marie_bus_waking() says
+ * whether a reader that the bus's last fast-path publish had to wake has not run yet: the loop
+ * does not spin past a moment then, as that reader may be waiting for the loop's CPU. */
 int marie_bus_wake_fd(lcm_t *bus);
 int marie_bus_handle_wake(lcm_t *bus, int max);
 int marie_bus_sleep(lcm_t *bus, bool on);
 bool marie_bus_pending(lcm_t *bus);
+bool marie_bus_waking(lcm_t *bus);
 
 /* What marie's reader saw on the bus (all zero where liblcm reads it). */
 typedef struct {

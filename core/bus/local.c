@@ -5,6 +5,7 @@
 #include "core/bus/local.h"
 
 #include <errno.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,7 +25,25 @@ typedef struct {
     lcm_t *bus;
     local_bell_t bell;              /* fd -1 until the first subscription */
     lchan_t *reading;
+    /* The readers the last publish rang for (they slept): marie_bus_waking() */
+    local_registry_t *rang_reg;
+    uint64_t rang;                  /* their entries in rang_reg->subs, a bit each */
+    bool rang_here;                 /* one of them went to sleep on this CPU */
+    int64_t rang_at;                /* when (monotonic us) */
+    bool gave_up;                   /* marie_bus_waking() said so for that ring */
+    int missed;                     /* rings in a row whose reader did not run in WAKING_US */
+    unsigned rings;
+    bool slept;                     /* the loop slept since the doorbell was last drained */
 } lbus_t;
+
+/* A woken reader that has not run after this long most likely waits for the publisher's CPU
+ * (docs/transport.md, "Waiting for the fast path"); one woken onto an idle CPU runs within it
+ * here (8-10 us). After MISSED_MAX rings in a row whose reader did not, the kernel is taken to
+ * put woken readers beside their waker: the loop does not wait that long, but for one ring in
+ * PROBE_EVERY, to see whether that changed. */
+#define WAKING_US 12
+#define MISSED_MAX 4
+#define PROBE_EVERY 16
 
 /* A publisher this bus follows. */
 typedef struct {
@@ -102,10 +121,23 @@ static void ring_bells(void *user)
     lchan_t *ch = user;
     local_registry_t *reg = ch->reg.reg;
     uint32_t used = atomic_load(&reg->subs_used);
+    lbus_t *lb = ch->lb;
+    lb->rang_reg = reg;
+    lb->rang = 0;
+    lb->rang_here = false;
+    int cpu = -2;
     for (uint32_t i = 0; i < used && i < LOCAL_SUBS; i++) {
         local_sub_t *e = &reg->subs[i];
         if (!atomic_load(&e->pid) || !atomic_load(&e->sleeping))
             continue;
+        if (!lb->rang) {
+            lb->rang_at = marie_mono_us();
+            cpu = sched_getcpu();
+            lb->gave_up = false;
+            lb->rings++;
+        }
+        lb->rang |= 1ull << i;
+        lb->rang_here |= cpu >= 0 && atomic_load(&e->cpu) == cpu;
         uint32_t ticket = atomic_load(&e->ticket);
         if (ch->bell_ticket[i] != ticket && ch->bell_fd[i] >= 0) {
             close(ch->bell_fd[i]);          /* the entry is another reader's now */
@@ -276,8 +308,12 @@ static int follow(lchan_t *ch, peer_t *p, int max)
 static int bus_handle(void *bus_st, int max)
 {
     lbus_t *lb = bus_st;
-    if (lb->bell.fd >= 0)
+    /* Publishers ring only a reader that sleeps: one that found its messages while it spun has
+     * nothing to drain (a late ring stays until the next sleep: the spin's polls see it and the
+     * loop goes round once more meanwhile, nothing is lost). */
+    if (lb->bell.fd >= 0 && lb->slept)
         local_bell_drain(&lb->bell);
+    lb->slept = false;
     int n = 0;
     for (lchan_t *ch = lb->reading; ch && n < max; ch = ch->next_reading) {
         rescan(ch);
@@ -301,9 +337,37 @@ static bool bus_pending(void *bus_st)
 static int bus_sleep(void *bus_st, bool on)
 {
     lbus_t *lb = bus_st;
-    for (lchan_t *ch = lb->reading; ch; ch = ch->next_reading)
+    int cpu = on ? sched_getcpu() : -1;
+    lb->slept |= on;
+    for (lchan_t *ch = lb->reading; ch; ch = ch->next_reading) {
+        if (on)
+            atomic_store(&ch->reg.reg->subs[ch->sub_at].cpu, cpu);
         atomic_store(&ch->reg.reg->subs[ch->sub_at].sleeping, on);
+    }
     return on && bus_pending(lb);
+}
+
+/* A reader the last publish rang for that still sleeps and most likely waits for this CPU: it
+ * went to sleep on it (a doorbell's wake-up tends to put it back there when no CPU is idle), or
+ * it has not run WAKING_US after it was rung. The loop does not spin then. */
+static bool bus_waking(void *bus_st)
+{
+    lbus_t *lb = bus_st;
+    bool probe = lb->missed < MISSED_MAX || lb->rings % PROBE_EVERY == 0;
+    if (!lb->rang || (!lb->rang_here && probe && marie_mono_us() - lb->rang_at < WAKING_US))
+        return false;
+    for (uint64_t m = lb->rang; m; m &= m - 1)
+        if (atomic_load(&lb->rang_reg->subs[__builtin_ctzll(m)].sleeping)) {
+            if (!lb->gave_up && !lb->rang_here && probe && lb->missed < MISSED_MAX)
+                lb->missed++;
+            lb->gave_up = true;
+            return true;
+        }
+    /* The readers it rang run: on another CPU, as this one is busy spinning. */
+    if (!lb->rang_here)
+        lb->missed = 0;
+    lb->rang = 0;
+    return false;
 }
 
 static void on_remote(const void *data, size_t len, void *user)
@@ -409,6 +473,8 @@ static marie_bus_sub_stats_t chan_sub_stats(const void *sub) { return ((const ls
 static void chan_close(void *st)
 {
     lchan_t *ch = st;
+    if (ch->lb->rang_reg == ch->reg.reg)
+        ch->lb->rang = 0;
     while (ch->subs)
         chan_unsubscribe(ch, ch->subs);
     if (ch->pub_at >= 0)
@@ -438,4 +504,5 @@ const marie_bus_provider_t marie_bus_local = {
     .bus_handle = bus_handle,
     .bus_sleep = bus_sleep,
     .bus_pending = bus_pending,
+    .bus_waking = bus_waking,
 };

@@ -26,6 +26,7 @@ typedef struct {
     _Atomic int32_t pid;            /* 0: free */
     _Atomic uint32_t ticket;
     _Atomic uint32_t sleeping;
+    _Atomic int32_t cpu;            /* the CPU it went to sleep on (a publisher's hint), or -1 */
     char bell[LOCAL_BELL_MAX];
 } local_sub_t;
 

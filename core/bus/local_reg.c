@@ -17,7 +17,7 @@
 #include "core/err.h"
 
 #define REG_MAGIC 0x6c6f6361u       /* "loca" */
-#define REG_VERSION 1
+#define REG_VERSION 2    /* 2: a subscriber's CPU */
 #define SHM_DIR "/dev/shm"
 #define BELL_PREFIX "marie-bell."
 

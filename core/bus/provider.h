@@ -40,12 +40,14 @@ typedef struct marie_bus_provider {
     int (*sends)(const void *st);
     /* A channel provider's state for the whole bus: a descriptor of its own for the loop (-1:
      * none yet), the handling of what it signalled, the loop going to sleep (on: 1 when messages
-     * wait already) or waking, and whether messages wait, seen without a system call. */
+     * wait already) or waking, whether messages wait, seen without a system call, and whether a
+     * reader the last publish woke has not run yet. */
     void (*close_bus)(void *bus_st);
     int (*bus_fd)(void *bus_st);
     int (*bus_handle)(void *bus_st, int max);
     int (*bus_sleep)(void *bus_st, bool on);
     bool (*bus_pending)(void *bus_st);
+    bool (*bus_waking)(void *bus_st);
 } marie_bus_provider_t;
 
 extern const marie_bus_provider_t marie_bus_udpm;      /* core/bus/udpm.c */

@@ -45,7 +45,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         abort();
     close(fd);
     uint8_t msg[64] = {0};
-    marie_bus_publish(bus, "FZ", msg, size % sizeof msg + 8);     /* rings what the table names */
+    marie_bus_publish(bus, "FZ", msg, size % (sizeof msg - 8) + 8); /* rings what the table names */
+    marie_bus_waking(bus);                                          /* looks at whom it rang */
     marie_bus_sleep(bus, 1);
     marie_bus_pending(bus);
     marie_bus_handle_wake(bus, 16);                                 /* follows what it names */

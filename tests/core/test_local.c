@@ -1,8 +1,10 @@
 /* test_local: the same-host fast path (`kind: local`): messages between processes whole and in
  * order without LCM carrying them, a notice a second for lcm-spy, late publishers and
- * subscribers, slow readers, another host over LCM, a killed publisher, nothing left behind. */
+ * subscribers, slow readers, another host over LCM, a killed publisher, a reader that spins
+ * while answers come quickly and sleeps when idle, nothing left behind. */
 #include <dirent.h>
 #include <errno.h>
+#include <sched.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -13,7 +15,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -258,6 +262,116 @@ static void a_killed_publisher_is_replaced(void **state)
         marie_component_destroy(cs[i]);
 }
 
+/* ---- waiting for the fast path ---- */
+
+/* An echo in a process of its own: each T_PING back on T_PONG at once. */
+static void on_ping(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
+{
+    marie_port_publish(marie_port(c, "out"), msg);
+}
+
+static int echo_init(marie_component_t *c) { return marie_port_on_message(marie_port(c, "in"), on_ping); }
+
+static const marie_port_spec_t echo_ports[] = {{"in", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "T_PING"},
+                                               {"out", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "T_PONG"},
+                                               {0}};
+static const marie_port_spec_t pinger_ports[] = {{"out", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "T_PING"},
+                                                 {"in", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "T_PONG"},
+                                                 {0}};
+static const marie_component_def_t echo_def = {.kind = "echo", .ports = echo_ports, .on_init = echo_init};
+static const marie_component_def_t pinger_def = {.kind = "pinger", .ports = pinger_ports, .on_init = rx_init};
+
+/* Times this thread has slept (given up its CPU waiting); being preempted does not count, so
+ * other work on the machine does not change it. */
+static long thread_sleeps(void)
+{
+    struct rusage u;
+    getrusage(RUSAGE_THREAD, &u);
+    return u.ru_nvcsw;
+}
+
+static int64_t thread_cpu_us(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return (int64_t)t.tv_sec * 1000000 + t.tv_nsec / 1000;
+}
+
+static int answered(void *user) { return atomic_load(&((seen_t *)user)->count) > 0; }
+
+/* One ping and its answer (2 s at most); every `gap_us` apart. Returns the answers. */
+static int ping_pong(marie_component_t *pinger, seen_t *got, int n, int gap_us)
+{
+    int back = 0;
+    for (int k = 0; k < n; k++) {
+        if (gap_us)
+            marie_loop_run_until(marie_component_loop(pinger), gap_us / 1000, NULL, NULL);
+        atomic_store(&got->count, 0);
+        publish(pinger, k, 64);
+        back += marie_loop_run_until(marie_component_loop(pinger), 2000, answered, got) == 1;
+    }
+    return back;
+}
+
+/* A loop whose answers come back quickly looks at its rings for them before it sleeps: in a
+ * ping-pong with an echo in another process, most answers are read without the pinger sleeping
+ * (the echo, whose pings come as quickly, does the same). An idle reader costs nothing: with
+ * answers 20 ms apart every wait sleeps at once, and the loop takes next to no CPU. */
+static void a_reader_spins_while_answers_come_quickly_only(void **state)
+{
+    /* Each on a CPU of its own, as a robot's busy components are on a computer with cores to
+     * spare: woken onto one CPU, two processes that answer each other take turns on it, and the
+     * loop sleeps rather than spin (the peer would wait for its CPU). */
+    cpu_set_t all, cpus[2];
+    assert_int_equal(sched_getaffinity(0, sizeof all, &all), 0);
+    int found = 0;
+    for (int c = 0; c < CPU_SETSIZE && found < 2; c++)
+        if (CPU_ISSET(c, &all)) {
+            CPU_ZERO(&cpus[found]);
+            CPU_SET(c, &cpus[found++]);
+        }
+    if (found < 2)
+        skip();         /* one CPU: the two take turns on it, and the loop rightly sleeps */
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        sched_setaffinity(0, sizeof cpus[1], &cpus[1]);
+        _exit(marie_main(&echo_def, 5, (char *[]){"echo", "--system", sysfile, "--name", "echo", NULL}, NULL));
+    }
+    sched_setaffinity(0, sizeof cpus[0], &cpus[0]);
+    seen_t got = {0};
+    marie_component_t *pinger = make(&pinger_def, "pinger", &got);
+    /* The echo is up once it answers. */
+    for (int i = 0; i < 500 && !ping_pong(pinger, &got, 1, 10000); i++)
+        ;
+    ping_pong(pinger, &got, 50, 0);         /* the loops learn that answers come quickly */
+    long slept = thread_sleeps();
+    int64_t t0 = marie_mono_us();
+    int back = ping_pong(pinger, &got, 400, 0);
+    int64_t rtt_ns = (marie_mono_us() - t0) * 1000 / 400;
+    slept = thread_sleeps() - slept;
+    long idle_slept = thread_sleeps();
+    int64_t cpu = thread_cpu_us();
+    int idle_back = ping_pong(pinger, &got, 20, 20000);
+    cpu = thread_cpu_us() - cpu;
+    idle_slept = thread_sleeps() - idle_slept;
+    kill(pid, SIGTERM);
+    waitpid(pid, NULL, 0);
+    marie_component_destroy(pinger);
+    sched_setaffinity(0, sizeof all, &all);
+    print_message("back to back: %d answers, slept %ld times, %lld ns a round trip; 20 ms apart: %d "
+                  "answers, slept %ld times, %lld us of CPU\n", back, slept, (long long)rtt_ns, idle_back,
+                  idle_slept, (long long)cpu);
+    assert_int_equal(back, 400);
+    assert_int_equal(idle_back, 20);
+    /* Every answer a wake-up before the loops spun: 400 sleeps or more. */
+    assert_true(slept < 200);
+    /* Each 20 ms wait sleeps (and each answer may take one more). */
+    assert_true(idle_slept >= 20);
+    /* 20 rounds of 64 B take well under a millisecond; 50 us of spin each at most adds 1 ms. */
+    assert_true(cpu < 20000);
+}
+
 /* Files of this test in /dev/shm: the fast path's doorbells and rings of this process, and the
  * registries of its network namespace. */
 static int leftovers(void)
@@ -304,9 +418,12 @@ int main(void)
     snprintf(sysfile, sizeof sysfile, "/tmp/marie-test-local-XXXXXX.yaml");
     if (test_write_temp(sysfile, 5, "system: local\n"
                                     "transports:\n  T_CAM: {kind: local, max_size: 1000000, slots: 4}\n"
+                                    "  T_PING: {kind: local, max_size: 4096, slots: 4}\n"
+                                    "  T_PONG: {kind: local, max_size: 4096, slots: 4}\n"
                                     "components:\n"
                                     "  tx: {exec: /bin/true}\n  rx: {exec: /bin/true}\n"
-                                    "  rx2: {exec: /bin/true}\n  far: {exec: /bin/true}\n") < 0)
+                                    "  rx2: {exec: /bin/true}\n  far: {exec: /bin/true}\n"
+                                    "  echo: {exec: /bin/true}\n  pinger: {exec: /bin/true}\n") < 0)
         return 1;
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(messages_cross_processes_whole_and_in_order_without_lcm),
@@ -314,6 +431,7 @@ int main(void)
         cmocka_unit_test(a_slow_reader_loses_counted_never_torn),
         cmocka_unit_test(another_host_gets_them_over_lcm),
         cmocka_unit_test(a_killed_publisher_is_replaced),
+        cmocka_unit_test(a_reader_spins_while_answers_come_quickly_only),
         cmocka_unit_test(nothing_is_left_behind),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
