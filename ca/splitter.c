@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/bus/bus.h"
 #include "core/err.h"
 #include "core/loop.h"
 #include "core/time.h"
@@ -130,6 +131,11 @@ int splitter_attach(splitter_t *sp, lcm_t *lcm)
 {
     if (sp->lcm)
         return marie_fail(EALREADY);
+    /* An output on a ring has it from the start, so a reader off the ring (another host, a
+     * Python port) that asked before the first message gets that message too. */
+    for (size_t i = 0; i < sp->n; i++)
+        if (marie_bus_prepare(lcm, sp->outputs[i].channel) < 0)
+            return -1;
     int rc = ca_input_open(&sp->in, lcm, sp->input, on_input, sp);
     if (rc < 0)
         return rc;

@@ -331,7 +331,7 @@ void marie_spec_resolved(const marie_component_t *c, FILE *out)
         marie_spec_json_str(out, p->channel);
         fputs(", \"url\": ", out);
         marie_spec_json_str(out, bus_url(c, p->lcm));
-        fprintf(out, ", \"shm\": %s}", p->shm ? "true" : "false");
+        fprintf(out, ", \"shm\": %s, \"max_size\": %zu}", p->shm ? "true" : "false", p->shm ? p->shm->max_size : 0);
     }
     fputs("}}\n", out);
 }

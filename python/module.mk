@@ -2,6 +2,7 @@
 # marie-resolve, through which a Python component's configuration is read by libmarie itself.
 $(eval $(call marie_program,marie-resolve,python/resolve_main.c))
 ITESTS += tests/python/test_python_component.sh
+ITESTS += tests/python/test_python_shm.sh
 # bench_python: a Python port against upstream LCM for Python's raw pub/sub (PyPI lcm, in the
 # venv of scripts/peer-venv.sh), run by make bench through this wrapper.
 $(B)/bench/bench_python: bench/bench_python.py python/wrapper.sh.in

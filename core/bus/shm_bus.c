@@ -21,6 +21,7 @@
 #define WANT_HOLD_US 2000000        /* a request keeps the LCM copies flowing this long */
 #define WANT_EVERY_US 1000000       /* a remote subscriber repeats its request this often */
 #define CH_MAX 256
+#define RINGLESS_MAX 16             /* ringless notices whose message has not come yet */
 
 /* The machine: only there can a segment be mapped. MARIE_SHM_HOST overrides the host name
  * (machines that share one, such as containers; tests playing another host). */
@@ -178,6 +179,11 @@ void marie_shm_pub_pace(marie_shm_pub_t *p, int64_t notice_every_us, void (*afte
 
 /* ---- subscriber ---- */
 
+typedef struct {
+    int32_t size;
+    int64_t fp;
+} ringless_t;
+
 struct marie_shm_sub {
     lcm_t *lcm;
     char channel[CH_MAX], want_ch[CH_MAX + 12];
@@ -192,7 +198,10 @@ struct marie_shm_sub {
     bool remote_only;           /* this host's writers are read another way (the fast path) */
     int depth;                  /* callbacks running */
     bool dead;                  /* destroyed from one: freed once it returns */
+    bool remote;                /* a writer elsewhere: every message on CHANNEL is one */
     int64_t last_want;          /* mono us */
+    ringless_t ringless[RINGLESS_MAX];  /* announced by ringless notices, not yet come */
+    int nringless;
     marie_shm_sub_stats_t st;
 };
 
@@ -211,9 +220,33 @@ static void leave(marie_shm_sub_t *s)
         sub_free(s);
 }
 
+/* A publisher without a ring (a Python component's port) announced a message of this size and
+ * type: true when it is one, taken off the list with the ones before it (lost on the way). */
+static bool announced(marie_shm_sub_t *s, size_t len, int64_t fp)
+{
+    for (int i = 0; i < s->nringless; i++)
+        if ((size_t)s->ringless[i].size == len && s->ringless[i].fp == fp) {
+            s->nringless -= i + 1;
+            memmove(s->ringless, s->ringless + i + 1, (size_t)s->nringless * sizeof s->ringless[0]);
+            return true;
+        }
+    return false;
+}
+
+static void announce(marie_shm_sub_t *s, int32_t size, int64_t fp)
+{
+    if (s->nringless == RINGLESS_MAX)       /* the oldest's message never came */
+        memmove(s->ringless, s->ringless + 1, (size_t)--s->nringless * sizeof s->ringless[0]);
+    s->ringless[s->nringless++] = (ringless_t){size, fp};
+}
+
+/* A message on CHANNEL over LCM: a writer elsewhere's (asked for), or one a ringless publisher
+ * announced; otherwise a copy of a ring this host reads, sent for someone else, and left. */
 static void on_copy(const lcm_recv_buf_t *rb, const char *channel, void *user)
 {
     marie_shm_sub_t *s = user;
+    if (!s->remote && !announced(s, rb->data_size, marie_payload_fingerprint(rb->data, rb->data_size)))
+        return;
     s->st.remote++;
     enter(s);
     s->cb(rb->data, rb->data_size, s->user);
@@ -226,8 +259,8 @@ static void on_copy(const lcm_recv_buf_t *rb, const char *channel, void *user)
 static void want_remote(marie_shm_sub_t *s)
 {
     int64_t now = marie_mono_us();
-    if (!s->copy_sub)
-        s->copy_sub = marie_bus_subscribe_own(s->lcm, s->channel, on_copy, s);
+    s->remote = true;
+    s->nringless = 0;
     if (now - s->last_want < WANT_EVERY_US)
         return;
     s->last_want = now;
@@ -271,7 +304,13 @@ static void on_notice(const lcm_recv_buf_t *rb, const char *channel, void *user)
         s->st.bad++;
         return;
     }
-    if (strcmp(n.host, s->host) != 0) {
+    if (!n.segment[0]) {
+        /* no ring: the message follows on CHANNEL (a publisher that does not write rings) */
+        if (n.size < 8 || (size_t)n.size > s->cap)
+            s->st.bad++;
+        else if (!s->remote)
+            announce(s, n.size, n.fingerprint);
+    } else if (strcmp(n.host, s->host) != 0) {
         want_remote(s);
     } else if (s->remote_only) {
         /* read from the ring by the fast path */
@@ -321,13 +360,17 @@ marie_shm_sub_t *marie_shm_sub_create(lcm_t *lcm, const char *channel, size_t ma
         goto err;
     /* Notices come in bursts at high rates; each is small. */
     s->notice_sub = marie_bus_subscribe_own(lcm, notice_ch, on_notice, s);
-    if (!s->notice_sub) {
+    /* From the start, so that a message right after its ringless notice is not filtered out. */
+    s->copy_sub = marie_bus_subscribe_own(lcm, s->channel, on_copy, s);
+    if (!s->notice_sub || !s->copy_sub) {
         errno = EIO;
         goto err;
     }
     return s;
 err:;
     int e = errno ? errno : ENOMEM;
+    marie_bus_unsubscribe(lcm, s->notice_sub);
+    marie_bus_unsubscribe(lcm, s->copy_sub);
     marie_shm_reader_destroy(s->r);
     free(s->buf);
     free(s);

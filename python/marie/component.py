@@ -13,6 +13,7 @@ import selectors
 import shutil
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import time
@@ -28,6 +29,7 @@ CREATED, READY, RUNNING, PAUSED, FAILED, EXITED, DEGRADED = range(7)
 COMMANDS = (None, "init", "start", "stop", "pause", "resume", "restart", "abort", "quit")
 SPEC_MARKER = "marie-component-describe/1"
 EVENT_QUEUE_MAX = 256
+WANT_EVERY_US = 500_000     # an input on a ring's channel asks this often (the writer holds 2 s)
 SEV_DEBUG, SEV_INFO, SEV_WARN, SEV_ERROR = range(4)
 LOG_LEVELS = {"debug": 0, "info": 1, "warn": 2, "error": 3, "off": 4}
 
@@ -62,11 +64,15 @@ class Port:
         self.type = None
         self.cb = None
         self.msgs = 0
+        self.seq = 0            # ringless notices sent
+        self.too_big = 0
         self.queue = []
 
-    def _bind(self, c, channel, bus):
+    def _bind(self, c, channel, bus, ring=0):
+        """ring: the channel's max_size where the system file puts it on shared memory or the
+        fast path, else 0."""
         p = Port(self.name, self.type_name, self.dir, self.mech, self.default_channel)
-        p.c, p.channel, p.bus = c, channel, bus
+        p.c, p.channel, p.bus, p.ring = c, channel, bus, ring
         p.type = types.find(self.type_name) if self.type_name else None
         return p
 
@@ -86,13 +92,37 @@ class Port:
         else:
             raise TypeError("port %s carries %s, not %s" % (self.name, self.type.name if self.type else "raw bytes",
                                                             type(msg).__name__))
-        if not self.bus.publish(self.channel, data):
+        why = self._announce(data) if self.ring else None
+        if why or not self.bus.publish(self.channel, data):
             self.c.drops += 1
-            self.c.count("publish_failed")
+            self.c.count(why or "publish_failed")
             return False
         self.c.msgs_out += 1
         self.msgs += 1
         return True
+
+    def _announce(self, data):
+        """A channel on shared memory or the fast path: a notice without a ring on CHANNEL.SHM says
+        the message follows on CHANNEL, where the C readers take it (docs/python.md). None, or
+        the counter of the reason it was not sent."""
+        if len(data) > self.ring:
+            if not self.too_big:
+                self.c.log("warn", "%d bytes on %s: larger than its transport's max_size (%d); such messages "
+                           "are counted publish_too_big" % (len(data), self.channel, self.ring))
+            self.too_big += 1
+            return "publish_too_big"
+        if len(data) < 8:       # no type fingerprint: the readers would refuse it
+            return "publish_failed"
+        self.seq += 1
+        n = types.find("marie.shm_notice_t").new(utime=wall_us(), host=self.c.shm_host, segment="", seq=self.seq,
+                                                 size=len(data), fingerprint=struct.unpack(">q", data[:8])[0])
+        return None if self.bus.publish(self.channel + ".SHM", n.encode()) else "publish_failed"
+
+    def _want(self):
+        """An input on shared memory or the fast path asks for the messages on CHANNEL, as a
+        subscriber on another host does."""
+        w = types.find("marie.shm_want_t").new(utime=wall_us(), host=self.c.shm_host, requester=self.c.name)
+        self.bus.publish(self.channel + ".SHMWANT", w.encode())
 
     def on_message(self, cb):
         """cb(msg, info) for every message (push: while running; event: held while not running,
@@ -238,17 +268,18 @@ class Component:
         self.params = Params(self.cfg["params"])
         self.sel = selectors.DefaultSelector()
         self.buses = {}
+        self.shm_host = os.environ.get("MARIE_SHM_HOST") or socket.gethostname() or "localhost"
         self.bus = self._bus_for(self.cfg["url"])
         self._ports = {}
         for p in type(self).ports:
             b = self.cfg["ports"][p.name]
-            if b["shm"]:
-                raise SystemExit("%s: port %s: channel %s is on shared memory, which Python components do not "
-                                 "read or write (docs/python.md)" % (self.name, p.name, b["channel"]))
-            bp = p._bind(self, b["channel"], self._bus_for(b["url"]))
+            bp = p._bind(self, b["channel"], self._bus_for(b["url"]), b["max_size"] if b["shm"] else 0)
             self._ports[p.name] = bp
             if bp.dir == IN and bp.mech != PULL:
                 bp.bus.subscribe(bp.channel, lambda ch, data, ut, bp=bp: self._port_receive(bp, data, ut))
+                if bp.ring:
+                    bp._want()
+                    self._add_timer(WANT_EVERY_US, lambda overruns, bp=bp: bp._want(), sim=False, wanted=False)
         self.reply_channel = "MARIE_REPLY.%s.%d" % (self.name, os.getpid())
         self.bus.subscribe("MARIE_LIFECYCLE", self._on_lifecycle)
         self.bus.subscribe(self.reply_channel, self._on_pull_reply)
