@@ -17,6 +17,9 @@ start logger lcm-logger -q --lcm-url="$LCM_DEFAULT_URL" "--channel=^(LASER|ODOME
 start sim $BIN/marie-sim --name sim --param world=sim/worlds/office.yaml --param speed=6 --param lockstep=0.5 --param start_y=15.7
 start odometry $BIN/marie-odometry --name odometry --clock sim
 start mapper $BIN/marie-mapper --name mapper --clock sim --param init_x=2 --param init_y=15.7
+# The route only once lcm-logger records (on a loaded machine it started late and the log held
+# 139 of the run's 516 scans).
+wait_for 20 test -s "$OUT/run.lcm"
 $B/tests/helpers/route_driver --route "4.1,15.7;4.1,22.5;4.1,15.7;11.0,15.7" --timeout 90 > "$OUT/driver.txt" 2>&1
 drc=$?
 cat "$OUT/driver.txt"
