@@ -60,7 +60,8 @@ struct comp {
     marie_timer_t *timer;       /* am_run.c: backoff or kill timer, as the state machine asks */
     int64_t start_ticks;        /* am_system.c: /proc start time, with pid names the process */
     bool boosted;               /* am_run.c: started at the manager's real-time priority, until
-                                 * its first heartbeat (am_comp_unboost) */
+                                 * its first heartbeat or AM_BOOST_MAX_US (am_comp_unboost) */
+    marie_timer_t *boost_timer; /* am_run.c: the end of the boost, whatever the component does */
     am_usage_t use;             /* am_status.c */
     am_output_t out;            /* am_output.c */
     struct {
@@ -193,7 +194,10 @@ void am_status_usage_reset(comp_t *c);            /* a new process: no sample ye
 /* am_run.c: the state machine's actions carried out */
 comp_t *am_comp_find(am_t *am, const char *name);
 /* A component started at the manager's real-time priority (--rt-priority) goes back to the
- * normal policy: at its first heartbeat, or when its process ends. */
+ * normal policy: at its first heartbeat, AM_BOOST_MAX_US after its start if none came by then
+ * (a start that computes, or spins, must not hold a CPU from everything else), or when its
+ * process ends. */
+#define AM_BOOST_MAX_US 100000
 void am_comp_unboost(comp_t *c);
 bool am_comp_matches(const comp_t *c, const char *target);
 /* Do what the state machine asked after an event that found the component in `before`. */

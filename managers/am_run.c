@@ -56,6 +56,7 @@ void am_comp_cancel_timer(comp_t *c)
 void am_comp_carry(comp_t *to, comp_t *from)
 {
     const marie_component_cfg_t *cfg = to->cfg;
+    am_comp_unboost(from);      /* its timer knows it by its old place */
     *to = *from;
     to->cfg = to->sv.cfg = cfg;
     am_output_moved(to);
@@ -122,39 +123,84 @@ static int boost_priority(const comp_t *c)
     return !cfg->shell && cfg->sched.policy == MARIE_SCHED_OTHER && short_timeout ? below_manager() : 0;
 }
 
-/* Every thread of process pid (those it started while boosted have its policy too) to policy
- * at prio; back to SCHED_OTHER at the manager's niceness or 0, as SCHED_RESET_ON_FORK makes it. */
-static void set_tasks_policy(pid_t pid, int policy, int prio)
+/* One pass over the threads of process pid: each not yet at policy is set to it (prio); back
+ * to SCHED_OTHER at the manager's niceness or 0, as SCHED_RESET_ON_FORK makes it. Returns how
+ * many it changed. */
+static int tasks_pass(pid_t pid, int policy, int prio, int nice)
 {
     char path[64];
     snprintf(path, sizeof path, "/proc/%d/task", (int)pid);
     DIR *d = pid > 0 ? opendir(path) : NULL;
     struct sched_param p = {.sched_priority = prio};
-    errno = 0;
-    int nice = getpriority(PRIO_PROCESS, 0);
+    int changed = 0;
     for (struct dirent *e; d && (e = readdir(d));) {
         pid_t tid = (pid_t)atoi(e->d_name);
-        if (tid > 0 && sched_setscheduler(tid, policy, &p) == 0 && policy == SCHED_OTHER)
-            setpriority(PRIO_PROCESS, (id_t)tid, nice > 0 ? nice : 0);
+        if (tid <= 0 || (sched_getscheduler(tid) & ~SCHED_RESET_ON_FORK) == policy || sched_setscheduler(tid, policy, &p) < 0)
+            continue;
+        changed++;
+        if (policy == SCHED_OTHER)
+            setpriority(PRIO_PROCESS, (id_t)tid, nice);
     }
     if (d)
         closedir(d);
+    return changed;
+}
+
+/* Every thread of process pid to policy at prio. A thread started meanwhile by one the pass had
+ * not reached yet takes that one's policy and is missing from the list the pass read: the
+ * component's own threads stayed at SCHED_FIFO for good when one was started at its first
+ * heartbeat. So passes go on until one finds nothing left to change (bounded: a process
+ * starting threads without end keeps what the last pass missed). */
+#define TASKS_PASSES_MAX 8
+static void set_tasks_policy(pid_t pid, int policy, int prio)
+{
+    errno = 0;
+    int nice = getpriority(PRIO_PROCESS, 0);
+    nice = nice > 0 ? nice : 0;
+    for (int i = 0; i < TASKS_PASSES_MAX && tasks_pass(pid, policy, prio, nice) > 0; i++)
+        ;
+}
+
+static void boost_cancel(comp_t *c)
+{
+    if (c->boost_timer) {
+        marie_loop_remove_timer(c->am->env.loop, c->boost_timer);
+        c->boost_timer = NULL;
+    }
 }
 
 void am_comp_unboost(comp_t *c)
 {
+    boost_cancel(c);
     if (!c->boosted)
         return;
     c->boosted = false;
     set_tasks_policy(c->sv.pid, SCHED_OTHER, 0);
 }
 
+/* No heartbeat within AM_BOOST_MAX_US of the start: back to the normal policy all the same. A
+ * component that computed or spun before its first heartbeat held a CPU at SCHED_FIFO until its
+ * heartbeat_timeout and stop_timeout had passed (up to 4 s and 3 s by default), and again at
+ * each restart: the busy loops and every other process of the host had 5 % of that CPU (the
+ * kernel's real-time throttling). */
+static void on_boost_end(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    comp_t *c = user;
+    c->boost_timer = NULL;
+    if (c->boosted)
+        marie_debug("%s: no heartbeat %d ms after its start: back to the normal policy", c->cfg->name,
+                    AM_BOOST_MAX_US / 1000);
+    am_comp_unboost(c);
+}
+
 /* A process killed at the normal policy waits for a CPU to die (the kernel ends it in its own
  * context): beside busy loops its exit, and so the respawn, came up to 34 ms after the SIGKILL.
- * A manager at a real-time priority gives it that priority less one for its last moment. */
+ * A manager at a real-time priority gives it that priority less one for its last moment (it
+ * runs no code of its own any more: a SIGKILLed process only leaves the kernel to end). */
 static void hurry_exit(comp_t *c, pid_t pid)
 {
     int prio = below_manager();
+    boost_cancel(c);
     if (prio > 0)
         set_tasks_policy(pid, SCHED_FIFO, prio);
     c->boosted = false;         /* nothing to put back: it is going */
@@ -298,6 +344,9 @@ static void comp_spawn(comp_t *c)
     close(pe[1]);
     am_output_attach(c, po[0], pe[0]);
     marie_sv_spawned(&c->sv, pid, am_now_us());
+    boost_cancel(c);
+    if (c->boosted && !(c->boost_timer = marie_loop_add_oneshot(am->env.loop, AM_BOOST_MAX_US, on_boost_end, c)))
+        am_comp_unboost(c);
     am_children_add(c);
     am_status_usage_reset(c);
     note_state(c, before);
@@ -440,6 +489,7 @@ void am_progress_stops(am_t *am)
 static void comp_exited(comp_t *c, int status)
 {
     pid_t old = c->sv.pid;
+    boost_cancel(c);
     c->boosted = false;
     am_output_drain(c);     /* output still in the pipes belongs to this run */
     /* leftovers of the process group (shell children) go with their leader */

@@ -116,6 +116,7 @@ static void comps_free(comp_t *comps, size_t n)
     for (size_t i = 0; i < n; i++) {
         comp_t *c = &comps[i];
         am_comp_cancel_timer(c);
+        am_comp_unboost(c);
         am_output_free(c);
         am_limits_comp_free(c);
     }

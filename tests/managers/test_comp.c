@@ -128,9 +128,20 @@ static const marie_component_def_t def = {
 /* the end of a clean quit (SIGTERM, marie down), so a test can see the order of stops */
 static void on_exit_trace(void) { trace("exit"); }
 
+/* A program that computes before it joins the bus and beats (an interpreter and its imports, a
+ * map loaded before the component is made): MARIE_TEST_START_BUSY_MS, by the clock. */
+static void start_busy(void)
+{
+    const char *ms = getenv("MARIE_TEST_START_BUSY_MS");
+    int64_t until = marie_mono_us() + (ms ? atoll(ms) : 0) * 1000;
+    while (marie_mono_us() < until)
+        ;
+}
+
 int main(int argc, char **argv)
 {
     trace("exec");
+    start_busy();
     atexit(on_exit_trace);
     struct sigaction sa = {.sa_handler = on_usr1};
     sigaction(SIGUSR1, &sa, NULL);

@@ -8,10 +8,12 @@
 # component runs; a bad policy name is refused with file:line:col before anything starts. The
 # managers run with --rt-priority 10: alpha at SCHED_FIFO 10 while what it starts keeps the
 # scheduling its entry asks for (the normal policy without one; one with a short heartbeat_timeout
-# starts at 9 and is back at the normal policy once it beats), beta refused with a warning.
+# starts at 9 and is back at the normal policy once it beats, or 100 ms after its start if it
+# computes before it beats: it must not hold a CPU from the rest of the host meanwhile), beta
+# refused with a warning.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-sched.XXXXXX)
-export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq
+export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
 OUT=$T
 M="$BIN/marie"
 cleanup() {
@@ -55,6 +57,11 @@ components:
     exec: $COMP
     host: alpha
     heartbeat_timeout: 0.5
+  slow:
+    exec: $COMP
+    host: alpha
+    heartbeat_timeout: 3.9
+    env: {MARIE_TEST_START_BUSY_MS: 2000}
   denied:
     exec: $COMP
     host: beta
@@ -110,6 +117,25 @@ if chrt -f 1 true 2>/dev/null; then
     check "a component started at the manager's priority runs at the normal policy once it beats" \
         is quick "0 0 $ALL"
     check "every thread of it: the normal policy ($(sched_of "$QP"))" tasks_plain
+    # One that computes 2 s before it beats (an interpreter's start, a map loaded first): at the
+    # normal policy once 100 ms have passed, while it still computes, not at fifo 9 until its
+    # first heartbeat (which held a CPU from everything else for as long as it computed)
+    old=$(ps_field slow pid)
+    "$M" restart slow > /dev/null 2>&1
+    # the pid of slow's newest exec (the test component writes one line per exec to the trace)
+    slow_pid() { awk '$2 == "slow" && $3 == "exec" {p = $4} END {print p}' "$T/trace"; }
+    new_slow() { [ -n "$(slow_pid)" ] && [ "$(slow_pid)" != "$old" ]; }
+    computing_normal() {
+        pid=$(slow_pid)
+        got=$(sched_of "$pid")
+        # after the read, still computing: no "running" line of it yet (2 s of margin)
+        ran=$(awk -v p="$pid" '$2 == "slow" && $3 == "running" && $4 == p' "$T/trace")
+        echo "slow, pid $pid, 0.4 s after its exec: sched '$got', beating yet: '${ran:-no}'"
+        [ -z "$ran" ] && [ "$got" = "0 0 $ALL" ]
+    }
+    wait_for 20 new_slow
+    sleep 0.4
+    check "a component computing before its first heartbeat: the normal policy after 100 ms" computing_normal
 else
     skip "fifo, rr, plain, shell, manager" "this user may not use real-time scheduling here (chrt -f 1 refused)"
 fi
