@@ -326,7 +326,7 @@ static void comp_spawn(comp_t *c)
     boost.policy = boost.priority ? MARIE_SCHED_FIFO : boost.policy;
     marie_spawn_req_t req = {
         .path = prog, .argv = argv, .envp = envp, .out_fd = po[1], .err_fd = pe[1], .who = "marie-am",
-        .sched = boost.priority ? &boost : &cfg->sched, .refused = &refused,
+        .sched = boost.priority ? &boost : &cfg->sched, .sched_own = boost.priority > 0, .refused = &refused,
     };
     am_limits_prepare(c, &req.cgroup_fd, &req.nofile);
     pid_t pid = marie_spawn(am->env.spawner, &req);

@@ -59,6 +59,8 @@ typedef struct child {
     int null_fd, out_fd, err_fd;
     int cgroup_fd;              /* > 0: the child writes "0" (itself) to it before its exec */
     long nofile;                /* > 0: its RLIMIT_NOFILE */
+    int own_policy;             /* > 0: the kernel policy it keeps to itself (SCHED_RESET_ON_FORK) */
+    struct sched_param own_param;
     pid_t parent;
     const char *path;           /* NULL: execvpe(argv[0]) (not raw) */
     const char *who;
@@ -107,6 +109,9 @@ CHILD static void child_limits(const child_t *c)
         struct rlimit rl = {(rlim_t)c->nofile, (rlim_t)c->nofile};
         child_sys(c, SYS_setrlimit, RLIMIT_NOFILE, (long)&rl, 0);
     }
+    /* Its policy not passed on: it is already at it, so only the flag changes (always allowed). */
+    if (c->own_policy > 0)
+        child_sys(c, SYS_sched_setscheduler, 0, c->own_policy | SCHED_RESET_ON_FORK, (long)&c->own_param);
 }
 
 /* execve: returns the errno of its failure. */
@@ -391,6 +396,10 @@ pid_t marie_spawn(marie_spawner_t *s, const marie_spawn_req_t *req)
     sched_saved_t saved;
     marie_spawn_refused_t refused;
     sched_enter(req->sched, &saved, &refused);
+    if (req->sched_own && saved.policy) {
+        c->own_policy = sched_kernel_policy(req->sched->policy);
+        c->own_param.sched_priority = req->sched->priority;
+    }
     pid_t pid = clone(child_main, c->stack_top, flags, c, NULL, NULL, &c->ctid);
     int err = errno;
     sched_leave(&saved);

@@ -5,6 +5,7 @@
 #define MARIE_SPAWN_H
 
 #include <stddef.h>
+#include <stdbool.h>
 #include <sys/types.h>
 
 #include "core/config.h"
@@ -29,6 +30,9 @@ typedef struct {
     int out_fd, err_fd;         /* the child's stdout and stderr; its stdin is /dev/null */
     const char *who;            /* a failed exec writes "WHO: exec ARGV0: REASON" to err_fd */
     const marie_sched_cfg_t *sched;     /* the child's policy, priority and CPUs; NULL: the caller's */
+    bool sched_own;             /* sched's real-time policy is the child's only: what it starts
+                                 * (threads, processes) begins at the normal policy
+                                 * (SCHED_RESET_ON_FORK, set before its exec) */
     marie_spawn_refused_t *refused;     /* written by marie_spawn when not NULL */
     int cgroup_fd;              /* an open cgroup.procs the child moves itself into before its
                                  * exec (so it runs in that cgroup from its first instruction);

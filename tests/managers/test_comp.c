@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -138,9 +139,22 @@ static void start_busy(void)
         ;
 }
 
+/* A program that starts a helper process as it starts (MARIE_TEST_START_CHILD): the helper
+ * writes "child" to the trace and waits, gone with the component. */
+static void start_child(void)
+{
+    if (!getenv("MARIE_TEST_START_CHILD") || fork() != 0)
+        return;
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    trace("child");
+    for (;;)
+        pause();
+}
+
 int main(int argc, char **argv)
 {
     trace("exec");
+    start_child();
     start_busy();
     atexit(on_exit_trace);
     struct sigaction sa = {.sa_handler = on_usr1};

@@ -57,6 +57,7 @@ components:
     exec: $COMP
     host: alpha
     heartbeat_timeout: 0.5
+    env: {MARIE_TEST_START_CHILD: 1}
   slow:
     exec: $COMP
     host: alpha
@@ -117,6 +118,11 @@ if chrt -f 1 true 2>/dev/null; then
     check "a component started at the manager's priority runs at the normal policy once it beats" \
         is quick "0 0 $ALL"
     check "every thread of it: the normal policy ($(sched_of "$QP"))" tasks_plain
+    # the process it started before its first heartbeat does not keep fifo 9 (it is no thread
+    # of it: the manager's return to the normal policy never reaches it)
+    QC=$(awk '$2 == "quick" && $3 == "child" {p = $4} END {print p}' "$T/trace")
+    child_plain() { [ -n "$QC" ] && [ "$(sched_of "$QC")" = "0 0 $ALL" ]; }
+    check "a process it started meanwhile: the normal policy ($(sched_of "$QC"))" child_plain
     # One that computes 2 s before it beats (an interpreter's start, a map loaded first): at the
     # normal policy once 100 ms have passed, while it still computes, not at fifo 9 until its
     # first heartbeat (which held a CPU from everything else for as long as it computed)
