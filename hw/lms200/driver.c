@@ -19,6 +19,7 @@
 /* Extra probe rounds at a rate where the line talks but the device has not answered yet
  * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
 #define MAX_STAY 3
+#define PERIOD_GAPS 15              /* single arrivals whose median gap is the period */
 #define BATCH_MAX 8                 /* scans of one read stamped together; a longer backlog goes out in turns */
 /* Damaged scan telegrams in a row that do not yet make a silent line (see data_timeout_us). */
 #define LOST_TELEGRAMS 2
@@ -56,6 +57,8 @@ struct lms200_driver {
     lms200_scan_t batch[BATCH_MAX];
     int nbatch;
     int64_t period_us;              /* the device's scan period as the arrivals show it; 0: not yet */
+    int32_t gaps[PERIOD_GAPS];      /* the last gaps between single arrivals, for period_us */
+    int ngaps;
     int64_t last_arrival, last_stamp;
     lms200_driver_stats_t st;
 };
@@ -257,6 +260,8 @@ static void enter(lms200_driver_t *d, lms200_drv_state_t s)
 /* Start over from "stop continuous output" at the rate the line has now. */
 static void reinit(lms200_driver_t *d)
 {
+    d->ngaps = 0;               /* the stream that comes may have another period */
+    d->last_arrival = 0;
     build_probe(d, d->baud);
     lms200_parser_reset(d->parser);
     new_rate(d);
@@ -373,6 +378,29 @@ static void on_scan(lms200_driver_t *d, const lms200_telegram_t *t)
     }
 }
 
+static int cmp_gap(const void *a, const void *b)
+{
+    int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The period is the median gap of the last PERIOD_GAPS single arrivals: a read late makes one
+ * gap long and the next short, a damaged telegram one gap double, and neither moves a median.
+ * It used to start at the first gap and follow only gaps within half to twice it: a first scan
+ * read 15 ms late on a loaded machine left a 5 ms period for good, and a backlog stamped 5 ms
+ * apart. */
+static void learn_period(lms200_driver_t *d, int64_t dt)
+{
+    if (dt <= 0 || dt > INT32_MAX)
+        return;
+    d->gaps[d->ngaps++ % PERIOD_GAPS] = (int32_t)dt;
+    int n = d->ngaps < PERIOD_GAPS ? d->ngaps : PERIOD_GAPS;
+    int32_t g[PERIOD_GAPS];
+    memcpy(g, d->gaps, (size_t)n * sizeof g[0]);
+    qsort(g, (size_t)n, sizeof g[0], cmp_gap);
+    d->period_us = g[n / 2];
+}
+
 /* The scans one read completed. A device streams at its own fixed period, so when a read
  * brings several (the driver was late: a loaded machine, a stalled loop) they were sent one
  * period apart and only the last arrived just now: each is stamped back from the read by the
@@ -384,13 +412,8 @@ static void deliver(lms200_driver_t *d)
     d->nbatch = 0;
     if (n == 0)
         return;
-    if (n == 1 && d->last_arrival > 0) {
-        int64_t dt = d->now - d->last_arrival;
-        if (d->period_us == 0)
-            d->period_us = dt;
-        else if (dt > d->period_us / 2 && dt < 2 * d->period_us)
-            d->period_us += (dt - d->period_us) / 8;
-    }
+    if (n == 1 && d->last_arrival > 0)
+        learn_period(d, d->now - d->last_arrival);
     d->last_arrival = d->now;
     for (int i = 0; i < n; i++) {
         int64_t at = d->now - (int64_t)(n - 1 - i) * d->period_us;
@@ -615,9 +638,24 @@ static void check_health(lms200_driver_t *d)
     }
 }
 
+/* A deadline, or the health check, due: judged on what the line holds by now, not on what the
+ * driver had read before. A driver that could not run for longer than its data timeout (a
+ * loaded machine, a real-time task holding the CPU) finds the scans the device sent meanwhile
+ * waiting, and marie's loop runs its timers before it reads its fds: it declared a streaming
+ * laser silent and re-initialised it, losing seconds of scans. */
+static void read_due(lms200_driver_t *d, int64_t now_us)
+{
+    bool health_due = d->running && !d->degraded && now_us - d->last_good >= (int64_t)d->cfg.degraded_ms * 1000;
+    if (d->fd < 0 || (now_us < d->deadline && !health_due))
+        return;
+    read_input(d, POLLIN);
+    deliver(d);
+}
+
 void lms200_driver_tick(lms200_driver_t *d, int64_t now_us)
 {
     d->now = now_us;
+    read_due(d, now_us);
     check_health(d);
     if (now_us < d->deadline)
         return;
