@@ -638,15 +638,15 @@ static void check_health(lms200_driver_t *d)
     }
 }
 
-/* A deadline, or the health check, due: judged on what the line holds by now, not on what the
- * driver had read before. A driver that could not run for longer than its data timeout (a
+/* While streaming, a deadline or the health check due is judged on what the line holds by now,
+ * not on what the driver had read before. A driver that could not run for longer than its data timeout (a
  * loaded machine, a real-time task holding the CPU) finds the scans the device sent meanwhile
  * waiting, and marie's loop runs its timers before it reads its fds: it declared a streaming
  * laser silent and re-initialised it, losing seconds of scans. */
 static void read_due(lms200_driver_t *d, int64_t now_us)
 {
     bool health_due = d->running && !d->degraded && now_us - d->last_good >= (int64_t)d->cfg.degraded_ms * 1000;
-    if (d->fd < 0 || (now_us < d->deadline && !health_due))
+    if (d->fd < 0 || d->state != LMS200_DRV_STREAM || (now_us < d->deadline && !health_due))
         return;
     read_input(d, POLLIN);
     deliver(d);
