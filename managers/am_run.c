@@ -100,7 +100,7 @@ static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
 
 /* A manager at a real-time priority starts a component with a short heartbeat_timeout at that
  * priority less one (the manager's own wake-ups come first), and puts it back to the normal
- * policy at its first heartbeat. Born at the normal policy, the new process waited for a CPU
+ * policy at its first heartbeat or AM_BOOST_MAX_US after its start, whichever comes first. Born at the normal policy, the new process waited for a CPU
  * beside busy loops from its clone to its main and its first heartbeat: 60-90 ms of a restart
  * whose floor is the timeout and the stop timeout (docs/managers.md, "Not responding"). Not for
  * a component whose sched: asks for a policy of its own, nor a shell's (its children are not
