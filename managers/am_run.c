@@ -100,11 +100,12 @@ static char *resolve_exec(am_t *am, const marie_component_cfg_t *cfg)
 
 /* A manager at a real-time priority starts a component with a short heartbeat_timeout at that
  * priority less one (the manager's own wake-ups come first), and puts it back to the normal
- * policy at its first heartbeat or AM_BOOST_MAX_US after its start, whichever comes first. Born at the normal policy, the new process waited for a CPU
- * beside busy loops from its clone to its main and its first heartbeat: 60-90 ms of a restart
- * whose floor is the timeout and the stop timeout (docs/managers.md, "Not responding"). Not for
- * a component whose sched: asks for a policy of its own, nor a shell's (its children are not
- * its threads), nor one with a long timeout (nothing to win, and it must not hold a CPU long). */
+ * policy at its first heartbeat or AM_BOOST_MAX_US after its start, whichever comes first.
+ * Born at the normal policy, the new process waited for a CPU beside busy loops from its clone
+ * to its main and its first heartbeat: 60-90 ms of a restart whose floor is the timeout and the
+ * stop timeout (docs/managers.md, "Not responding"). Not for a component whose sched: asks for
+ * a policy of its own, nor a shell's (its children are not its threads), nor one with a long
+ * timeout (nothing to win, and it must not hold a CPU long). */
 #define BOOST_MAX_TIMEOUT_S 4.0
 
 /* The manager's SCHED_FIFO priority less one (at least 1), or 0 at another policy. */
@@ -135,7 +136,8 @@ static int tasks_pass(pid_t pid, int policy, int prio, int nice)
     int changed = 0;
     for (struct dirent *e; d && (e = readdir(d));) {
         pid_t tid = (pid_t)atoi(e->d_name);
-        if (tid <= 0 || (sched_getscheduler(tid) & ~SCHED_RESET_ON_FORK) == policy || sched_setscheduler(tid, policy, &p) < 0)
+        if (tid <= 0 || (sched_getscheduler(tid) & ~SCHED_RESET_ON_FORK) == policy ||
+            sched_setscheduler(tid, policy, &p) < 0)
             continue;
         changed++;
         if (policy == SCHED_OTHER)
@@ -147,10 +149,9 @@ static int tasks_pass(pid_t pid, int policy, int prio, int nice)
 }
 
 /* Every thread of process pid to policy at prio. A thread started meanwhile by one the pass had
- * not reached yet takes that one's policy and is missing from the list the pass read: the
- * component's own threads stayed at SCHED_FIFO for good when one was started at its first
- * heartbeat. So passes go on until one finds nothing left to change (bounded: a process
- * starting threads without end keeps what the last pass missed). */
+ * not reached yet takes that one's policy and is missing from the list the pass read, so passes
+ * go on until one finds nothing left to change (bounded: a process starting threads without end
+ * keeps what the last pass missed). */
 #define TASKS_PASSES_MAX 8
 static void set_tasks_policy(pid_t pid, int policy, int prio)
 {
