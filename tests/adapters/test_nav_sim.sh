@@ -43,7 +43,10 @@ start mission1 $BIN/marie-mission --name mission --clock sim --system $OUT/syste
 $B/tests/helpers/adapt_probe --timeout 80 --goals 3 --done --resumed --estop-after-done --settle 1 --max-err 0.6 --verbose \
     > "$OUT/probe.txt" 2> "$OUT/probe.log" &
 probe=$!
-sleep 6
+# The mission is killed once it has reached its first goal (so it has progress to resume), not
+# at a fixed time: 6 s after the start was before any progress on a loaded machine, where the
+# programs take seconds to start.
+wait_for 60 grep -q "event mission goal_reached" "$OUT/probe.log"
 kill -KILL "$pid_mission1" 2>/dev/null
 sleep 1
 start mission2 $BIN/marie-mission --name mission --clock sim --system $OUT/system.yaml
