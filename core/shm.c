@@ -196,7 +196,7 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
         return marie_fail(EMSGSIZE);
     if (!ref)
         return 0;
-    snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
+    memcpy(ref->segment, w->name, sizeof ref->segment);     /* both NUL-terminated, of one size */
     ref->seq = (int64_t)n;
     ref->size = (uint32_t)len;
     return 0;
