@@ -33,6 +33,7 @@ typedef struct {
     int stream;
     marie_linebuf_t *lb;        /* from the first spawn: most of a system's components run on
                                  * other hosts, and 1 KiB a pipe for each was most of the heap */
+    marie_timer_t *pause;       /* not read until it fires: the rate limit dropped lines */
 } outpipe_t;
 
 /* am_output.c: a component's output: its pipes, their rate limit, its log file. */

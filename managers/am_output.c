@@ -59,8 +59,16 @@ static void log_line_cb(const char *line, size_t len, void *user)
     c->out.drops_pending = 0;
 }
 
+static void outpipe_unpause(outpipe_t *op)
+{
+    if (op->pause)
+        marie_loop_remove_timer(op->am->env.loop, op->pause);
+    op->pause = NULL;
+}
+
 static void outpipe_close(outpipe_t *op)
 {
+    outpipe_unpause(op);
     if (op->fd < 0)
         return;
     marie_linebuf_flush(op->lb, log_line_cb, op);
@@ -88,11 +96,33 @@ static int outpipe_drain(outpipe_t *op)
     return 1;
 }
 
+/* A component that prints faster than its rate limit has its lines dropped; reading them all
+ * as they come cost the manager a whole core (92 % of one, at its real-time priority when it has
+ * one, beside `yes` as a component). So a drain that dropped lines leaves the pipe unread for
+ * OUTPUT_PAUSE_US: it fills (64 KiB), the component waits in its write as on a slow terminal,
+ * and the manager reads at most 64 KiB a pipe per pause, dropping and counting what is over
+ * the limit as before. A component within its limit never pauses. */
+#define OUTPUT_PAUSE_US 20000
+
+static void on_pause_end(marie_loop_t *loop, marie_timer_t *t, int64_t overruns, void *user)
+{
+    outpipe_t *op = user;
+    op->pause = NULL;
+    if (op->fd >= 0)
+        marie_loop_set_events(loop, op->fd, POLLIN);
+}
+
 static void on_outpipe(marie_loop_t *loop, int fd, short revents, void *user)
 {
     outpipe_t *op = user;
-    if (outpipe_drain(op) == 0)
+    int64_t dropped = op->c->out.drops_total;
+    if (outpipe_drain(op) == 0) {
         outpipe_close(op);
+        return;
+    }
+    if (op->c->out.drops_total > dropped && !op->pause &&
+        (op->pause = marie_loop_add_oneshot(loop, OUTPUT_PAUSE_US, on_pause_end, op)))
+        marie_loop_set_events(loop, fd, 0);
 }
 
 
@@ -148,6 +178,7 @@ void am_output_moved(comp_t *c)
     for (int i = 0; i < 2; i++) {
         outpipe_t *op = &c->out.pipe[i];
         op->c = c;
+        outpipe_unpause(op);    /* its timer knows it by its old place */
         if (op->fd >= 0) {      /* the loop's callback follows the pipe to its new place */
             marie_loop_remove_fd(c->am->env.loop, op->fd);
             marie_loop_add_fd(c->am->env.loop, op->fd, POLLIN, on_outpipe, op);
