@@ -10,7 +10,7 @@
 # scheduling its entry asks for (the normal policy without one; one with a short heartbeat_timeout
 # starts at 9 and is back at the normal policy once it beats, or 100 ms after its start if it
 # computes before it beats: it must not hold a CPU from the rest of the host meanwhile), beta
-# refused with a warning.
+# refused with a warning. A component flooding its output does not keep alpha busy.
 . tests/lib.sh
 T=$(mktemp -d /tmp/marie-test-sched.XXXXXX)
 export MARIE_KEY=$T/key MARIE_SEQ_FILE=$T/seq MARIE_TEST_TRACE=$T/trace
