@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 #include <poll.h>
+#include <sys/ioctl.h>
 
 #include "core/err.h"
 #include "hw/lms200/serial.h"
@@ -19,6 +20,8 @@
 /* Extra probe rounds at a rate where the line talks but the device has not answered yet
  * (it finishes the telegram it is sending first: 0.76 s for 361 values at 9600 baud). */
 #define MAX_STAY 3
+#define READ_CHUNK 4096
+#define READ_MAX (16 * READ_CHUNK)         /* what one read_input takes at most */
 #define PERIOD_GAPS 15              /* single arrivals whose median gap is the period */
 #define BATCH_MAX 8                 /* scans of one read stamped together; a longer backlog goes out in turns */
 /* Damaged scan telegrams in a row that do not yet make a silent line (see data_timeout_us). */
@@ -59,6 +62,7 @@ struct lms200_driver {
     int64_t period_us;              /* the device's scan period as the arrivals show it; 0: not yet */
     int32_t gaps[PERIOD_GAPS];      /* the last gaps between single arrivals, for period_us */
     int ngaps;
+    int read_expected, read_done;   /* scans the line held at this read, and those delivered */
     int64_t last_arrival, last_stamp;
     lms200_driver_stats_t st;
 };
@@ -415,8 +419,15 @@ static void deliver(lms200_driver_t *d)
     if (n == 1 && d->last_arrival > 0)
         learn_period(d, d->now - d->last_arrival);
     d->last_arrival = d->now;
+    /* A read that brings more than a batch is delivered in turns: the scans still to come in
+     * it (as the bytes the line held at the read count them) go after this batch. Stamped back
+     * from the read alone, each batch after the first was pushed a period past the one before,
+     * into the future (40 ms ahead of the clock after 250 ms held). */
+    int later = d->read_expected - d->read_done - n;
+    later = later > 0 ? later : 0;
+    d->read_done += n;
     for (int i = 0; i < n; i++) {
-        int64_t at = d->now - (int64_t)(n - 1 - i) * d->period_us;
+        int64_t at = d->now - (int64_t)(n - 1 - i + later) * d->period_us;
         if (d->last_stamp && at <= d->last_stamp && d->last_stamp - at < 1000000)
             at = d->last_stamp + (d->period_us > 0 ? d->period_us : 1);
         d->last_stamp = at;
@@ -575,9 +586,23 @@ const lms200_driver_stats_t *lms200_driver_stats(const lms200_driver_t *d) { ret
 
 static void read_input(lms200_driver_t *d, short revents);
 
+/* How many whole scan telegrams the line holds now with what the parser has of one (what one
+ * read_input can take): for the stamps of a read delivered in turns. */
+static void count_waiting(lms200_driver_t *d)
+{
+    int avail = 0;
+    size_t tlen = lms200_scan_telegram_len(d->res_cdeg == 50 ? 361 : 181);
+    if (d->fd < 0 || ioctl(d->fd, FIONREAD, &avail) < 0 || avail < 0)
+        avail = 0;
+    avail = avail < READ_MAX ? avail : READ_MAX;
+    d->read_expected = (int)(((size_t)avail + lms200_parser_pending(d->parser)) / tlen);
+    d->read_done = 0;
+}
+
 void lms200_driver_io(lms200_driver_t *d, short revents, int64_t now_us)
 {
     d->now = now_us;
+    count_waiting(d);
     read_input(d, revents);
     deliver(d);
 }
@@ -589,8 +614,8 @@ static void read_input(lms200_driver_t *d, short revents)
     if (revents & POLLOUT)
         flush_out(d);
     if (d->fd >= 0 && (revents & POLLIN)) {
-        uint8_t buf[4096];
-        for (int round = 0; round < 16 && d->fd >= 0; round++) {
+        uint8_t buf[READ_CHUNK];
+        for (int round = 0; round < READ_MAX / READ_CHUNK && d->fd >= 0; round++) {
             ssize_t n = read(d->fd, buf, sizeof buf);
             if (n > 0) {
                 d->rate_bytes += n;
@@ -648,6 +673,12 @@ static void read_due(lms200_driver_t *d, int64_t now_us)
     bool health_due = d->running && !d->degraded && now_us - d->last_good >= (int64_t)d->cfg.degraded_ms * 1000;
     if (d->fd < 0 || d->state != LMS200_DRV_STREAM || (now_us < d->deadline && !health_due))
         return;
+    /* Only what is there: a raw line (VMIN 0, VTIME 0) reads 0 bytes when it has none, which
+     * read_input takes for the end of the line (a pulled adapter). */
+    int avail = 0;
+    if (ioctl(d->fd, FIONREAD, &avail) < 0 || avail <= 0)
+        return;
+    count_waiting(d);
     read_input(d, POLLIN);
     deliver(d);
 }

@@ -289,6 +289,30 @@ static void test_scans_read_late_are_stamped_one_period_apart(void **state)
     rig_close(&r);
 }
 
+/* Held 250 ms: one read brings more scans than the driver stamps together (8). None of them
+ * is stamped after the read: the later ones were put a period after the batch before, into
+ * the future, when each batch was stamped back from the read alone. */
+static void test_a_backlog_longer_than_a_batch_is_not_stamped_in_the_future(void **state)
+{
+    rig_t r;
+    vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
+    assert_true(rig_streaming(&r, &e, 500000, 100, 20, 5000));
+    int before = r.nstamp;
+    r.stalled = true;
+    run_for(&r, 250);
+    r.stalled = false;
+    assert_true(RUN_UNTIL(&r, 1000, r.nstamp >= before + 9));
+    int64_t after = mono_us();
+    print_message("%d scans read after 250 ms held; the last stamped %lld us before now\n", r.nstamp - before,
+                  (long long)(after - r.stamp[r.nstamp - 1]));
+    for (int i = before; i < r.nstamp; i++) {
+        assert_true(r.stamp[i] <= after);
+        if (i > before)
+            assert_true(r.stamp[i] - r.stamp[i - 1] > 10000 && r.stamp[i] - r.stamp[i - 1] < 30000);
+    }
+    rig_close(&r);
+}
+
 /* The first scan of the stream read 15 ms late, the second on time: one gap of 5 ms. The
  * period the later arrivals show (20 ms) is still the one a backlog is stamped with (it stayed
  * at 5 ms for good when the first gap was the period and later ones had to be near it). */
@@ -736,6 +760,7 @@ int main(void)
         cmocka_unit_test(test_scans_read_late_are_stamped_one_period_apart),
         cmocka_unit_test(test_a_driver_held_past_its_data_timeout_reads_before_it_judges),
         cmocka_unit_test(test_a_first_scan_read_late_does_not_set_the_period),
+        cmocka_unit_test(test_a_backlog_longer_than_a_batch_is_not_stamped_in_the_future),
         cmocka_unit_test(test_line_time_puts_stamps_on_the_scans_instants),
         cmocka_unit_test(test_stays_at_9600_when_configured),
         cmocka_unit_test(test_a_bad_telegram_at_9600_is_no_silence),
