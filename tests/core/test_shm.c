@@ -1,6 +1,7 @@
 /* test_shm: the shared-memory ring: round trip, overwritten slots refused, a reader killed or
  * stalled mid-read harms neither the writer nor the other readers, torn copies never delivered,
- * a restarted writer's leftovers swept, three readers at 30 Hz lose nothing. */
+ * a restarted writer's leftovers swept, three readers at 30 Hz lose nothing, a slot held in place
+ * outlives laps of the writer and a holder killed or stopped does not stop it. */
 #include <errno.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -64,7 +65,8 @@ static void test_round_trip_and_bounds(void **state)
     assert_memory_equal(in, out, BIG);
     assert_fails(marie_shm_read(r, &ref, out, BIG - 1), EMSGSIZE);
     assert_fails(marie_shm_write(w, in, BIG + 1, NULL), EMSGSIZE);
-    /* Memory is fixed at creation: four slots and a header, whatever is written. */
+    /* Memory is fixed at creation: four slots, four spare ones for readers' holds, a header and
+     * the hold table, whatever is written. */
     char path[256];
     snprintf(path, sizeof path, "/dev/shm/%s", ref.segment);
     struct stat st;
@@ -74,7 +76,7 @@ static void test_round_trip_and_bounds(void **state)
     struct stat st2;
     assert_int_equal(stat(path, &st2), 0);
     assert_int_equal(st.st_size, st2.st_size);
-    assert_true(st.st_size < 4 * BIG + 4 * 4096);
+    assert_true(st.st_size < 8 * BIG + 8 * 4096 + 2 * 65536);
     /* Four writes later message 1's slot holds another: refused, not delivered. */
     assert_fails(marie_shm_read(r, &ref, out, BIG), ESTALE);
     /* A reference that names nothing sensible is refused. */
@@ -109,18 +111,27 @@ static void test_begin_and_commit_in_place(void **state)
     fill(slot, 64, 2);
     assert_int_equal(marie_shm_commit(w, 64, &ref), 0);
     assert_int_equal(ref.seq, 2);
-    uint8_t *third = marie_shm_begin(w);    /* message 3, in message 1's slot */
-    assert_fails(marie_shm_read(r, &first, out, BIG), ESTALE);
+    uint8_t *third = marie_shm_begin(w);    /* message 3, in a slot of its own */
+    assert_true(third != slot);
     uint8_t in[64];
     fill(in, sizeof in, 3);
     assert_int_equal(marie_shm_write(w, in, sizeof in, &ref), 0);   /* takes up the begin */
-    assert_ptr_equal(marie_shm_begin(w), slot);
-    assert_int_equal(ref.seq, 3);
+    for (int i = 4; i <= 6; i++)            /* round the 2 + 4 spare slots */
+        assert_true(marie_shm_begin(w) != slot && marie_shm_commit(w, 64, NULL) == 0);
+    assert_fails(marie_shm_read(r, &first, out, BIG), ESTALE);     /* six messages on */
+    assert_non_null(marie_shm_begin(w));
+    assert_int_equal(marie_shm_commit(w, 64, NULL), 0);     /* 7: message 1's slot */
+    assert_ptr_equal(marie_shm_begin(w), slot);             /* 8: message 2's */
+    assert_int_equal(marie_shm_commit(w, 64, NULL), 0);
+    fill(in, sizeof in, 9);
+    assert_int_equal(marie_shm_write(w, in, sizeof in, &ref), 0);   /* 9: message 3's */
+    assert_int_equal(ref.seq, 9);
     assert_int_equal(marie_shm_read(r, &ref, out, BIG), 64);
     assert_memory_equal(out, in, 64);
     assert_memory_equal(third, in, 64);
+    marie_shm_begin(w);
     assert_fails(marie_shm_commit(w, BIG + 1, &ref), EMSGSIZE);
-    assert_int_equal(ref.seq, 3);           /* untouched: nothing to tell anyone */
+    assert_int_equal(ref.seq, 9);           /* untouched: nothing to tell anyone */
     free(out);
     marie_shm_reader_destroy(r);
     marie_shm_writer_destroy(w);
@@ -299,6 +310,132 @@ static void test_three_readers_30hz_no_loss(void **state)
     free(in);
 }
 
+/* A reader holding a message in place while the writer laps the ring ten times still sees it
+ * byte for byte; the writer never waits meanwhile, the newest messages stay readable, and once
+ * released the slot is written again. */
+static void test_a_held_slot_outlives_laps(void **state)
+{
+    const int nslots = 4;
+    marie_shm_writer_t *w = marie_shm_writer_create("T_HOLD", BIG, nslots);
+    marie_shm_reader_t *r = marie_shm_reader_create(), *other = marie_shm_reader_create();
+    uint8_t *in = malloc(BIG), *want = malloc(BIG), *out = malloc(BIG);
+    fill(want, BIG, 1);
+    for (size_t i = 0; i < BIG; i += 4096)
+        want[i] = (uint8_t)(i >> 12);       /* not only the sequence number */
+    marie_shm_ref_t held, ref;
+    assert_int_equal(marie_shm_write(w, want, BIG, &held), 0);
+    const uint8_t *view = marie_shm_hold(r, &held);
+    assert_non_null(view);
+    assert_null(marie_shm_hold(r, &held));
+    assert_int_equal(errno, EBUSY);         /* one at a time per reader */
+    for (uint64_t seq = 2; seq <= 10 * (nslots + 4); seq++) {   /* ten laps of 4 + 4 spare slots */
+        fill(in, BIG, seq);
+        assert_int_equal(marie_shm_write(w, in, BIG, &ref), 0);
+        assert_int_equal(marie_shm_read(other, &ref, out, BIG), BIG);
+        assert_memory_equal(out, in, BIG);
+    }
+    assert_memory_equal(view, want, BIG);
+    assert_true(marie_shm_still_valid(r, &held));
+    assert_true(marie_shm_writer_skipped(w) >= 9);
+    /* The index keeps nslots messages, held or not: message 1 is not offered to anyone else. */
+    assert_fails(marie_shm_read(other, &held, out, BIG), ESTALE);
+    marie_shm_release(r, &held);
+    for (int i = 0; i < 2 * nslots; i++)
+        assert_int_equal(marie_shm_write(w, in, BIG, NULL), 0);
+    assert_false(marie_shm_still_valid(r, &held));
+    /* Once released, the reader holds the next one. */
+    assert_int_equal(marie_shm_write(w, in, BIG, &ref), 0);
+    assert_non_null(marie_shm_hold(r, &ref));
+    marie_shm_release(r, &ref);
+    marie_shm_reader_destroy(other);
+    marie_shm_reader_destroy(r);
+    marie_shm_writer_destroy(w);
+    free(in);
+    free(want);
+    free(out);
+}
+
+/* A child that holds message `seq` in place, says so on fd, then waits to be killed or stopped
+ * (or for its parent's word on `go`, then checks the bytes and exits 0 when intact). */
+static pid_t spawn_holder(const marie_shm_ref_t *ref, int fd, int go)
+{
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid)
+        return pid;
+    marie_shm_reader_t *r = marie_shm_reader_create();
+    const uint8_t *view = marie_shm_hold(r, ref);
+    char c = view ? 'h' : 'n';
+    if (write(fd, &c, 1) != 1 || !view)
+        _exit(3);
+    if (read(go, &c, 1) != 1)
+        _exit(4);
+    uint64_t seq;
+    _exit(intact(view, BIG, &seq) && seq == (uint64_t)ref->seq ? 0 : 5);
+}
+
+/* Four readers hold (every entry): one is SIGKILLed, one SIGSTOPped. The writer goes on
+ * writing without a wait and keeps nslots messages readable; a new reader takes the killed
+ * one's entry, and the stopped one, continued, finds its message intact. */
+static void test_killed_or_stopped_holders_do_not_stop_the_writer(void **state)
+{
+    const int nslots = 4;
+    marie_shm_writer_t *w = marie_shm_writer_create("T_HOLDK", BIG, nslots);
+    uint8_t *in = malloc(BIG), *out = malloc(BIG);
+    int said[2], go[2];
+    assert_int_equal(pipe(said), 0);
+    assert_int_equal(pipe(go), 0);
+    pid_t kids[4];
+    marie_shm_ref_t ref;
+    for (int i = 0; i < 4; i++) {
+        fill(in, BIG, (uint64_t)i + 1);
+        assert_int_equal(marie_shm_write(w, in, BIG, &ref), 0);
+        kids[i] = spawn_holder(&ref, said[1], go[0]);
+        char c;
+        assert_int_equal(read(said[0], &c, 1), 1);
+        assert_int_equal(c, 'h');
+    }
+    marie_shm_reader_t *r = marie_shm_reader_create();
+    assert_null(marie_shm_hold(r, &ref));
+    assert_int_equal(errno, EBUSY);         /* every entry a live reader's: this one copies */
+    kill(kids[0], SIGKILL);
+    kill(kids[1], SIGSTOP);
+    int st;
+    waitpid(kids[0], &st, 0);
+    int64_t worst = 0;
+    for (uint64_t seq = 5; seq <= 5 + 20 * nslots; seq++) {
+        fill(in, BIG, seq);
+        int64_t t0 = marie_mono_us();
+        assert_int_equal(marie_shm_write(w, in, BIG, &ref), 0);
+        worst = marie_mono_us() - t0 > worst ? marie_mono_us() - t0 : worst;
+        assert_int_equal(marie_shm_read(r, &ref, out, BIG), BIG);
+        assert_true(intact(out, BIG, NULL));
+    }
+    assert_true(worst < 200000);            /* a copy, never a wait */
+    for (int64_t seq = ref.seq - nslots + 1; seq <= ref.seq; seq++) {
+        marie_shm_ref_t at;
+        assert_int_equal(marie_shm_ref_at(r, ref.segment, seq, &at), 0);
+        assert_int_equal(marie_shm_read(r, &at, out, BIG), BIG);
+    }
+    assert_non_null(marie_shm_hold(r, &ref));       /* the killed reader's entry */
+    marie_shm_release(r, &ref);
+    kill(kids[1], SIGCONT);
+    assert_int_equal(write(go[1], "gggg", 3), 3);
+    for (int i = 1; i < 4; i++) {
+        waitpid(kids[i], &st, 0);
+        assert_true(WIFEXITED(st));
+        assert_int_equal(WEXITSTATUS(st), 0);
+    }
+    close(said[0]);
+    close(said[1]);
+    close(go[0]);
+    close(go[1]);
+    marie_shm_reader_destroy(r);
+    marie_shm_writer_destroy(w);
+    free(in);
+    free(out);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -307,6 +444,8 @@ int main(void)
         cmocka_unit_test(test_readers_killed_or_stalled_harm_nobody),
         cmocka_unit_test(test_writer_restart_sweeps_leftovers),
         cmocka_unit_test(test_three_readers_30hz_no_loss),
+        cmocka_unit_test(test_a_held_slot_outlives_laps),
+        cmocka_unit_test(test_killed_or_stopped_holders_do_not_stop_the_writer),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
