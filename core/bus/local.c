@@ -243,14 +243,10 @@ static bool chan_pending(lchan_t *ch)
     return false;
 }
 
-/* Messages this large are held in their slot while the handlers run (their tail is then not
- * copied); a smaller one costs less to copy than the hold's stores on a line the writer reads. */
-#define HOLD_MIN (64 * 1024)
-
 /* The slot of ref held for the subscriptions that can use it so, or NULL (then peeked). */
 static const void *hold_for(lchan_t *ch, peer_t *p, const marie_shm_ref_t *ref)
 {
-    if (ref->size < HOLD_MIN)
+    if (ref->size < MARIE_SHM_HOLD_MIN)
         return NULL;
     for (lsub_t *s = ch->subs; s; s = s->next)
         if (!s->removed && s->rv.held)
