@@ -68,7 +68,9 @@ struct marie_shm_writer {
     uint64_t seq;
     uint64_t open;              /* the message begun and not committed, or 0 */
     uint32_t slot;              /* its slot */
-    uint32_t next;              /* the slot to try next: round the ring, skipping held ones */
+    uint32_t pos;               /* the next message's place in the ring, 0 .. nslots - 1 */
+    uint32_t spare;             /* the spare to swap in next when a place's slot is held */
+    uint32_t *slots;            /* each place's slot (nslots), then the spare ones (nholds) */
     int64_t skipped;            /* slots passed over because a reader held them */
 };
 
@@ -147,6 +149,8 @@ marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_siz
     marie_shm_writer_t *w = calloc(1, sizeof *w);
     if (!w)
         return NULL;
+    if (!(w->slots = calloc((size_t)nslots + HOLDS, sizeof *w->slots)))
+        goto err_free;
     if (segment_name(w->name, sizeof w->name, channel, getpid()) < 0) {
         errno = EINVAL;
         goto err_free;
@@ -170,6 +174,8 @@ marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_siz
     w->hdr->stride = stride;
     w->hdr->nslots = (uint32_t)nslots;
     w->hdr->nholds = HOLDS;
+    for (uint32_t i = 0; i < nphys(w->hdr); i++)
+        w->slots[i] = i;
     w->hdr->pid = (int32_t)getpid();
     w->hdr->version = SHM_VERSION;
     atomic_store_explicit(&w->hdr->write_seq, 0, memory_order_relaxed);
@@ -180,7 +186,7 @@ marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_siz
 err_unlink:
     MARIE_KEEP_ERRNO(close(fd); unlink(path));
 err_free:
-    MARIE_KEEP_ERRNO(free(w));
+    MARIE_KEEP_ERRNO(free(w->slots); free(w));
     return NULL;
 }
 
@@ -192,6 +198,7 @@ void marie_shm_writer_destroy(marie_shm_writer_t *w)
     snprintf(path, sizeof path, SHM_DIR "/%s", w->name);
     unlink(path);               /* readers keep their mappings until they let go */
     munmap(w->base, w->len);
+    free(w->slots);
     free(w);
 }
 
@@ -210,25 +217,29 @@ static bool held(const marie_shm_writer_t *w, uint32_t k)
     return false;
 }
 
-/* The next slot no reader holds, marked odd (being written). With nslots + nholds slots and a
- * slot held per entry at most, one is always free, and a slot written over has had at least
- * nslots - 1 messages after it, as without holds. */
+/* The slot of the ring's next place, marked odd (being written); when a reader holds it, a
+ * spare takes its place and it becomes a spare. The place's slot and the nholds spares are
+ * nholds + 1 slots, and a reader holds one at most: one is free. A slot written over has had
+ * at least nslots - 1 messages after it, as without holds, and while nobody holds, the spares
+ * are never touched (the memory the ring goes round stays nslots slots, as a cache sees it). */
 static uint32_t claim_slot(marie_shm_writer_t *w)
 {
+    uint32_t *at = &w->slots[w->pos];
+    w->pos = (w->pos + 1) % w->hdr->nslots;
     for (;;) {
-        uint32_t k = w->next;
-        w->next = (k + 1) % nphys(w->hdr);
-        if (held(w, k)) {
-            w->skipped++;
-            continue;
+        uint32_t k = *at;
+        if (!held(w, k)) {
+            slot_hdr_t *s = slot_at(w->base, w->hdr, k);
+            uint64_t was = atomic_load_explicit(&s->seq, memory_order_relaxed);
+            atomic_store(&s->seq, 2 * w->open - 1);
+            if (!held(w, k))
+                return k;
+            atomic_store(&s->seq, was);     /* held meanwhile: its bytes are untouched, as it saw them */
         }
-        slot_hdr_t *s = slot_at(w->base, w->hdr, k);
-        uint64_t was = atomic_load_explicit(&s->seq, memory_order_relaxed);
-        atomic_store(&s->seq, 2 * w->open - 1);
-        if (!held(w, k))
-            return k;
-        atomic_store(&s->seq, was);     /* held meanwhile: its bytes are untouched, as it saw them */
         w->skipped++;
+        uint32_t *spare = &w->slots[w->hdr->nslots + w->spare++ % w->hdr->nholds];
+        *at = *spare;
+        *spare = k;
     }
 }
 
