@@ -68,9 +68,9 @@ struct marie_shm_writer {
     uint64_t seq;
     uint64_t open;              /* the message begun and not committed, or 0 */
     uint32_t slot;              /* its slot */
-    uint32_t pos;               /* the next message's place in the ring, 0 .. nslots - 1 */
     uint32_t spare;             /* the spare to swap in next when a place's slot is held */
-    uint32_t *slots;            /* each place's slot (nslots), then the spare ones (nholds) */
+    uint32_t *slots;            /* each place's slot (message n's place: n % nslots), then the
+                                 * spare ones (nholds) */
     int64_t skipped;            /* slots passed over because a reader held them */
 };
 
@@ -224,18 +224,15 @@ static bool held(const marie_shm_writer_t *w, uint32_t k)
  * are never touched (the memory the ring goes round stays nslots slots, as a cache sees it). */
 static uint32_t claim_slot(marie_shm_writer_t *w)
 {
-    uint32_t *at = &w->slots[w->pos];
-    w->pos = (w->pos + 1) % w->hdr->nslots;
+    uint32_t *at = &w->slots[w->open % w->hdr->nslots];
     for (;;) {
         uint32_t k = *at;
-        if (!held(w, k)) {
-            slot_hdr_t *s = slot_at(w->base, w->hdr, k);
-            uint64_t was = atomic_load_explicit(&s->seq, memory_order_relaxed);
-            atomic_store(&s->seq, 2 * w->open - 1);
-            if (!held(w, k))
-                return k;
-            atomic_store(&s->seq, was);     /* held meanwhile: its bytes are untouched, as it saw them */
-        }
+        slot_hdr_t *s = slot_at(w->base, w->hdr, k);
+        uint64_t was = atomic_load_explicit(&s->seq, memory_order_relaxed);
+        atomic_store(&s->seq, 2 * w->open - 1);
+        if (!held(w, k))
+            return k;
+        atomic_store(&s->seq, was);         /* held: its bytes are untouched, as its reader saw them */
         w->skipped++;
         uint32_t *spare = &w->slots[w->hdr->nslots + w->spare++ % w->hdr->nholds];
         *at = *spare;
@@ -413,11 +410,16 @@ static reader_map_t *map_of(marie_shm_reader_t *r, const char *name)
     return m;
 }
 
-/* The slot holding message seq by the index, when the index still names it: NULL with errno
+/* The slot holding message seq: its place's own slot, as long as no hold moved it (a slot whose
+ * sequence number says seq holds it, whatever the index says, so the index's line is read only
+ * when a spare took the place), else by the index while it still names seq. NULL with errno
  * ESTALE (the index moved past it), `early` (not written yet) or EBADMSG (a slot past the ring). */
 static slot_hdr_t *indexed(const reader_map_t *m, uint64_t seq, int early)
 {
     const shm_hdr_t *h = (const shm_hdr_t *)m->base;
+    slot_hdr_t *own = slot_at(m->base, h, seq % h->nslots);
+    if (atomic_load_explicit(&own->seq, memory_order_acquire) == 2 * seq)
+        return own;
     uint64_t e = atomic_load_explicit(index_at(m->base, h, seq), memory_order_acquire);
     if (e >> SLOT_BITS != seq)
         return marie_fail_null(e >> SLOT_BITS > seq ? ESTALE : early);
