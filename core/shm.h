@@ -79,7 +79,7 @@ bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 const void *marie_shm_hold(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 /* The providers hold messages this large; a smaller one costs less to copy than the hold's
  * stores on a line the writer reads. */
-#define MARIE_SHM_HOLD_MIN (64 * 1024)
+#define MARIE_SHM_HOLD_MIN (4 * 1024)
 void marie_shm_release(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 
 /* Following a writer without notices (the same-host fast path): the newest complete message of
