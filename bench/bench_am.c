@@ -1,11 +1,13 @@
 /* bench_am: marie-am supervision costs: crash-to-respawn latency, heartbeat-loss detection,
  * bring-up of 45 components over 4 managers and on one (on the machine as it is and beside two
- * busy loops of its own, with the manager's timeline from its log), one component's start from
- * its own entry against the whole file, and the idle CPU and RSS of a manager. BENCH_AM_ONLY=respawn|fast|bringup runs one part, BENCH_AM_KEEP=1 keeps the
- * managers' logs and traces. */
+ * busy loops of its own, and by managers restarted on their state directory, with the manager's
+ * timeline from its log), one component's start from its own entry against the whole file, and
+ * the idle CPU and RSS of a manager. BENCH_AM_ONLY=respawn|fast|bringup runs one part,
+ * BENCH_AM_KEEP=1 keeps the managers' logs and traces. */
 #include <errno.h>
 #include <sched.h>
 #include <signal.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -492,29 +494,31 @@ out:
  * running). Rows bringup_45_*_1_host<sfx>: `marie up` until all 45 run; from the manager's
  * debug log, its first to last spawn (c00, c00 running, the 44 that wait for it), the order to
  * the last spawn (what procman's deputy reports as started: a pid), and the last spawn to the
- * last "running" (the 44 programs' own start-ups, as the manager sees them). The number of
- * bring-ups that came up. */
+ * last "running" (the 44 programs' own start-ups, as the manager sees them). warm: each manager
+ * starts on the state directory of the one before (a robot's managers restarted: the programs'
+ * descriptions cached), after one bring-up that is not counted; else each on a new one, so each
+ * checks the programs as a first `up` does. The number of bring-ups that came up. */
 #define BRINGUPS 3
-static int bringup_1_host(const char *sys, const char *sfx, pid_t *a)
+static int bringup_1_host(const char *sys, const char *sfx, bool warm, pid_t *a)
 {
     char state[128], args[256], log[160], name[96];
     snprintf(log, sizeof log, "%s/h1.log", dir);
     snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
     double up[BRINGUPS], spawns[BRINGUPS], to_spawn[BRINGUPS], to_run[BRINGUPS];
     int nup = 0, nlog = 0;
-    for (int r = 0; r < BRINGUPS; r++) {
+    for (int r = warm ? -1 : 0; r < BRINGUPS; r++) {
         if (*a > 0) {
             run_marie("down");
             stop_am(*a);
         }
-        snprintf(state, sizeof state, "%s/up%s%d", dir, sfx, r);
+        snprintf(state, sizeof state, "%s/up%s%d", dir, sfx, warm ? 0 : r);
         write_text(log, "");
         setenv("MARIE_LOG", "debug", 1);
         *a = spawn_am("h1", state);
         unsetenv("MARIE_LOG");
         usleep(300000);
         int64_t u0 = marie_mono_us();
-        if (run_marie(args) != 0)
+        if (run_marie(args) != 0 || r < 0)
             continue;
         up[nup++] = (double)(marie_mono_us() - u0) / 1000.0;
         fprintf(stderr, "bench_am: marie up (45 components, 1 host%s): %.1f ms\n", sfx, up[nup - 1]);
@@ -570,18 +574,19 @@ static void bench_bringup_and_idle(void)
     for (int h = 0; h < 4; h++)
         stop_am(am[h]);
 
-    /* One manager, three bring-ups of all 45 beside two busy loops of the bench's own, then
-     * three on the machine as it is (each by a fresh manager, so each checks the programs as a
-     * first `up` does; the medians), then idle with the last one running. */
+    /* One manager, three bring-ups of all 45 beside two busy loops of the bench's own, three
+     * with the programs' descriptions cached, then three on the machine as it is (the medians),
+     * then idle with the last one running. */
     snprintf(sys, sizeof sys, "%s/one45.yaml", dir);
     write_45(sys, 1);
     bench_component_start(sys);
     pid_t busy[2] = {0};
     pid_t a = 0;
     if (test_busy_start(busy, 2) == 0)
-        bringup_1_host(sys, "_busy", &a);
+        bringup_1_host(sys, "_busy", false, &a);
     test_busy_stop(busy, 2);
-    if (bringup_1_host(sys, "", &a) == BRINGUPS) {
+    bringup_1_host(sys, "_warm", true, &a);
+    if (bringup_1_host(sys, "", false, &a) == BRINGUPS) {
         sleep(2);
         int64_t c0, r0, c1, r1;
         int64_t t0 = marie_mono_us();
