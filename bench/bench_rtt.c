@@ -9,7 +9,9 @@
  * processes on CPUs of their own (as `sched: {cpus: [N]}` puts components); and a plain liblcm
  * program. The marie echoes are components of a system file, which sets their channels, spin
  * and transports as a robot's file would.
- * `bench_rtt echo|echo-lib --system FILE --name NAME` and `bench_rtt echo-raw` are the echoes. */
+ * `bench_rtt echo|echo-lib --system FILE --name NAME` and `bench_rtt echo-raw` are the echoes.
+ * BENCH_RTT_ONLY=NAME[,NAME...] runs those paths alone (names as the echoes': pong, pong-lpin,
+ * ..., raw), to profile one; the others' rows are then empty. */
 #include <poll.h>
 #include <sched.h>
 #include <stdio.h>
@@ -86,6 +88,19 @@ static const char *const pong_port[NPATHS] = {"pong", "pong_lib", NULL, "spin_po
                                               "lspin_pong", "lpin_pong"};
 static bool spins(int path) { return path == SPIN || path == LOCAL_SPIN; }
 
+/* The path is run (BENCH_RTT_ONLY unset, or it names the path). */
+static bool wanted(int path)
+{
+    const char *only = getenv("BENCH_RTT_ONLY");
+    const char *name = echo_names[path] ? echo_names[path] : "raw";
+    if (!only)
+        return true;
+    for (const char *at = strstr(only, name); at; at = strstr(at + 1, name))
+        if ((at == only || at[-1] == ',') && (at[strlen(name)] == ',' || !at[strlen(name)]))
+            return true;
+    return false;
+}
+
 typedef struct {
     int64_t lat[4000];
     int n;
@@ -99,7 +114,17 @@ typedef struct {
     rtt_t path[NPATHS];
     pid_t echo[NPATHS];
     int64_t cpu_ns[NPATHS]; /* CPU of both sides' main threads in the path's blocks */
+    marie_port_t *pong[NPATHS]; /* each path's answers come on this port (found once, not per answer) */
 } pinger_t;
+
+/* The monotonic clock in ns: a round trip on one host takes a few us, which whole us would blur.
+ * The ping carries it in utime, and its echo brings it back. */
+static int64_t mono_ns(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (int64_t)t.tv_sec * 1000000000 + t.tv_nsec;
+}
 
 static void got(rtt_t *r, const marie_image_t *m)
 {
@@ -107,14 +132,14 @@ static void got(rtt_t *r, const marie_image_t *m)
         return;  /* a late echo of an earlier ping */
     r->back = 1;
     if (r->n < (int)(sizeof r->lat / sizeof r->lat[0]))
-        r->lat[r->n++] = marie_mono_us() - m->utime;
+        r->lat[r->n++] = mono_ns() - m->utime;
 }
 
 static void on_pong(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     pinger_t *pg = marie_component_user(c);
     for (int k = 0; k < NPATHS; k++)
-        if (pong_port[k] && marie_port(c, pong_port[k]) == p)
+        if (pg->pong[k] == p)
             got(&pg->path[k], msg);
 }
 
@@ -125,8 +150,10 @@ static void on_raw_pong(const lcm_recv_buf_t *rb, const char *ch, const marie_im
 
 static int ping_init(marie_component_t *c)
 {
+    pinger_t *pg = marie_component_user(c);
     for (int k = 0; k < NPATHS; k++)
-        if (pong_port[k] && marie_port_on_message(marie_port(c, pong_port[k]), on_pong) < 0)
+        if (pong_port[k] && (!(pg->pong[k] = marie_port(c, pong_port[k])) ||
+                             marie_port_on_message(pg->pong[k], on_pong) < 0))
             return -1;
     return 0;
 }
@@ -180,7 +207,7 @@ static int round_trip(pinger_t *pg, int path, marie_image_t *img, int32_t seq, i
     r->want = seq;
     r->back = 0;
     img->row_stride = seq;
-    img->utime = marie_mono_us();
+    img->utime = mono_ns();
     if (path == RAW) {
         marie_image_t_publish(pg->lcm, "RTT_RAW_PING", img);
     } else if (path == LIB_SEND) {
@@ -191,8 +218,8 @@ static int round_trip(pinger_t *pg, int path, marie_image_t *img, int32_t seq, i
     } else {
         marie_port_publish(marie_port(pg->c, ping_port[path]), img);
     }
-    int64_t end = img->utime + timeout_ms * 1000;
-    while (!r->back && marie_mono_us() < end) {
+    int64_t end = img->utime + (int64_t)timeout_ms * 1000000;
+    while (!r->back && mono_ns() < end) {
         if (path != RAW) {
             marie_loop_run_once(marie_component_loop(pg->c), 5);
         } else {
@@ -298,6 +325,8 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
 {
     int lost = 0;
     rtt_t *r = &pg->path[path];
+    if (!wanted(path))
+        return 0;
     if (path == LOCAL_PINNED)
         sched_setaffinity(0, sizeof cpus_pin[0], &cpus_pin[0]);
     marie_loop_set_spin(marie_component_loop(pg->c), spins(path) ? SPIN_US : 0);
@@ -315,7 +344,8 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
     return lost;
 }
 
-static double pct(rtt_t *r, double p) { return bench_percentile(r->lat, r->n, p); }    /* sorts r's samples */
+/* A percentile of r's samples in us (it sorts them). */
+static double pct(rtt_t *r, double p) { return bench_percentile(r->lat, r->n, p) / 1000; }
 
 static void run_size(pinger_t *pg, const char *label, size_t size, int n)
 {

@@ -477,7 +477,6 @@ static int spin_fast(marie_loop_t *loop, size_t n, int64_t now, int64_t until, i
  * CPU after one from its own, spins again within a few waits). */
 #define FAST_PROBE_EVERY 32
 
-static int cmp_gap(const void *a, const void *b) { return *(const int32_t *)a - *(const int32_t *)b; }
 
 /* A CPU's hint that it is spinning (the other hyperthread gets the core meanwhile). */
 static inline void cpu_relax(void)
@@ -495,8 +494,12 @@ static int64_t fast_window(const marie_loop_t *loop)
     if (loop->ngaps < FAST_GAPS)
         return 0;
     int32_t g[FAST_GAPS];
-    memcpy(g, loop->gaps, sizeof g);
-    qsort(g, FAST_GAPS, sizeof g[0], cmp_gap);
+    for (int i = 0; i < FAST_GAPS; i++) {       /* sorted as they come: qsort's calls cost more */
+        int j = i;
+        for (; j > 0 && g[j - 1] > loop->gaps[i]; j--)
+            g[j] = g[j - 1];
+        g[j] = loop->gaps[i];
+    }
     int64_t median = g[FAST_GAPS / 2];
     if (median >= FAST_SPIN_MAX_US)
         return 0;

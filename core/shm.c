@@ -196,7 +196,7 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
         return marie_fail(EMSGSIZE);
     if (!ref)
         return 0;
-    snprintf(ref->segment, sizeof ref->segment, "%s", w->name);
+    memcpy(ref->segment, w->name, sizeof ref->segment);     /* both NUL-terminated, of one size */
     ref->seq = (int64_t)n;
     ref->size = (uint32_t)len;
     return 0;
@@ -356,7 +356,7 @@ int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, ma
     uint64_t size = s->size;
     if (size > h->slot_size)
         return marie_fail(EAGAIN);
-    snprintf(ref->segment, sizeof ref->segment, "%s", segment);
+    memcpy(ref->segment, m->name, sizeof ref->segment);     /* segment's own name, NUL-terminated */
     ref->seq = seq;
     ref->size = (uint32_t)size;
     return 0;

@@ -4,6 +4,8 @@
 
 #include <errno.h>
 #include <pthread.h>
+#include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -53,13 +55,27 @@ static pthread_mutex_t buses_lock = PTHREAD_MUTEX_INITIALIZER;
  * close (they let their subscriptions go and may publish on it). */
 static __thread bus_t *destroying;
 
+/* Each destroy counts here; a thread keeps the last bus it found until the count moves (a
+ * spinning loop asks for its bus every few hundred ns). */
+static _Atomic uint64_t buses_gone;
+static __thread struct {
+    const lcm_t *lcm;
+    bus_t *b;
+    uint64_t gone;
+} last_found;
+
 static bus_t *find(const lcm_t *lcm)
 {
+    uint64_t gone = atomic_load_explicit(&buses_gone, memory_order_acquire);
+    if (last_found.lcm == lcm && last_found.gone == gone && lcm)
+        return last_found.b;
     pthread_mutex_lock(&buses_lock);
     bus_t *b = buses;
     while (b && b->lcm != lcm)
         b = b->next;
     pthread_mutex_unlock(&buses_lock);
+    if (b)
+        last_found.lcm = lcm, last_found.b = b, last_found.gone = gone;
     return b ? b : destroying && destroying->lcm == lcm ? destroying : NULL;
 }
 
@@ -174,6 +190,7 @@ void marie_bus_destroy(lcm_t *lcm)
         if ((*pp)->lcm == lcm) {
             b = *pp;
             *pp = b->next;
+            atomic_fetch_add_explicit(&buses_gone, 1, memory_order_release);
             break;
         }
     pthread_mutex_unlock(&buses_lock);

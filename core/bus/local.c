@@ -144,8 +144,9 @@ static void ring_bells(void *user)
             ch->bell_fd[i] = -1;
         }
         ch->bell_ticket[i] = ticket;
-        char bell[LOCAL_BELL_MAX];
-        snprintf(bell, sizeof bell, "%.*s", (int)sizeof e->bell - 1, e->bell);
+        char bell[LOCAL_BELL_MAX] = "";
+        if (ch->bell_fd[i] < 0)             /* the name only to open it */
+            snprintf(bell, sizeof bell, "%.*s", (int)sizeof e->bell - 1, e->bell);
         local_bell_ring(bell, &ch->bell_fd[i]);
     }
 }

@@ -184,10 +184,11 @@ static void test_readers_killed_or_stalled_harm_nobody(void **state)
     }
     fprintf(stderr, "%d writes of 900 KB with readers killed and stalled; slowest write %lld us\n", written,
             (long long)worst);
+    /* The writer never waits for a reader: one that waited for the stalled reader would hang here,
+     * one that waited 10 ms a write would not make 200 writes in the 2 s. (The slowest write's
+     * time is only printed: on a loaded machine the scheduler alone can hold a copy 200 ms.) */
     assert_true(written > 200);
     assert_int_equal(read_ok, written);
-    /* The writer never waits for a reader: a write is a copy, bounded whatever readers do. */
-    assert_true(worst < 200000);
     int st;
     waitpid(killed, &st, 0);
     assert_true(WIFSIGNALED(st));
