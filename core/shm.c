@@ -60,11 +60,22 @@ typedef struct {
 static uint64_t hold_off(uint64_t nslots) { return ROUND(HDR_SIZE + 8 * nslots, HOLD_ALIGN); }
 static uint64_t slots_off(uint64_t nslots) { return hold_off(nslots) + HOLD_ALIGN; }
 
+/* Where a segment's slots lie: read from its header once, checked (layout_ok) and kept by each
+ * side. The header is the writer's to rewrite and shares its line with write_seq, which changes
+ * at every message: a reader that read these from it at each message would take that line from
+ * the writer's CPU each time, and would follow a header rewritten after the check out of its
+ * mapping. */
+typedef struct {
+    uint64_t slot_size, stride;
+    uint32_t nslots, nholds;
+} geom_t;
+
 struct marie_shm_writer {
     char name[MARIE_SHM_NAME_MAX];
     uint8_t *base;
     size_t len;
     shm_hdr_t *hdr;
+    geom_t g;
     uint64_t seq;
     uint64_t open;              /* the message begun and not committed, or 0 */
     uint32_t slot;              /* its slot */
@@ -78,6 +89,7 @@ typedef struct {
     char name[MARIE_SHM_NAME_MAX];
     const uint8_t *base;
     size_t len;
+    geom_t g;
     uint64_t used;              /* for eviction: the oldest use goes first */
     hold_t *holds;              /* the hold table mapped writable, or NULL: this reader copies */
     int entry;                  /* its entry there, -1 until its first hold */
@@ -88,17 +100,17 @@ struct marie_shm_reader {
     uint64_t uses;
 };
 
-static slot_hdr_t *slot_at(const uint8_t *base, const shm_hdr_t *h, uint64_t i)
+static slot_hdr_t *slot_at(const uint8_t *base, const geom_t *g, uint64_t i)
 {
-    return (slot_hdr_t *)(base + slots_off(h->nslots) + i * h->stride);
+    return (slot_hdr_t *)(base + slots_off(g->nslots) + i * g->stride);
 }
 
-static _Atomic uint64_t *index_at(const uint8_t *base, const shm_hdr_t *h, uint64_t seq)
+static _Atomic uint64_t *index_at(const uint8_t *base, const geom_t *g, uint64_t seq)
 {
-    return (_Atomic uint64_t *)(base + HDR_SIZE) + seq % h->nslots;
+    return (_Atomic uint64_t *)(base + HDR_SIZE) + seq % g->nslots;
 }
 
-static uint32_t nphys(const shm_hdr_t *h) { return h->nslots + h->nholds; }
+static uint32_t nphys(const geom_t *g) { return g->nslots + g->nholds; }
 
 static int segment_name(char *out, size_t cap, const char *channel, pid_t pid)
 {
@@ -170,11 +182,12 @@ marie_shm_writer_t *marie_shm_writer_create(const char *channel, size_t slot_siz
         goto err_unlink;
     close(fd);
     w->hdr = (shm_hdr_t *)w->base;
+    w->g = (geom_t){slot_size, stride, (uint32_t)nslots, HOLDS};
     w->hdr->slot_size = slot_size;
     w->hdr->stride = stride;
     w->hdr->nslots = (uint32_t)nslots;
     w->hdr->nholds = HOLDS;
-    for (uint32_t i = 0; i < nphys(w->hdr); i++)
+    for (uint32_t i = 0; i < nphys(&w->g); i++)
         w->slots[i] = i;
     w->hdr->pid = (int32_t)getpid();
     w->hdr->version = SHM_VERSION;
@@ -208,8 +221,8 @@ const char *marie_shm_writer_segment(const marie_shm_writer_t *w) { return w->na
  * a reader that stored its hold before sees the slot odd afterwards, or the writer sees it. */
 static bool held(const marie_shm_writer_t *w, uint32_t k)
 {
-    const hold_t *t = (const hold_t *)(w->base + hold_off(w->hdr->nslots));
-    for (uint32_t i = 0; i < w->hdr->nholds; i++) {
+    const hold_t *t = (const hold_t *)(w->base + hold_off(w->g.nslots));
+    for (uint32_t i = 0; i < w->g.nholds; i++) {
         uint64_t v = atomic_load(&t[i].held);
         if (v && (v & ((1u << SLOT_BITS) - 1)) == k)
             return true;
@@ -224,17 +237,17 @@ static bool held(const marie_shm_writer_t *w, uint32_t k)
  * are never touched (the memory the ring goes round stays nslots slots, as a cache sees it). */
 static uint32_t claim_slot(marie_shm_writer_t *w)
 {
-    uint32_t *at = &w->slots[w->open % w->hdr->nslots];
+    uint32_t *at = &w->slots[w->open % w->g.nslots];
     for (;;) {
         uint32_t k = *at;
-        slot_hdr_t *s = slot_at(w->base, w->hdr, k);
+        slot_hdr_t *s = slot_at(w->base, &w->g, k);
         uint64_t was = atomic_load_explicit(&s->seq, memory_order_relaxed);
         atomic_store(&s->seq, 2 * w->open - 1);
         if (!held(w, k))
             return k;
         atomic_store(&s->seq, was);         /* held: its bytes are untouched, as its reader saw them */
         w->skipped++;
-        uint32_t *spare = &w->slots[w->hdr->nslots + w->spare++ % w->hdr->nholds];
+        uint32_t *spare = &w->slots[w->g.nslots + w->spare++ % w->g.nholds];
         *at = *spare;
         *spare = k;
     }
@@ -252,7 +265,7 @@ void *marie_shm_begin(marie_shm_writer_t *w)
 
 void *marie_shm_begun(const marie_shm_writer_t *w)
 {
-    return w->open ? (uint8_t *)slot_at(w->base, w->hdr, w->slot) + DATA_OFF : NULL;
+    return w->open ? (uint8_t *)slot_at(w->base, &w->g, w->slot) + DATA_OFF : NULL;
 }
 
 int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
@@ -261,11 +274,11 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
         return marie_fail(EINVAL);
     uint64_t n = w->open;
     w->open = 0;
-    slot_hdr_t *s = slot_at(w->base, w->hdr, w->slot);
-    bool fits = len <= w->hdr->slot_size;
+    slot_hdr_t *s = slot_at(w->base, &w->g, w->slot);
+    bool fits = len <= w->g.slot_size;
     s->size = fits ? len : 0;
     atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
-    atomic_store_explicit(index_at(w->base, w->hdr, n), n << SLOT_BITS | w->slot, memory_order_release);
+    atomic_store_explicit(index_at(w->base, &w->g, n), n << SLOT_BITS | w->slot, memory_order_release);
     atomic_store_explicit(&w->hdr->write_seq, n, memory_order_release);
     if (!fits)
         return marie_fail(EMSGSIZE);
@@ -279,11 +292,11 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
 
 int64_t marie_shm_writer_skipped(const marie_shm_writer_t *w) { return w->skipped; }
 
-size_t marie_shm_slot_size(const marie_shm_writer_t *w) { return w->hdr->slot_size; }
+size_t marie_shm_slot_size(const marie_shm_writer_t *w) { return w->g.slot_size; }
 
 int marie_shm_write_with(marie_shm_writer_t *w, size_t len, marie_shm_fill_t fill, void *user, marie_shm_ref_t *ref)
 {
-    if (len > w->hdr->slot_size)
+    if (len > w->g.slot_size)
         return marie_fail(EMSGSIZE);
     if (fill(marie_shm_begin(w), len, user) < 0) {
         marie_shm_commit(w, 0, NULL);
@@ -341,23 +354,25 @@ static bool valid_name(const char *s)
 }
 
 /* Nothing in the header is trusted: the index, the hold table and every slot must lie inside
- * the file, the slots aligned as the writer lays them out (their seq is read atomically). */
-static bool layout_ok(const shm_hdr_t *h, uint64_t size)
+ * the file, the slots aligned as the writer lays them out (their seq is read atomically). The
+ * fields are read once, into *g, and the copy is what is checked and used from then on. */
+static bool layout_ok(const volatile shm_hdr_t *h, uint64_t size, geom_t *g)
 {
-    if (h->magic != SHM_MAGIC || h->version != SHM_VERSION || h->nslots < 2 || h->nslots > 1024 ||
-        h->nholds > HOLD_ALIGN / sizeof(hold_t) || h->slot_size == 0 || h->stride < DATA_OFF + h->slot_size ||
-        h->stride % ALIGN != 0 || size < slots_off(h->nslots))
+    *g = (geom_t){h->slot_size, h->stride, h->nslots, h->nholds};
+    if (h->magic != SHM_MAGIC || h->version != SHM_VERSION || g->nslots < 2 || g->nslots > 1024 ||
+        g->nholds > HOLD_ALIGN / sizeof(hold_t) || g->slot_size == 0 || g->stride < DATA_OFF + g->slot_size ||
+        g->stride % ALIGN != 0 || size < slots_off(g->nslots))
         return false;
-    return h->stride <= (size - slots_off(h->nslots)) / nphys(h);
+    return g->stride <= (size - slots_off(g->nslots)) / nphys(g);
 }
 
 /* The segment's hold table, mapped writable (the rest stays read-only), or NULL: this reader
  * cannot hold (the file is not writable for it) and copies. */
-static hold_t *map_holds(int fd, const shm_hdr_t *h)
+static hold_t *map_holds(int fd, const geom_t *g)
 {
-    if (h->nholds == 0)
+    if (g->nholds == 0)
         return NULL;
-    void *t = mmap(NULL, HOLD_ALIGN, PROT_READ | PROT_WRITE, MAP_SHARED, fd, (off_t)hold_off(h->nslots));
+    void *t = mmap(NULL, HOLD_ALIGN, PROT_READ | PROT_WRITE, MAP_SHARED, fd, (off_t)hold_off(g->nslots));
     return t == MAP_FAILED ? NULL : t;
 }
 
@@ -390,11 +405,12 @@ static reader_map_t *map_of(marie_shm_reader_t *r, const char *name)
     void *base = MAP_FAILED;
     if (fstat(fd, &st) == 0 && (size_t)st.st_size >= HDR_SIZE)
         base = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_SHARED, fd, 0);
-    if (base != MAP_FAILED && !layout_ok(base, (uint64_t)st.st_size)) {
+    geom_t g;
+    if (base != MAP_FAILED && !layout_ok(base, (uint64_t)st.st_size, &g)) {
         munmap(base, (size_t)st.st_size);
         base = MAP_FAILED;
     }
-    hold_t *holds = base != MAP_FAILED ? map_holds(fd, base) : NULL;
+    hold_t *holds = base != MAP_FAILED ? map_holds(fd, &g) : NULL;
     close(fd);
     if (base == MAP_FAILED)
         return marie_fail_null(EBADMSG);
@@ -404,6 +420,7 @@ static reader_map_t *map_of(marie_shm_reader_t *r, const char *name)
     snprintf(m->name, sizeof m->name, "%s", name);
     m->base = base;
     m->len = (size_t)st.st_size;
+    m->g = g;
     m->used = ++r->uses;
     m->holds = holds;
     m->entry = -1;
@@ -416,23 +433,22 @@ static reader_map_t *map_of(marie_shm_reader_t *r, const char *name)
  * ESTALE (the index moved past it), `early` (not written yet) or EBADMSG (a slot past the ring). */
 static slot_hdr_t *indexed(const reader_map_t *m, uint64_t seq, int early)
 {
-    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
-    slot_hdr_t *own = slot_at(m->base, h, seq % h->nslots);
+    const geom_t *g = &m->g;
+    slot_hdr_t *own = slot_at(m->base, g, seq % g->nslots);
     if (atomic_load_explicit(&own->seq, memory_order_acquire) == 2 * seq)
         return own;
-    uint64_t e = atomic_load_explicit(index_at(m->base, h, seq), memory_order_acquire);
+    uint64_t e = atomic_load_explicit(index_at(m->base, g, seq), memory_order_acquire);
     if (e >> SLOT_BITS != seq)
         return marie_fail_null(e >> SLOT_BITS > seq ? ESTALE : early);
     uint64_t k = e & ((1u << SLOT_BITS) - 1);
-    if (k >= nphys(h))
+    if (k >= nphys(g))
         return marie_fail_null(EBADMSG);
-    return slot_at(m->base, h, k);
+    return slot_at(m->base, g, k);
 }
 
 /* The slot of ref, when it still holds that message (s1 = its sequence number). */
 static slot_hdr_t *slot_in(reader_map_t *m, const marie_shm_ref_t *ref, uint64_t *s1)
 {
-    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
     slot_hdr_t *s = indexed(m, (uint64_t)ref->seq, EBADMSG);
     if (!s)
         return NULL;
@@ -440,7 +456,7 @@ static slot_hdr_t *slot_in(reader_map_t *m, const marie_shm_ref_t *ref, uint64_t
     *s1 = atomic_load_explicit(&s->seq, memory_order_acquire);
     if (*s1 != want)
         return marie_fail_null(*s1 > want ? ESTALE : EBADMSG);
-    if (s->size > h->slot_size || s->size != ref->size)
+    if (s->size > m->g.slot_size || s->size != ref->size)
         return marie_fail_null(EAGAIN);     /* a size being rewritten: the slot moved on */
     return s;
 }
@@ -468,9 +484,8 @@ static const slot_hdr_t *held_slot(marie_shm_reader_t *r, const marie_shm_ref_t 
         if (!m->base || !m->holds || m->entry < 0 || strcmp(m->name, ref->segment) != 0)
             continue;
         uint64_t v = atomic_load(&m->holds[m->entry].held);
-        const shm_hdr_t *h = (const shm_hdr_t *)m->base;
-        if (v && v >> SLOT_BITS == (uint64_t)ref->seq && (v & ((1u << SLOT_BITS) - 1)) < nphys(h))
-            return slot_at(m->base, h, v & ((1u << SLOT_BITS) - 1));
+        if (v && v >> SLOT_BITS == (uint64_t)ref->seq && (v & ((1u << SLOT_BITS) - 1)) < nphys(&m->g))
+            return slot_at(m->base, &m->g, v & ((1u << SLOT_BITS) - 1));
     }
     return NULL;
 }
@@ -489,10 +504,9 @@ bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref)
  * its hold is let go with it). -1 with errno EBUSY when every entry is a live reader's. */
 static int claim_entry(reader_map_t *m)
 {
-    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
     int32_t me = (int32_t)getpid();
     for (int pass = 0; pass < 2; pass++)
-        for (uint32_t i = 0; i < h->nholds; i++) {
+        for (uint32_t i = 0; i < m->g.nholds; i++) {
             int32_t pid = atomic_load(&m->holds[i].pid);
             if (pass == 1 && pid > 0 && pid != me && kill(pid, 0) < 0 && errno == ESRCH &&
                 atomic_compare_exchange_strong(&m->holds[i].pid, &pid, me)) {
@@ -521,8 +535,7 @@ const void *marie_shm_hold(marie_shm_reader_t *r, const marie_shm_ref_t *ref)
     slot_hdr_t *s = slot_in(m, ref, &s1);
     if (!s)
         return NULL;
-    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
-    uint64_t k = (uint64_t)((const uint8_t *)s - (m->base + slots_off(h->nslots))) / h->stride;
+    uint64_t k = (uint64_t)((const uint8_t *)s - (m->base + slots_off(m->g.nslots))) / m->g.stride;
     /* The hold first, then the slot looked at again (both seq_cst): the writer marks a slot odd
      * before it looks at the holds, so one of the two sees the other. */
     atomic_store(&m->holds[m->entry].held, (uint64_t)ref->seq << SLOT_BITS | k);
@@ -557,7 +570,6 @@ int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, ma
     const reader_map_t *m = map_of(r, segment);
     if (!m)
         return -1;
-    const shm_hdr_t *h = (const shm_hdr_t *)m->base;
     slot_hdr_t *s = indexed(m, (uint64_t)seq, EAGAIN);
     if (!s)
         return -1;
@@ -565,7 +577,7 @@ int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, ma
     if (s1 != want)
         return marie_fail(s1 > want ? ESTALE : EAGAIN);
     uint64_t size = s->size;
-    if (size > h->slot_size)
+    if (size > m->g.slot_size)
         return marie_fail(EAGAIN);
     memcpy(ref->segment, m->name, sizeof ref->segment);     /* segment's own name, NUL-terminated */
     ref->seq = seq;
@@ -579,7 +591,7 @@ int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *
     slot_hdr_t *s = slot_of(r, ref, &s1);
     if (!s)
         return -1;
-    uint64_t size = s->size;
+    uint64_t size = ref->size;      /* the slot's, as slot_of found it: read there again, it could have grown */
     if (size > cap)
         return marie_fail(EMSGSIZE);
     memcpy(buf, (const uint8_t *)s + DATA_OFF, size);

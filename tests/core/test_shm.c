@@ -11,6 +11,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -428,6 +430,47 @@ static void test_killed_or_stopped_holders_do_not_stop_the_writer(void **state)
     free(out);
 }
 
+/* A writer that rewrites its header after a reader checked it (a bug, a process of the same user)
+ * cannot send the reader outside its mapping: the reader keeps the layout it checked. */
+static void test_a_header_rewritten_after_the_check_is_not_followed(void **state)
+{
+    enum { N = 4096 };
+    marie_shm_writer_t *w = marie_shm_writer_create("REWRITE", N, 4);
+    assert_non_null(w);
+    uint8_t in[N], out[N];
+    marie_shm_ref_t ref;
+    fill(in, N, 1);
+    assert_int_equal(marie_shm_write(w, in, N, &ref), 0);
+    marie_shm_reader_t *r = marie_shm_reader_create();
+    assert_int_equal(marie_shm_read(r, &ref, out, N), N);      /* mapped and checked */
+    char path[256];
+    snprintf(path, sizeof path, "/dev/shm/%s", ref.segment);
+    int fd = open(path, O_RDWR);
+    assert_true(fd >= 0);
+    uint8_t *h = mmap(NULL, 4096, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    assert_true(h != MAP_FAILED);
+    close(fd);
+    /* stride and nslots, at the offsets core/shm.c gives them in the header */
+    uint64_t stride = (uint64_t)1 << 40;
+    uint32_t nslots = 1000;
+    memcpy(h + 16, &stride, sizeof stride);
+    memcpy(h + 24, &nslots, sizeof nslots);
+    for (uint64_t seq = 2; seq < 12; seq++) {
+        fill(in, N, seq);
+        assert_int_equal(marie_shm_write(w, in, N, &ref), 0);
+        uint64_t got;
+        assert_int_equal(marie_shm_read(r, &ref, out, N), N);
+        assert_true(intact(out, N, &got));
+        assert_int_equal(got, seq);
+        marie_shm_ref_t at;
+        assert_int_equal(marie_shm_ref_at(r, ref.segment, (int64_t)seq, &at), 0);
+        assert_non_null(marie_shm_peek(r, &at));
+    }
+    munmap(h, 4096);
+    marie_shm_reader_destroy(r);
+    marie_shm_writer_destroy(w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -438,6 +481,7 @@ int main(void)
         cmocka_unit_test(test_three_readers_30hz_no_loss),
         cmocka_unit_test(test_a_held_slot_outlives_laps),
         cmocka_unit_test(test_killed_or_stopped_holders_do_not_stop_the_writer),
+        cmocka_unit_test(test_a_header_rewritten_after_the_check_is_not_followed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
