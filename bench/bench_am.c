@@ -1,11 +1,13 @@
 /* bench_am: marie-am supervision costs: crash-to-respawn latency, heartbeat-loss detection,
- * bring-up of 45 components over 4 managers and on one (with its first to last spawn), one
- * component's start from its own entry against the whole file, and the idle CPU and RSS of a
- * manager. BENCH_AM_ONLY=respawn|fast|bringup runs one part, BENCH_AM_KEEP=1 keeps the
- * managers' logs and traces. */
+ * bring-up of 45 components over 4 managers and on one (on the machine as it is and beside two
+ * busy loops of its own, and by managers restarted on their state directory, with the manager's
+ * timeline from its log), one component's start from its own entry against the whole file, and
+ * the idle CPU and RSS of a manager. BENCH_AM_ONLY=respawn|fast|bringup runs one part,
+ * BENCH_AM_KEEP=1 keeps the managers' logs and traces. */
 #include <errno.h>
 #include <sched.h>
 #include <signal.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -376,25 +378,42 @@ static void write_45(const char *path, int nhosts)
     fclose(f);
 }
 
-/* From marie-am's debug log: the first "spawned pid" line to the last, in ms (the log's
- * resolution); -1 without two. c00's spawn, c00 running, then the 44 that wait for it. */
-static double first_to_last_spawn(const char *log)
+/* A bring-up as marie-am's debug log tells it, in ms of the log's clock (-1: not seen): the
+ * order, the first and the last "spawned pid", the last "starting -> running". */
+typedef struct {
+    long order, first_spawn, last_spawn, last_running;
+} timeline_t;
+
+static long log_ms(const char *line, long since)
 {
-    FILE *f = fopen(log, "r");
-    if (!f)
+    int h, m, sec, ms;
+    if (sscanf(line, "%d:%d:%d.%d", &h, &m, &sec, &ms) != 4)
         return -1;
+    long t = ((h * 60L + m) * 60 + sec) * 1000 + ms;
+    return since >= 0 && t < since ? t + 86400000L : t;      /* past midnight */
+}
+
+static timeline_t read_timeline(const char *log)
+{
+    timeline_t tl = {-1, -1, -1, -1};
+    FILE *f = fopen(log, "r");
     char line[512];
-    int h, m, sec, ms, n = 0;
-    long first = 0, last = 0;
-    while (fgets(line, sizeof line, f))
-        if (strstr(line, "spawned pid") && sscanf(line, "%d:%d:%d.%d", &h, &m, &sec, &ms) == 4) {
-            long t = ((h * 60L + m) * 60 + sec) * 1000 + ms;
-            if (n++ == 0)
-                first = t;
-            last = t < first ? t + 86400000L : t;      /* past midnight */
-        }
-    fclose(f);
-    return n >= 2 ? (double)(last - first) : -1;
+    while (f && fgets(line, sizeof line, f)) {
+        long t = log_ms(line, tl.order);
+        if (t < 0)
+            continue;
+        if (strstr(line, "order up from") && tl.order < 0)
+            tl.order = t;
+        else if (strstr(line, "spawned pid")) {
+            if (tl.first_spawn < 0)
+                tl.first_spawn = t;
+            tl.last_spawn = t;
+        } else if (strstr(line, "starting -> running"))
+            tl.last_running = t;
+    }
+    if (f)
+        fclose(f);
+    return tl;
 }
 
 /* One start of a component of the 45-component file (c17, marie-test-comp), from before the
@@ -471,6 +490,60 @@ out:
     free(text);
 }
 
+/* BRINGUPS bring-ups of the 45 components on one manager, each by a fresh one (*a: the last, left
+ * running). Rows bringup_45_*_1_host<sfx>: `marie up` until all 45 run; from the manager's
+ * debug log, its first to last spawn (c00, c00 running, the 44 that wait for it), the order to
+ * the last spawn (what procman's deputy reports as started: a pid), and the last spawn to the
+ * last "running" (the 44 programs' own start-ups, as the manager sees them). warm: each manager
+ * starts on the state directory of the one before (a robot's managers restarted: the programs'
+ * descriptions cached), after one bring-up that is not counted; else each on a new one, so each
+ * checks the programs as a first `up` does. The number of bring-ups that came up. */
+#define BRINGUPS 3
+static int bringup_1_host(const char *sys, const char *sfx, bool warm, pid_t *a)
+{
+    char state[128], args[256], log[160], name[96];
+    snprintf(log, sizeof log, "%s/h1.log", dir);
+    snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
+    double up[BRINGUPS], spawns[BRINGUPS], to_spawn[BRINGUPS], to_run[BRINGUPS];
+    int nup = 0, nlog = 0;
+    for (int r = warm ? -1 : 0; r < BRINGUPS; r++) {
+        if (*a > 0) {
+            run_marie("down");
+            stop_am(*a);
+        }
+        snprintf(state, sizeof state, "%s/up%s%d", dir, sfx, warm ? 0 : r);
+        write_text(log, "");
+        setenv("MARIE_LOG", "debug", 1);
+        *a = spawn_am("h1", state);
+        unsetenv("MARIE_LOG");
+        usleep(300000);
+        int64_t u0 = marie_mono_us();
+        if (run_marie(args) != 0 || r < 0)
+            continue;
+        up[nup++] = (double)(marie_mono_us() - u0) / 1000.0;
+        fprintf(stderr, "bench_am: marie up (45 components, 1 host%s): %.1f ms\n", sfx, up[nup - 1]);
+        timeline_t tl = read_timeline(log);
+        if (tl.order >= 0 && tl.first_spawn >= 0 && tl.last_spawn > tl.first_spawn && tl.last_running >= 0) {
+            spawns[nlog] = (double)(tl.last_spawn - tl.first_spawn);
+            to_spawn[nlog] = (double)(tl.last_spawn - tl.order);
+            to_run[nlog++] = (double)(tl.last_running - tl.last_spawn);
+        }
+    }
+    if (nup == BRINGUPS) {
+        snprintf(name, sizeof name, "bringup_45_components_1_host%s", sfx);
+        row(name, pct(up, nup, 0.5), "ms");
+    }
+    if (nlog > 0) {
+        snprintf(name, sizeof name, "bringup_45_first_to_last_spawn_1_host%s", sfx);
+        row(name, pct(spawns, nlog, 0.5), "ms");
+        snprintf(name, sizeof name, "bringup_45_order_to_last_spawn_1_host%s", sfx);
+        row(name, pct(to_spawn, nlog, 0.5), "ms");
+        snprintf(name, sizeof name, "bringup_45_last_spawn_to_all_running_1_host%s", sfx);
+        row(name, pct(to_run, nlog, 0.5), "ms");
+    }
+    return nup;
+}
+
 static void bench_bringup_and_idle(void)
 {
     char sys[128], state[128], args[256];
@@ -501,42 +574,19 @@ static void bench_bringup_and_idle(void)
     for (int h = 0; h < 4; h++)
         stop_am(am[h]);
 
-    /* One manager, three bring-ups of all 45 (each by a fresh manager, so each checks the
-     * programs as a first `up` does; the medians), then idle with the last one running; its
-     * debug log times the spawns. */
+    /* One manager, three bring-ups of all 45 beside two busy loops of the bench's own, three
+     * with the programs' descriptions cached, then three on the machine as it is (the medians),
+     * then idle with the last one running. */
     snprintf(sys, sizeof sys, "%s/one45.yaml", dir);
     write_45(sys, 1);
     bench_component_start(sys);
-    char log[160];
-    snprintf(log, sizeof log, "%s/h1.log", dir);
-    snprintf(args, sizeof args, "up %s --wait-timeout 30", sys);
-    double up_ms[3], spawn_ms[3];
-    int nup = 0, nspawn = 0;
+    pid_t busy[2] = {0};
     pid_t a = 0;
-    for (int r = 0; r < 3; r++) {
-        if (a > 0) {
-            run_marie("down");
-            stop_am(a);
-        }
-        snprintf(state, sizeof state, "%s/idle%d", dir, r);
-        write_text(log, "");
-        setenv("MARIE_LOG", "debug", 1);
-        a = spawn_am("h1", state);
-        unsetenv("MARIE_LOG");
-        usleep(300000);
-        int64_t u0 = marie_mono_us();
-        if (run_marie(args) != 0)
-            continue;
-        /* c00 first, the 44 that depend on it once it runs, then until every one runs */
-        up_ms[nup++] = (double)(marie_mono_us() - u0) / 1000.0;
-        fprintf(stderr, "bench_am: marie up (45 components, 1 host): %.1f ms\n", up_ms[nup - 1]);
-        if ((spawn_ms[nspawn] = first_to_last_spawn(log)) >= 0)
-            nspawn++;
-    }
-    if (nup == 3) {
-        row("bringup_45_components_1_host", pct(up_ms, nup, 0.5), "ms");
-        if (nspawn > 0)
-            row("bringup_45_first_to_last_spawn_1_host", pct(spawn_ms, nspawn, 0.5), "ms");
+    if (test_busy_start(busy, 2) == 0)
+        bringup_1_host(sys, "_busy", false, &a);
+    test_busy_stop(busy, 2);
+    bringup_1_host(sys, "_warm", true, &a);
+    if (bringup_1_host(sys, "", false, &a) == BRINGUPS) {
         sleep(2);
         int64_t c0, r0, c1, r1;
         int64_t t0 = marie_mono_us();

@@ -23,14 +23,15 @@ static void bad_payload(marie_port_t *p, const char *why, size_t len)
                               p->channel, p->spec->type->name);
 }
 
-/* Hands the message decoded in p->scratch to the handler, then frees what decoding made. */
-static void hand_over(marie_port_t *p, const marie_msg_info_t *info)
+/* Hands the message decoded in p->scratch to the handler, then frees what decoding made
+ * (viewed: marie_decode_view() said its tail points into the bytes). */
+static void hand_over(marie_port_t *p, const marie_msg_info_t *info, int viewed)
 {
     marie_component_t *c = p->c;
     c->msgs_in++;
     p->msgs++;
     p->cb(c, p, p->scratch, info);
-    p->spec->type->decode_cleanup(p->scratch);
+    marie_decode_cleanup_view(p->spec->type, p->scratch, viewed);
 }
 
 /* Decodes a payload for port p; on success calls the handler. Returns 0 or -1 (counted). */
@@ -50,7 +51,7 @@ static int deliver(marie_port_t *p, const void *data, size_t len, int64_t recv_u
         bad_payload(p, why, len);
         return -1;
     }
-    hand_over(p, &info);
+    hand_over(p, &info, 0);
     return 0;
 }
 
@@ -118,10 +119,29 @@ static void on_shm_in_place(const lcm_recv_buf_t *rbuf, const char *channel, voi
     marie_port_t *p = user;
     p->peek.len = rbuf->data_size;
     p->peek.decoded = p->peek.queued = false;
+    p->peek.viewed = 0;
+    p->peek.data = NULL;
     if (p->c->state != MARIE_STATE_RUNNING || !p->cb)
         p->peek.queued = port_receive(p, rbuf->data, rbuf->data_size, rbuf->recv_utime);
     else
         p->peek.decoded = marie_decode_input(p->spec->type, rbuf->data, rbuf->data_size, p->scratch, &p->peek.why) == 0;
+}
+
+/* The same, the slot held by the ring until the verdict returns: the message's tail (an image's
+ * pixels) is not copied but points into the slot while the handler runs, and its bytes are
+ * the handler's raw ones. A port not running keeps a copy, as above. */
+static void on_shm_held(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    marie_port_t *p = user;
+    if (p->c->state != MARIE_STATE_RUNNING || !p->cb) {
+        on_shm_in_place(rbuf, channel, user);
+        return;
+    }
+    p->peek.len = rbuf->data_size;
+    p->peek.queued = false;
+    p->peek.data = rbuf->data;
+    p->peek.viewed = marie_decode_view(p->spec->type, rbuf->data, rbuf->data_size, p->scratch, &p->peek.why);
+    p->peek.decoded = p->peek.viewed >= 0;
 }
 
 static void on_shm_verdict(bool intact, void *user)
@@ -129,20 +149,23 @@ static void on_shm_verdict(bool intact, void *user)
     marie_port_t *p = user;
     if (!intact) {
         if (p->peek.decoded)
-            p->spec->type->decode_cleanup(p->scratch);
+            marie_decode_cleanup_view(p->spec->type, p->scratch, p->peek.viewed);
         else if (p->peek.queued)
             free(p->queue[--p->nqueue].data);
         return;
     }
-    if (p->peek.queued || p->c->state != MARIE_STATE_RUNNING || !p->cb)
+    if (p->peek.queued || p->c->state != MARIE_STATE_RUNNING || !p->cb) {
+        if (p->peek.decoded)        /* stopped by another subscription's handler meanwhile */
+            marie_decode_cleanup_view(p->spec->type, p->scratch, p->peek.viewed);
         return;
+    }
     if (!p->peek.decoded) {
         bad_payload(p, p->peek.why, p->peek.len);
         return;
     }
-    /* raw stays NULL: the bytes are the writer's again once they were decoded. */
-    marie_msg_info_t info = {p->channel, marie_wall_us(), NULL, 0};
-    hand_over(p, &info);
+    /* raw stays NULL unless the slot is held: else the bytes are the writer's again by now. */
+    marie_msg_info_t info = {p->channel, marie_wall_us(), p->peek.data, p->peek.data ? p->peek.len : 0};
+    hand_over(p, &info, p->peek.viewed);
 }
 
 void marie_comp_count_shm_losses(marie_component_t *c)
@@ -313,7 +336,7 @@ int marie_port_on_message(marie_port_t *p, marie_msg_cb_t cb)
     p->cb = cb;
     if (!p->sub)        /* typed messages in shared memory are decoded where they lie */
         p->sub = p->shm && p->spec->type ? marie_bus_subscribe_in_place(p->lcm, p->channel, on_shm_in_place,
-                                                                         on_shm_verdict, p)
+                                                                         on_shm_held, on_shm_verdict, p)
                                          : marie_bus_subscribe(p->lcm, p->channel, on_port_message, p);
     return p->sub ? 0 : marie_fail(EIO);
 }

@@ -57,6 +57,8 @@ struct marie_port {
     size_t loan_cap;
     struct {                    /* a message read in place, until the ring's verdict */
         bool decoded, queued;
+        int viewed;             /* marie_decode_view(): the tail points into the held slot */
+        const void *data;       /* the held slot's bytes, or NULL */
         const char *why;        /* why it did not decode */
         size_t len;
     } peek;

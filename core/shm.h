@@ -11,10 +11,12 @@ extern "C" {
 #endif
 
 /* One writer per channel owns a segment /dev/shm/marie-shm.<channel>.<pid>: a ring of
- * `nslots` slots of `slot_size` bytes, each guarded by a sequence number (a seqlock). Readers
- * map it read-only, so a reader that crashes or stalls can neither block nor corrupt the writer
- * or the other readers: a slot overwritten while a reader copies it is detected and counted,
- * never delivered torn. The memory is fixed at creation; the writer unlinks its segment when it
+ * `nslots` messages of `slot_size` bytes, each slot guarded by a sequence number (a seqlock).
+ * Readers map it read-only, so a reader that crashes or stalls can neither block nor corrupt the
+ * writer or the other readers: a slot overwritten while a reader copies it is detected and
+ * counted, never delivered torn. A few readers at once (4) may also hold the slot they read in
+ * place: their page of the segment, a table of holds, is the only one they map writable; the
+ * writer skips held slots (it has as many spare ones) and never waits. The memory is fixed at creation; the writer unlinks its segment when it
  * is destroyed, and a writer's creation removes segments left by dead processes. See
  * docs/transport.md. */
 
@@ -50,6 +52,7 @@ void *marie_shm_begin(marie_shm_writer_t *w);
 void *marie_shm_begun(const marie_shm_writer_t *w);     /* what begin gave, or NULL: nothing begun */
 int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref);
 size_t marie_shm_slot_size(const marie_shm_writer_t *w);
+int64_t marie_shm_writer_skipped(const marie_shm_writer_t *w);   /* slots passed over: held */
 const char *marie_shm_writer_segment(const marie_shm_writer_t *w);
 
 marie_shm_reader_t *marie_shm_reader_create(void);
@@ -66,6 +69,18 @@ int64_t marie_shm_read(marie_shm_reader_t *r, const marie_shm_ref_t *ref, void *
  * was made of them when it says no. */
 const void *marie_shm_peek(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 bool marie_shm_still_valid(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
+
+/* In place and held: the message's bytes inside the mapping, which the writer does not write
+ * over until marie_shm_release() (it skips the slot meanwhile: a reader stopped while it holds
+ * costs the writer one slot, and one killed gives it back when another reader needs its entry).
+ * One message held at a time per reader and segment. NULL with errno as marie_shm_peek(), or
+ * EBUSY: this reader holds one already, every entry is a live reader's, or it may not write the
+ * segment; then peek or copy. */
+const void *marie_shm_hold(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
+/* The providers hold messages this large; a smaller one costs less to copy than the hold's
+ * stores on a line the writer reads. */
+#define MARIE_SHM_HOLD_MIN (4 * 1024)
+void marie_shm_release(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
 
 /* Following a writer without notices (the same-host fast path): the newest complete message of
  * a segment (0: none yet), or -1 with errno as marie_shm_read() says; and the ref of message

@@ -336,6 +336,29 @@ int marie_typeinfo_check(const marie_typeinfo_t *t, const void *buf, size_t len)
     return marie_typeinfo_check_flags(t, buf, len, 0);
 }
 
+#define DECODE_VIEW 0x100     /* beside MARIE_CHECK_FINITE */
+#define VIEW_HEAD_MAX 256
+
+/* A checked payload of a type with a tail (marie_typeinfo_tail): lcm-gen's decoder runs on its
+ * head alone, the array's length there set to 0, and the array's pointer then aims into buf.
+ * 1 when done so, 0 for a type of another shape (decode it whole), -1 with errno EBADMSG. */
+static int decode_view(const marie_type_t *t, const uint8_t *buf, void *out)
+{
+    marie_tail_t tl;
+    if (marie_typeinfo_tail(marie_typeinfo_by_fingerprint(t->hash()), &tl) < 0 || tl.wire_off > VIEW_HEAD_MAX)
+        return 0;
+    uint8_t head[VIEW_HEAD_MAX];
+    memcpy(head, buf, tl.wire_off);
+    memset(head + tl.len_wire_off, 0, 4);
+    if (t->decode(head, 0, (int)tl.wire_off, out) != (int)tl.wire_off)
+        return marie_fail(EBADMSG);
+    int32_t n = (int32_t)marie_wire_int(buf + tl.len_wire_off, 4);
+    const uint8_t *at = buf + tl.wire_off;
+    memcpy((uint8_t *)out + tl.len_off, &n, sizeof n);
+    memcpy((uint8_t *)out + tl.ptr_off, &at, sizeof at);
+    return 1;
+}
+
 /* The one place in marie where lcm-gen's decoder runs on bytes from outside the process
  * (tests/core/test_decode_rule.sh keeps it so). */
 static int decode(const marie_type_t *t, const void *buf, size_t len, void *out, int flags, const char **why)
@@ -347,12 +370,17 @@ static int decode(const marie_type_t *t, const void *buf, size_t len, void *out,
         return marie_fail(EBADMSG);
     *why = "bad_payload";
     int rc = len > INT32_MAX ? marie_fail(EBADMSG)
-                             : marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), buf, len, flags);
+                             : marie_typeinfo_check_flags(marie_typeinfo_by_fingerprint(t->hash()), buf, len, flags & ~DECODE_VIEW);
     if (rc < 0 && errno == EDOM)
         *why = "bad_nonfinite";
     if (rc < 0)
         return -1;
     memset(out, 0, t->size);
+    if (flags & DECODE_VIEW) {
+        int rc = decode_view(t, buf, out);
+        if (rc != 0)
+            return rc;
+    }
     return t->decode(buf, 0, (int)len, out) < 0 ? marie_fail(EBADMSG) : 0;
 }
 
@@ -364,4 +392,17 @@ int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, voi
 int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why)
 {
     return decode(t, buf, len, out, MARIE_CHECK_FINITE, why);
+}
+
+int marie_decode_view(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why)
+{
+    return decode(t, buf, len, out, MARIE_CHECK_FINITE | DECODE_VIEW, why);
+}
+
+void marie_decode_cleanup_view(const marie_type_t *t, void *out, int viewed)
+{
+    marie_tail_t tl;
+    if (viewed == 1 && marie_typeinfo_tail(marie_typeinfo_by_fingerprint(t->hash()), &tl) == 0)
+        memset((uint8_t *)out + tl.ptr_off, 0, sizeof(void *));     /* not decode_cleanup's to free */
+    t->decode_cleanup(out);
 }

@@ -136,6 +136,13 @@ int marie_decode_checked(const marie_type_t *t, const void *buf, size_t len, voi
  * names the bad-input counter: "bad_fingerprint", "bad_payload" or "bad_nonfinite". 0,
  * or -1 with errno EBADMSG, or EDOM (non-finite). */
 int marie_decode_input(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why);
+/* As marie_decode_input(), without copying a type's tail (marie_typeinfo_tail: image_t's
+ * pixels, occupancy_grid_t's cells): its pointer aims into buf, so `out` is valid only while
+ * buf's bytes stay as they are (a slot held in shared memory). 1 when the tail aims into buf, 0
+ * when the type has another shape and was decoded whole, or -1 with errno as
+ * marie_decode_input(). Free with marie_decode_cleanup_view(t, out, what it returned). */
+int marie_decode_view(const marie_type_t *t, const void *buf, size_t len, void *out, const char **why);
+void marie_decode_cleanup_view(const marie_type_t *t, void *out, int viewed);
 
 #ifdef __cplusplus
 }

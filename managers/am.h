@@ -242,6 +242,9 @@ am_loading_t *am_loading_sent(am_t *am, const char *text, const char *sender_pat
                               marie_errors_t *errs);
 bool am_system_is(const am_t *am, const char *text, const char *profile);   /* the one loaded */
 int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs);
+/* The same without running any program: *must_run when one has to answer --describe first
+ * (its description is not in the state directory's cache), and then the verdict is not one. */
+int am_loading_check_cached(am_t *am, const am_loading_t *l, marie_errors_t *errs, bool *must_run);
 /* Installing carries over the components of the same name and configuration hash that have
  * no timer pending (not stopping, not backing off): their process, output, log and counters go
  * on as they are. */
@@ -288,7 +291,9 @@ void am_balance_free(am_t *am);
 /* am_check.c: an up order's programs checked in a child process, so that the loop goes on
  * (heartbeats, status, other orders) while the programs answer --describe. done runs on the
  * loop once, and owns the loading: ok, to install; not ok, with the errors as text, to free.
- * One check at a time; am_check_start takes l (freed when it fails: -1). */
+ * Where every program's description is cached, nothing is run: the check is made at once, and
+ * done runs before am_check_start returns. One check at a time; am_check_start takes l (freed
+ * when it fails: -1). */
 typedef void (*am_check_done_t)(am_t *am, am_loading_t *l, bool ok, const char *errors, void *user);
 int am_check_start(am_t *am, am_loading_t *l, am_check_done_t done, void *user);
 bool am_check_busy(const am_t *am);

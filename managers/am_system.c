@@ -247,16 +247,30 @@ static am_loading_t *am_loading_open(const char *path, const char *origin, const
 
 /* The programs of this host's components exist and accept their entries (descriptions
  * cached in STATE_DIR/describe). */
-int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs)
+static int check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs, bool *must_run)
 {
     char *cache = NULL;
     if (asprintf(&cache, "%s/describe", am->env.state_dir) < 0)
         cache = NULL;
     marie_progcheck_t *p = marie_progcheck_create(am->env.self_dir, cache);
     free(cache);
+    if (p && must_run)
+        marie_progcheck_cached_only(p);
     int rc = p ? marie_progcheck_system(p, l->sys, am->env.host, am->env.host, errs) : -1;
+    if (must_run)
+        *must_run = !p || marie_progcheck_must_run(p);
     marie_progcheck_destroy(p);
     return rc;
+}
+
+int am_loading_check_programs(am_t *am, const am_loading_t *l, marie_errors_t *errs)
+{
+    return check_programs(am, l, errs, NULL);
+}
+
+int am_loading_check_cached(am_t *am, const am_loading_t *l, marie_errors_t *errs, bool *must_run)
+{
+    return check_programs(am, l, errs, must_run);
 }
 
 bool am_system_is(const am_t *am, const char *text, const char *profile)

@@ -30,6 +30,7 @@ $(eval $(call marie_test,test_limits,tests/managers/test_limits.c,$(MANAGERS_LIB
 $(eval $(call marie_test,test_am_wire,tests/managers/test_am_wire.c,$(MANAGERS_LIB)))
 $(eval $(call marie_test,test_am_notify,tests/managers/test_am_notify.c,))
 $(eval $(call marie_test,test_sdnotify,tests/managers/test_sdnotify.c managers/sdnotify.c,))
+$(eval $(call marie_test,test_progcheck,tests/managers/test_progcheck.c,$(MANAGERS_LIB)))
 ITESTS += tests/managers/test_am.sh tests/managers/test_am_spawn.sh tests/managers/test_up_check.sh tests/managers/test_up_refuses.sh tests/managers/test_limits.sh tests/managers/test_multihost.sh tests/managers/test_systemd.sh
 ITESTS += tests/managers/test_balance.sh tests/managers/test_ps.sh tests/managers/test_sched.sh tests/managers/test_up_apply.sh
 # Its two busy loops load both cores and a 0.3 s heartbeat must still get through: with a light

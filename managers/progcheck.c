@@ -71,6 +71,8 @@ struct marie_progcheck {
     char *self_dir, *cache_dir;
     spec_entry_t *entries;
     int described;              /* programs actually run (the rest came from a cache) */
+    bool cached_only;           /* a program to run with --describe fails the check: must_run */
+    bool must_run;
 };
 
 marie_progcheck_t *marie_progcheck_create(const char *self_dir, const char *cache_dir)
@@ -103,6 +105,9 @@ void marie_progcheck_destroy(marie_progcheck_t *p)
     free(p);
 }
 
+
+void marie_progcheck_cached_only(marie_progcheck_t *p) { p->cached_only = true; }
+bool marie_progcheck_must_run(const marie_progcheck_t *p) { return p->must_run; }
 
 /* A Python script built on marie's Python package (python/marie): a python #! line, and the
  * package imported at the start of a line. */
@@ -367,6 +372,11 @@ static int describe(marie_progcheck_t *p, const char *path, const marie_componen
         free(f);
         MARIE_CLEAR(text, free);
         if (!doc && has_marker(path)) {
+            if (p->cached_only) {
+                p->must_run = true;
+                snprintf(why, whylen, "not described yet");
+                return -1;
+            }
             if (run_describe(path, c, kind_args(c), &text, &len, why, whylen) < 0)
                 return -1;
             p->described++;

@@ -2,6 +2,8 @@
 #ifndef MARIE_PROGCHECK_H
 #define MARIE_PROGCHECK_H
 
+#include <stdbool.h>
+
 #include "core/config.h"
 #include "proto/am_proto.h"
 
@@ -23,6 +25,10 @@ typedef struct marie_progcheck marie_progcheck_t;
 marie_progcheck_t *marie_progcheck_create(const char *self_dir, const char *cache_dir);
 void marie_progcheck_destroy(marie_progcheck_t *p);
 
+/* From now on p runs no program: a check that would run one with --describe fails, and
+ * marie_progcheck_must_run() says so (the caller checks again where a program may run). */
+void marie_progcheck_cached_only(marie_progcheck_t *p);
+bool marie_progcheck_must_run(const marie_progcheck_t *p);
 /* Check every non-shell component (only those that run on only_host, when not NULL; a
  * component without host and without hosts runs on fallback_host): its exec exists and is
  * executable, and, when the program is built on libmarie, its params, ports and --param/--port

@@ -460,9 +460,9 @@ marie_bus_sub_t *marie_bus_subscribe(lcm_t *lcm, const char *channel, lcm_msg_ha
 }
 
 marie_bus_sub_t *marie_bus_subscribe_in_place(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler,
-                                              marie_bus_verdict_t verdict, void *user)
+                                              lcm_msg_handler_t held, marie_bus_verdict_t verdict, void *user)
 {
-    return subscribe(lcm, channel, &(marie_bus_recv_t){handler, verdict, user}, false);
+    return subscribe(lcm, channel, &(marie_bus_recv_t){handler, verdict, user, held}, false);
 }
 
 marie_bus_sub_t *marie_bus_subscribe_own(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler, void *user)

@@ -98,8 +98,11 @@ marie_bus_sub_t *marie_bus_subscribe(lcm_t *bus, const char *channel, lcm_msg_ha
  * whether they stayed intact throughout; when not, whatever was made of them must be dropped
  * (the loss is counted). From other providers verdict is always 1, right after the handler. */
 typedef void (*marie_bus_verdict_t)(bool intact, void *user);
+/* `held` (may be NULL) is called instead of handler when the provider holds the bytes until
+ * verdict returns (a shared-memory slot the writer skips meanwhile, docs/transport.md): what
+ * is made of them may then point into them and be used from verdict. */
 marie_bus_sub_t *marie_bus_subscribe_in_place(lcm_t *bus, const char *channel, lcm_msg_handler_t handler,
-                                              marie_bus_verdict_t verdict, void *user);
+                                              lcm_msg_handler_t held, marie_bus_verdict_t verdict, void *user);
 void marie_bus_unsubscribe(lcm_t *bus, marie_bus_sub_t *s);     /* NULL is a no-op */
 
 /* What a subscription's provider lost or refused since it was made (zero where the provider

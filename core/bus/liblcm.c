@@ -6,8 +6,10 @@
 
 #include <dlfcn.h>
 #include <errno.h>
+#include <link.h>
 #include <pthread.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "core/err.h"
 #include "core/log.h"
@@ -46,14 +48,18 @@ const marie_liblcm_t *marie_liblcm(void)
     return lcm_ok ? lcm_ok : marie_fail_null(ENOENT);
 }
 
+static int is_liblcm(struct dl_phdr_info *info, size_t size, void *user)
+{
+    const char *slash = strrchr(info->dlpi_name, '/');
+    return strncmp(slash ? slash + 1 : info->dlpi_name, "liblcm.so", 9) == 0;     /* .so.1, or its file */
+}
+
+/* The loader's list of what is mapped, read in memory: dlopen(RTLD_NOLOAD) searched the
+ * library's path and opened the file to compare it (nine system calls at every bus's
+ * creation, so at every component's start). */
 bool marie_liblcm_in_process(void)
 {
-    if (lcm_ok)
-        return true;
-    void *lib = dlopen(LCM_SONAME, RTLD_LAZY | RTLD_NOLOAD);
-    if (lib)
-        dlclose(lib);       /* drops the reference NOLOAD took, not the program's */
-    return lib != NULL;
+    return lcm_ok || dl_iterate_phdr(is_liblcm, NULL) != 0;
 }
 
 static void *liblcm_open(lcm_t *lcm, const char *url) { return lcm; }

@@ -244,19 +244,32 @@ static bool chan_pending(lchan_t *ch)
     return false;
 }
 
+/* The slot of ref held for the subscriptions that can use it so, or NULL (then peeked). */
+static const void *hold_for(lchan_t *ch, peer_t *p, const marie_shm_ref_t *ref)
+{
+    if (ref->size < MARIE_SHM_HOLD_MIN)
+        return NULL;
+    for (lsub_t *s = ch->subs; s; s = s->next)
+        if (!s->removed && s->rv.held)
+            return marie_shm_hold(p->r, ref);
+    return NULL;
+}
+
 /* One message to every subscription: a view into the ring for those that decode in place (then
- * the verdict), a checked copy for the others. */
+ * the verdict), held for those that can keep it through the verdict, a checked copy for the
+ * others. */
 static void deliver(lchan_t *ch, peer_t *p, const marie_shm_ref_t *ref)
 {
     int64_t now = marie_wall_us();
     int64_t copied = -1;
     ch->depth++;
+    const void *held = hold_for(ch, p, ref);
     for (lsub_t *s = ch->subs; s; s = s->next) {
         if (s->removed)
             continue;
         const void *at = NULL;
         if (s->rv.verdict)
-            at = marie_shm_peek(p->r, ref);
+            at = held ? held : marie_shm_peek(p->r, ref);
         else if (copied < 0 && ch->buf)
             copied = marie_shm_read(p->r, ref, ch->buf, ch->t.max_size), at = copied >= 0 ? ch->buf : NULL;
         else if (copied >= 0)
@@ -267,13 +280,15 @@ static void deliver(lchan_t *ch, peer_t *p, const marie_shm_ref_t *ref)
         }
         marie_bus_recv_t rv = s->rv;
         lcm_recv_buf_t rb = {(void *)at, ref->size, now, ch->lb->bus};
-        rv.handler(&rb, ch->t.channel, rv.user);
+        (held && rv.held && rv.verdict ? rv.held : rv.handler)(&rb, ch->t.channel, rv.user);
         if (rv.verdict) {
             bool ok = marie_shm_still_valid(p->r, ref);
             ch->st.lost += !ok;
             rv.verdict(ok, rv.user);
         }
     }
+    if (held)
+        marie_shm_release(p->r, ref);
     ch->st.received++;
     if (--ch->depth == 0)
         sweep(ch);

@@ -6,11 +6,13 @@
 #include "core/bus/bus.h"
 
 /* Who gets a subscription's messages: handler(rb, channel, user), then, for a subscription in
- * place, verdict(intact, user). */
+ * place, verdict(intact, user). A provider that holds the bytes until verdict returns (a ring
+ * slot the writer skips meanwhile) calls held instead of handler, when it is not NULL. */
 typedef struct {
     lcm_msg_handler_t handler;
     marie_bus_verdict_t verdict;    /* NULL: the handler gets bytes of its own (copied) */
     void *user;
+    lcm_msg_handler_t held;
 } marie_bus_recv_t;
 
 typedef struct marie_bus_provider {

@@ -193,6 +193,7 @@ struct marie_shm_sub {
     size_t cap;
     marie_shm_msg_cb_t cb;
     marie_shm_verdict_cb_t verdict;     /* in place: NULL means copy first */
+    marie_shm_msg_cb_t held;            /* in place and held (large messages), or NULL */
     void *user;
     marie_bus_sub_t *notice_sub, *copy_sub;
     bool remote_only;           /* this host's writers are read another way (the fast path) */
@@ -270,7 +271,10 @@ static void want_remote(marie_shm_sub_t *s)
 
 static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int64_t fp)
 {
-    const void *p = marie_shm_peek(s->r, ref);
+    const void *p = s->held && ref->size >= MARIE_SHM_HOLD_MIN ? marie_shm_hold(s->r, ref) : NULL;
+    bool holding = p != NULL;
+    if (!p)
+        p = marie_shm_peek(s->r, ref);
     if (!p) {
         if (errno == ENOENT)
             want_remote(s);
@@ -282,10 +286,12 @@ static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int
     }
     if (marie_payload_fingerprint(p, ref->size) != fp) {
         s->st.bad++;
+        if (holding)
+            marie_shm_release(s->r, ref);
         return;
     }
     enter(s);
-    s->cb(p, ref->size, s->user);
+    (holding ? s->held : s->cb)(p, ref->size, s->user);
     bool ok = marie_shm_still_valid(s->r, ref);
     if (ok)
         s->st.received++;
@@ -293,6 +299,8 @@ static void deliver_in_place(marie_shm_sub_t *s, const marie_shm_ref_t *ref, int
         s->st.lost++;
     if (!s->dead)
         s->verdict(ok, s->user);
+    if (holding)
+        marie_shm_release(s->r, ref);
     leave(s);
 }
 
@@ -394,6 +402,7 @@ void marie_shm_sub_destroy(marie_shm_sub_t *s)
 const marie_shm_sub_stats_t *marie_shm_sub_stats(const marie_shm_sub_t *s) { return &s->st; }
 
 void marie_shm_sub_in_place(marie_shm_sub_t *s, marie_shm_verdict_cb_t verdict) { s->verdict = verdict; }
+void marie_shm_sub_held(marie_shm_sub_t *s, marie_shm_msg_cb_t held) { s->held = held; }
 void marie_shm_sub_remote_only(marie_shm_sub_t *s) { s->remote_only = true; }
 
 /* ---- the provider: a channel a transport puts on shared memory (`kind: shm`) ---- */
@@ -463,6 +472,13 @@ static void on_bytes(const void *data, size_t len, void *user)
     w->rv.handler(&rb, w->channel, w->rv.user);
 }
 
+static void on_held(const void *data, size_t len, void *user)
+{
+    shm_sub_t *w = user;
+    lcm_recv_buf_t rb = {(void *)data, (uint32_t)len, marie_wall_us(), w->bus};
+    w->rv.held(&rb, w->channel, w->rv.user);
+}
+
 static void on_verdict(bool ok, void *user)
 {
     shm_sub_t *w = user;
@@ -481,6 +497,8 @@ static void *chan_subscribe(void *st, const char *channel, const marie_bus_recv_
     }
     if (rv->verdict)
         marie_shm_sub_in_place(w->sub, on_verdict);
+    if (rv->verdict && rv->held)
+        marie_shm_sub_held(w->sub, on_held);
     return w;
 }
 

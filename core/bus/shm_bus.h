@@ -75,6 +75,10 @@ const marie_shm_sub_stats_t *marie_shm_sub_stats(const marie_shm_sub_t *s);
  * made of them must be dropped (counted as lost). Saves one copy of each message. */
 typedef void (*marie_shm_verdict_cb_t)(bool ok, void *user);
 void marie_shm_sub_in_place(marie_shm_sub_t *s, marie_shm_verdict_cb_t verdict);
+/* And held: a message of MARIE_SHM_HOLD_MIN bytes or more goes to `held(data, len, user)`
+ * instead of the callback when the reader could hold its slot (marie_shm_hold()): its bytes
+ * stay as they are until the verdict returns, so what is made of them may point into them. */
+void marie_shm_sub_held(marie_shm_sub_t *s, marie_shm_msg_cb_t held);
 /* Only writers on other hosts: notices from this host are left alone (the fast path reads
  * those rings itself). */
 void marie_shm_sub_remote_only(marie_shm_sub_t *s);

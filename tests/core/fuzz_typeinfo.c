@@ -1,7 +1,8 @@
 /* fuzz_typeinfo: whatever bytes pass marie_typeinfo_check must decode with lcm-gen's decoder
  * and encode back to the very same bytes (a round trip: the check accepts nothing the codec
  * would misread), for every marie type, and marie_decode_input takes exactly the finite ones
- * among them. The first byte picks the type. */
+ * among them; marie_decode_view takes the same ones and gives the same message, its tail (when
+ * the type has one) pointing into the bytes. The first byte picks the type. */
 #include <errno.h>
 #include <stdbool.h>
 #include <stdint.h>
@@ -40,14 +41,31 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         free(msg);
     }
     /* A component's decode takes a subset of what the walk takes: the finite ones. */
-    void *in = calloc(1, t->size);
+    void *in = calloc(1, t->size), *view = calloc(1, t->size);
     const char *why = NULL;
     int rc = marie_decode_input(t, buf, len, in, &why);
     bool nonfinite = rc < 0 && errno == EDOM;
+    int viewed = marie_decode_view(t, buf, len, view, NULL);
+    if ((viewed >= 0) != (rc == 0))
+        abort();        /* the view takes exactly what the copy takes */
+    if (viewed >= 0) {
+        uint8_t *a = malloc(len), *b = malloc(len);
+        if (t->encode(a, 0, (int)len, in) != (int)len || t->encode(b, 0, (int)len, view) != (int)len ||
+            memcmp(a, b, len) != 0)
+            abort();    /* the same message, whether its tail was copied or not */
+        marie_tail_t tl;
+        if (viewed == 1 && (marie_typeinfo_tail(ti, &tl) < 0 ||
+                            *(uint8_t **)((uint8_t *)view + tl.ptr_off) != buf + tl.wire_off))
+            abort();
+        free(a);
+        free(b);
+        marie_decode_cleanup_view(t, view, viewed);
+    }
     if (rc == 0)
         t->decode_cleanup(in);
     if ((rc == 0 && !ok) || (ok && rc != 0 && !nonfinite) || nonfinite != (why && !strcmp(why, "bad_nonfinite")))
         abort();
+    free(view);
     free(in);
     free(buf);
     return 0;

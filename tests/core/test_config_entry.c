@@ -185,6 +185,29 @@ static void a_changed_file_is_read_whole(void **state)
     marie_system_destroy(s);
 }
 
+/* An edit anywhere in the text (one byte changed, in the 8-byte steps or the tail; two bytes
+ * swapped; a byte added) changes the hash the manager passes, so the entry's lines are not
+ * trusted. */
+static void any_edit_changes_the_text_hash(void **state)
+{
+    char text[] = "system: t\nhosts: [h]\ncomponents:\n  a:\n    exec: x\n";
+    size_t len = strlen(text);
+    uint64_t h = marie_text_hash(text, len);
+    for (size_t i = 0; i < len; i++) {
+        char was = text[i];
+        text[i] ^= 0x01;
+        assert_true(marie_text_hash(text, len) != h);
+        text[i] = was;
+        if (i + 1 < len && text[i] != text[i + 1]) {
+            text[i] = text[i + 1], text[i + 1] = was;
+            assert_true(marie_text_hash(text, len) != h);
+            text[i + 1] = text[i], text[i] = was;
+        }
+    }
+    assert_true(marie_text_hash(text, len - 1) != h);
+    assert_int_equal(marie_text_hash(text, len), h);
+}
+
 /* Entries that share lines cannot be cut apart by lines: no spec, the whole file is read. */
 static void entries_sharing_lines_have_no_spec(void **state)
 {
@@ -208,6 +231,7 @@ int main(void)
         cmocka_unit_test(test_systems_read_alone_as_whole),
         cmocka_unit_test(an_entry_alone_keeps_its_lines),
         cmocka_unit_test(a_changed_file_is_read_whole),
+        cmocka_unit_test(any_edit_changes_the_text_hash),
         cmocka_unit_test(entries_sharing_lines_have_no_spec),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);

@@ -19,6 +19,7 @@
 #include <unistd.h>
 
 #include "core/bus/bus.h"
+#include "core/bus/provider.h"
 #include "core/loop.h"
 #include "core/time.h"
 #include "tests/udp.h"
@@ -420,6 +421,19 @@ static void test_liblcm_fallback(void **state)
     lcm_destroy(pub);
 }
 
+/* This program links liblcm and may call it on any handle: marie's buses in it are liblcm's
+ * handles (a lcm_get_fileno() of liblcm's own on marie's own address would read garbage), and
+ * liblcm is found in place, not opened a second time. */
+static void test_handle_of_a_program_linking_liblcm(void **state)
+{
+    assert_true(marie_liblcm_in_process());
+    lcm_t *rx = marie_bus_create(URL);
+    assert_non_null(rx);
+    assert_true(marie_bus_handle_is_liblcm(rx));
+    assert_true(lcm_get_fileno(rx) >= 0);
+    marie_bus_destroy(rx);
+}
+
 /* Other providers stay liblcm's. */
 static void test_other_urls(void **state)
 {
@@ -749,6 +763,8 @@ static void test_publish_fallback(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        /* first: before any test has opened liblcm through marie */
+        cmocka_unit_test(test_handle_of_a_program_linking_liblcm),
         cmocka_unit_test(test_from_liblcm),
         cmocka_unit_test(test_kernel_filter),
         cmocka_unit_test(test_beside_liblcm),

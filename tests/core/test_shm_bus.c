@@ -1,6 +1,7 @@
 /* test_shm_bus: shared-memory publishers and subscribers on a real LCM bus (this test's
  * namespace): local subscribers read the ring and nothing whole goes on LCM; the notices are
- * there for lcm-spy; a subscriber on "another host" asks and gets the messages over LCM. */
+ * there for lcm-spy, a subscriber in place reads them in their held slot; a subscriber on
+ * "another host" asks and gets the messages over LCM. */
 #include <errno.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -62,6 +63,31 @@ static void spin(lcm_t **l, int n, int ms)
             lcm_handle_timeout(l[k], 1);
 }
 
+/* Do [at, at + len) lie in a read-only mapping of a ring (/dev/shm/marie-shm.*)? */
+static bool in_ring(const void *at, size_t len)
+{
+    FILE *f = fopen("/proc/self/maps", "r");
+    char line[512];
+    bool yes = false;
+    while (f && !yes && fgets(line, sizeof line, f)) {
+        unsigned long lo, hi;
+        char perms[8];
+        if (sscanf(line, "%lx-%lx %7s", &lo, &hi, perms) == 3 && strstr(line, "/dev/shm/marie-shm.") &&
+            perms[1] == '-')
+            yes = (uintptr_t)at >= lo && (uintptr_t)at + len <= hi;
+    }
+    if (f)
+        fclose(f);
+    return yes;
+}
+
+static long held_in_ring;
+static void on_held(const void *data, size_t len, void *user)
+{
+    held_in_ring += in_ring(data, len);
+    on_msg(data, len, user);
+}
+
 static bool verdicts_ok = true;
 static void on_verdict(bool ok, void *user) { verdicts_ok = verdicts_ok && ok; }
 
@@ -77,7 +103,8 @@ static void test_local_subscribers_read_the_ring(void **state)
     marie_shm_sub_t *sub[3];
     for (int k = 0; k < 3; k++)
         assert_non_null(sub[k] = marie_shm_sub_create(l[k + 1], "CAM", SIZE, on_msg, &sink[k]));
-    marie_shm_sub_in_place(sub[1], on_verdict); /* one reads in place */
+    marie_shm_sub_in_place(sub[1], on_verdict); /* one reads in place, its slot held */
+    marie_shm_sub_held(sub[1], on_held);
     marie_shm_sub_in_place(sub[2], NULL);       /* NULL: copy first, the default */
     lcm_subscribe(l[4], "CAM.SHM", on_notice, NULL);   /* what lcm-spy sees */
     lcm_subscribe(l[4], "CAM", on_whole, NULL);
@@ -95,6 +122,7 @@ static void test_local_subscribers_read_the_ring(void **state)
         assert_int_equal(marie_shm_sub_stats(sub[k])->remote, 0);
     }
     assert_true(verdicts_ok);
+    assert_int_equal(held_in_ring, 20);
     assert_int_equal(notices, 20);
     assert_int_equal(whole, 0);                 /* nobody asked: nothing big on LCM */
     assert_int_equal(marie_shm_pub_stats(pub)->lcm_copies, 0);

@@ -205,6 +205,36 @@ static void tails_lie_where_lcm_gen_encodes_them(void **state)
     assert_true(with_tail >= 2);
 }
 
+/* A view decodes a message with a tail as a copy does, the tail's bytes where they lie in the
+ * payload (not copied); a type of another shape is decoded whole; bad input is refused alike. */
+static void views_point_into_the_payload(void **state)
+{
+    uint8_t px[300];
+    for (int i = 0; i < 300; i++)
+        px[i] = (uint8_t)(i * 7);
+    marie_image_t img = {.utime = 5, .width = 10, .height = 10, .row_stride = 30, .format = 1, .size = 300, .data = px};
+    uint8_t buf[1024];
+    int n = encode(&marie_type_image_t, &img, buf, sizeof buf);
+    marie_image_t v, c;
+    assert_int_equal(marie_decode_view(&marie_type_image_t, buf, (size_t)n, &v, NULL), 1);
+    assert_int_equal(marie_decode_input(&marie_type_image_t, buf, (size_t)n, &c, NULL), 0);
+    assert_true(v.data >= buf && v.data + v.size <= buf + n);
+    assert_int_equal(v.size, 300);
+    assert_memory_equal(v.data, px, 300);
+    assert_int_equal(v.utime, 5);
+    assert_int_equal(v.row_stride, 30);
+    assert_int_equal(v.format, 1);
+    assert_true(c.data < buf || c.data >= buf + n);     /* the copy's are its own */
+    marie_decode_cleanup_view(&marie_type_image_t, &v, 1);
+    marie_decode_cleanup_view(&marie_type_image_t, &c, 0);
+    assert_fails(marie_decode_view(&marie_type_image_t, buf, (size_t)n - 1, &v, NULL), EBADMSG);
+    marie_pose2d_t pose = {.x = 2, .y = 3, .theta = 0.5}, pv;
+    n = encode(&marie_type_pose2d_t, &pose, buf, sizeof buf);
+    assert_int_equal(marie_decode_view(&marie_type_pose2d_t, buf, (size_t)n, &pv, NULL), 0);
+    assert_true(pv.x == 2 && pv.theta == 0.5);
+    marie_decode_cleanup_view(&marie_type_pose2d_t, &pv, 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -216,6 +246,7 @@ int main(void)
         cmocka_unit_test(laser_ranges_may_be_nan_or_infinite),
         cmocka_unit_test(other_inputs_refuse_nan),
         cmocka_unit_test(tails_lie_where_lcm_gen_encodes_them),
+        cmocka_unit_test(views_point_into_the_payload),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
