@@ -139,7 +139,7 @@ static void start_busy(void)
         ;
 }
 
-/* A program that starts a helper process as it starts (MARIE_TEST_START_CHILD): the helper
+/* A program that starts a process of its own as it starts (MARIE_TEST_START_CHILD): the child
  * writes "child" to the trace and waits, gone with the component. */
 static void start_child(void)
 {
