@@ -241,7 +241,7 @@ install: all
 	install -m 644 $(filter-out %_priv.h,$(wildcard core/*.h)) $(DESTDIR)$(PREFIX)/include/marie/core/
 	install -m 644 $(wildcard core/bus/*.h) $(DESTDIR)$(PREFIX)/include/marie/core/bus/
 	install -m 644 $(B)/gen/c/lcmtypes/*.h $(DESTDIR)$(PREFIX)/include/marie/lcmtypes/
-	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@REQUIRES@|$(PKGS)|' core/marie.pc.in \
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@REQUIRES@|$(PKGS)|' -e 's|@SANFLAGS@|$(SANFLAGS)|' core/marie.pc.in \
 	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/marie.pc
 	$(INSTALL_EXTRA)
 

@@ -93,7 +93,8 @@ static int check_expands(const marie_component_cfg_t *c, const marie_node_t *val
     char **env = strstr(s, "${") ? calloc(n, sizeof *env) : NULL;
     if (!env)
         return 0;
-    memcpy(env, c->env, c->nenv * sizeof *env);
+    if (c->nenv)        /* an entry without env has no array to copy */
+        memcpy(env, c->env, c->nenv * sizeof *env);
     memcpy(env + c->nenv, manager_env, sizeof manager_env);
     char why[256] = "";
     int rc = marie_expand_check(s, env, n, why, sizeof why);

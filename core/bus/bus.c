@@ -445,11 +445,14 @@ static marie_bus_sub_t *subscribe(lcm_t *lcm, const char *channel, const marie_b
     marie_bus_sub_t *s = calloc(1, sizeof *s);
     if (!s)
         return NULL;
-    *s = r ? (marie_bus_sub_t){b->subs, r->p, r->st, NULL} : (marie_bus_sub_t){b->subs, b->p, b->st, NULL};
+    *s = r ? (marie_bus_sub_t){NULL, r->p, r->st, NULL} : (marie_bus_sub_t){NULL, b->p, b->st, NULL};
     if (!(s->ps = s->p->subscribe(s->st, r ? moved : channel, rv))) {
         MARIE_KEEP_ERRNO(free(s));
         return NULL;
     }
+    /* Linked only now: a channel's provider subscribes on the bus itself meanwhile (a ring's
+     * notices and copies), and those must stay on the list to be let go. */
+    s->next = b->subs;
     b->subs = s;
     return s;
 }

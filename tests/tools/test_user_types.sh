@@ -30,9 +30,12 @@ from lcmtypes.ux import reading_t, _typeinfo
 assert struct.unpack(">q", reading_t._get_packed_fingerprint())[0] == _typeinfo.TYPES["ux.reading_t"][0]'
 }
 check "descriptors carry lcm-gen's fingerprint" fp_agrees
-# a user's C component, built outside marie's tree against the generated C
+# a user's C component, built outside marie's tree against the generated C (with the
+# sanitizers when make built libmarie with them)
+SANFLAGS=""
+[ "${SAN:-0}" = 1 ] && SANFLAGS="-fsanitize=address,undefined"
 build_probe() {
-    ${CC:-cc} -O1 -I"$T/gen/c" -I. -I"$B/gen/c" $(pkg-config --cflags lcm glib-2.0) -o "$T/ux-probe" \
+    ${CC:-cc} -O1 $SANFLAGS -I"$T/gen/c" -I. -I"$B/gen/c" $(pkg-config --cflags lcm glib-2.0) -o "$T/ux-probe" \
         "$T/ux/ux_probe.c" "$T"/gen/c/lcmtypes/*.c "$B/lib/libmarie.a" $(pkg-config --libs lcm glib-2.0 libsodium) -lm -lpthread
 }
 check "a C component compiles against the generated code" build_probe

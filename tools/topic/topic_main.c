@@ -359,6 +359,9 @@ static int sign_payload(topic_t *t, const marie_type_t *type, marie_buf_t *b)
     int64_t now = marie_wall_us(), seq = marie_auth_next_seq(getenv("MARIE_SEQ_FILE"));
     char sender[64];
     snprintf(sender, sizeof sender, "marie-topic.%d", (int)getpid());
+    /* What the decoder allocated is its to free: kept aside while the signed copy is sent. */
+    bool decoded = rc == 0;
+    __typeof__(m) theirs = m;
     if (rc == 0) {
         if (cmd) { m.c.utime = now; m.c.seq = seq; m.c.sender = sender; rc = marie_auth_sign_command(a, &m.c, mac); }
         else if (order) { m.o.utime = now; m.o.seq = seq; m.o.sender = sender; rc = marie_auth_sign_order(a, &m.o, mac); }
@@ -369,6 +372,8 @@ static int sign_payload(topic_t *t, const marie_type_t *type, marie_buf_t *b)
     if (n < 0 || marie_buf_reserve(b, (size_t)n) < 0 || type->encode(b->data, 0, n, &m) < 0)
         rc = -1;
     b->len = n < 0 ? 0 : (size_t)n;
+    if (decoded)
+        type->decode_cleanup(&theirs);
     marie_auth_destroy(a);
     return rc;
 }
