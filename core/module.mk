@@ -7,11 +7,12 @@ $(LIBMARIE): $(call marie_objs,$(CORE_SRCS)) $(LCM_OBJS)
 	$(AR) rcs $@ $^
 
 # tests/core/test_NAME.c, each a program of its own
-CORE_TESTS := loop base64 buf cli config config_entry spec typeinfo expand shm shm_bus
+CORE_TESTS := loop base64 buf cli config config_entry spec typeinfo expand shm
 $(foreach t,$(CORE_TESTS),$(eval $(call marie_test,test_$(t),tests/core/test_$(t).c)))
 $(foreach t,lcm lifecycle,$(eval $(call marie_test,test_$(t),tests/core/test_$(t).c tests/udp.c)))
 $(eval $(call marie_test,test_ports,tests/core/test_ports.c tests/proc.c))
 $(eval $(call marie_test,test_local,tests/core/test_local.c tests/proc.c))
+$(eval $(call marie_test,test_shm_bus,tests/core/test_shm_bus.c tests/proc.c))
 # Its two busy loops hold both cores: it runs last in make test, alone.
 $(eval $(call marie_link,$(B)/tests/test_burst,tests/core/test_burst.c tests/proc.c,-lcmocka))
 EXTRA_TARGETS += $(B)/tests/test_burst

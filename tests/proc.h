@@ -2,6 +2,8 @@
 #ifndef MARIE_TEST_PROC_H
 #define MARIE_TEST_PROC_H
 
+#include <stdbool.h>
+#include <stddef.h>
 #include <sys/types.h>
 
 /* Runs argv[0] with argv (NULL-terminated). stdout and stderr are appended to `log`
@@ -19,5 +21,9 @@ int test_write_temp(char *path, int suffix_len, const char *text);
  * test_busy_stop() (or the caller's end: they die with it). 0, or -1 when fork failed. */
 int test_busy_start(pid_t *pids, int n);
 void test_busy_stop(pid_t *pids, int n);
+
+/* Whether [at, at + len) lies in a read-only mapping of a ring (/dev/shm/marie-shm.*) in this
+ * process (/proc/self/maps): a message read in place, not copied out. */
+bool test_in_ring(const void *at, size_t len);
 
 #endif

@@ -39,24 +39,6 @@ typedef struct {
 
 static uint8_t byte_of(int k, int i) { return (uint8_t)(k * 13 + i * 5 + (i >> 9)); }
 
-/* Do [at, at + len) lie in a read-only mapping of a ring (/dev/shm/marie-shm.*)? */
-static bool in_ring(const void *at, size_t len)
-{
-    FILE *f = fopen("/proc/self/maps", "r");
-    char line[512];
-    bool yes = false;
-    while (f && !yes && fgets(line, sizeof line, f)) {
-        unsigned long lo, hi;
-        char perms[8];
-        if (sscanf(line, "%lx-%lx %7s", &lo, &hi, perms) == 3 && strstr(line, "/dev/shm/marie-shm.") &&
-            perms[1] == '-')
-            yes = (uintptr_t)at >= lo && (uintptr_t)at + len <= hi;
-    }
-    if (f)
-        fclose(f);
-    return yes;
-}
-
 static void on_image(marie_component_t *c, marie_port_t *p, const void *msg, const marie_msg_info_t *info)
 {
     seen_t *s = marie_component_user(c);
@@ -66,7 +48,7 @@ static void on_image(marie_component_t *c, marie_port_t *p, const void *msg, con
         ok &= m->data[i] == byte_of(k, i);
     if (m->size == BIG) {
         atomic_fetch_add(&s->big, 1);
-        atomic_fetch_add(&s->in_ring, in_ring(m->data, BIG));
+        atomic_fetch_add(&s->in_ring, test_in_ring(m->data, BIG));
         for (int i = 0; i < m->size; i++)     /* every byte, read where the writer put it */
             ok &= m->data[i] == byte_of(k, i);
     }

@@ -17,6 +17,7 @@
 #include "core/time.h"
 #include "core/typeinfo.h"
 #include "tests/fails.h"
+#include "tests/proc.h"
 
 #define SIZE (100 * 1024)
 
@@ -63,28 +64,10 @@ static void spin(lcm_t **l, int n, int ms)
             lcm_handle_timeout(l[k], 1);
 }
 
-/* Do [at, at + len) lie in a read-only mapping of a ring (/dev/shm/marie-shm.*)? */
-static bool in_ring(const void *at, size_t len)
-{
-    FILE *f = fopen("/proc/self/maps", "r");
-    char line[512];
-    bool yes = false;
-    while (f && !yes && fgets(line, sizeof line, f)) {
-        unsigned long lo, hi;
-        char perms[8];
-        if (sscanf(line, "%lx-%lx %7s", &lo, &hi, perms) == 3 && strstr(line, "/dev/shm/marie-shm.") &&
-            perms[1] == '-')
-            yes = (uintptr_t)at >= lo && (uintptr_t)at + len <= hi;
-    }
-    if (f)
-        fclose(f);
-    return yes;
-}
-
 static long held_in_ring;
 static void on_held(const void *data, size_t len, void *user)
 {
-    held_in_ring += in_ring(data, len);
+    held_in_ring += test_in_ring(data, len);
     on_msg(data, len, user);
 }
 
