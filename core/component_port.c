@@ -118,6 +118,7 @@ static void on_shm_in_place(const lcm_recv_buf_t *rbuf, const char *channel, voi
 {
     marie_port_t *p = user;
     p->peek.len = rbuf->data_size;
+    p->peek.at = rbuf->recv_utime;
     p->peek.decoded = p->peek.queued = false;
     p->peek.viewed = 0;
     p->peek.data = NULL;
@@ -138,6 +139,7 @@ static void on_shm_held(const lcm_recv_buf_t *rbuf, const char *channel, void *u
         return;
     }
     p->peek.len = rbuf->data_size;
+    p->peek.at = rbuf->recv_utime;
     p->peek.queued = false;
     p->peek.data = rbuf->data;
     p->peek.viewed = marie_decode_view(p->spec->type, rbuf->data, rbuf->data_size, p->scratch, &p->peek.why);
@@ -164,7 +166,7 @@ static void on_shm_verdict(bool intact, void *user)
         return;
     }
     /* raw stays NULL unless the slot is held: else the bytes are the writer's again by now. */
-    marie_msg_info_t info = {p->channel, marie_wall_us(), p->peek.data, p->peek.data ? p->peek.len : 0};
+    marie_msg_info_t info = {p->channel, p->peek.at, p->peek.data, p->peek.data ? p->peek.len : 0};
     hand_over(p, &info, p->peek.viewed);
 }
 

@@ -61,6 +61,7 @@ struct marie_port {
         const void *data;       /* the held slot's bytes, or NULL */
         const char *why;        /* why it did not decode */
         size_t len;
+        int64_t at;             /* when the ring gave it (wall clock, us) */
     } peek;
 };
 

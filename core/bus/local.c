@@ -34,6 +34,7 @@ typedef struct {
     int missed;                     /* rings in a row whose reader did not run in WAKING_US */
     unsigned rings;
     bool slept;                     /* the loop slept since the doorbell was last drained */
+    bool asleep;                    /* the registry's entries say this bus's reader sleeps */
 } lbus_t;
 
 /* A woken reader that has not run after this long most likely waits for the publisher's CPU
@@ -353,6 +354,11 @@ static bool bus_pending(void *bus_st)
 static int bus_sleep(void *bus_st, bool on)
 {
     lbus_t *lb = bus_st;
+    /* Awake again: stored only when the flags say asleep. Each store takes the entry's line
+     * from the publishers' CPUs, which look at it at every message. */
+    if (!on && !lb->asleep)
+        return 0;
+    lb->asleep = on;
     int cpu = on ? sched_getcpu() : -1;
     lb->slept |= on;
     for (lchan_t *ch = lb->reading; ch; ch = ch->next_reading) {
