@@ -606,6 +606,16 @@ int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment)
     return (int64_t)atomic_load_explicit(&((const shm_hdr_t *)m->base)->write_seq, memory_order_acquire);
 }
 
+bool marie_shm_ready(marie_shm_reader_t *r, const char *segment, int64_t seq)
+{
+    const reader_map_t *m = seq > 0 ? map_of(r, segment) : NULL;
+    if (!m)
+        return false;
+    const slot_hdr_t *own = slot_at(m->base, &m->g, (uint64_t)seq % m->g.nslots);
+    return atomic_load_explicit(&own->seq, memory_order_acquire) == 2 * (uint64_t)seq ||
+           atomic_load_explicit(&((const shm_hdr_t *)m->base)->write_seq, memory_order_acquire) >= (uint64_t)seq;
+}
+
 int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref)
 {
     if (seq <= 0)

@@ -240,7 +240,7 @@ static bool chan_pending(lchan_t *ch)
     if (atomic_load(&ch->reg.reg->tickets) != ch->peers_seen)
         return true;
     for (int i = 0; i < LOCAL_PUBS; i++)
-        if (ch->peers[i].pid && marie_shm_newest(ch->peers[i].r, ch->peers[i].segment) >= ch->peers[i].next)
+        if (ch->peers[i].pid && marie_shm_ready(ch->peers[i].r, ch->peers[i].segment, ch->peers[i].next))
             return true;
     return false;
 }
@@ -295,29 +295,35 @@ static void deliver(lchan_t *ch, peer_t *p, const marie_shm_ref_t *ref)
         sweep(ch);
 }
 
-/* What one publisher's ring holds for this reader, at most max messages. */
+/* What one publisher's ring holds for this reader, at most max messages. Each is looked for
+ * where it should be first; the ring's newest (the header's line, which the writer changes at
+ * every message) is read only when one is not there, and bounds what follows. */
 static int follow(lchan_t *ch, peer_t *p, int max)
 {
     int n = 0;
-    int64_t newest = p->pid ? marie_shm_newest(p->r, p->segment) : 0;
-    while (p->pid && p->next <= newest && n < max) {
+    int64_t newest = -1;
+    while (p->pid && n < max) {
         marie_shm_ref_t ref;
         int rc = marie_shm_ref_at(p->r, p->segment, p->next, &ref);
-        if (rc < 0 && errno == EAGAIN)
-            break;                  /* still being written */
-        if (rc < 0 && errno == ESTALE) {        /* overwritten before it was read: skip to the oldest kept */
+        if (rc == 0) {
+            p->next++;
+            deliver(ch, p, &ref);
+            n++;
+            continue;
+        }
+        int err = errno;
+        if (newest < 0 && (newest = marie_shm_newest(p->r, p->segment)) < 0)
+            break;
+        if (p->next > newest || err == EAGAIN)
+            break;                  /* not written yet, or still being written */
+        if (err == ESTALE) {        /* overwritten before it was read: skip to the oldest kept */
             int64_t oldest = newest - (int64_t)ch->t.slots + 2;
             ch->st.lost += oldest > p->next ? oldest - p->next : 1;
             p->next = oldest > p->next ? oldest : p->next + 1;
             continue;
         }
         p->next++;
-        if (rc < 0) {
-            ch->st.bad++;
-            continue;
-        }
-        deliver(ch, p, &ref);
-        n++;
+        ch->st.bad++;
     }
     return n;
 }
