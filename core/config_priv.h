@@ -39,4 +39,15 @@ marie_system_t *marie_system_load_only(const char *path, const char *text, size_
 marie_system_t *marie_system_load_entry_text(const char *file, char *text, size_t len, const char *profile,
                                              const char *name, const char *spec);
 
+/* The tree of text in the plain block subset of YAML that core/config_plain.c reads without
+ * libfyaml (a root mapping), the same tree libfyaml gives; NULL with errno ENOTSUP for any
+ * other text (libfyaml reads it, or reports it), or ENOMEM. */
+marie_node_t *marie_yaml_plain(const char *file, const char *text, size_t len);
+/* marie_doc_parse through libfyaml whatever the text (the plain reader's reference in tests). */
+marie_doc_t *marie_doc_parse_library(const char *name, const char *text, size_t len, marie_errors_t *errs);
+/* The tree's own helpers (core/yaml.c): a node and everything under it (NULL: a no-op); a
+ * child appended to a sequence or mapping (0, or -1 with errno), indexed in a long mapping. */
+void marie_node_free(marie_node_t *n);
+int marie_node_append(marie_node_t *parent, marie_node_t *child);
+
 #endif

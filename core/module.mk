@@ -19,6 +19,7 @@ EXTRA_TARGETS += $(B)/tests/test_burst
 ALONE_TESTS += $(B)/tests/test_burst
 $(eval $(call marie_fuzz,config,tests/core/fuzz_config.c))
 $(eval $(call marie_fuzz,config_entry,tests/core/fuzz_config_entry.c))
+$(eval $(call marie_fuzz,config_plain,tests/core/fuzz_config_plain.c))
 $(eval $(call marie_fuzz,typeinfo,tests/core/fuzz_typeinfo.c))
 $(eval $(call marie_bench,bench_ports,bench/bench_ports.c tests/proc.c))
 ITESTS += tests/core/test_decode_rule.sh

@@ -1,6 +1,7 @@
 /* yaml: YAML text (libfyaml events) into a node tree with file:line:col on every node, typed reads, errors. */
 #include "core/clear.h"
 #include "core/config.h"
+#include "core/config_priv.h"
 
 #include <ctype.h>
 #include <dlfcn.h>
@@ -74,12 +75,12 @@ struct marie_doc {
 
 #define MAX_DEPTH 64
 
-static void node_free(marie_node_t *n)
+void marie_node_free(marie_node_t *n)
 {
     if (!n)
         return;
     for (size_t i = 0; i < n->n; i++)
-        node_free(n->items[i]);
+        marie_node_free(n->items[i]);
     free(n->items);
     free(n->index);
     free(n->key);
@@ -137,7 +138,7 @@ static const marie_node_t *map_find(const marie_node_t *m, const char *key)
     return NULL;
 }
 
-static int node_append(marie_node_t *parent, marie_node_t *child)
+int marie_node_append(marie_node_t *parent, marie_node_t *child)
 {
     /* Capacity doubles: it is full exactly when n is 0 or a power of two. */
     size_t n = parent->n;
@@ -334,8 +335,8 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
             child->key = key;
             child->key_line = kline;
             child->key_col = kcol;
-            if (node_append(n, child) < 0) {
-                node_free(child);
+            if (marie_node_append(n, child) < 0) {
+                marie_node_free(child);
                 goto err;
             }
         }
@@ -345,7 +346,7 @@ static marie_node_t *build_node(builder_t *b, struct fy_event *ev, int depth)
         goto err;
     }
 err:
-    node_free(n);
+    marie_node_free(n);
     return NULL;
 }
 
@@ -445,7 +446,7 @@ static marie_doc_t *doc_parse(const char *name, const char *text, size_t len, ma
                 goto fail;
             if (ndocs++ > 0) {
                 marie_errors_add(errs, name, root->line, root->col, "only one YAML document is allowed");
-                node_free(root);
+                marie_node_free(root);
                 goto err;
             }
             doc->root = root;
@@ -502,15 +503,31 @@ static marie_doc_t *word_doc(const char *name, const char *text, size_t len)
     return doc;
 }
 
-static marie_doc_t *doc_build(const char *name, const char *text, size_t len, marie_errors_t *errs)
+/* Plain block YAML (core/config_plain.c) without the library; NULL: the library reads it. */
+static marie_doc_t *plain_doc(const char *name, const char *text, size_t len)
 {
-    if (plain_word(text, len))
-        return word_doc(name, text, len);
+    marie_doc_t *doc = calloc(1, sizeof *doc);
+    if (doc && (doc->file = strdup(name)) && (doc->root = marie_yaml_plain(doc->file, text, len)))
+        return doc;
+    marie_doc_destroy(doc);
+    return NULL;
+}
+
+marie_doc_t *marie_doc_parse_library(const char *name, const char *text, size_t len, marie_errors_t *errs)
+{
     if (prescan(name, text, len, errs) < 0 || fy_get(name, errs) < 0)
         return NULL;
     marie_doc_t *doc = doc_parse(name, text, len, errs);
     fy_put();
     return doc;
+}
+
+static marie_doc_t *doc_build(const char *name, const char *text, size_t len, marie_errors_t *errs)
+{
+    if (plain_word(text, len))
+        return word_doc(name, text, len);
+    marie_doc_t *doc = plain_doc(name, text, len);
+    return doc ? doc : marie_doc_parse_library(name, text, len, errs);
 }
 
 #define MAX_FILE_SIZE (16 << 20)
@@ -555,7 +572,7 @@ void marie_doc_destroy(marie_doc_t *doc)
 {
     if (!doc)
         return;
-    node_free(doc->root);
+    marie_node_free(doc->root);
     free(doc->file);
     free(doc);
 }

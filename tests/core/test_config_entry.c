@@ -2,6 +2,7 @@
  * marie-am gives it) gets the configuration the whole file gives, with the same lines in its
  * messages, and reads the whole file when the entry cannot be trusted. */
 #include <dirent.h>
+#include <dlfcn.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -223,6 +224,43 @@ static void entries_sharing_lines_have_no_spec(void **state)
     marie_system_destroy(s);
 }
 
+static bool libfyaml_mapped(void)
+{
+    void *lib = dlopen("libfyaml.so.0", RTLD_LAZY | RTLD_NOLOAD);
+    if (lib)
+        dlclose(lib);
+    return lib != NULL;
+}
+
+/* A component's start reads its entry: in the plain block YAML of marie-am's usual files, without
+ * mapping libfyaml at all (core/config_plain.c); anything else through libfyaml as before. */
+static void a_plain_entry_is_read_without_libfyaml(void **state)
+{
+    write_text("system: t   # plain\nhosts: [h]\ncomponents:\n"
+               "  a:\n    exec: /usr/bin/x\n    host: h\n    stop_timeout: 1\n"
+               "  b:\n    exec: /usr/bin/y\n    host: h\n    depends: [a]\n    params:\n      rate: 2.5\n");
+    marie_yaml_unload();
+    assert_false(libfyaml_mapped());
+    marie_system_t *s = load_whole();
+    size_t len;
+    char *text = marie_file_read(tmp, 1 << 20, &len), spec[96];
+    assert_int_equal(marie_system_entry_spec(s, "b", marie_text_hash(text, len), spec, sizeof spec), 0);
+    marie_system_t *one = marie_system_load_entry(tmp, NULL, NULL, "b", spec);
+    assert_non_null(one);
+    const marie_node_t *rate = marie_node_get(marie_system_component(one, "b")->params, "rate");
+    assert_string_equal(rate->value, "2.5");
+    assert_int_equal(rate->line, 13);
+    assert_int_equal(rate->col, 13);
+    assert_false(libfyaml_mapped());
+    marie_system_destroy(one);
+    marie_system_destroy(s);
+    free(text);
+    write_text(three);          /* flow mappings, a block scalar: libfyaml's */
+    marie_system_destroy(load_whole());
+    assert_true(libfyaml_mapped());
+    marie_yaml_unload();
+}
+
 int main(void)
 {
     snprintf(tmp, sizeof tmp, "/tmp/test_config_entry_%d.yaml", (int)getpid());
@@ -233,6 +271,7 @@ int main(void)
         cmocka_unit_test(a_changed_file_is_read_whole),
         cmocka_unit_test(any_edit_changes_the_text_hash),
         cmocka_unit_test(entries_sharing_lines_have_no_spec),
+        cmocka_unit_test(a_plain_entry_is_read_without_libfyaml),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     unlink(tmp);
