@@ -126,6 +126,7 @@ typedef struct {
     int64_t log_max_bytes;
     int log_keep;
     marie_timer_t *children_timer;  /* the children file is written when it fires (am_save_children) */
+    marie_timer_t *up_timer;    /* an up's hashes and log files, once its first spawns are done */
 } am_system_t;
 
 /* am_status.c: events and the status message. */

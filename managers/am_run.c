@@ -343,6 +343,7 @@ static void comp_spawn(comp_t *c)
     report_sched(c, &refused);
     close(po[1]);
     close(pe[1]);
+    am_comp_open_log(c);        /* an up opens the others' after its first spawns (am_up) */
     am_output_attach(c, po[0], pe[0]);
     marie_sv_spawned(&c->sv, pid, am_now_us());
     boost_cancel(c);
