@@ -299,6 +299,10 @@ static void cache_key(const char *path, const struct stat *st, const marie_compo
         snprintf(key + 2 * i, 3, "%02x", d[i]);
 }
 
+/* A program's cache entry when it is not a marie component (no marker: never run), so that
+ * the check from the cache alone knows it without reading the program. */
+#define NOT_A_COMPONENT "not a marie component\n"
+
 static char *cache_file(const marie_progcheck_t *p, const char *key)
 {
     char *f = NULL;
@@ -366,17 +370,22 @@ static int describe(marie_progcheck_t *p, const char *path, const marie_componen
     if (!e) {
         size_t len = 0;
         char *f = cache_file(p, key), *text = f ? read_all(f, &len) : NULL;
-        marie_doc_t *doc = text ? parse_spec(path, text, len) : NULL;
-        if (text && !doc)
+        bool plain = text && len == strlen(NOT_A_COMPONENT) && memcmp(text, NOT_A_COMPONENT, len) == 0;
+        marie_doc_t *doc = text && !plain ? parse_spec(path, text, len) : NULL;
+        if (text && !doc && !plain)
             unlink(f);          /* a damaged cache file is described again */
         free(f);
         MARIE_CLEAR(text, free);
-        if (!doc && has_marker(path)) {
-            if (p->cached_only) {
-                p->must_run = true;
-                snprintf(why, whylen, "not described yet");
-                return -1;
-            }
+        if (!doc && !plain && p->cached_only) {
+            /* the check that may run programs looks at it: the scan for the marker too (a
+             * first `up` made it twice, in the manager and in its check's child) */
+            p->must_run = true;
+            snprintf(why, whylen, "not described yet");
+            return -1;
+        }
+        if (!doc && !plain && !has_marker(path))
+            write_cache(p, key, NOT_A_COMPONENT, strlen(NOT_A_COMPONENT));
+        else if (!doc && !plain) {
             if (run_describe(path, c, kind_args(c), &text, &len, why, whylen) < 0)
                 return -1;
             p->described++;

@@ -85,6 +85,33 @@ static void cached_check_runs_nothing_then_refuses_the_same(void **state)
     marie_system_destroy(s);
 }
 
+/* A program that is not a marie component (no marker): the cached-only check leaves it to the
+ * full one (which does not run it) rather than reading the program itself, and from then on
+ * knows it from the cache. */
+static void a_plain_program_is_known_from_the_cache(void **state)
+{
+    FILE *f = fopen(sys_path, "w");
+    assert_non_null(f);
+    fprintf(f, "system: t\nhosts: [h]\ncomponents:\n  c:\n    exec: /bin/sleep\n    host: h\n    args: [5]\n");
+    fclose(f);
+    marie_errors_t errs = {0};
+    marie_system_t *s = marie_system_load(sys_path, NULL, &errs);
+    marie_errors_clear(&errs);
+    assert_non_null(s);
+    bool must_run;
+    char *text;
+    check(s, true, &must_run, &text);
+    assert_true(must_run);
+    free(text);
+    assert_int_equal(check(s, false, &must_run, &text), 0);
+    assert_false(must_run);
+    free(text);
+    assert_int_equal(check(s, true, &must_run, &text), 0);
+    assert_false(must_run);
+    free(text);
+    marie_system_destroy(s);
+}
+
 int main(void)
 {
     snprintf(dir, sizeof dir, "/tmp/marie-progcheck-XXXXXX");
@@ -94,6 +121,7 @@ int main(void)
     snprintf(cache, sizeof cache, "%s/describe", dir);
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cached_check_runs_nothing_then_refuses_the_same),
+        cmocka_unit_test(a_plain_program_is_known_from_the_cache),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     char cmd[128];
