@@ -257,7 +257,8 @@ static uint32_t claim_slot(marie_shm_writer_t *w)
 }
 
 /* A line taken for writing ahead of the write: PREFETCHW where the CPU has it (CPUID
- * 0x80000001 ECX bit 8; Intel's since Broadwell), else a plain prefetch. */
+ * 0x80000001 ECX bit 8: AMD's and Intel's x86-64 CPUs of the last ten years), else a plain
+ * prefetch. */
 #if defined(__x86_64__) || defined(__i386__)
 static bool has_prefetchw(void)
 {

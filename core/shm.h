@@ -87,12 +87,12 @@ void marie_shm_release(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
  * seq, its size read from its slot: 0, or -1 with errno ESTALE (overwritten), EAGAIN (not
  * complete, or being rewritten), or what opening the segment said. */
 int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment);
+int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref);
 /* Whether message seq is complete (or overwritten already). It looks first at the slot the
  * message goes to when no hold moved it, which is the line its reader reads next anyway, and
  * only then at the header's newest: a reader waiting for the next message takes one line from
  * the writer's CPU per message instead of two. */
 bool marie_shm_ready(marie_shm_reader_t *r, const char *segment, int64_t seq);
-int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref);
 
 
 #ifdef __cplusplus
