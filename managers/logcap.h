@@ -32,7 +32,9 @@ typedef struct {
 void marie_ratelimit_init(marie_ratelimit_t *rl, double rate, double burst);
 int marie_ratelimit_take(marie_ratelimit_t *rl, int64_t now_us);   /* 1: pass, 0: drop */
 
-/* Append-only log file, renamed to path.1 .. path.KEEP when it passes max_bytes. */
+/* Append-only log file, renamed to path.1 .. path.KEEP when it passes max_bytes. A missing file
+ * is created at its first line (open checks that its folder would take it: NULL with errno if
+ * not). */
 typedef struct marie_logfile marie_logfile_t;
 marie_logfile_t *marie_logfile_open(const char *path, int64_t max_bytes, int keep);
 int marie_logfile_write(marie_logfile_t *lf, const char *data, size_t len);   /* 0, or -1 with errno */

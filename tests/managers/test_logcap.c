@@ -132,6 +132,32 @@ static void test_failures_set_errno(void **state)
     marie_logfile_close(lf);
 }
 
+/* A missing log file is made at its first line, not at open (a component that never prints
+ * leaves none); an existing one is appended to. */
+static void test_file_made_at_first_line(void **state)
+{
+    char dir[] = "/tmp/marie-logcap-XXXXXX", path[64];
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/c.log", dir);
+    marie_logfile_t *lf = marie_logfile_open(path, 0, 1);
+    assert_non_null(lf);
+    assert_int_equal(access(path, F_OK), -1);
+    assert_int_equal(marie_logfile_write(lf, "one\n", 4), 0);
+    marie_logfile_close(lf);
+    assert_non_null(lf = marie_logfile_open(path, 0, 1));
+    assert_int_equal(marie_logfile_write(lf, "two\n", 4), 0);
+    marie_logfile_close(lf);
+    char buf[16] = "";
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    assert_string_equal(buf, "one\ntwo\n");
+    unlink(path);
+    rmdir(dir);
+}
+
 static void test_proc_stat_parse(void **state)
 {
     int64_t ut, st;
@@ -161,6 +187,7 @@ int main(void)
         cmocka_unit_test(test_rate_limit),
         cmocka_unit_test(test_rotation_and_tail),
         cmocka_unit_test(test_failures_set_errno),
+        cmocka_unit_test(test_file_made_at_first_line),
         cmocka_unit_test(test_proc_stat_parse),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
