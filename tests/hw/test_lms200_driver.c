@@ -288,6 +288,18 @@ static int first_read_end(const rig_t *r, int from)
     return end;
 }
 
+/* The driver held for ms while the device streams on, then run until it delivered n more
+ * scans: the index of the first of them. */
+static int held_then_read(rig_t *r, int ms, int n)
+{
+    int before = r->nstamp;
+    r->stalled = true;
+    run_for(r, ms);
+    r->stalled = false;
+    assert_true(RUN_UNTIL(r, 1000, r->nstamp >= before + n));
+    return before;
+}
+
 /* A driver that could not read for 120 ms finds six scans waiting: they were sent one period
  * apart, so they are stamped one period apart back from the read, not all at the read. */
 static void test_scans_read_late_are_stamped_one_period_apart(void **state)
@@ -295,11 +307,7 @@ static void test_scans_read_late_are_stamped_one_period_apart(void **state)
     rig_t r;
     vlms200_cfg_t e = { .rate_hz = 50, .units = "mm" };
     assert_true(rig_streaming(&r, &e, 500000, 100, 20, 5000));
-    int before = r.nstamp;
-    r.stalled = true;
-    run_for(&r, 120);
-    r.stalled = false;
-    assert_true(RUN_UNTIL(&r, 1000, r.nstamp >= before + 5));
+    int before = held_then_read(&r, 120, 5);
     int end = first_read_end(&r, before);
     print_message("%d scans read at once\n", end - before);
     assert_true(end - before >= 3);
@@ -359,11 +367,7 @@ static void test_a_first_scan_read_late_does_not_set_the_period(void **state)
     assert_true(RUN_UNTIL(&r, 5000, r.nstamp >= 1));
     r.lag_us = 0;
     assert_true(RUN_UNTIL(&r, 5000, r.nstamp >= 30));
-    int before = r.nstamp;
-    r.stalled = true;
-    run_for(&r, 120);
-    r.stalled = false;
-    assert_true(RUN_UNTIL(&r, 1000, r.nstamp >= before + 5));
+    int before = held_then_read(&r, 120, 5);
     int end = first_read_end(&r, before);
     assert_true(end - before >= 3);
     for (int i = before + 1; i < end; i++) {
