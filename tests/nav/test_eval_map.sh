@@ -18,8 +18,11 @@ $BIN/marie-eval --map "$out/none.yaml" > /dev/null 2> "$out/none.err"
 rc=$?
 check "--map of a missing file: exit status 2 and the file named" \
     sh -c "test $rc = 2 && grep -q 'none.yaml: cannot read it' '$out/none.err'"
+# At twice real time, not four times: the simulator does not wait for the localizer, which lost
+# the robot once at 4x while make test ran other tests beside it (not reproduced beside three
+# busy loops; at 2x the components need half the CPU rate)
 $BIN/marie-eval --map tests/data/nav2/tb3_sandbox.yaml --radius 0.12 --clearance 0.05 --track 0.16 --wheel 0.033 \
-    --goals 3 --boxes 2 --coarse 0.1 --speed 4 --seed 1 --out "$out/runs" > "$out/eval.txt" 2> "$out/eval.log"
+    --goals 3 --boxes 2 --coarse 0.1 --speed 2 --seed 1 --out "$out/runs" > "$out/eval.txt" 2> "$out/eval.log"
 rc=$?
 cat "$out/eval.txt"
 row() { awk '$1 == "tb3_sandbox"' "$out/eval.txt"; }
