@@ -86,15 +86,17 @@ function applyUrlOnce() {
   if (q.get('speed')) send({ op: 'speed', v: Number(q.get('speed')) });
   if (q.get('t') !== null) {
     const t = Math.min(Math.max(S.player.t0 + Number(q.get('t')) * 1e6, S.player.t0), S.player.t1);
-    S.settle = { t: Math.round(t), paused: q.get('paused') === '1' };
+    S.settle = { t: Math.round(t), paused: q.get('paused') === '1', snapped: false };
     send({ op: 'seek', t: Math.round(t) });
   }
 }
 
-// The page has "settled" once it shows what its URL asked for (tests wait for this).
+// The page has "settled" once it shows what its URL asked for (tests wait for this): the state
+// of its own seek has come whole (a page opened at that time already had it, and would otherwise
+// settle before the seek's snapshot clears and redraws what it shows).
 function settledBy(player) {
   if (!S.settle) return true;
-  return Math.abs(player.t - S.settle.t) < 2000 && (!S.settle.paused || !player.playing);
+  return S.settle.snapped && Math.abs(player.t - S.settle.t) < 2000 && (!S.settle.paused || !player.playing);
 }
 
 // ---------------------------------------------------------------- messages
@@ -129,6 +131,7 @@ function handle(m) {
     break;
   case 'snapend':
     S.now = m.t;
+    if (S.settle && Math.abs(m.t - S.settle.t) < 2000) S.settle.snapped = true;
     if (S.mode === 'live') S.settled = true;
     break;
   case 'trail':
