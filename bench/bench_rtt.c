@@ -11,7 +11,8 @@
  * and transports as a robot's file would.
  * `bench_rtt echo|echo-lib --system FILE --name NAME` and `bench_rtt echo-raw` are the echoes.
  * BENCH_RTT_ONLY=NAME[,NAME...] runs those paths alone (names as the echoes': pong, pong-lpin,
- * ..., raw), to profile one; the others' rows are then empty. */
+ * ..., raw), to profile one; the others' rows are then empty. BENCH_RTT_DDS_PINNED=1 adds
+ * ddsperf with its ping and pong pinned as the pinned path's sides. */
 #include <poll.h>
 #include <sched.h>
 #include <stdio.h>
@@ -78,14 +79,14 @@ static int raw_echo_main(void)
 /* ---- the pinging side ---- */
 
 /* The paths, each to an echo of its own; PORTS is the row's value, RAW its baseline. */
-enum { PORTS, LIB_SEND, RAW, SPIN, SHM, LOCAL, LOCAL_SPIN, LOCAL_PINNED, NPATHS };
+enum { PORTS, LIB_SEND, RAW, SPIN, SHM, LOCAL, LOCAL_SPIN, LOCAL_PINNED, LOCAL_ONE_CPU, NPATHS };
 static const char *const echo_names[NPATHS] = {"pong", "pong-lib", NULL, "pong-spin", "pong-shm", "pong-local",
-                                               "pong-lspin", "pong-lpin"};
+                                               "pong-lspin", "pong-lpin", "pong-l1cpu"};
 /* The pinging component's ports of each path (LIB_SEND sends with liblcm on ping_lib's channel). */
 static const char *const ping_port[NPATHS] = {"ping", "ping_lib", NULL, "spin_ping", "shm_ping", "local_ping",
-                                              "lspin_ping", "lpin_ping"};
+                                              "lspin_ping", "lpin_ping", "l1cpu_ping"};
 static const char *const pong_port[NPATHS] = {"pong", "pong_lib", NULL, "spin_pong", "shm_pong", "local_pong",
-                                              "lspin_pong", "lpin_pong"};
+                                              "lspin_pong", "lpin_pong", "l1cpu_pong"};
 static bool spins(int path) { return path == SPIN || path == LOCAL_SPIN; }
 
 /* The path is run (BENCH_RTT_ONLY unset, or it names the path). */
@@ -173,6 +174,8 @@ static const marie_port_spec_t ping_ports[] = {
     {"lspin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LSPIN_PONG"},
     {"lpin_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_LPIN_PING"},
     {"lpin_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_LPIN_PONG"},
+    {"l1cpu_ping", &marie_type_image_t, MARIE_OUT, MARIE_PUSH, "RTT_L1CPU_PING"},
+    {"l1cpu_pong", &marie_type_image_t, MARIE_IN, MARIE_PUSH, "RTT_L1CPU_PONG"},
     {0},
 };
 static const marie_component_def_t ping_def = {.kind = "bench-ping", .ports = ping_ports, .on_init = ping_init};
@@ -243,9 +246,14 @@ typedef struct {
     long count;
 } dds_t;
 
-/* ddsperf ping at `size` for `seconds` against a ddsperf pong. It prints a line a second; the
- * first (discovery, warm-up) is dropped and the figures are the medians of the others. */
-static int dds_round_trip(size_t size, int seconds, dds_t *out)
+/* The pinned path's CPUs: the first two this process may use (its echo on the second, the
+ * pinging side on the first during its blocks, as `sched: {cpus: [N]}` would put them). */
+static cpu_set_t cpus_all, cpus_pin[2];
+
+/* ddsperf ping at `size` for `seconds` against a ddsperf pong, pinned as the pinned path's two
+ * sides when `pinned`. It prints a line a second; the first (discovery, warm-up) is dropped and
+ * the figures are the medians of the others. */
+static int dds_round_trip(size_t size, int seconds, bool pinned, dds_t *out)
 {
     char dur[16], cmd[320];
     snprintf(dur, sizeof dur, "%d", seconds + 3);
@@ -261,9 +269,16 @@ static int dds_round_trip(size_t size, int seconds, dds_t *out)
     if (!path[0])
         return -1;
     pong[0] = path;
+    /* pinned: each side inherits this process's CPU as it starts, with all its threads */
+    if (pinned)
+        sched_setaffinity(0, sizeof cpus_pin[1], &cpus_pin[1]);
     pid_t pid = test_spawn(pong, "/dev/null");
     snprintf(cmd, sizeof cmd, "%s -D %d ping size %zu 2>&1", path, seconds + 1, size);
+    if (pinned)
+        sched_setaffinity(0, sizeof cpus_pin[0], &cpus_pin[0]);
     FILE *f = popen(cmd, "r");
+    if (pinned)
+        sched_setaffinity(0, sizeof cpus_all, &cpus_all);
     int64_t p50[64], p99[64];
     int n = 0, lines = 0;
     out->count = 0;
@@ -301,10 +316,6 @@ static int dds_round_trip(size_t size, int seconds, dds_t *out)
 #define BLOCK_MAX_US 150000
 #define BLOCK_MIN_KEPT 10
 
-/* The pinned path's CPUs: the first two this process may use (its echo on the second, the
- * pinging side on the first during its blocks, as `sched: {cpus: [N]}` would put them). */
-static cpu_set_t cpus_all, cpus_pin[2];
-
 static int pin_setup(void)
 {
     if (sched_getaffinity(0, sizeof cpus_all, &cpus_all) < 0)
@@ -327,7 +338,7 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
     rtt_t *r = &pg->path[path];
     if (!wanted(path))
         return 0;
-    if (path == LOCAL_PINNED)
+    if (path == LOCAL_PINNED || path == LOCAL_ONE_CPU)
         sched_setaffinity(0, sizeof cpus_pin[0], &cpus_pin[0]);
     marie_loop_set_spin(marie_component_loop(pg->c), spins(path) ? SPIN_US : 0);
     int kept = r->n;
@@ -339,7 +350,7 @@ static int block(pinger_t *pg, int path, marie_image_t *img, int32_t *seq, int n
         lost += round_trip(pg, path, img, (*seq)++, 200) < 0;
     marie_loop_set_spin(marie_component_loop(pg->c), 0);
     pg->cpu_ns[path] += self_cpu_ns() + thread_cpu_ns(pg->echo[path]) - cpu;
-    if (path == LOCAL_PINNED)
+    if (path == LOCAL_PINNED || path == LOCAL_ONE_CPU)
         sched_setaffinity(0, sizeof cpus_all, &cpus_all);
     return lost;
 }
@@ -403,8 +414,13 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("lost_local_pinned", label, lost[LOCAL_PINNED], "msgs", NAN);
     row("cpu_per_rtt_local_pinned", label, lpin->n ? pg->cpu_ns[LOCAL_PINNED] / 1000.0 / lpin->n : NAN, "us",
         loc->n ? pg->cpu_ns[LOCAL] / 1000.0 / loc->n : NAN);
+    /* Both sides on one CPU, where the kernel sometimes puts them: they take turns on it. */
+    rtt_t *l1 = &pg->path[LOCAL_ONE_CPU];
+    row("p50_local_one_cpu", label, pct(l1, 0.5), "us", pct(lpin, 0.5));
+    row("p99_local_one_cpu", label, pct(l1, 0.99), "us", pct(lpin, 0.99));
+    row("lost_local_one_cpu", label, lost[LOCAL_ONE_CPU], "msgs", NAN);
     dds_t d;
-    if (dds_round_trip(size, 3, &d) < 0) {
+    if (dds_round_trip(size, 3, false, &d) < 0) {
         printf("# rtt: no ddsperf figures for %s (scripts/install-deps.sh bench installs "
                "cyclonedds-tools)\n", label);
         return;
@@ -421,6 +437,15 @@ static void run_size(pinger_t *pg, const char *label, size_t size, int n)
     row("p99_local_spin_vs_dds", label, pct(lspin, 0.99), "us", d.p99);
     row("p50_local_pinned_vs_dds", label, pct(lpin, 0.5), "us", d.p50);
     row("p99_local_pinned_vs_dds", label, pct(lpin, 0.99), "us", d.p99);
+    row("p50_local_one_cpu_vs_dds", label, pct(l1, 0.5), "us", d.p50);
+    /* ddsperf pinned as the pinned path is (BENCH_RTT_DDS_PINNED=1, not in the default run):
+     * whether the pinned rows' baseline favours marie (docs/transport.md, "Where it stands"). */
+    dds_t dp;
+    const char *dpin = getenv("BENCH_RTT_DDS_PINNED");
+    if (dpin && !strcmp(dpin, "1") && dds_round_trip(size, 3, true, &dp) == 0) {
+        row("p50_dds_pinned", label, dp.p50, "us", d.p50);
+        row("p50_local_pinned_vs_dds_pinned", label, pct(lpin, 0.5), "us", dp.p50);
+    }
     fprintf(stderr, "bench_rtt: ddsperf %s: %ld round trips\n", label, d.count);
 }
 
@@ -444,7 +469,7 @@ int main(int argc, char **argv)
     self[k] = 0;
     /* The echoes and the pinging side are components of one system file (channels, spin,
      * transports), as a robot's are. */
-    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[3072];
+    char sys[] = "/tmp/bench-rtt-XXXXXX.yaml", text[4096];
     snprintf(text, sizeof text, "system: bench-rtt\nlcm_url: \"%s\"\n"
              "transports:\n"
              "  RTT_SHM_PING: {kind: shm, max_size: 1000000, slots: 8}\n"
@@ -455,6 +480,8 @@ int main(int argc, char **argv)
              "  RTT_LSPIN_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
              "  RTT_LPIN_PING: {kind: local, max_size: 1000000, slots: 8}\n"
              "  RTT_LPIN_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_L1CPU_PING: {kind: local, max_size: 1000000, slots: 8}\n"
+             "  RTT_L1CPU_PONG: {kind: local, max_size: 1000000, slots: 8}\n"
              "components:\n"
              "  ping: {exec: /bin/true}\n"
              "  pong: {exec: /bin/true, ports: {ping: RTT_PING, pong: RTT_PONG}}\n"
@@ -463,7 +490,8 @@ int main(int argc, char **argv)
              "  pong-shm: {exec: /bin/true, ports: {ping: RTT_SHM_PING, pong: RTT_SHM_PONG}}\n"
              "  pong-local: {exec: /bin/true, ports: {ping: RTT_LOCAL_PING, pong: RTT_LOCAL_PONG}}\n"
              "  pong-lspin: {exec: /bin/true, sched: {spin_us: %d}, ports: {ping: RTT_LSPIN_PING, pong: RTT_LSPIN_PONG}}\n"
-             "  pong-lpin: {exec: /bin/true, ports: {ping: RTT_LPIN_PING, pong: RTT_LPIN_PONG}}\n",
+             "  pong-lpin: {exec: /bin/true, ports: {ping: RTT_LPIN_PING, pong: RTT_LPIN_PONG}}\n"
+             "  pong-l1cpu: {exec: /bin/true, ports: {ping: RTT_L1CPU_PING, pong: RTT_L1CPU_PONG}}\n",
              marie_default_url(), SPIN_US, SPIN_US);
     if (test_write_temp(sys, 5, text) < 0)
         return 1;
@@ -475,8 +503,8 @@ int main(int argc, char **argv)
                              (char *)echo_names[p], NULL};
         char *argv_raw[] = {self, "echo-raw", NULL};
         pg.echo[p] = test_spawn(p == RAW ? argv_raw : argv_echo, NULL);
-        if (p == LOCAL_PINNED && pg.echo[p] > 0)
-            sched_setaffinity(pg.echo[p], sizeof cpus_pin[1], &cpus_pin[1]);
+        if ((p == LOCAL_PINNED || p == LOCAL_ONE_CPU) && pg.echo[p] > 0)
+            sched_setaffinity(pg.echo[p], sizeof cpus_pin[p == LOCAL_PINNED], &cpus_pin[p == LOCAL_PINNED]);
     }
     char *av[] = {"bench-ping", "--system", sys, "--name", "ping"};
     marie_errors_t e = {0};
@@ -505,7 +533,7 @@ int main(int argc, char **argv)
         }
     }
     printf("# bench\tmetric\tvalue (marie ports)\tunit\tbaseline (raw LCM, or ddsperf for _vs_dds)\tratio\n");
-    /* Fewer round trips than the samples' room: eight paths in two CPU states (a p99 of 1000
+    /* Fewer round trips than the samples' room: nine paths in two CPU states (a p99 of 1000
      * is its tenth-largest; 900 KB's of 200 its second). */
     run_size(&pg, "64B", 64, 1000);
     run_size(&pg, "8KB", 8192, 600);

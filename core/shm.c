@@ -5,6 +5,7 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdatomic.h>
 #include <stdbool.h>
@@ -21,7 +22,7 @@
 #include "core/err.h"
 
 #define SHM_MAGIC 0x6d73686du     /* "mshm" */
-#define SHM_VERSION 2
+#define SHM_VERSION 3
 #define SHM_PREFIX "marie-shm."
 #define SHM_DIR "/dev/shm"
 #define READER_MAPS 4
@@ -48,10 +49,12 @@ typedef struct {
     _Atomic uint64_t held;
 } hold_t;
 
-/* seq is 2n - 1 while message n is written into the slot, 2n once it is complete. */
+/* seq is 2n - 1 while message n is written into the slot, 2n once it is complete; cpu is the
+ * CPU its writer committed it on (-1: unknown). */
 typedef struct {
     _Atomic uint64_t seq;
     uint64_t size;
+    _Atomic int32_t cpu;
 } slot_hdr_t;
 
 #define DATA_OFF ((sizeof(slot_hdr_t) + ALIGN - 1) / ALIGN * ALIGN)
@@ -101,6 +104,7 @@ typedef struct {
 struct marie_shm_reader {
     reader_map_t maps[READER_MAPS];
     uint64_t uses;
+    int last_cpu;               /* the writer's CPU for the last marie_shm_ref_at() that found one */
 };
 
 static slot_hdr_t *slot_at(const uint8_t *base, const geom_t *g, uint64_t i)
@@ -320,6 +324,7 @@ int marie_shm_commit(marie_shm_writer_t *w, size_t len, marie_shm_ref_t *ref)
     slot_hdr_t *s = slot_at(w->base, &w->g, w->slot);
     bool fits = len <= w->g.slot_size;
     s->size = fits ? len : 0;
+    atomic_store_explicit(&s->cpu, sched_getcpu(), memory_order_relaxed);    /* a load from rseq's area */
     atomic_store_explicit(&s->seq, 2 * n, memory_order_release);
     atomic_store_explicit(index_at(w->base, &w->g, n), n << SLOT_BITS | w->slot, memory_order_release);
     atomic_store_explicit(&w->hdr->write_seq, n, memory_order_release);
@@ -362,8 +367,13 @@ int marie_shm_write(marie_shm_writer_t *w, const void *data, size_t len, marie_s
 
 marie_shm_reader_t *marie_shm_reader_create(void)
 {
-    return calloc(1, sizeof(marie_shm_reader_t));
+    marie_shm_reader_t *r = calloc(1, sizeof(marie_shm_reader_t));
+    if (r)
+        r->last_cpu = -1;
+    return r;
 }
+
+int marie_shm_reader_last_cpu(const marie_shm_reader_t *r) { return r->last_cpu; }
 
 static void map_drop(reader_map_t *m)
 {
@@ -633,6 +643,7 @@ int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, ma
     uint64_t size = s->size;
     if (size > m->g.slot_size)
         return marie_fail(EAGAIN);
+    r->last_cpu = atomic_load_explicit(&s->cpu, memory_order_relaxed);
     memcpy(ref->segment, m->name, sizeof ref->segment);     /* segment's own name, NUL-terminated */
     ref->seq = seq;
     ref->size = (uint32_t)size;

@@ -88,6 +88,9 @@ void marie_shm_release(marie_shm_reader_t *r, const marie_shm_ref_t *ref);
  * complete, or being rewritten), or what opening the segment said. */
 int64_t marie_shm_newest(marie_shm_reader_t *r, const char *segment);
 int marie_shm_ref_at(marie_shm_reader_t *r, const char *segment, int64_t seq, marie_shm_ref_t *ref);
+/* The CPU the writer committed the message of the last marie_shm_ref_at() that found one on, or
+ * -1 (none yet). A reader that is on that CPU shares it with its writer (marie_bus_waking()). */
+int marie_shm_reader_last_cpu(const marie_shm_reader_t *r);
 /* Whether message seq is complete (or overwritten already). It looks first at the slot the
  * message goes to when no hold moved it, which is the line its reader reads next anyway, and
  * only then at the header's newest: a reader waiting for the next message takes one line from

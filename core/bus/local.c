@@ -35,6 +35,7 @@ typedef struct {
     unsigned rings;
     bool slept;                     /* the loop slept since the doorbell was last drained */
     bool asleep;                    /* the registry's entries say this bus's reader sleeps */
+    int writer_cpu;                 /* the CPU the last message read was committed on, or -1 */
 } lbus_t;
 
 /* A woken reader that has not run after this long most likely waits for the publisher's CPU
@@ -90,7 +91,7 @@ static void sweep(lchan_t *ch);
 
 static void *chan_open(lcm_t *bus, const marie_bus_transport_t *t, void **bus_st)
 {
-    if (!*bus_st && !(*bus_st = MARIE_NEW(lbus_t, .bus = bus, .bell = {.fd = -1, .self = -1})))
+    if (!*bus_st && !(*bus_st = MARIE_NEW(lbus_t, .bus = bus, .bell = {.fd = -1, .self = -1}, .writer_cpu = -1)))
         return NULL;
     lchan_t *ch = MARIE_NEW(lchan_t, .lb = *bus_st, .t = *t, .pub_at = -1, .sub_at = -1);
     if (!ch)
@@ -307,6 +308,7 @@ static int follow(lchan_t *ch, peer_t *p, int max)
         int rc = marie_shm_ref_at(p->r, p->segment, p->next, &ref);
         if (rc == 0) {
             p->next++;
+            ch->lb->writer_cpu = marie_shm_reader_last_cpu(p->r);
             deliver(ch, p, &ref);
             n++;
             continue;
@@ -381,6 +383,11 @@ static int bus_sleep(void *bus_st, bool on)
 static bool bus_waking(void *bus_st)
 {
     lbus_t *lb = bus_st;
+    /* The writer of the last message read committed it on this CPU: it runs here, and its answer
+     * comes only once this loop lets go of the CPU (a spin would keep it waiting until the kernel
+     * takes the CPU away). */
+    if (lb->writer_cpu >= 0 && lb->writer_cpu == sched_getcpu())
+        return true;
     bool probe = lb->missed < MISSED_MAX || lb->rings % PROBE_EVERY == 0;
     if (!lb->rang || (!lb->rang_here && probe && marie_mono_us() - lb->rang_at < WAKING_US))
         return false;
