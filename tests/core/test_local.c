@@ -385,8 +385,8 @@ static void a_reader_spins_while_answers_come_quickly_only(void **state)
 /* Two processes that the kernel put on one CPU take turns on it: a loop whose last message came
  * from a writer on its own CPU does not spin for the next (the writer could only answer once the
  * spin ends), it sleeps and is rung. No answer may wait for a ring that never comes: all 400
- * come back, each within its 2 s. How fast is bench_rtt's (`p50_local_one_cpu_*`): 6-8 us a
- * round trip here against 15-17 us while the loops spun; the figures are printed. */
+ * come back, each within its 2 s. bench_rtt measures how fast (`p50_local_one_cpu_*`); the
+ * figures are printed: 6-8.5 us a round trip here, 15-16.5 us while the loops spun. */
 static void two_on_one_cpu_take_turns_without_spinning(void **state)
 {
     cpu_set_t all, one;
