@@ -323,6 +323,33 @@ static int ping_pong(marie_component_t *pinger, seen_t *got, int n, int gap_us)
     return back;
 }
 
+/* An echo in another process on CPU `theirs`, this process on `ours`, and a pinger that has
+ * had its first answer (the echo is up) and 50 more (the loops learn that answers come
+ * quickly). The echo's pid. */
+static pid_t start_echo(const cpu_set_t *ours, const cpu_set_t *theirs, seen_t *got, marie_component_t **pinger)
+{
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        sched_setaffinity(0, sizeof *theirs, theirs);
+        _exit(marie_main(&echo_def, 5, (char *[]){"echo", "--system", sysfile, "--name", "echo", NULL}, NULL));
+    }
+    sched_setaffinity(0, sizeof *ours, ours);
+    *pinger = make(&pinger_def, "pinger", got);
+    for (int i = 0; i < 500 && !ping_pong(*pinger, got, 1, 10000); i++)
+        ;
+    ping_pong(*pinger, got, 50, 0);
+    return pid;
+}
+
+static void stop_echo(pid_t pid, marie_component_t *pinger, const cpu_set_t *all)
+{
+    kill(pid, SIGTERM);
+    waitpid(pid, NULL, 0);
+    marie_component_destroy(pinger);
+    sched_setaffinity(0, sizeof *all, all);
+}
+
 /* A loop whose answers come back quickly looks at its rings for them before it sleeps: in a
  * ping-pong with an echo in another process, most answers are read without the pinger sleeping
  * (the echo, whose pings come as quickly, does the same). An idle reader costs nothing: with
@@ -342,19 +369,9 @@ static void a_reader_spins_while_answers_come_quickly_only(void **state)
         }
     if (found < 2)
         skip();         /* one CPU: the two take turns on it, and the loop rightly sleeps */
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid == 0) {
-        sched_setaffinity(0, sizeof cpus[1], &cpus[1]);
-        _exit(marie_main(&echo_def, 5, (char *[]){"echo", "--system", sysfile, "--name", "echo", NULL}, NULL));
-    }
-    sched_setaffinity(0, sizeof cpus[0], &cpus[0]);
     seen_t got = {0};
-    marie_component_t *pinger = make(&pinger_def, "pinger", &got);
-    /* The echo is up once it answers. */
-    for (int i = 0; i < 500 && !ping_pong(pinger, &got, 1, 10000); i++)
-        ;
-    ping_pong(pinger, &got, 50, 0);         /* the loops learn that answers come quickly */
+    marie_component_t *pinger;
+    pid_t pid = start_echo(&cpus[0], &cpus[1], &got, &pinger);
     long slept = thread_sleeps();
     int64_t t0 = marie_mono_us();
     int back = ping_pong(pinger, &got, 400, 0);
@@ -365,10 +382,7 @@ static void a_reader_spins_while_answers_come_quickly_only(void **state)
     int idle_back = ping_pong(pinger, &got, 20, 20000);
     cpu = thread_cpu_us() - cpu;
     idle_slept = thread_sleeps() - idle_slept;
-    kill(pid, SIGTERM);
-    waitpid(pid, NULL, 0);
-    marie_component_destroy(pinger);
-    sched_setaffinity(0, sizeof all, &all);
+    stop_echo(pid, pinger, &all);
     print_message("back to back: %d answers, slept %ld times, %lld ns a round trip; 20 ms apart: %d "
                   "answers, slept %ld times, %lld us of CPU\n", back, slept, (long long)rtt_ns, idle_back,
                   idle_slept, (long long)cpu);
@@ -397,28 +411,16 @@ static void two_on_one_cpu_take_turns_without_spinning(void **state)
             CPU_SET(c, &one);
             break;
         }
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid == 0) {
-        sched_setaffinity(0, sizeof one, &one);
-        _exit(marie_main(&echo_def, 5, (char *[]){"echo", "--system", sysfile, "--name", "echo", NULL}, NULL));
-    }
-    sched_setaffinity(0, sizeof one, &one);
     seen_t got = {0};
-    marie_component_t *pinger = make(&pinger_def, "pinger", &got);
-    for (int i = 0; i < 500 && !ping_pong(pinger, &got, 1, 10000); i++)
-        ;
-    ping_pong(pinger, &got, 50, 0);
+    marie_component_t *pinger;
+    pid_t pid = start_echo(&one, &one, &got, &pinger);
     long slept = thread_sleeps();
     int64_t t0 = marie_mono_us(), cpu = thread_cpu_us();
     int back = ping_pong(pinger, &got, 400, 0);
     int64_t rtt_ns = (marie_mono_us() - t0) * 1000 / 400;
     cpu = thread_cpu_us() - cpu;
     slept = thread_sleeps() - slept;
-    kill(pid, SIGTERM);
-    waitpid(pid, NULL, 0);
-    marie_component_destroy(pinger);
-    sched_setaffinity(0, sizeof all, &all);
+    stop_echo(pid, pinger, &all);
     print_message("on one CPU: %d answers, slept %ld times, %lld ns a round trip, %lld ns of the pinger's CPU each\n",
                   back, slept, (long long)rtt_ns, (long long)cpu * 1000 / 400);
     assert_int_equal(back, 400);
